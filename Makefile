@@ -1,0 +1,56 @@
+# fsdvs_hw — the two commands:
+#   make demo   set up (venv + packages) and run the main job on the embedded default
+#   make test   set up and run the test suite (slow tests deselected)
+# Both create or reuse .venv in this folder and install only what is missing.
+
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.fsdvs_hw-installed
+SYSTEM_TOOLS := ngspice iverilog yosys verilator
+TORCH_PIN := torch==2.13.0
+PYTEST_ARGS ?=
+DEMO_OUT ?= out/demo
+
+.PHONY: demo test test-all bench setup system-deps clean
+
+demo: setup
+	$(BIN)/fsdvs-hw analyse designs/kernels/dog_7x7.json --focal-mm 4.0 --out $(DEMO_OUT)
+
+test: setup
+	$(BIN)/python -m pytest -m "not slow" -n 2 $(PYTEST_ARGS)
+
+test-all: setup
+	$(BIN)/python -m pytest -n 2 $(PYTEST_ARGS)
+
+bench: setup
+	$(BIN)/fsdvs-hw bench all
+
+setup: system-deps $(STAMP)
+
+# Debian packages the realisation checks need (SPICE, Verilog simulation and synthesis).
+system-deps:
+	@missing=""; for t in $(SYSTEM_TOOLS); do command -v $$t >/dev/null 2>&1 || missing="$$missing $$t"; done; \
+	if [ -n "$$missing" ]; then \
+	  echo "fsdvs_hw: installing Debian packages:$$missing"; \
+	  if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null) \
+	    || echo "fsdvs_hw: WARNING: apt-get could not install$$missing; tests that need them will be skipped with a reason."; \
+	  elif command -v sudo >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1; then \
+	    (sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null) \
+	    || echo "fsdvs_hw: WARNING: could not install$$missing (need root/sudo and apt-get); SPICE/RTL checks will be skipped."; \
+	  else \
+	    echo "fsdvs_hw: WARNING: missing$$missing and no apt-get/root here; install them by hand (Debian: apt-get install$$missing). SPICE/RTL checks will be skipped."; \
+	  fi; \
+	fi
+
+$(STAMP): pyproject.toml
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	@$(BIN)/python -c "import sys; assert sys.version_info >= (3, 11), 'fsdvs_hw needs Python >= 3.11, venv has ' + sys.version" 
+	@$(BIN)/python -m pip install -q --upgrade pip
+	@$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/python -m pip install -q $(TORCH_PIN)
+	$(BIN)/python -m pip install -q -e '.[test,notebooks,distributed]'
+	@touch $@
+
+clean:
+	rm -rf $(VENV) out .pytest_cache

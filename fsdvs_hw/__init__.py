@@ -1,0 +1,54 @@
+"""fsdvs_hw — design frequency-selective event cameras (FS-DVS).
+
+Bring a learned spatial kernel; fit it to physically realisable forms (dual resistive mesh,
+quantised ASIC taps, metalens PSF); push each realisation back through a differentiable event
+simulator and task evaluators; score accuracy loss against agreement with the human contrast
+sensitivity function (CSF) and against hardware cost.
+
+The public names below are imported lazily, so ``import fsdvs_hw`` stays fast and heavy
+dependencies (torch, casadi) load only when used.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__version__ = "0.1.0"
+
+# public name -> module that defines it
+_LAZY: dict[str, str] = {
+    # core
+    "Kernel": "fsdvs_hw.kernels",
+    "load_kernel": "fsdvs_hw.kernels",
+    "reference_kernel": "fsdvs_hw.kernels",
+    "InputError": "fsdvs_hw.errors",
+    "KernelError": "fsdvs_hw.errors",
+    "radial_response": "fsdvs_hw.spectra",
+    "spectral_summary": "fsdvs_hw.spectra",
+    "pixels_per_degree": "fsdvs_hw.spectra",
+    "Geometry": "fsdvs_hw.csf",
+    "contrast_sensitivity": "fsdvs_hw.csf",
+    "csf_agreement": "fsdvs_hw.csf",
+    "analyse_kernel": "fsdvs_hw.analysis",
+    # realisations
+    "kernel_error": "fsdvs_hw.realise.base",
+    "fit_resistive_mesh": "fsdvs_hw.realise.mesh",
+    "fit_asic_taps": "fsdvs_hw.realise.asic",
+    "fit_metalens": "fsdvs_hw.realise.metalens",
+}
+
+__all__ = ["__version__", *_LAZY]
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'fsdvs_hw' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

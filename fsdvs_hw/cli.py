@@ -1,0 +1,70 @@
+"""The ``fsdvs-hw`` command: a thin front end (parse, call one library function, print).
+
+Each sub-command lives in its own module, registered in :data:`COMMANDS` as a dotted module
+path. A command module defines ``HELP`` (one line), ``add_arguments(parser)`` and
+``run(args) -> int``; it imports heavy dependencies inside ``run`` so that ``--help`` is fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from .errors import InputError, ToolMissingError
+
+__all__ = ["main", "COMMANDS"]
+
+#: sub-command name -> module implementing it
+COMMANDS: dict[str, str] = {
+    "analyse": "fsdvs_hw.analysis_cli",
+    "bench": "fsdvs_hw.bench",
+}
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fsdvs-hw",
+        description=(
+            "Design frequency-selective event cameras: analyse a learned spatial kernel against "
+            "the human contrast sensitivity function, fit it to hardware (resistive mesh, ASIC "
+            "taps, metalens) and score what building it costs."
+        ),
+    )
+    parser.add_argument("--version", action="version", version=_version())
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, module_path in COMMANDS.items():
+        module = importlib.import_module(module_path)
+        p = sub.add_parser(name, help=module.HELP, description=getattr(module, "DESCRIPTION", module.HELP),
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        module.add_arguments(p)
+        p.set_defaults(_module=module)
+    return parser
+
+
+def _version() -> str:
+    from . import __version__
+
+    return f"fsdvs-hw {__version__}"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``fsdvs-hw`` console script; returns the exit status."""
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "command", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args._module.run(args) or 0)
+    except (InputError, ToolMissingError) as exc:
+        print(f"fsdvs-hw {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"fsdvs-hw {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,531 @@
+"""Spatial kernels: taps on the sensor's pixel grid, reference families, loading and saving.
+
+A :class:`Kernel` is what every other part of fsdvs_hw consumes and produces: a learned kernel
+from training, a reference (delta, Gaussian, difference of Gaussians, Laplacian of Gaussian), or
+the kernel a hardware realisation really implements. It holds an odd, square, finite float64
+array of taps (row index = y, column index = x, centre tap at ``[r, r]`` with ``r = size // 2``)
+and the sensor pixel pitch in metres, so that spatial frequencies can be turned into physical
+units.
+
+File formats (``Kernel.save`` / :func:`load_kernel`, chosen by extension):
+
+``.npy``
+    The taps only (``allow_pickle=False``).
+``.csv``
+    Comma-separated rows; an optional first comment line ``# fsdvs_hw {json}`` carries name,
+    pitch and provenance.
+``.json``
+    ``{"format": "fsdvs_hw.kernel", "version": 1, "name", "pitch_m", "taps", "provenance"}``.
+``.pt``
+    ``torch.load(weights_only=True)`` only: a tensor (k×k, or 1×1×k×k as in a conv weight), or a
+    dict with a ``"taps"`` (or ``"weight"``/``"kernel"``) tensor and optional ``"pitch_m"``,
+    ``"name"``, ``"provenance_json"``. Arbitrary pickled objects are never loaded.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import KernelError
+
+__all__ = [
+    "DEFAULT_PITCH_M",
+    "MAX_KERNEL_SIZE",
+    "Kernel",
+    "REFERENCE_KERNELS",
+    "reference_kernel",
+    "load_kernel",
+    "delta_taps",
+    "gaussian_taps",
+    "dog_taps",
+    "log_taps",
+]
+
+#: Default sensor pixel pitch in metres: 4.86 µm, the pitch of the Sony IMX636 / Prophesee Gen4
+#: event sensor (a common research DVS, 1280×720).
+DEFAULT_PITCH_M: float = 4.86e-6
+
+#: Largest kernel side accepted, in pixels. FS-DVS kernels are 3×3…9×9; realisations may be
+#: evaluated on larger windows, but anything beyond this is almost certainly a mistake.
+MAX_KERNEL_SIZE: int = 63
+
+_PITCH_RANGE_M = (1e-7, 1e-3)
+_FORMAT_TAG = "fsdvs_hw.kernel"
+_SUFFIXES = (".npy", ".csv", ".json", ".pt")
+
+
+def _validate_taps(taps: Any, *, source: str = "taps") -> np.ndarray:
+    """Return ``taps`` as a read-only float64 copy, or raise :class:`KernelError` naming the problem."""
+    try:
+        arr = np.array(taps, dtype=np.float64, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise KernelError(f"{source}: kernel taps must be a numeric 2-D array ({exc})") from None
+    if np.iscomplexobj(np.asarray(taps)):
+        raise KernelError(f"{source}: kernel taps must be real, got a complex array")
+    if arr.ndim != 2:
+        raise KernelError(f"{source}: kernel taps must be 2-D, got {arr.ndim}-D with shape {arr.shape}")
+    rows, cols = arr.shape
+    if rows != cols:
+        raise KernelError(f"{source}: kernel must be square, got shape {rows}x{cols}")
+    if rows % 2 == 0:
+        raise KernelError(
+            f"{source}: kernel size must be odd (so it has a centre tap), got {rows}x{cols}"
+        )
+    if rows > MAX_KERNEL_SIZE:
+        raise KernelError(
+            f"{source}: kernel size {rows}x{cols} is absurd for a per-pixel filter; "
+            f"allowed 1..{MAX_KERNEL_SIZE} (odd)"
+        )
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        y, x = np.argwhere(bad)[0]
+        raise KernelError(
+            f"{source}: kernel taps must be finite; {int(bad.sum())} tap(s) are NaN/inf "
+            f"(first at row {y}, column {x}: {arr[y, x]})"
+        )
+    if not np.any(arr != 0.0):
+        raise KernelError(f"{source}: kernel is all zeros; it would pass no light and has no spectrum")
+    arr.setflags(write=False)
+    return arr
+
+
+def _validate_pitch(pitch_m: Any, *, source: str = "pitch_m") -> float:
+    try:
+        p = float(pitch_m)
+    except (TypeError, ValueError):
+        raise KernelError(f"{source}: pixel pitch must be a number in metres, got {pitch_m!r}") from None
+    lo, hi = _PITCH_RANGE_M
+    if not (math.isfinite(p) and lo <= p <= hi):
+        raise KernelError(
+            f"{source}: pixel pitch {p!r} m is outside the allowed range [{lo:g}, {hi:g}] m "
+            "(did you pass micrometres instead of metres?)"
+        )
+    return p
+
+
+@dataclass(frozen=True, eq=False)
+class Kernel:
+    """A spatial kernel on the sensor's pixel grid.
+
+    Parameters
+    ----------
+    taps : array_like, shape (k, k)
+        Kernel weights; ``k`` odd, 1 ≤ k ≤ :data:`MAX_KERNEL_SIZE`, finite, not all zero. Stored as
+        a read-only float64 copy. Row index is y, column index is x; the centre tap is
+        ``taps[k // 2, k // 2]``. Units: dimensionless (gain per input pixel).
+    pitch_m : float, optional
+        Sensor pixel pitch in metres (default :data:`DEFAULT_PITCH_M` = 4.86 µm).
+    name : str, optional
+        Short human-readable name.
+    provenance : dict, optional
+        JSON-serialisable record of where the kernel came from (training run, reference family and
+        parameters, realisation).
+
+    Raises
+    ------
+    KernelError
+        If the taps are not 2-D, not square, of even or absurd size, contain NaN/inf or are all
+        zeros, or if the pitch is not a plausible length in metres.
+    """
+
+    taps: np.ndarray
+    pitch_m: float = DEFAULT_PITCH_M
+    name: str = "kernel"
+    provenance: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "taps", _validate_taps(self.taps))
+        object.__setattr__(self, "pitch_m", _validate_pitch(self.pitch_m))
+        if not isinstance(self.name, str):
+            raise KernelError(f"name: kernel name must be a string, got {type(self.name).__name__}")
+        prov = dict(self.provenance)
+        try:
+            json.dumps(prov)
+        except (TypeError, ValueError) as exc:
+            raise KernelError(f"provenance: must be JSON-serialisable ({exc})") from None
+        object.__setattr__(self, "provenance", prov)
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def size(self) -> int:
+        """Side length k in pixels."""
+        return int(self.taps.shape[0])
+
+    @property
+    def radius(self) -> int:
+        """Half-width ``k // 2`` in pixels."""
+        return self.size // 2
+
+    @property
+    def dc_gain(self) -> float:
+        """Sum of the taps: the response to a uniform input (dimensionless)."""
+        return float(self.taps.sum())
+
+    @property
+    def centre(self) -> float:
+        """The centre tap's value."""
+        return float(self.taps[self.radius, self.radius])
+
+    # ------------------------------------------------------------------ derived kernels
+    def with_taps(self, taps: Any, *, name: str | None = None, **provenance: Any) -> Kernel:
+        """A new kernel with other taps but this kernel's pitch (provenance extended)."""
+        prov = {**self.provenance, **provenance}
+        return Kernel(taps, pitch_m=self.pitch_m, name=name or self.name, provenance=prov)
+
+    def scaled(self, factor: float) -> Kernel:
+        """This kernel multiplied by ``factor`` (a non-zero finite number)."""
+        if not (math.isfinite(factor) and factor != 0):
+            raise KernelError(f"scale factor must be finite and non-zero, got {factor!r}")
+        return self.with_taps(self.taps * factor)
+
+    def normalised(self, mode: str = "peak") -> Kernel:
+        """This kernel scaled by a positive constant.
+
+        Parameters
+        ----------
+        mode : {"peak", "sum", "l2", "centre"}
+            ``peak``: max |tap| = 1; ``sum``: taps sum to 1 (needs non-zero DC); ``l2``: Euclidean
+            norm 1; ``centre``: centre tap = 1 (needs a non-zero centre).
+        """
+        t = self.taps
+        if mode == "peak":
+            d = float(np.abs(t).max())
+        elif mode == "sum":
+            d = float(t.sum())
+            if abs(d) < 1e-12 * float(np.abs(t).sum()):
+                raise KernelError("normalised('sum'): kernel has zero DC gain; use 'peak' or 'l2'")
+        elif mode == "l2":
+            d = float(np.sqrt((t * t).sum()))
+        elif mode == "centre":
+            d = self.centre
+            if d == 0:
+                raise KernelError("normalised('centre'): centre tap is zero")
+        else:
+            raise KernelError(f"normalised: mode {mode!r} unknown; allowed 'peak', 'sum', 'l2', 'centre'")
+        return self.with_taps(t / d)
+
+    def padded(self, size: int) -> Kernel:
+        """This kernel zero-padded (centred) to ``size`` × ``size`` (odd, ≥ current size)."""
+        if size < self.size or size % 2 == 0:
+            raise KernelError(f"padded: size must be odd and ≥ {self.size}, got {size}")
+        p = (size - self.size) // 2
+        return self.with_taps(np.pad(self.taps, p))
+
+    def cropped(self, size: int) -> Kernel:
+        """The central ``size`` × ``size`` window (odd, ≤ current size)."""
+        if size > self.size or size % 2 == 0 or size < 1:
+            raise KernelError(f"cropped: size must be odd and in 1..{self.size}, got {size}")
+        c = (self.size - size) // 2
+        return self.with_taps(self.taps[c : c + size, c : c + size])
+
+    def asymmetry(self) -> float:
+        """Relative departure from 8-fold (dihedral D4) symmetry: ‖K − sym(K)‖₂ / ‖K‖₂ ∈ [0, 1]."""
+        t = self.taps
+        group = [t, t.T, t[::-1], t[:, ::-1], t[::-1, ::-1], t.T[::-1], t.T[:, ::-1], t.T[::-1, ::-1]]
+        sym = np.mean(group, axis=0)
+        return float(np.linalg.norm(t - sym) / np.linalg.norm(t))
+
+    def allclose(self, other: Kernel, *, rtol: float = 1e-9, atol: float = 0.0) -> bool:
+        """True when the taps have equal shape and agree elementwise (pitch ignored)."""
+        return self.taps.shape == other.taps.shape and bool(
+            np.allclose(self.taps, other.taps, rtol=rtol, atol=atol)
+        )
+
+    # ------------------------------------------------------------------ serialisation
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (the ``.json`` file format)."""
+        return {
+            "format": _FORMAT_TAG,
+            "version": 1,
+            "name": self.name,
+            "pitch_m": self.pitch_m,
+            "taps": self.taps.tolist(),
+            "provenance": dict(self.provenance),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, source: str = "dict") -> Kernel:
+        """Inverse of :meth:`to_dict`; errors name ``source`` and the field."""
+        if not isinstance(data, Mapping):
+            raise KernelError(f"{source}: expected a JSON object, got {type(data).__name__}")
+        if "taps" not in data:
+            raise KernelError(f"{source}: missing field 'taps' (a list of rows)")
+        fmt = data.get("format", _FORMAT_TAG)
+        if fmt != _FORMAT_TAG:
+            raise KernelError(f"{source}: field 'format' is {fmt!r}, expected {_FORMAT_TAG!r}")
+        taps = _validate_taps(data["taps"], source=f"{source}: field 'taps'")
+        pitch = _validate_pitch(data.get("pitch_m", DEFAULT_PITCH_M), source=f"{source}: field 'pitch_m'")
+        prov = data.get("provenance", {})
+        if not isinstance(prov, Mapping):
+            raise KernelError(f"{source}: field 'provenance' must be an object")
+        return cls(taps, pitch_m=pitch, name=str(data.get("name", Path(source).stem)), provenance=prov)
+
+    def save(self, path: str | Path) -> Path:
+        """Write the kernel to ``path``; the format follows the extension (.npy .csv .json .pt)."""
+        path = Path(path)
+        suffix = path.suffix.lower()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if suffix == ".npy":
+            np.save(path, np.asarray(self.taps), allow_pickle=False)
+        elif suffix == ".csv":
+            meta = {"name": self.name, "pitch_m": self.pitch_m, "provenance": dict(self.provenance)}
+            header = "fsdvs_hw " + json.dumps(meta)
+            np.savetxt(path, self.taps, delimiter=",", fmt="%.17g", header=header, comments="# ")
+        elif suffix == ".json":
+            path.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
+        elif suffix == ".pt":
+            import torch
+
+            torch.save(
+                {
+                    "taps": torch.from_numpy(np.array(self.taps)),
+                    "pitch_m": self.pitch_m,
+                    "name": self.name,
+                    "provenance_json": json.dumps(dict(self.provenance)),
+                },
+                path,
+            )
+        else:
+            raise KernelError(f"{path}: unknown kernel file extension {suffix!r}; allowed {', '.join(_SUFFIXES)}")
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path, *, pitch_m: float | None = None) -> Kernel:
+        """Same as :func:`load_kernel`."""
+        return load_kernel(path, pitch_m=pitch_m)
+
+    def __repr__(self) -> str:
+        return (
+            f"Kernel(name={self.name!r}, size={self.size}x{self.size}, pitch_m={self.pitch_m:.3g}, "
+            f"dc_gain={self.dc_gain:.4g}, centre={self.centre:.4g})"
+        )
+
+
+# ---------------------------------------------------------------------- loading
+def load_kernel(path: str | Path, *, pitch_m: float | None = None) -> Kernel:
+    """Load a kernel from a .npy, .csv, .json or .pt file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file. The format follows the extension; see the module docstring.
+    pitch_m : float, optional
+        Pixel pitch in metres. Overrides a pitch stored in the file; formats without one
+        (.npy, plain .csv) get :data:`DEFAULT_PITCH_M` when it is not given.
+
+    Raises
+    ------
+    KernelError
+        Missing file, unknown extension, unreadable content, or invalid taps — the message names
+        the file.
+    """
+    path = Path(path)
+    src = str(path)
+    if not path.is_file():
+        raise KernelError(f"{src}: kernel file not found")
+    suffix = path.suffix.lower()
+    meta: dict[str, Any] = {}
+    if suffix == ".npy":
+        try:
+            taps = np.load(path, allow_pickle=False)
+        except ValueError as exc:
+            raise KernelError(f"{src}: not a plain numeric .npy array ({exc})") from None
+    elif suffix == ".csv":
+        first = path.read_text().splitlines()[:1]
+        if first and first[0].startswith("# fsdvs_hw "):
+            try:
+                meta = json.loads(first[0][len("# fsdvs_hw ") :])
+            except json.JSONDecodeError as exc:
+                raise KernelError(f"{src}: malformed '# fsdvs_hw' header line ({exc})") from None
+        try:
+            taps = np.loadtxt(path, delimiter=",", comments="#", ndmin=2)
+        except ValueError as exc:
+            raise KernelError(f"{src}: not a numeric comma-separated table ({exc})") from None
+    elif suffix == ".json":
+        try:
+            data = json.loads(path.read_text())
+        except json.JSONDecodeError as exc:
+            raise KernelError(f"{src}: invalid JSON ({exc})") from None
+        if isinstance(data, list):
+            data = {"taps": data}
+        k = Kernel.from_dict(data, source=src)
+        return k if pitch_m is None else Kernel(k.taps, pitch_m=pitch_m, name=k.name, provenance=k.provenance)
+    elif suffix == ".pt":
+        taps, meta = _load_pt(path)
+    else:
+        raise KernelError(f"{src}: unknown kernel file extension {suffix!r}; allowed {', '.join(_SUFFIXES)}")
+    taps = np.asarray(taps)
+    while taps.ndim > 2 and taps.shape[0] == 1:  # conv weights (1, 1, k, k)
+        taps = taps[0]
+    taps = _validate_taps(taps, source=src)
+    pitch = pitch_m if pitch_m is not None else meta.get("pitch_m", DEFAULT_PITCH_M)
+    pitch = _validate_pitch(pitch, source=f"{src}: pitch_m")
+    prov = meta.get("provenance", {}) or {"loaded_from": path.name}
+    return Kernel(taps, pitch_m=pitch, name=str(meta.get("name", path.stem)), provenance=prov)
+
+
+def _load_pt(path: Path) -> tuple[np.ndarray, dict[str, Any]]:
+    import pickle
+
+    import torch
+
+    try:
+        obj = torch.load(path, map_location="cpu", weights_only=True)
+    except (pickle.UnpicklingError, RuntimeError, EOFError) as exc:
+        raise KernelError(
+            f"{path}: could not load safely with torch.load(weights_only=True); only tensors and "
+            f"plain dicts are accepted, never arbitrary pickled objects ({str(exc).splitlines()[0]})"
+        ) from None
+    meta: dict[str, Any] = {}
+    if isinstance(obj, Mapping):
+        key = next((k for k in ("taps", "weight", "kernel") if k in obj), None)
+        if key is None:
+            tensors = [k for k, v in obj.items() if isinstance(v, torch.Tensor)]
+            if len(tensors) != 1:
+                raise KernelError(
+                    f"{path}: dict has no 'taps'/'weight'/'kernel' entry and {len(tensors)} tensors; "
+                    "cannot tell which one is the kernel"
+                )
+            key = tensors[0]
+        tensor = obj[key]
+        if "pitch_m" in obj:
+            meta["pitch_m"] = float(obj["pitch_m"])
+        if "name" in obj:
+            meta["name"] = str(obj["name"])
+        if "provenance_json" in obj:
+            meta["provenance"] = json.loads(obj["provenance_json"])
+    else:
+        tensor = obj
+    if not isinstance(tensor, torch.Tensor):
+        raise KernelError(f"{path}: kernel entry is a {type(tensor).__name__}, expected a tensor")
+    return tensor.detach().to(torch.float64).cpu().numpy(), meta
+
+
+# ---------------------------------------------------------------------- reference families
+def _grid(size: int) -> tuple[np.ndarray, np.ndarray]:
+    if not isinstance(size, (int, np.integer)) or size < 1 or size % 2 == 0 or size > MAX_KERNEL_SIZE:
+        raise KernelError(f"size: must be an odd integer in 1..{MAX_KERNEL_SIZE}, got {size!r}")
+    r = size // 2
+    y, x = np.mgrid[-r : r + 1, -r : r + 1].astype(np.float64)
+    return x, y
+
+
+def _positive(name: str, value: float) -> float:
+    v = float(value)
+    if not (math.isfinite(v) and v > 0):
+        raise KernelError(f"{name}: must be a positive finite number, got {value!r}")
+    return v
+
+
+def delta_taps(size: int = 7) -> np.ndarray:
+    r"""Discrete delta: :math:`K[y, x] = 1` at the centre, 0 elsewhere (the 'w/o' FS-DVS baseline)."""
+    x, _ = _grid(size)
+    k = np.zeros_like(x)
+    k[size // 2, size // 2] = 1.0
+    return k
+
+
+def gaussian_taps(size: int = 7, sigma_px: float = 1.0) -> np.ndarray:
+    r"""Sampled Gaussian normalised to unit sum.
+
+    :math:`K[y, x] = \exp(-(x^2 + y^2) / (2\sigma^2)) / \sum \exp(\cdot)`, σ in pixels.
+    Its continuous Fourier transform is :math:`\exp(-2\pi^2\sigma^2 f^2)` (f in cycles/pixel).
+    """
+    x, y = _grid(size)
+    s = _positive("sigma_px", sigma_px)
+    g = np.exp(-(x * x + y * y) / (2 * s * s))
+    return g / g.sum()
+
+
+def dog_taps(
+    size: int = 7,
+    sigma_centre_px: float = 0.7,
+    sigma_surround_px: float = 2.0,
+    w_centre: float = 1.0,
+    w_surround: float = 0.8,
+) -> np.ndarray:
+    r"""Difference of Gaussians (centre-surround).
+
+    :math:`K = w_c G_{\sigma_c} - w_s G_{\sigma_s}` with each :math:`G` a sampled Gaussian of unit
+    sum on the k×k window (:func:`gaussian_taps`), so the DC gain is exactly :math:`w_c - w_s`:
+    ``w_surround == w_centre`` gives a balanced, zero-DC band-pass. The default (0.7 px, 2.0 px,
+    1.0, 0.8) keeps 20 % DC so that pre-log filtering of a uniform scene stays positive.
+    """
+    sc = _positive("sigma_centre_px", sigma_centre_px)
+    ss = _positive("sigma_surround_px", sigma_surround_px)
+    if ss <= sc:
+        raise KernelError(
+            f"sigma_surround_px ({ss}) must exceed sigma_centre_px ({sc}) for a centre-surround DoG"
+        )
+    wc, ws = float(w_centre), float(w_surround)
+    if not (math.isfinite(wc) and math.isfinite(ws)) or wc <= 0 or ws < 0:
+        raise KernelError(f"DoG weights must be finite with w_centre > 0, w_surround ≥ 0; got {wc}, {ws}")
+    return wc * gaussian_taps(size, sc) - ws * gaussian_taps(size, ss)
+
+
+def log_taps(size: int = 7, sigma_px: float = 1.0) -> np.ndarray:
+    r"""Negated Laplacian of Gaussian ("Mexican hat"), zero-mean, centre tap = 1.
+
+    :math:`K \propto (1 - r^2/(2\sigma^2))\, e^{-r^2/(2\sigma^2)}` (that is :math:`-\nabla^2 G` up to a
+    positive constant), then the window mean is subtracted so the DC gain is exactly 0 (as in
+    MATLAB's ``fspecial('log')``), then scaled so the centre tap is 1.
+    """
+    x, y = _grid(size)
+    s = _positive("sigma_px", sigma_px)
+    q = (x * x + y * y) / (2 * s * s)
+    k = (1 - q) * np.exp(-q)
+    k = k - k.mean()
+    c = k[size // 2, size // 2]
+    if c <= 0:
+        raise KernelError(f"log: sigma_px={s} is too small for a {size}x{size} window")
+    return k / c
+
+
+#: Registry of reference kernel families: name → taps generator ``f(size, **params)``.
+REFERENCE_KERNELS: dict[str, Callable[..., np.ndarray]] = {
+    "delta": delta_taps,
+    "gaussian": gaussian_taps,
+    "dog": dog_taps,
+    "log": log_taps,
+}
+
+
+def reference_kernel(
+    name: str, size: int = 7, *, pitch_m: float = DEFAULT_PITCH_M, **params: float
+) -> Kernel:
+    """A reference kernel from :data:`REFERENCE_KERNELS`.
+
+    Parameters
+    ----------
+    name : {"delta", "gaussian", "dog", "log"}
+        Family; see each ``*_taps`` function for its formula and parameters (σ in pixels).
+    size : int
+        Odd side length in pixels.
+    pitch_m : float
+        Pixel pitch in metres.
+    **params
+        Family parameters, e.g. ``sigma_px=1.2`` or ``sigma_centre_px=0.7, w_surround=1.0``.
+
+    Examples
+    --------
+    >>> abs(reference_kernel("dog", 7, w_surround=1.0).dc_gain) < 1e-12  # balanced DoG
+    True
+    """
+    key = name.lower().replace("-", "_")
+    if key not in REFERENCE_KERNELS:
+        raise KernelError(f"reference kernel {name!r} unknown; allowed: {', '.join(REFERENCE_KERNELS)}")
+    fn = REFERENCE_KERNELS[key]
+    try:
+        taps = fn(size, **params)
+    except TypeError as exc:
+        raise KernelError(f"reference kernel {name!r}: bad parameters {params} ({exc})") from None
+    label = key if not params else key + "(" + ", ".join(f"{k}={v:g}" for k, v in params.items()) + ")"
+    prov = {"reference": key, "size": size, **{k: float(v) for k, v in params.items()}}
+    return Kernel(taps, pitch_m=pitch_m, name=f"{label} {size}x{size}", provenance=prov)

@@ -1,0 +1,160 @@
+"""The realisation protocol shared by every hardware form of a kernel.
+
+A *realisation* is a physical way to build a kernel (dual resistive mesh, quantised ASIC taps,
+metalens PSF), or a reference that is scored the same way (the learned kernel itself, the delta
+"w/o" baseline). Every realisation answers four questions the exploration layer asks:
+
+``kernel()``
+    The :class:`~fsdvs_hw.kernels.Kernel` the hardware really applies, on the sensor's pixel grid
+    (not the target it was fitted to).
+``cost()``
+    Named hardware quantities with units (:class:`CostItem`), e.g. conductances in siemens,
+    adder count, die area in m², optical efficiency.
+``describe()``
+    A few human-readable lines.
+``to_dict()``
+    A JSON-serialisable dict with a ``"kind"`` key; :func:`realisation_from_dict` inverts it.
+
+Kinds register themselves in :data:`REALISATION_KINDS` as ``"module:Class"`` strings so that
+loading a stored design imports only the module it needs.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from ..errors import InputError
+from ..kernels import Kernel
+
+__all__ = [
+    "CostItem",
+    "Realisation",
+    "ReferenceRealisation",
+    "REALISATION_KINDS",
+    "realisation_from_dict",
+    "kernel_error",
+]
+
+
+@dataclass(frozen=True)
+class CostItem:
+    """One named hardware cost.
+
+    Parameters
+    ----------
+    value : float
+        The quantity, in ``unit``.
+    unit : str
+        SI unit ("S", "F", "s", "m^2", "W") or "count" / "1" for dimensionless numbers.
+    description : str
+        What it counts, in a few words.
+    """
+
+    value: float
+    unit: str
+    description: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"value": float(self.value), "unit": self.unit, "description": self.description}
+
+
+@runtime_checkable
+class Realisation(Protocol):
+    """Protocol every realisation (mesh, ASIC, metalens, reference) satisfies."""
+
+    kind: str
+
+    def kernel(self) -> Kernel:
+        """The kernel the realisation really applies, on the sensor pixel grid."""
+        ...
+
+    def cost(self) -> dict[str, CostItem]:
+        """Named hardware costs with units."""
+        ...
+
+    def describe(self) -> str:
+        """Human-readable summary (a few lines)."""
+        ...
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-serialisable form including ``"kind"``."""
+        ...
+
+
+#: kind → "module:Class" whose ``from_dict(d)`` classmethod rebuilds the realisation.
+REALISATION_KINDS: dict[str, str] = {
+    "reference": "fsdvs_hw.realise.base:ReferenceRealisation",
+    "mesh": "fsdvs_hw.realise.mesh:MeshDesign",
+    "asic": "fsdvs_hw.realise.asic:AsicDesign",
+    "metalens": "fsdvs_hw.realise.metalens:MetalensDesign",
+}
+
+
+def realisation_from_dict(data: Mapping[str, Any]) -> Realisation:
+    """Rebuild a realisation from :meth:`Realisation.to_dict` output."""
+    kind = data.get("kind") if isinstance(data, Mapping) else None
+    if kind not in REALISATION_KINDS:
+        raise InputError(f"realisation 'kind' is {kind!r}; allowed: {', '.join(REALISATION_KINDS)}")
+    module, cls = REALISATION_KINDS[kind].split(":")
+    return getattr(importlib.import_module(module), cls).from_dict(data)
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceRealisation:
+    """A kernel applied ideally (no hardware): the learned kernel, or the delta 'w/o' baseline.
+
+    Parameters
+    ----------
+    target : Kernel
+        The kernel applied exactly.
+    label : str
+        "learned", "delta", ... — shown in tables.
+    """
+
+    target: Kernel
+    label: str = "reference"
+    kind: str = field(default="reference", init=False)
+
+    def kernel(self) -> Kernel:
+        return self.target
+
+    def cost(self) -> dict[str, CostItem]:
+        return {}
+
+    def describe(self) -> str:
+        return f"{self.label}: ideal {self.target.size}x{self.target.size} kernel '{self.target.name}' (no hardware)"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "label": self.label, "kernel": self.target.to_dict()}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ReferenceRealisation:
+        return cls(Kernel.from_dict(data["kernel"], source="realisation.kernel"), label=str(data.get("label", "reference")))
+
+
+def kernel_error(realised: Kernel | np.ndarray, target: Kernel | np.ndarray, *, fit_scale: bool = False) -> float:
+    r"""Relative L2 error between a realised and a target kernel.
+
+    :math:`e = \lVert s K_r - K_t \rVert_2 / \lVert K_t \rVert_2`, where both kernels are
+    zero-padded (centred) to the larger size and :math:`s = 1`, or, with ``fit_scale=True``, the
+    least-squares scale :math:`s = \langle K_r, K_t\rangle / \lVert K_r \rVert^2` (use it when the
+    overall gain is free, e.g. folded into the event threshold).
+    """
+    a = realised.taps if isinstance(realised, Kernel) else np.asarray(realised, dtype=np.float64)
+    b = target.taps if isinstance(target, Kernel) else np.asarray(target, dtype=np.float64)
+    n = max(a.shape[0], b.shape[0])
+    a = np.pad(a, (n - a.shape[0]) // 2)
+    b = np.pad(b, (n - b.shape[0]) // 2)
+    nb = float(np.linalg.norm(b))
+    if nb == 0:
+        raise InputError("kernel_error: target kernel is all zeros")
+    s = 1.0
+    if fit_scale:
+        na2 = float((a * a).sum())
+        s = float((a * b).sum()) / na2 if na2 > 0 else 0.0
+    return float(np.linalg.norm(s * a - b) / nb)
