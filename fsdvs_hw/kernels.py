@@ -63,12 +63,12 @@ _SUFFIXES = (".npy", ".csv", ".json", ".pt")
 
 def _validate_taps(taps: Any, *, source: str = "taps") -> np.ndarray:
     """Return ``taps`` as a read-only float64 copy, or raise :class:`KernelError` naming the problem."""
+    if np.iscomplexobj(taps):
+        raise KernelError(f"{source}: kernel taps must be real, got a complex array")
     try:
         arr = np.array(taps, dtype=np.float64, copy=True)
     except (TypeError, ValueError) as exc:
         raise KernelError(f"{source}: kernel taps must be a numeric 2-D array ({exc})") from None
-    if np.iscomplexobj(np.asarray(taps)):
-        raise KernelError(f"{source}: kernel taps must be real, got a complex array")
     if arr.ndim != 2:
         raise KernelError(f"{source}: kernel taps must be 2-D, got {arr.ndim}-D with shape {arr.shape}")
     rows, cols = arr.shape
