@@ -1,0 +1,531 @@
+"""Quantised ASIC taps: the best integer kernel for a bit budget, its cost and its hardware.
+
+A digital FS-DVS filter applies integer taps ``q`` to digitised pixels; the realised kernel is
+``s * q`` with one scale ``s`` per kernel, either a power of two (a wire shift) or free (folded
+into the event comparator's threshold). :func:`fit_asic_taps` finds ``(s, q)``:
+
+1. **Symmetry.** The target is projected (least squares) onto the chosen symmetric subspace
+   (``none``: k² free taps, ``quadrant``: (r+1)², ``8-fold``: (r+1)(r+2)/2 — 49, 16, 10 for 7×7).
+2. **Scale (continuous).** For a free scale, nlopt's DIRECT-L global search over ``log2 s``
+   minimises the objective of the best integer taps at that scale (step 3); the result is polished
+   by alternating the least-squares scale of the taps with step 3 until the taps stop changing.
+   A power-of-two scale is searched over every useful exponent.
+3. **Taps (integer).** At a fixed scale the objective
+
+   .. math:: J(q) = \\frac{\\lVert s\\,q - K\\rVert_2^2}{\\lVert K\\rVert_2^2} + \\lambda\\,A(q)
+
+   (squared relative kernel error plus ``adder_weight`` λ times the adder count :math:`A`, with
+   symmetric pre-adds when ``pre_add``) is a sum over symmetry classes, so it is minimised exactly
+   class by class. For each class the optimum is among the nearest integers (above and below
+   ``K_c / s``) that have at most ``d`` canonical-signed-digit (CSD) digits, for every ``d``:
+   a handful of candidates instead of ``2**bits``. Ties go to fewer adders.
+
+The result, :class:`AsicDesign`, satisfies the realisation protocol (:mod:`fsdvs_hw.realise.base`):
+``kernel()`` is ``s * q``; ``cost()`` gives adders, CSD digits, accumulator width and, after
+:meth:`AsicDesign.synthesise`, yosys cells and area. :meth:`AsicDesign.apply` is the bit-exact
+integer model (:func:`~fsdvs_hw.realise.asic_arith.integer_correlate`), and
+:meth:`AsicDesign.verilog` / :meth:`AsicDesign.simulate` / :meth:`AsicDesign.synthesise` generate,
+simulate (Icarus Verilog) and synthesise (yosys) the streaming RTL (:mod:`fsdvs_hw.realise.asic_rtl`).
+
+References
+----------
+.. [J15] S. G. Johnson, The NLopt nonlinear-optimization package (DIRECT-L: J. M. Gablonsky and
+   C. T. Kelley, "A locally-biased form of the DIRECT algorithm", J. Global Optim. 21 (2001) 27-37).
+.. [H96] R. I. Hartley, "Subexpression sharing in filters using canonic signed digit
+   multipliers", IEEE Trans. Circuits Syst. II 43 (1996) 677-688.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..kernels import Kernel
+from .asic_arith import (
+    SYMMETRIES,
+    SymmetryClasses,
+    accumulator_bits,
+    adder_count,
+    csd_weight,
+    integer_correlate,
+    output_bits,
+    symmetry_classes,
+    tap_limit,
+)
+from .base import CostItem, kernel_error
+
+__all__ = ["AsicDesign", "fit_asic_taps", "SCALE_MODES", "exhaustive_asic_taps"]
+
+#: Scale options: ``"free"`` (any positive real, folded into the comparator threshold) or
+#: ``"pow2"`` (2**-e, a wire shift). A positive float fixes the scale (e.g. one LSB of the threshold).
+SCALE_MODES: tuple[str, ...] = ("free", "pow2")
+
+_SYMMETRY_TOL = 1e-9
+_DIRECT_MAXEVAL = 400
+
+
+# ---------------------------------------------------------------------------- the design
+@dataclass(frozen=True, eq=False)
+class AsicDesign:
+    """Integer taps and one scale: a kernel built as a shift-add digital filter.
+
+    Parameters
+    ----------
+    target : Kernel
+        The kernel that was fitted.
+    taps : ndarray of int64, shape (k, k)
+        Signed integer taps, ``|q| ≤ 2**(bits-1) - 1``, constant on each symmetry class.
+    scale : float
+        Realised kernel = ``scale * taps`` (dimensionless gain per pixel per integer step).
+    scale_mode : {"free", "pow2", "fixed"}
+        How the scale was chosen; ``pow2`` means ``scale == 2**-scale_exponent``.
+    bits : int
+        Tap width, sign included (2…24).
+    symmetry : {"none", "quadrant", "8-fold"}
+        Symmetry imposed on the taps (the RTL pre-adds each class when ``pre_add``).
+    input_bits : int
+        Unsigned pixel width the accumulator is sized for (1…32).
+    pre_add : bool
+        Whether pixels of one symmetry class are summed before the constant multiplication.
+    adder_weight : float
+        λ used in the fit (price of one adder in squared relative kernel error).
+    fit_info : dict
+        Diagnostics of the fit (continuous scale, evaluations, run time, naive-scale error).
+    synthesis : dict, optional
+        yosys results from :meth:`synthesise` (cells, area, image width, run time).
+    """
+
+    target: Kernel
+    taps: np.ndarray
+    scale: float
+    scale_mode: str
+    bits: int
+    symmetry: str
+    input_bits: int = 8
+    pre_add: bool = True
+    adder_weight: float = 0.0
+    fit_info: Mapping[str, Any] = field(default_factory=dict)
+    synthesis: Mapping[str, Any] | None = None
+    kind: str = field(default="asic", init=False)
+
+    def __post_init__(self) -> None:
+        q = np.asarray(self.taps)
+        if q.shape != self.target.taps.shape or not np.issubdtype(q.dtype, np.integer):
+            raise InputError(f"taps: must be an integer array of shape {self.target.taps.shape}, got {q.dtype} {q.shape}")
+        q = q.astype(np.int64).copy()
+        q.setflags(write=False)
+        object.__setattr__(self, "taps", q)
+        lim = tap_limit(self.bits)
+        if np.abs(q).max() > lim:
+            raise InputError(f"taps: |q| ≤ {lim} for bits={self.bits}, got {int(np.abs(q).max())}")
+        if not np.any(q):
+            raise InputError("taps: all integer taps are zero; the design would pass nothing")
+        if not (math.isfinite(self.scale) and self.scale > 0):
+            raise InputError(f"scale: must be a positive finite number, got {self.scale!r}")
+        if self.symmetry not in SYMMETRIES:
+            raise InputError(f"symmetry: {self.symmetry!r} unknown; allowed: {', '.join(SYMMETRIES)}")
+        cls = symmetry_classes(q.shape[0], self.symmetry)
+        if not np.array_equal(cls.expand(q[tuple(np.array(cls.representatives).T)]), q):
+            raise InputError(f"taps: not {self.symmetry}-symmetric")
+        accumulator_bits(q, self.input_bits)  # validates input_bits and the int64 range
+
+    # ------------------------------------------------------------------ protocol
+    def kernel(self) -> Kernel:
+        """The kernel really applied: ``scale * taps`` at the target's pixel pitch."""
+        return self.target.with_taps(
+            self.scale * self.taps.astype(np.float64),
+            name=f"{self.target.name} asic{self.bits}b",
+            realisation="asic",
+            bits=int(self.bits),
+        )
+
+    @property
+    def classes(self) -> SymmetryClasses:
+        """Symmetry classes of the taps."""
+        return symmetry_classes(self.taps.shape[0], self.symmetry)
+
+    @property
+    def error(self) -> float:
+        """Relative L2 error of the realised kernel against the target (absolute scale)."""
+        return kernel_error(self.kernel(), self.target)
+
+    @property
+    def shape_error(self) -> float:
+        """Relative L2 error after the least-squares gain (shape only; the gain is free in the threshold)."""
+        return kernel_error(self.kernel(), self.target, fit_scale=True)
+
+    @property
+    def adders(self) -> int:
+        """Adders of the realised architecture (symmetric pre-adds when ``pre_add``)."""
+        return adder_count(self.taps, self.classes if self.pre_add else None)
+
+    @property
+    def adders_per_tap(self) -> int:
+        """Adders with every tap multiplied separately (no pre-adds)."""
+        return adder_count(self.taps)
+
+    @property
+    def accumulator_bits(self) -> int:
+        """Signed accumulator width that cannot overflow for ``input_bits``-bit pixels."""
+        return accumulator_bits(self.taps, self.input_bits)
+
+    def output_bits(self, out_shift: int = 0) -> int:
+        """Signed output width after a rounding right shift by ``out_shift``."""
+        return output_bits(self.taps, self.input_bits, out_shift)
+
+    def cost(self) -> dict[str, CostItem]:
+        """Hardware cost: adders, CSD digits, taps, widths and (when synthesised) cells and area."""
+        q = self.taps
+        c: dict[str, CostItem] = {
+            "adders": CostItem(self.adders, "count", "two-input adders/subtractors" + (" with symmetric pre-adds" if self.pre_add else "")),
+            "adders_per_tap": CostItem(self.adders_per_tap, "count", "adders with every tap multiplied on its own (CSD)"),
+            "csd_digits": CostItem(int(csd_weight(q).sum()), "count", "non-zero CSD digits over all taps"),
+            "nonzero_taps": CostItem(int(np.count_nonzero(q)), "count", "taps that are not zero"),
+            "distinct_coefficients": CostItem(int(np.count_nonzero(q[tuple(np.array(self.classes.representatives).T)])), "count", "non-zero coefficients after symmetry"),
+            "tap_bits": CostItem(self.bits, "bit", "signed tap width"),
+            "accumulator_bits": CostItem(self.accumulator_bits, "bit", f"signed accumulator for {self.input_bits}-bit unsigned pixels"),
+        }
+        if self.synthesis:
+            s = self.synthesis
+            c["yosys_cells"] = CostItem(s["cells"], "count", f"yosys cells ({s['liberty']}, {s['image_width']}-pixel lines)")
+            c["flip_flops"] = CostItem(s["flip_flops"], "count", "flip-flops (line buffers, window, output)")
+            c["area_m2"] = CostItem(s["area_m2"], "m^2", f"cell area from the liberty file ({s['liberty']}, area unit µm²)")
+        return c
+
+    def describe(self) -> str:
+        scale = f"2^-{self.fit_info.get('scale_exponent')}" if self.scale_mode == "pow2" else f"{self.scale:.6g}"
+        lines = [
+            f"asic: {self.bits}-bit integer taps ({self.symmetry} symmetry) for '{self.target.name}', scale {scale} ({self.scale_mode})",
+            f"  kernel error {self.error:.4g} (relative L2), shape error {self.shape_error:.4g} (gain fitted)",
+            f"  adders {self.adders} ({'symmetric pre-adds' if self.pre_add else 'per tap'}; {self.adders_per_tap} per tap), "
+            f"CSD digits {int(csd_weight(self.taps).sum())}, accumulator {self.accumulator_bits} bits for {self.input_bits}-bit pixels",
+        ]
+        if self.synthesis:
+            s = self.synthesis
+            lines.append(f"  yosys: {s['cells']} cells, {s['flip_flops']} flip-flops, area {s['area_m2'] * 1e12:.1f} µm² "
+                         f"({s['liberty']}, {s['image_width']}-pixel lines)")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "target": self.target.to_dict(),
+            "taps": self.taps.tolist(),
+            "scale": float(self.scale),
+            "scale_mode": self.scale_mode,
+            "bits": int(self.bits),
+            "symmetry": self.symmetry,
+            "input_bits": int(self.input_bits),
+            "pre_add": bool(self.pre_add),
+            "adder_weight": float(self.adder_weight),
+            "fit_info": dict(self.fit_info),
+            "synthesis": None if self.synthesis is None else dict(self.synthesis),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> AsicDesign:
+        missing = [k for k in ("target", "taps", "scale", "scale_mode", "bits", "symmetry") if k not in data]
+        if missing:
+            raise InputError(f"asic design: missing field(s) {', '.join(missing)}")
+        return cls(
+            target=Kernel.from_dict(data["target"], source="asic design: field 'target'"),
+            taps=np.asarray(data["taps"], dtype=np.int64),
+            scale=float(data["scale"]),
+            scale_mode=str(data["scale_mode"]),
+            bits=int(data["bits"]),
+            symmetry=str(data["symmetry"]),
+            input_bits=int(data.get("input_bits", 8)),
+            pre_add=bool(data.get("pre_add", True)),
+            adder_weight=float(data.get("adder_weight", 0.0)),
+            fit_info=dict(data.get("fit_info", {})),
+            synthesis=data.get("synthesis"),
+        )
+
+    # ------------------------------------------------------------------ hardware
+    def apply(self, image: np.ndarray, *, out_shift: int = 0) -> np.ndarray:
+        """The bit-exact integer model on ``input_bits``-bit pixels (see :func:`~fsdvs_hw.realise.asic_arith.integer_correlate`)."""
+        return integer_correlate(image, self.taps, input_bits=self.input_bits, out_shift=out_shift)
+
+    def verilog(self, *, image_width: int, image_height: int, out_shift: int = 0, module_name: str = "fsdvs_conv") -> str:
+        """Synthesisable Verilog of the streaming filter (see :func:`~fsdvs_hw.realise.asic_rtl.generate_verilog`)."""
+        from .asic_rtl import generate_verilog
+
+        return generate_verilog(self.taps, input_bits=self.input_bits, image_width=image_width, image_height=image_height,
+                                out_shift=out_shift, symmetry=self.symmetry if self.pre_add else "none", module_name=module_name)
+
+    def simulate(self, images: np.ndarray, *, out_shift: int = 0) -> np.ndarray:
+        """Run the generated RTL in Icarus Verilog on ``images`` (N, H, W); returns the outputs."""
+        from .asic_rtl import simulate_rtl
+
+        return simulate_rtl(self.taps, images, input_bits=self.input_bits, out_shift=out_shift,
+                            symmetry=self.symmetry if self.pre_add else "none")
+
+    def synthesise(self, *, image_width: int = 16, image_height: int = 16, out_shift: int = 0) -> AsicDesign:
+        """Synthesise the RTL with yosys and the shipped liberty file; returns a copy with ``synthesis`` set."""
+        from .asic_rtl import synthesise_verilog
+
+        src = self.verilog(image_width=image_width, image_height=image_height, out_shift=out_shift)
+        rep = synthesise_verilog(src, top="fsdvs_conv")
+        return replace(self, synthesis={**rep.to_dict(), "image_width": int(image_width), "image_height": int(image_height)})
+
+
+# ---------------------------------------------------------------------------- the fit
+@lru_cache(maxsize=32)
+def _candidate_sets(bits: int) -> tuple[np.ndarray, ...]:
+    """For d = 0, 1, …: sorted integers in [-qmax, qmax] with at most d CSD digits."""
+    lim = tap_limit(bits)
+    v = np.arange(-lim, lim + 1, dtype=np.int64)
+    w = csd_weight(v)
+    return tuple(v[w <= d] for d in range(int(w.max()) + 1))
+
+
+class _TapProblem:
+    """The separable integer problem: class means, sizes, digit costs and the exact per-class solve."""
+
+    def __init__(self, target: np.ndarray, classes: SymmetryClasses, bits: int, adder_weight: float, pre_add: bool):
+        self.t = target
+        self.cls = classes
+        self.m = classes.sizes.astype(np.float64)
+        self.tbar = classes.class_means(target)
+        self.norm2 = float((target * target).sum())
+        # energy lost by the symmetric projection (a constant of the problem)
+        self.proj2 = float(((target - classes.expand(self.tbar)) ** 2).sum())
+        self.lim = tap_limit(bits)
+        self.sets = _candidate_sets(bits)
+        self.lam = float(adder_weight)
+        self.pre_add = pre_add
+
+    def class_cost(self, q: np.ndarray) -> np.ndarray:
+        """Adders attributable to each class value (classes on axis 0; the global −1 is a constant)."""
+        w = csd_weight(q).astype(np.float64)
+        m = self.m.reshape((-1,) + (1,) * (q.ndim - 1))
+        if self.pre_add:
+            return np.where(q != 0, m - 1.0 + w, 0.0)
+        return m * w
+
+    def objective(self, q: np.ndarray, s: float) -> float:
+        """J(q) at scale s (squared relative error + λ · adders)."""
+        err2 = (float((self.m * (s * q - self.tbar) ** 2).sum()) + self.proj2) / self.norm2
+        adders = max(float(self.class_cost(q).sum()) - 1.0, 0.0)
+        return err2 + self.lam * adders
+
+    def solve(self, s: float) -> np.ndarray:
+        """Exact minimiser of J over integer class values at fixed scale ``s``."""
+        u = self.tbar / s
+        cands = []
+        for S in self.sets:
+            i = np.searchsorted(S, u)
+            cands.append(S[np.clip(i - 1, 0, S.size - 1)])
+            cands.append(S[np.clip(i, 0, S.size - 1)])
+        C = np.stack(cands, axis=1)  # (n_classes, n_cand)
+        err = self.m[:, None] * (s * C - self.tbar[:, None]) ** 2 / self.norm2
+        cost = self.class_cost(C)
+        score = err + self.lam * cost
+        best = score.min(axis=1, keepdims=True)
+        tie = score <= best + 1e-12 * np.maximum(best, 1e-300)
+        pick = np.argmin(np.where(tie, cost, np.inf), axis=1)
+        return C[np.arange(C.shape[0]), pick]
+
+    def ls_scale(self, q: np.ndarray) -> float | None:
+        den = float((self.m * q * q).sum())
+        if den == 0:
+            return None
+        s = float((self.m * q * self.tbar).sum()) / den
+        return s if s > 0 else None
+
+
+def _resolve_symmetry(kernel: Kernel, symmetry: str) -> str:
+    if symmetry != "auto":
+        if symmetry not in SYMMETRIES:
+            raise InputError(f"symmetry: {symmetry!r} unknown; allowed: auto, {', '.join(SYMMETRIES)}")
+        return symmetry
+    t = kernel.taps
+    norm = float(np.linalg.norm(t))
+    for sym in ("8-fold", "quadrant"):
+        cls = symmetry_classes(kernel.size, sym)
+        if np.linalg.norm(t - cls.expand(cls.class_means(t))) <= _SYMMETRY_TOL * norm:
+            return sym
+    return "none"
+
+
+def _fit_free_scale(p: _TapProblem, amax: float) -> tuple[float, np.ndarray, dict[str, Any]]:
+    import nlopt
+
+    lo, hi = math.log2(amax / (2.0 * p.lim)), math.log2(2.0 * amax)
+    best: dict[str, Any] = {"J": math.inf}
+
+    def f(x: np.ndarray, grad: np.ndarray) -> float:
+        s = 2.0 ** float(x[0])
+        q = p.solve(s)
+        J = p.objective(q, s)
+        if J < best["J"]:
+            best.update(J=J, s=s, q=q)
+        return J
+
+    opt = nlopt.opt(nlopt.GN_DIRECT_L, 1)
+    opt.set_lower_bounds([lo])
+    opt.set_upper_bounds([hi])
+    opt.set_min_objective(f)
+    opt.set_maxeval(_DIRECT_MAXEVAL)
+    opt.set_xtol_abs(1e-9)
+    try:
+        opt.optimize([0.5 * (lo + hi)])
+    except nlopt.RoundoffLimited:  # the best point so far is kept in `best`
+        pass
+    evals = opt.get_numevals()
+    s_direct = best["s"]
+    # polish: alternate least-squares scale and exact integer solve (J never increases)
+    s, q = best["s"], best["q"]
+    for _ in range(50):
+        s_ls = p.ls_scale(q)
+        if s_ls is None:
+            break
+        q_new = p.solve(s_ls)
+        J_new = p.objective(q_new, s_ls)
+        J_old = p.objective(q, s_ls)
+        if J_old <= J_new:
+            s = s_ls
+            break
+        s, q = s_ls, q_new
+    J_ls = p.objective(q, s)
+    if J_ls > best["J"]:  # keep DIRECT's point if polishing did not help
+        s, q = best["s"], best["q"]
+    return s, q, {"nlopt_algorithm": "GN_DIRECT_L", "nlopt_evaluations": int(evals), "scale_direct": float(s_direct)}
+
+
+def fit_asic_taps(
+    kernel: Kernel,
+    bits: int = 8,
+    *,
+    symmetry: str = "auto",
+    scale: str | float = "free",
+    adder_weight: float = 0.0,
+    input_bits: int = 8,
+    pre_add: bool = True,
+    objective: str = "kernel",
+) -> AsicDesign:
+    """Fit integer taps and one scale to a kernel (see the module docstring for the method).
+
+    Parameters
+    ----------
+    kernel : Kernel
+        Target kernel (odd k×k).
+    bits : int
+        Signed tap width including the sign, 2…24 (``|q| ≤ 2**(bits-1) - 1``).
+    symmetry : {"auto", "none", "quadrant", "8-fold"}
+        Symmetry imposed on the taps. ``auto`` picks the highest symmetry the target has (to 1e-9
+        relative); an explicit one projects the target onto it first.
+    scale : {"free", "pow2"} or float
+        ``free``: any positive scale (nlopt DIRECT-L over log2 s, then polished); ``pow2``:
+        ``2**-e`` for an integer ``e``; a positive float fixes the scale (e.g. the gain one LSB of
+        the comparator threshold stands for).
+    adder_weight : float
+        λ ≥ 0: the price of one adder in squared relative kernel error (0: lowest error, ties to
+        fewer adders). Sweep it to trace error against adders.
+    input_bits : int
+        Unsigned pixel width the accumulator is sized for (1…32).
+    pre_add : bool
+        Count (and build) symmetric pre-adds.
+    objective : {"kernel"}
+        What the error term measures: the relative L2 kernel error (the CSF agreement of every
+        design is reported by the benchmark; it is not optimised directly).
+
+    Returns
+    -------
+    AsicDesign
+
+    Raises
+    ------
+    InputError
+        Bad arguments; a fixed scale or an adder weight at which every tap rounds to zero;
+        an ``input_bits`` whose accumulator would exceed the exact 63-bit model.
+    """
+    t0 = time.perf_counter()
+    if not isinstance(kernel, Kernel):
+        raise InputError(f"kernel: expected a fsdvs_hw Kernel, got {type(kernel).__name__}")
+    lim = tap_limit(bits)
+    if objective != "kernel":
+        raise InputError(f"objective: {objective!r} unknown; allowed: kernel")
+    lam = float(adder_weight)
+    if not (math.isfinite(lam) and lam >= 0):
+        raise InputError(f"adder_weight: must be a finite number ≥ 0, got {adder_weight!r}")
+    sym = _resolve_symmetry(kernel, symmetry)
+    cls = symmetry_classes(kernel.size, sym)
+    p = _TapProblem(kernel.taps, cls, int(bits), lam, bool(pre_add))
+    amax = float(np.abs(p.tbar).max())
+    if amax == 0:
+        raise InputError(f"kernel '{kernel.name}': its {sym}-symmetric part is all zeros; choose symmetry='none'")
+    naive_s = amax / lim
+    info: dict[str, Any] = {"naive_scale": naive_s, "naive_error": math.sqrt(p.objective(np.clip(np.round(p.tbar / naive_s), -lim, lim), naive_s) - 0.0)
+                            if lam == 0 else None}
+    if isinstance(scale, str):
+        if scale not in SCALE_MODES:
+            raise InputError(f"scale: {scale!r} unknown; allowed: {', '.join(SCALE_MODES)} or a positive number")
+        if scale == "free":
+            s, q, extra = _fit_free_scale(p, amax)
+            info.update(extra)
+            mode = "free"
+        else:
+            e_lo = math.floor(-math.log2(2.0 * amax))
+            e_hi = math.ceil(math.log2(2.0 * lim / amax))
+            best = None
+            for e in range(e_lo, e_hi + 1):
+                qe = p.solve(2.0**-e)
+                J = p.objective(qe, 2.0**-e)
+                if best is None or J < best[0]:
+                    best = (J, e, qe)
+            _, e, q = best
+            s, mode = 2.0**-e, "pow2"
+            info["scale_exponent"] = int(e)
+    else:
+        s = float(scale)
+        if not (math.isfinite(s) and s > 0):
+            raise InputError(f"scale: a fixed scale must be a positive finite number, got {scale!r}")
+        q, mode = p.solve(s), "fixed"
+    if not np.any(q):
+        why = (f"at the fixed scale {s:.4g} (largest tap {amax:.4g} is below half a step)" if mode == "fixed"
+               else f"with adder_weight={lam:g} (an adder costs more than the whole kernel error)")
+        raise InputError(f"kernel '{kernel.name}' rounds to all-zero {bits}-bit taps {why}")
+    info["fit_time_s"] = time.perf_counter() - t0
+    info["objective"] = p.objective(q, s)
+    return AsicDesign(target=kernel, taps=cls.expand(q).astype(np.int64), scale=float(s), scale_mode=mode, bits=int(bits),
+                      symmetry=sym, input_bits=int(input_bits), pre_add=bool(pre_add), adder_weight=lam, fit_info=info)
+
+
+def exhaustive_asic_taps(kernel: Kernel, bits: int, *, symmetry: str, adder_weight: float = 0.0,
+                         pre_add: bool = True, max_combinations: int = 2_000_000) -> tuple[np.ndarray, float, float]:
+    """Brute-force optimum over every integer tap vector, each with its least-squares free scale.
+
+    The test oracle of :func:`fit_asic_taps` (``scale="free"``) on tiny problems: enumerates all
+    ``(2**bits - 1) ** n_classes`` class values.
+
+    Returns
+    -------
+    (taps, scale, objective)
+    """
+    sym = _resolve_symmetry(kernel, symmetry)
+    cls = symmetry_classes(kernel.size, sym)
+    p = _TapProblem(kernel.taps, cls, int(bits), float(adder_weight), bool(pre_add))
+    n = cls.n_classes
+    vals = np.arange(-p.lim, p.lim + 1, dtype=np.int64)
+    if vals.size**n > max_combinations:
+        raise InputError(f"exhaustive search over {vals.size}^{n} tap vectors exceeds max_combinations={max_combinations}")
+    Q = np.stack(np.meshgrid(*([vals] * n), indexing="ij"), axis=-1).reshape(-1, n)
+    Q = Q[np.any(Q != 0, axis=1)]
+    num = (p.m * Q * p.tbar).sum(axis=1)
+    den = (p.m * Q * Q).sum(axis=1)
+    s = num / den
+    ok = s > 0
+    Q, s = Q[ok], s[ok]
+    err2 = ((p.m * (s[:, None] * Q - p.tbar) ** 2).sum(axis=1) + p.proj2) / p.norm2
+    cost = p.class_cost(Q.T).sum(axis=0)
+    J = err2 + p.lam * np.maximum(cost - 1.0, 0.0)
+    i = int(np.argmin(J))
+    return cls.expand(Q[i]).astype(np.int64), float(s[i]), float(J[i])
