@@ -20,6 +20,8 @@ __all__ = ["main", "COMMANDS"]
 COMMANDS: dict[str, str] = {
     "analyse": "fsdvs_hw.analysis_cli",
     "bench": "fsdvs_hw.bench",
+    "explore": "fsdvs_hw.explore.explore",
+    "sweep": "fsdvs_hw.explore.sweep",
 }
 
 

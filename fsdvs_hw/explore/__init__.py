@@ -1,0 +1,39 @@
+"""Design exploration: design files, scoring, sweeps, the results store and the main job.
+
+``fsdvs-hw explore DESIGN --out DIR`` (:mod:`fsdvs_hw.explore.explore`) fits every realisation
+of a design's kernel, scores each (:mod:`~fsdvs_hw.explore.scoring`), stores one row per design
+point (:mod:`~fsdvs_hw.explore.store`) and writes the HTML report (:mod:`fsdvs_hw.report`).
+``fsdvs-hw sweep DESIGN`` (:mod:`~fsdvs_hw.explore.sweep`) runs a design's sweep axes on a local
+process pool or a Dask cluster.
+"""
+
+from __future__ import annotations
+
+from .design import Design, DesignError, load_design, parse_design
+from .scoring import accuracy_losses, fit_realisation, score
+from .store import ResultsStore
+from .sweep import DesignPoint, evaluate_point, expand_points, run_points
+
+__all__ = [
+    "Design",
+    "DesignError",
+    "load_design",
+    "parse_design",
+    "fit_realisation",
+    "score",
+    "accuracy_losses",
+    "ResultsStore",
+    "DesignPoint",
+    "expand_points",
+    "evaluate_point",
+    "run_points",
+    "run_exploration",
+]
+
+
+def __getattr__(name: str):
+    if name == "run_exploration":
+        from .explore import run_exploration
+
+        return run_exploration
+    raise AttributeError(f"module 'fsdvs_hw.explore' has no attribute {name!r}")

@@ -1,0 +1,533 @@
+"""Design files: TOML descriptions of one exploration (kernel, sensor, optics, realisations, tasks).
+
+A design file says *what* to explore; :mod:`fsdvs_hw.explore.sweep` turns it into design points
+and :mod:`fsdvs_hw.explore.scoring` scores each one. Every key is checked against a schema
+before any work starts, and every problem is reported as one :class:`~fsdvs_hw.errors.InputError`
+naming the file, the key, the value and what is allowed.
+
+Layout (every section and key is optional; defaults in brackets)::
+
+    [design]        name ["design file stem"], description [""]
+    [kernel]        source = "file" | "reference" ["reference"]
+                    path  (source = "file": .json/.npy/.csv/.pt, relative to the design file)
+                    family, size, params  (source = "reference": fsdvs_hw.kernels.reference_kernel)
+    [sensor]        pitch_m [4.86e-6], resolution [[48, 64]] (H, W px), threshold_on/off [0.2],
+                    threshold_sigma [0.03], placement = "pre_log" | "post_log",
+                    positivity = "floor" | "pedestal" | "differential"
+    [optics]        focal_length_m [4e-3]  (turns cycles/pixel into cycles/degree)
+    [analysis]      csf_methods, n_freq
+    [realisations]  include = ["learned", "delta", "mesh", "asic", "metalens"]
+    [realisations.mesh|asic|metalens]   keyword options of the fit function
+                    (fit_resistive_mesh / fit_asic_taps / fit_metalens)
+    [tasks]         names, checkpoint_dir, fine_tune_steps, tracks, n_clips, seed
+    [emulation]     display_bits, display_gamma, display_peak_nits, upsample_factor
+    [sweep]         axes = { "asic.bits" = [2, 4, 8], "sensor.threshold_on" = [0.1, 0.2] }
+    [run]           workers, seed
+
+Sweep axes are dotted keys into this layout; ``"mesh.X"`` is short for ``"realisations.mesh.X"``.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import importlib
+import inspect
+import json
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError, KernelError
+from ..kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, REFERENCE_KERNELS, Kernel, load_kernel, reference_kernel
+
+__all__ = [
+    "Design",
+    "DesignError",
+    "load_design",
+    "parse_design",
+    "REALISATION_FITTERS",
+    "REFERENCE_REALISATIONS",
+    "CSF_DEFAULT_METHODS",
+    "axis_values",
+]
+
+
+class DesignError(InputError):
+    """A design file is invalid; the message names the file, key, value and what is allowed."""
+
+
+#: Hardware realisation name → "module:fit function" (the function takes the target kernel first).
+REALISATION_FITTERS: dict[str, str] = {
+    "mesh": "fsdvs_hw.realise.mesh:fit_resistive_mesh",
+    "asic": "fsdvs_hw.realise.asic:fit_asic_taps",
+    "metalens": "fsdvs_hw.realise.metalens:fit_metalens",
+}
+
+#: Ideal references scored like realisations: the target kernel itself and the delta "w/o" baseline.
+REFERENCE_REALISATIONS: tuple[str, ...] = ("learned", "delta")
+
+#: CSF models scored when a design names none (Mannos–Sakrison first: the paper's reference).
+CSF_DEFAULT_METHODS: tuple[str, ...] = ("mannos_sakrison_1974", "barten_1999", "daly_1993", "watson_ahumada_2005")
+
+_NUMBER = (int, float)
+
+
+@dataclass(frozen=True)
+class _Field:
+    """Schema of one key: allowed types, default, range/choices, and a few words of meaning."""
+
+    types: tuple[type, ...]
+    default: Any
+    doc: str
+    lo: float | None = None
+    hi: float | None = None
+    choices: tuple[Any, ...] | None = None
+    item_types: tuple[type, ...] | None = None  # for lists
+    length: int | None = None  # for lists
+    odd: bool = False
+    lo_open: bool = False  # lo is exclusive
+
+    def allowed(self) -> str:
+        parts: list[str] = []
+        tname = " or ".join(_type_name(t) for t in self.types)
+        if self.item_types is not None:
+            inner = " or ".join(_type_name(t) for t in self.item_types)
+            tname = f"a list of {self.length or ''} {inner}".replace("  ", " ")
+        parts.append(tname)
+        if self.choices is not None:
+            parts.append("one of " + ", ".join(repr(c) for c in self.choices))
+        if self.lo is not None or self.hi is not None:
+            lo = "-inf" if self.lo is None else f"{self.lo:g}"
+            hi = "inf" if self.hi is None else f"{self.hi:g}"
+            parts.append(f"in {'(' if self.lo_open else '['}{lo}, {hi}]")
+        if self.odd:
+            parts.append("odd")
+        return ", ".join(parts) + f" ({self.doc})"
+
+
+def _type_name(t: type) -> str:
+    return {int: "integer", float: "number", str: "string", bool: "boolean", dict: "table", list: "list"}.get(
+        t, t.__name__
+    )
+
+
+def _f(types: Any, default: Any, doc: str, **kw: Any) -> _Field:
+    return _Field(types if isinstance(types, tuple) else (types,), default, doc, **kw)
+
+
+_PLACEMENTS = ("pre_log", "post_log")
+_POSITIVITY = ("floor", "pedestal", "differential")
+_TRACKS = ("simulator", "emulation")
+
+#: The schema: section → key → field. ``[realisations.<name>]`` tables are handled separately.
+_SCHEMA: dict[str, dict[str, _Field]] = {
+    "design": {
+        "name": _f(str, None, "short name used in reports"),
+        "description": _f(str, "", "free text"),
+    },
+    "kernel": {
+        "source": _f(str, "reference", "where the target kernel comes from", choices=("file", "reference")),
+        "path": _f(str, None, "kernel file, relative to the design file (.json .npy .csv .pt)"),
+        "family": _f(str, "dog", "reference family", choices=tuple(REFERENCE_KERNELS)),
+        "size": _f(int, 7, "kernel side in pixels", lo=1, hi=MAX_KERNEL_SIZE, odd=True),
+        "params": _f(dict, {}, "reference family parameters, e.g. sigma_centre_px = 0.7"),
+    },
+    "sensor": {
+        "pitch_m": _f(_NUMBER, DEFAULT_PITCH_M, "pixel pitch in metres", lo=1e-7, hi=1e-3),
+        "resolution": _f(list, [48, 64], "simulated sensor size [H, W] in pixels", item_types=(int,), length=2,
+                         lo=8, hi=4096),
+        "threshold_on": _f(_NUMBER, 0.2, "ON contrast threshold (log units)", lo=1e-4, hi=10.0),
+        "threshold_off": _f(_NUMBER, 0.2, "OFF contrast threshold (log units)", lo=1e-4, hi=10.0),
+        "threshold_sigma": _f(_NUMBER, 0.03, "per-pixel threshold mismatch σ (log units)", lo=0.0, hi=1.0),
+        "placement": _f(str, "pre_log", "where the kernel sits relative to the log stage", choices=_PLACEMENTS),
+        "positivity": _f(str, "pedestal", "how negative filtered intensities are handled", choices=_POSITIVITY),
+    },
+    "optics": {
+        "focal_length_m": _f(_NUMBER, 4.0e-3, "imaging focal length in metres (sets pixels/degree)",
+                             lo=1e-4, hi=1.0),
+    },
+    "analysis": {
+        "csf_methods": _f(list, list(CSF_DEFAULT_METHODS), "CSF models to compare against", item_types=(str,)),
+        "n_freq": _f(int, 64, "radial-response frequency samples", lo=8, hi=4096),
+    },
+    "realisations": {
+        "include": _f(list, ["learned", "delta", "mesh", "asic", "metalens"], "realisations to fit and score",
+                      item_types=(str,), choices=(*REFERENCE_REALISATIONS, *REALISATION_FITTERS)),
+    },
+    "tasks": {
+        "names": _f(list, [], "task evaluators (fsdvs_hw.tasks) for accuracy loss; [] = none",
+                    item_types=(str,)),
+        "checkpoint_dir": _f(str, "kernels", "folder of task checkpoints, relative to the design file"),
+        "fine_tune_steps": _f(int, 0, "optional short fine-tune after the zero-shot swap", lo=0, hi=100000),
+        "tracks": _f(list, ["simulator"], "evaluation tracks", item_types=(str,), choices=_TRACKS),
+        "n_clips": _f(int, 16, "evaluation clips per task", lo=1, hi=100000),
+        "seed": _f(int, 0, "evaluation seed", lo=0, hi=2**31 - 1),
+    },
+    "emulation": {
+        "display_bits": _f(int, 8, "display bit depth", lo=1, hi=16),
+        "display_gamma": _f(_NUMBER, 2.2, "display gamma (encoded = linear^(1/gamma))", lo=1.0, hi=4.0),
+        "display_peak_nits": _f(_NUMBER, 400.0, "display peak luminance in cd/m²", lo=1.0, hi=10000.0),
+        "display_black_nits": _f(_NUMBER, 0.3, "display black level in cd/m²", lo=0.0, hi=100.0),
+        "upsample_factor": _f(int, 4, "temporal upsampling before display", lo=1, hi=64),
+    },
+    "sweep": {
+        "axes": _f(dict, {}, "dotted key → list of values; points are the grid product"),
+    },
+    "run": {
+        "workers": _f(int, 2, "local worker processes", lo=1, hi=256),
+        "seed": _f(int, 0, "seed for fits and noise", lo=0, hi=2**31 - 1),
+    },
+}
+
+#: Options of each hardware realisation checked before the fit function is consulted.
+_REALISATION_SCHEMA: dict[str, dict[str, _Field]] = {
+    "mesh": {},
+    "asic": {
+        "bits": _f(int, 8, "tap bit-width", lo=1, hi=32),
+    },
+    "metalens": {
+        "aperture_m": _f(_NUMBER, None, "lens aperture diameter in metres", lo=1e-7, hi=1e-1, lo_open=True),
+        "focal_length_m": _f(_NUMBER, None, "lens focal length in metres", lo=1e-7, hi=1.0),
+    },
+}
+
+
+def _is_type(value: Any, types: tuple[type, ...]) -> bool:
+    if isinstance(value, bool):
+        return bool in types
+    if isinstance(value, int) and float in types:
+        return True
+    return isinstance(value, types)
+
+
+class _Checker:
+    """Collects problems as ``key = value: what is allowed`` lines for one file."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+        self.problems: list[str] = []
+
+    def add(self, key: str, value: Any, message: str) -> None:
+        shown = json.dumps(value, default=repr) if not isinstance(value, Mapping) else "{...}"
+        if len(shown) > 80:
+            shown = shown[:77] + "..."
+        self.problems.append(f"key '{key}' = {shown}: {message}")
+
+    def field(self, key: str, value: Any, spec: _Field) -> Any:
+        """Check one value; return it normalised (ints → floats where numbers are allowed)."""
+        if not _is_type(value, spec.types):
+            self.add(key, value, f"wrong type {_type_name(type(value))}; allowed: {spec.allowed()}")
+            return spec.default
+        if spec.item_types is not None:
+            if spec.length is not None and len(value) != spec.length:
+                self.add(key, value, f"needs {spec.length} items; allowed: {spec.allowed()}")
+                return spec.default
+            for i, item in enumerate(value):
+                if not _is_type(item, spec.item_types):
+                    self.add(f"{key}[{i}]", item, f"wrong type {_type_name(type(item))}; allowed: {spec.allowed()}")
+                    return spec.default
+                if spec.choices is not None and item not in spec.choices:
+                    self.add(f"{key}[{i}]", item, f"not allowed; allowed: {spec.allowed()}")
+                self._range(f"{key}[{i}]", item, spec)
+            return list(value)
+        if spec.choices is not None and value not in spec.choices:
+            self.add(key, value, f"not allowed; allowed: {spec.allowed()}")
+            return spec.default
+        self._range(key, value, spec)
+        if float in spec.types and isinstance(value, int):
+            value = float(value)
+        return value
+
+    def _range(self, key: str, value: Any, spec: _Field) -> None:
+        if not isinstance(value, _NUMBER) or isinstance(value, bool):
+            return
+        bad = not math.isfinite(value)
+        if spec.lo is not None:
+            bad |= value <= spec.lo if spec.lo_open else value < spec.lo
+        if spec.hi is not None:
+            bad |= value > spec.hi
+        if spec.odd and int(value) % 2 == 0:
+            bad = True
+        if bad:
+            self.add(key, value, f"out of range; allowed: {spec.allowed()}")
+
+    def raise_if_any(self) -> None:
+        if self.problems:
+            n = len(self.problems)
+            head = f"{self.source}: invalid design file ({n} problem{'s' if n > 1 else ''})"
+            raise DesignError(head + ":\n  " + "\n  ".join(self.problems))
+
+
+@dataclass(frozen=True, eq=False)
+class Design:
+    """A validated design: every section filled with defaults, the target kernel loaded.
+
+    Attributes
+    ----------
+    data : dict
+        The full, validated design (sections → keys), JSON-serialisable.
+    source : str
+        Where it came from (file path or ``"<string>"``); used in messages.
+    base_dir : Path
+        Folder that relative paths (kernel file, checkpoints) are resolved against.
+    target : Kernel
+        The kernel every realisation is fitted to, at ``sensor.pitch_m``.
+    """
+
+    data: dict[str, Any]
+    source: str
+    base_dir: Path
+    target: Kernel = field(repr=False)
+
+    @property
+    def name(self) -> str:
+        return str(self.data["design"]["name"])
+
+    def section(self, name: str) -> dict[str, Any]:
+        """A copy of one section (``"sensor"``, ``"realisations.asic"``, ...)."""
+        node: Any = self.data
+        for part in name.split("."):
+            node = node[part]
+        return copy.deepcopy(node)
+
+    @property
+    def realisations(self) -> list[str]:
+        return list(self.data["realisations"]["include"])
+
+    def realisation_options(self, name: str) -> dict[str, Any]:
+        """Keyword options for one hardware realisation's fit function."""
+        return copy.deepcopy(self.data["realisations"].get(name, {}))
+
+    def checkpoint_dir(self) -> Path:
+        return (self.base_dir / self.data["tasks"]["checkpoint_dir"]).resolve()
+
+    def with_overrides(self, overrides: Mapping[str, Any]) -> Design:
+        """A new, re-validated design with dotted keys replaced (``{"asic.bits": 4}``)."""
+        data = copy.deepcopy(self.data)
+        for key, value in overrides.items():
+            _set_dotted(data, _canonical_key(key), value)
+        data["sweep"] = {"axes": {}}
+        return parse_design(data, source=f"{self.source} with {dict(overrides)}", base_dir=self.base_dir)
+
+    def fingerprint(self) -> str:
+        """SHA-1 over the validated content and the target taps (changes when any input changes)."""
+        blob = json.dumps({"data": self.data, "target": self.target.to_dict()}, sort_keys=True, default=str)
+        return hashlib.sha1(blob.encode()).hexdigest()
+
+    def to_dict(self) -> dict[str, Any]:
+        return copy.deepcopy(self.data)
+
+
+def _canonical_key(key: str) -> str:
+    first = key.split(".", 1)[0]
+    if first in REALISATION_FITTERS:
+        return "realisations." + key
+    return key
+
+
+def _set_dotted(data: dict[str, Any], key: str, value: Any) -> None:
+    parts = key.split(".")
+    node = data
+    for p in parts[:-1]:
+        node = node.setdefault(p, {})
+    node[parts[-1]] = value
+
+
+def load_design(path: str | Path) -> Design:
+    """Read and validate a TOML design file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.toml`` file. Relative paths inside it are resolved against its folder.
+
+    Raises
+    ------
+    DesignError
+        Missing or unparsable file, unknown section or key, wrong type, value out of range,
+        missing or invalid kernel file, unknown realisation option — all problems found, in one
+        message naming the file, each key, its value and what is allowed.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DesignError(f"{path}: design file not found")
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise DesignError(f"{path}: not valid TOML ({exc})") from None
+    raw.setdefault("design", {}).setdefault("name", path.stem)
+    return parse_design(raw, source=str(path), base_dir=path.parent)
+
+
+def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: str | Path = ".") -> Design:
+    """Validate a design given as nested mappings (what :func:`load_design` reads from TOML)."""
+    chk = _Checker(source)
+    if not isinstance(raw, Mapping):
+        raise DesignError(f"{source}: a design must be a table, got {type(raw).__name__}")
+    data: dict[str, Any] = {}
+    for section in raw:
+        if section not in _SCHEMA:
+            chk.add(section, raw[section], f"unknown section; allowed: {', '.join(_SCHEMA)}")
+    for section, fields in _SCHEMA.items():
+        given = raw.get(section, {})
+        if not isinstance(given, Mapping):
+            chk.add(section, given, "must be a table ([section])")
+            given = {}
+        out: dict[str, Any] = {}
+        subtables = set(REALISATION_FITTERS) if section == "realisations" else set()
+        for key, value in given.items():
+            if key in subtables:
+                continue
+            if key not in fields:
+                allowed = ", ".join([*fields, *sorted(subtables)])
+                chk.add(f"{section}.{key}", value, f"unknown key; allowed in [{section}]: {allowed}")
+        for key, spec in fields.items():
+            out[key] = chk.field(f"{section}.{key}", given[key], spec) if key in given else copy.deepcopy(spec.default)
+        if section == "realisations":
+            for name in REALISATION_FITTERS:
+                opts = given.get(name, {})
+                if not isinstance(opts, Mapping):
+                    chk.add(f"realisations.{name}", opts, "must be a table of fit options")
+                    opts = {}
+                out[name] = _check_realisation_options(chk, name, dict(opts))
+        data[section] = out
+    if data["design"]["name"] is None:
+        data["design"]["name"] = "design"
+    base = Path(base_dir)
+    _check_cross(chk, data)
+    _check_axes(chk, data)
+    target = _load_target(chk, data, base)
+    chk.raise_if_any()
+    assert target is not None
+    return Design(data=data, source=source, base_dir=base, target=target)
+
+
+def _fit_signature(name: str) -> inspect.Signature | None:
+    """The fit function's signature, or None while its module is not available in this checkout."""
+    module, func = REALISATION_FITTERS[name].split(":")
+    try:
+        fn = getattr(importlib.import_module(module), func)
+    except (ImportError, AttributeError):
+        return None
+    return inspect.signature(fn)
+
+
+def _check_realisation_options(chk: _Checker, name: str, opts: dict[str, Any]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    schema = _REALISATION_SCHEMA[name]
+    sig = _fit_signature(name)
+    params: dict[str, inspect.Parameter] = {}
+    if sig is not None:
+        params = {p.name: p for i, p in enumerate(sig.parameters.values())
+                  if i > 0 and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+    for key, value in opts.items():
+        full = f"realisations.{name}.{key}"
+        if key in schema:
+            out[key] = chk.field(full, value, schema[key])
+        elif sig is not None and key not in params:
+            fn = REALISATION_FITTERS[name].split(":")[1]
+            chk.add(full, value, f"unknown option of {fn}; allowed: {', '.join(sorted(set(params) | set(schema)))}")
+        else:
+            p = params.get(key)
+            types = _default_types(p.default) if p is not None else None
+            if types is not None:
+                value = chk.field(full, value, _f(types, None, f"like the default {p.name}={p.default!r}"))
+            out[key] = value
+    return out
+
+
+def _default_types(default: Any) -> tuple[type, ...] | None:
+    """Allowed TOML types for an option, inferred from the fit function's default value."""
+    if isinstance(default, bool):
+        return (bool,)
+    if isinstance(default, int):
+        return (int,)
+    if isinstance(default, float):
+        return _NUMBER
+    if isinstance(default, str):
+        return (str,)
+    return None
+
+
+def _check_cross(chk: _Checker, data: dict[str, Any]) -> None:
+    k = data["kernel"]
+    if k["source"] == "file" and not k["path"]:
+        chk.add("kernel.path", k["path"], "required when kernel.source = 'file'")
+    for key, value in k["params"].items():
+        if not _is_type(value, _NUMBER) or isinstance(value, bool):
+            chk.add(f"kernel.params.{key}", value, "reference kernel parameters must be numbers")
+    methods = data["analysis"]["csf_methods"]
+    try:
+        from ..csf import CSF_METHODS
+    except ImportError:
+        CSF_METHODS = None
+    if CSF_METHODS is not None:
+        for i, m in enumerate(methods):
+            if m not in CSF_METHODS:
+                chk.add(f"analysis.csf_methods[{i}]", m, f"unknown CSF model; allowed: {', '.join(CSF_METHODS)}")
+    if len(set(data["realisations"]["include"])) != len(data["realisations"]["include"]):
+        chk.add("realisations.include", data["realisations"]["include"], "lists a realisation twice")
+
+
+def _check_axes(chk: _Checker, data: dict[str, Any]) -> None:
+    for key, values in data["sweep"]["axes"].items():
+        full = f"sweep.axes.{key}"
+        if not isinstance(values, list) or not values:
+            chk.add(full, values, "a sweep axis must be a non-empty list of values")
+            continue
+        ckey = _canonical_key(key)
+        section, _, rest = ckey.partition(".")
+        if section in ("sweep", "run", "design") or not rest:
+            chk.add(full, values, "sweep axes must name a key inside [kernel], [sensor], [optics], [analysis], "
+                                  "[tasks], [emulation] or a realisation (e.g. 'asic.bits')")
+            continue
+        if section not in _SCHEMA:
+            chk.add(full, values, f"unknown section {section!r}; allowed: {', '.join(_SCHEMA)}")
+            continue
+        # check each value through the same schema as a plain key
+        for v in values:
+            probe: dict[str, Any] = {}
+            _set_dotted(probe, ckey, v)
+            sub = _Checker(chk.source)
+            if section == "realisations":
+                name = rest.split(".")[0]
+                if name not in REALISATION_FITTERS:
+                    chk.add(full, values, f"unknown realisation {name!r}; allowed: {', '.join(REALISATION_FITTERS)}")
+                    break
+                _check_realisation_options(sub, name, probe["realisations"][name])
+            elif rest.split(".")[0] not in _SCHEMA[section]:
+                chk.add(full, values, f"unknown key; allowed in [{section}]: {', '.join(_SCHEMA[section])}")
+                break
+            elif "." not in rest:
+                sub.field(ckey, v, _SCHEMA[section][rest])
+            chk.problems.extend(p.replace(f"key '{ckey}'", f"key '{full}'") for p in sub.problems)
+
+
+def _load_target(chk: _Checker, data: dict[str, Any], base: Path) -> Kernel | None:
+    k = data["kernel"]
+    pitch = data["sensor"]["pitch_m"]
+    try:
+        if k["source"] == "file":
+            if not k["path"]:
+                return None
+            path = Path(k["path"])
+            path = path if path.is_absolute() else base / path
+            if not path.is_file():
+                chk.add("kernel.path", k["path"], f"kernel file not found (looked for {path})")
+                return None
+            return load_kernel(path, pitch_m=pitch)
+        return reference_kernel(k["family"], k["size"], pitch_m=pitch, **k["params"])
+    except KernelError as exc:
+        key = "kernel.path" if k["source"] == "file" else "kernel.params"
+        chk.add(key, k["path"] if k["source"] == "file" else k["params"], f"invalid kernel ({exc})")
+        return None
+
+
+def axis_values(design: Design) -> dict[str, list[Any]]:
+    """The sweep axes of a design as canonical dotted keys → values."""
+    return {_canonical_key(k): list(v) for k, v in design.data["sweep"]["axes"].items()}
+

@@ -1,0 +1,341 @@
+"""Design sweeps: expand a design into points and run them on a local pool or a Dask cluster.
+
+A *design point* is one realisation (``learned``, ``delta``, ``mesh``, ``asic``, ``metalens``) with
+one setting of the sweep axes that concern it: axes under a realisation (``asic.bits``) multiply
+only that realisation's points; axes elsewhere (``sensor.threshold_on``, ``kernel.params.sigma_px``)
+multiply every point. Each point carries everything a worker needs (validated design data and the
+target taps), so remote Dask workers need no files, and a key that hashes exactly what decides its
+result (its own realisation options, not the others').
+
+Execution: ``workers = 1`` runs in this process; more workers use a local
+:class:`concurrent.futures.ProcessPoolExecutor` (spawned processes, one torch thread each);
+``scheduler="tcp://HOST:PORT"`` submits to a running Dask distributed scheduler. In every case the
+coordinator writes each result to the :class:`~fsdvs_hw.explore.store.ResultsStore` as soon as it
+arrives, and skips points already stored, so a killed run resumes where it stopped.
+
+The ``fsdvs-hw sweep`` command is defined here (``HELP``, ``add_arguments``, ``run``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import itertools
+import json
+import os
+import socket
+import sys
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from .design import Design, axis_values, load_design
+from .store import ResultsStore
+
+__all__ = [
+    "DesignPoint",
+    "expand_points",
+    "evaluate_point",
+    "run_points",
+    "SweepSummary",
+    "HELP",
+    "add_arguments",
+    "run",
+]
+
+#: Design sections whose content decides every point's result (others only organise the run).
+_SCORED_SECTIONS = ("kernel", "sensor", "optics", "analysis", "tasks", "emulation")
+
+
+@dataclass(frozen=True)
+class DesignPoint:
+    """One unit of work: a realisation with its options, scored under one design setting.
+
+    Attributes
+    ----------
+    key : str
+        SHA-1 (hex, 20 chars) of what decides the result; the results store's primary key.
+    design : str
+        Design name.
+    realisation : str
+        ``learned``, ``delta``, ``mesh``, ``asic`` or ``metalens``.
+    params : dict
+        The sweep-axis values of this point (dotted keys), ``{}`` without axes.
+    data : dict
+        Validated design data with the axis values applied.
+    target : dict
+        The target kernel (:meth:`Kernel.to_dict`).
+    base_dir : str
+        Folder relative paths in the design are resolved against.
+    """
+
+    key: str
+    design: str
+    realisation: str
+    params: dict[str, Any]
+    data: dict[str, Any] = field(repr=False)
+    target: dict[str, Any] = field(repr=False)
+    base_dir: str = "."
+
+    @property
+    def label(self) -> str:
+        if not self.params:
+            return self.realisation
+        return self.realisation + " " + ", ".join(f"{k.split('.')[-1]}={v}" for k, v in self.params.items())
+
+
+def _point_key(realisation: str, design: Design) -> str:
+    relevant = {s: design.data[s] for s in _SCORED_SECTIONS}
+    relevant["realisation"] = realisation
+    relevant["options"] = design.data["realisations"].get(realisation, {})
+    relevant["target"] = design.target.to_dict()["taps"]
+    relevant["pitch_m"] = design.target.pitch_m
+    blob = json.dumps(relevant, sort_keys=True, default=str)
+    return hashlib.sha1(blob.encode()).hexdigest()[:20]
+
+
+def expand_points(design: Design) -> list[DesignPoint]:
+    """All design points of a design, in a stable order (references first).
+
+    Every point's design is re-validated with its axis values before anything runs, so a bad value
+    on any axis fails here, naming the axis.
+    """
+    axes = axis_values(design)
+    global_axes = {k: v for k, v in axes.items() if not k.startswith("realisations.")}
+    points: list[DesignPoint] = []
+    seen: set[str] = set()
+    g_keys = list(global_axes)
+    for g_vals in itertools.product(*global_axes.values()) if g_keys else [()]:
+        g_over = dict(zip(g_keys, g_vals))
+        for name in design.realisations:
+            r_axes = {k: v for k, v in axes.items() if k.startswith(f"realisations.{name}.")}
+            r_keys = list(r_axes)
+            for r_vals in itertools.product(*r_axes.values()) if r_keys else [()]:
+                over = {**g_over, **dict(zip(r_keys, r_vals))}
+                d = design.with_overrides(over) if over else design
+                key = _point_key(name, d)
+                if key in seen:
+                    continue
+                seen.add(key)
+                params = {k.removeprefix("realisations."): v for k, v in over.items()}
+                points.append(DesignPoint(key=key, design=design.name, realisation=name, params=params,
+                                          data=d.to_dict(), target=d.target.to_dict(), base_dir=str(d.base_dir)))
+    return points
+
+
+def evaluate_point(point: DesignPoint) -> dict[str, Any]:
+    """Fit and score one point (runs in a worker). Never raises: failures become a status.
+
+    Returns
+    -------
+    dict
+        ``{"key", "status": "ok"|"skipped"|"error", "result": score record or {"reason": ...},
+        "wall_s", "worker"}``.
+    """
+    from ..kernels import Kernel
+    from .scoring import RealisationUnavailable, fit_realisation, score
+
+    if os.environ.get("FSDVS_SWEEP_THREADS"):
+        try:
+            import torch
+
+            torch.set_num_threads(int(os.environ["FSDVS_SWEEP_THREADS"]))
+        except ImportError:  # pragma: no cover - torch is a dependency
+            pass
+    t0 = time.perf_counter()
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    data = point.data
+    try:
+        target = Kernel.from_dict(point.target, source="design point target")
+        options = data["realisations"].get(point.realisation, {})
+        real, fit_s = fit_realisation(point.realisation, target, options, seed=data["run"]["seed"])
+        tasks = data["tasks"]
+        rec = score(
+            real,
+            target=target,
+            csf_methods=data["analysis"]["csf_methods"],
+            focal_length_m=data["optics"]["focal_length_m"],
+            tasks=tasks["names"],
+            checkpoint_dir=Path(point.base_dir) / tasks["checkpoint_dir"],
+            task_options={"fine_tune_steps": tasks["fine_tune_steps"], "n_clips": tasks["n_clips"],
+                          "seed": tasks["seed"], "tracks": tasks["tracks"]},
+            fit_wall_s=fit_s,
+        )
+        rec["realisation"] = real.to_dict()
+        status = "ok"
+    except RealisationUnavailable as exc:
+        status, rec = "skipped", {"reason": str(exc)}
+    except Exception as exc:  # noqa: BLE001 - one failed point must not stop a sweep; it is recorded
+        status = "error"
+        rec = {"reason": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc(limit=8)}
+    return {"key": point.key, "status": status, "result": rec, "wall_s": time.perf_counter() - t0,
+            "worker": worker}
+
+
+@dataclass
+class SweepSummary:
+    """What a run did: points in total, skipped as already stored, run now, and their statuses."""
+
+    total: int
+    already_done: int
+    ran: int
+    statuses: dict[str, int]
+    wall_s: float
+    executor: str
+
+    def __str__(self) -> str:
+        st = ", ".join(f"{v} {k}" for k, v in sorted(self.statuses.items())) or "nothing new"
+        return (f"{self.total} points: {self.already_done} already in the store, {self.ran} run now ({st}) "
+                f"in {self.wall_s:.1f} s on {self.executor}")
+
+
+def _record(store: ResultsStore, point: DesignPoint, res: dict[str, Any]) -> None:
+    store.add(point.key, design=point.design, realisation=point.realisation, params=point.params,
+              status=res["status"], result=res["result"], wall_s=res["wall_s"], worker=res["worker"])
+
+
+def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: int = 1,
+               scheduler: str | None = None, progress: bool = True,
+               on_result: Callable[[DesignPoint, dict[str, Any]], None] | None = None) -> SweepSummary:
+    """Run every point not yet in ``store`` and store each result as it finishes.
+
+    Parameters
+    ----------
+    points : sequence of DesignPoint
+        From :func:`expand_points`.
+    store : ResultsStore
+        Finished points are skipped; new results are committed one by one.
+    workers : int
+        Local worker processes (1 = in this process). Ignored with ``scheduler``.
+    scheduler : str, optional
+        Address of a Dask distributed scheduler (``tcp://HOST:PORT``).
+    progress : bool
+        Show a tqdm progress bar on stderr.
+    on_result : callable, optional
+        Called as ``on_result(point, result)`` after each result is stored.
+    """
+    from tqdm.auto import tqdm
+
+    t0 = time.perf_counter()
+    done = store.done()
+    todo = [p for p in points if p.key not in done]
+    statuses: dict[str, int] = {}
+    bar = tqdm(total=len(points), initial=len(points) - len(todo), desc="design points", unit="pt",
+               disable=not progress, file=sys.stderr, dynamic_ncols=True)
+
+    def finish(point: DesignPoint, res: dict[str, Any]) -> None:
+        _record(store, point, res)
+        statuses[res["status"]] = statuses.get(res["status"], 0) + 1
+        bar.set_postfix_str(f"{point.label}: {res['status']}", refresh=False)
+        bar.update(1)
+        if on_result is not None:
+            on_result(point, res)
+
+    try:
+        if scheduler is not None:
+            executor = f"Dask scheduler {scheduler}"
+            _run_dask(todo, scheduler, finish)
+        elif workers <= 1 or len(todo) <= 1:
+            executor = "this process"
+            for p in todo:
+                finish(p, evaluate_point(p))
+        else:
+            executor = f"{min(workers, len(todo))} local processes"
+            _run_pool(todo, workers, finish)
+    finally:
+        bar.close()
+    return SweepSummary(total=len(points), already_done=len(points) - len(todo), ran=sum(statuses.values()),
+                        statuses=statuses, wall_s=time.perf_counter() - t0, executor=executor)
+
+
+def _run_pool(todo: Sequence[DesignPoint], workers: int,
+              finish: Callable[[DesignPoint, dict[str, Any]], None]) -> None:
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    os.environ.setdefault("FSDVS_SWEEP_THREADS", "1")
+    ctx = mp.get_context("spawn")  # fork after torch/BLAS threads started can deadlock
+    with ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx) as pool:
+        futures = {pool.submit(evaluate_point, p): p for p in todo}
+        try:
+            for fut in as_completed(futures):
+                finish(futures[fut], fut.result())
+        except BaseException:
+            for f in futures:
+                f.cancel()
+            raise
+
+
+def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
+              finish: Callable[[DesignPoint, dict[str, Any]], None]) -> None:
+    try:
+        from distributed import Client, as_completed
+    except ImportError as exc:  # pragma: no cover - optional extra
+        raise InputError(f"--scheduler needs dask[distributed] (pip install 'fsdvs_hw[distributed]'): {exc}") from None
+    if not scheduler.startswith(("tcp://", "tls://", "inproc://", "ucx://")):
+        raise InputError(f"--scheduler {scheduler!r}: expected an address like tcp://HOST:PORT")
+    try:
+        client = Client(scheduler, timeout="20s")
+    except (OSError, TimeoutError) as exc:
+        raise InputError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler ({exc})") from None
+    try:
+        futures = {client.submit(evaluate_point, p, key=f"fsdvs-point-{p.key}", pure=False): p for p in todo}
+        for fut in as_completed(list(futures)):
+            finish(futures[fut], fut.result())
+    finally:
+        client.close()
+
+
+# ---------------------------------------------------------------------- command line
+HELP = "run a design sweep (local process pool, or a Dask cluster) into a SQLite results store"
+DESCRIPTION = (
+    "Expand a design file's [sweep] axes into design points, fit and score each, and store one row\n"
+    "per point in a SQLite file as it finishes. A rerun skips finished points (resume after a kill).\n\n"
+    "Examples:\n"
+    "  fsdvs-hw sweep designs/sweep_asic_bits.toml\n"
+    "  fsdvs-hw sweep designs/sweep_asic_bits.toml --scheduler tcp://10.0.0.5:8786\n"
+)
+
+
+def add_execution_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--workers``, ``--scheduler`` and ``--no-progress`` (shared with ``fsdvs-hw explore``)."""
+    parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: [run] workers)")
+    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                        help="run on a Dask distributed scheduler instead of local processes")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("design", type=Path, help="TOML design file with a [sweep] section")
+    parser.add_argument("--store", type=Path, default=None,
+                        help="SQLite results file (default: out/sweeps/<design name>.sqlite)")
+    parser.add_argument("--report", type=Path, default=None, metavar="DIR",
+                        help="also write the HTML report of the stored points to DIR")
+    add_execution_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    design = load_design(args.design)
+    points = expand_points(design)
+    store_path = args.store or Path("out") / "sweeps" / f"{design.name}.sqlite"
+    workers = args.workers if args.workers is not None else design.data["run"]["workers"]
+    if workers < 1:
+        raise InputError(f"--workers {workers}: must be ≥ 1")
+    print(f"[sweep] {design.name}: {len(points)} design points -> {store_path}", file=sys.stderr, flush=True)
+    with ResultsStore(store_path) as store:
+        store.set_meta(f"design:{design.name}", design.to_dict())
+        summary = run_points(points, store, workers=workers, scheduler=args.scheduler, progress=not args.no_progress)
+        print(f"[sweep] {summary}", file=sys.stderr, flush=True)
+        if args.report is not None:
+            from ..report import write_report
+
+            keys = {p.key for p in points}
+            rows = [r for r in store.rows() if r["key"] in keys]
+            path = write_report(rows, design, args.report)
+            print(f"[sweep] report: {path}", file=sys.stderr, flush=True)
+    return 0 if summary.statuses.get("error", 0) == 0 else 1
+

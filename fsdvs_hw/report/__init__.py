@@ -1,0 +1,11 @@
+"""Reports of design explorations: figures, score tables (CSV/JSON) and a self-contained HTML page.
+
+:func:`write_report` is the entry point used by ``fsdvs-hw explore`` and ``fsdvs-hw sweep --report``.
+"""
+
+from __future__ import annotations
+
+from .html import render_html, write_report
+from .tables import pareto_front, score_rows, write_scores
+
+__all__ = ["write_report", "render_html", "score_rows", "pareto_front", "write_scores"]

@@ -1,0 +1,163 @@
+"""Report figures: kernels side by side, spectra, radial responses vs CSF, Pareto and speed plots.
+
+Each function takes stored design points (dicts with ``realisation``, ``params``, ``status`` and
+a :func:`~fsdvs_hw.explore.scoring.score` record in ``result``) or the flat rows of
+:func:`fsdvs_hw.report.tables.score_rows`, and returns a matplotlib ``Figure``; nothing is shown.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from ..kernels import Kernel
+from .tables import accuracy_axis
+
+__all__ = ["realised_kernels", "fig_kernels", "fig_spectra", "fig_radial", "fig_pareto", "fig_speed"]
+
+_MAX_PANELS = 12
+_COLOURS = {"learned": "#222222", "delta": "#999999", "mesh": "#1f77b4", "asic": "#d62728", "metalens": "#2ca02c"}
+
+
+def _label(p: Mapping[str, Any]) -> str:
+    params = p.get("params") or {}
+    return p["realisation"] + ("" if not params else " " + ", ".join(f"{k.split('.')[-1]}={v}" for k, v in params.items()))
+
+
+def realised_kernels(points: Sequence[Mapping[str, Any]], *, limit: int = _MAX_PANELS) -> list[tuple[str, Kernel]]:
+    """``(label, realised kernel)`` of the successful points, at most ``limit`` (evenly picked)."""
+    ok = [p for p in points if p["status"] == "ok" and "kernel" in (p.get("result") or {})]
+    if len(ok) > limit:
+        idx = np.unique(np.linspace(0, len(ok) - 1, limit).round().astype(int))
+        ok = [ok[i] for i in idx]
+    return [(_label(p), Kernel.from_dict(p["result"]["kernel"], source=_label(p))) for p in ok]
+
+
+def _grid(n: int, *, w: float = 3.0, h: float = 2.7) -> tuple[Any, np.ndarray]:
+    import matplotlib.pyplot as plt
+
+    cols = min(n, 4)
+    rows = max(1, math.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(w * cols, h * rows), constrained_layout=True, squeeze=False)
+    for ax in axes.ravel()[n:]:
+        ax.set_visible(False)
+    return fig, axes.ravel()
+
+
+def fig_kernels(kernels: Sequence[tuple[str, Kernel]]) -> Any:
+    """Taps of every kernel side by side (diverging colour map, own scale each)."""
+    from ..plots import plot_kernel
+
+    fig, axes = _grid(len(kernels))
+    for ax, (label, k) in zip(axes, kernels):
+        plot_kernel(k, ax=ax, annotate=k.size <= 7, title=label)
+    return fig
+
+
+def fig_spectra(kernels: Sequence[tuple[str, Kernel]]) -> Any:
+    """2-D magnitude spectra |H(f_x, f_y)| side by side."""
+    from ..plots import plot_spectrum
+
+    fig, axes = _grid(len(kernels))
+    for ax, (label, k) in zip(axes, kernels):
+        plot_spectrum(k, ax=ax, n_fft=64, title=label)
+    return fig
+
+
+def fig_radial(kernels: Sequence[tuple[str, Kernel]], *, methods: Sequence[str], pitch_m: float,
+               focal_length_m: float) -> Any:
+    """Peak-normalised radial responses vs the CSF models: at the design geometry and at the fitted scale."""
+    import matplotlib.pyplot as plt
+
+    from ..csf import Geometry
+    from ..plots import plot_radial_vs_csf
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2), constrained_layout=True)
+    ks = [k for _, k in kernels]
+    labels = [lab for lab, _ in kernels]
+    plot_radial_vs_csf(ks, methods=list(methods), geometry=Geometry(pitch_m, focal_length_m), ax=axes[0], labels=labels)
+    axes[0].set_title(f"design geometry (pitch {pitch_m * 1e6:.2f} µm, f = {focal_length_m * 1e3:.2f} mm)", fontsize=9)
+    plot_radial_vs_csf(ks, methods=list(methods[:1]), geometry=None, ax=axes[1], labels=labels)
+    axes[1].set_title("scale fitted to the first kernel (shape comparison, as in the FS-DVS paper)", fontsize=9)
+    return fig
+
+
+def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
+    """Accuracy loss vs CSF agreement (left) and vs each realisation's headline cost (right).
+
+    Pareto-optimal points (per realisation kind, over loss, agreement and cost) are ringed.
+    """
+    import matplotlib.pyplot as plt
+
+    acc, acc_label = accuracy_axis(rows)
+    ok = [r for r in rows if r["status"] == "ok"]
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.4), constrained_layout=True)
+    ax = axes[0]
+    for kind in dict.fromkeys(r["realisation"] for r in ok):
+        g = [r for r in ok if r["realisation"] == kind]
+        x = [r.get("csf_agreement", math.nan) for r in g]
+        y = [r.get(acc, math.nan) for r in g]
+        ax.scatter(x, y, s=36, color=_COLOURS.get(kind), label=kind, zorder=3)
+        px = [xi for xi, r in zip(x, g) if r.get("pareto")]
+        py = [yi for yi, r in zip(y, g) if r.get("pareto")]
+        ax.scatter(px, py, s=140, facecolors="none", edgecolors=_COLOURS.get(kind), lw=1.5, zorder=2)
+        for xi, yi, r in zip(x, y, g):
+            if len(g) <= 6:
+                ax.annotate(r["point"], (xi, yi), fontsize=6, xytext=(3, 3), textcoords="offset points")
+    ax.set_xlabel("CSF agreement (Mannos–Sakrison correlation at the design geometry)")
+    ax.set_ylabel(acc_label)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title("accuracy vs CSF agreement (rings: Pareto-optimal per kind)", fontsize=9)
+    ax = axes[1]
+    drawn = False
+    for kind in dict.fromkeys(r["realisation"] for r in ok):
+        g = [r for r in ok if r["realisation"] == kind and not math.isnan(r.get("headline_cost_value", math.nan))]
+        if not g:
+            continue
+        g.sort(key=lambda r: r["headline_cost_value"])
+        x = [r["headline_cost_value"] for r in g]
+        y = [r.get(acc, math.nan) for r in g]
+        unit = g[0]["headline_cost_unit"]
+        ax.plot(x, y, "o-", color=_COLOURS.get(kind), label=f"{kind}: {g[0]['headline_cost']} [{unit}]")
+        for xi, yi, r in zip(x, y, g):
+            if r.get("pareto"):
+                ax.scatter([xi], [yi], s=140, facecolors="none", edgecolors=_COLOURS.get(kind), lw=1.5)
+        drawn = True
+    if drawn:
+        ax.set_xscale("log")
+        ax.legend(fontsize=7)
+    else:
+        ax.text(0.5, 0.5, "no hardware realisation with costs was scored", ha="center", va="center",
+                transform=ax.transAxes)
+    ax.set_xlabel("headline hardware cost (own unit per kind, log scale)")
+    ax.set_ylabel(acc_label)
+    ax.grid(alpha=0.3, which="both")
+    ax.set_title("accuracy vs hardware cost", fontsize=9)
+    return fig
+
+
+def fig_speed(rows: Sequence[Mapping[str, Any]]) -> Any:
+    """Speed for accuracy: kernel error against fit time for every realisation point."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4), constrained_layout=True)
+    ok = [r for r in rows if r["status"] == "ok" and r["realisation"] not in ("learned", "delta")]
+    for kind in dict.fromkeys(r["realisation"] for r in ok):
+        g = [r for r in ok if r["realisation"] == kind]
+        ax.scatter([max(r["fit_s"], 1e-6) for r in g], [max(r["kernel_error"], 1e-12) for r in g],
+                   color=_COLOURS.get(kind), label=kind)
+    if ok:
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.legend(fontsize=7)
+    else:
+        ax.text(0.5, 0.5, "no hardware realisation was fitted", ha="center", va="center", transform=ax.transAxes)
+    ax.set_xlabel("fit wall time (s)")
+    ax.set_ylabel("kernel error vs target (relative L2)")
+    ax.grid(alpha=0.3, which="both")
+    ax.set_title("speed for accuracy of the realisation fits", fontsize=9)
+    return fig
