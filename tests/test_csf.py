@@ -134,3 +134,35 @@ def test_agreement_argument_errors():
         csf_agreement(k, floor=0)
     with pytest.raises(InputError, match="focal_length_m"):
         Geometry(5e-6, -1.0)
+
+
+@pytest.mark.parametrize("exponent", [-300, -150, 0, 150, 300])
+def test_agreement_stable_for_extreme_tap_magnitudes(exponent):
+    k = reference_kernel("dog", 7)
+    a = csf_agreement(k)
+    b = csf_agreement(k.scaled(10.0**exponent))
+    assert np.isfinite([b.rms_error, b.log_rms_error_dec, b.correlation]).all()
+    assert b.rms_error == pytest.approx(a.rms_error, rel=1e-9)
+
+
+def test_property_random_kernels_give_bounded_metrics():
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    @settings(max_examples=12, deadline=None)
+    @given(size=st.sampled_from([1, 3, 5, 7, 9]), seed=st.integers(0, 2**31 - 1),
+           one_hot=st.booleans())
+    def check(size, seed, one_hot):
+        r = np.random.default_rng(seed)
+        taps = np.zeros((size, size))
+        if one_hot:  # a single non-zero tap anywhere: |H| is flat
+            taps[r.integers(size), r.integers(size)] = r.choice([-1.0, 1.0]) * 10 ** r.uniform(-8, 8)
+        else:
+            taps = r.normal(size=(size, size))
+        a = csf_agreement(Kernel(taps))
+        assert 0 <= a.rms_error <= 1 + 1e-12
+        assert 0 <= a.log_rms_error_dec <= 3 + 1e-12
+        assert -1 - 1e-12 <= a.correlation <= 1 + 1e-12
+        assert np.isfinite(a.pixels_per_degree) and a.pixels_per_degree > 0
+
+    check()
