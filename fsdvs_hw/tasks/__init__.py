@@ -1,0 +1,47 @@
+"""Task evaluators and end-to-end kernel learning.
+
+* :mod:`~fsdvs_hw.tasks.metrics` — detection mAP (pycocotools), top-1 and segmentation scores
+  (torchmetrics).
+* :mod:`~fsdvs_hw.tasks.networks` — small CPU networks on event frames.
+* :mod:`~fsdvs_hw.tasks.evaluators` — the :class:`TaskEvaluator` plug-in interface, the detection /
+  recognition / segmentation evaluators and their registry.
+* :mod:`~fsdvs_hw.tasks.learn` — :func:`learn_kernel` and :func:`evaluate_kernel`.
+* :mod:`~fsdvs_hw.tasks.ablation` — the kernel-size ablation (the paper's Tables I-II).
+
+Names are imported lazily so ``import fsdvs_hw.tasks`` does not import torch.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_LAZY = {
+    "detection_map": "fsdvs_hw.tasks.metrics",
+    "top1_accuracy": "fsdvs_hw.tasks.metrics",
+    "segmentation_scores": "fsdvs_hw.tasks.metrics",
+    "TaskEvaluator": "fsdvs_hw.tasks.evaluators",
+    "EVALUATORS": "fsdvs_hw.tasks.evaluators",
+    "get_evaluator": "fsdvs_hw.tasks.evaluators",
+    "register_evaluator": "fsdvs_hw.tasks.evaluators",
+    "learn_kernel": "fsdvs_hw.tasks.learn",
+    "evaluate_kernel": "fsdvs_hw.tasks.learn",
+    "LearnResult": "fsdvs_hw.tasks.learn",
+    "Evaluation": "fsdvs_hw.tasks.learn",
+    "run_ablation": "fsdvs_hw.tasks.ablation",
+}
+
+__all__ = list(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'fsdvs_hw.tasks' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
