@@ -31,6 +31,13 @@ _LAZY: dict[str, str] = {
     "contrast_sensitivity": "fsdvs_hw.csf",
     "csf_agreement": "fsdvs_hw.csf",
     "analyse_kernel": "fsdvs_hw.analysis",
+    # sensor (event simulator)
+    "SensorConfig": "fsdvs_hw.sensor",
+    "event_frames": "fsdvs_hw.sensor",
+    "event_list": "fsdvs_hw.sensor",
+    "voxel_grid": "fsdvs_hw.sensor",
+    "EventSimulator": "fsdvs_hw.sensor",
+    "plan_model": "fsdvs_hw.sensor",
     # realisations
     "kernel_error": "fsdvs_hw.realise.base",
     "fit_resistive_mesh": "fsdvs_hw.realise.mesh",

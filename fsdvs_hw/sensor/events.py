@@ -1,0 +1,544 @@
+"""Event generation: differentiable event frames, voxel grids and the exact event list.
+
+The pixel keeps a memorised reference ``r`` of its comparator input ``L`` (log units). Between
+two time points the input is taken as linear (ESIM's model); with leak the reference drifts down
+by ``leak_rate_hz · C_on`` per second. Every crossing of ``r + j·C_on`` (ON) or ``r - j·C_off``
+(OFF) is an event, and the reference moves by one threshold per crossing. So the number of
+crossings in a step has the closed form ``n = floor(ΔL / C)`` with ``ΔL = L_end - r`` and each
+crossing has its own interpolated time ``t_j = t_a + (j·C - ΔL_a) / v`` — unlike v2e, whose i-th
+event of every pixel in a sub-step gets the same timestamp.
+
+Refractory period ``R``: crossings closer than ``R`` to the pixel's previous event are lost (the
+reference still moves past them); given the previous event time the emitted crossings are the
+indices ``j0, j0 + m, j0 + 2m, ...`` with ``m = ceil(R v / C)``, again closed form.
+
+Surrogate gradient (``SensorConfig.surrogate``)
+    Forward counts are the integers above. Backward uses the straight-through estimator of the
+    floor: ``∂n/∂ΔL = 1 / C`` on the polarity's side (``ΔL > 0`` for ON, ``< 0`` for OFF), zero on
+    the other, and ``∂n/∂C = -ΔL / C²``; the reference update then carries the gradient as if
+    ``r`` tracked ``L`` exactly. Refractory losses and noise events have no gradient. This is the
+    recipe of Neural Ganglion Sensors (So et al. 2025): a straight-through floor, clipped to
+    [-1, 1] at the dark-current floor (see :mod:`.filtering`). ``surrogate="relaxed"`` emits the
+    continuous counts ``relu(±ΔL) / C`` whose exact gradient is the surrogate (used by gradcheck).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import torch
+
+from ..errors import InputError
+from .config import SensorConfig
+from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
+from .pixel import effect_generator, lowpass_step, threshold_maps
+
+__all__ = ["event_frames", "event_list", "EventList", "SimulationInfo", "voxel_grid",
+           "EventSimulator", "prepare_video", "prepare_timestamps"]
+
+_COUNT_EPS = {"float32": 1e-4, "float64": 1e-9, "float16": 1e-2, "bfloat16": 1e-2}
+
+
+# ---------------------------------------------------------------------------- input checks
+def prepare_video(video: Any) -> Any:
+    """Check a (B, T, H, W) linear-intensity video and return it as a floating torch tensor."""
+    import numpy as np
+    import torch
+
+    if not isinstance(video, torch.Tensor):
+        try:
+            arr = np.asarray(video)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"video: must be a torch tensor or numpy array ({exc})") from None
+        if arr.dtype.kind not in "fiub":
+            raise InputError(f"video: must be numeric, got dtype {arr.dtype}")
+        video = torch.from_numpy(np.ascontiguousarray(arr, dtype=np.float64 if arr.dtype == np.float64 else np.float32))
+    if video.ndim != 4:
+        hint = " (add a batch axis: video[None])" if video.ndim == 3 else ""
+        raise InputError(f"video: must have shape (B, T, H, W), got {video.ndim}-D shape {tuple(video.shape)}{hint}")
+    if not video.is_floating_point():
+        video = video.float()
+    B, T, H, W = video.shape
+    if T < 2 or B < 1 or H < 1 or W < 1:
+        raise InputError(f"video: needs B >= 1, T >= 2 frames, H, W >= 1; got shape {tuple(video.shape)}")
+    with torch.no_grad():
+        if not bool(torch.isfinite(video).all()):
+            raise InputError("video: contains NaN or inf intensities")
+        vmin = float(video.min())
+        if vmin < 0:
+            raise InputError(f"video: linear intensities must be >= 0, got minimum {vmin:g}")
+    return video
+
+
+def prepare_timestamps(timestamps_s: Any, video: Any, config: SensorConfig) -> Any:
+    """Frame times as a float64 (B, T) tensor on the video's device (strictly increasing)."""
+    import numpy as np
+    import torch
+
+    B, T = video.shape[:2]
+    if timestamps_s is None:
+        ts = torch.arange(T, dtype=torch.float64, device=video.device) / config.frame_rate_hz
+        return ts.expand(B, T)
+    if isinstance(timestamps_s, torch.Tensor):
+        if timestamps_s.device != video.device:
+            raise InputError(f"timestamps_s: on device {timestamps_s.device} but the video is on "
+                             f"{video.device}; move both to the same device")
+        ts = timestamps_s.detach().to(torch.float64)
+    else:
+        try:
+            ts = torch.as_tensor(np.asarray(timestamps_s, dtype=np.float64), device=video.device)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"timestamps_s: must be numeric ({exc})") from None
+    if ts.ndim == 1:
+        ts = ts.expand(B, -1)
+    if ts.shape != (B, T):
+        raise InputError(f"timestamps_s: must have shape (T,) = ({T},) or (B, T) = ({B}, {T}), got {tuple(ts.shape)}")
+    if not bool(torch.isfinite(ts).all()):
+        raise InputError("timestamps_s: contains NaN or inf")
+    steps = ts[:, 1:] - ts[:, :-1]
+    if not bool((steps > 0).all()):
+        bad = int(torch.nonzero(steps <= 0)[0, 1]) + 1
+        raise InputError(f"timestamps_s: must be strictly increasing; frame {bad} is not later than frame {bad - 1}")
+    return ts
+
+
+# ---------------------------------------------------------------------------- results
+@dataclass
+class EventList:
+    """Exact events, sorted by time within each batch element.
+
+    Attributes (1-D torch tensors on the CPU, one entry per event)
+    ----------
+    An event of frame interval k has ``t_k < t <= t_k+1`` (a crossing reached exactly at a frame
+    time belongs to the interval that ends there).
+
+    b : int64 batch index; x, y : int64 pixel column / row; t : float64 time in seconds;
+    p : int8 polarity (+1 ON, -1 OFF).
+    """
+
+    b: Any
+    x: Any
+    y: Any
+    t: Any
+    p: Any
+
+    def __len__(self) -> int:
+        return int(self.t.numel())
+
+    def select(self, batch: int) -> EventList:
+        """Events of one batch element."""
+        m = self.b == batch
+        return EventList(self.b[m], self.x[m], self.y[m], self.t[m], self.p[m])
+
+
+@dataclass
+class SimulationInfo:
+    """Diagnostics of one simulation run.
+
+    floor_fraction : fraction of pixel-frames whose aggregated photocurrent hit the floor.
+    substeps : sub-steps used in each frame interval.
+    noise_events : number of shot-noise events emitted (ON + OFF).
+    refractory_lost : crossings lost to the refractory period.
+    """
+
+    floor_fraction: float
+    substeps: tuple[int, ...]
+    noise_events: int
+    refractory_lost: int
+
+
+# ---------------------------------------------------------------------------- core loop
+def _choose_substeps(log_signal: Any, c_min: float, config: SensorConfig) -> list[int]:
+    import torch
+
+    T = log_signal.shape[1]
+    if config.adaptive_fraction is None:
+        return [config.substeps] * (T - 1)
+    with torch.no_grad():
+        jumps = (log_signal[:, 1:] - log_signal[:, :-1]).abs().flatten(2).amax(dim=(0, 2))
+    out = []
+    for j in jumps.tolist():
+        n = math.ceil(j / (config.adaptive_fraction * c_min)) if j > 0 else 1
+        out.append(int(min(max(n, 1), config.max_substeps)))
+    return out
+
+
+def _substep_times(tsd: Any, k: int, s: int, S: int) -> tuple[Any, Any]:
+    """Start and end time (B, 1, 1) of sub-step s (1..S) of interval k; exact at frame times."""
+    B = tsd.shape[0]
+    t0, t1 = tsd[:, k], tsd[:, k + 1]
+    t_a = t0 if s == 1 else t0 + (t1 - t0) * ((s - 1) / S)
+    t_b = t1 if s == S else t0 + (t1 - t0) * (s / S)
+    return t_a.view(B, 1, 1), t_b.view(B, 1, 1)
+
+
+def _refractory_emit(n: Any, d_a: Any, v: Any, c: Any, t_a: Any, last_t: Any, refr: float) -> tuple[Any, Any, Any, Any]:
+    """Crossings emitted after refractory losses: count, first index j0, stride m, last time."""
+    import torch
+
+    vs = torch.where(v > 0, v, torch.ones_like(v))
+    j0 = torch.ceil((vs * (last_t + refr - t_a) + d_a) / c).clamp(min=1.0)
+    m = torch.ceil(refr * vs / c).clamp(min=1.0)
+    emitted = torch.where(n >= j0, 1.0 + torch.floor((n - j0) / m), torch.zeros_like(n))
+    emitted = torch.where(v > 0, emitted, torch.zeros_like(n))
+    j_last = j0 + (emitted - 1.0) * m
+    t_last = torch.where(emitted > 0, t_a + (j_last * c - d_a) / vs, last_t)
+    return emitted, j0, m, t_last
+
+
+def _collect(store: list, emitted: Any, j0: Any, m: Any, d_a: Any, v: Any, c: Any,
+             t_a: Any, t_b: Any, polarity: int) -> None:
+    import torch
+
+    idx = torch.nonzero(emitted > 0)
+    if idx.numel() == 0:
+        return
+    bi, yi, xi = idx[:, 0], idx[:, 1], idx[:, 2]
+    counts = emitted[bi, yi, xi].long()
+    rep = torch.repeat_interleave(torch.arange(len(counts), device=counts.device), counts)
+    start = torch.cumsum(counts, 0) - counts
+    k = torch.arange(int(counts.sum()), device=counts.device) - start[rep]
+    cc = c.expand_as(emitted)[bi, yi, xi][rep] if c.ndim else c.expand(len(rep))
+    j = j0[bi, yi, xi][rep] + k.to(j0.dtype) * m[bi, yi, xi][rep]
+    vv = v[bi, yi, xi][rep]
+    ta = t_a.expand_as(emitted)[bi, yi, xi][rep]
+    tb = t_b.expand_as(emitted)[bi, yi, xi][rep]
+    # a crossing already due at the step start (after a noise reset) fires just after it
+    t_min = torch.nextafter(ta, torch.full_like(ta, math.inf))
+    t = torch.minimum(torch.maximum(ta + (j * cc - d_a[bi, yi, xi][rep]) / vv, t_min), tb)
+    store.append((bi[rep].cpu(), xi[rep].cpu(), yi[rep].cpu(), t.cpu(),
+                  torch.full((len(rep),), polarity, dtype=torch.int8)))
+
+
+def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[int],
+         generator: Any, collect_events: bool) -> tuple[Any, SimulationInfo, EventList | None]:
+    """Step every pixel through time; return counts (B, T-1, 2, H, W), info and events."""
+    import torch
+
+    L = signal.log_signal
+    B, T, H, W = L.shape
+    dev, dt_ = L.device, L.dtype
+    c_on, c_off = threshold_maps(config, (H, W), L, generator=generator)
+    c_min = min(float(c_on.min()), float(c_off.min()))
+    eps = _COUNT_EPS.get(str(dt_).split(".")[-1], 1e-6)
+    relaxed = config.surrogate == "relaxed"
+    has_lp = config.has_photoreceptor
+    refr = float(config.refractory_s)
+    leak = float(config.leak_rate_hz)
+    shot = float(config.shot_noise_rate_hz)
+    transient = signal.surround is not None
+    exact_times = collect_events or refr > 0
+    tsd = ts.to(dtype=torch.float64)
+
+    ref = L[:, 0]
+    if leak > 0:  # random leak phase per pixel (v2e), so leak events are not synchronous
+        g = effect_generator(config.seed, "leak_phase", dev)
+        phase = torch.rand((H, W), generator=g, device=g.device, dtype=torch.float64).to(dev, dt_)
+        ref = ref - phase * c_on.detach()
+    lp = L[:, 0] if has_lp else None
+    sur = signal.surround[:, 0] if transient else None
+    last_t = torch.full((B, H, W), -math.inf, dtype=torch.float64, device=dev) if refr > 0 else None
+    shot_g = effect_generator(config.seed, "shot", dev) if shot > 0 else None
+    # noise-event times draw from their own stream so event_list and event_frames agree
+    time_g = effect_generator(config.seed, "shot_time", dev) if shot > 0 and collect_events else None
+    events: list = []
+    frames = []
+    noise_events = 0
+    lost = 0.0
+    sig_prev = (L[:, 0] - config.surround_weight * sur) if transient else L[:, 0]
+    for k in range(T - 1):
+        S = substeps[k]
+        dt_int = (tsd[:, k + 1] - tsd[:, k])  # (B,)
+        dt_sub64 = (dt_int / S).view(B, 1, 1)
+        dt_sub = dt_sub64.to(dt_)
+        on_acc = off_acc = None
+        for s in range(1, S + 1):
+            frac = s / S
+            target = L[:, k + 1] if s == S else torch.lerp(L[:, k], L[:, k + 1], frac)
+            if has_lp:
+                ci = signal.cutoff_intensity
+                inten = ci[:, k + 1] if s == S else torch.lerp(ci[:, k], ci[:, k + 1], frac)
+                fc = config.cutoff_hz * torch.clamp((inten.detach() + config.dark_intensity)
+                                                    / config.full_scale_intensity, 0.0, 1.0)
+                lp = lowpass_step(lp, target, fc, dt_sub)
+                target = lp
+            if transient:
+                st = signal.surround[:, k + 1] if s == S else torch.lerp(signal.surround[:, k], signal.surround[:, k + 1], frac)
+                alpha = -torch.expm1(-dt_sub / config.surround_tau_s)
+                sur = sur + alpha * (st - sur)
+                target = target - config.surround_weight * sur
+            ref_a = ref
+            if leak > 0:
+                ref = ref - leak * c_on * dt_sub
+            d_b = target - ref
+            x_on = torch.relu(d_b) / c_on
+            x_off = torch.relu(-d_b) / c_off
+            if relaxed:
+                n_on, n_off = x_on, x_off
+                e_on, e_off = x_on, x_off
+            else:
+                with torch.no_grad():
+                    h_on = torch.floor(x_on + eps)
+                    h_off = torch.floor(x_off + eps)
+                n_on = x_on + (h_on - x_on).detach()
+                n_off = x_off + (h_off - x_off).detach()
+                e_on, e_off = n_on, n_off
+                if exact_times:
+                    with torch.no_grad():
+                        t_a, t_b = _substep_times(tsd, k, s, S)
+                        d_a = (sig_prev - ref_a).detach().double()
+                        v = ((d_b.detach().double() - d_a) / dt_sub64)
+                        co, cf = c_on.detach().double(), c_off.detach().double()
+                        lt = last_t if last_t is not None else torch.full_like(d_a, -math.inf)
+                        em_on, j0_on, m_on, lt = _refractory_emit(h_on.double(), d_a, v, co, t_a, lt, refr)
+                        em_off, j0_off, m_off, lt = _refractory_emit(h_off.double(), -d_a, -v, cf, t_a, lt, refr)
+                        if last_t is not None:
+                            last_t = lt
+                            lost += float((h_on + h_off).sum()) - float((em_on + em_off).sum())
+                        if collect_events:
+                            _collect(events, em_on, j0_on, m_on, d_a, v, co, t_a, t_b, 1)
+                            _collect(events, em_off, j0_off, m_off, -d_a, -v, cf, t_a, t_b, -1)
+                    if refr > 0:
+                        e_on = x_on + (em_on.to(dt_) - x_on).detach()
+                        e_off = x_off + (em_off.to(dt_) - x_off).detach()
+            ref = ref + n_on * c_on - n_off * c_off
+            if shot > 0:
+                lam = torch.full((B, H, W), 0.5 * shot, dtype=torch.float64, device=shot_g.device) * dt_sub64.to(shot_g.device)
+                k_on = torch.poisson(lam, generator=shot_g).to(dev, dt_)
+                k_off = torch.poisson(lam, generator=shot_g).to(dev, dt_)
+                noise_events += int((k_on + k_off).sum())
+                ref = ref + k_on * c_on.detach() - k_off * c_off.detach()
+                e_on = e_on + k_on
+                e_off = e_off + k_off
+                if collect_events:
+                    ta, tb = (x.expand(B, H, W) for x in _substep_times(tsd, k, s, S))
+                    for kk, pol in ((k_on, 1), (k_off, -1)):
+                        idx = torch.nonzero(kk > 0)
+                        if idx.numel():
+                            cnt = kk[idx[:, 0], idx[:, 1], idx[:, 2]].long()
+                            rep = torch.repeat_interleave(idx, cnt, dim=0)
+                            u = torch.rand(len(rep), generator=time_g, device=time_g.device, dtype=torch.float64).to(dev)
+                            t = torch.minimum(ta[rep[:, 0], rep[:, 1], rep[:, 2]] + (1.0 - u) * dt_sub64.view(B)[rep[:, 0]],
+                                          tb[rep[:, 0], rep[:, 1], rep[:, 2]])
+                            events.append((rep[:, 0].cpu(), rep[:, 2].cpu(), rep[:, 1].cpu(), t.cpu(),
+                                           torch.full((len(rep),), pol, dtype=torch.int8)))
+            sig_prev = target
+            on_acc = e_on if on_acc is None else on_acc + e_on
+            off_acc = e_off if off_acc is None else off_acc + e_off
+        frames.append(torch.stack([on_acc, off_acc], dim=1))
+    out = torch.stack(frames, dim=1)
+    ev = None
+    if collect_events:
+        if events:
+            b, x, y, t, p = (torch.cat(c) for c in zip(*events))
+            order = torch.argsort(b.double() * 1e12 + (t - float(ts.min())), stable=True)
+            ev = EventList(b[order], x[order], y[order], t[order], p[order])
+        else:
+            z = torch.zeros(0, dtype=torch.int64)
+            ev = EventList(z, z.clone(), z.clone(), torch.zeros(0, dtype=torch.float64), torch.zeros(0, dtype=torch.int8))
+    info = SimulationInfo(signal.floor_fraction, tuple(substeps), noise_events, int(round(lost)))
+    return out, info, ev
+
+
+def _resolve(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | None,
+             plan: Any) -> tuple[Any, Any, Any, SensorConfig, list[int] | None]:
+    if plan is not None:
+        from .plan import ModelPlan
+
+        if not isinstance(plan, ModelPlan):
+            raise InputError(f"plan: must be a ModelPlan from plan_model(), got {type(plan).__name__}")
+        if config is not None and config is not plan.base_config and config != plan.base_config:
+            raise InputError("config and plan disagree: pass either config or plan (the plan carries its config)")
+        config = plan.config
+    config = SensorConfig() if config is None else config
+    if not isinstance(config, SensorConfig):
+        raise InputError(f"config: must be a SensorConfig, got {type(config).__name__}")
+    video = prepare_video(video)
+    ts = prepare_timestamps(timestamps_s, video, config)
+    w = kernel_tensor(kernel, video)
+    if plan is not None and len(plan.substeps) not in (0, video.shape[1] - 1):
+        raise InputError(f"plan: made for {len(plan.substeps) + 1} frames, video has {video.shape[1]}")
+    subs = list(plan.substeps) if plan is not None and plan.substeps else None
+    return video, w, ts, config, subs
+
+
+def _simulate(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | None, plan: Any,
+              generator: Any, collect_events: bool) -> tuple[Any, SimulationInfo, EventList | None]:
+    video, w, ts, config, subs = _resolve(video, kernel, timestamps_s, config, plan)
+    signal = filtered_log_signal(video, w, config)
+    if subs is None:
+        c_min = min(float(config.threshold_on), float(config.threshold_off)) * (
+            config.threshold_min_fraction if config.threshold_sigma > 0 else 1.0)
+        subs = _choose_substeps(signal.log_signal, c_min, config)
+    return _run(signal, ts, config, subs, generator, collect_events)
+
+
+# ---------------------------------------------------------------------------- public API
+def event_frames(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
+                 config: SensorConfig | None = None, plan: Any = None, generator: Any = None,
+                 return_info: bool = False) -> Any:
+    """Differentiable event frames: ON/OFF event counts per frame interval.
+
+    Parameters
+    ----------
+    video : torch.Tensor or numpy.ndarray, shape (B, T, H, W)
+        Linear intensity (>= 0, video units; full scale 1.0 for a normalised clip).
+        Differentiable.
+    kernel : Kernel, torch.Tensor (k, k) or None
+        Spatial kernel (k odd), applied at ``config.placement``; ``None`` = no filter (plain DVS).
+        Differentiable when a tensor with ``requires_grad``; must be on the video's device.
+    timestamps_s : array_like, shape (T,) or (B, T), optional
+        Frame times in seconds, strictly increasing; default ``arange(T) / config.frame_rate_hz``.
+    config : SensorConfig, optional
+        Sensor parameters (default ``SensorConfig()``: v2e-like noisy sensor). Use
+        ``SensorConfig.ideal()`` for the noiseless training sensor.
+    plan : ModelPlan, optional
+        A plan from :func:`plan_model`; the simulator then runs the plan's effective config and
+        sub-steps (pass either ``config`` or ``plan``).
+    generator : torch.Generator, optional
+        Overrides the threshold-mismatch stream (other streams derive from ``config.seed``).
+    return_info : bool
+        Also return a :class:`SimulationInfo` (floor fraction, sub-steps, noise events).
+
+    Returns
+    -------
+    torch.Tensor, shape (B, T-1, 2, H, W)
+        Channel 0 = ON counts, 1 = OFF counts (both >= 0) in each interval ``[t_k, t_k+1)``;
+        17 frames → 16 bins as in the FS-DVS paper. Same dtype/device as the video.
+
+    Raises
+    ------
+    InputError, KernelError
+        Wrong rank, negative or non-finite intensities, non-increasing timestamps, even or
+        invalid kernel, kernel/timestamps on another device.
+    """
+    frames, info, _ = _simulate(video, kernel, timestamps_s, config, plan, generator, False)
+    return (frames, info) if return_info else frames
+
+
+def event_list(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
+               config: SensorConfig | None = None, plan: Any = None, generator: Any = None) -> EventList:
+    """Exact, non-differentiable events (b, x, y, t, p) with per-event interpolated timestamps.
+
+    Same model and arguments as :func:`event_frames` (the "realistic track"); counting the
+    returned events per frame interval reproduces ``event_frames`` exactly. Each crossing of a
+    threshold level gets its own time, linearly interpolated within its (sub-)step.
+    """
+    import torch
+
+    with torch.no_grad():
+        _, _, ev = _simulate(video, kernel, timestamps_s, config, plan, generator, True)
+    return ev
+
+
+def _hat_integral(u: Any) -> Any:
+    import torch
+
+    return torch.where(u < -1, torch.zeros_like(u),
+                       torch.where(u < 0, 0.5 * (u + 1) ** 2,
+                                   torch.where(u < 1, 1 - 0.5 * (1 - u) ** 2, torch.ones_like(u))))
+
+
+def voxel_grid(events_or_frames: Any, n_bins: int, *, timestamps_s: Any = None,
+               height: int | None = None, width: int | None = None, signed: bool = True) -> Any:
+    """Event voxel grid (Zhu et al. 2019): events spread over ``n_bins`` time bins by linear
+    (hat) interpolation in time.
+
+    Parameters
+    ----------
+    events_or_frames : EventList or torch.Tensor (B, T-1, 2, H, W)
+        An exact :class:`EventList`, or differentiable event frames. For frames, each interval's
+        events are taken as evenly spread over the interval and integrated against each bin's hat
+        function in closed form (the splitting of Neural Ganglion Sensors), so the grid stays
+        differentiable.
+    n_bins : int
+        Number of time bins (>= 1); bin centres span ``[t_0, t_{T-1}]`` end to end.
+    timestamps_s : array_like (T,), optional
+        Frame times (needed for an EventList: its time span; for frames default: uniform).
+    height, width : int
+        Sensor size (required for an EventList).
+    signed : bool
+        True: one channel ON − OFF, shape (B, n_bins, H, W). False: ON and OFF channels,
+        shape (B, n_bins, 2, H, W).
+    """
+    import torch
+
+    if not isinstance(n_bins, int) or n_bins < 1:
+        raise InputError(f"n_bins: must be a positive integer, got {n_bins!r}")
+    if isinstance(events_or_frames, EventList):
+        ev = events_or_frames
+        if height is None or width is None or timestamps_s is None:
+            raise InputError("voxel_grid: an EventList needs height, width and timestamps_s")
+        ts = torch.as_tensor(timestamps_s, dtype=torch.float64).reshape(-1)
+        t0, t1 = float(ts[0]), float(ts[-1])
+        B = int(ev.b.max()) + 1 if len(ev) else 1
+        out = torch.zeros((B, n_bins, 2, height, width), dtype=torch.float64)
+        if len(ev):
+            pos = (ev.t - t0) / (t1 - t0) * (n_bins - 1) if n_bins > 1 else torch.zeros_like(ev.t)
+            lo = torch.floor(pos).clamp(0, n_bins - 1)
+            frac = pos - lo
+            ch = (ev.p < 0).long()
+            for off, wgt in ((0, 1 - frac), (1, frac)):
+                bins = (lo.long() + off).clamp(max=n_bins - 1)
+                out.index_put_((ev.b, bins, ch, ev.y, ev.x), wgt, accumulate=True)
+    else:
+        frames = events_or_frames
+        if not isinstance(frames, torch.Tensor) or frames.ndim != 5 or frames.shape[2] != 2:
+            raise InputError("voxel_grid: frames must be a (B, T-1, 2, H, W) tensor from event_frames")
+        n_int = frames.shape[1]
+        if timestamps_s is None:
+            ts = torch.arange(n_int + 1, dtype=torch.float64)
+        else:
+            ts = torch.as_tensor(timestamps_s, dtype=torch.float64).reshape(-1)
+            if ts.numel() != n_int + 1:
+                raise InputError(f"timestamps_s: needs {n_int + 1} frame times for {n_int} intervals")
+        t0, t1 = float(ts[0]), float(ts[-1])
+        width_s = (t1 - t0) / max(n_bins - 1, 1)
+        centres = torch.linspace(t0, t1, n_bins, dtype=torch.float64) if n_bins > 1 else torch.tensor([t0])
+        a, b = ts[:-1, None], ts[1:, None]
+        wgt = width_s / (b - a) * (_hat_integral((b - centres) / width_s) - _hat_integral((a - centres) / width_s))
+        out = torch.einsum("ij,bicyx->bjcyx", wgt.to(frames.dtype).to(frames.device), frames)
+    return out[:, :, 0] - out[:, :, 1] if signed else out
+
+
+class EventSimulator(torch.nn.Module):
+    """nn.Module wrapper of :func:`event_frames` (kernel as a Parameter or a buffer).
+
+    Parameters
+    ----------
+    config : SensorConfig, optional
+        Sensor parameters (default ``SensorConfig.ideal()``, the training sensor).
+    kernel : Kernel, tensor or array (k, k), optional
+        Initial kernel; ``None`` = 1×1 delta (plain DVS).
+    learnable : bool
+        Register the kernel as a ``Parameter`` (trainable) instead of a buffer.
+
+    ``forward(video, kernel=None, timestamps_s=None)`` returns (B, T-1, 2, H, W) event frames;
+    a ``kernel`` given at call time replaces the stored one for that call (e.g. a realised
+    kernel scored with the same module).
+    """
+
+    def __init__(self, config: SensorConfig | None = None, kernel: Any = None,
+                 learnable: bool = False) -> None:
+        super().__init__()
+        self.config = SensorConfig.ideal() if config is None else config
+        if not isinstance(self.config, SensorConfig):
+            raise InputError(f"config: must be a SensorConfig, got {type(self.config).__name__}")
+        like = torch.zeros((), dtype=torch.float32)
+        if isinstance(kernel, torch.Tensor):
+            like = torch.zeros((), dtype=kernel.dtype if kernel.is_floating_point() else torch.float32,
+                               device=kernel.device)
+        w = kernel_tensor(kernel, like).detach().clone()
+        if learnable:
+            self.kernel = torch.nn.Parameter(w)
+        else:
+            self.register_buffer("kernel", w)
+
+    def forward(self, video: Any, kernel: Any = None, timestamps_s: Any = None) -> Any:
+        k = self.kernel if kernel is None else kernel
+        return event_frames(video, k, timestamps_s=timestamps_s, config=self.config)
+
+    def extra_repr(self) -> str:
+        return f"kernel={tuple(self.kernel.shape)}, placement={self.config.placement}"

@@ -1,0 +1,107 @@
+"""The event pixel: linear-log response, photoreceptor low-pass, per-pixel thresholds.
+
+All functions are pure torch, differentiable, device- and dtype-following.
+
+References
+----------
+.. [1] Y. Hu, S.-C. Liu, T. Delbruck, "v2e: From Video Frames to Realistic DVS Events", CVPR
+   Workshops 2021 (linear-log response below 20 DN; intensity-dependent photoreceptor cut-off).
+.. [2] P. Lichtsteiner, C. Posch, T. Delbruck, IEEE JSSC 43(2):566-576, 2008 (logarithmic
+   photoreceptor whose bandwidth is proportional to photocurrent).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from .config import SensorConfig
+
+__all__ = ["linlog", "photoreceptor_cutoff_hz", "lowpass_step", "threshold_maps", "effect_generator"]
+
+# distinct streams per random effect, so switching one effect off leaves the others unchanged
+_STREAMS = {"mismatch": 1, "leak_phase": 2, "shot": 3, "shot_time": 4}
+
+
+def linlog(intensity: Any, knee: float) -> Any:
+    """Linear-log photoreceptor response in natural-log units.
+
+    ``log(I)`` for ``I >= knee``; below the knee the tangent line
+    ``log(knee) + (I - knee) / knee`` (continuous value and slope). Finite and differentiable for
+    every finite ``I``, including 0 (value ``log(knee) - 1``) and negative values.
+
+    Parameters
+    ----------
+    intensity : torch.Tensor
+        Linear intensity (video units).
+    knee : float
+        Dark-current equivalent intensity where the response turns linear (> 0).
+    """
+    import torch
+
+    above = intensity >= knee
+    safe = torch.where(above, intensity, torch.full_like(intensity, knee))
+    return torch.where(above, torch.log(safe), math.log(knee) + (intensity - knee) / knee)
+
+
+def photoreceptor_cutoff_hz(intensity: Any, config: SensorConfig) -> Any:
+    """Photoreceptor cut-off in Hz, proportional to photocurrent (plus dark current), capped.
+
+    ``f_c = cutoff_hz * clip((I + dark_intensity) / full_scale_intensity, 0, 1)``; the dark
+    current keeps the bandwidth finite in the dark.
+    """
+    import torch
+
+    frac = (intensity.detach() + config.dark_intensity) / config.full_scale_intensity
+    return config.cutoff_hz * torch.clamp(frac, 0.0, 1.0)
+
+
+def lowpass_step(state: Any, target: Any, cutoff_hz: Any, dt_s: float) -> Any:
+    """One exact step of a first-order low-pass: ``y += (1 - exp(-2π f_c dt)) (x - y)``.
+
+    Exact for a target held over the step, unconditionally stable for any ``dt_s`` (v2e uses the
+    forward-Euler factor ``2π f_c dt`` clipped at 1).
+    """
+    import torch
+
+    alpha = -torch.expm1(-2.0 * math.pi * cutoff_hz * dt_s)
+    return state + alpha * (target - state)
+
+
+def effect_generator(seed: int, effect: str, device: Any) -> Any:
+    """A torch Generator for one random effect, derived from the config seed."""
+    import torch
+
+    g = torch.Generator(device=device if str(device).startswith("cuda") else "cpu")
+    g.manual_seed(int(seed) * 1_000_003 + _STREAMS[effect])
+    return g
+
+
+def _randn(shape: tuple[int, ...], generator: Any, like: Any) -> Any:
+    import torch
+
+    z = torch.randn(shape, generator=generator, device=generator.device, dtype=torch.float64)
+    return z.to(device=like.device, dtype=like.dtype)
+
+
+def threshold_maps(config: SensorConfig, shape: tuple[int, ...], like: Any,
+                   generator: Any = None) -> tuple[Any, Any]:
+    """Per-pixel ON and OFF thresholds (log units) of shape ``shape`` = (H, W).
+
+    ``C_pixel = C + σ z`` with ``z ~ N(0, 1)`` drawn from the mismatch stream, clipped below at
+    ``threshold_min_fraction * C``. Gradients reach ``config.threshold_on/off`` when they are
+    tensors. Without mismatch the nominal thresholds are returned as 0-d tensors (broadcast).
+    """
+    import torch
+
+    c_on = torch.as_tensor(config.threshold_on, dtype=like.dtype, device=like.device)
+    c_off = torch.as_tensor(config.threshold_off, dtype=like.dtype, device=like.device)
+    if config.threshold_sigma <= 0:
+        return c_on, c_off
+    g = generator if generator is not None else effect_generator(config.seed, "mismatch", like.device)
+    z_on = _randn(tuple(shape), g, like)
+    z_off = _randn(tuple(shape), g, like)
+    f = config.threshold_min_fraction
+    on = torch.maximum(c_on + config.threshold_sigma * z_on, f * c_on)
+    off = torch.maximum(c_off + config.threshold_sigma * z_off, f * c_off)
+    return on, off

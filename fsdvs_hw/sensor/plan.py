@@ -1,0 +1,302 @@
+"""Model only what the scene requires: a plan that names every effect, included or skipped, with
+the numbers behind the decision.
+
+:func:`plan_model` measures a clip (or takes :class:`SceneStats`) and compares, for each effect,
+the size of its influence with ``tolerance``:
+
+=====================  ==========================================================================
+effect                 criterion (included when the value exceeds the limit)
+=====================  ==========================================================================
+photoreceptor          worst low-pass lag ``τ(I)·|dL/dt|`` over pixels and intervals, in units of
+                       the threshold C, versus ``tolerance`` (τ = 1 / 2π f_c(I); dim pixels are slow)
+sub-steps              only needed when a temporal filter (photoreceptor, surround transient) runs:
+                       then ESIM-style, per interval, ``ceil(max|ΔL| / (tolerance·C))``; otherwise
+                       1, because crossings of a linearly interpolated signal are closed-form
+threshold mismatch     ``σ / C`` versus ``tolerance``
+refractory period      highest crossing rate × refractory time versus 1 (below 1 no crossing is
+                       ever lost: exact)
+leak events            expected leak events ``rate · pixels · duration`` / expected signal events
+                       ``Σ|ΔL| / C`` versus ``tolerance``
+shot noise             the same with the shot-noise rate
+surround transient     mesh lag ``τ_s · |dS/dt| · s`` in units of C versus ``tolerance``
+=====================  ==========================================================================
+
+The simulator runs from the plan (``event_frames(video, kernel, plan=plan)``), and the tests check
+that the planned model stays within ``tolerance`` of the full model in event count and event-frame
+error while running faster where it skips.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import InputError
+from .config import SensorConfig
+
+__all__ = ["SceneStats", "PlanDecision", "ModelPlan", "plan_model"]
+
+
+@dataclass(frozen=True)
+class SceneStats:
+    """What the planner needs to know about a clip (log units, seconds, video intensity units).
+
+    Attributes
+    ----------
+    n_pixels : int
+        Pixels per frame times batch size.
+    duration_s : float
+        Clip duration (first to last frame).
+    interval_max_abs_change : tuple of float
+        Largest ``|ΔL|`` of any pixel in each frame interval (log units); its length is T-1.
+    max_log_rate_per_s : float
+        Largest ``|dL/dt|`` of any pixel (log units per second).
+    total_abs_change : float
+        ``Σ |ΔL|`` over all pixels and intervals (log units); ``/ C`` estimates the signal events.
+    max_lowpass_lag : float
+        Worst photoreceptor lag ``|dL/dt| / (2π f_c(I))`` (log units) with the config's cut-off.
+    max_surround_lag : float
+        Worst surround-mesh lag ``s · τ_s · |dS/dt|`` (log units).
+    min_intensity, max_intensity : float
+        Range of the comparator's photocurrent (video units).
+    floor_fraction : float
+        Fraction of pixel-frames at the positivity floor.
+    """
+
+    n_pixels: int
+    duration_s: float
+    interval_max_abs_change: tuple[float, ...]
+    max_log_rate_per_s: float
+    total_abs_change: float
+    max_lowpass_lag: float = 0.0
+    max_surround_lag: float = 0.0
+    min_intensity: float = float("nan")
+    max_intensity: float = float("nan")
+    floor_fraction: float = 0.0
+
+    @classmethod
+    def from_video(cls, video: Any, kernel: Any = None, *, timestamps_s: Any = None,
+                   config: SensorConfig | None = None) -> SceneStats:
+        """Measure a (B, T, H, W) linear-intensity clip through the kernel and the config's pixel."""
+        import torch
+
+        from .events import prepare_timestamps, prepare_video
+        from .filtering import filtered_log_signal, kernel_tensor
+
+        config = SensorConfig() if config is None else config
+        with torch.no_grad():
+            v = prepare_video(video)
+            ts = prepare_timestamps(timestamps_s, v, config)
+            w = kernel_tensor(kernel.detach() if isinstance(kernel, torch.Tensor) else kernel, v)
+            sig = filtered_log_signal(v, w, config)
+            L = sig.log_signal.double()
+            dL = (L[:, 1:] - L[:, :-1]).abs()
+            dt = (ts[:, 1:] - ts[:, :-1]).view(ts.shape[0], -1, 1, 1)
+            rate = dL / dt
+            inten = torch.minimum(sig.cutoff_intensity[:, 1:], sig.cutoff_intensity[:, :-1]).double()
+            lp_lag = 0.0
+            if config.has_photoreceptor:
+                fc = config.cutoff_hz * torch.clamp((inten + config.dark_intensity) / config.full_scale_intensity, 0, 1)
+                lp_lag = float((rate / (2 * math.pi * fc)).max())
+            s_lag = 0.0
+            if sig.surround is not None:
+                dS = (sig.surround[:, 1:] - sig.surround[:, :-1]).abs().double() / dt
+                s_lag = float(config.surround_weight * config.surround_tau_s * dS.max())
+            return cls(
+                n_pixels=int(v.shape[0] * v.shape[2] * v.shape[3]),
+                duration_s=float((ts[:, -1] - ts[:, 0]).max()),
+                interval_max_abs_change=tuple(float(x) for x in dL.amax(dim=(0, 2, 3))),
+                max_log_rate_per_s=float(rate.max()),
+                total_abs_change=float(dL.sum()),
+                max_lowpass_lag=lp_lag,
+                max_surround_lag=s_lag,
+                min_intensity=float(sig.cutoff_intensity.min()),
+                max_intensity=float(sig.cutoff_intensity.max()),
+                floor_fraction=sig.floor_fraction,
+            )
+
+
+@dataclass(frozen=True)
+class PlanDecision:
+    """One effect: included or skipped, the measured value, the limit it was compared with, why."""
+
+    name: str
+    included: bool
+    value: float
+    limit: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class ModelPlan:
+    """The effects a scene requires, and the effective config the simulator runs.
+
+    Attributes
+    ----------
+    base_config : SensorConfig
+        The full sensor model asked for.
+    config : SensorConfig
+        ``base_config`` with skipped effects switched off.
+    substeps : tuple of int
+        Sub-steps for each frame interval.
+    decisions : tuple of PlanDecision
+    tolerance : float
+    stats : SceneStats
+    """
+
+    base_config: SensorConfig
+    config: SensorConfig
+    substeps: tuple[int, ...]
+    decisions: tuple[PlanDecision, ...]
+    tolerance: float
+    stats: SceneStats = field(repr=False)
+
+    def decision(self, name: str) -> PlanDecision:
+        """The decision for effect ``name``."""
+        for d in self.decisions:
+            if d.name == name:
+                return d
+        raise InputError(f"plan has no effect {name!r}; effects: {', '.join(d.name for d in self.decisions)}")
+
+    @property
+    def skipped(self) -> tuple[str, ...]:
+        """Names of the effects left out."""
+        return tuple(d.name for d in self.decisions if not d.included)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"tolerance": self.tolerance, "substeps": list(self.substeps),
+                "decisions": [d.__dict__ for d in self.decisions], "config": self.config.to_dict()}
+
+    def __str__(self) -> str:
+        lines = [f"Model plan (tolerance {self.tolerance:g}; sub-steps per interval: "
+                 f"{_summarise(self.substeps)})",
+                 f"{'effect':<20} {'':8} {'value':>10} {'limit':>10}  reason"]
+        for d in self.decisions:
+            lines.append(f"{d.name:<20} {'INCLUDED' if d.included else 'skipped':8} "
+                         f"{d.value:10.3g} {d.limit:10.3g}  {d.reason}")
+        return "\n".join(lines)
+
+
+def _summarise(subs: tuple[int, ...]) -> str:
+    if not subs:
+        return "-"
+    if min(subs) == max(subs):
+        return f"{subs[0]} each"
+    return f"{min(subs)}..{max(subs)} (total {sum(subs)})"
+
+
+def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorConfig | None = None,
+               kernel: Any = None, timestamps_s: Any = None) -> ModelPlan:
+    """Decide which effects a scene requires and at what time resolution.
+
+    Parameters
+    ----------
+    video_or_stats : (B, T, H, W) tensor/array or SceneStats
+        The clip to simulate (linear intensity), or its measured statistics.
+    tolerance : float
+        Allowed relative error (fraction of a threshold, or of the signal event count), in (0, 1).
+    config : SensorConfig, optional
+        The full model (default ``SensorConfig()``); skipped effects are switched off in the
+        plan's effective config.
+    kernel, timestamps_s
+        As for :func:`event_frames` (used to measure a video).
+
+    Returns
+    -------
+    ModelPlan
+        Printable (``print(plan)``): every effect with its value, limit and reason.
+    """
+    try:
+        tol = float(tolerance)
+    except (TypeError, ValueError):
+        raise InputError(f"tolerance: must be a number in (0, 1), got {tolerance!r}") from None
+    if not 0 < tol < 1:
+        raise InputError(f"tolerance: must be in (0, 1), got {tol!r}")
+    config = SensorConfig() if config is None else config
+    if not isinstance(config, SensorConfig):
+        raise InputError(f"config: must be a SensorConfig, got {type(config).__name__}")
+    if isinstance(video_or_stats, SceneStats):
+        st = video_or_stats
+    else:
+        st = SceneStats.from_video(video_or_stats, kernel, timestamps_s=timestamps_s, config=config)
+    c_on, c_off = float(config.threshold_on), float(config.threshold_off)
+    c_nom = min(c_on, c_off)
+    c_low = max(c_nom - 3 * config.threshold_sigma, config.threshold_min_fraction * c_nom)
+    signal_events = st.total_abs_change / c_nom
+    decisions: list[PlanDecision] = []
+    changes: dict[str, Any] = {}
+
+    # photoreceptor low-pass
+    if not config.has_photoreceptor:
+        decisions.append(PlanDecision("photoreceptor", False, 0.0, tol, "disabled in config (cutoff_hz = 0 or inf)"))
+    else:
+        lag = st.max_lowpass_lag / c_nom
+        inc = lag > tol
+        decisions.append(PlanDecision(
+            "photoreceptor", inc, lag, tol,
+            f"worst low-pass lag {st.max_lowpass_lag:.3g} log units = {lag:.3g} C "
+            f"(intensity {st.min_intensity:.3g}..{st.max_intensity:.3g}, cut-off {config.cutoff_hz:g} Hz at full scale)"
+            + (" > tolerance" if inc else " <= tolerance")))
+        if not inc:
+            changes["cutoff_hz"] = 0.0
+    # surround transient
+    if config.placement != "post_log" or config.surround_tau_s <= 0 or config.surround_weight <= 0 or config.surround_lambda_px <= 0:
+        decisions.append(PlanDecision("surround transient", False, 0.0, tol, "no surround mesh with a time constant in config"))
+    else:
+        lag = st.max_surround_lag / c_nom
+        inc = lag > tol
+        decisions.append(PlanDecision("surround transient", inc, lag, tol,
+                                      f"mesh lag {st.max_surround_lag:.3g} log units = {lag:.3g} C"
+                                      f" (tau {config.surround_tau_s:g} s)" + (" > tolerance" if inc else " <= tolerance")))
+        if not inc:
+            changes["surround_tau_s"] = 0.0
+    # sub-steps
+    temporal = [d.name for d in decisions if d.included]
+    if temporal:
+        subs = tuple(int(min(max(math.ceil(x / (tol * c_low)), 1), config.max_substeps))
+                     for x in st.interval_max_abs_change)
+        decisions.append(PlanDecision(
+            "sub-steps", True, float(max(subs)), float(config.max_substeps),
+            f"{' and '.join(temporal)} filter(s) run: per interval ceil(max|ΔL| / ({tol:g} C)), "
+            f"max |ΔL| {max(st.interval_max_abs_change):.3g} log units -> {_summarise(subs)}"))
+    else:
+        subs = tuple(1 for _ in st.interval_max_abs_change)
+        decisions.append(PlanDecision("sub-steps", False, 1.0, float(config.max_substeps),
+                                      "no temporal filter: crossings of the linearly interpolated signal are "
+                                      "exact in closed form, 1 step per interval"))
+    # threshold mismatch
+    ratio = config.threshold_sigma / c_nom
+    inc = ratio > tol
+    decisions.append(PlanDecision("threshold mismatch", inc, ratio, tol,
+                                  f"sigma/C = {config.threshold_sigma:g}/{c_nom:g} = {ratio:.3g}"
+                                  + (" > tolerance" if inc else " <= tolerance")))
+    if not inc:
+        changes["threshold_sigma"] = 0.0
+    # refractory
+    per_ref = st.max_log_rate_per_s / c_low * config.refractory_s
+    inc = per_ref >= 1.0
+    decisions.append(PlanDecision(
+        "refractory", inc, per_ref, 1.0,
+        f"max crossing rate {st.max_log_rate_per_s / c_low:.3g} /s x refractory {config.refractory_s:g} s = {per_ref:.3g}"
+        + (" >= 1: crossings can be lost" if inc else " < 1: no crossing is ever lost")))
+    if not inc:
+        changes["refractory_s"] = 0.0
+    # noise sources
+    for name, key in (("leak events", "leak_rate_hz"), ("shot noise", "shot_noise_rate_hz")):
+        rate = float(getattr(config, key))
+        expected = rate * st.n_pixels * st.duration_s
+        ratio = expected / max(signal_events, 1.0)
+        inc = ratio > tol
+        decisions.append(PlanDecision(
+            name, inc, ratio, tol,
+            f"expected {expected:.3g} events ({rate:g} Hz x {st.n_pixels} px x {st.duration_s:.3g} s) vs "
+            f"{signal_events:.3g} signal events: ratio {ratio:.3g}" + (" > tolerance" if inc else " <= tolerance")))
+        if not inc:
+            changes[key] = 0.0
+    decisions.append(PlanDecision(
+        "positivity floor", True, st.floor_fraction, 0.0,
+        f"{config.placement}/{config.positivity}: {100 * st.floor_fraction:.3g} % of pixel-frames at the floor "
+        "(always modelled; reported)"))
+    eff = config.replace(adaptive_fraction=None, **changes)
+    return ModelPlan(config, eff, subs, tuple(decisions), tol, st)
