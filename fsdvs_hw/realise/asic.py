@@ -277,6 +277,30 @@ class AsicDesign:
 
 
 # ---------------------------------------------------------------------------- the fit
+#: Up to this tap width the per-class candidates are exact (every integer with ≤ d CSD digits is
+#: enumerated once); wider taps use truncated CSD expansions (see :meth:`_TapProblem.solve`).
+_EXACT_BITS = 16
+
+
+def _csd_truncations(n: np.ndarray, n_digits: int) -> np.ndarray:
+    """For each integer in ``n``: its CSD expansion truncated to the top 0, 1, …, ``n_digits`` digits.
+
+    Returns an array of shape ``n.shape + (n_digits + 1,)``.
+    """
+    v = np.asarray(n, dtype=np.int64).copy()
+    planes = []
+    while np.any(v != 0):  # non-adjacent form, least significant digit first
+        d = np.where(v & 1, 2 - (v & 3), 0)
+        planes.append(d)
+        v = (v - d) >> 1
+    if not planes:
+        return np.zeros(v.shape + (n_digits + 1,), dtype=np.int64)
+    D = np.stack(planes[::-1], axis=-1)  # most significant first
+    w = (1 << np.arange(len(planes) - 1, -1, -1, dtype=np.int64))
+    rank = np.cumsum(D != 0, axis=-1)
+    return np.stack([(D * (rank <= k) * w).sum(axis=-1) for k in range(n_digits + 1)], axis=-1)
+
+
 @lru_cache(maxsize=32)
 def _candidate_sets(bits: int) -> tuple[np.ndarray, ...]:
     """For d = 0, 1, …: sorted integers in [-qmax, qmax] with at most d CSD digits."""
@@ -298,7 +322,8 @@ class _TapProblem:
         # energy lost by the symmetric projection (a constant of the problem)
         self.proj2 = float(((target - classes.expand(self.tbar)) ** 2).sum())
         self.lim = tap_limit(bits)
-        self.sets = _candidate_sets(bits)
+        self.bits = bits
+        self.sets = _candidate_sets(bits) if bits <= _EXACT_BITS else None
         self.lam = float(adder_weight)
         self.pre_add = pre_add
 
@@ -317,14 +342,23 @@ class _TapProblem:
         return err2 + self.lam * adders
 
     def solve(self, s: float) -> np.ndarray:
-        """Exact minimiser of J over integer class values at fixed scale ``s``."""
+        """Minimiser of J over integer class values at fixed scale ``s``.
+
+        Exact for ``bits ≤ 16``: for every digit count d the nearest integers above and below
+        ``K_c / s`` with at most d CSD digits are candidates. Wider taps: the nearest integers and
+        the truncations of their CSD expansions to 0, 1, 2, … digits (exact for λ = 0).
+        """
         u = self.tbar / s
-        cands = []
-        for S in self.sets:
-            i = np.searchsorted(S, u)
-            cands.append(S[np.clip(i - 1, 0, S.size - 1)])
-            cands.append(S[np.clip(i, 0, S.size - 1)])
-        C = np.stack(cands, axis=1)  # (n_classes, n_cand)
+        if self.sets is not None:
+            cands = []
+            for S in self.sets:
+                i = np.searchsorted(S, u)
+                cands.append(S[np.clip(i - 1, 0, S.size - 1)])
+                cands.append(S[np.clip(i, 0, S.size - 1)])
+            C = np.stack(cands, axis=1)  # (n_classes, n_cand)
+        else:
+            near = np.clip(np.stack([np.floor(u), np.ceil(u)], axis=1), -self.lim, self.lim).astype(np.int64)
+            C = _csd_truncations(near, (self.bits + 2) // 2).reshape(near.shape[0], -1)
         err = self.m[:, None] * (s * C - self.tbar[:, None]) ** 2 / self.norm2
         cost = self.class_cost(C)
         score = err + self.lam * cost
@@ -332,6 +366,16 @@ class _TapProblem:
         tie = score <= best + 1e-12 * np.maximum(best, 1e-300)
         pick = np.argmin(np.where(tie, cost, np.inf), axis=1)
         return C[np.arange(C.shape[0]), pick]
+
+    def adders(self, q: np.ndarray) -> float:
+        return max(float(self.class_cost(q).sum()) - 1.0, 0.0)
+
+    def better(self, J: float, q: np.ndarray, best: Mapping[str, Any]) -> bool:
+        """True if (J, adders) beats ``best`` (ties in J, to 1e-12 relative, go to fewer adders)."""
+        Jb = best.get("J", math.inf)
+        if J < Jb - 1e-12 * abs(Jb) or not math.isfinite(Jb):
+            return True
+        return J <= Jb + 1e-12 * abs(Jb) and self.adders(q) < self.adders(best["q"])
 
     def ls_scale(self, q: np.ndarray) -> float | None:
         den = float((self.m * q * q).sum())
@@ -365,7 +409,7 @@ def _fit_free_scale(p: _TapProblem, amax: float) -> tuple[float, np.ndarray, dic
         s = 2.0 ** float(x[0])
         q = p.solve(s)
         J = p.objective(q, s)
-        if J < best["J"]:
+        if p.better(J, q, best):
             best.update(J=J, s=s, q=q)
         return J
 
@@ -394,10 +438,21 @@ def _fit_free_scale(p: _TapProblem, amax: float) -> tuple[float, np.ndarray, dic
             s = s_ls
             break
         s, q = s_ls, q_new
-    J_ls = p.objective(q, s)
-    if J_ls > best["J"]:  # keep DIRECT's point if polishing did not help
+    if not p.better(p.objective(q, s), q, best):  # keep DIRECT's point if polishing did not help
         s, q = best["s"], best["q"]
     return s, q, {"nlopt_algorithm": "GN_DIRECT_L", "nlopt_evaluations": int(evals), "scale_direct": float(s_direct)}
+
+
+def _divide_common_factor(p: _TapProblem, q: np.ndarray, s: float, *, powers_of_two_only: bool) -> tuple[np.ndarray, float]:
+    """Divide the taps by the common factor that leaves the fewest adders (same realised kernel)."""
+    g = int(np.gcd.reduce(np.abs(q[q != 0])))
+    if g <= 1:
+        return q, s
+    divs = {d for i in range(1, math.isqrt(g) + 1) if g % i == 0 for d in (i, g // i)}
+    if powers_of_two_only:
+        divs = {d for d in divs if d & (d - 1) == 0}
+    best = min(sorted(divs, reverse=True), key=lambda d: p.adders(q // d))
+    return q // best, s * best
 
 
 def fit_asic_taps(
@@ -475,13 +530,13 @@ def fit_asic_taps(
         else:
             e_lo = math.floor(-math.log2(2.0 * amax))
             e_hi = math.ceil(math.log2(2.0 * lim / amax))
-            best = None
+            best: dict[str, Any] = {"J": math.inf}
             for e in range(e_lo, e_hi + 1):
                 qe = p.solve(2.0**-e)
                 J = p.objective(qe, 2.0**-e)
-                if best is None or J < best[0]:
-                    best = (J, e, qe)
-            _, e, q = best
+                if p.better(J, qe, best):
+                    best.update(J=J, e=e, q=qe)
+            e, q = best["e"], best["q"]
             s, mode = 2.0**-e, "pow2"
             info["scale_exponent"] = int(e)
     else:
@@ -489,6 +544,10 @@ def fit_asic_taps(
         if not (math.isfinite(s) and s > 0):
             raise InputError(f"scale: a fixed scale must be a positive finite number, got {scale!r}")
         q, mode = p.solve(s), "fixed"
+    if mode != "fixed" and np.any(q):
+        q, s = _divide_common_factor(p, q, s, powers_of_two_only=(mode == "pow2"))
+        if mode == "pow2":
+            info["scale_exponent"] = int(round(-math.log2(s)))
     if not np.any(q):
         why = (f"at the fixed scale {s:.4g} (largest tap {amax:.4g} is below half a step)" if mode == "fixed"
                else f"with adder_weight={lam:g} (an adder costs more than the whole kernel error)")
