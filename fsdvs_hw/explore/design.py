@@ -19,7 +19,8 @@ Layout (every section and key is optional; defaults in brackets)::
     [realisations]  include = ["learned", "delta", "mesh", "asic", "metalens"]
     [realisations.mesh|asic|metalens]   keyword options of the fit function
                     (fit_resistive_mesh / fit_asic_taps / fit_metalens)
-    [tasks]         names, checkpoint_dir, fine_tune_steps, tracks, n_clips, seed
+    [tasks]         checkpoints = { detection = "kernels/learned_detection_7x7.safetensors" },
+                    n_test, finetune_epochs, tracks = ["simulator", "emulation"]
     [emulation]     display_bits, display_gamma, display_peak_nits, upsample_factor
     [sweep]         axes = { "asic.bits" = [2, 4, 8], "sensor.threshold_on" = [0.1, 0.2] }
     [run]           workers, seed
@@ -159,13 +160,12 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
                       item_types=(str,), choices=(*REFERENCE_REALISATIONS, *REALISATION_FITTERS)),
     },
     "tasks": {
-        "names": _f(list, [], "task evaluators (fsdvs_hw.tasks) for accuracy loss; [] = none",
-                    item_types=(str,)),
-        "checkpoint_dir": _f(str, "kernels", "folder of task checkpoints, relative to the design file"),
-        "fine_tune_steps": _f(int, 0, "optional short fine-tune after the zero-shot swap", lo=0, hi=100000),
+        "checkpoints": _f(dict, {}, "task name → trained checkpoint (.safetensors, relative to the design file); "
+                                    "{} = no task evaluation"),
+        "n_test": _f(int, 0, "test clips per evaluation; 0 = the checkpoint's own test-set size", lo=0, hi=100000),
+        "finetune_epochs": _f(int, 0, "optional short fine-tune after the zero-shot swap (0 = zero-shot)",
+                              lo=0, hi=1000),
         "tracks": _f(list, ["simulator"], "evaluation tracks", item_types=(str,), choices=_TRACKS),
-        "n_clips": _f(int, 16, "evaluation clips per task", lo=1, hi=100000),
-        "seed": _f(int, 0, "evaluation seed", lo=0, hi=2**31 - 1),
     },
     "emulation": {
         "display_bits": _f(int, 8, "display bit depth", lo=1, hi=16),
@@ -218,7 +218,16 @@ class _Checker:
         self.problems.append(f"key '{key}' = {shown}: {message}")
 
     def field(self, key: str, value: Any, spec: _Field) -> Any:
-        """Check one value; return it normalised (ints → floats where numbers are allowed)."""
+        """Check one value; return it normalised (ints → floats where numbers are allowed).
+
+        A rejected value is replaced by the default so that later checks do not report the same
+        mistake twice.
+        """
+        before = len(self.problems)
+        value = self._field(key, value, spec)
+        return copy.deepcopy(spec.default) if len(self.problems) > before else value
+
+    def _field(self, key: str, value: Any, spec: _Field) -> Any:
         if not _is_type(value, spec.types):
             self.add(key, value, f"wrong type {_type_name(type(value))}; allowed: {spec.allowed()}")
             return spec.default
@@ -302,8 +311,9 @@ class Design:
         """Keyword options for one hardware realisation's fit function."""
         return copy.deepcopy(self.data["realisations"].get(name, {}))
 
-    def checkpoint_dir(self) -> Path:
-        return (self.base_dir / self.data["tasks"]["checkpoint_dir"]).resolve()
+    def checkpoints(self) -> dict[str, Path]:
+        """Task name → absolute checkpoint path."""
+        return {t: _resolve(self.base_dir, p) for t, p in self.data["tasks"]["checkpoints"].items()}
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> Design:
         """A new, re-validated design with dotted keys replaced (``{"asic.bits": 4}``)."""
@@ -320,6 +330,11 @@ class Design:
 
     def to_dict(self) -> dict[str, Any]:
         return copy.deepcopy(self.data)
+
+
+def _resolve(base: Path, path: str) -> Path:
+    p = Path(path)
+    return (p if p.is_absolute() else base / p).resolve()
 
 
 def _canonical_key(key: str) -> str:
@@ -386,7 +401,11 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
                 allowed = ", ".join([*fields, *sorted(subtables)])
                 chk.add(f"{section}.{key}", value, f"unknown key; allowed in [{section}]: {allowed}")
         for key, spec in fields.items():
-            out[key] = chk.field(f"{section}.{key}", given[key], spec) if key in given else copy.deepcopy(spec.default)
+            # None never comes from TOML; it marks an unset optional key in re-validated data
+            if given.get(key) is not None:
+                out[key] = chk.field(f"{section}.{key}", given[key], spec)
+            else:
+                out[key] = copy.deepcopy(spec.default)
         if section == "realisations":
             for name in REALISATION_FITTERS:
                 opts = given.get(name, {})
@@ -399,6 +418,7 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
         data["design"]["name"] = "design"
     base = Path(base_dir)
     _check_cross(chk, data)
+    _check_tasks(chk, data, base)
     _check_axes(chk, data)
     target = _load_target(chk, data, base)
     chk.raise_if_any()
@@ -471,6 +491,32 @@ def _check_cross(chk: _Checker, data: dict[str, Any]) -> None:
                 chk.add(f"analysis.csf_methods[{i}]", m, f"unknown CSF model; allowed: {', '.join(CSF_METHODS)}")
     if len(set(data["realisations"]["include"])) != len(data["realisations"]["include"]):
         chk.add("realisations.include", data["realisations"]["include"], "lists a realisation twice")
+
+
+def _check_tasks(chk: _Checker, data: dict[str, Any], base: Path) -> None:
+    """Each task must be a registered evaluator and its checkpoint must exist."""
+    ckpts = data["tasks"]["checkpoints"]
+    if not ckpts:
+        return
+    try:
+        from ..tasks import EVALUATORS
+    except ImportError as exc:
+        chk.add("tasks.checkpoints", ckpts, f"task evaluation needs fsdvs_hw.tasks, which is not available ({exc})")
+        return
+    for task, path in ckpts.items():
+        key = f"tasks.checkpoints.{task}"
+        if task not in EVALUATORS:
+            chk.add(key, path, f"unknown task; allowed: {', '.join(EVALUATORS)}")
+        if not isinstance(path, str):
+            chk.add(key, path, "must be a path string to a .safetensors checkpoint")
+            continue
+        p = _resolve(base, path)
+        if p.suffix != ".safetensors":
+            p = p.with_suffix(".safetensors") if p.suffix == ".json" else Path(str(p) + ".safetensors")
+        if not p.is_file():
+            chk.add(key, path, f"checkpoint file not found (looked for {p})")
+
+
 
 
 def _check_axes(chk: _Checker, data: dict[str, Any]) -> None:

@@ -131,37 +131,57 @@ def _spectral(kernel: Kernel) -> dict[str, Any]:
     return {"status": "ok", **spectral_summary(kernel).to_dict()}
 
 
-def task_scores(kernel: Kernel, tasks: Sequence[str], *, checkpoint_dir: str | Path,
-                fine_tune_steps: int = 0, n_clips: int = 16, seed: int = 0,
-                tracks: Sequence[str] = ("simulator",)) -> dict[str, Any]:
-    """Evaluate ``kernel`` on each task evaluator by a zero-shot swap into the trained network.
+def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path], *, n_test: int = 0,
+                finetune_epochs: int = 0, tracks: Sequence[str] = ("simulator",)) -> dict[str, Any]:
+    """Evaluate ``kernel`` on each trained task by a zero-shot swap into its frozen network.
 
-    Returns ``{"status": ..., task: {track: {"metric": value, ...}}}``; ``status`` names what is
-    missing (tasks module, checkpoint) instead of inventing a number.
+    Parameters
+    ----------
+    kernel : Kernel
+        The realised kernel.
+    checkpoints : mapping
+        Task name → checkpoint written by ``fsdvs_hw.tasks.learn_kernel``.
+    n_test : int
+        Test clips (0 = the checkpoint's own test-set size).
+    finetune_epochs : int
+        Optional fine-tune of the network with the kernel frozen (0 = zero-shot).
+    tracks : sequence of {"simulator", "emulation"}
+        ``simulator``: ``evaluate_kernel`` with the checkpoint's simulator settings.
+        ``emulation``: the sensor-in-the-loop emulation; reported as unavailable while
+        ``evaluate_kernel`` has no hook for a display/recapture path.
+
+    Returns
+    -------
+    dict
+        ``{"status": ..., task: {track: {"metric": value, "metrics": {...}, ...}}}``; ``status``
+        names what is missing (tasks module, checkpoint, track) instead of inventing a number.
     """
-    if not tasks:
+    if not checkpoints:
         return {"status": "not requested"}
     try:
         tasks_mod = importlib.import_module("fsdvs_hw.tasks")
         evaluate_kernel = tasks_mod.evaluate_kernel
     except (ImportError, AttributeError) as exc:
         return {"status": f"unavailable: fsdvs_hw.tasks.evaluate_kernel not importable ({exc})"}
-    out: dict[str, Any] = {"status": "ok"}
     sig = inspect.signature(evaluate_kernel).parameters
-    for task in tasks:
+    out: dict[str, Any] = {"status": "ok"}
+    for task, ckpt in checkpoints.items():
         out[task] = {}
         for track in tracks:
             kw: dict[str, Any] = {}
-            for name, value in (("fine_tune_steps", fine_tune_steps), ("n_clips", n_clips), ("seed", seed),
-                                ("track", track)):
-                if name in sig:
-                    kw[name] = value
-            if track != "simulator" and "track" not in sig:
-                out[task][track] = {"status": "unavailable: evaluate_kernel has no 'track' option"}
-                continue
+            if n_test and "n_test" in sig:
+                kw["n_test"] = n_test
+            if finetune_epochs and "finetune_epochs" in sig:
+                kw["finetune_epochs"] = finetune_epochs
+            if track != "simulator":
+                if "track" not in sig:
+                    out[task][track] = {"status": f"unavailable: evaluate_kernel has no {track!r} track hook"}
+                    out["status"] = "partial"
+                    continue
+                kw["track"] = track
             t0 = time.perf_counter()
             try:
-                res = evaluate_kernel(kernel, task, Path(checkpoint_dir), **kw)
+                res = evaluate_kernel(kernel, task, Path(ckpt), **kw)
             except (InputError, FileNotFoundError) as exc:
                 out[task][track] = {"status": f"unavailable: {exc}"}
                 out["status"] = "partial"
@@ -189,7 +209,7 @@ def _metric_dict(res: Any) -> dict[str, Any]:
 
 
 def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str] = (PRIMARY_CSF_METHOD,),
-          focal_length_m: float = 4.0e-3, tasks: Sequence[str] = (), checkpoint_dir: str | Path = ".",
+          focal_length_m: float = 4.0e-3, checkpoints: Mapping[str, str | Path] | None = None,
           task_options: Mapping[str, Any] | None = None, fit_wall_s: float = float("nan")) -> dict[str, Any]:
     """Score one realisation against its target.
 
@@ -203,12 +223,10 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
         CSF models to compare with (names of :data:`fsdvs_hw.csf.CSF_METHODS`).
     focal_length_m : float
         Imaging focal length in metres; with the pixel pitch it sets pixels per degree.
-    tasks : sequence of str
-        Task evaluators to run; empty for none.
-    checkpoint_dir : path
-        Folder of the trained task networks.
+    checkpoints : mapping, optional
+        Task name → trained checkpoint; empty or None for no task evaluation.
     task_options : mapping, optional
-        ``fine_tune_steps``, ``n_clips``, ``seed``, ``tracks`` for :func:`task_scores`.
+        ``n_test``, ``finetune_epochs``, ``tracks`` for :func:`task_scores`.
     fit_wall_s : float
         Seconds the realisation's fit took (recorded as given).
 
@@ -237,7 +255,7 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
     }
     t1 = time.perf_counter()
     opts = dict(task_options or {})
-    rec["tasks"] = task_scores(realised, list(tasks), checkpoint_dir=checkpoint_dir, **opts)
+    rec["tasks"] = task_scores(realised, dict(checkpoints or {}), **opts)
     rec["wall_s"] = {"fit": float(fit_wall_s), "analysis": t1 - t0, "tasks": time.perf_counter() - t1}
     return rec
 

@@ -154,15 +154,15 @@ def evaluate_point(point: DesignPoint) -> dict[str, Any]:
         options = data["realisations"].get(point.realisation, {})
         real, fit_s = fit_realisation(point.realisation, target, options, seed=data["run"]["seed"])
         tasks = data["tasks"]
+        base = Path(point.base_dir)
         rec = score(
             real,
             target=target,
             csf_methods=data["analysis"]["csf_methods"],
             focal_length_m=data["optics"]["focal_length_m"],
-            tasks=tasks["names"],
-            checkpoint_dir=Path(point.base_dir) / tasks["checkpoint_dir"],
-            task_options={"fine_tune_steps": tasks["fine_tune_steps"], "n_clips": tasks["n_clips"],
-                          "seed": tasks["seed"], "tracks": tasks["tracks"]},
+            checkpoints={t: (p if Path(p).is_absolute() else base / p) for t, p in tasks["checkpoints"].items()},
+            task_options={"n_test": tasks["n_test"], "finetune_epochs": tasks["finetune_epochs"],
+                          "tracks": tasks["tracks"]},
             fit_wall_s=fit_s,
         )
         rec["realisation"] = real.to_dict()

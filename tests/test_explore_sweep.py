@@ -1,0 +1,219 @@
+"""Sweeps and the results store: one row per point, resume after a real kill, Dask on loopback."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fsdvs_hw.errors import InputError
+from fsdvs_hw.explore.design import load_design, parse_design
+from fsdvs_hw.explore.scoring import RealisationUnavailable, accuracy_losses, fit_realisation, score
+from fsdvs_hw.explore.store import ResultsStore
+from fsdvs_hw.explore.sweep import evaluate_point, expand_points, run_points
+from fsdvs_hw.kernels import reference_kernel
+from fsdvs_hw.realise.base import kernel_error
+
+REPO = Path(__file__).resolve().parents[1]
+
+# Cheap points: the ideal references only, swept over the optics (each point ~0.1-0.5 s).
+_CHEAP = """
+[realisations]
+include = ["learned", "delta"]
+[analysis]
+csf_methods = ["mannos_sakrison_1974"]
+[sweep]
+axes = {{ "optics.focal_length_m" = {focals} }}
+[run]
+workers = 1
+"""
+
+
+def _cheap_design(tmp_path: Path, n_focal: int) -> Path:
+    focals = [round(2e-3 + 0.5e-3 * i, 6) for i in range(n_focal)]
+    p = tmp_path / "cheap.toml"
+    p.write_text(_CHEAP.format(focals=focals))
+    return p
+
+
+# ---------------------------------------------------------------------- store
+def test_store_keeps_the_first_final_row_and_replaces_skipped(tmp_path):
+    with ResultsStore(tmp_path / "r.sqlite") as s:
+        assert s.add("a", design="d", realisation="mesh", params={}, status="skipped", result={"reason": "x"}, wall_s=0)
+        assert "a" not in s.done()  # skipped points are retried
+        assert s.add("a", design="d", realisation="mesh", params={}, status="ok", result={"v": 1}, wall_s=1)
+        assert not s.add("a", design="d", realisation="mesh", params={}, status="ok", result={"v": 2}, wall_s=1)
+        assert s.done() == {"a"} and len(s) == 1
+        (row,) = list(s.rows())
+        assert row["result"] == {"v": 1} and row["status"] == "ok"
+        s.add("b", design="d", realisation="asic", params={"asic.bits": 4}, status="error", result={}, wall_s=0)
+        assert s.forget(status="error") == 1 and s.done() == {"a"}
+    with ResultsStore(tmp_path / "r.sqlite") as s:  # persisted
+        assert s.done() == {"a"}
+
+
+def test_store_rejects_a_file_that_is_not_sqlite(tmp_path):
+    p = tmp_path / "bad.sqlite"
+    p.write_text("definitely not a database " * 100)
+    with pytest.raises(InputError, match="not a usable results store"):
+        ResultsStore(p)
+
+
+# ---------------------------------------------------------------------- scoring plumbing
+def test_reference_scores_are_exact():
+    k = reference_kernel("dog", 7)
+    real, _ = fit_realisation("delta", k)
+    rec = score(real, target=k, csf_methods=["mannos_sakrison_1974"])
+    delta = np.zeros((7, 7))
+    delta[3, 3] = 1.0
+    assert rec["kernel_error"] == pytest.approx(np.linalg.norm(delta - k.taps) / np.linalg.norm(k.taps))
+    assert rec["kernel_error"] == pytest.approx(kernel_error(real.kernel(), k))
+    # a delta has a flat response: no correlation with any CSF
+    assert rec["csf"]["mannos_sakrison_1974"]["correlation"] == 0.0
+    learned, _ = fit_realisation("learned", k)
+    rec2 = score(learned, target=k, csf_methods=["mannos_sakrison_1974"])
+    assert rec2["kernel_error"] == 0.0
+    from fsdvs_hw.csf import Geometry, csf_agreement
+
+    direct = csf_agreement(k, method="mannos_sakrison_1974", geometry=Geometry(k.pitch_m, 4e-3))
+    assert rec2["csf"]["mannos_sakrison_1974"]["correlation"] == pytest.approx(direct.correlation)
+    assert rec2["tasks"]["status"] == "not requested"
+
+
+def test_missing_realisation_module_is_reported_not_faked(monkeypatch):
+    from fsdvs_hw.explore import design as design_mod
+
+    monkeypatch.setitem(design_mod.REALISATION_FITTERS, "mesh", "fsdvs_hw.realise.no_such_module:fit")
+    with pytest.raises(RealisationUnavailable, match="no_such_module"):
+        fit_realisation("mesh", reference_kernel("dog", 7))
+
+
+def test_task_metrics_and_accuracy_loss_through_a_plugged_evaluator(monkeypatch, tmp_path):
+    """A stand-in evaluate_kernel whose metric is the centre tap: losses must be learned − realised."""
+    import types
+
+    calls = []
+
+    def evaluate_kernel(kernel, task, checkpoint, *, n_test=None, finetune_epochs=0):
+        calls.append((task, Path(checkpoint).name, n_test))
+        if task == "segmentation":
+            raise InputError("checkpoint missing")
+        return {"value": float(kernel.centre), "metrics": {"ap": float(kernel.centre)}}
+
+    monkeypatch.setitem(sys.modules, "fsdvs_hw.tasks", types.SimpleNamespace(evaluate_kernel=evaluate_kernel))
+    k = reference_kernel("dog", 7)
+    rows = []
+    for name in ("learned", "delta"):
+        real, _ = fit_realisation(name, k)
+        rec = score(real, target=k, csf_methods=["mannos_sakrison_1974"],
+                    checkpoints={"detection": tmp_path / "det.safetensors", "segmentation": tmp_path / "s"},
+                    task_options={"n_test": 3, "tracks": ["simulator", "emulation"]})
+        rows.append({"key": name, "realisation": name, "status": "ok", "result": rec})
+    assert calls[0] == ("detection", "det.safetensors", 3)
+    det = rows[1]["result"]["tasks"]["detection"]
+    assert det["simulator"]["metric"] == 1.0  # delta's centre tap
+    assert det["emulation"]["status"].startswith("unavailable")  # no hook: said, not invented
+    assert rows[1]["result"]["tasks"]["segmentation"]["simulator"]["status"] == "unavailable: checkpoint missing"
+    losses = accuracy_losses(rows)
+    assert losses["learned"] == {"detection/simulator": 0.0}
+    assert losses["delta"]["detection/simulator"] == pytest.approx(k.centre - 1.0)
+
+
+# ---------------------------------------------------------------------- running points
+def test_run_resume_skips_finished_points(tmp_path):
+    d = load_design(_cheap_design(tmp_path, 3))
+    pts = expand_points(d)
+    assert len(pts) == 6
+    with ResultsStore(tmp_path / "s.sqlite") as store:
+        first = run_points(pts[:4], store, progress=False)
+        assert first.ran == 4 and first.already_done == 0
+        again = run_points(pts, store, progress=False)
+        assert again.already_done == 4 and again.ran == 2 and again.statuses == {"ok": 2}
+        rows = list(store.rows())
+    assert sorted(r["key"] for r in rows) == sorted(p.key for p in pts)
+    # the ppd follows the swept focal length: a longer lens gives more pixels per degree
+    learned = sorted((r for r in rows if r["realisation"] == "learned"), key=lambda r: r["params"]["optics.focal_length_m"])
+    ppd = [r["result"]["csf"]["mannos_sakrison_1974"]["pixels_per_degree"] for r in learned]
+    assert ppd == sorted(ppd) and ppd[0] < ppd[-1]
+
+
+def test_failed_point_is_recorded_with_its_reason(tmp_path):
+    d = parse_design({"realisations": {"include": ["asic"], "asic": {"bits": 1}}})
+    pytest.importorskip("fsdvs_hw.realise.asic")
+    (p,) = expand_points(d)
+    res = evaluate_point(p)
+    assert res["status"] == "error"
+    assert "bits" in res["result"]["reason"]
+
+
+def _count(db: Path) -> int:
+    if not db.exists():
+        return 0
+    try:
+        with sqlite3.connect(db, timeout=5) as c:
+            return int(c.execute("SELECT COUNT(*) FROM points").fetchone()[0])
+    except sqlite3.OperationalError:
+        return 0
+
+
+def test_killed_sweep_resumes_with_every_point_exactly_once(tmp_path):
+    design = _cheap_design(tmp_path, 12)
+    n_points = 24
+    db = tmp_path / "killed.sqlite"
+    cmd = [sys.executable, "-m", "fsdvs_hw.cli", "sweep", str(design), "--store", str(db), "--workers", "1",
+           "--no-progress"]
+    proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while _count(db) < 3 and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)  # the process and anything it started, no clean-up
+    proc.wait(timeout=30)
+    assert proc.returncode == -signal.SIGKILL
+    with ResultsStore(db) as store:
+        before = {r["key"]: (r["finished_at"], r["worker"]) for r in store.rows()}
+    assert 3 <= len(before) < n_points, "the kill must land mid-sweep"
+
+    r = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert f"{len(before)} already in the store, {n_points - len(before)} run now" in r.stderr
+    with ResultsStore(db) as store:
+        rows = list(store.rows())
+    keys = [r["key"] for r in rows]
+    assert len(keys) == len(set(keys)) == n_points
+    assert set(keys) == {p.key for p in expand_points(load_design(design))}
+    for row in rows:  # rows finished before the kill are untouched
+        if row["key"] in before:
+            assert (row["finished_at"], row["worker"]) == before[row["key"]]
+    assert all(r["status"] == "ok" for r in rows)
+
+
+def test_sweep_on_a_dask_local_cluster_over_loopback(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    d = load_design(_cheap_design(tmp_path, 2))
+    pts = expand_points(d)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None, protocol="tcp") as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        with ResultsStore(tmp_path / "dask.sqlite") as store:
+            summary = run_points(pts, store, scheduler=cluster.scheduler_address, progress=False)
+            rows = {r["key"]: r for r in store.rows()}
+    assert summary.statuses == {"ok": len(pts)} and "Dask" in summary.executor
+    assert set(rows) == {p.key for p in pts}
+    assert all(not r["worker"].endswith(f":{os.getpid()}") for r in rows.values())  # ran in the workers
+    local = evaluate_point(pts[1])  # same point in this process gives the same score
+    assert rows[pts[1].key]["result"]["kernel_error"] == pytest.approx(local["result"]["kernel_error"], rel=1e-12)
+
+
+def test_bad_scheduler_address_is_a_clear_error(tmp_path):
+    pytest.importorskip("distributed")
+    d = load_design(_cheap_design(tmp_path, 1))
+    with ResultsStore(tmp_path / "x.sqlite") as store:
+        with pytest.raises(InputError, match="expected an address like tcp://HOST:PORT"):
+            run_points(expand_points(d), store, scheduler="localhost:8786", progress=False)
