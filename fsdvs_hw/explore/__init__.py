@@ -12,7 +12,7 @@ from __future__ import annotations
 from .design import Design, DesignError, load_design, parse_design
 from .scoring import accuracy_losses, fit_realisation, score
 from .store import ResultsStore
-from .sweep import DesignPoint, evaluate_point, expand_points, run_points
+from .sweep import DesignPoint, evaluate_point, expand_points, run_design, run_points
 
 __all__ = [
     "Design",
@@ -27,6 +27,7 @@ __all__ = [
     "expand_points",
     "evaluate_point",
     "run_points",
+    "run_design",
     "run_exploration",
 ]
 

@@ -110,6 +110,12 @@ class _Field:
         return ", ".join(parts) + f" ({self.doc})"
 
 
+#: Structured fit options checked by constructing their class before any work starts.
+_OPTION_CLASSES: dict[tuple[str, str], str] = {
+    ("mesh", "bounds"): "fsdvs_hw.realise.mesh:MeshBounds",
+}
+
+
 def _type_name(t: type) -> str:
     return {int: "integer", float: "number", str: "string", bool: "boolean", dict: "table", list: "list"}.get(
         t, t.__name__
@@ -451,6 +457,18 @@ def _check_realisation_options(chk: _Checker, name: str, opts: dict[str, Any]) -
         elif sig is not None and key not in params:
             fn = REALISATION_FITTERS[name].split(":")[1]
             chk.add(full, value, f"unknown option of {fn}; allowed: {', '.join(sorted(set(params) | set(schema)))}")
+        elif (name, key) in _OPTION_CLASSES and sig is not None:
+            out[key] = value
+            module, cls = _OPTION_CLASSES[(name, key)].split(":")
+            if not isinstance(value, Mapping):
+                chk.add(full, value, f"must be a table of {cls} fields")
+                continue
+            try:
+                getattr(importlib.import_module(module), cls)(**value)
+            except TypeError as exc:
+                chk.add(full, value, f"not valid {cls} fields ({exc})")
+            except InputError as exc:
+                chk.add(full, value, f"invalid ({exc})")
         else:
             p = params.get(key)
             types = _default_types(p.default) if p is not None else None

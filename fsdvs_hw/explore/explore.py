@@ -14,10 +14,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import InputError
 from .design import Design, load_design
-from .store import ResultsStore
-from .sweep import SweepSummary, add_execution_arguments, expand_points, run_points
+from .sweep import SweepSummary, add_execution_arguments, run_design
 
 __all__ = ["run_exploration", "Exploration", "HELP", "add_arguments", "run"]
 
@@ -57,18 +55,8 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     if not isinstance(design, Design):
         design = load_design(design)
     out = Path(out_dir)
-    points = expand_points(design)
-    workers = design.data["run"]["workers"] if workers is None else workers
-    if workers < 1:
-        raise InputError(f"workers must be ≥ 1, got {workers}")
     store_path = out / "results.sqlite"
-    with ResultsStore(store_path) as store:
-        store.set_meta(f"design:{design.name}", design.to_dict())
-        summary = run_points(points, store, workers=workers, scheduler=scheduler, progress=progress)
-        keys = {p.key for p in points}
-        rows = [r for r in store.rows() if r["key"] in keys]
-    order = {p.key: i for i, p in enumerate(points)}
-    rows.sort(key=lambda r: order[r["key"]])
+    summary, rows = run_design(design, store_path, workers=workers, scheduler=scheduler, progress=progress)
     report = write_report(rows, design, out)
     return Exploration(report=report, scores_csv=out / "scores.csv", scores_json=out / "scores.json",
                        store=store_path, summary=summary, wall_s=time.perf_counter() - t0)

@@ -41,6 +41,7 @@ __all__ = [
     "expand_points",
     "evaluate_point",
     "run_points",
+    "run_design",
     "SweepSummary",
     "HELP",
     "add_arguments",
@@ -290,6 +291,25 @@ def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
         client.close()
 
 
+def run_design(design: Design, store_path: str | Path, *, workers: int | None = None, scheduler: str | None = None,
+               progress: bool = True) -> tuple[SweepSummary, list[dict[str, Any]]]:
+    """Run all points of ``design`` into the store at ``store_path``; return the summary and its rows.
+
+    The rows are this design's points only (a store may hold other designs too), in the order of
+    :func:`expand_points`, each a dict with ``key, realisation, params, status, result, wall_s, ...``.
+    """
+    points = expand_points(design)
+    workers = design.data["run"]["workers"] if workers is None else workers
+    if workers < 1:
+        raise InputError(f"workers must be ≥ 1, got {workers}")
+    with ResultsStore(store_path) as store:
+        store.set_meta(f"design:{design.name}", design.to_dict())
+        summary = run_points(points, store, workers=workers, scheduler=scheduler, progress=progress)
+        order = {p.key: i for i, p in enumerate(points)}
+        rows = sorted((dict(r) for r in store.rows() if r["key"] in order), key=lambda r: order[r["key"]])
+    return summary, rows
+
+
 # ---------------------------------------------------------------------- command line
 HELP = "run a design sweep (local process pool, or a Dask cluster) into a SQLite results store"
 DESCRIPTION = (
@@ -320,22 +340,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     design = load_design(args.design)
-    points = expand_points(design)
     store_path = args.store or Path("out") / "sweeps" / f"{design.name}.sqlite"
-    workers = args.workers if args.workers is not None else design.data["run"]["workers"]
-    if workers < 1:
-        raise InputError(f"--workers {workers}: must be ≥ 1")
-    print(f"[sweep] {design.name}: {len(points)} design points -> {store_path}", file=sys.stderr, flush=True)
-    with ResultsStore(store_path) as store:
-        store.set_meta(f"design:{design.name}", design.to_dict())
-        summary = run_points(points, store, workers=workers, scheduler=args.scheduler, progress=not args.no_progress)
-        print(f"[sweep] {summary}", file=sys.stderr, flush=True)
-        if args.report is not None:
-            from ..report import write_report
+    print(f"[sweep] {design.name}: {len(expand_points(design))} design points -> {store_path}", file=sys.stderr,
+          flush=True)
+    summary, rows = run_design(design, store_path, workers=args.workers, scheduler=args.scheduler,
+                               progress=not args.no_progress)
+    print(f"[sweep] {summary}", file=sys.stderr, flush=True)
+    if args.report is not None:
+        from ..report import write_report
 
-            keys = {p.key for p in points}
-            rows = [r for r in store.rows() if r["key"] in keys]
-            path = write_report(rows, design, args.report)
-            print(f"[sweep] report: {path}", file=sys.stderr, flush=True)
+        print(f"[sweep] report: {write_report(rows, design, args.report)}", file=sys.stderr, flush=True)
     return 0 if summary.statuses.get("error", 0) == 0 else 1
 

@@ -16,8 +16,10 @@ from typing import Any
 
 __all__ = ["score_rows", "pareto_front", "headline_cost", "accuracy_axis", "write_scores", "HEADLINE_COSTS"]
 
-#: Cost items preferred as a realisation's single headline cost, in order (else its first item).
-HEADLINE_COSTS: tuple[str, ...] = ("area_m2", "yosys_cells", "adders", "power_w", "component_count")
+#: Cost items preferred as a realisation's single headline cost, in order (else its first item):
+#: ASIC silicon (area, cells, adders); mesh settling time of the wide mesh (its area is fixed at
+#: six conductances per pixel, so speed is what a design pays); metalens aperture diameter.
+HEADLINE_COSTS: tuple[str, ...] = ("area_m2", "yosys_cells", "adders", "tau_wide", "aperture_diameter", "power_w")
 
 
 def headline_cost(cost: Mapping[str, Mapping[str, Any]]) -> tuple[str, float, str] | None:
