@@ -42,6 +42,7 @@ _LAZY: dict[str, str] = {
     "kernel_error": "fsdvs_hw.realise.base",
     "fit_resistive_mesh": "fsdvs_hw.realise.mesh",
     "fit_asic_taps": "fsdvs_hw.realise.asic",
+    "AsicDesign": "fsdvs_hw.realise.asic",
     "fit_metalens": "fsdvs_hw.realise.metalens",
 }
 

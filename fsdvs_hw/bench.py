@@ -22,6 +22,7 @@ __all__ = ["BENCHMARKS", "run_benchmark", "HELP", "add_arguments", "run"]
 #: benchmark name -> "module:function"
 BENCHMARKS: dict[str, str] = {
     "csf": "fsdvs_hw.analysis:bench_analysis",
+    "asic": "fsdvs_hw.realise.asic_bench:bench_asic",
 }
 
 HELP = "speed/accuracy benchmarks (error vs run time) for each component"
