@@ -1,0 +1,754 @@
+r"""Metalens realisation: a radially symmetric metasurface whose PSF applies the kernel optically.
+
+A zero-power way to build a FS-DVS kernel: the camera's (meta)lens spreads each scene point over
+the k×k pixel neighbourhood, so that the sensor, integrating the point-spread function (PSF)
+over each pixel and over the spectrum, applies the kernel before the log stage.
+
+Forward model (:func:`pixel_psf`)
+---------------------------------
+* **Phase.** :math:`\phi_0(r) = -\frac{2\pi}{\lambda_0}(\sqrt{r^2+f^2}-f) + \sum_{k=1}^{K} c_k (r/a)^{2k}`
+  (rad at the design wavelength :math:`\lambda_0`): a hyperbolic focusing term for focal length
+  ``f`` plus even polynomial terms, over a circular aperture of radius ``a``.
+* **Dispersion** (``dispersion=``): ``"diffractive"`` (default) —
+  :math:`\phi(r,\lambda) = \phi_0(r)`: a 2π-wrapped metasurface imposes the same phase in radians
+  at every wavelength to first order, so the focal length scales as :math:`f\lambda_0/\lambda`
+  (the chromatic behaviour of measured metalenses; Khorasaninejad et al., Science 352, 1190,
+  2016); ``"achromatic"`` — :math:`\phi = \phi_0\,\lambda_0/\lambda` (constant optical path: an
+  ideal dispersion-engineered metalens, Chen et al., Nat. Nanotechnol. 13, 220, 2018). Unit-cell
+  efficiency and polarisation are not modelled (scalar, unit transmission).
+* **Propagation** to the sensor at distance ``z = f + δ`` (the defocus δ is a design variable):
+  exact scalar angular spectrum via the radial Hankel path
+  (:class:`~fsdvs_hw.realise.optics.RadialPropagator`), or the band-limited 2-D angular
+  spectrum (:func:`~fsdvs_hw.realise.optics.angular_spectrum_2d`) as the independent check.
+* **Sensor integration.** Intensity is integrated over each pixel (box of side ``pitch_m``,
+  Gauss–Legendre nodes) and over wavelength with illuminant × response weights from
+  colour-science (:mod:`fsdvs_hw.realise.spectral`). Taps are fractions of the power entering
+  the aperture.
+
+Signed kernels
+--------------
+An incoherent PSF is non-negative. ``strategy="pedestal"``: one lens realises :math:`g P \approx
+K + c` inside the k×k window (``c ≥ 0`` a uniform pedestal, the gain ``g`` folds into the event
+threshold); :meth:`MetalensDesign.kernel` returns :math:`gP` — what the sensor applies — and the
+design reports ``c`` and the contrast it costs. ``strategy="differential"``: two lenses (two
+photodiodes per pixel) give :math:`g_+P_+ - g_-P_-` subtracted in the pixel *before* the log
+(``g_-/g_+`` is a current-mirror ratio).
+
+Fitting (:func:`fit_metalens`) uses torch autograd in float64 with L-BFGS over the polynomial
+coefficients and the defocus, from a few defocus starts; gains and pedestal are solved in closed
+form (linear least squares) at every step.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..kernels import DEFAULT_PITCH_M, Kernel
+from .base import CostItem, kernel_error
+from .optics import RadialPropagator, angular_spectrum_2d, pixel_quadrature, required_modes
+from .spectral import SpectralSamples, spectral_samples
+
+__all__ = [
+    "DISPERSION_MODELS",
+    "STRATEGIES",
+    "LensGeometry",
+    "MetalensDesign",
+    "fit_metalens",
+    "pixel_psf",
+    "local_numerical_aperture",
+]
+
+#: dispersion model -> exponent p in φ(r, λ) = φ0(r) (λ0/λ)^p
+DISPERSION_MODELS: dict[str, float] = {"diffractive": 0.0, "achromatic": 1.0}
+#: signed-kernel strategies
+STRATEGIES = ("pedestal", "differential")
+
+
+@dataclass(frozen=True)
+class LensGeometry:
+    """Fixed lens parameters (the fit varies only the phase polynomial and the sensor distance).
+
+    Parameters
+    ----------
+    aperture_m : float
+        Aperture diameter D (m).
+    focal_length_m : float
+        Focal length f of the hyperbolic term at the design wavelength (m).
+    design_wavelength_m : float
+        λ0 (m) at which the phase coefficients are defined.
+    dispersion : {"diffractive", "achromatic"}
+        How the phase scales with wavelength (see module docstring).
+    """
+
+    aperture_m: float = 100e-6
+    focal_length_m: float = 200e-6
+    design_wavelength_m: float = 555e-9
+    dispersion: str = "diffractive"
+
+    def __post_init__(self) -> None:
+        for name in ("aperture_m", "focal_length_m", "design_wavelength_m"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise InputError(f"{name} must be a positive finite length in metres, got {v!r}")
+        if not (100e-9 <= self.design_wavelength_m <= 20e-6):
+            raise InputError(f"design_wavelength_m must be in [100 nm, 20 µm], got {self.design_wavelength_m!r}")
+        if self.dispersion not in DISPERSION_MODELS:
+            raise InputError(f"dispersion {self.dispersion!r} unknown; allowed: {', '.join(DISPERSION_MODELS)}")
+
+    @property
+    def radius_m(self) -> float:
+        return 0.5 * self.aperture_m
+
+    @property
+    def numerical_aperture(self) -> float:
+        """Geometric NA of the hyperbolic focusing term, a/√(a² + f²)."""
+        return self.radius_m / math.hypot(self.radius_m, self.focal_length_m)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"aperture_m": self.aperture_m, "focal_length_m": self.focal_length_m,
+                "design_wavelength_m": self.design_wavelength_m, "dispersion": self.dispersion}
+
+
+def _phase0(r: np.ndarray, geometry: LensGeometry, coefficients: Any) -> Any:
+    """φ0(r) in rad at λ0; ``coefficients`` may be a torch tensor (then the result is one)."""
+    a, f, lam0 = geometry.radius_m, geometry.focal_length_m, geometry.design_wavelength_m
+    hyp = -(2 * math.pi / lam0) * (np.sqrt(r * r + f * f) - f)
+    rho2 = (r / a) ** 2
+    n = len(coefficients)
+    if n == 0:
+        if hasattr(coefficients, "detach"):
+            import torch
+
+            return torch.from_numpy(hyp)
+        return hyp
+    powers = np.stack([rho2 ** (k + 1) for k in range(n)], axis=-1)  # (M, K)
+    if hasattr(coefficients, "detach"):
+        import torch
+
+        return torch.from_numpy(hyp) + torch.from_numpy(powers) @ coefficients
+    return hyp + powers @ np.asarray(coefficients, dtype=float)
+
+
+def local_numerical_aperture(geometry: LensGeometry, coefficients: Sequence[float], wavelengths_m: Sequence[float]) -> float:
+    r"""Largest local NA of the phase, :math:`\max_{r,\lambda} \lambda |\partial_r\phi(r,\lambda)|/(2\pi)`.
+
+    The lens-plane sampling (and the metasurface unit cell) must satisfy
+    :math:`\Delta x \le \lambda_{min}/(2\,NA)`; a value ≥ 1 means the phase asks for evanescent
+    waves and cannot be built.
+    """
+    a = geometry.radius_m
+    r = np.linspace(0, a, 2049)
+    phi = _phase0(r, geometry, np.asarray(coefficients, dtype=float))
+    grad = np.abs(np.gradient(phi, r)).max()
+    p = DISPERSION_MODELS[geometry.dispersion]
+    lam = np.asarray(wavelengths_m, dtype=float)
+    scale = (geometry.design_wavelength_m / lam) ** p
+    return float(np.max(lam * grad * scale) / (2 * math.pi))
+
+
+class _RadialKernelModel:
+    """Cached forward model: (coefficients, sensor distance) -> pixel-integrated PSF (torch)."""
+
+    def __init__(self, geometry: LensGeometry, *, pitch_m: float, n_pixels: int, spectral: SpectralSamples,
+                 n_sub: int | None = None, n_modes: int | None = None, window_pad: float = 2.0,
+                 na_budget: float | None = None, oversample: float = 1.5):
+        import torch
+
+        self.geometry = geometry
+        self.spectral = spectral
+        self.n_pixels = n_pixels
+        a = geometry.radius_m
+        half_diag = (n_pixels / 2) * pitch_m * math.sqrt(2)
+        self.window_radius_m = window_pad * max(a, half_diag)
+        lam_min = float(spectral.wavelengths_m.min())
+        na = na_budget if na_budget is not None else local_numerical_aperture(geometry, [], spectral.wavelengths_m)
+        if na >= 1:
+            raise InputError(
+                f"the lens phase needs a local NA of {na:.3f} ≥ 1 at λ = {lam_min * 1e9:.0f} nm (aperture "
+                f"{geometry.aperture_m:.3g} m, focal length {geometry.focal_length_m:.3g} m): evanescent, not buildable; "
+                "reduce the aperture or lengthen the focal length"
+            )
+        needed = required_modes(self.window_radius_m, na, lam_min, oversample=oversample)
+        if n_modes is None:
+            n_modes = needed
+        elif n_modes < needed:
+            raise InputError(
+                f"n_modes={n_modes} undersamples the lens plane: Δx = {self.window_radius_m / n_modes:.3g} m > "
+                f"λ_min/(2·NA) = {lam_min / (2 * na):.3g} m; need n_modes ≥ {needed} (or leave it None)"
+            )
+        self.n_modes = int(n_modes)
+        self.na = na
+        self.prop = RadialPropagator(a, self.window_radius_m, self.n_modes)
+        if n_sub is None:  # resolve a focused spot (size ~ λ/(2 NA)) inside a pixel
+            n_sub = int(np.clip(math.ceil(4 * pitch_m * na / lam_min) + 2, 6, 24))
+        self.n_sub = n_sub
+        rho, index, weights = pixel_quadrature(n_pixels, pitch_m, n_sub)
+        self.B = self.prop.evaluation_matrix(rho)
+        self.index = torch.from_numpy(index)
+        self.weights = torch.from_numpy(weights)
+        self.p_in = math.pi * a * a
+        p = DISPERSION_MODELS[geometry.dispersion]
+        self.phase_scale = torch.from_numpy((geometry.design_wavelength_m / spectral.wavelengths_m) ** p)[:, None]
+        self.w_lambda = torch.from_numpy(spectral.weights)
+        r = self.prop.r_pupil
+        self._hyp = torch.from_numpy(_phase0(r, geometry, ()))
+        self._powers = torch.from_numpy(np.stack([(r / a) ** (2 * k + 2) for k in range(12)], axis=-1))
+
+    def psf(self, coefficients: Any, z_m: Any) -> Any:
+        """Pixel taps (n, n): fraction of the aperture's power landing on each pixel."""
+        import torch
+
+        if not hasattr(coefficients, "detach"):
+            coefficients = torch.as_tensor(np.asarray(coefficients, dtype=float))
+        phi0 = self._hyp + self._powers[:, : coefficients.shape[0]] @ coefficients
+        phi = phi0[None, :] * self.phase_scale
+        field = torch.polar(torch.ones_like(phi), phi)
+        u = self.prop.propagate(field, self.spectral.wavelengths_m, z_m, self.B)  # (L, Q)
+        intensity = (self.w_lambda[:, None] * (u.real**2 + u.imag**2)).sum(0)  # (Q,)
+        return (intensity[self.index] * self.weights).sum(-1) / self.p_in
+
+
+def _spectral(illuminant: Any, response: Any, n_wavelengths: int) -> SpectralSamples:
+    if isinstance(illuminant, SpectralSamples):
+        return illuminant
+    kwargs = {} if response is None else {"response": response}
+    return spectral_samples(illuminant, n=n_wavelengths, **kwargs)
+
+
+def pixel_psf(geometry: LensGeometry, coefficients: Sequence[float] = (), *, sensor_distance_m: float | None = None,
+              pitch_m: float = DEFAULT_PITCH_M, n_pixels: int = 7, illuminant: Any = "D65", response: Any = None,
+              n_wavelengths: int = 8, method: str = "radial", n_sub: int | None = None, n_modes: int | None = None,
+              window_pad: float = 2.0, samples_per_pixel: int | None = None) -> np.ndarray:
+    """The PSF integrated over each pixel and the spectrum, as fractions of the incident power.
+
+    Parameters
+    ----------
+    geometry : LensGeometry
+        Aperture, focal length, design wavelength, dispersion model.
+    coefficients : sequence of float
+        Polynomial phase coefficients :math:`c_k` (rad at λ0) of (r/a)^2, (r/a)^4, ...
+    sensor_distance_m : float, optional
+        Lens-to-sensor distance (m); default the focal length (in focus at λ0).
+    pitch_m : float
+        Pixel pitch (m).
+    n_pixels : int
+        Odd side of the pixel window centred on the optical axis.
+    illuminant, response, n_wavelengths
+        Spectral weighting (see :func:`~fsdvs_hw.realise.spectral.spectral_samples`); a float
+        illuminant is a single wavelength in metres.
+    method : {"radial", "angular_2d"}
+        Radial Hankel path (fast) or 2-D band-limited angular spectrum (reference).
+    n_sub : int, optional
+        Radial path: Gauss–Legendre nodes per pixel side for the box integral; default
+        ``clip(ceil(4 · pitch · NA / λ_min) + 2, 6, 24)`` (resolves a focused spot).
+    n_modes : int, optional
+        Radial path: frequency samples; default from the Nyquist condition (oversampled 1.5×).
+        Too few raises :class:`InputError`.
+    window_pad : float
+        Computational window radius / max(aperture radius, pixel-window half-diagonal).
+    samples_per_pixel : int, optional
+        2-D path: odd number of grid samples per pixel side (grid step = pitch / this); default
+        the smallest odd number meeting Δx ≤ λ_min / (2 NA).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_pixels, n_pixels)
+    """
+    import torch
+
+    spectral = _spectral(illuminant, response, n_wavelengths)
+    z = geometry.focal_length_m if sensor_distance_m is None else float(sensor_distance_m)
+    _check_extremes(geometry, spectral, z, pitch_m)
+    coeffs = torch.tensor(np.asarray(coefficients, dtype=float), dtype=torch.float64)
+    na = local_numerical_aperture(geometry, coefficients, spectral.wavelengths_m)
+    if method == "radial":
+        model = _RadialKernelModel(geometry, pitch_m=pitch_m, n_pixels=n_pixels, spectral=spectral, n_sub=n_sub,
+                                   n_modes=n_modes, window_pad=window_pad, na_budget=na)
+        with torch.no_grad():
+            return model.psf(coeffs, z).numpy()
+    if method == "angular_2d":
+        return _pixel_psf_2d(geometry, coeffs, z, pitch_m, n_pixels, spectral, na, window_pad, samples_per_pixel)
+    raise InputError(f"method {method!r} unknown; allowed: 'radial', 'angular_2d'")
+
+
+def _pixel_psf_2d(geometry: LensGeometry, coeffs: Any, z: float, pitch_m: float, n_pixels: int,
+                  spectral: SpectralSamples, na: float, window_pad: float, samples_per_pixel: int | None) -> np.ndarray:
+    import torch
+
+    lam_min = float(spectral.wavelengths_m.min())
+    if na >= 1:
+        raise InputError(f"the lens phase needs a local NA of {na:.3f} ≥ 1: evanescent, not buildable")
+    dx_max = lam_min / (2 * na)
+    if samples_per_pixel is None:
+        m = int(math.ceil(pitch_m / dx_max))
+        m += (m + 1) % 2
+    else:
+        m = int(samples_per_pixel)
+        if m < 1 or m % 2 == 0:
+            raise InputError(f"samples_per_pixel must be an odd integer ≥ 1, got {samples_per_pixel!r}")
+        if pitch_m / m > dx_max * (1 + 1e-9):
+            raise InputError(
+                f"samples_per_pixel={m} gives Δx = {pitch_m / m:.3g} m > λ_min/(2·NA) = {dx_max:.3g} m "
+                f"(NA {na:.3f}); use ≥ {math.ceil(pitch_m / dx_max)}"
+            )
+    dx = pitch_m / m
+    a = geometry.radius_m
+    half_diag = (n_pixels / 2) * pitch_m * math.sqrt(2)
+    half = window_pad * max(a, half_diag)
+    n_half = int(math.ceil(half / dx))
+    n = 2 * n_half + 1
+    if n > 8193:
+        raise InputError(f"2-D angular spectrum grid {n}×{n} is too large; use method='radial' or a coarser grid")
+    x = (np.arange(n) - n_half) * dx
+    X, Y = np.meshgrid(x, x)
+    r = np.hypot(X, Y)
+    # area-weighted (anti-aliased) aperture: linear coverage ramp across the edge
+    amp = np.clip((a - r) / dx + 0.5, 0.0, 1.0)
+    inside = amp > 0
+    phi0 = np.zeros_like(r)
+    phi0[inside] = _phase0(r[inside], geometry, coeffs.numpy())
+    p = DISPERSION_MODELS[geometry.dispersion]
+    scale = (geometry.design_wavelength_m / spectral.wavelengths_m) ** p
+    field = torch.from_numpy(amp[None] * np.exp(1j * phi0[None] * scale[:, None, None]))
+    with torch.no_grad():
+        out = angular_spectrum_2d(field, dx, spectral.wavelengths_m, z)
+    intensity = np.einsum("l,lij->ij", spectral.weights, (out.abs() ** 2).numpy())
+    p_in = float((amp**2).sum()) * dx * dx
+    r_pix = n_pixels // 2
+    c0 = n_half - r_pix * m - (m - 1) // 2
+    block = intensity[c0 : c0 + n_pixels * m, c0 : c0 + n_pixels * m]
+    taps = block.reshape(n_pixels, m, n_pixels, m).sum(axis=(1, 3)) * dx * dx
+    return taps / p_in
+
+
+def _check_extremes(geometry: LensGeometry, spectral: SpectralSamples, z: float, pitch_m: float) -> None:
+    lam_max = float(spectral.wavelengths_m.max())
+    if geometry.aperture_m < 2 * lam_max:
+        raise InputError(
+            f"aperture_m={geometry.aperture_m:.3g} m is below 2 λ_max = {2 * lam_max:.3g} m: scalar diffraction "
+            "(and a metasurface of a few unit cells) is not valid there"
+        )
+    if not (math.isfinite(z) and z > 2 * lam_max):
+        raise InputError(f"sensor_distance_m must be finite and > 2 λ_max = {2 * lam_max:.3g} m, got {z!r}")
+    if not (1e-7 <= pitch_m <= 1e-3):
+        raise InputError(f"pitch_m={pitch_m!r} is outside [1e-7, 1e-3] m (micrometres passed as metres?)")
+
+
+# ---------------------------------------------------------------------------------- design
+def _log_contrast_gain(taps: np.ndarray) -> float:
+    """max_{f≠0} |K̂(f)| / K̂(0): log-intensity modulation per unit scene modulation (pre-log kernel)."""
+    spec = np.abs(np.fft.fft2(taps, s=(64, 64)))
+    dc = float(np.real(np.fft.fft2(taps, s=(64, 64))[0, 0]))
+    spec[0, 0] = 0.0
+    return float(spec.max() / dc) if dc > 0 else float("inf")
+
+
+@dataclass(frozen=True, eq=False)
+class MetalensDesign:
+    """A fitted metalens realisation (one lens, or a differential pair).
+
+    Attributes
+    ----------
+    target : Kernel
+        The kernel that was fitted.
+    strategy : {"pedestal", "differential"}
+        How the sign of the kernel is handled (module docstring).
+    geometry : LensGeometry
+        Aperture, focal length, design wavelength, dispersion model (shared by both lenses).
+    coefficients : tuple of tuple of float
+        Per lens, the polynomial phase coefficients c_k (rad at λ0) of (r/a)^2, (r/a)^4, ...
+    sensor_distance_m : tuple of float
+        Per lens, the lens-to-sensor distance (m); defocus = distance − focal length.
+    gains : tuple of float
+        Per lens, the gain g (pedestal) or g₊, g₋ (differential) applied to the PSF taps (taps
+        are fractions of the aperture's power). ``g₋/g₊`` is the pixel's subtraction ratio.
+    pedestal : float
+        c, the uniform offset added inside the k×k window (target units; 0 for differential).
+    guard_px : int
+        Pixels of spill evaluated around the k×k window (the realised kernel is
+        (k + 2·guard) square).
+    psfs : tuple of numpy.ndarray
+        Per lens, the pixel- and spectrum-integrated PSF on the realised window (fractions of
+        incident power).
+    spectral : SpectralSamples
+        Wavelengths and weights used.
+    fit_info : dict
+        Wall time (s), iterations, numerical settings.
+    """
+
+    target: Kernel
+    strategy: str
+    geometry: LensGeometry
+    coefficients: tuple[tuple[float, ...], ...]
+    sensor_distance_m: tuple[float, ...]
+    gains: tuple[float, ...]
+    pedestal: float
+    guard_px: int
+    psfs: tuple[np.ndarray, ...]
+    spectral: SpectralSamples
+    fit_info: Mapping[str, Any] = field(default_factory=dict)
+    kind: str = field(default="metalens", init=False)
+
+    # -------------------------------------------------------------- kernels
+    def kernel(self) -> Kernel:
+        """What the sensor applies: g·P (pedestal: ≈ K + c in the window) or g₊P₊ − g₋P₋."""
+        taps = self.gains[0] * self.psfs[0]
+        if self.strategy == "differential":
+            taps = taps - self.gains[1] * self.psfs[1]
+        return self.target.with_taps(taps, name=f"metalens[{self.strategy}] {self.target.name}",
+                                     realisation="metalens", strategy=self.strategy)
+
+    def signal_kernel(self) -> Kernel:
+        """The applied kernel minus the pedestal c inside the k×k window (comparable with the target)."""
+        taps = np.array(self.kernel().taps)
+        g, k = self.guard_px, self.target.size
+        taps[g : g + k, g : g + k] -= self.pedestal
+        return self.kernel().with_taps(taps, name=f"metalens[{self.strategy}] signal {self.target.name}")
+
+    @property
+    def error(self) -> float:
+        """Relative L2 error of :meth:`signal_kernel` against the target (spill outside the window counts)."""
+        return kernel_error(self.signal_kernel(), self.target)
+
+    @property
+    def optical_efficiency(self) -> tuple[float, ...]:
+        """Per lens, the fraction of the aperture's power landing inside the k×k window."""
+        g, k = self.guard_px, self.target.size
+        return tuple(float(p[g : g + k, g : g + k].sum()) for p in self.psfs)
+
+    @property
+    def pedestal_fraction(self) -> float:
+        """Share of the light collected in the window that is pedestal: k²c / Σ_window(K + c)."""
+        if self.strategy != "pedestal" or self.pedestal == 0:
+            return 0.0
+        k = self.target.size
+        g = self.guard_px
+        window = self.kernel().taps[g : g + k, g : g + k]
+        return float(k * k * self.pedestal / window.sum())
+
+    @property
+    def contrast_factor(self) -> float:
+        """Log-contrast gain of the applied kernel relative to the ideal target (≤ 1 means contrast lost).
+
+        Both are :math:`\\max_{f\\ne0}|\\hat K(f)| / \\hat K(0)` (the log-intensity modulation a
+        grating of unit modulation produces at the kernel's best frequency). NaN when the target
+        has no positive DC gain (it cannot be applied before a log without a pedestal at all).
+        """
+        t = _log_contrast_gain(self.target.taps)
+        return float(_log_contrast_gain(self.kernel().taps) / t) if math.isfinite(t) else float("nan")
+
+    # -------------------------------------------------------------- protocol
+    def cost(self) -> dict[str, CostItem]:
+        eff = self.optical_efficiency
+        out = {
+            "aperture_diameter": CostItem(self.geometry.aperture_m, "m", "metalens aperture diameter D"),
+            "focal_length": CostItem(self.geometry.focal_length_m, "m", "focal length f of the hyperbolic term at λ0"),
+            "lens_count": CostItem(len(self.psfs), "count", "lenses (1 pedestal, 2 differential pair)"),
+            "numerical_aperture": CostItem(
+                local_numerical_aperture(self.geometry, self.coefficients[0], self.spectral.wavelengths_m), "1",
+                "largest local NA of the phase (unit cell ≤ λ_min/(2·NA))"),
+            "optical_efficiency": CostItem(min(eff), "1", "fraction of aperture power inside the kernel window (worst lens)"),
+            "pedestal": CostItem(self.pedestal, "1", "uniform offset c added in the window (target units)"),
+            "pedestal_fraction": CostItem(self.pedestal_fraction, "1", "share of collected light that is pedestal"),
+            "kernel_error": CostItem(self.error, "1", "relative L2 error of the signal kernel vs the target"),
+            "fit_time": CostItem(float(self.fit_info.get("wall_time_s", float("nan"))), "s", "fit wall time"),
+        }
+        for i, z in enumerate(self.sensor_distance_m):
+            tag = "" if len(self.sensor_distance_m) == 1 else ("_plus", "_minus")[i]
+            out[f"sensor_distance{tag}"] = CostItem(z, "m", "lens-to-sensor distance")
+            out[f"defocus{tag}"] = CostItem(z - self.geometry.focal_length_m, "m", "sensor distance − focal length")
+        cf = self.contrast_factor
+        if math.isfinite(cf):
+            out["contrast_factor"] = CostItem(cf, "1", "log-contrast gain relative to the ideal kernel")
+        if self.strategy == "differential":
+            out["subtraction_ratio"] = CostItem(self.gains[1] / self.gains[0], "1", "g₋/g₊ current-mirror ratio")
+        return out
+
+    def describe(self) -> str:
+        g = self.geometry
+        lines = [
+            f"metalens ({self.strategy}) for {self.target.size}x{self.target.size} '{self.target.name}' at "
+            f"{self.target.pitch_m * 1e6:.2f} µm pitch: relative error {self.error:.3f}",
+            f"  aperture {g.aperture_m * 1e6:.0f} µm, f {g.focal_length_m * 1e6:.0f} µm (NA {g.numerical_aperture:.3f}), "
+            f"{g.dispersion} dispersion, λ0 {g.design_wavelength_m * 1e9:.0f} nm; {self.spectral.n} wavelengths "
+            f"({self.spectral.illuminant} × {self.spectral.response})",
+        ]
+        for i, (c, z) in enumerate(zip(self.coefficients, self.sensor_distance_m)):
+            lines.append(f"  lens {i + 1}: defocus {(z - g.focal_length_m) * 1e6:+.2f} µm, phase coefficients [rad] "
+                         + ", ".join(f"{v:+.2f}" for v in c) + f"; efficiency {self.optical_efficiency[i]:.3f}")
+        if self.strategy == "pedestal":
+            cf = self.contrast_factor
+            lines.append(f"  pedestal c = {self.pedestal:.4g} ({100 * self.pedestal_fraction:.1f} % of collected light)"
+                         + (f"; contrast factor {cf:.3f}" if math.isfinite(cf) else ""))
+        else:
+            lines.append(f"  subtraction ratio g₋/g₊ = {self.gains[1] / self.gains[0]:.4g} (before the log)")
+        lines.append(f"  fit {float(self.fit_info.get('wall_time_s', float('nan'))):.1f} s")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "strategy": self.strategy,
+            "target": self.target.to_dict(),
+            "geometry": self.geometry.to_dict(),
+            "coefficients": [list(map(float, c)) for c in self.coefficients],
+            "sensor_distance_m": [float(z) for z in self.sensor_distance_m],
+            "gains": [float(x) for x in self.gains],
+            "pedestal": float(self.pedestal),
+            "guard_px": int(self.guard_px),
+            "psfs": [p.tolist() for p in self.psfs],
+            "spectral": self.spectral.to_dict(),
+            "fit_info": dict(self.fit_info),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> MetalensDesign:
+        try:
+            return cls(
+                target=Kernel.from_dict(data["target"], source="metalens.target"),
+                strategy=str(data["strategy"]),
+                geometry=LensGeometry(**data["geometry"]),
+                coefficients=tuple(tuple(float(v) for v in c) for c in data["coefficients"]),
+                sensor_distance_m=tuple(float(z) for z in data["sensor_distance_m"]),
+                gains=tuple(float(x) for x in data["gains"]),
+                pedestal=float(data["pedestal"]),
+                guard_px=int(data["guard_px"]),
+                psfs=tuple(np.asarray(p, dtype=float) for p in data["psfs"]),
+                spectral=SpectralSamples.from_dict(data["spectral"]),
+                fit_info=dict(data.get("fit_info", {})),
+            )
+        except KeyError as exc:
+            raise InputError(f"metalens design: missing field {exc.args[0]!r}") from None
+
+
+# ---------------------------------------------------------------------------------- fitting
+def _solve_gains(psfs: list[Any], k: Any, m: Any, mode: str) -> tuple[list[Any], Any, Any]:
+    """Closed-form least squares for the gains (and pedestal); returns (gains, pedestal, residual²)."""
+    import torch
+
+    def two(a: Any, b: Any) -> tuple[Any, Any]:
+        aa, ab, bb, ak, bk = (a * a).sum(), (a * b).sum(), (b * b).sum(), (a * k).sum(), (b * k).sum()
+        det = aa * bb - ab * ab
+        return (ak * bb - bk * ab) / det, (bk * aa - ak * ab) / det
+
+    zero = torch.zeros((), dtype=torch.float64)
+    p0 = psfs[0]
+    g_single = (p0 * k).sum() / (p0 * p0).sum()
+    if mode == "single":
+        gains, c = [g_single], zero
+    elif mode == "pedestal":
+        g, c = two(p0, -m)
+        if c < 0:  # no negative pedestal: the target is non-negative already
+            g, c = g_single, zero
+        gains = [g]
+    else:  # differential: g+ P+ - g- P-
+        gp, gm = two(p0, -psfs[1])
+        if gm < 0 or gp < 0:
+            gp, gm = g_single, zero
+        gains, c = [gp, gm], zero
+    model = gains[0] * p0 - (gains[1] * psfs[1] if mode == "differential" else 0) - c * m
+    return gains, c, ((model - k) ** 2).sum()
+
+
+def _lbfgs(x: Any, loss_fn: Any, iters: int) -> int:
+    import torch
+
+    opt = torch.optim.LBFGS([x], lr=1.0, max_iter=iters, history_size=20, line_search_fn="strong_wolfe",
+                            tolerance_grad=1e-10, tolerance_change=1e-12)
+
+    def closure() -> Any:
+        opt.zero_grad()
+        loss = loss_fn(x)
+        loss.backward()
+        return loss
+
+    opt.step(closure)
+    return int(opt.state[opt._params[0]].get("n_iter", iters))
+
+
+def fit_metalens(
+    kernel: Kernel,
+    *,
+    pitch_m: float | None = None,
+    illuminant: Any = "D65",
+    response: Any = None,
+    strategy: str = "pedestal",
+    aperture_m: float = 100e-6,
+    focal_length_m: float = 200e-6,
+    design_wavelength_m: float = 555e-9,
+    dispersion: str = "diffractive",
+    n_terms: int = 4,
+    n_wavelengths: int = 8,
+    guard_px: int = 2,
+    max_iter: int = 150,
+    n_starts: int = 6,
+    n_sub: int | None = None,
+    window_pad: float = 2.0,
+    na_max: float | None = None,
+) -> MetalensDesign:
+    """Fit a radially symmetric metalens (or a differential pair) whose pixel PSF applies ``kernel``.
+
+    Parameters
+    ----------
+    kernel : Kernel
+        Target kernel (signed allowed). Only its radially symmetric part can be realised; the
+        error reports the rest.
+    pitch_m : float, optional
+        Pixel pitch (m); default the kernel's own pitch.
+    illuminant, response : see :func:`~fsdvs_hw.realise.spectral.spectral_samples`
+        Default D65 × CIE 1924 photopic V(λ); a float illuminant is one wavelength (m).
+    strategy : {"pedestal", "differential"}
+        Signed-kernel strategy (module docstring).
+    aperture_m, focal_length_m, design_wavelength_m, dispersion
+        Fixed lens geometry (:class:`LensGeometry`).
+    n_terms : int
+        Polynomial phase terms (r/a)^2 … (r/a)^(2·n_terms), 0…12.
+    n_wavelengths : int
+        Spectral samples (equal-weight bins).
+    guard_px : int
+        Ring of pixels around the window where spilled light is counted as error.
+    max_iter : int
+        L-BFGS iterations of the final refinement (each start gets max_iter // 6).
+    n_starts : int
+        Defocus starting points (blur radii spread over the kernel radius, both signs).
+    n_sub, window_pad
+        Numerical settings of the radial model used while fitting (:func:`pixel_psf`); the
+        returned PSFs are re-evaluated with the reference settings (``n_sub`` from the NA,
+        window_pad 3) and ``fit_info["model_error"]`` says how far the two differ.
+    na_max : float, optional
+        Largest local NA the phase may use (sets the sampling; penalised in the fit); default
+        ``min(0.9, max(1.5 NA, NA + 0.1))`` of the hyperbolic term.
+
+    Returns
+    -------
+    MetalensDesign
+    """
+    import torch
+
+    t0 = time.perf_counter()
+    if not isinstance(kernel, Kernel):
+        raise InputError(f"kernel must be a fsdvs_hw.Kernel, got {type(kernel).__name__}")
+    if strategy not in STRATEGIES:
+        raise InputError(f"strategy {strategy!r} unknown; allowed: {', '.join(STRATEGIES)}")
+    if not (isinstance(n_terms, int) and 0 <= n_terms <= 12):
+        raise InputError(f"n_terms must be an integer in 0..12, got {n_terms!r}")
+    if not (isinstance(guard_px, int) and 0 <= guard_px <= 8):
+        raise InputError(f"guard_px must be an integer in 0..8, got {guard_px!r}")
+    if not (isinstance(n_starts, int) and n_starts >= 1) or not (isinstance(max_iter, int) and max_iter >= 1):
+        raise InputError(f"n_starts and max_iter must be positive integers, got {n_starts!r}, {max_iter!r}")
+    if pitch_m is not None and abs(pitch_m - kernel.pitch_m) > 1e-12:
+        kernel = Kernel(kernel.taps, pitch_m=pitch_m, name=kernel.name, provenance=kernel.provenance)
+    pitch = kernel.pitch_m
+    geometry = LensGeometry(aperture_m, focal_length_m, design_wavelength_m, dispersion)
+    spectral = _spectral(illuminant, response, n_wavelengths)
+    _check_extremes(geometry, spectral, focal_length_m, pitch)
+    if strategy == "differential" and not (kernel.taps < 0).any():
+        raise InputError("strategy='differential' needs a kernel with negative taps; use 'pedestal' (c = 0)")
+
+    na0 = local_numerical_aperture(geometry, [], spectral.wavelengths_m)
+    budget = float(na_max) if na_max is not None else min(0.9, max(1.5 * na0, na0 + 0.1))
+    if not (na0 <= budget < 1):
+        raise InputError(f"na_max={budget:.3g} must be in [NA of the focusing term {na0:.3g}, 1)")
+    k_size = kernel.size
+    n_eval = k_size + 2 * guard_px
+    model = _RadialKernelModel(geometry, pitch_m=pitch, n_pixels=n_eval, spectral=spectral, n_sub=n_sub,
+                               window_pad=window_pad, na_budget=budget)
+    scale = float(np.linalg.norm(kernel.taps))
+    k_pad = torch.from_numpy(np.pad(kernel.taps / scale, guard_px))
+    mask = torch.from_numpy(np.pad(np.ones((k_size, k_size)), guard_px))
+    # NA penalty on a radial grid (local frequency of the phase at the shortest scaled wavelength)
+    a, f, lam0 = geometry.radius_m, focal_length_m, design_wavelength_m
+    r_chk = np.linspace(0, a, 129)
+    d_hyp = torch.from_numpy(-(2 * math.pi / lam0) * r_chk / np.sqrt(r_chk**2 + f * f))
+    d_pow = torch.from_numpy(np.stack([2 * (k + 1) * r_chk ** (2 * k + 1) / a ** (2 * k + 2) for k in range(n_terms)], -1)
+                             if n_terms else np.zeros((r_chk.size, 0)))
+    p_exp = DISPERSION_MODELS[dispersion]
+    na_scale = float(np.max(spectral.wavelengths_m * (lam0 / spectral.wavelengths_m) ** p_exp)) / (2 * math.pi)
+    dz_unit = pitch * f / a  # defocus that blurs a point over one pixel radius (geometric optics)
+    c_unit = 2 * math.pi
+
+    def unpack(x: Any) -> tuple[Any, Any]:
+        return f + x[0] * dz_unit, x[1:] * c_unit
+
+    def penalty(c: Any) -> Any:
+        na = (na_scale * (d_hyp + d_pow @ c).abs()).max()
+        return 10.0 * torch.clamp(na - budget, min=0.0) ** 2
+
+    def make_loss(targets: Any, mode: str, n_lens: int) -> Any:
+        def loss(x: Any) -> Any:
+            psfs, pen = [], 0.0
+            for i in range(n_lens):
+                z, c = unpack(x[i])
+                psfs.append(model.psf(c, z))
+                pen = pen + penalty(c)
+            return _solve_gains(psfs, targets, mask, mode)[2] + pen
+        return loss
+
+    def fit_from(starts: list[np.ndarray], targets: Any, mode: str) -> tuple[np.ndarray, int]:
+        n_lens = starts[0].shape[0]
+        loss_fn = make_loss(targets, mode, n_lens)
+        best, best_val, iters = None, float("inf"), 0
+        for s in starts:
+            x = torch.tensor(s, dtype=torch.float64, requires_grad=True)
+            iters += _lbfgs(x, loss_fn, max(10, max_iter // 6))
+            with torch.no_grad():
+                val = float(loss_fn(x))
+            if math.isfinite(val) and val < best_val:
+                best, best_val = x.detach().clone(), val
+        x = best.clone().requires_grad_(True)
+        iters += _lbfgs(x, loss_fn, max_iter)
+        return x.detach().numpy(), iters
+
+    radius_px = max(1.0, k_size / 2)
+    blur = np.linspace(0.5, radius_px, max(1, (n_starts + 1) // 2))
+    single_starts = [np.concatenate([[s * b], np.zeros(n_terms)])[None] for b in blur for s in (1, -1)][:n_starts]
+    if strategy == "pedestal":
+        x, iters = fit_from(single_starts, k_pad, "pedestal")
+    else:
+        kp = torch.clamp(k_pad, min=0.0)
+        km = torch.clamp(-k_pad, min=0.0)
+        xp, it1 = fit_from(single_starts, kp / kp.norm(), "single")
+        xm, it2 = fit_from(single_starts, km / km.norm(), "single")
+        x, it3 = fit_from([np.concatenate([xp, xm])], k_pad, "differential")
+        iters = it1 + it2 + it3
+
+    xt = torch.from_numpy(x)
+    reference = _RadialKernelModel(geometry, pitch_m=pitch, n_pixels=n_eval, spectral=spectral, n_sub=None,
+                                   window_pad=max(window_pad, 3.0), na_budget=budget)
+    with torch.no_grad():
+        psfs, zs, cs, model_err = [], [], [], 0.0
+        for i in range(x.shape[0]):
+            z, c = unpack(xt[i])
+            fast = model.psf(c, z)
+            psfs.append(reference.psf(c, z))
+            model_err = max(model_err, float((fast - psfs[-1]).norm() / psfs[-1].norm()))
+            zs.append(float(z))
+            cs.append(tuple(float(v) for v in c))
+        gains, c, _ = _solve_gains(psfs, k_pad, mask, strategy)
+    na_fit = max(local_numerical_aperture(geometry, cc, spectral.wavelengths_m) for cc in cs)
+    info = {
+        "wall_time_s": time.perf_counter() - t0,
+        "iterations": iters,
+        "n_modes": model.n_modes,
+        "n_sub": model.n_sub,
+        "model_error": model_err,
+        "window_radius_m": model.window_radius_m,
+        "na_budget": budget,
+        "na_fit": na_fit,
+        "n_terms": n_terms,
+        "optimiser": "torch L-BFGS (strong Wolfe), float64, closed-form gains",
+    }
+    if na_fit > budget * 1.02:
+        raise InputError(f"fit left the sampling budget (local NA {na_fit:.3f} > na_max {budget:.3f}); raise na_max")
+    return MetalensDesign(
+        target=kernel, strategy=strategy, geometry=geometry, coefficients=tuple(cs), sensor_distance_m=tuple(zs),
+        gains=tuple(float(g) * scale for g in gains), pedestal=float(c) * scale, guard_px=guard_px,
+        psfs=tuple(p.numpy() for p in psfs), spectral=spectral, fit_info=info,
+    )
