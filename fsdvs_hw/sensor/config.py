@@ -45,7 +45,7 @@ SURROGATES = ("straight_through", "relaxed")
 def _check_number(name: str, value: Any, *, low: float = 0.0, high: float = math.inf,
                   low_open: bool = False) -> None:
     try:
-        v = float(value)  # works for python numbers and 0-d tensors
+        v = float(value.detach()) if hasattr(value, "detach") else float(value)  # numbers, 0-d tensors
     except (TypeError, ValueError):
         raise InputError(f"SensorConfig.{name}: must be a real number, got {value!r}") from None
     ok = (v > low if low_open else v >= low) and v <= high and math.isfinite(v)
@@ -76,10 +76,12 @@ class SensorConfig:
     leak_rate_hz : float
         Leak-event rate of a pixel under constant light in Hz (default 0.01, v2e [1]_). Modelled,
         as in v2e, as a downward drift of the memorised reference by ``leak_rate_hz * C_on`` per
-        second, with a random initial phase per pixel.
+        second (desynchronised across pixels by ``random_reference_phase``).
     shot_noise_rate_hz : float
         Shot-noise event rate per pixel in Hz, both polarities together, half each (default
-        0.001, v2e [1]_). Poisson in time; a noise event resets the reference by ±C as a real event.
+        0.001, v2e [1]_). Poisson in time, added to the output; a noise event does not move the
+        memorised reference (the excursion that fired it decays), so the measured rate equals
+        the configured one.
     cutoff_hz : float
         Photoreceptor first-order low-pass cut-off at full-scale intensity, Hz (default 300, v2e
         [1]_). The cut-off scales with intensity (bandwidth ∝ photocurrent [4]_):
@@ -117,6 +119,10 @@ class SensorConfig:
     surround_tau_s : float
         Settling time constant of the surround mesh in seconds (default 0: instantaneous). When
         > 0 the surround follows its steady state through a first-order lag.
+    random_reference_phase : bool
+        Start each pixel's memorised reference a uniform random fraction of ``C_on`` below the
+        first frame's signal, as after an unknown earlier reset (desynchronises leak events, as
+        v2e's random leak phase does). Default False: the reference is the first frame (ESIM).
     frame_rate_hz : float
         Frame rate assumed when no timestamps are given (default 25 Hz: UCF101, as in the FS-DVS
         paper; 17 frames span 0.64 s).
@@ -132,8 +138,9 @@ class SensorConfig:
         Gradient through the threshold crossing. ``"straight_through"`` (default): forward emits
         integer event counts ``floor(ΔL / C)``; backward uses ``d count / d ΔL = 1 / C`` on the
         side of the crossing's polarity (the floor's straight-through estimator).
-        ``"relaxed"``: forward emits the continuous count ``ΔL / C`` itself (smooth, for gradcheck
-        and analysis); its gradient is exactly the straight-through one.
+        ``"relaxed"``: forward emits the continuous count ``relu(±ΔL) / C`` of a reference that
+        tracks the signal exactly (smooth, for gradcheck and analysis); in the first interval its
+        gradient is exactly the straight-through one.
     seed : int
         Seed for every random draw (mismatch, leak phase, shot noise); each effect draws from its
         own stream derived from this seed, so switching one effect off does not change the others.
@@ -156,6 +163,7 @@ class SensorConfig:
     surround_lambda_px: float = 0.0
     surround_weight: float = 0.0
     surround_tau_s: float = 0.0
+    random_reference_phase: bool = False
     frame_rate_hz: float = 25.0
     substeps: int = 1
     adaptive_fraction: float | None = None
@@ -236,5 +244,5 @@ class SensorConfig:
         """JSON-friendly dict (tensor thresholds become floats)."""
         d = asdict(self)
         for k in ("threshold_on", "threshold_off"):
-            d[k] = float(d[k])
+            d[k] = float(d[k].detach()) if hasattr(d[k], "detach") else float(d[k])
         return d

@@ -19,7 +19,9 @@ Surrogate gradient (``SensorConfig.surrogate``)
     ``r`` tracked ``L`` exactly. Refractory losses and noise events have no gradient. This is the
     recipe of Neural Ganglion Sensors (So et al. 2025): a straight-through floor, clipped to
     [-1, 1] at the dark-current floor (see :mod:`.filtering`). ``surrogate="relaxed"`` emits the
-    continuous counts ``relu(±ΔL) / C`` whose exact gradient is the surrogate (used by gradcheck).
+    continuous counts ``relu(±ΔL) / C`` with a reference that tracks ``L`` exactly (so ``ΔL`` is
+    the frame difference): a smooth model whose exact gradient applies the same rule; in the first
+    interval it equals the straight-through gradient (used by gradcheck).
 """
 
 from __future__ import annotations
@@ -221,7 +223,6 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     B, T, H, W = L.shape
     dev, dt_ = L.device, L.dtype
     c_on, c_off = threshold_maps(config, (H, W), L, generator=generator)
-    c_min = min(float(c_on.min()), float(c_off.min()))
     eps = _COUNT_EPS.get(str(dt_).split(".")[-1], 1e-6)
     relaxed = config.surrogate == "relaxed"
     has_lp = config.has_photoreceptor
@@ -233,10 +234,10 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     tsd = ts.to(dtype=torch.float64)
 
     ref = L[:, 0]
-    if leak > 0:  # random leak phase per pixel (v2e), so leak events are not synchronous
+    if config.random_reference_phase:  # reference starts at a random point of its cycle
         g = effect_generator(config.seed, "leak_phase", dev)
         phase = torch.rand((H, W), generator=g, device=g.device, dtype=torch.float64).to(dev, dt_)
-        ref = ref - phase * c_on.detach()
+        ref = ref - phase * c_on
     lp = L[:, 0] if has_lp else None
     sur = signal.surround[:, 0] if transient else None
     last_t = torch.full((B, H, W), -math.inf, dtype=torch.float64, device=dev) if refr > 0 else None
@@ -260,7 +261,7 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
             if has_lp:
                 ci = signal.cutoff_intensity
                 inten = ci[:, k + 1] if s == S else torch.lerp(ci[:, k], ci[:, k + 1], frac)
-                fc = config.cutoff_hz * torch.clamp((inten.detach() + config.dark_intensity)
+                fc = config.cutoff_hz * torch.clamp((inten + config.dark_intensity)
                                                     / config.full_scale_intensity, 0.0, 1.0)
                 lp = lowpass_step(lp, target, fc, dt_sub)
                 target = lp
@@ -309,7 +310,6 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
                 k_on = torch.poisson(lam, generator=shot_g).to(dev, dt_)
                 k_off = torch.poisson(lam, generator=shot_g).to(dev, dt_)
                 noise_events += int((k_on + k_off).sum())
-                ref = ref + k_on * c_on.detach() - k_off * c_off.detach()
                 e_on = e_on + k_on
                 e_off = e_off + k_off
                 if collect_events:
@@ -364,12 +364,16 @@ def _resolve(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | 
     return video, w, ts, config, subs
 
 
+def _as_float(x: Any) -> float:
+    return float(x.detach()) if isinstance(x, torch.Tensor) else float(x)
+
+
 def _simulate(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | None, plan: Any,
               generator: Any, collect_events: bool) -> tuple[Any, SimulationInfo, EventList | None]:
     video, w, ts, config, subs = _resolve(video, kernel, timestamps_s, config, plan)
     signal = filtered_log_signal(video, w, config)
     if subs is None:
-        c_min = min(float(config.threshold_on), float(config.threshold_off)) * (
+        c_min = min(_as_float(config.threshold_on), _as_float(config.threshold_off)) * (
             config.threshold_min_fraction if config.threshold_sigma > 0 else 1.0)
         subs = _choose_substeps(signal.log_signal, c_min, config)
     return _run(signal, ts, config, subs, generator, collect_events)

@@ -52,7 +52,7 @@ def photoreceptor_cutoff_hz(intensity: Any, config: SensorConfig) -> Any:
     """
     import torch
 
-    frac = (intensity.detach() + config.dark_intensity) / config.full_scale_intensity
+    frac = (intensity + config.dark_intensity) / config.full_scale_intensity
     return config.cutoff_hz * torch.clamp(frac, 0.0, 1.0)
 
 

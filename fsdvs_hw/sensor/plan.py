@@ -220,7 +220,8 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
         st = video_or_stats
     else:
         st = SceneStats.from_video(video_or_stats, kernel, timestamps_s=timestamps_s, config=config)
-    c_on, c_off = float(config.threshold_on), float(config.threshold_off)
+    c_on, c_off = (float(x.detach()) if hasattr(x, "detach") else float(x)
+                   for x in (config.threshold_on, config.threshold_off))
     c_nom = min(c_on, c_off)
     c_low = max(c_nom - 3 * config.threshold_sigma, config.threshold_min_fraction * c_nom)
     signal_events = st.total_abs_change / c_nom

@@ -1,0 +1,85 @@
+"""The scene-adaptive plan: decisions with numbers, within tolerance of the full model, faster."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import pytest
+import torch
+
+from fsdvs_hw.sensor import SensorConfig, event_frames, plan_model
+from fsdvs_hw.sensor.plan import SceneStats
+
+TOL = 0.05
+FULL = SensorConfig(substeps=64)  # v2e-like sensor, every effect on, fine fixed time steps
+
+
+def _moving_grating(speed_px: float, lo: float, hi: float, H: int = 40, W: int = 40, T: int = 17) -> torch.Tensor:
+    y, x = torch.meshgrid(torch.arange(H, dtype=torch.float64), torch.arange(W, dtype=torch.float64), indexing="ij")
+    frames = [lo + (hi - lo) * (0.5 + 0.5 * torch.sin(2 * math.pi * (x - speed_px * t) / 12.0)
+                                * torch.cos(2 * math.pi * y / 20.0)) for t in range(T)]
+    return torch.stack(frames)[None]
+
+
+def _timed(fn):
+    t0 = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - t0
+
+
+@pytest.mark.parametrize("scene, skips_photoreceptor", [
+    ("slow_bright", True),
+    ("fast_dim", False),
+])
+def test_plan_within_tolerance_of_full_model_and_faster(scene, skips_photoreceptor):
+    video = _moving_grating(0.5, 0.3, 1.0) if scene == "slow_bright" else _moving_grating(3.0, 0.003, 0.03)
+    plan = plan_model(video, TOL, config=FULL)
+    assert plan.decision("photoreceptor").included is (not skips_photoreceptor)
+    assert "leak events" in plan.skipped and "shot noise" in plan.skipped  # tiny vs the signal
+    assert plan.decision("threshold mismatch").included  # sigma/C = 0.15
+    full, t_full = _timed(lambda: event_frames(video, None, config=FULL))
+    planned, t_plan = _timed(lambda: event_frames(video, None, plan=plan))
+    count_err = abs(float(planned.sum() - full.sum())) / float(full.sum())
+    frame_err = float((planned - full).abs().sum() / full.abs().sum())
+    assert count_err < TOL
+    assert frame_err < TOL
+    assert t_plan < t_full
+    assert sum(plan.substeps) < 64 * 16
+
+
+def test_plan_text_names_every_effect_with_numbers():
+    plan = plan_model(_moving_grating(0.5, 0.3, 1.0), TOL, config=FULL)
+    text = str(plan)
+    for name in ("photoreceptor", "sub-steps", "threshold mismatch", "refractory", "leak events",
+                 "shot noise", "surround transient", "positivity floor"):
+        assert name in text
+        assert plan.decision(name).reason
+    assert "expected" in plan.decision("shot noise").reason and "Hz" in plan.decision("shot noise").reason
+    # the effective config has the skipped effects switched off
+    assert plan.config.cutoff_hz == 0.0 and plan.config.shot_noise_rate_hz == 0.0
+    assert plan.config.threshold_sigma == FULL.threshold_sigma
+
+
+def test_plan_includes_noise_and_refractory_when_they_matter():
+    static = torch.full((1, 17, 16, 16), 0.5, dtype=torch.float64)
+    static[:, 8:, 4:8, 4:8] = 0.6  # a tiny signal
+    plan = plan_model(static, TOL, config=SensorConfig(shot_noise_rate_hz=5.0, leak_rate_hz=0.0))
+    assert plan.decision("shot noise").included and plan.decision("shot noise").value > TOL
+    flash = torch.ones(1, 3, 4, 4, dtype=torch.float64)
+    flash[:, 1:] = 1e3  # 35 thresholds in 1 ms
+    plan = plan_model(flash, TOL, config=SensorConfig(), timestamps_s=[0.0, 1e-3, 2e-3])
+    assert plan.decision("refractory").included and plan.decision("refractory").value >= 1
+
+
+def test_plan_from_stats_and_photoreceptor_lag_scales_with_light():
+    def lag(level):
+        return plan_model(_moving_grating(2.0, level, 3 * level), TOL, config=FULL).decision("photoreceptor").value
+
+    # dimmer light -> lower cut-off -> larger lag (bandwidth proportional to photocurrent);
+    # same log contrast in both (above the linear-log knee): f_c 300 Hz vs 53 Hz
+    assert lag(0.1) > 4 * lag(1.0)
+    stats = SceneStats(n_pixels=100, duration_s=1.0, interval_max_abs_change=(0.1, 0.1),
+                       max_log_rate_per_s=2.0, total_abs_change=50.0)
+    plan = plan_model(stats, TOL, config=SensorConfig())
+    assert len(plan.substeps) == 2
