@@ -41,6 +41,11 @@ _LAZY: dict[str, str] = {
     # realisations
     "kernel_error": "fsdvs_hw.realise.base",
     "fit_resistive_mesh": "fsdvs_hw.realise.mesh",
+    "MeshDesign": "fsdvs_hw.realise.mesh",
+    "MeshBounds": "fsdvs_hw.realise.mesh",
+    "to_spice_netlist": "fsdvs_hw.realise.mesh_spice",
+    "mesh_needs_transient": "fsdvs_hw.realise.mesh_dynamics",
+    "mismatch_monte_carlo": "fsdvs_hw.realise.mesh_mismatch",
     "fit_asic_taps": "fsdvs_hw.realise.asic",
     "AsicDesign": "fsdvs_hw.realise.asic",
     "fit_metalens": "fsdvs_hw.realise.metalens",

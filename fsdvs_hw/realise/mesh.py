@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel
+from ..kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, _validate_pitch
 from .base import CostItem, kernel_error
 from .mesh_response import (
     LAMBDA_RANGE_PX,
@@ -197,6 +197,9 @@ class MeshDesign:
     def __post_init__(self) -> None:
         self.lambda_narrow_px  # validates conductances  # noqa: B018
         self.lambda_wide_px  # noqa: B018
+        for name in ("g_lateral_narrow_s", "g_vertical_narrow_s", "g_lateral_wide_s", "g_vertical_wide_s"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+        object.__setattr__(self, "pitch_m", _validate_pitch(self.pitch_m, source="MeshDesign.pitch_m"))
         for name in ("gain_narrow", "gain_wide", "pixel_weight", "node_capacitance_f"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float, np.floating)) and math.isfinite(v) and v >= 0):
@@ -526,9 +529,9 @@ def _check_scalar(name: str, v: Any, lo: float, hi: float) -> float:
 def fit_resistive_mesh(
     kernel: Kernel | np.ndarray,
     *,
-    bounds: MeshBounds | None = None,
+    bounds: MeshBounds | Mapping[str, Any] | None = None,
     pitch_m: float | None = None,
-    pixel_weight: float | None = 1.0,
+    pixel_weight: float | str | None = 1.0,
     mismatch_sigma: float = 0.01,
     g_lateral_s: float = _DEFAULT_G_LATERAL_S,
     node_capacitance_f: float = _DEFAULT_C_NODE_F,
@@ -545,13 +548,14 @@ def fit_resistive_mesh(
     kernel : Kernel or array_like
         Target kernel (odd square taps). Its absolute scale matters (no free overall gain) unless
         ``pixel_weight=None``.
-    bounds : MeshBounds, optional
-        λ range (px), gain range, minimum λ_wide/λ_narrow, conductance range (S).
+    bounds : MeshBounds or mapping, optional
+        λ range (px), gain range, minimum λ_wide/λ_narrow, conductance range (S); a mapping of
+        :class:`MeshBounds` fields is accepted (design files).
     pitch_m : float, optional
         Pixel pitch in metres (default: the kernel's).
-    pixel_weight : float or None
-        Fixed weight of the pixel's own signal (1.0: the paper's sketch), or None to fit it
-        within ``bounds.gain``.
+    pixel_weight : float, None or "free"
+        Fixed weight of the pixel's own signal (1.0: the paper's sketch), or None / "free" to fit
+        it within ``bounds.gain``.
     mismatch_sigma : float
         Relative die-level conductance/gain mismatch σ (0 … 0.5) whose expected error the fit
         adds to the objective (0 disables the penalty: best nominal fit, possibly unbuildable).
@@ -591,9 +595,19 @@ def fit_resistive_mesh(
 
     t0 = time.perf_counter()
     target = _coerce_kernel(kernel, pitch_m)
-    bounds = MeshBounds() if bounds is None else bounds
+    if bounds is None:
+        bounds = MeshBounds()
+    elif isinstance(bounds, Mapping):  # e.g. a [realisations.mesh.bounds] table of a design file
+        unknown = set(bounds) - set(MeshBounds.__dataclass_fields__)
+        if unknown:
+            raise InputError(f"bounds: unknown key(s) {sorted(unknown)}; allowed {sorted(MeshBounds.__dataclass_fields__)}")
+        bounds = MeshBounds(**{k: (tuple(v) if isinstance(v, (list, tuple)) else v) for k, v in bounds.items()})
     if not isinstance(bounds, MeshBounds):
-        raise InputError(f"bounds: expected a MeshBounds, got {type(bounds).__name__}")
+        raise InputError(f"bounds: expected a MeshBounds or a mapping of its fields, got {type(bounds).__name__}")
+    if isinstance(pixel_weight, str):
+        if pixel_weight != "free":
+            raise InputError(f"pixel_weight: a number, None or 'free', got {pixel_weight!r}")
+        pixel_weight = None
     sigma = _check_scalar("mismatch_sigma", mismatch_sigma, 0.0, 0.5)
     g_l = _check_scalar("g_lateral_s", g_lateral_s, *bounds.conductance_s)
     c_node = _check_scalar("node_capacitance_f", node_capacitance_f, 1e-18, 1e-6)
@@ -685,6 +699,9 @@ def fit_resistive_mesh(
         if best is None or f < best[0]:
             best = (f, np.array(sol["x"]).ravel(), st)
     f_opt, xo, st = best
+    # IPOPT may relax bounds by ~1e-8 relative; the built circuit must respect them exactly
+    xo = np.clip(xo, lbx, ubx)
+    xo[1] = min(max(xo[1], xo[0] + 2 * math.log(bounds.min_lambda_ratio)), ubx[1])
     lam_n, lam_w = math.exp(xo[0] / 2), math.exp(xo[1] / 2)
     design = MeshDesign(
         g_lateral_narrow_s=g_l,

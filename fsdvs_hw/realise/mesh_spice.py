@@ -55,17 +55,18 @@ def _resolve_half_width(design: Any, half_width: int | None) -> int:
 
 def _mesh_lines(prefix: str, n: int, g_l: float, g_v: float, c_f: float) -> list[str]:
     node = lambda y, x: f"{prefix}{y}_{x}"  # noqa: E731
-    rl, rv = 1.0 / g_l, 1.0 / g_v
-    out = [f"* mesh '{prefix}': {n}x{n} nodes, g_l = {g_l:.17g} S, g_v = {g_v:.17g} S, C = {c_f:.17g} F"]
+    g_l, g_v, c_f = float(g_l), float(g_v), float(c_f)
+    rl, rv = float(1.0 / g_l), float(1.0 / g_v)  # repr: shortest exact round-trip
+    out = [f"* mesh '{prefix}': {n}x{n} nodes, g_l = {g_l!r} S, g_v = {g_v!r} S, C = {c_f!r} F"]
     for y in range(n):
         for x in range(n):
             if x + 1 < n:
-                out.append(f"RH{prefix}{y}_{x} {node(y, x)} {node(y, x + 1)} {rl:.17g}")
+                out.append(f"RH{prefix}{y}_{x} {node(y, x)} {node(y, x + 1)} {rl!r}")
             if y + 1 < n:
-                out.append(f"RV{prefix}{y}_{x} {node(y, x)} {node(y + 1, x)} {rl:.17g}")
-            out.append(f"RG{prefix}{y}_{x} {node(y, x)} 0 {rv:.17g}")
+                out.append(f"RV{prefix}{y}_{x} {node(y, x)} {node(y + 1, x)} {rl!r}")
+            out.append(f"RG{prefix}{y}_{x} {node(y, x)} 0 {rv!r}")
             if c_f > 0:
-                out.append(f"C{prefix}{y}_{x} {node(y, x)} 0 {c_f:.17g}")
+                out.append(f"C{prefix}{y}_{x} {node(y, x)} 0 {c_f!r}")
     return out
 
 
@@ -92,13 +93,13 @@ def to_spice_netlist(design: Any, *, half_width: int | None = None, i_in_a: floa
     n = 2 * h + 1
     lines = [
         f"* fsdvs_hw dual resistive mesh: {n}x{n} patch, impulse {i_in_a:.6g} A at node ({h}, {h})",
-        f"* K = {design.pixel_weight!r} delta + {design.gain_narrow!r} g_vn V_n/I - {design.gain_wide!r} g_vw V_w/I",
+        f"* K = {design.pixel_weight:.17g} delta + {design.gain_narrow:.17g} g_vn V_n/I - {design.gain_wide:.17g} g_vw V_w/I",
     ]
     lines += _mesh_lines("n", n, design.g_lateral_narrow_s, design.g_vertical_narrow_s, design.node_capacitance_f)
     lines += _mesh_lines("w", n, design.g_lateral_wide_s, design.g_vertical_wide_s, design.node_capacitance_f)
     # SPICE current sources push current from n+ through the source to n-: "I 0 node" injects into node
-    lines.append(f"IINN 0 n{h}_{h} DC {i_in_a:.17g}")
-    lines.append(f"IINW 0 w{h}_{h} DC {i_in_a:.17g}")
+    lines.append(f"IINN 0 n{h}_{h} DC {float(i_in_a)!r}")
+    lines.append(f"IINW 0 w{h}_{h} DC {float(i_in_a)!r}")
     lines += [".options filetype=ascii", ".op", ".end", ""]
     return "\n".join(lines)
 
