@@ -23,6 +23,7 @@ __all__ = ["BENCHMARKS", "run_benchmark", "HELP", "add_arguments", "run"]
 BENCHMARKS: dict[str, str] = {
     "csf": "fsdvs_hw.analysis:bench_analysis",
     "asic": "fsdvs_hw.realise.asic_bench:bench_asic",
+    "mesh": "fsdvs_hw.realise.mesh_bench:bench_mesh",
 }
 
 HELP = "speed/accuracy benchmarks (error vs run time) for each component"
