@@ -306,3 +306,49 @@ def test_asic_design_validates_its_fields():
         AsicDesign(target=k, taps=asym, scale=1.0, scale_mode="free", bits=4, symmetry="8-fold")
     with pytest.raises(InputError, match="missing field"):
         AsicDesign.from_dict({"kind": "asic"})
+
+
+# ---------------------------------------------------------------------------- CSF-weighted objective
+def test_uniform_weights_reduce_to_the_kernel_objective(rng):
+    from fsdvs_hw.realise.asic import _CSF_NFFT, _TapProblem
+
+    k = reference_kernel("dog", 5)
+    cls = symmetry_classes(5, "quadrant")
+    plain = _TapProblem(k.taps, cls, 8, 1e-4, True)
+    flat = _TapProblem(k.taps, cls, 8, 1e-4, True, weights=np.ones((_CSF_NFFT, _CSF_NFFT)), n_fft=_CSF_NFFT)
+    # Parseval: the spectral Gram matrix is n² diag(m)
+    assert np.allclose(flat.M, _CSF_NFFT**2 * np.diag(cls.sizes), atol=1e-6)
+    for s in (0.002, 0.01, 0.05):
+        q = rng.integers(-100, 101, size=cls.n_classes)
+        assert flat.objective(q, s) == pytest.approx(plain.objective(q, s), rel=1e-9)
+        assert np.array_equal(flat.solve(s), plain.solve(s))
+
+
+def test_csf_objective_matches_exhaustive_optimum():
+    from fsdvs_hw.csf import Geometry
+
+    k = reference_kernel("dog", 3)
+    g = Geometry(k.pitch_m, 4e-3)
+    for bits in (2, 3, 4, 5):
+        for lam in (0.0, 1e-3):
+            d = fit_asic_taps(k, bits, objective="csf", geometry=g, adder_weight=lam)
+            _, _, J = exhaustive_asic_taps(k, bits, symmetry="8-fold", objective="csf", geometry=g, adder_weight=lam)
+            assert d.fit_info["objective"] == pytest.approx(J, rel=1e-9, abs=1e-14), (bits, lam)
+
+
+def test_csf_objective_keeps_the_band_pass_at_4_bits():
+    from fsdvs_hw.csf import Geometry, csf_agreement
+
+    k = reference_kernel("dog", 7)
+    g = Geometry(k.pitch_m, csf_agreement(k).implied_focal_length_m)
+    plain = fit_asic_taps(k, 4)
+    weighted = fit_asic_taps(k, 4, objective="csf", geometry=g)
+    a_plain = csf_agreement(plain.kernel(), geometry=g)
+    a_weighted = csf_agreement(weighted.kernel(), geometry=g)
+    # the L2-optimal 4-bit taps lose the band-pass shape; CSF weighting keeps it (at more L2 error)
+    assert a_weighted.correlation > a_plain.correlation + 0.3
+    assert a_weighted.rms_error < a_plain.rms_error
+    assert weighted.error >= plain.error
+    assert weighted.fit_info["pixels_per_degree"] == pytest.approx(g.pixels_per_degree)
+    with pytest.raises(InputError, match="geometry"):
+        fit_asic_taps(k, 4, objective="csf", geometry=12e-3)

@@ -61,13 +61,18 @@ from .asic_arith import (
 )
 from .base import CostItem, kernel_error
 
-__all__ = ["AsicDesign", "fit_asic_taps", "SCALE_MODES", "exhaustive_asic_taps"]
+__all__ = ["AsicDesign", "fit_asic_taps", "SCALE_MODES", "OBJECTIVES", "exhaustive_asic_taps"]
 
 #: Scale options: ``"free"`` (any positive real, folded into the comparator threshold) or
 #: ``"pow2"`` (2**-e, a wire shift). A positive float fixes the scale (e.g. one LSB of the threshold).
 SCALE_MODES: tuple[str, ...] = ("free", "pow2")
 
+#: What the integer search minimises (besides λ · adders): the kernel error, or the CSF-weighted
+#: frequency-response error.
+OBJECTIVES: tuple[str, ...] = ("kernel", "csf")
+
 _SYMMETRY_TOL = 1e-9
+_CSF_NFFT = 64
 _DIRECT_MAXEVAL = 400
 
 
@@ -311,9 +316,15 @@ def _candidate_sets(bits: int) -> tuple[np.ndarray, ...]:
 
 
 class _TapProblem:
-    """The separable integer problem: class means, sizes, digit costs and the exact per-class solve."""
+    """The integer problem in class space: J(q, s) = (s² qᵀMq − 2s qᵀb + c)/c + λ·adders(q).
 
-    def __init__(self, target: np.ndarray, classes: SymmetryClasses, bits: int, adder_weight: float, pre_add: bool):
+    ``objective="kernel"``: ``M = diag(m_c)``, ``b = m_c K̄_c``, ``c = ‖K‖²`` (separable, solved
+    exactly class by class). ``weights`` (a frequency weighting, e.g. a CSF) make ``M`` the
+    weighted Gram matrix of the classes' spectra; the solve is then exact coordinate descent.
+    """
+
+    def __init__(self, target: np.ndarray, classes: SymmetryClasses, bits: int, adder_weight: float, pre_add: bool,
+                 weights: np.ndarray | None = None, n_fft: int = 0):
         self.t = target
         self.cls = classes
         self.m = classes.sizes.astype(np.float64)
@@ -326,6 +337,25 @@ class _TapProblem:
         self.sets = _candidate_sets(bits) if bits <= _EXACT_BITS else None
         self.lam = float(adder_weight)
         self.pre_add = pre_add
+        self.diagonal = weights is None
+        if weights is None:
+            self.M = np.diag(self.m)
+            self.b = self.m * self.tbar
+            self.c = self.norm2
+        else:
+            k = target.shape[0]
+            r = k // 2
+            f = np.fft.fftfreq(n_fft)
+            pos = np.arange(-r, r + 1)
+            F1 = np.exp(-2j * np.pi * np.outer(f, pos))  # (n_fft, k) one axis
+            # spectrum of each pixel basis vector: F[fy, fx, y, x] = F1[fy, y] F1[fx, x]
+            E = np.stack([(classes.labels == c) for c in range(classes.n_classes)], axis=-1).astype(np.float64)
+            A = np.einsum("ay,bx,yxc->abc", F1, F1, E).reshape(n_fft * n_fft, -1)
+            T = np.einsum("ay,bx,yx->ab", F1, F1, target).ravel()
+            w2 = (np.asarray(weights, dtype=np.float64) ** 2).ravel()
+            self.M = np.real(A.conj().T @ (w2[:, None] * A))
+            self.b = np.real(A.conj().T @ (w2 * T))
+            self.c = float(np.sum(w2 * np.abs(T) ** 2))
 
     def class_cost(self, q: np.ndarray) -> np.ndarray:
         """Adders attributable to each class value (classes on axis 0; the global −1 is a constant)."""
@@ -335,37 +365,81 @@ class _TapProblem:
             return np.where(q != 0, m - 1.0 + w, 0.0)
         return m * w
 
+    def error2(self, q: np.ndarray, s: float) -> float:
+        """The (weighted) squared relative error of ``s q``."""
+        if self.diagonal:  # direct form: no cancellation for tiny errors
+            return (float((self.m * (s * q - self.tbar) ** 2).sum()) + self.proj2) / self.norm2
+        qf = q.astype(np.float64)
+        return max((s * s * float(qf @ self.M @ qf) - 2 * s * float(qf @ self.b) + self.c) / self.c, 0.0)
+
     def objective(self, q: np.ndarray, s: float) -> float:
         """J(q) at scale s (squared relative error + λ · adders)."""
-        err2 = (float((self.m * (s * q - self.tbar) ** 2).sum()) + self.proj2) / self.norm2
-        adders = max(float(self.class_cost(q).sum()) - 1.0, 0.0)
-        return err2 + self.lam * adders
+        return self.error2(q, s) + self.lam * self.adders(q)
 
-    def solve(self, s: float) -> np.ndarray:
-        """Minimiser of J over integer class values at fixed scale ``s``.
+    def _candidates(self, u: np.ndarray) -> np.ndarray:
+        """Per class (rows), the integers that can be optimal near the continuous value ``u``.
 
         Exact for ``bits ≤ 16``: for every digit count d the nearest integers above and below
-        ``K_c / s`` with at most d CSD digits are candidates. Wider taps: the nearest integers and
-        the truncations of their CSD expansions to 0, 1, 2, … digits (exact for λ = 0).
+        ``u`` with at most d CSD digits. Wider taps: the nearest integers and the truncations of
+        their CSD expansions to 0, 1, 2, … digits (exact for λ = 0).
         """
-        u = self.tbar / s
         if self.sets is not None:
             cands = []
             for S in self.sets:
                 i = np.searchsorted(S, u)
                 cands.append(S[np.clip(i - 1, 0, S.size - 1)])
                 cands.append(S[np.clip(i, 0, S.size - 1)])
-            C = np.stack(cands, axis=1)  # (n_classes, n_cand)
-        else:
-            near = np.clip(np.stack([np.floor(u), np.ceil(u)], axis=1), -self.lim, self.lim).astype(np.int64)
-            C = _csd_truncations(near, (self.bits + 2) // 2).reshape(near.shape[0], -1)
-        err = self.m[:, None] * (s * C - self.tbar[:, None]) ** 2 / self.norm2
-        cost = self.class_cost(C)
-        score = err + self.lam * cost
+            return np.stack(cands, axis=1)
+        near = np.clip(np.stack([np.floor(u), np.ceil(u)], axis=1), -self.lim, self.lim).astype(np.int64)
+        return _csd_truncations(near, (self.bits + 2) // 2).reshape(near.shape[0], -1)
+
+    def _pick(self, u: np.ndarray, w2: np.ndarray, cls_idx: np.ndarray) -> np.ndarray:
+        """argmin over candidates of w2 (C − u)² + λ cost, ties to fewer adders."""
+        C = self._candidates(u)
+        cost = self.class_cost(C) if cls_idx.size == self.m.size else self._cost_rows(C, cls_idx)
+        score = w2[:, None] * (C - u[:, None]) ** 2 + self.lam * cost
         best = score.min(axis=1, keepdims=True)
         tie = score <= best + 1e-12 * np.maximum(best, 1e-300)
         pick = np.argmin(np.where(tie, cost, np.inf), axis=1)
         return C[np.arange(C.shape[0]), pick]
+
+    def _cost_rows(self, C: np.ndarray, cls_idx: np.ndarray) -> np.ndarray:
+        w = csd_weight(C).astype(np.float64)
+        m = self.m[cls_idx][:, None]
+        return np.where(C != 0, m - 1.0 + w, 0.0) if self.pre_add else m * w
+
+    def solve(self, s: float) -> np.ndarray:
+        """Minimiser of J over integer class values at fixed scale ``s``.
+
+        Kernel objective: exact, class by class (the problem is separable). Weighted objective:
+        start from the rounded continuous optimum, then exact one-class moves (each class's
+        sub-problem is a 1-D quadratic plus digits, solved over the same candidates) until none
+        improves — a coordinate-wise optimum.
+        """
+        idx = np.arange(self.m.size)
+        if self.diagonal:
+            return self._pick(self.tbar / s, s * s * self.m / self.norm2, idx)
+        try:
+            u0 = np.linalg.solve(self.M, self.b) / s
+        except np.linalg.LinAlgError:
+            u0 = self.b / (s * np.diag(self.M))
+        q = self._pick(np.clip(u0, -self.lim, self.lim), s * s * np.diag(self.M) / self.c, idx)
+        Md = np.diag(self.M)
+        for _ in range(50):
+            changed = False
+            for c in idx:
+                if Md[c] <= 0:
+                    continue
+                rest = float(self.M[c] @ q) - Md[c] * q[c]
+                u = np.array([(self.b[c] / s - rest) / Md[c]])
+                new = self._pick(u, np.array([s * s * Md[c] / self.c]), np.array([c]))[0]
+                if new != q[c]:  # the 1-D pick is exact, so the move never increases J
+                    q = q.copy()
+                    q[c] = new
+                    changed = True
+            if not changed:
+                break
+        return q
 
     def adders(self, q: np.ndarray) -> float:
         return max(float(self.class_cost(q).sum()) - 1.0, 0.0)
@@ -378,11 +452,30 @@ class _TapProblem:
         return J <= Jb + 1e-12 * abs(Jb) and self.adders(q) < self.adders(best["q"])
 
     def ls_scale(self, q: np.ndarray) -> float | None:
-        den = float((self.m * q * q).sum())
-        if den == 0:
+        qf = q.astype(np.float64)
+        den = float(qf @ self.M @ qf)
+        if den <= 0:
             return None
-        s = float((self.m * q * self.tbar).sum()) / den
+        s = float(qf @ self.b) / den
         return s if s > 0 else None
+
+
+def _csf_weights(kernel: Kernel, method: str, geometry: Any) -> tuple[np.ndarray, float]:
+    """CSF weight on the 64×64 DFT grid (peak 1) and the pixels per degree used."""
+    from ..csf import Geometry, contrast_sensitivity, csf_agreement
+
+    if geometry is None:
+        ppd = csf_agreement(kernel, method=method).pixels_per_degree
+    elif isinstance(geometry, Geometry):
+        ppd = geometry.pixels_per_degree
+    else:
+        raise InputError(f"geometry: expected a fsdvs_hw.csf.Geometry or None, got {type(geometry).__name__}")
+    f = np.fft.fftfreq(_CSF_NFFT)
+    fr = np.hypot(f[:, None], f[None, :])
+    w = np.asarray(contrast_sensitivity(fr * ppd, method=method), dtype=np.float64)
+    if not (np.all(np.isfinite(w)) and w.max() > 0):
+        raise InputError(f"csf_method {method!r} gave no usable weights at {ppd:.3g} pixels/degree")
+    return w / w.max(), float(ppd)
 
 
 def _resolve_symmetry(kernel: Kernel, symmetry: str) -> str:
@@ -417,7 +510,7 @@ def _fit_free_scale(p: _TapProblem, amax: float) -> tuple[float, np.ndarray, dic
     opt.set_lower_bounds([lo])
     opt.set_upper_bounds([hi])
     opt.set_min_objective(f)
-    opt.set_maxeval(_DIRECT_MAXEVAL)
+    opt.set_maxeval(_DIRECT_MAXEVAL if p.diagonal else _DIRECT_MAXEVAL // 2)
     opt.set_xtol_abs(1e-9)
     try:
         opt.optimize([0.5 * (lo + hi)])
@@ -465,6 +558,8 @@ def fit_asic_taps(
     input_bits: int = 8,
     pre_add: bool = True,
     objective: str = "kernel",
+    csf_method: str = "mannos_sakrison_1974",
+    geometry: Any = None,
 ) -> AsicDesign:
     """Fit integer taps and one scale to a kernel (see the module docstring for the method).
 
@@ -488,9 +583,16 @@ def fit_asic_taps(
         Unsigned pixel width the accumulator is sized for (1…32).
     pre_add : bool
         Count (and build) symmetric pre-adds.
-    objective : {"kernel"}
-        What the error term measures: the relative L2 kernel error (the CSF agreement of every
-        design is reported by the benchmark; it is not optimised directly).
+    objective : {"kernel", "csf"}
+        What the error term measures. ``kernel``: the relative L2 kernel error (separable; exact).
+        ``csf``: the relative L2 error of the 2-D frequency response weighted by the CSF,
+        ``‖w (K̂_q − K̂)‖ / ‖w K̂‖`` with ``w(f) = CSF(|f| · ppd) / max CSF`` on a 64×64 DFT grid —
+        errors where the eye is sensitive cost more (coordinate-wise optimum).
+    csf_method : str
+        CSF model for ``objective="csf"`` (see :data:`fsdvs_hw.csf.CSF_METHODS`).
+    geometry : fsdvs_hw.csf.Geometry, optional
+        Pixel pitch and focal length giving pixels per degree for ``objective="csf"``; without it
+        the scale that best aligns the target with the CSF is fitted (:func:`fsdvs_hw.csf.csf_agreement`).
 
     Returns
     -------
@@ -506,20 +608,24 @@ def fit_asic_taps(
     if not isinstance(kernel, Kernel):
         raise InputError(f"kernel: expected a fsdvs_hw Kernel, got {type(kernel).__name__}")
     lim = tap_limit(bits)
-    if objective != "kernel":
-        raise InputError(f"objective: {objective!r} unknown; allowed: kernel")
+    if objective not in OBJECTIVES:
+        raise InputError(f"objective: {objective!r} unknown; allowed: {', '.join(OBJECTIVES)}")
     lam = float(adder_weight)
     if not (math.isfinite(lam) and lam >= 0):
         raise InputError(f"adder_weight: must be a finite number ≥ 0, got {adder_weight!r}")
     sym = _resolve_symmetry(kernel, symmetry)
     cls = symmetry_classes(kernel.size, sym)
-    p = _TapProblem(kernel.taps, cls, int(bits), lam, bool(pre_add))
+    weights, ppd = (None, None) if objective == "kernel" else _csf_weights(kernel, csf_method, geometry)
+    p = _TapProblem(kernel.taps, cls, int(bits), lam, bool(pre_add), weights=weights, n_fft=_CSF_NFFT)
     amax = float(np.abs(p.tbar).max())
     if amax == 0:
         raise InputError(f"kernel '{kernel.name}': its {sym}-symmetric part is all zeros; choose symmetry='none'")
     naive_s = amax / lim
-    info: dict[str, Any] = {"naive_scale": naive_s, "naive_error": math.sqrt(p.objective(np.clip(np.round(p.tbar / naive_s), -lim, lim), naive_s) - 0.0)
-                            if lam == 0 else None}
+    naive_q = cls.expand(np.clip(np.round(p.tbar / naive_s), -lim, lim))
+    info: dict[str, Any] = {"naive_scale": naive_s, "naive_error": kernel_error(naive_s * naive_q, kernel),
+                            "objective_name": objective}
+    if ppd is not None:
+        info.update(csf_method=csf_method, pixels_per_degree=ppd)
     if isinstance(scale, str):
         if scale not in SCALE_MODES:
             raise InputError(f"scale: {scale!r} unknown; allowed: {', '.join(SCALE_MODES)} or a positive number")
@@ -559,7 +665,9 @@ def fit_asic_taps(
 
 
 def exhaustive_asic_taps(kernel: Kernel, bits: int, *, symmetry: str, adder_weight: float = 0.0,
-                         pre_add: bool = True, max_combinations: int = 2_000_000) -> tuple[np.ndarray, float, float]:
+                         pre_add: bool = True, objective: str = "kernel", geometry: Any = None,
+                         csf_method: str = "mannos_sakrison_1974",
+                         max_combinations: int = 2_000_000) -> tuple[np.ndarray, float, float]:
     """Brute-force optimum over every integer tap vector, each with its least-squares free scale.
 
     The test oracle of :func:`fit_asic_taps` (``scale="free"``) on tiny problems: enumerates all
@@ -571,19 +679,26 @@ def exhaustive_asic_taps(kernel: Kernel, bits: int, *, symmetry: str, adder_weig
     """
     sym = _resolve_symmetry(kernel, symmetry)
     cls = symmetry_classes(kernel.size, sym)
-    p = _TapProblem(kernel.taps, cls, int(bits), float(adder_weight), bool(pre_add))
+    if objective not in OBJECTIVES:
+        raise InputError(f"objective: {objective!r} unknown; allowed: {', '.join(OBJECTIVES)}")
+    weights = None if objective == "kernel" else _csf_weights(kernel, csf_method, geometry)[0]
+    p = _TapProblem(kernel.taps, cls, int(bits), float(adder_weight), bool(pre_add), weights=weights, n_fft=_CSF_NFFT)
     n = cls.n_classes
     vals = np.arange(-p.lim, p.lim + 1, dtype=np.int64)
     if vals.size**n > max_combinations:
         raise InputError(f"exhaustive search over {vals.size}^{n} tap vectors exceeds max_combinations={max_combinations}")
     Q = np.stack(np.meshgrid(*([vals] * n), indexing="ij"), axis=-1).reshape(-1, n)
     Q = Q[np.any(Q != 0, axis=1)]
-    num = (p.m * Q * p.tbar).sum(axis=1)
-    den = (p.m * Q * Q).sum(axis=1)
+    Qf = Q.astype(np.float64)
+    num = Qf @ p.b
+    den = np.einsum("ni,ij,nj->n", Qf, p.M, Qf)
     s = num / den
     ok = s > 0
-    Q, s = Q[ok], s[ok]
-    err2 = ((p.m * (s[:, None] * Q - p.tbar) ** 2).sum(axis=1) + p.proj2) / p.norm2
+    Q, Qf, s = Q[ok], Qf[ok], s[ok]
+    if p.diagonal:
+        err2 = ((p.m * (s[:, None] * Q - p.tbar) ** 2).sum(axis=1) + p.proj2) / p.norm2
+    else:  # at the least-squares scale the weighted error is 1 - (qᵀb)² / (qᵀMq · c)
+        err2 = np.maximum(1.0 - num[ok] ** 2 / (den[ok] * p.c), 0.0)
     cost = p.class_cost(Q.T).sum(axis=0)
     J = err2 + p.lam * np.maximum(cost - 1.0, 0.0)
     i = int(np.argmin(J))
