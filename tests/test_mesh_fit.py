@@ -83,6 +83,17 @@ def test_reported_errors_are_honest_for_dog_log_and_shipped_kernels():
     assert fixed > 0.4 and free < 0.3 and free < fixed / 2
 
 
+def test_larger_fit_window_trades_window_error_for_tail_error():
+    t = reference_kernel("dog", 7)
+    plain = fit_resistive_mesh(t, pixel_weight=None)
+    wide = fit_resistive_mesh(t, pixel_weight=None, fit_size=13)
+    assert wide.fit["fit_size"] == 13 and wide.size == 7
+    assert wide.fit["error_full"] < plain.fit["error_full"]
+    assert wide.fit["error"] >= plain.fit["error"] - 1e-9
+    with pytest.raises(InputError, match="fit_size"):
+        fit_resistive_mesh(t, fit_size=4)
+
+
 def test_ipopt_beats_every_least_squares_start_and_respects_bounds():
     t = reference_kernel("log", 7, sigma_px=1.0)
     b = MeshBounds(lambda_px=(0.3, 6.0), gain=(1e-3, 4.0), min_lambda_ratio=2.0)

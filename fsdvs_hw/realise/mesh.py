@@ -537,6 +537,7 @@ def fit_resistive_mesh(
     node_capacitance_f: float = _DEFAULT_C_NODE_F,
     model: str = "lattice",
     grid_half_width: int | None = None,
+    fit_size: int | None = None,
     n_init: int = 10,
     max_iter: int = 200,
     tol: float = 1e-14,
@@ -568,6 +569,10 @@ def fit_resistive_mesh(
         finite open-edge grid of half-width ``grid_half_width`` pixels (exact DCT form).
     grid_half_width : int, optional
         Required with ``model="grid"``.
+    fit_size : int, optional
+        Odd window (pixels, ≥ the target's size) on which the error is minimised, the target being
+        zero outside its own window. Default: the target's size (the mesh tail outside it is then
+        free; ``fit["error_full"]`` reports what it costs). A larger window also penalises the tail.
     n_init : int
         λ values per mesh in the least-squares initialisation grid (2 … 40).
     max_iter, tol : int, float
@@ -613,7 +618,12 @@ def fit_resistive_mesh(
     c_node = _check_scalar("node_capacitance_f", node_capacitance_f, 1e-18, 1e-6)
     if model not in MESH_MODELS:
         raise InputError(f"model={model!r} unknown; allowed {MESH_MODELS}")
-    radius = target.radius
+    if fit_size is None:
+        fit_size = target.size
+    if not (isinstance(fit_size, (int, np.integer)) and fit_size % 2 == 1 and target.size <= fit_size <= MAX_KERNEL_SIZE):
+        raise InputError(f"fit_size: must be odd in {target.size}..{MAX_KERNEL_SIZE}, got {fit_size!r}")
+    fit_target = target if fit_size == target.size else target.padded(int(fit_size))
+    radius = fit_target.radius
     if model == "grid":
         if not (isinstance(grid_half_width, (int, np.integer)) and radius <= grid_half_width <= 60):
             raise InputError(f"grid_half_width: model 'grid' needs an integer in {radius}..60, got {grid_half_width!r}")
@@ -646,7 +656,7 @@ def fit_resistive_mesh(
             MeshAsymmetryWarning,
             stacklevel=2,
         )
-    t_sym = _d4_symmetrise(target.taps)
+    t_sym = _d4_symmetrise(fit_target.taps)
     ii, jj, mult = _orbits(radius)
     t_orb = t_sym[radius + ii, radius + jj]
     norm2 = float((target.taps**2).sum())
@@ -719,12 +729,13 @@ def fit_resistive_mesh(
         target=target,
     )
     realised = design.kernel()
-    full_size = min(MAX_KERNEL_SIZE, target.size + 2 * int(math.ceil(4 * lam_w)))
+    full_size = min(MAX_KERNEL_SIZE, max(int(fit_size), target.size + 2 * int(math.ceil(4 * lam_w))))
     fit = {
         "error": kernel_error(realised, target),
         "error_full": kernel_error(design.kernel(full_size), target),
         "error_full_size": full_size,
-        "error_symmetric_part": kernel_error(realised, t_sym),
+        "error_symmetric_part": kernel_error(realised, _d4_symmetrise(target.taps)),
+        "fit_size": int(fit_size),
         "asymmetry": asym,
         "mismatch_sensitivity": mismatch_sensitivity(design, target),
         "objective": f_opt,
