@@ -585,7 +585,7 @@ def fit_metalens(
     design_wavelength_m: float = 555e-9,
     dispersion: str = "diffractive",
     n_terms: int = 4,
-    n_wavelengths: int = 8,
+    n_wavelengths: int = 24,
     guard_px: int = 2,
     max_iter: int = 150,
     n_starts: int = 6,
@@ -611,7 +611,8 @@ def fit_metalens(
     n_terms : int
         Polynomial phase terms (r/a)^2 … (r/a)^(2·n_terms), 0…12.
     n_wavelengths : int
-        Spectral samples (equal-weight bins).
+        Spectral samples (equal-weight bins). The multi-start search and the first refinement
+        use at most 8; the final polish and the returned PSFs use all of them.
     guard_px : int
         Ring of pixels around the window where spilled light is counted as error.
     max_iter : int
@@ -658,8 +659,13 @@ def fit_metalens(
         raise InputError(f"na_max={budget:.3g} must be in [NA of the focusing term {na0:.3g}, 1)")
     k_size = kernel.size
     n_eval = k_size + 2 * guard_px
-    model = _RadialKernelModel(geometry, pitch_m=pitch, n_pixels=n_eval, spectral=spectral, n_sub=n_sub,
-                               window_pad=window_pad, na_budget=budget)
+    # coarse-to-fine in wavelength: starts and the first refinement on ≤ 8 samples, polish on all
+    coarse_spectral = spectral if spectral.n <= 8 or isinstance(illuminant, SpectralSamples) else \
+        _spectral(illuminant, response, 8)
+    coarse = _RadialKernelModel(geometry, pitch_m=pitch, n_pixels=n_eval, spectral=coarse_spectral, n_sub=n_sub,
+                                window_pad=window_pad, na_budget=budget)
+    model = coarse if coarse_spectral is spectral else _RadialKernelModel(
+        geometry, pitch_m=pitch, n_pixels=n_eval, spectral=spectral, n_sub=n_sub, window_pad=window_pad, na_budget=budget)
     scale = float(np.linalg.norm(kernel.taps))
     k_pad = torch.from_numpy(np.pad(kernel.taps / scale, guard_px))
     mask = torch.from_numpy(np.pad(np.ones((k_size, k_size)), guard_px))
@@ -681,19 +687,19 @@ def fit_metalens(
         na = (na_scale * (d_hyp + d_pow @ c).abs()).max()
         return 10.0 * torch.clamp(na - budget, min=0.0) ** 2
 
-    def make_loss(targets: Any, mode: str, n_lens: int) -> Any:
+    def make_loss(targets: Any, mode: str, n_lens: int, fwd: _RadialKernelModel) -> Any:
         def loss(x: Any) -> Any:
             psfs, pen = [], 0.0
             for i in range(n_lens):
                 z, c = unpack(x[i])
-                psfs.append(model.psf(c, z))
+                psfs.append(fwd.psf(c, z))
                 pen = pen + penalty(c)
             return _solve_gains(psfs, targets, mask, mode)[2] + pen
         return loss
 
     def fit_from(starts: list[np.ndarray], targets: Any, mode: str) -> tuple[np.ndarray, int]:
         n_lens = starts[0].shape[0]
-        loss_fn = make_loss(targets, mode, n_lens)
+        loss_fn = make_loss(targets, mode, n_lens, coarse)
         best, best_val, iters = None, float("inf"), 0
         for s in starts:
             x = torch.tensor(s, dtype=torch.float64, requires_grad=True)
@@ -704,6 +710,8 @@ def fit_metalens(
                 best, best_val = x.detach().clone(), val
         x = best.clone().requires_grad_(True)
         iters += _lbfgs(x, loss_fn, max_iter)
+        if model is not coarse:
+            iters += _lbfgs(x, make_loss(targets, mode, n_lens, model), max(10, max_iter // 4))
         return x.detach().numpy(), iters
 
     radius_px = max(1.0, k_size / 2)
