@@ -139,3 +139,23 @@ def test_monte_carlo_bad_input():
     with pytest.raises(InputError, match="half_width"):
         mismatch_monte_carlo(d, half_width=1)
     assert math.isfinite(mismatch_monte_carlo(d, n_trials=1).errors[0])
+
+
+def test_step_response_settles_with_tau_equals_c_over_gv():
+    from fsdvs_hw.realise.mesh_dynamics import mesh_step_response
+    from fsdvs_hw.realise.mesh_response import finite_grid_response
+
+    g_l, g_v, c, h = 1e-8, 1e-8 / 2.5**2, 100e-15, 8
+    tau = c / g_v
+    t = np.array([0.0, 1e-6 * tau, 0.3 * tau, tau, 3 * tau, 60 * tau])
+    v = mesh_step_response(g_l, g_v, c, h, t)
+    # the total charge obeys the uniform mode exactly: Σ g_v V = 1 - exp(-t/τ)
+    assert np.allclose(v.sum(axis=(1, 2)) * g_v, -np.expm1(-t / tau), rtol=1e-10, atol=1e-15)
+    # at first all current charges the centre capacitor: V_c ≈ t / C
+    assert v[1, h, h] == pytest.approx(t[1] / c, rel=1e-4)
+    # and in the end the node voltages are the static response
+    assert np.allclose(v[-1] * g_v, finite_grid_response(2.5, h, h), rtol=1e-12, atol=1e-15)
+    with pytest.raises(InputError, match="node_capacitance_f"):
+        mesh_step_response(g_l, g_v, 0.0, h, t)
+    with pytest.raises(InputError, match="t_s"):
+        mesh_step_response(g_l, g_v, c, h, [-1.0])

@@ -74,3 +74,22 @@ def test_netlist_bad_input():
         to_spice_netlist(d, half_width=3, i_in_a=-1.0)
     with pytest.raises(InputError, match="MeshDesign"):
         to_spice_netlist({"kind": "mesh"})
+
+
+@pytest.mark.tools
+def test_ngspice_transient_agrees_with_the_exact_step_response():
+    from fsdvs_hw.realise.mesh_dynamics import mesh_step_response
+    from fsdvs_hw.realise.mesh_spice import simulate_mesh_step_spice
+
+    require_tool("ngspice")
+    d = _design()
+    h = 5
+    res = simulate_mesh_step_spice(d, t_stop_s=3 * d.tau_wide_s, half_width=h, n_points=50)
+    assert res.t_s[0] == 0.0 and res.t_s[-1] == pytest.approx(3 * d.tau_wide_s, rel=1e-9)
+    for v, g_l, g_v in (
+        (res.v_narrow_v, d.g_lateral_narrow_s, d.g_vertical_narrow_s),
+        (res.v_wide_v, d.g_lateral_wide_s, d.g_vertical_wide_s),
+    ):
+        exact = mesh_step_response(g_l, g_v, d.node_capacitance_f, h, res.t_s) * res.i_in_a
+        # a real SPICE transient carries time-integration error: ~3e-6 with the deck's tolerances
+        assert np.abs(v - exact).max() <= 2e-5 * np.abs(exact).max()

@@ -35,6 +35,7 @@ __all__ = [
     "drift_kernel",
     "mesh_needs_transient",
     "moving_edge_response",
+    "mesh_step_response",
 ]
 
 
@@ -270,3 +271,49 @@ def moving_edge_response(
             outs.append(out)
             stats.append(stat)
     return EdgeTransient(np.array(ts), x, np.array(outs), np.array(stats), v)
+
+
+def mesh_step_response(
+    g_lateral_s: float, g_vertical_s: float, node_capacitance_f: float, half_width: int, t_s: Any
+) -> np.ndarray:
+    r"""Exact node voltages of a finite mesh after a unit current step into its centre node.
+
+    Solves :math:`C\dot V = e_c\,H(t) - (g_v + g_l L) V`, :math:`V(0) = 0`, on the open-edge
+    (2h+1)² grid by its DCT modes:
+    :math:`V(t) = \sum_{ij} \phi_{ij}(c)\,\phi_{ij}\,(1 - e^{-G_{ij} t / C}) / G_{ij}` with
+    :math:`G_{ij} = g_v + g_l (s_i + s_j)`.
+
+    Parameters
+    ----------
+    g_lateral_s, g_vertical_s : float
+        Conductances in siemens.
+    node_capacitance_f : float
+        Node capacitance in farads (> 0).
+    half_width : int
+        Grid half-width h in pixels.
+    t_s : array_like
+        Times in seconds (≥ 0).
+
+    Returns
+    -------
+    ndarray, shape (T, 2h+1, 2h+1)
+        Node voltage per ampere of step (V/A = Ω).
+    """
+    from .mesh_response import _check_radius, _dct_basis, space_constant_px
+
+    space_constant_px(g_lateral_s, g_vertical_s)  # validates both conductances
+    c = float(node_capacitance_f)
+    if not (math.isfinite(c) and c > 0):
+        raise InputError(f"node_capacitance_f: must be a positive capacitance in farads, got {node_capacitance_f!r}")
+    h = _check_radius(half_width, "half_width")
+    t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
+    if np.any(~np.isfinite(t)) or np.any(t < 0):
+        raise InputError("t_s: times must be finite and ≥ 0 seconds")
+    n = 2 * h + 1
+    phi, s = _dct_basis(n)
+    g = g_vertical_s + g_lateral_s * (s[:, None] + s[None, :])
+    c0 = np.outer(phi[h], phi[h])
+    out = np.empty((t.size, n, n))
+    for k, tk in enumerate(t):
+        out[k] = phi @ (c0 * (-np.expm1(-g * tk / c)) / g) @ phi.T
+    return out

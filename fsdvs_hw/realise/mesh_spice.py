@@ -27,7 +27,15 @@ import numpy as np
 
 from ..errors import InputError, ToolMissingError
 
-__all__ = ["MAX_SPICE_HALF_WIDTH", "to_spice_netlist", "run_ngspice", "SpiceMeshResult", "simulate_mesh_spice"]
+__all__ = [
+    "MAX_SPICE_HALF_WIDTH",
+    "to_spice_netlist",
+    "run_ngspice",
+    "SpiceMeshResult",
+    "simulate_mesh_spice",
+    "SpiceStepResult",
+    "simulate_mesh_step_spice",
+]
 
 #: Largest patch half-width exported for ngspice (63×63 nodes per mesh).
 MAX_SPICE_HALF_WIDTH: int = 31
@@ -70,8 +78,20 @@ def _mesh_lines(prefix: str, n: int, g_l: float, g_v: float, c_f: float) -> list
     return out
 
 
-def to_spice_netlist(design: Any, *, half_width: int | None = None, i_in_a: float = 1e-9) -> str:
+def to_spice_netlist(
+    design: Any,
+    *,
+    half_width: int | None = None,
+    i_in_a: float = 1e-9,
+    step_stop_s: float | None = None,
+    n_points: int = 200,
+) -> str:
     """An ngspice deck of ``design``'s two meshes on a (2h+1)² patch with an impulse at the centre.
+
+    By default the deck computes the operating point (``.op``: the static kernel). With
+    ``step_stop_s`` the current is a step switched on at t = 0 (rise time 1e-9 · step_stop_s) and
+    the deck runs a transient (``.tran``) to ``step_stop_s`` with ``n_points`` output points
+    (interpolated, tight tolerances): the settling of the meshes through their node capacitances.
 
     Parameters
     ----------
@@ -81,6 +101,10 @@ def to_spice_netlist(design: Any, *, half_width: int | None = None, i_in_a: floa
         Patch half-width h in pixels (1 … 31). Default: ``min(31, r + 3 + ceil(3 λ_wide))``.
     i_in_a : float
         Injected current at the centre node, amperes (positive, ≤ 1 mA).
+    step_stop_s : float, optional
+        End time of a step-response transient, seconds (None: operating point only).
+    n_points : int
+        Output points of the transient (10 … 100000).
 
     Returns
     -------
@@ -98,13 +122,27 @@ def to_spice_netlist(design: Any, *, half_width: int | None = None, i_in_a: floa
     lines += _mesh_lines("n", n, design.g_lateral_narrow_s, design.g_vertical_narrow_s, design.node_capacitance_f)
     lines += _mesh_lines("w", n, design.g_lateral_wide_s, design.g_vertical_wide_s, design.node_capacitance_f)
     # SPICE current sources push current from n+ through the source to n-: "I 0 node" injects into node
-    lines.append(f"IINN 0 n{h}_{h} DC {float(i_in_a)!r}")
-    lines.append(f"IINW 0 w{h}_{h} DC {float(i_in_a)!r}")
-    lines += [".options filetype=ascii", ".op", ".end", ""]
+    if step_stop_s is None:
+        src = f"DC {float(i_in_a)!r}"
+        analysis = [".op"]
+    else:
+        if not (isinstance(step_stop_s, (int, float)) and 1e-15 < step_stop_s < 1e3):
+            raise InputError(f"step_stop_s: transient end time must be in (1e-15, 1e3) s, got {step_stop_s!r}")
+        if not (isinstance(n_points, int) and 10 <= n_points <= 100000):
+            raise InputError(f"n_points: must be an integer in 10..100000, got {n_points!r}")
+        t_stop, t_step = float(step_stop_s), float(step_stop_s) / n_points
+        src = f"PWL(0 0 {1e-9 * t_stop!r} {float(i_in_a)!r})"
+        analysis = [
+            ".options interp reltol=1e-7 abstol=1e-20 vntol=1e-15 chgtol=1e-25 method=gear maxord=2",
+            f".tran {t_step!r} {t_stop!r} 0 {t_step / 10!r}",
+        ]
+    lines.append(f"IINN 0 n{h}_{h} {src}")
+    lines.append(f"IINW 0 w{h}_{h} {src}")
+    lines += [".options filetype=ascii", *analysis, ".end", ""]
     return "\n".join(lines)
 
 
-def _parse_ascii_raw(text: str) -> dict[str, float]:
+def _parse_ascii_raw(text: str) -> dict[str, np.ndarray]:
     lines = text.splitlines()
     try:
         nvar = int(next(ln for ln in lines if ln.startswith("No. Variables:")).split(":")[1])
@@ -114,19 +152,20 @@ def _parse_ascii_raw(text: str) -> dict[str, float]:
         raise InputError("ngspice raw file: missing 'No. Variables' / 'Variables:' / 'Values:' header") from None
     names = [lines[i_var + 1 + k].split()[1] for k in range(nvar)]
     tokens = " ".join(lines[i_val + 1 :]).split()
-    values = [float(t) for t in tokens[1 : 1 + nvar]]  # the first token is the point index
-    if len(values) != nvar:
-        raise InputError(f"ngspice raw file: expected {nvar} values, found {len(values)}")
-    return {name.lower(): v for name, v in zip(names, values)}
+    if not tokens or len(tokens) % (nvar + 1):
+        raise InputError(f"ngspice raw file: {len(tokens)} value tokens do not form points of {nvar} variables")
+    table = np.array(tokens, dtype=object).reshape(-1, nvar + 1)[:, 1:].astype(np.float64)  # col 0: point index
+    return {name.lower(): table[:, k] for k, name in enumerate(names)}
 
 
-def run_ngspice(netlist: str, *, timeout_s: float = 300.0) -> dict[str, float]:
-    """Run ``netlist`` in ngspice batch mode and return its operating-point node voltages.
+def run_ngspice(netlist: str, *, timeout_s: float = 300.0) -> dict[str, np.ndarray]:
+    """Run ``netlist`` in ngspice batch mode and return every output vector.
 
     Returns
     -------
     dict
-        ``{"v(n0_0)": volts, ...}`` (lower-case names as ngspice writes them).
+        ``{"v(n0_0)": volts, ...}`` (lower-case names as ngspice writes them), each an array with
+        one value per output point (one point for ``.op``; ``"time"`` in seconds for ``.tran``).
 
     Raises
     ------
@@ -183,8 +222,44 @@ def simulate_mesh_spice(design: Any, *, half_width: int | None = None, i_in_a: f
     netlist = to_spice_netlist(design, half_width=h, i_in_a=i_in_a)
     n = 2 * h + 1
     v = run_ngspice(netlist)
-    vn = np.array([[v[f"v(n{y}_{x})"] for x in range(n)] for y in range(n)])
-    vw = np.array([[v[f"v(w{y}_{x})"] for x in range(n)] for y in range(n)])
+    vn = np.array([[v[f"v(n{y}_{x})"][0] for x in range(n)] for y in range(n)])
+    vw = np.array([[v[f"v(w{y}_{x})"][0] for x in range(n)] for y in range(n)])
     k = design.gain_narrow * design.g_vertical_narrow_s * vn / i_in_a - design.gain_wide * design.g_vertical_wide_s * vw / i_in_a
     k[h, h] += design.pixel_weight
     return SpiceMeshResult(vn, vw, float(i_in_a), k, time.perf_counter() - t0)
+
+
+@dataclass(frozen=True)
+class SpiceStepResult:
+    """Step response of both meshes from an ngspice transient.
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (T,)
+        Output times, seconds.
+    v_narrow_v, v_wide_v : ndarray, shape (T, n, n)
+        Node voltages (V) over time, row y, column x.
+    i_in_a : float
+        Step height of the injected current (A).
+    wall_s : float
+        ngspice wall time including deck writing and parsing, seconds.
+    """
+
+    t_s: np.ndarray
+    v_narrow_v: np.ndarray
+    v_wide_v: np.ndarray
+    i_in_a: float
+    wall_s: float
+
+
+def simulate_mesh_step_spice(
+    design: Any, *, t_stop_s: float, half_width: int | None = None, i_in_a: float = 1e-9, n_points: int = 200
+) -> SpiceStepResult:
+    """Transient of both meshes after a current step into the centre node, with ngspice."""
+    t0 = time.perf_counter()
+    h = _resolve_half_width(design, half_width)
+    netlist = to_spice_netlist(design, half_width=h, i_in_a=i_in_a, step_stop_s=t_stop_s, n_points=n_points)
+    v = run_ngspice(netlist)
+    n = 2 * h + 1
+    grid = lambda p: np.stack([np.stack([v[f"v({p}{y}_{x})"] for x in range(n)], -1) for y in range(n)], -2)  # noqa: E731
+    return SpiceStepResult(v["time"], grid("n"), grid("w"), float(i_in_a), time.perf_counter() - t0)
