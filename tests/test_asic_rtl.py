@@ -103,6 +103,11 @@ def test_synthesis_reports_cells_and_liberty_area():
     c = d.cost()
     assert c["yosys_cells"].value == r_big.cells and c["area_m2"].unit == "m^2"
     assert c["area_m2"].value == pytest.approx(r_big.area_m2)
+    # the arithmetic alone: fewer cells than the whole filter, only the output register as flip-flops
+    assert 0 < c["datapath_cells"].value < c["yosys_cells"].value
+    assert d.synthesis["datapath_flip_flops"] <= big.output_bits()
+    small_dp = small.synthesise(image_width=8, image_height=8).cost()["datapath_cells"].value
+    assert small_dp < c["datapath_cells"].value
 
 
 def test_verilog_generator_checks_its_arguments():

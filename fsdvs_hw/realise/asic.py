@@ -202,12 +202,15 @@ class AsicDesign:
             c["yosys_cells"] = CostItem(s["cells"], "count", f"yosys cells ({s['liberty']}, {s['image_width']}-pixel lines)")
             c["flip_flops"] = CostItem(s["flip_flops"], "count", "flip-flops (line buffers, window, output)")
             c["area_m2"] = CostItem(s["area_m2"], "m^2", f"cell area from the liberty file ({s['liberty']}, area unit µm²)")
+            c["datapath_cells"] = CostItem(s["datapath_cells"], "count", "yosys cells of the arithmetic alone (no line buffers)")
+            c["datapath_area_m2"] = CostItem(s["datapath_area_m2"], "m^2", "cell area of the arithmetic alone")
         return c
 
     def describe(self) -> str:
         scale = f"2^-{self.fit_info.get('scale_exponent')}" if self.scale_mode == "pow2" else f"{self.scale:.6g}"
         lines = [
-            f"asic: {self.bits}-bit integer taps ({self.symmetry} symmetry) for '{self.target.name}', scale {scale} ({self.scale_mode})",
+            f"asic: {self.bits}-bit integer taps ({self.symmetry} symmetry) for '{self.target.name}', scale {scale} ({self.scale_mode}), "
+            f"objective {self.fit_info.get('objective_name', 'kernel')}, λ = {self.adder_weight:g}",
             f"  kernel error {self.error:.4g} (relative L2), shape error {self.shape_error:.4g} (gain fitted)",
             f"  adders {self.adders} ({'symmetric pre-adds' if self.pre_add else 'per tap'}; {self.adders_per_tap} per tap), "
             f"CSD digits {int(csd_weight(self.taps).sum())}, accumulator {self.accumulator_bits} bits for {self.input_bits}-bit pixels",
@@ -215,7 +218,8 @@ class AsicDesign:
         if self.synthesis:
             s = self.synthesis
             lines.append(f"  yosys: {s['cells']} cells, {s['flip_flops']} flip-flops, area {s['area_m2'] * 1e12:.1f} µm² "
-                         f"({s['liberty']}, {s['image_width']}-pixel lines)")
+                         f"({s['liberty']}, {s['image_width']}-pixel lines); arithmetic alone {s['datapath_cells']} cells, "
+                         f"{s['datapath_area_m2'] * 1e12:.1f} µm²")
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
@@ -274,11 +278,16 @@ class AsicDesign:
 
     def synthesise(self, *, image_width: int = 16, image_height: int = 16, out_shift: int = 0) -> AsicDesign:
         """Synthesise the RTL with yosys and the shipped liberty file; returns a copy with ``synthesis`` set."""
-        from .asic_rtl import synthesise_verilog
+        from .asic_rtl import generate_datapath_verilog, synthesise_verilog
 
         src = self.verilog(image_width=image_width, image_height=image_height, out_shift=out_shift)
         rep = synthesise_verilog(src, top="fsdvs_conv")
-        return replace(self, synthesis={**rep.to_dict(), "image_width": int(image_width), "image_height": int(image_height)})
+        dp = synthesise_verilog(generate_datapath_verilog(self.taps, input_bits=self.input_bits, out_shift=out_shift,
+                                                          symmetry=self.symmetry if self.pre_add else "none"),
+                                top="fsdvs_datapath")
+        return replace(self, synthesis={**rep.to_dict(), "image_width": int(image_width), "image_height": int(image_height),
+                                        "datapath_cells": dp.cells, "datapath_area_m2": dp.area_m2,
+                                        "datapath_flip_flops": dp.flip_flops})
 
 
 # ---------------------------------------------------------------------------- the fit
