@@ -22,6 +22,7 @@ __all__ = ["BENCHMARKS", "run_benchmark", "HELP", "add_arguments", "run"]
 #: benchmark name -> "module:function"
 BENCHMARKS: dict[str, str] = {
     "csf": "fsdvs_hw.analysis:bench_analysis",
+    "tasks": "fsdvs_hw.tasks.bench:bench_tasks",
     "asic": "fsdvs_hw.realise.asic_bench:bench_asic",
     "mesh": "fsdvs_hw.realise.mesh_bench:bench_mesh",
 }

@@ -108,7 +108,7 @@ class DetectionEvaluator(TaskEvaluator):
     max_detections = 10
 
     def default_scene(self) -> SceneConfig:
-        return SceneConfig(motion="random", n_objects=(1, 2))
+        return SceneConfig(motion="random", n_objects=(1, 2), edge_contrast=0.22)
 
     def check_scene(self, scene: SceneConfig) -> None:
         if scene.motion != "random":
@@ -197,7 +197,7 @@ class RecognitionEvaluator(TaskEvaluator):
     num_classes = len(MOTION_CLASSES)
 
     def default_scene(self) -> SceneConfig:
-        return SceneConfig(motion="classes")
+        return SceneConfig(motion="classes", edge_contrast=0.2, contrast_sign="positive")
 
     def check_scene(self, scene: SceneConfig) -> None:
         if scene.motion != "classes":
@@ -230,7 +230,7 @@ class SegmentationEvaluator(TaskEvaluator):
     num_classes = 1 + len(SHAPE_CLASSES)
 
     def default_scene(self) -> SceneConfig:
-        return SceneConfig(motion="random", n_objects=(1, 2))
+        return SceneConfig(motion="random", n_objects=(1, 2), edge_contrast=0.22)
 
     def check_scene(self, scene: SceneConfig) -> None:
         if scene.motion != "random":

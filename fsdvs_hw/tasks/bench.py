@@ -1,0 +1,125 @@
+"""``fsdvs-hw bench tasks``: training and evaluation cost, and the evaluation's accuracy-for-speed trade.
+
+Two tables:
+
+1. **Time per epoch and per evaluation** for each task at the shipped settings (32×32 clips,
+   5 frames, 7×7 kernel): a frozen-filter epoch (events computed once and cached), a joint epoch
+   (simulator forward + backward every batch) and one :func:`~fsdvs_hw.tasks.learn.evaluate_kernel`.
+2. **Metric confidence interval versus test-set size** (the knob of evaluation fidelity): the
+   shipped 7×7 checkpoint scored on the first ``n`` test clips, with a 95 % bootstrap interval
+   (resampling clips, 200 replicates), the error against the largest test set (the
+   highest-fidelity reference) and the wall time.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["bench_tasks", "bootstrap_interval", "SHIPPED_DIR"]
+
+SHIPPED_DIR = Path(__file__).resolve().parents[2] / "designs" / "kernels"
+
+
+def bootstrap_interval(evaluator, prediction, target, *, n_boot: int = 200, seed: int = 0) -> tuple[float, float]:
+    """95 % percentile-bootstrap interval of the evaluator's primary metric, resampling clips."""
+    import torch
+
+    rng = np.random.default_rng(seed)
+    n = next(iter(target.values())).shape[0]
+    vals = []
+    for _ in range(n_boot):
+        idx = torch.from_numpy(rng.integers(0, n, n))
+        try:
+            vals.append(evaluator.score({k: v[idx] for k, v in prediction.items()},
+                                        {k: v[idx] for k, v in target.items()})[evaluator.primary_metric])
+        except ValueError:  # a resample without ground truth (tiny n): skip it
+            continue
+    lo, hi = np.percentile(vals, [2.5, 97.5])
+    return float(lo), float(hi)
+
+
+def _predictions(task: str, checkpoint: Path, n_test: int):
+    import torch
+
+    from ..scenes.synthetic import SceneConfig
+    from ..sensor import SensorConfig
+    from .evaluators import get_evaluator
+    from .learn import TrainingSettings, _cat_predictions, _dataset, _network_input, load_checkpoint
+
+    ev = get_evaluator(task)
+    prov, state, kernel = load_checkpoint(checkpoint)
+    net = ev.build_network(int(prov["in_channels"]), TrainingSettings(**prov["settings"]).width)
+    net.load_state_dict(state)
+    net.eval()
+    scene = SceneConfig.from_dict(prov["scene"])
+    sensor = SensorConfig(**prov["sensor"])
+    video, targets = _dataset(scene, n_test, int(prov["test_seed"]), task)
+    k = torch.as_tensor(np.array(kernel.taps))
+    with torch.no_grad():
+        preds = [ev.predict(net(_network_input(video[s : s + 64], k, sensor, scene.timestamps_s)))
+                 for s in range(0, n_test, 64)]
+    return ev, _cat_predictions(preds), targets, kernel
+
+
+def bench_tasks(*, quick: bool = False) -> str:
+    """Markdown tables: time per epoch / evaluation, and metric CI versus test-set size."""
+    import torch
+
+    from .learn import TrainingSettings, evaluate_kernel, learn_kernel
+
+    torch.set_num_threads(1)
+    lines = ["## tasks: training / evaluation cost and evaluation accuracy vs test-set size", ""]
+    n_train = 64 if quick else 512
+    lines += [f"Time per epoch ({n_train} training clips of 32×32×5 frames, batch 32, 7×7 kernel, one thread) "
+              "and per `evaluate_kernel` (256 test clips, shipped checkpoint, zero-shot).", "",
+              "| task | frozen-filter epoch (s) | joint epoch (s) | evaluate_kernel (s) | clips / s (joint) |",
+              "|---|---|---|---|---|"]
+    for task in ("detection", "recognition"):
+        print(f"[bench tasks] timing {task}", file=sys.stderr, flush=True)
+        res = learn_kernel(task, 7, seed=0, n_train=n_train, n_test=32,
+                           settings=TrainingSettings(epochs_frozen=1, epochs_joint=1))
+        frozen = [h["seconds"] for h in res.history if h["stage"] == "frozen_filter"]
+        joint = [h["seconds"] for h in res.history if h["stage"] == "joint"][0]
+        ckpt = SHIPPED_DIR / f"learned_{task}_7x7.safetensors"
+        if ckpt.is_file():
+            kern = SHIPPED_DIR / f"learned_{task}_7x7.json"
+            n_eval = 64 if quick else 256
+            evaluate_kernel(kern, task, ckpt, n_test=n_eval)  # warm the clip cache (scene rendering)
+            t0 = time.perf_counter()
+            evaluate_kernel(kern, task, ckpt, n_test=n_eval)
+            t_eval = f"{time.perf_counter() - t0:.2f}"
+        else:
+            t_eval = "no shipped checkpoint"
+        fz = f"{frozen[0]:.2f}" if frozen else "— (joint from start)"
+        lines.append(f"| {task} | {fz} | {joint:.2f} | {t_eval} | {n_train / joint:.0f} |")
+    lines += ["", "Metric (×100) of the shipped 7×7 checkpoint versus test-set size: 95 % bootstrap interval "
+              "(200 resamples of clips), error against the largest set, and wall time (events + network + "
+              "metric).", "",
+              "| task | n_test | metric | 95 % CI | CI half-width | error vs largest | wall time (s) |",
+              "|---|---|---|---|---|---|---|"]
+    sizes = (16, 32, 64) if quick else (32, 64, 128, 256, 512, 1024)
+    for task in ("detection", "recognition"):
+        ckpt = SHIPPED_DIR / f"learned_{task}_7x7.safetensors"
+        if not ckpt.is_file():
+            lines.append(f"| {task} | — | no shipped checkpoint | | | | |")
+            continue
+        print(f"[bench tasks] CI vs n_test for {task}", file=sys.stderr, flush=True)
+        ev, pred, target, _ = _predictions(task, ckpt, max(sizes))
+        ref = ev.score(pred, target)[ev.primary_metric]
+        for n in sizes:
+            t0 = time.perf_counter()
+            evaluate_kernel(SHIPPED_DIR / f"learned_{task}_7x7.json", task, ckpt, n_test=n)
+            wall = time.perf_counter() - t0
+            p = {k: v[:n] for k, v in pred.items()}
+            t = {k: v[:n] for k, v in target.items()}
+            val = ev.score(p, t)[ev.primary_metric]
+            lo, hi = bootstrap_interval(ev, p, t, n_boot=50 if quick else 200)
+            lines.append(f"| {task} | {n} | {val * 100:.1f} | [{lo * 100:.1f}, {hi * 100:.1f}] | "
+                         f"{(hi - lo) * 50:.1f} | {abs(val - ref) * 100:.1f} | {wall:.2f} |")
+    lines += ["", "Timings are on this machine under whatever load it carries; re-run "
+              "`fsdvs-hw bench tasks` to reproduce."]
+    return "\n".join(lines) + "\n"
