@@ -166,7 +166,10 @@ class _RadialKernelModel:
         self.n_pixels = n_pixels
         a = geometry.radius_m
         half_diag = (n_pixels / 2) * pitch_m * math.sqrt(2)
-        self.window_radius_m = window_pad * max(a, half_diag)
+        # the window must hold the aperture, the pixel window and the diffraction spread of a
+        # small aperture (two Airy first-zero radii at the focal distance)
+        spread = 1.22 * float(spectral.wavelengths_m.max()) * geometry.focal_length_m / a
+        self.window_radius_m = window_pad * max(a, half_diag, spread)
         lam_min = float(spectral.wavelengths_m.min())
         na = na_budget if na_budget is not None else local_numerical_aperture(geometry, [], spectral.wavelengths_m)
         if na >= 1:
@@ -175,12 +178,16 @@ class _RadialKernelModel:
                 f"{geometry.aperture_m:.3g} m, focal length {geometry.focal_length_m:.3g} m): evanescent, not buildable; "
                 "reduce the aperture or lengthen the focal length"
             )
-        needed = required_modes(self.window_radius_m, na, lam_min, oversample=oversample)
+        R = self.window_radius_m
+        needed = required_modes(R, na, lam_min, oversample=1.0)  # lens-plane Nyquist: Δx ≤ λ_min/(2 NA)
         if n_modes is None:
-            n_modes = needed
+            # oversample the phase, and hold every wave that stays inside the window (band limit at z ≈ f)
+            na_window = R / math.hypot(R, geometry.focal_length_m)
+            n_modes = max(required_modes(R, na, lam_min, oversample=oversample),
+                          int(math.ceil(2 * R * na_window / lam_min)) + 16)
         elif n_modes < needed:
             raise InputError(
-                f"n_modes={n_modes} undersamples the lens plane: Δx = {self.window_radius_m / n_modes:.3g} m > "
+                f"n_modes={n_modes} undersamples the lens plane: Δx = {R / n_modes:.3g} m > "
                 f"λ_min/(2·NA) = {lam_min / (2 * na):.3g} m; need n_modes ≥ {needed} (or leave it None)"
             )
         self.n_modes = int(n_modes)
@@ -301,7 +308,8 @@ def _pixel_psf_2d(geometry: LensGeometry, coeffs: Any, z: float, pitch_m: float,
     dx = pitch_m / m
     a = geometry.radius_m
     half_diag = (n_pixels / 2) * pitch_m * math.sqrt(2)
-    half = window_pad * max(a, half_diag)
+    spread = 1.22 * float(spectral.wavelengths_m.max()) * geometry.focal_length_m / a
+    half = window_pad * max(a, half_diag, spread)
     n_half = int(math.ceil(half / dx))
     n = 2 * n_half + 1
     if n > 8193:
