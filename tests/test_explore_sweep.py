@@ -29,6 +29,8 @@ _CHEAP = """
 include = ["learned", "delta"]
 [analysis]
 csf_methods = ["mannos_sakrison_1974"]
+[emulation]
+enabled = false
 [sweep]
 axes = {{ "optics.focal_length_m" = {focals} }}
 [run]
@@ -145,7 +147,7 @@ def test_run_resume_skips_finished_points(tmp_path):
 
 
 def test_failed_point_is_recorded_with_its_reason(tmp_path):
-    d = parse_design({"realisations": {"include": ["asic"], "asic": {"bits": 1}}})
+    d = parse_design({"realisations": {"include": ["asic"], "asic": {"bits": 1}}, "emulation": {"enabled": False}})
     pytest.importorskip("fsdvs_hw.realise.asic")
     (p,) = expand_points(d)
     res = evaluate_point(p)

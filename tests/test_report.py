@@ -71,7 +71,7 @@ def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch
     p = tmp_path / "tiny.toml"
     p.write_text('[realisations]\ninclude = ["learned", "delta", "asic", "metalens"]\n'
                  '[realisations.asic]\nbits = 4\n[analysis]\ncsf_methods = ["mannos_sakrison_1974", "barten_1999"]\n'
-                 '[run]\nworkers = 1\n')
+                 '[sensor]\nresolution = [24, 32]\n[emulation]\nn_clips = 1\nn_frames = 4\n[run]\nworkers = 1\n')
     out = tmp_path / "out"
     assert main(["explore", str(p), "--out", str(out), "--no-progress"]) == 0
     html = (out / "report.html").read_text()
@@ -97,6 +97,10 @@ def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch
     assert float(rows["asic"]["kernel_error"]) == pytest.approx(kernel_error(realised, target), rel=1e-12)
     assert 0 < float(rows["asic"]["kernel_error"]) < 0.5  # 4-bit taps: close, not exact
     assert float(rows["learned"]["kernel_error"]) == 0.0
+    # emulation track scored for every realisation: events recaptured, frames correlated
+    for name in ("learned", "delta", "asic"):
+        assert float(rows[name]["emu_event_ratio"]) > 0 and -1 <= float(rows[name]["emu_signed_correlation"]) <= 1
+    assert float(rows["delta"]["emu_signed_correlation"]) > 0.5
     assert int(float(rows["asic"]["cost_adders"])) == asic["result"]["cost"]["adders"]["value"]
     # rerun: nothing recomputed
     assert main(["explore", str(p), "--out", str(out), "--no-progress"]) == 0

@@ -21,7 +21,8 @@ Layout (every section and key is optional; defaults in brackets)::
                     (fit_resistive_mesh / fit_asic_taps / fit_metalens)
     [tasks]         checkpoints = { detection = "kernels/learned_detection_7x7.safetensors" },
                     n_test, finetune_epochs, tracks = ["simulator", "emulation"]
-    [emulation]     display_bits, display_gamma, display_peak_nits, upsample_factor
+    [emulation]     enabled, n_clips, n_frames, display_bits, display_gamma, display_peak_nits,
+                    display_black_nits, upsample_factor  (fsdvs_hw.explore.emulation)
     [sweep]         axes = { "asic.bits" = [2, 4, 8], "sensor.threshold_on" = [0.1, 0.2] }
     [run]           workers, seed
 
@@ -174,6 +175,9 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
         "tracks": _f(list, ["simulator"], "evaluation tracks", item_types=(str,), choices=_TRACKS),
     },
     "emulation": {
+        "enabled": _f(bool, True, "score the sensor-in-the-loop emulation track (event level)"),
+        "n_clips": _f(int, 4, "synthetic clips for the emulation track", lo=1, hi=10000),
+        "n_frames": _f(int, 9, "frames per clip", lo=2, hi=1000),
         "display_bits": _f(int, 8, "display bit depth", lo=1, hi=16),
         "display_gamma": _f(_NUMBER, 2.2, "display gamma (encoded = linear^(1/gamma))", lo=1.0, hi=4.0),
         "display_peak_nits": _f(_NUMBER, 400.0, "display peak luminance in cd/m²", lo=1.0, hi=10000.0),

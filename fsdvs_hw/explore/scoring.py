@@ -21,6 +21,10 @@ task accuracy
     swapped zero-shot into the network trained with the learned kernel; the loss against the
     learned kernel is computed by :func:`accuracy_losses` once the learned row exists. When the
     tasks module or a checkpoint is missing, the score says so (``status``) instead of a number.
+sensor-in-the-loop emulation
+    The realised kernel applied to synthetic video, shown on an emulated display and recaptured by
+    the noisy simulator, compared with the kernel inside the pixel
+    (:mod:`fsdvs_hw.explore.emulation`).
 costs and wall times
     The realisation's :meth:`cost` items with units, and the seconds spent fitting, analysing and
     evaluating.
@@ -210,7 +214,8 @@ def _metric_dict(res: Any) -> dict[str, Any]:
 
 def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str] = (PRIMARY_CSF_METHOD,),
           focal_length_m: float = 4.0e-3, checkpoints: Mapping[str, str | Path] | None = None,
-          task_options: Mapping[str, Any] | None = None, fit_wall_s: float = float("nan")) -> dict[str, Any]:
+          task_options: Mapping[str, Any] | None = None, emulation: Mapping[str, Any] | None = None,
+          fit_wall_s: float = float("nan")) -> dict[str, Any]:
     """Score one realisation against its target.
 
     Parameters
@@ -227,6 +232,9 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
         Task name → trained checkpoint; empty or None for no task evaluation.
     task_options : mapping, optional
         ``n_test``, ``finetune_epochs``, ``tracks`` for :func:`task_scores`.
+    emulation : mapping, optional
+        ``{"sensor": [sensor] section, "emulation": [emulation] section, "seed": int}`` to score the
+        sensor-in-the-loop emulation track (:func:`fsdvs_hw.explore.emulation.emulation_scores`).
     fit_wall_s : float
         Seconds the realisation's fit took (recorded as given).
 
@@ -256,7 +264,16 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
     t1 = time.perf_counter()
     opts = dict(task_options or {})
     rec["tasks"] = task_scores(realised, dict(checkpoints or {}), **opts)
-    rec["wall_s"] = {"fit": float(fit_wall_s), "analysis": t1 - t0, "tasks": time.perf_counter() - t1}
+    t2 = time.perf_counter()
+    if emulation is not None and emulation["emulation"].get("enabled", True):
+        from .emulation import emulation_scores
+
+        rec["emulation"] = emulation_scores(realised, sensor=emulation["sensor"], emulation=emulation["emulation"],
+                                            seed=int(emulation.get("seed", 0)))
+    else:
+        rec["emulation"] = {"status": "not requested"}
+    rec["wall_s"] = {"fit": float(fit_wall_s), "analysis": t1 - t0, "tasks": t2 - t1,
+                     "emulation": time.perf_counter() - t2}
     return rec
 
 

@@ -164,6 +164,7 @@ def evaluate_point(point: DesignPoint) -> dict[str, Any]:
             checkpoints={t: (p if Path(p).is_absolute() else base / p) for t, p in tasks["checkpoints"].items()},
             task_options={"n_test": tasks["n_test"], "finetune_epochs": tasks["finetune_epochs"],
                           "tracks": tasks["tracks"]},
+            emulation={"sensor": data["sensor"], "emulation": data["emulation"], "seed": data["run"]["seed"]},
             fit_wall_s=fit_s,
         )
         rec["realisation"] = real.to_dict()

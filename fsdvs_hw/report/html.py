@@ -106,12 +106,15 @@ def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title: str 
                  "the least-squares gain, which a comparator threshold absorbs). CSF: correlation of the "
                  "peak-normalised radial response with each CSF at the design geometry; 'fitted' uses the best "
                  "pixels-per-degree scale. Green rows are Pareto-optimal within their kind over accuracy loss, "
-                 "CSF agreement and headline cost.</p>")
+                 "CSF agreement and headline cost. Emulation: the realised kernel applied to the video, shown on "
+                 "an emulated display and recaptured by the noisy simulator (the paper's sensor-in-the-loop track), "
+                 "against the same kernel inside the pixel: event-count ratio and correlation of ON−OFF frames.</p>")
     cols = [("point", "point"), ("kernel_error", "kernel error"), ("kernel_error_gain_free", "gain-free error"),
             ("peak_frequency_cpp", "peak (cyc/px)"), ("response_kind", "response")]
     cols += [(f"csf_{m}_correlation", f"r {m.split('_')[0]}") for m in methods]
     cols += [("csf_fitted_correlation", "r MS fitted")]
     cols += [(k, k.replace("_", " ", 1)) for k in dict.fromkeys(c for r in ok for c in r if c.startswith(("metric_", "loss_")))]
+    cols += [("emu_event_ratio", "emul. events / in-sensor"), ("emu_signed_correlation", "emul. r")]
     cols += [("headline_cost", "cost item"), ("headline_cost_value", "value"), ("headline_cost_unit", "unit")]
     parts.append(_table(ok, cols, left=("point", "response_kind", "headline_cost", "headline_cost_unit")))
 
@@ -124,10 +127,12 @@ def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title: str 
                                                     focal_length_m=data["optics"]["focal_length_m"])), "radial"))
         parts.append("<h2>Pareto: accuracy loss vs CSF agreement vs cost</h2>" + _img(_png(figures.fig_pareto(rows)), "pareto"))
         parts.append("<h2>Speed for accuracy</h2><p class='note'>Wall times on the machine that ran each point "
-                     "(fit: the realisation's optimiser; analysis: spectra and CSF; tasks: evaluators).</p>")
+                     "(fit: the realisation's optimiser; analysis: spectra and CSF; tasks: evaluators; emulation: "
+                     "display and recapture track).</p>")
         parts.append(_table(ok, [("point", "point"), ("kernel_error", "kernel error"), ("csf_agreement", "r MS"),
                                  (acc, acc_label.split(" (")[0]), ("fit_s", "fit (s)"), ("analysis_s", "analysis (s)"),
-                                 ("tasks_s", "tasks (s)"), ("point_s", "point total (s)")]))
+                                 ("tasks_s", "tasks (s)"), ("emulation_s", "emulation (s)"),
+                                 ("point_s", "point total (s)")]))
         parts.append(_img(_png(figures.fig_speed(rows)), "speed"))
         parts.append("<h2>Realisations</h2>")
         for p in points:

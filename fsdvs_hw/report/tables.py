@@ -41,8 +41,8 @@ def score_rows(points: Iterable[Mapping[str, Any]], *, primary_csf: str = "manno
     Columns: ``point, realisation, params, status, reason, kernel_error, kernel_error_gain_free,
     dc_gain, peak_frequency_cpp, response_kind, csf_<method>_{correlation,peak_ratio,log_rms_dec},
     csf_fitted_{correlation,rms_error,ppd}, metric_<task>/<track>, loss_<task>/<track>,
-    cost_<name>, headline_cost, headline_cost_value, headline_cost_unit, fit_s, analysis_s,
-    tasks_s, point_s, pareto``.
+    emu_event_ratio, emu_signed_correlation, emu_clipped_black, cost_<name>, headline_cost,
+    headline_cost_value, headline_cost_unit, fit_s, analysis_s, tasks_s, emulation_s, point_s, pareto``.
     """
     from ..explore.scoring import accuracy_losses
 
@@ -85,6 +85,12 @@ def score_rows(points: Iterable[Mapping[str, Any]], *, primary_csf: str = "manno
                             row[f"metric_{task}/{track}"] = _num(r["metric"])
             for k, v in losses.get(p["key"], {}).items():
                 row[f"loss_{k}"] = v
+            emu = res.get("emulation") or {}
+            row["emulation_status"] = emu.get("status", "")
+            if emu.get("status") == "ok":
+                row["emu_event_ratio"] = _num(emu.get("event_ratio"))
+                row["emu_signed_correlation"] = _num(emu.get("signed_correlation"))
+                row["emu_clipped_black"] = _num(emu.get("clipped_black"))
             cost = res.get("cost") or {}
             for name, item in cost.items():
                 row[f"cost_{name}"] = _num(item.get("value"))
@@ -94,6 +100,7 @@ def score_rows(points: Iterable[Mapping[str, Any]], *, primary_csf: str = "manno
             row["fit_s"] = _num(wall.get("fit"))
             row["analysis_s"] = _num(wall.get("analysis"))
             row["tasks_s"] = _num(wall.get("tasks"))
+            row["emulation_s"] = _num(wall.get("emulation"))
         row["point_s"] = _num(p.get("wall_s"))
         rows.append(row)
     _mark_pareto(rows)
