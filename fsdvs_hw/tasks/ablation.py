@@ -127,7 +127,7 @@ def _map(jobs: list[dict[str, Any]], workers: int, fn: Any = None, log_path: Pat
 def run_ablation(tasks: Sequence[str] = ("detection", "recognition"), sizes: Sequence[int] = (1, 3, 5, 7, 9),
                  seeds: Sequence[int] = (0, 1, 2), *, n_train: int | None = None, n_test: int | None = None,
                  settings: dict[str, Any] | None = None, workers: int = 1,
-                 log_path: Path | None = None) -> list[dict[str, Any]]:
+                 log_path: Path | None = None, ship_dir: Path | None = None) -> list[dict[str, Any]]:
     """Train every (task, size, seed) and return one record per run.
 
     Parameters
@@ -146,6 +146,9 @@ def run_ablation(tasks: Sequence[str] = ("detection", "recognition"), sizes: Seq
         Processes to run in parallel.
     log_path : path, optional
         Append every finished run to this JSON-lines file (partial results survive an interrupt).
+    ship_dir : path, optional
+        Save the 7×7 runs of the first seed as ``ship_dir/learned_{task}_7x7.{json,safetensors,
+        provenance.json}`` (how the shipped kernels in ``designs/kernels`` are made).
 
     Returns
     -------
@@ -163,6 +166,10 @@ def run_ablation(tasks: Sequence[str] = ("detection", "recognition"), sizes: Seq
         raise InputError("ablation: give at least one seed")
     jobs = [{"task": t, "size": s, "seed": int(sd), "n_train": n_train, "n_test": n_test, "settings": settings}
             for t in tasks for s in sizes for sd in seeds]
+    if ship_dir is not None:
+        for j in jobs:
+            if j["size"] == 7 and j["seed"] == seeds[0]:
+                j["out"] = str(Path(ship_dir) / f"learned_{j['task']}_7x7")
     # longest first (large kernels, detection) so parallel workers finish together
     jobs.sort(key=lambda j: (-j["size"], j["task"]))
     return _map(jobs, workers, _one_run, log_path)
@@ -293,6 +300,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also run the segmentation transfer table with this (detection) kernel file")
     parser.add_argument("--out", type=Path, default=None,
                         help="write runs.jsonl (each run as it finishes), ablation.json and ablation.md here")
+    parser.add_argument("--ship-dir", type=Path, default=None,
+                        help="save the 7x7 runs of the first seed here as learned_{task}_7x7.* (designs/kernels)")
     parser.add_argument("--from-runs", type=Path, default=None, metavar="RUNS_JSONL",
                         help="do not train: rebuild the tables from a runs.jsonl written earlier")
 
@@ -322,7 +331,8 @@ def run(args: argparse.Namespace) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
         log_path = args.out / "runs.jsonl"
     records = run_ablation(args.tasks, args.sizes, args.seeds, n_train=args.n_train, n_test=args.n_test,
-                           settings=settings or None, workers=args.workers, log_path=log_path)
+                           settings=settings or None, workers=args.workers, log_path=log_path,
+                           ship_dir=args.ship_dir)
     text = ablation_markdown(records)
     transfer = []
     if args.transfer:

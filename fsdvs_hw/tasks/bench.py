@@ -52,12 +52,13 @@ def _predictions(task: str, checkpoint: Path, n_test: int):
 
     ev = get_evaluator(task)
     prov, state, kernel = load_checkpoint(checkpoint)
-    net = ev.build_network(int(prov["in_channels"]), TrainingSettings(**prov["settings"]).width)
+    net = ev.build_network(int(prov["in_channels"]), TrainingSettings(**{"dtype": "float64", **prov["settings"]}).width)
     net.load_state_dict(state)
     net.eval()
     scene = SceneConfig.from_dict(prov["scene"])
     sensor = SensorConfig(**prov["sensor"])
-    video, targets = _dataset(scene, n_test, int(prov["test_seed"]), task)
+    video, targets = _dataset(scene, n_test, int(prov["test_seed"]), task,
+                              TrainingSettings(**{"dtype": "float64", **prov["settings"]}).dtype)
     k = torch.as_tensor(np.array(kernel.taps))
     with torch.no_grad():
         preds = [ev.predict(net(_network_input(video[s : s + 64], k, sensor, scene.timestamps_s)))

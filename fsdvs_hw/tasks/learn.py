@@ -94,6 +94,9 @@ class TrainingSettings:
         Network width (channels of the first layer).
     init_noise : float
         Standard deviation of the Gaussian noise added to the delta initialisation.
+    dtype : {"float32", "float64"}
+        Precision of the video and the simulator (float32 halves the joint-epoch time; the
+        kernel parameter itself stays float64).
     """
 
     epochs_frozen: int = 8
@@ -104,8 +107,11 @@ class TrainingSettings:
     weight_decay: float = 1e-4
     width: int = 12
     init_noise: float = 1e-2
+    dtype: str = "float32"
 
     def __post_init__(self) -> None:
+        if self.dtype not in ("float32", "float64"):
+            raise InputError(f"TrainingSettings.dtype must be 'float32' or 'float64', got {self.dtype!r}")
         for name in ("epochs_frozen", "epochs_joint", "batch_size", "width"):
             v = getattr(self, name)
             lo = 1 if name in ("batch_size", "width") else 0
@@ -207,7 +213,7 @@ def _network_input(video: Any, kernel: Any, sensor: Any, timestamps_s: np.ndarra
 
 # --------------------------------------------------------------------------- data
 @functools.lru_cache(maxsize=6)
-def _dataset(scene: Any, n: int, seed: int, task_name: str) -> tuple[Any, Any]:
+def _dataset(scene: Any, n: int, seed: int, task_name: str, dtype: str = "float64") -> tuple[Any, Any]:
     """(video tensor float64 (N,T,H,W), targets) for a scene family; cached (evaluation is repeated)."""
     import torch
 
@@ -215,7 +221,7 @@ def _dataset(scene: Any, n: int, seed: int, task_name: str) -> tuple[Any, Any]:
     from .evaluators import get_evaluator
 
     batch = make_scenes(scene, n, seed=seed)
-    return torch.from_numpy(batch.video), get_evaluator(task_name).targets(batch)
+    return torch.from_numpy(batch.video).to(getattr(torch, dtype)), get_evaluator(task_name).targets(batch)
 
 
 def _take(targets: dict[str, Any], idx: Any) -> dict[str, Any]:
@@ -391,8 +397,8 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 512,
     learn_filter = bool(learn_filter and size > 1)
     kernel_param = torch.nn.Parameter(taps0.clone(), requires_grad=learn_filter)
 
-    video, targets = _dataset(scene, n_train, seed, evaluator.name)
-    test_video, test_targets = _dataset(scene, n_test, TEST_SEED, evaluator.name)
+    video, targets = _dataset(scene, n_train, seed, evaluator.name, settings.dtype)
+    test_video, test_targets = _dataset(scene, n_test, TEST_SEED, evaluator.name, settings.dtype)
     ts = scene.timestamps_s
     in_channels = 2 * (scene.n_frames - 1)
     network = evaluator.build_network(in_channels, settings.width)
@@ -594,7 +600,7 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
         raise InputError(f"evaluate_kernel: n_test must be an integer in [1, 100000], got {n_test!r}")
     if isinstance(finetune_epochs, bool) or not isinstance(finetune_epochs, int) or finetune_epochs < 0:
         raise InputError(f"evaluate_kernel: finetune_epochs must be a non-negative integer, got {finetune_epochs!r}")
-    settings = TrainingSettings(**provenance["settings"])
+    settings = TrainingSettings(**{"dtype": "float64", **provenance["settings"]})
     network = evaluator.build_network(int(provenance["in_channels"]), settings.width)
     try:
         network.load_state_dict(state, strict=True)
@@ -606,14 +612,15 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
     if finetune_epochs:
         torch.manual_seed(int(provenance["seed"]))
         gen = torch.Generator().manual_seed(int(provenance["seed"]))
-        video, targets = _dataset(scene, int(provenance["n_train"]), int(provenance["seed"]), evaluator.name)
+        video, targets = _dataset(scene, int(provenance["n_train"]), int(provenance["seed"]), evaluator.name,
+                                  settings.dtype)
         with torch.no_grad():
             cached = torch.cat([_network_input(video[s : s + 128], kernel_t, sensor, ts)
                                 for s in range(0, video.shape[0], 128)])
         opt = torch.optim.AdamW(network.parameters(), lr=finetune_lr, weight_decay=settings.weight_decay)
         _train_epochs(evaluator, network, kernel_t, video, targets, sensor, ts, opt, finetune_epochs,
                       settings.batch_size, gen, "finetune", [], None, cached_inputs=cached)
-    test_video, test_targets = _dataset(scene, n_test, int(provenance["test_seed"]), evaluator.name)
+    test_video, test_targets = _dataset(scene, n_test, int(provenance["test_seed"]), evaluator.name, settings.dtype)
     metrics, event_rate = _score(evaluator, network, kernel_t, test_video, test_targets, sensor, ts)
     return Evaluation(task=evaluator.name, metrics=metrics, primary_metric=evaluator.primary_metric,
                       kernel_name=k.name, kernel_size=k.size, n_test=n_test, finetune_epochs=finetune_epochs,
