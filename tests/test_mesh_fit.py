@@ -17,6 +17,7 @@ from fsdvs_hw.realise.mesh import (
     MeshAsymmetryWarning,
     MeshBounds,
     MeshDesign,
+    MeshFitWarning,
     _casadi_orbit_response,
     _numpy_orbit_response,
     fit_resistive_mesh,
@@ -110,7 +111,9 @@ def test_ipopt_beats_every_least_squares_start_and_respects_bounds():
 def test_mismatch_penalty_prevents_the_unbuildable_collapse():
     t = reference_kernel("dog", 7)
     loose = MeshBounds(min_lambda_ratio=1.0, gain=(1e-4, 1e3))
-    collapsed = fit_resistive_mesh(t, bounds=loose, pixel_weight=None, mismatch_sigma=0.0)
+    with warnings.catch_warnings():  # the unpenalised problem drifts towards λ_n = λ_w, gains → ∞
+        warnings.simplefilter("ignore", MeshFitWarning)  # (IPOPT may stop at max_iter: reported, not hidden)
+        collapsed = fit_resistive_mesh(t, bounds=loose, pixel_weight=None, mismatch_sigma=0.0, max_iter=100)
     robust = fit_resistive_mesh(t, bounds=loose, pixel_weight=None, mismatch_sigma=0.01)
     # the unpenalised fit is a near-cancellation of two similar meshes with big gains
     assert collapsed.fit["mismatch_sensitivity"] > 3 * robust.fit["mismatch_sensitivity"]
@@ -165,6 +168,15 @@ def test_asymmetric_target_warns_and_fits_its_symmetric_part():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         fit_resistive_mesh(truth, mismatch_sigma=0.0)  # a symmetric target does not warn
+
+
+@pytest.mark.parametrize("scale", [1e-12, 1e12])
+def test_target_scale_out_of_reach_warns_and_stays_finite(scale):
+    t = reference_kernel("dog", 5).scaled(scale)
+    with pytest.warns(MeshFitWarning, match="out of reach"):
+        d = fit_resistive_mesh(t, pixel_weight="free")
+    assert math.isfinite(d.fit["error"]) and d.fit["error"] >= 0.999
+    assert np.all(np.isfinite(d.kernel().taps))
 
 
 @pytest.mark.parametrize("lam_n, lam_w", [(1e-3, 1e-2), (1e-3, 1e3), (1e2, 1e3)])

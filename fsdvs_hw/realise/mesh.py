@@ -71,6 +71,7 @@ __all__ = [
     "MeshBounds",
     "MeshDesign",
     "MeshAsymmetryWarning",
+    "MeshFitWarning",
     "MESH_MODELS",
     "fit_resistive_mesh",
     "mismatch_sensitivity",
@@ -86,6 +87,10 @@ _DEFAULT_C_NODE_F = 100e-15
 
 class MeshAsymmetryWarning(UserWarning):
     """The target kernel is not D4-symmetric; only its symmetric part can be realised by a mesh."""
+
+
+class MeshFitWarning(UserWarning):
+    """The fit is unusable: worse than no kernel at all, or IPOPT did not converge."""
 
 
 @dataclass(frozen=True)
@@ -594,6 +599,9 @@ def fit_resistive_mesh(
     -----
     MeshAsymmetryWarning
         The target is not D4-symmetric (relative asymmetric part > 1e-6).
+    MeshFitWarning
+        The fit is no better than a zero kernel (error ≥ 0.999: target scale out of reach), or
+        IPOPT did not report success.
     """
     import casadi as ca
     from scipy.optimize import lsq_linear
@@ -749,4 +757,15 @@ def fit_resistive_mesh(
         "mismatch_sigma": sigma,
         "pixel_weight_free": free_wp,
     }
+    if fit["error"] >= 0.999:
+        peak = float(np.abs(target.taps).max())
+        warnings.warn(
+            f"mesh fit of '{target.name}' has kernel error {fit['error']:.6g} (a zero kernel has 1): the "
+            f"target's scale (max |tap| = {peak:.3g}) is out of reach of bounds.gain={bounds.gain}"
+            f"{'' if free_wp else f' with pixel_weight fixed at {wp_fixed:g}'}; normalise the target or widen the bounds",
+            MeshFitWarning,
+            stacklevel=2,
+        )
+    elif not fit["success"]:
+        warnings.warn(f"mesh fit of '{target.name}': IPOPT ended with status {fit['status']}", MeshFitWarning, stacklevel=2)
     return MeshDesign(**{**{k: getattr(design, k) for k in design.__dataclass_fields__ if k not in ("fit", "kind")}, "fit": fit})
