@@ -123,6 +123,9 @@ class SensorConfig:
         Start each pixel's memorised reference a uniform random fraction of ``C_on`` below the
         first frame's signal, as after an unknown earlier reset (desynchronises leak events, as
         v2e's random leak phase does). Default False: the reference is the first frame (ESIM).
+    convolution : {"auto", "direct", "fft"}
+        How the kernel is applied: ``conv2d``, FFT, or FFT for kernels >= 5×5 on frames >= 64×64
+        (default ``"auto"``; both exact up to floating-point rounding).
     frame_rate_hz : float
         Frame rate assumed when no timestamps are given (default 25 Hz: UCF101, as in the FS-DVS
         paper; 17 frames span 0.64 s).
@@ -164,6 +167,7 @@ class SensorConfig:
     surround_weight: float = 0.0
     surround_tau_s: float = 0.0
     random_reference_phase: bool = False
+    convolution: str = "auto"
     frame_rate_hz: float = 25.0
     substeps: int = 1
     adaptive_fraction: float | None = None
@@ -194,6 +198,8 @@ class SensorConfig:
         if self.positivity not in POSITIVITY_MODES:
             raise InputError(
                 f"SensorConfig.positivity: {self.positivity!r} unknown; allowed: {', '.join(POSITIVITY_MODES)}")
+        if self.convolution not in ("auto", "direct", "fft"):
+            raise InputError(f"SensorConfig.convolution: {self.convolution!r} unknown; allowed: auto, direct, fft")
         if self.surrogate not in SURROGATES:
             raise InputError(f"SensorConfig.surrogate: {self.surrogate!r} unknown; allowed: {', '.join(SURROGATES)}")
         for name in ("substeps", "max_substeps"):

@@ -66,7 +66,8 @@ def prepare_video(video: Any) -> Any:
     if T < 2 or B < 1 or H < 1 or W < 1:
         raise InputError(f"video: needs B >= 1, T >= 2 frames, H, W >= 1; got shape {tuple(video.shape)}")
     with torch.no_grad():
-        if not bool(torch.isfinite(video).all()):
+        total = video.sum(dtype=torch.float64)  # one pass; finite iff every value is finite
+        if not bool(torch.isfinite(total)) and not bool(torch.isfinite(video).all()):
             raise InputError("video: contains NaN or inf intensities")
         vmin = float(video.min())
         if vmin < 0:
@@ -214,6 +215,46 @@ def _collect(store: list, emitted: Any, j0: Any, m: Any, d_a: Any, v: Any, c: An
                   torch.full((len(rep),), polarity, dtype=torch.int8)))
 
 
+def _sum_to(t: Any, like: Any) -> Any:
+    return t.sum_to_size(like.shape) if t.shape != like.shape else t
+
+
+class _Comparator(torch.autograd.Function):
+    """One comparator step with the straight-through surrogate, fused for speed and memory.
+
+    Forward: ``d = L - r``; ``n_on = floor(relu(d) / C_on)``, ``n_off = floor(relu(-d) / C_off)``;
+    ``r' = r + n_on C_on - n_off C_off``. Backward: the floor is replaced by the identity
+    (see the module docstring). Returns ``(n_on, n_off, r', d)``; ``d`` carries no gradient.
+    """
+
+    @staticmethod
+    def forward(ctx, target, ref, c_on, c_off, eps):  # noqa: ANN001, ANN205
+        d = target - ref
+        h_on = torch.floor_(torch.clamp(d, min=0.0).div_(c_on).add_(eps))
+        h_off = torch.floor_(torch.clamp(d, max=0.0).div_(c_off).neg_().add_(eps))
+        ref_new = torch.addcmul(ref, h_on, c_on)
+        ref_new.addcmul_(h_off, c_off, value=-1.0)
+        ctx.save_for_backward(d, h_on, h_off, c_on, c_off)
+        ctx.mark_non_differentiable(d)
+        return h_on, h_off, ref_new, d
+
+    @staticmethod
+    def backward(ctx, g_on, g_off, g_ref, _g_d):  # noqa: ANN001, ANN205
+        d, h_on, h_off, c_on, c_off = ctx.saved_tensors
+        pos, neg = d > 0, d < 0
+        g_d = torch.where(pos, g_on / c_on + g_ref, torch.where(neg, g_ref - g_off / c_off, torch.zeros_like(g_ref)))
+        g_target = g_d if ctx.needs_input_grad[0] else None
+        g_refin = (g_ref - g_d) if ctx.needs_input_grad[1] else None
+        gc_on = gc_off = None
+        if ctx.needs_input_grad[2]:
+            x_on = torch.clamp(d, min=0.0) / c_on
+            gc_on = _sum_to(-g_on * x_on / c_on + g_ref * (h_on - x_on), c_on)
+        if ctx.needs_input_grad[3]:
+            x_off = torch.clamp(d, max=0.0).neg() / c_off
+            gc_off = _sum_to(-g_off * x_off / c_off - g_ref * (h_off - x_off), c_off)
+        return g_target, g_refin, gc_on, gc_off, None
+
+
 def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[int],
          generator: Any, collect_events: bool) -> tuple[Any, SimulationInfo, EventList | None]:
     """Step every pixel through time; return counts (B, T-1, 2, H, W), info and events."""
@@ -233,13 +274,16 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     exact_times = collect_events or refr > 0
     tsd = ts.to(dtype=torch.float64)
 
-    ref = L[:, 0]
+    Ls = L.unbind(1)  # one unbind: its backward is one stack, not T full-size zero tensors
+    CI = signal.cutoff_intensity.unbind(1) if has_lp else None
+    SU = signal.surround.unbind(1) if transient else None
+    ref = Ls[0]
     if config.random_reference_phase:  # reference starts at a random point of its cycle
         g = effect_generator(config.seed, "leak_phase", dev)
         phase = torch.rand((H, W), generator=g, device=g.device, dtype=torch.float64).to(dev, dt_)
         ref = ref - phase * c_on
-    lp = L[:, 0] if has_lp else None
-    sur = signal.surround[:, 0] if transient else None
+    lp = Ls[0] if has_lp else None
+    sur = SU[0] if transient else None
     last_t = torch.full((B, H, W), -math.inf, dtype=torch.float64, device=dev) if refr > 0 else None
     shot_g = effect_generator(config.seed, "shot", dev) if shot > 0 else None
     # noise-event times draw from their own stream so event_list and event_frames agree
@@ -248,7 +292,7 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     frames = []
     noise_events = 0
     lost = 0.0
-    sig_prev = (L[:, 0] - config.surround_weight * sur) if transient else L[:, 0]
+    sig_prev = (Ls[0] - config.surround_weight * sur) if transient else Ls[0]
     for k in range(T - 1):
         S = substeps[k]
         dt_int = (tsd[:, k + 1] - tsd[:, k])  # (B,)
@@ -257,40 +301,35 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
         on_acc = off_acc = None
         for s in range(1, S + 1):
             frac = s / S
-            target = L[:, k + 1] if s == S else torch.lerp(L[:, k], L[:, k + 1], frac)
+            target = Ls[k + 1] if s == S else torch.lerp(Ls[k], Ls[k + 1], frac)
             if has_lp:
-                ci = signal.cutoff_intensity
-                inten = ci[:, k + 1] if s == S else torch.lerp(ci[:, k], ci[:, k + 1], frac)
+                inten = CI[k + 1] if s == S else torch.lerp(CI[k], CI[k + 1], frac)
                 fc = config.cutoff_hz * torch.clamp((inten + config.dark_intensity)
                                                     / config.full_scale_intensity, 0.0, 1.0)
                 lp = lowpass_step(lp, target, fc, dt_sub)
                 target = lp
             if transient:
-                st = signal.surround[:, k + 1] if s == S else torch.lerp(signal.surround[:, k], signal.surround[:, k + 1], frac)
+                st = SU[k + 1] if s == S else torch.lerp(SU[k], SU[k + 1], frac)
                 alpha = -torch.expm1(-dt_sub / config.surround_tau_s)
                 sur = sur + alpha * (st - sur)
                 target = target - config.surround_weight * sur
             ref_a = ref
             if leak > 0:
                 ref = ref - leak * c_on * dt_sub
-            d_b = target - ref
-            x_on = torch.relu(d_b) / c_on
-            x_off = torch.relu(-d_b) / c_off
             if relaxed:
-                n_on, n_off = x_on, x_off
-                e_on, e_off = x_on, x_off
+                d_b = target - ref
+                e_on = torch.relu(d_b) / c_on
+                e_off = torch.relu(-d_b) / c_off
+                ref_next = ref + e_on * c_on - e_off * c_off
             else:
-                with torch.no_grad():
-                    h_on = torch.floor(x_on + eps)
-                    h_off = torch.floor(x_off + eps)
-                n_on = x_on + (h_on - x_on).detach()
-                n_off = x_off + (h_off - x_off).detach()
+                n_on, n_off, ref_next, d_b = _Comparator.apply(target, ref, c_on, c_off, eps)
+                h_on, h_off = n_on.detach(), n_off.detach()
                 e_on, e_off = n_on, n_off
                 if exact_times:
                     with torch.no_grad():
                         t_a, t_b = _substep_times(tsd, k, s, S)
                         d_a = (sig_prev - ref_a).detach().double()
-                        v = ((d_b.detach().double() - d_a) / dt_sub64)
+                        v = ((d_b.double() - d_a) / dt_sub64)
                         co, cf = c_on.detach().double(), c_off.detach().double()
                         lt = last_t if last_t is not None else torch.full_like(d_a, -math.inf)
                         em_on, j0_on, m_on, lt = _refractory_emit(h_on.double(), d_a, v, co, t_a, lt, refr)
@@ -301,10 +340,10 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
                         if collect_events:
                             _collect(events, em_on, j0_on, m_on, d_a, v, co, t_a, t_b, 1)
                             _collect(events, em_off, j0_off, m_off, -d_a, -v, cf, t_a, t_b, -1)
-                    if refr > 0:
-                        e_on = x_on + (em_on.to(dt_) - x_on).detach()
-                        e_off = x_off + (em_off.to(dt_) - x_off).detach()
-            ref = ref + n_on * c_on - n_off * c_off
+                    if refr > 0:  # refractory losses: emitted counts, gradient of all crossings
+                        e_on = n_on + (em_on.to(dt_) - h_on).detach()
+                        e_off = n_off + (em_off.to(dt_) - h_off).detach()
+            ref = ref_next
             if shot > 0:
                 lam = torch.full((B, H, W), 0.5 * shot, dtype=torch.float64, device=shot_g.device) * dt_sub64.to(shot_g.device)
                 k_on = torch.poisson(lam, generator=shot_g).to(dev, dt_)
@@ -327,8 +366,8 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
             sig_prev = target
             on_acc = e_on if on_acc is None else on_acc + e_on
             off_acc = e_off if off_acc is None else off_acc + e_off
-        frames.append(torch.stack([on_acc, off_acc], dim=1))
-    out = torch.stack(frames, dim=1)
+        frames += [on_acc, off_acc]
+    out = torch.stack(frames, dim=1).view(B, T - 1, 2, H, W)
     ev = None
     if collect_events:
         if events:

@@ -39,9 +39,8 @@ def linlog(intensity: Any, knee: float) -> Any:
     """
     import torch
 
-    above = intensity >= knee
-    safe = torch.where(above, intensity, torch.full_like(intensity, knee))
-    return torch.where(above, torch.log(safe), math.log(knee) + (intensity - knee) / knee)
+    # log of the part above the knee plus the linear part below it (3 passes, no branches)
+    return torch.log(torch.clamp(intensity, min=knee)) + torch.clamp(intensity - knee, max=0.0) / knee
 
 
 def photoreceptor_cutoff_hz(intensity: Any, config: SensorConfig) -> Any:
