@@ -49,6 +49,7 @@ _LAZY: dict[str, str] = {
     "fit_asic_taps": "fsdvs_hw.realise.asic",
     "AsicDesign": "fsdvs_hw.realise.asic",
     "fit_metalens": "fsdvs_hw.realise.metalens",
+    "MetalensDesign": "fsdvs_hw.realise.metalens",
     # tasks
     "learn_kernel": "fsdvs_hw.tasks.learn",
     "evaluate_kernel": "fsdvs_hw.tasks.learn",

@@ -25,6 +25,7 @@ BENCHMARKS: dict[str, str] = {
     "tasks": "fsdvs_hw.tasks.bench:bench_tasks",
     "asic": "fsdvs_hw.realise.asic_bench:bench_asic",
     "mesh": "fsdvs_hw.realise.mesh_bench:bench_mesh",
+    "metalens": "fsdvs_hw.realise.metalens_bench:bench_metalens",
     "sim": "fsdvs_hw.sensor.bench:bench_sim",
 }
 
