@@ -481,14 +481,17 @@ def _mesh_solver(radius: int, model: str, lam_max: float, half_width: int | None
 
     ii, jj, mult = _orbits(radius)
     n_orb = len(ii)
+    # one mesh as a scalar-expression (SX) function of u = ln λ², with its derivative; the NLP
+    # graph (MX) calls it twice, so the exact Hessian is built from this small function's AD
+    u = ca.SX.sym("u")
+    h_u = _casadi_orbit_response(u, radius, model, lam_max, half_width)
+    mesh_h = ca.Function("mesh_h", [u], [h_u, ca.jacobian(h_u, u)])
     nx = 5 if free_wp else 4
-    x = ca.SX.sym("x", nx)
-    p = ca.SX.sym("p", n_orb + 3)  # target on the orbits, 1/||T||^2, sigma^2, fixed pixel weight
+    x = ca.MX.sym("x", nx)
+    p = ca.MX.sym("p", n_orb + 3)  # target on the orbits, 1/||T||^2, sigma^2, fixed pixel weight
     t_orb, inv_norm2, sigma2, wp_fixed = p[:n_orb], p[n_orb], p[n_orb + 1], p[n_orb + 2]
-    hn = _casadi_orbit_response(x[0], radius, model, lam_max, half_width)
-    hw = _casadi_orbit_response(x[1], radius, model, lam_max, half_width)
-    dhn = ca.jacobian(hn, x[0])
-    dhw = ca.jacobian(hw, x[1])
+    hn, dhn = mesh_h(x[0])
+    hw, dhw = mesh_h(x[1])
     a, b = ca.exp(x[2]), ca.exp(x[3])
     wp = ca.exp(x[4]) if free_wp else wp_fixed
     m = ca.DM(mult)
