@@ -12,7 +12,7 @@ import pytest
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.explore.design import DesignError, load_design, parse_design
 from fsdvs_hw.explore.sweep import expand_points
-from fsdvs_hw.kernels import Kernel, reference_kernel
+from fsdvs_hw.kernels import Kernel, load_kernel, reference_kernel
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -26,11 +26,19 @@ def _write(tmp_path: Path, text: str, name: str = "d.toml") -> Path:
 def test_default_design_loads_with_its_documented_target():
     d = load_design(REPO / "designs" / "default.toml")
     assert d.name == "default"
-    want = reference_kernel("dog", 7, sigma_centre_px=0.7, sigma_surround_px=2.0, w_centre=1.0, w_surround=0.8)
-    assert d.target.allclose(want)
+    shipped = load_kernel(REPO / "designs" / "kernels" / "learned_detection_7x7.json")
+    assert d.target.allclose(shipped)
     assert d.target.pitch_m == pytest.approx(4.86e-6)
     assert d.data["sensor"]["placement"] == "pre_log"
     assert d.realisations == ["learned", "delta", "mesh", "asic", "metalens"]
+    assert set(d.checkpoints()) == {"detection", "recognition"}
+    assert all(p.is_file() for p in d.checkpoints().values())
+
+
+@pytest.mark.parametrize("path", sorted((REPO / "designs").glob("*.toml")), ids=lambda p: p.stem)
+def test_every_shipped_design_file_is_valid(path):
+    d = load_design(path)
+    assert expand_points(d)
 
 
 def test_empty_design_gets_every_default():

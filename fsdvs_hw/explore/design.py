@@ -95,7 +95,7 @@ class _Field:
 
     def allowed(self) -> str:
         parts: list[str] = []
-        tname = " or ".join(_type_name(t) for t in self.types)
+        tname = " or ".join(_type_name(t) for t in self.types if not (t is int and float in self.types))
         if self.item_types is not None:
             inner = " or ".join(_type_name(t) for t in self.item_types)
             tname = f"a list of {self.length or ''} {inner}".replace("  ", " ")
@@ -475,11 +475,30 @@ def _check_realisation_options(chk: _Checker, name: str, opts: dict[str, Any]) -
                 chk.add(full, value, f"invalid ({exc})")
         else:
             p = params.get(key)
-            types = _default_types(p.default) if p is not None else None
+            types = _option_types(p) if p is not None else None
             if types is not None:
-                value = chk.field(full, value, _f(types, None, f"like the default {p.name}={p.default!r}"))
+                value = chk.field(full, value, _f(types, None, f"option {p.name} of the fit function"))
             out[key] = value
     return out
+
+
+_ANNOTATION_TYPES: dict[str, tuple[type, ...]] = {"float": _NUMBER, "int": (int,), "str": (str,), "bool": (bool,),
+                                                  "None": ()}
+
+
+def _option_types(p: inspect.Parameter) -> tuple[type, ...] | None:
+    """Allowed TOML types of a fit option: from its annotation when it is a union of plain types
+    (``float | str | None``), else from its default value; None when neither says."""
+    ann = p.annotation
+    if isinstance(ann, type):
+        ann = ann.__name__
+    if isinstance(ann, str) and ann:
+        parts = [a.strip() for a in ann.split("|")]
+        if all(a in _ANNOTATION_TYPES for a in parts):
+            types = tuple(t for a in parts for t in _ANNOTATION_TYPES[a])
+            return tuple(dict.fromkeys(types)) or None
+        return None
+    return _default_types(p.default)
 
 
 def _default_types(default: Any) -> tuple[type, ...] | None:
