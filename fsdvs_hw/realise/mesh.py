@@ -695,7 +695,7 @@ def fit_resistive_mesh(
             if free_wp:
                 pen[2, 2] = sigma / math.sqrt(norm2)
             rhs = (t_orb - wp_fixed * delta) * sw
-            res = lsq_linear(np.vstack([a_fit, pen]), np.concatenate([rhs, np.zeros(ncol)]), bounds=(glo, ghi))
+            res = lsq_linear(np.vstack([a_fit, pen]), np.concatenate([rhs, np.zeros(ncol)]), bounds=(glo, ghi), method="bvls")
             starts.append((2 * res.cost + (0.0 if free_wp else (sigma * wp_fixed) ** 2 / norm2), lam_n, lam_w, res.x))
     if not starts:
         raise InputError("bounds: no (λ_narrow, λ_wide) pair on the initial grid satisfies min_lambda_ratio")
