@@ -53,6 +53,11 @@ _LAZY: dict[str, str] = {
     # tasks
     "learn_kernel": "fsdvs_hw.tasks.learn",
     "evaluate_kernel": "fsdvs_hw.tasks.learn",
+    # exploration
+    "load_design": "fsdvs_hw.explore.design",
+    "run_exploration": "fsdvs_hw.explore.explore",
+    "ResultsStore": "fsdvs_hw.explore.store",
+    "write_report": "fsdvs_hw.report",
 }
 
 __all__ = ["__version__", *_LAZY]

@@ -28,8 +28,15 @@ def _label(p: Mapping[str, Any]) -> str:
 
 
 def realised_kernels(points: Sequence[Mapping[str, Any]], *, limit: int = _MAX_PANELS) -> list[tuple[str, Kernel]]:
-    """``(label, realised kernel)`` of the successful points, at most ``limit`` (evenly picked)."""
-    ok = [p for p in points if p["status"] == "ok" and "kernel" in (p.get("result") or {})]
+    """``(label, realised kernel)`` of the distinct successful points, at most ``limit`` (evenly picked)."""
+    ok, seen = [], set()
+    for p in points:  # one panel per distinct kernel (axes such as the optics do not change it)
+        if p["status"] == "ok" and "kernel" in (p.get("result") or {}):
+            taps = np.round(np.asarray(p["result"]["kernel"]["taps"], dtype=float), 12)
+            sig = (p["realisation"], taps.shape, taps.tobytes())
+            if sig not in seen:
+                seen.add(sig)
+                ok.append(p)
     if len(ok) > limit:
         idx = np.unique(np.linspace(0, len(ok) - 1, limit).round().astype(int))
         ok = [ok[i] for i in idx]
@@ -53,7 +60,7 @@ def fig_kernels(kernels: Sequence[tuple[str, Kernel]]) -> Any:
 
     fig, axes = _grid(len(kernels))
     for ax, (label, k) in zip(axes, kernels):
-        plot_kernel(k, ax=ax, annotate=k.size <= 7, title=label)
+        plot_kernel(k, ax=ax, annotate=k.size <= 7 and len(kernels) <= 4, title=label)
     return fig
 
 
@@ -105,7 +112,7 @@ def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
         py = [yi for yi, r in zip(y, g) if r.get("pareto")]
         ax.scatter(px, py, s=140, facecolors="none", edgecolors=_COLOURS.get(kind), lw=1.5, zorder=2)
         for xi, yi, r in zip(x, y, g):
-            if len(g) <= 6:
+            if len(ok) <= 8:
                 ax.annotate(r["point"], (xi, yi), fontsize=6, xytext=(3, 3), textcoords="offset points")
     ax.set_xlabel("CSF agreement (Mannos–Sakrison correlation at the design geometry)")
     ax.set_ylabel(acc_label)
