@@ -60,6 +60,11 @@ def test_recovery_of_a_known_dual_mesh(size):
 
 def test_recovery_with_free_pixel_weight_and_on_the_finite_grid_model():
     truth = _known_design(size=7, pixel_weight=0.6, model="grid", grid_half_width=8)
+    # a finite chip holds all injected current: the whole-chip kernel sums to w_p + a - b exactly,
+    # and there are no taps beyond the chip's edge
+    whole = truth.kernel(21).taps
+    assert whole.sum() == pytest.approx(0.6 + 1.5 - 1.2, rel=1e-12)
+    assert np.all(whole[:2] == 0.0)
     d = fit_resistive_mesh(truth.kernel(), mismatch_sigma=0.0, pixel_weight=None, model="grid", grid_half_width=8)
     assert d.fit["error"] < 1e-6
     for name in ("lambda_narrow_px", "lambda_wide_px", "gain_narrow", "gain_wide", "pixel_weight"):

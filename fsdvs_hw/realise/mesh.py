@@ -277,8 +277,9 @@ class MeshDesign:
         out = []
         for lam in (self.lambda_narrow_px, self.lambda_wide_px):
             if self.model == "grid":
-                h = max(int(self.grid_half_width), radius)
-                out.append(finite_grid_response(lam, radius, h))
+                # a finite chip: taps beyond its edge do not exist (zero)
+                h = int(self.grid_half_width)
+                out.append(np.pad(finite_grid_response(lam, min(radius, h), h), max(0, radius - h)))
             else:
                 out.append(_unfold_quarter(np.asarray(lattice_green_quarter(lam, radius))))
         return out[0], out[1]
