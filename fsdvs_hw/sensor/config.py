@@ -246,6 +246,17 @@ class SensorConfig:
         """True if the photoreceptor low-pass is active (finite, non-zero cut-off)."""
         return 0.0 < self.cutoff_hz < math.inf
 
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], *, source: str = "dict") -> SensorConfig:
+        """Build from a dict (e.g. a design file's ``[sensor]`` table); unknown keys are an error."""
+        if not isinstance(data, dict):
+            raise InputError(f"{source}: sensor config must be a table/dict, got {type(data).__name__}")
+        unknown = set(data) - {f.name for f in fields(cls)}
+        if unknown:
+            raise InputError(f"{source}: unknown sensor field(s) {sorted(unknown)}; "
+                             f"allowed: {', '.join(f.name for f in fields(cls))}")
+        return cls(**data)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly dict (tensor thresholds become floats)."""
         d = asdict(self)
