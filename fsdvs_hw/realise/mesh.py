@@ -592,7 +592,8 @@ def fit_resistive_mesh(
     MeshDesign
         With ``fit`` = {"error", "error_full", "error_symmetric_part", "asymmetry",
         "mismatch_sensitivity", "objective", "status", "success", "iterations", "wall_s",
-        "init_error", "model", "mismatch_sigma", "pixel_weight_free"}.
+        "init_objective", "model", "mismatch_sigma", "pixel_weight_free"} (objectives: J above, on
+        the symmetric part of the target).
 
     Raises
     ------
@@ -751,7 +752,7 @@ def fit_resistive_mesh(
         "asymmetry": asym,
         "mismatch_sensitivity": mismatch_sensitivity(design, target),
         "objective": f_opt,
-        "init_error": math.sqrt(max(starts[0][0], 0.0)),
+        "init_objective": float(starts[0][0]),
         "status": str(st.get("return_status")),
         "success": bool(st.get("success")),
         "iterations": total_iter,
