@@ -27,6 +27,7 @@ BENCHMARKS: dict[str, str] = {
     "mesh": "fsdvs_hw.realise.mesh_bench:bench_mesh",
     "metalens": "fsdvs_hw.realise.metalens_bench:bench_metalens",
     "sim": "fsdvs_hw.sensor.bench:bench_sim",
+    "explore": "fsdvs_hw.explore.bench:bench_explore",
 }
 
 HELP = "speed/accuracy benchmarks (error vs run time) for each component"
