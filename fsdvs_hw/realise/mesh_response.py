@@ -27,7 +27,7 @@ Fidelities (fastest first):
     integrand peaks within :math:`|k| \lesssim 1/\lambda`; a circle map
     :math:`k = 2\arctan(s \tan(\theta/2))` with :math:`s = (1 + 2.8\lambda)^{-1/2}` balances the
     two branch points (at :math:`k \approx i/\lambda` and :math:`k = i\,\mathrm{acosh}\,3`) so that
-    about :math:`64 + 40\sqrt{\lambda}` nodes give 1e-13 relative accuracy from λ = 1e-3 to 1e3.
+    about :math:`64 + 40\sqrt{\lambda}` nodes give ~1e-15 relative accuracy for λ ≤ 10 and ~5e-13 up to λ = 1e3.
 ``finite_grid_response``
     A finite n×n grid with free (open) edges, the pixel at its centre: the chip (or a patch) of
     finite size. ``method="dct"``: exact diagonalisation by the DCT-II (uniform conductances);
@@ -115,7 +115,7 @@ def space_constant_px(g_lateral_s: float, g_vertical_s: float) -> float:
 def quadrature_nodes(lambda_max_px: float, radius: int = 0) -> tuple[np.ndarray, np.ndarray]:
     r"""Midpoint-rule nodes ``k`` (rad) and weights for the lattice Green's function integral.
 
-    Accurate to ~1e-13 relative for every λ ≤ ``lambda_max_px`` and taps up to ``radius`` from the
+    Accurate to ~1e-15 (λ ≤ 10) … 5e-13 (λ = 1e3) relative for every λ ≤ ``lambda_max_px`` and taps up to ``radius`` from the
     centre. The weights include the :math:`1/\pi` prefactor and the Jacobian of the circle map.
     """
     lam = _check_lambda(lambda_max_px, "lambda_max_px")
