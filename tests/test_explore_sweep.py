@@ -155,6 +155,19 @@ def test_failed_point_is_recorded_with_its_reason(tmp_path):
     assert "bits" in res["result"]["reason"]
 
 
+def test_failed_points_are_final_unless_retried(tmp_path):
+    pytest.importorskip("fsdvs_hw.realise.asic")
+    from fsdvs_hw.explore.sweep import run_design
+
+    d = parse_design({"realisations": {"include": ["asic"], "asic": {"bits": 1}}, "emulation": {"enabled": False}})
+    s1, rows = run_design(d, tmp_path / "e.sqlite", workers=1, progress=False)
+    assert s1.statuses == {"error": 1} and rows[0]["status"] == "error"
+    s2, _ = run_design(d, tmp_path / "e.sqlite", workers=1, progress=False)
+    assert s2.ran == 0 and s2.already_done == 1
+    s3, rows3 = run_design(d, tmp_path / "e.sqlite", workers=1, progress=False, retry_errors=True)
+    assert s3.ran == 1 and len(rows3) == 1
+
+
 def _count(db: Path) -> int:
     if not db.exists():
         return 0
@@ -219,3 +232,14 @@ def test_bad_scheduler_address_is_a_clear_error(tmp_path):
     with ResultsStore(tmp_path / "x.sqlite") as store:
         with pytest.raises(InputError, match="expected an address like tcp://HOST:PORT"):
             run_points(expand_points(d), store, scheduler="localhost:8786", progress=False)
+
+
+@pytest.mark.slow
+def test_explore_benchmark_quick_runs_and_executors_agree():
+    from fsdvs_hw.explore.bench import bench_explore
+
+    md = bench_explore(quick=True)
+    assert "### Emulation track" in md and "### Sweep executors" in md
+    rows = [line for line in md.splitlines() if line.startswith("| ") and "points" not in line and "executor" not in line]
+    executor_rows = [r for r in rows if "process" in r or "Dask" in r]
+    assert len(executor_rows) >= 2 and all(r.rstrip().endswith("| yes |") for r in executor_rows)

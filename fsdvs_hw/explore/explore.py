@@ -33,7 +33,7 @@ class Exploration:
 
 
 def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers: int | None = None,
-                    scheduler: str | None = None, progress: bool = True) -> Exploration:
+                    scheduler: str | None = None, progress: bool = True, retry_errors: bool = False) -> Exploration:
     """Explore one design: fit, score and report every design point.
 
     Parameters
@@ -48,6 +48,8 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
         Dask scheduler address ``tcp://HOST:PORT``.
     progress : bool
         Progress bar on stderr.
+    retry_errors : bool
+        Rerun points that failed in an earlier run into the same ``out_dir``.
     """
     from ..report import write_report
 
@@ -56,7 +58,8 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
         design = load_design(design)
     out = Path(out_dir)
     store_path = out / "results.sqlite"
-    summary, rows = run_design(design, store_path, workers=workers, scheduler=scheduler, progress=progress)
+    summary, rows = run_design(design, store_path, workers=workers, scheduler=scheduler, progress=progress,
+                               retry_errors=retry_errors)
     report = write_report(rows, design, out)
     return Exploration(report=report, scores_csv=out / "scores.csv", scores_json=out / "scores.json",
                        store=store_path, summary=summary, wall_s=time.perf_counter() - t0)
@@ -82,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     design = load_design(args.design)
     print(f"[explore] {design.name}: target {design.target!r}", file=sys.stderr, flush=True)
     res = run_exploration(design, args.out, workers=args.workers, scheduler=args.scheduler,
-                          progress=not args.no_progress)
+                          progress=not args.no_progress, retry_errors=args.retry_errors)
     print(f"[explore] {res.summary}", file=sys.stderr)
     print(f"report: {res.report}\nscores: {res.scores_csv}, {res.scores_json}\nstore:  {res.store}\n"
           f"total {res.wall_s:.1f} s")

@@ -293,11 +293,12 @@ def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
 
 
 def run_design(design: Design, store_path: str | Path, *, workers: int | None = None, scheduler: str | None = None,
-               progress: bool = True) -> tuple[SweepSummary, list[dict[str, Any]]]:
+               progress: bool = True, retry_errors: bool = False) -> tuple[SweepSummary, list[dict[str, Any]]]:
     """Run all points of ``design`` into the store at ``store_path``; return the summary and its rows.
 
     The rows are this design's points only (a store may hold other designs too), in the order of
     :func:`expand_points`, each a dict with ``key, realisation, params, status, result, wall_s, ...``.
+    Points stored as failed are final unless ``retry_errors`` (then they are deleted and rerun).
     """
     points = expand_points(design)
     workers = design.data["run"]["workers"] if workers is None else workers
@@ -305,6 +306,8 @@ def run_design(design: Design, store_path: str | Path, *, workers: int | None = 
         raise InputError(f"workers must be ≥ 1, got {workers}")
     with ResultsStore(store_path) as store:
         store.set_meta(f"design:{design.name}", design.to_dict())
+        if retry_errors:
+            store.forget(status="error")
         summary = run_points(points, store, workers=workers, scheduler=scheduler, progress=progress)
         order = {p.key: i for i, p in enumerate(points)}
         rows = sorted((dict(r) for r in store.rows() if r["key"] in order), key=lambda r: order[r["key"]])
@@ -328,6 +331,8 @@ def add_execution_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                         help="run on a Dask distributed scheduler instead of local processes")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--retry-errors", action="store_true",
+                        help="rerun points stored as failed (finished points are always kept)")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -345,7 +350,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"[sweep] {design.name}: {len(expand_points(design))} design points -> {store_path}", file=sys.stderr,
           flush=True)
     summary, rows = run_design(design, store_path, workers=args.workers, scheduler=args.scheduler,
-                               progress=not args.no_progress)
+                               progress=not args.no_progress, retry_errors=args.retry_errors)
     print(f"[sweep] {summary}", file=sys.stderr, flush=True)
     if args.report is not None:
         from ..report import write_report
