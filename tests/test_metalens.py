@@ -21,7 +21,9 @@ from fsdvs_hw.realise.metalens import (
     fit_metalens,
     local_numerical_aperture,
     pixel_psf,
+    plan_wavelength_samples,
 )
+from fsdvs_hw.realise.metalens_bench import radial_symmetric_floor
 from fsdvs_hw.realise.spectral import spectral_samples
 
 GEOM = LensGeometry()  # D = 100 µm, f = 200 µm, λ0 = 555 nm, diffractive
@@ -65,6 +67,21 @@ def test_spectral_sampling_converges():
             / np.linalg.norm(ref) for n in (2, 8, 32)]
     assert errs[0] > errs[1] > errs[2]
     assert errs[2] < 5e-3
+
+
+def test_wavelength_plan_follows_the_dispersion_and_stays_within_tolerance():
+    """Model only what the scene needs: an achromatic lens needs 1–2 samples, a diffractive one many."""
+    z = 240e-6
+    achro = LensGeometry(dispersion="achromatic")
+    plan_a = plan_wavelength_samples(achro, "D65", sensor_distance_m=z, tolerance=1e-2)
+    plan_d = plan_wavelength_samples(GEOM, "D65", sensor_distance_m=z, tolerance=1e-2)
+    assert plan_a.n_wavelengths <= 2 < 8 <= plan_d.n_wavelengths
+    assert "achromatic" in plan_a.reason and plan_d.history[-1][1] < 1e-2
+    for g, plan in ((achro, plan_a), (GEOM, plan_d)):
+        ref = pixel_psf(g, sensor_distance_m=z, n_pixels=7, n_wavelengths=64, n_sub=8)
+        planned = pixel_psf(g, sensor_distance_m=z, n_pixels=7, n_wavelengths=plan.n_wavelengths, n_sub=8)
+        assert np.linalg.norm(planned - ref) / np.linalg.norm(ref) < 2e-2  # within 2× the step tolerance
+    assert plan_wavelength_samples(GEOM, 532e-9).n_wavelengths == 1
 
 
 # ------------------------------------------------------------------------------ PSF model
@@ -166,8 +183,15 @@ def test_tiny_apertures_are_finite_or_refused():
         LensGeometry(dispersion="refractive")
 
 
+def test_radial_symmetric_floor():
+    assert radial_symmetric_floor(reference_kernel("dog", 7).taps) == pytest.approx(0.0, abs=1e-12)
+    taps = np.zeros((3, 3))
+    taps[1, 1], taps[0, 1] = 1.0, 1.0  # one edge tap of four: ring average 0.25 each
+    assert radial_symmetric_floor(taps) == pytest.approx(math.sqrt(0.75**2 + 3 * 0.25**2) / math.sqrt(2))
+
+
 # ------------------------------------------------------------------------------ fitting
-FAST = dict(n_wavelengths=1, illuminant=555e-9, n_terms=2, n_starts=2, max_iter=30, guard_px=1, n_sub=6)
+FAST = dict(n_wavelengths=1, illuminant=555e-9, n_terms=2, n_starts=1, max_iter=20, guard_px=1, n_sub=6)
 
 
 @pytest.fixture(scope="module")

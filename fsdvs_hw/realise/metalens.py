@@ -63,6 +63,8 @@ __all__ = [
     "fit_metalens",
     "pixel_psf",
     "local_numerical_aperture",
+    "WavelengthPlan",
+    "plan_wavelength_samples",
 ]
 
 #: dispersion model -> exponent p in φ(r, λ) = φ0(r) (λ0/λ)^p
@@ -336,6 +338,62 @@ def _pixel_psf_2d(geometry: LensGeometry, coeffs: Any, z: float, pitch_m: float,
     return taps / p_in
 
 
+@dataclass(frozen=True)
+class WavelengthPlan:
+    """How many wavelength samples a lens under a given illuminant needs, and why.
+
+    Attributes
+    ----------
+    n_wavelengths : int
+        Chosen number of equal-weight samples.
+    tolerance : float
+        Relative L2 change of the pixel PSF allowed between n and 2n samples.
+    history : tuple of (int, float)
+        (n, relative change from n to 2n) for each doubling tried.
+    reason : str
+        One line for the printed plan.
+    """
+
+    n_wavelengths: int
+    tolerance: float
+    history: tuple[tuple[int, float], ...]
+    reason: str
+
+
+def plan_wavelength_samples(geometry: LensGeometry, illuminant: Any = "D65", response: Any = None, *,
+                            sensor_distance_m: float | None = None, pitch_m: float = DEFAULT_PITCH_M,
+                            n_pixels: int = 7, tolerance: float = 1e-2, n_max: int = 64) -> WavelengthPlan:
+    r"""Choose the number of wavelength samples from the scene's spectrum and the lens's dispersion.
+
+    Doubles the number of equal-weight samples from 1 until the pixel PSF of the nominal lens
+    (hyperbolic phase at ``sensor_distance_m``) changes by less than ``tolerance`` (relative
+    L2) from n to 2n. A narrow-band source or an achromatic lens stops at 1–2 samples; a
+    diffractive lens under a broadband illuminant needs many, because its focal length sweeps
+    :math:`f\lambda_0/\lambda` across the band.
+    """
+    if not (0 < tolerance < 1):
+        raise InputError(f"tolerance must be in (0, 1), got {tolerance!r}")
+    z = geometry.focal_length_m if sensor_distance_m is None else sensor_distance_m
+    if isinstance(illuminant, (int, float)) and not isinstance(illuminant, bool):
+        return WavelengthPlan(1, tolerance, (), "monochromatic source: 1 wavelength")
+    history: list[tuple[int, float]] = []
+    n = 1
+    prev = pixel_psf(geometry, sensor_distance_m=z, pitch_m=pitch_m, n_pixels=n_pixels, illuminant=illuminant,
+                     response=response, n_wavelengths=1, n_sub=8)
+    while 2 * n <= n_max:
+        nxt = pixel_psf(geometry, sensor_distance_m=z, pitch_m=pitch_m, n_pixels=n_pixels, illuminant=illuminant,
+                        response=response, n_wavelengths=2 * n, n_sub=8)
+        change = float(np.linalg.norm(nxt - prev) / np.linalg.norm(nxt))
+        history.append((n, change))
+        if change < tolerance:
+            return WavelengthPlan(n, tolerance, tuple(history),
+                                  f"{geometry.dispersion} lens: PSF changes {change:.1e} from {n} to {2 * n} samples "
+                                  f"(< {tolerance:g}): {n} wavelength(s)")
+        n, prev = 2 * n, nxt
+    return WavelengthPlan(n, tolerance, tuple(history),
+                          f"{geometry.dispersion} lens: not converged to {tolerance:g} by {n} samples; using {n}")
+
+
 def _check_extremes(geometry: LensGeometry, spectral: SpectralSamples, z: float, pitch_m: float) -> None:
     lam_max = float(spectral.wavelengths_m.max())
     if geometry.aperture_m < 2 * lam_max:
@@ -593,7 +651,7 @@ def fit_metalens(
     design_wavelength_m: float = 555e-9,
     dispersion: str = "diffractive",
     n_terms: int = 4,
-    n_wavelengths: int = 24,
+    n_wavelengths: int | str = 24,
     guard_px: int = 2,
     max_iter: int = 150,
     n_starts: int = 6,
@@ -618,8 +676,9 @@ def fit_metalens(
         Fixed lens geometry (:class:`LensGeometry`).
     n_terms : int
         Polynomial phase terms (r/a)^2 … (r/a)^(2·n_terms), 0…12.
-    n_wavelengths : int
-        Spectral samples (equal-weight bins). The multi-start search and the first refinement
+    n_wavelengths : int or "auto"
+        Spectral samples (equal-weight bins); ``"auto"`` chooses them with
+        :func:`plan_wavelength_samples` (recorded in ``fit_info["wavelength_plan"]``). The multi-start search and the first refinement
         use at most 8; the final polish and the returned PSFs use all of them.
     guard_px : int
         Ring of pixels around the window where spilled light is counted as error.
@@ -656,6 +715,13 @@ def fit_metalens(
         kernel = Kernel(kernel.taps, pitch_m=pitch_m, name=kernel.name, provenance=kernel.provenance)
     pitch = kernel.pitch_m
     geometry = LensGeometry(aperture_m, focal_length_m, design_wavelength_m, dispersion)
+    plan = None
+    if n_wavelengths == "auto":
+        # nominal lens defocused to blur a point over the kernel radius (geometric optics)
+        z_nominal = focal_length_m * (1 + (kernel.size / 2) * pitch / geometry.radius_m)
+        plan = plan_wavelength_samples(geometry, illuminant, response, sensor_distance_m=z_nominal, pitch_m=pitch,
+                                       n_pixels=kernel.size)
+        n_wavelengths = plan.n_wavelengths
     spectral = _spectral(illuminant, response, n_wavelengths)
     _check_extremes(geometry, spectral, focal_length_m, pitch)
     if strategy == "differential" and not (kernel.taps < 0).any():
@@ -760,7 +826,10 @@ def fit_metalens(
         "na_fit": na_fit,
         "n_terms": n_terms,
         "optimiser": "torch L-BFGS (strong Wolfe), float64, closed-form gains",
+        "n_wavelengths": spectral.n,
     }
+    if plan is not None:
+        info["wavelength_plan"] = plan.reason
     if na_fit > budget * 1.02:
         raise InputError(f"fit left the sampling budget (local NA {na_fit:.3f} > na_max {budget:.3f}); raise na_max")
     return MetalensDesign(

@@ -176,7 +176,9 @@ class RadialPropagator:
         r, w = _gauss_legendre_panels(aperture_radius_m, n_panels, pupil_order)
         self.r_pupil = r
         fwd = 2 * math.pi * (w * r)[None, :] * j0(2 * math.pi * self.nu[:, None] * r[None, :])
-        self._forward = torch.from_numpy(fwd).to(torch.complex128)  # (N, M)
+        # real matrices (J0 and quadrature weights): complex fields are multiplied part by part,
+        # which avoids materialising conjugated complex copies in the backward pass
+        self._forward_t = torch.from_numpy(np.ascontiguousarray(fwd.T))  # (M, N), float64
         self._nu2 = torch.from_numpy(self.nu**2)
 
     def evaluation_matrix(self, rho_m: np.ndarray) -> Any:
@@ -190,7 +192,7 @@ class RadialPropagator:
             )
         torch = _torch()
         b = j0(2 * math.pi * rho[:, None] * self.nu[None, :]) * self._series_w[None, :]
-        return torch.from_numpy(b).to(torch.complex128)
+        return torch.from_numpy(b)  # (Q, N), float64
 
     def propagate(self, pupil_field: Any, wavelengths_m: np.ndarray, z_m: Any, evaluation: Any) -> Any:
         """Propagate pupil fields to distance ``z_m`` and evaluate them at the radii of ``evaluation``.
@@ -203,7 +205,7 @@ class RadialPropagator:
             Wavelengths (m).
         z_m : float or torch.Tensor (scalar)
             Propagation distance (m); may carry a gradient.
-        evaluation : torch.Tensor, shape (Q, N)
+        evaluation : torch.Tensor, float64, shape (Q, N)
             From :meth:`evaluation_matrix`.
 
         Returns
@@ -213,14 +215,14 @@ class RadialPropagator:
         """
         torch = _torch()
         lam = torch.as_tensor(np.asarray(wavelengths_m, dtype=float))[:, None]
-        spectrum = pupil_field @ self._forward.T  # (L, N)
+        spectrum = _real_matmul(pupil_field, self._forward_t)  # (L, N)
         nu_lim = torch.as_tensor(band_limit(np.asarray(wavelengths_m, float), _as_float(z_m), self.window_radius_m))[:, None]
         h = transfer_function(self._nu2[None, :], lam, z_m, nu_lim)
-        return (spectrum * h) @ evaluation.T
+        return _real_matmul(spectrum * h, evaluation.T)
 
     def spectrum(self, pupil_field: Any) -> Any:
         """Hankel-transform samples :math:`U(\\nu_m)` (L, N) of pupil fields (L, M)."""
-        return pupil_field @ self._forward.T
+        return _real_matmul(pupil_field, self._forward_t)
 
     def parseval_power(self, pupil_field: Any) -> Any:
         """Power :math:`\\sum_m |U(\\nu_m)|^2 / (\\pi R^2 J_1(j_m)^2)` (W per unit input intensity, m²).
@@ -231,6 +233,12 @@ class RadialPropagator:
         torch = _torch()
         w = torch.from_numpy(self._series_w)
         return (self.spectrum(pupil_field).abs() ** 2 * w).sum(-1)
+
+
+def _real_matmul(x: Any, m: Any) -> Any:
+    """Complex ``x`` times real matrix ``m``, as two real products."""
+    torch = _torch()
+    return torch.complex(x.real @ m, x.imag @ m)
 
 
 def _as_float(z: Any) -> float:
