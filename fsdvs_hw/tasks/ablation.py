@@ -300,6 +300,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also run the segmentation transfer table with this (detection) kernel file")
     parser.add_argument("--out", type=Path, default=None,
                         help="write runs.jsonl (each run as it finishes), ablation.json and ablation.md here")
+    parser.add_argument("--transfer-only", action="store_true",
+                        help="skip the size ablation; run only the --transfer table")
     parser.add_argument("--ship-dir", type=Path, default=None,
                         help="save the 7x7 runs of the first seed here as learned_{task}_7x7.* (designs/kernels)")
     parser.add_argument("--from-runs", type=Path, default=None, metavar="RUNS_JSONL",
@@ -330,10 +332,12 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
         log_path = args.out / "runs.jsonl"
-    records = run_ablation(args.tasks, args.sizes, args.seeds, n_train=args.n_train, n_test=args.n_test,
-                           settings=settings or None, workers=args.workers, log_path=log_path,
-                           ship_dir=args.ship_dir)
-    text = ablation_markdown(records)
+    if args.transfer_only and not args.transfer:
+        raise InputError("--transfer-only needs --transfer KERNEL")
+    records = [] if args.transfer_only else run_ablation(
+        args.tasks, args.sizes, args.seeds, n_train=args.n_train, n_test=args.n_test, settings=settings or None,
+        workers=args.workers, log_path=log_path, ship_dir=args.ship_dir)
+    text = ablation_markdown(records) if records else ""
     transfer = []
     if args.transfer:
         k = load_kernel(args.transfer)
