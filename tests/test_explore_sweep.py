@@ -243,3 +243,33 @@ def test_explore_benchmark_quick_runs_and_executors_agree():
     rows = [line for line in md.splitlines() if line.startswith("| ") and "points" not in line and "executor" not in line]
     executor_rows = [r for r in rows if "process" in r or "Dask" in r]
     assert len(executor_rows) >= 2 and all(r.rstrip().endswith("| yes |") for r in executor_rows)
+
+
+def test_real_task_evaluation_gives_accuracy_loss_against_the_learned_kernel(tmp_path):
+    """Zero-shot swap into the shipped detection network (8 test clips): the delta's loss is exactly
+    metric(learned) − metric(delta), and the design's sensor replaces the checkpoint's on request."""
+    pytest.importorskip("torch")
+    ckpt = REPO / "designs" / "kernels" / "learned_detection_7x7.safetensors"
+    if not ckpt.is_file():
+        pytest.skip("no shipped detection checkpoint in this checkout")
+    from fsdvs_hw.explore.sweep import run_design
+
+    raw = {"kernel": {"source": "file", "path": str(REPO / "designs" / "kernels" / "learned_detection_7x7.json")},
+           "realisations": {"include": ["learned", "delta"]}, "analysis": {"csf_methods": ["mannos_sakrison_1974"]},
+           "emulation": {"enabled": False},
+           "tasks": {"checkpoints": {"detection": str(ckpt)}, "n_test": 8}}
+    _, rows = run_design(parse_design(raw), tmp_path / "t.sqlite", workers=1, progress=False)
+    res = {r["realisation"]: r["result"]["tasks"]["detection"]["simulator"] for r in rows}
+    assert all(v["status"] == "ok" and 0.0 <= v["metric"] <= 1.0 for v in res.values())
+    assert res["learned"]["sensor"]["source"] == "checkpoint"
+    losses = accuracy_losses(rows)
+    delta_key = next(r["key"] for r in rows if r["realisation"] == "delta")
+    assert losses[delta_key]["detection/simulator"] == res["learned"]["metric"] - res["delta"]["metric"]
+    raw["tasks"]["sensor"] = "design"
+    raw["sensor"] = {"placement": "post_log", "threshold_on": 0.3, "threshold_off": 0.3}
+    raw["realisations"]["include"] = ["learned"]
+    _, rows2 = run_design(parse_design(raw), tmp_path / "t.sqlite", workers=1, progress=False)
+    det = rows2[0]["result"]["tasks"]["detection"]["simulator"]
+    assert det["sensor"] == {"source": "design", "threshold_on": 0.3, "threshold_off": 0.3,
+                             "threshold_sigma": 0.03, "placement": "post_log", "positivity": "pedestal"}
+    assert rows2[0]["key"] not in {r["key"] for r in rows}  # a different sensor is a different point

@@ -20,7 +20,8 @@ Layout (every section and key is optional; defaults in brackets)::
     [realisations.mesh|asic|metalens]   keyword options of the fit function
                     (fit_resistive_mesh / fit_asic_taps / fit_metalens)
     [tasks]         checkpoints = { detection = "kernels/learned_detection_7x7.safetensors" },
-                    n_test, finetune_epochs, tracks = ["simulator", "emulation"]
+                    n_test, finetune_epochs, tracks = ["simulator", "emulation"],
+                    sensor = "checkpoint" | "design"
     [emulation]     enabled, n_clips, n_frames, display_bits, display_gamma, display_peak_nits,
                     display_black_nits, upsample_factor  (fsdvs_hw.explore.emulation)
     [sweep]         axes = { "asic.bits" = [2, 4, 8], "sensor.threshold_on" = [0.1, 0.2] }
@@ -173,6 +174,10 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
         "finetune_epochs": _f(int, 0, "optional short fine-tune after the zero-shot swap (0 = zero-shot)",
                               lo=0, hi=1000),
         "tracks": _f(list, ["simulator"], "evaluation tracks", item_types=(str,), choices=_TRACKS),
+        "sensor": _f(str, "checkpoint", "simulator settings of the task track: the checkpoint's own (the "
+                                        "trained condition) or the checkpoint's with this design's [sensor] "
+                                        "thresholds, mismatch, placement and positivity",
+                     choices=("checkpoint", "design")),
     },
     "emulation": {
         "enabled": _f(bool, True, "score the sensor-in-the-loop emulation track (event level)"),

@@ -135,8 +135,32 @@ def _spectral(kernel: Kernel) -> dict[str, Any]:
     return {"status": "ok", **spectral_summary(kernel).to_dict()}
 
 
+#: Fields of the design's ``[sensor]`` section that replace a checkpoint's simulator settings.
+_DESIGN_SENSOR_FIELDS = ("threshold_on", "threshold_off", "threshold_sigma", "placement", "positivity")
+
+
+def _task_sensor(checkpoint: Path, design_sensor: Mapping[str, Any] | None) -> tuple[Any, dict[str, Any]]:
+    """The SensorConfig for a task evaluation (None = the checkpoint's) and a record of what it is."""
+    if design_sensor is None:
+        try:
+            from ..tasks.learn import load_checkpoint
+
+            settings = dict(load_checkpoint(checkpoint)[0].get("sensor", {}))
+        except (ImportError, InputError):  # the evaluator itself will say what is wrong
+            return None, {"source": "checkpoint"}
+        return None, {"source": "checkpoint", **{k: settings.get(k) for k in _DESIGN_SENSOR_FIELDS}}
+    from ..sensor import SensorConfig
+    from ..tasks.learn import load_checkpoint
+
+    settings = dict(load_checkpoint(checkpoint)[0].get("sensor", {}))
+
+    settings.update({k: design_sensor[k] for k in _DESIGN_SENSOR_FIELDS})
+    return SensorConfig(**settings), {"source": "design", **{k: settings[k] for k in _DESIGN_SENSOR_FIELDS}}
+
+
 def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path], *, n_test: int = 0,
-                finetune_epochs: int = 0, tracks: Sequence[str] = ("simulator",)) -> dict[str, Any]:
+                finetune_epochs: int = 0, tracks: Sequence[str] = ("simulator",),
+                design_sensor: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Evaluate ``kernel`` on each trained task by a zero-shot swap into its frozen network.
 
     Parameters
@@ -153,6 +177,10 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path], *, n_test
         ``simulator``: ``evaluate_kernel`` with the checkpoint's simulator settings.
         ``emulation``: the sensor-in-the-loop emulation; reported as unavailable while
         ``evaluate_kernel`` has no hook for a display/recapture path.
+    design_sensor : mapping, optional
+        A design's ``[sensor]`` section: its thresholds, mismatch, placement and positivity replace
+        the checkpoint's simulator settings. None (default) evaluates under the checkpoint's own
+        settings. Each result records which (``"sensor"``).
 
     Returns
     -------
@@ -185,12 +213,16 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path], *, n_test
                 kw["track"] = track
             t0 = time.perf_counter()
             try:
+                sensor_cfg, sensor_rec = _task_sensor(Path(ckpt), design_sensor)
+                if sensor_cfg is not None:
+                    kw["sensor"] = sensor_cfg
                 res = evaluate_kernel(kernel, task, Path(ckpt), **kw)
-            except (InputError, FileNotFoundError) as exc:
+            except (InputError, FileNotFoundError, ImportError) as exc:
                 out[task][track] = {"status": f"unavailable: {exc}"}
                 out["status"] = "partial"
                 continue
-            out[task][track] = {"status": "ok", **_metric_dict(res), "wall_s": time.perf_counter() - t0}
+            out[task][track] = {"status": "ok", **_metric_dict(res), "sensor": sensor_rec,
+                                "wall_s": time.perf_counter() - t0}
     return out
 
 

@@ -163,7 +163,8 @@ def evaluate_point(point: DesignPoint) -> dict[str, Any]:
             focal_length_m=data["optics"]["focal_length_m"],
             checkpoints={t: (p if Path(p).is_absolute() else base / p) for t, p in tasks["checkpoints"].items()},
             task_options={"n_test": tasks["n_test"], "finetune_epochs": tasks["finetune_epochs"],
-                          "tracks": tasks["tracks"]},
+                          "tracks": tasks["tracks"],
+                          "design_sensor": data["sensor"] if tasks["sensor"] == "design" else None},
             emulation={"sensor": data["sensor"], "emulation": data["emulation"], "seed": data["run"]["seed"]},
             fit_wall_s=fit_s,
         )

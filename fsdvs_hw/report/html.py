@@ -97,6 +97,14 @@ def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title: str 
                      "failed; nothing is filled in for them.</p>")
         parts.append(_table(missing, [("point", "point"), ("status", "status"), ("reason", "reason")],
                             left=("point", "status", "reason")))
+    sensors = set()
+    for p in points:
+        for task, tracks in ((p.get("result") or {}).get("tasks") or {}).items():
+            for res in (tracks.values() if isinstance(tracks, Mapping) else []):
+                if isinstance(res, Mapping) and isinstance(res.get("sensor"), Mapping):
+                    sensors.add(f"{task}: " + ", ".join(f"{k}={v}" for k, v in res["sensor"].items()))
+    if sensors:
+        parts.append("<p class='note'>Task-track simulator: " + html.escape("; ".join(sorted(sensors))) + ".</p>")
     task_status = sorted({r.get("tasks_status", "") for r in ok} - {""})
     if task_status:
         parts.append(f"<p class='note'>Task evaluation: {html.escape('; '.join(task_status))}. "
