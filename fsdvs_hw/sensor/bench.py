@@ -150,8 +150,11 @@ def _accuracy(quick: bool) -> str:
         f, t = run(video64, config=full.replace(substeps=s))
         rows.append((f"fixed {s} sub-steps", f, t))
     for frac in (1.0, 0.5, 0.25):
-        f, t = run(video64, config=full.replace(adaptive_fraction=frac))
-        rows.append((f"adaptive (ESIM), {frac:g} C per step", f, t))
+        f, t = run(video64, config=full.replace(adaptive_fraction=frac, adaptive_region_px=0))
+        rows.append((f"adaptive, one count per frame interval (ESIM-like), {frac:g} C per step", f, t))
+    for frac in (0.5,):
+        f, t = run(video64, config=full.replace(adaptive_fraction=frac, adaptive_region_px=32))
+        rows.append((f"adaptive per 32×32 region, {frac:g} C per step", f, t))
     for tol in (0.2, 0.05, 0.01):
         plan = plan_model(video64, tol, config=full, kernel=kernel)
         f, t = run(video64, plan=plan)

@@ -137,6 +137,10 @@ class SensorConfig:
         not one global step). ``None`` (default) uses ``substeps``.
     max_substeps : int
         Upper bound of adaptive sub-steps per interval (default 256).
+    adaptive_region_px : int
+        With adaptive stepping (``adaptive_fraction`` or a plan), choose the sub-steps per square
+        region of this many pixels instead of one count for the whole frame (ESIM's choice is
+        global): still regions are not stepped at the rate of the fastest (default 32; 0 = global).
     surrogate : {"straight_through", "relaxed"}
         Gradient through the threshold crossing. ``"straight_through"`` (default): forward emits
         integer event counts ``floor(ΔL / C)``; backward uses ``d count / d ΔL = 1 / C`` on the
@@ -172,6 +176,7 @@ class SensorConfig:
     substeps: int = 1
     adaptive_fraction: float | None = None
     max_substeps: int = 256
+    adaptive_region_px: int = 32
     surrogate: str = "straight_through"
     seed: int = 0
 
@@ -202,6 +207,9 @@ class SensorConfig:
             raise InputError(f"SensorConfig.convolution: {self.convolution!r} unknown; allowed: auto, direct, fft")
         if self.surrogate not in SURROGATES:
             raise InputError(f"SensorConfig.surrogate: {self.surrogate!r} unknown; allowed: {', '.join(SURROGATES)}")
+        if not isinstance(self.adaptive_region_px, int) or isinstance(self.adaptive_region_px, bool) \
+                or not 0 <= self.adaptive_region_px <= 100_000:
+            raise InputError(f"SensorConfig.adaptive_region_px: must be an integer >= 0, got {self.adaptive_region_px!r}")
         for name in ("substeps", "max_substeps"):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= 100_000:

@@ -141,29 +141,29 @@ class SimulationInfo:
     """Diagnostics of one simulation run.
 
     floor_fraction : fraction of pixel-frames whose aggregated photocurrent hit the floor.
-    substeps : sub-steps used in each frame interval.
+    substeps : sub-steps used in each frame interval (the largest of any region).
     noise_events : number of shot-noise events emitted (ON + OFF).
     refractory_lost : crossings lost to the refractory period.
+    pixel_steps : pixel sub-steps computed (the work; smaller with region stepping).
     """
 
     floor_fraction: float
     substeps: tuple[int, ...]
     noise_events: int
     refractory_lost: int
+    pixel_steps: int = 0
 
 
 # ---------------------------------------------------------------------------- core loop
-def _choose_substeps(log_signal: Any, c_min: float, config: SensorConfig) -> list[int]:
-    import torch
-
+def _choose_substeps(log_signal: Any, step: float | None, config: SensorConfig) -> list[int]:
     T = log_signal.shape[1]
-    if config.adaptive_fraction is None:
+    if step is None:
         return [config.substeps] * (T - 1)
     with torch.no_grad():
         jumps = (log_signal[:, 1:] - log_signal[:, :-1]).abs().flatten(2).amax(dim=(0, 2))
     out = []
     for j in jumps.tolist():
-        n = math.ceil(j / (config.adaptive_fraction * c_min)) if j > 0 else 1
+        n = math.ceil(j / step) if j > 0 else 1
         out.append(int(min(max(n, 1), config.max_substeps)))
     return out
 
@@ -256,14 +256,19 @@ class _Comparator(torch.autograd.Function):
 
 
 def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[int],
-         generator: Any, collect_events: bool) -> tuple[Any, SimulationInfo, EventList | None]:
-    """Step every pixel through time; return counts (B, T-1, 2, H, W), info and events."""
+         generator: Any, collect_events: bool, thresholds: tuple[Any, Any] | None = None,
+         phase: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
+    """Step every pixel through time; return counts (B, T-1, 2, H, W), info and events.
+
+    ``thresholds`` and ``phase`` (per-pixel maps) are drawn here unless given (region stepping
+    passes the full-frame draws gathered to its pixels).
+    """
     import torch
 
     L = signal.log_signal
     B, T, H, W = L.shape
     dev, dt_ = L.device, L.dtype
-    c_on, c_off = threshold_maps(config, (H, W), L, generator=generator)
+    c_on, c_off = thresholds if thresholds is not None else threshold_maps(config, (H, W), L, generator=generator)
     eps = _COUNT_EPS.get(str(dt_).split(".")[-1], 1e-6)
     relaxed = config.surrogate == "relaxed"
     has_lp = config.has_photoreceptor
@@ -279,8 +284,8 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     SU = signal.surround.unbind(1) if transient else None
     ref = Ls[0]
     if config.random_reference_phase:  # reference starts at a random point of its cycle
-        g = effect_generator(config.seed, "leak_phase", dev)
-        phase = torch.rand((H, W), generator=g, device=g.device, dtype=torch.float64).to(dev, dt_)
+        if phase is None:
+            phase = _reference_phase(config, H, W, L)
         ref = ref - phase * c_on
     lp = Ls[0] if has_lp else None
     sur = SU[0] if transient else None
@@ -370,14 +375,9 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     out = torch.stack(frames, dim=1).view(B, T - 1, 2, H, W)
     ev = None
     if collect_events:
-        if events:
-            b, x, y, t, p = (torch.cat(c) for c in zip(*events))
-            order = torch.argsort(b.double() * 1e12 + (t - float(ts.min())), stable=True)
-            ev = EventList(b[order], x[order], y[order], t[order], p[order])
-        else:
-            z = torch.zeros(0, dtype=torch.int64)
-            ev = EventList(z, z.clone(), z.clone(), torch.zeros(0, dtype=torch.float64), torch.zeros(0, dtype=torch.int8))
-    info = SimulationInfo(signal.floor_fraction, tuple(substeps), noise_events, int(round(lost)))
+        ev = _merge_events([EventList(*c) for c in events])
+    info = SimulationInfo(signal.floor_fraction, tuple(substeps), noise_events, int(round(lost)),
+                          B * H * W * sum(substeps))
     return out, info, ev
 
 
@@ -411,11 +411,80 @@ def _simulate(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig |
               generator: Any, collect_events: bool) -> tuple[Any, SimulationInfo, EventList | None]:
     video, w, ts, config, subs = _resolve(video, kernel, timestamps_s, config, plan)
     signal = filtered_log_signal(video, w, config)
+    step = None  # log-signal change allowed per sub-step (adaptive stepping)
     if subs is None:
-        c_min = min(_as_float(config.threshold_on), _as_float(config.threshold_off)) * (
-            config.threshold_min_fraction if config.threshold_sigma > 0 else 1.0)
-        subs = _choose_substeps(signal.log_signal, c_min, config)
+        if config.adaptive_fraction is not None:
+            step = config.adaptive_fraction * _low_threshold(config)
+        subs = _choose_substeps(signal.log_signal, step, config)
+    elif plan is not None:
+        step = plan.step_log_units
+    if step is not None and config.adaptive_region_px > 0 and max(subs) > 1:
+        return _run_regions(signal, ts, config, subs, step, generator, collect_events)
     return _run(signal, ts, config, subs, generator, collect_events)
+
+
+def _low_threshold(config: SensorConfig) -> float:
+    """Smallest likely per-pixel threshold: nominal minus 3 σ (at least the clip floor)."""
+    c = min(_as_float(config.threshold_on), _as_float(config.threshold_off))
+    return max(c - 3 * config.threshold_sigma, config.threshold_min_fraction * c)
+
+
+def _reference_phase(config: SensorConfig, H: int, W: int, like: Any) -> Any:
+    g = effect_generator(config.seed, "leak_phase", like.device)
+    return torch.rand((H, W), generator=g, device=g.device, dtype=torch.float64).to(like.device, like.dtype)
+
+
+def _run_regions(signal: FilteredSignal, ts: Any, config: SensorConfig, subs: list[int], step: float,
+                 generator: Any, collect_events: bool) -> tuple[Any, SimulationInfo, EventList | None]:
+    """Adaptive stepping per square region: each region gets the sub-steps its own largest log
+    change needs (rounded up to a power of two, at most the global count), so still regions are
+    not stepped at the rate of the fastest one. Pixels are independent after the spatial filter,
+    so regions with the same count are gathered and run together, then scattered back. The
+    per-pixel thresholds and reference phases are the full-frame draws; shot-noise draws differ
+    from a full-frame run (same statistics)."""
+    L = signal.log_signal
+    B, T, H, W = L.shape
+    R = config.adaptive_region_px
+    with torch.no_grad():
+        jumps = (L[:, 1:] - L[:, :-1]).abs().amax(dim=(0, 1))  # (H, W)
+        tiles = torch.nn.functional.max_pool2d(jumps[None, None].float(), R, R, ceil_mode=True)[0, 0]
+        need = torch.ceil(tiles.double() / step).clamp(min=1, max=max(subs))
+        level = torch.ceil(torch.log2(need)).long()  # power-of-two classes
+        level_px = level.repeat_interleave(R, 0).repeat_interleave(R, 1)[:H, :W].reshape(-1)
+    c_on, c_off = threshold_maps(config, (H, W), L, generator=generator)
+    phase = _reference_phase(config, H, W, L) if config.random_reference_phase else None
+    out = torch.zeros((B, T - 1, 2, H * W), dtype=L.dtype, device=L.device)
+    infos, events = [], []
+    for lv in level_px.unique().tolist():
+        idx = torch.nonzero(level_px == lv)[:, 0].to(L.device)
+
+        def take(x: Any) -> Any:
+            return None if x is None else x.reshape(*x.shape[:-2], H * W).index_select(-1, idx).unsqueeze(-2)
+
+        part = FilteredSignal(take(L), take(signal.surround), take(signal.cutoff_intensity), signal.floor_fraction)
+        thr = tuple(take(c) if c.ndim else c for c in (c_on, c_off))
+        sub_part = [min(s, 2 ** lv) for s in subs]
+        f, info, ev = _run(part, ts, config, sub_part, generator, collect_events, thr, take(phase))
+        out = out.index_copy(-1, idx, f.reshape(B, T - 1, 2, -1))
+        infos.append(info)
+        if ev is not None and len(ev):
+            flat = idx.cpu()[ev.x]
+            events.append(EventList(ev.b, flat % W, flat // W, ev.t, ev.p))
+    info = SimulationInfo(signal.floor_fraction, tuple(subs), sum(i.noise_events for i in infos),
+                          sum(i.refractory_lost for i in infos), sum(i.pixel_steps for i in infos))
+    ev_all = None
+    if collect_events:
+        ev_all = _merge_events(events)
+    return out.view(B, T - 1, 2, H, W), info, ev_all
+
+
+def _merge_events(parts: list[EventList]) -> EventList:
+    if not parts:
+        z = torch.zeros(0, dtype=torch.int64)
+        return EventList(z, z.clone(), z.clone(), torch.zeros(0, dtype=torch.float64), torch.zeros(0, dtype=torch.int8))
+    b, x, y, t, p = (torch.cat(c) for c in zip(*[(e.b, e.x, e.y, e.t, e.p) for e in parts]))
+    order = torch.argsort(b.double() * 1e12 + (t - float(t.min())), stable=True)
+    return EventList(b[order], x[order], y[order], t[order], p[order])
 
 
 # ---------------------------------------------------------------------------- public API

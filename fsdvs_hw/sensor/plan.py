@@ -168,6 +168,10 @@ class ModelPlan:
     decisions : tuple of PlanDecision
     tolerance : float
     stats : SceneStats
+    step_log_units : float or None
+        Largest log-signal change per sub-step when a temporal filter runs (``tolerance`` × the
+        lowest likely threshold); with ``config.adaptive_region_px`` the simulator refines the
+        sub-steps per region with it. ``None`` when one step per interval is exact.
     """
 
     base_config: SensorConfig
@@ -176,6 +180,7 @@ class ModelPlan:
     decisions: tuple[PlanDecision, ...]
     tolerance: float
     stats: SceneStats = field(repr=False)
+    step_log_units: float | None = None
 
     def decision(self, name: str) -> PlanDecision:
         """The decision for effect ``name``."""
@@ -336,4 +341,4 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
         f"{config.placement}/{config.positivity}: {100 * st.floor_fraction:.3g} % of pixel-frames at the floor "
         "(always modelled; reported)"))
     eff = config.replace(adaptive_fraction=None, **changes)
-    return ModelPlan(config, eff, subs, tuple(decisions), tol, st)
+    return ModelPlan(config, eff, subs, tuple(decisions), tol, st, (tol * c_low) if temporal else None)
