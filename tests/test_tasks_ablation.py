@@ -44,3 +44,20 @@ def test_ablation_bad_input():
         run_ablation(["tracking"], sizes=[3], seeds=[0])
     with pytest.raises(InputError, match="seed"):
         run_ablation(["recognition"], sizes=[3], seeds=[])
+
+
+def test_bootstrap_interval_matches_binomial_theory():
+    import torch
+
+    from fsdvs_hw.tasks.bench import bootstrap_interval
+    from fsdvs_hw.tasks.evaluators import get_evaluator
+
+    ev = get_evaluator("recognition")
+    n = 400
+    target = {"motion": torch.arange(n) % 2}
+    perfect = {"logits": torch.nn.functional.one_hot(target["motion"], 6).float()}
+    assert bootstrap_interval(ev, perfect, target, n_boot=50) == (1.0, 1.0)
+    const = {"logits": torch.nn.functional.one_hot(torch.zeros(n, dtype=torch.long), 6).float()}
+    lo, hi = bootstrap_interval(ev, const, target, n_boot=400, seed=1)
+    # accuracy 0.5 on 400 clips: binomial 95 % half-width 1.96 * sqrt(0.25 / 400) = 0.049
+    assert lo < 0.5 < hi and 0.035 < (hi - lo) / 2 < 0.065
