@@ -136,9 +136,12 @@ def test_run_resume_skips_finished_points(tmp_path):
     with ResultsStore(tmp_path / "s.sqlite") as store:
         first = run_points(pts[:4], store, progress=False)
         assert first.ran == 4 and first.already_done == 0
-        again = run_points(pts, store, progress=False)
+        again = run_points(pts, store, progress=False, workers=2)  # the rest on a spawned local pool
         assert again.already_done == 4 and again.ran == 2 and again.statuses == {"ok": 2}
+        assert again.executor == "2 local processes"
         rows = list(store.rows())
+    pool_rows = [r for r in rows if r["key"] in {p.key for p in pts[4:]}]
+    assert all(not r["worker"].endswith(f":{os.getpid()}") for r in pool_rows)
     assert sorted(r["key"] for r in rows) == sorted(p.key for p in pts)
     # the ppd follows the swept focal length: a longer lens gives more pixels per degree
     learned = sorted((r for r in rows if r["realisation"] == "learned"), key=lambda r: r["params"]["optics.focal_length_m"])

@@ -262,15 +262,16 @@ def _run_pool(todo: Sequence[DesignPoint], workers: int,
 
     os.environ.setdefault("FSDVS_SWEEP_THREADS", "1")
     ctx = mp.get_context("spawn")  # fork after torch/BLAS threads started can deadlock
-    with ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx) as pool:
-        futures = {pool.submit(evaluate_point, p): p for p in todo}
-        try:
-            for fut in as_completed(futures):
-                finish(futures[fut], fut.result())
-        except BaseException:
-            for f in futures:
-                f.cancel()
-            raise
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx)
+    futures = {pool.submit(evaluate_point, p): p for p in todo}
+    try:
+        for fut in as_completed(futures):
+            finish(futures[fut], fut.result())
+    except BaseException:
+        # interrupted (Ctrl-C) or a worker died: keep what is stored, do not wait for queued points
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
 
 
 def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
