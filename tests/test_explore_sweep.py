@@ -20,6 +20,7 @@ from fsdvs_hw.explore.store import ResultsStore
 from fsdvs_hw.explore.sweep import evaluate_point, expand_points, run_points
 from fsdvs_hw.kernels import reference_kernel
 from fsdvs_hw.realise.base import kernel_error
+from fsdvs_hw.report.tables import score_rows
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -156,6 +157,20 @@ def test_failed_point_is_recorded_with_its_reason(tmp_path):
     res = evaluate_point(p)
     assert res["status"] == "error"
     assert "bits" in res["result"]["reason"]
+
+
+def test_fitter_warnings_are_kept_with_the_score():
+    pytest.importorskip("fsdvs_hw.realise.mesh")
+    # a DoG with centre tap 0.29 is out of reach of a mesh with pixel weight 1 and λ ≥ 1 px
+    d = parse_design({"realisations": {"include": ["mesh"], "mesh": {"n_init": 3, "max_iter": 30,
+                                                                 "bounds": {"conductance_s": [1e-10, 1e-8]}}},
+                      "analysis": {"csf_methods": ["mannos_sakrison_1974"]}, "emulation": {"enabled": False}})
+    (p,) = expand_points(d)
+    res = evaluate_point(p)
+    assert res["status"] == "ok"
+    assert any(w.startswith("MeshFitWarning") and "out of reach" in w for w in res["result"]["warnings"])
+    rows = score_rows([{**res, "realisation": "mesh", "params": {}}])
+    assert "MeshFitWarning" in rows[0]["warnings"]
 
 
 def test_failed_points_are_final_unless_retried(tmp_path):

@@ -27,6 +27,7 @@ import socket
 import sys
 import time
 import traceback
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -131,15 +132,15 @@ def expand_points(design: Design) -> list[DesignPoint]:
 def evaluate_point(point: DesignPoint) -> dict[str, Any]:
     """Fit and score one point (runs in a worker). Never raises: failures become a status.
 
+    Warnings raised while fitting and scoring (e.g. a fitter saying the target is out of reach)
+    are kept in the record's ``"warnings"`` list.
+
     Returns
     -------
     dict
         ``{"key", "status": "ok"|"skipped"|"error", "result": score record or {"reason": ...},
         "wall_s", "worker"}``.
     """
-    from ..kernels import Kernel
-    from .scoring import RealisationUnavailable, fit_realisation, score
-
     if os.environ.get("FSDVS_SWEEP_THREADS"):
         try:
             import torch
@@ -150,6 +151,21 @@ def evaluate_point(point: DesignPoint) -> dict[str, Any]:
     t0 = time.perf_counter()
     worker = f"{socket.gethostname()}:{os.getpid()}"
     data = point.data
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        status, rec = _fit_and_score(point, data)
+    # fitters warn about unreachable targets, asymmetric kernels, ...: keep ours with the score
+    ours = [w for w in caught if f"{os.sep}fsdvs_hw{os.sep}" in str(w.filename)]
+    if ours:
+        rec["warnings"] = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in ours))[:20]
+    return {"key": point.key, "status": status, "result": rec, "wall_s": time.perf_counter() - t0,
+            "worker": worker}
+
+
+def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    from ..kernels import Kernel
+    from .scoring import RealisationUnavailable, fit_realisation, score
+
     try:
         target = Kernel.from_dict(point.target, source="design point target")
         options = data["realisations"].get(point.realisation, {})
@@ -175,8 +191,7 @@ def evaluate_point(point: DesignPoint) -> dict[str, Any]:
     except Exception as exc:  # noqa: BLE001 - one failed point must not stop a sweep; it is recorded
         status = "error"
         rec = {"reason": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc(limit=8)}
-    return {"key": point.key, "status": status, "result": rec, "wall_s": time.perf_counter() - t0,
-            "worker": worker}
+    return status, rec
 
 
 @dataclass
@@ -221,7 +236,7 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
     on_result : callable, optional
         Called as ``on_result(point, result)`` after each result is stored.
     """
-    from tqdm.auto import tqdm
+    from tqdm import tqdm
 
     t0 = time.perf_counter()
     done = store.done()

@@ -145,7 +145,10 @@ def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title: str 
         parts.append("<h2>Realisations</h2>")
         for p in points:
             if p["status"] == "ok":
-                parts.append(f"<pre>{html.escape(p['result'].get('describe', ''))}</pre>")
+                text = p["result"].get("describe", "")
+                for w in p["result"].get("warnings", []):
+                    text += f"\n  warning: {w}"
+                parts.append(f"<pre>{html.escape(text)}</pre>")
                 cost = p["result"].get("cost") or {}
                 if cost:
                     parts.append(_table([{"point": k, "value": v["value"], "unit": v["unit"], "description": v["description"]}

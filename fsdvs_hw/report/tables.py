@@ -55,7 +55,7 @@ def score_rows(points: Iterable[Mapping[str, Any]], *, primary_csf: str = "manno
         label = p["realisation"] + ("" if not params else " " + ", ".join(f"{k.split('.')[-1]}={v}" for k, v in params.items()))
         row: dict[str, Any] = {"point": label, "key": p["key"], "realisation": p["realisation"],
                                "params": json.dumps(params, sort_keys=True), "status": p["status"],
-                               "reason": res.get("reason", "")}
+                               "reason": res.get("reason", ""), "warnings": " | ".join(res.get("warnings", []))}
         if p["status"] == "ok":
             row["kernel_error"] = _num(res.get("kernel_error"))
             row["kernel_error_gain_free"] = _num(res.get("kernel_error_gain_free"))
