@@ -22,7 +22,7 @@ __all__ = ["run_exploration", "Exploration", "HELP", "add_arguments", "run"]
 
 @dataclass(frozen=True)
 class Exploration:
-    """What :func:`run_exploration` produced."""
+    """What :func:`run_exploration` produced (paths, the run summary, the stored design points)."""
 
     report: Path
     scores_csv: Path
@@ -30,6 +30,7 @@ class Exploration:
     store: Path
     summary: SweepSummary
     wall_s: float
+    points: tuple[dict, ...] = ()
 
 
 def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers: int | None = None,
@@ -62,7 +63,8 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
                                retry_errors=retry_errors)
     report = write_report(rows, design, out)
     return Exploration(report=report, scores_csv=out / "scores.csv", scores_json=out / "scores.json",
-                       store=store_path, summary=summary, wall_s=time.perf_counter() - t0)
+                       store=store_path, summary=summary, wall_s=time.perf_counter() - t0,
+                       points=tuple(rows))
 
 
 HELP = "the main job: fit every realisation of a design's kernel, score it, write the HTML report"
@@ -87,6 +89,9 @@ def run(args: argparse.Namespace) -> int:
     res = run_exploration(design, args.out, workers=args.workers, scheduler=args.scheduler,
                           progress=not args.no_progress, retry_errors=args.retry_errors)
     print(f"[explore] {res.summary}", file=sys.stderr)
+    from ..report.tables import score_rows, summary_markdown
+
+    print(summary_markdown(score_rows(res.points)) + "\n")
     print(f"report: {res.report}\nscores: {res.scores_csv}, {res.scores_json}\nstore:  {res.store}\n"
           f"total {res.wall_s:.1f} s")
     return 0 if res.summary.statuses.get("error", 0) == 0 else 1

@@ -14,7 +14,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["score_rows", "pareto_front", "headline_cost", "accuracy_axis", "write_scores", "HEADLINE_COSTS"]
+__all__ = ["score_rows", "pareto_front", "headline_cost", "accuracy_axis", "summary_markdown", "write_scores",
+           "HEADLINE_COSTS"]
 
 #: Cost items preferred as a realisation's single headline cost, in order (else its first item):
 #: ASIC silicon (area, cells, adders); mesh settling time of the wide mesh (its area is fixed at
@@ -171,3 +172,27 @@ def write_scores(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, stem
     clean = [{k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in r.items()} for r in rows]
     json_path.write_text(json.dumps({"rows": clean, "points": list(full or [])}, indent=1, default=str) + "\n")
     return csv_path, json_path
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, bool):
+        return "yes" if v else ""
+    if isinstance(v, float):
+        return "–" if math.isnan(v) else f"{v:.3g}"
+    return str(v)
+
+
+def summary_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
+    """The headline columns of :func:`score_rows` as a Markdown table (what ``explore`` prints)."""
+    cols = [("point", "point"), ("status", "status"), ("kernel_error", "kernel error"),
+            ("csf_agreement", "r MS"), ("csf_fitted_correlation", "r MS fitted")]
+    extra = list(dict.fromkeys(c for r in rows for c in r if c.startswith("loss_")))
+    cols += [(c, c[5:] + " loss") for c in extra]
+    if any("emu_event_ratio" in r for r in rows):
+        cols += [("emu_event_ratio", "emul. events ratio"), ("emu_signed_correlation", "emul. r")]
+    cols += [("headline_cost", "cost"), ("headline_cost_value", "value"), ("headline_cost_unit", "unit"),
+             ("fit_s", "fit (s)"), ("point_s", "point (s)")]
+    lines = ["| " + " | ".join(t for _, t in cols) + " |", "|" + "---|" * len(cols)]
+    for r in rows:
+        lines.append("| " + " | ".join(_fmt(r.get(c, "")) for c, _ in cols) + " |")
+    return "\n".join(lines)
