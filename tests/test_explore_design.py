@@ -79,6 +79,8 @@ BAD = {
                     ["analysis.csf_methods[1]", "kelly_1979", "barten_1999"]),
     "bad reference parameter": ('[kernel]\nfamily = "dog"\nparams = { sigma_centre_px = 3.0, sigma_surround_px = 1.0 }\n',
                                 ["kernel.params", "sigma_surround_px", "must exceed"]),
+    "sensor smaller than the kernel": ('[kernel]\nsize = 15\n[sensor]\nresolution = [12, 64]\n',
+                                       ["sensor.resolution", "smaller than the 15x15 kernel"]),
     "missing checkpoint": ('[tasks]\ncheckpoints = { detection = "nowhere/learned_detection" }\n',
                            ["tasks.checkpoints.detection", "checkpoint file not found"]),
 }

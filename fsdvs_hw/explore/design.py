@@ -436,6 +436,9 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
     _check_tasks(chk, data, base)
     _check_axes(chk, data)
     target = _load_target(chk, data, base)
+    if target is not None and target.size > min(data["sensor"]["resolution"]):
+        chk.add("sensor.resolution", data["sensor"]["resolution"],
+                f"smaller than the {target.size}x{target.size} kernel; allowed: at least {target.size} px each way")
     chk.raise_if_any()
     assert target is not None
     return Design(data=data, source=source, base_dir=base, target=target)
