@@ -4,7 +4,9 @@
 of a design's kernel, scores each (:mod:`~fsdvs_hw.explore.scoring`), stores one row per design
 point (:mod:`~fsdvs_hw.explore.store`) and writes the HTML report (:mod:`fsdvs_hw.report`).
 ``fsdvs-hw sweep DESIGN`` (:mod:`~fsdvs_hw.explore.sweep`) runs a design's sweep axes on a local
-process pool or a Dask cluster.
+process pool or a Dask cluster. Design files are read and validated by
+:mod:`~fsdvs_hw.explore.design`; the sensor-in-the-loop emulation track lives in
+:mod:`~fsdvs_hw.explore.emulation`; ``fsdvs-hw bench explore`` is :mod:`~fsdvs_hw.explore.bench`.
 """
 
 from __future__ import annotations
