@@ -20,6 +20,7 @@ import argparse
 import json
 import math
 import sys
+import tempfile
 import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -182,7 +183,7 @@ def run_transfer(det_kernel: Kernel, seeds: Sequence[int] = (0, 1, 2), *, n_trai
     jobs = []
     for sd in seeds:
         jobs.append({"task": "segmentation", "size": 1, "seed": int(sd), "n_train": n_train, "n_test": n_test,
-                     "settings": settings})
+                     "settings": settings, "zero_shot_kernel": det_kernel})
         jobs.append({"task": "segmentation", "size": det_kernel.size, "seed": int(sd), "n_train": n_train,
                      "n_test": n_test, "settings": settings, "init_kernel": det_kernel})
     return _map(jobs, workers, _one_transfer, log_path)
@@ -197,13 +198,21 @@ def _one_transfer(job: dict[str, Any]) -> dict[str, Any]:
     settings = TrainingSettings(**job["settings"]) if job.get("settings") else None
     kw = {k: job[k] for k in ("n_train", "n_test") if job.get(k)}
     t0 = time.perf_counter()
-    res = learn_kernel("segmentation", job["size"], seed=job["seed"], settings=settings, learn_filter=False,
-                       init_kernel=job.get("init_kernel"), **kw)
+    zk = job.get("zero_shot_kernel")
+    with tempfile.TemporaryDirectory() as tmp:
+        res = learn_kernel("segmentation", job["size"], seed=job["seed"], settings=settings, learn_filter=False,
+                           init_kernel=job.get("init_kernel"), out=Path(tmp) / "seg" if zk is not None else None,
+                           **kw)
+        rec = {"task": "segmentation", "size": job["size"], "seed": job["seed"], "metrics": res.metrics,
+               "primary": res.primary_metric, "seconds": time.perf_counter() - t0,
+               "event_rate": res.provenance["test_event_rate_per_pixel_frame"]}
+        if zk is not None:  # swap the detection kernel into the network trained on conventional DVS events
+            from .learn import evaluate_kernel
+
+            rec["zero_shot_metrics"] = evaluate_kernel(zk, "segmentation", res.paths["checkpoint"]).metrics
     print(f"[transfer] segmentation {job['size']}x{job['size']} seed {job['seed']}: miou {res.value:.4f}",
           file=sys.stderr, flush=True)
-    return {"task": "segmentation", "size": job["size"], "seed": job["seed"], "metrics": res.metrics,
-            "primary": res.primary_metric, "seconds": time.perf_counter() - t0,
-            "event_rate": res.provenance["test_event_rate_per_pixel_frame"]}
+    return rec
 
 
 def _mean_std(values: list[float]) -> tuple[float, float]:
@@ -280,8 +289,15 @@ def transfer_markdown(records: list[dict[str, Any]], kernel_name: str) -> str:
         cells = [_fmt(*_mean_std([r["metrics"][k] for r in recs])) for k in ev.metric_names]
         prim = _mean_std([r["metrics"]["miou"] for r in recs])[0]
         delta = f"{(prim - base) * 100:+.1f}" if base is not None else "—"
-        label = "w/o" if size == 1 else f"{size}×{size} (detection)"
+        label = "w/o" if size == 1 else f"{size}×{size} (detection), network trained on its events"
         lines.append(f"| {label} | " + " | ".join(cells) + f" | {delta} |")
+    zs = [r for r in groups.get(1, []) if "zero_shot_metrics" in r]
+    if zs:
+        cells = [_fmt(*_mean_std([r["zero_shot_metrics"][k] for r in zs])) for k in ev.metric_names]
+        prim = _mean_std([r["zero_shot_metrics"]["miou"] for r in zs])[0]
+        delta = f"{(prim - base) * 100:+.1f}" if base is not None else "—"
+        lines.append("| detection kernel swapped into the w/o network (zero-shot, no retraining at all) | "
+                     + " | ".join(cells) + f" | {delta} |")
     return "\n".join(lines) + "\n"
 
 
