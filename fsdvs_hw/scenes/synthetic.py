@@ -69,7 +69,7 @@ class SceneConfig:
     Parameters
     ----------
     height_px, width_px : int
-        Frame size in pixels (8 … 1024). Tests use 24–32; the sensor's 1280×720 is allowed.
+        Frame size in pixels (8 … 2048). Tests use 16–32; the sensor-like 1280×720 is allowed.
     n_frames : int
         Frames per clip (≥ 2; the simulator turns T frames into T-1 event frames).
     frame_rate_hz : float
@@ -135,8 +135,8 @@ class SceneConfig:
                 bound = "(" if open_lo else "["
                 raise InputError(f"SceneConfig.{name} must be a finite number in {bound}{lo}, {hi}], got {v!r}")
 
-        _int_in("height_px", 8, 1024)
-        _int_in("width_px", 8, 1024)
+        _int_in("height_px", 8, 2048)
+        _int_in("width_px", 8, 2048)
         _int_in("n_frames", 2, 1000)
         _float_in("frame_rate_hz", 0.0, 1e7, open_lo=True)
         _float_in("edge_contrast", 0.0, 10.0, open_lo=True)
