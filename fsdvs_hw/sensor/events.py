@@ -12,6 +12,15 @@ Refractory period ``R``: crossings closer than ``R`` to the pixel's previous eve
 reference still moves past them); given the previous event time the emitted crossings are the
 indices ``j0, j0 + m, j0 + 2m, ...`` with ``m = ceil(R v / C)``, again closed form.
 
+Time stepping
+    Without a temporal filter one step per frame interval is exact (the crossings of a linear
+    signal are closed-form). The photoreceptor low-pass and the mesh-surround transient need
+    sub-steps: fixed (``substeps``), ESIM-style adaptive (``adaptive_fraction``: no pixel's input
+    moves more than that fraction of the threshold per step), chosen per frame interval and, with
+    ``adaptive_region_px``, per square region (pixels are independent after the spatial filter, so
+    regions needing the same count run together), or from a :func:`~fsdvs_hw.sensor.plan_model`
+    plan.
+
 Surrogate gradient (``SensorConfig.surrogate``)
     Forward counts are the integers above. Backward uses the straight-through estimator of the
     floor: ``∂n/∂ΔL = 1 / C`` on the polarity's side (``ΔL > 0`` for ON, ``< 0`` for OFF), zero on
@@ -504,8 +513,9 @@ def event_frames(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
     timestamps_s : array_like, shape (T,) or (B, T), optional
         Frame times in seconds, strictly increasing; default ``arange(T) / config.frame_rate_hz``.
     config : SensorConfig, optional
-        Sensor parameters (default ``SensorConfig()``: v2e-like noisy sensor). Use
-        ``SensorConfig.ideal()`` for the noiseless training sensor.
+        Sensor parameters (default ``SensorConfig()``: v2e-like noisy sensor with one step per
+        frame interval; pass ``adaptive_fraction`` or a ``plan`` for an accurate photoreceptor).
+        Use ``SensorConfig.ideal()`` for the noiseless training sensor.
     plan : ModelPlan, optional
         A plan from :func:`plan_model`; the simulator then runs the plan's effective config and
         sub-steps (pass either ``config`` or ``plan``).
