@@ -173,6 +173,18 @@ def test_error_falls_with_bits_and_nlopt_beats_naive_scale():
         assert d.error <= bound
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_free_scale_never_worse_than_naive_rounding_on_asymmetric_kernels(seed):
+    r = np.random.default_rng(seed)
+    t = 0.05 * r.normal(size=(7, 7))
+    t[3, 3] = 1.0  # a learned-like kernel: dominant centre, small asymmetric surround
+    k = Kernel(t, name=f"rough{seed}")
+    for bits in (4, 8, 10, 12, 14):
+        d = fit_asic_taps(k, bits)
+        assert d.symmetry == "none"
+        assert d.error <= d.fit_info["naive_error"] * (1 + 1e-12), (bits, d.error, d.fit_info["naive_error"])
+
+
 def test_pow2_scale_is_a_power_of_two_and_no_better_than_free():
     k = reference_kernel("log", 7, sigma_px=1.2)
     for bits in (4, 8, 12):

@@ -19,6 +19,9 @@ into the event comparator's threshold). :func:`fit_asic_taps` finds ``(s, q)``:
    class by class. For each class the optimum is among the nearest integers (above and below
    ``K_c / s``) that have at most ``d`` canonical-signed-digit (CSD) digits, for every ``d``:
    a handful of candidates instead of ``2**bits``. Ties go to fewer adders.
+   With ``objective="csf"`` the error term is the CSF-weighted error of the 2-D frequency
+   response — a quadratic form that couples the classes — and exact one-class moves are repeated
+   until none improves (a coordinate-wise optimum).
 
 The result, :class:`AsicDesign`, satisfies the realisation protocol (:mod:`fsdvs_hw.realise.base`):
 ``kernel()`` is ``s * q``; ``cost()`` gives adders, CSD digits, accumulator width and, after
@@ -515,11 +518,13 @@ def _fit_free_scale(p: _TapProblem, amax: float) -> tuple[float, np.ndarray, dic
             best.update(J=J, s=s, q=q)
         return J
 
+    # seed: the naive scale max|K| / qmax, so the search never ends worse than plain rounding
+    f(np.array([math.log2(amax / p.lim)]), np.empty(0))
     opt = nlopt.opt(nlopt.GN_DIRECT_L, 1)
     opt.set_lower_bounds([lo])
     opt.set_upper_bounds([hi])
     opt.set_min_objective(f)
-    opt.set_maxeval(_DIRECT_MAXEVAL if p.diagonal else _DIRECT_MAXEVAL // 2)
+    opt.set_maxeval(_DIRECT_MAXEVAL if p.diagonal else _DIRECT_MAXEVAL // 4)
     opt.set_xtol_abs(1e-9)
     try:
         opt.optimize([0.5 * (lo + hi)])

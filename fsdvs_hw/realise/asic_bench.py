@@ -47,7 +47,7 @@ def learned_or_fallback_kernel() -> tuple[Kernel, str]:
             continue
         if "reference" in k.provenance or "reference" in k.name.lower():
             continue
-        return k, f"learned kernel `{path.name}`"
+        return k, f"the learned kernel `designs/kernels/{path.name}` ('{k.name}')"
     return (reference_kernel("log", 7, sigma_px=1.0),
             "a 7×7 LoG (`reference_kernel('log', 7)`, σ = 1 px), standing in because designs/kernels/ has no learned kernel yet")
 

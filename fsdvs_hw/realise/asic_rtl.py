@@ -39,6 +39,7 @@ import numpy as np
 
 from ..errors import FsdvsError, InputError, ToolMissingError
 from .asic_arith import (
+    SymmetryClasses,
     accumulator_bits,
     csd_digits,
     integer_correlate,
@@ -101,7 +102,7 @@ def _ubits(n: int) -> int:
     return max(1, int(n).bit_length())
 
 
-def _datapath_lines(cls, reps: list[int], IN: int, acc: int, out_shift: int) -> list[str]:
+def _datapath_lines(cls: SymmetryClasses, reps: list[int], IN: int, acc: int, out_shift: int) -> list[str]:
     """Verilog lines of the arithmetic: pre-adds ``p<c>``, the shift-add ``acc`` and (if shifting) ``acc_r``.
 
     Expects the window pixels as ``w<row>_<col>`` (``IN`` bits each) in scope.
@@ -134,7 +135,8 @@ def _datapath_lines(cls, reps: list[int], IN: int, acc: int, out_shift: int) -> 
     return L
 
 
-def _checked_taps(taps: np.ndarray, input_bits: int, out_shift: int, symmetry: str):
+def _checked_taps(taps: np.ndarray, input_bits: int, out_shift: int,
+                  symmetry: str) -> tuple[np.ndarray, int, int, SymmetryClasses, list[int]]:
     q = np.asarray(taps, dtype=np.int64)
     acc = accumulator_bits(q, input_bits)
     if not (isinstance(out_shift, (int, np.integer)) and 0 <= out_shift < acc):
