@@ -150,3 +150,37 @@ def test_photoreceptor_lowpass_step_response_times(intensity):
     assert len(ev) == 2 and torch.all(ev.p == 1)
     expected = [1e-6 + tau * math.log(2.5 / 1.5), 1e-6 + tau * math.log(5.0)]
     np.testing.assert_allclose(ev.t.numpy(), expected, rtol=0.02)
+
+
+def test_post_log_unit_gain_kernel_on_uniform_video_equals_plain_dvs():
+    # W * log(I) = log(I) when I is spatially uniform and sum(W) = 1 (replicated borders)
+    video = _ramp_video(4, T=9, H=12, W=12)
+    k = reference_kernel("gaussian", 5, sigma_px=1.2).normalised("sum")
+    plain = event_frames(video, None, config=IDEAL)
+    post = event_frames(video, k, config=IDEAL.replace(placement="post_log"))
+    assert plain.sum() == 4 * 144
+    assert torch.equal(plain, post)
+
+
+def test_fast_surround_transient_equals_steady_state_and_slow_one_lags():
+    g = torch.Generator().manual_seed(8)
+    video = torch.rand(1, 5, 10, 12, generator=g, dtype=torch.float64) + 0.1
+    cs = IDEAL.replace(placement="post_log", surround_lambda_px=2.0, surround_weight=0.8, substeps=8)
+    steady = event_frames(video, None, config=cs)
+    fast = event_frames(video, None, config=cs.replace(surround_tau_s=1e-7))
+    slow = event_frames(video, None, config=cs.replace(surround_tau_s=1.0))
+    assert torch.equal(steady, fast)
+    assert not torch.equal(steady, slow)
+
+
+def test_floor_gradient_is_straight_through_and_clipped():
+    from fsdvs_hw.sensor.filtering import filtered_log_signal
+
+    video = torch.tensor([[[[1e-5, 1.0]], [[1e-5, 1.0]]]], dtype=torch.float64, requires_grad=True)
+    cfg = IDEAL.replace(floor_intensity=1e-3, dark_intensity=1e-6)
+    sig = filtered_log_signal(video, torch.ones((1, 1), dtype=torch.float64), cfg)
+    assert sig.floor_fraction == 0.5
+    sig.log_signal.sum().backward()
+    # below the floor d log / d I would be 1 / I_dark = 1e6; the straight-through gradient is clipped to 1
+    assert torch.all(video.grad[..., 0] == 1.0)
+    torch.testing.assert_close(video.grad[..., 1], torch.ones_like(video.grad[..., 1]))  # d log I / d I at I = 1

@@ -291,7 +291,8 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     Ls = L.unbind(1)  # one unbind: its backward is one stack, not T full-size zero tensors
     CI = signal.cutoff_intensity.unbind(1) if has_lp else None
     SU = signal.surround.unbind(1) if transient else None
-    ref = Ls[0]
+    # the comparator's initial input (centre minus the settled surround in transient mode)
+    ref = (Ls[0] - config.surround_weight * SU[0]) if transient else Ls[0]
     if config.random_reference_phase:  # reference starts at a random point of its cycle
         if phase is None:
             phase = _reference_phase(config, H, W, L)
