@@ -111,3 +111,17 @@ def test_region_adaptive_steps_only_where_needed():
     k = torch.clamp(torch.searchsorted(ts, ev.t, right=False) - 1, 0, video.shape[1] - 2)
     rebuilt.index_put_((ev.b, k, (ev.p < 0).long(), ev.y, ev.x), torch.ones(len(ev), dtype=reg.dtype), accumulate=True)
     assert torch.equal(rebuilt, reg)
+
+
+def test_plan_surround_transient_decision_follows_mesh_time_constant():
+    video = _moving_grating(2.0, 0.3, 1.0, H=24, W=24, T=6)
+    base = SensorConfig.ideal(placement="post_log", surround_lambda_px=2.0, surround_weight=0.8)
+    slow_mesh = plan_model(video, TOL, config=base.replace(surround_tau_s=0.02))
+    fast_mesh = plan_model(video, TOL, config=base.replace(surround_tau_s=1e-6))
+    assert slow_mesh.decision("surround transient").included and slow_mesh.decision("sub-steps").included
+    assert not fast_mesh.decision("surround transient").included
+    assert fast_mesh.config.surround_tau_s == 0 and all(s == 1 for s in fast_mesh.substeps)
+    # skipping a fast mesh's transient stays within tolerance of simulating it finely
+    full = event_frames(video, None, config=base.replace(surround_tau_s=1e-6, substeps=32))
+    planned = event_frames(video, None, plan=fast_mesh)
+    assert float((planned - full).abs().sum() / full.sum()) < TOL
