@@ -154,7 +154,7 @@ def plot_fits(fits: list[tuple[str, Any, Any]], path: Path) -> Path:
         pad = ped.guard_px
         target = np.pad(k.taps / np.abs(k.taps).max(), pad)
         panels = [
-            (target, f"target: {label}", "RdBu_r", True),
+            (target, f"target: {label.split(' (')[0]}", "RdBu_r", True),
             (ped.kernel().taps / np.abs(ped.kernel().taps).max(), f"pedestal: applied gP ≈ K + c\nerror {ped.error:.3f}", "RdBu_r", True),
             (diff.kernel().taps / np.abs(diff.kernel().taps).max(), f"differential: g₊P₊ − g₋P₋\nerror {diff.error:.3f}", "RdBu_r", True),
             (diff.psfs[0], f"P₊ (fraction of power)\ndefocus {(diff.sensor_distance_m[0] - diff.geometry.focal_length_m) * 1e6:+.0f} µm", "magma", False),
