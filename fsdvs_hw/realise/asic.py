@@ -504,18 +504,34 @@ def _resolve_symmetry(kernel: Kernel, symmetry: str) -> str:
     return "none"
 
 
-def _fit_free_scale(p: _TapProblem, amax: float) -> tuple[float, np.ndarray, dict[str, Any]]:
+def _polish(p: _TapProblem, s: float, q: np.ndarray) -> tuple[float, np.ndarray]:
+    """Alternate the least-squares scale of ``q`` and the integer solve at it (J never increases)."""
+    for _ in range(50):
+        s_ls = p.ls_scale(q)
+        if s_ls is None:
+            break
+        q_new = p.solve(s_ls)
+        if p.objective(q, s_ls) <= p.objective(q_new, s_ls):
+            if p.objective(q, s_ls) <= p.objective(q, s):
+                s = s_ls
+            break
+        s, q = s_ls, q_new
+    return s, q
+
+
+def _fit_free_scale(p: _TapProblem, amax: float, n_polish: int = 5) -> tuple[float, np.ndarray, dict[str, Any]]:
     import nlopt
 
     lo, hi = math.log2(amax / (2.0 * p.lim)), math.log2(2.0 * amax)
-    best: dict[str, Any] = {"J": math.inf}
+    seen: dict[bytes, tuple[float, float, np.ndarray]] = {}  # distinct taps -> (J, s, q)
 
     def f(x: np.ndarray, grad: np.ndarray) -> float:
         s = 2.0 ** float(x[0])
         q = p.solve(s)
         J = p.objective(q, s)
-        if p.better(J, q, best):
-            best.update(J=J, s=s, q=q)
+        key = q.tobytes()
+        if key not in seen or J < seen[key][0]:
+            seen[key] = (J, s, q)
         return J
 
     # seed: the naive scale max|K| / qmax, so the search never ends worse than plain rounding
@@ -528,26 +544,19 @@ def _fit_free_scale(p: _TapProblem, amax: float) -> tuple[float, np.ndarray, dic
     opt.set_xtol_abs(1e-9)
     try:
         opt.optimize([0.5 * (lo + hi)])
-    except nlopt.RoundoffLimited:  # the best point so far is kept in `best`
+    except nlopt.RoundoffLimited:  # the points evaluated so far are kept in `seen`
         pass
     evals = opt.get_numevals()
-    s_direct = best["s"]
-    # polish: alternate least-squares scale and exact integer solve (J never increases)
-    s, q = best["s"], best["q"]
-    for _ in range(50):
-        s_ls = p.ls_scale(q)
-        if s_ls is None:
-            break
-        q_new = p.solve(s_ls)
-        J_new = p.objective(q_new, s_ls)
-        J_old = p.objective(q, s_ls)
-        if J_old <= J_new:
-            s = s_ls
-            break
-        s, q = s_ls, q_new
-    if not p.better(p.objective(q, s), q, best):  # keep DIRECT's point if polishing did not help
-        s, q = best["s"], best["q"]
-    return s, q, {"nlopt_algorithm": "GN_DIRECT_L", "nlopt_evaluations": int(evals), "scale_direct": float(s_direct)}
+    # polish the best few distinct tap vectors (the polish is local) and keep the best result
+    starts = sorted(seen.values(), key=lambda v: v[0])[:n_polish]
+    best: dict[str, Any] = {"J": math.inf}
+    for J0, s0, q0 in starts:
+        for s_c, q_c in ((s0, q0), _polish(p, s0, q0)):
+            J = p.objective(q_c, s_c)
+            if p.better(J, q_c, best):
+                best.update(J=J, s=s_c, q=q_c)
+    return best["s"], best["q"], {"nlopt_algorithm": "GN_DIRECT_L", "nlopt_evaluations": int(evals),
+                                  "scale_direct": float(starts[0][1])}
 
 
 def _divide_common_factor(p: _TapProblem, q: np.ndarray, s: float, *, powers_of_two_only: bool) -> tuple[np.ndarray, float]:
