@@ -652,8 +652,8 @@ def fit_metalens(
     illuminant: Any = "D65",
     response: Any = None,
     strategy: str = "pedestal",
-    aperture_m: float = 100e-6,
-    focal_length_m: float = 200e-6,
+    aperture_m: float | None = 100e-6,
+    focal_length_m: float | None = 200e-6,
     design_wavelength_m: float = 555e-9,
     dispersion: str = "diffractive",
     n_terms: int = 4,
@@ -679,7 +679,7 @@ def fit_metalens(
     strategy : {"pedestal", "differential"}
         Signed-kernel strategy (module docstring).
     aperture_m, focal_length_m, design_wavelength_m, dispersion
-        Fixed lens geometry (:class:`LensGeometry`).
+        Fixed lens geometry (:class:`LensGeometry`); ``None`` means the default (100 µm, 200 µm).
     n_terms : int
         Polynomial phase terms (r/a)^2 … (r/a)^(2·n_terms), 0…12.
     n_wavelengths : int or "auto"
@@ -721,7 +721,11 @@ def fit_metalens(
     if pitch_m is not None and abs(pitch_m - kernel.pitch_m) > 1e-12:
         kernel = Kernel(kernel.taps, pitch_m=pitch_m, name=kernel.name, provenance=kernel.provenance)
     pitch = kernel.pitch_m
-    geometry = LensGeometry(aperture_m, focal_length_m, design_wavelength_m, dispersion)
+    defaults = LensGeometry()
+    geometry = LensGeometry(defaults.aperture_m if aperture_m is None else aperture_m,
+                            defaults.focal_length_m if focal_length_m is None else focal_length_m,
+                            design_wavelength_m, dispersion)
+    aperture_m, focal_length_m = geometry.aperture_m, geometry.focal_length_m
     plan = None
     if n_wavelengths == "auto":
         # nominal lens defocused to blur a point over the kernel radius (geometric optics)
