@@ -236,6 +236,15 @@ def test_differential_design_restores_the_sign(small_designs):
     assert diff.cost()["subtraction_ratio"].value > 0
 
 
+def test_fit_with_planned_wavelengths_records_the_plan():
+    k = reference_kernel("gaussian", 3, sigma_px=0.8)
+    opts = {**FAST, "n_wavelengths": "auto", "illuminant": "D65"}
+    d = fit_metalens(k, dispersion="achromatic", **opts)
+    assert d.fit_info["n_wavelengths"] == d.spectral.n <= 2  # achromatic: the plan needs 1-2 samples
+    assert "achromatic" in d.fit_info["wavelength_plan"]
+    assert d.pedestal == 0 and d.error < 0.3  # a non-negative target needs no pedestal
+
+
 def test_fit_errors_name_the_problem():
     k = reference_kernel("dog", 5)
     with pytest.raises(InputError, match="strategy"):
