@@ -77,3 +77,23 @@ def test_ideal_recapture_of_an_unfiltered_clip_matches_the_direct_simulation():
     up4, _ = recapture(clips.video, clips.timestamps_s, reference_kernel("delta", 1),
                        display=DisplaySettings(bits=16, gamma=1.0, black_nits=0.0, upsample_factor=4), sensor=cfg)
     assert torch.equal(up4, rec)
+
+
+def test_emulation_scores_stay_finite_at_the_extremes():
+    """An inverted kernel (negative DC: the filtered clip is mostly below zero and the display
+    clips it to black) and a kernel scaled by 1e6 (the display gain removes any scale)."""
+    pytest.importorskip("torch")
+    from fsdvs_hw.explore.design import parse_design
+    from fsdvs_hw.explore.emulation import emulation_scores
+
+    d = parse_design({"sensor": {"resolution": [24, 32]}, "emulation": {"n_clips": 1, "n_frames": 4}})
+    sensor, emu = d.data["sensor"], d.data["emulation"]
+    dog = reference_kernel("dog", 7)
+    inverted = emulation_scores(dog.scaled(-1.0), sensor=sensor, emulation=emu)
+    assert inverted["status"] == "ok"
+    assert inverted["clipped_black"] > 0.9  # almost everything is below black: said, not hidden
+    assert all(np.isfinite(inverted[k]) for k in ("events_in_sensor", "events_recaptured", "signed_correlation"))
+    base = emulation_scores(dog, sensor=sensor, emulation=emu)
+    huge = emulation_scores(dog.scaled(1e6), sensor=sensor, emulation=emu)
+    assert huge["events_recaptured"] == base["events_recaptured"]
+    assert huge["clipped_black"] == base["clipped_black"]
