@@ -213,8 +213,10 @@ def test_killed_sweep_resumes_with_every_point_exactly_once(tmp_path):
         before = {r["key"]: (r["finished_at"], r["worker"]) for r in store.rows()}
     assert 3 <= len(before) < n_points, "the kill must land mid-sweep"
 
-    r = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)
+    r = subprocess.run([*cmd, "--report", str(tmp_path / "report")], cwd=REPO, capture_output=True, text=True,
+                       timeout=300)
     assert r.returncode == 0, r.stderr
+    assert (tmp_path / "report" / "report.html").is_file()
     assert f"{len(before)} already in the store, {n_points - len(before)} run now" in r.stderr
     with ResultsStore(db) as store:
         rows = list(store.rows())

@@ -62,7 +62,7 @@ def _pngs(html: str) -> dict[str, bytes]:
     return {alt: base64.b64decode(b) for alt, b in found}
 
 
-def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch):
+def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch, capsys):
     pytest.importorskip("fsdvs_hw.realise.asic")
     from fsdvs_hw.explore import design as design_mod
 
@@ -74,6 +74,9 @@ def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch
                  '[sensor]\nresolution = [24, 32]\n[emulation]\nn_clips = 1\nn_frames = 4\n[run]\nworkers = 1\n')
     out = tmp_path / "out"
     assert main(["explore", str(p), "--out", str(out), "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    assert re.search(r"^\| asic \| ok \| 0\.\d+ \|", printed, re.M)  # the Markdown summary
+    assert re.search(r"^\| metalens \| skipped \|", printed, re.M)
     html = (out / "report.html").read_text()
     assert "src=\"http" not in html and "<script" not in html  # nothing fetched from elsewhere
     imgs = _pngs(html)
