@@ -17,7 +17,6 @@ Tables (Markdown):
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 from collections.abc import Callable
