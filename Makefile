@@ -15,7 +15,7 @@ DEMO_OUT ?= out/demo
 .PHONY: demo test test-all bench setup system-deps clean
 
 demo: setup
-	$(BIN)/fsdvs-hw analyse designs/kernels/dog_7x7.json --focal-mm 4.0 --out $(DEMO_OUT)
+	$(BIN)/fsdvs-hw explore designs/default.toml --out $(DEMO_OUT)
 
 test: setup
 	$(BIN)/python -m pytest -m "not slow" -n 2 $(PYTEST_ARGS)
