@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from functools import lru_cache
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,7 +36,14 @@ import numpy as np
 
 from .errors import InputError
 from .kernels import Kernel
-from .spectra import NYQUIST_CPP, pixels_per_degree, radial_response, spectral_summary
+from .spectra import (
+    NYQUIST_CPP,
+    RadialResponse,
+    SpectralSummary,
+    pixels_per_degree,
+    radial_response,
+    spectral_summary,
+)
 
 __all__ = [
     "CSF_METHODS",
@@ -201,10 +209,25 @@ def contrast_sensitivity(f_cpd: Any, method: str = "mannos_sakrison_1974", **kwa
 
 
 def csf_peak(method: str = "mannos_sakrison_1974", *, f_max_cpd: float = 100.0, **kwargs: Any) -> tuple[float, float]:
-    """(peak frequency in cpd, peak value) of a CSF, by dense log grid + bounded refinement."""
+    """(peak frequency in cpd, peak value) of a CSF, by dense log grid + bounded refinement.
+
+    Results for numeric model parameters are cached (the peak of a model does not change).
+    """
+    name = _method_name(method)
+    try:
+        return _csf_peak_cached(name, float(f_max_cpd), tuple(sorted(kwargs.items())))
+    except TypeError:  # unhashable parameter values: compute directly
+        return _csf_peak(name, float(f_max_cpd), kwargs)
+
+
+@lru_cache(maxsize=64)
+def _csf_peak_cached(name: str, f_max_cpd: float, items: tuple[tuple[str, Any], ...]) -> tuple[float, float]:
+    return _csf_peak(name, f_max_cpd, dict(items))
+
+
+def _csf_peak(name: str, f_max_cpd: float, kwargs: dict[str, Any]) -> tuple[float, float]:
     from scipy.optimize import minimize_scalar
 
-    name = _method_name(method)
     fn = CSF_METHODS[name]
     grid = np.geomspace(0.01, f_max_cpd, 2001)
     vals = fn(grid, **kwargs)
@@ -314,6 +337,17 @@ def _focal_length_for(ppd: float, pitch_m: float) -> float:
     return pitch_m / (2.0 * math.tan(math.radians(1.0 / ppd) / 2.0))
 
 
+@lru_cache(maxsize=128)
+def _kernel_spectrum(taps_bytes: bytes, size: int) -> tuple[RadialResponse, SpectralSummary]:
+    """Radial response and band summary of a kernel, cached by its exact taps.
+
+    Scoring one realisation asks for the agreement with several CSF models; the kernel's
+    spectrum is the expensive part and is the same for all of them.
+    """
+    taps = np.frombuffer(taps_bytes, dtype=np.float64).reshape(size, size)
+    return radial_response(taps, n_freq=1025), spectral_summary(taps)
+
+
 def _compare(f_cpp: np.ndarray, rr_f: np.ndarray, k_norm: np.ndarray, csf_fn: Callable[[np.ndarray], np.ndarray],
              csf_max: float, ppd: float, floor: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
     f = f_cpp * ppd
@@ -384,9 +418,8 @@ def csf_agreement(
         return CSF_METHODS[name](f, **kw)
 
     csf_peak_cpd, csf_max = csf_peak(name, **kw)
-    rr = radial_response(kernel, n_freq=1025)
+    rr, summary = _kernel_spectrum(kernel.taps.tobytes(), kernel.size)
     k_norm = rr.normalised()
-    summary = spectral_summary(kernel)
     f_cpp = np.geomspace(f_low_cpp, NYQUIST_CPP, n_samples)
 
     if geometry is not None:
