@@ -160,7 +160,7 @@ def _task_sensor(checkpoint: Path, design_sensor: Mapping[str, Any] | None) -> t
 
 def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path], *, n_test: int = 0,
                 finetune_epochs: int = 0, tracks: Sequence[str] = ("simulator",),
-                design_sensor: Mapping[str, Any] | None = None) -> dict[str, Any]:
+                design_sensor: Mapping[str, Any] | None = None, display: Any = None) -> dict[str, Any]:
     """Evaluate ``kernel`` on each trained task by a zero-shot swap into its frozen network.
 
     Parameters
@@ -175,8 +175,11 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path], *, n_test
         Optional fine-tune of the network with the kernel frozen (0 = zero-shot).
     tracks : sequence of {"simulator", "emulation"}
         ``simulator``: ``evaluate_kernel`` with the checkpoint's simulator settings.
-        ``emulation``: the sensor-in-the-loop emulation; reported as unavailable while
-        ``evaluate_kernel`` has no hook for a display/recapture path.
+        ``emulation``: the sensor-in-the-loop emulation — the test clips are filtered by the
+        kernel, shown on ``display`` and recaptured by the same simulator without an in-pixel
+        filter (:func:`fsdvs_hw.explore.emulation.recapture`), then fed to the same frozen network.
+    display : DisplaySettings, optional
+        The emulation track's display (default ``DisplaySettings()``).
     design_sensor : mapping, optional
         A design's ``[sensor]`` section: its thresholds, mismatch, placement and positivity replace
         the checkpoint's simulator settings. None (default) evaluates under the checkpoint's own
@@ -205,12 +208,14 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path], *, n_test
                 kw["n_test"] = n_test
             if finetune_epochs and "finetune_epochs" in sig:
                 kw["finetune_epochs"] = finetune_epochs
-            if track != "simulator":
-                if "track" not in sig:
+            if track == "emulation":
+                if "events_fn" not in sig:
                     out[task][track] = {"status": f"unavailable: evaluate_kernel has no {track!r} track hook"}
                     out["status"] = "partial"
                     continue
-                kw["track"] = track
+                kw["events_fn"] = _recaptured_events(kernel, display)
+            elif track != "simulator":
+                raise InputError(f"task track {track!r} unknown; allowed 'simulator', 'emulation'")
             t0 = time.perf_counter()
             try:
                 sensor_cfg, sensor_rec = _task_sensor(Path(ckpt), design_sensor)
@@ -224,6 +229,19 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path], *, n_test
             out[task][track] = {"status": "ok", **_metric_dict(res), "sensor": sensor_rec,
                                 "wall_s": time.perf_counter() - t0}
     return out
+
+
+def _recaptured_events(kernel: Kernel, display: Any) -> Any:
+    """``events_fn`` for ``evaluate_kernel``: the sensor-in-the-loop emulation of ``kernel``."""
+    from .emulation import DisplaySettings, recapture
+
+    shown = display if display is not None else DisplaySettings()
+
+    def events_fn(video: Any, _kernel_taps: Any, sensor: Any, timestamps_s: Any) -> Any:
+        frames, _ = recapture(video, np.asarray(timestamps_s, dtype=np.float64), kernel, display=shown, sensor=sensor)
+        return frames
+
+    return events_fn
 
 
 def _metric_dict(res: Any) -> dict[str, Any]:
@@ -295,6 +313,10 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
     }
     t1 = time.perf_counter()
     opts = dict(task_options or {})
+    if "emulation" in opts.get("tracks", ()) and emulation is not None and "display" not in opts:
+        from .emulation import DisplaySettings
+
+        opts["display"] = DisplaySettings.from_design(emulation["emulation"])
     rec["tasks"] = task_scores(realised, dict(checkpoints or {}), **opts)
     t2 = time.perf_counter()
     if emulation is not None and emulation["emulation"].get("enabled", True):

@@ -235,7 +235,7 @@ def _cat_predictions(preds: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def _score(evaluator: Any, network: Any, kernel_t: Any, video: Any, targets: dict[str, Any], sensor: Any,
-           timestamps_s: np.ndarray, batch_size: int = 64) -> tuple[dict[str, float], float]:
+           timestamps_s: np.ndarray, batch_size: int = 64, events_fn: Any = None) -> tuple[dict[str, float], float]:
     """Metrics of ``network`` with ``kernel_t`` on a test set, and the mean event count per pixel-frame."""
     import torch
 
@@ -243,7 +243,7 @@ def _score(evaluator: Any, network: Any, kernel_t: Any, video: Any, targets: dic
     preds, n_events, n_px = [], 0.0, 0
     with torch.no_grad():
         for s in range(0, video.shape[0], batch_size):
-            ev = _events(video[s : s + batch_size], kernel_t, sensor, timestamps_s)
+            ev = (events_fn or _events)(video[s : s + batch_size], kernel_t, sensor, timestamps_s)
             n_events += float(ev.sum())
             n_px += ev[:, :, 0].numel()
             from .networks import event_representation
@@ -541,7 +541,8 @@ def load_checkpoint(checkpoint: str | Path) -> tuple[dict[str, Any], dict[str, A
 
 
 def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: int | None = None,
-                    finetune_epochs: int = 0, finetune_lr: float = 1e-3, sensor: Any = None) -> Evaluation:
+                    finetune_epochs: int = 0, finetune_lr: float = 1e-3, sensor: Any = None,
+                    events_fn: Any = None) -> Evaluation:
     """Score ``kernel`` on a trained task: swap it into the checkpoint's frozen network.
 
     Parameters
@@ -564,6 +565,13 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
         frozen.
     sensor : SensorConfig, optional
         Simulator settings (default: the checkpoint's). Another sensor tests robustness.
+    events_fn : callable, optional
+        How the test clips become event frames when scoring:
+        ``events_fn(video (B, T, H, W), kernel_taps (k, k) tensor, sensor, timestamps_s) ->
+        (B, T-1, 2, H, W)``. Default: the in-pixel simulator (kernel before the comparator). The
+        exploration layer passes its sensor-in-the-loop emulation here (filtered video shown on a
+        display and recaptured by a plain DVS). Fine-tuning, when asked for, always uses the
+        in-pixel simulator.
 
     Returns
     -------
@@ -621,7 +629,8 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
         _train_epochs(evaluator, network, kernel_t, video, targets, sensor, ts, opt, finetune_epochs,
                       settings.batch_size, gen, "finetune", [], None, cached_inputs=cached)
     test_video, test_targets = _dataset(scene, n_test, int(provenance["test_seed"]), evaluator.name, settings.dtype)
-    metrics, event_rate = _score(evaluator, network, kernel_t, test_video, test_targets, sensor, ts)
+    metrics, event_rate = _score(evaluator, network, kernel_t, test_video, test_targets, sensor, ts,
+                                 events_fn=events_fn)
     return Evaluation(task=evaluator.name, metrics=metrics, primary_metric=evaluator.primary_metric,
                       kernel_name=k.name, kernel_size=k.size, n_test=n_test, finetune_epochs=finetune_epochs,
                       seconds=time.perf_counter() - t0, event_rate=event_rate)
