@@ -127,6 +127,8 @@ def daly_1993(
                     ("viewing_distance_m", viewing_distance_m)):
         if not (math.isfinite(v) and v > 0):
             raise InputError(f"daly_1993: {name} must be positive, got {v!r}")
+    if not (math.isfinite(eccentricity_deg) and eccentricity_deg >= 0):
+        raise InputError(f"daly_1993: eccentricity_deg must be ≥ 0 degrees, got {eccentricity_deg!r}")
     eps, peak = 0.9, 250.0
     a_l = 0.801 * (1 + 0.7 / luminance_cd_m2) ** -0.2
     b_l = 0.3 * (1 + 100.0 / luminance_cd_m2) ** 0.15

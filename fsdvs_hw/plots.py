@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from .csf import Geometry, contrast_sensitivity, csf_agreement, csf_peak
+from .errors import InputError
 from .kernels import Kernel
 from .spectra import magnitude_spectrum, radial_response
 
@@ -89,7 +90,7 @@ def plot_radial_vs_csf(
     if isinstance(kernels, Kernel):
         kernels = [kernels]
     if not kernels:
-        raise ValueError("plot_radial_vs_csf: need at least one kernel")
+        raise InputError("plot_radial_vs_csf: need at least one kernel")
     fig, ax = _axes(ax, figsize=(5.6, 3.8))
     if geometry is not None:
         ppd, how = geometry.pixels_per_degree, f"geometry: {geometry.pixels_per_degree:.1f} px/deg"

@@ -70,6 +70,8 @@ def test_dispatcher_errors():
         contrast_sensitivity(-1.0)
     with pytest.raises(InputError, match="finite"):
         contrast_sensitivity(np.nan)
+    with pytest.raises(InputError, match="eccentricity_deg"):
+        daly_1993(1.0, eccentricity_deg=-5.0)  # would divide by zero at -1/0.24 degrees
 
 
 @pytest.mark.parametrize("method", sorted(CSF_METHODS))
