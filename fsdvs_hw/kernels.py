@@ -38,6 +38,8 @@ from .errors import KernelError
 __all__ = [
     "DEFAULT_PITCH_M",
     "MAX_KERNEL_SIZE",
+    "TAP_MAGNITUDE_RANGE",
+    "MAX_KERNEL_FILE_BYTES",
     "Kernel",
     "REFERENCE_KERNELS",
     "reference_kernel",
@@ -56,6 +58,13 @@ DEFAULT_PITCH_M: float = 4.86e-6
 #: evaluated on larger windows, but anything beyond this is almost certainly a mistake.
 MAX_KERNEL_SIZE: int = 63
 
+#: Allowed magnitude of a kernel's largest tap: every stage, the float32 simulator included, stays
+#: finite (squares of 1e15 are 1e30 < float32 max 3.4e38) and no kernel vanishes in float32.
+TAP_MAGNITUDE_RANGE: tuple[float, float] = (1e-15, 1e15)
+
+#: Largest kernel file read (bytes); kernels are at most 63×63 taps, a few hundred kB as text.
+MAX_KERNEL_FILE_BYTES: int = 16 * 2**20
+
 _PITCH_RANGE_M = (1e-7, 1e-3)
 _FORMAT_TAG = "fsdvs_hw.kernel"
 _SUFFIXES = (".npy", ".csv", ".json", ".pt")
@@ -63,12 +72,16 @@ _SUFFIXES = (".npy", ".csv", ".json", ".pt")
 
 def _validate_taps(taps: Any, *, source: str = "taps") -> np.ndarray:
     """Return ``taps`` as a read-only float64 copy, or raise :class:`KernelError` naming the problem."""
-    if np.iscomplexobj(taps):
-        raise KernelError(f"{source}: kernel taps must be real, got a complex array")
     try:
-        arr = np.array(taps, dtype=np.float64, copy=True)
-    except (TypeError, ValueError) as exc:
-        raise KernelError(f"{source}: kernel taps must be a numeric 2-D array ({exc})") from None
+        raw = taps if isinstance(taps, np.ndarray) else np.asarray(taps)
+    except (TypeError, ValueError, RecursionError):
+        raise KernelError(f"{source}: kernel taps must be a numeric 2-D array (rows of equal length)") from None
+    if raw.dtype.kind == "c":
+        raise KernelError(f"{source}: kernel taps must be real, got a complex array")
+    if raw.dtype.kind not in "biuf":  # datetimes, strings, objects would convert silently or oddly
+        raise KernelError(f"{source}: kernel taps must be numeric (booleans, integers, floats), "
+                          f"got array dtype {raw.dtype}")
+    arr = np.array(raw, dtype=np.float64, copy=True)
     if arr.ndim != 2:
         raise KernelError(f"{source}: kernel taps must be 2-D, got {arr.ndim}-D with shape {arr.shape}")
     rows, cols = arr.shape
@@ -92,6 +105,11 @@ def _validate_taps(taps: Any, *, source: str = "taps") -> np.ndarray:
         )
     if not np.any(arr != 0.0):
         raise KernelError(f"{source}: kernel is all zeros; it would pass no light and has no spectrum")
+    peak = float(np.abs(arr).max())
+    lo, hi = TAP_MAGNITUDE_RANGE
+    if not lo <= peak <= hi:
+        raise KernelError(f"{source}: largest |tap| is {peak:.3g}, outside the allowed [{lo:g}, {hi:g}] "
+                          "(the simulator works in float32, where such taps overflow or vanish; rescale the kernel)")
     arr.setflags(write=False)
     return arr
 
@@ -145,10 +163,10 @@ class Kernel:
         object.__setattr__(self, "pitch_m", _validate_pitch(self.pitch_m))
         if not isinstance(self.name, str):
             raise KernelError(f"name: kernel name must be a string, got {type(self.name).__name__}")
-        prov = dict(self.provenance)
         try:
+            prov = dict(self.provenance)
             json.dumps(prov)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, RecursionError) as exc:
             raise KernelError(f"provenance: must be JSON-serialisable ({exc})") from None
         object.__setattr__(self, "provenance", prov)
 
@@ -331,36 +349,40 @@ def load_kernel(path: str | Path, *, pitch_m: float | None = None) -> Kernel:
     if not path.is_file():
         raise KernelError(f"{src}: kernel file not found")
     suffix = path.suffix.lower()
+    if suffix not in _SUFFIXES:
+        raise KernelError(f"{src}: unknown kernel file extension {suffix!r}; allowed {', '.join(_SUFFIXES)}")
+    try:
+        n_bytes = path.stat().st_size
+    except OSError as exc:
+        raise KernelError(f"{src}: cannot read ({exc.strerror})") from None
+    if n_bytes > MAX_KERNEL_FILE_BYTES:
+        raise KernelError(f"{src}: {n_bytes} bytes is too large for a kernel file "
+                          f"(limit {MAX_KERNEL_FILE_BYTES} bytes)")
     meta: dict[str, Any] = {}
     if suffix == ".npy":
         try:
             taps = np.load(path, allow_pickle=False)
-        except ValueError as exc:
-            raise KernelError(f"{src}: not a plain numeric .npy array ({exc})") from None
+        except (ValueError, EOFError, OSError) as exc:
+            why = ("not an .npy file, or an object array, which is never loaded" if "pickle" in str(exc)
+                   else type(exc).__name__)
+            raise KernelError(f"{src}: not a plain numeric .npy array ({why})") from None
+        if not isinstance(taps, np.ndarray):
+            raise KernelError(f"{src}: not a plain .npy array (got a {type(taps).__name__})")
     elif suffix == ".csv":
-        first = path.read_text().splitlines()[:1]
-        if first and first[0].startswith("# fsdvs_hw "):
-            try:
-                meta = json.loads(first[0][len("# fsdvs_hw ") :])
-            except json.JSONDecodeError as exc:
-                raise KernelError(f"{src}: malformed '# fsdvs_hw' header line ({exc})") from None
-        try:
-            taps = np.loadtxt(path, delimiter=",", comments="#", ndmin=2)
-        except ValueError as exc:
-            raise KernelError(f"{src}: not a numeric comma-separated table ({exc})") from None
+        taps, meta = _parse_csv(_read_text(path), src)
     elif suffix == ".json":
         try:
-            data = json.loads(path.read_text())
+            data = json.loads(_read_text(path))
         except json.JSONDecodeError as exc:
-            raise KernelError(f"{src}: invalid JSON ({exc})") from None
+            raise KernelError(f"{src}: invalid JSON ({exc.msg} at line {exc.lineno}, column {exc.colno})") from None
+        except RecursionError:
+            raise KernelError(f"{src}: invalid JSON (nested too deeply)") from None
         if isinstance(data, list):
             data = {"taps": data}
         k = Kernel.from_dict(data, source=src)
         return k if pitch_m is None else Kernel(k.taps, pitch_m=pitch_m, name=k.name, provenance=k.provenance)
     elif suffix == ".pt":
         taps, meta = _load_pt(path)
-    else:
-        raise KernelError(f"{src}: unknown kernel file extension {suffix!r}; allowed {', '.join(_SUFFIXES)}")
     taps = np.asarray(taps)
     while taps.ndim > 2 and taps.shape[0] == 1:  # conv weights (1, 1, k, k)
         taps = taps[0]
@@ -368,7 +390,51 @@ def load_kernel(path: str | Path, *, pitch_m: float | None = None) -> Kernel:
     pitch = pitch_m if pitch_m is not None else meta.get("pitch_m", DEFAULT_PITCH_M)
     pitch = _validate_pitch(pitch, source=f"{src}: pitch_m")
     prov = meta.get("provenance", {}) or {"loaded_from": path.name}
+    if not isinstance(prov, Mapping):
+        raise KernelError(f"{src}: provenance must be a JSON object, got {type(prov).__name__}")
     return Kernel(taps, pitch_m=pitch, name=str(meta.get("name", path.stem)), provenance=prov)
+
+
+def _read_text(path: Path) -> str:
+    """The file as UTF-8 text; a :class:`KernelError` naming the file and the first bad byte otherwise."""
+    data = path.read_bytes()
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise KernelError(f"{path}: not UTF-8 text (invalid byte at offset {exc.start})") from None
+
+
+def _parse_csv(text: str, src: str) -> tuple[np.ndarray, dict[str, Any]]:
+    """Rows of comma-separated numbers; ``#`` lines are comments, the first may carry metadata.
+
+    Errors name the row and column but never echo the file's content.
+    """
+    lines = text.splitlines()
+    meta: dict[str, Any] = {}
+    if lines and lines[0].startswith("# fsdvs_hw "):
+        try:
+            meta = json.loads(lines[0][len("# fsdvs_hw "):])
+        except (json.JSONDecodeError, RecursionError):
+            raise KernelError(f"{src}: malformed '# fsdvs_hw' header line (not a JSON object)") from None
+        if not isinstance(meta, dict):
+            raise KernelError(f"{src}: malformed '# fsdvs_hw' header line (not a JSON object)")
+    rows: list[list[float]] = []
+    for n, line in enumerate(lines, start=1):
+        body = line.split("#", 1)[0].strip()
+        if not body:
+            continue
+        row = []
+        for c, cell in enumerate(body.split(","), start=1):
+            try:
+                row.append(float(cell.strip()))
+            except ValueError:
+                raise KernelError(f"{src}: line {n}, column {c} is not a number") from None
+        if rows and len(row) != len(rows[0]):
+            raise KernelError(f"{src}: line {n} has {len(row)} values, the first row {len(rows[0])}")
+        rows.append(row)
+    if not rows:
+        raise KernelError(f"{src}: no numeric rows (an empty kernel file)")
+    return np.array(rows, dtype=np.float64), meta
 
 
 def _load_pt(path: Path) -> tuple[np.ndarray, dict[str, Any]]:
@@ -376,12 +442,15 @@ def _load_pt(path: Path) -> tuple[np.ndarray, dict[str, Any]]:
 
     import torch
 
+    _TORCH_INTS = (torch.int8, torch.uint8, torch.int16, torch.int32, torch.int64)
+
     try:
         obj = torch.load(path, map_location="cpu", weights_only=True)
-    except (pickle.UnpicklingError, RuntimeError, EOFError) as exc:
+    except Exception as exc:  # noqa: BLE001 - any failure of an untrusted file is an input error
+        why = "refused by the safe unpickler" if isinstance(exc, pickle.UnpicklingError) else type(exc).__name__
         raise KernelError(
             f"{path}: could not load safely with torch.load(weights_only=True); only tensors and "
-            f"plain dicts are accepted, never arbitrary pickled objects ({str(exc).splitlines()[0]})"
+            f"plain dicts are accepted, never arbitrary pickled objects ({why})"
         ) from None
     meta: dict[str, Any] = {}
     if isinstance(obj, Mapping):
@@ -396,15 +465,22 @@ def _load_pt(path: Path) -> tuple[np.ndarray, dict[str, Any]]:
             key = tensors[0]
         tensor = obj[key]
         if "pitch_m" in obj:
-            meta["pitch_m"] = float(obj["pitch_m"])
+            meta["pitch_m"] = obj["pitch_m"]  # validated by the caller
         if "name" in obj:
             meta["name"] = str(obj["name"])
         if "provenance_json" in obj:
-            meta["provenance"] = json.loads(obj["provenance_json"])
+            try:
+                meta["provenance"] = json.loads(str(obj["provenance_json"]))
+            except (json.JSONDecodeError, RecursionError):
+                raise KernelError(f"{path}: entry 'provenance_json' is not valid JSON") from None
     else:
         tensor = obj
     if not isinstance(tensor, torch.Tensor):
         raise KernelError(f"{path}: kernel entry is a {type(tensor).__name__}, expected a tensor")
+    if tensor.is_complex():
+        raise KernelError(f"{path}: kernel taps must be real, got a complex tensor ({tensor.dtype})")
+    if tensor.dtype == torch.bool or not (tensor.is_floating_point() or tensor.dtype in _TORCH_INTS):
+        raise KernelError(f"{path}: kernel taps must be numeric, got tensor dtype {tensor.dtype}")
     return tensor.detach().to(torch.float64).cpu().numpy(), meta
 
 

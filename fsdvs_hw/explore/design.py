@@ -45,6 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError, KernelError
+from ..validation import FIT_OPTIONS
 from ..kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, REFERENCE_KERNELS, Kernel, load_kernel, reference_kernel
 
 __all__ = [
@@ -197,19 +198,6 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
         "seed": _f(int, 0, "seed for fits and noise", lo=0, hi=2**31 - 1),
     },
 }
-
-#: Options of each hardware realisation checked before the fit function is consulted.
-_REALISATION_SCHEMA: dict[str, dict[str, _Field]] = {
-    "mesh": {},
-    "asic": {
-        "bits": _f(int, 8, "tap bit-width", lo=1, hi=32),
-    },
-    "metalens": {
-        "aperture_m": _f(_NUMBER, None, "lens aperture diameter in metres", lo=1e-7, hi=1e-1, lo_open=True),
-        "focal_length_m": _f(_NUMBER, None, "lens focal length in metres", lo=1e-7, hi=1.0),
-    },
-}
-
 
 def _is_type(value: Any, types: tuple[type, ...]) -> bool:
     if isinstance(value, bool):
@@ -455,8 +443,10 @@ def _fit_signature(name: str) -> inspect.Signature | None:
 
 
 def _check_realisation_options(chk: _Checker, name: str, opts: dict[str, Any]) -> dict[str, Any]:
+    """Check one ``[realisations.<name>]`` table against :data:`fsdvs_hw.validation.FIT_OPTIONS`
+    (the table the fit functions check their arguments against, so both agree on every limit)."""
     out: dict[str, Any] = {}
-    schema = _REALISATION_SCHEMA[name]
+    schema = FIT_OPTIONS[name]
     sig = _fit_signature(name)
     params: dict[str, inspect.Parameter] = {}
     if sig is not None:
@@ -464,16 +454,13 @@ def _check_realisation_options(chk: _Checker, name: str, opts: dict[str, Any]) -
                   if i > 0 and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
     for key, value in opts.items():
         full = f"realisations.{name}.{key}"
-        if key in schema:
-            out[key] = chk.field(full, value, schema[key])
-        elif sig is not None and key not in params:
-            fn = REALISATION_FITTERS[name].split(":")[1]
-            chk.add(full, value, f"unknown option of {fn}; allowed: {', '.join(sorted(set(params) | set(schema)))}")
-        elif (name, key) in _OPTION_CLASSES and sig is not None:
+        if (name, key) in _OPTION_CLASSES:
             out[key] = value
             module, cls = _OPTION_CLASSES[(name, key)].split(":")
             if not isinstance(value, Mapping):
                 chk.add(full, value, f"must be a table of {cls} fields")
+                continue
+            if sig is None:
                 continue
             try:
                 getattr(importlib.import_module(module), cls)(**value)
@@ -481,7 +468,19 @@ def _check_realisation_options(chk: _Checker, name: str, opts: dict[str, Any]) -
                 chk.add(full, value, f"not valid {cls} fields ({exc})")
             except InputError as exc:
                 chk.add(full, value, f"invalid ({exc})")
+        elif key in schema:
+            why = schema[key].problem(value)
+            if why is None and isinstance(value, Mapping):
+                why = "cannot be given in a design file (a Python object)"
+            if why is not None:
+                chk.add(full, value, why)
+                continue
+            out[key] = schema[key].check(value, name=full)
+        elif sig is not None and key not in params:
+            fn = REALISATION_FITTERS[name].split(":")[1]
+            chk.add(full, value, f"unknown option of {fn}; allowed: {', '.join(sorted(set(params) | set(schema)))}")
         else:
+            # an option of the fit function not (yet) in the validation table: type-check only
             p = params.get(key)
             types = _option_types(p) if p is not None else None
             if types is not None:

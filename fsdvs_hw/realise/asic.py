@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..validation import check_fit_arguments
 from ..kernels import Kernel
 from .asic_arith import (
     SYMMETRIES,
@@ -627,6 +628,7 @@ def fit_asic_taps(
         Bad arguments; a fixed scale or an adder weight at which every tap rounds to zero;
         an ``input_bits`` whose accumulator would exceed the exact 63-bit model.
     """
+    check_fit_arguments("asic", locals())  # fsdvs_hw.validation: same limits as design files
     t0 = time.perf_counter()
     if not isinstance(kernel, Kernel):
         raise InputError(f"kernel: expected a fsdvs_hw Kernel, got {type(kernel).__name__}")

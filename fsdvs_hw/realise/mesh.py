@@ -54,6 +54,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..validation import check_fit_arguments
 from ..kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, _validate_pitch
 from .base import CostItem, kernel_error
 from .mesh_response import (
@@ -608,6 +609,7 @@ def fit_resistive_mesh(
         The fit is no better than a zero kernel (error ≥ 0.999: target scale out of reach), or
         IPOPT did not report success.
     """
+    check_fit_arguments("mesh", locals())  # fsdvs_hw.validation: same limits as design files
     import casadi as ca
     from scipy.optimize import lsq_linear
 

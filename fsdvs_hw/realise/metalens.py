@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..validation import check_fit_arguments
 from ..kernels import DEFAULT_PITCH_M, Kernel
 from .base import CostItem, kernel_error
 from .optics import RadialPropagator, angular_spectrum_2d, pixel_quadrature, required_modes
@@ -705,6 +706,7 @@ def fit_metalens(
     -------
     MetalensDesign
     """
+    check_fit_arguments("metalens", locals())  # fsdvs_hw.validation: same limits as design files
     import torch
 
     t0, c0 = time.perf_counter(), time.process_time()

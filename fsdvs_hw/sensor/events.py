@@ -54,7 +54,12 @@ _COUNT_EPS = {"float32": 1e-4, "float64": 1e-9, "float16": 1e-2, "bfloat16": 1e-
 
 # ---------------------------------------------------------------------------- input checks
 def prepare_video(video: Any) -> Any:
-    """Check a (B, T, H, W) linear-intensity video and return it as a floating torch tensor."""
+    """Check a (B, T, H, W) linear-intensity video and return it as a floating torch tensor.
+
+    Half-precision videos (float16, bfloat16) are promoted to float32: event counts above 65504
+    overflow float16 to inf, and CPU FFT correlation has no float16 kernel, so the simulation
+    runs (and returns its frames) in float32.
+    """
     import numpy as np
     import torch
 
@@ -69,7 +74,7 @@ def prepare_video(video: Any) -> Any:
     if video.ndim != 4:
         hint = " (add a batch axis: video[None])" if video.ndim == 3 else ""
         raise InputError(f"video: must have shape (B, T, H, W), got {video.ndim}-D shape {tuple(video.shape)}{hint}")
-    if not video.is_floating_point():
+    if not video.is_floating_point() or video.dtype in (torch.float16, torch.bfloat16):
         video = video.float()
     B, T, H, W = video.shape
     if T < 2 or B < 1 or H < 1 or W < 1:

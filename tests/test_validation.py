@@ -1,0 +1,174 @@
+"""One validation layer: design files and fit functions refuse the same bad options, before any work;
+kernels refuse values that would silently turn into something else."""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import inspect
+import math
+import time
+
+import numpy as np
+import pytest
+
+from fsdvs_hw.errors import InputError, KernelError
+from fsdvs_hw.explore.design import DesignError, parse_design
+from fsdvs_hw.kernels import Kernel, load_kernel, reference_kernel
+
+# (realisation, option, bad value): the issue's examples and NaN sizes
+BAD_OPTIONS = [
+    ("asic", "bits", 1), ("asic", "bits", 32), ("asic", "bits", 7.5), ("asic", "bits", True),
+    ("mesh", "tol", -1.0), ("mesh", "tol", 0.0), ("mesh", "fit_size", 4), ("mesh", "n_init", math.nan),
+    ("mesh", "mismatch_sigma", math.inf), ("mesh", "model", "magic"),
+    ("metalens", "strategy", "magic"), ("metalens", "aperture_m", math.nan), ("metalens", "pitch_m", math.nan),
+    ("metalens", "n_sub", math.nan), ("metalens", "window_pad", 0.0), ("metalens", "na_max", 1.0),
+    ("metalens", "n_wavelengths", "many"), ("asic", "scale", -1.0), ("asic", "adder_weight", math.nan),
+]
+
+
+FIT_FUNCTIONS = {"mesh": "fsdvs_hw.realise.mesh:fit_resistive_mesh", "asic": "fsdvs_hw.realise.asic:fit_asic_taps",
+                 "metalens": "fsdvs_hw.realise.metalens:fit_metalens"}
+
+
+def _fit_function(name):
+    module, func = FIT_FUNCTIONS[name].split(":")
+    return getattr(importlib.import_module(module), func)
+
+
+@pytest.mark.parametrize("name,key,value", BAD_OPTIONS, ids=lambda v: str(v))
+def test_design_file_refuses_a_bad_fit_option_naming_key_value_and_range(name, key, value):
+    with pytest.raises(DesignError) as info:
+        parse_design({"realisations": {name: {key: value}}})
+    msg = str(info.value)
+    assert f"realisations.{name}.{key}" in msg and "allowed" in msg
+
+
+@pytest.mark.parametrize("name,key,value", BAD_OPTIONS, ids=lambda v: str(v))
+def test_fit_function_refuses_the_same_value_before_any_work(name, key, value):
+    fit = _fit_function(name)
+    t0 = time.perf_counter()
+    with pytest.raises(InputError) as info:
+        fit(reference_kernel("dog", 5), **{key: value})
+    assert key in str(info.value)
+    assert time.perf_counter() - t0 < 2.0  # refused up front, not after a fit
+
+
+@pytest.mark.parametrize("name", sorted(FIT_FUNCTIONS))
+def test_every_fit_parameter_is_in_the_table_with_the_functions_default(name):
+    from fsdvs_hw.validation import FIT_FUNCTIONS as TABLE_FUNCTIONS, FIT_OPTIONS, check_option
+
+    assert TABLE_FUNCTIONS == FIT_FUNCTIONS
+    sig = inspect.signature(_fit_function(name))
+    params = {p.name: p.default for p in list(sig.parameters.values())[1:]}
+    assert set(params) == set(FIT_OPTIONS[name]), "validation table and fit signature differ"
+    for key, default in params.items():
+        assert FIT_OPTIONS[name][key].default == default, key
+        # the default itself passes the check
+        check_option(name, key, default)
+
+
+def test_good_options_pass_and_are_normalised():
+    from fsdvs_hw.validation import check_option
+
+    assert check_option("asic", "bits", np.int64(4)) == 4
+    assert check_option("mesh", "tol", 1) == 1.0 and isinstance(check_option("mesh", "tol", 1), float)
+    d = parse_design({"realisations": {"asic": {"bits": 4}, "mesh": {"pixel_weight": "free"}}})
+    assert d.realisation_options("asic") == {"bits": 4}
+
+
+def test_asic_bit_limits_match_the_arithmetic_module():
+    from fsdvs_hw.validation import FIT_OPTIONS
+    from fsdvs_hw.realise.asic_arith import MAX_TAP_BITS
+
+    assert FIT_OPTIONS["asic"]["bits"].hi == MAX_TAP_BITS
+    assert FIT_OPTIONS["asic"]["bits"].lo == 2
+
+
+def test_fit_metalens_does_not_ignore_a_nan_pitch():
+    from fsdvs_hw.realise.metalens import fit_metalens
+
+    with pytest.raises(InputError, match="pitch_m"):
+        fit_metalens(reference_kernel("dog", 3), pitch_m=float("nan"), max_iter=1, n_starts=1, n_wavelengths=1)
+
+
+# ---------------------------------------------------------------------- kernels: nothing silently wrong
+@pytest.mark.parametrize("taps", [
+    np.array([["2020-01-01"]], dtype="datetime64[D]"),
+    np.array([[1]], dtype="timedelta64[s]"),
+    [["1"]],
+    [[1, None, 1], [1, 1, 1], [1, 1, 1]],
+], ids=["datetime", "timedelta", "strings", "object"])
+def test_non_numeric_taps_are_refused(taps):
+    with pytest.raises(KernelError, match="numeric"):
+        Kernel(taps)
+
+
+@pytest.mark.parametrize("peak", [1e300, 1e16, 1e-300, 1e-16])
+def test_taps_that_overflow_or_vanish_in_float32_are_refused(peak):
+    with pytest.raises(KernelError, match="largest"):
+        Kernel(np.full((3, 3), peak))
+
+
+def test_extreme_but_allowed_taps_stay_finite_in_float32():
+    k = Kernel(np.full((3, 3), 1e15))
+    t = k.taps.astype(np.float32)
+    assert np.isfinite(t).all() and np.isfinite((t.astype(np.float32) ** 2).sum())
+
+
+def test_complex_pt_kernel_is_refused_not_truncated(tmp_path):
+    torch = pytest.importorskip("torch")
+    k = torch.zeros(3, 3, dtype=torch.complex64)
+    k[1, 1] = 1 + 1j
+    torch.save(k, tmp_path / "c.pt")
+    with pytest.raises(KernelError, match="complex"):
+        load_kernel(tmp_path / "c.pt")
+
+
+@pytest.mark.parametrize("suffix,content", [
+    (".npy", b""), (".npy", b"garbage"), (".npy", b"\x93NUMPY\x01\x00"),
+    (".pt", b""), (".pt", b"garbage"), (".pt", b"PK\x03\x04broken zip"),
+    (".json", b"\xff\xfe{"), (".json", b"{"), (".json", b"[" * 100000), (".json", b"{\"taps\": [[1, 2], [3]]}"),
+    (".csv", b"\xff\xfe1"), (".csv", b""), (".csv", b"1,2\n3\n"), (".csv", b"# fsdvs_hw [1]\n1\n"),
+])
+def test_malformed_kernel_files_give_one_kernel_error_naming_the_file(tmp_path, suffix, content):
+    p = tmp_path / f"bad{suffix}"
+    p.write_bytes(content)
+    with pytest.raises(KernelError) as info:
+        load_kernel(p)
+    assert str(p) in str(info.value)
+
+
+def test_kernel_file_errors_never_echo_the_files_content(tmp_path):
+    p = tmp_path / "s.csv"
+    p.write_text("1,TOPSECRET,3\n")
+    with pytest.raises(KernelError) as info:
+        load_kernel(p)
+    assert "TOPSECRET" not in str(info.value) and "line 1, column 2" in str(info.value)
+
+
+# ---------------------------------------------------------------------- half precision in the simulator
+def test_float16_video_counts_do_not_overflow_to_inf():
+    torch = pytest.importorskip("torch")
+    from fsdvs_hw.sensor import SensorConfig
+    from fsdvs_hw.sensor.events import event_frames
+
+    v = torch.full((1, 2, 8, 8), 1e-3, dtype=torch.float16)
+    v[:, 1] = 1000.0
+    cfg = dataclasses.replace(SensorConfig.ideal(), threshold_on=1e-4, threshold_off=1e-4)
+    f16 = event_frames(v, None, config=cfg)
+    f32 = event_frames(v.float(), None, config=cfg)
+    assert torch.isfinite(f16).all()
+    assert float(f32.max()) > 65504  # more events than float16 can count
+    torch.testing.assert_close(f16, f32)
+
+
+def test_float16_frames_with_an_fft_sized_kernel_work():
+    torch = pytest.importorskip("torch")
+    from fsdvs_hw.sensor.events import event_frames
+
+    g = torch.Generator().manual_seed(0)
+    v = torch.rand(1, 3, 64, 64, generator=g) + 0.1
+    out16 = event_frames(v.half(), reference_kernel("dog", 5))
+    out32 = event_frames(v.half().float(), reference_kernel("dog", 5))
+    torch.testing.assert_close(out16, out32)
