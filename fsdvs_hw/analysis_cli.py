@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 from .errors import InputError
@@ -54,13 +55,15 @@ def _parse_reference(spec: str, pitch_m: float | None):
             num = float(value)
         except ValueError:
             raise InputError(f"reference spec {spec!r}: {key} must be a number, got {value!r}") from None
+        if not math.isfinite(num):
+            raise InputError(f"reference spec {spec!r}: {key} must be finite, got {value!r}")
         if key.strip() == "size":
             if num != int(num):
                 raise InputError(f"reference spec {spec!r}: size must be an odd integer, got {value}")
             size = int(num)
         else:
             params[key.strip()] = num
-    return reference_kernel(name, size, pitch_m=pitch_m or DEFAULT_PITCH_M, **params)
+    return reference_kernel(name, size, pitch_m=DEFAULT_PITCH_M if pitch_m is None else pitch_m, **params)
 
 
 def load_kernel_or_reference(spec: str, pitch_m: float | None = None):
@@ -78,10 +81,22 @@ def load_kernel_or_reference(spec: str, pitch_m: float | None = None):
     )
 
 
+def _positive(flag: str, value: float | None, unit: str) -> float | None:
+    """``value`` unchanged when None or a positive finite number; :class:`InputError` otherwise."""
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise InputError(f"{flag} {value!r}: must be a positive finite number of {unit}")
+    return value
+
+
 def run(args: argparse.Namespace) -> int:
     from .analysis import analyse_kernel, format_analysis, write_analysis
     from .csf import CSF_METHODS, Geometry
+    from .paths import output_dir
 
+    _positive("--pitch-um", args.pitch_um, "micrometres")
+    _positive("--focal-mm", args.focal_mm, "millimetres")
+    if args.out is not None:
+        output_dir(args.out, flag="--out")  # before the analysis, not after it
     pitch_m = None if args.pitch_um is None else args.pitch_um * 1e-6
     kernel = load_kernel_or_reference(args.kernel, pitch_m)
     geometry = None

@@ -59,6 +59,10 @@ def run(args: argparse.Namespace) -> int:
     for n in names:
         if n not in BENCHMARKS:
             raise InputError(f"benchmark {n!r} unknown; allowed: {', '.join(BENCHMARKS)}, all")
+    if args.out is not None:
+        from .paths import output_file
+
+        output_file(args.out, flag="--out")  # before the benchmarks, not after them
     sections = []
     for n in names:
         t0 = time.perf_counter()
@@ -68,6 +72,5 @@ def run(args: argparse.Namespace) -> int:
         print(text, flush=True)
         sections.append(text)
     if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text("\n\n".join(sections) + "\n")
     return 0

@@ -1,5 +1,8 @@
 """The ``fsdvs-hw`` command: a thin front end (parse, call one library function, print).
 
+Errors a user can cause (bad input, a missing tool, a file or folder that cannot be read or
+written) print one line naming the file and the problem and exit with status 2, never a traceback.
+
 Each sub-command lives in its own module, registered in :data:`COMMANDS` as a dotted module
 path. A command module defines ``HELP`` (one line), ``add_arguments(parser)`` and
 ``run(args) -> int``; it imports heavy dependencies inside ``run`` so that ``--help`` is fast.
@@ -64,6 +67,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args._module.run(args) or 0)
     except (InputError, ToolMissingError) as exc:
         print(f"fsdvs-hw {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a file or folder named on the command line: missing, unreadable, full disk
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"fsdvs-hw {args.command}: error: {where}{exc.strerror or type(exc).__name__}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"fsdvs-hw {args.command}: interrupted", file=sys.stderr)

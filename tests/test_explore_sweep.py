@@ -57,7 +57,7 @@ def test_store_keeps_the_first_final_row_and_replaces_skipped(tmp_path):
         (row,) = list(s.rows())
         assert row["result"] == {"v": 1} and row["status"] == "ok"
         s.add("b", design="d", realisation="asic", params={"asic.bits": 4}, status="error", result={}, wall_s=0)
-        assert s.forget(status="error") == 1 and s.done() == {"a"}
+        assert s.forget(status="error", keys=["a", "b"]) == 1 and s.done() == {"a"}
     with ResultsStore(tmp_path / "r.sqlite") as s:  # persisted
         assert s.done() == {"a"}
 
@@ -151,12 +151,13 @@ def test_run_resume_skips_finished_points(tmp_path):
 
 
 def test_failed_point_is_recorded_with_its_reason(tmp_path):
-    d = parse_design({"realisations": {"include": ["asic"], "asic": {"bits": 1}}, "emulation": {"enabled": False}})
+    # a fixed scale at which every tap rounds to zero: valid on its own, fails only at the fit
+    d = parse_design({"realisations": {"include": ["asic"], "asic": {"scale": 1e6}}, "emulation": {"enabled": False}})
     pytest.importorskip("fsdvs_hw.realise.asic")
     (p,) = expand_points(d)
     res = evaluate_point(p)
     assert res["status"] == "error"
-    assert "bits" in res["result"]["reason"]
+    assert "all-zero" in res["result"]["reason"]
 
 
 def test_fitter_warnings_are_kept_with_the_score():
@@ -177,7 +178,7 @@ def test_failed_points_are_final_unless_retried(tmp_path):
     pytest.importorskip("fsdvs_hw.realise.asic")
     from fsdvs_hw.explore.sweep import run_design
 
-    d = parse_design({"realisations": {"include": ["asic"], "asic": {"bits": 1}}, "emulation": {"enabled": False}})
+    d = parse_design({"realisations": {"include": ["asic"], "asic": {"scale": 1e6}}, "emulation": {"enabled": False}})
     s1, rows = run_design(d, tmp_path / "e.sqlite", workers=1, progress=False)
     assert s1.statuses == {"error": 1} and rows[0]["status"] == "error"
     s2, _ = run_design(d, tmp_path / "e.sqlite", workers=1, progress=False)
@@ -278,7 +279,7 @@ def test_real_task_evaluation_gives_accuracy_loss_against_the_learned_kernel(tmp
            "realisations": {"include": ["learned", "delta"]}, "analysis": {"csf_methods": ["mannos_sakrison_1974"]},
            "emulation": {"enabled": False},
            "tasks": {"checkpoints": {"detection": str(ckpt)}, "n_test": 8}}
-    _, rows = run_design(parse_design(raw), tmp_path / "t.sqlite", workers=1, progress=False)
+    _, rows = run_design(parse_design(raw, base_dir=REPO), tmp_path / "t.sqlite", workers=1, progress=False)
     res = {r["realisation"]: r["result"]["tasks"]["detection"]["simulator"] for r in rows}
     assert all(v["status"] == "ok" and 0.0 <= v["metric"] <= 1.0 for v in res.values())
     assert res["learned"]["sensor"]["source"] == "checkpoint"
@@ -288,7 +289,7 @@ def test_real_task_evaluation_gives_accuracy_loss_against_the_learned_kernel(tmp
     raw["tasks"]["sensor"] = "design"
     raw["sensor"] = {"placement": "post_log", "threshold_on": 0.3, "threshold_off": 0.3}
     raw["realisations"]["include"] = ["learned"]
-    _, rows2 = run_design(parse_design(raw), tmp_path / "t.sqlite", workers=1, progress=False)
+    _, rows2 = run_design(parse_design(raw, base_dir=REPO), tmp_path / "t.sqlite", workers=1, progress=False)
     det = rows2[0]["result"]["tasks"]["detection"]["simulator"]
     assert det["sensor"] == {"source": "design", "threshold_on": 0.3, "threshold_off": 0.3,
                              "threshold_sigma": 0.03, "placement": "post_log", "positivity": "pedestal"}

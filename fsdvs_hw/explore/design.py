@@ -25,7 +25,7 @@ Layout (every section and key is optional; defaults in brackets)::
     [emulation]     enabled, n_clips, n_frames, display_bits, display_gamma, display_peak_nits,
                     display_black_nits, upsample_factor  (fsdvs_hw.explore.emulation)
     [sweep]         axes = { "asic.bits" = [2, 4, 8], "sensor.threshold_on" = [0.1, 0.2] }
-    [run]           workers, seed
+    [run]           workers, seed, max_points [10000]
 
 Sweep axes are dotted keys into this layout; ``"mesh.X"`` is short for ``"realisations.mesh.X"``.
 """
@@ -45,6 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError, KernelError
+from ..paths import confined_path, safe_name
 from ..validation import FIT_OPTIONS
 from ..kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, REFERENCE_KERNELS, Kernel, load_kernel, reference_kernel
 
@@ -78,6 +79,9 @@ REFERENCE_REALISATIONS: tuple[str, ...] = ("learned", "delta")
 CSF_DEFAULT_METHODS: tuple[str, ...] = ("mannos_sakrison_1974", "barten_1999", "daly_1993", "watson_ahumada_2005")
 
 _NUMBER = (int, float)
+
+#: Largest design file read (bytes).
+MAX_DESIGN_FILE_BYTES = 1 * 2**20
 
 
 @dataclass(frozen=True)
@@ -196,6 +200,8 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
     "run": {
         "workers": _f(int, 2, "local worker processes", lo=1, hi=256),
         "seed": _f(int, 0, "seed for fits and noise", lo=0, hi=2**31 - 1),
+        "max_points": _f(int, 10000, "largest sweep accepted (design points); a bigger one is refused before "
+                                     "its list is built", lo=1, hi=10**9),
     },
 }
 
@@ -288,16 +294,25 @@ class Design:
         Folder that relative paths (kernel file, checkpoints) are resolved against.
     target : Kernel
         The kernel every realisation is fitted to, at ``sensor.pitch_m``.
+    confine_paths : bool
+        Paths in the design (kernel file, checkpoints) must stay inside ``base_dir``
+        (:func:`fsdvs_hw.paths.confined_path`); always true for design files.
     """
 
     data: dict[str, Any]
     source: str
     base_dir: Path
     target: Kernel = field(repr=False)
+    confine_paths: bool = True
 
     @property
     def name(self) -> str:
         return str(self.data["design"]["name"])
+
+    @property
+    def slug(self) -> str:
+        """The name as a safe file-name stem (:func:`fsdvs_hw.paths.safe_name`): use it in paths."""
+        return safe_name(self.name)
 
     def section(self, name: str) -> dict[str, Any]:
         """A copy of one section (``"sensor"``, ``"realisations.asic"``, ...)."""
@@ -316,7 +331,8 @@ class Design:
 
     def checkpoints(self) -> dict[str, Path]:
         """Task name → absolute checkpoint path."""
-        return {t: _resolve(self.base_dir, p) for t, p in self.data["tasks"]["checkpoints"].items()}
+        return {t: _resolve(self.base_dir, p, what=f"tasks.checkpoints.{t}", confine=self.confine_paths)
+                for t, p in self.data["tasks"]["checkpoints"].items()}
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> Design:
         """A new, re-validated design with dotted keys replaced (``{"asic.bits": 4}``)."""
@@ -324,7 +340,8 @@ class Design:
         for key, value in overrides.items():
             _set_dotted(data, _canonical_key(key), value)
         data["sweep"] = {"axes": {}}
-        return parse_design(data, source=f"{self.source} with {dict(overrides)}", base_dir=self.base_dir)
+        return parse_design(data, source=f"{self.source} with {dict(overrides)}", base_dir=self.base_dir,
+                            confine_paths=self.confine_paths)
 
     def fingerprint(self) -> str:
         """SHA-1 over the validated content and the target taps (changes when any input changes)."""
@@ -335,7 +352,9 @@ class Design:
         return copy.deepcopy(self.data)
 
 
-def _resolve(base: Path, path: str) -> Path:
+def _resolve(base: Path, path: str, *, what: str, confine: bool) -> Path:
+    if confine:
+        return confined_path(base, path, what=what)
     p = Path(path)
     return (p if p.is_absolute() else base / p).resolve()
 
@@ -374,15 +393,31 @@ def load_design(path: str | Path) -> Design:
     if not path.is_file():
         raise DesignError(f"{path}: design file not found")
     try:
-        raw = tomllib.loads(path.read_text())
+        blob = path.read_bytes() if path.stat().st_size <= MAX_DESIGN_FILE_BYTES else None
+    except OSError as exc:
+        raise DesignError(f"{path}: cannot read the design file ({exc.strerror})") from None
+    if blob is None:
+        raise DesignError(f"{path}: larger than {MAX_DESIGN_FILE_BYTES} bytes; not a design file")
+    try:
+        raw = tomllib.loads(blob.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise DesignError(f"{path}: not UTF-8 text (invalid byte at offset {exc.start})") from None
     except tomllib.TOMLDecodeError as exc:
         raise DesignError(f"{path}: not valid TOML ({exc})") from None
+    except RecursionError:
+        raise DesignError(f"{path}: not valid TOML (nested too deeply)") from None
     raw.setdefault("design", {}).setdefault("name", path.stem)
     return parse_design(raw, source=str(path), base_dir=path.parent)
 
 
-def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: str | Path = ".") -> Design:
-    """Validate a design given as nested mappings (what :func:`load_design` reads from TOML)."""
+def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: str | Path = ".",
+                 confine_paths: bool = True) -> Design:
+    """Validate a design given as nested mappings (what :func:`load_design` reads from TOML).
+
+    Relative paths are resolved against ``base_dir``; with ``confine_paths`` (the default, and
+    always for design files) every path must stay inside it. Pass ``confine_paths=False`` only
+    for designs built in your own code that point at files elsewhere.
+    """
     chk = _Checker(source)
     if not isinstance(raw, Mapping):
         raise DesignError(f"{source}: a design must be a table, got {type(raw).__name__}")
@@ -421,15 +456,15 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
         data["design"]["name"] = "design"
     base = Path(base_dir)
     _check_cross(chk, data)
-    _check_tasks(chk, data, base)
+    _check_tasks(chk, data, base, confine_paths)
     _check_axes(chk, data)
-    target = _load_target(chk, data, base)
+    target = _load_target(chk, data, base, confine_paths)
     if target is not None and target.size > min(data["sensor"]["resolution"]):
         chk.add("sensor.resolution", data["sensor"]["resolution"],
                 f"smaller than the {target.size}x{target.size} kernel; allowed: at least {target.size} px each way")
     chk.raise_if_any()
     assert target is not None
-    return Design(data=data, source=source, base_dir=base, target=target)
+    return Design(data=data, source=source, base_dir=base, target=target, confine_paths=confine_paths)
 
 
 def _fit_signature(name: str) -> inspect.Signature | None:
@@ -541,7 +576,7 @@ def _check_cross(chk: _Checker, data: dict[str, Any]) -> None:
         chk.add("realisations.include", data["realisations"]["include"], "lists a realisation twice")
 
 
-def _check_tasks(chk: _Checker, data: dict[str, Any], base: Path) -> None:
+def _check_tasks(chk: _Checker, data: dict[str, Any], base: Path, confine: bool) -> None:
     """Each task must be a registered evaluator and its checkpoint must exist."""
     ckpts = data["tasks"]["checkpoints"]
     if not ckpts:
@@ -558,11 +593,40 @@ def _check_tasks(chk: _Checker, data: dict[str, Any], base: Path) -> None:
         if not isinstance(path, str):
             chk.add(key, path, "must be a path string to a .safetensors checkpoint")
             continue
-        p = _resolve(base, path)
+        try:
+            p = _resolve(base, path, what=key, confine=confine)
+        except InputError as exc:
+            chk.add(key, path, str(exc).split(": ", 1)[-1])
+            continue
         if p.suffix != ".safetensors":
             p = p.with_suffix(".safetensors") if p.suffix == ".json" else Path(str(p) + ".safetensors")
         if not p.is_file():
             chk.add(key, path, f"checkpoint file not found (looked for {p})")
+        else:
+            why = _safetensors_problem(p)
+            if why is not None:
+                chk.add(key, path, f"not a usable checkpoint ({why})")
+
+
+def _safetensors_problem(path: Path) -> str | None:
+    """Why ``path`` is not a safetensors file with a ``kernel`` tensor (header only, no torch), or None."""
+    try:
+        size = path.stat().st_size
+        with path.open("rb") as fh:
+            head = fh.read(8)
+            if len(head) < 8:
+                return "shorter than a safetensors header"
+            n = int.from_bytes(head, "little")
+            if not 2 <= n <= min(size - 8, 100 * 2**20):
+                return "not a safetensors file (bad header length)"
+            header = json.loads(fh.read(n).decode("utf-8"))
+    except OSError as exc:
+        return f"cannot read: {exc.strerror}"
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):
+        return "not a safetensors file (header is not JSON)"
+    if not isinstance(header, dict) or "kernel" not in header:
+        return "no 'kernel' tensor: not written by fsdvs_hw learn"
+    return None
 
 
 
@@ -601,15 +665,18 @@ def _check_axes(chk: _Checker, data: dict[str, Any]) -> None:
             chk.problems.extend(p.replace(f"key '{ckey}'", f"key '{full}'") for p in sub.problems)
 
 
-def _load_target(chk: _Checker, data: dict[str, Any], base: Path) -> Kernel | None:
+def _load_target(chk: _Checker, data: dict[str, Any], base: Path, confine: bool) -> Kernel | None:
     k = data["kernel"]
     pitch = data["sensor"]["pitch_m"]
     try:
         if k["source"] == "file":
             if not k["path"]:
                 return None
-            path = Path(k["path"])
-            path = path if path.is_absolute() else base / path
+            try:
+                path = _resolve(base, k["path"], what="kernel.path", confine=confine)
+            except InputError as exc:
+                chk.add("kernel.path", k["path"], str(exc).split(": ", 1)[-1])
+                return None
             if not path.is_file():
                 chk.add("kernel.path", k["path"], f"kernel file not found (looked for {path})")
                 return None

@@ -13,19 +13,22 @@ processes or Dask workers on other machines) return results to it.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import socket
 import sqlite3
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..paths import output_file
 
 __all__ = ["ResultsStore", "StoredPoint"]
 
 _SCHEMA_VERSION = 1
+_COLUMNS = ["key", "design", "realisation", "params", "status", "result", "wall_s", "finished_at", "host", "worker"]
 
 _DDL = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -69,20 +72,32 @@ class ResultsStore:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        output_file(self.path, flag="results store")
         try:
             self._db = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
+        except sqlite3.Error as exc:
+            raise InputError(f"{self.path}: cannot open the results store ({exc})") from None
+        try:
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.executescript(_DDL)
-        except sqlite3.DatabaseError as exc:
+            row = self._db.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
+            if row is None:
+                self._db.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(_SCHEMA_VERSION),))
+            elif str(row[0]) != str(_SCHEMA_VERSION):
+                raise InputError(f"{self.path}: results store schema version {str(row[0])[:20]!r}, this fsdvs_hw "
+                                 f"writes {_SCHEMA_VERSION}; use a new --store file")
+            cols = [r[1] for r in self._db.execute("PRAGMA table_info(points)")]
+            if cols != _COLUMNS:
+                raise InputError(f"{self.path}: has a 'points' table of another layout; not an fsdvs_hw results "
+                                 "store (use a new --store file)")
+        except sqlite3.Error as exc:
+            self._db.close()
+            # sqlite's message ("file is not a database") never quotes the file's content
             raise InputError(f"{self.path}: not a usable results store ({exc})") from None
-        row = self._db.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
-        if row is None:
-            self._db.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(_SCHEMA_VERSION),))
-        elif int(row[0]) != _SCHEMA_VERSION:
-            raise InputError(f"{self.path}: results store schema version {row[0]}, this fsdvs_hw writes "
-                             f"{_SCHEMA_VERSION}; use a new --store file")
+        except InputError:
+            self._db.close()
+            raise
 
     # ------------------------------------------------------------------ writing
     def add(self, key: str, *, design: str, realisation: str, params: Mapping[str, Any], status: str,
@@ -121,9 +136,27 @@ class ResultsStore:
         """Keys of finished points (every status except ``"skipped"``, which a rerun retries)."""
         return {r[0] for r in self._db.execute("SELECT key FROM points WHERE status != 'skipped'")}
 
-    def forget(self, *, status: str) -> int:
-        """Delete all points with ``status`` (e.g. ``"error"`` to retry failures); returns how many."""
-        return self._db.execute("DELETE FROM points WHERE status=?", (status,)).rowcount
+    def forget(self, *, status: str, keys: Iterable[str]) -> int:
+        """Delete the points among ``keys`` stored with ``status`` (``"error"`` to retry failures).
+
+        Only the given keys are touched (a store may hold other designs' points, which are never
+        deleted). Returns how many rows were deleted.
+        """
+        n = 0
+        with self._transaction():
+            for key in keys:
+                n += self._db.execute("DELETE FROM points WHERE status=? AND key=?", (status, key)).rowcount
+        return n
+
+    @contextlib.contextmanager
+    def _transaction(self) -> Iterator[None]:
+        self._db.execute("BEGIN IMMEDIATE")
+        try:
+            yield
+        except BaseException:
+            self._db.execute("ROLLBACK")
+            raise
+        self._db.execute("COMMIT")
 
     def __len__(self) -> int:
         return int(self._db.execute("SELECT COUNT(*) FROM points").fetchone()[0])

@@ -22,6 +22,7 @@ import argparse
 import hashlib
 import itertools
 import json
+import math
 import os
 import socket
 import sys
@@ -39,6 +40,8 @@ from .store import ResultsStore
 
 __all__ = [
     "DesignPoint",
+    "count_points",
+    "check_sweep_size",
     "expand_points",
     "evaluate_point",
     "run_points",
@@ -48,6 +51,9 @@ __all__ = [
     "add_arguments",
     "run",
 ]
+
+#: Python objects (dicts, lists, strings) take about this many bytes per character of their JSON form.
+_BYTES_PER_JSON_CHAR = 8
 
 #: Design sections whose content decides every point's result (others only organise the run).
 _SCORED_SECTIONS = ("kernel", "sensor", "optics", "analysis", "tasks", "emulation")
@@ -100,12 +106,50 @@ def _point_key(realisation: str, design: Design) -> str:
     return hashlib.sha1(blob.encode()).hexdigest()[:20]
 
 
-def expand_points(design: Design) -> list[DesignPoint]:
+def count_points(design: Design) -> int:
+    """How many design points :func:`expand_points` builds at most (before removing duplicates).
+
+    Computed from the axis lengths alone: (product of the global axes) × Σ over realisations of
+    (product of that realisation's axes).
+    """
+    axes = axis_values(design)
+    n_global = math.prod(len(v) for k, v in axes.items() if not k.startswith("realisations."))
+    per_real = sum(math.prod(len(v) for k, v in axes.items() if k.startswith(f"realisations.{name}."))
+                   for name in design.realisations)
+    return n_global * per_real
+
+
+def check_sweep_size(design: Design, max_points: int | None = None) -> int:
+    """Refuse a sweep larger than ``max_points`` (default: the design's ``[run] max_points``) before
+    building it; return its point count.
+
+    Raises
+    ------
+    InputError
+        With the point count, the memory its list would take (estimated from one point's size) and
+        the limit, and how to raise it.
+    """
+    limit = int(design.data["run"]["max_points"] if max_points is None else max_points)
+    n = count_points(design)
+    if n > limit:
+        one = len(json.dumps({"data": design.data, "target": design.target.to_dict()}, default=str))
+        gib = n * one * _BYTES_PER_JSON_CHAR / 2**30
+        raise InputError(
+            f"{design.source}: the sweep has {n:,} design points (about {gib:.3g} GiB to hold their list, "
+            f"and each is validated before it runs), more than the limit of {limit:,}; raise it with "
+            f"[run] max_points or --max-points if that is what you mean")
+    return n
+
+
+def expand_points(design: Design, *, max_points: int | None = None) -> list[DesignPoint]:
     """All design points of a design, in a stable order (references first).
 
     Every point's design is re-validated with its axis values before anything runs, so a bad value
-    on any axis fails here, naming the axis.
+    on any axis fails here, naming the axis. A sweep of more than ``max_points`` points (default
+    the design's ``[run] max_points``) is refused before anything is built
+    (:func:`check_sweep_size`).
     """
+    check_sweep_size(design, max_points)
     axes = axis_values(design)
     global_axes = {k: v for k, v in axes.items() if not k.startswith("realisations.")}
     points: list[DesignPoint] = []
@@ -272,12 +316,12 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
 
 def _run_pool(todo: Sequence[DesignPoint], workers: int,
               finish: Callable[[DesignPoint, dict[str, Any]], None]) -> None:
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import as_completed
+
+    from ..workers import process_pool
 
     os.environ.setdefault("FSDVS_SWEEP_THREADS", "1")
-    ctx = mp.get_context("spawn")  # fork after torch/BLAS threads started can deadlock
-    pool = ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx)
+    pool = process_pool(min(workers, len(todo)))  # workers die with this process (no orphans)
     futures = {pool.submit(evaluate_point, p): p for p in todo}
     try:
         for fut in as_completed(futures):
@@ -310,21 +354,25 @@ def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
 
 
 def run_design(design: Design, store_path: str | Path, *, workers: int | None = None, scheduler: str | None = None,
-               progress: bool = True, retry_errors: bool = False) -> tuple[SweepSummary, list[dict[str, Any]]]:
+               progress: bool = True, retry_errors: bool = False, max_points: int | None = None,
+               points: Sequence[DesignPoint] | None = None) -> tuple[SweepSummary, list[dict[str, Any]]]:
     """Run all points of ``design`` into the store at ``store_path``; return the summary and its rows.
 
     The rows are this design's points only (a store may hold other designs too), in the order of
     :func:`expand_points`, each a dict with ``key, realisation, params, status, result, wall_s, ...``.
-    Points stored as failed are final unless ``retry_errors`` (then they are deleted and rerun).
+    Points stored as failed are final unless ``retry_errors``: then this design's failed points
+    (and no other design's) are deleted and rerun. ``points`` (from :func:`expand_points`) saves
+    building the list again; ``max_points`` overrides the design's ``[run] max_points``.
     """
-    points = expand_points(design)
+    if points is None:
+        points = expand_points(design, max_points=max_points)
     workers = design.data["run"]["workers"] if workers is None else workers
-    if workers < 1:
-        raise InputError(f"workers must be ≥ 1, got {workers}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
+        raise InputError(f"workers must be an integer in 1..256, got {workers!r}")
     with ResultsStore(store_path) as store:
         store.set_meta(f"design:{design.name}", design.to_dict())
         if retry_errors:
-            store.forget(status="error")
+            store.forget(status="error", keys=[p.key for p in points])
         summary = run_points(points, store, workers=workers, scheduler=scheduler, progress=progress)
         order = {p.key: i for i, p in enumerate(points)}
         rows = sorted((dict(r) for r in store.rows() if r["key"] in order), key=lambda r: order[r["key"]])
@@ -349,7 +397,10 @@ def add_execution_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run on a Dask distributed scheduler instead of local processes")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--retry-errors", action="store_true",
-                        help="rerun points stored as failed (finished points are always kept)")
+                        help="rerun this design's points stored as failed (finished points, and other "
+                             "designs' points in the same store, are always kept)")
+    parser.add_argument("--max-points", type=int, default=None, metavar="N",
+                        help="refuse sweeps of more than N design points (default: [run] max_points)")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -362,12 +413,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..paths import output_dir, output_file
+
     design = load_design(args.design)
-    store_path = args.store or Path("out") / "sweeps" / f"{design.name}.sqlite"
-    print(f"[sweep] {design.name}: {len(expand_points(design))} design points -> {store_path}", file=sys.stderr,
-          flush=True)
+    # the design's name is text, not a path: its safe form names the default store
+    store_path = output_file(args.store or Path("out") / "sweeps" / f"{design.slug}.sqlite", flag="--store")
+    if args.report is not None:
+        output_dir(args.report, flag="--report")
+    points = expand_points(design, max_points=args.max_points)
+    print(f"[sweep] {design.name}: {len(points)} design points -> {store_path}", file=sys.stderr, flush=True)
     summary, rows = run_design(design, store_path, workers=args.workers, scheduler=args.scheduler,
-                               progress=not args.no_progress, retry_errors=args.retry_errors)
+                               progress=not args.no_progress, retry_errors=args.retry_errors, points=points)
     print(f"[sweep] {summary}", file=sys.stderr, flush=True)
     if args.report is not None:
         from ..report import write_report

@@ -419,8 +419,8 @@ class SynthesisReport:
         return asdict(self)
 
 
-def _synth_script(top: str, liberty: Path) -> str:
-    lib = str(liberty)
+def _synth_script(top: str, liberty: str) -> str:
+    lib = liberty
     return "; ".join([
         "read_verilog -sv dut.v",
         f"synth -flatten -top {top}",
@@ -448,6 +448,11 @@ def synthesise_verilog(source: str, *, top: str = "fsdvs_conv", liberty: str | P
     liberty : path, optional
         Liberty file (default :data:`LIBERTY_PATH`; its areas must be in µm²).
     """
+    # top goes into a yosys script, where ';' separates commands and '!' runs a shell: only a
+    # Verilog identifier is accepted; the liberty file is copied under a fixed name for the same reason
+    if not isinstance(top, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,127}", top):
+        raise InputError(f"top: {str(top)[:80]!r} is not a Verilog identifier ([A-Za-z_][A-Za-z0-9_]*, ≤ 128 "
+                         "characters)")
     yosys = _tool("yosys")
     lib = Path(liberty) if liberty is not None else LIBERTY_PATH
     if not lib.is_file():
@@ -455,8 +460,9 @@ def synthesise_verilog(source: str, *, top: str = "fsdvs_conv", liberty: str | P
     with tempfile.TemporaryDirectory(prefix="fsdvs_syn_") as tmp:
         d = Path(tmp)
         (d / "dut.v").write_text(source)
+        shutil.copyfile(lib, d / "cells.lib")
         t0 = time.perf_counter()
-        _run([yosys, "-q", "-p", _synth_script(top, lib.resolve())], d, timeout_s)
+        _run([yosys, "-q", "-p", _synth_script(top, "cells.lib")], d, timeout_s)
         wall = time.perf_counter() - t0
         stat = (d / "stat.txt").read_text()
         ver = subprocess.run([yosys, "-V"], capture_output=True, text=True).stdout.strip()

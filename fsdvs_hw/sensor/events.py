@@ -42,6 +42,7 @@ from typing import Any
 import torch
 
 from ..errors import InputError
+from ..limits import check_allocation
 from .config import SensorConfig
 from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
 from .pixel import effect_generator, lowpass_step, threshold_maps
@@ -590,10 +591,16 @@ def voxel_grid(events_or_frames: Any, n_bins: int, *, timestamps_s: Any = None,
     signed : bool
         True: one channel ON − OFF, shape (B, n_bins, H, W). False: ON and OFF channels,
         shape (B, n_bins, 2, H, W).
+
+    Raises
+    ------
+    InputError
+        Bad arguments, or a grid larger than the allocation limit (:mod:`fsdvs_hw.limits`, 1 GiB
+        by default), refused with its size before anything is allocated.
     """
     import torch
 
-    if not isinstance(n_bins, int) or n_bins < 1:
+    if not isinstance(n_bins, int) or isinstance(n_bins, bool) or n_bins < 1:
         raise InputError(f"n_bins: must be a positive integer, got {n_bins!r}")
     if isinstance(events_or_frames, EventList):
         ev = events_or_frames
@@ -602,6 +609,8 @@ def voxel_grid(events_or_frames: Any, n_bins: int, *, timestamps_s: Any = None,
         ts = torch.as_tensor(timestamps_s, dtype=torch.float64).reshape(-1)
         t0, t1 = float(ts[0]), float(ts[-1])
         B = int(ev.b.max()) + 1 if len(ev) else 1
+        check_allocation(f"voxel_grid (B={B}, n_bins={n_bins}, 2, H={height}, W={width}, float64)",
+                         8.0 * B * n_bins * 2 * height * width)
         out = torch.zeros((B, n_bins, 2, height, width), dtype=torch.float64)
         if len(ev):
             pos = (ev.t - t0) / (t1 - t0) * (n_bins - 1) if n_bins > 1 else torch.zeros_like(ev.t)
@@ -623,6 +632,9 @@ def voxel_grid(events_or_frames: Any, n_bins: int, *, timestamps_s: Any = None,
             if ts.numel() != n_int + 1:
                 raise InputError(f"timestamps_s: needs {n_int + 1} frame times for {n_int} intervals")
         t0, t1 = float(ts[0]), float(ts[-1])
+        B, _, _, H, W = frames.shape
+        check_allocation(f"voxel_grid (B={B}, n_bins={n_bins}, 2, H={H}, W={W}, {frames.dtype})",
+                         float(frames.element_size()) * B * n_bins * 2 * H * W)
         width_s = (t1 - t0) / max(n_bins - 1, 1)
         centres = torch.linspace(t0, t1, n_bins, dtype=torch.float64) if n_bins > 1 else torch.tensor([t0])
         a, b = ts[:-1, None], ts[1:, None]

@@ -23,7 +23,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +31,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels import Kernel
+from ..workers import process_pool
 
 __all__ = ["run_ablation", "kernel_shape", "ablation_markdown", "transfer_markdown", "run_transfer",
            "HELP", "add_arguments", "run"]
@@ -118,7 +119,7 @@ def _map(jobs: list[dict[str, Any]], workers: int, fn: Any = None, log_path: Pat
         for j in jobs:
             _keep(fn(j))
         return out
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    with process_pool(workers) as pool:  # spawned workers that die with this process
         futures = [pool.submit(fn, j) for j in jobs]
         for fut in as_completed(futures):
             _keep(fut.result())
@@ -324,13 +325,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="do not train: rebuild the tables from a runs.jsonl written earlier")
 
 
+def _read_runs(path: Path) -> list[dict[str, Any]]:
+    """Records of a ``runs.jsonl`` log; :class:`InputError` naming the file and line otherwise."""
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"--from-runs {path}: not UTF-8 text (invalid byte at offset {exc.start})") from None
+    recs = []
+    for n, line in enumerate(text.splitlines(), start=1):
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line)
+        except (json.JSONDecodeError, RecursionError):
+            raise InputError(f"--from-runs {path}: line {n} is not a JSON record") from None
+        if not isinstance(rec, dict) or not isinstance(rec.get("task"), str):
+            raise InputError(f"--from-runs {path}: line {n} is not a run record (needs a 'task' field)")
+        recs.append(rec)
+    return recs
+
+
 def run(args: argparse.Namespace) -> int:
     from ..kernels import load_kernel
+    from ..paths import output_dir
 
     if args.from_runs is not None:
         if not args.from_runs.is_file():
             raise InputError(f"--from-runs: {str(args.from_runs)!r} not found")
-        recs = [json.loads(line) for line in args.from_runs.read_text().splitlines() if line.strip()]
+        recs = _read_runs(args.from_runs)
         main = [r for r in recs if r["task"] != "segmentation"]
         seg = [r for r in recs if r["task"] == "segmentation"]
         text = ablation_markdown(main) if main else ""
@@ -346,8 +368,10 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     log_path = None
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
+        output_dir(args.out, flag="--out")  # checked before hours of training
         log_path = args.out / "runs.jsonl"
+    if args.ship_dir is not None:
+        output_dir(args.ship_dir, flag="--ship-dir")
     if args.transfer_only and not args.transfer:
         raise InputError("--transfer-only needs --transfer KERNEL")
     records = [] if args.transfer_only else run_ablation(

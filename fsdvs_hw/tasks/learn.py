@@ -530,8 +530,10 @@ def load_checkpoint(checkpoint: str | Path) -> tuple[dict[str, Any], dict[str, A
                          f"(this library reads version {_CHECKPOINT_VERSION})")
     try:
         provenance = json.loads(meta["provenance"])
-    except (KeyError, json.JSONDecodeError) as exc:
+    except (KeyError, json.JSONDecodeError, RecursionError) as exc:
         raise InputError(f"checkpoint {str(path)!r}: metadata 'provenance' missing or not JSON ({exc})") from None
+    if not isinstance(provenance, dict):
+        raise InputError(f"checkpoint {str(path)!r}: metadata 'provenance' is not a JSON object")
     if "kernel" not in tensors:
         raise InputError(f"checkpoint {str(path)!r}: tensor 'kernel' missing")
     state = {k[len("network."):]: v for k, v in tensors.items() if k.startswith("network.")}

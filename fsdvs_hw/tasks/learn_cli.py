@@ -34,8 +34,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import torch
 
+    from ..paths import output_file
     from .learn import TrainingSettings, learn_kernel
 
+    if args.out is not None:  # checked before training: STEM.json etc. must be writable
+        output_file(Path(str(args.out) + ".json"), flag="--out")
     torch.set_num_threads(1)
     kw = {k: v for k, v in (("epochs_frozen", args.epochs_frozen), ("epochs_joint", args.epochs_joint),
                             ("lr_filter", args.lr_filter)) if v is not None}

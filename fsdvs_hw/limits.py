@@ -1,0 +1,73 @@
+"""Size limits checked before a large allocation: refuse with the figure and the limit.
+
+A typo (``n_bins = 1000000``) should cost an error message, not minutes of swapping and a killed
+machine. Functions that allocate an array whose size follows from user input estimate it first
+and call :func:`check_allocation`, which raises an :class:`~fsdvs_hw.errors.InputError` naming
+what would be allocated, its size and the limit.
+
+The limit is :data:`DEFAULT_MAX_ALLOC_BYTES` (1 GiB); override it for one process with the
+environment variable ``FSDVS_MAX_ALLOC_BYTES`` (bytes, e.g. ``FSDVS_MAX_ALLOC_BYTES=34359738368``
+for 32 GiB) or for one block of code with :func:`allocation_limit`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import os
+from collections.abc import Iterator
+
+from .errors import InputError
+
+__all__ = ["DEFAULT_MAX_ALLOC_BYTES", "max_alloc_bytes", "allocation_limit", "check_allocation"]
+
+#: Largest single array allocated without an explicit override (bytes).
+DEFAULT_MAX_ALLOC_BYTES: int = 2**30
+
+_ENV = "FSDVS_MAX_ALLOC_BYTES"
+_override: contextvars.ContextVar[int | None] = contextvars.ContextVar("fsdvs_max_alloc_bytes", default=None)
+
+
+def max_alloc_bytes() -> int:
+    """The limit in force: :func:`allocation_limit` block, else ``$FSDVS_MAX_ALLOC_BYTES``, else the default."""
+    v = _override.get()
+    if v is not None:
+        return v
+    env = os.environ.get(_ENV)
+    if env is None:
+        return DEFAULT_MAX_ALLOC_BYTES
+    try:
+        n = int(float(env))
+    except ValueError:
+        raise InputError(f"${_ENV}={env[:40]!r}: must be a number of bytes") from None
+    if n < 1:
+        raise InputError(f"${_ENV}={env[:40]!r}: must be a positive number of bytes")
+    return n
+
+
+@contextlib.contextmanager
+def allocation_limit(n_bytes: int) -> Iterator[None]:
+    """Use ``n_bytes`` as the allocation limit inside the ``with`` block (this thread/task only)."""
+    if isinstance(n_bytes, bool) or not isinstance(n_bytes, int) or n_bytes < 1:
+        raise InputError(f"allocation_limit: n_bytes must be a positive integer, got {n_bytes!r}")
+    token = _override.set(n_bytes)
+    try:
+        yield
+    finally:
+        _override.reset(token)
+
+
+def check_allocation(what: str, n_bytes: int | float) -> None:
+    """Raise :class:`InputError` when allocating ``n_bytes`` for ``what`` would exceed the limit.
+
+    Parameters
+    ----------
+    what : str
+        What would be allocated, with the sizes that decide it (``"voxel_grid (B=1, n_bins=1e6, ...)"``).
+    n_bytes : int or float
+        Estimated size in bytes.
+    """
+    limit = max_alloc_bytes()
+    if n_bytes > limit:
+        raise InputError(f"{what}: would allocate {n_bytes / 2**30:.3g} GiB, more than the limit of "
+                         f"{limit / 2**30:.3g} GiB (raise it with ${_ENV} or fsdvs_hw.limits.allocation_limit)")

@@ -1,0 +1,108 @@
+"""Paths from untrusted places: confine them to their folder, sanitise names, check output folders.
+
+A design file may come from anyone (a colleague, a downloaded sweep), so every path it names
+(kernel file, task checkpoints) must stay inside the design's own folder: ``../`` and absolute
+paths that leave it, and symbolic links that point out of it, are refused with an
+:class:`~fsdvs_hw.errors.InputError`. Names that are not paths (``[design] name``) are turned
+into safe file names by :func:`safe_name` before they become part of a path. Output folders and
+files given on the command line are checked before any work (exists as a file? writable?) so a
+long run never fails at its last step.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+from pathlib import Path
+
+from .errors import InputError
+
+__all__ = ["safe_name", "confined_path", "output_dir", "output_file", "MAX_NAME_LENGTH"]
+
+#: Longest file-name stem :func:`safe_name` returns (characters).
+MAX_NAME_LENGTH = 64
+
+_UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
+
+
+def safe_name(name: str, *, fallback: str = "design") -> str:
+    """A file-name stem made from ``name``: letters, digits, ``.``, ``_`` and ``-`` only.
+
+    Anything else (``/``, ``\\``, ``..`` at the start, spaces, control characters) becomes ``_``;
+    leading dots are removed so the result is never ``.``, ``..`` or hidden. When the name had to
+    change, 8 hex digits of its SHA-1 are appended so that two different names never share a file.
+
+    Examples
+    --------
+    >>> safe_name("sweep_asic_bits")
+    'sweep_asic_bits'
+    >>> safe_name("../../etc/x").startswith("etc_x-")
+    True
+    """
+    text = str(name)
+    slug = _UNSAFE.sub("_", text).strip("._-")[:MAX_NAME_LENGTH] or fallback
+    if slug != text:
+        slug = f"{slug}-{hashlib.sha1(text.encode('utf-8', 'surrogatepass')).hexdigest()[:8]}"
+    return slug
+
+
+def confined_path(base: str | Path, path: str | Path, *, what: str) -> Path:
+    """``path`` resolved against ``base``; refused unless it stays inside ``base``.
+
+    Parameters
+    ----------
+    base : path
+        The folder the path must stay in (a design file's folder).
+    path : str or Path
+        Relative (to ``base``) or absolute path; symbolic links are followed before the check.
+    what : str
+        Name used in the message (``"kernel.path"``).
+
+    Raises
+    ------
+    InputError
+        The path (after ``..`` and links are resolved) lies outside ``base``, or contains a NUL byte.
+    """
+    text = str(path)
+    if "\x00" in text:
+        raise InputError(f"{what}: path contains a NUL byte")
+    root = Path(base).resolve()
+    p = Path(text)
+    resolved = (p if p.is_absolute() else root / p).resolve()
+    if resolved != root and root not in resolved.parents:
+        raise InputError(f"{what} = {text!r}: resolves to {resolved}, outside the design's folder {root}; "
+                         "paths in a design file must stay inside its folder (copy the file there)")
+    return resolved
+
+
+def output_dir(path: str | Path, *, flag: str = "--out") -> Path:
+    """Create the output folder ``path`` (with parents) and check that files can be written in it.
+
+    Raises
+    ------
+    InputError
+        ``path`` (or a parent) is an existing file, cannot be created, or is not writable; the
+        message names the flag, the path and the problem.
+    """
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise InputError(f"{flag} {p}: exists and is not a folder")
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{flag} {p}: cannot create the folder ({exc.strerror or type(exc).__name__})") from None
+    if not os.access(p, os.W_OK | os.X_OK):
+        raise InputError(f"{flag} {p}: folder is not writable")
+    return p
+
+
+def output_file(path: str | Path, *, flag: str) -> Path:
+    """Check an output file path: its folder is created and writable, and it is not a folder itself."""
+    p = Path(path)
+    if p.is_dir():
+        raise InputError(f"{flag} {p}: is a folder, expected a file path")
+    output_dir(p.parent if str(p.parent) else Path("."), flag=flag)
+    if p.exists() and not os.access(p, os.W_OK):
+        raise InputError(f"{flag} {p}: file is not writable")
+    return p
