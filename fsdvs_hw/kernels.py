@@ -277,7 +277,7 @@ class Kernel:
             raise KernelError(f"{source}: missing field 'taps' (a list of rows)")
         fmt = data.get("format", _FORMAT_TAG)
         if fmt != _FORMAT_TAG:
-            raise KernelError(f"{source}: field 'format' is {fmt!r}, expected {_FORMAT_TAG!r}")
+            raise KernelError(f"{source}: field 'format' is not {_FORMAT_TAG!r}: not an fsdvs_hw kernel file")
         taps = _validate_taps(data["taps"], source=f"{source}: field 'taps'")
         pitch = _validate_pitch(data.get("pitch_m", DEFAULT_PITCH_M), source=f"{source}: field 'pitch_m'")
         prov = data.get("provenance", {})

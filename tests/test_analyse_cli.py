@@ -39,7 +39,7 @@ def test_analyse_file_json_output(tmp_path, capsys):
         (["analyse", "dog:sigma=abc"], "must be a number"),
         (["analyse", "spiral"], "neither a kernel file"),
         (["analyse", "dog", "--csf", "nope"], "unknown"),
-        (["analyse", "dog", "--focal-mm", "-3"], "focal_length_m"),
+        (["analyse", "dog", "--focal-mm", "-3"], "--focal-mm"),
     ],
 )
 def test_analyse_bad_input_is_one_clear_line(argv, fragment, capsys):

@@ -358,3 +358,66 @@ def test_sweep_workers_die_when_the_main_process_is_killed(tmp_path):
                 pass
         if proc.poll() is None:
             proc.kill()
+
+
+# ---------------------------------------------------------------------- Dask with TLS
+def _make_certs(d: Path) -> tuple[Path, Path, Path]:
+    """A throw-away CA and one certificate signed by it (for 127.0.0.1), with openssl."""
+    import shutil
+
+    if shutil.which("openssl") is None:
+        pytest.skip("openssl not installed")
+    ca_key, ca, key, csr, cert = (d / n for n in ("ca.key", "ca.pem", "node.key", "node.csr", "node.pem"))
+    run = lambda *a: subprocess.run(a, check=True, capture_output=True)  # noqa: E731
+    run("openssl", "req", "-x509", "-nodes", "-newkey", "rsa:2048", "-days", "1", "-keyout", str(ca_key),
+        "-out", str(ca), "-subj", "/CN=fsdvs test CA")
+    run("openssl", "req", "-nodes", "-newkey", "rsa:2048", "-keyout", str(key), "-out", str(csr),
+        "-subj", "/CN=127.0.0.1")
+    ext = d / "ext.cnf"
+    ext.write_text("subjectAltName=IP:127.0.0.1,DNS:localhost\n")
+    run("openssl", "x509", "-req", "-in", str(csr), "-CA", str(ca), "-CAkey", str(ca_key), "-CAcreateserial",
+        "-out", str(cert), "-days", "1", "-extfile", str(ext))
+    return ca, cert, key
+
+
+def test_sweep_runs_on_a_tls_only_dask_cluster_and_plain_clients_are_refused(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    from fsdvs_hw.explore.store import ResultsStore
+    from fsdvs_hw.explore.sweep import dask_security, expand_points, run_points
+
+    ca, cert, key = _make_certs(tmp_path)
+    sec = distributed.Security(tls_ca_file=str(ca), tls_scheduler_cert=str(cert), tls_scheduler_key=str(key),
+                               tls_worker_cert=str(cert), tls_worker_key=str(key), tls_client_cert=str(cert),
+                               tls_client_key=str(key), require_encryption=True)
+    (tmp_path / "d.toml").write_text(_CHEAP.format(name="tls") +
+                                     '[sweep]\naxes = { "optics.focal_length_m" = [2e-3, 3e-3] }\n')
+    pts = expand_points(load_design(tmp_path / "d.toml"))
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, host="127.0.0.1",
+                                  dashboard_address=None, protocol="tls://", security=sec) as cluster:
+        assert cluster.scheduler_address.startswith("tls://")
+        with ResultsStore(tmp_path / "s.sqlite") as store:
+            summary = run_points(pts, store, scheduler=cluster.scheduler_address, progress=False,
+                                 security=dask_security(ca, cert, key))
+        assert summary.statuses == {"ok": len(pts)} and "Dask" in summary.executor
+        plain = cluster.scheduler_address.replace("tls://", "tcp://")
+        with ResultsStore(tmp_path / "t.sqlite") as store:
+            with pytest.raises(InputError, match="cannot connect"):
+                run_points(pts, store, scheduler=plain, progress=False)
+
+
+def test_tls_flags_need_a_tls_scheduler_and_existing_files(tmp_path, capsys):
+    pytest.importorskip("distributed")
+    (tmp_path / "d.toml").write_text(_CHEAP.format(name="d"))
+    code, err = _cli(["sweep", str(tmp_path / "d.toml"), "--tls-ca-file", "ca.pem", "--tls-cert", "c.pem",
+                      "--scheduler", "tcp://127.0.0.1:1", "--no-progress"], capsys)
+    assert code == 2 and "tls://" in _one_clear_line(err)
+    code, err = _cli(["sweep", str(tmp_path / "d.toml"), "--tls-ca-file", str(tmp_path / "none.pem"), "--tls-cert",
+                      "c.pem", "--scheduler", "tls://127.0.0.1:1", "--no-progress"], capsys)
+    assert code == 2 and "none.pem" in _one_clear_line(err)
+
+
+def test_plain_tcp_to_a_remote_scheduler_warns_about_pickles():
+    from fsdvs_hw.explore.sweep import _loopback
+
+    assert _loopback("tcp://127.0.0.1:8786") and _loopback("tcp://localhost:1") and _loopback("tcp://[::1]:1")
+    assert not _loopback("tcp://10.0.0.5:8786") and not _loopback("tcp://example.org:8786")

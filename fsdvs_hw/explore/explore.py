@@ -13,10 +13,11 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from ..paths import output_dir
 from .design import Design, load_design
-from .sweep import SweepSummary, add_execution_arguments, run_design
+from .sweep import SweepSummary, add_execution_arguments, run_design, security_from_args
 
 __all__ = ["run_exploration", "Exploration", "HELP", "add_arguments", "run"]
 
@@ -36,7 +37,7 @@ class Exploration:
 
 def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers: int | None = None,
                     scheduler: str | None = None, progress: bool = True, retry_errors: bool = False,
-                    max_points: int | None = None) -> Exploration:
+                    max_points: int | None = None, security: Any = None) -> Exploration:
     """Explore one design: fit, score and report every design point.
 
     Parameters
@@ -55,6 +56,8 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
         Rerun points that failed in an earlier run into the same ``out_dir``.
     max_points : int, optional
         Refuse designs of more points (default: the design's ``[run] max_points``).
+    security : distributed.Security, optional
+        TLS for a ``tls://`` scheduler (:func:`fsdvs_hw.explore.sweep.dask_security`).
     """
     from ..report import write_report
 
@@ -64,7 +67,7 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     out = output_dir(out_dir, flag="--out")  # checked before any work: a file, unwritable, ...
     store_path = out / "results.sqlite"
     summary, rows = run_design(design, store_path, workers=workers, scheduler=scheduler, progress=progress,
-                               retry_errors=retry_errors, max_points=max_points)
+                               retry_errors=retry_errors, max_points=max_points, security=security)
     report = write_report(rows, design, out)
     return Exploration(report=report, scores_csv=out / "scores.csv", scores_json=out / "scores.json",
                        store=store_path, summary=summary, wall_s=time.perf_counter() - t0,
@@ -91,7 +94,8 @@ def run(args: argparse.Namespace) -> int:
     design = load_design(args.design)
     print(f"[explore] {design.name}: target {design.target!r}", file=sys.stderr, flush=True)
     res = run_exploration(design, args.out, workers=args.workers, scheduler=args.scheduler,
-                          progress=not args.no_progress, retry_errors=args.retry_errors, max_points=args.max_points)
+                          progress=not args.no_progress, retry_errors=args.retry_errors, max_points=args.max_points,
+                          security=security_from_args(args))
     print(f"[explore] {res.summary}", file=sys.stderr)
     from ..report.tables import score_rows, summary_markdown
 

@@ -46,6 +46,8 @@ __all__ = [
     "evaluate_point",
     "run_points",
     "run_design",
+    "dask_security",
+    "security_from_args",
     "SweepSummary",
     "HELP",
     "add_arguments",
@@ -262,7 +264,8 @@ def _record(store: ResultsStore, point: DesignPoint, res: dict[str, Any]) -> Non
 
 def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: int = 1,
                scheduler: str | None = None, progress: bool = True,
-               on_result: Callable[[DesignPoint, dict[str, Any]], None] | None = None) -> SweepSummary:
+               on_result: Callable[[DesignPoint, dict[str, Any]], None] | None = None,
+               security: Any = None) -> SweepSummary:
     """Run every point not yet in ``store`` and store each result as it finishes.
 
     Parameters
@@ -274,7 +277,11 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
     workers : int
         Local worker processes (1 = in this process). Ignored with ``scheduler``.
     scheduler : str, optional
-        Address of a Dask distributed scheduler (``tcp://HOST:PORT``).
+        Address of a Dask distributed scheduler (``tls://HOST:PORT``, or ``tcp://`` on a trusted
+        network only: tasks and results are pickles, so whoever can talk to the scheduler can run
+        code on the workers and on this machine).
+    security : distributed.Security, optional
+        TLS certificates for ``tls://`` (see :func:`dask_security`); default: Dask's configuration.
     progress : bool
         Show a tqdm progress bar on stderr.
     on_result : callable, optional
@@ -300,7 +307,7 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
     try:
         if scheduler is not None:
             executor = f"Dask scheduler {scheduler}"
-            _run_dask(todo, scheduler, finish)
+            _run_dask(todo, scheduler, finish, security)
         elif workers <= 1 or len(todo) <= 1:
             executor = "this process"
             for p in todo:
@@ -333,16 +340,56 @@ def _run_pool(todo: Sequence[DesignPoint], workers: int,
     pool.shutdown(wait=True)
 
 
+def dask_security(ca_file: str | Path | None = None, cert: str | Path | None = None,
+                  key: str | Path | None = None) -> Any:
+    """A :class:`distributed.Security` for a ``tls://`` scheduler (mutual TLS, encryption required).
+
+    Parameters
+    ----------
+    ca_file : path
+        PEM file of the certificate authority that signed the scheduler's and workers' certificates.
+    cert, key : path
+        This client's PEM certificate and private key (``key`` may be omitted when ``cert`` holds both).
+
+    Raises
+    ------
+    InputError
+        A file is missing, or ``ca_file``/``cert`` is not given.
+    """
+    try:
+        from distributed import Security
+    except ImportError as exc:  # pragma: no cover - optional extra
+        raise InputError(f"TLS needs dask[distributed] (pip install 'fsdvs_hw[distributed]'): {exc}") from None
+    if ca_file is None or cert is None:
+        raise InputError("--tls-ca-file and --tls-cert are both needed for a TLS connection to the scheduler")
+    for flag, f in (("--tls-ca-file", ca_file), ("--tls-cert", cert), ("--tls-key", key)):
+        if f is not None and not Path(f).is_file():
+            raise InputError(f"{flag} {f}: file not found")
+    return Security(tls_ca_file=str(ca_file), tls_client_cert=str(cert),
+                    tls_client_key=None if key is None else str(key), require_encryption=True)
+
+
+def _loopback(address: str) -> bool:
+    host = address.split("://", 1)[-1].rsplit(":", 1)[0].strip("[]")
+    return host in ("localhost", "::1") or host.startswith("127.")
+
+
 def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
-              finish: Callable[[DesignPoint, dict[str, Any]], None]) -> None:
+              finish: Callable[[DesignPoint, dict[str, Any]], None], security: Any = None) -> None:
     try:
         from distributed import Client, as_completed
     except ImportError as exc:  # pragma: no cover - optional extra
         raise InputError(f"--scheduler needs dask[distributed] (pip install 'fsdvs_hw[distributed]'): {exc}") from None
     if not scheduler.startswith(("tcp://", "tls://", "inproc://", "ucx://")):
         raise InputError(f"--scheduler {scheduler!r}: expected an address like tcp://HOST:PORT")
+    if scheduler.startswith("tcp://") and not _loopback(scheduler):
+        warnings.warn(f"--scheduler {scheduler}: plain tcp:// is unencrypted and unauthenticated, and Dask tasks "
+                      "and results are pickles: anyone who can reach the scheduler can run code on the workers "
+                      "and on this machine. Use tls:// with --tls-ca-file/--tls-cert/--tls-key (README: "
+                      "'Sweeps on Dask with TLS') outside a trusted network.", RuntimeWarning, stacklevel=3)
+    kw = {} if security is None else {"security": security}
     try:
-        client = Client(scheduler, timeout="20s")
+        client = Client(scheduler, timeout="20s", **kw)
     except (OSError, TimeoutError) as exc:
         raise InputError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler ({exc})") from None
     try:
@@ -355,7 +402,8 @@ def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
 
 def run_design(design: Design, store_path: str | Path, *, workers: int | None = None, scheduler: str | None = None,
                progress: bool = True, retry_errors: bool = False, max_points: int | None = None,
-               points: Sequence[DesignPoint] | None = None) -> tuple[SweepSummary, list[dict[str, Any]]]:
+               points: Sequence[DesignPoint] | None = None,
+               security: Any = None) -> tuple[SweepSummary, list[dict[str, Any]]]:
     """Run all points of ``design`` into the store at ``store_path``; return the summary and its rows.
 
     The rows are this design's points only (a store may hold other designs too), in the order of
@@ -373,7 +421,8 @@ def run_design(design: Design, store_path: str | Path, *, workers: int | None = 
         store.set_meta(f"design:{design.name}", design.to_dict())
         if retry_errors:
             store.forget(status="error", keys=[p.key for p in points])
-        summary = run_points(points, store, workers=workers, scheduler=scheduler, progress=progress)
+        summary = run_points(points, store, workers=workers, scheduler=scheduler, progress=progress,
+                             security=security)
         order = {p.key: i for i, p in enumerate(points)}
         rows = sorted((dict(r) for r in store.rows() if r["key"] in order), key=lambda r: order[r["key"]])
     return summary, rows
@@ -393,14 +442,29 @@ DESCRIPTION = (
 def add_execution_arguments(parser: argparse.ArgumentParser) -> None:
     """``--workers``, ``--scheduler`` and ``--no-progress`` (shared with ``fsdvs-hw explore``)."""
     parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: [run] workers)")
-    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                        help="run on a Dask distributed scheduler instead of local processes")
+    parser.add_argument("--scheduler", default=None, metavar="tls://HOST:PORT",
+                        help="run on a Dask distributed scheduler instead of local processes (tls:// with the "
+                             "--tls-* files; plain tcp:// only on a trusted network)")
+    parser.add_argument("--tls-ca-file", type=Path, default=None, metavar="PEM",
+                        help="CA certificate of the Dask cluster (tls:// schedulers)")
+    parser.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="this client's certificate")
+    parser.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="this client's private key")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--retry-errors", action="store_true",
                         help="rerun this design's points stored as failed (finished points, and other "
                              "designs' points in the same store, are always kept)")
     parser.add_argument("--max-points", type=int, default=None, metavar="N",
                         help="refuse sweeps of more than N design points (default: [run] max_points)")
+
+
+def security_from_args(args: argparse.Namespace) -> Any:
+    """The :func:`dask_security` of the ``--tls-*`` flags, or None when none is given."""
+    files = (args.tls_ca_file, args.tls_cert, args.tls_key)
+    if all(f is None for f in files):
+        return None
+    if args.scheduler is None or not args.scheduler.startswith("tls://"):
+        raise InputError("--tls-ca-file/--tls-cert/--tls-key need --scheduler tls://HOST:PORT")
+    return dask_security(*files)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -423,7 +487,8 @@ def run(args: argparse.Namespace) -> int:
     points = expand_points(design, max_points=args.max_points)
     print(f"[sweep] {design.name}: {len(points)} design points -> {store_path}", file=sys.stderr, flush=True)
     summary, rows = run_design(design, store_path, workers=args.workers, scheduler=args.scheduler,
-                               progress=not args.no_progress, retry_errors=args.retry_errors, points=points)
+                               progress=not args.no_progress, retry_errors=args.retry_errors, points=points,
+                               security=security_from_args(args))
     print(f"[sweep] {summary}", file=sys.stderr, flush=True)
     if args.report is not None:
         from ..report import write_report

@@ -523,10 +523,10 @@ def load_checkpoint(checkpoint: str | Path) -> tuple[dict[str, Any], dict[str, A
     except Exception as exc:  # safetensors raises its own error types for corrupt headers
         raise InputError(f"checkpoint {str(path)!r}: not a readable safetensors file ({exc})") from None
     if meta.get("format") != CHECKPOINT_FORMAT:
-        raise InputError(f"checkpoint {str(path)!r}: metadata 'format' is {meta.get('format')!r}, "
-                         f"expected {CHECKPOINT_FORMAT!r}")
+        raise InputError(f"checkpoint {str(path)!r}: metadata 'format' is not {CHECKPOINT_FORMAT!r}: not a "
+                         "checkpoint written by fsdvs_hw learn")
     if meta.get("version") != _CHECKPOINT_VERSION:
-        raise InputError(f"checkpoint {str(path)!r}: version {meta.get('version')!r} not supported "
+        raise InputError(f"checkpoint {str(path)!r}: version {str(meta.get('version'))[:12]!r} not supported "
                          f"(this library reads version {_CHECKPOINT_VERSION})")
     try:
         provenance = json.loads(meta["provenance"])
