@@ -39,6 +39,7 @@ __all__ = [
     "DEFAULT_PITCH_M",
     "MAX_KERNEL_SIZE",
     "TAP_MAGNITUDE_RANGE",
+    "check_tap_magnitude",
     "MAX_KERNEL_FILE_BYTES",
     "Kernel",
     "REFERENCE_KERNELS",
@@ -58,8 +59,10 @@ DEFAULT_PITCH_M: float = 4.86e-6
 #: evaluated on larger windows, but anything beyond this is almost certainly a mistake.
 MAX_KERNEL_SIZE: int = 63
 
-#: Allowed magnitude of a kernel's largest tap: every stage, the float32 simulator included, stays
-#: finite (squares of 1e15 are 1e30 < float32 max 3.4e38) and no kernel vanishes in float32.
+#: Largest |tap| a kernel may have where it meets float32 arithmetic or hardware (the simulator,
+#: the fit functions, design files): squares of 1e15 are 1e30 < float32's 3.4e38 and nothing
+#: vanishes. A :class:`Kernel` itself holds any finite float64 (its spectrum and CSF analysis are
+#: scale-invariant); :func:`check_tap_magnitude` enforces this range where it matters.
 TAP_MAGNITUDE_RANGE: tuple[float, float] = (1e-15, 1e15)
 
 #: Largest kernel file read (bytes); kernels are at most 63×63 taps, a few hundred kB as text.
@@ -105,13 +108,23 @@ def _validate_taps(taps: Any, *, source: str = "taps") -> np.ndarray:
         )
     if not np.any(arr != 0.0):
         raise KernelError(f"{source}: kernel is all zeros; it would pass no light and has no spectrum")
-    peak = float(np.abs(arr).max())
-    lo, hi = TAP_MAGNITUDE_RANGE
-    if not lo <= peak <= hi:
-        raise KernelError(f"{source}: largest |tap| is {peak:.3g}, outside the allowed [{lo:g}, {hi:g}] "
-                          "(the simulator works in float32, where such taps overflow or vanish; rescale the kernel)")
     arr.setflags(write=False)
     return arr
+
+
+def check_tap_magnitude(taps: Any, *, source: str = "kernel") -> None:
+    """Raise :class:`KernelError` unless the largest |tap| lies in :data:`TAP_MAGNITUDE_RANGE`.
+
+    Called where a kernel meets float32 arithmetic or hardware: 1e300 taps pass a float64 check
+    and become inf/NaN in float32 (or a NaN fit error), 1e-300 taps vanish.
+    """
+    arr = taps.taps if isinstance(taps, Kernel) else np.asarray(taps, dtype=np.float64)
+    peak = float(np.abs(arr).max()) if arr.size else 0.0
+    lo, hi = TAP_MAGNITUDE_RANGE
+    if not lo <= peak <= hi:
+        raise KernelError(f"{source}: largest |tap| is {peak:.3g}, outside the allowed [{lo:g}, {hi:g}] for "
+                          "the simulator and the hardware fits (float32 would overflow or lose it); "
+                          "rescale the kernel")
 
 
 def _validate_pitch(pitch_m: Any, *, source: str = "pitch_m") -> float:

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
+from .kernels import Kernel, check_tap_magnitude
 
 __all__ = ["Option", "FIT_OPTIONS", "FIT_FUNCTIONS", "check_option", "check_fit_options", "check_fit_arguments"]
 
@@ -272,13 +273,17 @@ def check_fit_options(realisation: str, options: Mapping[str, Any], *, prefix: s
 def check_fit_arguments(realisation: str, arguments: Mapping[str, Any]) -> None:
     """Check a fit function's arguments at its first line (``check_fit_arguments("asic", locals())``).
 
-    Every argument listed in :data:`FIT_OPTIONS` is checked; other names (the target kernel,
-    arguments added later) are left to the function.
+    Every argument listed in :data:`FIT_OPTIONS` is checked, and the target kernel's largest tap
+    must lie in :data:`fsdvs_hw.kernels.TAP_MAGNITUDE_RANGE` (design files check the same); other
+    names (arguments added later) are left to the function.
     """
     options = _options(realisation)
     for name, opt in options.items():
         if name in arguments:
             opt.check(arguments[name], name=name)
+    kernel = arguments.get("kernel")
+    if isinstance(kernel, Kernel):  # other types are refused by the function itself
+        check_tap_magnitude(kernel, source=f"kernel '{kernel.name}'")
 
 
 def _options(realisation: str) -> dict[str, Option]:

@@ -105,9 +105,24 @@ def test_non_numeric_taps_are_refused(taps):
 
 
 @pytest.mark.parametrize("peak", [1e300, 1e16, 1e-300, 1e-16])
-def test_taps_that_overflow_or_vanish_in_float32_are_refused(peak):
+def test_taps_that_overflow_or_vanish_in_float32_are_refused_where_float32_or_hardware_starts(peak, tmp_path):
+    torch = pytest.importorskip("torch")
+    from fsdvs_hw.sensor.events import event_frames
+
+    k = Kernel(np.full((3, 3), peak))  # a float64 kernel; its (scale-invariant) analysis is fine
+    for name in ("mesh", "asic", "metalens"):
+        with pytest.raises(KernelError, match="largest"):
+            _fit_function(name)(k)
     with pytest.raises(KernelError, match="largest"):
-        Kernel(np.full((3, 3), peak))
+        event_frames(torch.ones(1, 2, 8, 8), k)
+    with pytest.raises(KernelError, match="largest"):
+        event_frames(torch.ones(1, 2, 8, 8), torch.full((3, 3), peak, dtype=torch.float64))
+    k.save(tmp_path / "k.json")
+    (tmp_path / "d.toml").write_text('[kernel]\nsource = "file"\npath = "k.json"\n')
+    from fsdvs_hw.explore.design import load_design
+
+    with pytest.raises(DesignError, match=r"kernel\.path.*largest"):
+        load_design(tmp_path / "d.toml")
 
 
 def test_extreme_but_allowed_taps_stay_finite_in_float32():
@@ -172,3 +187,22 @@ def test_float16_frames_with_an_fft_sized_kernel_work():
     out16 = event_frames(v.half(), reference_kernel("dog", 5))
     out32 = event_frames(v.half().float(), reference_kernel("dog", 5))
     torch.testing.assert_close(out16, out32)
+
+
+@pytest.mark.parametrize("peak", [1e15, 1.0001e-15])
+def test_fits_at_the_tap_range_extremes_report_finite_errors(peak):
+    """On main, 1e200 taps gave a mesh design with error NaN and 1e-300 taps a LinAlgError; such
+    kernels are now refused, and at the allowed extremes every fitter's error stays finite."""
+    import warnings
+
+    from fsdvs_hw.realise.asic import fit_asic_taps
+    from fsdvs_hw.realise.mesh import fit_resistive_mesh
+
+    k = reference_kernel("dog", 5)
+    t = k.scaled(peak / np.abs(k.taps).max())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mesh = fit_resistive_mesh(t, max_iter=10, n_init=3)
+    assert math.isfinite(mesh.fit["error"]) and math.isfinite(mesh.fit["error_full"])
+    asic = fit_asic_taps(t, 4)
+    assert np.isfinite(asic.kernel().taps).all()

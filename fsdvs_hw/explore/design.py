@@ -45,9 +45,17 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError, KernelError
+from ..kernels import (
+    DEFAULT_PITCH_M,
+    MAX_KERNEL_SIZE,
+    REFERENCE_KERNELS,
+    Kernel,
+    check_tap_magnitude,
+    load_kernel,
+    reference_kernel,
+)
 from ..paths import confined_path, safe_name
 from ..validation import FIT_OPTIONS
-from ..kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, REFERENCE_KERNELS, Kernel, load_kernel, reference_kernel
 
 __all__ = [
     "Design",
@@ -459,6 +467,13 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
     _check_tasks(chk, data, base, confine_paths)
     _check_axes(chk, data)
     target = _load_target(chk, data, base, confine_paths)
+    if target is not None:  # the simulator and the hardware fits need it representable in float32
+        try:
+            check_tap_magnitude(target)
+        except KernelError as exc:
+            key = "kernel.path" if data["kernel"]["source"] == "file" else "kernel.params"
+            chk.add(key, data["kernel"]["path"] if key == "kernel.path" else data["kernel"]["params"],
+                    str(exc).split(": ", 1)[-1])
     if target is not None and target.size > min(data["sensor"]["resolution"]):
         chk.add("sensor.resolution", data["sensor"]["resolution"],
                 f"smaller than the {target.size}x{target.size} kernel; allowed: at least {target.size} px each way")

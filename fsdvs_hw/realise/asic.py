@@ -50,8 +50,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..validation import check_fit_arguments
 from ..kernels import Kernel
+from ..validation import check_fit_arguments
 from .asic_arith import (
     SYMMETRIES,
     SymmetryClasses,

@@ -54,8 +54,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..validation import check_fit_arguments
 from ..kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, _validate_pitch
+from ..validation import check_fit_arguments
 from .base import CostItem, kernel_error
 from .mesh_response import (
     LAMBDA_RANGE_PX,

@@ -51,8 +51,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..validation import check_fit_arguments
 from ..kernels import DEFAULT_PITCH_M, Kernel
+from ..validation import check_fit_arguments
 from .base import CostItem, kernel_error
 from .optics import RadialPropagator, angular_spectrum_2d, pixel_quadrature, required_modes
 from .spectral import SpectralSamples, spectral_samples

@@ -43,11 +43,13 @@ def kernel_tensor(kernel: Any, like: Any) -> Any:
     import numpy as np
     import torch
 
-    from ..kernels import Kernel
+    from ..kernels import Kernel, check_tap_magnitude
 
     if kernel is None:
         return torch.ones((1, 1), dtype=like.dtype, device=like.device)
     if isinstance(kernel, Kernel):
+        if like.dtype != torch.float64:  # 1e300 taps are finite in float64, inf/NaN in float32
+            check_tap_magnitude(kernel, source=f"kernel '{kernel.name}'")
         return torch.tensor(np.array(kernel.taps), dtype=like.dtype, device=like.device)
     if not isinstance(kernel, torch.Tensor):
         try:
@@ -70,6 +72,8 @@ def kernel_tensor(kernel: Any, like: Any) -> Any:
             raise KernelError("kernel: taps contain NaN or inf")
         if not bool((kernel != 0).any()):
             raise KernelError("kernel: all taps are zero (the sensor would see nothing)")
+        if like.dtype != torch.float64:
+            check_tap_magnitude(kernel.detach().double().cpu().numpy())
     return kernel.to(dtype=like.dtype, device=like.device)
 
 
