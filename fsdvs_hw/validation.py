@@ -282,8 +282,15 @@ def check_fit_arguments(realisation: str, arguments: Mapping[str, Any]) -> None:
         if name in arguments:
             opt.check(arguments[name], name=name)
     kernel = arguments.get("kernel")
-    if isinstance(kernel, Kernel):  # other types are refused by the function itself
+    if isinstance(kernel, Kernel):
         check_tap_magnitude(kernel, source=f"kernel '{kernel.name}'")
+    elif kernel is not None and not isinstance(kernel, (str, bytes)):  # taps as an array (mesh accepts them)
+        try:
+            taps = np.asarray(kernel, dtype=np.float64)
+        except (TypeError, ValueError):
+            return  # not numeric: the function's own check names the problem
+        if taps.size and np.isfinite(taps).all() and np.any(taps != 0):
+            check_tap_magnitude(taps, source="kernel")
 
 
 def _options(realisation: str) -> dict[str, Option]:

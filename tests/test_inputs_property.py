@@ -169,8 +169,18 @@ def test_every_bad_fit_option_in_a_design_is_an_input_error_naming_its_key(case)
 @given(case=bad_fit_option())
 def test_every_bad_fit_argument_is_an_input_error_naming_it_before_any_work(case, monkeypatch, tmp_path):
     name, key, value = case
+    import fsdvs_hw.realise.asic as asic
+    import fsdvs_hw.realise.mesh as mesh
+    import fsdvs_hw.realise.metalens as metalens
     from fsdvs_hw.kernels import reference_kernel
 
+    def work_started(*a, **k):
+        raise AssertionError(f"{name}: work started before {key}={value!r} was refused")
+
+    # the expensive parts of each fit: reaching any of them means validation came too late
+    for module, attr in ((mesh, "_mesh_solver"), (mesh, "_numpy_orbit_response"), (asic, "_TapProblem"),
+                         (metalens, "_RadialKernelModel"), (metalens, "_spectral")):
+        monkeypatch.setattr(module, attr, work_started, raising=False)
     monkeypatch.chdir(tmp_path)
     target = reference_kernel("dog", 5)
     with pytest.raises(InputError) as info:

@@ -314,6 +314,13 @@ def _children(pid: int) -> set[int]:
     return out
 
 
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace")
+    except OSError:
+        return "resource_tracker"  # gone already: not a worker to wait for
+
+
 def _alive(pid: int) -> bool:
     try:
         stat = Path(f"/proc/{pid}/stat").read_text()
@@ -336,8 +343,7 @@ def test_sweep_workers_die_when_the_main_process_is_killed(tmp_path):
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline and proc.poll() is None:
             # spawn's resource tracker is a child too; the pool's workers are the other ones
-            kids = {k for k in _children(proc.pid) if "resource_tracker" not in
-                    Path(f"/proc/{k}/cmdline").read_bytes().decode(errors="replace")}
+            kids = {k for k in _children(proc.pid) if "resource_tracker" not in _cmdline(k)}
             if len(kids) >= 2:
                 workers = kids
                 break

@@ -114,6 +114,8 @@ def test_taps_that_overflow_or_vanish_in_float32_are_refused_where_float32_or_ha
         with pytest.raises(KernelError, match="largest"):
             _fit_function(name)(k)
     with pytest.raises(KernelError, match="largest"):
+        _fit_function("mesh")(np.full((3, 3), peak))  # taps given as an array
+    with pytest.raises(KernelError, match="largest"):
         event_frames(torch.ones(1, 2, 8, 8), k)
     with pytest.raises(KernelError, match="largest"):
         event_frames(torch.ones(1, 2, 8, 8), torch.full((3, 3), peak, dtype=torch.float64))
