@@ -14,6 +14,7 @@ from fsdvs_hw.errors import InputError
 from fsdvs_hw.kernels import Kernel, reference_kernel
 from fsdvs_hw.realise.asic import AsicDesign, exhaustive_asic_taps, fit_asic_taps
 from fsdvs_hw.realise.asic_arith import (
+    tap_range,
     accumulator_bits,
     accumulator_range,
     adder_count,
@@ -207,9 +208,9 @@ def test_adder_weight_trades_error_for_adders():
 def test_extreme_bit_widths():
     k = reference_kernel("dog", 7)
     d2 = fit_asic_taps(k, 2)
-    assert set(np.unique(d2.taps)) <= {-1, 0, 1} and d2.accumulator_bits <= 8 + 6
+    assert set(np.unique(d2.taps)) <= {-2, -1, 0, 1} and d2.accumulator_bits <= 8 + 6
     d16 = fit_asic_taps(k, 16, input_bits=16)
-    assert np.abs(d16.taps).max() <= 32767 and np.abs(d16.taps).max() > 16383
+    assert -32768 <= d16.taps.min() and d16.taps.max() <= 32767 and np.abs(d16.taps).max() > 16383
     assert d16.error < 1e-4 and d16.accumulator_bits == accumulator_bits(d16.taps, 16)
     assert np.all(np.isfinite(d16.kernel().taps))
 
@@ -311,8 +312,12 @@ def test_asic_design_validates_its_fields():
     good = fit_asic_taps(k, 4)
     with pytest.raises(InputError, match="all integer taps are zero"):
         AsicDesign(target=k, taps=np.zeros((3, 3), dtype=int), scale=1.0, scale_mode="free", bits=4, symmetry="none")
-    with pytest.raises(InputError, match=r"\|q\| ≤ 7"):
+    with pytest.raises(InputError, match=r"-8 ≤ q ≤ 7"):
         AsicDesign(target=k, taps=good.taps * 10, scale=1.0, scale_mode="free", bits=4, symmetry="8-fold")
+    with pytest.raises(InputError, match=r"-8 ≤ q ≤ 7"):
+        AsicDesign(target=k, taps=np.full((3, 3), -9), scale=1.0, scale_mode="free", bits=4, symmetry="8-fold")
+    # the most negative two's-complement code is a valid tap
+    AsicDesign(target=k, taps=np.full((3, 3), -8), scale=1.0, scale_mode="free", bits=4, symmetry="8-fold")
     asym = np.array([[1, 0, 0], [0, 2, 0], [0, 0, 0]])
     with pytest.raises(InputError, match="not 8-fold-symmetric"):
         AsicDesign(target=k, taps=asym, scale=1.0, scale_mode="free", bits=4, symmetry="8-fold")
@@ -364,3 +369,21 @@ def test_csf_objective_keeps_the_band_pass_at_4_bits():
     assert weighted.fit_info["pixels_per_degree"] == pytest.approx(g.pixels_per_degree)
     with pytest.raises(InputError, match="geometry"):
         fit_asic_taps(k, 4, objective="csf", geometry=12e-3)
+
+
+@pytest.mark.parametrize("bits", [2, 3, 4, 8])
+def test_full_twos_complement_range_fits_the_most_negative_code_exactly(bits):
+    # issue 13: a 3-bit 3x3 target with centre -4 must fit with error 0 (-4 is one signed digit)
+    lo = -(1 << (bits - 1))
+    t = np.ones((3, 3))
+    t[1, 1] = lo
+    d = fit_asic_taps(Kernel(t, name=f"centre {lo}"), bits)
+    assert d.error == pytest.approx(0.0, abs=1e-15)
+    assert d.taps[1, 1] == lo * int(d.taps[0, 0]) and d.taps.min() >= lo
+    assert csd_weight(np.array([lo]))[0] == 1  # a single (negated, shifted) digit
+    assert tap_range(bits) == (lo, -lo - 1)
+    if bits > 4:
+        return
+    # the exhaustive oracle searches the same range and agrees
+    q, s, J = exhaustive_asic_taps(Kernel(t), bits, symmetry="8-fold")
+    assert J == pytest.approx(0.0, abs=1e-15) and q[1, 1] == lo

@@ -144,3 +144,26 @@ def test_rtl_larger_kernel_and_image_bit_exact(rng):
                         np.full((1, 40, 33), 4095, np.int64)])
     for shift in (0, 7):
         _assert_bit_exact(d.taps, x, 12, out_shift=shift, symmetry="quadrant")
+
+
+@pytest.mark.tools
+@pytest.mark.parametrize("bits, input_bits", [(3, 8), (16, 16)])
+def test_rtl_bit_exact_with_the_most_negative_twos_complement_tap(rng, bits, input_bits):
+    # issue 13: taps use the full range -2**(bits-1) .. 2**(bits-1)-1; the RTL must agree bit for bit
+    require_tool("iverilog")
+    lo = -(1 << (bits - 1))
+    t = np.ones((3, 3))
+    t[1, 1] = lo
+    d = fit_asic_taps(Kernel(t, name="most negative centre"), bits, input_bits=input_bits)
+    assert d.taps[1, 1] == lo and d.error == 0.0
+    spot = np.zeros((1, 9, 9), np.int64)
+    spot[0, 4, 4] = (1 << input_bits) - 1  # one bright pixel under the centre tap: the most negative sum
+    x = np.concatenate([_test_images(rng, input_bits, side=9), spot])
+    rtl = _assert_bit_exact(d.taps, x, input_bits, symmetry="8-fold")
+    lo_acc, hi_acc = accumulator_range(d.taps, input_bits)
+    assert rtl.min() == lo_acc  # the all-max image drives the centre to its most negative value
+    assert lo_acc == lo * ((1 << input_bits) - 1)
+    if bits == 3:
+        require_tool("yosys")
+        r = synthesise_verilog(d.verilog(image_width=8, image_height=8))
+        assert r.cells > 0 and r.area_m2 > 0

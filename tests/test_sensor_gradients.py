@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 import torch
 
@@ -116,3 +118,18 @@ def test_event_simulator_module_parameter_buffer_and_swap():
     plain = event_frames(video, None, config=SensorConfig.ideal())
     assert torch.equal(swapped, plain)
     assert not torch.equal(fixed(video.float()), plain.float())
+
+
+@pytest.mark.parametrize("refractory_s, emitted", [(0.0, 3.0), (4e-4, 2.0), (8e-4, 1.0)])
+def test_refractory_gradient_follows_the_emitted_events(refractory_s, emitted):
+    # log intensity rises by 3.5 C in 1 ms: crossings at 0.29, 0.57, 0.86 ms; a refractory period
+    # of 0.4 ms keeps 2 of them, 0.8 ms keeps 1 (issue 13: the gradient used to count all 3)
+    c = 0.2
+    end = torch.tensor(math.exp(3.5 * c), dtype=torch.float64, requires_grad=True)
+    video = torch.stack([torch.ones((), dtype=torch.float64), end]).view(1, 2, 1, 1)
+    cfg = SensorConfig.ideal(threshold=c, dark_intensity=1e-12, refractory_s=refractory_s)
+    frames = event_frames(video, None, config=cfg, timestamps_s=[0.0, 1e-3])
+    assert float(frames[0, 0, 0].detach().sum()) == emitted
+    (g,) = torch.autograd.grad(frames[:, :, 0].sum(), end)
+    # d(count)/d(end) = (emitted / crossings) · d(ΔL / C)/d(end) = (emitted / 3) / (C · end)
+    assert float(g) == pytest.approx(emitted / 3.0 / (c * float(end)), rel=1e-9)

@@ -62,6 +62,7 @@ from .asic_arith import (
     output_bits,
     symmetry_classes,
     tap_limit,
+    tap_range,
 )
 from .base import CostItem, kernel_error
 
@@ -90,7 +91,7 @@ class AsicDesign:
     target : Kernel
         The kernel that was fitted.
     taps : ndarray of int64, shape (k, k)
-        Signed integer taps, ``|q| ≤ 2**(bits-1) - 1``, constant on each symmetry class.
+        Signed integer taps, ``-2**(bits-1) ≤ q ≤ 2**(bits-1) - 1`` (two's complement), constant on each symmetry class.
     scale : float
         Realised kernel = ``scale * taps`` (dimensionless gain per pixel per integer step).
     scale_mode : {"free", "pow2", "fixed"}
@@ -131,9 +132,9 @@ class AsicDesign:
         q = q.astype(np.int64).copy()
         q.setflags(write=False)
         object.__setattr__(self, "taps", q)
-        lim = tap_limit(self.bits)
-        if np.abs(q).max() > lim:
-            raise InputError(f"taps: |q| ≤ {lim} for bits={self.bits}, got {int(np.abs(q).max())}")
+        lo, hi = tap_range(self.bits)
+        if q.min() < lo or q.max() > hi:
+            raise InputError(f"taps: {lo} ≤ q ≤ {hi} for bits={self.bits} (two's complement), got {int(q.min())}..{int(q.max())}")
         if not np.any(q):
             raise InputError("taps: all integer taps are zero; the design would pass nothing")
         if not (math.isfinite(self.scale) and self.scale > 0):
@@ -321,9 +322,9 @@ def _csd_truncations(n: np.ndarray, n_digits: int) -> np.ndarray:
 
 @lru_cache(maxsize=32)
 def _candidate_sets(bits: int) -> tuple[np.ndarray, ...]:
-    """For d = 0, 1, …: sorted integers in [-qmax, qmax] with at most d CSD digits."""
-    lim = tap_limit(bits)
-    v = np.arange(-lim, lim + 1, dtype=np.int64)
+    """For d = 0, 1, …: sorted integers in [-2**(bits-1), 2**(bits-1) - 1] with at most d CSD digits."""
+    lo, hi = tap_range(bits)
+    v = np.arange(lo, hi + 1, dtype=np.int64)
     w = csd_weight(v)
     return tuple(v[w <= d] for d in range(int(w.max()) + 1))
 
@@ -345,7 +346,8 @@ class _TapProblem:
         self.norm2 = float((target * target).sum())
         # energy lost by the symmetric projection (a constant of the problem)
         self.proj2 = float(((target - classes.expand(self.tbar)) ** 2).sum())
-        self.lim = tap_limit(bits)
+        self.lo, self.hi = tap_range(bits)
+        self.lim = self.hi  # largest positive tap
         self.bits = bits
         self.sets = _candidate_sets(bits) if bits <= _EXACT_BITS else None
         self.lam = float(adder_weight)
@@ -403,7 +405,7 @@ class _TapProblem:
                 cands.append(S[np.clip(i - 1, 0, S.size - 1)])
                 cands.append(S[np.clip(i, 0, S.size - 1)])
             return np.stack(cands, axis=1)
-        near = np.clip(np.stack([np.floor(u), np.ceil(u)], axis=1), -self.lim, self.lim).astype(np.int64)
+        near = np.clip(np.stack([np.floor(u), np.ceil(u)], axis=1), self.lo, self.hi).astype(np.int64)
         return _csd_truncations(near, (self.bits + 2) // 2).reshape(near.shape[0], -1)
 
     def _pick(self, u: np.ndarray, w2: np.ndarray, cls_idx: np.ndarray) -> np.ndarray:
@@ -436,7 +438,7 @@ class _TapProblem:
             u0 = np.linalg.solve(self.M, self.b) / s
         except np.linalg.LinAlgError:
             u0 = self.b / (s * np.diag(self.M))
-        q = self._pick(np.clip(u0, -self.lim, self.lim), s * s * np.diag(self.M) / self.c, idx)
+        q = self._pick(np.clip(u0, self.lo, self.hi), s * s * np.diag(self.M) / self.c, idx)
         Md = np.diag(self.M)
         for _ in range(50):
             changed = False
@@ -523,7 +525,7 @@ def _polish(p: _TapProblem, s: float, q: np.ndarray) -> tuple[float, np.ndarray]
 def _fit_free_scale(p: _TapProblem, amax: float, n_polish: int = 5) -> tuple[float, np.ndarray, dict[str, Any]]:
     import nlopt
 
-    lo, hi = math.log2(amax / (2.0 * p.lim)), math.log2(2.0 * amax)
+    lo, hi = math.log2(amax / (2.0 * (p.hi + 1))), math.log2(2.0 * amax)
     seen: dict[bytes, tuple[float, float, np.ndarray]] = {}  # distinct taps -> (J, s, q)
 
     def f(x: np.ndarray, grad: np.ndarray) -> float:
@@ -535,8 +537,10 @@ def _fit_free_scale(p: _TapProblem, amax: float, n_polish: int = 5) -> tuple[flo
             seen[key] = (J, s, q)
         return J
 
-    # seed: the naive scale max|K| / qmax, so the search never ends worse than plain rounding
-    f(np.array([math.log2(amax / p.lim)]), np.empty(0))
+    # seed: the naive scale (largest tap on the full two's-complement range), so the search never
+    # ends worse than plain rounding
+    naive = max(float(p.tbar.max()) / p.hi, -float(p.tbar.min()) / -p.lo)
+    f(np.array([math.log2(naive)]), np.empty(0))
     opt = nlopt.opt(nlopt.GN_DIRECT_L, 1)
     opt.set_lower_bounds([lo])
     opt.set_upper_bounds([hi])
@@ -592,7 +596,7 @@ def fit_asic_taps(
     kernel : Kernel
         Target kernel (odd k×k).
     bits : int
-        Signed tap width including the sign, 2…24 (``|q| ≤ 2**(bits-1) - 1``).
+        Signed tap width including the sign, 2…24 (``-2**(bits-1) ≤ q ≤ 2**(bits-1) - 1``).
     symmetry : {"auto", "none", "quadrant", "8-fold"}
         Symmetry imposed on the taps. ``auto`` picks the highest symmetry the target has (to 1e-9
         relative); an explicit one projects the target onto it first.
@@ -632,7 +636,7 @@ def fit_asic_taps(
     t0 = time.perf_counter()
     if not isinstance(kernel, Kernel):
         raise InputError(f"kernel: expected a fsdvs_hw Kernel, got {type(kernel).__name__}")
-    lim = tap_limit(bits)
+    lo_q, lim = tap_range(bits)
     if objective not in OBJECTIVES:
         raise InputError(f"objective: {objective!r} unknown; allowed: {', '.join(OBJECTIVES)}")
     lam = float(adder_weight)
@@ -645,8 +649,9 @@ def fit_asic_taps(
     amax = float(np.abs(p.tbar).max())
     if amax == 0:
         raise InputError(f"kernel '{kernel.name}': its {sym}-symmetric part is all zeros; choose symmetry='none'")
-    naive_s = amax / lim
-    naive_q = cls.expand(np.clip(np.round(p.tbar / naive_s), -lim, lim))
+    # the naive scale uses the full two's-complement range: -2**(bits-1) for the most negative tap
+    naive_s = max(float(p.tbar.max()) / lim, -float(p.tbar.min()) / -lo_q)
+    naive_q = cls.expand(np.clip(np.round(p.tbar / naive_s), lo_q, lim))
     info: dict[str, Any] = {"naive_scale": naive_s, "naive_error": kernel_error(naive_s * naive_q, kernel),
                             "objective_name": objective}
     if ppd is not None:
@@ -660,7 +665,7 @@ def fit_asic_taps(
             mode = "free"
         else:
             e_lo = math.floor(-math.log2(2.0 * amax))
-            e_hi = math.ceil(math.log2(2.0 * lim / amax))
+            e_hi = math.ceil(math.log2(2.0 * (lim + 1) / amax))
             best: dict[str, Any] = {"J": math.inf}
             for e in range(e_lo, e_hi + 1):
                 qe = p.solve(2.0**-e)
@@ -696,7 +701,7 @@ def exhaustive_asic_taps(kernel: Kernel, bits: int, *, symmetry: str, adder_weig
     """Brute-force optimum over every integer tap vector, each with its least-squares free scale.
 
     The test oracle of :func:`fit_asic_taps` (``scale="free"``) on tiny problems: enumerates all
-    ``(2**bits - 1) ** n_classes`` class values.
+    ``(2**bits) ** n_classes`` class values (the full two's-complement range).
 
     Returns
     -------
@@ -709,7 +714,7 @@ def exhaustive_asic_taps(kernel: Kernel, bits: int, *, symmetry: str, adder_weig
     weights = None if objective == "kernel" else _csf_weights(kernel, csf_method, geometry)[0]
     p = _TapProblem(kernel.taps, cls, int(bits), float(adder_weight), bool(pre_add), weights=weights, n_fft=_CSF_NFFT)
     n = cls.n_classes
-    vals = np.arange(-p.lim, p.lim + 1, dtype=np.int64)
+    vals = np.arange(p.lo, p.hi + 1, dtype=np.int64)
     if vals.size**n > max_combinations:
         raise InputError(f"exhaustive search over {vals.size}^{n} tap vectors exceeds max_combinations={max_combinations}")
     Q = np.stack(np.meshgrid(*([vals] * n), indexing="ij"), axis=-1).reshape(-1, n)

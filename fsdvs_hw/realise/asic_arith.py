@@ -10,8 +10,9 @@ Definitions (exact)
 Input pixels
     Unsigned integers ``x`` in ``[0, 2**input_bits - 1]`` (a digitised intensity).
 Taps
-    Signed integers ``q[i, j]`` with ``|q| <= 2**(bits - 1) - 1`` (``bits`` includes the sign; the
-    most negative code is not used so that the range is symmetric).
+    Signed integers ``q[i, j]`` in the full two's-complement range
+    ``-2**(bits - 1) <= q <= 2**(bits - 1) - 1`` (``bits`` includes the sign). The most negative
+    code ``-2**(bits - 1)`` is a single signed digit (one negated shift) in shift-add hardware.
 Accumulator
     ``acc[a, b] = sum_{i,j} q[i, j] * x[a + i, b + j]`` — a *valid-mode correlation* (no padding;
     the output is ``(H - k + 1) x (W - k + 1)``; the same orientation as ``torch.nn.functional.conv2d``;
@@ -46,6 +47,7 @@ __all__ = [
     "MAX_TAP_BITS",
     "MAX_INPUT_BITS",
     "tap_limit",
+    "tap_range",
     "csd_digits",
     "csd_weight",
     "SymmetryClasses",
@@ -71,10 +73,15 @@ _MAX_ACC_BITS: int = 63
 
 
 def tap_limit(bits: int) -> int:
-    """Largest tap magnitude ``2**(bits - 1) - 1`` for ``bits``-bit signed taps (2 ≤ bits ≤ 24)."""
+    """Largest positive tap ``2**(bits - 1) - 1`` for ``bits``-bit signed taps (2 ≤ bits ≤ 24)."""
+    return tap_range(bits)[1]
+
+
+def tap_range(bits: int) -> tuple[int, int]:
+    """Two's-complement range ``(-2**(bits - 1), 2**(bits - 1) - 1)`` of ``bits``-bit signed taps (2 ≤ bits ≤ 24)."""
     if not isinstance(bits, (int, np.integer)) or isinstance(bits, bool) or not 2 <= bits <= MAX_TAP_BITS:
         raise InputError(f"bits: tap width must be an integer in 2..{MAX_TAP_BITS} (sign included), got {bits!r}")
-    return (1 << (int(bits) - 1)) - 1
+    return -(1 << (int(bits) - 1)), (1 << (int(bits) - 1)) - 1
 
 
 def csd_digits(value: int) -> list[tuple[int, int]]:

@@ -25,7 +25,10 @@ Surrogate gradient (``SensorConfig.surrogate``)
     Forward counts are the integers above. Backward uses the straight-through estimator of the
     floor: ``∂n/∂ΔL = 1 / C`` on the polarity's side (``ΔL > 0`` for ON, ``< 0`` for OFF), zero on
     the other, and ``∂n/∂C = -ΔL / C²``; the reference update then carries the gradient as if
-    ``r`` tracked ``L`` exactly. Refractory losses and noise events have no gradient. This is the
+    ``r`` tracked ``L`` exactly. With a refractory period the count's gradient is scaled by the share
+    of crossings actually emitted in that step (``emitted / crossings``: the gradient follows the
+    emitted events, so 1 of 3 emitted gives ``1 / (3C)``); the reference update, which moves past
+    every crossing whether emitted or not, keeps its gradient. Noise events have no gradient. This is the
     recipe of Neural Ganglion Sensors (So et al. 2025): a straight-through floor, clipped to
     [-1, 1] at the dark-current floor (see :mod:`.filtering`). ``surrogate="relaxed"`` emits the
     continuous counts ``relu(±ΔL) / C`` with a reference that tracks ``L`` exactly (so ``ΔL`` is
@@ -206,6 +209,17 @@ def _refractory_emit(n: Any, d_a: Any, v: Any, c: Any, t_a: Any, last_t: Any, re
     return emitted, j0, m, t_last
 
 
+def _refractory_surrogate(n: Any, h: Any, emitted: Any) -> Any:
+    """Emitted counts whose straight-through gradient is scaled by the emitted share.
+
+    Forward value: ``emitted`` exactly (``n == h`` in the forward pass). Backward:
+    ``(emitted / h) · ∂n``, so when the refractory period keeps 1 of 3 crossings the count's
+    gradient is ``1 / (3C)``, not ``1 / C``. Where no crossing happened the share is 1.
+    """
+    share = torch.where(h > 0, emitted / torch.where(h > 0, h, torch.ones_like(h)), torch.ones_like(h)).detach()
+    return emitted.detach() + (n - h.detach()) * share
+
+
 def _collect(store: list, emitted: Any, j0: Any, m: Any, d_a: Any, v: Any, c: Any,
              t_a: Any, t_b: Any, polarity: int) -> None:
     import torch
@@ -361,9 +375,9 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
                         if collect_events:
                             _collect(events, em_on, j0_on, m_on, d_a, v, co, t_a, t_b, 1)
                             _collect(events, em_off, j0_off, m_off, -d_a, -v, cf, t_a, t_b, -1)
-                    if refr > 0:  # refractory losses: emitted counts, gradient of all crossings
-                        e_on = n_on + (em_on.to(dt_) - h_on).detach()
-                        e_off = n_off + (em_off.to(dt_) - h_off).detach()
+                    if refr > 0:  # refractory losses: emitted counts, gradient of the emitted share
+                        e_on = _refractory_surrogate(n_on, h_on, em_on.to(dt_))
+                        e_off = _refractory_surrogate(n_off, h_off, em_off.to(dt_))
             ref = ref_next
             if shot > 0:
                 lam = torch.full((B, H, W), 0.5 * shot, dtype=torch.float64, device=shot_g.device) * dt_sub64.to(shot_g.device)
