@@ -435,7 +435,8 @@ DESCRIPTION = (
     "per point in a SQLite file as it finishes. A rerun skips finished points (resume after a kill).\n\n"
     "Examples:\n"
     "  fsdvs-hw sweep designs/sweep_asic_bits.toml\n"
-    "  fsdvs-hw sweep designs/sweep_asic_bits.toml --scheduler tcp://10.0.0.5:8786\n"
+    "  fsdvs-hw sweep designs/sweep_asic_bits.toml --scheduler tls://10.0.0.5:8786 \\\n"
+    "      --tls-ca-file ca.pem --tls-cert client.pem --tls-key client.key   (README: Dask with TLS)\n"
 )
 
 
@@ -470,7 +471,7 @@ def security_from_args(args: argparse.Namespace) -> Any:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("design", type=Path, help="TOML design file with a [sweep] section")
     parser.add_argument("--store", type=Path, default=None,
-                        help="SQLite results file (default: out/sweeps/<design name>.sqlite)")
+                        help="SQLite results file (default: out/sweeps/<design name, made file-safe>.sqlite)")
     parser.add_argument("--report", type=Path, default=None, metavar="DIR",
                         help="also write the HTML report of the stored points to DIR")
     add_execution_arguments(parser)
