@@ -54,8 +54,9 @@ __all__ = [
     "run",
 ]
 
-#: Python objects (dicts, lists, strings) take about this many bytes per character of their JSON form.
-_BYTES_PER_JSON_CHAR = 8
+#: Memory of a built design point per character of its JSON form (measured with tracemalloc: 2000
+#: points of a 2.2 kB design take 11.8 MiB, 2.8 bytes per character).
+_BYTES_PER_JSON_CHAR = 3
 
 #: Design sections whose content decides every point's result (others only organise the run).
 _SCORED_SECTIONS = ("kernel", "sensor", "optics", "analysis", "tasks", "emulation")
@@ -134,7 +135,8 @@ def check_sweep_size(design: Design, max_points: int | None = None) -> int:
     limit = int(design.data["run"]["max_points"] if max_points is None else max_points)
     n = count_points(design)
     if n > limit:
-        one = len(json.dumps({"data": design.data, "target": design.target.to_dict()}, default=str))
+        point_data = {**design.data, "sweep": {"axes": {}}}  # what each point carries
+        one = len(json.dumps({"data": point_data, "target": design.target.to_dict()}, default=str))
         gib = n * one * _BYTES_PER_JSON_CHAR / 2**30
         raise InputError(
             f"{design.source}: the sweep has {n:,} design points (about {gib:.3g} GiB to hold their list, "
