@@ -147,6 +147,20 @@ def test_store_with_a_foreign_points_table_is_refused(tmp_path):
         ResultsStore(db)
 
 
+def test_another_applications_database_is_refused_and_left_unchanged(tmp_path):
+    from fsdvs_hw.explore.store import ResultsStore
+
+    db = tmp_path / "app.sqlite"
+    with sqlite3.connect(db) as c:
+        c.execute("CREATE TABLE users (name TEXT)")
+        c.execute("INSERT INTO users VALUES ('ada')")
+    c.close()
+    before = db.read_bytes()
+    with pytest.raises(InputError, match="other tables \\(users\\).*left unchanged"):
+        ResultsStore(db)
+    assert db.read_bytes() == before and not (tmp_path / "app.sqlite-wal").exists()
+
+
 def test_store_that_is_a_folder_is_refused(tmp_path):
     from fsdvs_hw.explore.store import ResultsStore
 

@@ -78,6 +78,17 @@ class ResultsStore:
         except sqlite3.Error as exc:
             raise InputError(f"{self.path}: cannot open the results store ({exc})") from None
         try:
+            # look before touching: another application's database is refused unchanged
+            tables = {r[0] for r in self._db.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+            foreign = sorted(tables - {"meta", "points"})
+            if foreign:
+                raise InputError(f"{self.path}: a SQLite database with other tables ({', '.join(foreign[:5])}), "
+                                 "not an fsdvs_hw results store; left unchanged (use a new --store file)")
+            if "points" in tables:
+                cols = [r[1] for r in self._db.execute("PRAGMA table_info(points)")]
+                if cols != _COLUMNS:
+                    raise InputError(f"{self.path}: has a 'points' table of another layout; not an fsdvs_hw "
+                                     "results store (use a new --store file)")
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.executescript(_DDL)
@@ -87,10 +98,6 @@ class ResultsStore:
             elif str(row[0]) != str(_SCHEMA_VERSION):
                 raise InputError(f"{self.path}: results store schema version {str(row[0])[:20]!r}, this fsdvs_hw "
                                  f"writes {_SCHEMA_VERSION}; use a new --store file")
-            cols = [r[1] for r in self._db.execute("PRAGMA table_info(points)")]
-            if cols != _COLUMNS:
-                raise InputError(f"{self.path}: has a 'points' table of another layout; not an fsdvs_hw results "
-                                 "store (use a new --store file)")
         except sqlite3.Error as exc:
             self._db.close()
             # sqlite's message ("file is not a database") never quotes the file's content
