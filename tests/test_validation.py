@@ -205,6 +205,7 @@ def test_fits_at_the_tap_range_extremes_report_finite_errors(peak):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         mesh = fit_resistive_mesh(t, max_iter=10, n_init=3)
-    assert math.isfinite(mesh.fit["error"]) and math.isfinite(mesh.fit["error_full"])
+    assert math.isfinite(mesh.fit["error"])
+    assert all(math.isfinite(v) for v in mesh.fit.values() if isinstance(v, float))
     asic = fit_asic_taps(t, 4)
     assert np.isfinite(asic.kernel().taps).all()
