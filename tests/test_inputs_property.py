@@ -298,3 +298,18 @@ def test_a_sweep_run_writes_only_inside_its_output_folder(name, tmp_path_factory
     assert code == 0
     written = [p.relative_to(root) for p in root.rglob("*") if p.is_file()]
     assert all(p == Path("work/d.toml") or p.parts[:3] == ("work", "out", "sweeps") for p in written), written
+
+
+@settings(max_examples=60, deadline=None)
+@given(on=st.floats(1e-4, 10.0), off=st.floats(1e-4, 10.0), sigma=st.floats(0.0, 1.0),
+       placement=st.sampled_from(design_mod._PLACEMENTS), positivity=st.sampled_from(design_mod._POSITIVITY),
+       seed=st.integers(0, 2**31 - 1))
+def test_every_sensor_section_a_design_accepts_builds_a_simulator_config(on, off, sigma, placement, positivity,
+                                                                         seed):
+    """No design-valid [sensor] value may fail only later, inside a worker, when the simulator starts."""
+    from fsdvs_hw.explore.emulation import _sensor_config
+
+    d = parse_design({"sensor": {"threshold_on": on, "threshold_off": off, "threshold_sigma": sigma,
+                                 "placement": placement, "positivity": positivity}, "run": {"seed": seed}})
+    cfg = _sensor_config(d.data["sensor"], d.data["run"]["seed"], 25.0)
+    assert cfg.threshold_on == on and cfg.positivity == positivity
