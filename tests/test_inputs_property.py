@@ -313,3 +313,26 @@ def test_every_sensor_section_a_design_accepts_builds_a_simulator_config(on, off
                                  "placement": placement, "positivity": positivity}, "run": {"seed": seed}})
     cfg = _sensor_config(d.data["sensor"], d.data["run"]["seed"], 25.0)
     assert cfg.threshold_on == on and cfg.positivity == positivity
+
+
+@settings(max_examples=80, deadline=None)
+@given(bits=st.integers(1, 16), gamma=st.floats(1.0, 4.0), peak=st.floats(1.0, 1e4), black=st.floats(0.0, 100.0),
+       up=st.integers(1, 64), enabled=st.booleans())
+def test_an_emulation_section_is_accepted_only_if_its_display_can_be_built(bits, gamma, peak, black, up, enabled):
+    """The design check and the emulation's DisplaySettings agree (black < peak is checked at load)."""
+    from fsdvs_hw.explore.emulation import DisplaySettings
+
+    section = {"enabled": enabled, "display_bits": bits, "display_gamma": gamma, "display_peak_nits": peak,
+               "display_black_nits": black, "upsample_factor": up}
+    try:
+        DisplaySettings.from_design(section)
+        display_ok = True
+    except InputError:
+        display_ok = False
+    try:
+        parse_design({"emulation": section})
+        design_ok = True
+    except InputError as exc:
+        assert "emulation." in str(exc)
+        design_ok = False
+    assert design_ok == (display_ok or not enabled)

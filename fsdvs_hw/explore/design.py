@@ -572,6 +572,16 @@ def _default_types(default: Any) -> tuple[type, ...] | None:
 
 
 def _check_cross(chk: _Checker, data: dict[str, Any]) -> None:
+    em = data["emulation"]
+    if em["enabled"]:  # the display the emulation track builds must exist (black below peak, ...)
+        from .emulation import DisplaySettings
+
+        try:
+            DisplaySettings.from_design(em)
+        except InputError as exc:
+            chk.add("emulation.display_black_nits", em["display_black_nits"],
+                    f"the emulation display is invalid with emulation.display_peak_nits = "
+                    f"{em['display_peak_nits']:g} ({exc})")
     k = data["kernel"]
     if k["source"] == "file" and not k["path"]:
         chk.add("kernel.path", k["path"], "required when kernel.source = 'file'")
