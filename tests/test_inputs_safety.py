@@ -161,6 +161,20 @@ def test_another_applications_database_is_refused_and_left_unchanged(tmp_path):
     assert db.read_bytes() == before and not (tmp_path / "app.sqlite-wal").exists()
 
 
+def test_a_corrupt_stored_row_is_an_input_error(tmp_path):
+    from fsdvs_hw.explore.store import ResultsStore
+
+    db = tmp_path / "r.sqlite"
+    with ResultsStore(db) as s:
+        s.add("k", design="d", realisation="asic", params={}, status="ok", result={"v": 1}, wall_s=0)
+    with sqlite3.connect(db) as c:
+        c.execute("UPDATE points SET result = '{broken' WHERE key = 'k'")
+    c.close()
+    with ResultsStore(db) as s:
+        with pytest.raises(InputError, match="'k' is corrupt"):
+            list(s.rows())
+
+
 def test_store_that_is_a_folder_is_refused(tmp_path):
     from fsdvs_hw.explore.store import ResultsStore
 

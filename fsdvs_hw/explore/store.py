@@ -136,7 +136,12 @@ class ResultsStore:
 
     def get_meta(self, key: str, default: Any = None) -> Any:
         row = self._db.execute("SELECT value FROM meta WHERE key=?", (key,)).fetchone()
-        return default if row is None else json.loads(row[0])
+        if row is None:
+            return default
+        try:
+            return json.loads(row[0])
+        except (TypeError, json.JSONDecodeError, RecursionError):
+            raise InputError(f"{self.path}: metadata {key[:40]!r} is corrupt (not JSON)") from None
 
     # ------------------------------------------------------------------ reading
     def done(self) -> set[str]:
@@ -179,8 +184,13 @@ class ResultsStore:
             q += " WHERE design=?"
             args = (design,)
         for r in self._db.execute(q + " ORDER BY finished_at, rowid", args):
-            yield StoredPoint(key=r[0], design=r[1], realisation=r[2], params=json.loads(r[3]), status=r[4],
-                              result=json.loads(r[5]), wall_s=r[6], finished_at=r[7], host=r[8], worker=r[9])
+            try:
+                params, result = json.loads(r[3]), json.loads(r[5])
+            except (TypeError, json.JSONDecodeError, RecursionError):
+                raise InputError(f"{self.path}: stored point {str(r[0])[:40]!r} is corrupt (params/result not JSON); "
+                                 "delete that row or use a new --store file") from None
+            yield StoredPoint(key=r[0], design=r[1], realisation=r[2], params=params, status=r[4],
+                              result=result, wall_s=r[6], finished_at=r[7], host=r[8], worker=r[9])
 
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:
