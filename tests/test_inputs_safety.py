@@ -240,6 +240,11 @@ def test_zero_negative_or_nan_pitch_and_focal_are_refused_not_ignored(capsys, fl
     assert code == 2 and flag in _one_clear_line(err)
 
 
+def test_ablation_workers_zero_is_refused_not_run_serially(capsys):
+    code, err = _cli(["ablation", "--workers", "0", "--sizes", "1", "--seeds", "0", "--n-train", "2"], capsys)
+    assert code == 2 and "--workers" in _one_clear_line(err)
+
+
 def test_from_runs_garbage_is_one_clear_error(tmp_path, capsys):
     p = tmp_path / "runs.jsonl"
     p.write_text('{"task": "detection"}\nnot json\n')

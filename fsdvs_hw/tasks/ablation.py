@@ -349,6 +349,9 @@ def run(args: argparse.Namespace) -> int:
     from ..kernels import load_kernel
     from ..paths import output_dir
 
+    if not 1 <= args.workers <= 256:
+        raise InputError(f"--workers {args.workers}: must be an integer in 1..256")
+
     if args.from_runs is not None:
         if not args.from_runs.is_file():
             raise InputError(f"--from-runs: {str(args.from_runs)!r} not found")
