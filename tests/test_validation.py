@@ -209,3 +209,20 @@ def test_fits_at_the_tap_range_extremes_report_finite_errors(peak):
     assert all(math.isfinite(v) for v in mesh.fit.values() if isinstance(v, float))
     asic = fit_asic_taps(t, 4)
     assert np.isfinite(asic.kernel().taps).all()
+
+
+def test_choices_in_the_table_are_the_fit_modules_own_registries():
+    from fsdvs_hw.csf import CSF_METHODS
+    from fsdvs_hw.realise.asic import OBJECTIVES, SCALE_MODES
+    from fsdvs_hw.realise.asic_arith import SYMMETRIES
+    from fsdvs_hw.realise.mesh import MESH_MODELS
+    from fsdvs_hw.realise.metalens import DISPERSION_MODELS, STRATEGIES
+    from fsdvs_hw.validation import FIT_OPTIONS
+
+    assert FIT_OPTIONS["asic"]["csf_method"].choices == tuple(CSF_METHODS)
+    assert FIT_OPTIONS["asic"]["objective"].choices == tuple(OBJECTIVES)
+    assert FIT_OPTIONS["asic"]["scale"].choices == tuple(SCALE_MODES)
+    assert set(FIT_OPTIONS["asic"]["symmetry"].choices) == {"auto", *SYMMETRIES}
+    assert FIT_OPTIONS["mesh"]["model"].choices == tuple(MESH_MODELS)
+    assert FIT_OPTIONS["metalens"]["strategy"].choices == tuple(STRATEGIES)
+    assert FIT_OPTIONS["metalens"]["dispersion"].choices == tuple(DISPERSION_MODELS)
