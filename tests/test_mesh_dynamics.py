@@ -26,7 +26,7 @@ def test_time_constant_is_c_over_gv_and_grows_as_lambda_squared():
 
 def test_drift_kernel_is_static_at_rest_and_lags_by_v_tau():
     d = _design()
-    assert np.abs(drift_kernel(d, (0.0, 0.0)) - d.kernel_taps()).max() < 1e-12
+    assert np.abs(drift_kernel(d, (0.0, 0.0)) - d.kernel_taps(d.size)).max() < 1e-12
     # a single mesh's centroid trails a drifting scene by v·τ pixels (exact in the continuum;
     # the lattice-sampled kernel carries a small Gibbs term from the Nyquist edge, < 2 %)
     single = MeshDesign.from_space_constants(1.5, 3.0, 1.0, 0.0, pixel_weight=0.0, size=61)

@@ -9,8 +9,9 @@ the same thing.
 What is measured
 ----------------
 kernel error
-    :func:`fsdvs_hw.realise.base.kernel_error` of the realised kernel against the target, as is
-    and with the least-squares gain (a gain folded into the event threshold is free).
+    :func:`fsdvs_hw.realise.base.realised_kernel_error`: the realisation's own error (the one
+    definition: what the sensor applies, whole mesh response, metalens pedestal included) against
+    the target, as is and with the least-squares gain (a gain folded into the threshold is free).
 CSF agreement
     :func:`fsdvs_hw.csf.csf_agreement` for each requested CSF model (Mannos–Sakrison 1974 first)
     at the design's optics geometry (pixel pitch and focal length set pixels per degree), and
@@ -43,7 +44,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels import Kernel, reference_kernel
-from ..realise.base import Realisation, ReferenceRealisation, kernel_error
+from ..realise.base import Realisation, ReferenceRealisation, realised_kernel_error
 from .design import REALISATION_FITTERS, REFERENCE_REALISATIONS
 
 __all__ = [
@@ -303,8 +304,8 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
         "label": label,
         "describe": realisation.describe(),
         "kernel": realised.to_dict(),
-        "kernel_error": kernel_error(realised, target),
-        "kernel_error_gain_free": kernel_error(realised, target, fit_scale=True),
+        "kernel_error": realised_kernel_error(realisation, target),
+        "kernel_error_gain_free": realised_kernel_error(realisation, target, fit_scale=True),
         "dc_gain": realised.dc_gain,
         "asymmetry": realised.asymmetry(),
         "spectral": _spectral(realised),

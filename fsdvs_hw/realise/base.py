@@ -14,6 +14,12 @@ metalens PSF), or a reference that is scored the same way (the learned kernel it
     A few human-readable lines.
 ``to_dict()``
     A JSON-serialisable dict with a ``"kind"`` key; :func:`realisation_from_dict` inverts it.
+``kernel_error(target, fit_scale=False)`` (optional)
+    The realisation's own relative L2 error against a target: **the one definition** used by the
+    fit reports and the scorer alike (:func:`realised_kernel_error`). It compares what the sensor
+    really applies — the whole circuit response of a mesh (not the window crop), the applied PSF
+    of a metalens *with its pedestal* (real light before the log) — with the target. A
+    realisation without it is scored on :meth:`kernel`.
 
 Kinds register themselves in :data:`REALISATION_KINDS` as ``"module:Class"`` strings so that
 loading a stored design imports only the module it needs.
@@ -38,6 +44,7 @@ __all__ = [
     "REALISATION_KINDS",
     "realisation_from_dict",
     "kernel_error",
+    "realised_kernel_error",
 ]
 
 
@@ -158,3 +165,16 @@ def kernel_error(realised: Kernel | np.ndarray, target: Kernel | np.ndarray, *, 
         na2 = float((a * a).sum())
         s = float((a * b).sum()) / na2 if na2 > 0 else 0.0
     return float(np.linalg.norm(s * a - b) / nb)
+
+
+def realised_kernel_error(realisation: Any, target: Kernel | np.ndarray, *, fit_scale: bool = False) -> float:
+    """The one kernel-error definition: the realisation's own ``kernel_error`` if it has one.
+
+    Otherwise :func:`kernel_error` of ``realisation.kernel()`` (what the sensor applies) against
+    ``target``. Fit reports and the scorer both call this, so a design reports about itself the
+    number the scorer reports about it.
+    """
+    own = getattr(realisation, "kernel_error", None)
+    if callable(own):
+        return float(own(target, fit_scale=fit_scale))
+    return kernel_error(realisation.kernel(), target, fit_scale=fit_scale)

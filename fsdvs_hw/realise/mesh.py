@@ -44,6 +44,7 @@ a subthreshold diffusor transistor); :math:`g_v = g_l/\lambda^2`. With a node ca
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 import time
 import warnings
@@ -74,6 +75,7 @@ __all__ = [
     "MeshAsymmetryWarning",
     "MeshFitWarning",
     "MESH_MODELS",
+    "GAIN_MODES",
     "fit_resistive_mesh",
     "mismatch_sensitivity",
 ]
@@ -285,9 +287,46 @@ class MeshDesign:
                 out.append(_unfold_quarter(np.asarray(lattice_green_quarter(lam, radius))))
         return out[0], out[1]
 
+    @property
+    def whole_dc_gain(self) -> float:
+        """DC gain of the whole circuit, :math:`w_p + a - b`: the response to a uniform input.
+
+        Exact for both models (an infinite lattice and a finite open-edge chip both return all
+        injected current through their vertical conductances). It is what a bright uniform scene
+        drives into the pixel; a negative value means negative pre-log current.
+        """
+        return self.pixel_weight + self.gain_narrow - self.gain_wide
+
+    def _whole_energy(self) -> float:
+        """Σ K² over the whole circuit response (infinite lattice: closed form; finite chip: exact sum)."""
+        if self.model == "grid":
+            k = self.kernel_taps(2 * int(self.grid_half_width) + 1)
+            return float((k * k).sum())
+        gram = _lattice_gram(self.lambda_narrow_px, self.lambda_wide_px)
+        x = np.array([self.pixel_weight, self.gain_narrow, self.gain_wide])
+        return float(max(x @ gram @ x, 0.0))
+
+    def response_size(self, energy_tol: float = 1e-6) -> int:
+        """Smallest odd window holding all but ``energy_tol`` of the response's energy (≤ 63 px).
+
+        The finite-grid model returns its whole chip (capped at :data:`MAX_KERNEL_SIZE`).
+        """
+        if self.model == "grid":
+            return min(MAX_KERNEL_SIZE, 2 * int(self.grid_half_width) + 1)
+        total = self._whole_energy()
+        rmax = MAX_KERNEL_SIZE // 2
+        k = self.kernel_taps(MAX_KERNEL_SIZE)
+        ring = np.maximum(*np.abs(np.mgrid[-rmax : rmax + 1, -rmax : rmax + 1]))
+        inside = np.cumsum(np.bincount(ring.ravel(), weights=(k * k).ravel(), minlength=rmax + 1))
+        if total <= 0:
+            return self.size
+        ok = np.nonzero(total - inside <= energy_tol * total)[0]
+        r = int(ok[0]) if ok.size else rmax
+        return max(self.size, 2 * r + 1)
+
     def kernel_taps(self, size: int | None = None) -> np.ndarray:
-        """Taps of the realised kernel on a ``size`` × ``size`` window (default :attr:`size`)."""
-        size = self.size if size is None else size
+        """Taps of the realised response on a ``size`` × ``size`` window (default :meth:`response_size`)."""
+        size = self.response_size() if size is None else size
         if not (isinstance(size, (int, np.integer)) and size % 2 == 1 and 1 <= size <= MAX_KERNEL_SIZE):
             raise InputError(f"size: must be odd in 1..{MAX_KERNEL_SIZE}, got {size!r}")
         r = size // 2
@@ -297,10 +336,11 @@ class MeshDesign:
         return k
 
     def kernel(self, size: int | None = None) -> Kernel:
-        """The kernel the circuit really applies, on a ``size`` × ``size`` window (default :attr:`size`).
+        """The kernel the circuit really applies: its whole response, or a ``size`` × ``size`` crop.
 
-        The mesh response has infinite support; :meth:`cost` reports the energy outside the window
-        (``tail_energy_fraction``).
+        By default the window is :meth:`response_size` (all but 1e-6 of the energy, ≤ 63 px), so
+        the pixel's DC gain, spectrum and events are those of the whole circuit and not of the
+        target's window (:attr:`size`); ``kernel(design.size)`` is the crop to the target window.
         """
         taps = self.kernel_taps(size)
         prov = {
@@ -310,20 +350,44 @@ class MeshDesign:
             "gain_narrow": self.gain_narrow,
             "gain_wide": self.gain_wide,
             "pixel_weight": self.pixel_weight,
+            "whole_dc_gain": self.whole_dc_gain,
             "model": self.model,
         }
         name = f"mesh({self.target.name})" if self.target is not None else "mesh"
         return Kernel(taps, pitch_m=self.pitch_m, name=name, provenance=prov)
 
     def tail_energy_fraction(self, size: int | None = None) -> float:
-        """Fraction of the kernel's energy (Σ K²) outside the ``size`` window (default :attr:`size`)."""
+        """Fraction of the whole response's energy (Σ K²) outside the ``size`` window (default :attr:`size`)."""
         size = self.size if size is None else size
-        big = min(MAX_KERNEL_SIZE, size + 2 * int(math.ceil(5 * self.lambda_wide_px)))
-        kb = self.kernel_taps(big)
-        c = (big - size) // 2
-        inner = kb[c : c + size, c : c + size]
-        tot = float((kb * kb).sum())
-        return float(max(0.0, 1.0 - (inner * inner).sum() / tot)) if tot > 0 else 0.0
+        tot = self._whole_energy()
+        if tot <= 0:
+            return 0.0
+        inner = self.kernel_taps(size)
+        return float(min(1.0, max(0.0, 1.0 - float((inner * inner).sum()) / tot)))
+
+    def kernel_error(self, target: Kernel | np.ndarray | None = None, *, fit_scale: bool = False) -> float:
+        r"""Relative L2 error of the whole circuit response against ``target`` (the one definition).
+
+        :math:`e = \lVert s K - T\rVert_2 / \lVert T \rVert_2` summed over the *whole* response
+        (the target is zero outside its window; the infinite-lattice energy is exact, in closed
+        form), with :math:`s = 1` or, with ``fit_scale``, the least-squares gain. This is the number
+        the fit reports as ``fit["error"]`` and the scorer reports as ``kernel_error``.
+        """
+        t = self.target if target is None else target
+        if t is None:
+            raise InputError("kernel_error: this design has no target; pass one")
+        tt = t.taps if isinstance(t, Kernel) else np.asarray(t, dtype=np.float64)
+        n_t = float((tt * tt).sum())
+        if n_t == 0:
+            raise InputError("kernel_error: target kernel is all zeros")
+        kw = self.kernel_taps(tt.shape[0])
+        c = float((kw * tt).sum())
+        n_k = max(self._whole_energy(), float((kw * kw).sum()))
+        if fit_scale:
+            e2 = 1.0 - (c * c / (n_k * n_t) if n_k > 0 else 0.0)
+        else:
+            e2 = (n_k - 2.0 * c + n_t) / n_t
+        return float(math.sqrt(max(e2, 0.0)))
 
     # ------------------------------------------------------------------ protocol
     def cost(self) -> dict[str, CostItem]:
@@ -349,10 +413,12 @@ class MeshDesign:
                 5, "count", "2 input injections + 3 weighted outputs (pixel, narrow, wide)"
             ),
             "mismatch_sensitivity": CostItem(mismatch_sensitivity(self), "1", "relative kernel error per unit relative die-level mismatch"),
-            "tail_energy_fraction": CostItem(self.tail_energy_fraction(), "1", "kernel energy outside the window"),
+            "tail_energy_fraction": CostItem(self.tail_energy_fraction(), "1", "response energy outside the target window"),
+            "whole_dc_gain": CostItem(self.whole_dc_gain, "1", "whole-circuit DC gain w_p + a - b (uniform input)"),
+            "response_size": CostItem(self.response_size(), "px", "window holding all but 1e-6 of the response energy"),
         }
-        if "error" in self.fit:
-            c["kernel_error"] = CostItem(self.fit["error"], "1", "relative L2 error vs target on the window")
+        if self.target is not None:
+            c["kernel_error"] = CostItem(self.kernel_error(), "1", "relative L2 error of the whole response vs target")
         return c
 
     def describe(self) -> str:
@@ -365,13 +431,24 @@ class MeshDesign:
             f"  wide:   g_l = {self.g_lateral_wide_s:.3g} S, g_v = {self.g_vertical_wide_s:.3g} S,"
             f" lambda = {self.lambda_wide_px * self.pitch_m * 1e6:.3g} um, tau = {self.tau_wide_s:.3g} s",
         ]
+        n = self.response_size()
+        win_dc = float(self.kernel_taps(self.size).sum())
+        lines.append(
+            f"  the pixel sees the whole circuit response ({n}x{n} px holds all but 1e-6 of its energy):"
+            f" DC gain {self.whole_dc_gain:.4g} (uniform scene; the {self.size}x{self.size} window alone sums to"
+            f" {win_dc:.4g}), {100 * self.tail_energy_fraction():.3g} % of its energy outside the {self.size}x{self.size} window"
+        )
+        if self.whole_dc_gain < 0:
+            lines.append("  WARNING: negative whole-circuit DC gain: a bright uniform scene drives negative pre-log current")
         if self.fit:
             f = self.fit
             lines.append(
                 f"  fit to '{self.target.name if self.target is not None else '?'}': kernel error {f.get('error', float('nan')):.3g}"
-                f" (window), {f.get('error_full', float('nan')):.3g} (with tail); {f.get('status')} after"
-                f" {f.get('iterations')} iterations, {f.get('wall_s', float('nan')):.3g} s"
+                f" (whole response), {f.get('error_window', float('nan')):.3g} (window crop); gain {f.get('gain', '?')};"
+                f" {f.get('status')} after {f.get('iterations')} iterations, {f.get('wall_s', float('nan')):.3g} s"
             )
+            if f.get("on_bound"):
+                lines.append(f"  at a bound: {', '.join(f['on_bound'])}")
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
@@ -475,37 +552,133 @@ def _numpy_orbit_response(lam: float, radius: int, model: str, half_width: int |
     return h[radius + ii, radius + jj], dh[radius + ii, radius + jj]
 
 
+# ---------------------------------------------------------------------- whole-response energy
+def _lattice_norm_terms(lam: float, nodes=None) -> tuple[float, float]:
+    r"""Centre tap :math:`G_0(\alpha)` and energy :math:`\sum H^2 = G_0 + \alpha\,dG_0/d\alpha` (α = λ²).
+
+    On the infinite lattice :math:`\hat H = 1/(1 + \alpha s(k))`, so
+    :math:`\sum_x H^2 = \int \hat H^2 = \frac{d}{d\alpha}[\alpha G_0(\alpha)]` (Parseval).
+    """
+    q, dq = lattice_green_quarter(lam, 0, derivative=True, nodes=nodes)
+    g0 = float(q[0, 0])
+    return g0, g0 + lam * lam * float(dq[0, 0])
+
+
+def _cross_energy(al_n: float, g0n: float, q_n: float, al_w: float, g0w: float) -> float:
+    r""":math:`\sum_x H_n H_w = (\alpha_n G_0(\alpha_n) - \alpha_w G_0(\alpha_w)) / (\alpha_n - \alpha_w)` (partial fractions)."""
+    if abs(al_n - al_w) <= 1e-9 * max(al_n, al_w):
+        return q_n
+    return (al_n * g0n - al_w * g0w) / (al_n - al_w)
+
+
+def _lattice_gram(lam_n: float, lam_w: float, nodes=None) -> np.ndarray:
+    """Gram matrix of (δ, H_n, −H_w) over the whole infinite lattice (exact): Σ K² = xᵀ G x, x = (w_p, a, b)."""
+    g0n, qn = _lattice_norm_terms(lam_n, nodes)
+    g0w, qw = _lattice_norm_terms(lam_w, nodes)
+    pnw = _cross_energy(lam_n**2, g0n, qn, lam_w**2, g0w)
+    return np.array([[1.0, g0n, -g0w], [g0n, qn, -pnw], [-g0w, -pnw, qw]])
+
+
+def _small_qp(gram: np.ndarray, c: np.ndarray, x_fixed: np.ndarray, free: list[int], dc: bool) -> np.ndarray:
+    """Exact minimiser of xᵀGx − 2cᵀx over x_i ≥ 0 (i in ``free``; others fixed), with w_p + a − b ≥ 0 if ``dc``.
+
+    A convex QP in ≤ 3 variables: every active set is tried (the optimum is the best feasible
+    stationary point among them).
+    """
+    d = np.array([1.0, 1.0, -1.0])
+    best, best_x = math.inf, None
+    for mask in itertools.product((False, True), repeat=len(free)):
+        f_idx = [free[k] for k in range(len(free)) if mask[k]]
+        base = x_fixed.copy()
+        base[free] = 0.0
+        for active in (False, True) if dc else (False,):
+            x = base.copy()
+            if f_idx:
+                g_ff = gram[np.ix_(f_idx, f_idx)]
+                rhs = c[f_idx] - gram[f_idx] @ base
+                if active:
+                    kkt = np.block([[g_ff, d[f_idx, None] / 2], [d[None, f_idx], np.zeros((1, 1))]])
+                    sol = np.linalg.lstsq(kkt, np.concatenate([rhs, [-(d @ base)]]), rcond=None)[0]
+                    x[f_idx] = sol[:-1]
+                else:
+                    x[f_idx] = np.linalg.lstsq(g_ff, rhs, rcond=None)[0]
+            elif active:
+                continue
+            if np.any(x[free] < -1e-12) or (dc and d @ x < -1e-12 * max(1.0, np.abs(x).max())):
+                continue
+            val = float(x @ gram @ x - 2 * c @ x)
+            if val < best:
+                best, best_x = val, np.maximum(x, 0.0)
+    return best_x if best_x is not None else x_fixed.copy()
+
+
 # ---------------------------------------------------------------------- the fit
+#: Overall-gain modes of :func:`fit_resistive_mesh`.
+GAIN_MODES = ("free", "fixed")
+
+
 @functools.lru_cache(maxsize=32)
-def _mesh_solver(radius: int, model: str, lam_max: float, half_width: int | None, free_wp: bool, max_iter: int, tol: float):
-    """IPOPT solver of the dual-mesh fit for one problem structure; target and weights are parameters."""
+def _mesh_solver(radius: int, model: str, lam_max: float, half_width: int | None, free_wp: bool, gain_free: bool,
+                 whole: bool, max_iter: int, tol: float):
+    """IPOPT solver of the dual-mesh fit for one problem structure; target and weights are parameters.
+
+    Constraints ``g``: [ln λ_w² − ln λ_n², whole-circuit DC w_p + a − b, (σS / max error)², ⟨K, T⟩ (gain free),
+    w_p + a + b (gain and pixel weight free: the normalisation)].
+    """
     import casadi as ca
 
     ii, jj, mult = _orbits(radius)
     n_orb = len(ii)
-    # one mesh as a scalar-expression (SX) function of u = ln λ², with its derivative; the NLP
-    # graph (MX) calls it twice, so the exact Hessian is built from this small function's AD
-    u = ca.SX.sym("u")
-    h_u = _casadi_orbit_response(u, radius, model, lam_max, half_width)
-    mesh_h = ca.Function("mesh_h", [u], [h_u, ca.jacobian(h_u, u)])
     nx = 5 if free_wp else 4
     x = ca.MX.sym("x", nx)
-    p = ca.MX.sym("p", n_orb + 3)  # target on the orbits, 1/||T||^2, sigma^2, fixed pixel weight
-    t_orb, inv_norm2, sigma2, wp_fixed = p[:n_orb], p[n_orb], p[n_orb + 1], p[n_orb + 2]
-    hn, dhn = mesh_h(x[0])
-    hw, dhw = mesh_h(x[1])
+    p = ca.MX.sym("p", n_orb + 3)  # target on the orbits, 1/||T||^2, fixed pixel weight, sigma^2 / max_err^2
+    t_orb, inv_norm2, wp_fixed, sigma2 = p[:n_orb], p[n_orb], p[n_orb + 1], p[n_orb + 2]
     a, b = ca.exp(x[2]), ca.exp(x[3])
     wp = ca.exp(x[4]) if free_wp else wp_fixed
     m = ca.DM(mult)
-    resid = wp * ca.DM((ii == 0).astype(float)) + a * hn - b * hw - t_orb
-    err2 = ca.dot(m, resid**2) * inv_norm2
-    sens2 = (
-        2 * a**2 * ca.dot(m, dhn**2)
-        + 2 * b**2 * ca.dot(m, dhw**2)
-        + a**2 * ca.dot(m, hn**2)
-        + b**2 * ca.dot(m, hw**2)
-        + wp**2
-    ) * inv_norm2
+    # one mesh as a scalar-expression (SX) function of u = ln λ² (and the target); the NLP graph
+    # (MX) calls it twice, so the exact Hessian is built from this small function's AD
+    u = ca.SX.sym("u")
+    h_u = _casadi_orbit_response(u, radius, model, lam_max, half_width)
+    dh_u = ca.jacobian(h_u, u)
+    if whole and model == "lattice":
+        mesh_h = ca.Function("mesh_h", [u], [h_u, dh_u])
+        hn, dhn = mesh_h(x[0])
+        hw, dhw = mesh_h(x[1])
+        e0 = ca.DM((ii == 0).astype(float))
+        c = ca.dot(m, (wp * e0 + a * hn - b * hw) * t_orb)
+        g0n, g0w = hn[0], hw[0]
+        # the whole infinite-lattice energy in closed form (Parseval + partial fractions)
+        qn, qw = g0n + dhn[0], g0w + dhw[0]
+        al_n, al_w = ca.exp(x[0]), ca.exp(x[1])
+        pnw = ca.if_else(ca.fabs(x[1] - x[0]) < 1e-9, qn, (al_n * g0n - al_w * g0w) / (al_n - al_w + 1e-300))
+        n_k = wp**2 + 2 * wp * (a * g0n - b * g0w) + a**2 * qn + b**2 * qw - 2 * a * b * pnw
+        sens_raw = (
+            2 * a**2 * ca.dot(m, dhn**2) + 2 * b**2 * ca.dot(m, dhw**2) + a**2 * ca.dot(m, hn**2) + b**2 * ca.dot(m, hw**2) + wp**2
+        )
+    else:  # the fit window (or the whole finite chip) holds the response
+        mesh_h = ca.Function("mesh_h", [u], [h_u, dh_u])
+        hn, dhn = mesh_h(x[0])
+        hw, dhw = mesh_h(x[1])
+        e0 = ca.DM((ii == 0).astype(float))
+        k_orb = wp * e0 + a * hn - b * hw
+        c = ca.dot(m, k_orb * t_orb)
+        n_k = ca.dot(m, k_orb**2)
+        sens_raw = (
+            2 * a**2 * ca.dot(m, dhn**2) + 2 * b**2 * ca.dot(m, dhw**2) + a**2 * ca.dot(m, hn**2) + b**2 * ca.dot(m, hw**2) + wp**2
+        )
+    if gain_free:
+        f = 1.0 - c**2 / n_k * inv_norm2
+        g2 = (c / n_k) ** 2
+    else:
+        f = (n_k - 2 * c) * inv_norm2 + 1.0
+        g2 = 1.0
+    sens2 = g2 * sens_raw * inv_norm2
+    g = [x[1] - x[0], wp + a - b, sigma2 * sens2]
+    if gain_free:
+        g.append(c * ca.sqrt(inv_norm2))
+        if free_wp:
+            g.append(wp + a + b)
     opts = {
         "ipopt.print_level": 0,
         "print_time": False,
@@ -515,7 +688,7 @@ def _mesh_solver(radius: int, model: str, lam_max: float, half_width: int | None
         "ipopt.acceptable_tol": 1e-10,
         "ipopt.mu_strategy": "adaptive",
     }
-    return ca.nlpsol("mesh_fit", "ipopt", {"x": x, "p": p, "f": err2 + sigma2 * sens2, "g": x[1] - x[0]}, opts)
+    return ca.nlpsol("mesh_fit", "ipopt", {"x": x, "p": p, "f": f, "g": ca.vertcat(*g)}, opts)
 
 
 def _coerce_kernel(kernel: Any, pitch_m: float | None) -> Kernel:
@@ -536,65 +709,101 @@ def _check_scalar(name: str, v: Any, lo: float, hi: float) -> float:
     return f
 
 
+def _coerce_bounds(bounds: Any) -> MeshBounds:
+    if bounds is None:
+        return MeshBounds()
+    if isinstance(bounds, Mapping):  # e.g. a [realisations.mesh.bounds] table of a design file
+        unknown = set(bounds) - set(MeshBounds.__dataclass_fields__)
+        if unknown:
+            raise InputError(f"bounds: unknown key(s) {sorted(unknown)}; allowed {sorted(MeshBounds.__dataclass_fields__)}")
+        bounds = MeshBounds(**{k: (tuple(v) if isinstance(v, (list, tuple)) else v) for k, v in bounds.items()})
+    if not isinstance(bounds, MeshBounds):
+        raise InputError(f"bounds: expected a MeshBounds or a mapping of its fields, got {type(bounds).__name__}")
+    return bounds
+
+
 def fit_resistive_mesh(
     kernel: Kernel | np.ndarray,
     *,
     bounds: MeshBounds | Mapping[str, Any] | None = None,
     pitch_m: float | None = None,
-    pixel_weight: float | str | None = 1.0,
+    pixel_weight: float | str | None = "free",
+    gain: str = "free",
+    nonnegative_dc: bool = True,
     mismatch_sigma: float = 0.01,
+    max_mismatch_error: float | None = 0.05,
     g_lateral_s: float = _DEFAULT_G_LATERAL_S,
     node_capacitance_f: float = _DEFAULT_C_NODE_F,
     model: str = "lattice",
     grid_half_width: int | None = None,
     fit_size: int | None = None,
-    n_init: int = 10,
+    n_init: int = 16,
+    n_starts: int = 3,
     max_iter: int = 200,
     tol: float = 1e-14,
 ) -> MeshDesign:
     r"""Fit a dual resistive mesh to ``kernel`` with IPOPT (casadi ``nlpsol``).
 
+    The error minimised and reported is that of the **whole circuit response** against the target
+    (zero outside its window): on the infinite lattice its energy is exact in closed form, on the
+    finite grid the whole chip is summed.
+
     Parameters
     ----------
     kernel : Kernel or array_like
-        Target kernel (odd square taps). Its absolute scale matters (no free overall gain) unless
-        ``pixel_weight=None``.
+        Target kernel (odd square taps).
     bounds : MeshBounds or mapping, optional
         λ range (px), gain range, minimum λ_wide/λ_narrow, conductance range (S); a mapping of
-        :class:`MeshBounds` fields is accepted (design files).
+        :class:`MeshBounds` fields is accepted (design files). With ``gain="free"`` the gain range
+        bounds the path gains *relative* to the reference (the fixed pixel weight, or, with a free
+        pixel weight, the sum w_p + a + b = 1, so only its low end applies).
     pitch_m : float, optional
         Pixel pitch in metres (default: the kernel's).
-    pixel_weight : float, None or "free"
-        Fixed weight of the pixel's own signal (1.0: the paper's sketch), or None / "free" to fit
-        it within ``bounds.gain``.
+    pixel_weight : float, "free" or None
+        Fixed weight of the pixel's own signal (1.0: the paper's sketch), or "free" / None
+        (default) to fit it (a pure difference of meshes when it reaches its lower bound).
+    gain : {"free", "fixed"}
+        ``"free"`` (default): the overall gain folds into the event threshold, so the shape is
+        fitted (scale-invariant error) and the returned gains are scaled by the least-squares
+        overall gain; ``"fixed"``: the target's absolute scale must be met within ``bounds.gain``.
+    nonnegative_dc : bool
+        Constrain the whole-circuit DC gain w_p + a − b ≥ 0 (default), so a bright uniform scene
+        never drives negative pre-log current.
     mismatch_sigma : float
-        Relative die-level conductance/gain mismatch σ (0 … 0.5) whose expected error the fit
-        adds to the objective (0 disables the penalty: best nominal fit, possibly unbuildable).
+        Relative die-level conductance/gain mismatch σ (0 … 0.5) the design must tolerate.
+    max_mismatch_error : float or None
+        Constraint σ·S ≤ this (S: :func:`mismatch_sensitivity`), the first-order kernel error at
+        mismatch σ. It stops the unbuildable near-cancellation of two similar meshes with huge
+        opposing gains without biasing fits that are robust anyway (a mesh-made target is
+        recovered exactly). None disables it.
     g_lateral_s : float
         Lateral conductance of both meshes, siemens; g_v = g_l / λ².
     node_capacitance_f : float
         Node capacitance (F) of both meshes, for the settling time.
     model : {"lattice", "grid"}
-        Single-mesh model used in the fit: infinite lattice (exact lattice Green's function), or a
-        finite open-edge grid of half-width ``grid_half_width`` pixels (exact DCT form).
+        Single-mesh model: infinite lattice (exact lattice Green's function), or a finite open-edge
+        grid of half-width ``grid_half_width`` pixels (exact DCT form).
     grid_half_width : int, optional
         Required with ``model="grid"``.
     fit_size : int, optional
-        Odd window (pixels, ≥ the target's size) on which the error is minimised, the target being
-        zero outside its own window. Default: the target's size (the mesh tail outside it is then
-        free; ``fit["error_full"]`` reports what it costs). A larger window also penalises the tail.
+        Fit on an odd window (≥ the target's size) instead of the whole response (the tail
+        outside it is then unpriced; ``fit["error"]`` still reports the whole response).
     n_init : int
-        λ values per mesh in the least-squares initialisation grid (2 … 40).
+        λ values per mesh in the initialisation grid (2 … 40): at each (λ_n, λ_w) pair the gains
+        are the exact constrained least-squares optimum (a convex QP in ≤ 3 gains).
+    n_starts : int
+        IPOPT runs from the best distinct grid points (1 … 10); the best result is kept.
     max_iter, tol : int, float
         IPOPT iteration limit and tolerance.
 
     Returns
     -------
     MeshDesign
-        With ``fit`` = {"error", "error_full", "error_symmetric_part", "asymmetry",
-        "mismatch_sensitivity", "objective", "status", "success", "iterations", "wall_s",
-        "init_objective", "model", "mismatch_sigma", "pixel_weight_free"} (objectives: J above, on
-        the symmetric part of the target).
+        With ``fit`` = {"error" (whole response, :meth:`MeshDesign.kernel_error`), "error_window",
+        "error_gain_free", "error_symmetric_part", "tail_energy_fraction", "whole_dc_gain",
+        "window_dc_gain", "overall_gain", "asymmetry", "mismatch_sensitivity",
+        "expected_mismatch_error", "on_bound", "objective", "init_objective", "status",
+        "success", "iterations", "starts", "wall_s", "model", "gain", "fit_size", ...}.
 
     Raises
     ------
@@ -606,52 +815,49 @@ def fit_resistive_mesh(
     MeshAsymmetryWarning
         The target is not D4-symmetric (relative asymmetric part > 1e-6).
     MeshFitWarning
-        The fit is no better than a zero kernel (error ≥ 0.999: target scale out of reach), or
-        IPOPT did not report success.
+        The fit is no better than a zero kernel (error ≥ 0.999), or IPOPT did not report success.
     """
     check_fit_arguments("mesh", locals())  # fsdvs_hw.validation: same limits as design files
     import casadi as ca
-    from scipy.optimize import lsq_linear
 
     t0 = time.perf_counter()
     target = _coerce_kernel(kernel, pitch_m)
-    if bounds is None:
-        bounds = MeshBounds()
-    elif isinstance(bounds, Mapping):  # e.g. a [realisations.mesh.bounds] table of a design file
-        unknown = set(bounds) - set(MeshBounds.__dataclass_fields__)
-        if unknown:
-            raise InputError(f"bounds: unknown key(s) {sorted(unknown)}; allowed {sorted(MeshBounds.__dataclass_fields__)}")
-        bounds = MeshBounds(**{k: (tuple(v) if isinstance(v, (list, tuple)) else v) for k, v in bounds.items()})
-    if not isinstance(bounds, MeshBounds):
-        raise InputError(f"bounds: expected a MeshBounds or a mapping of its fields, got {type(bounds).__name__}")
-    if isinstance(pixel_weight, str):
+    bounds = _coerce_bounds(bounds)
+    if pixel_weight is not None and isinstance(pixel_weight, str):
         if pixel_weight != "free":
             raise InputError(f"pixel_weight: a number, None or 'free', got {pixel_weight!r}")
         pixel_weight = None
+    if gain not in GAIN_MODES:
+        raise InputError(f"gain={gain!r} unknown; allowed {GAIN_MODES}")
+    gain_free = gain == "free"
+    if not isinstance(nonnegative_dc, (bool, np.bool_)):
+        raise InputError(f"nonnegative_dc: must be true or false, got {nonnegative_dc!r}")
     sigma = _check_scalar("mismatch_sigma", mismatch_sigma, 0.0, 0.5)
+    max_err = None if max_mismatch_error is None else _check_scalar("max_mismatch_error", max_mismatch_error, 1e-6, 10.0)
     g_l = _check_scalar("g_lateral_s", g_lateral_s, *bounds.conductance_s)
     c_node = _check_scalar("node_capacitance_f", node_capacitance_f, 1e-18, 1e-6)
     if model not in MESH_MODELS:
         raise InputError(f"model={model!r} unknown; allowed {MESH_MODELS}")
-    if fit_size is None:
-        fit_size = target.size
-    if not (isinstance(fit_size, (int, np.integer)) and fit_size % 2 == 1 and target.size <= fit_size <= MAX_KERNEL_SIZE):
-        raise InputError(f"fit_size: must be odd in {target.size}..{MAX_KERNEL_SIZE}, got {fit_size!r}")
-    fit_target = target if fit_size == target.size else target.padded(int(fit_size))
-    radius = fit_target.radius
+    if fit_size is not None and not (
+        isinstance(fit_size, (int, np.integer)) and not isinstance(fit_size, bool)
+        and fit_size % 2 == 1 and target.size <= fit_size <= MAX_KERNEL_SIZE
+    ):
+        raise InputError(f"fit_size: must be None (whole response) or odd in {target.size}..{MAX_KERNEL_SIZE}, got {fit_size!r}")
     if model == "grid":
-        if not (isinstance(grid_half_width, (int, np.integer)) and radius <= grid_half_width <= 60):
-            raise InputError(f"grid_half_width: model 'grid' needs an integer in {radius}..60, got {grid_half_width!r}")
+        if not (isinstance(grid_half_width, (int, np.integer)) and target.radius <= grid_half_width <= 60):
+            raise InputError(f"grid_half_width: model 'grid' needs an integer in {target.radius}..60, got {grid_half_width!r}")
         grid_half_width = int(grid_half_width)
     else:
         grid_half_width = None
-    if not (isinstance(n_init, (int, np.integer)) and 2 <= n_init <= 40):
-        raise InputError(f"n_init: must be an integer in 2..40, got {n_init!r}")
-    if not (isinstance(max_iter, (int, np.integer)) and 1 <= max_iter <= 10000):
-        raise InputError(f"max_iter: must be an integer in 1..10000, got {max_iter!r}")
+    for name, v, lo, hi in (("n_init", n_init, 2, 40), ("n_starts", n_starts, 1, 10), ("max_iter", max_iter, 1, 10000)):
+        if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and lo <= v <= hi):
+            raise InputError(f"{name}: must be an integer in {lo}..{hi}, got {v!r}")
+    tol = _check_scalar("tol", tol, 1e-16, 1e-2)
     free_wp = pixel_weight is None
     glo, ghi = bounds.gain
     wp_fixed = 0.0 if free_wp else _check_scalar("pixel_weight", pixel_weight, 0.0, 1e3)
+    if gain_free and not free_wp and wp_fixed == 0.0:
+        raise InputError("pixel_weight=0 with gain='free': the pixel path is the gain reference; use pixel_weight='free'")
 
     # λ range from the λ bounds and the conductance bounds (g_v = g_l / λ² within conductance_s)
     gmin, gmax = bounds.conductance_s
@@ -671,71 +877,133 @@ def fit_resistive_mesh(
             MeshAsymmetryWarning,
             stacklevel=2,
         )
-    t_sym = _d4_symmetrise(fit_target.taps)
+    # the window the NLP sums over: the target's (whole lattice energy in closed form), the fit
+    # window, or the whole finite chip
+    whole = fit_size is None
+    if model == "grid" and whole:
+        radius = grid_half_width
+    else:
+        radius = target.radius if whole else int(fit_size) // 2
+    t_sym = _d4_symmetrise(target.padded(2 * radius + 1).taps if 2 * radius + 1 > target.size else target.taps)
     ii, jj, mult = _orbits(radius)
     t_orb = t_sym[radius + ii, radius + jj]
     norm2 = float((target.taps**2).sum())
     delta = (ii == 0).astype(np.float64)
-    sw = np.sqrt(mult / norm2)
+    lattice_whole = whole and model == "lattice"
 
-    # ---- least-squares initialisation over a coarse (λ_n, λ_w) grid
+    # ---- initialisation: exact constrained least-squares gains on a (λ_n, λ_w) grid
     lams = np.geomspace(lam_lo, lam_hi, int(n_init))
     nodes = quadrature_nodes(lam_hi, radius) if model == "lattice" else None
     resp = [_numpy_orbit_response(float(lam), radius, model, grid_half_width, nodes) for lam in lams]
+    norms = [_lattice_norm_terms(float(lam), nodes) for lam in lams] if lattice_whole else None
+    sens_parts = [(float((mult * dh * dh).sum()), float((mult * h * h).sum())) for h, dh in resp]
+    sig2 = sigma * sigma
+    maxerr2 = math.inf if max_err is None else max_err * max_err
+
+    def evaluate(gram: np.ndarray, cvec: np.ndarray, x: np.ndarray, sp_n, sp_w) -> tuple[float, float]:
+        n_k = float(x @ gram @ x)
+        cx = float(cvec @ x)
+        if gain_free:
+            f = 1.0 - (cx * cx / (n_k * norm2) if n_k > 0 and cx > 0 else 0.0)
+            g2 = (cx / n_k) ** 2 if n_k > 0 else 0.0
+        else:
+            f, g2 = (n_k - 2 * cx) / norm2 + 1.0, 1.0
+        s2 = g2 * (2 * x[1] ** 2 * sp_n[0] + 2 * x[2] ** 2 * sp_w[0] + x[1] ** 2 * sp_n[1] + x[2] ** 2 * sp_w[1] + x[0] ** 2) / norm2
+        return f, sig2 * s2
+
     starts = []
-    ncol = 3 if free_wp else 2
-    for a_i, lam_n in enumerate(lams):
-        hn, dhn = resp[a_i]
-        for b_i in range(a_i + 1, len(lams)):
-            lam_w = lams[b_i]
+    for i_n, lam_n in enumerate(lams):
+        hn, _ = resp[i_n]
+        for i_w in range(i_n + 1, len(lams)):
+            lam_w = lams[i_w]
             if lam_w < bounds.min_lambda_ratio * lam_n * (1 - 1e-12):
                 continue
-            hw, dhw = resp[b_i]
-            cols = [hn, -hw] + ([delta] if free_wp else [])
-            a_fit = np.column_stack(cols) * sw[:, None]
-            pen = np.zeros((ncol, ncol))
-            pen[0, 0] = sigma * math.sqrt((2 * (mult * dhn**2).sum() + (mult * hn**2).sum()) / norm2)
-            pen[1, 1] = sigma * math.sqrt((2 * (mult * dhw**2).sum() + (mult * hw**2).sum()) / norm2)
-            if free_wp:
-                pen[2, 2] = sigma / math.sqrt(norm2)
-            rhs = (t_orb - wp_fixed * delta) * sw
-            res = lsq_linear(np.vstack([a_fit, pen]), np.concatenate([rhs, np.zeros(ncol)]), bounds=(glo, ghi), method="bvls")
-            starts.append((2 * res.cost + (0.0 if free_wp else (sigma * wp_fixed) ** 2 / norm2), lam_n, lam_w, res.x))
+            hw, _ = resp[i_w]
+            basis = np.column_stack([delta, hn, -hw])
+            if lattice_whole:
+                g0n, qn = norms[i_n]
+                g0w, qw = norms[i_w]
+                pnw = _cross_energy(lam_n**2, g0n, qn, lam_w**2, g0w)
+                gram = np.array([[1.0, g0n, -g0w], [g0n, qn, -pnw], [-g0w, -pnw, qw]])
+            else:
+                gram = basis.T @ (mult[:, None] * basis)
+            cvec = basis.T @ (mult * t_orb)
+            if free_wp or gain_free:
+                x = _small_qp(gram, cvec, np.zeros(3), [0, 1, 2], nonnegative_dc)
+                if not free_wp:  # gain free, pixel path is the reference
+                    x = x / x[0] * wp_fixed if x[0] > 0 else np.array([wp_fixed, ghi * wp_fixed, ghi * wp_fixed])
+                    x[1:] = np.clip(x[1:], glo, ghi)
+                elif gain_free:  # normalised to w_p + a + b = 1
+                    x = np.maximum(x / x.sum() if x.sum() > 0 else np.full(3, 1 / 3), glo)
+                    x /= x.sum()
+                else:
+                    x = np.clip(x, glo, ghi)
+            else:
+                x = _small_qp(gram, cvec, np.array([wp_fixed, 0.0, 0.0]), [1, 2], nonnegative_dc)
+                x[1:] = np.clip(x[1:], glo, ghi)
+            if nonnegative_dc and x[0] + x[1] - x[2] < 0:
+                x[2] = max(x[0] + x[1], glo)
+            f, mm2 = evaluate(gram, cvec, x, sens_parts[i_n], sens_parts[i_w])
+            starts.append((f + max(0.0, mm2 - maxerr2), f, i_n, i_w, x))
     if not starts:
         raise InputError("bounds: no (λ_narrow, λ_wide) pair on the initial grid satisfies min_lambda_ratio")
     starts.sort(key=lambda s: s[0])
+    chosen: list = []
+    for st in starts:  # the best distinct grid points (not neighbours of one already chosen)
+        if all(abs(st[2] - c[2]) > 1 or abs(st[3] - c[3]) > 1 for c in chosen):
+            chosen.append(st)
+        if len(chosen) == n_starts:
+            break
 
     # ---- IPOPT in log-parameters (the solver is cached per problem structure)
     nx = 5 if free_wp else 4
-    solver = _mesh_solver(radius, model, float(lam_hi), grid_half_width, free_wp, int(max_iter), float(tol))
-    p_val = np.concatenate([t_orb, [1.0 / norm2, sigma * sigma, wp_fixed]])
+    solver = _mesh_solver(radius, model, float(lam_hi), grid_half_width, free_wp, gain_free, whole, int(max_iter), float(tol))
+    p_val = np.concatenate([t_orb, [1.0 / norm2, wp_fixed, sig2 / (maxerr2 if max_err is not None else 1.0)]])
+    g_hi = 0.0 if (gain_free and free_wp) else math.log(ghi)
     lbx = [2 * math.log(lam_lo)] * 2 + [math.log(glo)] * (nx - 2)
-    ubx = [2 * math.log(lam_hi)] * 2 + [math.log(ghi)] * (nx - 2)
+    ubx = [2 * math.log(lam_hi)] * 2 + [g_hi] * (nx - 2)
+    lbg = [2 * math.log(bounds.min_lambda_ratio), 0.0 if nonnegative_dc else -ca.inf, -ca.inf]
+    ubg = [ca.inf, ca.inf, 1.0 if max_err is not None else ca.inf]
+    if gain_free:
+        lbg.append(0.0)
+        ubg.append(ca.inf)
+        if free_wp:
+            lbg.append(1.0)
+            ubg.append(1.0)
     best = None
     total_iter = 0
-    for s in starts[:2]:
-        _, lam_n, lam_w, gains = s
-        gains = np.clip(gains, glo, ghi)
-        x0 = [2 * math.log(lam_n), 2 * math.log(lam_w)] + [math.log(v) for v in gains]
-        sol = solver(x0=x0, p=p_val, lbx=lbx, ubx=ubx, lbg=2 * math.log(bounds.min_lambda_ratio), ubg=ca.inf)
+    runs = 0
+    for _, f0, i_n, i_w, x in chosen:
+        runs += 1
+        gains = np.clip(x, glo, ghi if not (gain_free and free_wp) else 1.0)
+        x0 = [2 * math.log(lams[i_n]), 2 * math.log(lams[i_w]), math.log(gains[1]), math.log(gains[2])]
+        if free_wp:
+            x0.append(math.log(gains[0]))
+        sol = solver(x0=x0, p=p_val, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         st = solver.stats()
         total_iter += int(st.get("iter_count", 0))
         f = float(sol["f"])
-        if best is None or f < best[0]:
-            best = (f, np.array(sol["x"]).ravel(), st)
-    f_opt, xo, st = best
+        gv = np.array(sol["g"]).ravel()
+        feasible = (gv[1] >= -1e-9 or not nonnegative_dc) and (max_err is None or gv[2] <= 1 + 1e-6)
+        key = (not feasible, f)
+        if best is None or key < best[0]:
+            best = (key, np.array(sol["x"]).ravel(), st, f)
+        if feasible and f <= 1e-12:  # an exact fit (relative error ≤ 1e-6): no start needs to beat it
+            break
+    _, xo, st, f_opt = best
     # IPOPT may relax bounds by ~1e-8 relative; the built circuit must respect them exactly
     xo = np.clip(xo, lbx, ubx)
     xo[1] = min(max(xo[1], xo[0] + 2 * math.log(bounds.min_lambda_ratio)), ubx[1])
     lam_n, lam_w = math.exp(xo[0] / 2), math.exp(xo[1] / 2)
-    design = MeshDesign(
+    a, b = math.exp(xo[2]), math.exp(xo[3])
+    wp = math.exp(xo[4]) if free_wp else wp_fixed
+    if nonnegative_dc and wp + a - b < 0:  # solver tolerance: never ship a negative whole-circuit DC
+        b = wp + a
+    common = dict(
         g_lateral_narrow_s=g_l,
         g_vertical_narrow_s=g_l / lam_n**2,
         g_lateral_wide_s=g_l,
         g_vertical_wide_s=g_l / lam_w**2,
-        gain_narrow=math.exp(xo[2]),
-        gain_wide=math.exp(xo[3]),
-        pixel_weight=math.exp(xo[4]) if free_wp else wp_fixed,
         size=target.size,
         pitch_m=target.pitch_m,
         node_capacitance_f=c_node,
@@ -743,33 +1011,69 @@ def fit_resistive_mesh(
         grid_half_width=grid_half_width,
         target=target,
     )
-    realised = design.kernel()
-    full_size = min(MAX_KERNEL_SIZE, max(int(fit_size), target.size + 2 * int(math.ceil(4 * lam_w))))
+    overall = 1.0
+    if gain_free:  # the least-squares overall gain (it folds into the event threshold)
+        unit = MeshDesign(gain_narrow=a, gain_wide=b, pixel_weight=wp, **common)
+        kw = unit.kernel_taps(2 * radius + 1)
+        n_k = unit._whole_energy() if whole else float((kw * kw).sum())
+        cx = float((kw * t_sym).sum())
+        overall = cx / n_k if n_k > 0 and cx > 0 else 0.0
+    wp_s, a_s, b_s = overall * wp, overall * a, overall * b
+    if nonnegative_dc and wp_s + a_s - b_s < 0:  # rounding of the scaling: keep the whole-circuit DC ≥ 0 exactly
+        b_s = wp_s + a_s
+    design = MeshDesign(gain_narrow=a_s, gain_wide=b_s, pixel_weight=wp_s, **common)
+
+    # which parameters and constraints sit on a bound
+    on_bound = []
+    names = ["lambda_narrow_px", "lambda_wide_px", "gain_narrow", "gain_wide"] + (["pixel_weight"] if free_wp else [])
+    for k, name in enumerate(names):
+        for side, lim in (("low", lbx[k]), ("high", ubx[k])):
+            if abs(xo[k] - lim) <= 1e-6 * max(1.0, abs(lim)):
+                on_bound.append(f"{name} at its {side} bound" + (" (relative to the reference path)" if gain_free and k >= 2 else ""))
+    if abs((xo[1] - xo[0]) - 2 * math.log(bounds.min_lambda_ratio)) <= 1e-6:
+        on_bound.append(f"lambda_wide/lambda_narrow at min_lambda_ratio={bounds.min_lambda_ratio:g}")
+    if nonnegative_dc and wp + a - b <= 1e-6 * max(wp, a, b):
+        on_bound.append("whole-circuit DC gain at 0 (nonnegative_dc)")
+    sens = mismatch_sensitivity(design, target)
+    if max_err is not None and sigma * sens >= max_err * (1 - 1e-4):
+        on_bound.append(f"mismatch error sigma*S at max_mismatch_error={max_err:g}")
+
+    err = design.kernel_error(target)
     fit = {
-        "error": kernel_error(realised, target),
-        "error_full": kernel_error(design.kernel(full_size), target),
-        "error_full_size": full_size,
-        "error_symmetric_part": kernel_error(realised, _d4_symmetrise(target.taps)),
-        "fit_size": int(fit_size),
+        "error": err,
+        "error_window": kernel_error(design.kernel(target.size), target),
+        "error_gain_free": design.kernel_error(target, fit_scale=True),
+        "error_symmetric_part": design.kernel_error(target.with_taps(_d4_symmetrise(target.taps))),
+        "tail_energy_fraction": design.tail_energy_fraction(),
+        "whole_dc_gain": design.whole_dc_gain,
+        "window_dc_gain": float(design.kernel_taps(target.size).sum()),
+        "overall_gain": overall,
+        "gain": gain,
+        "fit_size": "whole" if whole else int(fit_size),
         "asymmetry": asym,
-        "mismatch_sensitivity": mismatch_sensitivity(design, target),
+        "mismatch_sensitivity": sens,
+        "expected_mismatch_error": sigma * sens,
+        "on_bound": on_bound,
         "objective": f_opt,
-        "init_objective": float(starts[0][0]),
+        "init_objective": float(chosen[0][1]),
         "status": str(st.get("return_status")),
         "success": bool(st.get("success")),
         "iterations": total_iter,
-        "starts": min(2, len(starts)),
+        "starts": runs,
         "wall_s": time.perf_counter() - t0,
         "model": model,
         "mismatch_sigma": sigma,
+        "max_mismatch_error": max_err,
+        "nonnegative_dc": bool(nonnegative_dc),
         "pixel_weight_free": free_wp,
     }
     if fit["error"] >= 0.999:
         peak = float(np.abs(target.taps).max())
         warnings.warn(
-            f"mesh fit of '{target.name}' has kernel error {fit['error']:.6g} (a zero kernel has 1): the "
-            f"target's scale (max |tap| = {peak:.3g}) is out of reach of bounds.gain={bounds.gain}"
-            f"{'' if free_wp else f' with pixel_weight fixed at {wp_fixed:g}'}; normalise the target or widen the bounds",
+            f"mesh fit of '{target.name}' has kernel error {fit['error']:.6g} (a zero kernel has 1): "
+            + (f"the target's scale (max |tap| = {peak:.3g}) is out of reach of bounds.gain={bounds.gain}"
+               f"{'' if free_wp else f' with pixel_weight fixed at {wp_fixed:g}'}; normalise the target, widen the bounds "
+               "or use gain='free'" if not gain_free else "no dual mesh with these bounds correlates with the target"),
             MeshFitWarning,
             stacklevel=2,
         )

@@ -45,25 +45,50 @@ def _fit_table(quick: bool) -> list[str]:
     from ..kernels import reference_kernel
     from .mesh import MeshDesign, _mesh_solver, fit_resistive_mesh
 
-    sizes = (3, 5, 7, 9)
     repeats = 2 if quick else 5
-    rows = [
-        "| target | size | first call (s) | median later (s) | kernel error | IPOPT iterations |",
-        "|---|---|---|---|---|---|",
+
+    def whole_response(*args: float) -> object:
+        d = MeshDesign.from_space_constants(*args[:4], pixel_weight=args[4], size=7)
+        return d.kernel(d.response_size(1e-14))
+
+    def canonical(k: int) -> object:
+        return reference_kernel("dog", k, pitch_m=4.86e-6, sigma_centre_px=0.8, sigma_surround_px=2.2, w_centre=1.0, w_surround=0.7)
+
+    cases = [
+        ("known dual mesh λ 0.8/2.5 px (whole response)", lambda k: whole_response(0.8, 2.5, 1.5, 1.2, 1.0), {}, (None,)),
+        ("known dual mesh λ 0.5/1.0 px (whole response)", lambda k: whole_response(0.5, 1.0, 1.0, 1.4, 0.5), {}, (None,)),
+        ("DoG 0.8/2.2 px, 0.7 (issue 13)", canonical, {}, (3, 5, 7, 9)),
+        ("DoG 0.7/2.0 px, 0.8 (reference)", lambda k: reference_kernel("dog", k), {}, (7,)),
+        ("DoG 0.8/2.2 px, paper's sketch w_p=1, gain fixed", canonical, {"pixel_weight": 1.0, "gain": "fixed"}, (7,)),
+        ("DoG 0.8/2.2 px, w_p=1, gain free", canonical, {"pixel_weight": 1.0}, (7,)),
+        ("DoG 0.8/2.2 px, whole DC unconstrained", canonical, {"nonnegative_dc": False}, (7,)),
     ]
-    for label, make, opts in (
-        ("known dual mesh (recovery, σ=0)", lambda k: MeshDesign.from_space_constants(0.8, 2.5, 1.5, 1.2, size=k).kernel(), {"mismatch_sigma": 0.0}),
-        ("DoG 0.7/2.0 px, free pixel weight", lambda k: reference_kernel("dog", k), {"pixel_weight": None}),
-    ):
+    rows = [
+        "| target | options | size | first call (s) | median later (s) [min–max] | error (whole response) | error (window) |"
+        " whole DC | window DC | tail energy | IPOPT iterations | at a bound |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for label, make, opts, sizes in cases:
         for k in sizes:
-            _log(f"fit {label} {k}x{k}")
             target = make(k)
+            _log(f"fit {label} {target.size}x{target.size}")
             _mesh_solver.cache_clear()
             t0 = time.perf_counter()
             fit_resistive_mesh(target, **opts)
             first = time.perf_counter() - t0
-            med, d = _timed(lambda: fit_resistive_mesh(target, **opts), repeats)
-            rows.append(f"| {label} | {k}x{k} | {first:.2f} | {med:.3f} | {d.fit['error']:.2e} | {d.fit['iterations']} |")
+            times, d = [], None
+            for _ in range(repeats):
+                t1 = time.perf_counter()
+                d = fit_resistive_mesh(target, **opts)
+                times.append(time.perf_counter() - t1)
+            f = d.fit
+            bounds = "; ".join(b.split(" (")[0] for b in f["on_bound"]) or "none"
+            rows.append(
+                f"| {label} | {', '.join(f'{a}={v}' for a, v in opts.items()) or 'defaults'} | {target.size}x{target.size} |"
+                f" {first:.2f} | {statistics.median(times):.3f} [{min(times):.3f}–{max(times):.3f}] | {f['error']:.3g} |"
+                f" {f['error_window']:.3g} | {f['whole_dc_gain']:.3g} | {f['window_dc_gain']:.3g} | {f['tail_energy_fraction']:.2g} |"
+                f" {f['iterations']} | {bounds} |"
+            )
     return rows
 
 

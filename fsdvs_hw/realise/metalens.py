@@ -32,8 +32,14 @@ K + c` inside the k×k window (``c ≥ 0`` a uniform pedestal, the gain ``g`` fo
 threshold); :meth:`MetalensDesign.kernel` returns :math:`gP` — what the sensor applies — and the
 design reports ``c`` and the contrast it costs. ``strategy="differential"``: two lenses (two
 photodiodes per pixel) give :math:`g_+P_+ - g_-P_-` subtracted in the pixel *before* the log
-(``g_-/g_+`` is a current-mirror ratio); the gains hold the applied DC gain at the target's, so
-the log stage sees the intended mean signal.
+(``g_-/g_+`` is a current-mirror ratio); the gains hold the DC gain of the *whole* PSF (all the
+light reaching the sensor plane, from Parseval over the propagating modes, not the k×k window) at
+the target's, so the log stage sees the intended mean signal.
+
+Every reported error — :attr:`MetalensDesign.error`, ``cost()["kernel_error"]`` and the scorer —
+is that of the applied kernel, pedestal included (it is real light before the log); the error
+with the pedestal subtracted is :attr:`MetalensDesign.signal_error`, and the pedestal's price is
+reported separately as contrast loss (``contrast_factor``, ``cost()["contrast_loss"]``).
 
 Fitting (:func:`fit_metalens`) uses torch autograd in float64 with L-BFGS over the polynomial
 coefficients and the defocus, from a few defocus starts; gains and pedestal are solved in closed
@@ -54,7 +60,7 @@ from ..errors import InputError
 from ..kernels import DEFAULT_PITCH_M, Kernel
 from ..validation import check_fit_arguments
 from .base import CostItem, kernel_error
-from .optics import RadialPropagator, angular_spectrum_2d, pixel_quadrature, required_modes
+from .optics import RadialPropagator, angular_spectrum_2d, pixel_nodes_for_bandwidth, pixel_quadrature, required_modes
 from .spectral import SpectralSamples, spectral_samples
 
 __all__ = [
@@ -197,8 +203,8 @@ class _RadialKernelModel:
         self.n_modes = int(n_modes)
         self.na = na
         self.prop = RadialPropagator(a, self.window_radius_m, self.n_modes)
-        if n_sub is None:  # resolve a focused spot (size ~ λ/(2 NA)) inside a pixel
-            n_sub = int(np.clip(math.ceil(4 * pitch_m * na / lam_min) + 2, 6, 24))
+        if n_sub is None:  # from the intensity's bandwidth 2 NA / λ_min (no cap; at least 6 per side)
+            n_sub = max(6, pixel_nodes_for_bandwidth(pitch_m, 2 * na / lam_min))
         self.n_sub = n_sub
         rho, index, weights = pixel_quadrature(n_pixels, pitch_m, n_sub)
         self.B = self.prop.evaluation_matrix(rho)
@@ -212,15 +218,23 @@ class _RadialKernelModel:
         self._hyp = torch.from_numpy(_phase0(r, geometry, ()))
         self._powers = torch.from_numpy(np.stack([(r / a) ** (2 * k + 2) for k in range(12)], axis=-1))
 
-    def psf(self, coefficients: Any, z_m: Any) -> Any:
-        """Pixel taps (n, n): fraction of the aperture's power landing on each pixel."""
+    def _pupil(self, coefficients: Any) -> Any:
         import torch
 
         if not hasattr(coefficients, "detach"):
             coefficients = torch.as_tensor(np.asarray(coefficients, dtype=float))
         phi0 = self._hyp + self._powers[:, : coefficients.shape[0]] @ coefficients
         phi = phi0[None, :] * self.phase_scale
-        field = torch.polar(torch.ones_like(phi), phi)
+        return torch.polar(torch.ones_like(phi), phi)
+
+    def total(self, coefficients: Any, z_m: Any) -> Any:
+        """Whole-PSF sum: the fraction of the aperture's power reaching the sensor plane (all pixels)."""
+        power = self.prop.plane_power(self._pupil(coefficients), self.spectral.wavelengths_m, z_m)
+        return (self.w_lambda * power).sum() / self.p_in
+
+    def psf(self, coefficients: Any, z_m: Any) -> Any:
+        """Pixel taps (n, n): fraction of the aperture's power landing on each pixel."""
+        field = self._pupil(coefficients)
         u = self.prop.propagate(field, self.spectral.wavelengths_m, z_m, self.B)  # (L, Q)
         intensity = (self.w_lambda[:, None] * (u.real**2 + u.imag**2)).sum(0)  # (Q,)
         return (intensity[self.index] * self.weights).sum(-1) / self.p_in
@@ -257,8 +271,9 @@ def pixel_psf(geometry: LensGeometry, coefficients: Sequence[float] = (), *, sen
     method : {"radial", "angular_2d"}
         Radial Hankel path (fast) or 2-D band-limited angular spectrum (reference).
     n_sub : int, optional
-        Radial path: Gauss–Legendre nodes per pixel side for the box integral; default
-        ``clip(ceil(4 · pitch · NA / λ_min) + 2, 6, 24)`` (resolves a focused spot).
+        Radial path: Gauss–Legendre nodes per pixel side for the box integral; default from the
+        intensity's bandwidth 2·NA/λ_min (:func:`~fsdvs_hw.realise.optics.pixel_nodes_for_bandwidth`,
+        at least 6, no cap; converged to ≤ 1e-3 of the peak tap against dense integration up to NA 0.95).
     n_modes : int, optional
         Radial path: frequency samples; default from the Nyquist condition (oversampled 1.5×).
         Too few raises :class:`InputError`.
@@ -445,6 +460,9 @@ class MetalensDesign:
     psfs : tuple of numpy.ndarray
         Per lens, the pixel- and spectrum-integrated PSF on the realised window (fractions of
         incident power).
+    psf_totals : tuple of float
+        Per lens, the whole PSF's sum (the fraction of the aperture's power reaching the sensor
+        plane, every pixel): what a uniform scene delivers. Empty for designs stored before it.
     spectral : SpectralSamples
         Wavelengths and weights used.
     fit_info : dict
@@ -462,6 +480,7 @@ class MetalensDesign:
     psfs: tuple[np.ndarray, ...]
     spectral: SpectralSamples
     fit_info: Mapping[str, Any] = field(default_factory=dict)
+    psf_totals: tuple[float, ...] = ()
     kind: str = field(default="metalens", init=False)
 
     # -------------------------------------------------------------- kernels
@@ -480,10 +499,32 @@ class MetalensDesign:
         taps[g : g + k, g : g + k] -= self.pedestal
         return self.kernel().with_taps(taps, name=f"metalens[{self.strategy}] signal {self.target.name}")
 
+    def kernel_error(self, target: Kernel | np.ndarray | None = None, *, fit_scale: bool = False) -> float:
+        """Relative L2 error of the applied kernel, pedestal included, against ``target`` (the one definition).
+
+        The pedestal is real light before the log, so it counts; its price in contrast is
+        reported separately (:attr:`contrast_factor`, ``cost()["contrast_loss"]``). Spill outside
+        the window counts too. ``fit_scale``: with the least-squares gain.
+        """
+        return kernel_error(self.kernel(), self.target if target is None else target, fit_scale=fit_scale)
+
     @property
     def error(self) -> float:
-        """Relative L2 error of :meth:`signal_kernel` against the target (spill outside the window counts)."""
+        """:meth:`kernel_error` against the design's target: what the fit and the scorer both report."""
+        return self.kernel_error()
+
+    @property
+    def signal_error(self) -> float:
+        """Relative L2 error of :meth:`signal_kernel` (pedestal subtracted) against the target: the shape error."""
         return kernel_error(self.signal_kernel(), self.target)
+
+    @property
+    def whole_dc_gain(self) -> float:
+        """DC gain of the whole PSF (every pixel): g·T (pedestal) or g₊T₊ − g₋T₋ (differential)."""
+        if not self.psf_totals:
+            return float(self.kernel().taps.sum())
+        signs = (1.0, -1.0)
+        return float(sum(s * g * t for s, g, t in zip(signs, self.gains, self.psf_totals)))
 
     @property
     def optical_efficiency(self) -> tuple[float, ...]:
@@ -525,7 +566,9 @@ class MetalensDesign:
             "optical_efficiency": CostItem(min(eff), "1", "fraction of aperture power inside the kernel window (worst lens)"),
             "pedestal": CostItem(self.pedestal, "1", "uniform offset c added in the window (target units)"),
             "pedestal_fraction": CostItem(self.pedestal_fraction, "1", "share of collected light that is pedestal"),
-            "kernel_error": CostItem(self.error, "1", "relative L2 error of the signal kernel vs the target"),
+            "kernel_error": CostItem(self.error, "1", "relative L2 error of the applied kernel (pedestal included) vs the target"),
+            "signal_error": CostItem(self.signal_error, "1", "relative L2 error with the pedestal subtracted (shape only)"),
+            "whole_dc_gain": CostItem(self.whole_dc_gain, "1", "DC gain of the whole PSF (uniform scene, every pixel)"),
             "fit_time": CostItem(float(self.fit_info.get("wall_time_s", float("nan"))), "s", "fit wall time"),
         }
         for i, z in enumerate(self.sensor_distance_m):
@@ -535,6 +578,7 @@ class MetalensDesign:
         cf = self.contrast_factor
         if math.isfinite(cf):
             out["contrast_factor"] = CostItem(cf, "1", "log-contrast gain relative to the ideal kernel")
+            out["contrast_loss"] = CostItem(1.0 - cf, "1", "log contrast lost to the pedestal (1 - contrast_factor)")
         if self.strategy == "differential":
             out["subtraction_ratio"] = CostItem(self.gains[1] / self.gains[0], "1", "g₋/g₊ current-mirror ratio")
         return out
@@ -543,7 +587,9 @@ class MetalensDesign:
         g = self.geometry
         lines = [
             f"metalens ({self.strategy}) for {self.target.size}x{self.target.size} '{self.target.name}' at "
-            f"{self.target.pitch_m * 1e6:.2f} µm pitch: relative error {self.error:.3f}",
+            f"{self.target.pitch_m * 1e6:.2f} µm pitch: relative error {self.error:.3f} (applied kernel, pedestal"
+            f" included; {self.signal_error:.3f} with the pedestal subtracted); whole-PSF DC gain {self.whole_dc_gain:.4g}"
+            f" (target {float(self.target.taps.sum()):.4g})",
             f"  aperture {g.aperture_m * 1e6:.0f} µm, f {g.focal_length_m * 1e6:.0f} µm (NA {g.numerical_aperture:.3f}), "
             f"{g.dispersion} dispersion, λ0 {g.design_wavelength_m * 1e9:.0f} nm; {self.spectral.n} wavelengths "
             f"({self.spectral.illuminant} × {self.spectral.response})",
@@ -574,6 +620,7 @@ class MetalensDesign:
             "psfs": [p.tolist() for p in self.psfs],
             "spectral": self.spectral.to_dict(),
             "fit_info": dict(self.fit_info),
+            "psf_totals": [float(t) for t in self.psf_totals],
         }
 
     @classmethod
@@ -591,14 +638,19 @@ class MetalensDesign:
                 psfs=tuple(np.asarray(p, dtype=float) for p in data["psfs"]),
                 spectral=SpectralSamples.from_dict(data["spectral"]),
                 fit_info=dict(data.get("fit_info", {})),
+                psf_totals=tuple(float(t) for t in data.get("psf_totals", ())),
             )
         except KeyError as exc:
             raise InputError(f"metalens design: missing field {exc.args[0]!r}") from None
 
 
 # ---------------------------------------------------------------------------------- fitting
-def _solve_gains(psfs: list[Any], k: Any, m: Any, mode: str) -> tuple[list[Any], Any, Any]:
-    """Closed-form least squares for the gains (and pedestal); returns (gains, pedestal, residual²)."""
+def _solve_gains(psfs: list[Any], k: Any, m: Any, mode: str, totals: Sequence[Any] | None = None) -> tuple[list[Any], Any, Any]:
+    """Closed-form least squares for the gains (and pedestal); returns (gains, pedestal, residual²).
+
+    ``totals``: the whole-PSF sums (all the light on the sensor plane); the differential pair holds
+    its whole-PSF DC gain g₊T₊ − g₋T₋ at the target's (the window sums when not given).
+    """
     import torch
 
     def two(a: Any, b: Any) -> tuple[Any, Any]:
@@ -618,7 +670,8 @@ def _solve_gains(psfs: list[Any], k: Any, m: Any, mode: str) -> tuple[list[Any],
         gains = [g]
     else:  # differential: g+ P+ - g- P-, with the DC gain held at the target's (Σ applied = Σ K)
         p1 = psfs[1]
-        s_p, s_m, s_k = p0.sum(), p1.sum(), k.sum()
+        s_p, s_m = (p0.sum(), p1.sum()) if totals is None else (totals[0], totals[1])
+        s_k = k.sum()
         a = p0 - (s_p / s_m) * p1
         b = (s_k / s_m) * p1
         gp = (a * (k - b)).sum() / (a * a).sum()
@@ -662,7 +715,7 @@ def fit_metalens(
     guard_px: int = 2,
     max_iter: int = 150,
     n_starts: int = 6,
-    n_sub: int | None = 12,
+    n_sub: int | None = None,
     window_pad: float = 2.0,
     na_max: float | None = None,
 ) -> MetalensDesign:
@@ -694,10 +747,10 @@ def fit_metalens(
     n_starts : int
         Defocus starting points (blur radii spread over the kernel radius, both signs).
     n_sub, window_pad
-        Numerical settings of the radial model used while fitting (:func:`pixel_psf`; ``n_sub=12``
-        keeps the fit within ~5e-4 of the reference model at a third of its cost); the
-        returned PSFs are re-evaluated with the reference settings (``n_sub`` from the NA,
-        window_pad 3) and ``fit_info["model_error"]`` says how far the two differ.
+        Numerical settings of the radial model used while fitting (:func:`pixel_psf`). ``n_sub``
+        None (default) chooses the pixel quadrature from the PSF's bandwidth 2·NA/λ_min at the NA
+        budget — the same rule in the fit and in the returned PSFs; the returned PSFs are
+        re-evaluated with window_pad ≥ 3 and ``fit_info["model_error"]`` says how far the two differ.
     na_max : float, optional
         Largest local NA the phase may use (sets the sampling; penalised in the fit); default
         ``min(0.9, max(1.5 NA, NA + 0.1))`` of the hyperbolic term.
@@ -779,12 +832,14 @@ def fit_metalens(
 
     def make_loss(targets: Any, mode: str, n_lens: int, fwd: _RadialKernelModel) -> Any:
         def loss(x: Any) -> Any:
-            psfs, pen = [], 0.0
+            psfs, tots, pen = [], [], 0.0
             for i in range(n_lens):
                 z, c = unpack(x[i])
                 psfs.append(fwd.psf(c, z))
+                if mode == "differential":  # DC held on the whole PSF, not the window
+                    tots.append(fwd.total(c, z))
                 pen = pen + penalty(x[i])
-            return _solve_gains(psfs, targets, mask, mode)[2] + pen
+            return _solve_gains(psfs, targets, mask, mode, tots or None)[2] + pen
         return loss
 
     def fit_from(starts: list[np.ndarray], targets: Any, mode: str) -> tuple[np.ndarray, int]:
@@ -822,15 +877,16 @@ def fit_metalens(
     reference = _RadialKernelModel(geometry, pitch_m=pitch, n_pixels=n_eval, spectral=spectral, n_sub=None,
                                    window_pad=max(window_pad, 3.0), na_budget=budget)
     with torch.no_grad():
-        psfs, zs, cs, model_err = [], [], [], 0.0
+        psfs, totals, zs, cs, model_err = [], [], [], [], 0.0
         for i in range(x.shape[0]):
             z, c = unpack(xt[i])
             fast = model.psf(c, z)
             psfs.append(reference.psf(c, z))
+            totals.append(reference.total(c, z))
             model_err = max(model_err, float((fast - psfs[-1]).norm() / psfs[-1].norm()))
             zs.append(float(z))
             cs.append(tuple(float(v) for v in c))
-        gains, c, _ = _solve_gains(psfs, k_pad, mask, strategy)
+        gains, c, _ = _solve_gains(psfs, k_pad, mask, strategy, totals if strategy == "differential" else None)
     na_fit = max(local_numerical_aperture(geometry, cc, spectral.wavelengths_m) for cc in cs)
     info = {
         "wall_time_s": time.perf_counter() - t0,
@@ -854,4 +910,5 @@ def fit_metalens(
         target=kernel, strategy=strategy, geometry=geometry, coefficients=tuple(cs), sensor_distance_m=tuple(zs),
         gains=tuple(float(g) * scale for g in gains), pedestal=float(c) * scale, guard_px=guard_px,
         psfs=tuple(p.numpy() for p in psfs), spectral=spectral, fit_info=info,
+        psf_totals=tuple(float(t) for t in totals),
     )
