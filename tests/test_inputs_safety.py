@@ -245,11 +245,17 @@ def test_ablation_workers_zero_is_refused_not_run_serially(capsys):
     assert code == 2 and "--workers" in _one_clear_line(err)
 
 
-def test_from_runs_garbage_is_one_clear_error(tmp_path, capsys):
-    p = tmp_path / "runs.jsonl"
-    p.write_text('{"task": "detection"}\nnot json\n')
-    code, err = _cli(["ablation", "--from-runs", str(p)], capsys)
-    assert code == 2 and "line 2" in _one_clear_line(err)
+def test_from_store_garbage_is_one_clear_error(tmp_path, capsys):
+    (tmp_path / "runs.sqlite").write_bytes(b"not a database, just text\n" * 10)
+    code, err = _cli(["ablation", "--from-store", "--out", str(tmp_path), "--sizes", "1", "--seeds", "0"], capsys)
+    assert code == 2 and "runs.sqlite" in _one_clear_line(err)
+
+
+def test_ablation_out_naming_a_file_is_one_clear_error(tmp_path, capsys):
+    f = tmp_path / "a_file"
+    f.write_text("x")
+    code, err = _cli(["ablation", "--out", str(f), "--sizes", "1", "--seeds", "0"], capsys)
+    assert code == 2 and "--out" in _one_clear_line(err)
 
 
 # ---------------------------------------------------------------------- limits

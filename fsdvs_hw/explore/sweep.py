@@ -267,6 +267,7 @@ def _record(store: ResultsStore, point: DesignPoint, res: dict[str, Any]) -> Non
 def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: int = 1,
                scheduler: str | None = None, progress: bool = True,
                on_result: Callable[[DesignPoint, dict[str, Any]], None] | None = None,
+               evaluate: Callable[[Any], dict[str, Any]] | None = None, desc: str = "design points",
                security: Any = None) -> SweepSummary:
     """Run every point not yet in ``store`` and store each result as it finishes.
 
@@ -288,6 +289,13 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
         Show a tqdm progress bar on stderr.
     on_result : callable, optional
         Called as ``on_result(point, result)`` after each result is stored.
+    evaluate : callable, optional
+        The work function run on each point (default :func:`evaluate_point`). Any module-level
+        function (picklable for spawned workers and Dask) that takes a point with ``key``,
+        ``design``, ``realisation``, ``params`` and ``label`` and returns ``{"key", "status",
+        "result", "wall_s", "worker"}``; the kernel-size ablation runs its trainings this way.
+    desc : str
+        Label of the progress bar.
     """
     from tqdm import tqdm
 
@@ -295,7 +303,8 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
     done = store.done()
     todo = [p for p in points if p.key not in done]
     statuses: dict[str, int] = {}
-    bar = tqdm(total=len(points), initial=len(points) - len(todo), desc="design points", unit="pt",
+    evaluate = evaluate or evaluate_point
+    bar = tqdm(total=len(points), initial=len(points) - len(todo), desc=desc, unit="pt",
                disable=not progress, file=sys.stderr, dynamic_ncols=True)
 
     def finish(point: DesignPoint, res: dict[str, Any]) -> None:
@@ -309,29 +318,29 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
     try:
         if scheduler is not None:
             executor = f"Dask scheduler {scheduler}"
-            _run_dask(todo, scheduler, finish, security)
+            _run_dask(todo, scheduler, finish, security, evaluate)
         elif workers <= 1 or len(todo) <= 1:
             executor = "this process"
             for p in todo:
-                finish(p, evaluate_point(p))
+                finish(p, evaluate(p))
         else:
             executor = f"{min(workers, len(todo))} local processes"
-            _run_pool(todo, workers, finish)
+            _run_pool(todo, workers, finish, evaluate)
     finally:
         bar.close()
     return SweepSummary(total=len(points), already_done=len(points) - len(todo), ran=sum(statuses.values()),
                         statuses=statuses, wall_s=time.perf_counter() - t0, executor=executor)
 
 
-def _run_pool(todo: Sequence[DesignPoint], workers: int,
-              finish: Callable[[DesignPoint, dict[str, Any]], None]) -> None:
+def _run_pool(todo: Sequence[DesignPoint], workers: int, finish: Callable[[DesignPoint, dict[str, Any]], None],
+              evaluate: Callable[[Any], dict[str, Any]] = evaluate_point) -> None:
     from concurrent.futures import as_completed
 
     from ..workers import process_pool
 
     os.environ.setdefault("FSDVS_SWEEP_THREADS", "1")
     pool = process_pool(min(workers, len(todo)))  # workers die with this process (no orphans)
-    futures = {pool.submit(evaluate_point, p): p for p in todo}
+    futures = {pool.submit(evaluate, p): p for p in todo}
     try:
         for fut in as_completed(futures):
             finish(futures[fut], fut.result())
@@ -377,7 +386,8 @@ def _loopback(address: str) -> bool:
 
 
 def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
-              finish: Callable[[DesignPoint, dict[str, Any]], None], security: Any = None) -> None:
+              finish: Callable[[DesignPoint, dict[str, Any]], None], security: Any = None,
+              evaluate: Callable[[Any], dict[str, Any]] = evaluate_point) -> None:
     try:
         from distributed import Client, as_completed
     except ImportError as exc:  # pragma: no cover - optional extra
@@ -395,7 +405,7 @@ def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
     except (OSError, TimeoutError) as exc:
         raise InputError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler ({exc})") from None
     try:
-        futures = {client.submit(evaluate_point, p, key=f"fsdvs-point-{p.key}", pure=False): p for p in todo}
+        futures = {client.submit(evaluate, p, key=f"fsdvs-point-{p.key}", pure=False): p for p in todo}
         for fut in as_completed(list(futures)):
             finish(futures[fut], fut.result())
     finally:

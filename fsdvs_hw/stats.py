@@ -1,0 +1,700 @@
+"""Paired bootstrap confidence intervals for task-metric differences (clips × training seeds).
+
+The toolkit's verdict on a realisation is an accuracy *loss*: the task metric of the reference
+kernel minus that of the candidate, measured in the same networks on the same test clips. This
+module turns per-clip evidence into that loss with a 95 % confidence interval.
+
+Design of the resampling
+------------------------
+Every training seed's network is scored on the *same* test clips, so clips and seeds are
+**crossed** factors, not nested. The CI comes from :func:`scipy.stats.bootstrap` with one sample
+of clip indices and one sample of seed indices, resampled independently (``paired=False`` between
+the two *samples*; scipy then draws clips and seeds independently, the two-way "crossed"
+bootstrap). Within a sample the reference and the candidate are **paired**: one resample of clip
+indices weights both kernels' clips alike, one resample of seeds picks the same networks for both.
+The statistic is the dataset-level metric recomputed from clip *multiplicities* (how often each
+clip was drawn), so metrics that are not per-clip means (COCO mAP, mIoU) are resampled correctly:
+
+* top-1 (or any per-clip mean): :class:`ClipMeans`, ``Σ wᵢ xᵢ / Σ wᵢ``;
+* mIoU: :class:`ConfusionMIoU`, per-clip confusion matrices summed with the multiplicities;
+* COCO mAP@[.5:.95] / AP50 / AP75: :class:`CocoDetections`, the detection↔ground-truth matches of
+  every clip at every IoU threshold computed once by ``pycocotools`` (``COCOeval.evaluate``), then
+  ``COCOeval.accumulate`` re-done from weighted cumulative sums. On the unresampled set it equals
+  pycocotools to floating-point summation order (tested ≤ 1e-12); for integer weights it equals
+  pycocotools run on the dataset with each clip duplicated that many times, up to the order of
+  exactly tied scores (copies of one detection are placed next to each other).
+
+The two-way bootstrap of a crossed design is slightly conservative (McCullagh 2000: the
+interaction variance is counted by both factors), and with few seeds it under-represents the
+seed-to-seed spread by the factor ``(S-1)/S`` (3 seeds: 2/3 of the seed variance). With one seed
+(``n_seeds = 1``) seed variance cannot enter: the CI covers clip sampling only and
+:attr:`DifferenceCI.seed_variance_included` is False.
+
+Interval method: **percentile** by default. The statistic is a difference of two near-linear
+dataset metrics over thousands of clips, where bootstrap bias and skewness are negligible (the
+BCa correction is checked against percentile in the tests); BCa's jackknife would cost
+``n_clips + n_seeds`` extra evaluations of the full mAP per interval and, with three seeds, its
+acceleration constant rests on a three-point jackknife. ``method="BCa"`` is available.
+
+References
+----------
+B. Efron and R. Tibshirani, *An Introduction to the Bootstrap*, Chapman & Hall, 1993.
+P. McCullagh, "Resampling and exchangeable arrays", Bernoulli 6(2), 285–301, 2000.
+T.-Y. Lin et al., "Microsoft COCO: Common Objects in Context", ECCV 2014 (the AP definition).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import io
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = [
+    "ClipMetric",
+    "ClipMeans",
+    "ConfusionMIoU",
+    "CocoDetections",
+    "DifferenceCI",
+    "difference_ci",
+    "difference_cis",
+    "clips_for_half_width",
+    "DEFAULT_RESAMPLES",
+]
+
+#: Bootstrap resamples per interval (percentile CI; Monte-Carlo error of a 95 % bound ≈ 2 % of h).
+DEFAULT_RESAMPLES: int = 2000
+
+
+@runtime_checkable
+class ClipMetric(Protocol):
+    """A dataset-level metric that can be recomputed for any clip multiplicities.
+
+    Attributes
+    ----------
+    n_clips : int
+        Number of test clips the metric was measured on.
+    """
+
+    n_clips: int
+
+    def weighted(self, weights: np.ndarray) -> np.ndarray:
+        """Metric for each row of ``weights`` (shape (B, n_clips), non-negative clip multiplicities).
+
+        Returns an array of shape (B,); NaN where the metric is undefined for that resample.
+        """
+
+
+def _as_weights(weights: Any, n: int) -> np.ndarray:
+    w = np.asarray(weights, dtype=np.float64)
+    if w.ndim == 1:
+        w = w[None, :]
+    if w.ndim != 2 or w.shape[1] != n:
+        raise InputError(f"weights: expected shape (B, {n}), got {np.shape(weights)}")
+    return w
+
+
+# --------------------------------------------------------------------------- per-clip means
+class ClipMeans:
+    """A metric that is the mean of a per-clip value (top-1 accuracy: 1 if correct, else 0).
+
+    Parameters
+    ----------
+    values : array, shape (n_clips,)
+        Per-clip value (finite).
+    """
+
+    def __init__(self, values: Any) -> None:
+        v = np.asarray(values, dtype=np.float64)
+        if v.ndim != 1 or v.size == 0 or not np.all(np.isfinite(v)):
+            raise InputError(f"ClipMeans: values must be a finite non-empty 1-D array, got shape {v.shape}")
+        self.values = v
+        self.n_clips = int(v.size)
+
+    @classmethod
+    def top1(cls, logits: Any, target: Any) -> ClipMeans:
+        """Per-clip correctness of the arg-max class (top-1 accuracy, as torchmetrics' micro average)."""
+        lg = np.asarray(logits)
+        t = np.asarray(target).astype(np.int64)
+        if lg.ndim != 2 or t.shape != (lg.shape[0],):
+            raise InputError(f"ClipMeans.top1: logits (N, C) and target (N,) expected, got {lg.shape}, {t.shape}")
+        return cls((lg.argmax(axis=1) == t).astype(np.float64))
+
+    def weighted(self, weights: Any) -> np.ndarray:
+        w = _as_weights(weights, self.n_clips)
+        tot = w.sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(tot > 0, (w @ self.values) / tot, np.nan)
+
+
+# --------------------------------------------------------------------------- segmentation
+class ConfusionMIoU:
+    """Mean IoU from per-clip confusion matrices (macro average over classes present).
+
+    A class counts when it appears in the prediction or the target of the (resampled) set, as in
+    :func:`fsdvs_hw.tasks.metrics.segmentation_scores` (torchmetrics ``MulticlassJaccardIndex``).
+
+    Parameters
+    ----------
+    confusions : array, shape (n_clips, C, C)
+        ``confusions[i, t, p]`` = pixels of clip ``i`` with true class ``t`` predicted as ``p``.
+    """
+
+    def __init__(self, confusions: Any) -> None:
+        c = np.asarray(confusions, dtype=np.float64)
+        if c.ndim != 3 or c.shape[1] != c.shape[2] or c.shape[0] == 0 or np.any(c < 0):
+            raise InputError(f"ConfusionMIoU: confusions must be non-negative (N, C, C), got shape {c.shape}")
+        self.confusions = c
+        self.n_clips = int(c.shape[0])
+        self.num_classes = int(c.shape[1])
+
+    @classmethod
+    def from_masks(cls, pred: Any, target: Any, num_classes: int) -> ConfusionMIoU:
+        """Per-clip confusion matrices of predicted and true masks, shape (N, H, W) each."""
+        p = np.asarray(pred).astype(np.int64)
+        t = np.asarray(target).astype(np.int64)
+        if p.shape != t.shape or p.ndim != 3:
+            raise InputError(f"ConfusionMIoU.from_masks: pred and target must be (N, H, W), got {p.shape}, {t.shape}")
+        for name, x in (("pred", p), ("target", t)):
+            if x.size and (x.min() < 0 or x.max() >= num_classes):
+                raise InputError(f"ConfusionMIoU.from_masks: {name} classes must lie in [0, {num_classes})")
+        n = p.shape[0]
+        flat = (np.arange(n)[:, None] * num_classes * num_classes
+                + t.reshape(n, -1) * num_classes + p.reshape(n, -1)).ravel()
+        conf = np.bincount(flat, minlength=n * num_classes * num_classes)
+        return cls(conf.reshape(n, num_classes, num_classes))
+
+    def weighted(self, weights: Any) -> np.ndarray:
+        w = _as_weights(weights, self.n_clips)
+        c = self.num_classes
+        tot = (w @ self.confusions.reshape(self.n_clips, c * c)).reshape(-1, c, c)
+        tp = np.diagonal(tot, axis1=1, axis2=2)
+        union = tot.sum(axis=1) + tot.sum(axis=2) - tp
+        present = union > 0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            iou = np.where(present, tp / np.where(present, union, 1.0), 0.0)
+            return np.where(present.any(axis=1), iou.sum(axis=1) / present.sum(axis=1), np.nan)
+
+
+# --------------------------------------------------------------------------- detection
+_COCO_METRICS = ("map", "map_50", "map_75")
+
+
+@dataclass(frozen=True)
+class _Category:
+    img: np.ndarray  # (D,) clip index of each detection, in pycocotools' accumulate order
+    tps: np.ndarray  # (T, D) bool
+    fps: np.ndarray  # (T, D) bool
+    ngt: np.ndarray  # (n_clips,) non-ignored ground truths of this category per clip
+    has_eval: np.ndarray  # (n_clips,) bool: pycocotools has an evalImg (gt or dt) for this clip
+
+    @functools.cached_property
+    def any_ignored(self) -> bool:
+        """Some detection is neither a true nor a false positive (pycocotools' dtIgnore)."""
+        return bool(np.any(~(self.tps | self.fps)))
+
+    @functools.cached_property
+    def tp_positions(self) -> list[np.ndarray]:
+        """Indices of the true positives at each IoU threshold."""
+        return [np.flatnonzero(row) for row in self.tps]
+
+
+class CocoDetections:
+    """COCO box AP recomputable for any clip multiplicities (pycocotools matches, weighted accumulate).
+
+    Build it with :meth:`from_predictions` (the same inputs as
+    :func:`fsdvs_hw.tasks.metrics.detection_map`). The per-image greedy matching of
+    ``COCOeval.evaluate`` runs once; :meth:`weighted` then re-does ``COCOeval.accumulate`` for a
+    batch of weight vectors with cumulative sums of the weights, which is exactly pycocotools on the
+    dataset in which clip ``i`` appears ``wᵢ`` times (see the module docstring for tied scores).
+
+    Parameters
+    ----------
+    categories : list of _Category
+        Built by :meth:`from_predictions`.
+    iou_thresholds, recall_thresholds : array
+        pycocotools' ``params.iouThrs`` (10) and ``params.recThrs`` (101).
+    n_clips : int
+    metric : {"map", "map_50", "map_75"}
+        What :meth:`weighted` returns (:meth:`weighted_all` returns all three).
+    """
+
+    def __init__(self, categories: list[_Category], iou_thresholds: np.ndarray, recall_thresholds: np.ndarray,
+                 n_clips: int, metric: str = "map") -> None:
+        if metric not in _COCO_METRICS:
+            raise InputError(f"CocoDetections: metric {metric!r} unknown; allowed {', '.join(_COCO_METRICS)}")
+        self.categories = categories
+        self.iou_thresholds = np.asarray(iou_thresholds, dtype=np.float64)
+        self.recall_thresholds = np.asarray(recall_thresholds, dtype=np.float64)
+        self.n_clips = int(n_clips)
+        self.metric = metric
+
+    @classmethod
+    def from_predictions(cls, pred_boxes: Any, pred_scores: Any, pred_labels: Any, gt_boxes: Any, gt_labels: Any,
+                         *, num_classes: int, metric: str = "map") -> CocoDetections:
+        """Run ``COCOeval.evaluate`` once and keep every clip's matches per IoU threshold.
+
+        Parameters are those of :func:`fsdvs_hw.tasks.metrics.detection_map` (boxes ``(x0, y0, x1,
+        y1)`` in pixels, shape (N, K, 4) predicted and (N, M, 4) true; label −1 or NaN box = padding).
+        """
+        from pycocotools.coco import COCO
+        from pycocotools.cocoeval import COCOeval
+
+        pb, ps, pl = (np.asarray(x) for x in (pred_boxes, pred_scores, pred_labels))
+        gb, gl = np.asarray(gt_boxes), np.asarray(gt_labels)
+        if pb.ndim != 3 or gb.ndim != 3 or not (pb.shape[0] == ps.shape[0] == pl.shape[0] == gb.shape[0] == gl.shape[0]):
+            raise InputError(f"CocoDetections: inconsistent shapes pred {pb.shape}, {ps.shape}, {pl.shape}; "
+                             f"gt {gb.shape}, {gl.shape}")
+        n = int(gb.shape[0])
+        images, anns, dets = [], [], []
+        for i in range(n):
+            images.append({"id": i, "width": 1, "height": 1})
+            for b, c in zip(gb[i], gl[i]):
+                if c < 0 or not np.all(np.isfinite(b)):
+                    continue
+                if not 0 <= c < num_classes:
+                    raise InputError(f"CocoDetections: gt label {int(c)} outside [0, {num_classes})")
+                w, h = float(b[2] - b[0]), float(b[3] - b[1])
+                anns.append({"id": len(anns) + 1, "image_id": i, "category_id": int(c), "iscrowd": 0,
+                             "bbox": [float(b[0]), float(b[1]), w, h], "area": w * h})
+            for b, s, c in zip(pb[i], ps[i], pl[i]):
+                if c < 0 or not np.all(np.isfinite(b)) or not np.isfinite(s):
+                    continue
+                if not 0 <= c < num_classes:
+                    raise InputError(f"CocoDetections: predicted label {int(c)} outside [0, {num_classes})")
+                dets.append({"image_id": i, "category_id": int(c), "score": float(s),
+                             "bbox": [float(b[0]), float(b[1]), float(b[2] - b[0]), float(b[3] - b[1])]})
+        if not anns:
+            raise InputError("CocoDetections: no ground-truth boxes; mAP is undefined")
+        with contextlib.redirect_stdout(io.StringIO()):
+            gt = COCO()
+            gt.dataset = {"images": images, "annotations": anns,
+                          "categories": [{"id": c} for c in range(num_classes)]}
+            gt.createIndex()
+            ev = COCOeval(gt, gt.loadRes(dets) if dets else COCO(), iouType="bbox")
+            if not dets:
+                return cls._without_detections(gt, ev.params, n, num_classes, metric)
+            ev.evaluate()
+        p = ev.params
+        n_img, n_area = len(p.imgIds), len(p.areaRng)
+        max_det = p.maxDets[-1]
+        n_thr = len(p.iouThrs)
+        cats = []
+        for k in range(len(p.catIds)):
+            clip, scores, tm, ti = [], [], [], []
+            ngt = np.zeros(n, np.int64)
+            has = np.zeros(n, bool)
+            for i in range(n_img):
+                e = ev.evalImgs[k * n_area * n_img + i]  # area range 0 = "all"
+                if e is None:
+                    continue
+                img = int(e["image_id"])
+                has[img] = True
+                ngt[img] = int(np.count_nonzero(np.asarray(e["gtIgnore"]) == 0))
+                d = len(e["dtScores"][:max_det])
+                clip.append(np.full(d, img, np.int64))
+                scores.append(np.asarray(e["dtScores"][:max_det], dtype=np.float64))
+                tm.append(np.asarray(e["dtMatches"])[:, :max_det].reshape(n_thr, d))
+                ti.append(np.asarray(e["dtIgnore"])[:, :max_det].reshape(n_thr, d))
+            if clip:
+                sc = np.concatenate(scores)
+                order = np.argsort(-sc, kind="mergesort")  # pycocotools' order
+                dtm = np.concatenate(tm, axis=1)[:, order].astype(bool)
+                dti = np.concatenate(ti, axis=1)[:, order].astype(bool)
+                img_of = np.concatenate(clip)[order]
+            else:
+                dtm = dti = np.zeros((n_thr, 0), bool)
+                img_of = np.zeros(0, np.int64)
+            tps, fps = dtm & ~dti, ~dtm & ~dti
+            # detections ranked below the last true positive (at every IoU threshold) never change
+            # AP for any weights: recall thresholds land on true positives, and the envelope there
+            # is a maximum over later true positives only; drop them (the tail of low-score boxes)
+            hit = np.flatnonzero(tps.any(axis=0))
+            keep = hit[-1] + 1 if hit.size else 0
+            cats.append(_Category(img=img_of[:keep], tps=tps[:, :keep], fps=fps[:, :keep], ngt=ngt, has_eval=has))
+        return cls(cats, p.iouThrs, p.recThrs, n, metric)
+
+    @classmethod
+    def _without_detections(cls, gt: Any, params: Any, n: int, num_classes: int, metric: str) -> CocoDetections:
+        n_thr = len(params.iouThrs)
+        cats = []
+        for k in range(num_classes):
+            ngt = np.zeros(n, np.int64)
+            for a in gt.dataset["annotations"]:
+                if a["category_id"] == k:
+                    ngt[a["image_id"]] += 1
+            cats.append(_Category(img=np.zeros(0, np.int64), tps=np.zeros((n_thr, 0), bool),
+                                  fps=np.zeros((n_thr, 0), bool), ngt=ngt, has_eval=ngt > 0))
+        return cls(cats, params.iouThrs, params.recThrs, n, metric)
+
+    def with_metric(self, metric: str) -> CocoDetections:
+        """The same matches, reporting another of ``map``, ``map_50``, ``map_75``."""
+        return CocoDetections(self.categories, self.iou_thresholds, self.recall_thresholds, self.n_clips, metric)
+
+    def weighted(self, weights: Any) -> np.ndarray:
+        return self.weighted_all(weights)[self.metric]
+
+    def weighted_all(self, weights: Any, *, chunk_elements: int = 4_000_000) -> dict[str, np.ndarray]:
+        """``{"map", "map_50", "map_75"}``, each shape (B,), for clip multiplicities (B, n_clips).
+
+        ``chunk_elements`` bounds the (resamples × detections) work arrays.
+        """
+        w = _as_weights(weights, self.n_clips)
+        if np.any(w < 0) or np.any(w != np.round(w)):
+            raise InputError("CocoDetections.weighted: weights must be non-negative integers (clip multiplicities)")
+        b_all = w.shape[0]
+        n_thr = len(self.iou_thresholds)
+        # precision[b, t, k] averaged over recall thresholds; NaN = category excluded (no gt)
+        ap = np.full((b_all, n_thr, len(self.categories)), np.nan)
+        for k, cat in enumerate(self.categories):
+            npig = w @ cat.ngt.astype(np.float64)  # (B,)
+            d = cat.img.size
+            step = max(1, chunk_elements // max(1, 2 * d))
+            for s in range(0, b_all, step):
+                sl = slice(s, min(b_all, s + step))
+                ap[sl, :, k] = self._category_ap(cat, w[sl], npig[sl])
+        t50 = np.where(self.iou_thresholds == 0.5)[0]
+        t75 = np.where(self.iou_thresholds == 0.75)[0]
+        with np.errstate(invalid="ignore"), contextlib.suppress(RuntimeWarning), _quiet_nanmean():
+            return {"map": np.nanmean(ap.reshape(b_all, -1), axis=1),
+                    "map_50": np.nanmean(ap[:, t50[0], :], axis=1),
+                    "map_75": np.nanmean(ap[:, t75[0], :], axis=1)}
+
+    def _category_ap(self, cat: _Category, w: np.ndarray, npig: np.ndarray) -> np.ndarray:
+        """Mean interpolated precision over recall thresholds, shape (B, T); NaN where npig = 0.
+
+        Only true-positive positions are kept: searching the first detection with recall >= r
+        always lands on one (or on the first detection, whose envelope is the overall maximum, which
+        a true positive attains), and a false positive's precision never exceeds the precision at
+        the detection before it, so the precision envelope at true positives is unchanged.
+        """
+        b, n_thr = w.shape[0], len(self.iou_thresholds)
+        r = self.recall_thresholds
+        out = np.zeros((b, n_thr))
+        if cat.img.size:
+            wd = w[:, cat.img]  # (B, D)
+            counted = None if cat.any_ignored else np.cumsum(wd, axis=1)  # tp + fp up to each detection
+            npig_safe = np.where(npig > 0, npig, 1.0)[:, None]
+            # least integer m_k with float(m_k / npig) >= r_k (pycocotools divides tp by npig)
+            m = np.ceil(r[None, :] * npig_safe)
+            m = np.where((m - 1) / npig_safe >= r[None, :], m - 1, m)
+            m = np.where(m / npig_safe < r[None, :], m + 1, m).astype(np.int64)  # (B, R)
+            rows = np.arange(b, dtype=np.int64)[:, None]
+            for t in range(n_thr):
+                pos = cat.tp_positions[t]
+                p = pos.size
+                if p == 0:
+                    continue  # no true positive: precision 0 at every recall threshold
+                tp = np.cumsum(wd[:, pos], axis=1)
+                if counted is None:
+                    fp = np.cumsum(wd * cat.fps[t], axis=1)[:, pos]
+                else:
+                    fp = counted[:, pos] - tp
+                pr = tp / (fp + tp + np.spacing(1))
+                env = np.maximum.accumulate(pr[:, ::-1], axis=1)[:, ::-1]
+                tpi = tp.astype(np.int64)
+                off = int(tpi[:, -1].max()) + int(m.max()) + 2
+                keys = (tpi + rows * off).ravel()
+                idx = np.searchsorted(keys, (m + rows * off).ravel(), side="left").reshape(b, -1) - rows * p
+                found = idx < p
+                q = np.where(found, np.take_along_axis(env, np.minimum(idx, p - 1), axis=1), 0.0)
+                out[:, t] = q.mean(axis=1)
+        out[npig == 0] = np.nan
+        return out
+
+
+@contextlib.contextmanager
+def _quiet_nanmean() -> Any:
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        yield
+
+
+# --------------------------------------------------------------------------- the interval
+@dataclass(frozen=True)
+class DifferenceCI:
+    """A metric difference ``reference − candidate`` with its bootstrap CI (fractions, not %).
+
+    Attributes
+    ----------
+    estimate : float
+        The difference on the full test set, averaged over the seeds (each arm over its own seeds).
+    low, high : float
+        The CI bounds at :attr:`confidence`.
+    confidence : float
+    n_clips : int
+    n_seeds_reference, n_seeds_candidate : int
+    paired_clips, paired_seeds : bool
+        Whether one resample weights both arms' clips / seeds alike.
+    resampled : tuple of str
+        Which factors were resampled (``"clips"``, ``"seeds"``).
+    method : str
+        ``"percentile"`` or ``"BCa"`` (scipy.stats.bootstrap).
+    n_resamples : int
+    bootstrap_se : float
+        Standard deviation of the bootstrap distribution.
+    """
+
+    estimate: float
+    low: float
+    high: float
+    confidence: float
+    n_clips: int
+    n_seeds_reference: int
+    n_seeds_candidate: int
+    paired_clips: bool
+    paired_seeds: bool
+    resampled: tuple[str, ...]
+    method: str
+    n_resamples: int
+    bootstrap_se: float
+
+    @property
+    def half_width(self) -> float:
+        """Half the CI width."""
+        return 0.5 * (self.high - self.low)
+
+    @property
+    def seed_variance_included(self) -> bool:
+        """True when training seeds were resampled (needs ≥ 2 seeds in an arm)."""
+        return "seeds" in self.resampled
+
+    @property
+    def contains_zero(self) -> bool:
+        """The CI does not exclude 0: no measurable difference."""
+        return self.low <= 0.0 <= self.high
+
+    def describe(self, *, digits: int = 3) -> str:
+        """``"0.021 [0.012, 0.030]"`` or ``"no measurable loss (± 0.008)"`` when the CI contains 0."""
+        if self.contains_zero:
+            return f"no measurable loss (± {self.half_width:.{digits}f})"
+        return f"{self.estimate:.{digits}f} [{self.low:.{digits}f}, {self.high:.{digits}f}]"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {**self.__dict__, "resampled": list(self.resampled), "half_width": self.half_width,
+                "seed_variance_included": self.seed_variance_included, "contains_zero": self.contains_zero}
+
+
+def _multiplicities(idx: np.ndarray, n: int) -> np.ndarray:
+    """(B, n) counts of each index in each row of ``idx`` (B, m)."""
+    idx = np.asarray(idx, dtype=np.int64)
+    if idx.ndim == 1:
+        idx = idx[None, :]
+    b = idx.shape[0]
+    flat = (idx + n * np.arange(b, dtype=np.int64)[:, None]).ravel()
+    return np.bincount(flat, minlength=b * n).reshape(b, n).astype(np.float64)
+
+
+def _arm(metrics: Sequence[ClipMetric] | ClipMetric, name: str) -> list[ClipMetric]:
+    arm = [metrics] if isinstance(metrics, ClipMetric) else list(metrics)
+    if not arm or not all(isinstance(m, ClipMetric) for m in arm):
+        raise InputError(f"difference_ci: {name} must be a ClipMetric or a non-empty sequence of them (one per seed)")
+    return arm
+
+
+def difference_ci(reference: Sequence[ClipMetric] | ClipMetric, candidate: Sequence[ClipMetric] | ClipMetric, *,
+                  paired_seeds: bool = True, paired_clips: bool = True, resample: Sequence[str] = ("clips", "seeds"),
+                  confidence: float = 0.95, n_resamples: int = DEFAULT_RESAMPLES, method: str = "percentile",
+                  rng: Any = 0, batch: int | None = 200) -> DifferenceCI:
+    """Bootstrap CI of ``metric(reference) − metric(candidate)`` over test clips and training seeds.
+
+    Parameters
+    ----------
+    reference, candidate : ClipMetric or sequence of ClipMetric
+        One per training seed (network), all on the same ``n_clips`` test clips in the same order.
+        With ``paired_seeds`` the two lists must be aligned: entry ``s`` of both is network ``s``.
+    paired_seeds : bool
+        True (default): the same networks score both kernels (zero-shot swap, the explore loss);
+        one seed resample picks the same networks for both arms. False: the arms are different
+        networks (the ablation's w/o vs 7×7), and each arm's seeds are resampled on their own.
+    paired_clips : bool
+        True (default): the same clip resample weights both arms (they were scored on the same
+        clips). False resamples each arm's clips independently, which is only right for arms scored
+        on different clips (and shows how much pairing buys).
+    resample : sequence of {"clips", "seeds"}
+        The factors to resample; ``("clips",)`` or ``("seeds",)`` isolate one variance component
+        (used to size the test set, :func:`clips_for_half_width`). Seeds are resampled only in an
+        arm with at least 2 seeds.
+    confidence : float
+        Two-sided confidence level in (0, 1).
+    n_resamples : int
+        Bootstrap resamples (≥ 100).
+    method : {"percentile", "BCa", "basic"}
+        ``scipy.stats.bootstrap`` interval method (percentile by default: see the module docstring).
+    rng : int or numpy Generator
+        Seed of the resampling (same seed → same resamples, so intervals of different candidates
+        against one reference use the same clip draws).
+    batch : int or None
+        Resamples per vectorised statistic call (memory bound).
+
+    Returns
+    -------
+    DifferenceCI
+
+    Raises
+    ------
+    InputError
+        Arms of different clip counts, unaligned paired seeds, bad options.
+
+    Examples
+    --------
+    >>> ref = ClipMeans(np.r_[np.ones(80), np.zeros(20)])        # 80 % correct
+    >>> cand = ClipMeans(np.r_[np.ones(60), np.zeros(40)])       # 60 %, the same clips
+    >>> ci = difference_ci(ref, cand, n_resamples=500)
+    >>> round(ci.estimate, 3), ci.low > 0
+    (0.2, True)
+    """
+    cand = _arm(candidate, "candidate")
+    return difference_cis(reference, {"candidate": cand}, paired_seeds=paired_seeds, paired_clips=paired_clips,
+                          resample=resample, confidence=confidence, n_resamples=n_resamples, method=method,
+                          rng=rng, batch=batch)["candidate"]
+
+
+def difference_cis(reference: Sequence[ClipMetric] | ClipMetric,
+                   candidates: Mapping[str, Sequence[ClipMetric] | ClipMetric], *, paired_seeds: bool = True,
+                   paired_clips: bool = True, resample: Sequence[str] = ("clips", "seeds"), confidence: float = 0.95,
+                   n_resamples: int = DEFAULT_RESAMPLES, method: str = "percentile", rng: Any = 0,
+                   batch: int | None = 200) -> dict[str, DifferenceCI]:
+    """:func:`difference_ci` of several candidates against one reference, from the same resamples.
+
+    One ``scipy.stats.bootstrap`` call with a vector-valued statistic: every resample of clips and
+    seeds is applied to the reference once and to every candidate, so the reference metric (the
+    expensive part for mAP) is computed once per resample, and all intervals share their draws.
+    With ``paired_seeds=False`` all candidates must have the same number of seeds (one seed
+    resample serves them all). Parameters otherwise as :func:`difference_ci`.
+
+    Returns
+    -------
+    dict
+        Candidate name → :class:`DifferenceCI`, in the order given.
+    """
+    from scipy import stats
+
+    ref = _arm(reference, "reference")
+    names = list(candidates)
+    if not names:
+        raise InputError("difference_cis: no candidates")
+    cands = [_arm(candidates[k], f"candidate {k!r}") for k in names]
+    n = ref[0].n_clips
+    counts = {k: [m.n_clips for m in c] for k, c in zip(names, cands)}
+    if any(m.n_clips != n for m in ref) or any(c != n for v in counts.values() for c in v):
+        raise InputError(f"difference_ci: every metric must cover the same clips; got clip counts "
+                         f"{[m.n_clips for m in ref]} (reference) and {counts} (candidates)")
+    if n < 2:
+        raise InputError(f"difference_ci: need at least 2 test clips, got {n}")
+    n_cand_seeds = {len(c) for c in cands}
+    if paired_seeds and n_cand_seeds != {len(ref)}:
+        raise InputError(f"difference_ci: paired seeds need one candidate per reference network; got "
+                         f"{len(ref)} and {sorted(n_cand_seeds)} (pass paired_seeds=False for different networks)")
+    if not paired_seeds and len(n_cand_seeds) != 1:
+        raise InputError(f"difference_cis: unpaired seeds need the same number of seeds in every candidate, "
+                         f"got {sorted(n_cand_seeds)}")
+    bad = set(resample) - {"clips", "seeds"}
+    if bad or not resample:
+        raise InputError(f"difference_ci: resample must name 'clips' and/or 'seeds', got {list(resample)!r}")
+    if not 0.0 < confidence < 1.0:
+        raise InputError(f"difference_ci: confidence must lie in (0, 1), got {confidence!r}")
+    if isinstance(n_resamples, bool) or not isinstance(n_resamples, int) or n_resamples < 100:
+        raise InputError(f"difference_ci: n_resamples must be an integer >= 100, got {n_resamples!r}")
+    if method not in ("percentile", "BCa", "basic"):
+        raise InputError(f"difference_ci: method must be 'percentile', 'BCa' or 'basic', got {method!r}")
+    s_ref, s_cand = len(ref), len(cands[0])
+
+    # the samples handed to scipy are index arrays; ``slots`` says what each one indexes
+    slots: list[str] = []
+    if "clips" in resample:
+        slots += ["clips"] if paired_clips else ["clips_ref", "clips_cand"]
+    if "seeds" in resample:
+        if paired_seeds and s_ref >= 2:
+            slots.append("seeds")
+        elif not paired_seeds:
+            slots += [s for s, k in (("seeds_ref", s_ref), ("seeds_cand", s_cand)) if k >= 2]
+    sizes = {"clips": n, "clips_ref": n, "clips_cand": n, "seeds": s_ref, "seeds_ref": s_ref, "seeds_cand": s_cand}
+
+    def arm_value(arm: list[ClipMetric], wc: np.ndarray, ws: np.ndarray) -> np.ndarray:
+        vals = np.stack([m.weighted(wc) for m in arm], axis=1)  # (B, S)
+        return (vals * ws).sum(axis=1) / ws.sum(axis=1)
+
+    def statistic(*idx: np.ndarray, axis: int = -1) -> np.ndarray:
+        got = dict(zip(slots, idx))
+        shape = idx[0].shape[:-1] if idx else ()
+        b = int(np.prod(shape, dtype=np.int64))
+
+        def w(name: str, size: int) -> np.ndarray:
+            if name in got:
+                return _multiplicities(got[name].reshape(b, -1), size)
+            return np.ones((b, size))
+
+        wc_ref = w("clips" if paired_clips else "clips_ref", n)
+        wc_cand = wc_ref if paired_clips else w("clips_cand", n)
+        ws_ref = w("seeds" if paired_seeds else "seeds_ref", s_ref)
+        ws_cand = ws_ref if paired_seeds else w("seeds_cand", s_cand)
+        r = arm_value(ref, wc_ref, ws_ref)
+        return np.stack([r - arm_value(c, wc_cand, ws_cand) for c in cands]).reshape(len(cands), *shape)
+
+    estimate = statistic(*[np.arange(sizes[s]) for s in slots])
+    resampled = tuple(dict.fromkeys("clips" if s.startswith("clips") else "seeds" for s in slots))
+    if not slots:  # nothing to resample (seeds only, one seed)
+        lows = highs = estimate
+        ses = np.zeros(len(cands))
+        n_res = 0
+    else:
+        res = stats.bootstrap(tuple(np.arange(sizes[s]) for s in slots), statistic, paired=False, vectorized=True,
+                              axis=-1, confidence_level=confidence, n_resamples=n_resamples, method=method,
+                              random_state=np.random.default_rng(rng), batch=batch)
+        lows, highs = np.atleast_1d(res.confidence_interval.low), np.atleast_1d(res.confidence_interval.high)
+        ses, n_res = np.atleast_1d(res.standard_error), n_resamples
+    return {k: DifferenceCI(float(estimate[i]), float(lows[i]), float(highs[i]), confidence, n, s_ref, s_cand,
+                            paired_clips, paired_seeds, resampled, method, n_res, float(ses[i]))
+            for i, k in enumerate(names)}
+
+
+def clips_for_half_width(pilot: DifferenceCI, target_half_width: float = 0.01, *,
+                         seed_half_width: float = 0.0, max_clips: int = 100_000) -> int:
+    """Test clips needed for a CI half-width ``target_half_width``, from a pilot interval.
+
+    The clip part of the half-width falls as ``1/√n``; the seed part does not depend on ``n``.
+    With a clip-only pilot half-width ``h_c`` on ``n_p`` clips and a seed-only half-width
+    ``h_s``, the total ``h(n) ≈ √(h_c² n_p / n + h_s²)`` (independent components add in
+    variance), so ``n = ⌈n_p h_c² / (h² − h_s²)⌉``.
+
+    Parameters
+    ----------
+    pilot : DifferenceCI
+        An interval over clips (``resample`` including ``"clips"``) on ``pilot.n_clips`` clips.
+    target_half_width : float
+        Wanted half-width (metric fraction; 0.01 = one point).
+    seed_half_width : float
+        The seed-only half-width ``h_s`` (0 with one seed).
+    max_clips : int
+        Upper bound returned when the target needs more.
+
+    Returns
+    -------
+    int
+        Clips (≥ ``pilot.n_clips`` is not enforced: a pilot tighter than needed returns fewer).
+
+    Raises
+    ------
+    InputError
+        The seed part alone is at least the target: no number of clips reaches it (train more seeds).
+    """
+    if not target_half_width > 0:
+        raise InputError(f"clips_for_half_width: target_half_width must be > 0, got {target_half_width!r}")
+    if "clips" not in pilot.resampled:
+        raise InputError("clips_for_half_width: the pilot interval must resample clips")
+    room = target_half_width**2 - seed_half_width**2
+    if room <= 0:
+        raise InputError(f"clips_for_half_width: the seed-to-seed part of the CI (± {seed_half_width:.4f}) is at "
+                         f"least the target ± {target_half_width:.4f}; more clips cannot reach it (train more seeds)")
+    n = math.ceil(pilot.n_clips * pilot.half_width**2 / room)
+    return int(min(max(n, 2), max_clips))
