@@ -162,9 +162,10 @@ def test_failed_point_is_recorded_with_its_reason(tmp_path):
 
 def test_fitter_warnings_are_kept_with_the_score():
     pytest.importorskip("fsdvs_hw.realise.mesh")
-    # a DoG with centre tap 0.29 is out of reach of a mesh with a fixed gain, pixel weight 1 and λ ≥ 1 px
-    d = parse_design({"realisations": {"include": ["mesh"], "mesh": {"n_init": 3, "max_iter": 30, "gain": "fixed",
-                                                                 "pixel_weight": 1.0,
+    # a DoG with centre tap 0.29 is out of reach of a mesh with pixel weight 1, the absolute gain
+    # fixed (not the default since issue 13) and λ ≥ 1 px
+    d = parse_design({"realisations": {"include": ["mesh"], "mesh": {"n_init": 3, "max_iter": 30,
+                                                                 "pixel_weight": 1.0, "gain": "fixed",
                                                                  "bounds": {"conductance_s": [1e-10, 1e-8]}}},
                       "analysis": {"csf_methods": ["mannos_sakrison_1974"]}, "emulation": {"enabled": False}})
     (p,) = expand_points(d)

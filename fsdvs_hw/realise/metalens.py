@@ -60,7 +60,14 @@ from ..errors import InputError
 from ..kernels import DEFAULT_PITCH_M, Kernel
 from ..validation import check_fit_arguments
 from .base import CostItem, kernel_error
-from .optics import RadialPropagator, angular_spectrum_2d, pixel_nodes_for_bandwidth, pixel_quadrature, required_modes
+from .optics import (
+    RadialPropagator,
+    angular_spectrum_2d,
+    pixel_nodes_for_bandwidth,
+    pixel_quadrature,
+    radial_pixel_integrator,
+    required_modes,
+)
 from .spectral import SpectralSamples, spectral_samples
 
 __all__ = [
@@ -203,13 +210,24 @@ class _RadialKernelModel:
         self.n_modes = int(n_modes)
         self.na = na
         self.prop = RadialPropagator(a, self.window_radius_m, self.n_modes)
-        if n_sub is None:  # from the intensity's bandwidth 2 NA / λ_min (no cap; at least 6 per side)
-            n_sub = max(6, pixel_nodes_for_bandwidth(pitch_m, 2 * na / lam_min))
-        self.n_sub = n_sub
-        rho, index, weights = pixel_quadrature(n_pixels, pitch_m, n_sub)
-        self.B = self.prop.evaluation_matrix(rho)
-        self.index = torch.from_numpy(index)
-        self.weights = torch.from_numpy(weights)
+        self._A = None
+        if n_sub is None:
+            # pixel quadrature from the intensity's bandwidth 2 NA / λ_min (no cap; at least 6 per
+            # side), applied through a radial grid: the field is evaluated at a few hundred radii
+            # and interpolated to every node (optics.radial_pixel_integrator)
+            cutoff = 2 * na / lam_min
+            self.n_sub = max(6, pixel_nodes_for_bandwidth(pitch_m, cutoff, tol=1e-3))
+            r_grid, a_mat = radial_pixel_integrator(n_pixels, pitch_m, cutoff)
+            self.B = self.prop.evaluation_matrix(r_grid)
+            self._A = torch.from_numpy(a_mat)
+            self.radial_samples = int(r_grid.size)
+        else:  # an explicit per-pixel node count: evaluate the field at every distinct node radius
+            self.n_sub = int(n_sub)
+            rho, index, weights = pixel_quadrature(n_pixels, pitch_m, self.n_sub)
+            self.B = self.prop.evaluation_matrix(rho)
+            self.index = torch.from_numpy(index)
+            self.weights = torch.from_numpy(weights)
+            self.radial_samples = int(rho.size)
         self.p_in = math.pi * a * a
         p = DISPERSION_MODELS[geometry.dispersion]
         self.phase_scale = torch.from_numpy((geometry.design_wavelength_m / spectral.wavelengths_m) ** p)[:, None]
@@ -237,6 +255,8 @@ class _RadialKernelModel:
         field = self._pupil(coefficients)
         u = self.prop.propagate(field, self.spectral.wavelengths_m, z_m, self.B)  # (L, Q)
         intensity = (self.w_lambda[:, None] * (u.real**2 + u.imag**2)).sum(0)  # (Q,)
+        if self._A is not None:
+            return (self._A @ intensity).view(self.n_pixels, self.n_pixels) / self.p_in
         return (intensity[self.index] * self.weights).sum(-1) / self.p_in
 
 
@@ -894,6 +914,7 @@ def fit_metalens(
         "iterations": iters,
         "n_modes": model.n_modes,
         "n_sub": model.n_sub,
+        "radial_samples": model.radial_samples,
         "model_error": model_err,
         "window_radius_m": model.window_radius_m,
         "na_budget": budget,
