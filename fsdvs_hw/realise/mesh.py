@@ -300,7 +300,7 @@ class MeshDesign:
     def _whole_energy(self) -> float:
         """Σ K² over the whole circuit response (infinite lattice: closed form; finite chip: exact sum)."""
         if self.model == "grid":
-            k = self.kernel_taps(2 * int(self.grid_half_width) + 1)
+            k = self._taps(int(self.grid_half_width))
             return float((k * k).sum())
         gram = _lattice_gram(self.lambda_narrow_px, self.lambda_wide_px)
         x = np.array([self.pixel_weight, self.gain_narrow, self.gain_wide])
@@ -329,7 +329,10 @@ class MeshDesign:
         size = self.response_size() if size is None else size
         if not (isinstance(size, (int, np.integer)) and size % 2 == 1 and 1 <= size <= MAX_KERNEL_SIZE):
             raise InputError(f"size: must be odd in 1..{MAX_KERNEL_SIZE}, got {size!r}")
-        r = size // 2
+        return self._taps(size // 2)
+
+    def _taps(self, r: int) -> np.ndarray:
+        """Response on the (2r+1)² window, any r (no Kernel size limit)."""
         hn, hw = self.mesh_responses(r)
         k = self.gain_narrow * hn - self.gain_wide * hw
         k[r, r] += self.pixel_weight
@@ -884,7 +887,7 @@ def fit_resistive_mesh(
         radius = grid_half_width
     else:
         radius = target.radius if whole else int(fit_size) // 2
-    t_sym = _d4_symmetrise(target.padded(2 * radius + 1).taps if 2 * radius + 1 > target.size else target.taps)
+    t_sym = _d4_symmetrise(np.pad(target.taps, radius - target.radius))  # plain array: the chip may exceed 63 px
     ii, jj, mult = _orbits(radius)
     t_orb = t_sym[radius + ii, radius + jj]
     norm2 = float((target.taps**2).sum())
@@ -1014,7 +1017,7 @@ def fit_resistive_mesh(
     overall = 1.0
     if gain_free:  # the least-squares overall gain (it folds into the event threshold)
         unit = MeshDesign(gain_narrow=a, gain_wide=b, pixel_weight=wp, **common)
-        kw = unit.kernel_taps(2 * radius + 1)
+        kw = unit._taps(radius)
         n_k = unit._whole_energy() if whole else float((kw * kw).sum())
         cx = float((kw * t_sym).sum())
         overall = cx / n_k if n_k > 0 and cx > 0 else 0.0
