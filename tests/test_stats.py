@@ -212,3 +212,39 @@ def test_several_candidates_share_the_draws_of_single_intervals():
     one = difference_ci(ref, c2, n_resamples=500, rng=4)
     assert both["b"] == one
     assert both["a"].estimate > 0 > both["b"].estimate
+
+
+def test_metric_state_round_trip_is_exact():
+    from fsdvs_hw.stats import metric_from_state
+
+    rng = np.random.default_rng(12)
+    pb, ps, pl, gt, gl = _detections(40, rng)
+    w = rng.multinomial(40, np.full(40, 1 / 40), size=5)
+    target = rng.integers(0, 3, (40, 4, 4))
+    for m in (CocoDetections.from_predictions(pb, ps, pl, gt, gl, num_classes=3, metric="map_50"),
+              ConfusionMIoU.from_masks(rng.integers(0, 3, (40, 4, 4)), target, 3),
+              ClipMeans(rng.uniform(size=40))):
+        back = metric_from_state(dict(m.state()))
+        np.testing.assert_array_equal(back.weighted(w), m.weighted(w))
+    with pytest.raises(InputError, match="unknown metric kind"):
+        metric_from_state({"kind": np.array("nope")})
+
+
+def test_weighted_task_loss_combines_independent_tasks():
+    """Two tasks with independent clips: the weighted interval is centred on the weighted estimate and,
+    with equal weights, its half-width is about √(h₁² + h₂²)/2 (independent parts add in variance)."""
+    from fsdvs_hw.stats import task_difference_cis
+
+    rng = np.random.default_rng(13)
+    r1, c1 = _crossed(rng, 400, 1, 0.04)
+    r2, c2 = _crossed(rng, 300, 1, 0.00)
+    out = task_difference_cis({"a": (r1, {"x": c1}), "b": (r2, {"x": c2})}, weights={"a": 1, "b": 1},
+                              n_resamples=3000)["x"]
+    assert out["weighted"].estimate == pytest.approx(0.5 * (out["a"].estimate + out["b"].estimate), abs=1e-12)
+    expected = 0.5 * np.hypot(out["a"].half_width, out["b"].half_width)
+    assert out["weighted"].half_width == pytest.approx(expected, rel=0.1)
+    assert out["weighted"].n_clips == 700
+    only_a = task_difference_cis({"a": (r1, {"x": c1}), "b": (r2, {"x": c2})}, weights={"a": 1},
+                                 n_resamples=3000)["x"]["weighted"]
+    assert only_a.estimate == pytest.approx(out["a"].estimate, abs=1e-12)
+    assert only_a.n_clips == 400

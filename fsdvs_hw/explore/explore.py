@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .design import Design, load_design
+from .scoring import with_paired_losses
 from .sweep import SweepSummary, add_execution_arguments, run_design
 
 __all__ = ["run_exploration", "Exploration", "HELP", "add_arguments", "run"]
@@ -36,6 +37,11 @@ class Exploration:
 def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers: int | None = None,
                     scheduler: str | None = None, progress: bool = True, retry_errors: bool = False) -> Exploration:
     """Explore one design: fit, score and report every design point.
+
+    After every point has run, each point's task losses against the learned kernel are computed
+    with paired bootstrap CIs (:func:`fsdvs_hw.explore.scoring.paired_losses`); the points handed to
+    the report (and :attr:`Exploration.points`) carry them as ``"paired_loss"``, without the bulky
+    per-clip evidence (which stays in ``results.sqlite``).
 
     Parameters
     ----------
@@ -61,6 +67,9 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     store_path = out / "results.sqlite"
     summary, rows = run_design(design, store_path, workers=workers, scheduler=scheduler, progress=progress,
                                retry_errors=retry_errors)
+    sc = design.data["scoring"]
+    rows = with_paired_losses(rows, task_weights=sc["task_weights"] or None, n_resamples=sc["n_resamples"],
+                              confidence=sc["confidence"], rng=design.data["run"]["seed"])
     report = write_report(rows, design, out)
     return Exploration(report=report, scores_csv=out / "scores.csv", scores_json=out / "scores.json",
                        store=store_path, summary=summary, wall_s=time.perf_counter() - t0,
