@@ -248,3 +248,31 @@ def test_weighted_task_loss_combines_independent_tasks():
                                  n_resamples=3000)["x"]["weighted"]
     assert only_a.estimate == pytest.approx(out["a"].estimate, abs=1e-12)
     assert only_a.n_clips == 400
+
+
+def test_test_set_sized_from_a_pilot_reaches_the_target_half_width():
+    """size_test_sets on a 200-clip pilot; a fresh test set of the recommended size resolves ± 0.01."""
+    from fsdvs_hw.explore.paired import encode_evidence
+    from fsdvs_hw.explore.sizing import size_test_sets
+    from fsdvs_hw.stats import difference_ci
+
+    def draw(n, seed):
+        g = np.random.default_rng(seed)
+        ok = g.uniform(size=n) < 0.85
+        flip = g.uniform(size=n) < 0.12  # the candidate disagrees on 12 % of the clips
+        return ok.astype(float), np.where(flip, ~ok, ok).astype(float)
+
+    def points(ref, cand):
+        def pt(key, v):
+            rec = {"status": "ok", "evidence": [encode_evidence(ClipMeans(v))]}
+            return {"key": key, "realisation": key, "params": {}, "status": "ok",
+                    "result": {"tasks": {"recognition": {"simulator": rec}}}}
+        return [pt("learned", ref), pt("delta", cand)]
+
+    budget = size_test_sets(points(*draw(200, 1)), target_half_width=0.01, margin=1.15, batch=64)
+    (b,) = budget
+    assert b.task == "recognition" and b.n_pilot == 200 and b.limiting == "delta" and b.h_seed == 0.0
+    # 12 % discordant clips: var ≈ 0.12, so n ≈ 1.15 · 1.96² · 0.12 / 0.01² ≈ 5300 (pilot noise aside)
+    assert 3000 < b.n_clips < 8000 and b.n_clips % 64 == 0
+    ci = difference_ci(*(ClipMeans(v) for v in draw(b.n_clips, 2)), n_resamples=1000)
+    assert ci.half_width <= 0.01

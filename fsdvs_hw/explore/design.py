@@ -21,7 +21,7 @@ Layout (every section and key is optional; defaults in brackets)::
                     (fit_resistive_mesh / fit_asic_taps / fit_metalens)
     [tasks]         checkpoints = { detection = "kernels/learned_detection_7x7.safetensors" },
                     or a list per task, one network per training seed;
-                    n_test (number, or table task → clips), finetune_epochs,
+                    n_test (number, or table task → clips), n_test_emulation, finetune_epochs,
                     tracks = ["simulator", "emulation"], sensor = "checkpoint" | "design"
     [scoring]       task_weights = { detection = 1, ... } [equal], n_resamples [2000],
                     confidence [0.95], target_half_width [0.01]  (the paired loss CIs)
@@ -176,6 +176,9 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
                                     "evaluation"),
         "n_test": _f((int, dict), 0, "test clips per evaluation: one number for every task or a table task → "
                                      "clips; 0 = the checkpoint's own test-set size", lo=0, hi=100000),
+        "n_test_emulation": _f((int, dict), 0, "test clips of the emulation track (display + recapture costs "
+                                               "about 8x the simulator per clip): a number or a table task → "
+                                               "clips; 0 = as n_test", lo=0, hi=100000),
         "finetune_epochs": _f(int, 0, "optional short fine-tune after the zero-shot swap (0 = zero-shot)",
                               lo=0, hi=1000),
         "tracks": _f(list, ["simulator"], "evaluation tracks", item_types=(str,), choices=_TRACKS),
@@ -589,13 +592,16 @@ def _check_tasks(chk: _Checker, data: dict[str, Any], base: Path) -> None:
                 p = p.with_suffix(".safetensors") if p.suffix == ".json" else Path(str(p) + ".safetensors")
             if not p.is_file():
                 chk.add(ikey, path, f"checkpoint file not found (looked for {p})")
-    n_test = data["tasks"]["n_test"]
-    if isinstance(n_test, dict):
+    for field_name in ("n_test", "n_test_emulation"):
+        n_test = data["tasks"][field_name]
+        if not isinstance(n_test, dict):
+            continue
         for task, n in n_test.items():
+            key = f"tasks.{field_name}.{task}"
             if task not in ckpts:
-                chk.add(f"tasks.n_test.{task}", n, f"not a task in tasks.checkpoints; allowed: {', '.join(ckpts)}")
+                chk.add(key, n, f"not a task in tasks.checkpoints; allowed: {', '.join(ckpts)}")
             elif isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= 100_000:
-                chk.add(f"tasks.n_test.{task}", n, "allowed: an integer in [0, 100000] (0 = the checkpoint's own)")
+                chk.add(key, n, "allowed: an integer in [0, 100000] (0 = the default)")
     for task, w in data["scoring"]["task_weights"].items():
         if task not in ckpts:
             chk.add(f"scoring.task_weights.{task}", w, f"not a task in tasks.checkpoints; allowed: {', '.join(ckpts)}")

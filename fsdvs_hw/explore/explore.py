@@ -98,9 +98,12 @@ def run(args: argparse.Namespace) -> int:
     res = run_exploration(design, args.out, workers=args.workers, scheduler=args.scheduler,
                           progress=not args.no_progress, retry_errors=args.retry_errors)
     print(f"[explore] {res.summary}", file=sys.stderr)
-    from ..report.tables import score_rows, summary_markdown
+    from ..report.tables import networks_note, score_rows, summary_markdown
 
     print(summary_markdown(score_rows(res.points)) + "\n")
+    nets = networks_note(res.points)
+    if nets:
+        print(f"losses measured in: {nets}\n")
     print(f"report: {res.report}\nscores: {res.scores_csv}, {res.scores_json}\nstore:  {res.store}\n"
           f"total {res.wall_s:.1f} s")
     return 0 if res.summary.statuses.get("error", 0) == 0 else 1

@@ -41,8 +41,8 @@ from ..errors import InputError
 from ..kernels import Kernel
 from ..stats import ClipMeans, ClipMetric, CocoDetections, ConfusionMIoU, metric_from_state
 
-__all__ = ["ClipEvidence", "clip_evidence", "encode_evidence", "decode_evidence", "PER_CLIP_METRICS",
-           "EVAL_BATCH"]
+__all__ = ["ClipEvidence", "clip_evidence", "encode_evidence", "decode_evidence", "network_info",
+           "PER_CLIP_METRICS", "EVAL_BATCH"]
 
 #: Clips per simulator call. Noise streams restart at every call, so every kernel must be run on
 #: the same batches for its noise draws to be paired; 64 is also :func:`evaluate_kernel`'s batch,
@@ -208,6 +208,35 @@ def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n
     return ClipEvidence(task=evaluator.name, metric_name=evaluator.primary_metric, value=value, n_clips=n,
                         metric=metric, checkpoint=str(checkpoint), sensor_seed=int(cfg.seed),
                         seconds=time.perf_counter() - t0, event_rate=n_events / max(n_px, 1))
+
+
+@functools.lru_cache(maxsize=32)
+def _training_kernel(checkpoint: str) -> tuple[dict[str, Any], Kernel]:
+    from ..tasks.learn import load_checkpoint
+
+    provenance, _, kernel = load_checkpoint(checkpoint)
+    return provenance, kernel
+
+
+def network_info(checkpoint: str | Path, target: Kernel | None = None) -> dict[str, Any]:
+    """Which network a task's loss is measured in: its training kernel and whether that is ``target``.
+
+    Returns
+    -------
+    dict
+        ``checkpoint``, ``task``, ``seed``, ``learn_filter`` (False: trained with the kernel frozen),
+        ``training_kernel`` (name), ``trained_with_target`` (the training kernel's taps equal
+        ``target``'s to 1e-9; None without a target) and the checkpoint's stored ``final_metric``.
+    """
+    provenance, kernel = _training_kernel(str(checkpoint))
+    same = None
+    if target is not None:
+        same = bool(kernel.size == target.size and np.allclose(np.array(kernel.taps), np.array(target.taps),
+                                                               rtol=0, atol=1e-9))
+    return {"checkpoint": Path(checkpoint).name, "task": provenance.get("task"), "seed": provenance.get("seed"),
+            "learn_filter": provenance.get("learn_filter"),
+            "training_kernel": provenance.get("init_kernel_name") or kernel.name,
+            "trained_with_target": same, "final_metric": provenance.get("final_metric")}
 
 
 def encode_evidence(metric: ClipMetric) -> str:

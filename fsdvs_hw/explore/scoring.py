@@ -169,7 +169,8 @@ def _task_sensor(checkpoint: Path, design_sensor: Mapping[str, Any] | None) -> t
 
 
 def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[str | Path]], *,
-                n_test: int | Mapping[str, int] = 0, finetune_epochs: int = 0,
+                n_test: int | Mapping[str, int] = 0, n_test_emulation: int | Mapping[str, int] = 0,
+                finetune_epochs: int = 0,
                 tracks: Sequence[str] = ("simulator",), design_sensor: Mapping[str, Any] | None = None,
                 display: Any = None, keep_evidence: bool = True) -> dict[str, Any]:
     """Evaluate ``kernel`` per clip in every trained network of every task (zero-shot swap).
@@ -183,6 +184,8 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
         by ``fsdvs_hw.tasks.learn_kernel``.
     n_test : int or mapping
         Test clips (0 = the checkpoint's own test-set size), for every task or per task.
+    n_test_emulation : int or mapping
+        Test clips of the emulation track (0 = as ``n_test``); the first clips of the same test set.
     finetune_epochs : int
         Must be 0: the paired per-clip scoring is zero-shot (a fine-tune would give every kernel
         its own network, and the loss would no longer be paired by network).
@@ -218,9 +221,11 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
     out: dict[str, Any] = {"status": "ok"}
     for task, entry in checkpoints.items():
         paths = [Path(p) for p in (entry if isinstance(entry, (list, tuple)) else [entry])]
-        n = int(n_test.get(task, 0)) if isinstance(n_test, Mapping) else int(n_test)
+        n_sim = int(n_test.get(task, 0)) if isinstance(n_test, Mapping) else int(n_test)
+        n_emu = int(n_test_emulation.get(task, 0)) if isinstance(n_test_emulation, Mapping) else int(n_test_emulation)
         out[task] = {}
         for track in tracks:
+            n = (n_emu or n_sim) if track == "emulation" else n_sim
             if track not in ("simulator", "emulation"):
                 raise InputError(f"task track {track!r} unknown; allowed 'simulator', 'emulation'")
             if finetune_epochs:
@@ -252,6 +257,23 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
                 rec["evidence"] = [encode_evidence(e.metric) for e in evid]
             out[task][track] = rec
     return out
+
+
+def _record_networks(tasks: dict[str, Any], target: Kernel) -> None:
+    """Say, per task, which networks scored it and whether they were trained with ``target``."""
+    try:
+        from .paired import network_info
+    except ImportError:  # pragma: no cover - torch-free installs have no task track at all
+        return
+    for task, tracks in tasks.items():
+        if not isinstance(tracks, dict):
+            continue
+        for rec in tracks.values():
+            if isinstance(rec, dict) and rec.get("status") == "ok" and "checkpoints" in rec:
+                try:
+                    rec["networks"] = [network_info(c, target) for c in rec["checkpoints"]]
+                except InputError as exc:
+                    rec["networks"] = [{"status": f"unavailable: {exc}"}]
 
 
 def _recaptured_events(kernel: Kernel, display: Any) -> Any:
@@ -286,7 +308,7 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
     checkpoints : mapping, optional
         Task name → trained checkpoint; empty or None for no task evaluation.
     task_options : mapping, optional
-        ``n_test``, ``finetune_epochs``, ``tracks`` for :func:`task_scores`.
+        ``n_test``, ``n_test_emulation``, ``finetune_epochs``, ``tracks`` for :func:`task_scores`.
     emulation : mapping, optional
         ``{"sensor": [sensor] section, "emulation": [emulation] section, "seed": int}`` to score the
         sensor-in-the-loop emulation track (:func:`fsdvs_hw.explore.emulation.emulation_scores`).
@@ -323,6 +345,7 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
 
         opts["display"] = DisplaySettings.from_design(emulation["emulation"])
     rec["tasks"] = task_scores(realised, dict(checkpoints or {}), **opts)
+    _record_networks(rec["tasks"], target)
     t2 = time.perf_counter()
     if emulation is not None and emulation["emulation"].get("enabled", True):
         from .emulation import emulation_scores

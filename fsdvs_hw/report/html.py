@@ -19,7 +19,7 @@ from typing import Any
 
 from .. import __version__
 from . import figures
-from .tables import accuracy_axis, score_rows, verdict_rows, write_scores
+from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
 
 __all__ = ["write_report", "render_html"]
 
@@ -105,6 +105,11 @@ def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title: str 
                     sensors.add(f"{task}: " + ", ".join(f"{k}={v}" for k, v in res["sensor"].items()))
     if sensors:
         parts.append("<p class='note'>Task-track simulator: " + html.escape("; ".join(sorted(sensors))) + ".</p>")
+    nets = networks_note(points)
+    if nets:
+        parts.append("<p class='note'>Networks each task's loss is measured in (every realisation is swapped "
+                     "zero-shot into these; the loss compares it with the learned kernel in the same networks): "
+                     + html.escape(nets) + ".</p>")
     task_status = sorted({r.get("tasks_status", "") for r in ok} - {""})
     if task_status:
         parts.append(f"<p class='note'>Task evaluation: {html.escape('; '.join(task_status))}. "

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["score_rows", "pareto_front", "uncertain_pareto_front", "headline_cost", "kind_cost", "accuracy_axis",
-           "summary_markdown", "verdict_rows", "verdict_markdown", "write_scores", "loss_interval", "HEADLINE_COSTS",
+           "summary_markdown", "verdict_rows", "verdict_markdown", "networks_note", "write_scores", "loss_interval", "HEADLINE_COSTS",
            "KIND_COST_AXES", "IDEAL_REFERENCES", "TRACK_PREFIX"]
 
 #: Column prefix of each task track (the simulator track is unprefixed).
@@ -366,3 +366,35 @@ def summary_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
     if missing:
         text += "\n\nnot scored: " + "; ".join(f"{r['point']} ({r['status']}: {r.get('reason', '')})" for r in missing)
     return text
+
+
+def networks_note(points: Sequence[Mapping[str, Any]]) -> str:
+    """Which networks each task's loss is measured in, as one sentence per task.
+
+    ``"detection: 3 networks (training seeds 0, 1, 2) trained with the kernel being realised (kernel
+    frozen while training); ..."``, read from the ``networks`` records of the stored points.
+    """
+    seen: dict[str, list[Mapping[str, Any]]] = {}
+    for p in points:
+        for task, tracks in ((p.get("result") or {}).get("tasks") or {}).items():
+            if task in seen or not isinstance(tracks, Mapping):
+                continue
+            for rec in tracks.values():
+                if isinstance(rec, Mapping) and isinstance(rec.get("networks"), list):
+                    seen[task] = rec["networks"]
+                    break
+    parts = []
+    for task, nets in seen.items():
+        good = [n for n in nets if "checkpoint" in n]
+        if not good:
+            continue
+        same = {n.get("trained_with_target") for n in good}
+        how = ("trained with the kernel being realised" if same == {True} else
+               "NOT trained with the kernel being realised (trained with: "
+               + ", ".join(sorted({str(n.get("training_kernel")) for n in good})) + ")" if same == {False} else
+               "some trained with the kernel being realised, some not")
+        frozen = {n.get("learn_filter") for n in good}
+        mode = " (kernel frozen while training)" if frozen == {False} else " (kernel learned jointly)" if frozen == {True} else ""
+        seeds = ", ".join(str(n.get("seed")) for n in good)
+        parts.append(f"{task}: {len(good)} network{'s' if len(good) > 1 else ''} (training seeds {seeds}) {how}{mode}")
+    return "; ".join(parts)
