@@ -70,3 +70,46 @@ def test_task_without_per_clip_metric_and_bad_evidence_are_clear_errors():
         clip_evidence(None, "detection", DET, n_test=1)
     with pytest.raises(InputError, match="not an encoded"):
         decode_evidence("not base64 npz")
+
+
+def test_explore_writes_loss_cis_for_every_task_and_track(tmp_path, capsys):
+    """`explore` on the shipped networks (64 clips, two tasks, both tracks): scores.json and scores.csv
+    carry T_loss, its CI, n_clips and n_seeds per task, emu_ on the emulation track; the learned row's
+    loss is exactly 0 and the verdict table is printed."""
+    import csv
+    import json
+
+    from fsdvs_hw.cli import main
+
+    p = tmp_path / "d.toml"
+    p.write_text(f'[kernel]\nsource = "file"\npath = "{KERNELS}/learned_detection_7x7.json"\n'
+                 '[realisations]\ninclude = ["learned", "delta"]\n[analysis]\ncsf_methods = ["mannos_sakrison_1974"]\n'
+                 '[emulation]\nenabled = false\n'
+                 f'[tasks]\ncheckpoints = {{ detection = ["{DET}"], recognition = "{REC}" }}\n'
+                 'n_test = { detection = 64, recognition = 96 }\nn_test_emulation = 32\n'
+                 'tracks = ["simulator", "emulation"]\n[scoring]\nn_resamples = 300\n'
+                 'task_weights = { detection = 3, recognition = 1 }\n[run]\nworkers = 1\n')
+    out = tmp_path / "out"
+    assert main(["explore", str(p), "--out", str(out), "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    assert "| realisation | detection loss | recognition loss | weighted loss |" in printed
+    assert "losses measured in: detection: 1 network (training seeds 0) trained with the kernel being realised" in printed
+    assert "recognition: 1 network (training seeds 0) NOT trained with the kernel being realised" in printed
+    rows = {r["realisation"]: r for r in json.loads((out / "scores.json").read_text())["rows"]}
+    for prefix, n_det, n_rec in (("", 64, 96), ("emu_", 32, 32)):
+        for task, n in (("detection", n_det), ("recognition", n_rec)):
+            d = rows["delta"]
+            for f in ("loss", "loss_ci95_low", "loss_ci95_high", "n_clips", "n_seeds"):
+                assert f"{prefix}{task}_{f}" in d, f"{prefix}{task}_{f}"
+            assert d[f"{prefix}{task}_n_clips"] == n and d[f"{prefix}{task}_n_seeds"] == 1
+            assert d[f"{prefix}{task}_loss_ci95_low"] <= d[f"{prefix}{task}_loss"] <= d[f"{prefix}{task}_loss_ci95_high"]
+            assert rows["learned"][f"{prefix}{task}_loss"] == 0.0
+            m = d[f"metric_{task}/{'emulation' if prefix else 'simulator'}"]
+            m_ref = rows["learned"][f"metric_{task}/{'emulation' if prefix else 'simulator'}"]
+            assert d[f"{prefix}{task}_loss"] == pytest.approx(m_ref - m, abs=1e-12)
+    d = rows["delta"]
+    assert d["weighted_loss"] == pytest.approx(0.75 * d["detection_loss"] + 0.25 * d["recognition_loss"], abs=1e-12)
+    with (out / "scores.csv").open() as fh:
+        header = next(csv.reader(fh))
+    assert {"detection_loss_ci95_low", "emu_recognition_n_seeds", "weighted_loss_ci95_high"} <= set(header)
+    assert "evidence" not in (out / "scores.json").read_text()  # per-clip evidence stays in results.sqlite
