@@ -84,7 +84,7 @@ def _point(key, realisation, kernel_err, corr, cost=None, losses=None):
     p = {"key": key, "realisation": realisation, "params": params, "status": "ok", "result": res, "wall_s": 0.3}
     if losses is not None:
         res["tasks"] = {"status": "ok"}
-        p["paired_loss"] = {"status": "ok", "reference": "L", "simulator": {
+        p["paired_loss"] = {"status": "ok", "reference": "L", "simulator": {  # L: the learned row
             "detection": _ci(*losses[0]), "recognition": _ci(*losses[1]), "weighted": _ci(*losses[2]),
             "weights": {"detection": 1.0, "recognition": 1.0}}}
     return p
@@ -121,6 +121,7 @@ def test_score_rows_flatten_losses_with_cis_and_mark_uncertain_fronts():
     assert verdict["a8"]["cost (own unit)"] == "adders 60 count"
     assert verdict["m"]["cost (own unit)"].startswith("conductance per pixel 6 µS")
     assert verdict["L"]["Pareto"] == "reference" and verdict["a3"]["Pareto"] == "dominated"
+    assert verdict["L"]["detection loss"] == "0 (the reference)"
     assert verdict["a8"]["MS agreement, fitted scale"] == "0.95" and verdict["a8"]["MS agreement, design geometry"] == "0.9"
     md = verdict_markdown(list(rows.values()))
     assert md.splitlines()[0].startswith("| realisation | detection loss | recognition loss | weighted loss |")

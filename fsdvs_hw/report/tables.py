@@ -159,6 +159,8 @@ def _ci_tag(confidence: float) -> str:
 def _loss_columns(row: dict[str, Any], paired: Mapping[str, Any]) -> None:
     """Flatten one point's ``paired_loss`` into the loss columns (module docstring)."""
     row["loss_status"] = paired.get("status", "not scored")
+    if paired.get("reference"):
+        row["loss_reference"] = paired["reference"]
     for track, prefix in TRACK_PREFIX.items():
         per = paired.get(track)
         if not isinstance(per, Mapping):
@@ -325,13 +327,17 @@ def verdict_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
     out = []
     for r in ok:
         v: dict[str, str] = {"realisation": str(r["point"])}
+        is_ref = r.get("key") is not None and r.get("key") == r.get("loss_reference")
         for t in tasks:
+            if is_ref:
+                v[f"{t} loss"] = "0 (the reference)"
+                continue
             n = r.get(f"{t}_n_clips")
             v[f"{t} loss"] = str(r.get(f"{t}_loss_text", "–"))
             if t != "weighted" and n:
                 v[f"{t} loss"] += f" (n={n}, seeds={r.get(f'{t}_n_seeds')})"
         if emu:
-            v["emulation weighted loss"] = str(r.get(emu, "–"))
+            v["emulation weighted loss"] = "0 (the reference)" if is_ref else str(r.get(emu, "–"))
         v["MS agreement, fitted scale"] = _fmt(_num(r.get("csf_fitted_correlation")))
         v["MS agreement, design geometry"] = _fmt(_num(r.get("csf_agreement")))
         if r.get("kind_cost"):
