@@ -11,8 +11,8 @@ __all__ = ["HELP", "add_arguments", "run"]
 HELP = "learn a k×k FS-DVS kernel end to end on a task (detection, recognition, segmentation)"
 DESCRIPTION = (
     "Learn a spatial kernel through the differentiable event simulator with the FS-DVS protocol\n"
-    "(delta + noise start; detection: frozen filter, then joint with decoupled learning rates;\n"
-    "recognition: joint). Writes STEM.json (kernel), STEM.safetensors (network + kernel) and\n"
+    "(delta + noise start; frozen filter, then joint with the paper's decoupled learning-rate\n"
+    "ratios). Writes STEM.json (kernel), STEM.safetensors (network + kernel) and\n"
     "STEM.provenance.json.\n\n"
     "Example (the shipped kernel): fsdvs-hw learn detection --size 7 --seed 0 "
     "--out designs/kernels/learned_detection_7x7"
@@ -23,8 +23,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("task", help="task name: detection, recognition, segmentation")
     parser.add_argument("--size", type=int, default=7, help="odd kernel size in pixels (default 7; 1 = w/o)")
     parser.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
-    parser.add_argument("--n-train", type=int, default=512, help="training clips (default 512)")
-    parser.add_argument("--n-test", type=int, default=256, help="test clips (default 256)")
+    parser.add_argument("--n-train", type=int, default=2048, help="training clips (default 2048)")
+    parser.add_argument("--n-test", type=int, default=2048, help="test clips (default 2048)")
     parser.add_argument("--epochs-frozen", type=int, default=None, help="frozen-filter epochs (staged tasks)")
     parser.add_argument("--epochs-joint", type=int, default=None, help="joint epochs")
     parser.add_argument("--lr-filter", type=float, default=None, help="filter learning rate")
