@@ -402,7 +402,7 @@ class CocoDetections:
                 ap[sl, :, k] = self._category_ap(cat, w[sl], npig[sl])
         t50 = np.where(self.iou_thresholds == 0.5)[0]
         t75 = np.where(self.iou_thresholds == 0.75)[0]
-        with np.errstate(invalid="ignore"), contextlib.suppress(RuntimeWarning), _quiet_nanmean():
+        with np.errstate(invalid="ignore"), _quiet_nanmean():  # an all-NaN row (no gt drawn) stays NaN
             return {"map": np.nanmean(ap.reshape(b_all, -1), axis=1),
                     "map_50": np.nanmean(ap[:, t50[0], :], axis=1),
                     "map_75": np.nanmean(ap[:, t75[0], :], axis=1)}
