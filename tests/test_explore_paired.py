@@ -113,3 +113,15 @@ def test_explore_writes_loss_cis_for_every_task_and_track(tmp_path, capsys):
         header = next(csv.reader(fh))
     assert {"detection_loss_ci95_low", "emu_recognition_n_seeds", "weighted_loss_ci95_high"} <= set(header)
     assert "evidence" not in (out / "scores.json").read_text()  # per-clip evidence stays in results.sqlite
+
+
+def test_stats_benchmark_quick_reports_equality_with_pycocotools():
+    import re
+
+    from fsdvs_hw.bench import BENCHMARKS, run_benchmark
+
+    assert BENCHMARKS["stats"] == "fsdvs_hw.explore.stats_bench:bench_stats"
+    text = run_benchmark("stats", quick=True)
+    row = next(line for line in text.splitlines() if line.startswith("| 256 |"))
+    diff = float(re.split(r"\s*\|\s*", row)[3])
+    assert diff <= 1e-9  # the weighted accumulate equals pycocotools on resampled sets
