@@ -21,7 +21,7 @@ COMMANDS: dict[str, str] = {
     "analyse": "fsdvs_hw.analysis_cli",
     "bench": "fsdvs_hw.bench",
     "learn": "fsdvs_hw.tasks.learn_cli",
-    "ablation": "fsdvs_hw.tasks.ablation",
+    "ablation": "fsdvs_hw.explore.ablation",
     "explore": "fsdvs_hw.explore.explore",
     "sweep": "fsdvs_hw.explore.sweep",
 }

@@ -9,7 +9,7 @@ import pytest
 from fsdvs_hw.cli import main
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.kernels import reference_kernel
-from fsdvs_hw.tasks.ablation import ablation_markdown, kernel_shape, run_ablation
+from fsdvs_hw.tasks.ablation import ablation_jobs, ablation_markdown, job_key, kernel_shape
 
 
 def test_kernel_shape_of_reference_kernels():
@@ -23,27 +23,61 @@ def test_kernel_shape_of_reference_kernels():
     assert not delta["centre_surround"] and delta["surround_sum"] == 0.0
 
 
-def test_tiny_ablation_table(tmp_path):
-    settings = {"epochs_frozen": 1, "epochs_joint": 1, "width": 8}
-    recs = run_ablation(["recognition"], sizes=[1, 3], seeds=[0, 1], n_train=16, n_test=16, settings=settings,
-                        log_path=tmp_path / "runs.jsonl")
+TINY = {"epochs_frozen": 1, "epochs_joint": 1, "width": 8}
+
+
+def test_tiny_ablation_table_resumes_through_the_sweep_store(tmp_path):
+    from fsdvs_hw.explore.ablation import ablation_points, run_ablation
+    from fsdvs_hw.explore.store import ResultsStore
+
+    jobs = ablation_jobs(["recognition"], sizes=[1, 3], seeds=[0, 1], n_train=16, n_test=24, settings=TINY)
+    points = ablation_points(jobs, tmp_path / "pred")
+    store = tmp_path / "runs.sqlite"
+    # a run killed after two trainings: the store holds those two
+    first = run_ablation(points[:2], store, progress=False)
+    assert len(first) == 2
+    with ResultsStore(store) as st:
+        assert st.done() == {p.key for p in points[:2]}
+    # the rerun trains only the other two and returns all four records
+    recs = run_ablation(points, store, progress=False)
     assert sorted((r["size"], r["seed"]) for r in recs) == [(1, 0), (1, 1), (3, 0), (3, 1)]
-    assert len((tmp_path / "runs.jsonl").read_text().splitlines()) == 4
-    assert all("shape" in r for r in recs if r["size"] == 3)
-    table = ablation_markdown(recs)
-    assert "| w/o |" in table and "| 3×3 |" in table and "±" in table and "2 seeds" in table
-    # the CLI rebuilds the same table from the run log without training
-    assert main(["ablation", "--from-runs", str(tmp_path / "runs.jsonl")]) == 0
-    assert json.loads((tmp_path / "runs.jsonl").read_text().splitlines()[0])["task"] == "recognition"
+    assert [r["key"] for r in recs[:2]] == [r["key"] for r in first]
+    assert all((tmp_path / "pred" / r["predictions"]).is_file() for r in recs)
+    assert all("shape" in r and r["kernel_change_l1"] > 0 for r in recs if r["size"] == 3)
+    table = ablation_markdown(recs, tmp_path / "pred", n_resamples=200)
+    assert "| w/o |" in table and "| 3×3 |" in table and "2 seeds × 24 test clips" in table
+    row = next(line for line in table.splitlines() if line.startswith("| 3×3 |"))
+    lo, hi = (float(x) for x in row.split("[")[1].split("]")[0].split(","))
+    assert lo <= hi  # the gain's 95 % CI
+    # without prediction files the gain has no CI
+    assert "[" not in next(line for line in ablation_markdown(recs).splitlines() if line.startswith("| 3×3 |"))
 
 
-def test_ablation_bad_input():
+def test_cli_rebuilds_the_tables_from_the_store(tmp_path, capsys):
+    out = tmp_path / "abl"
+    args = ["ablation", "--tasks", "recognition", "--sizes", "1", "3", "--seeds", "0", "--n-train", "16",
+            "--n-test", "16", "--epochs-frozen", "1", "--epochs-joint", "1", "--out", str(out), "--no-progress"]
+    assert main(args) == 0
+    first = (out / "ablation.md").read_text()
+    assert main(args + ["--from-store"]) == 0
+    assert (out / "ablation.md").read_text().split("Measured")[0] == first.split("Measured")[0]
+    assert json.loads((out / "ablation.json").read_text())["records"][0]["task"] == "recognition"
+
+
+def test_job_keys_ignore_where_results_go():
+    a = ablation_jobs(["recognition"], [3], [0])[0]
+    assert job_key(a) == job_key({**a, "out": "x", "pred_dir": "y"}) != job_key({**a, "seed": 1})
+
+
+def test_ablation_bad_input(capsys):
     with pytest.raises(InputError, match="odd"):
-        run_ablation(["recognition"], sizes=[2], seeds=[0])
+        ablation_jobs(["recognition"], sizes=[2], seeds=[0])
     with pytest.raises(InputError, match="unknown"):
-        run_ablation(["tracking"], sizes=[3], seeds=[0])
+        ablation_jobs(["tracking"], sizes=[3], seeds=[0])
     with pytest.raises(InputError, match="seed"):
-        run_ablation(["recognition"], sizes=[3], seeds=[])
+        ablation_jobs(["recognition"], sizes=[3], seeds=[])
+    assert main(["ablation", "--transfer-only"]) != 0  # the CLI reports the InputError and fails
+    assert "--transfer-only needs --transfer" in capsys.readouterr().err
 
 
 def test_bootstrap_interval_matches_binomial_theory():

@@ -220,7 +220,8 @@ def _record(store: ResultsStore, point: DesignPoint, res: dict[str, Any]) -> Non
 
 def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: int = 1,
                scheduler: str | None = None, progress: bool = True,
-               on_result: Callable[[DesignPoint, dict[str, Any]], None] | None = None) -> SweepSummary:
+               on_result: Callable[[DesignPoint, dict[str, Any]], None] | None = None,
+               evaluate: Callable[[Any], dict[str, Any]] | None = None, desc: str = "design points") -> SweepSummary:
     """Run every point not yet in ``store`` and store each result as it finishes.
 
     Parameters
@@ -237,6 +238,13 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
         Show a tqdm progress bar on stderr.
     on_result : callable, optional
         Called as ``on_result(point, result)`` after each result is stored.
+    evaluate : callable, optional
+        The work function run on each point (default :func:`evaluate_point`). Any module-level
+        function (picklable for spawned workers and Dask) that takes a point with ``key``,
+        ``design``, ``realisation``, ``params`` and ``label`` and returns ``{"key", "status",
+        "result", "wall_s", "worker"}``; the kernel-size ablation runs its trainings this way.
+    desc : str
+        Label of the progress bar.
     """
     from tqdm import tqdm
 
@@ -244,7 +252,8 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
     done = store.done()
     todo = [p for p in points if p.key not in done]
     statuses: dict[str, int] = {}
-    bar = tqdm(total=len(points), initial=len(points) - len(todo), desc="design points", unit="pt",
+    evaluate = evaluate or evaluate_point
+    bar = tqdm(total=len(points), initial=len(points) - len(todo), desc=desc, unit="pt",
                disable=not progress, file=sys.stderr, dynamic_ncols=True)
 
     def finish(point: DesignPoint, res: dict[str, Any]) -> None:
@@ -258,29 +267,29 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
     try:
         if scheduler is not None:
             executor = f"Dask scheduler {scheduler}"
-            _run_dask(todo, scheduler, finish)
+            _run_dask(todo, scheduler, finish, evaluate)
         elif workers <= 1 or len(todo) <= 1:
             executor = "this process"
             for p in todo:
-                finish(p, evaluate_point(p))
+                finish(p, evaluate(p))
         else:
             executor = f"{min(workers, len(todo))} local processes"
-            _run_pool(todo, workers, finish)
+            _run_pool(todo, workers, finish, evaluate)
     finally:
         bar.close()
     return SweepSummary(total=len(points), already_done=len(points) - len(todo), ran=sum(statuses.values()),
                         statuses=statuses, wall_s=time.perf_counter() - t0, executor=executor)
 
 
-def _run_pool(todo: Sequence[DesignPoint], workers: int,
-              finish: Callable[[DesignPoint, dict[str, Any]], None]) -> None:
+def _run_pool(todo: Sequence[DesignPoint], workers: int, finish: Callable[[DesignPoint, dict[str, Any]], None],
+              evaluate: Callable[[Any], dict[str, Any]] = evaluate_point) -> None:
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     os.environ.setdefault("FSDVS_SWEEP_THREADS", "1")
     ctx = mp.get_context("spawn")  # fork after torch/BLAS threads started can deadlock
     pool = ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx)
-    futures = {pool.submit(evaluate_point, p): p for p in todo}
+    futures = {pool.submit(evaluate, p): p for p in todo}
     try:
         for fut in as_completed(futures):
             finish(futures[fut], fut.result())
@@ -291,8 +300,8 @@ def _run_pool(todo: Sequence[DesignPoint], workers: int,
     pool.shutdown(wait=True)
 
 
-def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
-              finish: Callable[[DesignPoint, dict[str, Any]], None]) -> None:
+def _run_dask(todo: Sequence[DesignPoint], scheduler: str, finish: Callable[[DesignPoint, dict[str, Any]], None],
+              evaluate: Callable[[Any], dict[str, Any]] = evaluate_point) -> None:
     try:
         from distributed import Client, as_completed
     except ImportError as exc:  # pragma: no cover - optional extra
@@ -304,7 +313,7 @@ def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
     except (OSError, TimeoutError) as exc:
         raise InputError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler ({exc})") from None
     try:
-        futures = {client.submit(evaluate_point, p, key=f"fsdvs-point-{p.key}", pure=False): p for p in todo}
+        futures = {client.submit(evaluate, p, key=f"fsdvs-point-{p.key}", pure=False): p for p in todo}
         for fut in as_completed(list(futures)):
             finish(futures[fut], fut.result())
     finally:

@@ -284,8 +284,10 @@ def is_sub_threshold(edge_contrast: float, threshold: float) -> bool:
 #: reason the FS-DVS paper gives: fine texture (scikit-image ``gravel``, RMS contrast 0.2, resampled
 #: 1-4x finer) moving with camera ego-motion (0.5 px/frame pan) fires the comparator everywhere, the
 #: image carries photon shot noise (1000 e⁻ per pixel and frame at the mean: 3.2 % per frame), and
-#: object edges have Weber contrast 0.2 (``log 1.2 = 0.18`` < the 0.2 threshold: sub-threshold for
-#: a conventional DVS without noise). ``"legacy"`` is the regime of the first shipped kernels
+#: object edges have Weber contrast 0.2 against the mean background: a bright edge steps the log
+#: intensity by ``log 1.2 = 0.18``, below the 0.2 threshold (a noiseless conventional DVS never
+#: fires on it), a dark one by ``-log 0.8 = 0.22``, just above; over the texture the local step
+#: varies around these values. ``"legacy"`` is the regime of the first shipped kernels
 #: (static camera, noiseless 1/f texture of RMS 0.15, edge contrast 0.22), in which the detection
 #: network does not need the filter.
 SCENE_REGIMES: dict[str, dict[str, Any]] = {

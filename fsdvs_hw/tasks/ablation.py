@@ -1,29 +1,38 @@
 """Kernel-size ablation (the FS-DVS paper's Tables I-II) and the zero-shot transfer table (Table III).
 
-``fsdvs-hw ablation`` trains, for every task, kernel size and seed, one network with
-:func:`~fsdvs_hw.tasks.learn.learn_kernel` ("w/o" = the 1×1 delta, i.e. a conventional DVS, with the
-same total number of epochs), and reports mean ± sample standard deviation over seeds of every
-metric on the fixed test clips, with the gain over "w/o". For each learned kernel it also records
-its shape: the sign of the centre tap against the summed surround (centre-surround or not), where
-its radial response peaks (:func:`fsdvs_hw.spectra.spectral_summary`) and its agreement with the
-Mannos-Sakrison CSF (:func:`fsdvs_hw.csf.csf_agreement`, pixels-per-degree fitted).
+One *run* trains one network with :func:`~fsdvs_hw.tasks.learn.learn_kernel` and keeps its per-clip
+predictions on the fixed test clips (:data:`~fsdvs_hw.tasks.learn.TEST_SEED`), so that every
+comparison is paired over clips. Three kinds of run (:func:`ablation_jobs`, :func:`transfer_jobs`,
+:func:`frozen_kernel_jobs`):
 
-The transfer table follows Table III: a segmentation network is trained with the filter frozen
-at (a) the delta ("w/o") and (b) the learned detection kernel, without retraining the kernel.
+``size``
+    a task trained with a k×k kernel learned end to end ("w/o" = the 1×1 delta, i.e. a conventional
+    DVS, with the same schedule);
+``frozen``
+    a task network trained with a given kernel frozen (``learn_filter=False``): the paper's
+    segmentation transfer (the detection kernel, not retrained) and the networks the exploration
+    scores realised kernels in;
+``zero_shot``
+    a given kernel swapped into a trained w/o network with no retraining at all.
 
-Runs are independent, so ``workers > 1`` spreads them over processes (each single-threaded).
+:func:`run_job` executes one run (the sweep executor in :mod:`fsdvs_hw.explore.ablation` shards
+them over processes or a Dask cluster and stores each as it finishes); :func:`ablation_markdown`
+and :func:`transfer_markdown` build the tables, with the gain over w/o and its 95 % confidence
+interval from :func:`fsdvs_hw.stats.difference_cis` (bootstrap over test clips, paired, and
+training seeds). For each learned kernel the table records its shape (:func:`kernel_shape`): the
+sign of the centre tap against the summed surround, where its radial response peaks and its
+agreement with the Mannos-Sakrison CSF.
 """
 
 from __future__ import annotations
 
-import argparse
+import hashlib
 import json
 import math
 import sys
 import tempfile
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
@@ -32,17 +41,12 @@ import numpy as np
 from ..errors import InputError
 from ..kernels import Kernel
 
-__all__ = ["run_ablation", "kernel_shape", "ablation_markdown", "transfer_markdown", "run_transfer",
-           "HELP", "add_arguments", "run"]
+__all__ = ["kernel_shape", "ablation_jobs", "transfer_jobs", "frozen_kernel_jobs", "job_key", "run_job",
+           "clip_metric", "ablation_markdown", "transfer_markdown", "PAPER_GAINS"]
 
-HELP = "kernel-size ablation (w/o, 3, 5, 7, 9) on detection and recognition, mean ± std over seeds"
-DESCRIPTION = (
-    "Train one network per (task, kernel size, seed) with the FS-DVS protocol and print the\n"
-    "paper-style tables (mean ± std over seeds, gain over the w/o baseline), the learned kernels'\n"
-    "shape (centre-surround, radial peak, Mannos-Sakrison agreement), and the zero-shot transfer\n"
-    "of the 7x7 detection kernel to segmentation.\n\n"
-    "Example (the README table): fsdvs-hw ablation --seeds 0 1 2 --workers 2 --out out/ablation"
-)
+#: The FS-DVS paper's gains of the 7×7 kernel over w/o (metric points ×100): detection mAP
+#: (Table I), recognition top-1 (Table II), zero-shot segmentation mIoU (Table III).
+PAPER_GAINS: dict[str, float] = {"detection": 12.3, "recognition": 8.9, "segmentation": 4.77}
 
 
 def kernel_shape(kernel: Kernel) -> dict[str, Any]:
@@ -81,55 +85,28 @@ def kernel_shape(kernel: Kernel) -> dict[str, Any]:
     return out
 
 
-def _one_run(job: dict[str, Any]) -> dict[str, Any]:
-    import torch
+def _check_common(tasks: Sequence[str], seeds: Sequence[int]) -> None:
+    from .evaluators import get_evaluator
 
-    from .learn import TrainingSettings, learn_kernel
-
-    torch.set_num_threads(1)
-    settings = TrainingSettings(**job["settings"]) if job.get("settings") else None
-    t0 = time.perf_counter()
-    kw = {k: job[k] for k in ("n_train", "n_test") if job.get(k)}
-    res = learn_kernel(job["task"], job["size"], seed=job["seed"], settings=settings, learn_filter=job["size"] > 1,
-                       init_kernel=job.get("init_kernel"), out=job.get("out"), **kw)
-    rec = {"task": job["task"], "size": job["size"], "seed": job["seed"], "metrics": res.metrics,
-           "primary": res.primary_metric, "seconds": time.perf_counter() - t0,
-           "event_rate": res.provenance["test_event_rate_per_pixel_frame"], "taps": res.kernel.taps.tolist(),
-           "final_loss": res.history[-1]["loss"] if res.history else None}
-    if job["size"] > 1:
-        rec["shape"] = kernel_shape(res.kernel)
-    print(f"[ablation] {job['task']} {job['size']}x{job['size']} seed {job['seed']}: "
-          f"{res.primary_metric} {res.value:.4f} ({rec['seconds']:.0f} s)", file=sys.stderr, flush=True)
-    return rec
+    for t in tasks:
+        get_evaluator(t)
+    if not seeds:
+        raise InputError("ablation: give at least one seed")
+    for sd in seeds:
+        if isinstance(sd, bool) or not isinstance(sd, (int, np.integer)) or sd < 0:
+            raise InputError(f"ablation: seeds must be non-negative integers, got {sd!r}")
 
 
-def _map(jobs: list[dict[str, Any]], workers: int, fn: Any = None, log_path: Path | None = None) -> list[dict[str, Any]]:
-    """Run ``fn`` over ``jobs`` (in ``workers`` processes); append each record to ``log_path`` (JSON lines)."""
-    fn = fn or _one_run
-    out: list[dict[str, Any]] = []
-
-    def _keep(rec: dict[str, Any]) -> None:
-        out.append(rec)
-        if log_path is not None:
-            with open(log_path, "a") as fh:
-                fh.write(json.dumps(rec) + "\n")
-
-    if workers <= 1:
-        for j in jobs:
-            _keep(fn(j))
-        return out
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = [pool.submit(fn, j) for j in jobs]
-        for fut in as_completed(futures):
-            _keep(fut.result())
-    return out
+def _job(kind: str, task: str, size: int, seed: int, n_train: int | None, n_test: int | None,
+         settings: dict[str, Any] | None, **extra: Any) -> dict[str, Any]:
+    return {"kind": kind, "task": task, "size": int(size), "seed": int(seed), "n_train": n_train, "n_test": n_test,
+            "settings": dict(settings or {}), **extra}
 
 
-def run_ablation(tasks: Sequence[str] = ("detection", "recognition"), sizes: Sequence[int] = (1, 3, 5, 7, 9),
-                 seeds: Sequence[int] = (0, 1, 2), *, n_train: int | None = None, n_test: int | None = None,
-                 settings: dict[str, Any] | None = None, workers: int = 1,
-                 log_path: Path | None = None, ship_dir: Path | None = None) -> list[dict[str, Any]]:
-    """Train every (task, size, seed) and return one record per run.
+def ablation_jobs(tasks: Sequence[str] = ("detection", "recognition"), sizes: Sequence[int] = (1, 3, 5, 7, 9),
+                  seeds: Sequence[int] = (0, 1, 2), *, n_train: int | None = None, n_test: int | None = None,
+                  settings: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    """One ``size`` run per (task, kernel size, seed), longest first.
 
     Parameters
     ----------
@@ -140,79 +117,183 @@ def run_ablation(tasks: Sequence[str] = ("detection", "recognition"), sizes: Seq
     seeds : sequence of int
         Training seeds (clips, initial noise, network, batch order); test clips are fixed.
     n_train, n_test : int, optional
-        Data sizes (default: :func:`learn_kernel`'s).
+        Data sizes (default: :func:`~fsdvs_hw.tasks.learn.learn_kernel`'s).
     settings : dict, optional
         :class:`~fsdvs_hw.tasks.learn.TrainingSettings` fields.
-    workers : int
-        Processes to run in parallel.
-    log_path : path, optional
-        Append every finished run to this JSON-lines file (partial results survive an interrupt).
-    ship_dir : path, optional
-        Save the 7×7 runs of the first seed as ``ship_dir/learned_{task}_7x7.{json,safetensors,
-        provenance.json}`` (how the shipped kernels in ``designs/kernels`` are made).
-
-    Returns
-    -------
-    list of dict
-        ``task, size, seed, metrics, primary, seconds, event_rate, taps`` (+ ``shape`` for k > 1).
     """
-    from .evaluators import get_evaluator
-
-    for t in tasks:
-        get_evaluator(t)
+    _check_common(tasks, seeds)
     for s in sizes:
         if isinstance(s, bool) or not isinstance(s, int) or s < 1 or s % 2 == 0:
             raise InputError(f"ablation: sizes must be odd integers >= 1, got {s!r}")
-    if not seeds:
-        raise InputError("ablation: give at least one seed")
-    jobs = [{"task": t, "size": s, "seed": int(sd), "n_train": n_train, "n_test": n_test, "settings": settings}
-            for t in tasks for s in sizes for sd in seeds]
-    if ship_dir is not None:
-        for j in jobs:
-            if j["size"] == 7 and j["seed"] == seeds[0]:
-                j["out"] = str(Path(ship_dir) / f"learned_{j['task']}_7x7")
-    # longest first (large kernels, detection) so parallel workers finish together
-    jobs.sort(key=lambda j: (-j["size"], j["task"]))
-    return _map(jobs, workers, _one_run, log_path)
+    jobs = [_job("size", t, s, sd, n_train, n_test, settings) for t in tasks for s in sizes for sd in seeds]
+    jobs.sort(key=lambda j: (-j["size"], j["task"]))  # long runs first, so parallel workers finish together
+    return jobs
 
 
-def run_transfer(det_kernel: Kernel, seeds: Sequence[int] = (0, 1, 2), *, n_train: int | None = None,
-                 n_test: int | None = None, settings: dict[str, Any] | None = None,
-                 workers: int = 1, log_path: Path | None = None) -> list[dict[str, Any]]:
-    """Segmentation with the filter frozen at the delta ("w/o") and at ``det_kernel`` (not retrained)."""
-    jobs = []
-    for sd in seeds:
-        jobs.append({"task": "segmentation", "size": 1, "seed": int(sd), "n_train": n_train, "n_test": n_test,
-                     "settings": settings, "zero_shot_kernel": det_kernel})
-        jobs.append({"task": "segmentation", "size": det_kernel.size, "seed": int(sd), "n_train": n_train,
-                     "n_test": n_test, "settings": settings, "init_kernel": det_kernel})
-    return _map(jobs, workers, _one_transfer, log_path)
+def frozen_kernel_jobs(kernel_path: str | Path, tasks: Sequence[str] = ("detection", "recognition", "segmentation"),
+                       seeds: Sequence[int] = (0, 1, 2), *, n_train: int | None = None, n_test: int | None = None,
+                       settings: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    """One ``frozen`` run per (task, seed): a network trained with the kernel in ``kernel_path`` frozen."""
+    from ..kernels import load_kernel
+
+    _check_common(tasks, seeds)
+    k = load_kernel(kernel_path)
+    taps = np.asarray(k.taps).tolist()
+    return [_job("frozen", t, k.size, sd, n_train, n_test, settings, kernel=taps, kernel_name=k.name)
+            for t in tasks for sd in seeds]
 
 
-def _one_transfer(job: dict[str, Any]) -> dict[str, Any]:
-    import torch
+def transfer_jobs(kernel_path: str | Path, seeds: Sequence[int] = (0, 1, 2), *, n_train: int | None = None,
+                  n_test: int | None = None, settings: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    """Table III: segmentation w/o (plus the kernel swapped in zero-shot) and with the kernel frozen."""
+    from ..kernels import load_kernel
 
-    from .learn import TrainingSettings, learn_kernel
+    k = load_kernel(kernel_path)
+    jobs = ablation_jobs(["segmentation"], [1], seeds, n_train=n_train, n_test=n_test, settings=settings)
+    for j in jobs:
+        j.update(kind="zero_shot", kernel=np.asarray(k.taps).tolist(), kernel_name=k.name)
+    return jobs + frozen_kernel_jobs(kernel_path, ["segmentation"], seeds, n_train=n_train, n_test=n_test,
+                                     settings=settings)
 
-    torch.set_num_threads(1)
+
+def job_key(job: dict[str, Any]) -> str:
+    """SHA-1 (20 hex chars) of everything that decides a run's result (not where it writes)."""
+    decisive = {k: v for k, v in job.items() if k not in ("out", "pred_dir", "kernel_name")}
+    return hashlib.sha1(json.dumps(decisive, sort_keys=True).encode()).hexdigest()[:20]
+
+
+def _save_predictions(path: Path, predictions: dict[str, np.ndarray]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    small = {}
+    for k, v in predictions.items():
+        a = np.asarray(v)
+        if k == "mask":
+            a = a.astype(np.uint8)
+        elif a.dtype.kind == "f":
+            a = a.astype(np.float32)
+        small[k] = a
+    np.savez_compressed(path, **small)
+
+
+def run_job(job: dict[str, Any]) -> dict[str, Any]:
+    """Train (and score) one run; return its record.
+
+    ``job`` comes from :func:`ablation_jobs`, :func:`transfer_jobs` or :func:`frozen_kernel_jobs`;
+    optional keys ``pred_dir`` (save the per-clip test predictions as ``pred_dir/KEY.npz``) and
+    ``out`` (file stem: save kernel + checkpoint + provenance there, see
+    :func:`~fsdvs_hw.tasks.learn.learn_kernel`).
+
+    Returns
+    -------
+    dict
+        ``key, kind, task, size, seed, metrics, primary, seconds, event_rate, taps`` (+ ``shape``
+        for learned kernels, ``zero_shot_metrics`` for zero-shot runs, ``predictions`` and
+        ``zero_shot_predictions`` file names, ``n_test``, ``scene``, ``files``).
+    """
+    from .learn import TrainingSettings, evaluate_kernel, learn_kernel
+
+    t0 = time.perf_counter()
+    key = job_key(job)
+    kind = job["kind"]
     settings = TrainingSettings(**job["settings"]) if job.get("settings") else None
     kw = {k: job[k] for k in ("n_train", "n_test") if job.get(k)}
-    t0 = time.perf_counter()
-    zk = job.get("zero_shot_kernel")
+    init = np.asarray(job["kernel"]) if kind == "frozen" else None
+    learn = kind == "size" and job["size"] > 1
+    size = job["size"] if kind != "zero_shot" else 1
     with tempfile.TemporaryDirectory() as tmp:
-        res = learn_kernel("segmentation", job["size"], seed=job["seed"], settings=settings, learn_filter=False,
-                           init_kernel=job.get("init_kernel"), out=Path(tmp) / "seg" if zk is not None else None,
-                           **kw)
-        rec = {"task": "segmentation", "size": job["size"], "seed": job["seed"], "metrics": res.metrics,
-               "primary": res.primary_metric, "seconds": time.perf_counter() - t0,
-               "event_rate": res.provenance["test_event_rate_per_pixel_frame"]}
-        if zk is not None:  # swap the detection kernel into the network trained on conventional DVS events
-            from .learn import evaluate_kernel
-
-            rec["zero_shot_metrics"] = evaluate_kernel(zk, "segmentation", res.paths["checkpoint"]).metrics
-    print(f"[transfer] segmentation {job['size']}x{job['size']} seed {job['seed']}: miou {res.value:.4f}",
-          file=sys.stderr, flush=True)
+        out = job.get("out") or (Path(tmp) / "run" if kind == "zero_shot" else None)
+        res = learn_kernel(job["task"], size, seed=job["seed"], settings=settings, learn_filter=learn,
+                           init_kernel=init, out=out, **kw)
+        rec: dict[str, Any] = {
+            "key": key, "kind": kind, "task": job["task"], "size": job["size"], "seed": job["seed"],
+            "metrics": res.metrics, "primary": res.primary_metric, "n_test": res.provenance["n_test"],
+            "n_train": res.provenance["n_train"], "scene": res.provenance["scene"],
+            "event_rate": res.provenance["test_event_rate_per_pixel_frame"], "taps": res.kernel.taps.tolist(),
+            "final_loss": res.history[-1]["loss"] if res.history else None,
+            "train_seconds": res.provenance["train_seconds"], "kernel_name": job.get("kernel_name"),
+        }
+        if job.get("pred_dir"):
+            _save_predictions(Path(job["pred_dir"]) / f"{key}.npz", res.predictions)
+            rec["predictions"] = f"{key}.npz"
+        if kind == "zero_shot":  # the given kernel swapped into the network trained on conventional events
+            ev = evaluate_kernel(np.asarray(job["kernel"]), job["task"], res.paths["checkpoint"], keep_predictions=True)
+            rec["zero_shot_metrics"] = ev.metrics
+            rec["zero_shot_event_rate"] = ev.event_rate
+            if job.get("pred_dir"):
+                _save_predictions(Path(job["pred_dir"]) / f"{key}_zero_shot.npz", ev.predictions)
+                rec["zero_shot_predictions"] = f"{key}_zero_shot.npz"
+        if job.get("out"):
+            rec["files"] = {k: str(v) for k, v in res.paths.items()}
+    if learn:
+        rec["shape"] = kernel_shape(res.kernel)
+        rec["kernel_change_l1"] = float(np.abs(np.asarray(res.kernel.taps) - _delta(job["size"])).sum())
+    rec["seconds"] = time.perf_counter() - t0
+    print(f"[ablation] {kind} {job['task']} {job['size']}x{job['size']} seed {job['seed']}: "
+          f"{res.primary_metric} {res.value:.4f} ({rec['seconds']:.0f} s)", file=sys.stderr, flush=True)
     return rec
+
+
+def _delta(size: int) -> np.ndarray:
+    d = np.zeros((size, size))
+    d[size // 2, size // 2] = 1.0
+    return d
+
+
+# --------------------------------------------------------------------------- tables
+def clip_metric(task: str, predictions: dict[str, np.ndarray], targets: dict[str, np.ndarray]) -> Any:
+    """The task's primary metric as a resamplable :mod:`fsdvs_hw.stats` object (per-clip evidence)."""
+    from ..stats import ClipMeans, CocoDetections, ConfusionMIoU
+    from .evaluators import get_evaluator
+
+    ev = get_evaluator(task)
+    if ev.primary_metric == "map":
+        return CocoDetections.from_predictions(predictions["boxes"], predictions["scores"], predictions["labels"],
+                                               targets["boxes"], targets["labels"], num_classes=ev.num_classes,
+                                               metric="map")
+    if ev.primary_metric == "top1":
+        return ClipMeans.top1(predictions["logits"], targets["motion"])
+    if ev.primary_metric == "miou":
+        return ConfusionMIoU.from_masks(predictions["mask"].astype(np.int64), targets["mask"], ev.num_classes)
+    raise InputError(f"ablation: no per-clip metric for task {task!r} (primary metric {ev.primary_metric!r})")
+
+
+def _gains(records: list[dict[str, Any]], pred_dir: Path | None, task: str, baseline: list[dict[str, Any]],
+           arms: dict[str, tuple[list[dict[str, Any]], str]], n_resamples: int) -> dict[str, Any]:
+    """Gain of every arm over the baseline with its 95 % CI (None where predictions are missing)."""
+    from ..stats import difference_cis
+    from .learn import heldout_targets
+
+    if pred_dir is None or not baseline or not arms:
+        return {}
+    ok = all("predictions" in r and (pred_dir / r["predictions"]).is_file() for r in baseline)
+    for recs, field in arms.values():
+        ok = ok and all(field in r and (pred_dir / r[field]).is_file() for r in recs)
+    if not ok:
+        return {}
+    n = {int(r["n_test"]) for r in baseline}
+    if len(n) != 1:
+        return {}
+    targets = heldout_targets(task, baseline[0]["scene"], n.pop())
+
+    def metrics(recs: list[dict[str, Any]], field: str) -> list[Any]:
+        out = []
+        for r in sorted(recs, key=lambda r: r["seed"]):
+            with np.load(pred_dir / r[field]) as z:
+                out.append(clip_metric(task, {k: z[k] for k in z.files}, targets))
+        return out
+
+    base = metrics(baseline, "predictions")
+    cands = {name: metrics(recs, field) for name, (recs, field) in arms.items()}
+    by_seeds: dict[int, dict[str, list[Any]]] = {}
+    for name, m in cands.items():
+        by_seeds.setdefault(len(m), {})[name] = m
+    out: dict[str, Any] = {}
+    for group in by_seeds.values():
+        cis = difference_cis(base, group, paired_seeds=False, n_resamples=n_resamples)
+        for name, ci in cis.items():  # reference − candidate = w/o − arm: the gain is its negative
+            out[name] = {"gain": -ci.estimate, "low": -ci.high, "high": -ci.low, "n_clips": ci.n_clips,
+                         "n_seeds": min(ci.n_seeds_reference, ci.n_seeds_candidate)}
+    return out
 
 
 def _mean_std(values: list[float]) -> tuple[float, float]:
@@ -224,146 +305,116 @@ def _fmt(m: float, s: float, scale: float = 100.0) -> str:
     return f"{m * scale:.1f} ± {s * scale:.1f}" if math.isfinite(s) else f"{m * scale:.1f}"
 
 
-def _group(records: list[dict[str, Any]], task: str) -> dict[int, list[dict[str, Any]]]:
+def _fmt_gain(g: dict[str, Any] | None, fallback: float | None) -> str:
+    if g:
+        return f"{g['gain'] * 100:+.1f} [{g['low'] * 100:+.1f}, {g['high'] * 100:+.1f}]"
+    return f"{fallback * 100:+.1f}" if fallback is not None else "—"
+
+
+def _group(records: list[dict[str, Any]], task: str, kind: str = "size") -> dict[int, list[dict[str, Any]]]:
     out: dict[int, list[dict[str, Any]]] = {}
     for r in records:
-        if r["task"] == task:
+        if r["task"] == task and r.get("kind", "size") == kind:
             out.setdefault(r["size"], []).append(r)
     return dict(sorted(out.items()))
 
 
-def ablation_markdown(records: list[dict[str, Any]]) -> str:
-    """Paper-style tables (metrics ×100, mean ± std over seeds) plus the learned kernels' shape."""
+def ablation_markdown(records: list[dict[str, Any]], pred_dir: str | Path | None = None, *,
+                      n_resamples: int = 1000) -> str:
+    """Paper-style tables (metrics ×100, mean ± std over seeds; gain over w/o with its 95 % CI).
+
+    Parameters
+    ----------
+    records : list of dict
+        :func:`run_job` records of kind ``size``.
+    pred_dir : path, optional
+        Folder of the runs' prediction files; without it (or with files missing) the gain is the
+        difference of the seed means, without a CI.
+    n_resamples : int
+        Bootstrap resamples per interval.
+    """
     from .evaluators import get_evaluator
 
+    pdir = Path(pred_dir) if pred_dir is not None else None
     lines: list[str] = []
-    for task in dict.fromkeys(r["task"] for r in records):
+    recs_all = [r for r in records if r.get("kind", "size") == "size"]
+    for task in dict.fromkeys(r["task"] for r in recs_all):
         ev = get_evaluator(task)
-        groups = _group(records, task)
+        groups = _group(recs_all, task)
         n_seeds = max(len(v) for v in groups.values())
+        n_clips = max(int(r.get("n_test", 0)) for v in groups.values() for r in v)
         names = list(ev.metric_names)
         base = _mean_std([r["metrics"][ev.primary_metric] for r in groups.get(1, [])]) if 1 in groups else None
-        lines.append(f"**{task}** ({n_seeds} seeds; metrics ×100, mean ± std; Δ = gain of the mean over w/o)\n")
-        lines.append("| Filter | " + " | ".join(names) + f" | Δ {ev.primary_metric} | events / px / frame |")
+        gains = _gains(recs_all, pdir, task, groups.get(1, []),
+                       {str(s): (v, "predictions") for s, v in groups.items() if s != 1}, n_resamples)
+        lines.append(f"**{task}** ({n_seeds} seeds × {n_clips} test clips; metrics ×100, mean ± std over seeds; "
+                     f"Δ = gain over w/o with its 95 % CI, bootstrap over test clips (paired) and seeds)\n")
+        lines.append("| Filter | " + " | ".join(names) + f" | Δ {ev.primary_metric} [95 % CI] | events / px / frame |")
         lines.append("|---" * (len(names) + 3) + "|")
         for size, recs in groups.items():
             cells = [_fmt(*_mean_std([r["metrics"][k] for r in recs])) for k in names]
             prim = _mean_std([r["metrics"][ev.primary_metric] for r in recs])[0]
-            delta = f"{(prim - base[0]) * 100:+.1f}" if base else "—"
+            delta = "—" if size == 1 else _fmt_gain(gains.get(str(size)), prim - base[0] if base else None)
             rate = np.mean([r["event_rate"] for r in recs])
             label = "w/o" if size == 1 else f"{size}×{size}"
             lines.append(f"| {label} | " + " | ".join(cells) + f" | {delta} | {rate:.4f} |")
         lines.append("")
-    shaped = [r for r in records if "shape" in r]
+    shaped = [r for r in recs_all if "shape" in r]
     if shaped:
         lines.append("**Learned kernels** (per task and size: how many seeds gave a centre-surround kernel; "
-                     "means over seeds)\n")
-        lines.append("| Task | Filter | centre-surround | centre | surround sum | DC gain | radial peak (cyc/px) "
-                     "| MS correlation | MS peak ratio |")
-        lines.append("|---|---|---|---|---|---|---|---|---|")
+                     "means over seeds; L1 change = Σ|taps − delta|)\n")
+        lines.append("| Task | Filter | centre-surround | centre | surround sum | DC gain | L1 change from delta "
+                     "| radial peak (cyc/px) | MS correlation | MS peak ratio |")
+        lines.append("|---|---|---|---|---|---|---|---|---|---|")
         for task in dict.fromkeys(r["task"] for r in shaped):
             for size, recs in _group(shaped, task).items():
                 sh = [r["shape"] for r in recs]
                 n_cs = sum(s["centre_surround"] for s in sh)
                 m = {k: float(np.mean([s[k] for s in sh])) for k in
                      ("centre", "surround_sum", "dc_gain", "peak_frequency_cpp", "ms_correlation", "ms_peak_ratio")}
+                l1 = float(np.mean([r.get("kernel_change_l1", float("nan")) for r in recs]))
                 lines.append(f"| {task} | {size}×{size} | {n_cs}/{len(sh)} | {m['centre']:.3f} | "
-                             f"{m['surround_sum']:+.3f} | {m['dc_gain']:.3f} | {m['peak_frequency_cpp']:.3f} | "
+                             f"{m['surround_sum']:+.3f} | {m['dc_gain']:.3f} | {l1:.2f} | {m['peak_frequency_cpp']:.3f} | "
                              f"{m['ms_correlation']:.2f} | {m['ms_peak_ratio']:.2f} |")
         lines.append("")
     return "\n".join(lines)
 
 
-def transfer_markdown(records: list[dict[str, Any]], kernel_name: str) -> str:
-    """Table III: segmentation with the delta vs the (frozen) detection kernel."""
+def transfer_markdown(records: list[dict[str, Any]], kernel_name: str, pred_dir: str | Path | None = None, *,
+                      n_resamples: int = 1000) -> str:
+    """Table III: segmentation with the delta vs the (frozen) detection kernel, gains with 95 % CIs."""
     from .evaluators import get_evaluator
 
     ev = get_evaluator("segmentation")
-    groups = _group(records, "segmentation")
-    base = _mean_std([r["metrics"]["miou"] for r in groups.get(1, [])])[0] if 1 in groups else None
-    n_seeds = max(len(v) for v in groups.values())
-    lines = [f"**segmentation, zero-shot kernel transfer** ({n_seeds} seeds; kernel = {kernel_name}, frozen; "
-             "metrics ×100, mean ± std)\n",
-             "| Filter | " + " | ".join(ev.metric_names) + " | Δ miou |", "|---" * (len(ev.metric_names) + 2) + "|"]
-    for size, recs in groups.items():
-        cells = [_fmt(*_mean_std([r["metrics"][k] for r in recs])) for k in ev.metric_names]
-        prim = _mean_std([r["metrics"]["miou"] for r in recs])[0]
-        delta = f"{(prim - base) * 100:+.1f}" if base is not None else "—"
-        label = "w/o" if size == 1 else f"{size}×{size} (detection), network trained on its events"
-        lines.append(f"| {label} | " + " | ".join(cells) + f" | {delta} |")
-    zs = [r for r in groups.get(1, []) if "zero_shot_metrics" in r]
+    pdir = Path(pred_dir) if pred_dir is not None else None
+    wo = [r for r in records if r["task"] == "segmentation" and r.get("kind") == "zero_shot"]
+    frozen = [r for r in records if r["task"] == "segmentation" and r.get("kind") == "frozen"]
+    if not wo:
+        return ""
+    base = _mean_std([r["metrics"]["miou"] for r in wo])[0]
+    arms = {}
+    if frozen:
+        arms["frozen"] = (frozen, "predictions")
+    arms["zero_shot"] = (wo, "zero_shot_predictions")
+    gains = _gains(records, pdir, "segmentation", wo, arms, n_resamples)
+    n_clips = max(int(r.get("n_test", 0)) for r in wo)
+    lines = [f"**segmentation, kernel transfer** ({len(wo)} seeds × {n_clips} test clips; kernel = {kernel_name}, "
+             "frozen, never trained on segmentation; metrics ×100, mean ± std; Δ = gain over w/o with its 95 % CI)\n",
+             "| Filter | " + " | ".join(ev.metric_names) + " | Δ miou [95 % CI] |",
+             "|---" * (len(ev.metric_names) + 2) + "|"]
+    cells = [_fmt(*_mean_std([r["metrics"][k] for r in wo])) for k in ev.metric_names]
+    lines.append("| w/o | " + " | ".join(cells) + " | — |")
+    if frozen:
+        cells = [_fmt(*_mean_std([r["metrics"][k] for r in frozen])) for k in ev.metric_names]
+        prim = _mean_std([r["metrics"]["miou"] for r in frozen])[0]
+        lines.append("| detection kernel, segmentation network trained on its events | " + " | ".join(cells)
+                     + f" | {_fmt_gain(gains.get('frozen'), prim - base)} |")
+    zs = [r for r in wo if "zero_shot_metrics" in r]
     if zs:
         cells = [_fmt(*_mean_std([r["zero_shot_metrics"][k] for r in zs])) for k in ev.metric_names]
         prim = _mean_std([r["zero_shot_metrics"]["miou"] for r in zs])[0]
-        delta = f"{(prim - base) * 100:+.1f}" if base is not None else "—"
         lines.append("| detection kernel swapped into the w/o network (zero-shot, no retraining at all) | "
-                     + " | ".join(cells) + f" | {delta} |")
+                     + " | ".join(cells) + f" | {_fmt_gain(gains.get('zero_shot'), prim - base)} |")
     return "\n".join(lines) + "\n"
 
 
-# --------------------------------------------------------------------------- CLI
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--tasks", nargs="+", default=["detection", "recognition"], help="tasks (default: both)")
-    parser.add_argument("--sizes", nargs="+", type=int, default=[1, 3, 5, 7, 9],
-                        help="odd kernel sizes; 1 = w/o (default 1 3 5 7 9)")
-    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2], help="training seeds (default 0 1 2)")
-    parser.add_argument("--n-train", type=int, default=None, help="training clips (default 512)")
-    parser.add_argument("--n-test", type=int, default=None, help="test clips (default 256)")
-    parser.add_argument("--epochs-frozen", type=int, default=None, help="frozen-filter epochs (staged tasks)")
-    parser.add_argument("--epochs-joint", type=int, default=None, help="joint epochs")
-    parser.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
-    parser.add_argument("--transfer", default=None, metavar="KERNEL",
-                        help="also run the segmentation transfer table with this (detection) kernel file")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="write runs.jsonl (each run as it finishes), ablation.json and ablation.md here")
-    parser.add_argument("--transfer-only", action="store_true",
-                        help="skip the size ablation; run only the --transfer table")
-    parser.add_argument("--ship-dir", type=Path, default=None,
-                        help="save the 7x7 runs of the first seed here as learned_{task}_7x7.* (designs/kernels)")
-    parser.add_argument("--from-runs", type=Path, default=None, metavar="RUNS_JSONL",
-                        help="do not train: rebuild the tables from a runs.jsonl written earlier")
-
-
-def run(args: argparse.Namespace) -> int:
-    from ..kernels import load_kernel
-
-    if args.from_runs is not None:
-        if not args.from_runs.is_file():
-            raise InputError(f"--from-runs: {str(args.from_runs)!r} not found")
-        recs = [json.loads(line) for line in args.from_runs.read_text().splitlines() if line.strip()]
-        main = [r for r in recs if r["task"] != "segmentation"]
-        seg = [r for r in recs if r["task"] == "segmentation"]
-        text = ablation_markdown(main) if main else ""
-        if seg:
-            text += "\n" + transfer_markdown(seg, "the 7×7 detection kernel")
-        print(text)
-        return 0
-    settings = {}
-    if args.epochs_frozen is not None:
-        settings["epochs_frozen"] = args.epochs_frozen
-    if args.epochs_joint is not None:
-        settings["epochs_joint"] = args.epochs_joint
-    t0 = time.perf_counter()
-    log_path = None
-    if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        log_path = args.out / "runs.jsonl"
-    if args.transfer_only and not args.transfer:
-        raise InputError("--transfer-only needs --transfer KERNEL")
-    records = [] if args.transfer_only else run_ablation(
-        args.tasks, args.sizes, args.seeds, n_train=args.n_train, n_test=args.n_test, settings=settings or None,
-        workers=args.workers, log_path=log_path, ship_dir=args.ship_dir)
-    text = ablation_markdown(records) if records else ""
-    transfer = []
-    if args.transfer:
-        k = load_kernel(args.transfer)
-        transfer = run_transfer(k, args.seeds, n_train=args.n_train, n_test=args.n_test,
-                                settings=settings or None, workers=args.workers, log_path=log_path)
-        text += "\n" + transfer_markdown(transfer, k.name)
-    cmd = "fsdvs-hw ablation " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "fsdvs-hw ablation"
-    text += f"\nMeasured with `{cmd}` in {time.perf_counter() - t0:.0f} s.\n"
-    print(text)
-    if args.out is not None:
-        (args.out / "ablation.json").write_text(json.dumps({"records": records, "transfer": transfer}, indent=1))
-        (args.out / "ablation.md").write_text(text)
-    return 0

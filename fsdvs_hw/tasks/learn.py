@@ -58,7 +58,7 @@ from ..errors import InputError, KernelError
 from ..kernels import Kernel, load_kernel
 
 __all__ = ["learn_kernel", "evaluate_kernel", "LearnResult", "Evaluation", "TrainingSettings",
-           "load_checkpoint", "default_sensor", "TEST_SEED", "CHECKPOINT_FORMAT"]
+           "load_checkpoint", "default_sensor", "heldout_targets", "TEST_SEED", "CHECKPOINT_FORMAT"]
 
 #: Seed of every task's test clips (fixed, so that runs with different training seeds and kernel
 #: sizes are scored on the same clips).
@@ -150,6 +150,7 @@ class LearnResult:
     history: list[dict[str, Any]]
     provenance: dict[str, Any]
     paths: dict[str, Path] = field(default_factory=dict)
+    predictions: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @property
     def value(self) -> float:
@@ -159,7 +160,11 @@ class LearnResult:
 
 @dataclass(frozen=True)
 class Evaluation:
-    """What :func:`evaluate_kernel` returns: metrics of one kernel on one trained task."""
+    """What :func:`evaluate_kernel` returns: metrics of one kernel on one trained task.
+
+    ``predictions`` holds the per-clip test predictions (the evaluator's :meth:`predict` output
+    as numpy arrays, first axis = clips) when ``keep_predictions=True``; empty otherwise.
+    """
 
     task: str
     metrics: dict[str, float]
@@ -170,6 +175,7 @@ class Evaluation:
     finetune_epochs: int
     seconds: float
     event_rate: float
+    predictions: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @property
     def value(self) -> float:
@@ -177,7 +183,7 @@ class Evaluation:
         return self.metrics[self.primary_metric]
 
     def to_dict(self) -> dict[str, Any]:
-        return {**self.__dict__, "value": self.value}
+        return {**{k: v for k, v in self.__dict__.items() if k != "predictions"}, "value": self.value}
 
 
 # --------------------------------------------------------------------------- simulator glue
@@ -240,8 +246,12 @@ def _cat_predictions(preds: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def _score(evaluator: Any, network: Any, kernel_t: Any, video: Any, targets: dict[str, Any], sensor: Any,
-           timestamps_s: np.ndarray, batch_size: int = 64, events_fn: Any = None) -> tuple[dict[str, float], float]:
-    """Metrics of ``network`` with ``kernel_t`` on a test set, and the mean event count per pixel-frame."""
+           timestamps_s: np.ndarray, batch_size: int = 64, events_fn: Any = None,
+           keep: dict[str, Any] | None = None) -> tuple[dict[str, float], float]:
+    """Metrics of ``network`` with ``kernel_t`` on a test set, and the mean event count per pixel-frame.
+
+    If ``keep`` is a dict, the concatenated per-clip predictions are stored in it (numpy arrays).
+    """
     import torch
 
     network.eval()
@@ -255,7 +265,10 @@ def _score(evaluator: Any, network: Any, kernel_t: Any, video: Any, targets: dic
 
             preds.append(evaluator.predict(network(event_representation(ev.float()))))
     network.train()
-    return evaluator.score(_cat_predictions(preds), targets), n_events / max(n_px, 1)
+    cat = _cat_predictions(preds)
+    if keep is not None:
+        keep.update({k: v.numpy() for k, v in cat.items()})
+    return evaluator.score(cat, targets), n_events / max(n_px, 1)
 
 
 def _train_epochs(evaluator: Any, network: Any, kernel_param: Any, video: Any, targets: dict[str, Any],
@@ -448,7 +461,9 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
                       cached_inputs=cached, log=log)
 
     kernel_final = kernel_param.detach().clone()
-    metrics, event_rate = _score(evaluator, network, kernel_final, test_video, test_targets, sensor, ts)
+    predictions: dict[str, np.ndarray] = {}
+    metrics, event_rate = _score(evaluator, network, kernel_final, test_video, test_targets, sensor, ts,
+                                 keep=predictions)
     train_seconds = time.perf_counter() - t_start
     provenance = {
         "task": evaluator.name,
@@ -488,7 +503,7 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
     if out is not None:
         paths = _save_checkpoint(Path(out), kernel, network, provenance)
     return LearnResult(kernel=kernel, metrics=metrics, primary_metric=evaluator.primary_metric,
-                       history=history, provenance=provenance, paths=paths)
+                       history=history, provenance=provenance, paths=paths, predictions=predictions)
 
 
 def _save_checkpoint(stem: Path, kernel: Kernel, network: Any, provenance: dict[str, Any]) -> dict[str, Path]:
@@ -548,7 +563,7 @@ def load_checkpoint(checkpoint: str | Path) -> tuple[dict[str, Any], dict[str, A
 
 def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: int | None = None,
                     finetune_epochs: int = 0, finetune_lr: float = 1e-3, sensor: Any = None,
-                    events_fn: Any = None) -> Evaluation:
+                    events_fn: Any = None, keep_predictions: bool = False) -> Evaluation:
     """Score ``kernel`` on a trained task: swap it into the checkpoint's frozen network.
 
     Parameters
@@ -578,6 +593,9 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
         exploration layer passes its sensor-in-the-loop emulation here (filtered video shown on a
         display and recaptured by a plain DVS). Fine-tuning, when asked for, always uses the
         in-pixel simulator.
+    keep_predictions : bool
+        Return the per-clip test predictions in :attr:`Evaluation.predictions` (for paired
+        statistics, :mod:`fsdvs_hw.stats`).
 
     Returns
     -------
@@ -635,8 +653,36 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
         _train_epochs(evaluator, network, kernel_t, video, targets, sensor, ts, opt, finetune_epochs,
                       settings.batch_size, gen, "finetune", [], None, cached_inputs=cached)
     test_video, test_targets = _dataset(scene, n_test, int(provenance["test_seed"]), evaluator.name, settings.dtype)
+    kept: dict[str, np.ndarray] | None = {} if keep_predictions else None
     metrics, event_rate = _score(evaluator, network, kernel_t, test_video, test_targets, sensor, ts,
-                                 events_fn=events_fn)
+                                 events_fn=events_fn, keep=kept)
     return Evaluation(task=evaluator.name, metrics=metrics, primary_metric=evaluator.primary_metric,
                       kernel_name=k.name, kernel_size=k.size, n_test=n_test, finetune_epochs=finetune_epochs,
-                      seconds=time.perf_counter() - t0, event_rate=event_rate)
+                      seconds=time.perf_counter() - t0, event_rate=event_rate, predictions=kept or {})
+
+
+def heldout_targets(task: Any, scene: Any, n_test: int) -> dict[str, np.ndarray]:
+    """The ground truth of a task's fixed test clips (:data:`TEST_SEED`), as numpy arrays.
+
+    Parameters
+    ----------
+    task : str or TaskEvaluator
+    scene : SceneConfig or dict
+        The scene family (a checkpoint's ``provenance["scene"]`` dict is accepted).
+    n_test : int
+        Number of test clips (clip ``i`` does not depend on it).
+
+    Returns
+    -------
+    dict
+        The evaluator's targets (detection: ``boxes``, ``labels``...; recognition: ``motion``;
+        segmentation: ``mask``), first axis = clips.
+    """
+    from ..scenes.synthetic import SceneConfig
+    from .evaluators import get_evaluator
+
+    evaluator = get_evaluator(task)
+    if isinstance(scene, dict):
+        scene = SceneConfig.from_dict(scene)
+    _, targets = _dataset(scene, int(n_test), TEST_SEED, evaluator.name, "float32")
+    return {k: v.numpy() for k, v in targets.items()}

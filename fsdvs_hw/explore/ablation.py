@@ -1,0 +1,320 @@
+"""``fsdvs-hw ablation``: the kernel-size ablation sharded over the sweep executor, resumable.
+
+Every training run (:mod:`fsdvs_hw.tasks.ablation`: one task, kernel size and seed; or a network
+trained with a given kernel frozen; or the zero-shot swap) is one point of the project's sweep
+executor (:func:`fsdvs_hw.explore.sweep.run_points`): a local process pool (one torch thread per
+process) or a Dask cluster, each result committed to a SQLite :class:`~fsdvs_hw.explore.store.ResultsStore`
+as it finishes, finished runs skipped on a rerun (kill it and run the same command again to
+resume). Per-clip test predictions go to ``OUT/predictions/KEY.npz``; the tables with the gain
+over w/o and its 95 % CI (paired over the fixed test clips, bootstrap over clips and seeds,
+:func:`fsdvs_hw.stats.difference_cis`) are written to ``OUT/ablation.md``.
+
+Phases: (1) the size ablation; (2) when ``--transfer`` is given: the segmentation transfer of
+that kernel (Table III) and, with ``--frozen-tasks``, networks for other tasks trained with the
+kernel frozen (what :mod:`fsdvs_hw.explore.scoring` scores realised kernels in). ``--transfer
+from-run`` uses the 7×7 detection kernel of the first seed learned in phase 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import socket
+import sys
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["AblationPoint", "ablation_points", "evaluate_ablation_point", "run_ablation", "annotate_shipped", "HELP",
+           "add_arguments", "run"]
+
+HELP = "kernel-size ablation (w/o, 3, 5, 7, 9) on detection and recognition, gains with 95 % CIs; resumable"
+DESCRIPTION = (
+    "Train one network per (task, kernel size, seed) with the FS-DVS protocol on the sweep executor\n"
+    "(local processes or Dask; SQLite store; a rerun resumes) and print the paper-style tables: mean\n"
+    "± std over seeds, the gain over w/o with a 95 % CI (bootstrap over the paired test clips and the\n"
+    "seeds), the learned kernels' shape, and the transfer of the 7x7 detection kernel to segmentation.\n\n"
+    "Example (the README table):\n"
+    "  fsdvs-hw ablation --seeds 0 1 2 --workers 2 --transfer from-run --out out/ablation\n"
+)
+
+_DESIGN = "ablation"
+
+
+@dataclass(frozen=True)
+class AblationPoint:
+    """One training run as a sweep point (the fields :func:`~fsdvs_hw.explore.sweep.run_points` reads)."""
+
+    key: str
+    job: dict[str, Any] = field(repr=False)
+    design: str = _DESIGN
+
+    @property
+    def realisation(self) -> str:
+        return f"{self.job['kind']} {self.job['task']}"
+
+    @property
+    def params(self) -> dict[str, Any]:
+        return {"kind": self.job["kind"], "task": self.job["task"], "size": self.job["size"], "seed": self.job["seed"]}
+
+    @property
+    def label(self) -> str:
+        j = self.job
+        return f"{j['kind']} {j['task']} {j['size']}x{j['size']} s{j['seed']}"
+
+
+def ablation_points(jobs: list[dict[str, Any]], pred_dir: Path, ship: dict[str, Path] | None = None) -> list[AblationPoint]:
+    """Wrap :mod:`fsdvs_hw.tasks.ablation` jobs as sweep points (``ship``: job key → file stem)."""
+    from ..tasks.ablation import job_key
+
+    points = []
+    for j in jobs:
+        key = job_key(j)
+        job = {**j, "pred_dir": str(pred_dir)}
+        if ship and key in ship:
+            job["out"] = str(ship[key])
+        points.append(AblationPoint(key=key, job=job))
+    return points
+
+
+def evaluate_ablation_point(point: AblationPoint) -> dict[str, Any]:
+    """Run one training (in a worker); never raises: a failure becomes an ``"error"`` status."""
+    if os.environ.get("FSDVS_SWEEP_THREADS"):
+        import torch
+
+        torch.set_num_threads(int(os.environ["FSDVS_SWEEP_THREADS"]))
+    from ..tasks.ablation import run_job
+
+    t0 = time.perf_counter()
+    try:
+        status, rec = "ok", run_job(point.job)
+    except Exception as exc:  # noqa: BLE001 - one failed run must not stop the ablation; it is recorded
+        status, rec = "error", {"reason": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc(limit=8)}
+    return {"key": point.key, "status": status, "result": rec, "wall_s": time.perf_counter() - t0,
+            "worker": f"{socket.gethostname()}:{os.getpid()}"}
+
+
+def run_ablation(points: list[AblationPoint], store_path: str | Path, *, workers: int = 1, scheduler: str | None = None,
+                 progress: bool = True) -> list[dict[str, Any]]:
+    """Run every point not yet stored; return the records of all ``points`` (status ``ok``) in order."""
+    from .store import ResultsStore
+    from .sweep import run_points
+
+    if workers < 1:
+        raise InputError(f"--workers must be >= 1, got {workers}")
+    with ResultsStore(store_path) as store:
+        summary = run_points(points, store, workers=workers, scheduler=scheduler, progress=progress,
+                             evaluate=evaluate_ablation_point, desc="training runs")
+        print(f"[ablation] {summary}", file=sys.stderr, flush=True)
+        rows = {r["key"]: r for r in store.rows(design=_DESIGN)}
+    out = []
+    for p in points:
+        r = rows.get(p.key)
+        if r is None or r["status"] != "ok":
+            reason = (r or {}).get("result", {}).get("reason", "not run") if r else "not run"
+            print(f"[ablation] {p.label}: {r['status'] if r else 'missing'} ({reason})", file=sys.stderr, flush=True)
+            continue
+        out.append(dict(r["result"]))
+    return out
+
+
+# --------------------------------------------------------------------------- CLI
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--tasks", nargs="+", default=["detection", "recognition"], help="tasks (default: both)")
+    parser.add_argument("--sizes", nargs="+", type=int, default=[1, 3, 5, 7, 9],
+                        help="odd kernel sizes; 1 = w/o (default 1 3 5 7 9)")
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2], help="training seeds (default 0 1 2)")
+    parser.add_argument("--n-train", type=int, default=None, help="training clips (default 2048)")
+    parser.add_argument("--n-test", type=int, default=None, help="test clips (default 2048)")
+    parser.add_argument("--epochs-frozen", type=int, default=None, help="frozen-filter epochs (default 16)")
+    parser.add_argument("--epochs-joint", type=int, default=None, help="joint epochs (default 16)")
+    parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
+    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                        help="run on a Dask distributed scheduler instead of local processes")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--transfer", default=None, metavar="KERNEL",
+                        help="also run the segmentation transfer with this kernel file, or 'from-run' for the "
+                             "7x7 detection kernel of the first seed learned here")
+    parser.add_argument("--frozen-tasks", nargs="*", default=[], metavar="TASK",
+                        help="with --transfer: also train these tasks' networks with that kernel frozen "
+                             "(e.g. detection recognition)")
+    parser.add_argument("--transfer-only", action="store_true", help="skip the size ablation (needs a kernel file)")
+    parser.add_argument("--out", type=Path, default=Path("out") / "ablation",
+                        help="folder: store (runs.sqlite), predictions/, ablation.md, ablation.json "
+                             "(default out/ablation)")
+    parser.add_argument("--ship-dir", type=Path, default=None,
+                        help="save the 7x7 learned kernels (every seed) as learned_{task}_7x7[_sSEED].* and the "
+                             "frozen-kernel networks as networks/{task}_with_KERNEL_sSEED.* here (designs/kernels)")
+    parser.add_argument("--from-store", action="store_true", help="do not train: rebuild the tables from the store")
+
+
+def _settings(args: argparse.Namespace) -> dict[str, Any]:
+    return {k: v for k, v in (("epochs_frozen", args.epochs_frozen), ("epochs_joint", args.epochs_joint))
+            if v is not None}
+
+
+def _ship_stem(ship_dir: Path, job: dict[str, Any], first_seed: int, kernel_stem: str) -> Path | None:
+    if job["kind"] == "size" and job["size"] == 7:
+        tail = "" if job["seed"] == first_seed else f"_s{job['seed']}"
+        return ship_dir / f"learned_{job['task']}_7x7{tail}"
+    if job["kind"] == "frozen":
+        return ship_dir / "networks" / f"{job['task']}_with_{kernel_stem}_s{job['seed']}"
+    return None
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..tasks.ablation import (ablation_jobs, ablation_markdown, frozen_kernel_jobs, transfer_jobs,
+                                  transfer_markdown)
+
+    t0 = time.perf_counter()
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    pred_dir = out / "predictions"
+    store = out / "runs.sqlite"
+    settings = _settings(args) or None
+    kw = {"n_train": args.n_train, "n_test": args.n_test, "settings": settings}
+    exe = {"workers": args.workers, "scheduler": args.scheduler, "progress": not args.no_progress}
+    if args.transfer_only and (not args.transfer or args.transfer == "from-run"):
+        raise InputError("--transfer-only needs --transfer KERNEL_FILE")
+    records: list[dict[str, Any]] = []
+    if not args.transfer_only:
+        jobs = ablation_jobs(args.tasks, args.sizes, args.seeds, **kw)
+        ship = None
+        if args.ship_dir is not None:
+            from ..tasks.ablation import job_key
+
+            ship = {job_key(j): s for j in jobs if (s := _ship_stem(args.ship_dir, j, args.seeds[0], "")) is not None}
+        points = ablation_points(jobs, pred_dir, ship)
+        records = _collect(points, store, exe, args.from_store)
+    text = ablation_markdown(records, pred_dir) if records else ""
+    transfer: list[dict[str, Any]] = []
+    if args.transfer:
+        kpath = _transfer_kernel(args, records, out)
+        stem = kpath.name.removesuffix(".json")
+        jobs = transfer_jobs(kpath, args.seeds, **kw)
+        if args.frozen_tasks:
+            jobs += frozen_kernel_jobs(kpath, [t for t in args.frozen_tasks if t != "segmentation"], args.seeds, **kw)
+        ship = None
+        if args.ship_dir is not None:
+            from ..tasks.ablation import job_key
+
+            ship = {job_key(j): s for j in jobs if (s := _ship_stem(args.ship_dir, j, args.seeds[0], stem)) is not None}
+        transfer = _collect(ablation_points(jobs, pred_dir, ship), store, exe, args.from_store)
+        text += "\n" + transfer_markdown(transfer, stem, pred_dir)
+        others = [r for r in transfer if r["kind"] == "frozen" and r["task"] != "segmentation"]
+        if others:
+            text += "\n" + _frozen_markdown(others, stem)
+    shipped = annotate_shipped(records + transfer, pred_dir)
+    if shipped:
+        print(f"[ablation] held-out metric CIs written to {len(shipped)} shipped provenance files", file=sys.stderr)
+    cmd = "fsdvs-hw ablation " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "fsdvs-hw ablation"
+    text += f"\nMeasured with `{cmd}` (this invocation: {time.perf_counter() - t0:.0f} s wall).\n"
+    print(text)
+    (out / "ablation.json").write_text(json.dumps({"records": records, "transfer": transfer}, indent=1))
+    (out / "ablation.md").write_text(text)
+    return 0
+
+
+def annotate_shipped(records: list[dict[str, Any]], pred_dir: Path, *, n_resamples: int = 1000) -> list[Path]:
+    """Add the held-out metric's 95 % CI (bootstrap over test clips) to every shipped run's provenance file.
+
+    For each record that saved files (``--ship-dir``), ``STEM.provenance.json`` gains
+    ``heldout_metric`` (primary metric on the test clips), ``heldout_ci95_low``/``heldout_ci95_high``
+    (percentile bootstrap over the clips with :func:`scipy.stats.bootstrap`, one network: training-seed
+    variance is not in it; the ablation table's CIs carry it), ``heldout_n_clips`` and
+    ``ablation_key`` (the run's key in the ablation store).
+
+    Returns
+    -------
+    list of Path
+        The provenance files updated.
+    """
+    from scipy import stats
+
+    from ..tasks.ablation import clip_metric
+    from ..tasks.learn import heldout_targets
+
+    done = []
+    for r in records:
+        files = r.get("files") or {}
+        prov_path = Path(files["provenance"]) if "provenance" in files else None
+        pred = pred_dir / r["predictions"] if r.get("predictions") else None
+        if prov_path is None or not prov_path.is_file() or pred is None or not pred.is_file():
+            continue
+        targets = heldout_targets(r["task"], r["scene"], int(r["n_test"]))
+        with np.load(pred) as z:
+            metric = clip_metric(r["task"], {k: z[k] for k in z.files}, targets)
+        n = metric.n_clips
+
+        def statistic(idx: np.ndarray, axis: int = -1) -> np.ndarray:
+            flat = idx.reshape(-1, idx.shape[-1])
+            w = np.stack([np.bincount(row, minlength=n) for row in flat]).astype(np.float64)
+            return metric.weighted(w).reshape(idx.shape[:-1])
+
+        res = stats.bootstrap((np.arange(n),), statistic, vectorized=True, n_resamples=n_resamples,
+                              method="percentile", random_state=np.random.default_rng(0), batch=200)
+        prov = json.loads(prov_path.read_text())
+        prov.update(heldout_metric=float(metric.weighted(np.ones((1, n)))[0]),
+                    heldout_ci95_low=float(res.confidence_interval.low),
+                    heldout_ci95_high=float(res.confidence_interval.high), heldout_n_clips=n,
+                    heldout_ci_method="percentile bootstrap over test clips (scipy.stats.bootstrap), one network",
+                    ablation_key=r["key"])
+        prov_path.write_text(json.dumps(prov, indent=1) + "\n")
+        done.append(prov_path)
+    return done
+
+
+def _collect(points: list[AblationPoint], store: Path, exe: dict[str, Any], from_store: bool) -> list[dict[str, Any]]:
+    if from_store:
+        from .store import ResultsStore
+
+        if not store.is_file():
+            raise InputError(f"--from-store: {str(store)!r} not found")
+        with ResultsStore(store) as st:
+            rows = {r["key"]: r for r in st.rows(design=_DESIGN) if r["status"] == "ok"}
+        return [dict(rows[p.key]["result"]) for p in points if p.key in rows]
+    return run_ablation(points, store, **exe)
+
+
+def _transfer_kernel(args: argparse.Namespace, records: list[dict[str, Any]], out: Path) -> Path:
+    if args.transfer != "from-run":
+        p = Path(args.transfer)
+        if not p.is_file():
+            raise InputError(f"--transfer: kernel file {str(p)!r} not found")
+        return p
+    from ..kernels import Kernel
+
+    first = [r for r in records if r["task"] == "detection" and r["size"] == 7 and r["seed"] == args.seeds[0]]
+    if not first:
+        raise InputError("--transfer from-run needs the 7x7 detection run of the first seed (--tasks detection, "
+                         "--sizes including 7)")
+    shipped = args.ship_dir / "learned_detection_7x7.json" if args.ship_dir is not None else None
+    if shipped is not None and shipped.is_file():
+        from ..kernels import load_kernel
+
+        if not np.allclose(np.asarray(load_kernel(shipped).taps), np.asarray(first[0]["taps"]), atol=1e-6):
+            raise InputError(f"--transfer from-run: {str(shipped)!r} is not the kernel of the stored 7x7 detection "
+                             "run (written by another run?); pass that file as --transfer or re-ship it")
+        return shipped
+    k = Kernel(np.asarray(first[0]["taps"]), name=f"learned detection 7x7 (seed {args.seeds[0]})")
+    path = out / "learned_detection_7x7.json"
+    k.save(path)
+    return path
+
+
+def _frozen_markdown(records: list[dict[str, Any]], stem: str) -> str:
+    from ..tasks.evaluators import get_evaluator
+
+    lines = [f"**networks trained with {stem} frozen** (for the exploration's scoring; metric ×100 on the test clips)\n",
+             "| Task | seed | metric | value |", "|---|---|---|---|"]
+    for r in sorted(records, key=lambda r: (r["task"], r["seed"])):
+        ev = get_evaluator(r["task"])
+        lines.append(f"| {r['task']} | {r['seed']} | {ev.primary_metric} | {r['metrics'][ev.primary_metric] * 100:.1f} |")
+    return "\n".join(lines) + "\n"
