@@ -798,13 +798,15 @@ def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMet
 
 
 def clips_for_half_width(pilot: DifferenceCI, target_half_width: float = 0.01, *,
-                         seed_half_width: float = 0.0, max_clips: int = 100_000) -> int:
+                         seed_half_width: float = 0.0, seed_noise_half_width: float = 0.0,
+                         max_clips: int = 100_000) -> int:
     """Test clips needed for a CI half-width ``target_half_width``, from a pilot interval.
 
-    The clip part of the half-width falls as ``1/√n``; the seed part does not depend on ``n``.
-    With a clip-only pilot half-width ``h_c`` on ``n_p`` clips and a seed-only half-width
-    ``h_s``, the total ``h(n) ≈ √(h_c² n_p / n + h_s²)`` (independent components add in
-    variance), so ``n = ⌈n_p h_c² / (h² − h_s²)⌉``.
+    The CI's variance has a part that falls as ``1/n`` — clip sampling, ``h_c`` in the clip-only
+    pilot interval, and the clip noise inside each seed's estimate that the seed resampling also
+    sees, ``h_n`` — and a part that does not, the true seed-to-seed (network and mismatch-pattern)
+    spread ``h_s``. Independent parts add in variance:
+    ``h(n)² ≈ (h_c² + h_n²) n_p / n + h_s²``, so ``n = ⌈n_p (h_c² + h_n²) / (h² − h_s²)⌉``.
 
     Parameters
     ----------
@@ -813,7 +815,9 @@ def clips_for_half_width(pilot: DifferenceCI, target_half_width: float = 0.01, *
     target_half_width : float
         Wanted half-width (metric fraction; 0.01 = one point).
     seed_half_width : float
-        The seed-only half-width ``h_s`` (0 with one seed).
+        ``h_s``: the seed-only half-width with the pilot's clip noise taken out (0 with one seed).
+    seed_noise_half_width : float
+        ``h_n``: the part of the pilot's seed-only half-width that is clip noise (falls with ``n``).
     max_clips : int
         Upper bound returned when the target needs more.
 
@@ -835,5 +839,5 @@ def clips_for_half_width(pilot: DifferenceCI, target_half_width: float = 0.01, *
     if room <= 0:
         raise InputError(f"clips_for_half_width: the seed-to-seed part of the CI (± {seed_half_width:.4f}) is at "
                          f"least the target ± {target_half_width:.4f}; more clips cannot reach it (train more seeds)")
-    n = math.ceil(pilot.n_clips * pilot.half_width**2 / room)
+    n = math.ceil(pilot.n_clips * (pilot.half_width**2 + seed_noise_half_width**2) / room)
     return int(min(max(n, 2), max_clips))

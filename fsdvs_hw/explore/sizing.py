@@ -4,15 +4,19 @@ Procedure (what ``designs/default.toml``'s ``n_test`` came from; the README reco
 
 1. Run the design once with a pilot number of test clips ``n_p`` per task
    (``python -m fsdvs_hw.explore.sizing designs/default.toml --pilot 512``).
-2. For every track, task and realisation, bootstrap the paired loss twice: over clips only
-   (half-width ``h_c`` at ``n_p`` clips) and over training seeds only (``h_s``; 0 with one seed).
-3. The clip part falls as ``1/√n`` and the parts add in variance, so the realisation needs
-   ``n = ⌈n_p h_c² / (h² − h_s²)⌉`` clips (:func:`fsdvs_hw.stats.clips_for_half_width`); a task's
-   test set is the largest over its realisations, times a safety ``margin`` for the pilot's own
-   sampling error, rounded up to a multiple of the evaluation batch.
+2. For every track, task and realisation, bootstrap the paired loss over clips only (half-width
+   ``h_c`` at ``n_p`` clips), over training seeds only (``h_seeds``; none with one seed), and over
+   clips for each seed's network alone (``h_c,s``). The seed-only interval also sees each seed's
+   clip noise, ``h_n² = (S−1)/S · mean_s(h_c,s²) / S``; the rest is the true seed-to-seed spread,
+   ``h_s² = max(0, h_seeds² − h_n²)``.
+3. The clip parts fall as ``1/n`` in variance and the parts add, so the realisation needs
+   ``n = ⌈n_p (h_c² + h_n²) / (h²/margin − h_s²)⌉`` clips
+   (:func:`fsdvs_hw.stats.clips_for_half_width`, ``margin`` for the pilot's own sampling error),
+   rounded up to a multiple of the evaluation batch; a task's test set is the largest over the
+   realisations that can reach the target.
 
-If the seed part alone exceeds the target, no number of clips reaches it and the result says so
-(train more seeds).
+If the seed part alone exceeds the target, no number of clips reaches it: the budget lists that
+realisation as seed-limited with its ``h_s`` (train more seeds to go below it).
 """
 
 from __future__ import annotations
@@ -44,11 +48,13 @@ class ClipBudget:
     limiting : str
         The realisation that needs the most clips.
     h_clip, h_seed : float
-        Its clip-only and seed-only pilot half-widths.
+        Its clip-only pilot half-width and its true seed-to-seed half-width (clip noise removed).
     per_realisation : dict
-        Realisation label → clips it alone would need (None if unreachable).
+        Realisation label → clips it alone would need (None if seed-limited).
+    seed_limited : dict
+        Realisation label → its seed-to-seed half-width ``h_s`` where that alone exceeds the target.
     reason : str
-        Empty, or why ``n_clips`` is None.
+        Empty, or why ``n_clips`` is None (every realisation seed-limited).
     """
 
     track: str
@@ -59,6 +65,7 @@ class ClipBudget:
     h_clip: float
     h_seed: float
     per_realisation: dict[str, int | None]
+    seed_limited: dict[str, float]
     reason: str = ""
 
 
@@ -119,25 +126,34 @@ def size_test_sets(points: Iterable[Mapping[str, Any]], *, target_half_width: fl
             labels = {p["key"]: label(p) for p in points}
             kw = {"n_resamples": n_resamples, "confidence": confidence}
             clips = task_difference_cis({task: (r_arm, cands)}, resample=("clips",), **kw)
-            seeds = task_difference_cis({task: (r_arm, cands)}, resample=("seeds",), **kw) if len(r_arm) > 1 else {}
+            n_seeds = len(r_arm)
+            seeds = task_difference_cis({task: (r_arm, cands)}, resample=("seeds",), **kw) if n_seeds > 1 else {}
+            per_seed = ([task_difference_cis({task: ([r_arm[s]], {k: [a[s]] for k, a in cands.items()})},
+                                             resample=("clips",), **kw) for s in range(n_seeds)]
+                        if n_seeds > 1 else [])
             need: dict[str, int | None] = {}
+            limited: dict[str, float] = {}
             worst: tuple[float, str, float, float] = (-1.0, "", math.nan, math.nan)
             for key in cands:
                 c: DifferenceCI = clips[key][task]
-                h_s = seeds[key][task].half_width if seeds else 0.0
+                h_n2 = 0.0
+                h_s = 0.0
+                if seeds:
+                    h_n2 = (n_seeds - 1) / n_seeds * sum(ps[key][task].half_width ** 2 for ps in per_seed) / n_seeds**2
+                    h_s = math.sqrt(max(0.0, seeds[key][task].half_width ** 2 - h_n2))
                 try:
-                    n = clips_for_half_width(c, target_half_width / margin ** 0.5, seed_half_width=h_s)
+                    n = clips_for_half_width(c, target_half_width / margin ** 0.5, seed_half_width=h_s,
+                                             seed_noise_half_width=math.sqrt(h_n2))
                     n = int(math.ceil(n / batch) * batch)
                 except InputError:
                     n = None
+                    limited[labels[key]] = h_s
                 need[labels[key]] = n
-                score = math.inf if n is None else n
-                if score > worst[0]:
-                    worst = (score, labels[key], c.half_width, h_s)
-            n_max = None if math.isinf(worst[0]) else int(worst[0])
-            out.append(ClipBudget(track, task, n_max, r_arm[0].n_clips, worst[1], worst[2], worst[3], need,
-                                  "" if n_max is not None else "the seed-to-seed part alone exceeds the target: "
-                                                               "train more seeds"))
+                if n is not None and n > worst[0]:
+                    worst = (float(n), labels[key], c.half_width, h_s)
+            n_max = None if worst[0] < 0 else int(worst[0])
+            out.append(ClipBudget(track, task, n_max, r_arm[0].n_clips, worst[1], worst[2], worst[3], need, limited,
+                                  "" if n_max is not None else "every realisation is seed-limited: train more seeds"))
     return out
 
 
@@ -162,12 +178,14 @@ def main(argv: list[str] | None = None) -> int:
     with ResultsStore(args.out / "results.sqlite") as store:
         rows = list(store.rows())
     print(f"pilot {args.pilot} clips per task; target half-width {target}; margin {args.margin}")
-    print("| track | task | clips needed | limiting realisation | pilot h (clips) | h (seeds) | per realisation |")
-    print("|---|---|---|---|---|---|---|")
+    print("| track | task | clips needed | limiting realisation | its pilot h (clips) | its h (seeds) | "
+          "clips per realisation | seed-limited (± h_s, more clips cannot help) |")
+    print("|---|---|---|---|---|---|---|---|")
     for b in size_test_sets(rows, target_half_width=target, margin=args.margin):
-        per = ", ".join(f"{k}: {v}" for k, v in b.per_realisation.items())
+        per = ", ".join(f"{k}: {v}" for k, v in b.per_realisation.items() if v is not None)
+        lim = ", ".join(f"{k}: ± {v:.3f}" for k, v in b.seed_limited.items()) or "none"
         print(f"| {b.track} | {b.task} | {b.n_clips if b.n_clips is not None else b.reason} | {b.limiting} | "
-              f"{b.h_clip:.4f} | {b.h_seed:.4f} | {per} |")
+              f"{b.h_clip:.4f} | {b.h_seed:.4f} | {per} | {lim} |")
     return 0
 
 
