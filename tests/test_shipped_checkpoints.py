@@ -34,7 +34,8 @@ def test_every_shipped_checkpoint_has_its_files_and_provenance(stem):
     missing = [k for k in _FIELDS if k not in prov]
     assert not missing, missing
     assert prov["heldout_ci95_low"] <= prov["heldout_metric"] <= prov["heldout_ci95_high"]
-    assert prov["heldout_metric"] == pytest.approx(prov["final_metric"], abs=1e-9)
+    # the resamplable metric (fsdvs_hw.stats, float64) reproduces the evaluator's (torchmetrics: float32)
+    assert prov["heldout_metric"] == pytest.approx(prov["final_metric"], abs=1e-6)
     SceneConfig.from_dict(prov["scene"])  # a valid scene regime
 
 
