@@ -382,7 +382,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"[sweep] {summary}", file=sys.stderr, flush=True)
     if args.report is not None:
         from ..report import write_report
+        from .scoring import with_paired_losses
 
+        sc = design.data["scoring"]
+        rows = with_paired_losses(rows, task_weights=sc["task_weights"] or None, n_resamples=sc["n_resamples"],
+                                  confidence=sc["confidence"], rng=design.data["run"]["seed"])
         print(f"[sweep] report: {write_report(rows, design, args.report)}", file=sys.stderr, flush=True)
     return 0 if summary.statuses.get("error", 0) == 0 else 1
 
