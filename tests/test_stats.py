@@ -276,3 +276,33 @@ def test_test_set_sized_from_a_pilot_reaches_the_target_half_width():
     assert 3000 < b.n_clips < 8000 and b.n_clips % 64 == 0
     ci = difference_ci(*(ClipMeans(v) for v in draw(b.n_clips, 2)), n_resamples=1000)
     assert ci.half_width <= 0.01
+
+
+def test_sizing_separates_clip_noise_from_a_true_seed_spread():
+    """16 networks (a variance from 16 values is stable across random draws): without a network effect
+    the seed-only interval is attributed to clip noise (nothing seed-limited, h_s small); with a
+    network-to-network spread of the loss (sd ≈ 0.05) the realisation is flagged as seed-limited."""
+    from fsdvs_hw.explore.paired import encode_evidence
+    from fsdvs_hw.explore.sizing import size_test_sets
+
+    def pts(spread, seed, n_seeds=16):
+        g = np.random.default_rng(seed)
+        ref, cand = [], []
+        mid = (n_seeds - 1) / 2
+        for s in range(n_seeds):
+            ok = g.uniform(size=600) < 0.85
+            p_flip = 0.10 + spread * (s - mid) / mid  # this network's share of clips the candidate loses
+            cand.append(np.where(g.uniform(size=600) < p_flip, 0.0, ok))
+            ref.append(ok.astype(float))
+
+        def pt(key, arm):
+            rec = {"status": "ok", "evidence": [encode_evidence(ClipMeans(v)) for v in arm]}
+            return {"key": key, "realisation": key, "params": {}, "status": "ok",
+                    "result": {"tasks": {"recognition": {"simulator": rec}}}}
+        return [pt("learned", ref), pt("delta", cand)]
+
+    for draw in (3, 11):
+        (quiet,) = size_test_sets(pts(0.0, draw), target_half_width=0.01, n_resamples=1000)
+        assert quiet.seed_limited == {} and quiet.h_seed < 0.008 and quiet.n_clips is not None
+        (spread,) = size_test_sets(pts(0.08, draw), target_half_width=0.01, n_resamples=1000)
+        assert spread.seed_limited["delta"] > 0.012 and spread.n_clips is None
