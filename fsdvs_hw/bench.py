@@ -28,6 +28,7 @@ BENCHMARKS: dict[str, str] = {
     "metalens": "fsdvs_hw.realise.metalens_bench:bench_metalens",
     "sim": "fsdvs_hw.sensor.bench:bench_sim",
     "explore": "fsdvs_hw.explore.bench:bench_explore",
+    "stats": "fsdvs_hw.explore.stats_bench:bench_stats",
 }
 
 HELP = "speed/accuracy benchmarks (error vs run time) for each component"

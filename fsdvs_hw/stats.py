@@ -65,7 +65,9 @@ __all__ = [
     "DifferenceCI",
     "difference_ci",
     "difference_cis",
+    "task_difference_cis",
     "clips_for_half_width",
+    "metric_from_state",
     "DEFAULT_RESAMPLES",
 ]
 
@@ -127,6 +129,10 @@ class ClipMeans:
             raise InputError(f"ClipMeans.top1: logits (N, C) and target (N,) expected, got {lg.shape}, {t.shape}")
         return cls((lg.argmax(axis=1) == t).astype(np.float64))
 
+    def state(self) -> dict[str, np.ndarray]:
+        """Arrays that rebuild this metric (:func:`metric_from_state`)."""
+        return {"kind": np.array("clip_means"), "values": self.values}
+
     def weighted(self, weights: Any) -> np.ndarray:
         w = _as_weights(weights, self.n_clips)
         tot = w.sum(axis=1)
@@ -170,6 +176,12 @@ class ConfusionMIoU:
                 + t.reshape(n, -1) * num_classes + p.reshape(n, -1)).ravel()
         conf = np.bincount(flat, minlength=n * num_classes * num_classes)
         return cls(conf.reshape(n, num_classes, num_classes))
+
+    def state(self) -> dict[str, np.ndarray]:
+        """Arrays that rebuild this metric (:func:`metric_from_state`)."""
+        small = self.confusions.max(initial=0) < 2**31
+        return {"kind": np.array("confusion_miou"),
+                "confusions": self.confusions.astype(np.int32 if small else np.float64)}
 
     def weighted(self, weights: Any) -> np.ndarray:
         w = _as_weights(weights, self.n_clips)
@@ -334,6 +346,34 @@ class CocoDetections:
                                   fps=np.zeros((n_thr, 0), bool), ngt=ngt, has_eval=ngt > 0))
         return cls(cats, params.iouThrs, params.recThrs, n, metric)
 
+    def state(self) -> dict[str, np.ndarray]:
+        """Arrays that rebuild this metric (:func:`metric_from_state`); matches bit-packed."""
+        out: dict[str, np.ndarray] = {"kind": np.array("coco_detections"), "metric": np.array(self.metric),
+                                      "iou_thresholds": self.iou_thresholds,
+                                      "recall_thresholds": self.recall_thresholds,
+                                      "n_clips": np.array(self.n_clips), "n_categories": np.array(len(self.categories))}
+        for k, c in enumerate(self.categories):
+            out[f"c{k}_img"] = c.img.astype(np.int32)
+            out[f"c{k}_d"] = np.array(c.img.size)
+            out[f"c{k}_tps"] = np.packbits(c.tps, axis=1)
+            out[f"c{k}_fps"] = np.packbits(c.fps, axis=1)
+            out[f"c{k}_ngt"] = c.ngt.astype(np.int32)
+            out[f"c{k}_has"] = np.packbits(c.has_eval)
+        return out
+
+    @classmethod
+    def _from_state(cls, st: Mapping[str, np.ndarray]) -> CocoDetections:
+        n = int(st["n_clips"])
+        cats = []
+        for k in range(int(st["n_categories"])):
+            d = int(st[f"c{k}_d"])
+            cats.append(_Category(img=np.asarray(st[f"c{k}_img"], np.int64),
+                                  tps=np.unpackbits(st[f"c{k}_tps"], axis=1, count=d).astype(bool),
+                                  fps=np.unpackbits(st[f"c{k}_fps"], axis=1, count=d).astype(bool),
+                                  ngt=np.asarray(st[f"c{k}_ngt"], np.int64),
+                                  has_eval=np.unpackbits(st[f"c{k}_has"], count=n).astype(bool)))
+        return cls(cats, st["iou_thresholds"], st["recall_thresholds"], n, str(st["metric"]))
+
     def with_metric(self, metric: str) -> CocoDetections:
         """The same matches, reporting another of ``map``, ``map_50``, ``map_75``."""
         return CocoDetections(self.categories, self.iou_thresholds, self.recall_thresholds, self.n_clips, metric)
@@ -362,7 +402,7 @@ class CocoDetections:
                 ap[sl, :, k] = self._category_ap(cat, w[sl], npig[sl])
         t50 = np.where(self.iou_thresholds == 0.5)[0]
         t75 = np.where(self.iou_thresholds == 0.75)[0]
-        with np.errstate(invalid="ignore"), contextlib.suppress(RuntimeWarning), _quiet_nanmean():
+        with np.errstate(invalid="ignore"), _quiet_nanmean():  # an all-NaN row (no gt drawn) stays NaN
             return {"map": np.nanmean(ap.reshape(b_all, -1), axis=1),
                     "map_50": np.nanmean(ap[:, t50[0], :], axis=1),
                     "map_75": np.nanmean(ap[:, t75[0], :], axis=1)}
@@ -417,6 +457,25 @@ def _quiet_nanmean() -> Any:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         yield
+
+
+def metric_from_state(state: Mapping[str, Any]) -> ClipMetric:
+    """Rebuild a :class:`ClipMeans`, :class:`ConfusionMIoU` or :class:`CocoDetections` from ``state()``.
+
+    Raises
+    ------
+    InputError
+        ``state`` is not one of these (missing or unknown ``kind``).
+    """
+    kind = str(np.asarray(state.get("kind", ""))) if isinstance(state, Mapping) else ""
+    if kind == "clip_means":
+        return ClipMeans(state["values"])
+    if kind == "confusion_miou":
+        return ConfusionMIoU(state["confusions"])
+    if kind == "coco_detections":
+        return CocoDetections._from_state(state)
+    raise InputError(f"metric_from_state: unknown metric kind {kind!r}; allowed clip_means, confusion_miou, "
+                     f"coco_detections")
 
 
 # --------------------------------------------------------------------------- the interval
@@ -577,27 +636,54 @@ def difference_cis(reference: Sequence[ClipMetric] | ClipMetric,
     dict
         Candidate name → :class:`DifferenceCI`, in the order given.
     """
+    out = task_difference_cis({"_": (reference, candidates)}, paired_seeds=paired_seeds, paired_clips=paired_clips,
+                              resample=resample, confidence=confidence, n_resamples=n_resamples, method=method,
+                              rng=rng, batch=batch)
+    return {k: v["_"] for k, v in out.items()}
+
+
+@dataclass
+class _Task:
+    ref: list[ClipMetric]
+    cands: list[list[ClipMetric]]
+    slots: list[str]
+    n: int
+
+
+def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMetric,
+                                                  Mapping[str, Sequence[ClipMetric] | ClipMetric]]], *,
+                        weights: Mapping[str, float] | None = None, paired_seeds: bool = True,
+                        paired_clips: bool = True, resample: Sequence[str] = ("clips", "seeds"),
+                        confidence: float = 0.95, n_resamples: int = DEFAULT_RESAMPLES, method: str = "percentile",
+                        rng: Any = 0, batch: int | None = 200) -> dict[str, dict[str, DifferenceCI]]:
+    """Per-task loss CIs of several candidates and, with ``weights``, the CI of their weighted mean.
+
+    Every task has its own test clips and networks, so each task contributes its own clip (and
+    seed) index samples to one ``scipy.stats.bootstrap`` call, all resampled independently; the
+    vector statistic holds every candidate's per-task difference and, with ``weights``, the
+    weighted mean ``Σ_T w_T Δ_T / Σ_T w_T``, whose interval therefore accounts for every task's
+    clip and seed sampling at once.
+
+    Parameters
+    ----------
+    tasks : mapping
+        Task name → ``(reference arm, {candidate name: candidate arm})``; an arm is one
+        :class:`ClipMetric` per training seed. Every task must list the same candidate names.
+    weights : mapping, optional
+        Task name → weight ≥ 0 (missing tasks weigh 0); adds a ``"weighted"`` entry per candidate.
+    paired_seeds, paired_clips, resample, confidence, n_resamples, method, rng, batch
+        As in :func:`difference_ci`.
+
+    Returns
+    -------
+    dict
+        Candidate → {task (and ``"weighted"``) → :class:`DifferenceCI`}. The weighted interval's
+        ``n_clips`` is the total over the weighted tasks and its seed counts the smallest.
+    """
     from scipy import stats
 
-    ref = _arm(reference, "reference")
-    names = list(candidates)
-    if not names:
-        raise InputError("difference_cis: no candidates")
-    cands = [_arm(candidates[k], f"candidate {k!r}") for k in names]
-    n = ref[0].n_clips
-    counts = {k: [m.n_clips for m in c] for k, c in zip(names, cands)}
-    if any(m.n_clips != n for m in ref) or any(c != n for v in counts.values() for c in v):
-        raise InputError(f"difference_ci: every metric must cover the same clips; got clip counts "
-                         f"{[m.n_clips for m in ref]} (reference) and {counts} (candidates)")
-    if n < 2:
-        raise InputError(f"difference_ci: need at least 2 test clips, got {n}")
-    n_cand_seeds = {len(c) for c in cands}
-    if paired_seeds and n_cand_seeds != {len(ref)}:
-        raise InputError(f"difference_ci: paired seeds need one candidate per reference network; got "
-                         f"{len(ref)} and {sorted(n_cand_seeds)} (pass paired_seeds=False for different networks)")
-    if not paired_seeds and len(n_cand_seeds) != 1:
-        raise InputError(f"difference_cis: unpaired seeds need the same number of seeds in every candidate, "
-                         f"got {sorted(n_cand_seeds)}")
+    if not tasks:
+        raise InputError("difference_ci: no tasks")
     bad = set(resample) - {"clips", "seeds"}
     if bad or not resample:
         raise InputError(f"difference_ci: resample must name 'clips' and/or 'seeds', got {list(resample)!r}")
@@ -607,65 +693,120 @@ def difference_cis(reference: Sequence[ClipMetric] | ClipMetric,
         raise InputError(f"difference_ci: n_resamples must be an integer >= 100, got {n_resamples!r}")
     if method not in ("percentile", "BCa", "basic"):
         raise InputError(f"difference_ci: method must be 'percentile', 'BCa' or 'basic', got {method!r}")
-    s_ref, s_cand = len(ref), len(cands[0])
+    names: list[str] | None = None
+    parsed: dict[str, _Task] = {}
+    for tname, (reference, candidates) in tasks.items():
+        if names is None:
+            names = list(candidates)
+        if list(candidates) != names or not names:
+            raise InputError(f"difference_ci: task {tname!r} lists candidates {list(candidates)}, expected {names} "
+                             f"(every task must score the same, non-empty set of candidates)")
+        ref = _arm(reference, "reference")
+        cands = [_arm(candidates[k], f"candidate {k!r}") for k in names]
+        n = ref[0].n_clips
+        if any(m.n_clips != n for m in ref) or any(m.n_clips != n for c in cands for m in c):
+            raise InputError(f"difference_ci: task {tname!r}: every metric must cover the same clips; got "
+                             f"{[m.n_clips for m in ref]} (reference) and {[[m.n_clips for m in c] for c in cands]}")
+        if n < 2:
+            raise InputError(f"difference_ci: task {tname!r}: need at least 2 test clips, got {n}")
+        n_cs = {len(c) for c in cands}
+        if paired_seeds and n_cs != {len(ref)}:
+            raise InputError(f"difference_ci: task {tname!r}: paired seeds need one candidate per reference network; "
+                             f"got {len(ref)} and {sorted(n_cs)} (pass paired_seeds=False for different networks)")
+        if not paired_seeds and len(n_cs) != 1:
+            raise InputError(f"difference_ci: task {tname!r}: unpaired seeds need the same number of seeds in "
+                             f"every candidate, got {sorted(n_cs)}")
+        slots: list[str] = []
+        if "clips" in resample:
+            slots += ["clips"] if paired_clips else ["clips_ref", "clips_cand"]
+        if "seeds" in resample:
+            if paired_seeds and len(ref) >= 2:
+                slots.append("seeds")
+            elif not paired_seeds:
+                slots += [sl for sl, k in (("seeds_ref", len(ref)), ("seeds_cand", len(cands[0]))) if k >= 2]
+        parsed[tname] = _Task(ref, cands, slots, n)
+    assert names is not None
+    wts = None
+    if weights is not None:
+        wts = np.array([float(weights.get(t, 0.0)) for t in parsed])
+        if np.any(~np.isfinite(wts)) or np.any(wts < 0) or wts.sum() <= 0:
+            raise InputError(f"difference_ci: weights must be finite, >= 0 and not all 0, got {dict(weights)}")
+        wts = wts / wts.sum()
 
-    # the samples handed to scipy are index arrays; ``slots`` says what each one indexes
-    slots: list[str] = []
-    if "clips" in resample:
-        slots += ["clips"] if paired_clips else ["clips_ref", "clips_cand"]
-    if "seeds" in resample:
-        if paired_seeds and s_ref >= 2:
-            slots.append("seeds")
-        elif not paired_seeds:
-            slots += [s for s, k in (("seeds_ref", s_ref), ("seeds_cand", s_cand)) if k >= 2]
-    sizes = {"clips": n, "clips_ref": n, "clips_cand": n, "seeds": s_ref, "seeds_ref": s_ref, "seeds_cand": s_cand}
+    layout = [(t, sl) for t, task in parsed.items() for sl in task.slots]
+
+    def size(t: str, sl: str) -> int:
+        task = parsed[t]
+        return task.n if sl.startswith("clips") else (len(task.cands[0]) if sl == "seeds_cand" else len(task.ref))
 
     def arm_value(arm: list[ClipMetric], wc: np.ndarray, ws: np.ndarray) -> np.ndarray:
         vals = np.stack([m.weighted(wc) for m in arm], axis=1)  # (B, S)
         return (vals * ws).sum(axis=1) / ws.sum(axis=1)
 
     def statistic(*idx: np.ndarray, axis: int = -1) -> np.ndarray:
-        got = dict(zip(slots, idx))
         shape = idx[0].shape[:-1] if idx else ()
         b = int(np.prod(shape, dtype=np.int64))
+        got = {key: arr.reshape(b, -1) for key, arr in zip(layout, idx)}
+        per_task = []
+        for t, task in parsed.items():
+            def w(sl: str, n_items: int) -> np.ndarray:
+                return _multiplicities(got[(t, sl)], n_items) if (t, sl) in got else np.ones((b, n_items))
 
-        def w(name: str, size: int) -> np.ndarray:
-            if name in got:
-                return _multiplicities(got[name].reshape(b, -1), size)
-            return np.ones((b, size))
+            wc_ref = w("clips" if paired_clips else "clips_ref", task.n)
+            wc_cand = wc_ref if paired_clips else w("clips_cand", task.n)
+            ws_ref = w("seeds" if paired_seeds else "seeds_ref", len(task.ref))
+            ws_cand = ws_ref if paired_seeds else w("seeds_cand", len(task.cands[0]))
+            r = arm_value(task.ref, wc_ref, ws_ref)
+            per_task.append(np.stack([r - arm_value(c, wc_cand, ws_cand) for c in task.cands]))  # (C, B)
+        vals = np.stack(per_task, axis=1)  # (C, T, B)
+        if wts is not None:
+            vals = np.concatenate([vals, np.tensordot(wts, vals, axes=([0], [1]))[:, None, :]], axis=1)
+        return vals.reshape(vals.shape[0], vals.shape[1], *shape)
 
-        wc_ref = w("clips" if paired_clips else "clips_ref", n)
-        wc_cand = wc_ref if paired_clips else w("clips_cand", n)
-        ws_ref = w("seeds" if paired_seeds else "seeds_ref", s_ref)
-        ws_cand = ws_ref if paired_seeds else w("seeds_cand", s_cand)
-        r = arm_value(ref, wc_ref, ws_ref)
-        return np.stack([r - arm_value(c, wc_cand, ws_cand) for c in cands]).reshape(len(cands), *shape)
-
-    estimate = statistic(*[np.arange(sizes[s]) for s in slots])
-    resampled = tuple(dict.fromkeys("clips" if s.startswith("clips") else "seeds" for s in slots))
-    if not slots:  # nothing to resample (seeds only, one seed)
+    estimate = statistic(*[np.arange(size(t, sl)) for t, sl in layout])
+    if not layout:  # nothing to resample (seeds only, one seed everywhere)
         lows = highs = estimate
-        ses = np.zeros(len(cands))
+        ses = np.zeros_like(estimate)
         n_res = 0
     else:
-        res = stats.bootstrap(tuple(np.arange(sizes[s]) for s in slots), statistic, paired=False, vectorized=True,
-                              axis=-1, confidence_level=confidence, n_resamples=n_resamples, method=method,
-                              random_state=np.random.default_rng(rng), batch=batch)
-        lows, highs = np.atleast_1d(res.confidence_interval.low), np.atleast_1d(res.confidence_interval.high)
-        ses, n_res = np.atleast_1d(res.standard_error), n_resamples
-    return {k: DifferenceCI(float(estimate[i]), float(lows[i]), float(highs[i]), confidence, n, s_ref, s_cand,
-                            paired_clips, paired_seeds, resampled, method, n_res, float(ses[i]))
-            for i, k in enumerate(names)}
+        res = stats.bootstrap(tuple(np.arange(size(t, sl)) for t, sl in layout), statistic, paired=False,
+                              vectorized=True, axis=-1, confidence_level=confidence, n_resamples=n_resamples,
+                              method=method, random_state=np.random.default_rng(rng), batch=batch)
+        lows, highs = np.asarray(res.confidence_interval.low), np.asarray(res.confidence_interval.high)
+        ses, n_res = np.asarray(res.standard_error), n_resamples
+    out: dict[str, dict[str, DifferenceCI]] = {}
+    tnames = list(parsed)
+    for i, cname in enumerate(names):
+        out[cname] = {}
+        for j, t in enumerate(tnames):
+            task = parsed[t]
+            resampled = tuple(dict.fromkeys("clips" if sl.startswith("clips") else "seeds" for sl in task.slots))
+            out[cname][t] = DifferenceCI(float(estimate[i, j]), float(lows[i, j]), float(highs[i, j]), confidence,
+                                         task.n, len(task.ref), len(task.cands[i]), paired_clips, paired_seeds,
+                                         resampled, method, n_res if task.slots else 0, float(ses[i, j]))
+        if wts is not None:
+            used = [t for t, wt in zip(tnames, wts) if wt > 0]
+            resampled = tuple(dict.fromkeys("clips" if sl.startswith("clips") else "seeds"
+                                            for t in used for sl in parsed[t].slots))
+            j = len(tnames)
+            out[cname]["weighted"] = DifferenceCI(
+                float(estimate[i, j]), float(lows[i, j]), float(highs[i, j]), confidence,
+                sum(parsed[t].n for t in used), min(len(parsed[t].ref) for t in used),
+                min(len(parsed[t].cands[i]) for t in used), paired_clips, paired_seeds, resampled, method,
+                n_res if resampled else 0, float(ses[i, j]))
+    return out
 
 
 def clips_for_half_width(pilot: DifferenceCI, target_half_width: float = 0.01, *,
-                         seed_half_width: float = 0.0, max_clips: int = 100_000) -> int:
+                         seed_half_width: float = 0.0, seed_noise_half_width: float = 0.0,
+                         max_clips: int = 100_000) -> int:
     """Test clips needed for a CI half-width ``target_half_width``, from a pilot interval.
 
-    The clip part of the half-width falls as ``1/√n``; the seed part does not depend on ``n``.
-    With a clip-only pilot half-width ``h_c`` on ``n_p`` clips and a seed-only half-width
-    ``h_s``, the total ``h(n) ≈ √(h_c² n_p / n + h_s²)`` (independent components add in
-    variance), so ``n = ⌈n_p h_c² / (h² − h_s²)⌉``.
+    The CI's variance has a part that falls as ``1/n`` — clip sampling, ``h_c`` in the clip-only
+    pilot interval, and the clip noise inside each seed's estimate that the seed resampling also
+    sees, ``h_n`` — and a part that does not, the true seed-to-seed (network and mismatch-pattern)
+    spread ``h_s``. Independent parts add in variance:
+    ``h(n)² ≈ (h_c² + h_n²) n_p / n + h_s²``, so ``n = ⌈n_p (h_c² + h_n²) / (h² − h_s²)⌉``.
 
     Parameters
     ----------
@@ -674,7 +815,9 @@ def clips_for_half_width(pilot: DifferenceCI, target_half_width: float = 0.01, *
     target_half_width : float
         Wanted half-width (metric fraction; 0.01 = one point).
     seed_half_width : float
-        The seed-only half-width ``h_s`` (0 with one seed).
+        ``h_s``: the seed-only half-width with the pilot's clip noise taken out (0 with one seed).
+    seed_noise_half_width : float
+        ``h_n``: the part of the pilot's seed-only half-width that is clip noise (falls with ``n``).
     max_clips : int
         Upper bound returned when the target needs more.
 
@@ -696,5 +839,5 @@ def clips_for_half_width(pilot: DifferenceCI, target_half_width: float = 0.01, *
     if room <= 0:
         raise InputError(f"clips_for_half_width: the seed-to-seed part of the CI (± {seed_half_width:.4f}) is at "
                          f"least the target ± {target_half_width:.4f}; more clips cannot reach it (train more seeds)")
-    n = math.ceil(pilot.n_clips * pilot.half_width**2 / room)
+    n = math.ceil(pilot.n_clips * (pilot.half_width**2 + seed_noise_half_width**2) / room)
     return int(min(max(n, 2), max_clips))

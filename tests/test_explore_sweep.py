@@ -98,35 +98,49 @@ def test_missing_realisation_module_is_reported_not_faked(monkeypatch):
         fit_realisation("mesh", reference_kernel("dog", 7))
 
 
-def test_task_metrics_and_accuracy_loss_through_a_plugged_evaluator(monkeypatch, tmp_path):
-    """A stand-in evaluate_kernel whose metric is the centre tap: losses must be learned − realised."""
-    import types
+def test_paired_losses_through_a_plugged_per_clip_evaluator(monkeypatch, tmp_path):
+    """A stand-in per-clip evaluator: clip i is 'correct' when i < 100·centre tap. The loss of the delta
+    against the learned row must be exact (learned − delta) with a CI from the clip resampling."""
+    from fsdvs_hw.explore import paired, scoring
+    from fsdvs_hw.stats import ClipMeans
 
     calls = []
 
-    def evaluate_kernel(kernel, task, checkpoint, *, n_test=None, finetune_epochs=0):
-        calls.append((task, Path(checkpoint).name, n_test))
+    def clip_evidence(kernel, task, checkpoint, *, n_test=None, sensor=None, seed_offset=0, events_fn=None):
+        calls.append((task, Path(checkpoint).name, n_test, seed_offset))
         if task == "segmentation":
             raise InputError("checkpoint missing")
-        return {"value": float(kernel.centre), "metrics": {"ap": float(kernel.centre)}}
+        values = (np.arange(100) < 100 * float(kernel.centre)).astype(float)
+        return paired.ClipEvidence(task, "top1", float(values.mean()), 100, ClipMeans(values), str(checkpoint),
+                                   seed_offset, 0.0, 0.1)
 
-    monkeypatch.setitem(sys.modules, "fsdvs_hw.tasks", types.SimpleNamespace(evaluate_kernel=evaluate_kernel))
+    monkeypatch.setattr(paired, "clip_evidence", clip_evidence)
+    monkeypatch.setattr(scoring, "_task_sensor", lambda ckpt, design_sensor: (None, {"source": "checkpoint"}))
     k = reference_kernel("dog", 7)
     rows = []
     for name in ("learned", "delta"):
         real, _ = fit_realisation(name, k)
         rec = score(real, target=k, csf_methods=["mannos_sakrison_1974"],
-                    checkpoints={"detection": tmp_path / "det.safetensors", "segmentation": tmp_path / "s"},
-                    task_options={"n_test": 3, "tracks": ["simulator", "emulation"]})
-        rows.append({"key": name, "realisation": name, "status": "ok", "result": rec})
-    assert calls[0] == ("detection", "det.safetensors", 3)
-    det = rows[1]["result"]["tasks"]["detection"]
-    assert det["simulator"]["metric"] == 1.0  # delta's centre tap
-    assert det["emulation"]["status"].startswith("unavailable")  # no hook: said, not invented
+                    checkpoints={"recognition": [tmp_path / "r0.safetensors", tmp_path / "r1.safetensors"],
+                                 "segmentation": tmp_path / "s"},
+                    task_options={"n_test": 100, "tracks": ["simulator"]})
+        rows.append({"key": name, "realisation": name, "params": {}, "status": "ok", "result": rec})
+    assert calls[:2] == [("recognition", "r0.safetensors", 100, 0), ("recognition", "r1.safetensors", 100, 1)]
+    rec = rows[1]["result"]["tasks"]["recognition"]["simulator"]
+    assert rec["n_seeds"] == 2 and rec["n_clips"] == 100 and rec["metric"] == 1.0  # delta's centre tap is 1
     assert rows[1]["result"]["tasks"]["segmentation"]["simulator"]["status"] == "unavailable: checkpoint missing"
-    losses = accuracy_losses(rows)
-    assert losses["learned"] == {"detection/simulator": 0.0}
-    assert losses["delta"]["detection/simulator"] == pytest.approx(k.centre - 1.0)
+    losses = scoring.paired_losses(rows, n_resamples=500)
+    d = losses["delta"]["simulator"]["recognition"]
+    expected = np.count_nonzero(np.arange(100) < 100 * k.centre) / 100 - 1.0
+    assert d["estimate"] == pytest.approx(rows[0]["result"]["tasks"]["recognition"]["simulator"]["metric"] - 1.0)
+    assert d["estimate"] == pytest.approx(expected)
+    assert d["low"] < d["estimate"] < d["high"] and d["n_seeds_reference"] == 2
+    assert losses["learned"]["simulator"]["recognition"]["estimate"] == 0.0
+    assert losses["delta"]["simulator"]["weighted"]["estimate"] == pytest.approx(d["estimate"])  # one task scored
+    lean = scoring.with_paired_losses(rows, n_resamples=200)
+    assert "evidence" not in lean[1]["result"]["tasks"]["recognition"]["simulator"]
+    assert "evidence" in rows[1]["result"]["tasks"]["recognition"]["simulator"]  # the stored record is untouched
+    assert lean[1]["paired_loss"]["reference"] == "learned"
 
 
 # ---------------------------------------------------------------------- running points

@@ -98,7 +98,8 @@ def test_a_garbage_checkpoint_is_refused_when_the_design_loads(tmp_path):
 
 def test_paths_inside_the_design_folder_still_work():
     d = load_design(REPO / "designs" / "default.toml")
-    assert d.target.size == 7 and all(p.is_file() for p in d.checkpoints().values())
+    assert d.target.size == 7 and all(p.is_file() for paths in d.checkpoints().values() for p in paths)
+    assert all(len(paths) == 3 for paths in d.checkpoints().values())  # one network per training seed
 
 
 def test_yosys_top_cannot_inject_script_commands(tmp_path):

@@ -17,7 +17,8 @@ from fsdvs_hw.cli import main
 from fsdvs_hw.explore.design import parse_design
 from fsdvs_hw.kernels import Kernel
 from fsdvs_hw.realise.base import kernel_error
-from fsdvs_hw.report.tables import headline_cost, pareto_front, score_rows
+from fsdvs_hw.report.tables import (headline_cost, kind_cost, pareto_front, score_rows, uncertain_pareto_front,
+                                    verdict_markdown, verdict_rows)
 
 
 def test_pareto_front_by_hand():
@@ -35,26 +36,95 @@ def test_headline_cost_prefers_area_then_adders_then_the_first_item():
     assert headline_cost({}) is None
 
 
-def _point(key, realisation, kernel_err, corr, cost=None, metric=None):
-    res = {"kernel_error": kernel_err, "csf": {"mannos_sakrison_1974": {"correlation": corr}},
-           "cost": cost or {}, "wall_s": {"fit": 0.1, "analysis": 0.2, "tasks": 0.0}}
-    if metric is not None:
-        res["tasks"] = {"status": "ok", "detection": {"simulator": {"metric": metric}}}
-    return {"key": key, "realisation": realisation, "params": {}, "status": "ok", "result": res, "wall_s": 0.3}
-
-
-def test_score_rows_flatten_losses_and_mark_pareto_within_a_kind():
+def test_uncertain_pareto_front_by_hand():
+    """Objectives (estimate, low, high) to minimise: dominance only beyond the intervals."""
+    exact = lambda v: (v, v, v)  # noqa: E731
     pts = [
-        _point("L", "learned", 0.0, 0.9, metric=0.50),
-        _point("a4", "asic", 0.2, 0.8, {"adders": {"value": 20, "unit": "count"}}, metric=0.40),
-        _point("a8", "asic", 0.01, 0.9, {"adders": {"value": 60, "unit": "count"}}, metric=0.49),
-        _point("a8bad", "asic", 0.3, 0.7, {"adders": {"value": 80, "unit": "count"}}, metric=0.30),
+        [(0.05, 0.04, 0.06), exact(10)],   # 0: loss clearly > 0, cheap
+        [(0.00, -0.01, 0.01), exact(20)],  # 1: no measurable loss, mid cost
+        [(0.004, -0.006, 0.014), exact(30)],  # 2: tied with 1 in loss (overlap), dearer: not beyond its CI
+        [(0.02, 0.015, 0.025), exact(25)],  # 3: worse than 1 beyond both CIs and dearer -> dominated by 1
+        [(0.05, 0.045, 0.055), exact(10)],  # 4: overlaps 0 at the same cost: neither dominates
+        [(0.03, -0.04, 0.10), exact(5)],    # 5: huge CI, cheapest: kept, and dominates nothing
+        [(math.nan, 0, 0), exact(1)],       # 6: NaN: never optimal, dominates nothing
+        [(0.06, 0.058, 0.062), exact(12)],  # 7: worse than 0 beyond CIs, dearer -> dominated by 0
+    ]
+    assert uncertain_pareto_front(pts) == [True, True, True, False, True, True, False, False]
+    # the same set judged by point estimates alone would drop 2 (a tie decided by noise)
+    assert not pareto_front([(e, c[0]) for (e, _, _), c in pts if not math.isnan(e)])[2]
+    # with exact objectives it is the ordinary front
+    plain = [(1, 3), (2, 2), (3, 1), (3, 3)]
+    assert uncertain_pareto_front([[exact(a), exact(b)] for a, b in plain]) == pareto_front(plain)
+    # a point estimate inside the noise never decides: the lower estimate does not dominate
+    assert uncertain_pareto_front([[(0.001, -0.01, 0.012), exact(1)], [(0.002, -0.009, 0.013), exact(1)]]) == [True, True]
+
+
+def test_kind_cost_axes_keep_their_own_units():
+    assert kind_cost("asic", {"adders": {"value": 57}, "area_m2": {"value": 2e-9}}) == ("cell area", pytest.approx(2000.0), "µm²")
+    assert kind_cost("asic", {"adders": {"value": 57}}) == ("adders", 57.0, "count")
+    g = {f"g_{d}_{w}": {"value": v} for (d, w), v in zip([("lateral", "narrow"), ("vertical", "narrow"),
+                                                          ("lateral", "wide"), ("vertical", "wide")], [1e-6, 2e-7, 4e-6, 1e-7])}
+    assert kind_cost("mesh", g) == ("conductance per pixel", pytest.approx((2e-6 + 2e-7 + 8e-6 + 1e-7) * 1e6), "µS")
+    assert kind_cost("metalens", {"aperture_diameter": {"value": 1e-4}}) == ("aperture", pytest.approx(100.0), "µm")
+    assert kind_cost("learned", {}) is None
+
+
+def _ci(est, h, n=1000, seeds=3, conf=0.95):
+    lo, hi = est - h, est + h
+    text = f"no measurable loss (± {h:.3f})" if lo <= 0 <= hi else f"{est:.3f} [{lo:.3f}, {hi:.3f}]"
+    return {"estimate": est, "low": lo, "high": hi, "half_width": h, "confidence": conf, "n_clips": n,
+            "n_seeds_reference": seeds, "text": text}
+
+
+def _point(key, realisation, kernel_err, corr, cost=None, losses=None):
+    res = {"kernel_error": kernel_err, "csf": {"mannos_sakrison_1974": {"correlation": corr},
+                                              "fitted_scale": {"correlation": corr + 0.05}},
+           "cost": cost or {}, "wall_s": {"fit": 0.1, "analysis": 0.2, "tasks": 0.0}}
+    params = {f"{realisation}.tag": key} if realisation == "asic" else {}
+    p = {"key": key, "realisation": realisation, "params": params, "status": "ok", "result": res, "wall_s": 0.3}
+    if losses is not None:
+        res["tasks"] = {"status": "ok"}
+        p["paired_loss"] = {"status": "ok", "reference": "L", "simulator": {  # L: the learned row
+            "detection": _ci(*losses[0]), "recognition": _ci(*losses[1]), "weighted": _ci(*losses[2]),
+            "weights": {"detection": 1.0, "recognition": 1.0}}}
+    return p
+
+
+def test_score_rows_flatten_losses_with_cis_and_mark_uncertain_fronts():
+    add = lambda n: {"adders": {"value": n, "unit": "count"}}  # noqa: E731
+    pts = [
+        _point("L", "learned", 0.0, 0.9, losses=[(0, 0), (0, 0), (0, 0)]),
+        _point("a4", "asic", 0.2, 0.8, add(20), losses=[(0.10, 0.01), (0.2, 0.01), (0.15, 0.008)]),
+        _point("a8", "asic", 0.01, 0.9, add(60), losses=[(0.002, 0.006), (0.001, 0.004), (0.0015, 0.004)]),
+        _point("a12", "asic", 0.001, 0.9, add(90), losses=[(-0.001, 0.006), (0.0, 0.004), (-0.0005, 0.004)]),
+        _point("a3", "asic", 0.3, 0.8, add(120), losses=[(0.03, 0.005), (0.03, 0.005), (0.03, 0.004)]),
+        _point("m", "mesh", 0.1, 0.95, {f"g_{d}_{w}": {"value": 1e-6} for d in ("lateral", "vertical")
+                                        for w in ("narrow", "wide")}, losses=[(0.05, 0.01), (0.05, 0.01), (0.05, 0.007)]),
     ]
     rows = {r["key"]: r for r in score_rows(pts)}
-    assert rows["a4"]["loss_detection/simulator"] == pytest.approx(0.10)
-    assert rows["a8"]["loss_detection/simulator"] == pytest.approx(0.01)
-    assert rows["a4"]["headline_cost_value"] == 20
-    assert rows["a4"]["pareto"] and rows["a8"]["pareto"] and not rows["a8bad"]["pareto"]
+    a8 = rows["a8"]
+    for f in ("detection_loss", "detection_loss_ci95_low", "detection_loss_ci95_high", "detection_n_clips",
+              "detection_n_seeds", "recognition_loss", "weighted_loss", "weighted_loss_ci95_high"):
+        assert f in a8, f
+    assert a8["detection_loss_ci95_low"] == pytest.approx(-0.004) and a8["detection_n_seeds"] == 3
+    assert a8["detection_loss_text"] == "no measurable loss (± 0.006)"
+    # within the ASIC kind: a12 ties a8 in loss (overlapping CIs) -> not dominated beyond its CI although
+    # dearer; a3 loses more than a8 beyond both CIs and costs more -> dominated; a4 is cheapest
+    assert rows["a4"]["pareto"] and rows["a8"]["pareto"] and rows["a12"]["pareto"] and not rows["a3"]["pareto"]
+    # across kinds (loss vs fitted agreement; references excluded): the mesh agrees better with the CSF
+    assert rows["m"]["pareto_all"] and rows["a8"]["pareto_all"] and not rows["a4"]["pareto_all"]
+    assert not rows["L"]["pareto"] and not rows["L"]["pareto_all"]
+    verdict = {v["realisation"].replace("asic tag=", ""): v for v in verdict_rows(list(rows.values()))}
+    verdict["L"], verdict["m"] = verdict.pop("learned"), verdict.pop("mesh")
+    assert verdict["a8"]["detection loss"].startswith("no measurable loss (± 0.006)")
+    assert verdict["a4"]["weighted loss"] == "0.150 [0.142, 0.158]"
+    assert verdict["a8"]["cost (own unit)"] == "adders 60 count"
+    assert verdict["m"]["cost (own unit)"].startswith("conductance per pixel 6 µS")
+    assert verdict["L"]["Pareto"] == "reference" and verdict["a3"]["Pareto"] == "dominated"
+    assert verdict["L"]["detection loss"] == "0 (the reference)"
+    assert verdict["a8"]["MS agreement, fitted scale"] == "0.95" and verdict["a8"]["MS agreement, design geometry"] == "0.9"
+    md = verdict_markdown(list(rows.values()))
+    assert md.splitlines()[0].startswith("| realisation | detection loss | recognition loss | weighted loss |")
 
 
 def _pngs(html: str) -> dict[str, bytes]:
@@ -75,8 +145,8 @@ def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch
     out = tmp_path / "out"
     assert main(["explore", str(p), "--out", str(out), "--no-progress"]) == 0
     printed = capsys.readouterr().out
-    assert re.search(r"^\| asic \| ok \| 0\.\d+ \|", printed, re.M)  # the Markdown summary
-    assert re.search(r"^\| metalens \| skipped \|", printed, re.M)
+    assert re.search(r"^\| asic \| .* \| adders \d+ count \| ", printed, re.M)  # the verdict table
+    assert re.search(r"^not scored: metalens \(skipped: ", printed, re.M)
     html = (out / "report.html").read_text()
     assert "src=\"http" not in html and "<script" not in html  # nothing fetched from elsewhere
     imgs = _pngs(html)

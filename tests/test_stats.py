@@ -212,3 +212,97 @@ def test_several_candidates_share_the_draws_of_single_intervals():
     one = difference_ci(ref, c2, n_resamples=500, rng=4)
     assert both["b"] == one
     assert both["a"].estimate > 0 > both["b"].estimate
+
+
+def test_metric_state_round_trip_is_exact():
+    from fsdvs_hw.stats import metric_from_state
+
+    rng = np.random.default_rng(12)
+    pb, ps, pl, gt, gl = _detections(40, rng)
+    w = rng.multinomial(40, np.full(40, 1 / 40), size=5)
+    target = rng.integers(0, 3, (40, 4, 4))
+    for m in (CocoDetections.from_predictions(pb, ps, pl, gt, gl, num_classes=3, metric="map_50"),
+              ConfusionMIoU.from_masks(rng.integers(0, 3, (40, 4, 4)), target, 3),
+              ClipMeans(rng.uniform(size=40))):
+        back = metric_from_state(dict(m.state()))
+        np.testing.assert_array_equal(back.weighted(w), m.weighted(w))
+    with pytest.raises(InputError, match="unknown metric kind"):
+        metric_from_state({"kind": np.array("nope")})
+
+
+def test_weighted_task_loss_combines_independent_tasks():
+    """Two tasks with independent clips: the weighted interval is centred on the weighted estimate and,
+    with equal weights, its half-width is about √(h₁² + h₂²)/2 (independent parts add in variance)."""
+    from fsdvs_hw.stats import task_difference_cis
+
+    rng = np.random.default_rng(13)
+    r1, c1 = _crossed(rng, 400, 1, 0.04)
+    r2, c2 = _crossed(rng, 300, 1, 0.00)
+    out = task_difference_cis({"a": (r1, {"x": c1}), "b": (r2, {"x": c2})}, weights={"a": 1, "b": 1},
+                              n_resamples=3000)["x"]
+    assert out["weighted"].estimate == pytest.approx(0.5 * (out["a"].estimate + out["b"].estimate), abs=1e-12)
+    expected = 0.5 * np.hypot(out["a"].half_width, out["b"].half_width)
+    assert out["weighted"].half_width == pytest.approx(expected, rel=0.1)
+    assert out["weighted"].n_clips == 700
+    only_a = task_difference_cis({"a": (r1, {"x": c1}), "b": (r2, {"x": c2})}, weights={"a": 1},
+                                 n_resamples=3000)["x"]["weighted"]
+    assert only_a.estimate == pytest.approx(out["a"].estimate, abs=1e-12)
+    assert only_a.n_clips == 400
+
+
+def test_test_set_sized_from_a_pilot_reaches_the_target_half_width():
+    """size_test_sets on a 200-clip pilot; a fresh test set of the recommended size resolves ± 0.01."""
+    from fsdvs_hw.explore.paired import encode_evidence
+    from fsdvs_hw.explore.sizing import size_test_sets
+    from fsdvs_hw.stats import difference_ci
+
+    def draw(n, seed):
+        g = np.random.default_rng(seed)
+        ok = g.uniform(size=n) < 0.85
+        flip = g.uniform(size=n) < 0.12  # the candidate disagrees on 12 % of the clips
+        return ok.astype(float), np.where(flip, ~ok, ok).astype(float)
+
+    def points(ref, cand):
+        def pt(key, v):
+            rec = {"status": "ok", "evidence": [encode_evidence(ClipMeans(v))]}
+            return {"key": key, "realisation": key, "params": {}, "status": "ok",
+                    "result": {"tasks": {"recognition": {"simulator": rec}}}}
+        return [pt("learned", ref), pt("delta", cand)]
+
+    budget = size_test_sets(points(*draw(200, 1)), target_half_width=0.01, margin=1.15, batch=64)
+    (b,) = budget
+    assert b.task == "recognition" and b.n_pilot == 200 and b.limiting == "delta" and b.h_seed == 0.0
+    # 12 % discordant clips: var ≈ 0.12, so n ≈ 1.15 · 1.96² · 0.12 / 0.01² ≈ 5300 (pilot noise aside)
+    assert 3000 < b.n_clips < 8000 and b.n_clips % 64 == 0
+    ci = difference_ci(*(ClipMeans(v) for v in draw(b.n_clips, 2)), n_resamples=1000)
+    assert ci.half_width <= 0.01
+
+
+def test_sizing_separates_clip_noise_from_a_true_seed_spread():
+    """16 networks (a variance from 16 values is stable across random draws): without a network effect
+    the seed-only interval is attributed to clip noise (nothing seed-limited, h_s small); with a
+    network-to-network spread of the loss (sd ≈ 0.05) the realisation is flagged as seed-limited."""
+    from fsdvs_hw.explore.paired import encode_evidence
+    from fsdvs_hw.explore.sizing import size_test_sets
+
+    def pts(spread, seed, n_seeds=16):
+        g = np.random.default_rng(seed)
+        ref, cand = [], []
+        mid = (n_seeds - 1) / 2
+        for s in range(n_seeds):
+            ok = g.uniform(size=600) < 0.85
+            p_flip = 0.10 + spread * (s - mid) / mid  # this network's share of clips the candidate loses
+            cand.append(np.where(g.uniform(size=600) < p_flip, 0.0, ok))
+            ref.append(ok.astype(float))
+
+        def pt(key, arm):
+            rec = {"status": "ok", "evidence": [encode_evidence(ClipMeans(v)) for v in arm]}
+            return {"key": key, "realisation": key, "params": {}, "status": "ok",
+                    "result": {"tasks": {"recognition": {"simulator": rec}}}}
+        return [pt("learned", ref), pt("delta", cand)]
+
+    for draw in (3, 11):
+        (quiet,) = size_test_sets(pts(0.0, draw), target_half_width=0.01, n_resamples=1000)
+        assert quiet.seed_limited == {} and quiet.h_seed < 0.008 and quiet.n_clips is not None
+        (spread,) = size_test_sets(pts(0.08, draw), target_half_width=0.01, n_resamples=1000)
+        assert spread.seed_limited["delta"] > 0.012 and spread.n_clips is None

@@ -7,12 +7,15 @@ point (:mod:`~fsdvs_hw.explore.store`) and writes the HTML report (:mod:`fsdvs_h
 process pool or a Dask cluster. Design files are read and validated by
 :mod:`~fsdvs_hw.explore.design`; the sensor-in-the-loop emulation track lives in
 :mod:`~fsdvs_hw.explore.emulation`; ``fsdvs-hw bench explore`` is :mod:`~fsdvs_hw.explore.bench`.
+Per-clip task evidence (same clips, noise and networks for every kernel) is
+:mod:`~fsdvs_hw.explore.paired`; the losses' confidence intervals come from :mod:`fsdvs_hw.stats`;
+:mod:`~fsdvs_hw.explore.sizing` sizes the test sets from a pilot run.
 """
 
 from __future__ import annotations
 
 from .design import Design, DesignError, load_design, parse_design
-from .scoring import accuracy_losses, fit_realisation, score
+from .scoring import accuracy_losses, fit_realisation, paired_losses, score, with_paired_losses
 from .store import ResultsStore
 from .sweep import DesignPoint, evaluate_point, expand_points, run_design, run_points
 
@@ -24,6 +27,8 @@ __all__ = [
     "fit_realisation",
     "score",
     "accuracy_losses",
+    "paired_losses",
+    "with_paired_losses",
     "ResultsStore",
     "DesignPoint",
     "expand_points",

@@ -20,8 +20,11 @@ Layout (every section and key is optional; defaults in brackets)::
     [realisations.mesh|asic|metalens]   keyword options of the fit function
                     (fit_resistive_mesh / fit_asic_taps / fit_metalens)
     [tasks]         checkpoints = { detection = "kernels/learned_detection_7x7.safetensors" },
-                    n_test, finetune_epochs, tracks = ["simulator", "emulation"],
-                    sensor = "checkpoint" | "design"
+                    or a list per task, one network per training seed;
+                    n_test (number, or table task → clips), n_test_emulation, finetune_epochs,
+                    tracks = ["simulator", "emulation"], sensor = "checkpoint" | "design"
+    [scoring]       task_weights = { detection = 1, ... } [equal], n_resamples [2000],
+                    confidence [0.95], target_half_width [0.01]  (the paired loss CIs)
     [emulation]     enabled, n_clips, n_frames, display_bits, display_gamma, display_peak_nits,
                     display_black_nits, upsample_factor  (fsdvs_hw.explore.emulation)
     [sweep]         axes = { "asic.bits" = [2, 4, 8], "sensor.threshold_on" = [0.1, 0.2] }
@@ -181,9 +184,14 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
                       item_types=(str,), choices=(*REFERENCE_REALISATIONS, *REALISATION_FITTERS)),
     },
     "tasks": {
-        "checkpoints": _f(dict, {}, "task name → trained checkpoint (.safetensors, relative to the design file); "
-                                    "{} = no task evaluation"),
-        "n_test": _f(int, 0, "test clips per evaluation; 0 = the checkpoint's own test-set size", lo=0, hi=100000),
+        "checkpoints": _f(dict, {}, "task name → trained checkpoint, or a list of checkpoints (one network per "
+                                    "training seed), .safetensors relative to the design file; {} = no task "
+                                    "evaluation"),
+        "n_test": _f((int, dict), 0, "test clips per evaluation: one number for every task or a table task → "
+                                     "clips; 0 = the checkpoint's own test-set size", lo=0, hi=100000),
+        "n_test_emulation": _f((int, dict), 0, "test clips of the emulation track (display + recapture costs "
+                                               "about 8x the simulator per clip): a number or a table task → "
+                                               "clips; 0 = as n_test", lo=0, hi=100000),
         "finetune_epochs": _f(int, 0, "optional short fine-tune after the zero-shot swap (0 = zero-shot)",
                               lo=0, hi=1000),
         "tracks": _f(list, ["simulator"], "evaluation tracks", item_types=(str,), choices=_TRACKS),
@@ -191,6 +199,13 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
                                         "trained condition) or the checkpoint's with this design's [sensor] "
                                         "thresholds, mismatch, placement and positivity",
                      choices=("checkpoint", "design")),
+    },
+    "scoring": {
+        "task_weights": _f(dict, {}, "task → weight of its loss in the weighted task loss; {} = equal weights"),
+        "n_resamples": _f(int, 2000, "bootstrap resamples per confidence interval", lo=100, hi=100000),
+        "confidence": _f(_NUMBER, 0.95, "two-sided confidence level of the loss intervals", lo=0.5, hi=0.999),
+        "target_half_width": _f(_NUMBER, 0.01, "loss CI half-width (metric fraction) the test set is sized "
+                                               "for; wider intervals are flagged", lo=1e-4, hi=1.0),
     },
     "emulation": {
         "enabled": _f(bool, True, "score the sensor-in-the-loop emulation track (event level)"),
@@ -337,10 +352,11 @@ class Design:
         """Keyword options for one hardware realisation's fit function."""
         return copy.deepcopy(self.data["realisations"].get(name, {}))
 
-    def checkpoints(self) -> dict[str, Path]:
-        """Task name → absolute checkpoint path."""
-        return {t: _resolve(self.base_dir, p, what=f"tasks.checkpoints.{t}", confine=self.confine_paths)
-                for t, p in self.data["tasks"]["checkpoints"].items()}
+    def checkpoints(self) -> dict[str, list[Path]]:
+        """Task name → absolute checkpoint paths (one per training seed, in the design's order)."""
+        return {t: [_resolve(self.base_dir, p, what=f"tasks.checkpoints.{t}", confine=self.confine_paths)
+                    for p in _as_list(v)]
+                for t, v in self.data["tasks"]["checkpoints"].items()}
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> Design:
         """A new, re-validated design with dotted keys replaced (``{"asic.bits": 4}``)."""
@@ -358,6 +374,11 @@ class Design:
 
     def to_dict(self) -> dict[str, Any]:
         return copy.deepcopy(self.data)
+
+
+def _as_list(value: Any) -> list[Any]:
+    """A checkpoint entry as a list (one path or a list of paths, one per training seed)."""
+    return list(value) if isinstance(value, list) else [value]
 
 
 def _resolve(base: Path, path: str, *, what: str, confine: bool) -> Path:
@@ -611,26 +632,53 @@ def _check_tasks(chk: _Checker, data: dict[str, Any], base: Path, confine: bool)
     except ImportError as exc:
         chk.add("tasks.checkpoints", ckpts, f"task evaluation needs fsdvs_hw.tasks, which is not available ({exc})")
         return
-    for task, path in ckpts.items():
+    for task, entry in ckpts.items():
         key = f"tasks.checkpoints.{task}"
         if task not in EVALUATORS:
-            chk.add(key, path, f"unknown task; allowed: {', '.join(EVALUATORS)}")
-        if not isinstance(path, str):
-            chk.add(key, path, "must be a path string to a .safetensors checkpoint")
+            chk.add(key, entry, f"unknown task; allowed: {', '.join(EVALUATORS)}")
+        if isinstance(entry, list) and not entry:
+            chk.add(key, entry, "an empty list; allowed: a path or a non-empty list of paths (one per seed)")
+        paths = _as_list(entry)
+        if len({str(p) for p in paths}) != len(paths):
+            chk.add(key, entry, "lists a checkpoint twice (each entry must be a different training seed)")
+        for i, path in enumerate(paths):
+            ikey = key if not isinstance(entry, list) else f"{key}[{i}]"
+            if not isinstance(path, str):
+                chk.add(ikey, path, "must be a path string to a .safetensors checkpoint")
+                continue
+            try:
+                p = _resolve(base, path, what=ikey, confine=confine)
+            except InputError as exc:
+                chk.add(ikey, path, str(exc).split(": ", 1)[-1])
+                continue
+            if p.suffix != ".safetensors":
+                p = p.with_suffix(".safetensors") if p.suffix == ".json" else Path(str(p) + ".safetensors")
+            if not p.is_file():
+                chk.add(ikey, path, f"checkpoint file not found (looked for {p})")
+            else:
+                why = _safetensors_problem(p)
+                if why is not None:
+                    chk.add(ikey, path, f"not a usable checkpoint ({why})")
+    for field_name in ("n_test", "n_test_emulation"):
+        n_test = data["tasks"][field_name]
+        if not isinstance(n_test, dict):
             continue
-        try:
-            p = _resolve(base, path, what=key, confine=confine)
-        except InputError as exc:
-            chk.add(key, path, str(exc).split(": ", 1)[-1])
-            continue
-        if p.suffix != ".safetensors":
-            p = p.with_suffix(".safetensors") if p.suffix == ".json" else Path(str(p) + ".safetensors")
-        if not p.is_file():
-            chk.add(key, path, f"checkpoint file not found (looked for {p})")
-        else:
-            why = _safetensors_problem(p)
-            if why is not None:
-                chk.add(key, path, f"not a usable checkpoint ({why})")
+        for task, n in n_test.items():
+            key = f"tasks.{field_name}.{task}"
+            if task not in ckpts:
+                chk.add(key, n, f"not a task in tasks.checkpoints; allowed: {', '.join(ckpts)}")
+            elif isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= 100_000:
+                chk.add(key, n, "allowed: an integer in [0, 100000] (0 = the default)")
+    for task, w in data["scoring"]["task_weights"].items():
+        if task not in ckpts:
+            chk.add(f"scoring.task_weights.{task}", w, f"not a task in tasks.checkpoints; allowed: {', '.join(ckpts)}")
+        elif isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w >= 0):
+            chk.add(f"scoring.task_weights.{task}", w, "allowed: a finite number >= 0")
+    weights = data["scoring"]["task_weights"]
+    valid = all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0
+                for v in weights.values())
+    if weights and valid and not any(v > 0 for v in weights.values()):
+        chk.add("scoring.task_weights", weights, "every weight is 0; allowed: at least one positive weight")
 
 
 def _safetensors_problem(path: Path) -> str | None:

@@ -17,6 +17,7 @@ from typing import Any
 
 from ..paths import output_dir
 from .design import Design, load_design
+from .scoring import with_paired_losses
 from .sweep import SweepSummary, add_execution_arguments, run_design, security_from_args
 
 __all__ = ["run_exploration", "Exploration", "HELP", "add_arguments", "run"]
@@ -39,6 +40,11 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
                     scheduler: str | None = None, progress: bool = True, retry_errors: bool = False,
                     max_points: int | None = None, security: Any = None) -> Exploration:
     """Explore one design: fit, score and report every design point.
+
+    After every point has run, each point's task losses against the learned kernel are computed
+    with paired bootstrap CIs (:func:`fsdvs_hw.explore.scoring.paired_losses`); the points handed to
+    the report (and :attr:`Exploration.points`) carry them as ``"paired_loss"``, without the bulky
+    per-clip evidence (which stays in ``results.sqlite``).
 
     Parameters
     ----------
@@ -68,6 +74,9 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     store_path = out / "results.sqlite"
     summary, rows = run_design(design, store_path, workers=workers, scheduler=scheduler, progress=progress,
                                retry_errors=retry_errors, max_points=max_points, security=security)
+    sc = design.data["scoring"]
+    rows = with_paired_losses(rows, task_weights=sc["task_weights"] or None, n_resamples=sc["n_resamples"],
+                              confidence=sc["confidence"], rng=design.data["run"]["seed"])
     report = write_report(rows, design, out)
     return Exploration(report=report, scores_csv=out / "scores.csv", scores_json=out / "scores.json",
                        store=store_path, summary=summary, wall_s=time.perf_counter() - t0,
@@ -97,9 +106,12 @@ def run(args: argparse.Namespace) -> int:
                           progress=not args.no_progress, retry_errors=args.retry_errors, max_points=args.max_points,
                           security=security_from_args(args))
     print(f"[explore] {res.summary}", file=sys.stderr)
-    from ..report.tables import score_rows, summary_markdown
+    from ..report.tables import networks_note, score_rows, summary_markdown
 
     print(summary_markdown(score_rows(res.points)) + "\n")
+    nets = networks_note(res.points)
+    if nets:
+        print(f"losses measured in: {nets}\n")
     print(f"report: {res.report}\nscores: {res.scores_csv}, {res.scores_json}\nstore:  {res.store}\n"
           f"total {res.wall_s:.1f} s")
     return 0 if res.summary.statuses.get("error", 0) == 0 else 1

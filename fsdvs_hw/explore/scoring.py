@@ -18,10 +18,13 @@ CSF agreement
     for Mannos–Sakrison once more with the pixels-per-degree scale fitted (``fitted_scale``):
     the shape agreement at the best viewing geometry, which is what the FS-DVS paper compares.
 task accuracy
-    The task evaluators' metric (``fsdvs_hw.tasks.evaluate_kernel``) with the realised kernel
-    swapped zero-shot into the network trained with the learned kernel; the loss against the
-    learned kernel is computed by :func:`accuracy_losses` once the learned row exists. When the
-    tasks module or a checkpoint is missing, the score says so (``status``) instead of a number.
+    Per clip, in every trained network of every task (one checkpoint per training seed), with the
+    realised kernel swapped zero-shot into the network trained with the design's kernel
+    (:mod:`fsdvs_hw.explore.paired`): every kernel sees the same clips, noise draws and mismatch
+    patterns. Once every point has run, :func:`paired_losses` computes each point's loss against
+    the learned row with a 95 % bootstrap CI over clips and seeds (:mod:`fsdvs_hw.stats`) and the
+    weighted task loss (``[scoring] task_weights``). When a checkpoint or task is missing, the score
+    says so (``status``) instead of a number.
 sensor-in-the-loop emulation
     The realised kernel applied to synthetic video, shown on an emulated display and recaptured by
     the noisy simulator, compared with the kernel inside the pixel
@@ -35,6 +38,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import json
 import time
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
@@ -53,8 +57,14 @@ __all__ = [
     "score",
     "task_scores",
     "accuracy_losses",
+    "paired_losses",
+    "with_paired_losses",
     "PRIMARY_CSF_METHOD",
+    "TRACK_PREFIX",
 ]
+
+#: Column prefix of each task track in the flat tables (the simulator track is unprefixed).
+TRACK_PREFIX: dict[str, str] = {"simulator": "", "emulation": "emu_"}
 
 #: The CSF model every headline number refers to (the FS-DVS paper's reference).
 PRIMARY_CSF_METHOD = "mannos_sakrison_1974"
@@ -159,77 +169,112 @@ def _task_sensor(checkpoint: Path, design_sensor: Mapping[str, Any] | None) -> t
     return SensorConfig(**settings), {"source": "design", **{k: settings[k] for k in _DESIGN_SENSOR_FIELDS}}
 
 
-def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path], *, n_test: int = 0,
-                finetune_epochs: int = 0, tracks: Sequence[str] = ("simulator",),
-                design_sensor: Mapping[str, Any] | None = None, display: Any = None) -> dict[str, Any]:
-    """Evaluate ``kernel`` on each trained task by a zero-shot swap into its frozen network.
+def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[str | Path]], *,
+                n_test: int | Mapping[str, int] = 0, n_test_emulation: int | Mapping[str, int] = 0,
+                finetune_epochs: int = 0,
+                tracks: Sequence[str] = ("simulator",), design_sensor: Mapping[str, Any] | None = None,
+                display: Any = None, keep_evidence: bool = True) -> dict[str, Any]:
+    """Evaluate ``kernel`` per clip in every trained network of every task (zero-shot swap).
 
     Parameters
     ----------
     kernel : Kernel
         The realised kernel.
     checkpoints : mapping
-        Task name → checkpoint written by ``fsdvs_hw.tasks.learn_kernel``.
-    n_test : int
-        Test clips (0 = the checkpoint's own test-set size).
+        Task name → checkpoint, or a list of checkpoints (one network per training seed), written
+        by ``fsdvs_hw.tasks.learn_kernel``.
+    n_test : int or mapping
+        Test clips (0 = the checkpoint's own test-set size), for every task or per task.
+    n_test_emulation : int or mapping
+        Test clips of the emulation track (0 = as ``n_test``); the first clips of the same test set.
     finetune_epochs : int
-        Optional fine-tune of the network with the kernel frozen (0 = zero-shot).
+        Must be 0: the paired per-clip scoring is zero-shot (a fine-tune would give every kernel
+        its own network, and the loss would no longer be paired by network).
     tracks : sequence of {"simulator", "emulation"}
-        ``simulator``: ``evaluate_kernel`` with the checkpoint's simulator settings.
-        ``emulation``: the sensor-in-the-loop emulation — the test clips are filtered by the
-        kernel, shown on ``display`` and recaptured by the same simulator without an in-pixel
-        filter (:func:`fsdvs_hw.explore.emulation.recapture`), then fed to the same frozen network.
-    display : DisplaySettings, optional
-        The emulation track's display (default ``DisplaySettings()``).
+        ``simulator``: the in-pixel simulator with the checkpoint's settings. ``emulation``: the
+        test clips filtered by the kernel, shown on ``display`` and recaptured by the same
+        simulator without an in-pixel filter (:func:`fsdvs_hw.explore.emulation.recapture`), fed to
+        the same frozen network.
     design_sensor : mapping, optional
         A design's ``[sensor]`` section: its thresholds, mismatch, placement and positivity replace
-        the checkpoint's simulator settings. None (default) evaluates under the checkpoint's own
-        settings. Each result records which (``"sensor"``).
+        the checkpoint's simulator settings (None: the checkpoint's own). Recorded as ``"sensor"``.
+    display : DisplaySettings, optional
+        The emulation track's display (default ``DisplaySettings()``).
+    keep_evidence : bool
+        Keep each network's per-clip evidence (base64 ``.npz``, :func:`fsdvs_hw.explore.paired.encode_evidence`)
+        under ``"evidence"`` so :func:`paired_losses` can pair it with the reference kernel's.
 
     Returns
     -------
     dict
-        ``{"status": ..., task: {track: {"metric": value, "metrics": {...}, ...}}}``; ``status``
-        names what is missing (tasks module, checkpoint, track) instead of inventing a number.
+        ``{"status", task: {track: {"status", "metric" (mean over networks), "metric_name",
+        "per_seed", "n_clips", "n_seeds", "checkpoints", "sensor_seeds", "event_rate", "evidence",
+        "sensor", "wall_s"}}}``; ``status`` names what is missing instead of inventing a number.
+        Network ``s`` of a task is scored with sensor seed ``checkpoint seed + s`` (its own
+        mismatch pattern, :mod:`fsdvs_hw.explore.paired`).
     """
     if not checkpoints:
         return {"status": "not requested"}
     try:
-        tasks_mod = importlib.import_module("fsdvs_hw.tasks")
-        evaluate_kernel = tasks_mod.evaluate_kernel
-    except (ImportError, AttributeError) as exc:
-        return {"status": f"unavailable: fsdvs_hw.tasks.evaluate_kernel not importable ({exc})"}
-    sig = inspect.signature(evaluate_kernel).parameters
+        from .paired import clip_evidence, encode_evidence
+    except ImportError as exc:
+        return {"status": f"unavailable: per-clip task evaluation not importable ({exc})"}
     out: dict[str, Any] = {"status": "ok"}
-    for task, ckpt in checkpoints.items():
+    for task, entry in checkpoints.items():
+        paths = [Path(p) for p in (entry if isinstance(entry, (list, tuple)) else [entry])]
+        n_sim = int(n_test.get(task, 0)) if isinstance(n_test, Mapping) else int(n_test)
+        n_emu = int(n_test_emulation.get(task, 0)) if isinstance(n_test_emulation, Mapping) else int(n_test_emulation)
         out[task] = {}
         for track in tracks:
-            kw: dict[str, Any] = {}
-            if n_test and "n_test" in sig:
-                kw["n_test"] = n_test
-            if finetune_epochs and "finetune_epochs" in sig:
-                kw["finetune_epochs"] = finetune_epochs
-            if track == "emulation":
-                if "events_fn" not in sig:
-                    out[task][track] = {"status": f"unavailable: evaluate_kernel has no {track!r} track hook"}
-                    out["status"] = "partial"
-                    continue
-                kw["events_fn"] = _recaptured_events(kernel, display)
-            elif track != "simulator":
+            n = (n_emu or n_sim) if track == "emulation" else n_sim
+            if track not in ("simulator", "emulation"):
                 raise InputError(f"task track {track!r} unknown; allowed 'simulator', 'emulation'")
+            if finetune_epochs:
+                out[task][track] = {"status": "unavailable: paired per-clip scoring is zero-shot "
+                                              "(finetune_epochs must be 0)"}
+                out["status"] = "partial"
+                continue
+            events_fn = _recaptured_events(kernel, display) if track == "emulation" else None
             t0 = time.perf_counter()
             try:
-                sensor_cfg, sensor_rec = _task_sensor(Path(ckpt), design_sensor)
-                if sensor_cfg is not None:
-                    kw["sensor"] = sensor_cfg
-                res = evaluate_kernel(kernel, task, Path(ckpt), **kw)
+                evid = []
+                for s, ckpt in enumerate(paths):
+                    sensor_cfg, sensor_rec = _task_sensor(ckpt, design_sensor)
+                    evid.append(clip_evidence(kernel, task, ckpt, n_test=n or None, sensor=sensor_cfg,
+                                              seed_offset=s, events_fn=events_fn))
             except (InputError, FileNotFoundError, ImportError) as exc:
                 out[task][track] = {"status": f"unavailable: {exc}"}
                 out["status"] = "partial"
                 continue
-            out[task][track] = {"status": "ok", **_metric_dict(res), "sensor": sensor_rec,
-                                "wall_s": time.perf_counter() - t0}
+            per_seed = [e.value for e in evid]
+            rec: dict[str, Any] = {
+                "status": "ok", "metric": float(np.mean(per_seed)), "metric_name": evid[0].metric_name,
+                "per_seed": per_seed, "n_clips": evid[0].n_clips, "n_seeds": len(evid),
+                "checkpoints": [str(p) for p in paths], "sensor_seeds": [e.sensor_seed for e in evid],
+                "event_rate": float(np.mean([e.event_rate for e in evid])), "sensor": sensor_rec,
+                "wall_s": time.perf_counter() - t0,
+            }
+            if keep_evidence:
+                rec["evidence"] = [encode_evidence(e.metric) for e in evid]
+            out[task][track] = rec
     return out
+
+
+def _record_networks(tasks: dict[str, Any], target: Kernel) -> None:
+    """Say, per task, which networks scored it and whether they were trained with ``target``."""
+    try:
+        from .paired import network_info
+    except ImportError:  # pragma: no cover - torch-free installs have no task track at all
+        return
+    for task, tracks in tasks.items():
+        if not isinstance(tracks, dict):
+            continue
+        for rec in tracks.values():
+            if isinstance(rec, dict) and rec.get("status") == "ok" and "checkpoints" in rec:
+                try:
+                    rec["networks"] = [network_info(c, target) for c in rec["checkpoints"]]
+                except InputError as exc:
+                    rec["networks"] = [{"status": f"unavailable: {exc}"}]
 
 
 def _recaptured_events(kernel: Kernel, display: Any) -> Any:
@@ -243,24 +288,6 @@ def _recaptured_events(kernel: Kernel, display: Any) -> Any:
         return frames
 
     return events_fn
-
-
-def _metric_dict(res: Any) -> dict[str, Any]:
-    """Normalise what an evaluator returns (a float, a dict, or an object with to_dict)."""
-    if isinstance(res, (int, float, np.floating)):
-        return {"metric": float(res)}
-    if hasattr(res, "to_dict"):
-        res = res.to_dict()
-    elif not isinstance(res, Mapping) and hasattr(res, "__dict__"):
-        res = vars(res)
-    d = {k: (float(v) if isinstance(v, (int, float, np.floating)) and not isinstance(v, bool) else v)
-         for k, v in dict(res).items()}
-    if "metric" not in d:
-        for k in ("value", "map", "top1", "miou", "score"):
-            if k in d:
-                d["metric"] = d[k]
-                break
-    return d
 
 
 def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str] = (PRIMARY_CSF_METHOD,),
@@ -282,7 +309,7 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
     checkpoints : mapping, optional
         Task name → trained checkpoint; empty or None for no task evaluation.
     task_options : mapping, optional
-        ``n_test``, ``finetune_epochs``, ``tracks`` for :func:`task_scores`.
+        ``n_test``, ``n_test_emulation``, ``finetune_epochs``, ``tracks`` for :func:`task_scores`.
     emulation : mapping, optional
         ``{"sensor": [sensor] section, "emulation": [emulation] section, "seed": int}`` to score the
         sensor-in-the-loop emulation track (:func:`fsdvs_hw.explore.emulation.emulation_scores`).
@@ -319,6 +346,7 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
 
         opts["display"] = DisplaySettings.from_design(emulation["emulation"])
     rec["tasks"] = task_scores(realised, dict(checkpoints or {}), **opts)
+    _record_networks(rec["tasks"], target)
     t2 = time.perf_counter()
     if emulation is not None and emulation["emulation"].get("enabled", True):
         from .emulation import emulation_scores
@@ -366,3 +394,115 @@ def _flat_metrics(result: Mapping[str, Any]) -> dict[str, float]:
             if isinstance(res, Mapping) and isinstance(res.get("metric"), (int, float)):
                 flat[f"{task}/{track}"] = float(res["metric"])
     return flat
+
+
+def _context(point: Mapping[str, Any]) -> str:
+    """The sweep setting a point shares with its reference: its params minus realisation-scoped axes."""
+    params = point.get("params") or {}
+    scoped = set(REALISATION_FITTERS) | set(REFERENCE_REALISATIONS) | {"realisations"}
+    return json.dumps({k: v for k, v in params.items() if k.split(".")[0] not in scoped}, sort_keys=True,
+                      default=str)
+
+
+def paired_losses(points: Iterable[Mapping[str, Any]], *, reference: str = "learned",
+                  task_weights: Mapping[str, float] | None = None, n_resamples: int = 2000, confidence: float = 0.95,
+                  rng: int = 0) -> dict[str, dict[str, Any]]:
+    """Paired accuracy loss of every point against the reference kernel, with bootstrap CIs.
+
+    For every track and task, the reference row (``learned``: the kernel being realised, in the
+    same sweep setting) and each point were scored per clip on the same test clips, noise draws and
+    networks (:func:`task_scores`); the loss is ``metric(reference) − metric(point)`` (positive =
+    accuracy lost) and its CI comes from :func:`fsdvs_hw.stats.task_difference_cis`, resampling test
+    clips and training seeds (with each seed's own mismatch pattern).
+
+    Parameters
+    ----------
+    points : iterable of mappings
+        Stored points (``key``, ``realisation``, ``params``, ``status``, ``result``) whose task
+        records keep their ``evidence``.
+    reference : str
+        The realisation every loss is measured against.
+    task_weights : mapping, optional
+        Task → weight of the weighted task loss (default: equal weights over the tasks scored).
+    n_resamples, confidence, rng
+        Bootstrap settings (``rng`` seeds the resampling; every point shares the draws).
+
+    Returns
+    -------
+    dict
+        ``{point key: {"reference": key, track: {task: DifferenceCI dict + "text", "weighted": ...}}}``;
+        a point without paired evidence maps to ``{"status": reason}``.
+    """
+    from ..stats import task_difference_cis
+    from .paired import decode_evidence
+
+    points = [p for p in points if p.get("status") == "ok"]
+    groups: dict[str, list[Mapping[str, Any]]] = {}
+    for p in points:
+        groups.setdefault(_context(p), []).append(p)
+    decoded: dict[tuple[str, str, str], list[Any]] = {}
+
+    def arm(p: Mapping[str, Any], task: str, track: str) -> list[Any] | None:
+        rec = ((p.get("result") or {}).get("tasks") or {}).get(task, {}).get(track)
+        if not isinstance(rec, Mapping) or rec.get("status") != "ok" or not rec.get("evidence"):
+            return None
+        key = (p["key"], task, track)
+        if key not in decoded:
+            decoded[key] = [decode_evidence(e) for e in rec["evidence"]]
+        return decoded[key]
+
+    out: dict[str, dict[str, Any]] = {p["key"]: {"status": f"no {reference!r} row in its sweep setting"}
+                                      for p in points}
+    for group in groups.values():
+        ref = next((p for p in group if p["realisation"] == reference), None)
+        if ref is None:
+            continue
+        for p in group:
+            out[p["key"]] = {"status": "ok", "reference": ref["key"]}
+        tasks_of_ref = [t for t, v in ((ref.get("result") or {}).get("tasks") or {}).items() if isinstance(v, Mapping)]
+        for track in TRACK_PREFIX:
+            ref_arms = {t: arm(ref, t, track) for t in tasks_of_ref}
+            ref_arms = {t: a for t, a in ref_arms.items() if a is not None}
+            if not ref_arms:
+                continue
+            ok, missing = [], []
+            for p in group:
+                arms = {t: arm(p, t, track) for t in ref_arms}
+                good = all(a is not None and len(a) == len(ref_arms[t])
+                           and a[0].n_clips == ref_arms[t][0].n_clips for t, a in arms.items())
+                (ok if good else missing).append(p)
+            for p in missing:
+                out[p["key"]][track] = {"status": "no paired evidence on every task of the reference"}
+            if not ok:
+                continue
+            weights = {t: float((task_weights or {}).get(t, 0.0 if task_weights else 1.0)) for t in ref_arms}
+            if not any(w > 0 for w in weights.values()):
+                weights = {t: 1.0 for t in ref_arms}
+            cis = task_difference_cis(
+                {t: (ref_arms[t], {p["key"]: decoded[(p["key"], t, track)] for p in ok}) for t in ref_arms},
+                weights=weights, n_resamples=n_resamples, confidence=confidence, rng=rng)
+            for p in ok:
+                rec = {t: {**ci.to_dict(), "text": ci.describe()} for t, ci in cis[p["key"]].items()}
+                rec["weights"] = weights
+                out[p["key"]][track] = rec
+    return out
+
+
+def with_paired_losses(points: Sequence[Mapping[str, Any]], *, keep_evidence: bool = False,
+                       **options: Any) -> list[dict[str, Any]]:
+    """Copies of ``points`` with ``"paired_loss"`` (:func:`paired_losses`) and, unless asked, the
+    bulky per-clip ``evidence`` removed (what the report and ``scores.json`` carry)."""
+    points = list(points)
+    losses = paired_losses(points, **options)
+    out = []
+    for p in points:
+        q = dict(p)
+        q["paired_loss"] = losses.get(p["key"], {"status": "not scored"})
+        if not keep_evidence and isinstance(q.get("result"), Mapping) and isinstance(q["result"].get("tasks"), Mapping):
+            res = dict(q["result"])
+            res["tasks"] = {t: ({k: ({f: v for f, v in r.items() if f != "evidence"} if isinstance(r, Mapping) else r)
+                                 for k, r in tracks.items()} if isinstance(tracks, Mapping) else tracks)
+                            for t, tracks in res["tasks"].items()}
+            q["result"] = res
+        out.append(q)
+    return out

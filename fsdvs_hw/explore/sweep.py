@@ -225,8 +225,10 @@ def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, dict[
             target=target,
             csf_methods=data["analysis"]["csf_methods"],
             focal_length_m=data["optics"]["focal_length_m"],
-            checkpoints={t: (p if Path(p).is_absolute() else base / p) for t, p in tasks["checkpoints"].items()},
-            task_options={"n_test": tasks["n_test"], "finetune_epochs": tasks["finetune_epochs"],
+            checkpoints={t: [(p if Path(p).is_absolute() else base / p) for p in (v if isinstance(v, list) else [v])]
+                         for t, v in tasks["checkpoints"].items()},
+            task_options={"n_test": tasks["n_test"], "n_test_emulation": tasks["n_test_emulation"],
+                          "finetune_epochs": tasks["finetune_epochs"],
                           "tracks": tasks["tracks"],
                           "design_sensor": data["sensor"] if tasks["sensor"] == "design" else None},
             emulation={"sensor": data["sensor"], "emulation": data["emulation"], "seed": data["run"]["seed"]},
@@ -505,7 +507,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"[sweep] {summary}", file=sys.stderr, flush=True)
     if args.report is not None:
         from ..report import write_report
+        from .scoring import with_paired_losses
 
+        sc = design.data["scoring"]
+        rows = with_paired_losses(rows, task_weights=sc["task_weights"] or None, n_resamples=sc["n_resamples"],
+                                  confidence=sc["confidence"], rng=design.data["run"]["seed"])
         print(f"[sweep] report: {write_report(rows, design, args.report)}", file=sys.stderr, flush=True)
     return 0 if summary.statuses.get("error", 0) == 0 else 1
 

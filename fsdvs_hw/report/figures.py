@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..kernels import Kernel
-from .tables import accuracy_axis
+from .tables import accuracy_axis, loss_interval
 
 __all__ = ["realised_kernels", "fig_kernels", "fig_spectra", "fig_radial", "fig_pareto", "fig_speed"]
 
@@ -93,58 +93,65 @@ def fig_radial(kernels: Sequence[tuple[str, Kernel]], *, methods: Sequence[str],
 
 
 def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
-    """Accuracy loss vs CSF agreement (left) and vs each realisation's headline cost (right).
+    """Accuracy loss (95 % CI bars) vs CSF agreement across kinds, then one panel per hardware kind
+    with the loss against that kind's own cost in its own unit (never one shared cost axis).
 
-    Pareto-optimal points (per realisation kind, over loss, agreement and cost) are ringed.
+    Rings mark the uncertainty-aware fronts (:func:`fsdvs_hw.report.tables.uncertain_pareto_front`):
+    across kinds in the first panel, within the kind in the others.
     """
     import matplotlib.pyplot as plt
 
     acc, acc_label = accuracy_axis(rows)
     ok = [r for r in rows if r["status"] == "ok"]
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.4), constrained_layout=True)
+    kinds = [k for k in dict.fromkeys(r["realisation"] for r in ok)
+             if any(not math.isnan(_val(r, "kind_cost_value")) for r in ok if r["realisation"] == k)]
+    n = 1 + max(1, len(kinds))
+    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 4.2), constrained_layout=True)
     ax = axes[0]
     for kind in dict.fromkeys(r["realisation"] for r in ok):
         g = [r for r in ok if r["realisation"] == kind]
-        x = [r.get("csf_agreement", math.nan) for r in g]
-        y = [r.get(acc, math.nan) for r in g]
-        ax.scatter(x, y, s=36, color=_COLOURS.get(kind), label=kind, zorder=3)
-        px = [xi for xi, r in zip(x, g) if r.get("pareto")]
-        py = [yi for yi, r in zip(y, g) if r.get("pareto")]
-        ax.scatter(px, py, s=140, facecolors="none", edgecolors=_COLOURS.get(kind), lw=1.5, zorder=2)
+        x = [_val(r, "csf_fitted_correlation") for r in g]
+        y, lo, hi = zip(*(loss_interval(r, acc) for r in g))
+        ax.errorbar(x, y, yerr=[np.subtract(y, lo), np.subtract(hi, y)], fmt="o", ms=5, capsize=3,
+                    color=_COLOURS.get(kind), label=kind, zorder=3)
         for xi, yi, r in zip(x, y, g):
-            if len(ok) <= 8:
+            if r.get("pareto_all"):
+                ax.scatter([xi], [yi], s=150, facecolors="none", edgecolors=_COLOURS.get(kind), lw=1.5, zorder=2)
+            if len(ok) <= 10:
                 ax.annotate(r["point"], (xi, yi), fontsize=6, xytext=(3, 3), textcoords="offset points")
-    ax.set_xlabel("CSF agreement (Mannos–Sakrison correlation at the design geometry)")
-    ax.set_ylabel(acc_label)
+    ax.axhline(0.0, color="0.5", lw=0.8)
+    ax.set_xlabel("CSF agreement (Mannos–Sakrison, fitted viewing scale)")
+    ax.set_ylabel(acc_label, fontsize=8)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    ax.set_title("accuracy vs CSF agreement (rings: Pareto-optimal per kind)", fontsize=9)
-    ax = axes[1]
-    drawn = False
-    for kind in dict.fromkeys(r["realisation"] for r in ok):
-        g = [r for r in ok if r["realisation"] == kind and not math.isnan(r.get("headline_cost_value", math.nan))]
-        if not g:
-            continue
-        g.sort(key=lambda r: r["headline_cost_value"])
-        x = [r["headline_cost_value"] for r in g]
-        y = [r.get(acc, math.nan) for r in g]
-        unit = g[0]["headline_cost_unit"]
-        ax.plot(x, y, "o-", color=_COLOURS.get(kind), label=f"{kind}: {g[0]['headline_cost']} [{unit}]")
+    ax.set_title("across kinds (rings: not dominated beyond the CIs)", fontsize=9)
+    if not kinds:
+        axes[1].text(0.5, 0.5, "no hardware realisation with costs was scored", ha="center", va="center",
+                     transform=axes[1].transAxes)
+        axes[1].set_axis_off()
+    for ax, kind in zip(axes[1:], kinds):
+        g = sorted((r for r in ok if r["realisation"] == kind and not math.isnan(_val(r, "kind_cost_value"))),
+                   key=lambda r: r["kind_cost_value"])
+        x = [r["kind_cost_value"] for r in g]
+        y, lo, hi = zip(*(loss_interval(r, acc) for r in g))
+        ax.errorbar(x, y, yerr=[np.subtract(y, lo), np.subtract(hi, y)], fmt="o-", ms=5, capsize=3,
+                    color=_COLOURS.get(kind))
         for xi, yi, r in zip(x, y, g):
             if r.get("pareto"):
-                ax.scatter([xi], [yi], s=140, facecolors="none", edgecolors=_COLOURS.get(kind), lw=1.5)
-        drawn = True
-    if drawn:
-        ax.set_xscale("log")
-        ax.legend(fontsize=7)
-    else:
-        ax.text(0.5, 0.5, "no hardware realisation with costs was scored", ha="center", va="center",
-                transform=ax.transAxes)
-    ax.set_xlabel("headline hardware cost (own unit per kind, log scale)")
-    ax.set_ylabel(acc_label)
-    ax.grid(alpha=0.3, which="both")
-    ax.set_title("accuracy vs hardware cost", fontsize=9)
+                ax.scatter([xi], [yi], s=150, facecolors="none", edgecolors=_COLOURS.get(kind), lw=1.5)
+            if len(g) <= 8:
+                ax.annotate(r["point"], (xi, yi), fontsize=6, xytext=(3, 3), textcoords="offset points")
+        ax.axhline(0.0, color="0.5", lw=0.8)
+        ax.set_xlabel(f"{g[0]['kind_cost']} [{g[0]['kind_cost_unit']}]")
+        ax.set_ylabel(acc_label, fontsize=8)
+        ax.grid(alpha=0.3, which="both")
+        ax.set_title(f"{kind}: loss vs its own cost", fontsize=9)
     return fig
+
+
+def _val(r: Mapping[str, Any], key: str) -> float:
+    v = r.get(key)
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
 
 
 def fig_speed(rows: Sequence[Mapping[str, Any]]) -> Any:

@@ -19,7 +19,7 @@ from typing import Any
 
 from .. import __version__
 from . import figures
-from .tables import accuracy_axis, score_rows, write_scores
+from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
 
 __all__ = ["write_report", "render_html"]
 
@@ -105,23 +105,51 @@ def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title: str 
                     sensors.add(f"{task}: " + ", ".join(f"{k}={v}" for k, v in res["sensor"].items()))
     if sensors:
         parts.append("<p class='note'>Task-track simulator: " + html.escape("; ".join(sorted(sensors))) + ".</p>")
+    nets = networks_note(points)
+    if nets:
+        parts.append("<p class='note'>Networks each task's loss is measured in (every realisation is swapped "
+                     "zero-shot into these; the loss compares it with the learned kernel in the same networks): "
+                     + html.escape(nets) + ".</p>")
     task_status = sorted({r.get("tasks_status", "") for r in ok} - {""})
     if task_status:
         parts.append(f"<p class='note'>Task evaluation: {html.escape('; '.join(task_status))}. "
                      f"Accuracy axis: {html.escape(acc_label)}.</p>")
 
+    verdict = verdict_rows(rows)
+    if verdict:
+        vcols = list(dict.fromkeys(k for v in verdict for k in v))
+        flags = {v["realisation"]: r for v, r in zip(verdict, ok)}  # verdict_rows keeps the order of ok rows
+        parts.append(
+            "<h2>Verdict</h2><p class='note'>Loss = task metric of the learned kernel (the kernel being realised) "
+            "minus that of the realisation, in the same networks on the same test clips and noise draws (mAP, "
+            "top-1, mIoU as fractions; positive = accuracy lost), with its 95% bootstrap CI over test clips and "
+            "training seeds (each seed with its own mismatch pattern); a CI that contains 0 reads "
+            "'no measurable loss (± half-width)' and is never ranked by its point estimate. Weighted loss: "
+            "<code>[scoring] task_weights</code>. Each task's loss is measured in the networks listed in "
+            "<code>[tasks] checkpoints</code>. CSF agreement: Mannos–Sakrison correlation at the fitted viewing "
+            "scale (headline) and at the design's optics geometry. Cost: each kind on its own axis and unit. "
+            "Pareto: not dominated beyond the loss CIs, within the kind (loss, agreement, cost) and across kinds "
+            "(loss, agreement); green rows are on their kind's front.</p>")
+        head = "".join(f'<th class="l">{html.escape(c)}</th>' for c in vcols)
+        trs = []
+        for v in verdict:
+            cls = ' class="pareto"' if flags[v["realisation"]].get("pareto") else ""
+            cells = "".join(f'<td class="l">{html.escape(v.get(c, "–"))}</td>' for c in vcols)
+            trs.append(f"<tr{cls}>{cells}</tr>")
+        parts.append(f"<table><tr>{head}</tr>{''.join(trs)}</table>")
+
     parts.append("<h2>Scores</h2><p class='note'>Kernel error: relative L2 against the target (gain-free: with "
                  "the least-squares gain, which a comparator threshold absorbs). CSF: correlation of the "
                  "peak-normalised radial response with each CSF at the design geometry; 'fitted' uses the best "
-                 "pixels-per-degree scale. Green rows are Pareto-optimal within their kind over accuracy loss, "
-                 "CSF agreement and headline cost. Emulation: the realised kernel applied to the video, shown on "
+                 "pixels-per-degree scale. Metrics: each task's primary metric on each track (mean over networks). "
+                 "Emulation: the realised kernel applied to the video, shown on "
                  "an emulated display and recaptured by the noisy simulator (the paper's sensor-in-the-loop track), "
                  "against the same kernel inside the pixel: event-count ratio and correlation of ON−OFF frames.</p>")
     cols = [("point", "point"), ("kernel_error", "kernel error"), ("kernel_error_gain_free", "gain-free error"),
             ("peak_frequency_cpp", "peak (cyc/px)"), ("response_kind", "response")]
     cols += [(f"csf_{m}_correlation", f"r {m.split('_')[0]}") for m in methods]
     cols += [("csf_fitted_correlation", "r MS fitted")]
-    cols += [(k, k.replace("_", " ", 1)) for k in dict.fromkeys(c for r in ok for c in r if c.startswith(("metric_", "loss_")))]
+    cols += [(k, k.replace("_", " ", 1)) for k in dict.fromkeys(c for r in ok for c in r if c.startswith("metric_"))]
     cols += [("emu_event_ratio", "emul. events / in-sensor"), ("emu_signed_correlation", "emul. r")]
     cols += [("headline_cost", "cost item"), ("headline_cost_value", "value"), ("headline_cost_unit", "unit")]
     parts.append(_table(ok, cols, left=("point", "response_kind", "headline_cost", "headline_cost_unit")))
@@ -133,7 +161,7 @@ def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title: str 
         parts.append("<h2>Radial responses vs Mannos–Sakrison</h2>"
                      + _img(_png(figures.fig_radial(kernels, methods=methods, pitch_m=t.pitch_m,
                                                     focal_length_m=data["optics"]["focal_length_m"])), "radial"))
-        parts.append("<h2>Pareto: accuracy loss vs CSF agreement vs cost</h2>" + _img(_png(figures.fig_pareto(rows)), "pareto"))
+        parts.append("<h2>Pareto: accuracy loss (95% CI) vs CSF agreement, and vs each kind's own cost</h2>" + _img(_png(figures.fig_pareto(rows)), "pareto"))
         parts.append("<h2>Speed for accuracy</h2><p class='note'>Wall times on the machine that ran each point "
                      "(fit: the realisation's optimiser; analysis: spectra and CSF; tasks: evaluators; emulation: "
                      "display and recapture track).</p>")

@@ -1,8 +1,17 @@
 """Score tables: flatten stored design points into one row each, write CSV and JSON.
 
-A stored point's ``result`` is a nested :func:`fsdvs_hw.explore.scoring.score` record; the tables
-flatten it to named columns with units in the names (``fit_s``, ``cost_area_m2``), add the task
-accuracy loss against the learned kernel, and mark the Pareto-optimal points.
+A stored point's ``result`` is a nested :func:`fsdvs_hw.explore.scoring.score` record and its
+``paired_loss`` the paired task losses with bootstrap CIs (attached by the explore layer); the
+tables flatten both to named columns with units in the names (``fit_s``, ``cost_area_m2``), give
+each kind of realisation its own cost axis in its own unit, and mark the points that no other point
+dominates *beyond the uncertainty* of the losses (:func:`uncertain_pareto_front`), within each
+kind (loss, CSF agreement, the kind's cost) and across kinds (loss, CSF agreement).
+
+Loss columns, for every task ``T`` (simulator track; the emulation track has the prefix ``emu_``):
+``T_loss`` (metric of the learned kernel − metric of the realisation, a fraction; positive =
+accuracy lost), ``T_loss_ci95_low``, ``T_loss_ci95_high``, ``T_loss_half_width``, ``T_n_clips``,
+``T_n_seeds``, ``T_loss_text`` (``"0.021 [0.012, 0.030]"`` or ``"no measurable loss (± 0.008)"``
+when the CI contains 0) and the same for ``weighted_loss`` (``[scoring] task_weights``).
 """
 
 from __future__ import annotations
@@ -14,8 +23,25 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["score_rows", "pareto_front", "headline_cost", "accuracy_axis", "summary_markdown", "write_scores",
-           "HEADLINE_COSTS"]
+__all__ = ["score_rows", "pareto_front", "uncertain_pareto_front", "headline_cost", "kind_cost", "accuracy_axis",
+           "summary_markdown", "verdict_rows", "verdict_markdown", "networks_note", "write_scores", "loss_interval", "HEADLINE_COSTS",
+           "KIND_COST_AXES", "IDEAL_REFERENCES", "TRACK_PREFIX"]
+
+#: Column prefix of each task track (the simulator track is unprefixed).
+TRACK_PREFIX: dict[str, str] = {"simulator": "", "emulation": "emu_"}
+
+#: Realisations that are ideal references, not hardware (no cost; never on a front).
+IDEAL_REFERENCES: tuple[str, ...] = ("learned", "delta")
+
+#: Each hardware kind's cost axis for its own Pareto front: (cost item, label, display unit, factor
+#: from the stored SI value to the display unit), first available wins. ``conductance_per_pixel``
+#: is derived for the mesh (:func:`kind_cost`): the summed conductances of one pixel's two meshes,
+#: proportional to the static current (power) at a given bias.
+KIND_COST_AXES: dict[str, tuple[tuple[str, str, str, float], ...]] = {
+    "asic": (("area_m2", "cell area", "µm²", 1e12), ("adders", "adders", "count", 1.0)),
+    "mesh": (("conductance_per_pixel", "conductance per pixel", "µS", 1e6),),
+    "metalens": (("aperture_diameter", "aperture", "µm", 1e6),),
+}
 
 #: Cost items preferred as a realisation's single headline cost, in order (else its first item):
 #: ASIC silicon (area, cells, adders); mesh settling time of the wide mesh (its area is fixed at
@@ -32,6 +58,24 @@ def headline_cost(cost: Mapping[str, Mapping[str, Any]]) -> tuple[str, float, st
     return name, float(item["value"]), str(item.get("unit", ""))
 
 
+def kind_cost(kind: str, cost: Mapping[str, Mapping[str, Any]]) -> tuple[str, float, str] | None:
+    """``(label, value, unit)`` on the kind's own cost axis (:data:`KIND_COST_AXES`), or None.
+
+    The mesh's ``conductance_per_pixel`` is ``2 g_l + g_v`` summed over its narrow and wide meshes
+    (a node shares each of its four lateral links with a neighbour).
+    """
+    for item, label, unit, factor in KIND_COST_AXES.get(kind, ()):
+        if item == "conductance_per_pixel":
+            parts = [cost.get(f"g_{d}_{w}", {}).get("value") for w in ("narrow", "wide") for d in ("lateral", "vertical")]
+            if all(isinstance(v, (int, float)) for v in parts):
+                gl_n, gv_n, gl_w, gv_w = (float(v) for v in parts)
+                return label, (2 * gl_n + gv_n + 2 * gl_w + gv_w) * factor, unit
+            continue
+        if item in cost and isinstance(cost[item].get("value"), (int, float)):
+            return label, float(cost[item]["value"]) * factor, unit
+    return None
+
+
 def _num(x: Any) -> float:
     return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else math.nan
 
@@ -41,14 +85,13 @@ def score_rows(points: Iterable[Mapping[str, Any]], *, primary_csf: str = "manno
 
     Columns: ``point, realisation, params, status, reason, kernel_error, kernel_error_gain_free,
     dc_gain, peak_frequency_cpp, response_kind, csf_<method>_{correlation,peak_ratio,log_rms_dec},
-    csf_fitted_{correlation,rms_error,ppd}, metric_<task>/<track>, loss_<task>/<track>,
-    emu_event_ratio, emu_signed_correlation, emu_clipped_black, cost_<name>, headline_cost,
-    headline_cost_value, headline_cost_unit, fit_s, analysis_s, tasks_s, emulation_s, point_s, pareto``.
+    csf_fitted_{correlation,rms_error,ppd}, metric_<task>/<track>``, the loss columns of the module
+    docstring, ``loss_status, emu_event_ratio, emu_signed_correlation, emu_clipped_black,
+    cost_<name>, headline_cost, headline_cost_value, headline_cost_unit, kind_cost, kind_cost_value,
+    kind_cost_unit, fit_s, analysis_s, tasks_s, emulation_s, point_s, pareto`` (within the kind)
+    and ``pareto_all`` (across kinds on loss vs CSF agreement).
     """
-    from ..explore.scoring import accuracy_losses
-
     points = list(points)
-    losses = accuracy_losses(points)
     rows: list[dict[str, Any]] = []
     for p in points:
         res = p.get("result") or {}
@@ -84,8 +127,7 @@ def score_rows(points: Iterable[Mapping[str, Any]], *, primary_csf: str = "manno
                     for track, r in tracks.items():
                         if isinstance(r, Mapping) and "metric" in r:
                             row[f"metric_{task}/{track}"] = _num(r["metric"])
-            for k, v in losses.get(p["key"], {}).items():
-                row[f"loss_{k}"] = v
+            _loss_columns(row, p.get("paired_loss") or {})
             emu = res.get("emulation") or {}
             row["emulation_status"] = emu.get("status", "")
             if emu.get("status") == "ok":
@@ -97,6 +139,8 @@ def score_rows(points: Iterable[Mapping[str, Any]], *, primary_csf: str = "manno
                 row[f"cost_{name}"] = _num(item.get("value"))
             head = headline_cost(cost)
             row["headline_cost"], row["headline_cost_value"], row["headline_cost_unit"] = head or ("", math.nan, "")
+            own = kind_cost(p["realisation"], cost)
+            row["kind_cost"], row["kind_cost_value"], row["kind_cost_unit"] = own or ("", math.nan, "")
             wall = res.get("wall_s") or {}
             row["fit_s"] = _num(wall.get("fit"))
             row["analysis_s"] = _num(wall.get("analysis"))
@@ -108,12 +152,55 @@ def score_rows(points: Iterable[Mapping[str, Any]], *, primary_csf: str = "manno
     return rows
 
 
+def _ci_tag(confidence: float) -> str:
+    return f"ci{round(100 * confidence):d}"
+
+
+def _loss_columns(row: dict[str, Any], paired: Mapping[str, Any]) -> None:
+    """Flatten one point's ``paired_loss`` into the loss columns (module docstring)."""
+    row["loss_status"] = paired.get("status", "not scored")
+    if paired.get("reference"):
+        row["loss_reference"] = paired["reference"]
+    for track, prefix in TRACK_PREFIX.items():
+        per = paired.get(track)
+        if not isinstance(per, Mapping):
+            continue
+        if "status" in per and len(per) == 1:
+            row[f"{prefix}loss_status"] = per["status"]
+            continue
+        for task, ci in per.items():
+            if not isinstance(ci, Mapping) or "estimate" not in ci:
+                continue
+            name = f"{prefix}{task}"
+            tag = _ci_tag(float(ci["confidence"]))
+            row[f"{name}_loss"] = float(ci["estimate"])
+            row[f"{name}_loss_{tag}_low"] = float(ci["low"])
+            row[f"{name}_loss_{tag}_high"] = float(ci["high"])
+            row[f"{name}_loss_half_width"] = float(ci["half_width"])
+            row[f"{name}_n_clips"] = int(ci["n_clips"])
+            row[f"{name}_n_seeds"] = int(ci["n_seeds_reference"])
+            row[f"{name}_loss_text"] = str(ci.get("text", ""))
+
+
+def loss_interval(row: Mapping[str, Any], column: str) -> tuple[float, float, float]:
+    """``(estimate, low, high)`` of a loss column (low = high = estimate where it has no CI)."""
+    v = _num(row.get(column))
+    base = column[: -len("_loss")] if column.endswith("_loss") else column
+    lows = [k for k in row if k.startswith(f"{base}_loss_ci") and k.endswith("_low")]
+    if not lows:
+        return v, v, v
+    return v, _num(row[lows[0]]), _num(row[lows[0][: -len("_low")] + "_high"])
+
+
 def accuracy_axis(rows: Sequence[Mapping[str, Any]]) -> tuple[str, str]:
-    """The column used as 'accuracy loss' (first task loss), or kernel error when no task ran."""
-    for r in rows:
-        for k in r:
-            if k.startswith("loss_"):
-                return k, f"accuracy loss ({k[5:]}, learned − realised)"
+    """The column used as 'accuracy loss': the weighted task loss (simulator), else the first task
+    loss, else kernel error when no task ran."""
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    if "weighted_loss" in keys:
+        return "weighted_loss", "weighted task loss (learned − realised, simulator)"
+    for k in keys:
+        if k.endswith("_loss") and not k.startswith("emu_"):
+            return k, f"accuracy loss ({k[:-5]}, learned − realised)"
     return "kernel_error", "kernel error (relative L2; no task evaluator ran)"
 
 
@@ -136,21 +223,57 @@ def pareto_front(values: Sequence[Sequence[float]]) -> list[bool]:
     return flags
 
 
-def _mark_pareto(rows: list[dict[str, Any]]) -> None:
-    """Mark points non-dominated in (accuracy loss ↓, CSF agreement ↑, headline cost ↓) within each realisation kind.
+def uncertain_pareto_front(objectives: Sequence[Sequence[tuple[float, float, float]]]) -> list[bool]:
+    """Non-dominated flags where objectives (to *minimise*) carry confidence intervals.
 
-    Costs of different kinds have different units (siemens, adders, m²), so the three-way front is
-    taken per kind; ideal references (no cost) are compared with cost 0.
+    Each point is a sequence of ``(estimate, low, high)`` per objective (``low = high = estimate``
+    for an exact objective such as a cost). Point ``b`` dominates ``a`` only *beyond the
+    uncertainty*: in every objective ``b`` is at least as good as ``a`` even at the unfavourable
+    ends of both intervals (``b.high <= a.low``), and strictly better in one (``b.high < a.low``).
+    For exact objectives this is the usual Pareto dominance. Two realisations whose loss intervals
+    overlap are never ranked by their point estimates: neither dominates the other on loss, so both
+    stay unless something else decides; a wide interval protects its point and dominates nothing.
+    Rows with a NaN are never optimal and dominate nothing.
+    """
+    pts = [[(float(e), float(lo), float(hi)) for e, lo, hi in row] for row in objectives]
+    bad = [any(math.isnan(x) for o in row for x in o) for row in pts]
+
+    def dominates(b: list[tuple[float, float, float]], a: list[tuple[float, float, float]]) -> bool:
+        no_worse = all(ob[2] <= oa[1] for ob, oa in zip(b, a))
+        better = any(ob[2] < oa[1] for ob, oa in zip(b, a))
+        return no_worse and better
+
+    return [not bad[i] and not any(j != i and not bad[j] and dominates(pts[j], pts[i]) for j in range(len(pts)))
+            for i in range(len(pts))]
+
+
+def _mark_pareto(rows: list[dict[str, Any]]) -> None:
+    """Mark the uncertainty-aware fronts (:func:`uncertain_pareto_front`).
+
+    ``pareto``: within each hardware kind over (accuracy loss ↓ with its CI, Mannos–Sakrison
+    agreement at the fitted scale ↑, the kind's own cost ↓ in its own unit: :data:`KIND_COST_AXES`);
+    ideal references (learned, delta) have no cost and are not on a per-kind front.
+    ``pareto_all``: across every hardware realisation over (accuracy loss ↓, agreement ↑); costs of
+    different kinds never share an axis. The ideal references (:data:`IDEAL_REFERENCES`) are shown
+    for comparison and are on neither front.
     """
     acc, _ = accuracy_axis(rows)
     for r in rows:
         r["pareto"] = False
-    kinds = {r["realisation"] for r in rows if r["status"] == "ok"}
-    for kind in kinds:
-        group = [r for r in rows if r["status"] == "ok" and r["realisation"] == kind]
-        objs = [(r.get(acc, math.nan), -r.get("csf_agreement", math.nan),
-                 0.0 if math.isnan(r.get("headline_cost_value", math.nan)) else r["headline_cost_value"]) for r in group]
-        for r, f in zip(group, pareto_front(objs)):
+        r["pareto_all"] = False
+    ok = [r for r in rows if r["status"] == "ok"]
+
+    def agreement(r: Mapping[str, Any]) -> tuple[float, float, float]:
+        v = -_num(r.get("csf_fitted_correlation", r.get("csf_agreement")))
+        return v, v, v
+
+    hardware = [r for r in ok if r["realisation"] not in IDEAL_REFERENCES]
+    for r, f in zip(hardware, uncertain_pareto_front([(loss_interval(r, acc), agreement(r)) for r in hardware])):
+        r["pareto_all"] = f
+    for kind in dict.fromkeys(r["realisation"] for r in ok):
+        group = [r for r in ok if r["realisation"] == kind and not math.isnan(_num(r.get("kind_cost_value")))]
+        objs = [(loss_interval(r, acc), agreement(r), (r["kind_cost_value"],) * 3) for r in group]
+        for r, f in zip(group, uncertain_pareto_front(objs)):
             r["pareto"] = f
 
 
@@ -182,17 +305,102 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def summary_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
-    """The headline columns of :func:`score_rows` as a Markdown table (what ``explore`` prints)."""
-    cols = [("point", "point"), ("status", "status"), ("kernel_error", "kernel error"),
-            ("csf_agreement", "r MS"), ("csf_fitted_correlation", "r MS fitted")]
-    extra = list(dict.fromkeys(c for r in rows for c in r if c.startswith("loss_")))
-    cols += [(c, c[5:] + " loss") for c in extra]
-    if any("emu_event_ratio" in r for r in rows):
-        cols += [("emu_event_ratio", "emul. events ratio"), ("emu_signed_correlation", "emul. r")]
-    cols += [("headline_cost", "cost"), ("headline_cost_value", "value"), ("headline_cost_unit", "unit"),
-             ("fit_s", "fit (s)"), ("point_s", "point (s)")]
-    lines = ["| " + " | ".join(t for _, t in cols) + " |", "|" + "---|" * len(cols)]
-    for r in rows:
-        lines.append("| " + " | ".join(_fmt(r.get(c, "")) for c, _ in cols) + " |")
+def _loss_tasks(rows: Sequence[Mapping[str, Any]], prefix: str = "") -> list[str]:
+    """Task names with a loss column on a track (``weighted`` last)."""
+    names = [k[len(prefix):-len("_loss")] for r in rows for k in r
+             if k.endswith("_loss") and k.startswith(prefix) and (prefix or not k.startswith("emu_"))]
+    names = list(dict.fromkeys(names))
+    return [n for n in names if n != "weighted"] + (["weighted"] if "weighted" in names else [])
+
+
+def verdict_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
+    """The verdict table: one row per scored realisation, every cell a display string.
+
+    Columns: ``realisation``; per task (simulator track) the loss with its CI, or "no measurable
+    loss (± h)" when the CI contains 0; the weighted task loss; the emulation track's weighted loss;
+    Mannos–Sakrison agreement at the fitted viewing scale (the headline) and at the design's
+    geometry (labelled); the cost on the kind's own axis in its own unit; the fronts it is on.
+    """
+    ok = [r for r in rows if r["status"] == "ok"]
+    tasks = _loss_tasks(ok)
+    emu = "emu_weighted_loss_text" if any("emu_weighted_loss_text" in r for r in ok) else None
+    out = []
+    for r in ok:
+        v: dict[str, str] = {"realisation": str(r["point"])}
+        is_ref = r.get("key") is not None and r.get("key") == r.get("loss_reference")
+        for t in tasks:
+            if is_ref:
+                v[f"{t} loss"] = "0 (the reference)"
+                continue
+            n = r.get(f"{t}_n_clips")
+            v[f"{t} loss"] = str(r.get(f"{t}_loss_text", "–"))
+            if t != "weighted" and n:
+                v[f"{t} loss"] += f" (n={n}, seeds={r.get(f'{t}_n_seeds')})"
+        if emu:
+            v["emulation weighted loss"] = "0 (the reference)" if is_ref else str(r.get(emu, "–"))
+        v["MS agreement, fitted scale"] = _fmt(_num(r.get("csf_fitted_correlation")))
+        v["MS agreement, design geometry"] = _fmt(_num(r.get("csf_agreement")))
+        if r.get("kind_cost"):
+            v["cost (own unit)"] = f"{r['kind_cost']} {_num(r['kind_cost_value']):.4g} {r['kind_cost_unit']}"
+        else:
+            v["cost (own unit)"] = "– (ideal reference)"
+        if r["realisation"] in IDEAL_REFERENCES:
+            v["Pareto"] = "reference"
+        else:
+            fronts = [name for name, flag in (("within kind", r.get("pareto")), ("across kinds", r.get("pareto_all")))
+                      if flag]
+            v["Pareto"] = ", ".join(fronts) if fronts else "dominated"
+        out.append(v)
+    return out
+
+
+def verdict_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
+    """:func:`verdict_rows` as a Markdown table."""
+    vr = verdict_rows(rows)
+    if not vr:
+        return "(no scored realisation)"
+    cols = list(dict.fromkeys(k for r in vr for k in r))
+    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    lines += ["| " + " | ".join(r.get(c, "–") for c in cols) + " |" for r in vr]
     return "\n".join(lines)
+
+
+def summary_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
+    """What ``explore`` prints: the verdict table, then points that were not scored."""
+    text = verdict_markdown(rows)
+    missing = [r for r in rows if r["status"] != "ok"]
+    if missing:
+        text += "\n\nnot scored: " + "; ".join(f"{r['point']} ({r['status']}: {r.get('reason', '')})" for r in missing)
+    return text
+
+
+def networks_note(points: Sequence[Mapping[str, Any]]) -> str:
+    """Which networks each task's loss is measured in, as one sentence per task.
+
+    ``"detection: 3 networks (training seeds 0, 1, 2) trained with the kernel being realised (kernel
+    frozen while training); ..."``, read from the ``networks`` records of the stored points.
+    """
+    seen: dict[str, list[Mapping[str, Any]]] = {}
+    for p in points:
+        for task, tracks in ((p.get("result") or {}).get("tasks") or {}).items():
+            if task in seen or not isinstance(tracks, Mapping):
+                continue
+            for rec in tracks.values():
+                if isinstance(rec, Mapping) and isinstance(rec.get("networks"), list):
+                    seen[task] = rec["networks"]
+                    break
+    parts = []
+    for task, nets in seen.items():
+        good = [n for n in nets if "checkpoint" in n]
+        if not good:
+            continue
+        same = {n.get("trained_with_target") for n in good}
+        how = ("trained with the kernel being realised" if same == {True} else
+               "NOT trained with the kernel being realised (trained with: "
+               + ", ".join(sorted({str(n.get("training_kernel")) for n in good})) + ")" if same == {False} else
+               "some trained with the kernel being realised, some not")
+        frozen = {n.get("learn_filter") for n in good}
+        mode = " (kernel frozen while training)" if frozen == {False} else " (kernel learned jointly)" if frozen == {True} else ""
+        seeds = ", ".join(str(n.get("seed")) for n in good)
+        parts.append(f"{task}: {len(good)} network{'s' if len(good) > 1 else ''} (training seeds {seeds}) {how}{mode}")
+    return "; ".join(parts)

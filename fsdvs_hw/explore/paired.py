@@ -1,0 +1,256 @@
+"""Paired per-clip evidence: every kernel scored on the same test clips, noise draws and networks.
+
+:func:`clip_evidence` swaps a kernel zero-shot into one trained network (a task checkpoint, one per
+training seed) and keeps what each test clip contributes to the task metric — a
+:mod:`fsdvs_hw.stats` metric object that recomputes the dataset metric for any clip resample
+(COCO mAP from pycocotools matches, top-1 per clip, mIoU from per-clip confusion matrices).
+:func:`encode_evidence` / :func:`decode_evidence` store it compactly (base64 ``.npz``) inside a
+design point's result, so the paired losses can be computed after every point has run
+(:func:`fsdvs_hw.explore.scoring.paired_losses`).
+
+Pairing
+-------
+* **Clips**: the checkpoint's test clips, regenerated from its ``test_seed``; clip ``i`` is the same
+  for every kernel and every ``n_test`` (first ``n_test`` clips).
+* **Noise draws**: the simulator seeds every random effect from ``SensorConfig.seed`` at each call
+  (:func:`fsdvs_hw.sensor.pixel.effect_generator`), and every kernel is run on the same batches of
+  ``batch_size`` clips, so every kernel sees the same threshold-mismatch pattern and the same shot
+  noise.
+* **Mismatch patterns**: network ``s`` (the ``s``-th checkpoint of a task) is scored with sensor
+  seed ``checkpoint seed + s``: each training seed meets its own fixed-pattern chip, so resampling
+  training seeds resamples (network, chip) pairs and the mismatch-pattern variance enters the CI
+  with the seed variance. With one checkpoint neither enters (the CI says ``n_seeds = 1``).
+"""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import functools
+import io
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..kernels import Kernel
+from ..stats import ClipMeans, ClipMetric, CocoDetections, ConfusionMIoU, metric_from_state
+
+__all__ = ["ClipEvidence", "clip_evidence", "encode_evidence", "decode_evidence", "network_info",
+           "PER_CLIP_METRICS", "EVAL_BATCH"]
+
+#: Clips per simulator call. Noise streams restart at every call, so every kernel must be run on
+#: the same batches for its noise draws to be paired; 64 is also :func:`evaluate_kernel`'s batch,
+#: so the learned kernel reproduces its stored metric.
+EVAL_BATCH = 64
+
+
+def _detection(pred: dict[str, Any], targets: dict[str, Any], evaluator: Any) -> ClipMetric:
+    return CocoDetections.from_predictions(pred["boxes"].numpy(), pred["scores"].numpy(), pred["labels"].numpy(),
+                                           targets["boxes"].numpy(), targets["labels"].numpy(),
+                                           num_classes=evaluator.num_classes, metric="map")
+
+
+def _recognition(pred: dict[str, Any], targets: dict[str, Any], evaluator: Any) -> ClipMetric:
+    return ClipMeans.top1(pred["logits"].numpy(), targets["motion"].numpy())
+
+
+def _segmentation(pred: dict[str, Any], targets: dict[str, Any], evaluator: Any) -> ClipMetric:
+    return ConfusionMIoU.from_masks(pred["mask"].numpy(), targets["mask"].numpy(), evaluator.num_classes)
+
+
+#: task name → builder of its per-clip metric (the evaluator's primary metric) from predictions and targets
+PER_CLIP_METRICS: dict[str, Callable[[dict[str, Any], dict[str, Any], Any], ClipMetric]] = {
+    "detection": _detection,
+    "recognition": _recognition,
+    "segmentation": _segmentation,
+}
+
+
+@dataclass(frozen=True)
+class ClipEvidence:
+    """One kernel on one trained network: its per-clip metric and the full-set value.
+
+    Attributes
+    ----------
+    task, metric_name : str
+    value : float
+        The metric on all ``n_clips`` test clips (fraction).
+    n_clips : int
+    metric : ClipMetric
+        Recomputes the metric for any clip multiplicities (:mod:`fsdvs_hw.stats`).
+    checkpoint : str
+    sensor_seed : int
+        The simulator seed used (mismatch pattern and noise streams).
+    seconds : float
+        Wall time of the evaluation.
+    event_rate : float
+        Mean events per pixel and frame interval the network saw.
+    """
+
+    task: str
+    metric_name: str
+    value: float
+    n_clips: int
+    metric: ClipMetric
+    checkpoint: str
+    sensor_seed: int
+    seconds: float
+    event_rate: float = float("nan")
+
+
+@functools.lru_cache(maxsize=4)
+def _test_set(scene_json: str, n: int, seed: int, task: str, dtype: str) -> tuple[Any, Any, np.ndarray]:
+    import torch
+
+    from ..scenes.synthetic import SceneConfig, make_scenes
+    from ..tasks import get_evaluator
+
+    scene = SceneConfig.from_dict(json.loads(scene_json))
+    batch = make_scenes(scene, n, seed=seed)
+    return (torch.from_numpy(batch.video).to(getattr(torch, dtype)), get_evaluator(task).targets(batch),
+            np.asarray(scene.timestamps_s))
+
+
+@functools.lru_cache(maxsize=8)
+def _network(checkpoint: str, task: str) -> tuple[Any, dict[str, Any]]:
+    from ..tasks import get_evaluator
+    from ..tasks.learn import TrainingSettings, load_checkpoint
+
+    provenance, state, _ = load_checkpoint(checkpoint)
+    evaluator = get_evaluator(task)
+    if provenance.get("task") != evaluator.name:
+        raise InputError(f"checkpoint {checkpoint!r} was trained for task {provenance.get('task')!r}, "
+                         f"not {evaluator.name!r}")
+    settings = TrainingSettings(**{"dtype": "float64", **provenance["settings"]})
+    network = evaluator.build_network(int(provenance["in_channels"]), settings.width)
+    try:
+        network.load_state_dict(state, strict=True)
+    except RuntimeError as exc:
+        raise InputError(f"checkpoint {checkpoint!r} does not fit the {evaluator.name} network "
+                         f"({str(exc).splitlines()[0]})") from None
+    network.eval()
+    return network, provenance
+
+
+def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n_test: int | None = None,
+                  sensor: Any = None, seed_offset: int = 0, events_fn: Any = None) -> ClipEvidence:
+    """Score ``kernel`` zero-shot in one trained network and keep every clip's contribution.
+
+    Parameters
+    ----------
+    kernel : Kernel or None
+        The realised kernel (None: the conventional DVS, a 1×1 delta).
+    task : str
+        A task with a per-clip metric in :data:`PER_CLIP_METRICS`.
+    checkpoint : path
+        ``STEM.safetensors`` written by :func:`fsdvs_hw.tasks.learn_kernel`.
+    n_test : int, optional
+        The first ``n_test`` test clips (default: the checkpoint's ``n_test``).
+    sensor : SensorConfig, optional
+        Simulator settings (default: the checkpoint's); its seed is offset by ``seed_offset``.
+    seed_offset : int
+        Added to the sensor seed: the index of this checkpoint among the task's training seeds, so
+        each network meets its own mismatch pattern (module docstring).
+    events_fn : callable, optional
+        ``events_fn(video, kernel_taps, sensor, timestamps_s) -> (B, T-1, 2, H, W)`` event frames
+        (the emulation track); default the in-pixel simulator.
+
+    Returns
+    -------
+    ClipEvidence
+
+    Raises
+    ------
+    InputError
+        Unknown task, missing checkpoint, a task without a per-clip metric, bad ``n_test``.
+    """
+    import torch
+
+    from ..sensor import SensorConfig, event_frames
+    from ..tasks import get_evaluator
+    from ..tasks.networks import event_representation
+
+    t0 = time.perf_counter()
+    evaluator = get_evaluator(task)
+    if evaluator.name not in PER_CLIP_METRICS:
+        raise InputError(f"task {evaluator.name!r} has no per-clip metric; allowed: {', '.join(PER_CLIP_METRICS)} "
+                         f"(add a builder to fsdvs_hw.explore.paired.PER_CLIP_METRICS)")
+    network, prov = _network(str(checkpoint), evaluator.name)
+    n = int(prov["n_test"]) if n_test is None else n_test
+    if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= 100_000:
+        raise InputError(f"clip_evidence: n_test must be an integer in [2, 100000], got {n_test!r}")
+    cfg = sensor if sensor is not None else SensorConfig(**prov["sensor"])
+    cfg = dataclasses.replace(cfg, seed=int(cfg.seed) + int(seed_offset))
+    dtype = {"dtype": "float64", **prov["settings"]}["dtype"]
+    video, targets, ts = _test_set(json.dumps(prov["scene"], sort_keys=True), n, int(prov["test_seed"]),
+                                   evaluator.name, dtype)
+    k = Kernel(np.ones((1, 1)), name="w/o") if kernel is None else kernel
+    taps = torch.as_tensor(np.array(k.taps))
+    preds, n_events, n_px = [], 0.0, 0
+    with torch.no_grad():
+        for s in range(0, n, EVAL_BATCH):
+            if events_fn is None:
+                ev = event_frames(video[s : s + EVAL_BATCH], taps, timestamps_s=ts, config=cfg)
+            else:
+                ev = events_fn(video[s : s + EVAL_BATCH], taps, cfg, ts)
+            n_events += float(ev.sum())
+            n_px += ev[:, :, 0].numel()
+            preds.append(evaluator.predict(network(event_representation(ev.float()))))
+    pred = {key: torch.cat([p[key] for p in preds]) for key in preds[0]}
+    metric = PER_CLIP_METRICS[evaluator.name](pred, targets, evaluator)
+    value = float(metric.weighted(np.ones((1, n)))[0])
+    return ClipEvidence(task=evaluator.name, metric_name=evaluator.primary_metric, value=value, n_clips=n,
+                        metric=metric, checkpoint=str(checkpoint), sensor_seed=int(cfg.seed),
+                        seconds=time.perf_counter() - t0, event_rate=n_events / max(n_px, 1))
+
+
+@functools.lru_cache(maxsize=32)
+def _training_kernel(checkpoint: str) -> tuple[dict[str, Any], Kernel]:
+    from ..tasks.learn import load_checkpoint
+
+    provenance, _, kernel = load_checkpoint(checkpoint)
+    return provenance, kernel
+
+
+def network_info(checkpoint: str | Path, target: Kernel | None = None) -> dict[str, Any]:
+    """Which network a task's loss is measured in: its training kernel and whether that is ``target``.
+
+    Returns
+    -------
+    dict
+        ``checkpoint``, ``task``, ``seed``, ``learn_filter`` (False: trained with the kernel frozen),
+        ``training_kernel`` (name), ``trained_with_target`` (the training kernel's taps equal
+        ``target``'s to 1e-9; None without a target) and the checkpoint's stored ``final_metric``.
+    """
+    provenance, kernel = _training_kernel(str(checkpoint))
+    same = None
+    if target is not None:
+        same = bool(kernel.size == target.size and np.allclose(np.array(kernel.taps), np.array(target.taps),
+                                                               rtol=0, atol=1e-9))
+    return {"checkpoint": Path(checkpoint).name, "task": provenance.get("task"), "seed": provenance.get("seed"),
+            "learn_filter": provenance.get("learn_filter"),
+            "training_kernel": provenance.get("init_kernel_name") or kernel.name,
+            "trained_with_target": same, "final_metric": provenance.get("final_metric")}
+
+
+def encode_evidence(metric: ClipMetric) -> str:
+    """A metric object as base64 text of a compressed ``.npz`` (for JSON records)."""
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **metric.state())
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def decode_evidence(text: str) -> ClipMetric:
+    """Inverse of :func:`encode_evidence`."""
+    try:
+        with np.load(io.BytesIO(base64.b64decode(text.encode("ascii"))), allow_pickle=False) as z:
+            state = {k: z[k] for k in z.files}
+    except (ValueError, OSError, TypeError) as exc:
+        raise InputError(f"decode_evidence: not an encoded per-clip metric ({exc})") from None
+    return metric_from_state(state)
