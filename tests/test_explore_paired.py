@@ -81,11 +81,16 @@ def test_explore_writes_loss_cis_for_every_task_and_track(tmp_path, capsys):
 
     from fsdvs_hw.cli import main
 
+    import shutil
+
+    # the kernel and networks beside the design (paths in a design file must stay inside its folder)
+    for src in (KERNELS / "learned_detection_7x7.json", DET, REC):
+        shutil.copy(src, tmp_path / src.name)
     p = tmp_path / "d.toml"
-    p.write_text(f'[kernel]\nsource = "file"\npath = "{KERNELS}/learned_detection_7x7.json"\n'
+    p.write_text('[kernel]\nsource = "file"\npath = "learned_detection_7x7.json"\n'
                  '[realisations]\ninclude = ["learned", "delta"]\n[analysis]\ncsf_methods = ["mannos_sakrison_1974"]\n'
                  '[emulation]\nenabled = false\n'
-                 f'[tasks]\ncheckpoints = {{ detection = ["{DET}"], recognition = "{REC}" }}\n'
+                 f'[tasks]\ncheckpoints = {{ detection = ["{DET.name}"], recognition = "{REC.name}" }}\n'
                  'n_test = { detection = 64, recognition = 96 }\nn_test_emulation = 32\n'
                  'tracks = ["simulator", "emulation"]\n[scoring]\nn_resamples = 300\n'
                  'task_weights = { detection = 3, recognition = 1 }\n[run]\nworkers = 1\n')
