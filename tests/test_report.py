@@ -17,8 +17,8 @@ from fsdvs_hw.cli import main
 from fsdvs_hw.explore.design import parse_design
 from fsdvs_hw.kernels import Kernel
 from fsdvs_hw.realise.base import kernel_error
-from fsdvs_hw.report.tables import (headline_cost, kind_cost, pareto_front, score_rows, uncertain_pareto_front,
-                                    verdict_markdown, verdict_rows)
+from fsdvs_hw.report.tables import (accuracy_axis, headline_cost, kind_cost, pareto_front, score_rows,
+                                    uncertain_pareto_front, verdict_markdown, verdict_rows)
 
 
 def test_pareto_front_by_hand():
@@ -125,6 +125,21 @@ def test_score_rows_flatten_losses_with_cis_and_mark_uncertain_fronts():
     assert verdict["a8"]["MS agreement, fitted scale"] == "0.95" and verdict["a8"]["MS agreement, design geometry"] == "0.9"
     md = verdict_markdown(list(rows.values()))
     assert md.splitlines()[0].startswith("| realisation | detection loss | recognition loss | weighted loss |")
+
+
+def test_a_cost_item_named_like_a_loss_is_not_a_task():
+    """The metalens reports its pedestal's price as the cost item ``contrast_loss``; it must not
+    become a task column of the verdict table nor the accuracy axis."""
+    pedestal = {"contrast_loss": {"value": 0.7, "unit": "fraction"}}
+    pts = [_point("L", "learned", 0.0, 0.9, losses=[(0, 0), (0, 0), (0, 0)]),
+           _point("ml", "metalens", 0.3, 0.5, pedestal, losses=[(0.1, 0.01), (0.2, 0.01), (0.15, 0.01)])]
+    rows = score_rows(pts)
+    assert rows[1]["cost_contrast_loss"] == pytest.approx(0.7)
+    header = verdict_markdown(rows).splitlines()[0]
+    assert "contrast" not in header and header.startswith("| realisation | detection loss | recognition loss |")
+    assert accuracy_axis(rows)[0] == "weighted_loss"
+    assert accuracy_axis([{k: v for k, v in r.items() if not k.startswith("weighted")} for r in rows])[0] \
+        == "detection_loss"
 
 
 def _pngs(html: str) -> dict[str, bytes]:

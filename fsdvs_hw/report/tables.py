@@ -192,6 +192,13 @@ def loss_interval(row: Mapping[str, Any], column: str) -> tuple[float, float, fl
     return v, _num(row[lows[0]]), _num(row[lows[0][: -len("_low")] + "_high"])
 
 
+def _is_task_loss(column: str) -> bool:
+    """A task-loss column (``detection_loss``, ``emu_weighted_loss``), not a hardware cost item
+    whose name ends in ``_loss`` (flattened as ``cost_<name>``, e.g. the metalens pedestal's
+    ``cost_contrast_loss``)."""
+    return column.endswith("_loss") and not column.startswith("cost_")
+
+
 def accuracy_axis(rows: Sequence[Mapping[str, Any]]) -> tuple[str, str]:
     """The column used as 'accuracy loss': the weighted task loss (simulator), else the first task
     loss, else kernel error when no task ran."""
@@ -199,7 +206,7 @@ def accuracy_axis(rows: Sequence[Mapping[str, Any]]) -> tuple[str, str]:
     if "weighted_loss" in keys:
         return "weighted_loss", "weighted task loss (learned − realised, simulator)"
     for k in keys:
-        if k.endswith("_loss") and not k.startswith("emu_"):
+        if _is_task_loss(k) and not k.startswith("emu_"):
             return k, f"accuracy loss ({k[:-5]}, learned − realised)"
     return "kernel_error", "kernel error (relative L2; no task evaluator ran)"
 
@@ -308,7 +315,7 @@ def _fmt(v: Any) -> str:
 def _loss_tasks(rows: Sequence[Mapping[str, Any]], prefix: str = "") -> list[str]:
     """Task names with a loss column on a track (``weighted`` last)."""
     names = [k[len(prefix):-len("_loss")] for r in rows for k in r
-             if k.endswith("_loss") and k.startswith(prefix) and (prefix or not k.startswith("emu_"))]
+             if _is_task_loss(k) and k.startswith(prefix) and (prefix or not k.startswith("emu_"))]
     names = list(dict.fromkeys(names))
     return [n for n in names if n != "weighted"] + (["weighted"] if "weighted" in names else [])
 
