@@ -62,6 +62,7 @@ __all__ = [
     "ClipMeans",
     "ConfusionMIoU",
     "CocoDetections",
+    "coco_records",
     "DifferenceCI",
     "difference_ci",
     "difference_cis",
@@ -218,6 +219,45 @@ class _Category:
         return [np.flatnonzero(row) for row in self.tps]
 
 
+def coco_records(pred_boxes: np.ndarray, pred_scores: np.ndarray, pred_labels: np.ndarray, gt_boxes: np.ndarray,
+                 gt_labels: np.ndarray, *, num_classes: int, who: str = "coco_records"
+                 ) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]]]:
+    """COCO ``images``, ``annotations`` and detection records of padded per-clip boxes.
+
+    Boxes are ``(x0, y0, x1, y1)`` in pixels, shape (N, K, 4) predicted with (N, K) scores and
+    labels, (N, M, 4) true with (N, M) labels; a label < 0 or a non-finite box (or score) is
+    padding and skipped. Clip ``i`` is COCO image ``i``. Shared by
+    :func:`fsdvs_hw.tasks.metrics.detection_map` and :class:`CocoDetections` so both score the
+    same records.
+
+    Raises
+    ------
+    InputError
+        A label outside ``[0, num_classes)`` (message prefixed with ``who``).
+    """
+    images: list[dict[str, Any]] = []
+    anns: list[dict[str, Any]] = []
+    dets: list[dict[str, Any]] = []
+    for i in range(int(gt_boxes.shape[0])):
+        images.append({"id": i, "width": 1, "height": 1})
+        for b, c in zip(gt_boxes[i], gt_labels[i]):
+            if c < 0 or not np.all(np.isfinite(b)):
+                continue
+            if not 0 <= c < num_classes:
+                raise InputError(f"{who}: gt label {int(c)} outside [0, {num_classes})")
+            w, h = float(b[2] - b[0]), float(b[3] - b[1])
+            anns.append({"id": len(anns) + 1, "image_id": i, "category_id": int(c), "iscrowd": 0,
+                         "bbox": [float(b[0]), float(b[1]), w, h], "area": w * h})
+        for b, sc, c in zip(pred_boxes[i], pred_scores[i], pred_labels[i]):
+            if c < 0 or not np.all(np.isfinite(b)) or not np.isfinite(sc):
+                continue
+            if not 0 <= c < num_classes:
+                raise InputError(f"{who}: predicted label {int(c)} outside [0, {num_classes})")
+            dets.append({"image_id": i, "category_id": int(c), "score": float(sc),
+                         "bbox": [float(b[0]), float(b[1]), float(b[2] - b[0]), float(b[3] - b[1])]})
+    return images, anns, dets
+
+
 class CocoDetections:
     """COCO box AP recomputable for any clip multiplicities (pycocotools matches, weighted accumulate).
 
@@ -265,24 +305,7 @@ class CocoDetections:
             raise InputError(f"CocoDetections: inconsistent shapes pred {pb.shape}, {ps.shape}, {pl.shape}; "
                              f"gt {gb.shape}, {gl.shape}")
         n = int(gb.shape[0])
-        images, anns, dets = [], [], []
-        for i in range(n):
-            images.append({"id": i, "width": 1, "height": 1})
-            for b, c in zip(gb[i], gl[i]):
-                if c < 0 or not np.all(np.isfinite(b)):
-                    continue
-                if not 0 <= c < num_classes:
-                    raise InputError(f"CocoDetections: gt label {int(c)} outside [0, {num_classes})")
-                w, h = float(b[2] - b[0]), float(b[3] - b[1])
-                anns.append({"id": len(anns) + 1, "image_id": i, "category_id": int(c), "iscrowd": 0,
-                             "bbox": [float(b[0]), float(b[1]), w, h], "area": w * h})
-            for b, s, c in zip(pb[i], ps[i], pl[i]):
-                if c < 0 or not np.all(np.isfinite(b)) or not np.isfinite(s):
-                    continue
-                if not 0 <= c < num_classes:
-                    raise InputError(f"CocoDetections: predicted label {int(c)} outside [0, {num_classes})")
-                dets.append({"image_id": i, "category_id": int(c), "score": float(s),
-                             "bbox": [float(b[0]), float(b[1]), float(b[2] - b[0]), float(b[3] - b[1])]})
+        images, anns, dets = coco_records(pb, ps, pl, gb, gl, num_classes=num_classes, who="CocoDetections")
         if not anns:
             raise InputError("CocoDetections: no ground-truth boxes; mAP is undefined")
         with contextlib.redirect_stdout(io.StringIO()):

@@ -119,23 +119,9 @@ def _test_set(scene_json: str, n: int, seed: int, task: str, dtype: str) -> tupl
 
 @functools.lru_cache(maxsize=8)
 def _network(checkpoint: str, task: str) -> tuple[Any, dict[str, Any]]:
-    from ..tasks import get_evaluator
-    from ..tasks.learn import TrainingSettings, load_checkpoint
+    from ..tasks.learn import load_network
 
-    provenance, state, _ = load_checkpoint(checkpoint)
-    evaluator = get_evaluator(task)
-    if provenance.get("task") != evaluator.name:
-        raise InputError(f"checkpoint {checkpoint!r} was trained for task {provenance.get('task')!r}, "
-                         f"not {evaluator.name!r}")
-    settings = TrainingSettings(**{"dtype": "float64", **provenance["settings"]})
-    network = evaluator.build_network(int(provenance["in_channels"]), settings.width)
-    try:
-        network.load_state_dict(state, strict=True)
-    except RuntimeError as exc:
-        raise InputError(f"checkpoint {checkpoint!r} does not fit the {evaluator.name} network "
-                         f"({str(exc).splitlines()[0]})") from None
-    network.eval()
-    return network, provenance
+    return load_network(checkpoint, task, who="clip_evidence")
 
 
 def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n_test: int | None = None,

@@ -58,7 +58,7 @@ from ..errors import InputError, KernelError
 from ..kernels import Kernel, load_kernel
 
 __all__ = ["learn_kernel", "evaluate_kernel", "LearnResult", "Evaluation", "TrainingSettings",
-           "load_checkpoint", "default_sensor", "heldout_targets", "TEST_SEED", "CHECKPOINT_FORMAT"]
+           "load_checkpoint", "load_network", "default_sensor", "heldout_targets", "TEST_SEED", "CHECKPOINT_FORMAT"]
 
 #: Seed of every task's test clips (fixed, so that runs with different training seeds and kernel
 #: sizes are scored on the same clips).
@@ -617,10 +617,7 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
 
     t0 = time.perf_counter()
     evaluator = get_evaluator(task)
-    provenance, state, _ = load_checkpoint(checkpoint)
-    if provenance.get("task") != evaluator.name:
-        raise InputError(f"evaluate_kernel: checkpoint {str(checkpoint)!r} was trained for task "
-                         f"{provenance.get('task')!r}, not {evaluator.name!r}")
+    network, provenance = load_network(checkpoint, evaluator, who="evaluate_kernel")
     k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else _as_kernel(kernel)
     scene = SceneConfig.from_dict(provenance["scene"])
     if k.size > min(scene.height_px, scene.width_px):
@@ -635,12 +632,6 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
     if isinstance(finetune_epochs, bool) or not isinstance(finetune_epochs, int) or finetune_epochs < 0:
         raise InputError(f"evaluate_kernel: finetune_epochs must be a non-negative integer, got {finetune_epochs!r}")
     settings = TrainingSettings(**{"dtype": "float64", **provenance["settings"]})
-    network = evaluator.build_network(int(provenance["in_channels"]), settings.width)
-    try:
-        network.load_state_dict(state, strict=True)
-    except RuntimeError as exc:
-        raise InputError(f"evaluate_kernel: checkpoint {str(checkpoint)!r} does not fit the {evaluator.name} "
-                         f"network ({str(exc).splitlines()[0]})") from None
     kernel_t = torch.as_tensor(np.array(k.taps))
     ts = scene.timestamps_s
     if finetune_epochs:
@@ -661,6 +652,41 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
     return Evaluation(task=evaluator.name, metrics=metrics, primary_metric=evaluator.primary_metric,
                       kernel_name=k.name, kernel_size=k.size, n_test=n_test, finetune_epochs=finetune_epochs,
                       seconds=time.perf_counter() - t0, event_rate=event_rate, predictions=kept or {})
+
+
+def load_network(checkpoint: str | Path, task: Any, *, who: str = "load_network") -> tuple[Any, dict[str, Any]]:
+    """The network of a task checkpoint, weights loaded, in eval mode, with its provenance.
+
+    Parameters
+    ----------
+    checkpoint : path
+        A ``.safetensors`` checkpoint written by :func:`learn_kernel`.
+    task : str or TaskEvaluator
+        The task it must have been trained for.
+    who : str
+        Name put in front of error messages.
+
+    Raises
+    ------
+    InputError
+        Unreadable checkpoint, trained for another task, or weights that do not fit the network.
+    """
+    from .evaluators import get_evaluator
+
+    evaluator = get_evaluator(task)
+    provenance, state, _ = load_checkpoint(checkpoint)
+    if provenance.get("task") != evaluator.name:
+        raise InputError(f"{who}: checkpoint {str(checkpoint)!r} was trained for task "
+                         f"{provenance.get('task')!r}, not {evaluator.name!r}")
+    settings = TrainingSettings(**{"dtype": "float64", **provenance["settings"]})
+    network = evaluator.build_network(int(provenance["in_channels"]), settings.width)
+    try:
+        network.load_state_dict(state, strict=True)
+    except RuntimeError as exc:
+        raise InputError(f"{who}: checkpoint {str(checkpoint)!r} does not fit the {evaluator.name} "
+                         f"network ({str(exc).splitlines()[0]})") from None
+    network.eval()
+    return network, provenance
 
 
 def heldout_targets(task: Any, scene: Any, n_test: int) -> dict[str, np.ndarray]:

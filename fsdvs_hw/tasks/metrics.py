@@ -85,6 +85,8 @@ def detection_map(pred_boxes: Any, pred_scores: Any, pred_labels: Any, gt_boxes:
     from pycocotools.coco import COCO
     from pycocotools.cocoeval import COCOeval
 
+    from ..stats import coco_records
+
     pb = _as_numpy(pred_boxes, "pred_boxes", 3)
     ps = _as_numpy(pred_scores, "pred_scores", 2)
     pl = _as_numpy(pred_labels, "pred_labels", 2)
@@ -96,24 +98,7 @@ def detection_map(pred_boxes: Any, pred_scores: Any, pred_labels: Any, gt_boxes:
     if pb.shape[-1] != 4 or gb.shape[-1] != 4 or pb.shape[:2] != ps.shape or gb.shape[:2] != gl.shape:
         raise InputError(f"detection_map: shapes do not match: pred boxes {pb.shape}, scores {ps.shape}, "
                          f"gt boxes {gb.shape}, labels {gl.shape} (boxes need a last axis of 4)")
-    images, anns, dets = [], [], []
-    for i in range(gb.shape[0]):
-        images.append({"id": i, "width": 1, "height": 1})
-        for b, c in zip(gb[i], gl[i]):
-            if c < 0 or not np.all(np.isfinite(b)):
-                continue
-            if not 0 <= c < num_classes:
-                raise InputError(f"detection_map: gt label {int(c)} outside [0, {num_classes})")
-            w, h = float(b[2] - b[0]), float(b[3] - b[1])
-            anns.append({"id": len(anns) + 1, "image_id": i, "category_id": int(c), "iscrowd": 0,
-                         "bbox": [float(b[0]), float(b[1]), w, h], "area": w * h})
-        for b, s, c in zip(pb[i], ps[i], pl[i]):
-            if c < 0 or not np.all(np.isfinite(b)) or not np.isfinite(s):
-                continue
-            if not 0 <= c < num_classes:
-                raise InputError(f"detection_map: predicted label {int(c)} outside [0, {num_classes})")
-            dets.append({"image_id": i, "category_id": int(c), "score": float(s),
-                         "bbox": [float(b[0]), float(b[1]), float(b[2] - b[0]), float(b[3] - b[1])]})
+    images, anns, dets = coco_records(pb, ps, pl, gb, gl, num_classes=num_classes, who="detection_map")
     if not anns:
         raise InputError("detection_map: no ground-truth boxes; mAP is undefined")
     if not dets:
