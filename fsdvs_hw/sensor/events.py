@@ -284,51 +284,73 @@ class _Comparator(torch.autograd.Function):
         return g_target, g_refin, gc_on, gc_off, None
 
 
-def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[int],
-         generator: Any, collect_events: bool, thresholds: tuple[Any, Any] | None = None,
-         phase: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
-    """Step every pixel through time; return counts (B, T-1, 2, H, W), info and events.
+@dataclass
+class _PixelState:
+    """Everything a pixel carries from one frame interval to the next (one simulation run).
 
-    ``thresholds`` and ``phase`` (per-pixel maps) are drawn here unless given (region stepping
-    passes the full-frame draws gathered to its pixels).
+    Streaming (:mod:`.stream`) keeps one of these across chunks of frames, so a clip simulated
+    chunk by chunk steps through exactly the operations of a whole-clip run.
     """
-    import torch
 
-    L = signal.log_signal
-    B, T, H, W = L.shape
-    dev, dt_ = L.device, L.dtype
-    c_on, c_off = thresholds if thresholds is not None else threshold_maps(config, (H, W), L, generator=generator)
-    eps = _COUNT_EPS.get(str(dt_).split(".")[-1], 1e-6)
+    c_on: Any
+    c_off: Any
+    eps: float
+    ref: Any  # memorised reference (log units)
+    lp: Any  # photoreceptor low-pass output (None without photoreceptor)
+    sur: Any  # lagged mesh surround (None without a transient surround)
+    sig_prev: Any  # comparator input at the end of the previous step
+    last_t: Any  # time of each pixel's last event (None without refractory period)
+    shot_g: Any  # shot-noise count stream
+    time_g: Any  # shot-noise time stream (event lists only)
+    noise_events: int = 0
+    lost: float = 0.0
+
+
+def _init_state(L0: Any, SU0: Any, config: SensorConfig, thresholds: tuple[Any, Any] | None,
+                phase: Any, generator: Any, collect_events: bool) -> _PixelState:
+    """Pixel state at the first frame ``L0`` (B, H, W) (``SU0``: its settled surround or None)."""
+    B, H, W = L0.shape
+    dev = L0.device
+    c_on, c_off = thresholds if thresholds is not None else threshold_maps(config, (H, W), L0, generator=generator)
+    eps = _COUNT_EPS.get(str(L0.dtype).split(".")[-1], 1e-6)
+    transient = SU0 is not None
+    # the comparator's initial input (centre minus the settled surround in transient mode)
+    ref = (L0 - config.surround_weight * SU0) if transient else L0
+    if config.random_reference_phase:  # reference starts at a random point of its cycle
+        if phase is None:
+            phase = _reference_phase(config, H, W, L0)
+        ref = ref - phase * c_on
+    refr = float(config.refractory_s)
+    shot = float(config.shot_noise_rate_hz)
+    last_t = torch.full((B, H, W), -math.inf, dtype=torch.float64, device=dev) if refr > 0 else None
+    shot_g = effect_generator(config.seed, "shot", dev) if shot > 0 else None
+    # noise-event times draw from their own stream so event_list and event_frames agree
+    time_g = effect_generator(config.seed, "shot_time", dev) if shot > 0 and collect_events else None
+    sig_prev = (L0 - config.surround_weight * SU0) if transient else L0
+    return _PixelState(c_on, c_off, eps, ref, L0 if config.has_photoreceptor else None, SU0, sig_prev,
+                       last_t, shot_g, time_g)
+
+
+def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: SensorConfig, substeps: list[int],
+             collect_events: bool, events: list) -> list:
+    """Step the pixels of ``st`` through frames ``Ls[0] → Ls[1] → ...`` (tuples of (B, H, W));
+    ``Ls[0]`` is the frame the state is at. Returns the [on, off, on, off, ...] interval counts;
+    events are appended to ``events``. ``tsd``: (B, len(Ls)) float64 frame times."""
+    B, H, W = Ls[0].shape
+    dev, dt_ = Ls[0].device, Ls[0].dtype
+    c_on, c_off, eps = st.c_on, st.c_off, st.eps
     relaxed = config.surrogate == "relaxed"
     has_lp = config.has_photoreceptor
     refr = float(config.refractory_s)
     leak = float(config.leak_rate_hz)
     shot = float(config.shot_noise_rate_hz)
-    transient = signal.surround is not None
+    transient = SU is not None
     exact_times = collect_events or refr > 0
-    tsd = ts.to(dtype=torch.float64)
-
-    Ls = L.unbind(1)  # one unbind: its backward is one stack, not T full-size zero tensors
-    CI = signal.cutoff_intensity.unbind(1) if has_lp else None
-    SU = signal.surround.unbind(1) if transient else None
-    # the comparator's initial input (centre minus the settled surround in transient mode)
-    ref = (Ls[0] - config.surround_weight * SU[0]) if transient else Ls[0]
-    if config.random_reference_phase:  # reference starts at a random point of its cycle
-        if phase is None:
-            phase = _reference_phase(config, H, W, L)
-        ref = ref - phase * c_on
-    lp = Ls[0] if has_lp else None
-    sur = SU[0] if transient else None
-    last_t = torch.full((B, H, W), -math.inf, dtype=torch.float64, device=dev) if refr > 0 else None
-    shot_g = effect_generator(config.seed, "shot", dev) if shot > 0 else None
-    # noise-event times draw from their own stream so event_list and event_frames agree
-    time_g = effect_generator(config.seed, "shot_time", dev) if shot > 0 and collect_events else None
-    events: list = []
+    ref, lp, sur, sig_prev, last_t = st.ref, st.lp, st.sur, st.sig_prev, st.last_t
+    shot_g, time_g = st.shot_g, st.time_g
+    noise_events, lost = st.noise_events, st.lost
     frames = []
-    noise_events = 0
-    lost = 0.0
-    sig_prev = (Ls[0] - config.surround_weight * sur) if transient else Ls[0]
-    for k in range(T - 1):
+    for k in range(len(Ls) - 1):
         S = substeps[k]
         dt_int = (tsd[:, k + 1] - tsd[:, k])  # (B,)
         dt_sub64 = (dt_int / S).view(B, 1, 1)
@@ -344,9 +366,9 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
                 lp = lowpass_step(lp, target, fc, dt_sub)
                 target = lp
             if transient:
-                st = SU[k + 1] if s == S else torch.lerp(SU[k], SU[k + 1], frac)
+                stt = SU[k + 1] if s == S else torch.lerp(SU[k], SU[k + 1], frac)
                 alpha = -torch.expm1(-dt_sub / config.surround_tau_s)
-                sur = sur + alpha * (st - sur)
+                sur = sur + alpha * (stt - sur)
                 target = target - config.surround_weight * sur
             ref_a = ref
             if leak > 0:
@@ -395,18 +417,40 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
                             rep = torch.repeat_interleave(idx, cnt, dim=0)
                             u = torch.rand(len(rep), generator=time_g, device=time_g.device, dtype=torch.float64).to(dev)
                             t = torch.minimum(ta[rep[:, 0], rep[:, 1], rep[:, 2]] + (1.0 - u) * dt_sub64.view(B)[rep[:, 0]],
-                                          tb[rep[:, 0], rep[:, 1], rep[:, 2]])
+                                              tb[rep[:, 0], rep[:, 1], rep[:, 2]])
                             events.append((rep[:, 0].cpu(), rep[:, 2].cpu(), rep[:, 1].cpu(), t.cpu(),
                                            torch.full((len(rep),), pol, dtype=torch.int8)))
             sig_prev = target
             on_acc = e_on if on_acc is None else on_acc + e_on
             off_acc = e_off if off_acc is None else off_acc + e_off
         frames += [on_acc, off_acc]
+    st.ref, st.lp, st.sur, st.sig_prev, st.last_t = ref, lp, sur, sig_prev, last_t
+    st.noise_events, st.lost = noise_events, lost
+    return frames
+
+
+def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[int],
+         generator: Any, collect_events: bool, thresholds: tuple[Any, Any] | None = None,
+         phase: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
+    """Step every pixel through time; return counts (B, T-1, 2, H, W), info and events.
+
+    ``thresholds`` and ``phase`` (per-pixel maps) are drawn here unless given (region stepping
+    passes the full-frame draws gathered to its pixels).
+    """
+    L = signal.log_signal
+    B, T, H, W = L.shape
+    transient = signal.surround is not None
+    Ls = L.unbind(1)  # one unbind: its backward is one stack, not T full-size zero tensors
+    CI = signal.cutoff_intensity.unbind(1) if config.has_photoreceptor else None
+    SU = signal.surround.unbind(1) if transient else None
+    st = _init_state(Ls[0], SU[0] if transient else None, config, thresholds, phase, generator, collect_events)
+    events: list = []
+    frames = _advance(st, Ls, CI, SU, ts.to(dtype=torch.float64), config, substeps, collect_events, events)
     out = torch.stack(frames, dim=1).view(B, T - 1, 2, H, W)
     ev = None
     if collect_events:
         ev = _merge_events([EventList(*c) for c in events])
-    info = SimulationInfo(signal.floor_fraction, tuple(substeps), noise_events, int(round(lost)),
+    info = SimulationInfo(signal.floor_fraction, tuple(substeps), st.noise_events, int(round(st.lost)),
                           B * H * W * sum(substeps))
     return out, info, ev
 
@@ -513,7 +557,9 @@ def _merge_events(parts: list[EventList]) -> EventList:
         z = torch.zeros(0, dtype=torch.int64)
         return EventList(z, z.clone(), z.clone(), torch.zeros(0, dtype=torch.float64), torch.zeros(0, dtype=torch.int8))
     b, x, y, t, p = (torch.cat(c) for c in zip(*[(e.b, e.x, e.y, e.t, e.p) for e in parts]))
-    order = torch.argsort(b.double() * 1e12 + (t - float(t.min())), stable=True)
+    # by batch element, then time (two stable sorts: exact, no float key mixing b and t)
+    order = torch.argsort(t, stable=True)
+    order = order[torch.argsort(b[order], stable=True)]
     return EventList(b[order], x[order], y[order], t[order], p[order])
 
 
