@@ -65,6 +65,8 @@ class EventChunk:
         The chunk's diagnostics (``floor_fraction`` over the chunk's new frames).
     n_frames : int
         Frames whose signal this chunk computed (the first chunk includes frame 0).
+    height, width : int
+        Sensor size in pixels.
     """
 
     first_interval: int
@@ -73,6 +75,8 @@ class EventChunk:
     events: EventList | None
     info: SimulationInfo
     n_frames: int
+    height: int
+    width: int
 
     @property
     def n_intervals(self) -> int:
@@ -292,7 +296,7 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
         ev = _merge_events([EventList(*c) for c in ev_parts]) if want_events else None
         info = SimulationInfo(sig.floor_fraction, tuple(subs), state.noise_events - noise0,
                               int(round(state.lost - lost0)), B * shape[1] * shape[2] * sum(subs))
-        yield EventChunk(first_interval, tsd, frames, ev, info, len(batch))
+        yield EventChunk(first_interval, tsd, frames, ev, info, len(batch), shape[1], shape[2])
         prev = (Ls[-1].detach(), CI[-1].detach() if CI is not None else None,
                 SU[-1].detach() if SU is not None else None, ts[-1])
         first_interval += n_int
