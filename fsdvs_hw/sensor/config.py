@@ -157,7 +157,9 @@ class SensorConfig:
     adaptive_fraction : float or None
         ESIM-style [2]_ adaptive stepping: sub-steps per interval chosen so that no pixel's log
         signal moves by more than this fraction of the threshold per sub-step (per frame interval,
-        not one global step). ``None`` (default) uses ``substeps``.
+        not one global step). ``None`` (default) uses ``substeps``. Sub-steps only refine a
+        temporal filter (photoreceptor low-pass, surround-mesh transient); without one the
+        crossings of the linear signal are exact in one step, so none are added.
     max_substeps : int
         Upper bound of adaptive sub-steps per interval (default 256).
     adaptive_region_px : int

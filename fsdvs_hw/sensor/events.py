@@ -444,6 +444,9 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     CI = signal.cutoff_intensity.unbind(1) if config.has_photoreceptor else None
     SU = signal.surround.unbind(1) if transient else None
     st = _init_state(Ls[0], SU[0] if transient else None, config, thresholds, phase, generator, collect_events)
+    if float(config.refractory_s) > 0 and not config.has_photoreceptor and not transient \
+            and _refractory_never_binds(Ls, ts, st.c_on, st.c_off, config):
+        config = config.replace(refractory_s=0.0)  # nothing can be lost: skip the refractory path
     events: list = []
     frames = _advance(st, Ls, CI, SU, ts.to(dtype=torch.float64), config, substeps, collect_events, events)
     out = torch.stack(frames, dim=1).view(B, T - 1, 2, H, W)
@@ -487,14 +490,56 @@ def _simulate(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig |
     signal = filtered_log_signal(video, w, config)
     step = None  # log-signal change allowed per sub-step (adaptive stepping)
     if subs is None:
-        if config.adaptive_fraction is not None:
-            step = config.adaptive_fraction * _low_threshold(config)
-        subs = _choose_substeps(signal.log_signal, step, config)
+        step = _adaptive_step(config, signal.surround is not None)
+        subs = _choose_substeps_for(signal.log_signal, config, signal.surround is not None)
     elif plan is not None:
         step = plan.step_log_units
     if step is not None and config.adaptive_region_px > 0 and max(subs) > 1:
         return _run_regions(signal, ts, config, subs, step, generator, collect_events)
     return _run(signal, ts, config, subs, generator, collect_events)
+
+
+def _adaptive_step(config: SensorConfig, transient: bool) -> float | None:
+    """Log-signal change allowed per adaptive sub-step, or None for no sub-steps.
+
+    Sub-steps only refine a temporal filter (photoreceptor low-pass, surround-mesh transient):
+    without one the comparator input is linear between frames and one step per interval is exact,
+    so ``adaptive_fraction`` then adds none (and ``substeps``, which it replaces, is ignored).
+    """
+    if config.adaptive_fraction is None or not (config.has_photoreceptor or transient):
+        return None
+    return config.adaptive_fraction * _low_threshold(config)
+
+
+def _choose_substeps_for(log_signal: Any, config: SensorConfig, transient: bool) -> list[int]:
+    step = _adaptive_step(config, transient)
+    if step is None and config.adaptive_fraction is not None:
+        return [1] * (log_signal.shape[1] - 1)
+    return _choose_substeps(log_signal, step, config)
+
+
+def _refractory_never_binds(Ls: Any, ts: Any, c_on: Any, c_off: Any, config: SensorConfig) -> bool:
+    """True if no threshold crossing can fall inside a refractory period anywhere in the clip.
+
+    Valid without a temporal filter, where the comparator input is linear between frames: its
+    slope is at most ``v = max |ΔL| / Δt + leak_rate_hz · C_on`` (the leak drifts the reference
+    linearly), and two successive crossings of one pixel are at least one threshold apart in
+    ``L - r`` (an ON after an ON needs ``C_on``, an OFF after it ``C_off``), so at least
+    ``C_min / v`` apart in time. If that exceeds the refractory period (with a 0.1 % margin for
+    rounding) the refractory path would emit every crossing: the clip runs without it, with
+    identical counts and events and none lost.
+    """
+    refr = float(config.refractory_s)
+    with torch.no_grad():
+        dt = (ts[:, 1:] - ts[:, :-1]).to(torch.float64)  # (B, T-1)
+        vmax = 0.0
+        for k in range(len(Ls) - 1):
+            jump = (Ls[k + 1] - Ls[k]).abs().flatten(1).amax(dim=1).to(torch.float64)  # (B,)
+            vmax = max(vmax, float((jump / dt[:, k]).max()))
+        c_max = float(torch.as_tensor(c_on).detach().max())
+        vmax += float(config.leak_rate_hz) * c_max
+        c_min = min(float(torch.as_tensor(c_on).detach().min()), float(torch.as_tensor(c_off).detach().min()))
+    return vmax * refr < 0.999 * c_min
 
 
 def _low_threshold(config: SensorConfig) -> float:

@@ -39,8 +39,7 @@ import torch
 
 from ..errors import InputError
 from .config import SensorConfig
-from .events import (EventList, SimulationInfo, _advance, _choose_substeps, _init_state, _low_threshold,
-                     _merge_events)
+from .events import EventList, SimulationInfo, _advance, _choose_substeps_for, _init_state, _merge_events
 from .filtering import filtered_log_signal, kernel_tensor
 from .pixel import threshold_maps
 
@@ -192,11 +191,6 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
             subs_plan: list[int] | None, chunk: int, want_events: bool, want_frames: bool,
             generator: Any) -> Iterator[EventChunk]:
     times = iter(timestamps_s) if timestamps_s is not None else None
-    step = None
-    if plan is not None and subs_plan is not None:
-        step = plan.step_log_units
-    elif config.adaptive_fraction is not None:
-        step = config.adaptive_fraction * _low_threshold(config)
     gen_state = generator.get_state() if generator is not None else None
     dtype = None
     shape = None
@@ -286,7 +280,7 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
                 raise InputError(f"plan: made for {len(subs_plan) + 1} frames, the stream has more")
             subs = subs_plan[first_interval:first_interval + n_int]
         else:
-            subs = _choose_substeps(torch.stack(Ls, dim=1), step, config)
+            subs = _choose_substeps_for(torch.stack(Ls, dim=1), config, sig.surround is not None)
         noise0, lost0 = state.noise_events, state.lost
         ev_parts: list = []
         ctx = torch.no_grad() if not want_frames else contextlib.nullcontext()
