@@ -294,6 +294,7 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
         prev = (Ls[-1].detach(), CI[-1].detach() if CI is not None else None,
                 SU[-1].detach() if SU is not None else None, ts[-1])
         first_interval += n_int
+        del video, sig, Ls, CI, SU, out, frames, ev, ev_parts, batch  # one chunk alive at a time
     if plan is not None and subs_plan is not None and first_interval != len(subs_plan):
         raise InputError(f"plan: made for {len(subs_plan) + 1} frames, the stream had {first_interval + 1}")
 
