@@ -76,8 +76,7 @@ def run(args: argparse.Namespace) -> int:
     frames = iter_video(path, start_frame=args.start_frame, n_frames=args.frames, size=size,
                         peak_intensity=args.peak_intensity)
     total = props.get("nframes")
-    total = args.frames if args.frames is not None else (
-        max(int(total) - args.start_frame, 0) if isinstance(total, (int, float)) and total != float("inf") else None)
+    total = args.frames if args.frames is not None else (max(int(total) - args.start_frame, 0) if total else None)
     t0 = time.perf_counter()
     n_events = n_on = 0
     writer = None

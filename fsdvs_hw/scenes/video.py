@@ -163,19 +163,22 @@ def _open_reader(p: Path) -> Any:
 
 
 def video_properties(path: str | Path) -> dict[str, Any]:
-    """Frame rate (Hz), frame count (``nframes``, estimated by ffmpeg from the duration; may be
-    ``inf`` for streams), source size (W, H), codec and duration (s) of a video file, without
-    decoding frames."""
+    """Frame rate (Hz), frame count (``nframes``: an estimate, ``round(fps × duration)``, for
+    progress display; ``None`` if the container reports no duration), source size (W, H), codec
+    and duration (s) of a video file, read from the container without decoding frames."""
+    import math
+
     p = _check_reading(path, 0, None, 1, None, "ITU-R BT.709", 1.0, 1)
     reader = _open_reader(p)
     try:
         meta = dict(reader.get_meta_data())
-        try:
-            meta["nframes"] = reader.count_frames()
-        except Exception:  # noqa: BLE001 - some containers cannot be counted; keep ffmpeg's estimate
-            pass
     finally:
         reader.close()
+    fps, duration = meta.get("fps"), meta.get("duration")
+    n = meta.get("nframes")
+    if not (isinstance(n, (int, float)) and math.isfinite(n)):
+        n = round(float(fps) * float(duration)) if fps and duration and math.isfinite(float(duration)) else None
+    meta["nframes"] = n
     return {k: meta.get(k) for k in ("fps", "nframes", "source_size", "codec", "duration")}
 
 
