@@ -10,7 +10,7 @@ from fsdvs_hw.sensor import SensorConfig, event_frames, event_list
 from fsdvs_hw.sensor.stream import collect, simulate
 
 
-def _clip(T=11, H=24, W=32, seed=0):
+def _clip(T=9, H=16, W=24, seed=0):
     g = torch.Generator().manual_seed(seed)
     base = torch.rand(1, 1, H, W, generator=g) * 0.8 + 0.05
     drift = torch.linspace(0, 1, T).view(1, T, 1, 1)
@@ -26,7 +26,7 @@ def _same_events(a, b):
 
 # noisy v2e-like sensor with every stateful effect on: mismatch, refractory, leak (random phase),
 # shot noise, photoreceptor low-pass with adaptive per-interval sub-steps
-NOISY = SensorConfig(adaptive_fraction=0.5, adaptive_region_px=0, random_reference_phase=True,
+NOISY = SensorConfig(adaptive_fraction=0.5, max_substeps=12, adaptive_region_px=0, random_reference_phase=True,
                      shot_noise_rate_hz=5.0, leak_rate_hz=1.0, refractory_s=2e-3, seed=3)
 
 
@@ -92,3 +92,16 @@ def test_stream_bad_input_is_named():
         list(simulate([np.ones((4, 4)), -np.ones((4, 4))]))
     with pytest.raises(InputError, match="chunk_frames"):
         simulate(np.ones((3, 4, 4)), chunk_frames=0)
+
+
+def test_stream_runs_a_plan_like_the_whole_clip():
+    from fsdvs_hw.sensor import plan_model
+
+    video = _clip(T=6, H=12, W=16).double() * 0.2  # dim: the photoreceptor lag matters, the plan sub-steps
+    plan = plan_model(video, 0.2, config=SensorConfig(adaptive_region_px=0, seed=5))
+    assert max(plan.substeps) > 1
+    _, ev, info = collect(simulate(video, plan=plan, chunk_frames=3))
+    _same_events(ev, event_list(video, plan=plan))
+    assert info.substeps == tuple(plan.substeps)
+    with pytest.raises(InputError, match="plan: made for"):
+        list(simulate(_clip(T=8, H=12, W=16).double(), plan=plan, chunk_frames=4))

@@ -220,6 +220,18 @@ def _refractory_surrogate(n: Any, h: Any, emitted: Any) -> Any:
     return emitted.detach() + (n - h.detach()) * share
 
 
+def _repeat_index(counts: Any) -> tuple[Any, Any]:
+    """``(repeat_interleave(arange(n), counts), cumsum(counts))`` by a sorted search.
+
+    Same result as ``torch.repeat_interleave``, whose CPU kernel costs milliseconds per call on a
+    loaded multi-threaded machine (thread wake-ups) even for a few elements; it is called twice
+    per sub-step on the event-list path.
+    """
+    ends = torch.cumsum(counts, 0)
+    total = int(ends[-1]) if len(ends) else 0
+    return torch.searchsorted(ends, torch.arange(total, device=counts.device), right=True), ends
+
+
 def _collect(store: list, emitted: Any, j0: Any, m: Any, d_a: Any, v: Any, c: Any,
              t_a: Any, t_b: Any, polarity: int) -> None:
     import torch
@@ -229,9 +241,8 @@ def _collect(store: list, emitted: Any, j0: Any, m: Any, d_a: Any, v: Any, c: An
         return
     bi, yi, xi = idx[:, 0], idx[:, 1], idx[:, 2]
     counts = emitted[bi, yi, xi].long()
-    rep = torch.repeat_interleave(torch.arange(len(counts), device=counts.device), counts)
-    start = torch.cumsum(counts, 0) - counts
-    k = torch.arange(int(counts.sum()), device=counts.device) - start[rep]
+    rep, ends = _repeat_index(counts)
+    k = torch.arange(len(rep), device=counts.device) - (ends - counts)[rep]
     cc = c.expand_as(emitted)[bi, yi, xi][rep] if c.ndim else c.expand(len(rep))
     j = j0[bi, yi, xi][rep] + k.to(j0.dtype) * m[bi, yi, xi][rep]
     vv = v[bi, yi, xi][rep]
@@ -414,7 +425,7 @@ def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Senso
                         idx = torch.nonzero(kk > 0)
                         if idx.numel():
                             cnt = kk[idx[:, 0], idx[:, 1], idx[:, 2]].long()
-                            rep = torch.repeat_interleave(idx, cnt, dim=0)
+                            rep = idx[_repeat_index(cnt)[0]]
                             u = torch.rand(len(rep), generator=time_g, device=time_g.device, dtype=torch.float64).to(dev)
                             t = torch.minimum(ta[rep[:, 0], rep[:, 1], rep[:, 2]] + (1.0 - u) * dt_sub64.view(B)[rep[:, 0]],
                                               tb[rep[:, 0], rep[:, 1], rep[:, 2]])
