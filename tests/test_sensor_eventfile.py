@@ -68,3 +68,44 @@ def test_event_file_errors(tmp_path):
         with EventFileWriter(tmp_path / "ev2.npz", W, H) as w:
             w.write(chunks[1].events)
             w.write(chunks[0].events)
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=25, deadline=None)
+@given(n=st.integers(0, 40), w=st.integers(1, 32767), h=st.integers(1, 32767),
+       t_max=st.sampled_from([1, 1000, 4_294_967_295]), seed=st.integers(0, 2 ** 31))
+def test_round_trip_property_at_extremes(tmp_path_factory, n, w, h, t_max, seed):
+    """Any sorted events, sensor sizes up to 32767 px and times up to v2e's uint32 µs limit
+    survive every format unchanged (also the empty file)."""
+    from fsdvs_hw.sensor import EventList
+
+    rng = np.random.default_rng(seed)
+    t_us = np.sort(rng.integers(0, t_max + 1, n))
+    x, y = rng.integers(0, w, n), rng.integers(0, h, n)
+    x[:1], y[:1] = w - 1, h - 1  # corner pixel
+    p = rng.choice(np.array([-1, 1], dtype=np.int8), n)
+    ev = EventList(torch.zeros(n, dtype=torch.int64), torch.from_numpy(x), torch.from_numpy(y),
+                   torch.from_numpy(t_us * 1e-6), torch.from_numpy(p))
+    d = tmp_path_factory.mktemp("rt")
+    for suffix in (".h5", ".npz") + ((".aedat4",) if HAS_DV else ()):
+        if suffix == ".aedat4" and (w > 32767 or h > 32767):
+            continue
+        write_events(d / f"e{suffix}", ev, w, h)
+        back = read_events(d / f"e{suffix}")
+        assert (back.width, back.height) == (w, h), suffix
+        for got, want in ((back.t_us, t_us), (back.x, x), (back.y, y), (back.p, p)):
+            assert np.array_equal(got, want), suffix
+
+
+def test_hdf5_refuses_times_beyond_uint32_microseconds(tmp_path):
+    from fsdvs_hw.sensor import EventList
+
+    one = torch.zeros(1, dtype=torch.int64)
+    ev = EventList(one, one, one, torch.tensor([4295.0]), torch.ones(1, dtype=torch.int8))
+    with pytest.raises(InputError, match="uint32"):
+        write_events(tmp_path / "late.h5", ev, 4, 4)
+    write_events(tmp_path / "late.npz", ev, 4, 4)
+    assert read_events(tmp_path / "late.npz").t_us.tolist() == [4_295_000_000]
