@@ -35,7 +35,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--size", default=None, help="resize to HxW (linear light), e.g. 240x320")
     parser.add_argument("--peak-intensity", type=float, default=1.0,
                         help="intensity of display white (full scale 1.0; lower for a dim scene)")
-    parser.add_argument("--chunk-frames", type=int, default=16, help="frame intervals per chunk (default 16)")
+    parser.add_argument("--chunk-frames", type=int, default=4,
+                        help="frame intervals per chunk (default 4; peak memory grows with the events of one chunk)")
     parser.add_argument("--threads", type=int, default=None,
                         help="torch intra-op threads (default: torch's); 1 is often faster on a loaded machine")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -100,6 +101,7 @@ def run(args: argparse.Namespace) -> int:
             n_on += int((chunk.events.p > 0).sum())
             bar.update(chunk.n_frames)
             bar.set_postfix_str(f"{n_events / max(time.perf_counter() - t0, 1e-9):.3g} ev/s, {n_events} events")
+            del chunk  # free this chunk's events before the next one is simulated
     finally:
         bar.close()
         if writer is not None:

@@ -106,7 +106,10 @@ c0, t0 = time.process_time(), time.perf_counter()
 if mode == "whole":
     n = len(event_list(torch.stack(list(frames()))[None], config=cfg))
 else:
-    n = sum(len(c.events) for c in simulate(frames(), config=cfg, chunk_frames=16))
+    n = 0
+    for c in simulate(frames(), config=cfg, chunk_frames=16):
+        n += len(c.events)
+        del c  # free the chunk before the next one is simulated
 wall, cpu = time.perf_counter() - t0, time.process_time() - c0
 rss1 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 print(json.dumps({"wall": wall, "cpu": cpu, "peak_mb": (rss1 - rss0) / 1024, "events": n}))
