@@ -180,11 +180,14 @@ class EventFileWriter:
             self._ds.resize(self.count + n, axis=0)
             self._ds[self.count:] = block
         elif self.format == "aedat4":
-            store = self._dv.EventStore()
-            push = store.push_back
-            for a, b, c, d in zip(t_us.tolist(), x.tolist(), y.tolist(), (p > 0).tolist()):
-                push(a, b, c, d)
-            self._dvw.writeEvents(store)
+            on = p > 0
+            for i in range(0, n, 1 << 16):  # slices: bounded Python lists (dv-processing has no bulk numpy input)
+                store = self._dv.EventStore()
+                push = store.push_back
+                sl = slice(i, i + (1 << 16))
+                for a, b, c, d in zip(t_us[sl].tolist(), x[sl].tolist(), y[sl].tolist(), on[sl].tolist()):
+                    push(a, b, c, d)
+                self._dvw.writeEvents(store)
         else:
             for k, arr in (("t", t_us), ("x", x.astype(np.uint16)), ("y", y.astype(np.uint16)), ("p", p)):
                 self._cols[k].write(np.ascontiguousarray(arr).tobytes())
