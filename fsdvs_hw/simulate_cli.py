@@ -35,8 +35,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--size", default=None, help="resize to HxW (linear light), e.g. 240x320")
     parser.add_argument("--peak-intensity", type=float, default=1.0,
                         help="intensity of display white (full scale 1.0; lower for a dim scene)")
-    parser.add_argument("--chunk-frames", type=int, default=4,
-                        help="frame intervals per chunk (default 4; peak memory grows with the events of one chunk)")
+    parser.add_argument("--chunk-frames", type=int, default=1,
+                        help="frame intervals per chunk (default 1; peak memory grows with the events of one chunk, ~230 B each)")
     parser.add_argument("--threads", type=int, default=None,
                         help="torch intra-op threads (default: torch's); 1 is often faster on a loaded machine")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
