@@ -176,7 +176,8 @@ class EventFileWriter:
             if int(t_us[-1]) > _UINT32_MAX:
                 raise InputError(f"events: time {int(t_us[-1])} µs exceeds the uint32 µs range of v2e's HDF5 "
                                  "layout (4294 s); use .aedat4 or .npz")
-            block = np.stack([t_us, x, y, (p > 0).astype(np.int64)], axis=1).astype(np.uint32)
+            block = np.empty((n, 4), dtype=np.uint32)  # filled column by column: no int64 copy
+            block[:, 0], block[:, 1], block[:, 2], block[:, 3] = t_us, x, y, p > 0
             self._ds.resize(self.count + n, axis=0)
             self._ds[self.count:] = block
         elif self.format == "aedat4":
