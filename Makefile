@@ -49,7 +49,7 @@ $(STAMP): pyproject.toml
 	@$(BIN)/python -c "import sys; assert sys.version_info >= (3, 11), 'fsdvs_hw needs Python >= 3.11, venv has ' + sys.version" 
 	@$(BIN)/python -m pip install -q --upgrade pip
 	@$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/python -m pip install -q $(TORCH_PIN)
-	$(BIN)/python -m pip install -q -e '.[test,notebooks,distributed]'
+	$(BIN)/python -m pip install -q -e '.[test,notebooks,distributed,eventfiles]'
 	@touch $@
 
 clean:

@@ -27,6 +27,7 @@ COMMANDS: dict[str, str] = {
     "ablation": "fsdvs_hw.explore.ablation",
     "explore": "fsdvs_hw.explore.explore",
     "sweep": "fsdvs_hw.explore.sweep",
+    "simulate": "fsdvs_hw.simulate_cli",
 }
 
 

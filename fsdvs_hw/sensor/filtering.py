@@ -27,7 +27,7 @@ from typing import Any
 
 from ..errors import InputError, KernelError
 from .config import SensorConfig
-from .pixel import linlog
+from .pixel import log_response
 
 __all__ = ["kernel_tensor", "apply_kernel", "mesh_surround_steady_state", "FilteredSignal",
            "filtered_log_signal"]
@@ -192,14 +192,13 @@ def filtered_log_signal(video: Any, kernel: Any, config: SensorConfig) -> Filter
     """Apply the kernel at ``config.placement`` with ``config.positivity``; return the log signal."""
     import torch
 
-    knee = config.dark_intensity
     surround = None
     floor_fraction = 0.0
     if config.placement == "pre_log":
         if config.positivity == "differential":
             pos = apply_kernel(video, torch.clamp(kernel, min=0.0), config.convolution)
             neg = apply_kernel(video, torch.clamp(-kernel, min=0.0), config.convolution)
-            log_signal = linlog(pos, knee) - linlog(neg, knee)
+            log_signal = log_response(pos, config) - log_response(neg, config)
             cutoff_intensity = pos + neg
         else:
             agg = apply_kernel(video, kernel, config.convolution)
@@ -210,10 +209,10 @@ def filtered_log_signal(video: Any, kernel: Any, config: SensorConfig) -> Filter
             floor_fraction = n_below / agg.numel()
             if n_below:  # identity otherwise: skip the pass
                 agg = _FloorSTE.apply(agg, float(config.floor_intensity))
-            log_signal = linlog(agg, knee)
+            log_signal = log_response(agg, config)
             cutoff_intensity = agg
     else:
-        centre = apply_kernel(linlog(video, knee), kernel, config.convolution)
+        centre = apply_kernel(log_response(video, config), kernel, config.convolution)
         cutoff_intensity = video
         if config.surround_weight > 0 and config.surround_lambda_px > 0:
             steady = mesh_surround_steady_state(centre, config.surround_lambda_px)

@@ -17,7 +17,7 @@ from typing import Any
 
 from .config import SensorConfig
 
-__all__ = ["linlog", "photoreceptor_cutoff_hz", "lowpass_step", "threshold_maps", "effect_generator"]
+__all__ = ["linlog", "linlog_v2e", "log_response", "photoreceptor_cutoff_hz", "lowpass_step", "threshold_maps", "effect_generator"]
 
 # distinct streams per random effect, so switching one effect off leaves the others unchanged
 _STREAMS = {"mismatch": 1, "leak_phase": 2, "shot": 3, "shot_time": 4}
@@ -41,6 +41,38 @@ def linlog(intensity: Any, knee: float) -> Any:
 
     # log of the part above the knee plus the linear part below it (3 passes, no branches)
     return torch.log(torch.clamp(intensity, min=knee)) + torch.clamp(intensity - knee, max=0.0) / knee
+
+
+#: v2e's code-value scale: intensity 1.0 (display white) is 255 DN.
+V2E_DN_PER_FULL_SCALE = 255.0
+
+
+def linlog_v2e(intensity: Any, knee: float) -> Any:
+    """v2e's linear-log response [1]_ (``lin_log``), in natural-log units of DN.
+
+    With ``x = 255 I`` (DN, white = 255) and ``k = 255 knee``: ``log(x)`` for ``x > k``, the
+    chord through the origin ``x log(k) / k`` for ``x <= k`` (continuous in value, not in slope:
+    its slope ``log(k)/k`` is ``log(k)`` times the log's slope ``1/k`` at the knee, 3.0× for
+    k = 20 DN), rounded to 1e-8 as v2e does (the rounding's gradient is passed straight through).
+    The result differs from :func:`linlog` by the constant ``log 255`` above the knee, which no
+    event sees; below the knee the contrast gain is higher.
+    """
+    import torch
+
+    x = intensity * V2E_DN_PER_FULL_SCALE
+    k = knee * V2E_DN_PER_FULL_SCALE
+    y = torch.where(x <= k, x * (math.log(k) / k), torch.log(torch.clamp(x, min=k)))
+    with torch.no_grad():
+        r = torch.round(y.double() * 1e8).div_(1e8).to(y.dtype) - y
+    return y + r
+
+
+def log_response(intensity: Any, config: SensorConfig) -> Any:
+    """The photoreceptor response ``config.response`` selects: :func:`linlog` (``"tangent"``)
+    or :func:`linlog_v2e` (``"v2e"``), with knee ``config.dark_intensity``."""
+    if config.response == "v2e":
+        return linlog_v2e(intensity, config.dark_intensity)
+    return linlog(intensity, config.dark_intensity)
 
 
 def photoreceptor_cutoff_hz(intensity: Any, config: SensorConfig) -> Any:

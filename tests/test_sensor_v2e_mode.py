@@ -1,0 +1,51 @@
+"""v2e-compatible presets: v2e's linear-log chord, bandwidth offset and named noise settings."""
+
+import math
+
+import pytest
+import torch
+
+from fsdvs_hw.errors import InputError
+from fsdvs_hw.sensor import SensorConfig, event_frames
+from fsdvs_hw.sensor.pixel import linlog_v2e, photoreceptor_cutoff_hz
+
+
+def test_v2e_response_matches_v2e_lin_log_values():
+    i = torch.tensor([0.0, 10 / 255, 20 / 255, 1.0], dtype=torch.float64)
+    y = linlog_v2e(i, 20 / 255)
+    # v2e lin_log on DN: x·log(20)/20 at and below 20 DN, log(x) above; rounded to 1e-8
+    want = [0.0, 0.5 * math.log(20), math.log(20), math.log(255)]
+    assert y.tolist() == pytest.approx(want, abs=1e-8)
+    assert float(y[1] * 1e8) == pytest.approx(round(float(y[1]) * 1e8), abs=1e-6)  # rounded to 8 digits
+
+
+def test_v2e_chord_gives_v2e_contrast_gain_below_the_knee():
+    # a step from 5 to 10 DN: v2e's chord sees 5·log(20)/20 = 0.749 log units (3 events at C=0.2),
+    # the tangent sees 5/20 = 0.25 (1 event); above the knee both see log(2) = 0.693 (3 events)
+    def count(lo, hi, preset):
+        v = torch.tensor([lo, hi], dtype=torch.float64).view(1, 2, 1, 1) / 255
+        cfg = SensorConfig.preset(preset, threshold_sigma=0.0) if preset.startswith("v2e") \
+            else SensorConfig.ideal(0.2)
+        return int(event_frames(v, config=cfg)[0, 0, 0].sum())
+
+    assert count(5, 10, "v2e-clean") == 3 and count(5, 10, "ideal") == 1
+    assert count(100, 200, "v2e-clean") == count(100, 200, "ideal") == 3
+
+
+def test_v2e_bandwidth_offset_is_dn_plus_20_over_275():
+    cfg = SensorConfig.preset("v2e-default")
+    fc = photoreceptor_cutoff_hz(torch.tensor([0.0, 100 / 255, 1.0], dtype=torch.float64), cfg)
+    assert fc.tolist() == pytest.approx([300 * 20 / 275, 300 * 120 / 275, 300.0], rel=1e-12)
+
+
+def test_presets_carry_v2e_settings_and_default_is_unchanged():
+    assert SensorConfig.preset("default") == SensorConfig()
+    assert SensorConfig.preset("ideal") == SensorConfig.ideal()
+    clean, noisy = SensorConfig.preset("v2e-clean"), SensorConfig.preset("v2e-noisy")
+    assert (clean.threshold_sigma, clean.cutoff_hz, clean.shot_noise_rate_hz, clean.refractory_s) == (0.02, 0, 0, 0)
+    assert (noisy.threshold_sigma, noisy.cutoff_hz, noisy.leak_rate_hz, noisy.shot_noise_rate_hz) == (0.05, 30, 0.1, 5.0)
+    assert SensorConfig().response == "tangent"
+    with pytest.raises(InputError, match="preset"):
+        SensorConfig.preset("v2e-loud")
+    with pytest.raises(InputError, match="response"):
+        SensorConfig(response="chord")
