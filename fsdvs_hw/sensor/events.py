@@ -469,8 +469,8 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     return out, info, ev
 
 
-def _resolve(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | None,
-             plan: Any) -> tuple[Any, Any, Any, SensorConfig, list[int] | None]:
+def _plan_config(config: SensorConfig | None, plan: Any) -> SensorConfig:
+    """The configuration to simulate with: the plan's (checked against ``config``) or ``config``."""
     if plan is not None:
         from .plan import ModelPlan
 
@@ -482,6 +482,12 @@ def _resolve(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | 
     config = SensorConfig() if config is None else config
     if not isinstance(config, SensorConfig):
         raise InputError(f"config: must be a SensorConfig, got {type(config).__name__}")
+    return config
+
+
+def _resolve(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | None,
+             plan: Any) -> tuple[Any, Any, Any, SensorConfig, list[int] | None]:
+    config = _plan_config(config, plan)
     video = prepare_video(video)
     ts = prepare_timestamps(timestamps_s, video, config)
     w = kernel_tensor(kernel, video)

@@ -39,7 +39,7 @@ import torch
 
 from ..errors import InputError
 from .config import SensorConfig
-from .events import EventList, SimulationInfo, _advance, _choose_substeps_for, _init_state, _merge_events
+from .events import EventList, SimulationInfo, _advance, _choose_substeps_for, _init_state, _merge_events, _plan_config
 from .filtering import filtered_log_signal, kernel_tensor
 from .pixel import threshold_maps
 
@@ -172,19 +172,8 @@ def simulate(frames: Any, kernel: Any = None, *, timestamps_s: Any = None, confi
         raise InputError(f"chunk_frames: must be an integer >= 1, got {chunk_frames!r}")
     if not (events or event_frames):
         raise InputError("simulate: ask for events, event_frames or both")
-    subs_plan = None
-    if plan is not None:
-        from .plan import ModelPlan
-
-        if not isinstance(plan, ModelPlan):
-            raise InputError(f"plan: must be a ModelPlan from plan_model(), got {type(plan).__name__}")
-        if config is not None and config is not plan.base_config and config != plan.base_config:
-            raise InputError("config and plan disagree: pass either config or plan (the plan carries its config)")
-        config = plan.config
-        subs_plan = list(plan.substeps) if plan.substeps else None
-    config = SensorConfig() if config is None else config
-    if not isinstance(config, SensorConfig):
-        raise InputError(f"config: must be a SensorConfig, got {type(config).__name__}")
+    config = _plan_config(config, plan)
+    subs_plan = list(plan.substeps) if plan is not None and plan.substeps else None
     return _stream(_frame_source(frames), kernel, timestamps_s, config, plan, subs_plan, chunk_frames,
                    events, event_frames, generator)
 
