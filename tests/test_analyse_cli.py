@@ -53,3 +53,16 @@ def test_help_is_useful(capsys):
         main(["analyse", "--help"])
     text = capsys.readouterr().out
     assert "--focal-mm" in text and "Example" in text
+
+
+def test_top_level_help_lists_every_command(capsys):
+    """`fsdvs-hw --help` renders (argparse %-formats help strings: a '95 % CI' in a verb's HELP
+    once crashed it) and names every verb."""
+    from fsdvs_hw.cli import COMMANDS, main
+
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    assert all(name in out for name in COMMANDS)
+    assert "95 % CI" in out
