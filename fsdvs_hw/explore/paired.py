@@ -28,7 +28,6 @@ import base64
 import dataclasses
 import functools
 import io
-import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -51,17 +50,17 @@ EVAL_BATCH = 64
 
 
 def _detection(pred: dict[str, Any], targets: dict[str, Any], evaluator: Any) -> ClipMetric:
-    return CocoDetections.from_predictions(pred["boxes"].numpy(), pred["scores"].numpy(), pred["labels"].numpy(),
-                                           targets["boxes"].numpy(), targets["labels"].numpy(),
+    return CocoDetections.from_predictions(pred["boxes"], pred["scores"], pred["labels"],
+                                           targets["boxes"], targets["labels"],
                                            num_classes=evaluator.num_classes, metric="map")
 
 
 def _recognition(pred: dict[str, Any], targets: dict[str, Any], evaluator: Any) -> ClipMetric:
-    return ClipMeans.top1(pred["logits"].numpy(), targets["motion"].numpy())
+    return ClipMeans.top1(pred["logits"], targets["motion"])
 
 
 def _segmentation(pred: dict[str, Any], targets: dict[str, Any], evaluator: Any) -> ClipMetric:
-    return ConfusionMIoU.from_masks(pred["mask"].numpy(), targets["mask"].numpy(), evaluator.num_classes)
+    return ConfusionMIoU.from_masks(pred["mask"], targets["mask"], evaluator.num_classes)
 
 
 #: task name → builder of its per-clip metric (the evaluator's primary metric) from predictions and targets
@@ -104,26 +103,6 @@ class ClipEvidence:
     event_rate: float = float("nan")
 
 
-@functools.lru_cache(maxsize=4)
-def _test_set(scene_json: str, n: int, seed: int, task: str, dtype: str) -> tuple[Any, Any, np.ndarray]:
-    import torch
-
-    from ..scenes.synthetic import SceneConfig, make_scenes
-    from ..tasks import get_evaluator
-
-    scene = SceneConfig.from_dict(json.loads(scene_json))
-    batch = make_scenes(scene, n, seed=seed)
-    return (torch.from_numpy(batch.video).to(getattr(torch, dtype)), get_evaluator(task).targets(batch),
-            np.asarray(scene.timestamps_s))
-
-
-@functools.lru_cache(maxsize=8)
-def _network(checkpoint: str, task: str) -> tuple[Any, dict[str, Any]]:
-    from ..tasks.learn import load_network
-
-    return load_network(checkpoint, task, who="clip_evidence")
-
-
 def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n_test: int | None = None,
                   sensor: Any = None, seed_offset: int = 0, events_fn: Any = None) -> ClipEvidence:
     """Score ``kernel`` zero-shot in one trained network and keep every clip's contribution.
@@ -156,44 +135,30 @@ def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n
     InputError
         Unknown task, missing checkpoint, a task without a per-clip metric, bad ``n_test``.
     """
-    import torch
-
-    from ..sensor import SensorConfig, event_frames
+    from ..sensor import SensorConfig
     from ..tasks import get_evaluator
-    from ..tasks.networks import event_representation
+    from ..tasks.learn import evaluate_kernel, heldout_targets
 
     t0 = time.perf_counter()
     evaluator = get_evaluator(task)
     if evaluator.name not in PER_CLIP_METRICS:
         raise InputError(f"task {evaluator.name!r} has no per-clip metric; allowed: {', '.join(PER_CLIP_METRICS)} "
                          f"(add a builder to fsdvs_hw.explore.paired.PER_CLIP_METRICS)")
-    network, prov = _network(str(checkpoint), evaluator.name)
+    prov, _ = _training_kernel(str(checkpoint))
     n = int(prov["n_test"]) if n_test is None else n_test
     if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= 100_000:
         raise InputError(f"clip_evidence: n_test must be an integer in [2, 100000], got {n_test!r}")
     cfg = sensor if sensor is not None else SensorConfig(**prov["sensor"])
     cfg = dataclasses.replace(cfg, seed=int(cfg.seed) + int(seed_offset))
-    dtype = {"dtype": "float64", **prov["settings"]}["dtype"]
-    video, targets, ts = _test_set(json.dumps(prov["scene"], sort_keys=True), n, int(prov["test_seed"]),
-                                   evaluator.name, dtype)
-    k = Kernel(np.ones((1, 1)), name="w/o") if kernel is None else kernel
-    taps = torch.as_tensor(np.array(k.taps))
-    preds, n_events, n_px = [], 0.0, 0
-    with torch.no_grad():
-        for s in range(0, n, EVAL_BATCH):
-            if events_fn is None:
-                ev = event_frames(video[s : s + EVAL_BATCH], taps, timestamps_s=ts, config=cfg)
-            else:
-                ev = events_fn(video[s : s + EVAL_BATCH], taps, cfg, ts)
-            n_events += float(ev.sum())
-            n_px += ev[:, :, 0].numel()
-            preds.append(evaluator.predict(network(event_representation(ev.float()))))
-    pred = {key: torch.cat([p[key] for p in preds]) for key in preds[0]}
-    metric = PER_CLIP_METRICS[evaluator.name](pred, targets, evaluator)
+    # the same code path (test clips, batches of EVAL_BATCH, noise streams) as evaluate_kernel, which
+    # caches the test set, so every kernel scored in one process meets the same clips and noise draws
+    ev = evaluate_kernel(kernel, evaluator, checkpoint, n_test=n, sensor=cfg, events_fn=events_fn,
+                         keep_predictions=True)
+    metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, heldout_targets(evaluator, prov["scene"], n), evaluator)
     value = float(metric.weighted(np.ones((1, n)))[0])
     return ClipEvidence(task=evaluator.name, metric_name=evaluator.primary_metric, value=value, n_clips=n,
                         metric=metric, checkpoint=str(checkpoint), sensor_seed=int(cfg.seed),
-                        seconds=time.perf_counter() - t0, event_rate=n_events / max(n_px, 1))
+                        seconds=time.perf_counter() - t0, event_rate=ev.event_rate)
 
 
 @functools.lru_cache(maxsize=32)

@@ -9,7 +9,6 @@ the largest absolute difference, and the time per resample of each.
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -21,26 +20,13 @@ _CKPT = Path(__file__).resolve().parents[2] / "designs" / "kernels" / "learned_d
 
 
 def _detections(n: int) -> tuple[np.ndarray, ...]:
-    import torch
-
     from ..kernels import load_kernel
-    from ..sensor import SensorConfig, event_frames
-    from ..tasks import get_evaluator
-    from ..tasks.networks import event_representation
-    from .paired import EVAL_BATCH, _network, _test_set
+    from ..tasks.learn import evaluate_kernel, heldout_targets, load_checkpoint
 
-    network, prov = _network(str(_CKPT), "detection")
-    video, targets, ts = _test_set(json.dumps(prov["scene"], sort_keys=True), n, int(prov["test_seed"]), "detection",
-                                   {"dtype": "float64", **prov["settings"]}["dtype"])
-    taps = torch.as_tensor(np.array(load_kernel(_CKPT.with_suffix(".json")).taps))
-    cfg, ev = SensorConfig(**prov["sensor"]), get_evaluator("detection")
-    preds = []
-    with torch.no_grad():
-        for s in range(0, n, EVAL_BATCH):
-            frames = event_frames(video[s : s + EVAL_BATCH], taps, timestamps_s=ts, config=cfg)
-            preds.append(ev.predict(network(event_representation(frames.float()))))
-    p = {k: torch.cat([b[k] for b in preds]).numpy() for k in preds[0]}
-    return p["boxes"], p["scores"], p["labels"], targets["boxes"].numpy(), targets["labels"].numpy()
+    prov, _, _ = load_checkpoint(_CKPT)
+    ev = evaluate_kernel(load_kernel(_CKPT.with_suffix(".json")), "detection", _CKPT, n_test=n, keep_predictions=True)
+    p, t = ev.predictions, heldout_targets("detection", prov["scene"], n)
+    return p["boxes"], p["scores"], p["labels"], t["boxes"], t["labels"]
 
 
 def bench_stats(*, quick: bool = False) -> str:
