@@ -24,6 +24,16 @@ clip was drawn), so metrics that are not per-clip means (COCO mAP, mIoU) are res
   pycocotools run on the dataset with each clip duplicated that many times, up to the order of
   exactly tied scores (copies of one detection are placed next to each other).
 
+**Nested** design (``nested_clips=True``): each network is scored on its *own* test clips (the
+exploration's default, :mod:`fsdvs_hw.explore.paired`), so clips are nested in seeds. Then the
+bootstrap resamples whole (network, clip set) clusters: the spread of the cluster means already
+holds each cluster's clip-sampling variance, and resampling clips again inside each drawn cluster
+would count it twice (Davison & Hinkley 1997, §3.8, "strategy 1" with the within-cluster stage
+dropped; Field & Welsh 2007). Kernels stay paired: one cluster resample picks the same networks and
+clips for the reference and the candidate. With many networks per task this design measures more
+of the seed-to-seed spread for the same simulation cost (each clip is simulated once, in one
+network), which is what limits a loss's CI once the clips are many.
+
 The two-way bootstrap of a crossed design is slightly conservative (McCullagh 2000: the
 interaction variance is counted by both factors), and with few seeds it under-represents the
 seed-to-seed spread by the factor ``(S-1)/S`` (3 seeds: 2/3 of the seed variance). With one seed
@@ -40,6 +50,8 @@ References
 ----------
 B. Efron and R. Tibshirani, *An Introduction to the Bootstrap*, Chapman & Hall, 1993.
 P. McCullagh, "Resampling and exchangeable arrays", Bernoulli 6(2), 285–301, 2000.
+A. C. Davison and D. V. Hinkley, *Bootstrap Methods and their Application*, Cambridge, 1997, §3.8.
+C. A. Field and A. H. Welsh, "Bootstrapping clustered data", J. R. Stat. Soc. B 69(3), 369–390, 2007.
 T.-Y. Lin et al., "Microsoft COCO: Common Objects in Context", ECCV 2014 (the AP definition).
 """
 
@@ -524,6 +536,10 @@ class DifferenceCI:
     n_resamples : int
     bootstrap_se : float
         Standard deviation of the bootstrap distribution.
+    clip_design : str
+        ``"crossed"`` (every network on the same clips) or ``"nested"`` (each network on its own
+        clips; ``n_clips`` is then the total over the networks, and a seed resample draws whole
+        network-and-clips clusters, which carries the clip variance).
     """
 
     estimate: float
@@ -539,6 +555,7 @@ class DifferenceCI:
     method: str
     n_resamples: int
     bootstrap_se: float
+    clip_design: str = "crossed"
 
     @property
     def half_width(self) -> float:
@@ -584,7 +601,8 @@ def _arm(metrics: Sequence[ClipMetric] | ClipMetric, name: str) -> list[ClipMetr
 
 
 def difference_ci(reference: Sequence[ClipMetric] | ClipMetric, candidate: Sequence[ClipMetric] | ClipMetric, *,
-                  paired_seeds: bool = True, paired_clips: bool = True, resample: Sequence[str] = ("clips", "seeds"),
+                  paired_seeds: bool = True, paired_clips: bool = True, nested_clips: bool = False,
+                  resample: Sequence[str] = ("clips", "seeds"),
                   confidence: float = 0.95, n_resamples: int = DEFAULT_RESAMPLES, method: str = "percentile",
                   rng: Any = 0, batch: int | None = 200) -> DifferenceCI:
     """Bootstrap CI of ``metric(reference) − metric(candidate)`` over test clips and training seeds.
@@ -602,6 +620,12 @@ def difference_ci(reference: Sequence[ClipMetric] | ClipMetric, candidate: Seque
         True (default): the same clip resample weights both arms (they were scored on the same
         clips). False resamples each arm's clips independently, which is only right for arms scored
         on different clips (and shows how much pairing buys).
+    nested_clips : bool
+        False (default): every network scored the same clips (crossed). True: network ``s`` scored
+        its own clips (``reference[s]`` and ``candidate[s]`` on the same ones; the count may differ
+        between networks); with ``"seeds"`` in ``resample`` and ≥ 2 networks, whole
+        (network, clips) clusters are resampled (module docstring), otherwise clips are resampled
+        within each network. Needs ``paired_seeds`` and ``paired_clips``.
     resample : sequence of {"clips", "seeds"}
         The factors to resample; ``("clips",)`` or ``("seeds",)`` isolate one variance component
         (used to size the test set, :func:`clips_for_half_width`). Seeds are resampled only in an
@@ -637,13 +661,13 @@ def difference_ci(reference: Sequence[ClipMetric] | ClipMetric, candidate: Seque
     """
     cand = _arm(candidate, "candidate")
     return difference_cis(reference, {"candidate": cand}, paired_seeds=paired_seeds, paired_clips=paired_clips,
-                          resample=resample, confidence=confidence, n_resamples=n_resamples, method=method,
+                          nested_clips=nested_clips, resample=resample, confidence=confidence, n_resamples=n_resamples, method=method,
                           rng=rng, batch=batch)["candidate"]
 
 
 def difference_cis(reference: Sequence[ClipMetric] | ClipMetric,
                    candidates: Mapping[str, Sequence[ClipMetric] | ClipMetric], *, paired_seeds: bool = True,
-                   paired_clips: bool = True, resample: Sequence[str] = ("clips", "seeds"), confidence: float = 0.95,
+                   paired_clips: bool = True, nested_clips: bool = False, resample: Sequence[str] = ("clips", "seeds"), confidence: float = 0.95,
                    n_resamples: int = DEFAULT_RESAMPLES, method: str = "percentile", rng: Any = 0,
                    batch: int | None = 200) -> dict[str, DifferenceCI]:
     """:func:`difference_ci` of several candidates against one reference, from the same resamples.
@@ -660,7 +684,7 @@ def difference_cis(reference: Sequence[ClipMetric] | ClipMetric,
         Candidate name → :class:`DifferenceCI`, in the order given.
     """
     out = task_difference_cis({"_": (reference, candidates)}, paired_seeds=paired_seeds, paired_clips=paired_clips,
-                              resample=resample, confidence=confidence, n_resamples=n_resamples, method=method,
+                              nested_clips=nested_clips, resample=resample, confidence=confidence, n_resamples=n_resamples, method=method,
                               rng=rng, batch=batch)
     return {k: v["_"] for k, v in out.items()}
 
@@ -671,12 +695,47 @@ class _Task:
     cands: list[list[ClipMetric]]
     slots: list[str]
     n: int
+    nested: bool = False
+
+
+def _nested_task(tname: str, ref: list[ClipMetric], cands: list[list[ClipMetric]], resample: Sequence[str],
+                 paired_seeds: bool, paired_clips: bool) -> _Task:
+    """Validate one task of a nested design (network ``s`` on its own clips) and pick its slots."""
+    if not (paired_seeds and paired_clips):
+        raise InputError(f"difference_ci: task {tname!r}: nested clips need paired_seeds and paired_clips "
+                         "(each network scores every kernel on its own clips)")
+    for c in cands:
+        if len(c) != len(ref):
+            raise InputError(f"difference_ci: task {tname!r}: paired seeds need one candidate per reference "
+                             f"network; got {len(ref)} and {len(c)}")
+        bad = [s for s, (a, m) in enumerate(zip(ref, c)) if a.n_clips != m.n_clips]
+        if bad:
+            raise InputError(f"difference_ci: task {tname!r}: network {bad[0]} scored {ref[bad[0]].n_clips} "
+                             f"clips with the reference and {c[bad[0]].n_clips} with a candidate (nested clips: "
+                             "each network scores every kernel on the same clips)")
+    if any(m.n_clips < 2 for m in ref):
+        raise InputError(f"difference_ci: task {tname!r}: need at least 2 test clips per network, got "
+                         f"{[m.n_clips for m in ref]}")
+    if "seeds" in resample and len(ref) >= 2:
+        slots = ["seeds"]  # whole (network, clips) clusters: carries the clip variance (module docstring)
+    elif "clips" in resample:
+        slots = [f"clips@{s}" for s in range(len(ref))]
+    else:
+        slots = []
+    return _Task(ref, cands, slots, sum(m.n_clips for m in ref), nested=True)
+
+
+def _resampled(task: _Task) -> tuple[str, ...]:
+    """The variance components an interval holds (nested clusters hold both clips and seeds)."""
+    if task.nested and task.slots == ["seeds"]:
+        return ("clips", "seeds")
+    return tuple(dict.fromkeys("clips" if sl.startswith("clips") else "seeds" for sl in task.slots))
 
 
 def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMetric,
                                                   Mapping[str, Sequence[ClipMetric] | ClipMetric]]], *,
                         weights: Mapping[str, float] | None = None, paired_seeds: bool = True,
-                        paired_clips: bool = True, resample: Sequence[str] = ("clips", "seeds"),
+                        paired_clips: bool = True, nested_clips: bool | Mapping[str, bool] = False, resample: Sequence[str] = ("clips", "seeds"),
                         confidence: float = 0.95, n_resamples: int = DEFAULT_RESAMPLES, method: str = "percentile",
                         rng: Any = 0, batch: int | None = 200) -> dict[str, dict[str, DifferenceCI]]:
     """Per-task loss CIs of several candidates and, with ``weights``, the CI of their weighted mean.
@@ -694,6 +753,8 @@ def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMet
         :class:`ClipMetric` per training seed. Every task must list the same candidate names.
     weights : mapping, optional
         Task name → weight ≥ 0 (missing tasks weigh 0); adds a ``"weighted"`` entry per candidate.
+    nested_clips : bool or mapping
+        As in :func:`difference_ci`, for every task or per task name (missing tasks: crossed).
     paired_seeds, paired_clips, resample, confidence, n_resamples, method, rng, batch
         As in :func:`difference_ci`.
 
@@ -726,6 +787,9 @@ def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMet
                              f"(every task must score the same, non-empty set of candidates)")
         ref = _arm(reference, "reference")
         cands = [_arm(candidates[k], f"candidate {k!r}") for k in names]
+        if nested_clips.get(tname, False) if isinstance(nested_clips, Mapping) else nested_clips:
+            parsed[tname] = _nested_task(tname, ref, cands, resample, paired_seeds, paired_clips)
+            continue
         n = ref[0].n_clips
         if any(m.n_clips != n for m in ref) or any(m.n_clips != n for c in cands for m in c):
             raise InputError(f"difference_ci: task {tname!r}: every metric must cover the same clips; got "
@@ -760,10 +824,18 @@ def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMet
 
     def size(t: str, sl: str) -> int:
         task = parsed[t]
+        if sl.startswith("clips@"):  # nested: clips of one network
+            return task.ref[int(sl[6:])].n_clips
         return task.n if sl.startswith("clips") else (len(task.cands[0]) if sl == "seeds_cand" else len(task.ref))
 
     def arm_value(arm: list[ClipMetric], wc: np.ndarray, ws: np.ndarray) -> np.ndarray:
         vals = np.stack([m.weighted(wc) for m in arm], axis=1)  # (B, S)
+        return (vals * ws).sum(axis=1) / ws.sum(axis=1)
+
+    def nested_value(arm: list[ClipMetric], wcs: list[np.ndarray | None], ws: np.ndarray) -> np.ndarray:
+        b = ws.shape[0]
+        vals = np.stack([np.full(b, m.weighted(np.ones((1, m.n_clips)))[0]) if wc is None else m.weighted(wc)
+                         for m, wc in zip(arm, wcs)], axis=1)  # (B, S)
         return (vals * ws).sum(axis=1) / ws.sum(axis=1)
 
     def statistic(*idx: np.ndarray, axis: int = -1) -> np.ndarray:
@@ -774,6 +846,14 @@ def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMet
         for t, task in parsed.items():
             def w(sl: str, n_items: int) -> np.ndarray:
                 return _multiplicities(got[(t, sl)], n_items) if (t, sl) in got else np.ones((b, n_items))
+
+            if task.nested:
+                ws = w("seeds", len(task.ref))
+                wcs = [_multiplicities(got[(t, f"clips@{s}")], m.n_clips) if (t, f"clips@{s}") in got else None
+                       for s, m in enumerate(task.ref)]
+                r = nested_value(task.ref, wcs, ws)
+                per_task.append(np.stack([r - nested_value(c, wcs, ws) for c in task.cands]))  # (C, B)
+                continue
 
             wc_ref = w("clips" if paired_clips else "clips_ref", task.n)
             wc_cand = wc_ref if paired_clips else w("clips_cand", task.n)
@@ -803,20 +883,21 @@ def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMet
         out[cname] = {}
         for j, t in enumerate(tnames):
             task = parsed[t]
-            resampled = tuple(dict.fromkeys("clips" if sl.startswith("clips") else "seeds" for sl in task.slots))
+            resampled = _resampled(task)
             out[cname][t] = DifferenceCI(float(estimate[i, j]), float(lows[i, j]), float(highs[i, j]), confidence,
                                          task.n, len(task.ref), len(task.cands[i]), paired_clips, paired_seeds,
-                                         resampled, method, n_res if task.slots else 0, float(ses[i, j]))
+                                         resampled, method, n_res if task.slots else 0, float(ses[i, j]),
+                                         "nested" if task.nested else "crossed")
         if wts is not None:
             used = [t for t, wt in zip(tnames, wts) if wt > 0]
-            resampled = tuple(dict.fromkeys("clips" if sl.startswith("clips") else "seeds"
-                                            for t in used for sl in parsed[t].slots))
+            resampled = tuple(dict.fromkeys(f for t in used for f in _resampled(parsed[t])))
             j = len(tnames)
             out[cname]["weighted"] = DifferenceCI(
                 float(estimate[i, j]), float(lows[i, j]), float(highs[i, j]), confidence,
                 sum(parsed[t].n for t in used), min(len(parsed[t].ref) for t in used),
                 min(len(parsed[t].cands[i]) for t in used), paired_clips, paired_seeds, resampled, method,
-                n_res if resampled else 0, float(ses[i, j]))
+                n_res if resampled else 0, float(ses[i, j]),
+                "nested" if any(parsed[t].nested for t in used) else "crossed")
     return out
 
 

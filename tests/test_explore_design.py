@@ -190,3 +190,22 @@ def test_point_key_depends_only_on_what_decides_the_result():
     bits = parse_design({"realisations": {"include": ["learned", "asic"], "asic": {"bits": 5}}})
     kb = {p.realisation: p.key for p in expand_points(bits)}
     assert kb["learned"] == keys["learned"] and kb["asic"] != keys["asic"]
+
+
+def test_checkpoint_glob_lists_networks_in_natural_order_and_an_empty_match_is_named(tmp_path):
+    import shutil
+
+    from fsdvs_hw.explore.design import parse_design
+
+    src = Path(__file__).parents[1] / "designs" / "kernels" / "networks" / "recognition_with_learned_detection_7x7_s0.safetensors"
+    (tmp_path / "nets").mkdir()
+    for s in (0, 2, 10, 1):
+        shutil.copy(src, tmp_path / "nets" / f"rec_s{s}.safetensors")
+    d = parse_design({"tasks": {"checkpoints": {"recognition": "nets/rec_s*.safetensors"}}}, base_dir=tmp_path)
+    assert d.data["tasks"]["checkpoints"]["recognition"] == [f"nets/rec_s{s}.safetensors" for s in (0, 1, 2, 10)]
+    assert [p.name for p in d.checkpoints()["recognition"]] == [f"rec_s{s}.safetensors" for s in (0, 1, 2, 10)]
+    assert d.data["tasks"]["test_clips"] == "per_network"
+    with pytest.raises(DesignError, match=r"tasks\.checkpoints\.recognition.*matches no file"):
+        parse_design({"tasks": {"checkpoints": {"recognition": "nets/none_*.safetensors"}}}, base_dir=tmp_path)
+    with pytest.raises(DesignError, match=r"tasks\.test_clips"):
+        parse_design({"tasks": {"test_clips": "nested"}}, base_dir=tmp_path)

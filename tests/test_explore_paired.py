@@ -130,3 +130,42 @@ def test_stats_benchmark_quick_reports_equality_with_pycocotools():
     row = next(line for line in text.splitlines() if line.startswith("| 256 |"))
     diff = float(re.split(r"\s*\|\s*", row)[3])
     assert diff <= 1e-9  # the weighted accumulate equals pycocotools on resampled sets
+
+
+def test_each_network_scores_its_own_clips_and_the_losses_are_nested(tmp_path):
+    """test_clips = "per_network": network s scores clip set s (another held-out draw of the scene
+    family, test seed + s), the record totals the clips, and the paired loss is a nested-design
+    interval; "shared" keeps the crossed design."""
+    from fsdvs_hw.explore.paired import clip_evidence
+    from fsdvs_hw.explore.scoring import paired_losses, task_scores
+
+    nets = sorted((KERNELS / "networks").glob("recognition_with_learned_detection_7x7_s[01].safetensors"))
+    assert len(nets) == 2
+    k = load_kernel(KERNELS / "learned_detection_7x7.json")
+    a = clip_evidence(k, "recognition", nets[0], n_test=64)
+    b = clip_evidence(k, "recognition", nets[0], n_test=64, clip_set=1)
+    assert b.test_seed == a.test_seed + 1
+    assert not np.array_equal(a.metric.values, b.metric.values)  # other clips
+    with pytest.raises(InputError, match="clip_set"):
+        clip_evidence(k, "recognition", nets[0], n_test=64, clip_set=-1)
+    points = []
+    for name, kern in (("learned", k), ("delta", reference_kernel("delta", 7))):
+        for mode in ("per_network", "shared"):
+            rec = task_scores(kern, {"recognition": nets}, n_test=48, test_clips=mode)
+            r = rec["recognition"]["simulator"]
+            if mode == "per_network":
+                assert r["n_clips"] == 96 and r["n_clips_per_network"] == 48 and len(set(r["test_seeds"])) == 2
+            else:
+                assert r["n_clips"] == 48 and len(set(r["test_seeds"])) == 1
+            points.append({"key": f"{name}-{mode}", "realisation": name, "status": "ok",
+                           "params": {"mode": mode}, "result": {"tasks": rec}})
+    losses = paired_losses(points, n_resamples=300)
+    nested = losses["delta-per_network"]["simulator"]["recognition"]
+    crossed = losses["delta-shared"]["simulator"]["recognition"]
+    assert nested["clip_design"] == "nested" and nested["n_clips"] == 96 and nested["n_seeds_reference"] == 2
+    assert crossed["clip_design"] == "crossed" and crossed["n_clips"] == 48
+    # the nested estimate is the mean of the two networks' own-clip differences
+    pn = [p for p in points if p["params"]["mode"] == "per_network"]
+    per = np.subtract(pn[0]["result"]["tasks"]["recognition"]["simulator"]["per_seed"],
+                      pn[1]["result"]["tasks"]["recognition"]["simulator"]["per_seed"])
+    assert nested["estimate"] == pytest.approx(per.mean(), abs=1e-12)

@@ -106,13 +106,14 @@ def test_paired_losses_through_a_plugged_per_clip_evaluator(monkeypatch, tmp_pat
 
     calls = []
 
-    def clip_evidence(kernel, task, checkpoint, *, n_test=None, sensor=None, seed_offset=0, events_fn=None):
-        calls.append((task, Path(checkpoint).name, n_test, seed_offset))
+    def clip_evidence(kernel, task, checkpoint, *, n_test=None, sensor=None, seed_offset=0, clip_set=0,
+                      events_fn=None):
+        calls.append((task, Path(checkpoint).name, n_test, seed_offset, clip_set))
         if task == "segmentation":
             raise InputError("checkpoint missing")
         values = (np.arange(100) < 100 * float(kernel.centre)).astype(float)
         return paired.ClipEvidence(task, "top1", float(values.mean()), 100, ClipMeans(values), str(checkpoint),
-                                   seed_offset, 0.0, 0.1)
+                                   seed_offset, 0.0, test_seed=1000 + clip_set, event_rate=0.1)
 
     monkeypatch.setattr(paired, "clip_evidence", clip_evidence)
     monkeypatch.setattr(scoring, "_task_sensor", lambda ckpt, design_sensor: (None, {"source": "checkpoint"}))
@@ -125,16 +126,18 @@ def test_paired_losses_through_a_plugged_per_clip_evaluator(monkeypatch, tmp_pat
                                  "segmentation": tmp_path / "s"},
                     task_options={"n_test": 100, "tracks": ["simulator"]})
         rows.append({"key": name, "realisation": name, "params": {}, "status": "ok", "result": rec})
-    assert calls[:2] == [("recognition", "r0.safetensors", 100, 0), ("recognition", "r1.safetensors", 100, 1)]
+    # each network its own mismatch pattern and its own clip set (the default test_clips = "per_network")
+    assert calls[:2] == [("recognition", "r0.safetensors", 100, 0, 0), ("recognition", "r1.safetensors", 100, 1, 1)]
     rec = rows[1]["result"]["tasks"]["recognition"]["simulator"]
-    assert rec["n_seeds"] == 2 and rec["n_clips"] == 100 and rec["metric"] == 1.0  # delta's centre tap is 1
+    assert rec["n_seeds"] == 2 and rec["n_clips"] == 200 and rec["n_clips_per_network"] == 100
+    assert rec["test_seeds"] == [1000, 1001] and rec["metric"] == 1.0  # delta's centre tap is 1
     assert rows[1]["result"]["tasks"]["segmentation"]["simulator"]["status"] == "unavailable: checkpoint missing"
     losses = scoring.paired_losses(rows, n_resamples=500)
     d = losses["delta"]["simulator"]["recognition"]
     expected = np.count_nonzero(np.arange(100) < 100 * k.centre) / 100 - 1.0
     assert d["estimate"] == pytest.approx(rows[0]["result"]["tasks"]["recognition"]["simulator"]["metric"] - 1.0)
     assert d["estimate"] == pytest.approx(expected)
-    assert d["low"] < d["estimate"] < d["high"] and d["n_seeds_reference"] == 2
+    assert d["low"] <= d["estimate"] <= d["high"] and d["n_seeds_reference"] == 2 and d["clip_design"] == "nested"
     assert losses["learned"]["simulator"]["recognition"]["estimate"] == 0.0
     assert losses["delta"]["simulator"]["weighted"]["estimate"] == pytest.approx(d["estimate"])  # one task scored
     lean = scoring.with_paired_losses(rows, n_resamples=200)

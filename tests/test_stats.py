@@ -306,3 +306,91 @@ def test_sizing_separates_clip_noise_from_a_true_seed_spread():
         assert quiet.seed_limited == {} and quiet.h_seed < 0.008 and quiet.n_clips is not None
         (spread,) = size_test_sets(pts(0.08, draw), target_half_width=0.01, n_resamples=1000)
         assert spread.seed_limited["delta"] > 0.012 and spread.n_clips is None
+
+
+# --------------------------------------------------------------------------- nested design (each network its own clips)
+def _nested(rng, s, m, delta, *, sd_seed=0.03, sd_clip=0.3, sd_noise=0.2):
+    """Network k scores its own ``m`` clips; the population difference is ``delta``."""
+    ref, cand = [], []
+    for k in range(s):
+        base = rng.normal(0.6, 0.3, m)
+        a = rng.normal(0, sd_seed)
+        r = base + rng.normal(0, sd_noise, m)
+        ref.append(ClipMeans(r))
+        cand.append(ClipMeans(r - delta - a - rng.normal(0, sd_clip, m)))
+    return ref, cand
+
+
+@pytest.mark.parametrize("sd_seed", [0.0, 0.04])
+def test_nested_cluster_ci_covers_the_known_difference_in_at_least_90_percent_of_200_draws(sd_seed):
+    rng = np.random.default_rng(30)
+    delta, hits, widths = 0.05, 0, []
+    for draw in range(200):
+        ref, cand = _nested(rng, 24, 40, delta, sd_seed=sd_seed)
+        ci = difference_ci(ref, cand, nested_clips=True, n_resamples=400, rng=draw)
+        hits += ci.low <= delta <= ci.high
+        widths.append(ci.half_width)
+    assert hits >= 180, hits
+    # and it is not trivially wide: the half-width is within 25 % of the normal-theory value
+    se = np.sqrt((sd_seed**2 + 0.3**2 / 40) / 24)
+    assert abs(np.mean(widths) / (1.96 * se) - 1) < 0.25, np.mean(widths) / (1.96 * se)
+
+
+def test_nested_ci_reports_its_design_and_totals_and_isolates_the_clip_part():
+    rng = np.random.default_rng(31)
+    ref, cand = _nested(rng, 12, 30, 0.05, sd_seed=0.08)
+    ci = difference_ci(ref, cand, nested_clips=True, n_resamples=500)
+    assert ci.clip_design == "nested" and ci.n_clips == 12 * 30 and ci.n_seeds_reference == 12
+    assert ci.resampled == ("clips", "seeds") and ci.seed_variance_included
+    clips_only = difference_ci(ref, cand, nested_clips=True, resample=("clips",), n_resamples=500)
+    assert clips_only.resampled == ("clips",) and clips_only.half_width < 0.6 * ci.half_width
+    assert abs(clips_only.estimate - ci.estimate) < 1e-12
+    # the estimate is the mean of the per-network differences
+    per = [r.weighted(np.ones((1, 30)))[0] - c.weighted(np.ones((1, 30)))[0] for r, c in zip(ref, cand)]
+    assert abs(ci.estimate - np.mean(per)) < 1e-12
+
+
+def test_nested_clips_may_differ_per_network_but_must_match_between_kernels():
+    rng = np.random.default_rng(32)
+    ref = [ClipMeans(rng.normal(size=n)) for n in (10, 20, 30)]
+    cand = [ClipMeans(rng.normal(size=n)) for n in (10, 20, 30)]
+    assert difference_ci(ref, cand, nested_clips=True, n_resamples=200).n_clips == 60
+    with pytest.raises(InputError, match="network 1 scored 20 clips"):
+        difference_ci(ref, [cand[0], ClipMeans(np.zeros(21)), cand[2]], nested_clips=True, n_resamples=200)
+    with pytest.raises(InputError, match="nested clips need paired_seeds"):
+        difference_ci(ref, cand, nested_clips=True, paired_seeds=False, n_resamples=200)
+
+
+def test_nested_sizing_gives_clips_per_network_that_reach_the_target_on_a_fresh_draw():
+    """A nested pilot (24 networks × 60 clips, a modest seed spread): size_test_sets returns clips per
+    network; a fresh nested draw at that size resolves ± 0.01 (and a large seed spread is flagged)."""
+    from fsdvs_hw.explore.paired import encode_evidence
+    from fsdvs_hw.explore.sizing import size_test_sets
+
+    def draw(seed, m, sd_seed, n_seeds=24):
+        g = np.random.default_rng(seed)
+        ref, cand = [], []
+        for _ in range(n_seeds):
+            ok = (g.uniform(size=m) < 0.85).astype(float)
+            p_flip = float(np.clip(0.10 + g.normal(0, sd_seed), 0, 1))
+            ref.append(ok)
+            cand.append(np.where(g.uniform(size=m) < p_flip, 0.0, ok))
+        return ref, cand
+
+    def pts(ref, cand):
+        def pt(key, arm):
+            rec = {"status": "ok", "test_clips": "per_network", "evidence": [encode_evidence(ClipMeans(v)) for v in arm]}
+            return {"key": key, "realisation": key, "params": {}, "status": "ok",
+                    "result": {"tasks": {"recognition": {"simulator": rec}}}}
+        return [pt("learned", ref), pt("delta", cand)]
+
+    (b,) = size_test_sets(pts(*draw(1, 60, 0.01)), target_half_width=0.01, n_resamples=1000)
+    assert b.nested and b.n_pilot == 60 and b.n_clips is not None and b.n_clips % 16 == 0
+    # var per clip ≈ 0.085·0.915 ≈ 0.078 → m ≈ 1.15 · 1.96² · 0.078 / (24 · 0.01²) ≈ 140 with no seed part
+    assert 100 <= b.n_clips <= 400, b.n_clips
+    ref, cand = draw(2, b.n_clips, 0.01)
+    ci = difference_ci([ClipMeans(v) for v in ref], [ClipMeans(v) for v in cand], nested_clips=True,
+                       n_resamples=1000)
+    assert ci.half_width <= 0.01, ci.half_width
+    (wide,) = size_test_sets(pts(*draw(3, 60, 0.06)), target_half_width=0.01, n_resamples=1000)
+    assert wide.n_clips is None and wide.seed_limited["delta"] > 0.01

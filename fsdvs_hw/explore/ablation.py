@@ -146,6 +146,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --transfer: also train these tasks' networks with that kernel frozen "
                              "(e.g. detection recognition)")
     parser.add_argument("--transfer-only", action="store_true", help="skip the size ablation (needs a kernel file)")
+    parser.add_argument("--frozen-only", action="store_true",
+                        help="with --transfer KERNEL_FILE: train only the frozen-kernel networks of --frozen-tasks "
+                             "(segmentation allowed), seed by seed, so any prefix of the seeds is complete for every "
+                             "task (how the exploration's networks are made)")
     parser.add_argument("--out", type=Path, default=Path("out") / "ablation",
                         help="folder: store (runs.sqlite), predictions/, ablation.md, ablation.json "
                              "(default out/ablation)")
@@ -188,8 +192,10 @@ def run(args: argparse.Namespace) -> int:
     exe = {"workers": args.workers, "scheduler": args.scheduler, "progress": not args.no_progress}
     if args.transfer_only and (not args.transfer or args.transfer == "from-run"):
         raise InputError("--transfer-only needs --transfer KERNEL_FILE")
+    if args.frozen_only and (not args.transfer or args.transfer == "from-run" or not args.frozen_tasks):
+        raise InputError("--frozen-only needs --transfer KERNEL_FILE and --frozen-tasks TASK ...")
     records: list[dict[str, Any]] = []
-    if not args.transfer_only:
+    if not (args.transfer_only or args.frozen_only):
         jobs = ablation_jobs(args.tasks, args.sizes, args.seeds, **kw)
         ship = None
         if args.ship_dir is not None:
@@ -203,8 +209,12 @@ def run(args: argparse.Namespace) -> int:
     if args.transfer:
         kpath = _transfer_kernel(args, records, out)
         stem = kpath.name.removesuffix(".json")
-        jobs = transfer_jobs(kpath, args.seeds, **kw)
-        if args.frozen_tasks:
+        if args.frozen_only:
+            jobs = sorted(frozen_kernel_jobs(kpath, args.frozen_tasks, args.seeds, **kw),
+                          key=lambda j: (args.seeds.index(j["seed"]), args.frozen_tasks.index(j["task"])))
+        else:
+            jobs = transfer_jobs(kpath, args.seeds, **kw)
+        if args.frozen_tasks and not args.frozen_only:
             jobs += frozen_kernel_jobs(kpath, [t for t in args.frozen_tasks if t != "segmentation"], args.seeds, **kw)
         ship = None
         if args.ship_dir is not None:
@@ -213,7 +223,7 @@ def run(args: argparse.Namespace) -> int:
             ship = {job_key(j): s for j in jobs if (s := _ship_stem(args.ship_dir, j, args.seeds[0], stem)) is not None}
         transfer = _collect(ablation_points(jobs, pred_dir, ship), store, exe, args.from_store)
         text += "\n" + transfer_markdown(transfer, stem, pred_dir)
-        others = [r for r in transfer if r["kind"] == "frozen" and r["task"] != "segmentation"]
+        others = [r for r in transfer if r["kind"] == "frozen" and (args.frozen_only or r["task"] != "segmentation")]
         if others:
             text += "\n" + _frozen_markdown(others, stem)
     shipped = annotate_shipped(records + transfer, pred_dir)

@@ -20,8 +20,9 @@ Layout (every section and key is optional; defaults in brackets)::
     [realisations.mesh|asic|metalens]   keyword options of the fit function
                     (fit_resistive_mesh / fit_asic_taps / fit_metalens)
     [tasks]         checkpoints = { detection = "kernels/learned_detection_7x7.safetensors" },
-                    or a list per task, one network per training seed;
-                    n_test (number, or table task → clips), n_test_emulation, finetune_epochs,
+                    or a list or glob pattern per task, one network per training seed;
+                    n_test (clips per network: number, or table task → clips), n_test_emulation,
+                    test_clips = "per_network" | "shared", finetune_epochs,
                     tracks = ["simulator", "emulation"], sensor = "checkpoint" | "design"
     [scoring]       task_weights = { detection = 1, ... } [equal], n_resamples [2000],
                     confidence [0.95], target_half_width [0.01]  (the paired loss CIs)
@@ -36,11 +37,13 @@ Sweep axes are dotted keys into this layout; ``"mesh.X"`` is short for ``"realis
 from __future__ import annotations
 
 import copy
+import glob
 import hashlib
 import importlib
 import inspect
 import json
 import math
+import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -185,10 +188,15 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
     },
     "tasks": {
         "checkpoints": _f(dict, {}, "task name → trained checkpoint, or a list of checkpoints (one network per "
-                                    "training seed), .safetensors relative to the design file; {} = no task "
-                                    "evaluation"),
-        "n_test": _f((int, dict), 0, "test clips per evaluation: one number for every task or a table task → "
-                                     "clips; 0 = the checkpoint's own test-set size", lo=0, hi=100000),
+                                    "training seed), .safetensors relative to the design file; a glob pattern "
+                                    "('networks/det_s*.safetensors') lists every match in natural order; {} = no "
+                                    "task evaluation"),
+        "n_test": _f((int, dict), 0, "test clips per network and evaluation: one number for every task or a table "
+                                     "task → clips; 0 = the checkpoint's own test-set size", lo=0, hi=100000),
+        "test_clips": _f(str, "per_network", "which clips a task's networks score: each its own held-out set "
+                                             "(clips nested in networks: the CI samples as many networks as there "
+                                             "are) or the same set for all (crossed)",
+                         choices=("per_network", "shared")),
         "n_test_emulation": _f((int, dict), 0, "test clips of the emulation track (display + recapture costs "
                                                "about 8x the simulator per clip): a number or a table task → "
                                                "clips; 0 = as n_test", lo=0, hi=100000),
@@ -485,6 +493,7 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
         data["design"]["name"] = "design"
     base = Path(base_dir)
     _check_cross(chk, data)
+    _expand_checkpoint_patterns(chk, data, base)
     _check_tasks(chk, data, base, confine_paths)
     _check_axes(chk, data)
     target = _load_target(chk, data, base, confine_paths)
@@ -620,6 +629,36 @@ def _check_cross(chk: _Checker, data: dict[str, Any]) -> None:
                 chk.add(f"analysis.csf_methods[{i}]", m, f"unknown CSF model; allowed: {', '.join(CSF_METHODS)}")
     if len(set(data["realisations"]["include"])) != len(data["realisations"]["include"]):
         chk.add("realisations.include", data["realisations"]["include"], "lists a realisation twice")
+
+
+def _natural_key(path: str) -> list[Any]:
+    """Sort key that puts ``s2`` before ``s10``."""
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", path)]
+
+
+def _expand_checkpoint_patterns(chk: _Checker, data: dict[str, Any], base: Path) -> None:
+    """Replace glob patterns in ``[tasks] checkpoints`` by the files they match, in natural order.
+
+    ``"networks/detection_*_s*.safetensors"`` lists one network per training seed (``s2`` before
+    ``s10``); the expanded list is what the design records, so a stored result names its networks.
+    """
+    ckpts = data["tasks"]["checkpoints"]
+    for task, entry in list(ckpts.items()):
+        out: list[Any] = []
+        for i, path in enumerate(_as_list(entry)):
+            if not (isinstance(path, str) and any(c in path for c in "*?[")):
+                out.append(path)
+                continue
+            if Path(path).is_absolute():
+                matches = sorted(glob.glob(path), key=_natural_key)
+            else:
+                matches = sorted((Path(m).as_posix() for m in glob.glob(path, root_dir=base)), key=_natural_key)
+            if not matches:
+                key = f"tasks.checkpoints.{task}" + (f"[{i}]" if isinstance(entry, list) else "")
+                chk.add(key, path, f"the pattern matches no file under {base}")
+            out.extend(matches)
+        if out != _as_list(entry):
+            ckpts[task] = out
 
 
 def _check_tasks(chk: _Checker, data: dict[str, Any], base: Path, confine: bool) -> None:

@@ -10,8 +10,13 @@ design point's result, so the paired losses can be computed after every point ha
 
 Pairing
 -------
-* **Clips**: the checkpoint's test clips, regenerated from its ``test_seed``; clip ``i`` is the same
-  for every kernel and every ``n_test`` (first ``n_test`` clips).
+* **Clips**: the checkpoint's test clips, regenerated from its ``test_seed`` plus ``clip_set``;
+  clip ``i`` is the same for every kernel and every ``n_test`` (first ``n_test`` clips). The
+  exploration gives network ``s`` of a task clip set ``s`` (``test_clips = "per_network"``, the
+  default): clips are then nested in networks, every clip is simulated once per kernel, and the
+  same simulation budget samples many more (network, mismatch pattern) pairs — the part of a
+  loss's CI that more clips cannot shrink (:mod:`fsdvs_hw.stats`, nested design). With
+  ``"shared"`` every network scores the same clips (crossed).
 * **Noise draws**: the simulator seeds every random effect from ``SensorConfig.seed`` at each call
   (:func:`fsdvs_hw.sensor.pixel.effect_generator`), and every kernel is run on the same batches of
   ``batch_size`` clips, so every kernel sees the same threshold-mismatch pattern and the same shot
@@ -88,6 +93,8 @@ class ClipEvidence:
         The simulator seed used (mismatch pattern and noise streams).
     seconds : float
         Wall time of the evaluation.
+    test_seed : int
+        Seed of the held-out clips scored (the checkpoint's ``test_seed`` + ``clip_set``).
     event_rate : float
         Mean events per pixel and frame interval the network saw.
     """
@@ -100,11 +107,13 @@ class ClipEvidence:
     checkpoint: str
     sensor_seed: int
     seconds: float
+    test_seed: int = -1
     event_rate: float = float("nan")
 
 
 def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n_test: int | None = None,
-                  sensor: Any = None, seed_offset: int = 0, events_fn: Any = None) -> ClipEvidence:
+                  sensor: Any = None, seed_offset: int = 0, clip_set: int = 0,
+                  events_fn: Any = None) -> ClipEvidence:
     """Score ``kernel`` zero-shot in one trained network and keep every clip's contribution.
 
     Parameters
@@ -122,6 +131,9 @@ def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n
     seed_offset : int
         Added to the sensor seed: the index of this checkpoint among the task's training seeds, so
         each network meets its own mismatch pattern (module docstring).
+    clip_set : int
+        Which held-out clip set: test seed = the checkpoint's ``test_seed`` + ``clip_set`` (0: the
+        checkpoint's own test set). The exploration passes the network's index (module docstring).
     events_fn : callable, optional
         ``events_fn(video, kernel_taps, sensor, timestamps_s) -> (B, T-1, 2, H, W)`` event frames
         (the emulation track); default the in-pixel simulator.
@@ -150,15 +162,19 @@ def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n
         raise InputError(f"clip_evidence: n_test must be an integer in [2, 100000], got {n_test!r}")
     cfg = sensor if sensor is not None else SensorConfig(**prov["sensor"])
     cfg = dataclasses.replace(cfg, seed=int(cfg.seed) + int(seed_offset))
+    if isinstance(clip_set, bool) or not isinstance(clip_set, int) or clip_set < 0:
+        raise InputError(f"clip_evidence: clip_set must be a non-negative integer, got {clip_set!r}")
+    test_seed = int(prov["test_seed"]) + clip_set
     # the same code path (test clips, batches of EVAL_BATCH, noise streams) as evaluate_kernel, which
     # caches the test set, so every kernel scored in one process meets the same clips and noise draws
     ev = evaluate_kernel(kernel, evaluator, checkpoint, n_test=n, sensor=cfg, events_fn=events_fn,
-                         keep_predictions=True)
-    metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, heldout_targets(evaluator, prov["scene"], n), evaluator)
+                         keep_predictions=True, test_seed=test_seed)
+    targets = heldout_targets(evaluator, prov["scene"], n, test_seed=test_seed)
+    metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, targets, evaluator)
     value = float(metric.weighted(np.ones((1, n)))[0])
     return ClipEvidence(task=evaluator.name, metric_name=evaluator.primary_metric, value=value, n_clips=n,
                         metric=metric, checkpoint=str(checkpoint), sensor_seed=int(cfg.seed),
-                        seconds=time.perf_counter() - t0, event_rate=ev.event_rate)
+                        seconds=time.perf_counter() - t0, test_seed=test_seed, event_rate=ev.event_rate)
 
 
 @functools.lru_cache(maxsize=32)

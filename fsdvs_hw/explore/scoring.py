@@ -63,6 +63,9 @@ __all__ = [
     "TRACK_PREFIX",
 ]
 
+#: How a task's networks share test clips (:func:`task_scores`' ``test_clips``).
+TEST_CLIPS: tuple[str, ...] = ("per_network", "shared")
+
 #: Column prefix of each task track in the flat tables (the simulator track is unprefixed).
 TRACK_PREFIX: dict[str, str] = {"simulator": "", "emulation": "emu_"}
 
@@ -173,7 +176,7 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
                 n_test: int | Mapping[str, int] = 0, n_test_emulation: int | Mapping[str, int] = 0,
                 finetune_epochs: int = 0,
                 tracks: Sequence[str] = ("simulator",), design_sensor: Mapping[str, Any] | None = None,
-                display: Any = None, keep_evidence: bool = True) -> dict[str, Any]:
+                display: Any = None, keep_evidence: bool = True, test_clips: str = "per_network") -> dict[str, Any]:
     """Evaluate ``kernel`` per clip in every trained network of every task (zero-shot swap).
 
     Parameters
@@ -184,9 +187,10 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
         Task name → checkpoint, or a list of checkpoints (one network per training seed), written
         by ``fsdvs_hw.tasks.learn_kernel``.
     n_test : int or mapping
-        Test clips (0 = the checkpoint's own test-set size), for every task or per task.
+        Test clips per network (0 = the checkpoint's own test-set size), for every task or per task.
     n_test_emulation : int or mapping
-        Test clips of the emulation track (0 = as ``n_test``); the first clips of the same test set.
+        Test clips per network of the emulation track (0 = as ``n_test``); the first clips of the
+        same test sets.
     finetune_epochs : int
         Must be 0: the paired per-clip scoring is zero-shot (a fine-tune would give every kernel
         its own network, and the loss would no longer be paired by network).
@@ -200,6 +204,11 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
         the checkpoint's simulator settings (None: the checkpoint's own). Recorded as ``"sensor"``.
     display : DisplaySettings, optional
         The emulation track's display (default ``DisplaySettings()``).
+    test_clips : {"per_network", "shared"}
+        ``"per_network"`` (default): network ``s`` scores its own held-out clips (clip set ``s``,
+        :func:`fsdvs_hw.explore.paired.clip_evidence`): clips nested in networks, so the same
+        simulation budget samples many networks and mismatch patterns. ``"shared"``: every network
+        scores the same clips (crossed).
     keep_evidence : bool
         Keep each network's per-clip evidence (base64 ``.npz``, :func:`fsdvs_hw.explore.paired.encode_evidence`)
         under ``"evidence"`` so :func:`paired_losses` can pair it with the reference kernel's.
@@ -208,13 +217,16 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
     -------
     dict
         ``{"status", task: {track: {"status", "metric" (mean over networks), "metric_name",
-        "per_seed", "n_clips", "n_seeds", "checkpoints", "sensor_seeds", "event_rate", "evidence",
-        "sensor", "wall_s"}}}``; ``status`` names what is missing instead of inventing a number.
+        "per_seed", "n_clips" (total over the networks), "n_clips_per_network", "n_seeds",
+        "test_clips", "test_seeds", "checkpoints", "sensor_seeds", "event_rate", "evidence", "sensor",
+        "wall_s"}}}``; ``status`` names what is missing instead of inventing a number.
         Network ``s`` of a task is scored with sensor seed ``checkpoint seed + s`` (its own
         mismatch pattern, :mod:`fsdvs_hw.explore.paired`).
     """
     if not checkpoints:
         return {"status": "not requested"}
+    if test_clips not in TEST_CLIPS:
+        raise InputError(f"test_clips {test_clips!r} unknown; allowed: {', '.join(TEST_CLIPS)}")
     try:
         from .paired import clip_evidence, encode_evidence
     except ImportError as exc:
@@ -241,7 +253,8 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
                 for s, ckpt in enumerate(paths):
                     sensor_cfg, sensor_rec = _task_sensor(ckpt, design_sensor)
                     evid.append(clip_evidence(kernel, task, ckpt, n_test=n or None, sensor=sensor_cfg,
-                                              seed_offset=s, events_fn=events_fn))
+                                              seed_offset=s, clip_set=s if test_clips == "per_network" else 0,
+                                              events_fn=events_fn))
             except (InputError, FileNotFoundError, ImportError) as exc:
                 out[task][track] = {"status": f"unavailable: {exc}"}
                 out["status"] = "partial"
@@ -249,7 +262,9 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
             per_seed = [e.value for e in evid]
             rec: dict[str, Any] = {
                 "status": "ok", "metric": float(np.mean(per_seed)), "metric_name": evid[0].metric_name,
-                "per_seed": per_seed, "n_clips": evid[0].n_clips, "n_seeds": len(evid),
+                "per_seed": per_seed, "n_seeds": len(evid), "test_clips": test_clips,
+                "n_clips": (sum(e.n_clips for e in evid) if test_clips == "per_network" else evid[0].n_clips),
+                "n_clips_per_network": evid[0].n_clips, "test_seeds": [e.test_seed for e in evid],
                 "checkpoints": [str(p) for p in paths], "sensor_seeds": [e.sensor_seed for e in evid],
                 "event_rate": float(np.mean([e.event_rate for e in evid])), "sensor": sensor_rec,
                 "wall_s": time.perf_counter() - t0,
@@ -309,7 +324,8 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
     checkpoints : mapping, optional
         Task name → trained checkpoint; empty or None for no task evaluation.
     task_options : mapping, optional
-        ``n_test``, ``n_test_emulation``, ``finetune_epochs``, ``tracks`` for :func:`task_scores`.
+        ``n_test``, ``n_test_emulation``, ``test_clips``, ``finetune_epochs``, ``tracks`` for
+        :func:`task_scores`.
     emulation : mapping, optional
         ``{"sensor": [sensor] section, "emulation": [emulation] section, "seed": int}`` to score the
         sensor-in-the-loop emulation track (:func:`fsdvs_hw.explore.emulation.emulation_scores`).
@@ -404,6 +420,11 @@ def _context(point: Mapping[str, Any]) -> str:
                       default=str)
 
 
+def _track_rec(point: Mapping[str, Any], task: str, track: str) -> Mapping[str, Any]:
+    rec = (((point.get("result") or {}).get("tasks") or {}).get(task) or {}).get(track)
+    return rec if isinstance(rec, Mapping) else {}
+
+
 def paired_losses(points: Iterable[Mapping[str, Any]], *, reference: str = "learned",
                   task_weights: Mapping[str, float] | None = None, n_resamples: int = 2000, confidence: float = 0.95,
                   rng: int = 0) -> dict[str, dict[str, Any]]:
@@ -443,7 +464,7 @@ def paired_losses(points: Iterable[Mapping[str, Any]], *, reference: str = "lear
     decoded: dict[tuple[str, str, str], list[Any]] = {}
 
     def arm(p: Mapping[str, Any], task: str, track: str) -> list[Any] | None:
-        rec = ((p.get("result") or {}).get("tasks") or {}).get(task, {}).get(track)
+        rec = _track_rec(p, task, track)
         if not isinstance(rec, Mapping) or rec.get("status") != "ok" or not rec.get("evidence"):
             return None
         key = (p["key"], task, track)
@@ -465,11 +486,14 @@ def paired_losses(points: Iterable[Mapping[str, Any]], *, reference: str = "lear
             ref_arms = {t: a for t, a in ref_arms.items() if a is not None}
             if not ref_arms:
                 continue
+            nested = {t: _track_rec(ref, t, track).get("test_clips") == "per_network" for t in ref_arms}
             ok, missing = [], []
             for p in group:
                 arms = {t: arm(p, t, track) for t in ref_arms}
                 good = all(a is not None and len(a) == len(ref_arms[t])
-                           and a[0].n_clips == ref_arms[t][0].n_clips for t, a in arms.items())
+                           and [m.n_clips for m in a] == [m.n_clips for m in ref_arms[t]]
+                           and _track_rec(p, t, track).get("test_seeds") == _track_rec(ref, t, track).get("test_seeds")
+                           for t, a in arms.items())
                 (ok if good else missing).append(p)
             for p in missing:
                 out[p["key"]][track] = {"status": "no paired evidence on every task of the reference"}
@@ -480,7 +504,7 @@ def paired_losses(points: Iterable[Mapping[str, Any]], *, reference: str = "lear
                 weights = {t: 1.0 for t in ref_arms}
             cis = task_difference_cis(
                 {t: (ref_arms[t], {p["key"]: decoded[(p["key"], t, track)] for p in ok}) for t in ref_arms},
-                weights=weights, n_resamples=n_resamples, confidence=confidence, rng=rng)
+                weights=weights, nested_clips=nested, n_resamples=n_resamples, confidence=confidence, rng=rng)
             for p in ok:
                 rec = {t: {**ci.to_dict(), "text": ci.describe()} for t, ci in cis[p["key"]].items()}
                 rec["weights"] = weights

@@ -17,6 +17,13 @@ Procedure (what ``designs/default.toml``'s ``n_test`` came from; the README reco
 
 If the seed part alone exceeds the target, no number of clips reaches it: the budget lists that
 realisation as seed-limited with its ``h_s`` (train more seeds to go below it).
+
+Nested design (``[tasks] test_clips = "per_network"``, the default: each of the ``S`` networks
+scores its own ``m`` clips). The whole-cluster interval ``h_t`` holds both parts,
+``h_t² ∝ (σ_seed² + σ_clip²/m) / S``; the interval that resamples clips within each network holds
+the clip part alone, ``h_c``. So ``h_s² = max(0, h_t² − h_c²)`` and each network needs
+``m = ⌈m_p h_c² / (h²/margin − h_s²)⌉`` clips (rounded up to a multiple of 16). Here more
+networks shrink ``h_s`` as ``1/√S``: the fix for a seed-limited loss.
 """
 
 from __future__ import annotations
@@ -42,9 +49,11 @@ class ClipBudget:
     ----------
     track, task : str
     n_clips : int or None
-        Recommended test clips (None: unreachable by clips; see ``reason``).
+        Recommended test clips per network (None: unreachable by clips; see ``reason``).
     n_pilot : int
-        Pilot clips.
+        Pilot clips per network.
+    nested : bool
+        Each network scored its own clips (``test_clips = "per_network"``).
     limiting : str
         The realisation that needs the most clips.
     h_clip, h_seed : float
@@ -67,6 +76,7 @@ class ClipBudget:
     per_realisation: dict[str, int | None]
     seed_limited: dict[str, float]
     reason: str = ""
+    nested: bool = False
 
 
 def size_test_sets(points: Iterable[Mapping[str, Any]], *, target_half_width: float = 0.01, margin: float = 1.15,
@@ -125,6 +135,9 @@ def size_test_sets(points: Iterable[Mapping[str, Any]], *, target_half_width: fl
                 continue
             labels = {p["key"]: label(p) for p in points}
             kw = {"n_resamples": n_resamples, "confidence": confidence}
+            if tracks.get(track, {}).get("test_clips") == "per_network":
+                out.append(_nested_budget(track, task, r_arm, cands, labels, target_half_width, margin, kw))
+                continue
             clips = task_difference_cis({task: (r_arm, cands)}, resample=("clips",), **kw)
             n_seeds = len(r_arm)
             seeds = task_difference_cis({task: (r_arm, cands)}, resample=("seeds",), **kw) if n_seeds > 1 else {}
@@ -157,6 +170,35 @@ def size_test_sets(points: Iterable[Mapping[str, Any]], *, target_half_width: fl
     return out
 
 
+def _nested_budget(track: str, task: str, r_arm: list[Any], cands: dict[str, list[Any]], labels: dict[str, str],
+                   target: float, margin: float, kw: dict[str, Any], step: int = 16) -> ClipBudget:
+    """Clips per network for one task of a nested design (module docstring)."""
+    from ..stats import clips_for_half_width, task_difference_cis
+
+    n_seeds = len(r_arm)
+    clips = task_difference_cis({task: (r_arm, cands)}, nested_clips=True, resample=("clips",), **kw)
+    both = (task_difference_cis({task: (r_arm, cands)}, nested_clips=True, **kw) if n_seeds > 1 else clips)
+    need: dict[str, int | None] = {}
+    limited: dict[str, float] = {}
+    worst: tuple[float, str, float, float] = (-1.0, "", math.nan, math.nan)
+    for key in cands:
+        c, t = clips[key][task], both[key][task]
+        h_s = math.sqrt(max(0.0, t.half_width**2 - c.half_width**2))
+        try:
+            total = clips_for_half_width(c, target / margin**0.5, seed_half_width=h_s)
+            n: int | None = int(math.ceil(total / n_seeds / step) * step)
+        except InputError:
+            n = None
+            limited[labels[key]] = h_s
+        need[labels[key]] = n
+        if n is not None and n > worst[0]:
+            worst = (float(n), labels[key], c.half_width, h_s)
+    n_max = None if worst[0] < 0 else int(worst[0])
+    return ClipBudget(track, task, n_max, r_arm[0].n_clips, worst[1], worst[2], worst[3], need, limited,
+                      "" if n_max is not None else f"every realisation is seed-limited with {n_seeds} networks: "
+                                                   "train more", nested=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m fsdvs_hw.explore.sizing DESIGN --pilot N [--out DIR]``: run a pilot and print the budget."""
     from .design import load_design
@@ -165,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
 
     ap = argparse.ArgumentParser(prog="python -m fsdvs_hw.explore.sizing", description=__doc__.splitlines()[0])
     ap.add_argument("design", type=Path)
-    ap.add_argument("--pilot", type=int, default=512, help="pilot test clips per task (default 512)")
+    ap.add_argument("--pilot", type=int, default=512, help="pilot test clips per task and network (default 512)")
     ap.add_argument("--target", type=float, default=None, help="CI half-width (default: the design's "
                                                                 "[scoring] target_half_width)")
     ap.add_argument("--margin", type=float, default=1.15)
@@ -177,7 +219,7 @@ def main(argv: list[str] | None = None) -> int:
     run_exploration(pilot, args.out, progress=False)
     with ResultsStore(args.out / "results.sqlite") as store:
         rows = list(store.rows())
-    print(f"pilot {args.pilot} clips per task; target half-width {target}; margin {args.margin}")
+    print(f"pilot {args.pilot} clips per task and network; target half-width {target}; margin {args.margin}")
     print("| track | task | clips needed | limiting realisation | its pilot h (clips) | its h (seeds) | "
           "clips per realisation | seed-limited (± h_s, more clips cannot help) |")
     print("|---|---|---|---|---|---|---|---|")

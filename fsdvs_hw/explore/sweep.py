@@ -228,7 +228,7 @@ def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, dict[
             checkpoints={t: [(p if Path(p).is_absolute() else base / p) for p in (v if isinstance(v, list) else [v])]
                          for t, v in tasks["checkpoints"].items()},
             task_options={"n_test": tasks["n_test"], "n_test_emulation": tasks["n_test_emulation"],
-                          "finetune_epochs": tasks["finetune_epochs"],
+                          "finetune_epochs": tasks["finetune_epochs"], "test_clips": tasks["test_clips"],
                           "tracks": tasks["tracks"],
                           "design_sensor": data["sensor"] if tasks["sensor"] == "design" else None},
             emulation={"sensor": data["sensor"], "emulation": data["emulation"], "seed": data["run"]["seed"]},

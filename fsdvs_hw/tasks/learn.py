@@ -44,7 +44,7 @@ Checkpoint files (written next to each other from one stem, e.g. ``designs/kerne
 
 from __future__ import annotations
 
-import functools
+import collections
 import json
 import math
 import time
@@ -223,16 +223,38 @@ def _network_input(video: Any, kernel: Any, sensor: Any, timestamps_s: np.ndarra
 
 
 # --------------------------------------------------------------------------- data
-@functools.lru_cache(maxsize=6)
+#: Bytes of scene video :func:`_dataset` keeps (test sets are re-scored for every realised kernel;
+#: the exploration's default design holds about 0.9 GB of them).
+DATASET_CACHE_BYTES: int = 2 * 1024**3
+_DATASET_CACHE: collections.OrderedDict[tuple[Any, ...], tuple[Any, Any, int]] = collections.OrderedDict()
+
+
 def _dataset(scene: Any, n: int, seed: int, task_name: str, dtype: str = "float64") -> tuple[Any, Any]:
-    """(video tensor float64 (N,T,H,W), targets) for a scene family; cached (evaluation is repeated)."""
+    """(video tensor (N,T,H,W) of ``dtype``, targets) for a scene family.
+
+    Cached, least recently used first out beyond :data:`DATASET_CACHE_BYTES`; clip ``i`` does not
+    depend on ``n``, so a request for fewer clips than a cached set is served as its first ``n``.
+    """
     import torch
 
     from ..scenes.synthetic import make_scenes
     from .evaluators import get_evaluator
 
+    key = (scene, int(seed), task_name, dtype)
+    hit = _DATASET_CACHE.get(key)
+    if hit is not None and hit[2] >= n:
+        _DATASET_CACHE.move_to_end(key)
+        video, targets, n_cached = hit
+        return (video, targets) if n_cached == n else (video[:n], _take(targets, slice(0, n)))
     batch = make_scenes(scene, n, seed=seed)
-    return torch.from_numpy(batch.video).to(getattr(torch, dtype)), get_evaluator(task_name).targets(batch)
+    video = torch.from_numpy(batch.video).to(getattr(torch, dtype))
+    targets = get_evaluator(task_name).targets(batch)
+    _DATASET_CACHE[key] = (video, targets, n)
+    used = sum(v.element_size() * v.nelement() for v, _, _ in _DATASET_CACHE.values())
+    while used > DATASET_CACHE_BYTES and len(_DATASET_CACHE) > 1:
+        old, _, _ = _DATASET_CACHE.popitem(last=False)[1]
+        used -= old.element_size() * old.nelement()
+    return video, targets
 
 
 def _take(targets: dict[str, Any], idx: Any) -> dict[str, Any]:
@@ -565,7 +587,8 @@ def load_checkpoint(checkpoint: str | Path) -> tuple[dict[str, Any], dict[str, A
 
 def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: int | None = None,
                     finetune_epochs: int = 0, finetune_lr: float = 1e-3, sensor: Any = None,
-                    events_fn: Any = None, keep_predictions: bool = False) -> Evaluation:
+                    events_fn: Any = None, keep_predictions: bool = False,
+                    test_seed: int | None = None) -> Evaluation:
     """Score ``kernel`` on a trained task: swap it into the checkpoint's frozen network.
 
     Parameters
@@ -598,6 +621,10 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
     keep_predictions : bool
         Return the per-clip test predictions in :attr:`Evaluation.predictions` (for paired
         statistics, :mod:`fsdvs_hw.stats`).
+    test_seed : int, optional
+        Seed of the test clips (default: the checkpoint's ``test_seed``). Another seed draws
+        another held-out set of the same scene family (the exploration gives each network its
+        own, :mod:`fsdvs_hw.explore.paired`).
 
     Returns
     -------
@@ -645,7 +672,8 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
         opt = torch.optim.AdamW(network.parameters(), lr=finetune_lr, weight_decay=settings.weight_decay)
         _train_epochs(evaluator, network, kernel_t, video, targets, sensor, ts, opt, finetune_epochs,
                       settings.batch_size, gen, "finetune", [], None, cached_inputs=cached)
-    test_video, test_targets = _dataset(scene, n_test, int(provenance["test_seed"]), evaluator.name, settings.dtype)
+    tseed = int(provenance["test_seed"]) if test_seed is None else _check_test_seed(test_seed, "evaluate_kernel")
+    test_video, test_targets = _dataset(scene, n_test, tseed, evaluator.name, settings.dtype)
     kept: dict[str, np.ndarray] | None = {} if keep_predictions else None
     metrics, event_rate = _score(evaluator, network, kernel_t, test_video, test_targets, sensor, ts,
                                  events_fn=events_fn, keep=kept)
@@ -689,8 +717,14 @@ def load_network(checkpoint: str | Path, task: Any, *, who: str = "load_network"
     return network, provenance
 
 
-def heldout_targets(task: Any, scene: Any, n_test: int) -> dict[str, np.ndarray]:
-    """The ground truth of a task's fixed test clips (:data:`TEST_SEED`), as numpy arrays.
+def _check_test_seed(seed: Any, who: str) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**63:
+        raise InputError(f"{who}: test_seed must be a non-negative integer, got {seed!r}")
+    return int(seed)
+
+
+def heldout_targets(task: Any, scene: Any, n_test: int, *, test_seed: int | None = None) -> dict[str, np.ndarray]:
+    """The ground truth of a task's test clips (default the fixed :data:`TEST_SEED` set), as numpy arrays.
 
     Parameters
     ----------
@@ -699,6 +733,8 @@ def heldout_targets(task: Any, scene: Any, n_test: int) -> dict[str, np.ndarray]
         The scene family (a checkpoint's ``provenance["scene"]`` dict is accepted).
     n_test : int
         Number of test clips (clip ``i`` does not depend on it).
+    test_seed : int, optional
+        Seed of the test set (as :func:`evaluate_kernel`'s ``test_seed``; default :data:`TEST_SEED`).
 
     Returns
     -------
@@ -712,5 +748,6 @@ def heldout_targets(task: Any, scene: Any, n_test: int) -> dict[str, np.ndarray]
     evaluator = get_evaluator(task)
     if isinstance(scene, dict):
         scene = SceneConfig.from_dict(scene)
-    _, targets = _dataset(scene, int(n_test), TEST_SEED, evaluator.name, "float32")
+    seed = TEST_SEED if test_seed is None else _check_test_seed(test_seed, "heldout_targets")
+    _, targets = _dataset(scene, int(n_test), seed, evaluator.name, "float32")
     return {k: v.numpy() for k, v in targets.items()}
