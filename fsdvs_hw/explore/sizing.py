@@ -3,7 +3,8 @@
 Procedure (what ``designs/default.toml``'s ``n_test`` came from; the README records the numbers):
 
 1. Run the design once with a pilot number of test clips ``n_p`` per task
-   (``python -m fsdvs_hw.explore.sizing designs/default.toml --pilot 512``).
+   (``python -m fsdvs_hw.explore.sizing designs/default.toml --pilot 512``), or take a finished
+   run as the pilot (``--from out/demo``).
 2. For every track, task and realisation, bootstrap the paired loss over clips only (half-width
    ``h_c`` at ``n_p`` clips), over training seeds only (``h_seeds``; none with one seed), and over
    clips for each seed's network alone (``h_c,s``). The seed-only interval also sees each seed's
@@ -212,14 +213,24 @@ def main(argv: list[str] | None = None) -> int:
                                                                 "[scoring] target_half_width)")
     ap.add_argument("--margin", type=float, default=1.15)
     ap.add_argument("--out", type=Path, default=Path("out/sizing"))
+    ap.add_argument("--from", dest="from_run", type=Path, default=None, metavar="DIR",
+                    help="size from a finished exploration's DIR/results.sqlite (e.g. out/demo) instead of a pilot")
     args = ap.parse_args(argv)
     design = load_design(args.design)
     target = args.target or design.data["scoring"]["target_half_width"]
-    pilot = design.with_overrides({"tasks.n_test": args.pilot, "tasks.n_test_emulation": 0})
-    run_exploration(pilot, args.out, progress=False)
-    with ResultsStore(args.out / "results.sqlite") as store:
+    if args.from_run is not None:
+        store_path = args.from_run / "results.sqlite"
+        if not store_path.is_file():
+            raise InputError(f"--from {str(args.from_run)!r}: no results.sqlite there (run fsdvs-hw explore first)")
+        what = f"run {args.from_run} as the pilot"
+    else:
+        pilot = design.with_overrides({"tasks.n_test": args.pilot, "tasks.n_test_emulation": 0})
+        run_exploration(pilot, args.out, progress=False)
+        store_path = args.out / "results.sqlite"
+        what = f"pilot {args.pilot} clips per task and network"
+    with ResultsStore(store_path) as store:
         rows = list(store.rows())
-    print(f"pilot {args.pilot} clips per task and network; target half-width {target}; margin {args.margin}")
+    print(f"{what}; target half-width {target}; margin {args.margin}")
     print("| track | task | clips needed | limiting realisation | its pilot h (clips) | its h (seeds) | "
           "clips per realisation | seed-limited (± h_s, more clips cannot help) |")
     print("|---|---|---|---|---|---|---|---|")
