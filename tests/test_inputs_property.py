@@ -169,9 +169,9 @@ def test_every_bad_fit_option_in_a_design_is_an_input_error_naming_its_key(case)
 @given(case=bad_fit_option())
 def test_every_bad_fit_argument_is_an_input_error_naming_it_before_any_work(case, monkeypatch, tmp_path):
     name, key, value = case
-    import fsdvs_hw.realise.asic as asic
-    import fsdvs_hw.realise.mesh as mesh
-    import fsdvs_hw.realise.metalens as metalens
+    import fsdvs_hw.realise.asic.fit as asic
+    import fsdvs_hw.realise.mesh.fit as mesh
+    import fsdvs_hw.realise.metalens.fit as metalens
     from fsdvs_hw.kernels import reference_kernel
 
     def work_started(*a, **k):

@@ -79,7 +79,7 @@ def test_good_options_pass_and_are_normalised():
 
 def test_asic_bit_limits_match_the_arithmetic_module():
     from fsdvs_hw.validation import FIT_OPTIONS
-    from fsdvs_hw.realise.asic_arith import MAX_TAP_BITS
+    from fsdvs_hw.realise.asic.arith import MAX_TAP_BITS
 
     assert FIT_OPTIONS["asic"]["bits"].hi == MAX_TAP_BITS
     assert FIT_OPTIONS["asic"]["bits"].lo == 2
@@ -214,7 +214,7 @@ def test_fits_at_the_tap_range_extremes_report_finite_errors(peak):
 def test_choices_in_the_table_are_the_fit_modules_own_registries():
     from fsdvs_hw.csf import CSF_METHODS
     from fsdvs_hw.realise.asic import OBJECTIVES, SCALE_MODES
-    from fsdvs_hw.realise.asic_arith import SYMMETRIES
+    from fsdvs_hw.realise.asic.arith import SYMMETRIES
     from fsdvs_hw.realise.mesh import MESH_MODELS
     from fsdvs_hw.realise.metalens import DISPERSION_MODELS, STRATEGIES
     from fsdvs_hw.validation import FIT_OPTIONS

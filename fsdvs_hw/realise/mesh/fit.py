@@ -5,7 +5,7 @@ The circuit
 Every pixel injects its (linear) signal as a **current** into its own node of two square resistive
 meshes, a narrow one and a wide one (lateral conductance :math:`g_l`, vertical conductance
 :math:`g_v` per mesh, space constant :math:`\lambda = \sqrt{g_l/g_v}` pixel pitches; see
-:mod:`fsdvs_hw.realise.mesh_response`). Each node voltage is read out through a transconductor
+:mod:`fsdvs_hw.realise.mesh.response`). Each node voltage is read out through a transconductor
 whose gain is normalised so that a uniform input gives that mesh path a DC gain of exactly
 :math:`a` (narrow) or :math:`b` (wide); the pixel's own signal is added with weight :math:`w_p`.
 The realised kernel is
@@ -38,7 +38,7 @@ D4-symmetric; an asymmetric target is fitted in the least-squares sense (its sym
 Absolute conductances: the lateral conductance of both meshes is ``g_lateral_s`` (default 10 nS,
 a subthreshold diffusor transistor); :math:`g_v = g_l/\lambda^2`. With a node capacitance
 :math:`C` the uniform mode settles with :math:`\tau = C/g_v = C\lambda^2/g_l`
-(:mod:`fsdvs_hw.realise.mesh_dynamics`).
+(:mod:`fsdvs_hw.realise.mesh.dynamics`).
 """
 
 from __future__ import annotations
@@ -54,11 +54,11 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
-from ..kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, _validate_pitch
-from ..validation import check_fit_arguments
-from .base import CostItem, kernel_error
-from .mesh_response import (
+from ...errors import InputError
+from ...kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, _validate_pitch
+from ...validation import check_fit_arguments
+from ..base import CostItem, kernel_error
+from .response import (
     LAMBDA_RANGE_PX,
     _dct_basis,
     _green_terms,

@@ -56,11 +56,11 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
-from ..kernels import DEFAULT_PITCH_M, Kernel
-from ..validation import check_fit_arguments
-from .base import CostItem, kernel_error
-from .optics import (
+from ...errors import InputError
+from ...kernels import DEFAULT_PITCH_M, Kernel
+from ...validation import check_fit_arguments
+from ..base import CostItem, kernel_error
+from ..optics import (
     RadialPropagator,
     angular_spectrum_2d,
     pixel_nodes_for_bandwidth,
@@ -68,7 +68,7 @@ from .optics import (
     radial_pixel_integrator,
     required_modes,
 )
-from .spectral import SpectralSamples, spectral_samples
+from ..spectral import SpectralSamples, spectral_samples
 
 __all__ = [
     "DISPERSION_MODELS",
