@@ -322,7 +322,6 @@ def test_a_huge_voxel_grid_is_refused_with_its_size_before_allocation():
 
 # ---------------------------------------------------------------------- no data lost
 def test_retry_errors_touches_only_the_design_being_run(tmp_path):
-    pytest.importorskip("fsdvs_hw.realise.asic")
     from fsdvs_hw.explore.store import ResultsStore
     from fsdvs_hw.explore.sweep import run_design
 

@@ -57,6 +57,7 @@ import numpy as np
 from ...errors import InputError
 from ...kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, _validate_pitch
 from ...validation import check_fit_arguments
+from .options import OPTIONS
 from ..base import CostItem, kernel_error
 from .response import (
     LAMBDA_RANGE_PX,
@@ -820,7 +821,7 @@ def fit_resistive_mesh(
     MeshFitWarning
         The fit is no better than a zero kernel (error ≥ 0.999), or IPOPT did not report success.
     """
-    check_fit_arguments("mesh", locals())  # fsdvs_hw.validation: same limits as design files
+    check_fit_arguments(OPTIONS, locals())  # the registry's schema: same limits as design files
     import casadi as ca
 
     t0 = time.perf_counter()

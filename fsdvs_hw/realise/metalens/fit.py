@@ -59,6 +59,7 @@ import numpy as np
 from ...errors import InputError
 from ...kernels import DEFAULT_PITCH_M, Kernel
 from ...validation import check_fit_arguments
+from .options import OPTIONS
 from ..base import CostItem, kernel_error
 from ..optics import (
     RadialPropagator,
@@ -779,7 +780,7 @@ def fit_metalens(
     -------
     MetalensDesign
     """
-    check_fit_arguments("metalens", locals())  # fsdvs_hw.validation: same limits as design files
+    check_fit_arguments(OPTIONS, locals())  # the registry's schema: same limits as design files
     import torch
 
     t0, c0 = time.perf_counter(), time.process_time()
