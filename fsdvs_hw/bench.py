@@ -23,9 +23,9 @@ __all__ = ["BENCHMARKS", "run_benchmark", "HELP", "add_arguments", "run"]
 BENCHMARKS: dict[str, str] = {
     "csf": "fsdvs_hw.analysis:bench_analysis",
     "tasks": "fsdvs_hw.tasks.bench:bench_tasks",
-    "asic": "fsdvs_hw.realise.asic_bench:bench_asic",
-    "mesh": "fsdvs_hw.realise.mesh_bench:bench_mesh",
-    "metalens": "fsdvs_hw.realise.metalens_bench:bench_metalens",
+    "asic": "fsdvs_hw.realise.asic.bench:bench_asic",
+    "mesh": "fsdvs_hw.realise.mesh.bench:bench_mesh",
+    "metalens": "fsdvs_hw.realise.metalens.bench:bench_metalens",
     "sim": "fsdvs_hw.sensor.bench:bench_sim",
     "explore": "fsdvs_hw.explore.bench:bench_explore",
     "stats": "fsdvs_hw.explore.stats_bench:bench_stats",

@@ -13,7 +13,7 @@ from scipy.signal import correlate2d
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.kernels import Kernel, reference_kernel
 from fsdvs_hw.realise.asic import AsicDesign, exhaustive_asic_taps, fit_asic_taps
-from fsdvs_hw.realise.asic_arith import (
+from fsdvs_hw.realise.asic.arith import (
     tap_range,
     accumulator_bits,
     accumulator_range,
@@ -24,7 +24,7 @@ from fsdvs_hw.realise.asic_arith import (
     output_bits,
     symmetry_classes,
 )
-from fsdvs_hw.realise.base import Realisation, kernel_error, realisation_from_dict
+from fsdvs_hw.realise import Realisation, kernel_error, realisation_from_dict
 
 
 # ---------------------------------------------------------------------------- CSD
@@ -327,7 +327,7 @@ def test_asic_design_validates_its_fields():
 
 # ---------------------------------------------------------------------------- CSF-weighted objective
 def test_uniform_weights_reduce_to_the_kernel_objective(rng):
-    from fsdvs_hw.realise.asic import _CSF_NFFT, _TapProblem
+    from fsdvs_hw.realise.asic.fit import _CSF_NFFT, _TapProblem
 
     k = reference_kernel("dog", 5)
     cls = symmetry_classes(5, "quadrant")

@@ -9,10 +9,10 @@ import pytest
 
 from fsdvs_hw.errors import InputError, ToolMissingError
 from fsdvs_hw.kernels import Kernel, reference_kernel
-from fsdvs_hw.realise import asic_rtl
+from fsdvs_hw.realise.asic import rtl as asic_rtl
 from fsdvs_hw.realise.asic import fit_asic_taps
-from fsdvs_hw.realise.asic_arith import accumulator_range, integer_correlate
-from fsdvs_hw.realise.asic_rtl import LIBERTY_PATH, generate_verilog, simulate_rtl, synthesise_verilog
+from fsdvs_hw.realise.asic.arith import accumulator_range, integer_correlate
+from fsdvs_hw.realise.asic.rtl import LIBERTY_PATH, generate_verilog, simulate_rtl, synthesise_verilog
 
 from conftest import require_tool
 

@@ -103,7 +103,7 @@ def test_paths_inside_the_design_folder_still_work():
 
 
 def test_yosys_top_cannot_inject_script_commands(tmp_path):
-    from fsdvs_hw.realise.asic_rtl import synthesise_verilog
+    from fsdvs_hw.realise.asic.rtl import synthesise_verilog
 
     marker = tmp_path / "pwned"
     for top in [f"x; !touch {marker}", "x\n!id", "1abc", "", "a b"]:
@@ -117,7 +117,7 @@ def test_liberty_path_with_script_characters_is_used_safely(tmp_path):
     from conftest import require_tool
 
     require_tool("yosys")
-    from fsdvs_hw.realise.asic_rtl import LIBERTY_PATH, synthesise_verilog
+    from fsdvs_hw.realise.asic.rtl import LIBERTY_PATH, synthesise_verilog
 
     odd = tmp_path / "cells; !echo hi.lib"
     odd.write_bytes(LIBERTY_PATH.read_bytes())
@@ -322,7 +322,6 @@ def test_a_huge_voxel_grid_is_refused_with_its_size_before_allocation():
 
 # ---------------------------------------------------------------------- no data lost
 def test_retry_errors_touches_only_the_design_being_run(tmp_path):
-    pytest.importorskip("fsdvs_hw.realise.asic")
     from fsdvs_hw.explore.store import ResultsStore
     from fsdvs_hw.explore.sweep import run_design
 

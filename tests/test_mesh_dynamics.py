@@ -9,8 +9,8 @@ import pytest
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.realise.mesh import MeshDesign
-from fsdvs_hw.realise.mesh_dynamics import drift_kernel, mesh_needs_transient, moving_edge_response
-from fsdvs_hw.realise.mesh_mismatch import mismatch_monte_carlo
+from fsdvs_hw.realise.mesh.dynamics import drift_kernel, mesh_needs_transient, moving_edge_response
+from fsdvs_hw.realise.mesh.mismatch import mismatch_monte_carlo
 
 
 def _design(**kw) -> MeshDesign:
@@ -142,8 +142,8 @@ def test_monte_carlo_bad_input():
 
 
 def test_step_response_settles_with_tau_equals_c_over_gv():
-    from fsdvs_hw.realise.mesh_dynamics import mesh_step_response
-    from fsdvs_hw.realise.mesh_response import finite_grid_response
+    from fsdvs_hw.realise.mesh.dynamics import mesh_step_response
+    from fsdvs_hw.realise.mesh.response import finite_grid_response
 
     g_l, g_v, c, h = 1e-8, 1e-8 / 2.5**2, 100e-15, 8
     tau = c / g_v

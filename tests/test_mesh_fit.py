@@ -12,8 +12,8 @@ import pytest
 import fsdvs_hw
 from fsdvs_hw.errors import InputError, KernelError
 from fsdvs_hw.kernels import Kernel, load_kernel, reference_kernel
-from fsdvs_hw.realise.base import Realisation, kernel_error, realisation_from_dict
-from fsdvs_hw.realise.mesh import (
+from fsdvs_hw.realise import Realisation, kernel_error, realisation_from_dict
+from fsdvs_hw.realise.mesh.fit import (
     MeshAsymmetryWarning,
     MeshBounds,
     MeshDesign,
@@ -23,7 +23,7 @@ from fsdvs_hw.realise.mesh import (
     fit_resistive_mesh,
     mismatch_sensitivity,
 )
-from fsdvs_hw.realise.mesh_response import lattice_green_function
+from fsdvs_hw.realise.mesh.response import lattice_green_function
 
 KNOWN = dict(lambda_narrow_px=0.8, lambda_wide_px=2.5, gain_narrow=1.5, gain_wide=1.2)
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.realise.mesh_response import (
+from fsdvs_hw.realise.mesh.response import (
     casadi_mesh_model,
     continuum_response,
     finite_grid_response,

@@ -8,8 +8,8 @@ import pytest
 from conftest import require_tool
 from fsdvs_hw.errors import InputError, ToolMissingError
 from fsdvs_hw.realise.mesh import MeshDesign
-from fsdvs_hw.realise.mesh_response import casadi_mesh_model
-from fsdvs_hw.realise.mesh_spice import run_ngspice, simulate_mesh_spice, to_spice_netlist
+from fsdvs_hw.realise.mesh.response import casadi_mesh_model
+from fsdvs_hw.realise.mesh.spice import run_ngspice, simulate_mesh_spice, to_spice_netlist
 
 
 def _design() -> MeshDesign:
@@ -78,8 +78,8 @@ def test_netlist_bad_input():
 
 @pytest.mark.tools
 def test_ngspice_transient_agrees_with_the_exact_step_response():
-    from fsdvs_hw.realise.mesh_dynamics import mesh_step_response
-    from fsdvs_hw.realise.mesh_spice import simulate_mesh_step_spice
+    from fsdvs_hw.realise.mesh.dynamics import mesh_step_response
+    from fsdvs_hw.realise.mesh.spice import simulate_mesh_step_spice
 
     require_tool("ngspice")
     d = _design()

@@ -13,8 +13,8 @@ torch = pytest.importorskip("torch")
 import fsdvs_hw
 from fsdvs_hw import reference_kernel
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.realise.base import Realisation, kernel_error, realisation_from_dict, realised_kernel_error
-from fsdvs_hw.realise.metalens import (
+from fsdvs_hw.realise import Realisation, kernel_error, realisation_from_dict, realised_kernel_error
+from fsdvs_hw.realise.metalens.fit import (
     LensGeometry,
     MetalensDesign,
     _RadialKernelModel,
@@ -23,7 +23,7 @@ from fsdvs_hw.realise.metalens import (
     pixel_psf,
     plan_wavelength_samples,
 )
-from fsdvs_hw.realise.metalens_bench import radial_symmetric_floor
+from fsdvs_hw.realise.metalens.bench import radial_symmetric_floor
 from fsdvs_hw.realise.spectral import spectral_samples
 
 GEOM = LensGeometry()  # D = 100 µm, f = 200 µm, λ0 = 555 nm, diffractive

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from ...errors import InputError
 
 __all__ = [
     "TransientDecision",
@@ -40,7 +40,7 @@ __all__ = [
 
 
 def _check_design(design: Any):
-    from .mesh import MeshDesign
+    from .fit import MeshDesign
 
     if not isinstance(design, MeshDesign):
         raise InputError(f"design: expected a MeshDesign, got {type(design).__name__}")
@@ -214,7 +214,7 @@ def moving_edge_response(
     n_samples : int
         Output samples over the run (edge crossing the whole chain).
     """
-    from .mesh_response import _dct_basis
+    from .response import _dct_basis
 
     design = _check_design(design)
     v = _check_speed(edge_speed_px_per_s)
@@ -299,7 +299,7 @@ def mesh_step_response(
     ndarray, shape (T, 2h+1, 2h+1)
         Node voltage per ampere of step (V/A = Ω).
     """
-    from .mesh_response import _check_radius, _dct_basis, space_constant_px
+    from .response import _check_radius, _dct_basis, space_constant_px
 
     space_constant_px(g_lateral_s, g_vertical_s)  # validates both conductances
     c = float(node_capacitance_f)

@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
-from .base import kernel_error
+from ...errors import InputError
+from ..base import kernel_error
 
 __all__ = ["MismatchResult", "mismatch_monte_carlo"]
 
@@ -97,8 +97,8 @@ def mismatch_monte_carlo(
     """
     import scipy.sparse.linalg as spla
 
-    from .mesh import MeshDesign
-    from .mesh_response import grid_half_width_for, mesh_kcl_matrix
+    from .fit import MeshDesign
+    from .response import grid_half_width_for, mesh_kcl_matrix
 
     if not isinstance(design, MeshDesign):
         raise InputError(f"design: expected a MeshDesign, got {type(design).__name__}")

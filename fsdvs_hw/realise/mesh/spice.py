@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError, ToolMissingError
+from ...errors import InputError, ToolMissingError
 
 __all__ = [
     "MAX_SPICE_HALF_WIDTH",
@@ -51,8 +51,8 @@ def _check_half_width(half_width: Any) -> int:
 
 
 def _resolve_half_width(design: Any, half_width: int | None) -> int:
-    from .mesh import MeshDesign
-    from .mesh_response import grid_half_width_for
+    from .fit import MeshDesign
+    from .response import grid_half_width_for
 
     if not isinstance(design, MeshDesign):
         raise InputError(f"design: expected a MeshDesign, got {type(design).__name__}")

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..kernels import Kernel, load_kernel, reference_kernel
-from .asic import fit_asic_taps
+from ...kernels import Kernel, load_kernel, reference_kernel
+from .fit import fit_asic_taps
 
 __all__ = ["bench_asic", "learned_or_fallback_kernel"]
 
@@ -37,7 +37,7 @@ def _log(msg: str) -> None:
 def learned_or_fallback_kernel() -> tuple[Kernel, str]:
     """The first learned kernel in ``designs/kernels/`` (provenance without a ``reference`` key and
     a name not marked reference), else a 7×7 LoG (σ = 1 px); returns the kernel and a note."""
-    root = Path(__file__).resolve().parents[2] / "designs" / "kernels"
+    root = Path(__file__).resolve().parents[3] / "designs" / "kernels"
     for path in sorted(root.glob("*")) if root.is_dir() else []:
         if path.suffix.lower() not in (".npy", ".csv", ".json", ".pt"):
             continue
@@ -76,7 +76,7 @@ def _mismatches(d, rng) -> int:
 
 def bench_asic(*, quick: bool = False) -> str:
     """Run the ASIC benchmark; returns Markdown (see the module docstring)."""
-    from ..csf import Geometry, csf_agreement
+    from ...csf import Geometry, csf_agreement
 
     rng = np.random.default_rng(0)
     dog = reference_kernel("dog", 7)

@@ -42,8 +42,8 @@ def _log(msg: str) -> None:
 
 
 def _fit_table(quick: bool) -> list[str]:
-    from ..kernels import reference_kernel
-    from .mesh import MeshDesign, _mesh_solver, fit_resistive_mesh
+    from ...kernels import reference_kernel
+    from .fit import MeshDesign, _mesh_solver, fit_resistive_mesh
 
     repeats = 2 if quick else 5
 
@@ -93,7 +93,7 @@ def _fit_table(quick: bool) -> list[str]:
 
 
 def _model_table(quick: bool) -> list[str]:
-    from .mesh_response import (
+    from .response import (
         _unfold_quarter,
         casadi_mesh_model,
         finite_grid_response,
@@ -144,10 +144,10 @@ def _model_table(quick: bool) -> list[str]:
 def _spice_table(quick: bool) -> list[str]:
     import shutil
 
-    from .mesh import MeshDesign
-    from .mesh_response import casadi_mesh_model
-    from .mesh_dynamics import mesh_step_response
-    from .mesh_spice import simulate_mesh_spice, simulate_mesh_step_spice
+    from .fit import MeshDesign
+    from .response import casadi_mesh_model
+    from .dynamics import mesh_step_response
+    from .spice import simulate_mesh_spice, simulate_mesh_step_spice
 
     if shutil.which("ngspice") is None:
         return ["ngspice not installed: table skipped (apt-get install ngspice)."]
@@ -192,9 +192,9 @@ def _spice_table(quick: bool) -> list[str]:
 
 
 def _misc_table(quick: bool) -> list[str]:
-    from .mesh import MeshDesign
-    from .mesh_dynamics import mesh_needs_transient, moving_edge_response
-    from .mesh_mismatch import mismatch_monte_carlo
+    from .fit import MeshDesign
+    from .dynamics import mesh_needs_transient, moving_edge_response
+    from .mismatch import mismatch_monte_carlo
 
     d = MeshDesign.from_space_constants(0.8, 2.5, 1.5, 1.2, size=7)
     trials = 20 if quick else 200

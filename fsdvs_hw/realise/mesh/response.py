@@ -56,7 +56,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from ...errors import InputError
 
 __all__ = [
     "LAMBDA_RANGE_PX",

@@ -27,7 +27,7 @@ import numpy as np
 
 __all__ = ["bench_metalens", "radial_symmetric_floor", "plot_fits"]
 
-_REPO = Path(__file__).resolve().parents[2]
+_REPO = Path(__file__).resolve().parents[3]
 _LEARNED = _REPO / "designs" / "kernels" / "learned_detection_7x7.json"
 _FIGURE = _REPO / "designs" / "figures" / "metalens_fits.png"
 
@@ -63,7 +63,7 @@ def radial_symmetric_floor(taps: np.ndarray) -> float:
 
 
 def _grid_table(quick: bool) -> list[str]:
-    from .metalens import LensGeometry, pixel_psf
+    from .fit import LensGeometry, pixel_psf
 
     g = LensGeometry()
     kw = dict(coefficients=[2.0, -3.0], sensor_distance_m=240e-6, n_pixels=9, illuminant=555e-9)
@@ -84,7 +84,7 @@ def _grid_table(quick: bool) -> list[str]:
 
 
 def _spectral_table(quick: bool) -> list[str]:
-    from .metalens import LensGeometry, pixel_psf
+    from .fit import LensGeometry, pixel_psf
 
     g = LensGeometry()
     kw = dict(coefficients=[2.0, -3.0], sensor_distance_m=240e-6, n_pixels=9, illuminant="D65")
@@ -101,7 +101,7 @@ def _spectral_table(quick: bool) -> list[str]:
 
 
 def _targets() -> list[tuple[str, Any]]:
-    from ..kernels import load_kernel, reference_kernel
+    from ...kernels import load_kernel, reference_kernel
 
     out = [("DoG 7×7 (0.7/2.0 px, 20 % DC)", reference_kernel("dog", 7))]
     if _LEARNED.is_file():
@@ -112,7 +112,7 @@ def _targets() -> list[tuple[str, Any]]:
 
 
 def _fit_table(quick: bool) -> tuple[list[str], list[tuple[str, Any, Any]]]:
-    from .metalens import fit_metalens
+    from .fit import fit_metalens
 
     opts: dict[str, Any] = dict(n_starts=2, max_iter=30, n_wavelengths=4, n_terms=2) if quick else {}
     rows = [

@@ -26,9 +26,9 @@ into the event comparator's threshold). :func:`fit_asic_taps` finds ``(s, q)``:
 The result, :class:`AsicDesign`, satisfies the realisation protocol (:mod:`fsdvs_hw.realise.base`):
 ``kernel()`` is ``s * q``; ``cost()`` gives adders, CSD digits, accumulator width and, after
 :meth:`AsicDesign.synthesise`, yosys cells and area. :meth:`AsicDesign.apply` is the bit-exact
-integer model (:func:`~fsdvs_hw.realise.asic_arith.integer_correlate`), and
+integer model (:func:`~fsdvs_hw.realise.asic.arith.integer_correlate`), and
 :meth:`AsicDesign.verilog` / :meth:`AsicDesign.simulate` / :meth:`AsicDesign.synthesise` generate,
-simulate (Icarus Verilog) and synthesise (yosys) the streaming RTL (:mod:`fsdvs_hw.realise.asic_rtl`).
+simulate (Icarus Verilog) and synthesise (yosys) the streaming RTL (:mod:`fsdvs_hw.realise.asic.rtl`).
 
 References
 ----------
@@ -49,10 +49,11 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
-from ..kernels import Kernel
-from ..validation import check_fit_arguments
-from .asic_arith import (
+from ...errors import InputError
+from ...kernels import Kernel
+from ...validation import check_fit_arguments
+from .options import OPTIONS
+from .arith import (
     SYMMETRIES,
     SymmetryClasses,
     accumulator_bits,
@@ -64,7 +65,7 @@ from .asic_arith import (
     tap_limit,
     tap_range,
 )
-from .base import CostItem, kernel_error
+from ..base import CostItem, kernel_error
 
 __all__ = ["AsicDesign", "fit_asic_taps", "SCALE_MODES", "OBJECTIVES", "exhaustive_asic_taps"]
 
@@ -264,26 +265,26 @@ class AsicDesign:
 
     # ------------------------------------------------------------------ hardware
     def apply(self, image: np.ndarray, *, out_shift: int = 0) -> np.ndarray:
-        """The bit-exact integer model on ``input_bits``-bit pixels (see :func:`~fsdvs_hw.realise.asic_arith.integer_correlate`)."""
+        """The bit-exact integer model on ``input_bits``-bit pixels (see :func:`~fsdvs_hw.realise.asic.arith.integer_correlate`)."""
         return integer_correlate(image, self.taps, input_bits=self.input_bits, out_shift=out_shift)
 
     def verilog(self, *, image_width: int, image_height: int, out_shift: int = 0, module_name: str = "fsdvs_conv") -> str:
-        """Synthesisable Verilog of the streaming filter (see :func:`~fsdvs_hw.realise.asic_rtl.generate_verilog`)."""
-        from .asic_rtl import generate_verilog
+        """Synthesisable Verilog of the streaming filter (see :func:`~fsdvs_hw.realise.asic.rtl.generate_verilog`)."""
+        from .rtl import generate_verilog
 
         return generate_verilog(self.taps, input_bits=self.input_bits, image_width=image_width, image_height=image_height,
                                 out_shift=out_shift, symmetry=self.symmetry if self.pre_add else "none", module_name=module_name)
 
     def simulate(self, images: np.ndarray, *, out_shift: int = 0) -> np.ndarray:
         """Run the generated RTL in Icarus Verilog on ``images`` (N, H, W); returns the outputs."""
-        from .asic_rtl import simulate_rtl
+        from .rtl import simulate_rtl
 
         return simulate_rtl(self.taps, images, input_bits=self.input_bits, out_shift=out_shift,
                             symmetry=self.symmetry if self.pre_add else "none")
 
     def synthesise(self, *, image_width: int = 16, image_height: int = 16, out_shift: int = 0) -> AsicDesign:
         """Synthesise the RTL with yosys and the shipped liberty file; returns a copy with ``synthesis`` set."""
-        from .asic_rtl import generate_datapath_verilog, synthesise_verilog
+        from .rtl import generate_datapath_verilog, synthesise_verilog
 
         src = self.verilog(image_width=image_width, image_height=image_height, out_shift=out_shift)
         rep = synthesise_verilog(src, top="fsdvs_conv")
@@ -477,7 +478,7 @@ class _TapProblem:
 
 def _csf_weights(kernel: Kernel, method: str, geometry: Any) -> tuple[np.ndarray, float]:
     """CSF weight on the 64×64 DFT grid (peak 1) and the pixels per degree used."""
-    from ..csf import Geometry, contrast_sensitivity, csf_agreement
+    from ...csf import Geometry, contrast_sensitivity, csf_agreement
 
     if geometry is None:
         ppd = csf_agreement(kernel, method=method).pixels_per_degree
@@ -632,7 +633,7 @@ def fit_asic_taps(
         Bad arguments; a fixed scale or an adder weight at which every tap rounds to zero;
         an ``input_bits`` whose accumulator would exceed the exact 63-bit model.
     """
-    check_fit_arguments("asic", locals())  # fsdvs_hw.validation: same limits as design files
+    check_fit_arguments(OPTIONS, locals())  # the registry's schema: same limits as design files
     t0 = time.perf_counter()
     if not isinstance(kernel, Kernel):
         raise InputError(f"kernel: expected a fsdvs_hw Kernel, got {type(kernel).__name__}")
