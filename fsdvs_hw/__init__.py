@@ -11,8 +11,9 @@ dependencies (torch, casadi) load only when used.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from typing import TYPE_CHECKING
+
+from ._lazy import lazy_exports
 
 __version__ = "0.1.0"
 
@@ -21,6 +22,7 @@ _LAZY: dict[str, str] = {
     # core
     "Kernel": "fsdvs_hw.kernels",
     "load_kernel": "fsdvs_hw.kernels",
+    "as_kernel": "fsdvs_hw.kernels",
     "reference_kernel": "fsdvs_hw.kernels",
     "InputError": "fsdvs_hw.errors",
     "KernelError": "fsdvs_hw.errors",
@@ -65,17 +67,25 @@ _LAZY: dict[str, str] = {
     "write_report": "fsdvs_hw.report",
 }
 
-__all__ = ["__version__", *_LAZY]
+__all__, __getattr__, __dir__ = lazy_exports("fsdvs_hw", _LAZY, globals(), extra=("__version__",))
 
-
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'fsdvs_hw' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(__all__)
+if TYPE_CHECKING:  # the same names, visible to IDEs and type checkers
+    from .kernels import Kernel, load_kernel, as_kernel, reference_kernel
+    from .errors import InputError, KernelError
+    from .spectra import radial_response, spectral_summary, pixels_per_degree
+    from .csf import Geometry, contrast_sensitivity, csf_agreement
+    from .analysis import analyse_kernel
+    from .sensor import SensorConfig, event_frames, event_list, voxel_grid, EventSimulator, plan_model
+    from .realise.base import kernel_error
+    from .realise.registry import RealisationSpec, CostSpec, register_realisation, get_realisation, realisation_names
+    from .realise.mesh import fit_resistive_mesh, MeshDesign, MeshBounds
+    from .realise.mesh.spice import to_spice_netlist
+    from .realise.mesh.dynamics import mesh_needs_transient
+    from .realise.mesh.mismatch import mismatch_monte_carlo
+    from .realise.asic import fit_asic_taps, AsicDesign
+    from .realise.metalens import fit_metalens, MetalensDesign
+    from .tasks.learn import learn_kernel, evaluate_kernel
+    from .explore.design import load_design
+    from .explore.explore import run_exploration
+    from .explore.store import ResultsStore
+    from .report import write_report

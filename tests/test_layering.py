@@ -20,7 +20,7 @@ LAYERS: tuple[str, ...] = ("core", "models", "tasks", "report", "explore", "cli"
 
 #: Top-level modules of the core layer (kernels, spectra, CSF, statistics and their helpers).
 _CORE = {"errors", "paths", "validation", "limits", "kernels", "spectra", "csf", "stats", "workers", "plots",
-         "analysis"}
+         "analysis", "_lazy", "benchmarks"}
 _MODELS = {"sensor", "scenes", "realise"}
 
 #: Import cycles known and owned elsewhere. sensor/events.py ↔ sensor/plan.py import each other
@@ -83,7 +83,14 @@ def import_graph() -> dict[str, dict[str, int]]:
     known = set(mods)
     graph: dict[str, dict[str, int]] = {m: {} for m in mods}
     for module, (path, is_pkg) in mods.items():
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+        tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+        # imports under ``if TYPE_CHECKING:`` never run (the lazy public names, listed for IDEs)
+        static_only = {id(n) for block in ast.walk(tree)
+                       if isinstance(block, ast.If) and ast.unparse(block.test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING")
+                       for stmt in block.body for n in ast.walk(stmt)}
+        for node in ast.walk(tree):
+            if id(node) in static_only:
+                continue
             if isinstance(node, (ast.Import, ast.ImportFrom)):
                 for target in _targets(module, is_pkg, node, known):
                     if target != module:

@@ -14,8 +14,9 @@ Names are imported lazily so ``import fsdvs_hw.tasks`` does not import torch.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
 
 _LAZY = {
     "detection_map": "fsdvs_hw.tasks.metrics",
@@ -34,17 +35,10 @@ _LAZY = {
     "run_job": "fsdvs_hw.tasks.ablation",
 }
 
-__all__ = list(_LAZY)
+__all__, __getattr__, __dir__ = lazy_exports("fsdvs_hw.tasks", _LAZY, globals())
 
-
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'fsdvs_hw.tasks' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(__all__)
+if TYPE_CHECKING:  # the same names, visible to IDEs and type checkers
+    from .metrics import detection_map, top1_accuracy, segmentation_scores
+    from .evaluators import TaskEvaluator, EVALUATORS, get_evaluator, register_evaluator
+    from .learn import learn_kernel, evaluate_kernel, LearnResult, Evaluation, heldout_targets
+    from .ablation import ablation_jobs, run_job

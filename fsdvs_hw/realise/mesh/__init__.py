@@ -24,6 +24,7 @@ from dataclasses import replace as _replace
 from typing import Any as _Any
 
 from ..registry import CostSpec, RealisationSpec, register_realisation
+from . import fit
 from .fit import (
     GAIN_MODES,
     MESH_MODELS,
@@ -36,18 +37,8 @@ from .fit import (
 )
 from .options import OPTIONS
 
-__all__ = [
-    "MeshBounds",
-    "MeshDesign",
-    "MeshAsymmetryWarning",
-    "MeshFitWarning",
-    "MESH_MODELS",
-    "GAIN_MODES",
-    "fit_resistive_mesh",
-    "mismatch_sensitivity",
-    "OPTIONS",
-    "SPEC",
-]
+__all__ = ["OPTIONS", "SPEC"]
+__all__ += fit.__all__  # the fit module's public names, re-exported above
 
 
 def _conductance_per_pixel(cost: "dict[str, dict[str, _Any]]") -> float | None:

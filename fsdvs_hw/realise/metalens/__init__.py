@@ -15,6 +15,7 @@ The shared wave-optics and spectral sampling live one level up (:mod:`fsdvs_hw.r
 """
 
 from ..registry import CostSpec, RealisationSpec, register_realisation
+from . import fit
 
 from .fit import (
     DISPERSION_MODELS,
@@ -29,19 +30,8 @@ from .fit import (
 )
 from .options import OPTIONS
 
-__all__ = [
-    "DISPERSION_MODELS",
-    "STRATEGIES",
-    "LensGeometry",
-    "MetalensDesign",
-    "fit_metalens",
-    "pixel_psf",
-    "local_numerical_aperture",
-    "WavelengthPlan",
-    "plan_wavelength_samples",
-    "OPTIONS",
-    "SPEC",
-]
+__all__ = ["OPTIONS", "SPEC"]
+__all__ += fit.__all__  # the fit module's public names, re-exported above
 
 #: The registry entry (own cost axis and headline: the aperture diameter).
 SPEC = register_realisation(RealisationSpec(

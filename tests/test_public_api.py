@@ -1,0 +1,40 @@
+"""The public names: lazily loaded at run time, and the same names imported for static tools."""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+PKG = Path(__file__).resolve().parents[1] / "fsdvs_hw"
+
+
+@pytest.mark.parametrize("package", ["fsdvs_hw", "fsdvs_hw.tasks"])
+def test_type_checking_imports_list_exactly_the_lazy_names_and_each_resolves(package):
+    path = PKG / ("__init__.py" if package == "fsdvs_hw" else "tasks/__init__.py")
+    tree = ast.parse(path.read_text())
+    lazy = next(ast.literal_eval(n.value) for n in tree.body
+                if isinstance(n, (ast.Assign, ast.AnnAssign)) and getattr(n, "target", None) is None
+                and isinstance(n.targets[0], ast.Name) and n.targets[0].id == "_LAZY"
+                or isinstance(n, ast.AnnAssign) and n.target.id == "_LAZY")
+    block = next(n for n in tree.body if isinstance(n, ast.If) and ast.unparse(n.test) == "TYPE_CHECKING")
+    static = {a.name: ("." * imp.level + (imp.module or "")) for imp in block.body for a in imp.names}
+    assert set(static) == set(lazy)
+    for name, module in lazy.items():  # each static import names the module the lazy table names
+        assert module.endswith(static[name].lstrip(".")), (name, module, static[name])
+    mod = importlib.import_module(package)
+    assert set(lazy) <= set(mod.__all__) == set(dir(mod))
+    for name in lazy:
+        assert getattr(mod, name) is getattr(importlib.import_module(lazy[name]), name)
+    with pytest.raises(AttributeError, match="has no attribute 'no_such_name'"):
+        getattr(mod, "no_such_name")
+
+
+def test_importing_the_package_does_not_import_torch_or_casadi():
+    code = "import sys, fsdvs_hw, fsdvs_hw.tasks; print('torch' in sys.modules, 'casadi' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "False"]
