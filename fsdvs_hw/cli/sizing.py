@@ -1,0 +1,44 @@
+"""``fsdvs-hw sizing``: size a design's test sets from a pilot run (:func:`fsdvs_hw.explore.sizing.size_test_sets`)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+
+HELP = "size a design's test sets: run a small pilot and print the clips each task needs for a target CI half-width"
+DESCRIPTION = (
+    "Run the design with --pilot test clips per task and network, then print, per track and task, the\n"
+    "number of clips that brings every realisation's loss CI to the target half-width (or says which\n"
+    "realisations are seed-limited: more clips cannot help).\n\n"
+    "Example: fsdvs-hw sizing designs/default.toml --pilot 512"
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("design", type=Path, help="TOML design file")
+    parser.add_argument("--pilot", type=int, default=512, help="pilot test clips per task and network")
+    parser.add_argument("--target", type=float, default=None,
+                        help="CI half-width (default: the design's [scoring] target_half_width)")
+    parser.add_argument("--margin", type=float, default=1.15, help="safety factor on the clip count")
+    parser.add_argument("--out", type=Path, default=Path("out/sizing"), metavar="DIR", help="pilot output folder")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..explore.design import load_design
+    from ..explore.explore import run_exploration
+    from ..explore.sizing import budget_table, size_test_sets
+    from ..explore.store import ResultsStore
+    from ..paths import output_dir
+
+    design = load_design(args.design)
+    output_dir(args.out, flag="--out")
+    target = args.target or design.data["scoring"]["target_half_width"]
+    pilot = design.with_overrides({"tasks.n_test": args.pilot, "tasks.n_test_emulation": 0})
+    run_exploration(pilot, args.out, progress=False)
+    with ResultsStore(args.out / "results.sqlite") as store:
+        rows = list(store.rows())
+    print(f"pilot {args.pilot} clips per task and network; target half-width {target}; margin {args.margin}")
+    print(budget_table(size_test_sets(rows, target_half_width=target, margin=args.margin)))
+    return 0
