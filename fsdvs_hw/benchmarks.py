@@ -207,11 +207,23 @@ def _cells(line: str) -> list[str]:
     return [c.strip() for c in line.strip().strip("|").split("|")]
 
 
-def _number(text: str) -> tuple[float, str] | None:
-    m = _NUMBER.match(text.replace("**", "").replace("`", "").strip())
+_SPREAD = re.compile(r"^(?P<value>.*?)\s*\[(?P<low>[^–\]]+)[–-](?P<high>[^\]]+)\]\s*$")
+
+
+def _number(text: str) -> tuple[float, str, float | None, float | None] | None:
+    """``(value, unit, low, high)`` of a cell ``"1.2e-3"``, ``"12 %"`` or ``"0.31 [0.29–0.35]"``."""
+    text = text.replace("**", "").replace("`", "").strip()
+    low = high = None
+    spread = _SPREAD.match(text)
+    if spread is not None:
+        lo, hi = _number(spread["low"]), _number(spread["high"])
+        if lo is None or hi is None:
+            return None
+        text, low, high = spread["value"], lo[0], hi[0]
+    m = _NUMBER.match(text)
     if m is None:
         return None
-    return float(m["num"].replace("−", "-")), m["unit"] or ""
+    return float(m["num"].replace("−", "-")), m["unit"] or "", low, high
 
 
 def records_from_markdown(bench: str, markdown: str, *, settings: Mapping[str, Any] | None = None,
@@ -222,7 +234,8 @@ def records_from_markdown(bench: str, markdown: str, *, settings: Mapping[str, A
     The table title is the nearest heading (``#`` or a bold line) above the table; the case is the row's
     first cell plus its other non-numeric cells (``header=value``); the metric is the column
     header, its unit the header's parenthesised suffix (``wall (s)``) or the cell's own suffix
-    (``12 %``). Cells that are not a single number are context, not records.
+    (``12 %``); a cell ``"0.31 [0.29–0.35]"`` is a value with its min–max spread. Cells that are
+    not a single number are context, not records.
 
     Parameters
     ----------
@@ -260,16 +273,16 @@ def records_from_markdown(bench: str, markdown: str, *, settings: Mapping[str, A
                 else:
                     values.append((head, num))
             case = "; ".join(context)
-            for head, (value, cell_unit) in values:
-                m = _UNIT.match(head)
+            for head, (value, cell_unit, low, high) in values:
+                m = _UNIT.match(re.sub(r"\s*\[[^\]]*\]\s*$", "", head))
                 metric, unit = (m["metric"], m["unit"]) if m else (head, "")
                 unit = unit or cell_unit
                 t = (timings or {}).get((cells[0], metric))
                 factor = scale.get(unit, 1.0)
                 records.append(BenchRecord(
                     bench=bench, table=title, case=case, metric=metric, unit=unit, value=value,
-                    repeats=t.repeats if t else None, spread_min=t.best_s * factor if t else None,
-                    spread_max=t.worst_s * factor if t else None, threads=threads, machine=machine,
+                    repeats=t.repeats if t else None, spread_min=t.best_s * factor if t else low,
+                    spread_max=t.worst_s * factor if t else high, threads=threads, machine=machine,
                     versions=versions, settings=dict(settings or {}), timestamp=stamp))
     return records
 

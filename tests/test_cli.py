@@ -104,7 +104,8 @@ def test_records_from_markdown_reads_units_and_context():
     from fsdvs_hw.benchmarks import BenchRecord, records_from_markdown, timed
 
     md = ("### 2. Fits\n\n| case | solver | error | wall (ms) | yield |\n|---|---|---|---|---|\n"
-          "| dog 7 | ipopt | 1.5e-3 | 12.5 | 95 % |\n| dog 9 | — | n/a | 20 | 90 % |\n")
+          "| dog 7 | ipopt | 1.5e-3 | 12.5 | 95 % |\n| dog 9 | — | n/a | 20 | 90 % |\n\n"
+          "| case | median (s) [min–max] |\n|---|---|\n| fit | 0.31 [0.29–0.35] |\n")
     t = timed(lambda: 3, repeats=3)
     recs = records_from_markdown("mesh", md, settings={"quick": True}, threads=2, timings={("dog 7", "wall"): t})
     by = {(r.case, r.metric): r for r in recs}
@@ -115,6 +116,8 @@ def test_records_from_markdown_reads_units_and_context():
     assert by[("dog 7; solver=ipopt", "yield")].unit == "%" and by[("dog 9", "wall")].repeats is None
     assert ("dog 9", "error") not in by  # "n/a" is not a number
     assert all(r.table == "2. Fits" and r.threads == 2 for r in recs)
+    spread = by[("fit", "median")]
+    assert (spread.unit, spread.value, spread.spread_min, spread.spread_max) == ("s", 0.31, 0.29, 0.35)
     assert BenchRecord.from_dict(wall.to_dict()) == wall
 
 
