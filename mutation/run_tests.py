@@ -17,12 +17,16 @@ _TESTS: list[tuple[str, list[str]]] = [
     ("asic", ["test_asic.py", "test_asic_rtl.py"]),
     ("metalens", ["test_metalens.py"]),
     ("optics", ["test_optics.py", "test_metalens.py"]),
+    ("spectral", ["test_metalens.py", "test_optics.py"]),
     ("realise/", ["test_realise_base.py", "test_optics.py"]),
     ("explore/design", ["test_explore_design.py", "test_validation.py", "test_inputs_safety.py"]),
     ("explore/sweep", ["test_explore_sweep.py"]),
     ("explore/store", ["test_explore_sweep.py", "test_explore_paired.py"]),
     ("explore/emulation", ["test_explore_emulation.py", "test_explore_emulation_track.py"]),
     ("explore/ablation", ["test_tasks_ablation.py"]),
+    ("explore/sizing", ["test_stats.py"]),
+    ("explore/paired", ["test_explore_paired.py", "test_stats.py"]),
+    ("explore/scoring", ["test_explore_paired.py", "test_explore_emulation_track.py", "test_report.py"]),
     ("explore/", ["test_explore_design.py", "test_explore_paired.py"]),
 ]
 

@@ -233,6 +233,19 @@ def test_pedestal_design_applies_k_plus_c(small_designs):
     assert "pedestal" in ped.cost()
 
 
+def test_signal_kernel_removes_the_pedestal_in_the_window_only(small_designs):
+    """signal_kernel = applied kernel − c on exactly the k×k window; the guard ring is untouched
+    (a mutation check found a shifted window surviving the other tests)."""
+    k, ped, _ = small_designs
+    applied, signal = np.asarray(ped.kernel().taps), np.asarray(ped.signal_kernel().taps)
+    g, n = ped.guard_px, k.size
+    assert g >= 1 and applied.shape == signal.shape == (n + 2 * g, n + 2 * g)
+    window = np.zeros(applied.shape, dtype=bool)
+    window[g : g + n, g : g + n] = True
+    np.testing.assert_allclose(applied[window] - signal[window], ped.pedestal, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(applied[~window], signal[~window])
+
+
 def test_differential_design_restores_the_sign(small_designs):
     k, ped, diff = small_designs
     assert diff.pedestal == 0 and len(diff.psfs) == 2
