@@ -19,8 +19,10 @@ def main(argv: list[str]) -> int:
     killed = survived = other = 0
     survivors = []
     with use_db(argv[0], WorkDB.Mode.open) as db:
+        not_reached = 0
         for item, result in db.completed_work_items:
             if result.worker_outcome == WorkerOutcome.SKIPPED:
+                not_reached += result.output == "sample not reached"
                 continue
             if result.test_outcome == TestOutcome.KILLED:
                 killed += 1
@@ -36,7 +38,7 @@ def main(argv: list[str]) -> int:
         return 1
     ci = binomtest(killed, n).proportion_ci(confidence_level=0.95)
     print(f"mutation score {killed}/{n} = {killed / n:.1%} (95 % CI {ci.low:.1%}-{ci.high:.1%}); "
-          f"{other} incompetent/errored, {pending} not run")
+          f"{other} incompetent/errored, {pending} pending, {not_reached} sampled but not reached")
     for item, result in survivors:
         m = item.mutations[0]
         print(f"\nSURVIVED {m.module_path}:{m.start_pos[0]} {m.operator_name} #{m.occurrence}")
