@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from .csf import CSF_METHODS, CsfAgreement, Geometry, csf_agreement
-from .kernels import Kernel, reference_kernel
+from .kernels import Kernel, as_kernel, reference_kernel
 from .spectra import SpectralSummary, radial_response, spectral_summary
 
 __all__ = ["KernelAnalysis", "analyse_kernel", "write_analysis", "format_analysis", "bench_analysis"]
@@ -59,12 +59,13 @@ class KernelAnalysis:
 
 
 def analyse_kernel(
-    kernel: Kernel,
+    kernel: Kernel | Any,
     *,
     geometry: Geometry | None = None,
     methods: Sequence[str] = tuple(CSF_METHODS),
 ) -> KernelAnalysis:
     """Spectral summary and CSF agreement of ``kernel`` against each model in ``methods``."""
+    kernel = as_kernel(kernel)
     agreements = {}
     for m in methods:
         a = csf_agreement(kernel, method=m, geometry=geometry)

@@ -46,6 +46,7 @@ __all__ = [
     "reference_kernel",
     "load_kernel",
     "load_kernel_or_reference",
+    "as_kernel",
     "delta_taps",
     "gaussian_taps",
     "dog_taps",
@@ -333,6 +334,10 @@ class Kernel:
         """Same as :func:`load_kernel`."""
         return load_kernel(path, pitch_m=pitch_m)
 
+    def __array__(self, dtype: Any = None, copy: bool | None = None) -> np.ndarray:
+        """``np.asarray(kernel)`` is the ``(k, k)`` tap array (a copy: the kernel stays immutable)."""
+        return np.array(self.taps, dtype=dtype if dtype is not None else np.float64, copy=True)
+
     def __repr__(self) -> str:
         return (
             f"Kernel(name={self.name!r}, size={self.size}x{self.size}, pitch_m={self.pitch_m:.3g}, "
@@ -341,6 +346,49 @@ class Kernel:
 
 
 # ---------------------------------------------------------------------- loading
+def as_kernel(kernel: Any, *, name: str = "kernel", pitch_m: float | None = None) -> Kernel:
+    """A :class:`Kernel` from what a user holds: a Kernel, a file path, a torch tensor or a k×k array.
+
+    Parameters
+    ----------
+    kernel : Kernel, str, Path, torch.Tensor or array_like
+        A Kernel is returned unchanged (``pitch_m`` then must be None or equal to its pitch); a
+        path is read with :func:`load_kernel`; anything else must be an odd square array of finite
+        taps.
+    name : str
+        Name given to an array (and used in error messages).
+    pitch_m : float, optional
+        Pixel pitch in metres for an array or a file (default :data:`DEFAULT_PITCH_M`, or the
+        file's own).
+
+    Raises
+    ------
+    KernelError
+        Not convertible: names what was given and what is allowed.
+
+    Examples
+    --------
+    >>> as_kernel([[0, 0, 0], [0, 1, 0], [0, 0, 0]]).size
+    3
+    """
+    if isinstance(kernel, Kernel):
+        if pitch_m is not None and not math.isclose(float(pitch_m), kernel.pitch_m, rel_tol=1e-12):
+            raise KernelError(f"{name}: a Kernel with pitch {kernel.pitch_m:.4g} m was given with pitch_m={pitch_m!r}; "
+                              "use kernel.with_taps or pass the taps as an array")
+        return kernel
+    if isinstance(kernel, (str, Path)):
+        return load_kernel(kernel, pitch_m=pitch_m)
+    if hasattr(kernel, "detach"):  # a torch tensor, without importing torch here
+        kernel = kernel.detach().cpu().numpy()
+    try:
+        taps = np.asarray(kernel, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise KernelError(f"{name}: expected a Kernel, a kernel file path or a k×k array of numbers, got "
+                          f"{type(kernel).__name__} ({exc})") from None
+    kw = {} if pitch_m is None else {"pitch_m": pitch_m}
+    return Kernel(taps, name=name, **kw)
+
+
 def load_kernel(path: str | Path, *, pitch_m: float | None = None) -> Kernel:
     """Load a kernel from a .npy, .csv, .json or .pt file.
 

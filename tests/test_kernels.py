@@ -159,3 +159,34 @@ def test_shipped_demo_kernel_loads():
 
     k = load_kernel(Path(__file__).parents[1] / "designs" / "kernels" / "dog_7x7.json")
     assert k.size == 7 and k.provenance.get("reference") == "dog"
+
+
+def test_as_kernel_and_numpy_conversion_accept_what_users_hold(tmp_path):
+    """np.asarray(kernel) is the tap array (it was an empty object array); as_kernel takes a Kernel,
+    a path, a tensor or a nested list; analyse_kernel accepts a plain array (it raised AttributeError)."""
+    import numpy as np
+
+    from fsdvs_hw import analyse_kernel
+    from fsdvs_hw.errors import KernelError
+    from fsdvs_hw.kernels import as_kernel, reference_kernel
+
+    k = reference_kernel("dog", 7)
+    a = np.asarray(k)
+    assert a.shape == (7, 7) and a.dtype == np.float64 and np.array_equal(a, k.taps)
+    a[3, 3] = 99.0  # a copy: the kernel is not changed through it
+    assert k.centre != 99.0
+    assert as_kernel(k) is k
+    assert as_kernel(k.taps.tolist(), name="mine").allclose(k.with_taps(k.taps))
+    path = k.save(tmp_path / "k.json")
+    assert as_kernel(path).allclose(k)
+    torch = pytest.importorskip("torch")
+    assert as_kernel(torch.tensor(np.asarray(k))).allclose(k)
+    via_array = analyse_kernel(np.asarray(k))
+    via_kernel = analyse_kernel(k)
+    assert via_array.summary == via_kernel.summary
+    with pytest.raises(KernelError, match="odd"):
+        as_kernel(np.ones((2, 2)))
+    with pytest.raises(KernelError, match="expected a Kernel, a kernel file path or a k×k array"):
+        as_kernel({"taps": 1})
+    with pytest.raises(KernelError, match="pitch"):
+        as_kernel(k, pitch_m=1e-6)

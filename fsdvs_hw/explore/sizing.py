@@ -3,7 +3,8 @@
 Procedure (what ``designs/default.toml``'s ``n_test`` came from; the README records the numbers):
 
 1. Run the design once with a pilot number of test clips ``n_p`` per task
-   (``fsdvs-hw sizing designs/default.toml --pilot 512``).
+   (``fsdvs-hw sizing designs/default.toml --pilot 512``), or take a finished
+   run as the pilot (``--from out/demo``).
 2. For every track, task and realisation, bootstrap the paired loss over clips only (half-width
    ``h_c`` at ``n_p`` clips), over training seeds only (``h_seeds``; none with one seed), and over
    clips for each seed's network alone (``h_c,s``). The seed-only interval also sees each seed's

@@ -337,16 +337,9 @@ def _delta_init(size: int, noise: float, generator: Any) -> Any:
 
 
 def _as_kernel(kernel: Any, *, source: str = "kernel") -> Kernel:
-    if isinstance(kernel, Kernel):
-        return kernel
-    if isinstance(kernel, (str, Path)):
-        return load_kernel(kernel)
-    if hasattr(kernel, "detach"):
-        kernel = kernel.detach().cpu().numpy()
-    try:
-        return Kernel(np.asarray(kernel, dtype=np.float64), name=source)
-    except (TypeError, ValueError) as exc:
-        raise KernelError(f"{source}: expected a Kernel, a file path or a k×k array ({exc})") from None
+    from ..kernels import as_kernel
+
+    return as_kernel(kernel, name=source)
 
 
 # --------------------------------------------------------------------------- public API
