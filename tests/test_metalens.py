@@ -246,6 +246,16 @@ def test_signal_kernel_removes_the_pedestal_in_the_window_only(small_designs):
     np.testing.assert_array_equal(applied[~window], signal[~window])
 
 
+def test_whole_psf_totals_are_the_light_on_a_wide_patch(small_designs):
+    """psf_totals (Parseval sum over the sensor plane) equal the pixel PSF summed on a 41×41 patch:
+    the fast guard of the whole-PSF DC (the slow differential test checks the same at full fidelity)."""
+    k, _, diff = small_designs
+    assert len(diff.psf_totals) == 2
+    for c, z, t in zip(diff.coefficients, diff.sensor_distance_m, diff.psf_totals):
+        wide = pixel_psf(GEOM, c, sensor_distance_m=z, pitch_m=k.pitch_m, n_pixels=41, illuminant=diff.spectral)
+        assert 0 < t <= 1 and t == pytest.approx(float(wide.sum()), rel=2e-2)
+
+
 def test_differential_design_restores_the_sign(small_designs):
     k, ped, diff = small_designs
     assert diff.pedestal == 0 and len(diff.psfs) == 2
