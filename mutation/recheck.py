@@ -20,10 +20,10 @@ def main(argv: list[str]) -> int:
         unrun = [r[0] for r in con.execute(
             "SELECT job_id FROM work_items WHERE job_id NOT IN (SELECT job_id FROM work_results)")]
         con.executemany("INSERT INTO work_results (worker_outcome, output, test_outcome, diff, job_id) "
-                        "VALUES ('skipped', 'sample not reached', NULL, NULL, ?)", [(j,) for j in unrun])
+                        "VALUES ('SKIPPED', 'sample not reached', NULL, NULL, ?)", [(j,) for j in unrun])
         survivors = [(j, p) for j, p in con.execute(
             "SELECT r.job_id, m.module_path FROM work_results r JOIN mutation_specs m ON m.job_id = r.job_id "
-            "WHERE r.test_outcome = 'survived'")]
+            "WHERE r.test_outcome = 'SURVIVED'")]
         again = [j for j, p in survivors if not keywords or any(k in p for k in keywords)]
         con.executemany("DELETE FROM work_results WHERE job_id = ?", [(j,) for j in again])
     print(f"{session}: {len(unrun)} sampled mutants not reached (skipped); "
