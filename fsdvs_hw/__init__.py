@@ -40,6 +40,11 @@ _LAZY: dict[str, str] = {
     "plan_model": "fsdvs_hw.sensor",
     # realisations
     "kernel_error": "fsdvs_hw.realise.base",
+    "RealisationSpec": "fsdvs_hw.realise.registry",
+    "CostSpec": "fsdvs_hw.realise.registry",
+    "register_realisation": "fsdvs_hw.realise.registry",
+    "get_realisation": "fsdvs_hw.realise.registry",
+    "realisation_names": "fsdvs_hw.realise.registry",
     "fit_resistive_mesh": "fsdvs_hw.realise.mesh",
     "MeshDesign": "fsdvs_hw.realise.mesh",
     "MeshBounds": "fsdvs_hw.realise.mesh",

@@ -24,7 +24,7 @@ from fsdvs_hw.realise.asic.arith import (
     output_bits,
     symmetry_classes,
 )
-from fsdvs_hw.realise.base import Realisation, kernel_error, realisation_from_dict
+from fsdvs_hw.realise import Realisation, kernel_error, realisation_from_dict
 
 
 # ---------------------------------------------------------------------------- CSD

@@ -118,14 +118,12 @@ def test_each_bad_design_gives_one_clear_error(tmp_path, case):
 
 
 def test_unknown_fit_option_is_named_with_the_fit_functions_options(tmp_path):
-    pytest.importorskip("fsdvs_hw.realise.asic")
     p = _write(tmp_path, "[realisations.asic]\nbits = 6\nbitz = 4\n")
     with pytest.raises(DesignError, match=r"realisations\.asic\.bitz.*unknown option of fit_asic_taps.*symmetry"):
         load_design(p)
 
 
 def test_fit_option_type_follows_the_fit_functions_default(tmp_path):
-    pytest.importorskip("fsdvs_hw.realise.asic")
     p = _write(tmp_path, '[realisations.asic]\npre_add = "yes"\n')
     with pytest.raises(DesignError, match=r"realisations\.asic\.pre_add.*wrong type string.*boolean"):
         load_design(p)

@@ -27,7 +27,11 @@ from fsdvs_hw.errors import InputError  # noqa: E402
 from fsdvs_hw.explore import design as design_mod  # noqa: E402
 from fsdvs_hw.explore.design import parse_design  # noqa: E402
 from fsdvs_hw.paths import confined_path, safe_name  # noqa: E402
-from fsdvs_hw.validation import FIT_FUNCTIONS, FIT_OPTIONS, Option  # noqa: E402
+from fsdvs_hw.realise.registry import REALISATIONS, realisation_names  # noqa: E402
+from fsdvs_hw.validation import Option  # noqa: E402
+
+#: hardware realisation → its registered option schema
+FIT_OPTIONS = {n: dict(REALISATIONS[n].options) for n in realisation_names("hardware")}
 
 FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                                         HealthCheck.function_scoped_fixture])
@@ -39,10 +43,7 @@ ANY = st.one_of(st.none(), st.booleans(), st.integers(-(2**70), 2**70), st.float
 
 
 def _fit(name):
-    import importlib
-
-    module, func = FIT_FUNCTIONS[name].split(":")
-    return getattr(importlib.import_module(module), func)
+    return REALISATIONS[name].fit
 
 
 # ---------------------------------------------------------------------- bad values, built from the schema
@@ -135,13 +136,13 @@ def _bad_for_field(f):
     return st.one_of(cands)
 
 
-DESIGN_KEYS = sorted((s, k) for s, fields in design_mod._SCHEMA.items() for k in fields)
+DESIGN_KEYS = sorted((s, k) for s, fields in design_mod._schema().items() for k in fields)
 
 
 @st.composite
 def bad_design_field(draw):
     section, key = draw(st.sampled_from(DESIGN_KEYS))
-    return section, key, draw(_bad_for_field(design_mod._SCHEMA[section][key]))
+    return section, key, draw(_bad_for_field(design_mod._schema()[section][key]))
 
 
 # ---------------------------------------------------------------------- properties

@@ -12,7 +12,7 @@ import pytest
 import fsdvs_hw
 from fsdvs_hw.errors import InputError, KernelError
 from fsdvs_hw.kernels import Kernel, load_kernel, reference_kernel
-from fsdvs_hw.realise.base import Realisation, kernel_error, realisation_from_dict
+from fsdvs_hw.realise import Realisation, kernel_error, realisation_from_dict
 from fsdvs_hw.realise.mesh.fit import (
     MeshAsymmetryWarning,
     MeshBounds,

@@ -13,7 +13,7 @@ torch = pytest.importorskip("torch")
 import fsdvs_hw
 from fsdvs_hw import reference_kernel
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.realise.base import Realisation, kernel_error, realisation_from_dict, realised_kernel_error
+from fsdvs_hw.realise import Realisation, kernel_error, realisation_from_dict, realised_kernel_error
 from fsdvs_hw.realise.metalens.fit import (
     LensGeometry,
     MetalensDesign,

@@ -9,7 +9,7 @@ import pytest
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.kernels import Kernel, reference_kernel
-from fsdvs_hw.realise.base import (
+from fsdvs_hw.realise import (
     CostItem,
     Realisation,
     ReferenceRealisation,

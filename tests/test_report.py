@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import csv
+import dataclasses
 import io
 import json
 import math
@@ -28,12 +29,16 @@ def test_pareto_front_by_hand():
     assert pareto_front([(0, 0, 0), (0, 0, 1)]) == [True, False]
 
 
-def test_headline_cost_prefers_area_then_adders_then_the_first_item():
+def test_headline_cost_is_the_kinds_declared_item_then_the_first_item():
     c = {"adders": {"value": 57, "unit": "count"}, "area_m2": {"value": 2e-9, "unit": "m^2"}}
-    assert headline_cost(c) == ("area_m2", 2e-9, "m^2")
-    assert headline_cost({"g": {"value": 1e-6, "unit": "S"}, "adders": {"value": 3, "unit": "count"}})[0] == "adders"
-    assert headline_cost({"g": {"value": 1e-6, "unit": "S"}}) == ("g", 1e-6, "S")
-    assert headline_cost({}) is None
+    assert headline_cost(c, "asic") == ("area_m2", 2e-9, "m^2")
+    assert headline_cost({"g": {"value": 1e-6, "unit": "S"}, "adders": {"value": 3, "unit": "count"}}, "asic")[0] == "adders"
+    assert headline_cost({"g": {"value": 1e-6, "unit": "S"}, "tau_wide": {"value": 1e-6, "unit": "s"}}, "mesh")[0] == "tau_wide"
+    assert headline_cost({"lens_count": {"value": 1, "unit": "count"}, "aperture_diameter": {"value": 1e-4, "unit": "m"}},
+                         "metalens") == ("aperture_diameter", 1e-4, "m")
+    assert headline_cost({"g": {"value": 1e-6, "unit": "S"}}, "asic") == ("g", 1e-6, "S")
+    assert headline_cost({"g": {"value": 1e-6, "unit": "S"}}) == ("g", 1e-6, "S")  # no kind: the first item
+    assert headline_cost({}, "asic") is None
 
 
 def test_uncertain_pareto_front_by_hand():
@@ -148,20 +153,23 @@ def _pngs(html: str) -> dict[str, bytes]:
 
 
 def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch, capsys):
-    pytest.importorskip("fsdvs_hw.realise.asic")
-    from fsdvs_hw.explore import design as design_mod
+    import fsdvs_hw.realise.registry as registry
 
-    # one realisation whose module is missing: reported as skipped, with the reason
-    monkeypatch.setitem(design_mod.REALISATION_FITTERS, "metalens", "fsdvs_hw.realise.not_here:fit_metalens")
+    # one realisation whose fit fails: reported as an error with the reason, the others are scored
+    def broken_fit(target, **options):
+        raise RuntimeError("no such lens")
+
+    monkeypatch.setitem(registry._REGISTRY, "metalens", dataclasses.replace(registry.get_realisation("metalens"),
+                                                                             fit=broken_fit))
     p = tmp_path / "tiny.toml"
     p.write_text('[realisations]\ninclude = ["learned", "delta", "asic", "metalens"]\n'
                  '[realisations.asic]\nbits = 4\n[analysis]\ncsf_methods = ["mannos_sakrison_1974", "barten_1999"]\n'
                  '[sensor]\nresolution = [24, 32]\n[emulation]\nn_clips = 1\nn_frames = 4\n[run]\nworkers = 1\n')
     out = tmp_path / "out"
-    assert main(["explore", str(p), "--out", str(out), "--no-progress"]) == 0
+    assert main(["explore", str(p), "--out", str(out), "--no-progress"]) == 1  # a failed point: exit status 1
     printed = capsys.readouterr().out
     assert re.search(r"^\| asic \| .* \| adders \d+ count \| ", printed, re.M)  # the verdict table
-    assert re.search(r"^not scored: metalens \(skipped: ", printed, re.M)
+    assert re.search(r"^not scored: metalens \(error: RuntimeError: no such lens", printed, re.M)
     html = (out / "report.html").read_text()
     assert "src=\"http" not in html and "<script" not in html  # nothing fetched from elsewhere
     imgs = _pngs(html)
@@ -173,11 +181,11 @@ def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch
         img = mpimg.imread(io.BytesIO(png), format="png")
         assert img.shape[0] > 200 and img.shape[1] > 300
         assert float(np.std(img[..., :3])) > 0.02, f"{name} figure is blank"
-    assert "not_here" in html and "skipped" in html
+    assert "no such lens" in html and "1 failed" in html
     with (out / "scores.csv").open() as fh:
         rows = {r["point"]: r for r in csv.DictReader(fh)}
     assert set(rows) == {"learned", "delta", "asic", "metalens"}
-    assert rows["metalens"]["status"] == "skipped" and rows["metalens"]["kernel_error"] == ""
+    assert rows["metalens"]["status"] == "error" and rows["metalens"]["kernel_error"] == ""
     data = json.loads((out / "scores.json").read_text())
     asic = next(pt for pt in data["points"] if pt["realisation"] == "asic")
     realised = Kernel.from_dict(asic["result"]["kernel"])

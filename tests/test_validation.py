@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-import inspect
 import math
 import time
 
@@ -36,6 +35,12 @@ def _fit_function(name):
     return getattr(importlib.import_module(module), func)
 
 
+def _options(name):
+    from fsdvs_hw.realise.registry import get_realisation
+
+    return get_realisation(name).options
+
+
 @pytest.mark.parametrize("name,key,value", BAD_OPTIONS, ids=lambda v: str(v))
 def test_design_file_refuses_a_bad_fit_option_naming_key_value_and_range(name, key, value):
     with pytest.raises(DesignError) as info:
@@ -55,34 +60,27 @@ def test_fit_function_refuses_the_same_value_before_any_work(name, key, value):
 
 
 @pytest.mark.parametrize("name", sorted(FIT_FUNCTIONS))
-def test_every_fit_parameter_is_in_the_table_with_the_functions_default(name):
-    from fsdvs_hw.validation import FIT_FUNCTIONS as TABLE_FUNCTIONS, FIT_OPTIONS, check_option
+def test_the_registry_holds_the_public_fit_functions(name):
+    from fsdvs_hw.realise.registry import get_realisation
 
-    assert TABLE_FUNCTIONS == FIT_FUNCTIONS
-    sig = inspect.signature(_fit_function(name))
-    params = {p.name: p.default for p in list(sig.parameters.values())[1:]}
-    assert set(params) == set(FIT_OPTIONS[name]), "validation table and fit signature differ"
-    for key, default in params.items():
-        assert FIT_OPTIONS[name][key].default == default, key
-        # the default itself passes the check
-        check_option(name, key, default)
+    assert get_realisation(name).fit is _fit_function(name)
 
 
 def test_good_options_pass_and_are_normalised():
-    from fsdvs_hw.validation import check_option
+    from fsdvs_hw.realise.registry import get_realisation
 
-    assert check_option("asic", "bits", np.int64(4)) == 4
-    assert check_option("mesh", "tol", 1) == 1.0 and isinstance(check_option("mesh", "tol", 1), float)
+    assert get_realisation("asic").check_option("bits", np.int64(4)) == 4
+    tol = get_realisation("mesh").check_option("tol", 1)
+    assert tol == 1.0 and isinstance(tol, float)
     d = parse_design({"realisations": {"asic": {"bits": 4}, "mesh": {"pixel_weight": "free"}}})
     assert d.realisation_options("asic") == {"bits": 4}
 
 
 def test_asic_bit_limits_match_the_arithmetic_module():
-    from fsdvs_hw.validation import FIT_OPTIONS
     from fsdvs_hw.realise.asic.arith import MAX_TAP_BITS
 
-    assert FIT_OPTIONS["asic"]["bits"].hi == MAX_TAP_BITS
-    assert FIT_OPTIONS["asic"]["bits"].lo == 2
+    assert _options("asic")["bits"].hi == MAX_TAP_BITS
+    assert _options("asic")["bits"].lo == 2
 
 
 def test_fit_metalens_does_not_ignore_a_nan_pitch():
@@ -217,7 +215,7 @@ def test_choices_in_the_table_are_the_fit_modules_own_registries():
     from fsdvs_hw.realise.asic.arith import SYMMETRIES
     from fsdvs_hw.realise.mesh import MESH_MODELS
     from fsdvs_hw.realise.metalens import DISPERSION_MODELS, STRATEGIES
-    from fsdvs_hw.validation import FIT_OPTIONS
+    FIT_OPTIONS = {n: _options(n) for n in FIT_FUNCTIONS}
 
     assert FIT_OPTIONS["asic"]["csf_method"].choices == tuple(CSF_METHODS)
     assert FIT_OPTIONS["asic"]["objective"].choices == tuple(OBJECTIVES)

@@ -15,10 +15,12 @@ Layout (every section and key is optional; defaults in brackets)::
                     threshold_sigma [0.03], placement = "pre_log" | "post_log",
                     positivity = "floor" | "pedestal" | "differential"
     [optics]        focal_length_m [4e-3]  (turns cycles/pixel into cycles/degree)
-    [analysis]      csf_methods, n_freq
-    [realisations]  include = ["learned", "delta", "mesh", "asic", "metalens"]
-    [realisations.mesh|asic|metalens]   keyword options of the fit function
-                    (fit_resistive_mesh / fit_asic_taps / fit_metalens)
+    [analysis]      csf_methods
+    [realisations]  include = ["learned", "delta", "mesh", "asic", "metalens"]  (the registered
+                    realisations marked in_default_design; fsdvs_hw.realise.registry)
+    [realisations.<name>]   keyword options of a hardware realisation's fit function
+                    (mesh: fit_resistive_mesh, asic: fit_asic_taps, metalens: fit_metalens), checked
+                    against the schema it registered
     [tasks]         checkpoints = { detection = "kernels/learned_detection_7x7.safetensors" },
                     or a list or glob pattern per task, one network per training seed;
                     n_test (clips per network: number, or table task → clips), n_test_emulation,
@@ -32,6 +34,9 @@ Layout (every section and key is optional; defaults in brackets)::
     [run]           workers, seed, max_points [10000]
 
 Sweep axes are dotted keys into this layout; ``"mesh.X"`` is short for ``"realisations.mesh.X"``.
+Realisation names, their option tables and defaults come from the registry
+(:mod:`fsdvs_hw.realise.registry`) when a design is parsed, so a realisation registered by any
+module is accepted without a change here.
 """
 
 from __future__ import annotations
@@ -39,8 +44,6 @@ from __future__ import annotations
 import copy
 import glob
 import hashlib
-import importlib
-import inspect
 import json
 import math
 import re
@@ -50,6 +53,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..csf import CSF_METHODS
 from ..errors import InputError, KernelError
 from ..kernels import (
     DEFAULT_PITCH_M,
@@ -61,15 +65,13 @@ from ..kernels import (
     reference_kernel,
 )
 from ..paths import confined_path, safe_name
-from ..validation import FIT_OPTIONS
+from ..realise.registry import get_realisation, realisation_names
 
 __all__ = [
     "Design",
     "DesignError",
     "load_design",
     "parse_design",
-    "REALISATION_FITTERS",
-    "REFERENCE_REALISATIONS",
     "CSF_DEFAULT_METHODS",
     "axis_values",
 ]
@@ -78,16 +80,6 @@ __all__ = [
 class DesignError(InputError):
     """A design file is invalid; the message names the file, key, value and what is allowed."""
 
-
-#: Hardware realisation name → "module:fit function" (the function takes the target kernel first).
-REALISATION_FITTERS: dict[str, str] = {
-    "mesh": "fsdvs_hw.realise.mesh:fit_resistive_mesh",
-    "asic": "fsdvs_hw.realise.asic:fit_asic_taps",
-    "metalens": "fsdvs_hw.realise.metalens:fit_metalens",
-}
-
-#: Ideal references scored like realisations: the target kernel itself and the delta "w/o" baseline.
-REFERENCE_REALISATIONS: tuple[str, ...] = ("learned", "delta")
 
 #: CSF models scored when a design names none (Mannos–Sakrison first: the paper's reference).
 CSF_DEFAULT_METHODS: tuple[str, ...] = ("mannos_sakrison_1974", "barten_1999", "daly_1993", "watson_ahumada_2005")
@@ -129,12 +121,6 @@ class _Field:
         if self.odd:
             parts.append("odd")
         return ", ".join(parts) + f" ({self.doc})"
-
-
-#: Structured fit options checked by constructing their class before any work starts.
-_OPTION_CLASSES: dict[tuple[str, str], str] = {
-    ("mesh", "bounds"): "fsdvs_hw.realise.mesh:MeshBounds",
-}
 
 
 def _type_name(t: type) -> str:
@@ -180,12 +166,8 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
     },
     "analysis": {
         "csf_methods": _f(list, list(CSF_DEFAULT_METHODS), "CSF models to compare against", item_types=(str,)),
-        "n_freq": _f(int, 64, "radial-response frequency samples", lo=8, hi=4096),
     },
-    "realisations": {
-        "include": _f(list, ["learned", "delta", "mesh", "asic", "metalens"], "realisations to fit and score",
-                      item_types=(str,), choices=(*REFERENCE_REALISATIONS, *REALISATION_FITTERS)),
-    },
+    "realisations": {},  # filled from the registry when a design is parsed (_schema)
     "tasks": {
         "checkpoints": _f(dict, {}, "task name → trained checkpoint, or a list of checkpoints (one network per "
                                     "training seed), .safetensors relative to the design file; a glob pattern "
@@ -235,6 +217,21 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
                                      "its list is built", lo=1, hi=10**9),
     },
 }
+
+def _schema() -> dict[str, dict[str, _Field]]:
+    """:data:`_SCHEMA` with ``[realisations] include`` built from the registry as it is now."""
+    schema = dict(_SCHEMA)
+    schema["realisations"] = {
+        "include": _f(list, [n for n in realisation_names() if get_realisation(n).in_default_design],
+                      "realisations to fit and score", item_types=(str,), choices=realisation_names()),
+    }
+    return schema
+
+
+def _option_tables() -> tuple[str, ...]:
+    """Realisations that take fit options (a ``[realisations.<name>]`` table): the hardware ones."""
+    return realisation_names("hardware")
+
 
 def _is_type(value: Any, types: tuple[type, ...]) -> bool:
     if isinstance(value, bool):
@@ -398,7 +395,7 @@ def _resolve(base: Path, path: str, *, what: str, confine: bool) -> Path:
 
 def _canonical_key(key: str) -> str:
     first = key.split(".", 1)[0]
-    if first in REALISATION_FITTERS:
+    if first in _option_tables():
         return "realisations." + key
     return key
 
@@ -459,16 +456,17 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
     if not isinstance(raw, Mapping):
         raise DesignError(f"{source}: a design must be a table, got {type(raw).__name__}")
     data: dict[str, Any] = {}
+    schema = _schema()
     for section in raw:
-        if section not in _SCHEMA:
-            chk.add(section, raw[section], f"unknown section; allowed: {', '.join(_SCHEMA)}")
-    for section, fields in _SCHEMA.items():
+        if section not in schema:
+            chk.add(section, raw[section], f"unknown section; allowed: {', '.join(schema)}")
+    for section, fields in schema.items():
         given = raw.get(section, {})
         if not isinstance(given, Mapping):
             chk.add(section, given, "must be a table ([section])")
             given = {}
         out: dict[str, Any] = {}
-        subtables = set(REALISATION_FITTERS) if section == "realisations" else set()
+        subtables = set(_option_tables()) if section == "realisations" else set()
         for key, value in given.items():
             if key in subtables:
                 continue
@@ -482,7 +480,7 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
             else:
                 out[key] = copy.deepcopy(spec.default)
         if section == "realisations":
-            for name in REALISATION_FITTERS:
+            for name in _option_tables():
                 opts = given.get(name, {})
                 if not isinstance(opts, Mapping):
                     chk.add(f"realisations.{name}", opts, "must be a table of fit options")
@@ -512,93 +510,38 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
     return Design(data=data, source=source, base_dir=base, target=target, confine_paths=confine_paths)
 
 
-def _fit_signature(name: str) -> inspect.Signature | None:
-    """The fit function's signature, or None while its module is not available in this checkout."""
-    module, func = REALISATION_FITTERS[name].split(":")
-    try:
-        fn = getattr(importlib.import_module(module), func)
-    except (ImportError, AttributeError):
-        return None
-    return inspect.signature(fn)
-
-
 def _check_realisation_options(chk: _Checker, name: str, opts: dict[str, Any]) -> dict[str, Any]:
-    """Check one ``[realisations.<name>]`` table against :data:`fsdvs_hw.validation.FIT_OPTIONS`
-    (the table the fit functions check their arguments against, so both agree on every limit)."""
+    """Check one ``[realisations.<name>]`` table against the schema the realisation registered
+    (:attr:`fsdvs_hw.realise.registry.RealisationSpec.options`: the table its fit function checks
+    its arguments against, so both agree on every limit)."""
+    spec = get_realisation(name)
     out: dict[str, Any] = {}
-    schema = FIT_OPTIONS[name]
-    sig = _fit_signature(name)
-    params: dict[str, inspect.Parameter] = {}
-    if sig is not None:
-        params = {p.name: p for i, p in enumerate(sig.parameters.values())
-                  if i > 0 and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
     for key, value in opts.items():
         full = f"realisations.{name}.{key}"
-        if (name, key) in _OPTION_CLASSES:
+        opt = spec.options.get(key)
+        if opt is None:
+            chk.add(full, value, f"unknown option of {spec.fit_name}; allowed: {', '.join(sorted(spec.options))}")
+        elif opt.factory is not None:  # a structured option: its class checks the table's fields
             out[key] = value
-            module, cls = _OPTION_CLASSES[(name, key)].split(":")
+            cls = getattr(opt.factory, "__name__", "object")
             if not isinstance(value, Mapping):
                 chk.add(full, value, f"must be a table of {cls} fields")
                 continue
-            if sig is None:
-                continue
             try:
-                getattr(importlib.import_module(module), cls)(**value)
+                opt.factory(**value)
             except TypeError as exc:
                 chk.add(full, value, f"not valid {cls} fields ({exc})")
             except InputError as exc:
                 chk.add(full, value, f"invalid ({exc})")
-        elif key in schema:
-            why = schema[key].problem(value)
+        else:
+            why = opt.problem(value)
             if why is None and isinstance(value, Mapping):
                 why = "cannot be given in a design file (a Python object)"
             if why is not None:
                 chk.add(full, value, why)
                 continue
-            out[key] = schema[key].check(value, name=full)
-        elif sig is not None and key not in params:
-            fn = REALISATION_FITTERS[name].split(":")[1]
-            chk.add(full, value, f"unknown option of {fn}; allowed: {', '.join(sorted(set(params) | set(schema)))}")
-        else:
-            # an option of the fit function not (yet) in the validation table: type-check only
-            p = params.get(key)
-            types = _option_types(p) if p is not None else None
-            if types is not None:
-                value = chk.field(full, value, _f(types, None, f"option {p.name} of the fit function"))
-            out[key] = value
+            out[key] = opt.check(value, name=full)
     return out
-
-
-_ANNOTATION_TYPES: dict[str, tuple[type, ...]] = {"float": _NUMBER, "int": (int,), "str": (str,), "bool": (bool,),
-                                                  "None": ()}
-
-
-def _option_types(p: inspect.Parameter) -> tuple[type, ...] | None:
-    """Allowed TOML types of a fit option: from its annotation when it is a union of plain types
-    (``float | str | None``), else from its default value; None when neither says."""
-    ann = p.annotation
-    if isinstance(ann, type):
-        ann = ann.__name__
-    if isinstance(ann, str) and ann:
-        parts = [a.strip() for a in ann.split("|")]
-        if all(a in _ANNOTATION_TYPES for a in parts):
-            types = tuple(t for a in parts for t in _ANNOTATION_TYPES[a])
-            return tuple(dict.fromkeys(types)) or None
-        return None
-    return _default_types(p.default)
-
-
-def _default_types(default: Any) -> tuple[type, ...] | None:
-    """Allowed TOML types for an option, inferred from the fit function's default value."""
-    if isinstance(default, bool):
-        return (bool,)
-    if isinstance(default, int):
-        return (int,)
-    if isinstance(default, float):
-        return _NUMBER
-    if isinstance(default, str):
-        return (str,)
-    return None
 
 
 def _check_cross(chk: _Checker, data: dict[str, Any]) -> None:
@@ -619,14 +562,9 @@ def _check_cross(chk: _Checker, data: dict[str, Any]) -> None:
         if not _is_type(value, _NUMBER) or isinstance(value, bool):
             chk.add(f"kernel.params.{key}", value, "reference kernel parameters must be numbers")
     methods = data["analysis"]["csf_methods"]
-    try:
-        from ..csf import CSF_METHODS
-    except ImportError:
-        CSF_METHODS = None
-    if CSF_METHODS is not None:
-        for i, m in enumerate(methods):
-            if m not in CSF_METHODS:
-                chk.add(f"analysis.csf_methods[{i}]", m, f"unknown CSF model; allowed: {', '.join(CSF_METHODS)}")
+    for i, m in enumerate(methods):
+        if m not in CSF_METHODS:
+            chk.add(f"analysis.csf_methods[{i}]", m, f"unknown CSF model; allowed: {', '.join(CSF_METHODS)}")
     if len(set(data["realisations"]["include"])) != len(data["realisations"]["include"]):
         chk.add("realisations.include", data["realisations"]["include"], "lists a realisation twice")
 
@@ -666,11 +604,7 @@ def _check_tasks(chk: _Checker, data: dict[str, Any], base: Path, confine: bool)
     ckpts = data["tasks"]["checkpoints"]
     if not ckpts:
         return
-    try:
-        from ..tasks import EVALUATORS
-    except ImportError as exc:
-        chk.add("tasks.checkpoints", ckpts, f"task evaluation needs fsdvs_hw.tasks, which is not available ({exc})")
-        return
+    from ..tasks import EVALUATORS  # torch: imported only when a design names tasks
     for task, entry in ckpts.items():
         key = f"tasks.checkpoints.{task}"
         if task not in EVALUATORS:
@@ -744,6 +678,7 @@ def _safetensors_problem(path: Path) -> str | None:
 
 
 def _check_axes(chk: _Checker, data: dict[str, Any]) -> None:
+    schema = _schema()
     for key, values in data["sweep"]["axes"].items():
         full = f"sweep.axes.{key}"
         if not isinstance(values, list) or not values:
@@ -755,8 +690,8 @@ def _check_axes(chk: _Checker, data: dict[str, Any]) -> None:
             chk.add(full, values, "sweep axes must name a key inside [kernel], [sensor], [optics], [analysis], "
                                   "[tasks], [emulation] or a realisation (e.g. 'asic.bits')")
             continue
-        if section not in _SCHEMA:
-            chk.add(full, values, f"unknown section {section!r}; allowed: {', '.join(_SCHEMA)}")
+        if section not in schema:
+            chk.add(full, values, f"unknown section {section!r}; allowed: {', '.join(schema)}")
             continue
         # check each value through the same schema as a plain key
         for v in values:
@@ -765,15 +700,15 @@ def _check_axes(chk: _Checker, data: dict[str, Any]) -> None:
             sub = _Checker(chk.source)
             if section == "realisations":
                 name = rest.split(".")[0]
-                if name not in REALISATION_FITTERS:
-                    chk.add(full, values, f"unknown realisation {name!r}; allowed: {', '.join(REALISATION_FITTERS)}")
+                if name not in _option_tables():
+                    chk.add(full, values, f"unknown realisation {name!r}; allowed: {', '.join(_option_tables())}")
                     break
                 _check_realisation_options(sub, name, probe["realisations"][name])
-            elif rest.split(".")[0] not in _SCHEMA[section]:
-                chk.add(full, values, f"unknown key; allowed in [{section}]: {', '.join(_SCHEMA[section])}")
+            elif rest.split(".")[0] not in schema[section]:
+                chk.add(full, values, f"unknown key; allowed in [{section}]: {', '.join(schema[section])}")
                 break
             elif "." not in rest:
-                sub.field(ckey, v, _SCHEMA[section][rest])
+                sub.field(ckey, v, schema[section][rest])
             chk.problems.extend(p.replace(f"key '{ckey}'", f"key '{full}'") for p in sub.problems)
 
 

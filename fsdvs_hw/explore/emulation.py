@@ -173,13 +173,11 @@ def emulation_scores(kernel: Kernel, *, sensor: Mapping[str, Any], emulation: Ma
         ``clipped_peak``, ``wall_s``.
     """
     t0 = time.perf_counter()
-    try:
-        import torch
+    import torch  # the simulator (torch) loads only when the emulation track runs
 
-        from ..scenes.synthetic import SceneConfig, make_scenes
-        from ..sensor import event_frames
-    except ImportError as exc:
-        return {"status": f"unavailable: simulator or scenes not importable ({exc})"}
+    from ..scenes.synthetic import SceneConfig, make_scenes
+    from ..sensor import event_frames
+
     h, w = sensor["resolution"]
     scene = SceneConfig(height_px=int(h), width_px=int(w), n_frames=int(emulation["n_frames"]))
     if kernel.size > min(h, w):

@@ -1,8 +1,9 @@
 """Score a realisation: kernel error, CSF agreement, task accuracy, hardware cost and wall times.
 
-:func:`fit_realisation` builds one realisation of a target kernel by name (the ideal references
-``"learned"`` and ``"delta"``, or the hardware fits ``"mesh"``, ``"asic"``, ``"metalens"`` through
-:data:`~fsdvs_hw.explore.design.REALISATION_FITTERS`); :func:`score` measures it. A score is a
+:func:`fit_realisation` builds one realisation of a target kernel by its name in the registry
+(:mod:`fsdvs_hw.realise.registry`: the ideal references ``"learned"`` and ``"delta"``, the hardware
+fits ``"mesh"``, ``"asic"``, ``"metalens"``, and any realisation registered from outside the
+package); :func:`score` measures it. A score is a
 flat, JSON-ready record so that the results store, the CSV/JSON tables and the report all read
 the same thing.
 
@@ -36,8 +37,6 @@ costs and wall times
 
 from __future__ import annotations
 
-import importlib
-import inspect
 import json
 import time
 from collections.abc import Iterable, Mapping, Sequence
@@ -47,12 +46,14 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..kernels import Kernel, reference_kernel
-from ..realise.base import Realisation, ReferenceRealisation, realised_kernel_error
-from .design import REALISATION_FITTERS, REFERENCE_REALISATIONS
+from ..csf import Geometry, csf_agreement
+from ..kernels import Kernel
+from ..realise.base import Realisation, realised_kernel_error
+from ..realise.registry import fit_realisation as _fit_registered
+from ..realise.registry import realisation_names
+from ..spectra import spectral_summary
 
 __all__ = [
-    "RealisationUnavailable",
     "fit_realisation",
     "score",
     "task_scores",
@@ -73,19 +74,16 @@ TRACK_PREFIX: dict[str, str] = {"simulator": "", "emulation": "emu_"}
 PRIMARY_CSF_METHOD = "mannos_sakrison_1974"
 
 
-class RealisationUnavailable(InputError):
-    """A realisation's module is not part of this installation; the point is reported as skipped."""
-
-
 def fit_realisation(name: str, target: Kernel, options: Mapping[str, Any] | None = None, *,
                     seed: int = 0) -> tuple[Realisation, float]:
     """Fit one realisation of ``target`` by name.
 
     Parameters
     ----------
-    name : {"learned", "delta", "mesh", "asic", "metalens"}
+    name : str
+        A registered realisation (:func:`fsdvs_hw.realise.registry.realisation_names`):
         ``learned``: the target applied ideally; ``delta``: the "w/o" baseline (no filter);
-        the others call the fit function in :data:`REALISATION_FITTERS`.
+        the others call their registered fit function.
     target : Kernel
         The kernel to realise (pitch in metres is passed on as ``pitch_m`` where the fitter takes it).
     options : mapping, optional
@@ -100,38 +98,15 @@ def fit_realisation(name: str, target: Kernel, options: Mapping[str, Any] | None
 
     Raises
     ------
-    RealisationUnavailable
-        The fitter's module is not installed in this checkout.
+    InputError
+        ``name`` is not registered, or an option is invalid.
     """
-    options = dict(options or {})
     t0 = time.perf_counter()
-    if name == "learned":
-        real: Realisation = ReferenceRealisation(target, label="learned")
-    elif name == "delta":
-        real = ReferenceRealisation(reference_kernel("delta", target.size, pitch_m=target.pitch_m), label="delta")
-    elif name in REALISATION_FITTERS:
-        module, func = REALISATION_FITTERS[name].split(":")
-        try:
-            fitter = getattr(importlib.import_module(module), func)
-        except (ImportError, AttributeError) as exc:
-            raise RealisationUnavailable(f"realisation {name!r}: {module}.{func} is not available ({exc})") from None
-        params = inspect.signature(fitter).parameters
-        if "pitch_m" in params and "pitch_m" not in options:
-            options["pitch_m"] = target.pitch_m
-        if "seed" in params and "seed" not in options:
-            options["seed"] = seed
-        real = fitter(target, **options)
-    else:
-        allowed = ", ".join([*REFERENCE_REALISATIONS, *REALISATION_FITTERS])
-        raise InputError(f"realisation {name!r} unknown; allowed: {allowed}")
+    real = _fit_registered(name, target, options, seed=seed)
     return real, time.perf_counter() - t0
 
 
 def _csf_scores(kernel: Kernel, methods: Sequence[str], focal_length_m: float) -> dict[str, Any]:
-    try:
-        from ..csf import Geometry, csf_agreement
-    except ImportError as exc:
-        return {"status": f"unavailable: fsdvs_hw.csf not importable ({exc})"}
     geometry = Geometry(pitch_m=kernel.pitch_m, focal_length_m=focal_length_m)
     out: dict[str, Any] = {"status": "ok"}
     for m in methods:
@@ -142,10 +117,6 @@ def _csf_scores(kernel: Kernel, methods: Sequence[str], focal_length_m: float) -
 
 
 def _spectral(kernel: Kernel) -> dict[str, Any]:
-    try:
-        from ..spectra import spectral_summary
-    except ImportError as exc:
-        return {"status": f"unavailable: fsdvs_hw.spectra not importable ({exc})"}
     return {"status": "ok", **spectral_summary(kernel).to_dict()}
 
 
@@ -160,7 +131,7 @@ def _task_sensor(checkpoint: Path, design_sensor: Mapping[str, Any] | None) -> t
             from ..tasks.learn import load_checkpoint
 
             settings = dict(load_checkpoint(checkpoint)[0].get("sensor", {}))
-        except (ImportError, InputError):  # the evaluator itself will say what is wrong
+        except InputError:  # the evaluator itself will say what is wrong
             return None, {"source": "checkpoint"}
         return None, {"source": "checkpoint", **{k: settings.get(k) for k in _DESIGN_SENSOR_FIELDS}}
     from ..sensor import SensorConfig
@@ -227,10 +198,7 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
         return {"status": "not requested"}
     if test_clips not in TEST_CLIPS:
         raise InputError(f"test_clips {test_clips!r} unknown; allowed: {', '.join(TEST_CLIPS)}")
-    try:
-        from .paired import clip_evidence, encode_evidence
-    except ImportError as exc:
-        return {"status": f"unavailable: per-clip task evaluation not importable ({exc})"}
+    from .paired import clip_evidence, encode_evidence  # torch: imported only when tasks are scored
     out: dict[str, Any] = {"status": "ok"}
     for task, entry in checkpoints.items():
         paths = [Path(p) for p in (entry if isinstance(entry, (list, tuple)) else [entry])]
@@ -255,7 +223,7 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
                     evid.append(clip_evidence(kernel, task, ckpt, n_test=n or None, sensor=sensor_cfg,
                                               seed_offset=s, clip_set=s if test_clips == "per_network" else 0,
                                               events_fn=events_fn))
-            except (InputError, FileNotFoundError, ImportError) as exc:
+            except (InputError, FileNotFoundError) as exc:
                 out[task][track] = {"status": f"unavailable: {exc}"}
                 out["status"] = "partial"
                 continue
@@ -277,10 +245,7 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
 
 def _record_networks(tasks: dict[str, Any], target: Kernel) -> None:
     """Say, per task, which networks scored it and whether they were trained with ``target``."""
-    try:
-        from .paired import network_info
-    except ImportError:  # pragma: no cover - torch-free installs have no task track at all
-        return
+    from .paired import network_info  # torch: imported only when tasks are scored
     for task, tracks in tasks.items():
         if not isinstance(tracks, dict):
             continue
@@ -415,7 +380,7 @@ def _flat_metrics(result: Mapping[str, Any]) -> dict[str, float]:
 def _context(point: Mapping[str, Any]) -> str:
     """The sweep setting a point shares with its reference: its params minus realisation-scoped axes."""
     params = point.get("params") or {}
-    scoped = set(REALISATION_FITTERS) | set(REFERENCE_REALISATIONS) | {"realisations"}
+    scoped = set(realisation_names()) | {"realisations"}
     return json.dumps({k: v for k, v in params.items() if k.split(".")[0] not in scoped}, sort_keys=True,
                       default=str)
 

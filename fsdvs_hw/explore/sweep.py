@@ -181,7 +181,7 @@ def evaluate_point(point: DesignPoint) -> dict[str, Any]:
     Returns
     -------
     dict
-        ``{"key", "status": "ok"|"skipped"|"error", "result": score record or {"reason": ...},
+        ``{"key", "status": "ok"|"error", "result": score record or {"reason": ...},
         "wall_s", "worker"}``.
     """
     if os.environ.get("FSDVS_SWEEP_THREADS"):
@@ -207,7 +207,7 @@ def evaluate_point(point: DesignPoint) -> dict[str, Any]:
 
 def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     from ..kernels import Kernel
-    from .scoring import RealisationUnavailable, fit_realisation, score
+    from .scoring import fit_realisation, score
 
     try:
         target = Kernel.from_dict(point.target, source="design point target")
@@ -231,8 +231,6 @@ def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, dict[
         )
         rec["realisation"] = real.to_dict()
         status = "ok"
-    except RealisationUnavailable as exc:
-        status, rec = "skipped", {"reason": str(exc)}
     except Exception as exc:  # noqa: BLE001 - one failed point must not stop a sweep; it is recorded
         status = "error"
         rec = {"reason": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc(limit=8)}

@@ -13,7 +13,8 @@ metalens PSF), or a reference that is scored the same way (the learned kernel it
 ``describe()``
     A few human-readable lines.
 ``to_dict()``
-    A JSON-serialisable dict with a ``"kind"`` key; :func:`realisation_from_dict` inverts it.
+    A JSON-serialisable dict with a ``"kind"`` key;
+    :func:`fsdvs_hw.realise.registry.realisation_from_dict` inverts it.
 ``kernel_error(target, fit_scale=False)`` (optional)
     The realisation's own relative L2 error against a target: **the one definition** used by the
     fit reports and the scorer alike (:func:`realised_kernel_error`). It compares what the sensor
@@ -21,13 +22,12 @@ metalens PSF), or a reference that is scored the same way (the learned kernel it
     of a metalens *with its pedestal* (real light before the log) — with the target. A
     realisation without it is scored on :meth:`kernel`.
 
-Kinds register themselves in :data:`REALISATION_KINDS` as ``"module:Class"`` strings so that
-loading a stored design imports only the module it needs.
+Every realisation registers itself, with its options, fit function and cost items, in
+:mod:`fsdvs_hw.realise.registry`.
 """
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -41,8 +41,6 @@ __all__ = [
     "CostItem",
     "Realisation",
     "ReferenceRealisation",
-    "REALISATION_KINDS",
-    "realisation_from_dict",
     "kernel_error",
     "realised_kernel_error",
 ]
@@ -91,24 +89,6 @@ class Realisation(Protocol):
     def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable form including ``"kind"``."""
         ...
-
-
-#: kind → "module:Class" whose ``from_dict(d)`` classmethod rebuilds the realisation.
-REALISATION_KINDS: dict[str, str] = {
-    "reference": "fsdvs_hw.realise.base:ReferenceRealisation",
-    "mesh": "fsdvs_hw.realise.mesh:MeshDesign",
-    "asic": "fsdvs_hw.realise.asic:AsicDesign",
-    "metalens": "fsdvs_hw.realise.metalens:MetalensDesign",
-}
-
-
-def realisation_from_dict(data: Mapping[str, Any]) -> Realisation:
-    """Rebuild a realisation from :meth:`Realisation.to_dict` output."""
-    kind = data.get("kind") if isinstance(data, Mapping) else None
-    if kind not in REALISATION_KINDS:
-        raise InputError(f"realisation 'kind' is {kind!r}; allowed: {', '.join(REALISATION_KINDS)}")
-    module, cls = REALISATION_KINDS[kind].split(":")
-    return getattr(importlib.import_module(module), cls).from_dict(data)
 
 
 @dataclass(frozen=True, eq=False)

@@ -14,12 +14,18 @@ from typing import Any
 import numpy as np
 
 from ..kernels import Kernel
-from .tables import accuracy_axis, loss_interval
+from ..realise.registry import REALISATIONS
+from .tables import accuracy_axis, is_reference, loss_interval
 
 __all__ = ["realised_kernels", "fig_kernels", "fig_spectra", "fig_radial", "fig_pareto", "fig_speed"]
 
 _MAX_PANELS = 12
-_COLOURS = {"learned": "#222222", "delta": "#999999", "mesh": "#1f77b4", "asic": "#d62728", "metalens": "#2ca02c"}
+
+
+def _colour(name: str) -> str | None:
+    """The realisation's registered colour (None: matplotlib's cycle)."""
+    spec = REALISATIONS.get(name)
+    return spec.colour if spec is not None else None
 
 
 def _label(p: Mapping[str, Any]) -> str:
@@ -113,10 +119,10 @@ def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
         x = [_val(r, "csf_fitted_correlation") for r in g]
         y, lo, hi = zip(*(loss_interval(r, acc) for r in g))
         ax.errorbar(x, y, yerr=[np.subtract(y, lo), np.subtract(hi, y)], fmt="o", ms=5, capsize=3,
-                    color=_COLOURS.get(kind), label=kind, zorder=3)
+                    color=_colour(kind), label=kind, zorder=3)
         for xi, yi, r in zip(x, y, g):
             if r.get("pareto_all"):
-                ax.scatter([xi], [yi], s=150, facecolors="none", edgecolors=_COLOURS.get(kind), lw=1.5, zorder=2)
+                ax.scatter([xi], [yi], s=150, facecolors="none", edgecolors=_colour(kind), lw=1.5, zorder=2)
             if len(ok) <= 10:
                 ax.annotate(r["point"], (xi, yi), fontsize=6, xytext=(3, 3), textcoords="offset points")
     ax.axhline(0.0, color="0.5", lw=0.8)
@@ -135,10 +141,10 @@ def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
         x = [r["kind_cost_value"] for r in g]
         y, lo, hi = zip(*(loss_interval(r, acc) for r in g))
         ax.errorbar(x, y, yerr=[np.subtract(y, lo), np.subtract(hi, y)], fmt="o-", ms=5, capsize=3,
-                    color=_COLOURS.get(kind))
+                    color=_colour(kind))
         for xi, yi, r in zip(x, y, g):
             if r.get("pareto"):
-                ax.scatter([xi], [yi], s=150, facecolors="none", edgecolors=_COLOURS.get(kind), lw=1.5)
+                ax.scatter([xi], [yi], s=150, facecolors="none", edgecolors=_colour(kind), lw=1.5)
             if len(g) <= 8:
                 ax.annotate(r["point"], (xi, yi), fontsize=6, xytext=(3, 3), textcoords="offset points")
         ax.axhline(0.0, color="0.5", lw=0.8)
@@ -159,11 +165,11 @@ def fig_speed(rows: Sequence[Mapping[str, Any]]) -> Any:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6, 4), constrained_layout=True)
-    ok = [r for r in rows if r["status"] == "ok" and r["realisation"] not in ("learned", "delta")]
+    ok = [r for r in rows if r["status"] == "ok" and not is_reference(r["realisation"])]
     for kind in dict.fromkeys(r["realisation"] for r in ok):
         g = [r for r in ok if r["realisation"] == kind]
         ax.scatter([max(r["fit_s"], 1e-6) for r in g], [max(r["kernel_error"], 1e-12) for r in g],
-                   color=_COLOURS.get(kind), label=kind)
+                   color=_colour(kind), label=kind)
     if ok:
         ax.set_xscale("log")
         ax.set_yscale("log")

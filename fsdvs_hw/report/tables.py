@@ -3,7 +3,8 @@
 A stored point's ``result`` is a nested :func:`fsdvs_hw.explore.scoring.score` record and its
 ``paired_loss`` the paired task losses with bootstrap CIs (attached by the explore layer); the
 tables flatten both to named columns with units in the names (``fit_s``, ``cost_area_m2``), give
-each kind of realisation its own cost axis in its own unit, and mark the points that no other point
+each kind of realisation its own cost axis in its own unit (declared in its registry entry,
+:class:`fsdvs_hw.realise.registry.CostSpec`), and mark the points that no other point
 dominates *beyond the uncertainty* of the losses (:func:`uncertain_pareto_front`), within each
 kind (loss, CSF agreement, the kind's cost) and across kinds (loss, CSF agreement).
 
@@ -23,57 +24,43 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from ..realise.registry import REALISATIONS
+
 __all__ = ["score_rows", "pareto_front", "uncertain_pareto_front", "headline_cost", "kind_cost", "accuracy_axis",
-           "summary_markdown", "verdict_rows", "verdict_markdown", "networks_note", "write_scores", "loss_interval", "HEADLINE_COSTS",
-           "KIND_COST_AXES", "IDEAL_REFERENCES", "TRACK_PREFIX"]
+           "summary_markdown", "verdict_rows", "verdict_markdown", "networks_note", "write_scores", "loss_interval",
+           "is_reference", "TRACK_PREFIX"]
 
 #: Column prefix of each task track (the simulator track is unprefixed).
 TRACK_PREFIX: dict[str, str] = {"simulator": "", "emulation": "emu_"}
 
-#: Realisations that are ideal references, not hardware (no cost; never on a front).
-IDEAL_REFERENCES: tuple[str, ...] = ("learned", "delta")
-
-#: Each hardware kind's cost axis for its own Pareto front: (cost item, label, display unit, factor
-#: from the stored SI value to the display unit), first available wins. ``conductance_per_pixel``
-#: is derived for the mesh (:func:`kind_cost`): the summed conductances of one pixel's two meshes,
-#: proportional to the static current (power) at a given bias.
-KIND_COST_AXES: dict[str, tuple[tuple[str, str, str, float], ...]] = {
-    "asic": (("area_m2", "cell area", "µm²", 1e12), ("adders", "adders", "count", 1.0)),
-    "mesh": (("conductance_per_pixel", "conductance per pixel", "µS", 1e6),),
-    "metalens": (("aperture_diameter", "aperture", "µm", 1e6),),
-}
-
-#: Cost items preferred as a realisation's single headline cost, in order (else its first item):
-#: ASIC silicon (area, cells, adders); mesh settling time of the wide mesh (its area is fixed at
-#: six conductances per pixel, so speed is what a design pays); metalens aperture diameter.
-HEADLINE_COSTS: tuple[str, ...] = ("area_m2", "yosys_cells", "adders", "tau_wide", "aperture_diameter", "power_w")
+def is_reference(name: str) -> bool:
+    """Whether the realisation ``name`` is an ideal reference (no cost; never on a front)."""
+    return name in REALISATIONS and REALISATIONS[name].kind == "reference"
 
 
-def headline_cost(cost: Mapping[str, Mapping[str, Any]]) -> tuple[str, float, str] | None:
-    """``(name, value, unit)`` of the cost item that best summarises a realisation, or None."""
+def headline_cost(cost: Mapping[str, Mapping[str, Any]], kind: str | None = None) -> tuple[str, float, str] | None:
+    """``(name, value, unit)`` of the cost item that best summarises a realisation, or None.
+
+    The first of the realisation's declared headline items (:class:`~fsdvs_hw.realise.registry.CostSpec`
+    with ``headline=True``) present in ``cost``; else its first item.
+    """
     if not cost:
         return None
-    name = next((n for n in HEADLINE_COSTS if n in cost), next(iter(cost)))
+    spec = REALISATIONS.get(kind) if kind is not None else None
+    name = (spec.headline(cost) if spec is not None else None) or next(iter(cost))
     item = cost[name]
     return name, float(item["value"]), str(item.get("unit", ""))
 
 
 def kind_cost(kind: str, cost: Mapping[str, Mapping[str, Any]]) -> tuple[str, float, str] | None:
-    """``(label, value, unit)`` on the kind's own cost axis (:data:`KIND_COST_AXES`), or None.
+    """``(label, value, unit)`` on the kind's own cost axis, in its display unit, or None.
 
-    The mesh's ``conductance_per_pixel`` is ``2 g_l + g_v`` summed over its narrow and wide meshes
-    (a node shares each of its four lateral links with a neighbour).
+    The first of the realisation's declared Pareto items present in ``cost``
+    (:meth:`fsdvs_hw.realise.registry.RealisationSpec.cost_axis`); None for an unregistered kind
+    or a reference.
     """
-    for item, label, unit, factor in KIND_COST_AXES.get(kind, ()):
-        if item == "conductance_per_pixel":
-            parts = [cost.get(f"g_{d}_{w}", {}).get("value") for w in ("narrow", "wide") for d in ("lateral", "vertical")]
-            if all(isinstance(v, (int, float)) for v in parts):
-                gl_n, gv_n, gl_w, gv_w = (float(v) for v in parts)
-                return label, (2 * gl_n + gv_n + 2 * gl_w + gv_w) * factor, unit
-            continue
-        if item in cost and isinstance(cost[item].get("value"), (int, float)):
-            return label, float(cost[item]["value"]) * factor, unit
-    return None
+    spec = REALISATIONS.get(kind)
+    return spec.cost_axis(cost) if spec is not None else None
 
 
 def _num(x: Any) -> float:
@@ -137,7 +124,7 @@ def score_rows(points: Iterable[Mapping[str, Any]], *, primary_csf: str = "manno
             cost = res.get("cost") or {}
             for name, item in cost.items():
                 row[f"cost_{name}"] = _num(item.get("value"))
-            head = headline_cost(cost)
+            head = headline_cost(cost, p["realisation"])
             row["headline_cost"], row["headline_cost_value"], row["headline_cost_unit"] = head or ("", math.nan, "")
             own = kind_cost(p["realisation"], cost)
             row["kind_cost"], row["kind_cost_value"], row["kind_cost_unit"] = own or ("", math.nan, "")
@@ -258,10 +245,10 @@ def _mark_pareto(rows: list[dict[str, Any]]) -> None:
     """Mark the uncertainty-aware fronts (:func:`uncertain_pareto_front`).
 
     ``pareto``: within each hardware kind over (accuracy loss ↓ with its CI, Mannos–Sakrison
-    agreement at the fitted scale ↑, the kind's own cost ↓ in its own unit: :data:`KIND_COST_AXES`);
+    agreement at the fitted scale ↑, the kind's own cost ↓ in its own unit: :func:`kind_cost`);
     ideal references (learned, delta) have no cost and are not on a per-kind front.
     ``pareto_all``: across every hardware realisation over (accuracy loss ↓, agreement ↑); costs of
-    different kinds never share an axis. The ideal references (:data:`IDEAL_REFERENCES`) are shown
+    different kinds never share an axis. The ideal references (:func:`is_reference`) are shown
     for comparison and are on neither front.
     """
     acc, _ = accuracy_axis(rows)
@@ -274,7 +261,7 @@ def _mark_pareto(rows: list[dict[str, Any]]) -> None:
         v = -_num(r.get("csf_fitted_correlation", r.get("csf_agreement")))
         return v, v, v
 
-    hardware = [r for r in ok if r["realisation"] not in IDEAL_REFERENCES]
+    hardware = [r for r in ok if not is_reference(r["realisation"])]
     for r, f in zip(hardware, uncertain_pareto_front([(loss_interval(r, acc), agreement(r)) for r in hardware])):
         r["pareto_all"] = f
     for kind in dict.fromkeys(r["realisation"] for r in ok):
@@ -351,7 +338,7 @@ def verdict_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
             v["cost (own unit)"] = f"{r['kind_cost']} {_num(r['kind_cost_value']):.4g} {r['kind_cost_unit']}"
         else:
             v["cost (own unit)"] = "– (ideal reference)"
-        if r["realisation"] in IDEAL_REFERENCES:
+        if is_reference(r["realisation"]):
             v["Pareto"] = "reference"
         else:
             fronts = [name for name, flag in (("within kind", r.get("pareto")), ("across kinds", r.get("pareto_all")))

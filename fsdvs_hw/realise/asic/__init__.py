@@ -11,8 +11,36 @@ rtl
     ``data/fsdvs_demo45.lib``.
 bench
     ``fsdvs-hw bench asic``.
+options
+    The fit options' schema (type, unit, range, default, help).
+
+Importing this package registers ``"asic"`` in :mod:`fsdvs_hw.realise.registry`.
 """
 
+from ..registry import CostSpec, RealisationSpec, register_realisation
 from .fit import OBJECTIVES, SCALE_MODES, AsicDesign, exhaustive_asic_taps, fit_asic_taps
+from .options import OPTIONS
 
-__all__ = ["AsicDesign", "fit_asic_taps", "SCALE_MODES", "OBJECTIVES", "exhaustive_asic_taps"]
+__all__ = ["AsicDesign", "fit_asic_taps", "SCALE_MODES", "OBJECTIVES", "exhaustive_asic_taps", "OPTIONS", "SPEC"]
+
+#: The registry entry (own cost axis and headline: yosys cell area, else the adder count).
+SPEC = register_realisation(RealisationSpec(
+    name="asic",
+    fit=fit_asic_taps,
+    options=OPTIONS,
+    kind="hardware",
+    record_type=AsicDesign,
+    costs=(
+        CostSpec("area_m2", "m^2", "cell area", "µm²", 1e12, pareto=True, headline=True, optional=True),
+        CostSpec("yosys_cells", "count", "yosys cells", headline=True, optional=True),
+        CostSpec("adders", "count", "adders", pareto=True, headline=True),
+        CostSpec("tap_bits", "bit", "tap width"),
+        CostSpec("accumulator_bits", "bit", "accumulator width"),
+        CostSpec("csd_digits", "count", "CSD digits"),
+    ),
+    artifacts={"verilog": "streaming k×k shift-add filter RTL (AsicDesign.verilog)",
+               "synthesis": "yosys cell count and area on the shipped liberty file (AsicDesign.synthesise)"},
+    colour="#d62728",
+    in_default_design=True,
+    description="quantised integer taps as a shift-add digital filter (nlopt scale + CSD tap search)",
+))

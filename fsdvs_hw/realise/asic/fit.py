@@ -52,6 +52,7 @@ import numpy as np
 from ...errors import InputError
 from ...kernels import Kernel
 from ...validation import check_fit_arguments
+from .options import OPTIONS
 from .arith import (
     SYMMETRIES,
     SymmetryClasses,
@@ -632,7 +633,7 @@ def fit_asic_taps(
         Bad arguments; a fixed scale or an adder weight at which every tap rounds to zero;
         an ``input_bits`` whose accumulator would exceed the exact 63-bit model.
     """
-    check_fit_arguments("asic", locals())  # fsdvs_hw.validation: same limits as design files
+    check_fit_arguments(OPTIONS, locals())  # the registry's schema: same limits as design files
     t0 = time.perf_counter()
     if not isinstance(kernel, Kernel):
         raise InputError(f"kernel: expected a fsdvs_hw Kernel, got {type(kernel).__name__}")

@@ -14,8 +14,16 @@ spice
     SPICE netlist export and ngspice cross-check.
 bench
     ``fsdvs-hw bench mesh``.
+options
+    The fit options' schema (type, unit, range, default, help).
+
+Importing this package registers ``"mesh"`` in :mod:`fsdvs_hw.realise.registry`.
 """
 
+from dataclasses import replace as _replace
+from typing import Any as _Any
+
+from ..registry import CostSpec, RealisationSpec, register_realisation
 from .fit import (
     GAIN_MODES,
     MESH_MODELS,
@@ -26,6 +34,7 @@ from .fit import (
     fit_resistive_mesh,
     mismatch_sensitivity,
 )
+from .options import OPTIONS
 
 __all__ = [
     "MeshBounds",
@@ -36,4 +45,39 @@ __all__ = [
     "GAIN_MODES",
     "fit_resistive_mesh",
     "mismatch_sensitivity",
+    "OPTIONS",
+    "SPEC",
 ]
+
+
+def _conductance_per_pixel(cost: "dict[str, dict[str, _Any]]") -> float | None:
+    """Summed conductances of one pixel's two meshes (S): ``2 g_l + g_v`` each (a node shares each
+    of its four lateral links with a neighbour); proportional to the static current at a bias."""
+    parts = [(cost.get(f"g_{d}_{w}") or {}).get("value") for w in ("narrow", "wide") for d in ("lateral", "vertical")]
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in parts):
+        return None
+    gl_n, gv_n, gl_w, gv_w = (float(v) for v in parts)
+    return 2 * gl_n + gv_n + 2 * gl_w + gv_w
+
+
+#: The registry entry (the mesh's own cost axis: conductance per pixel; headline: the wide mesh's
+#: settling time, since its area is fixed at six conductances per pixel).
+SPEC = register_realisation(RealisationSpec(
+    name="mesh",
+    fit=fit_resistive_mesh,
+    options={**OPTIONS, "bounds": _replace(OPTIONS["bounds"], factory=MeshBounds)},
+    kind="hardware",
+    record_type=MeshDesign,
+    costs=(
+        CostSpec("conductance_per_pixel", "S", "conductance per pixel", "µS", 1e6, pareto=True,
+                 derive=_conductance_per_pixel),
+        CostSpec("tau_wide", "s", "wide-mesh settling time", "µs", 1e6, headline=True),
+        CostSpec("g_lateral_narrow", "S"), CostSpec("g_vertical_narrow", "S"),
+        CostSpec("g_lateral_wide", "S"), CostSpec("g_vertical_wide", "S"),
+        CostSpec("node_capacitance", "F"), CostSpec("resistors_per_pixel", "count"),
+    ),
+    artifacts={"spice_netlist": "SPICE netlist of the realised network (fsdvs_hw.realise.mesh.spice.to_spice_netlist)"},
+    colour="#1f77b4",
+    in_default_design=True,
+    description="dual resistive mesh: K = w·δ + a·H_narrow − b·H_wide (casadi/IPOPT)",
+))

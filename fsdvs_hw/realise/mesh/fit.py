@@ -57,6 +57,7 @@ import numpy as np
 from ...errors import InputError
 from ...kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, _validate_pitch
 from ...validation import check_fit_arguments
+from .options import OPTIONS
 from ..base import CostItem, kernel_error
 from .response import (
     LAMBDA_RANGE_PX,
@@ -725,6 +726,336 @@ def _coerce_bounds(bounds: Any) -> MeshBounds:
     return bounds
 
 
+# ---------------------------------------------------------------------------- the fit, in steps
+@dataclass(frozen=True)
+class _MeshSettings:
+    """The fit's options, validated and resolved (step 1 of :func:`fit_resistive_mesh`)."""
+
+    target: Kernel
+    bounds: MeshBounds
+    gain: str
+    gain_free: bool
+    free_wp: bool
+    wp_fixed: float
+    nonnegative_dc: bool
+    sigma: float
+    max_err: float | None
+    g_l: float
+    c_node: float
+    model: str
+    grid_half_width: int | None
+    fit_size: int | None
+    n_init: int
+    n_starts: int
+    max_iter: int
+    tol: float
+    lam_lo: float
+    lam_hi: float
+
+
+def _mesh_settings(kernel: Any, *, bounds: Any, pitch_m: float | None, pixel_weight: Any, gain: str,
+                   nonnegative_dc: Any, mismatch_sigma: float, max_mismatch_error: float | None, g_lateral_s: float,
+                   node_capacitance_f: float, model: str, grid_half_width: Any, fit_size: Any, n_init: int,
+                   n_starts: int, max_iter: int, tol: float) -> _MeshSettings:
+    """Validate and resolve every option; the feasible λ range from the λ and conductance bounds."""
+    target = _coerce_kernel(kernel, pitch_m)
+    bounds = _coerce_bounds(bounds)
+    if pixel_weight is not None and isinstance(pixel_weight, str):
+        if pixel_weight != "free":
+            raise InputError(f"pixel_weight: a number, None or 'free', got {pixel_weight!r}")
+        pixel_weight = None
+    if gain not in GAIN_MODES:
+        raise InputError(f"gain={gain!r} unknown; allowed {GAIN_MODES}")
+    gain_free = gain == "free"
+    if not isinstance(nonnegative_dc, (bool, np.bool_)):
+        raise InputError(f"nonnegative_dc: must be true or false, got {nonnegative_dc!r}")
+    sigma = _check_scalar("mismatch_sigma", mismatch_sigma, 0.0, 0.5)
+    max_err = None if max_mismatch_error is None else _check_scalar("max_mismatch_error", max_mismatch_error, 1e-6, 10.0)
+    g_l = _check_scalar("g_lateral_s", g_lateral_s, *bounds.conductance_s)
+    c_node = _check_scalar("node_capacitance_f", node_capacitance_f, 1e-18, 1e-6)
+    if model not in MESH_MODELS:
+        raise InputError(f"model={model!r} unknown; allowed {MESH_MODELS}")
+    if fit_size is not None and not (
+        isinstance(fit_size, (int, np.integer)) and not isinstance(fit_size, bool)
+        and fit_size % 2 == 1 and target.size <= fit_size <= MAX_KERNEL_SIZE
+    ):
+        raise InputError(f"fit_size: must be None (whole response) or odd in {target.size}..{MAX_KERNEL_SIZE}, got {fit_size!r}")
+    if model == "grid":
+        if not (isinstance(grid_half_width, (int, np.integer)) and target.radius <= grid_half_width <= 60):
+            raise InputError(f"grid_half_width: model 'grid' needs an integer in {target.radius}..60, got {grid_half_width!r}")
+        grid_half_width = int(grid_half_width)
+    else:
+        grid_half_width = None
+    for name, v, lo, hi in (("n_init", n_init, 2, 40), ("n_starts", n_starts, 1, 10), ("max_iter", max_iter, 1, 10000)):
+        if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and lo <= v <= hi):
+            raise InputError(f"{name}: must be an integer in {lo}..{hi}, got {v!r}")
+    tol = _check_scalar("tol", tol, 1e-16, 1e-2)
+    free_wp = pixel_weight is None
+    wp_fixed = 0.0 if free_wp else _check_scalar("pixel_weight", pixel_weight, 0.0, 1e3)
+    if gain_free and not free_wp and wp_fixed == 0.0:
+        raise InputError("pixel_weight=0 with gain='free': the pixel path is the gain reference; use pixel_weight='free'")
+
+    # λ range from the λ bounds and the conductance bounds (g_v = g_l / λ² within conductance_s)
+    gmin, gmax = bounds.conductance_s
+    lam_lo = max(bounds.lambda_px[0], math.sqrt(g_l / gmax))
+    lam_hi = min(bounds.lambda_px[1], math.sqrt(g_l / gmin))
+    if not lam_hi / lam_lo > bounds.min_lambda_ratio:
+        raise InputError(
+            f"bounds: with g_lateral_s={g_l:g} S and conductance_s={bounds.conductance_s} the feasible λ range "
+            f"[{lam_lo:g}, {lam_hi:g}] px is narrower than min_lambda_ratio={bounds.min_lambda_ratio:g}"
+        )
+    return _MeshSettings(target=target, bounds=bounds, gain=gain, gain_free=gain_free, free_wp=free_wp,
+                         wp_fixed=wp_fixed, nonnegative_dc=bool(nonnegative_dc), sigma=sigma, max_err=max_err, g_l=g_l,
+                         c_node=c_node, model=model, grid_half_width=grid_half_width,
+                         fit_size=None if fit_size is None else int(fit_size), n_init=int(n_init),
+                         n_starts=int(n_starts), max_iter=int(max_iter), tol=tol, lam_lo=lam_lo, lam_hi=lam_hi)
+
+
+@dataclass(frozen=True, eq=False)
+class _MeshProblem:
+    """The window the fit sums over and the target on its D4 orbits (step 2: the model)."""
+
+    radius: int
+    whole: bool
+    lattice_whole: bool
+    t_sym: np.ndarray
+    t_orb: np.ndarray
+    mult: np.ndarray
+    delta: np.ndarray
+    norm2: float
+    asymmetry: float
+
+
+def _mesh_problem(s: _MeshSettings) -> _MeshProblem:
+    """The window the NLP sums over: the target's (whole lattice energy in closed form), the fit
+    window, or the whole finite chip; the D4-symmetric target on its orbits."""
+    target = s.target
+    whole = s.fit_size is None
+    if s.model == "grid" and whole:
+        radius = s.grid_half_width
+    else:
+        radius = target.radius if whole else s.fit_size // 2
+    t_sym = _d4_symmetrise(np.pad(target.taps, radius - target.radius))  # plain array: the chip may exceed 63 px
+    ii, jj, mult = _orbits(radius)
+    return _MeshProblem(radius=radius, whole=whole, lattice_whole=whole and s.model == "lattice", t_sym=t_sym,
+                        t_orb=t_sym[radius + ii, radius + jj], mult=mult, delta=(ii == 0).astype(np.float64),
+                        norm2=float((target.taps**2).sum()), asymmetry=target.asymmetry())
+
+
+def _initial_starts(s: _MeshSettings, p: _MeshProblem) -> tuple[np.ndarray, list[tuple[float, float, int, int, np.ndarray]]]:
+    """Step 3, the objective on a grid: exact constrained least-squares gains at every (λ_n, λ_w)
+    pair; return the λ grid and the best distinct starts ``(penalised f, f, i_n, i_w, gains)``."""
+    glo, ghi = s.bounds.gain
+    radius, mult, delta, norm2 = p.radius, p.mult, p.delta, p.norm2
+    lams = np.geomspace(s.lam_lo, s.lam_hi, s.n_init)
+    nodes = quadrature_nodes(s.lam_hi, radius) if s.model == "lattice" else None
+    resp = [_numpy_orbit_response(float(lam), radius, s.model, s.grid_half_width, nodes) for lam in lams]
+    norms = [_lattice_norm_terms(float(lam), nodes) for lam in lams] if p.lattice_whole else None
+    sens_parts = [(float((mult * dh * dh).sum()), float((mult * h * h).sum())) for h, dh in resp]
+    sig2 = s.sigma * s.sigma
+    maxerr2 = math.inf if s.max_err is None else s.max_err * s.max_err
+
+    def evaluate(gram: np.ndarray, cvec: np.ndarray, x: np.ndarray, sp_n, sp_w) -> tuple[float, float]:
+        n_k = float(x @ gram @ x)
+        cx = float(cvec @ x)
+        if s.gain_free:
+            f = 1.0 - (cx * cx / (n_k * norm2) if n_k > 0 and cx > 0 else 0.0)
+            g2 = (cx / n_k) ** 2 if n_k > 0 else 0.0
+        else:
+            f, g2 = (n_k - 2 * cx) / norm2 + 1.0, 1.0
+        s2 = g2 * (2 * x[1] ** 2 * sp_n[0] + 2 * x[2] ** 2 * sp_w[0] + x[1] ** 2 * sp_n[1] + x[2] ** 2 * sp_w[1] + x[0] ** 2) / norm2
+        return f, sig2 * s2
+
+    starts = []
+    for i_n, lam_n in enumerate(lams):
+        hn, _ = resp[i_n]
+        for i_w in range(i_n + 1, len(lams)):
+            lam_w = lams[i_w]
+            if lam_w < s.bounds.min_lambda_ratio * lam_n * (1 - 1e-12):
+                continue
+            hw, _ = resp[i_w]
+            basis = np.column_stack([delta, hn, -hw])
+            if p.lattice_whole:
+                g0n, qn = norms[i_n]
+                g0w, qw = norms[i_w]
+                pnw = _cross_energy(lam_n**2, g0n, qn, lam_w**2, g0w)
+                gram = np.array([[1.0, g0n, -g0w], [g0n, qn, -pnw], [-g0w, -pnw, qw]])
+            else:
+                gram = basis.T @ (mult[:, None] * basis)
+            cvec = basis.T @ (mult * p.t_orb)
+            if s.free_wp or s.gain_free:
+                x = _small_qp(gram, cvec, np.zeros(3), [0, 1, 2], s.nonnegative_dc)
+                if not s.free_wp:  # gain free, pixel path is the reference
+                    x = x / x[0] * s.wp_fixed if x[0] > 0 else np.array([s.wp_fixed, ghi * s.wp_fixed, ghi * s.wp_fixed])
+                    x[1:] = np.clip(x[1:], glo, ghi)
+                elif s.gain_free:  # normalised to w_p + a + b = 1
+                    x = np.maximum(x / x.sum() if x.sum() > 0 else np.full(3, 1 / 3), glo)
+                    x /= x.sum()
+                else:
+                    x = np.clip(x, glo, ghi)
+            else:
+                x = _small_qp(gram, cvec, np.array([s.wp_fixed, 0.0, 0.0]), [1, 2], s.nonnegative_dc)
+                x[1:] = np.clip(x[1:], glo, ghi)
+            if s.nonnegative_dc and x[0] + x[1] - x[2] < 0:
+                x[2] = max(x[0] + x[1], glo)
+            f, mm2 = evaluate(gram, cvec, x, sens_parts[i_n], sens_parts[i_w])
+            starts.append((f + max(0.0, mm2 - maxerr2), f, i_n, i_w, x))
+    if not starts:
+        raise InputError("bounds: no (λ_narrow, λ_wide) pair on the initial grid satisfies min_lambda_ratio")
+    starts.sort(key=lambda st: st[0])
+    chosen: list = []
+    for st in starts:  # the best distinct grid points (not neighbours of one already chosen)
+        if all(abs(st[2] - c[2]) > 1 or abs(st[3] - c[3]) > 1 for c in chosen):
+            chosen.append(st)
+        if len(chosen) == s.n_starts:
+            break
+    return lams, chosen
+
+
+@dataclass(frozen=True, eq=False)
+class _MeshSolution:
+    """The best IPOPT run (step 4): log-parameters clipped into their bounds, and the run's record."""
+
+    xo: np.ndarray
+    lbx: list[float]
+    ubx: list[float]
+    objective: float
+    stats: dict[str, Any]
+    iterations: int
+    runs: int
+
+
+def _solve(s: _MeshSettings, p: _MeshProblem, lams: np.ndarray, chosen: list) -> _MeshSolution:
+    """IPOPT in log-parameters from each start (the solver is cached per problem structure)."""
+    import casadi as ca
+
+    glo, ghi = s.bounds.gain
+    sig2 = s.sigma * s.sigma
+    maxerr2 = math.inf if s.max_err is None else s.max_err * s.max_err
+    nx = 5 if s.free_wp else 4
+    solver = _mesh_solver(p.radius, s.model, float(s.lam_hi), s.grid_half_width, s.free_wp, s.gain_free, p.whole,
+                          s.max_iter, float(s.tol))
+    p_val = np.concatenate([p.t_orb, [1.0 / p.norm2, s.wp_fixed, sig2 / (maxerr2 if s.max_err is not None else 1.0)]])
+    g_hi = 0.0 if (s.gain_free and s.free_wp) else math.log(ghi)
+    lbx = [2 * math.log(s.lam_lo)] * 2 + [math.log(glo)] * (nx - 2)
+    ubx = [2 * math.log(s.lam_hi)] * 2 + [g_hi] * (nx - 2)
+    lbg = [2 * math.log(s.bounds.min_lambda_ratio), 0.0 if s.nonnegative_dc else -ca.inf, -ca.inf]
+    ubg = [ca.inf, ca.inf, 1.0 if s.max_err is not None else ca.inf]
+    if s.gain_free:
+        lbg.append(0.0)
+        ubg.append(ca.inf)
+        if s.free_wp:
+            lbg.append(1.0)
+            ubg.append(1.0)
+    best = None
+    total_iter = 0
+    runs = 0
+    for _, f0, i_n, i_w, x in chosen:
+        runs += 1
+        gains = np.clip(x, glo, ghi if not (s.gain_free and s.free_wp) else 1.0)
+        x0 = [2 * math.log(lams[i_n]), 2 * math.log(lams[i_w]), math.log(gains[1]), math.log(gains[2])]
+        if s.free_wp:
+            x0.append(math.log(gains[0]))
+        sol = solver(x0=x0, p=p_val, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        st = solver.stats()
+        total_iter += int(st.get("iter_count", 0))
+        f = float(sol["f"])
+        gv = np.array(sol["g"]).ravel()
+        feasible = (gv[1] >= -1e-9 or not s.nonnegative_dc) and (s.max_err is None or gv[2] <= 1 + 1e-6)
+        key = (not feasible, f)
+        if best is None or key < best[0]:
+            best = (key, np.array(sol["x"]).ravel(), st, f)
+        if feasible and f <= 1e-12:  # an exact fit (relative error ≤ 1e-6): no start needs to beat it
+            break
+    _, xo, st, f_opt = best
+    # IPOPT may relax bounds by ~1e-8 relative; the built circuit must respect them exactly
+    xo = np.clip(xo, lbx, ubx)
+    xo[1] = min(max(xo[1], xo[0] + 2 * math.log(s.bounds.min_lambda_ratio)), ubx[1])
+    return _MeshSolution(xo=xo, lbx=lbx, ubx=ubx, objective=f_opt, stats=st, iterations=total_iter, runs=runs)
+
+
+def _build_design(s: _MeshSettings, p: _MeshProblem, sol: _MeshSolution) -> tuple[MeshDesign, float, float, float, float]:
+    """The circuit from the solution (step 5): conductances from λ, gains scaled by the
+    least-squares overall gain when it is free; return the design, w_p, a, b (unscaled) and the gain."""
+    target, xo = s.target, sol.xo
+    lam_n, lam_w = math.exp(xo[0] / 2), math.exp(xo[1] / 2)
+    a, b = math.exp(xo[2]), math.exp(xo[3])
+    wp = math.exp(xo[4]) if s.free_wp else s.wp_fixed
+    if s.nonnegative_dc and wp + a - b < 0:  # solver tolerance: never ship a negative whole-circuit DC
+        b = wp + a
+    common = dict(
+        g_lateral_narrow_s=s.g_l,
+        g_vertical_narrow_s=s.g_l / lam_n**2,
+        g_lateral_wide_s=s.g_l,
+        g_vertical_wide_s=s.g_l / lam_w**2,
+        size=target.size,
+        pitch_m=target.pitch_m,
+        node_capacitance_f=s.c_node,
+        model=s.model,
+        grid_half_width=s.grid_half_width,
+        target=target,
+    )
+    overall = 1.0
+    if s.gain_free:  # the least-squares overall gain (it folds into the event threshold)
+        unit = MeshDesign(gain_narrow=a, gain_wide=b, pixel_weight=wp, **common)
+        kw = unit._taps(p.radius)
+        n_k = unit._whole_energy() if p.whole else float((kw * kw).sum())
+        cx = float((kw * p.t_sym).sum())
+        overall = cx / n_k if n_k > 0 and cx > 0 else 0.0
+    wp_s, a_s, b_s = overall * wp, overall * a, overall * b
+    if s.nonnegative_dc and wp_s + a_s - b_s < 0:  # rounding of the scaling: keep the whole-circuit DC ≥ 0 exactly
+        b_s = wp_s + a_s
+    return MeshDesign(gain_narrow=a_s, gain_wide=b_s, pixel_weight=wp_s, **common), wp, a, b, overall
+
+
+def _fit_report(s: _MeshSettings, p: _MeshProblem, sol: _MeshSolution, design: MeshDesign, wp: float, a: float,
+                b: float, overall: float, init_objective: float) -> dict[str, Any]:
+    """The fit record (step 6): errors, what sits on a bound, mismatch and solver status
+    (``wall_s`` is added by the caller, so it covers the whole fit)."""
+    target, xo, lbx, ubx = s.target, sol.xo, sol.lbx, sol.ubx
+    on_bound = []
+    names = ["lambda_narrow_px", "lambda_wide_px", "gain_narrow", "gain_wide"] + (["pixel_weight"] if s.free_wp else [])
+    for k, name in enumerate(names):
+        for side, lim in (("low", lbx[k]), ("high", ubx[k])):
+            if abs(xo[k] - lim) <= 1e-6 * max(1.0, abs(lim)):
+                on_bound.append(f"{name} at its {side} bound" + (" (relative to the reference path)" if s.gain_free and k >= 2 else ""))
+    if abs((xo[1] - xo[0]) - 2 * math.log(s.bounds.min_lambda_ratio)) <= 1e-6:
+        on_bound.append(f"lambda_wide/lambda_narrow at min_lambda_ratio={s.bounds.min_lambda_ratio:g}")
+    if s.nonnegative_dc and wp + a - b <= 1e-6 * max(wp, a, b):
+        on_bound.append("whole-circuit DC gain at 0 (nonnegative_dc)")
+    sens = mismatch_sensitivity(design, target)
+    if s.max_err is not None and s.sigma * sens >= s.max_err * (1 - 1e-4):
+        on_bound.append(f"mismatch error sigma*S at max_mismatch_error={s.max_err:g}")
+    return {
+        "error": design.kernel_error(target),
+        "error_window": kernel_error(design.kernel(target.size), target),
+        "error_gain_free": design.kernel_error(target, fit_scale=True),
+        "error_symmetric_part": design.kernel_error(target.with_taps(_d4_symmetrise(target.taps))),
+        "tail_energy_fraction": design.tail_energy_fraction(),
+        "whole_dc_gain": design.whole_dc_gain,
+        "window_dc_gain": float(design.kernel_taps(target.size).sum()),
+        "overall_gain": overall,
+        "gain": s.gain,
+        "fit_size": "whole" if p.whole else s.fit_size,
+        "asymmetry": p.asymmetry,
+        "mismatch_sensitivity": sens,
+        "expected_mismatch_error": s.sigma * sens,
+        "on_bound": on_bound,
+        "objective": sol.objective,
+        "init_objective": init_objective,
+        "status": str(sol.stats.get("return_status")),
+        "success": bool(sol.stats.get("success")),
+        "iterations": sol.iterations,
+        "starts": sol.runs,
+        "wall_s": math.nan,
+        "model": s.model,
+        "mismatch_sigma": s.sigma,
+        "max_mismatch_error": s.max_err,
+        "nonnegative_dc": bool(s.nonnegative_dc),
+        "pixel_weight_free": s.free_wp,
+    }
+
+
 def fit_resistive_mesh(
     kernel: Kernel | np.ndarray,
     *,
@@ -820,263 +1151,34 @@ def fit_resistive_mesh(
     MeshFitWarning
         The fit is no better than a zero kernel (error ≥ 0.999), or IPOPT did not report success.
     """
-    check_fit_arguments("mesh", locals())  # fsdvs_hw.validation: same limits as design files
-    import casadi as ca
-
+    check_fit_arguments(OPTIONS, locals())  # the registry's schema: same limits as design files
     t0 = time.perf_counter()
-    target = _coerce_kernel(kernel, pitch_m)
-    bounds = _coerce_bounds(bounds)
-    if pixel_weight is not None and isinstance(pixel_weight, str):
-        if pixel_weight != "free":
-            raise InputError(f"pixel_weight: a number, None or 'free', got {pixel_weight!r}")
-        pixel_weight = None
-    if gain not in GAIN_MODES:
-        raise InputError(f"gain={gain!r} unknown; allowed {GAIN_MODES}")
-    gain_free = gain == "free"
-    if not isinstance(nonnegative_dc, (bool, np.bool_)):
-        raise InputError(f"nonnegative_dc: must be true or false, got {nonnegative_dc!r}")
-    sigma = _check_scalar("mismatch_sigma", mismatch_sigma, 0.0, 0.5)
-    max_err = None if max_mismatch_error is None else _check_scalar("max_mismatch_error", max_mismatch_error, 1e-6, 10.0)
-    g_l = _check_scalar("g_lateral_s", g_lateral_s, *bounds.conductance_s)
-    c_node = _check_scalar("node_capacitance_f", node_capacitance_f, 1e-18, 1e-6)
-    if model not in MESH_MODELS:
-        raise InputError(f"model={model!r} unknown; allowed {MESH_MODELS}")
-    if fit_size is not None and not (
-        isinstance(fit_size, (int, np.integer)) and not isinstance(fit_size, bool)
-        and fit_size % 2 == 1 and target.size <= fit_size <= MAX_KERNEL_SIZE
-    ):
-        raise InputError(f"fit_size: must be None (whole response) or odd in {target.size}..{MAX_KERNEL_SIZE}, got {fit_size!r}")
-    if model == "grid":
-        if not (isinstance(grid_half_width, (int, np.integer)) and target.radius <= grid_half_width <= 60):
-            raise InputError(f"grid_half_width: model 'grid' needs an integer in {target.radius}..60, got {grid_half_width!r}")
-        grid_half_width = int(grid_half_width)
-    else:
-        grid_half_width = None
-    for name, v, lo, hi in (("n_init", n_init, 2, 40), ("n_starts", n_starts, 1, 10), ("max_iter", max_iter, 1, 10000)):
-        if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and lo <= v <= hi):
-            raise InputError(f"{name}: must be an integer in {lo}..{hi}, got {v!r}")
-    tol = _check_scalar("tol", tol, 1e-16, 1e-2)
-    free_wp = pixel_weight is None
-    glo, ghi = bounds.gain
-    wp_fixed = 0.0 if free_wp else _check_scalar("pixel_weight", pixel_weight, 0.0, 1e3)
-    if gain_free and not free_wp and wp_fixed == 0.0:
-        raise InputError("pixel_weight=0 with gain='free': the pixel path is the gain reference; use pixel_weight='free'")
-
-    # λ range from the λ bounds and the conductance bounds (g_v = g_l / λ² within conductance_s)
-    gmin, gmax = bounds.conductance_s
-    lam_lo = max(bounds.lambda_px[0], math.sqrt(g_l / gmax))
-    lam_hi = min(bounds.lambda_px[1], math.sqrt(g_l / gmin))
-    if not lam_hi / lam_lo > bounds.min_lambda_ratio:
-        raise InputError(
-            f"bounds: with g_lateral_s={g_l:g} S and conductance_s={bounds.conductance_s} the feasible λ range "
-            f"[{lam_lo:g}, {lam_hi:g}] px is narrower than min_lambda_ratio={bounds.min_lambda_ratio:g}"
-        )
-
-    asym = target.asymmetry()
-    if asym > 1e-6:
+    s = _mesh_settings(kernel, bounds=bounds, pitch_m=pitch_m, pixel_weight=pixel_weight, gain=gain,
+                       nonnegative_dc=nonnegative_dc, mismatch_sigma=mismatch_sigma,
+                       max_mismatch_error=max_mismatch_error, g_lateral_s=g_lateral_s,
+                       node_capacitance_f=node_capacitance_f, model=model, grid_half_width=grid_half_width,
+                       fit_size=fit_size, n_init=n_init, n_starts=n_starts, max_iter=max_iter, tol=tol)
+    target = s.target
+    problem = _mesh_problem(s)
+    if problem.asymmetry > 1e-6:
         warnings.warn(
-            f"target '{target.name}' is not D4-symmetric (asymmetric part {asym:.3g} of its L2 norm); a resistive "
-            "mesh realises only the symmetric part, fitted in the least-squares sense",
+            f"target '{target.name}' is not D4-symmetric (asymmetric part {problem.asymmetry:.3g} of its L2 norm); a "
+            "resistive mesh realises only the symmetric part, fitted in the least-squares sense",
             MeshAsymmetryWarning,
             stacklevel=2,
         )
-    # the window the NLP sums over: the target's (whole lattice energy in closed form), the fit
-    # window, or the whole finite chip
-    whole = fit_size is None
-    if model == "grid" and whole:
-        radius = grid_half_width
-    else:
-        radius = target.radius if whole else int(fit_size) // 2
-    t_sym = _d4_symmetrise(np.pad(target.taps, radius - target.radius))  # plain array: the chip may exceed 63 px
-    ii, jj, mult = _orbits(radius)
-    t_orb = t_sym[radius + ii, radius + jj]
-    norm2 = float((target.taps**2).sum())
-    delta = (ii == 0).astype(np.float64)
-    lattice_whole = whole and model == "lattice"
-
-    # ---- initialisation: exact constrained least-squares gains on a (λ_n, λ_w) grid
-    lams = np.geomspace(lam_lo, lam_hi, int(n_init))
-    nodes = quadrature_nodes(lam_hi, radius) if model == "lattice" else None
-    resp = [_numpy_orbit_response(float(lam), radius, model, grid_half_width, nodes) for lam in lams]
-    norms = [_lattice_norm_terms(float(lam), nodes) for lam in lams] if lattice_whole else None
-    sens_parts = [(float((mult * dh * dh).sum()), float((mult * h * h).sum())) for h, dh in resp]
-    sig2 = sigma * sigma
-    maxerr2 = math.inf if max_err is None else max_err * max_err
-
-    def evaluate(gram: np.ndarray, cvec: np.ndarray, x: np.ndarray, sp_n, sp_w) -> tuple[float, float]:
-        n_k = float(x @ gram @ x)
-        cx = float(cvec @ x)
-        if gain_free:
-            f = 1.0 - (cx * cx / (n_k * norm2) if n_k > 0 and cx > 0 else 0.0)
-            g2 = (cx / n_k) ** 2 if n_k > 0 else 0.0
-        else:
-            f, g2 = (n_k - 2 * cx) / norm2 + 1.0, 1.0
-        s2 = g2 * (2 * x[1] ** 2 * sp_n[0] + 2 * x[2] ** 2 * sp_w[0] + x[1] ** 2 * sp_n[1] + x[2] ** 2 * sp_w[1] + x[0] ** 2) / norm2
-        return f, sig2 * s2
-
-    starts = []
-    for i_n, lam_n in enumerate(lams):
-        hn, _ = resp[i_n]
-        for i_w in range(i_n + 1, len(lams)):
-            lam_w = lams[i_w]
-            if lam_w < bounds.min_lambda_ratio * lam_n * (1 - 1e-12):
-                continue
-            hw, _ = resp[i_w]
-            basis = np.column_stack([delta, hn, -hw])
-            if lattice_whole:
-                g0n, qn = norms[i_n]
-                g0w, qw = norms[i_w]
-                pnw = _cross_energy(lam_n**2, g0n, qn, lam_w**2, g0w)
-                gram = np.array([[1.0, g0n, -g0w], [g0n, qn, -pnw], [-g0w, -pnw, qw]])
-            else:
-                gram = basis.T @ (mult[:, None] * basis)
-            cvec = basis.T @ (mult * t_orb)
-            if free_wp or gain_free:
-                x = _small_qp(gram, cvec, np.zeros(3), [0, 1, 2], nonnegative_dc)
-                if not free_wp:  # gain free, pixel path is the reference
-                    x = x / x[0] * wp_fixed if x[0] > 0 else np.array([wp_fixed, ghi * wp_fixed, ghi * wp_fixed])
-                    x[1:] = np.clip(x[1:], glo, ghi)
-                elif gain_free:  # normalised to w_p + a + b = 1
-                    x = np.maximum(x / x.sum() if x.sum() > 0 else np.full(3, 1 / 3), glo)
-                    x /= x.sum()
-                else:
-                    x = np.clip(x, glo, ghi)
-            else:
-                x = _small_qp(gram, cvec, np.array([wp_fixed, 0.0, 0.0]), [1, 2], nonnegative_dc)
-                x[1:] = np.clip(x[1:], glo, ghi)
-            if nonnegative_dc and x[0] + x[1] - x[2] < 0:
-                x[2] = max(x[0] + x[1], glo)
-            f, mm2 = evaluate(gram, cvec, x, sens_parts[i_n], sens_parts[i_w])
-            starts.append((f + max(0.0, mm2 - maxerr2), f, i_n, i_w, x))
-    if not starts:
-        raise InputError("bounds: no (λ_narrow, λ_wide) pair on the initial grid satisfies min_lambda_ratio")
-    starts.sort(key=lambda s: s[0])
-    chosen: list = []
-    for st in starts:  # the best distinct grid points (not neighbours of one already chosen)
-        if all(abs(st[2] - c[2]) > 1 or abs(st[3] - c[3]) > 1 for c in chosen):
-            chosen.append(st)
-        if len(chosen) == n_starts:
-            break
-
-    # ---- IPOPT in log-parameters (the solver is cached per problem structure)
-    nx = 5 if free_wp else 4
-    solver = _mesh_solver(radius, model, float(lam_hi), grid_half_width, free_wp, gain_free, whole, int(max_iter), float(tol))
-    p_val = np.concatenate([t_orb, [1.0 / norm2, wp_fixed, sig2 / (maxerr2 if max_err is not None else 1.0)]])
-    g_hi = 0.0 if (gain_free and free_wp) else math.log(ghi)
-    lbx = [2 * math.log(lam_lo)] * 2 + [math.log(glo)] * (nx - 2)
-    ubx = [2 * math.log(lam_hi)] * 2 + [g_hi] * (nx - 2)
-    lbg = [2 * math.log(bounds.min_lambda_ratio), 0.0 if nonnegative_dc else -ca.inf, -ca.inf]
-    ubg = [ca.inf, ca.inf, 1.0 if max_err is not None else ca.inf]
-    if gain_free:
-        lbg.append(0.0)
-        ubg.append(ca.inf)
-        if free_wp:
-            lbg.append(1.0)
-            ubg.append(1.0)
-    best = None
-    total_iter = 0
-    runs = 0
-    for _, f0, i_n, i_w, x in chosen:
-        runs += 1
-        gains = np.clip(x, glo, ghi if not (gain_free and free_wp) else 1.0)
-        x0 = [2 * math.log(lams[i_n]), 2 * math.log(lams[i_w]), math.log(gains[1]), math.log(gains[2])]
-        if free_wp:
-            x0.append(math.log(gains[0]))
-        sol = solver(x0=x0, p=p_val, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
-        st = solver.stats()
-        total_iter += int(st.get("iter_count", 0))
-        f = float(sol["f"])
-        gv = np.array(sol["g"]).ravel()
-        feasible = (gv[1] >= -1e-9 or not nonnegative_dc) and (max_err is None or gv[2] <= 1 + 1e-6)
-        key = (not feasible, f)
-        if best is None or key < best[0]:
-            best = (key, np.array(sol["x"]).ravel(), st, f)
-        if feasible and f <= 1e-12:  # an exact fit (relative error ≤ 1e-6): no start needs to beat it
-            break
-    _, xo, st, f_opt = best
-    # IPOPT may relax bounds by ~1e-8 relative; the built circuit must respect them exactly
-    xo = np.clip(xo, lbx, ubx)
-    xo[1] = min(max(xo[1], xo[0] + 2 * math.log(bounds.min_lambda_ratio)), ubx[1])
-    lam_n, lam_w = math.exp(xo[0] / 2), math.exp(xo[1] / 2)
-    a, b = math.exp(xo[2]), math.exp(xo[3])
-    wp = math.exp(xo[4]) if free_wp else wp_fixed
-    if nonnegative_dc and wp + a - b < 0:  # solver tolerance: never ship a negative whole-circuit DC
-        b = wp + a
-    common = dict(
-        g_lateral_narrow_s=g_l,
-        g_vertical_narrow_s=g_l / lam_n**2,
-        g_lateral_wide_s=g_l,
-        g_vertical_wide_s=g_l / lam_w**2,
-        size=target.size,
-        pitch_m=target.pitch_m,
-        node_capacitance_f=c_node,
-        model=model,
-        grid_half_width=grid_half_width,
-        target=target,
-    )
-    overall = 1.0
-    if gain_free:  # the least-squares overall gain (it folds into the event threshold)
-        unit = MeshDesign(gain_narrow=a, gain_wide=b, pixel_weight=wp, **common)
-        kw = unit._taps(radius)
-        n_k = unit._whole_energy() if whole else float((kw * kw).sum())
-        cx = float((kw * t_sym).sum())
-        overall = cx / n_k if n_k > 0 and cx > 0 else 0.0
-    wp_s, a_s, b_s = overall * wp, overall * a, overall * b
-    if nonnegative_dc and wp_s + a_s - b_s < 0:  # rounding of the scaling: keep the whole-circuit DC ≥ 0 exactly
-        b_s = wp_s + a_s
-    design = MeshDesign(gain_narrow=a_s, gain_wide=b_s, pixel_weight=wp_s, **common)
-
-    # which parameters and constraints sit on a bound
-    on_bound = []
-    names = ["lambda_narrow_px", "lambda_wide_px", "gain_narrow", "gain_wide"] + (["pixel_weight"] if free_wp else [])
-    for k, name in enumerate(names):
-        for side, lim in (("low", lbx[k]), ("high", ubx[k])):
-            if abs(xo[k] - lim) <= 1e-6 * max(1.0, abs(lim)):
-                on_bound.append(f"{name} at its {side} bound" + (" (relative to the reference path)" if gain_free and k >= 2 else ""))
-    if abs((xo[1] - xo[0]) - 2 * math.log(bounds.min_lambda_ratio)) <= 1e-6:
-        on_bound.append(f"lambda_wide/lambda_narrow at min_lambda_ratio={bounds.min_lambda_ratio:g}")
-    if nonnegative_dc and wp + a - b <= 1e-6 * max(wp, a, b):
-        on_bound.append("whole-circuit DC gain at 0 (nonnegative_dc)")
-    sens = mismatch_sensitivity(design, target)
-    if max_err is not None and sigma * sens >= max_err * (1 - 1e-4):
-        on_bound.append(f"mismatch error sigma*S at max_mismatch_error={max_err:g}")
-
-    err = design.kernel_error(target)
-    fit = {
-        "error": err,
-        "error_window": kernel_error(design.kernel(target.size), target),
-        "error_gain_free": design.kernel_error(target, fit_scale=True),
-        "error_symmetric_part": design.kernel_error(target.with_taps(_d4_symmetrise(target.taps))),
-        "tail_energy_fraction": design.tail_energy_fraction(),
-        "whole_dc_gain": design.whole_dc_gain,
-        "window_dc_gain": float(design.kernel_taps(target.size).sum()),
-        "overall_gain": overall,
-        "gain": gain,
-        "fit_size": "whole" if whole else int(fit_size),
-        "asymmetry": asym,
-        "mismatch_sensitivity": sens,
-        "expected_mismatch_error": sigma * sens,
-        "on_bound": on_bound,
-        "objective": f_opt,
-        "init_objective": float(chosen[0][1]),
-        "status": str(st.get("return_status")),
-        "success": bool(st.get("success")),
-        "iterations": total_iter,
-        "starts": runs,
-        "wall_s": time.perf_counter() - t0,
-        "model": model,
-        "mismatch_sigma": sigma,
-        "max_mismatch_error": max_err,
-        "nonnegative_dc": bool(nonnegative_dc),
-        "pixel_weight_free": free_wp,
-    }
+    lams, chosen = _initial_starts(s, problem)
+    sol = _solve(s, problem, lams, chosen)
+    design, wp, a, b, overall = _build_design(s, problem, sol)
+    fit = _fit_report(s, problem, sol, design, wp, a, b, overall, float(chosen[0][1]))
+    fit["wall_s"] = time.perf_counter() - t0
     if fit["error"] >= 0.999:
         peak = float(np.abs(target.taps).max())
         warnings.warn(
             f"mesh fit of '{target.name}' has kernel error {fit['error']:.6g} (a zero kernel has 1): "
-            + (f"the target's scale (max |tap| = {peak:.3g}) is out of reach of bounds.gain={bounds.gain}"
-               f"{'' if free_wp else f' with pixel_weight fixed at {wp_fixed:g}'}; normalise the target, widen the bounds "
-               "or use gain='free'" if not gain_free else "no dual mesh with these bounds correlates with the target"),
+            + (f"the target's scale (max |tap| = {peak:.3g}) is out of reach of bounds.gain={s.bounds.gain}"
+               f"{'' if s.free_wp else f' with pixel_weight fixed at {s.wp_fixed:g}'}; normalise the target, widen the "
+               "bounds or use gain='free'" if not s.gain_free else "no dual mesh with these bounds correlates with the target"),
             MeshFitWarning,
             stacklevel=2,
         )

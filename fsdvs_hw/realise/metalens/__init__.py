@@ -6,10 +6,15 @@ fit
     :class:`LensGeometry`, :class:`MetalensDesign`, :func:`pixel_psf` and :func:`fit_metalens`.
 bench
     ``fsdvs-hw bench metalens``.
+options
+    The fit options' schema (type, unit, range, default, help).
 
 The shared wave-optics and spectral sampling live one level up (:mod:`fsdvs_hw.realise.optics`,
-:mod:`fsdvs_hw.realise.spectral`).
+:mod:`fsdvs_hw.realise.spectral`). Importing this package registers ``"metalens"`` in
+:mod:`fsdvs_hw.realise.registry`.
 """
+
+from ..registry import CostSpec, RealisationSpec, register_realisation
 
 from .fit import (
     DISPERSION_MODELS,
@@ -22,6 +27,7 @@ from .fit import (
     pixel_psf,
     plan_wavelength_samples,
 )
+from .options import OPTIONS
 
 __all__ = [
     "DISPERSION_MODELS",
@@ -33,4 +39,26 @@ __all__ = [
     "local_numerical_aperture",
     "WavelengthPlan",
     "plan_wavelength_samples",
+    "OPTIONS",
+    "SPEC",
 ]
+
+#: The registry entry (own cost axis and headline: the aperture diameter).
+SPEC = register_realisation(RealisationSpec(
+    name="metalens",
+    fit=fit_metalens,
+    options=OPTIONS,
+    kind="hardware",
+    record_type=MetalensDesign,
+    costs=(
+        CostSpec("aperture_diameter", "m", "aperture", "µm", 1e6, pareto=True, headline=True),
+        CostSpec("focal_length", "m"),
+        CostSpec("optical_efficiency", "1", "optical efficiency"),
+        CostSpec("lens_count", "count"),
+        CostSpec("kernel_error", "1"),
+    ),
+    artifacts={"psf": "the pixel-integrated PSF of each lens (MetalensDesign.psfs, in its JSON record)"},
+    colour="#2ca02c",
+    in_default_design=True,
+    description="metalens whose pixel-integrated PSF is the kernel (pedestal or differential pair)",
+))

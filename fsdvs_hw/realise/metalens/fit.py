@@ -59,6 +59,7 @@ import numpy as np
 from ...errors import InputError
 from ...kernels import DEFAULT_PITCH_M, Kernel
 from ...validation import check_fit_arguments
+from .options import OPTIONS
 from ..base import CostItem, kernel_error
 from ..optics import (
     RadialPropagator,
@@ -719,6 +720,164 @@ def _lbfgs(x: Any, loss_fn: Any, iters: int) -> int:
     return int(opt.state[opt._params[0]].get("n_iter", iters))
 
 
+# ---------------------------------------------------------------------------- the fit, in steps
+@dataclass(frozen=True, eq=False)
+class _MetalensSetup:
+    """The fit's options resolved (step 1 of :func:`fit_metalens`): target, lens, spectrum, NA budget."""
+
+    kernel: Kernel
+    geometry: LensGeometry
+    spectral: SpectralSamples
+    plan: WavelengthPlan | None
+    budget: float
+
+
+def _metalens_setup(kernel: Any, *, pitch_m: float | None, illuminant: Any, response: Any, strategy: str,
+                    aperture_m: float | None, focal_length_m: float | None, design_wavelength_m: float,
+                    dispersion: str, n_terms: Any, n_wavelengths: int | str, guard_px: Any, max_iter: Any,
+                    n_starts: Any, na_max: float | None) -> _MetalensSetup:
+    """Validate the options; the lens geometry, the wavelength samples (planned when ``"auto"``) and
+    the numerical-aperture budget of the phase."""
+    if not isinstance(kernel, Kernel):
+        raise InputError(f"kernel must be a fsdvs_hw.Kernel, got {type(kernel).__name__}")
+    if strategy not in STRATEGIES:
+        raise InputError(f"strategy {strategy!r} unknown; allowed: {', '.join(STRATEGIES)}")
+    if not (isinstance(n_terms, int) and 0 <= n_terms <= 12):
+        raise InputError(f"n_terms must be an integer in 0..12, got {n_terms!r}")
+    if not (isinstance(guard_px, int) and 0 <= guard_px <= 8):
+        raise InputError(f"guard_px must be an integer in 0..8, got {guard_px!r}")
+    if not (isinstance(n_starts, int) and n_starts >= 1) or not (isinstance(max_iter, int) and max_iter >= 1):
+        raise InputError(f"n_starts and max_iter must be positive integers, got {n_starts!r}, {max_iter!r}")
+    if pitch_m is not None and abs(pitch_m - kernel.pitch_m) > 1e-12:
+        kernel = Kernel(kernel.taps, pitch_m=pitch_m, name=kernel.name, provenance=kernel.provenance)
+    pitch = kernel.pitch_m
+    defaults = LensGeometry()
+    geometry = LensGeometry(defaults.aperture_m if aperture_m is None else aperture_m,
+                            defaults.focal_length_m if focal_length_m is None else focal_length_m,
+                            design_wavelength_m, dispersion)
+    focal_length_m = geometry.focal_length_m
+    plan = None
+    if n_wavelengths == "auto":
+        # nominal lens defocused to blur a point over the kernel radius (geometric optics)
+        z_nominal = focal_length_m * (1 + (kernel.size / 2) * pitch / geometry.radius_m)
+        plan = plan_wavelength_samples(geometry, illuminant, response, sensor_distance_m=z_nominal, pitch_m=pitch,
+                                       n_pixels=kernel.size)
+        n_wavelengths = plan.n_wavelengths
+    spectral = _spectral(illuminant, response, n_wavelengths)
+    _check_extremes(geometry, spectral, focal_length_m, pitch)
+    if strategy == "differential" and not (kernel.taps < 0).any():
+        raise InputError("strategy='differential' needs a kernel with negative taps; use 'pedestal' (c = 0)")
+
+    na0 = local_numerical_aperture(geometry, [], spectral.wavelengths_m)
+    budget = float(na_max) if na_max is not None else min(0.9, max(1.5 * na0, na0 + 0.1))
+    if not (na0 <= budget < 1):
+        raise InputError(f"na_max={budget:.3g} must be in [NA of the focusing term {na0:.3g}, 1)")
+    return _MetalensSetup(kernel=kernel, geometry=geometry, spectral=spectral, plan=plan, budget=budget)
+
+
+def _metalens_models(setup: _MetalensSetup, *, illuminant: Any, response: Any, guard_px: int, n_sub: int | None,
+                     window_pad: float) -> tuple[_RadialKernelModel, _RadialKernelModel]:
+    """Step 2, the forward models: coarse-to-fine in wavelength (starts and the first refinement on
+    ≤ 8 samples, the polish on all); returns ``(coarse, full)`` (the same object when ≤ 8 samples)."""
+    spectral, pitch = setup.spectral, setup.kernel.pitch_m
+    n_eval = setup.kernel.size + 2 * guard_px
+    coarse_spectral = spectral if spectral.n <= 8 or isinstance(illuminant, SpectralSamples) else \
+        _spectral(illuminant, response, 8)
+    coarse = _RadialKernelModel(setup.geometry, pitch_m=pitch, n_pixels=n_eval, spectral=coarse_spectral, n_sub=n_sub,
+                                window_pad=window_pad, na_budget=setup.budget)
+    model = coarse if coarse_spectral is spectral else _RadialKernelModel(
+        setup.geometry, pitch_m=pitch, n_pixels=n_eval, spectral=spectral, n_sub=n_sub, window_pad=window_pad,
+        na_budget=setup.budget)
+    return coarse, model
+
+
+class _MetalensObjective:
+    """Step 3, the objective: window error of the PSFs (closed-form gains) plus the NA and defocus
+    penalties, in scaled parameters ``x = (defocus / dz_unit, c / 2π)`` per lens."""
+
+    def __init__(self, setup: _MetalensSetup, *, n_terms: int, guard_px: int) -> None:
+        import torch
+
+        kernel, geometry = setup.kernel, setup.geometry
+        k_size = kernel.size
+        self.budget = setup.budget
+        self.scale = float(np.linalg.norm(kernel.taps))
+        self.k_pad = torch.from_numpy(np.pad(kernel.taps / self.scale, guard_px))
+        self.mask = torch.from_numpy(np.pad(np.ones((k_size, k_size)), guard_px))
+        # NA penalty on a radial grid (local frequency of the phase at the shortest scaled wavelength)
+        a, f, lam0 = geometry.radius_m, geometry.focal_length_m, geometry.design_wavelength_m
+        r_chk = np.linspace(0, a, 129)
+        self.d_hyp = torch.from_numpy(-(2 * math.pi / lam0) * r_chk / np.sqrt(r_chk**2 + f * f))
+        self.d_pow = torch.from_numpy(
+            np.stack([2 * (k + 1) * r_chk ** (2 * k + 1) / a ** (2 * k + 2) for k in range(n_terms)], -1)
+            if n_terms else np.zeros((r_chk.size, 0)))
+        p_exp = DISPERSION_MODELS[geometry.dispersion]
+        wl = setup.spectral.wavelengths_m
+        self.na_scale = float(np.max(wl * (lam0 / wl) ** p_exp)) / (2 * math.pi)
+        self.f = f
+        self.dz_unit = kernel.pitch_m * f / a  # defocus that blurs a point over one pixel radius (geometric optics)
+        self.c_unit = 2 * math.pi
+        self._clamp = torch.clamp
+        self.dz_bound = float(k_size)  # |defocus| ≤ blur over the kernel diameter (in dz_unit); beyond, light is wasted
+
+    def unpack(self, x: Any) -> tuple[Any, Any]:
+        return self.f + x[0] * self.dz_unit, x[1:] * self.c_unit
+
+    def penalty(self, x: Any) -> Any:
+        c = x[1:] * self.c_unit
+        na = (self.na_scale * (self.d_hyp + self.d_pow @ c).abs()).max()
+        return 10.0 * self._clamp(na - self.budget, min=0.0) ** 2 + 10.0 * self._clamp(x[0].abs() - self.dz_bound, min=0.0) ** 2
+
+    def loss(self, targets: Any, mode: str, n_lens: int, fwd: _RadialKernelModel) -> Any:
+        def loss(x: Any) -> Any:
+            psfs, tots, pen = [], [], 0.0
+            for i in range(n_lens):
+                z, c = self.unpack(x[i])
+                psfs.append(fwd.psf(c, z))
+                if mode == "differential":  # DC held on the whole PSF, not the window
+                    tots.append(fwd.total(c, z))
+                pen = pen + self.penalty(x[i])
+            return _solve_gains(psfs, targets, self.mask, mode, tots or None)[2] + pen
+        return loss
+
+
+def _solve_metalens(obj: _MetalensObjective, coarse: _RadialKernelModel, model: _RadialKernelModel, *, strategy: str,
+                    kernel_size: int, n_terms: int, n_starts: int, max_iter: int) -> tuple[np.ndarray, int]:
+    """Step 4, the solve: L-BFGS from defocus starts on the coarse model, refined, polished on the
+    full spectrum; a differential pair from its two single-lens halves. Returns ``(x, iterations)``."""
+    import torch
+
+    def fit_from(starts: list[np.ndarray], targets: Any, mode: str) -> tuple[np.ndarray, int]:
+        n_lens = starts[0].shape[0]
+        loss_fn = obj.loss(targets, mode, n_lens, coarse)
+        best, best_val, iters = None, float("inf"), 0
+        for s in starts:
+            x = torch.tensor(s, dtype=torch.float64, requires_grad=True)
+            iters += _lbfgs(x, loss_fn, max(10, max_iter // 6))
+            with torch.no_grad():
+                val = float(loss_fn(x))
+            if math.isfinite(val) and val < best_val:
+                best, best_val = x.detach().clone(), val
+        x = best.clone().requires_grad_(True)
+        iters += _lbfgs(x, loss_fn, max_iter)
+        if model is not coarse:
+            iters += _lbfgs(x, obj.loss(targets, mode, n_lens, model), max(10, max_iter // 4))
+        return x.detach().numpy(), iters
+
+    radius_px = max(1.0, kernel_size / 2)
+    blur = np.linspace(0.5, radius_px, max(1, (n_starts + 1) // 2))
+    single_starts = [np.concatenate([[s * b], np.zeros(n_terms)])[None] for b in blur for s in (1, -1)][:n_starts]
+    if strategy == "pedestal":
+        return fit_from(single_starts, obj.k_pad, "pedestal")
+    kp = torch.clamp(obj.k_pad, min=0.0)
+    km = torch.clamp(-obj.k_pad, min=0.0)
+    half = single_starts[: max(1, n_starts // 2)]
+    xp, it1 = fit_from(half, kp / kp.norm(), "single")
+    xm, it2 = fit_from(half, km / km.norm(), "single")
+    x, it3 = fit_from([np.concatenate([xp, xm])], obj.k_pad, "differential")
+    return x, it1 + it2 + it3
+
+
 def fit_metalens(
     kernel: Kernel,
     *,
@@ -779,120 +938,25 @@ def fit_metalens(
     -------
     MetalensDesign
     """
-    check_fit_arguments("metalens", locals())  # fsdvs_hw.validation: same limits as design files
+    check_fit_arguments(OPTIONS, locals())  # the registry's schema: same limits as design files
     import torch
 
     t0, c0 = time.perf_counter(), time.process_time()
-    if not isinstance(kernel, Kernel):
-        raise InputError(f"kernel must be a fsdvs_hw.Kernel, got {type(kernel).__name__}")
-    if strategy not in STRATEGIES:
-        raise InputError(f"strategy {strategy!r} unknown; allowed: {', '.join(STRATEGIES)}")
-    if not (isinstance(n_terms, int) and 0 <= n_terms <= 12):
-        raise InputError(f"n_terms must be an integer in 0..12, got {n_terms!r}")
-    if not (isinstance(guard_px, int) and 0 <= guard_px <= 8):
-        raise InputError(f"guard_px must be an integer in 0..8, got {guard_px!r}")
-    if not (isinstance(n_starts, int) and n_starts >= 1) or not (isinstance(max_iter, int) and max_iter >= 1):
-        raise InputError(f"n_starts and max_iter must be positive integers, got {n_starts!r}, {max_iter!r}")
-    if pitch_m is not None and abs(pitch_m - kernel.pitch_m) > 1e-12:
-        kernel = Kernel(kernel.taps, pitch_m=pitch_m, name=kernel.name, provenance=kernel.provenance)
-    pitch = kernel.pitch_m
-    defaults = LensGeometry()
-    geometry = LensGeometry(defaults.aperture_m if aperture_m is None else aperture_m,
-                            defaults.focal_length_m if focal_length_m is None else focal_length_m,
-                            design_wavelength_m, dispersion)
-    aperture_m, focal_length_m = geometry.aperture_m, geometry.focal_length_m
-    plan = None
-    if n_wavelengths == "auto":
-        # nominal lens defocused to blur a point over the kernel radius (geometric optics)
-        z_nominal = focal_length_m * (1 + (kernel.size / 2) * pitch / geometry.radius_m)
-        plan = plan_wavelength_samples(geometry, illuminant, response, sensor_distance_m=z_nominal, pitch_m=pitch,
-                                       n_pixels=kernel.size)
-        n_wavelengths = plan.n_wavelengths
-    spectral = _spectral(illuminant, response, n_wavelengths)
-    _check_extremes(geometry, spectral, focal_length_m, pitch)
-    if strategy == "differential" and not (kernel.taps < 0).any():
-        raise InputError("strategy='differential' needs a kernel with negative taps; use 'pedestal' (c = 0)")
+    setup = _metalens_setup(kernel, pitch_m=pitch_m, illuminant=illuminant, response=response, strategy=strategy,
+                            aperture_m=aperture_m, focal_length_m=focal_length_m,
+                            design_wavelength_m=design_wavelength_m, dispersion=dispersion, n_terms=n_terms,
+                            n_wavelengths=n_wavelengths, guard_px=guard_px, max_iter=max_iter, n_starts=n_starts,
+                            na_max=na_max)
+    kernel, geometry, spectral, plan, budget = setup.kernel, setup.geometry, setup.spectral, setup.plan, setup.budget
+    pitch, n_eval = kernel.pitch_m, kernel.size + 2 * guard_px
+    coarse, model = _metalens_models(setup, illuminant=illuminant, response=response, guard_px=guard_px, n_sub=n_sub,
+                                     window_pad=window_pad)
+    obj = _MetalensObjective(setup, n_terms=n_terms, guard_px=guard_px)
+    x, iters = _solve_metalens(obj, coarse, model, strategy=strategy, kernel_size=kernel.size, n_terms=n_terms,
+                               n_starts=n_starts, max_iter=max_iter)
+    scale, k_pad, mask, unpack = obj.scale, obj.k_pad, obj.mask, obj.unpack
 
-    na0 = local_numerical_aperture(geometry, [], spectral.wavelengths_m)
-    budget = float(na_max) if na_max is not None else min(0.9, max(1.5 * na0, na0 + 0.1))
-    if not (na0 <= budget < 1):
-        raise InputError(f"na_max={budget:.3g} must be in [NA of the focusing term {na0:.3g}, 1)")
-    k_size = kernel.size
-    n_eval = k_size + 2 * guard_px
-    # coarse-to-fine in wavelength: starts and the first refinement on ≤ 8 samples, polish on all
-    coarse_spectral = spectral if spectral.n <= 8 or isinstance(illuminant, SpectralSamples) else \
-        _spectral(illuminant, response, 8)
-    coarse = _RadialKernelModel(geometry, pitch_m=pitch, n_pixels=n_eval, spectral=coarse_spectral, n_sub=n_sub,
-                                window_pad=window_pad, na_budget=budget)
-    model = coarse if coarse_spectral is spectral else _RadialKernelModel(
-        geometry, pitch_m=pitch, n_pixels=n_eval, spectral=spectral, n_sub=n_sub, window_pad=window_pad, na_budget=budget)
-    scale = float(np.linalg.norm(kernel.taps))
-    k_pad = torch.from_numpy(np.pad(kernel.taps / scale, guard_px))
-    mask = torch.from_numpy(np.pad(np.ones((k_size, k_size)), guard_px))
-    # NA penalty on a radial grid (local frequency of the phase at the shortest scaled wavelength)
-    a, f, lam0 = geometry.radius_m, focal_length_m, design_wavelength_m
-    r_chk = np.linspace(0, a, 129)
-    d_hyp = torch.from_numpy(-(2 * math.pi / lam0) * r_chk / np.sqrt(r_chk**2 + f * f))
-    d_pow = torch.from_numpy(np.stack([2 * (k + 1) * r_chk ** (2 * k + 1) / a ** (2 * k + 2) for k in range(n_terms)], -1)
-                             if n_terms else np.zeros((r_chk.size, 0)))
-    p_exp = DISPERSION_MODELS[dispersion]
-    na_scale = float(np.max(spectral.wavelengths_m * (lam0 / spectral.wavelengths_m) ** p_exp)) / (2 * math.pi)
-    dz_unit = pitch * f / a  # defocus that blurs a point over one pixel radius (geometric optics)
-    c_unit = 2 * math.pi
-
-    def unpack(x: Any) -> tuple[Any, Any]:
-        return f + x[0] * dz_unit, x[1:] * c_unit
-
-    dz_bound = float(k_size)  # |defocus| ≤ blur over the kernel diameter (in dz_unit); beyond, light is wasted
-
-    def penalty(x: Any) -> Any:
-        c = x[1:] * c_unit
-        na = (na_scale * (d_hyp + d_pow @ c).abs()).max()
-        return 10.0 * torch.clamp(na - budget, min=0.0) ** 2 + 10.0 * torch.clamp(x[0].abs() - dz_bound, min=0.0) ** 2
-
-    def make_loss(targets: Any, mode: str, n_lens: int, fwd: _RadialKernelModel) -> Any:
-        def loss(x: Any) -> Any:
-            psfs, tots, pen = [], [], 0.0
-            for i in range(n_lens):
-                z, c = unpack(x[i])
-                psfs.append(fwd.psf(c, z))
-                if mode == "differential":  # DC held on the whole PSF, not the window
-                    tots.append(fwd.total(c, z))
-                pen = pen + penalty(x[i])
-            return _solve_gains(psfs, targets, mask, mode, tots or None)[2] + pen
-        return loss
-
-    def fit_from(starts: list[np.ndarray], targets: Any, mode: str) -> tuple[np.ndarray, int]:
-        n_lens = starts[0].shape[0]
-        loss_fn = make_loss(targets, mode, n_lens, coarse)
-        best, best_val, iters = None, float("inf"), 0
-        for s in starts:
-            x = torch.tensor(s, dtype=torch.float64, requires_grad=True)
-            iters += _lbfgs(x, loss_fn, max(10, max_iter // 6))
-            with torch.no_grad():
-                val = float(loss_fn(x))
-            if math.isfinite(val) and val < best_val:
-                best, best_val = x.detach().clone(), val
-        x = best.clone().requires_grad_(True)
-        iters += _lbfgs(x, loss_fn, max_iter)
-        if model is not coarse:
-            iters += _lbfgs(x, make_loss(targets, mode, n_lens, model), max(10, max_iter // 4))
-        return x.detach().numpy(), iters
-
-    radius_px = max(1.0, k_size / 2)
-    blur = np.linspace(0.5, radius_px, max(1, (n_starts + 1) // 2))
-    single_starts = [np.concatenate([[s * b], np.zeros(n_terms)])[None] for b in blur for s in (1, -1)][:n_starts]
-    if strategy == "pedestal":
-        x, iters = fit_from(single_starts, k_pad, "pedestal")
-    else:
-        kp = torch.clamp(k_pad, min=0.0)
-        km = torch.clamp(-k_pad, min=0.0)
-        half = single_starts[: max(1, n_starts // 2)]
-        xp, it1 = fit_from(half, kp / kp.norm(), "single")
-        xm, it2 = fit_from(half, km / km.norm(), "single")
-        x, it3 = fit_from([np.concatenate([xp, xm])], k_pad, "differential")
-        iters = it1 + it2 + it3
-
+    # ---- the report: PSFs on the reference model, closed-form gains, NA reached, timing
     xt = torch.from_numpy(x)
     reference = _RadialKernelModel(geometry, pitch_m=pitch, n_pixels=n_eval, spectral=spectral, n_sub=None,
                                    window_pad=max(window_pad, 3.0), na_budget=budget)

@@ -1,0 +1,327 @@
+"""The one registry of realisations: every hardware form and every ideal reference, by name.
+
+Each realisation declares a :class:`RealisationSpec` — its name, options schema
+(:class:`fsdvs_hw.validation.Option`: type, unit, range, default, help), fit function, declared
+cost items (:class:`CostSpec`: name, unit, and which of them the report uses as the kind's Pareto
+axis and headline), the record class that rebuilds it from JSON, and the artifacts it can write —
+and registers it with :func:`register_realisation`. Everything downstream reads only this
+registry: the design loader (allowed names, option tables, sweep axes), the scorer (which fit to
+call), the sweep (which sweep keys belong to a realisation), the report (cost axes, headline costs,
+colours, which rows are references) and :func:`realisation_from_dict`.
+
+The built-in entries are registered when :mod:`fsdvs_hw.realise` is imported: the ideal
+references ``learned`` and ``delta`` (kind ``"reference"``, here), and the hardware forms
+``mesh``, ``asic`` and ``metalens`` (kind ``"hardware"``, each in its own folder's ``__init__``).
+
+Adding a realisation outside the package is one module::
+
+    from fsdvs_hw.realise.registry import CostSpec, RealisationSpec, register_realisation
+    register_realisation(RealisationSpec(name="box", fit=fit_box, options={...}, record_type=BoxDesign,
+                                         costs=(CostSpec("taps", "count", pareto=True, headline=True),)))
+
+Spawned worker processes (``[run] workers > 1``) import the modules that registered realisations
+from outside the package (recorded in the environment variable :data:`PLUGIN_ENV`), so a plugin
+registered in the parent process is known to the workers too; remote Dask workers must import it
+themselves.
+
+References
+----------
+The ``method=`` registries of colour-science (``colour.utilities.CanonicalMapping``) and
+:func:`fsdvs_hw.tasks.evaluators.register_evaluator` follow the same pattern.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+from ..errors import InputError
+from ..kernels import Kernel, reference_kernel
+from ..validation import Option, check_option, check_options
+from .base import Realisation, ReferenceRealisation
+
+__all__ = [
+    "CostSpec",
+    "RealisationSpec",
+    "REALISATIONS",
+    "KINDS",
+    "PLUGIN_ENV",
+    "register_realisation",
+    "unregister_realisation",
+    "get_realisation",
+    "realisation_names",
+    "realisation_from_dict",
+    "check_realisation_options",
+    "fit_realisation",
+]
+
+#: What a realisation is: a hardware form (has a cost; on the per-kind Pareto fronts) or an ideal
+#: reference scored the same way (no cost; never on a front).
+KINDS: tuple[str, ...] = ("hardware", "reference")
+
+#: Environment variable listing the modules outside fsdvs_hw that registered realisations
+#: (``os.pathsep``-separated); spawned workers import them.
+PLUGIN_ENV = "FSDVS_REALISATION_PLUGINS"
+
+#: Units a cost item may carry: SI units, "count", "bit", "px" and "1" (dimensionless).
+COST_UNITS: frozenset[str] = frozenset({"S", "F", "s", "m", "m^2", "W", "J", "A", "V", "Hz", "count", "bit", "px",
+                                        "1"})
+
+
+@dataclass(frozen=True)
+class CostSpec:
+    """One declared cost item of a realisation.
+
+    Parameters
+    ----------
+    name : str
+        The item's name in ``realisation.cost()`` (``"area_m2"``), or a derived quantity's name
+        when ``derive`` is given (``"conductance_per_pixel"``).
+    unit : str
+        Unit of the stored value (one of :data:`COST_UNITS`).
+    label : str
+        A few words for tables and axes (default: ``name``).
+    display_unit : str
+        Unit shown in the report (default: ``unit``).
+    factor : float
+        Stored value × ``factor`` = displayed value (``1e12`` for m² → µm²).
+    pareto : bool
+        A candidate for the kind's own cost axis of its Pareto front; the first declared candidate
+        present in a point's cost is used.
+    headline : bool
+        A candidate for the point's single headline cost (first present wins).
+    optional : bool
+        Not every fit reports it (e.g. yosys cells only when yosys ran).
+    derive : callable, optional
+        ``derive(cost) -> value or None`` from the stored cost items (name → ``{"value", "unit"}``),
+        for a quantity that is not an item itself.
+    """
+
+    name: str
+    unit: str
+    label: str = ""
+    display_unit: str = ""
+    factor: float = 1.0
+    pareto: bool = False
+    headline: bool = False
+    optional: bool = False
+    derive: Callable[[Mapping[str, Mapping[str, Any]]], float | None] | None = None
+
+    def __post_init__(self) -> None:
+        if self.unit not in COST_UNITS:
+            raise InputError(f"cost item {self.name!r}: unit {self.unit!r} unknown; allowed: {', '.join(sorted(COST_UNITS))}")
+        if not (math.isfinite(self.factor) and self.factor > 0):
+            raise InputError(f"cost item {self.name!r}: factor must be a finite number > 0, got {self.factor!r}")
+
+    def value(self, cost: Mapping[str, Mapping[str, Any]]) -> float | None:
+        """The stored (SI) value of this item in ``cost``, or None when it is absent."""
+        if self.derive is not None:
+            v = self.derive(cost)
+        else:
+            v = (cost.get(self.name) or {}).get("value")
+        return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+
+
+@dataclass(frozen=True)
+class RealisationSpec:
+    """A realisation's registry entry.
+
+    Parameters
+    ----------
+    name : str
+        The name used in design files (``[realisations] include``, ``[realisations.<name>]``),
+        sweep keys (``"<name>.<option>"``), stored points and reports. A Python identifier.
+    fit : callable
+        ``fit(target, **options) -> Realisation``. If ``options`` declares ``pitch_m`` or ``seed``
+        and the design does not set them, the target's pitch and the design's ``[run] seed`` are
+        passed.
+    options : mapping of str to Option
+        Schema of every keyword option of ``fit`` (type, unit, range, default, help).
+    kind : {"hardware", "reference"}
+        Hardware forms have costs and Pareto fronts; references are ideal kernels scored alike.
+    record_type : type, optional
+        The class ``fit`` returns: ``record_type.from_dict(realisation.to_dict())`` rebuilds it.
+    record_kind : str
+        The ``"kind"`` key its ``to_dict()`` writes (default: ``name``).
+    costs : tuple of CostSpec
+        Declared cost items: units, the Pareto axis and headline candidates.
+    artifacts : mapping of str to str
+        Files the realisation can write (name → what, e.g. ``"verilog": "streaming filter RTL"``).
+    colour : str
+        Colour of its points in report figures (matplotlib colour).
+    in_default_design : bool
+        Listed in ``[realisations] include`` when a design does not say.
+    description : str
+        One line for help texts.
+    """
+
+    name: str
+    fit: Callable[..., Realisation]
+    options: Mapping[str, Option] = field(default_factory=dict)
+    kind: str = "hardware"
+    record_type: type | None = None
+    record_kind: str = ""
+    costs: tuple[CostSpec, ...] = ()
+    artifacts: Mapping[str, str] = field(default_factory=dict)
+    colour: str | None = None
+    in_default_design: bool = False
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.name, str) and self.name.isidentifier()):
+            raise InputError(f"realisation name {self.name!r}: must be a Python identifier (it is a design-file key)")
+        if self.kind not in KINDS:
+            raise InputError(f"realisation {self.name!r}: kind {self.kind!r} unknown; allowed: {', '.join(KINDS)}")
+        if not callable(self.fit):
+            raise InputError(f"realisation {self.name!r}: fit must be callable, got {type(self.fit).__name__}")
+        for key, opt in self.options.items():
+            if not isinstance(opt, Option):
+                raise InputError(f"realisation {self.name!r}: option {key!r} must be a fsdvs_hw.validation.Option")
+        object.__setattr__(self, "options", MappingProxyType(dict(self.options)))
+        object.__setattr__(self, "artifacts", MappingProxyType(dict(self.artifacts)))
+        if not self.record_kind:
+            object.__setattr__(self, "record_kind", self.name)
+
+    @property
+    def fit_name(self) -> str:
+        """The fit function's name (for messages)."""
+        return getattr(self.fit, "__name__", repr(self.fit))
+
+    def check_option(self, key: str, value: Any, *, prefix: str = "") -> Any:
+        """Check one option against :attr:`options`; return it normalised (see :func:`fsdvs_hw.validation.check_option`)."""
+        return check_option(self.options, key, value, prefix=prefix, owner=self.fit_name)
+
+    def check_options(self, values: Mapping[str, Any], *, prefix: str = "") -> dict[str, Any]:
+        """Check a table of options; return them normalised."""
+        return check_options(self.options, values, prefix=prefix, owner=self.fit_name)
+
+    def cost_axis(self, cost: Mapping[str, Mapping[str, Any]]) -> tuple[str, float, str] | None:
+        """``(label, displayed value, display unit)`` on the kind's own Pareto axis, or None."""
+        for c in self.costs:
+            if c.pareto:
+                v = c.value(cost)
+                if v is not None:
+                    return c.label or c.name, v * c.factor, c.display_unit or c.unit
+        return None
+
+    def headline(self, cost: Mapping[str, Mapping[str, Any]]) -> str | None:
+        """Name of the first declared headline cost item present in ``cost``, or None."""
+        return next((c.name for c in self.costs if c.headline and c.derive is None and c.name in cost), None)
+
+
+_REGISTRY: dict[str, RealisationSpec] = {}
+
+#: name → spec of every registered realisation, in registration order (read-only view).
+REALISATIONS: Mapping[str, RealisationSpec] = MappingProxyType(_REGISTRY)
+
+
+def register_realisation(spec: RealisationSpec, *, replace: bool = False) -> RealisationSpec:
+    """Add a realisation to the registry; return it (usable as a module-level statement).
+
+    Raises
+    ------
+    InputError
+        ``spec`` is not a :class:`RealisationSpec`, or its name is taken and ``replace`` is false.
+    """
+    if not isinstance(spec, RealisationSpec):
+        raise InputError(f"register_realisation: expected a RealisationSpec, got {type(spec).__name__}")
+    if spec.name in _REGISTRY and not replace and _REGISTRY[spec.name] is not spec:
+        raise InputError(f"realisation {spec.name!r} is already registered (pass replace=True to replace it)")
+    _REGISTRY[spec.name] = spec
+    module = getattr(spec.fit, "__module__", "") or ""
+    if module and module != "__main__" and not module.startswith("fsdvs_hw."):
+        known = [m for m in os.environ.get(PLUGIN_ENV, "").split(os.pathsep) if m]
+        if module not in known:
+            os.environ[PLUGIN_ENV] = os.pathsep.join([*known, module])
+    return spec
+
+
+def unregister_realisation(name: str) -> None:
+    """Remove a realisation (tests and interactive sessions); unknown names are ignored."""
+    spec = _REGISTRY.pop(name, None)
+    module = getattr(getattr(spec, "fit", None), "__module__", "") or ""
+    known = [m for m in os.environ.get(PLUGIN_ENV, "").split(os.pathsep) if m]
+    if module in known and not any(getattr(s.fit, "__module__", "") == module for s in _REGISTRY.values()):
+        os.environ[PLUGIN_ENV] = os.pathsep.join(m for m in known if m != module)
+
+
+def _import_plugins() -> None:
+    """Import the plugin modules named in :data:`PLUGIN_ENV` (spawned workers inherit the variable)."""
+    for module in os.environ.get(PLUGIN_ENV, "").split(os.pathsep):
+        if module:
+            importlib.import_module(module)
+
+
+def get_realisation(name: str) -> RealisationSpec:
+    """The registered spec called ``name``.
+
+    Raises
+    ------
+    InputError
+        Unknown name; the message lists the registered ones.
+    """
+    spec = _REGISTRY.get(name) if isinstance(name, str) else None
+    if spec is None:
+        raise InputError(f"realisation {name!r} unknown; allowed: {', '.join(_REGISTRY)}")
+    return spec
+
+
+def realisation_names(kind: str | None = None) -> tuple[str, ...]:
+    """Registered names in registration order, optionally of one ``kind`` (``"hardware"``/``"reference"``)."""
+    if kind is not None and kind not in KINDS:
+        raise InputError(f"realisation kind {kind!r} unknown; allowed: {', '.join(KINDS)}")
+    return tuple(n for n, s in _REGISTRY.items() if kind is None or s.kind == kind)
+
+
+def realisation_from_dict(data: Mapping[str, Any]) -> Realisation:
+    """Rebuild a realisation from :meth:`Realisation.to_dict` output (its ``"kind"`` names the record)."""
+    kind = data.get("kind") if isinstance(data, Mapping) else None
+    types = {s.record_kind: s.record_type for s in _REGISTRY.values() if s.record_type is not None}
+    if kind not in types:
+        raise InputError(f"realisation 'kind' is {kind!r}; allowed: {', '.join(types)}")
+    return types[kind].from_dict(data)
+
+
+def check_realisation_options(name: str, values: Mapping[str, Any], *, prefix: str = "") -> dict[str, Any]:
+    """Check a table of fit options of the realisation ``name``; return them normalised."""
+    return get_realisation(name).check_options(values, prefix=prefix)
+
+
+def fit_realisation(name: str, target: Kernel, options: Mapping[str, Any] | None = None, *,
+                    seed: int = 0) -> Realisation:
+    """Fit the realisation ``name`` to ``target`` with its options.
+
+    The target's pitch (m) is passed as ``pitch_m`` and ``seed`` as ``seed`` where the realisation
+    declares them as options and ``options`` does not set them.
+    """
+    spec = get_realisation(name)
+    options = dict(options or {})
+    if "pitch_m" in spec.options and "pitch_m" not in options:
+        options["pitch_m"] = target.pitch_m
+    if "seed" in spec.options and "seed" not in options:
+        options["seed"] = seed
+    return spec.fit(target, **options)
+
+
+# --------------------------------------------------------------------------- the ideal references
+def fit_learned(target: Kernel) -> ReferenceRealisation:
+    """The target kernel applied ideally (the row every loss is measured against)."""
+    return ReferenceRealisation(target, label="learned")
+
+
+def fit_delta(target: Kernel) -> ReferenceRealisation:
+    """The delta kernel of the target's size and pitch: the "w/o" baseline (no spatial filter)."""
+    return ReferenceRealisation(reference_kernel("delta", target.size, pitch_m=target.pitch_m), label="delta")
+
+
+register_realisation(RealisationSpec(
+    name="learned", fit=fit_learned, kind="reference", record_type=ReferenceRealisation, record_kind="reference",
+    colour="#222222", in_default_design=True, description="the target kernel applied ideally (no hardware)"))
+register_realisation(RealisationSpec(
+    name="delta", fit=fit_delta, kind="reference", record_type=ReferenceRealisation, record_kind="reference",
+    colour="#999999", in_default_design=True, description="no spatial filter: the 'w/o' baseline"))
