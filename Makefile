@@ -12,7 +12,7 @@ TORCH_PIN := torch==2.13.0
 PYTEST_ARGS ?=
 DEMO_OUT ?= out/demo
 
-.PHONY: demo test test-all bench setup system-deps clean
+.PHONY: demo test test-all bench mutation setup system-deps clean
 
 demo: setup
 	$(BIN)/fsdvs-hw explore designs/default.toml --out $(DEMO_OUT)
@@ -25,6 +25,21 @@ test-all: setup
 
 bench: setup
 	$(BIN)/fsdvs-hw bench all
+
+# Sampled mutation check of fsdvs_hw/realise and fsdvs_hw/explore (cosmic-ray; see mutation/):
+# MUTANTS mutants drawn with MUTATION_SEED from all of them, each run against its module's fast
+# tests. Needs fsdvs_hw/ committed (the test command finds the mutated file with git diff).
+MUTANTS ?= 60
+MUTATION_SEED ?= 14
+MUTATION_DB ?= out/mutation/session.sqlite
+mutation: setup
+	@$(BIN)/python -c "import cosmic_ray" 2>/dev/null || $(BIN)/python -m pip install -q -e '.[mutation]'
+	@git diff --quiet -- fsdvs_hw || { echo "make mutation: commit or stash the changes under fsdvs_hw/ first"; exit 1; }
+	@mkdir -p $(dir $(MUTATION_DB)) && rm -f $(MUTATION_DB)
+	PATH=$(abspath $(BIN)):$$PATH PYTHONPATH=$(CURDIR) $(BIN)/cosmic-ray init mutation/cosmic-ray.toml $(MUTATION_DB)
+	$(BIN)/python mutation/sample.py $(MUTATION_DB) $(MUTANTS) $(MUTATION_SEED)
+	PATH=$(abspath $(BIN)):$$PATH PYTHONPATH=$(CURDIR) nice -n 15 $(BIN)/cosmic-ray exec mutation/cosmic-ray.toml $(MUTATION_DB)
+	$(BIN)/python mutation/score.py $(MUTATION_DB)
 
 setup: system-deps $(STAMP)
 

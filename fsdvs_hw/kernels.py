@@ -45,6 +45,7 @@ __all__ = [
     "REFERENCE_KERNELS",
     "reference_kernel",
     "load_kernel",
+    "load_kernel_or_reference",
     "as_kernel",
     "delta_taps",
     "gaussian_taps",
@@ -666,3 +667,55 @@ def reference_kernel(
     label = key if not params else key + "(" + ", ".join(f"{k}={v:g}" for k, v in params.items()) + ")"
     prov = {"reference": key, "size": size, **{k: float(v) for k, v in params.items()}}
     return Kernel(taps, pitch_m=pitch_m, name=f"{label} {size}x{size}", provenance=prov)
+
+
+def _parse_reference(spec: str, pitch_m: float | None) -> Kernel:
+    """A reference kernel from a spec ``family[:key=value,...]`` (``size`` odd, others floats)."""
+    name, _, rest = spec.partition(":")
+    params: dict[str, float] = {}
+    size = 7
+    for item in filter(None, rest.split(",")):
+        key, eq, value = item.partition("=")
+        if not eq:
+            raise KernelError(f"reference spec {spec!r}: expected key=value, got {item!r}")
+        try:
+            num = float(value)
+        except ValueError:
+            raise KernelError(f"reference spec {spec!r}: {key} must be a number, got {value!r}") from None
+        if not math.isfinite(num):
+            raise KernelError(f"reference spec {spec!r}: {key} must be finite, got {value!r}")
+        if key.strip() == "size":
+            if num != int(num):
+                raise KernelError(f"reference spec {spec!r}: size must be an odd integer, got {value}")
+            size = int(num)
+        else:
+            params[key.strip()] = num
+    return reference_kernel(name, size, pitch_m=DEFAULT_PITCH_M if pitch_m is None else pitch_m, **params)
+
+
+def load_kernel_or_reference(spec: str, pitch_m: float | None = None) -> Kernel:
+    """A kernel from a file path, or from a reference spec like ``dog:size=7,w_surround=1``.
+
+    Parameters
+    ----------
+    spec : str
+        A kernel file (``.npy``, ``.csv``, ``.json``, ``.pt``) or a reference family of
+        :data:`REFERENCE_KERNELS` with optional ``key=value`` parameters after a colon (``size``
+        odd, in pixels; sigmas in pixels).
+    pitch_m : float, optional
+        Pixel pitch in metres (default: the file's, else :data:`DEFAULT_PITCH_M`).
+
+    Raises
+    ------
+    KernelError
+        ``spec`` is neither a kernel file nor a reference spec, or a parameter is malformed.
+    """
+    path = Path(spec)
+    if path.suffix.lower() in (".npy", ".csv", ".json", ".pt") or path.exists():
+        return load_kernel(path, pitch_m=pitch_m)
+    if spec.partition(":")[0].lower() in REFERENCE_KERNELS:
+        return _parse_reference(spec, pitch_m)
+    raise KernelError(
+        f"{spec!r} is neither a kernel file (.npy .csv .json .pt) nor a reference family "
+        f"({', '.join(REFERENCE_KERNELS)})"
+    )

@@ -167,3 +167,12 @@ def test_rtl_bit_exact_with_the_most_negative_twos_complement_tap(rng, bits, inp
         require_tool("yosys")
         r = synthesise_verilog(d.verilog(image_width=8, image_height=8))
         assert r.cells > 0 and r.area_m2 > 0
+
+
+@pytest.mark.parametrize("out_shift", [0, 3])
+def test_datapath_module_applies_the_output_shift(out_shift):
+    """The synthesis datapath ends in ``acc_r >>> out_shift`` (or the plain accumulator at 0)."""
+    d = fit_asic_taps(reference_kernel("dog", 5), 6)
+    src = asic_rtl.generate_datapath_verilog(d.taps, input_bits=8, out_shift=out_shift)
+    last = [line.strip() for line in src.splitlines() if "out_value <=" in line]
+    assert last == [f"out_value <= {'acc_r >>> 3' if out_shift else 'acc'};"]

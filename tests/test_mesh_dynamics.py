@@ -54,6 +54,8 @@ def test_transient_decision_scales_with_speed_and_explains_itself():
     assert slow.kernel_error == pytest.approx(fast.kernel_error / 1000, rel=0.05)  # linear in speed when small
     assert fast.lag_px == pytest.approx(1e5 * d.tau_wide_s)
     assert "skipped" in slow.reason and "modelled" in fast.reason and f"{fast.kernel_error:.3g}" in fast.reason
+    # the reason states the lag v·tau in pixels and the time constant (what a reader checks)
+    assert f"moves {fast.lag_px:.3g} px per slowest time constant tau = C/g_v = {fast.tau_max_s:.3g} s" in fast.reason
     assert mesh_needs_transient(d, 0.0).kernel_error == 0.0
 
 

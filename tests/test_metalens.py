@@ -233,6 +233,29 @@ def test_pedestal_design_applies_k_plus_c(small_designs):
     assert "pedestal" in ped.cost()
 
 
+def test_signal_kernel_removes_the_pedestal_in_the_window_only(small_designs):
+    """signal_kernel = applied kernel − c on exactly the k×k window; the guard ring is untouched
+    (a mutation check found a shifted window surviving the other tests)."""
+    k, ped, _ = small_designs
+    applied, signal = np.asarray(ped.kernel().taps), np.asarray(ped.signal_kernel().taps)
+    g, n = ped.guard_px, k.size
+    assert g >= 1 and applied.shape == signal.shape == (n + 2 * g, n + 2 * g)
+    window = np.zeros(applied.shape, dtype=bool)
+    window[g : g + n, g : g + n] = True
+    np.testing.assert_allclose(applied[window] - signal[window], ped.pedestal, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(applied[~window], signal[~window])
+
+
+def test_whole_psf_totals_are_the_light_on_a_wide_patch(small_designs):
+    """psf_totals (Parseval sum over the sensor plane) equal the pixel PSF summed on a 41×41 patch:
+    the fast guard of the whole-PSF DC (the slow differential test checks the same at full fidelity)."""
+    k, _, diff = small_designs
+    assert len(diff.psf_totals) == 2
+    for c, z, t in zip(diff.coefficients, diff.sensor_distance_m, diff.psf_totals):
+        wide = pixel_psf(GEOM, c, sensor_distance_m=z, pitch_m=k.pitch_m, n_pixels=41, illuminant=diff.spectral)
+        assert 0 < t <= 1 and t == pytest.approx(float(wide.sum()), rel=2e-2)
+
+
 def test_differential_design_restores_the_sign(small_designs):
     k, ped, diff = small_designs
     assert diff.pedestal == 0 and len(diff.psfs) == 2

@@ -95,3 +95,35 @@ def test_bootstrap_interval_matches_binomial_theory():
     lo, hi = bootstrap_interval(ev, const, target, n_boot=400, seed=1)
     # accuracy 0.5 on 400 clips: binomial 95 % half-width 1.96 * sqrt(0.25 / 400) = 0.049
     assert lo < 0.5 < hi and 0.035 < (hi - lo) / 2 < 0.065
+
+
+def test_ablation_study_options_reach_the_jobs_and_every_table_is_written(tmp_path, monkeypatch):
+    """run_ablation_study (what `fsdvs-hw ablation` calls): the typed options reach the jobs, and the
+    transfer and frozen-kernel tables both end up in ablation.md (training replaced by canned records)."""
+    from fsdvs_hw.explore import ablation as ab
+    from fsdvs_hw.tasks import ablation as tab
+
+    kernel = tmp_path / "k.json"
+    reference_kernel("dog", 7).save(kernel)
+    seen = []
+
+    def fake_collect(points, store, exe, from_store):
+        seen.append((sorted(p.job["kind"] + " " + p.job["task"] for p in points), exe, from_store))
+        return [{"kind": p.job["kind"], "task": p.job["task"], "seed": p.job["seed"],
+                 "metrics": {"map": 0.5, "top1": 0.25, "miou": 0.75}} for p in points]
+
+    monkeypatch.setattr(ab, "_collect", fake_collect)
+    monkeypatch.setattr(ab, "annotate_shipped", lambda records, pred_dir: [])
+    monkeypatch.setattr(tab, "transfer_markdown", lambda records, stem, pred_dir: f"TRANSFER {stem} {len(records)}\n")
+    opts = ab.AblationOptions(seeds=(0,), transfer=str(kernel), frozen_tasks=("recognition",), transfer_only=True,
+                              workers=2, progress=False, out=tmp_path / "out", command="fsdvs-hw ablation --test")
+    study = ab.run_ablation_study(opts)
+    assert seen == [(["frozen recognition", "frozen segmentation", "zero_shot segmentation"], {"workers": 2, "scheduler": None, "progress": False},
+                     False)]
+    text = study.markdown
+    assert "TRANSFER k 3" in text and "networks trained with k frozen" in text and "| recognition | 0 | top1 | 25.0 |" in text
+    assert "`fsdvs-hw ablation --test`" in text
+    assert study.markdown_path.read_text() == text
+    assert json.loads(study.json_path.read_text())["transfer"][0]["task"] in ("recognition", "segmentation")
+    with pytest.raises(InputError, match="--workers"):
+        ab.run_ablation_study(ab.AblationOptions(workers=0, out=tmp_path / "o2"))

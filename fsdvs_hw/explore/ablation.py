@@ -1,4 +1,4 @@
-"""``fsdvs-hw ablation``: the kernel-size ablation sharded over the sweep executor, resumable.
+"""The kernel-size ablation (``fsdvs-hw ablation``, :mod:`fsdvs_hw.cli.ablation`) sharded over the sweep executor, resumable.
 
 Every training run (:mod:`fsdvs_hw.tasks.ablation`: one task, kernel size and seed; or a network
 trained with a given kernel frozen; or the zero-shot swap) is one point of the project's sweep
@@ -17,7 +17,6 @@ from-run`` uses the 7×7 detection kernel of the first seed learned in phase 1.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import socket
@@ -32,18 +31,8 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["AblationPoint", "ablation_points", "evaluate_ablation_point", "run_ablation", "annotate_shipped", "HELP",
-           "add_arguments", "run"]
-
-HELP = "kernel-size ablation (w/o, 3, 5, 7, 9) on detection and recognition, gains with 95 % CIs; resumable"
-DESCRIPTION = (
-    "Train one network per (task, kernel size, seed) with the FS-DVS protocol on the sweep executor\n"
-    "(local processes or Dask; SQLite store; a rerun resumes) and print the paper-style tables: mean\n"
-    "± std over seeds, the gain over w/o with a 95 % CI (bootstrap over the paired test clips and the\n"
-    "seeds), the learned kernels' shape, and the transfer of the 7x7 detection kernel to segmentation.\n\n"
-    "Example (the README table):\n"
-    "  fsdvs-hw ablation --seeds 0 1 2 --workers 2 --transfer from-run --out out/ablation\n"
-)
+__all__ = ["AblationPoint", "AblationOptions", "AblationStudy", "ablation_points", "evaluate_ablation_point",
+           "run_ablation", "run_ablation_study", "annotate_shipped"]
 
 _DESIGN = "ablation"
 
@@ -125,41 +114,73 @@ def run_ablation(points: list[AblationPoint], store_path: str | Path, *, workers
     return out
 
 
-# --------------------------------------------------------------------------- CLI
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--tasks", nargs="+", default=["detection", "recognition"], help="tasks (default: both)")
-    parser.add_argument("--sizes", nargs="+", type=int, default=[1, 3, 5, 7, 9],
-                        help="odd kernel sizes; 1 = w/o (default 1 3 5 7 9)")
-    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2], help="training seeds (default 0 1 2)")
-    parser.add_argument("--n-train", type=int, default=None, help="training clips (default 2048)")
-    parser.add_argument("--n-test", type=int, default=None, help="test clips (default 2048)")
-    parser.add_argument("--epochs-frozen", type=int, default=None, help="frozen-filter epochs (default 16)")
-    parser.add_argument("--epochs-joint", type=int, default=None, help="joint epochs (default 16)")
-    parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
-    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                        help="run on a Dask distributed scheduler instead of local processes")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("--transfer", default=None, metavar="KERNEL",
-                        help="also run the segmentation transfer with this kernel file, or 'from-run' for the "
-                             "7x7 detection kernel of the first seed learned here")
-    parser.add_argument("--frozen-tasks", nargs="*", default=[], metavar="TASK",
-                        help="with --transfer: also train these tasks' networks with that kernel frozen "
-                             "(e.g. detection recognition)")
-    parser.add_argument("--transfer-only", action="store_true", help="skip the size ablation (needs a kernel file)")
-    parser.add_argument("--frozen-only", action="store_true",
-                        help="with --transfer KERNEL_FILE: train only the frozen-kernel networks of --frozen-tasks "
-                             "(segmentation allowed), seed by seed, so any prefix of the seeds is complete for every "
-                             "task (how the exploration's networks are made)")
-    parser.add_argument("--out", type=Path, default=Path("out") / "ablation",
-                        help="folder: store (runs.sqlite), predictions/, ablation.md, ablation.json "
-                             "(default out/ablation)")
-    parser.add_argument("--ship-dir", type=Path, default=None,
-                        help="save the 7x7 learned kernels (every seed) as learned_{task}_7x7[_sSEED].* and the "
-                             "frozen-kernel networks as networks/{task}_with_KERNEL_sSEED.* here (designs/kernels)")
-    parser.add_argument("--from-store", action="store_true", help="do not train: rebuild the tables from the store")
+@dataclass(frozen=True)
+class AblationOptions:
+    """What one ablation study runs (the ``fsdvs-hw ablation`` flags, typed).
+
+    Attributes
+    ----------
+    tasks, sizes, seeds : tuple
+        Tasks, odd kernel sizes in pixels (1 = w/o) and training seeds of the size ablation.
+    n_train, n_test : int, optional
+        Training / test clips per run (default: the task's, 2048).
+    epochs_frozen, epochs_joint : int, optional
+        Epochs of the frozen-filter and joint stages (default: the protocol's, 16 each).
+    workers : int
+        Local worker processes, 1..256.
+    scheduler : str, optional
+        Dask scheduler address (``tcp://HOST:PORT``) instead of local processes.
+    progress : bool
+        Progress bar on stderr.
+    transfer : str, optional
+        Kernel file for the segmentation transfer, or ``"from-run"`` (the first seed's 7×7
+        detection kernel learned here).
+    frozen_tasks : tuple of str
+        With ``transfer``: tasks whose networks are also trained with that kernel frozen.
+    transfer_only, frozen_only : bool
+        Skip the size ablation / train only the frozen-kernel networks, seed by seed.
+    out : Path
+        Folder: ``runs.sqlite``, ``predictions/``, ``ablation.md``, ``ablation.json``.
+    ship_dir : Path, optional
+        Where the 7×7 learned kernels and the frozen-kernel networks are saved.
+    from_store : bool
+        Do not train: rebuild the tables from the store.
+    command : str
+        The command line quoted under the tables.
+    """
+
+    tasks: tuple[str, ...] = ("detection", "recognition")
+    sizes: tuple[int, ...] = (1, 3, 5, 7, 9)
+    seeds: tuple[int, ...] = (0, 1, 2)
+    n_train: int | None = None
+    n_test: int | None = None
+    epochs_frozen: int | None = None
+    epochs_joint: int | None = None
+    workers: int = 1
+    scheduler: str | None = None
+    progress: bool = True
+    transfer: str | None = None
+    frozen_tasks: tuple[str, ...] = ()
+    transfer_only: bool = False
+    frozen_only: bool = False
+    out: Path = Path("out") / "ablation"
+    ship_dir: Path | None = None
+    from_store: bool = False
+    command: str = "fsdvs-hw ablation"
 
 
-def _settings(args: argparse.Namespace) -> dict[str, Any]:
+@dataclass(frozen=True)
+class AblationStudy:
+    """What :func:`run_ablation_study` produced: the Markdown tables and the run records."""
+
+    markdown: str
+    records: list[dict[str, Any]]
+    transfer: list[dict[str, Any]]
+    markdown_path: Path
+    json_path: Path
+
+
+def _settings(args: AblationOptions) -> dict[str, Any]:
     return {k: v for k, v in (("epochs_frozen", args.epochs_frozen), ("epochs_joint", args.epochs_joint))
             if v is not None}
 
@@ -173,7 +194,17 @@ def _ship_stem(ship_dir: Path, job: dict[str, Any], first_seed: int, kernel_stem
     return None
 
 
-def run(args: argparse.Namespace) -> int:
+def run_ablation_study(args: AblationOptions) -> AblationStudy:
+    """Run (or resume, or rebuild from the store) one ablation study and write its tables.
+
+    Writes ``OUT/ablation.md`` and ``OUT/ablation.json``; see the module docstring for the phases.
+
+    Raises
+    ------
+    InputError
+        Inconsistent options (``workers`` outside 1..256, ``transfer_only`` without a kernel file,
+        ...); the message names the command-line flag.
+    """
     from ..tasks.ablation import (ablation_jobs, ablation_markdown, frozen_kernel_jobs, transfer_jobs,
                                   transfer_markdown)
 
@@ -189,14 +220,14 @@ def run(args: argparse.Namespace) -> int:
     store = out / "runs.sqlite"
     settings = _settings(args) or None
     kw = {"n_train": args.n_train, "n_test": args.n_test, "settings": settings}
-    exe = {"workers": args.workers, "scheduler": args.scheduler, "progress": not args.no_progress}
+    exe = {"workers": args.workers, "scheduler": args.scheduler, "progress": args.progress}
     if args.transfer_only and (not args.transfer or args.transfer == "from-run"):
         raise InputError("--transfer-only needs --transfer KERNEL_FILE")
     if args.frozen_only and (not args.transfer or args.transfer == "from-run" or not args.frozen_tasks):
         raise InputError("--frozen-only needs --transfer KERNEL_FILE and --frozen-tasks TASK ...")
     records: list[dict[str, Any]] = []
     if not (args.transfer_only or args.frozen_only):
-        jobs = ablation_jobs(args.tasks, args.sizes, args.seeds, **kw)
+        jobs = ablation_jobs(list(args.tasks), list(args.sizes), list(args.seeds), **kw)
         ship = None
         if args.ship_dir is not None:
             from ..tasks.ablation import job_key
@@ -210,12 +241,12 @@ def run(args: argparse.Namespace) -> int:
         kpath = _transfer_kernel(args, records, out)
         stem = kpath.name.removesuffix(".json")
         if args.frozen_only:
-            jobs = sorted(frozen_kernel_jobs(kpath, args.frozen_tasks, args.seeds, **kw),
+            jobs = sorted(frozen_kernel_jobs(kpath, list(args.frozen_tasks), list(args.seeds), **kw),
                           key=lambda j: (args.seeds.index(j["seed"]), args.frozen_tasks.index(j["task"])))
         else:
-            jobs = transfer_jobs(kpath, args.seeds, **kw)
+            jobs = transfer_jobs(kpath, list(args.seeds), **kw)
         if args.frozen_tasks and not args.frozen_only:
-            jobs += frozen_kernel_jobs(kpath, [t for t in args.frozen_tasks if t != "segmentation"], args.seeds, **kw)
+            jobs += frozen_kernel_jobs(kpath, [t for t in args.frozen_tasks if t != "segmentation"], list(args.seeds), **kw)
         ship = None
         if args.ship_dir is not None:
             from ..tasks.ablation import job_key
@@ -229,12 +260,10 @@ def run(args: argparse.Namespace) -> int:
     shipped = annotate_shipped(records + transfer, pred_dir)
     if shipped:
         print(f"[ablation] held-out metric CIs written to {len(shipped)} shipped provenance files", file=sys.stderr)
-    cmd = "fsdvs-hw ablation " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "fsdvs-hw ablation"
-    text += f"\nMeasured with `{cmd}` (this invocation: {time.perf_counter() - t0:.0f} s wall).\n"
-    print(text)
+    text += f"\nMeasured with `{args.command}` (this invocation: {time.perf_counter() - t0:.0f} s wall).\n"
     (out / "ablation.json").write_text(json.dumps({"records": records, "transfer": transfer}, indent=1))
     (out / "ablation.md").write_text(text)
-    return 0
+    return AblationStudy(text, records, transfer, out / "ablation.md", out / "ablation.json")
 
 
 def annotate_shipped(records: list[dict[str, Any]], pred_dir: Path, *, n_resamples: int = 1000) -> list[Path]:
@@ -298,7 +327,7 @@ def _collect(points: list[AblationPoint], store: Path, exe: dict[str, Any], from
     return run_ablation(points, store, **exe)
 
 
-def _transfer_kernel(args: argparse.Namespace, records: list[dict[str, Any]], out: Path) -> Path:
+def _transfer_kernel(args: AblationOptions, records: list[dict[str, Any]], out: Path) -> Path:
     if args.transfer != "from-run":
         p = Path(args.transfer)
         if not p.is_file():

@@ -1,6 +1,6 @@
 """The main job: fit every realisation of a design's kernel, score each, write the report.
 
-``fsdvs-hw explore designs/default.toml --out out/demo`` runs :func:`run_exploration`: it validates
+``fsdvs-hw explore designs/default.toml --out out/demo`` (:mod:`fsdvs_hw.cli.explore`) runs :func:`run_exploration`: it validates
 the design (all errors before any work), expands its design points, runs those not already in
 ``DIR/results.sqlite`` (local processes or a Dask scheduler, with a progress bar), and writes
 ``DIR/report.html`` with ``DIR/scores.csv`` and ``DIR/scores.json``.
@@ -8,8 +8,6 @@ the design (all errors before any work), expands its design points, runs those n
 
 from __future__ import annotations
 
-import argparse
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,9 +16,9 @@ from typing import Any
 from ..paths import output_dir
 from .design import Design, load_design
 from .scoring import with_paired_losses
-from .sweep import SweepSummary, add_execution_arguments, run_design, security_from_args
+from .sweep import SweepSummary, run_design
 
-__all__ = ["run_exploration", "Exploration", "HELP", "add_arguments", "run"]
+__all__ = ["run_exploration", "Exploration"]
 
 
 @dataclass(frozen=True)
@@ -81,37 +79,3 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     return Exploration(report=report, scores_csv=out / "scores.csv", scores_json=out / "scores.json",
                        store=store_path, summary=summary, wall_s=time.perf_counter() - t0,
                        points=tuple(rows))
-
-
-HELP = "the main job: fit every realisation of a design's kernel, score it, write the HTML report"
-DESCRIPTION = (
-    "Fit every realisation (resistive mesh, ASIC taps, metalens, plus the learned kernel and the delta\n"
-    "baseline) of the design's kernel, score kernel error, CSF agreement, task accuracy loss, cost and\n"
-    "wall time, and write DIR/report.html, DIR/scores.csv, DIR/scores.json and DIR/results.sqlite.\n"
-    "A rerun into the same DIR skips points already scored.\n\n"
-    "Example: fsdvs-hw explore designs/default.toml --out out/demo"
-)
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("design", type=Path, help="TOML design file (see designs/default.toml)")
-    parser.add_argument("--out", type=Path, default=Path("out/explore"), metavar="DIR", help="output folder")
-    add_execution_arguments(parser)
-
-
-def run(args: argparse.Namespace) -> int:
-    design = load_design(args.design)
-    print(f"[explore] {design.name}: target {design.target!r}", file=sys.stderr, flush=True)
-    res = run_exploration(design, args.out, workers=args.workers, scheduler=args.scheduler,
-                          progress=not args.no_progress, retry_errors=args.retry_errors, max_points=args.max_points,
-                          security=security_from_args(args))
-    print(f"[explore] {res.summary}", file=sys.stderr)
-    from ..report.tables import networks_note, score_rows, summary_markdown
-
-    print(summary_markdown(score_rows(res.points)) + "\n")
-    nets = networks_note(res.points)
-    if nets:
-        print(f"losses measured in: {nets}\n")
-    print(f"report: {res.report}\nscores: {res.scores_csv}, {res.scores_json}\nstore:  {res.store}\n"
-          f"total {res.wall_s:.1f} s")
-    return 0 if res.summary.statuses.get("error", 0) == 0 else 1

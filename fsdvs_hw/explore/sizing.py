@@ -3,7 +3,7 @@
 Procedure (what ``designs/default.toml``'s ``n_test`` came from; the README records the numbers):
 
 1. Run the design once with a pilot number of test clips ``n_p`` per task
-   (``python -m fsdvs_hw.explore.sizing designs/default.toml --pilot 512``), or take a finished
+   (``fsdvs-hw sizing designs/default.toml --pilot 512``), or take a finished
    run as the pilot (``--from out/demo``).
 2. For every track, task and realisation, bootstrap the paired loss over clips only (half-width
    ``h_c`` at ``n_p`` clips), over training seeds only (``h_seeds``; none with one seed), and over
@@ -29,17 +29,14 @@ networks shrink ``h_s`` as ``1/√S``: the fix for a seed-limited loss.
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
 
-__all__ = ["ClipBudget", "size_test_sets", "main"]
+__all__ = ["ClipBudget", "size_test_sets", "budget_table"]
 
 
 @dataclass(frozen=True)
@@ -200,47 +197,14 @@ def _nested_budget(track: str, task: str, r_arm: list[Any], cands: dict[str, lis
                                                    "train more", nested=True)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``python -m fsdvs_hw.explore.sizing DESIGN --pilot N [--out DIR]``: run a pilot and print the budget."""
-    from .design import load_design
-    from .explore import run_exploration
-    from .store import ResultsStore
-
-    ap = argparse.ArgumentParser(prog="python -m fsdvs_hw.explore.sizing", description=__doc__.splitlines()[0])
-    ap.add_argument("design", type=Path)
-    ap.add_argument("--pilot", type=int, default=512, help="pilot test clips per task and network (default 512)")
-    ap.add_argument("--target", type=float, default=None, help="CI half-width (default: the design's "
-                                                                "[scoring] target_half_width)")
-    ap.add_argument("--margin", type=float, default=1.15)
-    ap.add_argument("--out", type=Path, default=Path("out/sizing"))
-    ap.add_argument("--from", dest="from_run", type=Path, default=None, metavar="DIR",
-                    help="size from a finished exploration's DIR/results.sqlite (e.g. out/demo) instead of a pilot")
-    args = ap.parse_args(argv)
-    design = load_design(args.design)
-    target = args.target or design.data["scoring"]["target_half_width"]
-    if args.from_run is not None:
-        store_path = args.from_run / "results.sqlite"
-        if not store_path.is_file():
-            raise InputError(f"--from {str(args.from_run)!r}: no results.sqlite there (run fsdvs-hw explore first)")
-        what = f"run {args.from_run} as the pilot"
-    else:
-        pilot = design.with_overrides({"tasks.n_test": args.pilot, "tasks.n_test_emulation": 0})
-        run_exploration(pilot, args.out, progress=False)
-        store_path = args.out / "results.sqlite"
-        what = f"pilot {args.pilot} clips per task and network"
-    with ResultsStore(store_path) as store:
-        rows = list(store.rows())
-    print(f"{what}; target half-width {target}; margin {args.margin}")
-    print("| track | task | clips needed | limiting realisation | its pilot h (clips) | its h (seeds) | "
-          "clips per realisation | seed-limited (± h_s, more clips cannot help) |")
-    print("|---|---|---|---|---|---|---|---|")
-    for b in size_test_sets(rows, target_half_width=target, margin=args.margin):
+def budget_table(budgets: Iterable[ClipBudget]) -> str:
+    """The clip budgets of :func:`size_test_sets` as a Markdown table (one row per track and task)."""
+    lines = ["| track | task | clips needed | limiting realisation | its pilot h (clips) | its h (seeds) | "
+             "clips per realisation | seed-limited (± h_s, more clips cannot help) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for b in budgets:
         per = ", ".join(f"{k}: {v}" for k, v in b.per_realisation.items() if v is not None)
         lim = ", ".join(f"{k}: ± {v:.3f}" for k, v in b.seed_limited.items()) or "none"
-        print(f"| {b.track} | {b.task} | {b.n_clips if b.n_clips is not None else b.reason} | {b.limiting} | "
-              f"{b.h_clip:.4f} | {b.h_seed:.4f} | {per} | {lim} |")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+        lines.append(f"| {b.track} | {b.task} | {b.n_clips if b.n_clips is not None else b.reason} | {b.limiting} | "
+                     f"{b.h_clip:.4f} | {b.h_seed:.4f} | {per} | {lim} |")
+    return "\n".join(lines)

@@ -13,12 +13,11 @@ Execution: ``workers = 1`` runs in this process; more workers use a local
 coordinator writes each result to the :class:`~fsdvs_hw.explore.store.ResultsStore` as soon as it
 arrives, and skips points already stored, so a killed run resumes where it stopped.
 
-The ``fsdvs-hw sweep`` command is defined here (``HELP``, ``add_arguments``, ``run``).
+The ``fsdvs-hw sweep`` command is :mod:`fsdvs_hw.cli.sweep`.
 """
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import itertools
 import json
@@ -35,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
-from .design import Design, axis_values, load_design
+from .design import Design, axis_values
 from .store import ResultsStore
 
 __all__ = [
@@ -47,11 +46,7 @@ __all__ = [
     "run_points",
     "run_design",
     "dask_security",
-    "security_from_args",
     "SweepSummary",
-    "HELP",
-    "add_arguments",
-    "run",
 ]
 
 #: Memory of a built design point per character of its JSON form (measured with tracemalloc: 2000
@@ -438,78 +433,3 @@ def run_design(design: Design, store_path: str | Path, *, workers: int | None = 
         order = {p.key: i for i, p in enumerate(points)}
         rows = sorted((dict(r) for r in store.rows() if r["key"] in order), key=lambda r: order[r["key"]])
     return summary, rows
-
-
-# ---------------------------------------------------------------------- command line
-HELP = "run a design sweep (local process pool, or a Dask cluster) into a SQLite results store"
-DESCRIPTION = (
-    "Expand a design file's [sweep] axes into design points, fit and score each, and store one row\n"
-    "per point in a SQLite file as it finishes. A rerun skips finished points (resume after a kill).\n\n"
-    "Examples:\n"
-    "  fsdvs-hw sweep designs/sweep_asic_bits.toml\n"
-    "  fsdvs-hw sweep designs/sweep_asic_bits.toml --scheduler tls://10.0.0.5:8786 \\\n"
-    "      --tls-ca-file ca.pem --tls-cert client.pem --tls-key client.key   (README: Dask with TLS)\n"
-)
-
-
-def add_execution_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--workers``, ``--scheduler`` and ``--no-progress`` (shared with ``fsdvs-hw explore``)."""
-    parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: [run] workers)")
-    parser.add_argument("--scheduler", default=None, metavar="tls://HOST:PORT",
-                        help="run on a Dask distributed scheduler instead of local processes (tls:// with the "
-                             "--tls-* files; plain tcp:// only on a trusted network)")
-    parser.add_argument("--tls-ca-file", type=Path, default=None, metavar="PEM",
-                        help="CA certificate of the Dask cluster (tls:// schedulers)")
-    parser.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="this client's certificate")
-    parser.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="this client's private key")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("--retry-errors", action="store_true",
-                        help="rerun this design's points stored as failed (finished points, and other "
-                             "designs' points in the same store, are always kept)")
-    parser.add_argument("--max-points", type=int, default=None, metavar="N",
-                        help="refuse sweeps of more than N design points (default: [run] max_points)")
-
-
-def security_from_args(args: argparse.Namespace) -> Any:
-    """The :func:`dask_security` of the ``--tls-*`` flags, or None when none is given."""
-    files = (args.tls_ca_file, args.tls_cert, args.tls_key)
-    if all(f is None for f in files):
-        return None
-    if args.scheduler is None or not args.scheduler.startswith("tls://"):
-        raise InputError("--tls-ca-file/--tls-cert/--tls-key need --scheduler tls://HOST:PORT")
-    return dask_security(*files)
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("design", type=Path, help="TOML design file with a [sweep] section")
-    parser.add_argument("--store", type=Path, default=None,
-                        help="SQLite results file (default: out/sweeps/<design name, made file-safe>.sqlite)")
-    parser.add_argument("--report", type=Path, default=None, metavar="DIR",
-                        help="also write the HTML report of the stored points to DIR")
-    add_execution_arguments(parser)
-
-
-def run(args: argparse.Namespace) -> int:
-    from ..paths import output_dir, output_file
-
-    design = load_design(args.design)
-    # the design's name is text, not a path: its safe form names the default store
-    store_path = output_file(args.store or Path("out") / "sweeps" / f"{design.slug}.sqlite", flag="--store")
-    if args.report is not None:
-        output_dir(args.report, flag="--report")
-    points = expand_points(design, max_points=args.max_points)
-    print(f"[sweep] {design.name}: {len(points)} design points -> {store_path}", file=sys.stderr, flush=True)
-    summary, rows = run_design(design, store_path, workers=args.workers, scheduler=args.scheduler,
-                               progress=not args.no_progress, retry_errors=args.retry_errors, points=points,
-                               security=security_from_args(args))
-    print(f"[sweep] {summary}", file=sys.stderr, flush=True)
-    if args.report is not None:
-        from ..report import write_report
-        from .scoring import with_paired_losses
-
-        sc = design.data["scoring"]
-        rows = with_paired_losses(rows, task_weights=sc["task_weights"] or None, n_resamples=sc["n_resamples"],
-                                  confidence=sc["confidence"], rng=design.data["run"]["seed"])
-        print(f"[sweep] report: {write_report(rows, design, args.report)}", file=sys.stderr, flush=True)
-    return 0 if summary.statuses.get("error", 0) == 0 else 1
-

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..benchmarks import kept_torch_threads
+
 __all__ = ["bench_tasks", "bootstrap_interval", "SHIPPED_DIR"]
 
 SHIPPED_DIR = Path(__file__).resolve().parents[2] / "designs" / "kernels"
@@ -67,12 +69,20 @@ def _predictions(task: str, checkpoint: Path, n_test: int):
 
 
 def bench_tasks(*, quick: bool = False) -> str:
-    """Markdown tables: time per epoch / evaluation, and metric CI versus test-set size."""
+    """Markdown tables: time per epoch / evaluation, and metric CI versus test-set size.
+
+    Timed with one torch thread; torch's thread count is restored afterwards.
+    """
     import torch
 
+    with kept_torch_threads():
+        torch.set_num_threads(1)
+        return _bench_tasks(quick)
+
+
+def _bench_tasks(quick: bool) -> str:
     from .learn import TrainingSettings, evaluate_kernel, learn_kernel
 
-    torch.set_num_threads(1)
     lines = ["## tasks: training / evaluation cost and evaluation accuracy vs test-set size", ""]
     n_train = 64 if quick else 512
     lines += [f"Time per epoch ({n_train} training clips of 32×32×5 frames, batch 32, 7×7 kernel, one thread) "

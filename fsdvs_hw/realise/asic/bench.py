@@ -17,10 +17,11 @@ The highest-fidelity reference is the float kernel itself (error 0, its own CSF 
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
+
+from ...benchmarks import timed
 
 from ...kernels import Kernel, load_kernel, reference_kernel
 from .fit import fit_asic_taps
@@ -50,16 +51,6 @@ def learned_or_fallback_kernel() -> tuple[Kernel, str]:
         return k, f"the learned kernel `designs/kernels/{path.name}` ('{k.name}')"
     return (reference_kernel("log", 7, sigma_px=1.0),
             "a 7×7 LoG (`reference_kernel('log', 7)`, σ = 1 px), standing in because designs/kernels/ has no learned kernel yet")
-
-
-def _timed(fn, reps: int):
-    best = np.inf
-    out = None
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return out, best
 
 
 def _images(rng: np.random.Generator, input_bits: int, n_random: int = 2) -> np.ndarray:
@@ -94,7 +85,8 @@ def bench_asic(*, quick: bool = False) -> str:
                       ("free scale, 8 bit, objective='csf' (fixed geometry)", {"bits": 8, "objective": "csf", "geometry": "dog"})]:
         if kw.get("geometry") == "dog":
             kw = {**kw, "geometry": Geometry(dog.pitch_m, csf_agreement(dog).implied_focal_length_m)}
-        d, t = _timed(lambda kw=kw: fit_asic_taps(dog, **kw), reps)
+        tm = timed(lambda kw=kw: fit_asic_taps(dog, **kw), reps)
+        d, t = tm.result, tm.best_s
         naive = d.fit_info.get("naive_error")
         rows.append(f"| {label} | {d.error:.3e} | {'' if naive is None else f'{naive:.3e}'} | {d.adders} | {1e3 * t:.1f} |")
     out += ["Quantisation of a 7×7 DoG (`reference_kernel('dog', 7)`, 8-fold symmetry, 10 coefficients); best of "
@@ -107,9 +99,11 @@ def bench_asic(*, quick: bool = False) -> str:
     for size in (3, 5, 7):
         d = fit_asic_taps(reference_kernel("dog", size), 8)
         x = _images(rng, 8)
-        y, t_sim = _timed(lambda d=d, x=x: d.simulate(x), 1)
+        tm = timed(lambda d=d, x=x: d.simulate(x), 1)
+        y, t_sim = tm.result, tm.best_s
         mism = int(np.count_nonzero(y != d.apply(x)))
-        ds, t_syn = _timed(lambda d=d: d.synthesise(image_width=_IMAGE_SIDE, image_height=_IMAGE_SIDE), 1)
+        tm = timed(lambda d=d: d.synthesise(image_width=_IMAGE_SIDE, image_height=_IMAGE_SIDE), 1)
+        ds, t_syn = tm.result, tm.best_s
         s = ds.synthesis
         rows.append(f"| {size}×{size} | {d.adders} | {d.accumulator_bits} | {x.shape[0]} | {mism} | {t_sim:.2f} | "
                     f"{s['cells']} | {s['flip_flops']} | {s['area_m2'] * 1e12:.0f} | {s['datapath_cells']} | "
@@ -133,7 +127,8 @@ def bench_asic(*, quick: bool = False) -> str:
         rows = [f"| float | 0 | – | 0 | {ref_csf.rms_error:.4f} | {ref_csf.correlation:.4f} | – | – | – | – | – | – | – | – |"]
         csf_rows = []
         for b in bit_list:
-            dc, t_c = _timed(lambda b=b: fit_asic_taps(kernel, b, objective="csf", geometry=geo), 1)
+            tm = timed(lambda b=b: fit_asic_taps(kernel, b, objective="csf", geometry=geo), 1)
+            dc, t_c = tm.result, tm.best_s
             ac = csf_agreement(dc.kernel(), geometry=geo)
             csf_rows.append(f"| {b} | {dc.error:.3e} | {ac.rms_error:.4f} | {ac.correlation:.4f} | {dc.adders} | {t_c:.2f} |")
             d = fit_asic_taps(kernel, b)

@@ -20,21 +20,12 @@ import math
 import statistics
 import sys
 import time
-from collections.abc import Callable
 
 import numpy as np
 
+from ...benchmarks import timed
+
 __all__ = ["bench_mesh"]
-
-
-def _timed(fn: Callable[[], object], repeats: int) -> tuple[float, object]:
-    """Median wall time (s) of ``repeats`` calls and the last result."""
-    times, out = [], None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), out
 
 
 def _log(msg: str) -> None:
@@ -117,13 +108,15 @@ def _model_table(quick: bool) -> list[str]:
         ref_nodes = (2 * np.arctan(s * t), s * (1 + t * t) / (1 + s * s * t * t) / n4)
         ref = _unfold_quarter(lattice_green_quarter(lam, radius, nodes=ref_nodes))
         scale = np.abs(ref).max()
-        tm, g = _timed(lambda: _unfold_quarter(lattice_green_quarter(lam, radius)), repeats)
+        rt = timed(lambda: _unfold_quarter(lattice_green_quarter(lam, radius)), repeats)
+        tm, g = rt.median_s, rt.result
         rows.append(f"| {lam:g} | lattice Green's function ({k.size} nodes) | ∞ | {np.abs(g - ref).max() / scale:.1e} | {1e3 * tm:.3f} |")
         rule = grid_half_width_for(lam, radius)
         halves = sorted({radius, radius + 2, rule, 2 * rule} if not quick else {radius + 2, rule})
         for h in halves:
             for method in ("dct", "sparse"):
-                tm, g = _timed(lambda: finite_grid_response(lam, radius, h, method=method), repeats)
+                rt = timed(lambda: finite_grid_response(lam, radius, h, method=method), repeats)
+                tm, g = rt.median_s, rt.result
                 tag = " (rule r+3+3λ)" if h == rule else ""
                 rows.append(f"| {lam:g} | finite grid, {method} | {h}{tag} | {np.abs(g - ref).max() / scale:.1e} | {1e3 * tm:.3f} |")
             n = 2 * h + 1
@@ -132,7 +125,8 @@ def _model_table(quick: bool) -> list[str]:
             t0 = time.perf_counter()
             f = casadi_mesh_model(h)
             build = time.perf_counter() - t0
-            tm, v = _timed(lambda: np.array(f(lam * lam, 1.0, i_in)).reshape(n, n), repeats)
+            rt = timed(lambda: np.array(f(lam * lam, 1.0, i_in)).reshape(n, n), repeats)
+            tm, v = rt.median_s, rt.result
             g = v[h - radius : h + radius + 1, h - radius : h + radius + 1]
             rows.append(
                 f"| {lam:g} | finite grid, casadi KCL (MX, ldl; build {1e3 * build:.0f} ms) | {h} | "
@@ -167,7 +161,8 @@ def _spice_table(quick: bool) -> list[str]:
         vn = np.array(f(d.g_lateral_narrow_s, d.g_vertical_narrow_s, i_in)).reshape(n, n)
         vw = np.array(f(d.g_lateral_wide_s, d.g_vertical_wide_s, i_in)).reshape(n, n)
         total = time.perf_counter() - t0
-        ts, _ = _timed(lambda: f(d.g_lateral_wide_s, d.g_vertical_wide_s, i_in), 3)
+        rt = timed(lambda: f(d.g_lateral_wide_s, d.g_vertical_wide_s, i_in), 3)
+        ts, _ = rt.median_s, rt.result
         diff = max(np.abs(vn - res.v_narrow_v).max() / np.abs(vn).max(), np.abs(vw - res.v_wide_v).max() / np.abs(vw).max())
         rows.append(f"| {n}x{n} | {2 * n * n} | {res.wall_s:.2f} | {total:.3f} | {1e3 * ts:.2f} | {diff:.1e} |")
     rows += [

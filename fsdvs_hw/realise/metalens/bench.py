@@ -12,37 +12,30 @@ Tables (Markdown):
 3. Fits at 4.86 µm pitch of a DoG 7×7 and a learned 7×7 kernel (``designs/kernels/
    learned_detection_7x7.json`` when present, else a LoG 7×7), both strategies: kernel error,
    radially symmetric floor, pedestal, efficiency, contrast factor, fit wall time. With
-   ``quick=False`` the figure ``designs/figures/metalens_fits.png`` is (re)written too.
+   ``quick=False`` the figure ``metalens_fits.png`` is written into ``figures`` (default: a
+   temporary folder; ``fsdvs-hw bench metalens --figures designs/figures`` regenerates the README's).
 """
 
 from __future__ import annotations
 
 import sys
-import time
-from collections.abc import Callable
+import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ...benchmarks import timed
+
 __all__ = ["bench_metalens", "radial_symmetric_floor", "plot_fits"]
 
 _REPO = Path(__file__).resolve().parents[3]
 _LEARNED = _REPO / "designs" / "kernels" / "learned_detection_7x7.json"
-_FIGURE = _REPO / "designs" / "figures" / "metalens_fits.png"
+_FIGURE_NAME = "metalens_fits.png"
 
 
 def _log(msg: str) -> None:
     print(f"[bench metalens] {msg}", file=sys.stderr, flush=True)
-
-
-def _timed(fn: Callable[[], Any], repeats: int = 1) -> tuple[float, Any]:
-    best, out = float("inf"), None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
 
 
 def radial_symmetric_floor(taps: np.ndarray) -> float:
@@ -74,11 +67,13 @@ def _grid_table(quick: bool) -> list[str]:
               ("n_sub 4", dict(n_sub=4)), ("n_sub 8", dict(n_sub=8)), ("2× modes", dict(n_modes=600))]
     planar = [(f"{m} samples/pixel", dict(samples_per_pixel=m)) for m in ((9, 15) if quick else (9, 15, 21, 27))]
     for label, opts in radial:
-        t, p = _timed(lambda: pixel_psf(g, **kw, **opts), 1 if quick else 3)
+        tm = timed(lambda: pixel_psf(g, **kw, **opts), 1 if quick else 3)
+        t, p = tm.best_s, tm.result
         rows.append(f"| radial (Hankel) | {label} | {np.linalg.norm(p - ref) / np.linalg.norm(ref):.2e} | {t:.3f} |")
     for label, opts in planar:
         _log(f"2-D angular spectrum {label}")
-        t, p = _timed(lambda: pixel_psf(g, **kw, method="angular_2d", **opts))
+        tm = timed(lambda: pixel_psf(g, **kw, method="angular_2d", **opts))
+        t, p = tm.best_s, tm.result
         rows.append(f"| 2-D angular spectrum | {label} | {np.linalg.norm(p - ref) / np.linalg.norm(ref):.2e} | {t:.3f} |")
     return rows
 
@@ -95,7 +90,8 @@ def _spectral_table(quick: bool) -> list[str]:
         gd = LensGeometry(dispersion=disp)
         ref = pixel_psf(gd, **kw, n_wavelengths=64)
         for n in ((1, 4, 16) if quick else (1, 2, 4, 8, 16, 24, 32)):
-            t, p = _timed(lambda: pixel_psf(gd, **kw, n_wavelengths=n))
+            tm = timed(lambda: pixel_psf(gd, **kw, n_wavelengths=n))
+            t, p = tm.best_s, tm.result
             rows.append(f"| {disp} | {n} | {np.linalg.norm(p - ref) / np.linalg.norm(ref):.2e} | {t:.3f} |")
     return rows
 
@@ -178,7 +174,7 @@ def plot_fits(fits: list[tuple[str, Any, Any]], path: Path) -> Path:
     return path
 
 
-def bench_metalens(*, quick: bool = False) -> str:
+def bench_metalens(*, quick: bool = False, figures: Path | None = None) -> str:
     """Run the metalens speed/accuracy benchmark and return Markdown (see module docstring)."""
     import torch
 
@@ -210,6 +206,7 @@ def bench_metalens(*, quick: bool = False) -> str:
         "(n/a when the target has no positive DC). model error: fitted model vs reference-fidelity model.",
     ]
     if not quick:
-        path = plot_fits(fits, _FIGURE)
-        parts += ["", f"Figure written: `{path.relative_to(_REPO)}`."]
+        folder = Path(figures) if figures is not None else Path(tempfile.mkdtemp(prefix="fsdvs_bench_metalens_"))
+        path = plot_fits(fits, folder / _FIGURE_NAME)
+        parts += ["", f"Figure written: `{path}`."]
     return "\n".join(parts) + "\n"

@@ -20,7 +20,7 @@ DESCRIPTION = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from .sensor.config import PRESETS
+    from ..sensor.config import PRESETS
 
     parser.add_argument("video", help="video file, or example:NAME")
     parser.add_argument("--out", type=Path, required=True, help="event file (.h5, .hdf5, .aedat4 or .npz)")
@@ -43,7 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _size(text: str | None) -> tuple[int, int] | None:
-    from .errors import InputError
+    from ..errors import InputError
 
     if text is None:
         return None
@@ -59,11 +59,11 @@ def _size(text: str | None) -> tuple[int, int] | None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from .analysis_cli import load_kernel_or_reference
-    from .errors import InputError
-    from .scenes.video import example_clip_path, iter_video, video_properties
-    from .sensor import SensorConfig, simulate
-    from .sensor.eventfile import EventFileWriter, event_format
+    from ..errors import InputError
+    from ..kernels import load_kernel_or_reference
+    from ..scenes.video import example_clip_path, iter_video, video_properties
+    from ..sensor import SensorConfig, simulate
+    from ..sensor.eventfile import EventFileWriter, event_format
 
     event_format(args.out)  # checked before decoding anything
     if args.threads is not None:

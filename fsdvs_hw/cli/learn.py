@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-__all__ = ["HELP", "add_arguments", "run"]
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
 HELP = "learn a k×k FS-DVS kernel end to end on a task (detection, recognition, segmentation)"
 DESCRIPTION = (
@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     import torch
 
     from ..paths import output_file
-    from .learn import TrainingSettings, learn_kernel
+    from ..tasks.learn import TrainingSettings, learn_kernel
 
     if args.out is not None:  # checked before training: STEM.json etc. must be writable
         output_file(Path(str(args.out) + ".json"), flag="--out")

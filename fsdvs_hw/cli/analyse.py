@@ -7,7 +7,9 @@ import json
 import math
 from pathlib import Path
 
-from .errors import InputError
+from ..errors import InputError
+
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
 HELP = "analyse a kernel: spectrum, radial response, agreement with CSF models; writes PNGs + JSON"
 DESCRIPTION = """\
@@ -41,46 +43,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of the table")
 
 
-def _parse_reference(spec: str, pitch_m: float | None):
-    from .kernels import DEFAULT_PITCH_M, reference_kernel
-
-    name, _, rest = spec.partition(":")
-    params: dict[str, float] = {}
-    size = 7
-    for item in filter(None, rest.split(",")):
-        key, eq, value = item.partition("=")
-        if not eq:
-            raise InputError(f"reference spec {spec!r}: expected key=value, got {item!r}")
-        try:
-            num = float(value)
-        except ValueError:
-            raise InputError(f"reference spec {spec!r}: {key} must be a number, got {value!r}") from None
-        if not math.isfinite(num):
-            raise InputError(f"reference spec {spec!r}: {key} must be finite, got {value!r}")
-        if key.strip() == "size":
-            if num != int(num):
-                raise InputError(f"reference spec {spec!r}: size must be an odd integer, got {value}")
-            size = int(num)
-        else:
-            params[key.strip()] = num
-    return reference_kernel(name, size, pitch_m=DEFAULT_PITCH_M if pitch_m is None else pitch_m, **params)
-
-
-def load_kernel_or_reference(spec: str, pitch_m: float | None = None):
-    """A kernel from a file path, or from a reference spec like ``dog:size=7,w_surround=1``."""
-    from .kernels import REFERENCE_KERNELS, load_kernel
-
-    path = Path(spec)
-    if path.suffix.lower() in (".npy", ".csv", ".json", ".pt") or path.exists():
-        return load_kernel(path, pitch_m=pitch_m)
-    if spec.partition(":")[0].lower() in REFERENCE_KERNELS:
-        return _parse_reference(spec, pitch_m)
-    raise InputError(
-        f"{spec!r} is neither a kernel file (.npy .csv .json .pt) nor a reference family "
-        f"({', '.join(REFERENCE_KERNELS)})"
-    )
-
-
 def _positive(flag: str, value: float | None, unit: str) -> float | None:
     """``value`` unchanged when None or a positive finite number; :class:`InputError` otherwise."""
     if value is not None and not (math.isfinite(value) and value > 0):
@@ -89,9 +51,10 @@ def _positive(flag: str, value: float | None, unit: str) -> float | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .analysis import analyse_kernel, format_analysis, write_analysis
-    from .csf import CSF_METHODS, Geometry
-    from .paths import output_dir
+    from ..analysis import analyse_kernel, format_analysis, write_analysis
+    from ..csf import CSF_METHODS, Geometry
+    from ..kernels import load_kernel_or_reference
+    from ..paths import output_dir
 
     _positive("--pitch-um", args.pitch_um, "micrometres")
     _positive("--focal-mm", args.focal_mm, "millimetres")

@@ -1,11 +1,13 @@
-"""The ``fsdvs-hw`` command: a thin front end (parse, call one library function, print).
+"""The ``fsdvs-hw`` command: the only place that parses arguments (one thin module per verb).
 
 Errors a user can cause (bad input, a missing tool, a file or folder that cannot be read or
 written) print one line naming the file and the problem and exit with status 2, never a traceback.
 
-Each sub-command lives in its own module, registered in :data:`COMMANDS` as a dotted module
-path. A command module defines ``HELP`` (one line), ``add_arguments(parser)`` and
-``run(args) -> int``; it imports heavy dependencies inside ``run`` so that ``--help`` is fast.
+Each verb is a module of this package, registered in :data:`COMMANDS` as a dotted module path. A
+verb module defines ``HELP`` (one line), optionally ``DESCRIPTION``, ``add_arguments(parser)``
+and ``run(args) -> int``: it turns the parsed arguments into the typed options of one library
+function, calls it and prints. It imports heavy dependencies inside ``run`` so that ``--help``
+is fast. ``python -m fsdvs_hw.cli`` is the same command.
 """
 
 from __future__ import annotations
@@ -15,20 +17,36 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-from .errors import InputError, ToolMissingError
+from ..errors import InputError, ToolMissingError
 
 __all__ = ["main", "COMMANDS"]
 
 #: sub-command name -> module implementing it
 COMMANDS: dict[str, str] = {
-    "analyse": "fsdvs_hw.analysis_cli",
-    "bench": "fsdvs_hw.bench",
-    "learn": "fsdvs_hw.tasks.learn_cli",
-    "ablation": "fsdvs_hw.explore.ablation",
-    "explore": "fsdvs_hw.explore.explore",
-    "sweep": "fsdvs_hw.explore.sweep",
-    "simulate": "fsdvs_hw.simulate_cli",
+    "analyse": "fsdvs_hw.cli.analyse",
+    "bench": "fsdvs_hw.cli.bench",
+    "learn": "fsdvs_hw.cli.learn",
+    "ablation": "fsdvs_hw.cli.ablation",
+    "explore": "fsdvs_hw.cli.explore",
+    "sweep": "fsdvs_hw.cli.sweep",
+    "simulate": "fsdvs_hw.cli.simulate",
+    "sizing": "fsdvs_hw.cli.sizing",
 }
+
+
+class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Descriptions kept as written; every option's default appended unless its help states it.
+
+    Like :class:`argparse.ArgumentDefaultsHelpFormatter`, but a default of ``None`` or ``False``
+    (an unset option, an off switch) is not printed, nor a default the help text already names.
+    """
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if ("default" in text or action.default in (None, False, argparse.SUPPRESS)
+                or not (action.option_strings or action.nargs in (argparse.OPTIONAL, argparse.ZERO_OR_MORE))):
+            return text
+        return text + " (default: %(default)s)"
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -46,14 +64,14 @@ def _parser() -> argparse.ArgumentParser:
         module = importlib.import_module(module_path)
         # argparse %-formats help strings: a literal "95 % CI" must reach it as "95 %% CI"
         p = sub.add_parser(name, help=module.HELP.replace("%", "%%"), description=getattr(module, "DESCRIPTION", module.HELP),
-                           formatter_class=argparse.RawDescriptionHelpFormatter)
+                           formatter_class=_HelpFormatter)
         module.add_arguments(p)
         p.set_defaults(_module=module)
     return parser
 
 
 def _version() -> str:
-    from . import __version__
+    from .. import __version__
 
     return f"fsdvs-hw {__version__}"
 
@@ -77,7 +95,3 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"fsdvs-hw {args.command}: interrupted", file=sys.stderr)
         return 130
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

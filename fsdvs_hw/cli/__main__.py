@@ -1,0 +1,7 @@
+"""``python -m fsdvs_hw.cli``: the ``fsdvs-hw`` command."""
+
+import sys
+
+from . import main
+
+sys.exit(main())

@@ -1,0 +1,41 @@
+"""Flags shared by the verbs that run design points (``explore``, ``sweep``): where and how to run."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+
+__all__ = ["add_execution_arguments", "security_from_args"]
+
+
+def add_execution_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--workers``, ``--scheduler``, ``--tls-*``, ``--no-progress``, ``--retry-errors``, ``--max-points``."""
+    parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: [run] workers)")
+    parser.add_argument("--scheduler", default=None, metavar="tls://HOST:PORT",
+                        help="run on a Dask distributed scheduler instead of local processes (tls:// with the "
+                             "--tls-* files; plain tcp:// only on a trusted network)")
+    parser.add_argument("--tls-ca-file", type=Path, default=None, metavar="PEM",
+                        help="CA certificate of the Dask cluster (tls:// schedulers)")
+    parser.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="this client's certificate")
+    parser.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="this client's private key")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--retry-errors", action="store_true",
+                        help="rerun this design's points stored as failed (finished points, and other "
+                             "designs' points in the same store, are always kept)")
+    parser.add_argument("--max-points", type=int, default=None, metavar="N",
+                        help="refuse sweeps of more than N design points (default: [run] max_points)")
+
+
+def security_from_args(args: argparse.Namespace) -> Any:
+    """The :func:`~fsdvs_hw.explore.sweep.dask_security` of the ``--tls-*`` flags, or None when none is given."""
+    files = (args.tls_ca_file, args.tls_cert, args.tls_key)
+    if all(f is None for f in files):
+        return None
+    if args.scheduler is None or not args.scheduler.startswith("tls://"):
+        raise InputError("--tls-ca-file/--tls-cert/--tls-key need --scheduler tls://HOST:PORT")
+    from ..explore.sweep import dask_security
+
+    return dask_security(*files)
