@@ -39,7 +39,8 @@ import torch
 
 from ..errors import InputError
 from .config import SensorConfig
-from .events import EventList, SimulationInfo, _advance, _choose_substeps_for, _init_state, _merge_events, _plan_config
+from .events import EventList, SimulationInfo, _advance, _choose_substeps_for, _init_state, _plan_config
+from .crossings import to_event_columns
 from .filtering import filtered_log_signal, kernel_tensor
 from .pixel import threshold_maps
 
@@ -276,9 +277,9 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
         ev_parts: list = []
         ctx = torch.no_grad() if not want_frames else contextlib.nullcontext()
         with ctx:
-            out = _advance(state, Ls, CI, SU, tsd, config, subs, want_events, ev_parts)
+            out = _advance(state, Ls, CI, SU, tsd, config, subs, want_events, ev_parts, want_frames)
         frames = torch.stack(out, dim=1).view(B, n_int, 2, *shape[1:]) if want_frames else None
-        ev = _merge_events([EventList(*c) for c in ev_parts]) if want_events else None
+        ev = EventList(*to_event_columns(ev_parts, shape[1], shape[2], B)) if want_events else None
         info = SimulationInfo(sig.floor_fraction, tuple(subs), state.noise_events - noise0,
                               int(round(state.lost - lost0)), B * shape[1] * shape[2] * sum(subs))
         yield EventChunk(first_interval, tsd, frames, ev, info, len(batch), shape[1], shape[2])
