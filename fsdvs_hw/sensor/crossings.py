@@ -145,14 +145,21 @@ def crossing_step(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_
         counts = emitted[sel].long()
         rep, ends = repeat_index(counts)
         src = sel[rep]
-        k = torch.arange(len(rep), device=rep.device) - (ends - counts)[rep]
-        j = k.double().add_(1.0) if j0 is None else j0[src] + k.double() * m[src]  # j0 + k m
-        ta_e = _at(ta, src)
-        tb_e = t_b.reshape(-1)[bi[src]] if B > 1 else t_b.reshape(())
-        # a crossing already due at the step start (after a noise reset) fires just after it
-        t_min = torch.nextafter(ta_e, torch.full_like(ta_e, math.inf))
-        t = torch.minimum(torch.maximum(ta_e + (j * _at(cc, src) - da[src]) / v[src], t_min), tb_e)
-        parts.append((idx[src], t, torch.full((len(rep),), sign, dtype=torch.int8)))
+        # k-th crossing of its pixel (int64 → float64 in place of the index arithmetic)
+        j = torch.arange(len(rep), device=rep.device).sub_((ends - counts)[rep]).double()
+        del rep, ends, counts
+        j = j.add_(1.0) if j0 is None else j.mul_(m[src]).add_(j0[src])  # j0 + k m, as (k m) + j0
+        # t = t_a + (j C - d_a) / v, in place, same roundings (IEEE + and * commute exactly)
+        t = j.mul_(_at(cc, src)).sub_(da[src]).div_(v[src])
+        if B > 1:
+            ta_e, tb_e = ta[src], t_b.reshape(-1)[bi[src]]
+            t = t.add_(ta_e)
+            # a crossing already due at the step start (after a noise reset) fires just after it
+            t = torch.minimum(torch.maximum(t, torch.nextafter(ta_e, torch.full_like(ta_e, math.inf))), tb_e)
+        else:
+            t0 = float(ta)
+            t = t.add_(t0).clamp_(min=math.nextafter(t0, math.inf), max=float(t_b.reshape(())))
+        parts.append((idx[src], t, torch.full((len(t),), sign, dtype=torch.int8)))
     return lost, ems[0], ems[1]
 
 
