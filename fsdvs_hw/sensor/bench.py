@@ -373,7 +373,8 @@ def _case_config(case: dict[str, Any]) -> tuple[Any, Any]:
     return cfg, kernel
 
 
-def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int) -> dict[str, Any]:
+def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int,
+              long_seconds: float = 120.0) -> dict[str, Any]:
     """Run one case ``repeats`` times in this process; wall times, events, peak RSS (child side)."""
     import resource
     import tempfile
@@ -394,7 +395,7 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
         g = torch.Generator().manual_seed(0)
         video = torch.rand(T, H, W, generator=g) * 0.9 + 0.05
     else:
-        seconds = 4.0 if quick else 120.0
+        seconds = 4.0 if quick else float(long_seconds)
         H, W = (480, 640)
         T = int(round(seconds * cfg.frame_rate_hz))
         video = None
@@ -430,7 +431,7 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
 
 
 def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats: int | None = None,
-                threads: int | None = None, chunk_frames: int = 8) -> list[dict[str, Any]]:
+                threads: int | None = None, chunk_frames: int = 8, long_seconds: float = 120.0) -> list[dict[str, Any]]:
     """Benchmark records: one plain dict per case of :data:`SIM_CASES`.
 
     Parameters
@@ -446,13 +447,16 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
         torch threads in the children (default ``min(2, cpu_count)``).
     chunk_frames : int
         Frame intervals per streamed chunk (memory grows with it; throughput barely does).
+    long_seconds : float
+        Length of the long 640×480 clip (default 120 s = 3000 frames; 4 s with ``quick``).
 
     Returns
     -------
     list of dict
         Keys: ``case``, ``clip``, ``path``, ``resolution`` ("HxW"), ``n_frames``, ``events``,
         ``mpf_s_mean``, ``mpf_s_std``, ``mpf_s_min``, ``mpf_s_max`` (Mpixel-frames/s of wall time,
-        over repeats), ``cpu_s_mean`` (process CPU time), ``repeats``, ``peak_rss_mb`` (the child
+        over repeats), ``cpu_s_mean`` (process CPU time), ``mpf_cpu_s_mean``, ``mpf_cpu_s_std``
+        (Mpixel-frames per CPU second: the contention-free figure on a shared machine), ``repeats``, ``peak_rss_mb`` (the child
         process's peak resident memory, imports and clip included), ``rss_base_mb`` (its peak before
         the first run: imports and the clip in memory), ``threads``, ``settings``, ``chunk_frames``,
         ``torch``, ``load_avg`` (1-min load average when the case started; above the CPU count
@@ -480,7 +484,7 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
         reps = repeats if repeats is not None else (1 if quick or case["clip"] == "long" else 3)
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
         spec = json.dumps({"case": case, "repeats": reps, "quick": quick, "threads": threads,
-                           "chunk_frames": chunk_frames})
+                           "chunk_frames": chunk_frames, "long_seconds": long_seconds})
         res = subprocess.run([sys.executable, "-m", "fsdvs_hw.sensor.bench", "--child", spec],
                              capture_output=True, text=True, env=dict(os.environ), check=False)
         if res.returncode != 0:
@@ -488,10 +492,13 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
         r = json.loads(res.stdout.strip().splitlines()[-1])
         px = r["height"] * r["width"] * r["n_frames"] / 1e6
         rates = [px / w for w in r["walls"]]
+        cpu_rates = [px / max(c, 1e-9) for c in r["cpus"]]
         out.append({"case": name, "clip": case["clip"], "path": case["path"],
                     "resolution": f"{r['height']}x{r['width']}", "n_frames": r["n_frames"], "events": r["events"],
                     "mpf_s_mean": statistics.fmean(rates), "mpf_s_std": statistics.stdev(rates) if len(rates) > 1 else 0.0,
                     "mpf_s_min": min(rates), "mpf_s_max": max(rates), "cpu_s_mean": statistics.fmean(r["cpus"]),
+                    "mpf_cpu_s_mean": statistics.fmean(cpu_rates),
+                    "mpf_cpu_s_std": statistics.stdev(cpu_rates) if len(cpu_rates) > 1 else 0.0,
                     "repeats": reps, "peak_rss_mb": r["peak_rss_mb"], "rss_base_mb": r["rss_base_mb"],
                     "threads": threads, "settings": case["settings"], "chunk_frames": chunk_frames,
                     "torch": torch.__version__, "load_avg": load})
@@ -502,13 +509,13 @@ def records_markdown(records: list[dict[str, Any]]) -> str:
     """The Markdown table of :func:`sim_records`' records."""
     lines = ["### Records: Mpixel-frames/s (wall; mean ± sd [min–max] over repeats) and peak RSS of a fresh "
              "child process per case", "",
-             "| case | path | clip | frames | events | Mpixel-frames/s | CPU s | repeats | peak RSS (MB) | "
+             "| case | path | clip | frames | events | Mpixel-frames/s (wall) | per CPU-s | repeats | peak RSS (MB) | "
              "base RSS (MB) | threads | settings | load |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in records:
         lines.append(f"| {r['case']} | {r['path']} | {r['clip']} {r['resolution']} | {r['n_frames']} | {r['events']} | "
                      f"{r['mpf_s_mean']:.2f} ± {r['mpf_s_std']:.2f} [{r['mpf_s_min']:.2f}–{r['mpf_s_max']:.2f}] | "
-                     f"{r['cpu_s_mean']:.1f} | {r['repeats']} | {r['peak_rss_mb']:.0f} | {r['rss_base_mb']:.0f} | "
+                     f"{r['mpf_cpu_s_mean']:.2f} ± {r['mpf_cpu_s_std']:.2f} | {r['repeats']} | {r['peak_rss_mb']:.0f} | {r['rss_base_mb']:.0f} | "
                      f"{r['threads']} | {r['settings']} | {r['load_avg']:.1f} |")
     if records:
         lines += ["", f"torch {records[0]['torch']}, chunks of {records[0]['chunk_frames']} frame intervals; "
@@ -521,7 +528,8 @@ def _child_main(spec_json: str) -> None:
 
     spec = json.loads(spec_json)
     torch.set_num_threads(int(spec["threads"]))
-    r = _run_case(spec["case"], int(spec["repeats"]), bool(spec["quick"]), int(spec["chunk_frames"]))
+    r = _run_case(spec["case"], int(spec["repeats"]), bool(spec["quick"]), int(spec["chunk_frames"]),
+                  float(spec.get("long_seconds", 120.0)))
     print(json.dumps(r))
 
 

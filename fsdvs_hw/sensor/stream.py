@@ -151,9 +151,12 @@ def simulate(frames: Any, kernel: Any = None, *, timestamps_s: Any = None, confi
     plan : ModelPlan, optional
         A :func:`~fsdvs_hw.sensor.plan_model` plan (its config and per-interval sub-steps).
     chunk_frames : int
-        Frame intervals per chunk (>= 1). Peak memory grows with one chunk's frames and events
-        (on the event-list path about 230 bytes per event of the chunk, measured on bikes.mp4 at
-        480×640); the per-frame work does not depend on it.
+        Frame intervals per chunk (>= 1). Peak memory grows with one chunk's frames and events:
+        on the event-list path each event of the chunk costs 17 bytes while the chunk is built
+        (pixel index, time, polarity) and 25 bytes in the returned columns (x, y int64, t
+        float64, p int8; the batch column of a B = 1 stream is a broadcast zero), plus the
+        transient work arrays of the busiest single step (about 100 bytes per event of that
+        step). The per-frame work does not depend on it.
     events, event_frames : bool
         Return each chunk's exact event list and/or its event frames.
     generator : torch.Generator, optional
