@@ -61,3 +61,10 @@ def test_sim_records_child_measures_a_case():
     assert r["n_frames"] == 17 and r["resolution"] == "120x160" and r["events"] > 0
     assert r["mpf_s_min"] <= r["mpf_s_mean"] <= r["mpf_s_max"] and r["mpf_s_mean"] > 0
     assert r["peak_rss_mb"] >= r["rss_base_mb"] > 50  # a fresh child's own peak, torch imported
+
+
+def test_v2e_records_needs_a_v2e_checkout(tmp_path):
+    from fsdvs_hw.sensor.bench import v2e_records
+
+    with pytest.raises(InputError, match="v2ecore/emulator.py"):
+        v2e_records(str(tmp_path))

@@ -37,7 +37,7 @@ import sys
 import time
 from typing import Any
 
-__all__ = ["bench_sim", "moving_texture", "sim_records", "records_markdown", "long_clip_frames", "SIM_CASES"]
+__all__ = ["bench_sim", "moving_texture", "sim_records", "records_markdown", "long_clip_frames", "SIM_CASES", "v2e_records"]
 
 
 def moving_texture(T: int = 17, H: int = 120, W: int = 160, *, speed_px: float = 2.0,
@@ -521,6 +521,101 @@ def records_markdown(records: list[dict[str, Any]]) -> str:
         lines += ["", f"torch {records[0]['torch']}, chunks of {records[0]['chunk_frames']} frame intervals; "
                   "base RSS = the child's peak after imports and loading the clip, before the first run."]
     return "\n".join(lines)
+
+
+_V2E_STUBS = {  # v2e imports these at module level for its GUI / file paths only
+    "screeninfo": "def get_monitors():\n    return []\n",
+    "engineering_notation": "class EngNumber(float):\n    def __new__(cls, v, *a, **k):\n        return float.__new__(cls, float(v))\n",
+    "easygui": "", "plyer": "", "cv2": "",
+    "numba": "def njit(*a, **k):\n    return a[0] if a and callable(a[0]) else (lambda f: f)\njit = njit\n",
+}
+
+_V2E_CHILD = r"""
+import json, logging, resource, sys, time
+stubs, src, mode, threads, reps, n_frames, frames_path = sys.argv[1:8]
+sys.path[:0] = [stubs, src]
+logging.disable(logging.WARNING)
+import numpy as np, torch
+torch.set_num_threads(int(threads))
+from v2ecore.emulator import EventEmulator
+luma = np.load(frames_path, mmap_mode="r")
+luma = luma[:int(n_frames)] if int(n_frames) > 0 else luma
+T, H, W = luma.shape
+kw = dict(pos_thres=0.2, neg_thres=0.2, device="cpu", seed=0)
+if mode == "default":
+    kw.update(sigma_thres=0.03, cutoff_hz=300.0, leak_rate_hz=0.01, refractory_period_s=5e-4, shot_noise_rate_hz=0.001)
+elif mode == "clean":
+    kw.update(sigma_thres=0.02, cutoff_hz=0.0, leak_rate_hz=0.0, refractory_period_s=0.0, shot_noise_rate_hz=0.0)
+else:
+    kw.update(sigma_thres=0.03, cutoff_hz=300.0, leak_rate_hz=0.01, refractory_period_s=5e-4, shot_noise_rate_hz=0.001,
+              cs_lambda_pixels=2.0, cs_tau_p_ms=0.0)
+rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+walls, cpus, counts = [], [], []
+for _ in range(int(reps)):
+    emu = EventEmulator(**kw)
+    n = 0
+    t0, c0 = time.perf_counter(), time.process_time()
+    for k in range(T):
+        ev = emu.generate_events(np.asarray(luma[k], dtype=np.float32) * np.float32(255.0), k / 25.0)
+        n += 0 if ev is None else len(ev)
+    walls.append(time.perf_counter() - t0); cpus.append(time.process_time() - c0); counts.append(n)
+print(json.dumps({"walls": walls, "cpus": cpus, "events": counts[-1], "n_frames": T, "height": H, "width": W,
+                  "rss_base_mb": rss0 / 1024, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
+def v2e_records(v2e_src: str, *, modes: tuple[str, ...] = ("default", "clean", "cs"), repeats: int = 3,
+                threads: int = 1, n_frames: int = 0) -> list[dict[str, Any]]:
+    """v2e's ``EventEmulator`` on bikes.mp4, as records comparable with :func:`sim_records`.
+
+    v2e is never a dependency: ``v2e_src`` is a source checkout (the directory holding
+    ``v2ecore/``, e.g. a snapshot of SensorsINI/v2e); its display-only imports (OpenCV,
+    screeninfo, easygui, plyer, engineering_notation, numba) are stubbed in a temporary
+    directory. The emulator gets the same linear frames as this simulator, times 255 as v2e's
+    8-bit code values, so both produce the same events at the same settings. Modes: ``default``
+    (v2e's command-line defaults = ``SensorConfig.preset("v2e-default")``), ``clean``
+    (``v2e-clean``), ``cs`` (its CSDVS, λ = 2 px, default noise). ``n_frames``: 0 = the whole clip.
+    """
+    import tempfile
+    from pathlib import Path
+
+    import numpy as np
+    import torch
+
+    from ..errors import InputError
+
+    if not (Path(v2e_src) / "v2ecore" / "emulator.py").is_file():
+        raise InputError(f"v2e_src: {v2e_src!r} holds no v2ecore/emulator.py (a v2e source checkout)")
+    out = []
+    with tempfile.TemporaryDirectory() as d:
+        stubs = Path(d) / "stubs"
+        stubs.mkdir()
+        for name, text in _V2E_STUBS.items():
+            (stubs / f"{name}.py").write_text(text)
+        frames = Path(d) / "bikes.npy"
+        np.save(frames, _bikes(n_frames or None).numpy())
+        for mode in modes:
+            load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+            res = subprocess.run([sys.executable, "-c", _V2E_CHILD, str(stubs), str(v2e_src), mode, str(threads),
+                                  str(repeats), str(n_frames), str(frames)], capture_output=True, text=True,
+                                 check=False)
+            if res.returncode != 0:
+                raise RuntimeError(f"v2e child ({mode}) failed: {res.stderr[-2000:]}")
+            r = json.loads(res.stdout.strip().splitlines()[-1])
+            px = r["height"] * r["width"] * r["n_frames"] / 1e6
+            rates = [px / w for w in r["walls"]]
+            cpu_rates = [px / max(c, 1e-9) for c in r["cpus"]]
+            out.append({"case": f"v2e/{mode}", "clip": "bikes", "path": "v2e EventEmulator",
+                        "resolution": f"{r['height']}x{r['width']}", "n_frames": r["n_frames"], "events": r["events"],
+                        "mpf_s_mean": statistics.fmean(rates),
+                        "mpf_s_std": statistics.stdev(rates) if len(rates) > 1 else 0.0,
+                        "mpf_s_min": min(rates), "mpf_s_max": max(rates), "cpu_s_mean": statistics.fmean(r["cpus"]),
+                        "mpf_cpu_s_mean": statistics.fmean(cpu_rates),
+                        "mpf_cpu_s_std": statistics.stdev(cpu_rates) if len(cpu_rates) > 1 else 0.0,
+                        "repeats": repeats, "peak_rss_mb": r["peak_rss_mb"], "rss_base_mb": r["rss_base_mb"],
+                        "threads": threads, "settings": mode, "chunk_frames": 1, "torch": torch.__version__,
+                        "load_avg": load})
+    return out
 
 
 def _child_main(spec_json: str) -> None:
