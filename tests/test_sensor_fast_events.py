@@ -14,7 +14,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fsdvs_hw.sensor import SensorConfig, event_frames, event_list
-from fsdvs_hw.sensor.crossings import crossing_step, sort_interval, stable_time_order, to_event_columns
+from fsdvs_hw.sensor.crossings import (
+    crossing_step,
+    sort_interval,
+    stable_time_order,
+    to_event_columns,
+)
 
 
 def _ref_emit(n, d_a, v, c, t_a, last_t, refr):
@@ -59,7 +64,7 @@ def _reference_step(h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, l
     _ref_collect(store, em_off, j0_off, m_off, -d_a, -v, cf, t_a, t_b, -1)
     if not store:
         return None, lt, em_on, em_off
-    b, x, y, t, p = (torch.cat(c) for c in zip(*store))
+    b, x, y, t, p = (torch.cat(c) for c in zip(*store, strict=True))
     order = torch.argsort(t, stable=True)
     order = order[torch.argsort(b[order], stable=True)]
     return (b[order], x[order], y[order], t[order], p[order]), lt, em_on, em_off
@@ -95,7 +100,7 @@ def test_crossing_step_equals_full_frame_reference(refr, mismatch, B):
                                         True, True)
     got = to_event_columns([sort_interval(parts)], H, W, B)
     assert ref_ev is not None and len(ref_ev[0]) > 10
-    for a, r in zip(got, ref_ev):
+    for a, r in zip(got, ref_ev, strict=True):
         assert a.dtype == r.dtype and torch.equal(a, r)
     assert torch.equal(em_on, ref_on.float()) and torch.equal(em_off, ref_off.float())
     if refr > 0:

@@ -185,8 +185,6 @@ def _throughput(quick: bool) -> str:
 
 
 def _accuracy(quick: bool) -> str:
-    import torch
-
     from ..kernels import reference_kernel
     from .config import SensorConfig
     from .events import event_frames
@@ -318,7 +316,6 @@ def long_clip_frames(seconds: float = 120.0, size: tuple[int, int] = (480, 640),
     Yields (H, W) float32 tensors of linear luminance, one at a time (the source clip is decoded
     once and held at its own size, 250 × 272 × 640 float32 = 174 MB).
     """
-    import torch
     import torch.nn.functional as F
 
     src = _bikes()

@@ -56,7 +56,7 @@ def _gather(x: Any, idx: Any, shape: tuple[int, int, int]) -> Any:
         return x
     if x.shape == shape:
         return x.reshape(-1)[idx]
-    B, H, W = shape
+    _, H, W = shape
     if x.ndim == 2 or x.shape[0] == 1:  # one map for every batch element
         return x.reshape(-1)[idx % (H * W)]
     return x.expand(shape).reshape(-1)[idx]
@@ -195,7 +195,7 @@ def sort_interval(parts: list) -> tuple[Any, Any, Any] | None:
     if len(parts) == 1:
         flat, t, p = parts[0]
     else:
-        flat, t, p = (torch.cat(c) for c in zip(*parts))
+        flat, t, p = (torch.cat(c) for c in zip(*parts, strict=True))
     parts.clear()
     flat, t, p = flat.cpu(), t.cpu(), p.cpu()
     order = torch.from_numpy(stable_time_order(t.numpy()))
