@@ -392,7 +392,7 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
         g = torch.Generator().manual_seed(0)
         video = torch.rand(T, H, W, generator=g) * 0.9 + 0.05
     else:
-        seconds = 4.0 if quick else float(long_seconds)
+        seconds = 1.0 if quick else float(long_seconds)
         H, W = (480, 640)
         T = int(round(seconds * cfg.frame_rate_hz))
         video = None
@@ -434,7 +434,7 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
     Parameters
     ----------
     quick : bool
-        Small problems (40 bikes frames, 120×160 synthetic, a 4 s long clip), one repeat.
+        Small problems (40 bikes frames, 120×160 synthetic, a 1 s long clip), one repeat.
     cases : list of str, optional
         Names from :data:`SIM_CASES` (default: all; the two 2-minute cases only without ``quick``
         take minutes each).
@@ -445,7 +445,7 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
     chunk_frames : int
         Frame intervals per streamed chunk (memory grows with it; throughput barely does).
     long_seconds : float
-        Length of the long 640×480 clip (default 120 s = 3000 frames; 4 s with ``quick``).
+        Length of the long 640×480 clip (default 120 s = 3000 frames; 1 s with ``quick``).
 
     Returns
     -------
