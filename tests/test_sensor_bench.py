@@ -31,3 +31,40 @@ def test_bench_sim_quick_tables():
     assert len(rows) == 3
     for tol, count_err, frame_err in rows:
         assert float(count_err) <= float(tol) and float(frame_err) <= float(tol)
+
+
+def test_records_markdown_and_bad_cases():
+    from fsdvs_hw.sensor.bench import SIM_CASES, records_markdown, sim_records
+
+    rec = {"case": "bikes/event list", "clip": "bikes", "path": "event list", "resolution": "272x640",
+           "n_frames": 250, "events": 10, "mpf_s_mean": 4.0, "mpf_s_std": 0.5, "mpf_s_min": 3.5, "mpf_s_max": 4.5,
+           "cpu_s_mean": 1.0, "mpf_cpu_s_mean": 5.0, "mpf_cpu_s_std": 0.1, "repeats": 3, "peak_rss_mb": 600.0,
+           "rss_base_mb": 400.0, "threads": 2, "settings": "v2e-default", "chunk_frames": 8, "torch": "x",
+           "load_avg": 1.0}
+    text = records_markdown([rec])
+    assert "| bikes/event list | event list | bikes 272x640 | 250 | 10 | 4.00 ± 0.50 [3.50–4.50] | 5.00 ± 0.10 | 3 | 600 |" in text
+    assert {c["path"] for c in SIM_CASES.values()} >= {"frames", "event list", "forward+backward", "centre-surround"}
+    with pytest.raises(InputError, match="unknown"):
+        sim_records(cases=["bikes/nope"])
+    with pytest.raises(InputError, match="repeats"):
+        sim_records(cases=["bikes/frames"], repeats=0)
+
+
+@pytest.mark.slow
+def test_sim_records_child_measures_a_case():
+    import json
+
+    from fsdvs_hw.sensor.bench import sim_records
+
+    (r,) = sim_records(quick=True, cases=["synthetic/frames"], threads=1)
+    json.dumps(r)  # plain values only
+    assert r["n_frames"] == 17 and r["resolution"] == "120x160" and r["events"] > 0
+    assert r["mpf_s_min"] <= r["mpf_s_mean"] <= r["mpf_s_max"] and r["mpf_s_mean"] > 0
+    assert r["peak_rss_mb"] >= r["rss_base_mb"] > 50  # a fresh child's own peak, torch imported
+
+
+def test_v2e_records_needs_a_v2e_checkout(tmp_path):
+    from fsdvs_hw.sensor.bench import v2e_records
+
+    with pytest.raises(InputError, match="v2ecore/emulator.py"):
+        v2e_records(str(tmp_path))

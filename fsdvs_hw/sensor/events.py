@@ -47,6 +47,7 @@ import torch
 from ..errors import InputError
 from ..limits import check_allocation
 from .config import SensorConfig
+from .crossings import crossing_step, noise_step, sort_interval, to_event_columns
 from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
 from .pixel import effect_generator, lowpass_step, threshold_maps
 
@@ -195,20 +196,6 @@ def _substep_times(tsd: Any, k: int, s: int, S: int) -> tuple[Any, Any]:
     return t_a.view(B, 1, 1), t_b.view(B, 1, 1)
 
 
-def _refractory_emit(n: Any, d_a: Any, v: Any, c: Any, t_a: Any, last_t: Any, refr: float) -> tuple[Any, Any, Any, Any]:
-    """Crossings emitted after refractory losses: count, first index j0, stride m, last time."""
-    import torch
-
-    vs = torch.where(v > 0, v, torch.ones_like(v))
-    j0 = torch.ceil((vs * (last_t + refr - t_a) + d_a) / c).clamp(min=1.0)
-    m = torch.ceil(refr * vs / c).clamp(min=1.0)
-    emitted = torch.where(n >= j0, 1.0 + torch.floor((n - j0) / m), torch.zeros_like(n))
-    emitted = torch.where(v > 0, emitted, torch.zeros_like(n))
-    j_last = j0 + (emitted - 1.0) * m
-    t_last = torch.where(emitted > 0, t_a + (j_last * c - d_a) / vs, last_t)
-    return emitted, j0, m, t_last
-
-
 def _refractory_surrogate(n: Any, h: Any, emitted: Any) -> Any:
     """Emitted counts whose straight-through gradient is scaled by the emitted share.
 
@@ -218,41 +205,6 @@ def _refractory_surrogate(n: Any, h: Any, emitted: Any) -> Any:
     """
     share = torch.where(h > 0, emitted / torch.where(h > 0, h, torch.ones_like(h)), torch.ones_like(h)).detach()
     return emitted.detach() + (n - h.detach()) * share
-
-
-def _repeat_index(counts: Any) -> tuple[Any, Any]:
-    """``(repeat_interleave(arange(n), counts), cumsum(counts))`` by a sorted search.
-
-    Same result as ``torch.repeat_interleave``, whose CPU kernel costs milliseconds per call on a
-    loaded multi-threaded machine (thread wake-ups) even for a few elements; it is called twice
-    per sub-step on the event-list path.
-    """
-    ends = torch.cumsum(counts, 0)
-    total = int(ends[-1]) if len(ends) else 0
-    return torch.searchsorted(ends, torch.arange(total, device=counts.device), right=True), ends
-
-
-def _collect(store: list, emitted: Any, j0: Any, m: Any, d_a: Any, v: Any, c: Any,
-             t_a: Any, t_b: Any, polarity: int) -> None:
-    import torch
-
-    idx = torch.nonzero(emitted > 0)
-    if idx.numel() == 0:
-        return
-    bi, yi, xi = idx[:, 0], idx[:, 1], idx[:, 2]
-    counts = emitted[bi, yi, xi].long()
-    rep, ends = _repeat_index(counts)
-    k = torch.arange(len(rep), device=counts.device) - (ends - counts)[rep]
-    cc = c.expand_as(emitted)[bi, yi, xi][rep] if c.ndim else c.expand(len(rep))
-    j = j0[bi, yi, xi][rep] + k.to(j0.dtype) * m[bi, yi, xi][rep]
-    vv = v[bi, yi, xi][rep]
-    ta = t_a.expand_as(emitted)[bi, yi, xi][rep]
-    tb = t_b.expand_as(emitted)[bi, yi, xi][rep]
-    # a crossing already due at the step start (after a noise reset) fires just after it
-    t_min = torch.nextafter(ta, torch.full_like(ta, math.inf))
-    t = torch.minimum(torch.maximum(ta + (j * cc - d_a[bi, yi, xi][rep]) / vv, t_min), tb)
-    store.append((bi[rep].cpu(), xi[rep].cpu(), yi[rep].cpu(), t.cpu(),
-                  torch.full((len(rep),), polarity, dtype=torch.int8)))
 
 
 def _sum_to(t: Any, like: Any) -> Any:
@@ -343,10 +295,12 @@ def _init_state(L0: Any, SU0: Any, config: SensorConfig, thresholds: tuple[Any, 
 
 
 def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: SensorConfig, substeps: list[int],
-             collect_events: bool, events: list) -> list:
+             collect_events: bool, events: list, want_counts: bool = True) -> list:
     """Step the pixels of ``st`` through frames ``Ls[0] → Ls[1] → ...`` (tuples of (B, H, W));
-    ``Ls[0]`` is the frame the state is at. Returns the [on, off, on, off, ...] interval counts;
-    events are appended to ``events``. ``tsd``: (B, len(Ls)) float64 frame times."""
+    ``Ls[0]`` is the frame the state is at. Returns the [on, off, on, off, ...] interval counts
+    (``None`` entries unless ``want_counts``); each interval's time-sorted ``(flat, t, p)`` events
+    (:func:`.crossings.sort_interval`, or None) are appended to ``events``. ``tsd``: (B, len(Ls))
+    float64 frame times."""
     B, H, W = Ls[0].shape
     dev, dt_ = Ls[0].device, Ls[0].dtype
     c_on, c_off, eps = st.c_on, st.c_off, st.eps
@@ -361,6 +315,7 @@ def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Senso
     shot_g, time_g = st.shot_g, st.time_g
     noise_events, lost = st.noise_events, st.lost
     frames = []
+    step_parts: list = []
     for k in range(len(Ls) - 1):
         S = substeps[k]
         dt_int = (tsd[:, k + 1] - tsd[:, k])  # (B,)
@@ -396,21 +351,13 @@ def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Senso
                 if exact_times:
                     with torch.no_grad():
                         t_a, t_b = _substep_times(tsd, k, s, S)
-                        d_a = (sig_prev - ref_a).detach().double()
-                        v = ((d_b.double() - d_a) / dt_sub64)
-                        co, cf = c_on.detach().double(), c_off.detach().double()
-                        lt = last_t if last_t is not None else torch.full_like(d_a, -math.inf)
-                        em_on, j0_on, m_on, lt = _refractory_emit(h_on.double(), d_a, v, co, t_a, lt, refr)
-                        em_off, j0_off, m_off, lt = _refractory_emit(h_off.double(), -d_a, -v, cf, t_a, lt, refr)
-                        if last_t is not None:
-                            last_t = lt
-                            lost += float((h_on + h_off).sum()) - float((em_on + em_off).sum())
-                        if collect_events:
-                            _collect(events, em_on, j0_on, m_on, d_a, v, co, t_a, t_b, 1)
-                            _collect(events, em_off, j0_off, m_off, -d_a, -v, cf, t_a, t_b, -1)
-                    if refr > 0:  # refractory losses: emitted counts, gradient of the emitted share
-                        e_on = _refractory_surrogate(n_on, h_on, em_on.to(dt_))
-                        e_off = _refractory_surrogate(n_off, h_off, em_off.to(dt_))
+                        lost_s, em_on, em_off = crossing_step(
+                            step_parts, h_on, h_off, sig_prev.detach(), ref_a.detach(), d_b, c_on.detach(),
+                            c_off.detach(), t_a, t_b, dt_sub64, last_t, refr, collect_events, refr > 0 and want_counts)
+                        lost += lost_s
+                    if refr > 0 and want_counts:  # refractory losses: emitted counts, gradient of the emitted share
+                        e_on = _refractory_surrogate(n_on, h_on, em_on)
+                        e_off = _refractory_surrogate(n_off, h_off, em_off)
             ref = ref_next
             if shot > 0:
                 lam = torch.full((B, H, W), 0.5 * shot, dtype=torch.float64, device=shot_g.device) * dt_sub64.to(shot_g.device)
@@ -420,21 +367,14 @@ def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Senso
                 e_on = e_on + k_on
                 e_off = e_off + k_off
                 if collect_events:
-                    ta, tb = (x.expand(B, H, W) for x in _substep_times(tsd, k, s, S))
-                    for kk, pol in ((k_on, 1), (k_off, -1)):
-                        idx = torch.nonzero(kk > 0)
-                        if idx.numel():
-                            cnt = kk[idx[:, 0], idx[:, 1], idx[:, 2]].long()
-                            rep = idx[_repeat_index(cnt)[0]]
-                            u = torch.rand(len(rep), generator=time_g, device=time_g.device, dtype=torch.float64).to(dev)
-                            t = torch.minimum(ta[rep[:, 0], rep[:, 1], rep[:, 2]] + (1.0 - u) * dt_sub64.view(B)[rep[:, 0]],
-                                              tb[rep[:, 0], rep[:, 1], rep[:, 2]])
-                            events.append((rep[:, 0].cpu(), rep[:, 2].cpu(), rep[:, 1].cpu(), t.cpu(),
-                                           torch.full((len(rep),), pol, dtype=torch.int8)))
+                    noise_step(step_parts, k_on, k_off, *_substep_times(tsd, k, s, S), dt_sub64, time_g)
             sig_prev = target
-            on_acc = e_on if on_acc is None else on_acc + e_on
-            off_acc = e_off if off_acc is None else off_acc + e_off
+            if want_counts:
+                on_acc = e_on if on_acc is None else on_acc + e_on
+                off_acc = e_off if off_acc is None else off_acc + e_off
         frames += [on_acc, off_acc]
+        if collect_events:
+            events.append(sort_interval(step_parts))
     st.ref, st.lp, st.sur, st.sig_prev, st.last_t = ref, lp, sur, sig_prev, last_t
     st.noise_events, st.lost = noise_events, lost
     return frames
@@ -463,7 +403,7 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     out = torch.stack(frames, dim=1).view(B, T - 1, 2, H, W)
     ev = None
     if collect_events:
-        ev = _merge_events([EventList(*c) for c in events])
+        ev = EventList(*to_event_columns(events, H, W, B))
     info = SimulationInfo(signal.floor_fraction, tuple(substeps), st.noise_events, int(round(st.lost)),
                           B * H * W * sum(substeps))
     return out, info, ev

@@ -39,7 +39,8 @@ import torch
 
 from ..errors import InputError
 from .config import SensorConfig
-from .events import EventList, SimulationInfo, _advance, _choose_substeps_for, _init_state, _merge_events, _plan_config
+from .events import EventList, SimulationInfo, _advance, _choose_substeps_for, _init_state, _plan_config
+from .crossings import to_event_columns
 from .filtering import filtered_log_signal, kernel_tensor
 from .pixel import threshold_maps
 
@@ -150,9 +151,12 @@ def simulate(frames: Any, kernel: Any = None, *, timestamps_s: Any = None, confi
     plan : ModelPlan, optional
         A :func:`~fsdvs_hw.sensor.plan_model` plan (its config and per-interval sub-steps).
     chunk_frames : int
-        Frame intervals per chunk (>= 1). Peak memory grows with one chunk's frames and events
-        (on the event-list path about 230 bytes per event of the chunk, measured on bikes.mp4 at
-        480×640); the per-frame work does not depend on it.
+        Frame intervals per chunk (>= 1). Peak memory grows with one chunk's frames and events:
+        on the event-list path each event of the chunk costs 17 bytes while the chunk is built
+        (pixel index, time, polarity) and 25 bytes in the returned columns (x, y int64, t
+        float64, p int8; the batch column of a B = 1 stream is a broadcast zero), plus the
+        transient work arrays of the busiest single step (about 100 bytes per event of that
+        step). The per-frame work does not depend on it.
     events, event_frames : bool
         Return each chunk's exact event list and/or its event frames.
     generator : torch.Generator, optional
@@ -276,9 +280,9 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
         ev_parts: list = []
         ctx = torch.no_grad() if not want_frames else contextlib.nullcontext()
         with ctx:
-            out = _advance(state, Ls, CI, SU, tsd, config, subs, want_events, ev_parts)
+            out = _advance(state, Ls, CI, SU, tsd, config, subs, want_events, ev_parts, want_frames)
         frames = torch.stack(out, dim=1).view(B, n_int, 2, *shape[1:]) if want_frames else None
-        ev = _merge_events([EventList(*c) for c in ev_parts]) if want_events else None
+        ev = EventList(*to_event_columns(ev_parts, shape[1], shape[2], B)) if want_events else None
         info = SimulationInfo(sig.floor_fraction, tuple(subs), state.noise_events - noise0,
                               int(round(state.lost - lost0)), B * shape[1] * shape[2] * sum(subs))
         yield EventChunk(first_interval, tsd, frames, ev, info, len(batch), shape[1], shape[2])

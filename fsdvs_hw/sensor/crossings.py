@@ -1,0 +1,255 @@
+"""Exact threshold crossings of one comparator step, computed on the pixels that cross only.
+
+The comparator step of :mod:`.events` gives, per pixel, the number of ON and OFF crossings
+``h`` of a step from ``t_a`` to ``t_b``; its input moves linearly from ``d_a = L_a - r_a`` to
+``d_b``. This module turns those counts into events without a Python loop per event or pixel:
+
+1. **Active pixels only.** The pixels with ``h > 0`` are gathered once (``nonzero``); the
+   refractory arithmetic (first emitted index ``j0``, stride ``m``, count, last event time) runs
+   on them alone. A pixel that crosses in a step crosses one way only (``d_b`` has one sign), so
+   ON and OFF never meet in a pixel within a step. Without a refractory period ``j0 = m = 1`` and
+   every crossing is emitted: that path does no refractory arithmetic at all.
+2. **Events by expansion.** Each active pixel's ``emitted`` crossings are expanded with one sorted
+   search (the ``k``-th crossing of a pixel is ``j = j0 + k m``) and timed in closed form,
+   ``t = t_a + (j C - d_a) / v``, clamped into ``(t_a, t_b]``.
+3. **Time order per frame interval.** Events of a frame interval lie in ``(t_k, t_k+1]``, so a
+   clip is time-sorted once each interval is: one sort of the interval's events, NumPy's
+   (vectorised) unstable sort plus an exact repair of tied times, which reproduces a stable sort.
+
+Every arithmetic operation on an emitted event is the one the full-frame formulation does on the
+same values, so event lists are bit-identical to it (``tests/test_sensor_fast_events.py``
+compares against a straightforward full-frame reference).
+
+Events are carried as ``(flat, t, p)``: the flat pixel index ``b·H·W + y·W + x`` (int64), time in
+seconds (float64) and polarity (int8); :func:`to_event_columns` splits the index at the end.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import torch
+
+__all__: list[str] = []  # private helpers of .events and .stream
+
+
+def repeat_index(counts: Any) -> tuple[Any, Any]:
+    """``(repeat_interleave(arange(n), counts), cumsum(counts))``.
+
+    On the CPU through ``numpy.repeat`` (single-threaded, ~20× faster than a sorted search and
+    free of the thread wake-ups that make torch's parallel ``repeat_interleave`` cost
+    milliseconds per call on a loaded machine); on other devices torch's.
+    """
+    ends = torch.cumsum(counts, 0)
+    if counts.device.type == "cpu":
+        c = counts.numpy()
+        return torch.from_numpy(np.repeat(np.arange(len(c), dtype=np.int64), c)), ends
+    total = int(ends[-1]) if len(ends) else 0
+    return torch.repeat_interleave(torch.arange(len(counts), device=counts.device), counts, output_size=total), ends
+
+
+def _gather(x: Any, idx: Any, shape: tuple[int, int, int]) -> Any:
+    """``x`` broadcast to (B, H, W), flattened, at flat indices ``idx`` (a 0-d ``x`` stays 0-d)."""
+    if x.ndim == 0:
+        return x
+    if x.shape == shape:
+        return x.reshape(-1)[idx]
+    _, H, W = shape
+    if x.ndim == 2 or x.shape[0] == 1:  # one map for every batch element
+        return x.reshape(-1)[idx % (H * W)]
+    return x.expand(shape).reshape(-1)[idx]
+
+
+def crossing_step(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_b: Any, c_on: Any,
+                  c_off: Any, t_a: Any, t_b: Any, dt: Any, last_t: Any, refractory_s: float,
+                  collect: bool, want_counts: bool) -> tuple[float, Any, Any]:
+    """Emit the crossings of one comparator step.
+
+    Parameters
+    ----------
+    parts : list
+        ``(flat, t, p)`` event triples are appended here (ON pixels first, then OFF; within a
+        polarity in raster order, each pixel's events consecutive) when ``collect``.
+    h_on, h_off : torch.Tensor (B, H, W)
+        Crossing counts (whole numbers, floating).
+    sig_a, ref_a : torch.Tensor (B, H, W)
+        Comparator input and reference at the step start (before the leak): ``d_a = sig_a - ref_a``.
+    d_b : torch.Tensor (B, H, W)
+        Comparator input minus reference at the step end.
+    c_on, c_off : torch.Tensor, 0-d, (H, W) or (B, H, W)
+        Thresholds (log units).
+    t_a, t_b, dt : torch.Tensor (B, 1, 1) float64
+        Step start, end and length (seconds).
+    last_t : torch.Tensor (B, H, W) float64 or None
+        Each pixel's last event time (updated in place); None without a refractory period.
+    refractory_s : float
+        Refractory period (seconds).
+    collect : bool
+        Append the events to ``parts``.
+    want_counts : bool
+        Also return the emitted ON/OFF counts as (B, H, W) tensors (the refractory surrogate).
+
+    Returns
+    -------
+    lost : float
+        Crossings lost to the refractory period (0 when ``last_t`` is None).
+    em_on, em_off : torch.Tensor (B, H, W) or None
+        Emitted counts (``want_counts``), dtype of ``h_on``.
+    """
+    shape = tuple(h_on.shape)
+    B, H, W = shape
+    HW = H * W
+    lost = 0.0
+    ems: list = []
+    for h, c, sign in ((h_on, c_on, 1), (h_off, c_off, -1)):
+        hf = h.reshape(-1)
+        idx = torch.nonzero(hf > 0).squeeze(1)
+        em_full = torch.zeros_like(hf) if want_counts else None
+        ems.append(None if em_full is None else em_full.view(shape))
+        if idx.numel() == 0:
+            continue
+        bi = torch.div(idx, HW, rounding_mode="floor") if B > 1 else None
+        n = hf[idx].double()
+        da = (sig_a.reshape(-1)[idx] - ref_a.reshape(-1)[idx]).double()
+        v = (d_b.reshape(-1)[idx].double() - da) / (dt.reshape(-1)[bi] if B > 1 else dt.reshape(()))
+        if sign < 0:  # negation is exact: the OFF side is the ON side of -d
+            da, v = da.neg_(), v.neg_()
+        cc = _gather(c, idx, shape).double()
+        ta = t_a.reshape(-1)[bi] if B > 1 else t_a.reshape(())
+        rising = v > 0
+        if last_t is None:  # no refractory period: every crossing of a rising input is emitted
+            emitted = torch.where(rising, n, torch.zeros_like(n))
+            j0 = m = None
+        else:
+            vs = torch.where(rising, v, torch.ones_like(v))
+            lt = last_t.reshape(-1)[idx]
+            j0 = torch.ceil((vs * (lt + refractory_s - ta) + da) / cc).clamp(min=1.0)
+            m = torch.ceil(refractory_s * vs / cc).clamp(min=1.0)
+            emitted = torch.where(n >= j0, 1.0 + torch.floor((n - j0) / m), torch.zeros_like(n))
+            emitted = torch.where(rising, emitted, torch.zeros_like(n))
+            fired = torch.nonzero(emitted > 0).squeeze(1)
+            if fired.numel():
+                j_last = j0[fired] + (emitted[fired] - 1.0) * m[fired]
+                t_last = _at(ta, fired) + (j_last * _at(cc, fired) - da[fired]) / vs[fired]
+                last_t.view(-1)[idx[fired]] = t_last
+            lost += float(n.sum() - emitted.sum())
+        if em_full is not None:
+            em_full[idx] = emitted.to(em_full.dtype)
+        if not collect:
+            continue
+        sel = torch.nonzero(emitted > 0).squeeze(1)
+        if sel.numel() == 0:
+            continue
+        counts = emitted[sel].long()
+        rep, ends = repeat_index(counts)
+        src = sel[rep]
+        # k-th crossing of its pixel (int64 → float64 in place of the index arithmetic)
+        j = torch.arange(len(rep), device=rep.device).sub_((ends - counts)[rep]).double()
+        del rep, ends, counts
+        j = j.add_(1.0) if j0 is None else j.mul_(m[src]).add_(j0[src])  # j0 + k m, as (k m) + j0
+        # t = t_a + (j C - d_a) / v, in place, same roundings (IEEE + and * commute exactly)
+        t = j.mul_(_at(cc, src)).sub_(da[src]).div_(v[src])
+        if B > 1:
+            ta_e, tb_e = ta[src], t_b.reshape(-1)[bi[src]]
+            t = t.add_(ta_e)
+            # a crossing already due at the step start (after a noise reset) fires just after it
+            t = torch.minimum(torch.maximum(t, torch.nextafter(ta_e, torch.full_like(ta_e, math.inf))), tb_e)
+        else:
+            t0 = float(ta)
+            t = t.add_(t0).clamp_(min=math.nextafter(t0, math.inf), max=float(t_b.reshape(())))
+        parts.append((idx[src], t, torch.full((len(t),), sign, dtype=torch.int8)))
+    return lost, ems[0], ems[1]
+
+
+def _at(x: Any, i: Any) -> Any:
+    """``x[i]`` for a per-pixel vector, ``x`` itself for a 0-d (broadcast) value."""
+    return x[i] if x.ndim else x
+
+
+def stable_time_order(t: np.ndarray) -> np.ndarray:
+    """Indices that sort ``t`` stably (ties keep their input order), as ``argsort(kind="stable")``.
+
+    NumPy's default sort is vectorised and several times faster than its stable sorts; ties
+    (rare: events clamped to a step end) are put back into input order exactly.
+    """
+    order = np.argsort(t)
+    ts = t[order]
+    tie = ts[1:] == ts[:-1]
+    first = np.flatnonzero(tie)  # sorted position i ties with i + 1
+    if len(first):
+        pos = np.union1d(first, first + 1)  # every position inside a run of equal times
+        starts = np.ones(len(pos), dtype=bool)  # a run starts where the previous position is no tie
+        starts[1:] = ~tie[pos[1:] - 1]
+        run = np.maximum.accumulate(np.where(starts, pos, 0))  # each position's run start
+        key = run.astype(np.int64) * len(t) + order[pos]
+        order[pos] = order[pos][np.argsort(key)]
+    return order
+
+
+def sort_interval(parts: list) -> tuple[Any, Any, Any] | None:
+    """Concatenate one frame interval's ``(flat, t, p)`` parts and sort them stably by time."""
+    if not parts:
+        return None
+    if len(parts) == 1:
+        flat, t, p = parts[0]
+    else:
+        flat, t, p = (torch.cat(c) for c in zip(*parts, strict=True))
+    parts.clear()
+    flat, t, p = flat.cpu(), t.cpu(), p.cpu()
+    order = torch.from_numpy(stable_time_order(t.numpy()))
+    return flat[order], t[order], p[order]
+
+
+def to_event_columns(pieces: list, H: int, W: int, B: int) -> tuple[Any, Any, Any, Any, Any]:
+    """(b, x, y, t, p) of time-sorted interval pieces; sorted by (b, t) when ``B > 1``.
+
+    The pieces are written straight into the output columns (no concatenated intermediate) and
+    freed as they go; with ``B = 1`` the batch column is a broadcast zero (``expand``, no memory).
+    """
+    pieces = [q for q in pieces if q is not None]
+    n = sum(len(q[1]) for q in pieces)
+    b = torch.zeros(1, dtype=torch.int64).expand(n)
+    x = torch.empty(n, dtype=torch.int64)
+    y = torch.empty(n, dtype=torch.int64)
+    t = torch.empty(n, dtype=torch.float64)
+    p = torch.empty(n, dtype=torch.int8)
+    start = 0
+    HW = H * W
+    for i, (flat, tq, pq) in enumerate(pieces):
+        end = start + len(tq)
+        f32 = flat.to(torch.int32) if B * HW < 2**31 else flat  # int32 division is faster
+        if B > 1:
+            f32 = f32 - torch.div(f32, HW, rounding_mode="floor") * HW
+        yq = torch.div(f32, W, rounding_mode="floor")
+        y[start:end] = yq
+        x[start:end] = f32 - yq * W
+        t[start:end] = tq
+        p[start:end] = pq
+        if B > 1:
+            pieces[i] = (torch.div(flat, HW, rounding_mode="floor"), None, None)
+        start = end
+    if B > 1:
+        b = torch.cat([q[0] for q in pieces]) if pieces else torch.zeros(0, dtype=torch.int64)
+        order = torch.argsort(b, stable=True)
+        b, x, y, t, p = b[order], x[order], y[order], t[order], p[order]
+    pieces.clear()
+    return b, x, y, t, p
+
+
+def noise_step(parts: list, k_on: Any, k_off: Any, t_a: Any, t_b: Any, dt: Any, time_g: Any) -> None:
+    """Append the shot-noise events of one step: ``k_on``/``k_off`` (B, H, W) counts, each event
+    at a uniform time in ``(t_a, t_b]`` drawn from ``time_g`` (ON pixels first, raster order)."""
+    B, H, W = k_on.shape
+    HW = H * W
+    for kk, pol in ((k_on, 1), (k_off, -1)):
+        idx = torch.nonzero(kk.reshape(-1) > 0).squeeze(1)
+        if idx.numel() == 0:
+            continue
+        cnt = kk.reshape(-1)[idx].long()
+        flat = idx[repeat_index(cnt)[0]]
+        bi = torch.div(flat, HW, rounding_mode="floor")
+        u = torch.rand(len(flat), generator=time_g, device=time_g.device, dtype=torch.float64).to(flat.device)
+        t = torch.minimum(t_a.reshape(B)[bi] + (1.0 - u) * dt.reshape(B)[bi], t_b.reshape(B)[bi])
+        parts.append((flat, t, torch.full((len(flat),), pol, dtype=torch.int8)))

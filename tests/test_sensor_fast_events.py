@@ -1,0 +1,132 @@
+"""The fast exact event path (sensor/crossings.py) against the full-frame formulation it replaced.
+
+The reference below is the previous implementation's per-step code (full-frame refractory
+arithmetic, per-polarity expansion, one stable sort): the fast path must give the same events bit
+for bit, in the same order.
+"""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fsdvs_hw.sensor import SensorConfig, event_frames, event_list
+from fsdvs_hw.sensor.crossings import (
+    crossing_step,
+    sort_interval,
+    stable_time_order,
+    to_event_columns,
+)
+
+
+def _ref_emit(n, d_a, v, c, t_a, last_t, refr):
+    vs = torch.where(v > 0, v, torch.ones_like(v))
+    j0 = torch.ceil((vs * (last_t + refr - t_a) + d_a) / c).clamp(min=1.0)
+    m = torch.ceil(refr * vs / c).clamp(min=1.0)
+    emitted = torch.where(n >= j0, 1.0 + torch.floor((n - j0) / m), torch.zeros_like(n))
+    emitted = torch.where(v > 0, emitted, torch.zeros_like(n))
+    j_last = j0 + (emitted - 1.0) * m
+    t_last = torch.where(emitted > 0, t_a + (j_last * c - d_a) / vs, last_t)
+    return emitted, j0, m, t_last
+
+
+def _ref_collect(store, emitted, j0, m, d_a, v, c, t_a, t_b, polarity):
+    idx = torch.nonzero(emitted > 0)
+    if idx.numel() == 0:
+        return
+    bi, yi, xi = idx[:, 0], idx[:, 1], idx[:, 2]
+    counts = emitted[bi, yi, xi].long()
+    rep = torch.repeat_interleave(torch.arange(len(counts)), counts)
+    ends = torch.cumsum(counts, 0)
+    k = torch.arange(len(rep)) - (ends - counts)[rep]
+    cc = c.expand_as(emitted)[bi, yi, xi][rep] if c.ndim else c.expand(len(rep))
+    j = j0[bi, yi, xi][rep] + k.to(j0.dtype) * m[bi, yi, xi][rep]
+    vv = v[bi, yi, xi][rep]
+    ta = t_a.expand_as(emitted)[bi, yi, xi][rep]
+    tb = t_b.expand_as(emitted)[bi, yi, xi][rep]
+    t_min = torch.nextafter(ta, torch.full_like(ta, math.inf))
+    t = torch.minimum(torch.maximum(ta + (j * cc - d_a[bi, yi, xi][rep]) / vv, t_min), tb)
+    store.append((bi[rep], xi[rep], yi[rep], t, torch.full((len(rep),), polarity, dtype=torch.int8)))
+
+
+def _reference_step(h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t, refr):
+    store = []
+    d_a = (sig_a - ref_a).double()
+    v = (d_b.double() - d_a) / dt
+    co, cf = c_on.double(), c_off.double()
+    lt = last_t if last_t is not None else torch.full_like(d_a, -math.inf)
+    em_on, j0_on, m_on, lt = _ref_emit(h_on.double(), d_a, v, co, t_a, lt, refr)
+    em_off, j0_off, m_off, lt = _ref_emit(h_off.double(), -d_a, -v, cf, t_a, lt, refr)
+    _ref_collect(store, em_on, j0_on, m_on, d_a, v, co, t_a, t_b, 1)
+    _ref_collect(store, em_off, j0_off, m_off, -d_a, -v, cf, t_a, t_b, -1)
+    if not store:
+        return None, lt, em_on, em_off
+    b, x, y, t, p = (torch.cat(c) for c in zip(*store, strict=True))
+    order = torch.argsort(t, stable=True)
+    order = order[torch.argsort(b[order], stable=True)]
+    return (b[order], x[order], y[order], t[order], p[order]), lt, em_on, em_off
+
+
+@pytest.mark.parametrize("refr", [0.0, 2e-3, 0.02])
+@pytest.mark.parametrize("mismatch", [False, True])
+@pytest.mark.parametrize("B", [1, 3])
+def test_crossing_step_equals_full_frame_reference(refr, mismatch, B):
+    g = torch.Generator().manual_seed(int(refr * 1e4) + 7 * B + mismatch)
+    H, W = 9, 11
+    sig_a = torch.rand(B, H, W, generator=g) * 3
+    ref_a = sig_a - (torch.rand(B, H, W, generator=g) - 0.5) * 0.3
+    target = sig_a + (torch.rand(B, H, W, generator=g) - 0.5) * 4
+    ref = ref_a - 0.001  # a small leak between the step start and end
+    c_on = (0.2 + 0.03 * torch.randn(H, W, generator=g)).clamp(min=0.05) if mismatch else torch.tensor(0.2)
+    c_off = (0.25 + 0.03 * torch.randn(H, W, generator=g)).clamp(min=0.05) if mismatch else torch.tensor(0.25)
+    d_b = target - ref
+    h_on = torch.floor(torch.clamp(d_b, min=0) / c_on + 1e-4)
+    h_off = torch.floor(torch.clamp(-d_b, min=0) / c_off + 1e-4)
+    t0 = torch.tensor([0.5, 0.7, 0.9][:B], dtype=torch.float64).view(B, 1, 1)
+    dt = torch.tensor([0.04, 0.01, 0.02][:B], dtype=torch.float64).view(B, 1, 1)
+    t_b = t0 + dt
+    last = None
+    if refr > 0:  # some pixels fired just before the step, some long ago, some never
+        last = t0 - torch.rand(B, H, W, generator=g, dtype=torch.float64) * 2 * refr
+        last[:, ::3] = -math.inf
+    ref_ev, ref_lt, ref_on, ref_off = _reference_step(h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t0, t_b, dt,
+                                                      None if last is None else last.clone(), refr)
+    parts = []
+    lt = None if last is None else last.clone()
+    lost, em_on, em_off = crossing_step(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t0, t_b, dt, lt, refr,
+                                        True, True)
+    got = to_event_columns([sort_interval(parts)], H, W, B)
+    assert ref_ev is not None and len(ref_ev[0]) > 10
+    for a, r in zip(got, ref_ev, strict=True):
+        assert a.dtype == r.dtype and torch.equal(a, r)
+    assert torch.equal(em_on, ref_on.float()) and torch.equal(em_off, ref_off.float())
+    if refr > 0:
+        assert torch.equal(lt, ref_lt)
+        expect = float((h_on + h_off).sum() - (ref_on + ref_off).sum())
+        assert lost == expect and (refr < 0.01 or lost > 0)  # the long period loses crossings
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(0, 5), min_size=0, max_size=300))
+def test_stable_time_order_is_a_stable_sort(values):
+    t = np.asarray(values, dtype=np.float64) * 0.25  # many ties
+    assert np.array_equal(stable_time_order(t), np.argsort(t, kind="stable"))
+
+
+def test_event_list_counts_match_frames_with_every_effect():
+    """The event list binned per interval equals event_frames (refractory losses and noise on)."""
+    g = torch.Generator().manual_seed(3)
+    base = torch.rand(24, 40, generator=g) * 0.8 + 0.1
+    video = torch.stack([torch.roll(base, 2 * t, dims=1) for t in range(6)])[None]
+    cfg = SensorConfig.preset("v2e-default", refractory_s=0.01, shot_noise_rate_hz=5.0)
+    frames, info = event_frames(video, config=cfg, return_info=True)
+    ev = event_list(video, config=cfg)
+    assert info.refractory_lost > 0 and info.noise_events > 0
+    assert bool((ev.t[1:] >= ev.t[:-1]).all())
+    k = torch.searchsorted(torch.arange(6, dtype=torch.float64) / cfg.frame_rate_hz, ev.t, right=False) - 1
+    counts = torch.zeros(5, 2, 24, 40)
+    counts.index_put_((k, (ev.p < 0).long(), ev.y, ev.x), torch.ones(len(ev)), accumulate=True)
+    assert torch.equal(counts, frames[0])
