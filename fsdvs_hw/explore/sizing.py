@@ -99,7 +99,7 @@ def size_test_sets(points: Iterable[Mapping[str, Any]], *, target_half_width: fl
     -------
     list of ClipBudget
     """
-    from ..stats import DifferenceCI, clips_for_half_width, task_difference_cis
+    from ..stats import DifferenceCI, task_difference_cis
     from .paired import decode_evidence
     from .scoring import TRACK_PREFIX
 
@@ -142,9 +142,7 @@ def size_test_sets(points: Iterable[Mapping[str, Any]], *, target_half_width: fl
             per_seed = ([task_difference_cis({task: ([r_arm[s]], {k: [a[s]] for k, a in cands.items()})},
                                              resample=("clips",), **kw) for s in range(n_seeds)]
                         if n_seeds > 1 else [])
-            need: dict[str, int | None] = {}
-            limited: dict[str, float] = {}
-            worst: tuple[float, str, float, float] = (-1.0, "", math.nan, math.nan)
+            rows = []
             for key in cands:
                 c: DifferenceCI = clips[key][task]
                 h_n2 = 0.0
@@ -152,49 +150,56 @@ def size_test_sets(points: Iterable[Mapping[str, Any]], *, target_half_width: fl
                 if seeds:
                     h_n2 = (n_seeds - 1) / n_seeds * sum(ps[key][task].half_width ** 2 for ps in per_seed) / n_seeds**2
                     h_s = math.sqrt(max(0.0, seeds[key][task].half_width ** 2 - h_n2))
-                try:
-                    n = clips_for_half_width(c, target_half_width / margin ** 0.5, seed_half_width=h_s,
-                                             seed_noise_half_width=math.sqrt(h_n2))
-                    n = int(math.ceil(n / batch) * batch)
-                except InputError:
-                    n = None
-                    limited[labels[key]] = h_s
-                need[labels[key]] = n
-                if n is not None and n > worst[0]:
-                    worst = (float(n), labels[key], c.half_width, h_s)
-            n_max = None if worst[0] < 0 else int(worst[0])
-            out.append(ClipBudget(track, task, n_max, r_arm[0].n_clips, worst[1], worst[2], worst[3], need, limited,
-                                  "" if n_max is not None else "every realisation is seed-limited: train more seeds"))
+                rows.append((labels[key], c, h_s, _clips_needed(c, target_half_width / margin**0.5, h_s,
+                                                                math.sqrt(h_n2), 1, batch)))
+            out.append(_budget(track, task, r_arm[0].n_clips, rows,
+                               "every realisation is seed-limited: train more seeds"))
     return out
 
 
 def _nested_budget(track: str, task: str, r_arm: list[Any], cands: dict[str, list[Any]], labels: dict[str, str],
                    target: float, margin: float, kw: dict[str, Any], step: int = 16) -> ClipBudget:
     """Clips per network for one task of a nested design (module docstring)."""
-    from ..stats import clips_for_half_width, task_difference_cis
+    from ..stats import task_difference_cis
 
     n_seeds = len(r_arm)
     clips = task_difference_cis({task: (r_arm, cands)}, nested_clips=True, resample=("clips",), **kw)
     both = (task_difference_cis({task: (r_arm, cands)}, nested_clips=True, **kw) if n_seeds > 1 else clips)
-    need: dict[str, int | None] = {}
-    limited: dict[str, float] = {}
-    worst: tuple[float, str, float, float] = (-1.0, "", math.nan, math.nan)
+    rows = []
     for key in cands:
         c, t = clips[key][task], both[key][task]
         h_s = math.sqrt(max(0.0, t.half_width**2 - c.half_width**2))
-        try:
-            total = clips_for_half_width(c, target / margin**0.5, seed_half_width=h_s)
-            n: int | None = int(math.ceil(total / n_seeds / step) * step)
-        except InputError:
-            n = None
-            limited[labels[key]] = h_s
-        need[labels[key]] = n
-        if n is not None and n > worst[0]:
-            worst = (float(n), labels[key], c.half_width, h_s)
+        rows.append((labels[key], c, h_s, _clips_needed(c, target / margin**0.5, h_s, 0.0, n_seeds, step)))
+    return _budget(track, task, r_arm[0].n_clips, rows,
+                   f"every realisation is seed-limited with {n_seeds} networks: train more", nested=True)
+
+
+def _clips_needed(pilot: Any, target: float, h_s: float, h_n: float, n_networks: int, step: int) -> int | None:
+    """Clips (per network) for ``target``, rounded up to ``step``; None when the seed part alone exceeds it."""
+    from ..stats import clips_for_half_width
+
+    try:
+        total = clips_for_half_width(pilot, target, seed_half_width=h_s, seed_noise_half_width=h_n)
+    except InputError:
+        return None
+    return int(math.ceil(total / n_networks / step) * step)
+
+
+def _budget(track: str, task: str, n_pilot: int, rows: list[tuple[str, Any, float, int | None]], reason: str, *,
+            nested: bool = False) -> ClipBudget:
+    """One task's budget from (label, pilot clip CI, seed half-width, clips needed or None) per realisation."""
+    need: dict[str, int | None] = {}
+    limited: dict[str, float] = {}
+    worst: tuple[float, str, float, float] = (-1.0, "", math.nan, math.nan)
+    for label, c, h_s, n in rows:
+        need[label] = n
+        if n is None:
+            limited[label] = h_s
+        elif n > worst[0]:
+            worst = (float(n), label, c.half_width, h_s)
     n_max = None if worst[0] < 0 else int(worst[0])
-    return ClipBudget(track, task, n_max, r_arm[0].n_clips, worst[1], worst[2], worst[3], need, limited,
-                      "" if n_max is not None else f"every realisation is seed-limited with {n_seeds} networks: "
-                                                   "train more", nested=True)
+    return ClipBudget(track, task, n_max, n_pilot, worst[1], worst[2], worst[3], need, limited,
+                      "" if n_max is not None else reason, nested=nested)
 
 
 def budget_table(budgets: Iterable[ClipBudget]) -> str:
