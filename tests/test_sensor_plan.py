@@ -125,3 +125,18 @@ def test_plan_surround_transient_decision_follows_mesh_time_constant():
     full = event_frames(video, None, config=base.replace(surround_tau_s=1e-6, substeps=32))
     planned = event_frames(video, None, plan=fast_mesh)
     assert float((planned - full).abs().sum() / full.sum()) < TOL
+
+
+def test_a_plan_that_is_not_a_model_plan_is_named_and_a_disagreeing_config_refused():
+    import numpy as np
+
+    from fsdvs_hw.errors import InputError
+    from fsdvs_hw.sensor import SensorConfig, event_frames, plan_model
+
+    video = np.full((1, 3, 8, 8), 0.5)
+    with pytest.raises(InputError, match="plan: must be a ModelPlan from plan_model"):
+        event_frames(video, None, plan={"config": SensorConfig()})
+    plan = plan_model(video)
+    with pytest.raises(InputError, match="config and plan disagree"):
+        event_frames(video, None, config=SensorConfig(threshold_on=0.3), plan=plan)
+    assert event_frames(video, None, plan=plan).shape[-2:] == (8, 8)  # a real plan is accepted
