@@ -43,6 +43,17 @@ def test_records_markdown_and_bad_cases():
            "load_avg": 1.0}
     text = records_markdown([rec])
     assert "| bikes/event list | event list | bikes 272x640 | 250 | 10 | 4.00 ± 0.50 [3.50–4.50] | 5.00 ± 0.10 | 3 | 600 |" in text
+    # the same record as typed bench records (what `fsdvs-hw bench sim --json` writes): value, unit, spread
+    from fsdvs_hw.benchmarks import BenchRecord
+    from fsdvs_hw.sensor.bench import _bench_records
+
+    wall, cpu, rss = _bench_records([rec], quick=False)
+    assert all(isinstance(r, BenchRecord) for r in (wall, cpu, rss))
+    assert (wall.metric, wall.unit, wall.value, wall.repeats, wall.spread_min, wall.spread_max) == \
+        ("throughput (wall)", "Mpixel-frames/s", 4.0, 3, 3.5, 4.5)
+    assert (cpu.value, rss.metric, rss.unit, rss.value, wall.threads) == (5.0, "peak RSS", "MB", 600.0, 2)
+    assert wall.case.startswith("bikes/event list: event list, bikes 272x640, 250 frames") and wall.timestamp
+    assert BenchRecord.from_dict(wall.to_dict()) == wall
     assert {c["path"] for c in SIM_CASES.values()} >= {"frames", "event list", "forward+backward", "centre-surround"}
     with pytest.raises(InputError, match="unknown"):
         sim_records(cases=["bikes/nope"])

@@ -28,6 +28,8 @@ Two tables, reproducible with one command (``fsdvs-hw bench sim``):
 
 from __future__ import annotations
 
+import datetime
+
 import json
 import math
 import os
@@ -271,17 +273,53 @@ def _regions(quick: bool) -> str:
     return "\n".join(lines)
 
 
-def bench_sim(*, quick: bool = False, records: list[dict[str, Any]] | None = None) -> str:
-    """Markdown: the records table (:func:`sim_records`), throughput/memory at 480×640×17, streaming,
-    speed/accuracy and region stepping (``quick``: small problems). ``records``: reuse records
-    already measured (e.g. for a ``--json`` output of the same run) instead of measuring them."""
+def bench_sim(*, quick: bool = False, records: list[dict[str, Any]] | None = None) -> Any:
+    """The sim benchmark as a :class:`~fsdvs_hw.benchmarks.BenchRun`: Markdown (the records table of
+    :func:`sim_records`, throughput/memory at 480×640×17, streaming, speed/accuracy and region
+    stepping; ``quick``: small problems) and records — the per-case records of :func:`sim_records`
+    (wall and CPU-time Mpixel-frames/s with their spread over repeats, peak RSS of a fresh child)
+    plus those read from the other tables. ``records``: reuse records already measured."""
     import torch
+
+    from ..benchmarks import BenchRun, records_from_markdown
 
     torch.manual_seed(0)
     if records is None:
         records = sim_records(quick=quick)
-    parts = ["## sim — differentiable FS-DVS event simulator", "", records_markdown(records), "",
-             _throughput(quick), "", _streaming(quick), ""]
+    rest = _bench_sim_tables(quick)
+    markdown = "\n".join(["## sim — differentiable FS-DVS event simulator", "", records_markdown(records), "", rest])
+    threads = torch.get_num_threads()
+    return BenchRun("sim", markdown, tuple(_bench_records(records, quick))
+                    + tuple(records_from_markdown("sim", rest, settings={"quick": quick}, threads=threads)))
+
+
+def _bench_records(records: list[dict[str, Any]], quick: bool) -> list[Any]:
+    """:class:`~fsdvs_hw.benchmarks.BenchRecord` s of :func:`sim_records`' plain records."""
+    from ..benchmarks import BenchRecord, library_versions, machine_info
+
+    table = "Records: Mpixel-frames/s and peak RSS of a fresh child process per case"
+    stamp = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    out = []
+    for r in records:
+        case = f"{r['case']}: {r['path']}, {r['clip']} {r['resolution']}, {r['n_frames']} frames"
+        common = {"threads": r.get("threads"), "machine": machine_info(), "versions": library_versions(),
+                  "timestamp": stamp,
+                  "settings": {"quick": quick, "settings": r.get("settings"), "chunk_frames": r.get("chunk_frames"),
+                               "events": r.get("events"), "load_avg": r.get("load_avg")}}
+        out += [BenchRecord("sim", table, case, "throughput (wall)", "Mpixel-frames/s", float(r["mpf_s_mean"]),
+                            repeats=int(r["repeats"]), spread_min=float(r["mpf_s_min"]),
+                            spread_max=float(r["mpf_s_max"]), **common),
+                BenchRecord("sim", table, case, "throughput per CPU second", "Mpixel-frames/s",
+                            float(r["mpf_cpu_s_mean"]), repeats=int(r["repeats"]), **common),
+                BenchRecord("sim", table, case, "peak RSS", "MB", float(r["peak_rss_mb"]), **common)]
+    return out
+
+
+def _bench_sim_tables(quick: bool) -> str:
+    """The tables after the records: throughput/memory, streaming, speed/accuracy, region stepping."""
+    import torch
+
+    parts = [_throughput(quick), "", _streaming(quick), ""]
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # small frames, many steps: one thread avoids sync overhead
     try:
@@ -629,4 +667,4 @@ if __name__ == "__main__":  # pragma: no cover
     if len(sys.argv) > 2 and sys.argv[1] == "--child":
         _child_main(sys.argv[2])
     else:
-        print(bench_sim(quick="--quick" in sys.argv))
+        print(bench_sim(quick="--quick" in sys.argv).markdown)
