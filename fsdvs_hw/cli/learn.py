@@ -15,7 +15,9 @@ DESCRIPTION = (
     "ratios). Writes STEM.json (kernel), STEM.safetensors (network + kernel) and\n"
     "STEM.provenance.json.\n\n"
     "Example (the shipped kernel): fsdvs-hw learn detection --size 7 --seed 0 "
-    "--out designs/kernels/learned_detection_7x7"
+    "--out designs/kernels/learned_detection_7x7\n"
+    "Co-design (the kernel is a realisation's at every step): fsdvs-hw learn detection "
+    "--init-kernel designs/kernels/learned_detection_7x7.json --realisation asic --out out/codesign/asic_det"
 )
 
 
@@ -29,6 +31,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--epochs-joint", type=int, default=None, help="joint epochs")
     parser.add_argument("--lr-filter", type=float, default=None, help="filter learning rate")
     parser.add_argument("--out", type=Path, default=None, help="file stem for kernel/checkpoint/provenance")
+    parser.add_argument("--realisation", default=None, metavar="NAME",
+                        help="co-design: fit this realisation (mesh, asic, metalens) to --init-kernel, then train "
+                             "the network and the realisation's own parameters together")
+    parser.add_argument("--init-kernel", type=Path, default=None, metavar="FILE",
+                        help="kernel file to start from (with --realisation: the kernel it is first fitted to)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -43,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
     kw = {k: v for k, v in (("epochs_frozen", args.epochs_frozen), ("epochs_joint", args.epochs_joint),
                             ("lr_filter", args.lr_filter)) if v is not None}
     res = learn_kernel(args.task, args.size, seed=args.seed, n_train=args.n_train, n_test=args.n_test,
-                       settings=TrainingSettings(**kw), out=args.out, verbose=True)
+                       settings=TrainingSettings(**kw), out=args.out, verbose=True,
+                       init_kernel=args.init_kernel, realisation=args.realisation)
     print(json.dumps({"task": args.task, "size": args.size, "metrics": res.metrics,
                       "files": {k: str(v) for k, v in res.paths.items()}}, indent=1))
     return 0

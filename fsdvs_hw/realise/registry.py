@@ -158,6 +158,10 @@ class RealisationSpec:
         Listed in ``[realisations] include`` when a design does not say.
     description : str
         One line for help texts.
+    differentiable : str
+        ``"module:Class"`` of a torch module that wraps a fitted record as a differentiable kernel
+        of its physical parameters (``Class(record)()`` → the applied kernel, ``.to_design()`` →
+        a record), for co-design; ``""``: none. A string, so registering does not import torch.
     """
 
     name: str
@@ -171,6 +175,7 @@ class RealisationSpec:
     colour: str | None = None
     in_default_design: bool = False
     description: str = ""
+    differentiable: str = ""
 
     def __post_init__(self) -> None:
         if not (isinstance(self.name, str) and self.name.isidentifier()):
@@ -186,6 +191,21 @@ class RealisationSpec:
         object.__setattr__(self, "artifacts", MappingProxyType(dict(self.artifacts)))
         if not self.record_kind:
             object.__setattr__(self, "record_kind", self.name)
+
+    def differentiable_kernel(self, record: Realisation) -> Any:
+        """The torch module of :attr:`differentiable` around ``record`` (a fitted realisation).
+
+        Raises
+        ------
+        InputError
+            The realisation declares no differentiable form.
+        """
+        if not self.differentiable:
+            with_form = [n for n, sp in _REGISTRY.items() if sp.differentiable]
+            raise InputError(f"realisation {self.name!r} has no differentiable form; realisations with one: "
+                             f"{', '.join(with_form) or 'none'}")
+        module, cls = self.differentiable.split(":")
+        return getattr(importlib.import_module(module), cls)(record)
 
     @property
     def fit_name(self) -> str:

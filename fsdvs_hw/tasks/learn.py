@@ -308,8 +308,9 @@ def _train_epochs(evaluator: Any, network: Any, kernel_param: Any, video: Any, t
             idx = perm[s : s + batch_size]
             if cached_inputs is not None:
                 x = cached_inputs[idx]
-            else:
-                x = _network_input(video[idx], kernel_param, sensor, timestamps_s)
+            else:  # a realisation module is called for its kernel at every step (co-design)
+                k = kernel_param() if callable(kernel_param) else kernel_param
+                x = _network_input(video[idx], k, sensor, timestamps_s)
             loss = evaluator.loss(network(x), _take(targets, idx))
             value = float(loss.detach())
             if not math.isfinite(value):
@@ -346,7 +347,7 @@ def _as_kernel(kernel: Any, *, source: str = "kernel") -> Kernel:
 def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048, n_test: int = 2048,
                  settings: TrainingSettings | None = None, scene: Any = None, sensor: Any = None,
                  learn_filter: bool = True, init_kernel: Any = None, out: str | Path | None = None,
-                 name: str | None = None, verbose: bool = False) -> LearnResult:
+                 name: str | None = None, verbose: bool = False, realisation: str | None = None) -> LearnResult:
     """Learn a k×k FS-DVS kernel end to end with a task network (the paper's protocol).
 
     Parameters
@@ -380,6 +381,14 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
         Kernel name (default ``"learned {task} {k}x{k} (seed s)"``).
     verbose : bool
         Print one progress line per epoch to stderr.
+    realisation : str, optional
+        Co-design (issue 16): a registered realisation with a differentiable form
+        (:attr:`fsdvs_hw.realise.registry.RealisationSpec.differentiable`: ``mesh``, ``asic``,
+        ``metalens``). It is first fitted to ``init_kernel``; training then moves the realisation's
+        own parameters (conductance ratios and gains; integer taps and scale, straight-through;
+        phase, distance and gains) with the network, at the filter learning rate, so the kernel is
+        buildable at every step. The provenance records the initial and the final design
+        (``realisation_initial``, ``realisation_design``); the saved kernel is the design's.
 
     Returns
     -------
@@ -428,7 +437,21 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
     else:
         taps0 = _delta_init(size, settings.init_noise if size > 1 else 0.0, gen)
     learn_filter = bool(learn_filter and size > 1)
-    kernel_param = torch.nn.Parameter(taps0.clone(), requires_grad=learn_filter)
+    kernel_param: Any = torch.nn.Parameter(taps0.clone(), requires_grad=learn_filter)
+    realised: dict[str, Any] = {}
+    if realisation is not None:  # co-design: the kernel is the realisation's, a function of its parameters
+        from ..realise.registry import fit_realisation, get_realisation
+
+        if init_kernel is None or not learn_filter:
+            raise InputError("learn_kernel: realisation=... needs init_kernel (the kernel the realisation is first "
+                             "fitted to) and learn_filter=True")
+        spec = get_realisation(realisation)
+        record = fit_realisation(realisation, _as_kernel(init_kernel, source="init_kernel"))
+        kernel_param = spec.differentiable_kernel(record)
+        realised = {"realisation": realisation, "realisation_initial": record.to_dict()}
+
+    def kernel_now() -> Any:
+        return kernel_param() if callable(kernel_param) else kernel_param
 
     video, targets = _dataset(scene, n_train, seed, evaluator.name, settings.dtype)
     test_video, test_targets = _dataset(scene, n_test, TEST_SEED, evaluator.name, settings.dtype)
@@ -446,7 +469,7 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
     epochs_joint = settings.epochs_joint
     if epochs_frozen:
         with torch.no_grad():
-            cached = torch.cat([_network_input(video[s : s + 128], kernel_param, sensor, ts)
+            cached = torch.cat([_network_input(video[s : s + 128], kernel_now(), sensor, ts)
                                 for s in range(0, video.shape[0], 128)])
         opt = torch.optim.AdamW([_group(network.parameters(), settings.lr_network, settings.weight_decay)])
         _train_epochs(evaluator, network, kernel_param, video, targets, sensor, ts, opt, epochs_frozen, bs, gen,
@@ -464,7 +487,8 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
         groups = [_group(network.backbone.parameters(), lrs["backbone"], settings.weight_decay),
                   _group(network.head.parameters(), lrs["head"], settings.weight_decay)]
         if learn_filter:
-            groups.insert(0, _group([kernel_param], lrs["filter"], 0.0))
+            filt = list(kernel_param.parameters()) if realised else [kernel_param]
+            groups.insert(0, _group(filt, lrs["filter"], 0.0))
         opt = torch.optim.AdamW(groups)
         cached = None
         if not learn_filter:  # frozen filter: the events never change, compute them once
@@ -472,10 +496,13 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
                 cached = torch.cat([_network_input(video[s : s + 128], kernel_param, sensor, ts)
                                     for s in range(0, video.shape[0], 128)])
         _train_epochs(evaluator, network, kernel_param, video, targets, sensor, ts, opt, epochs_joint, bs, gen,
-                      "joint" if learn_filter else "joint_frozen_filter", history, taps0 if learn_filter else None,
-                      cached_inputs=cached, log=log)
+                      "joint" if learn_filter else "joint_frozen_filter", history,
+                      taps0 if learn_filter and not realised else None, cached_inputs=cached, log=log)
 
-    kernel_final = kernel_param.detach().clone()
+    with torch.no_grad():
+        kernel_final = kernel_now().detach().clone()
+    if realised:
+        realised["realisation_design"] = kernel_param.to_design(codesign_task=evaluator.name).to_dict()
     predictions: dict[str, np.ndarray] = {}
     metrics, event_rate = _score(evaluator, network, kernel_final, test_video, test_targets, sensor, ts,
                                  keep=predictions)
@@ -508,6 +535,7 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
         "test_event_rate_per_pixel_frame": event_rate,
         "history": history,
         "train_seconds": train_seconds,
+        **realised,
         "versions": {"fsdvs_hw": __version__, "torch": torch.__version__},
         "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }

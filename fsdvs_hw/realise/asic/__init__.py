@@ -26,6 +26,7 @@ __all__ = ["AsicDesign", "fit_asic_taps", "SCALE_MODES", "OBJECTIVES", "exhausti
 #: The registry entry (own cost axis and headline: yosys cell area, else the adder count).
 SPEC = register_realisation(RealisationSpec(
     name="asic",
+    differentiable="fsdvs_hw.realise.asic.differentiable:QuantisedAsicKernel",
     fit=fit_asic_taps,
     options=OPTIONS,
     kind="hardware",

@@ -55,6 +55,7 @@ def _conductance_per_pixel(cost: "dict[str, dict[str, _Any]]") -> float | None:
 #: settling time, since its area is fixed at six conductances per pixel).
 SPEC = register_realisation(RealisationSpec(
     name="mesh",
+    differentiable="fsdvs_hw.realise.mesh.differentiable:MeshKernel",
     fit=fit_resistive_mesh,
     options={**OPTIONS, "bounds": _replace(OPTIONS["bounds"], factory=MeshBounds)},
     kind="hardware",

@@ -36,6 +36,7 @@ __all__ += fit.__all__  # the fit module's public names, re-exported above
 #: The registry entry (own cost axis and headline: the aperture diameter).
 SPEC = register_realisation(RealisationSpec(
     name="metalens",
+    differentiable="fsdvs_hw.realise.metalens.differentiable:MetalensKernel",
     fit=fit_metalens,
     options=OPTIONS,
     kind="hardware",

@@ -46,8 +46,9 @@ class MetalensKernel(torch.nn.Module):
     ----------
     coefficients : torch.nn.ParameterList
         Per lens, the phase coefficients (rad at the design wavelength).
-    distance_m : torch.nn.ParameterList
-        Per lens, the lens-to-sensor distance (m).
+    defocus_um : torch.nn.Parameter
+        Per lens, the change of the lens-to-sensor distance from the fitted one, in µm (so that an
+        optimiser's step is on the scale of the depth of focus, not of metres).
     log_gains : torch.nn.Parameter
         Log of each lens's gain.
     """
@@ -69,15 +70,20 @@ class MetalensKernel(torch.nn.Module):
         dt = torch.float64
         self.coefficients = torch.nn.ParameterList(
             [torch.nn.Parameter(torch.tensor(c, dtype=dt)) for c in design.coefficients])
-        self.distance_m = torch.nn.ParameterList(
-            [torch.nn.Parameter(torch.tensor(float(z), dtype=dt)) for z in design.sensor_distance_m])
+        self.register_buffer("z0_m", torch.tensor([float(z) for z in design.sensor_distance_m], dtype=dt),
+                             persistent=False)
+        self.defocus_um = torch.nn.Parameter(torch.zeros(len(design.sensor_distance_m), dtype=dt))
         # a differential pair's second gain may be 0 (the fit's fallback): keep it at a tiny value
         self.log_gains = torch.nn.Parameter(torch.log(torch.tensor([max(float(g), 1e-30) for g in design.gains],
                                                                    dtype=dt)))
 
+    def distance_m(self) -> torch.Tensor:
+        """Per lens, the lens-to-sensor distance (m)."""
+        return self.z0_m + 1e-6 * self.defocus_um
+
     def psfs(self) -> list[torch.Tensor]:
         """Per lens, the pixel- and spectrum-integrated PSF on the realised window."""
-        return [self.model.psf(c, z) for c, z in zip(self.coefficients, self.distance_m)]
+        return [self.model.psf(c, z) for c, z in zip(self.coefficients, self.distance_m())]
 
     def forward(self) -> torch.Tensor:
         """The applied kernel on the (k + 2·guard)² window: ``g·P`` or ``g₊P₊ − g₋P₋``."""
@@ -113,10 +119,10 @@ class MetalensKernel(torch.nn.Module):
         """The current parameters as a :class:`MetalensDesign` (PSFs and totals re-evaluated)."""
         with torch.no_grad():
             psfs = tuple(p.numpy().copy() for p in self.psfs())
-            totals = tuple(float(self.model.total(c, z)) for c, z in zip(self.coefficients, self.distance_m))
+            totals = tuple(float(self.model.total(c, z)) for c, z in zip(self.coefficients, self.distance_m()))
             gains = tuple(float(v) for v in torch.exp(self.log_gains))
             coeffs = tuple(tuple(float(v) for v in c) for c in self.coefficients)
-            dist = tuple(float(z) for z in self.distance_m)
+            dist = tuple(float(z) for z in self.distance_m())
         return dataclasses.replace(self.design, coefficients=coeffs, sensor_distance_m=dist, gains=gains, psfs=psfs,
                                    psf_totals=totals, fit_info={**dict(self.design.fit_info), "codesigned": True,
                                                                 **fit_info})
