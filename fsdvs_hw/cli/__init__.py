@@ -26,6 +26,7 @@ COMMANDS: dict[str, str] = {
     "analyse": "fsdvs_hw.cli.analyse",
     "bench": "fsdvs_hw.cli.bench",
     "learn": "fsdvs_hw.cli.learn",
+    "codesign-pilot": "fsdvs_hw.cli.codesign_pilot",
     "ablation": "fsdvs_hw.cli.ablation",
     "explore": "fsdvs_hw.cli.explore",
     "sweep": "fsdvs_hw.cli.sweep",
