@@ -53,3 +53,23 @@ def test_mesh_and_metalens_codesign_run_and_keep_the_kernel_the_realisations(nam
     assert final.kind == name and (final.fit if name == "mesh" else final.fit_info)["codesigned"]
     np.testing.assert_allclose(np.asarray(res.kernel), np.asarray(final.kernel()), rtol=1e-6, atol=1e-9)
     assert any(h["stage"] == "joint" for h in res.history)
+
+
+def test_codesign_pilot_checks_its_inputs_before_training_and_measures_csf_drift(tmp_path):
+    from fsdvs_hw.csf import csf_agreement
+    from fsdvs_hw.explore.codesign_pilot import csf_drift, run_pilot
+    from fsdvs_hw.realise.asic import fit_asic_taps
+
+    with pytest.raises(InputError, match="no differentiable form"):
+        run_pilot("recognition", "delta", [0], tmp_path)
+    with pytest.raises(InputError, match="no shipped reference network .*_s11"):
+        run_pilot("recognition", "asic", [11], tmp_path)  # seed 11 never trained: not shipped
+    with pytest.raises(InputError, match="distinct"):
+        run_pilot("recognition", "asic", [0, 0], tmp_path)
+    assert not any(tmp_path.iterdir())  # nothing trained or written
+    rec = fit_asic_taps(load_kernel(LEARNED), bits=4)
+    moved = rec.__class__.from_dict({**rec.to_dict(), "scale": rec.scale * 2})  # shape unchanged
+    d = csf_drift({"realisation_initial": rec.to_dict(), "realisation_design": moved.to_dict()})
+    expected = csf_agreement(rec.kernel(), method="mannos_sakrison_1974").correlation
+    assert d["ms_correlation_initial"] == pytest.approx(expected, abs=1e-12)
+    assert d["ms_correlation_final"] == pytest.approx(expected, abs=1e-9)  # a gain does not change the shape

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["run_pilot"]
+__all__ = ["run_pilot", "csf_drift"]
 
 _REPO = Path(__file__).resolve().parents[2]
 
@@ -35,24 +35,36 @@ def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_tes
     """Train the ``retrain`` and ``codesign`` arms for each seed and return their losses with CIs."""
     import torch
 
-    from ..explore.paired import PER_CLIP_METRICS, clip_evidence
+    from ..errors import InputError
     from ..kernels import load_kernel
-    from ..realise.registry import fit_realisation
+    from ..realise.registry import fit_realisation, get_realisation
     from ..stats import difference_ci
     from ..tasks import get_evaluator
     from ..tasks.learn import heldout_targets, learn_kernel, load_checkpoint
+    from .paired import PER_CLIP_METRICS, clip_evidence
 
+    # every input checked before the first (minutes-long) training
+    ev = get_evaluator(task)
+    spec = get_realisation(realisation)
+    if not spec.differentiable:
+        raise InputError(f"codesign pilot: realisation {realisation!r} has no differentiable form")
+    if not seeds or len(set(seeds)) != len(seeds) or any(s < 0 for s in seeds):
+        raise InputError(f"codesign pilot: seeds must be distinct non-negative integers, got {seeds}")
+    nets = [_REPO / "designs" / "kernels" / "networks" / f"{ev.name}_with_learned_detection_7x7_s{s}.safetensors"
+            for s in seeds]
+    missing = [n.name for n in nets if not n.is_file()]
+    if missing:
+        raise InputError(f"codesign pilot: no shipped reference network {', '.join(missing)} (the shipped seeds are "
+                         "listed in designs/kernels/networks/)")
     torch.set_num_threads(1)
     out.mkdir(parents=True, exist_ok=True)
     target = load_kernel(_REPO / "designs" / "kernels" / "learned_detection_7x7.json")
-    nets = [_REPO / "designs" / "kernels" / "networks" / f"{task}_with_learned_detection_7x7_s{s}.safetensors"
-            for s in seeds]
-    ev = get_evaluator(task)
     ref = [clip_evidence(target, task, n, n_test=n_test).metric for n in nets]
     scene = load_checkpoint(nets[0])[0]["scene"]
     targets = heldout_targets(ev, scene, n_test)
     arms: dict[str, list[Any]] = {"retrain": [], "codesign": []}
     wall: dict[str, list[float]] = {"retrain": [], "codesign": []}
+    drift: list[dict[str, float]] = []
     for s in seeds:
         for mode in arms:
             t0 = time.perf_counter()
@@ -64,6 +76,8 @@ def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_tes
                 res = learn_kernel(task, target.size, seed=s, n_test=n_test, init_kernel=target,
                                    realisation=realisation, out=out / f"{realisation}_{task}_codesign_s{s}")
             wall[mode].append(time.perf_counter() - t0)
+            if mode == "codesign":
+                drift.append(csf_drift(res.kernel.provenance))
             preds = {k: np.asarray(v) for k, v in res.predictions.items()}
             arms[mode].append(PER_CLIP_METRICS[ev.name](preds, targets, ev))
             print(f"[codesign-pilot] {mode} seed {s}: {ev.primary_metric} {res.metrics[ev.primary_metric]:.4f} "
@@ -76,5 +90,24 @@ def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_tes
         result[mode] = {**{k: v for k, v in ci.to_dict().items() if k in ("estimate", "low", "high")},
                         "text": ci.describe(), "per_seed": [float(m.weighted(ones)[0]) for m in arm],
                         "wall_s": wall[mode]}
+    result["codesign"]["csf_drift"] = drift
     (out / f"pilot_{realisation}_{task}.json").write_text(json.dumps(result, indent=1))
     return result
+
+
+def csf_drift(provenance: dict[str, Any]) -> dict[str, float]:
+    """Mannos–Sakrison correlation of the realisation's kernel before and after co-design.
+
+    The kernel compared is the realisation's *shape*: its ``signal_kernel()`` where it has one (a
+    metalens with the pedestal subtracted), else ``kernel()``. ``provenance``: a co-designed
+    checkpoint's (``realisation``, ``realisation_initial``, ``realisation_design``).
+    """
+    from ..csf import csf_agreement
+    from ..realise.registry import realisation_from_dict
+
+    out = {}
+    for key, label in (("realisation_initial", "initial"), ("realisation_design", "final")):
+        rec = realisation_from_dict(provenance[key])
+        shape = getattr(rec, "signal_kernel", rec.kernel)()
+        out[f"ms_correlation_{label}"] = float(csf_agreement(shape, method="mannos_sakrison_1974").correlation)
+    return out

@@ -58,8 +58,9 @@ class MetalensKernel(torch.nn.Module):
         if not isinstance(design, MetalensDesign):
             raise InputError(f"MetalensKernel: expected a MetalensDesign (from fit_metalens), got "
                              f"{type(design).__name__}")
-        if any(g <= 0 for g in design.gains[:1]) or any(g < 0 for g in design.gains):
-            raise InputError(f"MetalensKernel: gains must be positive, got {design.gains}")
+        if not design.gains or design.gains[0] <= 0 or any(g < 0 for g in design.gains[1:]):
+            raise InputError(f"MetalensKernel: the first lens's gain must be > 0 and a second lens's ≥ 0, "
+                             f"got {design.gains}")
         self.design = design
         target = design.target
         n_eval = target.size + 2 * design.guard_px
