@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .benchmarks import BenchRun, BenchSection, Column, Timing, timed
+from .benchmarks import BenchRun, BenchSection, Column, Timing, kept_global_state, timed
 from .csf import CSF_METHODS, CsfAgreement, Geometry, csf_agreement
 from .kernels import Kernel, as_kernel, reference_kernel
 from .spectra import SpectralSummary, radial_response, spectral_summary
@@ -122,6 +122,7 @@ def write_analysis(analysis: KernelAnalysis, out_dir: str | Path) -> dict[str, P
     return paths
 
 
+@kept_global_state()
 def bench_analysis(*, quick: bool = False) -> BenchRun:
     """Speed/accuracy of the radial response (method, resolution) and of the CSF agreement fit.
 

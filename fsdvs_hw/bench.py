@@ -59,10 +59,6 @@ def benchmark_run(name: str, *, quick: bool = False, figures: str | Path | None 
     module, func = BENCHMARKS[name].split(":")
     fn = getattr(importlib.import_module(module), func)
     kw = {"figures": Path(figures)} if figures is not None and "figures" in inspect.signature(fn).parameters else {}
-    try:  # imported first so that kept_global_state snapshots (and restores) torch's settings too
-        import torch  # noqa: F401
-    except ImportError:  # pragma: no cover - torch is a dependency
-        pass
     with kept_global_state():
         out = fn(quick=quick, **kw)
     if not isinstance(out, BenchRun):

@@ -15,7 +15,7 @@ so the Markdown can show nothing the records do not hold.
 dtype and random state, numpy's error and random state, warnings filters, environment variables).
 
 This module is core layer: it imports nothing from the rest of the package except
-:mod:`fsdvs_hw.errors`, and torch only if some caller already imported it.
+:mod:`fsdvs_hw.errors`; torch only inside :func:`kept_global_state`.
 """
 
 from __future__ import annotations
@@ -44,7 +44,6 @@ __all__ = [
     "Measured",
     "Timing",
     "timed",
-    "kept_torch_threads",
     "kept_global_state",
     "machine_info",
     "library_versions",
@@ -184,24 +183,10 @@ def timed(fn: Callable[[], T], repeats: int = 1) -> Timing[T]:
 
 
 @contextmanager
-def kept_torch_threads() -> Iterator[None]:
-    """Restore torch's intra-op thread count on exit (a bench may set 1 thread for its timings)."""
-    torch = sys.modules.get("torch")
-    if torch is None:
-        import torch
-    threads = torch.get_num_threads()
-    try:
-        yield
-    finally:
-        torch.set_num_threads(threads)
-
-
-@contextmanager
 def kept_global_state() -> Iterator[None]:
-    """Restore, on exit, the process-wide state a benchmark may change.
+    """Restore, on exit, the process-wide state a benchmark may change (also a function decorator).
 
-    torch (when imported before the block): intra-op threads, default dtype and the CPU random
-    state; numpy: the floating-point error state and the global random state; the
+    torch (imported here if installed): intra-op threads, default dtype and the CPU random state; numpy: the floating-point error state and the global random state; the
     :mod:`warnings` filters; the environment variables (a sweep executor sets its workers' thread
     count there). torch's inter-op thread count cannot be set back once parallel work ran, so no
     bench may change it (a test checks).
@@ -210,8 +195,11 @@ def kept_global_state() -> Iterator[None]:
 
     import numpy as np
 
-    had_torch = "torch" in sys.modules
-    torch_state = _torch_state() if had_torch else None
+    try:
+        import torch
+    except ImportError:  # pragma: no cover - torch is a dependency
+        torch = None
+    torch_state = None if torch is None else (torch.get_num_threads(), torch.get_default_dtype(), torch.get_rng_state())
     np_err, np_random = np.geterr(), np.random.get_state()
     environ = dict(os.environ)
     try:
@@ -223,17 +211,11 @@ def kept_global_state() -> Iterator[None]:
         for key in set(os.environ) - set(environ):
             del os.environ[key]
         os.environ.update({k: v for k, v in environ.items() if os.environ.get(k) != v})
-        if torch_state is not None:
-            torch = sys.modules["torch"]
+        if torch is not None and torch_state is not None:
             threads, dtype, rng = torch_state
             torch.set_num_threads(threads)
             torch.set_default_dtype(dtype)
             torch.set_rng_state(rng)
-
-
-def _torch_state() -> tuple[int, Any, Any]:
-    torch = sys.modules["torch"]
-    return torch.get_num_threads(), torch.get_default_dtype(), torch.get_rng_state()
 
 
 def machine_info() -> dict[str, Any]:
@@ -445,6 +427,11 @@ def _as_measured(value: Any, part: _Part) -> Measured | None:
         value = Measured.of(value.times_s, part.summary).scaled(_time_scale(part.unit))
     elif not isinstance(value, Measured):
         value = Measured(float(value))
+    if part.unit in _TIME_SCALE and (value.repeats is None or value.low is None or value.high is None):
+        from .errors import InputError
+
+        raise InputError(f"{part.metric!r} is a time ({part.unit}): give a Timing or a Measured with repeats and "
+                         f"min–max (Measured.of([t]) for a single run), got {value!r}")
     return None if math.isnan(value.value) else value
 
 

@@ -138,6 +138,10 @@ def test_columns_refuse_what_they_cannot_record():
         t2.row("x", timed(lambda: None))  # a timing shown in m/s
     with pytest.raises(InputError, match="empty"):
         Measured.of([])
+    t3 = sec.table(Column.text("a"), Column.number("wall (s)"))
+    with pytest.raises(InputError, match="is a time"):
+        t3.row("x", 0.5)  # a bare number as a timing: its repeats and spread would be lost
+    t3.row("x", Measured.of([0.5]))
 
 
 def test_measured_summaries_and_timing_units():
@@ -238,9 +242,11 @@ def test_csf_bench_records_are_its_markdown_and_it_leaves_state_alone(tmp_path):
     run = _run_registered("csf")
     assert run.name == "csf"
     assert_records_are_what_is_printed(run)
-    methods = [r for r in run.records if r.metric == "max error"]
+    errors = [r.value for r in run.records if r.metric == "max error"]
     times = [r for r in run.records if r.metric == "time per call"]
-    assert len(methods) == 7 and len(times) == 9  # 7 settings + 2 csf_agreement timings
+    assert len(errors) == 7 and len(times) == 9  # 7 settings + 2 csf_agreement timings
+    # the finest angular setting is closest to the reference; coarse FFT binning is worst
+    assert errors[3] < 1e-3 and max(errors) == max(errors[4:])
     assert all(r.unit == "ms" and r.repeats >= 2 for r in times)
     assert read_json(write_json(run.records, tmp_path / "csf.json")) == list(run.records)
 

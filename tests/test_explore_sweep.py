@@ -272,7 +272,7 @@ def test_bad_scheduler_address_is_a_clear_error(tmp_path):
 def test_explore_benchmark_quick_runs_and_executors_agree():
     from fsdvs_hw.explore.bench import bench_explore
 
-    md = bench_explore(quick=True)
+    md = bench_explore(quick=True).markdown
     assert "### Emulation track" in md and "### Sweep executors" in md
     rows = [line for line in md.splitlines() if line.startswith("| ") and "points" not in line and "executor" not in line]
     executor_rows = [r for r in rows if "process" in r or "Dask" in r]

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..benchmarks import BenchRun, BenchSection, Column, Measured, timed
+from ..benchmarks import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
 
 __all__ = ["bench_stats"]
 
@@ -30,6 +30,7 @@ def _detections(n: int) -> tuple[np.ndarray, ...]:
     return p["boxes"], p["scores"], p["labels"], t["boxes"], t["labels"]
 
 
+@kept_global_state()
 def bench_stats(*, quick: bool = False) -> BenchRun:
     """The table: clips, |mAP(weighted) − mAP(pycocotools)|, seconds per resample of each.
 

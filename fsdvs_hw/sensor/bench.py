@@ -219,10 +219,10 @@ def _accuracy(sec: Any, quick: bool) -> None:
     full = SensorConfig(substeps=256, leak_rate_hz=0.01, shot_noise_rate_hz=0.001, seed=1)
 
     def run(video: Any, **kw: Any) -> Any:
-        return timed(lambda: event_frames(video, kernel, **kw).double(), reps)
+        return timed(lambda: event_frames(video, kernel, **kw), reps)
 
     t_ref = run(video64, config=full)
-    ref = t_ref.result
+    ref = t_ref.result.double()
     n_ref = float(ref.sum())
     rows: list[tuple[str, Any]] = []
     for s in (1, 4, 16, 64):
@@ -252,7 +252,7 @@ def _accuracy(sec: Any, quick: bool) -> None:
                       Column.number("speed-up", ".1f", suffix="×", metric="speed-up vs reference (best walls)"),
                       settings={"height": H, "width": W, "frames": 17, "repeats": reps})
     for name, t in rows:
-        f = t.result
+        f = t.result.double()
         n = float(f.sum())
         table.row(name, n, abs(n - n_ref) / max(n_ref, 1), float((f - ref).abs().sum()) / max(n_ref, 1), t,
                   t_ref.best_s / t.best_s)

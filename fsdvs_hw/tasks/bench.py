@@ -73,7 +73,7 @@ def bench_tasks(*, quick: bool = False) -> BenchRun:
     Timed with one torch thread; torch's thread count and random state (training seeds it) and the
     rest of the process-wide state are restored afterwards (:func:`~fsdvs_hw.benchmarks.kept_global_state`).
     """
-    import torch  # noqa: F401 - imported before kept_global_state so that its state is restored
+    import torch
 
     with kept_global_state():
         torch.set_num_threads(1)

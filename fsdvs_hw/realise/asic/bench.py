@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...benchmarks import BenchRun, BenchSection, Column, timed
+from ...benchmarks import BenchRun, BenchSection, Column, kept_global_state, timed
 
 from ...kernels import Kernel, load_kernel, reference_kernel
 from .fit import fit_asic_taps
@@ -69,6 +69,7 @@ def _count(header: str, metric: str | None = None) -> Column:
     return Column.number(header, "d", unit="count", metric=metric or header)
 
 
+@kept_global_state()
 def bench_asic(*, quick: bool = False) -> BenchRun:
     """Run the ASIC benchmark: its records and their Markdown tables (see the module docstring)."""
     from ...csf import Geometry, csf_agreement

@@ -21,7 +21,7 @@ import sys
 
 import numpy as np
 
-from ...benchmarks import BenchRun, BenchSection, Column, Measured, timed
+from ...benchmarks import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
 
 __all__ = ["bench_mesh"]
 
@@ -215,6 +215,7 @@ def _misc_table(sec: BenchSection, quick: bool) -> None:
         table.row("moving-edge transient", setting, f"max error vs static {err}", t, case=case)
 
 
+@kept_global_state()
 def bench_mesh(*, quick: bool = False) -> BenchRun:
     """Run the dual-mesh benchmarks: their records and Markdown tables (see the module docstring)."""
     sec = BenchSection("mesh", settings={"quick": quick})

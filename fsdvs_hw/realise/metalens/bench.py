@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ...benchmarks import BenchRun, BenchSection, Column, timed
+from ...benchmarks import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
 
 __all__ = ["bench_metalens", "radial_symmetric_floor", "plot_fits"]
 
@@ -135,7 +135,7 @@ def _fit_table(sec: BenchSection, quick: bool) -> list[tuple[str, Any, Any]]:
                                           spec="+.1f") for i, z in enumerate(d.sensor_distance_m))
             table.row(label, strategy, d.error, d.signal_error, radial_symmetric_floor(k.taps), ped,
                       min(d.optical_efficiency), d.contrast_factor, (d.whole_dc_gain, k.dc_gain), defocus,
-                      d.fit_info["n_sub"], (d.fit_info["wall_time_s"], d.fit_info["cpu_time_s"]),
+                      d.fit_info["n_sub"], (Measured.of([d.fit_info["wall_time_s"]]), Measured.of([d.fit_info["cpu_time_s"]])),
                       d.fit_info["model_error"], case=case)
         fits.append((label, k, pair))
     return fits
@@ -175,6 +175,7 @@ def plot_fits(fits: list[tuple[str, Any, Any]], path: Path) -> Path:
     return path
 
 
+@kept_global_state()
 def bench_metalens(*, quick: bool = False, figures: Path | None = None) -> BenchRun:
     """Run the metalens speed/accuracy benchmark: its records and Markdown tables (see module docstring)."""
     import torch
