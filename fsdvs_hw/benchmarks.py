@@ -171,9 +171,16 @@ def timed(fn: Callable[[], T], repeats: int = 1) -> Timing[T]:
     -------
     Timing
         ``times_s`` (s, one per call) and ``result``; ``best_s``, ``median_s``, ``worst_s``.
+
+    Raises
+    ------
+    InputError
+        ``repeats`` is not an integer >= 1.
     """
-    if repeats < 1:
-        raise ValueError(f"repeats must be >= 1, got {repeats}")
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        from .errors import InputError
+
+        raise InputError(f"timed: repeats must be an integer >= 1, got {repeats!r}")
     times, out = [], None
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -186,9 +193,9 @@ def timed(fn: Callable[[], T], repeats: int = 1) -> Timing[T]:
 def kept_global_state() -> Iterator[None]:
     """Restore, on exit, the process-wide state a benchmark may change (also a function decorator).
 
-    torch (imported here if installed): intra-op threads, default dtype and the CPU random state; numpy: the floating-point error state and the global random state; the
-    :mod:`warnings` filters; the environment variables (a sweep executor sets its workers' thread
-    count there). torch's inter-op thread count cannot be set back once parallel work ran, so no
+    torch (imported here if installed): intra-op threads, default dtype and the CPU random state;
+    numpy: the floating-point error state and the global random state; the :mod:`warnings` filters;
+    the environment variables (a sweep executor sets its workers' thread count there). torch's inter-op thread count cannot be set back once parallel work ran, so no
     bench may change it (a test checks).
     """
     import warnings
