@@ -14,7 +14,9 @@ HELP = "the main job: fit every realisation of a design's kernel, score it, writ
 DESCRIPTION = (
     "Fit every realisation (resistive mesh, ASIC taps, metalens, plus the learned kernel and the delta\n"
     "baseline) of the design's kernel, score kernel error, CSF agreement, task accuracy loss, cost and\n"
-    "wall time, and write DIR/report.html, DIR/scores.csv, DIR/scores.json and DIR/results.sqlite.\n"
+    "wall time, and write DIR/report.html, DIR/scores.csv, DIR/scores.json and DIR/results.sqlite,\n"
+    "and each hardware point's buildable files (SPICE deck, Verilog + testbench, phase profile) under\n"
+    "DIR/artifacts/ with DIR/artifacts/index.json.\n"
     "A rerun into the same DIR skips points already scored.\n\n"
     "Example: fsdvs-hw explore designs/default.toml --out out/demo"
 )
@@ -44,5 +46,6 @@ def run(args: argparse.Namespace) -> int:
     if nets:
         print(f"losses measured in: {nets}\n")
     print(f"report: {res.report}\nscores: {res.scores_csv}, {res.scores_json}\nstore:  {res.store}\n"
+          f"artifacts: {res.artifacts_index}\n"
           f"total {res.wall_s:.1f} s")
     return 0 if res.summary.statuses.get("error", 0) == 0 else 1

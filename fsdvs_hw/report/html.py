@@ -19,6 +19,7 @@ from typing import Any
 
 from .. import __version__
 from . import figures
+from .artifacts import artifacts_html
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
 
 __all__ = ["write_report", "render_html"]
@@ -183,6 +184,7 @@ def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title: str 
                                          for k, v in cost.items()],
                                         [("point", "cost"), ("value", "value"), ("unit", "unit"), ("description", "description")],
                                         left=("point", "unit", "description")))
+    parts.append(artifacts_html(points))  # buildable files per hardware point (report/artifacts.py)
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     parts.append(f"<h2>Provenance</h2><p class='note'>fsdvs_hw {__version__}, Python {platform.python_version()}, "
                  f"{html.escape(platform.node())}, {stamp}; design source {html.escape(design.source)}.</p>")
