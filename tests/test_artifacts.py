@@ -287,6 +287,30 @@ def test_reloaded_phase_profile_reproduces_the_written_psf(metalens_dir, tmp_pat
 
 
 # ---------------------------------------------------------------------------- an exploration writes them all
+def test_swept_points_get_their_own_folders_and_a_failing_writer_is_recorded(tmp_path, monkeypatch):
+    from fsdvs_hw.explore.artifacts import point_folder_name, write_exploration_artifacts
+    from fsdvs_hw.realise import registry
+
+    assert point_folder_name("asic", {}) == "asic"
+    assert point_folder_name("asic", {"asic.bits": 4, "sensor.threshold_on": 0.2}) == "asic__bits-4__threshold_on-0.2"
+    assert "/" not in point_folder_name("asic", {"asic.x": "../../etc"})
+    import dataclasses
+
+    monkeypatch.setitem(registry._REGISTRY, "mesh", dataclasses.replace(
+        registry.get_realisation("mesh"), write_artifacts="tests.test_artifacts:_failing_writer"))
+    record = {"kind": "reference", "kernel": reference_kernel("delta", 3).to_dict(), "label": "x"}
+    pts = [{"realisation": "mesh", "params": {}, "status": "ok", "result": {"realisation": record}},
+           {"realisation": "learned", "params": {}, "status": "ok", "result": {"realisation": record}},
+           {"realisation": "asic", "params": {}, "status": "error", "result": {"reason": "x"}}]
+    path, entries = write_exploration_artifacts(pts, tmp_path)
+    assert [(e["point"], e["error"]) for e in entries] == [("mesh", "RuntimeError: disk full")]
+    assert read_index(path) == entries
+
+
+def _failing_writer(record, out_dir, **_):
+    raise RuntimeError("disk full")
+
+
 _SMALL = """
 [realisations]
 include = ["learned", "delta", "mesh", "asic", "metalens"]
@@ -337,3 +361,15 @@ def test_explore_writes_every_hardware_realisations_artifacts_and_the_report_lin
         assert f'href="artifacts/{e["file"]}"' in html
     assert all(not pt.get("artifacts") for pt in res.points if pt["realisation"] in ("learned", "delta"))
     json.loads((tmp_path / "out" / "scores.json").read_text())  # still valid JSON with the entries attached
+
+
+def test_report_fragment_links_escape_and_show_a_failed_writer():
+    from fsdvs_hw.report.artifacts import artifacts_html
+
+    assert artifacts_html([{"realisation": "learned"}]) == ""
+    frag = artifacts_html([
+        {"realisation": "asic", "artifacts": [{"point": "asic", "name": "verilog", "file": "artifacts/asic/f v.v",
+                                               "what": "RTL <8-bit>", "checked_by": "verilator -Wall f.v"}]},
+        {"realisation": "mesh", "artifacts": [{"point": "mesh", "error": "RuntimeError: <disk> full"}]}])
+    assert 'href="artifacts/asic/f%20v.v"' in frag and "RTL &lt;8-bit&gt;" in frag
+    assert "<code>verilator -Wall f.v</code>" in frag and "not written: RuntimeError: &lt;disk&gt; full" in frag
