@@ -42,6 +42,8 @@ SPEC = register_realisation(RealisationSpec(
     artifacts={"verilog": "streaming k×k shift-add filter RTL (AsicDesign.verilog)",
                "synthesis": "yosys cell count and area on the shipped liberty file (AsicDesign.synthesise)"},
     colour="#d62728",
+    title="ASIC taps",
+    marker="^",
     in_default_design=True,
     description="quantised integer taps as a shift-add digital filter (nlopt scale + CSD tap search)",
 ))

@@ -70,6 +70,8 @@ SPEC = register_realisation(RealisationSpec(
     ),
     artifacts={"spice_netlist": "SPICE netlist of the realised network (fsdvs_hw.realise.mesh.spice.to_spice_netlist)"},
     colour="#1f77b4",
+    title="resistive mesh",
+    marker="D",
     in_default_design=True,
     description="dual resistive mesh: K = w·δ + a·H_narrow − b·H_wide (casadi/IPOPT)",
 ))

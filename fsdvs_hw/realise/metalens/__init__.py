@@ -50,6 +50,8 @@ SPEC = register_realisation(RealisationSpec(
     ),
     artifacts={"psf": "the pixel-integrated PSF of each lens (MetalensDesign.psfs, in its JSON record)"},
     colour="#2ca02c",
+    title="metalens",
+    marker="v",
     in_default_design=True,
     description="metalens whose pixel-integrated PSF is the kernel (pedestal or differential pair)",
 ))
