@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..kernels import Kernel
-from .present import point_title, style
+from .present import number, point_title, style
 from .tables import accuracy_axis, is_reference, loss_interval
 
 __all__ = ["Panel", "realised_kernels", "kernel_colour_limit", "fig_kernels", "fig_spectra", "fig_radial",
@@ -215,7 +215,7 @@ def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
     kinds = [k for k in dict.fromkeys(r["realisation"] for r in ok)
              if any(not math.isnan(_val(r, "kind_cost_value")) for r in ok if r["realisation"] == k)]
     n = 1 + max(1, len(kinds))
-    fig, axes = _grid(n, w=4.0, h=3.6, cols=3)
+    fig, axes = _grid(n, w=3.0 if n >= 4 else 4.0, h=3.2, cols=4)
     axes = axes.ravel()
     ax = axes[0]
     for kind in dict.fromkeys(r["realisation"] for r in ok):
@@ -268,6 +268,13 @@ def _val(r: Mapping[str, Any], key: str) -> float:
     return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
 
 
+def _minor_label(v: float, _pos: Any = None) -> str:
+    if v <= 0:
+        return ""
+    mant = round(v / 10 ** math.floor(math.log10(v)), 6)
+    return number(v) if mant in (2.0, 5.0) else ""
+
+
 def fig_speed(rows: Sequence[Mapping[str, Any]]) -> Any:
     """Speed for accuracy: kernel error against fit time for every hardware realisation point."""
     import matplotlib.pyplot as plt
@@ -280,8 +287,13 @@ def fig_speed(rows: Sequence[Mapping[str, Any]]) -> Any:
         ax.scatter([max(r["fit_s"], 1e-6) for r in g], [max(r["kernel_error"], 1e-12) for r in g], s=60,
                    marker=st.marker, facecolors="none", edgecolors=st.colour, linewidths=1.6, label=st.title)
     if ok:
+        from matplotlib.ticker import FuncFormatter
+
         ax.set_xscale("log")
         ax.set_yscale("log")
+        for axis in (ax.xaxis, ax.yaxis):  # plain numbers, no e-notation; minor ticks labelled at 2 and 5
+            axis.set_major_formatter(FuncFormatter(lambda v, _: number(v)))
+            axis.set_minor_formatter(FuncFormatter(_minor_label))
         ax.legend(fontsize=7)
     else:
         ax.text(0.5, 0.5, "no hardware realisation was fitted", ha="center", va="center", transform=ax.transAxes)
