@@ -212,6 +212,9 @@ def _metric_name(column: str) -> str:
     return f"{task} {primary} ({track})"
 
 
+#: Wall-time columns of the score rows (seconds).
+_WALL = ("fit_s", "analysis_s", "tasks_s", "emulation_s", "point_s")
+
 #: Stored cost items also shown as score columns (listed once, there).
 _SHOWN_AS_SCORES = {"kernel_error": "kernel error (Scores by topic)", "fit_time": "fit time (Speed for accuracy)"}
 
@@ -224,8 +227,7 @@ def _realisation_details(points: Sequence[Mapping[str, Any]]) -> str:
             continue
         res = p["result"]
         cost = res.get("cost") or {}
-        items = [{"item": cost_label(p["realisation"], k), "value": si(_float(v.get("value")), str(v.get("unit", "1"))),
-                  "definition": v.get("description", "")} for k, v in cost.items() if k not in _SHOWN_AS_SCORES]
+        items = _quantities(p["realisation"], cost)
         body = ""
         if items:
             body += _table(items, [("item", "quantity"), ("value", "value"), ("definition", "definition")],
@@ -240,6 +242,26 @@ def _realisation_details(points: Sequence[Mapping[str, Any]]) -> str:
     return ("<h2 id='realisations'>Realisations</h2><p class='note'>Every quantity each fit stored, once, with its "
             f"definition ({'; '.join(_SHOWN_AS_SCORES.values())} are in the score tables). The fit's own text "
             "summary is kept in scores.json (<code>describe</code>).</p>" + "".join(parts))
+
+
+def _quantities(realisation: str, cost: Mapping[str, Mapping[str, Any]]) -> list[dict[str, str]]:
+    """Rows (quantity, value, definition) of a point's stored cost items, each quantity once.
+
+    Items shown as score columns (:data:`_SHOWN_AS_SCORES`) are left out; a length stored both in
+    metres (``X_m``) and in pixels (``X_px``) is one row, "5.35 µm (1.1 px)".
+    """
+    rows = []
+    for k, v in cost.items():
+        if k in _SHOWN_AS_SCORES or (k.endswith("_px") and k[:-3] + "_m" in cost):
+            continue
+        value = si(_float(v.get("value")), str(v.get("unit", "1")))
+        label = cost_label(realisation, k)
+        if k.endswith("_m") and k[:-2] + "_px" in cost:
+            px = cost[k[:-2] + "_px"]
+            value += f" ({si(_float(px.get('value')), str(px.get('unit', 'px')))})"
+            label = cost_label(realisation, k[:-2])
+        rows.append({"item": label, "value": value, "definition": str(v.get("description", ""))})
+    return rows
 
 
 def _float(v: Any) -> float:
@@ -336,10 +358,10 @@ def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title_text:
         parts.append(_details("Wall times of every point", "<p class='note'>Seconds on the machine that ran each point "
                               "(fit: the realisation's optimiser; analysis: spectra and CSF; tasks: evaluators; "
                               "emulation: display and recapture track).</p>"
-                              + _table(named, [("name", "realisation"), ("fit_s", "fit (s)"),
-                                               ("analysis_s", "analysis (s)"), ("tasks_s", "tasks (s)"),
-                                               ("emulation_s", "emulation (s)"), ("point_s", "point total (s)")],
-                                       left=("name",))))
+                              + _table([{**r, **{c: si(_float(r.get(c)), "s") for c in _WALL}} for r in named],
+                                       [("name", "realisation"), ("fit_s", "fit"), ("analysis_s", "analysis"),
+                                        ("tasks_s", "tasks"), ("emulation_s", "emulation"),
+                                        ("point_s", "point total")], left=("name",))))
         parts.append(_realisation_details(points))
     for section in _extra_sections():
         parts.append(section(points, design))

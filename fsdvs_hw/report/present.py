@@ -137,12 +137,9 @@ def number(v: float | int | None, digits: int = 3) -> str:
         sign = "-" if whole.startswith("-") else ""
         whole = _group(int(whole.lstrip("-")))
         return sign + whole + (f".{frac}" if frac else "")
-    exp = math.floor(math.log10(a))
-    mant = v / 10 ** exp
-    if round(abs(mant), digits - 1) >= 10:
-        mant, exp = mant / 10, exp + 1
-    m = f"{mant:.{digits - 1}f}".rstrip("0").rstrip(".")
-    return f"{m} × 10{str(exp).translate(_SUPERSCRIPT)}"
+    mant, _, exp = f"{v:.{digits - 1}e}".partition("e")  # Python rounds the mantissa and carries into exp
+    m = mant.rstrip("0").rstrip(".") if "." in mant else mant
+    return f"{m} × 10{str(int(exp)).translate(_SUPERSCRIPT)}"
 
 
 def _group(n: int) -> str:
@@ -198,4 +195,9 @@ def cost_label(realisation: str, item: str) -> str:
     for c in (spec.costs if spec is not None else ()):
         if c.name == item and c.label:
             return c.label
-    return item.replace("_m2", "").replace("_", " ")
+    words = item.removesuffix("_m2").removesuffix("_m").removesuffix("_px").split("_")
+    return " ".join(_GREEK.get(w, w) for w in words)
+
+
+#: Symbol names in cost item names written as the symbols.
+_GREEK = {"lambda": "λ", "tau": "τ", "sigma": "σ", "mu": "µ"}
