@@ -15,6 +15,7 @@ import fsdvs_hw.report.present as present
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.kernels import Kernel, reference_kernel
 from fsdvs_hw.realise.registry import REALISATIONS
+from fsdvs_hw.records import Cost
 from fsdvs_hw.report import figures
 from fsdvs_hw.report.html import _quantities, write_report_from_scores
 from fsdvs_hw.report.present import number, point_title, si, style
@@ -130,7 +131,8 @@ def _row_point(key, realisation, corr, cost, loss):
     ci = {"estimate": loss, "low": loss - h, "high": loss + h, "half_width": h, "confidence": 0.95, "n_clips": 64,
           "n_seeds_reference": 3,
           "text": f"no measurable loss (± {h:.3f})" if loss - h <= 0 <= loss + h else f"{loss:.3f} [{loss - h:.3f}, {loss + h:.3f}]"}
-    res = {"kernel_error": 0.1, "csf": {"mannos_sakrison_1974": {"correlation": corr},
+    res = {"kind": realisation, "kernel": reference_kernel("delta", 3, pitch_m=5e-6).to_dict(),
+           "kernel_error": 0.1, "csf": {"mannos_sakrison_1974": {"correlation": corr},
                                         "fitted_scale": {"correlation": corr}},
            "cost": cost, "wall_s": {"fit": 0.1}, "tasks": {"status": "ok"}}
     params = {"asic.bits": key} if realisation == "asic" else {}
@@ -164,7 +166,7 @@ def test_quantities_each_once_with_definition():
             "lambda_narrow_m": {"value": 5.35e-6, "unit": "m", "description": "narrow space constant"},
             "kernel_error": {"value": 0.2, "unit": "1"}, "fit_time": {"value": 1.0, "unit": "s"},
             "numerical_aperture": {"value": 0.4223, "unit": "1", "description": "largest local NA of the phase"}}
-    rows = _quantities("mesh", cost)
+    rows = _quantities("mesh", Cost.from_dict(cost))
     assert rows == [{"item": "λ narrow", "value": "5.35 µm (1.1 px)", "definition": "narrow space constant"},
                     {"item": "numerical aperture", "value": "0.422", "definition": "largest local NA of the phase"}]
 
@@ -176,5 +178,5 @@ def test_write_report_from_scores_refuses_what_is_not_a_run(tmp_path):
     with pytest.raises(InputError, match="not JSON"):
         write_report_from_scores(tmp_path, object())
     (tmp_path / "scores.json").write_text('{"rows": [], "points": [{"status": "ok"}]}')
-    with pytest.raises(InputError, match="'points'"):
+    with pytest.raises(InputError, match=r"points\[0\]: missing field 'key'"):
         write_report_from_scores(tmp_path, object())

@@ -1,7 +1,7 @@
 """Report figures: kernels side by side, spectra, radial responses vs CSF, Pareto and speed plots.
 
-Each function takes stored design points (dicts with ``realisation``, ``params``, ``status`` and
-a :func:`~fsdvs_hw.explore.scoring.score` record in ``result``) or the flat rows of
+Each function takes stored design points (:class:`fsdvs_hw.records.ScoredPoint`, or the dicts
+they serialise to) or the flat rows of
 :func:`fsdvs_hw.report.tables.score_rows`, and returns a matplotlib ``Figure``; nothing is shown.
 
 Every realisation keeps one colour and one marker across all figures
@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..kernels import Kernel
+from ..records import ScoredPoint
 from .present import number, point_title, style
 from .tables import accuracy_axis, is_reference, loss_interval
 
@@ -42,24 +43,25 @@ class Panel:
     kernel: Kernel
 
 
-def realised_kernels(points: Sequence[Mapping[str, Any]], *, limit: int = _MAX_PANELS) -> list[Panel]:
+def realised_kernels(points: Sequence[Mapping[str, Any] | ScoredPoint], *, limit: int = _MAX_PANELS) -> list[Panel]:
     """One :class:`Panel` per distinct successful point's realised kernel, at most ``limit`` (evenly picked)."""
-    ok, seen = [], set()
-    for p in points:  # one panel per distinct kernel (axes such as the optics do not change it)
-        if p["status"] == "ok" and "kernel" in (p.get("result") or {}):
-            taps = np.round(np.asarray(p["result"]["kernel"]["taps"], dtype=float), 12)
-            sig = (p["realisation"], taps.shape, taps.tobytes())
+    ok: list[ScoredPoint] = []
+    seen = set()
+    for p in _typed(points):  # one panel per distinct kernel (axes such as the optics do not change it)
+        if p.ok and p.score is not None:
+            taps = np.round(np.asarray(p.score.kernel.taps, dtype=float), 12)
+            sig = (p.realisation, taps.shape, taps.tobytes())
             if sig not in seen:
                 seen.add(sig)
                 ok.append(p)
     if len(ok) > limit:
         idx = np.unique(np.linspace(0, len(ok) - 1, limit).round().astype(int))
         ok = [ok[i] for i in idx]
-    out = []
-    for p in ok:
-        label = point_title(p["realisation"], p.get("params"))
-        out.append(Panel(label, p["realisation"], Kernel.from_dict(p["result"]["kernel"], source=label)))
-    return out
+    return [Panel(point_title(p.realisation, p.params), p.realisation, p.score.kernel) for p in ok if p.score]
+
+
+def _typed(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> list[ScoredPoint]:
+    return [p if isinstance(p, ScoredPoint) else ScoredPoint.from_dict(p) for p in points]
 
 
 def kernel_colour_limit(taps: np.ndarray) -> tuple[float, bool]:

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import __version__
+from ..records import Cost, ScoredPoint
 from . import figures
 from .present import cost_label, number, point_title, si, style, title
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
@@ -59,12 +60,13 @@ pre{background:#f7f7f7;padding:.6em;font-size:.8em;overflow:auto;white-space:pre
 .note{color:#555;font-size:.9em}.bad{color:#a00}
 """
 
-#: Sections other modules add to the report: ``fragment(points, design) -> str`` (an HTML fragment,
+#: Sections other modules add to the report: ``fragment(points, design) -> str`` (points: a list of
+#: :class:`fsdvs_hw.records.ScoredPoint`; an HTML fragment,
 #: "" for none), appended in order after the realisation details. Add one with one line here.
-_EXTRA_SECTIONS: list[Callable[[Sequence[Mapping[str, Any]], Any], str]] = []
+_EXTRA_SECTIONS: list[Callable[[Sequence[ScoredPoint], Any], str]] = []
 
 
-def _extra_sections() -> list[Callable[[Sequence[Mapping[str, Any]], Any], str]]:
+def _extra_sections() -> list[Callable[[Sequence[ScoredPoint], Any], str]]:
     """The extra section builders (import here, so a section's module loads only when a report is built)."""
     return list(_EXTRA_SECTIONS)
 
@@ -219,24 +221,22 @@ _WALL = ("fit_s", "analysis_s", "tasks_s", "emulation_s", "point_s")
 _SHOWN_AS_SCORES = {"kernel_error": "kernel error (Scores by topic)", "fit_time": "fit time (Speed for accuracy)"}
 
 
-def _realisation_details(points: Sequence[Mapping[str, Any]]) -> str:
+def _realisation_details(points: Sequence[ScoredPoint]) -> str:
     """Per scored point: every stored cost and design quantity with its unit (SI prefixes) and definition."""
     parts = []
     for p in points:
-        if p["status"] != "ok":
+        if not p.ok or p.score is None:
             continue
-        res = p["result"]
-        cost = res.get("cost") or {}
-        items = _quantities(p["realisation"], cost)
+        items = _quantities(p.realisation, p.score.cost)
         body = ""
         if items:
             body += _table(items, [("item", "quantity"), ("value", "value"), ("definition", "definition")],
                            left=("item", "value", "definition"))
-        for w in res.get("warnings", []):
-            body += f"<p class='bad'>warning: {html.escape(str(w))}</p>"
+        for w in p.score.warnings:
+            body += f"<p class='bad'>warning: {html.escape(w)}</p>"
         if not body:
             body = "<p class='note'>An ideal reference: no hardware quantities.</p>"
-        parts.append(_details(point_title(p["realisation"], p.get("params")), body))
+        parts.append(_details(point_title(p.realisation, p.params), body))
     if not parts:
         return ""
     return ("<h2 id='realisations'>Realisations</h2><p class='note'>Every quantity each fit stored, once, with its "
@@ -244,39 +244,44 @@ def _realisation_details(points: Sequence[Mapping[str, Any]]) -> str:
             "summary is kept in scores.json (<code>describe</code>).</p>" + "".join(parts))
 
 
-def _quantities(realisation: str, cost: Mapping[str, Mapping[str, Any]]) -> list[dict[str, str]]:
+def _quantities(realisation: str, cost: Cost) -> list[dict[str, str]]:
     """Rows (quantity, value, definition) of a point's stored cost items, each quantity once.
 
     Items shown as score columns (:data:`_SHOWN_AS_SCORES`) are left out; a length stored both in
     metres (``X_m``) and in pixels (``X_px``) is one row, "5.35 µm (1.1 px)".
     """
+    items = cost.items
     rows = []
-    for k, v in cost.items():
-        if k in _SHOWN_AS_SCORES or (k.endswith("_px") and k[:-3] + "_m" in cost):
+    for k, v in items.items():
+        if k in _SHOWN_AS_SCORES or (k.endswith("_px") and k[:-3] + "_m" in items):
             continue
-        value = si(_float(v.get("value")), str(v.get("unit", "1")))
+        value = si(cost.value(k), v.unit or "1")
         label = cost_label(realisation, k)
-        if k.endswith("_m") and k[:-2] + "_px" in cost:
-            px = cost[k[:-2] + "_px"]
-            value += f" ({si(_float(px.get('value')), str(px.get('unit', 'px')))})"
+        if k.endswith("_m") and k[:-2] + "_px" in items:
+            value += f" ({si(cost.value(k[:-2] + '_px'), cost.unit(k[:-2] + '_px') or 'px')})"
             label = cost_label(realisation, k[:-2])
-        rows.append({"item": label, "value": value, "definition": str(v.get("description", ""))})
+        rows.append({"item": label, "value": value, "definition": str(v.description)})
     return rows
+
+
+def _typed(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> list[ScoredPoint]:
+    return [p if isinstance(p, ScoredPoint) else ScoredPoint.from_dict(p) for p in points]
 
 
 def _float(v: Any) -> float:
     return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
 
 
-def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title_text: str | None = None,
+def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, *, title_text: str | None = None,
                 stamp: str | None = None) -> str:
     """The report as one HTML string (figures embedded).
 
     Parameters
     ----------
-    points : sequence of mappings
-        Stored design points (:meth:`fsdvs_hw.explore.store.ResultsStore.rows`), with
-        ``paired_loss`` where task losses were computed.
+    points : sequence of ScoredPoint or mappings
+        Stored design points (:class:`fsdvs_hw.records.ScoredPoint`, or the dicts of
+        :meth:`fsdvs_hw.explore.store.ResultsStore.rows`), with ``paired_loss`` where task losses
+        were computed.
     design : fsdvs_hw.explore.design.Design
         The design they came from (sensor, optics and CSF settings are read from it).
     title_text : str, optional
@@ -284,6 +289,7 @@ def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title_text:
     stamp : str, optional
         Time stamp in the provenance (default: now, UTC).
     """
+    points = _typed(points)
     data = design.to_dict()
     rows = score_rows(points)
     ok = [r for r in rows if r["status"] == "ok"]
@@ -375,7 +381,7 @@ def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title_text:
     return "\n".join(p for p in parts if p)
 
 
-def _conditions(points: Sequence[Mapping[str, Any]], rows: Sequence[Mapping[str, Any]], data: Mapping[str, Any],
+def _conditions(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]], data: Mapping[str, Any],
                 design: Any) -> str:
     """Run conditions: sensor, simulator of the task tracks, networks, task status."""
     t = design.target
@@ -385,10 +391,11 @@ def _conditions(points: Sequence[Mapping[str, Any]], rows: Sequence[Mapping[str,
              f"{html.escape(str(data['sensor']['positivity']))}."]
     sensors = set()
     for p in points:
-        for task, tracks in ((p.get("result") or {}).get("tasks") or {}).items():
-            for res in (tracks.values() if isinstance(tracks, Mapping) else []):
-                if isinstance(res, Mapping) and isinstance(res.get("sensor"), Mapping):
-                    sensors.add(f"{task}: " + ", ".join(f"{k} = {v}" for k, v in res["sensor"].items()))
+        for task, tracks in (p.score.tasks.tracks.items() if p.score is not None else ()):
+            for track in tracks.values():
+                sensor = track.extra.get("sensor")
+                if isinstance(sensor, Mapping):
+                    sensors.add(f"{task}: " + ", ".join(f"{k} = {v}" for k, v in sensor.items()))
     if sensors:
         items.append("Task-track simulator: " + html.escape("; ".join(sorted(sensors))) + ".")
     nets = networks_note(points)
@@ -403,12 +410,12 @@ def _conditions(points: Sequence[Mapping[str, Any]], rows: Sequence[Mapping[str,
         "Sensor, simulator and networks", "".join(f"<p class='note'>{i}</p>" for i in items))
 
 
-def write_report(points: Sequence[Mapping[str, Any]], design: Any, out_dir: str | Path) -> Path:
+def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, out_dir: str | Path) -> Path:
     """Write ``report.html``, ``scores.csv`` and ``scores.json`` into ``out_dir``; return the HTML path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    points = list(points)
-    write_scores(score_rows(points), out, full=points)
+    points = _typed(points)
+    write_scores(score_rows(points), out, full=[p.to_dict() for p in points])
     path = out / "report.html"
     path.write_text(render_html(points, design))
     return path
@@ -456,8 +463,9 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"{src}: not a scores file (not JSON: {exc})") from None
     points = data.get("points") if isinstance(data, Mapping) else None
-    if not isinstance(points, list) or not all(isinstance(p, Mapping) and "realisation" in p for p in points):
+    if not isinstance(points, list):
         raise InputError(f"{src}: field 'points' must be the list of stored points that write_report saves")
+    points = [ScoredPoint.from_dict(p, where=f"{src}: points[{i}]") for i, p in enumerate(points)]
     if not isinstance(design, (str, Path)):
         return write_report(points, design, to if to is not None else out_dir)
     from ..explore.design import load_design
