@@ -209,7 +209,9 @@ def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch
     # the report rebuilt from the stored scores alone, nothing rerun: the same numbers and page
     from fsdvs_hw.report.html import write_report_from_scores
 
-    again = write_report_from_scores(out, p, to=tmp_path / "again")
+    from fsdvs_hw.explore.design import load_design
+
+    again = write_report_from_scores(out, load_design(p), to=tmp_path / "again")
     assert (tmp_path / "again" / "scores.csv").read_text() == (out / "scores.csv").read_text()
     stamp = re.compile(r"\d{4}-\d\d-\d\d \d\d:\d\d UTC")
     assert stamp.sub("", again.read_text()) == stamp.sub("", (out / "report.html").read_text())

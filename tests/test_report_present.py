@@ -180,3 +180,6 @@ def test_write_report_from_scores_refuses_what_is_not_a_run(tmp_path):
     (tmp_path / "scores.json").write_text('{"rows": [], "points": [{"status": "ok"}]}')
     with pytest.raises(InputError, match=r"points\[0\]: missing field 'key'"):
         write_report_from_scores(tmp_path, object())
+    (tmp_path / "scores.json").write_text('{"rows": [], "points": []}')
+    with pytest.raises(InputError, match="design must be a loaded design"):
+        write_report_from_scores(tmp_path, "designs/default.toml")

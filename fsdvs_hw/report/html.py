@@ -432,8 +432,9 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
     ----------
     out_dir : path
         Folder of the earlier run (holds ``scores.json``).
-    design : Design or path
-        The design the run used (:class:`fsdvs_hw.explore.design.Design` or its TOML file).
+    design : Design
+        The design the run used (:func:`fsdvs_hw.explore.design.load_design` of its TOML file;
+        the report layer sits below explore and does not load designs itself).
     to : path, optional
         Folder to write ``report.html``, ``scores.csv`` and ``scores.json`` into (default:
         ``out_dir`` itself, replacing the report there).
@@ -450,7 +451,8 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
 
     Examples
     --------
-    >>> write_report_from_scores("out/demo", "designs/default.toml")  # doctest: +SKIP
+    >>> from fsdvs_hw.explore.design import load_design
+    >>> write_report_from_scores("out/demo", load_design("designs/default.toml"))  # doctest: +SKIP
     PosixPath('out/demo/report.html')
     """
     from ..errors import InputError
@@ -466,8 +468,7 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
     if not isinstance(points, list):
         raise InputError(f"{src}: field 'points' must be the list of stored points that write_report saves")
     points = [ScoredPoint.from_dict(p, where=f"{src}: points[{i}]") for i, p in enumerate(points)]
-    if not isinstance(design, (str, Path)):
-        return write_report(points, design, to if to is not None else out_dir)
-    from ..explore.design import load_design
-
-    return write_report(points, load_design(design), to if to is not None else out_dir)
+    if isinstance(design, (str, Path)) or not callable(getattr(design, "to_dict", None)):
+        raise InputError(f"write_report_from_scores: design must be a loaded design "
+                         f"(fsdvs_hw.explore.design.load_design(path)), got {type(design).__name__}")
+    return write_report(points, design, to if to is not None else out_dir)
