@@ -183,3 +183,31 @@ def test_write_report_from_scores_refuses_what_is_not_a_run(tmp_path):
     (tmp_path / "scores.json").write_text('{"rows": [], "points": []}')
     with pytest.raises(InputError, match="design must be a loaded design"):
         write_report_from_scores(tmp_path, "designs/default.toml")
+
+
+def test_each_realisation_keeps_its_registry_colour_and_marker_in_every_figure():
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import to_hex
+
+    panels = _panels()
+    fig = figures.fig_radial(panels, methods=["mannos_sakrison_1974"], pitch_m=4.86e-6, focal_length_m=4e-3)
+    for ax in fig.axes[:2]:
+        lines = {ln.get_label(): ln for ln in ax.get_lines()}
+        for pan in panels:
+            assert to_hex(lines[pan.label].get_color()) == style(pan.realisation).colour
+            assert lines[pan.label].get_marker() == style(pan.realisation).marker
+    plt.close(fig)
+    add = lambda n: {"adders": {"value": n, "unit": "count"}}  # noqa: E731
+    rows = score_rows([_row_point("L", "learned", 0.9, {}, 0.0), _row_point(4, "asic", 0.88, add(30), 0.001),
+                       _row_point("m", "metalens", 0.5, {"aperture_diameter": {"value": 1e-4, "unit": "m"}}, 0.2)])
+    for make in (figures.fig_pareto, figures.fig_speed):
+        fig = make(rows)
+        handles, labels = fig.axes[0].get_legend_handles_labels()
+        seen = {}
+        for h, lab in zip(handles, labels):
+            line = h[0] if isinstance(h, tuple) else h  # errorbar containers: the data line first
+            colour = line.get_color() if hasattr(line, "get_color") else line.get_edgecolor()[0]
+            seen[lab] = to_hex(colour)
+        for name in ("asic", "metalens"):
+            assert seen[style(name).title] == style(name).colour, (make.__name__, name)
+        plt.close(fig)
