@@ -27,7 +27,7 @@ from typing import Any
 from .. import __version__
 from ..records import Cost, ScoredPoint
 from . import figures
-from .present import cost_label, number, point_title, si, style, title
+from .present import cost_label, number, plain, point_title, si, style, title
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
 from .verdict import VERDICT_COLUMNS, advice, verdict_table
 
@@ -90,7 +90,7 @@ def _fmt(v: Any) -> str:
         return "yes" if v else ""
     if isinstance(v, (int, float)):
         return number(v, 4) if isinstance(v, float) else number(v)
-    return html.escape(str(v))
+    return html.escape(plain(str(v)))
 
 
 def _table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str]], *, left: Sequence[str] = ("point",),
@@ -233,7 +233,7 @@ def _realisation_details(points: Sequence[ScoredPoint]) -> str:
             body += _table(items, [("item", "quantity"), ("value", "value"), ("definition", "definition")],
                            left=("item", "value", "definition"))
         for w in p.score.warnings:
-            body += f"<p class='bad'>warning: {html.escape(w)}</p>"
+            body += f"<p class='bad'>warning: {html.escape(plain(w))}</p>"
         if not body:
             body = "<p class='note'>An ideal reference: no hardware quantities.</p>"
         parts.append(_details(point_title(p.realisation, p.params), body))
@@ -260,7 +260,7 @@ def _quantities(realisation: str, cost: Cost) -> list[dict[str, str]]:
         if k.endswith("_m") and k[:-2] + "_px" in items:
             value += f" ({si(cost.value(k[:-2] + '_px'), cost.unit(k[:-2] + '_px') or 'px')})"
             label = cost_label(realisation, k[:-2])
-        rows.append({"item": label, "value": value, "definition": str(v.description)})
+        rows.append({"item": label, "value": value, "definition": plain(str(v.description))})
     return rows
 
 

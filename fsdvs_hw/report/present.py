@@ -15,13 +15,14 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from ..realise.registry import REALISATIONS
 
-__all__ = ["Style", "style", "title", "point_title", "number", "si", "cost_label", "PREFIXED_UNITS"]
+__all__ = ["Style", "style", "title", "point_title", "number", "si", "plain", "cost_label", "PREFIXED_UNITS"]
 
 #: Units that take an SI prefix (``"m^2"`` takes it squared).
 PREFIXED_UNITS: frozenset[str] = frozenset({"m", "m^2", "s", "S", "F", "W", "J", "A", "V", "Hz"})
@@ -186,6 +187,21 @@ def si(value: float | None, unit: str, digits: int = 3) -> str:
     prefix = dict(_PREFIXES)[exp3]
     text = number(float(f"{scaled:.{digits}g}") if 1 <= abs(scaled) else scaled, digits)
     return f"{text} {prefix}{base}{'²' if power == 2 else ''}"
+
+
+_E_NUMBER = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d+)?[eE][-+]?\d+(?![\w.])")
+
+
+def plain(text: str) -> str:
+    """Free text (a warning, a cost item's description) with every e-notation number rewritten by
+    :func:`number`: ``"all but 1e-6 of it"`` → ``"all but 1 × 10⁻⁶ of it"``.
+
+    Examples
+    --------
+    >>> plain("g_l = 1e-08 S, tau = 2.68e-06 s; 7x7 kernel")
+    'g_l = 1 × 10⁻⁸ S, tau = 2.68 × 10⁻⁶ s; 7x7 kernel'
+    """
+    return _E_NUMBER.sub(lambda m: number(float(m.group(0))), text)
 
 
 def cost_label(realisation: str, item: str) -> str:
