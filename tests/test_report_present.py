@@ -211,3 +211,19 @@ def test_each_realisation_keeps_its_registry_colour_and_marker_in_every_figure()
         for name in ("asic", "metalens"):
             assert seen[style(name).title] == style(name).colour, (make.__name__, name)
         plt.close(fig)
+
+
+@pytest.mark.parametrize("args", [["--out", "{f}"], ["--out", "{d}", "--to", "{f}"], ["--out", "{d}"]])
+def test_report_verb_errors_are_one_line(args, tmp_path, capsys):
+    from pathlib import Path
+
+    from fsdvs_hw.cli import main
+
+    f = tmp_path / "a_file"
+    f.write_text("x")
+    d = tmp_path / "empty"
+    d.mkdir()
+    design = Path(__file__).resolve().parents[1] / "designs" / "default.toml"
+    assert main(["report", str(design)] + [a.format(f=f, d=d) for a in args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err and ("a_file" in err or "no scores.json" in err)

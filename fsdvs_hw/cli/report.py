@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, required=True, metavar="DIR",
                         help="output folder of the earlier run (holds scores.json)")
     parser.add_argument("--to", type=Path, default=None, metavar="DIR",
-                        help="write the report here instead of replacing the one in --out")
+                        help="folder to write the report into (default: replace the report in --out)")
 
 
 def run(args: argparse.Namespace) -> int:

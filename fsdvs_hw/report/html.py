@@ -447,7 +447,8 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
     Raises
     ------
     InputError
-        ``out_dir/scores.json`` is missing, is not JSON, or holds no ``"points"`` list.
+        ``out_dir`` is not a folder; ``out_dir/scores.json`` is missing, is not JSON, or holds no
+        ``"points"`` list of stored points; ``design`` is not a loaded design.
 
     Examples
     --------
@@ -457,6 +458,8 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
     """
     from ..errors import InputError
 
+    if not Path(out_dir).is_dir():
+        raise InputError(f"{out_dir}: not a folder (the --out folder of an earlier explore or sweep run)")
     src = Path(out_dir) / "scores.json"
     try:
         data = json.loads(src.read_text())
