@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-import fsdvs_hw.report.present as present
+from fsdvs_hw.report import present
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.kernels import Kernel, reference_kernel
 from fsdvs_hw.realise.registry import REALISATIONS
@@ -141,7 +141,7 @@ def _row_point(key, realisation, corr, cost, loss):
 
 
 def test_verdict_recommends_the_cheapest_undominated_point_without_measurable_loss():
-    add = lambda n: {"adders": {"value": n, "unit": "count"}}  # noqa: E731
+    add = lambda n: {"adders": {"value": n, "unit": "count"}}
     pts = [_row_point("L", "learned", 0.9, {}, 0.0), _row_point(2, "asic", 0.7, add(10), 0.08),
            _row_point(4, "asic", 0.88, add(30), 0.001), _row_point(8, "asic", 0.9, add(70), 0.0),
            _row_point("m", "metalens", 0.5, {"aperture_diameter": {"value": 1e-4, "unit": "m"}}, 0.2)]
@@ -197,7 +197,7 @@ def test_each_realisation_keeps_its_registry_colour_and_marker_in_every_figure()
             assert to_hex(lines[pan.label].get_color()) == style(pan.realisation).colour
             assert lines[pan.label].get_marker() == style(pan.realisation).marker
     plt.close(fig)
-    add = lambda n: {"adders": {"value": n, "unit": "count"}}  # noqa: E731
+    add = lambda n: {"adders": {"value": n, "unit": "count"}}
     rows = score_rows([_row_point("L", "learned", 0.9, {}, 0.0), _row_point(4, "asic", 0.88, add(30), 0.001),
                        _row_point("m", "metalens", 0.5, {"aperture_diameter": {"value": 1e-4, "unit": "m"}}, 0.2)])
     for make in (figures.fig_pareto, figures.fig_speed):

@@ -8,7 +8,7 @@ for sharp screens; the wide tables are split by topic and sit behind ``<details>
 containers that scroll on their own, so the page fits a 1280 px window.
 
 :func:`write_report` writes a report from stored points; :func:`write_report_from_scores` rebuilds
-one from the ``scores.json`` and ``results.sqlite`` an earlier run left, without rerunning anything.
+one from the ``scores.json`` an earlier run left, without rerunning anything.
 """
 
 from __future__ import annotations
@@ -60,15 +60,12 @@ pre{background:#f7f7f7;padding:.6em;font-size:.8em;overflow:auto;white-space:pre
 .note{color:#555;font-size:.9em}.bad{color:#a00}
 """
 
-#: Sections other modules add to the report: ``fragment(points, design) -> str`` (points: a list of
-#: :class:`fsdvs_hw.records.ScoredPoint`; an HTML fragment,
-#: "" for none), appended in order after the realisation details. Add one with one line here.
+#: Sections other modules add to the report, in order, after the realisation details and before the
+#: run conditions: ``section(points, design) -> str``, an HTML fragment ("" for none) built from the
+#: stored points (:class:`fsdvs_hw.records.ScoredPoint`) and the design. To add one, import its
+#: function at the top of this module and list it here (e.g. ``report/artifacts.py``,
+#: ``report/codesign.py``).
 _EXTRA_SECTIONS: list[Callable[[Sequence[ScoredPoint], Any], str]] = []
-
-
-def _extra_sections() -> list[Callable[[Sequence[ScoredPoint], Any], str]]:
-    """The extra section builders (import here, so a section's module loads only when a report is built)."""
-    return list(_EXTRA_SECTIONS)
 
 
 def _figure(fig: Any, alt: str, caption: str, *, fig_id: str) -> str:
@@ -293,7 +290,7 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
     data = design.to_dict()
     rows = score_rows(points)
     ok = [r for r in rows if r["status"] == "ok"]
-    acc, acc_label = accuracy_axis(rows)
+    _, acc_label = accuracy_axis(rows)
     methods = data["analysis"]["csf_methods"]
     page_title = title_text or f"FS-DVS design exploration: {design.name}"
     t = design.target
@@ -369,7 +366,7 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
                                         ("tasks_s", "tasks"), ("emulation_s", "emulation"),
                                         ("point_s", "point total")], left=("name",))))
         parts.append(_realisation_details(points))
-    for section in _extra_sections():
+    for section in _EXTRA_SECTIONS:
         parts.append(section(points, design))
     parts.append(_conditions(points, rows, data, design))
     stamp = stamp or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
