@@ -153,6 +153,7 @@ def test_verdict_recommends_the_cheapest_undominated_point_without_measurable_lo
     ladder = next(s for s in lines if s.startswith("ASIC taps by budget"))
     assert ladder.index("adders 10") < ladder.index("adders 30")  # ordered by the kind's own cost
     assert "Not recommended" in lines[-1] and "metalens, loss 0.200 [0.196, 0.204]" in lines[-1]
+    assert "bits 2" not in lines[-1]  # dominated across kinds, but the cheapest step of the ASIC's ladder
     table = {v["realisation"]: v for v in verdict_table(rows)}
     assert table["ASIC taps (bits 4)"]["verdict"] == "build"
     assert table["learned kernel (ideal)"]["loss"] == "0 (the reference)"

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..kernels import Kernel
 from ..records import ScoredPoint
-from .present import number, point_title, style
+from .present import number, params_text, point_title, style
 from .tables import accuracy_axis, is_reference, loss_interval
 
 __all__ = ["Panel", "realised_kernels", "kernel_colour_limit", "fig_kernels", "fig_spectra", "fig_radial",
@@ -229,7 +229,7 @@ def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
             if r.get("pareto_all"):
                 ax.scatter([xi], [yi], s=260, facecolors="none", edgecolors=style(kind).colour, lw=1.0, zorder=2)
             if len(g) > 1 and len(ok) <= 10:
-                ax.annotate(point_title(r["realisation"], r.get("params")), (xi, yi), fontsize=6, xytext=(4, 4),
+                ax.annotate(params_text(r.get("params")), (xi, yi), fontsize=6, xytext=(4, 4),
                             textcoords="offset points")
     ax.axhline(0.0, color="0.5", lw=0.8)
     ax.set_xlabel("CSF agreement (Mannos–Sakrison r, fitted scale)", fontsize=8)
@@ -251,13 +251,14 @@ def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
             if r.get("pareto"):
                 ax.scatter([xi], [yi], s=260, facecolors="none", edgecolors=style(kind).colour, lw=1.0)
             if len(g) <= 8 and len(g) > 1:
-                ax.annotate(point_title(r["realisation"], r.get("params")), (xi, yi), fontsize=6, xytext=(4, 4),
+                ax.annotate(params_text(r.get("params")), (xi, yi), fontsize=6, xytext=(4, 4),
                             textcoords="offset points")
         ax.axhline(0.0, color="0.5", lw=0.8)
         ax.set_xlabel(f"{g[0]['kind_cost']} ({g[0]['kind_cost_unit']})", fontsize=8)
         ax.set_ylabel(_short(acc_label), fontsize=8)
         ax.grid(alpha=0.3, which="both")
-        ax.set_title(f"{style(kind).title}: loss vs its own cost", fontsize=9, color=style(kind).colour)
+        ax.set_title(f"{style(kind).title}: {_short(acc_label).split(' (')[0]} vs its own cost", fontsize=9,
+                     color=style(kind).colour)
     return fig
 
 

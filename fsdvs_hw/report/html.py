@@ -29,7 +29,7 @@ from ..records import Cost, ScoredPoint
 from . import figures
 from .present import cost_label, number, plain, point_title, si, style, title
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
-from .verdict import VERDICT_COLUMNS, advice, verdict_table
+from .verdict import VERDICT_COLUMNS, advice, loss_header, verdict_table
 
 __all__ = ["write_report", "render_html", "write_report_from_scores", "FIGURE_DPI", "CSS_DPI"]
 
@@ -116,7 +116,8 @@ def _verdict_section(rows: Sequence[Mapping[str, Any]]) -> str:
     if not vt:
         return "<h2 id='verdict'>Verdict</h2><p>No design point was scored.</p>"
     lines = "".join(f"<li>{html.escape(s)}</li>" for s in advice(rows))
-    head = "".join(f"<th class='l' scope='col'>{html.escape(t)}</th>" for _, t in VERDICT_COLUMNS)
+    head = "".join(f"<th class='l' scope='col'>{html.escape(loss_header(rows) if c == 'loss' else t)}</th>"
+                   for c, t in VERDICT_COLUMNS)
     trs = []
     for v in vt:
         colour = style(v["realisation_name"]).colour
@@ -126,10 +127,14 @@ def _verdict_section(rows: Sequence[Mapping[str, Any]]) -> str:
         cells += [f"<td class='l'>{html.escape(v[c])}</td>" for c in ("agreement", "cost", "verdict")]
         tr = " class='front'" if v["front"] else ""
         trs.append(f"<tr{tr}>{''.join(cells)}</tr>")
-    _, acc_label = accuracy_axis(rows)
-    legend = (f"Accuracy loss: {html.escape(acc_label)}, as a fraction (positive = accuracy lost), with its 95 % "
-              "bootstrap CI over test clips and training seeds; n counts the paired test clips and seeds. "
-              "CSF agreement: correlation of the kernel's radial response with the Mannos–Sakrison CSF at the "
+    acc, acc_label = accuracy_axis(rows)
+    if acc.endswith("_loss"):
+        first = (f"Accuracy loss: {html.escape(acc_label)}, as a fraction (positive = accuracy lost), with its 95 % "
+                 "bootstrap CI over test clips and training seeds; n counts the paired test clips and seeds. ")
+    else:
+        first = ("No task evaluator ran (the design lists no <code>[tasks] checkpoints</code>), so there is no "
+                 "accuracy loss: the column is the kernel error, ‖K − T‖/‖T‖ against the target. ")
+    legend = (first + "CSF agreement: correlation of the kernel's radial response with the Mannos–Sakrison CSF at the "
               "fitted viewing scale. Green rows are on a Pareto front. Every number below is defined where it "
               "appears; the full set is in scores.csv and scores.json.")
     how = ("<p class='note'>Loss = task metric of the learned kernel (the kernel being realised) minus that of the "
@@ -290,7 +295,7 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
     data = design.to_dict()
     rows = score_rows(points)
     ok = [r for r in rows if r["status"] == "ok"]
-    _, acc_label = accuracy_axis(rows)
+    acc, acc_label = accuracy_axis(rows)
     methods = data["analysis"]["csf_methods"]
     page_title = title_text or f"FS-DVS design exploration: {design.name}"
     t = design.target
@@ -314,13 +319,17 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
     if ok:
         kinds = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok)]
         hw = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok if r.get("kind_cost"))]
+        what = "accuracy loss" if acc.endswith("_loss") else "kernel error"
+        bars = "with 95 % confidence bars " if acc.endswith("_loss") else ""
         parts.append("<h2 id='trade-off'>Trade-off</h2>" + _figure(
             figures.fig_pareto(rows),
-            f"Scatter plots of accuracy loss with 95 % confidence bars against CSF agreement for {_names(kinds)}, "
+            f"Scatter plots of {what} {bars}against CSF agreement for {_names(kinds)}, "
             f"and against each hardware kind's own cost{(' for ' + _names(hw)) if hw else ''}.",
-            f"<b>Accuracy loss vs CSF agreement, and vs each kind's own cost.</b> Bars: the stored 95 % bootstrap "
-            f"CIs of the {html.escape(acc_label)}. Rings: on the Pareto front beyond the CIs (across kinds in the "
-            "first panel, within the kind in the others). Hollow markers of different shapes, so coinciding "
+            f"<b>{what.capitalize()} vs CSF agreement, and vs each kind's own cost.</b> "
+            + (f"Bars: the stored 95 % bootstrap CIs of the {html.escape(acc_label)}. " if bars else
+               "No task evaluator ran, so there are no losses and no CIs. ")
+            + "Rings: on the Pareto front beyond the CIs (across kinds in the first panel, within the kind in the "
+            "others). Hollow markers of different shapes, so coinciding "
             "points stay visible; one colour per realisation in every figure.", fig_id="fig-pareto"))
         panels = figures.realised_kernels(points)
         pnames = _names([p.label for p in panels])

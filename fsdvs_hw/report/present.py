@@ -22,7 +22,7 @@ from typing import Any
 
 from ..realise.registry import REALISATIONS
 
-__all__ = ["Style", "style", "title", "point_title", "number", "si", "plain", "cost_label", "PREFIXED_UNITS"]
+__all__ = ["Style", "style", "title", "point_title", "params_text", "number", "si", "plain", "cost_label", "PREFIXED_UNITS"]
 
 #: Units that take an SI prefix (``"m^2"`` takes it squared).
 PREFIXED_UNITS: frozenset[str] = frozenset({"m", "m^2", "s", "S", "F", "W", "J", "A", "V", "Hz"})
@@ -96,13 +96,16 @@ def point_title(realisation: str, params: Mapping[str, Any] | str | None = None)
         The point's swept values (``{"asic.bits": 4}``); only the option name after the last dot
         is shown, with underscores as spaces.
     """
+    name = title(realisation)
+    shown = params_text(params)
+    return f"{name} ({shown})" if shown else name
+
+
+def params_text(params: Mapping[str, Any] | str | None) -> str:
+    """A point's swept values for people, ``"bits 4, g max 1 µS"`` style (``""`` for none)."""
     if isinstance(params, str):
         params = json.loads(params) if params.strip() else {}
-    name = title(realisation)
-    if not params:
-        return name
-    shown = ", ".join(f"{k.split('.')[-1].replace('_', ' ')} {_param(v)}" for k, v in params.items())
-    return f"{name} ({shown})"
+    return ", ".join(f"{k.split('.')[-1].replace('_', ' ')} {_param(v)}" for k, v in (params or {}).items())
 
 
 def _param(v: Any) -> str:

@@ -16,7 +16,7 @@ from typing import Any
 from .present import cost_label, number, point_title, si, title
 from .tables import accuracy_axis, is_reference, loss_interval
 
-__all__ = ["advice", "verdict_table", "VERDICT_COLUMNS", "loss_cell", "cost_cell"]
+__all__ = ["advice", "verdict_table", "VERDICT_COLUMNS", "loss_cell", "loss_header", "cost_cell"]
 
 #: Column keys and headers of :func:`verdict_table`.
 VERDICT_COLUMNS: tuple[tuple[str, str], ...] = (
@@ -111,13 +111,20 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
        whose loss CI overlaps the smallest upper bound.
     2. Per hardware kind with two or more points on its own front, the front ordered by its own
        cost: "from C: P, loss ..." (the loss each budget buys).
-    3. Which kinds are dominated across kinds (with their loss), so they are not built.
+    3. What is not worth building: points off the across-kinds front, except the cheaper steps of a
+       kind that has a point on it (they are in its budget ladder).
     """
     ok = [r for r in rows if r.get("status") == "ok"]
     hardware = [r for r in ok if not is_reference(str(r["realisation"]))]
     if not hardware:
         return ["No hardware realisation was scored: nothing to recommend."]
     acc, acc_label = accuracy_axis(rows)
+    what = "loss" if acc.endswith("_loss") else "kernel error"
+
+    def phrase(r: Mapping[str, Any]) -> str:
+        text = loss_cell(r, acc)[0]
+        return text if text.startswith(("no measurable", "0 (")) else f"{what} {text}"
+
     out = []
     rec = _recommended(ok, acc)
     if rec:
@@ -127,7 +134,7 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
             parts.append(f"{point_title(str(r['realisation']), r.get('params'))} ({cost_cell(r)}; {loss}"
                          f"{', ' + n if n else ''}; CSF r {number(_num(r.get('csf_fitted_correlation')))})")
         how = ("with no measurable accuracy loss and not dominated in CSF agreement"
-               if all(_no_measurable_loss(r, acc) for r in rec) else "smallest accuracy loss among the undominated")
+               if all(_no_measurable_loss(r, acc) for r in rec) else f"smallest {what} among the undominated")
         out.append(f"Build {' or '.join(parts)}: {how}. Costs of different kinds are in different units; "
                    "pick the kind whose budget you have.")
     for kind in dict.fromkeys(str(r["realisation"]) for r in hardware):
@@ -136,17 +143,27 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
         front = [r for r in g if r.get("pareto")]
         if len(front) < 2:  # one point: the table says it all
             continue
-        steps = "; ".join(f"from {_budget_text(r)}: {point_title(kind, r.get('params'))}, loss {loss_cell(r, acc)[0]}"
-                          for r in front)
+        steps = "; ".join(f"from {_budget_text(r)}: {point_title(kind, r.get('params'))}, {phrase(r)}" for r in front)
         out.append(f"{title(kind)} by budget ({front[0]['kind_cost']}): {steps}.")
-    dominated = [r for r in hardware if not r.get("pareto_all")]
+    # not worth building: off the across-kinds front, unless a cheaper step of a kind that has a point on it
+    leading = {str(r["realisation"]) for r in hardware if r.get("pareto_all")}
+    dominated = [r for r in hardware if not r.get("pareto_all")
+                 and not (r.get("pareto") and str(r["realisation"]) in leading)]
     if dominated:
-        out.append("Not recommended (another realisation is better beyond the CIs in loss and CSF agreement): "
-                   + "; ".join(f"{point_title(str(r['realisation']), r.get('params'))}, loss {loss_cell(r, acc)[0]}"
+        out.append("Not recommended (another realisation is better beyond the CIs in "
+                   f"{what} and CSF agreement): "
+                   + "; ".join(f"{point_title(str(r['realisation']), r.get('params'))}, {phrase(r)}"
                                for r in dominated) + ".")
     if not acc.endswith("_loss"):
-        out.append(f"No task evaluator ran: the accuracy axis is the {acc_label}.")
+        out.append("No task evaluator ran (no [tasks] checkpoints): points are ranked by kernel error (relative L2 "
+                   "against the target), not by accuracy loss.")
     return out
+
+
+def loss_header(rows: Sequence[Mapping[str, Any]]) -> str:
+    """Header of the verdict table's loss column: the accuracy loss, or the kernel error when no task ran."""
+    acc, _ = accuracy_axis(rows)
+    return dict(VERDICT_COLUMNS)["loss"] if acc.endswith("_loss") else "kernel error (no task ran)"
 
 
 def verdict_table(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
