@@ -156,6 +156,8 @@ def test_verdict_recommends_the_cheapest_undominated_point_without_measurable_lo
     assert "bits 2" not in lines[-1]  # dominated across kinds, but the cheapest step of the ASIC's ladder
     table = {v["realisation"]: v for v in verdict_table(rows)}
     assert table["ASIC taps (bits 4)"]["verdict"] == "build"
+    assert table["ASIC taps (bits 2)"]["verdict"] == "a cheaper option of its kind"
+    assert table["metalens"]["verdict"] == "not recommended"  # the table says what the sentences say
     assert table["learned kernel (ideal)"]["loss"] == "0 (the reference)"
     assert table["metalens"]["cost"] == "aperture 100 µm"  # SI prefix, not 0.0001 m
     assert table["ASIC taps (bits 2)"]["n"] == "n = 64 clips, 3 seeds"

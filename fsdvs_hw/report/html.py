@@ -143,8 +143,10 @@ def _verdict_section(rows: Sequence[Mapping[str, Any]]) -> str:
            "mismatch pattern); a CI that contains 0 reads 'no measurable loss (± half-width)' and is never ranked "
            "by its point estimate. Weighted loss: <code>[scoring] task_weights</code>. Costs: each kind on its own "
            "axis and unit (never one shared cost axis). Pareto: not dominated beyond the loss CIs, within the kind "
-           "(loss, agreement, cost) and across kinds (loss, agreement). 'build' marks the undominated hardware "
-           "with no measurable loss (the cheapest of each kind), or else the smallest loss.</p>")
+           "(loss, agreement, cost) and across kinds (loss, agreement). 'build' marks the hardware on the "
+           "front across kinds with no measurable loss (the cheapest of each kind), or else the smallest loss; 'a "
+           "cheaper option of its kind' is on its kind's front below a kind that is on the front across kinds; "
+           "'not recommended' is everything else.</p>")
     return (f"<h2 id='verdict'>Verdict: what to build</h2><ul class='advice'>{lines}</ul>"
             f"<div class='scroll'><table class='verdict'><tr>{head}</tr>{''.join(trs)}</table></div>"
             f"<p class='note'>{legend}</p>" + _details("How the verdict is decided", how))

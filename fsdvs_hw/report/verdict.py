@@ -67,16 +67,21 @@ def _budget_text(r: Mapping[str, Any]) -> str:
     return f"{r['kind_cost']} {number(_num(r['kind_cost_value']))} {r['kind_cost_unit']}".replace(" count", "")
 
 
-def _verdict_word(r: Mapping[str, Any], best: set[str]) -> str:
+def _verdict_word(r: Mapping[str, Any], best: set[str], leading: set[str]) -> str:
     if is_reference(str(r["realisation"])):
         return "reference (not hardware)"
     if r["point"] in best:
         return "build"
     if r.get("pareto_all"):
         return "on the front across kinds"
-    if r.get("pareto"):
-        return "on its kind's front only"
-    return "dominated"
+    if r.get("pareto") and str(r["realisation"]) in leading:
+        return "a cheaper option of its kind"
+    return "not recommended"
+
+
+def _leading_kinds(rows: Sequence[Mapping[str, Any]]) -> set[str]:
+    """Hardware kinds with a point on the across-kinds front."""
+    return {str(r["realisation"]) for r in rows if r.get("pareto_all") and not is_reference(str(r["realisation"]))}
 
 
 def _no_measurable_loss(r: Mapping[str, Any], acc: str) -> bool:
@@ -146,9 +151,9 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
         steps = "; ".join(f"from {_budget_text(r)}: {point_title(kind, r.get('params'))}, {phrase(r)}" for r in front)
         out.append(f"{title(kind)} by budget ({front[0]['kind_cost']}): {steps}.")
     # not worth building: off the across-kinds front, unless a cheaper step of a kind that has a point on it
-    leading = {str(r["realisation"]) for r in hardware if r.get("pareto_all")}
-    dominated = [r for r in hardware if not r.get("pareto_all")
-                 and not (r.get("pareto") and str(r["realisation"]) in leading)]
+    leading = _leading_kinds(hardware)
+    best = {str(r["point"]) for r in rec}
+    dominated = [r for r in hardware if _verdict_word(r, best, leading) == "not recommended"]
     if dominated:
         out.append("Not recommended (another realisation is better beyond the CIs in "
                    f"{what} and CSF agreement): "
@@ -173,11 +178,12 @@ def verdict_table(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
     ok = [r for r in rows if r.get("status") == "ok"]
     acc, _ = accuracy_axis(rows)
     best = {str(r["point"]) for r in _recommended(ok, acc)}
+    leading = _leading_kinds(ok)
     out = []
     for r in ok:
         loss, n = loss_cell(r, acc)
         out.append({"realisation": point_title(str(r["realisation"]), r.get("params")), "loss": loss, "n": n,
                     "agreement": number(_num(r.get("csf_fitted_correlation"))), "cost": cost_cell(r),
-                    "verdict": _verdict_word(r, best), "realisation_name": str(r["realisation"]),
+                    "verdict": _verdict_word(r, best, leading), "realisation_name": str(r["realisation"]),
                     "front": "1" if (r.get("pareto") or r.get("pareto_all")) else ""})
     return out
