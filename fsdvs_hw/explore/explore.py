@@ -3,7 +3,8 @@
 ``fsdvs-hw explore designs/default.toml --out out/demo`` (:mod:`fsdvs_hw.cli.explore`) runs :func:`run_exploration`: it validates
 the design (all errors before any work), expands its design points, runs those not already in
 ``DIR/results.sqlite`` (local processes or a Dask scheduler, with a progress bar), and writes
-``DIR/report.html`` with ``DIR/scores.csv`` and ``DIR/scores.json``.
+``DIR/report.html`` with ``DIR/scores.csv`` and ``DIR/scores.json``; with ``[codesign] enabled`` also
+``DIR/codesign.json`` and ``DIR/codesign.csv`` (:mod:`fsdvs_hw.explore.codesign`).
 """
 
 from __future__ import annotations
@@ -75,6 +76,10 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     sc = design.data["scoring"]
     rows = with_paired_losses(rows, task_weights=sc["task_weights"] or None, n_resamples=sc["n_resamples"],
                               confidence=sc["confidence"], rng=design.data["run"]["seed"])
+    if design.data["codesign"]["enabled"]:  # the fit-then-swap / fine-tune / co-designed rows (issue 16)
+        from .codesign import run_codesign, write_codesign
+
+        write_codesign(run_codesign(design, out, progress=progress), out)
     report = write_report(rows, design, out)
     return Exploration(report=report, scores_csv=out / "scores.csv", scores_json=out / "scores.json",
                        store=store_path, summary=summary, wall_s=time.perf_counter() - t0,

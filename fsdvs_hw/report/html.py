@@ -197,5 +197,10 @@ def write_report(points: Sequence[Mapping[str, Any]], design: Any, out_dir: str 
     points = list(points)
     write_scores(score_rows(points), out, full=points)
     path = out / "report.html"
-    path.write_text(render_html(points, design))
+    text = render_html(points, design)
+    if (out / "codesign.json").is_file() and design.data.get("codesign", {}).get("enabled"):  # issue 16 rows
+        from .codesign import codesign_section
+        text = text.replace("<h2>Provenance</h2>", codesign_section(json.loads((out / "codesign.json").read_text()))
+                            + "\n<h2>Provenance</h2>", 1)
+    path.write_text(text)
     return path
