@@ -427,7 +427,12 @@ def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any,
     points = _typed(points)
     write_scores(score_rows(points), out, full=[p.to_dict() for p in points])
     path = out / "report.html"
-    path.write_text(render_html(points, design))
+    text = render_html(points, design)
+    if (out / "codesign.json").is_file() and design.data.get("codesign", {}).get("enabled"):  # issue 16 rows
+        from .codesign import codesign_section
+        anchor = "<h2 id='provenance'>" if "<h2 id='provenance'>" in text else "</body>"
+        text = text.replace(anchor, codesign_section(json.loads((out / "codesign.json").read_text())) + "\n" + anchor, 1)
+    path.write_text(text)
     return path
 
 
