@@ -4,7 +4,8 @@
 the design (all errors before any work), expands its design points, runs those not already in
 ``DIR/results.sqlite`` (local processes or a Dask scheduler, with a progress bar), and writes
 ``DIR/report.html`` with ``DIR/scores.csv`` and ``DIR/scores.json``, and every hardware point's buildable
-files under ``DIR/artifacts/`` with ``DIR/artifacts/index.json`` (:mod:`fsdvs_hw.explore.artifacts`).
+files under ``DIR/artifacts/`` with ``DIR/artifacts/index.json`` (:mod:`fsdvs_hw.explore.artifacts`); with
+``[codesign] enabled`` also ``DIR/codesign.json`` and ``DIR/codesign.csv`` (:mod:`fsdvs_hw.explore.codesign`).
 """
 
 from __future__ import annotations
@@ -84,6 +85,10 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
         name = point_folder_name(row["realisation"], row.get("params") or {})
         row["artifacts"] = [{**e, "file": f"{ARTIFACTS_DIR}/{e['file']}" if e.get("file") else ""}
                             for e in entries if e["point"] == name]
+    if design.data["codesign"]["enabled"]:  # the fit-then-swap / fine-tune / co-designed rows (issue 16)
+        from .codesign import run_codesign, write_codesign
+
+        write_codesign(run_codesign(design, out, progress=progress), out)
     report = write_report(rows, design, out)
     return Exploration(report=report, scores_csv=out / "scores.csv", scores_json=out / "scores.json",
                        store=store_path, summary=summary, wall_s=time.perf_counter() - t0,

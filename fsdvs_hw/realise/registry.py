@@ -163,7 +163,12 @@ class RealisationSpec:
         A string, so registering imports nothing; ``fsdvs-hw explore`` calls it for every scored
         point (:meth:`write_artifacts_of`).
     colour : str
-        Colour of its points in report figures (matplotlib colour).
+        Colour of its points and lines in every report figure (matplotlib colour).
+    title : str
+        Its name for people, in report tables and legends (``"resistive mesh"``; default: ``name``).
+    marker : str
+        Matplotlib marker of its points in report figures (default: one picked by the report so
+        that no two registered realisations share one).
     in_default_design : bool
         Listed in ``[realisations] include`` when a design does not say.
     description : str
@@ -183,6 +188,8 @@ class RealisationSpec:
     costs: tuple[CostSpec, ...] = ()
     artifacts: Mapping[str, str] = field(default_factory=dict)
     colour: str | None = None
+    title: str = ""
+    marker: str = ""
     in_default_design: bool = False
     description: str = ""
     differentiable: str = ""
@@ -384,7 +391,9 @@ def fit_delta(target: Kernel) -> ReferenceRealisation:
 
 register_realisation(RealisationSpec(
     name="learned", fit=fit_learned, kind="reference", record_type=ReferenceRealisation, record_kind="reference",
-    colour="#222222", in_default_design=True, description="the target kernel applied ideally (no hardware)"))
+    colour="#222222", title="learned kernel (ideal)", marker="o", in_default_design=True,
+    description="the target kernel applied ideally (no hardware)"))
 register_realisation(RealisationSpec(
     name="delta", fit=fit_delta, kind="reference", record_type=ReferenceRealisation, record_kind="reference",
-    colour="#999999", in_default_design=True, description="no spatial filter: the 'w/o' baseline"))
+    colour="#999999", title="no filter (delta)", marker="s", in_default_design=True,
+    description="no spatial filter: the 'w/o' baseline"))

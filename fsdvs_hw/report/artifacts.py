@@ -13,10 +13,12 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 from urllib.parse import quote
 
+from ..records import ScoredPoint
+
 __all__ = ["artifacts_html"]
 
 
-def artifacts_html(points: Sequence[Mapping[str, Any]]) -> str:
+def artifacts_html(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> str:
     """An HTML fragment: heading, note and a table (point, files, what, how to check); ``""`` when none.
 
     Parameters
@@ -26,10 +28,12 @@ def artifacts_html(points: Sequence[Mapping[str, Any]]) -> str:
     """
     rows: list[str] = []
     for p in points:
-        entries = [e for e in (p.get("artifacts") or []) if isinstance(e, Mapping)]
+        listed = p.extra.get("artifacts") if isinstance(p, ScoredPoint) else p.get("artifacts")
+        entries = [e for e in (listed or []) if isinstance(e, Mapping)]
         if not entries:
             continue
-        point = html.escape(str(entries[0].get("point") or p.get("realisation", "")))
+        name = p.realisation if isinstance(p, ScoredPoint) else p.get("realisation", "")
+        point = html.escape(str(entries[0].get("point") or name))
         errors = [e["error"] for e in entries if e.get("error")]
         if errors:
             rows.append(f'<tr><td class="l">{point}</td><td class="l bad" colspan="3">not written: '

@@ -48,6 +48,8 @@ SPEC = register_realisation(RealisationSpec(
                "taps": "integer taps and scale (taps.csv)"},
     write_artifacts="fsdvs_hw.realise.asic.artifacts:write_asic_artifacts",
     colour="#d62728",
+    title="ASIC taps",
+    marker="^",
     in_default_design=True,
     description="quantised integer taps as a shift-add digital filter (nlopt scale + CSD tap search)",
 ))

@@ -157,7 +157,7 @@ def write_asic_artifacts(design: AsicDesign, out_dir: str | Path, *,
         Artifact("stimulus", out / "stimulus.hex", "input pixels, hex, raster order (testbench data)", ""),
         Artifact("expected_outputs", out / "expected.hex",
                  "expected outputs of the Python integer model, two's complement hex (testbench data)", ""),
-        Artifact("taps", out / "taps.csv", f"integer taps and taps x scale (scale {design.scale:.6g})", ""),
+        Artifact("taps", out / "taps.csv", f"integer taps and taps x scale (scale {design.scale:.6f})", ""),
     )
 
 

@@ -74,6 +74,8 @@ SPEC = register_realisation(RealisationSpec(
                "operating_point": "node voltages, ground currents and kernel taps the deck reproduces (CSV)"},
     write_artifacts="fsdvs_hw.realise.mesh.artifacts:write_mesh_artifacts",
     colour="#1f77b4",
+    title="resistive mesh",
+    marker="D",
     in_default_design=True,
     description="dual resistive mesh: K = w·δ + a·H_narrow − b·H_wide (casadi/IPOPT)",
 ))

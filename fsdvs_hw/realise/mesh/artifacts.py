@@ -105,10 +105,10 @@ def write_mesh_artifacts(design: MeshDesign, out_dir: str | Path, *,
                             repr(float(design.g_vertical_narrow_s * vn)), repr(float(design.g_vertical_wide_s * vw)),
                             repr(float(op["kernel_taps"][y, x]))])
     check = (f"{NGSPICE_COMMAND}; every v(n<y>_<x>), v(w<y>_<x>) in mesh.raw equals operating_point.csv within "
-             f"{OP_RTOL:g} of the largest (fsdvs_hw.realise.mesh.artifacts.check_mesh_artifacts)")
+             f"1 part in {1 / OP_RTOL:,.0f} of the largest (fsdvs_hw.realise.mesh.artifacts.check_mesh_artifacts)")
     return (
         Artifact("spice_netlist", out / "mesh.cir",
-                 f"ngspice deck: both meshes on a {n}x{n} patch, {op['i_in_a']:g} A into the centre node, .op", check),
+                 f"ngspice deck: both meshes on a {n}x{n} patch, {op['i_in_a'] * 1e6:.3g} µA into the centre node, .op", check),
         Artifact("operating_point", out / "operating_point.csv",
                  "node voltages (V), ground currents g_v V (A) and kernel taps the deck must reproduce (exact KCL "
                  "solve)", ""),

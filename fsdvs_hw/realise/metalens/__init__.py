@@ -56,6 +56,8 @@ SPEC = register_realisation(RealisationSpec(
                "plot": "phase profile and PSF (phase_psf.png)"},
     write_artifacts="fsdvs_hw.realise.metalens.artifacts:write_metalens_artifacts",
     colour="#2ca02c",
+    title="metalens",
+    marker="v",
     in_default_design=True,
     description="metalens whose pixel-integrated PSF is the kernel (pedestal or differential pair)",
 ))

@@ -112,12 +112,12 @@ def write_metalens_artifacts(design: MetalensDesign, out_dir: str | Path, *,
     _plot(out / "phase_psf.png", r, phase, psf, design)
     n_lens = phase.shape[0]
     check = ("reload phase_profile.npz (or .csv), interpolate onto the propagator's pupil radii, propagate "
-             f"(fsdvs_hw.realise.metalens.artifacts.check_metalens_artifacts): equals psf.npz within {PSF_RTOL:g} "
-             "relative L2")
+             f"(fsdvs_hw.realise.metalens.artifacts.check_metalens_artifacts): equals psf.npz within 1 part in "
+             f"{1 / PSF_RTOL:,.0f} (relative L2)")
     return (
         Artifact("phase_profile_csv", out / "phase_profile.csv",
                  f"{n_lens} lens phase profile(s): radius_m, phase_rad at {g.design_wavelength_m * 1e9:.0f} nm "
-                 f"(unwrapped and mod 2π), f = {g.focal_length_m:.3g} m, NA {g.numerical_aperture:.3f}", check),
+                 f"(unwrapped and mod 2π), f = {g.focal_length_m * 1e3:.3g} mm, NA {g.numerical_aperture:.3f}", check),
         Artifact("phase_profile_npz", out / "phase_profile.npz",
                  "the profile with wavelengths (m) and weights, focal length, aperture, NA, unit cell, sensor "
                  "distance, pixel pitch (SI)", check),
