@@ -26,11 +26,11 @@ from typing import Any
 import numpy as np
 
 from ...benchmarks import timed
+from ...resources import shipped_path
 
 __all__ = ["bench_metalens", "radial_symmetric_floor", "plot_fits"]
 
-_REPO = Path(__file__).resolve().parents[3]
-_LEARNED = _REPO / "designs" / "kernels" / "learned_detection_7x7.json"
+_LEARNED = shipped_path("kernels", "learned_detection_7x7.json")
 _FIGURE_NAME = "metalens_fits.png"
 
 
