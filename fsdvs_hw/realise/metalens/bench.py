@@ -13,7 +13,7 @@ Tables (Markdown):
    learned_detection_7x7.json`` when present, else a LoG 7×7), both strategies: kernel error,
    radially symmetric floor, pedestal, efficiency, contrast factor, fit wall time. With
    ``quick=False`` the figure ``metalens_fits.png`` is written into ``figures`` (default: a
-   temporary folder; ``fsdvs-hw bench metalens --figures designs/figures`` regenerates the README's).
+   temporary folder; ``fsdvs-hw bench metalens --figures out/figures`` makes the README's).
 """
 
 from __future__ import annotations
