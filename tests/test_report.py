@@ -16,7 +16,7 @@ import pytest
 
 from fsdvs_hw.cli import main
 from fsdvs_hw.explore.design import parse_design
-from fsdvs_hw.kernels import Kernel
+from fsdvs_hw.kernels import Kernel, reference_kernel
 from fsdvs_hw.realise.base import kernel_error
 from fsdvs_hw.report.tables import (accuracy_axis, headline_cost, kind_cost, pareto_front, score_rows,
                                     uncertain_pareto_front, verdict_markdown, verdict_rows)
@@ -82,7 +82,7 @@ def _ci(est, h, n=1000, seeds=3, conf=0.95):
 
 
 def _point(key, realisation, kernel_err, corr, cost=None, losses=None):
-    res = {"kernel_error": kernel_err, "csf": {"mannos_sakrison_1974": {"correlation": corr},
+    res = {"kind": realisation, "kernel": reference_kernel("dog", 5).to_dict(), "kernel_error": kernel_err, "csf": {"mannos_sakrison_1974": {"correlation": corr},
                                               "fitted_scale": {"correlation": corr + 0.05}},
            "cost": cost or {}, "wall_s": {"fit": 0.1, "analysis": 0.2, "tasks": 0.0}}
     params = {f"{realisation}.tag": key} if realisation == "asic" else {}
@@ -103,7 +103,7 @@ def test_score_rows_flatten_losses_with_cis_and_mark_uncertain_fronts():
         _point("a8", "asic", 0.01, 0.9, add(60), losses=[(0.002, 0.006), (0.001, 0.004), (0.0015, 0.004)]),
         _point("a12", "asic", 0.001, 0.9, add(90), losses=[(-0.001, 0.006), (0.0, 0.004), (-0.0005, 0.004)]),
         _point("a3", "asic", 0.3, 0.8, add(120), losses=[(0.03, 0.005), (0.03, 0.005), (0.03, 0.004)]),
-        _point("m", "mesh", 0.1, 0.95, {f"g_{d}_{w}": {"value": 1e-6} for d in ("lateral", "vertical")
+        _point("m", "mesh", 0.1, 0.95, {f"g_{d}_{w}": {"value": 1e-6, "unit": "S"} for d in ("lateral", "vertical")
                                         for w in ("narrow", "wide")}, losses=[(0.05, 0.01), (0.05, 0.01), (0.05, 0.007)]),
     ]
     rows = {r["key"]: r for r in score_rows(pts)}
