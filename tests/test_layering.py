@@ -19,7 +19,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "fsdvs_hw"
 LAYERS: tuple[str, ...] = ("core", "models", "tasks", "report", "explore", "cli")
 
 #: Top-level modules of the core layer (kernels, spectra, CSF, statistics and their helpers).
-_CORE = {"errors", "paths", "validation", "limits", "kernels", "spectra", "csf", "stats", "workers", "plots",
+_CORE = {"errors", "paths", "resources", "validation", "limits", "kernels", "spectra", "csf", "stats", "workers", "plots",
          "analysis", "_lazy", "benchmarks"}
 _MODELS = {"sensor", "scenes", "realise", "records"}
 

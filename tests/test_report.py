@@ -148,8 +148,10 @@ def test_a_cost_item_named_like_a_loss_is_not_a_task():
 
 
 def _pngs(html: str) -> dict[str, bytes]:
-    found = re.findall(r'<img alt="([^"]+)" src="data:image/png;base64,([^"]+)"', html)
-    return {alt: base64.b64decode(b) for alt, b in found}
+    """Embedded figures by their <figure id> (fig-kernels -> kernels)."""
+    found = re.findall(r'<figure id="fig-([a-z]+)"><img alt="[^"]+" width="\d+" height="\d+" '
+                       r'src="data:image/png;base64,([^"]+)">', html)
+    return {name: base64.b64decode(b) for name, b in found}
 
 
 def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch, capsys):
@@ -179,7 +181,7 @@ def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch
     for name, png in imgs.items():
         assert png[:8] == b"\x89PNG\r\n\x1a\n", name
         img = mpimg.imread(io.BytesIO(png), format="png")
-        assert img.shape[0] > 200 and img.shape[1] > 300
+        assert img.shape[0] > 400 and img.shape[1] > 600  # drawn at 2x (FIGURE_DPI) for sharp screens
         assert float(np.std(img[..., :3])) > 0.02, f"{name} figure is blank"
     assert "no such lens" in html and "1 failed" in html
     with (out / "scores.csv").open() as fh:
@@ -204,3 +206,9 @@ def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch
 
     with ResultsStore(out / "results.sqlite") as s:
         assert sorted(r["realisation"] for r in s.rows()) == ["asic", "delta", "learned", "metalens"]
+    # the report rebuilt from the stored scores alone (fsdvs-hw report), nothing rerun: the same numbers and page
+    assert main(["report", str(p), "--out", str(out), "--to", str(tmp_path / "again")]) == 0
+    again = tmp_path / "again" / "report.html"
+    assert (tmp_path / "again" / "scores.csv").read_text() == (out / "scores.csv").read_text()
+    stamp = re.compile(r"\d{4}-\d\d-\d\d \d\d:\d\d UTC")
+    assert stamp.sub("", again.read_text()) == stamp.sub("", (out / "report.html").read_text())
