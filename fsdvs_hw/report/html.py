@@ -489,4 +489,9 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
     if isinstance(design, (str, Path)) or not callable(getattr(design, "to_dict", None)):
         raise InputError(f"write_report_from_scores: design must be a loaded design "
                          f"(fsdvs_hw.explore.design.load_design(path)), got {type(design).__name__}")
-    return write_report(points, design, to if to is not None else out_dir)
+    dest = Path(to) if to is not None else Path(out_dir)
+    extra = Path(out_dir) / "codesign.json"  # the co-design rows write_report reads beside the report
+    if extra.is_file() and dest.resolve() != Path(out_dir).resolve():
+        dest.mkdir(parents=True, exist_ok=True)
+        (dest / extra.name).write_bytes(extra.read_bytes())
+    return write_report(points, design, dest)
