@@ -174,7 +174,7 @@ def test_section_lists_every_cell_and_escapes():
     summary = {"settings": {"epochs": 2, "n_train": 0}, "cells": [{
         "realisation": "<lens>", "task": "recognition", "metric_name": "top1", "n_seeds": 3,
         "n_clips_per_network": 384, "kernel_error_fit_gain_free": 0.2, "kernel_error_codesign_gain_free": [0.3],
-        "ms_correlation_initial": [0.89], "ms_correlation_final": [0.5], "verdict": "v",
+        "ms_correlation_initial": [0.89], "ms_correlation_final": [0.5], "verdict": "v", "swap_loss_above_zero": True,
         "rows": {m: {"loss": {"estimate": e, "low": e - 0.01, "high": e + 0.01},
                      **({"recovered": {"estimate": 0.5, "low": 0.4, "high": 0.6}} if m != "swap" else {})}
                  for m, e in (("swap", 0.25), ("finetune", 0.125), ("codesign", 0.125))}}]}
@@ -183,3 +183,5 @@ def test_section_lists_every_cell_and_escapes():
     assert "0.2500 [0.2400, 0.2600]" in html and "50% [40%, 60%]" in html and "3 × 384" in html
     assert "0.890 → 0.500" in html and html.count("<th>") == len(CODESIGN_HEADERS)
     assert "No co-design cell" in codesign_section({"cells": []})
+    summary["cells"][0]["swap_loss_above_zero"] = False  # no loss: no recovered share is shown
+    assert "50% [40%, 60%]" not in codesign_section(summary) and "no loss above 0" in codesign_section(summary)
