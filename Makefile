@@ -7,7 +7,7 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.fsdvs_hw-installed
-SYSTEM_TOOLS := ngspice iverilog yosys verilator
+SYSTEM_TOOLS := ngspice iverilog yosys verilator chromium
 TORCH_PIN := torch==2.13.0
 PYTEST_ARGS ?=
 DEMO_OUT ?= out/demo
@@ -49,7 +49,8 @@ mutation: setup
 
 setup: system-deps $(STAMP)
 
-# Debian packages the realisation checks need (SPICE, Verilog simulation and synthesis).
+# Debian packages the realisation checks need (SPICE, Verilog simulation and synthesis), and the
+# headless browser the report test drives (chromium, through Playwright; tests/test_report_browser.py).
 system-deps:
 	@missing=""; for t in $(SYSTEM_TOOLS); do command -v $$t >/dev/null 2>&1 || missing="$$missing $$t"; done; \
 	if [ -n "$$missing" ]; then \

@@ -10,13 +10,14 @@ the largest absolute difference, and the time per resample of each.
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
+from ..resources import shipped_path
+
 __all__ = ["bench_stats"]
 
-_CKPT = Path(__file__).resolve().parents[2] / "designs" / "kernels" / "learned_detection_7x7.safetensors"
+_CKPT = shipped_path("kernels", "learned_detection_7x7.safetensors")
 
 
 def _detections(n: int) -> tuple[np.ndarray, ...]:

@@ -20,10 +20,12 @@ from pathlib import Path
 import numpy as np
 
 from ..benchmarks import kept_torch_threads
+from ..resources import shipped_path
 
 __all__ = ["bench_tasks", "bootstrap_interval", "SHIPPED_DIR"]
 
-SHIPPED_DIR = Path(__file__).resolve().parents[2] / "designs" / "kernels"
+#: The shipped kernels and checkpoints (:func:`fsdvs_hw.resources.shipped_path`).
+SHIPPED_DIR = shipped_path("kernels")
 
 
 def bootstrap_interval(evaluator, prediction, target, *, n_boot: int = 200, seed: int = 0) -> tuple[float, float]:

@@ -17,13 +17,13 @@ The highest-fidelity reference is the float kernel itself (error 0, its own CSF 
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 
 from ...benchmarks import timed
 
 from ...kernels import Kernel, load_kernel, reference_kernel
+from ...resources import shipped_path
 from .fit import fit_asic_taps
 
 __all__ = ["bench_asic", "learned_or_fallback_kernel"]
@@ -38,7 +38,7 @@ def _log(msg: str) -> None:
 def learned_or_fallback_kernel() -> tuple[Kernel, str]:
     """The first learned kernel in ``designs/kernels/`` (provenance without a ``reference`` key and
     a name not marked reference), else a 7×7 LoG (σ = 1 px); returns the kernel and a note."""
-    root = Path(__file__).resolve().parents[3] / "designs" / "kernels"
+    root = shipped_path("kernels")
     for path in sorted(root.glob("*")) if root.is_dir() else []:
         if path.suffix.lower() not in (".npy", ".csv", ".json", ".pt"):
             continue

@@ -13,7 +13,7 @@ Tables (Markdown):
    learned_detection_7x7.json`` when present, else a LoG 7×7), both strategies: kernel error,
    radially symmetric floor, pedestal, efficiency, contrast factor, fit wall time. With
    ``quick=False`` the figure ``metalens_fits.png`` is written into ``figures`` (default: a
-   temporary folder; ``fsdvs-hw bench metalens --figures designs/figures`` regenerates the README's).
+   temporary folder; ``fsdvs-hw bench metalens --figures out/figures`` makes the README's).
 """
 
 from __future__ import annotations
@@ -26,11 +26,11 @@ from typing import Any
 import numpy as np
 
 from ...benchmarks import timed
+from ...resources import shipped_path
 
 __all__ = ["bench_metalens", "radial_symmetric_floor", "plot_fits"]
 
-_REPO = Path(__file__).resolve().parents[3]
-_LEARNED = _REPO / "designs" / "kernels" / "learned_detection_7x7.json"
+_LEARNED = shipped_path("kernels", "learned_detection_7x7.json")
 _FIGURE_NAME = "metalens_fits.png"
 
 
