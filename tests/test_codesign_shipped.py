@@ -61,7 +61,7 @@ def test_the_summary_is_recomputed_from_the_shipped_evidence(shipped, units):
     sc = design.data["scoring"]
     again = summarise_codesign(units, n_resamples=sc["n_resamples"], confidence=sc["confidence"],
                                rng=design.data["run"]["seed"])
-    key = lambda c: (c["realisation"], c["task"])  # noqa: E731
+    key = lambda c: (c["realisation"], c["task"])
     _close(sorted(again["cells"], key=key), sorted(shipped["cells"], key=key))
     assert st["test_clips"] == "per_network" and all(c["clips"] == "nested in networks" for c in shipped["cells"])
 

@@ -50,8 +50,14 @@ import numpy as np
 from ..errors import InputError
 from .design import CODESIGN_MODES, Design
 
-__all__ = ["codesign_cells", "run_codesign", "summarise_codesign", "recovered_fraction_ci", "write_codesign",
-           "CODESIGN_FORMAT"]
+__all__ = [
+    "CODESIGN_FORMAT",
+    "codesign_cells",
+    "recovered_fraction_ci",
+    "run_codesign",
+    "summarise_codesign",
+    "write_codesign",
+]
 
 #: ``format`` of ``codesign.json``.
 CODESIGN_FORMAT = "fsdvs_hw.codesign/1"
@@ -104,10 +110,9 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) 
     import torch
 
     from ..realise.base import realised_kernel_error
-    from ..realise.registry import get_realisation
+    from ..realise.registry import fit_realisation, get_realisation
     from ..tasks.learn import finetune_network
     from .codesign_pilot import csf_drift
-    from ..realise.registry import fit_realisation
     from .paired import clip_evidence, encode_evidence
 
     cd = design.data["codesign"]

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["codesign_section", "CODESIGN_HEADERS"]
+__all__ = ["CODESIGN_HEADERS", "codesign_section"]
 
 #: Column headers of the section's table, in order.
 CODESIGN_HEADERS = ("realisation", "task", "n (networks × clips)", "fit then swap", "fit then fine-tune",
