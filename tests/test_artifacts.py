@@ -145,7 +145,7 @@ def test_mesh_operating_point_is_the_decks_own_circuit(mesh_dir):
         ref = np.array([v[r[key]] for r in rows])
         assert np.abs(got - ref).max() <= 1e-12 * np.abs(ref).max()
     # the kernel taps the operating point implies are the design's kernel, up to the patch truncation
-    n = int(math.isqrt(len(rows)))
+    n = math.isqrt(len(rows))
     k = np.array([float(r["kernel_tap_1"]) for r in rows]).reshape(n, n)
     h = n // 2
     assert np.abs(k[h - 3:h + 4, h - 3:h + 4] - d.kernel_taps(7)).max() < 1e-3 * np.abs(d.kernel_taps(7)).max()

@@ -315,7 +315,7 @@ def test_a_plugin_realisation_is_explored_end_to_end(tmp_path, capsys):
     assert sorted(float(r["kind_cost_value"]) for r in csv_box) == [1.0, 3.0]
     assert {r["kind_cost_unit"] for r in csv_box} == {"px"}
     html = (out / "report.html").read_text()
-    assert "box width=3" in html and "box width 3 px" in html
+    assert "box (width 3)" in html and "box width 3 px" in html  # the report labels swept points "name (option value)"
     from fsdvs_hw.realise.artifacts import read_index
 
     assert read_index(out / "artifacts" / "index.json") == []  # no writer declared: nothing written, no error

@@ -156,7 +156,7 @@ def check_mesh_artifacts(folder: str | Path, *, timeout_s: float = 300.0) -> dic
     expected = _read_operating_point(folder / "operating_point.csv")
     t0 = time.perf_counter()
     try:
-        proc = subprocess.run([exe, *NGSPICE_COMMAND.split()[1:]], cwd=folder, capture_output=True, text=True,
+        proc = subprocess.run([exe, *NGSPICE_COMMAND.split()[1:]], cwd=folder, capture_output=True, text=True, check=False,
                               timeout=timeout_s)
     except subprocess.TimeoutExpired:
         raise InputError(f"ngspice did not finish within {timeout_s} s") from None
