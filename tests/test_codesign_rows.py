@@ -74,7 +74,7 @@ def test_enabled_codesign_needs_networks_and_the_checkpoint_simulator():
 # --------------------------------------------------------------------------- recovered fraction
 def _arm(values_per_network, n=40):
     """One ClipMeans per network with the given accuracy (first fraction of clips correct)."""
-    return [ClipMeans(np.r_[np.ones(int(round(v * n))), np.zeros(n - int(round(v * n)))]) for v in values_per_network]
+    return [ClipMeans(np.r_[np.ones(round(v * n)), np.zeros(n - round(v * n))]) for v in values_per_network]
 
 
 def test_recovered_fraction_is_the_share_of_the_swap_loss_won_back_with_a_covering_ci():
@@ -107,8 +107,8 @@ def test_one_network_resamples_clips():
 # --------------------------------------------------------------------------- end to end, resumable
 def test_three_rows_with_cis_and_a_killed_run_resumes_without_retraining(tmp_path, monkeypatch):
     pytest.importorskip("torch")
-    import fsdvs_hw.tasks.learn as learn
     from fsdvs_hw.explore.codesign import run_codesign, write_codesign
+    from fsdvs_hw.tasks import learn
 
     design = parse_design(_raw(), source="tiny.toml", base_dir=DESIGNS)
     trained = []
@@ -124,7 +124,7 @@ def test_three_rows_with_cis_and_a_killed_run_resumes_without_retraining(tmp_pat
     (cell,) = first["cells"]
     assert (cell["realisation"], cell["task"], cell["n_seeds"], cell["n_clips"]) == ("asic", "recognition", 1, 8)
     assert list(cell["rows"]) == ["swap", "finetune", "codesign"]
-    for m, row in cell["rows"].items():
+    for row in cell["rows"].values():
         ci = row["loss"]
         assert ci["low"] <= ci["estimate"] <= ci["high"] and ci["n_clips"] == 8 and row["label"]
     assert "recovered" in cell["rows"]["codesign"] and "gain_over_swap" in cell["rows"]["finetune"]
@@ -143,7 +143,7 @@ def test_three_rows_with_cis_and_a_killed_run_resumes_without_retraining(tmp_pat
     assert trained == ["codesign"]
     # a complete store: nothing is trained or scored again, and the summary is the same
     trained.clear()
-    import fsdvs_hw.explore.paired as paired
+    from fsdvs_hw.explore import paired
     monkeypatch.setattr(paired, "clip_evidence", lambda *a, **k: (_ for _ in ()).throw(AssertionError("rescored")))
     third = run_codesign(design, tmp_path, progress=False)
     assert trained == []
@@ -174,7 +174,7 @@ def test_section_lists_every_cell_and_escapes():
     summary = {"settings": {"epochs": 2, "n_train": 0}, "cells": [{
         "realisation": "<lens>", "task": "recognition", "metric_name": "top1", "n_seeds": 3,
         "n_clips_per_network": 384, "kernel_error_fit_gain_free": 0.2, "kernel_error_codesign_gain_free": [0.3],
-        "ms_correlation_initial": [0.89], "ms_correlation_final": [0.5], "verdict": "v",
+        "ms_correlation_initial": [0.89], "ms_correlation_final": [0.5], "verdict": "v", "swap_loss_above_zero": True,
         "rows": {m: {"loss": {"estimate": e, "low": e - 0.01, "high": e + 0.01},
                      **({"recovered": {"estimate": 0.5, "low": 0.4, "high": 0.6}} if m != "swap" else {})}
                  for m, e in (("swap", 0.25), ("finetune", 0.125), ("codesign", 0.125))}}]}
@@ -183,3 +183,5 @@ def test_section_lists_every_cell_and_escapes():
     assert "0.2500 [0.2400, 0.2600]" in html and "50% [40%, 60%]" in html and "3 × 384" in html
     assert "0.890 → 0.500" in html and html.count("<th>") == len(CODESIGN_HEADERS)
     assert "No co-design cell" in codesign_section({"cells": []})
+    summary["cells"][0]["swap_loss_above_zero"] = False  # no loss: no recovered share is shown
+    assert "50% [40%, 60%]" not in codesign_section(summary) and "no loss above 0" in codesign_section(summary)

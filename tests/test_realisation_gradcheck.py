@@ -16,8 +16,8 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from fsdvs_hw.kernels import load_kernel  # noqa: E402
-from fsdvs_hw.realise.registry import fit_realisation, get_realisation  # noqa: E402
+from fsdvs_hw.kernels import load_kernel
+from fsdvs_hw.realise.registry import fit_realisation, get_realisation
 
 LEARNED = Path(__file__).resolve().parents[1] / "designs" / "kernels" / "learned_detection_7x7.json"
 

@@ -50,8 +50,14 @@ import numpy as np
 from ..errors import InputError
 from .design import CODESIGN_MODES, Design
 
-__all__ = ["codesign_cells", "run_codesign", "summarise_codesign", "recovered_fraction_ci", "write_codesign",
-           "CODESIGN_FORMAT"]
+__all__ = [
+    "CODESIGN_FORMAT",
+    "codesign_cells",
+    "recovered_fraction_ci",
+    "run_codesign",
+    "summarise_codesign",
+    "write_codesign",
+]
 
 #: ``format`` of ``codesign.json``.
 CODESIGN_FORMAT = "fsdvs_hw.codesign/1"
@@ -104,10 +110,9 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) 
     import torch
 
     from ..realise.base import realised_kernel_error
-    from ..realise.registry import get_realisation
+    from ..realise.registry import fit_realisation, get_realisation
     from ..tasks.learn import finetune_network
     from .codesign_pilot import csf_drift
-    from ..realise.registry import fit_realisation
     from .paired import clip_evidence, encode_evidence
 
     cd = design.data["codesign"]
@@ -207,7 +212,8 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) 
     summary["settings"] = {**cd, "test_clips": design.data["tasks"]["test_clips"],
                            "n_test": {t: _n_test(design, t) for _, t in cells}}
     summary["design"] = design.name
-    summary["wall_s"] = time.perf_counter() - t_run
+    summary["wall_s"] = time.perf_counter() - t_run  # this call (a resumed run reuses finished units)
+    summary["units_wall_s"] = float(sum(u["wall_s"] for u in units))  # when each unit was measured
     return summary
 
 
@@ -353,6 +359,10 @@ def _verdict(cell: Mapping[str, Any]) -> str:
         return (f"no loss to recover: the fit-then-swap loss {swap['estimate']:.4f} "
                 f"[{swap['low']:.4f}, {swap['high']:.4f}] does not lie above 0")
     rec = cd["recovered"]
+    if not rec["high"] - rec["low"] <= 1.0:  # wider than the whole loss (or unbounded): nothing resolved
+        return (f"unresolved: the co-designed loss {cd['loss']['estimate']:.4f} [{cd['loss']['low']:.4f}, "
+                f"{cd['loss']['high']:.4f}] is wider than the fit-then-swap loss {swap['estimate']:.4f} "
+                f"[{swap['low']:.4f}, {swap['high']:.4f}] itself (recovered {rec['estimate']:.0%}, CI wider than 100 points)")
     if rec["low"] >= 0.5:
         return f"co-design recovers at least half of the loss ({rec['estimate']:.0%} [{rec['low']:.0%}, {rec['high']:.0%}])"
     if rec["estimate"] >= 0.5:

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["codesign_section", "CODESIGN_HEADERS"]
+__all__ = ["CODESIGN_HEADERS", "codesign_section"]
 
 #: Column headers of the section's table, in order.
 CODESIGN_HEADERS = ("realisation", "task", "n (networks × clips)", "fit then swap", "fit then fine-tune",
@@ -57,7 +57,7 @@ def codesign_section(summary: Mapping[str, Any]) -> str:
              "zero-shot into the networks trained with the kernel (fit then swap); the same networks trained further "
              f"with the fitted kernel frozen (fit then fine-tune); the same networks and the realisation's own "
              f"parameters trained together from the fitted design (co-designed). {html.escape(str(st.get('epochs', '?')))} "
-             f"epochs on {html.escape(str(st.get('n_train') or 'the checkpoint') )} training clips per network. Loss = "
+             f"epochs on {html.escape(str(st.get('n_train') or 'all'))} of each network's training clips. Loss = "
              "metric(learned kernel, original network) − metric(row), 95 % CI resampling (network, clips) clusters; "
              "recovered = 1 − loss(row) / loss(swap) with the CI of the same resampling. Kernel error: relative L2 "
              "against the target, gain-free; MS r: correlation of the kernel's response with the Mannos–Sakrison "
@@ -72,8 +72,8 @@ def codesign_section(summary: Mapping[str, Any]) -> str:
         vals = [c["realisation"], c["task"] + f" ({c['metric_name']})",
                 f"{c['n_seeds']} × {c['n_clips_per_network']}",
                 _ci(loss["swap"]), _ci(loss["finetune"]), _ci(loss["codesign"]),
-                _ci(rows.get("finetune", {}).get("recovered"), pct=True),
-                _ci(rows.get("codesign", {}).get("recovered"), pct=True),
+                *(_ci(rows.get(m, {}).get("recovered"), pct=True) if c.get("swap_loss_above_zero")
+                  else "— (no loss above 0)" for m in ("finetune", "codesign")),
                 f"{c['kernel_error_fit_gain_free']:.3f} → {_mean(c.get('kernel_error_codesign_gain_free'))}"
                 if c.get("kernel_error_fit_gain_free") is not None else "—",
                 f"{_mean(c.get('ms_correlation_initial'))} → {_mean(c.get('ms_correlation_final'))}",
