@@ -107,3 +107,20 @@ def test_stored_notebooks_carry_their_outputs(path):
     meta = nb.metadata.get("fsdvs_hw", {})
     assert meta.get("settings") == "full" and meta.get("wall_s", 0) > 0
     assert "\r" not in "".join(o.get("text", "") for o in outputs)  # progress bars stored in their final state
+
+
+def test_execute_stores_progress_bars_in_their_final_state():
+    """notebooks/execute.py merges a cell's stream outputs and keeps each bar's last redraw."""
+    import importlib.util
+
+    nbformat = pytest.importorskip("nbformat")
+    spec = importlib.util.spec_from_file_location("nb_execute", NOTEBOOKS[0].parent / "execute.py")
+    ex = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(ex)
+    out = nbformat.v4.new_output
+    cell = nbformat.v4.new_code_cell("x", outputs=[
+        out("stream", name="stderr", text="\rpts:   0%| 0/2"), out("stream", name="stderr", text="\rpts:  50%| 1/2"),
+        out("stream", name="stderr", text="\rpts: 100%| 2/2\n"), out("stream", name="stdout", text="done\n")])
+    nb = nbformat.v4.new_notebook(cells=[cell])
+    ex.tidy_streams(nb)
+    assert [(o.name, o.text) for o in nb.cells[0].outputs] == [("stderr", "pts: 100%| 2/2\n"), ("stdout", "done\n")]
