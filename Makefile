@@ -7,15 +7,21 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.fsdvs_hw-installed
-SYSTEM_TOOLS := ngspice iverilog yosys verilator
+SYSTEM_TOOLS := ngspice iverilog yosys verilator chromium
 TORCH_PIN := torch==2.13.0
 PYTEST_ARGS ?=
 DEMO_OUT ?= out/demo
+CODESIGN_OUT ?= out/codesign
 
-.PHONY: demo test test-all bench notebooks mutation setup system-deps clean
+.PHONY: demo codesign test test-all bench notebooks mutation setup system-deps clean
 
 demo: setup
 	$(BIN)/fsdvs-hw explore designs/default.toml --out $(DEMO_OUT)
+
+# Co-design rows (issue 16): fit then swap / fine-tune / co-designed for the default design's losses
+# whose CI lies above 0; results shipped in designs/results/codesign/ (copied from CODESIGN_OUT by hand).
+codesign: setup
+	$(BIN)/fsdvs-hw explore designs/codesign.toml --out $(CODESIGN_OUT)
 
 test: setup
 	$(BIN)/python -m pytest -m "not slow" -n 2 $(PYTEST_ARGS)
@@ -50,7 +56,8 @@ mutation: setup
 
 setup: system-deps $(STAMP)
 
-# Debian packages the realisation checks need (SPICE, Verilog simulation and synthesis).
+# Debian packages the realisation checks need (SPICE, Verilog simulation and synthesis), and the
+# headless browser the report test drives (chromium, through Playwright; tests/test_report_browser.py).
 system-deps:
 	@missing=""; for t in $(SYSTEM_TOOLS); do command -v $$t >/dev/null 2>&1 || missing="$$missing $$t"; done; \
 	if [ -n "$$missing" ]; then \

@@ -1,22 +1,22 @@
 """The benchmark registry: speed/accuracy tables of every component, as records and Markdown.
 
 Each component registers a benchmark in :data:`BENCHMARKS` as ``"module:function"``; the function
-has the signature ``f(*, quick: bool = False) -> BenchRun | str``: a
-:class:`~fsdvs_hw.benchmarks.BenchRun` (Markdown section plus :class:`~fsdvs_hw.benchmarks.BenchRecord`
-records), or a Markdown section whose table cells :func:`benchmark_run` turns into records.
-``quick`` shrinks the problem for smoke tests; the README tables are produced with ``quick=False``.
-Every bench runs with torch's thread count restored afterwards. The command is
-``fsdvs-hw bench`` (:mod:`fsdvs_hw.cli.bench`).
+has the signature ``f(*, quick: bool = False) -> BenchRun`` (a bench that draws figures also takes
+``figures``): it measures into :class:`~fsdvs_hw.benchmarks.BenchRecord` records and renders its
+Markdown section from them (:class:`~fsdvs_hw.benchmarks.BenchSection`). ``quick`` shrinks the
+problem for smoke tests; the README tables are produced with ``quick=False``. Every bench runs
+inside :func:`~fsdvs_hw.benchmarks.kept_global_state` (torch threads, dtype and random state,
+numpy's error and random state, warnings filters and environment restored afterwards). The
+command is ``fsdvs-hw bench`` (:mod:`fsdvs_hw.cli.bench`).
 """
 
 from __future__ import annotations
 
 import importlib
 import inspect
-import sys
 from pathlib import Path
 
-from .benchmarks import BenchRun, kept_torch_threads, records_from_markdown
+from .benchmarks import BenchRun, kept_global_state
 from .errors import InputError
 
 __all__ = ["BENCHMARKS", "run_benchmark", "benchmark_run"]
@@ -35,7 +35,7 @@ BENCHMARKS: dict[str, str] = {
 
 
 def benchmark_run(name: str, *, quick: bool = False, figures: str | Path | None = None) -> BenchRun:
-    """Run one registered benchmark; its Markdown and records (torch threads restored after it).
+    """Run one registered benchmark: its records and their Markdown (process-wide state restored after it).
 
     Parameters
     ----------
@@ -51,18 +51,20 @@ def benchmark_run(name: str, *, quick: bool = False, figures: str | Path | None 
     ------
     InputError
         ``name`` is not in :data:`BENCHMARKS`.
+    TypeError
+        The registered function returned something other than a :class:`BenchRun`.
     """
     if name not in BENCHMARKS:
         raise InputError(f"benchmark {name!r} unknown; allowed: {', '.join(BENCHMARKS)}, all")
     module, func = BENCHMARKS[name].split(":")
-    with kept_torch_threads():
-        fn = getattr(importlib.import_module(module), func)
-        kw = {"figures": Path(figures)} if figures is not None and "figures" in inspect.signature(fn).parameters else {}
+    fn = getattr(importlib.import_module(module), func)
+    kw = {"figures": Path(figures)} if figures is not None and "figures" in inspect.signature(fn).parameters else {}
+    with kept_global_state():
         out = fn(quick=quick, **kw)
-        threads = sys.modules["torch"].get_num_threads() if "torch" in sys.modules else None
-    if isinstance(out, BenchRun):
-        return out
-    return BenchRun(name, out, tuple(records_from_markdown(name, out, settings={"quick": quick}, threads=threads)))
+    if not isinstance(out, BenchRun):
+        raise TypeError(f"benchmark {name!r} ({BENCHMARKS[name]}) returned {type(out).__name__}, not a BenchRun: "
+                        "measure into fsdvs_hw.benchmarks.BenchSection and return its run()")
+    return out
 
 
 def run_benchmark(name: str, *, quick: bool = False) -> str:

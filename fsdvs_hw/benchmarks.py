@@ -1,19 +1,27 @@
 """Benchmark records: one typed row per measured value, the one timing helper, JSON and Markdown views.
 
 Every ``fsdvs-hw bench NAME`` returns a :class:`BenchRun`: its Markdown section (the tables quoted in
-the README) and a list of :class:`BenchRecord` — one per numeric cell of those tables, with the
+the README) and a list of :class:`BenchRecord` — one per number printed in those tables, with the
 metric's unit, the repeats and spread of a timing, the torch threads, the machine, the library
 versions and the bench settings — written as JSON by :func:`write_json` (``--json PATH``).
+
+A bench measures into records first and renders its Markdown from them: :class:`BenchSection`
+holds the section's text and :class:`Table` s of :class:`Column` s (text columns name the case,
+value columns carry a metric, a unit and a print format); each value cell — a number, a
+:class:`Measured` (value, repeats, spread) or a :class:`Timing` — is printed and recorded at once,
+so the Markdown can show nothing the records do not hold.
 :func:`timed` is the timing helper every bench uses (wall clock, :func:`time.perf_counter`);
-:func:`kept_torch_threads` restores torch's thread count after a bench that changes it.
+:func:`kept_global_state` restores what a bench may change process-wide (torch threads, default
+dtype and random state, numpy's error and random state, warnings filters, environment variables).
 
 This module is core layer: it imports nothing from the rest of the package except
-:mod:`fsdvs_hw.errors`, and torch only if some caller already imported it.
+:mod:`fsdvs_hw.errors`; torch only inside :func:`kept_global_state`.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 import re
@@ -30,12 +38,15 @@ from typing import Any, Generic, TypeVar
 __all__ = [
     "BenchRecord",
     "BenchRun",
+    "BenchSection",
+    "Table",
+    "Column",
+    "Measured",
     "Timing",
     "timed",
-    "kept_torch_threads",
+    "kept_global_state",
     "machine_info",
     "library_versions",
-    "records_from_markdown",
     "records_markdown",
     "write_json",
     "read_json",
@@ -140,6 +151,11 @@ class Timing(Generic[T]):
     def worst_s(self) -> float:
         return max(self.times_s)
 
+    def measured(self, unit: str = "s", summary: str = "median") -> Measured:
+        """The timing as a :class:`Measured` in ``unit`` (s, ms, µs, min): ``summary`` (best,
+        median, mean, worst) of the runs, their count and min–max."""
+        return Measured.of(self.times_s, summary).scaled(_time_scale(unit))
+
 
 def timed(fn: Callable[[], T], repeats: int = 1) -> Timing[T]:
     """Call ``fn`` ``repeats`` times and time each call with :func:`time.perf_counter`.
@@ -155,9 +171,16 @@ def timed(fn: Callable[[], T], repeats: int = 1) -> Timing[T]:
     -------
     Timing
         ``times_s`` (s, one per call) and ``result``; ``best_s``, ``median_s``, ``worst_s``.
+
+    Raises
+    ------
+    InputError
+        ``repeats`` is not an integer >= 1.
     """
-    if repeats < 1:
-        raise ValueError(f"repeats must be >= 1, got {repeats}")
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        from .errors import InputError
+
+        raise InputError(f"timed: repeats must be an integer >= 1, got {repeats!r}")
     times, out = [], None
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -167,16 +190,39 @@ def timed(fn: Callable[[], T], repeats: int = 1) -> Timing[T]:
 
 
 @contextmanager
-def kept_torch_threads() -> Iterator[None]:
-    """Restore torch's intra-op thread count on exit (a bench may set 1 thread for its timings)."""
-    torch = sys.modules.get("torch")
-    if torch is None:
-        import torch
-    threads = torch.get_num_threads()
+def kept_global_state() -> Iterator[None]:
+    """Restore, on exit, the process-wide state a benchmark may change (also a function decorator).
+
+    torch (imported here if installed): intra-op threads, default dtype and the CPU random state;
+    numpy: the floating-point error state and the global random state; the :mod:`warnings` filters;
+    the environment variables (a sweep executor sets its workers' thread count there). torch's inter-op thread count cannot be set back once parallel work ran, so no
+    bench may change it (a test checks).
+    """
+    import warnings
+
+    import numpy as np
+
     try:
-        yield
+        import torch
+    except ImportError:  # pragma: no cover - torch is a dependency
+        torch = None
+    torch_state = None if torch is None else (torch.get_num_threads(), torch.get_default_dtype(), torch.get_rng_state())
+    np_err, np_random = np.geterr(), np.random.get_state()
+    environ = dict(os.environ)
+    try:
+        with warnings.catch_warnings():
+            yield
     finally:
-        torch.set_num_threads(threads)
+        np.seterr(**np_err)
+        np.random.set_state(np_random)
+        for key in set(os.environ) - set(environ):
+            del os.environ[key]
+        os.environ.update({k: v for k, v in environ.items() if os.environ.get(k) != v})
+        if torch is not None and torch_state is not None:
+            threads, dtype, rng = torch_state
+            torch.set_num_threads(threads)
+            torch.set_default_dtype(dtype)
+            torch.set_rng_state(rng)
 
 
 def machine_info() -> dict[str, Any]:
@@ -199,92 +245,359 @@ def library_versions() -> dict[str, str | None]:
     return out
 
 
-_UNIT = re.compile(r"^(?P<metric>.*?)\s*\((?P<unit>[^()]*)\)\s*$")
-_NUMBER = re.compile(r"^[<>≤≥~≈]?\s*(?P<num>[-+−]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(?P<unit>%|[a-zA-Zµ/]+)?$")
+#: Seconds to each time unit a timing cell may be shown in.
+_TIME_SCALE = {"s": 1.0, "ms": 1e3, "µs": 1e6, "us": 1e6, "min": 1 / 60}
+#: The statistic a :class:`Measured` summarises its samples with.
+_SUMMARIES: dict[str, Callable[[Sequence[float]], float]] = {
+    "best": min, "min": min, "median": statistics.median, "mean": statistics.fmean, "worst": max, "max": max}
+#: Units a header's parenthesised suffix may name (``"time (ms)"``); other suffixes need ``unit=``.
+_HEADER_UNITS = frozenset({*_TIME_SCALE, "MB", "MiB", "GB", "%", "µm²", "µm", "mm", "px", "bit", "Mpixel-frames/s"})
+_UNIT_SUFFIX = re.compile(r"^(?P<metric>.*?)\s*\((?P<unit>[^()]*)\)\s*$")
 
 
-def _cells(line: str) -> list[str]:
-    return [c.strip() for c in line.strip().strip("|").split("|")]
+@dataclass(frozen=True)
+class Measured:
+    """A measured value with the repeats and the spread it summarises.
+
+    Attributes
+    ----------
+    value : float
+        The value (a timing's median or best, a mean over runs, a single measurement).
+    repeats : int or None
+        How many runs ``value`` summarises (None: one measurement, or not recorded).
+    low, high : float or None
+        Smallest and largest of those runs, in the unit of ``value``.
+    """
+
+    value: float
+    repeats: int | None = None
+    low: float | None = None
+    high: float | None = None
+
+    @classmethod
+    def of(cls, samples: Sequence[float], summary: str = "median") -> Measured:
+        """``summary`` (best, median, mean, worst) of ``samples``, with their count, min and max.
+
+        Raises
+        ------
+        InputError
+            No samples, or an unknown ``summary``.
+        """
+        values = [float(v) for v in samples]
+        if not values:
+            from .errors import InputError
+
+            raise InputError("Measured.of: samples is empty; give at least one value")
+        return cls(_summary(summary)(values), len(values), min(values), max(values))
+
+    def scaled(self, factor: float) -> Measured:
+        """The same measurement in another unit: every value times ``factor``."""
+        return Measured(self.value * factor, self.repeats, None if self.low is None else self.low * factor,
+                        None if self.high is None else self.high * factor)
 
 
-_SPREAD = re.compile(r"^(?P<value>.*?)\s*\[(?P<low>[^–\]]+)[–-](?P<high>[^\]]+)\]\s*$")
+def _summary(name: str) -> Callable[[Sequence[float]], float]:
+    if name not in _SUMMARIES:
+        from .errors import InputError
+
+        raise InputError(f"summary {name!r} unknown; allowed: {', '.join(_SUMMARIES)}")
+    return _SUMMARIES[name]
 
 
-def _number(text: str) -> tuple[float, str, float | None, float | None] | None:
-    """``(value, unit, low, high)`` of a cell ``"1.2e-3"``, ``"12 %"`` or ``"0.31 [0.29–0.35]"``."""
-    text = text.replace("**", "").replace("`", "").strip()
-    low = high = None
-    spread = _SPREAD.match(text)
-    if spread is not None:
-        lo, hi = _number(spread["low"]), _number(spread["high"])
-        if lo is None or hi is None:
-            return None
-        text, low, high = spread["value"], lo[0], hi[0]
-    m = _NUMBER.match(text)
-    if m is None:
+def _time_scale(unit: str) -> float:
+    if unit not in _TIME_SCALE:
+        from .errors import InputError
+
+        raise InputError(f"a timing shown in {unit!r}: allowed time units are {', '.join(_TIME_SCALE)}")
+    return _TIME_SCALE[unit]
+
+
+@dataclass(frozen=True)
+class _Part:
+    """One number of a table cell: its record's metric and unit, and how it is printed."""
+
+    metric: str
+    unit: str
+    spec: str
+    summary: str = "median"
+    spread: str = ""
+
+
+#: What a value cell may hold: a number, a :class:`Measured`, a :class:`Timing` (summarised in the
+#: column's time unit), None (printed ``—``, no record) or a string (printed as is, no record).
+Cell = Any
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column of a benchmark table: a text column (part of each row's case) or a value column.
+
+    Build columns with :meth:`text`, :meth:`number` and :meth:`numbers`.
+
+    Attributes
+    ----------
+    header : str
+        The column header as printed.
+    parts : tuple
+        The numbers one cell prints, each a record (empty for a text column).
+    template : str
+        How the printed numbers make the cell: ``"{0}"``, ``"[{0}, {1}]"``, ...
+    """
+
+    header: str
+    parts: tuple[_Part, ...] = ()
+    template: str = "{0}"
+
+    @classmethod
+    def text(cls, header: str) -> Column:
+        """A text column: its cells name the row's case (``header=cell``), they are not records."""
+        return cls(header)
+
+    @classmethod
+    def number(cls, header: str, spec: str = ".4g", *, unit: str | None = None, metric: str | None = None,
+               suffix: str = "", summary: str = "median", spread: bool | str = False) -> Column:
+        """A column of one number per cell.
+
+        Parameters
+        ----------
+        header : str
+            Printed header; a parenthesised suffix (``"time (ms)"``) is the unit and the rest the
+            metric unless ``unit`` / ``metric`` are given.
+        spec : str
+            :func:`format` spec of the number (``".2e"``, ``".3f"``, ``"d"``).
+        unit : str, optional
+            Unit of the records (``""``: dimensionless).
+        metric : str, optional
+            Metric name of the records.
+        suffix : str
+            Printed after the number (``"×"``, ``" %"``).
+        summary : str
+            Statistic a :class:`Timing` cell is shown as: best, median, mean or worst.
+        spread : bool or str
+            Print the cell's min–max after its value: True as ``value [min–max]``, a string as its
+            template (``" ({}–{})"``); False: the value alone (the records keep the spread).
+        """
+        m = _UNIT_SUFFIX.match(header)
+        if unit is None and m is not None and m["unit"] not in _HEADER_UNITS:
+            from .errors import InputError
+
+            raise InputError(f"column {header!r}: {m['unit']!r} is not a unit ({', '.join(sorted(_HEADER_UNITS))}); "
+                             "give unit= and metric= explicitly")
+        _summary(summary)
+        return cls(header, (_Part(metric if metric is not None else (m["metric"] if m else header),
+                                  unit if unit is not None else (m["unit"] if m else ""), spec, summary,
+                                  " [{}–{}]" if spread is True else (spread or "")),),
+                   "{0}" + suffix.replace("{", "{{").replace("}", "}}"))
+
+    @classmethod
+    def numbers(cls, header: str, template: str, *parts: tuple[str, str, str]) -> Column:
+        """A column of several numbers per cell: ``parts`` are ``(metric, unit, spec)`` and
+        ``template`` places them (``"[{0}, {1}]"``); a cell is a tuple with one value per part."""
+        return cls(header, tuple(_Part(metric, unit, spec) for metric, unit, spec in parts), template)
+
+    @property
+    def is_text(self) -> bool:
+        return not self.parts
+
+    def _render(self, cell: Cell) -> tuple[str, list[tuple[_Part, Measured]]]:
+        """The printed cell and the ``(part, measured)`` of each number it prints."""
+        if self.is_text:
+            return str(cell), []
+        if isinstance(cell, str):
+            return cell, []
+        cells = cell if len(self.parts) > 1 else (cell,)
+        if not isinstance(cells, tuple) or len(cells) != len(self.parts):
+            from .errors import InputError
+
+            raise InputError(f"column {self.header!r}: a cell is a tuple of {len(self.parts)} values, got {cell!r}")
+        texts, out = [], []
+        for part, value in zip(self.parts, cells):
+            m = _as_measured(value, part)
+            if m is None:
+                texts.append("n/a" if value is not None else "—")
+                continue
+            text = _format(m.value, part.spec)
+            if part.spread and m.low is not None and m.high is not None:
+                text += part.spread.format(_format(m.low, part.spec), _format(m.high, part.spec))
+            texts.append(text)
+            out.append((part, m))
+        if not out and len(texts) == 1:  # nothing measured: the marker alone, without the suffix
+            return texts[0], out
+        return self.template.format(*texts), out
+
+
+def _as_measured(value: Any, part: _Part) -> Measured | None:
+    """A cell value as a :class:`Measured` in the part's unit (None: missing or not a number)."""
+    if value is None:
         return None
-    return float(m["num"].replace("−", "-")), m["unit"] or "", low, high
+    if isinstance(value, Timing):
+        value = Measured.of(value.times_s, part.summary).scaled(_time_scale(part.unit))
+    elif not isinstance(value, Measured):
+        value = Measured(float(value))
+    if part.unit in _TIME_SCALE and (value.repeats is None or value.low is None or value.high is None):
+        from .errors import InputError
+
+        raise InputError(f"{part.metric!r} is a time ({part.unit}): give a Timing or a Measured with repeats and "
+                         f"min–max (Measured.of([t]) for a single run), got {value!r}")
+    return None if math.isnan(value.value) else value
 
 
-def records_from_markdown(bench: str, markdown: str, *, settings: Mapping[str, Any] | None = None,
-                          threads: int | None = None,
-                          timings: Mapping[tuple[str, str], Timing[Any]] | None = None) -> list[BenchRecord]:
-    """One :class:`BenchRecord` per numeric cell of the Markdown tables of a bench section.
+def _format(value: float, spec: str) -> str:
+    return format(int(round(value)), spec) if spec.endswith("d") else format(value, spec)
 
-    The table title is the nearest heading (``#`` or a bold line) above the table; the case is the row's
-    first cell plus its other non-numeric cells (``header=value``); the metric is the column
-    header, its unit the header's parenthesised suffix (``wall (s)``) or the cell's own suffix
-    (``12 %``); a cell ``"0.31 [0.29–0.35]"`` is a value with its min–max spread. Cells that are
-    not a single number are context, not records.
+
+def _plain(text: str) -> str:
+    return text.replace("**", "").replace("`", "").strip()
+
+
+def _torch_threads() -> int | None:
+    torch = sys.modules.get("torch")
+    return None if torch is None else int(torch.get_num_threads())
+
+
+@dataclass(frozen=True)
+class _Pending:
+    """A record before the run's machine, versions and time stamp are attached."""
+
+    table: str
+    case: str
+    metric: str
+    unit: str
+    measured: Measured
+    threads: int | None
+    settings: dict[str, Any]
+
+
+class Table:
+    """A Markdown table whose value cells are records; made by :meth:`BenchSection.table`."""
+
+    def __init__(self, section: BenchSection, title: str, columns: Sequence[Column], settings: Mapping[str, Any],
+                 threads: int | None | str) -> None:
+        if not columns:
+            from .errors import InputError
+
+            raise InputError(f"table {title!r}: give at least one column")
+        self._section, self.title, self.columns = section, title, tuple(columns)
+        self._settings, self._threads = dict(settings), threads
+        self._lines: list[str] = []
+
+    def row(self, *cells: Cell, case: str | None = None, threads: int | None | str = "auto") -> None:
+        """Add a row: one cell per column (see :data:`Cell`); its value cells become records.
+
+        ``case``: the records' case (default: ``header=cell`` of the text cells, joined by ``; ``);
+        ``threads``: torch threads the row was measured with (default: the table's, else torch's
+        thread count now, None when torch is not imported).
+
+        Raises
+        ------
+        InputError
+            Not one cell per column, or a composite cell of the wrong length.
+        """
+        if len(cells) != len(self.columns):
+            from .errors import InputError
+
+            raise InputError(f"table {self.title!r}: a row has {len(self.columns)} cells, got {len(cells)}")
+        threads = self._threads if threads == "auto" else threads
+        threads = _torch_threads() if threads == "auto" else threads
+        rendered = [col._render(cell) for col, cell in zip(self.columns, cells)]
+        if case is None:
+            case = "; ".join(f"{col.header}={_plain(text)}" for col, (text, _) in zip(self.columns, rendered)
+                             if col.is_text and _plain(text))
+        for text, values in rendered:
+            for part, m in values:
+                self._section._pending.append(_Pending(self.title, case, part.metric, part.unit, m,
+                                                       threads, self._settings))  # type: ignore[arg-type]
+        self._lines.append("| " + " | ".join(text for text, _ in rendered) + " |")
+
+    def markdown(self) -> str:
+        """The table: header, ``|---|`` rule and the rows added so far."""
+        head = "| " + " | ".join(c.header for c in self.columns) + " |"
+        return "\n".join([head, "|" + "---|" * len(self.columns), *self._lines])
+
+
+class BenchSection:
+    """A benchmark's Markdown section built from its measurements: records first, Markdown their view.
+
+    Text lines, tables and values quoted in text are added in order; :meth:`run` gives the
+    :class:`BenchRun` (the Markdown and one :class:`BenchRecord` per printed number). A Markdown
+    heading line (``#`` …) names the tables and values below it (their records' ``table``).
 
     Parameters
     ----------
-    timings : mapping, optional
-        ``(case, metric) -> Timing`` for cells that are timings: their records carry repeats and
-        the min/max spread (in the column's unit, converted from seconds for ``ms`` and ``µs``).
+    bench : str
+        Benchmark name.
+    settings : mapping, optional
+        The bench's settings (``quick``, problem sizes), copied into every record.
+
+    Examples
+    --------
+    >>> s = BenchSection("demo", settings={"quick": True})
+    >>> s.text("### Fits", "")
+    >>> t = s.table(Column.text("case"), Column.number("error", ".2e"), Column.number("time (ms)", ".1f"))
+    >>> t.row("dog 7", 1.5e-3, Measured(12.5, 3, 12.0, 13.1))
+    >>> run = s.run()
+    >>> print(run.markdown)
+    ### Fits
+    <BLANKLINE>
+    | case | error | time (ms) |
+    |---|---|---|
+    | dog 7 | 1.50e-03 | 12.5 |
+    >>> [(r.table, r.case, r.metric, r.unit, r.value, r.repeats) for r in run.records][1]
+    ('Fits', 'case=dog 7', 'time', 'ms', 12.5, 3)
     """
-    machine, versions, stamp = machine_info(), library_versions(), datetime.now(timezone.utc).isoformat()
-    scale = {"s": 1.0, "ms": 1e3, "µs": 1e6, "us": 1e6, "min": 1 / 60}
-    records: list[BenchRecord] = []
-    lines = markdown.splitlines()
-    title = bench
-    i = 0
-    while i < len(lines):
-        line = lines[i].strip()
-        is_table = line.startswith("|") and i + 1 < len(lines) and re.match(r"^\|\s*:?-{3,}", lines[i + 1].strip())
-        if not is_table:
-            if line.startswith(("#", "**")):  # a heading names the tables below it
-                title = line.lstrip("#* ").rstrip("*: ") or title
-            i += 1
-            continue
-        header = _cells(line)
-        i += 2
-        while i < len(lines) and lines[i].strip().startswith("|"):
-            cells = _cells(lines[i])
-            i += 1
-            if not cells:
-                continue
-            values, context = [], [cells[0]]
-            for head, cell in zip(header[1:], cells[1:]):
-                num = _number(cell)
-                if num is None:
-                    if cell and cell not in ("—", "-", "n/a"):
-                        context.append(f"{head}={cell}")
-                else:
-                    values.append((head, num))
-            case = "; ".join(context)
-            for head, (value, cell_unit, low, high) in values:
-                m = _UNIT.match(re.sub(r"\s*\[[^\]]*\]\s*$", "", head))
-                metric, unit = (m["metric"], m["unit"]) if m else (head, "")
-                unit = unit or cell_unit
-                t = (timings or {}).get((cells[0], metric))
-                factor = scale.get(unit, 1.0)
-                records.append(BenchRecord(
-                    bench=bench, table=title, case=case, metric=metric, unit=unit, value=value,
-                    repeats=t.repeats if t else None, spread_min=t.best_s * factor if t else low,
-                    spread_max=t.worst_s * factor if t else high, threads=threads, machine=machine,
-                    versions=versions, settings=dict(settings or {}), timestamp=stamp))
-    return records
+
+    def __init__(self, bench: str, *, settings: Mapping[str, Any] | None = None) -> None:
+        self.bench = bench
+        self.settings = dict(settings or {})
+        self._parts: list[str | Table] = []
+        self._title = bench
+        self._pending: list[_Pending] = []
+
+    def text(self, *lines: str) -> None:
+        """Add Markdown lines; a heading line (``#`` …) names the tables and values below it."""
+        for line in lines:
+            if line.lstrip().startswith("#"):
+                self._title = _plain(line.lstrip().lstrip("#")) or self._title
+            self._parts.append(line)
+
+    def table(self, *columns: Column, title: str | None = None, settings: Mapping[str, Any] | None = None,
+              threads: int | None | str = "auto") -> Table:
+        """Add a table here (rows may be added later); ``title`` defaults to the last heading,
+        ``settings`` extend the section's, ``threads`` fixes the torch threads of its records."""
+        t = Table(self, title or self._title, columns, {**self.settings, **(settings or {})}, threads)
+        self._parts.append(t)
+        return t
+
+    def value(self, case: str, metric: str, value: Any, *, unit: str = "", spec: str = ".4g",
+              summary: str = "median", threads: int | None | str = "auto") -> str:
+        """Record a value quoted in the text; returns it printed (``spec``; a :class:`Timing` in
+        ``unit`` as ``summary``) for the caller's sentence."""
+        part = _Part(metric, unit, spec, summary)
+        m = _as_measured(value, part)
+        if m is None:
+            return "n/a" if value is not None else "—"
+        self._pending.append(_Pending(self._title, case, metric, unit, m,
+                                      _torch_threads() if threads == "auto" else threads,  # type: ignore[arg-type]
+                                      self.settings))
+        return _format(m.value, spec)
+
+    @property
+    def markdown(self) -> str:
+        """The section so far: its lines and tables joined with newlines."""
+        return "\n".join(p if isinstance(p, str) else p.markdown() for p in self._parts)
+
+    def records(self) -> list[BenchRecord]:
+        """One record per number printed so far, with this machine, the library versions and the time."""
+        machine, versions = machine_info(), library_versions()
+        stamp = datetime.now(timezone.utc).isoformat(timespec="seconds")
+        return [BenchRecord(bench=self.bench, table=p.table, case=p.case, metric=p.metric, unit=p.unit,
+                            value=float(p.measured.value), repeats=p.measured.repeats, spread_min=p.measured.low,
+                            spread_max=p.measured.high, threads=p.threads, machine=machine, versions=versions,
+                            settings=dict(p.settings), timestamp=stamp) for p in self._pending]
+
+    def run(self, extra: Sequence[BenchRecord] = ()) -> BenchRun:
+        """The :class:`BenchRun`: this Markdown and its records (after ``extra`` records, if any)."""
+        return BenchRun(self.bench, self.markdown, tuple(extra) + tuple(self.records()))
 
 
 def records_markdown(records: Sequence[BenchRecord]) -> str:

@@ -766,8 +766,49 @@ def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMet
     """
     from scipy import stats
 
-    if not tasks:
-        raise InputError("difference_ci: no tasks")
+    _check_bootstrap_settings(resample, confidence, n_resamples, method)
+    names, parsed = _parse_tasks(tasks, nested_clips=nested_clips, resample=resample, paired_seeds=paired_seeds,
+                                 paired_clips=paired_clips)
+    wts = _task_weights(weights, parsed)
+    layout = [(t, sl) for t, task in parsed.items() for sl in task.slots]
+    statistic = _difference_statistic(parsed, layout, wts, paired_clips=paired_clips, paired_seeds=paired_seeds)
+    estimate = statistic(*[np.arange(_slot_size(parsed[t], sl)) for t, sl in layout])
+    if not layout:  # nothing to resample (seeds only, one seed everywhere)
+        lows = highs = estimate
+        ses = np.zeros_like(estimate)
+        n_res = 0
+    else:
+        res = stats.bootstrap(tuple(np.arange(_slot_size(parsed[t], sl)) for t, sl in layout), statistic,
+                              paired=False, vectorized=True, axis=-1, confidence_level=confidence,
+                              n_resamples=n_resamples, method=method, random_state=np.random.default_rng(rng),
+                              batch=batch)
+        lows, highs = np.asarray(res.confidence_interval.low), np.asarray(res.confidence_interval.high)
+        ses, n_res = np.asarray(res.standard_error), n_resamples
+    out: dict[str, dict[str, DifferenceCI]] = {}
+    tnames = list(parsed)
+    for i, cname in enumerate(names):
+        out[cname] = {}
+        for j, t in enumerate(tnames):
+            task = parsed[t]
+            out[cname][t] = DifferenceCI(float(estimate[i, j]), float(lows[i, j]), float(highs[i, j]), confidence,
+                                         task.n, len(task.ref), len(task.cands[i]), paired_clips, paired_seeds,
+                                         _resampled(task), method, n_res if task.slots else 0, float(ses[i, j]),
+                                         "nested" if task.nested else "crossed")
+        if wts is not None:
+            used = [t for t, wt in zip(tnames, wts) if wt > 0]
+            resampled = tuple(dict.fromkeys(f for t in used for f in _resampled(parsed[t])))
+            j = len(tnames)
+            out[cname]["weighted"] = DifferenceCI(
+                float(estimate[i, j]), float(lows[i, j]), float(highs[i, j]), confidence,
+                sum(parsed[t].n for t in used), min(len(parsed[t].ref) for t in used),
+                min(len(parsed[t].cands[i]) for t in used), paired_clips, paired_seeds, resampled, method,
+                n_res if resampled else 0, float(ses[i, j]),
+                "nested" if any(parsed[t].nested for t in used) else "crossed")
+    return out
+
+
+def _check_bootstrap_settings(resample: Sequence[str], confidence: float, n_resamples: int, method: str) -> None:
+    """Refuse bootstrap settings outside their ranges (messages name the setting and its range)."""
     bad = set(resample) - {"clips", "seeds"}
     if bad or not resample:
         raise InputError(f"difference_ci: resample must name 'clips' and/or 'seeds', got {list(resample)!r}")
@@ -777,6 +818,13 @@ def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMet
         raise InputError(f"difference_ci: n_resamples must be an integer >= 100, got {n_resamples!r}")
     if method not in ("percentile", "BCa", "basic"):
         raise InputError(f"difference_ci: method must be 'percentile', 'BCa' or 'basic', got {method!r}")
+
+
+def _parse_tasks(tasks: Mapping[str, tuple[Any, Mapping[str, Any]]], *, nested_clips: bool | Mapping[str, bool],
+                 resample: Sequence[str], paired_seeds: bool, paired_clips: bool) -> tuple[list[str], dict[str, _Task]]:
+    """Candidate names and, per task, its arms and the index slots the bootstrap resamples."""
+    if not tasks:
+        raise InputError("difference_ci: no tasks")
     names: list[str] | None = None
     parsed: dict[str, _Task] = {}
     for tname, (reference, candidates) in tasks.items():
@@ -813,20 +861,33 @@ def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMet
                 slots += [sl for sl, k in (("seeds_ref", len(ref)), ("seeds_cand", len(cands[0]))) if k >= 2]
         parsed[tname] = _Task(ref, cands, slots, n)
     assert names is not None
-    wts = None
-    if weights is not None:
-        wts = np.array([float(weights.get(t, 0.0)) for t in parsed])
-        if np.any(~np.isfinite(wts)) or np.any(wts < 0) or wts.sum() <= 0:
-            raise InputError(f"difference_ci: weights must be finite, >= 0 and not all 0, got {dict(weights)}")
-        wts = wts / wts.sum()
+    return names, parsed
 
-    layout = [(t, sl) for t, task in parsed.items() for sl in task.slots]
 
-    def size(t: str, sl: str) -> int:
-        task = parsed[t]
-        if sl.startswith("clips@"):  # nested: clips of one network
-            return task.ref[int(sl[6:])].n_clips
-        return task.n if sl.startswith("clips") else (len(task.cands[0]) if sl == "seeds_cand" else len(task.ref))
+def _task_weights(weights: Mapping[str, float] | None, parsed: Mapping[str, _Task]) -> np.ndarray | None:
+    """Task weights normalised to sum 1, in the order of ``parsed`` (None: no weighted entry)."""
+    if weights is None:
+        return None
+    wts = np.array([float(weights.get(t, 0.0)) for t in parsed])
+    if np.any(~np.isfinite(wts)) or np.any(wts < 0) or wts.sum() <= 0:
+        raise InputError(f"difference_ci: weights must be finite, >= 0 and not all 0, got {dict(weights)}")
+    return wts / wts.sum()
+
+
+def _slot_size(task: _Task, slot: str) -> int:
+    """How many items a resampled index slot draws from (clips of the task or of one network, or seeds)."""
+    if slot.startswith("clips@"):  # nested: clips of one network
+        return task.ref[int(slot[6:])].n_clips
+    return task.n if slot.startswith("clips") else (len(task.cands[0]) if slot == "seeds_cand" else len(task.ref))
+
+
+def _difference_statistic(parsed: Mapping[str, _Task], layout: Sequence[tuple[str, str]], wts: np.ndarray | None, *,
+                          paired_clips: bool, paired_seeds: bool) -> Any:
+    """The vectorised bootstrap statistic: every candidate's per-task loss (and weighted mean).
+
+    Takes one index sample per ``layout`` slot (``scipy.stats.bootstrap``'s ``*data``) and returns
+    an array (candidates, tasks [+ weighted], *batch).
+    """
 
     def arm_value(arm: list[ClipMetric], wc: np.ndarray, ws: np.ndarray) -> np.ndarray:
         vals = np.stack([m.weighted(wc) for m in arm], axis=1)  # (B, S)
@@ -866,39 +927,7 @@ def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMet
             vals = np.concatenate([vals, np.tensordot(wts, vals, axes=([0], [1]))[:, None, :]], axis=1)
         return vals.reshape(vals.shape[0], vals.shape[1], *shape)
 
-    estimate = statistic(*[np.arange(size(t, sl)) for t, sl in layout])
-    if not layout:  # nothing to resample (seeds only, one seed everywhere)
-        lows = highs = estimate
-        ses = np.zeros_like(estimate)
-        n_res = 0
-    else:
-        res = stats.bootstrap(tuple(np.arange(size(t, sl)) for t, sl in layout), statistic, paired=False,
-                              vectorized=True, axis=-1, confidence_level=confidence, n_resamples=n_resamples,
-                              method=method, random_state=np.random.default_rng(rng), batch=batch)
-        lows, highs = np.asarray(res.confidence_interval.low), np.asarray(res.confidence_interval.high)
-        ses, n_res = np.asarray(res.standard_error), n_resamples
-    out: dict[str, dict[str, DifferenceCI]] = {}
-    tnames = list(parsed)
-    for i, cname in enumerate(names):
-        out[cname] = {}
-        for j, t in enumerate(tnames):
-            task = parsed[t]
-            resampled = _resampled(task)
-            out[cname][t] = DifferenceCI(float(estimate[i, j]), float(lows[i, j]), float(highs[i, j]), confidence,
-                                         task.n, len(task.ref), len(task.cands[i]), paired_clips, paired_seeds,
-                                         resampled, method, n_res if task.slots else 0, float(ses[i, j]),
-                                         "nested" if task.nested else "crossed")
-        if wts is not None:
-            used = [t for t, wt in zip(tnames, wts) if wt > 0]
-            resampled = tuple(dict.fromkeys(f for t in used for f in _resampled(parsed[t])))
-            j = len(tnames)
-            out[cname]["weighted"] = DifferenceCI(
-                float(estimate[i, j]), float(lows[i, j]), float(highs[i, j]), confidence,
-                sum(parsed[t].n for t in used), min(len(parsed[t].ref) for t in used),
-                min(len(parsed[t].cands[i]) for t in used), paired_clips, paired_seeds, resampled, method,
-                n_res if resampled else 0, float(ses[i, j]),
-                "nested" if any(parsed[t].nested for t in used) else "crossed")
-    return out
+    return statistic
 
 
 def clips_for_half_width(pilot: DifferenceCI, target_half_width: float = 0.01, *,

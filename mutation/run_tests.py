@@ -13,12 +13,13 @@ import sys
 #: (keyword in the mutated file's path, test files); first match wins; works on the flat
 #: realise/ layout (9899009) and on the one-folder-per-realisation layout
 _TESTS: list[tuple[str, list[str]]] = [
-    ("mesh", ["test_mesh_response.py", "test_mesh_dynamics.py", "test_mesh_fit.py", "test_mesh_spice.py"]),
-    ("asic", ["test_asic.py", "test_asic_rtl.py"]),
-    ("metalens", ["test_metalens.py"]),
+    ("mesh", ["test_mesh_response.py", "test_mesh_dynamics.py", "test_mesh_fit.py", "test_mesh_spice.py",
+              "test_mesh_differentiable.py", "test_realisation_contract.py"]),
+    ("asic", ["test_asic.py", "test_asic_rtl.py", "test_asic_differentiable.py", "test_realisation_contract.py"]),
+    ("metalens", ["test_metalens.py", "test_metalens_differentiable.py", "test_realisation_contract.py"]),
     ("optics", ["test_optics.py", "test_metalens.py"]),
     ("spectral", ["test_metalens.py", "test_optics.py"]),
-    ("realise/", ["test_realise_base.py", "test_optics.py"]),
+    ("realise/", ["test_realise_base.py", "test_optics.py", "test_realisation_contract.py"]),
     ("explore/design", ["test_explore_design.py", "test_validation.py", "test_inputs_safety.py"]),
     ("explore/sweep", ["test_explore_sweep.py"]),
     ("explore/store", ["test_explore_sweep.py", "test_explore_paired.py"]),
@@ -26,7 +27,8 @@ _TESTS: list[tuple[str, list[str]]] = [
     ("explore/ablation", ["test_tasks_ablation.py"]),
     ("explore/sizing", ["test_stats.py"]),
     ("explore/paired", ["test_explore_paired.py", "test_stats.py"]),
-    ("explore/scoring", ["test_explore_paired.py", "test_explore_emulation_track.py", "test_report.py"]),
+    ("explore/scoring", ["test_explore_paired.py", "test_explore_emulation_track.py", "test_report.py",
+                         "test_explore_sweep.py", "test_records.py", "test_realisation_contract.py"]),
     ("explore/", ["test_explore_design.py", "test_explore_paired.py"]),
 ]
 

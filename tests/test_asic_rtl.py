@@ -171,8 +171,11 @@ def test_rtl_bit_exact_with_the_most_negative_twos_complement_tap(rng, bits, inp
 
 @pytest.mark.parametrize("out_shift", [0, 3])
 def test_datapath_module_applies_the_output_shift(out_shift):
-    """The synthesis datapath ends in ``acc_r >>> out_shift`` (or the plain accumulator at 0)."""
+    """The synthesis datapath registers ``acc_r`` shifted right by ``out_shift`` (bits ``[.. : 3]`` of the
+    rounded sum) or the plain accumulator at 0."""
     d = fit_asic_taps(reference_kernel("dog", 5), 6)
     src = asic_rtl.generate_datapath_verilog(d.taps, input_bits=8, out_shift=out_shift)
     last = [line.strip() for line in src.splitlines() if "out_value <=" in line]
-    assert last == [f"out_value <= {'acc_r >>> 3' if out_shift else 'acc'};"]
+    assert last == [f"out_value <= {'acc_s' if out_shift else 'acc'};"]
+    if out_shift:
+        assert re.search(r"wire signed \[\d+:0\] acc_s = acc_r\[\d+:3\];", src)

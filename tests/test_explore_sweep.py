@@ -76,18 +76,18 @@ def test_reference_scores_are_exact():
     rec = score(real, target=k, csf_methods=["mannos_sakrison_1974"])
     delta = np.zeros((7, 7))
     delta[3, 3] = 1.0
-    assert rec["kernel_error"] == pytest.approx(np.linalg.norm(delta - k.taps) / np.linalg.norm(k.taps))
-    assert rec["kernel_error"] == pytest.approx(kernel_error(real.kernel(), k))
+    assert rec.kernel_error == pytest.approx(np.linalg.norm(delta - k.taps) / np.linalg.norm(k.taps))
+    assert rec.kernel_error == pytest.approx(kernel_error(real.kernel(), k))
     # a delta has a flat response: no correlation with any CSF
-    assert rec["csf"]["mannos_sakrison_1974"]["correlation"] == 0.0
+    assert rec.csf_correlation("mannos_sakrison_1974") == 0.0
     learned, _ = fit_realisation("learned", k)
     rec2 = score(learned, target=k, csf_methods=["mannos_sakrison_1974"])
-    assert rec2["kernel_error"] == 0.0
+    assert rec2.kernel_error == 0.0
     from fsdvs_hw.csf import Geometry, csf_agreement
 
     direct = csf_agreement(k, method="mannos_sakrison_1974", geometry=Geometry(k.pitch_m, 4e-3))
-    assert rec2["csf"]["mannos_sakrison_1974"]["correlation"] == pytest.approx(direct.correlation)
-    assert rec2["tasks"]["status"] == "not requested"
+    assert rec2.csf_correlation("mannos_sakrison_1974") == pytest.approx(direct.correlation)
+    assert rec2.tasks.status == "not requested" and rec2.tasks.metrics() == {}
 
 
 def test_an_unregistered_realisation_is_an_input_error_naming_the_registered_ones():
@@ -122,7 +122,7 @@ def test_paired_losses_through_a_plugged_per_clip_evaluator(monkeypatch, tmp_pat
                     checkpoints={"recognition": [tmp_path / "r0.safetensors", tmp_path / "r1.safetensors"],
                                  "segmentation": tmp_path / "s"},
                     task_options={"n_test": 100, "tracks": ["simulator"]})
-        rows.append({"key": name, "realisation": name, "params": {}, "status": "ok", "result": rec})
+        rows.append({"key": name, "realisation": name, "params": {}, "status": "ok", "result": rec.to_dict()})
     # each network its own mismatch pattern and its own clip set (the default test_clips = "per_network")
     assert calls[:2] == [("recognition", "r0.safetensors", 100, 0, 0), ("recognition", "r1.safetensors", 100, 1, 1)]
     rec = rows[1]["result"]["tasks"]["recognition"]["simulator"]
@@ -272,7 +272,7 @@ def test_bad_scheduler_address_is_a_clear_error(tmp_path):
 def test_explore_benchmark_quick_runs_and_executors_agree():
     from fsdvs_hw.explore.bench import bench_explore
 
-    md = bench_explore(quick=True)
+    md = bench_explore(quick=True).markdown
     assert "### Emulation track" in md and "### Sweep executors" in md
     rows = [line for line in md.splitlines() if line.startswith("| ") and "points" not in line and "executor" not in line]
     executor_rows = [r for r in rows if "process" in r or "Dask" in r]

@@ -19,9 +19,9 @@ PACKAGE = Path(__file__).resolve().parents[1] / "fsdvs_hw"
 LAYERS: tuple[str, ...] = ("core", "models", "tasks", "report", "explore", "cli")
 
 #: Top-level modules of the core layer (kernels, spectra, CSF, statistics and their helpers).
-_CORE = {"errors", "paths", "validation", "limits", "kernels", "spectra", "csf", "stats", "workers", "plots",
+_CORE = {"errors", "paths", "resources", "validation", "limits", "kernels", "spectra", "csf", "stats", "workers", "plots",
          "analysis", "_lazy", "benchmarks", "progress"}
-_MODELS = {"sensor", "scenes", "realise"}
+_MODELS = {"sensor", "scenes", "realise", "records"}
 
 #: Import cycles known and owned elsewhere (none: sensor/events.py no longer imports sensor/plan.py).
 KNOWN_CYCLES: tuple[frozenset[str], ...] = ()

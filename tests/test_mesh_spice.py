@@ -86,6 +86,8 @@ def test_ngspice_transient_agrees_with_the_exact_step_response():
     h = 5
     res = simulate_mesh_step_spice(d, t_stop_s=3 * d.tau_wide_s, half_width=h, n_points=50)
     assert res.t_s[0] == 0.0 and res.t_s[-1] == pytest.approx(3 * d.tau_wide_s, rel=1e-9)
+    # the deck samples the requested n_points steps (interpolated output every t_stop / n_points)
+    assert len(res.t_s) >= 50 and np.diff(res.t_s).max() <= 3 * d.tau_wide_s / 50 * (1 + 1e-9)
     for v, g_l, g_v in (
         (res.v_narrow_v, d.g_lateral_narrow_s, d.g_vertical_narrow_s),
         (res.v_wide_v, d.g_lateral_wide_s, d.g_vertical_wide_s),

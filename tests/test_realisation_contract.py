@@ -31,6 +31,7 @@ import numpy as np
 import pytest
 
 from fsdvs_hw.kernels import Kernel, reference_kernel
+from fsdvs_hw.records import Score
 from fsdvs_hw.realise import registry
 from fsdvs_hw.realise.registry import (
     COST_UNITS,
@@ -246,7 +247,11 @@ def test_a_score_carries_every_field_the_tables_read(name, target):
 
     spec = get_realisation(name)
     real = _fitted(name, target)
-    rec = score(real, target=target, csf_methods=("mannos_sakrison_1974",), fit_wall_s=0.5)
+    typed = score(real, target=target, csf_methods=("mannos_sakrison_1974",), fit_wall_s=0.5)
+    rec = typed.to_dict()
+    # one serialisation: the record rebuilt from its dict writes the same dict
+    assert Score.from_dict(json.loads(json.dumps(rec))).to_dict() == rec
+    assert typed.wall.fit_s == 0.5 and typed.cost.to_dict() == rec["cost"]
     for key in ("kind", "label", "describe", "kernel", "kernel_error", "kernel_error_gain_free", "dc_gain",
                 "spectral", "csf", "cost", "tasks", "emulation", "wall_s"):
         assert key in rec, key
@@ -310,7 +315,11 @@ def test_a_plugin_realisation_is_explored_end_to_end(tmp_path, capsys):
     assert sorted(float(r["kind_cost_value"]) for r in csv_box) == [1.0, 3.0]
     assert {r["kind_cost_unit"] for r in csv_box} == {"px"}
     html = (out / "report.html").read_text()
-    assert "box width=3" in html and "box width 3 px" in html
+    assert "box (width 3)" in html and "box width 3 px" in html  # the report labels swept points "name (option value)"
+    from fsdvs_hw.realise.artifacts import read_index
+
+    assert read_index(out / "artifacts" / "index.json") == []  # no writer declared: nothing written, no error
+    assert "Buildable artifacts" not in html
 
 
 @pytest.mark.slow

@@ -16,7 +16,7 @@ import pytest
 
 from fsdvs_hw.cli import main
 from fsdvs_hw.explore.design import parse_design
-from fsdvs_hw.kernels import Kernel
+from fsdvs_hw.kernels import Kernel, reference_kernel
 from fsdvs_hw.realise.base import kernel_error
 from fsdvs_hw.report.tables import (accuracy_axis, headline_cost, kind_cost, pareto_front, score_rows,
                                     uncertain_pareto_front, verdict_markdown, verdict_rows)
@@ -82,7 +82,7 @@ def _ci(est, h, n=1000, seeds=3, conf=0.95):
 
 
 def _point(key, realisation, kernel_err, corr, cost=None, losses=None):
-    res = {"kernel_error": kernel_err, "csf": {"mannos_sakrison_1974": {"correlation": corr},
+    res = {"kind": realisation, "kernel": reference_kernel("dog", 5).to_dict(), "kernel_error": kernel_err, "csf": {"mannos_sakrison_1974": {"correlation": corr},
                                               "fitted_scale": {"correlation": corr + 0.05}},
            "cost": cost or {}, "wall_s": {"fit": 0.1, "analysis": 0.2, "tasks": 0.0}}
     params = {f"{realisation}.tag": key} if realisation == "asic" else {}
@@ -103,7 +103,7 @@ def test_score_rows_flatten_losses_with_cis_and_mark_uncertain_fronts():
         _point("a8", "asic", 0.01, 0.9, add(60), losses=[(0.002, 0.006), (0.001, 0.004), (0.0015, 0.004)]),
         _point("a12", "asic", 0.001, 0.9, add(90), losses=[(-0.001, 0.006), (0.0, 0.004), (-0.0005, 0.004)]),
         _point("a3", "asic", 0.3, 0.8, add(120), losses=[(0.03, 0.005), (0.03, 0.005), (0.03, 0.004)]),
-        _point("m", "mesh", 0.1, 0.95, {f"g_{d}_{w}": {"value": 1e-6} for d in ("lateral", "vertical")
+        _point("m", "mesh", 0.1, 0.95, {f"g_{d}_{w}": {"value": 1e-6, "unit": "S"} for d in ("lateral", "vertical")
                                         for w in ("narrow", "wide")}, losses=[(0.05, 0.01), (0.05, 0.01), (0.05, 0.007)]),
     ]
     rows = {r["key"]: r for r in score_rows(pts)}
@@ -148,8 +148,10 @@ def test_a_cost_item_named_like_a_loss_is_not_a_task():
 
 
 def _pngs(html: str) -> dict[str, bytes]:
-    found = re.findall(r'<img alt="([^"]+)" src="data:image/png;base64,([^"]+)"', html)
-    return {alt: base64.b64decode(b) for alt, b in found}
+    """Embedded figures by their <figure id> (fig-kernels -> kernels)."""
+    found = re.findall(r'<figure id="fig-([a-z]+)"><img alt="[^"]+" width="\d+" height="\d+" '
+                       r'src="data:image/png;base64,([^"]+)">', html)
+    return {name: base64.b64decode(b) for name, b in found}
 
 
 def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch, capsys):
@@ -179,7 +181,7 @@ def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch
     for name, png in imgs.items():
         assert png[:8] == b"\x89PNG\r\n\x1a\n", name
         img = mpimg.imread(io.BytesIO(png), format="png")
-        assert img.shape[0] > 200 and img.shape[1] > 300
+        assert img.shape[0] > 400 and img.shape[1] > 600  # drawn at 2x (FIGURE_DPI) for sharp screens
         assert float(np.std(img[..., :3])) > 0.02, f"{name} figure is blank"
     assert "no such lens" in html and "1 failed" in html
     with (out / "scores.csv").open() as fh:
@@ -204,3 +206,9 @@ def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch
 
     with ResultsStore(out / "results.sqlite") as s:
         assert sorted(r["realisation"] for r in s.rows()) == ["asic", "delta", "learned", "metalens"]
+    # the report rebuilt from the stored scores alone (fsdvs-hw report), nothing rerun: the same numbers and page
+    assert main(["report", str(p), "--out", str(out), "--to", str(tmp_path / "again")]) == 0
+    again = tmp_path / "again" / "report.html"
+    assert (tmp_path / "again" / "scores.csv").read_text() == (out / "scores.csv").read_text()
+    stamp = re.compile(r"\d{4}-\d\d-\d\d \d\d:\d\d UTC")
+    assert stamp.sub("", again.read_text()) == stamp.sub("", (out / "report.html").read_text())

@@ -29,3 +29,9 @@ def test_simulate_cli_bad_output_is_one_line_error(tmp_path, capsys):
     assert "suffix" in capsys.readouterr().err
     assert main(["simulate", str(tmp_path / "missing.mp4"), "--out", str(tmp_path / "ev.h5")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_simulate_cli_creates_the_output_folder(tmp_path):
+    out = tmp_path / "new" / "folder" / "ev.npz"
+    assert main(["simulate", "example:carphone", "--out", str(out), "--frames", "3", "--size", "36x44"]) == 0
+    assert out.is_file()

@@ -33,6 +33,7 @@ COMMANDS: dict[str, str] = {
     "codesign-pilot": "fsdvs_hw.cli.codesign_pilot",
     "ablation": "fsdvs_hw.cli.ablation",
     "explore": "fsdvs_hw.cli.explore",
+    "report": "fsdvs_hw.cli.report",
     "sweep": "fsdvs_hw.cli.sweep",
     "simulate": "fsdvs_hw.cli.simulate",
     "sizing": "fsdvs_hw.cli.sizing",

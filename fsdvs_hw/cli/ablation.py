@@ -48,7 +48,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default out/ablation)")
     parser.add_argument("--ship-dir", type=Path, default=None,
                         help="save the 7x7 learned kernels (every seed) as learned_{task}_7x7[_sSEED].* and the "
-                             "frozen-kernel networks as networks/{task}_with_KERNEL_sSEED.* here (designs/kernels)")
+                             "frozen-kernel networks as networks/{task}_with_KERNEL_sSEED.* here, e.g. out/shipped; copy them "
+                             "into designs/kernels to ship them (default: not saved)")
     parser.add_argument("--from-store", action="store_true", help="do not train: rebuild the tables from the store")
 
 

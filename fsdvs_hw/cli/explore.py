@@ -4,35 +4,74 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tomllib
 from pathlib import Path
+from typing import Any
 
+from ..errors import InputError
 from ._execution import add_execution_arguments, security_from_args
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "parse_overrides", "run"]
 
 HELP = "the main job: fit every realisation of a design's kernel, score it, write the HTML report"
 DESCRIPTION = (
     "Fit every realisation (resistive mesh, ASIC taps, metalens, plus the learned kernel and the delta\n"
     "baseline) of the design's kernel, score kernel error, CSF agreement, task accuracy loss, cost and\n"
-    "wall time, and write DIR/report.html, DIR/scores.csv, DIR/scores.json and DIR/results.sqlite.\n"
-    "A rerun into the same DIR skips points already scored.\n\n"
-    "Example: fsdvs-hw explore designs/default.toml --out out/demo"
+    "wall time, and write DIR/report.html, DIR/scores.csv, DIR/scores.json and DIR/results.sqlite,\n"
+    "and each hardware point's buildable files (SPICE deck, Verilog + testbench, phase profile) under\n"
+    "DIR/artifacts/ with DIR/artifacts/index.json.\n"
+    "A rerun into the same DIR skips points already scored. With no DESIGN, the embedded default design\n"
+    "(designs/default.toml, shipped with the package) runs.\n\n"
+    "Examples:\n  fsdvs-hw explore --out out/demo\n  fsdvs-hw explore my_design.toml --out out/mine\n"
+    "  fsdvs-hw explore --set tasks.tracks='[\"simulator\"]' --set emulation.enabled=false --out out/quick"
 )
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("design", type=Path, help="TOML design file (see designs/default.toml)")
-    parser.add_argument("--out", type=Path, default=Path("out/explore"), metavar="DIR", help="output folder")
+    parser.add_argument("design", type=Path, nargs="?", default=None,
+                        help="TOML design file, or the name of a shipped design (default: the embedded "
+                             "designs/default.toml)")
+    parser.add_argument("--out", type=Path, default=Path("out/explore"), metavar="DIR",
+                        help="output folder (default: %(default)s)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="replace one design key for this run (dotted key, TOML value: "
+                             "--set asic.bits=6 --set 'tasks.n_test={detection=16}'); repeatable")
     add_execution_arguments(parser)
+
+
+def parse_overrides(items: list[str]) -> dict[str, Any]:
+    """``["asic.bits=6", "tasks.n_test={detection=16}"]`` → ``{"asic.bits": 6, ...}`` (values are TOML).
+
+    A value that is not valid TOML is taken as a string (``--set design.name=quick``).
+
+    Raises
+    ------
+    InputError
+        An item without ``=`` or with an empty key.
+    """
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise InputError(f"--set {item!r}: expected KEY=VALUE (a dotted design key and a TOML value)")
+        try:
+            out[key] = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            out[key] = text
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
     from ..explore.design import load_design
     from ..explore.explore import run_exploration
     from ..paths import output_dir
+    from ..resources import resolve_design
     from ..report.tables import networks_note, score_rows, summary_markdown
 
-    design = load_design(args.design)
+    design = load_design(resolve_design(args.design))
+    if args.overrides:
+        design = design.with_overrides(parse_overrides(args.overrides))
     output_dir(args.out, flag="--out")  # before any work
     print(f"[explore] {design.name}: target {design.target!r}", file=sys.stderr, flush=True)
     res = run_exploration(design, args.out, workers=args.workers, scheduler=args.scheduler,
@@ -44,5 +83,6 @@ def run(args: argparse.Namespace) -> int:
     if nets:
         print(f"losses measured in: {nets}\n")
     print(f"report: {res.report}\nscores: {res.scores_csv}, {res.scores_json}\nstore:  {res.store}\n"
+          f"artifacts: {res.artifacts_index}\n"
           f"total {res.wall_s:.1f} s")
     return 0 if res.summary.statuses.get("error", 0) == 0 else 1

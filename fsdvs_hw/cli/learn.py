@@ -15,7 +15,7 @@ DESCRIPTION = (
     "ratios). Writes STEM.json (kernel), STEM.safetensors (network + kernel) and\n"
     "STEM.provenance.json.\n\n"
     "Example (the shipped kernel): fsdvs-hw learn detection --size 7 --seed 0 "
-    "--out designs/kernels/learned_detection_7x7\n"
+    "--out out/kernels/learned_detection_7x7\n"
     "Co-design (the kernel is a realisation's at every step): fsdvs-hw learn detection "
     "--init-kernel designs/kernels/learned_detection_7x7.json --realisation asic --out out/codesign/asic_det"
 )

@@ -59,6 +59,7 @@ def _size(text: str | None) -> tuple[int, int] | None:
 def run(args: argparse.Namespace) -> int:
     from ..errors import InputError
     from ..kernels import load_kernel_or_reference
+    from ..paths import output_file
     from ..progress import progress_bar
     from ..scenes.video import example_clip_path, iter_video, video_properties
     from ..sensor import SensorConfig, simulate
@@ -71,8 +72,7 @@ def run(args: argparse.Namespace) -> int:
         import torch
 
         torch.set_num_threads(args.threads)
-    if not args.out.parent.is_dir():
-        raise InputError(f"--out: folder {str(args.out.parent)!r} does not exist")
+    output_file(args.out, flag="--out")  # its folder is created (as every verb's --out), or a one-line error
     path = example_clip_path(args.video.split(":", 1)[1]) if args.video.startswith("example:") else Path(args.video)
     size = _size(args.size)
     overrides = {"seed": args.seed}

@@ -20,7 +20,7 @@ DESCRIPTION = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("design", type=Path, help="TOML design file")
+    parser.add_argument("design", type=Path, help="TOML design file, or a shipped design's name (default)")
     parser.add_argument("--pilot", type=int, default=512, help="pilot test clips per task and network")
     parser.add_argument("--target", type=float, default=None,
                         help="CI half-width (default: the design's [scoring] target_half_width)")
@@ -32,6 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..explore.design import load_design
+    from ..resources import resolve_design
     from ..explore.explore import run_exploration
     from ..explore.sizing import budget_table, size_test_sets
     from ..explore.store import ResultsStore
@@ -44,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--margin {args.margin!r}: must be >= 1")
     if args.from_run is None and args.pilot < 2:
         raise InputError(f"--pilot {args.pilot!r}: must be >= 2 test clips")
-    design = load_design(args.design)
+    design = load_design(resolve_design(args.design))
     target = design.data["scoring"]["target_half_width"] if args.target is None else args.target
     if args.from_run is not None:
         store_path = args.from_run / "results.sqlite"

@@ -22,7 +22,7 @@ DESCRIPTION = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("design", type=Path, help="TOML design file with a [sweep] section")
+    parser.add_argument("design", type=Path, help="TOML design file with a [sweep] section, or a shipped design's name (sweep_asic_bits)")
     parser.add_argument("--store", type=Path, default=None,
                         help="SQLite results file (default: out/sweeps/<design name, made file-safe>.sqlite)")
     parser.add_argument("--report", type=Path, default=None, metavar="DIR",
@@ -32,10 +32,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..explore.design import load_design
+    from ..resources import resolve_design
     from ..explore.sweep import expand_points, run_design
     from ..paths import output_dir, output_file
 
-    design = load_design(args.design)
+    design = load_design(resolve_design(args.design))
     # the design's name is text, not a path: its safe form names the default store
     store_path = output_file(args.store or Path("out") / "sweeps" / f"{design.slug}.sqlite", flag="--store")
     if args.report is not None:

@@ -14,10 +14,11 @@ from __future__ import annotations
 
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
+
+from ..benchmarks import BenchRun, BenchSection, Column, Timing, kept_global_state, timed
 
 from .design import parse_design
 from .emulation import emulation_scores
@@ -27,7 +28,7 @@ from .sweep import expand_points, run_points
 __all__ = ["bench_explore"]
 
 
-def _emulation_table(quick: bool) -> str:
+def _emulation_table(sec: BenchSection, quick: bool) -> None:
     d = parse_design({"kernel": {"family": "dog", "size": 7}})
     sensor, base = d.data["sensor"], d.data["emulation"]
     clips = [1, 2] if quick else [1, 2, 4, 8]
@@ -35,30 +36,33 @@ def _emulation_table(quick: bool) -> str:
     ups = [1, 2] if quick else [1, 2, 4]
     ref_up = 4 if quick else 8
 
-    def run(n_clips: int, up: int) -> tuple[dict, float]:
-        t0 = time.perf_counter()
-        res = emulation_scores(d.target, sensor=sensor, emulation={**base, "n_clips": n_clips, "upsample_factor": up})
-        return res, time.perf_counter() - t0
+    def run(n_clips: int, up: int) -> Timing[dict]:
+        return timed(lambda: emulation_scores(d.target, sensor=sensor,
+                                              emulation={**base, "n_clips": n_clips, "upsample_factor": up}))
 
-    lines = ["| setting | event ratio | error vs reference | signed r | error vs reference | time (s) |",
-             "|---|---|---|---|---|---|"]
+    sec.text("### Emulation track: estimate vs clips and temporal upsampling", "",
+             "7×7 DoG at the default design's sensor (48×64 px, thresholds 0.2, σ 0.03, v2e noise), "
+             "8-bit γ 2.2 display. Error = |estimate − reference|.", "")
+    table = sec.table(Column.text("setting"), Column.number("event ratio", ".3f"),
+                      Column.number("error vs reference", ".3f", metric="event ratio error vs reference"),
+                      Column.number("signed r", ".3f", metric="signed correlation"),
+                      Column.number("error vs reference", ".3f", metric="signed correlation error vs reference"),
+                      Column.number("time (s)", ".2f", metric="time"))
     run(1, 1)  # warm-up: first-call imports and allocations are not part of any setting's time
-    ref, t_ref = run(ref_clips, ref_up)
-    print(f"[bench explore] emulation reference ({ref_clips} clips, x{ref_up}) {t_ref:.1f} s", file=sys.stderr)
+    t_ref = run(ref_clips, ref_up)
+    ref = t_ref.result
+    print(f"[bench explore] emulation reference ({ref_clips} clips, x{ref_up}) {t_ref.best_s:.1f} s", file=sys.stderr)
     rows = [(f"{n} clips, x{ref_up}", n, ref_up) for n in clips] + [(f"{ref_clips} clips, x{u}", ref_clips, u) for u in ups]
     for label, n, up in rows:
-        res, t = run(n, up)
-        lines.append(f"| {label} | {res['event_ratio']:.3f} | {abs(res['event_ratio'] - ref['event_ratio']):.3f} "
-                     f"| {res['signed_correlation']:.3f} | {abs(res['signed_correlation'] - ref['signed_correlation']):.3f} "
-                     f"| {t:.2f} |")
-    lines.append(f"| **reference: {ref_clips} clips, x{ref_up}** | {ref['event_ratio']:.3f} | 0 "
-                 f"| {ref['signed_correlation']:.3f} | 0 | {t_ref:.2f} |")
-    return ("### Emulation track: estimate vs clips and temporal upsampling\n\n"
-            "7×7 DoG at the default design's sensor (48×64 px, thresholds 0.2, σ 0.03, v2e noise), "
-            "8-bit γ 2.2 display. Error = |estimate − reference|.\n\n" + "\n".join(lines))
+        t = run(n, up)
+        res = t.result
+        table.row(label, res["event_ratio"], abs(res["event_ratio"] - ref["event_ratio"]), res["signed_correlation"],
+                  abs(res["signed_correlation"] - ref["signed_correlation"]), t)
+    table.row(f"**reference: {ref_clips} clips, x{ref_up}**", ref["event_ratio"], "0", ref["signed_correlation"], "0",
+              t_ref)  # its own error is 0 by definition: printed, not measured
 
 
-def _executor_table(quick: bool) -> str:
+def _executor_table(sec: BenchSection, quick: bool) -> None:
     n_focal = 3 if quick else 8
     focals = [2e-3 * (1.5 ** i) for i in range(n_focal)]
     d = parse_design({"realisations": {"include": ["learned", "delta"]},
@@ -66,34 +70,42 @@ def _executor_table(quick: bool) -> str:
                       "sweep": {"axes": {"optics.focal_length_m": focals}}})
     points = expand_points(d)
     results: dict[str, dict[str, float]] = {}
-    lines = ["| executor | points | wall time (s) | points/s | scores identical to in-process |", "|---|---|---|---|---|"]
+    sec.text("### Sweep executors", "",
+             "Ideal references over a viewing-geometry axis (Mannos–Sakrison agreement only; "
+             "each point ≈ 0.1–0.3 s of work), so the table shows executor overhead: process start-up "
+             "(spawn) and Dask scheduling.", "")
+    table = sec.table(Column.text("executor"), Column.text("points"), Column.number("wall time (s)", ".2f"),
+                      Column.number("points/s", ".2f", unit="points/s", metric="throughput"),
+                      Column.text("scores identical to in-process"))
     with tempfile.TemporaryDirectory() as tmp:
         def one(name: str, **kw: object) -> None:
             with ResultsStore(Path(tmp) / f"{name.replace(' ', '_')}.sqlite") as store:
-                t0 = time.perf_counter()
-                run_points(points, store, progress=False, **kw)  # type: ignore[arg-type]
-                dt = time.perf_counter() - t0
+                t = timed(lambda: run_points(points, store, progress=False, **kw))  # type: ignore[arg-type]
                 scores = {r["key"]: r["result"]["csf"]["mannos_sakrison_1974"]["correlation"] for r in store.rows()}
             results[name] = scores
             same = "yes" if name == "this process" or scores == results["this process"] else "NO"
-            lines.append(f"| {name} | {len(points)} | {dt:.2f} | {len(points) / dt:.2f} | {same} |")
-            print(f"[bench explore] {name}: {dt:.1f} s", file=sys.stderr)
+            table.row(name, str(len(points)), t, len(points) / t.best_s, same)
+            print(f"[bench explore] {name}: {t.best_s:.1f} s", file=sys.stderr)
 
         one("this process", workers=1)
         one("2 local processes", workers=2)
         try:
             from distributed import LocalCluster
         except ImportError:  # pragma: no cover - optional extra
-            lines.append("| Dask LocalCluster | – | – | – | dask[distributed] not installed |")
+            table.row("Dask LocalCluster", "–", "–", "–", "dask[distributed] not installed")
         else:
             with LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1", dashboard_address=None) as cluster:
                 one("Dask LocalCluster (2 workers, loopback)", scheduler=cluster.scheduler_address)
-    return ("### Sweep executors\n\nIdeal references over a viewing-geometry axis (Mannos–Sakrison agreement only; "
-            "each point ≈ 0.1–0.3 s of work), so the table shows executor overhead: process start-up "
-            "(spawn) and Dask scheduling.\n\n" + "\n".join(lines))
 
 
-def bench_explore(*, quick: bool = False) -> str:
-    """Markdown speed/accuracy tables of the exploration layer (see the module docstring)."""
-    np.seterr(all="ignore")
-    return "## explore\n\n" + _emulation_table(quick) + "\n\n" + _executor_table(quick) + "\n"
+def bench_explore(*, quick: bool = False) -> BenchRun:
+    """Speed/accuracy tables of the exploration layer (see the module docstring), as records and
+    their Markdown; numpy's error state and the environment are left as they were."""
+    sec = BenchSection("explore", settings={"quick": quick})
+    sec.text("## explore", "")
+    with kept_global_state(), np.errstate(all="ignore"):
+        _emulation_table(sec, quick)
+        sec.text("")
+        _executor_table(sec, quick)
+    sec.text("")
+    return sec.run()

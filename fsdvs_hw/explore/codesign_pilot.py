@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["run_pilot", "csf_drift"]
+from ..resources import shipped_path
 
-_REPO = Path(__file__).resolve().parents[2]
+__all__ = ["run_pilot", "csf_drift"]
 
 
 def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_test: int = 2048) -> dict[str, Any]:
@@ -50,7 +50,7 @@ def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_tes
         raise InputError(f"codesign pilot: realisation {realisation!r} has no differentiable form")
     if not seeds or len(set(seeds)) != len(seeds) or any(s < 0 for s in seeds):
         raise InputError(f"codesign pilot: seeds must be distinct non-negative integers, got {seeds}")
-    nets = [_REPO / "designs" / "kernels" / "networks" / f"{ev.name}_with_learned_detection_7x7_s{s}.safetensors"
+    nets = [shipped_path("kernels", "networks", f"{ev.name}_with_learned_detection_7x7_s{s}.safetensors")
             for s in seeds]
     missing = [n.name for n in nets if not n.is_file()]
     if missing:
@@ -58,7 +58,7 @@ def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_tes
                          "listed in designs/kernels/networks/)")
     torch.set_num_threads(1)
     out.mkdir(parents=True, exist_ok=True)
-    target = load_kernel(_REPO / "designs" / "kernels" / "learned_detection_7x7.json")
+    target = load_kernel(shipped_path("kernels", "learned_detection_7x7.json"))
     ref = [clip_evidence(target, task, n, n_test=n_test).metric for n in nets]
     scene = load_checkpoint(nets[0])[0]["scene"]
     targets = heldout_targets(ev, scene, n_test)

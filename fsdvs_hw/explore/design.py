@@ -32,6 +32,10 @@ Layout (every section and key is optional; defaults in brackets)::
                     display_black_nits, upsample_factor  (fsdvs_hw.explore.emulation)
     [sweep]         axes = { "asic.bits" = [2, 4, 8], "sensor.threshold_on" = [0.1, 0.2] }
     [run]           workers, seed, max_points [10000]
+    [codesign]      enabled [false], realisations [those with a differentiable form], tasks [all],
+                    cells ["realisation/task", ...; all], seeds [3] (networks per task), epochs [4],
+                    n_train [0 = the checkpoint's], lr_network [1e-3], lr_filter [1e-2],
+                    modes [["swap", "finetune", "codesign"]]  (fsdvs_hw.explore.codesign)
 
 Sweep axes are dotted keys into this layout; ``"mesh.X"`` is short for ``"realisations.mesh.X"``.
 Realisation names, their option tables and defaults come from the registry
@@ -73,6 +77,7 @@ __all__ = [
     "load_design",
     "parse_design",
     "CSF_DEFAULT_METHODS",
+    "CODESIGN_MODES",
     "axis_values",
 ]
 
@@ -136,6 +141,8 @@ def _f(types: Any, default: Any, doc: str, **kw: Any) -> _Field:
 _PLACEMENTS = ("pre_log", "post_log")
 _POSITIVITY = ("floor", "pedestal", "differential")
 _TRACKS = ("simulator", "emulation")
+#: The ``[codesign]`` rows: fit then swap (zero-shot), fit then fine-tune the network, co-designed.
+CODESIGN_MODES = ("swap", "finetune", "codesign")
 
 #: The schema: section → key → field. ``[realisations.<name>]`` tables are handled separately.
 _SCHEMA: dict[str, dict[str, _Field]] = {
@@ -219,11 +226,31 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
 }
 
 def _schema() -> dict[str, dict[str, _Field]]:
-    """:data:`_SCHEMA` with ``[realisations] include`` built from the registry as it is now."""
+    """:data:`_SCHEMA` with ``[realisations] include`` and ``[codesign] realisations`` built from the
+    registry as it is now."""
     schema = dict(_SCHEMA)
     schema["realisations"] = {
         "include": _f(list, [n for n in realisation_names() if get_realisation(n).in_default_design],
                       "realisations to fit and score", item_types=(str,), choices=realisation_names()),
+    }
+    diff = tuple(n for n in realisation_names("hardware") if get_realisation(n).differentiable)
+    schema["codesign"] = {
+        "enabled": _f(bool, False, "add the 'fit then swap' / 'fit then fine-tune' / 'co-designed' rows "
+                                   "(fsdvs_hw.explore.codesign; trains networks: minutes per cell)"),
+        "realisations": _f(list, list(diff), "hardware realisations to co-design (those with a differentiable "
+                                             "form)", item_types=(str,), choices=diff),
+        "tasks": _f(list, [], "tasks to co-design for; [] = every task in tasks.checkpoints", item_types=(str,)),
+        "cells": _f(list, [], "'realisation/task' pairs to run (e.g. 'metalens/detection'); [] = every "
+                              "realisation x task", item_types=(str,)),
+        "seeds": _f(int, 3, "networks per task: the first N of tasks.checkpoints (one per training seed)",
+                    lo=1, hi=1000),
+        "epochs": _f(int, 4, "training epochs of the fine-tune and co-design rows", lo=1, hi=1000),
+        "n_train": _f(int, 0, "training clips per network; 0 = the checkpoint's own training set", lo=0,
+                      hi=100000),
+        "lr_network": _f(_NUMBER, 1e-3, "AdamW learning rate of the network", lo=0.0, hi=10.0, lo_open=True),
+        "lr_filter": _f(_NUMBER, 1e-2, "AdamW learning rate of the realisation's parameters", lo=0.0, hi=10.0,
+                        lo_open=True),
+        "modes": _f(list, list(CODESIGN_MODES), "rows to measure", item_types=(str,), choices=CODESIGN_MODES),
     }
     return schema
 
@@ -493,6 +520,7 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
     _check_cross(chk, data)
     _expand_checkpoint_patterns(chk, data, base)
     _check_tasks(chk, data, base, confine_paths)
+    _check_codesign(chk, data)
     _check_axes(chk, data)
     target = _load_target(chk, data, base, confine_paths)
     if target is not None:  # the simulator and the hardware fits need it representable in float32
@@ -652,6 +680,45 @@ def _check_tasks(chk: _Checker, data: dict[str, Any], base: Path, confine: bool)
                 for v in weights.values())
     if weights and valid and not any(v > 0 for v in weights.values()):
         chk.add("scoring.task_weights", weights, "every weight is 0; allowed: at least one positive weight")
+
+
+def _check_codesign(chk: _Checker, data: dict[str, Any]) -> None:
+    """``[codesign]`` against ``[tasks]``: its tasks, cells and seeds must exist there."""
+    cd = data["codesign"]
+    ckpts = data["tasks"]["checkpoints"]
+    tasks = cd["tasks"] or list(ckpts)
+    for i, t in enumerate(cd["tasks"]):
+        if t not in ckpts:
+            chk.add(f"codesign.tasks[{i}]", t, f"not a task in tasks.checkpoints; allowed: {', '.join(ckpts) or 'none'}")
+    for i, cell in enumerate(cd["cells"]):
+        real, _, task = cell.partition("/")
+        if real not in cd["realisations"] or task not in tasks:
+            chk.add(f"codesign.cells[{i}]", cell, "allowed: 'realisation/task' with a realisation of "
+                    f"codesign.realisations ({', '.join(cd['realisations'])}) and a task of "
+                    f"{', '.join(tasks) or 'none'}")
+    if len(set(cd["cells"])) != len(cd["cells"]):
+        chk.add("codesign.cells", cd["cells"], "lists a cell twice")
+    if not cd["enabled"]:
+        return
+    if not ckpts:
+        chk.add("codesign.enabled", True, "needs trained networks; allowed: tasks.checkpoints set, or "
+                "codesign.enabled = false")
+    if not cd["modes"]:
+        chk.add("codesign.modes", cd["modes"], f"empty; allowed: a non-empty list of {', '.join(CODESIGN_MODES)}")
+    if not cd["realisations"]:
+        chk.add("codesign.realisations", cd["realisations"], "empty; allowed: a realisation with a differentiable form")
+    if data["tasks"]["sensor"] != "checkpoint":
+        chk.add("tasks.sensor", data["tasks"]["sensor"], "codesign rows train and score with the checkpoint's "
+                "simulator; allowed with codesign.enabled: 'checkpoint'")
+    for t in tasks:
+        n = len(_as_list(ckpts.get(t, [])))
+        if t in ckpts and cd["seeds"] > n:
+            chk.add("codesign.seeds", cd["seeds"], f"task {t!r} has {n} network(s) in tasks.checkpoints; "
+                    f"allowed: at most {n}")
+    for t, n in ((t, data["tasks"]["n_test"]) for t in tasks):
+        n = n.get(t, 0) if isinstance(n, dict) else n
+        if t in ckpts and n == 1:
+            chk.add("tasks.n_test", n, "codesign CIs need at least 2 test clips per network")
 
 
 def _safetensors_problem(path: Path) -> str | None:

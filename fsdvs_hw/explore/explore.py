@@ -3,7 +3,9 @@
 ``fsdvs-hw explore designs/default.toml --out out/demo`` (:mod:`fsdvs_hw.cli.explore`) runs :func:`run_exploration`: it validates
 the design (all errors before any work), expands its design points, runs those not already in
 ``DIR/results.sqlite`` (local processes or a Dask scheduler, with a progress bar), and writes
-``DIR/report.html`` with ``DIR/scores.csv`` and ``DIR/scores.json``.
+``DIR/report.html`` with ``DIR/scores.csv`` and ``DIR/scores.json``, and every hardware point's buildable
+files under ``DIR/artifacts/`` with ``DIR/artifacts/index.json`` (:mod:`fsdvs_hw.explore.artifacts`); with
+``[codesign] enabled`` also ``DIR/codesign.json`` and ``DIR/codesign.csv`` (:mod:`fsdvs_hw.explore.codesign`).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..paths import output_dir
+from .artifacts import ARTIFACTS_DIR, point_folder_name, write_exploration_artifacts
 from .design import Design, load_design
 from .scoring import with_paired_losses
 from .sweep import SweepSummary, run_design
@@ -32,6 +35,7 @@ class Exploration:
     summary: SweepSummary
     wall_s: float
     points: tuple[dict, ...] = ()
+    artifacts_index: Path | None = None
 
 
 def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers: int | None = None,
@@ -49,7 +53,8 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     design : Design or path
         A validated design or a TOML design file.
     out_dir : path
-        Output folder (created): ``report.html``, ``scores.csv``, ``scores.json``, ``results.sqlite``.
+        Output folder (created): ``report.html``, ``scores.csv``, ``scores.json``, ``results.sqlite``,
+        ``artifacts/`` (with ``artifacts/index.json``).
     workers : int, optional
         Local worker processes (default: the design's ``[run] workers``).
     scheduler : str, optional
@@ -75,7 +80,16 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     sc = design.data["scoring"]
     rows = with_paired_losses(rows, task_weights=sc["task_weights"] or None, n_resamples=sc["n_resamples"],
                               confidence=sc["confidence"], rng=design.data["run"]["seed"])
+    index, entries = write_exploration_artifacts(rows, out, resolution=tuple(design.data["sensor"]["resolution"]))
+    for row in rows:  # each point carries its files (paths relative to out) for the report's links
+        name = point_folder_name(row["realisation"], row.get("params") or {})
+        row["artifacts"] = [{**e, "file": f"{ARTIFACTS_DIR}/{e['file']}" if e.get("file") else ""}
+                            for e in entries if e["point"] == name]
+    if design.data["codesign"]["enabled"]:  # the fit-then-swap / fine-tune / co-designed rows (issue 16)
+        from .codesign import run_codesign, write_codesign
+
+        write_codesign(run_codesign(design, out, progress=progress), out)
     report = write_report(rows, design, out)
     return Exploration(report=report, scores_csv=out / "scores.csv", scores_json=out / "scores.json",
                        store=store_path, summary=summary, wall_s=time.perf_counter() - t0,
-                       points=tuple(rows))
+                       points=tuple(rows), artifacts_index=index)

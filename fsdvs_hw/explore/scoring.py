@@ -3,9 +3,8 @@
 :func:`fit_realisation` builds one realisation of a target kernel by its name in the registry
 (:mod:`fsdvs_hw.realise.registry`: the ideal references ``"learned"`` and ``"delta"``, the hardware
 fits ``"mesh"``, ``"asic"``, ``"metalens"``, and any realisation registered from outside the
-package); :func:`score` measures it. A score is a
-flat, JSON-ready record so that the results store, the CSV/JSON tables and the report all read
-the same thing.
+package); :func:`score` measures it. A score is a typed :class:`fsdvs_hw.records.Score` whose
+one serialisation (``to_dict``) the results store, the CSV/JSON tables and the report all read.
 
 What is measured
 ----------------
@@ -51,6 +50,7 @@ from ..kernels import Kernel
 from ..realise.base import Realisation, realised_kernel_error
 from ..realise.registry import fit_realisation as _fit_registered
 from ..realise.registry import realisation_names
+from ..records import Cost, Score, TaskScores, WallTimes
 from ..spectra import spectral_summary
 
 __all__ = [
@@ -273,7 +273,7 @@ def _recaptured_events(kernel: Kernel, display: Any) -> Any:
 def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str] = (PRIMARY_CSF_METHOD,),
           focal_length_m: float = 4.0e-3, checkpoints: Mapping[str, str | Path] | None = None,
           task_options: Mapping[str, Any] | None = None, emulation: Mapping[str, Any] | None = None,
-          fit_wall_s: float = float("nan")) -> dict[str, Any]:
+          fit_wall_s: float = float("nan")) -> Score:
     """Score one realisation against its target.
 
     Parameters
@@ -299,46 +299,41 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
 
     Returns
     -------
-    dict
-        ``kind, label, describe, kernel (dict), kernel_error, kernel_error_gain_free, dc_gain,
-        asymmetry, spectral {...}, csf {method: {...}}, cost {name: {value, unit, description}},
-        tasks {...}, wall_s {fit, analysis, tasks}``.
+    Score
+        The typed record (:class:`fsdvs_hw.records.Score`); :meth:`~fsdvs_hw.records.Score.to_dict`
+        is what the store, ``scores.json`` and the report read.
     """
     realised = realisation.kernel()
     t0 = time.perf_counter()
-    label = getattr(realisation, "label", realisation.kind)
-    rec: dict[str, Any] = {
-        "kind": realisation.kind,
-        "label": label,
-        "describe": realisation.describe(),
-        "kernel": realised.to_dict(),
-        "kernel_error": realised_kernel_error(realisation, target),
-        "kernel_error_gain_free": realised_kernel_error(realisation, target, fit_scale=True),
-        "dc_gain": realised.dc_gain,
-        "asymmetry": realised.asymmetry(),
-        "spectral": _spectral(realised),
-        "csf": _csf_scores(realised, list(csf_methods), focal_length_m),
-        "cost": {k: v.to_dict() for k, v in realisation.cost().items()},
-    }
+    kernel_error = realised_kernel_error(realisation, target)
+    kernel_error_gain_free = realised_kernel_error(realisation, target, fit_scale=True)
+    spectral = _spectral(realised)
+    csf = _csf_scores(realised, list(csf_methods), focal_length_m)
+    cost = Cost(dict(realisation.cost()))
     t1 = time.perf_counter()
     opts = dict(task_options or {})
     if "emulation" in opts.get("tracks", ()) and emulation is not None and "display" not in opts:
         from .emulation import DisplaySettings
 
         opts["display"] = DisplaySettings.from_design(emulation["emulation"])
-    rec["tasks"] = task_scores(realised, dict(checkpoints or {}), **opts)
-    _record_networks(rec["tasks"], target)
+    tasks = task_scores(realised, dict(checkpoints or {}), **opts)
+    _record_networks(tasks, target)
     t2 = time.perf_counter()
     if emulation is not None and emulation["emulation"].get("enabled", True):
         from .emulation import emulation_scores
 
-        rec["emulation"] = emulation_scores(realised, sensor=emulation["sensor"], emulation=emulation["emulation"],
-                                            seed=int(emulation.get("seed", 0)))
+        emu = emulation_scores(realised, sensor=emulation["sensor"], emulation=emulation["emulation"],
+                               seed=int(emulation.get("seed", 0)))
     else:
-        rec["emulation"] = {"status": "not requested"}
-    rec["wall_s"] = {"fit": float(fit_wall_s), "analysis": t1 - t0, "tasks": t2 - t1,
-                     "emulation": time.perf_counter() - t2}
-    return rec
+        emu = {"status": "not requested"}
+    return Score(
+        kind=realisation.kind, label=getattr(realisation, "label", realisation.kind), describe=realisation.describe(),
+        kernel=realised, kernel_error=kernel_error, kernel_error_gain_free=kernel_error_gain_free,
+        dc_gain=realised.dc_gain, asymmetry=realised.asymmetry(), spectral=spectral, csf=csf, cost=cost,
+        tasks=TaskScores.from_dict(tasks), emulation=emu,
+        wall=WallTimes(fit_s=float(fit_wall_s), analysis_s=t1 - t0, tasks_s=t2 - t1,
+                       emulation_s=time.perf_counter() - t2),
+    )
 
 
 def accuracy_losses(rows: Iterable[Mapping[str, Any]], *, reference: str = "learned") -> dict[str, dict[str, float]]:
@@ -366,15 +361,8 @@ def accuracy_losses(rows: Iterable[Mapping[str, Any]], *, reference: str = "lear
 
 
 def _flat_metrics(result: Mapping[str, Any]) -> dict[str, float]:
-    tasks = result.get("tasks") or {}
-    flat: dict[str, float] = {}
-    for task, tracks in tasks.items():
-        if not isinstance(tracks, Mapping):
-            continue
-        for track, res in tracks.items():
-            if isinstance(res, Mapping) and isinstance(res.get("metric"), (int, float)):
-                flat[f"{task}/{track}"] = float(res["metric"])
-    return flat
+    tasks = result.get("tasks") if isinstance(result, Mapping) else None
+    return TaskScores.from_dict(tasks).metrics() if isinstance(tasks, Mapping) else {}
 
 
 def _context(point: Mapping[str, Any]) -> str:

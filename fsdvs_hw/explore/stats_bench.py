@@ -9,14 +9,14 @@ the largest absolute difference, and the time per resample of each.
 
 from __future__ import annotations
 
-import time
-from pathlib import Path
-
 import numpy as np
+
+from ..benchmarks import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
+from ..resources import shipped_path
 
 __all__ = ["bench_stats"]
 
-_CKPT = Path(__file__).resolve().parents[2] / "designs" / "kernels" / "learned_detection_7x7.safetensors"
+_CKPT = shipped_path("kernels", "learned_detection_7x7.safetensors")
 
 
 def _detections(n: int) -> tuple[np.ndarray, ...]:
@@ -29,17 +29,33 @@ def _detections(n: int) -> tuple[np.ndarray, ...]:
     return p["boxes"], p["scores"], p["labels"], t["boxes"], t["labels"]
 
 
-def bench_stats(*, quick: bool = False) -> str:
-    """Markdown table: clips, |mAP(weighted) − mAP(pycocotools)|, seconds per resample of each."""
+@kept_global_state()
+def bench_stats(*, quick: bool = False) -> BenchRun:
+    """The table: clips, |mAP(weighted) − mAP(pycocotools)|, seconds per resample of each.
+
+    Returns
+    -------
+    BenchRun
+        Markdown and records: the largest absolute mAP difference, pycocotools' seconds per
+        resample (median of the checked resamples, with their range), the weighted accumulate's
+        milliseconds per resample (median of 3 batches, with their range) and the speed-up.
+    """
     from ..stats import CocoDetections
     from ..tasks.metrics import detection_map
 
     sizes = [256] if quick else [512, 2048]
     n_check = 2 if quick else 3
     n_speed = 100 if quick else 400
-    lines = ["### Resampled COCO mAP vs pycocotools (shipped detection network, learned kernel)", "",
-             "| clips | resamples checked | max abs difference | pycocotools s / resample | weighted ms / resample "
-             "(median, range of 3 × " + str(n_speed) + ") | speed-up |", "|---|---|---|---|---|---|"]
+    sec = BenchSection("stats", settings={"quick": quick, "resamples_checked": n_check,
+                                           "resamples_per_batch": n_speed})
+    sec.text("### Resampled COCO mAP vs pycocotools (shipped detection network, learned kernel)", "")
+    table = sec.table(
+        Column.text("clips"), Column.text("resamples checked"),
+        Column.number("max abs difference", ".1e", metric="max abs mAP difference"),
+        Column.number("pycocotools s / resample", ".2f", unit="s", metric="pycocotools time per resample"),
+        Column.number(f"weighted ms / resample (median, range of 3 × {n_speed})", ".2f", unit="ms",
+                      metric="weighted accumulate time per resample", spread=" ({}–{})"),
+        Column.number("speed-up", ".0f", suffix="×", metric="speed-up (pycocotools / weighted)"))
     rng = np.random.default_rng(0)
     for n in sizes:
         args = _detections(n)
@@ -48,18 +64,13 @@ def bench_stats(*, quick: bool = False) -> str:
         for _ in range(n_check):
             w = rng.multinomial(n, np.full(n, 1.0 / n))
             rep = np.repeat(np.arange(n), w)
-            t0 = time.perf_counter()
-            ref = detection_map(*(a[rep] for a in args), num_classes=3)["map"]
-            t_coco.append(time.perf_counter() - t0)
-            diffs.append(abs(ref - float(metric.weighted(w[None])[0])))
+            t = timed(lambda rep=rep: detection_map(*(a[rep] for a in args), num_classes=3)["map"])
+            t_coco += t.times_s
+            diffs.append(abs(t.result - float(metric.weighted(w[None])[0])))
         diffs.append(abs(detection_map(*args, num_classes=3)["map"] - float(metric.weighted(np.ones((1, n)))[0])))
         weights = rng.multinomial(n, np.full(n, 1.0 / n), size=n_speed)
-        t_fast = []
-        for _ in range(3):
-            t0 = time.perf_counter()
-            metric.weighted(weights)
-            t_fast.append((time.perf_counter() - t0) / n_speed * 1e3)
-        med = float(np.median(t_fast))
-        lines.append(f"| {n} | {n_check} + full set | {max(diffs):.1e} | {np.median(t_coco):.2f} | {med:.2f} "
-                     f"({min(t_fast):.2f}–{max(t_fast):.2f}) | {np.median(t_coco) * 1e3 / med:.0f}× |")
-    return "\n".join(lines) + "\n"
+        fast = Measured.of([t / n_speed * 1e3 for t in timed(lambda: metric.weighted(weights), 3).times_s])
+        coco = Measured.of(t_coco)
+        table.row(str(n), f"{n_check} + full set", max(diffs), coco, fast, coco.value * 1e3 / fast.value)
+    sec.text("")
+    return sec.run()

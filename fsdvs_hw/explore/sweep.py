@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..records import Score
 from .design import Design, axis_values
 from .store import ResultsStore
 
@@ -198,13 +199,17 @@ def evaluate_point(point: DesignPoint) -> dict[str, Any]:
         status, rec = _fit_and_score(point, data)
     # fitters warn about unreachable targets, asymmetric kernels, ...: keep ours with the score
     ours = [w for w in caught if f"{os.sep}fsdvs_hw{os.sep}" in str(w.filename)]
-    if ours:
-        rec["warnings"] = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in ours))[:20]
-    return {"key": point.key, "status": status, "result": rec, "wall_s": time.perf_counter() - t0,
+    said = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in ours))[:20]
+    if isinstance(rec, Score):
+        result = rec.with_(warnings=said).to_dict()
+    else:
+        result = {**rec, **({"warnings": said} if said else {})}
+    return {"key": point.key, "status": status, "result": result, "wall_s": time.perf_counter() - t0,
             "worker": worker}
 
 
-def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, Score | dict[str, Any]]:
+    """``("ok", score)`` or ``("error", {"reason", "traceback"})``: one failed point must not stop a sweep."""
     from ..kernels import Kernel
     from .scoring import fit_realisation, score
 
@@ -228,7 +233,7 @@ def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, dict[
             emulation={"sensor": data["sensor"], "emulation": data["emulation"], "seed": data["run"]["seed"]},
             fit_wall_s=fit_s,
         )
-        rec["realisation"] = real.to_dict()
+        rec = rec.with_(realisation=real.to_dict())
         status = "ok"
     except Exception as exc:  # noqa: BLE001 - one failed point must not stop a sweep; it is recorded
         status = "error"

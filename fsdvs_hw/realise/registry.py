@@ -3,8 +3,9 @@
 Each realisation declares a :class:`RealisationSpec` — its name, options schema
 (:class:`fsdvs_hw.validation.Option`: type, unit, range, default, help), fit function, declared
 cost items (:class:`CostSpec`: name, unit, and which of them the report uses as the kind's Pareto
-axis and headline), the record class that rebuilds it from JSON, and the artifacts it can write —
-and registers it with :func:`register_realisation`. Everything downstream reads only this
+axis and headline), the record class that rebuilds it from JSON, and the artifacts it can write
+with the ``"module:function"`` that writes them (:mod:`fsdvs_hw.realise.artifacts`) — and
+registers it with :func:`register_realisation`. Everything downstream reads only this
 registry: the design loader (allowed names, option tables, sweep axes), the scorer (which fit to
 call), the sweep (which sweep keys belong to a realisation), the report (cost axes, headline costs,
 colours, which rows are references) and :func:`realisation_from_dict`.
@@ -37,12 +38,14 @@ import math
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
 from ..errors import InputError
 from ..kernels import Kernel, as_kernel, reference_kernel
 from ..validation import Option, check_option, check_options
+from .artifacts import Artifact
 from .base import Realisation, ReferenceRealisation
 
 __all__ = [
@@ -152,8 +155,20 @@ class RealisationSpec:
         Declared cost items: units, the Pareto axis and headline candidates.
     artifacts : mapping of str to str
         Files the realisation can write (name → what, e.g. ``"verilog": "streaming filter RTL"``).
+    write_artifacts : str
+        ``"module:function"`` of the writer of those files (:mod:`fsdvs_hw.realise.artifacts`):
+        ``function(record, out_dir, *, resolution) -> sequence of Artifact`` writes them for a
+        fitted record into ``out_dir`` (``resolution``: the sensor's (H, W) in pixels); every
+        returned name must be declared in ``artifacts``. ``""``: writes none (the references).
+        A string, so registering imports nothing; ``fsdvs-hw explore`` calls it for every scored
+        point (:meth:`write_artifacts_of`).
     colour : str
-        Colour of its points in report figures (matplotlib colour).
+        Colour of its points and lines in every report figure (matplotlib colour).
+    title : str
+        Its name for people, in report tables and legends (``"resistive mesh"``; default: ``name``).
+    marker : str
+        Matplotlib marker of its points in report figures (default: one picked by the report so
+        that no two registered realisations share one).
     in_default_design : bool
         Listed in ``[realisations] include`` when a design does not say.
     description : str
@@ -173,9 +188,12 @@ class RealisationSpec:
     costs: tuple[CostSpec, ...] = ()
     artifacts: Mapping[str, str] = field(default_factory=dict)
     colour: str | None = None
+    title: str = ""
+    marker: str = ""
     in_default_design: bool = False
     description: str = ""
     differentiable: str = ""
+    write_artifacts: str = ""
 
     def __post_init__(self) -> None:
         if not (isinstance(self.name, str) and self.name.isidentifier()):
@@ -189,6 +207,10 @@ class RealisationSpec:
                 raise InputError(f"realisation {self.name!r}: option {key!r} must be a fsdvs_hw.validation.Option")
         object.__setattr__(self, "options", MappingProxyType(dict(self.options)))
         object.__setattr__(self, "artifacts", MappingProxyType(dict(self.artifacts)))
+        for field_name in ("differentiable", "write_artifacts"):
+            ref = getattr(self, field_name)
+            if not isinstance(ref, str) or (ref and ref.count(":") != 1):
+                raise InputError(f"realisation {self.name!r}: {field_name} must be 'module:name' or '', got {ref!r}")
         if not self.record_kind:
             object.__setattr__(self, "record_kind", self.name)
 
@@ -206,6 +228,34 @@ class RealisationSpec:
                              f"{', '.join(with_form) or 'none'}")
         module, cls = self.differentiable.split(":")
         return getattr(importlib.import_module(module), cls)(record)
+
+    def write_artifacts_of(self, record: Realisation, out_dir: str | Path, *,
+                           resolution: tuple[int, int] | None = None) -> tuple[Artifact, ...]:
+        """Write the buildable files of ``record`` (a fitted realisation) into ``out_dir``.
+
+        Returns
+        -------
+        tuple of Artifact
+            What was written; empty when the realisation declares no :attr:`write_artifacts`.
+
+        Raises
+        ------
+        InputError
+            The writer returned something other than :class:`Artifact` records of declared names.
+        """
+        if not self.write_artifacts:
+            return ()
+        module, name = self.write_artifacts.split(":")
+        writer = getattr(importlib.import_module(module), name)
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        kwargs = {} if resolution is None else {"resolution": tuple(int(v) for v in resolution)}
+        written = tuple(writer(record, out, **kwargs))
+        for a in written:
+            if not isinstance(a, Artifact) or a.name not in self.artifacts:
+                raise InputError(f"realisation {self.name!r}: its writer {self.write_artifacts} returned "
+                                 f"{getattr(a, 'name', a)!r}; declared artifacts: {', '.join(self.artifacts) or 'none'}")
+        return written
 
     @property
     def fit_name(self) -> str:
@@ -344,7 +394,9 @@ def fit_delta(target: Kernel) -> ReferenceRealisation:
 
 register_realisation(RealisationSpec(
     name="learned", fit=fit_learned, kind="reference", record_type=ReferenceRealisation, record_kind="reference",
-    colour="#222222", in_default_design=True, description="the target kernel applied ideally (no hardware)"))
+    colour="#222222", title="learned kernel (ideal)", marker="o", in_default_design=True,
+    description="the target kernel applied ideally (no hardware)"))
 register_realisation(RealisationSpec(
     name="delta", fit=fit_delta, kind="reference", record_type=ReferenceRealisation, record_kind="reference",
-    colour="#999999", in_default_design=True, description="no spatial filter: the 'w/o' baseline"))
+    colour="#999999", title="no filter (delta)", marker="s", in_default_design=True,
+    description="no spatial filter: the 'w/o' baseline"))

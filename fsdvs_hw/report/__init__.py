@@ -1,11 +1,12 @@
 """Reports of design explorations: figures, score tables (CSV/JSON) and a self-contained HTML page.
 
-:func:`write_report` is the entry point used by ``fsdvs-hw explore`` and ``fsdvs-hw sweep --report``.
+:func:`write_report` is the entry point used by ``fsdvs-hw explore`` and ``fsdvs-hw sweep --report``;
+:func:`write_report_from_scores` redraws a report from the ``scores.json`` of an earlier run.
 """
 
 from __future__ import annotations
 
-from .html import render_html, write_report
+from .html import render_html, write_report, write_report_from_scores
 from .tables import pareto_front, score_rows, write_scores
 
-__all__ = ["write_report", "render_html", "score_rows", "pareto_front", "write_scores"]
+__all__ = ["write_report", "write_report_from_scores", "render_html", "score_rows", "pareto_front", "write_scores"]

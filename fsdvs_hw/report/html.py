@@ -1,7 +1,14 @@
 """The self-contained HTML report of an exploration (figures embedded as base64 PNG).
 
-One file, no external assets: it opens from a mail attachment or a CI artefact. Alongside it
-``scores.csv`` and ``scores.json`` hold the same numbers for further analysis.
+One file, no external assets and no script: it opens from a mail attachment or a CI artefact,
+offline. Alongside it ``scores.csv`` and ``scores.json`` hold the same numbers for further
+analysis. The page opens with the verdict (:mod:`fsdvs_hw.report.verdict`); figures follow, each
+in a ``<figure>`` with a caption and a descriptive alt text, drawn at twice their displayed size
+for sharp screens; the wide tables are split by topic and sit behind ``<details>`` toggles in
+containers that scroll on their own, so the page fits a 1280 px window.
+
+:func:`write_report` writes a report from stored points; :func:`write_report_from_scores` rebuilds
+one from the ``scores.json`` an earlier run left, without rerunning anything.
 """
 
 from __future__ import annotations
@@ -13,189 +20,478 @@ import io
 import json
 import math
 import platform
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from .. import __version__
+from ..records import Cost, ScoredPoint
 from . import figures
+from .artifacts import artifacts_html
+from .present import cost_label, number, plain, point_title, si, style, title
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
+from .verdict import VERDICT_COLUMNS, advice, loss_header, verdict_table
 
-__all__ = ["write_report", "render_html"]
+__all__ = ["write_report", "render_html", "write_report_from_scores", "FIGURE_DPI", "CSS_DPI"]
+
+#: CSS pixels per inch: a figure of w inches is shown w × CSS_DPI px wide.
+CSS_DPI = 96
+#: Pixels per inch of the embedded PNGs: twice :data:`CSS_DPI`, sharp on 2× (HiDPI) screens.
+FIGURE_DPI = 2 * CSS_DPI
 
 _CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,sans-serif;margin:2em auto;max-width:1250px;color:#222;padding:0 1em}
-h1{font-size:1.6em}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
-table{border-collapse:collapse;font-size:.82em;margin:.6em 0}td,th{border:1px solid #ddd;padding:3px 7px;text-align:right}
-th{background:#f3f3f3}td.l,th.l{text-align:left}tr.pareto td{background:#eef7ee}
-img{max-width:100%;border:1px solid #eee;margin:.4em 0}pre{background:#f7f7f7;padding:.6em;font-size:.8em;overflow:auto}
+*{box-sizing:border-box}
+body{font-family:system-ui,-apple-system,Segoe UI,sans-serif;margin:1.5em auto;max-width:1200px;color:#222;
+padding:0 1em;line-height:1.4;overflow-wrap:break-word}
+h1{font-size:1.6em;margin-bottom:.3em}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;
+margin-top:1.6em}h3{font-size:1.05em}
+.lead{font-size:1.02em}
+table{border-collapse:collapse;font-size:.85em;margin:.6em 0}td,th{border:1px solid #ddd;padding:3px 7px;
+text-align:right;vertical-align:top}
+th{background:#f3f3f3}td.l,th.l{text-align:left}tr.front td{background:#eef7ee}
+.scroll{max-width:100%;overflow-x:auto}
+table.verdict{font-size:.95em}table.verdict td{padding:5px 9px}table.verdict small{color:#555;display:block}
+.swatch{display:inline-block;width:.8em;height:.8em;border-radius:50%;margin-right:.4em;vertical-align:baseline}
+ul.advice li{margin:.3em 0}
+figure{margin:1em 0;max-width:100%}figure img{max-width:100%;height:auto;border:1px solid #eee}
+figcaption{font-size:.88em;color:#444;max-width:60em}
+details{margin:.5em 0;border:1px solid #e3e3e3;border-radius:4px;padding:.3em .8em}
+summary{cursor:pointer;font-weight:600}
+pre{background:#f7f7f7;padding:.6em;font-size:.8em;overflow:auto;white-space:pre-wrap;max-width:100%}
 .note{color:#555;font-size:.9em}.bad{color:#a00}
 """
 
+#: Sections other modules add to the report, in order, after the realisation details and before the
+#: run conditions: ``section(points, design) -> str``, an HTML fragment ("" for none) built from the
+#: stored points (:class:`fsdvs_hw.records.ScoredPoint`) and the design. To add one, import its
+#: function at the top of this module and list it here (e.g. ``report/artifacts.py``,
+#: ``report/codesign.py``).
+_EXTRA_SECTIONS: list[Callable[[Sequence[ScoredPoint], Any], str]] = []
 
-def _png(fig: Any) -> str:
+
+def _figure(fig: Any, alt: str, caption: str, *, fig_id: str) -> str:
+    """``<figure>`` with the PNG at :data:`FIGURE_DPI`, shown at its size in CSS pixels, alt text and caption."""
     import matplotlib.pyplot as plt
 
+    w_in, h_in = fig.get_size_inches()
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
+    fig.savefig(buf, format="png", dpi=FIGURE_DPI)
     plt.close(fig)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
+    b64 = base64.b64encode(buf.getvalue()).decode("ascii")
+    return (f'<figure id="{fig_id}"><img alt="{html.escape(alt)}" width="{round(w_in * CSS_DPI)}" '
+            f'height="{round(h_in * CSS_DPI)}" src="data:image/png;base64,{b64}">'
+            f"<figcaption>{caption}</figcaption></figure>")
 
 
 def _fmt(v: Any) -> str:
     if isinstance(v, bool):
         return "yes" if v else ""
-    if isinstance(v, float):
-        if math.isnan(v):
-            return "–"
-        return f"{v:.4g}"
-    return html.escape(str(v))
+    if isinstance(v, (int, float)):
+        return number(v, 4) if isinstance(v, float) else number(v)
+    return html.escape(plain(str(v)))
 
 
-def _table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str]], *, left: Sequence[str] = ("point",)) -> str:
-    head = "".join(f'<th class="{"l" if c in left else ""}">{html.escape(t)}</th>' for c, t in columns)
+def _table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str]], *, left: Sequence[str] = ("point",),
+           cls: str = "") -> str:
+    """A table in a container that scrolls on its own (the page never does)."""
+    head = "".join(f'<th class="{"l" if c in left else ""}" scope="col">{html.escape(t)}</th>' for c, t in columns)
     body = []
     for r in rows:
-        cls = ' class="pareto"' if r.get("pareto") else ""
+        tr = ' class="front"' if r.get("pareto") or r.get("pareto_all") else ""
         cells = "".join(f'<td class="{"l" if c in left else ""}">{_fmt(r.get(c, ""))}</td>' for c, _ in columns)
-        body.append(f"<tr{cls}>{cells}</tr>")
-    return f"<table><tr>{head}</tr>{''.join(body)}</table>"
+        body.append(f"<tr{tr}>{cells}</tr>")
+    return f"<div class='scroll'><table class='{cls}'><tr>{head}</tr>{''.join(body)}</table></div>"
 
 
-def _img(b64: str, alt: str) -> str:
-    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{b64}">'
+def _details(summary: str, body: str, *, open_: bool = False) -> str:
+    return f"<details{' open' if open_ else ''}><summary>{html.escape(summary)}</summary>{body}</details>"
 
 
-def render_html(points: Sequence[Mapping[str, Any]], design: Any, *, title: str | None = None) -> str:
+def _names(items: Sequence[str]) -> str:
+    items = list(dict.fromkeys(items))
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def _verdict_section(rows: Sequence[Mapping[str, Any]]) -> str:
+    vt = verdict_table(rows)
+    if not vt:
+        return "<h2 id='verdict'>Verdict</h2><p>No design point was scored.</p>"
+    lines = "".join(f"<li>{html.escape(s)}</li>" for s in advice(rows))
+    head = "".join(f"<th class='l' scope='col'>{html.escape(loss_header(rows) if c == 'loss' else t)}</th>"
+                   for c, t in VERDICT_COLUMNS)
+    trs = []
+    for v in vt:
+        colour = style(v["realisation_name"]).colour
+        n = f"<small>{html.escape(v['n'])}</small>" if v["n"] else ""
+        cells = [f"<td class='l'><span class='swatch' style='background:{colour}'></span>"
+                 f"{html.escape(v['realisation'])}</td>", f"<td class='l'>{html.escape(v['loss'])}{n}</td>"]
+        cells += [f"<td class='l'>{html.escape(v[c])}</td>" for c in ("agreement", "cost", "verdict")]
+        tr = " class='front'" if v["front"] else ""
+        trs.append(f"<tr{tr}>{''.join(cells)}</tr>")
+    acc, acc_label = accuracy_axis(rows)
+    if acc.endswith("_loss"):
+        first = (f"Accuracy loss: {html.escape(acc_label)}, as a fraction (positive = accuracy lost), with its 95 % "
+                 "bootstrap CI over test clips and training seeds; n counts the paired test clips and seeds. ")
+    else:
+        first = ("No task evaluator ran (the design lists no <code>[tasks] checkpoints</code>), so there is no "
+                 "accuracy loss: the column is the kernel error, ‖K − T‖/‖T‖ against the target. ")
+    legend = (first + "CSF agreement: correlation of the kernel's radial response with the Mannos–Sakrison CSF at the "
+              "fitted viewing scale. Green rows are on a Pareto front. Every number below is defined where it "
+              "appears; the full set is in scores.csv and scores.json.")
+    how = ("<p class='note'>Loss = task metric of the learned kernel (the kernel being realised) minus that of the "
+           "realisation, in the same networks on the same test clips and noise draws (mAP, top-1, mIoU as "
+           "fractions), with its 95 % bootstrap CI over test clips and training seeds (each seed with its own "
+           "mismatch pattern); a CI that contains 0 reads 'no measurable loss (± half-width)' and is never ranked "
+           "by its point estimate. Weighted loss: <code>[scoring] task_weights</code>. Costs: each kind on its own "
+           "axis and unit (never one shared cost axis). Pareto: not dominated beyond the loss CIs, within the kind "
+           "(loss, agreement, cost) and across kinds (loss, agreement). 'build' marks the hardware on the "
+           "front across kinds with no measurable loss (the cheapest of each kind), or else the smallest loss; 'a "
+           "cheaper option of its kind' is on its kind's front below a kind that is on the front across kinds; "
+           "'not recommended' is everything else.</p>")
+    return (f"<h2 id='verdict'>Verdict: what to build</h2><ul class='advice'>{lines}</ul>"
+            f"<div class='scroll'><table class='verdict'><tr>{head}</tr>{''.join(trs)}</table></div>"
+            f"<p class='note'>{legend}</p>" + _details("How the verdict is decided", how))
+
+
+def _per_task_section(rows: Sequence[Mapping[str, Any]]) -> str:
+    vr = verdict_rows(rows)
+    if not vr:
+        return ""
+    titled = []
+    ok = [r for r in rows if r["status"] == "ok"]
+    for v, r in zip(vr, ok):  # verdict_rows keeps the order of the ok rows
+        v = dict(v)
+        v["realisation"] = point_title(r["realisation"], r.get("params"))
+        v.pop("MS agreement, fitted scale", None)  # in the verdict table already
+        v.pop("cost (own unit)", None)  # the verdict's headline cost and the realisation details hold the costs
+        v["pareto"], v["pareto_all"] = r.get("pareto"), r.get("pareto_all")
+        titled.append(v)
+    cols = [(c, c) for c in dict.fromkeys(k for v in titled for k in v) if c not in ("pareto", "pareto_all")]
+    cols = [(c, "Mannos–Sakrison r, design geometry" if c == "MS agreement, design geometry" else t) for c, t in cols]
+    return _details("Loss of every task, on the simulator and the emulation track",
+                    "<p class='note'>Each task's loss with its 95 % CI and n (test clips, training seeds); the "
+                    "emulation track shows the realised kernel on a display recaptured by the noisy simulator. "
+                    "Mannos–Sakrison r at the design's optics geometry (the verdict's r uses the fitted scale).</p>"
+                    + _table(titled, cols, left=[c for c, _ in cols]))
+
+
+def _score_tables(ok: Sequence[Mapping[str, Any]], methods: Sequence[str]) -> str:
+    """The scores split by topic, each a few columns, behind toggles."""
+    named = [{**r, "name": point_title(r["realisation"], r.get("params"))} for r in ok]
+    out = []
+    out.append(_details("Kernel fit and spectrum", "<p class='note'>Kernel error: relative L2 distance of the "
+                        "realised kernel from the target, ‖K − T‖/‖T‖ (each realisation's one error; the metalens "
+                        "pedestal included). Gain-free error: the same after the least-squares gain, which a "
+                        "comparator threshold absorbs. Peak: frequency of the largest radial response.</p>"
+                        + _table(named, [("name", "realisation"), ("kernel_error", "kernel error"),
+                                         ("kernel_error_gain_free", "gain-free error"),
+                                         ("peak_frequency_cpp", "peak (cycles/pixel)"), ("response_kind", "response")],
+                                 left=("name", "response_kind"))))
+    csf_cols = [("name", "realisation")] + [(f"csf_{m}_correlation", _csf_name(m)) for m in methods]
+    csf_cols += [("csf_fitted_correlation", "Mannos–Sakrison, fitted scale"), ("csf_fitted_ppd", "fitted px/degree")]
+    out.append(_details("CSF agreement", "<p class='note'>Correlation of the peak-normalised radial response with "
+                        "each CSF model at the design's optics geometry, and with Mannos–Sakrison at the best "
+                        "pixels-per-degree scale (the verdict's r).</p>" + _table(named, csf_cols, left=("name",))))
+    metrics = list(dict.fromkeys(c for r in ok for c in r if c.startswith("metric_")))
+    if metrics:
+        cols = [("name", "realisation")] + [(c, _metric_name(c)) for c in metrics]
+        out.append(_details("Task metrics", "<p class='note'>Each task's primary metric (detection mAP, recognition "
+                            "top-1, segmentation mIoU; fractions), mean over its networks, on each track.</p>"
+                            + _table(named, cols, left=("name",))))
+    if any("emu_event_ratio" in r for r in ok):
+        out.append(_details("Emulation track", "<p class='note'>The realised kernel applied to the video, shown on an "
+                            "emulated display and recaptured by the noisy simulator (the paper's sensor-in-the-loop "
+                            "track), against the same kernel inside the pixel.</p>"
+                            + _table(named, [("name", "realisation"),
+                                             ("emu_event_ratio", "events, emulated / in-sensor"),
+                                             ("emu_signed_correlation", "ON−OFF frame correlation")],
+                                     left=("name",))))
+    return "<h2 id='scores'>Scores by topic</h2>" + "".join(out)
+
+
+def _csf_name(method: str) -> str:
+    return figures._csf_title("CSF " + method)[4:]
+
+
+def _metric_name(column: str) -> str:
+    task, _, track = column[len("metric_"):].partition("/")
+    primary = {"detection": "mAP", "recognition": "top-1", "segmentation": "mIoU"}.get(task, "metric")
+    return f"{task} {primary} ({track})"
+
+
+#: Wall-time columns of the score rows (seconds).
+_WALL = ("fit_s", "analysis_s", "tasks_s", "emulation_s", "point_s")
+
+#: Stored cost items also shown as score columns (listed once, there).
+_SHOWN_AS_SCORES = {"kernel_error": "kernel error (Scores by topic)", "fit_time": "fit time (Speed for accuracy)"}
+
+
+def _realisation_details(points: Sequence[ScoredPoint]) -> str:
+    """Per scored point: every stored cost and design quantity with its unit (SI prefixes) and definition."""
+    parts = []
+    for p in points:
+        if not p.ok or p.score is None:
+            continue
+        items = _quantities(p.realisation, p.score.cost)
+        body = ""
+        if items:
+            body += _table(items, [("item", "quantity"), ("value", "value"), ("definition", "definition")],
+                           left=("item", "value", "definition"))
+        for w in p.score.warnings:
+            body += f"<p class='bad'>warning: {html.escape(plain(w))}</p>"
+        if not body:
+            body = "<p class='note'>An ideal reference: no hardware quantities.</p>"
+        parts.append(_details(point_title(p.realisation, p.params), body))
+    if not parts:
+        return ""
+    return ("<h2 id='realisations'>Realisations</h2><p class='note'>Every quantity each fit stored, once, with its "
+            f"definition ({'; '.join(_SHOWN_AS_SCORES.values())} are in the score tables). The fit's own text "
+            "summary is kept in scores.json (<code>describe</code>).</p>" + "".join(parts))
+
+
+def _quantities(realisation: str, cost: Cost) -> list[dict[str, str]]:
+    """Rows (quantity, value, definition) of a point's stored cost items, each quantity once.
+
+    Items shown as score columns (:data:`_SHOWN_AS_SCORES`) are left out; a length stored both in
+    metres (``X_m``) and in pixels (``X_px``) is one row, "5.35 µm (1.1 px)".
+    """
+    items = cost.items
+    rows = []
+    for k, v in items.items():
+        if k in _SHOWN_AS_SCORES or (k.endswith("_px") and k[:-3] + "_m" in items):
+            continue
+        value = si(cost.value(k), v.unit or "1")
+        label = cost_label(realisation, k)
+        if k.endswith("_m") and k[:-2] + "_px" in items:
+            value += f" ({si(cost.value(k[:-2] + '_px'), cost.unit(k[:-2] + '_px') or 'px')})"
+            label = cost_label(realisation, k[:-2])
+        rows.append({"item": label, "value": value, "definition": plain(str(v.description))})
+    return rows
+
+
+def _typed(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> list[ScoredPoint]:
+    return [p if isinstance(p, ScoredPoint) else ScoredPoint.from_dict(p) for p in points]
+
+
+def _float(v: Any) -> float:
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
+
+
+def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, *, title_text: str | None = None,
+                stamp: str | None = None) -> str:
     """The report as one HTML string (figures embedded).
 
     Parameters
     ----------
-    points : sequence of mappings
-        Stored design points (:meth:`fsdvs_hw.explore.store.ResultsStore.rows`).
+    points : sequence of ScoredPoint or mappings
+        Stored design points (:class:`fsdvs_hw.records.ScoredPoint`, or the dicts of
+        :meth:`fsdvs_hw.explore.store.ResultsStore.rows`), with ``paired_loss`` where task losses
+        were computed.
     design : fsdvs_hw.explore.design.Design
         The design they came from (sensor, optics and CSF settings are read from it).
+    title_text : str, optional
+        Page title (default: "FS-DVS design exploration: <design name>").
+    stamp : str, optional
+        Time stamp in the provenance (default: now, UTC).
     """
+    points = _typed(points)
     data = design.to_dict()
     rows = score_rows(points)
     ok = [r for r in rows if r["status"] == "ok"]
     acc, acc_label = accuracy_axis(rows)
     methods = data["analysis"]["csf_methods"]
-    title = title or f"FS-DVS design exploration: {design.name}"
-    parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
-             f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>"]
+    page_title = title_text or f"FS-DVS design exploration: {design.name}"
     t = design.target
+    focal = data["optics"]["focal_length_m"]
+    n_ok, n_skip, n_err = (sum(r["status"] == s for r in rows) for s in ("ok", "skipped", "error"))
+    parts = [f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
+             f"<meta name='viewport' content='width=device-width, initial-scale=1'><title>{html.escape(page_title)}</title>",
+             f"<style>{_CSS}</style></head><body><h1>{html.escape(page_title)}</h1>"]
     parts.append(
-        f"<p>Target kernel <b>{html.escape(t.name)}</b> ({t.size}×{t.size}, pitch {t.pitch_m * 1e6:.3g} µm, "
-        f"DC gain {t.dc_gain:.4g}); optics focal length {data['optics']['focal_length_m'] * 1e3:.3g} mm; "
-        f"filter placement <b>{data['sensor']['placement']}</b>, positivity <b>{data['sensor']['positivity']}</b>. "
-        f"{len(rows)} design points: {sum(r['status'] == 'ok' for r in rows)} scored, "
-        f"{sum(r['status'] == 'skipped' for r in rows)} skipped, {sum(r['status'] == 'error' for r in rows)} failed.</p>")
+        f"<p class='lead'>Which hardware realises the learned kernel <b>{html.escape(t.name)}</b> "
+        f"({t.size}×{t.size} taps at {si(t.pitch_m, 'm')} pixel pitch) best, for which cost: "
+        f"{len(rows)} design points, {n_ok} scored, {n_skip} skipped, {n_err} failed.</p>")
+    parts.append(_verdict_section(rows))
     missing = [r for r in rows if r["status"] != "ok"]
     if missing:
-        parts.append("<h2>Not scored</h2><p class='note'>Points whose realisation is not installed, or whose fit "
-                     "failed; nothing is filled in for them.</p>")
-        parts.append(_table(missing, [("point", "point"), ("status", "status"), ("reason", "reason")],
-                            left=("point", "status", "reason")))
+        parts.append("<h2 id='not-scored'>Not scored</h2><p class='note'>Points whose realisation is not installed, "
+                     "or whose fit failed; nothing is filled in for them.</p>")
+        named = [{**r, "name": point_title(r["realisation"], r.get("params"))} for r in missing]
+        parts.append(_table(named, [("name", "realisation"), ("status", "status"), ("reason", "reason")],
+                            left=("name", "status", "reason")))
+    if ok:
+        kinds = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok)]
+        hw = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok if r.get("kind_cost"))]
+        what = "accuracy loss" if acc.endswith("_loss") else "kernel error"
+        bars = "with 95 % confidence bars " if acc.endswith("_loss") else ""
+        parts.append("<h2 id='trade-off'>Trade-off</h2>" + _figure(
+            figures.fig_pareto(rows),
+            f"Scatter plots of {what} {bars}against CSF agreement for {_names(kinds)}, "
+            f"and against each hardware kind's own cost{(' for ' + _names(hw)) if hw else ''}.",
+            f"<b>{what.capitalize()} vs CSF agreement, and vs each kind's own cost.</b> "
+            + (f"Bars: the stored 95 % bootstrap CIs of the {html.escape(acc_label)}. " if bars else
+               "No task evaluator ran, so there are no losses and no CIs. ")
+            + "Rings: on the Pareto front beyond the CIs (across kinds in the first panel, within the kind in the "
+            "others). Hollow markers of different shapes, so coinciding "
+            "points stay visible; one colour per realisation in every figure.", fig_id="fig-pareto"))
+        panels = figures.realised_kernels(points)
+        pnames = _names([p.label for p in panels])
+        parts.append("<h2 id='kernels'>Kernels</h2>" + _figure(
+            figures.fig_kernels(panels),
+            f"Heat maps of the realised kernel taps of {pnames}, red positive and blue negative, each on its own "
+            "colour scale centred at zero.",
+            "<b>Realised kernels, tap by tap.</b> Diverging colours centred at zero, each panel on its own scale "
+            "with its own colour bar. Where the centre tap is more than twice the largest surround tap, the scale "
+            "follows the surround (colour-bar arrows; the saturated centre is labelled with its value), so the "
+            "surround's sign and shape are visible. Frame and title in the realisation's colour.",
+            fig_id="fig-kernels"))
+        parts.append(_figure(
+            figures.fig_spectra(panels),
+            f"Heat maps of the two-dimensional magnitude spectra of {pnames} on one shared colour scale.",
+            "<b>Magnitude spectra |H(f<sub>x</sub>, f<sub>y</sub>)|</b> over the Nyquist square (cycles/pixel), all "
+            "panels on one shared scale and colour bar, so brightness compares across realisations.",
+            fig_id="fig-spectra"))
+        parts.append(_figure(
+            figures.fig_radial(panels, methods=methods, pitch_m=t.pitch_m, focal_length_m=focal),
+            f"Line plots of the peak-normalised radial frequency responses of {pnames} against contrast "
+            "sensitivity curves, at the design geometry and at a fitted viewing scale.",
+            "<b>Radial responses vs contrast sensitivity.</b> Each curve normalised to its own maximum. Left: at the "
+            f"design's geometry (pixel pitch {si(t.pitch_m, 'm')}, focal length {si(focal, 'm')}), against every "
+            "CSF model of <code>[analysis] csf_methods</code>. Right: Mannos–Sakrison at the viewing scale fitted to "
+            "the first kernel (a shape comparison, as in the FS-DVS paper). CSF curves in greys.",
+            fig_id="fig-radial"))
+        parts.append(_per_task_section(rows))
+        parts.append(_score_tables(ok, methods))
+        named = [{**r, "name": point_title(r["realisation"], r.get("params"))} for r in ok]
+        hw_kinds = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok if r.get("kind_cost"))]
+        parts.append("<h2 id='speed'>Speed for accuracy</h2>" + _figure(
+            figures.fig_speed(rows),
+            "Log-log scatter plot of kernel error against fit wall time for "
+            f"{_names(hw_kinds) if hw_kinds else 'no hardware realisation'}.",
+            "<b>Kernel error vs fit wall time</b> of each hardware realisation on the machine that ran the point "
+            "(log axes).", fig_id="fig-speed"))
+        parts.append(_details("Wall times of every point", "<p class='note'>Seconds on the machine that ran each point "
+                              "(fit: the realisation's optimiser; analysis: spectra and CSF; tasks: evaluators; "
+                              "emulation: display and recapture track).</p>"
+                              + _table([{**r, **{c: si(_float(r.get(c)), "s") for c in _WALL}} for r in named],
+                                       [("name", "realisation"), ("fit_s", "fit"), ("analysis_s", "analysis"),
+                                        ("tasks_s", "tasks"), ("emulation_s", "emulation"),
+                                        ("point_s", "point total")], left=("name",))))
+        parts.append(_realisation_details(points))
+    parts.append(artifacts_html(points))  # buildable files per hardware point (report/artifacts.py)
+    for section in _EXTRA_SECTIONS:
+        parts.append(section(points, design))
+    parts.append(_conditions(points, rows, data, design))
+    stamp = stamp or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    parts.append(f"<h2 id='provenance'>Provenance</h2><p class='note'>fsdvs_hw {__version__}, Python "
+                 f"{platform.python_version()}, {html.escape(platform.node())}, {stamp}; design source "
+                 f"{html.escape(design.source)}.</p>")
+    parts.append(_details("The design, as run (JSON)", f"<pre>{html.escape(json.dumps(data, indent=1))}</pre>"))
+    parts.append("</body></html>")
+    return "\n".join(p for p in parts if p)
+
+
+def _conditions(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]], data: Mapping[str, Any],
+                design: Any) -> str:
+    """Run conditions: sensor, simulator of the task tracks, networks, task status."""
+    t = design.target
+    items = [f"Target kernel {html.escape(t.name)}: {t.size}×{t.size} taps, pixel pitch {si(t.pitch_m, 'm')}, "
+             f"DC gain {number(t.dc_gain)}; optics focal length {si(data['optics']['focal_length_m'], 'm')}; filter "
+             f"placement {html.escape(str(data['sensor']['placement']))}, positivity "
+             f"{html.escape(str(data['sensor']['positivity']))}."]
     sensors = set()
     for p in points:
-        for task, tracks in ((p.get("result") or {}).get("tasks") or {}).items():
-            for res in (tracks.values() if isinstance(tracks, Mapping) else []):
-                if isinstance(res, Mapping) and isinstance(res.get("sensor"), Mapping):
-                    sensors.add(f"{task}: " + ", ".join(f"{k}={v}" for k, v in res["sensor"].items()))
+        for task, tracks in (p.score.tasks.tracks.items() if p.score is not None else ()):
+            for track in tracks.values():
+                sensor = track.extra.get("sensor")
+                if isinstance(sensor, Mapping):
+                    sensors.add(f"{task}: " + ", ".join(f"{k} = {v}" for k, v in sensor.items()))
     if sensors:
-        parts.append("<p class='note'>Task-track simulator: " + html.escape("; ".join(sorted(sensors))) + ".</p>")
+        items.append("Task-track simulator: " + html.escape("; ".join(sorted(sensors))) + ".")
     nets = networks_note(points)
     if nets:
-        parts.append("<p class='note'>Networks each task's loss is measured in (every realisation is swapped "
-                     "zero-shot into these; the loss compares it with the learned kernel in the same networks): "
-                     + html.escape(nets) + ".</p>")
+        items.append("Networks each task's loss is measured in (every realisation is swapped zero-shot into these; "
+                     "the loss compares it with the learned kernel in the same networks): " + html.escape(nets) + ".")
+    ok = [r for r in rows if r["status"] == "ok"]
     task_status = sorted({r.get("tasks_status", "") for r in ok} - {""})
     if task_status:
-        parts.append(f"<p class='note'>Task evaluation: {html.escape('; '.join(task_status))}. "
-                     f"Accuracy axis: {html.escape(acc_label)}.</p>")
-
-    verdict = verdict_rows(rows)
-    if verdict:
-        vcols = list(dict.fromkeys(k for v in verdict for k in v))
-        flags = {v["realisation"]: r for v, r in zip(verdict, ok)}  # verdict_rows keeps the order of ok rows
-        parts.append(
-            "<h2>Verdict</h2><p class='note'>Loss = task metric of the learned kernel (the kernel being realised) "
-            "minus that of the realisation, in the same networks on the same test clips and noise draws (mAP, "
-            "top-1, mIoU as fractions; positive = accuracy lost), with its 95% bootstrap CI over test clips and "
-            "training seeds (each seed with its own mismatch pattern); a CI that contains 0 reads "
-            "'no measurable loss (± half-width)' and is never ranked by its point estimate. Weighted loss: "
-            "<code>[scoring] task_weights</code>. Each task's loss is measured in the networks listed in "
-            "<code>[tasks] checkpoints</code>. CSF agreement: Mannos–Sakrison correlation at the fitted viewing "
-            "scale (headline) and at the design's optics geometry. Cost: each kind on its own axis and unit. "
-            "Pareto: not dominated beyond the loss CIs, within the kind (loss, agreement, cost) and across kinds "
-            "(loss, agreement); green rows are on their kind's front.</p>")
-        head = "".join(f'<th class="l">{html.escape(c)}</th>' for c in vcols)
-        trs = []
-        for v in verdict:
-            cls = ' class="pareto"' if flags[v["realisation"]].get("pareto") else ""
-            cells = "".join(f'<td class="l">{html.escape(v.get(c, "–"))}</td>' for c in vcols)
-            trs.append(f"<tr{cls}>{cells}</tr>")
-        parts.append(f"<table><tr>{head}</tr>{''.join(trs)}</table>")
-
-    parts.append("<h2>Scores</h2><p class='note'>Kernel error: relative L2 against the target (gain-free: with "
-                 "the least-squares gain, which a comparator threshold absorbs). CSF: correlation of the "
-                 "peak-normalised radial response with each CSF at the design geometry; 'fitted' uses the best "
-                 "pixels-per-degree scale. Metrics: each task's primary metric on each track (mean over networks). "
-                 "Emulation: the realised kernel applied to the video, shown on "
-                 "an emulated display and recaptured by the noisy simulator (the paper's sensor-in-the-loop track), "
-                 "against the same kernel inside the pixel: event-count ratio and correlation of ON−OFF frames.</p>")
-    cols = [("point", "point"), ("kernel_error", "kernel error"), ("kernel_error_gain_free", "gain-free error"),
-            ("peak_frequency_cpp", "peak (cyc/px)"), ("response_kind", "response")]
-    cols += [(f"csf_{m}_correlation", f"r {m.split('_')[0]}") for m in methods]
-    cols += [("csf_fitted_correlation", "r MS fitted")]
-    cols += [(k, k.replace("_", " ", 1)) for k in dict.fromkeys(c for r in ok for c in r if c.startswith("metric_"))]
-    cols += [("emu_event_ratio", "emul. events / in-sensor"), ("emu_signed_correlation", "emul. r")]
-    cols += [("headline_cost", "cost item"), ("headline_cost_value", "value"), ("headline_cost_unit", "unit")]
-    parts.append(_table(ok, cols, left=("point", "response_kind", "headline_cost", "headline_cost_unit")))
-
-    if ok:
-        kernels = figures.realised_kernels(points)
-        parts.append("<h2>Kernels side by side</h2>" + _img(_png(figures.fig_kernels(kernels)), "kernels"))
-        parts.append("<h2>Magnitude spectra</h2>" + _img(_png(figures.fig_spectra(kernels)), "spectra"))
-        parts.append("<h2>Radial responses vs Mannos–Sakrison</h2>"
-                     + _img(_png(figures.fig_radial(kernels, methods=methods, pitch_m=t.pitch_m,
-                                                    focal_length_m=data["optics"]["focal_length_m"])), "radial"))
-        parts.append("<h2>Pareto: accuracy loss (95% CI) vs CSF agreement, and vs each kind's own cost</h2>" + _img(_png(figures.fig_pareto(rows)), "pareto"))
-        parts.append("<h2>Speed for accuracy</h2><p class='note'>Wall times on the machine that ran each point "
-                     "(fit: the realisation's optimiser; analysis: spectra and CSF; tasks: evaluators; emulation: "
-                     "display and recapture track).</p>")
-        parts.append(_table(ok, [("point", "point"), ("kernel_error", "kernel error"), ("csf_agreement", "r MS"),
-                                 (acc, acc_label.split(" (")[0]), ("fit_s", "fit (s)"), ("analysis_s", "analysis (s)"),
-                                 ("tasks_s", "tasks (s)"), ("emulation_s", "emulation (s)"),
-                                 ("point_s", "point total (s)")]))
-        parts.append(_img(_png(figures.fig_speed(rows)), "speed"))
-        parts.append("<h2>Realisations</h2>")
-        for p in points:
-            if p["status"] == "ok":
-                text = p["result"].get("describe", "")
-                for w in p["result"].get("warnings", []):
-                    text += f"\n  warning: {w}"
-                parts.append(f"<pre>{html.escape(text)}</pre>")
-                cost = p["result"].get("cost") or {}
-                if cost:
-                    parts.append(_table([{"point": k, "value": v["value"], "unit": v["unit"], "description": v["description"]}
-                                         for k, v in cost.items()],
-                                        [("point", "cost"), ("value", "value"), ("unit", "unit"), ("description", "description")],
-                                        left=("point", "unit", "description")))
-    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    parts.append(f"<h2>Provenance</h2><p class='note'>fsdvs_hw {__version__}, Python {platform.python_version()}, "
-                 f"{html.escape(platform.node())}, {stamp}; design source {html.escape(design.source)}.</p>")
-    parts.append(f"<pre>{html.escape(json.dumps(data, indent=1))}</pre></body></html>")
-    return "\n".join(parts)
+        items.append(f"Task evaluation: {html.escape('; '.join(task_status))}.")
+    return "<h2 id='conditions'>Run conditions</h2>" + _details(
+        "Sensor, simulator and networks", "".join(f"<p class='note'>{i}</p>" for i in items))
 
 
-def write_report(points: Sequence[Mapping[str, Any]], design: Any, out_dir: str | Path) -> Path:
+def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, out_dir: str | Path) -> Path:
     """Write ``report.html``, ``scores.csv`` and ``scores.json`` into ``out_dir``; return the HTML path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    points = list(points)
-    write_scores(score_rows(points), out, full=points)
+    points = _typed(points)
+    write_scores(score_rows(points), out, full=[p.to_dict() for p in points])
     path = out / "report.html"
-    path.write_text(render_html(points, design))
+    text = render_html(points, design)
+    if (out / "codesign.json").is_file() and design.data.get("codesign", {}).get("enabled"):  # issue 16 rows
+        from .codesign import codesign_section
+        anchor = "<h2 id='provenance'>" if "<h2 id='provenance'>" in text else "</body>"
+        text = text.replace(anchor, codesign_section(json.loads((out / "codesign.json").read_text())) + "\n" + anchor, 1)
+    path.write_text(text)
     return path
+
+
+def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path | None = None) -> Path:
+    """Rebuild ``report.html`` from the ``scores.json`` an earlier run wrote, without rerunning anything.
+
+    ``scores.json`` keeps every stored point with its paired task losses (``"points"``), so the
+    report of ``fsdvs-hw explore`` (or ``sweep --report``) can be redrawn after a change to the
+    report code, or into another folder.
+
+    Parameters
+    ----------
+    out_dir : path
+        Folder of the earlier run (holds ``scores.json``).
+    design : Design
+        The design the run used (:func:`fsdvs_hw.explore.design.load_design` of its TOML file;
+        the report layer sits below explore and does not load designs itself).
+    to : path, optional
+        Folder to write ``report.html``, ``scores.csv`` and ``scores.json`` into (default:
+        ``out_dir`` itself, replacing the report there).
+
+    Returns
+    -------
+    Path
+        The written ``report.html``.
+
+    Raises
+    ------
+    InputError
+        ``out_dir`` is not a folder; ``out_dir/scores.json`` is missing, is not JSON, or holds no
+        ``"points"`` list of stored points; ``design`` is not a loaded design.
+
+    Examples
+    --------
+    >>> from fsdvs_hw.explore.design import load_design
+    >>> write_report_from_scores("out/demo", load_design("designs/default.toml"))  # doctest: +SKIP
+    PosixPath('out/demo/report.html')
+    """
+    from ..errors import InputError
+
+    if not Path(out_dir).is_dir():
+        raise InputError(f"{out_dir}: not a folder (the --out folder of an earlier explore or sweep run)")
+    src = Path(out_dir) / "scores.json"
+    try:
+        data = json.loads(src.read_text())
+    except FileNotFoundError:
+        raise InputError(f"{src}: no scores.json here (write one with `fsdvs-hw explore DESIGN --out {out_dir}`)") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{src}: not a scores file (not JSON: {exc})") from None
+    points = data.get("points") if isinstance(data, Mapping) else None
+    if not isinstance(points, list):
+        raise InputError(f"{src}: field 'points' must be the list of stored points that write_report saves")
+    points = [ScoredPoint.from_dict(p, where=f"{src}: points[{i}]") for i, p in enumerate(points)]
+    if isinstance(design, (str, Path)) or not callable(getattr(design, "to_dict", None)):
+        raise InputError(f"write_report_from_scores: design must be a loaded design "
+                         f"(fsdvs_hw.explore.design.load_design(path)), got {type(design).__name__}")
+    dest = Path(to) if to is not None else Path(out_dir)
+    extra = Path(out_dir) / "codesign.json"  # the co-design rows write_report reads beside the report
+    if extra.is_file() and dest.resolve() != Path(out_dir).resolve():
+        dest.mkdir(parents=True, exist_ok=True)
+        (dest / extra.name).write_bytes(extra.read_bytes())
+    return write_report(points, design, dest)

@@ -1,6 +1,7 @@
 """Score tables: flatten stored design points into one row each, write CSV and JSON.
 
-A stored point's ``result`` is a nested :func:`fsdvs_hw.explore.scoring.score` record and its
+A stored point (:class:`fsdvs_hw.records.ScoredPoint`, or the dict it serialises to) carries a
+:class:`fsdvs_hw.records.Score` and its
 ``paired_loss`` the paired task losses with bootstrap CIs (attached by the explore layer); the
 tables flatten both to named columns with units in the names (``fit_s``, ``cost_area_m2``), give
 each kind of realisation its own cost axis in its own unit (declared in its registry entry,
@@ -25,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from ..realise.registry import REALISATIONS
+from ..records import ScoredPoint
 
 __all__ = ["score_rows", "pareto_front", "uncertain_pareto_front", "headline_cost", "kind_cost", "accuracy_axis",
            "summary_markdown", "verdict_rows", "verdict_markdown", "networks_note", "write_scores", "loss_interval",
@@ -67,7 +69,7 @@ def _num(x: Any) -> float:
     return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else math.nan
 
 
-def score_rows(points: Iterable[Mapping[str, Any]], *, primary_csf: str = "mannos_sakrison_1974") -> list[dict[str, Any]]:
+def score_rows(points: Iterable[Mapping[str, Any] | ScoredPoint], *, primary_csf: str = "mannos_sakrison_1974") -> list[dict[str, Any]]:
     """One flat dict per stored point (see the module docstring); stable column names.
 
     Columns: ``point, realisation, params, status, reason, kernel_error, kernel_error_gain_free,
@@ -78,24 +80,23 @@ def score_rows(points: Iterable[Mapping[str, Any]], *, primary_csf: str = "manno
     kind_cost_unit, fit_s, analysis_s, tasks_s, emulation_s, point_s, pareto`` (within the kind)
     and ``pareto_all`` (across kinds on loss vs CSF agreement).
     """
-    points = list(points)
     rows: list[dict[str, Any]] = []
-    for p in points:
-        res = p.get("result") or {}
-        params = p.get("params") or {}
-        label = p["realisation"] + ("" if not params else " " + ", ".join(f"{k.split('.')[-1]}={v}" for k, v in params.items()))
-        row: dict[str, Any] = {"point": label, "key": p["key"], "realisation": p["realisation"],
-                               "params": json.dumps(params, sort_keys=True), "status": p["status"],
-                               "reason": res.get("reason", ""), "warnings": " | ".join(res.get("warnings", []))}
-        if p["status"] == "ok":
-            row["kernel_error"] = _num(res.get("kernel_error"))
-            row["kernel_error_gain_free"] = _num(res.get("kernel_error_gain_free"))
-            row["dc_gain"] = _num(res.get("dc_gain"))
-            spec = res.get("spectral") or {}
-            row["peak_frequency_cpp"] = _num(spec.get("peak_frequency_cpp"))
-            row["response_kind"] = spec.get("kind", "")
-            csf = res.get("csf") or {}
-            for method, m in csf.items():
+    for raw in points:
+        p = raw if isinstance(raw, ScoredPoint) else ScoredPoint.from_dict(raw)
+        params = dict(p.params)
+        label = p.realisation + ("" if not params else " " + ", ".join(f"{k.split('.')[-1]}={v}" for k, v in params.items()))
+        res = p.score
+        row: dict[str, Any] = {"point": label, "key": p.key, "realisation": p.realisation,
+                               "params": json.dumps(params, sort_keys=True), "status": p.status,
+                               "reason": p.reason,
+                               "warnings": " | ".join(res.warnings if res is not None else p.failure.get("warnings", []))}
+        if p.ok and res is not None:
+            row["kernel_error"] = _num(res.kernel_error)
+            row["kernel_error_gain_free"] = _num(res.kernel_error_gain_free)
+            row["dc_gain"] = _num(res.dc_gain)
+            row["peak_frequency_cpp"] = _num(res.spectral.get("peak_frequency_cpp"))
+            row["response_kind"] = res.spectral.get("kind", "")
+            for method, m in res.csf.items():
                 if not isinstance(m, Mapping):
                     continue
                 if method == "fitted_scale":
@@ -107,33 +108,28 @@ def score_rows(points: Iterable[Mapping[str, Any]], *, primary_csf: str = "manno
                 row[f"csf_{method}_peak_ratio"] = _num(m.get("peak_ratio"))
                 row[f"csf_{method}_log_rms_dec"] = _num(m.get("log_rms_error_dec"))
             row["csf_agreement"] = row.get(f"csf_{primary_csf}_correlation", math.nan)
-            tasks = res.get("tasks") or {}
-            row["tasks_status"] = tasks.get("status", "")
-            for task, tracks in tasks.items():
-                if isinstance(tracks, Mapping):
-                    for track, r in tracks.items():
-                        if isinstance(r, Mapping) and "metric" in r:
-                            row[f"metric_{task}/{track}"] = _num(r["metric"])
-            _loss_columns(row, p.get("paired_loss") or {})
-            emu = res.get("emulation") or {}
+            row["tasks_status"] = res.tasks.status
+            for name, metric in res.tasks.metrics().items():
+                row[f"metric_{name}"] = _num(metric)
+            _loss_columns(row, p.paired_loss)
+            emu = res.emulation
             row["emulation_status"] = emu.get("status", "")
             if emu.get("status") == "ok":
                 row["emu_event_ratio"] = _num(emu.get("event_ratio"))
                 row["emu_signed_correlation"] = _num(emu.get("signed_correlation"))
                 row["emu_clipped_black"] = _num(emu.get("clipped_black"))
-            cost = res.get("cost") or {}
-            for name, item in cost.items():
-                row[f"cost_{name}"] = _num(item.get("value"))
-            head = headline_cost(cost, p["realisation"])
+            cost = res.cost.to_dict()
+            for name in res.cost.items:
+                row[f"cost_{name}"] = res.cost.value(name)
+            head = headline_cost(cost, p.realisation)
             row["headline_cost"], row["headline_cost_value"], row["headline_cost_unit"] = head or ("", math.nan, "")
-            own = kind_cost(p["realisation"], cost)
+            own = kind_cost(p.realisation, cost)
             row["kind_cost"], row["kind_cost_value"], row["kind_cost_unit"] = own or ("", math.nan, "")
-            wall = res.get("wall_s") or {}
-            row["fit_s"] = _num(wall.get("fit"))
-            row["analysis_s"] = _num(wall.get("analysis"))
-            row["tasks_s"] = _num(wall.get("tasks"))
-            row["emulation_s"] = _num(wall.get("emulation"))
-        row["point_s"] = _num(p.get("wall_s"))
+            row["fit_s"] = _num(res.wall.fit_s)
+            row["analysis_s"] = _num(res.wall.analysis_s)
+            row["tasks_s"] = _num(res.wall.tasks_s)
+            row["emulation_s"] = _num(res.wall.emulation_s)
+        row["point_s"] = _num(p.wall_s)
         rows.append(row)
     _mark_pareto(rows)
     return rows
@@ -368,20 +364,23 @@ def summary_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
     return text
 
 
-def networks_note(points: Sequence[Mapping[str, Any]]) -> str:
+def networks_note(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> str:
     """Which networks each task's loss is measured in, as one sentence per task.
 
     ``"detection: 3 networks (training seeds 0, 1, 2) trained with the kernel being realised (kernel
     frozen while training); ..."``, read from the ``networks`` records of the stored points.
     """
     seen: dict[str, list[Mapping[str, Any]]] = {}
-    for p in points:
-        for task, tracks in ((p.get("result") or {}).get("tasks") or {}).items():
-            if task in seen or not isinstance(tracks, Mapping):
+    for raw in points:
+        p = raw if isinstance(raw, ScoredPoint) else ScoredPoint.from_dict(raw)
+        if p.score is None:
+            continue
+        for task, tracks in p.score.tasks.tracks.items():
+            if task in seen:
                 continue
             for rec in tracks.values():
-                if isinstance(rec, Mapping) and isinstance(rec.get("networks"), list):
-                    seen[task] = rec["networks"]
+                if isinstance(rec.extra.get("networks"), list):
+                    seen[task] = rec.extra["networks"]
                     break
     parts = []
     for task, nets in seen.items():

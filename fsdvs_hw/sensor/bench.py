@@ -72,7 +72,7 @@ def moving_texture(T: int = 17, H: int = 120, W: int = 160, *, speed_px: float =
 
 
 _CHILD = r"""
-import json, resource, sys, time, statistics, torch
+import json, resource, sys, time, torch
 from fsdvs_hw.kernels import reference_kernel
 from fsdvs_hw.sensor import SensorConfig, event_frames
 mode, reps, H, W, T, threads = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5]), int(sys.argv[6])
@@ -94,8 +94,7 @@ for _ in range(reps):
     c0, t0 = time.process_time(), time.perf_counter()
     once()
     walls.append(time.perf_counter() - t0); cpus.append(time.process_time() - c0)
-print(json.dumps({"wall": statistics.median(walls), "wall_min": min(walls), "cpu": statistics.median(cpus),
-                  "peak_mb": (rss1 - rss0) / 1024, "threads": torch.get_num_threads()}))
+print(json.dumps({"walls": walls, "cpus": cpus, "peak_mb": (rss1 - rss0) / 1024, "threads": torch.get_num_threads()}))
 """
 
 
@@ -125,14 +124,20 @@ print(json.dumps({"wall": wall, "cpu": cpu, "peak_mb": (rss1 - rss0) / 1024, "ev
 """
 
 
-def _streaming(quick: bool) -> str:
+def _streaming(sec: Any, quick: bool) -> None:
+    from ..benchmarks import Column, Measured
+
     H, W = (60, 80) if quick else (240, 320)
     lengths = (17, 65) if quick else (33, 257)
     threads = min(2, os.cpu_count() or 1)
-    lines = [f"### Streaming vs whole clip: exact event list, translating random texture {H}×{W}, "
-             f"mismatch σ 0.03, chunks of 16 intervals, {threads} torch threads", "",
-             "| clip (frames) | path | events | wall (s) | CPU time (s) | Mpixel-frames/s (wall) | peak memory increase (MB) |",
-             "|---|---|---|---|---|---|---|"]
+    sec.text(f"### Streaming vs whole clip: exact event list, translating random texture {H}×{W}, "
+             f"mismatch σ 0.03, chunks of 16 intervals, {threads} torch threads", "")
+    table = sec.table(Column.text("clip (frames)"), Column.text("path"), Column.number("events", "d", unit="count"),
+                      Column.number("wall (s)", ".2f", metric="wall time"),
+                      Column.number("CPU time (s)", ".2f", metric="CPU time"),
+                      Column.number("Mpixel-frames/s (wall)", ".2f", unit="Mpixel-frames/s", metric="throughput (wall)"),
+                      Column.number("peak memory increase (MB)", ".0f", metric="peak memory increase"),
+                      threads=threads, settings={"height": H, "width": W, "chunk_frames": 16})
     for T in lengths:
         for mode in ("whole", "stream"):
             out = subprocess.run([sys.executable, "-c", _STREAM_CHILD, mode, str(T), str(H), str(W), str(threads)],
@@ -140,9 +145,8 @@ def _streaming(quick: bool) -> str:
             if out.returncode != 0:
                 raise RuntimeError(f"benchmark child failed: {out.stderr[-2000:]}")
             r = json.loads(out.stdout.strip().splitlines()[-1])
-            lines.append(f"| {T} | {mode} | {r['events']} | {r['wall']:.2f} | {r['cpu']:.2f} | "
-                         f"{H * W * T / r['wall'] / 1e6:.2f} | {r['peak_mb']:.0f} |")
-    return "\n".join(lines)
+            table.row(str(T), mode, r["events"], Measured.of([r["wall"]]), Measured.of([r["cpu"]]),
+                      Measured.of([H * W * T / r["wall"] / 1e6]), r["peak_mb"])
 
 
 def _child(mode: str, reps: int, H: int, W: int, T: int, threads: int) -> dict[str, float]:
@@ -154,7 +158,9 @@ def _child(mode: str, reps: int, H: int, W: int, T: int, threads: int) -> dict[s
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def _throughput(quick: bool) -> str:
+def _throughput(sec: Any, quick: bool) -> None:
+    from ..benchmarks import Column, Measured
+
     H, W, T = (120, 160, 17) if quick else (480, 640, 17)
     reps = 2 if quick else 5
     px_frames = H * W * T
@@ -163,89 +169,99 @@ def _throughput(quick: bool) -> str:
     runs = {}
     for n_threads in sorted({threads, 1}, reverse=True):
         runs[n_threads] = (_child("fwd", reps, H, W, T, n_threads), _child("fwdbwd", reps, H, W, T, n_threads))
-    fwd, both = runs[threads]
-    lines = [
+    sec.text(
         f"### Throughput: {T}×{H}×{W} float32, 7×7 DoG kernel, ideal sensor (B=1 → 16×2×{H}×{W})",
         "",
         f"load average at start: {load:.2f} on {os.cpu_count()} CPUs "
         "(a load above the CPU count means the wall-clock figures are contention-bound).",
         "",
-        "| pass | torch threads | wall median (s) | Mpixel-frames/s (wall median) | best wall (s) | Mpixel-frames/s (best) | CPU time (s) | peak memory (MB) |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
+    )
+    rate = Column.number  # the Mpixel-frames/s columns: a rate whose min–max are the slowest/fastest runs
+    table = sec.table(Column.text("pass"), Column.text("torch threads"),
+                      Column.number("wall median (s)", ".3f", metric="wall time (median)"),
+                      rate("Mpixel-frames/s (wall median)", ".1f", unit="Mpixel-frames/s", metric="throughput (wall median)"),
+                      Column.number("best wall (s)", ".3f", summary="best", metric="wall time (best)"),
+                      rate("Mpixel-frames/s (best)", ".1f", unit="Mpixel-frames/s", metric="throughput (best wall)"),
+                      Column.number("CPU time (s)", ".3f", metric="CPU time (median)"),
+                      Column.number("peak memory (MB)", ".0f", metric="peak memory increase"),
+                      settings={"height": H, "width": W, "frames": T, "repeats": reps})
     for n_threads, (f_run, b_run) in runs.items():
         for name, r in (("forward", f_run), ("forward+backward", b_run)):
-            lines.append(f"| {name} | {n_threads} | {r['wall']:.3f} | {px_frames / r['wall'] / 1e6:.1f} | {r['wall_min']:.3f} | "
-                         f"{px_frames / r['wall_min'] / 1e6:.1f} | {r['cpu']:.3f} | {r['peak_mb']:.0f} |")
-    lines.append("")
+            walls = Measured.of(r["walls"])
+            fast, slow = px_frames / min(r["walls"]) / 1e6, px_frames / max(r["walls"]) / 1e6
+            table.row(name, str(n_threads), walls, Measured(px_frames / walls.value / 1e6, walls.repeats, slow, fast),
+                      Measured.of(r["walls"], "best"), Measured(fast, walls.repeats, slow, fast), Measured.of(r["cpus"]),
+                      r["peak_mb"], threads=n_threads)
+    sec.text("")
     for n_threads, (f_run, b_run) in runs.items():
-        lines.append(f"{n_threads} thread(s): backward alone / forward = "
-                     f"{(b_run['wall_min'] - f_run['wall_min']) / f_run['wall_min']:.2f} (best walls), "
-                     f"{(b_run['cpu'] - f_run['cpu']) / f_run['cpu']:.2f} (CPU time).")
-    lines.append("Targets: forward >= 20 Mpixel-frames/s, backward <= 3x forward on 2 cores.")
-    return "\n".join(lines)
+        case = f"{n_threads} thread(s)"
+        f_best, b_best = min(f_run["walls"]), min(b_run["walls"])
+        f_cpu, b_cpu = statistics.median(f_run["cpus"]), statistics.median(b_run["cpus"])
+        wall_ratio = sec.value(case, "backward alone / forward (best walls)", (b_best - f_best) / f_best, spec=".2f",
+                               threads=n_threads)
+        cpu_ratio = sec.value(case, "backward alone / forward (CPU time)", (b_cpu - f_cpu) / f_cpu, spec=".2f",
+                              threads=n_threads)
+        sec.text(f"{n_threads} thread(s): backward alone / forward = {wall_ratio} (best walls), {cpu_ratio} (CPU time).")
+    sec.text("Targets: forward >= 20 Mpixel-frames/s, backward <= 3x forward on 2 cores.")
 
 
-def _accuracy(quick: bool) -> str:
+def _accuracy(sec: Any, quick: bool) -> None:
+    from ..benchmarks import Column, timed
     from ..kernels import reference_kernel
     from .config import SensorConfig
     from .events import event_frames
     from .plan import plan_model
 
     H, W = (48, 64) if quick else (120, 160)
+    reps = 1 if quick else 2
     video64 = moving_texture(17, H, W, speed_px=2.0, level=0.1)
     kernel = reference_kernel("dog", 7)
     full = SensorConfig(substeps=256, leak_rate_hz=0.01, shot_noise_rate_hz=0.001, seed=1)
 
-    def run(video: Any, **kw: Any) -> tuple[Any, float]:
-        best, out = math.inf, None
-        for _ in range(1 if quick else 2):
-            t0 = time.perf_counter()
-            out = event_frames(video, kernel, **kw)
-            best = min(best, time.perf_counter() - t0)
-        return out.double(), best
+    def run(video: Any, **kw: Any) -> Any:
+        return timed(lambda: event_frames(video, kernel, **kw), reps)
 
-    ref, t_ref = run(video64, config=full)
+    t_ref = run(video64, config=full)
+    ref = t_ref.result.double()
     n_ref = float(ref.sum())
-    rows: list[tuple[str, Any, float]] = []
+    rows: list[tuple[str, Any]] = []
     for s in (1, 4, 16, 64):
-        f, t = run(video64, config=full.replace(substeps=s))
-        rows.append((f"fixed {s} sub-steps", f, t))
+        rows.append((f"fixed {s} sub-steps", run(video64, config=full.replace(substeps=s))))
     for frac in (1.0, 0.5, 0.25):
-        f, t = run(video64, config=full.replace(adaptive_fraction=frac, adaptive_region_px=0))
-        rows.append((f"adaptive, one count per frame interval (ESIM-like), {frac:g} C per step", f, t))
+        rows.append((f"adaptive, one count per frame interval (ESIM-like), {frac:g} C per step",
+                     run(video64, config=full.replace(adaptive_fraction=frac, adaptive_region_px=0))))
     for frac in (0.5,):
-        f, t = run(video64, config=full.replace(adaptive_fraction=frac, adaptive_region_px=32))
-        rows.append((f"adaptive per 32×32 region, {frac:g} C per step", f, t))
+        rows.append((f"adaptive per 32×32 region, {frac:g} C per step",
+                     run(video64, config=full.replace(adaptive_fraction=frac, adaptive_region_px=32))))
     for tol in (0.2, 0.05, 0.01):
         plan = plan_model(video64, tol, config=full, kernel=kernel)
-        f, t = run(video64, plan=plan)
-        rows.append((f"plan_model tol {tol:g} ({sum(plan.substeps)} steps; skips {', '.join(plan.skipped) or '-'})", f, t))
-    f, t = run(video64.float(), config=full.replace(substeps=64))
-    rows.append(("float32, 64 sub-steps", f, t))
-    f, t = run(video64, config=full.replace(substeps=64, convolution="direct"))
-    rows.append(("conv2d instead of FFT, 64 sub-steps", f, t))
-    f, t = run(video64, config=SensorConfig.ideal())
-    rows.append(("ideal sensor (no pixel effects)", f, t))
-    lines = [
-        f"### Speed vs accuracy: camera image moving 2 px/frame at 10 % of full scale, 17×{H}×{W}, 7×7 DoG",
-        "",
-        f"Reference: 256 fixed sub-steps per interval, float64, every effect on (v2e defaults): "
-        f"{n_ref:.0f} events in {t_ref:.2f} s.",
-        "",
-        "| setting | events | count error | frame L1 error | wall (s) | speed-up |",
-        "|---|---|---|---|---|---|",
-    ]
-    for name, f, t in rows:
+        rows.append((f"plan_model tol {tol:g} ({sum(plan.substeps)} steps; skips {', '.join(plan.skipped) or '-'})",
+                     run(video64, plan=plan)))
+    rows.append(("float32, 64 sub-steps", run(video64.float(), config=full.replace(substeps=64))))
+    rows.append(("conv2d instead of FFT, 64 sub-steps", run(video64, config=full.replace(substeps=64, convolution="direct"))))
+    rows.append(("ideal sensor (no pixel effects)", run(video64, config=SensorConfig.ideal())))
+    sec.text(f"### Speed vs accuracy: camera image moving 2 px/frame at 10 % of full scale, 17×{H}×{W}, 7×7 DoG", "")
+    case = "reference: 256 fixed sub-steps, float64, every effect on"
+    sec.text("Reference: 256 fixed sub-steps per interval, float64, every effect on (v2e defaults): "
+             f"{sec.value(case, 'events', n_ref, unit='count', spec='.0f')} events in "
+             f"{sec.value(case, 'wall time', t_ref, unit='s', spec='.2f', summary='best')} s.", "")
+    table = sec.table(Column.text("setting"), Column.number("events", ".0f", unit="count"),
+                      Column.number("count error", ".4f", metric="relative event-count error"),
+                      Column.number("frame L1 error", ".4f", metric="relative event-frame L1 error"),
+                      Column.number("wall (s)", ".3f", summary="best", metric="wall time (best)"),
+                      Column.number("speed-up", ".1f", suffix="×", metric="speed-up vs reference (best walls)"),
+                      settings={"height": H, "width": W, "frames": 17, "repeats": reps})
+    for name, t in rows:
+        f = t.result.double()
         n = float(f.sum())
-        lines.append(f"| {name} | {n:.0f} | {abs(n - n_ref) / max(n_ref, 1):.4f} | "
-                     f"{float((f - ref).abs().sum()) / max(n_ref, 1):.4f} | {t:.3f} | {t_ref / t:.1f}× |")
-    return "\n".join(lines)
+        table.row(name, n, abs(n - n_ref) / max(n_ref, 1), float((f - ref).abs().sum()) / max(n_ref, 1), t,
+                  t_ref.best_s / t.best_s)
 
 
-def _regions(quick: bool) -> str:
+def _regions(sec: Any, quick: bool) -> None:
     import torch
 
+    from ..benchmarks import Column, timed
     from .config import SensorConfig
     from .events import event_frames
 
@@ -258,19 +274,20 @@ def _regions(quick: bool) -> str:
                         dark_intensity=1e-3)
     ref = event_frames(video, None, config=base.replace(substeps=256)).double()
     n_ref = float(ref.sum())
-    lines = [f"### Adaptive steps per frame vs per region: one small dim object moving 4 px/frame over a "
-             f"bright still background, {T}×{H}×{W}", "",
-             f"Reference: 256 fixed sub-steps per interval ({n_ref:.0f} events).", "",
-             "| stepping | pixel sub-steps | frame L1 error | wall (s) |", "|---|---|---|---|"]
+    sec.text(f"### Adaptive steps per frame vs per region: one small dim object moving 4 px/frame over a "
+             f"bright still background, {T}×{H}×{W}", "")
+    n_text = sec.value("reference: 256 fixed sub-steps", "events", n_ref, unit="count", spec=".0f")
+    sec.text(f"Reference: 256 fixed sub-steps per interval ({n_text} events).", "")
+    table = sec.table(Column.text("stepping"), Column.number("pixel sub-steps", "d", unit="count"),
+                      Column.number("frame L1 error", ".4f", metric="relative event-frame L1 error"),
+                      Column.number("wall (s)", ".3f", metric="wall time"), settings={"height": H, "width": W, "frames": T})
     for name, cfg in (("fixed 256", base.replace(substeps=256)),
                       ("adaptive 0.5 C, one count per frame interval", base.replace(adaptive_fraction=0.5, adaptive_region_px=0)),
                       ("adaptive 0.5 C per 16×16 region", base.replace(adaptive_fraction=0.5, adaptive_region_px=16)),
                       ("adaptive 0.5 C per 32×32 region", base.replace(adaptive_fraction=0.5, adaptive_region_px=32))):
-        t0 = time.perf_counter()
-        f, info = event_frames(video, None, config=cfg, return_info=True)
-        t = time.perf_counter() - t0
-        lines.append(f"| {name} | {info.pixel_steps} | {float((f.double() - ref).abs().sum()) / max(n_ref, 1):.4f} | {t:.3f} |")
-    return "\n".join(lines)
+        t = timed(lambda cfg=cfg: event_frames(video, None, config=cfg, return_info=True))
+        f, info = t.result
+        table.row(name, info.pixel_steps, float((f.double() - ref).abs().sum()) / max(n_ref, 1), t)
 
 
 def bench_sim(*, quick: bool = False, records: list[dict[str, Any]] | None = None) -> Any:
@@ -278,19 +295,20 @@ def bench_sim(*, quick: bool = False, records: list[dict[str, Any]] | None = Non
     :func:`sim_records`, throughput/memory at 480×640×17, streaming, speed/accuracy and region
     stepping; ``quick``: small problems) and records — the per-case records of :func:`sim_records`
     (wall and CPU-time Mpixel-frames/s with their spread over repeats, peak RSS of a fresh child)
-    plus those read from the other tables. ``records``: reuse records already measured."""
+    and those of the other tables, each printed from its record. ``records``: reuse records
+    already measured. torch's random state and threads are left as they were."""
     import torch
 
-    from ..benchmarks import BenchRun, records_from_markdown
+    from ..benchmarks import BenchSection, kept_global_state
 
-    torch.manual_seed(0)
-    if records is None:
-        records = sim_records(quick=quick)
-    rest = _bench_sim_tables(quick)
-    markdown = "\n".join(["## sim — differentiable FS-DVS event simulator", "", records_markdown(records), "", rest])
-    threads = torch.get_num_threads()
-    return BenchRun("sim", markdown, tuple(_bench_records(records, quick))
-                    + tuple(records_from_markdown("sim", rest, settings={"quick": quick}, threads=threads)))
+    with kept_global_state():
+        torch.manual_seed(0)
+        if records is None:
+            records = sim_records(quick=quick)
+        sec = BenchSection("sim", settings={"quick": quick})
+        sec.text("## sim — differentiable FS-DVS event simulator", "", *records_markdown(records).splitlines(), "")
+        _bench_sim_tables(sec, quick)
+    return sec.run(extra=_bench_records(records, quick))
 
 
 def _bench_records(records: list[dict[str, Any]], quick: bool) -> list[Any]:
@@ -315,21 +333,23 @@ def _bench_records(records: list[dict[str, Any]], quick: bool) -> list[Any]:
     return out
 
 
-def _bench_sim_tables(quick: bool) -> str:
+def _bench_sim_tables(sec: Any, quick: bool) -> None:
     """The tables after the records: throughput/memory, streaming, speed/accuracy, region stepping."""
     import torch
 
-    parts = [_throughput(quick), "", _streaming(quick), ""]
+    _throughput(sec, quick)
+    sec.text("")
+    _streaming(sec, quick)
+    sec.text("")
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # small frames, many steps: one thread avoids sync overhead
     try:
-        parts.append(_accuracy(quick))
-        parts.append("")
-        parts.append(_regions(quick))
+        _accuracy(sec, quick)
+        sec.text("")
+        _regions(sec, quick)
     finally:
         torch.set_num_threads(threads)
-    parts.append("\n(speed/accuracy table timed with 1 torch thread)")
-    return "\n".join(parts)
+    sec.text("\n(speed/accuracy table timed with 1 torch thread)")
 
 
 # ---------------------------------------------------------------------------- records

@@ -14,16 +14,17 @@ Two tables:
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
-from ..benchmarks import kept_torch_threads
+from ..benchmarks import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
+from ..resources import shipped_path
 
 __all__ = ["bench_tasks", "bootstrap_interval", "SHIPPED_DIR"]
 
-SHIPPED_DIR = Path(__file__).resolve().parents[2] / "designs" / "kernels"
+#: The shipped kernels and checkpoints (:func:`fsdvs_hw.resources.shipped_path`).
+SHIPPED_DIR = shipped_path("kernels")
 
 
 def bootstrap_interval(evaluator, prediction, target, *, n_boot: int = 200, seed: int = 0) -> tuple[float, float]:
@@ -68,27 +69,34 @@ def _predictions(task: str, checkpoint: Path, n_test: int):
     return ev, _cat_predictions(preds), targets, kernel
 
 
-def bench_tasks(*, quick: bool = False) -> str:
-    """Markdown tables: time per epoch / evaluation, and metric CI versus test-set size.
+def bench_tasks(*, quick: bool = False) -> BenchRun:
+    """Tables: time per epoch / evaluation, and metric CI versus test-set size, as records and Markdown.
 
-    Timed with one torch thread; torch's thread count is restored afterwards.
+    Timed with one torch thread; torch's thread count and random state (training seeds it) and the
+    rest of the process-wide state are restored afterwards (:func:`~fsdvs_hw.benchmarks.kept_global_state`).
     """
     import torch
 
-    with kept_torch_threads():
+    with kept_global_state():
         torch.set_num_threads(1)
         return _bench_tasks(quick)
 
 
-def _bench_tasks(quick: bool) -> str:
+def _bench_tasks(quick: bool) -> BenchRun:
     from .learn import TrainingSettings, evaluate_kernel, learn_kernel
 
-    lines = ["## tasks: training / evaluation cost and evaluation accuracy vs test-set size", ""]
     n_train = 64 if quick else 512
-    lines += [f"Time per epoch ({n_train} training clips of 32×32×5 frames, batch 32, 7×7 kernel, one thread) "
-              "and per `evaluate_kernel` (256 test clips, shipped checkpoint, zero-shot).", "",
-              "| task | frozen-filter epoch (s) | joint epoch (s) | evaluate_kernel (s) | clips / s (joint) |",
-              "|---|---|---|---|---|"]
+    n_eval = 64 if quick else 256
+    sizes = (16, 32, 64) if quick else (64, 256, 1024, 2048)
+    n_boot = 50 if quick else 100
+    sec = BenchSection("tasks", settings={"quick": quick, "n_train": n_train, "n_eval": n_eval, "n_boot": n_boot})
+    sec.text("## tasks: training / evaluation cost and evaluation accuracy vs test-set size", "")
+    sec.text(f"Time per epoch ({n_train} training clips of 32×32×5 frames, batch 32, 7×7 kernel, one thread) "
+             "and per `evaluate_kernel` (256 test clips, shipped checkpoint, zero-shot).", "")
+    cost = sec.table(Column.text("task"), Column.number("frozen-filter epoch (s)", ".2f"),
+                     Column.number("joint epoch (s)", ".2f"), Column.number("evaluate_kernel (s)", ".2f"),
+                     Column.number("clips / s (joint)", ".0f", unit="clips/s", metric="training clips per second (joint)"),
+                     title="Time per epoch and per evaluation")
     for task in ("detection", "recognition"):
         print(f"[bench tasks] timing {task}", file=sys.stderr, flush=True)
         res = learn_kernel(task, 7, seed=0, n_train=n_train, n_test=32,
@@ -98,39 +106,38 @@ def _bench_tasks(quick: bool) -> str:
         ckpt = SHIPPED_DIR / f"learned_{task}_7x7.safetensors"
         if ckpt.is_file():
             kern = SHIPPED_DIR / f"learned_{task}_7x7.json"
-            n_eval = 64 if quick else 256
             evaluate_kernel(kern, task, ckpt, n_test=n_eval)  # warm the clip cache (scene rendering)
-            t0 = time.perf_counter()
-            evaluate_kernel(kern, task, ckpt, n_test=n_eval)
-            t_eval = f"{time.perf_counter() - t0:.2f}"
+            t_eval: object = timed(lambda: evaluate_kernel(kern, task, ckpt, n_test=n_eval))
         else:
             t_eval = "no shipped checkpoint"
-        fz = f"{frozen[0]:.2f}" if frozen else "— (joint from start)"
-        lines.append(f"| {task} | {fz} | {joint:.2f} | {t_eval} | {n_train / joint:.0f} |")
-    lines += ["", "Metric (×100) of the shipped 7×7 checkpoint versus test-set size: 95 % bootstrap interval "
-              "(100 resamples of clips), error against the largest set, and wall time (events + network + "
-              "metric).", "",
-              "| task | n_test | metric | 95 % CI | CI half-width | error vs largest | wall time (s) |",
-              "|---|---|---|---|---|---|---|"]
-    sizes = (16, 32, 64) if quick else (64, 256, 1024, 2048)
+        cost.row(task, Measured.of(frozen[:1]) if frozen else "— (joint from start)", Measured.of([joint]), t_eval,
+                 n_train / joint)
+    sec.text("", "Metric (×100) of the shipped 7×7 checkpoint versus test-set size: 95 % bootstrap interval "
+             "(100 resamples of clips), error against the largest set, and wall time (events + network + "
+             "metric).", "")
+    ci = sec.table(Column.text("task"), Column.text("n_test"), Column.number("metric", ".1f", unit="%",
+                                                                             metric="primary metric"),
+                   Column.numbers("95 % CI", "[{0}, {1}]", ("95 % CI low", "%", ".1f"),
+                                  ("95 % CI high", "%", ".1f")),
+                   Column.number("CI half-width", ".1f", unit="%", metric="95 % CI half-width"),
+                   Column.number("error vs largest", ".1f", unit="%", metric="error vs largest test set"),
+                   Column.number("wall time (s)", ".2f", metric="evaluate_kernel wall time"),
+                   title="Metric CI versus test-set size")
     for task in ("detection", "recognition"):
         ckpt = SHIPPED_DIR / f"learned_{task}_7x7.safetensors"
         if not ckpt.is_file():
-            lines.append(f"| {task} | — | no shipped checkpoint | | | | |")
+            ci.row(task, "—", "no shipped checkpoint", "", "", "", "")
             continue
         print(f"[bench tasks] CI vs n_test for {task}", file=sys.stderr, flush=True)
         ev, pred, target, _ = _predictions(task, ckpt, max(sizes))
         ref = ev.score(pred, target)[ev.primary_metric]
         for n in sizes:
-            t0 = time.perf_counter()
-            evaluate_kernel(SHIPPED_DIR / f"learned_{task}_7x7.json", task, ckpt, n_test=n)
-            wall = time.perf_counter() - t0
+            wall = timed(lambda n=n: evaluate_kernel(SHIPPED_DIR / f"learned_{task}_7x7.json", task, ckpt, n_test=n))
             p = {k: v[:n] for k, v in pred.items()}
             t = {k: v[:n] for k, v in target.items()}
             val = ev.score(p, t)[ev.primary_metric]
-            lo, hi = bootstrap_interval(ev, p, t, n_boot=50 if quick else 100)
-            lines.append(f"| {task} | {n} | {val * 100:.1f} | [{lo * 100:.1f}, {hi * 100:.1f}] | "
-                         f"{(hi - lo) * 50:.1f} | {abs(val - ref) * 100:.1f} | {wall:.2f} |")
-    lines += ["", "Timings are on this machine under whatever load it carries; re-run "
-              "`fsdvs-hw bench tasks` to reproduce."]
-    return "\n".join(lines) + "\n"
+            lo, hi = bootstrap_interval(ev, p, t, n_boot=n_boot)
+            ci.row(task, str(n), val * 100, (lo * 100, hi * 100), (hi - lo) * 50, abs(val - ref) * 100, wall)
+    sec.text("", "Timings are on this machine under whatever load it carries; re-run "
+             "`fsdvs-hw bench tasks` to reproduce.", "")
+    return sec.run()

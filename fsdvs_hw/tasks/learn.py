@@ -57,7 +57,7 @@ import numpy as np
 from ..errors import InputError, KernelError
 from ..kernels import Kernel, load_kernel
 
-__all__ = ["learn_kernel", "evaluate_kernel", "LearnResult", "Evaluation", "TrainingSettings",
+__all__ = ["learn_kernel", "evaluate_kernel", "finetune_network", "LearnResult", "Evaluation", "TrainingSettings",
            "load_checkpoint", "load_network", "default_sensor", "heldout_targets", "TEST_SEED", "CHECKPOINT_FORMAT"]
 
 #: Seed of every task's test clips (fixed, so that runs with different training seeds and kernel
@@ -736,6 +736,139 @@ def load_network(checkpoint: str | Path, task: Any, *, who: str = "load_network"
                          f"network ({str(exc).splitlines()[0]})") from None
     network.eval()
     return network, provenance
+
+
+def finetune_network(checkpoint: str | Path, task: Any, *, kernel: Any = None, realisation: Any = None,
+                     epochs: int = 4, lr_network: float = 1e-3, lr_filter: float = 1e-2, n_train: int | None = None,
+                     out: str | Path | None = None, verbose: bool = False) -> LearnResult:
+    """Continue training a trained task network with a realised kernel: frozen, or co-designed.
+
+    The network of ``checkpoint`` (trained with the ideal kernel) is trained further on the
+    checkpoint's own training clips (its ``seed``; the first ``n_train`` of them), with AdamW on
+    the backbone and head at ``lr_network``, for ``epochs`` epochs (issue 16, "fit then fine-tune"
+    and "co-designed" rows of the exploration, :mod:`fsdvs_hw.explore.codesign`):
+
+    * ``kernel`` given: the kernel is frozen (the realisation's fitted kernel); the events never
+      change, so they are simulated once;
+    * ``realisation`` given (a fitted :class:`~fsdvs_hw.realise.base.Realisation` with a
+      differentiable form): the realisation's own physical parameters train with the network at
+      ``lr_filter`` (:meth:`~fsdvs_hw.realise.registry.RealisationSpec.differentiable_kernel`, the
+      kernel buildable at every step), starting from the fitted design.
+
+    Parameters
+    ----------
+    checkpoint : path
+        ``STEM.safetensors`` written by :func:`learn_kernel`.
+    task : str or TaskEvaluator
+        The checkpoint's task.
+    kernel : Kernel or array, optional
+        The frozen kernel (exactly one of ``kernel`` and ``realisation``).
+    realisation : Realisation, optional
+        The fitted realisation to co-design.
+    epochs : int
+        Training epochs (≥ 1).
+    lr_network, lr_filter : float
+        AdamW learning rates of the network and of the realisation's parameters.
+    n_train : int, optional
+        Training clips (default: the checkpoint's ``n_train``; at most that many).
+    out : path, optional
+        File stem: writes the checkpoint (``STEM.safetensors``, scored like any other by
+        :func:`evaluate_kernel`), its kernel and provenance. The provenance is the original's with
+        ``finetune`` (mode, epochs, rates, clips, the source checkpoint, history) and, co-designed,
+        ``realisation``, ``realisation_initial`` and ``realisation_design``.
+    verbose : bool
+        One progress line per epoch on stderr.
+
+    Returns
+    -------
+    LearnResult
+        ``metrics`` is empty: the network is scored by the caller (per clip, on its own clips).
+
+    Raises
+    ------
+    InputError
+        Both or neither of ``kernel`` / ``realisation``, a realisation without a differentiable
+        form, bad counts or rates, an unreadable checkpoint.
+    """
+    import sys
+
+    import torch
+
+    from ..realise.registry import get_realisation, realisation_names
+    from ..scenes.synthetic import SceneConfig
+    from ..sensor import SensorConfig
+    from .evaluators import get_evaluator
+
+    t0 = time.perf_counter()
+    evaluator = get_evaluator(task)
+    if (kernel is None) == (realisation is None):
+        raise InputError("finetune_network: give exactly one of kernel= (frozen) and realisation= (co-designed)")
+    if isinstance(epochs, bool) or not isinstance(epochs, int) or not 1 <= epochs <= 100_000:
+        raise InputError(f"finetune_network: epochs must be an integer in [1, 100000], got {epochs!r}")
+    for nm, v in (("lr_network", lr_network), ("lr_filter", lr_filter)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0 <= v <= 10):
+            raise InputError(f"finetune_network: {nm} must be a finite number in [0, 10], got {v!r}")
+    network, prov = load_network(checkpoint, evaluator, who="finetune_network")
+    n_stored = int(prov["n_train"])
+    n = n_stored if n_train is None else n_train
+    if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= n_stored:
+        raise InputError(f"finetune_network: n_train must be an integer in [2, {n_stored}] (the checkpoint's "
+                         f"training clips), got {n_train!r}")
+    settings = TrainingSettings(**prov["settings"])
+    scene = SceneConfig.from_dict(prov["scene"])
+    sensor = SensorConfig(**prov["sensor"])
+    seed = int(prov["seed"])
+    torch.manual_seed(seed)
+    gen = torch.Generator().manual_seed(seed)
+    realised: dict[str, Any] = {}
+    if realisation is not None:
+        kind = getattr(realisation, "kind", None)
+        specs = [get_realisation(nm) for nm in realisation_names()]
+        spec = next((sp for sp in specs if sp.record_kind == kind and sp.differentiable
+                     and (sp.record_type is None or isinstance(realisation, sp.record_type))), None)
+        if spec is None:
+            raise InputError(f"finetune_network: realisation= must be a fitted realisation record, got "
+                             f"{type(realisation).__name__} (kind {kind!r})")
+        kernel_param: Any = spec.differentiable_kernel(realisation)
+        realised = {"realisation": spec.name, "realisation_initial": realisation.to_dict()}
+    else:
+        k = _as_kernel(kernel)
+        kernel_param = torch.as_tensor(np.array(k.taps), dtype=torch.float64)
+    video, targets = _dataset(scene, n, seed, evaluator.name, settings.dtype)
+    ts = scene.timestamps_s
+    network.train()
+    groups = [{"params": list(network.parameters()), "lr": lr_network, "weight_decay": settings.weight_decay}]
+    cached = None
+    if realised:
+        groups.insert(0, {"params": list(kernel_param.parameters()), "lr": lr_filter, "weight_decay": 0.0})
+    else:
+        with torch.no_grad():
+            cached = torch.cat([_network_input(video[s : s + 128], kernel_param, sensor, ts)
+                                for s in range(0, video.shape[0], 128)])
+    history: list[dict[str, Any]] = []
+    log = (lambda msg: print(msg, file=sys.stderr, flush=True)) if verbose else None
+    _train_epochs(evaluator, network, kernel_param, video, targets, sensor, ts, torch.optim.AdamW(groups), epochs,
+                  settings.batch_size, gen, "codesign" if realised else "finetune", history, cached_inputs=cached,
+                  log=log)
+    network.eval()
+    with torch.no_grad():
+        taps = (kernel_param() if realised else kernel_param).detach().clone()
+    if realised:
+        realised["realisation_design"] = kernel_param.to_design(codesign_task=evaluator.name).to_dict()
+    provenance = {k: v for k, v in prov.items() if k not in ("history", "metrics", "final_metric")}
+    provenance.update({
+        "finetune": {"mode": "codesign" if realised else "frozen kernel", "epochs": epochs, "lr_network": lr_network,
+                     "lr_filter": lr_filter if realised else 0.0, "n_train": n,
+                     "source_checkpoint": Path(checkpoint).name, "seconds": time.perf_counter() - t0},
+        "learn_filter": bool(realised), "history": history, **realised,
+        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    })
+    name = (f"{realised['realisation']} co-designed with {evaluator.name} network s{seed}" if realised
+            else f"{_as_kernel(kernel).name} (network fine-tuned)")
+    out_kernel = Kernel(taps.numpy(), name=name, provenance={k: v for k, v in provenance.items() if k != "history"})
+    paths = _save_checkpoint(Path(out), out_kernel, network, provenance) if out is not None else {}
+    return LearnResult(kernel=out_kernel, metrics={}, primary_metric=evaluator.primary_metric, history=history,
+                       provenance=provenance, paths=paths)
 
 
 def _check_test_seed(seed: Any, who: str) -> int:

@@ -9,6 +9,8 @@ arith
 rtl
     Verilog generation, Icarus simulation and yosys synthesis on the liberty file shipped in
     ``data/fsdvs_demo45.lib``.
+artifacts
+    The buildable files an exploration writes: Verilog, a self-checking testbench and vectors.
 bench
     ``fsdvs-hw bench asic``.
 options
@@ -39,9 +41,15 @@ SPEC = register_realisation(RealisationSpec(
         CostSpec("accumulator_bits", "bit", "accumulator width"),
         CostSpec("csd_digits", "count", "CSD digits"),
     ),
-    artifacts={"verilog": "streaming k×k shift-add filter RTL (AsicDesign.verilog)",
-               "synthesis": "yosys cell count and area on the shipped liberty file (AsicDesign.synthesise)"},
+    artifacts={"verilog": "streaming k×k shift-add filter RTL (fsdvs_conv.v, verilator -Wall clean)",
+               "testbench": "self-checking Icarus Verilog testbench (tb_fsdvs_conv.v)",
+               "stimulus": "test frames, hex (stimulus.hex)",
+               "expected_outputs": "expected outputs of the bit-exact integer model, hex (expected.hex)",
+               "taps": "integer taps and scale (taps.csv)"},
+    write_artifacts="fsdvs_hw.realise.asic.artifacts:write_asic_artifacts",
     colour="#d62728",
+    title="ASIC taps",
+    marker="^",
     in_default_design=True,
     description="quantised integer taps as a shift-add digital filter (nlopt scale + CSD tap search)",
 ))

@@ -12,6 +12,8 @@ mismatch
     Monte-Carlo conductance mismatch.
 spice
     SPICE netlist export and ngspice cross-check.
+artifacts
+    The buildable files an exploration writes: the ngspice deck and its operating point.
 bench
     ``fsdvs-hw bench mesh``.
 options
@@ -68,8 +70,12 @@ SPEC = register_realisation(RealisationSpec(
         CostSpec("g_lateral_wide", "S"), CostSpec("g_vertical_wide", "S"),
         CostSpec("node_capacitance", "F"), CostSpec("resistors_per_pixel", "count"),
     ),
-    artifacts={"spice_netlist": "SPICE netlist of the realised network (fsdvs_hw.realise.mesh.spice.to_spice_netlist)"},
+    artifacts={"spice_netlist": "ngspice deck of both meshes with an impulse current (mesh.cir)",
+               "operating_point": "node voltages, ground currents and kernel taps the deck reproduces (CSV)"},
+    write_artifacts="fsdvs_hw.realise.mesh.artifacts:write_mesh_artifacts",
     colour="#1f77b4",
+    title="resistive mesh",
+    marker="D",
     in_default_design=True,
     description="dual resistive mesh: K = w·δ + a·H_narrow − b·H_wide (casadi/IPOPT)",
 ))

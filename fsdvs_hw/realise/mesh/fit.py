@@ -419,7 +419,7 @@ class MeshDesign:
             "mismatch_sensitivity": CostItem(mismatch_sensitivity(self), "1", "relative kernel error per unit relative die-level mismatch"),
             "tail_energy_fraction": CostItem(self.tail_energy_fraction(), "1", "response energy outside the target window"),
             "whole_dc_gain": CostItem(self.whole_dc_gain, "1", "whole-circuit DC gain w_p + a - b (uniform input)"),
-            "response_size": CostItem(self.response_size(), "px", "window holding all but 1e-6 of the response energy"),
+            "response_size": CostItem(self.response_size(), "px", "window holding all but a millionth (10⁻⁶) of the response energy"),
         }
         if self.target is not None:
             c["kernel_error"] = CostItem(self.kernel_error(), "1", "relative L2 error of the whole response vs target")

@@ -4,6 +4,8 @@ Modules
 -------
 fit
     :class:`LensGeometry`, :class:`MetalensDesign`, :func:`pixel_psf` and :func:`fit_metalens`.
+artifacts
+    The buildable files an exploration writes: phase profile (CSV/NPZ), PSF and plot.
 bench
     ``fsdvs-hw bench metalens``.
 options
@@ -48,8 +50,14 @@ SPEC = register_realisation(RealisationSpec(
         CostSpec("lens_count", "count"),
         CostSpec("kernel_error", "1"),
     ),
-    artifacts={"psf": "the pixel-integrated PSF of each lens (MetalensDesign.psfs, in its JSON record)"},
+    artifacts={"phase_profile_csv": "phase vs radius per lens, SI columns (phase_profile.csv)",
+               "phase_profile_npz": "the profile with wavelengths, focal length, NA, pitch (phase_profile.npz)",
+               "psf": "pixel-integrated PSF per lens and the applied kernel (psf.npz)",
+               "plot": "phase profile and PSF (phase_psf.png)"},
+    write_artifacts="fsdvs_hw.realise.metalens.artifacts:write_metalens_artifacts",
     colour="#2ca02c",
+    title="metalens",
+    marker="v",
     in_default_design=True,
     description="metalens whose pixel-integrated PSF is the kernel (pedestal or differential pair)",
 ))

@@ -13,7 +13,7 @@ Tables (Markdown):
    learned_detection_7x7.json`` when present, else a LoG 7×7), both strategies: kernel error,
    radially symmetric floor, pedestal, efficiency, contrast factor, fit wall time. With
    ``quick=False`` the figure ``metalens_fits.png`` is written into ``figures`` (default: a
-   temporary folder; ``fsdvs-hw bench metalens --figures designs/figures`` regenerates the README's).
+   temporary folder; ``fsdvs-hw bench metalens --figures out/figures`` makes the README's).
 """
 
 from __future__ import annotations
@@ -25,12 +25,12 @@ from typing import Any
 
 import numpy as np
 
-from ...benchmarks import timed
+from ...benchmarks import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
+from ...resources import shipped_path
 
 __all__ = ["bench_metalens", "radial_symmetric_floor", "plot_fits"]
 
-_REPO = Path(__file__).resolve().parents[3]
-_LEARNED = _REPO / "designs" / "kernels" / "learned_detection_7x7.json"
+_LEARNED = shipped_path("kernels", "learned_detection_7x7.json")
 _FIGURE_NAME = "metalens_fits.png"
 
 
@@ -55,45 +55,42 @@ def radial_symmetric_floor(taps: np.ndarray) -> float:
     return float(np.linalg.norm(taps - out) / np.linalg.norm(taps))
 
 
-def _grid_table(quick: bool) -> list[str]:
+def _grid_table(sec: BenchSection, quick: bool) -> None:
     from .fit import LensGeometry, pixel_psf
 
     g = LensGeometry()
     kw = dict(coefficients=[2.0, -3.0], sensor_distance_m=240e-6, n_pixels=9, illuminant=555e-9)
     _log("grid reference (radial, window ×4, 4× modes, 24 nodes/pixel side)")
     ref = pixel_psf(g, **kw, window_pad=4.0, n_modes=1600, n_sub=24)
-    rows = ["| path | setting | error vs reference | time (s) |", "|---|---|---|---|"]
+    table = sec.table(Column.text("path"), Column.text("setting"),
+                      Column.number("error vs reference", ".2e", metric="relative L2 error vs reference"),
+                      Column.number("time (s)", ".3f", summary="best", metric="time"))
     radial = [("window ×1.5", dict(window_pad=1.5)), ("window ×2 (default)", {}), ("window ×3", dict(window_pad=3.0)),
               ("n_sub 4", dict(n_sub=4)), ("n_sub 8", dict(n_sub=8)), ("2× modes", dict(n_modes=600))]
     planar = [(f"{m} samples/pixel", dict(samples_per_pixel=m)) for m in ((9, 15) if quick else (9, 15, 21, 27))]
     for label, opts in radial:
         tm = timed(lambda: pixel_psf(g, **kw, **opts), 1 if quick else 3)
-        t, p = tm.best_s, tm.result
-        rows.append(f"| radial (Hankel) | {label} | {np.linalg.norm(p - ref) / np.linalg.norm(ref):.2e} | {t:.3f} |")
+        table.row("radial (Hankel)", label, np.linalg.norm(tm.result - ref) / np.linalg.norm(ref), tm)
     for label, opts in planar:
         _log(f"2-D angular spectrum {label}")
         tm = timed(lambda: pixel_psf(g, **kw, method="angular_2d", **opts))
-        t, p = tm.best_s, tm.result
-        rows.append(f"| 2-D angular spectrum | {label} | {np.linalg.norm(p - ref) / np.linalg.norm(ref):.2e} | {t:.3f} |")
-    return rows
+        table.row("2-D angular spectrum", label, np.linalg.norm(tm.result - ref) / np.linalg.norm(ref), tm)
 
 
-def _spectral_table(quick: bool) -> list[str]:
+def _spectral_table(sec: BenchSection, quick: bool) -> None:
     from .fit import LensGeometry, pixel_psf
 
-    g = LensGeometry()
     kw = dict(coefficients=[2.0, -3.0], sensor_distance_m=240e-6, n_pixels=9, illuminant="D65")
     _log("spectral reference (64 samples)")
-    ref = pixel_psf(g, **kw, n_wavelengths=64)
-    rows = ["| dispersion | wavelength samples | error vs 64 samples | time (s) |", "|---|---|---|---|"]
+    table = sec.table(Column.text("dispersion"), Column.text("wavelength samples"),
+                      Column.number("error vs 64 samples", ".2e", metric="relative L2 error vs 64 samples"),
+                      Column.number("time (s)", ".3f", summary="best", metric="time"))
     for disp in ("diffractive", "achromatic"):
         gd = LensGeometry(dispersion=disp)
         ref = pixel_psf(gd, **kw, n_wavelengths=64)
         for n in ((1, 4, 16) if quick else (1, 2, 4, 8, 16, 24, 32)):
             tm = timed(lambda: pixel_psf(gd, **kw, n_wavelengths=n))
-            t, p = tm.best_s, tm.result
-            rows.append(f"| {disp} | {n} | {np.linalg.norm(p - ref) / np.linalg.norm(ref):.2e} | {t:.3f} |")
-    return rows
+            table.row(disp, str(n), np.linalg.norm(tm.result - ref) / np.linalg.norm(ref), tm)
 
 
 def _targets() -> list[tuple[str, Any]]:
@@ -107,16 +104,24 @@ def _targets() -> list[tuple[str, Any]]:
     return out
 
 
-def _fit_table(quick: bool) -> tuple[list[str], list[tuple[str, Any, Any]]]:
+def _fit_table(sec: BenchSection, quick: bool) -> list[tuple[str, Any, Any]]:
     from .fit import fit_metalens
 
     opts: dict[str, Any] = dict(n_starts=2, max_iter=30, n_wavelengths=4, n_terms=2) if quick else {}
-    rows = [
-        "| target | strategy | kernel error (applied, pedestal included) | signal error (pedestal subtracted) "
-        "| symmetric floor | pedestal c / fraction | efficiency | contrast factor | whole-PSF DC (target) "
-        "| defocus (µm) | nodes/pixel side | fit wall / CPU time (s) | model error |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
+    table = sec.table(
+        Column.text("target"), Column.text("strategy"),
+        Column.number("kernel error (applied, pedestal included)", ".3f", unit="", metric="kernel error"),
+        Column.number("signal error (pedestal subtracted)", ".3f", unit="", metric="signal error"),
+        Column.number("symmetric floor", ".3f"),
+        Column.numbers("pedestal c / fraction", "{0} / {1} %", ("pedestal c", "", ".3g"), ("pedestal fraction", "%", ".0f")),
+        Column.number("efficiency", ".3f", metric="optical efficiency (smallest)"),
+        Column.number("contrast factor", ".3f"),
+        Column.numbers("whole-PSF DC (target)", "{0} ({1})", ("whole-PSF DC gain", "", ".3f"), ("target DC gain", "", ".3f")),
+        Column.number("defocus (µm)", metric="defocus"),  # cells: text quoting one recorded value per PSF
+        Column.number("nodes/pixel side", "d", unit="count", metric="quadrature nodes per pixel side"),
+        Column.numbers("fit wall / CPU time (s)", "{0} / {1}", ("fit wall time", "s", ".1f"), ("fit CPU time", "s", ".1f")),
+        Column.number("model error", ".1e", metric="model error vs reference fidelity"),
+        settings={"fit_options": opts})
     fits = []
     for label, k in _targets():
         pair = []
@@ -124,29 +129,26 @@ def _fit_table(quick: bool) -> tuple[list[str], list[tuple[str, Any, Any]]]:
             _log(f"fit {label} ({strategy})")
             d = fit_metalens(k, pitch_m=4.86e-6, strategy=strategy, **opts)
             pair.append(d)
-            ped = f"{d.pedestal:.3g} / {100 * d.pedestal_fraction:.0f} %" if strategy == "pedestal" else "—"
-            cf = d.contrast_factor
-            defocus = ", ".join(f"{(z - d.geometry.focal_length_m) * 1e6:+.1f}" for z in d.sensor_distance_m)
-            rows.append(
-                f"| {label} | {strategy} | {d.error:.3f} | {d.signal_error:.3f} | {radial_symmetric_floor(k.taps):.3f} | {ped} | "
-                f"{min(d.optical_efficiency):.3f} | {cf:.3f} | {d.whole_dc_gain:.3f} ({k.dc_gain:.3f}) | {defocus} | "
-                f"{d.fit_info['n_sub']} | "
-                f"{d.fit_info['wall_time_s']:.1f} / {d.fit_info['cpu_time_s']:.1f} | {d.fit_info['model_error']:.1e} |"
-                .replace("| nan |", "| n/a |")
-            )
+            case = f"target={label}; strategy={strategy}"
+            ped = (d.pedestal, 100 * d.pedestal_fraction) if strategy == "pedestal" else "—"
+            defocus = ", ".join(sec.value(case, f"defocus of PSF {i}", (z - d.geometry.focal_length_m) * 1e6, unit="µm",
+                                          spec="+.1f") for i, z in enumerate(d.sensor_distance_m))
+            table.row(label, strategy, d.error, d.signal_error, radial_symmetric_floor(k.taps), ped,
+                      min(d.optical_efficiency), d.contrast_factor, (d.whole_dc_gain, k.dc_gain), defocus,
+                      d.fit_info["n_sub"], (Measured.of([d.fit_info["wall_time_s"]]), Measured.of([d.fit_info["cpu_time_s"]])),
+                      d.fit_info["model_error"], case=case)
         fits.append((label, k, pair))
-    return rows, fits
+    return fits
 
 
 def plot_fits(fits: list[tuple[str, Any, Any]], path: Path) -> Path:
     """Figure: per target, the target, both applied kernels, the differential PSF pair and the errors."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Rectangle
 
     n = len(fits)
-    fig, axes = plt.subplots(n, 5, figsize=(15, 3.2 * n), squeeze=False)
+    fig = Figure(figsize=(15, 3.2 * n))  # no pyplot: no backend switch, no global figure registry
+    axes = fig.subplots(n, 5, squeeze=False)
     for row, (label, k, (ped, diff)) in enumerate(fits):
         pad = ped.guard_px
         target = np.pad(k.taps / np.abs(k.taps).max(), pad)
@@ -161,7 +163,7 @@ def plot_fits(fits: list[tuple[str, Any, Any]], path: Path) -> Path:
             lim = np.abs(img).max()
             im = ax.imshow(img, cmap=cmap, vmin=-lim if signed else 0, vmax=lim)
             g, s = pad, k.size
-            ax.add_patch(plt.Rectangle((g - 0.5, g - 0.5), s, s, fill=False, ec="k", lw=0.8, ls="--"))
+            ax.add_patch(Rectangle((g - 0.5, g - 0.5), s, s, fill=False, ec="k", lw=0.8, ls="--"))
             ax.set_title(title, fontsize=9)
             ax.set_xticks([])
             ax.set_yticks([])
@@ -170,43 +172,41 @@ def plot_fits(fits: list[tuple[str, Any, Any]], path: Path) -> Path:
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
-def bench_metalens(*, quick: bool = False, figures: Path | None = None) -> str:
-    """Run the metalens speed/accuracy benchmark and return Markdown (see module docstring)."""
+@kept_global_state()
+def bench_metalens(*, quick: bool = False, figures: Path | None = None) -> BenchRun:
+    """Run the metalens speed/accuracy benchmark: its records and Markdown tables (see module docstring)."""
     import torch
 
     threads = torch.get_num_threads()
-    parts = [
+    sec = BenchSection("metalens", settings={"quick": quick})
+    sec.text(
         "## metalens: PSF model fidelity and fits",
         "",
         f"torch threads: {threads}. Lens D = 100 µm, f = 200 µm (NA 0.243), diffractive dispersion, pitch 4.86 µm.",
         "",
         "### 1. Grid size, one wavelength (555 nm); reference: radial, window ×4, 1600 modes, 24² nodes/pixel",
         "",
-        *_grid_table(quick),
-        "",
-        "### 2. Spectral samples (D65 × CIE 1924 V(λ), equal-weight bins); reference: 64 samples",
-        "",
-        *_spectral_table(quick),
-        "",
-    ]
-    rows, fits = _fit_table(quick)
-    parts += [
-        "### 3. Fits (torch L-BFGS, float64; 8-sample search, 24-sample polish; PSFs re-evaluated at reference fidelity)",
-        "",
-        *rows,
+    )
+    _grid_table(sec, quick)
+    sec.text("", "### 2. Spectral samples (D65 × CIE 1924 V(λ), equal-weight bins); reference: 64 samples", "")
+    _spectral_table(sec, quick)
+    sec.text("", "### 3. Fits (torch L-BFGS, float64; 8-sample search, 24-sample polish; PSFs re-evaluated at reference fidelity)",
+             "")
+    fits = _fit_table(sec, quick)
+    sec.text(
         "",
         "kernel error: relative L2 of the applied kernel, pedestal included (the one definition the scorer uses), "
         "against the target, spill into the 2-pixel guard ring included; signal error: the same with the pedestal "
         "subtracted in the window (the shape). whole-PSF DC: the DC gain over all the light on the sensor. symmetric floor: distance from the target to its ring average (no "
         "rotationally symmetric lens can do better). contrast factor: log-contrast gain relative to the ideal kernel "
         "(n/a when the target has no positive DC). model error: fitted model vs reference-fidelity model.",
-    ]
+    )
     if not quick:
         folder = Path(figures) if figures is not None else Path(tempfile.mkdtemp(prefix="fsdvs_bench_metalens_"))
         path = plot_fits(fits, folder / _FIGURE_NAME)
-        parts += ["", f"Figure written: `{path}`."]
-    return "\n".join(parts) + "\n"
+        sec.text("", f"Figure written: `{path}`.")
+    sec.text("")
+    return sec.run()

@@ -242,9 +242,22 @@ class _RadialKernelModel:
 
         if not hasattr(coefficients, "detach"):
             coefficients = torch.as_tensor(np.asarray(coefficients, dtype=float))
-        phi0 = self._hyp + self._powers[:, : coefficients.shape[0]] @ coefficients
+        return self._pupil_of_phase(self._hyp + self._powers[:, : coefficients.shape[0]] @ coefficients)
+
+    def _pupil_of_phase(self, phi0: Any) -> Any:
+        """Pupil field per wavelength from the phase φ0 (rad at λ0) on :attr:`RadialPropagator.r_pupil`."""
+        import torch
+
         phi = phi0[None, :] * self.phase_scale
         return torch.polar(torch.ones_like(phi), phi)
+
+    def psf_of_phase(self, phi0: Any, z_m: Any) -> Any:
+        """Pixel taps (n, n) of a tabulated phase φ0 (rad at λ0, torch, on ``self.prop.r_pupil``) at distance ``z_m``.
+
+        The same propagation, spectral weights and pixel integration as :meth:`psf`, for a phase
+        profile given as numbers rather than coefficients (a reloaded artifact).
+        """
+        return self._psf_of_field(self._pupil_of_phase(phi0), z_m)
 
     def total(self, coefficients: Any, z_m: Any) -> Any:
         """Whole-PSF sum: the fraction of the aperture's power reaching the sensor plane (all pixels)."""
@@ -253,7 +266,9 @@ class _RadialKernelModel:
 
     def psf(self, coefficients: Any, z_m: Any) -> Any:
         """Pixel taps (n, n): fraction of the aperture's power landing on each pixel."""
-        field = self._pupil(coefficients)
+        return self._psf_of_field(self._pupil(coefficients), z_m)
+
+    def _psf_of_field(self, field: Any, z_m: Any) -> Any:
         u = self.prop.propagate(field, self.spectral.wavelengths_m, z_m, self.B)  # (L, Q)
         intensity = (self.w_lambda[:, None] * (u.real**2 + u.imag**2)).sum(0)  # (Q,)
         if self._A is not None:

@@ -1,0 +1,37 @@
+"""``fsdvs-hw report``: redraw the HTML report of an earlier run from its ``scores.json``
+(:func:`fsdvs_hw.report.write_report_from_scores`), without rerunning anything."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+
+HELP = "redraw DIR/report.html from the scores an earlier explore or sweep run stored (nothing is rerun)"
+DESCRIPTION = (
+    "Read DIR/scores.json (written by `fsdvs-hw explore DESIGN --out DIR` or `sweep --report DIR`) and\n"
+    "write report.html, scores.csv and scores.json again, into DIR or into --to. Use it after updating\n"
+    "fsdvs_hw, or to get the report of a run made elsewhere. Nothing is fitted or scored again.\n\n"
+    "Example: fsdvs-hw report designs/default.toml --out out/demo --to out/demo_redrawn"
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("design", type=Path, help="the TOML design file the run used")
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR",
+                        help="output folder of the earlier run (holds scores.json)")
+    parser.add_argument("--to", type=Path, default=None, metavar="DIR",
+                        help="folder to write the report into (default: replace the report in --out)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..explore.design import load_design
+    from ..paths import output_dir
+    from ..report import write_report_from_scores
+
+    design = load_design(args.design)
+    if args.to is not None:
+        output_dir(args.to, flag="--to")
+    print(f"report: {write_report_from_scores(args.out, design, to=args.to)}")
+    return 0
