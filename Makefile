@@ -13,7 +13,7 @@ PYTEST_ARGS ?=
 DEMO_OUT ?= out/demo
 CODESIGN_OUT ?= out/codesign
 
-.PHONY: demo codesign test test-all bench mutation setup system-deps clean
+.PHONY: demo codesign test test-all bench notebooks mutation setup system-deps clean
 
 demo: setup
 	$(BIN)/fsdvs-hw explore designs/default.toml --out $(DEMO_OUT)
@@ -31,6 +31,13 @@ test-all: setup
 
 bench: setup
 	$(BIN)/fsdvs-hw bench all
+
+# Execute the four notebooks/*.ipynb at full size in a fresh ipykernel each (nbclient) and store
+# them in place WITH outputs and figures; each notebook's wall time goes into its metadata.
+# NOTEBOOK_ARGS=--fast runs the small settings the tests use.
+NOTEBOOK_ARGS ?=
+notebooks: setup
+	PYTHONPATH=$(CURDIR) $(BIN)/python notebooks/execute.py $(NOTEBOOK_ARGS)
 
 # Sampled mutation check of fsdvs_hw/realise and fsdvs_hw/explore (cosmic-ray; see mutation/):
 # MUTANTS mutants drawn with MUTATION_SEED from all of them, each run against its module's fast

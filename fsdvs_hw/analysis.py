@@ -61,11 +61,29 @@ class KernelAnalysis:
 def analyse_kernel(
     kernel: Kernel | Any,
     *,
+    pitch_m: float | None = None,
     geometry: Geometry | None = None,
     methods: Sequence[str] = tuple(CSF_METHODS),
 ) -> KernelAnalysis:
-    """Spectral summary and CSF agreement of ``kernel`` against each model in ``methods``."""
-    kernel = as_kernel(kernel)
+    """Spectral summary and CSF agreement of ``kernel`` against each model in ``methods``.
+
+    Parameters
+    ----------
+    kernel : Kernel, path or array_like
+        What :func:`~fsdvs_hw.kernels.as_kernel` accepts (a Kernel, a kernel file, odd k×k taps).
+    pitch_m : float, optional
+        Pixel pitch in metres of an array (default :data:`~fsdvs_hw.kernels.DEFAULT_PITCH_M`);
+        a Kernel keeps its own (a different value is an error).
+    geometry : Geometry, optional
+        Pitch and focal length giving pixels per degree; None fits the scale (shape-only agreement).
+    methods : sequence of str
+        CSF models (:data:`~fsdvs_hw.csf.CSF_METHODS`).
+
+    Returns
+    -------
+    KernelAnalysis
+    """
+    kernel = as_kernel(kernel, pitch_m=pitch_m)
     agreements = {}
     for m in methods:
         a = csf_agreement(kernel, method=m, geometry=geometry)

@@ -346,20 +346,27 @@ class Kernel:
 
 
 # ---------------------------------------------------------------------- loading
-def as_kernel(kernel: Any, *, name: str = "kernel", pitch_m: float | None = None) -> Kernel:
+def as_kernel(kernel: Any, *, name: str = "kernel", pitch_m: float | None = None, repitch: bool = False) -> Kernel:
     """A :class:`Kernel` from what a user holds: a Kernel, a file path, a torch tensor or a k×k array.
+
+    Every public function of fsdvs_hw that takes a kernel passes it through here, so each accepts
+    the same things.
 
     Parameters
     ----------
     kernel : Kernel, str, Path, torch.Tensor or array_like
-        A Kernel is returned unchanged (``pitch_m`` then must be None or equal to its pitch); a
-        path is read with :func:`load_kernel`; anything else must be an odd square array of finite
-        taps.
+        A Kernel is returned unchanged (``pitch_m`` then must be None or equal to its pitch, unless
+        ``repitch``); a path is read with :func:`load_kernel`; anything else must be an odd square
+        array of finite taps.
     name : str
         Name given to an array (and used in error messages).
     pitch_m : float, optional
         Pixel pitch in metres for an array or a file (default :data:`DEFAULT_PITCH_M`, or the
         file's own).
+    repitch : bool
+        A Kernel given with a different ``pitch_m`` gets that pitch (same taps, name and
+        provenance) instead of being refused: for functions whose ``pitch_m`` argument means
+        "the pitch to design for".
 
     Raises
     ------
@@ -373,6 +380,8 @@ def as_kernel(kernel: Any, *, name: str = "kernel", pitch_m: float | None = None
     """
     if isinstance(kernel, Kernel):
         if pitch_m is not None and not math.isclose(float(pitch_m), kernel.pitch_m, rel_tol=1e-12):
+            if repitch:
+                return Kernel(kernel.taps, pitch_m=pitch_m, name=kernel.name, provenance=kernel.provenance)
             raise KernelError(f"{name}: a Kernel with pitch {kernel.pitch_m:.4g} m was given with pitch_m={pitch_m!r}; "
                               "use kernel.with_taps or pass the taps as an array")
         return kernel

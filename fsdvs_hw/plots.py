@@ -7,13 +7,14 @@ is shown or saved here. matplotlib is imported on first use.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .csf import Geometry, contrast_sensitivity, csf_agreement, csf_peak
 from .errors import InputError
-from .kernels import Kernel
+from .kernels import Kernel, as_kernel
 from .spectra import magnitude_spectrum, radial_response
 
 __all__ = ["plot_kernel", "plot_spectrum", "plot_radial_vs_csf"]
@@ -28,18 +29,28 @@ def _axes(ax: Any = None, figsize: tuple[float, float] = (4.2, 3.6)) -> tuple[An
     return fig, ax
 
 
-def plot_kernel(kernel: Kernel, ax: Any = None, *, annotate: bool | None = None, title: str | None = None) -> tuple[Any, Any]:
+def _one_kernel(kernels: Any) -> bool:
+    """True if ``kernels`` is one kernel (a Kernel, a path, a 2-D array or nested list of numbers)."""
+    if isinstance(kernels, (Kernel, str, Path)) or getattr(kernels, "ndim", None) == 2:
+        return True
+    return (isinstance(kernels, (list, tuple)) and len(kernels) > 0 and isinstance(kernels[0], (list, tuple))
+            and len(kernels[0]) > 0 and np.isscalar(kernels[0][0]))
+
+
+def plot_kernel(kernel: Kernel | Any, ax: Any = None, *, annotate: bool | None = None, title: str | None = None) -> tuple[Any, Any]:
     """Heat map of the taps on a diverging colour map centred at 0 (red > 0, blue < 0).
 
     Parameters
     ----------
-    kernel : Kernel
+    kernel : Kernel, path or array_like
+        What :func:`~fsdvs_hw.kernels.as_kernel` accepts.
     ax : matplotlib Axes, optional
     annotate : bool, optional
         Write each tap's value in its cell (default: for kernels up to 9×9).
     title : str, optional
         Defaults to the kernel's name.
     """
+    kernel = as_kernel(kernel)
     fig, ax = _axes(ax)
     t = kernel.taps
     vmax = float(np.abs(t).max())
@@ -58,8 +69,10 @@ def plot_kernel(kernel: Kernel, ax: Any = None, *, annotate: bool | None = None,
     return fig, ax
 
 
-def plot_spectrum(kernel: Kernel, ax: Any = None, *, n_fft: int = 128, title: str | None = None) -> tuple[Any, Any]:
-    """2-D magnitude spectrum |H(f_x, f_y)| over the Nyquist square (cycles/pixel)."""
+def plot_spectrum(kernel: Kernel | Any, ax: Any = None, *, n_fft: int = 128, title: str | None = None) -> tuple[Any, Any]:
+    """2-D magnitude spectrum |H(f_x, f_y)| over the Nyquist square (cycles/pixel); ``kernel`` as
+    :func:`~fsdvs_hw.kernels.as_kernel` accepts it."""
+    kernel = as_kernel(kernel)
     fig, ax = _axes(ax)
     f, mag = magnitude_spectrum(kernel, n_fft)
     step = f[1] - f[0]
@@ -73,7 +86,7 @@ def plot_spectrum(kernel: Kernel, ax: Any = None, *, n_fft: int = 128, title: st
 
 
 def plot_radial_vs_csf(
-    kernels: Kernel | Sequence[Kernel],
+    kernels: Kernel | Sequence[Kernel] | Any,
     *,
     methods: Sequence[str] = ("mannos_sakrison_1974",),
     geometry: Geometry | None = None,
@@ -85,10 +98,12 @@ def plot_radial_vs_csf(
     The bottom axis is the kernels' frequency in cycles/pixel; the top axis is cycles/degree,
     tied to the bottom by the geometry's pixels-per-degree, or — without a geometry — by the
     scale that best aligns the first kernel with the first CSF (:func:`~fsdvs_hw.csf.csf_agreement`),
-    stated in the legend.
+    stated in the legend. ``kernels`` is one kernel or a sequence of them, each as
+    :func:`~fsdvs_hw.kernels.as_kernel` accepts it (a single k×k array is one kernel).
     """
-    if isinstance(kernels, Kernel):
+    if _one_kernel(kernels):
         kernels = [kernels]
+    kernels = [as_kernel(k, name=f"kernel {i}") for i, k in enumerate(kernels)]
     if not kernels:
         raise InputError("plot_radial_vs_csf: need at least one kernel")
     fig, ax = _axes(ax, figsize=(5.6, 3.8))

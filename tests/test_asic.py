@@ -283,9 +283,14 @@ def test_fit_rejects_an_input_width_that_overflows_the_exact_model():
     assert np.all(fit_asic_taps(box, 24, input_bits=32).taps == 1)
 
 
-def test_fit_rejects_a_non_kernel():
+def test_fit_takes_taps_as_an_array_and_rejects_what_is_not_a_kernel():
+    k = reference_kernel("dog", 5)
+    a, b = fit_asic_taps(k, 6), fit_asic_taps(np.asarray(k), 6, pitch_m=k.pitch_m)
+    assert np.array_equal(a.taps, b.taps) and a.scale == b.scale
     with pytest.raises(InputError, match="Kernel"):
-        fit_asic_taps(np.ones((3, 3)), 8)
+        fit_asic_taps({"taps": 1}, 8)
+    with pytest.raises(InputError, match="odd"):
+        fit_asic_taps(np.ones((4, 4)), 8)
 
 
 # ---------------------------------------------------------------------------- protocol

@@ -167,3 +167,67 @@ def test_metalens_bench_figure_goes_to_the_figures_folder_or_a_temp_dir(monkeypa
     mb.bench_metalens(quick=False)
     assert Path(tempfile.gettempdir()) in drawn[1].parents
     assert PACKAGE.parent not in drawn[1].parents
+
+
+# one bad value each verb checks itself (after parsing), and one argparse error each
+_BAD_VALUES = {
+    "analyse": ["analyse", "dog", "--pitch-um", "-3"],
+    "bench": ["bench", "no_such_bench"],
+    "learn": ["learn", "no_such_task"],
+    "codesign-pilot": ["codesign-pilot", "--seeds", "-1"],
+    "ablation": ["ablation", "--sizes", "4"],
+    "explore": ["explore", "no/such/design.toml"],
+    "report": ["report", "designs/default.toml", "--out", "no/such/run_dir"],
+    "sweep": ["sweep", "no/such/design.toml"],
+    "simulate": ["simulate", "example:bikes", "--out", "events.txt"],
+    "sizing": ["sizing", "designs/default.toml", "--target", "-1"],
+}
+
+
+def _one_line_exit_2(argv, capsys) -> str:
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse's own errors
+        code = exc.code
+    err = capsys.readouterr().err.strip()
+    assert code == 2, (argv, code, err)
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    return err
+
+
+def test_every_verb_has_a_bad_value_case():
+    assert set(_BAD_VALUES) == set(COMMANDS)
+
+
+@pytest.mark.parametrize("verb", sorted(COMMANDS))
+def test_a_bad_value_is_one_line_on_stderr_and_exit_2(verb, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(Path(__file__).resolve().parents[1])
+    argv = [str(tmp_path / a) if a == "events.txt" else a for a in _BAD_VALUES[verb]]
+    err = _one_line_exit_2(argv, capsys)
+    assert err.startswith(f"fsdvs-hw {verb}: error:")
+
+
+@pytest.mark.parametrize("verb", sorted(COMMANDS))
+def test_an_unknown_option_is_one_line_on_stderr_and_exit_2(verb, capsys):
+    err = _one_line_exit_2([verb, "--no-such-option", "1"], capsys)
+    assert err.startswith(f"fsdvs-hw {verb}: error:") and f"fsdvs-hw {verb} --help" in err
+
+
+def test_every_verb_takes_no_progress_and_it_switches_bars_off(monkeypatch):
+    import argparse
+
+    from fsdvs_hw import progress
+    from fsdvs_hw.cli import _parser
+
+    sub = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction))
+    assert all("--no-progress" in p._option_string_actions for p in sub.choices.values())
+    monkeypatch.setattr(progress, "_ENABLED", True)
+    main(["analyse", "dog", "--no-progress"])
+    assert progress._ENABLED is False
+
+
+def test_the_installed_command_exits_2_without_a_traceback():
+    res = subprocess.run([sys.executable, "-m", "fsdvs_hw.cli", "sweep", "--workers", "many", "x.toml"],
+                         capture_output=True, text=True, cwd=PACKAGE.parent, check=False)
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1 and "Traceback" not in res.stderr
+    assert "--workers" in res.stderr

@@ -282,8 +282,10 @@ def test_fit_errors_name_the_problem():
         fit_metalens(reference_kernel("gaussian", 5), strategy="differential", **FAST)
     with pytest.raises(InputError, match="n_terms"):
         fit_metalens(k, n_terms=20)
-    with pytest.raises(InputError, match="kernel must be"):
-        fit_metalens(np.ones((3, 3)))
+    with pytest.raises(InputError, match="expected a Kernel"):
+        fit_metalens({"taps": np.ones((3, 3))})
+    with pytest.raises(InputError, match="odd"):
+        fit_metalens(np.ones((4, 4)))
 
 
 @pytest.mark.slow

@@ -1,7 +1,10 @@
 """The ``fsdvs-hw`` command: the only place that parses arguments (one thin module per verb).
 
-Errors a user can cause (bad input, a missing tool, a file or folder that cannot be read or
-written) print one line naming the file and the problem and exit with status 2, never a traceback.
+Errors a user can cause (bad input, a bad or missing argument, a missing tool, a file or folder
+that cannot be read or written) print one line naming the file and the problem and exit with
+status 2, never a traceback. Every verb takes ``--no-progress`` (progress bars, on stderr, show
+only when stderr is a terminal anyway; :mod:`fsdvs_hw.progress`), and its ``--help`` shows each
+option's default.
 
 Each verb is a module of this package, registered in :data:`COMMANDS` as a dotted module path. A
 verb module defines ``HELP`` (one line), optionally ``DESCRIPTION``, ``add_arguments(parser)``
@@ -16,6 +19,7 @@ import argparse
 import importlib
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from ..errors import InputError, ToolMissingError
 
@@ -51,8 +55,18 @@ class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
         return text + " (default: %(default)s)"
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (``fsdvs-hw VERB: error: ...``), exit 2.
+
+    argparse prints the whole usage block before the message; the usage is one ``--help`` away.
+    """
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="fsdvs-hw",
         description=(
             "Design frequency-selective event cameras: analyse a learned spatial kernel against "
@@ -68,7 +82,10 @@ def _parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=module.HELP.replace("%", "%%"), description=getattr(module, "DESCRIPTION", module.HELP),
                            formatter_class=_HelpFormatter)
         module.add_arguments(p)
-        p.set_defaults(_module=module)
+        if "--no-progress" not in p._option_string_actions:
+            p.add_argument("--no-progress", action="store_true",
+                           help="no progress bars (none either when stderr is not a terminal)")
+        p.set_defaults(_module=module, _parser=p)
     return parser
 
 
@@ -81,10 +98,15 @@ def _version() -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``fsdvs-hw`` console script; returns the exit status."""
     parser = _parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # named by the verb's parser, so the message points at the verb's --help
+        getattr(args, "_parser", parser).error(f"unrecognized arguments: {' '.join(extra)}")
     if not getattr(args, "command", None):
         parser.print_help()
         return 2
+    from ..progress import set_progress
+
+    set_progress(not args.no_progress)
     try:
         return int(args._module.run(args) or 0)
     except (InputError, ToolMissingError) as exc:

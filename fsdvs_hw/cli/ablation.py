@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     options = AblationOptions(
         tasks=tuple(args.tasks), sizes=tuple(args.sizes), seeds=tuple(args.seeds), n_train=args.n_train,
         n_test=args.n_test, epochs_frozen=args.epochs_frozen, epochs_joint=args.epochs_joint, workers=args.workers,
-        scheduler=args.scheduler, progress=not args.no_progress, transfer=args.transfer,
+        scheduler=args.scheduler, progress=False if args.no_progress else None, transfer=args.transfer,
         frozen_tasks=tuple(args.frozen_tasks), transfer_only=args.transfer_only, frozen_only=args.frozen_only,
         out=args.out, ship_dir=args.ship_dir, from_store=args.from_store, command=cmd)
     study = run_ablation_study(options)

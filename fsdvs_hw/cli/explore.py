@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     output_dir(args.out, flag="--out")  # before any work
     print(f"[explore] {design.name}: target {design.target!r}", file=sys.stderr, flush=True)
     res = run_exploration(design, args.out, workers=args.workers, scheduler=args.scheduler,
-                          progress=not args.no_progress, retry_errors=args.retry_errors, max_points=args.max_points,
+                          progress=False if args.no_progress else None, retry_errors=args.retry_errors, max_points=args.max_points,
                           security=security_from_args(args))
     print(f"[explore] {res.summary}", file=sys.stderr)
     print(summary_markdown(score_rows(res.points)) + "\n")

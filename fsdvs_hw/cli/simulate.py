@@ -39,7 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="frame intervals per chunk (default 1; peak memory grows with the events of one chunk, ~230 B each)")
     parser.add_argument("--threads", type=int, default=None,
                         help="torch intra-op threads (default: torch's); 1 is often faster on a loaded machine")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is not a terminal)")
 
 
 def _size(text: str | None) -> tuple[int, int] | None:
@@ -57,11 +57,10 @@ def _size(text: str | None) -> tuple[int, int] | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from ..errors import InputError
     from ..kernels import load_kernel_or_reference
     from ..paths import output_file
+    from ..progress import progress_bar
     from ..scenes.video import example_clip_path, iter_video, video_properties
     from ..sensor import SensorConfig, simulate
     from ..sensor.eventfile import EventFileWriter, event_format
@@ -89,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     n_events = n_on = 0
     writer = None
-    bar = tqdm(total=total, unit="frame", desc="simulate", disable=args.no_progress)
+    bar = progress_bar(total=total, unit="frame", desc="simulate", progress=False if args.no_progress else None)
     try:
         for chunk in simulate(frames, kernel, config=config, chunk_frames=args.chunk_frames):
             if writer is None:

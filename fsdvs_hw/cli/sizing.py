@@ -38,8 +38,15 @@ def run(args: argparse.Namespace) -> int:
     from ..explore.store import ResultsStore
     from ..paths import output_dir
 
+    # checked before the pilot runs (minutes), not after
+    if args.target is not None and not (0 < args.target < 1):
+        raise InputError(f"--target {args.target!r}: a CI half-width must lie in (0, 1)")
+    if not args.margin >= 1.0:
+        raise InputError(f"--margin {args.margin!r}: must be >= 1")
+    if args.from_run is None and args.pilot < 2:
+        raise InputError(f"--pilot {args.pilot!r}: must be >= 2 test clips")
     design = load_design(resolve_design(args.design))
-    target = args.target or design.data["scoring"]["target_half_width"]
+    target = design.data["scoring"]["target_half_width"] if args.target is None else args.target
     if args.from_run is not None:
         store_path = args.from_run / "results.sqlite"
         if not store_path.is_file():
@@ -48,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         output_dir(args.out, flag="--out")  # before the pilot run
         pilot = design.with_overrides({"tasks.n_test": args.pilot, "tasks.n_test_emulation": 0})
-        run_exploration(pilot, args.out, progress=False)
+        run_exploration(pilot, args.out, progress=False if args.no_progress else None)
         store_path = args.out / "results.sqlite"
         what = f"pilot {args.pilot} clips per task and network"
     with ResultsStore(store_path) as store:

@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     points = expand_points(design, max_points=args.max_points)
     print(f"[sweep] {design.name}: {len(points)} design points -> {store_path}", file=sys.stderr, flush=True)
     summary, rows = run_design(design, store_path, workers=args.workers, scheduler=args.scheduler,
-                               progress=not args.no_progress, retry_errors=args.retry_errors, points=points,
+                               progress=False if args.no_progress else None, retry_errors=args.retry_errors, points=points,
                                security=security_from_args(args))
     print(f"[sweep] {summary}", file=sys.stderr, flush=True)
     if args.report is not None:

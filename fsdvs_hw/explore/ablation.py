@@ -91,7 +91,7 @@ def evaluate_ablation_point(point: AblationPoint) -> dict[str, Any]:
 
 
 def run_ablation(points: list[AblationPoint], store_path: str | Path, *, workers: int = 1, scheduler: str | None = None,
-                 progress: bool = True) -> list[dict[str, Any]]:
+                 progress: bool | None = None) -> list[dict[str, Any]]:
     """Run every point not yet stored; return the records of all ``points`` (status ``ok``) in order."""
     from .store import ResultsStore
     from .sweep import run_points
@@ -130,8 +130,8 @@ class AblationOptions:
         Local worker processes, 1..256.
     scheduler : str, optional
         Dask scheduler address (``tcp://HOST:PORT``) instead of local processes.
-    progress : bool
-        Progress bar on stderr.
+    progress : bool, optional
+        Progress bar on stderr (None, the default: when stderr is a terminal; see :mod:`fsdvs_hw.progress`).
     transfer : str, optional
         Kernel file for the segmentation transfer, or ``"from-run"`` (the first seed's 7×7
         detection kernel learned here).
@@ -158,7 +158,7 @@ class AblationOptions:
     epochs_joint: int | None = None
     workers: int = 1
     scheduler: str | None = None
-    progress: bool = True
+    progress: bool | None = None
     transfer: str | None = None
     frozen_tasks: tuple[str, ...] = ()
     transfer_only: bool = False

@@ -39,7 +39,7 @@ class Exploration:
 
 
 def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers: int | None = None,
-                    scheduler: str | None = None, progress: bool = True, retry_errors: bool = False,
+                    scheduler: str | None = None, progress: bool | None = None, retry_errors: bool = False,
                     max_points: int | None = None, security: Any = None) -> Exploration:
     """Explore one design: fit, score and report every design point.
 
@@ -59,8 +59,8 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
         Local worker processes (default: the design's ``[run] workers``).
     scheduler : str, optional
         Dask scheduler address ``tcp://HOST:PORT``.
-    progress : bool
-        Progress bar on stderr.
+    progress : bool, optional
+        Progress bar on stderr (None, the default: when stderr is a terminal; see :mod:`fsdvs_hw.progress`).
     retry_errors : bool
         Rerun points that failed in an earlier run into the same ``out_dir``.
     max_points : int, optional

@@ -24,7 +24,6 @@ import json
 import math
 import os
 import socket
-import sys
 import time
 import traceback
 import warnings
@@ -265,7 +264,7 @@ def _record(store: ResultsStore, point: DesignPoint, res: dict[str, Any]) -> Non
 
 
 def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: int = 1,
-               scheduler: str | None = None, progress: bool = True,
+               scheduler: str | None = None, progress: bool | None = None,
                on_result: Callable[[DesignPoint, dict[str, Any]], None] | None = None,
                evaluate: Callable[[Any], dict[str, Any]] | None = None, desc: str = "design points",
                security: Any = None) -> SweepSummary:
@@ -285,8 +284,9 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
         code on the workers and on this machine).
     security : distributed.Security, optional
         TLS certificates for ``tls://`` (see :func:`dask_security`); default: Dask's configuration.
-    progress : bool
-        Show a tqdm progress bar on stderr.
+    progress : bool, optional
+        Show a tqdm progress bar on stderr: True, False, or None (default) when stderr is a terminal
+        (:func:`fsdvs_hw.progress.progress_enabled`).
     on_result : callable, optional
         Called as ``on_result(point, result)`` after each result is stored.
     evaluate : callable, optional
@@ -297,15 +297,14 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
     desc : str
         Label of the progress bar.
     """
-    from tqdm import tqdm
+    from ..progress import progress_bar
 
     t0 = time.perf_counter()
     done = store.done()
     todo = [p for p in points if p.key not in done]
     statuses: dict[str, int] = {}
     evaluate = evaluate or evaluate_point
-    bar = tqdm(total=len(points), initial=len(points) - len(todo), desc=desc, unit="pt",
-               disable=not progress, file=sys.stderr, dynamic_ncols=True)
+    bar = progress_bar(total=len(points), initial=len(points) - len(todo), desc=desc, unit="pt", progress=progress)
 
     def finish(point: DesignPoint, res: dict[str, Any]) -> None:
         _record(store, point, res)
@@ -413,7 +412,7 @@ def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
 
 
 def run_design(design: Design, store_path: str | Path, *, workers: int | None = None, scheduler: str | None = None,
-               progress: bool = True, retry_errors: bool = False, max_points: int | None = None,
+               progress: bool | None = None, retry_errors: bool = False, max_points: int | None = None,
                points: Sequence[DesignPoint] | None = None,
                security: Any = None) -> tuple[SweepSummary, list[dict[str, Any]]]:
     """Run all points of ``design`` into the store at ``store_path``; return the summary and its rows.

@@ -43,7 +43,7 @@ from types import MappingProxyType
 from typing import Any
 
 from ..errors import InputError
-from ..kernels import Kernel, reference_kernel
+from ..kernels import Kernel, as_kernel, reference_kernel
 from ..validation import Option, check_option, check_options
 from .artifacts import Artifact
 from .base import Realisation, ReferenceRealisation
@@ -362,13 +362,16 @@ def check_realisation_options(name: str, values: Mapping[str, Any], *, prefix: s
     return get_realisation(name).check_options(values, prefix=prefix)
 
 
-def fit_realisation(name: str, target: Kernel, options: Mapping[str, Any] | None = None, *,
+def fit_realisation(name: str, target: Kernel | Any, options: Mapping[str, Any] | None = None, *,
                     seed: int = 0) -> Realisation:
     """Fit the realisation ``name`` to ``target`` with its options.
 
-    The target's pitch (m) is passed as ``pitch_m`` and ``seed`` as ``seed`` where the realisation
-    declares them as options and ``options`` does not set them.
+    ``target`` is anything :func:`~fsdvs_hw.kernels.as_kernel` accepts (a Kernel, a kernel file,
+    odd k×k taps at the default pitch). The target's pitch (m) is passed as ``pitch_m`` and
+    ``seed`` as ``seed`` where the realisation declares them as options and ``options`` does not
+    set them.
     """
+    target = as_kernel(target, name="target")
     spec = get_realisation(name)
     options = dict(options or {})
     if "pitch_m" in spec.options and "pitch_m" not in options:

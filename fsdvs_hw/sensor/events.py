@@ -295,12 +295,12 @@ def _init_state(L0: Any, SU0: Any, config: SensorConfig, thresholds: tuple[Any, 
 
 
 def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: SensorConfig, substeps: list[int],
-             collect_events: bool, events: list, want_counts: bool = True) -> list:
+             collect_events: bool, events: list, want_counts: bool = True, bar: Any = None) -> list:
     """Step the pixels of ``st`` through frames ``Ls[0] → Ls[1] → ...`` (tuples of (B, H, W));
     ``Ls[0]`` is the frame the state is at. Returns the [on, off, on, off, ...] interval counts
     (``None`` entries unless ``want_counts``); each interval's time-sorted ``(flat, t, p)`` events
     (:func:`.crossings.sort_interval`, or None) are appended to ``events``. ``tsd``: (B, len(Ls))
-    float64 frame times."""
+    float64 frame times. ``bar`` (tqdm, optional) advances by one per frame interval."""
     B, H, W = Ls[0].shape
     dev, dt_ = Ls[0].device, Ls[0].dtype
     c_on, c_off, eps = st.c_on, st.c_off, st.eps
@@ -375,6 +375,8 @@ def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Senso
         frames += [on_acc, off_acc]
         if collect_events:
             events.append(sort_interval(step_parts))
+        if bar is not None:
+            bar.update(1)
     st.ref, st.lp, st.sur, st.sig_prev, st.last_t = ref, lp, sur, sig_prev, last_t
     st.noise_events, st.lost = noise_events, lost
     return frames
@@ -382,7 +384,7 @@ def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Senso
 
 def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[int],
          generator: Any, collect_events: bool, thresholds: tuple[Any, Any] | None = None,
-         phase: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
+         phase: Any = None, bar: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
     """Step every pixel through time; return counts (B, T-1, 2, H, W), info and events.
 
     ``thresholds`` and ``phase`` (per-pixel maps) are drawn here unless given (region stepping
@@ -399,7 +401,7 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
             and _refractory_never_binds(Ls, ts, st.c_on, st.c_off, config):
         config = config.replace(refractory_s=0.0)  # nothing can be lost: skip the refractory path
     events: list = []
-    frames = _advance(st, Ls, CI, SU, ts.to(dtype=torch.float64), config, substeps, collect_events, events)
+    frames = _advance(st, Ls, CI, SU, ts.to(dtype=torch.float64), config, substeps, collect_events, events, bar=bar)
     out = torch.stack(frames, dim=1).view(B, T - 1, 2, H, W)
     ev = None
     if collect_events:
@@ -442,7 +444,7 @@ def _as_float(x: Any) -> float:
 
 
 def _simulate(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | None, plan: Any,
-              generator: Any, collect_events: bool) -> tuple[Any, SimulationInfo, EventList | None]:
+              generator: Any, collect_events: bool, bar: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
     video, w, ts, config, subs = _resolve(video, kernel, timestamps_s, config, plan)
     signal = filtered_log_signal(video, w, config)
     step = None  # log-signal change allowed per sub-step (adaptive stepping)
@@ -452,8 +454,8 @@ def _simulate(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig |
     elif plan is not None:
         step = plan.step_log_units
     if step is not None and config.adaptive_region_px > 0 and max(subs) > 1:
-        return _run_regions(signal, ts, config, subs, step, generator, collect_events)
-    return _run(signal, ts, config, subs, generator, collect_events)
+        return _run_regions(signal, ts, config, subs, step, generator, collect_events, bar)
+    return _run(signal, ts, config, subs, generator, collect_events, bar=bar)
 
 
 def _adaptive_step(config: SensorConfig, transient: bool) -> float | None:
@@ -511,7 +513,7 @@ def _reference_phase(config: SensorConfig, H: int, W: int, like: Any) -> Any:
 
 
 def _run_regions(signal: FilteredSignal, ts: Any, config: SensorConfig, subs: list[int], step: float,
-                 generator: Any, collect_events: bool) -> tuple[Any, SimulationInfo, EventList | None]:
+                 generator: Any, collect_events: bool, bar: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
     """Adaptive stepping per square region: each region gets the sub-steps its own largest log
     change needs (rounded up to a power of two, at most the global count), so still regions are
     not stepped at the rate of the fastest one. Pixels are independent after the spatial filter,
@@ -531,7 +533,11 @@ def _run_regions(signal: FilteredSignal, ts: Any, config: SensorConfig, subs: li
     phase = _reference_phase(config, H, W, L) if config.random_reference_phase else None
     out = torch.zeros((B, T - 1, 2, H * W), dtype=L.dtype, device=L.device)
     infos, events = [], []
-    for lv in level_px.unique().tolist():
+    levels = level_px.unique().tolist()
+    if bar is not None:  # each group of regions steps through every frame interval
+        bar.total = (T - 1) * len(levels)
+        bar.refresh()
+    for lv in levels:
         idx = torch.nonzero(level_px == lv)[:, 0].to(L.device)
 
         def take(x: Any) -> Any:
@@ -540,7 +546,7 @@ def _run_regions(signal: FilteredSignal, ts: Any, config: SensorConfig, subs: li
         part = FilteredSignal(take(L), take(signal.surround), take(signal.cutoff_intensity), signal.floor_fraction)
         thr = tuple(take(c) if c.ndim else c for c in (c_on, c_off))
         sub_part = [min(s, 2 ** lv) for s in subs]
-        f, info, ev = _run(part, ts, config, sub_part, generator, collect_events, thr, take(phase))
+        f, info, ev = _run(part, ts, config, sub_part, generator, collect_events, thr, take(phase), bar)
         out = out.index_copy(-1, idx, f.reshape(B, T - 1, 2, -1))
         infos.append(info)
         if ev is not None and len(ev):
@@ -610,17 +616,24 @@ def event_frames(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
 
 
 def event_list(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
-               config: SensorConfig | None = None, plan: Any = None, generator: Any = None) -> EventList:
+               config: SensorConfig | None = None, plan: Any = None, generator: Any = None,
+               progress: bool | None = None) -> EventList:
     """Exact, non-differentiable events (b, x, y, t, p) with per-event interpolated timestamps.
 
     Same model and arguments as :func:`event_frames` (the "realistic track"); counting the
     returned events per frame interval reproduces ``event_frames`` exactly. Each crossing of a
     threshold level gets its own time, linearly interpolated within its (sub-)step.
+    ``progress``: a bar over the frame intervals on stderr (True, False, or None: when stderr is a
+    terminal; :mod:`fsdvs_hw.progress`).
     """
     import torch
 
-    with torch.no_grad():
-        _, _, ev = _simulate(video, kernel, timestamps_s, config, plan, generator, True)
+    from ..progress import progress_bar
+
+    n_intervals = max(int(getattr(video, "shape", (0, 1))[1]) - 1, 0) if getattr(video, "ndim", 0) >= 2 else None
+    with torch.no_grad(), progress_bar(total=n_intervals, desc="event_list", unit="frame", progress=progress,
+                                       leave=False) as bar:
+        _, _, ev = _simulate(video, kernel, timestamps_s, config, plan, generator, True, bar)
     return ev
 
 

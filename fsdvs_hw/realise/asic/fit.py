@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import InputError
-from ...kernels import Kernel
+from ...kernels import Kernel, as_kernel
 from ...validation import check_fit_arguments
 from .options import OPTIONS
 from .arith import (
@@ -578,9 +578,10 @@ def _divide_common_factor(p: _TapProblem, q: np.ndarray, s: float, *, powers_of_
 
 
 def fit_asic_taps(
-    kernel: Kernel,
+    kernel: Kernel | Any,
     bits: int = 8,
     *,
+    pitch_m: float | None = None,
     symmetry: str = "auto",
     scale: str | float = "free",
     adder_weight: float = 0.0,
@@ -594,10 +595,14 @@ def fit_asic_taps(
 
     Parameters
     ----------
-    kernel : Kernel
-        Target kernel (odd k×k).
+    kernel : Kernel or array_like
+        Target kernel: a :class:`~fsdvs_hw.kernels.Kernel`, a kernel file or odd k×k taps (see
+        :func:`~fsdvs_hw.kernels.as_kernel`).
     bits : int
         Signed tap width including the sign, 2…24 (``-2**(bits-1) ≤ q ≤ 2**(bits-1) - 1``).
+    pitch_m : float, optional
+        Pixel pitch in metres (default: the kernel's; an array's is
+        :data:`~fsdvs_hw.kernels.DEFAULT_PITCH_M`). It matters only to ``objective="csf"``.
     symmetry : {"auto", "none", "quadrant", "8-fold"}
         Symmetry imposed on the taps. ``auto`` picks the highest symmetry the target has (to 1e-9
         relative); an explicit one projects the target onto it first.
@@ -635,8 +640,7 @@ def fit_asic_taps(
     """
     check_fit_arguments(OPTIONS, locals())  # the registry's schema: same limits as design files
     t0 = time.perf_counter()
-    if not isinstance(kernel, Kernel):
-        raise InputError(f"kernel: expected a fsdvs_hw Kernel, got {type(kernel).__name__}")
+    kernel = as_kernel(kernel, pitch_m=pitch_m, repitch=True)
     lo_q, lim = tap_range(bits)
     if objective not in OBJECTIVES:
         raise InputError(f"objective: {objective!r} unknown; allowed: {', '.join(OBJECTIVES)}")
@@ -695,7 +699,7 @@ def fit_asic_taps(
                       symmetry=sym, input_bits=int(input_bits), pre_add=bool(pre_add), adder_weight=lam, fit_info=info)
 
 
-def exhaustive_asic_taps(kernel: Kernel, bits: int, *, symmetry: str, adder_weight: float = 0.0,
+def exhaustive_asic_taps(kernel: Kernel | Any, bits: int, *, symmetry: str, adder_weight: float = 0.0,
                          pre_add: bool = True, objective: str = "kernel", geometry: Any = None,
                          csf_method: str = "mannos_sakrison_1974",
                          max_combinations: int = 2_000_000) -> tuple[np.ndarray, float, float]:
@@ -708,6 +712,7 @@ def exhaustive_asic_taps(kernel: Kernel, bits: int, *, symmetry: str, adder_weig
     -------
     (taps, scale, objective)
     """
+    kernel = as_kernel(kernel)
     sym = _resolve_symmetry(kernel, symmetry)
     cls = symmetry_classes(kernel.size, sym)
     if objective not in OBJECTIVES:

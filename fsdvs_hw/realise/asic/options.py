@@ -8,13 +8,15 @@ words. The ranges are the fit function's own (see its docstring).
 
 from __future__ import annotations
 
-from ...validation import Option, option
+from ...validation import PITCH_RANGE_M, Option, option
 
 __all__ = ["OPTIONS"]
 
 #: option → schema
 OPTIONS: dict[str, Option] = {
     "bits": option("int", 8, "bit", "signed tap width including the sign", lo=2, hi=24),
+    "pitch_m": option("float", None, "m", "pixel pitch (default: the kernel's)", nullable=True,
+                      lo=PITCH_RANGE_M[0], hi=PITCH_RANGE_M[1]),
     "symmetry": option("str", "auto", "", "symmetry imposed on the taps",
                        choices=("auto", "none", "quadrant", "8-fold")),
     "scale": option("float|str", "free", "", "tap scale: 'free', 'pow2' or a fixed positive number",

@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import InputError
-from ...kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, _validate_pitch
+from ...kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, _validate_pitch, as_kernel
 from ...validation import check_fit_arguments
 from .options import OPTIONS
 from ..base import CostItem, kernel_error
@@ -696,11 +696,9 @@ def _mesh_solver(radius: int, model: str, lam_max: float, half_width: int | None
 
 
 def _coerce_kernel(kernel: Any, pitch_m: float | None) -> Kernel:
-    if isinstance(kernel, Kernel):
-        return kernel if pitch_m is None else Kernel(kernel.taps, pitch_m=pitch_m, name=kernel.name, provenance=kernel.provenance)
-    if isinstance(kernel, (str, bytes)) or kernel is None:
-        raise InputError(f"kernel: expected a fsdvs_hw Kernel or a 2-D array of taps, got {type(kernel).__name__}")
-    return Kernel(kernel, pitch_m=DEFAULT_PITCH_M if pitch_m is None else pitch_m, name="target")
+    if kernel is None:
+        raise InputError("kernel: expected a fsdvs_hw Kernel, a kernel file or a 2-D array of taps, got None")
+    return as_kernel(kernel, name="target", pitch_m=pitch_m, repitch=True)
 
 
 def _check_scalar(name: str, v: Any, lo: float, hi: float) -> float:

@@ -57,7 +57,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import InputError
-from ...kernels import DEFAULT_PITCH_M, Kernel
+from ...kernels import DEFAULT_PITCH_M, Kernel, as_kernel
 from ...validation import check_fit_arguments
 from .options import OPTIONS
 from ..base import CostItem, kernel_error
@@ -719,19 +719,30 @@ def _solve_gains(psfs: list[Any], k: Any, m: Any, mode: str, totals: Sequence[An
     return gains, c, ((model - k) ** 2).sum()
 
 
-def _lbfgs(x: Any, loss_fn: Any, iters: int) -> int:
+def _lbfgs(x: Any, loss_fn: Any, iters: int, bar: Any = None) -> int:
+    """At most ``iters`` L-BFGS iterations on ``x``; returns those run. ``bar`` (tqdm) advances by
+    ``iters`` in all: iteration by iteration, the rest at once when it converges early."""
     import torch
 
     opt = torch.optim.LBFGS([x], lr=1.0, max_iter=iters, history_size=20, line_search_fn="strong_wolfe",
                             tolerance_grad=1e-10, tolerance_change=1e-12)
+    shown = 0
 
     def closure() -> Any:
+        nonlocal shown
+        if bar is not None:  # torch counts the iteration before its line search evaluates the loss
+            n = int(opt.state[opt._params[0]].get("n_iter", 0))
+            if n > shown:
+                bar.update(n - shown)
+                shown = n
         opt.zero_grad()
         loss = loss_fn(x)
         loss.backward()
         return loss
 
     opt.step(closure)
+    if bar is not None:
+        bar.update(iters - shown)
     return int(opt.state[opt._params[0]].get("n_iter", iters))
 
 
@@ -753,8 +764,7 @@ def _metalens_setup(kernel: Any, *, pitch_m: float | None, illuminant: Any, resp
                     n_starts: Any, na_max: float | None) -> _MetalensSetup:
     """Validate the options; the lens geometry, the wavelength samples (planned when ``"auto"``) and
     the numerical-aperture budget of the phase."""
-    if not isinstance(kernel, Kernel):
-        raise InputError(f"kernel must be a fsdvs_hw.Kernel, got {type(kernel).__name__}")
+    kernel = as_kernel(kernel, pitch_m=pitch_m, repitch=True)
     if strategy not in STRATEGIES:
         raise InputError(f"strategy {strategy!r} unknown; allowed: {', '.join(STRATEGIES)}")
     if not (isinstance(n_terms, int) and 0 <= n_terms <= 12):
@@ -763,8 +773,6 @@ def _metalens_setup(kernel: Any, *, pitch_m: float | None, illuminant: Any, resp
         raise InputError(f"guard_px must be an integer in 0..8, got {guard_px!r}")
     if not (isinstance(n_starts, int) and n_starts >= 1) or not (isinstance(max_iter, int) and max_iter >= 1):
         raise InputError(f"n_starts and max_iter must be positive integers, got {n_starts!r}, {max_iter!r}")
-    if pitch_m is not None and abs(pitch_m - kernel.pitch_m) > 1e-12:
-        kernel = Kernel(kernel.taps, pitch_m=pitch_m, name=kernel.name, provenance=kernel.provenance)
     pitch = kernel.pitch_m
     defaults = LensGeometry()
     geometry = LensGeometry(defaults.aperture_m if aperture_m is None else aperture_m,
@@ -857,40 +865,51 @@ class _MetalensObjective:
 
 
 def _solve_metalens(obj: _MetalensObjective, coarse: _RadialKernelModel, model: _RadialKernelModel, *, strategy: str,
-                    kernel_size: int, n_terms: int, n_starts: int, max_iter: int) -> tuple[np.ndarray, int]:
+                    kernel_size: int, n_terms: int, n_starts: int, max_iter: int,
+                    progress: bool | None = None) -> tuple[np.ndarray, int]:
     """Step 4, the solve: L-BFGS from defocus starts on the coarse model, refined, polished on the
-    full spectrum; a differential pair from its two single-lens halves. Returns ``(x, iterations)``."""
+    full spectrum; a differential pair from its two single-lens halves. Returns ``(x, iterations)``.
+    The progress bar counts the iteration budget (:mod:`fsdvs_hw.progress`)."""
     import torch
 
-    def fit_from(starts: list[np.ndarray], targets: Any, mode: str) -> tuple[np.ndarray, int]:
+    from ...progress import progress_bar
+
+    per_start, polish = max(10, max_iter // 6), (max(10, max_iter // 4) if model is not coarse else 0)
+
+    def budget(n_start_points: int) -> int:
+        return n_start_points * per_start + max_iter + polish
+
+    def fit_from(starts: list[np.ndarray], targets: Any, mode: str, bar: Any) -> tuple[np.ndarray, int]:
         n_lens = starts[0].shape[0]
         loss_fn = obj.loss(targets, mode, n_lens, coarse)
         best, best_val, iters = None, float("inf"), 0
         for s in starts:
             x = torch.tensor(s, dtype=torch.float64, requires_grad=True)
-            iters += _lbfgs(x, loss_fn, max(10, max_iter // 6))
+            iters += _lbfgs(x, loss_fn, per_start, bar)
             with torch.no_grad():
                 val = float(loss_fn(x))
             if math.isfinite(val) and val < best_val:
                 best, best_val = x.detach().clone(), val
         x = best.clone().requires_grad_(True)
-        iters += _lbfgs(x, loss_fn, max_iter)
+        iters += _lbfgs(x, loss_fn, max_iter, bar)
         if model is not coarse:
-            iters += _lbfgs(x, obj.loss(targets, mode, n_lens, model), max(10, max_iter // 4))
+            iters += _lbfgs(x, obj.loss(targets, mode, n_lens, model), polish, bar)
         return x.detach().numpy(), iters
 
     radius_px = max(1.0, kernel_size / 2)
     blur = np.linspace(0.5, radius_px, max(1, (n_starts + 1) // 2))
     single_starts = [np.concatenate([[s * b], np.zeros(n_terms)])[None] for b in blur for s in (1, -1)][:n_starts]
-    if strategy == "pedestal":
-        return fit_from(single_starts, obj.k_pad, "pedestal")
-    kp = torch.clamp(obj.k_pad, min=0.0)
-    km = torch.clamp(-obj.k_pad, min=0.0)
     half = single_starts[: max(1, n_starts // 2)]
-    xp, it1 = fit_from(half, kp / kp.norm(), "single")
-    xm, it2 = fit_from(half, km / km.norm(), "single")
-    x, it3 = fit_from([np.concatenate([xp, xm])], obj.k_pad, "differential")
-    return x, it1 + it2 + it3
+    total = budget(len(single_starts)) if strategy == "pedestal" else 2 * budget(len(half)) + budget(1)
+    with progress_bar(total=total, desc="fit_metalens", unit="iter", progress=progress, leave=False) as bar:
+        if strategy == "pedestal":
+            return fit_from(single_starts, obj.k_pad, "pedestal", bar)
+        kp = torch.clamp(obj.k_pad, min=0.0)
+        km = torch.clamp(-obj.k_pad, min=0.0)
+        xp, it1 = fit_from(half, kp / kp.norm(), "single", bar)
+        xm, it2 = fit_from(half, km / km.norm(), "single", bar)
+        x, it3 = fit_from([np.concatenate([xp, xm])], obj.k_pad, "differential", bar)
+        return x, it1 + it2 + it3
 
 
 def fit_metalens(
@@ -912,16 +931,18 @@ def fit_metalens(
     n_sub: int | None = None,
     window_pad: float = 2.0,
     na_max: float | None = None,
+    progress: bool | None = None,
 ) -> MetalensDesign:
     """Fit a radially symmetric metalens (or a differential pair) whose pixel PSF applies ``kernel``.
 
     Parameters
     ----------
-    kernel : Kernel
-        Target kernel (signed allowed). Only its radially symmetric part can be realised; the
-        error reports the rest.
+    kernel : Kernel or array_like
+        Target kernel (signed allowed): a :class:`~fsdvs_hw.kernels.Kernel`, or odd square taps
+        (with ``pitch_m``; see :func:`~fsdvs_hw.kernels.as_kernel`). Only its radially symmetric
+        part can be realised; the error reports the rest.
     pitch_m : float, optional
-        Pixel pitch (m); default the kernel's own pitch.
+        Pixel pitch (m); default the kernel's own pitch (an array's: :data:`~fsdvs_hw.kernels.DEFAULT_PITCH_M`).
     illuminant, response : see :func:`~fsdvs_hw.realise.spectral.spectral_samples`
         Default D65 × CIE 1924 photopic V(λ); a float illuminant is one wavelength (m).
     strategy : {"pedestal", "differential"}
@@ -948,6 +969,9 @@ def fit_metalens(
     na_max : float, optional
         Largest local NA the phase may use (sets the sampling; penalised in the fit); default
         ``min(0.9, max(1.5 NA, NA + 0.1))`` of the hyperbolic term.
+    progress : bool, optional
+        A progress bar of the L-BFGS iteration budget on stderr: True, False, or None (default)
+        when stderr is a terminal (:func:`fsdvs_hw.progress.progress_enabled`).
 
     Returns
     -------
@@ -968,7 +992,7 @@ def fit_metalens(
                                      window_pad=window_pad)
     obj = _MetalensObjective(setup, n_terms=n_terms, guard_px=guard_px)
     x, iters = _solve_metalens(obj, coarse, model, strategy=strategy, kernel_size=kernel.size, n_terms=n_terms,
-                               n_starts=n_starts, max_iter=max_iter)
+                               n_starts=n_starts, max_iter=max_iter, progress=progress)
     scale, k_pad, mask, unpack = obj.scale, obj.k_pad, obj.mask, obj.unpack
 
     # ---- the report: PSFs on the reference model, closed-form gains, NA reached, timing

@@ -35,4 +35,6 @@ OPTIONS: dict[str, Option] = {
     "window_pad": option("float", 2.0, "", "radial-model window padding factor", lo=1.0, hi=16.0),
     "na_max": option("float", None, "", "largest local numerical aperture of the phase", lo=0.0, hi=1.0,
                      lo_open=True, hi_open=True, nullable=True),
+    "progress": option("bool", None, "", "progress bar of the fit's iterations (None: when stderr is a terminal)",
+                       nullable=True),
 }
