@@ -35,6 +35,7 @@ SKIPPED: dict[str, str] = {
     "fsdvs-hw explore --out out/demo": "the full main job (~5 min); the quick variant below runs",
     "fsdvs-hw learn detection --init-kernel": "trains a network (minutes); tests/test_codesign_learn.py",
     "fsdvs-hw ablation --seeds 0 1 2": "45 trainings (48 min)",
+    "make notebooks": "runs every notebook at full size (~30 min); tests/test_notebooks.py runs them small",
     "fsdvs-hw report designs/default.toml": "needs out/demo from the main job; tests/test_report.py redraws a run",
     "apt-get install -y chromium": "installs Debian packages; tests/test_report_browser.py is the browser test",
     "openssl req -x509 -nodes -newkey rsa:4096": "needs a Dask cluster; tests/test_inputs_safety.py runs TLS locally",
