@@ -119,13 +119,18 @@ def fig_kernels(panels: Sequence[Panel]) -> Any:
             if pan.kernel.size <= 7 or (clipped and (y, x) == (r, r)):
                 ax.text(x - r, y - r, f"{v:.2f}", ha="center", va="center", fontsize=5.5,
                         color="white" if abs(v) > 0.6 * vmax else "black")
-        ax.set_xlabel("x (pixels)", fontsize=8)
-        ax.set_ylabel("y (pixels)", fontsize=8)
-        ax.tick_params(labelsize=7)
-        st = style(pan.realisation)
-        ax.set_title(pan.label, fontsize=9, color=st.colour)
-        _frame(ax, st.colour)
+        _label_panel(ax, pan, "x (pixels)", "y (pixels)")
     return fig
+
+
+def _label_panel(ax: Any, pan: Panel, xlabel: str, ylabel: str) -> None:
+    """Axis labels, and the panel's title and frame in its realisation's colour."""
+    ax.set_xlabel(xlabel, fontsize=8)
+    ax.set_ylabel(ylabel, fontsize=8)
+    ax.tick_params(labelsize=7)
+    colour = style(pan.realisation).colour
+    ax.set_title(pan.label, fontsize=9, color=colour)
+    _frame(ax, colour)
 
 
 def fig_spectra(panels: Sequence[Panel], *, n_fft: int = 64) -> Any:
@@ -140,12 +145,7 @@ def fig_spectra(panels: Sequence[Panel], *, n_fft: int = 64) -> Any:
         step = f[1] - f[0]
         im = ax.imshow(mag, cmap="magma", origin="lower", vmin=0.0, vmax=vmax,
                        extent=(f[0] - step / 2, f[-1] + step / 2, f[0] - step / 2, f[-1] + step / 2))
-        ax.set_xlabel("$f_x$ (cycles/pixel)", fontsize=8)
-        ax.set_ylabel("$f_y$ (cycles/pixel)", fontsize=8)
-        ax.tick_params(labelsize=7)
-        st = style(pan.realisation)
-        ax.set_title(pan.label, fontsize=9, color=st.colour)
-        _frame(ax, st.colour)
+        _label_panel(ax, pan, "$f_x$ (cycles/pixel)", "$f_y$ (cycles/pixel)")
     if im is not None:
         fig.colorbar(im, ax=list(axes.ravel()[: len(panels)]), shrink=0.9, label="|H| (shared scale)")
     return fig

@@ -55,6 +55,7 @@ __all__ = [
     "generate_verilog",
     "generate_datapath_verilog",
     "generate_testbench",
+    "testbench_ports",
     "simulate_rtl",
     "synthesise_verilog",
 ]
@@ -318,6 +319,14 @@ def generate_verilog(
     return "\n".join(L) + "\n"
 
 
+def testbench_ports(*, input_bits: int, out_bits: int, n_pixels: int) -> str:
+    """The signals every testbench of the streaming filter declares: clock, reset, the input pixel
+    stream, the signed output and the stimulus memory (Verilog-2005 lines, two-space indented)."""
+    return (f"  reg clk = 1'b0;\n  reg rst = 1'b1;\n  reg in_valid = 1'b0;\n"
+            f"  reg [{input_bits - 1}:0] in_pixel = {input_bits}'d0;\n  wire out_valid;\n"
+            f"  wire signed [{out_bits - 1}:0] out_value;\n  reg [{input_bits - 1}:0] img [0:{n_pixels - 1}];\n")
+
+
 def generate_testbench(*, input_bits: int, out_bits: int, n_pixels: int, input_file: str, output_file: str,
                        module_name: str = "fsdvs_conv", bubble_every: int = 0) -> str:
     """Icarus Verilog testbench: streams ``input_file`` (hex, one pixel per line) and writes every
@@ -327,14 +336,7 @@ def generate_testbench(*, input_bits: int, out_bits: int, n_pixels: int, input_f
              "        in_valid = 1'b0; @(negedge clk);\n      end\n") if bubble_every > 0 else ""
     return f"""`timescale 1ns/1ps
 module tb;
-  reg clk = 1'b0;
-  reg rst = 1'b1;
-  reg in_valid = 1'b0;
-  reg [{input_bits - 1}:0] in_pixel = {input_bits}'d0;
-  wire out_valid;
-  wire signed [{out_bits - 1}:0] out_value;
-  reg [{input_bits - 1}:0] img [0:{n_pixels - 1}];
-  integer i, f;
+{testbench_ports(input_bits=input_bits, out_bits=out_bits, n_pixels=n_pixels)}  integer i, f;
   {module_name} dut (.clk(clk), .rst(rst), .in_valid(in_valid), .in_pixel(in_pixel), .out_valid(out_valid), .out_value(out_value));
   always #5 clk = ~clk;
   always @(posedge clk) if (!rst && out_valid) $fwrite(f, "%0d\\n", out_value);
