@@ -90,3 +90,20 @@ def test_every_verdict_follows_from_its_numbers(shipped):
             assert c["verdict"].startswith("co-design recovers at least half")
         else:
             assert "recovers" in c["verdict"] and f"{rec['estimate']:.0%}" in c["verdict"]
+
+
+def test_the_explore_report_carries_the_section_before_the_run_conditions(shipped, tmp_path):
+    """write_report reads OUT/codesign.json for a design with [codesign] enabled (and only then)."""
+    import shutil
+
+    from fsdvs_hw.report.html import write_report
+
+    section = codesign_section(shipped)
+    pages = {}
+    for name in ("codesign", "default"):
+        (tmp_path / name).mkdir()
+        shutil.copy(SHIPPED / "codesign.json", tmp_path / name / "codesign.json")
+        pages[name] = write_report([], load_design(REPO / "designs" / f"{name}.toml"), tmp_path / name).read_text()
+    assert section in pages["codesign"]
+    assert pages["codesign"].index(section) < pages["codesign"].index("id='conditions'")
+    assert section not in pages["default"]  # [codesign] off: a stray codesign.json is not reported

@@ -20,7 +20,7 @@ import io
 import json
 import math
 import platform
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -61,12 +61,6 @@ pre{background:#f7f7f7;padding:.6em;font-size:.8em;overflow:auto;white-space:pre
 .note{color:#555;font-size:.9em}.bad{color:#a00}
 """
 
-#: Sections other modules add to the report, in order, after the realisation details and before the
-#: run conditions: ``section(points, design) -> str``, an HTML fragment ("" for none) built from the
-#: stored points (:class:`fsdvs_hw.records.ScoredPoint`) and the design. To add one, import its
-#: function at the top of this module and list it here (e.g. ``report/artifacts.py``,
-#: ``report/codesign.py``).
-_EXTRA_SECTIONS: list[Callable[[Sequence[ScoredPoint], Any], str]] = []
 
 
 def _figure(fig: Any, alt: str, caption: str, *, fig_id: str) -> str:
@@ -278,7 +272,7 @@ def _float(v: Any) -> float:
 
 
 def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, *, title_text: str | None = None,
-                stamp: str | None = None) -> str:
+                stamp: str | None = None, sections: Sequence[str] = ()) -> str:
     """The report as one HTML string (figures embedded).
 
     Parameters
@@ -293,6 +287,9 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
         Page title (default: "FS-DVS design exploration: <design name>").
     stamp : str, optional
         Time stamp in the provenance (default: now, UTC).
+    sections : sequence of str
+        Further HTML fragments (each starting with its own ``<h2>``), placed after the buildable
+        artifacts and before the run conditions, e.g. :func:`fsdvs_hw.report.codesign.codesign_section`.
     """
     points = _typed(points)
     data = design.to_dict()
@@ -379,8 +376,7 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
                                         ("point_s", "point total")], left=("name",))))
         parts.append(_realisation_details(points))
     parts.append(artifacts_html(points))  # buildable files per hardware point (report/artifacts.py)
-    for section in _EXTRA_SECTIONS:
-        parts.append(section(points, design))
+    parts.extend(sections)
     parts.append(_conditions(points, rows, data, design))
     stamp = stamp or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     parts.append(f"<h2 id='provenance'>Provenance</h2><p class='note'>fsdvs_hw {__version__}, Python "
@@ -427,12 +423,12 @@ def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any,
     points = _typed(points)
     write_scores(score_rows(points), out, full=[p.to_dict() for p in points])
     path = out / "report.html"
-    text = render_html(points, design)
+    sections = []
     if (out / "codesign.json").is_file() and design.data.get("codesign", {}).get("enabled"):  # issue 16 rows
         from .codesign import codesign_section
-        anchor = "<h2 id='provenance'>" if "<h2 id='provenance'>" in text else "</body>"
-        text = text.replace(anchor, codesign_section(json.loads((out / "codesign.json").read_text())) + "\n" + anchor, 1)
-    path.write_text(text)
+
+        sections.append(codesign_section(json.loads((out / "codesign.json").read_text())))
+    path.write_text(render_html(points, design, sections=sections))
     return path
 
 

@@ -485,6 +485,17 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
             "rss_base_mb": rss_base, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
+def _run_child(cmd: list[str], what: str) -> tuple[dict[str, Any], list[float], list[float]]:
+    """Run a measuring child process; its last stdout line (JSON) and its rates per run in
+    Mpixel-frames per wall second and per CPU second."""
+    res = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ), check=False)
+    if res.returncode != 0:
+        raise RuntimeError(f"{what} failed: {res.stderr[-2000:]}")
+    r = json.loads(res.stdout.strip().splitlines()[-1])
+    px = r["height"] * r["width"] * r["n_frames"] / 1e6
+    return r, [px / w for w in r["walls"]], [px / max(c, 1e-9) for c in r["cpus"]]
+
+
 def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats: int | None = None,
                 threads: int | None = None, chunk_frames: int = 8, long_seconds: float = 120.0) -> list[dict[str, Any]]:
     """Benchmark records: one plain dict per case of :data:`SIM_CASES`.
@@ -540,14 +551,8 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
         spec = json.dumps({"case": case, "repeats": reps, "quick": quick, "threads": threads,
                            "chunk_frames": chunk_frames, "long_seconds": long_seconds})
-        res = subprocess.run([sys.executable, "-m", "fsdvs_hw.sensor.bench", "--child", spec],
-                             capture_output=True, text=True, env=dict(os.environ), check=False)
-        if res.returncode != 0:
-            raise RuntimeError(f"benchmark child for {name!r} failed: {res.stderr[-2000:]}")
-        r = json.loads(res.stdout.strip().splitlines()[-1])
-        px = r["height"] * r["width"] * r["n_frames"] / 1e6
-        rates = [px / w for w in r["walls"]]
-        cpu_rates = [px / max(c, 1e-9) for c in r["cpus"]]
+        r, rates, cpu_rates = _run_child([sys.executable, "-m", "fsdvs_hw.sensor.bench", "--child", spec],
+                                         f"benchmark child for {name!r}")
         out.append({"case": name, "clip": case["clip"], "path": case["path"],
                     "resolution": f"{r['height']}x{r['width']}", "n_frames": r["n_frames"], "events": r["events"],
                     "mpf_s_mean": statistics.fmean(rates), "mpf_s_std": statistics.stdev(rates) if len(rates) > 1 else 0.0,
@@ -651,15 +656,9 @@ def v2e_records(v2e_src: str, *, modes: tuple[str, ...] = ("default", "clean", "
         np.save(frames, _bikes(n_frames or None).numpy())
         for mode in modes:
             load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-            res = subprocess.run([sys.executable, "-c", _V2E_CHILD, str(stubs), str(v2e_src), mode, str(threads),
-                                  str(repeats), str(n_frames), str(frames)], capture_output=True, text=True,
-                                 check=False)
-            if res.returncode != 0:
-                raise RuntimeError(f"v2e child ({mode}) failed: {res.stderr[-2000:]}")
-            r = json.loads(res.stdout.strip().splitlines()[-1])
-            px = r["height"] * r["width"] * r["n_frames"] / 1e6
-            rates = [px / w for w in r["walls"]]
-            cpu_rates = [px / max(c, 1e-9) for c in r["cpus"]]
+            r, rates, cpu_rates = _run_child([sys.executable, "-c", _V2E_CHILD, str(stubs), str(v2e_src), mode,
+                                              str(threads), str(repeats), str(n_frames), str(frames)],
+                                             f"v2e child ({mode})")
             out.append({"case": f"v2e/{mode}", "clip": "bikes", "path": "v2e EventEmulator",
                         "resolution": f"{r['height']}x{r['width']}", "n_frames": r["n_frames"], "events": r["events"],
                         "mpf_s_mean": statistics.fmean(rates),
