@@ -14,8 +14,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fsdvs_hw.sensor import SensorConfig, event_frames, event_list
+from fsdvs_hw.sensor._crossings_numba import sort_events
 from fsdvs_hw.sensor.crossings import (
     crossing_step,
+    crossing_step_torch,
+    shot_noise_pixels,
     sort_interval,
     stable_time_order,
     to_event_columns,
@@ -70,10 +73,11 @@ def _reference_step(h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, l
     return (b[order], x[order], y[order], t[order], p[order]), lt, em_on, em_off
 
 
+@pytest.mark.parametrize("step", [crossing_step, crossing_step_torch], ids=["compiled", "torch"])
 @pytest.mark.parametrize("refr", [0.0, 2e-3, 0.02])
 @pytest.mark.parametrize("mismatch", [False, True])
 @pytest.mark.parametrize("B", [1, 3])
-def test_crossing_step_equals_full_frame_reference(refr, mismatch, B):
+def test_crossing_step_equals_full_frame_reference(refr, mismatch, B, step):
     g = torch.Generator().manual_seed(int(refr * 1e4) + 7 * B + mismatch)
     H, W = 9, 11
     sig_a = torch.rand(B, H, W, generator=g) * 3
@@ -96,8 +100,7 @@ def test_crossing_step_equals_full_frame_reference(refr, mismatch, B):
                                                       None if last is None else last.clone(), refr)
     parts = []
     lt = None if last is None else last.clone()
-    lost, em_on, em_off = crossing_step(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t0, t_b, dt, lt, refr,
-                                        True, True)
+    lost, em_on, em_off = step(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t0, t_b, dt, lt, refr, True, True)
     got = to_event_columns([sort_interval(parts)], H, W, B)
     assert ref_ev is not None and len(ref_ev[0]) > 10
     for a, r in zip(got, ref_ev, strict=True):
@@ -114,6 +117,47 @@ def test_crossing_step_equals_full_frame_reference(refr, mismatch, B):
 def test_stable_time_order_is_a_stable_sort(values):
     t = np.asarray(values, dtype=np.float64) * 0.25  # many ties
     assert np.array_equal(stable_time_order(t), np.argsort(t, kind="stable"))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.lists(st.integers(0, 40), max_size=200), min_size=1, max_size=4),
+       st.sampled_from([0.25, 1e-9, 1e-300]))
+def test_compiled_bucket_sort_is_a_stable_sort(values, scale):
+    """The compiled interval sort equals a stable argsort of the concatenated parts: ties (many
+    here), clustered times (big buckets: the merge-sort branch) and spans too short for the bucket
+    arithmetic (1e-300)."""
+    parts, start = [], 0
+    for v in values:
+        t = 3.0 + np.asarray(v, dtype=np.float64) * scale
+        parts.append((np.arange(start, start + len(t), dtype=np.int32), t, np.where(t > 3.0, 1, -1).astype(np.int8)))
+        start += len(t)
+    flat, t, p = sort_events(parts)
+    all_t = np.concatenate([q[1] for q in parts])
+    order = np.argsort(all_t, kind="stable")
+    assert np.array_equal(t, all_t[order]) and np.array_equal(flat, order)
+    assert np.array_equal(p, np.concatenate([q[2] for q in parts])[order])
+
+
+def test_shot_noise_pixels_are_independent_poisson_per_pixel():
+    """The sparse draw (total Poisson, then uniform pixels) has per-pixel counts with the mean and
+    variance of Poisson(lam) (dispersion 1), independent of the pixel, and per-batch rates."""
+    g = torch.Generator().manual_seed(5)
+    B, HW, steps = 2, 400, 500
+    lam = torch.tensor([0.02, 0.2], dtype=torch.float64)
+    counts = torch.zeros(steps, B * HW)
+    for i in range(steps):
+        on, off = shot_noise_pixels(B, HW, lam, g)
+        assert torch.equal(on, torch.sort(on).values) and on.dtype == torch.int64
+        counts[i] = torch.bincount(on, minlength=B * HW).float()
+    for b in range(B):
+        c = counts[:, b * HW:(b + 1) * HW]
+        n = c.numel()
+        se = math.sqrt(float(lam[b]) / n)
+        assert abs(float(c.mean()) - float(lam[b])) < 4 * se
+        assert float(c.var()) / float(c.mean()) == pytest.approx(1.0, abs=0.05)
+    # uniform over pixels: no pixel of the high-rate element far from the mean (chi-square-like bound)
+    per_px = counts[:, HW:].sum(0)
+    assert float(per_px.max()) < steps * 0.2 + 6 * math.sqrt(steps * 0.2)
 
 
 def test_event_list_counts_match_frames_with_every_effect():

@@ -67,6 +67,9 @@ def crossing_step(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_
                   collect: bool, want_counts: bool) -> tuple[float, Any, Any]:
     """Emit the crossings of one comparator step.
 
+    On the CPU this runs the compiled kernel (:mod:`._crossings_numba`), elsewhere the vectorised
+    torch path (:func:`crossing_step_torch`); both give the same events bit for bit.
+
     Parameters
     ----------
     parts : list
@@ -98,6 +101,67 @@ def crossing_step(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_
     em_on, em_off : torch.Tensor (B, H, W) or None
         Emitted counts (``want_counts``), dtype of ``h_on``.
     """
+    if h_on.device.type == "cpu":
+        return _crossing_step_cpu(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t,
+                                  refractory_s, collect, want_counts)
+    return crossing_step_torch(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t,
+                               refractory_s, collect, want_counts)
+
+
+def _flat_np(x: Any) -> np.ndarray:
+    return x.detach().contiguous().reshape(-1).numpy()
+
+
+def _threshold_np(c: Any, B: int, H: int, W: int, dtype: Any) -> np.ndarray:
+    """Thresholds as 1, H·W or B·H·W values (the kernel's three layouts)."""
+    c = c.detach()
+    if c.numel() == 1:
+        out = c.reshape(1)
+    elif c.shape[-2:] == (H, W) and (c.ndim == 2 or c.shape[0] == 1):
+        out = c.reshape(H * W)
+    else:
+        out = c.expand(B, H, W).reshape(-1)
+    return out.to(dtype).contiguous().numpy()
+
+
+def _crossing_step_cpu(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_b: Any, c_on: Any,
+                       c_off: Any, t_a: Any, t_b: Any, dt: Any, last_t: Any, refractory_s: float,
+                       collect: bool, want_counts: bool) -> tuple[float, Any, Any]:
+    """:func:`crossing_step` through the compiled kernel (same arguments and results)."""
+    from ._crossings_numba import step_events
+
+    B, H, W = h_on.shape
+    c_dtype = torch.promote_types(c_on.dtype, c_off.dtype)
+    # NumPy, not torch, for the work arrays: this may run on a worker thread (events.py), where a
+    # parallel torch op would start its own OpenMP team
+    hon, hoff = _flat_np(h_on), _flat_np(h_off)
+    em_on = torch.from_numpy(np.zeros(hon.shape, hon.dtype)).view(B, H, W) if want_counts else None
+    em_off = torch.from_numpy(np.zeros(hoff.shape, hoff.dtype)).view(B, H, W) if want_counts else None
+    dummy = np.empty(0, dtype=hon.dtype)
+    cap = int(hon.sum(dtype=np.float64)) + int(hoff.sum(dtype=np.float64)) if collect else 0
+    flat = np.empty(cap, dtype=np.int32 if B * H * W < 2**31 else np.int64)
+    t = np.empty(cap, dtype=np.float64)
+    p = np.empty(cap, dtype=np.int8)
+    refr = last_t is not None
+    n, lost = step_events(
+        hon, hoff, _flat_np(sig_a), _flat_np(ref_a), _flat_np(d_b),
+        _threshold_np(c_on, B, H, W, c_dtype), _threshold_np(c_off, B, H, W, c_dtype),
+        _flat_np(t_a.expand(B, 1, 1).to(torch.float64)), _flat_np(t_b.expand(B, 1, 1).to(torch.float64)),
+        _flat_np(dt.expand(B, 1, 1).to(torch.float64)), H * W,
+        last_t.view(-1).numpy() if refr else np.empty(0, dtype=np.float64), float(refractory_s), refr,
+        bool(collect), dummy if em_on is None else em_on.view(-1).numpy(),
+        dummy if em_off is None else em_off.view(-1).numpy(), bool(want_counts), flat, t, p)
+    if collect and n:
+        if n < cap // 2:  # many crossings lost: do not keep the spare capacity alive
+            flat, t, p = flat[:n].copy(), t[:n].copy(), p[:n].copy()
+        parts.append((torch.from_numpy(flat[:n]), torch.from_numpy(t[:n]), torch.from_numpy(p[:n])))
+    return float(lost) if refr else 0.0, em_on, em_off
+
+
+def crossing_step_torch(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_b: Any, c_on: Any,
+                        c_off: Any, t_a: Any, t_b: Any, dt: Any, last_t: Any, refractory_s: float,
+                        collect: bool, want_counts: bool) -> tuple[float, Any, Any]:
+    """:func:`crossing_step` in vectorised torch (any device; same arguments and results)."""
     shape = tuple(h_on.shape)
     B, H, W = shape
     HW = H * W
@@ -189,9 +253,19 @@ def stable_time_order(t: np.ndarray) -> np.ndarray:
 
 
 def sort_interval(parts: list) -> tuple[Any, Any, Any] | None:
-    """Concatenate one frame interval's ``(flat, t, p)`` parts and sort them stably by time."""
+    """Concatenate one frame interval's ``(flat, t, p)`` parts and sort them stably by time.
+
+    CPU parts go through the compiled bucket sort (:func:`._crossings_numba.sort_events`: one
+    move per event, no concatenated copy); others through :func:`stable_time_order`.
+    """
     if not parts:
         return None
+    if all(q[1].device.type == "cpu" for q in parts):
+        from ._crossings_numba import sort_events
+
+        out = sort_events([tuple(c.numpy() for c in q) for q in parts])
+        parts.clear()
+        return tuple(torch.from_numpy(c) for c in out)
     if len(parts) == 1:
         flat, t, p = parts[0]
     else:
@@ -219,16 +293,22 @@ def to_event_columns(pieces: list, H: int, W: int, B: int) -> tuple[Any, Any, An
     HW = H * W
     for i, (flat, tq, pq) in enumerate(pieces):
         end = start + len(tq)
-        f32 = flat.to(torch.int32) if B * HW < 2**31 else flat  # int32 division is faster
+        if flat.device.type == "cpu":
+            from ._crossings_numba import write_columns
+
+            write_columns(flat.numpy(), tq.numpy(), pq.numpy(), HW, W, x.numpy(), y.numpy(), t.numpy(), p.numpy(),
+                          start)
+        else:
+            f32 = flat.to(torch.int32) if B * HW < 2**31 else flat  # int32 division is faster
+            if B > 1:
+                f32 = f32 - torch.div(f32, HW, rounding_mode="floor") * HW
+            yq = torch.div(f32, W, rounding_mode="floor")
+            y[start:end] = yq
+            x[start:end] = f32 - yq * W
+            t[start:end] = tq
+            p[start:end] = pq
         if B > 1:
-            f32 = f32 - torch.div(f32, HW, rounding_mode="floor") * HW
-        yq = torch.div(f32, W, rounding_mode="floor")
-        y[start:end] = yq
-        x[start:end] = f32 - yq * W
-        t[start:end] = tq
-        p[start:end] = pq
-        if B > 1:
-            pieces[i] = (torch.div(flat, HW, rounding_mode="floor"), None, None)
+            pieces[i] = (torch.div(flat.to(torch.int64), HW, rounding_mode="floor"), None, None)
         start = end
     if B > 1:
         b = torch.cat([q[0] for q in pieces]) if pieces else torch.zeros(0, dtype=torch.int64)
@@ -238,18 +318,49 @@ def to_event_columns(pieces: list, H: int, W: int, B: int) -> tuple[Any, Any, An
     return b, x, y, t, p
 
 
-def noise_step(parts: list, k_on: Any, k_off: Any, t_a: Any, t_b: Any, dt: Any, time_g: Any) -> None:
-    """Append the shot-noise events of one step: ``k_on``/``k_off`` (B, H, W) counts, each event
-    at a uniform time in ``(t_a, t_b]`` drawn from ``time_g`` (ON pixels first, raster order)."""
-    B, H, W = k_on.shape
-    HW = H * W
-    for kk, pol in ((k_on, 1), (k_off, -1)):
-        idx = torch.nonzero(kk.reshape(-1) > 0).squeeze(1)
-        if idx.numel() == 0:
+def shot_noise_pixels(B: int, HW: int, lam: Any, generator: Any) -> tuple[Any, Any]:
+    """Flat pixel indices (sorted, one entry per event) of one step's ON and OFF shot-noise events.
+
+    Each pixel of batch element ``b`` gets Poisson(``lam[b]``) events per polarity, independently.
+    Drawn sparsely, in the same law: the total ``N_b ~ Poisson(HW · lam_b)`` and then ``N_b``
+    pixels uniformly with replacement (a Poisson process split uniformly over pixels is
+    independent Poisson per pixel). At v2e's 0.001 Hz a 640×480 frame gets a few events per step,
+    so this costs a few draws instead of two full-frame Poisson samplings per step.
+
+    Parameters
+    ----------
+    B, HW : int
+        Batch size and pixels per frame.
+    lam : torch.Tensor (B,) float64
+        Expected events per pixel and polarity in the step.
+    generator : torch.Generator
+        The shot-noise count stream (its device is used).
+    """
+    out = []
+    for _ in range(2):  # ON, then OFF
+        n = torch.poisson(lam.to(generator.device) * HW, generator=generator).long()
+        total = int(n.sum())
+        if total == 0:
+            out.append(torch.zeros(0, dtype=torch.int64, device=generator.device))
             continue
-        cnt = kk.reshape(-1)[idx].long()
-        flat = idx[repeat_index(cnt)[0]]
+        px = torch.randint(0, HW, (total,), generator=generator, device=generator.device)
+        if B > 1:
+            px += torch.repeat_interleave(torch.arange(B, device=generator.device) * HW, n)
+        out.append(torch.sort(px).values)
+    return out[0], out[1]
+
+
+def noise_step(parts: list, on_px: Any, off_px: Any, shape: tuple[int, int, int], t_a: Any, t_b: Any,
+               dt: Any, time_g: Any) -> None:
+    """Append the shot-noise events of one step (:func:`shot_noise_pixels`' flat indices ``on_px``,
+    ``off_px`` of a (B, H, W) frame), each at a uniform time in ``(t_a, t_b]`` drawn from
+    ``time_g`` (ON events first, raster order)."""
+    B, H, W = shape
+    HW = H * W
+    for flat, pol in ((on_px, 1), (off_px, -1)):
+        if flat.numel() == 0:
+            continue
         bi = torch.div(flat, HW, rounding_mode="floor")
         u = torch.rand(len(flat), generator=time_g, device=time_g.device, dtype=torch.float64).to(flat.device)
         t = torch.minimum(t_a.reshape(B)[bi] + (1.0 - u) * dt.reshape(B)[bi], t_b.reshape(B)[bi])
-        parts.append((flat, t, torch.full((len(flat),), pol, dtype=torch.int8)))
+        parts.append((flat, t, torch.full((len(flat),), pol, dtype=torch.int8, device=flat.device)))

@@ -39,6 +39,7 @@ Surrogate gradient (``SensorConfig.surrogate``)
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -47,7 +48,7 @@ import torch
 from ..errors import InputError
 from ..limits import check_allocation
 from .config import SensorConfig
-from .crossings import crossing_step, noise_step, sort_interval, to_event_columns
+from .crossings import crossing_step, noise_step, shot_noise_pixels, sort_interval, to_event_columns
 from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
 from .pixel import effect_generator, lowpass_step, threshold_maps
 
@@ -301,6 +302,68 @@ def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Senso
     (``None`` entries unless ``want_counts``); each interval's time-sorted ``(flat, t, p)`` events
     (:func:`.crossings.sort_interval`, or None) are appended to ``events``. ``tsd``: (B, len(Ls))
     float64 frame times. ``bar`` (tqdm, optional) advances by one per frame interval."""
+    dev = Ls[0].device
+    refr = float(config.refractory_s)
+    # The event-list work (compiled and GIL-free on the CPU) runs on two worker threads while this
+    # thread computes the next steps: one emits each step's crossings and noise events, in order
+    # (the refractory state passes from step to step), the other sorts each finished interval.
+    # Not when the refractory counts feed back into the frames.
+    pipe = None
+    if collect_events and dev.type == "cpu" and not (refr > 0 and want_counts):
+        pipe = _EventPipeline()
+    first_event = len(events)
+    try:
+        frames = _advance_steps(st, Ls, CI, SU, tsd, config, substeps, collect_events, events, want_counts, bar,
+                                pipe)
+        if pipe is not None:
+            for i in range(first_event, len(events)):
+                events[i] = events[i].result()
+            st.lost += pipe.lost()
+    finally:
+        if pipe is not None:
+            pipe.close()
+    return frames
+
+
+class _EventPipeline:
+    """Two single-thread executors: ``emit`` runs step work in submission order, ``sort`` sorts an
+    interval once every emit task submitted before it has finished."""
+
+    def __init__(self) -> None:
+        self.emit_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-emit")
+        self.sort_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-sort")
+        self.steps: list = []  # futures of crossing_step: (lost, em_on, em_off)
+        self.pending: list = []  # emit futures of the interval being stepped
+
+    def emit(self, fn: Any, *args: Any, crossing: bool = False) -> None:
+        f = self.emit_pool.submit(fn, *args)
+        self.pending.append(f)
+        if crossing:
+            self.steps.append(f)
+
+    def sort(self, parts: list) -> Any:
+        waits, self.pending = self.pending, []
+
+        def run() -> Any:
+            for f in waits:
+                f.result()
+            return sort_interval(parts)
+
+        return self.sort_pool.submit(run)
+
+    def lost(self) -> float:
+        return float(sum(f.result()[0] for f in self.steps))
+
+    def close(self) -> None:
+        self.emit_pool.shutdown(wait=True, cancel_futures=True)
+        self.sort_pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: SensorConfig,
+                   substeps: list[int], collect_events: bool, events: list, want_counts: bool, bar: Any,
+                   pipe: _EventPipeline | None) -> list:
+    """The stepping loop of :func:`_advance` (same arguments and result); with ``pipe`` the event
+    work is submitted to it (each interval's sort future appended to ``events``)."""
     B, H, W = Ls[0].shape
     dev, dt_ = Ls[0].device, Ls[0].dtype
     c_on, c_off, eps = st.c_on, st.c_off, st.eps
@@ -315,8 +378,8 @@ def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Senso
     shot_g, time_g = st.shot_g, st.time_g
     noise_events, lost = st.noise_events, st.lost
     frames = []
-    step_parts: list = []
     for k in range(len(Ls) - 1):
+        step_parts: list = []
         S = substeps[k]
         dt_int = (tsd[:, k + 1] - tsd[:, k])  # (B,)
         dt_sub64 = (dt_int / S).view(B, 1, 1)
@@ -351,30 +414,39 @@ def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Senso
                 if exact_times:
                     with torch.no_grad():
                         t_a, t_b = _substep_times(tsd, k, s, S)
-                        lost_s, em_on, em_off = crossing_step(
-                            step_parts, h_on, h_off, sig_prev.detach(), ref_a.detach(), d_b, c_on.detach(),
-                            c_off.detach(), t_a, t_b, dt_sub64, last_t, refr, collect_events, refr > 0 and want_counts)
-                        lost += lost_s
+                        args = (step_parts, h_on, h_off, sig_prev.detach(), ref_a.detach(), d_b, c_on.detach(),
+                                c_off.detach(), t_a, t_b, dt_sub64, last_t, refr, collect_events,
+                                refr > 0 and want_counts)
+                        if pipe is not None:
+                            pipe.emit(crossing_step, *args, crossing=True)
+                        else:
+                            lost_s, em_on, em_off = crossing_step(*args)
+                            lost += lost_s
                     if refr > 0 and want_counts:  # refractory losses: emitted counts, gradient of the emitted share
                         e_on = _refractory_surrogate(n_on, h_on, em_on)
                         e_off = _refractory_surrogate(n_off, h_off, em_off)
             ref = ref_next
             if shot > 0:
-                lam = torch.full((B, H, W), 0.5 * shot, dtype=torch.float64, device=shot_g.device) * dt_sub64.to(shot_g.device)
-                k_on = torch.poisson(lam, generator=shot_g).to(dev, dt_)
-                k_off = torch.poisson(lam, generator=shot_g).to(dev, dt_)
-                noise_events += int((k_on + k_off).sum())
-                e_on = e_on + k_on
-                e_off = e_off + k_off
+                on_px, off_px = shot_noise_pixels(B, H * W, (0.5 * shot) * dt_sub64.reshape(B), shot_g)
+                on_px, off_px = on_px.to(dev), off_px.to(dev)
+                noise_events += len(on_px) + len(off_px)
+                if len(on_px):
+                    e_on = e_on + torch.bincount(on_px, minlength=B * H * W).view(B, H, W).to(dt_)
+                if len(off_px):
+                    e_off = e_off + torch.bincount(off_px, minlength=B * H * W).view(B, H, W).to(dt_)
                 if collect_events:
-                    noise_step(step_parts, k_on, k_off, *_substep_times(tsd, k, s, S), dt_sub64, time_g)
+                    args = (step_parts, on_px, off_px, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64, time_g)
+                    if pipe is not None:
+                        pipe.emit(noise_step, *args)
+                    else:
+                        noise_step(*args)
             sig_prev = target
             if want_counts:
                 on_acc = e_on if on_acc is None else on_acc + e_on
                 off_acc = e_off if off_acc is None else off_acc + e_off
         frames += [on_acc, off_acc]
         if collect_events:
-            events.append(sort_interval(step_parts))
+            events.append(pipe.sort(step_parts) if pipe is not None else sort_interval(step_parts))
         if bar is not None:
             bar.update(1)
     st.ref, st.lp, st.sur, st.sig_prev, st.last_t = ref, lp, sur, sig_prev, last_t

@@ -211,12 +211,20 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
             raise InputError(f"timestamps_s[{i}]: {t!r} is not finite")
         return t
 
+    thr_cache: list = []
+    thr_grad = any(isinstance(c, torch.Tensor) and c.requires_grad for c in (config.threshold_on, config.threshold_off))
+
     def thresholds(like: Any) -> Any:
+        # the same draw for every chunk; drawn again only when it carries a graph (truncated BPTT)
+        if thr_cache and not (thr_grad and torch.is_grad_enabled()):
+            return thr_cache[0]
         g = None
         if gen_state is not None:
             g = torch.Generator(device=generator.device)
             g.set_state(gen_state)
-        return threshold_maps(config, tuple(shape[1:]), like, generator=g)
+        thr = threshold_maps(config, tuple(shape[1:]), like, generator=g)
+        thr_cache[:] = [thr]
+        return thr
 
     exhausted = False
     while not exhausted:
