@@ -7,7 +7,7 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.fsdvs_hw-installed
-SYSTEM_TOOLS := ngspice iverilog yosys verilator chromium
+SYSTEM_TOOLS := ngspice iverilog yosys verilator chromium gcc
 TORCH_PIN := torch==2.13.0
 PYTEST_ARGS ?=
 DEMO_OUT ?= out/demo
@@ -57,7 +57,8 @@ mutation: setup
 setup: system-deps $(STAMP)
 
 # Debian packages the realisation checks need (SPICE, Verilog simulation and synthesis), and the
-# headless browser the report test drives (chromium, through Playwright; tests/test_report_browser.py).
+# headless browser the report test drives (chromium, through Playwright; tests/test_report_browser.py),
+# and the C compiler that builds the event kernels on first use (sensor/_crossings.c).
 system-deps:
 	@missing=""; for t in $(SYSTEM_TOOLS); do command -v $$t >/dev/null 2>&1 || missing="$$missing $$t"; done; \
 	if [ -n "$$missing" ]; then \

@@ -32,6 +32,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from . import _crossings_native
+
 __all__: list[str] = []  # private helpers of .events and .stream
 
 
@@ -67,8 +69,9 @@ def crossing_step(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_
                   collect: bool, want_counts: bool) -> tuple[float, Any, Any]:
     """Emit the crossings of one comparator step.
 
-    On the CPU this runs the compiled kernel (:mod:`._crossings_numba`), elsewhere the vectorised
-    torch path (:func:`crossing_step_torch`); both give the same events bit for bit.
+    On the CPU this runs the compiled kernel (:mod:`._crossings_native`), elsewhere (or without a
+    C compiler) the vectorised torch path (:func:`crossing_step_torch`); both give the same events
+    bit for bit.
 
     Parameters
     ----------
@@ -101,18 +104,26 @@ def crossing_step(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_
     em_on, em_off : torch.Tensor (B, H, W) or None
         Emitted counts (``want_counts``), dtype of ``h_on``.
     """
-    if h_on.device.type == "cpu":
+    if _native_ok(h_on, c_on, c_off):
         return _crossing_step_cpu(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t,
                                   refractory_s, collect, want_counts)
     return crossing_step_torch(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t,
                                refractory_s, collect, want_counts)
 
 
+def _native_ok(h: Any, c_on: Any, c_off: Any) -> bool:
+    """Whether the compiled kernel applies: CPU, float32/64 counts with thresholds of the same
+    dtype, pixel indices within int32, and the kernel built (:mod:`._crossings_native`)."""
+    return (h.device.type == "cpu" and h.dtype in (torch.float32, torch.float64)
+            and c_on.dtype == h.dtype and c_off.dtype == h.dtype and h.numel() < 2**31
+            and _crossings_native.available())
+
+
 def _flat_np(x: Any) -> np.ndarray:
     return x.detach().contiguous().reshape(-1).numpy()
 
 
-def _threshold_np(c: Any, B: int, H: int, W: int, dtype: Any) -> np.ndarray:
+def _threshold_np(c: Any, B: int, H: int, W: int) -> np.ndarray:
     """Thresholds as 1, H·W or B·H·W values (the kernel's three layouts)."""
     c = c.detach()
     if c.numel() == 1:
@@ -121,41 +132,38 @@ def _threshold_np(c: Any, B: int, H: int, W: int, dtype: Any) -> np.ndarray:
         out = c.reshape(H * W)
     else:
         out = c.expand(B, H, W).reshape(-1)
-    return out.to(dtype).contiguous().numpy()
+    return out.contiguous().numpy()
 
 
 def _crossing_step_cpu(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_b: Any, c_on: Any,
                        c_off: Any, t_a: Any, t_b: Any, dt: Any, last_t: Any, refractory_s: float,
                        collect: bool, want_counts: bool) -> tuple[float, Any, Any]:
     """:func:`crossing_step` through the compiled kernel (same arguments and results)."""
-    from ._crossings_numba import step_events
-
     B, H, W = h_on.shape
-    c_dtype = torch.promote_types(c_on.dtype, c_off.dtype)
     # NumPy, not torch, for the work arrays: this may run on a worker thread (events.py), where a
     # parallel torch op would start its own OpenMP team
     hon, hoff = _flat_np(h_on), _flat_np(h_off)
-    em_on = torch.from_numpy(np.zeros(hon.shape, hon.dtype)).view(B, H, W) if want_counts else None
-    em_off = torch.from_numpy(np.zeros(hoff.shape, hoff.dtype)).view(B, H, W) if want_counts else None
-    dummy = np.empty(0, dtype=hon.dtype)
+    em_on = np.zeros(hon.shape, hon.dtype) if want_counts else None
+    em_off = np.zeros(hoff.shape, hoff.dtype) if want_counts else None
     cap = int(hon.sum(dtype=np.float64)) + int(hoff.sum(dtype=np.float64)) if collect else 0
-    flat = np.empty(cap, dtype=np.int32 if B * H * W < 2**31 else np.int64)
-    t = np.empty(cap, dtype=np.float64)
-    p = np.empty(cap, dtype=np.int8)
+    flat = np.empty(cap, dtype=np.int32) if collect else None
+    t = np.empty(cap, dtype=np.float64) if collect else None
+    p = np.empty(cap, dtype=np.int8) if collect else None
     refr = last_t is not None
-    n, lost = step_events(
-        hon, hoff, _flat_np(sig_a), _flat_np(ref_a), _flat_np(d_b),
-        _threshold_np(c_on, B, H, W, c_dtype), _threshold_np(c_off, B, H, W, c_dtype),
-        _flat_np(t_a.expand(B, 1, 1).to(torch.float64)), _flat_np(t_b.expand(B, 1, 1).to(torch.float64)),
-        _flat_np(dt.expand(B, 1, 1).to(torch.float64)), H * W,
-        last_t.view(-1).numpy() if refr else np.empty(0, dtype=np.float64), float(refractory_s), refr,
-        bool(collect), dummy if em_on is None else em_on.view(-1).numpy(),
-        dummy if em_off is None else em_off.view(-1).numpy(), bool(want_counts), flat, t, p)
+
+    def times(x: Any) -> np.ndarray:
+        return _flat_np(x.expand(B, 1, 1).to(torch.float64))
+
+    n, lost = _crossings_native.step_events(
+        hon, hoff, _flat_np(sig_a), _flat_np(ref_a), _flat_np(d_b), _threshold_np(c_on, B, H, W),
+        _threshold_np(c_off, B, H, W), times(t_a), times(t_b), times(dt), H * W,
+        last_t.view(-1).numpy() if refr else None, float(refractory_s), em_on, em_off, flat, t, p)
     if collect and n:
         if n < cap // 2:  # many crossings lost: do not keep the spare capacity alive
             flat, t, p = flat[:n].copy(), t[:n].copy(), p[:n].copy()
         parts.append((torch.from_numpy(flat[:n]), torch.from_numpy(t[:n]), torch.from_numpy(p[:n])))
-    return float(lost) if refr else 0.0, em_on, em_off
+    em = [None if e is None else torch.from_numpy(e).view(B, H, W) for e in (em_on, em_off)]
+    return float(lost) if refr else 0.0, em[0], em[1]
 
 
 def crossing_step_torch(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_b: Any, c_on: Any,
@@ -255,15 +263,13 @@ def stable_time_order(t: np.ndarray) -> np.ndarray:
 def sort_interval(parts: list) -> tuple[Any, Any, Any] | None:
     """Concatenate one frame interval's ``(flat, t, p)`` parts and sort them stably by time.
 
-    CPU parts go through the compiled bucket sort (:func:`._crossings_numba.sort_events`: one
+    CPU parts go through the compiled bucket sort (:func:`._crossings_native.sort_events`: one
     move per event, no concatenated copy); others through :func:`stable_time_order`.
     """
     if not parts:
         return None
-    if all(q[1].device.type == "cpu" for q in parts):
-        from ._crossings_numba import sort_events
-
-        out = sort_events([tuple(c.numpy() for c in q) for q in parts])
+    if all(q[1].device.type == "cpu" for q in parts) and _crossings_native.available():
+        out = _crossings_native.sort_events([tuple(c.numpy() for c in q) for q in parts])
         parts.clear()
         return tuple(torch.from_numpy(c) for c in out)
     if len(parts) == 1:
@@ -293,11 +299,9 @@ def to_event_columns(pieces: list, H: int, W: int, B: int) -> tuple[Any, Any, An
     HW = H * W
     for i, (flat, tq, pq) in enumerate(pieces):
         end = start + len(tq)
-        if flat.device.type == "cpu":
-            from ._crossings_numba import write_columns
-
-            write_columns(flat.numpy(), tq.numpy(), pq.numpy(), HW, W, x.numpy(), y.numpy(), t.numpy(), p.numpy(),
-                          start)
+        if flat.device.type == "cpu" and flat.dtype == torch.int32 and _crossings_native.available():
+            _crossings_native.write_columns(flat.numpy(), tq.numpy(), pq.numpy(), HW, W, x.numpy(), y.numpy(),
+                                            t.numpy(), p.numpy(), start)
         else:
             f32 = flat.to(torch.int32) if B * HW < 2**31 else flat  # int32 division is faster
             if B > 1:

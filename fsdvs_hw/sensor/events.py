@@ -296,20 +296,22 @@ def _init_state(L0: Any, SU0: Any, config: SensorConfig, thresholds: tuple[Any, 
 
 
 def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: SensorConfig, substeps: list[int],
-             collect_events: bool, events: list, want_counts: bool = True, bar: Any = None) -> list:
+             collect_events: bool, events: list, want_counts: bool = True, bar: Any = None,
+             pipe: _EventPipeline | None = None) -> list:
     """Step the pixels of ``st`` through frames ``Ls[0] → Ls[1] → ...`` (tuples of (B, H, W));
     ``Ls[0]`` is the frame the state is at. Returns the [on, off, on, off, ...] interval counts
     (``None`` entries unless ``want_counts``); each interval's time-sorted ``(flat, t, p)`` events
     (:func:`.crossings.sort_interval`, or None) are appended to ``events``. ``tsd``: (B, len(Ls))
-    float64 frame times. ``bar`` (tqdm, optional) advances by one per frame interval."""
-    dev = Ls[0].device
-    refr = float(config.refractory_s)
-    # The event-list work (compiled and GIL-free on the CPU) runs on two worker threads while this
-    # thread computes the next steps: one emits each step's crossings and noise events, in order
-    # (the refractory state passes from step to step), the other sorts each finished interval.
-    # Not when the refractory counts feed back into the frames.
-    pipe = None
-    if collect_events and dev.type == "cpu" and not (refr > 0 and want_counts):
+    float64 frame times. ``bar`` (tqdm, optional) advances by one per frame interval.
+
+    ``pipe``: a caller-owned :class:`_EventPipeline` (:mod:`.stream` keeps one across chunks);
+    then ``events`` receives futures and the refractory losses stay in ``pipe`` (``take_lost``),
+    for the caller to collect. Without it the event work of a CPU event list still runs on a
+    pipeline of its own, collected before returning.
+    """
+    if pipe is not None:
+        return _advance_steps(st, Ls, CI, SU, tsd, config, substeps, collect_events, events, want_counts, bar, pipe)
+    if collect_events and _pipelined(Ls[0].device, config, want_counts):
         pipe = _EventPipeline()
     first_event = len(events)
     try:
@@ -318,15 +320,23 @@ def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Senso
         if pipe is not None:
             for i in range(first_event, len(events)):
                 events[i] = events[i].result()
-            st.lost += pipe.lost()
+            st.lost += pipe.take_lost()
     finally:
         if pipe is not None:
             pipe.close()
     return frames
 
 
+def _pipelined(device: Any, config: SensorConfig, want_counts: bool) -> bool:
+    """Whether event work can leave the stepping thread: CPU, and the refractory counts do not feed
+    back into the frames."""
+    return device.type == "cpu" and not (float(config.refractory_s) > 0 and want_counts)
+
+
 class _EventPipeline:
-    """Two single-thread executors: ``emit`` runs step work in submission order, ``sort`` sorts an
+    """Where the event-list work runs while the caller computes the next steps: two worker threads
+    (the compiled kernels release the GIL). ``emit`` runs step work (crossings, noise events) in
+    submission order, since the refractory state passes from step to step; ``sort`` sorts an
     interval once every emit task submitted before it has finished."""
 
     def __init__(self) -> None:
@@ -351,8 +361,14 @@ class _EventPipeline:
 
         return self.sort_pool.submit(run)
 
-    def lost(self) -> float:
-        return float(sum(f.result()[0] for f in self.steps))
+    def take_steps(self) -> list:
+        """Futures of the crossing steps submitted since the last call (their refractory losses)."""
+        steps, self.steps = self.steps, []
+        return steps
+
+    def take_lost(self) -> float:
+        """Crossings lost to the refractory period in the steps submitted so far (waits for them)."""
+        return float(sum(f.result()[0] for f in self.take_steps()))
 
     def close(self) -> None:
         self.emit_pool.shutdown(wait=True, cancel_futures=True)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+from concurrent.futures import Future
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -39,7 +40,8 @@ import torch
 
 from ..errors import InputError
 from .config import SensorConfig
-from .events import EventList, SimulationInfo, _advance, _choose_substeps_for, _init_state, _plan_config
+from .events import (EventList, SimulationInfo, _advance, _choose_substeps_for, _EventPipeline, _init_state,
+                     _pipelined, _plan_config)
 from .crossings import to_event_columns
 from .filtering import filtered_log_signal, kernel_tensor
 from .pixel import threshold_maps
@@ -182,6 +184,33 @@ def simulate(frames: Any, kernel: Any = None, *, timestamps_s: Any = None, confi
                    events, event_frames, generator)
 
 
+@dataclass
+class _Submitted:
+    """A chunk whose steps are done and whose events may still be computing (futures)."""
+
+    first_interval: int
+    timestamps_s: Any
+    frames: Any
+    events: list  # sorted interval pieces, or futures of them
+    steps: list  # futures of the chunk's crossing steps (refractory losses), when pipelined
+    info: SimulationInfo
+    n_frames: int
+    batch: int
+
+    def finish(self, state: Any, shape: tuple[int, ...]) -> EventChunk:
+        """Wait for the chunk's events and build its :class:`EventChunk`."""
+        ev = None
+        if self.steps:
+            lost = sum(f.result()[0] for f in self.steps)
+            state.lost += lost
+            self.info.refractory_lost = int(round(self.info.refractory_lost + lost))
+        if self.events is not None:
+            pieces = [e.result() if isinstance(e, Future) else e for e in self.events]
+            ev = EventList(*to_event_columns(pieces, shape[1], shape[2], self.batch))
+        return EventChunk(self.first_interval, self.timestamps_s, self.frames, ev, self.info, self.n_frames,
+                          shape[1], shape[2])
+
+
 def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: SensorConfig, plan: Any,
             subs_plan: list[int] | None, chunk: int, want_events: bool, want_frames: bool,
             generator: Any) -> Iterator[EventChunk]:
@@ -227,77 +256,97 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
         return thr
 
     exhausted = False
-    while not exhausted:
-        batch, ts = [], []
-        need = chunk + (1 if prev is None else 0)
-        while len(batch) < need:
-            try:
-                item = next(source)
-            except StopIteration:
-                exhausted = True
+    # An event-only stream on the CPU keeps one event pipeline for the whole clip and hands each
+    # chunk over after submitting the next one's steps: the worker threads never drain at a chunk
+    # boundary (one extra chunk of events is in flight).
+    pipe = None
+    pending = None
+    try:
+        while not exhausted:
+            batch, ts = [], []
+            need = chunk + (1 if prev is None else 0)
+            while len(batch) < need:
+                try:
+                    item = next(source)
+                except StopIteration:
+                    exhausted = True
+                    break
+                t_item, fr = _as_frame(item, index, dtype)
+                if dtype is None:
+                    dtype, shape = fr.dtype, tuple(fr.shape)
+                    w = kernel_tensor(kernel, fr)
+                elif tuple(fr.shape) != shape:
+                    raise InputError(f"frames[{index}]: shape {tuple(fr.shape)} differs from the first frame's {shape}")
+                t = frame_time(t_item, index)
+                last_t = ts[-1] if ts else (prev[3] if prev is not None else None)
+                if last_t is not None and not t > last_t:
+                    raise InputError(f"timestamps_s: must be strictly increasing; frame {index} is not later "
+                                     f"than frame {index - 1}")
+                batch.append(fr)
+                ts.append(t)
+                index += 1
+            if not batch or (prev is None and len(batch) < 2):
+                if prev is None:
+                    raise InputError(f"frames: need at least 2 frames, got {len(batch)}")
                 break
-            t_item, fr = _as_frame(item, index, dtype)
-            if dtype is None:
-                dtype, shape = fr.dtype, tuple(fr.shape)
-                w = kernel_tensor(kernel, fr)
-            elif tuple(fr.shape) != shape:
-                raise InputError(f"frames[{index}]: shape {tuple(fr.shape)} differs from the first frame's {shape}")
-            t = frame_time(t_item, index)
-            last_t = ts[-1] if ts else (prev[3] if prev is not None else None)
-            if last_t is not None and not t > last_t:
-                raise InputError(f"timestamps_s: must be strictly increasing; frame {index} is not later "
-                                 f"than frame {index - 1}")
-            batch.append(fr)
-            ts.append(t)
-            index += 1
-        if not batch or (prev is None and len(batch) < 2):
+            video = torch.stack(batch, dim=1)  # (B, n, H, W)
+            sig = filtered_log_signal(video, w, config)
+            B = video.shape[0]
+            Ls = list(sig.log_signal.unbind(1))
+            CI = list(sig.cutoff_intensity.unbind(1)) if config.has_photoreceptor else None
+            SU = list(sig.surround.unbind(1)) if sig.surround is not None else None
             if prev is None:
-                raise InputError(f"frames: need at least 2 frames, got {len(batch)}")
-            break
-        video = torch.stack(batch, dim=1)  # (B, n, H, W)
-        sig = filtered_log_signal(video, w, config)
-        B = video.shape[0]
-        Ls = list(sig.log_signal.unbind(1))
-        CI = list(sig.cutoff_intensity.unbind(1)) if config.has_photoreceptor else None
-        SU = list(sig.surround.unbind(1)) if sig.surround is not None else None
-        if prev is None:
-            c_on, c_off = thresholds(Ls[0])
-            state = _init_state(Ls[0], SU[0] if SU is not None else None, config, (c_on, c_off), None, None,
-                                want_events)
-        else:
-            state.c_on, state.c_off = thresholds(Ls[0])
-            for name in ("ref", "lp", "sur", "sig_prev"):  # truncated BPTT: no graph across chunks
-                v = getattr(state, name)
-                if v is not None:
-                    setattr(state, name, v.detach())
-            Ls.insert(0, prev[0])
-            if CI is not None:
-                CI.insert(0, prev[1])
-            if SU is not None:
-                SU.insert(0, prev[2])
-            ts.insert(0, prev[3])
-        n_int = len(Ls) - 1
-        tsd = torch.tensor(ts, dtype=torch.float64, device=video.device).expand(B, -1)
-        if subs_plan is not None:
-            if first_interval + n_int > len(subs_plan):
-                raise InputError(f"plan: made for {len(subs_plan) + 1} frames, the stream has more")
-            subs = subs_plan[first_interval:first_interval + n_int]
-        else:
-            subs = _choose_substeps_for(torch.stack(Ls, dim=1), config, sig.surround is not None)
-        noise0, lost0 = state.noise_events, state.lost
-        ev_parts: list = []
-        ctx = torch.no_grad() if not want_frames else contextlib.nullcontext()
-        with ctx:
-            out = _advance(state, Ls, CI, SU, tsd, config, subs, want_events, ev_parts, want_frames)
-        frames = torch.stack(out, dim=1).view(B, n_int, 2, *shape[1:]) if want_frames else None
-        ev = EventList(*to_event_columns(ev_parts, shape[1], shape[2], B)) if want_events else None
-        info = SimulationInfo(sig.floor_fraction, tuple(subs), state.noise_events - noise0,
-                              int(round(state.lost - lost0)), B * shape[1] * shape[2] * sum(subs))
-        yield EventChunk(first_interval, tsd, frames, ev, info, len(batch), shape[1], shape[2])
-        prev = (Ls[-1].detach(), CI[-1].detach() if CI is not None else None,
-                SU[-1].detach() if SU is not None else None, ts[-1])
-        first_interval += n_int
-        del video, sig, Ls, CI, SU, out, frames, ev, ev_parts, batch  # one chunk alive at a time
+                c_on, c_off = thresholds(Ls[0])
+                state = _init_state(Ls[0], SU[0] if SU is not None else None, config, (c_on, c_off), None, None,
+                                    want_events)
+            else:
+                state.c_on, state.c_off = thresholds(Ls[0])
+                for name in ("ref", "lp", "sur", "sig_prev"):  # truncated BPTT: no graph across chunks
+                    v = getattr(state, name)
+                    if v is not None:
+                        setattr(state, name, v.detach())
+                Ls.insert(0, prev[0])
+                if CI is not None:
+                    CI.insert(0, prev[1])
+                if SU is not None:
+                    SU.insert(0, prev[2])
+                ts.insert(0, prev[3])
+            n_int = len(Ls) - 1
+            tsd = torch.tensor(ts, dtype=torch.float64, device=video.device).expand(B, -1)
+            if subs_plan is not None:
+                if first_interval + n_int > len(subs_plan):
+                    raise InputError(f"plan: made for {len(subs_plan) + 1} frames, the stream has more")
+                subs = subs_plan[first_interval:first_interval + n_int]
+            else:
+                subs = _choose_substeps_for(torch.stack(Ls, dim=1), config, sig.surround is not None)
+            noise0, lost0 = state.noise_events, state.lost
+            ev_parts: list = []
+            if pipe is None and want_events and not want_frames and _pipelined(video.device, config, False):
+                pipe = _EventPipeline()
+            ctx = torch.no_grad() if not want_frames else contextlib.nullcontext()
+            with ctx:
+                out = _advance(state, Ls, CI, SU, tsd, config, subs, want_events, ev_parts, want_frames, pipe=pipe)
+            frames = torch.stack(out, dim=1).view(B, n_int, 2, *shape[1:]) if want_frames else None
+            done = _Submitted(first_interval, tsd, frames, ev_parts if want_events else None, pipe.take_steps() if pipe is not None else [],
+                              SimulationInfo(sig.floor_fraction, tuple(subs), state.noise_events - noise0,
+                                             int(round(state.lost - lost0)), B * shape[1] * shape[2] * sum(subs)),
+                              len(batch), B)
+            if pending is not None:
+                yield pending.finish(state, shape)
+            pending = done
+            if pipe is None:  # nothing runs in the background: hand the chunk over now
+                yield pending.finish(state, shape)
+                pending = None
+            prev = (Ls[-1].detach(), CI[-1].detach() if CI is not None else None,
+                    SU[-1].detach() if SU is not None else None, ts[-1])
+            first_interval += n_int
+            del video, sig, Ls, CI, SU, out, frames, done, ev_parts, batch  # one chunk alive at a time
+        if pending is not None:
+            yield pending.finish(state, shape)
+            pending = None
+    finally:
+        if pipe is not None:
+            pipe.close()
     if plan is not None and subs_plan is not None and first_interval != len(subs_plan):
         raise InputError(f"plan: made for {len(subs_plan) + 1} frames, the stream had {first_interval + 1}")
 
