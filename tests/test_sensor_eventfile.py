@@ -22,8 +22,14 @@ def _chunks(T=9, H=12, W=20):
     return list(simulate(video, config=cfg, chunk_frames=3)), H, W
 
 
+@pytest.mark.parametrize("write_slice", [1 << 18, 7], ids=["one slice", "slices of 7"])
 @pytest.mark.parametrize("suffix", FORMATS)
-def test_round_trip_chunk_by_chunk(tmp_path, suffix):
+def test_round_trip_chunk_by_chunk(tmp_path, suffix, write_slice, monkeypatch):
+    """Chunks written one by one read back exactly; also when each write is cut into slices of 7
+    events (the writer bounds its memory by slicing large chunks)."""
+    from fsdvs_hw.sensor import eventfile
+
+    monkeypatch.setattr(eventfile, "WRITE_SLICE", write_slice)
     chunks, H, W = _chunks()
     path = tmp_path / f"ev{suffix}"
     with EventFileWriter(path, W, H) as w:

@@ -125,6 +125,19 @@ def _columns(events: Any, width: int, height: int) -> tuple[np.ndarray, ...]:
     return t_us, x, y, p
 
 
+#: Events converted and written per slice by :meth:`EventFileWriter.write` (bounds its memory).
+WRITE_SLICE = 1 << 18
+
+
+def _slice_events(events: Any, start: int, end: int) -> Any:
+    """Events ``start:end`` of an EventList or EventFile (views, no copies)."""
+    if isinstance(events, EventFile):
+        return EventFile(events.t_us[start:end], events.x[start:end], events.y[start:end], events.p[start:end],
+                         events.width, events.height, events.metadata)
+    return type(events)(events.b[start:end], events.x[start:end], events.y[start:end], events.t[start:end],
+                        events.p[start:end])
+
+
 class EventFileWriter:
     """Write events to ``path`` chunk by chunk; the format follows the suffix (see module doc).
 
@@ -163,9 +176,18 @@ class EventFileWriter:
             self._cols = {k: open(self._tmp / k, "wb") for k in ("t", "x", "y", "p")}  # noqa: SIM115
 
     def write(self, events: Any) -> None:
-        """Append an :class:`~fsdvs_hw.sensor.EventList` (batch 0) or :class:`EventFile`."""
+        """Append an :class:`~fsdvs_hw.sensor.EventList` (batch 0) or :class:`EventFile`.
+
+        Written in slices of :data:`WRITE_SLICE` events, so the conversion's temporaries (µs times,
+        the file's row layout: ~50 B per event) are bounded whatever the size of ``events``.
+        """
         if self._closed:
             raise InputError(f"event file {str(self.path)!r}: already closed")
+        n = len(events)
+        for start in range(0, n, WRITE_SLICE):
+            self._write_slice(_slice_events(events, start, min(start + WRITE_SLICE, n)))
+
+    def _write_slice(self, events: Any) -> None:
         t_us, x, y, p = _columns(events, self.width, self.height)
         if not t_us.size:
             return
