@@ -49,3 +49,30 @@ def test_presets_carry_v2e_settings_and_default_is_unchanged():
         SensorConfig.preset("v2e-loud")
     with pytest.raises(InputError, match="response"):
         SensorConfig(response="chord")
+
+
+def test_linlog_v2e_rounding_equals_torch_round():
+    """v2e's 1e-8 rounding (here by the add-and-subtract 1.5·2**52 trick) equals torch.round's
+    ties-to-even result bit for bit, with and without autograd, from 0 and sub-knee values to the
+    float32 maximum (where 255·I overflows to inf: inf, never NaN, on both paths); exact ties round
+    to even."""
+    import math
+
+    import torch
+
+    from fsdvs_hw.sensor.pixel import _round_half_even, linlog_v2e
+
+    g = torch.Generator().manual_seed(0)
+    inten = torch.cat([torch.zeros(3), torch.rand(2000, generator=g) * 0.1, torch.rand(2000, generator=g),
+                       torch.logspace(-30, 38, 500), torch.tensor([3.4e38])]).float()
+    knee = 20 / 255
+    x, k = inten * 255.0, knee * 255.0
+    y = torch.where(x <= k, x * (math.log(k) / k), torch.log(torch.clamp(x, min=k)))
+    want = torch.round(y.double() * 1e8).div(1e8).to(y.dtype)
+    assert torch.equal(linlog_v2e(inten, knee), want)
+    inten.requires_grad_(True)
+    out = linlog_v2e(inten, knee)
+    assert out.requires_grad and torch.equal(out.detach(), want) and not torch.isnan(out).any()
+    assert torch.isinf(want[-1]) and torch.isfinite(want[:-60]).all()
+    ties = torch.tensor([0.5, 1.5, 2.5, -0.5, -2.5, 1e10 + 0.5], dtype=torch.float64)
+    assert torch.equal(_round_half_even(ties.clone()), torch.round(ties))

@@ -39,7 +39,7 @@ Surrogate gradient (``SensorConfig.surrogate``)
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -372,6 +372,14 @@ class _EventPipeline:
             for f in waits:
                 f.result()
             return sort_interval(parts)
+
+        return self.sort_pool.submit(run)
+
+    def columns(self, pieces: list, H: int, W: int, B: int) -> Any:
+        """Future of :func:`.crossings.to_event_columns` of a chunk's interval pieces (futures from
+        :meth:`sort`, which this worker has finished by the time it runs this)."""
+        def run() -> Any:
+            return to_event_columns([q.result() if isinstance(q, Future) else q for q in pieces], H, W, B)
 
         return self.sort_pool.submit(run)
 

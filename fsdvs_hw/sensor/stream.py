@@ -191,7 +191,7 @@ class _Submitted:
     first_interval: int
     timestamps_s: Any
     frames: Any
-    events: list  # sorted interval pieces, or futures of them
+    events: Any  # sorted interval pieces, or the future of their (b, x, y, t, p) columns; None: not wanted
     steps: list  # futures of the chunk's crossing steps (refractory losses), when pipelined
     info: SimulationInfo
     n_frames: int
@@ -204,9 +204,10 @@ class _Submitted:
             lost = sum(f.result()[0] for f in self.steps)
             state.lost += lost
             self.info.refractory_lost = int(round(self.info.refractory_lost + lost))
-        if self.events is not None:
-            pieces = [e.result() if isinstance(e, Future) else e for e in self.events]
-            ev = EventList(*to_event_columns(pieces, shape[1], shape[2], self.batch))
+        if isinstance(self.events, Future):
+            ev = EventList(*self.events.result())
+        elif self.events is not None:
+            ev = EventList(*to_event_columns(self.events, shape[1], shape[2], self.batch))
         return EventChunk(self.first_interval, self.timestamps_s, self.frames, ev, self.info, self.n_frames,
                           shape[1], shape[2])
 
@@ -327,7 +328,10 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
             with ctx:
                 out = _advance(state, Ls, CI, SU, tsd, config, subs, want_events, ev_parts, want_frames, pipe=pipe)
             frames = torch.stack(out, dim=1).view(B, n_int, 2, *shape[1:]) if want_frames else None
-            done = _Submitted(first_interval, tsd, frames, ev_parts if want_events else None, pipe.take_steps() if pipe is not None else [],
+            if pipe is not None and want_events:  # the columns too are built on the worker
+                ev_parts = pipe.columns(ev_parts, shape[1], shape[2], B)
+            done = _Submitted(first_interval, tsd, frames, ev_parts if want_events else None,
+                              pipe.take_steps() if pipe is not None else [],
                               SimulationInfo(sig.floor_fraction, tuple(subs), state.noise_events - noise0,
                                              int(round(state.lost - lost0)), B * shape[1] * shape[2] * sum(subs)),
                               len(batch), B)
