@@ -36,9 +36,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--peak-intensity", type=float, default=1.0,
                         help="intensity of display white (full scale 1.0; lower for a dim scene)")
     parser.add_argument("--chunk-frames", type=int, default=1,
-                        help="frame intervals per chunk (default 1; peak memory grows with the events of one chunk, ~230 B each)")
+                        help="frame intervals per chunk (default 1; peak memory grows with the events of one chunk)")
     parser.add_argument("--threads", type=int, default=None,
-                        help="torch intra-op threads (default: torch's); 1 is often faster on a loaded machine")
+                        help="torch intra-op threads (default: CPU cores minus 2, at least 1: the event list's "
+                             "two worker threads take the rest)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is not a terminal)")
 
 
@@ -66,12 +67,13 @@ def run(args: argparse.Namespace) -> int:
     from ..sensor.eventfile import EventFileWriter, event_format
 
     event_format(args.out)  # checked before decoding anything
-    if args.threads is not None:
-        if args.threads < 1:
-            raise InputError(f"--threads: must be >= 1, got {args.threads}")
-        import torch
+    if args.threads is not None and args.threads < 1:
+        raise InputError(f"--threads: must be >= 1, got {args.threads}")
+    import torch
 
-        torch.set_num_threads(args.threads)
+    from ..sensor.bench import event_list_threads
+
+    torch.set_num_threads(args.threads if args.threads is not None else event_list_threads())
     output_file(args.out, flag="--out")  # its folder is created (as every verb's --out), or a one-line error
     path = example_clip_path(args.video.split(":", 1)[1]) if args.video.startswith("example:") else Path(args.video)
     size = _size(args.size)

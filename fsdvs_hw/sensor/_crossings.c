@@ -112,23 +112,6 @@ static inline int64_t bucket_of(double tt, double lo, double scale, int64_t nb) 
     return (int64_t)f;
 }
 
-/* counts[bucket + 1] += 1 for every time (counts has nb + 1 entries; an interval holds < 2**31 events). */
-void fsdvs_count_buckets(const double *t, int64_t n, double lo, double scale, int64_t nb, int32_t *counts) {
-    for (int64_t i = 0; i < n; i++) counts[bucket_of(t[i], lo, scale, nb) + 1]++;
-}
-
-/* Move events into their buckets in input order; next_pos[b] is bucket b's next free slot. */
-void fsdvs_scatter_buckets(const int32_t *flat, const double *t, const int8_t *p, int64_t n, double lo,
-                           double scale, int64_t nb, int32_t *next_pos, int32_t *flat_out, double *t_out,
-                           int8_t *p_out) {
-    for (int64_t i = 0; i < n; i++) {
-        int32_t j = next_pos[bucket_of(t[i], lo, scale, nb)]++;
-        flat_out[j] = flat[i];
-        t_out[j] = t[i];
-        p_out[j] = p[i];
-    }
-}
-
 /* Stable merge sort of the indices in a[0:n] by key t[index] (ties keep their order), using b as
  * scratch; returns whichever of a, b holds the result. */
 static const int64_t *merge_sort_idx(int64_t *a, int64_t *b, const double *t, int64_t n) {
@@ -150,7 +133,7 @@ static const int64_t *merge_sort_idx(int64_t *a, int64_t *b, const double *t, in
 
 /* Stable sort by t inside each bucket [starts[b], starts[b + 1]), in place. Returns 0, or -1 when
  * a scratch allocation failed. */
-int fsdvs_sort_buckets(const int32_t *starts, int64_t nb, int32_t *flat, double *t, int8_t *p) {
+static int sort_buckets(const int32_t *starts, int64_t nb, int32_t *flat, double *t, int8_t *p) {
     for (int64_t b = 0; b < nb; b++) {
         int64_t s = starts[b], e = starts[b + 1], len = e - s;
         if (len < 2) continue;
@@ -196,6 +179,35 @@ int fsdvs_sort_buckets(const int32_t *starts, int64_t nb, int32_t *flat, double 
         }
     }
     return 0;
+}
+
+/* Stable sort by time of one frame interval's events, given as n_parts parts (concatenated in
+ * order), into flat_out/t_out/p_out: a counting sort into nb buckets (bucket_of is monotone in
+ * time, so buckets are ordered), then a stable sort inside each bucket (insertion; merge sort
+ * above BIG_BUCKET events). counts: scratch of nb + 1 entries. Returns 0, or -1 when a scratch
+ * allocation failed. */
+int fsdvs_sort_interval(int64_t n_parts, const int64_t *lens, const int32_t *const *flats,
+                        const double *const *ts, const int8_t *const *ps, double lo, double scale, int64_t nb,
+                        int32_t *counts, int32_t *flat_out, double *t_out, int8_t *p_out) {
+    for (int64_t b = 0; b <= nb; b++) counts[b] = 0;
+    for (int64_t q = 0; q < n_parts; q++)
+        for (int64_t i = 0; i < lens[q]; i++) counts[bucket_of(ts[q][i], lo, scale, nb) + 1]++;
+    for (int64_t b = 0; b < nb; b++) counts[b + 1] += counts[b]; /* counts[b] = first slot of bucket b */
+    for (int64_t q = 0; q < n_parts; q++) {
+        const int32_t *f = flats[q];
+        const double *t = ts[q];
+        const int8_t *p = ps[q];
+        for (int64_t i = 0; i < lens[q]; i++) {
+            int32_t j = counts[bucket_of(t[i], lo, scale, nb)]++;
+            flat_out[j] = f[i];
+            t_out[j] = t[i];
+            p_out[j] = p[i];
+        }
+    }
+    /* now counts[b] = end of bucket b = start of bucket b + 1; shift back to starts */
+    for (int64_t b = nb; b > 0; b--) counts[b] = counts[b - 1];
+    counts[0] = 0;
+    return sort_buckets(counts, nb, flat_out, t_out, p_out);
 }
 
 /* One sorted interval into the event columns: y = (f mod hw) / w, x = (f mod hw) - y w. */

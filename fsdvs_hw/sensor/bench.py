@@ -500,6 +500,14 @@ def _run_child(cmd: list[str], what: str) -> tuple[dict[str, Any], list[float], 
     return r, [px / w for w in r["walls"]], [px / max(c, 1e-9) for c in r["cpus"]]
 
 
+def event_list_threads() -> int:
+    """torch intra-op threads for an event-list run: the CPU cores minus the two the event
+    pipeline's worker threads keep busy (:class:`~fsdvs_hw.sensor.events._EventPipeline`), at
+    least 1. On 2 cores: 1 (measured: 2 torch threads make the bikes event list ~25 % slower, their
+    OpenMP team competing with the workers)."""
+    return max(1, (os.cpu_count() or 1) - 2)
+
+
 def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats: int | None = None,
                 threads: int | None = None, chunk_frames: int = 8, long_seconds: float = 120.0) -> list[dict[str, Any]]:
     """Benchmark records: one plain dict per case of :data:`SIM_CASES`.
@@ -514,7 +522,8 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
     repeats : int, optional
         Timed runs per case (default 3, 1 with ``quick``; the long clip runs once).
     threads : int, optional
-        torch threads in the children (default ``min(2, cpu_count)``).
+        torch threads in the children (default: :func:`event_list_threads` for event-list cases,
+        whose event work runs on two worker threads besides; ``min(2, cpu_count)`` for the others).
     chunk_frames : int
         Frame intervals per streamed chunk (memory grows with it; throughput barely does).
     long_seconds : float
@@ -547,13 +556,15 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
             raise InputError(f"bench sim case {n!r} unknown; allowed: {', '.join(SIM_CASES)}")
     if repeats is not None and (not isinstance(repeats, int) or repeats < 1):
         raise InputError(f"repeats: must be an integer >= 1, got {repeats!r}")
-    threads = min(2, os.cpu_count() or 1) if threads is None else int(threads)
     out = []
     for name in names:
         case = SIM_CASES[name]
+        events_path = case["path"].startswith("event list") or case["path"] == "centre-surround"
+        n_threads = int(threads) if threads is not None else (
+            event_list_threads() if events_path else min(2, os.cpu_count() or 1))
         reps = repeats if repeats is not None else (1 if quick or case["clip"] == "long" else 3)
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-        spec = json.dumps({"case": case, "repeats": reps, "quick": quick, "threads": threads,
+        spec = json.dumps({"case": case, "repeats": reps, "quick": quick, "threads": n_threads,
                            "chunk_frames": chunk_frames, "long_seconds": long_seconds})
         r, rates, cpu_rates = _run_child([sys.executable, "-m", "fsdvs_hw.sensor.bench", "--child", spec],
                                          f"benchmark child for {name!r}")
@@ -564,7 +575,7 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
                     "mpf_cpu_s_mean": statistics.fmean(cpu_rates),
                     "mpf_cpu_s_std": statistics.stdev(cpu_rates) if len(cpu_rates) > 1 else 0.0,
                     "repeats": reps, "peak_rss_mb": r["peak_rss_mb"], "rss_base_mb": r["rss_base_mb"],
-                    "threads": threads, "settings": case["settings"], "chunk_frames": chunk_frames,
+                    "threads": n_threads, "settings": case["settings"], "chunk_frames": chunk_frames,
                     "torch": torch.__version__, "load_avg": load})
     return out
 

@@ -260,8 +260,9 @@ def stable_time_order(t: np.ndarray) -> np.ndarray:
     return order
 
 
-def sort_interval(parts: list) -> tuple[Any, Any, Any] | None:
-    """Concatenate one frame interval's ``(flat, t, p)`` parts and sort them stably by time.
+def sort_interval(parts: list, lo: float | None = None, hi: float | None = None) -> tuple[Any, Any, Any] | None:
+    """Concatenate one frame interval's ``(flat, t, p)`` parts and sort them stably by time
+    (``lo``, ``hi``: bounds of the times, e.g. the interval's frame times, if known).
 
     CPU parts go through the compiled bucket sort (:func:`._crossings_native.sort_events`: one
     move per event, no concatenated copy); others through :func:`stable_time_order`.
@@ -269,7 +270,7 @@ def sort_interval(parts: list) -> tuple[Any, Any, Any] | None:
     if not parts:
         return None
     if all(q[1].device.type == "cpu" for q in parts) and _crossings_native.available():
-        out = _crossings_native.sort_events([tuple(c.numpy() for c in q) for q in parts])
+        out = _crossings_native.sort_events([tuple(c.numpy() for c in q) for q in parts], lo, hi)
         parts.clear()
         return tuple(torch.from_numpy(c) for c in out)
     if len(parts) == 1:

@@ -365,13 +365,14 @@ class _EventPipeline:
         if crossing:
             self.steps.append(f)
 
-    def sort(self, parts: list) -> Any:
+    def sort(self, parts: list, lo: float, hi: float) -> Any:
+        """Future of :func:`.crossings.sort_interval` of an interval's parts (times in [lo, hi])."""
         waits, self.pending = self.pending, []
 
         def run() -> Any:
             for f in waits:
                 f.result()
-            return sort_interval(parts)
+            return sort_interval(parts, lo, hi)
 
         return self.sort_pool.submit(run)
 
@@ -416,6 +417,7 @@ def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config:
     shot_g, time_g = st.shot_g, st.time_g
     noise_events, lost = st.noise_events, st.lost
     frames = []
+    t_lo, t_hi = tsd.amin(0).tolist(), tsd.amax(0).tolist()  # each frame time over the batch
     for k in range(len(Ls) - 1):
         step_parts: list = []
         S = substeps[k]
@@ -471,9 +473,9 @@ def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config:
                 on_px, off_px = shot_noise_pixels(B, H * W, (0.5 * shot) * dt_sub64.reshape(B), shot_g)
                 on_px, off_px = on_px.to(dev), off_px.to(dev)
                 noise_events += len(on_px) + len(off_px)
-                if len(on_px):
+                if len(on_px) and want_counts:
                     e_on = e_on + torch.bincount(on_px, minlength=B * H * W).view(B, H, W).to(dt_)
-                if len(off_px):
+                if len(off_px) and want_counts:
                     e_off = e_off + torch.bincount(off_px, minlength=B * H * W).view(B, H, W).to(dt_)
                 if collect_events:
                     args = (step_parts, on_px, off_px, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64, time_g)
@@ -487,7 +489,10 @@ def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config:
                 off_acc = e_off if off_acc is None else off_acc + e_off
         frames += [on_acc, off_acc]
         if collect_events:
-            events.append(pipe.sort(step_parts) if pipe is not None else sort_interval(step_parts))
+            if pipe is not None:
+                events.append(pipe.sort(step_parts, t_lo[k], t_hi[k + 1]))
+            else:
+                events.append(sort_interval(step_parts, t_lo[k], t_hi[k + 1]))
         if bar is not None:
             bar.update(1)
     st.ref, st.lp, st.sur, st.sig_prev, st.last_t = ref, lp, sur, sig_prev, last_t

@@ -109,11 +109,13 @@ def _as_frame(item: Any, index: int, dtype: Any) -> tuple[float | None, Any]:
         item = item.float()
     if dtype is not None and item.dtype != dtype:
         item = item.to(dtype)
-    with torch.no_grad():
-        if not bool(torch.isfinite(item).all()):
+    if item.numel():
+        with torch.no_grad():
+            lo, hi = (float(v) for v in torch.aminmax(item))  # one pass; NaN propagates into both
+        if not (math.isfinite(lo) and math.isfinite(hi)):
             raise InputError(f"frames[{index}]: contains NaN or inf intensities")
-        if item.numel() and float(item.min()) < 0:
-            raise InputError(f"frames[{index}]: linear intensities must be >= 0, got minimum {float(item.min()):g}")
+        if lo < 0:
+            raise InputError(f"frames[{index}]: linear intensities must be >= 0, got minimum {lo:g}")
     return t, item
 
 
