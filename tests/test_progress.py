@@ -18,6 +18,7 @@ class _Tty(io.StringIO):
 
 @pytest.fixture
 def restore_switch():
+    set_progress(True)  # a CLI test run earlier in this worker may have left --no-progress's switch off
     yield
     set_progress(True)
 

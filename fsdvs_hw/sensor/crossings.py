@@ -326,11 +326,12 @@ def to_event_columns(pieces: list, H: int, W: int, B: int) -> tuple[Any, Any, An
 def shot_noise_pixels(B: int, HW: int, lam: Any, generator: Any) -> tuple[Any, Any]:
     """Flat pixel indices (sorted, one entry per event) of one step's ON and OFF shot-noise events.
 
-    Each pixel of batch element ``b`` gets Poisson(``lam[b]``) events per polarity, independently.
-    Drawn sparsely, in the same law: the total ``N_b ~ Poisson(HW · lam_b)`` and then ``N_b``
-    pixels uniformly with replacement (a Poisson process split uniformly over pixels is
-    independent Poisson per pixel). At v2e's 0.001 Hz a 640×480 frame gets a few events per step,
-    so this costs a few draws instead of two full-frame Poisson samplings per step.
+    Each pixel of batch element ``b`` gets Poisson(``lam[b]``) events per polarity, independently,
+    drawn per pixel (``torch.poisson`` over the (B, H·W) frame, ON then OFF), so results made with
+    earlier versions reproduce draw for draw. A sparse draw (the total ``N_b ~ Poisson(HW lam_b)``,
+    then ``N_b`` uniform pixels) has the same law at a fraction of the cost (v2e's 0.001 Hz gives a
+    few events per frame), but other realisations: every stored result (shipped checkpoints'
+    metrics, the design results) would change, so it is not used.
 
     Parameters
     ----------
@@ -341,17 +342,13 @@ def shot_noise_pixels(B: int, HW: int, lam: Any, generator: Any) -> tuple[Any, A
     generator : torch.Generator
         The shot-noise count stream (its device is used).
     """
+    rate = lam.to(generator.device, torch.float64).view(B, 1).expand(B, HW).contiguous()
     out = []
     for _ in range(2):  # ON, then OFF
-        n = torch.poisson(lam.to(generator.device) * HW, generator=generator).long()
-        total = int(n.sum())
-        if total == 0:
-            out.append(torch.zeros(0, dtype=torch.int64, device=generator.device))
-            continue
-        px = torch.randint(0, HW, (total,), generator=generator, device=generator.device)
-        if B > 1:
-            px += torch.repeat_interleave(torch.arange(B, device=generator.device) * HW, n)
-        out.append(torch.sort(px).values)
+        k = torch.poisson(rate, generator=generator).view(-1)
+        idx = torch.nonzero(k > 0).squeeze(1)
+        out.append(idx if idx.numel() == 0 or bool((k[idx] == 1).all())
+                   else torch.repeat_interleave(idx, k[idx].long()))
     return out[0], out[1]
 
 

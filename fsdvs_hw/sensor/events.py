@@ -335,10 +335,16 @@ def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Senso
             for i in range(first_event, len(events)):
                 events[i] = events[i].result()
             st.lost += pipe.take_lost()
+            st.noise_events += _noise_count(pipe.take_noise())
     finally:
         if pipe is not None:
             pipe.close()
     return frames
+
+
+def _noise_count(draws: list) -> int:
+    """Noise events in finished (or pending: waits) draw futures of :meth:`_EventPipeline.noise`."""
+    return sum(len(a) + len(b) for a, b in (f.result() for f in draws))
 
 
 def _pipelined(device: Any, config: SensorConfig, want_counts: bool) -> bool:
@@ -356,7 +362,9 @@ class _EventPipeline:
     def __init__(self) -> None:
         self.emit_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-emit")
         self.sort_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-sort")
+        self.noise_pool: ThreadPoolExecutor | None = None  # started by the first noise draw
         self.steps: list = []  # futures of crossing_step: (lost, em_on, em_off)
+        self.noise_draws: list = []  # futures of shot-noise draws: (on_px, off_px)
         self.pending: list = []  # emit futures of the interval being stepped
 
     def emit(self, fn: Any, *args: Any, crossing: bool = False) -> None:
@@ -384,6 +392,27 @@ class _EventPipeline:
 
         return self.sort_pool.submit(run)
 
+    def noise(self, draw: Any, emit: Any, draw_args: tuple, emit_args: tuple) -> None:
+        """Shot noise of one step: ``draw(*draw_args)`` (the per-pixel Poisson draw, in order on a
+        third worker, ahead of the emitter) then ``emit(parts, on_px, off_px, *rest)`` in step order
+        on the emit worker. The event count is kept for :meth:`take_noise`."""
+        if self.noise_pool is None:
+            self.noise_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-noise")
+        drawn = self.noise_pool.submit(draw, *draw_args)
+        self.noise_draws.append(drawn)
+        parts, *rest = emit_args
+
+        def run() -> None:
+            on_px, off_px = drawn.result()
+            emit(parts, on_px, off_px, *rest)
+
+        self.emit(run)
+
+    def take_noise(self) -> list:
+        """Futures of the noise draws submitted since the last call (``(on_px, off_px)``)."""
+        draws, self.noise_draws = self.noise_draws, []
+        return draws
+
     def take_steps(self) -> list:
         """Futures of the crossing steps submitted since the last call (their refractory losses)."""
         steps, self.steps = self.steps, []
@@ -394,8 +423,9 @@ class _EventPipeline:
         return float(sum(f.result()[0] for f in self.take_steps()))
 
     def close(self) -> None:
-        self.emit_pool.shutdown(wait=True, cancel_futures=True)
-        self.sort_pool.shutdown(wait=True, cancel_futures=True)
+        for pool in (self.noise_pool, self.emit_pool, self.sort_pool):
+            if pool is not None:
+                pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: SensorConfig,
@@ -469,7 +499,11 @@ def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config:
                         e_on = _refractory_surrogate(n_on, h_on, em_on)
                         e_off = _refractory_surrogate(n_off, h_off, em_off)
             ref = ref_next
-            if shot > 0:
+            if shot > 0 and pipe is not None and not want_counts:  # draws and events on the workers
+                lam = (0.5 * shot) * dt_sub64.reshape(B)
+                pipe.noise(shot_noise_pixels, noise_step, (B, H * W, lam, shot_g),
+                           (step_parts, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64, time_g))
+            elif shot > 0:
                 on_px, off_px = shot_noise_pixels(B, H * W, (0.5 * shot) * dt_sub64.reshape(B), shot_g)
                 on_px, off_px = on_px.to(dev), off_px.to(dev)
                 noise_events += len(on_px) + len(off_px)

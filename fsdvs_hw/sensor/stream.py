@@ -41,7 +41,7 @@ import torch
 from ..errors import InputError
 from .config import SensorConfig
 from .events import (EventList, SimulationInfo, _advance, _choose_substeps_for, _EventPipeline, _init_state,
-                     _pipelined, _plan_config)
+                     _noise_count, _pipelined, _plan_config)
 from .crossings import to_event_columns
 from .filtering import filtered_log_signal, kernel_tensor
 from .pixel import threshold_maps
@@ -195,6 +195,7 @@ class _Submitted:
     frames: Any
     events: Any  # sorted interval pieces, or the future of their (b, x, y, t, p) columns; None: not wanted
     steps: list  # futures of the chunk's crossing steps (refractory losses), when pipelined
+    noise: list  # futures of the chunk's shot-noise draws, when pipelined
     info: SimulationInfo
     n_frames: int
     batch: int
@@ -206,6 +207,10 @@ class _Submitted:
             lost = sum(f.result()[0] for f in self.steps)
             state.lost += lost
             self.info.refractory_lost = int(round(self.info.refractory_lost + lost))
+        if self.noise:
+            n_noise = _noise_count(self.noise)
+            state.noise_events += n_noise
+            self.info.noise_events += n_noise
         if isinstance(self.events, Future):
             ev = EventList(*self.events.result())
         elif self.events is not None:
@@ -334,6 +339,7 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
                 ev_parts = pipe.columns(ev_parts, shape[1], shape[2], B)
             done = _Submitted(first_interval, tsd, frames, ev_parts if want_events else None,
                               pipe.take_steps() if pipe is not None else [],
+                              pipe.take_noise() if pipe is not None else [],
                               SimulationInfo(sig.floor_fraction, tuple(subs), state.noise_events - noise0,
                                              int(round(state.lost - lost0)), B * shape[1] * shape[2] * sum(subs)),
                               len(batch), B)
