@@ -184,3 +184,25 @@ def test_floor_gradient_is_straight_through_and_clipped():
     # below the floor d log / d I would be 1 / I_dark = 1e6; the straight-through gradient is clipped to 1
     assert torch.all(video.grad[..., 0] == 1.0)
     torch.testing.assert_close(video.grad[..., 1], torch.ones_like(video.grad[..., 1]))  # d log I / d I at I = 1
+
+
+@pytest.mark.parametrize("H, W", [(67, 61), (64, 64), (131, 97), (272, 640)])
+@pytest.mark.parametrize("k", [5, 9])
+def test_fft_correlation_equals_conv2d_at_any_frame_size(H, W, k):
+    """The FFT path (transforms at fast sizes, larger than the padded frame) equals conv2d with
+    replicated borders, values and kernel gradients, including prime frame sizes."""
+    from fsdvs_hw.sensor.filtering import apply_kernel
+
+    g = torch.Generator().manual_seed(H + W + k)
+    frames = torch.rand(2, H, W, generator=g, dtype=torch.float64)
+    ker = torch.randn(k, k, generator=g, dtype=torch.float64)
+    outs, grads = [], []
+    for method in ("fft", "direct"):
+        kk = ker.clone().requires_grad_(True)
+        y = apply_kernel(frames, kk, method)
+        (y * frames).sum().backward()
+        outs.append(y.detach())
+        grads.append(kk.grad)
+    assert outs[0].shape == (2, H, W)
+    assert torch.allclose(outs[0], outs[1], rtol=0, atol=1e-12)
+    assert torch.allclose(grads[0], grads[1], rtol=1e-10, atol=1e-9)
