@@ -140,16 +140,18 @@ def test_compiled_bucket_sort_is_a_stable_sort(values, scale):
         assert np.array_equal(p, np.concatenate([q[2] for q in parts])[order])
 
 
-def test_shot_noise_pixels_are_independent_poisson_per_pixel():
-    """Per-pixel counts with the mean and variance of Poisson(lam) (dispersion 1), per-batch rates,
-    indices sorted with one entry per event; and the draw is torch.poisson's over the frame, ON
-    then OFF (the stream every stored result was made with)."""
+@pytest.mark.parametrize("sparse", [False, True], ids=["per_pixel", "sparse"])
+def test_shot_noise_pixels_are_independent_poisson_per_pixel(sparse):
+    """Both draws: per-pixel counts with the mean and variance of Poisson(lam) (dispersion 1),
+    per-batch rates, no pixel far from the rest, indices sorted with one entry per event; and the
+    per-pixel draw is torch.poisson's over the frame, ON then OFF (the stream every stored result
+    was made with)."""
     g = torch.Generator().manual_seed(5)
     B, HW, steps = 2, 400, 500
     lam = torch.tensor([0.02, 0.2], dtype=torch.float64)
     counts = torch.zeros(steps, B * HW)
     for i in range(steps):
-        on, off = shot_noise_pixels(B, HW, lam, g)
+        on, off = shot_noise_pixels(B, HW, lam, g, sparse)
         assert torch.equal(on, torch.sort(on).values) and on.dtype == torch.int64
         counts[i] = torch.bincount(on, minlength=B * HW).float()
     for b in range(B):
@@ -157,6 +159,10 @@ def test_shot_noise_pixels_are_independent_poisson_per_pixel():
         se = math.sqrt(float(lam[b]) / c.numel())
         assert abs(float(c.mean()) - float(lam[b])) < 4 * se
         assert float(c.var()) / float(c.mean()) == pytest.approx(1.0, abs=0.05)
+    per_px = counts[:, HW:].sum(0)  # uniform over pixels: Poisson(100) each, none beyond 6 sd
+    assert float((per_px - steps * 0.2).abs().max()) < 6 * math.sqrt(steps * 0.2)
+    if sparse:
+        return
     g1, g2 = torch.Generator().manual_seed(9), torch.Generator().manual_seed(9)
     on, off = shot_noise_pixels(B, HW, lam, g1)
     rate = lam.view(B, 1).expand(B, HW).contiguous()

@@ -76,3 +76,21 @@ def test_linlog_v2e_rounding_equals_torch_round():
     assert torch.isinf(want[-1]) and torch.isfinite(want[:-60]).all()
     ties = torch.tensor([0.5, 1.5, 2.5, -0.5, -2.5, 1e10 + 0.5], dtype=torch.float64)
     assert torch.equal(_round_half_even(ties.clone()), torch.round(ties))
+
+
+def test_shot_noise_draw_is_per_pixel_by_default_and_sparse_in_v2e_presets():
+    """Stored results were made with the per-pixel draw: it stays the default; the v2e presets
+    (no stored result uses them) draw sparsely; a bad value names the field and the choices."""
+    assert SensorConfig().shot_noise_draw == "per_pixel" and SensorConfig.ideal().shot_noise_draw == "per_pixel"
+    for name in ("v2e-clean", "v2e-default", "v2e-noisy"):
+        assert SensorConfig.preset(name).shot_noise_draw == "sparse"
+    with pytest.raises(InputError, match="shot_noise_draw.*per_pixel, sparse"):
+        SensorConfig(shot_noise_draw="fast")
+    # same law: the mean noise count of a static clip agrees between the draws (5 Hz, 64x64, 60 frames)
+    video = torch.full((1, 61, 64, 64), 0.5)
+    counts = [float(event_frames(video, None, config=SensorConfig.ideal(shot_noise_rate_hz=5.0, seed=s,
+                                                                        shot_noise_draw=d)).sum())
+              for d in ("per_pixel", "sparse") for s in (0, 1)]
+    expect = 5.0 * 64 * 64 * 60 / SensorConfig().frame_rate_hz  # events: rate x pixels x duration
+    for c in counts:
+        assert abs(c - expect) < 5 * math.sqrt(expect)

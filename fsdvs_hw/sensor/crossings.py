@@ -323,15 +323,15 @@ def to_event_columns(pieces: list, H: int, W: int, B: int) -> tuple[Any, Any, An
     return b, x, y, t, p
 
 
-def shot_noise_pixels(B: int, HW: int, lam: Any, generator: Any) -> tuple[Any, Any]:
+def shot_noise_pixels(B: int, HW: int, lam: Any, generator: Any, sparse: bool = False) -> tuple[Any, Any]:
     """Flat pixel indices (sorted, one entry per event) of one step's ON and OFF shot-noise events.
 
-    Each pixel of batch element ``b`` gets Poisson(``lam[b]``) events per polarity, independently,
-    drawn per pixel (``torch.poisson`` over the (B, H·W) frame, ON then OFF), so results made with
-    earlier versions reproduce draw for draw. A sparse draw (the total ``N_b ~ Poisson(HW lam_b)``,
-    then ``N_b`` uniform pixels) has the same law at a fraction of the cost (v2e's 0.001 Hz gives a
-    few events per frame), but other realisations: every stored result (shipped checkpoints'
-    metrics, the design results) would change, so it is not used.
+    Each pixel of batch element ``b`` gets Poisson(``lam[b]``) events per polarity, independently.
+    ``sparse=False``: drawn per pixel (``torch.poisson`` over the (B, H·W) frame, ON then OFF), the
+    stream every stored result was made with. ``sparse=True``: the same law drawn in O(events):
+    the total ``N_b ~ Poisson(HW · lam_b)``, then ``N_b`` pixels uniformly with replacement (a
+    Poisson process split uniformly over pixels is independent Poisson per pixel); other
+    realisations.
 
     Parameters
     ----------
@@ -341,9 +341,24 @@ def shot_noise_pixels(B: int, HW: int, lam: Any, generator: Any) -> tuple[Any, A
         Expected events per pixel and polarity in the step.
     generator : torch.Generator
         The shot-noise count stream (its device is used).
+    sparse : bool
+        The O(events) draw (``SensorConfig.shot_noise_draw == "sparse"``).
     """
-    rate = lam.to(generator.device, torch.float64).view(B, 1).expand(B, HW).contiguous()
+    dev = generator.device
     out = []
+    if sparse:
+        for _ in range(2):  # ON, then OFF
+            n = torch.poisson(lam.to(dev, torch.float64) * HW, generator=generator).long()
+            total = int(n.sum())
+            if total == 0:
+                out.append(torch.zeros(0, dtype=torch.int64, device=dev))
+                continue
+            px = torch.randint(0, HW, (total,), generator=generator, device=dev)
+            if B > 1:
+                px += torch.repeat_interleave(torch.arange(B, device=dev) * HW, n)
+            out.append(torch.sort(px).values)
+        return out[0], out[1]
+    rate = lam.to(dev, torch.float64).view(B, 1).expand(B, HW).contiguous()
     for _ in range(2):  # ON, then OFF
         k = torch.poisson(rate, generator=generator).view(-1)
         idx = torch.nonzero(k > 0).squeeze(1)
