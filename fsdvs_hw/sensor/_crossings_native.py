@@ -4,8 +4,8 @@ The C source is compiled once per machine with the system C compiler (``$CC``, e
 a per-user cache (``$FSDVS_HW_CACHE``, else ``$XDG_CACHE_HOME/fsdvs_hw``, else
 ``~/.cache/fsdvs_hw``), keyed by a hash of the source and flags, and loaded with :mod:`ctypes`,
 which releases the GIL during each call (so the event pipeline's worker threads run in parallel
-with the stepping thread). Without a compiler :func:`available` is False and :mod:`.crossings`
-uses its torch path: same events, slower.
+with the stepping thread). Without a compiler (or with ``FSDVS_HW_NO_NATIVE`` set)
+:func:`available` is False and :mod:`.crossings` uses its torch path: same events, slower.
 
 Why C and not numba: the two are equally fast here, but numba's LLVM adds ~125 MB of resident
 memory to every process that loads a kernel, a quarter of the streaming simulator's budget.
