@@ -21,6 +21,7 @@ import subprocess
 import tempfile
 import threading
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -134,7 +135,7 @@ def step_events(h_on: np.ndarray, h_off: np.ndarray, sig_a: np.ndarray, ref_a: n
 _scratch = threading.local()  # each thread's bucket counts, reused from interval to interval
 
 
-def sort_events(parts: list, lo: float | None = None, hi: float | None = None
+def sort_events(parts: list, lo: float | None = None, hi: float | None = None, *, out: tuple | None = None
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stable time sort of one frame interval's ``(flat, t, p)`` parts, concatenated in order.
 
@@ -143,7 +144,8 @@ def sort_events(parts: list, lo: float | None = None, hi: float | None = None
     default: the times' own range), then a stable insertion sort in each bucket (a stable merge
     sort above 32 events, so clustered times cannot make it quadratic), in one C call
     (``fsdvs_sort_interval``). ``flat`` int32 (int64 parts are narrowed: pixel indices of a frame
-    below 2**31), ``t`` float64, ``p`` int8.
+    below 2**31), ``t`` float64, ``p`` int8; into ``out`` (three such arrays of the total length)
+    when given.
     """
     lib = _load()
     parts = [(np.ascontiguousarray(f, dtype=np.int32), np.ascontiguousarray(t, dtype=np.float64),
@@ -151,9 +153,12 @@ def sort_events(parts: list, lo: float | None = None, hi: float | None = None
     n = sum(len(q[1]) for q in parts)
     if n >= 2**31:
         raise ValueError(f"sort_events: {n} events in one frame interval; at most 2**31 - 1")
-    flat_out = np.empty(n, dtype=np.int32)
-    t_out = np.empty(n, dtype=np.float64)
-    p_out = np.empty(n, dtype=np.int8)
+    if out is not None:
+        flat_out, t_out, p_out = out
+    else:
+        flat_out = np.empty(n, dtype=np.int32)
+        t_out = np.empty(n, dtype=np.float64)
+        p_out = np.empty(n, dtype=np.int8)
     if n == 0:
         return flat_out, t_out, p_out
     if lo is None or hi is None:
@@ -173,6 +178,44 @@ def sort_events(parts: list, lo: float | None = None, hi: float | None = None
                                _ptr(t_out), _ptr(p_out)) != 0:
         raise MemoryError("sort_events: out of memory sorting a bucket")
     return flat_out, t_out, p_out
+
+
+def _scratch_array(name: str, n: int, dtype: Any) -> np.ndarray:
+    """This thread's reusable work array ``name`` with at least ``n`` entries (a view of ``n``)."""
+    a = getattr(_scratch, name, None)
+    if a is None or len(a) < n:
+        a = np.empty(max(n, 1 << 16), dtype=dtype)
+        setattr(_scratch, name, a)
+    return a[:n]
+
+
+def sort_intervals_to_columns(intervals: list, hw: int, w: int) -> tuple[np.ndarray, ...]:
+    """A chunk's event columns ``(x, y, t, p)`` from its intervals' unsorted parts.
+
+    ``intervals``: ``(parts, lo, hi)`` per frame interval in time order (parts as for
+    :func:`sort_events`). Each interval is sorted into this thread's reused work arrays (no
+    allocation, still in cache) and written straight into the columns, which are allocated once
+    at the chunk's exact size: the same columns as sorting each interval with :func:`sort_events`
+    and concatenating (:func:`.crossings.to_event_columns`), one pass less over memory.
+    """
+    lib = _load()
+    sizes = [sum(len(q[1]) for q in parts) for parts, _, _ in intervals]
+    n = sum(sizes)
+    x = np.empty(n, dtype=np.int64)
+    y = np.empty(n, dtype=np.int64)
+    t = np.empty(n, dtype=np.float64)
+    p = np.empty(n, dtype=np.int8)
+    start = 0
+    for (parts, lo, hi), k in zip(intervals, sizes, strict=True):
+        if k:
+            out = sort_events(parts, lo, hi, out=(_scratch_array("flat", k, np.int32),
+                                                  _scratch_array("t", k, np.float64),
+                                                  _scratch_array("p", k, np.int8)))
+            lib.fsdvs_write_columns(_ptr(out[0]), _ptr(out[1]), _ptr(out[2]), k, hw, w, x.ctypes.data + 8 * start,
+                                    y.ctypes.data + 8 * start, t.ctypes.data + 8 * start, p.ctypes.data + start)
+        parts.clear()
+        start += k
+    return x, y, t, p
 
 
 def write_columns(flat: np.ndarray, t: np.ndarray, p: np.ndarray, hw: int, w: int, x_out: np.ndarray,

@@ -48,6 +48,7 @@ import torch
 from ..errors import InputError
 from ..limits import check_allocation
 from .config import SensorConfig
+from . import _crossings_native
 from .crossings import crossing_step, noise_step, shot_noise_pixels, sort_interval, to_event_columns
 from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
 from .pixel import effect_generator, lowpass_step, threshold_maps
@@ -359,7 +360,8 @@ class _EventPipeline:
     submission order, since the refractory state passes from step to step; ``sort`` sorts an
     interval once every emit task submitted before it has finished."""
 
-    def __init__(self) -> None:
+    def __init__(self, chunked: bool = False) -> None:
+        self.chunked = chunked  # sort a whole chunk at once, into its columns (see columns())
         self.emit_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-emit")
         self.sort_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-sort")
         self.noise_pool: ThreadPoolExecutor | None = None  # started by the first noise draw
@@ -374,8 +376,11 @@ class _EventPipeline:
             self.steps.append(f)
 
     def sort(self, parts: list, lo: float, hi: float) -> Any:
-        """Future of :func:`.crossings.sort_interval` of an interval's parts (times in [lo, hi])."""
+        """Future of :func:`.crossings.sort_interval` of an interval's parts (times in [lo, hi]);
+        in a chunked pipeline the interval's work, sorted later by :meth:`columns`."""
         waits, self.pending = self.pending, []
+        if self.chunked:
+            return (waits, parts, lo, hi)
 
         def run() -> Any:
             for f in waits:
@@ -385,10 +390,21 @@ class _EventPipeline:
         return self.sort_pool.submit(run)
 
     def columns(self, pieces: list, H: int, W: int, B: int) -> Any:
-        """Future of :func:`.crossings.to_event_columns` of a chunk's interval pieces (futures from
-        :meth:`sort`, which this worker has finished by the time it runs this)."""
+        """Future of the chunk's ``(b, x, y, t, p)`` columns, from what :meth:`sort` returned for
+        each of its intervals. Chunked, one sensor, compiled kernels: the intervals are sorted
+        straight into the chunk's columns (:func:`._crossings_native.sort_intervals_to_columns`);
+        otherwise :func:`.crossings.to_event_columns` of the sorted intervals."""
         def run() -> Any:
-            return to_event_columns([q.result() if isinstance(q, Future) else q for q in pieces], H, W, B)
+            if not self.chunked:
+                return to_event_columns([q.result() if isinstance(q, Future) else q for q in pieces], H, W, B)
+            for waits, *_ in pieces:
+                for f in waits:
+                    f.result()
+            if B == 1 and B * H * W < 2**31 and _crossings_native.available():
+                cols = _crossings_native.sort_intervals_to_columns([w[1:] for w in pieces], H * W, W)
+                x, y, t, p = (torch.from_numpy(c) for c in cols)
+                return torch.zeros(1, dtype=torch.int64).expand(len(t)), x, y, t, p
+            return to_event_columns([sort_interval(parts, lo, hi) for _, parts, lo, hi in pieces], H, W, B)
 
         return self.sort_pool.submit(run)
 

@@ -330,7 +330,7 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
             noise0, lost0 = state.noise_events, state.lost
             ev_parts: list = []
             if pipe is None and want_events and not want_frames and _pipelined(video.device, config, False):
-                pipe = _EventPipeline()
+                pipe = _EventPipeline(chunked=True)
             ctx = torch.no_grad() if not want_frames else contextlib.nullcontext()
             with ctx:
                 out = _advance(state, Ls, CI, SU, tsd, config, subs, want_events, ev_parts, want_frames, pipe=pipe)
