@@ -46,6 +46,28 @@ def test_chunked_equals_whole_clip_bit_for_bit(kernel, chunk):
     assert info.floor_fraction == pytest.approx(whole_info.floor_fraction, abs=1e-12)
 
 
+@pytest.mark.parametrize("lookahead", [0, 1, 3])
+@pytest.mark.parametrize("chunk", [1, 3])
+@pytest.mark.parametrize("config", [NOISY.replace(refractory_s=0.02),
+                                    SensorConfig.preset("v2e-default", shot_noise_rate_hz=5.0, refractory_s=0.02)],
+                         ids=["per-pixel noise", "v2e preset, sparse noise"])
+def test_event_only_stream_equals_whole_clip_through_the_pipeline(config, chunk, lookahead, monkeypatch):
+    """An event-only CPU stream runs on the worker pipeline (emit, sort, noise threads, chunks handed
+    over ``LOOKAHEAD_CHUNKS`` late): same events, noise count and refractory losses as event_list."""
+    from fsdvs_hw.sensor import stream
+
+    monkeypatch.setattr(stream, "LOOKAHEAD_CHUNKS", lookahead)
+    video = _clip(T=11)
+    whole_ev = event_list(video, None, config=config)
+    _, whole_info = event_frames(video, None, config=config, return_info=True)
+    chunks = list(simulate(video, None, config=config, chunk_frames=chunk))
+    assert [c.first_interval for c in chunks] == list(range(0, 10, chunk))
+    _, ev, info = collect(iter(chunks))
+    _same_events(ev, whole_ev)
+    assert info.noise_events == whole_info.noise_events > 0
+    assert info.refractory_lost == whole_info.refractory_lost > 0
+
+
 def test_stream_from_a_generator_of_time_frame_pairs_equals_array_input():
     video = _clip(T=7)[0].double()
     ts = [0.0, 0.01, 0.025, 0.03, 0.05, 0.07, 0.071]

@@ -444,51 +444,11 @@ class _EventPipeline:
                 pool.shutdown(wait=True, cancel_futures=True)
 
 
-class _NoisePrefetch:
-    """The shot-noise draws of every step of a run, made in step order on a worker thread ahead of
-    the stepping thread (they depend only on the step lengths), so the per-pixel Poisson draw (the
-    costliest full-frame op of a v2e-default run) overlaps the stepping."""
-
-    def __init__(self, generator: Any, B: int, HW: int, lams: list) -> None:
-        self.pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-noise")
-        self.futures = [self.pool.submit(shot_noise_pixels, B, HW, lam, generator) for lam in lams]
-        self.next_index = 0
-
-    def next(self) -> tuple[Any, Any]:
-        f = self.futures[self.next_index]
-        self.futures[self.next_index] = None
-        self.next_index += 1
-        return f.result()
-
-    def close(self) -> None:
-        self.pool.shutdown(wait=True, cancel_futures=True)
-
-
 def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: SensorConfig,
                    substeps: list[int], collect_events: bool, events: list, want_counts: bool, bar: Any,
                    pipe: _EventPipeline | None) -> list:
     """The stepping loop of :func:`_advance` (same arguments and result); with ``pipe`` the event
     work is submitted to it (each interval's sort future appended to ``events``)."""
-    shot = float(config.shot_noise_rate_hz)
-    prefetch = None
-    if shot > 0 and config.shot_noise_draw == "per_pixel" and Ls[0].device.type == "cpu" \
-            and not (pipe is not None and not want_counts):
-        B = Ls[0].shape[0]
-        lams = [(0.5 * shot) * ((tsd[:, k + 1] - tsd[:, k]) / substeps[k]) for k in range(len(Ls) - 1)
-                for _ in range(substeps[k])]
-        prefetch = _NoisePrefetch(st.shot_g, B, Ls[0].shape[1] * Ls[0].shape[2], lams)
-    try:
-        return _step_loop(st, Ls, CI, SU, tsd, config, substeps, collect_events, events, want_counts, bar, pipe,
-                          prefetch)
-    finally:
-        if prefetch is not None:
-            prefetch.close()
-
-
-def _step_loop(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: SensorConfig,
-               substeps: list[int], collect_events: bool, events: list, want_counts: bool, bar: Any,
-               pipe: _EventPipeline | None, prefetch: _NoisePrefetch | None) -> list:
-    """The loop of :func:`_advance_steps`; ``prefetch``: the shot-noise draws, made ahead."""
     B, H, W = Ls[0].shape
     dev, dt_ = Ls[0].device, Ls[0].dtype
     c_on, c_off, eps = st.c_on, st.c_off, st.eps
@@ -561,11 +521,7 @@ def _step_loop(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Sen
                 pipe.noise(shot_noise_pixels, noise_step, (B, H * W, lam, shot_g, sparse_noise),
                            (step_parts, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64, time_g))
             elif shot > 0:
-                if prefetch is not None:
-                    on_px, off_px = prefetch.next()
-                else:
-                    on_px, off_px = shot_noise_pixels(B, H * W, (0.5 * shot) * dt_sub64.reshape(B), shot_g,
-                                                      sparse_noise)
+                on_px, off_px = shot_noise_pixels(B, H * W, (0.5 * shot) * dt_sub64.reshape(B), shot_g, sparse_noise)
                 on_px, off_px = on_px.to(dev), off_px.to(dev)
                 noise_events += len(on_px) + len(off_px)
                 if len(on_px) and want_counts:

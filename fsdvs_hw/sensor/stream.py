@@ -48,6 +48,9 @@ from .pixel import threshold_maps
 
 __all__ = ["EventChunk", "simulate", "collect"]
 
+#: Chunks whose events are still being computed when the stream hands one over (CPU event lists).
+LOOKAHEAD_CHUNKS = 1
+
 
 @dataclass
 class EventChunk:
@@ -268,7 +271,7 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
     # chunk over after submitting the next one's steps: the worker threads never drain at a chunk
     # boundary (one extra chunk of events is in flight).
     pipe = None
-    pending = None
+    pending: list = []
     try:
         while not exhausted:
             batch, ts = [], []
@@ -343,19 +346,16 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
                               SimulationInfo(sig.floor_fraction, tuple(subs), state.noise_events - noise0,
                                              int(round(state.lost - lost0)), B * shape[1] * shape[2] * sum(subs)),
                               len(batch), B)
-            if pending is not None:
-                yield pending.finish(state, shape)
-            pending = done
-            if pipe is None:  # nothing runs in the background: hand the chunk over now
-                yield pending.finish(state, shape)
-                pending = None
+            pending.append(done)
+            # hand chunks over once LOOKAHEAD_CHUNKS newer ones are submitted (at once without a pipeline)
+            while len(pending) > (LOOKAHEAD_CHUNKS if pipe is not None else 0):
+                yield pending.pop(0).finish(state, shape)
             prev = (Ls[-1].detach(), CI[-1].detach() if CI is not None else None,
                     SU[-1].detach() if SU is not None else None, ts[-1])
             first_interval += n_int
             del video, sig, Ls, CI, SU, out, frames, done, ev_parts, batch  # one chunk alive at a time
-        if pending is not None:
-            yield pending.finish(state, shape)
-            pending = None
+        while pending:
+            yield pending.pop(0).finish(state, shape)
     finally:
         if pipe is not None:
             pipe.close()
