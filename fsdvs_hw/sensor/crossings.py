@@ -104,18 +104,18 @@ def crossing_step(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_
     em_on, em_off : torch.Tensor (B, H, W) or None
         Emitted counts (``want_counts``), dtype of ``h_on``.
     """
-    if _native_ok(h_on, c_on, c_off):
+    if _native_ok(h_on, h_off, sig_a, ref_a, d_b, c_on, c_off):
         return _crossing_step_cpu(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t,
                                   refractory_s, collect, want_counts)
     return crossing_step_torch(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t,
                                refractory_s, collect, want_counts)
 
 
-def _native_ok(h: Any, c_on: Any, c_off: Any) -> bool:
-    """Whether the compiled kernel applies: CPU, float32/64 counts with thresholds of the same
-    dtype, pixel indices within int32, and the kernel built (:mod:`._crossings_native`)."""
+def _native_ok(h: Any, *same_dtype: Any) -> bool:
+    """Whether the compiled kernel applies: CPU, float32/64 counts with every other per-pixel input
+    of the same dtype, pixel indices within int32, and the kernel built (:mod:`._crossings_native`)."""
     return (h.device.type == "cpu" and h.dtype in (torch.float32, torch.float64)
-            and c_on.dtype == h.dtype and c_off.dtype == h.dtype and h.numel() < 2**31
+            and all(x.dtype == h.dtype for x in same_dtype) and h.numel() < 2**31
             and _crossings_native.available())
 
 

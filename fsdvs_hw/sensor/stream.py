@@ -8,7 +8,9 @@ photoreceptor low-pass and surround-mesh outputs, the leak drift, each pixel's l
 chunk runs exactly the operations of a whole-clip :func:`~fsdvs_hw.sensor.event_list` /
 :func:`~fsdvs_hw.sensor.event_frames` run, so the concatenated output equals the whole-clip output
 bit for bit at a fixed seed (tested). Memory: the chunk's frames, their filtered log signal and
-the per-pixel state, O(chunk × H × W) plus the kernel's FFT/conv workspace.
+the per-pixel state, O(chunk × H × W) plus the kernel's FFT/conv workspace; an event-only CPU
+stream computes its events on worker threads (:class:`~fsdvs_hw.sensor.events._EventPipeline`)
+and keeps :data:`LOOKAHEAD_CHUNKS` more chunks in flight.
 
 Differences from the whole-clip functions (both stated where they matter):
 
@@ -30,8 +32,8 @@ from __future__ import annotations
 
 import contextlib
 import math
-from concurrent.futures import Future
 from collections.abc import Iterable, Iterator
+from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import Any
 
@@ -268,8 +270,8 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
 
     exhausted = False
     # An event-only stream on the CPU keeps one event pipeline for the whole clip and hands each
-    # chunk over after submitting the next one's steps: the worker threads never drain at a chunk
-    # boundary (one extra chunk of events is in flight).
+    # chunk over after submitting the next LOOKAHEAD_CHUNKS chunks' steps: the worker threads never
+    # drain at a chunk boundary (that many extra chunks of events are in flight).
     pipe = None
     pending: list = []
     try:
@@ -353,7 +355,7 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
             prev = (Ls[-1].detach(), CI[-1].detach() if CI is not None else None,
                     SU[-1].detach() if SU is not None else None, ts[-1])
             first_interval += n_int
-            del video, sig, Ls, CI, SU, out, frames, done, ev_parts, batch  # one chunk alive at a time
+            del video, sig, Ls, CI, SU, out, frames, done, ev_parts, batch  # only the chunks in flight stay alive
         while pending:
             yield pending.pop(0).finish(state, shape)
     finally:
