@@ -39,7 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="frame intervals per chunk (default 1; peak memory grows with the events of one chunk)")
     parser.add_argument("--threads", type=int, default=None,
                         help="torch intra-op threads (default: CPU cores minus 2, at least 1: the event list's "
-                             "two worker threads take the rest)")
+                             "emit and sort worker threads take the rest)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is not a terminal)")
 
 

@@ -523,7 +523,7 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
         Timed runs per case (default 3, 1 with ``quick``; the long clip runs once).
     threads : int, optional
         torch threads in the children (default: :func:`event_list_threads` for event-list cases,
-        whose event work runs on two worker threads besides; ``min(2, cpu_count)`` for the others).
+        whose event work keeps two worker threads (emit, sort) busy besides; ``min(2, cpu_count)`` for the others).
     chunk_frames : int
         Frame intervals per streamed chunk (memory grows with it; throughput barely does).
     long_seconds : float

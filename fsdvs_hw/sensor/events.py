@@ -355,10 +355,11 @@ def _pipelined(device: Any, config: SensorConfig, want_counts: bool) -> bool:
 
 
 class _EventPipeline:
-    """Where the event-list work runs while the caller computes the next steps: two worker threads
-    (the compiled kernels release the GIL). ``emit`` runs step work (crossings, noise events) in
+    """Where the event-list work runs while the caller computes the next steps: worker threads (the
+    compiled kernels release the GIL). ``emit`` runs step work (crossings, noise events) in
     submission order, since the refractory state passes from step to step; ``sort`` sorts an
-    interval once every emit task submitted before it has finished."""
+    interval (or, ``chunked``, a whole chunk) once every emit task submitted before it has
+    finished; a third thread, started by the first :meth:`noise`, draws shot noise in step order."""
 
     def __init__(self, chunked: bool = False) -> None:
         self.chunked = chunked  # sort a whole chunk at once, into its columns (see columns())
@@ -409,9 +410,9 @@ class _EventPipeline:
         return self.sort_pool.submit(run)
 
     def noise(self, draw: Any, emit: Any, draw_args: tuple, emit_args: tuple) -> None:
-        """Shot noise of one step: ``draw(*draw_args)`` (the per-pixel Poisson draw, in order on a
-        third worker, ahead of the emitter) then ``emit(parts, on_px, off_px, *rest)`` in step order
-        on the emit worker. The event count is kept for :meth:`take_noise`."""
+        """Shot noise of one step: ``draw(*draw_args)`` (the count draw, per-pixel or sparse, in
+        step order on the noise worker, ahead of the emitter) then ``emit(parts, on_px, off_px,
+        *rest)`` in step order on the emit worker. The draw is kept for :meth:`take_noise`."""
         if self.noise_pool is None:
             self.noise_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-noise")
         drawn = self.noise_pool.submit(draw, *draw_args)
