@@ -148,21 +148,33 @@ def test_ipopt_beats_every_least_squares_start_and_respects_bounds():
 
 
 def test_mismatch_constraint_prevents_the_unbuildable_collapse():
+    """The unconstrained DoG fit drifts to λ_n = λ_w with gains → ∞; the constraint bounds σ·S.
+
+    Asserted are properties of a converged constrained optimum and of the drift, not where IPOPT
+    happens to stop: an earlier version compared the expected error of the unconstrained iterate at
+    ``max_iter=100`` with the constrained fit's, and that iterate moved between casadi 3.7 and 3.8.2
+    (at σ = 1 % the 100-iteration iterate of 3.8.2 has the lower expected error; the iterates at
+    200 and 300 iterations have S of 210 and 514).
+    """
     t = reference_kernel("dog", 7)
     loose = MeshBounds(min_lambda_ratio=1.0, gain=(1e-4, 1e3))
-    with warnings.catch_warnings():  # the unconstrained problem drifts towards λ_n = λ_w, gains → ∞
-        warnings.simplefilter("ignore", MeshFitWarning)  # (IPOPT may stop at max_iter: reported, not hidden)
-        collapsed = fit_resistive_mesh(t, bounds=loose, gain="fixed", max_mismatch_error=None, max_iter=100)
-    robust = fit_resistive_mesh(t, bounds=loose, gain="fixed", mismatch_sigma=0.01, max_mismatch_error=0.02)
-    assert robust.fit["expected_mismatch_error"] <= 0.02 * (1 + 1e-6)
-    assert any("max_mismatch_error" in b for b in robust.fit["on_bound"])
-    # the unconstrained fit is a near-cancellation of two similar meshes with big gains
-    assert collapsed.fit["mismatch_sensitivity"] > 3 * robust.fit["mismatch_sensitivity"]
-    assert collapsed.gain_narrow > robust.gain_narrow
-    # expected error under 1 % die-level mismatch: sqrt(e² + (σ S)²) is lower for the constrained fit
-    exp_c = math.hypot(collapsed.fit["error"], 0.01 * collapsed.fit["mismatch_sensitivity"])
-    exp_r = math.hypot(robust.fit["error"], 0.01 * robust.fit["mismatch_sensitivity"])
-    assert exp_r < exp_c
+    with warnings.catch_warnings():  # the unconstrained problem has no minimiser inside the bounds
+        warnings.simplefilter("ignore", MeshFitWarning)  # (IPOPT stops at max_iter: reported, not hidden)
+        collapsed = fit_resistive_mesh(t, bounds=loose, gain="fixed", max_mismatch_error=None)
+    assert not collapsed.fit["success"]
+    robust = {m: fit_resistive_mesh(t, bounds=loose, gain="fixed", mismatch_sigma=0.01, max_mismatch_error=m)
+              for m in (0.01, 0.02, 0.05)}
+    for m, d in robust.items():
+        assert d.fit["expected_mismatch_error"] <= m * (1 + 1e-6)
+        assert any("max_mismatch_error" in b for b in d.fit["on_bound"])
+        assert d.fit["success"]
+    # the trade-off curve: a looser mismatch budget never costs nominal accuracy (nested feasible sets)
+    errors = [robust[m].fit["error"] for m in (0.01, 0.02, 0.05)]
+    assert errors[0] > errors[1] > errors[2]
+    # the unconstrained drift is a near-cancellation of two similar meshes with big gains
+    r = robust[0.02]
+    assert collapsed.fit["mismatch_sensitivity"] > 3 * robust[0.05].fit["mismatch_sensitivity"]
+    assert collapsed.gain_narrow > r.gain_narrow
 
 
 def test_mismatch_sensitivity_matches_finite_differences():

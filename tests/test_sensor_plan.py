@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 
 import pytest
 import torch
@@ -22,12 +21,6 @@ def _moving_grating(speed_px: float, lo: float, hi: float, H: int = 40, W: int =
     return torch.stack(frames)[None]
 
 
-def _timed(fn):
-    t0 = time.perf_counter()
-    out = fn()
-    return out, time.perf_counter() - t0
-
-
 @pytest.mark.parametrize("scene, skips_photoreceptor", [
     ("slow_bright", True),
     ("fast_dim", False),
@@ -38,13 +31,14 @@ def test_plan_within_tolerance_of_full_model_and_faster(scene, skips_photorecept
     assert plan.decision("photoreceptor").included is (not skips_photoreceptor)
     assert "leak events" in plan.skipped and "shot noise" in plan.skipped  # tiny vs the signal
     assert plan.decision("threshold mismatch").included  # sigma/C = 0.15
-    full, t_full = _timed(lambda: event_frames(video, None, config=FULL))
-    planned, t_plan = _timed(lambda: event_frames(video, None, plan=plan))
+    full = event_frames(video, None, config=FULL)
+    planned = event_frames(video, None, plan=plan)
     count_err = abs(float(planned.sum() - full.sum())) / float(full.sum())
     frame_err = float((planned - full).abs().sum() / full.abs().sum())
     assert count_err < TOL
     assert frame_err < TOL
-    assert t_plan < t_full
+    # faster by construction: fewer time steps than the full model (the speed itself is measured in
+    # `fsdvs-hw bench sim`, "plan_model" rows: no wall-clock asserts in tests)
     assert sum(plan.substeps) < 64 * 16
 
 
