@@ -1,7 +1,9 @@
 # fsdvs_hw — the two commands:
 #   make demo   set up (venv + packages) and run the main job on the embedded default
 #   make test   set up and run the test suite (slow tests deselected)
-# Both create or reuse .venv in this folder and install only what is missing.
+# Both create or reuse .venv in this folder, installed from requirements-lock.txt (exact versions).
+#   make test-latest   the suite on the newest versions pyproject.toml allows (.venv-latest)
+#   make lock          regenerate requirements-lock.txt from those newest versions
 
 PYTHON ?= python3
 VENV   ?= .venv
@@ -9,11 +11,15 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.fsdvs_hw-installed
 SYSTEM_TOOLS := ngspice iverilog yosys verilator chromium gcc
 TORCH_PIN := torch==2.13.0
+LOCK := requirements-lock.txt
+LOCK_VENV := .venv-lock
+LATEST_VENV := .venv-latest
+EXTRAS := test,notebooks,distributed,eventfiles
 PYTEST_ARGS ?=
 DEMO_OUT ?= out/demo
 CODESIGN_OUT ?= out/codesign
 
-.PHONY: demo codesign test test-all bench notebooks mutation setup system-deps clean
+.PHONY: demo codesign test test-all test-latest lock bench notebooks mutation setup system-deps clean
 
 demo: setup
 	$(BIN)/fsdvs-hw explore designs/default.toml --out $(DEMO_OUT)
@@ -74,13 +80,36 @@ system-deps:
 	  fi; \
 	fi
 
-$(STAMP): pyproject.toml
+# The venv is installed from the lock file (the exact versions CI tested), then fsdvs_hw itself
+# without dependencies; `pip check` proves the set is consistent. Reinstalls when the lock changes.
+$(STAMP): pyproject.toml $(LOCK)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	@$(BIN)/python -c "import sys; assert sys.version_info >= (3, 11), 'fsdvs_hw needs Python >= 3.11, venv has ' + sys.version" 
 	@$(BIN)/python -m pip install -q --upgrade pip
-	@$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/python -m pip install -q $(TORCH_PIN)
-	$(BIN)/python -m pip install -q -e '.[test,notebooks,distributed,eventfiles]'
+	$(BIN)/python -m pip install -q -r $(LOCK)
+	$(BIN)/python -m pip install -q --no-deps -e .
+	$(BIN)/python -m pip check
 	@touch $@
 
+# Regenerate the lock from the newest versions pyproject.toml allows (a throw-away venv), then run
+# `make test` and commit requirements-lock.txt if it passes.
+lock:
+	rm -rf $(LOCK_VENV) && $(PYTHON) -m venv $(LOCK_VENV)
+	$(LOCK_VENV)/bin/python -m pip install -q --upgrade pip
+	$(LOCK_VENV)/bin/python -m pip install -q $(TORCH_PIN)
+	$(LOCK_VENV)/bin/python -m pip install -q '.[$(EXTRAS)]'
+	{ sed -n '/^#/p' $(LOCK); $(LOCK_VENV)/bin/python -m pip freeze --exclude-editable \
+	  | grep -iv '^fsdvs' | sed 's/^torch==\(.*\)+cpu$$/torch==\1/'; } > $(LOCK).new
+	mv $(LOCK).new $(LOCK) && rm -rf $(LOCK_VENV)
+
+# The test suite on the newest versions pyproject.toml allows, in its own venv (.venv-latest),
+# without touching the lock: how to see whether an upgrade (e.g. casadi) changes a result.
+test-latest:
+	@test -x $(LATEST_VENV)/bin/python || $(PYTHON) -m venv $(LATEST_VENV)
+	$(LATEST_VENV)/bin/python -m pip install -q --upgrade pip
+	$(LATEST_VENV)/bin/python -c "import torch" 2>/dev/null || $(LATEST_VENV)/bin/python -m pip install -q $(TORCH_PIN)
+	$(LATEST_VENV)/bin/python -m pip install -q --upgrade --upgrade-strategy eager -e '.[$(EXTRAS)]'
+	FSDVS_HW_UNLOCKED=1 $(LATEST_VENV)/bin/python -m pytest -m "not slow" -n 2 $(PYTEST_ARGS)
+
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) $(LATEST_VENV) $(LOCK_VENV) out .pytest_cache

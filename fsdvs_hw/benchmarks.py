@@ -35,6 +35,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Generic, TypeVar
 
+from .provenance import library_versions
+
 __all__ = [
     "BenchRecord",
     "BenchRun",
@@ -86,7 +88,7 @@ class BenchRecord:
     machine : dict
         :func:`machine_info`: CPU count, platform, processor, load average.
     versions : dict
-        :func:`library_versions`: python, numpy, torch, fsdvs_hw.
+        :func:`fsdvs_hw.provenance.library_versions`: python and every numerical dependency (IPOPT included).
     settings : dict
         The bench's settings (``quick``, problem sizes).
     timestamp : str
@@ -230,19 +232,6 @@ def machine_info() -> dict[str, Any]:
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     return {"cpu_count": os.cpu_count(), "platform": platform.platform(), "processor": platform.machine(),
             "load_average_1min": load}
-
-
-def library_versions() -> dict[str, str | None]:
-    """Versions of python, numpy, torch (if importable) and fsdvs_hw."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    out: dict[str, str | None] = {"python": platform.python_version()}
-    for name in ("numpy", "torch", "fsdvs_hw"):
-        try:
-            out[name] = version(name)
-        except PackageNotFoundError:
-            out[name] = None
-    return out
 
 
 #: Seconds to each time unit a timing cell may be shown in.

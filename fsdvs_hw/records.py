@@ -251,6 +251,9 @@ class Score:
         The fitted realisation's own record (``to_dict()``), enough to rebuild it.
     warnings : tuple of str
         Warnings the fit or scoring raised.
+    versions : mapping
+        Python and numerical library versions of the process that computed the score
+        (:func:`fsdvs_hw.provenance.library_versions`; empty in records made before they were kept).
     extra : mapping
         Keys this version does not know, kept for the round trip.
     """
@@ -271,12 +274,13 @@ class Score:
     wall: WallTimes = field(default_factory=WallTimes)
     realisation: Mapping[str, Any] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
+    versions: Mapping[str, str | None] = field(default_factory=dict)
     extra: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not isinstance(self.kernel, Kernel):
             raise InputError(f"Score.kernel: expected a Kernel, got {type(self.kernel).__name__}")
-        for name in ("spectral", "csf", "emulation", "realisation", "extra"):
+        for name in ("spectral", "csf", "emulation", "realisation", "versions", "extra"):
             object.__setattr__(self, name, _ro(getattr(self, name)))
         object.__setattr__(self, "warnings", tuple(str(w) for w in self.warnings))
 
@@ -289,7 +293,7 @@ class Score:
         return replace(self, **changes)
 
     _KEYS = ("kind", "label", "describe", "kernel", "kernel_error", "kernel_error_gain_free", "dc_gain", "asymmetry",
-             "spectral", "csf", "cost", "tasks", "emulation", "wall_s", "realisation", "warnings")
+             "spectral", "csf", "cost", "tasks", "emulation", "wall_s", "realisation", "warnings", "versions")
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON-ready record (the store's, ``scores.json``'s and the report's one format)."""
@@ -304,6 +308,8 @@ class Score:
             out["realisation"] = dict(self.realisation)
         if self.warnings:
             out["warnings"] = list(self.warnings)
+        if self.versions:
+            out["versions"] = dict(self.versions)
         out.update(self.extra)
         return out
 
@@ -327,6 +333,7 @@ class Score:
             wall=WallTimes.from_dict(data.get("wall_s", {}), where=f"{where}.wall_s"),
             realisation=_mapping(data.get("realisation", {}), f"{where}.realisation"),
             warnings=tuple(data.get("warnings", ())),
+            versions=_mapping(data.get("versions", {}), f"{where}.versions"),
             extra={k: v for k, v in data.items() if k not in cls._KEYS},
         )
 

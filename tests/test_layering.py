@@ -20,7 +20,7 @@ LAYERS: tuple[str, ...] = ("core", "models", "tasks", "report", "explore", "cli"
 
 #: Top-level modules of the core layer (kernels, spectra, CSF, statistics and their helpers).
 _CORE = {"errors", "paths", "resources", "validation", "limits", "kernels", "spectra", "csf", "stats", "workers", "plots",
-         "analysis", "_lazy", "benchmarks", "progress"}
+         "analysis", "_lazy", "benchmarks", "progress", "provenance"}
 _MODELS = {"sensor", "scenes", "realise", "records"}
 
 #: Import cycles known and owned elsewhere (none: sensor/events.py no longer imports sensor/plan.py).

@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..provenance import library_versions
 from ..records import Score
 from .design import Design, axis_values
 from .store import ResultsStore
@@ -200,10 +201,11 @@ def evaluate_point(point: DesignPoint) -> dict[str, Any]:
     # fitters warn about unreachable targets, asymmetric kernels, ...: keep ours with the score
     ours = [w for w in caught if f"{os.sep}fsdvs_hw{os.sep}" in str(w.filename)]
     said = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in ours))[:20]
+    versions = library_versions()  # of this worker: a Dask cluster's workers may differ
     if isinstance(rec, Score):
-        result = rec.with_(warnings=said).to_dict()
+        result = rec.with_(warnings=said, versions=versions).to_dict()
     else:
-        result = {**rec, **({"warnings": said} if said else {})}
+        result = {**rec, **({"warnings": said} if said else {}), "versions": versions}
     return {"key": point.key, "status": status, "result": result, "wall_s": time.perf_counter() - t0,
             "worker": worker}
 

@@ -381,10 +381,21 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
     stamp = stamp or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     parts.append(f"<h2 id='provenance'>Provenance</h2><p class='note'>fsdvs_hw {__version__}, Python "
                  f"{platform.python_version()}, {html.escape(platform.node())}, {stamp}; design source "
-                 f"{html.escape(design.source)}.</p>")
+                 f"{html.escape(design.source)}.</p>" + _versions_note(points))
     parts.append(_details("The design, as run (JSON)", f"<pre>{html.escape(json.dumps(data, indent=1))}</pre>"))
     parts.append("</body></html>")
     return "\n".join(p for p in parts if p)
+
+
+def _versions_note(points: Sequence[ScoredPoint]) -> str:
+    """The numerical library versions the points were computed with (one line per distinct set)."""
+    sets = {tuple(sorted((k, str(v)) for k, v in p.score.versions.items()))
+            for p in points if p.score is not None and p.score.versions}
+    if not sets:
+        return "<p class='note'>Library versions: not recorded with these points (made before they were kept).</p>"
+    lines = [", ".join(f"{k} {v}" for k, v in s) for s in sorted(sets)]
+    head = "Computed with" if len(lines) == 1 else f"Computed with {len(lines)} different environments:"
+    return "".join(f"<p class='note'>{head if i == 0 else ''} {html.escape(line)}.</p>" for i, line in enumerate(lines))
 
 
 def _conditions(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]], data: Mapping[str, Any],

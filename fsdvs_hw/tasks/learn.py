@@ -404,7 +404,7 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
 
     import torch
 
-    from .. import __version__
+    from ..provenance import library_versions
     from .evaluators import get_evaluator
 
     evaluator = get_evaluator(task)
@@ -536,7 +536,7 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
         "history": history,
         "train_seconds": train_seconds,
         **realised,
-        "versions": {"fsdvs_hw": __version__, "torch": torch.__version__},
+        "versions": library_versions(),
         "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
     kname = name or f"learned {evaluator.name} {size}x{size} (seed {seed})"
