@@ -8,13 +8,24 @@ from typing import Any
 
 from ..errors import InputError
 
-__all__ = ["add_execution_arguments", "security_from_args"]
+__all__ = ["add_execution_arguments", "scheduler_address", "security_from_args"]
+
+
+def scheduler_address(text: str) -> str:
+    """argparse ``type`` of ``--scheduler``: the address checked before any work
+    (:func:`fsdvs_hw.explore.sweep.check_scheduler_address`); a bad one is one line, exit 2."""
+    from ..explore.sweep import check_scheduler_address
+
+    try:
+        return check_scheduler_address(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--scheduler ")) from None
 
 
 def add_execution_arguments(parser: argparse.ArgumentParser) -> None:
     """``--workers``, ``--scheduler``, ``--tls-*``, ``--no-progress``, ``--retry-errors``, ``--max-points``."""
     parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: [run] workers)")
-    parser.add_argument("--scheduler", default=None, metavar="tls://HOST:PORT",
+    parser.add_argument("--scheduler", type=scheduler_address, default=None, metavar="tls://HOST:PORT",
                         help="run on a Dask distributed scheduler instead of local processes (tls:// with the "
                              "--tls-* files; plain tcp:// only on a trusted network)")
     parser.add_argument("--tls-ca-file", type=Path, default=None, metavar="PEM",

@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from ._execution import scheduler_address
+
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
 HELP = "kernel-size ablation (w/o, 3, 5, 7, 9) on detection and recognition, gains with 95 % CIs; resumable"
@@ -29,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--epochs-frozen", type=int, default=None, help="frozen-filter epochs (default 16)")
     parser.add_argument("--epochs-joint", type=int, default=None, help="joint epochs (default 16)")
     parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
-    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+    parser.add_argument("--scheduler", type=scheduler_address, default=None, metavar="tcp://HOST:PORT",
                         help="run on a Dask distributed scheduler instead of local processes")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--transfer", default=None, metavar="KERNEL",

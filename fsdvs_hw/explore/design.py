@@ -46,8 +46,10 @@ module is accepted without a change here.
 from __future__ import annotations
 
 import copy
-import glob
+import difflib
+import fnmatch
 import hashlib
+import os
 import json
 import math
 import re
@@ -79,6 +81,8 @@ __all__ = [
     "CSF_DEFAULT_METHODS",
     "CODESIGN_MODES",
     "axis_values",
+    "check_key",
+    "MAX_GLOB_ENTRIES",
 ]
 
 
@@ -394,7 +398,7 @@ class Design:
         """A new, re-validated design with dotted keys replaced (``{"asic.bits": 4}``)."""
         data = copy.deepcopy(self.data)
         for key, value in overrides.items():
-            _set_dotted(data, _canonical_key(key), value)
+            _set_dotted(data, check_key(str(key), what="override"), value)
         data["sweep"] = {"axes": {}}
         return parse_design(data, source=f"{self.source} with {dict(overrides)}", base_dir=self.base_dir,
                             confine_paths=self.confine_paths)
@@ -427,11 +431,85 @@ def _canonical_key(key: str) -> str:
     return key
 
 
+def _all_keys(schema: dict[str, dict[str, _Field]]) -> list[str]:
+    """Every dotted key a design accepts (sections' keys and realisation options), for messages."""
+    keys = [f"{s}.{k}" for s, fields in schema.items() for k in fields]
+    for name in _option_tables():
+        keys.extend(f"{name}.{opt}" for opt in get_realisation(name).options)
+    return keys
+
+
+def check_key(key: str, *, what: str = "--set") -> str:
+    """Check a dotted design key (``--set KEY=...``, a sweep axis) against the schema; return its
+    canonical form (``"asic.bits"`` → ``"realisations.asic.bits"``).
+
+    A key must name one value of the layout: ``section.key``, ``realisation.option`` (or
+    ``realisations.realisation.option``), and one level deeper only inside a table-valued key
+    (``kernel.params.sigma_centre_px``, ``tasks.n_test.detection``) or a structured fit option.
+
+    Parameters
+    ----------
+    key : str
+        The dotted key as the user wrote it.
+    what : str
+        How the key was given, for the message (``"--set"``, ``"sweep.axes"``).
+
+    Raises
+    ------
+    DesignError
+        One line naming the key, what is wrong and the closest allowed keys (or the allowed ones).
+    """
+    schema = _schema()
+    shown = repr(key[:80])
+    parts = key.split(".")
+    if not key or any(not p.strip() for p in parts):
+        raise DesignError(f"{what} {shown}: not a dotted design key (an empty part); allowed: section.key, "
+                          "e.g. sensor.threshold_on or asic.bits")
+    ckey = _canonical_key(key)
+    cparts = ckey.split(".")
+    section = cparts[0]
+    known = _all_keys(schema)
+
+    def unknown(why: str, allowed: str | None = None) -> DesignError:
+        close = difflib.get_close_matches(key, known, n=3, cutoff=0.6)
+        hint = f"did you mean {', '.join(close)}? " if close else ""
+        return DesignError(f"{what} {shown}: {why}; {hint}allowed: {allowed or 'sections ' + ', '.join(schema)}")
+
+    if section not in schema:
+        raise unknown(f"unknown section {section[:40]!r}")
+    if len(cparts) == 1:
+        sample = ", ".join(f"{section}.{k}" for k in list(schema[section])[:6]) or ", ".join(_option_tables())
+        raise DesignError(f"{what} {shown}: names a whole section, not a key; allowed: one key of it ({sample})")
+    if section == "realisations" and cparts[1] in _option_tables():
+        spec = get_realisation(cparts[1])
+        if len(cparts) < 3:
+            raise DesignError(f"{what} {shown}: names the [realisations.{cparts[1]}] table, not an option; "
+                              f"allowed: {cparts[1]}.<option> with option one of {', '.join(sorted(spec.options))}")
+        opt = spec.options.get(cparts[2])
+        if opt is None:
+            raise unknown(f"unknown option of {spec.fit_name}", ", ".join(sorted(spec.options)))
+        if len(cparts) > (4 if opt.factory is not None else 3):
+            raise DesignError(f"{what} {shown}: {cparts[1]}.{cparts[2]} is a single value, not a table; "
+                              f"allowed: {cparts[1]}.{cparts[2]}=VALUE")
+        return ckey
+    spec_f = schema[section].get(cparts[1])
+    if spec_f is None:
+        extra = [*_option_tables()] if section == "realisations" else []
+        raise unknown(f"unknown key {cparts[1][:40]!r} in [{section}]", ", ".join([*schema[section], *extra]))
+    if len(cparts) > (3 if dict in spec_f.types else 2):
+        raise DesignError(f"{what} {shown}: {section}.{cparts[1]} is "
+                          f"{'a table of single values' if dict in spec_f.types else 'a single value, not a table'}"
+                          f"; allowed: {section}.{cparts[1]}" + ("[.NAME]" if dict in spec_f.types else "") + "=VALUE")
+    return ckey
+
+
 def _set_dotted(data: dict[str, Any], key: str, value: Any) -> None:
     parts = key.split(".")
     node = data
     for p in parts[:-1]:
-        node = node.setdefault(p, {})
+        if not isinstance(node.get(p), dict):  # a number where a table is set (tasks.n_test.detection)
+            node[p] = {}
+        node = node[p]
     node[parts[-1]] = value
 
 
@@ -751,7 +829,11 @@ def _check_axes(chk: _Checker, data: dict[str, Any]) -> None:
         if not isinstance(values, list) or not values:
             chk.add(full, values, "a sweep axis must be a non-empty list of values")
             continue
-        ckey = _canonical_key(key)
+        try:
+            ckey = check_key(key, what="axis")
+        except DesignError as exc:
+            chk.add(full, values, str(exc).split(": ", 1)[-1])
+            continue
         section, _, rest = ckey.partition(".")
         if section in ("sweep", "run", "design") or not rest:
             chk.add(full, values, "sweep axes must name a key inside [kernel], [sensor], [optics], [analysis], "
