@@ -48,6 +48,7 @@ from __future__ import annotations
 import copy
 import difflib
 import fnmatch
+import glob
 import hashlib
 import os
 import json
@@ -596,7 +597,7 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
         data["design"]["name"] = "design"
     base = Path(base_dir)
     _check_cross(chk, data)
-    _expand_checkpoint_patterns(chk, data, base)
+    _expand_checkpoint_patterns(chk, data, base, confine_paths)
     _check_tasks(chk, data, base, confine_paths)
     _check_codesign(chk, data)
     _check_axes(chk, data)
@@ -680,26 +681,94 @@ def _natural_key(path: str) -> list[Any]:
     return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", path)]
 
 
-def _expand_checkpoint_patterns(chk: _Checker, data: dict[str, Any], base: Path) -> None:
+#: Most directory entries one checkpoint glob pattern may look at before it is refused.
+MAX_GLOB_ENTRIES = 20000
+
+
+class _GlobTooWide(Exception):
+    """A pattern's walk looked at more than :data:`MAX_GLOB_ENTRIES` entries."""
+
+
+def _bounded_glob(root: Path, parts: list[str], *, limit: int = MAX_GLOB_ENTRIES) -> list[Path]:
+    """Paths under ``root`` matching the pattern components ``parts`` (one level each, like
+    :func:`glob.glob` without ``recursive``: ``**`` is ``*``), hidden names only by a pattern that
+    starts with ``.``; raises :class:`_GlobTooWide` after ``limit`` entries are looked at."""
+    level = [root]
+    seen = 0
+    for i, part in enumerate(parts):
+        last = i == len(parts) - 1
+        nxt: list[Path] = []
+        for folder in level:
+            if not glob.has_magic(part):
+                cand = folder / part
+                seen += 1
+                if (cand.exists() if last else cand.is_dir()):
+                    nxt.append(cand)
+                continue
+            try:
+                with os.scandir(folder) as it:
+                    for entry in it:
+                        seen += 1
+                        if seen > limit:
+                            raise _GlobTooWide
+                        if entry.name.startswith(".") and not part.startswith("."):
+                            continue
+                        if fnmatch.fnmatchcase(entry.name, part) and (last or entry.is_dir()):
+                            nxt.append(Path(entry.path))
+            except (NotADirectoryError, FileNotFoundError, PermissionError):
+                continue
+        if seen > limit:
+            raise _GlobTooWide
+        level = nxt
+    return level
+
+
+def _expand_checkpoint_patterns(chk: _Checker, data: dict[str, Any], base: Path, confine: bool = True) -> None:
     """Replace glob patterns in ``[tasks] checkpoints`` by the files they match, in natural order.
 
     ``"networks/detection_*_s*.safetensors"`` lists one network per training seed (``s2`` before
     ``s10``); the expanded list is what the design records, so a stored result names its networks.
+    A pattern is matched inside the design's folder only (with ``confine``, always for design
+    files): an absolute pattern or one with ``..`` is refused, a match that a link takes out of the
+    folder is left out (and not named), and a walk that looks at more than
+    :data:`MAX_GLOB_ENTRIES` directory entries is refused.
     """
     ckpts = data["tasks"]["checkpoints"]
+    root = base.resolve()
     for task, entry in list(ckpts.items()):
         out: list[Any] = []
         for i, path in enumerate(_as_list(entry)):
-            if not (isinstance(path, str) and any(c in path for c in "*?[")):
+            if not (isinstance(path, str) and glob.has_magic(path)):
                 out.append(path)
                 continue
-            if Path(path).is_absolute():
-                matches = sorted(glob.glob(path), key=_natural_key)
+            key = f"tasks.checkpoints.{task}" + (f"[{i}]" if isinstance(entry, list) else "")
+            pattern = Path(path)
+            parts = [p for p in pattern.parts if p not in ("", ".")]
+            if "\x00" in path:
+                chk.add(key, path, "contains a NUL byte")
+                continue
+            if confine and (pattern.is_absolute() or ".." in parts):
+                chk.add(key, path, f"a glob pattern must stay inside the design's folder {root}; allowed: a "
+                                   "relative pattern without '..' (e.g. 'networks/det_s*.safetensors')")
+                continue
+            if pattern.is_absolute():  # confine_paths=False: walk from the pattern's fixed prefix
+                n_fixed = next((j for j, p in enumerate(parts) if glob.has_magic(p)), len(parts))
+                start, parts = Path(*parts[:n_fixed]), parts[n_fixed:]
             else:
-                matches = sorted((Path(m).as_posix() for m in glob.glob(path, root_dir=base)), key=_natural_key)
+                start = root
+            try:
+                found = _bounded_glob(start, parts)
+            except _GlobTooWide:
+                chk.add(key, path, f"the pattern looks at more than {MAX_GLOB_ENTRIES} files and folders; allowed: "
+                                   "a narrower pattern (e.g. 'networks/det_s*.safetensors')")
+                continue
+            inside = [m for m in found if not confine or m.resolve() == root or root in m.resolve().parents]
+            matches = sorted(((m.relative_to(root) if start == root else m).as_posix() for m in inside),
+                             key=_natural_key)
             if not matches:
-                key = f"tasks.checkpoints.{task}" + (f"[{i}]" if isinstance(entry, list) else "")
-                chk.add(key, path, f"the pattern matches no file under {base}")
+                left = len(found) - len(inside)
+                why = f" ({left} match(es) lead out of the folder through a link and are not used)" if left else ""
+                chk.add(key, path, f"the pattern matches no file under {root}{why}")
             out.extend(matches)
         if out != _as_list(entry):
             ckpts[task] = out
