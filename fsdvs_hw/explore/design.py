@@ -71,6 +71,7 @@ from ..kernels import (
     load_kernel,
     reference_kernel,
 )
+from ..limits import MAX_WORKERS
 from ..paths import confined_path, safe_name
 from ..realise.registry import get_realisation, realisation_names
 
@@ -223,7 +224,7 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
         "axes": _f(dict, {}, "dotted key → list of values; points are the grid product"),
     },
     "run": {
-        "workers": _f(int, 2, "local worker processes", lo=1, hi=256),
+        "workers": _f(int, 2, "local worker processes", lo=1, hi=MAX_WORKERS),
         "seed": _f(int, 0, "seed for fits and noise", lo=0, hi=2**31 - 1),
         "max_points": _f(int, 10000, "largest sweep accepted (design points); a bigger one is refused before "
                                      "its list is built", lo=1, hi=10**9),

@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..limits import MAX_WORKERS, check_count
 from ..records import Score
 from .design import Design, axis_values
 from .store import ResultsStore
@@ -477,8 +478,7 @@ def run_design(design: Design, store_path: str | Path, *, workers: int | None = 
     if points is None:
         points = expand_points(design, max_points=max_points)
     workers = design.data["run"]["workers"] if workers is None else workers
-    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
-        raise InputError(f"workers must be an integer in 1..256, got {workers!r}")
+    check_count("workers", workers, 1, MAX_WORKERS)
     with ResultsStore(store_path) as store:
         store.set_meta(f"design:{design.name}", design.to_dict())
         if retry_errors:
