@@ -758,7 +758,7 @@ def _expand_checkpoint_patterns(chk: _Checker, data: dict[str, Any], base: Path,
             else:
                 start = root
             try:
-                found = _bounded_glob(start, parts)
+                found = _bounded_glob(start, parts, limit=MAX_GLOB_ENTRIES)
             except _GlobTooWide:
                 chk.add(key, path, f"the pattern looks at more than {MAX_GLOB_ENTRIES} files and folders; allowed: "
                                    "a narrower pattern (e.g. 'networks/det_s*.safetensors')")

@@ -529,6 +529,8 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
     if not Path(out_dir).is_dir():
         raise InputError(f"{out_dir}: not a folder (the --out folder of an earlier explore or sweep run)")
     src = Path(out_dir) / "scores.json"
+    if src.is_symlink():  # it would be read from, and the report rewrites it, elsewhere
+        raise InputError(f"--out: {src} is a symbolic link; refusing to read or write through it (remove the link)")
     try:
         data = json.loads(src.read_text())
     except FileNotFoundError:
