@@ -58,7 +58,7 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
         key = key.strip()
         if not sep or not key:
             raise InputError(f"--set {item[:80]!r}: expected KEY=VALUE (a dotted design key and a TOML value)")
-        key = check_key(key, what="--set")
+        check_key(key, what="--set")  # with_overrides canonicalises; the key is kept as written
         try:
             out[key] = tomllib.loads(f"v = {text}")["v"]
         except tomllib.TOMLDecodeError:

@@ -407,7 +407,7 @@ def check_scheduler_address(address: str) -> str:
     """
     shown = repr(str(address)[:120])
     if not isinstance(address, str) or "://" not in address:
-        raise InputError(f"--scheduler {shown}: expected an address like tls://HOST:PORT "
+        raise InputError(f"--scheduler {shown}: expected an address like tcp://HOST:PORT or tls://HOST:PORT "
                          f"(schemes: {', '.join(s + '://' for s in SCHEDULER_SCHEMES)})")
     try:
         parts = urllib.parse.urlsplit(address)
