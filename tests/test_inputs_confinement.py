@@ -88,7 +88,7 @@ def test_check_key_suggests_close_keys_and_canonicalises():
 
 def test_table_valued_override_replaces_a_number(cheap):
     d = load_design(cheap).with_overrides({"tasks.n_test.detection": 4})
-    assert d.data["tasks"]["n_test"] == {"detection": 4} or "detection" in str(d.data["tasks"]["n_test"])
+    assert d.data["tasks"]["n_test"] == {"detection": 4}
 
 
 def test_a_bad_sweep_axis_key_is_a_design_error_not_a_crash(tmp_path):
