@@ -19,7 +19,20 @@ from collections.abc import Iterator
 
 from .errors import InputError
 
-__all__ = ["DEFAULT_MAX_ALLOC_BYTES", "max_alloc_bytes", "allocation_limit", "check_allocation"]
+__all__ = ["DEFAULT_MAX_ALLOC_BYTES", "max_alloc_bytes", "allocation_limit", "check_allocation", "check_count",
+           "MAX_WORKERS", "MAX_SEED", "MAX_CLIPS", "MAX_EPOCHS", "MAX_POINTS"]
+
+#: Most local worker processes (``--workers``, ``[run] workers``): far above any useful count, low
+#: enough that a typo does not fork thousands of processes.
+MAX_WORKERS: int = 256
+#: Largest seed (``--seed``, ``--seeds``): numpy's and torch's generators accept 0 <= seed < 2**32.
+MAX_SEED: int = 2**32 - 1
+#: Most clips of a training or test set (``--n-train``, ``--n-test``, ``--pilot``, ``[tasks] n_test``).
+MAX_CLIPS: int = 100_000
+#: Most training epochs (``--epochs-*``, ``[tasks] finetune_epochs``, ``[codesign] epochs``).
+MAX_EPOCHS: int = 1000
+#: Most design points a sweep may be asked to allow (``--max-points``, ``[run] max_points``).
+MAX_POINTS: int = 10**9
 
 #: Largest single array allocated without an explicit override (bytes).
 DEFAULT_MAX_ALLOC_BYTES: int = 2**30
@@ -71,3 +84,16 @@ def check_allocation(what: str, n_bytes: int | float) -> None:
     if n_bytes > limit:
         raise InputError(f"{what}: would allocate {n_bytes / 2**30:.3g} GiB, more than the limit of "
                          f"{limit / 2**30:.3g} GiB (raise it with ${_ENV} or fsdvs_hw.limits.allocation_limit)")
+
+
+def check_count(what: str, value: object, lo: int, hi: int) -> int:
+    """``value`` as an integer in ``[lo, hi]``, or an :class:`InputError` naming ``what``, the value and the range.
+
+    Examples
+    --------
+    >>> check_count("--workers", 4, 1, MAX_WORKERS)
+    4
+    """
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise InputError(f"{what} {str(value)[:40]}: out of range; allowed: an integer in [{lo}, {hi}]")
+    return value

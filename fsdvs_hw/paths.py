@@ -6,19 +6,24 @@ paths that leave it, and symbolic links that point out of it, are refused with a
 :class:`~fsdvs_hw.errors.InputError`. Names that are not paths (``[design] name``) are turned
 into safe file names by :func:`safe_name` before they become part of a path. Output folders and
 files given on the command line are checked before any work (exists as a file? writable?) so a
-long run never fails at its last step.
+long run never fails at its last step. Files written into an output folder never go through a
+symbolic link that sits there (it could point anywhere): :func:`write_output` refuses a link and
+writes a temporary file in the same folder that :func:`os.replace` then renames over the name,
+which replaces a link (should one appear meanwhile) instead of following it.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import re
+import tempfile
 from pathlib import Path
 
 from .errors import InputError
 
-__all__ = ["safe_name", "confined_path", "output_dir", "output_file", "MAX_NAME_LENGTH"]
+__all__ = ["safe_name", "confined_path", "output_dir", "output_file", "write_output", "MAX_NAME_LENGTH"]
 
 #: Longest file-name stem :func:`safe_name` returns (characters).
 MAX_NAME_LENGTH = 64
@@ -98,11 +103,60 @@ def output_dir(path: str | Path, *, flag: str = "--out") -> Path:
 
 
 def output_file(path: str | Path, *, flag: str) -> Path:
-    """Check an output file path: its folder is created and writable, and it is not a folder itself."""
+    """Check an output file path: its folder is created and writable, it is not a folder itself,
+    and it is not a symbolic link (writing would change the file the link points to)."""
     p = Path(path)
+    if p.is_symlink():
+        raise InputError(f"{flag} {p}: is a symbolic link; refusing to write through it (remove the link or "
+                         "name another file)")
     if p.is_dir():
         raise InputError(f"{flag} {p}: is a folder, expected a file path")
     output_dir(p.parent if str(p.parent) else Path("."), flag=flag)
     if p.exists() and not os.access(p, os.W_OK):
         raise InputError(f"{flag} {p}: file is not writable")
+    return p
+
+
+def write_output(path: str | Path, data: str | bytes, *, flag: str = "--out") -> Path:
+    """Write ``data`` to ``path`` atomically, never through a symbolic link.
+
+    The data goes to a temporary file in ``path``'s folder, which :func:`os.replace` then renames
+    to ``path``: a reader sees the old file or the whole new one, and the rename replaces the name
+    itself (a link there is replaced, its target untouched). A link already at ``path`` is refused.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write (its folder must exist).
+    data : str or bytes
+        The content; text is written as UTF-8.
+    flag : str
+        The option that named the folder, for messages (``"--out"``).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        ``path`` is a symbolic link or a folder.
+    """
+    p = Path(path)
+    if p.is_symlink():
+        raise InputError(f"{flag}: {p} is a symbolic link; refusing to write through it (remove the link)")
+    if p.is_dir():
+        raise InputError(f"{flag}: {p} is a folder, expected a file path")
+    blob = data.encode("utf-8") if isinstance(data, str) else bytes(data)
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name[:40]}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(blob)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, p)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
     return p

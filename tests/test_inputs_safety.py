@@ -35,9 +35,11 @@ workers = 1
 
 
 def _cli(argv: list[str], capsys) -> tuple[int, str]:
-    code = main(argv)
-    err = capsys.readouterr().err
-    return code, err
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # a flag refused while parsing (argparse exits 2 after one line)
+        code = int(exc.code or 0)
+    return code, capsys.readouterr().err
 
 
 def _one_clear_line(err: str) -> str:

@@ -7,14 +7,45 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..limits import MAX_POINTS, MAX_WORKERS, check_count
 
-__all__ = ["add_execution_arguments", "security_from_args"]
+__all__ = ["add_execution_arguments", "int_in", "scheduler_address", "security_from_args"]
+
+
+def int_in(lo: int, hi: int) -> Any:
+    """argparse ``type`` of an integer flag with documented limits ``[lo, hi]`` (:mod:`fsdvs_hw.limits`):
+    a value outside is refused while parsing, one line naming the flag, the value and the range."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text[:40]!r} is not an integer; allowed: [{lo}, {hi}]") from None
+        try:
+            return check_count("", value, lo, hi)
+        except InputError as exc:
+            raise argparse.ArgumentTypeError(str(exc).strip()) from None
+
+    parse.__name__ = "integer"  # argparse names the type in its messages
+    return parse
+
+
+def scheduler_address(text: str) -> str:
+    """argparse ``type`` of ``--scheduler``: the address checked before any work
+    (:func:`fsdvs_hw.explore.sweep.check_scheduler_address`); a bad one is one line, exit 2."""
+    from ..explore.sweep import check_scheduler_address
+
+    try:
+        return check_scheduler_address(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--scheduler ")) from None
 
 
 def add_execution_arguments(parser: argparse.ArgumentParser) -> None:
     """``--workers``, ``--scheduler``, ``--tls-*``, ``--no-progress``, ``--retry-errors``, ``--max-points``."""
-    parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: [run] workers)")
-    parser.add_argument("--scheduler", default=None, metavar="tls://HOST:PORT",
+    parser.add_argument("--workers", type=int_in(1, MAX_WORKERS), default=None,
+                        help=f"local worker processes, 1..{MAX_WORKERS} (default: [run] workers)")
+    parser.add_argument("--scheduler", type=scheduler_address, default=None, metavar="tls://HOST:PORT",
                         help="run on a Dask distributed scheduler instead of local processes (tls:// with the "
                              "--tls-* files; plain tcp:// only on a trusted network)")
     parser.add_argument("--tls-ca-file", type=Path, default=None, metavar="PEM",
@@ -25,7 +56,7 @@ def add_execution_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--retry-errors", action="store_true",
                         help="rerun this design's points stored as failed (finished points, and other "
                              "designs' points in the same store, are always kept)")
-    parser.add_argument("--max-points", type=int, default=None, metavar="N",
+    parser.add_argument("--max-points", type=int_in(1, MAX_POINTS), default=None, metavar="N",
                         help="refuse sweeps of more than N design points (default: [run] max_points)")
 
 

@@ -6,6 +6,10 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..kernels import MAX_KERNEL_SIZE
+from ..limits import MAX_CLIPS, MAX_EPOCHS, MAX_SEED, MAX_WORKERS
+from ._execution import int_in, scheduler_address
+
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
 HELP = "kernel-size ablation (w/o, 3, 5, 7, 9) on detection and recognition, gains with 95 % CIs; resumable"
@@ -21,15 +25,17 @@ DESCRIPTION = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tasks", nargs="+", default=["detection", "recognition"], help="tasks (default: both)")
-    parser.add_argument("--sizes", nargs="+", type=int, default=[1, 3, 5, 7, 9],
+    parser.add_argument("--sizes", nargs="+", type=int_in(1, MAX_KERNEL_SIZE), default=[1, 3, 5, 7, 9],
                         help="odd kernel sizes; 1 = w/o (default 1 3 5 7 9)")
-    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2], help="training seeds (default 0 1 2)")
-    parser.add_argument("--n-train", type=int, default=None, help="training clips (default 2048)")
-    parser.add_argument("--n-test", type=int, default=None, help="test clips (default 2048)")
-    parser.add_argument("--epochs-frozen", type=int, default=None, help="frozen-filter epochs (default 16)")
-    parser.add_argument("--epochs-joint", type=int, default=None, help="joint epochs (default 16)")
-    parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
-    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+    parser.add_argument("--seeds", nargs="+", type=int_in(0, MAX_SEED), default=[0, 1, 2],
+                        help=f"training seeds, each 0..{MAX_SEED} (default 0 1 2)")
+    parser.add_argument("--n-train", type=int_in(1, MAX_CLIPS), default=None, help="training clips (default 2048)")
+    parser.add_argument("--n-test", type=int_in(1, MAX_CLIPS), default=None, help="test clips (default 2048)")
+    parser.add_argument("--epochs-frozen", type=int_in(0, MAX_EPOCHS), default=None, help="frozen-filter epochs (default 16)")
+    parser.add_argument("--epochs-joint", type=int_in(0, MAX_EPOCHS), default=None, help="joint epochs (default 16)")
+    parser.add_argument("--workers", type=int_in(1, MAX_WORKERS), default=1,
+                        help=f"local worker processes, 1..{MAX_WORKERS} (default 1)")
+    parser.add_argument("--scheduler", type=scheduler_address, default=None, metavar="tcp://HOST:PORT",
                         help="run on a Dask distributed scheduler instead of local processes")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--transfer", default=None, metavar="KERNEL",

@@ -47,14 +47,18 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
     Raises
     ------
     InputError
-        An item without ``=`` or with an empty key.
+        An item without ``=`` or with an empty key; a key that is not in the design schema
+        (:func:`fsdvs_hw.explore.design.check_key`: one line with the closest allowed keys).
     """
+    from ..explore.design import check_key
+
     out: dict[str, Any] = {}
     for item in items:
         key, sep, text = item.partition("=")
         key = key.strip()
         if not sep or not key:
-            raise InputError(f"--set {item!r}: expected KEY=VALUE (a dotted design key and a TOML value)")
+            raise InputError(f"--set {item[:80]!r}: expected KEY=VALUE (a dotted design key and a TOML value)")
+        check_key(key, what="--set")  # with_overrides canonicalises; the key is kept as written
         try:
             out[key] = tomllib.loads(f"v = {text}")["v"]
         except tomllib.TOMLDecodeError:

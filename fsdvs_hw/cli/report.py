@@ -12,7 +12,9 @@ HELP = "redraw DIR/report.html from the scores an earlier explore or sweep run s
 DESCRIPTION = (
     "Read DIR/scores.json (written by `fsdvs-hw explore DESIGN --out DIR` or `sweep --report DIR`) and\n"
     "write report.html, scores.csv and scores.json again, into DIR or into --to. Use it after updating\n"
-    "fsdvs_hw, or to get the report of a run made elsewhere. Nothing is fitted or scored again.\n\n"
+    "fsdvs_hw, or to get the report of a run made elsewhere. Nothing is fitted or scored again. The design\n"
+    "(with the run's --set options) must be the one the run used: scores.json keeps its fingerprint, and\n"
+    "another design is refused.\n\n"
     "Example: fsdvs-hw report designs/default.toml --out out/demo --to out/demo_redrawn"
 )
 
@@ -23,6 +25,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="output folder of the earlier run (holds scores.json)")
     parser.add_argument("--to", type=Path, default=None, metavar="DIR",
                         help="folder to write the report into (default: replace the report in --out)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="the --set options the run used (the design must match the run's: a report of "
+                             "another design is refused); repeatable")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -30,7 +35,11 @@ def run(args: argparse.Namespace) -> int:
     from ..paths import output_dir
     from ..report import write_report_from_scores
 
+    from .explore import parse_overrides
+
     design = load_design(args.design)
+    if args.overrides:
+        design = design.with_overrides(parse_overrides(args.overrides))
     if args.to is not None:
         output_dir(args.to, flag="--to")
     print(f"report: {write_report_from_scores(args.out, design, to=args.to)}")

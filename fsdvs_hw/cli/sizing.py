@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
+from ..limits import MAX_CLIPS
+from ._execution import int_in
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
@@ -21,7 +23,7 @@ DESCRIPTION = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("design", type=Path, help="TOML design file, or a shipped design's name (default)")
-    parser.add_argument("--pilot", type=int, default=512, help="pilot test clips per task and network")
+    parser.add_argument("--pilot", type=int_in(1, MAX_CLIPS), default=512, help="pilot test clips per task and network")
     parser.add_argument("--target", type=float, default=None,
                         help="CI half-width (default: the design's [scoring] target_half_width)")
     parser.add_argument("--margin", type=float, default=1.15, help="safety factor on the clip count")

@@ -46,8 +46,11 @@ module is accepted without a change here.
 from __future__ import annotations
 
 import copy
+import difflib
+import fnmatch
 import glob
 import hashlib
+import os
 import json
 import math
 import re
@@ -68,6 +71,7 @@ from ..kernels import (
     load_kernel,
     reference_kernel,
 )
+from ..limits import MAX_WORKERS
 from ..paths import confined_path, safe_name
 from ..realise.registry import get_realisation, realisation_names
 
@@ -79,6 +83,8 @@ __all__ = [
     "CSF_DEFAULT_METHODS",
     "CODESIGN_MODES",
     "axis_values",
+    "check_key",
+    "MAX_GLOB_ENTRIES",
 ]
 
 
@@ -218,7 +224,7 @@ _SCHEMA: dict[str, dict[str, _Field]] = {
         "axes": _f(dict, {}, "dotted key → list of values; points are the grid product"),
     },
     "run": {
-        "workers": _f(int, 2, "local worker processes", lo=1, hi=256),
+        "workers": _f(int, 2, "local worker processes", lo=1, hi=MAX_WORKERS),
         "seed": _f(int, 0, "seed for fits and noise", lo=0, hi=2**31 - 1),
         "max_points": _f(int, 10000, "largest sweep accepted (design points); a bigger one is refused before "
                                      "its list is built", lo=1, hi=10**9),
@@ -394,7 +400,7 @@ class Design:
         """A new, re-validated design with dotted keys replaced (``{"asic.bits": 4}``)."""
         data = copy.deepcopy(self.data)
         for key, value in overrides.items():
-            _set_dotted(data, _canonical_key(key), value)
+            _set_dotted(data, check_key(str(key), what="override"), value)
         data["sweep"] = {"axes": {}}
         return parse_design(data, source=f"{self.source} with {dict(overrides)}", base_dir=self.base_dir,
                             confine_paths=self.confine_paths)
@@ -427,11 +433,85 @@ def _canonical_key(key: str) -> str:
     return key
 
 
+def _all_keys(schema: dict[str, dict[str, _Field]]) -> list[str]:
+    """Every dotted key a design accepts (sections' keys and realisation options), for messages."""
+    keys = [f"{s}.{k}" for s, fields in schema.items() for k in fields]
+    for name in _option_tables():
+        keys.extend(f"{name}.{opt}" for opt in get_realisation(name).options)
+    return keys
+
+
+def check_key(key: str, *, what: str = "--set") -> str:
+    """Check a dotted design key (``--set KEY=...``, a sweep axis) against the schema; return its
+    canonical form (``"asic.bits"`` → ``"realisations.asic.bits"``).
+
+    A key must name one value of the layout: ``section.key``, ``realisation.option`` (or
+    ``realisations.realisation.option``), and one level deeper only inside a table-valued key
+    (``kernel.params.sigma_centre_px``, ``tasks.n_test.detection``) or a structured fit option.
+
+    Parameters
+    ----------
+    key : str
+        The dotted key as the user wrote it.
+    what : str
+        How the key was given, for the message (``"--set"``, ``"sweep.axes"``).
+
+    Raises
+    ------
+    DesignError
+        One line naming the key, what is wrong and the closest allowed keys (or the allowed ones).
+    """
+    schema = _schema()
+    shown = repr(key[:80])
+    parts = key.split(".")
+    if not key or any(not p.strip() for p in parts):
+        raise DesignError(f"{what} {shown}: not a dotted design key (an empty part); allowed: section.key, "
+                          "e.g. sensor.threshold_on or asic.bits")
+    ckey = _canonical_key(key)
+    cparts = ckey.split(".")
+    section = cparts[0]
+    known = _all_keys(schema)
+
+    def unknown(why: str, allowed: str | None = None) -> DesignError:
+        close = difflib.get_close_matches(key, known, n=3, cutoff=0.6)
+        hint = f"did you mean {', '.join(close)}? " if close else ""
+        return DesignError(f"{what} {shown}: {why}; {hint}allowed: {allowed or 'sections ' + ', '.join(schema)}")
+
+    if section not in schema:
+        raise unknown(f"unknown section {section[:40]!r}")
+    if len(cparts) == 1:
+        sample = ", ".join(f"{section}.{k}" for k in list(schema[section])[:6]) or ", ".join(_option_tables())
+        raise DesignError(f"{what} {shown}: names a whole section, not a key; allowed: one key of it ({sample})")
+    if section == "realisations" and cparts[1] in _option_tables():
+        spec = get_realisation(cparts[1])
+        if len(cparts) < 3:
+            raise DesignError(f"{what} {shown}: names the [realisations.{cparts[1]}] table, not an option; "
+                              f"allowed: {cparts[1]}.<option> with option one of {', '.join(sorted(spec.options))}")
+        opt = spec.options.get(cparts[2])
+        if opt is None:
+            raise unknown(f"unknown option of {spec.fit_name}", ", ".join(sorted(spec.options)))
+        if len(cparts) > (4 if opt.factory is not None else 3):
+            raise DesignError(f"{what} {shown}: {cparts[1]}.{cparts[2]} is a single value, not a table; "
+                              f"allowed: {cparts[1]}.{cparts[2]}=VALUE")
+        return ckey
+    spec_f = schema[section].get(cparts[1])
+    if spec_f is None:
+        extra = [*_option_tables()] if section == "realisations" else []
+        raise unknown(f"unknown key {cparts[1][:40]!r} in [{section}]", ", ".join([*schema[section], *extra]))
+    if len(cparts) > (3 if dict in spec_f.types else 2):
+        raise DesignError(f"{what} {shown}: {section}.{cparts[1]} is "
+                          f"{'a table of single values' if dict in spec_f.types else 'a single value, not a table'}"
+                          f"; allowed: {section}.{cparts[1]}" + ("[.NAME]" if dict in spec_f.types else "") + "=VALUE")
+    return ckey
+
+
 def _set_dotted(data: dict[str, Any], key: str, value: Any) -> None:
     parts = key.split(".")
     node = data
     for p in parts[:-1]:
-        node = node.setdefault(p, {})
+        if not isinstance(node.get(p), dict):  # a number where a table is set (tasks.n_test.detection)
+            node[p] = {}
+        node = node[p]
     node[parts[-1]] = value
 
 
@@ -518,7 +598,7 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
         data["design"]["name"] = "design"
     base = Path(base_dir)
     _check_cross(chk, data)
-    _expand_checkpoint_patterns(chk, data, base)
+    _expand_checkpoint_patterns(chk, data, base, confine_paths)
     _check_tasks(chk, data, base, confine_paths)
     _check_codesign(chk, data)
     _check_axes(chk, data)
@@ -602,26 +682,94 @@ def _natural_key(path: str) -> list[Any]:
     return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", path)]
 
 
-def _expand_checkpoint_patterns(chk: _Checker, data: dict[str, Any], base: Path) -> None:
+#: Most directory entries one checkpoint glob pattern may look at before it is refused.
+MAX_GLOB_ENTRIES = 20000
+
+
+class _GlobTooWide(Exception):
+    """A pattern's walk looked at more than :data:`MAX_GLOB_ENTRIES` entries."""
+
+
+def _bounded_glob(root: Path, parts: list[str], *, limit: int = MAX_GLOB_ENTRIES) -> list[Path]:
+    """Paths under ``root`` matching the pattern components ``parts`` (one level each, like
+    :func:`glob.glob` without ``recursive``: ``**`` is ``*``), hidden names only by a pattern that
+    starts with ``.``; raises :class:`_GlobTooWide` after ``limit`` entries are looked at."""
+    level = [root]
+    seen = 0
+    for i, part in enumerate(parts):
+        last = i == len(parts) - 1
+        nxt: list[Path] = []
+        for folder in level:
+            if not glob.has_magic(part):
+                cand = folder / part
+                seen += 1
+                if (cand.exists() if last else cand.is_dir()):
+                    nxt.append(cand)
+                continue
+            try:
+                with os.scandir(folder) as it:
+                    for entry in it:
+                        seen += 1
+                        if seen > limit:
+                            raise _GlobTooWide
+                        if entry.name.startswith(".") and not part.startswith("."):
+                            continue
+                        if fnmatch.fnmatchcase(entry.name, part) and (last or entry.is_dir()):
+                            nxt.append(Path(entry.path))
+            except (NotADirectoryError, FileNotFoundError, PermissionError):
+                continue
+        if seen > limit:
+            raise _GlobTooWide
+        level = nxt
+    return level
+
+
+def _expand_checkpoint_patterns(chk: _Checker, data: dict[str, Any], base: Path, confine: bool = True) -> None:
     """Replace glob patterns in ``[tasks] checkpoints`` by the files they match, in natural order.
 
     ``"networks/detection_*_s*.safetensors"`` lists one network per training seed (``s2`` before
     ``s10``); the expanded list is what the design records, so a stored result names its networks.
+    A pattern is matched inside the design's folder only (with ``confine``, always for design
+    files): an absolute pattern or one with ``..`` is refused, a match that a link takes out of the
+    folder is left out (and not named), and a walk that looks at more than
+    :data:`MAX_GLOB_ENTRIES` directory entries is refused.
     """
     ckpts = data["tasks"]["checkpoints"]
+    root = base.resolve()
     for task, entry in list(ckpts.items()):
         out: list[Any] = []
         for i, path in enumerate(_as_list(entry)):
-            if not (isinstance(path, str) and any(c in path for c in "*?[")):
+            if not (isinstance(path, str) and glob.has_magic(path)):
                 out.append(path)
                 continue
-            if Path(path).is_absolute():
-                matches = sorted(glob.glob(path), key=_natural_key)
+            key = f"tasks.checkpoints.{task}" + (f"[{i}]" if isinstance(entry, list) else "")
+            pattern = Path(path)
+            parts = [p for p in pattern.parts if p not in ("", ".")]
+            if "\x00" in path:
+                chk.add(key, path, "contains a NUL byte")
+                continue
+            if confine and (pattern.is_absolute() or ".." in parts):
+                chk.add(key, path, f"a glob pattern must stay inside the design's folder {root}; allowed: a "
+                                   "relative pattern without '..' (e.g. 'networks/det_s*.safetensors')")
+                continue
+            if pattern.is_absolute():  # confine_paths=False: walk from the pattern's fixed prefix
+                n_fixed = next((j for j, p in enumerate(parts) if glob.has_magic(p)), len(parts))
+                start, parts = Path(*parts[:n_fixed]), parts[n_fixed:]
             else:
-                matches = sorted((Path(m).as_posix() for m in glob.glob(path, root_dir=base)), key=_natural_key)
+                start = root
+            try:
+                found = _bounded_glob(start, parts, limit=MAX_GLOB_ENTRIES)
+            except _GlobTooWide:
+                chk.add(key, path, f"the pattern looks at more than {MAX_GLOB_ENTRIES} files and folders; allowed: "
+                                   "a narrower pattern (e.g. 'networks/det_s*.safetensors')")
+                continue
+            inside = [m for m in found if not confine or m.resolve() == root or root in m.resolve().parents]
+            matches = sorted(((m.relative_to(root) if start == root else m).as_posix() for m in inside),
+                             key=_natural_key)
             if not matches:
-                key = f"tasks.checkpoints.{task}" + (f"[{i}]" if isinstance(entry, list) else "")
-                chk.add(key, path, f"the pattern matches no file under {base}")
+                left = len(found) - len(inside)
+                why = f" ({left} match(es) lead out of the folder through a link and are not used)" if left else ""
+                chk.add(key, path, f"the pattern matches no file under {root}{why}")
             out.extend(matches)
         if out != _as_list(entry):
             ckpts[task] = out
@@ -751,7 +899,11 @@ def _check_axes(chk: _Checker, data: dict[str, Any]) -> None:
         if not isinstance(values, list) or not values:
             chk.add(full, values, "a sweep axis must be a non-empty list of values")
             continue
-        ckey = _canonical_key(key)
+        try:
+            ckey = check_key(key, what="axis")
+        except DesignError as exc:
+            chk.add(full, values, str(exc).split(": ", 1)[-1])
+            continue
         section, _, rest = ckey.partition(".")
         if section in ("sweep", "run", "design") or not rest:
             chk.add(full, values, "sweep axes must name a key inside [kernel], [sensor], [optics], [analysis], "

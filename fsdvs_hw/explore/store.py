@@ -84,11 +84,18 @@ class ResultsStore:
             if foreign:
                 raise InputError(f"{self.path}: a SQLite database with other tables ({', '.join(foreign[:5])}), "
                                  "not an fsdvs_hw results store; left unchanged (use a new --store file)")
-            if "points" in tables:
-                cols = [r[1] for r in self._db.execute("PRAGMA table_info(points)")]
-                if cols != _COLUMNS:
-                    raise InputError(f"{self.path}: has a 'points' table of another layout; not an fsdvs_hw "
-                                     "results store (use a new --store file)")
+            for table, expected in (("points", _COLUMNS), ("meta", ["key", "value"])):
+                if table in tables:
+                    cols = [r[1] for r in self._db.execute(f"PRAGMA table_info({table})")]
+                    if cols != expected:
+                        raise InputError(f"{self.path}: has a {table!r} table of another layout; not an fsdvs_hw "
+                                         "results store (use a new --store file)")
+            if tables:  # an existing store: a damaged page would otherwise surface mid-run or be skipped
+                check = [r[0] for r in self._db.execute("PRAGMA quick_check(3)")]
+                if check != ["ok"]:
+                    raise InputError(f"{self.path}: the results store is damaged (SQLite quick_check: "
+                                     f"{' '.join('; '.join(str(c) for c in check).split())[:200]}); use a new --store file or "
+                                     "restore a copy")
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.executescript(_DDL)

@@ -26,6 +26,7 @@ import os
 import socket
 import time
 import traceback
+import urllib.parse
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -33,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..limits import MAX_WORKERS, check_count
 from ..provenance import library_versions
 from ..records import Score
 from .design import Design, axis_values
@@ -47,6 +49,7 @@ __all__ = [
     "run_points",
     "run_design",
     "dask_security",
+    "check_scheduler_address",
     "SweepSummary",
 ]
 
@@ -381,6 +384,53 @@ def dask_security(ca_file: str | Path | None = None, cert: str | Path | None = N
                     tls_client_key=None if key is None else str(key), require_encryption=True)
 
 
+#: Address schemes a Dask scheduler is reached by (``inproc://`` only within one process).
+SCHEDULER_SCHEMES = ("tcp", "tls", "inproc", "ucx")
+
+
+def check_scheduler_address(address: str) -> str:
+    """Parse a Dask scheduler address (``tls://HOST:PORT``) before anything connects to it.
+
+    Parameters
+    ----------
+    address : str
+        ``tcp://``, ``tls://`` or ``ucx://`` with a host and a port in 1..65535, or ``inproc://...``.
+
+    Returns
+    -------
+    str
+        The address, unchanged.
+
+    Raises
+    ------
+    InputError
+        One line naming the address and what is wrong (no scheme, unknown scheme, no host, a port
+        that is not a number in 1..65535).
+    """
+    shown = repr(str(address)[:120])
+    if not isinstance(address, str) or "://" not in address:
+        raise InputError(f"--scheduler {shown}: expected an address like tcp://HOST:PORT or tls://HOST:PORT "
+                         f"(schemes: {', '.join(s + '://' for s in SCHEDULER_SCHEMES)})")
+    try:
+        parts = urllib.parse.urlsplit(address)
+        port = parts.port
+    except ValueError as exc:  # a port that is not a number, or outside 0..65535
+        raise InputError(f"--scheduler {shown}: bad port ({exc}); allowed: HOST:PORT with PORT in 1..65535") from None
+    if parts.scheme not in SCHEDULER_SCHEMES:
+        raise InputError(f"--scheduler {shown}: unknown scheme {parts.scheme[:20]!r}; allowed: "
+                         f"{', '.join(s + '://' for s in SCHEDULER_SCHEMES)}")
+    if parts.scheme == "inproc":
+        return address
+    if not parts.hostname:
+        raise InputError(f"--scheduler {shown}: no host; allowed: {parts.scheme}://HOST:PORT")
+    if port is None or not 1 <= port <= 65535:
+        got = "no port" if port is None else f"port {port}"
+        raise InputError(f"--scheduler {shown}: {got}; allowed: {parts.scheme}://HOST:PORT with PORT in 1..65535")
+    if parts.path not in ("", "/") or parts.query or parts.fragment:
+        raise InputError(f"--scheduler {shown}: unexpected text after HOST:PORT; allowed: {parts.scheme}://HOST:PORT")
+    return address
+
+
 def _loopback(address: str) -> bool:
     host = address.split("://", 1)[-1].rsplit(":", 1)[0].strip("[]")
     return host in ("localhost", "::1") or host.startswith("127.")
@@ -393,8 +443,7 @@ def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
         from distributed import Client, as_completed
     except ImportError as exc:  # pragma: no cover - optional extra
         raise InputError(f"--scheduler needs dask[distributed] (pip install 'fsdvs_hw[distributed]'): {exc}") from None
-    if not scheduler.startswith(("tcp://", "tls://", "inproc://", "ucx://")):
-        raise InputError(f"--scheduler {scheduler!r}: expected an address like tcp://HOST:PORT")
+    check_scheduler_address(scheduler)
     if scheduler.startswith("tcp://") and not _loopback(scheduler):
         warnings.warn(f"--scheduler {scheduler}: plain tcp:// is unencrypted and unauthenticated, and Dask tasks "
                       "and results are pickles: anyone who can reach the scheduler can run code on the workers "
@@ -405,6 +454,9 @@ def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
         client = Client(scheduler, timeout="20s", **kw)
     except (OSError, TimeoutError) as exc:
         raise InputError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler ({exc})") from None
+    except (TypeError, ValueError) as exc:  # e.g. tls:// without certificates: Dask raises TypeError
+        raise InputError(f"--scheduler {scheduler}: cannot connect ({' '.join(str(exc).split())[:200]}); "
+                         "tls:// needs --tls-ca-file/--tls-cert/--tls-key") from None
     try:
         futures = {client.submit(evaluate, p, key=f"fsdvs-point-{p.key}", pure=False): p for p in todo}
         for fut in as_completed(list(futures)):
@@ -428,8 +480,7 @@ def run_design(design: Design, store_path: str | Path, *, workers: int | None = 
     if points is None:
         points = expand_points(design, max_points=max_points)
     workers = design.data["run"]["workers"] if workers is None else workers
-    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
-        raise InputError(f"workers must be an integer in 1..256, got {workers!r}")
+    check_count("workers", workers, 1, MAX_WORKERS)
     with ResultsStore(store_path) as store:
         store.set_meta(f"design:{design.name}", design.to_dict())
         if retry_errors:

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import __version__
+from ..paths import write_output
 from ..records import Cost, ScoredPoint
 from . import figures
 from .artifacts import artifacts_html
@@ -32,7 +33,8 @@ from .present import cost_label, number, plain, point_title, si, style, title
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
 from .verdict import VERDICT_COLUMNS, advice, loss_header, verdict_table
 
-__all__ = ["write_report", "render_html", "write_report_from_scores", "FIGURE_DPI", "CSS_DPI"]
+__all__ = ["write_report", "render_html", "write_report_from_scores", "design_stamp", "check_same_design", "FIGURE_DPI",
+           "CSS_DPI"]
 
 #: CSS pixels per inch: a figure of w inches is shown w × CSS_DPI px wide.
 CSS_DPI = 96
@@ -429,18 +431,72 @@ def _conditions(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]]
 
 def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, out_dir: str | Path) -> Path:
     """Write ``report.html``, ``scores.csv`` and ``scores.json`` into ``out_dir``; return the HTML path."""
+    from ..errors import InputError
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    for name in ("report.html", "scores.csv", "scores.json"):  # refused before any file is replaced
+        if (out / name).is_symlink():
+            raise InputError(f"--out: {out / name} is a symbolic link; refusing to write through it (remove the link)")
     points = _typed(points)
-    write_scores(score_rows(points), out, full=[p.to_dict() for p in points])
+    write_scores(score_rows(points), out, full=[p.to_dict() for p in points], design=design_stamp(design))
     path = out / "report.html"
     sections = []
     if (out / "codesign.json").is_file() and design.data.get("codesign", {}).get("enabled"):  # issue 16 rows
         from .codesign import codesign_section
 
         sections.append(codesign_section(json.loads((out / "codesign.json").read_text())))
-    path.write_text(render_html(points, design, sections=sections))
-    return path
+    # atomically, never through a symbolic link planted in the folder
+    return write_output(path, render_html(points, design, sections=sections))
+
+
+def design_stamp(design: Any) -> dict[str, Any]:
+    """What ``scores.json`` records of the design its points came from: name, fingerprint
+    (:meth:`fsdvs_hw.explore.design.Design.fingerprint`: SHA-1 of the validated content and target
+    taps) and the validated data, so that :func:`write_report_from_scores` can refuse another design."""
+    return {"name": design.name, "fingerprint": design.fingerprint(), "data": design.to_dict()}
+
+
+def _flat(data: Any, prefix: str = "") -> dict[str, Any]:
+    if isinstance(data, Mapping) and data:
+        out: dict[str, Any] = {}
+        for k, v in data.items():
+            out.update(_flat(v, f"{prefix}{k}."))
+        return out
+    return {prefix[:-1]: data}
+
+
+def check_same_design(src: Path, stored: Any, points: Sequence[ScoredPoint], design: Any) -> None:
+    """Refuse to redraw the points of ``src`` (a ``scores.json``) with a design other than theirs.
+
+    Compares the stored fingerprint (:func:`design_stamp`) with ``design``'s; a ``scores.json``
+    written before fingerprints were kept is checked by the design name its points carry.
+
+    Raises
+    ------
+    InputError
+        Naming both designs (source, name, fingerprint) and the first keys that differ.
+    """
+    from ..errors import InputError
+
+    given = f"{design.source} (design {design.name!r}"
+    if isinstance(stored, Mapping) and isinstance(stored.get("fingerprint"), str):
+        if stored["fingerprint"] == design.fingerprint():
+            return
+        run_flat = _flat(stored.get("data") or {})
+        now_flat = _flat(design.to_dict())
+        diff = [k for k in dict.fromkeys([*run_flat, *now_flat]) if run_flat.get(k, "<unset>") != now_flat.get(k, "<unset>")]
+        shown = "; ".join(f"{k}: run {json.dumps(run_flat.get(k, '<unset>'), default=str)[:40]}, given "
+                          f"{json.dumps(now_flat.get(k, '<unset>'), default=str)[:40]}" for k in diff[:3])
+        more = f" and {len(diff) - 3} more" if len(diff) > 3 else ""
+        raise InputError(f"{given}, fingerprint {design.fingerprint()[:12]}) does not match the design of the run "
+                         f"in {src} (design {str(stored.get('name'))[:60]!r}, fingerprint "
+                         f"{stored['fingerprint'][:12]}); differs in {shown or 'the target kernel'}{more}; pass "
+                         "the design file (and --set options) the run used")
+    names = {str(p.extra.get("design")) for p in points if p.extra.get("design") is not None}
+    if names and names != {design.name}:
+        raise InputError(f"{given}) does not match the design of the run in {src} (its points are of design "
+                         f"{', '.join(repr(n[:60]) for n in sorted(names)[:3])}); pass the design file the run used")
 
 
 def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path | None = None) -> Path:
@@ -470,7 +526,8 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
     ------
     InputError
         ``out_dir`` is not a folder; ``out_dir/scores.json`` is missing, is not JSON, or holds no
-        ``"points"`` list of stored points; ``design`` is not a loaded design.
+        ``"points"`` list of stored points; ``design`` is not a loaded design, or not the design
+        the run used (:func:`check_same_design`); a file to write is a symbolic link.
 
     Examples
     --------
@@ -483,6 +540,8 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
     if not Path(out_dir).is_dir():
         raise InputError(f"{out_dir}: not a folder (the --out folder of an earlier explore or sweep run)")
     src = Path(out_dir) / "scores.json"
+    if src.is_symlink():  # it would be read from, and the report rewrites it, elsewhere
+        raise InputError(f"--out: {src} is a symbolic link; refusing to read or write through it (remove the link)")
     try:
         data = json.loads(src.read_text())
     except FileNotFoundError:
@@ -496,9 +555,10 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
     if isinstance(design, (str, Path)) or not callable(getattr(design, "to_dict", None)):
         raise InputError(f"write_report_from_scores: design must be a loaded design "
                          f"(fsdvs_hw.explore.design.load_design(path)), got {type(design).__name__}")
+    check_same_design(src, data.get("design"), points, design)
     dest = Path(to) if to is not None else Path(out_dir)
     extra = Path(out_dir) / "codesign.json"  # the co-design rows write_report reads beside the report
     if extra.is_file() and dest.resolve() != Path(out_dir).resolve():
         dest.mkdir(parents=True, exist_ok=True)
-        (dest / extra.name).write_bytes(extra.read_bytes())
+        write_output(dest / extra.name, extra.read_bytes(), flag="--to")
     return write_report(points, design, dest)

@@ -19,12 +19,14 @@ when the CI contains 0) and the same for ``weighted_loss`` (``[scoring] task_wei
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from ..paths import write_output
 from ..realise.registry import REALISATIONS
 from ..records import ScoredPoint
 
@@ -268,22 +270,31 @@ def _mark_pareto(rows: list[dict[str, Any]]) -> None:
 
 
 def write_scores(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, stem: str = "scores",
-                 full: Sequence[Mapping[str, Any]] | None = None) -> tuple[Path, Path]:
-    """Write ``<stem>.csv`` (flat rows) and ``<stem>.json`` (flat rows plus full records) to ``out_dir``."""
+                 full: Sequence[Mapping[str, Any]] | None = None,
+                 design: Mapping[str, Any] | None = None) -> tuple[Path, Path]:
+    """Write ``<stem>.csv`` (flat rows) and ``<stem>.json`` (flat rows plus full records) to ``out_dir``.
+
+    ``design`` (``{"name", "fingerprint", "data"}`` of the design the points came from) is kept in
+    the JSON file so that a report redrawn later can refuse another design. Both files are written
+    atomically and never through a symbolic link (:func:`fsdvs_hw.paths.write_output`).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     columns: list[str] = []
     for r in rows:
         columns.extend(k for k in r if k not in columns)
-    csv_path = out / f"{stem}.csv"
-    with csv_path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=columns, restval="")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in r.items()})
-    json_path = out / f"{stem}.json"
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=columns, restval="")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in r.items()})
+    # atomically, never through a symbolic link planted in the folder (fsdvs_hw.paths.write_output)
+    csv_path = write_output(out / f"{stem}.csv", buf.getvalue())
     clean = [{k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in r.items()} for r in rows]
-    json_path.write_text(json.dumps({"rows": clean, "points": list(full or [])}, indent=1, default=str) + "\n")
+    blob: dict[str, Any] = {"rows": clean, "points": list(full or [])}
+    if design is not None:
+        blob["design"] = dict(design)
+    json_path = write_output(out / f"{stem}.json", json.dumps(blob, indent=1, default=str) + "\n")
     return csv_path, json_path
 
 
