@@ -14,9 +14,9 @@ from conftest import require_tool
 def test_bench_asic_quick_runs_and_rtl_is_bit_exact():
     require_tool("iverilog")
     require_tool("yosys")
-    from fsdvs_hw.bench import BENCHMARKS, run_benchmark
+    from benchmarks import BENCHMARKS, run_benchmark
 
-    assert BENCHMARKS["asic"] == "fsdvs_hw.realise.asic.bench:bench_asic"
+    assert BENCHMARKS["asic"] == "benchmarks.asic:bench_asic"
     text = run_benchmark("asic", quick=True)
     assert "Bit sweep on DoG 7×7" in text and "objective='csf'" in text
     # every RTL row ends with its mismatch count; all must be zero

@@ -1,6 +1,6 @@
 """Benchmarks as records: the table builder, the records it prints, JSON, and no global state changed.
 
-Fast tests exercise :class:`fsdvs_hw.benchmarks.BenchSection` directly and run the ``csf`` bench
+Fast tests exercise :class:`benchmarks.harness.BenchSection` directly and run the ``csf`` bench
 (quick); the slow test runs every other registered bench in quick mode and checks, for each, that
 it returns a :class:`BenchRun` whose every record is the number its Markdown prints, with a unit
 (and repeats and spread on every timing), that the records survive a JSON round trip, and that
@@ -22,7 +22,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fsdvs_hw.benchmarks import (
+from benchmarks.harness import (
     BenchRecord,
     BenchRun,
     BenchSection,
@@ -213,7 +213,7 @@ def test_kept_global_state_restores_what_a_bench_may_change(monkeypatch):
 def test_benchmark_run_refuses_a_bench_that_returns_markdown(monkeypatch):
     import sys
 
-    from fsdvs_hw import bench
+    import benchmarks as bench
 
     module = type(sys)("fsdvs_str_bench")
     module.old = lambda *, quick=False: "## old\n\n| a | b |\n|---|---|\n| x | 1 |\n"
@@ -226,7 +226,7 @@ def test_benchmark_run_refuses_a_bench_that_returns_markdown(monkeypatch):
 def _run_registered(name: str) -> BenchRun:
     """Call the registered function itself (no registry safety net) and check the state it leaves."""
     pytest.importorskip("torch")
-    from fsdvs_hw.bench import BENCHMARKS
+    from benchmarks import BENCHMARKS
 
     module, func = BENCHMARKS[name].split(":")
     fn = getattr(importlib.import_module(module), func)

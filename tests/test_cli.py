@@ -84,7 +84,7 @@ def test_python_m_fsdvs_hw_cli_is_the_command():
 
 def _toy_bench(monkeypatch, fn):
     """Register ``fn`` as the bench ``toy`` (module ``fsdvs_toy_bench``) for one test."""
-    from fsdvs_hw import bench
+    import benchmarks as bench
 
     module = type(sys)("fsdvs_toy_bench")
     module.toy = fn
@@ -94,7 +94,7 @@ def _toy_bench(monkeypatch, fn):
 
 
 def _toy_run(*, quick: bool = False):
-    from fsdvs_hw.benchmarks import BenchSection, Column, timed
+    from benchmarks.harness import BenchSection, Column, timed
 
     sec = BenchSection("toy", settings={"quick": quick})
     sec.text("### Toy table", "")
@@ -104,7 +104,7 @@ def _toy_run(*, quick: bool = False):
 
 
 def test_bench_json_writes_records_with_machine_versions_and_units(tmp_path, capsys, monkeypatch):
-    from fsdvs_hw.benchmarks import RECORD_SCHEMA, read_json
+    from benchmarks.harness import RECORD_SCHEMA, read_json
 
     _toy_bench(monkeypatch, _toy_run)
     out = tmp_path / "bench.json"
@@ -123,7 +123,7 @@ def test_bench_json_writes_records_with_machine_versions_and_units(tmp_path, cap
 
 
 def test_timed_keeps_every_run_and_the_last_result():
-    from fsdvs_hw.benchmarks import timed
+    from benchmarks.harness import timed
 
     calls = []
     t = timed(lambda: calls.append(1) or len(calls), repeats=4)
@@ -161,7 +161,7 @@ def test_metalens_bench_figure_goes_to_the_figures_folder_or_a_temp_dir(monkeypa
     """The full metalens bench draws a figure: never into the package or source tree."""
     import tempfile
 
-    from fsdvs_hw.realise.metalens import bench as mb
+    from benchmarks import metalens as mb
 
     drawn = []
     monkeypatch.setattr(mb, "_grid_table", lambda sec, quick: None)

@@ -123,9 +123,9 @@ def test_explore_writes_loss_cis_for_every_task_and_track(tmp_path, capsys):
 def test_stats_benchmark_quick_reports_equality_with_pycocotools():
     import re
 
-    from fsdvs_hw.bench import BENCHMARKS, run_benchmark
+    from benchmarks import BENCHMARKS, run_benchmark
 
-    assert BENCHMARKS["stats"] == "fsdvs_hw.explore.stats_bench:bench_stats"
+    assert BENCHMARKS["stats"] == "benchmarks.stats:bench_stats"
     text = run_benchmark("stats", quick=True)
     row = next(line for line in text.splitlines() if line.startswith("| 256 |"))
     diff = float(re.split(r"\s*\|\s*", row)[3])

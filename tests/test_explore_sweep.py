@@ -270,7 +270,7 @@ def test_bad_scheduler_address_is_a_clear_error(tmp_path):
 
 @pytest.mark.slow
 def test_explore_benchmark_quick_runs_and_executors_agree():
-    from fsdvs_hw.explore.bench import bench_explore
+    from benchmarks.explore import bench_explore
 
     md = bench_explore(quick=True).markdown
     assert "### Emulation track" in md and "### Sweep executors" in md

@@ -20,7 +20,7 @@ LAYERS: tuple[str, ...] = ("core", "models", "tasks", "report", "explore", "cli"
 
 #: Top-level modules of the core layer (kernels, spectra, CSF, statistics and their helpers).
 _CORE = {"errors", "paths", "resources", "validation", "limits", "kernels", "spectra", "csf", "stats", "workers", "plots",
-         "analysis", "_lazy", "benchmarks", "progress", "provenance"}
+         "analysis", "_lazy", "progress", "provenance"}
 _MODELS = {"sensor", "scenes", "realise", "records"}
 
 #: Import cycles known and owned elsewhere (none: sensor/events.py no longer imports sensor/plan.py).
@@ -33,7 +33,7 @@ def layer_of(module: str) -> str:
     if len(parts) == 1:
         return "core"  # the package itself: version and the lazy public-name map
     top, leaf = parts[1], parts[-1]
-    if top in ("cli", "bench") or leaf.endswith("_cli") or top.endswith("_cli"):
+    if top == "cli" or leaf.endswith("_cli") or top.endswith("_cli"):
         return "cli"
     if top in _CORE:
         return "core"

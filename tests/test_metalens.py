@@ -23,7 +23,7 @@ from fsdvs_hw.realise.metalens.fit import (
     pixel_psf,
     plan_wavelength_samples,
 )
-from fsdvs_hw.realise.metalens.bench import radial_symmetric_floor
+from benchmarks.metalens import radial_symmetric_floor
 from fsdvs_hw.realise.spectral import spectral_samples
 
 GEOM = LensGeometry()  # D = 100 µm, f = 200 µm, λ0 = 555 nm, diffractive

@@ -21,9 +21,9 @@ def test_config_dict_round_trip_and_unknown_fields():
 
 @pytest.mark.slow
 def test_bench_sim_quick_tables():
-    from fsdvs_hw.bench import BENCHMARKS, run_benchmark
+    from benchmarks import BENCHMARKS, run_benchmark
 
-    assert BENCHMARKS["sim"] == "fsdvs_hw.sensor.bench:bench_sim"
+    assert BENCHMARKS["sim"] == "benchmarks.sim:bench_sim"
     text = run_benchmark("sim", quick=True)
     assert "forward+backward" in text and "Mpixel-frames/s" in text
     # every plan row stays within its tolerance of the reference (frame L1 error column)
@@ -34,7 +34,7 @@ def test_bench_sim_quick_tables():
 
 
 def test_records_markdown_and_bad_cases():
-    from fsdvs_hw.sensor.bench import SIM_CASES, records_markdown, sim_records
+    from benchmarks.sim import SIM_CASES, records_markdown, sim_records
 
     rec = {"case": "bikes/event list", "clip": "bikes", "path": "event list", "resolution": "272x640",
            "n_frames": 250, "events": 10, "mpf_s_mean": 4.0, "mpf_s_std": 0.5, "mpf_s_min": 3.5, "mpf_s_max": 4.5,
@@ -44,8 +44,8 @@ def test_records_markdown_and_bad_cases():
     text = records_markdown([rec])
     assert "| bikes/event list | event list | bikes 272x640 | 250 | 10 | 4.00 ± 0.50 [3.50–4.50] | 5.00 ± 0.10 | 3 | 600 |" in text
     # the same record as typed bench records (what `fsdvs-hw bench sim --json` writes): value, unit, spread
-    from fsdvs_hw.benchmarks import BenchRecord
-    from fsdvs_hw.sensor.bench import _bench_records
+    from benchmarks.harness import BenchRecord
+    from benchmarks.sim import _bench_records
 
     wall, cpu, rss = _bench_records([rec], quick=False)
     assert all(isinstance(r, BenchRecord) for r in (wall, cpu, rss))
@@ -65,7 +65,7 @@ def test_records_markdown_and_bad_cases():
 def test_sim_records_child_measures_a_case():
     import json
 
-    from fsdvs_hw.sensor.bench import sim_records
+    from benchmarks.sim import sim_records
 
     (r,) = sim_records(quick=True, cases=["synthetic/frames"], threads=1)
     json.dumps(r)  # plain values only
@@ -75,7 +75,7 @@ def test_sim_records_child_measures_a_case():
 
 
 def test_v2e_records_needs_a_v2e_checkout(tmp_path):
-    from fsdvs_hw.sensor.bench import v2e_records
+    from benchmarks.sim import v2e_records
 
     with pytest.raises(InputError, match="v2ecore/emulator.py"):
         v2e_records(str(tmp_path))

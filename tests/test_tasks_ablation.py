@@ -83,7 +83,7 @@ def test_ablation_bad_input(capsys):
 def test_bootstrap_interval_matches_binomial_theory():
     import torch
 
-    from fsdvs_hw.tasks.bench import bootstrap_interval
+    from benchmarks.tasks import bootstrap_interval
     from fsdvs_hw.tasks.evaluators import get_evaluator
 
     ev = get_evaluator("recognition")

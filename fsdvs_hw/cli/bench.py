@@ -1,16 +1,25 @@
-"""``fsdvs-hw bench``: speed/accuracy benchmarks (:mod:`fsdvs_hw.bench`), Markdown and JSON records."""
+"""``fsdvs-hw bench``: the speed/accuracy benchmarks of a source checkout, Markdown and JSON records.
+
+The benchmarks are not part of the library: they live in the top-level ``benchmarks/`` folder of
+the repository (its README describes their method) and are not shipped in the wheel. This verb
+finds that folder beside the ``fsdvs_hw`` package it belongs to (a plain or editable checkout)
+and runs its registry (``benchmarks.BENCHMARKS``).
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 import time
 from pathlib import Path
+from types import ModuleType
 
-from ..bench import BENCHMARKS
 from ..errors import InputError
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "load_benchmarks"]
+
+_NAMES = "csf, tasks, asic, mesh, metalens, sim, explore, stats"
 
 HELP = "speed/accuracy benchmarks (error vs run time) for each component"
 DESCRIPTION = (
@@ -25,7 +34,7 @@ DESCRIPTION = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("names", nargs="*", default=["all"], metavar="NAME",
-                        help=f"benchmarks to run: {', '.join(BENCHMARKS)} or all (default)")
+                        help=f"benchmarks to run: {_NAMES} or all (default)")
     parser.add_argument("--quick", action="store_true", help="small problem sizes (smoke test)")
     parser.add_argument("--out", type=Path, default=None, help="also write the Markdown to this file")
     parser.add_argument("--json", type=Path, default=None, metavar="PATH",
@@ -34,10 +43,35 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="folder for the figures a bench draws (default: next to --out, else out/bench)")
 
 
+def load_benchmarks() -> ModuleType:
+    """The ``benchmarks`` package of the checkout this ``fsdvs_hw`` belongs to.
+
+    Raises
+    ------
+    InputError
+        ``fsdvs_hw`` is installed from a wheel (no ``benchmarks/`` beside it), or another
+        ``benchmarks`` module shadows the checkout's.
+    """
+    root = Path(__file__).resolve().parents[2]
+    folder = root / "benchmarks"
+    if not (folder / "__init__.py").is_file():
+        raise InputError(f"fsdvs-hw bench runs the benchmarks of a source checkout ({folder} not found: "
+                         "an installed wheel does not ship them); clone the repository and run it there")
+    if str(root) not in sys.path:
+        sys.path.insert(0, str(root))
+    module = importlib.import_module("benchmarks")
+    where = Path(module.__file__ or "").resolve().parent
+    if where != folder:
+        raise InputError(f"fsdvs-hw bench: the module 'benchmarks' imported from {where}, not the checkout's {folder}")
+    return module
+
+
 def run(args: argparse.Namespace) -> int:
-    from ..bench import benchmark_run
-    from ..benchmarks import write_json
     from ..paths import output_dir, output_file
+
+    suite = load_benchmarks()
+    BENCHMARKS, benchmark_run = suite.BENCHMARKS, suite.benchmark_run
+    write_json = suite.harness.write_json
 
     names = list(BENCHMARKS) if "all" in args.names else args.names
     for n in names:

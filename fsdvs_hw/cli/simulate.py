@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--threads: must be >= 1, got {args.threads}")
     import torch
 
-    from ..sensor.bench import event_list_threads
+    from ..sensor.threads import event_list_threads
 
     torch.set_num_threads(args.threads if args.threads is not None else event_list_threads())
     output_file(args.out, flag="--out")  # its folder is created (as every verb's --out), or a one-line error

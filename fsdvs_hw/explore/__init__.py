@@ -6,7 +6,7 @@ point (:mod:`~fsdvs_hw.explore.store`) and writes the HTML report (:mod:`fsdvs_h
 ``fsdvs-hw sweep DESIGN`` (:mod:`~fsdvs_hw.explore.sweep`) runs a design's sweep axes on a local
 process pool or a Dask cluster. Design files are read and validated by
 :mod:`~fsdvs_hw.explore.design`; the sensor-in-the-loop emulation track lives in
-:mod:`~fsdvs_hw.explore.emulation`; ``fsdvs-hw bench explore`` is :mod:`~fsdvs_hw.explore.bench`.
+:mod:`~fsdvs_hw.explore.emulation`; ``fsdvs-hw bench explore`` is ``benchmarks/explore.py`` (a checkout).
 Per-clip task evidence (same clips, noise and networks for every kernel) is
 :mod:`~fsdvs_hw.explore.paired`; the losses' confidence intervals come from :mod:`fsdvs_hw.stats`;
 :mod:`~fsdvs_hw.explore.sizing` sizes the test sets from a pilot run; :mod:`~fsdvs_hw.explore.artifacts` writes

@@ -25,8 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from ...benchmarks import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
-from ...resources import shipped_path
+from fsdvs_hw.resources import shipped_path
+
+from .harness import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
 
 __all__ = ["bench_metalens", "radial_symmetric_floor", "plot_fits"]
 
@@ -56,7 +57,7 @@ def radial_symmetric_floor(taps: np.ndarray) -> float:
 
 
 def _grid_table(sec: BenchSection, quick: bool) -> None:
-    from .fit import LensGeometry, pixel_psf
+    from fsdvs_hw.realise.metalens.fit import LensGeometry, pixel_psf
 
     g = LensGeometry()
     kw = dict(coefficients=[2.0, -3.0], sensor_distance_m=240e-6, n_pixels=9, illuminant=555e-9)
@@ -78,7 +79,7 @@ def _grid_table(sec: BenchSection, quick: bool) -> None:
 
 
 def _spectral_table(sec: BenchSection, quick: bool) -> None:
-    from .fit import LensGeometry, pixel_psf
+    from fsdvs_hw.realise.metalens.fit import LensGeometry, pixel_psf
 
     kw = dict(coefficients=[2.0, -3.0], sensor_distance_m=240e-6, n_pixels=9, illuminant="D65")
     _log("spectral reference (64 samples)")
@@ -94,7 +95,7 @@ def _spectral_table(sec: BenchSection, quick: bool) -> None:
 
 
 def _targets() -> list[tuple[str, Any]]:
-    from ...kernels import load_kernel, reference_kernel
+    from fsdvs_hw.kernels import load_kernel, reference_kernel
 
     out = [("DoG 7×7 (0.7/2.0 px, 20 % DC)", reference_kernel("dog", 7))]
     if _LEARNED.is_file():
@@ -105,7 +106,7 @@ def _targets() -> list[tuple[str, Any]]:
 
 
 def _fit_table(sec: BenchSection, quick: bool) -> list[tuple[str, Any, Any]]:
-    from .fit import fit_metalens
+    from fsdvs_hw.realise.metalens.fit import fit_metalens
 
     opts: dict[str, Any] = dict(n_starts=2, max_iter=30, n_wavelengths=4, n_terms=2) if quick else {}
     table = sec.table(

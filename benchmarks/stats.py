@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..benchmarks import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
-from ..resources import shipped_path
+from fsdvs_hw.resources import shipped_path
+
+from .harness import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
 
 __all__ = ["bench_stats"]
 
@@ -20,8 +21,8 @@ _CKPT = shipped_path("kernels", "learned_detection_7x7.safetensors")
 
 
 def _detections(n: int) -> tuple[np.ndarray, ...]:
-    from ..kernels import load_kernel
-    from ..tasks.learn import evaluate_kernel, heldout_targets, load_checkpoint
+    from fsdvs_hw.kernels import load_kernel
+    from fsdvs_hw.tasks.learn import evaluate_kernel, heldout_targets, load_checkpoint
 
     prov, _, _ = load_checkpoint(_CKPT)
     ev = evaluate_kernel(load_kernel(_CKPT.with_suffix(".json")), "detection", _CKPT, n_test=n, keep_predictions=True)
@@ -40,8 +41,8 @@ def bench_stats(*, quick: bool = False) -> BenchRun:
         resample (median of the checked resamples, with their range), the weighted accumulate's
         milliseconds per resample (median of 3 batches, with their range) and the speed-up.
     """
-    from ..stats import CocoDetections
-    from ..tasks.metrics import detection_map
+    from fsdvs_hw.stats import CocoDetections
+    from fsdvs_hw.tasks.metrics import detection_map
 
     sizes = [256] if quick else [512, 2048]
     n_check = 2 if quick else 3

@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..benchmarks import BenchRun, BenchSection, Column, Timing, kept_global_state, timed
+from fsdvs_hw.explore.design import parse_design
+from fsdvs_hw.explore.emulation import emulation_scores
+from fsdvs_hw.explore.store import ResultsStore
+from fsdvs_hw.explore.sweep import expand_points, run_points
 
-from .design import parse_design
-from .emulation import emulation_scores
-from .store import ResultsStore
-from .sweep import expand_points, run_points
+from .harness import BenchRun, BenchSection, Column, Timing, kept_global_state, timed
 
 __all__ = ["bench_explore"]
 

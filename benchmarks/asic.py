@@ -20,11 +20,11 @@ import sys
 
 import numpy as np
 
-from ...benchmarks import BenchRun, BenchSection, Column, kept_global_state, timed
+from fsdvs_hw.kernels import Kernel, load_kernel, reference_kernel
+from fsdvs_hw.realise.asic.fit import fit_asic_taps
+from fsdvs_hw.resources import shipped_path
 
-from ...kernels import Kernel, load_kernel, reference_kernel
-from ...resources import shipped_path
-from .fit import fit_asic_taps
+from .harness import BenchRun, BenchSection, Column, kept_global_state, timed
 
 __all__ = ["bench_asic", "learned_or_fallback_kernel"]
 
@@ -72,7 +72,7 @@ def _count(header: str, metric: str | None = None) -> Column:
 @kept_global_state()
 def bench_asic(*, quick: bool = False) -> BenchRun:
     """Run the ASIC benchmark: its records and their Markdown tables (see the module docstring)."""
-    from ...csf import Geometry, csf_agreement
+    from fsdvs_hw.csf import Geometry, csf_agreement
 
     rng = np.random.default_rng(0)
     dog = reference_kernel("dog", 7)

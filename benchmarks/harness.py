@@ -35,7 +35,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Generic, TypeVar
 
-from .provenance import library_versions
+from fsdvs_hw.provenance import library_versions
 
 __all__ = [
     "BenchRecord",
@@ -56,7 +56,7 @@ __all__ = [
 ]
 
 #: Version of the JSON layout written by :func:`write_json`.
-RECORD_SCHEMA = "fsdvs_hw.bench/1"
+RECORD_SCHEMA = "fsdvs_hw.bench/1"  # unchanged since the move out of the package: records stay readable
 
 T = TypeVar("T")
 
@@ -180,7 +180,7 @@ def timed(fn: Callable[[], T], repeats: int = 1) -> Timing[T]:
         ``repeats`` is not an integer >= 1.
     """
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
-        from .errors import InputError
+        from fsdvs_hw.errors import InputError
 
         raise InputError(f"timed: repeats must be an integer >= 1, got {repeats!r}")
     times, out = [], None
@@ -274,7 +274,7 @@ class Measured:
         """
         values = [float(v) for v in samples]
         if not values:
-            from .errors import InputError
+            from fsdvs_hw.errors import InputError
 
             raise InputError("Measured.of: samples is empty; give at least one value")
         return cls(_summary(summary)(values), len(values), min(values), max(values))
@@ -287,7 +287,7 @@ class Measured:
 
 def _summary(name: str) -> Callable[[Sequence[float]], float]:
     if name not in _SUMMARIES:
-        from .errors import InputError
+        from fsdvs_hw.errors import InputError
 
         raise InputError(f"summary {name!r} unknown; allowed: {', '.join(_SUMMARIES)}")
     return _SUMMARIES[name]
@@ -295,7 +295,7 @@ def _summary(name: str) -> Callable[[Sequence[float]], float]:
 
 def _time_scale(unit: str) -> float:
     if unit not in _TIME_SCALE:
-        from .errors import InputError
+        from fsdvs_hw.errors import InputError
 
         raise InputError(f"a timing shown in {unit!r}: allowed time units are {', '.join(_TIME_SCALE)}")
     return _TIME_SCALE[unit]
@@ -368,7 +368,7 @@ class Column:
         """
         m = _UNIT_SUFFIX.match(header)
         if unit is None and m is not None and m["unit"] not in _HEADER_UNITS:
-            from .errors import InputError
+            from fsdvs_hw.errors import InputError
 
             raise InputError(f"column {header!r}: {m['unit']!r} is not a unit ({', '.join(sorted(_HEADER_UNITS))}); "
                              "give unit= and metric= explicitly")
@@ -396,7 +396,7 @@ class Column:
             return cell, []
         cells = cell if len(self.parts) > 1 else (cell,)
         if not isinstance(cells, tuple) or len(cells) != len(self.parts):
-            from .errors import InputError
+            from fsdvs_hw.errors import InputError
 
             raise InputError(f"column {self.header!r}: a cell is a tuple of {len(self.parts)} values, got {cell!r}")
         texts, out = [], []
@@ -424,7 +424,7 @@ def _as_measured(value: Any, part: _Part) -> Measured | None:
     elif not isinstance(value, Measured):
         value = Measured(float(value))
     if part.unit in _TIME_SCALE and (value.repeats is None or value.low is None or value.high is None):
-        from .errors import InputError
+        from fsdvs_hw.errors import InputError
 
         raise InputError(f"{part.metric!r} is a time ({part.unit}): give a Timing or a Measured with repeats and "
                          f"min–max (Measured.of([t]) for a single run), got {value!r}")
@@ -463,7 +463,7 @@ class Table:
     def __init__(self, section: BenchSection, title: str, columns: Sequence[Column], settings: Mapping[str, Any],
                  threads: int | None | str) -> None:
         if not columns:
-            from .errors import InputError
+            from fsdvs_hw.errors import InputError
 
             raise InputError(f"table {title!r}: give at least one column")
         self._section, self.title, self.columns = section, title, tuple(columns)
@@ -483,7 +483,7 @@ class Table:
             Not one cell per column, or a composite cell of the wrong length.
         """
         if len(cells) != len(self.columns):
-            from .errors import InputError
+            from fsdvs_hw.errors import InputError
 
             raise InputError(f"table {self.title!r}: a row has {len(self.columns)} cells, got {len(cells)}")
         threads = self._threads if threads == "auto" else threads
@@ -615,7 +615,7 @@ def read_json(path: str | Path) -> list[BenchRecord]:
     """The records of a file written by :func:`write_json`."""
     data = json.loads(Path(path).read_text(encoding="utf-8"))
     if data.get("schema") != RECORD_SCHEMA:
-        from .errors import InputError
+        from fsdvs_hw.errors import InputError
 
         raise InputError(f"{path}: schema {data.get('schema')!r}, expected {RECORD_SCHEMA!r}")
     return [BenchRecord.from_dict(r) for r in data["records"]]

@@ -29,7 +29,6 @@ Two tables, reproducible with one command (``fsdvs-hw bench sim``):
 from __future__ import annotations
 
 import datetime
-
 import json
 import math
 import os
@@ -38,6 +37,8 @@ import subprocess
 import sys
 import time
 from typing import Any
+
+from fsdvs_hw.sensor.threads import event_list_threads
 
 __all__ = ["bench_sim", "moving_texture", "sim_records", "records_markdown", "long_clip_frames", "SIM_CASES", "v2e_records"]
 
@@ -125,7 +126,7 @@ print(json.dumps({"wall": wall, "cpu": cpu, "peak_mb": (rss1 - rss0) / 1024, "ev
 
 
 def _streaming(sec: Any, quick: bool) -> None:
-    from ..benchmarks import Column, Measured
+    from .harness import Column, Measured
 
     H, W = (60, 80) if quick else (240, 320)
     lengths = (17, 65) if quick else (33, 257)
@@ -159,7 +160,7 @@ def _child(mode: str, reps: int, H: int, W: int, T: int, threads: int) -> dict[s
 
 
 def _throughput(sec: Any, quick: bool) -> None:
-    from ..benchmarks import Column, Measured
+    from .harness import Column, Measured
 
     H, W, T = (120, 160, 17) if quick else (480, 640, 17)
     reps = 2 if quick else 5
@@ -206,11 +207,12 @@ def _throughput(sec: Any, quick: bool) -> None:
 
 
 def _accuracy(sec: Any, quick: bool) -> None:
-    from ..benchmarks import Column, timed
-    from ..kernels import reference_kernel
-    from .config import SensorConfig
-    from .events import event_frames
-    from .plan import plan_model
+    from fsdvs_hw.kernels import reference_kernel
+    from fsdvs_hw.sensor.config import SensorConfig
+    from fsdvs_hw.sensor.events import event_frames
+    from fsdvs_hw.sensor.plan import plan_model
+
+    from .harness import Column, timed
 
     H, W = (48, 64) if quick else (120, 160)
     reps = 1 if quick else 2
@@ -261,9 +263,10 @@ def _accuracy(sec: Any, quick: bool) -> None:
 def _regions(sec: Any, quick: bool) -> None:
     import torch
 
-    from ..benchmarks import Column, timed
-    from .config import SensorConfig
-    from .events import event_frames
+    from fsdvs_hw.sensor.config import SensorConfig
+    from fsdvs_hw.sensor.events import event_frames
+
+    from .harness import Column, timed
 
     H, W = (64, 96) if quick else (128, 160)
     T = 9
@@ -291,7 +294,7 @@ def _regions(sec: Any, quick: bool) -> None:
 
 
 def bench_sim(*, quick: bool = False, records: list[dict[str, Any]] | None = None) -> Any:
-    """The sim benchmark as a :class:`~fsdvs_hw.benchmarks.BenchRun`: Markdown (the records table of
+    """The sim benchmark as a :class:`~benchmarks.harness.BenchRun`: Markdown (the records table of
     :func:`sim_records`, throughput/memory at 480×640×17, streaming, speed/accuracy and region
     stepping; ``quick``: small problems) and records — the per-case records of :func:`sim_records`
     (wall and CPU-time Mpixel-frames/s with their spread over repeats, peak RSS of a fresh child)
@@ -299,7 +302,7 @@ def bench_sim(*, quick: bool = False, records: list[dict[str, Any]] | None = Non
     already measured. torch's random state and threads are left as they were."""
     import torch
 
-    from ..benchmarks import BenchSection, kept_global_state
+    from .harness import BenchSection, kept_global_state
 
     with kept_global_state():
         torch.manual_seed(0)
@@ -312,8 +315,8 @@ def bench_sim(*, quick: bool = False, records: list[dict[str, Any]] | None = Non
 
 
 def _bench_records(records: list[dict[str, Any]], quick: bool) -> list[Any]:
-    """:class:`~fsdvs_hw.benchmarks.BenchRecord` s of :func:`sim_records`' plain records."""
-    from ..benchmarks import BenchRecord, library_versions, machine_info
+    """:class:`~benchmarks.harness.BenchRecord` s of :func:`sim_records`' plain records."""
+    from .harness import BenchRecord, library_versions, machine_info
 
     table = "Records: Mpixel-frames/s and peak RSS of a fresh child process per case"
     stamp = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
@@ -390,7 +393,7 @@ def _bikes(n_frames: int | None = None) -> Any:
     import numpy as np
     import torch
 
-    from ..scenes.video import example_clip_path, iter_video, video_properties
+    from fsdvs_hw.scenes.video import example_clip_path, iter_video, video_properties
 
     path = example_clip_path("bikes")
     props = video_properties(path)
@@ -411,8 +414,8 @@ def _case_config(case: dict[str, Any]) -> tuple[Any, Any]:
     """(SensorConfig, kernel or None) of a case."""
     import torch
 
-    from ..kernels import reference_kernel
-    from .config import SensorConfig
+    from fsdvs_hw.kernels import reference_kernel
+    from fsdvs_hw.sensor.config import SensorConfig
 
     kernel = None
     settings = case["settings"]
@@ -437,8 +440,8 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
 
     import torch
 
-    from .eventfile import EventFileWriter
-    from .stream import simulate
+    from fsdvs_hw.sensor.eventfile import EventFileWriter
+    from fsdvs_hw.sensor.stream import simulate
 
     cfg, kernel = _case_config(case)
     clip = case["clip"]
@@ -492,20 +495,14 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
 def _run_child(cmd: list[str], what: str) -> tuple[dict[str, Any], list[float], list[float]]:
     """Run a measuring child process; its last stdout line (JSON) and its rates per run in
     Mpixel-frames per wall second and per CPU second."""
-    res = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ), check=False)
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # the checkout: `-m benchmarks.sim`
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
+    res = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
     if res.returncode != 0:
         raise RuntimeError(f"{what} failed: {res.stderr[-2000:]}")
     r = json.loads(res.stdout.strip().splitlines()[-1])
     px = r["height"] * r["width"] * r["n_frames"] / 1e6
     return r, [px / w for w in r["walls"]], [px / max(c, 1e-9) for c in r["cpus"]]
-
-
-def event_list_threads() -> int:
-    """torch intra-op threads for an event-list run: the CPU cores minus the two the event
-    pipeline's worker threads keep busy (:class:`~fsdvs_hw.sensor.events._EventPipeline`), at
-    least 1. On 2 cores: 1 (measured: 2 torch threads make the bikes event list ~25 % slower, their
-    OpenMP team competing with the workers)."""
-    return max(1, (os.cpu_count() or 1) - 2)
 
 
 def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats: int | None = None,
@@ -548,7 +545,7 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
     """
     import torch
 
-    from ..errors import InputError
+    from fsdvs_hw.errors import InputError
 
     names = list(SIM_CASES) if cases is None else list(cases)
     for n in names:
@@ -566,7 +563,7 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
         spec = json.dumps({"case": case, "repeats": reps, "quick": quick, "threads": n_threads,
                            "chunk_frames": chunk_frames, "long_seconds": long_seconds})
-        r, rates, cpu_rates = _run_child([sys.executable, "-m", "fsdvs_hw.sensor.bench", "--child", spec],
+        r, rates, cpu_rates = _run_child([sys.executable, "-m", "benchmarks.sim", "--child", spec],
                                          f"benchmark child for {name!r}")
         out.append({"case": name, "clip": case["clip"], "path": case["path"],
                     "resolution": f"{r['height']}x{r['width']}", "n_frames": r["n_frames"], "events": r["events"],
@@ -657,7 +654,7 @@ def v2e_records(v2e_src: str, *, modes: tuple[str, ...] = ("default", "clean", "
     import numpy as np
     import torch
 
-    from ..errors import InputError
+    from fsdvs_hw.errors import InputError
 
     if not (Path(v2e_src) / "v2ecore" / "emulator.py").is_file():
         raise InputError(f"v2e_src: {v2e_src!r} holds no v2ecore/emulator.py (a v2e source checkout)")

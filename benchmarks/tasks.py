@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..benchmarks import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
-from ..resources import shipped_path
+from fsdvs_hw.resources import shipped_path
+
+from .harness import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
 
 __all__ = ["bench_tasks", "bootstrap_interval", "SHIPPED_DIR"]
 
@@ -48,10 +49,16 @@ def bootstrap_interval(evaluator, prediction, target, *, n_boot: int = 200, seed
 def _predictions(task: str, checkpoint: Path, n_test: int):
     import torch
 
-    from ..scenes.synthetic import SceneConfig
-    from ..sensor import SensorConfig
-    from .evaluators import get_evaluator
-    from .learn import TrainingSettings, _cat_predictions, _dataset, _network_input, load_checkpoint
+    from fsdvs_hw.scenes.synthetic import SceneConfig
+    from fsdvs_hw.sensor import SensorConfig
+    from fsdvs_hw.tasks.evaluators import get_evaluator
+    from fsdvs_hw.tasks.learn import (
+        TrainingSettings,
+        _cat_predictions,
+        _dataset,
+        _network_input,
+        load_checkpoint,
+    )
 
     ev = get_evaluator(task)
     prov, state, kernel = load_checkpoint(checkpoint)
@@ -73,7 +80,7 @@ def bench_tasks(*, quick: bool = False) -> BenchRun:
     """Tables: time per epoch / evaluation, and metric CI versus test-set size, as records and Markdown.
 
     Timed with one torch thread; torch's thread count and random state (training seeds it) and the
-    rest of the process-wide state are restored afterwards (:func:`~fsdvs_hw.benchmarks.kept_global_state`).
+    rest of the process-wide state are restored afterwards (:func:`~benchmarks.harness.kept_global_state`).
     """
     import torch
 
@@ -83,7 +90,7 @@ def bench_tasks(*, quick: bool = False) -> BenchRun:
 
 
 def _bench_tasks(quick: bool) -> BenchRun:
-    from .learn import TrainingSettings, evaluate_kernel, learn_kernel
+    from fsdvs_hw.tasks.learn import TrainingSettings, evaluate_kernel, learn_kernel
 
     n_train = 64 if quick else 512
     n_eval = 64 if quick else 256

@@ -21,7 +21,7 @@ import sys
 
 import numpy as np
 
-from ...benchmarks import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
+from .harness import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
 
 __all__ = ["bench_mesh"]
 
@@ -31,8 +31,8 @@ def _log(msg: str) -> None:
 
 
 def _fit_table(sec: BenchSection, quick: bool) -> None:
-    from ...kernels import reference_kernel
-    from .fit import MeshDesign, _mesh_solver, fit_resistive_mesh
+    from fsdvs_hw.kernels import reference_kernel
+    from fsdvs_hw.realise.mesh.fit import MeshDesign, _mesh_solver, fit_resistive_mesh
 
     repeats = 2 if quick else 5
 
@@ -77,7 +77,7 @@ def _fit_table(sec: BenchSection, quick: bool) -> None:
 
 
 def _model_table(sec: BenchSection, quick: bool) -> None:
-    from .response import (
+    from fsdvs_hw.realise.mesh.response import (
         _unfold_quarter,
         casadi_mesh_model,
         finite_grid_response,
@@ -125,10 +125,13 @@ def _model_table(sec: BenchSection, quick: bool) -> None:
 def _spice_table(sec: BenchSection, quick: bool) -> None:
     import shutil
 
-    from .fit import MeshDesign
-    from .response import casadi_mesh_model
-    from .dynamics import mesh_step_response
-    from .spice import simulate_mesh_spice, simulate_mesh_step_spice
+    from fsdvs_hw.realise.mesh.dynamics import mesh_step_response
+    from fsdvs_hw.realise.mesh.fit import MeshDesign
+    from fsdvs_hw.realise.mesh.response import casadi_mesh_model
+    from fsdvs_hw.realise.mesh.spice import (
+        simulate_mesh_spice,
+        simulate_mesh_step_spice,
+    )
 
     if shutil.which("ngspice") is None:
         sec.text("ngspice not installed: table skipped (apt-get install ngspice).")
@@ -182,9 +185,12 @@ def _spice_table(sec: BenchSection, quick: bool) -> None:
 
 
 def _misc_table(sec: BenchSection, quick: bool) -> None:
-    from .fit import MeshDesign
-    from .dynamics import mesh_needs_transient, moving_edge_response
-    from .mismatch import mismatch_monte_carlo
+    from fsdvs_hw.realise.mesh.dynamics import (
+        mesh_needs_transient,
+        moving_edge_response,
+    )
+    from fsdvs_hw.realise.mesh.fit import MeshDesign
+    from fsdvs_hw.realise.mesh.mismatch import mismatch_monte_carlo
 
     d = MeshDesign.from_space_constants(0.8, 2.5, 1.5, 1.2, size=7)
     trials = 20 if quick else 200
