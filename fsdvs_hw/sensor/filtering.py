@@ -129,6 +129,13 @@ def mesh_surround_steady_state(signal: Any, lambda_px: float) -> Any:
     """
     import torch
 
+    from ..validation import check_instance, check_real
+
+    check_instance("signal", signal, torch.Tensor, "a real torch tensor (..., H, W)")
+    if signal.ndim < 2 or not signal.is_floating_point():
+        raise InputError(f"signal: shape {tuple(signal.shape)}, dtype {signal.dtype}; allowed: a floating "
+                         "tensor of at least 2 dimensions (..., H, W)")
+    lambda_px = check_real("lambda_px", lambda_px, 0.0, 1e4, unit="px")
     if lambda_px == 0:
         return signal
     H, W = signal.shape[-2:]
