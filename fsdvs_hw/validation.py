@@ -17,6 +17,13 @@ Options whose value is a structured object (``mesh.bounds``, ``asic.geometry``,
 function (``Option.factory`` builds a table given in a design file before any fit), which raises
 the same :class:`~fsdvs_hw.errors.InputError`.
 
+The second half of the module holds the argument checks of the Python API
+(:func:`check_int`, :func:`check_real`, :func:`check_bool`, :func:`check_instance`,
+:func:`check_increasing_times`): the public functions of :mod:`fsdvs_hw.sensor`,
+:mod:`fsdvs_hw.scenes` and :mod:`fsdvs_hw.tasks` call them before any work, so a wrong type or value
+is one :class:`~fsdvs_hw.errors.InputError` line (``name=value: why; allowed: ...``), never a
+traceback from inside torch or numpy (``tests/test_api_inputs.py``).
+
 ``tests/test_realisation_contract.py`` checks, for every registered realisation, that every
 parameter of its fit function is in its schema with the function's own default.
 """

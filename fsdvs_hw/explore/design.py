@@ -692,9 +692,10 @@ def _check_sizes(chk: _Checker, data: dict[str, Any], base: Path, confine: bool,
 
     h, w = data["sensor"]["resolution"]
     em = data["emulation"]
+    reported = any(p.startswith("key 'sensor.resolution'") for p in chk.problems)  # one problem per key
     if em["enabled"]:
         obj = SceneConfig().radius_px[1]
-        if max(h, w) > 2048 or 2 * obj + 2 >= min(h, w):
+        if not reported and (max(h, w) > 2048 or 2 * obj + 2 >= min(h, w)):
             chk.add("sensor.resolution", [h, w], f"the emulation track renders clips of this size with objects up to "
                     f"{2 * obj + 2:g} px across; allowed with emulation.enabled = true: {int(2 * obj + 3)} to 2048 px "
                     "each way (or emulation.enabled = false)")

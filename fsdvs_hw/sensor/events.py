@@ -804,7 +804,11 @@ def event_frames(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
     ----------
     video : torch.Tensor or numpy.ndarray, shape (B, T, H, W)
         Linear intensity (>= 0, video units; full scale 1.0 for a normalised clip).
-        Differentiable.
+        Differentiable. Intensities above
+        :data:`~fsdvs_hw.sensor.config.SATURATION_INTENSITY` (1e20) saturate: they are clipped
+        to it, as a photodiode saturates, and counted in ``SimulationInfo.saturated``, so any
+        finite video gives finite event frames. Videos whose event frames would exceed the
+        allocation limit (:mod:`fsdvs_hw.limits`) are refused from their shape before any work.
     kernel : Kernel, torch.Tensor (k, k) or None
         Spatial kernel (k odd), applied at ``config.placement``; ``None`` = no filter (plain DVS).
         Differentiable when a tensor with ``requires_grad``; must be on the video's device.
@@ -831,8 +835,10 @@ def event_frames(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
     Raises
     ------
     InputError, KernelError
-        Wrong rank, negative or non-finite intensities, non-increasing timestamps, even or
-        invalid kernel, kernel/timestamps on another device.
+        Wrong type, rank or dtype (strings, objects, complex values), negative or non-finite
+        intensities, non-increasing timestamps, even or invalid kernel, kernel/timestamps on
+        another device, a generator that is not a ``torch.Generator``, a non-boolean
+        ``return_info``, a video too large for the allocation limit.
     """
     return_info = check_bool("return_info", return_info)
     frames, info, _ = _simulate(video, kernel, timestamps_s, config, plan, generator, False)
