@@ -20,7 +20,7 @@ from collections.abc import Iterator
 from .errors import InputError
 
 __all__ = ["DEFAULT_MAX_ALLOC_BYTES", "max_alloc_bytes", "allocation_limit", "check_allocation", "check_count",
-           "MAX_WORKERS", "MAX_SEED", "MAX_CLIPS", "MAX_EPOCHS", "MAX_POINTS"]
+           "MAX_WORKERS", "MAX_SEED", "MAX_CLIPS", "MAX_EPOCHS", "MAX_POINTS", "MAX_SUBSTEPS"]
 
 #: Most local worker processes (``--workers``, ``[run] workers``): far above any useful count, low
 #: enough that a typo does not fork thousands of processes.
@@ -33,6 +33,10 @@ MAX_CLIPS: int = 100_000
 MAX_EPOCHS: int = 1000
 #: Most design points a sweep may be asked to allow (``--max-points``, ``[run] max_points``).
 MAX_POINTS: int = 10**9
+
+#: Most simulator sub-steps per frame interval (``SensorConfig.substeps`` and ``max_substeps``): the
+#: work grows linearly with them, so a typo (``substeps=10**9``) is refused instead of running for days.
+MAX_SUBSTEPS: int = 100_000
 
 #: Largest single array allocated without an explicit override (bytes).
 DEFAULT_MAX_ALLOC_BYTES: int = 2**30

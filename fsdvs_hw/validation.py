@@ -17,6 +17,13 @@ Options whose value is a structured object (``mesh.bounds``, ``asic.geometry``,
 function (``Option.factory`` builds a table given in a design file before any fit), which raises
 the same :class:`~fsdvs_hw.errors.InputError`.
 
+The second half of the module holds the argument checks of the Python API
+(:func:`check_int`, :func:`check_real`, :func:`check_bool`, :func:`check_instance`,
+:func:`check_increasing_times`): the public functions of :mod:`fsdvs_hw.sensor`,
+:mod:`fsdvs_hw.scenes` and :mod:`fsdvs_hw.tasks` call them before any work, so a wrong type or value
+is one :class:`~fsdvs_hw.errors.InputError` line (``name=value: why; allowed: ...``), never a
+traceback from inside torch or numpy (``tests/test_api_inputs.py``).
+
 ``tests/test_realisation_contract.py`` checks, for every registered realisation, that every
 parameter of its fit function is in its schema with the function's own default.
 """
@@ -34,7 +41,8 @@ import numpy as np
 from .errors import InputError
 from .kernels import Kernel, check_tap_magnitude
 
-__all__ = ["Option", "option", "PITCH_RANGE_M", "check_option", "check_options", "check_fit_arguments"]
+__all__ = ["Option", "option", "PITCH_RANGE_M", "check_option", "check_options", "check_fit_arguments",
+           "check_int", "check_real", "check_bool", "check_instance", "check_increasing_times"]
 
 _KINDS = ("int", "float", "str", "bool", "object")
 
@@ -162,7 +170,7 @@ _TYPE_WORDS = {"str": "string", "float": "number", "int": "integer", "bool": "bo
 
 
 def _show(value: Any) -> str:
-    s = repr(value)
+    s = " ".join(repr(value).split())  # one line (numpy arrays print on several)
     return s if len(s) <= 60 else s[:57] + "..."
 
 
@@ -233,3 +241,100 @@ def check_fit_arguments(options: Mapping[str, Option], arguments: Mapping[str, A
             return  # not numeric: the function's own check names the problem
         if taps.size and np.isfinite(taps).all() and np.any(taps != 0):
             check_tap_magnitude(taps, source="kernel")
+
+
+# ---------------------------------------------------------------------------- Python API arguments
+# Checks the public functions of fsdvs_hw.sensor, fsdvs_hw.scenes and fsdvs_hw.tasks run on their
+# arguments before any work, so a wrong type or value costs one line naming the argument, the value
+# and what is allowed, never a traceback from inside torch or numpy.
+
+def _allowed_range(lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> str:
+    a = "-inf" if lo is None else f"{lo:g}"
+    b = "inf" if hi is None else f"{hi:g}"
+    return f"{'(' if lo_open else '['}{a}, {b}{')' if hi_open else ']'}"
+
+
+def check_int(name: str, value: Any, lo: int | None = None, hi: int | None = None) -> int:
+    """``value`` as a Python int in ``[lo, hi]`` (numpy integers accepted; bools and floats refused).
+
+    Raises
+    ------
+    InputError
+        ``"<name>=<value>: <why>; allowed: an integer in [lo, hi]"``.
+    """
+    allowed = f"an integer in {_allowed_range(lo, hi, False, False)}"
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        raise InputError(f"{name}={_show(value)}: wrong type {type(value).__name__}; allowed: {allowed}")
+    v = int(value)
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+        raise InputError(f"{name}={_show(value)}: out of range; allowed: {allowed}")
+    return v
+
+
+def check_real(name: str, value: Any, lo: float | None = None, hi: float | None = None, *,
+               lo_open: bool = False, hi_open: bool = False, unit: str = "") -> float:
+    """``value`` as a finite float in the range (ints and numpy numbers accepted; bools refused).
+
+    Raises
+    ------
+    InputError
+        ``"<name>=<value>: <why>; allowed: a finite number in [lo, hi] <unit>"``.
+    """
+    allowed = f"a finite number in {_allowed_range(lo, hi, lo_open, hi_open)}{' ' + unit if unit else ''}"
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise InputError(f"{name}={_show(value)}: wrong type {type(value).__name__}; allowed: {allowed}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise InputError(f"{name}={_show(value)}: not a finite number; allowed: {allowed}")
+    if (lo is not None and (v <= lo if lo_open else v < lo)) or (hi is not None and (v >= hi if hi_open else v > hi)):
+        raise InputError(f"{name}={_show(value)}: out of range; allowed: {allowed}")
+    return v
+
+
+def check_bool(name: str, value: Any, *, nullable: bool = False) -> bool | None:
+    """``value`` as a bool (``True``/``False``, numpy bools; ``None`` only if ``nullable``)."""
+    if value is None and nullable:
+        return None
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{name}={_show(value)}: wrong type {type(value).__name__}; allowed: True or False"
+                         + (" or None" if nullable else ""))
+    return bool(value)
+
+
+def check_instance(name: str, value: Any, types: type | tuple[type, ...], what: str, *,
+                   nullable: bool = False) -> Any:
+    """``value`` itself if it is an instance of ``types`` (or ``None`` when ``nullable``).
+
+    ``what`` says what is allowed in words (``"a SensorConfig"``).
+    """
+    if (value is None and nullable) or isinstance(value, types):
+        return value
+    raise InputError(f"{name}={_show(value)}: wrong type {type(value).__name__}; allowed: {what}"
+                     + (" or None" if nullable else ""))
+
+
+def check_increasing_times(name: str, times: Any) -> np.ndarray:
+    """Frame times in seconds as a 1-D float64 array: numeric, finite, at least 2, strictly increasing.
+
+    Accepts any array-like (lists, numpy arrays, CPU or GPU tensors).
+    """
+    if isinstance(times, (str, bytes)) or times is None:
+        raise InputError(f"{name}={_show(times)}: wrong type {type(times).__name__}; allowed: a 1-D array of "
+                         "frame times in seconds, finite and strictly increasing")
+    try:
+        if hasattr(times, "detach"):
+            times = times.detach().cpu().numpy()
+        ts = np.asarray(times, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: must be a numeric array of frame times in seconds ({exc})") from None
+    ts = ts.reshape(-1) if ts.ndim == 1 or (ts.ndim == 2 and ts.shape[0] == 1) else ts
+    if ts.ndim != 1 or ts.size < 2:
+        raise InputError(f"{name}: shape {ts.shape}; allowed: a 1-D array of at least 2 frame times in seconds")
+    if not np.isfinite(ts).all():
+        raise InputError(f"{name}: contains NaN or inf; allowed: finite frame times in seconds")
+    steps = np.diff(ts)
+    if not (steps > 0).all():
+        bad = int(np.nonzero(steps <= 0)[0][0]) + 1
+        raise InputError(f"{name}: must be strictly increasing; time {bad} ({ts[bad]:g} s) is not later than "
+                         f"time {bad - 1} ({ts[bad - 1]:g} s)")
+    return ts

@@ -613,6 +613,7 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
     if target is not None and target.size > min(data["sensor"]["resolution"]):
         chk.add("sensor.resolution", data["sensor"]["resolution"],
                 f"smaller than the {target.size}x{target.size} kernel; allowed: at least {target.size} px each way")
+    _check_sizes(chk, data, base, confine_paths, target)
     chk.raise_if_any()
     assert target is not None
     return Design(data=data, source=source, base_dir=base, target=target, confine_paths=confine_paths)
@@ -675,6 +676,58 @@ def _check_cross(chk: _Checker, data: dict[str, Any]) -> None:
             chk.add(f"analysis.csf_methods[{i}]", m, f"unknown CSF model; allowed: {', '.join(CSF_METHODS)}")
     if len(set(data["realisations"]["include"])) != len(data["realisations"]["include"]):
         chk.add("realisations.include", data["realisations"]["include"], "lists a realisation twice")
+
+
+def _check_sizes(chk: _Checker, data: dict[str, Any], base: Path, confine: bool, target: Kernel | None) -> None:
+    """Sizes that must agree across sections, checked at load so no run fails after work started.
+
+    The emulation track renders ``emulation.n_clips`` synthetic clips of ``sensor.resolution``
+    (a :class:`~fsdvs_hw.scenes.synthetic.SceneConfig`: at most 2048 px a side, larger than its
+    default 7 px radius objects) and upsamples them ``emulation.upsample_factor`` times; their
+    video must fit the allocation limit (:mod:`fsdvs_hw.limits`). Every task checkpoint's clips
+    (its stored scene) must be at least as large as the kernel.
+    """
+    from ..limits import max_alloc_bytes
+    from ..scenes.synthetic import SceneConfig
+
+    h, w = data["sensor"]["resolution"]
+    em = data["emulation"]
+    reported = any(p.startswith("key 'sensor.resolution'") for p in chk.problems)  # one problem per key
+    if em["enabled"]:
+        obj = SceneConfig().radius_px[1]
+        if not reported and (max(h, w) > 2048 or 2 * obj + 2 >= min(h, w)):
+            chk.add("sensor.resolution", [h, w], f"the emulation track renders clips of this size with objects up to "
+                    f"{2 * obj + 2:g} px across; allowed with emulation.enabled = true: {int(2 * obj + 3)} to 2048 px "
+                    "each way (or emulation.enabled = false)")
+        frames = (em["n_frames"] - 1) * em["upsample_factor"] + 1
+        n_bytes = 8.0 * em["n_clips"] * frames * h * w
+        if n_bytes > max_alloc_bytes():
+            chk.add("emulation.n_clips", em["n_clips"],
+                    f"with emulation.n_frames = {em['n_frames']}, emulation.upsample_factor = {em['upsample_factor']} "
+                    f"and sensor.resolution = [{h}, {w}] the upsampled video is {n_bytes / 2**30:.3g} GiB, more than "
+                    f"the allocation limit of {max_alloc_bytes() / 2**30:.3g} GiB (fsdvs_hw.limits)")
+    if target is None:
+        return
+    for task, entry in data["tasks"]["checkpoints"].items():
+        for i, path in enumerate(_as_list(entry)):
+            if not isinstance(path, str):
+                continue
+            try:
+                p = _resolve(base, path, what="checkpoint", confine=confine)
+                if p.suffix != ".safetensors":
+                    p = p.with_suffix(".safetensors") if p.suffix == ".json" else Path(str(p) + ".safetensors")
+                with p.open("rb") as fh:
+                    n = int.from_bytes(fh.read(8), "little")
+                    header = json.loads(fh.read(min(n, 100 * 2**20)).decode("utf-8"))
+                scene = json.loads(header["__metadata__"]["provenance"])["scene"]
+                sh, sw = int(scene["height_px"]), int(scene["width_px"])
+            except Exception:  # unreadable: _check_tasks has reported it
+                continue
+            if target.size > min(sh, sw):
+                key = f"tasks.checkpoints.{task}" + (f"[{i}]" if isinstance(entry, list) else "")
+                chk.add(key, path, f"its clips are {sh}x{sw} px, smaller than the {target.size}x{target.size} "
+                        f"kernel (kernel.size / kernel.path); allowed: checkpoints whose clips are at least "
+                        f"{target.size} px each way")
 
 
 def _natural_key(path: str) -> list[Any]:

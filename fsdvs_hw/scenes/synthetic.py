@@ -36,6 +36,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..limits import check_allocation
+from ..validation import check_real
 
 __all__ = [
     "SHAPE_CLASSES",
@@ -161,6 +163,12 @@ class SceneConfig:
         _float_in("background_speed_px_per_frame", 0.0, 8.0)
         _float_in("edge_softness_px", 0.0, 10.0, open_lo=True)
         _float_in("photon_count", 0.0, 1e9)
+        for name in ("n_objects", "radius_px"):
+            pair = getattr(self, name)
+            if isinstance(pair, (str, bytes)) or not isinstance(pair, (tuple, list)) or len(pair) != 2 \
+                    or not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+                               and math.isfinite(v) for v in pair):
+                raise InputError(f"SceneConfig.{name} must be a (min, max) pair of numbers, got {pair!r:.60}")
         lo, hi = self.n_objects
         if not (isinstance(lo, int) and isinstance(hi, int) and 1 <= lo <= hi <= 16):
             raise InputError(f"SceneConfig.n_objects must be (min, max) integers with 1 <= min <= max <= 16, got {self.n_objects!r}")
@@ -183,7 +191,8 @@ class SceneConfig:
             )
 
     def with_(self, **changes: Any) -> SceneConfig:
-        """A copy with some fields changed (validated)."""
+        """A copy with some fields changed (validated; an unknown field is an :class:`InputError`)."""
+        _check_fields(changes)
         return replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
@@ -193,6 +202,9 @@ class SceneConfig:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> SceneConfig:
         """Inverse of :meth:`to_dict`; unknown fields raise :class:`InputError`."""
+        if not isinstance(data, dict):
+            raise InputError(f"SceneConfig.from_dict: data must be a dict of SceneConfig fields, got "
+                             f"{type(data).__name__}")
         known = set(cls.__dataclass_fields__)
         extra = set(data) - known
         if extra:
@@ -204,6 +216,12 @@ class SceneConfig:
     def timestamps_s(self) -> np.ndarray:
         """Frame times in seconds, shape (n_frames,)."""
         return np.arange(self.n_frames, dtype=np.float64) / self.frame_rate_hz
+
+
+def _check_fields(changes: dict[str, Any]) -> None:
+    extra = set(changes) - set(SceneConfig.__dataclass_fields__)
+    if extra:
+        raise InputError(f"SceneConfig: unknown fields {sorted(extra)}; allowed: {sorted(SceneConfig.__dataclass_fields__)}")
 
 
 @dataclass(frozen=True)
@@ -249,7 +267,16 @@ class SceneBatch:
         return int(self.video.shape[0])
 
     def subset(self, index: Any) -> SceneBatch:
-        """The clips selected by ``index`` (slice, index array or boolean mask)."""
+        """The clips selected by ``index`` (int, slice, integer index array or boolean mask of clips)."""
+        arr = np.asarray(index) if not isinstance(index, slice) else None
+        if arr is not None and (arr.dtype.kind not in "iub" or arr.ndim > 1
+                                or (arr.dtype.kind == "b" and arr.shape != (len(self),))):
+            raise InputError(f"SceneBatch.subset: index={index!r:.60}; allowed: an int, a slice, a 1-D integer "
+                             f"index array or a boolean mask of {len(self)} clips")
+        if arr is not None and arr.dtype.kind in "iu" and arr.size and not (-len(self) <= arr.min()
+                                                                              and arr.max() < len(self)):
+            raise InputError(f"SceneBatch.subset: index out of range for {len(self)} clips; allowed: "
+                             f"[{-len(self)}, {len(self) - 1}]")
         return replace(
             self,
             video=self.video[index],
@@ -274,8 +301,8 @@ def is_sub_threshold(edge_contrast: float, threshold: float) -> bool:
     threshold : float
         Contrast threshold ``C`` in natural-log units (> 0).
     """
-    if not (edge_contrast > 0 and threshold > 0):
-        raise InputError(f"is_sub_threshold: edge_contrast and threshold must be > 0, got {edge_contrast!r}, {threshold!r}")
+    edge_contrast = check_real("edge_contrast", edge_contrast, 0.0, lo_open=True)
+    threshold = check_real("threshold", threshold, 0.0, lo_open=True, unit="(natural-log units)")
     steps = [math.log1p(edge_contrast)]
     if edge_contrast < 1:
         steps.append(-math.log1p(-edge_contrast))
@@ -311,8 +338,9 @@ def scene_regime(name: str, **changes: Any) -> SceneConfig:
     **changes
         Any :class:`SceneConfig` field (e.g. ``motion="classes"``).
     """
-    if name not in SCENE_REGIMES:
+    if not isinstance(name, str) or name not in SCENE_REGIMES:
         raise InputError(f"scene regime {name!r} unknown; allowed: {', '.join(SCENE_REGIMES)}")
+    _check_fields(changes)
     return SceneConfig(**{**SCENE_REGIMES[name], **changes})
 
 
@@ -476,6 +504,9 @@ def make_scenes(config: SceneConfig, n_clips: int, seed: int = 0) -> SceneBatch:
     cfg = config
     n, t_len, h, w = int(n_clips), cfg.n_frames, cfg.height_px, cfg.width_px
     m_max = 1 if cfg.motion == "classes" else cfg.n_objects[1]
+    # the video (float64) and the masks (int64) are the largest arrays: refused before allocation
+    check_allocation(f"make_scenes video and masks (n_clips={n}, n_frames={t_len}, {h}x{w} px, 8-byte values)",
+                     8.0 * n * t_len * h * w)
     video = np.empty((n, t_len, h, w))
     masks = np.zeros((n, t_len, h, w), dtype=np.int64)
     boxes = np.full((n, t_len, m_max, 4), np.nan)

@@ -30,8 +30,10 @@ from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
 from ..errors import InputError
+from ..limits import MAX_SUBSTEPS
 
-__all__ = ["SensorConfig", "PLACEMENTS", "POSITIVITY_MODES", "SURROGATES", "RESPONSES", "PRESETS"]
+__all__ = ["SensorConfig", "PLACEMENTS", "POSITIVITY_MODES", "SURROGATES", "RESPONSES", "PRESETS",
+           "SATURATION_INTENSITY"]
 
 #: Where the spatial kernel sits: before the log (FS-DVS) or on the log signal (centre-surround DVS).
 PLACEMENTS = ("pre_log", "post_log")
@@ -44,6 +46,13 @@ SURROGATES = ("straight_through", "relaxed")
 RESPONSES = ("tangent", "v2e")
 #: Named settings for :meth:`SensorConfig.preset` (the ``--preset`` of ``fsdvs-hw simulate``).
 PRESETS = ("default", "ideal", "v2e-clean", "v2e-default", "v2e-noisy")
+#: Saturation intensity of the pixel, in video units: brighter input is clipped to it before the
+#: kernel and the log, as a real photodiode saturates (its photocurrent cannot grow without bound).
+#: 1e20 is 200 dB above a full scale of 1.0 (real event pixels span about 120 dB), far above any
+#: scene the library makes (``SceneConfig.illuminance`` <= 1e12), and low enough that a kernel sum
+#: or an FFT of a saturated frame stays finite in float32. The simulator reports how many
+#: pixel-frames it clipped (``SimulationInfo.saturated``); valid videos below it are untouched.
+SATURATION_INTENSITY: float = 1e20
 #: How shot-noise counts are drawn (``SensorConfig.shot_noise_draw``).
 SHOT_NOISE_DRAWS = ("per_pixel", "sparse")
 
@@ -234,6 +243,13 @@ class SensorConfig:
         _check_number("surround_weight", self.surround_weight, high=1.0)
         _check_number("surround_tau_s", self.surround_tau_s, high=1e3)
         _check_number("frame_rate_hz", self.frame_rate_hz, low=0.0, high=1e9, low_open=True)
+        for name in ("response", "placement", "positivity", "shot_noise_draw", "convolution", "surrogate"):
+            if not isinstance(getattr(self, name), str):
+                raise InputError(f"SensorConfig.{name}: must be a string, got {type(getattr(self, name)).__name__} "
+                                 f"{getattr(self, name)!r:.60}")
+        if not isinstance(self.random_reference_phase, bool):
+            raise InputError(f"SensorConfig.random_reference_phase: must be True or False, got "
+                             f"{self.random_reference_phase!r:.60}")
         if self.response not in RESPONSES:
             raise InputError(f"SensorConfig.response: {self.response!r} unknown; allowed: {', '.join(RESPONSES)}")
         if self.placement not in PLACEMENTS:
@@ -253,8 +269,9 @@ class SensorConfig:
             raise InputError(f"SensorConfig.adaptive_region_px: must be an integer >= 0, got {self.adaptive_region_px!r}")
         for name in ("substeps", "max_substeps"):
             v = getattr(self, name)
-            if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= 100_000:
-                raise InputError(f"SensorConfig.{name}: must be an integer in [1, 100000], got {v!r}")
+            if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= MAX_SUBSTEPS:
+                raise InputError(f"SensorConfig.{name}: must be an integer in [1, {MAX_SUBSTEPS}] "
+                                 f"(fsdvs_hw.limits.MAX_SUBSTEPS), got {v!r}")
         if self.adaptive_fraction is not None:
             _check_number("adaptive_fraction", self.adaptive_fraction, low=0.0, high=100.0, low_open=True)
         if not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0:

@@ -146,6 +146,11 @@ def _crossing_step_cpu(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: An
     em_on = np.zeros(hon.shape, hon.dtype) if want_counts else None
     em_off = np.zeros(hoff.shape, hoff.dtype) if want_counts else None
     cap = int(hon.sum(dtype=np.float64)) + int(hoff.sum(dtype=np.float64)) if collect else 0
+    if collect:  # a tiny threshold makes the list unbounded: refuse it with its size, not a MemoryError
+        from ..limits import check_allocation
+
+        check_allocation(f"event list: {cap} threshold crossings in one step ({B}x{H}x{W} px; 13 bytes each)",
+                         13.0 * cap)
     flat = np.empty(cap, dtype=np.int32) if collect else None
     t = np.empty(cap, dtype=np.float64) if collect else None
     p = np.empty(cap, dtype=np.int8) if collect else None

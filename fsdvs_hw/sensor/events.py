@@ -47,14 +47,15 @@ import torch
 
 from ..errors import InputError
 from ..limits import check_allocation
-from .config import SensorConfig
+from ..validation import check_bool, check_increasing_times, check_instance, check_int
+from .config import SATURATION_INTENSITY, SensorConfig
 from . import _crossings_native
 from .crossings import crossing_step, noise_step, shot_noise_pixels, sort_interval, to_event_columns
 from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
 from .pixel import effect_generator, lowpass_step, threshold_maps
 
 __all__ = ["event_frames", "event_list", "EventList", "SimulationInfo", "voxel_grid",
-           "EventSimulator", "prepare_video", "prepare_timestamps"]
+           "EventSimulator", "prepare_video", "prepare_timestamps", "saturate"]
 
 _COUNT_EPS = {"float32": 1e-4, "float64": 1e-9, "float16": 1e-2, "bfloat16": 1e-2}
 
@@ -66,21 +67,36 @@ def prepare_video(video: Any) -> Any:
     Half-precision videos (float16, bfloat16) are promoted to float32: event counts above 65504
     overflow float16 to inf, and CPU FFT correlation has no float16 kernel, so the simulation
     runs (and returns its frames) in float32.
+
+    A numpy array or a nested list is converted (float64 stays float64, other numeric dtypes
+    become float32); strings, objects, complex values and ``None`` are refused. The event frames
+    the video would give (its largest array) are checked against the allocation limit
+    (:mod:`fsdvs_hw.limits`) from the shape alone, before any conversion or pass over the data.
     """
     import numpy as np
     import torch
 
+    if video is None or isinstance(video, (str, bytes, dict)) or (
+            not isinstance(video, (torch.Tensor, np.ndarray, list, tuple))
+            and not hasattr(video, "__array__")):
+        raise InputError(f"video: wrong type {type(video).__name__}; allowed: a (B, T, H, W) torch tensor or "
+                         "numpy array of linear intensities >= 0")
     if not isinstance(video, torch.Tensor):
         try:
             arr = np.asarray(video)
         except (TypeError, ValueError) as exc:
             raise InputError(f"video: must be a torch tensor or numpy array ({exc})") from None
         if arr.dtype.kind not in "fiub":
-            raise InputError(f"video: must be numeric, got dtype {arr.dtype}")
+            raise InputError(f"video: must be numeric (real), got dtype {arr.dtype}")
+        if arr.ndim == 4:
+            _check_video_size(arr.shape, 8 if arr.dtype == np.float64 else 4)
         video = torch.from_numpy(np.ascontiguousarray(arr, dtype=np.float64 if arr.dtype == np.float64 else np.float32))
+    if video.is_complex():
+        raise InputError(f"video: must be real, got dtype {video.dtype}; allowed: real linear intensities >= 0")
     if video.ndim != 4:
         hint = " (add a batch axis: video[None])" if video.ndim == 3 else ""
         raise InputError(f"video: must have shape (B, T, H, W), got {video.ndim}-D shape {tuple(video.shape)}{hint}")
+    _check_video_size(tuple(video.shape), 8 if video.dtype == torch.float64 else 4)
     if not video.is_floating_point() or video.dtype in (torch.float16, torch.bfloat16):
         video = video.float()
     B, T, H, W = video.shape
@@ -94,6 +110,28 @@ def prepare_video(video: Any) -> Any:
         if vmin < 0:
             raise InputError(f"video: linear intensities must be >= 0, got minimum {vmin:g}")
     return video
+
+
+def _check_video_size(shape: tuple[int, ...], itemsize: int) -> None:
+    """Refuse a video whose event frames (B, T-1, 2, H, W) would exceed the allocation limit."""
+    B, T, H, W = (int(n) for n in shape)
+    check_allocation(f"event frames of video shape (B={B}, T={T}, H={H}, W={W}): (B, T-1, 2, H, W) of "
+                     f"{itemsize}-byte values", float(itemsize) * B * max(T - 1, 1) * 2 * H * W)
+
+
+def saturate(video: Any) -> tuple[Any, int]:
+    """Clip intensities above :data:`~fsdvs_hw.sensor.config.SATURATION_INTENSITY` (a saturated pixel).
+
+    Returns ``(video, n)``: ``video`` itself when nothing exceeds the saturation intensity (so a
+    valid video runs bit-identically), else a clipped copy (zero gradient where clipped), and the
+    number ``n`` of clipped pixel-frames.
+    """
+    with torch.no_grad():
+        n = int(torch.count_nonzero(video > SATURATION_INTENSITY)) if float(video.max()) > SATURATION_INTENSITY \
+            else 0
+    if n == 0:
+        return video, 0
+    return torch.clamp(video, max=SATURATION_INTENSITY), n
 
 
 def prepare_timestamps(timestamps_s: Any, video: Any, config: SensorConfig) -> Any:
@@ -111,6 +149,9 @@ def prepare_timestamps(timestamps_s: Any, video: Any, config: SensorConfig) -> A
                              f"{video.device}; move both to the same device")
         ts = timestamps_s.detach().to(torch.float64)
     else:
+        if isinstance(timestamps_s, (str, bytes, dict)):
+            raise InputError(f"timestamps_s: wrong type {type(timestamps_s).__name__}; allowed: (T,) or (B, T) "
+                             "frame times in seconds, finite and strictly increasing")
         try:
             ts = torch.as_tensor(np.asarray(timestamps_s, dtype=np.float64), device=video.device)
         except (TypeError, ValueError) as exc:
@@ -166,6 +207,8 @@ class SimulationInfo:
     noise_events : number of shot-noise events emitted (ON + OFF).
     refractory_lost : crossings lost to the refractory period.
     pixel_steps : pixel sub-steps computed (the work; smaller with region stepping).
+    saturated : pixel-frames of the input above
+        :data:`~fsdvs_hw.sensor.config.SATURATION_INTENSITY`, clipped to it (0 for a valid scene).
     """
 
     floor_fraction: float
@@ -173,6 +216,7 @@ class SimulationInfo:
     noise_events: int
     refractory_lost: int
     pixel_steps: int = 0
+    saturated: int = 0
 
 
 # ---------------------------------------------------------------------------- core loop
@@ -602,11 +646,12 @@ def _resolve(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | 
     config = _plan_config(config, plan)
     video = prepare_video(video)
     ts = prepare_timestamps(timestamps_s, video, config)
+    video, saturated = saturate(video)
     w = kernel_tensor(kernel, video)
     if plan is not None and len(plan.substeps) not in (0, video.shape[1] - 1):
         raise InputError(f"plan: made for {len(plan.substeps) + 1} frames, video has {video.shape[1]}")
     subs = list(plan.substeps) if plan is not None and plan.substeps else None
-    return video, w, ts, config, subs
+    return video, w, ts, config, subs, saturated
 
 
 def _as_float(x: Any) -> float:
@@ -615,7 +660,15 @@ def _as_float(x: Any) -> float:
 
 def _simulate(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | None, plan: Any,
               generator: Any, collect_events: bool, bar: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
-    video, w, ts, config, subs = _resolve(video, kernel, timestamps_s, config, plan)
+    check_instance("generator", generator, torch.Generator, "a torch.Generator", nullable=True)
+    video, w, ts, config, subs, saturated = _resolve(video, kernel, timestamps_s, config, plan)
+    out = _simulate_resolved(video, w, ts, config, subs, plan, generator, collect_events, bar)
+    out[1].saturated = saturated
+    return out
+
+
+def _simulate_resolved(video: Any, w: Any, ts: Any, config: SensorConfig, subs: list[int] | None, plan: Any,
+                       generator: Any, collect_events: bool, bar: Any) -> tuple[Any, SimulationInfo, EventList | None]:
     signal = filtered_log_signal(video, w, config)
     step = None  # log-signal change allowed per sub-step (adaptive stepping)
     if subs is None:
@@ -751,7 +804,11 @@ def event_frames(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
     ----------
     video : torch.Tensor or numpy.ndarray, shape (B, T, H, W)
         Linear intensity (>= 0, video units; full scale 1.0 for a normalised clip).
-        Differentiable.
+        Differentiable. Intensities above
+        :data:`~fsdvs_hw.sensor.config.SATURATION_INTENSITY` (1e20) saturate: they are clipped
+        to it, as a photodiode saturates, and counted in ``SimulationInfo.saturated``, so any
+        finite video gives finite event frames. Videos whose event frames would exceed the
+        allocation limit (:mod:`fsdvs_hw.limits`) are refused from their shape before any work.
     kernel : Kernel, torch.Tensor (k, k) or None
         Spatial kernel (k odd), applied at ``config.placement``; ``None`` = no filter (plain DVS).
         Differentiable when a tensor with ``requires_grad``; must be on the video's device.
@@ -778,9 +835,12 @@ def event_frames(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
     Raises
     ------
     InputError, KernelError
-        Wrong rank, negative or non-finite intensities, non-increasing timestamps, even or
-        invalid kernel, kernel/timestamps on another device.
+        Wrong type, rank or dtype (strings, objects, complex values), negative or non-finite
+        intensities, non-increasing timestamps, even or invalid kernel, kernel/timestamps on
+        another device, a generator that is not a ``torch.Generator``, a non-boolean
+        ``return_info``, a video too large for the allocation limit.
     """
+    return_info = check_bool("return_info", return_info)
     frames, info, _ = _simulate(video, kernel, timestamps_s, config, plan, generator, False)
     return (frames, info) if return_info else frames
 
@@ -800,6 +860,7 @@ def event_list(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
 
     from ..progress import progress_bar
 
+    progress = check_bool("progress", progress, nullable=True)
     n_intervals = max(int(getattr(video, "shape", (0, 1))[1]) - 1, 0) if getattr(video, "ndim", 0) >= 2 else None
     with torch.no_grad(), progress_bar(total=n_intervals, desc="event_list", unit="frame", progress=progress,
                                        leave=False) as bar:
@@ -840,18 +901,26 @@ def voxel_grid(events_or_frames: Any, n_bins: int, *, timestamps_s: Any = None,
     Raises
     ------
     InputError
-        Bad arguments, or a grid larger than the allocation limit (:mod:`fsdvs_hw.limits`, 1 GiB
-        by default), refused with its size before anything is allocated.
+        Bad arguments (timestamps that are not finite and strictly increasing: they would give a
+        NaN grid), or a grid larger than the allocation limit (:mod:`fsdvs_hw.limits`, 1 GiB by
+        default), refused with its size before anything is allocated.
     """
     import torch
 
     if not isinstance(n_bins, int) or isinstance(n_bins, bool) or n_bins < 1:
         raise InputError(f"n_bins: must be a positive integer, got {n_bins!r}")
+    signed = check_bool("signed", signed)
     if isinstance(events_or_frames, EventList):
         ev = events_or_frames
         if height is None or width is None or timestamps_s is None:
             raise InputError("voxel_grid: an EventList needs height, width and timestamps_s")
-        ts = torch.as_tensor(timestamps_s, dtype=torch.float64).reshape(-1)
+        height = check_int("height", height, 1, None)
+        width = check_int("width", width, 1, None)
+        ts = torch.from_numpy(check_increasing_times("timestamps_s", timestamps_s))
+        if len(ev) and (int(ev.x.max()) >= width or int(ev.y.max()) >= height or int(ev.x.min()) < 0
+                        or int(ev.y.min()) < 0):
+            raise InputError(f"voxel_grid: events reach pixel (x={int(ev.x.max())}, y={int(ev.y.max())}) outside "
+                             f"height={height}, width={width}; allowed: the sensor size the events were made with")
         t0, t1 = float(ts[0]), float(ts[-1])
         B = int(ev.b.max()) + 1 if len(ev) else 1
         check_allocation(f"voxel_grid (B={B}, n_bins={n_bins}, 2, H={height}, W={width}, float64)",
@@ -869,11 +938,13 @@ def voxel_grid(events_or_frames: Any, n_bins: int, *, timestamps_s: Any = None,
         frames = events_or_frames
         if not isinstance(frames, torch.Tensor) or frames.ndim != 5 or frames.shape[2] != 2:
             raise InputError("voxel_grid: frames must be a (B, T-1, 2, H, W) tensor from event_frames")
+        if not frames.is_floating_point():
+            raise InputError(f"voxel_grid: frames must be a floating tensor (event counts), got dtype {frames.dtype}")
         n_int = frames.shape[1]
         if timestamps_s is None:
             ts = torch.arange(n_int + 1, dtype=torch.float64)
         else:
-            ts = torch.as_tensor(timestamps_s, dtype=torch.float64).reshape(-1)
+            ts = torch.from_numpy(check_increasing_times("timestamps_s", timestamps_s))
             if ts.numel() != n_int + 1:
                 raise InputError(f"timestamps_s: needs {n_int + 1} frame times for {n_int} intervals")
         t0, t1 = float(ts[0]), float(ts[-1])

@@ -129,6 +129,13 @@ def mesh_surround_steady_state(signal: Any, lambda_px: float) -> Any:
     """
     import torch
 
+    from ..validation import check_instance, check_real
+
+    check_instance("signal", signal, torch.Tensor, "a real torch tensor (..., H, W)")
+    if signal.ndim < 2 or not signal.is_floating_point():
+        raise InputError(f"signal: shape {tuple(signal.shape)}, dtype {signal.dtype}; allowed: a floating "
+                         "tensor of at least 2 dimensions (..., H, W)")
+    lambda_px = check_real("lambda_px", lambda_px, 0.0, 1e4, unit="px")
     if lambda_px == 0:
         return signal
     H, W = signal.shape[-2:]
@@ -201,8 +208,11 @@ def filtered_log_signal(video: Any, kernel: Any, config: SensorConfig) -> Filter
     floor_fraction = 0.0
     if config.placement == "pre_log":
         if config.positivity == "differential":
-            pos = apply_kernel(video, torch.clamp(kernel, min=0.0), config.convolution)
-            neg = apply_kernel(video, torch.clamp(-kernel, min=0.0), config.convolution)
+            # each channel sums photocurrents with non-negative weights, so it is >= 0; the clamp
+            # removes only FFT rounding below 0 (which the linear part of the response would turn
+            # into huge negative log values next to a very bright pixel)
+            pos = torch.clamp(apply_kernel(video, torch.clamp(kernel, min=0.0), config.convolution), min=0.0)
+            neg = torch.clamp(apply_kernel(video, torch.clamp(-kernel, min=0.0), config.convolution), min=0.0)
             log_signal = log_response(pos, config) - log_response(neg, config)
             cutoff_intensity = pos + neg
         else:

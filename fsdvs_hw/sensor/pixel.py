@@ -39,6 +39,10 @@ def linlog(intensity: Any, knee: float) -> Any:
     """
     import torch
 
+    from ..validation import check_instance, check_real
+
+    check_instance("intensity", intensity, torch.Tensor, "a torch tensor of linear intensities")
+    knee = check_real("knee", knee, 0.0, lo_open=True, unit="(video units)")
     # log of the part above the knee plus the linear part below it (3 passes, no branches)
     return torch.log(torch.clamp(intensity, min=knee)) + torch.clamp(intensity - knee, max=0.0) / knee
 

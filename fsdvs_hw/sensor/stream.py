@@ -41,9 +41,10 @@ import numpy as np
 import torch
 
 from ..errors import InputError
+from ..validation import check_bool, check_instance
 from .config import SensorConfig
 from .events import (EventList, SimulationInfo, _advance, _choose_substeps_for, _EventPipeline, _init_state,
-                     _noise_count, _pipelined, _plan_config)
+                     _noise_count, _pipelined, _plan_config, saturate)
 from .crossings import to_event_columns
 from .filtering import filtered_log_signal, kernel_tensor
 from .pixel import threshold_maps
@@ -183,6 +184,13 @@ def simulate(frames: Any, kernel: Any = None, *, timestamps_s: Any = None, confi
     """
     if not isinstance(chunk_frames, int) or isinstance(chunk_frames, bool) or chunk_frames < 1:
         raise InputError(f"chunk_frames: must be an integer >= 1, got {chunk_frames!r}")
+    events = check_bool("events", events)
+    event_frames = check_bool("event_frames", event_frames)
+    check_instance("generator", generator, torch.Generator, "a torch.Generator", nullable=True)
+    if timestamps_s is not None and (isinstance(timestamps_s, (str, bytes, dict))
+                                     or not isinstance(timestamps_s, (Iterable, torch.Tensor, np.ndarray))):
+        raise InputError(f"timestamps_s: wrong type {type(timestamps_s).__name__}; allowed: frame times in seconds "
+                         "(an array or iterable), finite and strictly increasing")
     if not (events or event_frames):
         raise InputError("simulate: ask for events, event_frames or both")
     config = _plan_config(config, plan)
@@ -236,6 +244,7 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
     prev = None  # (L, CI, SU, t) of the last frame of the previous chunk
     index = 0
     first_interval = 0
+    saturated = 0  # pixel-frames clipped at SATURATION_INTENSITY since the last chunk
 
     def frame_time(t_item: float | None, i: int) -> float:
         if times is not None:
@@ -285,6 +294,8 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
                     exhausted = True
                     break
                 t_item, fr = _as_frame(item, index, dtype)
+                fr, n_sat = saturate(fr)
+                saturated += n_sat
                 if dtype is None:
                     dtype, shape = fr.dtype, tuple(fr.shape)
                     w = kernel_tensor(kernel, fr)
@@ -346,9 +357,11 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
                               pipe.take_steps() if pipe is not None else [],
                               pipe.take_noise() if pipe is not None else [],
                               SimulationInfo(sig.floor_fraction, tuple(subs), state.noise_events - noise0,
-                                             int(round(state.lost - lost0)), B * shape[1] * shape[2] * sum(subs)),
+                                             int(round(state.lost - lost0)), B * shape[1] * shape[2] * sum(subs),
+                                             saturated),
                               len(batch), B)
             pending.append(done)
+            saturated = 0
             # hand chunks over once LOOKAHEAD_CHUNKS newer ones are submitted (at once without a pipeline)
             while len(pending) > (LOOKAHEAD_CHUNKS if pipe is not None else 0):
                 yield pending.pop(0).finish(state, shape)
@@ -371,10 +384,15 @@ def collect(chunks: Iterable[EventChunk]) -> tuple[Any, EventList | None, Simula
     ``info.floor_fraction`` is the pixel-frame-weighted fraction over the whole clip,
     ``refractory_lost`` and ``noise_events`` are summed, ``substeps`` concatenated.
     """
+    if isinstance(chunks, (str, bytes)) or not isinstance(chunks, Iterable):
+        raise InputError(f"chunks: wrong type {type(chunks).__name__}; allowed: the EventChunk iterator of simulate()")
     frames, evs, subs = [], [], []
-    noise = lost = steps = 0
+    noise = lost = steps = saturated = 0
     floor_px = total_px = 0.0
-    for c in chunks:
+    for i, c in enumerate(chunks):
+        if not isinstance(c, EventChunk):
+            raise InputError(f"chunks[{i}]: wrong type {type(c).__name__}; allowed: an EventChunk from simulate()")
+        saturated += c.info.saturated
         if c.frames is not None:
             frames.append(c.frames)
         if c.events is not None:
@@ -389,4 +407,4 @@ def collect(chunks: Iterable[EventChunk]) -> tuple[Any, EventList | None, Simula
     ev = None
     if evs:
         ev = EventList(*(torch.cat([getattr(e, a) for e in evs]) for a in ("b", "x", "y", "t", "p")))
-    return f, ev, SimulationInfo(floor_px / max(total_px, 1), tuple(subs), noise, lost, steps)
+    return f, ev, SimulationInfo(floor_px / max(total_px, 1), tuple(subs), noise, lost, steps, saturated)

@@ -294,7 +294,7 @@ def get_evaluator(task: str | TaskEvaluator) -> TaskEvaluator:
     """The evaluator for a task name (or the evaluator itself)."""
     if isinstance(task, TaskEvaluator):
         return task
-    if task not in EVALUATORS:
+    if not isinstance(task, str) or task not in EVALUATORS:
         raise InputError(f"task {task!r} unknown; allowed: {', '.join(EVALUATORS)}")
     return EVALUATORS[task]
 

@@ -56,6 +56,7 @@ import numpy as np
 
 from ..errors import InputError, KernelError
 from ..kernels import Kernel, load_kernel
+from ..validation import check_bool, check_instance, check_real
 
 __all__ = ["learn_kernel", "evaluate_kernel", "finetune_network", "LearnResult", "Evaluation", "TrainingSettings",
            "load_checkpoint", "load_network", "default_sensor", "heldout_targets", "TEST_SEED", "CHECKPOINT_FORMAT"]
@@ -337,6 +338,15 @@ def _delta_init(size: int, noise: float, generator: Any) -> Any:
     return taps
 
 
+def _check_common(*, who: str, scene: Any = None, sensor: Any = None) -> None:
+    """Types of the ``scene`` and ``sensor`` arguments (None = the default), before any work."""
+    from ..scenes.synthetic import SceneConfig
+    from ..sensor import SensorConfig
+
+    check_instance(f"{who}: scene", scene, SceneConfig, "a SceneConfig (fsdvs_hw.scenes.synthetic)", nullable=True)
+    check_instance(f"{who}: sensor", sensor, SensorConfig, "a SensorConfig (fsdvs_hw.sensor)", nullable=True)
+
+
 def _as_kernel(kernel: Any, *, source: str = "kernel") -> Kernel:
     from ..kernels import as_kernel
 
@@ -418,6 +428,12 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
             raise InputError(f"learn_kernel: {nm} must be an integer in [2, 100000], got {v!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise InputError(f"learn_kernel: seed must be a non-negative integer, got {seed!r}")
+    _check_common(scene=scene, sensor=sensor, who="learn_kernel")
+    learn_filter = check_bool("learn_filter", learn_filter)
+    verbose = check_bool("verbose", verbose)
+    check_instance("name", name, str, "a string", nullable=True)
+    check_instance("out", out, (str, Path), "a path (str or pathlib.Path)", nullable=True)
+    check_instance("realisation", realisation, str, "a registered realisation name", nullable=True)
     scene = scene if scene is not None else evaluator.default_scene()
     evaluator.check_scene(scene)
     if size > min(scene.height_px, scene.width_px):
@@ -665,6 +681,13 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
 
     t0 = time.perf_counter()
     evaluator = get_evaluator(task)
+    _check_common(sensor=sensor, who="evaluate_kernel")
+    check_instance("checkpoint", checkpoint, (str, Path), "a path (str or pathlib.Path) to a .safetensors checkpoint")
+    finetune_lr = check_real("finetune_lr", finetune_lr, 0.0, 10.0)
+    keep_predictions = check_bool("keep_predictions", keep_predictions)
+    if events_fn is not None and not callable(events_fn):
+        raise InputError(f"events_fn={events_fn!r:.60}: not callable; allowed: a function "
+                         "(video, kernel_taps, sensor, timestamps_s) -> event frames, or None")
     network, provenance = load_network(checkpoint, evaluator, who="evaluate_kernel")
     k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else _as_kernel(kernel)
     scene = SceneConfig.from_dict(provenance["scene"])

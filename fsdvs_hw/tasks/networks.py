@@ -23,7 +23,21 @@ __all__ = ["event_representation", "EventBackbone", "CenterNetDetector", "Classi
 
 
 def event_representation(frames: torch.Tensor) -> torch.Tensor:
-    """``(B, T-1, 2, H, W)`` event counts → ``(B, 2(T-1), H, W)`` network input (``log1p``)."""
+    """``(B, T-1, 2, H, W)`` event counts → ``(B, 2(T-1), H, W)`` network input (``log1p``).
+
+    Raises
+    ------
+    InputError
+        ``frames`` not a floating 5-D tensor with 2 polarity channels.
+    """
+    if not isinstance(frames, torch.Tensor) or frames.ndim != 5 or frames.shape[2] != 2 \
+            or not frames.is_floating_point():
+        from ..errors import InputError
+
+        what = (f"shape {tuple(frames.shape)}, dtype {frames.dtype}" if isinstance(frames, torch.Tensor)
+                else f"type {type(frames).__name__}")
+        raise InputError(f"frames: {what}; allowed: a floating (B, T-1, 2, H, W) tensor of event counts "
+                         "(fsdvs_hw.sensor.event_frames)")
     b, t, p, h, w = frames.shape
     return torch.log1p(frames.clamp(min=0.0).reshape(b, t * p, h, w))
 
