@@ -31,9 +31,12 @@ from typing import Any
 
 from ..errors import InputError
 
-__all__ = ["SensorConfig", "PLACEMENTS", "POSITIVITY_MODES", "SURROGATES", "RESPONSES", "PRESETS"]
+__all__ = ["SensorConfig", "MAX_SEED", "PLACEMENTS", "POSITIVITY_MODES", "SURROGATES", "RESPONSES", "PRESETS"]
 
 #: Where the spatial kernel sits: before the log (FS-DVS) or on the log signal (centre-surround DVS).
+#: Largest seed: numpy's classic 32-bit seed range; each effect's torch seed
+#: (``seed * 1_000_003 + stream``) then stays far inside torch's 64-bit range.
+MAX_SEED = 2**32 - 1
 PLACEMENTS = ("pre_log", "post_log")
 #: How a pre-log kernel with negative lobes is kept in the log's domain.
 POSITIVITY_MODES = ("floor", "pedestal", "differential")
@@ -185,6 +188,7 @@ class SensorConfig:
     seed : int
         Seed for every random draw (mismatch, leak phase, shot noise); each effect draws from its
         own stream derived from this seed, so switching one effect off does not change the others.
+        In [0, :data:`MAX_SEED`] (2**32 - 1).
     """
 
     threshold_on: Any = 0.2
@@ -257,8 +261,9 @@ class SensorConfig:
                 raise InputError(f"SensorConfig.{name}: must be an integer in [1, 100000], got {v!r}")
         if self.adaptive_fraction is not None:
             _check_number("adaptive_fraction", self.adaptive_fraction, low=0.0, high=100.0, low_open=True)
-        if not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0:
-            raise InputError(f"SensorConfig.seed: must be a non-negative integer, got {self.seed!r}")
+        if not isinstance(self.seed, int) or isinstance(self.seed, bool) or not 0 <= self.seed <= MAX_SEED:
+            raise InputError(f"SensorConfig.seed: must be an integer in [0, {MAX_SEED}] (2**32 - 1), "
+                             f"got {self.seed!r}")
 
     # ---------------------------------------------------------------- presets
     @classmethod

@@ -220,7 +220,6 @@ class EventFileWriter:
         elif self.format == "aedat4":
             import importlib.util
             import subprocess
-            import sys
 
             if importlib.util.find_spec("dv_processing") is None:
                 _dv()  # raises ToolMissingError with the install hint
