@@ -142,10 +142,10 @@ def _slice_events(events: Any, start: int, end: int) -> Any:
 
 
 def _child_command(mode: str) -> list[str]:
-    """The command line of the AEDAT4 child process (imports only numpy and dv-processing)."""
+    """The command line of the writer/reader child process (imports only numpy and h5py or dv-processing)."""
     import sys
 
-    return [sys.executable, "-P", str(Path(__file__).with_name("_aedat4_child.py")), mode]
+    return [sys.executable, "-P", str(Path(__file__).with_name("_eventfile_child.py")), mode]
 
 
 def _partial_path(path: Path) -> Path:
@@ -178,9 +178,10 @@ class EventFileWriter:
     renames onto ``path`` (``os.replace``, atomic). A failure (full disk, an exception, Ctrl-C
     inside the ``with`` block) or :meth:`abort` removes the temporary file and leaves a previous
     file at ``path`` untouched; a killed process leaves at most the hidden temporary file. The
-    AEDAT4 writer (dv-processing, C++) runs in a child process fed through a pipe, so an abort
-    inside the library is reported as an :class:`OSError` naming the file and the signal instead
-    of ending this process.
+    HDF5 and AEDAT4 writers (h5py, dv-processing: C/C++) run in a child process fed through a
+    pipe, so a crash inside the library (dv-processing aborts; h5py segfaulted after a write
+    failed on a full disk) is reported as an :class:`OSError` naming the file and the reason or
+    signal instead of ending this process.
     """
 
     def __init__(self, path: str | Path, width: int, height: int, *, metadata: dict[str, Any] | None = None) -> None:
@@ -197,7 +198,6 @@ class EventFileWriter:
         self._tmp_path = _partial_path(self.path)
         self._cols_dir: Path | None = None
         self._child: Any = None
-        self._h5: Any = None
         try:
             self._open()
         except BaseException as exc:
@@ -207,26 +207,20 @@ class EventFileWriter:
             raise
 
     def _open(self) -> None:
-        if self.format == "hdf5":
-            import h5py
-
-            self._h5 = h5py.File(self._tmp_path, "w")
-            self._ds = self._h5.create_dataset("events", shape=(0, 4), maxshape=(None, 4), dtype="uint32",
-                                               chunks=(65536, 4), compression="gzip")
-            attrs = {"width": self.width, "height": self.height, "time_unit": "us",
-                     "polarity": "1 = ON, 0 = OFF (v2e)", "columns": "t_us, x, y, p", **self.metadata}
-            for k, v in attrs.items():
-                self._h5.attrs[k] = v
-        elif self.format == "aedat4":
+        if self.format in ("hdf5", "aedat4"):
             import importlib.util
+            import json
             import subprocess
 
-            if importlib.util.find_spec("dv_processing") is None:
-                _dv()  # raises ToolMissingError with the install hint
+            module = "h5py" if self.format == "hdf5" else "dv_processing"
+            if importlib.util.find_spec(module) is None:
+                if self.format == "aedat4":
+                    _dv()  # raises ToolMissingError with the install hint
+                raise ToolMissingError("HDF5 event files need h5py: pip install h5py")
+            meta = json.dumps(self.metadata, default=lambda v: v.tolist() if hasattr(v, "tolist") else str(v))
             self._err = tempfile.TemporaryFile()  # noqa: SIM115  the child's stderr, read if it fails
             self._child = subprocess.Popen(
-                [*_child_command("write"), str(self._tmp_path),
-                 str(self.width), str(self.height)],
+                [*_child_command("write"), self.format, str(self._tmp_path), str(self.width), str(self.height), meta],
                 stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._err, process_group=0)
         else:
             self._cols_dir = self.path.parent / f"{self._tmp_path.name}.cols"
@@ -241,7 +235,7 @@ class EventFileWriter:
                        "there (a previous file is kept)", str(self.path))
 
     def _child_failed(self) -> OSError:
-        """The AEDAT4 child died or failed: an OSError naming the file and the signal or exit status."""
+        """The writer child died or failed: an OSError naming the file and its error or signal."""
         import signal
 
         try:
@@ -249,11 +243,13 @@ class EventFileWriter:
         except Exception:  # noqa: BLE001  still running after its pipe broke: end it
             self._child.kill()
             rc = self._child.wait()
-        how = f"was killed by {signal.Signals(-rc).name}" if rc < 0 else f"exited with status {rc}"
+        how = f"was killed by {signal.Signals(-rc).name}" if rc < 0 else f"failed (status {rc})"
         self._err.seek(0)
         lines = [ln for ln in self._err.read().decode("utf-8", "replace").splitlines() if ln.strip()]
         detail = f": {' '.join(lines[-1].split())[:200]}" if lines else ""
-        return OSError(errno.EIO, f"the AEDAT4 writer (dv-processing, child process) {how}{detail} (full disk?); "
+        lib = "h5py" if self.format == "hdf5" else "dv-processing"
+        hint = " (full disk?)" if rc < 0 or "errno" not in detail.lower() else ""
+        return OSError(errno.EIO, f"the {self.format} writer ({lib}, child process) {how}{detail}{hint}; "
                        "nothing was written there (a previous file is kept)", str(self.path))
 
     def write(self, events: Any) -> None:
@@ -289,7 +285,7 @@ class EventFileWriter:
         try:
             self._write_columns(t_us, x, y, p)
         except (OSError, RuntimeError) as exc:  # full disk, a dead child: nothing half-written stays
-            failed = self._child_failed() if self.format == "aedat4" else self._os_error(exc)
+            failed = self._child_failed() if self._child is not None else self._os_error(exc)
             self._discard()
             raise failed from exc
         except BaseException:
@@ -299,15 +295,9 @@ class EventFileWriter:
         self.count += t_us.size
 
     def _write_columns(self, t_us: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
-        n = t_us.size
-        if self.format == "hdf5":
-            block = np.empty((n, 4), dtype=np.uint32)  # filled column by column: no int64 copy
-            block[:, 0], block[:, 1], block[:, 2], block[:, 3] = t_us, x, y, p > 0
-            self._ds.resize(self.count + n, axis=0)
-            self._ds[self.count:] = block
-        elif self.format == "aedat4":
+        if self._child is not None:
             pipe = self._child.stdin
-            pipe.write(np.int64(n).astype("<i8").tobytes())
+            pipe.write(np.int64(t_us.size).astype("<i8").tobytes())
             for arr, dt in ((t_us, "<i8"), (x, "<i2"), (y, "<i2"), (p > 0, "u1")):
                 pipe.write(np.ascontiguousarray(arr, dtype=dt).tobytes())
             pipe.flush()
@@ -332,7 +322,7 @@ class EventFileWriter:
             os.replace(self._tmp_path, self.path)
             _fsync(self.path.parent if str(self.path.parent) else Path("."), directory=True)
         except (OSError, RuntimeError) as exc:
-            failed = self._child_failed() if self.format == "aedat4" and self._child.poll() not in (None, 0) \
+            failed = self._child_failed() if self._child is not None and self._child.poll() not in (None, 0) \
                 else self._os_error(exc)
             self._discard()
             raise failed from exc
@@ -343,14 +333,11 @@ class EventFileWriter:
             self._closed = True
 
     def _finish(self) -> None:
-        if self.format == "hdf5":
-            self._h5.flush()
-            self._h5.close()
-        elif self.format == "aedat4":
+        if self._child is not None:
             self._child.stdin.write(np.int64(-1).astype("<i8").tobytes())
             self._child.stdin.close()
             if self._child.wait() != 0:
-                raise RuntimeError("AEDAT4 writer failed")
+                raise RuntimeError(f"{self.format} writer failed")
             self._err.close()
         else:
             assert self._cols_dir is not None
@@ -385,10 +372,6 @@ class EventFileWriter:
     def _discard(self) -> None:
         """Close everything quietly and remove the temporary files (the target is never touched)."""
         self._closed = True
-        if self._h5 is not None:
-            with contextlib.suppress(Exception):
-                self._h5.close()
-            self._h5 = None
         if self._child is not None:
             if self._child.poll() is None:
                 self._child.kill()
@@ -467,6 +450,7 @@ class _Checker:
     def check(self, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray,
               width: int | None, height: int | None) -> None:
         self.dtypes(t=t.dtype, x=x.dtype, y=y.dtype, p=p.dtype)
+        t = t.astype(np.int64, copy=False)  # unsigned columns: np.diff would wrap around
         n = t.size
         if n:
             if int(t.min()) < 0:
