@@ -311,7 +311,9 @@ def test_garbled_files_read_valid_or_raise_input_error(tmp_path_factory, suffix,
         check()
     finally:
         eventfile.AEDAT4_READ_TIMEOUT_S = saved
-    assert outcomes["refused"] > 0  # the mutations do reach the checks
+    assert outcomes["refused"] > 0  # the mutations do reach the checks (measured: npz 46 of 50, h5 32, aedat4 12 of 12)
+    if suffix != ".aedat4":
+        assert outcomes["read"] > 0  # and harmless ones still read (npz 4, h5 18)
 
 
 # ------------------------------------------------------------------------------------------ CLI
