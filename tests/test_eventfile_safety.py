@@ -282,7 +282,7 @@ def _mutate(data: bytes, mutation) -> bytes:
 
 
 @pytest.mark.parametrize("suffix, examples", [(".npz", 50), (".h5", 50),
-                                              pytest.param(".aedat4", 12, marks=[NEEDS_DV, pytest.mark.slow])])
+                                              pytest.param(".aedat4", 12, marks=NEEDS_DV)])
 def test_garbled_files_read_valid_or_raise_input_error(tmp_path_factory, suffix, examples):
     """Any file with up to 8 changed bytes and/or cut short reads to valid events or raises
     InputError, never another exception (derandomized: the same examples every run)."""
