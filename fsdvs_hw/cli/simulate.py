@@ -1,12 +1,31 @@
-"""``fsdvs-hw simulate``: a video file to an event file, streamed (memory independent of clip length)."""
+"""``fsdvs-hw simulate``: a video file to an event file, streamed (memory independent of clip length).
+
+The event file appears at ``--out`` only when the run succeeds (the writer renames a hidden
+temporary file onto it). Ctrl-C (SIGINT) and SIGTERM stop the run at once with exit status 130 /
+143 and one line on stderr; nothing is written at ``--out`` (a previous file there is kept).
+"""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import signal
+import sys
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+__all__ = ["HELP", "DESCRIPTION", "MAX_SIDE", "MAX_THREADS_PER_CORE", "BYTES_PER_PIXEL", "add_arguments", "run"]
+
+#: Largest --size side (pixels): the event files' coordinate limit.
+MAX_SIDE = 32767
+#: --threads may be at most this many times the machine's CPU cores.
+MAX_THREADS_PER_CORE = 4
+#: Simulator memory per pixel assumed by the --size check (bytes: ~16 float64 state and frame
+#: arrays), compared with :func:`fsdvs_hw.limits.check_allocation`'s limit (1 GiB: 8.4 Mpx, 4K UHD).
+BYTES_PER_PIXEL = 128
 
 HELP = "simulate a video file to an event file (.h5 v2e layout, .aedat4, .npz), streamed chunk by chunk"
 DESCRIPTION = (
@@ -40,6 +59,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--threads", type=int, default=None,
                         help="torch intra-op threads (default: CPU cores minus 2, at least 1: the event list's "
                              "emit and sort worker threads take the rest)")
+    parser.add_argument("--allow-truncated", action="store_true",
+                        help="simulate the decodable frames of a truncated or corrupt video instead of refusing it")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is not a terminal)")
 
 
@@ -52,13 +73,64 @@ def _size(text: str | None) -> tuple[int, int] | None:
         h, w = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise InputError(f"--size: must be HxW (e.g. 240x320), got {text!r}") from None
-    if h < 1 or w < 1:
-        raise InputError(f"--size: must be positive, got {text!r}")
+    if not (1 <= h <= MAX_SIDE and 1 <= w <= MAX_SIDE):
+        raise InputError(f"--size {text}: each side must be in [1, {MAX_SIDE}] pixels")
+    from ..limits import check_allocation
+
+    check_allocation(f"--size {text} (simulator state, ~{BYTES_PER_PIXEL} B per pixel)", h * w * BYTES_PER_PIXEL)
     return h, w
 
 
-def run(args: argparse.Namespace) -> int:
+def _check_numbers(args: argparse.Namespace) -> None:
+    """Ranges of the numeric options, checked before anything is decoded."""
     from ..errors import InputError
+    from ..sensor.config import MAX_SEED
+
+    cores = os.cpu_count() or 1
+    if args.threads is not None and not 1 <= args.threads <= MAX_THREADS_PER_CORE * cores:
+        raise InputError(f"--threads {args.threads}: must be in [1, {MAX_THREADS_PER_CORE * cores}] "
+                         f"({MAX_THREADS_PER_CORE} x the {cores} CPU cores)")
+    if not 0 <= args.seed <= MAX_SEED:
+        raise InputError(f"--seed {args.seed}: must be in [0, {MAX_SEED}] (2**32 - 1)")
+    if args.start_frame < 0:
+        raise InputError(f"--start-frame {args.start_frame}: must be >= 0")
+    if args.frames is not None and args.frames < 1:
+        raise InputError(f"--frames {args.frames}: must be >= 1")
+    if not 1 <= args.chunk_frames <= 100_000:
+        raise InputError(f"--chunk-frames {args.chunk_frames}: must be in [1, 100000]")
+
+
+class _Stopped(KeyboardInterrupt):
+    """SIGINT or SIGTERM arrived; ``signum`` says which."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def _stop_on_signals() -> Iterator[list[int]]:
+    """SIGINT and SIGTERM raise :class:`_Stopped` in the main thread (and are recorded in the
+    yielded list, so a library that swallows the exception cannot make the run succeed)."""
+    got: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield got
+        return
+
+    def handler(signum: int, frame: object) -> None:
+        got.append(signum)
+        raise _Stopped(signum)
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield got
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the verb; returns the exit status (0, or 130 / 143 when stopped by SIGINT / SIGTERM)."""
     from ..kernels import load_kernel_or_reference
     from ..paths import output_file
     from ..progress import progress_bar
@@ -67,8 +139,8 @@ def run(args: argparse.Namespace) -> int:
     from ..sensor.eventfile import EventFileWriter, event_format
 
     event_format(args.out)  # checked before decoding anything
-    if args.threads is not None and args.threads < 1:
-        raise InputError(f"--threads: must be >= 1, got {args.threads}")
+    _check_numbers(args)
+    size = _size(args.size)
     import torch
 
     from ..sensor.threads import event_list_threads
@@ -76,7 +148,6 @@ def run(args: argparse.Namespace) -> int:
     torch.set_num_threads(args.threads if args.threads is not None else event_list_threads())
     output_file(args.out, flag="--out")  # its folder is created (as every verb's --out), or a one-line error
     path = example_clip_path(args.video.split(":", 1)[1]) if args.video.startswith("example:") else Path(args.video)
-    size = _size(args.size)
     overrides = {"seed": args.seed}
     if args.placement is not None:
         overrides["placement"] = args.placement
@@ -84,29 +155,45 @@ def run(args: argparse.Namespace) -> int:
     kernel = load_kernel_or_reference(args.kernel) if args.kernel else None
     props = video_properties(path)
     frames = iter_video(path, start_frame=args.start_frame, n_frames=args.frames, size=size,
-                        peak_intensity=args.peak_intensity)
+                        peak_intensity=args.peak_intensity, allow_truncated=args.allow_truncated)
     total = props.get("nframes")
     total = args.frames if args.frames is not None else (max(int(total) - args.start_frame, 0) if total else None)
     t0 = time.perf_counter()
     n_events = n_on = 0
     writer = None
     bar = progress_bar(total=total, unit="frame", desc="simulate", progress=False if args.no_progress else None)
-    try:
-        for chunk in simulate(frames, kernel, config=config, chunk_frames=args.chunk_frames):
-            if writer is None:
-                writer = EventFileWriter(args.out, chunk.width, chunk.height,
-                                         metadata={"source": str(path), "preset": args.preset,
-                                                   "kernel": args.kernel or "none"})
-            writer.write(chunk.events)
-            n_events += len(chunk.events)
-            n_on += int((chunk.events.p > 0).sum())
-            bar.update(chunk.n_frames)
-            bar.set_postfix_str(f"{n_events / max(time.perf_counter() - t0, 1e-9):.3g} ev/s, {n_events} events")
-            del chunk  # free this chunk's events before the next one is simulated
-    finally:
-        bar.close()
-        if writer is not None:
-            writer.close()
+    with _stop_on_signals() as stopped:
+        try:
+            for chunk in simulate(frames, kernel, config=config, chunk_frames=args.chunk_frames):
+                if stopped:  # the signal's exception was swallowed on its way up
+                    raise _Stopped(stopped[0])
+                if writer is None:
+                    writer = EventFileWriter(args.out, chunk.width, chunk.height,
+                                             metadata={"source": str(path), "preset": args.preset,
+                                                       "kernel": args.kernel or "none"})
+                writer.write(chunk.events)
+                n_events += len(chunk.events)
+                n_on += int((chunk.events.p > 0).sum())
+                bar.update(chunk.n_frames)
+                bar.set_postfix_str(f"{n_events / max(time.perf_counter() - t0, 1e-9):.3g} ev/s, {n_events} events")
+                del chunk  # free this chunk's events before the next one is simulated
+            if stopped:
+                raise _Stopped(stopped[0])
+            if writer is not None:
+                writer.close()  # renames the finished file onto --out
+        except _Stopped as exc:
+            if writer is not None:
+                writer.abort()
+            bar.close()
+            print(f"fsdvs-hw simulate: stopped by {signal.Signals(exc.signum).name}; nothing written to {args.out}",
+                  file=sys.stderr)
+            return 128 + exc.signum
+        except BaseException:
+            if writer is not None:
+                writer.abort()
+            raise
+        finally:
+            bar.close()
     wall = time.perf_counter() - t0
     print(f"{args.out}: {n_events} events ({n_on} ON, {n_events - n_on} OFF) in {wall:.1f} s")
     return 0

@@ -24,6 +24,7 @@ References
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -153,50 +154,79 @@ def _check_reading(path: str | Path, start_frame: int, n_frames: int | None, str
     return p
 
 
+def _ffmpeg_reason(exc: BaseException) -> str:
+    """One line of an imageio/ffmpeg error: ffmpeg's last message, without its banner and config."""
+    import re
+
+    lines = [re.sub(r"^\[[^\]]*@ 0x[0-9a-f]+\]\s*", "", ln).strip() for ln in str(exc).splitlines()]
+    keep = [ln for ln in lines if ln and not ln.startswith(("ffmpeg version", "built with", "configuration:",
+                                                            "lib", "===", "Input #", "Metadata", "Duration",
+                                                            "Stream #"))]
+    text = keep[-1] if keep else type(exc).__name__
+    return text if len(text) <= 200 else text[:197] + "..."
+
+
 def _open_reader(p: Path) -> Any:
     import imageio
 
     try:
         return imageio.get_reader(str(p), "ffmpeg")
     except Exception as exc:  # imageio raises several types for unreadable files
-        raise InputError(f"video file {str(p)!r} cannot be decoded by imageio/ffmpeg ({exc})") from None
+        raise InputError(f"video file {str(p)!r} cannot be decoded by imageio/ffmpeg ({_ffmpeg_reason(exc)})") from None
+
+
+def _declared_frames(meta: dict[str, Any]) -> int | None:
+    """The frame count a container declares: ``nframes``, else ``round(fps × duration)``; None if unknown."""
+    import math
+
+    n = meta.get("nframes")
+    if isinstance(n, (int, float)) and math.isfinite(n):
+        return int(n)
+    fps, duration = meta.get("fps"), meta.get("duration")
+    try:
+        if fps and duration and math.isfinite(float(duration)) and math.isfinite(float(fps)):
+            return round(float(fps) * float(duration))
+    except (TypeError, ValueError):
+        pass
+    return None
 
 
 def video_properties(path: str | Path) -> dict[str, Any]:
     """Frame rate (Hz), frame count (``nframes``: an estimate, ``round(fps × duration)``, for
     progress display; ``None`` if the container reports no duration), source size (W, H), codec
     and duration (s) of a video file, read from the container without decoding frames."""
-    import math
-
     p = _check_reading(path, 0, None, 1, None, "ITU-R BT.709", 1.0, 1)
     reader = _open_reader(p)
     try:
         meta = dict(reader.get_meta_data())
     finally:
         reader.close()
-    fps, duration = meta.get("fps"), meta.get("duration")
-    n = meta.get("nframes")
-    if not (isinstance(n, (int, float)) and math.isfinite(n)):
-        n = round(float(fps) * float(duration)) if fps and duration and math.isfinite(float(duration)) else None
-    meta["nframes"] = n
+    meta["nframes"] = _declared_frames(meta)
     return {k: meta.get(k) for k in ("fps", "nframes", "source_size", "codec", "duration")}
 
 
 def iter_video(path: str | Path, *, start_frame: int = 0, n_frames: int | None = None, stride: int = 1,
                size: tuple[int, int] | None = None, transfer: str = "ITU-R BT.1886",
-               colourspace: str = "ITU-R BT.709", peak_intensity: float = 1.0) -> Iterator[tuple[float, np.ndarray]]:
+               colourspace: str = "ITU-R BT.709", peak_intensity: float = 1.0,
+               allow_truncated: bool = False) -> Iterator[tuple[float, np.ndarray]]:
     """Decode a video file frame by frame to linear relative luminance (constant memory).
 
     Yields ``(t_s, frame)``: the frame's time in seconds from the start of the file and a
     (H, W) float64 array of linear relative luminance times ``peak_intensity``. Arguments as in
     :func:`load_video`; ``n_frames=None`` reads to the end of the file. The file is checked and
     opened on the first ``next()``.
+
+    A truncated or corrupt file (the decoder stops before the frame count the container declares,
+    ``round(fps × duration)``, by more than one frame, or fails mid-stream) raises
+    :class:`~fsdvs_hw.errors.InputError` once the decodable frames are used up, unless
+    ``allow_truncated`` (then the decodable frames are all there is).
     """
     p = _check_reading(path, start_frame, n_frames, stride, size, colourspace, peak_intensity, 1)
     if transfer not in _cctf_names():
         raise InputError(f"transfer {transfer!r} unknown; allowed e.g. 'ITU-R BT.1886', 'sRGB', "
                          "'Gamma 2.2' (any colour.CCTF_DECODINGS name)")
-    return _iter_frames(p, start_frame, n_frames, stride, size, transfer, colourspace, float(peak_intensity))
+    return _iter_frames(p, start_frame, n_frames, stride, size, transfer, colourspace, float(peak_intensity),
+                        allow_truncated)
 
 
 def _cctf_names() -> Any:
@@ -206,14 +236,28 @@ def _cctf_names() -> Any:
 
 
 def _iter_frames(p: Path, start_frame: int, n_frames: int | None, stride: int, size: tuple[int, int] | None,
-                 transfer: str, colourspace: str, peak: float) -> Iterator[tuple[float, np.ndarray]]:
+                 transfer: str, colourspace: str, peak: float,
+                 allow_truncated: bool = False) -> Iterator[tuple[float, np.ndarray]]:
     reader = _open_reader(p)
     try:
-        fps = float(reader.get_meta_data().get("fps", 0.0))
+        meta = dict(reader.get_meta_data())
+        fps = float(meta.get("fps", 0.0))
         if not fps > 0:
             raise InputError(f"video file {str(p)!r} reports no frame rate")
-        emitted = 0
-        for i, frame in enumerate(reader):
+        emitted = decoded = 0
+        frames = iter(reader)
+        for i in itertools.count():
+            try:
+                frame = next(frames)
+            except StopIteration:
+                break
+            except (RuntimeError, OSError, ValueError) as exc:  # imageio: "Could not read frame ..."
+                if allow_truncated:
+                    break
+                raise InputError(f"video file {str(p)!r}: frame {i} cannot be decoded ({_ffmpeg_reason(exc)}); "
+                                 "truncated or corrupt file (allow_truncated / --allow-truncated uses the "
+                                 f"{i} frames before it)") from None
+            decoded = i + 1
             if i < start_frame or (i - start_frame) % stride:
                 continue
             lum = display_to_linear(np.asarray(frame)[..., :3], transfer=transfer, colourspace=colourspace)
@@ -224,7 +268,12 @@ def _iter_frames(p: Path, start_frame: int, n_frames: int | None, stride: int, s
             yield i / fps, np.clip(lum, 0.0, None) * peak
             emitted += 1
             if n_frames is not None and emitted >= n_frames:
-                break
+                return
+        declared = _declared_frames(meta)
+        if declared is not None and decoded < declared - 1 and not allow_truncated:
+            raise InputError(f"video file {str(p)!r}: decoded {decoded} frames but the container declares "
+                             f"{declared} ({meta.get('duration')} s at {fps:g} fps): truncated or corrupt file "
+                             "(allow_truncated / --allow-truncated uses the decodable frames)")
     finally:
         reader.close()
 

@@ -30,12 +30,14 @@ from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
 from ..errors import InputError
-from ..limits import MAX_SUBSTEPS
+from ..limits import MAX_SEED, MAX_SUBSTEPS
 
-__all__ = ["SensorConfig", "PLACEMENTS", "POSITIVITY_MODES", "SURROGATES", "RESPONSES", "PRESETS",
+__all__ = ["SensorConfig", "MAX_SEED", "PLACEMENTS", "POSITIVITY_MODES", "SURROGATES", "RESPONSES", "PRESETS",
            "SATURATION_INTENSITY"]
 
 #: Where the spatial kernel sits: before the log (FS-DVS) or on the log signal (centre-surround DVS).
+# MAX_SEED (fsdvs_hw.limits): numpy's classic 32-bit seed range; each effect's torch seed
+# (``seed * 1_000_003 + stream``) then stays far inside torch's 64-bit range.
 PLACEMENTS = ("pre_log", "post_log")
 #: How a pre-log kernel with negative lobes is kept in the log's domain.
 POSITIVITY_MODES = ("floor", "pedestal", "differential")
@@ -194,6 +196,7 @@ class SensorConfig:
     seed : int
         Seed for every random draw (mismatch, leak phase, shot noise); each effect draws from its
         own stream derived from this seed, so switching one effect off does not change the others.
+        In [0, :data:`MAX_SEED`] (2**32 - 1).
     """
 
     threshold_on: Any = 0.2
@@ -274,8 +277,9 @@ class SensorConfig:
                                  f"(fsdvs_hw.limits.MAX_SUBSTEPS), got {v!r}")
         if self.adaptive_fraction is not None:
             _check_number("adaptive_fraction", self.adaptive_fraction, low=0.0, high=100.0, low_open=True)
-        if not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0:
-            raise InputError(f"SensorConfig.seed: must be a non-negative integer, got {self.seed!r}")
+        if not isinstance(self.seed, int) or isinstance(self.seed, bool) or not 0 <= self.seed <= MAX_SEED:
+            raise InputError(f"SensorConfig.seed: must be an integer in [0, {MAX_SEED}] (2**32 - 1), "
+                             f"got {self.seed!r}")
 
     # ---------------------------------------------------------------- presets
     @classmethod

@@ -30,6 +30,8 @@ References
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import os
 import tempfile
 import zipfile
@@ -40,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError, ToolMissingError
+from ..limits import check_allocation
 
 __all__ = ["FORMATS", "EventFile", "EventFileWriter", "write_events", "read_events", "event_format"]
 
@@ -138,11 +141,47 @@ def _slice_events(events: Any, start: int, end: int) -> Any:
                         events.p[start:end])
 
 
+def _child_command(mode: str) -> list[str]:
+    """The command line of the writer/reader child process (imports only numpy and h5py or dv-processing)."""
+    import sys
+
+    return [sys.executable, "-P", str(Path(__file__).with_name("_eventfile_child.py")), mode]
+
+
+def _partial_path(path: Path) -> Path:
+    """The hidden temporary file a writer fills before renaming it onto ``path``; it keeps the
+    suffix (dv-processing aborts on an AEDAT4 file name without ``.aedat4``)."""
+    return path.parent / f".{path.stem}.partial-{os.getpid()}{path.suffix}"
+
+
+def _fsync(path: Path, *, directory: bool = False) -> None:
+    fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if directory else 0))
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _one_line(exc: BaseException, limit: int = 200) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
 class EventFileWriter:
     """Write events to ``path`` chunk by chunk; the format follows the suffix (see module doc).
 
     Use as a context manager: ``with EventFileWriter(path, width, height) as w: w.write(events)``.
     Events must arrive in non-decreasing time (as a stream's chunks do).
+
+    The file appears at ``path`` only when it is complete: the events go to a hidden temporary
+    file in the same folder (``.STEM.partial-PID.SUFFIX``), which :meth:`close` flushes, fsyncs and
+    renames onto ``path`` (``os.replace``, atomic). A failure (full disk, an exception, Ctrl-C
+    inside the ``with`` block) or :meth:`abort` removes the temporary file and leaves a previous
+    file at ``path`` untouched; a killed process leaves at most the hidden temporary file. The
+    HDF5 and AEDAT4 writers (h5py, dv-processing: C/C++) run in a child process fed through a
+    pipe, so a crash inside the library (dv-processing aborts; h5py segfaulted after a write
+    failed on a full disk) is reported as an :class:`OSError` naming the file and the reason or
+    signal instead of ending this process.
     """
 
     def __init__(self, path: str | Path, width: int, height: int, *, metadata: dict[str, Any] | None = None) -> None:
@@ -156,30 +195,77 @@ class EventFileWriter:
         self.count = 0
         self._last_t = -1
         self._closed = False
-        if self.format == "hdf5":
-            import h5py
+        self._tmp_path = _partial_path(self.path)
+        self._cols_dir: Path | None = None
+        self._child: Any = None
+        try:
+            self._open()
+        except BaseException as exc:
+            self._discard()
+            if isinstance(exc, OSError) and not isinstance(exc, FileNotFoundError):
+                raise self._os_error(exc) from exc
+            raise
 
-            self._h5 = h5py.File(self.path, "w")
-            self._ds = self._h5.create_dataset("events", shape=(0, 4), maxshape=(None, 4), dtype="uint32",
-                                               chunks=(65536, 4), compression="gzip")
-            attrs = {"width": self.width, "height": self.height, "time_unit": "us",
-                     "polarity": "1 = ON, 0 = OFF (v2e)", "columns": "t_us, x, y, p", **self.metadata}
-            for k, v in attrs.items():
-                self._h5.attrs[k] = v
-        elif self.format == "aedat4":
-            dv = _dv()
-            cfg = dv.io.MonoCameraWriter.EventOnlyConfig("fsdvs_hw", (self.width, self.height))
-            self._dvw = dv.io.MonoCameraWriter(str(self.path), cfg)
-            self._dv = dv
+    def _open(self) -> None:
+        if self.format in ("hdf5", "aedat4"):
+            import importlib.util
+            import json
+            import subprocess
+
+            module = "h5py" if self.format == "hdf5" else "dv_processing"
+            if importlib.util.find_spec(module) is None:
+                if self.format == "aedat4":
+                    _dv()  # raises ToolMissingError with the install hint
+                raise ToolMissingError("HDF5 event files need h5py: pip install h5py")
+            meta = json.dumps(self.metadata, default=lambda v: v.tolist() if hasattr(v, "tolist") else str(v))
+            self._err = tempfile.TemporaryFile()  # noqa: SIM115  the child's stderr, read if it fails
+            self._child = subprocess.Popen(
+                [*_child_command("write"), self.format, str(self._tmp_path), str(self.width), str(self.height), meta],
+                stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._err, process_group=0)
         else:
-            self._tmp = Path(tempfile.mkdtemp(prefix="fsdvs_npz_", dir=self.path.parent if self.path.parent.exists() else None))
-            self._cols = {k: open(self._tmp / k, "wb") for k in ("t", "x", "y", "p")}  # noqa: SIM115
+            self._cols_dir = self.path.parent / f"{self._tmp_path.name}.cols"
+            self._cols_dir.mkdir()
+            self._cols = {k: open(self._cols_dir / k, "wb") for k in ("t", "x", "y", "p")}  # noqa: SIM115
+
+    def _os_error(self, exc: BaseException) -> OSError:
+        """A one-line :class:`OSError` naming the target file (nothing was written to it)."""
+        code = getattr(exc, "errno", None) or errno.EIO
+        why = os.strerror(code) if getattr(exc, "errno", None) else _one_line(exc)
+        return OSError(code, f"writing the {self.format} event file failed ({why}); nothing was written "
+                       "there (a previous file is kept)", str(self.path))
+
+    def _child_failed(self) -> OSError:
+        """The writer child died or failed: an OSError naming the file and its error or signal."""
+        import signal
+
+        try:
+            rc = self._child.wait(timeout=30)
+        except Exception:  # noqa: BLE001  still running after its pipe broke: end it
+            self._child.kill()
+            rc = self._child.wait()
+        how = f"was killed by {signal.Signals(-rc).name}" if rc < 0 else f"failed (status {rc})"
+        self._err.seek(0)
+        lines = [ln for ln in self._err.read().decode("utf-8", "replace").splitlines() if ln.strip()]
+        detail = f": {' '.join(lines[-1].split())[:200]}" if lines else ""
+        lib = "h5py" if self.format == "hdf5" else "dv-processing"
+        hint = " (full disk?)" if rc < 0 or "errno" not in detail.lower() else ""
+        return OSError(errno.EIO, f"the {self.format} writer ({lib}, child process) {how}{detail}{hint}; "
+                       "nothing was written there (a previous file is kept)", str(self.path))
 
     def write(self, events: Any) -> None:
         """Append an :class:`~fsdvs_hw.sensor.EventList` (batch 0) or :class:`EventFile`.
 
         Written in slices of :data:`WRITE_SLICE` events, so the conversion's temporaries (µs times,
         the file's row layout: ~50 B per event) are bounded whatever the size of ``events``.
+
+        Raises
+        ------
+        InputError
+            Events outside the sensor, with bad polarity, or out of time order (nothing of that
+            slice written).
+        OSError
+            The file could not be written (full disk, the AEDAT4 writer died); the writer is
+            aborted (temporary file removed) and the message names ``path``.
         """
         if self._closed:
             raise InputError(f"event file {str(self.path)!r}: already closed")
@@ -193,66 +279,127 @@ class EventFileWriter:
             return
         if int(t_us[0]) < self._last_t or bool((np.diff(t_us) < 0).any()):
             raise InputError("events: must be written in non-decreasing time")
+        if self.format == "hdf5" and int(t_us[-1]) > _UINT32_MAX:
+            raise InputError(f"events: time {int(t_us[-1])} µs exceeds the uint32 µs range of v2e's HDF5 "
+                             "layout (4294 s); use .aedat4 or .npz")
+        try:
+            self._write_columns(t_us, x, y, p)
+        except (OSError, RuntimeError) as exc:  # full disk, a dead child: nothing half-written stays
+            failed = self._child_failed() if self._child is not None else self._os_error(exc)
+            self._discard()
+            raise failed from exc
+        except BaseException:
+            self._discard()
+            raise
         self._last_t = int(t_us[-1])
-        n = t_us.size
-        if self.format == "hdf5":
-            if int(t_us[-1]) > _UINT32_MAX:
-                raise InputError(f"events: time {int(t_us[-1])} µs exceeds the uint32 µs range of v2e's HDF5 "
-                                 "layout (4294 s); use .aedat4 or .npz")
-            block = np.empty((n, 4), dtype=np.uint32)  # filled column by column: no int64 copy
-            block[:, 0], block[:, 1], block[:, 2], block[:, 3] = t_us, x, y, p > 0
-            self._ds.resize(self.count + n, axis=0)
-            self._ds[self.count:] = block
-        elif self.format == "aedat4":
-            on = p > 0
-            for i in range(0, n, 1 << 16):  # slices: bounded Python lists (dv-processing has no bulk numpy input)
-                store = self._dv.EventStore()
-                push = store.push_back
-                sl = slice(i, i + (1 << 16))
-                for a, b, c, d in zip(t_us[sl].tolist(), x[sl].tolist(), y[sl].tolist(), on[sl].tolist()):
-                    push(a, b, c, d)
-                self._dvw.writeEvents(store)
+        self.count += t_us.size
+
+    def _write_columns(self, t_us: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
+        if self._child is not None:
+            pipe = self._child.stdin
+            pipe.write(np.int64(t_us.size).astype("<i8").tobytes())
+            for arr, dt in ((t_us, "<i8"), (x, "<i2"), (y, "<i2"), (p > 0, "u1")):
+                pipe.write(np.ascontiguousarray(arr, dtype=dt).tobytes())
+            pipe.flush()
         else:
             for k, arr in (("t", t_us), ("x", x.astype(np.uint16)), ("y", y.astype(np.uint16)), ("p", p)):
                 self._cols[k].write(np.ascontiguousarray(arr).tobytes())
-        self.count += n
 
     def close(self) -> None:
-        """Finish the file (idempotent)."""
+        """Finish the file and rename it onto ``path`` (idempotent; a no-op after :meth:`abort`).
+
+        Raises
+        ------
+        OSError
+            The file could not be finished (full disk, the AEDAT4 writer died): the temporary
+            file is removed, a previous file at ``path`` is kept, the message names ``path``.
+        """
         if self._closed:
             return
-        self._closed = True
-        if self.format == "hdf5":
-            self._h5.close()
-        elif self.format == "aedat4":
-            del self._dvw  # the writer flushes and closes on destruction
+        try:
+            self._finish()
+            _fsync(self._tmp_path)
+            os.replace(self._tmp_path, self.path)
+            _fsync(self.path.parent if str(self.path.parent) else Path("."), directory=True)
+        except (OSError, RuntimeError) as exc:
+            failed = self._child_failed() if self._child is not None and self._child.poll() not in (None, 0) \
+                else self._os_error(exc)
+            self._discard()
+            raise failed from exc
+        except BaseException:
+            self._discard()
+            raise
+        finally:
+            self._closed = True
+
+    def _finish(self) -> None:
+        if self._child is not None:
+            self._child.stdin.write(np.int64(-1).astype("<i8").tobytes())
+            self._child.stdin.close()
+            if self._child.wait() != 0:
+                raise RuntimeError(f"{self.format} writer failed")
+            self._err.close()
         else:
+            assert self._cols_dir is not None
             dtypes = {"t": np.int64, "x": np.uint16, "y": np.uint16, "p": np.int8}
-            try:
-                for f in self._cols.values():
-                    f.close()
-                with zipfile.ZipFile(self.path, "w", compression=zipfile.ZIP_STORED, allowZip64=True) as z:
-                    for k, dt in dtypes.items():
-                        with z.open(f"{k}.npy", "w", force_zip64=True) as out:
-                            np.lib.format.write_array_header_1_0(
-                                out, {"descr": np.lib.format.dtype_to_descr(np.dtype(dt)),
-                                      "fortran_order": False, "shape": (self.count,)})
-                            with open(self._tmp / k, "rb") as src:
-                                while block := src.read(1 << 22):
-                                    out.write(block)
-                    for k, v in (("width", self.width), ("height", self.height)):
-                        with z.open(f"{k}.npy", "w") as out:
-                            np.lib.format.write_array(out, np.asarray(v, dtype=np.int64))
-            finally:
-                for k in self._cols:
-                    (self._tmp / k).unlink(missing_ok=True)
-                os.rmdir(self._tmp)
+            for f in self._cols.values():
+                f.close()
+            with zipfile.ZipFile(self._tmp_path, "w", compression=zipfile.ZIP_STORED, allowZip64=True) as z:
+                for k, dt in dtypes.items():
+                    with z.open(f"{k}.npy", "w", force_zip64=True) as out:
+                        np.lib.format.write_array_header_1_0(
+                            out, {"descr": np.lib.format.dtype_to_descr(np.dtype(dt)),
+                                  "fortran_order": False, "shape": (self.count,)})
+                        with open(self._cols_dir / k, "rb") as src:
+                            while block := src.read(1 << 22):
+                                out.write(block)
+                for k, v in (("width", self.width), ("height", self.height)):
+                    with z.open(f"{k}.npy", "w") as out:
+                        np.lib.format.write_array(out, np.asarray(v, dtype=np.int64))
+            self._remove_cols()
+
+    def _remove_cols(self) -> None:
+        if self._cols_dir is None:
+            return
+        for f in getattr(self, "_cols", {}).values():
+            f.close()
+        for k in ("t", "x", "y", "p"):
+            (self._cols_dir / k).unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            self._cols_dir.rmdir()
+        self._cols_dir = None
+
+    def _discard(self) -> None:
+        """Close everything quietly and remove the temporary files (the target is never touched)."""
+        self._closed = True
+        if self._child is not None:
+            if self._child.poll() is None:
+                self._child.kill()
+            with contextlib.suppress(Exception):
+                self._child.stdin.close()
+            self._child.wait()
+            with contextlib.suppress(Exception):
+                self._err.close()
+        self._remove_cols()
+        self._tmp_path.unlink(missing_ok=True)
+
+    def abort(self) -> None:
+        """Give up: remove the temporary file; nothing appears at ``path`` (idempotent)."""
+        if not self._closed:
+            self._discard()
 
     def __enter__(self) -> EventFileWriter:
         return self
 
-    def __exit__(self, *exc: Any) -> None:
-        self.close()
+    def __exit__(self, exc_type: Any, *exc: Any) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+    def __del__(self) -> None:  # a writer dropped without close(): leave no temporary file
+        with contextlib.suppress(Exception):
+            self.abort()
 
 
 def write_events(path: str | Path, events: Any, width: int, height: int, *,
@@ -263,53 +410,287 @@ def write_events(path: str | Path, events: Any, width: int, height: int, *,
         return w.count
 
 
+#: Seconds the AEDAT4 reader waits for dv-processing's next batch before it refuses the file
+#: (a corrupt file can make the library loop forever).
+AEDAT4_READ_TIMEOUT_S = 30.0
+#: Events read and checked per slice from an HDF5 file (bounds the reader's temporaries).
+READ_SLICE = 1 << 20
+#: Bytes of memory per event read: int64 time, x, y, int8 polarity, plus the file's own row.
+_EVENT_BYTES = 41
+#: Largest sensor side accepted (pixels): the writers' limit, and AEDAT4's int16 coordinates.
+_MAX_SIDE = 32767
+
+
+def _bad(path: Path, fld: str, what: str) -> InputError:
+    return InputError(f"event file {str(path)!r}: {fld}: {what}")
+
+
+def _side(path: Path, fld: str, v: Any) -> int:
+    """A sensor width/height read from a file: an integer in [1, 32767]."""
+    arr = np.asarray(v)
+    if arr.shape not in ((), (1,)) or arr.dtype.kind not in "iu" or not 1 <= int(arr.reshape(-1)[0]) <= _MAX_SIDE:
+        raise _bad(path, fld, f"must be an integer in [1, {_MAX_SIDE}] pixels, got {np.array2string(arr)[:40]}")
+    return int(arr.reshape(-1)[0])
+
+
+class _Checker:
+    """Checks the columns of an event file slice by slice (dtype, ranges, time order)."""
+
+    def __init__(self, path: Path, names: dict[str, str], polarities: tuple[int, ...]) -> None:
+        self.path, self.names, self.polarities = path, names, polarities
+        self.last_t = 0
+        self.seen = 0
+
+    def dtypes(self, **cols: np.dtype) -> None:
+        for k, dt in cols.items():
+            if np.dtype(dt).kind not in "iu":
+                hint = " (times must be integer microseconds; float times look like seconds)" if k == "t" else ""
+                raise _bad(self.path, self.names[k], f"dtype {np.dtype(dt)} is not an integer type{hint}")
+
+    def check(self, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray,
+              width: int | None, height: int | None) -> None:
+        self.dtypes(t=t.dtype, x=x.dtype, y=y.dtype, p=p.dtype)
+        t = t.astype(np.int64, copy=False)  # unsigned columns: np.diff would wrap around
+        n = t.size
+        if n:
+            if int(t.min()) < 0:
+                raise _bad(self.path, self.names["t"], f"negative time {int(t.min())} µs; times must be >= 0")
+            back = np.flatnonzero(np.diff(t) < 0)
+            if int(t[0]) < self.last_t or back.size:
+                i = self.seen + (int(back[0]) + 1 if not int(t[0]) < self.last_t else 0)
+                raise _bad(self.path, self.names["t"], f"times decrease at event {i}; they must be non-decreasing µs")
+            self.last_t = int(t[-1])
+            for k, arr, hi in (("x", x, width), ("y", y, height)):
+                lo_v, hi_v = int(arr.min()), int(arr.max())
+                if lo_v < 0 or (hi is not None and hi_v >= hi):
+                    raise _bad(self.path, self.names[k], f"value {lo_v if lo_v < 0 else hi_v} outside "
+                               f"[0, {hi}) of the {width}x{height} sensor")
+            bad = ~np.isin(p, self.polarities)
+            if bad.any():
+                raise _bad(self.path, self.names["p"], f"polarity {int(p[bad][0])}; this format allows "
+                           f"{' / '.join(str(v) for v in self.polarities)}")
+        self.seen += n
+
+
 def read_events(path: str | Path) -> EventFile:
     """Read an event file written by :class:`EventFileWriter` (or by v2e / DV for HDF5 / AEDAT4).
+
+    The file is checked before its events are allocated, and the events while they are read (in
+    slices): the expected datasets/arrays (a dataset, not a group), integer column dtypes (float
+    times are refused: they look like seconds; times are µs), equal column lengths, the declared
+    event count against the data present, ``0 <= x < width``, ``0 <= y < height``, polarity in
+    the format's on-disk convention, times >= 0 and non-decreasing, and the memory needed
+    against :func:`fsdvs_hw.limits.check_allocation`. AEDAT4 is read by dv-processing in a child
+    process (a corrupt file can abort it or make it loop; :data:`AEDAT4_READ_TIMEOUT_S`).
 
     Raises
     ------
     InputError
-        Missing file, unknown suffix, or a file without the expected datasets/streams.
+        Missing, truncated or corrupt file, unknown suffix, or any check above; one line naming
+        the file and the field.
     """
     p = Path(path)
     fmt = event_format(p)
     if not p.is_file():
         raise InputError(f"event file {str(p)!r} does not exist")
     if fmt == "hdf5":
-        import h5py
-
-        with h5py.File(p, "r") as f:
-            if "events" not in f or f["events"].ndim != 2 or f["events"].shape[1] != 4:
-                raise InputError(f"event file {str(p)!r}: no (N, 4) 'events' dataset (v2e layout)")
-            a = f["events"][()]
-            attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in f.attrs.items()}
-        x, y = a[:, 1].astype(np.int64), a[:, 2].astype(np.int64)
-        w = int(attrs.get("width", int(x.max()) + 1 if x.size else 1))
-        h = int(attrs.get("height", int(y.max()) + 1 if y.size else 1))
-        return EventFile(a[:, 0].astype(np.int64), x, y, np.where(a[:, 3] > 0, 1, -1).astype(np.int8), w, h, attrs)
+        return _read_hdf5(p)
     if fmt == "aedat4":
-        dv = _dv()
+        return _read_aedat4(p)
+    return _read_npz(p)
+
+
+def _read_hdf5(p: Path) -> EventFile:
+    import h5py
+
+    try:
+        f = h5py.File(p, "r")
+    except (OSError, ValueError) as exc:
+        raise _bad(p, "(file)", f"not a readable HDF5 file ({_one_line(exc)})") from None
+    with f:
         try:
-            rec = dv.io.MonoCameraRecording(str(p))
-        except RuntimeError as exc:
-            raise InputError(f"event file {str(p)!r}: not a readable AEDAT4 file ({exc})") from None
-        if not rec.isEventStreamAvailable():
-            raise InputError(f"event file {str(p)!r}: has no event stream")
-        parts = []
-        while rec.isRunning():
-            batch = rec.getNextEventBatch()
-            if batch is None:
-                break
-            parts.append(batch.numpy())
-        a = np.concatenate(parts) if parts else np.zeros(0, dtype=[("timestamp", "<i8"), ("x", "<i2"),
-                                                                      ("y", "<i2"), ("polarity", "i1")])
-        w, h = rec.getEventResolution()
-        return EventFile(a["timestamp"].astype(np.int64), a["x"].astype(np.int64), a["y"].astype(np.int64),
-                         np.where(a["polarity"] > 0, 1, -1).astype(np.int8), int(w), int(h),
-                         {"camera": rec.getCameraName()})
-    with np.load(p) as z:
+            return _read_hdf5_open(p, f)
+        except InputError:
+            raise
+        except (OSError, ValueError, KeyError, TypeError, RuntimeError, IndexError) as exc:
+            raise _bad(p, "events", f"unreadable, truncated or corrupt ({_one_line(exc)})") from None
+
+
+def _read_hdf5_open(p: Path, f: Any) -> EventFile:
+    import math
+
+    import h5py
+
+    ds = f.get("events")
+    if ds is None:
+        raise _bad(p, "events", "no 'events' dataset (v2e layout: (N, 4) [t_us, x, y, p])")
+    if not isinstance(ds, h5py.Dataset):
+        raise _bad(p, "events", f"is a {type(ds).__name__}, expected an (N, 4) dataset (v2e layout)")
+    if ds.ndim != 2 or ds.shape[1] != 4:
+        raise _bad(p, "events", f"shape {ds.shape}, expected (N, 4) [t_us, x, y, p] (v2e layout)")
+    names = {"t": "events[:, 0] (t_us)", "x": "events[:, 1] (x)", "y": "events[:, 2] (y)", "p": "events[:, 3] (p)"}
+    chk = _Checker(p, names, (0, 1))
+    chk.dtypes(t=ds.dtype)
+    attrs: dict[str, Any] = {}
+    for k in f.attrs:
+        try:
+            v = f.attrs[k]
+        except (OSError, TypeError, ValueError):
+            continue  # an attribute h5py cannot decode is not needed to read events
+        attrs[k] = v.item() if isinstance(v, np.generic) else v
+    w = _side(p, "attribute width", f.attrs["width"]) if "width" in f.attrs else None
+    h = _side(p, "attribute height", f.attrs["height"]) if "height" in f.attrs else None
+    n = int(ds.shape[0])
+    check_allocation(f"event file {str(p)!r}: events ({n} declared events)", n * _EVENT_BYTES)
+    if n:
+        if ds.chunks is not None:
+            want = math.ceil(n / ds.chunks[0]) * math.ceil(4 / ds.chunks[1])
+            got = ds.id.get_num_chunks()
+            if got < want:
+                raise _bad(p, "events", f"declares {n} events but only {got} of its {want} chunks are stored "
+                           "(truncated or unfinished file)")
+        elif ds.id.get_storage_size() < ds.size * ds.dtype.itemsize:
+            raise _bad(p, "events", f"declares {n} events but stores only {ds.id.get_storage_size()} bytes "
+                       "(truncated or unfinished file)")
+    t, x, y = (np.empty(n, dtype=np.int64) for _ in range(3))
+    pol = np.empty(n, dtype=np.int8)
+    for i in range(0, n, READ_SLICE):
+        a = ds[i:i + READ_SLICE]
+        chk.check(a[:, 0], a[:, 1], a[:, 2], a[:, 3], w, h)
+        sl = slice(i, i + a.shape[0])
+        t[sl], x[sl], y[sl] = a[:, 0], a[:, 1], a[:, 2]
+        pol[sl] = np.where(a[:, 3] > 0, 1, -1)
+    w = w if w is not None else (int(x.max()) + 1 if n else 1)
+    h = h if h is not None else (int(y.max()) + 1 if n else 1)
+    if max(w, h) > _MAX_SIDE:
+        raise _bad(p, "events[:, 1:3] (x, y)", f"pixels up to {w - 1}, {h - 1}: beyond {_MAX_SIDE} (no width/height attributes)")
+    return EventFile(t, x, y, pol, w, h, attrs)
+
+
+def _npy_header(p: Path, z: Any, k: str) -> tuple[tuple[int, ...], np.dtype]:
+    """Shape and dtype of array ``k`` of an open npz, from its header (nothing else is read)."""
+    with z.zip.open(f"{k}.npy") as fh:
+        version = np.lib.format.read_magic(fh)
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
+        elif version == (2, 0):
+            shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
+        else:
+            raise _bad(p, k, f"unsupported .npy format version {version}")
+    return tuple(shape), np.dtype(dtype)
+
+
+def _read_npz(p: Path) -> EventFile:
+    import zlib
+
+    errors = (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error, NotImplementedError)
+    try:
+        z = np.load(p, allow_pickle=False)
+    except errors as exc:
+        raise _bad(p, "(file)", f"not a readable npz file ({_one_line(exc)})") from None
+    if not isinstance(z, np.lib.npyio.NpzFile):
+        raise _bad(p, "(file)", "holds a single .npy array, not an npz archive of t, x, y, p, width, height")
+    with z:
         missing = {"t", "x", "y", "p", "width", "height"} - set(z.files)
         if missing:
-            raise InputError(f"event file {str(p)!r}: missing arrays {sorted(missing)}")
-        return EventFile(z["t"].astype(np.int64), z["x"].astype(np.int64), z["y"].astype(np.int64),
-                         z["p"].astype(np.int8), int(z["width"]), int(z["height"]))
+            raise _bad(p, ", ".join(sorted(missing)), "missing arrays (an event npz holds t, x, y, p, width, height)")
+        chk = _Checker(p, {k: k for k in "txyp"}, (-1, 1))
+        k = "(file)"
+        try:
+            headers = {}
+            for k in ("t", "x", "y", "p"):
+                headers[k] = _npy_header(p, z, k)
+                if len(headers[k][0]) != 1:
+                    raise _bad(p, k, f"shape {headers[k][0]}, expected one column (N,)")
+            chk.dtypes(**{k: hd[1] for k, hd in headers.items()})
+            lengths = {k: hd[0][0] for k, hd in headers.items()}
+            if len(set(lengths.values())) > 1:
+                raise _bad(p, "t, x, y, p", f"columns of different lengths {lengths} (ragged)")
+            n = lengths["t"]
+            check_allocation(f"event file {str(p)!r}: t, x, y, p ({n} declared events)", n * _EVENT_BYTES)
+            k = "width"
+            w = _side(p, "width", z["width"])
+            k = "height"
+            h = _side(p, "height", z["height"])
+            cols = {}
+            for k in ("t", "x", "y", "p"):
+                cols[k] = z[k]
+                if cols[k].shape != (n,):
+                    raise _bad(p, k, f"holds {cols[k].size} values, its header declares {n} (truncated?)")
+        except InputError:
+            raise
+        except errors as exc:
+            raise _bad(p, k, f"unreadable, truncated or corrupt ({_one_line(exc)})") from None
+    chk.check(cols["t"], cols["x"], cols["y"], cols["p"], w, h)
+    return EventFile(cols["t"].astype(np.int64), cols["x"].astype(np.int64), cols["y"].astype(np.int64),
+                     cols["p"].astype(np.int8), w, h)
+
+
+class _ChildPipe:
+    """Reads exact byte counts from a child's stdout, giving up after ``timeout`` s without data."""
+
+    def __init__(self, stream: Any, timeout: float, path: Path) -> None:
+        self.fd, self.timeout, self.path = stream.fileno(), timeout, path
+
+    def read(self, n: int) -> bytes:
+        import select
+
+        buf = bytearray()
+        while len(buf) < n:
+            ready, _, _ = select.select([self.fd], [], [], self.timeout)
+            if not ready:
+                raise _bad(self.path, "(file)", f"dv-processing made no progress for {self.timeout:g} s reading it "
+                           "(corrupt AEDAT4 file?)")
+            block = os.read(self.fd, min(n - len(buf), 1 << 22))
+            if not block:
+                raise EOFError
+            buf += block
+        return bytes(buf)
+
+    def ints(self, n: int, dtype: str) -> np.ndarray:
+        return np.frombuffer(self.read(n * np.dtype(dtype).itemsize), dtype=dtype)
+
+
+def _read_aedat4(p: Path) -> EventFile:
+    import importlib.util
+    import signal
+    import subprocess
+
+    if importlib.util.find_spec("dv_processing") is None:
+        _dv()  # raises ToolMissingError with the install hint
+    with tempfile.TemporaryFile() as err:
+        proc = subprocess.Popen([*_child_command("read"), str(p)], stdin=subprocess.DEVNULL,
+                                stdout=subprocess.PIPE, stderr=err, process_group=0)
+        try:
+            pipe = _ChildPipe(proc.stdout, AEDAT4_READ_TIMEOUT_S, p)
+            chk = _Checker(p, {"t": "timestamp", "x": "x", "y": "y", "p": "polarity"}, (0, 1))
+            try:
+                w_raw, h_raw, name_len = (int(v) for v in pipe.ints(3, "<i8"))
+                w, h = _side(p, "event resolution width", w_raw), _side(p, "event resolution height", h_raw)
+                if not 0 <= name_len <= 4096:
+                    raise _bad(p, "camera name", f"length {name_len} out of range")
+                camera = pipe.read(name_len).decode("utf-8", "replace")
+                parts: list[tuple[np.ndarray, ...]] = []
+                total = 0
+                while (n := int(pipe.ints(1, "<i8")[0])) != -1:
+                    total += n
+                    check_allocation(f"event file {str(p)!r}: events ({total} events so far)", total * _EVENT_BYTES)
+                    t, x, y, pol = (pipe.ints(n, dt) for dt in ("<i8", "<i2", "<i2", "u1"))
+                    chk.check(t, x, y, pol, w, h)
+                    parts.append((t, x, y, pol))
+            except EOFError:
+                rc = proc.wait()
+                err.seek(0)
+                msg = " ".join(err.read().decode("utf-8", "replace").split())[:200]
+                how = f"dv-processing was killed by {signal.Signals(-rc).name}" if rc < 0 else \
+                    f"not a readable AEDAT4 file ({msg or f'reader exit status {rc}'})"
+                raise _bad(p, "(file)", how) from None
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+            proc.wait()
+            proc.stdout.close()
+    cols = [np.concatenate([part[i] for part in parts]) if parts else np.zeros(0, dt)
+            for i, dt in enumerate(("<i8", "<i2", "<i2", "u1"))]
+    return EventFile(cols[0].astype(np.int64), cols[1].astype(np.int64), cols[2].astype(np.int64),
+                     np.where(cols[3] > 0, 1, -1).astype(np.int8), w, h, {"camera": camera})

@@ -1,0 +1,173 @@
+"""HDF5 / AEDAT4 writers and the AEDAT4 reader, run as a child process
+(``python -P _eventfile_child.py write FORMAT PATH WIDTH HEIGHT METADATA_JSON`` / ``... read PATH``).
+
+dv-processing and HDF5 are C/C++ libraries: an error deep inside them can end the process
+instead of raising (dv-processing ``abort()``s; h5py segfaulted at exit after a write failed
+with EFBIG, measured). :class:`fsdvs_hw.sensor.eventfile.EventFileWriter` therefore runs them
+here, in a child process that imports only numpy and h5py or dv-processing, and feeds it events
+through a pipe; if this process fails or dies, the parent reports the file and the reason or
+signal, and the partial file is removed. Reading runs here too: a corrupt file can make dv-processing loop
+forever inside ``getNextEventBatch`` (measured: a file with 5 garbled bytes), which the parent
+ends after a timeout.
+
+Protocol (stdin, little-endian): messages of an int64 count ``n`` followed by ``n`` int64 times
+(µs), ``n`` int16 x, ``n`` int16 y and ``n`` uint8 polarities (1 ON / 0 OFF). ``n = -1`` commits:
+the writer is closed, the file flushed and fsync'ed, and the process exits 0. End of input
+without the commit message (the parent was killed) removes the file and exits 3; a
+failure (full disk) prints one line on stderr, removes the file and exits 4.
+Reading writes to stdout: int64 width, height, the camera name's length and UTF-8 bytes, then
+batches in the message layout above, then ``-1``. A file dv-processing refuses: the message on
+stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+
+__all__: list[str] = []
+
+
+def _read_exact(stream, n: int) -> bytes:  # type: ignore[no-untyped-def]
+    buf = bytearray()
+    while len(buf) < n:
+        block = stream.read(n - len(buf))
+        if not block:
+            raise EOFError
+        buf += block
+    return bytes(buf)
+
+
+def read(path: str) -> int:
+    """Stream the events of AEDAT4 file ``path`` to stdout (layout in the module docstring)."""
+    import dv_processing as dv
+    import numpy as np
+
+    out = sys.stdout.buffer
+    try:
+        rec = dv.io.MonoCameraRecording(path)
+        if not rec.isEventStreamAvailable():
+            raise RuntimeError("has no event stream")
+        w, h = rec.getEventResolution()
+        name = rec.getCameraName().encode("utf-8", "replace")
+        out.write(np.array([w, h, len(name)], dtype="<i8").tobytes() + name)
+        while rec.isRunning():
+            batch = rec.getNextEventBatch()
+            if batch is None:
+                break
+            a = batch.numpy()
+            parts = [np.int64(a.size).astype("<i8").tobytes()]
+            for k, dt in (("timestamp", "<i8"), ("x", "<i2"), ("y", "<i2"), ("polarity", "u1")):
+                parts.append(np.ascontiguousarray(a[k], dtype=dt).tobytes())
+            out.write(b"".join(parts))
+    except RuntimeError as exc:
+        sys.stderr.write(" ".join(str(exc).split())[:300] + "\n")
+        return 2
+    out.write(np.int64(-1).astype("<i8").tobytes())
+    out.flush()
+    return 0
+
+
+def _h5_writer(path: str, width: int, height: int, metadata: dict) -> tuple:  # type: ignore[type-arg]
+    import h5py
+    import numpy as np
+
+    f = h5py.File(path, "w")
+    ds = f.create_dataset("events", shape=(0, 4), maxshape=(None, 4), dtype="uint32", chunks=(65536, 4),
+                          compression="gzip")
+    attrs = {"width": width, "height": height, "time_unit": "us", "polarity": "1 = ON, 0 = OFF (v2e)",
+             "columns": "t_us, x, y, p", **metadata}
+    for k, v in attrs.items():
+        f.attrs[k] = v
+
+    def write(t, x, y, p) -> None:  # type: ignore[no-untyped-def]
+        block = np.empty((t.size, 4), dtype=np.uint32)
+        block[:, 0], block[:, 1], block[:, 2], block[:, 3] = t, x, y, p
+        n0 = ds.shape[0]
+        ds.resize(n0 + t.size, axis=0)
+        ds[n0:] = block
+
+    def close() -> None:
+        f.flush()
+        f.close()
+
+    return write, close
+
+
+def _aedat4_writer(path: str, width: int, height: int, metadata: dict) -> tuple:  # type: ignore[type-arg]
+    import dv_processing as dv
+
+    cfg = dv.io.MonoCameraWriter.EventOnlyConfig("fsdvs_hw", (width, height))
+    state = {"writer": dv.io.MonoCameraWriter(path, cfg)}
+
+    def write(t, x, y, p) -> None:  # type: ignore[no-untyped-def]
+        t, x, y, p = t.tolist(), x.tolist(), y.tolist(), p.astype(bool).tolist()
+        for i in range(0, len(t), 1 << 16):  # dv-processing has no bulk numpy input
+            store = dv.EventStore()
+            push = store.push_back
+            sl = slice(i, i + (1 << 16))
+            for a, b, c, d in zip(t[sl], x[sl], y[sl], p[sl]):
+                push(a, b, c, d)
+            state["writer"].writeEvents(store)
+
+    def close() -> None:
+        del state["writer"]  # flushes and closes the file
+
+    return write, close
+
+
+def _fail(path: str, exc: BaseException, status: int) -> None:
+    """Report ``exc`` in one line, remove the partial file, and exit at once: no finalizers (h5py
+    can crash closing a file whose last write failed)."""
+    sys.stderr.write(f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}\n")
+    sys.stderr.flush()
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
+    os._exit(status)
+
+
+def main(argv: list[str]) -> int:
+    """``write FORMAT PATH WIDTH HEIGHT METADATA_JSON``: write the events arriving on stdin
+    (FORMAT ``hdf5`` or ``aedat4``); ``read PATH``: see :func:`read`."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides what a Ctrl-C means
+    mode, argv = argv[0], argv[1:]
+    if mode == "read":
+        return read(argv[0])
+    import json
+
+    import numpy as np
+
+    fmt, path, width, height = argv[0], argv[1], int(argv[2]), int(argv[3])
+    try:
+        write, close = (_h5_writer if fmt == "hdf5" else _aedat4_writer)(path, width, height, json.loads(argv[4]))
+    except Exception as exc:  # noqa: BLE001  reported to the parent
+        _fail(path, exc, 4)
+    stdin = sys.stdin.buffer
+    try:
+        while True:
+            n = int(np.frombuffer(_read_exact(stdin, 8), dtype="<i8")[0])
+            if n < 0:
+                break
+            t = np.frombuffer(_read_exact(stdin, 8 * n), dtype="<i8")
+            x = np.frombuffer(_read_exact(stdin, 2 * n), dtype="<i2")
+            y = np.frombuffer(_read_exact(stdin, 2 * n), dtype="<i2")
+            p = np.frombuffer(_read_exact(stdin, n), dtype="u1")
+            write(t, x, y, p)
+        close()
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    except EOFError:  # the parent went away without committing: leave nothing behind
+        _fail(path, EOFError("no commit from the parent"), 3)
+    except Exception as exc:  # noqa: BLE001  full disk and the like: reported to the parent
+        _fail(path, exc, 4)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
