@@ -605,10 +605,10 @@ def records_markdown(records: Sequence[BenchRecord]) -> str:
 
 def write_json(records: Sequence[BenchRecord], path: str | Path) -> Path:
     """Write records as ``{"schema": RECORD_SCHEMA, "records": [...]}`` (UTF-8, indented)."""
-    p = Path(path)
-    p.write_text(json.dumps({"schema": RECORD_SCHEMA, "records": [r.to_dict() for r in records]},
-                            indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
-    return p
+    from fsdvs_hw.paths import write_output
+
+    return write_output(Path(path), json.dumps({"schema": RECORD_SCHEMA, "records": [r.to_dict() for r in records]},
+                                               indent=1, ensure_ascii=False) + "\n", flag="--json")
 
 
 def read_json(path: str | Path) -> list[BenchRecord]:

@@ -14,6 +14,7 @@ from typing import Any
 
 from .csf import CSF_METHODS, CsfAgreement, Geometry, csf_agreement
 from .kernels import Kernel, as_kernel
+from .paths import figure_png, write_output
 from .spectra import SpectralSummary, spectral_summary
 
 __all__ = ["KernelAnalysis", "analyse_kernel", "write_analysis", "format_analysis"]
@@ -123,7 +124,7 @@ def write_analysis(analysis: KernelAnalysis, out_dir: str | Path) -> dict[str, P
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"metrics": out / "metrics.json"}
-    paths["metrics"].write_text(json.dumps(analysis.to_dict(), indent=1) + "\n")
+    write_output(paths["metrics"], json.dumps(analysis.to_dict(), indent=1) + "\n")
     for key, make in (
         ("kernel", lambda: plot_kernel(analysis.kernel)),
         ("spectrum", lambda: plot_spectrum(analysis.kernel)),
@@ -132,6 +133,6 @@ def write_analysis(analysis: KernelAnalysis, out_dir: str | Path) -> dict[str, P
     ):
         fig, _ = make()
         paths[key] = out / f"{key}.png"
-        fig.savefig(paths[key], dpi=120)
+        write_output(paths[key], figure_png(fig, dpi=120))
         plt.close(fig)
     return paths

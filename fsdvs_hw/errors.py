@@ -6,7 +6,9 @@ message names the problem: the file or argument, the field, the value and what i
 
 from __future__ import annotations
 
-__all__ = ["FsdvsError", "InputError", "KernelError", "ToolMissingError"]
+from typing import Any
+
+__all__ = ["FsdvsError", "InputError", "KernelError", "ToolMissingError", "one_line"]
 
 
 class FsdvsError(Exception):
@@ -23,3 +25,16 @@ class KernelError(InputError):
 
 class ToolMissingError(FsdvsError, RuntimeError):
     """An external program (ngspice, iverilog, yosys) is not installed; the message says how to get it."""
+
+
+def one_line(value: Any, limit: int = 60) -> str:
+    """``repr(value)`` on one line (numpy arrays print on several), cut to ``limit`` characters.
+
+    Example
+    -------
+    >>> import numpy as np
+    >>> one_line(np.array([["a", "b"], ["c", "d"]]))
+    "array([['a', 'b'], ['c', 'd']], dtype='<U1')"
+    """
+    text = " ".join(repr(value).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."

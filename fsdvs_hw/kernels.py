@@ -24,6 +24,7 @@ File formats (``Kernel.save`` / :func:`load_kernel`, chosen by extension):
 
 from __future__ import annotations
 
+import io
 import json
 import math
 from collections.abc import Callable, Mapping
@@ -301,19 +302,28 @@ class Kernel:
         return cls(taps, pitch_m=pitch, name=str(data.get("name", Path(source).stem)), provenance=prov)
 
     def save(self, path: str | Path) -> Path:
-        """Write the kernel to ``path``; the format follows the extension (.npy .csv .json .pt)."""
+        """Write the kernel to ``path``; the format follows the extension (.npy .csv .json .pt).
+
+        The file is written whole or not at all, never through a symbolic link
+        (:func:`fsdvs_hw.paths.write_output`).
+        """
+        from .paths import write_output
+
         path = Path(path)
         suffix = path.suffix.lower()
+        if suffix not in (".npy", ".csv", ".json", ".pt"):
+            raise KernelError(f"{path}: unknown kernel file extension {suffix!r}; allowed {', '.join(_SUFFIXES)}")
         path.parent.mkdir(parents=True, exist_ok=True)
+        buf = io.BytesIO()
         if suffix == ".npy":
-            np.save(path, np.asarray(self.taps), allow_pickle=False)
+            np.save(buf, np.asarray(self.taps), allow_pickle=False)
         elif suffix == ".csv":
             meta = {"name": self.name, "pitch_m": self.pitch_m, "provenance": dict(self.provenance)}
             header = "fsdvs_hw " + json.dumps(meta)
-            np.savetxt(path, self.taps, delimiter=",", fmt="%.17g", header=header, comments="# ")
+            np.savetxt(buf, self.taps, delimiter=",", fmt="%.17g", header=header, comments="# ")
         elif suffix == ".json":
-            path.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
-        elif suffix == ".pt":
+            buf.write((json.dumps(self.to_dict(), indent=1) + "\n").encode("utf-8"))
+        else:
             import torch
 
             torch.save(
@@ -323,10 +333,9 @@ class Kernel:
                     "name": self.name,
                     "provenance_json": json.dumps(dict(self.provenance)),
                 },
-                path,
+                buf,
             )
-        else:
-            raise KernelError(f"{path}: unknown kernel file extension {suffix!r}; allowed {', '.join(_SUFFIXES)}")
+        write_output(path, buf.getvalue(), flag=str(path))
         return path
 
     @classmethod

@@ -15,15 +15,20 @@ which replaces a link (should one appear meanwhile) instead of following it.
 from __future__ import annotations
 
 import contextlib
+import csv
 import hashlib
+import io
 import os
 import re
 import tempfile
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import Any
 
 from .errors import InputError
 
-__all__ = ["safe_name", "confined_path", "output_dir", "output_file", "write_output", "MAX_NAME_LENGTH"]
+__all__ = ["safe_name", "confined_path", "output_dir", "output_file", "write_output", "csv_text", "npz_bytes",
+           "figure_png", "MAX_NAME_LENGTH"]
 
 #: Longest file-name stem :func:`safe_name` returns (characters).
 MAX_NAME_LENGTH = 64
@@ -160,3 +165,32 @@ def write_output(path: str | Path, data: str | bytes, *, flag: str = "--out") ->
             os.unlink(tmp)
         raise
     return p
+
+
+def csv_text(rows: Iterable[Sequence[Any]]) -> str:
+    """Rows as CSV text (``csv.writer``'s dialect, ``\\r\\n`` line ends), for :func:`write_output`.
+
+    Example
+    -------
+    >>> csv_text([["x", "y"], [1, 2.5]])
+    'x,y\\r\\n1,2.5\\r\\n'
+    """
+    buf = io.StringIO(newline="")
+    csv.writer(buf).writerows(rows)
+    return buf.getvalue()
+
+
+def npz_bytes(**arrays: Any) -> bytes:
+    """An uncompressed ``.npz`` archive of ``arrays`` (:func:`numpy.savez`) as bytes, for :func:`write_output`."""
+    import numpy as np
+
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return buf.getvalue()
+
+
+def figure_png(fig: Any, **savefig: Any) -> bytes:
+    """A matplotlib figure as PNG bytes (``fig.savefig(..., format="png")``), for :func:`write_output`."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", **savefig)
+    return buf.getvalue()

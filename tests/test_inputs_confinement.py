@@ -345,3 +345,53 @@ def test_fuzzed_set_strings_validate_or_raise_input_error(parts, value, cheap):
     except InputError:
         return
     assert d.data["design"]["name"]
+
+
+# ------------------------------------------------- every file for the user: whole, never through a link
+@pytest.mark.parametrize("suffix", [".json", ".npy", ".csv", ".pt"])
+def test_kernel_save_never_writes_through_a_link_and_replaces_whole(tmp_path, suffix):
+    from fsdvs_hw.kernels import load_kernel, reference_kernel
+
+    outside = tmp_path / "outside.txt"
+    outside.write_bytes(b"precious")
+    link = tmp_path / f"k{suffix}"
+    link.symlink_to(outside)
+    with pytest.raises(InputError, match="symbolic link"):
+        reference_kernel("dog", 5).save(link)
+    assert outside.read_bytes() == b"precious" and link.is_symlink()
+    target = tmp_path / f"real{suffix}"
+    reference_kernel("dog", 5).save(target)
+    reference_kernel("dog", 7).save(target)  # replaced whole: the new kernel, no temp file left beside it
+    assert load_kernel(target).size == 7
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["outside.txt", f"k{suffix}", f"real{suffix}"])
+
+
+def test_asic_artifacts_and_their_index_refuse_a_link(tmp_path):
+    from fsdvs_hw.kernels import reference_kernel
+    from fsdvs_hw.realise.artifacts import write_index
+    from fsdvs_hw.realise.asic import fit_asic_taps
+    from fsdvs_hw.realise.asic.artifacts import write_asic_artifacts
+
+    outside = tmp_path / "outside.v"
+    outside.write_text("precious")
+    out = tmp_path / "art"
+    out.mkdir()
+    (out / "fsdvs_conv.v").symlink_to(outside)
+    with pytest.raises(InputError, match="symbolic link"):
+        write_asic_artifacts(fit_asic_taps(reference_kernel("dog", 5), bits=6), out)
+    assert outside.read_text() == "precious"
+    (out / "index.json").symlink_to(outside)
+    with pytest.raises(InputError, match="symbolic link"):
+        write_index([], out / "index.json")
+    assert outside.read_text() == "precious"
+
+
+def test_codesign_tables_refuse_a_link(tmp_path):
+    from fsdvs_hw.explore.codesign import write_codesign
+
+    outside = tmp_path / "outside.csv"
+    outside.write_text("precious")
+    (tmp_path / "codesign.csv").symlink_to(outside)
+    with pytest.raises(InputError, match="symbolic link"):
+        write_codesign({"cells": []}, tmp_path)
+    assert outside.read_text() == "precious"

@@ -67,7 +67,7 @@ def load_benchmarks() -> ModuleType:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..paths import output_dir, output_file
+    from ..paths import output_dir, output_file, write_output
 
     suite = load_benchmarks()
     BENCHMARKS, benchmark_run = suite.BENCHMARKS, suite.benchmark_run
@@ -95,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
         sections.append(res.markdown)
         records += res.records
     if args.out is not None:
-        args.out.write_text("\n\n".join(sections) + "\n")
+        write_output(args.out, "\n\n".join(sections) + "\n")
     if args.json is not None:
         write_json(records, args.json)
         print(f"[bench] {len(records)} records -> {args.json}", file=sys.stderr, flush=True)

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..paths import write_output
 
 __all__ = ["AblationPoint", "AblationOptions", "AblationStudy", "ablation_points", "evaluate_ablation_point",
            "run_ablation", "run_ablation_study", "annotate_shipped"]
@@ -261,8 +262,8 @@ def run_ablation_study(args: AblationOptions) -> AblationStudy:
     if shipped:
         print(f"[ablation] held-out metric CIs written to {len(shipped)} shipped provenance files", file=sys.stderr)
     text += f"\nMeasured with `{args.command}` (this invocation: {time.perf_counter() - t0:.0f} s wall).\n"
-    (out / "ablation.json").write_text(json.dumps({"records": records, "transfer": transfer}, indent=1))
-    (out / "ablation.md").write_text(text)
+    write_output(out / "ablation.json", json.dumps({"records": records, "transfer": transfer}, indent=1))
+    write_output(out / "ablation.md", text)
     return AblationStudy(text, records, transfer, out / "ablation.md", out / "ablation.json")
 
 
@@ -310,7 +311,7 @@ def annotate_shipped(records: list[dict[str, Any]], pred_dir: Path, *, n_resampl
                     heldout_ci95_high=float(res.confidence_interval.high), heldout_n_clips=n,
                     heldout_ci_method="percentile bootstrap over test clips (scipy.stats.bootstrap), one network",
                     ablation_key=r["key"])
-        prov_path.write_text(json.dumps(prov, indent=1) + "\n")
+        write_output(prov_path, json.dumps(prov, indent=1) + "\n", flag="provenance")
         done.append(prov_path)
     return done
 

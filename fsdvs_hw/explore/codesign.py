@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import csv
 import hashlib
+import io
 import json
 import os
 import sys
@@ -48,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..paths import write_output
 from .design import CODESIGN_MODES, Design
 
 __all__ = [
@@ -377,27 +379,28 @@ def write_codesign(summary: Mapping[str, Any], out_dir: str | Path) -> tuple[Pat
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     jpath, cpath = out / "codesign.json", out / "codesign.csv"
-    jpath.write_text(json.dumps(summary, indent=1, default=float) + "\n")
+    write_output(jpath, json.dumps(summary, indent=1, default=float) + "\n")
     fields = ["realisation", "task", "row", "metric_name", "n_seeds", "n_clips", "loss", "loss_ci95_low",
               "loss_ci95_high", "recovered", "recovered_ci95_low", "recovered_ci95_high", "gain_over_swap",
               "gain_ci95_low", "gain_ci95_high", "kernel_error_fit", "ms_correlation_initial_mean",
               "ms_correlation_final_mean", "verdict"]
-    with cpath.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=fields)
-        w.writeheader()
-        for c in summary.get("cells", []):
-            for m, r in c["rows"].items():
-                rec, gain = r.get("recovered", {}), r.get("gain_over_swap", {})
-                w.writerow({"realisation": c["realisation"], "task": c["task"], "row": m,
-                            "metric_name": c["metric_name"], "n_seeds": c["n_seeds"], "n_clips": c["n_clips"],
-                            "loss": r["loss"]["estimate"], "loss_ci95_low": r["loss"]["low"],
-                            "loss_ci95_high": r["loss"]["high"], "recovered": rec.get("estimate"),
-                            "recovered_ci95_low": rec.get("low"), "recovered_ci95_high": rec.get("high"),
-                            "gain_over_swap": gain.get("estimate"), "gain_ci95_low": gain.get("low"),
-                            "gain_ci95_high": gain.get("high"), "kernel_error_fit": c.get("kernel_error_fit"),
-                            "ms_correlation_initial_mean": _mean(c.get("ms_correlation_initial")),
-                            "ms_correlation_final_mean": _mean(c.get("ms_correlation_final")),
-                            "verdict": c["verdict"] if m == "codesign" else ""})
+    fh = io.StringIO(newline="")
+    w = csv.DictWriter(fh, fieldnames=fields)
+    w.writeheader()
+    for c in summary.get("cells", []):
+        for m, r in c["rows"].items():
+            rec, gain = r.get("recovered", {}), r.get("gain_over_swap", {})
+            w.writerow({"realisation": c["realisation"], "task": c["task"], "row": m,
+                        "metric_name": c["metric_name"], "n_seeds": c["n_seeds"], "n_clips": c["n_clips"],
+                        "loss": r["loss"]["estimate"], "loss_ci95_low": r["loss"]["low"],
+                        "loss_ci95_high": r["loss"]["high"], "recovered": rec.get("estimate"),
+                        "recovered_ci95_low": rec.get("low"), "recovered_ci95_high": rec.get("high"),
+                        "gain_over_swap": gain.get("estimate"), "gain_ci95_low": gain.get("low"),
+                        "gain_ci95_high": gain.get("high"), "kernel_error_fit": c.get("kernel_error_fit"),
+                        "ms_correlation_initial_mean": _mean(c.get("ms_correlation_initial")),
+                        "ms_correlation_final_mean": _mean(c.get("ms_correlation_final")),
+                        "verdict": c["verdict"] if m == "codesign" else ""})
+    write_output(cpath, fh.getvalue())
     return jpath, cpath
 
 

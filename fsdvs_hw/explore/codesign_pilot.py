@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from ..paths import write_output
 from ..resources import shipped_path
 
 __all__ = ["run_pilot", "csf_drift"]
@@ -91,7 +92,7 @@ def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_tes
                         "text": ci.describe(), "per_seed": [float(m.weighted(ones)[0]) for m in arm],
                         "wall_s": wall[mode]}
     result["codesign"]["csf_drift"] = drift
-    (out / f"pilot_{realisation}_{task}.json").write_text(json.dumps(result, indent=1))
+    write_output(out / f"pilot_{realisation}_{task}.json", json.dumps(result, indent=1))
     return result
 
 

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..paths import write_output
 
 __all__ = ["Artifact", "INDEX_VERSION", "write_index", "read_index"]
 
@@ -64,7 +65,8 @@ def write_index(entries: Iterable[Mapping[str, Any]], path: str | Path) -> Path:
     """Write ``index.json``: ``{"version", "artifacts": [entry, ...]}``; return its path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps({"version": INDEX_VERSION, "artifacts": [dict(e) for e in entries]}, indent=1) + "\n")
+    write_output(path, json.dumps({"version": INDEX_VERSION, "artifacts": [dict(e) for e in entries]}, indent=1) + "\n",
+                 flag="artifacts")
     return path
 
 

@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, one_line
 from ..limits import check_allocation
 from ..validation import check_real
 
@@ -168,7 +168,7 @@ class SceneConfig:
             if isinstance(pair, (str, bytes)) or not isinstance(pair, (tuple, list)) or len(pair) != 2 \
                     or not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
                                and math.isfinite(v) for v in pair):
-                raise InputError(f"SceneConfig.{name} must be a (min, max) pair of numbers, got {pair!r:.60}")
+                raise InputError(f"SceneConfig.{name} must be a (min, max) pair of numbers, got {one_line(pair)}")
         lo, hi = self.n_objects
         if not (isinstance(lo, int) and isinstance(hi, int) and 1 <= lo <= hi <= 16):
             raise InputError(f"SceneConfig.n_objects must be (min, max) integers with 1 <= min <= max <= 16, got {self.n_objects!r}")
@@ -271,7 +271,7 @@ class SceneBatch:
         arr = np.asarray(index) if not isinstance(index, slice) else None
         if arr is not None and (arr.dtype.kind not in "iub" or arr.ndim > 1
                                 or (arr.dtype.kind == "b" and arr.shape != (len(self),))):
-            raise InputError(f"SceneBatch.subset: index={index!r:.60}; allowed: an int, a slice, a 1-D integer "
+            raise InputError(f"SceneBatch.subset: index={one_line(index)}; allowed: an int, a slice, a 1-D integer "
                              f"index array or a boolean mask of {len(self)} clips")
         if arr is not None and arr.dtype.kind in "iu" and arr.size and not (-len(self) <= arr.min()
                                                                               and arr.max() < len(self)):

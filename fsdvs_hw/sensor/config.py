@@ -29,7 +29,7 @@ import math
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
-from ..errors import InputError
+from ..errors import InputError, one_line
 from ..limits import MAX_SEED, MAX_SUBSTEPS
 
 __all__ = ["SensorConfig", "MAX_SEED", "PLACEMENTS", "POSITIVITY_MODES", "SURROGATES", "RESPONSES", "PRESETS",
@@ -249,10 +249,10 @@ class SensorConfig:
         for name in ("response", "placement", "positivity", "shot_noise_draw", "convolution", "surrogate"):
             if not isinstance(getattr(self, name), str):
                 raise InputError(f"SensorConfig.{name}: must be a string, got {type(getattr(self, name)).__name__} "
-                                 f"{getattr(self, name)!r:.60}")
+                                 f"{one_line(getattr(self, name))}")
         if not isinstance(self.random_reference_phase, bool):
             raise InputError(f"SensorConfig.random_reference_phase: must be True or False, got "
-                             f"{self.random_reference_phase!r:.60}")
+                             f"{one_line(self.random_reference_phase)}")
         if self.response not in RESPONSES:
             raise InputError(f"SensorConfig.response: {self.response!r} unknown; allowed: {', '.join(RESPONSES)}")
         if self.placement not in PLACEMENTS:

@@ -27,6 +27,7 @@ agreement with the Mannos-Sakrison CSF.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import math
 import sys
@@ -39,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..paths import write_output
 from ..kernels import Kernel
 
 __all__ = ["kernel_shape", "ablation_jobs", "transfer_jobs", "frozen_kernel_jobs", "job_key", "run_job",
@@ -172,7 +174,9 @@ def _save_predictions(path: Path, predictions: dict[str, np.ndarray]) -> None:
         elif a.dtype.kind == "f":
             a = a.astype(np.float32)
         small[k] = a
-    np.savez_compressed(path, **small)
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **small)
+    write_output(path, buf.getvalue(), flag="predictions")
 
 
 def run_job(job: dict[str, Any]) -> dict[str, Any]:

@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError, KernelError
+from ..errors import InputError, KernelError, one_line
 from ..kernels import Kernel, load_kernel
 from ..validation import check_bool, check_instance, check_real
 
@@ -567,18 +567,21 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
 
 def _save_checkpoint(stem: Path, kernel: Kernel, network: Any, provenance: dict[str, Any]) -> dict[str, Path]:
     import torch
-    from safetensors.torch import save_file
+    from safetensors.torch import save
+
+    from ..paths import write_output
 
     stem.parent.mkdir(parents=True, exist_ok=True)
     base = stem.with_suffix("") if stem.suffix in (".json", ".safetensors") else stem
     tensors = {f"network.{k}": v.detach().contiguous() for k, v in network.state_dict().items()}
     tensors["kernel"] = torch.as_tensor(np.array(kernel.taps))
     ckpt = Path(str(base) + ".safetensors")
-    save_file(tensors, str(ckpt), metadata={"format": CHECKPOINT_FORMAT, "version": _CHECKPOINT_VERSION,
-                                            "provenance": json.dumps(provenance)})
+    write_output(ckpt, save(tensors, metadata={"format": CHECKPOINT_FORMAT, "version": _CHECKPOINT_VERSION,
+                                               "provenance": json.dumps(provenance)}), flag=str(ckpt))
     kpath = kernel.save(Path(str(base) + ".json"))
     ppath = Path(str(base) + ".provenance.json")
-    ppath.write_text(json.dumps({**provenance, "checkpoint": ckpt.name, "kernel_file": kpath.name}, indent=1) + "\n")
+    write_output(ppath, json.dumps({**provenance, "checkpoint": ckpt.name, "kernel_file": kpath.name}, indent=1) + "\n",
+                 flag=str(ppath))
     return {"kernel": kpath, "checkpoint": ckpt, "provenance": ppath}
 
 
@@ -686,7 +689,7 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
     finetune_lr = check_real("finetune_lr", finetune_lr, 0.0, 10.0)
     keep_predictions = check_bool("keep_predictions", keep_predictions)
     if events_fn is not None and not callable(events_fn):
-        raise InputError(f"events_fn={events_fn!r:.60}: not callable; allowed: a function "
+        raise InputError(f"events_fn={one_line(events_fn)}: not callable; allowed: a function "
                          "(video, kernel_taps, sensor, timestamps_s) -> event frames, or None")
     network, provenance = load_network(checkpoint, evaluator, who="evaluate_kernel")
     k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else _as_kernel(kernel)

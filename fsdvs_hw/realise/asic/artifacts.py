@@ -24,15 +24,16 @@
 
 from __future__ import annotations
 
-import csv
 import math
 import subprocess
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ...errors import InputError
+from ...paths import csv_text, write_output
 from ..artifacts import Artifact
 from .arith import integer_correlate, output_bits
 from .fit import AsicDesign
@@ -126,19 +127,19 @@ def write_asic_artifacts(design: AsicDesign, out_dir: str | Path, *,
     frames = asic_test_frames(design.input_bits, (h, w))
     expected = integer_correlate(frames, design.taps, input_bits=design.input_bits)
     ob = output_bits(design.taps, design.input_bits)
-    (out / "fsdvs_conv.v").write_text(design.verilog(image_width=w, image_height=h))
-    (out / "tb_fsdvs_conv.v").write_text(generate_selfcheck_testbench(
-        input_bits=design.input_bits, out_bits=ob, n_pixels=frames.size, n_outputs=expected.size))
+    write_output(out / "fsdvs_conv.v", design.verilog(image_width=w, image_height=h), flag="artifacts")
+    write_output(out / "tb_fsdvs_conv.v", generate_selfcheck_testbench(
+        input_bits=design.input_bits, out_bits=ob, n_pixels=frames.size, n_outputs=expected.size), flag="artifacts")
     digits_in, digits_out = max(1, math.ceil(design.input_bits / 4)), max(1, math.ceil(ob / 4))
-    (out / "stimulus.hex").write_text("\n".join(f"{int(v):0{digits_in}x}" for v in frames.ravel()) + "\n")
+    write_output(out / "stimulus.hex", "\n".join(f"{int(v):0{digits_in}x}" for v in frames.ravel()) + "\n",
+                 flag="artifacts")
     mask = (1 << ob) - 1
-    (out / "expected.hex").write_text("\n".join(f"{int(v) & mask:0{digits_out}x}" for v in expected.ravel()) + "\n")
-    with open(out / "taps.csv", "w", newline="") as fh:
-        wr = csv.writer(fh)
-        wr.writerow(["y_px", "x_px", "tap_int", "tap_times_scale_1"])
-        for y in range(k):
-            for x in range(k):
-                wr.writerow([y, x, int(design.taps[y, x]), repr(float(design.taps[y, x] * design.scale))])
+    write_output(out / "expected.hex", "\n".join(f"{int(v) & mask:0{digits_out}x}" for v in expected.ravel()) + "\n",
+                 flag="artifacts")
+    rows: list[list[Any]] = [["y_px", "x_px", "tap_int", "tap_times_scale_1"]]
+    rows += [[y, x, int(design.taps[y, x]), repr(float(design.taps[y, x] * design.scale))]
+             for y in range(k) for x in range(k)]
+    write_output(out / "taps.csv", csv_text(rows), flag="artifacts")
     frame = f"{h}x{w}"
     return (
         Artifact("verilog", out / "fsdvs_conv.v",

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import InputError, ToolMissingError
+from ...paths import csv_text, write_output
 from ..artifacts import Artifact
 from .fit import MeshDesign
 from .response import mesh_kcl_matrix
@@ -94,16 +95,15 @@ def write_mesh_artifacts(design: MeshDesign, out_dir: str | Path, *,
     h, n = op["half_width"], 2 * op["half_width"] + 1
     deck = to_spice_netlist(design, half_width=h, i_in_a=op["i_in_a"])
     deck = f"* run: {NGSPICE_COMMAND}   (then compare v(n*)/v(w*) in mesh.raw with operating_point.csv)\n" + deck
-    (out / "mesh.cir").write_text(deck)
-    with open(out / "operating_point.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(_COLUMNS)
-        for y in range(n):
-            for x in range(n):
-                vn, vw = op["v_narrow_v"][y, x], op["v_wide_v"][y, x]
-                w.writerow([y, x, f"n{y}_{x}", f"w{y}_{x}", repr(float(vn)), repr(float(vw)),
-                            repr(float(design.g_vertical_narrow_s * vn)), repr(float(design.g_vertical_wide_s * vw)),
-                            repr(float(op["kernel_taps"][y, x]))])
+    write_output(out / "mesh.cir", deck, flag="artifacts")
+    rows = [_COLUMNS]
+    for y in range(n):
+        for x in range(n):
+            vn, vw = op["v_narrow_v"][y, x], op["v_wide_v"][y, x]
+            rows.append([y, x, f"n{y}_{x}", f"w{y}_{x}", repr(float(vn)), repr(float(vw)),
+                         repr(float(design.g_vertical_narrow_s * vn)), repr(float(design.g_vertical_wide_s * vw)),
+                         repr(float(op["kernel_taps"][y, x]))])
+    write_output(out / "operating_point.csv", csv_text(rows), flag="artifacts")
     check = (f"{NGSPICE_COMMAND}; every v(n<y>_<x>), v(w<y>_<x>) in mesh.raw equals operating_point.csv within "
              f"1 part in {1 / OP_RTOL:,.0f} of the largest (fsdvs_hw.realise.mesh.artifacts.check_mesh_artifacts)")
     return (

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import InputError
+from ...paths import csv_text, figure_png, npz_bytes, write_output
 from ..artifacts import Artifact
 from ..spectral import SpectralSamples
 from .fit import LensGeometry, MetalensDesign, _phase0, _RadialKernelModel, local_numerical_aperture
@@ -89,26 +90,24 @@ def write_metalens_artifacts(design: MetalensDesign, out_dir: str | Path, *,
         "na_budget": budget, "unit_cell_max_m": float(lam.min() / (2 * local_na)),
         "pixel_pitch_m": design.target.pitch_m, "n_pixels": n_pix, "dispersion": g.dispersion,
     }
-    np.savez(out / "phase_profile.npz", radius_m=r, phase_rad=phase, wavelengths_m=lam,
-             wavelength_weights=np.asarray(spec.weights, dtype=float),
-             sensor_distance_m=np.asarray(design.sensor_distance_m, dtype=float),
-             coefficients=np.array([list(c) for c in design.coefficients], dtype=float), **scalars)
-    with open(out / "phase_profile.csv", "w", newline="") as fh:
-        fh.write("# fsdvs_hw metalens phase profile: phase_rad at the design wavelength (unwrapped), radius_m from "
-                 "the optical axis\n")
-        for key, val in scalars.items():
-            fh.write(f"# {key} = {val!r}\n")
-        fh.write(f"# sensor_distance_m = {[float(z) for z in design.sensor_distance_m]!r}\n")
-        fh.write(f"# wavelengths_m = {[float(v) for v in lam]!r}\n")
-        w = csv.writer(fh)
-        w.writerow(["lens", "radius_m", "phase_rad", "phase_wrapped_rad"])
-        for i in range(phase.shape[0]):
-            for rr, ph in zip(r, phase[i]):
-                w.writerow([i, repr(float(rr)), repr(float(ph)), repr(float(np.mod(ph, 2 * math.pi)))])
+    write_output(out / "phase_profile.npz", npz_bytes(
+        radius_m=r, phase_rad=phase, wavelengths_m=lam, wavelength_weights=np.asarray(spec.weights, dtype=float),
+        sensor_distance_m=np.asarray(design.sensor_distance_m, dtype=float),
+        coefficients=np.array([list(c) for c in design.coefficients], dtype=float), **scalars), flag="artifacts")
+    head = ["# fsdvs_hw metalens phase profile: phase_rad at the design wavelength (unwrapped), radius_m from "
+            "the optical axis"]
+    head += [f"# {key} = {val!r}" for key, val in scalars.items()]
+    head += [f"# sensor_distance_m = {[float(z) for z in design.sensor_distance_m]!r}",
+             f"# wavelengths_m = {[float(v) for v in lam]!r}"]
+    rows: list[list[Any]] = [["lens", "radius_m", "phase_rad", "phase_wrapped_rad"]]
+    rows += [[i, repr(float(rr)), repr(float(ph)), repr(float(np.mod(ph, 2 * math.pi)))]
+             for i in range(phase.shape[0]) for rr, ph in zip(r, phase[i])]
+    write_output(out / "phase_profile.csv", "\n".join(head) + "\n" + csv_text(rows), flag="artifacts")
     psf = np.stack([np.asarray(p, dtype=float) for p in design.psfs])
-    np.savez(out / "psf.npz", psf=psf, kernel=np.asarray(design.kernel().taps, dtype=float),
-             gains=np.asarray(design.gains, dtype=float), pedestal=float(design.pedestal),
-             guard_px=int(design.guard_px), pixel_pitch_m=design.target.pitch_m, strategy=design.strategy)
+    write_output(out / "psf.npz", npz_bytes(
+        psf=psf, kernel=np.asarray(design.kernel().taps, dtype=float), gains=np.asarray(design.gains, dtype=float),
+        pedestal=float(design.pedestal), guard_px=int(design.guard_px), pixel_pitch_m=design.target.pitch_m,
+        strategy=design.strategy), flag="artifacts")
     _plot(out / "phase_psf.png", r, phase, psf, design)
     n_lens = phase.shape[0]
     check = ("reload phase_profile.npz (or .csv), interpolate onto the propagator's pupil radii, propagate "
@@ -149,7 +148,7 @@ def _plot(path: Path, r: np.ndarray, phase: np.ndarray, psf: np.ndarray, design:
         axes[1 + i].set_xlabel("x (µm)")
         axes[1 + i].set_ylabel("y (µm)")
         fig.colorbar(im, ax=axes[1 + i], shrink=0.8)
-    fig.savefig(path, dpi=110)
+    write_output(path, figure_png(fig, dpi=110), flag="artifacts")
 
 
 def read_phase_profile_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
