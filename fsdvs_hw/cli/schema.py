@@ -20,18 +20,19 @@ DESCRIPTION = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=None, metavar="FILE",
-                        help="file to write (its folder must exist; default: stdout)")
+                        help="file to write (its folder is created; default: stdout)")
 
 
 def run(args: argparse.Namespace) -> int:
     import fsdvs_hw.realise  # noqa: F401  (registers the built-in realisations)
 
     from ..explore.design import design_json_schema
-    from ..paths import write_output
+    from ..paths import output_file, write_output
 
+    out = None if args.out is None else output_file(args.out, flag="--out")  # checked before any work
     text = json.dumps(design_json_schema(), indent=2, ensure_ascii=False) + "\n"
-    if args.out is None:
+    if out is None:
         sys.stdout.write(text)
     else:
-        print(f"[schema] {write_output(args.out, text)}", file=sys.stderr)
+        print(f"[schema] {write_output(out, text)}", file=sys.stderr)
     return 0
