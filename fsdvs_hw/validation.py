@@ -1,21 +1,14 @@
-"""Option schemas: an option's type, unit, allowed range, default and meaning, and the checks.
+"""Argument checks: fit functions against their option model, and the Python API's arguments.
 
-Every realisation declares its fit options as a mapping of :class:`Option` in its registry entry
-(:class:`fsdvs_hw.realise.registry.RealisationSpec`). The design loader
-(:mod:`fsdvs_hw.explore.design`) checks a ``[realisations.<name>]`` table against that schema, and
-the fit function checks its own arguments against the same schema at its first line
+Every realisation declares its fit options as a pydantic model (:mod:`fsdvs_hw.schema`) in its
+registry entry (:attr:`fsdvs_hw.realise.registry.RealisationSpec.options`). The design loader
+(:mod:`fsdvs_hw.explore.design`) checks a ``[realisations.<name>]`` table against that model, and
+the fit function checks its own arguments against the same model at its first line
 (:func:`check_fit_arguments`), so a value a design file refuses is refused by the Python call too,
 and the other way round, with the same words: the option, the value and what is allowed. Both
-check before any work starts (a bad value never costs a fit).
-
-Rules shared by every option: a boolean is never a number; numbers must be finite (NaN and ±inf
-are refused even where no range is given); an integer option refuses floats (``7.0`` is refused,
-so a typo never truncates silently); ``None`` is accepted only where the option says so.
-
-Options whose value is a structured object (``mesh.bounds``, ``asic.geometry``,
-``metalens.illuminant``/``response``) are typed here and range-checked by their own class or
-function (``Option.factory`` builds a table given in a design file before any fit), which raises
-the same :class:`~fsdvs_hw.errors.InputError`.
+check before any work starts (a bad value never costs a fit). The rules (no boolean as a number,
+finite numbers, no float for an integer, ``None`` only where allowed) are those of
+:class:`fsdvs_hw.schema.StrictModel`.
 
 The second half of the module holds the argument checks of the Python API
 (:func:`check_int`, :func:`check_real`, :func:`check_bool`, :func:`check_instance`,
@@ -25,148 +18,25 @@ is one :class:`~fsdvs_hw.errors.InputError` line (``name=value: why; allowed: ..
 traceback from inside torch or numpy (``tests/test_api_inputs.py``).
 
 ``tests/test_realisation_contract.py`` checks, for every registered realisation, that every
-parameter of its fit function is in its schema with the function's own default.
+parameter of its fit function is in its model with the function's own default.
 """
 
 from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel
 
 from .errors import InputError
 from .kernels import Kernel, check_tap_magnitude
+from .schema import validate
 
-__all__ = ["Option", "option", "PITCH_RANGE_M", "check_option", "check_options", "check_fit_arguments",
-           "check_int", "check_real", "check_bool", "check_instance", "check_increasing_times"]
-
-_KINDS = ("int", "float", "str", "bool", "object")
-
-
-@dataclass(frozen=True)
-class Option:
-    """Schema of one fit option.
-
-    Parameters
-    ----------
-    kinds : tuple of str
-        Allowed kinds, any of ``"int"``, ``"float"`` (ints accepted), ``"str"``, ``"bool"``,
-        ``"object"`` (checked by the fit function's own class). Numbers are range-checked.
-    default : Any
-        The fit function's default.
-    unit : str
-        Physical unit of a number (``"m"``, ``"S"``, ``"F"``, ``"px"``, ``"bit"``; ``""`` =
-        dimensionless).
-    doc : str
-        A few words of meaning.
-    lo, hi : float, optional
-        Allowed numeric range (inclusive unless ``lo_open`` / ``hi_open``).
-    choices : tuple of str, optional
-        Allowed strings.
-    nullable : bool
-        ``None`` allowed (means "the function's automatic choice").
-    odd : bool
-        Integer must be odd.
-    factory : callable, optional
-        For an ``"object"`` option: builds the object from a table (``factory(**table)``), so a
-        design file's table is checked by the class before any work starts.
-    """
-
-    kinds: tuple[str, ...]
-    default: Any
-    unit: str
-    doc: str
-    lo: float | None = None
-    hi: float | None = None
-    lo_open: bool = False
-    hi_open: bool = False
-    choices: tuple[str, ...] | None = None
-    nullable: bool = False
-    odd: bool = False
-    factory: Callable[..., Any] | None = None
-
-    def __post_init__(self) -> None:
-        unknown = set(self.kinds) - set(_KINDS)
-        if unknown:  # pragma: no cover - programming error in the table below
-            raise ValueError(f"Option kinds {unknown} unknown")
-
-    def allowed(self) -> str:
-        """Human-readable description of what is allowed."""
-        parts: list[str] = []
-        if "int" in self.kinds or "float" in self.kinds:
-            word = "integer" if "float" not in self.kinds else "number"
-            rng = ""
-            if self.lo is not None or self.hi is not None:
-                lo = "-inf" if self.lo is None else f"{self.lo:g}"
-                hi = "inf" if self.hi is None else f"{self.hi:g}"
-                rng = f" in {'(' if self.lo_open else '['}{lo}, {hi}{')' if self.hi_open else ']'}"
-            unit = f" {self.unit}" if self.unit else ""
-            parts.append(f"{'an odd ' if self.odd else 'a finite '}{word}{rng}{unit}")
-        if "str" in self.kinds:
-            parts.append("one of " + ", ".join(repr(c) for c in self.choices) if self.choices else "a string")
-        if "bool" in self.kinds:
-            parts.append("a boolean (true or false)")
-        if "object" in self.kinds:
-            parts.append("a table / object of the documented fields")
-        if self.nullable:
-            parts.append("None (automatic)")
-        return " or ".join(parts) + f" ({self.doc})"
-
-    def check(self, value: Any, *, name: str) -> Any:
-        """Return ``value`` (numbers normalised: int or float) or raise :class:`InputError`.
-
-        The message names ``name``, the value and :meth:`allowed`.
-        """
-        why = self.problem(value)
-        if why is not None:
-            raise InputError(f"{name}={_show(value)}: {why}")
-        if isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_)):
-            return int(value) if "int" in self.kinds else float(value)
-        if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
-            return float(value)
-        if isinstance(value, np.bool_):
-            return bool(value)
-        return value
-
-    def problem(self, value: Any) -> str | None:
-        """What is wrong with ``value`` (``"<why>; allowed: <what>"``), or None when it is allowed."""
-        why = self._why(value)
-        return None if why is None else f"{why}; allowed: {self.allowed()}"
-
-    def _why(self, value: Any) -> str | None:
-        if value is None:
-            return None if self.nullable else "None is not allowed"
-        if isinstance(value, (bool, np.bool_)):
-            return None if "bool" in self.kinds else "wrong type boolean"
-        if isinstance(value, numbers.Integral) and ("int" in self.kinds or "float" in self.kinds):
-            return self._range(float(value)) if abs(int(value)) < 2**63 else "out of range"
-        if isinstance(value, numbers.Real) and "float" in self.kinds:
-            v = float(value)
-            return "not a finite number" if not math.isfinite(v) else self._range(v)
-        if isinstance(value, str) and "str" in self.kinds:
-            if self.choices is not None and value not in self.choices:
-                return "not one of the allowed words"
-            return None
-        if "object" in self.kinds and not isinstance(value, (str, numbers.Number)):
-            return None
-        return f"wrong type {_TYPE_WORDS.get(type(value).__name__, type(value).__name__)}"
-
-    def _range(self, v: float) -> str | None:
-        if self.lo is not None and (v <= self.lo if self.lo_open else v < self.lo):
-            return "out of range"
-        if self.hi is not None and (v >= self.hi if self.hi_open else v > self.hi):
-            return "out of range"
-        if self.odd and int(v) % 2 == 0:
-            return "must be odd"
-        return None
-
-
-_TYPE_WORDS = {"str": "string", "float": "number", "int": "integer", "bool": "boolean", "dict": "table",
-               "list": "list"}
+__all__ = ["PITCH_RANGE_M", "check_fit_arguments", "check_int", "check_real", "check_bool", "check_instance",
+           "check_increasing_times"]
 
 
 def _show(value: Any) -> str:
@@ -178,59 +48,16 @@ def _show(value: Any) -> str:
 PITCH_RANGE_M: tuple[float, float] = (1e-7, 1e-3)
 
 
-def option(kinds: str, default: Any, unit: str, doc: str, **kw: Any) -> Option:
-    """Shorthand for :class:`Option`: ``option("int|str", 24, "", "samples, or 'auto'", lo=1, choices=("auto",))``."""
-    return Option(tuple(kinds.split("|")), default, unit, doc, **kw)
+def check_fit_arguments(options: type[BaseModel], arguments: Mapping[str, Any]) -> None:
+    """Check a fit function's arguments at its first line (``check_fit_arguments(AsicOptions, locals())``).
 
-
-def check_option(options: Mapping[str, Option], name: str, value: Any, *, prefix: str = "",
-                 owner: str = "the fit function") -> Any:
-    """Check one option against a schema; return the normalised value.
-
-    Parameters
-    ----------
-    options : mapping of str to Option
-        The schema (a realisation's :attr:`~fsdvs_hw.realise.registry.RealisationSpec.options`).
-    name : str
-        Option (keyword) name.
-    value : Any
-    prefix : str
-        Prepended to the option name in messages (``"realisations.asic."`` for design keys).
-    owner : str
-        What the options belong to, for the unknown-option message (``"fit_asic_taps"``).
-
-    Raises
-    ------
-    InputError
-        Unknown option, wrong type, out of range; the message names ``prefix + name``, the value
-        and what is allowed.
-    """
-    if name not in options:
-        raise InputError(f"{prefix}{name}: unknown option of {owner}; allowed: {', '.join(sorted(options))}")
-    return options[name].check(value, name=prefix + name)
-
-
-def check_options(options: Mapping[str, Option], values: Mapping[str, Any], *, prefix: str = "",
-                  owner: str = "the fit function") -> dict[str, Any]:
-    """Check a mapping of options (e.g. a ``[realisations.asic]`` table); return them normalised.
-
-    Raises :class:`InputError` for the first bad option (see :func:`check_option`).
-    """
-    if not isinstance(values, Mapping):
-        raise InputError(f"{prefix.rstrip('.') or owner}: options must be a table, got {type(values).__name__}")
-    return {k: check_option(options, k, v, prefix=prefix, owner=owner) for k, v in values.items()}
-
-
-def check_fit_arguments(options: Mapping[str, Option], arguments: Mapping[str, Any]) -> None:
-    """Check a fit function's arguments at its first line (``check_fit_arguments(OPTIONS, locals())``).
-
-    Every argument listed in ``options`` is checked, and the target kernel's largest tap must lie
-    in :data:`fsdvs_hw.kernels.TAP_MAGNITUDE_RANGE` (design files check the same); other names
+    Every argument that is a field of the model ``options`` is validated against it (all problems
+    in one :class:`~fsdvs_hw.errors.InputError`, each naming the argument, the value and what is
+    allowed), and the target kernel's largest tap must lie in
+    :data:`fsdvs_hw.kernels.TAP_MAGNITUDE_RANGE` (design files check the same); other names
     (arguments added later) are left to the function.
     """
-    for name, opt in options.items():
-        if name in arguments:
-            opt.check(arguments[name], name=name)
+    validate(options, {name: arguments[name] for name in options.model_fields if name in arguments})
     kernel = arguments.get("kernel")
     if isinstance(kernel, Kernel):
         check_tap_magnitude(kernel, source=f"kernel '{kernel.name}'")

@@ -184,6 +184,7 @@ _BAD_VALUES = {
     "ablation": ["ablation", "--sizes", "4"],
     "explore": ["explore", "no/such/design.toml"],
     "report": ["report", "designs/default.toml", "--out", "no/such/run_dir"],
+    "schema": ["schema", "--out", "designs"],
     "sweep": ["sweep", "no/such/design.toml"],
     "simulate": ["simulate", "example:bikes", "--out", "events.txt"],
     "sizing": ["sizing", "designs/default.toml", "--target", "-1"],

@@ -295,7 +295,7 @@ def test_check_count_names_the_range():
 
 
 # ---------------------------------------------------------------------- fuzz
-_SCHEMA = design_mod._schema()
+_SCHEMA = {s: list(info.annotation.model_fields) for s, info in design_mod.design_model().model_fields.items()}
 _GARBAGE = st.one_of(st.none(), st.booleans(), st.integers(-2**70, 2**70), st.floats(allow_nan=True),
                      st.text(max_size=12), st.lists(st.integers(-5, 5000), max_size=3),
                      st.dictionaries(st.text(max_size=6), st.integers(-3, 3), max_size=2))

@@ -23,15 +23,16 @@ hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
+from _schema_view import FieldView, view  # noqa: E402
 from fsdvs_hw.errors import InputError  # noqa: E402
 from fsdvs_hw.explore import design as design_mod  # noqa: E402
 from fsdvs_hw.explore.design import parse_design  # noqa: E402
 from fsdvs_hw.paths import confined_path, safe_name  # noqa: E402
 from fsdvs_hw.realise.registry import REALISATIONS, realisation_names  # noqa: E402
-from fsdvs_hw.validation import Option  # noqa: E402
 
-#: hardware realisation → its registered option schema
-FIT_OPTIONS = {n: dict(REALISATIONS[n].options) for n in realisation_names("hardware")}
+#: hardware realisation → option → its view (kinds, bounds, choices from the model's JSON Schema)
+FIT_OPTIONS = {n: {k: view(REALISATIONS[n].options, k) for k in REALISATIONS[n].options.model_fields}
+               for n in realisation_names("hardware")}
 
 FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                                         HealthCheck.function_scoped_fixture])
@@ -85,7 +86,7 @@ def _wrong_types(accepts_int, accepts_float, accepts_str, accepts_bool, accepts_
     return st.one_of(cands)
 
 
-def _bad_for_option(opt: Option, *, in_design: bool):
+def _bad_for_option(opt: FieldView, *, in_design: bool):
     k = set(opt.kinds)
     numeric = bool(k & {"int", "float"})
     cands = [_wrong_types("int" in k, "float" in k, "str" in k, "bool" in k, opt.nullable or in_design,
@@ -115,34 +116,38 @@ def bad_design_option(draw):
     return name, key, draw(_bad_for_option(FIT_OPTIONS[name][key], in_design=True))
 
 
-def _bad_for_field(f):
-    types = set(f.types)
+def _bad_for_field(f: FieldView):
+    types = set(f.kinds)
     cands = []
-    accepts_int = int in types
-    accepts_float = float in types
-    cands.append(_wrong_types(accepts_int, accepts_float, str in types, bool in types, True,
-                              accepts_list=list in types, accepts_dict=dict in types))
-    if (accepts_int or accepts_float) and f.item_types is None:
-        cands.append(_out_of_range_numbers(f.lo, f.hi, f.lo_open, False, not accepts_float))
-    if str in types and f.choices is not None:
+    accepts_int = "int" in types
+    accepts_float = "float" in types
+    cands.append(_wrong_types(accepts_int, accepts_float, "str" in types, "bool" in types, True,
+                              accepts_list="list" in types, accepts_dict="dict" in types))
+    if accepts_int or accepts_float:
+        cands.append(_out_of_range_numbers(f.lo, f.hi, f.lo_open, f.hi_open, not accepts_float))
+    if "str" in types and f.choices is not None:
         cands.append(st.text(max_size=10).filter(lambda s: s not in f.choices))
-    if f.item_types is not None:
+    if f.item is not None:
         if f.length is not None:
             cands.append(st.lists(st.integers(16, 64), min_size=0, max_size=4).filter(lambda v: len(v) != f.length))
-        if f.choices is not None:
-            cands.append(st.lists(st.text(max_size=6).filter(lambda s: s not in f.choices), min_size=1, max_size=2))
-        if f.lo is not None:
-            cands.append(st.integers(-1000, int(f.lo) - 1).map(lambda v: [v] * (f.length or 1)))
+        if f.item.choices is not None:
+            cands.append(st.lists(st.text(max_size=6).filter(lambda s: s not in f.item.choices), min_size=1,
+                                  max_size=2))
+        if f.item.lo is not None:
+            cands.append(st.integers(-1000, int(f.item.lo) - 1).map(lambda v: [v] * (f.length or 1)))
     return st.one_of(cands)
 
 
-DESIGN_KEYS = sorted((s, k) for s, fields in design_mod._schema().items() for k in fields)
+#: section → its model (the design file's model, built from the registry)
+SECTIONS = {s: info.annotation for s, info in design_mod.design_model().model_fields.items()}
+DESIGN_KEYS = sorted((s, k) for s, model in SECTIONS.items() for k in model.model_fields
+                     if not (s == "realisations" and k in FIT_OPTIONS))
 
 
 @st.composite
 def bad_design_field(draw):
     section, key = draw(st.sampled_from(DESIGN_KEYS))
-    return section, key, draw(_bad_for_field(design_mod._schema()[section][key]))
+    return section, key, draw(_bad_for_field(view(SECTIONS[section], key)))
 
 
 # ---------------------------------------------------------------------- properties
@@ -186,7 +191,7 @@ def test_every_bad_fit_argument_is_an_input_error_naming_it_before_any_work(case
     target = reference_kernel("dog", 5)
     with pytest.raises(InputError) as info:
         _fit(name)(target, **{key: value})
-    assert str(info.value).startswith(f"{key}=") or f"{key}:" in str(info.value) or key in str(info.value)
+    assert str(info.value).startswith(f"key '{key}' = ")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -203,7 +208,7 @@ def test_design_check_and_fit_function_agree_on_every_value(name_key, value):
         design_ok = False
     with pytest.raises(InputError) as info:
         _fit(name)(None, **{key: value})  # None is never a kernel: a good option stops there
-    fit_ok = not str(info.value).startswith(f"{key}=")
+    fit_ok = not str(info.value).startswith(f"key '{key}' = ")
     if isinstance(value, dict):  # a Python object is fine in a call, never in a design file
         assert not design_ok
         return

@@ -19,8 +19,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "fsdvs_hw"
 LAYERS: tuple[str, ...] = ("core", "models", "tasks", "report", "explore", "cli")
 
 #: Top-level modules of the core layer (kernels, spectra, CSF, statistics and their helpers).
-_CORE = {"errors", "paths", "resources", "validation", "limits", "kernels", "spectra", "csf", "stats", "workers", "plots",
-         "analysis", "_lazy", "progress", "provenance"}
+_CORE = {"errors", "paths", "resources", "validation", "schema", "limits", "kernels", "spectra", "csf", "stats", "workers",
+         "plots", "analysis", "_lazy", "progress", "provenance"}
 _MODELS = {"sensor", "scenes", "realise", "records"}
 
 #: Import cycles known and owned elsewhere (none: sensor/events.py no longer imports sensor/plan.py).

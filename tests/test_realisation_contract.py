@@ -33,6 +33,7 @@ import pytest
 from fsdvs_hw.kernels import Kernel, reference_kernel
 from fsdvs_hw.records import Score
 from fsdvs_hw.realise import registry
+from _schema_view import view
 from fsdvs_hw.realise.registry import (
     COST_UNITS,
     get_realisation,
@@ -85,6 +86,11 @@ def _fitted(name, target):
     return _FITTED[name]
 
 
+def _views(spec):
+    """Option → its :class:`FieldView` (kinds, bounds, choices from the model's JSON Schema)."""
+    return {key: view(spec.options, key) for key in spec.options.model_fields}
+
+
 def _non_default(opt, default):
     """A valid value different from the default (None when no generic rule finds one)."""
     kinds = set(opt.kinds)
@@ -110,14 +116,14 @@ def _non_default(opt, default):
                 v = int(v)
             cands.append(v)
     for v in cands:
-        if v != default and opt.problem(v) is None:
+        if v != default and opt.ok(v):
             return v
     return None
 
 
 def _option_values(name):
     spec = get_realisation(name)
-    for key, opt in spec.options.items():
+    for key, opt in _views(spec).items():
         value = SAMPLES.get((name, key), _non_default(opt, opt.default))
         if value is not None:
             yield key, value
@@ -141,11 +147,11 @@ def test_spec_is_complete_and_the_fit_signature_matches_the_schema(name):
     spec = get_realisation(name)
     params = list(inspect.signature(spec.fit).parameters.values())
     declared = {p.name: p.default for p in params[1:]}
-    assert set(declared) == set(spec.options), "fit signature and option schema differ"
+    assert set(declared) == set(spec.options.model_fields), "fit signature and option schema differ"
     for key, default in declared.items():
-        opt = spec.options[key]
+        opt = view(spec.options, key)
         assert opt.default == default, key
-        assert opt.problem(default) is None, f"{key}: the default itself is refused"
+        assert opt.ok(default), f"{key}: the default itself is refused"
         assert opt.doc, f"{key}: no help text"
         if set(opt.kinds) & {"int", "float"} and opt.unit not in ("", "m", "S", "F", "px", "bit", "s"):
             pytest.fail(f"{key}: unit {opt.unit!r} is not one the package uses")
@@ -154,7 +160,7 @@ def test_spec_is_complete_and_the_fit_signature_matches_the_schema(name):
         assert any(c.headline for c in spec.costs), "a hardware realisation needs a headline cost"
         assert spec.colour
     else:
-        assert not spec.costs and not spec.options
+        assert not spec.costs and not spec.options.model_fields
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -211,7 +217,7 @@ def test_every_option_reaches_the_fit_function_from_a_design_file(name, monkeypa
     monkeypatch.setitem(registry._REGISTRY, name, dataclasses.replace(spec, fit=_spy(calls)))
     tried = 0
     for key, value in _option_values(name):
-        if set(spec.options[key].kinds) == {"object"} and spec.options[key].factory is None:
+        if view(spec.options, key).kinds == {"object"} and not view(spec.options, key).table:
             continue  # a Python object: cannot come from a design file (the next test passes it)
         d = parse_design({"realisations": {"include": [name], name: {key: value}}}, source="contract")
         [point] = expand_points(d)
@@ -219,7 +225,7 @@ def test_every_option_reaches_the_fit_function_from_a_design_file(name, monkeypa
         assert res["status"] == "error" and "options recorded" in res["result"]["reason"], res
         assert calls[-1][key] == value, f"{name}.{key}: set {value!r}, the fit got {calls[-1].get(key)!r}"
         tried += 1
-    assert tried >= min(1, len(spec.options))
+    assert tried >= min(1, len(spec.options.model_fields))
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -229,14 +235,14 @@ def test_every_option_reaches_the_fit_function_from_python(name, target, monkeyp
     spec = get_realisation(name)
     calls: list[dict] = []
     monkeypatch.setitem(registry._REGISTRY, name, dataclasses.replace(spec, fit=_spy(calls)))
-    for key, opt in spec.options.items():
-        value = object() if set(opt.kinds) == {"object"} else SAMPLES.get((name, key), _non_default(opt, opt.default))
+    for key, opt in _views(spec).items():
+        value = object() if opt.kinds == {"object"} else SAMPLES.get((name, key), _non_default(opt, opt.default))
         if value is None:
             continue
         with pytest.raises(_Landed):
             fit_realisation(name, target, {key: value})
         assert calls[-1][key] is value or calls[-1][key] == value, key
-        if "pitch_m" in spec.options and key != "pitch_m":
+        if "pitch_m" in spec.options.model_fields and key != "pitch_m":
             assert calls[-1]["pitch_m"] == PITCH_M  # the target's pitch is passed unless set
 
 

@@ -14,6 +14,7 @@ import pytest
 from fsdvs_hw.errors import InputError, KernelError
 from fsdvs_hw.explore.design import DesignError, parse_design
 from fsdvs_hw.kernels import Kernel, load_kernel, reference_kernel
+from fsdvs_hw.schema import field_schema, members
 
 # (realisation, option, bad value): the examples and NaN sizes
 BAD_OPTIONS = [
@@ -81,8 +82,9 @@ def test_good_options_pass_and_are_normalised():
 def test_asic_bit_limits_match_the_arithmetic_module():
     from fsdvs_hw.realise.asic.arith import MAX_TAP_BITS
 
-    assert _options("asic")["bits"].hi == MAX_TAP_BITS
-    assert _options("asic")["bits"].lo == 2
+    bits = field_schema(_options("asic"), "bits")
+    assert bits["maximum"] == MAX_TAP_BITS
+    assert bits["minimum"] == 2
 
 
 def test_fit_metalens_does_not_ignore_a_nan_pitch():
@@ -217,12 +219,14 @@ def test_choices_in_the_table_are_the_fit_modules_own_registries():
     from fsdvs_hw.realise.asic.arith import SYMMETRIES
     from fsdvs_hw.realise.mesh import MESH_MODELS
     from fsdvs_hw.realise.metalens import DISPERSION_MODELS, STRATEGIES
-    FIT_OPTIONS = {n: _options(n) for n in FIT_FUNCTIONS}
 
-    assert FIT_OPTIONS["asic"]["csf_method"].choices == tuple(CSF_METHODS)
-    assert FIT_OPTIONS["asic"]["objective"].choices == tuple(OBJECTIVES)
-    assert FIT_OPTIONS["asic"]["scale"].choices == tuple(SCALE_MODES)
-    assert set(FIT_OPTIONS["asic"]["symmetry"].choices) == {"auto", *SYMMETRIES}
-    assert FIT_OPTIONS["mesh"]["model"].choices == tuple(MESH_MODELS)
-    assert FIT_OPTIONS["metalens"]["strategy"].choices == tuple(STRATEGIES)
-    assert FIT_OPTIONS["metalens"]["dispersion"].choices == tuple(DISPERSION_MODELS)
+    def choices(name, key):  # the allowed words in the model's JSON Schema
+        return tuple(c for m in members(field_schema(_options(name), key)) for c in m.get("enum", ()))
+
+    assert choices("asic", "csf_method") == tuple(CSF_METHODS)
+    assert choices("asic", "objective") == tuple(OBJECTIVES)
+    assert choices("asic", "scale") == tuple(SCALE_MODES)
+    assert set(choices("asic", "symmetry")) == {"auto", *SYMMETRIES}
+    assert choices("mesh", "model") == tuple(MESH_MODELS)
+    assert choices("metalens", "strategy") == tuple(STRATEGIES)
+    assert choices("metalens", "dispersion") == tuple(DISPERSION_MODELS)

@@ -34,6 +34,7 @@ COMMANDS: dict[str, str] = {
     "ablation": "fsdvs_hw.cli.ablation",
     "explore": "fsdvs_hw.cli.explore",
     "report": "fsdvs_hw.cli.report",
+    "schema": "fsdvs_hw.cli.schema",
     "sweep": "fsdvs_hw.cli.sweep",
     "simulate": "fsdvs_hw.cli.simulate",
     "sizing": "fsdvs_hw.cli.sizing",

@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     if args.from_run is None and args.pilot < 2:
         raise InputError(f"--pilot {args.pilot!r}: must be >= 2 test clips")
     design = load_design(resolve_design(args.design))
-    target = design.data["scoring"]["target_half_width"] if args.target is None else args.target
+    target = design.spec.scoring.target_half_width if args.target is None else args.target
     if args.from_run is not None:
         store_path = args.from_run / "results.sqlite"
         if not store_path.is_file():

@@ -69,11 +69,11 @@ _LABELS = {"swap": "fit then swap", "finetune": "fit then fine-tune the network"
 
 def codesign_cells(design: Design) -> list[tuple[str, str]]:
     """The (realisation, task) cells of a design's ``[codesign]`` table, in run order."""
-    cd = design.data["codesign"]
-    tasks = cd["tasks"] or list(design.data["tasks"]["checkpoints"])
-    if cd["cells"]:
-        return [tuple(c.split("/", 1)) for c in cd["cells"]]  # type: ignore[misc]
-    return [(r, t) for r in cd["realisations"] for t in tasks]
+    cd = design.spec.codesign
+    tasks = cd.tasks or list(design.spec.tasks.checkpoints)
+    if cd.cells:
+        return [tuple(c.split("/", 1)) for c in cd.cells]  # type: ignore[misc]
+    return [(r, t) for r in cd.realisations for t in tasks]
 
 
 def _key(blob: Mapping[str, Any]) -> str:
@@ -87,7 +87,7 @@ def _save_atomic(path: Path, record: Mapping[str, Any]) -> None:
 
 
 def _n_test(design: Design, task: str) -> int | None:
-    n = design.data["tasks"]["n_test"]
+    n = design.spec.tasks.n_test
     n = n.get(task, 0) if isinstance(n, Mapping) else n
     return int(n) or None
 
@@ -117,8 +117,8 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) 
     from .codesign_pilot import csf_drift
     from .paired import clip_evidence, encode_evidence
 
-    cd = design.data["codesign"]
-    if not cd["enabled"]:
+    cd = design.spec.codesign
+    if not cd.enabled:
         raise InputError(f"{design.source}: [codesign] enabled = false; nothing to run")
     cells = codesign_cells(design)
     for real, _ in cells:
@@ -131,9 +131,9 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) 
         torch.set_num_threads(int(os.environ["FSDVS_CODESIGN_THREADS"]))
     ckpts = design.checkpoints()
     target = design.target
-    per_net = design.data["tasks"]["test_clips"] == "per_network"
-    seed = design.data["run"]["seed"]
-    train = {k: cd[k] for k in ("epochs", "n_train", "lr_network", "lr_filter")}
+    per_net = design.spec.tasks.test_clips == "per_network"
+    seed = design.spec.run.seed
+    train = {k: getattr(cd, k) for k in ("epochs", "n_train", "lr_network", "lr_filter")}
     fits: dict[str, Any] = {}
     units: list[dict[str, Any]] = []
     t_run = time.perf_counter()
@@ -148,7 +148,7 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) 
                  "network_size": ck.stat().st_size, "n_test": _n_test(design, task), "clip_set": s if per_net else 0,
                  "seed_offset": s, "mode": mode, "realisation": real, "format": CODESIGN_FORMAT}
         if real is not None:
-            ident.update(options=design.data["realisations"].get(real, {}), run_seed=seed)
+            ident.update(options=design.realisation_options(real), run_seed=seed)
         if mode in ("finetune", "codesign"):
             ident.update(train)
         key = _key(ident)
@@ -177,14 +177,14 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) 
 
     def fitted(real: str) -> Any:
         if real not in fits:
-            fits[real] = fit_realisation(real, target, design.data["realisations"].get(real, {}), seed=seed)
+            fits[real] = fit_realisation(real, target, design.realisation_options(real), seed=seed)
         return fits[real]
 
     for real, task in cells:
-        for s in range(cd["seeds"]):
+        for s in range(cd.seeds):
             ck = ckpts[task][s]
             unit("reference", task, s, None, "reference", lambda key, ck=ck: ({}, target, ck))
-            for mode in [m for m in CODESIGN_MODES if m in cd["modes"]]:
+            for mode in [m for m in CODESIGN_MODES if m in cd.modes]:
                 def work(key: str, real: str = real, mode: str = mode, ck: Path = ck, task: str = task) -> Any:
                     rec = fitted(real)
                     info = {"kernel_error_fit": realised_kernel_error(rec, target),
@@ -193,9 +193,9 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) 
                         return info, rec.kernel(), ck
                     stem = root / "networks" / f"{real}_{task}_s{ck.stem.rsplit('_s', 1)[-1]}_{mode}_{key}"
                     res = finetune_network(ck, task, kernel=rec.kernel() if mode == "finetune" else None,
-                                           realisation=rec if mode == "codesign" else None, epochs=cd["epochs"],
-                                           n_train=cd["n_train"] or None, lr_network=cd["lr_network"],
-                                           lr_filter=cd["lr_filter"], out=stem)
+                                           realisation=rec if mode == "codesign" else None, epochs=cd.epochs,
+                                           n_train=cd.n_train or None, lr_network=cd.lr_network,
+                                           lr_filter=cd.lr_filter, out=stem)
                     info["train_s"] = res.provenance["finetune"]["seconds"]
                     info["train_loss_last"] = res.history[-1]["loss"] if res.history else None
                     if mode == "codesign":
@@ -209,9 +209,9 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) 
                     return info, res.kernel, res.paths["checkpoint"]
 
                 unit("row", task, s, real, mode, work)
-    sc = design.data["scoring"]
-    summary = summarise_codesign(units, n_resamples=sc["n_resamples"], confidence=sc["confidence"], rng=seed)
-    summary["settings"] = {**cd, "test_clips": design.data["tasks"]["test_clips"],
+    sc = design.spec.scoring
+    summary = summarise_codesign(units, n_resamples=sc.n_resamples, confidence=sc.confidence, rng=seed)
+    summary["settings"] = {**design.section("codesign"), "test_clips": design.spec.tasks.test_clips,
                            "n_test": {t: _n_test(design, t) for _, t in cells}}
     summary["design"] = design.name
     summary["wall_s"] = time.perf_counter() - t_run  # this call (a resumed run reuses finished units)

@@ -56,9 +56,12 @@ import math
 import re
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from dataclasses import field as dc_field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal, Optional
+
+from pydantic import Field, ValidationError, create_model
 
 from ..csf import CSF_METHODS
 from ..errors import InputError, KernelError
@@ -74,6 +77,7 @@ from ..kernels import (
 from ..limits import MAX_WORKERS
 from ..paths import confined_path, safe_name
 from ..realise.registry import get_realisation, realisation_names
+from ..schema import DESIGN_CONTEXT, StrictModel, field, field_schema, members, problems, short
 
 __all__ = [
     "Design",
@@ -95,54 +99,8 @@ class DesignError(InputError):
 #: CSF models scored when a design names none (Mannos–Sakrison first: the paper's reference).
 CSF_DEFAULT_METHODS: tuple[str, ...] = ("mannos_sakrison_1974", "barten_1999", "daly_1993", "watson_ahumada_2005")
 
-_NUMBER = (int, float)
-
 #: Largest design file read (bytes).
 MAX_DESIGN_FILE_BYTES = 1 * 2**20
-
-
-@dataclass(frozen=True)
-class _Field:
-    """Schema of one key: allowed types, default, range/choices, and a few words of meaning."""
-
-    types: tuple[type, ...]
-    default: Any
-    doc: str
-    lo: float | None = None
-    hi: float | None = None
-    choices: tuple[Any, ...] | None = None
-    item_types: tuple[type, ...] | None = None  # for lists
-    length: int | None = None  # for lists
-    odd: bool = False
-    lo_open: bool = False  # lo is exclusive
-
-    def allowed(self) -> str:
-        parts: list[str] = []
-        tname = " or ".join(_type_name(t) for t in self.types if not (t is int and float in self.types))
-        if self.item_types is not None:
-            inner = " or ".join(_type_name(t) for t in self.item_types)
-            tname = f"a list of {self.length or ''} {inner}".replace("  ", " ")
-        parts.append(tname)
-        if self.choices is not None:
-            parts.append("one of " + ", ".join(repr(c) for c in self.choices))
-        if self.lo is not None or self.hi is not None:
-            lo = "-inf" if self.lo is None else f"{self.lo:g}"
-            hi = "inf" if self.hi is None else f"{self.hi:g}"
-            parts.append(f"in {'(' if self.lo_open else '['}{lo}, {hi}]")
-        if self.odd:
-            parts.append("odd")
-        return ", ".join(parts) + f" ({self.doc})"
-
-
-def _type_name(t: type) -> str:
-    return {int: "integer", float: "number", str: "string", bool: "boolean", dict: "table", list: "list"}.get(
-        t, t.__name__
-    )
-
-
-def _f(types: Any, default: Any, doc: str, **kw: Any) -> _Field:
-    return _Field(types if isinstance(types, tuple) else (types,), default, doc, **kw)
-
 
 _PLACEMENTS = ("pre_log", "post_log")
 _POSITIVITY = ("floor", "pedestal", "differential")
@@ -150,114 +108,199 @@ _TRACKS = ("simulator", "emulation")
 #: The ``[codesign]`` rows: fit then swap (zero-shot), fit then fine-tune the network, co-designed.
 CODESIGN_MODES = ("swap", "finetune", "codesign")
 
-#: The schema: section → key → field. ``[realisations.<name>]`` tables are handled separately.
-_SCHEMA: dict[str, dict[str, _Field]] = {
-    "design": {
-        "name": _f(str, None, "short name used in reports"),
-        "description": _f(str, "", "free text"),
-    },
-    "kernel": {
-        "source": _f(str, "reference", "where the target kernel comes from", choices=("file", "reference")),
-        "path": _f(str, None, "kernel file, relative to the design file (.json .npy .csv .pt)"),
-        "family": _f(str, "dog", "reference family", choices=tuple(REFERENCE_KERNELS)),
-        "size": _f(int, 7, "kernel side in pixels", lo=1, hi=MAX_KERNEL_SIZE, odd=True),
-        "params": _f(dict, {}, "reference family parameters, e.g. sigma_centre_px = 0.7"),
-    },
-    "sensor": {
-        "pitch_m": _f(_NUMBER, DEFAULT_PITCH_M, "pixel pitch in metres", lo=1e-7, hi=1e-3),
-        "resolution": _f(list, [48, 64], "simulated sensor size [H, W] in pixels", item_types=(int,), length=2,
-                         lo=8, hi=4096),
-        "threshold_on": _f(_NUMBER, 0.2, "ON contrast threshold (log units)", lo=1e-4, hi=10.0),
-        "threshold_off": _f(_NUMBER, 0.2, "OFF contrast threshold (log units)", lo=1e-4, hi=10.0),
-        "threshold_sigma": _f(_NUMBER, 0.03, "per-pixel threshold mismatch σ (log units)", lo=0.0, hi=1.0),
-        "placement": _f(str, "pre_log", "where the kernel sits relative to the log stage", choices=_PLACEMENTS),
-        "positivity": _f(str, "pedestal", "how negative filtered intensities are handled", choices=_POSITIVITY),
-    },
-    "optics": {
-        "focal_length_m": _f(_NUMBER, 4.0e-3, "imaging focal length in metres (sets pixels/degree)",
-                             lo=1e-4, hi=1.0),
-    },
-    "analysis": {
-        "csf_methods": _f(list, list(CSF_DEFAULT_METHODS), "CSF models to compare against", item_types=(str,)),
-    },
-    "realisations": {},  # filled from the registry when a design is parsed (_schema)
-    "tasks": {
-        "checkpoints": _f(dict, {}, "task name → trained checkpoint, or a list of checkpoints (one network per "
-                                    "training seed), .safetensors relative to the design file; a glob pattern "
-                                    "('networks/det_s*.safetensors') lists every match in natural order; {} = no "
-                                    "task evaluation"),
-        "n_test": _f((int, dict), 0, "test clips per network and evaluation: one number for every task or a table "
-                                     "task → clips; 0 = the checkpoint's own test-set size", lo=0, hi=100000),
-        "test_clips": _f(str, "per_network", "which clips a task's networks score: each its own held-out set "
-                                             "(clips nested in networks: the CI samples as many networks as there "
-                                             "are) or the same set for all (crossed)",
-                         choices=("per_network", "shared")),
-        "n_test_emulation": _f((int, dict), 0, "test clips of the emulation track (display + recapture costs "
-                                               "about 8x the simulator per clip): a number or a table task → "
-                                               "clips; 0 = as n_test", lo=0, hi=100000),
-        "finetune_epochs": _f(int, 0, "optional short fine-tune after the zero-shot swap (0 = zero-shot)",
-                              lo=0, hi=1000),
-        "tracks": _f(list, ["simulator"], "evaluation tracks", item_types=(str,), choices=_TRACKS),
-        "sensor": _f(str, "checkpoint", "simulator settings of the task track: the checkpoint's own (the "
-                                        "trained condition) or the checkpoint's with this design's [sensor] "
-                                        "thresholds, mismatch, placement and positivity",
-                     choices=("checkpoint", "design")),
-    },
-    "scoring": {
-        "task_weights": _f(dict, {}, "task → weight of its loss in the weighted task loss; {} = equal weights"),
-        "n_resamples": _f(int, 2000, "bootstrap resamples per confidence interval", lo=100, hi=100000),
-        "confidence": _f(_NUMBER, 0.95, "two-sided confidence level of the loss intervals", lo=0.5, hi=0.999),
-        "target_half_width": _f(_NUMBER, 0.01, "loss CI half-width (metric fraction) the test set is sized "
-                                               "for; wider intervals are flagged", lo=1e-4, hi=1.0),
-    },
-    "emulation": {
-        "enabled": _f(bool, True, "score the sensor-in-the-loop emulation track (event level)"),
-        "n_clips": _f(int, 4, "synthetic clips for the emulation track", lo=1, hi=10000),
-        "n_frames": _f(int, 9, "frames per clip", lo=2, hi=1000),
-        "display_bits": _f(int, 8, "display bit depth", lo=1, hi=16),
-        "display_gamma": _f(_NUMBER, 2.2, "display gamma (encoded = linear^(1/gamma))", lo=1.0, hi=4.0),
-        "display_peak_nits": _f(_NUMBER, 400.0, "display peak luminance in cd/m²", lo=1.0, hi=10000.0),
-        "display_black_nits": _f(_NUMBER, 0.3, "display black level in cd/m²", lo=0.0, hi=100.0),
-        "upsample_factor": _f(int, 4, "temporal upsampling before display", lo=1, hi=64),
-    },
-    "sweep": {
-        "axes": _f(dict, {}, "dotted key → list of values; points are the grid product"),
-    },
-    "run": {
-        "workers": _f(int, 2, "local worker processes", lo=1, hi=MAX_WORKERS),
-        "seed": _f(int, 0, "seed for fits and noise", lo=0, hi=2**31 - 1),
-        "max_points": _f(int, 10000, "largest sweep accepted (design points); a bigger one is refused before "
-                                     "its list is built", lo=1, hi=10**9),
-    },
-}
+_Clips = Annotated[int, Field(ge=0, le=100000)]
 
-def _schema() -> dict[str, dict[str, _Field]]:
-    """:data:`_SCHEMA` with ``[realisations] include`` and ``[codesign] realisations`` built from the
-    registry as it is now."""
-    schema = dict(_SCHEMA)
-    schema["realisations"] = {
-        "include": _f(list, [n for n in realisation_names() if get_realisation(n).in_default_design],
-                      "realisations to fit and score", item_types=(str,), choices=realisation_names()),
-    }
-    diff = tuple(n for n in realisation_names("hardware") if get_realisation(n).differentiable)
-    schema["codesign"] = {
-        "enabled": _f(bool, False, "add the 'fit then swap' / 'fit then fine-tune' / 'co-designed' rows "
-                                   "(fsdvs_hw.explore.codesign; trains networks: minutes per cell)"),
-        "realisations": _f(list, list(diff), "hardware realisations to co-design (those with a differentiable "
-                                             "form)", item_types=(str,), choices=diff),
-        "tasks": _f(list, [], "tasks to co-design for; [] = every task in tasks.checkpoints", item_types=(str,)),
-        "cells": _f(list, [], "'realisation/task' pairs to run (e.g. 'metalens/detection'); [] = every "
-                              "realisation x task", item_types=(str,)),
-        "seeds": _f(int, 3, "networks per task: the first N of tasks.checkpoints (one per training seed)",
-                    lo=1, hi=1000),
-        "epochs": _f(int, 4, "training epochs of the fine-tune and co-design rows", lo=1, hi=1000),
-        "n_train": _f(int, 0, "training clips per network; 0 = the checkpoint's own training set", lo=0,
-                      hi=100000),
-        "lr_network": _f(_NUMBER, 1e-3, "AdamW learning rate of the network", lo=0.0, hi=10.0, lo_open=True),
-        "lr_filter": _f(_NUMBER, 1e-2, "AdamW learning rate of the realisation's parameters", lo=0.0, hi=10.0,
-                        lo_open=True),
-        "modes": _f(list, list(CODESIGN_MODES), "rows to measure", item_types=(str,), choices=CODESIGN_MODES),
-    }
+
+# ------------------------------------------------------------------------- the sections' models
+class DesignSection(StrictModel):
+    """``[design]``: what the exploration is called."""
+
+    name: Optional[str] = field(None, "", "short name used in reports")
+    description: str = field("", "", "free text")
+
+
+class KernelSection(StrictModel):
+    """``[kernel]``: the target kernel every realisation is fitted to."""
+
+    source: Literal["file", "reference"] = field("reference", "", "where the target kernel comes from")
+    path: Optional[str] = field(None, "", "kernel file, relative to the design file (.json .npy .csv .pt)")
+    family: Literal[tuple(REFERENCE_KERNELS)] = field("dog", "", "reference family")  # type: ignore[valid-type]
+    size: int = field(7, "px", "kernel side in pixels", ge=1, le=MAX_KERNEL_SIZE, odd=True)
+    params: dict[str, Any] = field({}, "", "reference family parameters, e.g. sigma_centre_px = 0.7")
+
+
+class SensorSection(StrictModel):
+    """``[sensor]``: the simulated event sensor."""
+
+    pitch_m: float = field(DEFAULT_PITCH_M, "m", "pixel pitch in metres", ge=1e-7, le=1e-3)
+    resolution: list[Annotated[int, Field(ge=8, le=4096)]] = field(
+        [48, 64], "px", "simulated sensor size [H, W] in pixels", min_length=2, max_length=2)
+    threshold_on: float = field(0.2, "", "ON contrast threshold (log units)", ge=1e-4, le=10.0)
+    threshold_off: float = field(0.2, "", "OFF contrast threshold (log units)", ge=1e-4, le=10.0)
+    threshold_sigma: float = field(0.03, "", "per-pixel threshold mismatch σ (log units)", ge=0.0, le=1.0)
+    placement: Literal[_PLACEMENTS] = field("pre_log", "", "where the kernel sits relative to the log stage")
+    positivity: Literal[_POSITIVITY] = field("pedestal", "", "how negative filtered intensities are handled")
+
+
+class OpticsSection(StrictModel):
+    """``[optics]``: the imaging lens (turns cycles/pixel into cycles/degree)."""
+
+    focal_length_m: float = field(4.0e-3, "m", "imaging focal length in metres (sets pixels/degree)",
+                                  ge=1e-4, le=1.0)
+
+
+class AnalysisSection(StrictModel):
+    """``[analysis]``: the CSF models compared against."""
+
+    csf_methods: list[str] = field(list(CSF_DEFAULT_METHODS), "", "CSF models to compare against")
+
+
+class TasksSection(StrictModel):
+    """``[tasks]``: the trained networks the realisations are scored with."""
+
+    checkpoints: dict[str, Any] = field({}, "", "task name → trained checkpoint, or a list of checkpoints (one "
+                                        "network per training seed), .safetensors relative to the design file; a "
+                                        "glob pattern ('networks/det_s*.safetensors') lists every match in natural "
+                                        "order; {} = no task evaluation")
+    n_test: _Clips | dict[str, Any] = field(0, "", "test clips per network and evaluation: one number for every "
+                                            "task or a table task → clips; 0 = the checkpoint's own test-set size")
+    test_clips: Literal["per_network", "shared"] = field(
+        "per_network", "", "which clips a task's networks score: each its own held-out set (clips nested in "
+        "networks: the CI samples as many networks as there are) or the same set for all (crossed)")
+    n_test_emulation: _Clips | dict[str, Any] = field(0, "", "test clips of the emulation track (display + "
+                                                      "recapture costs about 8x the simulator per clip): a number or "
+                                                      "a table task → clips; 0 = as n_test")
+    finetune_epochs: int = field(0, "", "optional short fine-tune after the zero-shot swap (0 = zero-shot)",
+                                 ge=0, le=1000)
+    tracks: list[Literal[_TRACKS]] = field(["simulator"], "", "evaluation tracks")
+    sensor: Literal["checkpoint", "design"] = field(
+        "checkpoint", "", "simulator settings of the task track: the checkpoint's own (the trained condition) or "
+        "the checkpoint's with this design's [sensor] thresholds, mismatch, placement and positivity")
+
+
+class ScoringSection(StrictModel):
+    """``[scoring]``: the weighted task loss and its confidence intervals."""
+
+    task_weights: dict[str, Any] = field({}, "", "task → weight of its loss in the weighted task loss; {} = equal "
+                                         "weights")
+    n_resamples: int = field(2000, "", "bootstrap resamples per confidence interval", ge=100, le=100000)
+    confidence: float = field(0.95, "", "two-sided confidence level of the loss intervals", ge=0.5, le=0.999)
+    target_half_width: float = field(0.01, "", "loss CI half-width (metric fraction) the test set is sized for; "
+                                     "wider intervals are flagged", ge=1e-4, le=1.0)
+
+
+class EmulationSection(StrictModel):
+    """``[emulation]``: the sensor-in-the-loop track (fsdvs_hw.explore.emulation)."""
+
+    enabled: bool = field(True, "", "score the sensor-in-the-loop emulation track (event level)")
+    n_clips: int = field(4, "", "synthetic clips for the emulation track", ge=1, le=10000)
+    n_frames: int = field(9, "", "frames per clip", ge=2, le=1000)
+    display_bits: int = field(8, "bit", "display bit depth", ge=1, le=16)
+    display_gamma: float = field(2.2, "", "display gamma (encoded = linear^(1/gamma))", ge=1.0, le=4.0)
+    display_peak_nits: float = field(400.0, "cd/m^2", "display peak luminance in cd/m²", ge=1.0, le=10000.0)
+    display_black_nits: float = field(0.3, "cd/m^2", "display black level in cd/m²", ge=0.0, le=100.0)
+    upsample_factor: int = field(4, "", "temporal upsampling before display", ge=1, le=64)
+
+
+class SweepSection(StrictModel):
+    """``[sweep]``: the grid of design points."""
+
+    axes: dict[str, Any] = field({}, "", "dotted key → list of values; points are the grid product")
+
+
+class RunSection(StrictModel):
+    """``[run]``: how the exploration runs."""
+
+    workers: int = field(2, "", "local worker processes", ge=1, le=MAX_WORKERS)
+    seed: int = field(0, "", "seed for fits and noise", ge=0, le=2**31 - 1)
+    max_points: int = field(10000, "", "largest sweep accepted (design points); a bigger one is refused before its "
+                            "list is built", ge=1, le=10**9)
+
+
+def _default(model: type[StrictModel]) -> Any:
+    return Field(default_factory=model, description=(model.__doc__ or "").strip().split("\n")[0])
+
+
+_MODELS: dict[tuple[Any, ...], type[StrictModel]] = {}
+
+
+def design_model() -> type[StrictModel]:
+    """The model of a whole design file, with ``[realisations]`` and ``[codesign]`` built from the
+    registry as it is now: ``include`` and ``codesign.realisations`` choose among the registered
+    names, and every hardware realisation's fit options are a ``[realisations.<name>]`` table
+    (its :attr:`~fsdvs_hw.realise.registry.RealisationSpec.options` model)."""
+    specs = [get_realisation(n) for n in realisation_names()]
+    sig = tuple((s.name, s.kind, s.options, s.in_default_design, bool(s.differentiable)) for s in specs)
+    if sig in _MODELS:
+        return _MODELS[sig]
+    names = realisation_names()
+    hardware = _option_tables()
+    default_include = [n for n in names if get_realisation(n).in_default_design]
+    tables: dict[str, Any] = {
+        n: (get_realisation(n).options, Field(default_factory=get_realisation(n).options,
+                                              description=f"keyword options of {get_realisation(n).fit_name}"))
+        for n in hardware}
+    realisations = create_model(
+        "RealisationsSection", __base__=StrictModel, __doc__="``[realisations]``: what is fitted and scored.",
+        include=(list[Literal[names]], field(default_include, "", "realisations to fit and score")),  # type: ignore[valid-type]
+        **tables)
+    diff = tuple(n for n in hardware if get_realisation(n).differentiable)
+    real_item: Any = Literal[diff] if diff else Annotated[str, Field(max_length=0)]
+    codesign = create_model(
+        "CodesignSection", __base__=StrictModel, __doc__="``[codesign]``: networks trained with the realisations.",
+        enabled=(bool, field(False, "", "add the 'fit then swap' / 'fit then fine-tune' / 'co-designed' rows "
+                                        "(fsdvs_hw.explore.codesign; trains networks: minutes per cell)")),
+        realisations=(list[real_item], field(list(diff), "", "hardware realisations to co-design (those with a "
+                                                             "differentiable form)")),
+        tasks=(list[str], field([], "", "tasks to co-design for; [] = every task in tasks.checkpoints")),
+        cells=(list[str], field([], "", "'realisation/task' pairs to run (e.g. 'metalens/detection'); [] = every "
+                                        "realisation x task")),
+        seeds=(int, field(3, "", "networks per task: the first N of tasks.checkpoints (one per training seed)",
+                          ge=1, le=1000)),
+        epochs=(int, field(4, "", "training epochs of the fine-tune and co-design rows", ge=1, le=1000)),
+        n_train=(int, field(0, "", "training clips per network; 0 = the checkpoint's own training set", ge=0,
+                            le=100000)),
+        lr_network=(float, field(1e-3, "", "AdamW learning rate of the network", gt=0.0, le=10.0)),
+        lr_filter=(float, field(1e-2, "", "AdamW learning rate of the realisation's parameters", gt=0.0, le=10.0)),
+        modes=(list[Literal[CODESIGN_MODES]], field(list(CODESIGN_MODES), "", "rows to measure")),
+    )
+    sections = {"design": DesignSection, "kernel": KernelSection, "sensor": SensorSection,
+                "optics": OpticsSection, "analysis": AnalysisSection, "realisations": realisations,
+                "tasks": TasksSection, "scoring": ScoringSection, "emulation": EmulationSection,
+                "sweep": SweepSection, "run": RunSection, "codesign": codesign}
+    model = create_model("DesignFile", __base__=StrictModel,
+                         __doc__="A design file of fsdvs_hw (fsdvs_hw.explore.design): every section optional.",
+                         **{k: (m, _default(m)) for k, m in sections.items()})
+    model.unknown_key = "unknown section"
+    _MODELS[sig] = model
+    return model
+
+
+def _section_models() -> dict[str, type[StrictModel]]:
+    """Section name → its model (of :func:`design_model`)."""
+    return {k: f.annotation for k, f in design_model().model_fields.items()}  # type: ignore[misc]
+
+
+def _section_keys(section: str) -> list[str]:
+    """The keys of one section (for ``[realisations]``: ``include``, not the option tables)."""
+    keys = list(_section_models()[section].model_fields)
+    return [k for k in keys if not (section == "realisations" and k in _option_tables())]
+
+
+def _is_table(model: type[StrictModel], name: str) -> bool:
+    """The field takes a table (a dict, or a structured object given as a table)."""
+    return any(m.get("type") == "object" for m in members(field_schema(model, name)))
+
+
+def design_json_schema() -> dict[str, Any]:
+    """JSON Schema (draft 2020-12) of a design file as the registry is now, for editors.
+
+    Every key carries its default, its ``description`` (a few words of meaning) and its
+    ``unit``; the cross-section checks (files exist, sizes agree, tasks match) are not in it.
+    """
+    schema = design_model().model_json_schema()
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "fsdvs_hw design file"
     return schema
 
 
@@ -266,73 +309,15 @@ def _option_tables() -> tuple[str, ...]:
     return realisation_names("hardware")
 
 
-def _is_type(value: Any, types: tuple[type, ...]) -> bool:
-    if isinstance(value, bool):
-        return bool in types
-    if isinstance(value, int) and float in types:
-        return True
-    return isinstance(value, types)
-
-
-class _Checker:
-    """Collects problems as ``key = value: what is allowed`` lines for one file."""
+class _Problems:
+    """Collects problems as ``key '<key>' = <value>: <why; what is allowed>`` lines for one file."""
 
     def __init__(self, source: str) -> None:
         self.source = source
         self.problems: list[str] = []
 
     def add(self, key: str, value: Any, message: str) -> None:
-        shown = json.dumps(value, default=repr) if not isinstance(value, Mapping) else "{...}"
-        if len(shown) > 80:
-            shown = shown[:77] + "..."
-        self.problems.append(f"key '{key}' = {shown}: {message}")
-
-    def field(self, key: str, value: Any, spec: _Field) -> Any:
-        """Check one value; return it normalised (ints → floats where numbers are allowed).
-
-        A rejected value is replaced by the default so that later checks do not report the same
-        mistake twice.
-        """
-        before = len(self.problems)
-        value = self._field(key, value, spec)
-        return copy.deepcopy(spec.default) if len(self.problems) > before else value
-
-    def _field(self, key: str, value: Any, spec: _Field) -> Any:
-        if not _is_type(value, spec.types):
-            self.add(key, value, f"wrong type {_type_name(type(value))}; allowed: {spec.allowed()}")
-            return spec.default
-        if spec.item_types is not None:
-            if spec.length is not None and len(value) != spec.length:
-                self.add(key, value, f"needs {spec.length} items; allowed: {spec.allowed()}")
-                return spec.default
-            for i, item in enumerate(value):
-                if not _is_type(item, spec.item_types):
-                    self.add(f"{key}[{i}]", item, f"wrong type {_type_name(type(item))}; allowed: {spec.allowed()}")
-                    return spec.default
-                if spec.choices is not None and item not in spec.choices:
-                    self.add(f"{key}[{i}]", item, f"not allowed; allowed: {spec.allowed()}")
-                self._range(f"{key}[{i}]", item, spec)
-            return list(value)
-        if spec.choices is not None and value not in spec.choices:
-            self.add(key, value, f"not allowed; allowed: {spec.allowed()}")
-            return spec.default
-        self._range(key, value, spec)
-        if float in spec.types and isinstance(value, int):
-            value = float(value)
-        return value
-
-    def _range(self, key: str, value: Any, spec: _Field) -> None:
-        if not isinstance(value, _NUMBER) or isinstance(value, bool):
-            return
-        bad = not math.isfinite(value)
-        if spec.lo is not None:
-            bad |= value <= spec.lo if spec.lo_open else value < spec.lo
-        if spec.hi is not None:
-            bad |= value > spec.hi
-        if spec.odd and int(value) % 2 == 0:
-            bad = True
-        if bad:
-            self.add(key, value, f"out of range; allowed: {spec.allowed()}")
+        self.problems.append(f"key '{key}' = {short(value)}: {message}")
 
     def raise_if_any(self) -> None:
         if self.problems:
@@ -358,13 +343,19 @@ class Design:
     confine_paths : bool
         Paths in the design (kernel file, checkpoints) must stay inside ``base_dir``
         (:func:`fsdvs_hw.paths.confined_path`); always true for design files.
+    spec : pydantic model of :func:`design_model`
+        The same design, typed: ``design.spec.sensor.threshold_on``,
+        ``design.spec.realisations.asic.bits`` (every option's value, its default where unset).
+        Read values from here; :attr:`data` / :meth:`to_dict` is the JSON form stored with
+        results and fingerprinted.
     """
 
     data: dict[str, Any]
     source: str
     base_dir: Path
-    target: Kernel = field(repr=False)
+    target: Kernel = dc_field(repr=False)
     confine_paths: bool = True
+    spec: Any = dc_field(default=None, repr=False)
 
     @property
     def name(self) -> str:
@@ -433,11 +424,11 @@ def _canonical_key(key: str) -> str:
     return key
 
 
-def _all_keys(schema: dict[str, dict[str, _Field]]) -> list[str]:
+def _all_keys() -> list[str]:
     """Every dotted key a design accepts (sections' keys and realisation options), for messages."""
-    keys = [f"{s}.{k}" for s, fields in schema.items() for k in fields]
+    keys = [f"{s}.{k}" for s in _section_models() for k in _section_keys(s)]
     for name in _option_tables():
-        keys.extend(f"{name}.{opt}" for opt in get_realisation(name).options)
+        keys.extend(f"{name}.{opt}" for opt in get_realisation(name).options.model_fields)
     return keys
 
 
@@ -461,7 +452,7 @@ def check_key(key: str, *, what: str = "--set") -> str:
     DesignError
         One line naming the key, what is wrong and the closest allowed keys (or the allowed ones).
     """
-    schema = _schema()
+    sections = _section_models()
     shown = repr(key[:80])
     parts = key.split(".")
     if not key or any(not p.strip() for p in parts):
@@ -470,38 +461,38 @@ def check_key(key: str, *, what: str = "--set") -> str:
     ckey = _canonical_key(key)
     cparts = ckey.split(".")
     section = cparts[0]
-    known = _all_keys(schema)
+    known = _all_keys()
 
     def unknown(why: str, allowed: str | None = None) -> DesignError:
         close = difflib.get_close_matches(key, known, n=3, cutoff=0.6)
         hint = f"did you mean {', '.join(close)}? " if close else ""
-        return DesignError(f"{what} {shown}: {why}; {hint}allowed: {allowed or 'sections ' + ', '.join(schema)}")
+        return DesignError(f"{what} {shown}: {why}; {hint}allowed: {allowed or 'sections ' + ', '.join(sections)}")
 
-    if section not in schema:
+    if section not in sections:
         raise unknown(f"unknown section {section[:40]!r}")
     if len(cparts) == 1:
-        sample = ", ".join(f"{section}.{k}" for k in list(schema[section])[:6]) or ", ".join(_option_tables())
+        sample = ", ".join(f"{section}.{k}" for k in _section_keys(section)[:6]) or ", ".join(_option_tables())
         raise DesignError(f"{what} {shown}: names a whole section, not a key; allowed: one key of it ({sample})")
     if section == "realisations" and cparts[1] in _option_tables():
         spec = get_realisation(cparts[1])
+        options = sorted(spec.options.model_fields)
         if len(cparts) < 3:
             raise DesignError(f"{what} {shown}: names the [realisations.{cparts[1]}] table, not an option; "
-                              f"allowed: {cparts[1]}.<option> with option one of {', '.join(sorted(spec.options))}")
-        opt = spec.options.get(cparts[2])
-        if opt is None:
-            raise unknown(f"unknown option of {spec.fit_name}", ", ".join(sorted(spec.options)))
-        if len(cparts) > (4 if opt.factory is not None else 3):
+                              f"allowed: {cparts[1]}.<option> with option one of {', '.join(options)}")
+        if cparts[2] not in spec.options.model_fields:
+            raise unknown(f"unknown option of {spec.fit_name}", ", ".join(options))
+        if len(cparts) > (4 if _is_table(spec.options, cparts[2]) else 3):
             raise DesignError(f"{what} {shown}: {cparts[1]}.{cparts[2]} is a single value, not a table; "
                               f"allowed: {cparts[1]}.{cparts[2]}=VALUE")
         return ckey
-    spec_f = schema[section].get(cparts[1])
-    if spec_f is None:
+    if cparts[1] not in _section_keys(section):
         extra = [*_option_tables()] if section == "realisations" else []
-        raise unknown(f"unknown key {cparts[1][:40]!r} in [{section}]", ", ".join([*schema[section], *extra]))
-    if len(cparts) > (3 if dict in spec_f.types else 2):
+        raise unknown(f"unknown key {cparts[1][:40]!r} in [{section}]", ", ".join([*_section_keys(section), *extra]))
+    table = _is_table(sections[section], cparts[1])
+    if len(cparts) > (3 if table else 2):
         raise DesignError(f"{what} {shown}: {section}.{cparts[1]} is "
-                          f"{'a table of single values' if dict in spec_f.types else 'a single value, not a table'}"
-                          f"; allowed: {section}.{cparts[1]}" + ("[.NAME]" if dict in spec_f.types else "") + "=VALUE")
+                          f"{'a table of single values' if table else 'a single value, not a table'}"
+                          f"; allowed: {section}.{cparts[1]}" + ("[.NAME]" if table else "") + "=VALUE")
     return ckey
 
 
@@ -559,41 +550,18 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
     always for design files) every path must stay inside it. Pass ``confine_paths=False`` only
     for designs built in your own code that point at files elsewhere.
     """
-    chk = _Checker(source)
+    chk = _Problems(source)
     if not isinstance(raw, Mapping):
         raise DesignError(f"{source}: a design must be a table, got {type(raw).__name__}")
-    data: dict[str, Any] = {}
-    schema = _schema()
-    for section in raw:
-        if section not in schema:
-            chk.add(section, raw[section], f"unknown section; allowed: {', '.join(schema)}")
-    for section, fields in schema.items():
-        given = raw.get(section, {})
-        if not isinstance(given, Mapping):
-            chk.add(section, given, "must be a table ([section])")
-            given = {}
-        out: dict[str, Any] = {}
-        subtables = set(_option_tables()) if section == "realisations" else set()
-        for key, value in given.items():
-            if key in subtables:
-                continue
-            if key not in fields:
-                allowed = ", ".join([*fields, *sorted(subtables)])
-                chk.add(f"{section}.{key}", value, f"unknown key; allowed in [{section}]: {allowed}")
-        for key, spec in fields.items():
-            # None never comes from TOML; it marks an unset optional key in re-validated data
-            if given.get(key) is not None:
-                out[key] = chk.field(f"{section}.{key}", given[key], spec)
-            else:
-                out[key] = copy.deepcopy(spec.default)
-        if section == "realisations":
-            for name in _option_tables():
-                opts = given.get(name, {})
-                if not isinstance(opts, Mapping):
-                    chk.add(f"realisations.{name}", opts, "must be a table of fit options")
-                    opts = {}
-                out[name] = _check_realisation_options(chk, name, dict(opts))
-        data[section] = out
+    model = design_model()
+    spec = _validate_sections(chk, model, raw)
+    data = spec.model_dump()
+    for name in _option_tables():  # only the options the design sets, in its order
+        given = raw.get("realisations", {})
+        table = given.get(name, {}) if isinstance(given, Mapping) else {}
+        dumped = getattr(spec.realisations, name).model_dump(exclude_unset=True)
+        data["realisations"][name] = {k: dumped[k] for k in (table if isinstance(table, Mapping) else {})
+                                      if k in dumped}
     if data["design"]["name"] is None:
         data["design"]["name"] = "design"
     base = Path(base_dir)
@@ -616,44 +584,48 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
     _check_sizes(chk, data, base, confine_paths, target)
     chk.raise_if_any()
     assert target is not None
-    return Design(data=data, source=source, base_dir=base, target=target, confine_paths=confine_paths)
+    typed = model.model_validate(data, context=DESIGN_CONTEXT)  # the final values (patterns expanded), typed
+    return Design(data=data, source=source, base_dir=base, target=target, confine_paths=confine_paths, spec=typed)
 
 
-def _check_realisation_options(chk: _Checker, name: str, opts: dict[str, Any]) -> dict[str, Any]:
-    """Check one ``[realisations.<name>]`` table against the schema the realisation registered
-    (:attr:`fsdvs_hw.realise.registry.RealisationSpec.options`: the table its fit function checks
-    its arguments against, so both agree on every limit)."""
-    spec = get_realisation(name)
-    out: dict[str, Any] = {}
-    for key, value in opts.items():
-        full = f"realisations.{name}.{key}"
-        opt = spec.options.get(key)
-        if opt is None:
-            chk.add(full, value, f"unknown option of {spec.fit_name}; allowed: {', '.join(sorted(spec.options))}")
-        elif opt.factory is not None:  # a structured option: its class checks the table's fields
-            out[key] = value
-            cls = getattr(opt.factory, "__name__", "object")
-            if not isinstance(value, Mapping):
-                chk.add(full, value, f"must be a table of {cls} fields")
-                continue
-            try:
-                opt.factory(**value)
-            except TypeError as exc:
-                chk.add(full, value, f"not valid {cls} fields ({exc})")
-            except InputError as exc:
-                chk.add(full, value, f"invalid ({exc})")
-        else:
-            why = opt.problem(value)
-            if why is None and isinstance(value, Mapping):
-                why = "cannot be given in a design file (a Python object)"
-            if why is not None:
-                chk.add(full, value, why)
-                continue
-            out[key] = opt.check(value, name=full)
-    return out
+def _validate_sections(chk: _Problems, model: type[StrictModel], raw: Mapping[str, Any]) -> Any:
+    """Validate every section against ``model``; report each problem and validate again without
+    the keys at fault, so the cross-section checks see defaults there and no mistake is reported
+    twice. ``None`` in a section marks an unset key (re-validated data of :meth:`Design.with_overrides`)."""
+    work: dict[Any, Any] = {}
+    for section, given in raw.items():
+        if not isinstance(given, Mapping):
+            work[section] = given
+            continue
+        table = {k: v for k, v in given.items() if v is not None}
+        if section == "realisations":
+            table = {k: (dict(v) if isinstance(v, Mapping) and k in _option_tables() else v)
+                     for k, v in given.items() if v is not None or k in _option_tables()}
+        work[section] = table
+    for _ in range(8):
+        try:
+            return model.model_validate(work, context=DESIGN_CONTEXT)
+        except ValidationError as exc:
+            chk.problems.extend(problems(exc, model))
+            for err in exc.errors():
+                _drop(work, tuple(err["loc"]))
+    raise DesignError(f"{chk.source}: invalid design file:\n  " + "\n  ".join(chk.problems))  # pragma: no cover
 
 
-def _check_cross(chk: _Checker, data: dict[str, Any]) -> None:
+def _drop(work: dict[Any, Any], loc: tuple[Any, ...]) -> None:
+    """Remove the key an error is about (a section, a key or a realisation's option) from ``work``."""
+    section = loc[0]
+    if len(loc) == 1 or not isinstance(work.get(section), dict):
+        work.pop(section, None)
+        return
+    table, key = work[section], loc[1]
+    if section == "realisations" and key in _option_tables() and len(loc) > 2 and isinstance(table.get(key), dict):
+        table[key].pop(loc[2], None)
+    else:
+        table.pop(key, None)
+
+
+def _check_cross(chk: _Problems, data: dict[str, Any]) -> None:
     em = data["emulation"]
     if em["enabled"]:  # the display the emulation track builds must exist (black below peak, ...)
         from .emulation import DisplaySettings
@@ -668,7 +640,7 @@ def _check_cross(chk: _Checker, data: dict[str, Any]) -> None:
     if k["source"] == "file" and not k["path"]:
         chk.add("kernel.path", k["path"], "required when kernel.source = 'file'")
     for key, value in k["params"].items():
-        if not _is_type(value, _NUMBER) or isinstance(value, bool):
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
             chk.add(f"kernel.params.{key}", value, "reference kernel parameters must be numbers")
     methods = data["analysis"]["csf_methods"]
     for i, m in enumerate(methods):
@@ -678,7 +650,7 @@ def _check_cross(chk: _Checker, data: dict[str, Any]) -> None:
         chk.add("realisations.include", data["realisations"]["include"], "lists a realisation twice")
 
 
-def _check_sizes(chk: _Checker, data: dict[str, Any], base: Path, confine: bool, target: Kernel | None) -> None:
+def _check_sizes(chk: _Problems, data: dict[str, Any], base: Path, confine: bool, target: Kernel | None) -> None:
     """Sizes that must agree across sections, checked at load so no run fails after work started.
 
     The emulation track renders ``emulation.n_clips`` synthetic clips of ``sensor.resolution``
@@ -777,7 +749,7 @@ def _bounded_glob(root: Path, parts: list[str], *, limit: int = MAX_GLOB_ENTRIES
     return level
 
 
-def _expand_checkpoint_patterns(chk: _Checker, data: dict[str, Any], base: Path, confine: bool = True) -> None:
+def _expand_checkpoint_patterns(chk: _Problems, data: dict[str, Any], base: Path, confine: bool = True) -> None:
     """Replace glob patterns in ``[tasks] checkpoints`` by the files they match, in natural order.
 
     ``"networks/detection_*_s*.safetensors"`` lists one network per training seed (``s2`` before
@@ -828,7 +800,7 @@ def _expand_checkpoint_patterns(chk: _Checker, data: dict[str, Any], base: Path,
             ckpts[task] = out
 
 
-def _check_tasks(chk: _Checker, data: dict[str, Any], base: Path, confine: bool) -> None:
+def _check_tasks(chk: _Problems, data: dict[str, Any], base: Path, confine: bool) -> None:
     """Each task must be a registered evaluator and its checkpoint must exist."""
     ckpts = data["tasks"]["checkpoints"]
     if not ckpts:
@@ -883,7 +855,7 @@ def _check_tasks(chk: _Checker, data: dict[str, Any], base: Path, confine: bool)
         chk.add("scoring.task_weights", weights, "every weight is 0; allowed: at least one positive weight")
 
 
-def _check_codesign(chk: _Checker, data: dict[str, Any]) -> None:
+def _check_codesign(chk: _Problems, data: dict[str, Any]) -> None:
     """``[codesign]`` against ``[tasks]``: its tasks, cells and seeds must exist there."""
     cd = data["codesign"]
     ckpts = data["tasks"]["checkpoints"]
@@ -945,8 +917,9 @@ def _safetensors_problem(path: Path) -> str | None:
 
 
 
-def _check_axes(chk: _Checker, data: dict[str, Any]) -> None:
-    schema = _schema()
+def _check_axes(chk: _Problems, data: dict[str, Any]) -> None:
+    """Each sweep axis names one key (:func:`check_key`) and each of its values passes that key's model."""
+    model = design_model()
     for key, values in data["sweep"]["axes"].items():
         full = f"sweep.axes.{key}"
         if not isinstance(values, list) or not values:
@@ -962,29 +935,20 @@ def _check_axes(chk: _Checker, data: dict[str, Any]) -> None:
             chk.add(full, values, "sweep axes must name a key inside [kernel], [sensor], [optics], [analysis], "
                                   "[tasks], [emulation] or a realisation (e.g. 'asic.bits')")
             continue
-        if section not in schema:
-            chk.add(full, values, f"unknown section {section!r}; allowed: {', '.join(schema)}")
+        if section == "realisations" and rest.split(".")[0] not in _option_tables():
+            chk.add(full, values, f"unknown realisation {rest.split('.')[0]!r}; allowed: "
+                                  f"{', '.join(_option_tables())}")
             continue
-        # check each value through the same schema as a plain key
-        for v in values:
+        for v in values:  # each value through the same model as a plain key
             probe: dict[str, Any] = {}
             _set_dotted(probe, ckey, v)
-            sub = _Checker(chk.source)
-            if section == "realisations":
-                name = rest.split(".")[0]
-                if name not in _option_tables():
-                    chk.add(full, values, f"unknown realisation {name!r}; allowed: {', '.join(_option_tables())}")
-                    break
-                _check_realisation_options(sub, name, probe["realisations"][name])
-            elif rest.split(".")[0] not in schema[section]:
-                chk.add(full, values, f"unknown key; allowed in [{section}]: {', '.join(schema[section])}")
-                break
-            elif "." not in rest:
-                sub.field(ckey, v, schema[section][rest])
-            chk.problems.extend(p.replace(f"key '{ckey}'", f"key '{full}'") for p in sub.problems)
+            try:
+                model.model_validate(probe, context=DESIGN_CONTEXT)
+            except ValidationError as exc:
+                chk.problems.extend(p.replace(f"key '{ckey}", f"key '{full}", 1) for p in problems(exc, model))
 
 
-def _load_target(chk: _Checker, data: dict[str, Any], base: Path, confine: bool) -> Kernel | None:
+def _load_target(chk: _Problems, data: dict[str, Any], base: Path, confine: bool) -> Kernel | None:
     k = data["kernel"]
     pitch = data["sensor"]["pitch_m"]
     try:

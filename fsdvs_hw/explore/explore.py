@@ -77,15 +77,15 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     store_path = out / "results.sqlite"
     summary, rows = run_design(design, store_path, workers=workers, scheduler=scheduler, progress=progress,
                                retry_errors=retry_errors, max_points=max_points, security=security)
-    sc = design.data["scoring"]
-    rows = with_paired_losses(rows, task_weights=sc["task_weights"] or None, n_resamples=sc["n_resamples"],
-                              confidence=sc["confidence"], rng=design.data["run"]["seed"])
-    index, entries = write_exploration_artifacts(rows, out, resolution=tuple(design.data["sensor"]["resolution"]))
+    sc = design.spec.scoring
+    rows = with_paired_losses(rows, task_weights=sc.task_weights or None, n_resamples=sc.n_resamples,
+                              confidence=sc.confidence, rng=design.spec.run.seed)
+    index, entries = write_exploration_artifacts(rows, out, resolution=tuple(design.spec.sensor.resolution))
     for row in rows:  # each point carries its files (paths relative to out) for the report's links
         name = point_folder_name(row["realisation"], row.get("params") or {})
         row["artifacts"] = [{**e, "file": f"{ARTIFACTS_DIR}/{e['file']}" if e.get("file") else ""}
                             for e in entries if e["point"] == name]
-    if design.data["codesign"]["enabled"]:  # the fit-then-swap / fine-tune / co-designed rows (issue 16)
+    if design.spec.codesign.enabled:  # the fit-then-swap / fine-tune / co-designed rows (issue 16)
         from .codesign import run_codesign, write_codesign
 
         write_codesign(run_codesign(design, out, progress=progress), out)

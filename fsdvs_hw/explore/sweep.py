@@ -99,9 +99,9 @@ class DesignPoint:
 
 
 def _point_key(realisation: str, design: Design) -> str:
-    relevant = {s: design.data[s] for s in _SCORED_SECTIONS}
+    relevant = {s: design.section(s) for s in _SCORED_SECTIONS}
     relevant["realisation"] = realisation
-    relevant["options"] = design.data["realisations"].get(realisation, {})
+    relevant["options"] = design.realisation_options(realisation)
     relevant["target"] = design.target.to_dict()["taps"]
     relevant["pitch_m"] = design.target.pitch_m
     blob = json.dumps(relevant, sort_keys=True, default=str)
@@ -131,10 +131,10 @@ def check_sweep_size(design: Design, max_points: int | None = None) -> int:
         With the point count, the memory its list would take (estimated from one point's size) and
         the limit, and how to raise it.
     """
-    limit = int(design.data["run"]["max_points"] if max_points is None else max_points)
+    limit = int(design.spec.run.max_points if max_points is None else max_points)
     n = count_points(design)
     if n > limit:
-        point_data = {**design.data, "sweep": {"axes": {}}}  # what each point carries
+        point_data = {**design.to_dict(), "sweep": {"axes": {}}}  # what each point carries
         one = len(json.dumps({"data": point_data, "target": design.target.to_dict()}, default=str))
         gib = n * one * _BYTES_PER_JSON_CHAR / 2**30
         raise InputError(
@@ -479,7 +479,7 @@ def run_design(design: Design, store_path: str | Path, *, workers: int | None = 
     """
     if points is None:
         points = expand_points(design, max_points=max_points)
-    workers = design.data["run"]["workers"] if workers is None else workers
+    workers = design.spec.run.workers if workers is None else workers
     check_count("workers", workers, 1, MAX_WORKERS)
     with ResultsStore(store_path) as store:
         store.set_meta(f"design:{design.name}", design.to_dict())

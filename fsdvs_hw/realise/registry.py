@@ -1,7 +1,7 @@
 """The one registry of realisations: every hardware form and every ideal reference, by name.
 
 Each realisation declares a :class:`RealisationSpec` — its name, options schema
-(:class:`fsdvs_hw.validation.Option`: type, unit, range, default, help), fit function, declared
+(a pydantic model, :mod:`fsdvs_hw.schema`: type, unit, range, default, help), fit function, declared
 cost items (:class:`CostSpec`: name, unit, and which of them the report uses as the kind's Pareto
 axis and headline), the record class that rebuilds it from JSON, and the artifacts it can write
 with the ``"module:function"`` that writes them (:mod:`fsdvs_hw.realise.artifacts`) — and
@@ -17,7 +17,7 @@ references ``learned`` and ``delta`` (kind ``"reference"``, here), and the hardw
 Adding a realisation outside the package is one module::
 
     from fsdvs_hw.realise.registry import CostSpec, RealisationSpec, register_realisation
-    register_realisation(RealisationSpec(name="box", fit=fit_box, options={...}, record_type=BoxDesign,
+    register_realisation(RealisationSpec(name="box", fit=fit_box, options=BoxOptions, record_type=BoxDesign,
                                          costs=(CostSpec("taps", "count", pareto=True, headline=True),)))
 
 Spawned worker processes (``[run] workers > 1``) import the modules that registered realisations
@@ -44,7 +44,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..kernels import Kernel, as_kernel, reference_kernel
-from ..validation import Option, check_option, check_options
+from ..schema import StrictModel, validate
 from .artifacts import Artifact
 from .base import Realisation, ReferenceRealisation
 
@@ -59,6 +59,7 @@ __all__ = [
     "get_realisation",
     "realisation_names",
     "realisation_from_dict",
+    "NoOptions",
     "check_realisation_options",
     "fit_realisation",
 ]
@@ -130,6 +131,12 @@ class CostSpec:
         return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
 
 
+class NoOptions(StrictModel):
+    """The options model of a realisation whose fit takes none (the references)."""
+
+    unknown_key = "the fit function takes no options"
+
+
 @dataclass(frozen=True)
 class RealisationSpec:
     """A realisation's registry entry.
@@ -143,8 +150,9 @@ class RealisationSpec:
         ``fit(target, **options) -> Realisation``. If ``options`` declares ``pitch_m`` or ``seed``
         and the design does not set them, the target's pitch and the design's ``[run] seed`` are
         passed.
-    options : mapping of str to Option
-        Schema of every keyword option of ``fit`` (type, unit, range, default, help).
+    options : type of fsdvs_hw.schema.StrictModel
+        Model of every keyword option of ``fit`` (type, unit, range, default, help; one field per
+        option), which design files and the fit function check against (default: none).
     kind : {"hardware", "reference"}
         Hardware forms have costs and Pareto fronts; references are ideal kernels scored alike.
     record_type : type, optional
@@ -181,7 +189,7 @@ class RealisationSpec:
 
     name: str
     fit: Callable[..., Realisation]
-    options: Mapping[str, Option] = field(default_factory=dict)
+    options: type[StrictModel] = NoOptions
     kind: str = "hardware"
     record_type: type | None = None
     record_kind: str = ""
@@ -202,10 +210,9 @@ class RealisationSpec:
             raise InputError(f"realisation {self.name!r}: kind {self.kind!r} unknown; allowed: {', '.join(KINDS)}")
         if not callable(self.fit):
             raise InputError(f"realisation {self.name!r}: fit must be callable, got {type(self.fit).__name__}")
-        for key, opt in self.options.items():
-            if not isinstance(opt, Option):
-                raise InputError(f"realisation {self.name!r}: option {key!r} must be a fsdvs_hw.validation.Option")
-        object.__setattr__(self, "options", MappingProxyType(dict(self.options)))
+        if not (isinstance(self.options, type) and issubclass(self.options, StrictModel)):
+            raise InputError(f"realisation {self.name!r}: options must be a fsdvs_hw.schema.StrictModel subclass, "
+                             f"got {self.options!r}")
         object.__setattr__(self, "artifacts", MappingProxyType(dict(self.artifacts)))
         for field_name in ("differentiable", "write_artifacts"):
             ref = getattr(self, field_name)
@@ -262,13 +269,24 @@ class RealisationSpec:
         """The fit function's name (for messages)."""
         return getattr(self.fit, "__name__", repr(self.fit))
 
-    def check_option(self, key: str, value: Any, *, prefix: str = "") -> Any:
-        """Check one option against :attr:`options`; return it normalised (see :func:`fsdvs_hw.validation.check_option`)."""
-        return check_option(self.options, key, value, prefix=prefix, owner=self.fit_name)
+    def check_option(self, key: str, value: Any) -> Any:
+        """Check one option against :attr:`options`; return it normalised (an int for a number
+        option becomes a float)."""
+        return self.check_options({key: value})[key]
 
-    def check_options(self, values: Mapping[str, Any], *, prefix: str = "") -> dict[str, Any]:
-        """Check a table of options; return them normalised."""
-        return check_options(self.options, values, prefix=prefix, owner=self.fit_name)
+    def check_options(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        """Check a table of options; return the given ones normalised, in the given order.
+
+        Raises
+        ------
+        InputError
+            Every unknown option, wrong type or value out of range, each naming the option, the
+            value and what is allowed.
+        """
+        if not isinstance(values, Mapping):
+            raise InputError(f"options of {self.fit_name}: must be a table, got {type(values).__name__}")
+        given = validate(self.options, values).model_dump(exclude_unset=True)
+        return {k: given[k] for k in values}
 
     def cost_axis(self, cost: Mapping[str, Mapping[str, Any]]) -> tuple[str, float, str] | None:
         """``(label, displayed value, display unit)`` on the kind's own Pareto axis, or None."""
@@ -357,9 +375,9 @@ def realisation_from_dict(data: Mapping[str, Any]) -> Realisation:
     return types[kind].from_dict(data)
 
 
-def check_realisation_options(name: str, values: Mapping[str, Any], *, prefix: str = "") -> dict[str, Any]:
+def check_realisation_options(name: str, values: Mapping[str, Any]) -> dict[str, Any]:
     """Check a table of fit options of the realisation ``name``; return them normalised."""
-    return get_realisation(name).check_options(values, prefix=prefix)
+    return get_realisation(name).check_options(values)
 
 
 def fit_realisation(name: str, target: Kernel | Any, options: Mapping[str, Any] | None = None, *,
@@ -374,9 +392,9 @@ def fit_realisation(name: str, target: Kernel | Any, options: Mapping[str, Any] 
     target = as_kernel(target, name="target")
     spec = get_realisation(name)
     options = dict(options or {})
-    if "pitch_m" in spec.options and "pitch_m" not in options:
+    if "pitch_m" in spec.options.model_fields and "pitch_m" not in options:
         options["pitch_m"] = target.pitch_m
-    if "seed" in spec.options and "seed" not in options:
+    if "seed" in spec.options.model_fields and "seed" not in options:
         options["seed"] = seed
     return spec.fit(target, **options)
 

@@ -442,7 +442,7 @@ def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any,
     write_scores(score_rows(points), out, full=[p.to_dict() for p in points], design=design_stamp(design))
     path = out / "report.html"
     sections = []
-    if (out / "codesign.json").is_file() and design.data.get("codesign", {}).get("enabled"):  # issue 16 rows
+    if (out / "codesign.json").is_file() and design.spec.codesign.enabled:  # issue 16 rows
         from .codesign import codesign_section
 
         sections.append(codesign_section(json.loads((out / "codesign.json").read_text())))

@@ -11,21 +11,26 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 
+from fsdvs_hw import schema
 from fsdvs_hw.kernels import MAX_KERNEL_SIZE, Kernel
 from fsdvs_hw.realise import CostItem, CostSpec, RealisationSpec, register_realisation
-from fsdvs_hw.validation import PITCH_RANGE_M, check_fit_arguments, option
+from fsdvs_hw.validation import PITCH_RANGE_M, check_fit_arguments
 
-__all__ = ["BoxDesign", "fit_box", "OPTIONS", "SPEC"]
+__all__ = ["BoxDesign", "fit_box", "BoxOptions", "SPEC"]
 
-OPTIONS = {
-    "width": option("int", 3, "px", "side of the uniform window", lo=1, hi=MAX_KERNEL_SIZE, odd=True),
-    "pitch_m": option("float", None, "m", "pixel pitch (default: the kernel's)", nullable=True,
-                      lo=PITCH_RANGE_M[0], hi=PITCH_RANGE_M[1]),
-}
+
+class BoxOptions(schema.StrictModel):
+    """Keyword options of :func:`fit_box`."""
+
+    unknown_key = "unknown option of fit_box"
+
+    width: int = schema.field(3, "px", "side of the uniform window", ge=1, le=MAX_KERNEL_SIZE, odd=True)
+    pitch_m: Optional[float] = schema.field(None, "m", "pixel pitch (default: the kernel's)",
+                                            ge=PITCH_RANGE_M[0], le=PITCH_RANGE_M[1])
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,7 +68,7 @@ class BoxDesign:
 
 def fit_box(kernel: Kernel, *, width: int = 3, pitch_m: float | None = None) -> BoxDesign:
     """Least-squares gain of a ``width`` × ``width`` box against ``kernel`` (width ≤ kernel size)."""
-    check_fit_arguments(OPTIONS, locals())
+    check_fit_arguments(BoxOptions, locals())
     width = min(width, kernel.size)
     shape = BoxDesign(kernel, width, 1.0, kernel.pitch_m if pitch_m is None else pitch_m).kernel().taps
     gain = float((shape * kernel.taps).sum() / (shape * shape).sum())
@@ -73,7 +78,7 @@ def fit_box(kernel: Kernel, *, width: int = 3, pitch_m: float | None = None) -> 
 SPEC = register_realisation(RealisationSpec(
     name="box",
     fit=fit_box,
-    options=OPTIONS,
+    options=BoxOptions,
     record_type=BoxDesign,
     costs=(CostSpec("box_width", "px", "box width", pareto=True, headline=True),
            CostSpec("adders", "count")),

@@ -21,16 +21,17 @@ Importing this package registers ``"asic"`` in :mod:`fsdvs_hw.realise.registry`.
 
 from ..registry import CostSpec, RealisationSpec, register_realisation
 from .fit import OBJECTIVES, SCALE_MODES, AsicDesign, exhaustive_asic_taps, fit_asic_taps
-from .options import OPTIONS
+from .options import AsicOptions
 
-__all__ = ["AsicDesign", "fit_asic_taps", "SCALE_MODES", "OBJECTIVES", "exhaustive_asic_taps", "OPTIONS", "SPEC"]
+__all__ = ["AsicDesign", "fit_asic_taps", "SCALE_MODES", "OBJECTIVES", "exhaustive_asic_taps", "AsicOptions",
+           "SPEC"]
 
 #: The registry entry (own cost axis and headline: yosys cell area, else the adder count).
 SPEC = register_realisation(RealisationSpec(
     name="asic",
     differentiable="fsdvs_hw.realise.asic.differentiable:QuantisedAsicKernel",
     fit=fit_asic_taps,
-    options=OPTIONS,
+    options=AsicOptions,
     kind="hardware",
     record_type=AsicDesign,
     costs=(

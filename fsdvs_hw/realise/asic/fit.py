@@ -52,7 +52,7 @@ import numpy as np
 from ...errors import InputError
 from ...kernels import Kernel, as_kernel
 from ...validation import check_fit_arguments
-from .options import OPTIONS
+from .options import AsicOptions
 from .arith import (
     SYMMETRIES,
     SymmetryClasses,
@@ -638,7 +638,7 @@ def fit_asic_taps(
         Bad arguments; a fixed scale or an adder weight at which every tap rounds to zero;
         an ``input_bits`` whose accumulator would exceed the exact 63-bit model.
     """
-    check_fit_arguments(OPTIONS, locals())  # the registry's schema: same limits as design files
+    check_fit_arguments(AsicOptions, locals())  # the registry's schema: same limits as design files
     t0 = time.perf_counter()
     kernel = as_kernel(kernel, pitch_m=pitch_m, repitch=True)
     lo_q, lim = tap_range(bits)

@@ -22,7 +22,6 @@ options
 Importing this package registers ``"mesh"`` in :mod:`fsdvs_hw.realise.registry`.
 """
 
-from dataclasses import replace as _replace
 from typing import Any as _Any
 
 from ..registry import CostSpec, RealisationSpec, register_realisation
@@ -37,9 +36,9 @@ from .fit import (
     fit_resistive_mesh,
     mismatch_sensitivity,
 )
-from .options import OPTIONS
+from .options import MeshOptions
 
-__all__ = ["OPTIONS", "SPEC"]
+__all__ = ["MeshOptions", "SPEC"]
 __all__ += fit.__all__  # the fit module's public names, re-exported above
 
 
@@ -59,7 +58,7 @@ SPEC = register_realisation(RealisationSpec(
     name="mesh",
     differentiable="fsdvs_hw.realise.mesh.differentiable:MeshKernel",
     fit=fit_resistive_mesh,
-    options={**OPTIONS, "bounds": _replace(OPTIONS["bounds"], factory=MeshBounds)},
+    options=MeshOptions,
     kind="hardware",
     record_type=MeshDesign,
     costs=(

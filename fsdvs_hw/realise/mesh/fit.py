@@ -57,7 +57,7 @@ import numpy as np
 from ...errors import InputError
 from ...kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, _validate_pitch, as_kernel
 from ...validation import check_fit_arguments
-from .options import OPTIONS
+from .options import MeshOptions
 from ..base import CostItem, kernel_error
 from .response import (
     LAMBDA_RANGE_PX,
@@ -1149,7 +1149,7 @@ def fit_resistive_mesh(
     MeshFitWarning
         The fit is no better than a zero kernel (error ≥ 0.999), or IPOPT did not report success.
     """
-    check_fit_arguments(OPTIONS, locals())  # the registry's schema: same limits as design files
+    check_fit_arguments(MeshOptions, locals())  # the registry's schema: same limits as design files
     t0 = time.perf_counter()
     s = _mesh_settings(kernel, bounds=bounds, pitch_m=pitch_m, pixel_weight=pixel_weight, gain=gain,
                        nonnegative_dc=nonnegative_dc, mismatch_sigma=mismatch_sigma,

@@ -1,41 +1,50 @@
 """Fit options of :func:`~fsdvs_hw.realise.mesh.fit_resistive_mesh`: type, unit, range, default, meaning.
 
-The design loader checks a ``[realisations.mesh]`` table against :data:`OPTIONS` and
+The design loader checks a ``[realisations.mesh]`` table against :class:`MeshOptions` and
 :func:`fit_resistive_mesh` checks its own arguments against it at its first line
 (:func:`fsdvs_hw.validation.check_fit_arguments`), so both refuse the same values with the same
-words. The ranges are the fit function's own (see its docstring).
+words. The ranges are the fit function's own (see its docstring). A ``bounds`` table of a design
+file is built by :class:`~fsdvs_hw.realise.mesh.MeshBounds`, which checks its fields.
 """
 
 from __future__ import annotations
 
-from ...validation import PITCH_RANGE_M, Option, option
+from typing import Annotated, Literal, Optional
 
-__all__ = ["OPTIONS"]
+from pydantic import Field
 
-#: option → schema
-OPTIONS: dict[str, Option] = {
-    "bounds": option("object", None, "", "MeshBounds fields: lambda_px, gain, min_lambda_ratio, conductance_s",
-                     nullable=True),
-    "pitch_m": option("float", None, "m", "pixel pitch (default: the kernel's)", nullable=True,
-                      lo=PITCH_RANGE_M[0], hi=PITCH_RANGE_M[1]),
-    "pixel_weight": option("float|str", "free", "", "fixed weight of the pixel's own signal, or 'free'",
-                           lo=0.0, hi=1e3, choices=("free",), nullable=True),
-    "gain": option("str", "free", "", "overall gain: 'free' (folds into the event threshold) or 'fixed'",
-                   choices=("free", "fixed")),
-    "nonnegative_dc": option("bool", True, "", "constrain the whole-circuit DC gain w_p + a − b ≥ 0"),
-    "mismatch_sigma": option("float", 0.01, "", "relative die-level mismatch σ", lo=0.0, hi=0.5),
-    "max_mismatch_error": option("float", 0.05, "", "largest first-order kernel error at mismatch σ (None: off)",
-                                 lo=1e-6, hi=10.0, nullable=True),
-    "g_lateral_s": option("float", 1e-8, "S", "lateral conductance of both meshes (within bounds.conductance_s)",
-                          lo=1e-13, hi=1e-3),
-    "node_capacitance_f": option("float", 100e-15, "F", "node capacitance of both meshes", lo=1e-18, hi=1e-6),
-    "model": option("str", "lattice", "", "single-mesh model", choices=("lattice", "grid")),
-    "grid_half_width": option("int", None, "px", "half-width of the finite grid (model 'grid'; ≥ kernel radius)",
-                              lo=0, hi=60, nullable=True),
-    "fit_size": option("int", None, "px", "odd window the error is minimised on (≥ kernel size; None: the "
-                       "whole response)", lo=1, hi=63, odd=True, nullable=True),
-    "n_init": option("int", 16, "", "λ values per mesh in the initialisation grid", lo=2, hi=40),
-    "n_starts": option("int", 3, "", "IPOPT runs from the best distinct grid points", lo=1, hi=10),
-    "max_iter": option("int", 200, "", "IPOPT iteration limit", lo=1, hi=10000),
-    "tol": option("float", 1e-14, "", "IPOPT tolerance", lo=0.0, hi=1.0, lo_open=True),
-}
+from ...schema import StrictModel, field, structured
+from ...validation import PITCH_RANGE_M
+
+__all__ = ["MeshOptions"]
+
+
+class MeshOptions(StrictModel):
+    """Keyword options of :func:`~fsdvs_hw.realise.mesh.fit_resistive_mesh`."""
+
+    unknown_key = "unknown option of fit_resistive_mesh"
+
+    bounds: Optional[structured("fsdvs_hw.realise.mesh.fit:MeshBounds", "MeshBounds")] = field(
+        None, "", "MeshBounds fields: lambda_px, gain, min_lambda_ratio, conductance_s")
+    pitch_m: Optional[float] = field(None, "m", "pixel pitch (default: the kernel's)",
+                                     ge=PITCH_RANGE_M[0], le=PITCH_RANGE_M[1])
+    pixel_weight: Optional[Annotated[float, Field(ge=0.0, le=1e3)] | Literal["free"]] = field(
+        "free", "", "fixed weight of the pixel's own signal, or 'free'")
+    gain: Literal["free", "fixed"] = field("free", "", "overall gain: 'free' (folds into the event threshold) "
+                                           "or 'fixed'")
+    nonnegative_dc: bool = field(True, "", "constrain the whole-circuit DC gain w_p + a − b ≥ 0")
+    mismatch_sigma: float = field(0.01, "", "relative die-level mismatch σ", ge=0.0, le=0.5)
+    max_mismatch_error: Optional[float] = field(0.05, "", "largest first-order kernel error at mismatch σ "
+                                                "(None: off)", ge=1e-6, le=10.0)
+    g_lateral_s: float = field(1e-8, "S", "lateral conductance of both meshes (within bounds.conductance_s)",
+                               ge=1e-13, le=1e-3)
+    node_capacitance_f: float = field(100e-15, "F", "node capacitance of both meshes", ge=1e-18, le=1e-6)
+    model: Literal["lattice", "grid"] = field("lattice", "", "single-mesh model")
+    grid_half_width: Optional[int] = field(None, "px", "half-width of the finite grid (model 'grid'; ≥ kernel "
+                                           "radius)", ge=0, le=60)
+    fit_size: Optional[int] = field(None, "px", "odd window the error is minimised on (≥ kernel size; None: the "
+                                    "whole response)", ge=1, le=63, odd=True)
+    n_init: int = field(16, "", "λ values per mesh in the initialisation grid", ge=2, le=40)
+    n_starts: int = field(3, "", "IPOPT runs from the best distinct grid points", ge=1, le=10)
+    max_iter: int = field(200, "", "IPOPT iteration limit", ge=1, le=10000)
+    tol: float = field(1e-14, "", "IPOPT tolerance", gt=0.0, le=1.0)

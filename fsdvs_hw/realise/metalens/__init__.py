@@ -30,9 +30,9 @@ from .fit import (
     pixel_psf,
     plan_wavelength_samples,
 )
-from .options import OPTIONS
+from .options import MetalensOptions
 
-__all__ = ["OPTIONS", "SPEC"]
+__all__ = ["MetalensOptions", "SPEC"]
 __all__ += fit.__all__  # the fit module's public names, re-exported above
 
 #: The registry entry (own cost axis and headline: the aperture diameter).
@@ -40,7 +40,7 @@ SPEC = register_realisation(RealisationSpec(
     name="metalens",
     differentiable="fsdvs_hw.realise.metalens.differentiable:MetalensKernel",
     fit=fit_metalens,
-    options=OPTIONS,
+    options=MetalensOptions,
     kind="hardware",
     record_type=MetalensDesign,
     costs=(

@@ -59,7 +59,7 @@ import numpy as np
 from ...errors import InputError
 from ...kernels import DEFAULT_PITCH_M, Kernel, as_kernel
 from ...validation import check_fit_arguments
-from .options import OPTIONS
+from .options import MetalensOptions
 from ..base import CostItem, kernel_error
 from ..optics import (
     RadialPropagator,
@@ -977,7 +977,7 @@ def fit_metalens(
     -------
     MetalensDesign
     """
-    check_fit_arguments(OPTIONS, locals())  # the registry's schema: same limits as design files
+    check_fit_arguments(MetalensOptions, locals())  # the registry's schema: same limits as design files
     import torch
 
     t0, c0 = time.perf_counter(), time.process_time()
