@@ -112,7 +112,8 @@ class TrackScore:
     test_clips : str
         ``"per_network"`` (clips nested in networks) or ``"shared"``.
     event_rate : float
-        Mean events per pixel per frame.
+        Mean events per pixel per frame interval (the extra ``event_rate_per_s`` holds it in
+        events/pixel/s with its 95 % CI over networks × clips, ``event_rate_unit`` names the unit).
     wall_s : float
         Seconds spent scoring this track.
     extra : mapping

@@ -34,7 +34,7 @@ import dataclasses
 import functools
 import io
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,7 +46,10 @@ from ..kernels import Kernel
 from ..stats import ClipMeans, ClipMetric, CocoDetections, ConfusionMIoU, metric_from_state
 
 __all__ = ["ClipEvidence", "clip_evidence", "encode_evidence", "decode_evidence", "network_info",
-           "PER_CLIP_METRICS", "EVAL_BATCH"]
+           "PER_CLIP_METRICS", "EVAL_BATCH", "EVENT_RATE_UNIT", "bootstrap_weights", "weighted_rate", "event_rate_ci"]
+
+#: Unit of :attr:`ClipEvidence.clip_event_rates` and of every event rate with a CI.
+EVENT_RATE_UNIT = "events/pixel/s"
 
 #: Clips per simulator call. Noise streams restart at every call, so every kernel must be run on
 #: the same batches for its noise draws to be paired; 64 is also :func:`evaluate_kernel`'s batch,
@@ -97,6 +100,9 @@ class ClipEvidence:
         Seed of the held-out clips scored (the checkpoint's ``test_seed`` + ``clip_set``).
     event_rate : float
         Mean events per pixel and frame interval the network saw.
+    clip_event_rates : ndarray or None
+        Events per pixel per second of each clip (ON + OFF, over the clip's duration; None where
+        not recorded): what :mod:`fsdvs_hw.explore.rate` resamples for an event rate's CI.
     """
 
     task: str
@@ -109,6 +115,7 @@ class ClipEvidence:
     seconds: float
     test_seed: int = -1
     event_rate: float = float("nan")
+    clip_event_rates: np.ndarray | None = dataclasses.field(default=None, repr=False)
 
 
 def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n_test: int | None = None,
@@ -174,7 +181,8 @@ def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n
     value = float(metric.weighted(np.ones((1, n)))[0])
     return ClipEvidence(task=evaluator.name, metric_name=evaluator.primary_metric, value=value, n_clips=n,
                         metric=metric, checkpoint=str(checkpoint), sensor_seed=int(cfg.seed),
-                        seconds=time.perf_counter() - t0, test_seed=test_seed, event_rate=ev.event_rate)
+                        seconds=time.perf_counter() - t0, test_seed=test_seed, event_rate=ev.event_rate,
+                        clip_event_rates=np.asarray(ev.clip_event_rates, dtype=np.float64))
 
 
 @functools.lru_cache(maxsize=32)
@@ -221,3 +229,109 @@ def decode_evidence(text: str) -> ClipMetric:
     except (ValueError, OSError, TypeError) as exc:
         raise InputError(f"decode_evidence: not an encoded per-clip metric ({exc})") from None
     return metric_from_state(state)
+
+
+def bootstrap_weights(n_networks: int, n_clips: int, *, test_clips: str = "per_network", n_resamples: int = 2000,
+                      rng: Any = 0) -> tuple[np.ndarray, np.ndarray | None]:
+    """Multiplicities of one bootstrap over networks × clips, as :mod:`fsdvs_hw.stats` draws them.
+
+    Parameters
+    ----------
+    n_networks, n_clips : int
+        Networks (training seeds) and test clips per network.
+    test_clips : {"per_network", "shared"}
+        ``"per_network"`` (clips nested in networks): with ≥ 2 networks whole (network, clips)
+        clusters are drawn and every clip of a drawn network keeps weight 1 (the cluster spread
+        already holds the clip variance, :mod:`fsdvs_hw.stats`); with one network its clips are
+        drawn. ``"shared"`` (crossed): networks and clips are drawn independently.
+    n_resamples : int
+        Bootstrap resamples ``B`` (≥ 100).
+    rng : int or numpy Generator
+        Seed of the draws.
+
+    Returns
+    -------
+    network_weights : ndarray (B, n_networks)
+    clip_weights : ndarray (B, n_clips) or None
+        None: every clip has weight 1 in every resample.
+
+    Raises
+    ------
+    InputError
+        Counts or ``test_clips`` out of range.
+    """
+    for name, v, lo in (("n_networks", n_networks, 1), ("n_clips", n_clips, 2), ("n_resamples", n_resamples, 100)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= int(v) <= 10_000_000:
+            raise InputError(f"bootstrap_weights: {name}={v!r}; allowed: an integer in [{lo}, 10000000]")
+    if test_clips not in ("per_network", "shared"):
+        raise InputError(f"bootstrap_weights: test_clips={test_clips!r}; allowed: 'per_network', 'shared'")
+    gen = np.random.default_rng(rng)
+
+    def draw(n: int) -> np.ndarray:
+        idx = gen.integers(0, n, size=(n_resamples, n))
+        return np.stack([np.bincount(row, minlength=n) for row in idx]).astype(np.float64)
+
+    ws = draw(n_networks) if n_networks >= 2 else np.ones((n_resamples, 1))
+    if test_clips == "per_network" and n_networks >= 2:
+        return ws, None
+    return ws, draw(n_clips)
+
+
+def weighted_rate(clip_rates: np.ndarray, network_weights: np.ndarray, clip_weights: np.ndarray | None) -> np.ndarray:
+    """Mean event rate of (networks, clips) per-clip rates under bootstrap weights.
+
+    Parameters
+    ----------
+    clip_rates : ndarray (n_networks, n_clips)
+        Events per pixel per second of each clip.
+    network_weights : ndarray (B, n_networks)
+    clip_weights : ndarray (B, n_clips) or None
+
+    Returns
+    -------
+    ndarray (B,)
+        Σ_s w_s · mean_c(w_c r_sc) / Σ_s w_s, in the unit of ``clip_rates``.
+    """
+    r = np.asarray(clip_rates, dtype=np.float64)
+    per_net = (np.broadcast_to(r.mean(axis=1), network_weights.shape) if clip_weights is None
+               else (clip_weights @ r.T) / clip_weights.sum(axis=1, keepdims=True))  # (B, S)
+    return (network_weights * per_net).sum(axis=1) / network_weights.sum(axis=1)
+
+
+def event_rate_ci(evidence: Sequence[ClipEvidence], *, test_clips: str = "per_network", confidence: float = 0.95,
+                  n_resamples: int = 2000, rng: Any = 0) -> dict[str, Any]:
+    """Mean event rate of one kernel over its networks and clips, with a percentile bootstrap CI.
+
+    Parameters
+    ----------
+    evidence : sequence of ClipEvidence
+        One per network, each with :attr:`ClipEvidence.clip_event_rates`, the same clip count.
+    test_clips : {"per_network", "shared"}
+        How the networks' clips were drawn (:func:`bootstrap_weights`).
+    confidence : float
+        Two-sided level in (0, 1).
+    n_resamples : int
+        Bootstrap resamples.
+    rng : int or numpy Generator
+
+    Returns
+    -------
+    dict
+        ``mean``, ``low``, ``high`` (events/pixel/s), ``unit``, ``confidence``, ``n_clips`` (in
+        total), ``n_networks``; or ``{"status": "unavailable: ..."}`` without per-clip rates.
+    """
+    if not 0.0 < confidence < 1.0:
+        raise InputError(f"event_rate_ci: confidence={confidence!r}; allowed: (0, 1)")
+    if not evidence or any(e.clip_event_rates is None for e in evidence):
+        return {"status": "unavailable: no per-clip event rates recorded"}
+    counts = {len(e.clip_event_rates) for e in evidence}  # type: ignore[arg-type]
+    if len(counts) != 1:
+        return {"status": f"unavailable: networks scored different clip counts {sorted(counts)}"}
+    rates = np.stack([np.asarray(e.clip_event_rates, dtype=np.float64) for e in evidence])
+    ws, wc = bootstrap_weights(rates.shape[0], rates.shape[1], test_clips=test_clips, n_resamples=n_resamples, rng=rng)
+    boot = weighted_rate(rates, ws, wc)
+    alpha = (1.0 - confidence) / 2.0
+    n_total = rates.size if test_clips == "per_network" else rates.shape[1]
+    return {"mean": float(rates.mean()), "low": float(np.quantile(boot, alpha)),
+            "high": float(np.quantile(boot, 1.0 - alpha)), "unit": EVENT_RATE_UNIT, "confidence": confidence,
+            "n_clips": int(n_total), "n_networks": int(rates.shape[0])}

@@ -189,8 +189,13 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
     dict
         ``{"status", task: {track: {"status", "metric" (mean over networks), "metric_name",
         "per_seed", "n_clips" (total over the networks), "n_clips_per_network", "n_seeds",
-        "test_clips", "test_seeds", "checkpoints", "sensor_seeds", "event_rate", "evidence", "sensor",
-        "wall_s"}}}``; ``status`` names what is missing instead of inventing a number.
+        "test_clips", "test_seeds", "checkpoints", "sensor_seeds", "event_rate", "event_rate_unit",
+        "event_rate_per_s", "evidence", "sensor", "wall_s"}}}``; ``status`` names what is missing
+        instead of inventing a number. ``event_rate`` is the mean over networks of the events per
+        pixel and frame interval (``event_rate_unit``); ``event_rate_per_s`` is the same rate in
+        events/pixel/s with its 95 % bootstrap CI over networks × clips
+        (:func:`fsdvs_hw.explore.paired.event_rate_ci`: ``mean``, ``low``, ``high``, ``unit``,
+        ``n_clips``, ``n_networks``).
         Network ``s`` of a task is scored with sensor seed ``checkpoint seed + s`` (its own
         mismatch pattern, :mod:`fsdvs_hw.explore.paired`).
     """
@@ -198,7 +203,7 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
         return {"status": "not requested"}
     if test_clips not in TEST_CLIPS:
         raise InputError(f"test_clips {test_clips!r} unknown; allowed: {', '.join(TEST_CLIPS)}")
-    from .paired import clip_evidence, encode_evidence  # torch: imported only when tasks are scored
+    from .paired import clip_evidence, encode_evidence, event_rate_ci  # torch: imported only when tasks are scored
     out: dict[str, Any] = {"status": "ok"}
     for task, entry in checkpoints.items():
         paths = [Path(p) for p in (entry if isinstance(entry, (list, tuple)) else [entry])]
@@ -235,6 +240,8 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
                 "n_clips_per_network": evid[0].n_clips, "test_seeds": [e.test_seed for e in evid],
                 "checkpoints": [str(p) for p in paths], "sensor_seeds": [e.sensor_seed for e in evid],
                 "event_rate": float(np.mean([e.event_rate for e in evid])), "sensor": sensor_rec,
+                "event_rate_unit": "events/pixel/frame interval",
+                "event_rate_per_s": event_rate_ci(evid, test_clips=test_clips),
                 "wall_s": time.perf_counter() - t0,
             }
             if keep_evidence:

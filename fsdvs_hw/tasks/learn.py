@@ -177,6 +177,8 @@ class Evaluation:
     seconds: float
     event_rate: float
     predictions: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    #: Events per pixel per second of each test clip (ON and OFF together, over the clip's duration).
+    clip_event_rates: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
     @property
     def value(self) -> float:
@@ -184,7 +186,8 @@ class Evaluation:
         return self.metrics[self.primary_metric]
 
     def to_dict(self) -> dict[str, Any]:
-        return {**{k: v for k, v in self.__dict__.items() if k != "predictions"}, "value": self.value}
+        return {**{k: v for k, v in self.__dict__.items() if k not in ("predictions", "clip_event_rates")},
+                "value": self.value}
 
 
 # --------------------------------------------------------------------------- simulator glue
@@ -270,10 +273,13 @@ def _cat_predictions(preds: list[dict[str, Any]]) -> dict[str, Any]:
 
 def _score(evaluator: Any, network: Any, kernel_t: Any, video: Any, targets: dict[str, Any], sensor: Any,
            timestamps_s: np.ndarray, batch_size: int = 64, events_fn: Any = None,
-           keep: dict[str, Any] | None = None) -> tuple[dict[str, float], float]:
+           keep: dict[str, Any] | None = None, clip_rates: list[np.ndarray] | None = None,
+           ) -> tuple[dict[str, float], float]:
     """Metrics of ``network`` with ``kernel_t`` on a test set, and the mean event count per pixel-frame.
 
     If ``keep`` is a dict, the concatenated per-clip predictions are stored in it (numpy arrays).
+    If ``clip_rates`` is a list, each batch's per-clip event rates (events per pixel per second,
+    ON + OFF, over the span of ``timestamps_s``) are appended to it.
     """
     import torch
 
@@ -284,6 +290,10 @@ def _score(evaluator: Any, network: Any, kernel_t: Any, video: Any, targets: dic
             ev = (events_fn or _events)(video[s : s + batch_size], kernel_t, sensor, timestamps_s)
             n_events += float(ev.sum())
             n_px += ev[:, :, 0].numel()
+            if clip_rates is not None:
+                span_s = float(timestamps_s[-1] - timestamps_s[0])
+                per_clip = ev.reshape(ev.shape[0], -1).sum(dim=1).double().numpy()
+                clip_rates.append(per_clip / (ev.shape[-2] * ev.shape[-1] * span_s))
             from .networks import event_representation
 
             preds.append(evaluator.predict(network(event_representation(ev.float()))))
@@ -722,11 +732,13 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
     tseed = int(provenance["test_seed"]) if test_seed is None else _check_test_seed(test_seed, "evaluate_kernel")
     test_video, test_targets = _dataset(scene, n_test, tseed, evaluator.name, settings.dtype)
     kept: dict[str, np.ndarray] | None = {} if keep_predictions else None
+    rates: list[np.ndarray] = []
     metrics, event_rate = _score(evaluator, network, kernel_t, test_video, test_targets, sensor, ts,
-                                 events_fn=events_fn, keep=kept)
+                                 events_fn=events_fn, keep=kept, clip_rates=rates)
     return Evaluation(task=evaluator.name, metrics=metrics, primary_metric=evaluator.primary_metric,
                       kernel_name=k.name, kernel_size=k.size, n_test=n_test, finetune_epochs=finetune_epochs,
-                      seconds=time.perf_counter() - t0, event_rate=event_rate, predictions=kept or {})
+                      seconds=time.perf_counter() - t0, event_rate=event_rate, predictions=kept or {},
+                      clip_event_rates=np.concatenate(rates))
 
 
 def load_network(checkpoint: str | Path, task: Any, *, who: str = "load_network") -> tuple[Any, dict[str, Any]]:
