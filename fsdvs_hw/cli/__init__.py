@@ -32,6 +32,7 @@ COMMANDS: dict[str, str] = {
     "learn": "fsdvs_hw.cli.learn",
     "codesign-pilot": "fsdvs_hw.cli.codesign_pilot",
     "ablation": "fsdvs_hw.cli.ablation",
+    "rate": "fsdvs_hw.cli.rate",
     "explore": "fsdvs_hw.cli.explore",
     "report": "fsdvs_hw.cli.report",
     "schema": "fsdvs_hw.cli.schema",

@@ -1,0 +1,66 @@
+"""``fsdvs-hw rate``: bandwidth-matched comparison over :func:`fsdvs_hw.explore.rate_study.run_rate_study`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ..limits import MAX_CLIPS
+from ._execution import int_in
+
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+
+HELP = "event rate vs threshold for w/o and the learned kernel; task gain at matched event rate with 95 % CIs; resumable"
+DESCRIPTION = (
+    "Sweep the ON/OFF contrast threshold for the plain DVS (w/o) and the design's learned kernel (and\n"
+    "optionally its realisations) in the design's fixed trained networks, record event rate and task\n"
+    "metric per threshold with bootstrap CIs over networks x clips, and compare the kernels at equal\n"
+    "event rate (interpolation in log rate; extrapolation refused). Each finished point is saved in\n"
+    "OUT/points, so a rerun resumes.\n\n"
+    "Example:\n  fsdvs-hw rate designs/default.toml --task detection --networks 8 --n-test 32 --out out/rate\n"
+)
+
+
+def _threshold(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 1e-4 <= v <= 10.0:
+        raise argparse.ArgumentTypeError(f"{text!r}: allowed 1e-4..10 log units")
+    return v
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from ..explore.rate import DEFAULT_THRESHOLDS
+
+    parser.add_argument("design", type=Path, help="TOML design file, or a shipped design's name (default)")
+    parser.add_argument("--task", default="detection", help="task of the design's checkpoints")
+    parser.add_argument("--thresholds", nargs="+", type=_threshold, default=list(DEFAULT_THRESHOLDS),
+                        help="ON=OFF contrast thresholds, log units (the design's threshold is added)")
+    parser.add_argument("--networks", type=int_in(1, 10_000), default=None,
+                        help="use the first N networks of the task (default: all)")
+    parser.add_argument("--n-test", type=int_in(2, MAX_CLIPS), default=None,
+                        help="test clips per network (default: the design's tasks.n_test)")
+    parser.add_argument("--realisations", nargs="*", default=[], help="also curve these realisations (mesh asic metalens)")
+    parser.add_argument("--resolution", nargs=2, type=int_in(1, 100_000), default=[720, 1280], metavar=("H", "W"),
+                        help="sensor size for the Mev/s column")
+    parser.add_argument("--n-resamples", type=int_in(100, 1_000_000), default=2000, help="bootstrap resamples per CI")
+    parser.add_argument("--out", type=Path, default=Path("out") / "rate",
+                        help="folder: points/, rate_curves.json/.csv, matched_rate.json")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..explore.rate_study import RateOptions, run_rate_study
+
+    cmd = "fsdvs-hw rate " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "fsdvs-hw rate"
+    study = run_rate_study(RateOptions(
+        design=args.design, task=args.task, out=args.out, thresholds=tuple(args.thresholds),
+        n_networks=args.networks, n_test=args.n_test, realisations=tuple(args.realisations),
+        resolution_px=(args.resolution[0], args.resolution[1]), n_resamples=args.n_resamples,
+        progress=False if args.no_progress else None, command=cmd))
+    print(study.text)
+    for name, path in study.files.items():
+        print(f"wrote {path}")
+    return 0

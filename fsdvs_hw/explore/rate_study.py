@@ -1,0 +1,189 @@
+"""The bandwidth-matched study of a design (phase 1, fixed networks): rate curves and matched differences.
+
+:func:`run_rate_study` measures the rate curves (:func:`fsdvs_hw.explore.rate.rate_curve`) of the
+plain DVS (w/o, 1×1 delta), the design's learned kernel and optionally its hardware realisations,
+for one task, in the design's trained networks, and writes to ``out``:
+
+``points/``
+    One JSON file per finished (kernel, threshold) point, per-clip evidence included; a rerun
+    with the same settings loads them instead of recomputing (resume).
+``rate_curves.json`` / ``rate_curves.csv``
+    One row per (kernel, threshold): event rate (events/pixel/s) and Mev/s at ``resolution_px``
+    with 95 % CIs, the task metric with its CI, n clips, n networks.
+``matched_rate.json``
+    The comparisons, each a :class:`fsdvs_hw.explore.rate.MatchedRateDifference`, with the
+    settings and provenance (command, library versions, date):
+
+    * ``learned_vs_wo_at_learned_rate``: learned at the design's threshold minus w/o with its
+      threshold moved to the learned kernel's event rate (the headline: the filter's gain over a
+      plain DVS with a lowered threshold);
+    * ``wo_vs_learned_at_wo_rate``: w/o at the design's threshold minus the learned kernel at the
+      w/o rate (the learned gain at a plain DVS's bandwidth is minus this);
+    * ``{realisation}_vs_wo_at_{realisation}_rate`` for each realisation asked for.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as _dt
+import io
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from ..paths import output_dir, write_output
+from ..provenance import library_versions
+from .rate import DEFAULT_THRESHOLDS, RateCurve, matched_rate_difference, rate_curve
+
+__all__ = ["RateOptions", "RateStudy", "run_rate_study"]
+
+
+@dataclass(frozen=True)
+class RateOptions:
+    """What :func:`run_rate_study` measures.
+
+    Attributes
+    ----------
+    design : path
+        TOML design (kernel, sensor, ``[tasks] checkpoints``).
+    task : str
+        One task of the design's checkpoints.
+    out : path
+        Output folder.
+    thresholds : sequence of float
+        ON = OFF contrast thresholds (log units); the design's threshold is added.
+    n_networks : int or None
+        The first N networks of the task (None: all).
+    n_test : int or None
+        Test clips per network (None: the design's ``tasks.n_test`` for the task, else the checkpoint's).
+    realisations : sequence of str
+        Hardware realisations to add (``"mesh"``, ``"asic"``, ``"metalens"``; fitted with the design's options).
+    resolution_px : (int, int)
+        Sensor size for the Mev/s column (default 720 × 1280, the IMX636 whose pitch the design uses).
+    n_resamples : int
+        Bootstrap resamples per CI.
+    confidence : float
+    progress : bool or None
+    command : str
+        The command line, recorded in the provenance.
+    """
+
+    design: Path
+    task: str
+    out: Path
+    thresholds: tuple[float, ...] = DEFAULT_THRESHOLDS
+    n_networks: int | None = None
+    n_test: int | None = None
+    realisations: tuple[str, ...] = ()
+    resolution_px: tuple[int, int] = (720, 1280)
+    n_resamples: int = 2000
+    confidence: float = 0.95
+    progress: bool | None = None
+    command: str = ""
+
+
+@dataclass(frozen=True)
+class RateStudy:
+    """What :func:`run_rate_study` measured: the curves, the comparisons and the files written."""
+
+    curves: dict[str, RateCurve]
+    comparisons: dict[str, Any]
+    rows: list[dict[str, Any]]
+    files: dict[str, Path]
+
+    @property
+    def text(self) -> str:
+        """The comparisons, one line each."""
+        return "\n".join(c.describe() for c in self.comparisons.values())
+
+
+def _csv(rows: Sequence[dict[str, Any]]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(rows[0]))
+    w.writeheader()
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+def run_rate_study(options: RateOptions) -> RateStudy:
+    """Measure the rate curves of a design's kernels for one task and compare them at matched rate.
+
+    Parameters
+    ----------
+    options : RateOptions
+
+    Returns
+    -------
+    RateStudy
+
+    Raises
+    ------
+    InputError
+        Unknown task, unequal ON/OFF thresholds in the design, bad counts, unknown realisation.
+    """
+    from ..resources import resolve_design
+    from .design import load_design
+    from .scoring import fit_realisation
+
+    design = load_design(resolve_design(options.design))
+    ckpts = design.checkpoints()
+    if options.task not in ckpts:
+        raise InputError(f"--task {options.task!r}: not in the design's tasks.checkpoints; allowed: {', '.join(ckpts)}")
+    paths = ckpts[options.task]
+    if options.n_networks is not None:
+        if not 1 <= options.n_networks <= len(paths):
+            raise InputError(f"--networks {options.n_networks}: allowed 1..{len(paths)} (the design's "
+                             f"{options.task} networks)")
+        paths = paths[: options.n_networks]
+    sensor = design.spec.sensor
+    if sensor.threshold_on != sensor.threshold_off:
+        raise InputError(f"sensor.threshold_on={sensor.threshold_on} != threshold_off={sensor.threshold_off}: the "
+                         "rate curve sets both together; allowed: equal thresholds")
+    t_ref = float(sensor.threshold_on)
+    thresholds = tuple(sorted(set(options.thresholds) | {t_ref}))
+    n_test = options.n_test
+    if n_test is None:
+        n_test = int(design.data["tasks"]["n_test"].get(options.task, 0) or 0) or None
+    tasks = design.data["tasks"]
+    design_sensor = design.section("sensor") if tasks["sensor"] == "design" else None
+    test_clips = str(tasks.get("test_clips", "per_network"))
+    out = output_dir(options.out, flag="--out")
+    common = dict(n_test=n_test, design_sensor=design_sensor, test_clips=test_clips, cache_dir=out / "points",
+                  progress=options.progress)
+    kernels: dict[str, Any] = {"w/o": None, "learned": design.target}
+    for name in options.realisations:
+        real, _ = fit_realisation(name, design.target, design.realisation_options(name),
+                                  seed=int(design.data["run"]["seed"]))
+        kernels[name] = real.kernel()
+    curves = {name: rate_curve(k, options.task, paths, thresholds, label=name, **common) for name, k in kernels.items()}
+    kw = dict(confidence=options.confidence, n_resamples=options.n_resamples, rng=0)
+    comparisons = {
+        "learned_vs_wo_at_learned_rate": matched_rate_difference(curves["w/o"], curves["learned"], t_ref, **kw),
+        "wo_vs_learned_at_wo_rate": matched_rate_difference(curves["learned"], curves["w/o"], t_ref, **kw),
+    }
+    for name in options.realisations:
+        comparisons[f"{name}_vs_wo_at_{name}_rate"] = matched_rate_difference(curves["w/o"], curves[name], t_ref, **kw)
+    rows = [r for c in curves.values() for r in c.summary(confidence=options.confidence,
+                                                          n_resamples=options.n_resamples, rng=0,
+                                                          resolution_px=options.resolution_px)]
+    settings = {"design": str(options.design), "task": options.task, "thresholds": list(thresholds),
+                "reference_threshold": t_ref, "n_networks": len(paths), "n_test_per_network": n_test,
+                "test_clips": test_clips, "sensor": "design" if design_sensor else "checkpoint",
+                "networks": [p.name for p in paths], "resolution_px": list(options.resolution_px),
+                "n_resamples": options.n_resamples, "confidence": options.confidence,
+                "protocol": "fixed networks (phase 1): every kernel zero-shot in the shipped networks trained with "
+                            "the learned kernel"}
+    provenance = {"command": options.command, "versions": library_versions(),
+                  "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+    files = {
+        "rate_curves.json": write_output(out / "rate_curves.json", json.dumps(
+            {"settings": settings, "rows": rows, "provenance": provenance}, indent=1)),
+        "rate_curves.csv": write_output(out / "rate_curves.csv", _csv(rows)),
+        "matched_rate.json": write_output(out / "matched_rate.json", json.dumps(
+            {"settings": settings, "comparisons": {k: v.to_dict() for k, v in comparisons.items()},
+             "provenance": provenance}, indent=1, default=str)),
+    }
+    return RateStudy(curves=curves, comparisons=comparisons, rows=rows, files=files)
