@@ -188,6 +188,7 @@ _BAD_VALUES = {
     "sweep": ["sweep", "no/such/design.toml"],
     "simulate": ["simulate", "example:bikes", "--out", "events.txt"],
     "sizing": ["sizing", "designs/default.toml", "--target", "-1"],
+    "rate": ["rate", "designs/default.toml", "--task", "no_such_task"],
 }
 
 
