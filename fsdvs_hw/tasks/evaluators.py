@@ -247,6 +247,8 @@ class SegmentationEvaluator(TaskEvaluator):
     staged = False
     background_weight = 0.1
     num_classes = 1 + len(SHAPE_CLASSES)
+    #: Target label left out of the scores (None: every pixel scored; user data sets it, e.g. 255).
+    ignore_index: int | None = None
 
     def default_scene(self, regime: str = "clutter") -> SceneConfig:
         return scene_regime(regime, motion="random", n_objects=(1, 2))
@@ -270,7 +272,8 @@ class SegmentationEvaluator(TaskEvaluator):
         return {"mask": output.detach().argmax(dim=1)}
 
     def score(self, prediction: dict[str, torch.Tensor], target: Targets) -> dict[str, float]:
-        return segmentation_scores(prediction["mask"], target["mask"], num_classes=self.num_classes)
+        return segmentation_scores(prediction["mask"], target["mask"], num_classes=self.num_classes,
+                                   ignore_index=self.ignore_index)
 
 
 #: task name -> evaluator instance

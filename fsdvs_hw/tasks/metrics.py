@@ -147,7 +147,8 @@ def top1_accuracy(logits: Any, target: Any, *, num_classes: int) -> dict[str, fl
     return {"top1": float(metric(p, t))}
 
 
-def segmentation_scores(pred: Any, target: Any, *, num_classes: int) -> dict[str, float]:
+def segmentation_scores(pred: Any, target: Any, *, num_classes: int,
+                        ignore_index: int | None = None) -> dict[str, float]:
     """mIoU, mean class accuracy and pixel accuracy (torchmetrics).
 
     Parameters
@@ -158,6 +159,9 @@ def segmentation_scores(pred: Any, target: Any, *, num_classes: int) -> dict[str
         True class per pixel.
     num_classes : int
         Number of classes including background.
+    ignore_index : int, optional
+        Target label of unlabelled pixels (e.g. 255 in Cityscapes): those pixels are left out of
+        every score, whatever the prediction there.
 
     Returns
     -------
@@ -176,6 +180,12 @@ def segmentation_scores(pred: Any, target: Any, *, num_classes: int) -> dict[str
     if p.shape != t.shape or p.ndim != 3:
         raise InputError(f"segmentation_scores: pred and target must both be (N, H, W); got {tuple(p.shape)} "
                          f"and {tuple(t.shape)}")
+    if ignore_index is not None:
+        keep = t != int(ignore_index)
+        if not bool(keep.any()):
+            raise InputError(f"segmentation_scores: every target pixel is ignore_index={ignore_index}; "
+                             "the scores are undefined")
+        p, t = p[keep].reshape(1, 1, -1), t[keep].reshape(1, 1, -1)
     for name, x in (("pred", p), ("target", t)):
         if x.numel() and (int(x.min()) < 0 or int(x.max()) >= num_classes):
             raise InputError(f"segmentation_scores: {name} classes must lie in [0, {num_classes}), "
