@@ -17,15 +17,19 @@ import pytest
 
 imageio = pytest.importorskip("imageio")
 torch = pytest.importorskip("torch")
-from PIL import Image  # noqa: E402
+from PIL import Image
 
-from fsdvs_hw.errors import InputError  # noqa: E402
-from fsdvs_hw.kernels import dog_taps  # noqa: E402
-from fsdvs_hw.scenes.datasets import (CocoFramesDataset, MaskFramesDataset, VideoFolderDataset,  # noqa: E402
-                                      code_to_linear)
-from fsdvs_hw.tasks.dataset_eval import evaluate_on_dataset  # noqa: E402
-from fsdvs_hw.tasks.metrics import detection_map, segmentation_scores, top1_accuracy  # noqa: E402
-from fsdvs_hw.tasks.user_networks import EventInput, load_network_factory, load_weights  # noqa: E402
+from fsdvs_hw.errors import InputError
+from fsdvs_hw.kernels import dog_taps
+from fsdvs_hw.scenes.datasets import (
+    CocoFramesDataset,
+    MaskFramesDataset,
+    VideoFolderDataset,
+    code_to_linear,
+)
+from fsdvs_hw.tasks.dataset_eval import evaluate_on_dataset
+from fsdvs_hw.tasks.metrics import detection_map, segmentation_scores, top1_accuracy
+from fsdvs_hw.tasks.user_networks import EventInput, load_network_factory, load_weights
 
 PLUGINS = Path(__file__).parent / "plugins"
 SIDE = 32  # frames are SIDE x SIDE pixels
@@ -175,7 +179,7 @@ def test_split_file_and_seeded_draws(ucf_root):
 
 
 def test_coco_frames_clips(coco):
-    fdir, js, doc = coco
+    fdir, js, _ = coco
     ds = CocoFramesDataset(fdir, js, n_frames=4, fps=FPS)
     assert len(ds) == 2 and ds.class_names == ("small", "big")
     c = ds[1]
@@ -268,8 +272,7 @@ def test_mask_bad_layouts(tmp_path):
 def test_network_factory_checks(plugin_path, tmp_path):
     net = load_network_factory("toy_network:make", in_channels=4, num_classes=2)
     assert isinstance(net, torch.nn.Module)
-    assert EventInput.parse(getattr(load_network_factory("toy_network:make_voxel", in_channels=1, num_classes=2),
-                                    "event_input")) == EventInput("voxel", 4)
+    assert EventInput.parse(load_network_factory("toy_network:make_voxel", in_channels=1, num_classes=2).event_input) == EventInput("voxel", 4)
     with pytest.raises(InputError, match="'no_such_module_xyz' does not import"):
         load_network_factory("no_such_module_xyz:make")
     with pytest.raises(InputError, match="has no attribute 'nope'"):

@@ -50,8 +50,17 @@ import numpy as np
 from ..errors import InputError
 from ..limits import MAX_CLIPS, check_allocation, check_count
 
-__all__ = ["Clip", "ClipDataset", "VideoFolderDataset", "CocoFramesDataset", "MaskFramesDataset",
-           "stack_targets", "code_to_linear", "VIDEO_SUFFIXES", "IMAGE_SUFFIXES"]
+__all__ = [
+    "IMAGE_SUFFIXES",
+    "VIDEO_SUFFIXES",
+    "Clip",
+    "ClipDataset",
+    "CocoFramesDataset",
+    "MaskFramesDataset",
+    "VideoFolderDataset",
+    "code_to_linear",
+    "stack_targets",
+]
 
 #: File endings read as videos (recognition folders).
 VIDEO_SUFFIXES: tuple[str, ...] = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".mpg", ".mpeg")

@@ -28,7 +28,7 @@ from typing import Any
 
 from ..errors import InputError, one_line
 
-__all__ = ["EventInput", "load_network_factory", "event_input_of", "load_weights", "builtin_network"]
+__all__ = ["EventInput", "builtin_network", "event_input_of", "load_network_factory", "load_weights"]
 
 
 @dataclass(frozen=True)
