@@ -24,7 +24,7 @@ from fsdvs_hw.errors import InputError
 from . import harness
 from .harness import BenchRun, kept_global_state
 
-__all__ = ["BENCHMARKS", "run_benchmark", "benchmark_run", "harness"]
+__all__ = ["BENCHMARKS", "benchmark_run", "harness", "run_benchmark"]
 
 #: benchmark name -> "module:function"
 BENCHMARKS: dict[str, str] = {

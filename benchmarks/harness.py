@@ -31,28 +31,28 @@ import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 from fsdvs_hw.provenance import library_versions
 
 __all__ = [
+    "RECORD_SCHEMA",
     "BenchRecord",
     "BenchRun",
     "BenchSection",
-    "Table",
     "Column",
     "Measured",
+    "Table",
     "Timing",
-    "timed",
     "kept_global_state",
-    "machine_info",
     "library_versions",
-    "records_markdown",
-    "write_json",
+    "machine_info",
     "read_json",
-    "RECORD_SCHEMA",
+    "records_markdown",
+    "timed",
+    "write_json",
 ]
 
 #: Version of the JSON layout written by :func:`write_json`.
@@ -461,7 +461,7 @@ class Table:
     """A Markdown table whose value cells are records; made by :meth:`BenchSection.table`."""
 
     def __init__(self, section: BenchSection, title: str, columns: Sequence[Column], settings: Mapping[str, Any],
-                 threads: int | None | str) -> None:
+                 threads: int | str | None) -> None:
         if not columns:
             from fsdvs_hw.errors import InputError
 
@@ -470,7 +470,7 @@ class Table:
         self._settings, self._threads = dict(settings), threads
         self._lines: list[str] = []
 
-    def row(self, *cells: Cell, case: str | None = None, threads: int | None | str = "auto") -> None:
+    def row(self, *cells: Cell, case: str | None = None, threads: int | str | None = "auto") -> None:
         """Add a row: one cell per column (see :data:`Cell`); its value cells become records.
 
         ``case``: the records' case (default: ``header=cell`` of the text cells, joined by ``; ``);
@@ -550,7 +550,7 @@ class BenchSection:
             self._parts.append(line)
 
     def table(self, *columns: Column, title: str | None = None, settings: Mapping[str, Any] | None = None,
-              threads: int | None | str = "auto") -> Table:
+              threads: int | str | None = "auto") -> Table:
         """Add a table here (rows may be added later); ``title`` defaults to the last heading,
         ``settings`` extend the section's, ``threads`` fixes the torch threads of its records."""
         t = Table(self, title or self._title, columns, {**self.settings, **(settings or {})}, threads)
@@ -558,7 +558,7 @@ class BenchSection:
         return t
 
     def value(self, case: str, metric: str, value: Any, *, unit: str = "", spec: str = ".4g",
-              summary: str = "median", threads: int | None | str = "auto") -> str:
+              summary: str = "median", threads: int | str | None = "auto") -> str:
         """Record a value quoted in the text; returns it printed (``spec``; a :class:`Timing` in
         ``unit`` as ``summary``) for the caller's sentence."""
         part = _Part(metric, unit, spec, summary)
@@ -578,7 +578,7 @@ class BenchSection:
     def records(self) -> list[BenchRecord]:
         """One record per number printed so far, with this machine, the library versions and the time."""
         machine, versions = machine_info(), library_versions()
-        stamp = datetime.now(timezone.utc).isoformat(timespec="seconds")
+        stamp = datetime.now(UTC).isoformat(timespec="seconds")
         return [BenchRecord(bench=self.bench, table=p.table, case=p.case, metric=p.metric, unit=p.unit,
                             value=float(p.measured.value), repeats=p.measured.repeats, spread_min=p.measured.low,
                             spread_max=p.measured.high, threads=p.threads, machine=machine, versions=versions,

@@ -29,7 +29,7 @@ from fsdvs_hw.resources import shipped_path
 
 from .harness import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
 
-__all__ = ["bench_metalens", "radial_symmetric_floor", "plot_fits"]
+__all__ = ["bench_metalens", "plot_fits", "radial_symmetric_floor"]
 
 _LEARNED = shipped_path("kernels", "learned_detection_7x7.json")
 _FIGURE_NAME = "metalens_fits.png"

@@ -40,7 +40,7 @@ from typing import Any
 
 from fsdvs_hw.sensor.threads import event_list_threads
 
-__all__ = ["bench_sim", "moving_texture", "sim_records", "records_markdown", "long_clip_frames", "SIM_CASES", "v2e_records"]
+__all__ = ["SIM_CASES", "bench_sim", "long_clip_frames", "moving_texture", "records_markdown", "sim_records", "v2e_records"]
 
 
 def moving_texture(T: int = 17, H: int = 120, W: int = 160, *, speed_px: float = 2.0,
@@ -319,7 +319,7 @@ def _bench_records(records: list[dict[str, Any]], quick: bool) -> list[Any]:
     from .harness import BenchRecord, library_versions, machine_info
 
     table = "Records: Mpixel-frames/s and peak RSS of a fresh child process per case"
-    stamp = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    stamp = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
     out = []
     for r in records:
         case = f"{r['case']}: {r['path']}, {r['clip']} {r['resolution']}, {r['n_frames']} frames"
@@ -403,7 +403,7 @@ def _bikes(n_frames: int | None = None) -> Any:
         if out is None:
             cap = n_frames if n_frames is not None else int(props.get("nframes") or 0) + 8
             out = np.empty((max(cap, 1),) + f.shape, dtype=np.float32)
-        if T == len(out):  # the container under-reported its length
+        if len(out) == T:  # the container under-reported its length
             out = np.concatenate([out, np.empty_like(out)])
         out[T] = f
         T += 1

@@ -22,7 +22,7 @@ from fsdvs_hw.resources import shipped_path
 
 from .harness import BenchRun, BenchSection, Column, Measured, kept_global_state, timed
 
-__all__ = ["bench_tasks", "bootstrap_interval", "SHIPPED_DIR"]
+__all__ = ["SHIPPED_DIR", "bench_tasks", "bootstrap_interval"]
 
 #: The shipped kernels and checkpoints (:func:`fsdvs_hw.resources.shipped_path`).
 SHIPPED_DIR = shipped_path("kernels")

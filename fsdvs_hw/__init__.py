@@ -70,22 +70,22 @@ _LAZY: dict[str, str] = {
 __all__, __getattr__, __dir__ = lazy_exports("fsdvs_hw", _LAZY, globals(), extra=("__version__",))
 
 if TYPE_CHECKING:  # the same names, visible to IDEs and type checkers
-    from .kernels import Kernel, load_kernel, as_kernel, reference_kernel
-    from .errors import InputError, KernelError
-    from .spectra import radial_response, spectral_summary, pixels_per_degree
-    from .csf import Geometry, contrast_sensitivity, csf_agreement
     from .analysis import analyse_kernel
-    from .sensor import SensorConfig, event_frames, event_list, voxel_grid, EventSimulator, plan_model
-    from .realise.base import kernel_error
-    from .realise.registry import RealisationSpec, CostSpec, register_realisation, get_realisation, realisation_names
-    from .realise.mesh import fit_resistive_mesh, MeshDesign, MeshBounds
-    from .realise.mesh.spice import to_spice_netlist
-    from .realise.mesh.dynamics import mesh_needs_transient
-    from .realise.mesh.mismatch import mismatch_monte_carlo
-    from .realise.asic import fit_asic_taps, AsicDesign
-    from .realise.metalens import fit_metalens, MetalensDesign
-    from .tasks.learn import learn_kernel, evaluate_kernel
+    from .csf import Geometry, contrast_sensitivity, csf_agreement
+    from .errors import InputError, KernelError
     from .explore.design import load_design
     from .explore.explore import run_exploration
     from .explore.store import ResultsStore
+    from .kernels import Kernel, as_kernel, load_kernel, reference_kernel
+    from .realise.asic import AsicDesign, fit_asic_taps
+    from .realise.base import kernel_error
+    from .realise.mesh import MeshBounds, MeshDesign, fit_resistive_mesh
+    from .realise.mesh.dynamics import mesh_needs_transient
+    from .realise.mesh.mismatch import mismatch_monte_carlo
+    from .realise.mesh.spice import to_spice_netlist
+    from .realise.metalens import MetalensDesign, fit_metalens
+    from .realise.registry import CostSpec, RealisationSpec, get_realisation, realisation_names, register_realisation
     from .report import write_report
+    from .sensor import EventSimulator, SensorConfig, event_frames, event_list, plan_model, voxel_grid
+    from .spectra import pixels_per_degree, radial_response, spectral_summary
+    from .tasks.learn import evaluate_kernel, learn_kernel

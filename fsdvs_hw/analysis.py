@@ -17,7 +17,7 @@ from .kernels import Kernel, as_kernel
 from .paths import figure_png, write_output
 from .spectra import SpectralSummary, spectral_summary
 
-__all__ = ["KernelAnalysis", "analyse_kernel", "write_analysis", "format_analysis"]
+__all__ = ["KernelAnalysis", "analyse_kernel", "format_analysis", "write_analysis"]
 
 
 @dataclass(frozen=True)

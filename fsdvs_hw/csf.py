@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from functools import lru_cache
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -47,15 +47,15 @@ from .spectra import (
 
 __all__ = [
     "CSF_METHODS",
-    "contrast_sensitivity",
-    "csf_peak",
-    "mannos_sakrison_1974",
-    "barten_1999",
-    "daly_1993",
-    "watson_ahumada_2005",
-    "Geometry",
     "CsfAgreement",
+    "Geometry",
+    "barten_1999",
+    "contrast_sensitivity",
     "csf_agreement",
+    "csf_peak",
+    "daly_1993",
+    "mannos_sakrison_1974",
+    "watson_ahumada_2005",
 ]
 
 

@@ -38,20 +38,20 @@ from .errors import KernelError
 
 __all__ = [
     "DEFAULT_PITCH_M",
-    "MAX_KERNEL_SIZE",
-    "TAP_MAGNITUDE_RANGE",
-    "check_tap_magnitude",
     "MAX_KERNEL_FILE_BYTES",
-    "Kernel",
+    "MAX_KERNEL_SIZE",
     "REFERENCE_KERNELS",
-    "reference_kernel",
+    "TAP_MAGNITUDE_RANGE",
+    "Kernel",
+    "as_kernel",
+    "check_tap_magnitude",
+    "delta_taps",
+    "dog_taps",
+    "gaussian_taps",
     "load_kernel",
     "load_kernel_or_reference",
-    "as_kernel",
-    "delta_taps",
-    "gaussian_taps",
-    "dog_taps",
     "log_taps",
+    "reference_kernel",
 ]
 
 #: Default sensor pixel pitch in metres: 4.86 µm, the pitch of the Sony IMX636 / Prophesee Gen4

@@ -19,8 +19,19 @@ from collections.abc import Iterator
 
 from .errors import InputError
 
-__all__ = ["DEFAULT_MAX_ALLOC_BYTES", "max_alloc_bytes", "allocation_limit", "check_allocation", "check_count",
-           "MAX_WORKERS", "MAX_SEED", "MAX_CLIPS", "MAX_EPOCHS", "MAX_POINTS", "MAX_SUBSTEPS"]
+__all__ = [
+    "DEFAULT_MAX_ALLOC_BYTES",
+    "MAX_CLIPS",
+    "MAX_EPOCHS",
+    "MAX_POINTS",
+    "MAX_SEED",
+    "MAX_SUBSTEPS",
+    "MAX_WORKERS",
+    "allocation_limit",
+    "check_allocation",
+    "check_count",
+    "max_alloc_bytes",
+]
 
 #: Most local worker processes (``--workers``, ``[run] workers``): far above any useful count, low
 #: enough that a typo does not fork thousands of processes.

@@ -27,8 +27,17 @@ from typing import Any
 
 from .errors import InputError
 
-__all__ = ["safe_name", "confined_path", "output_dir", "output_file", "write_output", "csv_text", "npz_bytes",
-           "figure_png", "MAX_NAME_LENGTH"]
+__all__ = [
+    "MAX_NAME_LENGTH",
+    "confined_path",
+    "csv_text",
+    "figure_png",
+    "npz_bytes",
+    "output_dir",
+    "output_file",
+    "safe_name",
+    "write_output",
+]
 
 #: Longest file-name stem :func:`safe_name` returns (characters).
 MAX_NAME_LENGTH = 64

@@ -17,7 +17,7 @@ from .errors import InputError
 from .kernels import Kernel, as_kernel
 from .spectra import magnitude_spectrum, radial_response
 
-__all__ = ["plot_kernel", "plot_spectrum", "plot_radial_vs_csf"]
+__all__ = ["plot_kernel", "plot_radial_vs_csf", "plot_spectrum"]
 
 
 def _axes(ax: Any = None, figsize: tuple[float, float] = (4.2, 3.6)) -> tuple[Any, Any]:

@@ -24,7 +24,7 @@ from importlib.metadata import PackageNotFoundError, version
 from importlib.util import find_spec
 from pathlib import Path
 
-__all__ = ["NUMERICAL_PACKAGES", "library_versions", "ipopt_version"]
+__all__ = ["NUMERICAL_PACKAGES", "ipopt_version", "library_versions"]
 
 #: Distributions whose arithmetic reaches a result (PyPI names), in the order they are listed.
 NUMERICAL_PACKAGES: tuple[str, ...] = (

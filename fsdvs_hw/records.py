@@ -30,7 +30,7 @@ from .errors import InputError
 from .kernels import Kernel
 from .realise.base import CostItem
 
-__all__ = ["CostItem", "Cost", "TrackScore", "TaskScores", "WallTimes", "Score", "ScoredPoint"]
+__all__ = ["Cost", "CostItem", "Score", "ScoredPoint", "TaskScores", "TrackScore", "WallTimes"]
 
 
 def _ro(m: Mapping[str, Any] | None) -> Mapping[str, Any]:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from .errors import InputError
 
-__all__ = ["designs_dir", "shipped_path", "resolve_design", "shipped_designs", "DEFAULT_DESIGN"]
+__all__ = ["DEFAULT_DESIGN", "designs_dir", "resolve_design", "shipped_designs", "shipped_path"]
 
 #: File name of the embedded default design (``fsdvs-hw explore`` with no design argument).
 DEFAULT_DESIGN = "default.toml"

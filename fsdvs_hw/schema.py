@@ -45,8 +45,19 @@ from pydantic_core import PydanticCustomError
 
 from .errors import InputError
 
-__all__ = ["StrictModel", "field", "structured", "PyObject", "DESIGN_CONTEXT", "validate", "problems",
-           "allowed_text", "field_schema", "members", "short"]
+__all__ = [
+    "DESIGN_CONTEXT",
+    "PyObject",
+    "StrictModel",
+    "allowed_text",
+    "field",
+    "field_schema",
+    "members",
+    "problems",
+    "short",
+    "structured",
+    "validate",
+]
 
 #: Validation context of a design file (structured tables are built by their class; Python
 #: objects cannot be given).

@@ -35,13 +35,13 @@ __all__ = [
     "NYQUIST_CPP",
     "RadialResponse",
     "SpectralSummary",
+    "cpd_to_cpp",
+    "cpp_to_cpd",
     "frequency_response",
     "magnitude_spectrum",
+    "pixels_per_degree",
     "radial_response",
     "spectral_summary",
-    "pixels_per_degree",
-    "cpp_to_cpd",
-    "cpd_to_cpp",
 ]
 
 #: Nyquist frequency of the pixel grid, cycles/pixel.

@@ -70,18 +70,18 @@ import numpy as np
 from .errors import InputError
 
 __all__ = [
-    "ClipMetric",
+    "DEFAULT_RESAMPLES",
     "ClipMeans",
-    "ConfusionMIoU",
+    "ClipMetric",
     "CocoDetections",
-    "coco_records",
+    "ConfusionMIoU",
     "DifferenceCI",
+    "clips_for_half_width",
+    "coco_records",
     "difference_ci",
     "difference_cis",
-    "task_difference_cis",
-    "clips_for_half_width",
     "metric_from_state",
-    "DEFAULT_RESAMPLES",
+    "task_difference_cis",
 ]
 
 #: Bootstrap resamples per interval (percentile CI; Monte-Carlo error of a 95 % bound ≈ 2 % of h).

@@ -35,8 +35,15 @@ from .errors import InputError
 from .kernels import Kernel, check_tap_magnitude
 from .schema import validate
 
-__all__ = ["PITCH_RANGE_M", "check_fit_arguments", "check_int", "check_real", "check_bool", "check_instance",
-           "check_increasing_times"]
+__all__ = [
+    "PITCH_RANGE_M",
+    "check_bool",
+    "check_fit_arguments",
+    "check_increasing_times",
+    "check_instance",
+    "check_int",
+    "check_real",
+]
 
 
 def _show(value: Any) -> str:

@@ -20,7 +20,7 @@ import threading
 import time
 from typing import Any
 
-__all__ = ["process_pool", "PARENT_POLL_S"]
+__all__ = ["PARENT_POLL_S", "process_pool"]
 
 #: Seconds between checks of the parent's pid in each worker.
 PARENT_POLL_S = 0.5

@@ -23,7 +23,7 @@ from typing import NoReturn
 
 from ..errors import InputError, ToolMissingError
 
-__all__ = ["main", "COMMANDS"]
+__all__ = ["COMMANDS", "main"]
 
 #: sub-command name -> module implementing it
 COMMANDS: dict[str, str] = {

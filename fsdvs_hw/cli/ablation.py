@@ -10,7 +10,7 @@ from ..kernels import MAX_KERNEL_SIZE
 from ..limits import MAX_CLIPS, MAX_EPOCHS, MAX_SEED, MAX_WORKERS
 from ._execution import int_in, scheduler_address
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+__all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
 HELP = "kernel-size ablation (w/o, 3, 5, 7, 9) on detection and recognition, gains with 95 % CIs; resumable"
 DESCRIPTION = (

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+__all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
 HELP = "analyse a kernel: spectrum, radial response, agreement with CSF models; writes PNGs + JSON"
 DESCRIPTION = """\

@@ -17,7 +17,7 @@ from types import ModuleType
 
 from ..errors import InputError
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "load_benchmarks"]
+__all__ = ["DESCRIPTION", "HELP", "add_arguments", "load_benchmarks", "run"]
 
 _NAMES = "csf, tasks, asic, mesh, metalens, sim, explore, stats"
 

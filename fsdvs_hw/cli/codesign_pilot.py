@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+__all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
 HELP = "co-design pilot: loss of a realisation with the network retrained vs co-designed, with 95 % CIs"
 DESCRIPTION = (

@@ -11,7 +11,7 @@ from typing import Any
 from ..errors import InputError
 from ._execution import add_execution_arguments, security_from_args
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "parse_overrides", "run"]
+__all__ = ["DESCRIPTION", "HELP", "add_arguments", "parse_overrides", "run"]
 
 HELP = "the main job: fit every realisation of a design's kernel, score it, write the HTML report"
 DESCRIPTION = (
@@ -70,8 +70,8 @@ def run(args: argparse.Namespace) -> int:
     from ..explore.design import load_design
     from ..explore.explore import run_exploration
     from ..paths import output_dir
-    from ..resources import resolve_design
     from ..report.tables import networks_note, score_rows, summary_markdown
+    from ..resources import resolve_design
 
     design = load_design(resolve_design(args.design))
     if args.overrides:

@@ -10,7 +10,7 @@ from ..kernels import MAX_KERNEL_SIZE
 from ..limits import MAX_CLIPS, MAX_EPOCHS, MAX_SEED
 from ._execution import int_in
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+__all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
 HELP = "learn a k×k FS-DVS kernel end to end on a task (detection, recognition, segmentation)"
 DESCRIPTION = (

@@ -9,7 +9,7 @@ from pathlib import Path
 from ..limits import MAX_CLIPS
 from ._execution import int_in
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+__all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
 HELP = "event rate vs threshold for w/o and the learned kernel; task gain at matched event rate with 95 % CIs; resumable"
 DESCRIPTION = (

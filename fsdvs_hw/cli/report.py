@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+__all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
 HELP = "redraw DIR/report.html from the scores an earlier explore or sweep run stored (nothing is rerun)"
 DESCRIPTION = (
@@ -34,7 +34,6 @@ def run(args: argparse.Namespace) -> int:
     from ..explore.design import load_design
     from ..paths import output_dir
     from ..report import write_report_from_scores
-
     from .explore import parse_overrides
 
     design = load_design(args.design)

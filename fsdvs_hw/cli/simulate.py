@@ -17,7 +17,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["HELP", "DESCRIPTION", "MAX_SIDE", "MAX_THREADS_PER_CORE", "BYTES_PER_PIXEL", "add_arguments", "run"]
+__all__ = ["BYTES_PER_PIXEL", "DESCRIPTION", "HELP", "MAX_SIDE", "MAX_THREADS_PER_CORE", "add_arguments", "run"]
 
 #: Largest --size side (pixels): the event files' coordinate limit.
 MAX_SIDE = 32767

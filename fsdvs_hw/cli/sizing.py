@@ -9,7 +9,7 @@ from ..errors import InputError
 from ..limits import MAX_CLIPS
 from ._execution import int_in
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+__all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
 HELP = "size a design's test sets: run a small pilot and print the clips each task needs for a target CI half-width"
 DESCRIPTION = (
@@ -34,11 +34,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..explore.design import load_design
-    from ..resources import resolve_design
     from ..explore.explore import run_exploration
     from ..explore.sizing import budget_table, size_test_sets
     from ..explore.store import ResultsStore
     from ..paths import output_dir
+    from ..resources import resolve_design
 
     # checked before the pilot runs (minutes), not after
     if args.target is not None and not (0 < args.target < 1):

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ._execution import add_execution_arguments, security_from_args
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+__all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
 HELP = "run a design sweep (local process pool, or a Dask cluster) into a SQLite results store"
 DESCRIPTION = (
@@ -32,9 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..explore.design import load_design
-    from ..resources import resolve_design
     from ..explore.sweep import expand_points, run_design
     from ..paths import output_dir, output_file
+    from ..resources import resolve_design
 
     design = load_design(resolve_design(args.design))
     # the design's name is text, not a path: its safe form names the default store

@@ -32,8 +32,16 @@ import numpy as np
 from ..errors import InputError
 from ..paths import write_output
 
-__all__ = ["AblationPoint", "AblationOptions", "AblationStudy", "ablation_points", "evaluate_ablation_point",
-           "run_ablation", "run_ablation_study", "annotate_shipped"]
+__all__ = [
+    "AblationOptions",
+    "AblationPoint",
+    "AblationStudy",
+    "ablation_points",
+    "annotate_shipped",
+    "evaluate_ablation_point",
+    "run_ablation",
+    "run_ablation_study",
+]
 
 _DESIGN = "ablation"
 
@@ -206,10 +214,8 @@ def run_ablation_study(args: AblationOptions) -> AblationStudy:
         Inconsistent options (``workers`` outside 1..256, ``transfer_only`` without a kernel file,
         ...); the message names the command-line flag.
     """
-    from ..tasks.ablation import (ablation_jobs, ablation_markdown, frozen_kernel_jobs, transfer_jobs,
-                                  transfer_markdown)
-
     from ..paths import output_dir
+    from ..tasks.ablation import ablation_jobs, ablation_markdown, frozen_kernel_jobs, transfer_jobs, transfer_markdown
 
     if not 1 <= args.workers <= 256:
         raise InputError(f"--workers {args.workers}: must be an integer in 1..256")

@@ -29,7 +29,7 @@ import numpy as np
 from ..paths import write_output
 from ..resources import shipped_path
 
-__all__ = ["run_pilot", "csf_drift"]
+__all__ = ["csf_drift", "run_pilot"]
 
 
 def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_test: int = 2048) -> dict[str, Any]:

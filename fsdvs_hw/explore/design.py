@@ -50,16 +50,16 @@ import difflib
 import fnmatch
 import glob
 import hashlib
-import os
 import json
 import math
+import os
 import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from dataclasses import field as dc_field
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, ValidationError, create_model
 
@@ -80,15 +80,15 @@ from ..realise.registry import get_realisation, realisation_names
 from ..schema import DESIGN_CONTEXT, StrictModel, field, field_schema, members, problems, short
 
 __all__ = [
+    "CODESIGN_MODES",
+    "CSF_DEFAULT_METHODS",
+    "MAX_GLOB_ENTRIES",
     "Design",
     "DesignError",
-    "load_design",
-    "parse_design",
-    "CSF_DEFAULT_METHODS",
-    "CODESIGN_MODES",
     "axis_values",
     "check_key",
-    "MAX_GLOB_ENTRIES",
+    "load_design",
+    "parse_design",
 ]
 
 
@@ -115,7 +115,7 @@ _Clips = Annotated[int, Field(ge=0, le=100000)]
 class DesignSection(StrictModel):
     """``[design]``: what the exploration is called."""
 
-    name: Optional[str] = field(None, "", "short name used in reports")
+    name: str | None = field(None, "", "short name used in reports")
     description: str = field("", "", "free text")
 
 
@@ -123,7 +123,7 @@ class KernelSection(StrictModel):
     """``[kernel]``: the target kernel every realisation is fitted to."""
 
     source: Literal["file", "reference"] = field("reference", "", "where the target kernel comes from")
-    path: Optional[str] = field(None, "", "kernel file, relative to the design file (.json .npy .csv .pt)")
+    path: str | None = field(None, "", "kernel file, relative to the design file (.json .npy .csv .pt)")
     family: Literal[tuple(REFERENCE_KERNELS)] = field("dog", "", "reference family")  # type: ignore[valid-type]
     size: int = field(7, "px", "kernel side in pixels", ge=1, le=MAX_KERNEL_SIZE, odd=True)
     params: dict[str, Any] = field({}, "", "reference family parameters, e.g. sigma_centre_px = 0.7")

@@ -38,7 +38,7 @@ import numpy as np
 from ..errors import InputError
 from ..kernels import Kernel
 
-__all__ = ["DisplaySettings", "display_luminance", "upsample_linear", "recapture", "emulation_scores"]
+__all__ = ["DisplaySettings", "display_luminance", "emulation_scores", "recapture", "upsample_linear"]
 
 
 @dataclass(frozen=True)

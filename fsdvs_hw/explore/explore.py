@@ -21,7 +21,7 @@ from .design import Design, load_design
 from .scoring import with_paired_losses
 from .sweep import SweepSummary, run_design
 
-__all__ = ["run_exploration", "Exploration"]
+__all__ = ["Exploration", "run_exploration"]
 
 
 @dataclass(frozen=True)

@@ -45,8 +45,19 @@ from ..errors import InputError
 from ..kernels import Kernel
 from ..stats import ClipMeans, ClipMetric, CocoDetections, ConfusionMIoU, metric_from_state
 
-__all__ = ["ClipEvidence", "clip_evidence", "encode_evidence", "decode_evidence", "network_info",
-           "PER_CLIP_METRICS", "EVAL_BATCH", "EVENT_RATE_UNIT", "bootstrap_weights", "weighted_rate", "event_rate_ci"]
+__all__ = [
+    "EVAL_BATCH",
+    "EVENT_RATE_UNIT",
+    "PER_CLIP_METRICS",
+    "ClipEvidence",
+    "bootstrap_weights",
+    "clip_evidence",
+    "decode_evidence",
+    "encode_evidence",
+    "event_rate_ci",
+    "network_info",
+    "weighted_rate",
+]
 
 #: Unit of :attr:`ClipEvidence.clip_event_rates` and of every event rate with a CI.
 EVENT_RATE_UNIT = "events/pixel/s"

@@ -43,12 +43,20 @@ from ..kernels import Kernel
 from ..paths import write_output
 from ..progress import progress_bar
 from ..stats import ClipMetric
-from .paired import (EVENT_RATE_UNIT, bootstrap_weights, clip_evidence, decode_evidence, encode_evidence,
-                     weighted_rate)
+from .paired import EVENT_RATE_UNIT, bootstrap_weights, clip_evidence, decode_evidence, encode_evidence, weighted_rate
 from .scoring import _DESIGN_SENSOR_FIELDS, _task_sensor
 
-__all__ = ["RatePoint", "RateCurve", "MatchedRateDifference", "rate_curve", "matched_rate_difference",
-           "interpolate_log_rate", "DEFAULT_THRESHOLDS", "EVENT_RATE_UNIT", "THRESHOLD_RANGE"]
+__all__ = [
+    "DEFAULT_THRESHOLDS",
+    "EVENT_RATE_UNIT",
+    "THRESHOLD_RANGE",
+    "MatchedRateDifference",
+    "RateCurve",
+    "RatePoint",
+    "interpolate_log_rate",
+    "matched_rate_difference",
+    "rate_curve",
+]
 
 #: Contrast thresholds (log units, ON = OFF) of a default rate curve: from where noise dominates up.
 DEFAULT_THRESHOLDS: tuple[float, ...] = (0.05, 0.07, 0.1, 0.125, 0.15, 0.2, 0.3, 0.4, 0.6)

@@ -177,7 +177,7 @@ def run_rate_study(options: RateOptions) -> RateStudy:
                 "protocol": "fixed networks (phase 1): every kernel zero-shot in the shipped networks trained with "
                             "the learned kernel"}
     provenance = {"command": options.command, "versions": library_versions(),
-                  "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+                  "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
     files = {
         "rate_curves.json": write_output(out / "rate_curves.json", json.dumps(
             {"settings": settings, "rows": rows, "provenance": provenance}, indent=1)),

@@ -44,8 +44,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
 from ..csf import Geometry, csf_agreement
+from ..errors import InputError
 from ..kernels import Kernel
 from ..realise.base import Realisation, realised_kernel_error
 from ..realise.registry import fit_realisation as _fit_registered
@@ -54,14 +54,14 @@ from ..records import Cost, Score, TaskScores, WallTimes
 from ..spectra import spectral_summary
 
 __all__ = [
-    "fit_realisation",
-    "score",
-    "task_scores",
-    "accuracy_losses",
-    "paired_losses",
-    "with_paired_losses",
     "PRIMARY_CSF_METHOD",
     "TRACK_PREFIX",
+    "accuracy_losses",
+    "fit_realisation",
+    "paired_losses",
+    "score",
+    "task_scores",
+    "with_paired_losses",
 ]
 
 #: How a task's networks share test clips (:func:`task_scores`' ``test_clips``).

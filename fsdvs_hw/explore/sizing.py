@@ -36,7 +36,7 @@ from typing import Any
 
 from ..errors import InputError
 
-__all__ = ["ClipBudget", "size_test_sets", "budget_table"]
+__all__ = ["ClipBudget", "budget_table", "size_test_sets"]
 
 
 @dataclass(frozen=True)

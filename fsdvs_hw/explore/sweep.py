@@ -42,15 +42,15 @@ from .store import ResultsStore
 
 __all__ = [
     "DesignPoint",
-    "count_points",
-    "check_sweep_size",
-    "expand_points",
-    "evaluate_point",
-    "run_points",
-    "run_design",
-    "dask_security",
-    "check_scheduler_address",
     "SweepSummary",
+    "check_scheduler_address",
+    "check_sweep_size",
+    "count_points",
+    "dask_security",
+    "evaluate_point",
+    "expand_points",
+    "run_design",
+    "run_points",
 ]
 
 #: Memory of a built design point per character of its JSON form (measured with tracemalloc: 2000

@@ -29,12 +29,12 @@ from .registry import _import_plugins  # noqa: E402  isort: skip
 _import_plugins()  # realisations registered from outside the package in a parent process
 
 __all__ = [
+    "REALISATIONS",
     "CostItem",
     "CostSpec",
     "Realisation",
     "RealisationSpec",
     "ReferenceRealisation",
-    "REALISATIONS",
     "check_realisation_options",
     "fit_realisation",
     "get_realisation",

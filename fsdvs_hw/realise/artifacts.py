@@ -24,7 +24,7 @@ from typing import Any
 from ..errors import InputError
 from ..paths import write_output
 
-__all__ = ["Artifact", "INDEX_VERSION", "write_index", "read_index"]
+__all__ = ["INDEX_VERSION", "Artifact", "read_index", "write_index"]
 
 #: Version of the ``index.json`` layout written by :func:`write_index`.
 INDEX_VERSION: int = 1

@@ -52,14 +52,14 @@ from ..errors import InputError
 
 __all__ = [
     "RadialPropagator",
-    "angular_spectrum_2d",
-    "transfer_function",
-    "band_limit",
-    "required_modes",
     "airy_intensity",
-    "pixel_quadrature",
+    "angular_spectrum_2d",
+    "band_limit",
     "pixel_nodes_for_bandwidth",
+    "pixel_quadrature",
     "radial_pixel_integrator",
+    "required_modes",
+    "transfer_function",
 ]
 
 #: Most radial modes accepted (the evaluation matrices grow as modes × radii).

@@ -49,19 +49,19 @@ from .artifacts import Artifact
 from .base import Realisation, ReferenceRealisation
 
 __all__ = [
-    "CostSpec",
-    "RealisationSpec",
-    "REALISATIONS",
     "KINDS",
     "PLUGIN_ENV",
-    "register_realisation",
-    "unregister_realisation",
-    "get_realisation",
-    "realisation_names",
-    "realisation_from_dict",
+    "REALISATIONS",
+    "CostSpec",
     "NoOptions",
+    "RealisationSpec",
     "check_realisation_options",
     "fit_realisation",
+    "get_realisation",
+    "realisation_from_dict",
+    "realisation_names",
+    "register_realisation",
+    "unregister_realisation",
 ]
 
 #: What a realisation is: a hardware form (has a cost; on the per-kind Pareto fronts) or an ideal

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["SpectralSamples", "spectral_samples", "weighted_spectrum", "PHOTOPIC"]
+__all__ = ["PHOTOPIC", "SpectralSamples", "spectral_samples", "weighted_spectrum"]
 
 #: Name of the default sensor response: the CIE 1924 photopic luminous efficiency V(λ).
 PHOTOPIC = "CIE 1924 Photopic Standard Observer"

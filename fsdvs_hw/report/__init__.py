@@ -9,4 +9,4 @@ from __future__ import annotations
 from .html import render_html, write_report, write_report_from_scores
 from .tables import pareto_front, score_rows, write_scores
 
-__all__ = ["write_report", "write_report_from_scores", "render_html", "score_rows", "pareto_front", "write_scores"]
+__all__ = ["pareto_front", "render_html", "score_rows", "write_report", "write_report_from_scores", "write_scores"]

@@ -25,8 +25,16 @@ from ..records import ScoredPoint
 from .present import number, params_text, point_title, style
 from .tables import accuracy_axis, is_reference, loss_interval
 
-__all__ = ["Panel", "realised_kernels", "kernel_colour_limit", "fig_kernels", "fig_spectra", "fig_radial",
-           "fig_pareto", "fig_speed"]
+__all__ = [
+    "Panel",
+    "fig_kernels",
+    "fig_pareto",
+    "fig_radial",
+    "fig_spectra",
+    "fig_speed",
+    "kernel_colour_limit",
+    "realised_kernels",
+]
 
 _MAX_PANELS = 12
 #: Kernel panels: the colour scale is set by the largest tap outside the centre when the centre

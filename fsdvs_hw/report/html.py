@@ -33,8 +33,15 @@ from .present import cost_label, number, plain, point_title, si, style, title
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
 from .verdict import VERDICT_COLUMNS, advice, loss_header, verdict_table
 
-__all__ = ["write_report", "render_html", "write_report_from_scores", "design_stamp", "check_same_design", "FIGURE_DPI",
-           "CSS_DPI"]
+__all__ = [
+    "CSS_DPI",
+    "FIGURE_DPI",
+    "check_same_design",
+    "design_stamp",
+    "render_html",
+    "write_report",
+    "write_report_from_scores",
+]
 
 #: CSS pixels per inch: a figure of w inches is shown w × CSS_DPI px wide.
 CSS_DPI = 96
@@ -380,7 +387,7 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
     parts.append(artifacts_html(points))  # buildable files per hardware point (report/artifacts.py)
     parts.extend(sections)
     parts.append(_conditions(points, rows, data, design))
-    stamp = stamp or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    stamp = stamp or _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
     parts.append(f"<h2 id='provenance'>Provenance</h2><p class='note'>fsdvs_hw {__version__}, Python "
                  f"{platform.python_version()}, {html.escape(platform.node())}, {stamp}; design source "
                  f"{html.escape(design.source)}.</p>" + _versions_note(points))

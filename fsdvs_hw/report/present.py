@@ -22,7 +22,7 @@ from typing import Any
 
 from ..realise.registry import REALISATIONS
 
-__all__ = ["Style", "style", "title", "point_title", "params_text", "number", "si", "plain", "cost_label", "PREFIXED_UNITS"]
+__all__ = ["PREFIXED_UNITS", "Style", "cost_label", "number", "params_text", "plain", "point_title", "si", "style", "title"]
 
 #: Units that take an SI prefix (``"m^2"`` takes it squared).
 PREFIXED_UNITS: frozenset[str] = frozenset({"m", "m^2", "s", "S", "F", "W", "J", "A", "V", "Hz"})
@@ -188,7 +188,7 @@ def si(value: float | None, unit: str, digits: int = 3) -> str:
         exp3 += 3
         scaled = value / 10.0 ** (exp3 * power)
     prefix = dict(_PREFIXES)[exp3]
-    text = number(float(f"{scaled:.{digits}g}") if 1 <= abs(scaled) else scaled, digits)
+    text = number(float(f"{scaled:.{digits}g}") if abs(scaled) >= 1 else scaled, digits)
     return f"{text} {prefix}{base}{'²' if power == 2 else ''}"
 
 

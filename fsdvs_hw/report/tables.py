@@ -30,9 +30,22 @@ from ..paths import write_output
 from ..realise.registry import REALISATIONS
 from ..records import ScoredPoint
 
-__all__ = ["score_rows", "pareto_front", "uncertain_pareto_front", "headline_cost", "kind_cost", "accuracy_axis",
-           "summary_markdown", "verdict_rows", "verdict_markdown", "networks_note", "write_scores", "loss_interval",
-           "is_reference", "TRACK_PREFIX"]
+__all__ = [
+    "TRACK_PREFIX",
+    "accuracy_axis",
+    "headline_cost",
+    "is_reference",
+    "kind_cost",
+    "loss_interval",
+    "networks_note",
+    "pareto_front",
+    "score_rows",
+    "summary_markdown",
+    "uncertain_pareto_front",
+    "verdict_markdown",
+    "verdict_rows",
+    "write_scores",
+]
 
 #: Column prefix of each task track (the simulator track is unprefixed).
 TRACK_PREFIX: dict[str, str] = {"simulator": "", "emulation": "emu_"}

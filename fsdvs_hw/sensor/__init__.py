@@ -24,8 +24,23 @@ from .plan import ModelPlan, PlanDecision, SceneStats, plan_model
 from .stream import EventChunk, collect, simulate
 
 __all__ = [
-    "SensorConfig", "PLACEMENTS", "POSITIVITY_MODES", "SURROGATES",
-    "event_frames", "event_list", "voxel_grid", "EventList", "SimulationInfo", "EventSimulator",
-    "mesh_surround_steady_state", "linlog", "plan_model", "ModelPlan", "PlanDecision", "SceneStats",
-    "simulate", "collect", "EventChunk",
+    "PLACEMENTS",
+    "POSITIVITY_MODES",
+    "SURROGATES",
+    "EventChunk",
+    "EventList",
+    "EventSimulator",
+    "ModelPlan",
+    "PlanDecision",
+    "SceneStats",
+    "SensorConfig",
+    "SimulationInfo",
+    "collect",
+    "event_frames",
+    "event_list",
+    "linlog",
+    "mesh_surround_steady_state",
+    "plan_model",
+    "simulate",
+    "voxel_grid",
 ]

@@ -32,8 +32,16 @@ from typing import Any
 from ..errors import InputError, one_line
 from ..limits import MAX_SEED, MAX_SUBSTEPS
 
-__all__ = ["SensorConfig", "MAX_SEED", "PLACEMENTS", "POSITIVITY_MODES", "SURROGATES", "RESPONSES", "PRESETS",
-           "SATURATION_INTENSITY"]
+__all__ = [
+    "MAX_SEED",
+    "PLACEMENTS",
+    "POSITIVITY_MODES",
+    "PRESETS",
+    "RESPONSES",
+    "SATURATION_INTENSITY",
+    "SURROGATES",
+    "SensorConfig",
+]
 
 #: Where the spatial kernel sits: before the log (FS-DVS) or on the log signal (centre-surround DVS).
 # MAX_SEED (fsdvs_hw.limits): numpy's classic 32-bit seed range; each effect's torch seed

@@ -44,7 +44,7 @@ import numpy as np
 from ..errors import InputError, ToolMissingError
 from ..limits import check_allocation
 
-__all__ = ["FORMATS", "EventFile", "EventFileWriter", "write_events", "read_events", "event_format"]
+__all__ = ["FORMATS", "EventFile", "EventFileWriter", "event_format", "read_events", "write_events"]
 
 #: file suffix -> format name
 FORMATS: dict[str, str] = {".h5": "hdf5", ".hdf5": "hdf5", ".aedat4": "aedat4", ".npz": "npz"}

@@ -48,14 +48,23 @@ import torch
 from ..errors import InputError
 from ..limits import check_allocation
 from ..validation import check_bool, check_increasing_times, check_instance, check_int
-from .config import SATURATION_INTENSITY, SensorConfig
 from . import _crossings_native
+from .config import SATURATION_INTENSITY, SensorConfig
 from .crossings import crossing_step, noise_step, shot_noise_pixels, sort_interval, to_event_columns
 from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
 from .pixel import effect_generator, lowpass_step, threshold_maps
 
-__all__ = ["event_frames", "event_list", "EventList", "SimulationInfo", "voxel_grid",
-           "EventSimulator", "prepare_video", "prepare_timestamps", "saturate"]
+__all__ = [
+    "EventList",
+    "EventSimulator",
+    "SimulationInfo",
+    "event_frames",
+    "event_list",
+    "prepare_timestamps",
+    "prepare_video",
+    "saturate",
+    "voxel_grid",
+]
 
 _COUNT_EPS = {"float32": 1e-4, "float64": 1e-9, "float16": 1e-2, "bfloat16": 1e-2}
 

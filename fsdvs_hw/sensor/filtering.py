@@ -29,8 +29,13 @@ from ..errors import InputError, KernelError
 from .config import SensorConfig
 from .pixel import log_response
 
-__all__ = ["kernel_tensor", "apply_kernel", "mesh_surround_steady_state", "FilteredSignal",
-           "filtered_log_signal"]
+__all__ = [
+    "FilteredSignal",
+    "apply_kernel",
+    "filtered_log_signal",
+    "kernel_tensor",
+    "mesh_surround_steady_state",
+]
 
 
 def kernel_tensor(kernel: Any, like: Any) -> Any:

@@ -37,7 +37,7 @@ from typing import Any
 from ..errors import InputError
 from .config import SensorConfig
 
-__all__ = ["SceneStats", "PlanDecision", "ModelPlan", "plan_model"]
+__all__ = ["ModelPlan", "PlanDecision", "SceneStats", "plan_model"]
 
 
 @dataclass(frozen=True)

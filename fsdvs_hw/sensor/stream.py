@@ -43,13 +43,23 @@ import torch
 from ..errors import InputError
 from ..validation import check_bool, check_instance
 from .config import SensorConfig
-from .events import (EventList, SimulationInfo, _advance, _choose_substeps_for, _EventPipeline, _init_state,
-                     _noise_count, _pipelined, _plan_config, saturate)
 from .crossings import to_event_columns
+from .events import (
+    EventList,
+    SimulationInfo,
+    _advance,
+    _choose_substeps_for,
+    _EventPipeline,
+    _init_state,
+    _noise_count,
+    _pipelined,
+    _plan_config,
+    saturate,
+)
 from .filtering import filtered_log_signal, kernel_tensor
 from .pixel import threshold_maps
 
-__all__ = ["EventChunk", "simulate", "collect"]
+__all__ = ["EventChunk", "collect", "simulate"]
 
 #: Chunks whose events are still being computed when the stream hands one over (CPU event lists).
 LOOKAHEAD_CHUNKS = 1

@@ -46,9 +46,9 @@ _LAZY = {
 __all__, __getattr__, __dir__ = lazy_exports("fsdvs_hw.tasks", _LAZY, globals())
 
 if TYPE_CHECKING:  # the same names, visible to IDEs and type checkers
-    from .metrics import detection_map, top1_accuracy, segmentation_scores
-    from .evaluators import TaskEvaluator, EVALUATORS, get_evaluator, register_evaluator
-    from .learn import learn_kernel, evaluate_kernel, LearnResult, Evaluation, heldout_targets
-    from .user_networks import load_network_factory, load_weights, EventInput
-    from .dataset_eval import evaluate_on_dataset, DatasetEvaluation
     from .ablation import ablation_jobs, run_job
+    from .dataset_eval import DatasetEvaluation, evaluate_on_dataset
+    from .evaluators import EVALUATORS, TaskEvaluator, get_evaluator, register_evaluator
+    from .learn import Evaluation, LearnResult, evaluate_kernel, heldout_targets, learn_kernel
+    from .metrics import detection_map, segmentation_scores, top1_accuracy
+    from .user_networks import EventInput, load_network_factory, load_weights

@@ -40,11 +40,21 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..paths import write_output
 from ..kernels import Kernel
+from ..paths import write_output
 
-__all__ = ["kernel_shape", "ablation_jobs", "transfer_jobs", "frozen_kernel_jobs", "job_key", "run_job",
-           "clip_metric", "ablation_markdown", "transfer_markdown", "PAPER_GAINS"]
+__all__ = [
+    "PAPER_GAINS",
+    "ablation_jobs",
+    "ablation_markdown",
+    "clip_metric",
+    "frozen_kernel_jobs",
+    "job_key",
+    "kernel_shape",
+    "run_job",
+    "transfer_jobs",
+    "transfer_markdown",
+]
 
 #: The FS-DVS paper's gains of the 7×7 kernel over w/o (metric points ×100): detection mAP
 #: (Table I), recognition top-1 (Table II), zero-shot segmentation mIoU (Table III).

@@ -37,12 +37,25 @@ from torch.nn import functional as F
 
 from ..errors import InputError
 from ..scenes.synthetic import MOTION_CLASSES, SHAPE_CLASSES, SceneBatch, SceneConfig, scene_regime
-from .metrics import (DETECTION_METRICS, RECOGNITION_METRICS, SEGMENTATION_METRICS, detection_map,
-                      segmentation_scores, top1_accuracy)
+from .metrics import (
+    DETECTION_METRICS,
+    RECOGNITION_METRICS,
+    SEGMENTATION_METRICS,
+    detection_map,
+    segmentation_scores,
+    top1_accuracy,
+)
 from .networks import CenterNetDetector, Classifier, Segmenter
 
-__all__ = ["TaskEvaluator", "DetectionEvaluator", "RecognitionEvaluator", "SegmentationEvaluator",
-           "EVALUATORS", "register_evaluator", "get_evaluator"]
+__all__ = [
+    "EVALUATORS",
+    "DetectionEvaluator",
+    "RecognitionEvaluator",
+    "SegmentationEvaluator",
+    "TaskEvaluator",
+    "get_evaluator",
+    "register_evaluator",
+]
 
 Targets = dict[str, torch.Tensor]
 

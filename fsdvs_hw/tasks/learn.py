@@ -55,11 +55,23 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError, KernelError, one_line
-from ..kernels import Kernel, load_kernel
+from ..kernels import Kernel
 from ..validation import check_bool, check_instance, check_real
 
-__all__ = ["learn_kernel", "evaluate_kernel", "finetune_network", "LearnResult", "Evaluation", "TrainingSettings",
-           "load_checkpoint", "load_network", "default_sensor", "heldout_targets", "TEST_SEED", "CHECKPOINT_FORMAT"]
+__all__ = [
+    "CHECKPOINT_FORMAT",
+    "TEST_SEED",
+    "Evaluation",
+    "LearnResult",
+    "TrainingSettings",
+    "default_sensor",
+    "evaluate_kernel",
+    "finetune_network",
+    "heldout_targets",
+    "learn_kernel",
+    "load_checkpoint",
+    "load_network",
+]
 
 #: Seed of every task's test clips (fixed, so that runs with different training seeds and kernel
 #: sizes are scored on the same clips).

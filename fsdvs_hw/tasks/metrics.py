@@ -26,8 +26,14 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["detection_map", "top1_accuracy", "segmentation_scores", "DETECTION_METRICS",
-           "RECOGNITION_METRICS", "SEGMENTATION_METRICS"]
+__all__ = [
+    "DETECTION_METRICS",
+    "RECOGNITION_METRICS",
+    "SEGMENTATION_METRICS",
+    "detection_map",
+    "segmentation_scores",
+    "top1_accuracy",
+]
 
 DETECTION_METRICS = ("map", "map_50", "map_75")
 RECOGNITION_METRICS = ("top1",)

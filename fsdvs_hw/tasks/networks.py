@@ -19,7 +19,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-__all__ = ["event_representation", "EventBackbone", "CenterNetDetector", "Classifier", "Segmenter"]
+__all__ = ["CenterNetDetector", "Classifier", "EventBackbone", "Segmenter", "event_representation"]
 
 
 def event_representation(frames: torch.Tensor) -> torch.Tensor:

@@ -23,8 +23,15 @@ from ..registry import CostSpec, RealisationSpec, register_realisation
 from .fit import OBJECTIVES, SCALE_MODES, AsicDesign, exhaustive_asic_taps, fit_asic_taps
 from .options import AsicOptions
 
-__all__ = ["AsicDesign", "fit_asic_taps", "SCALE_MODES", "OBJECTIVES", "exhaustive_asic_taps", "AsicOptions",
-           "SPEC"]
+__all__ = [
+           "OBJECTIVES",
+           "SCALE_MODES",
+           "SPEC",
+           "AsicDesign",
+           "AsicOptions",
+           "exhaustive_asic_taps",
+           "fit_asic_taps",
+]
 
 #: The registry entry (own cost axis and headline: yosys cell area, else the adder count).
 SPEC = register_realisation(RealisationSpec(

@@ -43,20 +43,20 @@ import numpy as np
 from ...errors import InputError
 
 __all__ = [
-    "SYMMETRIES",
-    "MAX_TAP_BITS",
     "MAX_INPUT_BITS",
-    "tap_limit",
-    "tap_range",
+    "MAX_TAP_BITS",
+    "SYMMETRIES",
+    "SymmetryClasses",
+    "accumulator_bits",
+    "accumulator_range",
+    "adder_count",
     "csd_digits",
     "csd_weight",
-    "SymmetryClasses",
-    "symmetry_classes",
-    "adder_count",
-    "accumulator_range",
-    "accumulator_bits",
-    "output_bits",
     "integer_correlate",
+    "output_bits",
+    "symmetry_classes",
+    "tap_limit",
+    "tap_range",
 ]
 
 #: Allowed symmetry options: independent taps, mirror in x and y, mirror plus transpose (D4).

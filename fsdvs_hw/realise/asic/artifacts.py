@@ -39,8 +39,14 @@ from .arith import integer_correlate, output_bits
 from .fit import AsicDesign
 from .rtl import _tool, testbench_ports
 
-__all__ = ["IVERILOG_COMMAND", "VERILATOR_COMMAND", "asic_test_frames", "generate_selfcheck_testbench",
-           "write_asic_artifacts", "check_asic_artifacts"]
+__all__ = [
+    "IVERILOG_COMMAND",
+    "VERILATOR_COMMAND",
+    "asic_test_frames",
+    "check_asic_artifacts",
+    "generate_selfcheck_testbench",
+    "write_asic_artifacts",
+]
 
 #: Commands that check the written files (run in their folder).
 IVERILOG_COMMAND: str = "iverilog -g2005 -o tb.vvp tb_fsdvs_conv.v fsdvs_conv.v && vvp -n tb.vvp"

@@ -52,7 +52,7 @@ import numpy as np
 from ...errors import InputError
 from ...kernels import Kernel, as_kernel
 from ...validation import check_fit_arguments
-from .options import AsicOptions
+from ..base import CostItem, kernel_error
 from .arith import (
     SYMMETRIES,
     SymmetryClasses,
@@ -62,12 +62,11 @@ from .arith import (
     integer_correlate,
     output_bits,
     symmetry_classes,
-    tap_limit,
     tap_range,
 )
-from ..base import CostItem, kernel_error
+from .options import AsicOptions
 
-__all__ = ["AsicDesign", "fit_asic_taps", "SCALE_MODES", "OBJECTIVES", "exhaustive_asic_taps"]
+__all__ = ["OBJECTIVES", "SCALE_MODES", "AsicDesign", "exhaustive_asic_taps", "fit_asic_taps"]
 
 #: Scale options: ``"free"`` (any positive real, folded into the comparator threshold) or
 #: ``"pow2"`` (2**-e, a wire shift). A positive float fixes the scale (e.g. one LSB of the threshold).
@@ -463,9 +462,9 @@ class _TapProblem:
     def better(self, J: float, q: np.ndarray, best: Mapping[str, Any]) -> bool:
         """True if (J, adders) beats ``best`` (ties in J, to 1e-12 relative, go to fewer adders)."""
         Jb = best.get("J", math.inf)
-        if J < Jb - 1e-12 * abs(Jb) or not math.isfinite(Jb):
+        if Jb - 1e-12 * abs(Jb) > J or not math.isfinite(Jb):
             return True
-        return J <= Jb + 1e-12 * abs(Jb) and self.adders(q) < self.adders(best["q"])
+        return Jb + 1e-12 * abs(Jb) >= J and self.adders(q) < self.adders(best["q"])
 
     def ls_scale(self, q: np.ndarray) -> float | None:
         qf = q.astype(np.float64)
@@ -534,7 +533,7 @@ def _fit_free_scale(p: _TapProblem, amax: float, n_polish: int = 5) -> tuple[flo
         q = p.solve(s)
         J = p.objective(q, s)
         key = q.tobytes()
-        if key not in seen or J < seen[key][0]:
+        if key not in seen or seen[key][0] > J:
             seen[key] = (J, s, q)
         return J
 

@@ -8,7 +8,7 @@ words. The ranges are the fit function's own (see its docstring).
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Optional
+from typing import Annotated, Literal
 
 from pydantic import Field
 
@@ -24,7 +24,7 @@ class AsicOptions(StrictModel):
     unknown_key = "unknown option of fit_asic_taps"
 
     bits: int = field(8, "bit", "signed tap width including the sign", ge=2, le=24)
-    pitch_m: Optional[float] = field(None, "m", "pixel pitch (default: the kernel's)",
+    pitch_m: float | None = field(None, "m", "pixel pitch (default: the kernel's)",
                                      ge=PITCH_RANGE_M[0], le=PITCH_RANGE_M[1])
     symmetry: Literal["auto", "none", "quadrant", "8-fold"] = field("auto", "", "symmetry imposed on the taps")
     scale: Annotated[float, Field(gt=0.0)] | Literal["free", "pow2"] = field(
@@ -35,4 +35,4 @@ class AsicOptions(StrictModel):
     objective: Literal["kernel", "csf"] = field("kernel", "", "what the error term measures")
     csf_method: Literal["mannos_sakrison_1974", "barten_1999", "daly_1993", "watson_ahumada_2005"] = field(
         "mannos_sakrison_1974", "", "CSF model for objective 'csf'")
-    geometry: Optional[PyObject] = field(None, "", "fsdvs_hw.csf.Geometry (pixels per degree) for objective 'csf'")
+    geometry: PyObject | None = field(None, "", "fsdvs_hw.csf.Geometry (pixels per degree) for objective 'csf'")

@@ -48,16 +48,16 @@ from .arith import (
 )
 
 __all__ = [
-    "LIBERTY_PATH",
     "LIBERTY_AREA_UNIT_M2",
+    "LIBERTY_PATH",
     "RtlError",
     "SynthesisReport",
-    "generate_verilog",
     "generate_datapath_verilog",
     "generate_testbench",
-    "testbench_ports",
+    "generate_verilog",
     "simulate_rtl",
     "synthesise_verilog",
+    "testbench_ports",
 ]
 
 #: The shipped liberty file (areas in µm²).

@@ -38,7 +38,7 @@ from .fit import (
 )
 from .options import MeshOptions
 
-__all__ = ["MeshOptions", "SPEC"]
+__all__ = ["SPEC", "MeshOptions"]
 __all__ += fit.__all__  # the fit module's public names, re-exported above
 
 

@@ -37,7 +37,7 @@ from .fit import MeshDesign
 from .response import mesh_kcl_matrix
 from .spice import _parse_ascii_raw, _resolve_half_width, to_spice_netlist
 
-__all__ = ["OP_RTOL", "NGSPICE_COMMAND", "mesh_operating_point", "write_mesh_artifacts", "check_mesh_artifacts"]
+__all__ = ["NGSPICE_COMMAND", "OP_RTOL", "check_mesh_artifacts", "mesh_operating_point", "write_mesh_artifacts"]
 
 #: Agreement required between ngspice's node voltages and the written operating point, relative to
 #: the largest node voltage. ngspice solves the linear deck with one sparse LU (its reltol/abstol

@@ -30,12 +30,12 @@ import numpy as np
 from ...errors import InputError
 
 __all__ = [
-    "TransientDecision",
     "EdgeTransient",
+    "TransientDecision",
     "drift_kernel",
     "mesh_needs_transient",
-    "moving_edge_response",
     "mesh_step_response",
+    "moving_edge_response",
 ]
 
 

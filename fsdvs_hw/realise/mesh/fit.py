@@ -57,8 +57,8 @@ import numpy as np
 from ...errors import InputError
 from ...kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, _validate_pitch, as_kernel
 from ...validation import check_fit_arguments
-from .options import MeshOptions
 from ..base import CostItem, kernel_error
+from .options import MeshOptions
 from .response import (
     LAMBDA_RANGE_PX,
     _dct_basis,
@@ -71,12 +71,12 @@ from .response import (
 )
 
 __all__ = [
+    "GAIN_MODES",
+    "MESH_MODELS",
+    "MeshAsymmetryWarning",
     "MeshBounds",
     "MeshDesign",
-    "MeshAsymmetryWarning",
     "MeshFitWarning",
-    "MESH_MODELS",
-    "GAIN_MODES",
     "fit_resistive_mesh",
     "mismatch_sensitivity",
 ]

@@ -9,7 +9,7 @@ file is built by :class:`~fsdvs_hw.realise.mesh.MeshBounds`, which checks its fi
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Optional
+from typing import Annotated, Literal
 
 from pydantic import Field
 
@@ -24,25 +24,25 @@ class MeshOptions(StrictModel):
 
     unknown_key = "unknown option of fit_resistive_mesh"
 
-    bounds: Optional[structured("fsdvs_hw.realise.mesh.fit:MeshBounds", "MeshBounds")] = field(
+    bounds: structured("fsdvs_hw.realise.mesh.fit:MeshBounds", "MeshBounds") | None = field(
         None, "", "MeshBounds fields: lambda_px, gain, min_lambda_ratio, conductance_s")
-    pitch_m: Optional[float] = field(None, "m", "pixel pitch (default: the kernel's)",
+    pitch_m: float | None = field(None, "m", "pixel pitch (default: the kernel's)",
                                      ge=PITCH_RANGE_M[0], le=PITCH_RANGE_M[1])
-    pixel_weight: Optional[Annotated[float, Field(ge=0.0, le=1e3)] | Literal["free"]] = field(
+    pixel_weight: Annotated[float, Field(ge=0.0, le=1000.0)] | Literal["free"] | None = field(
         "free", "", "fixed weight of the pixel's own signal, or 'free'")
     gain: Literal["free", "fixed"] = field("free", "", "overall gain: 'free' (folds into the event threshold) "
                                            "or 'fixed'")
     nonnegative_dc: bool = field(True, "", "constrain the whole-circuit DC gain w_p + a − b ≥ 0")
     mismatch_sigma: float = field(0.01, "", "relative die-level mismatch σ", ge=0.0, le=0.5)
-    max_mismatch_error: Optional[float] = field(0.05, "", "largest first-order kernel error at mismatch σ "
+    max_mismatch_error: float | None = field(0.05, "", "largest first-order kernel error at mismatch σ "
                                                 "(None: off)", ge=1e-6, le=10.0)
     g_lateral_s: float = field(1e-8, "S", "lateral conductance of both meshes (within bounds.conductance_s)",
                                ge=1e-13, le=1e-3)
     node_capacitance_f: float = field(100e-15, "F", "node capacitance of both meshes", ge=1e-18, le=1e-6)
     model: Literal["lattice", "grid"] = field("lattice", "", "single-mesh model")
-    grid_half_width: Optional[int] = field(None, "px", "half-width of the finite grid (model 'grid'; ≥ kernel "
+    grid_half_width: int | None = field(None, "px", "half-width of the finite grid (model 'grid'; ≥ kernel "
                                            "radius)", ge=0, le=60)
-    fit_size: Optional[int] = field(None, "px", "odd window the error is minimised on (≥ kernel size; None: the "
+    fit_size: int | None = field(None, "px", "odd window the error is minimised on (≥ kernel size; None: the "
                                     "whole response)", ge=1, le=63, odd=True)
     n_init: int = field(16, "", "λ values per mesh in the initialisation grid", ge=2, le=40)
     n_starts: int = field(3, "", "IPOPT runs from the best distinct grid points", ge=1, le=10)

@@ -60,15 +60,15 @@ from ...errors import InputError
 
 __all__ = [
     "LAMBDA_RANGE_PX",
-    "space_constant_px",
-    "quadrature_nodes",
+    "casadi_mesh_model",
+    "continuum_response",
+    "finite_grid_response",
+    "grid_half_width_for",
     "lattice_green_function",
     "lattice_green_quarter",
-    "finite_grid_response",
-    "continuum_response",
-    "grid_half_width_for",
-    "casadi_mesh_model",
     "mesh_kcl_matrix",
+    "quadrature_nodes",
+    "space_constant_px",
 ]
 
 #: Space constants accepted by the models, in pixel pitches: conductance ratios g_l/g_v from

@@ -29,12 +29,12 @@ from ...errors import InputError, ToolMissingError
 
 __all__ = [
     "MAX_SPICE_HALF_WIDTH",
-    "to_spice_netlist",
-    "run_ngspice",
     "SpiceMeshResult",
-    "simulate_mesh_spice",
     "SpiceStepResult",
+    "run_ngspice",
+    "simulate_mesh_spice",
     "simulate_mesh_step_spice",
+    "to_spice_netlist",
 ]
 
 #: Largest patch half-width exported for ngspice (63×63 nodes per mesh).

@@ -18,7 +18,6 @@ The shared wave-optics and spectral sampling live one level up (:mod:`fsdvs_hw.r
 
 from ..registry import CostSpec, RealisationSpec, register_realisation
 from . import fit
-
 from .fit import (
     DISPERSION_MODELS,
     STRATEGIES,
@@ -32,7 +31,7 @@ from .fit import (
 )
 from .options import MetalensOptions
 
-__all__ = ["MetalensOptions", "SPEC"]
+__all__ = ["SPEC", "MetalensOptions"]
 __all__ += fit.__all__  # the fit module's public names, re-exported above
 
 #: The registry entry (own cost axis and headline: the aperture diameter).

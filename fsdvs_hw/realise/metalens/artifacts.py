@@ -44,8 +44,14 @@ from ..artifacts import Artifact
 from ..spectral import SpectralSamples
 from .fit import LensGeometry, MetalensDesign, _phase0, _RadialKernelModel, local_numerical_aperture
 
-__all__ = ["N_RADII", "PSF_RTOL", "write_metalens_artifacts", "read_phase_profile_csv", "psf_from_phase_profile",
-           "check_metalens_artifacts"]
+__all__ = [
+    "N_RADII",
+    "PSF_RTOL",
+    "check_metalens_artifacts",
+    "psf_from_phase_profile",
+    "read_phase_profile_csv",
+    "write_metalens_artifacts",
+]
 
 #: Radii per lens in the written profile (uniform over the aperture radius; 50 µm → 12 nm steps).
 N_RADII: int = 4097

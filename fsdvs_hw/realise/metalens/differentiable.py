@@ -22,7 +22,6 @@ import dataclasses
 import math
 from typing import Any
 
-import numpy as np
 import torch
 
 from ...errors import InputError

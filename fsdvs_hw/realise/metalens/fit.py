@@ -59,7 +59,6 @@ import numpy as np
 from ...errors import InputError
 from ...kernels import DEFAULT_PITCH_M, Kernel, as_kernel
 from ...validation import check_fit_arguments
-from .options import MetalensOptions
 from ..base import CostItem, kernel_error
 from ..optics import (
     RadialPropagator,
@@ -70,16 +69,17 @@ from ..optics import (
     required_modes,
 )
 from ..spectral import SpectralSamples, spectral_samples
+from .options import MetalensOptions
 
 __all__ = [
     "DISPERSION_MODELS",
     "STRATEGIES",
     "LensGeometry",
     "MetalensDesign",
-    "fit_metalens",
-    "pixel_psf",
-    "local_numerical_aperture",
     "WavelengthPlan",
+    "fit_metalens",
+    "local_numerical_aperture",
+    "pixel_psf",
     "plan_wavelength_samples",
 ]
 
