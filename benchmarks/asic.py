@@ -49,8 +49,10 @@ def learned_or_fallback_kernel() -> tuple[Kernel, str]:
         if "reference" in k.provenance or "reference" in k.name.lower():
             continue
         return k, f"the learned kernel `designs/kernels/{path.name}` ('{k.name}')"
-    return (reference_kernel("log", 7, sigma_px=1.0),
-            "a 7×7 LoG (`reference_kernel('log', 7)`, σ = 1 px), standing in because designs/kernels/ has no learned kernel yet")
+    return (
+        reference_kernel("log", 7, sigma_px=1.0),
+        "a 7×7 LoG (`reference_kernel('log', 7)`, σ = 1 px), standing in because designs/kernels/ has no learned kernel yet",
+    )
 
 
 def _images(rng: np.random.Generator, input_bits: int, n_random: int = 2) -> np.ndarray:
@@ -85,18 +87,22 @@ def bench_asic(*, quick: bool = False) -> BenchRun:
 
     # 1. quantisation time
     _log("quantisation time")
-    sec.text("Quantisation of a 7×7 DoG (`reference_kernel('dog', 7)`, 8-fold symmetry, 10 coefficients); best of "
-             f"{reps} runs. Error: relative L2 against the float kernel; naive: taps rounded at scale max|k| / (2^(b-1) - 1).",
-             "")
+    sec.text(
+        "Quantisation of a 7×7 DoG (`reference_kernel('dog', 7)`, 8-fold symmetry, 10 coefficients); best of "
+        f"{reps} runs. Error: relative L2 against the float kernel; naive: taps rounded at scale max|k| / (2^(b-1) - 1).",
+        "",
+    )
     table = sec.table(Column.text("fit"), Column.number("kernel error", ".3e"),
                       Column.number("naive-scale error", ".3e"), _count("adders"),
                       Column.number("time (ms)", ".1f", summary="best", metric="fit time"),
                       title="Quantisation time")
-    for label, kw in [("free scale (nlopt DIRECT-L + polish), 8 bit", {"bits": 8}),
-                      ("power-of-two scale, 8 bit", {"bits": 8, "scale": "pow2"}),
-                      ("free scale, 8 bit, λ = 1e-4", {"bits": 8, "adder_weight": 1e-4}),
-                      ("free scale, 16 bit", {"bits": 16}),
-                      ("free scale, 8 bit, objective='csf' (fixed geometry)", {"bits": 8, "objective": "csf", "geometry": "dog"})]:
+    for label, kw in [
+        ("free scale (nlopt DIRECT-L + polish), 8 bit", {"bits": 8}),
+        ("power-of-two scale, 8 bit", {"bits": 8, "scale": "pow2"}),
+        ("free scale, 8 bit, λ = 1e-4", {"bits": 8, "adder_weight": 1e-4}),
+        ("free scale, 16 bit", {"bits": 16}),
+        ("free scale, 8 bit, objective='csf' (fixed geometry)", {"bits": 8, "objective": "csf", "geometry": "dog"}),
+    ]:
         if kw.get("geometry") == "dog":
             kw = {**kw, "geometry": Geometry(dog.pitch_m, csf_agreement(dog).implied_focal_length_m)}
         tm = timed(lambda kw=kw: fit_asic_taps(dog, **kw), reps)
@@ -113,13 +119,21 @@ def bench_asic(*, quick: bool = False) -> BenchRun:
              "`fsdvs_demo45.lib` (areas ≈ NanGate 45 nm X1 cells, µm²); line buffers are flip-flops here.",
              "Datapath: the arithmetic alone (pre-adds, shift-add, rounding, output register), synthesised separately. "
              "Synth time covers both runs.", "")
-    table = sec.table(Column.text("kernel"), _count("adders"), Column.number("acc bits", "d", unit="bit", metric="accumulator width"),
-                      Column.text("images"), _count("mismatches", "RTL mismatches"),
-                      Column.number("sim (s)", ".2f", metric="RTL simulation time"), _count("cells"),
-                      _count("flip-flops"), Column.number("area (µm²)", ".0f"), _count("datapath cells"),
-                      Column.number("datapath area (µm²)", ".0f"),
-                      Column.number("synth (s)", ".2f", metric="synthesis time"),
-                      title="RTL simulation and synthesis")
+    table = sec.table(
+        Column.text("kernel"),
+        _count("adders"),
+        Column.number("acc bits", "d", unit="bit", metric="accumulator width"),
+        Column.text("images"),
+        _count("mismatches", "RTL mismatches"),
+        Column.number("sim (s)", ".2f", metric="RTL simulation time"),
+        _count("cells"),
+        _count("flip-flops"),
+        Column.number("area (µm²)", ".0f"),
+        _count("datapath cells"),
+        Column.number("datapath area (µm²)", ".0f"),
+        Column.number("synth (s)", ".2f", metric="synthesis time"),
+        title="RTL simulation and synthesis",
+    )
     for size in (3, 5, 7):
         d = fit_asic_taps(reference_kernel("dog", size), 8)
         x = _images(rng, 8)
@@ -127,8 +141,20 @@ def bench_asic(*, quick: bool = False) -> BenchRun:
         mism = int(np.count_nonzero(t_sim.result != d.apply(x)))
         t_syn = timed(lambda d=d: d.synthesise(image_width=_IMAGE_SIDE, image_height=_IMAGE_SIDE), 1)
         syn = t_syn.result.synthesis
-        table.row(f"{size}×{size}", d.adders, d.accumulator_bits, str(x.shape[0]), mism, t_sim, syn["cells"],
-                  syn["flip_flops"], syn["area_m2"] * 1e12, syn["datapath_cells"], syn["datapath_area_m2"] * 1e12, t_syn)
+        table.row(
+            f"{size}×{size}",
+            d.adders,
+            d.accumulator_bits,
+            str(x.shape[0]),
+            mism,
+            t_sim,
+            syn["cells"],
+            syn["flip_flops"],
+            syn["area_m2"] * 1e12,
+            syn["datapath_cells"],
+            syn["datapath_area_m2"] * 1e12,
+            t_syn,
+        )
     sec.text("")
 
     # 3. bit sweep
@@ -171,8 +197,10 @@ def bench_asic(*, quick: bool = False) -> BenchRun:
 
     # 4. error against adders
     _log("adder weight trade")
-    sec.text("Error against adders on the 7×7 DoG at 8 bits (adder weight λ = price of one adder in squared relative error).",
-             "")
+    sec.text(
+        "Error against adders on the 7×7 DoG at 8 bits (adder weight λ = price of one adder in squared relative error).",
+        "",
+    )
     table = sec.table(Column.text("λ"), Column.number("kernel error", ".3e"), _count("adders"),
                       _count("non-zero taps"), _count("cells"), _count("datapath cells"), title="Error against adders")
     for lam in ([0.0, 1e-4] if quick else [0.0, 1e-5, 1e-4, 3e-4, 1e-3, 3e-3]):

@@ -52,7 +52,9 @@ def _emulation_table(sec: BenchSection, quick: bool) -> None:
     t_ref = run(ref_clips, ref_up)
     ref = t_ref.result
     print(f"[bench explore] emulation reference ({ref_clips} clips, x{ref_up}) {t_ref.best_s:.1f} s", file=sys.stderr)
-    rows = [(f"{n} clips, x{ref_up}", n, ref_up) for n in clips] + [(f"{ref_clips} clips, x{u}", ref_clips, u) for u in ups]
+    rows = [(f"{n} clips, x{ref_up}", n, ref_up) for n in clips] + [
+        (f"{ref_clips} clips, x{u}", ref_clips, u) for u in ups
+    ]
     for label, n, up in rows:
         t = run(n, up)
         res = t.result

@@ -599,7 +599,9 @@ def records_markdown(records: Sequence[BenchRecord]) -> str:
             out += ["", f"**{r.bench}: {r.table}**", "", "| case | metric | value | unit | repeats | min | max |",
                     "|---|---|---|---|---|---|---|"]
         spread = ("—", "—") if r.spread_min is None else (f"{r.spread_min:.4g}", f"{r.spread_max:.4g}")
-        out.append(f"| {r.case} | {r.metric} | {r.value:.6g} | {r.unit} | {r.repeats or '—'} | {spread[0]} | {spread[1]} |")
+        out.append(
+            f"| {r.case} | {r.metric} | {r.value:.6g} | {r.unit} | {r.repeats or '—'} | {spread[0]} | {spread[1]} |"
+        )
     return "\n".join(out).strip() + "\n"
 
 

@@ -41,11 +41,23 @@ def _fit_table(sec: BenchSection, quick: bool) -> None:
         return d.kernel(d.response_size(1e-14))
 
     def canonical(k: int) -> object:
-        return reference_kernel("dog", k, pitch_m=4.86e-6, sigma_centre_px=0.8, sigma_surround_px=2.2, w_centre=1.0, w_surround=0.7)
+        return reference_kernel(
+            "dog", k, pitch_m=4.86e-6, sigma_centre_px=0.8, sigma_surround_px=2.2, w_centre=1.0, w_surround=0.7
+        )
 
     cases = [
-        ("known dual mesh λ 0.8/2.5 px (whole response)", lambda k: whole_response(0.8, 2.5, 1.5, 1.2, 1.0), {}, (None,)),
-        ("known dual mesh λ 0.5/1.0 px (whole response)", lambda k: whole_response(0.5, 1.0, 1.0, 1.4, 0.5), {}, (None,)),
+        (
+            "known dual mesh λ 0.8/2.5 px (whole response)",
+            lambda k: whole_response(0.8, 2.5, 1.5, 1.2, 1.0),
+            {},
+            (None,),
+        ),
+        (
+            "known dual mesh λ 0.5/1.0 px (whole response)",
+            lambda k: whole_response(0.5, 1.0, 1.0, 1.4, 0.5),
+            {},
+            (None,),
+        ),
         ("DoG 0.8/2.2 px, 0.7 (issue 13)", canonical, {}, (3, 5, 7, 9)),
         ("DoG 0.7/2.0 px, 0.8 (reference)", lambda k: reference_kernel("dog", k), {}, (7,)),
         ("DoG 0.8/2.2 px, paper's sketch w_p=1, gain fixed", canonical, {"pixel_weight": 1.0, "gain": "fixed"}, (7,)),
@@ -53,15 +65,20 @@ def _fit_table(sec: BenchSection, quick: bool) -> None:
         ("DoG 0.8/2.2 px, whole DC unconstrained", canonical, {"nonnegative_dc": False}, (7,)),
     ]
     table = sec.table(
-        Column.text("target"), Column.text("options"), Column.text("size"),
+        Column.text("target"),
+        Column.text("options"),
+        Column.text("size"),
         Column.number("first call (s)", ".2f", metric="first call time"),
         Column.number("median later (s) [min–max]", ".3f", unit="s", metric="later call time", spread=True),
         Column.number("error (whole response)", ".3g", unit="", metric="kernel error (whole response)"),
         Column.number("error (window)", ".3g", unit="", metric="kernel error (window)"),
-        Column.number("whole DC", ".3g", metric="whole DC gain"), Column.number("window DC", ".3g", metric="window DC gain"),
+        Column.number("whole DC", ".3g", metric="whole DC gain"),
+        Column.number("window DC", ".3g", metric="window DC gain"),
         Column.number("tail energy", ".2g", metric="tail energy fraction"),
-        Column.number("IPOPT iterations", "d", unit="count"), Column.text("at a bound"),
-        settings={"repeats": repeats})
+        Column.number("IPOPT iterations", "d", unit="count"),
+        Column.text("at a bound"),
+        settings={"repeats": repeats},
+    )
     for label, make, opts, sizes in cases:
         for k in sizes:
             target = make(k)
@@ -71,9 +88,20 @@ def _fit_table(sec: BenchSection, quick: bool) -> None:
             later = timed(lambda: fit_resistive_mesh(target, **opts), repeats)
             f = later.result.fit
             bounds = "; ".join(b.split(" (")[0] for b in f["on_bound"]) or "none"
-            table.row(label, ", ".join(f"{a}={v}" for a, v in opts.items()) or "defaults", f"{target.size}x{target.size}",
-                      first, later, f["error"], f["error_window"], f["whole_dc_gain"], f["window_dc_gain"],
-                      f["tail_energy_fraction"], f["iterations"], bounds)
+            table.row(
+                label,
+                ", ".join(f"{a}={v}" for a, v in opts.items()) or "defaults",
+                f"{target.size}x{target.size}",
+                first,
+                later,
+                f["error"],
+                f["error_window"],
+                f["whole_dc_gain"],
+                f["window_dc_gain"],
+                f["tail_energy_fraction"],
+                f["iterations"],
+                bounds,
+            )
 
 
 def _model_table(sec: BenchSection, quick: bool) -> None:
@@ -101,7 +129,9 @@ def _model_table(sec: BenchSection, quick: bool) -> None:
         ref = _unfold_quarter(lattice_green_quarter(lam, radius, nodes=ref_nodes))
         scale = np.abs(ref).max()
         rt = timed(lambda: _unfold_quarter(lattice_green_quarter(lam, radius)), repeats)
-        table.row(f"{lam:g}", f"lattice Green's function ({k.size} nodes)", "∞", np.abs(rt.result - ref).max() / scale, rt)
+        table.row(
+            f"{lam:g}", f"lattice Green's function ({k.size} nodes)", "∞", np.abs(rt.result - ref).max() / scale, rt
+        )
         rule = grid_half_width_for(lam, radius)
         halves = sorted({radius, radius + 2, rule, 2 * rule} if not quick else {radius + 2, rule})
         for h in halves:
@@ -158,7 +188,9 @@ def _spice_table(sec: BenchSection, quick: bool) -> None:
         total = timed(build_and_solve)
         vn, vw, f = total.result
         solve = timed(lambda: f(d.g_lateral_wide_s, d.g_vertical_wide_s, i_in), 3)
-        diff = max(np.abs(vn - res.v_narrow_v).max() / np.abs(vn).max(), np.abs(vw - res.v_wide_v).max() / np.abs(vw).max())
+        diff = max(
+            np.abs(vn - res.v_narrow_v).max() / np.abs(vn).max(), np.abs(vw - res.v_wide_v).max() / np.abs(vw).max()
+        )
         table.row(f"{n}x{n}", str(2 * n * n), Measured.of([res.wall_s]), total, solve, diff)
     sec.text("")
     table = sec.table(Column.text("step-response transient"), Column.text("output points"),
@@ -212,7 +244,9 @@ def _misc_table(sec: BenchSection, quick: bool) -> None:
         t = timed(lambda: mesh_needs_transient(d, v))
         dec = t.result
         err = sec.value(case, "kernel error", dec.kernel_error, spec=".1e")
-        table.row("transient decision", setting, f"{'model' if dec.needed else 'skip'} (kernel error {err})", t, case=case)
+        table.row(
+            "transient decision", setting, f"{'model' if dec.needed else 'skip'} (kernel error {err})", t, case=case
+        )
         t = timed(lambda: moving_edge_response(d, v))
         e = t.result
         setting = f"{v:g} px/s, {e.x_px.size} px chain"

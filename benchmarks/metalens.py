@@ -110,19 +110,27 @@ def _fit_table(sec: BenchSection, quick: bool) -> list[tuple[str, Any, Any]]:
 
     opts: dict[str, Any] = dict(n_starts=2, max_iter=30, n_wavelengths=4, n_terms=2) if quick else {}
     table = sec.table(
-        Column.text("target"), Column.text("strategy"),
+        Column.text("target"),
+        Column.text("strategy"),
         Column.number("kernel error (applied, pedestal included)", ".3f", unit="", metric="kernel error"),
         Column.number("signal error (pedestal subtracted)", ".3f", unit="", metric="signal error"),
         Column.number("symmetric floor", ".3f"),
-        Column.numbers("pedestal c / fraction", "{0} / {1} %", ("pedestal c", "", ".3g"), ("pedestal fraction", "%", ".0f")),
+        Column.numbers(
+            "pedestal c / fraction", "{0} / {1} %", ("pedestal c", "", ".3g"), ("pedestal fraction", "%", ".0f")
+        ),
         Column.number("efficiency", ".3f", metric="optical efficiency (smallest)"),
         Column.number("contrast factor", ".3f"),
-        Column.numbers("whole-PSF DC (target)", "{0} ({1})", ("whole-PSF DC gain", "", ".3f"), ("target DC gain", "", ".3f")),
+        Column.numbers(
+            "whole-PSF DC (target)", "{0} ({1})", ("whole-PSF DC gain", "", ".3f"), ("target DC gain", "", ".3f")
+        ),
         Column.number("defocus (µm)", metric="defocus"),  # cells: text quoting one recorded value per PSF
         Column.number("nodes/pixel side", "d", unit="count", metric="quadrature nodes per pixel side"),
-        Column.numbers("fit wall / CPU time (s)", "{0} / {1}", ("fit wall time", "s", ".1f"), ("fit CPU time", "s", ".1f")),
+        Column.numbers(
+            "fit wall / CPU time (s)", "{0} / {1}", ("fit wall time", "s", ".1f"), ("fit CPU time", "s", ".1f")
+        ),
         Column.number("model error", ".1e", metric="model error vs reference fidelity"),
-        settings={"fit_options": opts})
+        settings={"fit_options": opts},
+    )
     fits = []
     for label, k in _targets():
         pair = []
@@ -134,10 +142,22 @@ def _fit_table(sec: BenchSection, quick: bool) -> list[tuple[str, Any, Any]]:
             ped = (d.pedestal, 100 * d.pedestal_fraction) if strategy == "pedestal" else "—"
             defocus = ", ".join(sec.value(case, f"defocus of PSF {i}", (z - d.geometry.focal_length_m) * 1e6, unit="µm",
                                           spec="+.1f") for i, z in enumerate(d.sensor_distance_m))
-            table.row(label, strategy, d.error, d.signal_error, radial_symmetric_floor(k.taps), ped,
-                      min(d.optical_efficiency), d.contrast_factor, (d.whole_dc_gain, k.dc_gain), defocus,
-                      d.fit_info["n_sub"], (Measured.of([d.fit_info["wall_time_s"]]), Measured.of([d.fit_info["cpu_time_s"]])),
-                      d.fit_info["model_error"], case=case)
+            table.row(
+                label,
+                strategy,
+                d.error,
+                d.signal_error,
+                radial_symmetric_floor(k.taps),
+                ped,
+                min(d.optical_efficiency),
+                d.contrast_factor,
+                (d.whole_dc_gain, k.dc_gain),
+                defocus,
+                d.fit_info["n_sub"],
+                (Measured.of([d.fit_info["wall_time_s"]]), Measured.of([d.fit_info["cpu_time_s"]])),
+                d.fit_info["model_error"],
+                case=case,
+            )
         fits.append((label, k, pair))
     return fits
 
@@ -155,10 +175,30 @@ def plot_fits(fits: list[tuple[str, Any, Any]], path: Path) -> Path:
         target = np.pad(k.taps / np.abs(k.taps).max(), pad)
         panels = [
             (target, f"target: {label.split(' (')[0]}", "RdBu_r", True),
-            (ped.kernel().taps / np.abs(ped.kernel().taps).max(), f"pedestal: applied gP ≈ K + c\nerror {ped.error:.3f}", "RdBu_r", True),
-            (diff.kernel().taps / np.abs(diff.kernel().taps).max(), f"differential: g₊P₊ − g₋P₋\nerror {diff.error:.3f}", "RdBu_r", True),
-            (diff.psfs[0], f"P₊ (fraction of power)\ndefocus {(diff.sensor_distance_m[0] - diff.geometry.focal_length_m) * 1e6:+.0f} µm", "magma", False),
-            (diff.psfs[1], f"P₋ (fraction of power)\ndefocus {(diff.sensor_distance_m[1] - diff.geometry.focal_length_m) * 1e6:+.0f} µm", "magma", False),
+            (
+                ped.kernel().taps / np.abs(ped.kernel().taps).max(),
+                f"pedestal: applied gP ≈ K + c\nerror {ped.error:.3f}",
+                "RdBu_r",
+                True,
+            ),
+            (
+                diff.kernel().taps / np.abs(diff.kernel().taps).max(),
+                f"differential: g₊P₊ − g₋P₋\nerror {diff.error:.3f}",
+                "RdBu_r",
+                True,
+            ),
+            (
+                diff.psfs[0],
+                f"P₊ (fraction of power)\ndefocus {(diff.sensor_distance_m[0] - diff.geometry.focal_length_m) * 1e6:+.0f} µm",
+                "magma",
+                False,
+            ),
+            (
+                diff.psfs[1],
+                f"P₋ (fraction of power)\ndefocus {(diff.sensor_distance_m[1] - diff.geometry.focal_length_m) * 1e6:+.0f} µm",
+                "magma",
+                False,
+            ),
         ]
         for ax, (img, title, cmap, signed) in zip(axes[row], panels):
             lim = np.abs(img).max()
@@ -169,7 +209,9 @@ def plot_fits(fits: list[tuple[str, Any, Any]], path: Path) -> Path:
             ax.set_xticks([])
             ax.set_yticks([])
             fig.colorbar(im, ax=ax, fraction=0.046)
-    fig.suptitle("Metalens fits at 4.86 µm pitch (D = 100 µm, f = 200 µm, D65 × V(λ); dashed: kernel window)", fontsize=10)
+    fig.suptitle(
+        "Metalens fits at 4.86 µm pitch (D = 100 µm, f = 200 µm, D65 × V(λ); dashed: kernel window)", fontsize=10
+    )
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
@@ -194,8 +236,11 @@ def bench_metalens(*, quick: bool = False, figures: Path | None = None) -> Bench
     _grid_table(sec, quick)
     sec.text("", "### 2. Spectral samples (D65 × CIE 1924 V(λ), equal-weight bins); reference: 64 samples", "")
     _spectral_table(sec, quick)
-    sec.text("", "### 3. Fits (torch L-BFGS, float64; 8-sample search, 24-sample polish; PSFs re-evaluated at reference fidelity)",
-             "")
+    sec.text(
+        "",
+        "### 3. Fits (torch L-BFGS, float64; 8-sample search, 24-sample polish; PSFs re-evaluated at reference fidelity)",
+        "",
+    )
     fits = _fit_table(sec, quick)
     sec.text(
         "",

@@ -40,7 +40,15 @@ from typing import Any
 
 from fsdvs_hw.sensor.threads import event_list_threads
 
-__all__ = ["SIM_CASES", "bench_sim", "long_clip_frames", "moving_texture", "records_markdown", "sim_records", "v2e_records"]
+__all__ = [
+    "SIM_CASES",
+    "bench_sim",
+    "long_clip_frames",
+    "moving_texture",
+    "records_markdown",
+    "sim_records",
+    "v2e_records",
+]
 
 
 def moving_texture(T: int = 17, H: int = 120, W: int = 160, *, speed_px: float = 2.0,
@@ -133,12 +141,17 @@ def _streaming(sec: Any, quick: bool) -> None:
     threads = min(2, os.cpu_count() or 1)
     sec.text(f"### Streaming vs whole clip: exact event list, translating random texture {H}×{W}, "
              f"mismatch σ 0.03, chunks of 16 intervals, {threads} torch threads", "")
-    table = sec.table(Column.text("clip (frames)"), Column.text("path"), Column.number("events", "d", unit="count"),
-                      Column.number("wall (s)", ".2f", metric="wall time"),
-                      Column.number("CPU time (s)", ".2f", metric="CPU time"),
-                      Column.number("Mpixel-frames/s (wall)", ".2f", unit="Mpixel-frames/s", metric="throughput (wall)"),
-                      Column.number("peak memory increase (MB)", ".0f", metric="peak memory increase"),
-                      threads=threads, settings={"height": H, "width": W, "chunk_frames": 16})
+    table = sec.table(
+        Column.text("clip (frames)"),
+        Column.text("path"),
+        Column.number("events", "d", unit="count"),
+        Column.number("wall (s)", ".2f", metric="wall time"),
+        Column.number("CPU time (s)", ".2f", metric="CPU time"),
+        Column.number("Mpixel-frames/s (wall)", ".2f", unit="Mpixel-frames/s", metric="throughput (wall)"),
+        Column.number("peak memory increase (MB)", ".0f", metric="peak memory increase"),
+        threads=threads,
+        settings={"height": H, "width": W, "chunk_frames": 16},
+    )
     for T in lengths:
         for mode in ("whole", "stream"):
             out = subprocess.run([sys.executable, "-c", _STREAM_CHILD, mode, str(T), str(H), str(W), str(threads)],
@@ -178,21 +191,32 @@ def _throughput(sec: Any, quick: bool) -> None:
         "",
     )
     rate = Column.number  # the Mpixel-frames/s columns: a rate whose min–max are the slowest/fastest runs
-    table = sec.table(Column.text("pass"), Column.text("torch threads"),
-                      Column.number("wall median (s)", ".3f", metric="wall time (median)"),
-                      rate("Mpixel-frames/s (wall median)", ".1f", unit="Mpixel-frames/s", metric="throughput (wall median)"),
-                      Column.number("best wall (s)", ".3f", summary="best", metric="wall time (best)"),
-                      rate("Mpixel-frames/s (best)", ".1f", unit="Mpixel-frames/s", metric="throughput (best wall)"),
-                      Column.number("CPU time (s)", ".3f", metric="CPU time (median)"),
-                      Column.number("peak memory (MB)", ".0f", metric="peak memory increase"),
-                      settings={"height": H, "width": W, "frames": T, "repeats": reps})
+    table = sec.table(
+        Column.text("pass"),
+        Column.text("torch threads"),
+        Column.number("wall median (s)", ".3f", metric="wall time (median)"),
+        rate("Mpixel-frames/s (wall median)", ".1f", unit="Mpixel-frames/s", metric="throughput (wall median)"),
+        Column.number("best wall (s)", ".3f", summary="best", metric="wall time (best)"),
+        rate("Mpixel-frames/s (best)", ".1f", unit="Mpixel-frames/s", metric="throughput (best wall)"),
+        Column.number("CPU time (s)", ".3f", metric="CPU time (median)"),
+        Column.number("peak memory (MB)", ".0f", metric="peak memory increase"),
+        settings={"height": H, "width": W, "frames": T, "repeats": reps},
+    )
     for n_threads, (f_run, b_run) in runs.items():
         for name, r in (("forward", f_run), ("forward+backward", b_run)):
             walls = Measured.of(r["walls"])
             fast, slow = px_frames / min(r["walls"]) / 1e6, px_frames / max(r["walls"]) / 1e6
-            table.row(name, str(n_threads), walls, Measured(px_frames / walls.value / 1e6, walls.repeats, slow, fast),
-                      Measured.of(r["walls"], "best"), Measured(fast, walls.repeats, slow, fast), Measured.of(r["cpus"]),
-                      r["peak_mb"], threads=n_threads)
+            table.row(
+                name,
+                str(n_threads),
+                walls,
+                Measured(px_frames / walls.value / 1e6, walls.repeats, slow, fast),
+                Measured.of(r["walls"], "best"),
+                Measured(fast, walls.repeats, slow, fast),
+                Measured.of(r["cpus"]),
+                r["peak_mb"],
+                threads=n_threads,
+            )
     sec.text("")
     for n_threads, (f_run, b_run) in runs.items():
         case = f"{n_threads} thread(s)"
@@ -202,7 +226,9 @@ def _throughput(sec: Any, quick: bool) -> None:
                                threads=n_threads)
         cpu_ratio = sec.value(case, "backward alone / forward (CPU time)", (b_cpu - f_cpu) / f_cpu, spec=".2f",
                               threads=n_threads)
-        sec.text(f"{n_threads} thread(s): backward alone / forward = {wall_ratio} (best walls), {cpu_ratio} (CPU time).")
+        sec.text(
+            f"{n_threads} thread(s): backward alone / forward = {wall_ratio} (best walls), {cpu_ratio} (CPU time)."
+        )
     sec.text("Targets: forward >= 20 Mpixel-frames/s, backward <= 3x forward on 2 cores.")
 
 
@@ -240,7 +266,9 @@ def _accuracy(sec: Any, quick: bool) -> None:
         rows.append((f"plan_model tol {tol:g} ({sum(plan.substeps)} steps; skips {', '.join(plan.skipped) or '-'})",
                      run(video64, plan=plan)))
     rows.append(("float32, 64 sub-steps", run(video64.float(), config=full.replace(substeps=64))))
-    rows.append(("conv2d instead of FFT, 64 sub-steps", run(video64, config=full.replace(substeps=64, convolution="direct"))))
+    rows.append(
+        ("conv2d instead of FFT, 64 sub-steps", run(video64, config=full.replace(substeps=64, convolution="direct")))
+    )
     rows.append(("ideal sensor (no pixel effects)", run(video64, config=SensorConfig.ideal())))
     sec.text(f"### Speed vs accuracy: camera image moving 2 px/frame at 10 % of full scale, 17×{H}×{W}, 7×7 DoG", "")
     case = "reference: 256 fixed sub-steps, float64, every effect on"
@@ -281,13 +309,19 @@ def _regions(sec: Any, quick: bool) -> None:
              f"bright still background, {T}×{H}×{W}", "")
     n_text = sec.value("reference: 256 fixed sub-steps", "events", n_ref, unit="count", spec=".0f")
     sec.text(f"Reference: 256 fixed sub-steps per interval ({n_text} events).", "")
-    table = sec.table(Column.text("stepping"), Column.number("pixel sub-steps", "d", unit="count"),
-                      Column.number("frame L1 error", ".4f", metric="relative event-frame L1 error"),
-                      Column.number("wall (s)", ".3f", metric="wall time"), settings={"height": H, "width": W, "frames": T})
-    for name, cfg in (("fixed 256", base.replace(substeps=256)),
-                      ("adaptive 0.5 C, one count per frame interval", base.replace(adaptive_fraction=0.5, adaptive_region_px=0)),
-                      ("adaptive 0.5 C per 16×16 region", base.replace(adaptive_fraction=0.5, adaptive_region_px=16)),
-                      ("adaptive 0.5 C per 32×32 region", base.replace(adaptive_fraction=0.5, adaptive_region_px=32))):
+    table = sec.table(
+        Column.text("stepping"),
+        Column.number("pixel sub-steps", "d", unit="count"),
+        Column.number("frame L1 error", ".4f", metric="relative event-frame L1 error"),
+        Column.number("wall (s)", ".3f", metric="wall time"),
+        settings={"height": H, "width": W, "frames": T},
+    )
+    for name, cfg in (
+        ("fixed 256", base.replace(substeps=256)),
+        ("adaptive 0.5 C, one count per frame interval", base.replace(adaptive_fraction=0.5, adaptive_region_px=0)),
+        ("adaptive 0.5 C per 16×16 region", base.replace(adaptive_fraction=0.5, adaptive_region_px=16)),
+        ("adaptive 0.5 C per 32×32 region", base.replace(adaptive_fraction=0.5, adaptive_region_px=32)),
+    ):
         t = timed(lambda cfg=cfg: event_frames(video, None, config=cfg, return_info=True))
         f, info = t.result
         table.row(name, info.pixel_steps, float((f.double() - ref).abs().sum()) / max(n_ref, 1), t)
@@ -362,7 +396,9 @@ SIM_CASES: dict[str, dict[str, Any]] = {
     "bikes/event list": dict(clip="bikes", path="event list", settings="v2e-default"),
     "bikes/event list clean": dict(clip="bikes", path="event list", settings="v2e-clean"),
     "bikes/forward+backward": dict(clip="bikes", path="forward+backward", settings="v2e-default + 7x7 DoG pre-log"),
-    "bikes/centre-surround": dict(clip="bikes", path="centre-surround", settings="v2e-default, post-log, lambda 2 px, weight 1"),
+    "bikes/centre-surround": dict(
+        clip="bikes", path="centre-surround", settings="v2e-default, post-log, lambda 2 px, weight 1"
+    ),
     "synthetic/frames": dict(clip="synthetic", path="frames", settings="ideal + 7x7 DoG pre-log"),
     "synthetic/forward+backward": dict(clip="synthetic", path="forward+backward", settings="ideal + 7x7 DoG pre-log"),
     "long/aedat4": dict(clip="long", path="event list to .aedat4", settings="v2e-default"),
@@ -565,15 +601,31 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
                            "chunk_frames": chunk_frames, "long_seconds": long_seconds})
         r, rates, cpu_rates = _run_child([sys.executable, "-m", "benchmarks.sim", "--child", spec],
                                          f"benchmark child for {name!r}")
-        out.append({"case": name, "clip": case["clip"], "path": case["path"],
-                    "resolution": f"{r['height']}x{r['width']}", "n_frames": r["n_frames"], "events": r["events"],
-                    "mpf_s_mean": statistics.fmean(rates), "mpf_s_std": statistics.stdev(rates) if len(rates) > 1 else 0.0,
-                    "mpf_s_min": min(rates), "mpf_s_max": max(rates), "cpu_s_mean": statistics.fmean(r["cpus"]),
-                    "mpf_cpu_s_mean": statistics.fmean(cpu_rates),
-                    "mpf_cpu_s_std": statistics.stdev(cpu_rates) if len(cpu_rates) > 1 else 0.0,
-                    "repeats": reps, "peak_rss_mb": r["peak_rss_mb"], "rss_base_mb": r["rss_base_mb"],
-                    "threads": n_threads, "settings": case["settings"], "chunk_frames": chunk_frames,
-                    "torch": torch.__version__, "load_avg": load})
+        out.append(
+            {
+                "case": name,
+                "clip": case["clip"],
+                "path": case["path"],
+                "resolution": f"{r['height']}x{r['width']}",
+                "n_frames": r["n_frames"],
+                "events": r["events"],
+                "mpf_s_mean": statistics.fmean(rates),
+                "mpf_s_std": statistics.stdev(rates) if len(rates) > 1 else 0.0,
+                "mpf_s_min": min(rates),
+                "mpf_s_max": max(rates),
+                "cpu_s_mean": statistics.fmean(r["cpus"]),
+                "mpf_cpu_s_mean": statistics.fmean(cpu_rates),
+                "mpf_cpu_s_std": statistics.stdev(cpu_rates) if len(cpu_rates) > 1 else 0.0,
+                "repeats": reps,
+                "peak_rss_mb": r["peak_rss_mb"],
+                "rss_base_mb": r["rss_base_mb"],
+                "threads": n_threads,
+                "settings": case["settings"],
+                "chunk_frames": chunk_frames,
+                "torch": torch.__version__,
+                "load_avg": load,
+            }
+        )
     return out
 
 
@@ -585,10 +637,12 @@ def records_markdown(records: list[dict[str, Any]]) -> str:
              "base RSS (MB) | threads | settings | load |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in records:
-        lines.append(f"| {r['case']} | {r['path']} | {r['clip']} {r['resolution']} | {r['n_frames']} | {r['events']} | "
-                     f"{r['mpf_s_mean']:.2f} ± {r['mpf_s_std']:.2f} [{r['mpf_s_min']:.2f}–{r['mpf_s_max']:.2f}] | "
-                     f"{r['mpf_cpu_s_mean']:.2f} ± {r['mpf_cpu_s_std']:.2f} | {r['repeats']} | {r['peak_rss_mb']:.0f} | {r['rss_base_mb']:.0f} | "
-                     f"{r['threads']} | {r['settings']} | {r['load_avg']:.1f} |")
+        lines.append(
+            f"| {r['case']} | {r['path']} | {r['clip']} {r['resolution']} | {r['n_frames']} | {r['events']} | "
+            f"{r['mpf_s_mean']:.2f} ± {r['mpf_s_std']:.2f} [{r['mpf_s_min']:.2f}–{r['mpf_s_max']:.2f}] | "
+            f"{r['mpf_cpu_s_mean']:.2f} ± {r['mpf_cpu_s_std']:.2f} | {r['repeats']} | {r['peak_rss_mb']:.0f} | {r['rss_base_mb']:.0f} | "
+            f"{r['threads']} | {r['settings']} | {r['load_avg']:.1f} |"
+        )
     if records:
         lines += ["", f"torch {records[0]['torch']}, chunks of {records[0]['chunk_frames']} frame intervals; "
                   "base RSS = the child's peak after imports and loading the clip, before the first run."]
@@ -598,7 +652,9 @@ def records_markdown(records: list[dict[str, Any]]) -> str:
 _V2E_STUBS = {  # v2e imports these at module level for its GUI / file paths only
     "screeninfo": "def get_monitors():\n    return []\n",
     "engineering_notation": "class EngNumber(float):\n    def __new__(cls, v, *a, **k):\n        return float.__new__(cls, float(v))\n",
-    "easygui": "", "plyer": "", "cv2": "",
+    "easygui": "",
+    "plyer": "",
+    "cv2": "",
     "numba": "def njit(*a, **k):\n    return a[0] if a and callable(a[0]) else (lambda f: f)\njit = njit\n",
 }
 

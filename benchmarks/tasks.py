@@ -100,10 +100,14 @@ def _bench_tasks(quick: bool) -> BenchRun:
     sec.text("## tasks: training / evaluation cost and evaluation accuracy vs test-set size", "")
     sec.text(f"Time per epoch ({n_train} training clips of 32×32×5 frames, batch 32, 7×7 kernel, one thread) "
              "and per `evaluate_kernel` (256 test clips, shipped checkpoint, zero-shot).", "")
-    cost = sec.table(Column.text("task"), Column.number("frozen-filter epoch (s)", ".2f"),
-                     Column.number("joint epoch (s)", ".2f"), Column.number("evaluate_kernel (s)", ".2f"),
-                     Column.number("clips / s (joint)", ".0f", unit="clips/s", metric="training clips per second (joint)"),
-                     title="Time per epoch and per evaluation")
+    cost = sec.table(
+        Column.text("task"),
+        Column.number("frozen-filter epoch (s)", ".2f"),
+        Column.number("joint epoch (s)", ".2f"),
+        Column.number("evaluate_kernel (s)", ".2f"),
+        Column.number("clips / s (joint)", ".0f", unit="clips/s", metric="training clips per second (joint)"),
+        title="Time per epoch and per evaluation",
+    )
     for task in ("detection", "recognition"):
         print(f"[bench tasks] timing {task}", file=sys.stderr, flush=True)
         res = learn_kernel(task, 7, seed=0, n_train=n_train, n_test=32,

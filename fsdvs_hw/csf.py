@@ -331,7 +331,9 @@ class CsfAgreement:
             "band_cpd": list(self.band_cpd),
         }
         if curves:
-            d.update(f_cpd=self.f_cpd.tolist(), kernel_curve=self.kernel_curve.tolist(), csf_curve=self.csf_curve.tolist())
+            d.update(
+                f_cpd=self.f_cpd.tolist(), kernel_curve=self.kernel_curve.tolist(), csf_curve=self.csf_curve.tolist()
+            )
         return d
 
 

@@ -37,7 +37,9 @@ def _one_kernel(kernels: Any) -> bool:
             and len(kernels[0]) > 0 and np.isscalar(kernels[0][0]))
 
 
-def plot_kernel(kernel: Kernel | Any, ax: Any = None, *, annotate: bool | None = None, title: str | None = None) -> tuple[Any, Any]:
+def plot_kernel(
+    kernel: Kernel | Any, ax: Any = None, *, annotate: bool | None = None, title: str | None = None
+) -> tuple[Any, Any]:
     """Heat map of the taps on a diverging colour map centred at 0 (red > 0, blue < 0).
 
     Parameters
@@ -69,7 +71,9 @@ def plot_kernel(kernel: Kernel | Any, ax: Any = None, *, annotate: bool | None =
     return fig, ax
 
 
-def plot_spectrum(kernel: Kernel | Any, ax: Any = None, *, n_fft: int = 128, title: str | None = None) -> tuple[Any, Any]:
+def plot_spectrum(
+    kernel: Kernel | Any, ax: Any = None, *, n_fft: int = 128, title: str | None = None
+) -> tuple[Any, Any]:
     """2-D magnitude spectrum |H(f_x, f_y)| over the Nyquist square (cycles/pixel); ``kernel`` as
     :func:`~fsdvs_hw.kernels.as_kernel` accepts it."""
     kernel = as_kernel(kernel)

@@ -48,7 +48,9 @@ def ipopt_version() -> str | None:
     found = []
     for folder in spec.submodule_search_locations:
         for lib in Path(folder).glob("*ipopt*"):
-            m = re.search(r"libipopt[^/]*?\.(\d+\.\d+\.\d+)", lib.name) or re.search(r"ipopt[-_.](\d+\.\d+\.\d+)", lib.name)
+            m = re.search(r"libipopt[^/]*?\.(\d+\.\d+\.\d+)", lib.name) or re.search(
+                r"ipopt[-_.](\d+\.\d+\.\d+)", lib.name
+            )
             if m and not lib.name.startswith("libsipopt"):
                 found.append(m.group(1))
     return max(found, key=lambda v: tuple(int(p) for p in v.split("."))) if found else None

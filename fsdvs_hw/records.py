@@ -197,8 +197,11 @@ class TaskScores:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, where: str = "tasks") -> TaskScores:
         data = _mapping(data, where)
-        tracks = {t: {k: TrackScore.from_dict(r, where=f"{where}.{t}.{k}") for k, r in _mapping(tr, f"{where}.{t}").items()}
-                  for t, tr in data.items() if t != "status"}
+        tracks = {
+            t: {k: TrackScore.from_dict(r, where=f"{where}.{t}.{k}") for k, r in _mapping(tr, f"{where}.{t}").items()}
+            for t, tr in data.items()
+            if t != "status"
+        }
         return cls(status=str(data.get("status", "ok" if tracks else "not requested")), tracks=tracks)
 
 

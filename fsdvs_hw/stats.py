@@ -313,7 +313,11 @@ class CocoDetections:
 
         pb, ps, pl = (np.asarray(x) for x in (pred_boxes, pred_scores, pred_labels))
         gb, gl = np.asarray(gt_boxes), np.asarray(gt_labels)
-        if pb.ndim != 3 or gb.ndim != 3 or not (pb.shape[0] == ps.shape[0] == pl.shape[0] == gb.shape[0] == gl.shape[0]):
+        if (
+            pb.ndim != 3
+            or gb.ndim != 3
+            or not (pb.shape[0] == ps.shape[0] == pl.shape[0] == gb.shape[0] == gl.shape[0])
+        ):
             raise InputError(f"CocoDetections: inconsistent shapes pred {pb.shape}, {ps.shape}, {pl.shape}; "
                              f"gt {gb.shape}, {gl.shape}")
         n = int(gb.shape[0])
@@ -660,16 +664,35 @@ def difference_ci(reference: Sequence[ClipMetric] | ClipMetric, candidate: Seque
     (0.2, True)
     """
     cand = _arm(candidate, "candidate")
-    return difference_cis(reference, {"candidate": cand}, paired_seeds=paired_seeds, paired_clips=paired_clips,
-                          nested_clips=nested_clips, resample=resample, confidence=confidence, n_resamples=n_resamples, method=method,
-                          rng=rng, batch=batch)["candidate"]
+    return difference_cis(
+        reference,
+        {"candidate": cand},
+        paired_seeds=paired_seeds,
+        paired_clips=paired_clips,
+        nested_clips=nested_clips,
+        resample=resample,
+        confidence=confidence,
+        n_resamples=n_resamples,
+        method=method,
+        rng=rng,
+        batch=batch,
+    )["candidate"]
 
 
-def difference_cis(reference: Sequence[ClipMetric] | ClipMetric,
-                   candidates: Mapping[str, Sequence[ClipMetric] | ClipMetric], *, paired_seeds: bool = True,
-                   paired_clips: bool = True, nested_clips: bool = False, resample: Sequence[str] = ("clips", "seeds"), confidence: float = 0.95,
-                   n_resamples: int = DEFAULT_RESAMPLES, method: str = "percentile", rng: Any = 0,
-                   batch: int | None = 200) -> dict[str, DifferenceCI]:
+def difference_cis(
+    reference: Sequence[ClipMetric] | ClipMetric,
+    candidates: Mapping[str, Sequence[ClipMetric] | ClipMetric],
+    *,
+    paired_seeds: bool = True,
+    paired_clips: bool = True,
+    nested_clips: bool = False,
+    resample: Sequence[str] = ("clips", "seeds"),
+    confidence: float = 0.95,
+    n_resamples: int = DEFAULT_RESAMPLES,
+    method: str = "percentile",
+    rng: Any = 0,
+    batch: int | None = 200,
+) -> dict[str, DifferenceCI]:
     """:func:`difference_ci` of several candidates against one reference, from the same resamples.
 
     One ``scipy.stats.bootstrap`` call with a vector-valued statistic: every resample of clips and
@@ -683,9 +706,18 @@ def difference_cis(reference: Sequence[ClipMetric] | ClipMetric,
     dict
         Candidate name → :class:`DifferenceCI`, in the order given.
     """
-    out = task_difference_cis({"_": (reference, candidates)}, paired_seeds=paired_seeds, paired_clips=paired_clips,
-                              nested_clips=nested_clips, resample=resample, confidence=confidence, n_resamples=n_resamples, method=method,
-                              rng=rng, batch=batch)
+    out = task_difference_cis(
+        {"_": (reference, candidates)},
+        paired_seeds=paired_seeds,
+        paired_clips=paired_clips,
+        nested_clips=nested_clips,
+        resample=resample,
+        confidence=confidence,
+        n_resamples=n_resamples,
+        method=method,
+        rng=rng,
+        batch=batch,
+    )
     return {k: v["_"] for k, v in out.items()}
 
 
@@ -732,12 +764,20 @@ def _resampled(task: _Task) -> tuple[str, ...]:
     return tuple(dict.fromkeys("clips" if sl.startswith("clips") else "seeds" for sl in task.slots))
 
 
-def task_difference_cis(tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMetric,
-                                                  Mapping[str, Sequence[ClipMetric] | ClipMetric]]], *,
-                        weights: Mapping[str, float] | None = None, paired_seeds: bool = True,
-                        paired_clips: bool = True, nested_clips: bool | Mapping[str, bool] = False, resample: Sequence[str] = ("clips", "seeds"),
-                        confidence: float = 0.95, n_resamples: int = DEFAULT_RESAMPLES, method: str = "percentile",
-                        rng: Any = 0, batch: int | None = 200) -> dict[str, dict[str, DifferenceCI]]:
+def task_difference_cis(
+    tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMetric, Mapping[str, Sequence[ClipMetric] | ClipMetric]]],
+    *,
+    weights: Mapping[str, float] | None = None,
+    paired_seeds: bool = True,
+    paired_clips: bool = True,
+    nested_clips: bool | Mapping[str, bool] = False,
+    resample: Sequence[str] = ("clips", "seeds"),
+    confidence: float = 0.95,
+    n_resamples: int = DEFAULT_RESAMPLES,
+    method: str = "percentile",
+    rng: Any = 0,
+    batch: int | None = 200,
+) -> dict[str, dict[str, DifferenceCI]]:
     """Per-task loss CIs of several candidates and, with ``weights``, the CI of their weighted mean.
 
     Every task has its own test clips and networks, so each task contributes its own clip (and

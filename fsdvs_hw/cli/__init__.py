@@ -81,8 +81,12 @@ def _parser() -> argparse.ArgumentParser:
     for name, module_path in COMMANDS.items():
         module = importlib.import_module(module_path)
         # argparse %-formats help strings: a literal "95 % CI" must reach it as "95 %% CI"
-        p = sub.add_parser(name, help=module.HELP.replace("%", "%%"), description=getattr(module, "DESCRIPTION", module.HELP),
-                           formatter_class=_HelpFormatter)
+        p = sub.add_parser(
+            name,
+            help=module.HELP.replace("%", "%%"),
+            description=getattr(module, "DESCRIPTION", module.HELP),
+            formatter_class=_HelpFormatter,
+        )
         module.add_arguments(p)
         if "--no-progress" not in p._option_string_actions:
             p.add_argument("--no-progress", action="store_true",

@@ -31,7 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"training seeds, each 0..{MAX_SEED} (default 0 1 2)")
     parser.add_argument("--n-train", type=int_in(1, MAX_CLIPS), default=None, help="training clips (default 2048)")
     parser.add_argument("--n-test", type=int_in(1, MAX_CLIPS), default=None, help="test clips (default 2048)")
-    parser.add_argument("--epochs-frozen", type=int_in(0, MAX_EPOCHS), default=None, help="frozen-filter epochs (default 16)")
+    parser.add_argument(
+        "--epochs-frozen", type=int_in(0, MAX_EPOCHS), default=None, help="frozen-filter epochs (default 16)"
+    )
     parser.add_argument("--epochs-joint", type=int_in(0, MAX_EPOCHS), default=None, help="joint epochs (default 16)")
     parser.add_argument("--workers", type=int_in(1, MAX_WORKERS), default=1,
                         help=f"local worker processes, 1..{MAX_WORKERS} (default 1)")
@@ -52,10 +54,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("out") / "ablation",
                         help="folder: store (runs.sqlite), predictions/, ablation.md, ablation.json "
                              "(default out/ablation)")
-    parser.add_argument("--ship-dir", type=Path, default=None,
-                        help="save the 7x7 learned kernels (every seed) as learned_{task}_7x7[_sSEED].* and the "
-                             "frozen-kernel networks as networks/{task}_with_KERNEL_sSEED.* here, e.g. out/shipped; copy them "
-                             "into designs/kernels to ship them (default: not saved)")
+    parser.add_argument(
+        "--ship-dir",
+        type=Path,
+        default=None,
+        help="save the 7x7 learned kernels (every seed) as learned_{task}_7x7[_sSEED].* and the "
+        "frozen-kernel networks as networks/{task}_with_KERNEL_sSEED.* here, e.g. out/shipped; copy them "
+        "into designs/kernels to ship them (default: not saved)",
+    )
     parser.add_argument("--from-store", action="store_true", help="do not train: rebuild the tables from the store")
 
 

@@ -78,9 +78,16 @@ def run(args: argparse.Namespace) -> int:
         design = design.with_overrides(parse_overrides(args.overrides))
     output_dir(args.out, flag="--out")  # before any work
     print(f"[explore] {design.name}: target {design.target!r}", file=sys.stderr, flush=True)
-    res = run_exploration(design, args.out, workers=args.workers, scheduler=args.scheduler,
-                          progress=False if args.no_progress else None, retry_errors=args.retry_errors, max_points=args.max_points,
-                          security=security_from_args(args))
+    res = run_exploration(
+        design,
+        args.out,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=False if args.no_progress else None,
+        retry_errors=args.retry_errors,
+        max_points=args.max_points,
+        security=security_from_args(args),
+    )
     print(f"[explore] {res.summary}", file=sys.stderr)
     print(summary_markdown(score_rows(res.points)) + "\n")
     nets = networks_note(res.points)

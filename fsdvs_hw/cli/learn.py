@@ -27,11 +27,15 @@ DESCRIPTION = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("task", help="task name: detection, recognition, segmentation")
-    parser.add_argument("--size", type=int_in(1, MAX_KERNEL_SIZE), default=7, help="odd kernel size in pixels (default 7; 1 = w/o)")
+    parser.add_argument(
+        "--size", type=int_in(1, MAX_KERNEL_SIZE), default=7, help="odd kernel size in pixels (default 7; 1 = w/o)"
+    )
     parser.add_argument("--seed", type=int_in(0, MAX_SEED), default=0, help=f"training seed, 0..{MAX_SEED} (default 0)")
     parser.add_argument("--n-train", type=int_in(1, MAX_CLIPS), default=2048, help="training clips (default 2048)")
     parser.add_argument("--n-test", type=int_in(1, MAX_CLIPS), default=2048, help="test clips (default 2048)")
-    parser.add_argument("--epochs-frozen", type=int_in(0, MAX_EPOCHS), default=None, help="frozen-filter epochs (staged tasks)")
+    parser.add_argument(
+        "--epochs-frozen", type=int_in(0, MAX_EPOCHS), default=None, help="frozen-filter epochs (staged tasks)"
+    )
     parser.add_argument("--epochs-joint", type=int_in(0, MAX_EPOCHS), default=None, help="joint epochs")
     parser.add_argument("--lr-filter", type=float, default=None, help="filter learning rate")
     parser.add_argument("--out", type=Path, default=None, help="file stem for kernel/checkpoint/provenance")

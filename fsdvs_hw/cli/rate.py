@@ -11,7 +11,9 @@ from ._execution import int_in
 
 __all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
-HELP = "event rate vs threshold for w/o and the learned kernel; task gain at matched event rate with 95 % CIs; resumable"
+HELP = (
+    "event rate vs threshold for w/o and the learned kernel; task gain at matched event rate with 95 % CIs; resumable"
+)
 DESCRIPTION = (
     "Sweep the ON/OFF contrast threshold for the plain DVS (w/o) and the design's learned kernel (and\n"
     "optionally its realisations) in the design's fixed trained networks, record event rate and task\n"
@@ -43,7 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="use the first N networks of the task (default: all)")
     parser.add_argument("--n-test", type=int_in(2, MAX_CLIPS), default=None,
                         help="test clips per network (default: the design's tasks.n_test)")
-    parser.add_argument("--realisations", nargs="*", default=[], help="also curve these realisations (mesh asic metalens)")
+    parser.add_argument(
+        "--realisations", nargs="*", default=[], help="also curve these realisations (mesh asic metalens)"
+    )
     parser.add_argument("--resolution", nargs=2, type=int_in(1, 100_000), default=[720, 1280], metavar=("H", "W"),
                         help="sensor size for the Mev/s column")
     parser.add_argument("--n-resamples", type=int_in(100, 1_000_000), default=2000, help="bootstrap resamples per CI")

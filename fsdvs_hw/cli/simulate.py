@@ -61,7 +61,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "emit and sort worker threads take the rest)")
     parser.add_argument("--allow-truncated", action="store_true",
                         help="simulate the decodable frames of a truncated or corrupt video instead of refusing it")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is not a terminal)")
+    parser.add_argument(
+        "--no-progress", action="store_true", help="no progress bar (none either when stderr is not a terminal)"
+    )
 
 
 def _size(text: str | None) -> tuple[int, int] | None:

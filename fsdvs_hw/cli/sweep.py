@@ -22,7 +22,11 @@ DESCRIPTION = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("design", type=Path, help="TOML design file with a [sweep] section, or a shipped design's name (sweep_asic_bits)")
+    parser.add_argument(
+        "design",
+        type=Path,
+        help="TOML design file with a [sweep] section, or a shipped design's name (sweep_asic_bits)",
+    )
     parser.add_argument("--store", type=Path, default=None,
                         help="SQLite results file (default: out/sweeps/<design name, made file-safe>.sqlite)")
     parser.add_argument("--report", type=Path, default=None, metavar="DIR",
@@ -43,9 +47,16 @@ def run(args: argparse.Namespace) -> int:
         output_dir(args.report, flag="--report")
     points = expand_points(design, max_points=args.max_points)
     print(f"[sweep] {design.name}: {len(points)} design points -> {store_path}", file=sys.stderr, flush=True)
-    summary, rows = run_design(design, store_path, workers=args.workers, scheduler=args.scheduler,
-                               progress=False if args.no_progress else None, retry_errors=args.retry_errors, points=points,
-                               security=security_from_args(args))
+    summary, rows = run_design(
+        design,
+        store_path,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=False if args.no_progress else None,
+        retry_errors=args.retry_errors,
+        points=points,
+        security=security_from_args(args),
+    )
     print(f"[sweep] {summary}", file=sys.stderr, flush=True)
     if args.report is not None:
         from ..explore.scoring import with_paired_losses

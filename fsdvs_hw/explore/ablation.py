@@ -68,7 +68,9 @@ class AblationPoint:
         return f"{j['kind']} {j['task']} {j['size']}x{j['size']} s{j['seed']}"
 
 
-def ablation_points(jobs: list[dict[str, Any]], pred_dir: Path, ship: dict[str, Path] | None = None) -> list[AblationPoint]:
+def ablation_points(
+    jobs: list[dict[str, Any]], pred_dir: Path, ship: dict[str, Path] | None = None
+) -> list[AblationPoint]:
     """Wrap :mod:`fsdvs_hw.tasks.ablation` jobs as sweep points (``ship``: job key → file stem)."""
     from ..tasks.ablation import job_key
 
@@ -253,7 +255,9 @@ def run_ablation_study(args: AblationOptions) -> AblationStudy:
         else:
             jobs = transfer_jobs(kpath, list(args.seeds), **kw)
         if args.frozen_tasks and not args.frozen_only:
-            jobs += frozen_kernel_jobs(kpath, [t for t in args.frozen_tasks if t != "segmentation"], list(args.seeds), **kw)
+            jobs += frozen_kernel_jobs(
+                kpath, [t for t in args.frozen_tasks if t != "segmentation"], list(args.seeds), **kw
+            )
         ship = None
         if args.ship_dir is not None:
             from ..tasks.ablation import job_key
@@ -363,9 +367,14 @@ def _transfer_kernel(args: AblationOptions, records: list[dict[str, Any]], out: 
 def _frozen_markdown(records: list[dict[str, Any]], stem: str) -> str:
     from ..tasks.evaluators import get_evaluator
 
-    lines = [f"**networks trained with {stem} frozen** (for the exploration's scoring; metric ×100 on the test clips)\n",
-             "| Task | seed | metric | value |", "|---|---|---|---|"]
+    lines = [
+        f"**networks trained with {stem} frozen** (for the exploration's scoring; metric ×100 on the test clips)\n",
+        "| Task | seed | metric | value |",
+        "|---|---|---|---|",
+    ]
     for r in sorted(records, key=lambda r: (r["task"], r["seed"])):
         ev = get_evaluator(r["task"])
-        lines.append(f"| {r['task']} | {r['seed']} | {ev.primary_metric} | {r['metrics'][ev.primary_metric] * 100:.1f} |")
+        lines.append(
+            f"| {r['task']} | {r['seed']} | {ev.primary_metric} | {r['metrics'][ev.primary_metric] * 100:.1f} |"
+        )
     return "\n".join(lines) + "\n"

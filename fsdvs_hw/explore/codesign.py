@@ -362,9 +362,11 @@ def _verdict(cell: Mapping[str, Any]) -> str:
                 f"[{swap['low']:.4f}, {swap['high']:.4f}] does not lie above 0")
     rec = cd["recovered"]
     if not rec["high"] - rec["low"] <= 1.0:  # wider than the whole loss (or unbounded): nothing resolved
-        return (f"unresolved: the co-designed loss {cd['loss']['estimate']:.4f} [{cd['loss']['low']:.4f}, "
-                f"{cd['loss']['high']:.4f}] is wider than the fit-then-swap loss {swap['estimate']:.4f} "
-                f"[{swap['low']:.4f}, {swap['high']:.4f}] itself (recovered {rec['estimate']:.0%}, CI wider than 100 points)")
+        return (
+            f"unresolved: the co-designed loss {cd['loss']['estimate']:.4f} [{cd['loss']['low']:.4f}, "
+            f"{cd['loss']['high']:.4f}] is wider than the fit-then-swap loss {swap['estimate']:.4f} "
+            f"[{swap['low']:.4f}, {swap['high']:.4f}] itself (recovered {rec['estimate']:.0%}, CI wider than 100 points)"
+        )
     if rec["low"] >= 0.5:
         return f"co-design recovers at least half of the loss ({rec['estimate']:.0%} [{rec['low']:.0%}, {rec['high']:.0%}])"
     if rec["estimate"] >= 0.5:

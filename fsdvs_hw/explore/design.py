@@ -862,7 +862,9 @@ def _check_codesign(chk: _Problems, data: dict[str, Any]) -> None:
     tasks = cd["tasks"] or list(ckpts)
     for i, t in enumerate(cd["tasks"]):
         if t not in ckpts:
-            chk.add(f"codesign.tasks[{i}]", t, f"not a task in tasks.checkpoints; allowed: {', '.join(ckpts) or 'none'}")
+            chk.add(
+                f"codesign.tasks[{i}]", t, f"not a task in tasks.checkpoints; allowed: {', '.join(ckpts) or 'none'}"
+            )
     for i, cell in enumerate(cd["cells"]):
         real, _, task = cell.partition("/")
         if real not in cd["realisations"] or task not in tasks:

@@ -69,9 +69,13 @@ class DisplaySettings:
         if not (1.0 <= float(self.gamma) <= 4.0):
             raise InputError(f"DisplaySettings.gamma must be in [1, 4], got {self.gamma!r}")
         if not (0.0 <= float(self.black_nits) < float(self.peak_nits)):
-            raise InputError(f"DisplaySettings: need 0 ≤ black_nits < peak_nits, got {self.black_nits}, {self.peak_nits}")
+            raise InputError(
+                f"DisplaySettings: need 0 ≤ black_nits < peak_nits, got {self.black_nits}, {self.peak_nits}"
+            )
         if not (isinstance(self.upsample_factor, int) and 1 <= self.upsample_factor <= 64):
-            raise InputError(f"DisplaySettings.upsample_factor must be an integer in [1, 64], got {self.upsample_factor!r}")
+            raise InputError(
+                f"DisplaySettings.upsample_factor must be an integer in [1, 64], got {self.upsample_factor!r}"
+            )
 
     @classmethod
     def from_design(cls, section: Mapping[str, Any]) -> DisplaySettings:

@@ -93,9 +93,11 @@ class ResultsStore:
             if tables:  # an existing store: a damaged page would otherwise surface mid-run or be skipped
                 check = [r[0] for r in self._db.execute("PRAGMA quick_check(3)")]
                 if check != ["ok"]:
-                    raise InputError(f"{self.path}: the results store is damaged (SQLite quick_check: "
-                                     f"{' '.join('; '.join(str(c) for c in check).split())[:200]}); use a new --store file or "
-                                     "restore a copy")
+                    raise InputError(
+                        f"{self.path}: the results store is damaged (SQLite quick_check: "
+                        f"{' '.join('; '.join(str(c) for c in check).split())[:200]}); use a new --store file or "
+                        "restore a copy"
+                    )
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.executescript(_DDL)

@@ -83,7 +83,9 @@ def read_index(path: str | Path) -> list[dict[str, Any]]:
         data = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise InputError(f"{path}: cannot read the artifact index ({type(exc).__name__})") from None
-    if not (isinstance(data, dict) and data.get("version") == INDEX_VERSION and isinstance(data.get("artifacts"), list)):
+    if not (
+        isinstance(data, dict) and data.get("version") == INDEX_VERSION and isinstance(data.get("artifacts"), list)
+    ):
         raise InputError(f"{path}: not an artifact index of version {INDEX_VERSION} "
                          "({'version': 1, 'artifacts': [...]})")
     return [dict(e) for e in data["artifacts"] if isinstance(e, dict)]

@@ -121,7 +121,9 @@ class ReferenceRealisation:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> ReferenceRealisation:
-        return cls(Kernel.from_dict(data["kernel"], source="realisation.kernel"), label=str(data.get("label", "reference")))
+        return cls(
+            Kernel.from_dict(data["kernel"], source="realisation.kernel"), label=str(data.get("label", "reference"))
+        )
 
 
 def kernel_error(realised: Kernel | np.ndarray, target: Kernel | np.ndarray, *, fit_scale: bool = False) -> float:

@@ -218,7 +218,9 @@ class RadialPropagator:
         torch = _torch()
         lam = torch.as_tensor(np.asarray(wavelengths_m, dtype=float))[:, None]
         spectrum = _real_matmul(pupil_field, self._forward_t)  # (L, N)
-        nu_lim = torch.as_tensor(band_limit(np.asarray(wavelengths_m, float), _as_float(z_m), self.window_radius_m))[:, None]
+        nu_lim = torch.as_tensor(band_limit(np.asarray(wavelengths_m, float), _as_float(z_m), self.window_radius_m))[
+            :, None
+        ]
         h = transfer_function(self._nu2[None, :], lam, z_m, nu_lim)
         return _real_matmul(spectrum * h, evaluation.T)
 
@@ -338,7 +340,9 @@ def pixel_nodes_for_bandwidth(pitch_m: float, cutoff_cycles_per_m: float, *, tol
         Largest order accepted; beyond it an :class:`InputError` gives the order needed.
     """
     if not (math.isfinite(pitch_m) and pitch_m > 0 and math.isfinite(cutoff_cycles_per_m) and cutoff_cycles_per_m >= 0):
-        raise InputError(f"pixel_nodes_for_bandwidth: need pitch_m > 0 and a finite cutoff ≥ 0, got {pitch_m!r}, {cutoff_cycles_per_m!r}")
+        raise InputError(
+            f"pixel_nodes_for_bandwidth: need pitch_m > 0 and a finite cutoff ≥ 0, got {pitch_m!r}, {cutoff_cycles_per_m!r}"
+        )
     w_max = math.pi * cutoff_cycles_per_m * pitch_m
     omegas = np.linspace(0.0, w_max, 513)
     exact = 2.0 * np.sinc(omegas / math.pi)

@@ -118,7 +118,9 @@ class CostSpec:
 
     def __post_init__(self) -> None:
         if self.unit not in COST_UNITS:
-            raise InputError(f"cost item {self.name!r}: unit {self.unit!r} unknown; allowed: {', '.join(sorted(COST_UNITS))}")
+            raise InputError(
+                f"cost item {self.name!r}: unit {self.unit!r} unknown; allowed: {', '.join(sorted(COST_UNITS))}"
+            )
         if not (math.isfinite(self.factor) and self.factor > 0):
             raise InputError(f"cost item {self.name!r}: factor must be a finite number > 0, got {self.factor!r}")
 
@@ -260,8 +262,10 @@ class RealisationSpec:
         written = tuple(writer(record, out, **kwargs))
         for a in written:
             if not isinstance(a, Artifact) or a.name not in self.artifacts:
-                raise InputError(f"realisation {self.name!r}: its writer {self.write_artifacts} returned "
-                                 f"{getattr(a, 'name', a)!r}; declared artifacts: {', '.join(self.artifacts) or 'none'}")
+                raise InputError(
+                    f"realisation {self.name!r}: its writer {self.write_artifacts} returned "
+                    f"{getattr(a, 'name', a)!r}; declared artifacts: {', '.join(self.artifacts) or 'none'}"
+                )
         return written
 
     @property

@@ -150,7 +150,9 @@ def spectral_samples(illuminant: Any = "D65", response: Any = PHOTOPIC, n: int =
     if isinstance(illuminant, (int, float, np.floating)) and not isinstance(illuminant, bool):
         lam = float(illuminant)
         if not (np.isfinite(lam) and 100e-9 <= lam <= 20e-6):
-            raise InputError(f"illuminant: a monochromatic wavelength must be in metres within [100 nm, 20 µm], got {lam!r}")
+            raise InputError(
+                f"illuminant: a monochromatic wavelength must be in metres within [100 nm, 20 µm], got {lam!r}"
+            )
         return SpectralSamples(np.array([lam]), np.array([1.0]), "monochromatic", "none")
     if not isinstance(n, (int, np.integer)) or not 1 <= n <= 200:
         raise InputError(f"n_wavelengths must be an integer in 1..200, got {n!r}")

@@ -39,8 +39,11 @@ def artifacts_html(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> str:
             rows.append(f'<tr><td class="l">{point}</td><td class="l bad" colspan="3">not written: '
                         f'{html.escape("; ".join(map(str, errors)))}</td></tr>')
             continue
-        files = "<br>".join(f'<a href="{html.escape(quote(str(e["file"])))}">{html.escape(str(e["file"]).rsplit("/", 1)[-1])}</a>'
-                            for e in entries if e.get("file"))
+        files = "<br>".join(
+            f'<a href="{html.escape(quote(str(e["file"])))}">{html.escape(str(e["file"]).rsplit("/", 1)[-1])}</a>'
+            for e in entries
+            if e.get("file")
+        )
         what = "<br>".join(html.escape(f"{e.get('name', '')}: {e.get('what', '')}") for e in entries)
         checks = "<br>".join(f"<code>{html.escape(str(e['checked_by']))}</code>"
                              for e in entries if e.get("checked_by"))

@@ -52,16 +52,18 @@ def codesign_section(summary: Mapping[str, Any]) -> str:
     """
     cells = list(summary.get("cells", []))
     st = summary.get("settings", {})
-    parts = ["<h2>Co-design: fit then swap, fine-tune, co-designed</h2>",
-             "<p class='note'>Per hardware realisation and task: the realisation fitted to the kernel and swapped "
-             "zero-shot into the networks trained with the kernel (fit then swap); the same networks trained further "
-             f"with the fitted kernel frozen (fit then fine-tune); the same networks and the realisation's own "
-             f"parameters trained together from the fitted design (co-designed). {html.escape(str(st.get('epochs', '?')))} "
-             f"epochs on {html.escape(str(st.get('n_train') or 'all'))} of each network's training clips. Loss = "
-             "metric(learned kernel, original network) − metric(row), 95 % CI resampling (network, clips) clusters; "
-             "recovered = 1 − loss(row) / loss(swap) with the CI of the same resampling. Kernel error: relative L2 "
-             "against the target, gain-free; MS r: correlation of the kernel's response with the Mannos–Sakrison "
-             "CSF (mean over networks).</p>"]
+    parts = [
+        "<h2>Co-design: fit then swap, fine-tune, co-designed</h2>",
+        "<p class='note'>Per hardware realisation and task: the realisation fitted to the kernel and swapped "
+        "zero-shot into the networks trained with the kernel (fit then swap); the same networks trained further "
+        f"with the fitted kernel frozen (fit then fine-tune); the same networks and the realisation's own "
+        f"parameters trained together from the fitted design (co-designed). {html.escape(str(st.get('epochs', '?')))} "
+        f"epochs on {html.escape(str(st.get('n_train') or 'all'))} of each network's training clips. Loss = "
+        "metric(learned kernel, original network) − metric(row), 95 % CI resampling (network, clips) clusters; "
+        "recovered = 1 − loss(row) / loss(swap) with the CI of the same resampling. Kernel error: relative L2 "
+        "against the target, gain-free; MS r: correlation of the kernel's response with the Mannos–Sakrison "
+        "CSF (mean over networks).</p>",
+    ]
     if not cells:
         parts.append("<p class='note'>No co-design cell measured.</p>")
         return "".join(parts)

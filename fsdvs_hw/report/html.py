@@ -310,9 +310,11 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
     t = design.target
     focal = data["optics"]["focal_length_m"]
     n_ok, n_skip, n_err = (sum(r["status"] == s for r in rows) for s in ("ok", "skipped", "error"))
-    parts = [f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
-             f"<meta name='viewport' content='width=device-width, initial-scale=1'><title>{html.escape(page_title)}</title>",
-             f"<style>{_CSS}</style></head><body><h1>{html.escape(page_title)}</h1>"]
+    parts = [
+        f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
+        f"<meta name='viewport' content='width=device-width, initial-scale=1'><title>{html.escape(page_title)}</title>",
+        f"<style>{_CSS}</style></head><body><h1>{html.escape(page_title)}</h1>",
+    ]
     parts.append(
         f"<p class='lead'>Which hardware realises the learned kernel <b>{html.escape(t.name)}</b> "
         f"({t.size}×{t.size} taps at {si(t.pitch_m, 'm')} pixel pitch) best, for which cost: "
@@ -492,7 +494,9 @@ def check_same_design(src: Path, stored: Any, points: Sequence[ScoredPoint], des
             return
         run_flat = _flat(stored.get("data") or {})
         now_flat = _flat(design.to_dict())
-        diff = [k for k in dict.fromkeys([*run_flat, *now_flat]) if run_flat.get(k, "<unset>") != now_flat.get(k, "<unset>")]
+        diff = [
+            k for k in dict.fromkeys([*run_flat, *now_flat]) if run_flat.get(k, "<unset>") != now_flat.get(k, "<unset>")
+        ]
         shown = "; ".join(f"{k}: run {json.dumps(run_flat.get(k, '<unset>'), default=str)[:40]}, given "
                           f"{json.dumps(now_flat.get(k, '<unset>'), default=str)[:40]}" for k in diff[:3])
         more = f" and {len(diff) - 3} more" if len(diff) > 3 else ""
@@ -552,7 +556,9 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
     try:
         data = json.loads(src.read_text())
     except FileNotFoundError:
-        raise InputError(f"{src}: no scores.json here (write one with `fsdvs-hw explore DESIGN --out {out_dir}`)") from None
+        raise InputError(
+            f"{src}: no scores.json here (write one with `fsdvs-hw explore DESIGN --out {out_dir}`)"
+        ) from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"{src}: not a scores file (not JSON: {exc})") from None
     points = data.get("points") if isinstance(data, Mapping) else None

@@ -22,7 +22,18 @@ from typing import Any
 
 from ..realise.registry import REALISATIONS
 
-__all__ = ["PREFIXED_UNITS", "Style", "cost_label", "number", "params_text", "plain", "point_title", "si", "style", "title"]
+__all__ = [
+    "PREFIXED_UNITS",
+    "Style",
+    "cost_label",
+    "number",
+    "params_text",
+    "plain",
+    "point_title",
+    "si",
+    "style",
+    "title",
+]
 
 #: Units that take an SI prefix (``"m^2"`` takes it squared).
 PREFIXED_UNITS: frozenset[str] = frozenset({"m", "m^2", "s", "S", "F", "W", "J", "A", "V", "Hz"})

@@ -84,7 +84,9 @@ def _num(x: Any) -> float:
     return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else math.nan
 
 
-def score_rows(points: Iterable[Mapping[str, Any] | ScoredPoint], *, primary_csf: str = "mannos_sakrison_1974") -> list[dict[str, Any]]:
+def score_rows(
+    points: Iterable[Mapping[str, Any] | ScoredPoint], *, primary_csf: str = "mannos_sakrison_1974"
+) -> list[dict[str, Any]]:
     """One flat dict per stored point (see the module docstring); stable column names.
 
     Columns: ``point, realisation, params, status, reason, kernel_error, kernel_error_gain_free,
@@ -99,12 +101,19 @@ def score_rows(points: Iterable[Mapping[str, Any] | ScoredPoint], *, primary_csf
     for raw in points:
         p = raw if isinstance(raw, ScoredPoint) else ScoredPoint.from_dict(raw)
         params = dict(p.params)
-        label = p.realisation + ("" if not params else " " + ", ".join(f"{k.split('.')[-1]}={v}" for k, v in params.items()))
+        label = p.realisation + (
+            "" if not params else " " + ", ".join(f"{k.split('.')[-1]}={v}" for k, v in params.items())
+        )
         res = p.score
-        row: dict[str, Any] = {"point": label, "key": p.key, "realisation": p.realisation,
-                               "params": json.dumps(params, sort_keys=True), "status": p.status,
-                               "reason": p.reason,
-                               "warnings": " | ".join(res.warnings if res is not None else p.failure.get("warnings", []))}
+        row: dict[str, Any] = {
+            "point": label,
+            "key": p.key,
+            "realisation": p.realisation,
+            "params": json.dumps(params, sort_keys=True),
+            "status": p.status,
+            "reason": p.reason,
+            "warnings": " | ".join(res.warnings if res is not None else p.failure.get("warnings", [])),
+        }
         if p.ok and res is not None:
             row["kernel_error"] = _num(res.kernel_error)
             row["kernel_error_gain_free"] = _num(res.kernel_error_gain_free)
@@ -221,7 +230,10 @@ def pareto_front(values: Sequence[Sequence[float]]) -> list[bool]:
             flags.append(False)
             continue
         dominated = any(
-            j != i and not any(math.isnan(x) for x in b) and all(x <= y for x, y in zip(b, a)) and any(x < y for x, y in zip(b, a))
+            j != i
+            and not any(math.isnan(x) for x in b)
+            and all(x <= y for x, y in zip(b, a))
+            and any(x < y for x, y in zip(b, a))
             for j, b in enumerate(vals)
         )
         flags.append(not dominated)
@@ -417,7 +429,13 @@ def networks_note(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> str:
                + ", ".join(sorted({str(n.get("training_kernel")) for n in good})) + ")" if same == {False} else
                "some trained with the kernel being realised, some not")
         frozen = {n.get("learn_filter") for n in good}
-        mode = " (kernel frozen while training)" if frozen == {False} else " (kernel learned jointly)" if frozen == {True} else ""
+        mode = (
+            " (kernel frozen while training)"
+            if frozen == {False}
+            else " (kernel learned jointly)"
+            if frozen == {True}
+            else ""
+        )
         seeds = ", ".join(str(n.get("seed")) for n in good)
         parts.append(f"{task}: {len(good)} network{'s' if len(good) > 1 else ''} (training seeds {seeds}) {how}{mode}")
     return "; ".join(parts)

@@ -268,7 +268,9 @@ class ClipDataset(Sequence[Clip], ABC):
         for k, img in enumerate(images):
             lum = code_to_linear(img, self.transfer)
             if lum.ndim != 2:
-                raise InputError(f"{where}: frame {k} has shape {img.shape}; allowed: (H, W) grey or (H, W, 3|4) colour")
+                raise InputError(
+                    f"{where}: frame {k} has shape {img.shape}; allowed: (H, W) grey or (H, W, 3|4) colour"
+                )
             if self.size is not None:
                 lum = _resize(lum, self.size)
             elif out and lum.shape != out[0].shape:
@@ -492,7 +494,9 @@ class CocoFramesDataset(ClipDataset):
         try:
             cat_ids = sorted(int(c["id"]) for c in cats)
         except (KeyError, TypeError, ValueError):
-            raise InputError(f"{who}: annotations file {j!r}: field 'categories' entries need an integer 'id'") from None
+            raise InputError(
+                f"{who}: annotations file {j!r}: field 'categories' entries need an integer 'id'"
+            ) from None
         if not cat_ids:
             raise InputError(f"{who}: annotations file {j!r}: field 'categories' is empty")
         self.category_ids = tuple(cat_ids)

@@ -171,7 +171,9 @@ class SceneConfig:
                 raise InputError(f"SceneConfig.{name} must be a (min, max) pair of numbers, got {one_line(pair)}")
         lo, hi = self.n_objects
         if not (isinstance(lo, int) and isinstance(hi, int) and 1 <= lo <= hi <= 16):
-            raise InputError(f"SceneConfig.n_objects must be (min, max) integers with 1 <= min <= max <= 16, got {self.n_objects!r}")
+            raise InputError(
+                f"SceneConfig.n_objects must be (min, max) integers with 1 <= min <= max <= 16, got {self.n_objects!r}"
+            )
         rlo, rhi = self.radius_px
         if not (0.5 <= rlo <= rhi and 2 * rhi + 2 < min(self.height_px, self.width_px)):
             raise InputError(
@@ -179,7 +181,9 @@ class SceneConfig:
                 f"(2*max+2 px) smaller than the {self.height_px}x{self.width_px} frame, got {self.radius_px!r}"
             )
         if self.contrast_sign not in ("random", "positive", "negative"):
-            raise InputError(f"SceneConfig.contrast_sign must be 'random', 'positive' or 'negative', got {self.contrast_sign!r}")
+            raise InputError(
+                f"SceneConfig.contrast_sign must be 'random', 'positive' or 'negative', got {self.contrast_sign!r}"
+            )
         if self.background not in BACKGROUNDS:
             raise InputError(f"SceneConfig.background {self.background!r} unknown; allowed: {', '.join(BACKGROUNDS)}")
         if self.motion not in _MOTION_PATTERNS:
@@ -221,7 +225,9 @@ class SceneConfig:
 def _check_fields(changes: dict[str, Any]) -> None:
     extra = set(changes) - set(SceneConfig.__dataclass_fields__)
     if extra:
-        raise InputError(f"SceneConfig: unknown fields {sorted(extra)}; allowed: {sorted(SceneConfig.__dataclass_fields__)}")
+        raise InputError(
+            f"SceneConfig: unknown fields {sorted(extra)}; allowed: {sorted(SceneConfig.__dataclass_fields__)}"
+        )
 
 
 @dataclass(frozen=True)
@@ -434,7 +440,9 @@ def _coverage(shape: int, cx: float, cy: float, r: float, angle: float, yy: np.n
     return np.clip(0.5 - sd / softness, 0.0, 1.0)
 
 
-def _trajectory(cfg: SceneConfig, rng: np.random.Generator, r0: float, motion: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _trajectory(
+    cfg: SceneConfig, rng: np.random.Generator, r0: float, motion: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Centre x, y and radius per frame for one object, kept inside the frame."""
     t = np.arange(cfg.n_frames, dtype=np.float64)
     h, w = cfg.height_px, cfg.width_px

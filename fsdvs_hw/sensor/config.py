@@ -277,7 +277,9 @@ class SensorConfig:
             raise InputError(f"SensorConfig.surrogate: {self.surrogate!r} unknown; allowed: {', '.join(SURROGATES)}")
         if not isinstance(self.adaptive_region_px, int) or isinstance(self.adaptive_region_px, bool) \
                 or not 0 <= self.adaptive_region_px <= 100_000:
-            raise InputError(f"SensorConfig.adaptive_region_px: must be an integer >= 0, got {self.adaptive_region_px!r}")
+            raise InputError(
+                f"SensorConfig.adaptive_region_px: must be an integer >= 0, got {self.adaptive_region_px!r}"
+            )
         for name in ("substeps", "max_substeps"):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= MAX_SUBSTEPS:

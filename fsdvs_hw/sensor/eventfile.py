@@ -563,7 +563,11 @@ def _read_hdf5_open(p: Path, f: Any) -> EventFile:
     w = w if w is not None else (int(x.max()) + 1 if n else 1)
     h = h if h is not None else (int(y.max()) + 1 if n else 1)
     if max(w, h) > _MAX_SIDE:
-        raise _bad(p, "events[:, 1:3] (x, y)", f"pixels up to {w - 1}, {h - 1}: beyond {_MAX_SIDE} (no width/height attributes)")
+        raise _bad(
+            p,
+            "events[:, 1:3] (x, y)",
+            f"pixels up to {w - 1}, {h - 1}: beyond {_MAX_SIDE} (no width/height attributes)",
+        )
     return EventFile(t, x, y, pol, w, h, attrs)
 
 

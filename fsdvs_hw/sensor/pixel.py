@@ -17,7 +17,15 @@ from typing import Any
 
 from .config import SensorConfig
 
-__all__ = ["effect_generator", "linlog", "linlog_v2e", "log_response", "lowpass_step", "photoreceptor_cutoff_hz", "threshold_maps"]
+__all__ = [
+    "effect_generator",
+    "linlog",
+    "linlog_v2e",
+    "log_response",
+    "lowpass_step",
+    "photoreceptor_cutoff_hz",
+    "threshold_maps",
+]
 
 # distinct streams per random effect, so switching one effect off leaves the others unchanged
 _STREAMS = {"mismatch": 1, "leak_phase": 2, "shot": 3, "shot_time": 4}

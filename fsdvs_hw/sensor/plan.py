@@ -272,14 +272,28 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
         if not inc:
             changes["cutoff_hz"] = 0.0
     # surround transient
-    if config.placement != "post_log" or config.surround_tau_s <= 0 or config.surround_weight <= 0 or config.surround_lambda_px <= 0:
-        decisions.append(PlanDecision("surround transient", False, 0.0, tol, "no surround mesh with a time constant in config"))
+    if (
+        config.placement != "post_log"
+        or config.surround_tau_s <= 0
+        or config.surround_weight <= 0
+        or config.surround_lambda_px <= 0
+    ):
+        decisions.append(
+            PlanDecision("surround transient", False, 0.0, tol, "no surround mesh with a time constant in config")
+        )
     else:
         lag = st.max_surround_lag / c_nom
         inc = lag > tol
-        decisions.append(PlanDecision("surround transient", inc, lag, tol,
-                                      f"mesh lag {st.max_surround_lag:.3g} log units = {lag:.3g} C"
-                                      f" (tau {config.surround_tau_s:g} s)" + (" > tolerance" if inc else " <= tolerance")))
+        decisions.append(
+            PlanDecision(
+                "surround transient",
+                inc,
+                lag,
+                tol,
+                f"mesh lag {st.max_surround_lag:.3g} log units = {lag:.3g} C"
+                f" (tau {config.surround_tau_s:g} s)" + (" > tolerance" if inc else " <= tolerance"),
+            )
+        )
         if not inc:
             changes["surround_tau_s"] = 0.0
     # sub-steps
@@ -312,10 +326,16 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
     # refractory
     per_ref = st.max_log_rate_per_s / c_low * config.refractory_s
     inc = per_ref >= 1.0
-    decisions.append(PlanDecision(
-        "refractory", inc, per_ref, 1.0,
-        f"max crossing rate {st.max_log_rate_per_s / c_low:.3g} /s x refractory {config.refractory_s:g} s = {per_ref:.3g}"
-        + (" >= 1: crossings can be lost" if inc else " < 1: no crossing is ever lost")))
+    decisions.append(
+        PlanDecision(
+            "refractory",
+            inc,
+            per_ref,
+            1.0,
+            f"max crossing rate {st.max_log_rate_per_s / c_low:.3g} /s x refractory {config.refractory_s:g} s = {per_ref:.3g}"
+            + (" >= 1: crossings can be lost" if inc else " < 1: no crossing is ever lost"),
+        )
+    )
     if not inc:
         changes["refractory_s"] = 0.0
     # noise sources

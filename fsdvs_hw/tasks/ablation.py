@@ -387,9 +387,11 @@ def ablation_markdown(records: list[dict[str, Any]], pred_dir: str | Path | None
                 m = {k: float(np.mean([s[k] for s in sh])) for k in
                      ("centre", "surround_sum", "dc_gain", "peak_frequency_cpp", "ms_correlation", "ms_peak_ratio")}
                 l1 = float(np.mean([r.get("kernel_change_l1", float("nan")) for r in recs]))
-                lines.append(f"| {task} | {size}×{size} | {n_cs}/{len(sh)} | {m['centre']:.3f} | "
-                             f"{m['surround_sum']:+.3f} | {m['dc_gain']:.3f} | {l1:.2f} | {m['peak_frequency_cpp']:.3f} | "
-                             f"{m['ms_correlation']:.2f} | {m['ms_peak_ratio']:.2f} |")
+                lines.append(
+                    f"| {task} | {size}×{size} | {n_cs}/{len(sh)} | {m['centre']:.3f} | "
+                    f"{m['surround_sum']:+.3f} | {m['dc_gain']:.3f} | {l1:.2f} | {m['peak_frequency_cpp']:.3f} | "
+                    f"{m['ms_correlation']:.2f} | {m['ms_peak_ratio']:.2f} |"
+                )
         lines.append("")
     return "\n".join(lines)
 

@@ -136,7 +136,9 @@ class DetectionEvaluator(TaskEvaluator):
         if scene.motion != "random":
             raise InputError(f"task 'detection' needs SceneConfig.motion='random', got {scene.motion!r}")
         if scene.height_px % 2 or scene.width_px % 2:
-            raise InputError(f"task 'detection' needs an even frame size (stride 2), got {scene.height_px}x{scene.width_px}")
+            raise InputError(
+                f"task 'detection' needs an even frame size (stride 2), got {scene.height_px}x{scene.width_px}"
+            )
 
     def build_network(self, in_channels: int, width: int = 16) -> nn.Module:
         return CenterNetDetector(in_channels, self.num_classes, width)

@@ -147,7 +147,9 @@ class SymmetryClasses:
 
     def class_means(self, taps: np.ndarray) -> np.ndarray:
         """Mean of ``taps`` over each class (the least-squares projection onto the symmetric subspace)."""
-        sums = np.bincount(self.labels.ravel(), weights=np.asarray(taps, dtype=np.float64).ravel(), minlength=self.n_classes)
+        sums = np.bincount(
+            self.labels.ravel(), weights=np.asarray(taps, dtype=np.float64).ravel(), minlength=self.n_classes
+        )
         return sums / self.sizes
 
     def expand(self, values: np.ndarray) -> np.ndarray:
@@ -220,8 +222,14 @@ def adder_count(taps: np.ndarray, classes: SymmetryClasses | None = None) -> int
 
 
 def _check_input_bits(input_bits: int) -> int:
-    if not isinstance(input_bits, (int, np.integer)) or isinstance(input_bits, bool) or not 1 <= input_bits <= MAX_INPUT_BITS:
-        raise InputError(f"input_bits: unsigned pixel width must be an integer in 1..{MAX_INPUT_BITS}, got {input_bits!r}")
+    if (
+        not isinstance(input_bits, (int, np.integer))
+        or isinstance(input_bits, bool)
+        or not 1 <= input_bits <= MAX_INPUT_BITS
+    ):
+        raise InputError(
+            f"input_bits: unsigned pixel width must be an integer in 1..{MAX_INPUT_BITS}, got {input_bits!r}"
+        )
     return int(input_bits)
 
 
@@ -273,7 +281,9 @@ def output_bits(taps: np.ndarray, input_bits: int, out_shift: int = 0) -> int:
 
 def _check_shift(out_shift: int, acc_bits: int) -> int:
     if not isinstance(out_shift, (int, np.integer)) or isinstance(out_shift, bool) or not 0 <= out_shift < acc_bits:
-        raise InputError(f"out_shift: must be an integer in 0..{acc_bits - 1} (accumulator is {acc_bits} bits), got {out_shift!r}")
+        raise InputError(
+            f"out_shift: must be an integer in 0..{acc_bits - 1} (accumulator is {acc_bits} bits), got {out_shift!r}"
+        )
     return int(out_shift)
 
 
@@ -304,13 +314,17 @@ def integer_correlate(image: np.ndarray, taps: np.ndarray, *, input_bits: int, o
     out_shift = _check_shift(out_shift, acc_bits)
     x = np.asarray(image)
     if x.ndim not in (2, 3) or not np.issubdtype(x.dtype, np.integer):
-        raise InputError(f"image: must be a 2-D (H, W) or 3-D (N, H, W) integer array, got dtype {x.dtype} shape {x.shape}")
+        raise InputError(
+            f"image: must be a 2-D (H, W) or 3-D (N, H, W) integer array, got dtype {x.dtype} shape {x.shape}"
+        )
     k = q.shape[0]
     if x.shape[-1] < k or x.shape[-2] < k:
         raise InputError(f"image: {x.shape[-2]}x{x.shape[-1]} is smaller than the {k}x{k} kernel")
     xmax = (1 << input_bits) - 1
     if x.size and (int(x.min()) < 0 or int(x.max()) > xmax):
-        raise InputError(f"image: pixels must lie in [0, {xmax}] for input_bits={input_bits}; got [{int(x.min())}, {int(x.max())}]")
+        raise InputError(
+            f"image: pixels must lie in [0, {xmax}] for input_bits={input_bits}; got [{int(x.min())}, {int(x.max())}]"
+        )
     x = x.astype(np.int64)
     ho, wo = x.shape[-2] - k + 1, x.shape[-1] - k + 1
     acc = np.zeros(x.shape[:-2] + (ho, wo), dtype=np.int64)

@@ -182,8 +182,13 @@ def check_asic_artifacts(folder: str | Path, *, timeout_s: float = 300.0) -> dic
     t0 = time.perf_counter()
     comp = subprocess.run([iverilog, "-g2005", "-o", "tb.vvp", "tb_fsdvs_conv.v", "fsdvs_conv.v"], cwd=folder,
                           capture_output=True, text=True, timeout=timeout_s, check=False)
-    sim = subprocess.run([vvp, "-n", "tb.vvp"], cwd=folder, capture_output=True, text=True, timeout=timeout_s, check=False) \
-        if comp.returncode == 0 else comp
+    sim = (
+        subprocess.run(
+            [vvp, "-n", "tb.vvp"], cwd=folder, capture_output=True, text=True, timeout=timeout_s, check=False
+        )
+        if comp.returncode == 0
+        else comp
+    )
     t_sim = time.perf_counter() - t0
     passed = [ln for ln in sim.stdout.splitlines() if ln.startswith("PASS:")]
     if comp.returncode != 0 or sim.returncode != 0 or not passed:

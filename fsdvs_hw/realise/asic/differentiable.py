@@ -76,7 +76,9 @@ class QuantisedAsicKernel(torch.nn.Module):
         if mode == "pow2":
             init = -math.log2(design.scale)
             if abs(init - round(init)) > 1e-9:
-                raise InputError(f"QuantisedAsicKernel: scale_mode 'pow2' but scale {design.scale!r} is not a power of 2")
+                raise InputError(
+                    f"QuantisedAsicKernel: scale_mode 'pow2' but scale {design.scale!r} is not a power of 2"
+                )
         elif mode in ("free", "fixed"):
             init = math.log(design.scale)
         else:

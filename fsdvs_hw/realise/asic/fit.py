@@ -128,13 +128,17 @@ class AsicDesign:
     def __post_init__(self) -> None:
         q = np.asarray(self.taps)
         if q.shape != self.target.taps.shape or not np.issubdtype(q.dtype, np.integer):
-            raise InputError(f"taps: must be an integer array of shape {self.target.taps.shape}, got {q.dtype} {q.shape}")
+            raise InputError(
+                f"taps: must be an integer array of shape {self.target.taps.shape}, got {q.dtype} {q.shape}"
+            )
         q = q.astype(np.int64).copy()
         q.setflags(write=False)
         object.__setattr__(self, "taps", q)
         lo, hi = tap_range(self.bits)
         if q.min() < lo or q.max() > hi:
-            raise InputError(f"taps: {lo} ≤ q ≤ {hi} for bits={self.bits} (two's complement), got {int(q.min())}..{int(q.max())}")
+            raise InputError(
+                f"taps: {lo} ≤ q ≤ {hi} for bits={self.bits} (two's complement), got {int(q.min())}..{int(q.max())}"
+            )
         if not np.any(q):
             raise InputError("taps: all integer taps are zero; the design would pass nothing")
         if not (math.isfinite(self.scale) and self.scale > 0):
@@ -194,20 +198,38 @@ class AsicDesign:
         """Hardware cost: adders, CSD digits, taps, widths and (when synthesised) cells and area."""
         q = self.taps
         c: dict[str, CostItem] = {
-            "adders": CostItem(self.adders, "count", "two-input adders/subtractors" + (" with symmetric pre-adds" if self.pre_add else "")),
-            "adders_per_tap": CostItem(self.adders_per_tap, "count", "adders with every tap multiplied on its own (CSD)"),
+            "adders": CostItem(
+                self.adders,
+                "count",
+                "two-input adders/subtractors" + (" with symmetric pre-adds" if self.pre_add else ""),
+            ),
+            "adders_per_tap": CostItem(
+                self.adders_per_tap, "count", "adders with every tap multiplied on its own (CSD)"
+            ),
             "csd_digits": CostItem(int(csd_weight(q).sum()), "count", "non-zero CSD digits over all taps"),
             "nonzero_taps": CostItem(int(np.count_nonzero(q)), "count", "taps that are not zero"),
-            "distinct_coefficients": CostItem(int(np.count_nonzero(q[tuple(np.array(self.classes.representatives).T)])), "count", "non-zero coefficients after symmetry"),
+            "distinct_coefficients": CostItem(
+                int(np.count_nonzero(q[tuple(np.array(self.classes.representatives).T)])),
+                "count",
+                "non-zero coefficients after symmetry",
+            ),
             "tap_bits": CostItem(self.bits, "bit", "signed tap width"),
-            "accumulator_bits": CostItem(self.accumulator_bits, "bit", f"signed accumulator for {self.input_bits}-bit unsigned pixels"),
+            "accumulator_bits": CostItem(
+                self.accumulator_bits, "bit", f"signed accumulator for {self.input_bits}-bit unsigned pixels"
+            ),
         }
         if self.synthesis:
             s = self.synthesis
-            c["yosys_cells"] = CostItem(s["cells"], "count", f"yosys cells ({s['liberty']}, {s['image_width']}-pixel lines)")
+            c["yosys_cells"] = CostItem(
+                s["cells"], "count", f"yosys cells ({s['liberty']}, {s['image_width']}-pixel lines)"
+            )
             c["flip_flops"] = CostItem(s["flip_flops"], "count", "flip-flops (line buffers, window, output)")
-            c["area_m2"] = CostItem(s["area_m2"], "m^2", f"cell area from the liberty file ({s['liberty']}, area unit µm²)")
-            c["datapath_cells"] = CostItem(s["datapath_cells"], "count", "yosys cells of the arithmetic alone (no line buffers)")
+            c["area_m2"] = CostItem(
+                s["area_m2"], "m^2", f"cell area from the liberty file ({s['liberty']}, area unit µm²)"
+            )
+            c["datapath_cells"] = CostItem(
+                s["datapath_cells"], "count", "yosys cells of the arithmetic alone (no line buffers)"
+            )
             c["datapath_area_m2"] = CostItem(s["datapath_area_m2"], "m^2", "cell area of the arithmetic alone")
         return c
 
@@ -222,9 +244,11 @@ class AsicDesign:
         ]
         if self.synthesis:
             s = self.synthesis
-            lines.append(f"  yosys: {s['cells']} cells, {s['flip_flops']} flip-flops, area {s['area_m2'] * 1e12:.1f} µm² "
-                         f"({s['liberty']}, {s['image_width']}-pixel lines); arithmetic alone {s['datapath_cells']} cells, "
-                         f"{s['datapath_area_m2'] * 1e12:.1f} µm²")
+            lines.append(
+                f"  yosys: {s['cells']} cells, {s['flip_flops']} flip-flops, area {s['area_m2'] * 1e12:.1f} µm² "
+                f"({s['liberty']}, {s['image_width']}-pixel lines); arithmetic alone {s['datapath_cells']} cells, "
+                f"{s['datapath_area_m2'] * 1e12:.1f} µm²"
+            )
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
@@ -267,12 +291,21 @@ class AsicDesign:
         """The bit-exact integer model on ``input_bits``-bit pixels (see :func:`~fsdvs_hw.realise.asic.arith.integer_correlate`)."""
         return integer_correlate(image, self.taps, input_bits=self.input_bits, out_shift=out_shift)
 
-    def verilog(self, *, image_width: int, image_height: int, out_shift: int = 0, module_name: str = "fsdvs_conv") -> str:
+    def verilog(
+        self, *, image_width: int, image_height: int, out_shift: int = 0, module_name: str = "fsdvs_conv"
+    ) -> str:
         """Synthesisable Verilog of the streaming filter (see :func:`~fsdvs_hw.realise.asic.rtl.generate_verilog`)."""
         from .rtl import generate_verilog
 
-        return generate_verilog(self.taps, input_bits=self.input_bits, image_width=image_width, image_height=image_height,
-                                out_shift=out_shift, symmetry=self.symmetry if self.pre_add else "none", module_name=module_name)
+        return generate_verilog(
+            self.taps,
+            input_bits=self.input_bits,
+            image_width=image_width,
+            image_height=image_height,
+            out_shift=out_shift,
+            symmetry=self.symmetry if self.pre_add else "none",
+            module_name=module_name,
+        )
 
     def simulate(self, images: np.ndarray, *, out_shift: int = 0) -> np.ndarray:
         """Run the generated RTL in Icarus Verilog on ``images`` (N, H, W); returns the outputs."""
@@ -290,9 +323,17 @@ class AsicDesign:
         dp = synthesise_verilog(generate_datapath_verilog(self.taps, input_bits=self.input_bits, out_shift=out_shift,
                                                           symmetry=self.symmetry if self.pre_add else "none"),
                                 top="fsdvs_datapath")
-        return replace(self, synthesis={**rep.to_dict(), "image_width": int(image_width), "image_height": int(image_height),
-                                        "datapath_cells": dp.cells, "datapath_area_m2": dp.area_m2,
-                                        "datapath_flip_flops": dp.flip_flops})
+        return replace(
+            self,
+            synthesis={
+                **rep.to_dict(),
+                "image_width": int(image_width),
+                "image_height": int(image_height),
+                "datapath_cells": dp.cells,
+                "datapath_area_m2": dp.area_m2,
+                "datapath_flip_flops": dp.flip_flops,
+            },
+        )
 
 
 # ---------------------------------------------------------------------------- the fit
@@ -564,7 +605,9 @@ def _fit_free_scale(p: _TapProblem, amax: float, n_polish: int = 5) -> tuple[flo
                                   "scale_direct": float(starts[0][1])}
 
 
-def _divide_common_factor(p: _TapProblem, q: np.ndarray, s: float, *, powers_of_two_only: bool) -> tuple[np.ndarray, float]:
+def _divide_common_factor(
+    p: _TapProblem, q: np.ndarray, s: float, *, powers_of_two_only: bool
+) -> tuple[np.ndarray, float]:
     """Divide the taps by the common factor that leaves the fewest adders (same realised kernel)."""
     g = int(np.gcd.reduce(np.abs(q[q != 0])))
     if g <= 1:
@@ -694,8 +737,18 @@ def fit_asic_taps(
         raise InputError(f"kernel '{kernel.name}' rounds to all-zero {bits}-bit taps {why}")
     info["fit_time_s"] = time.perf_counter() - t0
     info["objective"] = p.objective(q, s)
-    return AsicDesign(target=kernel, taps=cls.expand(q).astype(np.int64), scale=float(s), scale_mode=mode, bits=int(bits),
-                      symmetry=sym, input_bits=int(input_bits), pre_add=bool(pre_add), adder_weight=lam, fit_info=info)
+    return AsicDesign(
+        target=kernel,
+        taps=cls.expand(q).astype(np.int64),
+        scale=float(s),
+        scale_mode=mode,
+        bits=int(bits),
+        symmetry=sym,
+        input_bits=int(input_bits),
+        pre_add=bool(pre_add),
+        adder_weight=lam,
+        fit_info=info,
+    )
 
 
 def exhaustive_asic_taps(kernel: Kernel | Any, bits: int, *, symmetry: str, adder_weight: float = 0.0,
@@ -721,7 +774,9 @@ def exhaustive_asic_taps(kernel: Kernel | Any, bits: int, *, symmetry: str, adde
     n = cls.n_classes
     vals = np.arange(p.lo, p.hi + 1, dtype=np.int64)
     if vals.size**n > max_combinations:
-        raise InputError(f"exhaustive search over {vals.size}^{n} tap vectors exceeds max_combinations={max_combinations}")
+        raise InputError(
+            f"exhaustive search over {vals.size}^{n} tap vectors exceeds max_combinations={max_combinations}"
+        )
     Q = np.stack(np.meshgrid(*([vals] * n), indexing="ij"), axis=-1).reshape(-1, n)
     Q = Q[np.any(Q != 0, axis=1)]
     Qf = Q.astype(np.float64)

@@ -94,7 +94,9 @@ def _run(cmd: list[str], cwd: Path, timeout_s: float) -> subprocess.CompletedPro
 
 def _check_side(name: str, value: int, k: int) -> int:
     if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or not k <= value <= _MAX_IMAGE_SIDE:
-        raise InputError(f"{name}: must be an integer in {k}..{_MAX_IMAGE_SIDE} (at least the kernel size), got {value!r}")
+        raise InputError(
+            f"{name}: must be an integer in {k}..{_MAX_IMAGE_SIDE} (at least the kernel size), got {value!r}"
+        )
     return int(value)
 
 
@@ -138,14 +140,18 @@ def _datapath_lines(cls: SymmetryClasses, reps: list[int], IN: int, acc: int, ou
     a(f"  wire [{acc - 1}:0] acc_u = {expr};")
     a(f"  wire signed [{acc - 1}:0] acc = acc_u;")
     if out_shift:
-        a(f"  wire signed [{acc}:0] acc_r = {{acc[{acc - 1}], acc}} + {acc + 1}'d{1 << (out_shift - 1)};  // round half up")
+        a(
+            f"  wire signed [{acc}:0] acc_r = {{acc[{acc - 1}], acc}} + {acc + 1}'d{1 << (out_shift - 1)};  // round half up"
+        )
         if ob + out_shift > acc + 1:  # cannot happen (the shifted range fits); kept exact anyway
             a(f"  wire signed [{acc}:0] acc_s = acc_r >>> {out_shift};")
         else:
             # (acc + 2^(s-1)) >>> s keeps bits [ob+s-1 : s]: the rest are the rounded-off fraction and
             # sign copies; they feed a wire named 'unused_*' (verilator's --unused-regexp idiom)
             a(f"  wire signed [{ob - 1}:0] acc_s = acc_r[{ob + out_shift - 1}:{out_shift}];")
-            dropped = [f"acc_r[{out_shift - 1}:0]"] + ([f"acc_r[{acc}:{ob + out_shift}]"] if ob + out_shift <= acc else [])
+            dropped = [f"acc_r[{out_shift - 1}:0]"] + (
+                [f"acc_r[{acc}:{ob + out_shift}]"] if ob + out_shift <= acc else []
+            )
             a(f"  wire unused_rounding_bits = &{{1'b0, {', '.join(dropped)}, 1'b0}};")
     return L
 
@@ -512,5 +518,12 @@ def synthesise_verilog(source: str, *, top: str = "fsdvs_conv", liberty: str | P
     if unmapped:
         raise RtlError(f"yosys left unmapped cells {unmapped}; the liberty file lacks a cell for them")
     ff = sum(c for t, c in types.items() if "DFF" in t.upper())
-    return SynthesisReport(cells=int(m_cells.group(1)), flip_flops=ff, area_m2=float(m_area.group(1)) * LIBERTY_AREA_UNIT_M2,
-                           cell_types=types, liberty=lib.name, yosys_version=ver, wall_s=wall)
+    return SynthesisReport(
+        cells=int(m_cells.group(1)),
+        flip_flops=ff,
+        area_m2=float(m_area.group(1)) * LIBERTY_AREA_UNIT_M2,
+        cell_types=types,
+        liberty=lib.name,
+        yosys_version=ver,
+        wall_s=wall,
+    )

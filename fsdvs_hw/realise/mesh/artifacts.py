@@ -107,11 +107,18 @@ def write_mesh_artifacts(design: MeshDesign, out_dir: str | Path, *,
     check = (f"{NGSPICE_COMMAND}; every v(n<y>_<x>), v(w<y>_<x>) in mesh.raw equals operating_point.csv within "
              f"1 part in {1 / OP_RTOL:,.0f} of the largest (fsdvs_hw.realise.mesh.artifacts.check_mesh_artifacts)")
     return (
-        Artifact("spice_netlist", out / "mesh.cir",
-                 f"ngspice deck: both meshes on a {n}x{n} patch, {op['i_in_a'] * 1e6:.3g} µA into the centre node, .op", check),
-        Artifact("operating_point", out / "operating_point.csv",
-                 "node voltages (V), ground currents g_v V (A) and kernel taps the deck must reproduce (exact KCL "
-                 "solve)", ""),
+        Artifact(
+            "spice_netlist",
+            out / "mesh.cir",
+            f"ngspice deck: both meshes on a {n}x{n} patch, {op['i_in_a'] * 1e6:.3g} µA into the centre node, .op",
+            check,
+        ),
+        Artifact(
+            "operating_point",
+            out / "operating_point.csv",
+            "node voltages (V), ground currents g_v V (A) and kernel taps the deck must reproduce (exact KCL solve)",
+            "",
+        ),
     )
 
 
@@ -156,8 +163,14 @@ def check_mesh_artifacts(folder: str | Path, *, timeout_s: float = 300.0) -> dic
     expected = _read_operating_point(folder / "operating_point.csv")
     t0 = time.perf_counter()
     try:
-        proc = subprocess.run([exe, *NGSPICE_COMMAND.split()[1:]], cwd=folder, capture_output=True, text=True, check=False,
-                              timeout=timeout_s)
+        proc = subprocess.run(
+            [exe, *NGSPICE_COMMAND.split()[1:]],
+            cwd=folder,
+            capture_output=True,
+            text=True,
+            check=False,
+            timeout=timeout_s,
+        )
     except subprocess.TimeoutExpired:
         raise InputError(f"ngspice did not finish within {timeout_s} s") from None
     wall = time.perf_counter() - t0

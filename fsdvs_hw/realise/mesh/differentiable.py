@@ -59,7 +59,9 @@ class MeshKernel(torch.nn.Module):
     def __init__(self, design: MeshDesign, *, size: int | None = None, bounds: MeshBounds | None = None) -> None:
         super().__init__()
         if not isinstance(design, MeshDesign):
-            raise InputError(f"MeshKernel: expected a MeshDesign (from fit_resistive_mesh), got {type(design).__name__}")
+            raise InputError(
+                f"MeshKernel: expected a MeshDesign (from fit_resistive_mesh), got {type(design).__name__}"
+            )
         if design.model != "lattice":
             raise InputError(f"MeshKernel: model {design.model!r} unsupported; allowed: 'lattice' (the fit's default)")
         self.design = design

@@ -152,7 +152,16 @@ def _orbits(radius: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _d4_symmetrise(taps: np.ndarray) -> np.ndarray:
-    group = [taps, taps.T, taps[::-1], taps[:, ::-1], taps[::-1, ::-1], taps.T[::-1], taps.T[:, ::-1], taps.T[::-1, ::-1]]
+    group = [
+        taps,
+        taps.T,
+        taps[::-1],
+        taps[:, ::-1],
+        taps[::-1, ::-1],
+        taps.T[::-1],
+        taps.T[:, ::-1],
+        taps.T[::-1, ::-1],
+    ]
     return np.mean(group, axis=0)
 
 
@@ -416,10 +425,16 @@ class MeshDesign:
             "transconductors_per_pixel": CostItem(
                 5, "count", "2 input injections + 3 weighted outputs (pixel, narrow, wide)"
             ),
-            "mismatch_sensitivity": CostItem(mismatch_sensitivity(self), "1", "relative kernel error per unit relative die-level mismatch"),
-            "tail_energy_fraction": CostItem(self.tail_energy_fraction(), "1", "response energy outside the target window"),
+            "mismatch_sensitivity": CostItem(
+                mismatch_sensitivity(self), "1", "relative kernel error per unit relative die-level mismatch"
+            ),
+            "tail_energy_fraction": CostItem(
+                self.tail_energy_fraction(), "1", "response energy outside the target window"
+            ),
             "whole_dc_gain": CostItem(self.whole_dc_gain, "1", "whole-circuit DC gain w_p + a - b (uniform input)"),
-            "response_size": CostItem(self.response_size(), "px", "window holding all but a millionth (10⁻⁶) of the response energy"),
+            "response_size": CostItem(
+                self.response_size(), "px", "window holding all but a millionth (10⁻⁶) of the response energy"
+            ),
         }
         if self.target is not None:
             c["kernel_error"] = CostItem(self.kernel_error(), "1", "relative L2 error of the whole response vs target")
@@ -443,7 +458,9 @@ class MeshDesign:
             f" {win_dc:.4g}), {100 * self.tail_energy_fraction():.3g} % of its energy outside the {self.size}x{self.size} window"
         )
         if self.whole_dc_gain < 0:
-            lines.append("  WARNING: negative whole-circuit DC gain: a bright uniform scene drives negative pre-log current")
+            lines.append(
+                "  WARNING: negative whole-circuit DC gain: a bright uniform scene drives negative pre-log current"
+            )
         if self.fit:
             f = self.fit
             lines.append(
@@ -471,7 +488,14 @@ class MeshDesign:
             "gain_narrow", "gain_wide", "pixel_weight", "size", "pitch_m", "node_capacitance_f",
             "model", "grid_half_width",
         }
-        missing = {"g_lateral_narrow_s", "g_vertical_narrow_s", "g_lateral_wide_s", "g_vertical_wide_s", "gain_narrow", "gain_wide"} - set(data)
+        missing = {
+            "g_lateral_narrow_s",
+            "g_vertical_narrow_s",
+            "g_lateral_wide_s",
+            "g_vertical_wide_s",
+            "gain_narrow",
+            "gain_wide",
+        } - set(data)
         if missing:
             raise InputError(f"MeshDesign.from_dict: missing field(s) {sorted(missing)}")
         kw = {k: data[k] for k in fields if k in data}
@@ -505,12 +529,22 @@ def mismatch_sensitivity(design: MeshDesign, target: Kernel | None = None) -> fl
     hn, dhn = _responses_and_derivatives(design.lambda_narrow_px, r, design.model, design.grid_half_width)
     hw, dhw = _responses_and_derivatives(design.lambda_wide_px, r, design.model, design.grid_half_width)
     t = target if target is not None else (design.target if design.target is not None else design.kernel())
-    tt = t.taps if t.size == design.size else t.padded(design.size).taps if t.size < design.size else t.cropped(design.size).taps
-    s2 = _sensitivity_sq(design.gain_narrow, design.gain_wide, design.pixel_weight, hn, hw, dhn, dhw, 1.0, float((tt * tt).sum()))
+    tt = (
+        t.taps
+        if t.size == design.size
+        else t.padded(design.size).taps
+        if t.size < design.size
+        else t.cropped(design.size).taps
+    )
+    s2 = _sensitivity_sq(
+        design.gain_narrow, design.gain_wide, design.pixel_weight, hn, hw, dhn, dhw, 1.0, float((tt * tt).sum())
+    )
     return math.sqrt(s2)
 
 
-def _responses_and_derivatives(lam: float, radius: int, model: str, half_width: int | None) -> tuple[np.ndarray, np.ndarray]:
+def _responses_and_derivatives(
+    lam: float, radius: int, model: str, half_width: int | None
+) -> tuple[np.ndarray, np.ndarray]:
     """Full-window H and ∂H/∂ln(λ²) for one mesh."""
     if model == "grid":
         h = max(int(half_width), radius)
@@ -658,7 +692,11 @@ def _mesh_solver(radius: int, model: str, lam_max: float, half_width: int | None
         pnw = ca.if_else(ca.fabs(x[1] - x[0]) < 1e-9, qn, (al_n * g0n - al_w * g0w) / (al_n - al_w + 1e-300))
         n_k = wp**2 + 2 * wp * (a * g0n - b * g0w) + a**2 * qn + b**2 * qw - 2 * a * b * pnw
         sens_raw = (
-            2 * a**2 * ca.dot(m, dhn**2) + 2 * b**2 * ca.dot(m, dhw**2) + a**2 * ca.dot(m, hn**2) + b**2 * ca.dot(m, hw**2) + wp**2
+            2 * a**2 * ca.dot(m, dhn**2)
+            + 2 * b**2 * ca.dot(m, dhw**2)
+            + a**2 * ca.dot(m, hn**2)
+            + b**2 * ca.dot(m, hw**2)
+            + wp**2
         )
     else:  # the fit window (or the whole finite chip) holds the response
         mesh_h = ca.Function("mesh_h", [u], [h_u, dh_u])
@@ -669,7 +707,11 @@ def _mesh_solver(radius: int, model: str, lam_max: float, half_width: int | None
         c = ca.dot(m, k_orb * t_orb)
         n_k = ca.dot(m, k_orb**2)
         sens_raw = (
-            2 * a**2 * ca.dot(m, dhn**2) + 2 * b**2 * ca.dot(m, dhw**2) + a**2 * ca.dot(m, hn**2) + b**2 * ca.dot(m, hw**2) + wp**2
+            2 * a**2 * ca.dot(m, dhn**2)
+            + 2 * b**2 * ca.dot(m, dhw**2)
+            + a**2 * ca.dot(m, hn**2)
+            + b**2 * ca.dot(m, hw**2)
+            + wp**2
         )
     if gain_free:
         f = 1.0 - c**2 / n_k * inv_norm2
@@ -717,7 +759,9 @@ def _coerce_bounds(bounds: Any) -> MeshBounds:
     if isinstance(bounds, Mapping):  # e.g. a [realisations.mesh.bounds] table of a design file
         unknown = set(bounds) - set(MeshBounds.__dataclass_fields__)
         if unknown:
-            raise InputError(f"bounds: unknown key(s) {sorted(unknown)}; allowed {sorted(MeshBounds.__dataclass_fields__)}")
+            raise InputError(
+                f"bounds: unknown key(s) {sorted(unknown)}; allowed {sorted(MeshBounds.__dataclass_fields__)}"
+            )
         bounds = MeshBounds(**{k: (tuple(v) if isinstance(v, (list, tuple)) else v) for k, v in bounds.items()})
     if not isinstance(bounds, MeshBounds):
         raise InputError(f"bounds: expected a MeshBounds or a mapping of its fields, got {type(bounds).__name__}")
@@ -768,7 +812,9 @@ def _mesh_settings(kernel: Any, *, bounds: Any, pitch_m: float | None, pixel_wei
     if not isinstance(nonnegative_dc, (bool, np.bool_)):
         raise InputError(f"nonnegative_dc: must be true or false, got {nonnegative_dc!r}")
     sigma = _check_scalar("mismatch_sigma", mismatch_sigma, 0.0, 0.5)
-    max_err = None if max_mismatch_error is None else _check_scalar("max_mismatch_error", max_mismatch_error, 1e-6, 10.0)
+    max_err = (
+        None if max_mismatch_error is None else _check_scalar("max_mismatch_error", max_mismatch_error, 1e-6, 10.0)
+    )
     g_l = _check_scalar("g_lateral_s", g_lateral_s, *bounds.conductance_s)
     c_node = _check_scalar("node_capacitance_f", node_capacitance_f, 1e-18, 1e-6)
     if model not in MESH_MODELS:
@@ -777,10 +823,14 @@ def _mesh_settings(kernel: Any, *, bounds: Any, pitch_m: float | None, pixel_wei
         isinstance(fit_size, (int, np.integer)) and not isinstance(fit_size, bool)
         and fit_size % 2 == 1 and target.size <= fit_size <= MAX_KERNEL_SIZE
     ):
-        raise InputError(f"fit_size: must be None (whole response) or odd in {target.size}..{MAX_KERNEL_SIZE}, got {fit_size!r}")
+        raise InputError(
+            f"fit_size: must be None (whole response) or odd in {target.size}..{MAX_KERNEL_SIZE}, got {fit_size!r}"
+        )
     if model == "grid":
         if not (isinstance(grid_half_width, (int, np.integer)) and target.radius <= grid_half_width <= 60):
-            raise InputError(f"grid_half_width: model 'grid' needs an integer in {target.radius}..60, got {grid_half_width!r}")
+            raise InputError(
+                f"grid_half_width: model 'grid' needs an integer in {target.radius}..60, got {grid_half_width!r}"
+            )
         grid_half_width = int(grid_half_width)
     else:
         grid_half_width = None
@@ -791,7 +841,9 @@ def _mesh_settings(kernel: Any, *, bounds: Any, pitch_m: float | None, pixel_wei
     free_wp = pixel_weight is None
     wp_fixed = 0.0 if free_wp else _check_scalar("pixel_weight", pixel_weight, 0.0, 1e3)
     if gain_free and not free_wp and wp_fixed == 0.0:
-        raise InputError("pixel_weight=0 with gain='free': the pixel path is the gain reference; use pixel_weight='free'")
+        raise InputError(
+            "pixel_weight=0 with gain='free': the pixel path is the gain reference; use pixel_weight='free'"
+        )
 
     # λ range from the λ bounds and the conductance bounds (g_v = g_l / λ² within conductance_s)
     gmin, gmax = bounds.conductance_s
@@ -840,7 +892,9 @@ def _mesh_problem(s: _MeshSettings) -> _MeshProblem:
                         norm2=float((target.taps**2).sum()), asymmetry=target.asymmetry())
 
 
-def _initial_starts(s: _MeshSettings, p: _MeshProblem) -> tuple[np.ndarray, list[tuple[float, float, int, int, np.ndarray]]]:
+def _initial_starts(
+    s: _MeshSettings, p: _MeshProblem
+) -> tuple[np.ndarray, list[tuple[float, float, int, int, np.ndarray]]]:
     """Step 3, the objective on a grid: exact constrained least-squares gains at every (λ_n, λ_w)
     pair; return the λ grid and the best distinct starts ``(penalised f, f, i_n, i_w, gains)``."""
     glo, ghi = s.bounds.gain
@@ -861,7 +915,17 @@ def _initial_starts(s: _MeshSettings, p: _MeshProblem) -> tuple[np.ndarray, list
             g2 = (cx / n_k) ** 2 if n_k > 0 else 0.0
         else:
             f, g2 = (n_k - 2 * cx) / norm2 + 1.0, 1.0
-        s2 = g2 * (2 * x[1] ** 2 * sp_n[0] + 2 * x[2] ** 2 * sp_w[0] + x[1] ** 2 * sp_n[1] + x[2] ** 2 * sp_w[1] + x[0] ** 2) / norm2
+        s2 = (
+            g2
+            * (
+                2 * x[1] ** 2 * sp_n[0]
+                + 2 * x[2] ** 2 * sp_w[0]
+                + x[1] ** 2 * sp_n[1]
+                + x[2] ** 2 * sp_w[1]
+                + x[0] ** 2
+            )
+            / norm2
+        )
         return f, sig2 * s2
 
     starts = []
@@ -884,7 +948,11 @@ def _initial_starts(s: _MeshSettings, p: _MeshProblem) -> tuple[np.ndarray, list
             if s.free_wp or s.gain_free:
                 x = _small_qp(gram, cvec, np.zeros(3), [0, 1, 2], s.nonnegative_dc)
                 if not s.free_wp:  # gain free, pixel path is the reference
-                    x = x / x[0] * s.wp_fixed if x[0] > 0 else np.array([s.wp_fixed, ghi * s.wp_fixed, ghi * s.wp_fixed])
+                    x = (
+                        x / x[0] * s.wp_fixed
+                        if x[0] > 0
+                        else np.array([s.wp_fixed, ghi * s.wp_fixed, ghi * s.wp_fixed])
+                    )
                     x[1:] = np.clip(x[1:], glo, ghi)
                 elif s.gain_free:  # normalised to w_p + a + b = 1
                     x = np.maximum(x / x.sum() if x.sum() > 0 else np.full(3, 1 / 3), glo)
@@ -972,7 +1040,9 @@ def _solve(s: _MeshSettings, p: _MeshProblem, lams: np.ndarray, chosen: list) ->
     return _MeshSolution(xo=xo, lbx=lbx, ubx=ubx, objective=f_opt, stats=st, iterations=total_iter, runs=runs)
 
 
-def _build_design(s: _MeshSettings, p: _MeshProblem, sol: _MeshSolution) -> tuple[MeshDesign, float, float, float, float]:
+def _build_design(
+    s: _MeshSettings, p: _MeshProblem, sol: _MeshSolution
+) -> tuple[MeshDesign, float, float, float, float]:
     """The circuit from the solution (step 5): conductances from λ, gains scaled by the
     least-squares overall gain when it is free; return the design, w_p, a, b (unscaled) and the gain."""
     target, xo = s.target, sol.xo
@@ -1016,7 +1086,10 @@ def _fit_report(s: _MeshSettings, p: _MeshProblem, sol: _MeshSolution, design: M
     for k, name in enumerate(names):
         for side, lim in (("low", lbx[k]), ("high", ubx[k])):
             if abs(xo[k] - lim) <= 1e-6 * max(1.0, abs(lim)):
-                on_bound.append(f"{name} at its {side} bound" + (" (relative to the reference path)" if s.gain_free and k >= 2 else ""))
+                on_bound.append(
+                    f"{name} at its {side} bound"
+                    + (" (relative to the reference path)" if s.gain_free and k >= 2 else "")
+                )
     if abs((xo[1] - xo[0]) - 2 * math.log(s.bounds.min_lambda_ratio)) <= 1e-6:
         on_bound.append(f"lambda_wide/lambda_narrow at min_lambda_ratio={s.bounds.min_lambda_ratio:g}")
     if s.nonnegative_dc and wp + a - b <= 1e-6 * max(wp, a, b):
@@ -1174,12 +1247,20 @@ def fit_resistive_mesh(
         peak = float(np.abs(target.taps).max())
         warnings.warn(
             f"mesh fit of '{target.name}' has kernel error {fit['error']:.6g} (a zero kernel has 1): "
-            + (f"the target's scale (max |tap| = {peak:.3g}) is out of reach of bounds.gain={s.bounds.gain}"
-               f"{'' if s.free_wp else f' with pixel_weight fixed at {s.wp_fixed:g}'}; normalise the target, widen the "
-               "bounds or use gain='free'" if not s.gain_free else "no dual mesh with these bounds correlates with the target"),
+            + (
+                f"the target's scale (max |tap| = {peak:.3g}) is out of reach of bounds.gain={s.bounds.gain}"
+                f"{'' if s.free_wp else f' with pixel_weight fixed at {s.wp_fixed:g}'}; normalise the target, widen the "
+                "bounds or use gain='free'"
+                if not s.gain_free
+                else "no dual mesh with these bounds correlates with the target"
+            ),
             MeshFitWarning,
             stacklevel=2,
         )
     elif not fit["success"]:
-        warnings.warn(f"mesh fit of '{target.name}': IPOPT ended with status {fit['status']}", MeshFitWarning, stacklevel=2)
-    return MeshDesign(**{**{k: getattr(design, k) for k in design.__dataclass_fields__ if k not in ("fit", "kind")}, "fit": fit})
+        warnings.warn(
+            f"mesh fit of '{target.name}': IPOPT ended with status {fit['status']}", MeshFitWarning, stacklevel=2
+        )
+    return MeshDesign(
+        **{**{k: getattr(design, k) for k in design.__dataclass_fields__ if k not in ("fit", "kind")}, "fit": fit}
+    )

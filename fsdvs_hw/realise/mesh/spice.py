@@ -224,7 +224,10 @@ def simulate_mesh_spice(design: Any, *, half_width: int | None = None, i_in_a: f
     v = run_ngspice(netlist)
     vn = np.array([[v[f"v(n{y}_{x})"][0] for x in range(n)] for y in range(n)])
     vw = np.array([[v[f"v(w{y}_{x})"][0] for x in range(n)] for y in range(n)])
-    k = design.gain_narrow * design.g_vertical_narrow_s * vn / i_in_a - design.gain_wide * design.g_vertical_wide_s * vw / i_in_a
+    k = (
+        design.gain_narrow * design.g_vertical_narrow_s * vn / i_in_a
+        - design.gain_wide * design.g_vertical_wide_s * vw / i_in_a
+    )
     k[h, h] += design.pixel_weight
     return SpiceMeshResult(vn, vw, float(i_in_a), k, time.perf_counter() - t0)
 

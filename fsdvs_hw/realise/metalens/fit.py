@@ -154,7 +154,9 @@ def _phase0(r: np.ndarray, geometry: LensGeometry, coefficients: Any) -> Any:
     return hyp + powers @ np.asarray(coefficients, dtype=float)
 
 
-def local_numerical_aperture(geometry: LensGeometry, coefficients: Sequence[float], wavelengths_m: Sequence[float]) -> float:
+def local_numerical_aperture(
+    geometry: LensGeometry, coefficients: Sequence[float], wavelengths_m: Sequence[float]
+) -> float:
     r"""Largest local NA of the phase, :math:`\max_{r,\lambda} \lambda |\partial_r\phi(r,\lambda)|/(2\pi)`.
 
     The lens-plane sampling (and the metasurface unit cell) must satisfy
@@ -597,13 +599,21 @@ class MetalensDesign:
             "focal_length": CostItem(self.geometry.focal_length_m, "m", "focal length f of the hyperbolic term at λ0"),
             "lens_count": CostItem(len(self.psfs), "count", "lenses (1 pedestal, 2 differential pair)"),
             "numerical_aperture": CostItem(
-                local_numerical_aperture(self.geometry, self.coefficients[0], self.spectral.wavelengths_m), "1",
-                "largest local NA of the phase (unit cell ≤ λ_min/(2·NA))"),
-            "optical_efficiency": CostItem(min(eff), "1", "fraction of aperture power inside the kernel window (worst lens)"),
+                local_numerical_aperture(self.geometry, self.coefficients[0], self.spectral.wavelengths_m),
+                "1",
+                "largest local NA of the phase (unit cell ≤ λ_min/(2·NA))",
+            ),
+            "optical_efficiency": CostItem(
+                min(eff), "1", "fraction of aperture power inside the kernel window (worst lens)"
+            ),
             "pedestal": CostItem(self.pedestal, "1", "uniform offset c added in the window (target units)"),
             "pedestal_fraction": CostItem(self.pedestal_fraction, "1", "share of collected light that is pedestal"),
-            "kernel_error": CostItem(self.error, "1", "relative L2 error of the applied kernel (pedestal included) vs the target"),
-            "signal_error": CostItem(self.signal_error, "1", "relative L2 error with the pedestal subtracted (shape only)"),
+            "kernel_error": CostItem(
+                self.error, "1", "relative L2 error of the applied kernel (pedestal included) vs the target"
+            ),
+            "signal_error": CostItem(
+                self.signal_error, "1", "relative L2 error with the pedestal subtracted (shape only)"
+            ),
             "whole_dc_gain": CostItem(self.whole_dc_gain, "1", "DC gain of the whole PSF (uniform scene, every pixel)"),
             "fit_time": CostItem(float(self.fit_info.get("wall_time_s", float("nan"))), "s", "fit wall time"),
         }
@@ -681,7 +691,9 @@ class MetalensDesign:
 
 
 # ---------------------------------------------------------------------------------- fitting
-def _solve_gains(psfs: list[Any], k: Any, m: Any, mode: str, totals: Sequence[Any] | None = None) -> tuple[list[Any], Any, Any]:
+def _solve_gains(
+    psfs: list[Any], k: Any, m: Any, mode: str, totals: Sequence[Any] | None = None
+) -> tuple[list[Any], Any, Any]:
     """Closed-form least squares for the gains (and pedestal); returns (gains, pedestal, residual²).
 
     ``totals``: the whole-PSF sums (all the light on the sensor plane); the differential pair holds
@@ -849,7 +861,10 @@ class _MetalensObjective:
     def penalty(self, x: Any) -> Any:
         c = x[1:] * self.c_unit
         na = (self.na_scale * (self.d_hyp + self.d_pow @ c).abs()).max()
-        return 10.0 * self._clamp(na - self.budget, min=0.0) ** 2 + 10.0 * self._clamp(x[0].abs() - self.dz_bound, min=0.0) ** 2
+        return (
+            10.0 * self._clamp(na - self.budget, min=0.0) ** 2
+            + 10.0 * self._clamp(x[0].abs() - self.dz_bound, min=0.0) ** 2
+        )
 
     def loss(self, targets: Any, mode: str, n_lens: int, fwd: _RadialKernelModel) -> Any:
         def loss(x: Any) -> Any:
