@@ -197,8 +197,8 @@ def kept_global_state() -> Iterator[None]:
 
     torch (imported here if installed): intra-op threads, default dtype and the CPU random state;
     numpy: the floating-point error state and the global random state; the :mod:`warnings` filters;
-    the environment variables (a sweep executor sets its workers' thread count there). torch's inter-op thread count cannot be set back once parallel work ran, so no
-    bench may change it (a test checks).
+    the environment variables (a sweep executor sets its workers' thread count there). torch's inter-op thread count
+    cannot be set back once parallel work ran, so no bench may change it (a test checks).
     """
     import warnings
 
@@ -492,7 +492,7 @@ class Table:
         if case is None:
             case = "; ".join(f"{col.header}={_plain(text)}" for col, (text, _) in zip(self.columns, rendered)
                              if col.is_text and _plain(text))
-        for text, values in rendered:
+        for _text, values in rendered:
             for part, m in values:
                 self._section._pending.append(_Pending(self.title, case, part.metric, part.unit, m,
                                                        threads, self._settings))  # type: ignore[arg-type]

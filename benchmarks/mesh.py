@@ -120,7 +120,7 @@ def _model_table(sec: BenchSection, quick: bool) -> None:
                       Column.number("max error / max tap", ".1e", unit="", metric="max error / max tap"),
                       Column.number("time (ms)", ".3f", metric="time"), settings={"repeats": repeats})
     for lam in (1.0, 3.0) if quick else (1.0, 3.0, 10.0):
-        k, w = quadrature_nodes(max(lam, 1.0), radius)
+        k, _w = quadrature_nodes(max(lam, 1.0), radius)
         n4 = 4 * k.size
         th = (np.arange(n4) + 0.5) * (np.pi / n4)
         s = 1.0 / math.sqrt(1.0 + 2.8 * max(lam, 1.0))

@@ -246,7 +246,8 @@ def bench_metalens(*, quick: bool = False, figures: Path | None = None) -> Bench
         "",
         "kernel error: relative L2 of the applied kernel, pedestal included (the one definition the scorer uses), "
         "against the target, spill into the 2-pixel guard ring included; signal error: the same with the pedestal "
-        "subtracted in the window (the shape). whole-PSF DC: the DC gain over all the light on the sensor. symmetric floor: distance from the target to its ring average (no "
+        "subtracted in the window (the shape). whole-PSF DC: the DC gain over all the light on the sensor. "
+        "symmetric floor: distance from the target to its ring average (no "
         "rotationally symmetric lens can do better). contrast factor: log-contrast gain relative to the ideal kernel "
         "(n/a when the target has no positive DC). model error: fitted model vs reference-fidelity model.",
     )

@@ -504,13 +504,12 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
         n_events = 0
         if clip == "long":
             suffix = ".aedat4" if case["path"].endswith(".aedat4") else ".h5"
-            with tempfile.TemporaryDirectory() as d:
-                with EventFileWriter(Path(d) / f"events{suffix}", W, H) as w:
-                    for c in simulate(long_clip_frames(seconds, (H, W), cfg.frame_rate_hz), kernel, config=cfg,
-                                      chunk_frames=chunk_frames):
-                        w.write(c.events)
-                        n_events += len(c.events)
-                        del c
+            with tempfile.TemporaryDirectory() as d, EventFileWriter(Path(d) / f"events{suffix}", W, H) as w:
+                for c in simulate(long_clip_frames(seconds, (H, W), cfg.frame_rate_hz), kernel, config=cfg,
+                                  chunk_frames=chunk_frames):
+                    w.write(c.events)
+                    n_events += len(c.events)
+                    del c
         elif case["path"] in ("event list", "centre-surround"):
             for c in simulate(video, kernel, config=cfg, chunk_frames=chunk_frames):
                 n_events += len(c.events)

@@ -113,7 +113,7 @@ def _bench_tasks(quick: bool) -> BenchRun:
         res = learn_kernel(task, 7, seed=0, n_train=n_train, n_test=32,
                            settings=TrainingSettings(epochs_frozen=1, epochs_joint=1))
         frozen = [h["seconds"] for h in res.history if h["stage"] == "frozen_filter"]
-        joint = [h["seconds"] for h in res.history if h["stage"] == "joint"][0]
+        joint = next(h["seconds"] for h in res.history if h["stage"] == "joint")
         ckpt = SHIPPED_DIR / f"learned_{task}_7x7.safetensors"
         if ckpt.is_file():
             kern = SHIPPED_DIR / f"learned_{task}_7x7.json"

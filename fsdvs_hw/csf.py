@@ -392,8 +392,8 @@ def csf_agreement(
         CSF model (see :data:`CSF_METHODS`).
     geometry : Geometry, optional
         Pixel pitch and focal length. Without it, the pixels-per-degree scale that minimises the
-        linear RMS difference of the peak-normalised curves (``rms_error``) is fitted within ``ppd_bounds`` (grid search, then bounded refinement),
-        and the focal length it implies at the kernel's pitch is reported.
+        linear RMS difference of the peak-normalised curves (``rms_error``) is fitted within ``ppd_bounds``
+        (grid search, then bounded refinement), and the focal length it implies at the kernel's pitch is reported.
     f_low_cpp : float
         Lower end of the compared band, cycles/pixel (default 0.01: one cycle per 100 pixels).
     n_samples : int

@@ -946,7 +946,7 @@ def _difference_statistic(parsed: Mapping[str, _Task], layout: Sequence[tuple[st
         per_task = []
         for t, task in parsed.items():
             def w(sl: str, n_items: int) -> np.ndarray:
-                return _multiplicities(got[(t, sl)], n_items) if (t, sl) in got else np.ones((b, n_items))
+                return _multiplicities(got[(t, sl)], n_items) if (t, sl) in got else np.ones((b, n_items))  # noqa: B023 - called in this iteration
 
             if task.nested:
                 ws = w("seeds", len(task.ref))

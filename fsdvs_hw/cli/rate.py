@@ -65,6 +65,6 @@ def run(args: argparse.Namespace) -> int:
         resolution_px=(args.resolution[0], args.resolution[1]), n_resamples=args.n_resamples,
         progress=False if args.no_progress else None, command=cmd))
     print(study.text)
-    for name, path in study.files.items():
+    for _name, path in study.files.items():
         print(f"wrote {path}")
     return 0

@@ -310,8 +310,8 @@ def annotate_shipped(records: list[dict[str, Any]], pred_dir: Path, *, n_resampl
 
         def statistic(idx: np.ndarray, axis: int = -1) -> np.ndarray:
             flat = idx.reshape(-1, idx.shape[-1])
-            w = np.stack([np.bincount(row, minlength=n) for row in flat]).astype(np.float64)
-            return metric.weighted(w).reshape(idx.shape[:-1])
+            w = np.stack([np.bincount(row, minlength=n) for row in flat]).astype(np.float64)  # noqa: B023 - bootstrap runs in this iteration
+            return metric.weighted(w).reshape(idx.shape[:-1])  # noqa: B023
 
         res = stats.bootstrap((np.arange(n),), statistic, vectorized=True, n_resamples=n_resamples,
                               method="percentile", random_state=np.random.default_rng(0), batch=200)

@@ -711,14 +711,14 @@ def _natural_key(path: str) -> list[Any]:
 MAX_GLOB_ENTRIES = 20000
 
 
-class _GlobTooWide(Exception):
+class _GlobTooWideError(Exception):
     """A pattern's walk looked at more than :data:`MAX_GLOB_ENTRIES` entries."""
 
 
 def _bounded_glob(root: Path, parts: list[str], *, limit: int = MAX_GLOB_ENTRIES) -> list[Path]:
     """Paths under ``root`` matching the pattern components ``parts`` (one level each, like
     :func:`glob.glob` without ``recursive``: ``**`` is ``*``), hidden names only by a pattern that
-    starts with ``.``; raises :class:`_GlobTooWide` after ``limit`` entries are looked at."""
+    starts with ``.``; raises :class:`_GlobTooWideError` after ``limit`` entries are looked at."""
     level = [root]
     seen = 0
     for i, part in enumerate(parts):
@@ -736,7 +736,7 @@ def _bounded_glob(root: Path, parts: list[str], *, limit: int = MAX_GLOB_ENTRIES
                     for entry in it:
                         seen += 1
                         if seen > limit:
-                            raise _GlobTooWide
+                            raise _GlobTooWideError
                         if entry.name.startswith(".") and not part.startswith("."):
                             continue
                         if fnmatch.fnmatchcase(entry.name, part) and (last or entry.is_dir()):
@@ -744,7 +744,7 @@ def _bounded_glob(root: Path, parts: list[str], *, limit: int = MAX_GLOB_ENTRIES
             except (NotADirectoryError, FileNotFoundError, PermissionError):
                 continue
         if seen > limit:
-            raise _GlobTooWide
+            raise _GlobTooWideError
         level = nxt
     return level
 
@@ -784,7 +784,7 @@ def _expand_checkpoint_patterns(chk: _Problems, data: dict[str, Any], base: Path
                 start = root
             try:
                 found = _bounded_glob(start, parts, limit=MAX_GLOB_ENTRIES)
-            except _GlobTooWide:
+            except _GlobTooWideError:
                 chk.add(key, path, f"the pattern looks at more than {MAX_GLOB_ENTRIES} files and folders; allowed: "
                                    "a narrower pattern (e.g. 'networks/det_s*.safetensors')")
                 continue

@@ -253,7 +253,7 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
 def _record_networks(tasks: dict[str, Any], target: Kernel) -> None:
     """Say, per task, which networks scored it and whether they were trained with ``target``."""
     from .paired import network_info  # torch: imported only when tasks are scored
-    for task, tracks in tasks.items():
+    for _task, tracks in tasks.items():
         if not isinstance(tracks, dict):
             continue
         for rec in tracks.values():

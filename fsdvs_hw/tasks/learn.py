@@ -624,7 +624,7 @@ def load_checkpoint(checkpoint: str | Path) -> tuple[dict[str, Any], dict[str, A
     try:
         with safe_open(str(path), framework="pt") as f:
             meta = f.metadata() or {}
-            tensors = {k: f.get_tensor(k) for k in f.keys()}
+            tensors = {k: f.get_tensor(k) for k in f.keys()}  # noqa: SIM118 - safe_open is not a dict
     except Exception as exc:  # safetensors raises its own error types for corrupt headers
         raise InputError(f"checkpoint {str(path)!r}: not a readable safetensors file ({exc})") from None
     if meta.get("format") != CHECKPOINT_FORMAT:

@@ -596,7 +596,7 @@ def _fit_free_scale(p: _TapProblem, amax: float, n_polish: int = 5) -> tuple[flo
     # polish the best few distinct tap vectors (the polish is local) and keep the best result
     starts = sorted(seen.values(), key=lambda v: v[0])[:n_polish]
     best: dict[str, Any] = {"J": math.inf}
-    for J0, s0, q0 in starts:
+    for _J0, s0, q0 in starts:
         for s_c, q_c in ((s0, q0), _polish(p, s0, q0)):
             J = p.objective(q_c, s_c)
             if p.better(J, q_c, best):

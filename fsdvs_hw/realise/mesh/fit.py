@@ -665,7 +665,7 @@ def _mesh_solver(radius: int, model: str, lam_max: float, half_width: int | None
     """
     import casadi as ca
 
-    ii, jj, mult = _orbits(radius)
+    ii, _jj, mult = _orbits(radius)
     n_orb = len(ii)
     nx = 5 if free_wp else 4
     x = ca.MX.sym("x", nx)
@@ -1016,7 +1016,7 @@ def _solve(s: _MeshSettings, p: _MeshProblem, lams: np.ndarray, chosen: list) ->
     best = None
     total_iter = 0
     runs = 0
-    for _, f0, i_n, i_w, x in chosen:
+    for _, _f0, i_n, i_w, x in chosen:
         runs += 1
         gains = np.clip(x, glo, ghi if not (s.gain_free and s.free_wp) else 1.0)
         x0 = [2 * math.log(lams[i_n]), 2 * math.log(lams[i_w]), math.log(gains[1]), math.log(gains[2])]
