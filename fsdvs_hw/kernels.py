@@ -403,7 +403,7 @@ def as_kernel(kernel: Any, *, name: str = "kernel", pitch_m: float | None = None
     except (TypeError, ValueError) as exc:
         raise KernelError(f"{name}: expected a Kernel, a kernel file path or a k×k array of numbers, got "
                           f"{type(kernel).__name__} ({exc})") from None
-    kw = {} if pitch_m is None else {"pitch_m": pitch_m}
+    kw: dict[str, Any] = {} if pitch_m is None else {"pitch_m": pitch_m}
     return Kernel(taps, name=name, **kw)
 
 

@@ -228,7 +228,7 @@ def run_ablation_study(args: AblationOptions) -> AblationStudy:
     pred_dir = out / "predictions"
     store = out / "runs.sqlite"
     settings = _settings(args) or None
-    kw = {"n_train": args.n_train, "n_test": args.n_test, "settings": settings}
+    kw: dict[str, Any] = {"n_train": args.n_train, "n_test": args.n_test, "settings": settings}
     exe = {"workers": args.workers, "scheduler": args.scheduler, "progress": args.progress}
     if args.transfer_only and (not args.transfer or args.transfer == "from-run"):
         raise InputError("--transfer-only needs --transfer KERNEL_FILE")

@@ -422,7 +422,7 @@ def matched_rate_difference(curve: RateCurve, reference: RateCurve, reference_th
     metrics = np.array([p.metric for p in curve.points])
     alpha = (1.0 - confidence) / 2.0
     nan = math.nan
-    base = dict(n_clips=curve.n_clips, n_networks=curve.n_networks, confidence=confidence,
+    base: dict[str, Any] = dict(n_clips=curve.n_clips, n_networks=curve.n_networks, confidence=confidence,
                 curve_kernel=curve.kernel_name, reference_kernel=reference.kernel_name,
                 reference_threshold=float(reference_threshold), metric_name=curve.metric_name, task=curve.task,
                 reference_rate=ref_point.rate, reference_rate_low=float(np.quantile(ref_r, alpha)),
@@ -433,7 +433,7 @@ def matched_rate_difference(curve: RateCurve, reference: RateCurve, reference_th
         j = [abs(t - reference_threshold) <= 1e-12 for t in curve.thresholds].index(True)
         d = ref_m - cm[:, j]
         raw = (ref_point.metric - metrics[j], float(np.quantile(d, alpha)), float(np.quantile(d, 1 - alpha)))
-    raw_d = dict(raw_estimate=raw[0], raw_low=raw[1], raw_high=raw[2])
+    raw_d: dict[str, Any] = dict(raw_estimate=raw[0], raw_low=raw[1], raw_high=raw[2])
     if np.any(rates <= 0) or not np.all(np.diff(rates) < 0):
         return MatchedRateDifference(status=f"refused: the rate curve of {curve.kernel_name!r} does not fall strictly "
                                      f"with threshold (rates {np.round(rates, 6).tolist()} {EVENT_RATE_UNIT} at "

@@ -151,7 +151,7 @@ def run_rate_study(options: RateOptions) -> RateStudy:
     design_sensor = design.section("sensor") if tasks["sensor"] == "design" else None
     test_clips = str(tasks.get("test_clips", "per_network"))
     out = output_dir(options.out, flag="--out")
-    common = dict(n_test=n_test, design_sensor=design_sensor, test_clips=test_clips, cache_dir=out / "points",
+    common: dict[str, Any] = dict(n_test=n_test, design_sensor=design_sensor, test_clips=test_clips, cache_dir=out / "points",
                   progress=options.progress)
     kernels: dict[str, Any] = {"w/o": None, "learned": design.target}
     for name in options.realisations:
@@ -159,7 +159,7 @@ def run_rate_study(options: RateOptions) -> RateStudy:
                                   seed=int(design.data["run"]["seed"]))
         kernels[name] = real.kernel()
     curves = {name: rate_curve(k, options.task, paths, thresholds, label=name, **common) for name, k in kernels.items()}
-    kw = dict(confidence=options.confidence, n_resamples=options.n_resamples, rng=0)
+    kw: dict[str, Any] = dict(confidence=options.confidence, n_resamples=options.n_resamples, rng=0)
     comparisons = {
         "learned_vs_wo_at_learned_rate": matched_rate_difference(curves["w/o"], curves["learned"], t_ref, **kw),
         "wo_vs_learned_at_wo_rate": matched_rate_difference(curves["learned"], curves["w/o"], t_ref, **kw),

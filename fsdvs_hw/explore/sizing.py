@@ -132,7 +132,7 @@ def size_test_sets(points: Iterable[Mapping[str, Any]], *, target_half_width: fl
             if not cands:
                 continue
             labels = {p["key"]: label(p) for p in points}
-            kw = {"n_resamples": n_resamples, "confidence": confidence}
+            kw: dict[str, Any] = {"n_resamples": n_resamples, "confidence": confidence}
             if tracks.get(track, {}).get("test_clips") == "per_network":
                 out.append(_nested_budget(track, task, r_arm, cands, labels, target_half_width, margin, kw))
                 continue

@@ -213,7 +213,7 @@ class SceneConfig:
         extra = set(data) - known
         if extra:
             raise InputError(f"SceneConfig: unknown fields {sorted(extra)}; allowed: {sorted(known)}")
-        kw = {k: (tuple(v) if isinstance(v, list) else v) for k, v in data.items()}
+        kw: dict[str, Any] = {k: (tuple(v) if isinstance(v, list) else v) for k, v in data.items()}
         return cls(**kw)
 
     @property

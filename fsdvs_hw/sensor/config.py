@@ -309,7 +309,7 @@ class SensorConfig:
     @classmethod
     def v2e_defaults(cls, **overrides: Any) -> SensorConfig:
         """v2e's command-line defaults [1]_ (the class defaults), with ESIM-style adaptive steps."""
-        base = dict(adaptive_fraction=0.5)
+        base: dict[str, Any] = dict(adaptive_fraction=0.5)
         base.update(overrides)
         return cls(**base)
 
