@@ -81,6 +81,7 @@ __all__ = [
     "difference_ci",
     "difference_cis",
     "metric_from_state",
+    "multiplicities",
     "task_difference_cis",
 ]
 
@@ -587,8 +588,15 @@ class DifferenceCI:
                 "seed_variance_included": self.seed_variance_included, "contains_zero": self.contains_zero}
 
 
-def _multiplicities(idx: np.ndarray, n: int) -> np.ndarray:
-    """(B, n) counts of each index in each row of ``idx`` (B, m)."""
+def multiplicities(idx: np.ndarray, n: int) -> np.ndarray:
+    """(B, n) counts of each index in each row of ``idx`` (B, m): bootstrap draws as weights.
+
+    Example
+    -------
+    >>> multiplicities(np.array([[0, 0, 2], [1, 2, 2]]), 3)
+    array([[2., 0., 1.],
+           [0., 1., 2.]])
+    """
     idx = np.asarray(idx, dtype=np.int64)
     if idx.ndim == 1:
         idx = idx[None, :]
@@ -946,11 +954,11 @@ def _difference_statistic(parsed: Mapping[str, _Task], layout: Sequence[tuple[st
         per_task = []
         for t, task in parsed.items():
             def w(sl: str, n_items: int) -> np.ndarray:
-                return _multiplicities(got[(t, sl)], n_items) if (t, sl) in got else np.ones((b, n_items))  # noqa: B023 - called in this iteration
+                return multiplicities(got[(t, sl)], n_items) if (t, sl) in got else np.ones((b, n_items))  # noqa: B023 - called in this iteration
 
             if task.nested:
                 ws = w("seeds", len(task.ref))
-                wcs = [_multiplicities(got[(t, f"clips@{s}")], m.n_clips) if (t, f"clips@{s}") in got else None
+                wcs = [multiplicities(got[(t, f"clips@{s}")], m.n_clips) if (t, f"clips@{s}") in got else None
                        for s, m in enumerate(task.ref)]
                 r = nested_value(task.ref, wcs, ws)
                 per_task.append(np.stack([r - nested_value(c, wcs, ws) for c in task.cands]))  # (C, B)

@@ -18,6 +18,22 @@ def require_tool(name: str) -> str:
     return path
 
 
+def cheap_design(name: str = "cheap") -> str:
+    """A design file's text whose points are cheap: the ideal references only, one CSF model, no
+    emulation, one worker (each point ~0.1-0.5 s). Append sections to extend it."""
+    return f"""[design]
+name = {name!r}
+[realisations]
+include = ["learned", "delta"]
+[analysis]
+csf_methods = ["mannos_sakrison_1974"]
+[emulation]
+enabled = false
+[run]
+workers = 1
+"""
+
+
 @pytest.fixture
 def rng():
     """A seeded numpy Generator (seed 1234) for reproducible random inputs."""

@@ -10,6 +10,7 @@ import sqlite3
 from pathlib import Path
 
 import pytest
+from conftest import cheap_design
 
 from fsdvs_hw.cli import main
 from fsdvs_hw.errors import InputError
@@ -23,19 +24,6 @@ from fsdvs_hw.paths import write_output
 hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
-
-_CHEAP = """
-[design]
-name = "cheap"
-[realisations]
-include = ["learned", "delta"]
-[analysis]
-csf_methods = ["mannos_sakrison_1974"]
-[emulation]
-enabled = false
-[run]
-workers = 1
-"""
 
 
 def _one_clear_line(err: str) -> str:
@@ -56,7 +44,7 @@ def _cli(argv: list[str], capsys) -> tuple[int, str]:
 @pytest.fixture
 def cheap(tmp_path) -> Path:
     p = tmp_path / "d.toml"
-    p.write_text(_CHEAP)
+    p.write_text(cheap_design())
     return p
 
 
@@ -92,7 +80,7 @@ def test_table_valued_override_replaces_a_number(cheap):
 
 
 def test_a_bad_sweep_axis_key_is_a_design_error_not_a_crash(tmp_path):
-    (tmp_path / "d.toml").write_text(_CHEAP + '[sweep]\naxes = { "sensor.resolution.x" = [1, 2] }\n')
+    (tmp_path / "d.toml").write_text(cheap_design() + '[sweep]\naxes = { "sensor.resolution.x" = [1, 2] }\n')
     with pytest.raises(DesignError, match=r"sweep\.axes\.sensor\.resolution\.x"):
         load_design(tmp_path / "d.toml")
 
@@ -187,7 +175,7 @@ def test_write_output_refuses_a_link_and_writes_atomically(tmp_path):
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory) -> tuple[Path, Path]:
     d = tmp_path_factory.mktemp("run")
-    (d / "d.toml").write_text(_CHEAP)
+    (d / "d.toml").write_text(cheap_design())
     assert main(["explore", str(d / "d.toml"), "--out", str(d / "out"), "--no-progress"]) == 0
     return d / "d.toml", d / "out"
 
@@ -214,7 +202,7 @@ def test_report_never_writes_through_a_link_in_out(run_dir, tmp_path, capsys, na
 def test_report_with_another_design_is_refused_naming_both(run_dir, tmp_path, capsys):
     design, out = run_dir
     other = tmp_path / "other.toml"
-    other.write_text(_CHEAP + "[sensor]\nthreshold_on = 0.3\n")
+    other.write_text(cheap_design() + "[sensor]\nthreshold_on = 0.3\n")
     before = (out / "report.html").read_bytes()
     code, err = _cli(["report", str(other), "--out", str(out)], capsys)
     line = _one_clear_line(err)
@@ -230,7 +218,7 @@ def test_report_with_another_design_is_refused_naming_both(run_dir, tmp_path, ca
 # ---------------------------------------------------------------------- checkpoint globs
 def _ckpt_design(folder: Path, pattern: str) -> Path:
     p = folder / "d.toml"
-    p.write_text(_CHEAP + f"[tasks]\ncheckpoints = {{ detection = {pattern!r} }}\n")
+    p.write_text(cheap_design() + f"[tasks]\ncheckpoints = {{ detection = {pattern!r} }}\n")
     return p
 
 

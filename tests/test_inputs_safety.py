@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import cheap_design
 
 from fsdvs_hw.cli import main
 from fsdvs_hw.errors import InputError
@@ -20,18 +21,6 @@ from fsdvs_hw.explore.design import DesignError, load_design, parse_design
 REPO = Path(__file__).resolve().parents[1]
 KERNEL_JSON = REPO / "designs" / "kernels" / "learned_detection_7x7.json"
 
-_CHEAP = """
-[design]
-name = {name!r}
-[realisations]
-include = ["learned", "delta"]
-[analysis]
-csf_methods = ["mannos_sakrison_1974"]
-[emulation]
-enabled = false
-[run]
-workers = 1
-"""
 
 
 def _cli(argv: list[str], capsys) -> tuple[int, str]:
@@ -55,7 +44,7 @@ def test_design_name_never_writes_outside_the_store_folder(tmp_path, monkeypatch
     name = name.format(pid=os.getpid())
     work = tmp_path / "work"
     work.mkdir()
-    (work / "d.toml").write_text(_CHEAP.format(name=name))
+    (work / "d.toml").write_text(cheap_design(name))
     monkeypatch.chdir(work)
     before = set(Path("/tmp").glob("fsdvs_abs_escape_*"))
     code, err = _cli(["sweep", "d.toml", "--no-progress"], capsys)
@@ -133,7 +122,7 @@ def test_liberty_path_with_script_characters_is_used_safely(tmp_path):
 # ---------------------------------------------------------------------- loaders and flags: exit 2, one line
 @pytest.mark.parametrize("content", [b"this is not sqlite, just text" * 10, b"\x00" * 4096])
 def test_non_sqlite_store_is_one_clear_error(tmp_path, capsys, content):
-    (tmp_path / "d.toml").write_text(_CHEAP.format(name="d"))
+    (tmp_path / "d.toml").write_text(cheap_design("d"))
     store = tmp_path / "s.sqlite"
     store.write_bytes(content)
     code, err = _cli(["sweep", str(tmp_path / "d.toml"), "--store", str(store), "--no-progress"], capsys)
@@ -188,7 +177,7 @@ def test_store_that_is_a_folder_is_refused(tmp_path):
 
 
 def test_file_valued_out_is_one_clear_error_before_work(tmp_path, capsys):
-    (tmp_path / "d.toml").write_text(_CHEAP.format(name="d"))
+    (tmp_path / "d.toml").write_text(cheap_design("d"))
     out = tmp_path / "out"
     out.write_text("a file")
     code, err = _cli(["explore", str(tmp_path / "d.toml"), "--out", str(out), "--no-progress"], capsys)
@@ -214,7 +203,7 @@ def test_unwritable_out_is_one_clear_error(tmp_path, capsys):
 
 
 def test_out_folder_that_cannot_be_created_is_one_clear_error(tmp_path, capsys):
-    (tmp_path / "d.toml").write_text(_CHEAP.format(name="d"))
+    (tmp_path / "d.toml").write_text(cheap_design("d"))
     bad = "/proc/fsdvs-no-such-dir/out"  # not creatable, even by root
     code, err = _cli(["explore", str(tmp_path / "d.toml"), "--out", bad, "--no-progress"], capsys)
     assert code == 2 and bad in _one_clear_line(err)
@@ -299,7 +288,7 @@ def test_sweep_command_builds_the_point_list_once(tmp_path, monkeypatch, capsys)
     calls = []
     real = sweep.expand_points
     monkeypatch.setattr(sweep, "expand_points", lambda *a, **k: calls.append(1) or real(*a, **k))
-    (tmp_path / "d.toml").write_text(_CHEAP.format(name="once"))
+    (tmp_path / "d.toml").write_text(cheap_design("once"))
     code, err = _cli(["sweep", str(tmp_path / "d.toml"), "--store", str(tmp_path / "s.sqlite"), "--no-progress"],
                      capsys)
     assert code == 0, err
@@ -378,7 +367,7 @@ def _alive(pid: int) -> bool:
 def test_sweep_workers_die_when_the_main_process_is_killed(tmp_path):
     focals = [round(2e-3 + 1e-5 * i, 8) for i in range(400)]
     design = tmp_path / "many.toml"
-    design.write_text(_CHEAP.format(name="many") + f'[sweep]\naxes = {{ "optics.focal_length_m" = {focals} }}\n')
+    design.write_text(cheap_design("many") + f'[sweep]\naxes = {{ "optics.focal_length_m" = {focals} }}\n')
     cmd = [sys.executable, "-m", "fsdvs_hw.cli", "sweep", str(design), "--store", str(tmp_path / "s.sqlite"),
            "--workers", "2", "--no-progress"]
     env = {**os.environ, "PYTHONPATH": str(REPO)}
@@ -440,7 +429,7 @@ def test_sweep_runs_on_a_tls_only_dask_cluster_and_plain_clients_are_refused(tmp
     sec = distributed.Security(tls_ca_file=str(ca), tls_scheduler_cert=str(cert), tls_scheduler_key=str(key),
                                tls_worker_cert=str(cert), tls_worker_key=str(key), tls_client_cert=str(cert),
                                tls_client_key=str(key), require_encryption=True)
-    (tmp_path / "d.toml").write_text(_CHEAP.format(name="tls") +
+    (tmp_path / "d.toml").write_text(cheap_design("tls") +
                                      '[sweep]\naxes = { "optics.focal_length_m" = [2e-3, 3e-3] }\n')
     pts = expand_points(load_design(tmp_path / "d.toml"))
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, host="127.0.0.1",
@@ -458,7 +447,7 @@ def test_sweep_runs_on_a_tls_only_dask_cluster_and_plain_clients_are_refused(tmp
 
 def test_tls_flags_need_a_tls_scheduler_and_existing_files(tmp_path, capsys):
     pytest.importorskip("distributed")
-    (tmp_path / "d.toml").write_text(_CHEAP.format(name="d"))
+    (tmp_path / "d.toml").write_text(cheap_design("d"))
     code, err = _cli(["sweep", str(tmp_path / "d.toml"), "--tls-ca-file", "ca.pem", "--tls-cert", "c.pem",
                       "--scheduler", "tcp://127.0.0.1:1", "--no-progress"], capsys)
     assert code == 2 and "tls://" in _one_clear_line(err)

@@ -50,6 +50,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..paths import write_output
+from ..stats import multiplicities
 from .design import CODESIGN_MODES, Design
 
 __all__ = [
@@ -219,11 +220,6 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) 
     return summary
 
 
-def _multiplicities(idx: np.ndarray, n: int) -> np.ndarray:
-    flat = idx.reshape(-1, idx.shape[-1])
-    return np.stack([np.bincount(row, minlength=n) for row in flat]).astype(float)
-
-
 def recovered_fraction_ci(reference: Sequence[Any], swap: Sequence[Any], candidate: Sequence[Any], *,
                           nested_clips: bool = True, confidence: float = 0.95, n_resamples: int = 2000,
                           rng: Any = 0) -> dict[str, Any]:
@@ -254,7 +250,7 @@ def recovered_fraction_ci(reference: Sequence[Any], swap: Sequence[Any], candida
         vals = np.array(ones)  # (3, S)
 
         def statistic(idx: np.ndarray, axis: int = -1) -> np.ndarray:
-            w = _multiplicities(idx, n_s)  # (B, S)
+            w = multiplicities(idx, n_s)  # (B, S)
             r, sw, c = ((w * v).sum(axis=1) / w.sum(axis=1) for v in vals)
             return (1.0 - (r - c) / (r - sw)).reshape(idx.shape[:-1])
 
@@ -265,7 +261,7 @@ def recovered_fraction_ci(reference: Sequence[Any], swap: Sequence[Any], candida
             raise InputError("recovered_fraction_ci: crossed networks must all score the same clips")
 
         def statistic(idx: np.ndarray, axis: int = -1) -> np.ndarray:
-            w = _multiplicities(idx, n)
+            w = multiplicities(idx, n)
             r, sw, c = (np.mean([m.weighted(w) for m in a], axis=0) for a in arms)
             return (1.0 - (r - c) / (r - sw)).reshape(idx.shape[:-1])
 

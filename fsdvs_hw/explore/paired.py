@@ -43,7 +43,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels import Kernel
-from ..stats import ClipMeans, ClipMetric, CocoDetections, ConfusionMIoU, metric_from_state
+from ..stats import ClipMeans, ClipMetric, CocoDetections, ConfusionMIoU, metric_from_state, multiplicities
 
 __all__ = [
     "EVAL_BATCH",
@@ -279,8 +279,7 @@ def bootstrap_weights(n_networks: int, n_clips: int, *, test_clips: str = "per_n
     gen = np.random.default_rng(rng)
 
     def draw(n: int) -> np.ndarray:
-        idx = gen.integers(0, n, size=(n_resamples, n))
-        return np.stack([np.bincount(row, minlength=n) for row in idx]).astype(np.float64)
+        return multiplicities(gen.integers(0, n, size=(n_resamples, n)), n)
 
     ws = draw(n_networks) if n_networks >= 2 else np.ones((n_resamples, 1))
     if test_clips == "per_network" and n_networks >= 2:
