@@ -19,7 +19,7 @@ PYTEST_ARGS ?=
 DEMO_OUT ?= out/demo
 CODESIGN_OUT ?= out/codesign
 
-.PHONY: demo codesign lint typecheck test test-all test-latest lock bench notebooks mutation setup system-deps clean
+.PHONY: demo codesign lint typecheck test fuzz test-all test-latest lock bench notebooks mutation setup system-deps clean
 
 demo: setup
 	$(BIN)/fsdvs-hw explore designs/default.toml --out $(DEMO_OUT)
@@ -40,6 +40,14 @@ typecheck: setup
 
 test: setup lint
 	$(BIN)/python -m pytest -m "not slow" -n 2 $(PYTEST_ARGS)
+
+# Property tests with fresh random examples (`make test` draws a fixed set): FUZZ_RUNS runs, each
+# with a new seed; a failure prints the example and the @reproduce_failure blob to replay it.
+FUZZ_RUNS ?= 5
+fuzz: setup
+	@for i in $$(seq $(FUZZ_RUNS)); do \
+	  HYPOTHESIS_PROFILE=fuzz $(BIN)/python -m pytest -q -m "not slow" -p no:cacheprovider \
+	    $$(grep -l "@given" tests/*.py) || exit 1; done
 
 test-all: setup
 	$(BIN)/python -m pytest -n 2 $(PYTEST_ARGS)

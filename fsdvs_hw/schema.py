@@ -160,6 +160,8 @@ def structured(factory: str, what: str) -> Any:
 
 
 def _python_object(value: Any, info: ValidationInfo) -> Any:
+    if value is None:  # a field where None means "default" says so with ``| None``
+        raise PydanticCustomError("object_type", "wrong type None")
     if isinstance(value, (str, bool, int, float)):
         raise PydanticCustomError("object_type", "wrong type {word}", {"word": _word(value)})
     if isinstance(value, Mapping) and info.context is not None and info.context.get("where") == "design":

@@ -9,6 +9,16 @@ import pytest
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 
+# Property tests: `make test` (and CI) draws the same examples every run, so a run passes or fails
+# on the code alone, never on the luck of the draw; `make fuzz` (HYPOTHESIS_PROFILE=fuzz) draws new
+# random examples, many more of them, to look for inputs the fixed draw misses.
+from hypothesis import HealthCheck, settings  # noqa: E402
+
+settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
+settings.register_profile("fuzz", max_examples=1000, derandomize=False, database=None, print_blob=True,
+                          deadline=None, suppress_health_check=list(HealthCheck))
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
 
 def require_tool(name: str) -> str:
     """Return the path of an external program, or skip the test saying how to install it."""
