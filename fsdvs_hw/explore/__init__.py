@@ -11,11 +11,14 @@ Per-clip task evidence (same clips, noise and networks for every kernel) is
 :mod:`~fsdvs_hw.explore.paired`; the losses' confidence intervals come from :mod:`fsdvs_hw.stats`;
 :mod:`~fsdvs_hw.explore.sizing` sizes the test sets from a pilot run; :mod:`~fsdvs_hw.explore.artifacts` writes
 every hardware point's buildable files (SPICE deck, Verilog and testbench, phase profile) and their index.
+With ``[rate] enabled`` every point also gets its losses at equal event rate (:mod:`~fsdvs_hw.explore.matched`,
+on the rate curves of :mod:`~fsdvs_hw.explore.rate`).
 """
 
 from __future__ import annotations
 
 from .design import Design, DesignError, load_design, parse_design
+from .matched import with_matched_rates
 from .scoring import accuracy_losses, fit_realisation, paired_losses, score, with_paired_losses
 from .store import ResultsStore
 from .sweep import DesignPoint, evaluate_point, expand_points, run_design, run_points
@@ -36,6 +39,7 @@ __all__ = [
     "run_exploration",
     "run_points",
     "score",
+    "with_matched_rates",
     "with_paired_losses",
 ]
 

@@ -30,6 +30,8 @@ Layout (every section and key is optional; defaults in brackets)::
                     confidence [0.95], target_half_width [0.01]  (the paired loss CIs)
     [emulation]     enabled, n_clips, n_frames, display_bits, display_gamma, display_peak_nits,
                     display_black_nits, upsample_factor  (fsdvs_hw.explore.emulation)
+    [rate]          enabled [false], thresholds [[0.1, 0.3, 0.45]], references [["delta", "learned"]]
+                    (every point's losses at equal event rate; fsdvs_hw.explore.matched)
     [sweep]         axes = { "asic.bits" = [2, 4, 8], "sensor.threshold_on" = [0.1, 0.2] }
     [run]           workers, seed, max_points [10000]
     [codesign]      enabled [false], realisations [those with a differentiable form], tasks [all],
@@ -202,6 +204,21 @@ class EmulationSection(StrictModel):
     upsample_factor: int = field(4, "", "temporal upsampling before display", ge=1, le=64)
 
 
+class RateSection(StrictModel):
+    """``[rate]``: matched-event-rate losses of every point (fsdvs_hw.explore.matched)."""
+
+    enabled: bool = field(False, "", "measure the reference kernels' rate curves and give every point its losses "
+                          "at equal event rate (costs one task evaluation per reference and threshold)")
+    thresholds: list[Annotated[float, Field(ge=1e-4, le=10.0)]] = field(
+        [0.1, 0.3, 0.45], "", "ON = OFF contrast thresholds (log units) of the reference rate curves, besides the "
+        "one the points were scored at; they must bracket every point's event rate (a rate outside a curve is "
+        "refused, never extrapolated)", min_length=1, max_length=64)
+    references: list[Literal["delta", "learned"]] = field(
+        ["delta", "learned"], "", "reference curves: 'delta' (a plain DVS with its threshold moved: the point's gain "
+        "over it at equal rate) and 'learned' (the kernel being realised: the point's matched-rate loss)",
+        min_length=1, max_length=2)
+
+
 class SweepSection(StrictModel):
     """``[sweep]``: the grid of design points."""
 
@@ -267,7 +284,7 @@ def design_model() -> type[StrictModel]:
     sections = {"design": DesignSection, "kernel": KernelSection, "sensor": SensorSection,
                 "optics": OpticsSection, "analysis": AnalysisSection, "realisations": realisations,
                 "tasks": TasksSection, "scoring": ScoringSection, "emulation": EmulationSection,
-                "sweep": SweepSection, "run": RunSection, "codesign": codesign}
+                "rate": RateSection, "sweep": SweepSection, "run": RunSection, "codesign": codesign}
     model = create_model("DesignFile", __base__=StrictModel,
                          __doc__="A design file of fsdvs_hw (fsdvs_hw.explore.design): every section optional.",
                          **{k: (m, _default(m)) for k, m in sections.items()})

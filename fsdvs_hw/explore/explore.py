@@ -18,6 +18,7 @@ from typing import Any
 from ..paths import output_dir
 from .artifacts import ARTIFACTS_DIR, point_folder_name, write_exploration_artifacts
 from .design import Design, load_design
+from .matched import with_matched_rates
 from .scoring import with_paired_losses
 from .sweep import SweepSummary, run_design
 
@@ -78,6 +79,7 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     summary, rows = run_design(design, store_path, workers=workers, scheduler=scheduler, progress=progress,
                                retry_errors=retry_errors, max_points=max_points, security=security)
     sc = design.spec.scoring
+    rows = with_matched_rates(rows, design, out, progress=progress)  # [rate]: needs the per-clip evidence
     rows = with_paired_losses(rows, task_weights=sc.task_weights or None, n_resamples=sc.n_resamples,
                               confidence=sc.confidence, rng=design.spec.run.seed)
     index, entries = write_exploration_artifacts(rows, out, resolution=tuple(design.spec.sensor.resolution))

@@ -246,6 +246,8 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
             }
             if keep_evidence:
                 rec["evidence"] = [encode_evidence(e.metric) for e in evid]
+                if all(e.clip_event_rates is not None for e in evid):  # matched-rate losses (explore.matched)
+                    rec["clip_event_rates"] = [np.asarray(e.clip_event_rates, dtype=np.float64).tolist() for e in evid]
             out[task][track] = rec
     return out
 
@@ -472,10 +474,14 @@ def paired_losses(points: Iterable[Mapping[str, Any]], *, reference: str = "lear
     return out
 
 
+#: A task track's per-clip fields: kept in ``results.sqlite``, dropped from ``scores.json`` and the report.
+EVIDENCE_FIELDS = frozenset({"evidence", "clip_event_rates"})
+
+
 def with_paired_losses(points: Sequence[Mapping[str, Any]], *, keep_evidence: bool = False,
                        **options: Any) -> list[dict[str, Any]]:
     """Copies of ``points`` with ``"paired_loss"`` (:func:`paired_losses`) and, unless asked, the
-    bulky per-clip ``evidence`` removed (what the report and ``scores.json`` carry)."""
+    bulky per-clip fields (:data:`EVIDENCE_FIELDS`) removed (what the report and ``scores.json`` carry)."""
     points = list(points)
     losses = paired_losses(points, **options)
     out = []
@@ -484,7 +490,8 @@ def with_paired_losses(points: Sequence[Mapping[str, Any]], *, keep_evidence: bo
         q["paired_loss"] = losses.get(p["key"], {"status": "not scored"})
         if not keep_evidence and isinstance(q.get("result"), Mapping) and isinstance(q["result"].get("tasks"), Mapping):
             res = dict(q["result"])
-            res["tasks"] = {t: ({k: ({f: v for f, v in r.items() if f != "evidence"} if isinstance(r, Mapping) else r)
+            res["tasks"] = {t: ({k: ({f: v for f, v in r.items() if f not in EVIDENCE_FIELDS} if isinstance(r, Mapping)
+                                     else r)
                                  for k, r in tracks.items()} if isinstance(tracks, Mapping) else tracks)
                             for t, tracks in res["tasks"].items()}
             q["result"] = res

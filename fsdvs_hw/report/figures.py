@@ -28,6 +28,7 @@ from .tables import accuracy_axis, is_reference, loss_interval
 __all__ = [
     "Panel",
     "fig_kernels",
+    "fig_matched_rate",
     "fig_pareto",
     "fig_radial",
     "fig_spectra",
@@ -306,4 +307,54 @@ def fig_speed(rows: Sequence[Mapping[str, Any]]) -> Any:
     ax.set_ylabel("kernel error vs target (relative L2)")
     ax.grid(alpha=0.3, which="both")
     ax.set_title("speed for accuracy of the realisation fits", fontsize=9)
+    return fig
+
+
+def fig_matched_rate(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> Any:
+    """Task metric against event rate, one panel per task: the reference rate curves and every point.
+
+    The reference curves (``delta``: a plain DVS, ``learned``) are lines through their thresholds;
+    each scored point is a marker at its own event rate. Error bars on both axes are the 95 %
+    bootstrap CIs over (network, clips) clusters (:mod:`fsdvs_hw.explore.matched`); the event-rate
+    axis is logarithmic (events/pixel/s).
+    """
+    pts = [p if isinstance(p, ScoredPoint) else ScoredPoint.from_dict(p) for p in points]
+    recs = [(p, p.extra.get("matched_rate") or {}) for p in pts if p.ok]
+    tasks = list(dict.fromkeys(t for _, m in recs for t, e in m.items() if isinstance(e, Mapping)))
+    fig, axes = _grid(max(1, len(tasks)), w=3.6, h=3.2, cols=3)
+    axes = axes.ravel()
+    for ax, task in zip(axes, tasks):
+        metric_name = ""
+        for p, m in recs:
+            e = m.get(task)
+            if not isinstance(e, Mapping):
+                continue
+            st = style(p.realisation)
+            for row in ([e["curve"]] if "curve" in e else []):
+                r = sorted(row, key=lambda q: q["rate"])
+                x, y = [q["rate"] for q in r], [q["metric"] for q in r]
+                ax.errorbar(x, y, xerr=[np.subtract(x, [q["rate_low"] for q in r]),
+                                        np.subtract([q["rate_high"] for q in r], x)],
+                            yerr=[np.subtract(y, [q["metric_low"] for q in r]),
+                                  np.subtract([q["metric_high"] for q in r], y)],
+                            fmt="-", lw=1.2, alpha=0.8, color=st.colour, capsize=2,
+                            label=f"{st.title}: threshold swept")
+                for q in r:
+                    ax.annotate(f"{q['threshold']:g}", (q["rate"], q["metric"]), fontsize=6, xytext=(3, -8),
+                                textcoords="offset points", color=st.colour)
+            q = e.get("point")
+            if isinstance(q, Mapping):
+                metric_name = q.get("metric_name", metric_name)
+                ax.errorbar([q["rate"]], [q["metric"]], xerr=[[q["rate"] - q["rate_low"]], [q["rate_high"] - q["rate"]]],
+                            yerr=[[q["metric"] - q["metric_low"]], [q["metric_high"] - q["metric"]]],
+                            fmt=st.marker, ms=8, mfc="none", mew=1.6, capsize=3, color=st.colour, zorder=3,
+                            label=point_title(p.realisation, p.params))
+        ax.set_xscale("log")
+        ax.set_xlabel("event rate (events/pixel/s)", fontsize=8)
+        ax.set_ylabel(f"{task} {metric_name}".strip(), fontsize=8)
+        ax.grid(alpha=0.3, which="both")
+        ax.set_title(task, fontsize=9)
+        ax.legend(fontsize=6)
+    for ax in axes[len(tasks):]:
+        ax.set_axis_off()
     return fig

@@ -178,6 +178,79 @@ def _per_task_section(rows: Sequence[Mapping[str, Any]]) -> str:
                     + _table(titled, cols, left=[c for c, _ in cols]))
 
 
+def _ci_cell(rec: Mapping[str, Any] | None, digits: int = 3) -> str:
+    if not isinstance(rec, Mapping):
+        return "–"
+    if rec.get("status") != "ok":
+        return "refused" if str(rec.get("status", "")).startswith("refused") else "–"
+    return f"{rec['estimate']:+.{digits}f} [{rec['low']:+.{digits}f}, {rec['high']:+.{digits}f}]"
+
+
+def _matched_sentence(task: str, rec: Mapping[str, Any]) -> str:
+    """One sentence: does the learned kernel beat a plain DVS whose threshold gives the same event rate?"""
+    if rec.get("status") != "ok":
+        return f"<b>{html.escape(task)}</b>: no matched-rate comparison ({html.escape(str(rec.get('status')))})."
+    est, lo, hi, m = rec["estimate"], rec["low"], rec["high"], html.escape(str(rec["metric_name"]))
+    if lo > 0:
+        words = "the filter's gain holds at equal event rate"
+    elif hi < 0:
+        words = "a plain DVS at that rate does better: the same-threshold gain came from firing more events"
+    else:
+        words = ("no measurable gain at equal event rate: the same-threshold gain is what lowering the threshold "
+                 "gives")
+    return (f"<b>{html.escape(task)}</b>: at equal event rate ({rec['reference_rate']:.3g} events/pixel/s) the learned "
+            f"kernel scores {est:+.3f} [{lo:+.3f}, {hi:+.3f}] {m} against a plain DVS whose threshold is lowered "
+            f"from {rec['reference_threshold']:g} to {rec['matched_threshold']:.3g} (same threshold: "
+            f"{rec['raw_estimate']:+.3f} [{rec['raw_low']:+.3f}, {rec['raw_high']:+.3f}]); {words} "
+            f"({rec['confidence']:.0%} CI, n = {rec['n_clips']} clips in {rec['n_networks']} networks).")
+
+
+def _matched_rate_section(points: Sequence[ScoredPoint]) -> str:
+    """Equal event rate: the metric-vs-rate figure, one sentence per task, the per-point table."""
+    recs = [(p, p.extra.get("matched_rate") or {}) for p in points if p.ok]
+    if not any(m.get("status") == "ok" for _, m in recs):
+        return ""
+    tasks = list(dict.fromkeys(t for _, m in recs for t, e in m.items() if isinstance(e, Mapping)))
+    learned = next((m for p, m in recs if p.realisation == "learned" and not p.params), None) or \
+        next((m for p, m in recs if p.realisation == "learned"), {})
+    said = [_matched_sentence(t, (learned.get(t) or {}).get("gain_over_plain_dvs_at_matched_rate") or
+                              {"status": "no learned point with a plain-DVS curve"}) for t in tasks]
+    table = []
+    for p, m in recs:
+        for t in tasks:
+            e = m.get(t)
+            if not isinstance(e, Mapping):
+                continue
+            q = e.get("point") or {}
+            loss = e.get("loss_at_matched_rate") or {}
+            raw = ({"status": "ok", "estimate": loss["raw_estimate"], "low": loss["raw_low"], "high": loss["raw_high"]}
+                   if loss.get("status") == "ok" else None)
+            table.append({"name": point_title(p.realisation, p.params), "task": t,
+                          "rate": (f"{q['rate']:.3g} [{q['rate_low']:.3g}, {q['rate_high']:.3g}]" if q else "–"),
+                          "raw": _ci_cell(raw), "matched": _ci_cell(loss),
+                          "gain": _ci_cell(e.get("gain_over_plain_dvs_at_matched_rate"))})
+    fig = _figure(
+        figures.fig_matched_rate(points),
+        f"Log-x line and scatter plots, one per task ({_names(tasks)}), of the task metric against the event rate: "
+        "the plain DVS and the learned kernel as their contrast threshold is swept, and every scored point at its "
+        "own threshold, with confidence bars on both axes.",
+        "<b>Task metric vs event rate.</b> Lines: the reference kernels with their ON = OFF threshold swept (labels: "
+        "threshold, log units), in the same networks, clips and noise draws as the points; markers: each point at "
+        "the design's threshold. Bars: 95 % bootstrap CIs over (network, clips) clusters on both axes. A point above "
+        "the plain-DVS line at its own rate beats a plain DVS with a lowered threshold.", fig_id="fig-matched-rate")
+    return ("<h2 id='matched-rate'>Equal event rate</h2><p class='note'>A filter that fires more events can gain "
+            "accuracy the way a lowered threshold does. Here every point is also compared at its own event rate: "
+            "against the learned kernel and against a plain DVS, each with its threshold moved (interpolated in log "
+            "rate, never extrapolated) until it fires as many events.</p><ul class='advice'>"
+            + "".join(f"<li>{x}</li>" for x in said) + "</ul>" + fig
+            + _details("Every point at equal event rate", "<p class='note'>Loss = learned − point (positive: accuracy "
+                       "lost); gain = point − plain DVS; 95 % CIs. 'refused': the point's rate lies outside a "
+                       "reference curve (add thresholds to [rate] thresholds).</p>" + _table(
+                           table, [("name", "point"), ("task", "task"), ("rate", "event rate (events/pixel/s)"),
+                                   ("raw", "loss, same threshold"), ("matched", "loss at equal rate"),
+                                   ("gain", "gain over a plain DVS at equal rate")], left=("name", "task"))))
+
+
 def _score_tables(ok: Sequence[Mapping[str, Any]], methods: Sequence[str]) -> str:
     """The scores split by topic, each a few columns, behind toggles."""
     named = [{**r, "name": point_title(r["realisation"], r.get("params"))} for r in ok]
@@ -369,6 +442,7 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
             "the first kernel (a shape comparison, as in the FS-DVS paper). CSF curves in greys.",
             fig_id="fig-radial"))
         parts.append(_per_task_section(rows))
+        parts.append(_matched_rate_section(points))
         parts.append(_score_tables(ok, methods))
         named = [{**r, "name": point_title(r["realisation"], r.get("params"))} for r in ok]
         hw_kinds = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok if r.get("kind_cost"))]

@@ -136,6 +136,7 @@ def score_rows(
             for name, metric in res.tasks.metrics().items():
                 row[f"metric_{name}"] = _num(metric)
             _loss_columns(row, p.paired_loss)
+            _rate_columns(row, res, p.extra.get("matched_rate") or {})
             emu = res.emulation
             row["emulation_status"] = emu.get("status", "")
             if emu.get("status") == "ok":
@@ -187,6 +188,47 @@ def _loss_columns(row: dict[str, Any], paired: Mapping[str, Any]) -> None:
             row[f"{name}_n_clips"] = int(ci["n_clips"])
             row[f"{name}_n_seeds"] = int(ci["n_seeds_reference"])
             row[f"{name}_loss_text"] = str(ci.get("text", ""))
+
+
+#: Matched-rate comparison (:data:`fsdvs_hw.explore.matched.REFERENCES`) → its column stem.
+MATCHED_COLUMNS: dict[str, str] = {"loss_at_matched_rate": "loss_at_matched_rate",
+                                   "gain_over_plain_dvs_at_matched_rate": "gain_over_plain_dvs_at_matched_rate"}
+
+
+def _rate_columns(row: dict[str, Any], res: Any, matched: Mapping[str, Any]) -> None:
+    """Event rate (simulator track, events/pixel/s with its CI) and the matched-rate comparisons.
+
+    Columns per task ``T``: ``T_event_rate_eps_per_px`` with ``_ci95_low``/``_ci95_high``;
+    ``T_loss_at_matched_rate`` (learned kernel at the point's event rate − point) and
+    ``T_gain_over_plain_dvs_at_matched_rate`` (point − plain DVS at the point's event rate), each
+    with ``_ci95_low``, ``_ci95_high``, ``_status``, ``_text`` and the reference's threshold at
+    that rate (``_threshold``); ``matched_rate_status`` says why there are none.
+    """
+    for task, tracks in res.tasks.tracks.items():
+        tr = tracks.get("simulator")
+        ci = (tr.extra.get("event_rate_per_s") or {}) if tr is not None and tr.ok else {}
+        if "mean" in ci:
+            tag = _ci_tag(float(ci.get("confidence", 0.95)))
+            row[f"{task}_event_rate_eps_per_px"] = float(ci["mean"])
+            row[f"{task}_event_rate_eps_per_px_{tag}_low"] = float(ci["low"])
+            row[f"{task}_event_rate_eps_per_px_{tag}_high"] = float(ci["high"])
+    row["matched_rate_status"] = str(matched.get("status", "not requested"))
+    for task, entry in matched.items():
+        if not isinstance(entry, Mapping):
+            continue
+        for name, stem in MATCHED_COLUMNS.items():
+            rec = entry.get(name)
+            if not isinstance(rec, Mapping):
+                continue
+            col = f"{task}_{stem}"
+            row[f"{col}_status"] = str(rec.get("status", ""))
+            if rec.get("status") == "ok":
+                tag = _ci_tag(float(rec["confidence"]))
+                row[col] = float(rec["estimate"])
+                row[f"{col}_{tag}_low"] = float(rec["low"])
+                row[f"{col}_{tag}_high"] = float(rec["high"])
+                row[f"{col}_threshold"] = float(rec["matched_threshold"])
+            row[f"{col}_text"] = str(rec.get("text", rec.get("status", "")))
 
 
 def loss_interval(row: Mapping[str, Any], column: str) -> tuple[float, float, float]:
