@@ -132,3 +132,39 @@ def test_explore_with_rate_writes_matched_columns_and_resumes(tmp_path, monkeypa
     assert main(["explore", str(design), "--out", str(out), "--no-progress"]) == 0
     again = {r["realisation"]: r for r in json.loads((out / "scores.json").read_text())["rows"]}
     assert again["delta"]["recognition_loss_at_matched_rate"] == delta["recognition_loss_at_matched_rate"]
+
+
+@pytest.mark.slow
+def test_retrained_curves_are_paired_across_thresholds_and_resume(tmp_path, monkeypatch):
+    """The retrained protocol, tiny (recognition, 2 seeds, 1+1 epochs, 64 training clips): a network per
+    threshold and seed, the same clip sets and noise draws at every threshold (so the matched-rate
+    comparison pairs them), fewer events at a higher threshold, and a rerun trains nothing."""
+    pytest.importorskip("torch")
+    from fsdvs_hw.explore import rate_retrained
+    from fsdvs_hw.explore.rate import matched_rate_difference
+    from fsdvs_hw.kernels import load_kernel
+    from fsdvs_hw.tasks.learn import TrainingSettings
+
+    tiny = dict(n_train=64, n_test=16, settings=TrainingSettings(epochs_frozen=1, epochs_joint=1, width=4))
+    learned = load_kernel(KERNELS / "learned_detection_7x7.json")
+    wo = rate_retrained.retrained_rate_curve(None, "recognition", (0.1, 0.2), (0, 1), tmp_path, label="w/o", **tiny)
+    ln = rate_retrained.retrained_rate_curve(learned, "recognition", (0.2, 0.45), (0, 1), tmp_path, label="learned",
+                                             **tiny)
+    assert sorted(p.name for p in (tmp_path / "networks").glob("*.safetensors")) == [
+        "learned_t0p2_s0.safetensors", "learned_t0p2_s1.safetensors", "learned_t0p45_s0.safetensors",
+        "learned_t0p45_s1.safetensors", "w_o_t0p1_s0.safetensors", "w_o_t0p1_s1.safetensors",
+        "w_o_t0p2_s0.safetensors", "w_o_t0p2_s1.safetensors"]
+    for c in (wo, ln):
+        assert {(p.test_seeds, p.sensor_seeds) for p in c.points} == {(c.points[0].test_seeds, (0, 1))}
+        assert c.points[0].rate > c.points[1].rate > 0
+    d = matched_rate_difference(wo, ln, 0.2, n_resamples=200)
+    assert d.n_networks == 2 and d.n_clips == 32 and d.reference_rate == ln.point(0.2).rate
+    assert d.ok == (min(wo.point(0.1).rate, wo.point(0.2).rate) <= d.reference_rate <= wo.point(0.1).rate)
+
+    def no_training(*a, **k):
+        raise AssertionError("retrained a stored network")
+
+    monkeypatch.setattr("fsdvs_hw.tasks.learn.learn_kernel", no_training)
+    monkeypatch.setattr(rate_retrained, "clip_evidence", no_training)
+    again = rate_retrained.retrained_rate_curve(None, "recognition", (0.1, 0.2), (0, 1), tmp_path, label="w/o", **tiny)
+    assert [p.metric for p in again.points] == [p.metric for p in wo.points]

@@ -48,6 +48,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--realisations", nargs="*", default=[], help="also curve these realisations (mesh asic metalens)"
     )
+    parser.add_argument("--protocol", choices=["fixed", "retrained"], default="fixed",
+                        help="fixed: every kernel zero-shot in the design's networks; retrained: networks trained per "
+                        "kernel, threshold and seed (w/o and learned; minutes per network)")
+    parser.add_argument("--seeds", type=int_in(1, 1000), default=3,
+                        help="retrained protocol: networks (training seeds 0..N-1) per kernel and threshold")
+    parser.add_argument("--n-train", type=int_in(2, MAX_CLIPS), default=2048,
+                        help="retrained protocol: training clips per network")
+    parser.add_argument("--zero-shot", action="store_true",
+                        help="retrained protocol: also swap the learned kernel into the w/o networks, threshold swept")
     parser.add_argument("--resolution", nargs=2, type=int_in(1, 100_000), default=[720, 1280], metavar=("H", "W"),
                         help="sensor size for the Mev/s column")
     parser.add_argument("--n-resamples", type=int_in(100, 1_000_000), default=2000, help="bootstrap resamples per CI")
@@ -62,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     study = run_rate_study(RateOptions(
         design=args.design, task=args.task, out=args.out, thresholds=tuple(args.thresholds),
         n_networks=args.networks, n_test=args.n_test, realisations=tuple(args.realisations),
+        protocol=args.protocol, seeds=tuple(range(args.seeds)), n_train=args.n_train, zero_shot=args.zero_shot,
         resolution_px=(args.resolution[0], args.resolution[1]), n_resamples=args.n_resamples,
         progress=False if args.no_progress else None, command=cmd))
     print(study.text)

@@ -61,6 +61,16 @@ class RateOptions:
         Test clips per network (None: the design's ``tasks.n_test`` for the task, else the checkpoint's).
     realisations : sequence of str
         Hardware realisations to add (``"mesh"``, ``"asic"``, ``"metalens"``; fitted with the design's options).
+    protocol : {"fixed", "retrained"}
+        ``"fixed"``: every kernel zero-shot in the design's networks; ``"retrained"``: networks trained
+        per kernel, threshold and seed (:mod:`fsdvs_hw.explore.rate_retrained`; w/o and learned only).
+    seeds : sequence of int
+        Training seeds of the retrained protocol (one network per seed and threshold).
+    n_train : int
+        Training clips per retrained network.
+    zero_shot : bool
+        Retrained protocol: also swap the learned kernel zero-shot into the w/o networks trained at the
+        design's threshold, with its threshold swept (the paper's transfer experiment at matched rate).
     resolution_px : (int, int)
         Sensor size for the Mev/s column (default 720 × 1280, the IMX636 whose pitch the design uses).
     n_resamples : int
@@ -78,6 +88,10 @@ class RateOptions:
     n_networks: int | None = None
     n_test: int | None = None
     realisations: tuple[str, ...] = ()
+    protocol: str = "fixed"
+    seeds: tuple[int, ...] = (0, 1, 2)
+    n_train: int = 2048
+    zero_shot: bool = False
     resolution_px: tuple[int, int] = (720, 1280)
     n_resamples: int = 2000
     confidence: float = 0.95
@@ -129,6 +143,10 @@ def run_rate_study(options: RateOptions) -> RateStudy:
     from .scoring import fit_realisation
 
     design = load_design(resolve_design(options.design))
+    if options.protocol == "retrained":
+        return _retrained_study(design, options)
+    if options.protocol != "fixed":
+        raise InputError(f"--protocol {options.protocol!r}; allowed: 'fixed', 'retrained'")
     ckpts = design.checkpoints()
     if options.task not in ckpts:
         raise InputError(f"--task {options.task!r}: not in the design's tasks.checkpoints; allowed: {', '.join(ckpts)}")
@@ -166,9 +184,6 @@ def run_rate_study(options: RateOptions) -> RateStudy:
     }
     for name in options.realisations:
         comparisons[f"{name}_vs_wo_at_{name}_rate"] = matched_rate_difference(curves["w/o"], curves[name], t_ref, **kw)
-    rows = [r for c in curves.values() for r in c.summary(confidence=options.confidence,
-                                                          n_resamples=options.n_resamples, rng=0,
-                                                          resolution_px=options.resolution_px)]
     settings = {"design": str(options.design), "task": options.task, "thresholds": list(thresholds),
                 "reference_threshold": t_ref, "n_networks": len(paths), "n_test_per_network": n_test,
                 "test_clips": test_clips, "sensor": "design" if design_sensor else "checkpoint",
@@ -176,6 +191,14 @@ def run_rate_study(options: RateOptions) -> RateStudy:
                 "n_resamples": options.n_resamples, "confidence": options.confidence,
                 "protocol": "fixed networks (phase 1): every kernel zero-shot in the shipped networks trained with "
                             "the learned kernel"}
+    return _write_study(options, out, curves, comparisons, settings)
+
+
+def _write_study(options: RateOptions, out: Path, curves: dict[str, RateCurve], comparisons: dict[str, Any],
+                 settings: dict[str, Any]) -> RateStudy:
+    rows = [r for c in curves.values() for r in c.summary(confidence=options.confidence,
+                                                          n_resamples=options.n_resamples, rng=0,
+                                                          resolution_px=options.resolution_px)]
     provenance = {"command": options.command, "versions": library_versions(),
                   "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
     files = {
@@ -187,3 +210,50 @@ def run_rate_study(options: RateOptions) -> RateStudy:
              "provenance": provenance}, indent=1, default=str)),
     }
     return RateStudy(curves=curves, comparisons=comparisons, rows=rows, files=files)
+
+
+def _retrained_study(design: Any, options: RateOptions) -> RateStudy:
+    """The retrained protocol (and the zero-shot swap at matched rate) for one task."""
+    from .rate_retrained import network_stem, retrained_rate_curve
+
+    if options.realisations:
+        raise InputError("--realisations: the retrained protocol trains networks for w/o and the learned kernel only; "
+                         "allowed: none (use the fixed protocol for realisations)")
+    sensor = design.spec.sensor
+    if sensor.threshold_on != sensor.threshold_off:
+        raise InputError(f"sensor.threshold_on={sensor.threshold_on} != threshold_off={sensor.threshold_off}: the "
+                         "rate curve sets both together; allowed: equal thresholds")
+    t_ref = float(sensor.threshold_on)
+    thresholds = tuple(sorted(set(options.thresholds) | {t_ref}))
+    n_test = options.n_test or 256
+    out = output_dir(options.out, flag="--out")
+    common: dict[str, Any] = dict(n_train=options.n_train, n_test=n_test, progress=options.progress)
+    curves = {"w/o": retrained_rate_curve(None, options.task, thresholds, options.seeds, out, label="w/o", **common),
+              "learned": retrained_rate_curve(design.target, options.task, thresholds, options.seeds, out,
+                                              label="learned", **common)}
+    kw: dict[str, Any] = dict(confidence=options.confidence, n_resamples=options.n_resamples, rng=0)
+    comparisons: dict[str, Any] = {
+        "learned_vs_wo_at_learned_rate": matched_rate_difference(curves["w/o"], curves["learned"], t_ref, **kw),
+        "wo_vs_learned_at_wo_rate": matched_rate_difference(curves["learned"], curves["w/o"], t_ref, **kw),
+    }
+    if options.zero_shot:  # the learned kernel swapped into the w/o networks trained at t_ref, threshold swept
+        wo_nets = [out / "networks" / f"{network_stem('w/o', t_ref, s)}.safetensors" for s in options.seeds]
+        swap_ts = tuple(t for t in thresholds if t >= t_ref)
+        curves["learned swapped into w/o networks"] = rate_curve(
+            design.target, options.task, wo_nets, swap_ts, n_test=n_test, label="learned swapped into w/o networks",
+            cache_dir=out / "points_zero_shot", progress=options.progress)
+        wo_point = RateCurve(kernel_name="w/o", task=options.task, metric_name=curves["w/o"].metric_name,
+                             test_clips="per_network", points=(curves["w/o"].point(t_ref),))
+        comparisons["wo_vs_swapped_learned_at_wo_rate"] = matched_rate_difference(
+            curves["learned swapped into w/o networks"], wo_point, t_ref, **kw)
+    settings = {"design": str(options.design), "task": options.task, "thresholds": list(thresholds),
+                "reference_threshold": t_ref, "n_networks": len(options.seeds), "seeds": list(options.seeds),
+                "n_train": options.n_train, "n_test_per_network": n_test, "test_clips": "per_network",
+                "resolution_px": list(options.resolution_px), "n_resamples": options.n_resamples,
+                "confidence": options.confidence,
+                "protocol": "retrained: a network per kernel, threshold and seed, trained at that threshold with the "
+                            "kernel frozen (tasks.learn_kernel, shipped settings); network i scores clip set i with "
+                            "sensor seed offset i at every threshold" + (
+                                "; zero-shot: the learned kernel swapped into the w/o networks trained at the "
+                                "reference threshold" if options.zero_shot else "")}
+    return _write_study(options, out, curves, comparisons, settings)
