@@ -104,3 +104,16 @@ def test_refusals():
     video, ts = calibration_video(80, 8, 8)
     ev = event_list(video, config=SensorConfig.ideal(0.2), timestamps_s=ts)
     assert math.isfinite(calibrate_sensor(ev, video, timestamps_s=ts, n_boot=20).estimates["threshold_on"].value)
+
+
+@pytest.mark.slow  # ~6 s on 2 cores
+def test_leak_and_heavy_noise_do_not_bias_the_thresholds():
+    """Static border pixels (leak and noise only) stay out of the threshold fit after the leak
+    correction; a 5 Hz shot noise leaves the per-pixel medians on the thresholds."""
+    video, ts = calibration_video(1500, 12, 16)  # 1.5 s: static pixels collect enough noise pairs to matter
+    truth = SensorConfig.ideal(0.2, threshold_sigma=0.03, leak_rate_hz=0.5, shot_noise_rate_hz=5.0,
+                               random_reference_phase=True, seed=3)
+    ev = event_list(video, config=truth, timestamps_s=ts)
+    cal = calibrate_sensor(ev, video, timestamps_s=ts, config=SensorConfig.ideal(0.2), n_boot=100)
+    _check_thresholds(cal, truth, video)
+    _check_all_covered(cal, truth, ("shot_noise_rate_hz", "leak_rate_hz", "refractory_s"))

@@ -181,7 +181,7 @@ def _photoreceptor(video: Any, timestamps_s: Any, config: SensorConfig) -> _Phot
         vid = vid[None]
     if vid.ndim != 4 or vid.shape[0] != 1:
         raise InputError(f"video: expected (T, H, W) or (1, T, H, W) intensities, got shape {tuple(vid.shape)}")
-    vid, w, ts, cfg, _, _ = _resolve(vid, None, timestamps_s, config, None)
+    vid, w, ts, cfg = _resolve(vid, None, timestamps_s, config, None)[:4]  # type: ignore[misc]
     with torch.no_grad():
         sig = filtered_log_signal(vid, w, cfg)
         L = sig.log_signal[0].to(torch.float64).reshape(vid.shape[1], -1).numpy()
@@ -388,7 +388,7 @@ def calibrate_sensor(recording: Any, video: Any = None, *, timestamps_s: Any = N
     # a pair that lost crossings to the refractory period R is closer than 2 R: fit the thresholds on
     # pairs at least twice the 0.1 % quantile of the intervals apart (about 2 R), refined once R is known
     min_dt = 2.0 * float(np.quantile(pairs.dt[right_sign], 0.001)) if right_sign.any() else 0.0
-    map_on, map_off = _thresholds(est, pairs, n_pix, min_events, n_boot, level, rng, min_dt)
+    map_on, map_off = _thresholds(est, pairs, n_pix, min_events, n_boot, level, rng, min_dt, np.ones(n_pix, bool))
     c_on, c_min = est["threshold_on"].value, min(est["threshold_on"].value, est["threshold_off"].value)
     static = np.abs(np.diff(grid_L, axis=0)).sum(axis=0) < 0.25 * c_min
     leak = 0.0
@@ -406,17 +406,20 @@ def calibrate_sensor(recording: Any, video: Any = None, *, timestamps_s: Any = N
     if "refractory_s" in est and est["refractory_s"].value > 0:
         min_dt = max(min_dt, 2.0 * est["refractory_s"].high)
     if leak > 0 or "refractory_s" in est:
-        _thresholds(est, pairs, n_pix, min_events, n_boot, level, rng, min_dt)
+        # static pixels only see leak and noise events: with the leak's drift undone their pairs
+        # would look like (noise-corrupted) thresholds, so the threshold fit leaves them out
+        _thresholds(est, pairs, n_pix, min_events, n_boot, level, rng, min_dt, ~static)
     return SensorCalibration(est, base.replace(**{k: e.value for k, e in est.items()}), level, notes)
 
 
 def _thresholds(est: dict[str, Estimate], pairs: _Pairs, n_pix: int, min_events: int, n_boot: int,
-                level: float, rng: np.random.Generator, min_dt: float) -> tuple[np.ndarray, np.ndarray]:
+                level: float, rng: np.random.Generator, min_dt: float,
+                active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Fill the threshold estimates; return the per-pixel ON and OFF threshold maps (nan: too few pairs)."""
     meds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     maps: dict[str, np.ndarray] = {}
     for name, sign in (("threshold_on", 1), ("threshold_off", -1)):
-        sel = (pairs.pol == sign) & (sign * pairs.d > 0) & (pairs.dt >= min_dt)
+        sel = (pairs.pol == sign) & (sign * pairs.d > 0) & (pairs.dt >= min_dt) & active[pairs.pix]
         ids, med, var_med = _per_pixel_median(pairs.pix[sel], sign * pairs.d[sel], n_pix, min_events)
         if ids.size < 3:
             raise InputError(f"calibrate_sensor: only {ids.size} pixels with {min_events} or more "

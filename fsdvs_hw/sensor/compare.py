@@ -49,7 +49,8 @@ from ..errors import InputError
 __all__ = ["EventComparison", "compare_events", "event_columns", "plot_event_comparison"]
 
 
-def event_columns(events: Any, shape: tuple[int, int] | None = None) -> tuple[np.ndarray, ...]:
+def event_columns(events: Any, shape: tuple[int, int] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, int]:
     """``(t_s float64, x int64, y int64, p int8, height, width)`` of an EventList, EventFile or file path.
 
     ``shape`` = (height, width) where the events do not carry it (an EventList); default the

@@ -179,6 +179,9 @@ def _v2e_preset(name: str, description: str, code_place: str) -> SensorPreset:
     return SensorPreset(name, description, values)
 
 
+# a camera has been running before a recording starts: each pixel's leak cycle is at a random phase
+# (as v2e's presets with leak); otherwise the first leak event of every pixel comes 1 / leak_rate_hz late
+_CAMERA_BASE: dict[str, Any] = {"random_reference_phase": True}
 _LICHTSTEINER = "Lichtsteiner, Posch & Delbruck, IEEE JSSC 43(2), 2008"
 _FINATEU = "Finateu et al., ISSCC 2020, paper 5.10"
 
@@ -202,6 +205,7 @@ _PRESET_LIST = [
             "shot_noise_rate_hz": _ass(1e-3, "light-dependent; v2e's default 0.001 Hz"),
             "latency_s": _pub(15e-6, f"{_LICHTSTEINER}, title (15 µs at high illuminance)"),
         },
+        _CAMERA_BASE,
     ),
     SensorPreset(
         "davis346", "DAVIS346 (iniVation AG datasheet; the DAVIS pixel of Brandli et al., IEEE JSSC 2014, DAVIS240)",
@@ -220,6 +224,7 @@ _PRESET_LIST = [
             "shot_noise_rate_hz": _ass(1e-3, _V2E_TUNED),
             "latency_s": _ass(None, _NOT_MODELLED),
         },
+        _CAMERA_BASE,
     ),
     SensorPreset(
         "imx636", "Prophesee Gen4.1 / Sony IMX636, as in the EVK4 (Finateu et al., ISSCC 2020)",
@@ -238,6 +243,7 @@ _PRESET_LIST = [
             "shot_noise_rate_hz": _ass(1e-3, "light-dependent, no published value checked here; v2e's 0.001 Hz"),
             "latency_s": _ass(None, _NOT_MODELLED),
         },
+        _CAMERA_BASE,
     ),
     _v2e_preset("v2e-clean", "v2e --dvs_params clean (v2e's frame mapping)",
                 "v2ecore/emulator.py set_dvs_params('clean')"),

@@ -74,7 +74,7 @@ _MAX_HEADER_BYTES = 1 << 20
 
 def _wizard(encoding: str) -> Any:
     try:
-        from expelliarmus import Wizard
+        from expelliarmus import Wizard  # type: ignore[import-untyped]
     except ImportError:
         raise ToolMissingError("Prophesee RAW/DAT files need expelliarmus: pip install 'fsdvs_hw[eventfiles]' "
                                "(or pip install expelliarmus)") from None
@@ -269,6 +269,7 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
     w, h = hw or width, hh or height
     n_max = (size - body) // word
     check_allocation(f"event file {str(p)!r}: up to {n_max} events", n_max * (_EVENT_BYTES + 16))
+    arr: np.ndarray | None
     if encoding == "evt3":
         arr = decode_evt3(np.fromfile(p, dtype="<u2", offset=body), path=p)
     else:
