@@ -38,7 +38,8 @@ import numpy as np
 from ..errors import InputError
 from ..kernels import Kernel
 
-__all__ = ["DisplaySettings", "display_luminance", "emulation_scores", "recapture", "upsample_linear"]
+__all__ = ["DisplaySettings", "camera_config", "display_luminance", "emulation_scores", "recapture",
+           "upsample_linear"]
 
 
 @dataclass(frozen=True)
@@ -154,8 +155,29 @@ def _sensor_config(sensor: Mapping[str, Any], seed: int, frame_rate_hz: float) -
                         positivity=sensor["positivity"], frame_rate_hz=frame_rate_hz, seed=seed)
 
 
+def camera_config(camera: str, design_sensor: Any) -> Any:
+    """The recapturing camera's SensorConfig: ``"design"`` (the design's sensor) or a preset name.
+
+    A preset (:mod:`fsdvs_hw.sensor.presets`) brings its thresholds, mismatch, refractory period,
+    bandwidth and noise; the frame rate and seed stay the design's.
+
+    Examples
+    --------
+    >>> from fsdvs_hw.sensor import SensorConfig
+    >>> camera_config("imx636", SensorConfig(seed=3)).seed
+    3
+    >>> camera_config("design", SensorConfig(threshold_on=0.3)).threshold_on
+    0.3
+    """
+    if camera == "design":
+        return design_sensor
+    from ..sensor.presets import sensor_config
+
+    return sensor_config(camera, frame_rate_hz=design_sensor.frame_rate_hz, seed=design_sensor.seed)
+
+
 def emulation_scores(kernel: Kernel, *, sensor: Mapping[str, Any], emulation: Mapping[str, Any],
-                     seed: int = 0) -> dict[str, Any]:
+                     seed: int = 0, camera: str | None = None) -> dict[str, Any]:
     """Compare the in-sensor FS-DVS with its sensor-in-the-loop emulation on synthetic clips.
 
     Parameters
@@ -166,6 +188,10 @@ def emulation_scores(kernel: Kernel, *, sensor: Mapping[str, Any], emulation: Ma
         A design's ``[sensor]`` section (thresholds, mismatch, placement, positivity, resolution).
     emulation : mapping
         A design's ``[emulation]`` section (display, upsampling, ``n_clips``, ``n_frames``).
+    camera : str, optional
+        The recapturing camera: ``"design"`` (default: the design's sensor, as before) or a sensor
+        preset name such as ``"imx636"`` (the paper's EVK4), see :func:`camera_config`; a
+        ``camera`` entry of ``emulation`` is used when this is not given.
     seed : int
         Scene and sensor seed.
 
@@ -192,7 +218,8 @@ def emulation_scores(kernel: Kernel, *, sensor: Mapping[str, Any], emulation: Ma
         ref = event_frames(torch.as_tensor(clips.video), torch.as_tensor(np.array(kernel.taps)),
                            timestamps_s=torch.as_tensor(clips.timestamps_s), config=cfg)
     display = DisplaySettings.from_design(emulation)
-    rec, info = recapture(clips.video, clips.timestamps_s, kernel, display=display, sensor=cfg)
+    rec, info = recapture(clips.video, clips.timestamps_s, kernel, display=display,
+                          sensor=camera_config(camera or emulation.get("camera", "design"), cfg))
     a = (ref[:, :, 0] - ref[:, :, 1]).numpy().ravel()
     b = (rec[:, :, 0] - rec[:, :, 1]).numpy().ravel()
     corr = float(np.corrcoef(a, b)[0, 1]) if a.std() > 0 and b.std() > 0 else 0.0

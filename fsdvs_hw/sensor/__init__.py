@@ -14,13 +14,21 @@ voxel_grid            time-binned events (from an EventList or, differentiably, 
 EventSimulator        nn.Module wrapper; kernel as Parameter or buffer, swappable per call
 plan_model / ModelPlan  the scene decides which effects run; every decision with its numbers
 simulate / collect    streaming: any iterable of frames chunk by chunk, state carried (bit-exact)
+sensor_preset / sensor_config   named cameras (DVS128, DAVIS346, IMX636, v2e sets), every value sourced
+read_recording        a camera's file (Prophesee RAW EVT2/EVT3, DAT, DSEC h5, v2e h5, AEDAT4, npz)
+compare_events        simulation vs recording: rates, alignment, polarity, pixel maps, intervals, noise
+calibrate_sensor      thresholds, spread, refractory, noise, bandwidth fitted to a recording, with CIs
 """
 
+from .calibrate import SensorCalibration, calibrate_sensor
+from .compare import EventComparison, compare_events
 from .config import PLACEMENTS, POSITIVITY_MODES, SURROGATES, SensorConfig
 from .events import EventList, EventSimulator, SimulationInfo, event_frames, event_list, voxel_grid
 from .filtering import mesh_surround_steady_state
 from .pixel import linlog
 from .plan import ModelPlan, PlanDecision, SceneStats, plan_model
+from .presets import SensorPreset, sensor_config, sensor_preset
+from .recordings import read_recording
 from .stream import EventChunk, collect, simulate
 
 __all__ = [
@@ -28,19 +36,27 @@ __all__ = [
     "POSITIVITY_MODES",
     "SURROGATES",
     "EventChunk",
+    "EventComparison",
     "EventList",
     "EventSimulator",
     "ModelPlan",
     "PlanDecision",
     "SceneStats",
+    "SensorCalibration",
     "SensorConfig",
+    "SensorPreset",
     "SimulationInfo",
+    "calibrate_sensor",
     "collect",
+    "compare_events",
     "event_frames",
     "event_list",
     "linlog",
     "mesh_surround_steady_state",
     "plan_model",
+    "read_recording",
+    "sensor_config",
+    "sensor_preset",
     "simulate",
     "voxel_grid",
 ]
