@@ -57,6 +57,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="retrained protocol: training clips per network")
     parser.add_argument("--zero-shot", action="store_true",
                         help="retrained protocol: also swap the learned kernel into the w/o networks, threshold swept")
+    parser.add_argument("--illuminance-lux", type=float, default=None,
+                        help="fixed protocol: photon shot noise of the scene at this sensor-plane illuminance (lx, at "
+                        "full scale), and noise_budget.json (which noise fires the events at each threshold)")
+    parser.add_argument("--quantum-efficiency", type=float, default=0.5,
+                        help="photoelectrons per photon for --illuminance-lux")
     parser.add_argument("--resolution", nargs=2, type=int_in(1, 100_000), default=[720, 1280], metavar=("H", "W"),
                         help="sensor size for the Mev/s column")
     parser.add_argument("--n-resamples", type=int_in(100, 1_000_000), default=2000, help="bootstrap resamples per CI")
@@ -71,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
     study = run_rate_study(RateOptions(
         design=args.design, task=args.task, out=args.out, thresholds=tuple(args.thresholds),
         n_networks=args.networks, n_test=args.n_test, realisations=tuple(args.realisations),
+        illuminance_lux=args.illuminance_lux, quantum_efficiency=args.quantum_efficiency,
         protocol=args.protocol, seeds=tuple(range(args.seeds)), n_train=args.n_train, zero_shot=args.zero_shot,
         resolution_px=(args.resolution[0], args.resolution[1]), n_resamples=args.n_resamples,
         progress=False if args.no_progress else None, command=cmd))

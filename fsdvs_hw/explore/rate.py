@@ -509,7 +509,7 @@ def rate_curve(kernel: Kernel | None, task: str, checkpoints: Sequence[str | Pat
                thresholds: Sequence[float] = DEFAULT_THRESHOLDS, *, n_test: int | None = None,
                design_sensor: Mapping[str, Any] | None = None, test_clips: str = "per_network",
                label: str | None = None, cache_dir: str | Path | None = None, progress: bool | None = None,
-               on_point: Callable[[RatePoint], None] | None = None) -> RateCurve:
+               on_point: Callable[[RatePoint], None] | None = None, events_fn: Any = None) -> RateCurve:
     """Measure a kernel's event rate and task metric at each contrast threshold, in fixed networks.
 
     Parameters
@@ -539,6 +539,10 @@ def rate_curve(kernel: Kernel | None, task: str, checkpoints: Sequence[str | Pat
         Progress bar over (threshold, network) evaluations (:mod:`fsdvs_hw.progress`).
     on_point : callable, optional
         Called with each finished point (loaded or computed).
+    events_fn : callable, optional
+        Replaces the simulator (:func:`fsdvs_hw.tasks.learn.evaluate_kernel`'s ``events_fn``), e.g.
+        :class:`fsdvs_hw.sensor.photon_noise.PhotonNoise` for photon shot noise of the scene; its
+        ``repr`` enters the saved points' fingerprint.
 
     Returns
     -------
@@ -565,6 +569,8 @@ def rate_curve(kernel: Kernel | None, task: str, checkpoints: Sequence[str | Pat
     with progress_bar(total=len(ts) * len(paths), desc=f"rate curve {name}", unit="eval", progress=progress) as bar:
         for t in ts:
             fp = _fingerprint(kernel, task, paths, n_test, test_clips, design_sensor, t)
+            if events_fn is not None:
+                fp = hashlib.sha1(f"{fp}|{events_fn!r}".encode()).hexdigest()[:16]
             file = cache / f"{slug}_t{t:g}.json" if cache is not None else None
             if file is not None and file.is_file():
                 stored = json.loads(file.read_text())
@@ -578,7 +584,7 @@ def rate_curve(kernel: Kernel | None, task: str, checkpoints: Sequence[str | Pat
                     continue
             evid = []
             for s, ckpt in enumerate(paths):
-                evid.append(clip_evidence(kernel, task, ckpt, n_test=n_test, sensor=_sensor_at(ckpt, design_sensor, t),
+                evid.append(clip_evidence(kernel, task, ckpt, n_test=n_test, sensor=_sensor_at(ckpt, design_sensor, t), events_fn=events_fn,
                                           seed_offset=s, clip_set=s if test_clips == "per_network" else 0))
                 bar.update(1)
             if any(e.clip_event_rates is None for e in evid):

@@ -71,6 +71,13 @@ class RateOptions:
     zero_shot : bool
         Retrained protocol: also swap the learned kernel zero-shot into the w/o networks trained at the
         design's threshold, with its threshold swept (the paper's transfer experiment at matched rate).
+    illuminance_lux : float or None
+        Fixed protocol: add photon shot noise of the scene at this sensor-plane illuminance (lx) at
+        full scale (:mod:`fsdvs_hw.sensor.photon_noise`, the design's pixel pitch, one frame interval
+        of integration), and write ``noise_budget.json``/``.csv`` (:func:`fsdvs_hw.explore.noise_budget.noise_budget`:
+        which noise fires the events at each threshold). None: no photon noise.
+    quantum_efficiency : float
+        Photoelectrons per photon for ``illuminance_lux``.
     resolution_px : (int, int)
         Sensor size for the Mev/s column (default 720 × 1280, the IMX636 whose pitch the design uses).
     n_resamples : int
@@ -92,6 +99,8 @@ class RateOptions:
     seeds: tuple[int, ...] = (0, 1, 2)
     n_train: int = 2048
     zero_shot: bool = False
+    illuminance_lux: float | None = None
+    quantum_efficiency: float = 0.5
     resolution_px: tuple[int, int] = (720, 1280)
     n_resamples: int = 2000
     confidence: float = 0.95
@@ -169,8 +178,9 @@ def run_rate_study(options: RateOptions) -> RateStudy:
     design_sensor = design.section("sensor") if tasks["sensor"] == "design" else None
     test_clips = str(tasks.get("test_clips", "per_network"))
     out = output_dir(options.out, flag="--out")
+    photon = _photon_noise(options, design, paths[0])
     common: dict[str, Any] = dict(n_test=n_test, design_sensor=design_sensor, test_clips=test_clips, cache_dir=out / "points",
-                  progress=options.progress)
+                  progress=options.progress, events_fn=photon)
     kernels: dict[str, Any] = {"w/o": None, "learned": design.target}
     for name in options.realisations:
         real, _ = fit_realisation(name, design.target, design.realisation_options(name),
@@ -190,8 +200,44 @@ def run_rate_study(options: RateOptions) -> RateStudy:
                 "networks": [p.name for p in paths], "resolution_px": list(options.resolution_px),
                 "n_resamples": options.n_resamples, "confidence": options.confidence,
                 "protocol": "fixed networks (phase 1): every kernel zero-shot in the shipped networks trained with "
-                            "the learned kernel"}
-    return _write_study(options, out, curves, comparisons, settings)
+                            "the learned kernel",
+                "photon_noise": None if photon is None else {
+                    "illuminance_lux": options.illuminance_lux, "quantum_efficiency": options.quantum_efficiency,
+                    "photoelectrons_full_scale": photon.photoelectrons_full_scale, "pitch_m": float(sensor.pitch_m),
+                    "model": "Poisson photoelectrons per frame interval before the kernel (fsdvs_hw.sensor.photon_noise)"}}
+    study = _write_study(options, out, curves, comparisons, settings)
+    if photon is not None:
+        study.files.update(_write_noise_budget(options, out, design.target, paths[0], thresholds, photon,
+                                               n_test or 64, settings))
+    return study
+
+
+def _photon_noise(options: RateOptions, design: Any, checkpoint: Path) -> Any:
+    """The photon-noise ``events_fn`` of ``--illuminance-lux`` (None without it)."""
+    if options.illuminance_lux is None:
+        return None
+    from ..sensor.photon_noise import PhotonNoise, photoelectrons_per_frame
+    from ..tasks.learn import load_checkpoint
+
+    fps = float(load_checkpoint(checkpoint)[0]["scene"].get("frame_rate_hz", 100.0))
+    n = photoelectrons_per_frame(illuminance_lux=options.illuminance_lux, pitch_m=float(design.spec.sensor.pitch_m),
+                                 quantum_efficiency=options.quantum_efficiency, frame_interval_s=1.0 / fps)
+    return PhotonNoise(photoelectrons_full_scale=n, seed=int(design.spec.run.seed))
+
+
+def _write_noise_budget(options: RateOptions, out: Path, target: Any, checkpoint: Path, thresholds: Sequence[float],
+                        photon: Any, n_test: int, settings: dict[str, Any]) -> dict[str, Path]:
+    from .noise_budget import noise_budget
+
+    rows = [{"kernel": name, **r} for name, k in (("w/o", None), ("learned", target))
+            for r in noise_budget(k, options.task, checkpoint, thresholds,
+                                  photoelectrons_full_scale=photon.photoelectrons_full_scale, n_test=n_test,
+                                  seed=photon.seed)]
+    meta = {"settings": settings, "checkpoint": checkpoint.name, "n_clips": n_test,
+            "provenance": {"command": options.command, "versions": library_versions(),
+                           "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}}
+    return {"noise_budget.json": write_output(out / "noise_budget.json", json.dumps({**meta, "rows": rows}, indent=1)),
+            "noise_budget.csv": write_output(out / "noise_budget.csv", _csv(rows))}
 
 
 def _write_study(options: RateOptions, out: Path, curves: dict[str, RateCurve], comparisons: dict[str, Any],
