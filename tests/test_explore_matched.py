@@ -150,7 +150,7 @@ def test_retrained_curves_are_paired_across_thresholds_and_resume(tmp_path, monk
     wo = rate_retrained.retrained_rate_curve(None, "recognition", (0.1, 0.2), (0, 1), tmp_path, label="w/o", **tiny)
     ln = rate_retrained.retrained_rate_curve(learned, "recognition", (0.2, 0.45), (0, 1), tmp_path, label="learned",
                                              **tiny)
-    assert sorted(p.name for p in (tmp_path / "networks").glob("*.safetensors")) == [
+    assert sorted(p.name for p in (tmp_path / "networks" / "n_train64").glob("*.safetensors")) == [
         "learned_t0p2_s0.safetensors", "learned_t0p2_s1.safetensors", "learned_t0p45_s0.safetensors",
         "learned_t0p45_s1.safetensors", "w_o_t0p1_s0.safetensors", "w_o_t0p1_s1.safetensors",
         "w_o_t0p2_s0.safetensors", "w_o_t0p2_s1.safetensors"]

@@ -35,7 +35,7 @@ from ..progress import progress_bar
 from .paired import clip_evidence
 from .rate import RateCurve, RatePoint, _check_thresholds
 
-__all__ = ["network_stem", "retrained_networks", "retrained_rate_curve"]
+__all__ = ["network_stem", "networks_dir", "retrained_networks", "retrained_rate_curve"]
 
 
 def _slug(name: str) -> str:
@@ -48,6 +48,11 @@ def _sensor(task: str, threshold: float) -> Any:
 
     base = default_sensor(get_evaluator(task).default_scene())
     return dataclasses.replace(base, threshold_on=float(threshold), threshold_off=float(threshold))
+
+
+def networks_dir(out_dir: str | Path, n_train: int) -> Path:
+    """Folder of the retrained networks of a study (one per training-set size)."""
+    return Path(out_dir) / "networks" / f"n_train{int(n_train)}"
 
 
 def network_stem(label: str, threshold: float, seed: int) -> str:
@@ -118,7 +123,7 @@ def retrained_rate_curve(kernel: Kernel | None, task: str, thresholds: Sequence[
     seeds : sequence of int
         Training seeds: one network per seed and threshold (≥ 3 for a seed-variance estimate).
     out_dir : path
-        ``networks/`` and ``points/`` are kept here (resume).
+        ``networks/n_train{N}/`` (:func:`networks_dir`) and ``points/`` are kept here (resume).
     label : str
     n_train, n_test : int
         Training clips per network; test clips each network scores (its clip set ``i``).
@@ -161,7 +166,7 @@ def retrained_rate_curve(kernel: Kernel | None, task: str, thresholds: Sequence[
                 metric_name = stored["metric_name"]
                 all_ckpts.extend(stored.get("checkpoints", []))
                 continue
-        ckpts = retrained_networks(kernel, task, t, seeds, out / "networks", label=label, n_train=n_train,
+        ckpts = retrained_networks(kernel, task, t, seeds, networks_dir(out, n_train), label=label, n_train=n_train,
                                    n_test=n_test, settings=settings, progress=progress)
         sensor = _sensor(task, t)
         evid = [clip_evidence(kernel, task, c, n_test=n_test, sensor=sensor, seed_offset=i, clip_set=i)

@@ -260,7 +260,7 @@ def _write_study(options: RateOptions, out: Path, curves: dict[str, RateCurve], 
 
 def _retrained_study(design: Any, options: RateOptions) -> RateStudy:
     """The retrained protocol (and the zero-shot swap at matched rate) for one task."""
-    from .rate_retrained import network_stem, retrained_rate_curve
+    from .rate_retrained import network_stem, networks_dir, retrained_rate_curve
 
     if options.realisations:
         raise InputError("--realisations: the retrained protocol trains networks for w/o and the learned kernel only; "
@@ -283,7 +283,8 @@ def _retrained_study(design: Any, options: RateOptions) -> RateStudy:
         "wo_vs_learned_at_wo_rate": matched_rate_difference(curves["learned"], curves["w/o"], t_ref, **kw),
     }
     if options.zero_shot:  # the learned kernel swapped into the w/o networks trained at t_ref, threshold swept
-        wo_nets = [out / "networks" / f"{network_stem('w/o', t_ref, s)}.safetensors" for s in options.seeds]
+        wo_nets = [networks_dir(out, options.n_train) / f"{network_stem('w/o', t_ref, s)}.safetensors"
+                   for s in options.seeds]
         swap_ts = tuple(t for t in thresholds if t >= t_ref)
         curves["learned swapped into w/o networks"] = rate_curve(
             design.target, options.task, wo_nets, swap_ts, n_test=n_test, label="learned swapped into w/o networks",
