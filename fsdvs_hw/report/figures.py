@@ -27,6 +27,7 @@ from .tables import accuracy_axis, is_reference, loss_interval
 
 __all__ = [
     "Panel",
+    "fig_cost_fronts",
     "fig_kernels",
     "fig_pareto",
     "fig_radial",
@@ -306,4 +307,40 @@ def fig_speed(rows: Sequence[Mapping[str, Any]]) -> Any:
     ax.set_ylabel("kernel error vs target (relative L2)")
     ax.grid(alpha=0.3, which="both")
     ax.set_title("speed for accuracy of the realisation fits", fontsize=9)
+    return fig
+
+
+def fig_cost_fronts(rows: Sequence[Mapping[str, Any]]) -> Any:
+    """Accuracy loss (CI bars) against each cross-kind physical cost (:data:`fsdvs_hw.costs.CROSS_KIND_COSTS`).
+
+    One panel per cost, every kind on the same axes (symmetric-log x, so a zero cost shows);
+    rings mark ``front_<cost>`` (:func:`fsdvs_hw.report.costs.mark_cost_fronts`).
+    """
+    from ..costs import CROSS_KIND_COSTS
+
+    acc, acc_label = accuracy_axis(rows)
+    ok = [r for r in rows if r["status"] == "ok" and "power_w" in r]
+    fig, axes = _grid(len(CROSS_KIND_COSTS), w=3.2, h=3.0, cols=4)
+    for ax, (cost, (unit, words)) in zip(axes.ravel(), CROSS_KIND_COSTS.items()):
+        vals = [_val(r, cost) for r in ok]
+        positive = [v for v in vals if v > 0]
+        for kind in dict.fromkeys(r["realisation"] for r in ok):
+            g = [r for r in ok if r["realisation"] == kind and not math.isnan(_val(r, cost))]
+            if not g:
+                continue
+            y, lo, hi = zip(*(loss_interval(r, acc) for r in g))
+            _errorbar(ax, kind, [_val(r, cost) for r in g], y, lo, hi, label=style(kind).title)
+            for r, yi in zip(g, y):
+                if r.get(f"front_{cost}"):
+                    ax.scatter([_val(r, cost)], [yi], s=260, facecolors="none", edgecolors=style(kind).colour, lw=1.0)
+        if positive:
+            ax.set_xscale("symlog", linthresh=min(positive) / 2)
+        else:
+            ax.text(0.5, 0.5, "not measured", ha="center", va="center", transform=ax.transAxes)
+        ax.axhline(0.0, color="0.5", lw=0.8)
+        ax.set_xlabel(f"{words} ({unit.replace('^2', '²')})", fontsize=8)
+        ax.set_ylabel(_short(acc_label), fontsize=8)
+        ax.grid(alpha=0.3, which="both")
+        ax.tick_params(labelsize=7)
+    axes.ravel()[0].legend(fontsize=7)
     return fig
