@@ -90,7 +90,7 @@ def test_metalens_photon_budget_against_hand_computation():
              "sensor_distance": 187e-6}
     figs, _ = metalens_cost(items, A, pitch_m=PITCH)
     # photons per lux-second-m² at 555 nm: (1/683 W/m²) / (h c / 555 nm = 3.5793e-19 J) = 4.0906e15
-    assert PHOTONS_PER_LUX_S_M2 == pytest.approx(4.0906e15, rel=1e-4)
+    assert pytest.approx(4.0906e15, rel=1e-4) == PHOTONS_PER_LUX_S_M2
     # N = 10 lx x 4.0906e15 x (4.86 µm)² x QE 0.5 x 1 ms x 0.72 = 347.9 photoelectrons
     assert figs["photoelectrons"].value == pytest.approx(10 * 4.0906e15 * PITCH**2 * 0.5 * 1e-3 * 0.72, rel=1e-4)
     # ΔSNR = 20 log10(0.4658) + 10 log10(0.72) = -6.636 - 1.427 = -8.063 dB

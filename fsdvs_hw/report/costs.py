@@ -208,8 +208,9 @@ def cost_text(value: float, cost: str) -> str:
 
 def cost_advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     """The cost verdict in sentences: per ``costs.*`` setting, the cheapest realisation in each cost
-    whose loss's upper CI bound is within ``costs.loss_budget``; then every limit broken (a readout
-    that cannot carry the event rate first)."""
+    whose loss's upper CI bound is within ``costs.loss_budget`` (with every other whose cost CI
+    reaches below the cheapest's upper bound: a measured event rate is not ranked inside its CI);
+    then every limit broken (a readout that cannot carry the event rate first)."""
     acc, _ = accuracy_axis(rows)
     what = "loss" if acc.endswith("_loss") else "kernel error"
     groups = _groups(rows)
@@ -234,10 +235,11 @@ def cost_advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
             if not known:
                 parts.append(f"{words}: not measured (no task ran)" if cost == "event_rate_eps" else f"{words}: –")
                 continue
-            low = min(_num(r[cost]) for r in known)
-            cheapest = [r for r in known if _num(r[cost]) == low]
-            parts.append(f"{words}: " + " and ".join(point_title(r["realisation"], _own_params(r)) for r in cheapest)
-                         + f" ({cost_text(low, cost)})")
+            best = min(known, key=lambda r: _num(r[cost]))
+            top = _cost_interval(best, cost)[2]  # a measured cost (event rate) ties within its CI
+            cheapest = [r for r in known if _cost_interval(r, cost)[1] <= top]
+            parts.append(f"{words}: " + " and ".join(f"{point_title(r['realisation'], _own_params(r))} "
+                                                      f"({cost_text(_num(r[cost]), cost)})" for r in cheapest))
         out.append(f"{head}Cheapest within the loss budget ({what} ≤ {number(budget)} at the upper CI bound, "
                    f"costs.loss_budget): " + "; ".join(parts) + ".")
     flagged = [r for g in groups.values() for r in g if r.get("cost_flags")]

@@ -13,6 +13,7 @@ one scale and one colour bar.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -22,7 +23,7 @@ import numpy as np
 
 from ..kernels import Kernel
 from ..records import ScoredPoint
-from .present import number, params_text, point_title, style
+from .present import number, params_text, point_title, si, style
 from .tables import accuracy_axis, is_reference, loss_interval
 
 __all__ = [
@@ -330,13 +331,21 @@ def fig_cost_fronts(rows: Sequence[Mapping[str, Any]]) -> Any:
                 continue
             y, lo, hi = zip(*(loss_interval(r, acc) for r in g))
             _errorbar(ax, kind, [_val(r, cost) for r in g], y, lo, hi, label=style(kind).title)
+            moves = len({_val(r, cost) for r in g}) > 1  # the cost changes with the costs.* setting
             for r, yi in zip(g, y):
                 if r.get(f"front_{cost}"):
                     ax.scatter([_val(r, cost)], [yi], s=260, facecolors="none", edgecolors=style(kind).colour, lw=1.0)
-        if positive:
+                swept = [_number(k, v) for k, v in _params(r).items() if k.startswith("costs.")]
+                if moves and swept and len(g) <= 8:
+                    ax.annotate(", ".join(swept), (_val(r, cost), yi), fontsize=6, xytext=(0, 12), ha="center",
+                                textcoords="offset points", rotation=90, va="bottom")
+        if positive and len(positive) == len([v for v in vals if not math.isnan(v)]):
+            ax.set_xscale("log")
+        elif positive:
             ax.set_xscale("symlog", linthresh=min(positive) / 2)
         else:
             ax.text(0.5, 0.5, "not measured", ha="center", va="center", transform=ax.transAxes)
+        ax.xaxis.set_minor_formatter("")
         ax.axhline(0.0, color="0.5", lw=0.8)
         ax.set_xlabel(f"{words} ({unit.replace('^2', '²')})", fontsize=8)
         ax.set_ylabel(_short(acc_label), fontsize=8)
@@ -344,3 +353,15 @@ def fig_cost_fronts(rows: Sequence[Mapping[str, Any]]) -> Any:
         ax.tick_params(labelsize=7)
     axes.ravel()[0].legend(fontsize=7)
     return fig
+
+
+def _number(key: str, v: Any) -> str:
+    """A swept ``costs.*`` value, with an SI prefix where the key names its unit (``45 nm``)."""
+    unit = {"_m": "m", "_v": "V", "_hz": "Hz", "_s": "s"}
+    suffix = next((u for s, u in unit.items() if key.endswith(s)), None)
+    return si(v, suffix) if suffix and isinstance(v, (int, float)) else number(v) if isinstance(v, float) else str(v)
+
+
+def _params(r: Mapping[str, Any]) -> dict[str, Any]:
+    p = r.get("params") or {}
+    return json.loads(p) if isinstance(p, str) and p.strip() else dict(p) if isinstance(p, Mapping) else {}
