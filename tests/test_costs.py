@@ -53,6 +53,10 @@ def test_mesh_cost_against_hand_computation():
     assert figs["area_m2"].value == pytest.approx(107.938e-12, rel=1e-6)
     assert figs["fill_factor"].value == 0.0 and "does not fit" in flags[0]  # 108 µm² > 23.6 µm² pixel
     assert figs["latency_s"].value == 5e-6  # the slower mesh's tau
+    assert "mismatch_error" not in figs
+    # mismatch: sensitivity 3.28 x sigma 0.05 = 0.164 relative kernel error
+    assert mesh_cost({**items, "mismatch_sensitivity": 3.28}, A, pitch_m=PITCH)[0]["mismatch_error"].value == \
+        pytest.approx(0.164)
     # a smaller capacitor fits: 2 x 10 fF / 2 fF/µm² = 10 µm²; fill factor 1 - 17.938 / 23.62
     figs, flags = mesh_cost({**items, "node_capacitance": 1e-14}, A, pitch_m=PITCH)
     assert figs["fill_factor"].value == pytest.approx(1 - 17.938e-12 / PITCH**2, rel=1e-6) and not flags

@@ -19,6 +19,9 @@ Defaults and their sources
 * ``transistor_area_f2 = 80``: Horowitz's 8-bit adder (36 µm² at 45 nm) over the 224 transistors
   of 8 mirror full adders (28 each): 0.16 µm² = 79 F² per transistor, laid out. Analog devices
   sized for matching are larger; raise it for them.
+* ``mesh_mismatch_sigma = 0.05``: a stated 5 % relative conductance mismatch, the order of
+  subthreshold current mismatch of small devices (M. Pelgrom et al., "Matching properties of MOS
+  transistors", IEEE JSSC 24(5), 1989, gives the area law; the value is the user's to set).
 * The others (analog supply, bias model, capacitor density, clock, sample rate, photon budget,
   loss budget) are stated assumptions: typical values, no single source.
 
@@ -50,6 +53,9 @@ class CostAssumptions(StrictModel):
     digital_supply_v: float = field(0.9, "V", "supply of the digital filter (ASIC); Horowitz's tables are at 0.9 V",
                                     ge=0.3, le=5.0)
     analog_supply_v: float = field(1.8, "V", "supply the mesh's bias currents are drawn from", ge=0.3, le=5.0)
+    mesh_mismatch_sigma: float = field(0.05, "", "relative die-level mismatch σ of the mesh's conductances (the "
+                                       "mismatch-driven kernel error is the fit's sensitivity times it)",
+                                       ge=0.0, le=1.0)
     temperature_k: float = field(300.0, "K", "die temperature (sets the thermal voltage kT/q)", ge=200.0, le=450.0)
     subthreshold_slope: float = field(0.7, "", "subthreshold slope factor κ of the mesh's transistors",
                                       gt=0.3, le=1.0)

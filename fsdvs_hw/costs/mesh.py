@@ -21,6 +21,8 @@ Model (stated; every parameter a ``[costs]`` key of :class:`~fsdvs_hw.costs.assu
   capacitance realised as a MIM capacitor, a worst case: part of it may be parasitic). The
   photodiode keeps :math:`1 - A / p^2` of the pixel (``fill_factor``); the mesh does not fit when
   :math:`A > p^2`.
+* **Mismatch**: the relative kernel error expected from a relative die-level conductance mismatch
+  σ (``costs.mesh_mismatch_sigma``) is the fit's ``mismatch_sensitivity`` times σ (first order).
 * **Latency**: the slower mesh's settling time constant :math:`\tau = C / g_v` (one time constant,
   63 % settled), as the fit reports it.
 
@@ -68,7 +70,7 @@ def mesh_cost(items: Mapping[str, float], a: CostAssumptions, *, pitch_m: float,
     items : mapping
         The mesh's stored cost items by name, values in their SI units: ``g_lateral_narrow``,
         ``g_vertical_narrow``, ``g_lateral_wide``, ``g_vertical_wide`` (S), ``node_capacitance``
-        (F), ``tau_narrow``, ``tau_wide`` (s).
+        (F), ``tau_narrow``, ``tau_wide`` (s); optionally ``mismatch_sensitivity`` (1).
     a : CostAssumptions
         The ``[costs]`` section.
     pitch_m : float
@@ -80,7 +82,8 @@ def mesh_cost(items: Mapping[str, float], a: CostAssumptions, *, pitch_m: float,
     -------
     figures, flags
         ``power_w`` (array), ``power_per_pixel_w``, ``area_m2`` (per pixel), ``fill_factor``,
-        ``latency_s``; flags in words (the mesh does not fit in the pixel).
+        ``latency_s``, ``mismatch_error`` (when ``items`` has ``mismatch_sensitivity``); flags in
+        words (the mesh does not fit in the pixel).
     """
     ut = thermal_voltage_v(a.temperature_k)
     g_l = [items["g_lateral_narrow"], items["g_lateral_wide"]]
@@ -109,6 +112,10 @@ def mesh_cost(items: Mapping[str, float], a: CostAssumptions, *, pitch_m: float,
                                   f"1 - mesh area / pixel area ({pitch_m:g} m pitch)"),
         "latency_s": CostFigure(tau, "s", "the slower mesh's settling time constant C/g_v (fit)"),
     }
+    if "mismatch_sensitivity" in items:
+        figs["mismatch_error"] = CostFigure(items["mismatch_sensitivity"] * a.mesh_mismatch_sigma, "1",
+                                           "fit's mismatch_sensitivity x costs.mesh_mismatch_sigma = "
+                                           f"{a.mesh_mismatch_sigma:g} (relative kernel error)")
     flags = []
     if area > pixel_area:
         flags.append(f"the mesh ({area * 1e12:.3g} µm²) does not fit in the {pixel_area * 1e12:.3g} µm² pixel")

@@ -52,7 +52,7 @@ COST_WORDS: Mapping[str, str] = {"power_w": "least power", "area_m2": "least sil
 #: Figures a kind adds to the four cross-kind costs, flattened into the rows when present.
 _EXTRA = ("power_per_pixel_w", "energy_per_pixel_j", "array_area_m2", "fill_factor", "readout_limit_eps",
           "readout_utilisation", "photon_snr_change_db", "photon_snr_db", "photoelectrons", "dynamic_range_cost_db",
-          "thickness_m", "yosys_area_m2", "lanes")
+          "thickness_m", "yosys_area_m2", "lanes", "mismatch_error")
 
 
 def _num(x: Any) -> float:
