@@ -321,7 +321,7 @@ def fig_cost_fronts(rows: Sequence[Mapping[str, Any]]) -> Any:
 
     acc, acc_label = accuracy_axis(rows)
     ok = [r for r in rows if r["status"] == "ok" and "power_w" in r]
-    fig, axes = _grid(len(CROSS_KIND_COSTS), w=3.2, h=3.0, cols=4)
+    fig, axes = _grid(len(CROSS_KIND_COSTS), w=3.0, h=3.0, cols=4)  # whole pixels at 96 and 192 dpi
     for ax, (cost, (unit, words)) in zip(axes.ravel(), CROSS_KIND_COSTS.items()):
         vals = [_val(r, cost) for r in ok]
         positive = [v for v in vals if v > 0]
