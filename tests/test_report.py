@@ -175,7 +175,7 @@ def test_explore_end_to_end_writes_a_self_contained_report(tmp_path, monkeypatch
     html = (out / "report.html").read_text()
     assert "src=\"http" not in html and "<script" not in html  # nothing fetched from elsewhere
     imgs = _pngs(html)
-    assert set(imgs) == {"kernels", "spectra", "radial", "pareto", "speed"}
+    assert set(imgs) == {"kernels", "spectra", "radial", "pareto", "costs", "speed"}
     import matplotlib.image as mpimg
 
     for name, png in imgs.items():

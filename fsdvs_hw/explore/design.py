@@ -34,6 +34,11 @@ Layout (every section and key is optional; defaults in brackets)::
                     (every point's losses at equal event rate; fsdvs_hw.explore.matched)
     [sweep]         axes = { "asic.bits" = [2, 4, 8], "sensor.threshold_on" = [0.1, 0.2] }
     [run]           workers, seed, max_points [10000]
+    [costs]         process_node_m [45e-9], digital_supply_v [0.9], analog_supply_v [1.8], clock_hz,
+                    sample_rate_hz, array_resolution [[720, 1280]], readout_limit_eps [1.066e9],
+                    sensor_illuminance_lux, loss_budget, ...  (fsdvs_hw.costs.assumptions; the
+                    physical cost records: a sweep over these keys re-costs the stored points
+                    without refitting them)
     [codesign]      enabled [false], realisations [those with a differentiable form], tasks [all],
                     cells ["realisation/task", ...; all], seeds [3] (networks per task), epochs [4],
                     n_train [0 = the checkpoint's], lr_network [1e-3], lr_filter [1e-2],
@@ -65,6 +70,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, ValidationError, create_model
 
+from ..costs.assumptions import CostAssumptions
 from ..csf import CSF_METHODS
 from ..errors import InputError, KernelError
 from ..kernels import (
@@ -284,7 +290,8 @@ def design_model() -> type[StrictModel]:
     sections = {"design": DesignSection, "kernel": KernelSection, "sensor": SensorSection,
                 "optics": OpticsSection, "analysis": AnalysisSection, "realisations": realisations,
                 "tasks": TasksSection, "scoring": ScoringSection, "emulation": EmulationSection,
-                "rate": RateSection, "sweep": SweepSection, "run": RunSection, "codesign": codesign}
+                "rate": RateSection, "sweep": SweepSection, "run": RunSection, "codesign": codesign,
+                "costs": CostAssumptions}
     model = create_model("DesignFile", __base__=StrictModel,
                          __doc__="A design file of fsdvs_hw (fsdvs_hw.explore.design): every section optional.",
                          **{k: (m, _default(m)) for k, m in sections.items()})
@@ -581,6 +588,8 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
                                       if k in dumped}
     if data["design"]["name"] is None:
         data["design"]["name"] = "design"
+    if "costs" not in raw:  # a design without [costs] keeps its content and fingerprint (defaults apply)
+        del data["costs"]
     base = Path(base_dir)
     _check_cross(chk, data)
     _expand_checkpoint_patterns(chk, data, base, confine_paths)

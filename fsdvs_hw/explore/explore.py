@@ -17,6 +17,7 @@ from typing import Any
 
 from ..paths import output_dir
 from .artifacts import ARTIFACTS_DIR, point_folder_name, write_exploration_artifacts
+from .costing import with_physical_costs
 from .design import Design, load_design
 from .matched import with_matched_rates
 from .scoring import with_paired_losses
@@ -47,7 +48,9 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     After every point has run, each point's task losses against the learned kernel are computed
     with paired bootstrap CIs (:func:`fsdvs_hw.explore.scoring.paired_losses`); the points handed to
     the report (and :attr:`Exploration.points`) carry them as ``"paired_loss"``, without the bulky
-    per-clip evidence (which stays in ``results.sqlite``).
+    per-clip evidence (which stays in ``results.sqlite``), and each carries its physical cost record
+    (``"physical_cost"``, and ``"physical_cost_sweep"`` over the design's ``costs.*`` sweep axes:
+    :func:`fsdvs_hw.explore.costing.with_physical_costs`).
 
     Parameters
     ----------
@@ -87,6 +90,7 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
         name = point_folder_name(row["realisation"], row.get("params") or {})
         row["artifacts"] = [{**e, "file": f"{ARTIFACTS_DIR}/{e['file']}" if e.get("file") else ""}
                             for e in entries if e["point"] == name]
+    rows = with_physical_costs(rows, design)  # SI cost records, and per [costs] sweep setting (issue 25)
     if design.spec.codesign.enabled:  # the fit-then-swap / fine-tune / co-designed rows (issue 16)
         from .codesign import run_codesign, write_codesign
 

@@ -3,7 +3,8 @@
 A *design point* is one realisation (``learned``, ``delta``, ``mesh``, ``asic``, ``metalens``) with
 one setting of the sweep axes that concern it: axes under a realisation (``asic.bits``) multiply
 only that realisation's points; axes elsewhere (``sensor.threshold_on``, ``kernel.params.sigma_px``)
-multiply every point. Each point carries everything a worker needs (validated design data and the
+multiply every point; axes over ``[costs]`` keys build no points (they re-cost the stored ones,
+:mod:`fsdvs_hw.explore.costing`). Each point carries everything a worker needs (validated design data and the
 target taps), so remote Dask workers need no files, and a key that hashes exactly what decides its
 result (its own realisation options, not the others').
 
@@ -108,13 +109,19 @@ def _point_key(realisation: str, design: Design) -> str:
     return hashlib.sha1(blob.encode()).hexdigest()[:20]
 
 
+def _scored_axes(design: Design) -> dict[str, list[Any]]:
+    """The axes that change a point's score: all but ``costs.*``, which only re-cost stored points
+    (:func:`fsdvs_hw.explore.costing.with_physical_costs`)."""
+    return {k: v for k, v in axis_values(design).items() if not k.startswith("costs.")}
+
+
 def count_points(design: Design) -> int:
     """How many design points :func:`expand_points` builds at most (before removing duplicates).
 
     Computed from the axis lengths alone: (product of the global axes) × Σ over realisations of
     (product of that realisation's axes).
     """
-    axes = axis_values(design)
+    axes = _scored_axes(design)
     n_global = math.prod(len(v) for k, v in axes.items() if not k.startswith("realisations."))
     per_real = sum(math.prod(len(v) for k, v in axes.items() if k.startswith(f"realisations.{name}."))
                    for name in design.realisations)
@@ -153,7 +160,7 @@ def expand_points(design: Design, *, max_points: int | None = None) -> list[Desi
     (:func:`check_sweep_size`).
     """
     check_sweep_size(design, max_points)
-    axes = axis_values(design)
+    axes = _scored_axes(design)
     global_axes = {k: v for k, v in axes.items() if not k.startswith("realisations.")}
     points: list[DesignPoint] = []
     seen: set[str] = set()

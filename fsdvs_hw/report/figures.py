@@ -13,6 +13,7 @@ one scale and one colour bar.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -22,11 +23,12 @@ import numpy as np
 
 from ..kernels import Kernel
 from ..records import ScoredPoint
-from .present import number, params_text, point_title, style
+from .present import number, params_text, point_title, si, style
 from .tables import accuracy_axis, is_reference, loss_interval
 
 __all__ = [
     "Panel",
+    "fig_cost_fronts",
     "fig_kernels",
     "fig_matched_rate",
     "fig_pareto",
@@ -358,3 +360,59 @@ def fig_matched_rate(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> Any:
     for ax in axes[len(tasks):]:
         ax.set_axis_off()
     return fig
+
+
+def fig_cost_fronts(rows: Sequence[Mapping[str, Any]]) -> Any:
+    """Accuracy loss (CI bars) against each cross-kind physical cost (:data:`fsdvs_hw.costs.CROSS_KIND_COSTS`).
+
+    One panel per cost, every kind on the same axes (symmetric-log x, so a zero cost shows);
+    rings mark ``front_<cost>`` (:func:`fsdvs_hw.report.costs.mark_cost_fronts`).
+    """
+    from ..costs import CROSS_KIND_COSTS
+
+    acc, acc_label = accuracy_axis(rows)
+    ok = [r for r in rows if r["status"] == "ok" and "power_w" in r]
+    fig, axes = _grid(len(CROSS_KIND_COSTS), w=3.0, h=3.0, cols=4)  # whole pixels at 96 and 192 dpi
+    for ax, (cost, (unit, words)) in zip(axes.ravel(), CROSS_KIND_COSTS.items()):
+        vals = [_val(r, cost) for r in ok]
+        positive = [v for v in vals if v > 0]
+        for kind in dict.fromkeys(r["realisation"] for r in ok):
+            g = [r for r in ok if r["realisation"] == kind and not math.isnan(_val(r, cost))]
+            if not g:
+                continue
+            y, lo, hi = zip(*(loss_interval(r, acc) for r in g))
+            _errorbar(ax, kind, [_val(r, cost) for r in g], y, lo, hi, label=style(kind).title)
+            moves = len({_val(r, cost) for r in g}) > 1  # the cost changes with the costs.* setting
+            for r, yi in zip(g, y):
+                if r.get(f"front_{cost}"):
+                    ax.scatter([_val(r, cost)], [yi], s=260, facecolors="none", edgecolors=style(kind).colour, lw=1.0)
+                swept = [_number(k, v) for k, v in _params(r).items() if k.startswith("costs.")]
+                if moves and swept and len(g) <= 8:
+                    ax.annotate(", ".join(swept), (_val(r, cost), yi), fontsize=6, xytext=(0, 12), ha="center",
+                                textcoords="offset points", rotation=90, va="bottom")
+        if positive and len(positive) == len([v for v in vals if not math.isnan(v)]):
+            ax.set_xscale("log")
+        elif positive:
+            ax.set_xscale("symlog", linthresh=min(positive) / 2)
+        else:
+            ax.text(0.5, 0.5, "not measured", ha="center", va="center", transform=ax.transAxes)
+        ax.xaxis.set_minor_formatter("")
+        ax.axhline(0.0, color="0.5", lw=0.8)
+        ax.set_xlabel(f"{words} ({unit.replace('^2', '²')})", fontsize=8)
+        ax.set_ylabel(_short(acc_label), fontsize=8)
+        ax.grid(alpha=0.3, which="both")
+        ax.tick_params(labelsize=7)
+    axes.ravel()[0].legend(fontsize=7)
+    return fig
+
+
+def _number(key: str, v: Any) -> str:
+    """A swept ``costs.*`` value, with an SI prefix where the key names its unit (``45 nm``)."""
+    unit = {"_m": "m", "_v": "V", "_hz": "Hz", "_s": "s"}
+    suffix = next((u for s, u in unit.items() if key.endswith(s)), None)
+    return si(v, suffix) if suffix and isinstance(v, (int, float)) else number(v) if isinstance(v, float) else str(v)
+
+
+def _params(r: Mapping[str, Any]) -> dict[str, Any]:
+    p = r.get("params") or {}
+    return json.loads(p) if isinstance(p, str) and p.strip() else dict(p) if isinstance(p, Mapping) else {}

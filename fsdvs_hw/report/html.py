@@ -29,6 +29,7 @@ from ..paths import write_output
 from ..records import Cost, ScoredPoint
 from . import figures
 from .artifacts import artifacts_html
+from .costs import cost_section, with_cost_columns
 from .present import cost_label, number, plain, point_title, si, style, title
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
 from .verdict import VERDICT_COLUMNS, advice, loss_header, verdict_table
@@ -375,7 +376,7 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
     """
     points = _typed(points)
     data = design.to_dict()
-    rows = score_rows(points)
+    rows = with_cost_columns(score_rows(points), points)  # power_w, area_m2, ... (issue 25)
     ok = [r for r in rows if r["status"] == "ok"]
     acc, acc_label = accuracy_axis(rows)
     methods = data["analysis"]["csf_methods"]
@@ -415,6 +416,7 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
             + "Rings: on the Pareto front beyond the CIs (across kinds in the first panel, within the kind in the "
             "others). Hollow markers of different shapes, so coinciding "
             "points stay visible; one colour per realisation in every figure.", fig_id="fig-pareto"))
+        parts.append(cost_section(rows, points, _figure))  # physical costs across kinds (issue 25)
         panels = figures.realised_kernels(points)
         pnames = _names([p.label for p in panels])
         parts.append("<h2 id='kernels'>Kernels</h2>" + _figure(
@@ -522,7 +524,7 @@ def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any,
         if (out / name).is_symlink():
             raise InputError(f"--out: {out / name} is a symbolic link; refusing to write through it (remove the link)")
     points = _typed(points)
-    write_scores(score_rows(points), out, full=[p.to_dict() for p in points], design=design_stamp(design))
+    write_scores(with_cost_columns(score_rows(points), points), out, full=[p.to_dict() for p in points], design=design_stamp(design))
     path = out / "report.html"
     sections = []
     if (out / "codesign.json").is_file() and design.spec.codesign.enabled:  # issue 16 rows

@@ -118,6 +118,9 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
        cost: "from C: P, loss ..." (the loss each budget buys).
     3. What is not worth building: points off the across-kinds front, except the cheaper steps of a
        kind that has a point on it (they are in its budget ladder).
+    4. Where the points carry physical costs: the cheapest realisation in power, area, latency and
+       event rate within the loss budget, and every readout-limit breach
+       (:func:`fsdvs_hw.report.costs.cost_advice`).
     """
     ok = [r for r in rows if r.get("status") == "ok"]
     hardware = [r for r in ok if not is_reference(str(r["realisation"]))]
@@ -159,6 +162,9 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
                    f"{what} and CSF agreement): "
                    + "; ".join(f"{point_title(str(r['realisation']), r.get('params'))}, {phrase(r)}"
                                for r in dominated) + ".")
+    from .costs import cost_advice
+
+    out.extend(cost_advice(rows))  # cheapest per physical cost within the loss budget; readout breaches
     if not acc.endswith("_loss"):
         out.append("No task evaluator ran (no [tasks] checkpoints): points are ranked by kernel error (relative L2 "
                    "against the target), not by accuracy loss.")

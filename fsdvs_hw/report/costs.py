@@ -1,0 +1,321 @@
+"""The cross-kind cost front: physical costs in the score rows, their fronts, verdict and section.
+
+Every stored point carries a physical cost record (:mod:`fsdvs_hw.costs`, attached by
+:func:`fsdvs_hw.explore.costing.with_physical_costs`). This module
+
+* flattens it into the score rows (:func:`with_cost_columns`, :func:`cost_columns`): ``power_w`` (array, W),
+  ``power_per_pixel_w``, ``area_m2`` (silicon per pixel, m²), ``fill_factor``, ``latency_s``,
+  ``event_rate_eps`` (events/s of the array, with ``event_rate_eps_low``/``_high``, its CI),
+  ``readout_limit_eps``, ``readout_exceeded``, the kind's own figures (``energy_per_pixel_j``,
+  ``photon_snr_change_db``, ``dynamic_range_cost_db``, ...), ``cost_flags`` and ``loss_budget``;
+* marks, for each cost of :data:`fsdvs_hw.costs.CROSS_KIND_COSTS`, the hardware points that no
+  other dominates beyond the loss CIs in (loss, that cost), across kinds, within each setting of
+  the ``costs.*`` sweep axes (``front_power_w``, ...; :func:`mark_cost_fronts`);
+* repeats the rows once per setting of the ``costs.*`` sweep axes (:func:`sweep_rows`, from the
+  points' ``physical_cost_sweep``), so the fronts and the verdict show where the ranking flips;
+* says in words which realisation is cheapest in each cost among those whose loss stays within
+  ``costs.loss_budget`` (upper CI bound), and every limit broken, a readout that cannot carry the
+  event rate first (:func:`cost_advice`), and renders the report's section (:func:`cost_section`).
+
+Examples
+--------
+>>> rows = [{"status": "ok", "realisation": "asic", "params": "{}", "kernel_error": 0.01, "power_w": 0.01,
+...          "area_m2": 1e-14, "latency_s": 5e-4, "event_rate_eps": 2e9, "readout_limit_eps": 1.066e9,
+...          "readout_exceeded": True, "loss_budget": 0.02,
+...          "cost_flags": "event rate 2e+09 events/s exceeds the readout limit 1.066e+09 events/s"}]
+>>> mark_cost_fronts(rows)
+>>> rows[0]["front_power_w"]
+True
+>>> cost_advice(rows)[-1].startswith("Readout limit exceeded")
+True
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+from ..costs import CROSS_KIND_COSTS, PhysicalCost
+from .present import number, point_title, si
+from .tables import accuracy_axis, is_reference, loss_interval, uncertain_pareto_front
+
+__all__ = ["COST_WORDS", "cost_advice", "cost_columns", "cost_section", "cost_text", "mark_cost_fronts",
+           "sweep_rows", "with_cost_columns"]
+
+#: How the verdict names the cheapest in each cross-kind cost.
+COST_WORDS: Mapping[str, str] = {"power_w": "least power", "area_m2": "least silicon per pixel",
+                                 "latency_s": "least added latency", "event_rate_eps": "fewest events"}
+
+#: Figures a kind adds to the four cross-kind costs, flattened into the rows when present.
+_EXTRA = ("power_per_pixel_w", "energy_per_pixel_j", "array_area_m2", "fill_factor", "readout_limit_eps",
+          "readout_utilisation", "photon_snr_change_db", "photon_snr_db", "photoelectrons", "dynamic_range_cost_db",
+          "thickness_m", "yosys_area_m2", "lanes", "mismatch_error")
+
+
+def _num(x: Any) -> float:
+    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else math.nan
+
+
+def cost_columns(record: Mapping[str, Any]) -> dict[str, Any]:
+    """The score-row columns of one point's physical cost record (module docstring; units in the names)."""
+    pc = PhysicalCost.from_dict(record)
+    out: dict[str, Any] = {"cost_status": pc.status}
+    for name in (*CROSS_KIND_COSTS, *_EXTRA):
+        if name in pc.figures:
+            out[name] = pc.value(name)
+    rate = pc.figures.get("event_rate_eps")
+    if rate is not None and not math.isnan(rate.low):
+        out["event_rate_eps_low"], out["event_rate_eps_high"] = rate.low, rate.high
+    out["readout_exceeded"] = bool(pc.value("event_rate_eps") > pc.value("readout_limit_eps"))
+    out["cost_flags"] = " | ".join(pc.flags)
+    out["loss_budget"] = _num(pc.assumptions.get("loss_budget"))
+    return out
+
+
+def with_cost_columns(rows: Sequence[Mapping[str, Any]], points: Sequence[Any]) -> list[dict[str, Any]]:
+    """Copies of the score ``rows`` with each point's physical cost columns and ``front_<cost>`` flags.
+
+    Parameters
+    ----------
+    rows : sequence of mappings
+        :func:`fsdvs_hw.report.tables.score_rows` of ``points`` (matched by ``key``).
+    points : sequence of ScoredPoint
+        Those with a ``physical_cost`` record (:mod:`fsdvs_hw.explore.costing`) give their rows
+        :func:`cost_columns`; the others are unchanged.
+    """
+    records = {p.key: p.extra["physical_cost"] for p in points if isinstance(p.extra.get("physical_cost"), Mapping)}
+    out = [{**r, **cost_columns(records[r["key"]])} if r.get("key") in records and r.get("status") == "ok"
+           else dict(r) for r in rows]
+    if records:
+        mark_cost_fronts(out)
+    return out
+
+
+def sweep_rows(rows: Sequence[Mapping[str, Any]], points: Sequence[Any]) -> list[dict[str, Any]]:
+    """The score rows once per ``costs.*`` sweep setting, with that setting's cost columns and fronts.
+
+    Parameters
+    ----------
+    rows : sequence of mappings
+        :func:`fsdvs_hw.report.tables.score_rows` of ``points`` (matched by ``key``).
+    points : sequence of ScoredPoint
+        The stored points; those with ``physical_cost_sweep`` (:mod:`fsdvs_hw.explore.costing`)
+        give one row per setting, its values added to ``params``.
+
+    Returns
+    -------
+    list of dict
+        ``rows`` itself (copied) when no point carries a sweep.
+    """
+    sweeps = {p.key: p.extra["physical_cost_sweep"] for p in points
+              if isinstance(p.extra.get("physical_cost_sweep"), (list, tuple))}
+    if not sweeps:
+        return [dict(r) for r in rows]
+    out: list[dict[str, Any]] = []
+    n = max(len(v) for v in sweeps.values())
+    for i in range(n):
+        for r in rows:
+            entries = sweeps.get(str(r.get("key")))
+            if not entries or i >= len(entries):
+                continue
+            base = {k: v for k, v in r.items() if not k.startswith("front_")}
+            params = json.loads(r["params"]) if isinstance(r.get("params"), str) else dict(r.get("params") or {})
+            out.append({**base, **cost_columns(entries[i]["physical_cost"]),
+                        "params": json.dumps({**params, **entries[i]["setting"]}, sort_keys=True)})
+    mark_cost_fronts(out)
+    return out
+
+
+def _setting(r: Mapping[str, Any]) -> str:
+    """The row's ``costs.*`` sweep setting as JSON text (``"{}"`` without cost axes)."""
+    params = r.get("params") or {}
+    if isinstance(params, str):
+        params = json.loads(params) if params.strip() else {}
+    return json.dumps({k: v for k, v in params.items() if k.startswith("costs.")}, sort_keys=True)
+
+
+def _own_params(r: Mapping[str, Any]) -> dict[str, Any]:
+    params = r.get("params") or {}
+    if isinstance(params, str):
+        params = json.loads(params) if params.strip() else {}
+    return {k: v for k, v in params.items() if not k.startswith("costs.")}
+
+
+def _setting_text(setting: Mapping[str, Any]) -> str:
+    """``"process_node_m = 45 nm"`` for a ``{"costs.process_node_m": 4.5e-08}`` setting."""
+    return ", ".join(f"{k.split('.', 1)[1]} = {cost_text(_num(v), k)}" for k, v in setting.items())
+
+
+def _name(r: Mapping[str, Any]) -> str:
+    """The row's realisation for people, its ``costs.*`` setting after a comma."""
+    where = json.loads(_setting(r))
+    return point_title(str(r["realisation"]), _own_params(r)) + (f", {_setting_text(where)}" if where else "")
+
+
+def _cost_interval(r: Mapping[str, Any], cost: str) -> tuple[float, float, float]:
+    v = _num(r.get(cost))
+    lo, hi = _num(r.get(f"{cost}_low")), _num(r.get(f"{cost}_high"))
+    return (v, lo, hi) if not (math.isnan(lo) or math.isnan(hi)) else (v, v, v)
+
+
+def _groups(rows: Sequence[Mapping[str, Any]]) -> dict[str, list[Mapping[str, Any]]]:
+    out: dict[str, list[Mapping[str, Any]]] = {}
+    for r in rows:
+        if r.get("status") == "ok" and "power_w" in r:
+            out.setdefault(_setting(r), []).append(r)
+    return out
+
+
+def mark_cost_fronts(rows: Sequence[dict[str, Any]]) -> None:
+    """Set ``front_<cost>`` on every row: not dominated beyond the CIs in (accuracy loss, cost).
+
+    Within each ``costs.*`` setting, across every hardware kind (the ideal references are shown,
+    never on a front); a cost that is NaN (an event rate without tasks) keeps the point off that
+    front (:func:`fsdvs_hw.report.tables.uncertain_pareto_front`).
+    """
+    acc, _ = accuracy_axis(rows)
+    for r in rows:
+        for cost in CROSS_KIND_COSTS:
+            r[f"front_{cost}"] = False
+    for group in _groups(rows).values():
+        hardware = [r for r in group if not is_reference(str(r["realisation"]))]
+        for cost in CROSS_KIND_COSTS:
+            flags = uncertain_pareto_front([(loss_interval(r, acc), _cost_interval(r, cost)) for r in hardware])
+            for r, f in zip(hardware, flags):
+                r[f"front_{cost}"] = f  # type: ignore[index]
+
+
+def _eps(v: float) -> str:
+    text = si(v, "Hz")
+    if text == "–":
+        return text
+    num, _, unit = text.rpartition(" ")
+    return f"{num} {unit[:-2]}eps"
+
+
+def cost_text(value: float, cost: str) -> str:
+    """A cost figure for people: ``"11.4 mW"``, ``"0.0283 µm²"``, ``"1.07 Geps"``."""
+    if cost.endswith("_eps"):
+        return _eps(value)
+    if cost.endswith("_db"):
+        return f"{number(value)} dB"
+    unit = {"_w": "W", "_m2": "m^2", "_s": "s", "_j": "J", "_m": "m"}
+    return si(value, next((u for s, u in unit.items() if cost.endswith(s)), "1"))
+
+
+def cost_advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The cost verdict in sentences: per ``costs.*`` setting, the cheapest realisation in each cost
+    whose loss's upper CI bound is within ``costs.loss_budget`` (with every other whose cost CI
+    reaches below the cheapest's upper bound: a measured event rate is not ranked inside its CI);
+    then every limit broken (a readout that cannot carry the event rate first)."""
+    acc, _ = accuracy_axis(rows)
+    what = "loss" if acc.endswith("_loss") else "kernel error"
+    groups = _groups(rows)
+    out = []
+    for setting, group in groups.items():
+        hardware = [r for r in group if not is_reference(str(r["realisation"]))]
+        if not hardware:
+            continue
+        budget = _num(group[0].get("loss_budget"))
+        within = [r for r in hardware if loss_interval(r, acc)[2] <= budget]
+        where = json.loads(setting)
+        head = f"At {_setting_text(where)}: " if where else ""
+        if not within:
+            best = min(hardware, key=lambda r: loss_interval(r, acc)[2])
+            out.append(f"{head}No hardware realisation's {what} stays within the loss budget {number(budget)} "
+                       "(costs.loss_budget, upper CI bound); the smallest upper bound is "
+                       f"{point_title(best['realisation'], _own_params(best))}'s {number(loss_interval(best, acc)[2])}.")
+            continue
+        parts = []
+        for cost, words in COST_WORDS.items():
+            known = [r for r in within if not math.isnan(_num(r.get(cost)))]
+            if not known:
+                parts.append(f"{words}: not measured (no task ran)" if cost == "event_rate_eps" else f"{words}: –")
+                continue
+            best = min(known, key=lambda r: _num(r[cost]))
+            top = _cost_interval(best, cost)[2]  # a measured cost (event rate) ties within its CI
+            cheapest = [r for r in known if _cost_interval(r, cost)[1] <= top]
+            parts.append(f"{words}: " + " and ".join(f"{point_title(r['realisation'], _own_params(r))} "
+                                                      f"({cost_text(_num(r[cost]), cost)})" for r in cheapest))
+        out.append(f"{head}Cheapest within the loss budget ({what} ≤ {number(budget)} at the upper CI bound, "
+                   f"costs.loss_budget): " + "; ".join(parts) + ".")
+    flagged = [r for g in groups.values() for r in g if r.get("cost_flags")]
+    readout = [r for r in flagged if r.get("readout_exceeded")]
+    if readout:
+        out.append("Readout limit exceeded: " + "; ".join(
+            f"{_name(r)} fires {_eps(_num(r.get('event_rate_eps')))}, more than "
+            f"the {_eps(_num(r.get('readout_limit_eps')))} the readout carries (costs.readout_limit_eps)"
+            for r in readout) + ".")
+    others = [(r, f) for r in flagged for f in str(r["cost_flags"]).split(" | ")
+              if f and not f.startswith("event rate")]
+    if others:
+        out.append("Cost limits broken: " + "; ".join(f"{_name(r)}: {f}" for r, f in others) + ".")
+    return out
+
+
+#: Columns of the section's table: (row key, header).
+_TABLE = (("name", "realisation"), ("power_w", "power, array"), ("power_per_pixel_w", "power per pixel"),
+          ("area_m2", "silicon per pixel"), ("fill_factor", "fill factor"), ("latency_s", "added latency"),
+          ("event_rate_eps", "event rate, array"), ("readout_utilisation", "of the readout limit"),
+          ("photon_snr_change_db", "shot-noise SNR change"), ("dynamic_range_cost_db", "pedestal's range"),
+          ("cost_flags", "limits broken"))
+
+
+def cost_section(rows: Sequence[Mapping[str, Any]], points: Sequence[Any] = (),
+                 figure: Callable[..., str] | None = None) -> str:
+    """The report's "What building it costs" section (HTML): verdict sentences, table and figure.
+
+    ``rows`` are the score rows of ``points`` (:class:`~fsdvs_hw.records.ScoredPoint`), repeated
+    here once per ``costs.*`` sweep setting (:func:`sweep_rows`). ``figure(fig, alt, caption,
+    fig_id=...)`` embeds a Matplotlib figure (the report's own helper); without it the section has
+    no figure.
+    """
+    rows = sweep_rows(rows, points)
+    groups = _groups(rows)
+    if not groups:
+        return ""
+    shown = [r for g in groups.values() for r in g]
+    cells = []
+    for r in shown:
+        c = {"name": _name(r)}
+        for key, _ in _TABLE[1:]:
+            v = r.get(key)
+            if key == "cost_flags":
+                c[key] = str(v or "")
+            elif key in ("fill_factor", "readout_utilisation"):
+                c[key] = number(_num(v))
+            else:
+                c[key] = cost_text(_num(v), key) if key in r else "–"
+        if "event_rate_eps_low" in r:
+            c["event_rate_eps"] += f" [{_eps(_num(r['event_rate_eps_low']))}, {_eps(_num(r['event_rate_eps_high']))}]"
+        front = any(r.get(f"front_{k}") for k in CROSS_KIND_COSTS)
+        cells.append((front, c))
+    head = "".join(f"<th class='l' scope='col'>{html.escape(t)}</th>" for _, t in _TABLE)
+    body = "".join(f"<tr{' class=front' if front else ''}>"
+                   + "".join(f"<td class='l'>{html.escape(c[k])}</td>" for k, _ in _TABLE) + "</tr>"
+                   for front, c in cells)
+    advice = "".join(f"<li>{html.escape(s)}</li>" for s in cost_advice(rows))
+    a = shown[0]
+    out = (f"<h2 id='costs'>What building it costs, in units that cross kinds</h2><ul class='advice'>{advice}</ul>"
+           f"<div class='scroll'><table><tr>{head}</tr>{body}</table></div>"
+           "<p class='note'>Power of the whole array and per pixel, silicon area per pixel (a mesh in the pixel "
+           "takes it from the photodiode: fill factor; an ASIC datapath sits in the periphery, its area shared "
+           "by the pixels), the latency it adds to an event, the event rate of the array (busiest task, with its "
+           "95 % CI) against the readout limit, and a lens's light: the shot-noise SNR change of a contrast step "
+           "against an ideal lens and the dynamic range its pedestal takes. Every figure's source and the "
+           "[costs] assumptions are in scores.json (points → physical_cost); the models are in docs/costs.md. "
+           f"Loss budget: {html.escape(number(_num(a.get('loss_budget'))))} (costs.loss_budget). Green rows: on a "
+           "cross-kind front (loss with its CI vs one cost).</p>")
+    if figure is not None:
+        from .figures import fig_cost_fronts
+
+        out += figure(fig_cost_fronts(rows),
+                      "Scatter plots of accuracy loss with confidence bars against array power, silicon area per "
+                      "pixel, added latency and event rate, every realisation kind on the same axes.",
+                      "<b>Accuracy loss vs each physical cost, across kinds.</b> Bars: the loss CIs; rings: not "
+                      "dominated beyond the CIs in (loss, that cost). Zero costs (optics, ideal references) sit at "
+                      "the left edge of the symmetric-log axis.", fig_id="fig-costs")
+    return out
