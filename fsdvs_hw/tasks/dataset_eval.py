@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import InputError, KernelError, one_line
 from ..limits import MAX_CLIPS, MAX_SEED, check_count
 
-__all__ = ["DatasetEvaluation", "evaluate_on_dataset"]
+__all__ = ["DatasetEvaluation", "evaluate_on_dataset", "evaluator_for_dataset"]
 
 
 @dataclass(frozen=True)
@@ -44,6 +44,8 @@ class DatasetEvaluation:
         Per-clip predictions and ground truth (first axis = clips), for paired statistics.
     seconds : float
         Wall time of the call.
+    durations_s : numpy.ndarray, float64, shape (N,)
+        Each scored clip's span in seconds (last minus first timestamp).
     """
 
     task: str
@@ -55,6 +57,7 @@ class DatasetEvaluation:
     predictions: dict[str, np.ndarray] = field(repr=False)
     targets: dict[str, np.ndarray] = field(repr=False)
     seconds: float = 0.0
+    durations_s: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
     @property
     def value(self) -> float:
@@ -62,7 +65,19 @@ class DatasetEvaluation:
         return self.metrics[self.primary_metric]
 
 
-def _evaluator_for(task: Any, dataset: Any) -> Any:
+def evaluator_for_dataset(task: Any, dataset: Any) -> Any:
+    """The built-in evaluator of ``task`` set to ``dataset``'s class count (and ignore index).
+
+    Raises
+    ------
+    InputError
+        Unknown task, or a dataset holding another task's targets.
+
+    Examples
+    --------
+    >>> evaluator_for_dataset("recognition", ds).num_classes   # doctest: +SKIP
+    101
+    """
     from .evaluators import get_evaluator
 
     base = get_evaluator(task)
@@ -147,7 +162,7 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     if not isinstance(dataset, ClipDataset):
         raise InputError(f"evaluate_on_dataset: dataset is a {type(dataset).__name__}; allowed: a "
                          "fsdvs_hw.scenes.datasets.ClipDataset")
-    evaluator = _evaluator_for(task, dataset)
+    evaluator = evaluator_for_dataset(task, dataset)
     if sensor is not None and not isinstance(sensor, SensorConfig):
         raise InputError(f"evaluate_on_dataset: sensor is a {type(sensor).__name__}; allowed: a SensorConfig")
     if events_fn is not None and not callable(events_fn):
@@ -175,7 +190,7 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     if sensor is None:
         sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(first.timestamps_s)[0])))
 
-    preds, clips, counts = [], [], []
+    preds, clips, counts, spans = [], [], [], []
     net.eval()
     with torch.no_grad():
         for i in indices:
@@ -188,6 +203,7 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
             ev = (events_fn(video, kernel_t, sensor, clip.timestamps_s) if events_fn is not None
                   else event_frames(video, kernel_t, timestamps_s=clip.timestamps_s, config=sensor))
             counts.append(float(ev.sum()))
+            spans.append(float(clip.timestamps_s[-1] - clip.timestamps_s[0]))
             try:
                 preds.append(evaluator.predict(net(rep(ev.float(), clip.timestamps_s))))
             except (RuntimeError, KeyError, TypeError, IndexError) as exc:
@@ -211,4 +227,5 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     return DatasetEvaluation(task=evaluator.name, metrics=metrics, primary_metric=evaluator.primary_metric,
                              per_clip=per_clip, clip_indices=np.asarray(indices, dtype=np.int64),
                              event_counts=np.asarray(counts), predictions={key: v.numpy() for key, v in cat.items()},
-                             targets=targets, seconds=time.perf_counter() - t0)
+                             targets=targets, seconds=time.perf_counter() - t0,
+                             durations_s=np.asarray(spans))
