@@ -36,6 +36,7 @@ BENCHMARKS: dict[str, str] = {
     "sim": "benchmarks.sim:bench_sim",
     "explore": "benchmarks.explore:bench_explore",
     "stats": "benchmarks.stats:bench_stats",
+    "user_data": "benchmarks.user_data:bench_user_data",
 }
 
 
