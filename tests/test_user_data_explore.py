@@ -10,6 +10,7 @@ and the delta row's loss must be the difference of the two rows' per-clip metric
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -165,3 +166,54 @@ def test_confusion_miou_leaves_ignored_pixels_out_as_torchmetrics_does(rng):
     assert got == pytest.approx(want["miou"], abs=1e-6)  # torchmetrics sums in float32
     with pytest.raises(InputError):
         ConfusionMIoU.from_masks(pred, target, 3)  # 255 is no class without ignore_index
+
+
+def _seg_dataset(folder: Path, monkeypatch):
+    """The segmentation set and the toy voxel network (from tests/plugins) for it."""
+    from fsdvs_hw.scenes.datasets import MaskFramesDataset
+    from fsdvs_hw.tasks.user_networks import load_network_factory
+
+    monkeypatch.syspath_prepend(str(PLUGINS))
+    seg = folder / "data" / "seg"
+    ds = MaskFramesDataset(seg / "img", seg / "lbl", num_classes=3, n_frames=3, clip_stride=1, fps=FPS)
+    return ds, load_network_factory("toy_network:make_voxel", in_channels=4, num_classes=3, task="segmentation")
+
+
+def test_device_cpu_is_the_default_and_an_absent_cuda_is_refused(user_folder, monkeypatch):
+    import torch
+
+    from fsdvs_hw.cli.explore import with_device
+    from fsdvs_hw.tasks.dataset_eval import evaluate_on_dataset
+
+    ds, net = _seg_dataset(user_folder, monkeypatch)
+    a = evaluate_on_dataset(None, "segmentation", ds, net)
+    b = evaluate_on_dataset(None, "segmentation", ds, net, device="cpu")
+    np.testing.assert_array_equal(a.per_clip, b.per_clip)
+    np.testing.assert_array_equal(a.event_counts, b.event_counts)
+    with pytest.raises(InputError, match=re.escape("device='gpu'; allowed: 'cpu', 'cuda'")):
+        evaluate_on_dataset(None, "segmentation", ds, device="gpu")
+    with pytest.raises(InputError, match=re.escape("has no [tasks.datasets.<task>] table")):
+        with_device(load_design(_design(user_folder, "", name="plain")), "cpu")
+    on_cpu = with_device(load_design(_design(user_folder)), "cpu")
+    assert {e["device"] for e in on_cpu.data["tasks"]["datasets"].values()} == {"cpu"}
+    if torch.cuda.is_available():
+        return
+    with pytest.raises(InputError, match="CUDA is not available"):
+        evaluate_on_dataset(None, "segmentation", ds, device="cuda")
+    body = '[tasks.datasets.recognition]\ndataset = { format = "video_folder", root = "data/ucf" }\ndevice = "cuda"\n'
+    with pytest.raises(DesignError, match=re.escape('key \'tasks.datasets.recognition.device\' = "cuda": CUDA is not available')):
+        load_design(_design(user_folder, body, name="gpu"))
+
+
+@pytest.mark.skipif(not __import__("torch").cuda.is_available(), reason="needs a CUDA GPU")
+def test_cuda_gives_the_cpu_events_and_metric_on_a_noise_free_sensor(user_folder, monkeypatch):
+    from fsdvs_hw.kernels import reference_kernel
+    from fsdvs_hw.sensor import SensorConfig
+    from fsdvs_hw.tasks.dataset_eval import evaluate_on_dataset
+
+    ds, net = _seg_dataset(user_folder, monkeypatch)
+    sensor = SensorConfig.ideal(threshold=0.2, frame_rate_hz=FPS)  # no random stream: CPU and CUDA agree
+    runs = [evaluate_on_dataset(reference_kernel("dog", 7), "segmentation", ds, net, sensor=sensor, device=d)
+            for d in ("cpu", "cuda")]
+    np.testing.assert_allclose(runs[1].event_counts, runs[0].event_counts, rtol=1e-6)
+    np.testing.assert_allclose(runs[1].per_clip, runs[0].per_clip, atol=1e-6)

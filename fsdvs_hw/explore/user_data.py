@@ -152,6 +152,8 @@ class UserTask(StrictModel):
                                 "to the design file; None = the factory's own weights")
     n_clips: int = field(0, "clips", "clips scored, drawn with seed; 0 = every clip", ge=0, le=MAX_CLIPS)
     seed: int = field(0, "", "seed of the clip draw (the same clips for every kernel)", ge=0, le=MAX_SEED)
+    device: Literal["cpu", "cuda"] = field("cpu", "", "where the simulator and the network run ('cuda' needs a "
+                                           "CUDA build of torch and a GPU; its noise streams differ from the CPU's)")
 
 
 def _path(base: Path, path: str, *, what: str, confine: bool) -> Path:
@@ -308,6 +310,12 @@ def check_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *
     []
     """
     key = f"tasks.datasets.{task}"
+    if entry["device"] == "cuda":
+        import torch
+
+        if not torch.cuda.is_available():
+            return [(f"{key}.device", "cuda", f"CUDA is not available on this machine (torch {torch.__version__}); "
+                     "allowed here: 'cpu'")]
     fmt = entry["dataset"]["format"]
     if FORMAT_TASK[fmt] != task:
         allowed = [f for f, t in FORMAT_TASK.items() if t == task]
@@ -400,7 +408,7 @@ def dataset_evidence(kernel: Any, task: str, entry: Mapping[str, Any], base_dir:
     rate_hz = 1.0 / float(np.diff(first.timestamps_s)[0])
     sensor, sensor_rec = _design_sensor(rate_hz, design_sensor)
     ev = evaluate_on_dataset(kernel, task, ds, net, sensor=sensor, n_clips=entry["n_clips"] or None,
-                             seed=entry["seed"], events_fn=events_fn)
+                             seed=entry["seed"], events_fn=events_fn, device=entry["device"])
     metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, ev.targets, evaluator)
     n = len(ev.clip_indices)
     t, h, w = first.frames.shape
@@ -427,5 +435,5 @@ def user_task_record(entry: Mapping[str, Any]) -> dict[str, Any]:
     return {"dataset": {k: src.get(k) for k in ("format", "root", "split", "n_frames", "size")}
             | {"n_clips": entry["n_clips"], "seed": entry["seed"]},
             "network": {"factory": entry["network"] or "built-in", "options": dict(entry["network_options"]),
-                        "weights": entry["weights"]},
+                        "weights": entry["weights"], "device": entry["device"]},
             "ci_note": ONE_NETWORK_NOTE}

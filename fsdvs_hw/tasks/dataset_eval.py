@@ -11,6 +11,7 @@ set to the dataset's class count (and ignore index). No metric is computed here.
 from __future__ import annotations
 
 import copy
+import re
 import time
 from dataclasses import dataclass, field
 from types import SimpleNamespace
@@ -106,9 +107,21 @@ def _network_for(network: Any, task: str, in_channels: int, num_classes: int) ->
                      "'package.module:factory', or a torch.nn.Module")
 
 
+def _device(device: Any) -> Any:
+    """``device`` as a ``torch.device``; CUDA only where it is available."""
+    import torch
+
+    if not isinstance(device, str) or not re.fullmatch(r"cpu|cuda(:\d{1,2})?", device):
+        raise InputError(f"evaluate_on_dataset: device={one_line(device)}; allowed: 'cpu', 'cuda' or 'cuda:N'")
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        raise InputError(f"evaluate_on_dataset: device={device!r} but CUDA is not available on this machine "
+                         f"(torch {torch.__version__}); allowed here: 'cpu'")
+    return torch.device(device)
+
+
 def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = None, *, sensor: Any = None,
                         n_clips: int | None = None, seed: int = 0, weights: Any = None,
-                        events_fn: Any = None) -> DatasetEvaluation:
+                        events_fn: Any = None, device: str = "cpu") -> DatasetEvaluation:
     """Score ``kernel`` on clips of a user dataset with a network.
 
     Parameters
@@ -133,6 +146,11 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     events_fn : callable, optional
         ``events_fn(video (1, T, H, W), kernel_taps, sensor, timestamps_s) -> (1, T-1, 2, H, W)``
         instead of the in-pixel simulator.
+    device : str
+        ``"cpu"`` (default) or ``"cuda"`` / ``"cuda:N"``: where the simulator and the network run
+        (the network is moved there); predictions come back to the CPU for the metric. On CUDA the
+        simulator's random streams (mismatch, noise) differ from the CPU's, so only a noise-free
+        sensor gives the same events to rounding.
 
     Returns
     -------
@@ -159,6 +177,7 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     from .user_networks import event_input_of, load_weights
 
     t0 = time.perf_counter()
+    dev = _device(device)
     if not isinstance(dataset, ClipDataset):
         raise InputError(f"evaluate_on_dataset: dataset is a {type(dataset).__name__}; allowed: a "
                          "fsdvs_hw.scenes.datasets.ClipDataset")
@@ -174,7 +193,7 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
         check_count("evaluate_on_dataset: n_clips", n_clips, 1, min(MAX_CLIPS, len(dataset)))
         indices = dataset.draw(n_clips, seed)
     k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else _as_kernel(kernel)
-    kernel_t = torch.as_tensor(np.array(k.taps), dtype=torch.float64)
+    kernel_t = torch.as_tensor(np.array(k.taps), dtype=torch.float64, device=dev)
 
     first = dataset[int(indices[0])]
     _, h, w = first.frames.shape
@@ -187,6 +206,7 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     if weights is not None:
         load_weights(net, weights)
     rep = event_input_of(net)
+    net = net.to(dev)
     if sensor is None:
         sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(first.timestamps_s)[0])))
 
@@ -199,13 +219,13 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
                 raise InputError(f"evaluate_on_dataset: clip {int(i)} ({clip.source!r}) is "
                                  f"{clip.frames.shape[1]}x{clip.frames.shape[2]}, clip {first.index} {h}x{w}; "
                                  "field 'size': give the dataset a size=(H, W)")
-            video = clip.as_batch(torch.float64)
+            video = clip.as_batch(torch.float64).to(dev)
             ev = (events_fn(video, kernel_t, sensor, clip.timestamps_s) if events_fn is not None
                   else event_frames(video, kernel_t, timestamps_s=clip.timestamps_s, config=sensor))
             counts.append(float(ev.sum()))
             spans.append(float(clip.timestamps_s[-1] - clip.timestamps_s[0]))
             try:
-                preds.append(evaluator.predict(net(rep(ev.float(), clip.timestamps_s))))
+                preds.append({key: v.cpu() for key, v in evaluator.predict(net(rep(ev.float(), clip.timestamps_s))).items()})
             except (RuntimeError, KeyError, TypeError, IndexError) as exc:
                 raise InputError(f"evaluate_on_dataset: the network's output on clip {int(i)} cannot be read by "
                                  f"the {evaluator.name} evaluator ({type(exc).__name__}: "
