@@ -217,3 +217,19 @@ def test_cuda_gives_the_cpu_events_and_metric_on_a_noise_free_sensor(user_folder
             for d in ("cpu", "cuda")]
     np.testing.assert_allclose(runs[1].event_counts, runs[0].event_counts, rtol=1e-6)
     np.testing.assert_allclose(runs[1].per_clip, runs[0].per_clip, atol=1e-6)
+
+
+def test_design_sensor_thresholds_reach_user_data_tasks(user_folder):
+    """``tasks.sensor = "design"``: the design's thresholds replace the default's; a higher one fires less."""
+    from fsdvs_hw.explore.scoring import task_scores
+    from fsdvs_hw.explore.user_data import UserTask
+
+    entry = UserTask.model_validate({"dataset": {"format": "mask_frames", "root": "data/seg", "frames": "img",
+                                                 "masks": "lbl", "num_classes": 3, "n_frames": 3}}).model_dump()
+    sensor = {"threshold_on": 0.5, "threshold_off": 0.5, "threshold_sigma": 0.0, "placement": "pre_log",
+              "positivity": "pedestal"}
+    recs = [task_scores(None, {}, datasets={"segmentation": entry}, base_dir=user_folder,
+                        design_sensor=s)["segmentation"]["simulator"] for s in (None, sensor)]
+    assert recs[0]["sensor"]["source"] == "default" and recs[0]["sensor"]["threshold_on"] == 0.2
+    assert recs[1]["sensor"] == {"source": "design", **sensor}
+    assert 0 < recs[1]["event_rate"] < recs[0]["event_rate"]

@@ -235,7 +235,8 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
             try:
                 evid = []
                 if user:
-                    ev, sensor_rec = dataset_evidence(kernel, task, entry, base_dir, design_sensor=design_sensor,
+                    fields = None if design_sensor is None else {k: design_sensor[k] for k in _DESIGN_SENSOR_FIELDS}
+                    ev, sensor_rec = dataset_evidence(kernel, task, entry, base_dir, design_sensor=fields,
                                                       events_fn=events_fn, confine=False)
                     evid.append(ev)
                 for s, ckpt in enumerate(paths):

@@ -337,19 +337,22 @@ def check_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *
     return problems
 
 
+#: ``SensorConfig`` fields recorded with a user-data task's scores.
+_RECORDED_SENSOR_FIELDS = ("threshold_on", "threshold_off", "threshold_sigma", "placement", "positivity")
+
+
 def _design_sensor(frame_rate_hz: float, design_sensor: Mapping[str, Any] | None) -> tuple[Any, dict[str, Any]]:
     """The simulator of a user-data task and its record: the training default at the clips' rate,
-    with the design's ``[sensor]`` thresholds, mismatch, placement and positivity where asked."""
+    with the given ``SensorConfig`` fields (the design's ``[sensor]`` thresholds, ...) where asked."""
     from types import SimpleNamespace
 
     from ..tasks.learn import default_sensor
-    from .scoring import _DESIGN_SENSOR_FIELDS
 
     cfg = default_sensor(SimpleNamespace(frame_rate_hz=frame_rate_hz))
     if design_sensor is not None:
-        cfg = dataclasses.replace(cfg, **{k: design_sensor[k] for k in _DESIGN_SENSOR_FIELDS})
+        cfg = dataclasses.replace(cfg, **dict(design_sensor))
     return cfg, {"source": "design" if design_sensor is not None else "default",
-                 **{k: getattr(cfg, k) for k in _DESIGN_SENSOR_FIELDS}}
+                 **{k: getattr(cfg, k) for k in _RECORDED_SENSOR_FIELDS}}
 
 
 def dataset_evidence(kernel: Any, task: str, entry: Mapping[str, Any], base_dir: str | Path, *,
@@ -373,8 +376,9 @@ def dataset_evidence(kernel: Any, task: str, entry: Mapping[str, Any], base_dir:
     base_dir : path
         The design file's folder.
     design_sensor : mapping, optional
-        The design's ``[sensor]`` (``tasks.sensor = "design"``); None: the training default
-        (:func:`fsdvs_hw.tasks.learn.default_sensor`) at the clips' frame rate.
+        ``SensorConfig`` fields replacing the training default's (``tasks.sensor = "design"``: the
+        design's ``[sensor]`` thresholds, mismatch, placement and positivity); None: the training
+        default (:func:`fsdvs_hw.tasks.learn.default_sensor`) at the clips' frame rate.
     events_fn : callable, optional
         Event frames instead of the in-pixel simulator (the emulation track).
 
