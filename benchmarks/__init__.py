@@ -37,6 +37,7 @@ BENCHMARKS: dict[str, str] = {
     "explore": "benchmarks.explore:bench_explore",
     "stats": "benchmarks.stats:bench_stats",
     "sensors": "benchmarks.sensors:bench_sensors",
+    "user_data": "benchmarks.user_data:bench_user_data",
 }
 
 

@@ -215,7 +215,8 @@ def _resolve(node: dict[str, Any], defs: Mapping[str, Any]) -> dict[str, Any]:
 def members(node: Mapping[str, Any], defs: Mapping[str, Any] | None = None) -> list[dict[str, Any]]:
     """The alternatives of a field's JSON Schema (``anyOf`` flattened, references resolved)."""
     node = _resolve(dict(node), defs or {})
-    return [_resolve(dict(m), defs or {}) for m in node["anyOf"]] if "anyOf" in node else [node]
+    alternatives = node.get("anyOf", node.get("oneOf"))  # oneOf: a union told apart by a discriminator
+    return [_resolve(dict(m), defs or {}) for m in alternatives] if alternatives is not None else [node]
 
 
 def field_schema(model: type[BaseModel], name: str) -> dict[str, Any]:
@@ -273,7 +274,7 @@ def allowed_text(node: Mapping[str, Any], defs: Mapping[str, Any] | None = None)
             nullable = True
             continue
         parts.append(_member_text(m, unit, defs, bool(node.get("odd"))))
-    text = " or ".join(parts) + (" or None (automatic)" if nullable else "")
+    text = " or ".join(dict.fromkeys(parts)) + (" or None (automatic)" if nullable else "")
     return text + (f" ({node['description']})" if node.get("description") else "")
 
 
@@ -290,11 +291,15 @@ def _walk(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[str, dict[str, 
             key += f"[{part}]"
             continue
         tables = [m for m in members(node, defs) if "properties" in m] if fld is not None or node is schema else []
-        table = tables[0] if tables else None
-        if table is not None and part in table["properties"]:
+        table = next((t for t in tables if part in t["properties"]), None)
+        values = node.get("additionalProperties") if fld is not None and not tables else None
+        if table is not None:
             parent, fld = table, _resolve(dict(table["properties"][part]), defs)
             node = fld
             key += ("." if key else "") + part
+        elif isinstance(values, dict) and "$ref" in values:  # a key of a table of tables (dict[str, Model])
+            fld = node = _resolve(dict(values), defs)
+            key += "." + str(part)
         # otherwise a union-member tag ('float', "literal['a','b']"): not part of the key
     return key, fld, parent
 
@@ -339,12 +344,22 @@ def problems(exc: ValidationError, model: type[BaseModel], *, prefix: str = "") 
             lines.append(f"key '{prefix}{key}' = {short(value)}: {words}; allowed: {allowed}")
             continue
         kind = err["type"]
+        if kind in ("union_tag_invalid", "union_tag_not_found"):  # a discriminated union: name its tag key
+            ctx, fld = err.get("ctx") or {}, err.get("_field") or {}
+            tag = ctx.get("discriminator", "").strip("'")
+            tags = ", ".join(repr(t) for t in (fld.get("discriminator") or {}).get("mapping", {}))
+            shown = short(ctx.get("tag")) if kind == "union_tag_invalid" else "missing"
+            why = "not one of the allowed values" if kind == "union_tag_invalid" else "required"
+            lines.append(f"key '{prefix}{key}.{tag}' = {shown}: {why}; allowed: one of {tags}")
+            continue
         if value is None and kind.endswith("_type"):
             why = "None is not allowed"
         elif kind.endswith("_type") and kind not in ("structured_type", "object_type"):
             why = f"wrong type {_word(value)}"
         elif kind in _RANGE:
             why = "out of range" if kind != "odd" else err["msg"]
+        elif kind == "missing":
+            why, value = "required", "missing"
         elif kind == "finite_number":
             why = "not a finite number"
         elif kind == "literal_error":
@@ -355,7 +370,8 @@ def problems(exc: ValidationError, model: type[BaseModel], *, prefix: str = "") 
             why = err["msg"]
         fld = err.get("_field")
         allowed = allowed_text(fld, defs) if fld is not None else "a table"
-        lines.append(f"key '{prefix}{key}' = {short(value)}: {why}; allowed: {allowed}")
+        shown = value if kind == "missing" else short(value)
+        lines.append(f"key '{prefix}{key}' = {shown}: {why}; allowed: {allowed}")
     return lines
 
 

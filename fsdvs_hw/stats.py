@@ -176,18 +176,22 @@ class ConfusionMIoU:
         self.num_classes = int(c.shape[1])
 
     @classmethod
-    def from_masks(cls, pred: Any, target: Any, num_classes: int) -> ConfusionMIoU:
-        """Per-clip confusion matrices of predicted and true masks, shape (N, H, W) each."""
+    def from_masks(cls, pred: Any, target: Any, num_classes: int, ignore_index: int | None = None) -> ConfusionMIoU:
+        """Per-clip confusion matrices of predicted and true masks, shape (N, H, W) each.
+
+        Pixels whose target is ``ignore_index`` are left out (prediction and target), as
+        torchmetrics' ``MulticlassJaccardIndex(ignore_index=...)`` does.
+        """
         p = np.asarray(pred).astype(np.int64)
         t = np.asarray(target).astype(np.int64)
         if p.shape != t.shape or p.ndim != 3:
             raise InputError(f"ConfusionMIoU.from_masks: pred and target must be (N, H, W), got {p.shape}, {t.shape}")
-        for name, x in (("pred", p), ("target", t)):
-            if x.size and (x.min() < 0 or x.max() >= num_classes):
-                raise InputError(f"ConfusionMIoU.from_masks: {name} classes must lie in [0, {num_classes})")
         n = p.shape[0]
-        flat = (np.arange(n)[:, None] * num_classes * num_classes
-                + t.reshape(n, -1) * num_classes + p.reshape(n, -1)).ravel()
+        keep = np.ones(t.shape, bool) if ignore_index is None else t != ignore_index
+        for name, x in (("pred", p), ("target", t)):
+            if x[keep].size and (x[keep].min() < 0 or x[keep].max() >= num_classes):
+                raise InputError(f"ConfusionMIoU.from_masks: {name} classes must lie in [0, {num_classes})")
+        flat = (np.arange(n)[:, None, None] * num_classes * num_classes + t * num_classes + p)[keep]
         conf = np.bincount(flat, minlength=n * num_classes * num_classes)
         return cls(conf.reshape(n, num_classes, num_classes))
 

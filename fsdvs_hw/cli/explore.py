@@ -11,7 +11,7 @@ from typing import Any
 from ..errors import InputError
 from ._execution import add_execution_arguments, security_from_args
 
-__all__ = ["DESCRIPTION", "HELP", "add_arguments", "parse_overrides", "run"]
+__all__ = ["DESCRIPTION", "HELP", "add_arguments", "parse_overrides", "run", "with_device"]
 
 HELP = "the main job: fit every realisation of a design's kernel, score it, write the HTML report"
 DESCRIPTION = (
@@ -36,6 +36,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="replace one design key for this run (dotted key, TOML value: "
                              "--set asic.bits=6 --set 'tasks.n_test={detection=16}'); repeatable")
+    parser.add_argument("--device", choices=("cpu", "cuda"), default=None,
+                        help="run the simulator and the network of every [tasks.datasets.<task>] (user data) on "
+                             "this device (default: each table's 'device', cpu unless set)")
     add_execution_arguments(parser)
 
 
@@ -66,6 +69,22 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
     return out
 
 
+def with_device(design: Any, device: str) -> Any:
+    """``design`` with every ``[tasks.datasets.<task>]`` run on ``device`` (``--device``).
+
+    Raises
+    ------
+    InputError
+        The design scores no task on user data (trained checkpoints run on the CPU), or the
+        device is not available (naming the key).
+    """
+    user = design.data["tasks"]["datasets"]
+    if not user:
+        raise InputError(f"--device {device}: {design.source} has no [tasks.datasets.<task>] table; allowed: "
+                         "--device with user-data tasks (tasks from tasks.checkpoints are scored on the CPU)")
+    return design.with_overrides({f"tasks.datasets.{t}": {**e, "device": device} for t, e in user.items()})
+
+
 def run(args: argparse.Namespace) -> int:
     from ..explore.design import load_design
     from ..explore.explore import run_exploration
@@ -76,6 +95,8 @@ def run(args: argparse.Namespace) -> int:
     design = load_design(resolve_design(args.design))
     if args.overrides:
         design = design.with_overrides(parse_overrides(args.overrides))
+    if args.device is not None:
+        design = with_device(design, args.device)
     output_dir(args.out, flag="--out")  # before any work
     print(f"[explore] {design.name}: target {design.target!r}", file=sys.stderr, flush=True)
     res = run_exploration(

@@ -26,6 +26,10 @@ Layout (every section and key is optional; defaults in brackets)::
                     n_test (clips per network: number, or table task → clips), n_test_emulation,
                     test_clips = "per_network" | "shared", finetune_epochs,
                     tracks = ["simulator", "emulation"], sensor = "checkpoint" | "design"
+    [tasks.datasets.<task>]  the user's clips and network instead of checkpoints:
+                    dataset = {format = "video_folder" | "coco_frames" | "mask_frames", root, split, ...},
+                    network = "package.module:factory", network_options, weights, n_clips, seed
+                    (fsdvs_hw.explore.user_data)
     [scoring]       task_weights = { detection = 1, ... } [equal], n_resamples [2000],
                     confidence [0.95], target_half_width [0.01]  (the paired loss CIs)
     [emulation]     enabled, n_clips, n_frames, display_bits, display_gamma, display_peak_nits,
@@ -86,6 +90,7 @@ from ..limits import MAX_WORKERS
 from ..paths import confined_path, safe_name
 from ..realise.registry import get_realisation, realisation_names
 from ..schema import DESIGN_CONTEXT, StrictModel, field, field_schema, members, problems, short
+from .user_data import UserTask
 
 __all__ = [
     "CODESIGN_MODES",
@@ -184,6 +189,9 @@ class TasksSection(StrictModel):
     sensor: Literal["checkpoint", "design"] = field(
         "checkpoint", "", "simulator settings of the task track: the checkpoint's own (the trained condition) or "
         "the checkpoint's with this design's [sensor] thresholds, mismatch, placement and positivity")
+    datasets: dict[str, UserTask] = field({}, "", "task name → the user's clips and network "
+                                          "([tasks.datasets.<task>]: dataset = {format, root, split, ...}, network, "
+                                          "weights, n_clips; fsdvs_hw.explore.user_data); {} = none")
 
 
 class ScoringSection(StrictModel):
@@ -594,6 +602,7 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
     _check_cross(chk, data)
     _expand_checkpoint_patterns(chk, data, base, confine_paths)
     _check_tasks(chk, data, base, confine_paths)
+    _check_user_data(chk, data, base, confine_paths)
     _check_codesign(chk, data)
     _check_axes(chk, data)
     target = _load_target(chk, data, base, confine_paths)
@@ -829,7 +838,8 @@ def _expand_checkpoint_patterns(chk: _Problems, data: dict[str, Any], base: Path
 def _check_tasks(chk: _Problems, data: dict[str, Any], base: Path, confine: bool) -> None:
     """Each task must be a registered evaluator and its checkpoint must exist."""
     ckpts = data["tasks"]["checkpoints"]
-    if not ckpts:
+    known = {**ckpts, **data["tasks"]["datasets"]}  # tasks scored: trained checkpoints and user data
+    if not known:
         return
     from ..tasks import EVALUATORS  # torch: imported only when a design names tasks
     for task, entry in ckpts.items():
@@ -865,13 +875,16 @@ def _check_tasks(chk: _Problems, data: dict[str, Any], base: Path, confine: bool
             continue
         for task, n in n_test.items():
             key = f"tasks.{field_name}.{task}"
-            if task not in ckpts:
+            if task in data["tasks"]["datasets"]:
+                chk.add(key, n, f"a user-data task; allowed: its clips are set by tasks.datasets.{task}.n_clips")
+            elif task not in ckpts:
                 chk.add(key, n, f"not a task in tasks.checkpoints; allowed: {', '.join(ckpts)}")
             elif isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= 100_000:
                 chk.add(key, n, "allowed: an integer in [0, 100000] (0 = the default)")
     for task, w in data["scoring"]["task_weights"].items():
-        if task not in ckpts:
-            chk.add(f"scoring.task_weights.{task}", w, f"not a task in tasks.checkpoints; allowed: {', '.join(ckpts)}")
+        if task not in known:
+            chk.add(f"scoring.task_weights.{task}", w, f"not a task in tasks.checkpoints or tasks.datasets; "
+                    f"allowed: {', '.join(known)}")
         elif isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w >= 0):
             chk.add(f"scoring.task_weights.{task}", w, "allowed: a finite number >= 0")
     weights = data["scoring"]["task_weights"]
@@ -879,6 +892,19 @@ def _check_tasks(chk: _Problems, data: dict[str, Any], base: Path, confine: bool
                 for v in weights.values())
     if weights and valid and not any(v > 0 for v in weights.values()):
         chk.add("scoring.task_weights", weights, "every weight is 0; allowed: at least one positive weight")
+
+
+def _check_user_data(chk: _Problems, data: dict[str, Any], base: Path, confine: bool) -> None:
+    """Each ``[tasks.datasets.<task>]`` opens (layout read, network built; fsdvs_hw.explore.user_data)."""
+    from .user_data import check_user_task
+
+    for task, entry in data["tasks"]["datasets"].items():
+        if task in data["tasks"]["checkpoints"]:
+            chk.add(f"tasks.datasets.{task}", entry, f"task {task!r} is also in tasks.checkpoints; allowed: a task "
+                    "scored either with trained checkpoints or on user data (one table per task)")
+            continue
+        for key, value, why in check_user_task(task, entry, base, confine=confine):
+            chk.add(key, value, why)
 
 
 def _check_codesign(chk: _Problems, data: dict[str, Any]) -> None:

@@ -79,7 +79,8 @@ def _recognition(pred: dict[str, Any], targets: dict[str, Any], evaluator: Any) 
 
 
 def _segmentation(pred: dict[str, Any], targets: dict[str, Any], evaluator: Any) -> ClipMetric:
-    return ConfusionMIoU.from_masks(pred["mask"], targets["mask"], evaluator.num_classes)
+    return ConfusionMIoU.from_masks(pred["mask"], targets["mask"], evaluator.num_classes,
+                                    ignore_index=getattr(evaluator, "ignore_index", None))
 
 
 #: task name → builder of its per-clip metric (the evaluator's primary metric) from predictions and targets

@@ -147,7 +147,8 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
                 n_test: int | Mapping[str, int] = 0, n_test_emulation: int | Mapping[str, int] = 0,
                 finetune_epochs: int = 0,
                 tracks: Sequence[str] = ("simulator",), design_sensor: Mapping[str, Any] | None = None,
-                display: Any = None, keep_evidence: bool = True, test_clips: str = "per_network") -> dict[str, Any]:
+                display: Any = None, keep_evidence: bool = True, test_clips: str = "per_network",
+                datasets: Mapping[str, Mapping[str, Any]] | None = None, base_dir: str | Path = ".") -> dict[str, Any]:
     """Evaluate ``kernel`` per clip in every trained network of every task (zero-shot swap).
 
     Parameters
@@ -180,6 +181,13 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
         :func:`fsdvs_hw.explore.paired.clip_evidence`): clips nested in networks, so the same
         simulation budget samples many networks and mismatch patterns. ``"shared"``: every network
         scores the same clips (crossed).
+    datasets : mapping, optional
+        Task name → a validated ``[tasks.datasets.<task>]`` table: the task is scored on the user's
+        clips with the user's network (:func:`fsdvs_hw.explore.user_data.dataset_evidence`), one
+        network, so its CI resamples clips only (``n_seeds = 1``, said in ``"ci_note"``); its
+        record names ``"dataset"`` and ``"network"`` instead of ``"checkpoints"``.
+    base_dir : path
+        The design file's folder (the user datasets' ``root``, network imports and weights).
     keep_evidence : bool
         Keep each network's per-clip evidence (base64 ``.npz``, :func:`fsdvs_hw.explore.paired.encode_evidence`)
         under ``"evidence"`` so :func:`paired_losses` can pair it with the reference kernel's.
@@ -199,14 +207,17 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
         Network ``s`` of a task is scored with sensor seed ``checkpoint seed + s`` (its own
         mismatch pattern, :mod:`fsdvs_hw.explore.paired`).
     """
-    if not checkpoints:
+    datasets = dict(datasets or {})
+    if not checkpoints and not datasets:
         return {"status": "not requested"}
     if test_clips not in TEST_CLIPS:
         raise InputError(f"test_clips {test_clips!r} unknown; allowed: {', '.join(TEST_CLIPS)}")
     from .paired import clip_evidence, encode_evidence, event_rate_ci  # torch: imported only when tasks are scored
+    from .user_data import dataset_evidence, user_task_record
     out: dict[str, Any] = {"status": "ok"}
-    for task, entry in checkpoints.items():
-        paths = [Path(p) for p in (entry if isinstance(entry, (list, tuple)) else [entry])]
+    for task, entry in [*checkpoints.items(), *datasets.items()]:
+        user = task in datasets and entry is datasets[task]
+        paths = [] if user else [Path(p) for p in (entry if isinstance(entry, (list, tuple)) else [entry])]
         n_sim = int(n_test.get(task, 0)) if isinstance(n_test, Mapping) else int(n_test)
         n_emu = int(n_test_emulation.get(task, 0)) if isinstance(n_test_emulation, Mapping) else int(n_test_emulation)
         out[task] = {}
@@ -223,6 +234,11 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
             t0 = time.perf_counter()
             try:
                 evid = []
+                if user:
+                    fields = None if design_sensor is None else {k: design_sensor[k] for k in _DESIGN_SENSOR_FIELDS}
+                    ev, sensor_rec = dataset_evidence(kernel, task, entry, base_dir, design_sensor=fields,
+                                                      events_fn=events_fn, confine=False)
+                    evid.append(ev)
                 for s, ckpt in enumerate(paths):
                     sensor_cfg, sensor_rec = _task_sensor(ckpt, design_sensor)
                     evid.append(clip_evidence(kernel, task, ckpt, n_test=n or None, sensor=sensor_cfg,
@@ -238,7 +254,8 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
                 "per_seed": per_seed, "n_seeds": len(evid), "test_clips": test_clips,
                 "n_clips": (sum(e.n_clips for e in evid) if test_clips == "per_network" else evid[0].n_clips),
                 "n_clips_per_network": evid[0].n_clips, "test_seeds": [e.test_seed for e in evid],
-                "checkpoints": [str(p) for p in paths], "sensor_seeds": [e.sensor_seed for e in evid],
+                **(user_task_record(entry) if user else {"checkpoints": [str(p) for p in paths]}),
+                "sensor_seeds": [e.sensor_seed for e in evid],
                 "event_rate": float(np.mean([e.event_rate for e in evid])), "sensor": sensor_rec,
                 "event_rate_unit": "events/pixel/frame interval",
                 "event_rate_per_s": event_rate_ci(evid, test_clips=test_clips),

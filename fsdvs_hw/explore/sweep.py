@@ -101,6 +101,8 @@ class DesignPoint:
 
 def _point_key(realisation: str, design: Design) -> str:
     relevant = {s: design.section(s) for s in _SCORED_SECTIONS}
+    if not relevant["tasks"].get("datasets"):  # no user data: the key of a store written before the key existed
+        relevant["tasks"].pop("datasets", None)
     relevant["realisation"] = realisation
     relevant["options"] = design.realisation_options(realisation)
     relevant["target"] = design.target.to_dict()["taps"]
@@ -240,7 +242,7 @@ def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, Score
                          for t, v in tasks["checkpoints"].items()},
             task_options={"n_test": tasks["n_test"], "n_test_emulation": tasks["n_test_emulation"],
                           "finetune_epochs": tasks["finetune_epochs"], "test_clips": tasks["test_clips"],
-                          "tracks": tasks["tracks"],
+                          "tracks": tasks["tracks"], "datasets": tasks.get("datasets", {}), "base_dir": base,
                           "design_sensor": data["sensor"] if tasks["sensor"] == "design" else None},
             emulation={"sensor": data["sensor"], "emulation": data["emulation"], "seed": data["run"]["seed"]},
             fit_wall_s=fit_s,

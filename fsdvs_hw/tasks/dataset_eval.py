@@ -11,6 +11,7 @@ set to the dataset's class count (and ignore index). No metric is computed here.
 from __future__ import annotations
 
 import copy
+import re
 import time
 from dataclasses import dataclass, field
 from types import SimpleNamespace
@@ -21,7 +22,7 @@ import numpy as np
 from ..errors import InputError, KernelError, one_line
 from ..limits import MAX_CLIPS, MAX_SEED, check_count
 
-__all__ = ["DatasetEvaluation", "evaluate_on_dataset"]
+__all__ = ["DatasetEvaluation", "evaluate_on_dataset", "evaluator_for_dataset"]
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,8 @@ class DatasetEvaluation:
         Per-clip predictions and ground truth (first axis = clips), for paired statistics.
     seconds : float
         Wall time of the call.
+    durations_s : numpy.ndarray, float64, shape (N,)
+        Each scored clip's span in seconds (last minus first timestamp).
     """
 
     task: str
@@ -55,6 +58,7 @@ class DatasetEvaluation:
     predictions: dict[str, np.ndarray] = field(repr=False)
     targets: dict[str, np.ndarray] = field(repr=False)
     seconds: float = 0.0
+    durations_s: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
     @property
     def value(self) -> float:
@@ -62,7 +66,19 @@ class DatasetEvaluation:
         return self.metrics[self.primary_metric]
 
 
-def _evaluator_for(task: Any, dataset: Any) -> Any:
+def evaluator_for_dataset(task: Any, dataset: Any) -> Any:
+    """The built-in evaluator of ``task`` set to ``dataset``'s class count (and ignore index).
+
+    Raises
+    ------
+    InputError
+        Unknown task, or a dataset holding another task's targets.
+
+    Examples
+    --------
+    >>> evaluator_for_dataset("recognition", ds).num_classes   # doctest: +SKIP
+    101
+    """
     from .evaluators import get_evaluator
 
     base = get_evaluator(task)
@@ -91,9 +107,21 @@ def _network_for(network: Any, task: str, in_channels: int, num_classes: int) ->
                      "'package.module:factory', or a torch.nn.Module")
 
 
+def _device(device: Any) -> Any:
+    """``device`` as a ``torch.device``; CUDA only where it is available."""
+    import torch
+
+    if not isinstance(device, str) or not re.fullmatch(r"cpu|cuda(:\d{1,2})?", device):
+        raise InputError(f"evaluate_on_dataset: device={one_line(device)}; allowed: 'cpu', 'cuda' or 'cuda:N'")
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        raise InputError(f"evaluate_on_dataset: device={device!r} but CUDA is not available on this machine "
+                         f"(torch {torch.__version__}); allowed here: 'cpu'")
+    return torch.device(device)
+
+
 def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = None, *, sensor: Any = None,
                         n_clips: int | None = None, seed: int = 0, weights: Any = None,
-                        events_fn: Any = None) -> DatasetEvaluation:
+                        events_fn: Any = None, device: str = "cpu") -> DatasetEvaluation:
     """Score ``kernel`` on clips of a user dataset with a network.
 
     Parameters
@@ -118,6 +146,11 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     events_fn : callable, optional
         ``events_fn(video (1, T, H, W), kernel_taps, sensor, timestamps_s) -> (1, T-1, 2, H, W)``
         instead of the in-pixel simulator.
+    device : str
+        ``"cpu"`` (default) or ``"cuda"`` / ``"cuda:N"``: where the simulator and the network run
+        (the network is moved there); predictions come back to the CPU for the metric. On CUDA the
+        simulator's random streams (mismatch, noise) differ from the CPU's, so only a noise-free
+        sensor gives the same events to rounding.
 
     Returns
     -------
@@ -144,10 +177,11 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     from .user_networks import event_input_of, load_weights
 
     t0 = time.perf_counter()
+    dev = _device(device)
     if not isinstance(dataset, ClipDataset):
         raise InputError(f"evaluate_on_dataset: dataset is a {type(dataset).__name__}; allowed: a "
                          "fsdvs_hw.scenes.datasets.ClipDataset")
-    evaluator = _evaluator_for(task, dataset)
+    evaluator = evaluator_for_dataset(task, dataset)
     if sensor is not None and not isinstance(sensor, SensorConfig):
         raise InputError(f"evaluate_on_dataset: sensor is a {type(sensor).__name__}; allowed: a SensorConfig")
     if events_fn is not None and not callable(events_fn):
@@ -159,7 +193,7 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
         check_count("evaluate_on_dataset: n_clips", n_clips, 1, min(MAX_CLIPS, len(dataset)))
         indices = dataset.draw(n_clips, seed)
     k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else _as_kernel(kernel)
-    kernel_t = torch.as_tensor(np.array(k.taps), dtype=torch.float64)
+    kernel_t = torch.as_tensor(np.array(k.taps), dtype=torch.float64, device=dev)
 
     first = dataset[int(indices[0])]
     _, h, w = first.frames.shape
@@ -172,10 +206,11 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     if weights is not None:
         load_weights(net, weights)
     rep = event_input_of(net)
+    net = net.to(dev)
     if sensor is None:
         sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(first.timestamps_s)[0])))
 
-    preds, clips, counts = [], [], []
+    preds, clips, counts, spans = [], [], [], []
     net.eval()
     with torch.no_grad():
         for i in indices:
@@ -184,12 +219,13 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
                 raise InputError(f"evaluate_on_dataset: clip {int(i)} ({clip.source!r}) is "
                                  f"{clip.frames.shape[1]}x{clip.frames.shape[2]}, clip {first.index} {h}x{w}; "
                                  "field 'size': give the dataset a size=(H, W)")
-            video = clip.as_batch(torch.float64)
+            video = clip.as_batch(torch.float64).to(dev)
             ev = (events_fn(video, kernel_t, sensor, clip.timestamps_s) if events_fn is not None
                   else event_frames(video, kernel_t, timestamps_s=clip.timestamps_s, config=sensor))
             counts.append(float(ev.sum()))
+            spans.append(float(clip.timestamps_s[-1] - clip.timestamps_s[0]))
             try:
-                preds.append(evaluator.predict(net(rep(ev.float(), clip.timestamps_s))))
+                preds.append({key: v.cpu() for key, v in evaluator.predict(net(rep(ev.float(), clip.timestamps_s))).items()})
             except (RuntimeError, KeyError, TypeError, IndexError) as exc:
                 raise InputError(f"evaluate_on_dataset: the network's output on clip {int(i)} cannot be read by "
                                  f"the {evaluator.name} evaluator ({type(exc).__name__}: "
@@ -211,4 +247,5 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     return DatasetEvaluation(task=evaluator.name, metrics=metrics, primary_metric=evaluator.primary_metric,
                              per_clip=per_clip, clip_indices=np.asarray(indices, dtype=np.int64),
                              event_counts=np.asarray(counts), predictions={key: v.numpy() for key, v in cat.items()},
-                             targets=targets, seconds=time.perf_counter() - t0)
+                             targets=targets, seconds=time.perf_counter() - t0,
+                             durations_s=np.asarray(spans))

@@ -1,0 +1,443 @@
+"""User datasets and networks in a design file: ``[tasks.datasets.<task>]`` and its paired evidence.
+
+A design scores its realisations on the user's own clips with the user's own network by naming
+them per task::
+
+    [tasks.datasets.recognition]
+    dataset = { format = "video_folder", root = "data/ucf", split = "testlist01.txt", n_frames = 8,
+                size = [64, 64] }
+    network = "mynets.video:tiny"          # "package.module:factory" (None: the built-in network)
+    network_options = { width = 16 }       # more keyword arguments of the factory
+    weights = "nets/tiny.safetensors"      # .safetensors / .pt / .pth state dict (optional)
+    n_clips = 200                          # clips drawn with `seed` (0 = every clip)
+
+The ``format`` picks the reader (:mod:`fsdvs_hw.scenes.datasets`) and with it the task, which
+must be the table's name: ``video_folder`` → recognition (UCF101 layout), ``coco_frames`` →
+detection (frames + COCO JSON), ``mask_frames`` → segmentation (frames + label PNGs). ``root``
+is relative to the design file and, like every path of a design, must stay inside its folder
+(symbolic links are followed first); the reader's other paths are relative to ``root``.
+
+The factory is imported from ``sys.path`` or from the design file's folder, and called as
+``factory(in_channels=2 * (n_frames - 1), num_classes=<the dataset's>, **network_options)``
+(:func:`fsdvs_hw.tasks.user_networks.load_network_factory`).
+
+:func:`dataset_evidence` scores a kernel on the drawn clips (:func:`fsdvs_hw.tasks.dataset_eval.
+evaluate_on_dataset`) and keeps each clip's contribution as the same :mod:`fsdvs_hw.stats` metric
+object :func:`fsdvs_hw.explore.paired.clip_evidence` keeps for a trained checkpoint, so
+:func:`fsdvs_hw.explore.scoring.paired_losses` pairs every kernel with the learned one clip by clip.
+Pairing: every kernel meets the same clips (one seeded draw) and the same noise draws (the
+simulator is reseeded for every clip). With one user network the loss CI resamples clips only
+(``n_seeds = 1``: network-to-network variance cannot enter), which the track record says.
+
+References
+----------
+Soomro, Zamir & Shah, "UCF101", CRCV-TR-12-01 (2012) — the class-folder layout.
+Lin et al., "Microsoft COCO", ECCV (2014) — the annotation JSON.
+Cordts et al., "The Cityscapes Dataset", CVPR (2016) — label-mask PNGs with an ignore index.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import functools
+import json
+import sys
+import time
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import Field
+
+from ..errors import InputError
+from ..limits import MAX_CLIPS, MAX_SEED
+from ..paths import confined_path
+from ..schema import StrictModel, field
+
+__all__ = [
+    "FORMAT_TASK",
+    "CocoFramesSource",
+    "MaskFramesSource",
+    "UserTask",
+    "VideoFolderSource",
+    "check_user_task",
+    "dataset_evidence",
+    "open_dataset",
+    "open_network",
+    "user_task_record",
+]
+
+#: What a user-data task's record says about its loss CIs.
+ONE_NETWORK_NOTE = ("one user network: the loss CI resamples the clips only (n_seeds = 1); network-to-network "
+                    "variance is not in it")
+
+#: Dataset format → the task (evaluator) its targets are for.
+FORMAT_TASK: dict[str, str] = {"video_folder": "recognition", "coco_frames": "detection",
+                               "mask_frames": "segmentation"}
+
+_Side = Annotated[int, Field(ge=1, le=16384)]
+_Count = Annotated[int, Field(ge=1, le=100_000)]
+
+
+class _Source(StrictModel):
+    """Keys every dataset format shares."""
+
+    root: str = field(..., "", "the dataset's folder, relative to the design file (must stay inside its folder)")
+    n_frames: int = field(8, "frames", "frames per clip (T)", ge=2, le=10_000)
+    size: list[_Side] | None = field(None, "px", "resize every frame to [H, W] pixels (linear light; boxes scaled, "
+                                     "masks nearest-neighbour); None = the files' size (all must agree)",
+                                     min_length=2, max_length=2)
+    transfer: str = field("sRGB", "", "transfer function undone to get linear luminance (a colour-science "
+                          "CCTF_DECODINGS name)")
+    cache_clips: int = field(0, "clips", "decoded clips kept in memory (LRU; 0 = none)", ge=0, le=MAX_CLIPS)
+
+
+class VideoFolderSource(_Source):
+    """``format = "video_folder"``: ``root/<class>/<video>`` (UCF101 layout), one clip per video."""
+
+    format: Literal["video_folder"] = field("video_folder", "", "class folders of videos (recognition)")
+    split: str | None = field(None, "", "UCF101 split file (testlist01.txt) relative to root: only the videos it "
+                              "lists; None = every video")
+    fps: float | None = field(None, "Hz", "frame rate for the timestamps; None = each video container's",
+                              gt=0.0, le=1e6)
+    stride: _Count = field(1, "frames", "take every stride-th frame of a video")
+    start_frame: int = field(0, "frames", "first frame of a video used", ge=0, le=10**9)
+
+
+class CocoFramesSource(_Source):
+    """``format = "coco_frames"``: frame images plus a COCO JSON of boxes per frame (detection)."""
+
+    format: Literal["coco_frames"] = field("coco_frames", "", "frames + COCO-JSON boxes (detection)")
+    split: str = field("", "", "subfolder of root holding this split ('val'); '' = root itself")
+    frames: str = field("frames", "", "folder of the frame images, relative to root/split")
+    annotations: str = field("instances.json", "", "the COCO JSON, relative to root/split")
+    fps: float = field(30.0, "Hz", "frame rate of the image sequence", gt=0.0, le=1e6)
+    clip_stride: _Count | None = field(None, "frames", "a clip starts every clip_stride frames; None = n_frames "
+                                       "(no overlap)")
+    require_annotations: bool = field(True, "", "every image must have at least one box")
+
+
+class MaskFramesSource(_Source):
+    """``format = "mask_frames"``: frame images plus label-mask PNGs (segmentation)."""
+
+    format: Literal["mask_frames"] = field("mask_frames", "", "frames + label-mask PNGs (segmentation)")
+    split: str = field("", "", "subfolder of root holding this split ('val'); '' = root itself")
+    frames: str = field("frames", "", "folder of the frame images, relative to root/split")
+    masks: str = field("masks", "", "folder of the label PNGs (a class per pixel), relative to root/split")
+    num_classes: int = field(..., "", "classes of the masks (labels in [0, num_classes) or ignore_index)",
+                             ge=2, le=65535)
+    ignore_index: int | None = field(255, "", "label that is not scored (Cityscapes: 255); None = every pixel",
+                                     ge=0, le=65535)
+    frame_suffix: str = field("", "", "stem suffix of a frame removed to find its mask (Cityscapes: '_leftImg8bit')")
+    mask_suffix: str = field(".png", "", "appended to the stem to name the mask ('_gtFine_labelTrainIds.png')")
+    fps: float = field(30.0, "Hz", "frame rate of the image sequence", gt=0.0, le=1e6)
+    clip_stride: _Count | None = field(None, "frames", "a clip starts every clip_stride frames; None = n_frames")
+
+
+class UserTask(StrictModel):
+    """``[tasks.datasets.<task>]``: one task scored on the user's clips with the user's network."""
+
+    unknown_key = "unknown key of a user-data task"
+
+    dataset: Annotated[VideoFolderSource | CocoFramesSource | MaskFramesSource, Field(discriminator="format")] = \
+        field(..., "", "the dataset: format = 'video_folder' | 'coco_frames' | 'mask_frames', root, split, "
+              "reader options")
+    network: str | None = field(None, "", "'package.module:factory' returning a torch.nn.Module (importable from "
+                                "sys.path or the design file's folder); None = the task's built-in network")
+    network_options: dict[str, Any] = field({}, "", "more keyword arguments of the factory (besides in_channels "
+                                            "and num_classes)")
+    weights: str | None = field(None, "", "state dict loaded into the network (.safetensors, .pt, .pth), relative "
+                                "to the design file; None = the factory's own weights")
+    n_clips: int = field(0, "clips", "clips scored, drawn with seed; 0 = every clip", ge=0, le=MAX_CLIPS)
+    seed: int = field(0, "", "seed of the clip draw (the same clips for every kernel)", ge=0, le=MAX_SEED)
+    device: Literal["cpu", "cuda"] = field("cpu", "", "where the simulator and the network run ('cuda' needs a "
+                                           "CUDA build of torch and a GPU; its noise streams differ from the CPU's)")
+
+
+def _path(base: Path, path: str, *, what: str, confine: bool) -> Path:
+    """``path`` against the design's folder; with ``confine`` it must stay inside it."""
+    if confine:
+        return confined_path(base, path, what=what)
+    return (base / path).resolve()
+
+
+def _reader_paths(source: Mapping[str, Any], base: Path, confine: bool, key: str) -> dict[str, Path]:
+    """The reader's paths, resolved against the design's folder (and confined to it)."""
+    root = Path(str(source["root"]))
+    split = source.get("split") or ""
+    if source["format"] == "video_folder":
+        rel = {"root": root, **({"split": root / split} if split else {})}
+    elif source["format"] == "coco_frames":
+        rel = {"frames": root / split / source["frames"], "annotations": root / split / source["annotations"]}
+    else:
+        rel = {"frames": root / split / source["frames"], "masks": root / split / source["masks"]}
+    return {name: _path(base, str(p), what=f"{key}.{name}", confine=confine) for name, p in rel.items()}
+
+
+@functools.lru_cache(maxsize=16)
+def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
+    from ..scenes.datasets import CocoFramesDataset, MaskFramesDataset, VideoFolderDataset
+
+    s = json.loads(blob)
+    paths = _reader_paths(s, Path(base), confine, key)
+    common = {"n_frames": s["n_frames"], "size": tuple(s["size"]) if s["size"] else None,
+              "transfer": s["transfer"], "cache_clips": s["cache_clips"]}
+    if s["format"] == "video_folder":
+        return VideoFolderDataset(paths["root"], split_file=paths.get("split"), fps=s["fps"], stride=s["stride"],
+                                  start_frame=s["start_frame"], **common)
+    if s["format"] == "coco_frames":
+        return CocoFramesDataset(paths["frames"], paths["annotations"], clip_stride=s["clip_stride"], fps=s["fps"],
+                                 require_annotations=s["require_annotations"], **common)
+    return MaskFramesDataset(paths["frames"], paths["masks"], num_classes=s["num_classes"],
+                             clip_stride=s["clip_stride"], fps=s["fps"], ignore_index=s["ignore_index"],
+                             frame_suffix=s["frame_suffix"], mask_suffix=s["mask_suffix"], **common)
+
+
+def open_dataset(source: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True,
+                 key: str = "dataset") -> Any:
+    """The :class:`~fsdvs_hw.scenes.datasets.ClipDataset` a design's ``dataset`` table names.
+
+    Opened once per process (cached): only the layout is read; clips are decoded when scored.
+
+    Parameters
+    ----------
+    source : mapping
+        A validated ``dataset`` table (:class:`VideoFolderSource`, :class:`CocoFramesSource`,
+        :class:`MaskFramesSource` dumped), e.g. ``UserTask(...).model_dump()["dataset"]``.
+    base_dir : path
+        The design file's folder (``root`` is relative to it).
+    confine : bool
+        Refuse paths outside ``base_dir`` (always for design files).
+    key : str
+        The design key, for messages (``"tasks.datasets.recognition.dataset"``).
+
+    Raises
+    ------
+    InputError
+        A path outside the design folder, or any reader error (naming the file and field).
+
+    Examples
+    --------
+    >>> src = VideoFolderSource(root="ucf", size=[64, 64]).model_dump()   # doctest: +SKIP
+    >>> len(open_dataset(src, "designs"))                                  # doctest: +SKIP
+    4
+    """
+    return _open_dataset(json.dumps(dict(source), sort_keys=True), str(Path(base_dir).resolve()), bool(confine), key)
+
+
+@contextlib.contextmanager
+def _importable_from(folder: Path) -> Iterator[None]:
+    """``folder`` first on ``sys.path`` while a user factory is imported."""
+    entry = str(folder)
+    added = entry not in sys.path
+    if added:
+        sys.path.insert(0, entry)
+    try:
+        yield
+    finally:
+        if added:
+            with contextlib.suppress(ValueError):
+                sys.path.remove(entry)
+
+
+@functools.lru_cache(maxsize=16)
+def _open_network(blob: str, base: str, confine: bool, key: str, in_channels: int, num_classes: int) -> Any:
+    from ..tasks.user_networks import builtin_network, load_network_factory, load_weights
+
+    entry = json.loads(blob)
+    task = FORMAT_TASK[entry["dataset"]["format"]]
+    if entry["network"] is None:
+        net = builtin_network(task, in_channels, num_classes)
+    else:
+        clash = sorted({"in_channels", "num_classes"} & set(entry["network_options"]))
+        if clash:
+            raise InputError(f"{key}.network_options: {clash} are set from the dataset; allowed: other keyword "
+                             "arguments of the factory")
+        with _importable_from(Path(base)):
+            net = load_network_factory(entry["network"], in_channels=in_channels, num_classes=num_classes,
+                                       **entry["network_options"])
+    if entry["weights"]:
+        load_weights(net, _path(Path(base), entry["weights"], what=f"{key}.weights", confine=confine))
+    return net.eval()
+
+
+def open_network(entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *, confine: bool = True,
+                 key: str = "network") -> Any:
+    """The network a ``[tasks.datasets.<task>]`` table names, built for ``dataset`` (cached per process).
+
+    Parameters
+    ----------
+    entry : mapping
+        A validated :class:`UserTask` dumped.
+    dataset : ClipDataset
+        Sets ``in_channels = 2 (T - 1)`` and ``num_classes``.
+    base_dir : path
+        The design file's folder (factory import, ``weights``).
+
+    Returns
+    -------
+    torch.nn.Module
+        In eval mode, with the weights loaded.
+
+    Raises
+    ------
+    InputError
+        The factory does not import, fails or returns no module; a weights file that is missing
+        or does not fit (naming the file and parameter).
+
+    Examples
+    --------
+    >>> net = open_network(entry, open_dataset(entry["dataset"], "."), ".")   # doctest: +SKIP
+    """
+    blob = json.dumps(dict(entry), sort_keys=True)
+    return _open_network(blob, str(Path(base_dir).resolve()), bool(confine), key, 2 * (int(dataset.n_frames) - 1),
+                         int(dataset.num_classes))
+
+
+def check_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *,
+                    confine: bool = True) -> list[tuple[str, Any, str]]:
+    """Problems of one validated ``[tasks.datasets.<task>]`` table, as ``(key, value, message)``.
+
+    The format must hold the task's targets, the dataset must open (its layout is read: folders,
+    the JSON, image headers; no clip is decoded), ``n_clips`` must not exceed its clips, and the
+    network must build with its weights.
+
+    Examples
+    --------
+    >>> check_user_task("detection", entry, "designs")   # doctest: +SKIP
+    []
+    """
+    key = f"tasks.datasets.{task}"
+    if entry["device"] == "cuda":
+        import torch
+
+        if not torch.cuda.is_available():
+            return [(f"{key}.device", "cuda", f"CUDA is not available on this machine (torch {torch.__version__}); "
+                     "allowed here: 'cpu'")]
+    fmt = entry["dataset"]["format"]
+    if FORMAT_TASK[fmt] != task:
+        allowed = [f for f, t in FORMAT_TASK.items() if t == task]
+        return [(f"{key}.dataset.format", fmt, f"holds {FORMAT_TASK[fmt]} targets, not {task}; allowed for "
+                 f"[tasks.datasets.{task}]: {', '.join(map(repr, allowed)) or 'none (unknown task)'}")]
+    try:
+        ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"{key}.dataset")
+    except InputError as exc:
+        return [(f"{key}.dataset", entry["dataset"].get("root"), str(exc))]
+    problems = []
+    if entry["n_clips"] > len(ds):
+        problems.append((f"{key}.n_clips", entry["n_clips"], f"the dataset has {len(ds)} clips; allowed: 0 (all) "
+                         f"to {len(ds)}"))
+    try:
+        open_network(entry, ds, base_dir, confine=confine, key=key)
+    except InputError as exc:
+        where = "weights" if "weights file" in str(exc) or ".weights" in str(exc) else "network"
+        problems.append((f"{key}.{where}", entry[where], str(exc)))
+    return problems
+
+
+#: ``SensorConfig`` fields recorded with a user-data task's scores.
+_RECORDED_SENSOR_FIELDS = ("threshold_on", "threshold_off", "threshold_sigma", "placement", "positivity")
+
+
+def _design_sensor(frame_rate_hz: float, design_sensor: Mapping[str, Any] | None) -> tuple[Any, dict[str, Any]]:
+    """The simulator of a user-data task and its record: the training default at the clips' rate,
+    with the given ``SensorConfig`` fields (the design's ``[sensor]`` thresholds, ...) where asked."""
+    from types import SimpleNamespace
+
+    from ..tasks.learn import default_sensor
+
+    cfg = default_sensor(SimpleNamespace(frame_rate_hz=frame_rate_hz))
+    if design_sensor is not None:
+        cfg = dataclasses.replace(cfg, **dict(design_sensor))
+    return cfg, {"source": "design" if design_sensor is not None else "default",
+                 **{k: getattr(cfg, k) for k in _RECORDED_SENSOR_FIELDS}}
+
+
+def dataset_evidence(kernel: Any, task: str, entry: Mapping[str, Any], base_dir: str | Path, *,
+                     design_sensor: Mapping[str, Any] | None = None, events_fn: Any = None,
+                     confine: bool = True) -> tuple[Any, dict[str, Any]]:
+    """Score ``kernel`` on a user dataset with the user network and keep every clip's contribution.
+
+    The counterpart of :func:`fsdvs_hw.explore.paired.clip_evidence` for a
+    ``[tasks.datasets.<task>]`` table: the same per-clip metric objects
+    (:data:`fsdvs_hw.explore.paired.PER_CLIP_METRICS`: COCO matches, top-1 per clip, per-clip
+    confusion matrices with the dataset's ignore index) and per-clip event rates.
+
+    Parameters
+    ----------
+    kernel : Kernel or None
+        The realised kernel (None: a 1×1 delta, a conventional DVS).
+    task : str
+        ``"detection"``, ``"recognition"`` or ``"segmentation"`` (the table's name).
+    entry : mapping
+        A validated :class:`UserTask` dumped.
+    base_dir : path
+        The design file's folder.
+    design_sensor : mapping, optional
+        ``SensorConfig`` fields replacing the training default's (``tasks.sensor = "design"``: the
+        design's ``[sensor]`` thresholds, mismatch, placement and positivity); None: the training
+        default (:func:`fsdvs_hw.tasks.learn.default_sensor`) at the clips' frame rate.
+    events_fn : callable, optional
+        Event frames instead of the in-pixel simulator (the emulation track).
+
+    Returns
+    -------
+    evidence : ClipEvidence
+        ``checkpoint`` names the network; ``test_seed`` is the clip-draw seed.
+    sensor_record : dict
+        Which simulator settings were used.
+
+    Raises
+    ------
+    InputError
+        Any dataset, network or clip problem (naming the file, the clip and the field).
+
+    Examples
+    --------
+    >>> ev, _ = dataset_evidence(None, "recognition", entry, "designs")   # doctest: +SKIP
+    >>> ev.metric_name, ev.n_clips                                       # doctest: +SKIP
+    ('top1', 4)
+    """
+    from ..tasks.dataset_eval import evaluate_on_dataset, evaluator_for_dataset
+    from .paired import PER_CLIP_METRICS, ClipEvidence
+
+    t0 = time.perf_counter()
+    key = f"tasks.datasets.{task}"
+    ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"{key}.dataset")
+    net = open_network(entry, ds, base_dir, confine=confine, key=key)
+    evaluator = evaluator_for_dataset(task, ds)
+    first = ds[0]
+    rate_hz = 1.0 / float(np.diff(first.timestamps_s)[0])
+    sensor, sensor_rec = _design_sensor(rate_hz, design_sensor)
+    ev = evaluate_on_dataset(kernel, task, ds, net, sensor=sensor, n_clips=entry["n_clips"] or None,
+                             seed=entry["seed"], events_fn=events_fn, device=entry["device"])
+    metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, ev.targets, evaluator)
+    n = len(ev.clip_indices)
+    t, h, w = first.frames.shape
+    evidence = ClipEvidence(task=evaluator.name, metric_name=evaluator.primary_metric,
+                            value=float(metric.weighted(np.ones((1, n)))[0]), n_clips=n, metric=metric,
+                            checkpoint=entry["network"] or f"built-in {evaluator.name} network",
+                            sensor_seed=int(sensor.seed), seconds=time.perf_counter() - t0,
+                            test_seed=int(entry["seed"]),
+                            event_rate=float(np.mean(ev.event_counts)) / (h * w * (t - 1)),
+                            clip_event_rates=np.asarray(ev.event_counts, dtype=np.float64) / (h * w * ev.durations_s))
+    return evidence, sensor_rec
+
+
+def user_task_record(entry: Mapping[str, Any]) -> dict[str, Any]:
+    """What a task track's record says about a user-data task: the dataset, the network, the CI.
+
+    Examples
+    --------
+    >>> rec = user_task_record(UserTask(dataset={"format": "video_folder", "root": "ucf"}).model_dump())
+    >>> rec["dataset"]["format"], rec["network"]["factory"]
+    ('video_folder', 'built-in')
+    """
+    src = entry["dataset"]
+    return {"dataset": {k: src.get(k) for k in ("format", "root", "split", "n_frames", "size")}
+            | {"n_clips": entry["n_clips"], "seed": entry["seed"]},
+            "network": {"factory": entry["network"] or "built-in", "options": dict(entry["network_options"]),
+                        "weights": entry["weights"], "device": entry["device"]},
+            "ci_note": ONE_NETWORK_NOTE}
