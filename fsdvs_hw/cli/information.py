@@ -21,7 +21,7 @@ DESCRIPTION = (
     "ground truth (equal-mass joint histogram, Miller-Madow corrected) and the bits per event, with\n"
     "bootstrap CIs over networks x clips. Networks and scored conditions are saved under OUT, so a\n"
     "rerun resumes.\n\n"
-    "Example:\n  fsdvs-hw information designs/default.toml --networks 3 --n-train 1024 --n-test 64 --out out/info\n"
+    "Example:\n  fsdvs-hw information designs/default.toml --networks 3 --n-train 512 --n-test 64 --out out/info\n"
 )
 
 
@@ -30,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("design", type=Path, help="TOML design file, or a shipped design's name (default)")
     parser.add_argument("--networks", type=int_in(2, 1000), default=3, help="reconstruction networks per condition")
-    parser.add_argument("--n-train", type=int_in(2, MAX_CLIPS), default=1024, help="training clips per network")
+    parser.add_argument("--n-train", type=int_in(2, MAX_CLIPS), default=512, help="training clips per network")
     parser.add_argument("--n-test", type=int_in(2, MAX_CLIPS), default=64, help="test clips (shared by all networks)")
     parser.add_argument("--epochs", type=int_in(1, 10_000), default=16, help="training epochs per network")
     parser.add_argument("--width", type=int_in(4, 256), default=16, help="network width (channels)")

@@ -17,7 +17,9 @@ histogram, Miller–Madow corrected; ground-truth bin edges shared by every cond
 reconstruction's per network). Every clip keeps its own joint histogram, so a bootstrap resample
 of networks × clips (crossed: the clips are shared, :func:`fsdvs_hw.explore.paired.bootstrap_weights`)
 re-weights the histograms and recomputes MI, events per pixel and bits per event; the same
-resamples serve every condition, so differences to w/o are paired.
+resamples serve every condition, so differences to w/o are paired. A resample that repeats clips
+biases a histogram MI up (fewer distinct samples than the count Miller–Madow assumes), so each
+percentile interval is shifted by the bootstrap's bias estimate (mean of the resamples − estimate).
 
 Matched rate: the w/o event rate on the test clips is measured along ``rate_thresholds``
 (simulator only) and the threshold where it equals the learned kernel's rate at the design's
@@ -313,7 +315,7 @@ class InformationOptions:
     design: Path
     out: Path
     n_networks: int = 3
-    n_train: int = 1024
+    n_train: int = 512
     n_test: int = 64
     epochs: int = 16
     width: int = 16
