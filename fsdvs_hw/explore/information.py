@@ -36,7 +36,9 @@ their fingerprint matches):
 ``kernels/{realisation}.json``
     The fitted realisation kernels.
 ``information.json`` / ``information.csv``
-    One row per condition (:data:`TABLE_FIELDS`), the settings and provenance.
+    One row per condition (:data:`TABLE_FIELDS`: gains against w/o), the settings and provenance;
+    the JSON also holds ``vs_matched_rate``, each condition's gains against ``w/o @ matched rate``
+    (:data:`MATCHED_FIELDS`): the learned kernel against a plain DVS that fires as many events.
 """
 
 from __future__ import annotations
@@ -66,6 +68,8 @@ from .rate import interpolate_log_rate
 
 __all__ = [
     "DEFAULT_RATE_THRESHOLDS",
+    "MATCHED",
+    "MATCHED_FIELDS",
     "TABLE_FIELDS",
     "ConditionEvidence",
     "InformationOptions",
@@ -77,6 +81,16 @@ __all__ = [
 
 #: ON = OFF thresholds (log units) along which the w/o event rate is measured for the matched rate.
 DEFAULT_RATE_THRESHOLDS: tuple[float, ...] = (0.05, 0.07, 0.1, 0.125, 0.15, 0.2, 0.3)
+
+#: The condition "w/o with its threshold moved to the learned kernel's event rate".
+MATCHED: str = "w/o @ matched rate"
+
+#: Fields of the comparison of each condition against :data:`MATCHED` (``information.json``,
+#: ``vs_matched_rate``): the gains of :data:`TABLE_FIELDS`, taken against the matched w/o.
+MATCHED_FIELDS: tuple[str, ...] = (
+    "condition", "mi_gain", "mi_gain_low", "mi_gain_high", "mi_gain_pct", "mi_gain_pct_low", "mi_gain_pct_high",
+    "bits_per_event_gain", "bits_per_event_gain_low", "bits_per_event_gain_high", "confidence",
+)
 
 #: Columns of the table (``information.csv``); ``_low``/``_high`` are the CI bounds.
 TABLE_FIELDS: tuple[str, ...] = (
@@ -345,6 +359,8 @@ class InformationStudy:
     conditions: dict[str, ConditionEvidence]
     matched_threshold: float | None
     files: dict[str, Path]
+    #: Each condition against ``w/o @ matched rate`` (:data:`MATCHED_FIELDS`); empty without it.
+    vs_matched: list[dict[str, Any]] = dataclasses.field(default_factory=list)
 
     @property
     def text(self) -> str:
@@ -357,6 +373,13 @@ class InformationStudy:
                 f"[{r['bits_per_event_low']:.3f}, {r['bits_per_event_high']:.3f}] bits/event; vs w/o "
                 f"{r['mi_gain']:+.3f} [{r['mi_gain_low']:+.3f}, {r['mi_gain_high']:+.3f}] bits/pixel "
                 f"({r['mi_gain_pct']:+.1f} %)")
+        for r in self.vs_matched:
+            if r["condition"] == "learned":
+                lines.append(
+                    f"learned vs w/o @ matched rate: {r['mi_gain']:+.3f} [{r['mi_gain_low']:+.3f}, "
+                    f"{r['mi_gain_high']:+.3f}] bits/pixel ({r['mi_gain_pct']:+.1f} % [{r['mi_gain_pct_low']:+.1f}, "
+                    f"{r['mi_gain_pct_high']:+.1f}]); {r['bits_per_event_gain']:+.3f} [{r['bits_per_event_gain_low']:+.3f}, "
+                    f"{r['bits_per_event_gain_high']:+.3f}] bits/event")
         return "\n".join(lines)
 
 
@@ -547,7 +570,7 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
     if options.matched_rate:
         matched, matched_record = _matched_threshold(design, scene, design.target, options.n_test,
                                                      options.rate_thresholds, out)
-        conditions["w/o @ matched rate"] = (None, matched)
+        conditions[MATCHED] = (None, matched)
     truth = clean_last_frame(make_scenes(scene, options.n_test, seed=TEST_SEED))
     x_edges = quantile_edges(truth, options.n_bins)
     evidence: dict[str, ConditionEvidence] = {}
@@ -574,6 +597,11 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
             write_output(stamp, fp + "\n")
     rows = information_table(list(evidence.values()), confidence=options.confidence,
                              n_resamples=options.n_resamples, rng=0)
+    vs_matched = []
+    if MATCHED in evidence:
+        vs_matched = [{k: r[k] for k in MATCHED_FIELDS} for r in information_table(
+            list(evidence.values()), reference=MATCHED, confidence=options.confidence,
+            n_resamples=options.n_resamples, rng=0)]
     settings = {"design": str(options.design), "conditions": list(conditions), "reference_threshold": t_ref,
                 "matched_threshold": matched, "matched_rate": matched_record,
                 "n_networks": options.n_networks, "training_seeds": list(seeds), "n_train": options.n_train,
@@ -590,7 +618,9 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
                   "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
     files = {
         "information.json": write_output(out / "information.json", json.dumps(
-            {"settings": settings, "rows": rows, "provenance": provenance}, indent=1, default=str)),
+            {"settings": settings, "rows": rows, "vs_matched_rate": vs_matched, "provenance": provenance},
+            indent=1, default=str)),
         "information.csv": write_output(out / "information.csv", _csv(rows)),
     }
-    return InformationStudy(rows=rows, conditions=evidence, matched_threshold=matched, files=files)
+    return InformationStudy(rows=rows, conditions=evidence, matched_threshold=matched, files=files,
+                            vs_matched=vs_matched)
