@@ -135,6 +135,18 @@ def test_information_table_refuses_unpaired_conditions():
 
 
 # --------------------------------------------------------------------------- the network
+@pytest.fixture
+def one_torch_thread():
+    """Training on one thread (a second one spins on a loaded machine and costs ~10x the CPU time)."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+@pytest.mark.usefixtures("one_torch_thread")
 def test_reconstruction_network_learns_more_than_a_shuffled_pairing():
     import fsdvs_hw.tasks.reconstruction  # noqa: F401 - registers the task
     from fsdvs_hw.scenes.synthetic import scene_regime
@@ -152,6 +164,7 @@ def test_reconstruction_network_learns_more_than_a_shuffled_pairing():
 
 
 # --------------------------------------------------------------------------- the command
+@pytest.mark.usefixtures("one_torch_thread")
 def test_study_resumes_without_retraining(tmp_path, monkeypatch):
     import fsdvs_hw.tasks.learn as learn
 

@@ -47,8 +47,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import torch
+
     from ..explore.information import InformationOptions, run_information_study
 
+    # one thread: on a shared machine PyTorch's second thread spins (measured ~10x the CPU time)
+    torch.set_num_threads(1)
     cmd = "fsdvs-hw information " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "fsdvs-hw information"
     study = run_information_study(InformationOptions(
         design=args.design, out=args.out, n_networks=args.networks, n_train=args.n_train, n_test=args.n_test,
