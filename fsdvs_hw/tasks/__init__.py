@@ -9,6 +9,9 @@
 * :mod:`~fsdvs_hw.tasks.user_networks` — a user network by import path (``"pkg.mod:factory"``), its
   event representation, user weights; :mod:`~fsdvs_hw.tasks.dataset_eval` — :func:`evaluate_on_dataset`
   scores a kernel on a user dataset (:mod:`fsdvs_hw.scenes.datasets`).
+* :mod:`~fsdvs_hw.tasks.reconstruction` — events → intensity (a small E2VID-like network), task
+  ``"reconstruction"``, registered when that module is imported (the information study,
+  :mod:`fsdvs_hw.explore.information`).
 * :mod:`~fsdvs_hw.tasks.ablation` — one run of the kernel-size ablation (the paper's Tables I-III)
   and its tables; :mod:`fsdvs_hw.explore.ablation` shards the runs over the sweep executor.
 
@@ -39,6 +42,8 @@ _LAZY = {
     "EventInput": "fsdvs_hw.tasks.user_networks",
     "evaluate_on_dataset": "fsdvs_hw.tasks.dataset_eval",
     "DatasetEvaluation": "fsdvs_hw.tasks.dataset_eval",
+    "ReconstructionEvaluator": "fsdvs_hw.tasks.reconstruction",
+    "IntensityReconstructor": "fsdvs_hw.tasks.reconstruction",
     "ablation_jobs": "fsdvs_hw.tasks.ablation",
     "run_job": "fsdvs_hw.tasks.ablation",
 }
@@ -51,4 +56,5 @@ if TYPE_CHECKING:  # the same names, visible to IDEs and type checkers
     from .evaluators import EVALUATORS, TaskEvaluator, get_evaluator, register_evaluator
     from .learn import Evaluation, LearnResult, evaluate_kernel, heldout_targets, learn_kernel
     from .metrics import detection_map, segmentation_scores, top1_accuracy
+    from .reconstruction import IntensityReconstructor, ReconstructionEvaluator
     from .user_networks import EventInput, load_network_factory, load_weights
