@@ -6,7 +6,7 @@ and call :func:`check_allocation`, which raises an :class:`~fsdvs_hw.errors.Inpu
 what would be allocated, its size and the limit.
 
 The limit is :data:`DEFAULT_MAX_ALLOC_BYTES` (1 GiB); override it for one process with the
-environment variable ``FSDVS_MAX_ALLOC_BYTES`` (bytes, e.g. ``FSDVS_MAX_ALLOC_BYTES=34359738368``
+environment variable ``FSDVS_HW_MAX_ALLOC_BYTES`` (bytes, e.g. ``FSDVS_HW_MAX_ALLOC_BYTES=34359738368``
 for 32 GiB) or for one block of code with :func:`allocation_limit`.
 """
 
@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
-import os
 from collections.abc import Iterator
 
 from .errors import InputError
@@ -52,16 +51,18 @@ MAX_SUBSTEPS: int = 100_000
 #: Largest single array allocated without an explicit override (bytes).
 DEFAULT_MAX_ALLOC_BYTES: int = 2**30
 
-_ENV = "FSDVS_MAX_ALLOC_BYTES"
+_ENV = "FSDVS_HW_MAX_ALLOC_BYTES"
 _override: contextvars.ContextVar[int | None] = contextvars.ContextVar("fsdvs_max_alloc_bytes", default=None)
 
 
 def max_alloc_bytes() -> int:
-    """The limit in force: :func:`allocation_limit` block, else ``$FSDVS_MAX_ALLOC_BYTES``, else the default."""
+    """The limit in force: :func:`allocation_limit` block, else ``$FSDVS_HW_MAX_ALLOC_BYTES``, else the default."""
     v = _override.get()
     if v is not None:
         return v
-    env = os.environ.get(_ENV)
+    from .environment import env as _env
+
+    env = _env(_ENV)
     if env is None:
         return DEFAULT_MAX_ALLOC_BYTES
     try:

@@ -20,7 +20,8 @@ LAYERS: tuple[str, ...] = ("core", "models", "tasks", "report", "explore", "cli"
 
 #: Top-level modules of the core layer (kernels, spectra, CSF, statistics and their helpers).
 _CORE = {"errors", "paths", "resources", "validation", "schema", "limits", "kernels", "spectra", "csf", "stats", "workers",
-         "plots", "analysis", "_lazy", "progress", "provenance", "mutual_information"}
+         "plots", "analysis", "_lazy", "progress", "provenance", "mutual_information",
+         "environment"}
 _MODELS = {"sensor", "scenes", "realise", "records", "costs"}
 
 #: Import cycles known and owned elsewhere (none: sensor/events.py no longer imports sensor/plan.py).

@@ -331,7 +331,7 @@ def test_a_plugin_realisation_is_explored_end_to_end(tmp_path, capsys):
 @pytest.mark.slow
 def test_spawned_workers_know_a_plugin_registered_in_the_parent(tmp_path):
     """``[run] workers = 2`` spawns processes: they import the plugin module named in
-    ``FSDVS_REALISATION_PLUGINS`` (set by register_realisation), so its points are scored, not
+    ``FSDVS_HW_REALISATION_PLUGINS`` (set by register_realisation), so its points are scored, not
     refused as unknown."""
     import os
 

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from ..environment import env
 from ..errors import InputError
 from ..paths import write_output
 
@@ -86,10 +87,10 @@ def ablation_points(
 
 def evaluate_ablation_point(point: AblationPoint) -> dict[str, Any]:
     """Run one training (in a worker); never raises: a failure becomes an ``"error"`` status."""
-    if os.environ.get("FSDVS_SWEEP_THREADS"):
+    if env("FSDVS_HW_WORKER_THREADS"):
         import torch
 
-        torch.set_num_threads(int(os.environ["FSDVS_SWEEP_THREADS"]))
+        torch.set_num_threads(int(env("FSDVS_HW_WORKER_THREADS") or 1))
     from ..tasks.ablation import run_job
 
     t0 = time.perf_counter()

@@ -48,6 +48,7 @@ from typing import Any
 
 import numpy as np
 
+from ..environment import env
 from ..errors import InputError
 from ..paths import write_output
 from ..stats import multiplicities
@@ -128,8 +129,8 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) 
     root = Path(out_dir) / "codesign"
     (root / "units").mkdir(parents=True, exist_ok=True)
     (root / "networks").mkdir(parents=True, exist_ok=True)
-    if os.environ.get("FSDVS_CODESIGN_THREADS"):
-        torch.set_num_threads(int(os.environ["FSDVS_CODESIGN_THREADS"]))
+    if env("FSDVS_HW_WORKER_THREADS"):
+        torch.set_num_threads(int(env("FSDVS_HW_WORKER_THREADS") or 1))
     ckpts = design.checkpoints()
     target = design.target
     per_net = design.spec.tasks.test_clips == "per_network"

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..environment import env, set_env
 from ..errors import InputError
 from ..limits import MAX_WORKERS, check_count
 from ..provenance import library_versions
@@ -197,11 +198,11 @@ def evaluate_point(point: DesignPoint) -> dict[str, Any]:
         ``{"key", "status": "ok"|"error", "result": score record or {"reason": ...},
         "wall_s", "worker"}``.
     """
-    if os.environ.get("FSDVS_SWEEP_THREADS"):
+    if env("FSDVS_HW_WORKER_THREADS"):
         try:
             import torch
 
-            torch.set_num_threads(int(os.environ["FSDVS_SWEEP_THREADS"]))
+            torch.set_num_threads(int(env("FSDVS_HW_WORKER_THREADS") or 1))
         except ImportError:  # pragma: no cover - torch is a dependency
             pass
     t0 = time.perf_counter()
@@ -351,7 +352,7 @@ def _run_pool(todo: Sequence[DesignPoint], workers: int, finish: Callable[[Desig
 
     from ..workers import process_pool
 
-    os.environ.setdefault("FSDVS_SWEEP_THREADS", "1")
+    set_env("FSDVS_HW_WORKER_THREADS", "1", default=True)
     pool = process_pool(min(workers, len(todo)))  # workers die with this process (no orphans)
     futures = {pool.submit(evaluate, p): p for p in todo}
     try:

@@ -20,10 +20,11 @@ Adding a realisation outside the package is one module::
     register_realisation(RealisationSpec(name="box", fit=fit_box, options=BoxOptions, record_type=BoxDesign,
                                          costs=(CostSpec("taps", "count", pareto=True, headline=True),)))
 
-Spawned worker processes (``[run] workers > 1``) import the modules that registered realisations
-from outside the package (recorded in the environment variable :data:`PLUGIN_ENV`), so a plugin
-registered in the parent process is known to the workers too; remote Dask workers must import it
-themselves.
+An installed package registers its realisations through the entry-point group
+:data:`ENTRY_POINT_GROUP` (``fsdvs_hw.realisations``), which every process loads, spawned and
+remote Dask workers included. A module registered at run time without being installed is recorded
+in the environment variable :data:`PLUGIN_ENV`, so spawned workers (``[run] workers > 1``) import
+it too; remote Dask workers must import it themselves.
 
 References
 ----------
@@ -36,12 +37,14 @@ from __future__ import annotations
 import importlib
 import math
 import os
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from ..environment import env, set_env
 from ..errors import InputError
 from ..kernels import Kernel, as_kernel, reference_kernel
 from ..schema import StrictModel, validate
@@ -49,6 +52,7 @@ from .artifacts import Artifact
 from .base import Realisation, ReferenceRealisation
 
 __all__ = [
+    "ENTRY_POINT_GROUP",
     "KINDS",
     "PLUGIN_ENV",
     "REALISATIONS",
@@ -68,9 +72,18 @@ __all__ = [
 #: reference scored the same way (no cost; never on a front).
 KINDS: tuple[str, ...] = ("hardware", "reference")
 
-#: Environment variable listing the modules outside fsdvs_hw that registered realisations
-#: (``os.pathsep``-separated); spawned workers import them.
-PLUGIN_ENV = "FSDVS_REALISATION_PLUGINS"
+#: Environment variable listing the modules outside fsdvs_hw that registered realisations at run
+#: time (``os.pathsep``-separated); spawned workers import them (:mod:`fsdvs_hw.environment`).
+PLUGIN_ENV = "FSDVS_HW_REALISATION_PLUGINS"
+
+#: Entry-point group of installed realisation plugins: each entry point names a module (imported:
+#: its module-level :func:`register_realisation` calls register) or a callable (called once). Every
+#: process, spawned workers and remote Dask workers included, loads them when it imports
+#: :mod:`fsdvs_hw.realise`. In a plugin's ``pyproject.toml``::
+#:
+#:     [project.entry-points."fsdvs_hw.realisations"]
+#:     box = "box_filter.realisation"
+ENTRY_POINT_GROUP = "fsdvs_hw.realisations"
 
 #: Units a cost item may carry: SI units, "count", "bit", "px" and "1" (dimensionless).
 COST_UNITS: frozenset[str] = frozenset({"S", "F", "s", "m", "m^2", "W", "J", "A", "V", "Hz", "count", "bit", "px",
@@ -327,9 +340,9 @@ def register_realisation(spec: RealisationSpec, *, replace: bool = False) -> Rea
     _REGISTRY[spec.name] = spec
     module = getattr(spec.fit, "__module__", "") or ""
     if module and module != "__main__" and not module.startswith("fsdvs_hw."):
-        known = [m for m in os.environ.get(PLUGIN_ENV, "").split(os.pathsep) if m]
+        known = _plugin_modules()
         if module not in known:
-            os.environ[PLUGIN_ENV] = os.pathsep.join([*known, module])
+            set_env(PLUGIN_ENV, os.pathsep.join([*known, module]))
     return spec
 
 
@@ -337,16 +350,31 @@ def unregister_realisation(name: str) -> None:
     """Remove a realisation (tests and interactive sessions); unknown names are ignored."""
     spec = _REGISTRY.pop(name, None)
     module = getattr(getattr(spec, "fit", None), "__module__", "") or ""
-    known = [m for m in os.environ.get(PLUGIN_ENV, "").split(os.pathsep) if m]
+    known = _plugin_modules()
     if module in known and not any(getattr(s.fit, "__module__", "") == module for s in _REGISTRY.values()):
-        os.environ[PLUGIN_ENV] = os.pathsep.join(m for m in known if m != module)
+        set_env(PLUGIN_ENV, os.pathsep.join(m for m in known if m != module) or None)
+
+
+def _plugin_modules() -> list[str]:
+    return [m for m in (env(PLUGIN_ENV) or "").split(os.pathsep) if m]
 
 
 def _import_plugins() -> None:
-    """Import the plugin modules named in :data:`PLUGIN_ENV` (spawned workers inherit the variable)."""
-    for module in os.environ.get(PLUGIN_ENV, "").split(os.pathsep):
-        if module:
-            importlib.import_module(module)
+    """Load the installed plugins (:data:`ENTRY_POINT_GROUP`) and the modules named in :data:`PLUGIN_ENV`
+    (spawned workers inherit the variable). A plugin that fails to load is reported as a warning
+    naming it and the error; the built-in realisations stay usable."""
+    from importlib.metadata import entry_points
+
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            loaded = ep.load()
+            if callable(loaded):
+                loaded()
+        except Exception as exc:  # noqa: BLE001 - a broken plugin must not break the package
+            warnings.warn(f"realisation plugin {ep.name!r} ({ep.value}) failed to load: {type(exc).__name__}: {exc}",
+                          RuntimeWarning, stacklevel=2)
+    for module in _plugin_modules():
+        importlib.import_module(module)
 
 
 def get_realisation(name: str) -> RealisationSpec:

@@ -40,7 +40,9 @@ _D = ctypes.c_double
 
 
 def _cache_dir() -> Path:
-    env = os.environ.get("FSDVS_HW_CACHE")
+    from ..environment import env as _env
+
+    env = _env("FSDVS_HW_CACHE")
     if env:
         return Path(env)
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
@@ -75,7 +77,9 @@ def _load() -> ctypes.CDLL | None:
     if _tried:
         return _lib
     _tried = True
-    if os.environ.get("FSDVS_HW_NO_NATIVE"):
+    from ..environment import env as _env
+
+    if _env("FSDVS_HW_NO_NATIVE"):
         _error = "disabled by FSDVS_HW_NO_NATIVE"
         return None
     try:
