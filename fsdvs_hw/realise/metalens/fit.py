@@ -278,7 +278,7 @@ class _RadialKernelModel:
         return (intensity[self.index] * self.weights).sum(-1) / self.p_in
 
 
-def _spectral(illuminant: Any, response: Any, n_wavelengths: int) -> SpectralSamples:
+def _spectral(illuminant: Any, response: Any, n_wavelengths: Any) -> SpectralSamples:  # n: checked by spectral_samples
     if isinstance(illuminant, SpectralSamples):
         return illuminant
     kwargs = {} if response is None else {"response": response}
