@@ -74,7 +74,7 @@ def codesign_cells(design: Design) -> list[tuple[str, str]]:
     cd = design.spec.codesign
     tasks = cd.tasks or list(design.spec.tasks.checkpoints)
     if cd.cells:
-        return [tuple(c.split("/", 1)) for c in cd.cells]  # type: ignore[misc]
+        return [tuple(c.split("/", 1)) for c in cd.cells]
     return [(r, t) for r in cd.realisations for t in tasks]
 
 
