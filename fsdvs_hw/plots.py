@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -107,7 +107,8 @@ def plot_radial_vs_csf(
     """
     if _one_kernel(kernels):
         kernels = [kernels]
-    kernels = [as_kernel(k, name=f"kernel {i}") for i, k in enumerate(kernels)]
+    # a sequence of kernels here: one kernel was wrapped above
+    kernels = [as_kernel(k, name=f"kernel {i}") for i, k in enumerate(cast(Sequence[Any], kernels))]
     if not kernels:
         raise InputError("plot_radial_vs_csf: need at least one kernel")
     fig, ax = _axes(ax, figsize=(5.6, 3.8))

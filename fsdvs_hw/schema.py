@@ -320,21 +320,22 @@ def problems(exc: ValidationError, model: type[BaseModel], *, prefix: str = "") 
     """
     defs = _json_schema(model).get("$defs", {})
     by_key: dict[str, list[dict[str, Any]]] = {}
-    for err in exc.errors():
-        loc = tuple(err["loc"])
-        if err["type"] == "extra_forbidden":
+    for detail in exc.errors():
+        loc = tuple(detail["loc"])
+        entry: dict[str, Any]
+        if detail["type"] == "extra_forbidden":
             key, fld, parent = _walk(model, loc[:-1])
             key = f"{key}.{loc[-1]}" if key else str(loc[-1])
-            err = {**err, "_table": fld if fld is not None else parent}
+            entry = {**detail, "_table": fld if fld is not None else parent}
         else:
             key, fld, _ = _walk(model, loc)
-            err = {**err, "_field": fld}
-        by_key.setdefault(key, []).append(err)
+            entry = {**detail, "_field": fld}
+        by_key.setdefault(key, []).append(entry)
     lines = []
     for key, errs in by_key.items():
         err = next((e for e in errs if not e["type"].endswith("_type") and e["type"] != "literal_error"), None) \
             or next((e for e in errs if e["type"] == "literal_error"), None) or errs[0]
-        value = err.get("input")
+        value: Any = err.get("input")
         if err["type"] == "extra_forbidden":
             table = _resolve(dict(err["_table"]), defs)
             tables = [m for m in members(table, defs) if "properties" in m]
@@ -377,8 +378,8 @@ def problems(exc: ValidationError, model: type[BaseModel], *, prefix: str = "") 
 
 def _unknown_words(model: type[BaseModel], title: str | None) -> str:
     """The ``unknown_key`` words of the (sub)model called ``title`` inside ``model``."""
-    seen: set[type] = set()
-    stack: list[type] = [model]
+    seen: set[type[BaseModel]] = set()
+    stack: list[type[BaseModel]] = [model]
     while stack:
         m = stack.pop()
         if m in seen:

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 from pydantic import BaseModel
@@ -123,6 +123,14 @@ def check_real(name: str, value: Any, lo: float | None = None, hi: float | None 
     if (lo is not None and (v <= lo if lo_open else v < lo)) or (hi is not None and (v >= hi if hi_open else v > hi)):
         raise InputError(f"{name}={_show(value)}: out of range; allowed: {allowed}")
     return v
+
+
+@overload
+def check_bool(name: str, value: Any, *, nullable: Literal[False] = False) -> bool: ...
+
+
+@overload
+def check_bool(name: str, value: Any, *, nullable: bool) -> bool | None: ...
 
 
 def check_bool(name: str, value: Any, *, nullable: bool = False) -> bool | None:

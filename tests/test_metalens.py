@@ -280,6 +280,8 @@ def test_fit_errors_name_the_problem():
         fit_metalens(k, strategy="floor")
     with pytest.raises(InputError, match="differential"):
         fit_metalens(reference_kernel("gaussian", 5), strategy="differential", **FAST)
+    with pytest.raises(InputError, match="positive taps"):  # was an AttributeError deep in the solve
+        fit_metalens(-reference_kernel("gaussian", 5).taps, strategy="differential", **FAST)
     with pytest.raises(InputError, match="n_terms"):
         fit_metalens(k, n_terms=20)
     with pytest.raises(InputError, match="expected a Kernel"):

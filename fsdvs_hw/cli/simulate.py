@@ -173,6 +173,7 @@ def run(args: argparse.Namespace) -> int:
                     writer = EventFileWriter(args.out, chunk.width, chunk.height,
                                              metadata={"source": str(path), "preset": args.preset,
                                                        "kernel": args.kernel or "none"})
+                assert chunk.events is not None  # simulate() yields events by default (events=True)
                 writer.write(chunk.events)
                 n_events += len(chunk.events)
                 n_on += int((chunk.events.p > 0).sum())

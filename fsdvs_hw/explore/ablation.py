@@ -119,7 +119,7 @@ def run_ablation(points: list[AblationPoint], store_path: str | Path, *, workers
     for p in points:
         r = rows.get(p.key)
         if r is None or r["status"] != "ok":
-            reason = (r or {}).get("result", {}).get("reason", "not run") if r else "not run"
+            reason = r.get("result", {}).get("reason", "not run") if r else "not run"
             print(f"[ablation] {p.label}: {r['status'] if r else 'missing'} ({reason})", file=sys.stderr, flush=True)
             continue
         out.append(dict(r["result"]))
@@ -340,6 +340,7 @@ def _collect(points: list[AblationPoint], store: Path, exe: dict[str, Any], from
 
 
 def _transfer_kernel(args: AblationOptions, records: list[dict[str, Any]], out: Path) -> Path:
+    assert args.transfer is not None  # called only with --transfer
     if args.transfer != "from-run":
         p = Path(args.transfer)
         if not p.is_file():

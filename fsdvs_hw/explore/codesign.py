@@ -74,7 +74,7 @@ def codesign_cells(design: Design) -> list[tuple[str, str]]:
     cd = design.spec.codesign
     tasks = cd.tasks or list(design.spec.tasks.checkpoints)
     if cd.cells:
-        return [tuple(c.split("/", 1)) for c in cd.cells]  # type: ignore[misc]
+        return [tuple(c.split("/", 1)) for c in cd.cells]
     return [(r, t) for r in cd.realisations for t in tasks]
 
 
@@ -94,7 +94,7 @@ def _n_test(design: Design, task: str) -> int | None:
     return int(n) or None
 
 
-def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) -> dict[str, Any]:
+def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None = True) -> dict[str, Any]:
     """Measure every cell's rows (resuming finished units) and return :func:`summarise_codesign`.
 
     Parameters
@@ -189,8 +189,8 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool = True) 
             for mode in [m for m in CODESIGN_MODES if m in cd.modes]:
                 def work(key: str, real: str = real, mode: str = mode, ck: Path = ck, task: str = task) -> Any:
                     rec = fitted(real)
-                    info = {"kernel_error_fit": realised_kernel_error(rec, target),
-                            "kernel_error_fit_gain_free": realised_kernel_error(rec, target, fit_scale=True)}
+                    info: dict[str, Any] = {"kernel_error_fit": realised_kernel_error(rec, target),
+                                            "kernel_error_fit_gain_free": realised_kernel_error(rec, target, fit_scale=True)}
                     if mode == "swap":
                         return info, rec.kernel(), ck
                     stem = root / "networks" / f"{real}_{task}_s{ck.stem.rsplit('_s', 1)[-1]}_{mode}_{key}"

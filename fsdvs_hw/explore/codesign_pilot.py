@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -96,7 +97,7 @@ def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_tes
     return result
 
 
-def csf_drift(provenance: dict[str, Any]) -> dict[str, float]:
+def csf_drift(provenance: Mapping[str, Any]) -> dict[str, float]:
     """Mannos–Sakrison correlation of the realisation's kernel before and after co-design.
 
     The kernel compared is the realisation's *shape*: its ``signal_kernel()`` where it has one (a

@@ -71,7 +71,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from dataclasses import field as dc_field
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 from pydantic import Field, ValidationError, create_model
 
@@ -116,15 +116,19 @@ CSF_DEFAULT_METHODS: tuple[str, ...] = ("mannos_sakrison_1974", "barten_1999", "
 #: Largest design file read (bytes).
 MAX_DESIGN_FILE_BYTES = 1 * 2**20
 
-_PLACEMENTS = ("pre_log", "post_log")
-_POSITIVITY = ("floor", "pedestal", "differential")
-_TRACKS = ("simulator", "emulation")
+_Placement = Literal["pre_log", "post_log"]
+_Positivity = Literal["floor", "pedestal", "differential"]
+_Track = Literal["simulator", "emulation"]
+_PLACEMENTS = get_args(_Placement)
+_POSITIVITY = get_args(_Positivity)
+_TRACKS = get_args(_Track)
 #: The emulation track's recapturing camera: the design's [sensor], or a preset of
 #: :data:`fsdvs_hw.sensor.presets.SENSOR_PRESETS` (listed here so reading a design never imports torch;
 #: tests/test_sensor_presets.py checks that the two agree).
 EMULATION_CAMERAS = ("design", "dvs128", "davis346", "imx636", "v2e-clean", "v2e-default", "v2e-noisy")
+_CodesignMode = Literal["swap", "finetune", "codesign"]
 #: The ``[codesign]`` rows: fit then swap (zero-shot), fit then fine-tune the network, co-designed.
-CODESIGN_MODES = ("swap", "finetune", "codesign")
+CODESIGN_MODES: tuple[str, ...] = get_args(_CodesignMode)
 
 _Clips = Annotated[int, Field(ge=0, le=100000)]
 
@@ -156,8 +160,8 @@ class SensorSection(StrictModel):
     threshold_on: float = field(0.2, "", "ON contrast threshold (log units)", ge=1e-4, le=10.0)
     threshold_off: float = field(0.2, "", "OFF contrast threshold (log units)", ge=1e-4, le=10.0)
     threshold_sigma: float = field(0.03, "", "per-pixel threshold mismatch σ (log units)", ge=0.0, le=1.0)
-    placement: Literal[_PLACEMENTS] = field("pre_log", "", "where the kernel sits relative to the log stage")
-    positivity: Literal[_POSITIVITY] = field("pedestal", "", "how negative filtered intensities are handled")
+    placement: _Placement = field("pre_log", "", "where the kernel sits relative to the log stage")
+    positivity: _Positivity = field("pedestal", "", "how negative filtered intensities are handled")
 
 
 class OpticsSection(StrictModel):
@@ -190,7 +194,7 @@ class TasksSection(StrictModel):
                                                       "a table task → clips; 0 = as n_test")
     finetune_epochs: int = field(0, "", "optional short fine-tune after the zero-shot swap (0 = zero-shot)",
                                  ge=0, le=1000)
-    tracks: list[Literal[_TRACKS]] = field(["simulator"], "", "evaluation tracks")
+    tracks: list[_Track] = field(["simulator"], "", "evaluation tracks")
     sensor: Literal["checkpoint", "design"] = field(
         "checkpoint", "", "simulator settings of the task track: the checkpoint's own (the trained condition) or "
         "the checkpoint's with this design's [sensor] thresholds, mismatch, placement and positivity")
@@ -301,16 +305,18 @@ def design_model() -> type[StrictModel]:
                             le=100000)),
         lr_network=(float, field(1e-3, "", "AdamW learning rate of the network", gt=0.0, le=10.0)),
         lr_filter=(float, field(1e-2, "", "AdamW learning rate of the realisation's parameters", gt=0.0, le=10.0)),
-        modes=(list[Literal[CODESIGN_MODES]], field(list(CODESIGN_MODES), "", "rows to measure")),
+        modes=(list[_CodesignMode], field(list(CODESIGN_MODES), "", "rows to measure")),
     )
-    sections = {"design": DesignSection, "kernel": KernelSection, "sensor": SensorSection,
-                "optics": OpticsSection, "analysis": AnalysisSection, "realisations": realisations,
-                "tasks": TasksSection, "scoring": ScoringSection, "emulation": EmulationSection,
-                "rate": RateSection, "sweep": SweepSection, "run": RunSection, "codesign": codesign,
-                "costs": CostAssumptions}
+    sections: dict[str, type[StrictModel]] = {
+        "design": DesignSection, "kernel": KernelSection, "sensor": SensorSection,
+        "optics": OpticsSection, "analysis": AnalysisSection, "realisations": realisations,
+        "tasks": TasksSection, "scoring": ScoringSection, "emulation": EmulationSection,
+        "rate": RateSection, "sweep": SweepSection, "run": RunSection, "codesign": codesign,
+        "costs": CostAssumptions}
+    fields: dict[str, Any] = {k: (m, _default(m)) for k, m in sections.items()}
     model = create_model("DesignFile", __base__=StrictModel,
                          __doc__="A design file of fsdvs_hw (fsdvs_hw.explore.design): every section optional.",
-                         **{k: (m, _default(m)) for k, m in sections.items()})
+                         **fields)
     model.unknown_key = "unknown section"
     _MODELS[sig] = model
     return model

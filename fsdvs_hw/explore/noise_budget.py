@@ -109,6 +109,7 @@ def noise_budget(kernel: Kernel | None, task: str, checkpoint: str | Path, thres
         for t in ts_list:
             s = dataclasses.replace(base, threshold_on=t, threshold_off=t)
             quiet = dataclasses.replace(s, shot_noise_rate_hz=0.0, leak_rate_hz=0.0)
+            r: dict[str, Any]  # rates (float), then the dominant source and the unit (str)
             r = {"threshold": t, "signal": _rate(video, taps, quiet, ts, None),
                  "photon": _rate(video, taps, quiet, ts, photon),
                  "shot": _rate(video, taps, dataclasses.replace(quiet, shot_noise_rate_hz=s.shot_noise_rate_hz), ts,

@@ -37,7 +37,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, cast
 
 import numpy as np
 
@@ -226,10 +226,15 @@ def network_info(checkpoint: str | Path, target: Kernel | None = None) -> dict[s
             "trained_with_target": same, "final_metric": provenance.get("final_metric")}
 
 
+class _SavedMetric(Protocol):
+    def state(self) -> dict[str, Any]: ...
+
+
 def encode_evidence(metric: ClipMetric) -> str:
     """A metric object as base64 text of a compressed ``.npz`` (for JSON records)."""
     buf = io.BytesIO()
-    np.savez_compressed(buf, **metric.state())
+    # the metrics of fsdvs_hw.stats (those metric_from_state rebuilds) carry their state()
+    np.savez_compressed(buf, **cast(_SavedMetric, metric).state())
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
 

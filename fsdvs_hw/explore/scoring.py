@@ -215,6 +215,7 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
     from .paired import clip_evidence, encode_evidence, event_rate_ci  # torch: imported only when tasks are scored
     from .user_data import dataset_evidence, user_task_record
     out: dict[str, Any] = {"status": "ok"}
+    entry: Any  # a checkpoint (or a list of them), or a user dataset's table
     for task, entry in [*checkpoints.items(), *datasets.items()]:
         user = task in datasets and entry is datasets[task]
         paths = [] if user else [Path(p) for p in (entry if isinstance(entry, (list, tuple)) else [entry])]
@@ -297,7 +298,7 @@ def _recaptured_events(kernel: Kernel, display: Any) -> Any:
 
 
 def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str] = (PRIMARY_CSF_METHOD,),
-          focal_length_m: float = 4.0e-3, checkpoints: Mapping[str, str | Path] | None = None,
+          focal_length_m: float = 4.0e-3, checkpoints: Mapping[str, str | Path | Sequence[str | Path]] | None = None,
           task_options: Mapping[str, Any] | None = None, emulation: Mapping[str, Any] | None = None,
           fit_wall_s: float = float("nan")) -> Score:
     """Score one realisation against its target.
@@ -461,12 +462,13 @@ def paired_losses(points: Iterable[Mapping[str, Any]], *, reference: str = "lear
             out[p["key"]] = {"status": "ok", "reference": ref["key"]}
         tasks_of_ref = [t for t, v in ((ref.get("result") or {}).get("tasks") or {}).items() if isinstance(v, Mapping)]
         for track in TRACK_PREFIX:
-            ref_arms = {t: arm(ref, t, track) for t in tasks_of_ref}
-            ref_arms = {t: a for t, a in ref_arms.items() if a is not None}
+            all_arms = {t: arm(ref, t, track) for t in tasks_of_ref}
+            ref_arms = {t: a for t, a in all_arms.items() if a is not None}
             if not ref_arms:
                 continue
             nested = {t: _track_rec(ref, t, track).get("test_clips") == "per_network" for t in ref_arms}
-            ok, missing = [], []
+            ok: list[Mapping[str, Any]] = []
+            missing: list[Mapping[str, Any]] = []
             for p in group:
                 arms = {t: arm(p, t, track) for t in ref_arms}
                 good = all(a is not None and len(a) == len(ref_arms[t])

@@ -32,7 +32,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, TypeVar, cast
 
 from ..environment import env, set_env
 from ..errors import InputError
@@ -101,7 +101,7 @@ class DesignPoint:
 
 
 def _point_key(realisation: str, design: Design) -> str:
-    relevant = {s: design.section(s) for s in _SCORED_SECTIONS}
+    relevant: dict[str, Any] = {s: design.section(s) for s in _SCORED_SECTIONS}
     if not relevant["tasks"].get("datasets"):  # no user data: the key of a store written before the key existed
         relevant["tasks"].pop("datasets", None)
     relevant["realisation"] = realisation
@@ -231,6 +231,7 @@ def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, Score
     try:
         target = Kernel.from_dict(point.target, source="design point target")
         options = data["realisations"].get(point.realisation, {})
+        rec: Score | dict[str, Any]
         real, fit_s = fit_realisation(point.realisation, target, options, seed=data["run"]["seed"])
         tasks = data["tasks"]
         base = Path(point.base_dir)
@@ -273,14 +274,33 @@ class SweepSummary:
                 f"in {self.wall_s:.1f} s on {self.executor}")
 
 
-def _record(store: ResultsStore, point: DesignPoint, res: dict[str, Any]) -> None:
+class _Point(Protocol):
+    """What :func:`run_points` reads of a point: a :class:`DesignPoint`, or another record with these
+    fields (the kernel-size ablation's training runs)."""
+
+    @property
+    def key(self) -> str: ...
+    @property
+    def design(self) -> str: ...
+    @property
+    def realisation(self) -> str: ...
+    @property
+    def params(self) -> dict[str, Any]: ...
+    @property
+    def label(self) -> str: ...
+
+
+_P = TypeVar("_P", bound=_Point)
+
+
+def _record(store: ResultsStore, point: _Point, res: dict[str, Any]) -> None:
     store.add(point.key, design=point.design, realisation=point.realisation, params=point.params,
               status=res["status"], result=res["result"], wall_s=res["wall_s"], worker=res["worker"])
 
 
-def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: int = 1,
+def run_points(points: Sequence[_P], store: ResultsStore, *, workers: int = 1,
                scheduler: str | None = None, progress: bool | None = None,
-               on_result: Callable[[DesignPoint, dict[str, Any]], None] | None = None,
+               on_result: Callable[[_P, dict[str, Any]], None] | None = None,
                evaluate: Callable[[Any], dict[str, Any]] | None = None, desc: str = "design points",
                security: Any = None) -> SweepSummary:
     """Run every point not yet in ``store`` and store each result as it finishes.
@@ -318,10 +338,10 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
     done = store.done()
     todo = [p for p in points if p.key not in done]
     statuses: dict[str, int] = {}
-    evaluate = evaluate or evaluate_point
+    evaluate = evaluate or cast(Callable[[Any], dict[str, Any]], evaluate_point)  # the default runs DesignPoints
     bar = progress_bar(total=len(points), initial=len(points) - len(todo), desc=desc, unit="pt", progress=progress)
 
-    def finish(point: DesignPoint, res: dict[str, Any]) -> None:
+    def finish(point: _P, res: dict[str, Any]) -> None:
         _record(store, point, res)
         statuses[res["status"]] = statuses.get(res["status"], 0) + 1
         bar.set_postfix_str(f"{point.label}: {res['status']}", refresh=False)
@@ -346,7 +366,7 @@ def run_points(points: Sequence[DesignPoint], store: ResultsStore, *, workers: i
                         statuses=statuses, wall_s=time.perf_counter() - t0, executor=executor)
 
 
-def _run_pool(todo: Sequence[DesignPoint], workers: int, finish: Callable[[DesignPoint, dict[str, Any]], None],
+def _run_pool(todo: Sequence[_P], workers: int, finish: Callable[[_P, dict[str, Any]], None],
               evaluate: Callable[[Any], dict[str, Any]] = evaluate_point) -> None:
     from concurrent.futures import as_completed
 
@@ -446,8 +466,8 @@ def _loopback(address: str) -> bool:
     return host in ("localhost", "::1") or host.startswith("127.")
 
 
-def _run_dask(todo: Sequence[DesignPoint], scheduler: str,
-              finish: Callable[[DesignPoint, dict[str, Any]], None], security: Any = None,
+def _run_dask(todo: Sequence[_P], scheduler: str,
+              finish: Callable[[_P, dict[str, Any]], None], security: Any = None,
               evaluate: Callable[[Any], dict[str, Any]] = evaluate_point) -> None:
     try:
         from distributed import Client, as_completed

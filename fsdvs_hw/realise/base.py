@@ -72,7 +72,10 @@ class CostItem:
 class Realisation(Protocol):
     """Protocol every realisation (mesh, ASIC, metalens, reference) satisfies."""
 
-    kind: str
+    @property
+    def kind(self) -> str:
+        """The ``"kind"`` key its :meth:`to_dict` writes (read-only: frozen records satisfy it)."""
+        ...
 
     def kernel(self) -> Kernel:
         """The kernel the realisation really applies, on the sensor pixel grid."""

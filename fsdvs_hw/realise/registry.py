@@ -401,7 +401,8 @@ def realisation_names(kind: str | None = None) -> tuple[str, ...]:
 def realisation_from_dict(data: Mapping[str, Any]) -> Realisation:
     """Rebuild a realisation from :meth:`Realisation.to_dict` output (its ``"kind"`` names the record)."""
     kind = data.get("kind") if isinstance(data, Mapping) else None
-    types = {s.record_kind: s.record_type for s in _REGISTRY.values() if s.record_type is not None}
+    # record classes, each with from_dict(mapping) -> Realisation (RealisationSpec.record_type)
+    types: dict[str, Any] = {s.record_kind: s.record_type for s in _REGISTRY.values() if s.record_type is not None}
     if kind not in types:
         raise InputError(f"realisation 'kind' is {kind!r}; allowed: {', '.join(types)}")
     return types[kind].from_dict(data)

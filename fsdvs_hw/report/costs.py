@@ -36,7 +36,7 @@ import html
 import json
 import math
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 from ..costs import CROSS_KIND_COSTS, PhysicalCost
 from .present import number, point_title, si
@@ -161,8 +161,11 @@ def _cost_interval(r: Mapping[str, Any], cost: str) -> tuple[float, float, float
     return (v, lo, hi) if not (math.isnan(lo) or math.isnan(hi)) else (v, v, v)
 
 
-def _groups(rows: Sequence[Mapping[str, Any]]) -> dict[str, list[Mapping[str, Any]]]:
-    out: dict[str, list[Mapping[str, Any]]] = {}
+_Row = TypeVar("_Row", bound=Mapping[str, Any])
+
+
+def _groups(rows: Sequence[_Row]) -> dict[str, list[_Row]]:
+    out: dict[str, list[_Row]] = {}
     for r in rows:
         if r.get("status") == "ok" and "power_w" in r:
             out.setdefault(_setting(r), []).append(r)
@@ -185,7 +188,7 @@ def mark_cost_fronts(rows: Sequence[dict[str, Any]]) -> None:
         for cost in CROSS_KIND_COSTS:
             flags = uncertain_pareto_front([(loss_interval(r, acc), _cost_interval(r, cost)) for r in hardware])
             for r, f in zip(hardware, flags):
-                r[f"front_{cost}"] = f  # type: ignore[index]
+                r[f"front_{cost}"] = f
 
 
 def _eps(v: float) -> str:

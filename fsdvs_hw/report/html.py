@@ -163,8 +163,8 @@ def _per_task_section(rows: Sequence[Mapping[str, Any]]) -> str:
         return ""
     titled = []
     ok = [r for r in rows if r["status"] == "ok"]
-    for v, r in zip(vr, ok):  # verdict_rows keeps the order of the ok rows
-        v = dict(v)
+    for verdict, r in zip(vr, ok):  # verdict_rows keeps the order of the ok rows
+        v: dict[str, Any] = dict(verdict)
         v["realisation"] = point_title(r["realisation"], r.get("params"))
         v.pop("MS agreement, fitted scale", None)  # in the verdict table already
         v.pop("cost (own unit)", None)  # the verdict's headline cost and the realisation details hold the costs

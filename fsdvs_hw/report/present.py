@@ -152,9 +152,9 @@ def number(v: float | int | None, digits: int = 3) -> str:
         sign = "-" if whole.startswith("-") else ""
         whole = _group(int(whole.lstrip("-")))
         return sign + whole + (f".{frac}" if frac else "")
-    mant, _, exp = f"{v:.{digits - 1}e}".partition("e")  # Python rounds the mantissa and carries into exp
+    mant, _, exp_text = f"{v:.{digits - 1}e}".partition("e")  # Python rounds the mantissa and carries into exp
     m = mant.rstrip("0").rstrip(".") if "." in mant else mant
-    return f"{m} × 10{str(int(exp)).translate(_SUPERSCRIPT)}"
+    return f"{m} × 10{str(int(exp_text)).translate(_SUPERSCRIPT)}"
 
 
 def _group(n: int) -> str:

@@ -88,7 +88,7 @@ class Clip:
 
     frames: np.ndarray
     timestamps_s: np.ndarray
-    targets: dict[str, np.ndarray]
+    targets: dict[str, np.ndarray | np.generic]  # a class label may be a NumPy scalar
     source: str
     index: int
     metadata: dict[str, Any] = field(default_factory=dict)
@@ -264,7 +264,7 @@ class ClipDataset(Sequence[Clip], ABC):
 
     def _frames(self, images: Sequence[np.ndarray], where: str) -> np.ndarray:
         """Stack code-value images into linear (T, H, W) at the stated size."""
-        out = []
+        out: list[np.ndarray] = []
         for k, img in enumerate(images):
             lum = code_to_linear(img, self.transfer)
             if lum.ndim != 2:
@@ -402,9 +402,11 @@ class VideoFolderDataset(ClipDataset):
             if not fps > 0:
                 raise InputError(f"{where}: field 'fps': the container states no frame rate; pass fps=")
             wanted = [self.start_frame + k * self.stride for k in range(self.n_frames)]
-            images = []
+            images: list[np.ndarray] = []
             try:
-                for j, frame in enumerate(reader):
+                # imageio's stub has Reader.__iter__ return one Array, not an iterator of them
+                frame: np.ndarray
+                for j, frame in enumerate(reader):  # type: ignore[arg-type]
                     if j in wanted:
                         images.append(np.asarray(frame))
                     if j >= wanted[-1]:

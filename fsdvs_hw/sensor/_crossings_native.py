@@ -110,6 +110,13 @@ def why_unavailable() -> str:
     return _error
 
 
+def _loaded() -> ctypes.CDLL:
+    """The loaded library; every caller checks :func:`available` first."""
+    lib = _load()
+    assert lib is not None, "compiled kernels unavailable: check available() first"
+    return lib
+
+
 def _ptr(a: np.ndarray | None) -> int | None:
     return None if a is None else a.ctypes.data
 
@@ -127,7 +134,7 @@ def step_events(h_on: np.ndarray, h_off: np.ndarray, sig_a: np.ndarray, ref_a: n
     ``p`` int8 with room for every crossing, or None (counts only). Returns (events written,
     crossings lost to the refractory period).
     """
-    lib = _load()
+    lib = _loaded()
     fn = lib.fsdvs_step_events_f32 if h_on.dtype == np.float32 else lib.fsdvs_step_events_f64
     lost = ctypes.c_double(0.0)
     n = fn(_ptr(h_on), _ptr(h_off), _ptr(sig_a), _ptr(ref_a), _ptr(d_b), _ptr(c_on), len(c_on), _ptr(c_off),
@@ -151,7 +158,7 @@ def sort_events(parts: list, lo: float | None = None, hi: float | None = None, *
     below 2**31), ``t`` float64, ``p`` int8; into ``out`` (three such arrays of the total length)
     when given.
     """
-    lib = _load()
+    lib = _loaded()
     parts = [(np.ascontiguousarray(f, dtype=np.int32), np.ascontiguousarray(t, dtype=np.float64),
               np.ascontiguousarray(p, dtype=np.int8)) for f, t, p in parts if len(t)]
     n = sum(len(q[1]) for q in parts)
@@ -202,7 +209,7 @@ def sort_intervals_to_columns(intervals: list, hw: int, w: int) -> tuple[np.ndar
     at the chunk's exact size: the same columns as sorting each interval with :func:`sort_events`
     and concatenating (:func:`.crossings.to_event_columns`), one pass less over memory.
     """
-    lib = _load()
+    lib = _loaded()
     sizes = [sum(len(q[1]) for q in parts) for parts, _, _ in intervals]
     n = sum(sizes)
     x = np.empty(n, dtype=np.int64)
@@ -227,7 +234,7 @@ def write_columns(flat: np.ndarray, t: np.ndarray, p: np.ndarray, hw: int, w: in
     """One sorted interval (int32 ``flat``) into the int64 ``x``, ``y`` and the ``t``, ``p`` columns
     from ``start``: ``y = (f mod hw) // w``, ``x = (f mod hw) - y w``."""
     n = len(t)
-    lib = _load()
+    lib = _loaded()
     lib.fsdvs_write_columns(_ptr(flat), _ptr(t), _ptr(p), n, hw, w, x_out.ctypes.data + 8 * start,
                             y_out.ctypes.data + 8 * start, t_out.ctypes.data + 8 * start,
                             p_out.ctypes.data + start)

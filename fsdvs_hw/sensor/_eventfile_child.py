@@ -29,7 +29,7 @@ import sys
 __all__: list[str] = []
 
 
-def _read_exact(stream, n: int) -> bytes:  # type: ignore[no-untyped-def]
+def _read_exact(stream, n: int) -> bytes:
     buf = bytearray()
     while len(buf) < n:
         block = stream.read(n - len(buf))
@@ -69,7 +69,7 @@ def read(path: str) -> int:
     return 0
 
 
-def _h5_writer(path: str, width: int, height: int, metadata: dict) -> tuple:  # type: ignore[type-arg]
+def _h5_writer(path: str, width: int, height: int, metadata: dict) -> tuple:
     import h5py
     import numpy as np
 
@@ -81,7 +81,7 @@ def _h5_writer(path: str, width: int, height: int, metadata: dict) -> tuple:  # 
     for k, v in attrs.items():
         f.attrs[k] = v
 
-    def write(t, x, y, p) -> None:  # type: ignore[no-untyped-def]
+    def write(t, x, y, p) -> None:
         block = np.empty((t.size, 4), dtype=np.uint32)
         block[:, 0], block[:, 1], block[:, 2], block[:, 3] = t, x, y, p
         n0 = ds.shape[0]
@@ -95,13 +95,13 @@ def _h5_writer(path: str, width: int, height: int, metadata: dict) -> tuple:  # 
     return write, close
 
 
-def _aedat4_writer(path: str, width: int, height: int, metadata: dict) -> tuple:  # type: ignore[type-arg]
+def _aedat4_writer(path: str, width: int, height: int, metadata: dict) -> tuple:
     import dv_processing as dv
 
     cfg = dv.io.MonoCameraWriter.EventOnlyConfig("fsdvs_hw", (width, height))
     state = {"writer": dv.io.MonoCameraWriter(path, cfg)}
 
-    def write(t, x, y, p) -> None:  # type: ignore[no-untyped-def]
+    def write(t, x, y, p) -> None:
         t, x, y, p = t.tolist(), x.tolist(), y.tolist(), p.astype(bool).tolist()
         for i in range(0, len(t), 1 << 16):  # dv-processing has no bulk numpy input
             store = dv.EventStore()

@@ -181,7 +181,7 @@ def _photoreceptor(video: Any, timestamps_s: Any, config: SensorConfig) -> _Phot
         vid = vid[None]
     if vid.ndim != 4 or vid.shape[0] != 1:
         raise InputError(f"video: expected (T, H, W) or (1, T, H, W) intensities, got shape {tuple(vid.shape)}")
-    vid, w, ts, cfg = _resolve(vid, None, timestamps_s, config, None)[:4]  # type: ignore[misc]
+    vid, w, ts, cfg = _resolve(vid, None, timestamps_s, config, None)[:4]
     with torch.no_grad():
         sig = filtered_log_signal(vid, w, cfg)
         L = sig.log_signal[0].to(torch.float64).reshape(vid.shape[1], -1).numpy()

@@ -164,6 +164,7 @@ def _crossing_step_cpu(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: An
         _threshold_np(c_off, B, H, W), times(t_a), times(t_b), times(dt), H * W,
         last_t.view(-1).numpy() if refr else None, float(refractory_s), em_on, em_off, flat, t, p)
     if collect and n:
+        assert flat is not None and t is not None and p is not None  # allocated when collect
         if n < cap // 2:  # many crossings lost: do not keep the spare capacity alive
             flat, t, p = flat[:n].copy(), t[:n].copy(), p[:n].copy()
         parts.append((torch.from_numpy(flat[:n]), torch.from_numpy(t[:n]), torch.from_numpy(p[:n])))
@@ -225,10 +226,15 @@ def crossing_step_torch(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: A
         # k-th crossing of its pixel (int64 → float64 in place of the index arithmetic)
         j = torch.arange(len(rep), device=rep.device).sub_((ends - counts)[rep]).double()
         del rep, ends, counts
-        j = j.add_(1.0) if j0 is None else j.mul_(m[src]).add_(j0[src])  # j0 + k m, as (k m) + j0
+        if j0 is None:
+            j = j.add_(1.0)
+        else:
+            assert m is not None  # set with j0
+            j = j.mul_(m[src]).add_(j0[src])  # j0 + k m, as (k m) + j0
         # t = t_a + (j C - d_a) / v, in place, same roundings (IEEE + and * commute exactly)
         t = j.mul_(_at(cc, src)).sub_(da[src]).div_(v[src])
         if B > 1:
+            assert bi is not None  # set when B > 1
             ta_e, tb_e = ta[src], t_b.reshape(-1)[bi[src]]
             t = t.add_(ta_e)
             # a crossing already due at the step start (after a noise reset) fires just after it
@@ -277,7 +283,7 @@ def sort_interval(parts: list, lo: float | None = None, hi: float | None = None)
     if all(q[1].device.type == "cpu" for q in parts) and _crossings_native.available():
         out = _crossings_native.sort_events([tuple(c.numpy() for c in q) for q in parts], lo, hi)
         parts.clear()
-        return tuple(torch.from_numpy(c) for c in out)
+        return torch.from_numpy(out[0]), torch.from_numpy(out[1]), torch.from_numpy(out[2])
     if len(parts) == 1:
         flat, t, p = parts[0]
     else:

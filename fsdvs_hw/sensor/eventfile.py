@@ -665,6 +665,7 @@ def _read_aedat4(p: Path) -> EventFile:
     with tempfile.TemporaryFile() as err:
         proc = subprocess.Popen([*_child_command("read"), str(p)], stdin=subprocess.DEVNULL,
                                 stdout=subprocess.PIPE, stderr=err, process_group=0)
+        assert proc.stdout is not None  # stdout=PIPE
         try:
             pipe = _ChildPipe(proc.stdout, AEDAT4_READ_TIMEOUT_S, p)
             chk = _Checker(p, {"t": "timestamp", "x": "x", "y": "y", "p": "polarity"}, (0, 1))

@@ -583,11 +583,12 @@ def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config:
                 if len(off_px) and want_counts:
                     e_off = e_off + torch.bincount(off_px, minlength=B * H * W).view(B, H, W).to(dt_)
                 if collect_events:
-                    args = (step_parts, on_px, off_px, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64, time_g)
+                    noise_args = (step_parts, on_px, off_px, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64,
+                                  time_g)
                     if pipe is not None:
-                        pipe.emit(noise_step, *args)
+                        pipe.emit(noise_step, *noise_args)
                     else:
-                        noise_step(*args)
+                        noise_step(*noise_args)
             sig_prev = target
             if want_counts:
                 on_acc = e_on if on_acc is None else on_acc + e_on
@@ -619,7 +620,7 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     Ls = L.unbind(1)  # one unbind: its backward is one stack, not T full-size zero tensors
     CI = signal.cutoff_intensity.unbind(1) if config.has_photoreceptor else None
     SU = signal.surround.unbind(1) if transient else None
-    st = _init_state(Ls[0], SU[0] if transient else None, config, thresholds, phase, generator, collect_events)
+    st = _init_state(Ls[0], SU[0] if SU is not None else None, config, thresholds, phase, generator, collect_events)
     if float(config.refractory_s) > 0 and not config.has_photoreceptor and not transient \
             and _refractory_never_binds(Ls, ts, st.c_on, st.c_off, config):
         config = config.replace(refractory_s=0.0)  # nothing can be lost: skip the refractory path
@@ -651,7 +652,7 @@ def _plan_config(config: SensorConfig | None, plan: Any) -> SensorConfig:
 
 
 def _resolve(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | None,
-             plan: Any) -> tuple[Any, Any, Any, SensorConfig, list[int] | None]:
+             plan: Any) -> tuple[Any, Any, Any, SensorConfig, list[int] | None, int]:
     config = _plan_config(config, plan)
     video = prepare_video(video)
     ts = prepare_timestamps(timestamps_s, video, config)
@@ -874,6 +875,7 @@ def event_list(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
     with torch.no_grad(), progress_bar(total=n_intervals, desc="event_list", unit="frame", progress=progress,
                                        leave=False) as bar:
         _, _, ev = _simulate(video, kernel, timestamps_s, config, plan, generator, True, bar)
+    assert ev is not None  # collect_events=True
     return ev
 
 

@@ -53,6 +53,7 @@ from .events import (
     _init_state,
     _noise_count,
     _pipelined,
+    _PixelState,
     _plan_config,
     saturate,
 )
@@ -248,9 +249,9 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
     times = iter(timestamps_s) if timestamps_s is not None else None
     gen_state = generator.get_state() if generator is not None else None
     dtype = None
-    shape = None
+    shape: tuple[int, ...] | None = None
     w = None
-    state = None
+    state: _PixelState | None = None
     prev = None  # (L, CI, SU, t) of the last frame of the previous chunk
     index = 0
     first_interval = 0
@@ -283,6 +284,7 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
         if gen_state is not None:
             g = torch.Generator(device=generator.device)
             g.set_state(gen_state)
+        assert shape is not None  # set by the first frame, before the first draw
         thr = threshold_maps(config, tuple(shape[1:]), like, generator=g)
         thr_cache[:] = [thr]
         return thr
@@ -295,7 +297,8 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
     pending: list = []
     try:
         while not exhausted:
-            batch, ts = [], []
+            batch: list[Any] = []
+            ts: list[float] = []
             need = chunk + (1 if prev is None else 0)
             while len(batch) < need:
                 try:
@@ -323,6 +326,7 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
                 if prev is None:
                     raise InputError(f"frames: need at least 2 frames, got {len(batch)}")
                 break
+            assert shape is not None  # set by the first frame (batch is not empty)
             video = torch.stack(batch, dim=1)  # (B, n, H, W)
             sig = filtered_log_signal(video, w, config)
             B = video.shape[0]
@@ -334,6 +338,7 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
                 state = _init_state(Ls[0], SU[0] if SU is not None else None, config, (c_on, c_off), None, None,
                                     want_events)
             else:
+                assert state is not None  # set with the first chunk (prev is not None)
                 state.c_on, state.c_off = thresholds(Ls[0])
                 for name in ("ref", "lp", "sur", "sig_prev"):  # truncated BPTT: no graph across chunks
                     v = getattr(state, name)

@@ -176,7 +176,7 @@ def job_key(job: dict[str, Any]) -> str:
 
 def _save_predictions(path: Path, predictions: dict[str, np.ndarray]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    small = {}
+    small: dict[str, Any] = {}  # Any: numpy's stub reads **dict[str, ndarray] as its bool keyword
     for k, v in predictions.items():
         a = np.asarray(v)
         if k == "mask":
@@ -259,7 +259,7 @@ def clip_metric(task: str, predictions: dict[str, np.ndarray], targets: dict[str
     from ..stats import ClipMeans, CocoDetections, ConfusionMIoU
     from .evaluators import get_evaluator
 
-    ev = get_evaluator(task)
+    ev: Any = get_evaluator(task)  # the map and miou evaluators (built-in) carry num_classes
     if ev.primary_metric == "map":
         return CocoDetections.from_predictions(predictions["boxes"], predictions["scores"], predictions["labels"],
                                                targets["boxes"], targets["labels"], num_classes=ev.num_classes,

@@ -85,7 +85,7 @@ def evaluator_for_dataset(task: Any, dataset: Any) -> Any:
     if base.name != dataset.task:
         raise InputError(f"evaluate_on_dataset: task {base.name!r} but the dataset {type(dataset).__name__} "
                          f"holds {dataset.task!r} targets")
-    ev = copy.copy(base)  # the built-in evaluator's code, the dataset's class count
+    ev: Any = copy.copy(base)  # the built-in evaluator's code, the dataset's class count (set on any evaluator)
     ev.num_classes = int(dataset.num_classes)
     if dataset.task == "segmentation":
         ev.ignore_index = dataset.ignore_index

@@ -495,7 +495,7 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
     test_video, test_targets = _dataset(scene, n_test, TEST_SEED, evaluator.name, settings.dtype)
     ts = scene.timestamps_s
     in_channels = 2 * (scene.n_frames - 1)
-    network = evaluator.build_network(in_channels, settings.width)
+    network: Any = evaluator.build_network(in_channels, settings.width)  # a Module with .backbone and .head
     history: list[dict[str, Any]] = []
     bs = settings.batch_size
 
@@ -505,6 +505,7 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
     staged = evaluator.staged
     epochs_frozen = settings.epochs_frozen if staged else 0
     epochs_joint = settings.epochs_joint
+    cached: torch.Tensor | None  # the frozen filter's network inputs, computed once
     if epochs_frozen:
         with torch.no_grad():
             cached = torch.cat([_network_input(video[s : s + 128], kernel_now(), sensor, ts)

@@ -15,6 +15,8 @@ names), which the learning code gives separate learning rates.
 
 from __future__ import annotations
 
+from typing import cast
+
 import torch
 from torch import nn
 from torch.nn import functional as F
@@ -85,7 +87,9 @@ class CenterNetDetector(nn.Module):
             "regress": nn.Sequential(_conv(c, c), nn.Conv2d(c, 4, 1)),
         })
         # focal-loss prior: start at p = 0.05 everywhere (Lin et al. 2017)
-        nn.init.constant_(self.head["heatmap"][-1].bias, -2.94)
+        heat_out = cast(nn.Conv2d, cast(nn.Sequential, self.head["heatmap"])[-1])
+        assert heat_out.bias is not None  # a Conv2d with its default bias
+        nn.init.constant_(heat_out.bias, -2.94)
 
     def forward(self, x: torch.Tensor) -> dict[str, torch.Tensor]:
         _, coarse = self.backbone(x)

@@ -118,7 +118,7 @@ def csd_weight(values: np.ndarray | int) -> np.ndarray:
     ``(3n) XOR n`` has ones, excluding the lowest bit (Reitwiesner 1960).
     """
     v = np.abs(np.asarray(values, dtype=np.int64))
-    x = (3 * v) ^ v
+    x: np.ndarray = (3 * v) ^ v
     x = x >> 1
     return np.bitwise_count(x).astype(np.int64)
 

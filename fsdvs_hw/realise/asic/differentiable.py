@@ -61,6 +61,10 @@ class QuantisedAsicKernel(torch.nn.Module):
         Continuous coefficients θ in integer units (initialised to the design's integers).
     """
 
+    # buffers or parameters set in __init__, declared for the type checker
+    labels: torch.Tensor
+    scale_param: torch.Tensor
+
     def __init__(self, design: AsicDesign, *, learn_scale: bool = True) -> None:
         super().__init__()
         if not isinstance(design, AsicDesign):

@@ -131,7 +131,9 @@ def _datapath_lines(cls: SymmetryClasses, reps: list[int], IN: int, acc: int, ou
         if val == 0:
             continue
         for shift, sign in csd_digits(val):
-            x = _zext(names[c], widths[c], acc)
+            name = names[c]
+            assert name is not None  # None only for a zero tap, skipped above
+            x = _zext(name, widths[c], acc)
             t = x if shift == 0 else f"({x} << {shift})"
             terms.append(("- " if sign < 0 else "+ ") + t)
     expr = " ".join(terms) or f"+ {acc}'d0"

@@ -22,6 +22,7 @@ options
 Importing this package registers ``"mesh"`` in :mod:`fsdvs_hw.realise.registry`.
 """
 
+from collections.abc import Mapping as _Mapping
 from typing import Any as _Any
 
 from ..registry import CostSpec, RealisationSpec, register_realisation
@@ -42,10 +43,11 @@ __all__ = ["SPEC", "MeshOptions"]
 __all__ += fit.__all__  # the fit module's public names, re-exported above
 
 
-def _conductance_per_pixel(cost: "dict[str, dict[str, _Any]]") -> float | None:
+def _conductance_per_pixel(cost: "_Mapping[str, _Mapping[str, _Any]]") -> float | None:
     """Summed conductances of one pixel's two meshes (S): ``2 g_l + g_v`` each (a node shares each
     of its four lateral links with a neighbour); proportional to the static current at a bias."""
-    parts = [(cost.get(f"g_{d}_{w}") or {}).get("value") for w in ("narrow", "wide") for d in ("lateral", "vertical")]
+    parts: list[_Any] = [(cost.get(f"g_{d}_{w}") or {}).get("value") for w in ("narrow", "wide")
+                         for d in ("lateral", "vertical")]
     if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in parts):
         return None
     gl_n, gv_n, gl_w, gv_w = (float(v) for v in parts)

@@ -25,6 +25,7 @@ import csv
 import shutil
 import subprocess
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -96,7 +97,7 @@ def write_mesh_artifacts(design: MeshDesign, out_dir: str | Path, *,
     deck = to_spice_netlist(design, half_width=h, i_in_a=op["i_in_a"])
     deck = f"* run: {NGSPICE_COMMAND}   (then compare v(n*)/v(w*) in mesh.raw with operating_point.csv)\n" + deck
     write_output(out / "mesh.cir", deck, flag="artifacts")
-    rows = [_COLUMNS]
+    rows: list[Sequence[object]] = [_COLUMNS]
     for y in range(n):
         for x in range(n):
             vn, vw = op["v_narrow_v"][y, x], op["v_wide_v"][y, x]

@@ -56,6 +56,12 @@ class MeshKernel(torch.nn.Module):
         The reachable ranges (default ``MeshBounds()``, the fit's defaults).
     """
 
+    # buffers (register_buffer in __init__), declared for the type checker
+    c: torch.Tensor
+    m: torch.Tensor
+    cos_w: torch.Tensor
+    pixel_weight: torch.Tensor
+
     def __init__(self, design: MeshDesign, *, size: int | None = None, bounds: MeshBounds | None = None) -> None:
         super().__init__()
         if not isinstance(design, MeshDesign):

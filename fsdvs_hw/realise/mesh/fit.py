@@ -291,11 +291,16 @@ class MeshDesign:
         for lam in (self.lambda_narrow_px, self.lambda_wide_px):
             if self.model == "grid":
                 # a finite chip: taps beyond its edge do not exist (zero)
-                h = int(self.grid_half_width)
+                h = self._grid_half_width()
                 out.append(np.pad(finite_grid_response(lam, min(radius, h), h), max(0, radius - h)))
             else:
                 out.append(_unfold_quarter(np.asarray(lattice_green_quarter(lam, radius))))
         return out[0], out[1]
+
+    def _grid_half_width(self) -> int:
+        """``grid_half_width`` of a ``"grid"`` design (an integer: checked in ``__post_init__``)."""
+        assert self.grid_half_width is not None  # model "grid": __post_init__ refuses None
+        return int(self.grid_half_width)
 
     @property
     def whole_dc_gain(self) -> float:
@@ -310,7 +315,7 @@ class MeshDesign:
     def _whole_energy(self) -> float:
         """Σ K² over the whole circuit response (infinite lattice: closed form; finite chip: exact sum)."""
         if self.model == "grid":
-            k = self._taps(int(self.grid_half_width))
+            k = self._taps(self._grid_half_width())
             return float((k * k).sum())
         gram = _lattice_gram(self.lambda_narrow_px, self.lambda_wide_px)
         x = np.array([self.pixel_weight, self.gain_narrow, self.gain_wide])
@@ -322,7 +327,7 @@ class MeshDesign:
         The finite-grid model returns its whole chip (capped at :data:`MAX_KERNEL_SIZE`).
         """
         if self.model == "grid":
-            return min(MAX_KERNEL_SIZE, 2 * int(self.grid_half_width) + 1)
+            return min(MAX_KERNEL_SIZE, 2 * self._grid_half_width() + 1)
         total = self._whole_energy()
         rmax = MAX_KERNEL_SIZE // 2
         k = self.kernel_taps(MAX_KERNEL_SIZE)
@@ -547,6 +552,7 @@ def _responses_and_derivatives(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Full-window H and ∂H/∂ln(λ²) for one mesh."""
     if model == "grid":
+        assert half_width is not None  # model "grid" carries its half-width
         h = max(int(half_width), radius)
         eps = 1e-5
         hp = finite_grid_response(lam * math.exp(eps / 2), radius, h)
@@ -571,6 +577,7 @@ def _casadi_orbit_response(u, radius: int, model: str, lam_max: float, half_widt
         pows = ca.horzcat(*[rho**j for j in range(radius + 1)])  # (node, n)
         q = ca.mtimes(cos_w, pows * ca.repmat(inv_sq, 1, radius + 1))
     else:
+        assert half_width is not None  # model "grid" carries its half-width
         n = 2 * half_width + 1
         phi, s = _dct_basis(n)
         c0 = phi[half_width]
@@ -713,6 +720,7 @@ def _mesh_solver(radius: int, model: str, lam_max: float, half_width: int | None
             + b**2 * ca.dot(m, hw**2)
             + wp**2
         )
+    g2: ca.MX | float
     if gain_free:
         f = 1.0 - c**2 / n_k * inv_norm2
         g2 = (c / n_k) ** 2
@@ -725,7 +733,7 @@ def _mesh_solver(radius: int, model: str, lam_max: float, half_width: int | None
         g.append(c * ca.sqrt(inv_norm2))
         if free_wp:
             g.append(wp + a + b)
-    opts = {
+    opts: dict[str, str | int | float | bool] = {
         "ipopt.print_level": 0,
         "print_time": False,
         "ipopt.sb": "yes",
@@ -762,7 +770,8 @@ def _coerce_bounds(bounds: Any) -> MeshBounds:
             raise InputError(
                 f"bounds: unknown key(s) {sorted(unknown)}; allowed {sorted(MeshBounds.__dataclass_fields__)}"
             )
-        bounds = MeshBounds(**{k: (tuple(v) if isinstance(v, (list, tuple)) else v) for k, v in bounds.items()})
+        fields: dict[str, Any] = {k: (tuple(v) if isinstance(v, (list, tuple)) else v) for k, v in bounds.items()}
+        bounds = MeshBounds(**fields)
     if not isinstance(bounds, MeshBounds):
         raise InputError(f"bounds: expected a MeshBounds or a mapping of its fields, got {type(bounds).__name__}")
     return bounds
@@ -882,9 +891,10 @@ def _mesh_problem(s: _MeshSettings) -> _MeshProblem:
     target = s.target
     whole = s.fit_size is None
     if s.model == "grid" and whole:
+        assert s.grid_half_width is not None  # model "grid": set by _mesh_settings
         radius = s.grid_half_width
     else:
-        radius = target.radius if whole else s.fit_size // 2
+        radius = target.radius if s.fit_size is None else s.fit_size // 2  # whole: fit_size is None
     t_sym = _d4_symmetrise(np.pad(target.taps, radius - target.radius))  # plain array: the chip may exceed 63 px
     ii, jj, mult = _orbits(radius)
     return _MeshProblem(radius=radius, whole=whole, lattice_whole=whole and s.model == "lattice", t_sym=t_sym,
@@ -938,6 +948,7 @@ def _initial_starts(
             hw, _ = resp[i_w]
             basis = np.column_stack([delta, hn, -hw])
             if p.lattice_whole:
+                assert norms is not None  # computed when p.lattice_whole
                 g0n, qn = norms[i_n]
                 g0w, qw = norms[i_w]
                 pnw = _cross_energy(lam_n**2, g0n, qn, lam_w**2, g0w)
@@ -1033,6 +1044,7 @@ def _solve(s: _MeshSettings, p: _MeshProblem, lams: np.ndarray, chosen: list) ->
             best = (key, np.array(sol["x"]).ravel(), st, f)
         if feasible and f <= 1e-12:  # an exact fit (relative error ≤ 1e-6): no start needs to beat it
             break
+    assert best is not None  # chosen is never empty: _initial_starts raises instead
     _, xo, st, f_opt = best
     # IPOPT may relax bounds by ~1e-8 relative; the built circuit must respect them exactly
     xo = np.clip(xo, lbx, ubx)
@@ -1051,7 +1063,7 @@ def _build_design(
     wp = math.exp(xo[4]) if s.free_wp else s.wp_fixed
     if s.nonnegative_dc and wp + a - b < 0:  # solver tolerance: never ship a negative whole-circuit DC
         b = wp + a
-    common = dict(
+    common: dict[str, Any] = dict(
         g_lateral_narrow_s=s.g_l,
         g_vertical_narrow_s=s.g_l / lam_n**2,
         g_lateral_wide_s=s.g_l,

@@ -24,7 +24,8 @@ class MeshOptions(StrictModel):
 
     unknown_key = "unknown option of fit_resistive_mesh"
 
-    bounds: structured("fsdvs_hw.realise.mesh.fit:MeshBounds", "MeshBounds") | None = field(
+    # a pydantic Annotated type built at run time, which a static checker cannot evaluate
+    bounds: structured("fsdvs_hw.realise.mesh.fit:MeshBounds", "MeshBounds") | None = field(  # type: ignore[valid-type]
         None, "", "MeshBounds fields: lambda_px, gain, min_lambda_ratio, conductance_s")
     pitch_m: float | None = field(None, "m", "pixel pitch (default: the kernel's)",
                                      ge=PITCH_RANGE_M[0], le=PITCH_RANGE_M[1])

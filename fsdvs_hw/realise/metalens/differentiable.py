@@ -52,6 +52,9 @@ class MetalensKernel(torch.nn.Module):
         Log of each lens's gain.
     """
 
+    # buffer (register_buffer in __init__), declared for the type checker
+    z0_m: torch.Tensor
+
     def __init__(self, design: MetalensDesign, *, window_pad: float = 3.0) -> None:
         super().__init__()
         if not isinstance(design, MetalensDesign):

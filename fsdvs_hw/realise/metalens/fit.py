@@ -155,7 +155,7 @@ def _phase0(r: np.ndarray, geometry: LensGeometry, coefficients: Any) -> Any:
 
 
 def local_numerical_aperture(
-    geometry: LensGeometry, coefficients: Sequence[float], wavelengths_m: Sequence[float]
+    geometry: LensGeometry, coefficients: Sequence[float] | np.ndarray, wavelengths_m: Sequence[float] | np.ndarray
 ) -> float:
     r"""Largest local NA of the phase, :math:`\max_{r,\lambda} \lambda |\partial_r\phi(r,\lambda)|/(2\pi)`.
 
@@ -278,7 +278,7 @@ class _RadialKernelModel:
         return (intensity[self.index] * self.weights).sum(-1) / self.p_in
 
 
-def _spectral(illuminant: Any, response: Any, n_wavelengths: int) -> SpectralSamples:
+def _spectral(illuminant: Any, response: Any, n_wavelengths: Any) -> SpectralSamples:  # n: checked by spectral_samples
     if isinstance(illuminant, SpectralSamples):
         return illuminant
     kwargs = {} if response is None else {"response": response}
@@ -802,6 +802,8 @@ def _metalens_setup(kernel: Any, *, pitch_m: float | None, illuminant: Any, resp
     _check_extremes(geometry, spectral, focal_length_m, pitch)
     if strategy == "differential" and not (kernel.taps < 0).any():
         raise InputError("strategy='differential' needs a kernel with negative taps; use 'pedestal' (c = 0)")
+    if strategy == "differential" and not (kernel.taps > 0).any():  # its positive lens would fit nothing
+        raise InputError(f"strategy='differential' needs a kernel with positive taps; all {kernel.taps.size} are <= 0")
 
     na0 = local_numerical_aperture(geometry, [], spectral.wavelengths_m)
     budget = float(na_max) if na_max is not None else min(0.9, max(1.5 * na0, na0 + 0.1))
@@ -905,6 +907,8 @@ def _solve_metalens(obj: _MetalensObjective, coarse: _RadialKernelModel, model: 
                 val = float(loss_fn(x))
             if math.isfinite(val) and val < best_val:
                 best, best_val = x.detach().clone(), val
+        if best is None:
+            raise InputError(f"fit_metalens: the {mode} loss is not finite at any of the {len(starts)} starts")
         x = best.clone().requires_grad_(True)
         iters += _lbfgs(x, loss_fn, max_iter, bar)
         if model is not coarse:
