@@ -81,16 +81,19 @@ def test_explore_with_rate_writes_matched_columns_and_resumes(tmp_path, monkeypa
     from fsdvs_hw.cli import main
 
     nets = sorted((KERNELS / "networks").glob("recognition_with_learned_detection_7x7_s[01].safetensors"))
+    # the design in a sub-folder, named relative to the working folder (as `make demo` runs designs/default.toml)
+    (tmp_path / "sub").mkdir()
     for src in (KERNELS / "learned_detection_7x7.json", *nets):
-        shutil.copy(src, tmp_path / src.name)
-    design = tmp_path / "d.toml"
+        shutil.copy(src, tmp_path / "sub" / src.name)
+    monkeypatch.chdir(tmp_path)
+    design = Path("sub") / "d.toml"
     design.write_text('[kernel]\nsource = "file"\npath = "learned_detection_7x7.json"\n'
                       '[realisations]\ninclude = ["learned", "delta"]\n[analysis]\ncsf_methods = ["mannos_sakrison_1974"]\n'
                       '[emulation]\nenabled = false\n'
                       f'[tasks]\ncheckpoints = {{ recognition = {json.dumps([n.name for n in nets])} }}\n'
                       'n_test = 32\n[scoring]\nn_resamples = 200\n'
                       '[rate]\nenabled = true\nthresholds = [0.1, 0.3, 0.45]\n[run]\nworkers = 1\n')
-    out = tmp_path / "out"
+    out = Path("out")
     assert main(["explore", str(design), "--out", str(out), "--no-progress"]) == 0
     blob = json.loads((out / "scores.json").read_text())
     rows = {r["realisation"]: r for r in blob["rows"]}

@@ -188,7 +188,8 @@ def _one_curve(design: Any, dpoint: Any, row: Mapping[str, Any], task: str, thre
     run = extra if (len(extra) >= 2 and not isinstance(own, str)) else [*extra, t0]
     tasks = dpoint.data["tasks"]
     base = Path(dpoint.base_dir)
-    ckpts = [Path(c) if Path(c).is_absolute() else base / c for c in rec.get("checkpoints", ())]
+    entry = tasks["checkpoints"].get(task, [])  # resolved as the point was (sweep._fit_and_score)
+    ckpts = [Path(c) if Path(c).is_absolute() else base / c for c in (entry if isinstance(entry, list) else [entry])]
     n_test = int(rec.get("n_clips_per_network", 0)) or None
     try:
         curve = rate_curve(_reference_kernel(dpoint), task, ckpts, run, n_test=n_test,
@@ -255,7 +256,8 @@ def matched_rate_records(points: Sequence[Mapping[str, Any]],
             for ref, curve in refs.items():
                 name = REFERENCES[ref]
                 if isinstance(curve, str) or isinstance(own, str):
-                    entry[name] = {"status": f"unavailable: {curve if isinstance(curve, str) else own}"}
+                    why = curve if isinstance(curve, str) else own
+                    entry[name] = {"status": why if why.startswith("unavailable") else f"unavailable: {why}"}
                     continue
                 try:
                     d = matched_rate_difference(curve, own, own.points[0].threshold, confidence=confidence,
@@ -269,6 +271,9 @@ def matched_rate_records(points: Sequence[Mapping[str, Any]],
                 if p["realisation"] == ref:
                     entry["curve"] = curve.summary(confidence=confidence, n_resamples=n_resamples, rng=rng)
             rec[task] = entry
+        comparisons = [e[n] for e in rec.values() if isinstance(e, Mapping) for n in REFERENCES.values() if n in e]
+        if comparisons and not any(c.get("status") == "ok" for c in comparisons):
+            rec["status"] = f"no comparison: {comparisons[0].get('status')}"
         out[p["key"]] = rec
     return out
 
