@@ -980,6 +980,8 @@ class EventSimulator(torch.nn.Module):
     learnable : bool
         Register the kernel as a ``Parameter`` (trainable) instead of a buffer.
 
+    Notes
+    -----
     ``forward(video, kernel=None, timestamps_s=None)`` returns (B, T-1, 2, H, W) event frames;
     a ``kernel`` given at call time replaces the stored one for that call (e.g. a realised
     kernel scored with the same module).
