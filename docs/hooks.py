@@ -41,6 +41,8 @@ REPO_PAGES = {
 
 _BENCH = re.compile(r"^<!--\s*bench-tables:\s*([a-z0-9_]+)\s*-->\s*$", re.MULTILINE)
 _RATE = re.compile(r"^<!--\s*rate-table\s*-->\s*$", re.MULTILINE)
+_LIMITS = re.compile(r"^<!--\s*limits-table\s*-->\s*$", re.MULTILINE)
+_CONSTANT = re.compile(r"((?:^#:.*\n)+)^([A-Z_]+): \w+ = (.+)$", re.MULTILINE)
 _LINK = re.compile(r"(!?)\[([^\]]*)\]\(([^)\s]+)\)")
 
 
@@ -237,8 +239,25 @@ def rate_table() -> str:
     return "\n".join(lines)
 
 
+def limits_table() -> str:
+    """The documented constants of ``fsdvs_hw/limits.py`` (name, value, what it bounds)."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    import fsdvs_hw.limits as limits
+
+    source = (ROOT / "fsdvs_hw" / "limits.py").read_text(encoding="utf-8")
+    lines = ["| constant | value | what it bounds |", "|---|---|---|"]
+    for comment, name, _ in _CONSTANT.findall(source):
+        text = " ".join(line[2:].strip() for line in comment.strip().splitlines()).replace("``", "`")
+        value = getattr(limits, name)
+        shown = f"{value:,}".replace(",", " ") if isinstance(value, int) else repr(value)
+        lines.append(f"| `{name}` | {shown} | {text} |")
+    return "\n".join(lines)
+
+
 def on_page_markdown(markdown: str, page, config, files) -> str:
     """Expand the generated tables and rewrite links to repository files."""
     markdown = _BENCH.sub(lambda m: bench_tables(m.group(1)), markdown)
     markdown = _RATE.sub(lambda m: rate_table(), markdown)
+    markdown = _LIMITS.sub(lambda m: limits_table(), markdown)
     return _rewrite_links(markdown, page)
