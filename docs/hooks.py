@@ -19,6 +19,7 @@ Three jobs, all at build time, so that nothing measured is typed by hand into a 
 from __future__ import annotations
 
 import json
+import logging
 import math
 import re
 import sys
@@ -28,6 +29,7 @@ from pathlib import Path
 from mkdocs.structure.files import File, Files
 
 ROOT = Path(__file__).resolve().parents[1]
+LOG = logging.getLogger("mkdocs.hooks.fsdvs_hw")
 RECORDS = ROOT / "benchmarks" / "records"
 RATE = ROOT / "designs" / "results" / "rate"
 FIGURES = ROOT / "designs" / "figures"
@@ -98,6 +100,8 @@ def _rewrite_links(markdown: str, page) -> str:
         target = (origin / path).resolve()
         if (ROOT / "docs") in target.parents and origin == ROOT / "docs":
             return m.group(0)  # an ordinary link between pages
+        if not target.exists():
+            LOG.warning("%s links to %r, which does not exist in the repository", page.file.src_uri, url)
         site = _site_target(target, page_dir)
         if site is not None:
             return f"{bang}[{text}]({site}{'#' + anchor if anchor else ''})"

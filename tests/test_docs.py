@@ -31,9 +31,7 @@ def _hooks():
     return module
 
 
-@pytest.fixture(scope="module")
-def site(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("site")
+def _build(out: Path) -> Path:
     env = {**os.environ, "PYTHONPATH": str(REPO), "NO_MKDOCS_2_WARNING": "1"}
     proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(REPO / "mkdocs.yml"),
                            "-d", str(out)], cwd=REPO, env=env, capture_output=True, text=True, timeout=600)
@@ -47,7 +45,31 @@ def _text(html: str) -> str:
     return re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html))
 
 
-def test_api_pages_render_docstrings_and_turn_sphinx_roles_into_links(site: Path):
+def test_the_site_builds_strict_and_shows_the_docstrings_records_and_shipped_results(tmp_path: Path):
+    """One build (a module fixture would build once per xdist worker), three checks."""
+    site = _build(tmp_path / "site")
+    _api_pages_render_docstrings_and_turn_sphinx_roles_into_links(site)
+    _the_measured_tables_are_the_committed_records(site)
+    _the_matched_rate_table_and_the_readme_quote_the_shipped_results(site)
+    _the_readme_links_resolve(site)
+
+
+def _the_readme_links_resolve(site: Path):
+    """Every relative link of the README names a file; a link into docs/ with an anchor, a heading."""
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    links = re.findall(r"\]\(([^)\s]+)\)", readme)
+    assert links
+    for link in links:
+        if re.match(r"^[a-z]+:", link):
+            continue
+        path, _, anchor = link.partition("#")
+        assert (REPO / path).exists(), link
+        if anchor and path.startswith("docs/"):
+            page = site / Path(path).relative_to("docs").with_suffix("") / "index.html"
+            assert f'id="{anchor}"' in page.read_text(encoding="utf-8"), link
+
+
+def _api_pages_render_docstrings_and_turn_sphinx_roles_into_links(site: Path):
     html = (site / "api" / "kernels" / "index.html").read_text(encoding="utf-8")
     # reference_kernel's docstring, and its :func:/:class: roles as links to the objects' anchors
     assert 'id="fsdvs_hw.kernels.reference_kernel"' in html
@@ -57,7 +79,7 @@ def test_api_pages_render_docstrings_and_turn_sphinx_roles_into_links(site: Path
         assert not re.search(r":(func|class|meth|mod|data|attr):`", text), page
 
 
-def test_the_measured_tables_are_the_committed_records(site: Path):
+def _the_measured_tables_are_the_committed_records(site: Path):
     hooks = _hooks()
     text = _text((site / "measured" / "index.html").read_text(encoding="utf-8"))
     records_dir = REPO / "benchmarks" / "records"
@@ -69,7 +91,7 @@ def test_the_measured_tables_are_the_committed_records(site: Path):
             assert cell in text, (path.name, record["case"], record["metric"], cell)
 
 
-def test_the_matched_rate_table_and_the_readme_quote_the_shipped_results(site: Path):
+def _the_matched_rate_table_and_the_readme_quote_the_shipped_results(site: Path):
     text = _text((site / "rate" / "index.html").read_text(encoding="utf-8"))
     readme = (REPO / "README.md").read_text(encoding="utf-8")
     units = {"detection": "mAP", "recognition": "top-1", "segmentation": "mIoU"}
