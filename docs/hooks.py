@@ -8,8 +8,11 @@ Three jobs, all at build time, so that nothing measured is typed by hand into a 
   table per record table, one row per measured case, one column per metric and unit; a timing shows
   its value, its min–max over the repeats and the number of repeats. Each table is followed by the
   machine, the library versions, the time and the command that produced it.
-* **The matched-rate table from the shipped results.** ``<!-- rate-table -->`` becomes the
-  learned − w/o differences of ``designs/results/rate/TASK_matched_rate.json`` (``fsdvs-hw rate``).
+* **Tables from the shipped results.** ``<!-- rate-table -->`` becomes the learned − w/o
+  differences of ``designs/results/rate/TASK_matched_rate.json`` (``fsdvs-hw rate``);
+  ``<!-- codesign-table: NAME -->`` the report's co-design table of
+  ``designs/results/NAME/codesign.json``; ``<!-- limits-table -->`` the constants of
+  ``fsdvs_hw/limits.py``.
 * **Repository files on the site.** ``CONTRIBUTING.md``, ``CHANGELOG.md`` and ``benchmarks/README.md``
   become pages, the README figures (``designs/figures/*.png``) site files, and links from a page to
   those repository paths (``../designs/figures/x.png``) are rewritten to their site address; a link
@@ -43,6 +46,7 @@ REPO_PAGES = {
 
 _BENCH = re.compile(r"^<!--\s*bench-tables:\s*([a-z0-9_]+)\s*-->\s*$", re.MULTILINE)
 _RATE = re.compile(r"^<!--\s*rate-table\s*-->\s*$", re.MULTILINE)
+_CODESIGN = re.compile(r"^<!--\s*codesign-table:\s*([a-z0-9_]+)\s*-->\s*$", re.MULTILINE)
 _LIMITS = re.compile(r"^<!--\s*limits-table\s*-->\s*$", re.MULTILINE)
 _CONSTANT = re.compile(r"((?:^#:.*\n)+)^([A-Z_]+): \w+ = (.+)$", re.MULTILINE)
 _LINK = re.compile(r"(!?)\[([^\]]*)\]\(([^)\s]+)\)")
@@ -243,6 +247,19 @@ def rate_table() -> str:
     return "\n".join(lines)
 
 
+def codesign_table(name: str) -> str:
+    """The report's co-design table (:func:`fsdvs_hw.report.codesign.codesign_section`) of the shipped
+    ``designs/results/NAME/codesign.json``, without its heading."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from fsdvs_hw.report.codesign import codesign_section
+
+    path = ROOT / "designs" / "results" / name / "codesign.json"
+    html = re.sub(r"^<h2>.*?</h2>", "", codesign_section(json.loads(path.read_text(encoding="utf-8"))))
+    return (f"{html}\n\n*Generated from the shipped `designs/results/{name}/codesign.json` "
+            "by the report's own co-design section.*")
+
+
 def limits_table() -> str:
     """The documented constants of ``fsdvs_hw/limits.py`` (name, value, what it bounds)."""
     if str(ROOT) not in sys.path:
@@ -264,4 +281,5 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
     markdown = _BENCH.sub(lambda m: bench_tables(m.group(1)), markdown)
     markdown = _RATE.sub(lambda m: rate_table(), markdown)
     markdown = _LIMITS.sub(lambda m: limits_table(), markdown)
+    markdown = _CODESIGN.sub(lambda m: codesign_table(m.group(1)), markdown)
     return _rewrite_links(markdown, page)

@@ -52,6 +52,16 @@ def test_the_site_builds_strict_and_shows_the_docstrings_records_and_shipped_res
     _the_measured_tables_are_the_committed_records(site)
     _the_matched_rate_table_and_the_readme_quote_the_shipped_results(site)
     _the_readme_links_resolve(site)
+    _the_codesign_tables_are_the_shipped_results(site)
+
+
+def _the_codesign_tables_are_the_shipped_results(site: Path):
+    text = _text((site / "codesign" / "index.html").read_text(encoding="utf-8"))
+    for name in ("codesign", "codesign_budget"):
+        summary = json.loads((REPO / "designs" / "results" / name / "codesign.json").read_text(encoding="utf-8"))
+        for cell in summary["cells"]:
+            loss = cell["rows"]["swap"]["loss"]
+            assert f"{loss['estimate']:.4f} [{loss['low']:.4f}, {loss['high']:.4f}]" in text, (name, cell["task"])
 
 
 def _the_readme_links_resolve(site: Path):
