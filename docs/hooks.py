@@ -144,9 +144,11 @@ def _number(x: float) -> str:
 
 def _cell(record) -> str:
     text = _number(record.value)
-    if record.repeats and record.spread_min is not None and record.spread_max is not None and record.repeats > 1:
-        text += f" [{_number(record.spread_min)}–{_number(record.spread_max)}], n={record.repeats}"
-    return text
+    if record.repeats is None:
+        return text  # not a timing
+    if record.repeats > 1 and record.spread_min is not None and record.spread_max is not None:
+        return text + f" [{_number(record.spread_min)}–{_number(record.spread_max)}], n={record.repeats}"
+    return text + f", n={record.repeats}"
 
 
 def _provenance(records: list) -> str:

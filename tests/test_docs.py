@@ -127,3 +127,4 @@ def test_bench_tables_split_where_a_case_repeats_and_show_spread():
         ("method", "angular"), ("knobs", "n_freq=129, n_angles=8")]
     assert hooks._cell(rows[1]) == "1.5 [1–2], n=3"
     assert hooks._cell(rows[0]) == "0.5"
+    assert hooks._cell(BenchRecord("b", "T", "one run", "time", "s", 4.0, 1, 4.0, 4.0)) == "4, n=1"
