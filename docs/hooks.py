@@ -26,7 +26,7 @@ import logging
 import math
 import re
 import sys
-from collections import OrderedDict
+from collections import Counter, OrderedDict
 from pathlib import Path
 
 from mkdocs.structure.files import File, Files
@@ -127,13 +127,34 @@ def _records(name: str) -> list:
     return read_json(path) if path.is_file() else []
 
 
-def _split_case(case: str) -> list[tuple[str, str]]:
-    """``"method=angular; knobs=n_freq=129"`` -> ``[("method", "angular"), ("knobs", "n_freq=129")]``."""
-    parts = []
+def _split_case(case: str, headers: tuple[str, ...] | None = None) -> list[tuple[str, str]]:
+    """``"method=angular; knobs=n_freq=129"`` -> ``[("method", "angular"), ("knobs", "n_freq=129")]``.
+
+    A record's case is its text cells joined as ``header=text; header=text``; a cell's text may itself
+    hold ``"; "``. With ``headers`` (the table's text columns, in order) a part starts a new column
+    only where its key is the next header; any other part belongs to the cell before it. A case with
+    no ``=`` (a value quoted in a bench's text) is one ``case`` column.
+    """
+    out: list[list[str]] = []
     for item in case.split("; "):
         key, sep, value = item.partition("=")
-        parts.append((key, value) if sep else ("case", item))
-    return parts
+        new_column = sep and (headers is None or (len(out) < len(headers) and key == headers[len(out)]))
+        if new_column:
+            out.append([key, value])
+        elif out:
+            out[-1][1] += "; " + item
+        else:
+            out.append(["case", item])
+    return [(k, v) for k, v in out]
+
+
+def _headers(records: list) -> tuple[str, ...]:
+    """The text columns of one table: the most frequent shortest key sequence of its cases."""
+    seqs = [tuple(k for k, _ in _split_case(r.case)) for r in records if "=" in r.case]
+    if not seqs:
+        return ()
+    shortest = min(map(len, seqs))
+    return Counter(s for s in seqs if len(s) == shortest).most_common(1)[0][0]
 
 
 def _number(x: float) -> str:
@@ -167,17 +188,20 @@ def _provenance(records: list) -> str:
 
 
 def _blocks(records: list) -> list[tuple[str, list]]:
-    """Records cut into tables: a new table where the title or the case's keys change, or where a
-    (case, metric) repeats; the title is given only where it changes."""
+    """Records cut into tables of ``(title, [(record, parsed case), ...])``: a new table where the
+    title or the case's columns change, or where a (case, metric) repeats; the title is given only
+    where it changes."""
+    headers = {title: _headers([r for r in records if r.table == title]) for title in {r.table for r in records}}
     blocks: list[tuple[str, list]] = []
     title, keys, seen = None, None, set()
     for r in records:
-        case_keys = tuple(k for k, _ in _split_case(r.case))
+        parts = _split_case(r.case, headers[r.table])
+        case_keys = tuple(k for k, _ in parts)
         if r.table != title or case_keys != keys or (r.case, r.metric, r.unit) in seen:
             blocks.append((r.table if r.table != title else "", []))
             title, keys, seen = r.table, case_keys, set()
         seen.add((r.case, r.metric, r.unit))
-        blocks[-1][1].append(r)
+        blocks[-1][1].append((r, parts))
     return blocks
 
 
@@ -192,8 +216,7 @@ def bench_tables(name: str) -> str:
         text_cols: list[str] = []
         value_cols: list[tuple[str, str]] = []
         cases: OrderedDict[str, dict] = OrderedDict()
-        for r in rows:
-            parts = _split_case(r.case)
+        for r, parts in rows:
             for key, _ in parts:
                 if key not in text_cols:
                     text_cols.append(key)

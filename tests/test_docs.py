@@ -123,6 +123,10 @@ def test_bench_tables_split_where_a_case_repeats_and_show_spread():
             BenchRecord("b", "T", "fitted scale", "time", "ms", 7.0)]
     blocks = hooks._blocks(rows)
     assert [(title, len(r)) for title, r in blocks] == [("T", 2), ("", 1), ("", 1)]
+    # a cell holding "; " stays one cell when the table's headers are known
+    case = "target=DoG; at a bound=pixel_weight; lambda ratio at 1.5; size=7x7"
+    assert hooks._split_case(case, ("target", "at a bound", "size")) == [
+        ("target", "DoG"), ("at a bound", "pixel_weight; lambda ratio at 1.5"), ("size", "7x7")]
     assert hooks._split_case("method=angular; knobs=n_freq=129, n_angles=8") == [
         ("method", "angular"), ("knobs", "n_freq=129, n_angles=8")]
     assert hooks._cell(rows[1]) == "1.5 [1–2], n=3"
