@@ -280,9 +280,21 @@ def codesign_table(name: str) -> str:
     from fsdvs_hw.report.codesign import codesign_section
 
     path = ROOT / "designs" / "results" / name / "codesign.json"
-    html = re.sub(r"^<h2>.*?</h2>", "", codesign_section(json.loads(path.read_text(encoding="utf-8"))))
-    return (f"{html}\n\n*Generated from the shipped `designs/results/{name}/codesign.json` "
-            "by the report's own co-design section.*")
+    html = codesign_section(json.loads(path.read_text(encoding="utf-8")))
+    note = " ".join(_html_text(p) for p in re.findall(r"<p[^>]*>(.*?)</p>", html, flags=re.DOTALL))
+    rows = [[_html_text(c) for c in re.findall(r"<t[hd][^>]*>(.*?)</t[hd]>", row, flags=re.DOTALL)]
+            for row in re.findall(r"<tr[^>]*>(.*?)</tr>", html, flags=re.DOTALL)]
+    lines = ["| " + " | ".join(rows[0]) + " |", "|" + "---|" * len(rows[0])]
+    lines += ["| " + " | ".join(c.replace("|", "\\|") for c in row) + " |" for row in rows[1:]]
+    return "\n".join([*lines, "", f"*{note} Generated from the shipped `designs/results/{name}/codesign.json` "
+                       "by the report's own co-design section.*"])
+
+
+def _html_text(fragment: str) -> str:
+    """The text of an HTML fragment (tags dropped, entities decoded, whitespace collapsed)."""
+    import html
+
+    return re.sub(r"\s+", " ", html.unescape(re.sub(r"<[^>]+>", " ", fragment))).strip()
 
 
 def limits_table() -> str:
