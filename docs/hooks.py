@@ -188,10 +188,12 @@ def _provenance(records: list) -> str:
 
 
 def _blocks(records: list) -> list[tuple[str, list]]:
-    """Records cut into tables of ``(title, [(record, parsed case), ...])``: a new table where the
-    title or the case's columns change, or where a (case, metric) repeats; the title is given only
-    where it changes."""
-    headers = {title: _headers([r for r in records if r.table == title]) for title in {r.table for r in records}}
+    """Records cut into tables of ``(title, [(record, parsed case), ...])``: the records of one title
+    together (in order of first appearance), and a new table where the title or the case's columns
+    change, or where a (case, metric) repeats; the title is given only where it changes."""
+    order = list(dict.fromkeys(r.table for r in records))  # titles in order of first appearance
+    records = sorted(records, key=lambda r: order.index(r.table))  # stable: a bench may interleave two tables
+    headers = {title: _headers([r for r in records if r.table == title]) for title in order}
     blocks: list[tuple[str, list]] = []
     title, keys, seen = None, None, set()
     for r in records:

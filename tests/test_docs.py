@@ -123,6 +123,10 @@ def test_bench_tables_split_where_a_case_repeats_and_show_spread():
             BenchRecord("b", "T", "fitted scale", "time", "ms", 7.0)]
     blocks = hooks._blocks(rows)
     assert [(title, len(r)) for title, r in blocks] == [("T", 2), ("", 1), ("", 1)]
+    # two tables measured interleaved (per bit width, one row of each) come out as two tables
+    mixed = [BenchRecord("b", t, f"bits={k}", "error", "", 0.1 * k) for k in (2, 3) for t in ("A", "B")]
+    assert [(title, [r.case for r, _ in rows]) for title, rows in hooks._blocks(mixed)] == [
+        ("A", ["bits=2", "bits=3"]), ("B", ["bits=2", "bits=3"])]
     # a cell holding "; " stays one cell when the table's headers are known
     case = "target=DoG; at a bound=pixel_weight; lambda ratio at 1.5; size=7x7"
     assert hooks._split_case(case, ("target", "at a bound", "size")) == [
