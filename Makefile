@@ -14,7 +14,7 @@ TORCH_PIN := torch==2.13.0
 LOCK := requirements-lock.txt
 LOCK_VENV := .venv-lock
 LATEST_VENV := .venv-latest
-EXTRAS := test,notebooks,distributed,eventfiles
+EXTRAS := test,notebooks,distributed,eventfiles,docs
 PYTEST_ARGS ?=
 DEMO_OUT ?= out/demo
 CODESIGN_OUT ?= out/codesign

@@ -16,11 +16,32 @@ class FsdvsError(Exception):
 
 
 class InputError(FsdvsError, ValueError):
-    """Bad user input (argument, file, design field); the message says what and what is allowed."""
+    """Bad user input (argument, file, design field); the message says what and what is allowed.
+
+    Examples
+    --------
+    >>> from fsdvs_hw import InputError, fit_asic_taps, reference_kernel
+    >>> try:
+    ...     fit_asic_taps(reference_kernel("dog", 5), bits=1)
+    ... except InputError as e:
+    ...     print(e)
+    key 'bits' = 1: out of range; allowed: an integer in [2, 24] bit (signed tap width including the sign)
+    """
 
 
 class KernelError(InputError):
-    """A kernel's taps or metadata are invalid (shape, size, values, file format)."""
+    """A kernel's taps or metadata are invalid (shape, size, values, file format).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fsdvs_hw import Kernel, KernelError
+    >>> try:
+    ...     Kernel(np.ones((2, 2)))
+    ... except KernelError as e:
+    ...     print(e)
+    taps: kernel size must be odd (so it has a centre tap), got 2x2
+    """
 
 
 class ToolMissingError(FsdvsError, RuntimeError):

@@ -167,6 +167,16 @@ class Kernel:
     KernelError
         If the taps are not 2-D, not square, of even or absurd size, contain NaN/inf or are all
         zeros, or if the pitch is not a plausible length in metres.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fsdvs_hw import Kernel
+    >>> k = Kernel(np.array([[0.0, -0.25, 0.0], [-0.25, 2.0, -0.25], [0.0, -0.25, 0.0]]), name="cross")
+    >>> k.size, k.pitch_m
+    (3, 4.86e-06)
+    >>> round(float(k.taps.sum()), 6)          # DC gain
+    1.0
     """
 
     taps: np.ndarray
@@ -423,6 +433,13 @@ def load_kernel(path: str | Path, *, pitch_m: float | None = None) -> Kernel:
     KernelError
         Missing file, unknown extension, unreadable content, or invalid taps — the message names
         the file.
+
+    Examples
+    --------
+    >>> from fsdvs_hw import load_kernel
+    >>> k = load_kernel("designs/kernels/dog_7x7.json")
+    >>> k.size, round(float(k.taps.sum()), 4)
+    (7, 0.2)
     """
     path = Path(path)
     src = str(path)

@@ -146,6 +146,15 @@ def radial_response(
         point symmetry, so this covers the whole circle). ``fft``: zero-padded ``n_fft``-point
         2-D FFT averaged over annuli of width 0.5/(n_freq-1) centred on each frequency (empty
         annuli interpolated) — the recipe of the FS-DVS paper.
+
+    Examples
+    --------
+    >>> from fsdvs_hw import radial_response, reference_kernel
+    >>> r = radial_response(reference_kernel("dog", 7), n_freq=65)
+    >>> float(r.f_cpp[0]), float(r.f_cpp[-1])        # cycles/pixel, DC to Nyquist
+    (0.0, 0.5)
+    >>> round(float(r.gain[0]), 4)                   # the DC gain is the sum of the taps
+    0.2
     """
     if not isinstance(n_freq, (int, np.integer)) or n_freq < 2:
         raise InputError(f"n_freq must be an integer ≥ 2, got {n_freq!r}")
@@ -219,7 +228,14 @@ def _crossing(f: np.ndarray, g: np.ndarray, level: float, i0: int, i1: int) -> f
 
 
 def spectral_summary(kernel: Kernel | np.ndarray, *, n_freq: int = 1025) -> SpectralSummary:
-    """DC gain, peak frequency, half-maximum band and Q of the radial response (see :class:`SpectralSummary`)."""
+    """DC gain, peak frequency, half-maximum band and Q of the radial response (see :class:`SpectralSummary`).
+
+    Examples
+    --------
+    >>> from fsdvs_hw import reference_kernel, spectral_summary
+    >>> round(spectral_summary(reference_kernel("dog", 7)).peak_frequency_cpp, 3)   # band-pass peak
+    0.19
+    """
     taps = _taps(kernel)
     rr = radial_response(taps, n_freq=n_freq)
     f, g = rr.f_cpp, rr.gain
@@ -281,6 +297,12 @@ def pixels_per_degree(pitch_m: float, focal_length_m: float) -> float:
         Pixel pitch in metres (e.g. 4.86e-6).
     focal_length_m : float
         Focal length in metres (e.g. 4e-3).
+
+    Examples
+    --------
+    >>> from fsdvs_hw import pixels_per_degree
+    >>> round(pixels_per_degree(4.86e-6, 12e-3), 2)   # 4.86 µm pixels behind a 12 mm lens
+    43.09
     """
     p = _positive_length("pitch_m", pitch_m)
     fl = _positive_length("focal_length_m", focal_length_m)

@@ -1,4 +1,7 @@
-"""Every runnable code block of README.md runs, as a reader would run it.
+"""Every runnable code block of README.md and of the documentation pages runs, as a reader would run it.
+
+The documents are :data:`DOCUMENTS`: the README and the pages of docs/ that hold its former
+reference sections (a new page with runnable blocks goes into that list).
 
 * ```python blocks: each is run on its own (a fresh interpreter, so every block is complete in
   itself and can be copied alone).
@@ -9,8 +12,8 @@
   Each run checks that designs/ is unchanged afterwards (names, sizes and modification times):
   no README command writes into designs/.
 * ```console blocks are shown, not run; each must follow a ``<!-- readme-test: skip (reason) -->``
-  marker, and the set of skipped blocks is listed here (:data:`SKIPPED`): adding one means
-  editing this test. Blocks without a language or in json are output, not code.
+  marker, and the set of skipped blocks (over all documents) is listed here (:data:`SKIPPED`):
+  adding one means editing this test. Blocks without a language or in json are output, not code.
 """
 
 from __future__ import annotations
@@ -27,6 +30,10 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
+#: The documents whose blocks run: the README and the documentation pages with runnable blocks.
+DOCUMENTS: tuple[Path, ...] = (README, *(REPO / "docs" / f"{name}.md" for name in (
+    "getting-started", "analyse", "simulator", "tasks", "mesh", "asic", "metalens", "explore", "sweeps",
+    "codesign", "rate", "security", "measured", "index")))
 RUNNABLE = {"python", "bash", "sh", "shell", "console"}
 
 #: Blocks shown but not run (first command line → why). Keep this short.
@@ -39,6 +46,8 @@ SKIPPED: dict[str, str] = {
     "fsdvs-hw report designs/default.toml": "needs out/demo from the main job; tests/test_report.py redraws a run",
     "apt-get install -y chromium": "installs Debian packages; tests/test_report_browser.py is the browser test",
     "openssl req -x509 -nodes -newkey rsa:4096": "needs a Dask cluster; tests/test_inputs_safety.py runs TLS locally",
+    "pip install -e '.[docs]'": "installs packages and serves the site; tests/test_docs.py builds it",
+    "fsdvs-hw bench csf --json benchmarks/records/csf.json": "rewrites a committed benchmark record",
 }
 
 #: Blocks that take more than ~20 s (first code line(s), prefix). CPU seconds measured one by one on
@@ -57,12 +66,13 @@ _SKIP = re.compile(r"^<!--\s*readme-test:\s*skip\s*\((.+)\)\s*-->\s*$")
 
 @dataclass(frozen=True)
 class Block:
-    """One fenced code block of README.md."""
+    """One fenced code block of a document (README.md or a documentation page)."""
 
     lang: str
     code: str
     line: int           # line of the opening fence (1-based)
     skip_reason: str | None
+    document: str = "README.md"  # path relative to the repository
 
     @property
     def key(self) -> str:
@@ -76,9 +86,10 @@ class Block:
         return any(body.startswith(prefix) for prefix in SLOW)
 
 
-def readme_blocks(text: str | None = None) -> list[Block]:
-    """Every fenced block of the README, with the skip marker that precedes it (if any)."""
-    lines = (README.read_text(encoding="utf-8") if text is None else text).splitlines()
+def readme_blocks(text: str | None = None, document: Path = README) -> list[Block]:
+    """Every fenced block of a document (default the README), with the skip marker that precedes it (if any)."""
+    lines = (document.read_text(encoding="utf-8") if text is None else text).splitlines()
+    name = document.relative_to(REPO).as_posix()
     blocks: list[Block] = []
     i = 0
     while i < len(lines):
@@ -92,13 +103,25 @@ def readme_blocks(text: str | None = None) -> list[Block]:
             j += 1
         prev = next((lines[k] for k in range(start - 1, -1, -1) if lines[k].strip()), "")
         skip = _SKIP.match(prev.strip())
-        blocks.append(Block(lang, "\n".join(lines[start + 1:j]), start + 1, skip.group(1) if skip else None))
+        blocks.append(Block(lang, "\n".join(lines[start + 1:j]), start + 1, skip.group(1) if skip else None, name))
         i = j + 1
     return blocks
 
 
+def all_blocks() -> list[Block]:
+    """Every fenced block of every document in :data:`DOCUMENTS`."""
+    return [b for doc in DOCUMENTS for b in readme_blocks(document=doc)]
+
+
 def _runnable() -> list[Block]:
-    return [b for b in readme_blocks() if b.lang in RUNNABLE and b.skip_reason is None]
+    """The blocks to run; a block repeated verbatim in another document runs once."""
+    seen: set[tuple[str, str]] = set()
+    out = []
+    for b in all_blocks():
+        if b.lang in RUNNABLE and b.skip_reason is None and (b.lang, b.code) not in seen:
+            seen.add((b.lang, b.code))
+            out.append(b)
+    return out
 
 
 def _snapshot(folder: Path) -> dict[str, tuple[int, int]]:
@@ -115,19 +138,24 @@ def test_the_parser_finds_blocks_and_markers():
     assert (c.lang, c.code) == ("", "output")
 
 
+def test_every_document_exists_and_the_readme_is_short():
+    assert all(doc.is_file() for doc in DOCUMENTS), [str(d) for d in DOCUMENTS if not d.is_file()]
+    assert len(README.read_text(encoding="utf-8").splitlines()) <= 300
+
+
 def test_skipped_blocks_are_exactly_the_listed_ones_and_console_blocks_are_skipped():
-    blocks = readme_blocks()
+    blocks = all_blocks()
     skipped = {b.key: b for b in blocks if b.skip_reason is not None}
     assert all(any(k.startswith(p) for k in skipped) for p in SKIPPED), (sorted(skipped), sorted(SKIPPED))
     assert all(any(k.startswith(p) for p in SKIPPED) for k in skipped), sorted(skipped)
     assert all(b.skip_reason is not None for b in blocks if b.lang == "console"), \
-        [b.line for b in blocks if b.lang == "console" and b.skip_reason is None]
+        [(b.document, b.line) for b in blocks if b.lang == "console" and b.skip_reason is None]
     assert len(_runnable()) >= 8  # the tour and the reference snippets
 
 
 def test_no_readme_command_names_designs_as_an_output():
     """Flags that write (--out, --ship-dir, --figures, --store, --report) never point into designs/."""
-    text = README.read_text(encoding="utf-8")
+    text = "\n".join(doc.read_text(encoding="utf-8") for doc in DOCUMENTS)
     bad = re.findall(r"--(?:out|ship-dir|figures|store|report|json)[ =]designs/\S*", text)
     assert bad == []
     cli = "\n".join(p.read_text(encoding="utf-8") for p in (REPO / "fsdvs_hw" / "cli").glob("*.py"))
@@ -151,13 +179,13 @@ def _needs_tools(code: str) -> list[str]:
     return [t for t in need if shutil.which(t) is None]
 
 
-@pytest.mark.parametrize("block", [pytest.param(b, id=f"L{b.line}-{b.lang}",
+@pytest.mark.parametrize("block", [pytest.param(b, id=f"{Path(b.document).stem}-L{b.line}-{b.lang}",
                                                 marks=[pytest.mark.slow] if b.slow else [])
                                    for b in _runnable()])
 def test_readme_block_runs(block: Block, tmp_path: Path):
     missing = _needs_tools(block.code)
     if missing:
-        pytest.skip(f"README line {block.line} needs {', '.join(missing)} (not on PATH)")
+        pytest.skip(f"{block.document} line {block.line} needs {', '.join(missing)} (not on PATH)")
     (tmp_path / "designs").symlink_to(REPO / "designs", target_is_directory=True)
     env = {**os.environ, "PYTHONPATH": str(REPO), "FSDVS_TEST_PYTHON": sys.executable, "MPLBACKEND": "Agg"}
     before = _snapshot(REPO / "designs")
@@ -170,6 +198,6 @@ def test_readme_block_runs(block: Block, tmp_path: Path):
         script.write_text(_PRELUDE + block.code + "\n", encoding="utf-8")
         cmd = ["bash", str(script)]
     proc = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=1200)
-    assert proc.returncode == 0, (f"README.md line {block.line} ({block.lang}) failed:\n{block.code}\n"
+    assert proc.returncode == 0, (f"{block.document} line {block.line} ({block.lang}) failed:\n{block.code}\n"
                                   f"--- stdout\n{proc.stdout[-3000:]}\n--- stderr\n{proc.stderr[-5000:]}")
-    assert _snapshot(REPO / "designs") == before, f"README.md line {block.line} changed designs/"
+    assert _snapshot(REPO / "designs") == before, f"{block.document} line {block.line} changed designs/"

@@ -566,6 +566,12 @@ def load_design(path: str | Path) -> Design:
         Missing or unparsable file, unknown section or key, wrong type, value out of range,
         missing or invalid kernel file, unknown realisation option — all problems found, in one
         message naming the file, each key, its value and what is allowed.
+
+    Examples
+    --------
+    >>> from fsdvs_hw import load_design
+    >>> load_design("designs/default.toml").spec.realisations.asic.bits
+    8
     """
     path = Path(path)
     if not path.is_file():

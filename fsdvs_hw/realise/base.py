@@ -136,6 +136,16 @@ def kernel_error(realised: Kernel | np.ndarray, target: Kernel | np.ndarray, *, 
     zero-padded (centred) to the larger size and :math:`s = 1`, or, with ``fit_scale=True``, the
     least-squares scale :math:`s = \langle K_r, K_t\rangle / \lVert K_r \rVert^2` (use it when the
     overall gain is free, e.g. folded into the event threshold).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fsdvs_hw import kernel_error, reference_kernel
+    >>> k = reference_kernel("dog", 5)
+    >>> round(kernel_error(np.asarray(k) * 1.1, k), 6)                  # a 10 % gain error ...
+    0.1
+    >>> round(kernel_error(np.asarray(k) * 1.1, k, fit_scale=True), 6)  # ... which a threshold absorbs
+    0.0
     """
     a = realised.taps if isinstance(realised, Kernel) else np.asarray(realised, dtype=np.float64)
     b = target.taps if isinstance(target, Kernel) else np.asarray(target, dtype=np.float64)

@@ -117,6 +117,13 @@ class CostSpec:
     derive : callable, optional
         ``derive(cost) -> value or None`` from the stored cost items (name → ``{"value", "unit"}``),
         for a quantity that is not an item itself.
+
+    Examples
+    --------
+    >>> from fsdvs_hw import CostSpec
+    >>> c = CostSpec("adders", "count", "adders", pareto=True, headline=True)
+    >>> c.name, c.unit, c.pareto
+    ('adders', 'count', True)
     """
 
     name: str
@@ -384,6 +391,13 @@ def get_realisation(name: str) -> RealisationSpec:
     ------
     InputError
         Unknown name; the message lists the registered ones.
+
+    Examples
+    --------
+    >>> from fsdvs_hw import get_realisation
+    >>> spec = get_realisation("asic")
+    >>> spec.name, [c.name for c in spec.costs][:2]
+    ('asic', ['area_m2', 'yosys_cells'])
     """
     spec = _REGISTRY.get(name) if isinstance(name, str) else None
     if spec is None:
@@ -392,7 +406,14 @@ def get_realisation(name: str) -> RealisationSpec:
 
 
 def realisation_names(kind: str | None = None) -> tuple[str, ...]:
-    """Registered names in registration order, optionally of one ``kind`` (``"hardware"``/``"reference"``)."""
+    """Registered names in registration order, optionally of one ``kind`` (``"hardware"``/``"reference"``).
+
+    Examples
+    --------
+    >>> from fsdvs_hw import realisation_names
+    >>> realisation_names()
+    ('learned', 'delta', 'mesh', 'asic', 'metalens')
+    """
     if kind is not None and kind not in KINDS:
         raise InputError(f"realisation kind {kind!r} unknown; allowed: {', '.join(KINDS)}")
     return tuple(n for n, s in _REGISTRY.items() if kind is None or s.kind == kind)

@@ -306,6 +306,8 @@ def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, st
         Intensity of display white in the simulator's units (default 1.0 = full scale); use it to
         set the scene's light level (e.g. 0.01 for a dim scene).
 
+    Notes
+    -----
     For clips too long to hold in memory use :func:`iter_video` (one frame at a time) with the
     streaming simulator :func:`fsdvs_hw.sensor.simulate`.
     """

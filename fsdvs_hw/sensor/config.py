@@ -205,6 +205,12 @@ class SensorConfig:
         Seed for every random draw (mismatch, leak phase, shot noise); each effect draws from its
         own stream derived from this seed, so switching one effect off does not change the others.
         In [0, :data:`MAX_SEED`] (2**32 - 1).
+
+    Examples
+    --------
+    >>> from fsdvs_hw import SensorConfig
+    >>> SensorConfig().threshold_sigma, SensorConfig.ideal().threshold_sigma   # v2e's mismatch; none
+    (0.03, 0.0)
     """
 
     threshold_on: Any = 0.2

@@ -849,6 +849,18 @@ def event_frames(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
         intensities, non-increasing timestamps, even or invalid kernel, kernel/timestamps on
         another device, a generator that is not a ``torch.Generator``, a non-boolean
         ``return_info``, a video too large for the allocation limit.
+
+    Examples
+    --------
+    >>> import torch
+    >>> from fsdvs_hw import SensorConfig, event_frames
+    >>> video = torch.ones(1, 3, 4, 4)
+    >>> video[:, 1:, :, 2:] = 2.0                 # the right half doubles in brightness after frame 0
+    >>> f = event_frames(video, config=SensorConfig.ideal())
+    >>> f.shape                                   # (B, T-1, ON/OFF, H, W)
+    torch.Size([1, 2, 2, 4, 4])
+    >>> f[0, 0, 0, 0].tolist()                    # ON counts of a row: floor(log 2 / 0.2) = 3
+    [0.0, 0.0, 3.0, 3.0]
     """
     return_info = check_bool("return_info", return_info)
     frames, info, _ = _simulate(video, kernel, timestamps_s, config, plan, generator, False)
@@ -865,6 +877,16 @@ def event_list(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
     threshold level gets its own time, linearly interpolated within its (sub-)step.
     ``progress``: a bar over the frame intervals on stderr (True, False, or None: when stderr is a
     terminal; :mod:`fsdvs_hw.progress`).
+
+    Examples
+    --------
+    >>> import torch
+    >>> from fsdvs_hw import SensorConfig, event_list
+    >>> video = torch.ones(1, 3, 4, 4)
+    >>> video[:, 1:, :, 2:] = 2.0
+    >>> ev = event_list(video, config=SensorConfig.ideal(), timestamps_s=[0.0, 0.01, 0.02])
+    >>> len(ev), int(ev.p.min()), int(ev.p.max())  # 8 pixels × 3 ON events
+    (24, 1, 1)
     """
     import torch
 
@@ -915,6 +937,15 @@ def voxel_grid(events_or_frames: Any, n_bins: int, *, timestamps_s: Any = None,
         Bad arguments (timestamps that are not finite and strictly increasing: they would give a
         NaN grid), or a grid larger than the allocation limit (:mod:`fsdvs_hw.limits`, 1 GiB by
         default), refused with its size before anything is allocated.
+
+    Examples
+    --------
+    >>> import torch
+    >>> from fsdvs_hw import SensorConfig, event_frames, voxel_grid
+    >>> video = torch.ones(1, 5, 4, 4)
+    >>> video[:, 1:, :, 2:] = 2.0
+    >>> voxel_grid(event_frames(video, config=SensorConfig.ideal()), 3).shape
+    torch.Size([1, 3, 4, 4])
     """
     import torch
 
@@ -982,9 +1013,20 @@ class EventSimulator(torch.nn.Module):
     learnable : bool
         Register the kernel as a ``Parameter`` (trainable) instead of a buffer.
 
+    Notes
+    -----
     ``forward(video, kernel=None, timestamps_s=None)`` returns (B, T-1, 2, H, W) event frames;
     a ``kernel`` given at call time replaces the stored one for that call (e.g. a realised
     kernel scored with the same module).
+
+    Examples
+    --------
+    >>> import torch
+    >>> from fsdvs_hw import EventSimulator, SensorConfig, reference_kernel
+    >>> sim = EventSimulator(SensorConfig.ideal(), kernel=reference_kernel("delta", 3), learnable=True)
+    >>> out = sim(torch.rand(1, 3, 8, 8, generator=torch.Generator().manual_seed(0)) + 0.5)
+    >>> out.shape, sim.kernel.requires_grad
+    (torch.Size([1, 2, 2, 8, 8]), True)
     """
 
     def __init__(self, config: SensorConfig | None = None, kernel: Any = None,

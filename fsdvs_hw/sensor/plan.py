@@ -236,6 +236,15 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
     -------
     ModelPlan
         Printable (``print(plan)``): every effect with its value, limit and reason.
+
+    Examples
+    --------
+    >>> import torch
+    >>> from fsdvs_hw import plan_model
+    >>> video = torch.rand(1, 5, 16, 16, generator=torch.Generator().manual_seed(0)) + 0.5
+    >>> plan = plan_model(video, tolerance=0.05)
+    >>> plan.decision("refractory").included, plan.decision("photoreceptor").included
+    (False, True)
     """
     try:
         tol = float(tolerance)

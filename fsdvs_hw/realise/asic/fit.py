@@ -110,6 +110,14 @@ class AsicDesign:
         Diagnostics of the fit (continuous scale, evaluations, run time, naive-scale error).
     synthesis : dict, optional
         yosys results from :meth:`synthesise` (cells, area, image width, run time).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fsdvs_hw import fit_asic_taps
+    >>> d = fit_asic_taps(np.array([[-0.1, -0.1, -0.1], [-0.1, 1.0, -0.1], [-0.1, -0.1, -0.1]]), bits=6)
+    >>> d.kernel().size, list(d.cost())[:2]
+    (3, ['adders', 'adders_per_tap'])
     """
 
     target: Kernel
@@ -679,6 +687,18 @@ def fit_asic_taps(
     InputError
         Bad arguments; a fixed scale or an adder weight at which every tap rounds to zero;
         an ``input_bits`` whose accumulator would exceed the exact 63-bit model.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fsdvs_hw import fit_asic_taps
+    >>> d = fit_asic_taps(np.array([[-0.1, -0.1, -0.1], [-0.1, 1.0, -0.1], [-0.1, -0.1, -0.1]]), bits=6)
+    >>> d.taps, d.scale
+    (array([[-1, -1, -1],
+           [-1, 10, -1],
+           [-1, -1, -1]]), 0.1)
+    >>> d.apply(np.full((5, 5), 100)).tolist()     # the bit-exact integer model, valid-mode output
+    [[200, 200, 200], [200, 200, 200], [200, 200, 200]]
     """
     check_fit_arguments(AsicOptions, locals())  # the registry's schema: same limits as design files
     t0 = time.perf_counter()

@@ -141,6 +141,13 @@ def mesh_needs_transient(design: Any, edge_speed_px_per_s: float, tolerance: flo
         Fastest image speed in the scene, pixels per second (0 … 1e9).
     tolerance : float
         Allowed relative kernel error (0 < tolerance < 1).
+
+    Examples
+    --------
+    >>> from fsdvs_hw import fit_resistive_mesh, mesh_needs_transient, reference_kernel
+    >>> d = fit_resistive_mesh(reference_kernel("dog", 5))
+    >>> mesh_needs_transient(d, edge_speed_px_per_s=1000.0).needed
+    False
     """
     design = _check_design(design)
     v = _check_speed(edge_speed_px_per_s)

@@ -112,6 +112,13 @@ class MeshBounds:
         Smallest λ_wide / λ_narrow (≥ 1).
     conductance_s : (float, float)
         Allowed conductances in siemens; with ``g_lateral_s`` fixed this bounds λ as well.
+
+    Examples
+    --------
+    >>> from fsdvs_hw import MeshBounds
+    >>> b = MeshBounds(lambda_px=(0.5, 5.0))
+    >>> b.lambda_px, b.min_lambda_ratio
+    ((0.5, 5.0), 1.5)
     """
 
     lambda_px: tuple[float, float] = (0.1, 20.0)
@@ -1233,6 +1240,13 @@ def fit_resistive_mesh(
         The target is not D4-symmetric (relative asymmetric part > 1e-6).
     MeshFitWarning
         The fit is no better than a zero kernel (error ≥ 0.999), or IPOPT did not report success.
+
+    Examples
+    --------
+    >>> from fsdvs_hw import fit_resistive_mesh, reference_kernel
+    >>> d = fit_resistive_mesh(reference_kernel("dog", 5))
+    >>> d.kernel_error() < 0.5, d.lambda_narrow_px < d.lambda_wide_px
+    (True, True)
     """
     check_fit_arguments(MeshOptions, locals())  # the registry's schema: same limits as design files
     t0 = time.perf_counter()

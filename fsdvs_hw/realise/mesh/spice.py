@@ -110,6 +110,13 @@ def to_spice_netlist(
     -------
     str
         The deck; node names ``n{y}_{x}`` (narrow) and ``w{y}_{x}`` (wide), row y, column x.
+
+    Examples
+    --------
+    >>> from fsdvs_hw import fit_resistive_mesh, reference_kernel, to_spice_netlist
+    >>> deck = to_spice_netlist(fit_resistive_mesh(reference_kernel("dog", 5)), half_width=3)
+    >>> deck.splitlines()[0][:40], ".op" in deck
+    ('* fsdvs_hw dual resistive mesh: 7x7 patc', True)
     """
     h = _resolve_half_width(design, half_width)
     if not (isinstance(i_in_a, (int, float)) and 0 < i_in_a <= 1e-3):
