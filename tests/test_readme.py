@@ -38,8 +38,8 @@ RUNNABLE = {"python", "bash", "sh", "shell", "console"}
 
 #: Blocks shown but not run (first command line → why). Keep this short.
 SKIPPED: dict[str, str] = {
-    "make demo": "sets up .venv and runs the full main job (~5 min); tests/test_wheel.py runs the job",
-    "fsdvs-hw explore --out out/demo": "the full main job (~5 min); the quick variant below runs",
+    "make demo": "sets up .venv and runs the full main job (~8 min); tests/test_wheel.py runs the job",
+    "fsdvs-hw explore --out out/demo": "the full main job (~8 min); the quick variant below runs",
     "fsdvs-hw learn detection --init-kernel": "trains a network (minutes); tests/test_codesign_learn.py",
     "fsdvs-hw ablation --seeds 0 1 2": "45 trainings (48 min)",
     "make notebooks": "runs every notebook at full size (~30 min); tests/test_notebooks.py runs them small",

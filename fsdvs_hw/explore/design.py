@@ -35,7 +35,7 @@ Layout (every section and key is optional; defaults in brackets)::
     [emulation]     enabled, n_clips, n_frames, display_bits, display_gamma, display_peak_nits,
                     display_black_nits, upsample_factor, camera ["design" or a sensor preset such as
                     "imx636"]  (fsdvs_hw.explore.emulation)
-    [rate]          enabled [false], thresholds [[0.1, 0.3, 0.45]], references [["delta", "learned"]]
+    [rate]          enabled [false], thresholds [[0.1, 0.125, 0.15, 0.3, 0.45]], references [["delta", "learned"]]
                     (every point's losses at equal event rate; fsdvs_hw.explore.matched)
     [sweep]         axes = { "asic.bits" = [2, 4, 8], "sensor.threshold_on" = [0.1, 0.2] }
     [run]           workers, seed, max_points [10000]
@@ -236,9 +236,10 @@ class RateSection(StrictModel):
     enabled: bool = field(False, "", "measure the reference kernels' rate curves and give every point its losses "
                           "at equal event rate (costs one task evaluation per reference and threshold)")
     thresholds: list[Annotated[float, Field(ge=1e-4, le=10.0)]] = field(
-        [0.1, 0.3, 0.45], "", "ON = OFF contrast thresholds (log units) of the reference rate curves, besides the "
-        "one the points were scored at; they must bracket every point's event rate (a rate outside a curve is "
-        "refused, never extrapolated)", min_length=1, max_length=64)
+        [0.1, 0.125, 0.15, 0.3, 0.45], "", "ON = OFF contrast thresholds (log units) of the reference rate curves, "
+        "besides the one the points were scored at; they must bracket every point's event rate (a rate outside a "
+        "curve is refused, never extrapolated) and be dense where the rates are matched: a plain DVS's metric peaks "
+        "near 0.125, and linear interpolation across a peak underestimates it", min_length=1, max_length=64)
     references: list[Literal["delta", "learned"]] = field(
         ["delta", "learned"], "", "reference curves: 'delta' (a plain DVS with its threshold moved: the point's gain "
         "over it at equal rate) and 'learned' (the kernel being realised: the point's matched-rate loss)",
