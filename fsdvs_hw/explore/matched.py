@@ -256,7 +256,7 @@ def matched_rate_records(points: Sequence[Mapping[str, Any]],
             for ref, curve in refs.items():
                 name = REFERENCES[ref]
                 if isinstance(curve, str) or isinstance(own, str):
-                    why = curve if isinstance(curve, str) else own
+                    why = curve if isinstance(curve, str) else str(own)
                     entry[name] = {"status": why if why.startswith("unavailable") else f"unavailable: {why}"}
                     continue
                 try:
