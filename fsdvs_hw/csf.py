@@ -211,8 +211,8 @@ def contrast_sensitivity(f_cpd: Any, method: str = "mannos_sakrison_1974", **kwa
     --------
     >>> import numpy as np
     >>> from fsdvs_hw import contrast_sensitivity
-    >>> np.round(contrast_sensitivity(np.array([1.0, 7.89, 30.0])), 3)   # cycles/degree; Mannos–Sakrison peak 0.981
-    array([0.316, 0.981, 0.187])
+    >>> np.round(contrast_sensitivity(np.array([1.0, 7.89, 30.0])), 3).tolist()   # cycles/degree; peak 0.981
+    [0.316, 0.981, 0.187]
     """
     return CSF_METHODS[_method_name(method)](f_cpd, **kwargs)
 

@@ -315,7 +315,8 @@ def test_fuzzed_design_tables_validate_or_raise_input_error(raw, tmp_path):
         d = parse_design(raw, source="fuzz", base_dir=tmp_path)
     except InputError:
         return
-    assert d.target is not None and set(d.data) == set(_SCHEMA)
+    # every section, except [costs], which a design holds only when it sets it (its fingerprint is unchanged)
+    assert d.target is not None and set(d.data) == set(_SCHEMA) - ({"costs"} - set(raw))
 
 
 _KEY_PART = st.one_of(st.sampled_from([*_SCHEMA, "asic", "mesh", "bits", "resolution", "pitch_m", "params", ""]),
