@@ -171,3 +171,16 @@ def test_retrained_curves_are_paired_across_thresholds_and_resume(tmp_path, monk
     monkeypatch.setattr(rate_retrained, "clip_evidence", no_training)
     again = rate_retrained.retrained_rate_curve(None, "recognition", (0.1, 0.2), (0, 1), tmp_path, label="w/o", **tiny)
     assert [p.metric for p in again.points] == [p.metric for p in wo.points]
+
+
+@pytest.mark.parametrize("args, named", [
+    (["--protocol", "retrained", "--illuminance-lux", "1"], "--illuminance-lux"),
+    (["--zero-shot"], "--zero-shot"),
+])
+def test_rate_options_that_a_protocol_would_ignore_are_refused(args, named, tmp_path, capsys):
+    """An option the chosen protocol does not use is an error naming it, before any work (not silently dropped)."""
+    from fsdvs_hw.cli import main
+
+    assert main(["rate", str(ROOT / "designs" / "default.toml"), "--out", str(tmp_path / "o"), *args]) == 2
+    assert named in capsys.readouterr().err
+    assert not any((tmp_path / "o").rglob("*.json"))

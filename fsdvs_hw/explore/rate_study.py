@@ -156,6 +156,8 @@ def run_rate_study(options: RateOptions) -> RateStudy:
         return _retrained_study(design, options)
     if options.protocol != "fixed":
         raise InputError(f"--protocol {options.protocol!r}; allowed: 'fixed', 'retrained'")
+    if options.zero_shot:
+        raise InputError("--zero-shot needs networks trained on a plain DVS: allowed with --protocol retrained only")
     ckpts = design.checkpoints()
     if options.task not in ckpts:
         raise InputError(f"--task {options.task!r}: not in the design's tasks.checkpoints; allowed: {', '.join(ckpts)}")
@@ -165,12 +167,7 @@ def run_rate_study(options: RateOptions) -> RateStudy:
             raise InputError(f"--networks {options.n_networks}: allowed 1..{len(paths)} (the design's "
                              f"{options.task} networks)")
         paths = paths[: options.n_networks]
-    sensor = design.spec.sensor
-    if sensor.threshold_on != sensor.threshold_off:
-        raise InputError(f"sensor.threshold_on={sensor.threshold_on} != threshold_off={sensor.threshold_off}: the "
-                         "rate curve sets both together; allowed: equal thresholds")
-    t_ref = float(sensor.threshold_on)
-    thresholds = tuple(sorted(set(options.thresholds) | {t_ref}))
+    t_ref, thresholds = _thresholds(design, options)
     n_test = options.n_test
     if n_test is None:
         n_test = int(design.data["tasks"]["n_test"].get(options.task, 0) or 0) or None
@@ -203,7 +200,7 @@ def run_rate_study(options: RateOptions) -> RateStudy:
                             "the learned kernel",
                 "photon_noise": None if photon is None else {
                     "illuminance_lux": options.illuminance_lux, "quantum_efficiency": options.quantum_efficiency,
-                    "photoelectrons_full_scale": photon.photoelectrons_full_scale, "pitch_m": float(sensor.pitch_m),
+                    "photoelectrons_full_scale": photon.photoelectrons_full_scale, "pitch_m": float(design.spec.sensor.pitch_m),
                     "model": "Poisson photoelectrons per frame interval before the kernel (fsdvs_hw.sensor.photon_noise)"}}
     study = _write_study(options, out, curves, comparisons, settings)
     if photon is not None:
@@ -258,19 +255,27 @@ def _write_study(options: RateOptions, out: Path, curves: dict[str, RateCurve], 
     return RateStudy(curves=curves, comparisons=comparisons, rows=rows, files=files)
 
 
-def _retrained_study(design: Any, options: RateOptions) -> RateStudy:
-    """The retrained protocol (and the zero-shot swap at matched rate) for one task."""
-    from .rate_retrained import network_stem, networks_dir, retrained_rate_curve
-
-    if options.realisations:
-        raise InputError("--realisations: the retrained protocol trains networks for w/o and the learned kernel only; "
-                         "allowed: none (use the fixed protocol for realisations)")
+def _thresholds(design: Any, options: RateOptions) -> tuple[float, tuple[float, ...]]:
+    """The design's operating threshold (ON = OFF, log units) and the study's thresholds with it."""
     sensor = design.spec.sensor
     if sensor.threshold_on != sensor.threshold_off:
         raise InputError(f"sensor.threshold_on={sensor.threshold_on} != threshold_off={sensor.threshold_off}: the "
                          "rate curve sets both together; allowed: equal thresholds")
     t_ref = float(sensor.threshold_on)
-    thresholds = tuple(sorted(set(options.thresholds) | {t_ref}))
+    return t_ref, tuple(sorted(set(options.thresholds) | {t_ref}))
+
+
+def _retrained_study(design: Any, options: RateOptions) -> RateStudy:
+    """The retrained protocol (and the zero-shot swap at matched rate) for one task."""
+    from .rate_retrained import network_stem, networks_dir, retrained_rate_curve
+
+    if options.illuminance_lux is not None:
+        raise InputError(f"--illuminance-lux {options.illuminance_lux}: photon noise is measured with the fixed "
+                         "protocol only; allowed: --protocol fixed, or no --illuminance-lux")
+    if options.realisations:
+        raise InputError("--realisations: the retrained protocol trains networks for w/o and the learned kernel only; "
+                         "allowed: none (use the fixed protocol for realisations)")
+    t_ref, thresholds = _thresholds(design, options)
     n_test = options.n_test or 256
     out = output_dir(options.out, flag="--out")
     common: dict[str, Any] = dict(n_train=options.n_train, n_test=n_test, progress=options.progress)
