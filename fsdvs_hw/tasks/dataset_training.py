@@ -359,6 +359,7 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
     stem = None if out is None else _stem(out)
     partial = None if stem is None else Path(str(stem) + ".partial.pt")
     if stem is not None:
+        stem.parent.mkdir(parents=True, exist_ok=True)
         done = load_trained(stem, net.cpu(), fingerprint=fingerprint, who="train_on_dataset")
         net = net.to(dev)
         if done is not None:
