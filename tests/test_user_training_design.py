@@ -101,3 +101,26 @@ def test_bad_train_keys_name_file_key_value_and_range(folder, train, n_clips, wa
     with pytest.raises(DesignError) as err:
         load_design(_design(folder, train, name="bad", n_clips=n_clips))
     assert want in str(err.value) and "bad.toml" in str(err.value), str(err.value)
+
+
+def test_ablation_on_user_data_gives_paired_gains_and_refuses_synthetic_options(folder, tmp_path, capsys):
+    from fsdvs_hw.cli import main
+
+    design = str(_design(folder))
+    args = ["ablation", "--design", design, "--tasks", "segmentation", "--sizes", "1", "3", "--seeds", "0", "1",
+            "--out", str(tmp_path / "abl"), "--no-progress"]
+    assert main(args) == 0
+    res = json.loads((tmp_path / "abl" / "ablation.json").read_text())
+    wo, k3 = res["rows"]
+    assert (wo["label"], k3["label"]) == ("w/o", "3x3") and res["n_clips"] == 3
+    assert res["resampled"] == ["clips", "seeds"] and len(k3["per_seed"]) == 2
+    assert k3["gain"] == pytest.approx(k3["metric_mean"] - wo["metric_mean"], abs=1e-9)
+    assert k3["gain_ci95_low"] <= k3["gain"] <= k3["gain_ci95_high"]
+    runs = sorted((tmp_path / "abl" / "runs").glob("*.safetensors"))
+    assert len(runs) == 4
+    stamps = [p.stat().st_mtime_ns for p in runs]
+    assert main(args) == 0  # a rerun reuses the four checkpoints: none is rewritten
+    assert [p.stat().st_mtime_ns for p in runs] == stamps
+    capsys.readouterr()
+    assert main([*args, "--workers", "2", "--transfer", "k.json"]) == 2
+    assert "--workers --transfer with --design: not supported on user data" in capsys.readouterr().err

@@ -317,7 +317,7 @@ def _file_digest(path: Path) -> str:
 
 
 def _train(task: str, entry: Mapping[str, Any], base: Path, confine: bool, key: str, net: Any,
-           verbose: bool) -> Any:
+           verbose: bool, out_stem: Path | None = None) -> Any:
     """Train ``net`` (a copy) on the task's clips not scored (or reuse / resume ``train.out``)."""
     from ..tasks.dataset_training import disjoint_train_indices, train_on_dataset
 
@@ -328,7 +328,7 @@ def _train(task: str, entry: Mapping[str, Any], base: Path, confine: bool, key: 
         raise InputError(f"{key}.n_clips = {entry['n_clips']}: every one of the {len(ds)} clips is scored, none is "
                          f"left to train on ({key}.train); allowed: 1 to {len(ds) - 2}")
     train_idx = disjoint_train_indices(len(ds), scored, spec["n_train"], spec["seed"])
-    out = _path(base, spec["out"] or f"trained/{task}", what=f"{key}.train.out", confine=confine)
+    out = out_stem or _path(base, spec["out"] or f"trained/{task}", what=f"{key}.train.out", confine=confine)
     weights = _path(base, entry["weights"], what=f"{key}.weights", confine=confine) if entry["weights"] else None
     fingerprint = {"dataset": entry["dataset"], "network": entry["network"], "options": entry["network_options"],
                    "weights_sha256": _file_digest(weights) if weights else None, "scored": [entry["n_clips"],
@@ -342,7 +342,8 @@ def _train(task: str, entry: Mapping[str, Any], base: Path, confine: bool, key: 
 
 
 def train_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True,
-                    verbose: bool = False) -> Any:
+                    verbose: bool = False, overrides: Mapping[str, Any] | None = None,
+                    out: str | Path | None = None) -> Any:
     """Train (or reuse / resume) the network of a ``[tasks.datasets.<task>]`` table with a ``train`` table.
 
     The training clips are drawn with ``train.seed`` from the clips the table does not score
@@ -360,6 +361,10 @@ def train_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *
         The design file's folder.
     verbose : bool
         One line per epoch on stderr.
+    overrides : mapping, optional
+        ``train`` keys replaced for this run (the ablation's ``kernel_size`` and ``seed``).
+    out : path, optional
+        File stem used instead of ``train.out`` (a command's own output folder).
 
     Returns
     -------
@@ -385,7 +390,9 @@ def train_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *
     ds = open_dataset(entry["dataset"], base, confine=confine, key=f"{key}.dataset")
     blob = json.dumps(dict(entry), sort_keys=True)
     net = _open_network(blob, str(base), bool(confine), key, 2 * (int(ds.n_frames) - 1), int(ds.num_classes), False)
-    return _train(task, entry, base, confine, key, net, verbose)
+    if overrides:
+        entry = {**entry, "train": TrainSpec.model_validate({**entry["train"], **overrides}).model_dump()}
+    return _train(task, entry, base, confine, key, net, verbose, None if out is None else Path(out))
 
 
 def open_network(entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *, confine: bool = True,
