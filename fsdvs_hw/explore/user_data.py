@@ -61,6 +61,7 @@ from ..schema import StrictModel, field
 __all__ = [
     "FORMAT_TASK",
     "CocoFramesSource",
+    "DsecDetectionSource",
     "MaskFramesSource",
     "TrainSpec",
     "UserTask",
@@ -79,7 +80,7 @@ ONE_NETWORK_NOTE = ("one user network: the loss CI resamples the clips only (n_s
 
 #: Dataset format → the task (evaluator) its targets are for.
 FORMAT_TASK: dict[str, str] = {"video_folder": "recognition", "coco_frames": "detection",
-                               "mask_frames": "segmentation"}
+                               "dsec_detection": "detection", "mask_frames": "segmentation"}
 
 _Side = Annotated[int, Field(ge=1, le=16384)]
 _Count = Annotated[int, Field(ge=1, le=100_000)]
@@ -121,6 +122,16 @@ class CocoFramesSource(_Source):
     clip_stride: _Count | None = field(None, "frames", "a clip starts every clip_stride frames; None = n_frames "
                                        "(no overlap)")
     require_annotations: bool = field(True, "", "every image must have at least one box")
+
+
+class DsecDetectionSource(_Source):
+    """``format = "dsec_detection"``: DSEC-Detection sequences (rectified left images + tracks.npy)."""
+
+    format: Literal["dsec_detection"] = field("dsec_detection", "", "DSEC-Detection layout (detection)")
+    split: str = field("", "", "subfolder of root holding this split's sequences ('test'); '' = root itself")
+    clip_stride: _Count = field(1, "clips", "keep every clip_stride-th labelled image as a clip's last frame")
+    class_names: list[str] | None = field(None, "", "names of the class_id values; None = DSEC's 8 classes",
+                                          min_length=1)
 
 
 class MaskFramesSource(_Source):
@@ -180,9 +191,10 @@ class UserTask(StrictModel):
 
     unknown_key = "unknown key of a user-data task"
 
-    dataset: Annotated[VideoFolderSource | CocoFramesSource | MaskFramesSource, Field(discriminator="format")] = \
-        field(..., "", "the dataset: format = 'video_folder' | 'coco_frames' | 'mask_frames', root, split, "
-              "reader options")
+    dataset: Annotated[VideoFolderSource | CocoFramesSource | DsecDetectionSource | MaskFramesSource,
+                       Field(discriminator="format")] = \
+        field(..., "", "the dataset: format = 'video_folder' | 'coco_frames' | 'dsec_detection' | 'mask_frames', "
+              "root, split, reader options")
     network: str | None = field(None, "", "'package.module:factory' returning a torch.nn.Module (importable from "
                                 "sys.path or the design file's folder); None = the task's built-in network")
     network_options: dict[str, Any] = field({}, "", "more keyword arguments of the factory (besides in_channels "
@@ -212,6 +224,8 @@ def _reader_paths(source: Mapping[str, Any], base: Path, confine: bool, key: str
         rel = {"root": root, **({"split": root / split} if split else {})}
     elif source["format"] == "coco_frames":
         rel = {"frames": root / split / source["frames"], "annotations": root / split / source["annotations"]}
+    elif source["format"] == "dsec_detection":
+        rel = {"root": root / split}
     else:
         rel = {"frames": root / split / source["frames"], "masks": root / split / source["masks"]}
     return {name: _path(base, str(p), what=f"{key}.{name}", confine=confine) for name, p in rel.items()}
@@ -219,7 +233,13 @@ def _reader_paths(source: Mapping[str, Any], base: Path, confine: bool, key: str
 
 @functools.lru_cache(maxsize=16)
 def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
-    from ..scenes.datasets import CocoFramesDataset, MaskFramesDataset, VideoFolderDataset
+    from ..scenes.datasets import (
+        DSEC_DETECTION_CLASSES,
+        CocoFramesDataset,
+        DsecDetectionDataset,
+        MaskFramesDataset,
+        VideoFolderDataset,
+    )
 
     s = json.loads(blob)
     paths = _reader_paths(s, Path(base), confine, key)
@@ -228,6 +248,9 @@ def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
     if s["format"] == "video_folder":
         return VideoFolderDataset(paths["root"], split_file=paths.get("split"), fps=s["fps"], stride=s["stride"],
                                   start_frame=s["start_frame"], **common)
+    if s["format"] == "dsec_detection":
+        return DsecDetectionDataset(paths["root"], clip_stride=s["clip_stride"],
+                                    class_names=s["class_names"] or DSEC_DETECTION_CLASSES, **common)
     if s["format"] == "coco_frames":
         return CocoFramesDataset(paths["frames"], paths["annotations"], clip_stride=s["clip_stride"], fps=s["fps"],
                                  require_annotations=s["require_annotations"], **common)
