@@ -10,7 +10,9 @@ of ``H × W`` pixels. For each layout it times
 * **evaluate**: :func:`fsdvs_hw.tasks.dataset_eval.evaluate_on_dataset` on every clip — decode,
   the in-pixel simulator with a 7×7 difference-of-Gaussians kernel, the task's built-in network
   and the evaluator's metric (pycocotools mAP, top-1, mIoU) — what one design point costs per
-  task,
+  task, and
+* **train**: one joint epoch of :func:`fsdvs_hw.tasks.dataset_training.train_on_dataset` on every
+  clip (7×7 kernel and built-in network learned through the simulator),
 
 each repeated, and reports the median with the range of the repeats, scaled to seconds per
 1000 clips (time / clips × 1000). One explored point scores every task once per realisation.
@@ -125,6 +127,7 @@ def bench_user_data(*, quick: bool = False) -> BenchRun:
 
     from fsdvs_hw.kernels import reference_kernel
     from fsdvs_hw.tasks.dataset_eval import evaluate_on_dataset
+    from fsdvs_hw.tasks.dataset_training import train_on_dataset
 
     side, t, fps = 64, 8, 25.0
     n_clips, repeats = (4, 2) if quick else (16, 3)
@@ -140,7 +143,9 @@ def bench_user_data(*, quick: bool = False) -> BenchRun:
         Column.number("evaluate s / 1000 clips", ".1f", unit="s", metric="evaluate time per 1000 clips",
                       spread=True),
         Column.number("evaluate CPU s / 1000 clips", ".1f", unit="s", metric="evaluate CPU time per 1000 clips",
-                      spread=True))
+                      spread=True),
+        Column.number("train s / 1000 clips / joint epoch", ".1f", unit="s",
+                      metric="training time per 1000 clips per joint epoch", spread=True))
     walls: list[float] = []
     kernel = reference_kernel("dog", 7)
     with tempfile.TemporaryDirectory(prefix="fsdvs_bench_user_data_") as tmp:
@@ -154,10 +159,17 @@ def bench_user_data(*, quick: bool = False) -> BenchRun:
                 evaluate = timed(lambda ds=ds, task=task: evaluate_on_dataset(kernel, task, ds))
                 cpu.append(_cpu_s() - c0)
                 walls.extend(evaluate.times_s)
+            train = timed(lambda ds=ds, task=task: train_on_dataset(
+                ds, task, train_indices=range(len(ds)), kernel_size=7, epochs_frozen=0, epochs_joint=1,
+                batch_size=8), repeats)
             table.row(fmt, task, str(n), decode.measured().scaled(1000.0 / n),
-                      Measured.of(walls[-repeats:]).scaled(1000.0 / n), Measured.of(cpu).scaled(1000.0 / n))
+                      Measured.of(walls[-repeats:]).scaled(1000.0 / n), Measured.of(cpu).scaled(1000.0 / n),
+                      train.measured().scaled(1000.0 / n))
     sec.text("", "Decode is part of evaluate (no clip cache); evaluate adds the simulator, the network and the "
              "metric. Wall and CPU seconds (this process with all its threads, and its ffmpeg decoder "
              "processes): median over the repeats after one warm-up "
-             "clip, range in brackets; on a shared machine the wall time grows with the load, the CPU time less.")
+             "clip, range in brackets; on a shared machine the wall time grows with the load, the CPU time less. "
+             "Train: fsdvs_hw.tasks.dataset_training.train_on_dataset with one joint epoch (kernel and network "
+             "learned through the simulator, batches of 8; decoding the training clips once included); stage-one "
+             "epochs (kernel frozen, events simulated once) cost less.")
     return sec.run()

@@ -21,18 +21,25 @@ DESCRIPTION = (
     "Example (the shipped kernel): fsdvs-hw learn detection --size 7 --seed 0 "
     "--out out/kernels/learned_detection_7x7\n"
     "Co-design (the kernel is a realisation's at every step): fsdvs-hw learn detection "
-    "--init-kernel designs/kernels/learned_detection_7x7.json --realisation asic --out out/codesign/asic_det"
+    "--init-kernel designs/kernels/learned_detection_7x7.json --realisation asic --out out/codesign/asic_det\n"
+    "Your data (the design's [tasks.datasets.TASK] with a train table; files at its train.out; resumes):\n"
+    "  fsdvs-hw learn recognition --design my_design.toml"
 )
+
+#: Options of the synthetic-data run (refused with --design: the design's train table sets them).
+_SYNTHETIC_ONLY = ("size", "seed", "n_train", "n_test", "epochs_frozen", "epochs_joint", "lr_filter", "out",
+                   "realisation", "init_kernel")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("task", help="task name: detection, recognition, segmentation")
     parser.add_argument(
-        "--size", type=int_in(1, MAX_KERNEL_SIZE), default=7, help="odd kernel size in pixels (default 7; 1 = w/o)"
+        "--size", type=int_in(1, MAX_KERNEL_SIZE), default=None, help="odd kernel size in pixels (default 7; 1 = w/o)"
     )
-    parser.add_argument("--seed", type=int_in(0, MAX_SEED), default=0, help=f"training seed, 0..{MAX_SEED} (default 0)")
-    parser.add_argument("--n-train", type=int_in(1, MAX_CLIPS), default=2048, help="training clips (default 2048)")
-    parser.add_argument("--n-test", type=int_in(1, MAX_CLIPS), default=2048, help="test clips (default 2048)")
+    parser.add_argument("--seed", type=int_in(0, MAX_SEED), default=None,
+                        help=f"training seed, 0..{MAX_SEED} (default 0)")
+    parser.add_argument("--n-train", type=int_in(1, MAX_CLIPS), default=None, help="training clips (default 2048)")
+    parser.add_argument("--n-test", type=int_in(1, MAX_CLIPS), default=None, help="test clips (default 2048)")
     parser.add_argument(
         "--epochs-frozen", type=int_in(0, MAX_EPOCHS), default=None, help="frozen-filter epochs (staged tasks)"
     )
@@ -44,6 +51,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "the network and the realisation's own parameters together")
     parser.add_argument("--init-kernel", type=Path, default=None, metavar="FILE",
                         help="kernel file to start from (with --realisation: the kernel it is first fitted to)")
+    parser.add_argument("--design", type=Path, default=None, metavar="FILE",
+                        help="train on the user data of this design's [tasks.datasets.TASK] (its train table sets "
+                             "the protocol; the kernel and network go to train.out); the options above are refused")
+
+
+def _run_on_design(args: argparse.Namespace) -> int:
+    """``--design``: train the user-data task's network and kernel (:func:`fsdvs_hw.explore.user_data.train_user_task`)."""
+    from ..errors import InputError
+    from ..explore.design import load_design
+    from ..explore.user_data import open_dataset, train_user_task
+    from ..tasks.dataset_eval import evaluate_on_dataset
+
+    given = [f"--{k.replace('_', '-')}" for k in _SYNTHETIC_ONLY if getattr(args, k) is not None]
+    if given:
+        raise InputError(f"{' '.join(given)} with --design: the design's [tasks.datasets.{args.task}] train table "
+                         "sets the protocol and train.out the files; allowed: no other option with --design")
+    design = load_design(args.design)
+    entry = design.data["tasks"]["datasets"].get(args.task)
+    if entry is None:
+        raise InputError(f"--design {args.design}: no [tasks.datasets.{args.task}] table; allowed tasks: "
+                         f"{', '.join(design.data['tasks']['datasets']) or 'none'}")
+    res = train_user_task(args.task, entry, design.base_dir, confine=design.confine_paths, verbose=True)
+    ds = open_dataset(entry["dataset"], design.base_dir, confine=design.confine_paths,
+                      key=f"tasks.datasets.{args.task}.dataset")
+    scored = evaluate_on_dataset(res.kernel, args.task, ds, res.network, n_clips=entry["n_clips"] or None,
+                                 seed=entry["seed"], device=entry["device"])
+    print(json.dumps({"task": args.task, "size": res.kernel.size, "n_train": len(res.train_indices),
+                      "n_scored": len(scored.clip_indices), "epochs_trained_now": res.epochs_trained,
+                      "metrics": scored.metrics, "files": {k: str(v) for k, v in res.paths.items()}}, indent=1))
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -51,6 +88,13 @@ def run(args: argparse.Namespace) -> int:
 
     from ..paths import output_file
     from ..tasks.learn import TrainingSettings, learn_kernel
+
+    if args.design is not None:
+        return _run_on_design(args)
+    defaults = {"size": 7, "seed": 0, "n_train": 2048, "n_test": 2048}
+    for k, v in defaults.items():
+        if getattr(args, k) is None:
+            setattr(args, k, v)
 
     if args.out is not None:  # checked before training: STEM.json etc. must be writable
         output_file(Path(str(args.out) + ".json"), flag="--out")

@@ -27,7 +27,7 @@ Layout (every section and key is optional; defaults in brackets)::
                     test_clips = "per_network" | "shared", finetune_epochs,
                     tracks = ["simulator", "emulation"], sensor = "checkpoint" | "design"
     [tasks.datasets.<task>]  the user's clips and network instead of checkpoints:
-                    dataset = {format = "video_folder" | "coco_frames" | "mask_frames", root, split, ...},
+                    dataset = {format = "video_folder" | "coco_frames" | "dsec_detection" | "mask_frames", ...},
                     network = "package.module:factory", network_options, weights, n_clips, seed
                     (fsdvs_hw.explore.user_data)
     [scoring]       task_weights = { detection = 1, ... } [equal], n_resamples [2000],

@@ -10,6 +10,7 @@ files under ``DIR/artifacts/`` with ``DIR/artifacts/index.json`` (:mod:`fsdvs_hw
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -79,6 +80,7 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
         design = load_design(design)
     out = output_dir(out_dir, flag="--out")  # checked before any work: a file, unwritable, ...
     store_path = out / "results.sqlite"
+    _train_user_networks(design)
     summary, rows = run_design(design, store_path, workers=workers, scheduler=scheduler, progress=progress,
                                retry_errors=retry_errors, max_points=max_points, security=security)
     sc = design.spec.scoring
@@ -99,3 +101,16 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     return Exploration(report=report, scores_csv=out / "scores.csv", scores_json=out / "scores.json",
                        store=store_path, summary=summary, wall_s=time.perf_counter() - t0,
                        points=tuple(rows), artifacts_index=index)
+
+
+def _train_user_networks(design: Any) -> None:
+    """Train (or reuse / resume) every ``[tasks.datasets.<task>]`` network with a ``train`` table once,
+    here, before the sweep's workers load the finished checkpoints (:func:`fsdvs_hw.explore.user_data.
+    train_user_task`)."""
+    from .user_data import train_user_task
+
+    for task, entry in design.data["tasks"]["datasets"].items():
+        if entry.get("train") is not None:
+            res = train_user_task(task, entry, design.base_dir, confine=design.confine_paths, verbose=True)
+            print(f"[explore] {task}: network trained on {len(res.train_indices)} clips not scored "
+                  f"({res.epochs_trained} epochs now; {res.paths.get('checkpoint')})", file=sys.stderr, flush=True)

@@ -39,8 +39,10 @@ Cordts et al., "The Cityscapes Dataset", CVPR (2016) — label-mask PNGs with an
 from __future__ import annotations
 
 import contextlib
+import copy
 import dataclasses
 import functools
+import hashlib
 import json
 import sys
 import time
@@ -52,20 +54,23 @@ import numpy as np
 from pydantic import Field
 
 from ..errors import InputError
-from ..limits import MAX_CLIPS, MAX_SEED
+from ..limits import MAX_CLIPS, MAX_EPOCHS, MAX_SEED
 from ..paths import confined_path
 from ..schema import StrictModel, field
 
 __all__ = [
     "FORMAT_TASK",
     "CocoFramesSource",
+    "DsecDetectionSource",
     "MaskFramesSource",
+    "TrainSpec",
     "UserTask",
     "VideoFolderSource",
     "check_user_task",
     "dataset_evidence",
     "open_dataset",
     "open_network",
+    "train_user_task",
     "user_task_record",
 ]
 
@@ -75,7 +80,7 @@ ONE_NETWORK_NOTE = ("one user network: the loss CI resamples the clips only (n_s
 
 #: Dataset format → the task (evaluator) its targets are for.
 FORMAT_TASK: dict[str, str] = {"video_folder": "recognition", "coco_frames": "detection",
-                               "mask_frames": "segmentation"}
+                               "dsec_detection": "detection", "mask_frames": "segmentation"}
 
 _Side = Annotated[int, Field(ge=1, le=16384)]
 _Count = Annotated[int, Field(ge=1, le=100_000)]
@@ -119,6 +124,16 @@ class CocoFramesSource(_Source):
     require_annotations: bool = field(True, "", "every image must have at least one box")
 
 
+class DsecDetectionSource(_Source):
+    """``format = "dsec_detection"``: DSEC-Detection sequences (rectified left images + tracks.npy)."""
+
+    format: Literal["dsec_detection"] = field("dsec_detection", "", "DSEC-Detection layout (detection)")
+    split: str = field("", "", "subfolder of root holding this split's sequences ('test'); '' = root itself")
+    clip_stride: _Count = field(1, "clips", "keep every clip_stride-th labelled image as a clip's last frame")
+    class_names: list[str] | None = field(None, "", "names of the class_id values; None = DSEC's 8 classes",
+                                          min_length=1)
+
+
 class MaskFramesSource(_Source):
     """``format = "mask_frames"``: frame images plus label-mask PNGs (segmentation)."""
 
@@ -136,14 +151,50 @@ class MaskFramesSource(_Source):
     clip_stride: _Count | None = field(None, "frames", "a clip starts every clip_stride frames; None = n_frames")
 
 
+class TrainSpec(StrictModel):
+    """``[tasks.datasets.<task>] train = {...}``: train the network (and learn a kernel) on the user's clips.
+
+    The FS-DVS two-stage protocol (:func:`fsdvs_hw.tasks.dataset_training.train_on_dataset`):
+    stage one trains the network with the kernel frozen (delta + noise), stage two trains both
+    with decoupled AdamW rates. From scratch without ``weights``; fine-tuning from them with.
+    The training clips are a seeded draw from the clips NOT scored (disjoint from them).
+    """
+
+    unknown_key = "unknown key of a user-data task's train table"
+
+    out: str = field("", "", "file stem of the trained network + kernel (STEM.safetensors, STEM.json), relative "
+                     "to the design file; '' = trained/<task>")
+    kernel_size: int = field(7, "px", "side of the learned kernel", ge=1, le=15, odd=True)
+    learn_kernel: bool = field(True, "", "false: the kernel stays the delta in both stages (a network for a "
+                               "conventional DVS)")
+    epochs_frozen: int = field(2, "epochs", "stage one: network only, kernel frozen", ge=0, le=MAX_EPOCHS)
+    epochs_joint: int = field(2, "epochs", "stage two: kernel and network jointly", ge=0, le=MAX_EPOCHS)
+    lr_network: float = field(3e-3, "1/step", "AdamW rate of the network in stage one", ge=0.0, le=10.0)
+    lr_kernel: float = field(1e-2, "1/step", "AdamW rate of the kernel taps in stage two (paper: 5e-4)",
+                             ge=0.0, le=10.0)
+    lr_backbone: float | None = field(None, "1/step", "stage-two rate of the network's backbone; None = lr_kernel "
+                                      "x the paper's ratio (detection 1e-6/5e-4, recognition 5e-5/5e-4)",
+                                      ge=0.0, le=10.0)
+    lr_head: float | None = field(None, "1/step", "stage-two rate of the head (of the whole network if it has no "
+                                  "backbone/head); None = lr_kernel x the paper's ratio (1e-5/5e-4, 1e-4/5e-4)",
+                                  ge=0.0, le=10.0)
+    weight_decay: float = field(1e-4, "", "AdamW weight decay of the network", ge=0.0, le=10.0)
+    batch_size: int = field(8, "clips", "clips per step", ge=1, le=100_000)
+    n_train: int = field(0, "clips", "training clips, drawn with seed from the clips not scored; 0 = all of them",
+                         ge=0, le=MAX_CLIPS)
+    seed: int = field(0, "", "seed of the training draw, the kernel noise, the initialisation and the batch "
+                      "order", ge=0, le=MAX_SEED)
+
+
 class UserTask(StrictModel):
     """``[tasks.datasets.<task>]``: one task scored on the user's clips with the user's network."""
 
     unknown_key = "unknown key of a user-data task"
 
-    dataset: Annotated[VideoFolderSource | CocoFramesSource | MaskFramesSource, Field(discriminator="format")] = \
-        field(..., "", "the dataset: format = 'video_folder' | 'coco_frames' | 'mask_frames', root, split, "
-              "reader options")
+    dataset: Annotated[VideoFolderSource | CocoFramesSource | DsecDetectionSource | MaskFramesSource,
+                       Field(discriminator="format")] = \
+        field(..., "", "the dataset: format = 'video_folder' | 'coco_frames' | 'dsec_detection' | 'mask_frames', "
+              "root, split, reader options")
     network: str | None = field(None, "", "'package.module:factory' returning a torch.nn.Module (importable from "
                                 "sys.path or the design file's folder); None = the task's built-in network")
     network_options: dict[str, Any] = field({}, "", "more keyword arguments of the factory (besides in_channels "
@@ -154,6 +205,8 @@ class UserTask(StrictModel):
     seed: int = field(0, "", "seed of the clip draw (the same clips for every kernel)", ge=0, le=MAX_SEED)
     device: Literal["cpu", "cuda"] = field("cpu", "", "where the simulator and the network run ('cuda' needs a "
                                            "CUDA build of torch and a GPU; its noise streams differ from the CPU's)")
+    train: TrainSpec | None = field(None, "", "train the network on the clips not scored first (two-stage "
+                                    "protocol; resumes); None = score the network as given")
 
 
 def _path(base: Path, path: str, *, what: str, confine: bool) -> Path:
@@ -171,6 +224,8 @@ def _reader_paths(source: Mapping[str, Any], base: Path, confine: bool, key: str
         rel = {"root": root, **({"split": root / split} if split else {})}
     elif source["format"] == "coco_frames":
         rel = {"frames": root / split / source["frames"], "annotations": root / split / source["annotations"]}
+    elif source["format"] == "dsec_detection":
+        rel = {"root": root / split}
     else:
         rel = {"frames": root / split / source["frames"], "masks": root / split / source["masks"]}
     return {name: _path(base, str(p), what=f"{key}.{name}", confine=confine) for name, p in rel.items()}
@@ -178,7 +233,13 @@ def _reader_paths(source: Mapping[str, Any], base: Path, confine: bool, key: str
 
 @functools.lru_cache(maxsize=16)
 def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
-    from ..scenes.datasets import CocoFramesDataset, MaskFramesDataset, VideoFolderDataset
+    from ..scenes.datasets import (
+        DSEC_DETECTION_CLASSES,
+        CocoFramesDataset,
+        DsecDetectionDataset,
+        MaskFramesDataset,
+        VideoFolderDataset,
+    )
 
     s = json.loads(blob)
     paths = _reader_paths(s, Path(base), confine, key)
@@ -187,6 +248,9 @@ def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
     if s["format"] == "video_folder":
         return VideoFolderDataset(paths["root"], split_file=paths.get("split"), fps=s["fps"], stride=s["stride"],
                                   start_frame=s["start_frame"], **common)
+    if s["format"] == "dsec_detection":
+        return DsecDetectionDataset(paths["root"], clip_stride=s["clip_stride"],
+                                    class_names=s["class_names"] or DSEC_DETECTION_CLASSES, **common)
     if s["format"] == "coco_frames":
         return CocoFramesDataset(paths["frames"], paths["annotations"], clip_stride=s["clip_stride"], fps=s["fps"],
                                  require_annotations=s["require_annotations"], **common)
@@ -243,7 +307,8 @@ def _importable_from(folder: Path) -> Iterator[None]:
 
 
 @functools.lru_cache(maxsize=16)
-def _open_network(blob: str, base: str, confine: bool, key: str, in_channels: int, num_classes: int) -> Any:
+def _open_network(blob: str, base: str, confine: bool, key: str, in_channels: int, num_classes: int,
+                  trained: bool = True) -> Any:
     from ..tasks.user_networks import builtin_network, load_network_factory, load_weights
 
     entry = json.loads(blob)
@@ -260,11 +325,101 @@ def _open_network(blob: str, base: str, confine: bool, key: str, in_channels: in
                                        **entry["network_options"])
     if entry["weights"]:
         load_weights(net, _path(Path(base), entry["weights"], what=f"{key}.weights", confine=confine))
+    if trained and entry.get("train") is not None:
+        net = _train(FORMAT_TASK[entry["dataset"]["format"]], entry, Path(base), confine, key, net, False).network
     return net.eval()
 
 
+def _file_digest(path: Path) -> str:
+    """SHA-256 of a file (hex), read in 1 MiB blocks."""
+    h = hashlib.sha256()
+    with path.open("rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _train(task: str, entry: Mapping[str, Any], base: Path, confine: bool, key: str, net: Any,
+           verbose: bool, out_stem: Path | None = None) -> Any:
+    """Train ``net`` (a copy) on the task's clips not scored (or reuse / resume ``train.out``)."""
+    from ..tasks.dataset_training import disjoint_train_indices, train_on_dataset
+
+    spec = dict(entry["train"])
+    ds = open_dataset(entry["dataset"], base, confine=confine, key=f"{key}.dataset")
+    scored = ds.draw(entry["n_clips"], entry["seed"]) if entry["n_clips"] else np.arange(len(ds))
+    if len(scored) >= len(ds):
+        raise InputError(f"{key}.n_clips = {entry['n_clips']}: every one of the {len(ds)} clips is scored, none is "
+                         f"left to train on ({key}.train); allowed: 1 to {len(ds) - 2}")
+    train_idx = disjoint_train_indices(len(ds), scored, spec["n_train"], spec["seed"])
+    out = out_stem or _path(base, spec["out"] or f"trained/{task}", what=f"{key}.train.out", confine=confine)
+    weights = _path(base, entry["weights"], what=f"{key}.weights", confine=confine) if entry["weights"] else None
+    fingerprint = {"dataset": entry["dataset"], "network": entry["network"], "options": entry["network_options"],
+                   "weights_sha256": _file_digest(weights) if weights else None, "scored": [entry["n_clips"],
+                   entry["seed"]], "train": {k: v for k, v in spec.items() if k != "out"}, "sensor": "default"}
+    return train_on_dataset(ds, task, copy.deepcopy(net), train_indices=train_idx, kernel_size=spec["kernel_size"],
+                            learn_filter=spec["learn_kernel"], epochs_frozen=spec["epochs_frozen"],
+                            epochs_joint=spec["epochs_joint"], lr_network=spec["lr_network"],
+                            lr_kernel=spec["lr_kernel"], lr_backbone=spec["lr_backbone"], lr_head=spec["lr_head"],
+                            weight_decay=spec["weight_decay"], batch_size=spec["batch_size"], seed=spec["seed"],
+                            device=entry["device"], out=out, fingerprint=fingerprint, verbose=verbose)
+
+
+def train_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True,
+                    verbose: bool = False, overrides: Mapping[str, Any] | None = None,
+                    out: str | Path | None = None) -> Any:
+    """Train (or reuse / resume) the network of a ``[tasks.datasets.<task>]`` table with a ``train`` table.
+
+    The training clips are drawn with ``train.seed`` from the clips the table does not score
+    (``n_clips`` drawn with ``seed``), so training and scoring never share a clip; the network
+    starts from the factory (from scratch) or from ``weights`` (fine-tuning). The result is
+    written to ``train.out`` (inside the design's folder) and reused by a rerun with the same
+    data, network and settings (:func:`fsdvs_hw.tasks.dataset_training.train_on_dataset`).
+
+    Parameters
+    ----------
+    task : str
+    entry : mapping
+        A validated :class:`UserTask` dumped, with ``train`` set.
+    base_dir : path
+        The design file's folder.
+    verbose : bool
+        One line per epoch on stderr.
+    overrides : mapping, optional
+        ``train`` keys replaced for this run (the ablation's ``kernel_size`` and ``seed``).
+    out : path, optional
+        File stem used instead of ``train.out`` (a command's own output folder).
+
+    Returns
+    -------
+    DatasetTrainingResult
+        The learned kernel (``paths["kernel"]``: what ``[kernel] path`` can name) and the network.
+
+    Raises
+    ------
+    InputError
+        No ``train`` table, every clip scored (none left to train on), too few clips for
+        ``n_train``, a checkpoint at ``train.out`` trained with other settings.
+
+    Examples
+    --------
+    >>> res = train_user_task("recognition", design.data["tasks"]["datasets"]["recognition"], "designs")  # doctest: +SKIP
+    >>> res.paths["kernel"].name                                                                         # doctest: +SKIP
+    'recognition.json'
+    """
+    key = f"tasks.datasets.{task}"
+    if entry.get("train") is None:
+        raise InputError(f"{key}.train is not set; allowed: a train = {{...}} table to train on the user's clips")
+    base = Path(base_dir).resolve()
+    ds = open_dataset(entry["dataset"], base, confine=confine, key=f"{key}.dataset")
+    blob = json.dumps(dict(entry), sort_keys=True)
+    net = _open_network(blob, str(base), bool(confine), key, 2 * (int(ds.n_frames) - 1), int(ds.num_classes), False)
+    if overrides:
+        entry = {**entry, "train": TrainSpec.model_validate({**entry["train"], **overrides}).model_dump()}
+    return _train(task, entry, base, confine, key, net, verbose, None if out is None else Path(out))
+
+
 def open_network(entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *, confine: bool = True,
-                 key: str = "network") -> Any:
+                 key: str = "network", trained: bool = True) -> Any:
     """The network a ``[tasks.datasets.<task>]`` table names, built for ``dataset`` (cached per process).
 
     Parameters
@@ -275,6 +430,9 @@ def open_network(entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *
         Sets ``in_channels = 2 (T - 1)`` and ``num_classes``.
     base_dir : path
         The design file's folder (factory import, ``weights``).
+    trained : bool
+        With a ``train`` table: True returns the network trained on the clips not scored (trained
+        now, or reused from ``train.out``: :func:`train_user_task`); False the untrained one.
 
     Returns
     -------
@@ -293,7 +451,7 @@ def open_network(entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *
     """
     blob = json.dumps(dict(entry), sort_keys=True)
     return _open_network(blob, str(Path(base_dir).resolve()), bool(confine), key, 2 * (int(dataset.n_frames) - 1),
-                         int(dataset.num_classes))
+                         int(dataset.num_classes), bool(trained))
 
 
 def check_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *,
@@ -329,8 +487,17 @@ def check_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *
     if entry["n_clips"] > len(ds):
         problems.append((f"{key}.n_clips", entry["n_clips"], f"the dataset has {len(ds)} clips; allowed: 0 (all) "
                          f"to {len(ds)}"))
+    if entry.get("train") is not None:
+        n_scored = entry["n_clips"] or len(ds)
+        n_train = entry["train"]["n_train"]
+        if n_scored > len(ds) - 2:
+            problems.append((f"{key}.n_clips", entry["n_clips"], f"with {key}.train, clips are needed for training "
+                             f"too; allowed: 1 to {len(ds) - 2} of the {len(ds)} clips"))
+        elif n_train > len(ds) - n_scored:
+            problems.append((f"{key}.train.n_train", n_train, f"{len(ds) - n_scored} clips are not scored; allowed: "
+                             f"0 (all of them) or 2 to {len(ds) - n_scored}"))
     try:
-        open_network(entry, ds, base_dir, confine=confine, key=key)
+        open_network(entry, ds, base_dir, confine=confine, key=key, trained=False)
     except InputError as exc:
         where = "weights" if "weights file" in str(exc) or ".weights" in str(exc) else "network"
         problems.append((f"{key}.{where}", entry[where], str(exc)))
@@ -440,4 +607,4 @@ def user_task_record(entry: Mapping[str, Any]) -> dict[str, Any]:
             | {"n_clips": entry["n_clips"], "seed": entry["seed"]},
             "network": {"factory": entry["network"] or "built-in", "options": dict(entry["network_options"]),
                         "weights": entry["weights"], "device": entry["device"]},
-            "ci_note": ONE_NETWORK_NOTE}
+            "train": dict(entry["train"]) if entry.get("train") else None, "ci_note": ONE_NETWORK_NOTE}

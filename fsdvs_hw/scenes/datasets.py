@@ -31,7 +31,8 @@ Targets
     * segmentation: ``{"mask": int64 (H, W)}`` — class per pixel, ``ignore_index`` kept as is.
 
 Readers: :class:`VideoFolderDataset` (UCF101 layout), :class:`CocoFramesDataset` (frames + COCO
-JSON), :class:`MaskFramesDataset` (frames + label-mask PNGs).
+JSON), :class:`DsecDetectionDataset` (DSEC-Detection: rectified left images + ``tracks.npy``),
+:class:`MaskFramesDataset` (frames + label-mask PNGs).
 """
 
 from __future__ import annotations
@@ -51,11 +52,14 @@ from ..errors import InputError
 from ..limits import MAX_CLIPS, check_allocation, check_count
 
 __all__ = [
+    "DSEC_DETECTION_CLASSES",
+    "DSEC_TRACK_FIELDS",
     "IMAGE_SUFFIXES",
     "VIDEO_SUFFIXES",
     "Clip",
     "ClipDataset",
     "CocoFramesDataset",
+    "DsecDetectionDataset",
     "MaskFramesDataset",
     "VideoFolderDataset",
     "code_to_linear",
@@ -699,3 +703,151 @@ class MaskFramesDataset(ClipDataset):
             mask = _resize(mask, self.size, labels=True)
         ts = np.arange(len(idx), dtype=np.float64) / self.fps
         return Clip(frames, ts, {"mask": mask}, str(mpath), i, {"frames": [str(self.pairs[k][0]) for k in idx]})
+
+
+# --------------------------------------------------------------------------- DSEC-Detection
+#: The DSEC-Detection classes, in ``class_id`` order (Gehrig & Scaramuzza, Nature 2024).
+DSEC_DETECTION_CLASSES: tuple[str, ...] = ("pedestrian", "rider", "car", "bus", "truck", "bicycle", "motorcycle",
+                                           "train")
+#: Fields of a DSEC-Detection ``tracks.npy`` record read here (``t`` in µs; box top-left x, y and w, h in px).
+DSEC_TRACK_FIELDS: tuple[str, ...] = ("t", "x", "y", "w", "h", "class_id")
+
+
+class DsecDetectionDataset(ClipDataset):
+    """Detection clips from DSEC-Detection sequences: rectified left images and the tracks array.
+
+    A sequence folder holds ``images/timestamps.txt`` (one integer per image, µs, in the order of
+    the sorted file names), ``images/left/rectified/*.png`` and ``object_detections/left/tracks.npy``
+    (a structured array with fields ``t`` [µs], ``x``, ``y``, ``w``, ``h`` [px, top-left corner],
+    ``class_id``, ``class_confidence``, ``track_id``). ``root`` is one sequence or a folder of
+    sequences (every subfolder with ``images/timestamps.txt``). A clip is ``n_frames`` consecutive
+    images whose LAST image has detections (a ``t`` equal to its timestamp); the clips of a
+    sequence start every ``clip_stride`` images. Boxes reaching past the image edge are clipped to
+    it (DSEC labels do); boxes left empty by the clipping are dropped. Timestamps come from the file,
+    not from a stated frame rate.
+
+    Parameters
+    ----------
+    root : path
+    n_frames, clip_stride : int
+    size : (H, W), optional
+        Resize frames (boxes scaled with them).
+    class_names : sequence of str
+        Names of the ``class_id`` values (default :data:`DSEC_DETECTION_CLASSES`).
+    transfer : str
+    cache_clips : int
+
+    Raises
+    ------
+    InputError
+        No sequence under ``root``; per sequence, naming the file and field: a missing or
+        unreadable ``timestamps.txt``, a count of timestamps differing from the images, timestamps
+        not increasing, a ``tracks.npy`` that is not a structured array with the fields above, a
+        ``class_id`` beyond the classes, no labelled image with ``n_frames`` images before it.
+
+    References
+    ----------
+    Gehrig & Scaramuzza, "Low-latency automotive vision with event cameras", Nature (2024);
+    Gehrig et al., "DSEC: A stereo event camera dataset for driving scenarios", RA-L (2021).
+
+    Examples
+    --------
+    >>> ds = DsecDetectionDataset("DSEC/train/zurich_city_00_a", n_frames=4, size=(240, 320))  # doctest: +SKIP
+    >>> ds.class_names[int(ds[0].targets["labels"][0])]                                          # doctest: +SKIP
+    'car'
+    """
+
+    task = "detection"
+
+    def __init__(self, root: str | Path, *, n_frames: int = 4, clip_stride: int = 1,
+                 size: tuple[int, int] | None = None, class_names: Sequence[str] = DSEC_DETECTION_CLASSES,
+                 transfer: str = "sRGB", cache_clips: int = 0) -> None:
+        super().__init__(cache_clips=cache_clips)
+        who = "DsecDetectionDataset"
+        self.root = Path(root)
+        self.n_frames = check_count(f"{who}: n_frames", n_frames, 2, 100_000)
+        self.clip_stride = check_count(f"{who}: clip_stride", clip_stride, 1, 100_000)
+        self.size = _check_size(size, who)
+        self.transfer = transfer
+        self.class_names = tuple(str(c) for c in class_names)
+        self.num_classes = check_count(f"{who}: number of class_names", len(self.class_names), 1, 65535)
+        if not self.root.is_dir():
+            raise InputError(f"{who}: root {str(self.root)!r} is not a folder")
+        seqs = ([self.root] if (self.root / "images" / "timestamps.txt").is_file()
+                else sorted(p for p in self.root.iterdir() if (p / "images" / "timestamps.txt").is_file()))
+        if not seqs:
+            raise InputError(f"{who}: root {str(self.root)!r} holds no sequence (layout: <seq>/images/timestamps.txt, "
+                             "<seq>/images/left/rectified/*.png, <seq>/object_detections/left/tracks.npy)")
+        self.images: list[list[Path]] = []
+        self.stamps: list[np.ndarray] = []
+        self.boxes: list[dict[int, list[tuple[list[float], int]]]] = []
+        self.clips: list[tuple[int, int]] = []  # (sequence, index of the clip's last image)
+        for s, seq in enumerate(seqs):
+            images, stamps, boxes = self._read_sequence(seq, who)
+            self.images.append(images)
+            self.stamps.append(stamps)
+            self.boxes.append(boxes)
+            ends = [k for k in range(self.n_frames - 1, len(images)) if boxes.get(k)]
+            self.clips += [(s, k) for k in ends[:: self.clip_stride]]
+        if not self.clips:
+            raise InputError(f"{who}: root {str(self.root)!r}: no labelled image has {self.n_frames - 1} images "
+                             "before it (field 'tracks.t')")
+        check_count(f"{who}: number of clips", len(self.clips), 1, MAX_CLIPS)
+        self.max_objects = max(len(b) for bx in self.boxes for b in bx.values())
+
+    def _read_sequence(self, seq: Path, who: str) -> tuple[list[Path], np.ndarray, dict[int, Any]]:
+        ts_path = seq / "images" / "timestamps.txt"
+        try:
+            stamps = np.loadtxt(ts_path, dtype=np.int64, ndmin=1)
+        except (OSError, ValueError) as exc:
+            raise InputError(f"{who}: {str(ts_path)!r} is not one integer timestamp (µs) per line ({exc})") from None
+        images = sorted((seq / "images" / "left" / "rectified").glob("*.png"))
+        if len(images) != len(stamps):
+            raise InputError(f"{who}: {str(ts_path)!r} has {len(stamps)} timestamps for {len(images)} images in "
+                             f"{str(seq / 'images' / 'left' / 'rectified')!r}")
+        if len(stamps) > 1 and np.any(np.diff(stamps) <= 0):
+            raise InputError(f"{who}: {str(ts_path)!r}: timestamps must increase")
+        tr_path = seq / "object_detections" / "left" / "tracks.npy"
+        try:
+            tracks = np.load(tr_path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise InputError(f"{who}: {str(tr_path)!r} cannot be read as a NumPy array ({exc})") from None
+        missing = [f for f in DSEC_TRACK_FIELDS if tracks.dtype.names is None or f not in tracks.dtype.names]
+        if missing:
+            raise InputError(f"{who}: {str(tr_path)!r}: fields {missing} missing; allowed: a structured array with "
+                             f"{', '.join(DSEC_TRACK_FIELDS)}")
+        bad = tracks["class_id"].astype(np.int64) >= self.num_classes
+        if bad.any():
+            raise InputError(f"{who}: {str(tr_path)!r}: field 'class_id' {int(tracks['class_id'][bad][0])} is beyond "
+                             f"the {self.num_classes} classes {list(self.class_names)}")
+        h, w = _image_size(images[0], who, "image") if images else (0, 0)
+        where = {int(t): k for k, t in enumerate(stamps)}
+        boxes: dict[int, list[tuple[list[float], int]]] = {}
+        for r in tracks:
+            k = where.get(int(r["t"]))
+            if k is None:
+                continue
+            x0, y0 = max(0.0, float(r["x"])), max(0.0, float(r["y"]))
+            x1, y1 = min(float(w), float(r["x"] + r["w"])), min(float(h), float(r["y"] + r["h"]))
+            if x1 > x0 and y1 > y0:
+                boxes.setdefault(k, []).append(([x0, y0, x1, y1], int(r["class_id"])))
+        return images, stamps, boxes
+
+    def __len__(self) -> int:
+        return len(self.clips)
+
+    def _load(self, i: int) -> Clip:
+        s, last = self.clips[i]
+        idx = range(last - self.n_frames + 1, last + 1)
+        where = f"DsecDetectionDataset: clip {i}"
+        frames = self._frames([_read_image(self.images[s][k], where) for k in idx], where)
+        h0, w0 = _image_size(self.images[s][last], where, "image")
+        sy, sx = frames.shape[1] / h0, frames.shape[2] / w0
+        b = np.full((self.max_objects, 4), -1.0)
+        lab = np.full(self.max_objects, -1, np.int64)
+        for k, (box, c) in enumerate(self.boxes[s][last]):
+            b[k] = np.asarray(box) * [sx, sy, sx, sy]
+            lab[k] = c
+        t = self.stamps[s][list(idx)]
+        return Clip(frames, (t - t[0]) * 1e-6, {"boxes": b, "labels": lab}, str(self.images[s][last]), i,
+                    {"sequence": str(self.images[s][last].parents[3])})

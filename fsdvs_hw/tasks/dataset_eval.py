@@ -89,6 +89,7 @@ def evaluator_for_dataset(task: Any, dataset: Any) -> Any:
     ev.num_classes = int(dataset.num_classes)
     if dataset.task == "segmentation":
         ev.ignore_index = dataset.ignore_index
+        ev.background_weight = 1.0  # class 0 of a user's masks is a class (Cityscapes: road), not background
     return ev
 
 

@@ -279,9 +279,10 @@ class SegmentationEvaluator(TaskEvaluator):
         return {"mask": torch.from_numpy(batch.masks[:, -1])}
 
     def loss(self, output: torch.Tensor, target: Targets) -> torch.Tensor:
-        weight = torch.ones(self.num_classes, dtype=output.dtype)
+        weight = torch.ones(self.num_classes, dtype=output.dtype, device=output.device)
         weight[0] = self.background_weight
-        return F.cross_entropy(output, target["mask"], weight=weight)
+        ignore = -100 if self.ignore_index is None else int(self.ignore_index)  # -100: torch's "none"
+        return F.cross_entropy(output, target["mask"], weight=weight, ignore_index=ignore)
 
     def predict(self, output: torch.Tensor) -> dict[str, torch.Tensor]:
         return {"mask": output.detach().argmax(dim=1)}

@@ -319,7 +319,12 @@ def _score(evaluator: Any, network: Any, kernel_t: Any, video: Any, targets: dic
 def _train_epochs(evaluator: Any, network: Any, kernel_param: Any, video: Any, targets: dict[str, Any],
                   sensor: Any, timestamps_s: np.ndarray, optimizer: Any, epochs: int, batch_size: int,
                   generator: Any, stage: str, history: list[dict[str, Any]], kernel_init: Any = None,
-                  cached_inputs: Any = None, log: Any = None) -> None:
+                  cached_inputs: Any = None, log: Any = None, input_fn: Any = None) -> None:
+    """Train ``network`` (and the kernel, if in ``optimizer``) for ``epochs`` epochs, appending to ``history``.
+
+    ``input_fn(video, kernel, sensor, timestamps_s)`` makes the network input of a batch (default
+    :func:`_network_input`, log1p event frames); ``cached_inputs`` replaces it for a frozen kernel.
+    """
     import torch
 
     n = video.shape[0]
@@ -333,7 +338,7 @@ def _train_epochs(evaluator: Any, network: Any, kernel_param: Any, video: Any, t
                 x = cached_inputs[idx]
             else:  # a realisation module is called for its kernel at every step (co-design)
                 k = kernel_param() if callable(kernel_param) else kernel_param
-                x = _network_input(video[idx], k, sensor, timestamps_s)
+                x = (input_fn or _network_input)(video[idx], k, sensor, timestamps_s)
             loss = evaluator.loss(network(x), _take(targets, idx))
             value = float(loss.detach())
             if not math.isfinite(value):

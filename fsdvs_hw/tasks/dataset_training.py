@@ -1,0 +1,468 @@
+"""Train a network (and learn its kernel) on a user clip dataset with the FS-DVS two-stage protocol.
+
+:func:`train_on_dataset` is :func:`fsdvs_hw.tasks.learn.learn_kernel`'s protocol on the user's
+clips and network, through the same training loop (``_train_epochs``):
+
+1. **stage one** (``epochs_frozen``): the spatial kernel is frozen (a Dirac delta plus small
+   Gaussian noise, or ``init_kernel``) and the network trains alone with AdamW at
+   ``lr_network``; the events never change, so they are simulated once;
+2. **stage two** (``epochs_joint``): kernel and network train jointly with decoupled AdamW rates:
+   ``lr_kernel`` for the kernel taps, ``lr_backbone`` and ``lr_head`` for the network's
+   ``backbone`` and ``head`` sub-modules (a network without them trains as one group at
+   ``lr_head``). Unset, the network rates follow the paper's ratios to the kernel rate
+   (:attr:`~fsdvs_hw.tasks.evaluators.TaskEvaluator.joint_lr_ratios`: detection 5e-4 / 1e-6 /
+   1e-5, recognition 5e-4 / 5e-5 / 1e-4).
+
+From scratch, the network starts from the factory's initialisation; **fine-tuning** starts it
+from the user's weights (the caller loads them) and is the same two stages. With
+``learn_filter=False`` the kernel stays frozen in both stages (a network for a fixed kernel).
+
+Train / test clips
+    The caller passes the training clips' indices; :func:`disjoint_train_indices` draws them
+    (seeded) from the clips NOT scored, so the two sets are disjoint by construction.
+Resume
+    With ``out``, the state after every epoch (network, kernel, optimiser, batch-order generator,
+    history) is written atomically to ``STEM.partial.pt``; the finished run writes the checkpoint
+    files of :func:`~fsdvs_hw.tasks.learn.learn_kernel` (``STEM.json`` kernel,
+    ``STEM.safetensors`` network + kernel, ``STEM.provenance.json``) and removes the partial file.
+    A rerun with the same ``fingerprint`` reuses the finished checkpoint (no epoch trained) or
+    continues from the last finished epoch; a different fingerprint is refused.
+
+References
+----------
+FS-DVS paper, Sec. IV-A (two-stage training, decoupled learning rates, delta initialisation).
+Loshchilov & Hutter, "Decoupled weight decay regularization" (AdamW), ICLR (2019).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..kernels import Kernel
+from ..limits import MAX_CLIPS, MAX_EPOCHS, MAX_SEED, check_allocation, check_count
+from ..validation import check_real
+
+__all__ = ["DatasetTrainingResult", "disjoint_train_indices", "load_trained", "train_on_dataset"]
+
+_STAGES = ("frozen_filter", "joint")
+
+
+@dataclass(frozen=True)
+class DatasetTrainingResult:
+    """What :func:`train_on_dataset` returns.
+
+    Attributes
+    ----------
+    kernel : Kernel
+        The kernel after training (the initial one if it was frozen).
+    network : torch.nn.Module
+        The trained network, in eval mode, on the CPU.
+    history : list of dict
+        Per epoch: ``stage``, ``epoch``, ``loss`` (mean training loss), ``seconds``,
+        ``kernel_change_l1`` (sum of ``|taps - initial taps|``).
+    train_indices : numpy.ndarray, int64
+        The dataset clips trained on.
+    provenance : dict
+    paths : dict of str to Path
+        ``kernel``, ``checkpoint``, ``provenance`` when ``out`` was given.
+    epochs_trained : int
+        Epochs trained by this call (0 when a finished checkpoint was reused).
+    """
+
+    kernel: Kernel
+    network: Any
+    history: list[dict[str, Any]]
+    train_indices: np.ndarray
+    provenance: dict[str, Any]
+    paths: dict[str, Path] = field(default_factory=dict)
+    epochs_trained: int = 0
+
+
+def disjoint_train_indices(n_total: int, test_indices: Any, n_train: int, seed: int) -> np.ndarray:
+    """``n_train`` clip indices drawn with ``seed`` from the ``n_total`` clips not in ``test_indices``.
+
+    Parameters
+    ----------
+    n_total : int
+        Clips in the dataset.
+    test_indices : array of int
+        The clips scored (never trained on).
+    n_train : int
+        Clips wanted; 0 = every clip not scored.
+    seed : int
+
+    Returns
+    -------
+    numpy.ndarray, int64
+        Sorted, disjoint from ``test_indices``.
+
+    Raises
+    ------
+    InputError
+        Fewer than ``n_train`` (or than 2) clips left once the scored ones are set aside.
+
+    Examples
+    --------
+    >>> disjoint_train_indices(6, [0, 3], 0, seed=1).tolist()
+    [1, 2, 4, 5]
+    >>> sorted(set(disjoint_train_indices(100, range(50), 10, seed=0)) & set(range(50)))
+    []
+    """
+    n_total = check_count("n_total", n_total, 1, MAX_CLIPS)
+    seed = check_count("train.seed", seed, 0, MAX_SEED)
+    free = np.setdiff1d(np.arange(n_total), np.asarray(list(test_indices), dtype=np.int64))
+    n_train = check_count("train.n_train", n_train, 0, MAX_CLIPS)
+    want = len(free) if n_train == 0 else n_train
+    if len(free) < max(2, want):
+        raise InputError(f"train.n_train = {n_train}: {len(free)} of the {n_total} clips are left once the "
+                         f"{n_total - len(free)} scored clips are set aside; allowed: 0 (all of them) or 2 to "
+                         f"{len(free)} (score fewer clips: n_clips)")
+    return np.sort(np.random.default_rng(seed).choice(free, size=want, replace=False)).astype(np.int64)
+
+
+def _training_targets(evaluator: Any, targets: dict[str, np.ndarray], h: int, w: int) -> dict[str, Any]:
+    """The evaluator's training targets (detection: CenterNet heatmaps from the boxes) as tensors."""
+    import torch
+
+    if evaluator.name == "detection":
+        batch = SimpleNamespace(boxes=targets["boxes"][:, None], labels=targets["labels"].copy(),
+                                config=SimpleNamespace(height_px=h, width_px=w))
+        return evaluator.targets(batch)
+    return {k: torch.from_numpy(np.ascontiguousarray(v)) for k, v in targets.items()}
+
+
+def _load_clips(dataset: Any, indices: np.ndarray, evaluator: Any) -> tuple[Any, dict[str, Any], np.ndarray]:
+    """(video (N, T, H, W) float32, training targets, timestamps of the first clip) of ``indices``."""
+    import torch
+
+    from ..scenes.datasets import stack_targets
+
+    first = dataset[int(indices[0])]
+    t, h, w = first.frames.shape
+    check_allocation(f"training clips (N={len(indices)}, T={t}, H={h}, W={w}, float32)", 4 * len(indices) * t * h * w)
+    video = torch.empty((len(indices), t, h, w), dtype=torch.float32)
+    clips = []
+    for n, i in enumerate(indices):
+        clip = first if n == 0 else dataset[int(i)]
+        if clip.frames.shape != (t, h, w):
+            raise InputError(f"train_on_dataset: clip {int(i)} ({clip.source!r}) has shape {clip.frames.shape}, "
+                             f"clip {int(indices[0])} {(t, h, w)}; field 'size': give the dataset a size=(H, W)")
+        video[n] = torch.from_numpy(clip.frames)
+        clips.append(clip)
+    return video, _training_targets(evaluator, stack_targets(clips), h, w), first.timestamps_s
+
+
+def _stem(out: str | Path) -> Path:
+    p = Path(out)
+    return p.with_suffix("") if p.suffix in (".json", ".safetensors") else p
+
+
+def load_trained(out: str | Path, network: Any, *, fingerprint: dict[str, Any] | None = None,
+                 who: str = "load_trained") -> tuple[Any, Kernel, dict[str, Any]] | None:
+    """A finished :func:`train_on_dataset` checkpoint at ``out`` loaded into ``network``, or None if absent.
+
+    Parameters
+    ----------
+    out : path
+        The file stem the training wrote (``STEM.safetensors``).
+    network : torch.nn.Module
+        A network of the same architecture (its weights are replaced).
+    fingerprint : dict, optional
+        Must equal the stored one (the run's data, network and settings).
+
+    Returns
+    -------
+    (network, kernel, provenance) or None
+
+    Raises
+    ------
+    InputError
+        The checkpoint was trained with another fingerprint, or does not fit ``network``.
+
+    Examples
+    --------
+    >>> load_trained("nets/does_not_exist", None) is None
+    True
+    """
+    from .learn import load_checkpoint
+
+    stem = _stem(out)
+    if not Path(str(stem) + ".safetensors").is_file():
+        return None
+    provenance, state, kernel = load_checkpoint(stem)
+    _check_fingerprint(provenance.get("fingerprint"), fingerprint, Path(str(stem) + ".safetensors"))
+    try:
+        network.load_state_dict(state, strict=True)
+    except RuntimeError as exc:
+        raise InputError(f"{who}: checkpoint {stem!s}.safetensors does not fit the network "
+                         f"({str(exc).splitlines()[0]})") from None
+    return network.eval(), kernel, provenance
+
+
+def _check_fingerprint(stored: Any, wanted: dict[str, Any] | None, path: Path) -> None:
+    if wanted is None:
+        return
+    wanted = json.loads(json.dumps(wanted))  # the JSON round trip the stored one went through
+    if stored != wanted:
+        stored = stored if isinstance(stored, dict) else {}
+        diff = sorted(k for k in set(stored) | set(wanted) if stored.get(k) != wanted.get(k))
+        raise InputError(f"{path}: trained with other settings (differing: {', '.join(diff) or 'all'}); allowed: "
+                         "the same data, network and train settings, or another train.out (delete the file to "
+                         "retrain)")
+
+
+def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indices: Any,
+                     kernel_size: int = 7, init_kernel: Any = None, learn_filter: bool = True,
+                     epochs_frozen: int = 2, epochs_joint: int = 2, lr_network: float = 3e-3,
+                     lr_kernel: float = 1e-2, lr_backbone: float | None = None, lr_head: float | None = None,
+                     weight_decay: float = 1e-4, batch_size: int = 8, seed: int = 0, init_noise: float = 1e-2,
+                     sensor: Any = None, device: str = "cpu", out: str | Path | None = None,
+                     fingerprint: dict[str, Any] | None = None, verbose: bool = False) -> DatasetTrainingResult:
+    """Train ``network`` and learn a k×k kernel on clips of a user dataset (two stages, decoupled rates).
+
+    Parameters
+    ----------
+    dataset : ClipDataset
+        :mod:`fsdvs_hw.scenes.datasets`; its task must be ``task``'s.
+    task : str or TaskEvaluator
+    network : None, str or torch.nn.Module
+        None: the task's built-in network; ``"package.module:factory"``; or a module (weights
+        already loaded for fine-tuning). Its ``event_input`` picks the representation.
+    train_indices : array of int
+        The clips trained on (:func:`disjoint_train_indices`); they are decoded once and held in
+        memory as float32 (checked against the allocation limit).
+    kernel_size : int
+        Odd kernel side in pixels, 1 … 15 (ignored with ``init_kernel``).
+    init_kernel : Kernel, path or array, optional
+        Start from this kernel instead of delta + ``init_noise``.
+    learn_filter : bool
+        False: the kernel stays frozen in both stages.
+    epochs_frozen, epochs_joint : int
+        Epochs of stage one (kernel frozen) and stage two (joint).
+    lr_network : float
+        AdamW rate of the network in stage one (1/step).
+    lr_kernel, lr_backbone, lr_head : float
+        Stage-two AdamW rates of the kernel, the backbone and the head; None = ``lr_kernel`` times
+        the evaluator's :attr:`joint_lr_ratios` (the paper's).
+    weight_decay : float
+        AdamW weight decay of the network (the kernel has none).
+    batch_size : int
+        Clips per step.
+    seed : int
+        Seeds the kernel noise, the torch initialisation and the batch order.
+    init_noise : float
+        Standard deviation of the noise on the delta initialisation.
+    sensor : SensorConfig, optional
+        Default: the training sensor (:func:`~fsdvs_hw.tasks.learn.default_sensor`) at the clips'
+        frame rate.
+    device : str
+        ``"cpu"`` or ``"cuda"`` / ``"cuda:N"``: where the simulator and the network train.
+    out : path, optional
+        File stem of the checkpoint (and of ``STEM.partial.pt`` while training); resumes.
+    fingerprint : dict, optional
+        JSON-able identity of the run (data, network, settings) stored and compared on resume.
+    verbose : bool
+        One line per epoch on stderr.
+
+    Returns
+    -------
+    DatasetTrainingResult
+
+    Raises
+    ------
+    InputError
+        Bad counts or rates, a task / dataset mismatch, clips of different sizes, a kernel larger
+        than the frames, a checkpoint or partial file trained with another fingerprint.
+
+    Examples
+    --------
+    >>> idx = disjoint_train_indices(len(ds), ds.draw(8, seed=0), 0, seed=0)         # doctest: +SKIP
+    >>> res = train_on_dataset(ds, "recognition", "mynets:tiny", train_indices=idx)  # doctest: +SKIP
+    >>> res.kernel.size, res.history[-1]["stage"]                                    # doctest: +SKIP
+    (7, 'joint')
+    """
+    import sys
+
+    import torch
+
+    from ..provenance import library_versions
+    from .dataset_eval import _device, _network_for, evaluator_for_dataset
+    from .learn import _events, _save_checkpoint, _train_epochs, default_sensor
+    from .user_networks import event_input_of
+
+    t_start = time.perf_counter()
+    evaluator = evaluator_for_dataset(task, dataset)
+    dev = _device(device)
+    epochs = {"frozen_filter": check_count("train.epochs_frozen", epochs_frozen, 0, MAX_EPOCHS),
+              "joint": check_count("train.epochs_joint", epochs_joint, 0, MAX_EPOCHS)}
+    batch_size = check_count("train.batch_size", batch_size, 1, 100_000)
+    seed = check_count("train.seed", seed, 0, MAX_SEED)
+    lr_network = check_real("train.lr_network", lr_network, 0.0, 10.0)
+    lr_kernel = check_real("train.lr_kernel", lr_kernel, 0.0, 10.0)
+    ratios = getattr(evaluator, "joint_lr_ratios", (1.0, 1e-6 / 5e-4, 1e-5 / 5e-4))
+    lr_backbone = lr_kernel * ratios[1] if lr_backbone is None else check_real("train.lr_backbone", lr_backbone, 0.0,
+                                                                                10.0)
+    lr_head = lr_kernel * ratios[2] if lr_head is None else check_real("train.lr_head", lr_head, 0.0, 10.0)
+    weight_decay = check_real("train.weight_decay", weight_decay, 0.0, 10.0)
+    init_noise = check_real("train.init_noise", init_noise, 0.0, 10.0)
+    indices = np.asarray(list(train_indices), dtype=np.int64)
+    if len(indices) < 1 or len(set(indices.tolist())) != len(indices) or indices.min() < 0 \
+            or indices.max() >= len(dataset):
+        raise InputError(f"train_on_dataset: train_indices must be distinct clip indices in [0, {len(dataset)}), "
+                         f"got {len(indices)} of them")
+    torch.manual_seed(seed)
+    gen = torch.Generator().manual_seed(seed)
+    taps0 = _initial_taps(init_kernel, kernel_size, init_noise, gen)
+    learn_filter = bool(learn_filter and taps0.shape[0] > 1)
+
+    video, targets, ts = _load_clips(dataset, indices, evaluator)
+    h, w = video.shape[-2:]
+    if taps0.shape[0] > min(h, w):
+        raise InputError(f"train_on_dataset: a {taps0.shape[0]}x{taps0.shape[0]} kernel is larger than the "
+                         f"{h}x{w} frames")
+    net = _network_for(network, evaluator.name, 2 * (video.shape[1] - 1), evaluator.num_classes)
+    rep = event_input_of(net)
+    if sensor is None:
+        sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(ts)[0])))
+    video, net = video.to(dev), net.to(dev).train()
+    targets = {k: v.to(dev) for k, v in targets.items()}
+    kernel_param = torch.nn.Parameter(taps0.clone().to(dev), requires_grad=learn_filter)
+    taps_init = taps0.to(dev)
+
+    def input_fn(v: Any, k: Any, s: Any, t: Any) -> Any:
+        return rep(_events(v, k, s, t).float(), t)
+
+    def optimizer(stage: str) -> Any:
+        wd = weight_decay
+        if stage == "frozen_filter":
+            return torch.optim.AdamW([{"params": list(net.parameters()), "lr": lr_network, "weight_decay": wd}])
+        parts = [getattr(net, "backbone", None), getattr(net, "head", None)]
+        if all(isinstance(p, torch.nn.Module) for p in parts):
+            groups = [{"params": list(parts[0].parameters()), "lr": lr_backbone, "weight_decay": wd},
+                      {"params": list(parts[1].parameters()), "lr": lr_head, "weight_decay": wd}]
+        else:
+            groups = [{"params": list(net.parameters()), "lr": lr_head, "weight_decay": wd}]
+        if learn_filter:
+            groups.insert(0, {"params": [kernel_param], "lr": lr_kernel, "weight_decay": 0.0})
+        return torch.optim.AdamW(groups)
+
+    fingerprint = None if fingerprint is None else json.loads(json.dumps(fingerprint))
+    stem = None if out is None else _stem(out)
+    partial = None if stem is None else Path(str(stem) + ".partial.pt")
+    if stem is not None:
+        stem.parent.mkdir(parents=True, exist_ok=True)
+        done = load_trained(stem, net.cpu(), fingerprint=fingerprint, who="train_on_dataset")
+        net = net.to(dev)
+        if done is not None:
+            net, kernel, prov = done
+            return DatasetTrainingResult(kernel=kernel, network=net.cpu(), history=prov.get("history", []),
+                                         train_indices=np.asarray(prov.get("train_indices", indices)),
+                                         provenance=prov, paths=_paths(stem), epochs_trained=0)
+    history: list[dict[str, Any]] = []
+    start = (0, 0)  # (stage, epoch) to continue from
+    opt_state = None
+    if partial is not None and partial.is_file():
+        state = torch.load(str(partial), map_location="cpu", weights_only=True)
+        _check_fingerprint(json.loads(state["fingerprint"]), fingerprint, partial)
+        net.load_state_dict(state["network"])
+        with torch.no_grad():
+            kernel_param.copy_(state["kernel"].to(dev))
+        gen.set_state(state["generator"])
+        history = json.loads(state["history"])
+        start, opt_state = (int(state["stage"]), int(state["epoch"])), state["optimizer"]
+    log = (lambda msg: print(msg, file=sys.stderr, flush=True)) if verbose else None
+    trained = 0
+    for s_idx, stage in enumerate(_STAGES):
+        if s_idx < start[0] or epochs[stage] == 0:
+            continue
+        first_epoch = start[1] if s_idx == start[0] else 0
+        if first_epoch >= epochs[stage]:
+            continue
+        opt = optimizer(stage)
+        if opt_state is not None and s_idx == start[0]:
+            opt.load_state_dict(opt_state)
+        cached = None
+        if stage == "frozen_filter" or not learn_filter:  # a frozen kernel: the events never change
+            with torch.no_grad():
+                cached = torch.cat([input_fn(video[s : s + 64], kernel_param, sensor, ts)
+                                    for s in range(0, video.shape[0], 64)])
+        for epoch in range(first_epoch, epochs[stage]):
+            n_before = len(history)
+            _train_epochs(evaluator, net, kernel_param, video, targets, sensor, ts, opt, 1, batch_size, gen,
+                          stage if learn_filter or stage == "frozen_filter" else "joint_frozen_filter", history,
+                          taps_init, cached_inputs=cached, input_fn=input_fn)
+            history[n_before]["epoch"] = epoch
+            trained += 1
+            if log is not None:
+                log(f"[learn] {evaluator.name} {stage} epoch {epoch + 1}/{epochs[stage]}: loss "
+                    f"{history[-1]['loss']:.4f} ({history[-1]['seconds']:.1f} s)")
+            if partial is not None:
+                _save_partial(partial, net, kernel_param, gen, opt, history, (s_idx, epoch + 1), fingerprint)
+    net = net.cpu().eval()
+    taps = kernel_param.detach().cpu().numpy()
+    provenance = {
+        "task": evaluator.name, "dataset": type(dataset).__name__, "num_classes": evaluator.num_classes,
+        "protocol": "frozen kernel, then joint (decoupled rates)" if learn_filter else "kernel frozen",
+        "epochs_frozen": epochs["frozen_filter"], "epochs_joint": epochs["joint"],
+        "learning_rates": {"network_stage_one": lr_network, "kernel": lr_kernel if learn_filter else 0.0,
+                           "backbone": lr_backbone, "head": lr_head},
+        "weight_decay": weight_decay, "batch_size": batch_size, "seed": seed, "init_noise": init_noise,
+        "learn_filter": learn_filter, "n_train": int(len(indices)), "train_indices": indices.tolist(),
+        "network": type(net).__name__, "event_input": rep.kind if rep.n_bins is None else f"voxel:{rep.n_bins}",
+        "sensor": sensor.to_dict(), "history": history, "fingerprint": fingerprint,
+        "train_seconds": time.perf_counter() - t_start, "device": str(dev), "versions": library_versions(),
+        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }
+    kernel = Kernel(taps, name=f"learned {evaluator.name} {taps.shape[0]}x{taps.shape[0]} on "
+                    f"{type(dataset).__name__} (seed {seed})",
+                    provenance={k: v for k, v in provenance.items() if k not in ("history", "train_indices")})
+    paths: dict[str, Path] = {}
+    if stem is not None:
+        paths = _save_checkpoint(stem, kernel, net, provenance)
+        if partial is not None and partial.is_file():
+            partial.unlink()
+    return DatasetTrainingResult(kernel=kernel, network=net, history=history, train_indices=indices,
+                                 provenance=provenance, paths=paths, epochs_trained=trained)
+
+
+def _initial_taps(init_kernel: Any, kernel_size: Any, init_noise: float, gen: Any) -> Any:
+    """The kernel's start: ``init_kernel``, or a delta plus Gaussian noise (float64 tensor)."""
+    import torch
+
+    from ..kernels import as_kernel
+    from .learn import _delta_init
+
+    if init_kernel is not None:
+        return torch.as_tensor(np.array(as_kernel(init_kernel, name="init_kernel").taps), dtype=torch.float64)
+    if isinstance(kernel_size, bool) or not isinstance(kernel_size, int) or not 1 <= kernel_size <= 15 \
+            or kernel_size % 2 == 0:
+        raise InputError(f"train.kernel_size = {kernel_size!r}; allowed: an odd integer in [1, 15] (pixels)")
+    return _delta_init(kernel_size, init_noise if kernel_size > 1 else 0.0, gen)
+
+
+def _save_partial(path: Path, net: Any, kernel_param: Any, gen: Any, opt: Any, history: list[dict[str, Any]],
+                  position: tuple[int, int], fingerprint: Any) -> None:
+    """The state after a finished epoch, written atomically (``position`` = (stage, next epoch))."""
+    import torch
+
+    from ..paths import write_output
+
+    buf = io.BytesIO()
+    torch.save({"network": {k: v.cpu() for k, v in net.state_dict().items()}, "kernel": kernel_param.detach().cpu(),
+                "generator": gen.get_state(), "optimizer": opt.state_dict(), "history": json.dumps(history),
+                "stage": position[0], "epoch": position[1], "fingerprint": json.dumps(fingerprint)}, buf)
+    write_output(path, buf.getvalue(), flag=str(path))
+
+
+def _paths(stem: Path) -> dict[str, Path]:
+    return {"kernel": Path(str(stem) + ".json"), "checkpoint": Path(str(stem) + ".safetensors"),
+            "provenance": Path(str(stem) + ".provenance.json")}
