@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 from ..kernels import MAX_KERNEL_SIZE
 from ..limits import MAX_CLIPS, MAX_EPOCHS, MAX_SEED, MAX_WORKERS
@@ -70,7 +71,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 #: Options of the synthetic ablation (refused with --design, which sets clips and epochs in its train table).
-_SYNTHETIC_ONLY = {"n_train": None, "n_test": None, "epochs_frozen": None, "epochs_joint": None, "workers": 1,
+_SYNTHETIC_ONLY: dict[str, Any] = {"n_train": None, "n_test": None, "epochs_frozen": None, "epochs_joint": None, "workers": 1,
                    "scheduler": None, "transfer": None, "frozen_tasks": [], "transfer_only": False,
                    "frozen_only": False, "ship_dir": None, "from_store": False}
 

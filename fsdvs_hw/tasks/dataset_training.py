@@ -345,10 +345,10 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
         wd = weight_decay
         if stage == "frozen_filter":
             return torch.optim.AdamW([{"params": list(net.parameters()), "lr": lr_network, "weight_decay": wd}])
-        parts = [getattr(net, "backbone", None), getattr(net, "head", None)]
-        if all(isinstance(p, torch.nn.Module) for p in parts):
-            groups = [{"params": list(parts[0].parameters()), "lr": lr_backbone, "weight_decay": wd},
-                      {"params": list(parts[1].parameters()), "lr": lr_head, "weight_decay": wd}]
+        backbone, head = getattr(net, "backbone", None), getattr(net, "head", None)
+        if isinstance(backbone, torch.nn.Module) and isinstance(head, torch.nn.Module):
+            groups = [{"params": list(backbone.parameters()), "lr": lr_backbone, "weight_decay": wd},
+                      {"params": list(head.parameters()), "lr": lr_head, "weight_decay": wd}]
         else:
             groups = [{"params": list(net.parameters()), "lr": lr_head, "weight_decay": wd}]
         if learn_filter:
