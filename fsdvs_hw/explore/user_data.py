@@ -60,6 +60,7 @@ from ..schema import StrictModel, field
 
 __all__ = [
     "FORMAT_TASK",
+    "ClipCacheSpec",
     "CocoFramesSource",
     "DsecDetectionSource",
     "MaskFramesSource",
@@ -86,6 +87,17 @@ _Side = Annotated[int, Field(ge=1, le=16384)]
 _Count = Annotated[int, Field(ge=1, le=100_000)]
 
 
+class ClipCacheSpec(StrictModel):
+    """``dataset.cache = {dir = "...", max_mb = ...}``: decoded clips kept on disk (:mod:`fsdvs_hw.scenes.clip_cache`)."""
+
+    unknown_key = "unknown key of a dataset's cache table"
+
+    dir: str = field(..., "", "folder of the cache entries, relative to the design file (must stay inside its "
+                     "folder); may be shared by datasets and designs: max_mb bounds the folder")
+    max_mb: float = field(..., "MB", "most megabytes (10**6 bytes) of decoded clips kept; the least recently used "
+                          "are deleted beyond it", gt=0.0, le=1e9)
+
+
 class _Source(StrictModel):
     """Keys every dataset format shares."""
 
@@ -97,6 +109,8 @@ class _Source(StrictModel):
     transfer: str = field("sRGB", "", "transfer function undone to get linear luminance (a colour-science "
                           "CCTF_DECODINGS name)")
     cache_clips: int = field(0, "clips", "decoded clips kept in memory (LRU; 0 = none)", ge=0, le=MAX_CLIPS)
+    cache: ClipCacheSpec | None = field(None, "", "decoded clips kept on disk, bounded: {dir = 'folder', max_mb = "
+                                        "size}; None = decode every time")
 
 
 class VideoFolderSource(_Source):
@@ -233,6 +247,7 @@ def _reader_paths(source: Mapping[str, Any], base: Path, confine: bool, key: str
 
 @functools.lru_cache(maxsize=16)
 def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
+    from ..scenes.clip_cache import ClipDiskCache
     from ..scenes.datasets import (
         DSEC_DETECTION_CLASSES,
         CocoFramesDataset,
@@ -244,7 +259,10 @@ def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
     s = json.loads(blob)
     paths = _reader_paths(s, Path(base), confine, key)
     common = {"n_frames": s["n_frames"], "size": tuple(s["size"]) if s["size"] else None,
-              "transfer": s["transfer"], "cache_clips": s["cache_clips"]}
+              "transfer": s["transfer"], "cache_clips": s["cache_clips"], "disk_cache": None}
+    if s.get("cache"):
+        folder = _path(Path(base), s["cache"]["dir"], what=f"{key}.cache.dir", confine=confine)
+        common["disk_cache"] = ClipDiskCache(folder, s["cache"]["max_mb"])
     if s["format"] == "video_folder":
         return VideoFolderDataset(paths["root"], split_file=paths.get("split"), fps=s["fps"], stride=s["stride"],
                                   start_frame=s["start_frame"], **common)
@@ -353,7 +371,8 @@ def _train(task: str, entry: Mapping[str, Any], base: Path, confine: bool, key: 
     train_idx = disjoint_train_indices(len(ds), scored, spec["n_train"], spec["seed"])
     out = out_stem or _path(base, spec["out"] or f"trained/{task}", what=f"{key}.train.out", confine=confine)
     weights = _path(base, entry["weights"], what=f"{key}.weights", confine=confine) if entry["weights"] else None
-    fingerprint = {"dataset": entry["dataset"], "network": entry["network"], "options": entry["network_options"],
+    source = {k: v for k, v in entry["dataset"].items() if k != "cache"}  # the disk cache changes no clip
+    fingerprint = {"dataset": source, "network": entry["network"], "options": entry["network_options"],
                    "weights_sha256": _file_digest(weights) if weights else None, "scored": [entry["n_clips"],
                    entry["seed"]], "train": {k: v for k, v in spec.items() if k != "out"}, "sensor": "default"}
     return train_on_dataset(ds, task, copy.deepcopy(net), train_indices=train_idx, kernel_size=spec["kernel_size"],
