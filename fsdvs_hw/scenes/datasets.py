@@ -463,7 +463,7 @@ class VideoFolderDataset(ClipDataset):
         if len(images) < self.n_frames:
             raise InputError(f"{where}: field 'frames': {len(images)} of the {self.n_frames} frames wanted "
                              f"(start_frame={self.start_frame}, stride={self.stride})")
-        return {"frames": self._frames(images, where), "fps": np.float64(fps)}
+        return {"frames": self._frames(images, where), "fps": np.asarray(fps, dtype=np.float64)}
 
 
 # --------------------------------------------------------------------------- detection
