@@ -160,3 +160,21 @@ def test_design_key_opens_a_confined_bounded_cache(seg, tmp_path):
         MaskFramesSource(root="seg", num_classes=3, cache={"dir": "c", "max_mb": 0.0})
     with pytest.raises(InputError, match="max_mb"):
         ClipDiskCache(tmp_path / "c", max_mb=-1)
+
+
+def test_the_cache_settings_change_no_explored_point_key(seg, tmp_path):
+    from conftest import cheap_design
+
+    from fsdvs_hw.explore.design import load_design
+    from fsdvs_hw.explore.sweep import expand_points
+
+    source = ('format = "mask_frames", root = "seg", frames = "img", masks = "lbl", num_classes = 3, '
+              'n_frames = 3, fps = 25.0')
+    keys = []
+    for name, extra in (("plain", ""), ("cached", ', cache = { dir = "cc", max_mb = 50.0 }')):
+        path = tmp_path / f"{name}.toml"
+        path.write_text(cheap_design(name) + f"[tasks.datasets.segmentation]\ndataset = {{ {source}{extra} }}\n")
+        design = load_design(path)
+        keys.append(sorted(p.key for p in expand_points(design)))
+    assert keys[0] == keys[1] and len(keys[0]) == 2
+    assert design.data["tasks"]["datasets"]["segmentation"]["dataset"]["cache"]["max_mb"] == 50.0

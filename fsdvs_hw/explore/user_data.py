@@ -5,17 +5,24 @@ them per task::
 
     [tasks.datasets.recognition]
     dataset = { format = "video_folder", root = "data/ucf", split = "testlist01.txt", n_frames = 8,
-                size = [64, 64] }
+                size = [64, 64], cache = { dir = "clip_cache", max_mb = 2000.0 } }   # cache: optional
     network = "mynets.video:tiny"          # "package.module:factory" (None: the built-in network)
     network_options = { width = 16 }       # more keyword arguments of the factory
     weights = "nets/tiny.safetensors"      # .safetensors / .pt / .pth state dict (optional)
     n_clips = 200                          # clips drawn with `seed` (0 = every clip)
+    train = { split = "trainlist01.txt" }  # optional: train first, on the dataset's own training split
 
 The ``format`` picks the reader (:mod:`fsdvs_hw.scenes.datasets`) and with it the task, which
 must be the table's name: ``video_folder`` → recognition (UCF101 layout), ``coco_frames`` →
 detection (frames + COCO JSON), ``mask_frames`` → segmentation (frames + label PNGs). ``root``
 is relative to the design file and, like every path of a design, must stay inside its folder
 (symbolic links are followed first); the reader's other paths are relative to ``root``.
+
+``dataset.cache`` keeps decoded clips in a bounded folder (:mod:`fsdvs_hw.scenes.clip_cache`);
+it changes no clip, so it is left out of the training fingerprint (and the exploration's point
+keys). ``train.split`` trains on the dataset's own training split
+(:func:`train_split_dataset`), refused when it shares a file with the scored clips
+(:func:`check_disjoint_files`).
 
 The factory is imported from ``sys.path`` or from the design file's folder, and called as
 ``factory(in_channels=2 * (n_frames - 1), num_classes=<the dataset's>, **network_options)``
