@@ -122,5 +122,19 @@ def test_ablation_on_user_data_gives_paired_gains_and_refuses_synthetic_options(
     assert main(args) == 0  # a rerun reuses the four checkpoints: none is rewritten
     assert [p.stat().st_mtime_ns for p in runs] == stamps
     capsys.readouterr()
-    assert main([*args, "--workers", "2", "--transfer", "k.json"]) == 2
-    assert "--workers --transfer with --design: not supported on user data" in capsys.readouterr().err
+    assert main([*args, "--scheduler", "tcp://127.0.0.1:8786", "--transfer", "k.json"]) == 2
+    assert "--scheduler --transfer with --design: not supported on user data" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_ablation_on_user_data_with_workers_gives_the_sequential_result(folder, tmp_path):
+    from fsdvs_hw.cli import main
+
+    args = ["ablation", "--design", str(_design(folder)), "--tasks", "segmentation", "--sizes", "1", "3",
+            "--seeds", "0", "1", "--no-progress"]
+    assert main([*args, "--out", str(tmp_path / "seq")]) == 0
+    assert main([*args, "--out", str(tmp_path / "par"), "--workers", "2"]) == 0  # trained in 2 processes
+    seq, par = (json.loads((tmp_path / f / "ablation.json").read_text()) for f in ("seq", "par"))
+    assert len(list((tmp_path / "par" / "runs").glob("*.safetensors"))) == 4
+    for a, b in zip(seq["rows"], par["rows"]):  # 1 torch thread per worker: equal up to summation order
+        assert a["label"] == b["label"] and a["per_seed"] == pytest.approx(b["per_seed"], abs=1e-6)

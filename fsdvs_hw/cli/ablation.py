@@ -66,12 +66,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--from-store", action="store_true", help="do not train: rebuild the tables from the store")
     parser.add_argument("--design", type=Path, default=None, metavar="FILE",
                         help="ablate on the user data of this design's [tasks.datasets.TASK] (with a train table; "
-                             "one --tasks entry): one network per --sizes x --seeds, gains over w/o with paired-clip "
-                             "CIs; the synthetic-only options are refused")
+                             "one --tasks entry): one network per --sizes x --seeds (--workers local processes), gains "
+                             "over w/o with paired-clip CIs; the synthetic-only options are refused")
 
 
 #: Options of the synthetic ablation (refused with --design, which sets clips and epochs in its train table).
-_SYNTHETIC_ONLY: dict[str, Any] = {"n_train": None, "n_test": None, "epochs_frozen": None, "epochs_joint": None, "workers": 1,
+_SYNTHETIC_ONLY: dict[str, Any] = {"n_train": None, "n_test": None, "epochs_frozen": None, "epochs_joint": None,
                    "scheduler": None, "transfer": None, "frozen_tasks": [], "transfer_only": False,
                    "frozen_only": False, "ship_dir": None, "from_store": False}
 
@@ -84,12 +84,12 @@ def _run_on_design(args: argparse.Namespace) -> int:
     given = [f"--{k.replace('_', '-')}" for k, v in _SYNTHETIC_ONLY.items() if getattr(args, k) != v]
     if given:
         raise InputError(f"{' '.join(given)} with --design: not supported on user data (the design's train table "
-                         "sets clips and epochs; runs are sequential); allowed with --design: --tasks TASK, --sizes, "
-                         "--seeds, --out")
+                         "sets clips and epochs; runs use local processes, not Dask); allowed with --design: "
+                         "--tasks TASK, --sizes, --seeds, --workers, --out")
     if len(args.tasks) != 1:
         raise InputError(f"--tasks {' '.join(args.tasks)} with --design: allowed: exactly one user-data task")
     res = run_user_ablation(load_design(args.design), args.tasks[0], args.out, sizes=args.sizes, seeds=args.seeds,
-                            verbose=not args.no_progress)
+                            verbose=not args.no_progress, workers=args.workers)
     print(res["markdown"])
     return 0
 

@@ -43,7 +43,8 @@ import numpy as np
 
 from ..errors import InputError
 from .paired import EVENT_RATE_UNIT, decode_evidence
-from .rate import MatchedRateDifference, RateCurve, RatePoint, matched_rate_difference, rate_curve
+from .rate import MatchedRateDifference, RateCurve, RatePoint, dataset_rate_curve, matched_rate_difference, rate_curve
+from .scoring import _DESIGN_SENSOR_FIELDS
 
 __all__ = ["CURVES_DIR", "REFERENCES", "matched_rate_records", "point_rate_curve", "reference_curves",
            "with_matched_rates"]
@@ -188,6 +189,18 @@ def _one_curve(design: Any, dpoint: Any, row: Mapping[str, Any], task: str, thre
     run = extra if (len(extra) >= 2 and not isinstance(own, str)) else [*extra, t0]
     tasks = dpoint.data["tasks"]
     base = Path(dpoint.base_dir)
+    user = (tasks.get("datasets") or {}).get(task)
+    if user is not None:  # a user-data task: the user's network and clips, as the point was scored
+        fields = None
+        if tasks["sensor"] == "design":
+            fields = {k: dpoint.data["sensor"][k] for k in _DESIGN_SENSOR_FIELDS}
+        try:
+            curve = dataset_rate_curve(_reference_kernel(dpoint), task, user, base, run, design_sensor=fields,
+                                       test_clips=str(rec.get("test_clips", "per_network")), label=dpoint.realisation,
+                                       cache_dir=cache, progress=progress, confine=False)
+        except (InputError, FileNotFoundError) as exc:
+            return f"unavailable: {exc}"
+        return _with_own_point(curve, own, t0)
     entry = tasks["checkpoints"].get(task, [])  # resolved as the point was (sweep._fit_and_score)
     ckpts = [Path(c) if Path(c).is_absolute() else base / c for c in (entry if isinstance(entry, list) else [entry])]
     n_test = int(rec.get("n_clips_per_network", 0)) or None
@@ -198,8 +211,13 @@ def _one_curve(design: Any, dpoint: Any, row: Mapping[str, Any], task: str, thre
                            cache_dir=cache, progress=progress)
     except (InputError, FileNotFoundError) as exc:
         return f"unavailable: {exc}"
+    return _with_own_point(curve, own, t0)
+
+
+def _with_own_point(curve: RateCurve, own: RateCurve | str, t0: float) -> RateCurve:
+    """``curve`` plus the point's own score at the operating threshold ``t0`` (when not measured again)."""
     if isinstance(own, RateCurve) and t0 not in curve.thresholds:
-        curve = RateCurve(kernel_name=curve.kernel_name, task=task, metric_name=curve.metric_name,
+        curve = RateCurve(kernel_name=curve.kernel_name, task=curve.task, metric_name=curve.metric_name,
                           test_clips=curve.test_clips, points=curve.points + own.points,
                           checkpoints=curve.checkpoints)
     return curve

@@ -53,6 +53,7 @@ __all__ = [
     "MatchedRateDifference",
     "RateCurve",
     "RatePoint",
+    "dataset_rate_curve",
     "interpolate_log_rate",
     "matched_rate_difference",
     "rate_curve",
@@ -560,17 +561,40 @@ def rate_curve(kernel: Kernel | None, task: str, checkpoints: Sequence[str | Pat
     if test_clips not in ("per_network", "shared"):
         raise InputError(f"rate_curve: test_clips={test_clips!r}; allowed: 'per_network', 'shared'")
     name = label or ("w/o" if kernel is None else kernel.name)
+
+    def fingerprint(t: float) -> str:
+        fp = _fingerprint(kernel, task, paths, n_test, test_clips, design_sensor, t)
+        return fp if events_fn is None else hashlib.sha1(f"{fp}|{events_fn!r}".encode()).hexdigest()[:16]
+
+    def evaluate(t: float, bar: Any) -> list[Any]:
+        evid = []
+        for s, ckpt in enumerate(paths):
+            evid.append(clip_evidence(kernel, task, ckpt, n_test=n_test, sensor=_sensor_at(ckpt, design_sensor, t),
+                                      events_fn=events_fn, seed_offset=s,
+                                      clip_set=s if test_clips == "per_network" else 0))
+            bar.update(1)
+        return evid
+
+    points, metric_name = _measure_points(name, task, ts, fingerprint, evaluate, len(paths), cache_dir, progress,
+                                          on_point)
+    return RateCurve(kernel_name=name, task=task, metric_name=metric_name, test_clips=test_clips,
+                     points=tuple(points), checkpoints=tuple(p.name for p in paths))
+
+
+def _measure_points(name: str, task: str, ts: Sequence[float], fingerprint: Callable[[float], str],
+                    evaluate: Callable[[float, Any], list[Any]], n_networks: int, cache_dir: str | Path | None,
+                    progress: bool | None, on_point: Callable[[RatePoint], None] | None) -> tuple[list[RatePoint], str]:
+    """Each threshold's :class:`RatePoint` from ``evaluate(t, bar)`` (one ClipEvidence per network), or
+    from ``cache_dir`` when a saved point has ``fingerprint(t)``; finished points are saved there."""
     cache = Path(cache_dir) if cache_dir is not None else None
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
     slug = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
     points: list[RatePoint] = []
     metric_name = ""
-    with progress_bar(total=len(ts) * len(paths), desc=f"rate curve {name}", unit="eval", progress=progress) as bar:
+    with progress_bar(total=len(ts) * n_networks, desc=f"rate curve {name}", unit="eval", progress=progress) as bar:
         for t in ts:
-            fp = _fingerprint(kernel, task, paths, n_test, test_clips, design_sensor, t)
-            if events_fn is not None:
-                fp = hashlib.sha1(f"{fp}|{events_fn!r}".encode()).hexdigest()[:16]
+            fp = fingerprint(t)
             file = cache / f"{slug}_t{t:g}.json" if cache is not None else None
             if file is not None and file.is_file():
                 stored = json.loads(file.read_text())
@@ -578,15 +602,11 @@ def rate_curve(kernel: Kernel | None, task: str, checkpoints: Sequence[str | Pat
                     point = RatePoint.from_dict(stored["point"])
                     metric_name = stored.get("metric_name", metric_name)
                     points.append(point)
-                    bar.update(len(paths))
+                    bar.update(n_networks)
                     if on_point is not None:
                         on_point(point)
                     continue
-            evid = []
-            for s, ckpt in enumerate(paths):
-                evid.append(clip_evidence(kernel, task, ckpt, n_test=n_test, sensor=_sensor_at(ckpt, design_sensor, t), events_fn=events_fn,
-                                          seed_offset=s, clip_set=s if test_clips == "per_network" else 0))
-                bar.update(1)
+            evid = evaluate(t, bar)
             if any(e.clip_event_rates is None for e in evid):
                 raise InputError(f"rate_curve: the evaluator returned no per-clip event rates for {name!r}")
             metric_name = evid[0].metric_name
@@ -601,5 +621,79 @@ def rate_curve(kernel: Kernel | None, task: str, checkpoints: Sequence[str | Pat
             points.append(point)
             if on_point is not None:
                 on_point(point)
+    return points, metric_name
+
+
+def dataset_rate_curve(kernel: Kernel | None, task: str, entry: Mapping[str, Any], base_dir: str | Path,
+                       thresholds: Sequence[float] = DEFAULT_THRESHOLDS, *,
+                       design_sensor: Mapping[str, Any] | None = None, test_clips: str = "per_network",
+                       label: str | None = None, cache_dir: str | Path | None = None, progress: bool | None = None,
+                       confine: bool = True) -> RateCurve:
+    """A kernel's rate curve on a user-data task: the user's network and clips at each threshold.
+
+    The counterpart of :func:`rate_curve` for a ``[tasks.datasets.<task>]`` table: each threshold
+    is scored by :func:`fsdvs_hw.explore.user_data.dataset_evidence` (one network, the table's
+    seeded clips, the simulator reseeded per clip), so its points pair with the exploration's
+    own scores of that task clip by clip.
+
+    Parameters
+    ----------
+    kernel : Kernel or None
+        The kernel (None: the 1×1 delta of a plain DVS).
+    task : str
+        The table's task.
+    entry : mapping
+        The validated ``[tasks.datasets.<task>]`` table (:class:`fsdvs_hw.explore.user_data.UserTask` dumped).
+    base_dir : path
+        The design file's folder.
+    thresholds : sequence of float
+        ON = OFF contrast thresholds (log units, in :data:`THRESHOLD_RANGE`), at least 2.
+    design_sensor : mapping, optional
+        ``SensorConfig`` fields replacing the training default's (``tasks.sensor = "design"``);
+        only the thresholds are swept.
+    test_clips : str
+        Recorded on the curve (the exploration's ``[tasks] test_clips``, for the pairing check).
+    label, cache_dir, progress
+        As :func:`rate_curve` (finished points saved and reused; the disk-cache settings of the
+        dataset do not enter their fingerprint).
+    confine : bool
+        Refuse dataset paths outside ``base_dir``.
+
+    Returns
+    -------
+    RateCurve
+        ``checkpoints`` holds the network's factory name.
+
+    Raises
+    ------
+    InputError
+        Bad thresholds, or any dataset, network or clip problem.
+
+    Examples
+    --------
+    >>> curve = dataset_rate_curve(None, "recognition", entry, "designs", [0.1, 0.3])   # doctest: +SKIP
+    >>> curve.thresholds                                                                # doctest: +SKIP
+    (0.1, 0.3)
+    """
+    from .user_data import dataset_evidence
+
+    ts = _check_thresholds(thresholds)
+    name = label or ("w/o" if kernel is None else kernel.name)
+    recorded = {**entry, "dataset": {k: v for k, v in entry["dataset"].items() if k != "cache"}}
+
+    def fingerprint(t: float) -> str:
+        taps = [[1.0]] if kernel is None else np.asarray(kernel.taps).round(15).tolist()
+        blob = json.dumps({"taps": taps, "task": task, "user_task": recorded, "test_clips": test_clips,
+                           "sensor": dict(design_sensor) if design_sensor else None, "threshold": t},
+                          sort_keys=True, default=str)
+        return hashlib.sha1(blob.encode()).hexdigest()[:16]
+
+    def evaluate(t: float, bar: Any) -> list[Any]:
+        ev, _ = dataset_evidence(kernel, task, entry, base_dir, confine=confine,
+                                 design_sensor={**(design_sensor or {}), "threshold_on": t, "threshold_off": t})
+        bar.update(1)
+        return [ev]
+
+    points, metric_name = _measure_points(name, task, ts, fingerprint, evaluate, 1, cache_dir, progress, None)
     return RateCurve(kernel_name=name, task=task, metric_name=metric_name, test_clips=test_clips,
-                     points=tuple(points), checkpoints=tuple(p.name for p in paths))
+                     points=tuple(points), checkpoints=(str(entry.get("network") or "built-in"),))

@@ -104,6 +104,8 @@ def _point_key(realisation: str, design: Design) -> str:
     relevant: dict[str, Any] = {s: design.section(s) for s in _SCORED_SECTIONS}
     if not relevant["tasks"].get("datasets"):  # no user data: the key of a store written before the key existed
         relevant["tasks"].pop("datasets", None)
+    for entry in relevant["tasks"].get("datasets", {}).values():
+        entry["dataset"].pop("cache", None)  # where decoded clips are kept changes no score
     relevant["realisation"] = realisation
     relevant["options"] = design.realisation_options(realisation)
     relevant["target"] = design.target.to_dict()["taps"]

@@ -10,7 +10,9 @@ with a bootstrap CI from :func:`fsdvs_hw.stats.difference_ci` — the synthetic 
 statistics: the two arms are different networks (``paired_seeds=False``), scored on the same
 clips (``paired_clips=True``), resampling clips and, with two or more seeds, seeds.
 
-Every run's checkpoint is written under the output folder and reused by a rerun (resume).
+Every run's checkpoint is written under the output folder and reused by a rerun (resume). The
+runs are independent: ``workers`` local processes (:mod:`fsdvs_hw.workers`) train and score
+them in parallel.
 
 References
 ----------
@@ -34,7 +36,7 @@ __all__ = ["run_user_ablation"]
 
 def run_user_ablation(design: Any, task: str, out: str | Path, *, sizes: Sequence[int] = (1, 3, 5, 7),
                       seeds: Sequence[int] = (0, 1, 2), n_resamples: int = 2000,
-                      verbose: bool = False) -> dict[str, Any]:
+                      verbose: bool = False, workers: int = 1) -> dict[str, Any]:
     """Kernel-size ablation of a design's user-data task; writes ``ablation.json`` and ``ablation.md``.
 
     Parameters
@@ -55,6 +57,11 @@ def run_user_ablation(design: Any, task: str, out: str | Path, *, sizes: Sequenc
         Bootstrap resamples per CI.
     verbose : bool
         One line per training epoch on stderr.
+    workers : int
+        Local worker processes (:func:`fsdvs_hw.workers.process_pool`, each with
+        ``FSDVS_HW_WORKER_THREADS`` torch threads, default 1) training and scoring the runs in
+        parallel; 1 = in this process, one run after the other. The result does not depend on it
+        beyond floating-point summation order (torch's thread count).
 
     Returns
     -------
@@ -73,11 +80,11 @@ def run_user_ablation(design: Any, task: str, out: str | Path, *, sizes: Sequenc
     >>> res["rows"][-1]["gain_ci95_low"] <= res["rows"][-1]["gain"]                               # doctest: +SKIP
     True
     """
+    from ..limits import MAX_WORKERS, check_count
     from ..paths import output_dir, write_output
     from ..stats import difference_ci
-    from ..tasks.dataset_eval import evaluate_on_dataset, evaluator_for_dataset
-    from .paired import PER_CLIP_METRICS
-    from .user_data import open_dataset, train_user_task
+    from ..tasks.dataset_eval import evaluator_for_dataset
+    from .user_data import open_dataset
 
     entry = design.data["tasks"]["datasets"].get(task)
     if entry is None or entry.get("train") is None:
@@ -87,24 +94,21 @@ def run_user_ablation(design: Any, task: str, out: str | Path, *, sizes: Sequenc
     sizes = sorted({int(k) for k in sizes})
     if 1 not in sizes or any(k % 2 == 0 or not 1 <= k <= 15 for k in sizes):
         raise InputError(f"ablation --sizes {sizes}: allowed: odd sides in [1, 15] including 1 (the w/o reference)")
+    workers = check_count("ablation --workers", workers, 1, MAX_WORKERS)
     folder = output_dir(out, flag="--out")
     key = f"tasks.datasets.{task}.dataset"
     ds = open_dataset(entry["dataset"], design.base_dir, confine=design.confine_paths, key=key)
     evaluator = evaluator_for_dataset(task, ds)
+    jobs = [(task, entry, str(design.base_dir), bool(design.confine_paths), k, int(seed),
+             str(folder / "runs" / f"{task}_k{k}_s{seed}"), verbose) for k in sizes for seed in seeds]
+    done = _run_jobs(jobs, workers)
     metrics: dict[int, list[Any]] = {k: [] for k in sizes}
     values: dict[int, list[float]] = {k: [] for k in sizes}
     n_clips = 0
-    for k in sizes:
-        for seed in seeds:
-            res = train_user_task(task, entry, design.base_dir, confine=design.confine_paths, verbose=verbose,
-                                  overrides={"kernel_size": k, "seed": int(seed)},
-                                  out=folder / "runs" / f"{task}_k{k}_s{seed}")
-            ev = evaluate_on_dataset(res.kernel, task, ds, res.network, n_clips=entry["n_clips"] or None,
-                                     seed=entry["seed"], device=entry["device"])
-            metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, ev.targets, evaluator)
-            n_clips = len(ev.clip_indices)
-            metrics[k].append(metric)
-            values[k].append(float(metric.weighted(np.ones((1, n_clips)))[0]))
+    for job in jobs:  # in (size, seed) order, whatever order the workers finished in
+        metric, value, n_clips = done[job[4], job[5]]
+        metrics[job[4]].append(metric)
+        values[job[4]].append(value)
     resample = ("clips", "seeds") if len(seeds) >= 2 else ("clips",)
     rows = []
     for k in sizes:
@@ -131,3 +135,53 @@ def run_user_ablation(design: Any, task: str, out: str | Path, *, sizes: Sequenc
     write_output(folder / "ablation.json", json.dumps(result, indent=1) + "\n", flag="--out")
     write_output(folder / "ablation.md", result["markdown"], flag="--out")
     return result
+
+
+def _run_jobs(jobs: Sequence[tuple[Any, ...]], workers: int) -> dict[tuple[int, int], tuple[Any, float, int]]:
+    """Every job's :func:`_train_and_score` result by (size, seed): here, or on a local process pool."""
+    if workers <= 1 or len(jobs) <= 1:
+        return {(j[4], j[5]): _train_and_score(*j) for j in jobs}
+    from concurrent.futures import as_completed
+
+    from ..environment import set_env
+    from ..workers import process_pool
+
+    set_env("FSDVS_HW_WORKER_THREADS", "1", default=True)
+    pool = process_pool(min(workers, len(jobs)))  # workers die with this process (no orphans)
+    futures = {pool.submit(_train_and_score, *j): (j[4], j[5]) for j in jobs}
+    out = {}
+    try:
+        for fut in as_completed(futures):
+            out[futures[fut]] = fut.result()
+    except BaseException:  # a failed run or Ctrl-C: the finished checkpoints stay for a rerun
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+    return out
+
+
+def _train_and_score(task: str, entry: dict[str, Any], base_dir: str, confine: bool, size: int, seed: int,
+                     stem: str, verbose: bool) -> tuple[Any, float, int]:
+    """One run: train (or reuse / resume ``stem``) the network and kernel of one size and seed, score it.
+
+    Returns the per-clip metric object, the metric and the number of scored clips.
+    """
+    from ..environment import env
+    from ..tasks.dataset_eval import evaluate_on_dataset, evaluator_for_dataset
+    from .paired import PER_CLIP_METRICS
+    from .user_data import open_dataset, train_user_task
+
+    threads = env("FSDVS_HW_WORKER_THREADS")
+    if threads:
+        import torch
+
+        torch.set_num_threads(int(threads))
+    ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"tasks.datasets.{task}.dataset")
+    res = train_user_task(task, entry, base_dir, confine=confine, verbose=verbose,
+                          overrides={"kernel_size": size, "seed": seed}, out=stem)
+    ev = evaluate_on_dataset(res.kernel, task, ds, res.network, n_clips=entry["n_clips"] or None,
+                             seed=entry["seed"], device=entry["device"])
+    evaluator = evaluator_for_dataset(task, ds)
+    metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, ev.targets, evaluator)
+    n = len(ev.clip_indices)
+    return metric, float(metric.weighted(np.ones((1, n)))[0]), n

@@ -5,17 +5,24 @@ them per task::
 
     [tasks.datasets.recognition]
     dataset = { format = "video_folder", root = "data/ucf", split = "testlist01.txt", n_frames = 8,
-                size = [64, 64] }
+                size = [64, 64], cache = { dir = "clip_cache", max_mb = 2000.0 } }   # cache: optional
     network = "mynets.video:tiny"          # "package.module:factory" (None: the built-in network)
     network_options = { width = 16 }       # more keyword arguments of the factory
     weights = "nets/tiny.safetensors"      # .safetensors / .pt / .pth state dict (optional)
     n_clips = 200                          # clips drawn with `seed` (0 = every clip)
+    train = { split = "trainlist01.txt" }  # optional: train first, on the dataset's own training split
 
 The ``format`` picks the reader (:mod:`fsdvs_hw.scenes.datasets`) and with it the task, which
 must be the table's name: ``video_folder`` → recognition (UCF101 layout), ``coco_frames`` →
 detection (frames + COCO JSON), ``mask_frames`` → segmentation (frames + label PNGs). ``root``
 is relative to the design file and, like every path of a design, must stay inside its folder
 (symbolic links are followed first); the reader's other paths are relative to ``root``.
+
+``dataset.cache`` keeps decoded clips in a bounded folder (:mod:`fsdvs_hw.scenes.clip_cache`);
+it changes no clip, so it is left out of the training fingerprint (and the exploration's point
+keys). ``train.split`` trains on the dataset's own training split
+(:func:`train_split_dataset`), refused when it shares a file with the scored clips
+(:func:`check_disjoint_files`).
 
 The factory is imported from ``sys.path`` or from the design file's folder, and called as
 ``factory(in_channels=2 * (n_frames - 1), num_classes=<the dataset's>, **network_options)``
@@ -60,16 +67,19 @@ from ..schema import StrictModel, field
 
 __all__ = [
     "FORMAT_TASK",
+    "ClipCacheSpec",
     "CocoFramesSource",
     "DsecDetectionSource",
     "MaskFramesSource",
     "TrainSpec",
     "UserTask",
     "VideoFolderSource",
+    "check_disjoint_files",
     "check_user_task",
     "dataset_evidence",
     "open_dataset",
     "open_network",
+    "train_split_dataset",
     "train_user_task",
     "user_task_record",
 ]
@@ -86,6 +96,17 @@ _Side = Annotated[int, Field(ge=1, le=16384)]
 _Count = Annotated[int, Field(ge=1, le=100_000)]
 
 
+class ClipCacheSpec(StrictModel):
+    """``dataset.cache = {dir = "...", max_mb = ...}``: decoded clips kept on disk (:mod:`fsdvs_hw.scenes.clip_cache`)."""
+
+    unknown_key = "unknown key of a dataset's cache table"
+
+    dir: str = field(..., "", "folder of the cache entries, relative to the design file (must stay inside its "
+                     "folder); may be shared by datasets and designs: max_mb bounds the folder")
+    max_mb: float = field(..., "MB", "most megabytes (10**6 bytes) of decoded clips kept; the least recently used "
+                          "are deleted beyond it", gt=0.0, le=1e9)
+
+
 class _Source(StrictModel):
     """Keys every dataset format shares."""
 
@@ -97,6 +118,8 @@ class _Source(StrictModel):
     transfer: str = field("sRGB", "", "transfer function undone to get linear luminance (a colour-science "
                           "CCTF_DECODINGS name)")
     cache_clips: int = field(0, "clips", "decoded clips kept in memory (LRU; 0 = none)", ge=0, le=MAX_CLIPS)
+    cache: ClipCacheSpec | None = field(None, "", "decoded clips kept on disk, bounded: {dir = 'folder', max_mb = "
+                                        "size}; None = decode every time")
 
 
 class VideoFolderSource(_Source):
@@ -157,13 +180,17 @@ class TrainSpec(StrictModel):
     The FS-DVS two-stage protocol (:func:`fsdvs_hw.tasks.dataset_training.train_on_dataset`):
     stage one trains the network with the kernel frozen (delta + noise), stage two trains both
     with decoupled AdamW rates. From scratch without ``weights``; fine-tuning from them with.
-    The training clips are a seeded draw from the clips NOT scored (disjoint from them).
+    The training clips are a seeded draw from the clips NOT scored (disjoint from them), or from
+    the dataset's own training split (``split``), which must share no file with the scored clips.
     """
 
     unknown_key = "unknown key of a user-data task's train table"
 
     out: str = field("", "", "file stem of the trained network + kernel (STEM.safetensors, STEM.json), relative "
                      "to the design file; '' = trained/<task>")
+    split: str | None = field(None, "", "the dataset's own training split, read like dataset.split: video_folder a "
+                              "split file relative to root (UCF101 'trainlist01.txt'), the other formats a subfolder "
+                              "of root ('train'); None = a seeded draw from the clips not scored")
     kernel_size: int = field(7, "px", "side of the learned kernel", ge=1, le=15, odd=True)
     learn_kernel: bool = field(True, "", "false: the kernel stays the delta in both stages (a network for a "
                                "conventional DVS)")
@@ -233,6 +260,7 @@ def _reader_paths(source: Mapping[str, Any], base: Path, confine: bool, key: str
 
 @functools.lru_cache(maxsize=16)
 def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
+    from ..scenes.clip_cache import ClipDiskCache
     from ..scenes.datasets import (
         DSEC_DETECTION_CLASSES,
         CocoFramesDataset,
@@ -244,7 +272,10 @@ def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
     s = json.loads(blob)
     paths = _reader_paths(s, Path(base), confine, key)
     common = {"n_frames": s["n_frames"], "size": tuple(s["size"]) if s["size"] else None,
-              "transfer": s["transfer"], "cache_clips": s["cache_clips"]}
+              "transfer": s["transfer"], "cache_clips": s["cache_clips"], "disk_cache": None}
+    if s.get("cache"):
+        folder = _path(Path(base), s["cache"]["dir"], what=f"{key}.cache.dir", confine=confine)
+        common["disk_cache"] = ClipDiskCache(folder, s["cache"]["max_mb"])
     if s["format"] == "video_folder":
         return VideoFolderDataset(paths["root"], split_file=paths.get("split"), fps=s["fps"], stride=s["stride"],
                                   start_frame=s["start_frame"], **common)
@@ -339,6 +370,69 @@ def _file_digest(path: Path) -> str:
     return h.hexdigest()
 
 
+def train_split_dataset(entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True,
+                        key: str = "dataset") -> Any:
+    """The dataset of a table's training split (``train.split``): ``dataset`` with its ``split`` replaced.
+
+    ``video_folder``: the split file (UCF101 ``trainlist01.txt``, lines ``<class>/<video> <label>``;
+    the class is the folder) relative to ``root``; the other formats: the subfolder of ``root``.
+
+    Raises
+    ------
+    InputError
+        No ``train.split``; the split does not open (naming ``<key>.train.split``), or its classes
+        differ from the scored split's (a network needs one label set).
+
+    Examples
+    --------
+    >>> len(train_split_dataset(entry, "designs", key="tasks.datasets.recognition"))   # doctest: +SKIP
+    9537
+    """
+    split = (entry.get("train") or {}).get("split")
+    if split is None:
+        raise InputError(f"{key}.train.split is not set; allowed: a split file (video_folder) or a subfolder of root")
+    source = {**entry["dataset"], "split": split}
+    ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"{key}.dataset")
+    try:
+        train = open_dataset(source, base_dir, confine=confine, key=f"{key}.train.split")
+    except InputError as exc:
+        raise InputError(f"{key}.train.split = {split!r}: {exc}") from None
+    if (train.num_classes, tuple(train.class_names)) != (ds.num_classes, tuple(ds.class_names)):
+        raise InputError(f"{key}.train.split = {split!r}: its classes {list(train.class_names)} differ from the "
+                         f"scored split's {list(ds.class_names)}; allowed: splits of one label set")
+    return train
+
+
+def check_disjoint_files(train: Any, train_indices: Any, test: Any, test_indices: Any, *, what: str) -> None:
+    """Refuse training clips that share a video, frame image or mask file with the scored clips.
+
+    Files are compared after resolving links (:meth:`~fsdvs_hw.scenes.datasets.ClipDataset.clip_files`;
+    annotation files such as a COCO JSON are not clip files and are left out).
+
+    Raises
+    ------
+    InputError
+        Naming ``what``, how many files are shared and one of them.
+
+    Examples
+    --------
+    >>> check_disjoint_files(ds, [0, 1], ds, [1], what="train.split")   # doctest: +SKIP
+    Traceback (most recent call last):
+    InputError: train.split: 1 file of the training clips is also in a scored clip, e.g. ...
+    """
+    from ..scenes.datasets import IMAGE_SUFFIXES, VIDEO_SUFFIXES
+
+    def files(ds: Any, indices: Any) -> set[Path]:
+        return {p.resolve() for i in indices for p in ds.clip_files(int(i))
+                if p.suffix.lower() in IMAGE_SUFFIXES + VIDEO_SUFFIXES}
+
+    shared = sorted(files(train, train_indices) & files(test, test_indices))
+    if shared:
+        raise InputError(f"{what}: {len(shared)} file(s) of the training clips also in a scored clip, e.g. "
+                         f"{str(shared[0])!r}; allowed: a training split disjoint from the scored one (UCF101: "
+                         "trainlist0N.txt with testlist0N.txt of the same N)")
+
+
 def _train(task: str, entry: Mapping[str, Any], base: Path, confine: bool, key: str, net: Any,
            verbose: bool, out_stem: Path | None = None) -> Any:
     """Train ``net`` (a copy) on the task's clips not scored (or reuse / resume ``train.out``)."""
@@ -347,16 +441,30 @@ def _train(task: str, entry: Mapping[str, Any], base: Path, confine: bool, key: 
     spec = dict(entry["train"])
     ds = open_dataset(entry["dataset"], base, confine=confine, key=f"{key}.dataset")
     scored = ds.draw(entry["n_clips"], entry["seed"]) if entry["n_clips"] else np.arange(len(ds))
-    if len(scored) >= len(ds):
+    train_ds, train_idx = ds, None
+    if spec.get("split") is not None:
+        train_ds = train_split_dataset(entry, base, confine=confine, key=key)
+        train_idx = (train_ds.draw(spec["n_train"], spec["seed"]) if spec["n_train"]
+                     else np.arange(len(train_ds), dtype=np.int64))
+        if len(train_idx) < 2:
+            raise InputError(f"{key}.train.split = {spec['split']!r}: {len(train_idx)} training clip; allowed: 2 or "
+                             "more (train.n_train = 0: all of the split)")
+        check_disjoint_files(train_ds, train_idx, ds, scored, what=f"{key}.train.split = {spec['split']!r}")
+    elif len(scored) >= len(ds):
         raise InputError(f"{key}.n_clips = {entry['n_clips']}: every one of the {len(ds)} clips is scored, none is "
-                         f"left to train on ({key}.train); allowed: 1 to {len(ds) - 2}")
-    train_idx = disjoint_train_indices(len(ds), scored, spec["n_train"], spec["seed"])
+                         f"left to train on ({key}.train); allowed: 1 to {len(ds) - 2}, or a training split "
+                         f"({key}.train.split)")
+    else:
+        train_idx = disjoint_train_indices(len(ds), scored, spec["n_train"], spec["seed"])
     out = out_stem or _path(base, spec["out"] or f"trained/{task}", what=f"{key}.train.out", confine=confine)
     weights = _path(base, entry["weights"], what=f"{key}.weights", confine=confine) if entry["weights"] else None
-    fingerprint = {"dataset": entry["dataset"], "network": entry["network"], "options": entry["network_options"],
+    source = {k: v for k, v in entry["dataset"].items() if k != "cache"}  # the disk cache changes no clip
+    fingerprint = {"dataset": source, "network": entry["network"], "options": entry["network_options"],
                    "weights_sha256": _file_digest(weights) if weights else None, "scored": [entry["n_clips"],
-                   entry["seed"]], "train": {k: v for k, v in spec.items() if k != "out"}, "sensor": "default"}
-    return train_on_dataset(ds, task, copy.deepcopy(net), train_indices=train_idx, kernel_size=spec["kernel_size"],
+                   entry["seed"]], "sensor": "default",
+                   # train.split only when set: checkpoints trained before the key existed keep their fingerprint
+                   "train": {k: v for k, v in spec.items() if k != "out" and not (k == "split" and v is None)}}
+    return train_on_dataset(train_ds, task, copy.deepcopy(net), train_indices=train_idx, kernel_size=spec["kernel_size"],
                             learn_filter=spec["learn_kernel"], epochs_frozen=spec["epochs_frozen"],
                             epochs_joint=spec["epochs_joint"], lr_network=spec["lr_network"],
                             lr_kernel=spec["lr_kernel"], lr_backbone=spec["lr_backbone"], lr_head=spec["lr_head"],
@@ -487,7 +595,9 @@ def check_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *
     if entry["n_clips"] > len(ds):
         problems.append((f"{key}.n_clips", entry["n_clips"], f"the dataset has {len(ds)} clips; allowed: 0 (all) "
                          f"to {len(ds)}"))
-    if entry.get("train") is not None:
+    if entry.get("train") is not None and entry["train"].get("split") is not None:
+        problems += _train_split_problems(entry, ds, base_dir, confine, key)
+    elif entry.get("train") is not None:
         n_scored = entry["n_clips"] or len(ds)
         n_train = entry["train"]["n_train"]
         if n_scored > len(ds) - 2:
@@ -502,6 +612,26 @@ def check_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *
         where = "weights" if "weights file" in str(exc) or ".weights" in str(exc) else "network"
         problems.append((f"{key}.{where}", entry[where], str(exc)))
     return problems
+
+
+def _train_split_problems(entry: Mapping[str, Any], ds: Any, base_dir: str | Path, confine: bool,
+                          key: str) -> list[tuple[str, Any, str]]:
+    """A ``train.split`` must open, hold ``n_train`` clips and share no file with the scored clips."""
+    split, n_train = entry["train"]["split"], entry["train"]["n_train"]
+    try:
+        train = train_split_dataset(entry, base_dir, confine=confine, key=key)
+        if n_train > len(train):
+            return [(f"{key}.train.n_train", n_train, f"the training split {split!r} has {len(train)} clips; "
+                     f"allowed: 0 (all) to {len(train)}")]
+        if (n_train or len(train)) < 2:
+            return [(f"{key}.train.n_train", n_train, f"1 training clip (the split {split!r} has {len(train)}); "
+                     "allowed: 2 or more")]
+        scored = ds.draw(entry["n_clips"], entry["seed"]) if entry["n_clips"] else range(len(ds))
+        picked = train.draw(n_train, entry["train"]["seed"]) if n_train else range(len(train))
+        check_disjoint_files(train, picked, ds, scored, what=f"{key}.train.split = {split!r}")
+    except InputError as exc:
+        return [(f"{key}.train.split", split, str(exc))]
+    return []
 
 
 #: ``SensorConfig`` fields recorded with a user-data task's scores.

@@ -41,7 +41,7 @@ import collections
 import json
 import re
 from abc import ABC, abstractmethod
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -50,6 +50,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..limits import MAX_CLIPS, check_allocation, check_count
+from .clip_cache import ClipDiskCache
 
 __all__ = [
     "DSEC_DETECTION_CLASSES",
@@ -216,9 +217,10 @@ class ClipDataset(Sequence[Clip], ABC):
     ignore_index: int | None = None
     transfer: str = "sRGB"
 
-    def __init__(self, *, cache_clips: int = 0) -> None:
+    def __init__(self, *, cache_clips: int = 0, disk_cache: ClipDiskCache | None = None) -> None:
         self.cache_clips = check_count("cache_clips", cache_clips, 0, MAX_CLIPS)
         self._cache: collections.OrderedDict[int, Clip] = collections.OrderedDict()
+        self.disk_cache = disk_cache
 
     @abstractmethod
     def __len__(self) -> int:
@@ -227,6 +229,25 @@ class ClipDataset(Sequence[Clip], ABC):
     @abstractmethod
     def _load(self, i: int) -> Clip:
         """Decode clip ``i`` (0 <= i < len)."""
+
+    def clip_files(self, i: int) -> tuple[Path, ...]:
+        """The files clip ``i``'s pixels are decoded from (video, frame images, label mask).
+
+        Used for the disk cache's key and to check that a training split shares no file with the
+        scored one. A reader that cannot name them cannot use a ``disk_cache``.
+        """
+        raise NotImplementedError(f"{type(self).__name__} does not name its clips' files")
+
+    def decode_options(self) -> dict[str, Any]:
+        """Every setting that changes a clip's decoded arrays (part of the disk cache's key)."""
+        return {"reader": type(self).__name__, "n_frames": self.n_frames, "size": self.size,
+                "transfer": self.transfer}
+
+    def _decoded(self, i: int, decode: Callable[[], dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+        """``decode()``'s arrays for clip ``i``, through the disk cache when there is one."""
+        if self.disk_cache is None:
+            return decode()
+        return self.disk_cache.decoded(self.disk_cache.key(self.clip_files(i), self.decode_options()), decode)
 
     def __getitem__(self, i: Any) -> Any:  # Sequence: int → Clip, slice → list of clips
         if isinstance(i, slice):
@@ -315,6 +336,8 @@ class VideoFolderDataset(ClipDataset):
         Transfer function undone (default ``"sRGB"``).
     cache_clips : int
         Decoded clips kept in memory (LRU; 0 = none).
+    disk_cache : ClipDiskCache, optional
+        Decoded clips kept on disk, bounded (:mod:`fsdvs_hw.scenes.clip_cache`).
 
     Raises
     ------
@@ -334,8 +357,9 @@ class VideoFolderDataset(ClipDataset):
 
     def __init__(self, root: str | Path, *, n_frames: int = 9, size: tuple[int, int] | None = None,
                  split_file: str | Path | None = None, fps: float | None = None, stride: int = 1,
-                 start_frame: int = 0, transfer: str = "sRGB", cache_clips: int = 0) -> None:
-        super().__init__(cache_clips=cache_clips)
+                 start_frame: int = 0, transfer: str = "sRGB", cache_clips: int = 0,
+                 disk_cache: ClipDiskCache | None = None) -> None:
+        super().__init__(cache_clips=cache_clips, disk_cache=disk_cache)
         who = "VideoFolderDataset"
         self.root = Path(root)
         self.n_frames = check_count(f"{who}: n_frames", n_frames, 2, 100_000)
@@ -390,12 +414,28 @@ class VideoFolderDataset(ClipDataset):
     def __len__(self) -> int:
         return len(self.items)
 
+    def clip_files(self, i: int) -> tuple[Path, ...]:
+        """The video of clip ``i``."""
+        return (self.items[i][0],)
+
+    def decode_options(self) -> dict[str, Any]:
+        """The base options plus ``fps``, ``stride`` and ``start_frame``."""
+        return {**super().decode_options(), "fps": self.fps, "stride": self.stride, "start_frame": self.start_frame}
+
     def _load(self, i: int) -> Clip:
+        path, lab = self.items[i]
+        arrays = self._decoded(i, lambda: self._decode(i))
+        fps = float(arrays["fps"])
+        wanted = np.arange(self.n_frames, dtype=np.float64) * self.stride
+        return Clip(arrays["frames"], wanted / fps, {"motion": np.int64(lab)}, str(path), i, {"fps": fps})
+
+    def _decode(self, i: int) -> dict[str, np.ndarray]:
+        """Clip ``i``'s frames (linear, at the stated size) and its frame rate, from the video."""
         import imageio
 
         from .video import _ffmpeg_reason
 
-        path, lab = self.items[i]
+        path, _ = self.items[i]
         where = f"VideoFolderDataset: clip {i} ({str(path)!r})"
         try:
             reader = imageio.get_reader(str(path), "ffmpeg")
@@ -423,9 +463,7 @@ class VideoFolderDataset(ClipDataset):
         if len(images) < self.n_frames:
             raise InputError(f"{where}: field 'frames': {len(images)} of the {self.n_frames} frames wanted "
                              f"(start_frame={self.start_frame}, stride={self.stride})")
-        frames = self._frames(images, where)
-        ts = (np.asarray(wanted, dtype=np.float64) - wanted[0]) / fps
-        return Clip(frames, ts, {"motion": np.int64(lab)}, str(path), i, {"fps": fps})
+        return {"frames": self._frames(images, where), "fps": np.asarray(fps, dtype=np.float64)}
 
 
 # --------------------------------------------------------------------------- detection
@@ -453,6 +491,7 @@ class CocoFramesDataset(ClipDataset):
         True (default): every image must have at least one annotation (field ``annotations``).
     transfer : str
     cache_clips : int
+    disk_cache : ClipDiskCache, optional
 
     Raises
     ------
@@ -473,8 +512,9 @@ class CocoFramesDataset(ClipDataset):
 
     def __init__(self, frames_dir: str | Path, annotations: str | Path, *, n_frames: int = 4,
                  clip_stride: int | None = None, size: tuple[int, int] | None = None, fps: float = 30.0,
-                 require_annotations: bool = True, transfer: str = "sRGB", cache_clips: int = 0) -> None:
-        super().__init__(cache_clips=cache_clips)
+                 require_annotations: bool = True, transfer: str = "sRGB", cache_clips: int = 0,
+                 disk_cache: ClipDiskCache | None = None) -> None:
+        super().__init__(cache_clips=cache_clips, disk_cache=disk_cache)
         who = "CocoFramesDataset"
         self.frames_dir, self.json_path = Path(frames_dir), Path(annotations)
         self.n_frames = check_count(f"{who}: n_frames", n_frames, 2, 100_000)
@@ -565,19 +605,13 @@ class CocoFramesDataset(ClipDataset):
     def __len__(self) -> int:
         return len(self.clips)
 
+    def clip_files(self, i: int) -> tuple[Path, ...]:
+        """The frame images of clip ``i`` and the annotations file (its stated image sizes are checked)."""
+        return (*(self.frames_dir / str(self.images[iid]["file_name"]) for iid in self.clips[i]), self.json_path)
+
     def _load(self, i: int) -> Clip:
         ids = self.clips[i]
-        imgs = []
-        for iid in ids:
-            im = self.images[iid]
-            path = self.frames_dir / str(im["file_name"])
-            where = f"CocoFramesDataset: clip {i} ({str(path)!r})"
-            arr = _read_image(path, where)
-            if arr.shape[:2] != (int(im["height"]), int(im["width"])):
-                raise InputError(f"{where}: image is {arr.shape[1]}x{arr.shape[0]} but the annotations file "
-                                 f"{str(self.json_path)!r} states field 'width'x'height' {im['width']}x{im['height']}")
-            imgs.append(arr)
-        frames = self._frames(imgs, f"CocoFramesDataset: clip {i}")
+        frames = self._decoded(i, lambda: {"frames": self._decode(i)})["frames"]
         last = self.images[ids[-1]]
         sy = frames.shape[1] / float(last["height"])
         sx = frames.shape[2] / float(last["width"])
@@ -589,6 +623,20 @@ class CocoFramesDataset(ClipDataset):
         ts = np.arange(len(ids), dtype=np.float64) / self.fps
         return Clip(frames, ts, {"boxes": b, "labels": lab},
                     str(self.frames_dir / str(last["file_name"])), i, {"image_ids": list(ids)})
+
+    def _decode(self, i: int) -> np.ndarray:
+        """Clip ``i``'s frames (linear, at the stated size), each image checked against its stated size."""
+        imgs = []
+        for iid in self.clips[i]:
+            im = self.images[iid]
+            path = self.frames_dir / str(im["file_name"])
+            where = f"CocoFramesDataset: clip {i} ({str(path)!r})"
+            arr = _read_image(path, where)
+            if arr.shape[:2] != (int(im["height"]), int(im["width"])):
+                raise InputError(f"{where}: image is {arr.shape[1]}x{arr.shape[0]} but the annotations file "
+                                 f"{str(self.json_path)!r} states field 'width'x'height' {im['width']}x{im['height']}")
+            imgs.append(arr)
+        return self._frames(imgs, f"CocoFramesDataset: clip {i}")
 
 
 # --------------------------------------------------------------------------- segmentation
@@ -615,6 +663,7 @@ class MaskFramesDataset(ClipDataset):
         Cityscapes: ``"_leftImg8bit"`` and ``"_gtFine_labelTrainIds.png"``.
     transfer : str
     cache_clips : int
+    disk_cache : ClipDiskCache, optional
 
     Raises
     ------
@@ -635,8 +684,9 @@ class MaskFramesDataset(ClipDataset):
     def __init__(self, frames_dir: str | Path, masks_dir: str | Path, *, num_classes: int, n_frames: int = 3,
                  clip_stride: int | None = None, size: tuple[int, int] | None = None, fps: float = 30.0,
                  ignore_index: int | None = 255, frame_suffix: str = "", mask_suffix: str = ".png",
-                 class_names: Sequence[str] | None = None, transfer: str = "sRGB", cache_clips: int = 0) -> None:
-        super().__init__(cache_clips=cache_clips)
+                 class_names: Sequence[str] | None = None, transfer: str = "sRGB", cache_clips: int = 0,
+                 disk_cache: ClipDiskCache | None = None) -> None:
+        super().__init__(cache_clips=cache_clips, disk_cache=disk_cache)
         who = "MaskFramesDataset"
         self.frames_dir, self.masks_dir = Path(frames_dir), Path(masks_dir)
         self.num_classes = check_count(f"{who}: num_classes", num_classes, 2, 65535)
@@ -684,7 +734,24 @@ class MaskFramesDataset(ClipDataset):
     def __len__(self) -> int:
         return len(self.clips)
 
+    def clip_files(self, i: int) -> tuple[Path, ...]:
+        """The frame images of clip ``i`` and its last frame's label mask."""
+        idx = self.clips[i]
+        return (*(self.pairs[k][0] for k in idx), self.pairs[idx[-1]][1])
+
+    def decode_options(self) -> dict[str, Any]:
+        """The base options plus the classes and ignore index the mask is checked against."""
+        return {**super().decode_options(), "num_classes": self.num_classes, "ignore_index": self.ignore_index}
+
     def _load(self, i: int) -> Clip:
+        idx = self.clips[i]
+        arrays = self._decoded(i, lambda: self._decode(i))
+        frames, mask, mpath = arrays["frames"], arrays["mask"], self.pairs[idx[-1]][1]
+        ts = np.arange(len(idx), dtype=np.float64) / self.fps
+        return Clip(frames, ts, {"mask": mask}, str(mpath), i, {"frames": [str(self.pairs[k][0]) for k in idx]})
+
+    def _decode(self, i: int) -> dict[str, np.ndarray]:
+        """Clip ``i``'s frames (linear, at the stated size) and its last frame's checked, resized mask."""
         idx = self.clips[i]
         where = f"MaskFramesDataset: clip {i}"
         frames = self._frames([_read_image(self.pairs[k][0], where) for k in idx], where)
@@ -701,8 +768,7 @@ class MaskFramesDataset(ClipDataset):
                              f"{self.num_classes} classes (ignore_index={self.ignore_index})")
         if self.size is not None:
             mask = _resize(mask, self.size, labels=True)
-        ts = np.arange(len(idx), dtype=np.float64) / self.fps
-        return Clip(frames, ts, {"mask": mask}, str(mpath), i, {"frames": [str(self.pairs[k][0]) for k in idx]})
+        return {"frames": frames, "mask": mask}
 
 
 # --------------------------------------------------------------------------- DSEC-Detection
@@ -736,6 +802,7 @@ class DsecDetectionDataset(ClipDataset):
         Names of the ``class_id`` values (default :data:`DSEC_DETECTION_CLASSES`).
     transfer : str
     cache_clips : int
+    disk_cache : ClipDiskCache, optional
 
     Raises
     ------
@@ -761,8 +828,9 @@ class DsecDetectionDataset(ClipDataset):
 
     def __init__(self, root: str | Path, *, n_frames: int = 4, clip_stride: int = 1,
                  size: tuple[int, int] | None = None, class_names: Sequence[str] = DSEC_DETECTION_CLASSES,
-                 transfer: str = "sRGB", cache_clips: int = 0) -> None:
-        super().__init__(cache_clips=cache_clips)
+                 transfer: str = "sRGB", cache_clips: int = 0,
+                 disk_cache: ClipDiskCache | None = None) -> None:
+        super().__init__(cache_clips=cache_clips, disk_cache=disk_cache)
         who = "DsecDetectionDataset"
         self.root = Path(root)
         self.n_frames = check_count(f"{who}: n_frames", n_frames, 2, 100_000)
@@ -836,11 +904,17 @@ class DsecDetectionDataset(ClipDataset):
     def __len__(self) -> int:
         return len(self.clips)
 
+    def clip_files(self, i: int) -> tuple[Path, ...]:
+        """The rectified left images of clip ``i``."""
+        s, last = self.clips[i]
+        return tuple(self.images[s][k] for k in range(last - self.n_frames + 1, last + 1))
+
     def _load(self, i: int) -> Clip:
         s, last = self.clips[i]
         idx = range(last - self.n_frames + 1, last + 1)
         where = f"DsecDetectionDataset: clip {i}"
-        frames = self._frames([_read_image(self.images[s][k], where) for k in idx], where)
+        frames = self._decoded(i, lambda: {"frames": self._frames([_read_image(p, where) for p in self.clip_files(i)],
+                                                                  where)})["frames"]
         h0, w0 = _image_size(self.images[s][last], where, "image")
         sy, sx = frames.shape[1] / h0, frames.shape[2] / w0
         b = np.full((self.max_objects, 4), -1.0)
