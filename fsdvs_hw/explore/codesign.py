@@ -88,12 +88,6 @@ def _save_atomic(path: Path, record: Mapping[str, Any]) -> None:
     os.replace(tmp, path)
 
 
-def _n_test(design: Design, task: str) -> int | None:
-    n = design.spec.tasks.n_test
-    n = n.get(task, 0) if isinstance(n, Mapping) else n
-    return int(n) or None
-
-
 def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None = True) -> dict[str, Any]:
     """Measure every cell's rows (resuming finished units) and return :func:`summarise_codesign`.
 
@@ -147,7 +141,7 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
     def unit(kind: str, task: str, s: int, real: str | None, mode: str, work: Any) -> dict[str, Any]:
         ck = ckpts[task][s]
         ident = {"target": target.to_dict()["taps"], "pitch_m": target.pitch_m, "task": task, "network": ck.name,
-                 "network_size": ck.stat().st_size, "n_test": _n_test(design, task), "clip_set": s if per_net else 0,
+                 "network_size": ck.stat().st_size, "n_test": design.n_test(task), "clip_set": s if per_net else 0,
                  "seed_offset": s, "mode": mode, "realisation": real, "format": CODESIGN_FORMAT}
         if real is not None:
             ident.update(options=design.realisation_options(real), run_seed=seed)
@@ -165,7 +159,7 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
                 pass  # a torn file: measure again
         t0 = time.perf_counter()
         extra, kernel, net = work(key)
-        ev = clip_evidence(kernel, task, net, n_test=_n_test(design, task), seed_offset=s,
+        ev = clip_evidence(kernel, task, net, n_test=design.n_test(task), seed_offset=s,
                            clip_set=s if per_net else 0)
         rec = {"key": key, "kind": kind, "realisation": real or "learned", "task": task, "seed_index": s,
                "mode": mode, "network": ck.name, "metric_name": ev.metric_name, "metric": ev.value,
@@ -214,7 +208,7 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
     sc = design.spec.scoring
     summary = summarise_codesign(units, n_resamples=sc.n_resamples, confidence=sc.confidence, rng=seed)
     summary["settings"] = {**design.section("codesign"), "test_clips": design.spec.tasks.test_clips,
-                           "n_test": {t: _n_test(design, t) for _, t in cells}}
+                           "n_test": {t: design.n_test(t) for _, t in cells}}
     summary["design"] = design.name
     summary["wall_s"] = time.perf_counter() - t_run  # this call (a resumed run reuses finished units)
     summary["units_wall_s"] = float(sum(u["wall_s"] for u in units))  # when each unit was measured

@@ -406,7 +406,7 @@ class Design:
 
     @property
     def name(self) -> str:
-        return str(self.data["design"]["name"])
+        return str(self.spec.design.name)
 
     @property
     def slug(self) -> str:
@@ -422,17 +422,26 @@ class Design:
 
     @property
     def realisations(self) -> list[str]:
-        return list(self.data["realisations"]["include"])
+        return list(self.spec.realisations.include)
 
     def realisation_options(self, name: str) -> dict[str, Any]:
-        """Keyword options for one hardware realisation's fit function."""
-        return copy.deepcopy(self.data["realisations"].get(name, {}))
+        """Keyword options for one hardware realisation's fit function: the options the design sets
+        (the fit function's defaults apply to the others); ``{}`` for a reference realisation."""
+        options = getattr(self.spec.realisations, name, None)
+        return {} if options is None else options.model_dump(exclude_unset=True)
 
     def checkpoints(self) -> dict[str, list[Path]]:
         """Task name → absolute checkpoint paths (one per training seed, in the design's order)."""
         return {t: [_resolve(self.base_dir, p, what=f"tasks.checkpoints.{t}", confine=self.confine_paths)
                     for p in _as_list(v)]
-                for t, v in self.data["tasks"]["checkpoints"].items()}
+                for t, v in self.spec.tasks.checkpoints.items()}
+
+    def n_test(self, task: str) -> int | None:
+        """Test clips per network of ``task`` (``[tasks] n_test``, one number or a table task → clips);
+        ``None`` where it is 0 (the checkpoint's own test-set size)."""
+        n = self.spec.tasks.n_test
+        n = n.get(task, 0) if isinstance(n, Mapping) else n
+        return int(n or 0) or None
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> Design:
         """A new, re-validated design with dotted keys replaced (``{"asic.bits": 4}``)."""
@@ -1050,5 +1059,5 @@ def _load_target(chk: _Problems, data: dict[str, Any], base: Path, confine: bool
 
 def axis_values(design: Design) -> dict[str, list[Any]]:
     """The sweep axes of a design as canonical dotted keys → values."""
-    return {_canonical_key(k): list(v) for k, v in design.data["sweep"]["axes"].items()}
+    return {_canonical_key(k): list(v) for k, v in design.spec.sweep.axes.items()}
 
