@@ -376,6 +376,35 @@ def _as_kernel(kernel: Any, *, source: str = "kernel") -> Kernel:
 
 
 # --------------------------------------------------------------------------- public API
+def _check_learn_arguments(settings: TrainingSettings | None, size: Any, n_train: Any, n_test: Any,
+                           seed: Any) -> TrainingSettings:
+    """:func:`learn_kernel`'s settings (default ``TrainingSettings()``) once size, clip counts and seed are valid."""
+    settings = settings or TrainingSettings()
+    if not isinstance(settings, TrainingSettings):
+        raise InputError(f"learn_kernel: settings must be a TrainingSettings, got {type(settings).__name__}")
+    if isinstance(size, bool) or not isinstance(size, int) or size < 1 or size % 2 == 0 or size > 15:
+        raise InputError(f"learn_kernel: size must be an odd integer in [1, 15], got {size!r}")
+    for nm, v in (("n_train", n_train), ("n_test", n_test)):
+        if isinstance(v, bool) or not isinstance(v, int) or not 2 <= v <= 100_000:
+            raise InputError(f"learn_kernel: {nm} must be an integer in [2, 100000], got {v!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise InputError(f"learn_kernel: seed must be a non-negative integer, got {seed!r}")
+    return settings
+
+
+def _realisation_kernel(realisation: str, init_kernel: Any, learn_filter: bool) -> tuple[Any, dict[str, Any]]:
+    """Co-design's kernel: ``realisation`` fitted to ``init_kernel``, as a module of its parameters, and
+    the record of the starting design."""
+    from ..realise.registry import fit_realisation, get_realisation
+
+    if init_kernel is None or not learn_filter:
+        raise InputError("learn_kernel: realisation=... needs init_kernel (the kernel the realisation is first "
+                         "fitted to) and learn_filter=True")
+    spec = get_realisation(realisation)
+    record = fit_realisation(realisation, _as_kernel(init_kernel, source="init_kernel"))
+    return spec.differentiable_kernel(record), {"realisation": realisation, "realisation_initial": record.to_dict()}
+
+
 def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048, n_test: int = 2048,
                  settings: TrainingSettings | None = None, scene: Any = None, sensor: Any = None,
                  learn_filter: bool = True, init_kernel: Any = None, out: str | Path | None = None,
@@ -456,16 +485,7 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
     from .evaluators import get_evaluator
 
     evaluator = get_evaluator(task)
-    settings = settings or TrainingSettings()
-    if not isinstance(settings, TrainingSettings):
-        raise InputError(f"learn_kernel: settings must be a TrainingSettings, got {type(settings).__name__}")
-    if isinstance(size, bool) or not isinstance(size, int) or size < 1 or size % 2 == 0 or size > 15:
-        raise InputError(f"learn_kernel: size must be an odd integer in [1, 15], got {size!r}")
-    for nm, v in (("n_train", n_train), ("n_test", n_test)):
-        if isinstance(v, bool) or not isinstance(v, int) or not 2 <= v <= 100_000:
-            raise InputError(f"learn_kernel: {nm} must be an integer in [2, 100000], got {v!r}")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise InputError(f"learn_kernel: seed must be a non-negative integer, got {seed!r}")
+    settings = _check_learn_arguments(settings, size, n_train, n_test, seed)
     _check_common(scene=scene, sensor=sensor, who="learn_kernel")
     learn_filter = check_bool("learn_filter", learn_filter)
     verbose = check_bool("verbose", verbose)
@@ -494,15 +514,7 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
     kernel_param: Any = torch.nn.Parameter(taps0.clone(), requires_grad=learn_filter)
     realised: dict[str, Any] = {}
     if realisation is not None:  # co-design: the kernel is the realisation's, a function of its parameters
-        from ..realise.registry import fit_realisation, get_realisation
-
-        if init_kernel is None or not learn_filter:
-            raise InputError("learn_kernel: realisation=... needs init_kernel (the kernel the realisation is first "
-                             "fitted to) and learn_filter=True")
-        spec = get_realisation(realisation)
-        record = fit_realisation(realisation, _as_kernel(init_kernel, source="init_kernel"))
-        kernel_param = spec.differentiable_kernel(record)
-        realised = {"realisation": realisation, "realisation_initial": record.to_dict()}
+        kernel_param, realised = _realisation_kernel(realisation, init_kernel, learn_filter)
 
     def kernel_now() -> Any:
         return kernel_param() if callable(kernel_param) else kernel_param
