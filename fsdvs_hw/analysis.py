@@ -80,6 +80,16 @@ def analyse_kernel(
     Returns
     -------
     KernelAnalysis
+
+    Examples
+    --------
+    >>> from fsdvs_hw import analyse_kernel, reference_kernel
+    >>> a = analyse_kernel(reference_kernel("dog", 7), methods=("mannos_sakrison_1974",))
+    >>> a.summary.kind, round(a.summary.peak_frequency_cpp, 2), round(a.summary.dc_gain, 3)
+    ('band-pass', 0.19, 0.2)
+    >>> r = a.agreements["mannos_sakrison_1974"]
+    >>> r.scale_fitted, r.correlation > 0.9
+    (True, True)
     """
     kernel = as_kernel(kernel, pitch_m=pitch_m)
     agreements = {}

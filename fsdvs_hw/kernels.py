@@ -417,6 +417,24 @@ def as_kernel(kernel: Any, *, name: str = "kernel", pitch_m: float | None = None
     return Kernel(taps, name=name, **kw)
 
 
+def _kernel_file_suffix(path: Path) -> str:
+    """The kernel file's extension (lower case), once the file is found, of a known format and small enough."""
+    src = str(path)
+    if not path.is_file():
+        raise KernelError(f"{src}: kernel file not found")
+    suffix = path.suffix.lower()
+    if suffix not in _SUFFIXES:
+        raise KernelError(f"{src}: unknown kernel file extension {suffix!r}; allowed {', '.join(_SUFFIXES)}")
+    try:
+        n_bytes = path.stat().st_size
+    except OSError as exc:
+        raise KernelError(f"{src}: cannot read ({exc.strerror})") from None
+    if n_bytes > MAX_KERNEL_FILE_BYTES:
+        raise KernelError(f"{src}: {n_bytes} bytes is too large for a kernel file "
+                          f"(limit {MAX_KERNEL_FILE_BYTES} bytes)")
+    return suffix
+
+
 def load_kernel(path: str | Path, *, pitch_m: float | None = None) -> Kernel:
     """Load a kernel from a .npy, .csv, .json or .pt file.
 
@@ -443,18 +461,7 @@ def load_kernel(path: str | Path, *, pitch_m: float | None = None) -> Kernel:
     """
     path = Path(path)
     src = str(path)
-    if not path.is_file():
-        raise KernelError(f"{src}: kernel file not found")
-    suffix = path.suffix.lower()
-    if suffix not in _SUFFIXES:
-        raise KernelError(f"{src}: unknown kernel file extension {suffix!r}; allowed {', '.join(_SUFFIXES)}")
-    try:
-        n_bytes = path.stat().st_size
-    except OSError as exc:
-        raise KernelError(f"{src}: cannot read ({exc.strerror})") from None
-    if n_bytes > MAX_KERNEL_FILE_BYTES:
-        raise KernelError(f"{src}: {n_bytes} bytes is too large for a kernel file "
-                          f"(limit {MAX_KERNEL_FILE_BYTES} bytes)")
+    suffix = _kernel_file_suffix(path)
     meta: dict[str, Any] = {}
     if suffix == ".npy":
         try:

@@ -230,3 +230,31 @@ def test_report_verb_errors_are_one_line(args, tmp_path, capsys):
     assert main(["report", str(design)] + [a.format(f=f, d=d) for a in args]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "Traceback" not in err and ("a_file" in err or "no scores.json" in err)
+
+
+HOSTILE = "<script>alert('x')</script> & co"
+
+
+def test_labels_with_markup_are_escaped_in_the_html():
+    """The templates autoescape: a design name, a realisation, a failure reason, artifact names and
+    co-design labels holding ``<script>`` and ``&`` appear as text, never as markup."""
+    from fsdvs_hw.explore.design import parse_design
+    from fsdvs_hw.report.artifacts import artifacts_html
+    from fsdvs_hw.report.codesign import codesign_section
+    from fsdvs_hw.report.html import render_html
+
+    design = parse_design({"design": {"name": HOSTILE}})
+    failed = {"key": "k", "realisation": HOSTILE, "params": {}, "status": "error",
+              "result": {"reason": f"RuntimeError: {HOSTILE}"},
+              "artifacts": [{"point": HOSTILE, "error": HOSTILE}]}
+    page = render_html([failed], design, stamp="now", sections=["<h2>given as HTML</h2>"])
+    escaped = "&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt; &amp; co"
+    assert "<script" not in page and HOSTILE not in page
+    assert page.count(escaped) >= 5  # title, heading, not-scored row (name and reason), artifacts, design JSON
+    assert "<h2>given as HTML</h2>" in page  # a section is a fragment of HTML, kept as given
+    frag = artifacts_html([{"realisation": "asic", "artifacts": [{"point": "asic", "name": "v", "file": "a&b <c>.v",
+                                                                   "what": HOSTILE, "checked_by": HOSTILE}]}])
+    assert '<a href="a%26b%20%3Cc%3E.v">a&amp;b &lt;c&gt;.v</a>' in frag and "<script" not in frag
+    assert f"<code>{escaped}</code>" in frag
+    table = codesign_section({"settings": {"epochs": HOSTILE}, "cells": []})
+    assert f"{escaped} epochs" in table and "<script" not in table

@@ -78,11 +78,11 @@ def with_device(design: Any, device: str) -> Any:
         The design scores no task on user data (trained checkpoints run on the CPU), or the
         device is not available (naming the key).
     """
-    user = design.data["tasks"]["datasets"]
+    user = design.spec.tasks.datasets
     if not user:
         raise InputError(f"--device {device}: {design.source} has no [tasks.datasets.<task>] table; allowed: "
                          "--device with user-data tasks (tasks from tasks.checkpoints are scored on the CPU)")
-    return design.with_overrides({f"tasks.datasets.{t}": {**e, "device": device} for t, e in user.items()})
+    return design.with_overrides({f"tasks.datasets.{t}": {**e.model_dump(), "device": device} for t, e in user.items()})
 
 
 def run(args: argparse.Namespace) -> int:

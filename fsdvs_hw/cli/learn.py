@@ -68,10 +68,11 @@ def _run_on_design(args: argparse.Namespace) -> int:
         raise InputError(f"{' '.join(given)} with --design: the design's [tasks.datasets.{args.task}] train table "
                          "sets the protocol and train.out the files; allowed: no other option with --design")
     design = load_design(args.design)
-    entry = design.data["tasks"]["datasets"].get(args.task)
-    if entry is None:
+    user = design.spec.tasks.datasets
+    if args.task not in user:
         raise InputError(f"--design {args.design}: no [tasks.datasets.{args.task}] table; allowed tasks: "
-                         f"{', '.join(design.data['tasks']['datasets']) or 'none'}")
+                         f"{', '.join(user) or 'none'}")
+    entry = user[args.task].model_dump()
     res = train_user_task(args.task, entry, design.base_dir, confine=design.confine_paths, verbose=True)
     ds = open_dataset(entry["dataset"], design.base_dir, confine=design.confine_paths,
                       key=f"tasks.datasets.{args.task}.dataset")

@@ -42,7 +42,7 @@ import json
 import os
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -88,10 +88,50 @@ def _save_atomic(path: Path, record: Mapping[str, Any]) -> None:
     os.replace(tmp, path)
 
 
-def _n_test(design: Design, task: str) -> int | None:
-    n = design.spec.tasks.n_test
-    n = n.get(task, 0) if isinstance(n, Mapping) else n
-    return int(n) or None
+def _runnable_cells(design: Design) -> list[tuple[str, str]]:
+    """The design's (realisation, task) cells, once ``[codesign]`` is enabled and each realisation differentiable."""
+    from ..realise.registry import get_realisation
+
+    if not design.spec.codesign.enabled:
+        raise InputError(f"{design.source}: [codesign] enabled = false; nothing to run")
+    cells = codesign_cells(design)
+    for real, _ in cells:
+        if not get_realisation(real).differentiable:  # the schema allows only these; a plug-in may not
+            raise InputError(f"{design.source}: codesign realisation {real!r} has no differentiable form")
+    return cells
+
+
+def _progress_log(progress: bool | None) -> Callable[[str], None]:
+    """A function printing one ``[codesign]`` line on stderr, or doing nothing without progress."""
+
+    def log(msg: str) -> None:
+        if progress:
+            print(f"[codesign] {msg}", file=sys.stderr, flush=True)
+
+    return log
+
+
+def _stored_unit(path: Path, key: str) -> dict[str, Any] | None:
+    """A unit measured before under the same key (``None``: absent, torn or of another key: measure again)."""
+    if not path.is_file():
+        return None
+    try:
+        rec = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None  # a torn file: measure again
+    return rec if isinstance(rec, dict) and rec.get("key") == key else None
+
+
+def _codesign_outcome(provenance: Mapping[str, Any], target: Any) -> dict[str, Any]:
+    """A co-designed row's realisation after training: its kernel errors, CSF drift and design."""
+    from ..realise.base import realised_kernel_error
+    from ..realise.registry import realisation_from_dict
+    from .codesign_pilot import csf_drift
+
+    final = realisation_from_dict(provenance["realisation_design"])
+    return {**csf_drift(provenance), "kernel_error_codesign": realised_kernel_error(final, target),
+            "kernel_error_codesign_gain_free": realised_kernel_error(final, target, fit_scale=True),
+            "realisation_design": provenance["realisation_design"]}
 
 
 def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None = True) -> dict[str, Any]:
@@ -114,18 +154,12 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
     import torch
 
     from ..realise.base import realised_kernel_error
-    from ..realise.registry import fit_realisation, get_realisation
+    from ..realise.registry import fit_realisation
     from ..tasks.learn import finetune_network
-    from .codesign_pilot import csf_drift
     from .paired import clip_evidence, encode_evidence
 
     cd = design.spec.codesign
-    if not cd.enabled:
-        raise InputError(f"{design.source}: [codesign] enabled = false; nothing to run")
-    cells = codesign_cells(design)
-    for real, _ in cells:
-        if not get_realisation(real).differentiable:  # the schema allows only these; a plug-in may not
-            raise InputError(f"{design.source}: codesign realisation {real!r} has no differentiable form")
+    cells = _runnable_cells(design)
     root = Path(out_dir) / "codesign"
     (root / "units").mkdir(parents=True, exist_ok=True)
     (root / "networks").mkdir(parents=True, exist_ok=True)
@@ -140,14 +174,12 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
     units: list[dict[str, Any]] = []
     t_run = time.perf_counter()
 
-    def log(msg: str) -> None:
-        if progress:
-            print(f"[codesign] {msg}", file=sys.stderr, flush=True)
+    log = _progress_log(progress)
 
     def unit(kind: str, task: str, s: int, real: str | None, mode: str, work: Any) -> dict[str, Any]:
         ck = ckpts[task][s]
         ident = {"target": target.to_dict()["taps"], "pitch_m": target.pitch_m, "task": task, "network": ck.name,
-                 "network_size": ck.stat().st_size, "n_test": _n_test(design, task), "clip_set": s if per_net else 0,
+                 "network_size": ck.stat().st_size, "n_test": design.n_test(task), "clip_set": s if per_net else 0,
                  "seed_offset": s, "mode": mode, "realisation": real, "format": CODESIGN_FORMAT}
         if real is not None:
             ident.update(options=design.realisation_options(real), run_seed=seed)
@@ -155,17 +187,13 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
             ident.update(train)
         key = _key(ident)
         path = root / "units" / f"{real or 'learned'}_{task}_s{s}_{mode}_{key}.json"
-        if path.is_file():
-            try:
-                rec = json.loads(path.read_text())
-                if rec.get("key") == key:
-                    units.append(rec)
-                    return rec
-            except (OSError, ValueError):
-                pass  # a torn file: measure again
+        stored = _stored_unit(path, key)
+        if stored is not None:
+            units.append(stored)
+            return stored
         t0 = time.perf_counter()
         extra, kernel, net = work(key)
-        ev = clip_evidence(kernel, task, net, n_test=_n_test(design, task), seed_offset=s,
+        ev = clip_evidence(kernel, task, net, n_test=design.n_test(task), seed_offset=s,
                            clip_set=s if per_net else 0)
         rec = {"key": key, "kind": kind, "realisation": real or "learned", "task": task, "seed_index": s,
                "mode": mode, "network": ck.name, "metric_name": ev.metric_name, "metric": ev.value,
@@ -201,20 +229,14 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
                     info["train_s"] = res.provenance["finetune"]["seconds"]
                     info["train_loss_last"] = res.history[-1]["loss"] if res.history else None
                     if mode == "codesign":
-                        from ..realise.registry import realisation_from_dict
-
-                        final = realisation_from_dict(res.provenance["realisation_design"])
-                        info.update(csf_drift(res.provenance))
-                        info["kernel_error_codesign"] = realised_kernel_error(final, target)
-                        info["kernel_error_codesign_gain_free"] = realised_kernel_error(final, target, fit_scale=True)
-                        info["realisation_design"] = res.provenance["realisation_design"]
+                        info.update(_codesign_outcome(res.provenance, target))
                     return info, res.kernel, res.paths["checkpoint"]
 
                 unit("row", task, s, real, mode, work)
     sc = design.spec.scoring
     summary = summarise_codesign(units, n_resamples=sc.n_resamples, confidence=sc.confidence, rng=seed)
     summary["settings"] = {**design.section("codesign"), "test_clips": design.spec.tasks.test_clips,
-                           "n_test": {t: _n_test(design, t) for _, t in cells}}
+                           "n_test": {t: design.n_test(t) for _, t in cells}}
     summary["design"] = design.name
     summary["wall_s"] = time.perf_counter() - t_run  # this call (a resumed run reuses finished units)
     summary["units_wall_s"] = float(sum(u["wall_s"] for u in units))  # when each unit was measured

@@ -406,7 +406,7 @@ class Design:
 
     @property
     def name(self) -> str:
-        return str(self.data["design"]["name"])
+        return str(self.spec.design.name)
 
     @property
     def slug(self) -> str:
@@ -422,17 +422,26 @@ class Design:
 
     @property
     def realisations(self) -> list[str]:
-        return list(self.data["realisations"]["include"])
+        return list(self.spec.realisations.include)
 
     def realisation_options(self, name: str) -> dict[str, Any]:
-        """Keyword options for one hardware realisation's fit function."""
-        return copy.deepcopy(self.data["realisations"].get(name, {}))
+        """Keyword options for one hardware realisation's fit function: the options the design sets
+        (the fit function's defaults apply to the others); ``{}`` for a reference realisation."""
+        options = getattr(self.spec.realisations, name, None)
+        return {} if options is None else options.model_dump(exclude_unset=True)
 
     def checkpoints(self) -> dict[str, list[Path]]:
         """Task name → absolute checkpoint paths (one per training seed, in the design's order)."""
         return {t: [_resolve(self.base_dir, p, what=f"tasks.checkpoints.{t}", confine=self.confine_paths)
                     for p in _as_list(v)]
-                for t, v in self.data["tasks"]["checkpoints"].items()}
+                for t, v in self.spec.tasks.checkpoints.items()}
+
+    def n_test(self, task: str) -> int | None:
+        """Test clips per network of ``task`` (``[tasks] n_test``, one number or a table task → clips);
+        ``None`` where it is 0 (the checkpoint's own test-set size)."""
+        n = self.spec.tasks.n_test
+        n = n.get(task, 0) if isinstance(n, Mapping) else n
+        return int(n or 0) or None
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> Design:
         """A new, re-validated design with dotted keys replaced (``{"asic.bits": 4}``)."""
@@ -875,23 +884,34 @@ def _check_tasks(chk: _Problems, data: dict[str, Any], base: Path, confine: bool
         if len({str(p) for p in paths}) != len(paths):
             chk.add(key, entry, "lists a checkpoint twice (each entry must be a different training seed)")
         for i, path in enumerate(paths):
-            ikey = key if not isinstance(entry, list) else f"{key}[{i}]"
-            if not isinstance(path, str):
-                chk.add(ikey, path, "must be a path string to a .safetensors checkpoint")
-                continue
-            try:
-                p = _resolve(base, path, what=ikey, confine=confine)
-            except InputError as exc:
-                chk.add(ikey, path, str(exc).split(": ", 1)[-1])
-                continue
-            if p.suffix != ".safetensors":
-                p = p.with_suffix(".safetensors") if p.suffix == ".json" else Path(str(p) + ".safetensors")
-            if not p.is_file():
-                chk.add(ikey, path, f"checkpoint file not found (looked for {p})")
-            else:
-                why = _safetensors_problem(p)
-                if why is not None:
-                    chk.add(ikey, path, f"not a usable checkpoint ({why})")
+            _check_checkpoint(chk, key if not isinstance(entry, list) else f"{key}[{i}]", path, base, confine)
+    _check_task_clips(chk, data)
+    _check_task_weights(chk, data, known)
+
+
+def _check_checkpoint(chk: _Problems, key: str, path: Any, base: Path, confine: bool) -> None:
+    """One checkpoint entry: a path string to a readable ``.safetensors`` file (``.json`` or no suffix: its pair)."""
+    if not isinstance(path, str):
+        chk.add(key, path, "must be a path string to a .safetensors checkpoint")
+        return
+    try:
+        p = _resolve(base, path, what=key, confine=confine)
+    except InputError as exc:
+        chk.add(key, path, str(exc).split(": ", 1)[-1])
+        return
+    if p.suffix != ".safetensors":
+        p = p.with_suffix(".safetensors") if p.suffix == ".json" else Path(str(p) + ".safetensors")
+    if not p.is_file():
+        chk.add(key, path, f"checkpoint file not found (looked for {p})")
+    else:
+        why = _safetensors_problem(p)
+        if why is not None:
+            chk.add(key, path, f"not a usable checkpoint ({why})")
+
+
+def _check_task_clips(chk: _Problems, data: dict[str, Any]) -> None:
+    """``tasks.n_test`` / ``tasks.n_test_emulation`` given as tables: each key a checkpoint task, each value a count."""
+    ckpts = data["tasks"]["checkpoints"]
     for field_name in ("n_test", "n_test_emulation"):
         n_test = data["tasks"][field_name]
         if not isinstance(n_test, dict):
@@ -904,6 +924,10 @@ def _check_tasks(chk: _Problems, data: dict[str, Any], base: Path, confine: bool
                 chk.add(key, n, f"not a task in tasks.checkpoints; allowed: {', '.join(ckpts)}")
             elif isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= 100_000:
                 chk.add(key, n, "allowed: an integer in [0, 100000] (0 = the default)")
+
+
+def _check_task_weights(chk: _Problems, data: dict[str, Any], known: Mapping[str, Any]) -> None:
+    """``scoring.task_weights``: each a scored task's finite weight >= 0, at least one positive."""
     for task, w in data["scoring"]["task_weights"].items():
         if task not in known:
             chk.add(f"scoring.task_weights.{task}", w, f"not a task in tasks.checkpoints or tasks.datasets; "
@@ -1050,5 +1074,5 @@ def _load_target(chk: _Problems, data: dict[str, Any], base: Path, confine: bool
 
 def axis_values(design: Design) -> dict[str, list[Any]]:
     """The sweep axes of a design as canonical dotted keys → values."""
-    return {_canonical_key(k): list(v) for k, v in design.data["sweep"]["axes"].items()}
+    return {_canonical_key(k): list(v) for k, v in design.spec.sweep.axes.items()}
 

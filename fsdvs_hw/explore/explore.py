@@ -72,6 +72,26 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
         Refuse designs of more points (default: the design's ``[run] max_points``).
     security : distributed.Security, optional
         TLS for a ``tls://`` scheduler (:func:`fsdvs_hw.explore.sweep.dask_security`).
+
+    Examples
+    --------
+    A small design (the two references and 8-bit ASIC taps; no emulation track, no task networks):
+
+    >>> import tempfile
+    >>> from fsdvs_hw import run_exploration
+    >>> from fsdvs_hw.explore.design import parse_design
+    >>> design = parse_design({"realisations": {"include": ["learned", "delta", "asic"]},
+    ...                        "emulation": {"enabled": False}, "run": {"workers": 1},
+    ...                        "analysis": {"csf_methods": ["mannos_sakrison_1974"]}})
+    >>> with tempfile.TemporaryDirectory() as out:
+    ...     ex = run_exploration(design, out, progress=False)
+    ...     written = sorted(p.name for p in (ex.report, ex.scores_csv, ex.scores_json) if p.is_file())
+    >>> written
+    ['report.html', 'scores.csv', 'scores.json']
+    >>> [(p["realisation"], p["status"]) for p in ex.points]
+    [('learned', 'ok'), ('delta', 'ok'), ('asic', 'ok')]
+    >>> ex.points[0]["result"]["kernel_error"]  # the learned kernel is the target itself
+    0.0
     """
     from ..report import write_report
 
@@ -109,8 +129,8 @@ def _train_user_networks(design: Any) -> None:
     train_user_task`)."""
     from .user_data import train_user_task
 
-    for task, entry in design.data["tasks"]["datasets"].items():
-        if entry.get("train") is not None:
-            res = train_user_task(task, entry, design.base_dir, confine=design.confine_paths, verbose=True)
+    for task, table in design.spec.tasks.datasets.items():
+        if table.train is not None:
+            res = train_user_task(task, table.model_dump(), design.base_dir, confine=design.confine_paths, verbose=True)
             print(f"[explore] {task}: network trained on {len(res.train_indices)} clips not scored "
                   f"({res.epochs_trained} epochs now; {res.paths.get('checkpoint')})", file=sys.stderr, flush=True)

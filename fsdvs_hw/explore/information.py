@@ -525,7 +525,7 @@ def _realisation_kernel(name: str, design: Any, folder: Path) -> Kernel:
         stored = json.loads(file.read_text())
         if stored.get("fingerprint") == fp:
             return Kernel(np.asarray(stored["taps"]), name=stored["name"])
-    real, _ = fit_realisation(name, design.target, design.realisation_options(name), seed=int(design.data["run"]["seed"]))
+    real, _ = fit_realisation(name, design.target, design.realisation_options(name), seed=design.spec.run.seed)
     k = real.kernel()
     write_output(file, json.dumps({"fingerprint": fp, "name": k.name, "taps": np.asarray(k.taps).tolist()}))
     return k

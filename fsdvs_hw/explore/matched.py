@@ -128,7 +128,7 @@ def _reference_kernel(dpoint: Any) -> Any:
     from .scoring import fit_realisation
 
     target = Kernel.from_dict(dpoint.target, source="design point target")
-    real, _ = fit_realisation(dpoint.realisation, target, {}, seed=dpoint.data["run"]["seed"])
+    real, _ = fit_realisation(dpoint.realisation, target, {}, seed=dpoint.spec.run.seed)
     return real.kernel()
 
 
@@ -187,26 +187,25 @@ def _one_curve(design: Any, dpoint: Any, row: Mapping[str, Any], task: str, thre
     if not extra:
         return f"[rate] thresholds add nothing to the operating threshold {t0:g}"
     run = extra if (len(extra) >= 2 and not isinstance(own, str)) else [*extra, t0]
-    tasks = dpoint.data["tasks"]
+    tasks = dpoint.spec.tasks
     base = Path(dpoint.base_dir)
-    user = (tasks.get("datasets") or {}).get(task)
+    user = tasks.datasets.get(task)
     if user is not None:  # a user-data task: the user's network and clips, as the point was scored
-        fields = None
-        if tasks["sensor"] == "design":
-            fields = {k: dpoint.data["sensor"][k] for k in _DESIGN_SENSOR_FIELDS}
+        sensor = dpoint.spec.sensor.model_dump()
+        fields = {k: sensor[k] for k in _DESIGN_SENSOR_FIELDS} if tasks.sensor == "design" else None
         try:
-            curve = dataset_rate_curve(_reference_kernel(dpoint), task, user, base, run, design_sensor=fields,
+            curve = dataset_rate_curve(_reference_kernel(dpoint), task, user.model_dump(), base, run, design_sensor=fields,
                                        test_clips=str(rec.get("test_clips", "per_network")), label=dpoint.realisation,
                                        cache_dir=cache, progress=progress, confine=False)
         except (InputError, FileNotFoundError) as exc:
             return f"unavailable: {exc}"
         return _with_own_point(curve, own, t0)
-    entry = tasks["checkpoints"].get(task, [])  # resolved as the point was (sweep._fit_and_score)
+    entry = tasks.checkpoints.get(task, [])  # resolved as the point was (sweep._fit_and_score)
     ckpts = [Path(c) if Path(c).is_absolute() else base / c for c in (entry if isinstance(entry, list) else [entry])]
     n_test = int(rec.get("n_clips_per_network", 0)) or None
     try:
         curve = rate_curve(_reference_kernel(dpoint), task, ckpts, run, n_test=n_test,
-                           design_sensor=dpoint.data["sensor"] if tasks["sensor"] == "design" else None,
+                           design_sensor=dpoint.spec.sensor.model_dump() if tasks.sensor == "design" else None,
                            test_clips=str(rec.get("test_clips", "per_network")), label=dpoint.realisation,
                            cache_dir=cache, progress=progress)
     except (InputError, FileNotFoundError) as exc:

@@ -170,10 +170,10 @@ def run_rate_study(options: RateOptions) -> RateStudy:
     t_ref, thresholds = _thresholds(design, options)
     n_test = options.n_test
     if n_test is None:
-        n_test = int(design.data["tasks"]["n_test"].get(options.task, 0) or 0) or None
-    tasks = design.data["tasks"]
-    design_sensor = design.section("sensor") if tasks["sensor"] == "design" else None
-    test_clips = str(tasks.get("test_clips", "per_network"))
+        n_test = design.n_test(options.task)
+    tasks = design.spec.tasks
+    design_sensor = design.section("sensor") if tasks.sensor == "design" else None
+    test_clips = tasks.test_clips
     out = output_dir(options.out, flag="--out")
     photon = _photon_noise(options, design, paths[0])
     common: dict[str, Any] = dict(n_test=n_test, design_sensor=design_sensor, test_clips=test_clips, cache_dir=out / "points",
@@ -181,7 +181,7 @@ def run_rate_study(options: RateOptions) -> RateStudy:
     kernels: dict[str, Any] = {"w/o": None, "learned": design.target}
     for name in options.realisations:
         real, _ = fit_realisation(name, design.target, design.realisation_options(name),
-                                  seed=int(design.data["run"]["seed"]))
+                                  seed=design.spec.run.seed)
         kernels[name] = real.kernel()
     curves = {name: rate_curve(k, options.task, paths, thresholds, label=name, **common) for name, k in kernels.items()}
     kw: dict[str, Any] = dict(confidence=options.confidence, n_resamples=options.n_resamples, rng=0)

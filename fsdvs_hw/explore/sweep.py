@@ -39,7 +39,8 @@ from ..errors import InputError
 from ..limits import MAX_WORKERS, check_count
 from ..provenance import library_versions
 from ..records import Score
-from .design import Design, axis_values
+from ..schema import DESIGN_CONTEXT
+from .design import Design, axis_values, design_model
 from .store import ResultsStore
 
 __all__ = [
@@ -92,6 +93,12 @@ class DesignPoint:
     data: dict[str, Any] = field(repr=False)
     target: dict[str, Any] = field(repr=False)
     base_dir: str = "."
+
+    @property
+    def spec(self) -> Any:
+        """The point's design, typed (the model of :func:`~fsdvs_hw.explore.design.design_model`):
+        ``point.spec.run.seed``, ``point.spec.tasks.checkpoints``; :attr:`data` is its JSON form."""
+        return design_model().model_validate(self.data, context=DESIGN_CONTEXT)
 
     @property
     def label(self) -> str:

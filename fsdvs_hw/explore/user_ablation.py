@@ -86,11 +86,12 @@ def run_user_ablation(design: Any, task: str, out: str | Path, *, sizes: Sequenc
     from ..tasks.dataset_eval import evaluator_for_dataset
     from .user_data import open_dataset
 
-    entry = design.data["tasks"]["datasets"].get(task)
-    if entry is None or entry.get("train") is None:
+    user = design.spec.tasks.datasets
+    if task not in user or user[task].train is None:
         raise InputError(f"ablation --design {design.source}: [tasks.datasets.{task}] with a train table is needed "
                          f"(the ablation trains one network per size and seed); allowed tasks: "
-                         f"{', '.join(t for t, e in design.data['tasks']['datasets'].items() if e.get('train')) or 'none'}")
+                         f"{', '.join(t for t, e in user.items() if e.train is not None) or 'none'}")
+    entry = user[task].model_dump()
     sizes = sorted({int(k) for k in sizes})
     if 1 not in sizes or any(k % 2 == 0 or not 1 <= k <= 15 for k in sizes):
         raise InputError(f"ablation --sizes {sizes}: allowed: odd sides in [1, 15] including 1 (the w/o reference)")

@@ -510,7 +510,7 @@ def train_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *
 
     Examples
     --------
-    >>> res = train_user_task("recognition", design.data["tasks"]["datasets"]["recognition"], "designs")  # doctest: +SKIP
+    >>> res = train_user_task("recognition", design.spec.tasks.datasets["recognition"].model_dump(), "designs")  # doctest: +SKIP
     >>> res.paths["kernel"].name                                                                         # doctest: +SKIP
     'recognition.json'
     """

@@ -207,6 +207,14 @@ class RealisationSpec:
         ``"module:Class"`` of a torch module that wraps a fitted record as a differentiable kernel
         of its physical parameters (``Class(record)()`` → the applied kernel, ``.to_design()`` →
         a record), for co-design; ``""``: none. A string, so registering does not import torch.
+
+    Examples
+    --------
+    >>> from fsdvs_hw import RealisationSpec
+    >>> from fsdvs_hw.realise.registry import fit_delta
+    >>> spec = RealisationSpec("impulse", fit_delta, kind="reference", title="impulse")
+    >>> spec.name, spec.kind, list(spec.options.model_fields)
+    ('impulse', 'reference', [])
     """
 
     name: str
@@ -339,6 +347,20 @@ def register_realisation(spec: RealisationSpec, *, replace: bool = False) -> Rea
     ------
     InputError
         ``spec`` is not a :class:`RealisationSpec`, or its name is taken and ``replace`` is false.
+
+    Examples
+    --------
+    >>> from fsdvs_hw import RealisationSpec, reference_kernel, register_realisation
+    >>> from fsdvs_hw.realise.registry import fit_delta, fit_realisation, realisation_names, unregister_realisation
+    >>> spec = register_realisation(RealisationSpec("impulse", fit_delta, kind="reference", title="impulse"))
+    >>> "impulse" in realisation_names("reference")
+    True
+    >>> real = fit_realisation("impulse", reference_kernel("dog", 5))
+    >>> float(real.kernel().taps.sum()), float(real.kernel().taps[2, 2])
+    (1.0, 1.0)
+    >>> unregister_realisation("impulse")
+    >>> "impulse" in realisation_names()
+    False
     """
     if not isinstance(spec, RealisationSpec):
         raise InputError(f"register_realisation: expected a RealisationSpec, got {type(spec).__name__}")

@@ -10,11 +10,13 @@ toward or away from the CSF shape), and the verdict.
 
 from __future__ import annotations
 
-import html
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from markupsafe import Markup
+
+from .templating import render
 
 __all__ = ["CODESIGN_HEADERS", "codesign_section"]
 
@@ -36,7 +38,7 @@ def _mean(values: Any) -> str:
     return f"{np.mean(vals):.3f}" if vals else "—"
 
 
-def codesign_section(summary: Mapping[str, Any]) -> str:
+def codesign_section(summary: Mapping[str, Any]) -> Markup:
     """The co-design section as an HTML fragment (an ``<h2>``, a note and a table).
 
     Parameters
@@ -48,38 +50,22 @@ def codesign_section(summary: Mapping[str, Any]) -> str:
     Returns
     -------
     str
-        HTML; every value escaped.
+        HTML (:class:`markupsafe.Markup`, a ``str``); every value escaped by the template.
     """
     cells = list(summary.get("cells", []))
     st = summary.get("settings", {})
-    parts = [
-        "<h2>Co-design: fit then swap, fine-tune, co-designed</h2>",
-        "<p class='note'>Per hardware realisation and task: the realisation fitted to the kernel and swapped "
-        "zero-shot into the networks trained with the kernel (fit then swap); the same networks trained further "
-        f"with the fitted kernel frozen (fit then fine-tune); the same networks and the realisation's own "
-        f"parameters trained together from the fitted design (co-designed). {html.escape(str(st.get('epochs', '?')))} "
-        f"epochs on {html.escape(str(st.get('n_train') or 'all'))} of each network's training clips. Loss = "
-        "metric(learned kernel, original network) − metric(row), 95 % CI resampling (network, clips) clusters; "
-        "recovered = 1 − loss(row) / loss(swap) with the CI of the same resampling. Kernel error: relative L2 "
-        "against the target, gain-free; MS r: correlation of the kernel's response with the Mannos–Sakrison "
-        "CSF (mean over networks).</p>",
-    ]
-    if not cells:
-        parts.append("<p class='note'>No co-design cell measured.</p>")
-        return "".join(parts)
-    parts.append("<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in CODESIGN_HEADERS) + "</tr>")
+    rows = []
     for c in cells:
-        rows = c["rows"]
-        loss = {m: (rows[m]["loss"] if m in rows else None) for m in ("swap", "finetune", "codesign")}
-        vals = [c["realisation"], c["task"] + f" ({c['metric_name']})",
-                f"{c['n_seeds']} × {c['n_clips_per_network']}",
-                _ci(loss["swap"]), _ci(loss["finetune"]), _ci(loss["codesign"]),
-                *(_ci(rows.get(m, {}).get("recovered"), pct=True) if c.get("swap_loss_above_zero")
-                  else "— (no loss above 0)" for m in ("finetune", "codesign")),
-                f"{c['kernel_error_fit_gain_free']:.3f} → {_mean(c.get('kernel_error_codesign_gain_free'))}"
-                if c.get("kernel_error_fit_gain_free") is not None else "—",
-                f"{_mean(c.get('ms_correlation_initial'))} → {_mean(c.get('ms_correlation_final'))}",
-                c["verdict"]]
-        parts.append("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in vals) + "</tr>")
-    parts.append("</table>")
-    return "".join(parts)
+        rows_of = c["rows"]
+        loss = {m: (rows_of[m]["loss"] if m in rows_of else None) for m in ("swap", "finetune", "codesign")}
+        rows.append([c["realisation"], c["task"] + f" ({c['metric_name']})",
+                     f"{c['n_seeds']} × {c['n_clips_per_network']}",
+                     _ci(loss["swap"]), _ci(loss["finetune"]), _ci(loss["codesign"]),
+                     *(_ci(rows_of.get(m, {}).get("recovered"), pct=True) if c.get("swap_loss_above_zero")
+                       else "— (no loss above 0)" for m in ("finetune", "codesign")),
+                     f"{c['kernel_error_fit_gain_free']:.3f} → {_mean(c.get('kernel_error_codesign_gain_free'))}"
+                     if c.get("kernel_error_fit_gain_free") is not None else "—",
+                     f"{_mean(c.get('ms_correlation_initial'))} → {_mean(c.get('ms_correlation_final'))}",
+                     c["verdict"]])
+    return render("codesign.html.j2", epochs=str(st.get("epochs", "?")), n_train=str(st.get("n_train") or "all"),
+                  headers=CODESIGN_HEADERS, rows=rows)

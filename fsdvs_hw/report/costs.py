@@ -32,15 +32,17 @@ True
 
 from __future__ import annotations
 
-import html
 import json
 import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, TypeVar
 
+from markupsafe import Markup
+
 from ..costs import CROSS_KIND_COSTS, PhysicalCost
 from .present import number, point_title, si
 from .tables import accuracy_axis, is_reference, loss_interval, uncertain_pareto_front
+from .templating import render
 
 __all__ = ["COST_WORDS", "cost_advice", "cost_columns", "cost_section", "cost_text", "mark_cost_fronts",
            "sweep_rows", "with_cost_columns"]
@@ -296,29 +298,16 @@ def cost_section(rows: Sequence[Mapping[str, Any]], points: Sequence[Any] = (),
             c["event_rate_eps"] += f" [{_eps(_num(r['event_rate_eps_low']))}, {_eps(_num(r['event_rate_eps_high']))}]"
         front = any(r.get(f"front_{k}") for k in CROSS_KIND_COSTS)
         cells.append((front, c))
-    head = "".join(f"<th class='l' scope='col'>{html.escape(t)}</th>" for _, t in _TABLE)
-    body = "".join(f"<tr{' class=front' if front else ''}>"
-                   + "".join(f"<td class='l'>{html.escape(c[k])}</td>" for k, _ in _TABLE) + "</tr>"
-                   for front, c in cells)
-    advice = "".join(f"<li>{html.escape(s)}</li>" for s in cost_advice(rows))
-    a = shown[0]
-    out = (f"<h2 id='costs'>What building it costs, in units that cross kinds</h2><ul class='advice'>{advice}</ul>"
-           f"<div class='scroll'><table><tr>{head}</tr>{body}</table></div>"
-           "<p class='note'>Power of the whole array and per pixel, silicon area per pixel (a mesh in the pixel "
-           "takes it from the photodiode: fill factor; an ASIC datapath sits in the periphery, its area shared "
-           "by the pixels), the latency it adds to an event, the event rate of the array (busiest task, with its "
-           "95 % CI) against the readout limit, and a lens's light: the shot-noise SNR change of a contrast step "
-           "against an ideal lens and the dynamic range its pedestal takes. Every figure's source and the "
-           "[costs] assumptions are in scores.json (points → physical_cost); the models are in docs/costs.md. "
-           f"Loss budget: {html.escape(number(_num(a.get('loss_budget'))))} (costs.loss_budget). Green rows: on a "
-           "cross-kind front (loss with its CI vs one cost).</p>")
+    fig = None
     if figure is not None:
         from .figures import fig_cost_fronts
 
-        out += figure(fig_cost_fronts(rows),
-                      "Scatter plots of accuracy loss with confidence bars against array power, silicon area per "
-                      "pixel, added latency and event rate, every realisation kind on the same axes.",
-                      "<b>Accuracy loss vs each physical cost, across kinds.</b> Bars: the loss CIs; rings: not "
-                      "dominated beyond the CIs in (loss, that cost). Zero costs (optics, ideal references) sit at "
-                      "the left edge of the symmetric-log axis.", fig_id="fig-costs")
-    return out
+        fig = figure(fig_cost_fronts(rows),
+                     "Scatter plots of accuracy loss with confidence bars against array power, silicon area per "
+                     "pixel, added latency and event rate, every realisation kind on the same axes.",
+                     "<b>Accuracy loss vs each physical cost, across kinds.</b> Bars: the loss CIs; rings: not "
+                     "dominated beyond the CIs in (loss, that cost). Zero costs (optics, ideal references) sit at "
+                     "the left edge of the symmetric-log axis.", fig_id="fig-costs")
+    return render("costs.html.j2", advice=cost_advice(rows), columns=_TABLE, rows=cells,
+                  figure=None if fig is None else Markup(fig),
+                  loss_budget=number(_num(shown[0].get("loss_budget"))))

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import base64
 import datetime as _dt
-import html
 import io
 import json
 import math
@@ -23,6 +22,8 @@ import platform
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+from markupsafe import Markup
 
 from .. import __version__
 from ..paths import write_output
@@ -32,6 +33,7 @@ from .artifacts import artifacts_html
 from .costs import cost_section, with_cost_columns
 from .present import cost_label, number, plain, point_title, si, style, title
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
+from .templating import render
 from .verdict import VERDICT_COLUMNS, advice, loss_header, verdict_table
 
 __all__ = [
@@ -73,42 +75,36 @@ pre{background:#f7f7f7;padding:.6em;font-size:.8em;overflow:auto;white-space:pre
 
 
 
-def _figure(fig: Any, alt: str, caption: str, *, fig_id: str) -> str:
-    """``<figure>`` with the PNG at :data:`FIGURE_DPI`, shown at its size in CSS pixels, alt text and caption."""
+def _png(fig: Any) -> dict[str, Any]:
+    """The figure as a base64 PNG at :data:`FIGURE_DPI` with its displayed size in CSS pixels (closes it)."""
     import matplotlib.pyplot as plt
 
     w_in, h_in = fig.get_size_inches()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=FIGURE_DPI)
     plt.close(fig)
-    b64 = base64.b64encode(buf.getvalue()).decode("ascii")
-    return (f'<figure id="{fig_id}"><img alt="{html.escape(alt)}" width="{round(w_in * CSS_DPI)}" '
-            f'height="{round(h_in * CSS_DPI)}" src="data:image/png;base64,{b64}">'
-            f"<figcaption>{caption}</figcaption></figure>")
+    return {"b64": base64.b64encode(buf.getvalue()).decode("ascii"), "width": round(w_in * CSS_DPI),
+            "height": round(h_in * CSS_DPI)}
 
 
-def _fmt(v: Any) -> str:
+def _figure(fig: Any, alt: str, caption: str, *, fig_id: str) -> Markup:
+    """``<figure>`` with the PNG, alt text (plain text, escaped) and caption (HTML, as given)."""
+    return render("macros.html.j2", macro="figure", fig_id=fig_id, png=_png(fig), alt=alt, caption=Markup(caption))
+
+
+def _cell(v: Any) -> str:
+    """A table cell's text (the template escapes it)."""
     if isinstance(v, bool):
         return "yes" if v else ""
     if isinstance(v, (int, float)):
         return number(v, 4) if isinstance(v, float) else number(v)
-    return html.escape(plain(str(v)))
+    return plain(str(v))
 
 
-def _table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str]], *, left: Sequence[str] = ("point",),
-           cls: str = "") -> str:
-    """A table in a container that scrolls on its own (the page never does)."""
-    head = "".join(f'<th class="{"l" if c in left else ""}" scope="col">{html.escape(t)}</th>' for c, t in columns)
-    body = []
-    for r in rows:
-        tr = ' class="front"' if r.get("pareto") or r.get("pareto_all") else ""
-        cells = "".join(f'<td class="{"l" if c in left else ""}">{_fmt(r.get(c, ""))}</td>' for c, _ in columns)
-        body.append(f"<tr{tr}>{cells}</tr>")
-    return f"<div class='scroll'><table class='{cls}'><tr>{head}</tr>{''.join(body)}</table></div>"
-
-
-def _details(summary: str, body: str, *, open_: bool = False) -> str:
-    return f"<details{' open' if open_ else ''}><summary>{html.escape(summary)}</summary>{body}</details>"
+def _table_rows(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str]]) -> list[dict[str, Any]]:
+    """Rows for the ``table`` macro: the formatted cells, and whether the row is on a Pareto front."""
+    return [{"front": bool(r.get("pareto") or r.get("pareto_all")), "cells": {c: _cell(r.get(c, "")) for c, _ in columns}}
+            for r in rows]
 
 
 def _names(items: Sequence[str]) -> str:
@@ -116,51 +112,21 @@ def _names(items: Sequence[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
 
 
-def _verdict_section(rows: Sequence[Mapping[str, Any]]) -> str:
+def _verdict_section(rows: Sequence[Mapping[str, Any]]) -> Markup:
     vt = verdict_table(rows)
     if not vt:
-        return "<h2 id='verdict'>Verdict</h2><p>No design point was scored.</p>"
-    lines = "".join(f"<li>{html.escape(s)}</li>" for s in advice(rows))
-    head = "".join(f"<th class='l' scope='col'>{html.escape(loss_header(rows) if c == 'loss' else t)}</th>"
-                   for c, t in VERDICT_COLUMNS)
-    trs = []
-    for v in vt:
-        colour = style(v["realisation_name"]).colour
-        n = f"<small>{html.escape(v['n'])}</small>" if v["n"] else ""
-        cells = [f"<td class='l'><span class='swatch' style='background:{colour}'></span>"
-                 f"{html.escape(v['realisation'])}</td>", f"<td class='l'>{html.escape(v['loss'])}{n}</td>"]
-        cells += [f"<td class='l'>{html.escape(v[c])}</td>" for c in ("agreement", "cost", "verdict")]
-        tr = " class='front'" if v["front"] else ""
-        trs.append(f"<tr{tr}>{''.join(cells)}</tr>")
+        return render("verdict.html.j2", rows=[])
     acc, acc_label = accuracy_axis(rows)
-    if acc.endswith("_loss"):
-        first = (f"Accuracy loss: {html.escape(acc_label)}, as a fraction (positive = accuracy lost), with its 95 % "
-                 "bootstrap CI over test clips and training seeds; n counts the paired test clips and seeds. ")
-    else:
-        first = ("No task evaluator ran (the design lists no <code>[tasks] checkpoints</code>), so there is no "
-                 "accuracy loss: the column is the kernel error, ‖K − T‖/‖T‖ against the target. ")
-    legend = (first + "CSF agreement: correlation of the kernel's radial response with the Mannos–Sakrison CSF at the "
-              "fitted viewing scale. Green rows are on a Pareto front. Every number below is defined where it "
-              "appears; the full set is in scores.csv and scores.json.")
-    how = ("<p class='note'>Loss = task metric of the learned kernel (the kernel being realised) minus that of the "
-           "realisation, in the same networks on the same test clips and noise draws (mAP, top-1, mIoU as "
-           "fractions), with its 95 % bootstrap CI over test clips and training seeds (each seed with its own "
-           "mismatch pattern); a CI that contains 0 reads 'no measurable loss (± half-width)' and is never ranked "
-           "by its point estimate. Weighted loss: <code>[scoring] task_weights</code>. Costs: each kind on its own "
-           "axis and unit (never one shared cost axis). Pareto: not dominated beyond the loss CIs, within the kind "
-           "(loss, agreement, cost) and across kinds (loss, agreement). 'build' marks the hardware on the "
-           "front across kinds with no measurable loss (the cheapest of each kind), or else the smallest loss; 'a "
-           "cheaper option of its kind' is on its kind's front below a kind that is on the front across kinds; "
-           "'not recommended' is everything else.</p>")
-    return (f"<h2 id='verdict'>Verdict: what to build</h2><ul class='advice'>{lines}</ul>"
-            f"<div class='scroll'><table class='verdict'><tr>{head}</tr>{''.join(trs)}</table></div>"
-            f"<p class='note'>{legend}</p>" + _details("How the verdict is decided", how))
+    return render("verdict.html.j2", rows=[{**v, "colour": style(v["realisation_name"]).colour} for v in vt],
+                  advice=advice(rows), headers=[loss_header(rows) if c == "loss" else t for c, t in VERDICT_COLUMNS],
+                  acc_is_loss=acc.endswith("_loss"), acc_label=acc_label)
 
 
-def _per_task_section(rows: Sequence[Mapping[str, Any]]) -> str:
+def _per_task_table(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
+    """Every task's loss per point (the rows, columns and left-aligned keys of the report's toggle)."""
     vr = verdict_rows(rows)
     if not vr:
-        return ""
+        return None
     titled = []
     ok = [r for r in rows if r["status"] == "ok"]
     for verdict, r in zip(vr, ok):  # verdict_rows keeps the order of the ok rows
@@ -172,11 +138,7 @@ def _per_task_section(rows: Sequence[Mapping[str, Any]]) -> str:
         titled.append(v)
     cols = [(c, c) for c in dict.fromkeys(k for v in titled for k in v) if c not in ("pareto", "pareto_all")]
     cols = [(c, "Mannos–Sakrison r, design geometry" if c == "MS agreement, design geometry" else t) for c, t in cols]
-    return _details("Loss of every task, on the simulator and the emulation track",
-                    "<p class='note'>Each task's loss with its 95 % CI and n (test clips, training seeds); the "
-                    "emulation track shows the realised kernel on a display recaptured by the noisy simulator. "
-                    "Mannos–Sakrison r at the design's optics geometry (the verdict's r uses the fitted scale).</p>"
-                    + _table(titled, cols, left=[c for c, _ in cols]))
+    return {"rows": _table_rows(titled, cols), "columns": cols, "left": [c for c, _ in cols]}
 
 
 def _ci_cell(rec: Mapping[str, Any] | None, digits: int = 3) -> str:
@@ -187,26 +149,13 @@ def _ci_cell(rec: Mapping[str, Any] | None, digits: int = 3) -> str:
     return f"{rec['estimate']:+.{digits}f} [{rec['low']:+.{digits}f}, {rec['high']:+.{digits}f}]"
 
 
-def _matched_sentence(task: str, rec: Mapping[str, Any]) -> str:
-    """One sentence: does the learned kernel beat a plain DVS whose threshold gives the same event rate?"""
-    if rec.get("status") != "ok":
-        return f"<b>{html.escape(task)}</b>: no matched-rate comparison ({html.escape(str(rec.get('status')))})."
-    est, lo, hi, m = rec["estimate"], rec["low"], rec["high"], html.escape(str(rec["metric_name"]))
-    if lo > 0:
-        words = "the filter's gain holds at equal event rate"
-    elif hi < 0:
-        words = "a plain DVS at that rate does better: the same-threshold gain came from firing more events"
-    else:
-        words = ("no measurable gain at equal event rate: the same-threshold gain is what lowering the threshold "
-                 "gives")
-    return (f"<b>{html.escape(task)}</b>: at equal event rate ({rec['reference_rate']:.3g} events/pixel/s) the learned "
-            f"kernel scores {est:+.3f} [{lo:+.3f}, {hi:+.3f}] {m} against a plain DVS whose threshold is lowered "
-            f"from {rec['reference_threshold']:g} to {rec['matched_threshold']:.3g} (same threshold: "
-            f"{rec['raw_estimate']:+.3f} [{rec['raw_low']:+.3f}, {rec['raw_high']:+.3f}]); {words} "
-            f"({rec['confidence']:.0%} CI, n = {rec['n_clips']} clips in {rec['n_networks']} networks).")
+#: Columns of the equal-event-rate table.
+_MATCHED_COLUMNS = [("name", "point"), ("task", "task"), ("rate", "event rate (events/pixel/s)"),
+                    ("raw", "loss, same threshold"), ("matched", "loss at equal rate"),
+                    ("gain", "gain over a plain DVS at equal rate")]
 
 
-def _matched_rate_section(points: Sequence[ScoredPoint]) -> str:
+def _matched_rate_section(points: Sequence[ScoredPoint]) -> Markup | str:
     """Equal event rate: the metric-vs-rate figure, one sentence per task, the per-point table."""
     recs = [(p, p.extra.get("matched_rate") or {}) for p in points if p.ok]
     if not any(m.get("status") == "ok" for _, m in recs):
@@ -214,8 +163,8 @@ def _matched_rate_section(points: Sequence[ScoredPoint]) -> str:
     tasks = list(dict.fromkeys(t for _, m in recs for t, e in m.items() if isinstance(e, Mapping)))
     learned = next((m for p, m in recs if p.realisation == "learned" and not p.params), None) or \
         next((m for p, m in recs if p.realisation == "learned"), {})
-    said = [_matched_sentence(t, (learned.get(t) or {}).get("gain_over_plain_dvs_at_matched_rate") or
-                              {"status": "no learned point with a plain-DVS curve"}) for t in tasks]
+    said = [(t, (learned.get(t) or {}).get("gain_over_plain_dvs_at_matched_rate") or
+             {"status": "no learned point with a plain-DVS curve"}) for t in tasks]
     table = []
     for p, m in recs:
         for t in tasks:
@@ -230,60 +179,31 @@ def _matched_rate_section(points: Sequence[ScoredPoint]) -> str:
                           "rate": (f"{q['rate']:.3g} [{q['rate_low']:.3g}, {q['rate_high']:.3g}]" if q else "–"),
                           "raw": _ci_cell(raw), "matched": _ci_cell(loss),
                           "gain": _ci_cell(e.get("gain_over_plain_dvs_at_matched_rate"))})
-    fig = _figure(
-        figures.fig_matched_rate(points),
-        f"Log-x line and scatter plots, one per task ({_names(tasks)}), of the task metric against the event rate: "
-        "the plain DVS and the learned kernel as their contrast threshold is swept, and every scored point at its "
-        "own threshold, with confidence bars on both axes.",
-        "<b>Task metric vs event rate.</b> Lines: the reference kernels with their ON = OFF threshold swept (labels: "
-        "threshold, log units), in the same networks, clips and noise draws as the points; markers: each point at "
-        "the design's threshold. Bars: 95 % bootstrap CIs over (network, clips) clusters on both axes. A point above "
-        "the plain-DVS line at its own rate beats a plain DVS with a lowered threshold.", fig_id="fig-matched-rate")
-    return ("<h2 id='matched-rate'>Equal event rate</h2><p class='note'>A filter that fires more events can gain "
-            "accuracy the way a lowered threshold does. Here every point is also compared at its own event rate: "
-            "against the learned kernel and against a plain DVS, each with its threshold moved (interpolated in log "
-            "rate, never extrapolated) until it fires as many events.</p><ul class='advice'>"
-            + "".join(f"<li>{x}</li>" for x in said) + "</ul>" + fig
-            + _details("Every point at equal event rate", "<p class='note'>Loss = learned − point (positive: accuracy "
-                       "lost); gain = point − plain DVS; 95 % CIs. 'refused': the point's rate lies outside a "
-                       "reference curve (add thresholds to [rate] thresholds).</p>" + _table(
-                           table, [("name", "point"), ("task", "task"), ("rate", "event rate (events/pixel/s)"),
-                                   ("raw", "loss, same threshold"), ("matched", "loss at equal rate"),
-                                   ("gain", "gain over a plain DVS at equal rate")], left=("name", "task"))))
+    png = _png(figures.fig_matched_rate(points))
+    alt = (f"Log-x line and scatter plots, one per task ({_names(tasks)}), of the task metric against the event rate: "
+           "the plain DVS and the learned kernel as their contrast threshold is swept, and every scored point at its "
+           "own threshold, with confidence bars on both axes.")
+    return render("matched_rate.html.j2", sentences=said, png=png, alt=alt, table=_table_rows(table, _MATCHED_COLUMNS),
+                  columns=_MATCHED_COLUMNS)
 
 
-def _score_tables(ok: Sequence[Mapping[str, Any]], methods: Sequence[str]) -> str:
+def _score_tables(ok: Sequence[Mapping[str, Any]], methods: Sequence[str]) -> Markup:
     """The scores split by topic, each a few columns, behind toggles."""
     named = [{**r, "name": point_title(r["realisation"], r.get("params"))} for r in ok]
-    out = []
-    out.append(_details("Kernel fit and spectrum", "<p class='note'>Kernel error: relative L2 distance of the "
-                        "realised kernel from the target, ‖K − T‖/‖T‖ (each realisation's one error; the metalens "
-                        "pedestal included). Gain-free error: the same after the least-squares gain, which a "
-                        "comparator threshold absorbs. Peak: frequency of the largest radial response.</p>"
-                        + _table(named, [("name", "realisation"), ("kernel_error", "kernel error"),
-                                         ("kernel_error_gain_free", "gain-free error"),
-                                         ("peak_frequency_cpp", "peak (cycles/pixel)"), ("response_kind", "response")],
-                                 left=("name", "response_kind"))))
+
+    def table(columns: list[tuple[str, str]]) -> dict[str, Any]:
+        return {"rows": _table_rows(named, columns), "columns": columns}
+
+    fit = table([("name", "realisation"), ("kernel_error", "kernel error"), ("kernel_error_gain_free", "gain-free error"),
+                 ("peak_frequency_cpp", "peak (cycles/pixel)"), ("response_kind", "response")])
     csf_cols = [("name", "realisation")] + [(f"csf_{m}_correlation", _csf_name(m)) for m in methods]
     csf_cols += [("csf_fitted_correlation", "Mannos–Sakrison, fitted scale"), ("csf_fitted_ppd", "fitted px/degree")]
-    out.append(_details("CSF agreement", "<p class='note'>Correlation of the peak-normalised radial response with "
-                        "each CSF model at the design's optics geometry, and with Mannos–Sakrison at the best "
-                        "pixels-per-degree scale (the verdict's r).</p>" + _table(named, csf_cols, left=("name",))))
     metrics = list(dict.fromkeys(c for r in ok for c in r if c.startswith("metric_")))
-    if metrics:
-        cols = [("name", "realisation")] + [(c, _metric_name(c)) for c in metrics]
-        out.append(_details("Task metrics", "<p class='note'>Each task's primary metric (detection mAP, recognition "
-                            "top-1, segmentation mIoU; fractions), mean over its networks, on each track.</p>"
-                            + _table(named, cols, left=("name",))))
-    if any("emu_event_ratio" in r for r in ok):
-        out.append(_details("Emulation track", "<p class='note'>The realised kernel applied to the video, shown on an "
-                            "emulated display and recaptured by the noisy simulator (the paper's sensor-in-the-loop "
-                            "track), against the same kernel inside the pixel.</p>"
-                            + _table(named, [("name", "realisation"),
-                                             ("emu_event_ratio", "events, emulated / in-sensor"),
-                                             ("emu_signed_correlation", "ON−OFF frame correlation")],
-                                     left=("name",))))
-    return "<h2 id='scores'>Scores by topic</h2>" + "".join(out)
+    emulation = any("emu_event_ratio" in r for r in ok)
+    return render("scores.html.j2", fit=fit, csf=table(csf_cols),
+                  metrics=table([("name", "realisation")] + [(c, _metric_name(c)) for c in metrics]) if metrics else None,
+                  emulation=table([("name", "realisation"), ("emu_event_ratio", "events, emulated / in-sensor"),
+                                   ("emu_signed_correlation", "ON−OFF frame correlation")]) if emulation else None)
 
 
 def _csf_name(method: str) -> str:
@@ -302,28 +222,18 @@ _WALL = ("fit_s", "analysis_s", "tasks_s", "emulation_s", "point_s")
 #: Stored cost items also shown as score columns (listed once, there).
 _SHOWN_AS_SCORES = {"kernel_error": "kernel error (Scores by topic)", "fit_time": "fit time (Speed for accuracy)"}
 
+#: Columns of a point's quantity table.
+_QUANTITY_COLUMNS = [("item", "quantity"), ("value", "value"), ("definition", "definition")]
 
-def _realisation_details(points: Sequence[ScoredPoint]) -> str:
+
+def _realisation_details(points: Sequence[ScoredPoint]) -> Markup:
     """Per scored point: every stored cost and design quantity with its unit (SI prefixes) and definition."""
-    parts = []
-    for p in points:
-        if not p.ok or p.score is None:
-            continue
-        items = _quantities(p.realisation, p.score.cost)
-        body = ""
-        if items:
-            body += _table(items, [("item", "quantity"), ("value", "value"), ("definition", "definition")],
-                           left=("item", "value", "definition"))
-        for w in p.score.warnings:
-            body += f"<p class='bad'>warning: {html.escape(plain(w))}</p>"
-        if not body:
-            body = "<p class='note'>An ideal reference: no hardware quantities.</p>"
-        parts.append(_details(point_title(p.realisation, p.params), body))
-    if not parts:
-        return ""
-    return ("<h2 id='realisations'>Realisations</h2><p class='note'>Every quantity each fit stored, once, with its "
-            f"definition ({'; '.join(_SHOWN_AS_SCORES.values())} are in the score tables). The fit's own text "
-            "summary is kept in scores.json (<code>describe</code>).</p>" + "".join(parts))
+    shown = [{"title": point_title(p.realisation, p.params),
+              "quantities": _table_rows(_quantities(p.realisation, p.score.cost), _QUANTITY_COLUMNS),
+              "warnings": [plain(w) for w in p.score.warnings]}
+             for p in points if p.ok and p.score is not None]
+    return render("realisations.html.j2", points=shown, columns=_QUANTITY_COLUMNS,
+                  shown_as_scores=list(_SHOWN_AS_SCORES.values()))
 
 
 def _quantities(realisation: str, cost: Cost) -> list[dict[str, str]]:
@@ -356,7 +266,7 @@ def _float(v: Any) -> float:
 
 def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, *, title_text: str | None = None,
                 stamp: str | None = None, sections: Sequence[str] = ()) -> str:
-    """The report as one HTML string (figures embedded).
+    """The report as one HTML string (figures embedded), from the templates in ``report/templates``.
 
     Parameters
     ----------
@@ -371,128 +281,83 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
     stamp : str, optional
         Time stamp in the provenance (default: now, UTC).
     sections : sequence of str
-        Further HTML fragments (each starting with its own ``<h2>``), placed after the buildable
-        artifacts and before the run conditions, e.g. :func:`fsdvs_hw.report.codesign.codesign_section`.
+        Further HTML fragments (each starting with its own ``<h2>``, inserted as given), placed after
+        the buildable artifacts and before the run conditions, e.g.
+        :func:`fsdvs_hw.report.codesign.codesign_section`.
     """
     points = _typed(points)
-    data = design.to_dict()
+    spec = design.spec
     rows = with_cost_columns(score_rows(points), points)  # power_w, area_m2, ... (issue 25)
     ok = [r for r in rows if r["status"] == "ok"]
     acc, acc_label = accuracy_axis(rows)
-    methods = data["analysis"]["csf_methods"]
-    page_title = title_text or f"FS-DVS design exploration: {design.name}"
+    methods = list(spec.analysis.csf_methods)
     t = design.target
-    focal = data["optics"]["focal_length_m"]
+    focal = spec.optics.focal_length_m
     n_ok, n_skip, n_err = (sum(r["status"] == s for r in rows) for s in ("ok", "skipped", "error"))
-    parts = [
-        f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
-        f"<meta name='viewport' content='width=device-width, initial-scale=1'><title>{html.escape(page_title)}</title>",
-        f"<style>{_CSS}</style></head><body><h1>{html.escape(page_title)}</h1>",
-    ]
-    parts.append(
-        f"<p class='lead'>Which hardware realises the learned kernel <b>{html.escape(t.name)}</b> "
-        f"({t.size}×{t.size} taps at {si(t.pitch_m, 'm')} pixel pitch) best, for which cost: "
-        f"{len(rows)} design points, {n_ok} scored, {n_skip} skipped, {n_err} failed.</p>")
-    parts.append(_verdict_section(rows))
-    missing = [r for r in rows if r["status"] != "ok"]
-    if missing:
-        parts.append("<h2 id='not-scored'>Not scored</h2><p class='note'>Points whose realisation is not installed, "
-                     "or whose fit failed; nothing is filled in for them.</p>")
-        named = [{**r, "name": point_title(r["realisation"], r.get("params"))} for r in missing]
-        parts.append(_table(named, [("name", "realisation"), ("status", "status"), ("reason", "reason")],
-                            left=("name", "status", "reason")))
+    page: dict[str, Any] = {
+        "page_title": title_text or f"FS-DVS design exploration: {design.name}", "css": Markup(_CSS), "target": t,
+        "focal": focal, "n_rows": len(rows), "n_ok": n_ok, "n_skip": n_skip, "n_err": n_err,
+        "verdict": _verdict_section(rows), "figures": None, "acc_label": acc_label,
+        "not_scored": _table_rows([{**r, "name": point_title(r["realisation"], r.get("params"))}
+                                   for r in rows if r["status"] != "ok"], [("name", ""), ("status", ""), ("reason", "")]),
+    }
     if ok:
-        kinds = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok)]
-        hw = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok if r.get("kind_cost"))]
-        what = "accuracy loss" if acc.endswith("_loss") else "kernel error"
-        bars = "with 95 % confidence bars " if acc.endswith("_loss") else ""
-        parts.append("<h2 id='trade-off'>Trade-off</h2>" + _figure(
-            figures.fig_pareto(rows),
-            f"Scatter plots of {what} {bars}against CSF agreement for {_names(kinds)}, "
-            f"and against each hardware kind's own cost{(' for ' + _names(hw)) if hw else ''}.",
-            f"<b>{what.capitalize()} vs CSF agreement, and vs each kind's own cost.</b> "
-            + (f"Bars: the stored 95 % bootstrap CIs of the {html.escape(acc_label)}. " if bars else
-               "No task evaluator ran, so there are no losses and no CIs. ")
-            + "Rings: on the Pareto front beyond the CIs (across kinds in the first panel, within the kind in the "
-            "others). Hollow markers of different shapes, so coinciding "
-            "points stay visible; one colour per realisation in every figure.", fig_id="fig-pareto"))
-        parts.append(cost_section(rows, points, _figure))  # physical costs across kinds (issue 25)
-        panels = figures.realised_kernels(points)
-        pnames = _names([p.label for p in panels])
-        parts.append("<h2 id='kernels'>Kernels</h2>" + _figure(
-            figures.fig_kernels(panels),
-            f"Heat maps of the realised kernel taps of {pnames}, red positive and blue negative, each on its own "
-            "colour scale centred at zero.",
-            "<b>Realised kernels, tap by tap.</b> Diverging colours centred at zero, each panel on its own scale "
-            "with its own colour bar. Where the centre tap is more than twice the largest surround tap, the scale "
-            "follows the surround (colour-bar arrows; the saturated centre is labelled with its value), so the "
-            "surround's sign and shape are visible. Frame and title in the realisation's colour.",
-            fig_id="fig-kernels"))
-        parts.append(_figure(
-            figures.fig_spectra(panels),
-            f"Heat maps of the two-dimensional magnitude spectra of {pnames} on one shared colour scale.",
-            "<b>Magnitude spectra |H(f<sub>x</sub>, f<sub>y</sub>)|</b> over the Nyquist square (cycles/pixel), all "
-            "panels on one shared scale and colour bar, so brightness compares across realisations.",
-            fig_id="fig-spectra"))
-        parts.append(_figure(
-            figures.fig_radial(panels, methods=methods, pitch_m=t.pitch_m, focal_length_m=focal),
-            f"Line plots of the peak-normalised radial frequency responses of {pnames} against contrast "
-            "sensitivity curves, at the design geometry and at a fitted viewing scale.",
-            "<b>Radial responses vs contrast sensitivity.</b> Each curve normalised to its own maximum. Left: at the "
-            f"design's geometry (pixel pitch {si(t.pitch_m, 'm')}, focal length {si(focal, 'm')}), against every "
-            "CSF model of <code>[analysis] csf_methods</code>. Right: Mannos–Sakrison at the viewing scale fitted to "
-            "the first kernel (a shape comparison, as in the FS-DVS paper). CSF curves in greys.",
-            fig_id="fig-radial"))
-        parts.append(_per_task_section(rows))
-        parts.append(_matched_rate_section(points))
-        parts.append(_score_tables(ok, methods))
-        named = [{**r, "name": point_title(r["realisation"], r.get("params"))} for r in ok]
-        hw_kinds = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok if r.get("kind_cost"))]
-        parts.append("<h2 id='speed'>Speed for accuracy</h2>" + _figure(
-            figures.fig_speed(rows),
-            "Log-log scatter plot of kernel error against fit wall time for "
-            f"{_names(hw_kinds) if hw_kinds else 'no hardware realisation'}.",
-            "<b>Kernel error vs fit wall time</b> of each hardware realisation on the machine that ran the point "
-            "(log axes).", fig_id="fig-speed"))
-        parts.append(_details("Wall times of every point", "<p class='note'>Seconds on the machine that ran each point "
-                              "(fit: the realisation's optimiser; analysis: spectra and CSF; tasks: evaluators; "
-                              "emulation: display and recapture track).</p>"
-                              + _table([{**r, **{c: si(_float(r.get(c)), "s") for c in _WALL}} for r in named],
-                                       [("name", "realisation"), ("fit_s", "fit"), ("analysis_s", "analysis"),
-                                        ("tasks_s", "tasks"), ("emulation_s", "emulation"),
-                                        ("point_s", "point total")], left=("name",))))
-        parts.append(_realisation_details(points))
-    parts.append(artifacts_html(points))  # buildable files per hardware point (report/artifacts.py)
-    parts.extend(sections)
-    parts.append(_conditions(points, rows, data, design))
-    stamp = stamp or _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
-    parts.append(f"<h2 id='provenance'>Provenance</h2><p class='note'>fsdvs_hw {__version__}, Python "
-                 f"{platform.python_version()}, {html.escape(platform.node())}, {stamp}; design source "
-                 f"{html.escape(design.source)}.</p>" + _versions_note(points))
-    parts.append(_details("The design, as run (JSON)", f"<pre>{html.escape(json.dumps(data, indent=1))}</pre>"))
-    parts.append("</body></html>")
-    return "\n".join(p for p in parts if p)
+        page.update(_figures_and_tables(points, rows, ok, acc, methods, t.pitch_m, focal))
+    page.update(
+        artifacts=artifacts_html(points),  # buildable files per hardware point (report/artifacts.py)
+        sections=[Markup(s) for s in sections if s], conditions=_conditions(points, rows, design),
+        version=__version__, python=platform.python_version(), node=platform.node(),
+        stamp=stamp or _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"), source=design.source,
+        versions=_versions(points), design_json=json.dumps(design.to_dict(), indent=1))
+    return str(render("report.html.j2", **page))
 
 
-def _versions_note(points: Sequence[ScoredPoint]) -> str:
+def _figures_and_tables(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]],
+                        ok: Sequence[Mapping[str, Any]], acc: str, methods: Sequence[str], pitch_m: float,
+                        focal: float) -> dict[str, Any]:
+    """The report's figures (PNG and alt text, drawn in page order) and the sections between them."""
+    kinds = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok)]
+    hw = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok if r.get("kind_cost"))]
+    what = "accuracy loss" if acc.endswith("_loss") else "kernel error"
+    bars = "with 95 % confidence bars " if acc.endswith("_loss") else ""
+    figs = {"pareto": {"png": _png(figures.fig_pareto(rows)),
+                       "alt": f"Scatter plots of {what} {bars}against CSF agreement for {_names(kinds)}, and against "
+                              f"each hardware kind's own cost{(' for ' + _names(hw)) if hw else ''}."}}
+    costs = cost_section(rows, points, _figure)  # physical costs across kinds (issue 25)
+    panels = figures.realised_kernels(points)
+    pnames = _names([p.label for p in panels])
+    figs["kernels"] = {"png": _png(figures.fig_kernels(panels)),
+                       "alt": f"Heat maps of the realised kernel taps of {pnames}, red positive and blue negative, "
+                              "each on its own colour scale centred at zero."}
+    figs["spectra"] = {"png": _png(figures.fig_spectra(panels)),
+                       "alt": f"Heat maps of the two-dimensional magnitude spectra of {pnames} on one shared colour "
+                              "scale."}
+    figs["radial"] = {"png": _png(figures.fig_radial(panels, methods=methods, pitch_m=pitch_m, focal_length_m=focal)),
+                      "alt": f"Line plots of the peak-normalised radial frequency responses of {pnames} against "
+                             "contrast sensitivity curves, at the design geometry and at a fitted viewing scale."}
+    per_task = _per_task_table(rows)
+    matched_rate = _matched_rate_section(points)
+    scores = _score_tables(ok, methods)
+    hw_kinds = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok if r.get("kind_cost"))]
+    figs["speed"] = {"png": _png(figures.fig_speed(rows)),
+                     "alt": "Log-log scatter plot of kernel error against fit wall time for "
+                            f"{_names(hw_kinds) if hw_kinds else 'no hardware realisation'}."}
+    named = [{**r, "name": point_title(r["realisation"], r.get("params"))} for r in ok]
+    wall = [{**r, **{c: si(_float(r.get(c)), "s") for c in _WALL}} for r in named]
+    return {"figures": figs, "what": what, "bars": bool(bars), "costs": costs, "per_task": per_task,
+            "matched_rate": matched_rate, "scores": scores, "realisations": _realisation_details(points),
+            "wall_times": _table_rows(wall, [("name", ""), *((c, "") for c in _WALL)])}
+
+
+def _versions(points: Sequence[ScoredPoint]) -> list[str]:
     """The numerical library versions the points were computed with (one line per distinct set)."""
     sets = {tuple(sorted((k, str(v)) for k, v in p.score.versions.items()))
             for p in points if p.score is not None and p.score.versions}
-    if not sets:
-        return "<p class='note'>Library versions: not recorded with these points (made before they were kept).</p>"
-    lines = [", ".join(f"{k} {v}" for k, v in s) for s in sorted(sets)]
-    head = "Computed with" if len(lines) == 1 else f"Computed with {len(lines)} different environments:"
-    return "".join(f"<p class='note'>{head if i == 0 else ''} {html.escape(line)}.</p>" for i, line in enumerate(lines))
+    return [", ".join(f"{k} {v}" for k, v in s) for s in sorted(sets)]
 
 
-def _conditions(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]], data: Mapping[str, Any],
-                design: Any) -> str:
+def _conditions(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]], design: Any) -> Markup:
     """Run conditions: sensor, simulator of the task tracks, networks, task status."""
-    t = design.target
-    items = [f"Target kernel {html.escape(t.name)}: {t.size}×{t.size} taps, pixel pitch {si(t.pitch_m, 'm')}, "
-             f"DC gain {number(t.dc_gain)}; optics focal length {si(data['optics']['focal_length_m'], 'm')}; filter "
-             f"placement {html.escape(str(data['sensor']['placement']))}, positivity "
-             f"{html.escape(str(data['sensor']['positivity']))}."]
     sensors = set()
     for p in points:
         for task, tracks in (p.score.tasks.tracks.items() if p.score is not None else ()):
@@ -500,22 +365,32 @@ def _conditions(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]]
                 sensor = track.extra.get("sensor")
                 if isinstance(sensor, Mapping):
                     sensors.add(f"{task}: " + ", ".join(f"{k} = {v}" for k, v in sensor.items()))
-    if sensors:
-        items.append("Task-track simulator: " + html.escape("; ".join(sorted(sensors))) + ".")
-    nets = networks_note(points)
-    if nets:
-        items.append("Networks each task's loss is measured in (every realisation is swapped zero-shot into these; "
-                     "the loss compares it with the learned kernel in the same networks): " + html.escape(nets) + ".")
     ok = [r for r in rows if r["status"] == "ok"]
-    task_status = sorted({r.get("tasks_status", "") for r in ok} - {""})
-    if task_status:
-        items.append(f"Task evaluation: {html.escape('; '.join(task_status))}.")
-    return "<h2 id='conditions'>Run conditions</h2>" + _details(
-        "Sensor, simulator and networks", "".join(f"<p class='note'>{i}</p>" for i in items))
+    spec = design.spec
+    return render("conditions.html.j2", target=design.target, focal=spec.optics.focal_length_m,
+                  placement=spec.sensor.placement, positivity=spec.sensor.positivity, sensors=sorted(sensors),
+                  networks=networks_note(points), task_status=sorted({r.get("tasks_status", "") for r in ok} - {""}))
 
 
 def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, out_dir: str | Path) -> Path:
-    """Write ``report.html``, ``scores.csv`` and ``scores.json`` into ``out_dir``; return the HTML path."""
+    """Write ``report.html``, ``scores.csv`` and ``scores.json`` into ``out_dir``; return the HTML path.
+
+    Examples
+    --------
+    With no stored point the page says so (an exploration's points make the full report,
+    :func:`fsdvs_hw.explore.explore.run_exploration`):
+
+    >>> import json, tempfile
+    >>> from pathlib import Path
+    >>> from fsdvs_hw import write_report
+    >>> from fsdvs_hw.explore.design import parse_design
+    >>> with tempfile.TemporaryDirectory() as out:
+    ...     page = write_report([], parse_design({"design": {"name": "empty"}}), out)
+    ...     text = page.read_text()
+    ...     stored = json.loads((Path(out) / "scores.json").read_text())
+    >>> page.name, "No design point was scored" in text, stored["design"]["name"], stored["points"]
+    ('report.html', True, 'empty', [])
+    """
     from ..errors import InputError
 
     out = Path(out_dir)

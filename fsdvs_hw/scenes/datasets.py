@@ -41,7 +41,7 @@ import collections
 import json
 import re
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -467,6 +467,80 @@ class VideoFolderDataset(ClipDataset):
 
 
 # --------------------------------------------------------------------------- detection
+def _coco_document(path: Path, who: str) -> dict[str, Any]:
+    """A COCO annotations file read: a JSON object with the lists ``images``, ``annotations``, ``categories``."""
+    j = str(path)
+    if not path.is_file():
+        raise InputError(f"{who}: annotations file {j!r} does not exist")
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"{who}: annotations file {j!r} is not JSON ({exc})") from None
+    for key in ("images", "annotations", "categories"):
+        if not isinstance(doc, dict) or not isinstance(doc.get(key), list):
+            raise InputError(f"{who}: annotations file {j!r}: field {key!r} missing or not a list")
+    return doc
+
+
+def _coco_categories(doc: Mapping[str, Any], who: str, j: str) -> tuple[list[int], dict[int, str]]:
+    """The sorted category ids and their names (the id where a category has no name)."""
+    cats = doc["categories"]
+    try:
+        cat_ids = sorted(int(c["id"]) for c in cats)
+    except (KeyError, TypeError, ValueError):
+        raise InputError(
+            f"{who}: annotations file {j!r}: field 'categories' entries need an integer 'id'"
+        ) from None
+    if not cat_ids:
+        raise InputError(f"{who}: annotations file {j!r}: field 'categories' is empty")
+    names = {int(c["id"]): str(c.get("name", c["id"])) for c in cats}
+    return cat_ids, names
+
+
+def _coco_images(doc: Mapping[str, Any], frames_dir: Path, who: str, j: str) -> dict[int, dict[str, Any]]:
+    """Image id → its entry, each with the required fields and an existing frame file."""
+    images: dict[int, dict[str, Any]] = {}
+    for k, im in enumerate(doc["images"]):
+        if not isinstance(im, dict) or not all(f in im for f in ("id", "file_name", "width", "height")):
+            raise InputError(f"{who}: annotations file {j!r}: images[{k}] needs fields 'id', 'file_name', "
+                             "'width', 'height'")
+        path = frames_dir / str(im["file_name"])
+        if not path.is_file():
+            raise InputError(f"{who}: annotations file {j!r}: images[{k}] field 'file_name': image "
+                             f"{str(path)!r} does not exist")
+        images[int(im["id"])] = im
+    return images
+
+
+def _coco_boxes(doc: Mapping[str, Any], images: Mapping[int, Mapping[str, Any]], rank: Mapping[int, int], who: str,
+                j: str) -> dict[int, list[tuple[list[float], int]]]:
+    """Image id → its boxes ``([x0, y0, x1, y1] px, class index)``, each checked against its image and categories."""
+    boxes: dict[int, list[tuple[list[float], int]]] = {i: [] for i in images}
+    for k, a in enumerate(doc["annotations"]):
+        aid = a.get("id", k) if isinstance(a, dict) else k
+        try:
+            iid, cid = int(a["image_id"]), int(a["category_id"])
+            x, y, w, h = (float(v) for v in a["bbox"])
+        except (KeyError, TypeError, ValueError):
+            raise InputError(f"{who}: annotations file {j!r}: annotation {aid}: fields 'image_id', "
+                             "'category_id' and 'bbox' [x, y, w, h] are required") from None
+        if iid not in images:
+            raise InputError(f"{who}: annotations file {j!r}: annotation {aid}: field 'image_id' {iid} "
+                             "names no image")
+        if cid not in rank:
+            raise InputError(f"{who}: annotations file {j!r}: annotation {aid}: field 'category_id' {cid} "
+                             f"is not among the categories {list(rank)}")
+        im = images[iid]
+        W, H = float(im["width"]), float(im["height"])
+        if not (np.isfinite([x, y, w, h]).all() and w > 0 and h > 0 and x >= 0 and y >= 0
+                and x + w <= W + 1e-6 and y + h <= H + 1e-6):
+            raise InputError(f"{who}: annotations file {j!r}: annotation {aid} (image "
+                             f"{im['file_name']!r}): field 'bbox' {[x, y, w, h]} lies outside the "
+                             f"{W:g}x{H:g} image or is empty")
+        boxes[iid].append(([x, y, x + w, y + h], rank[cid]))
+    return boxes
+
+
 class CocoFramesDataset(ClipDataset):
     """Detection clips from a folder of frame images and a COCO JSON of boxes.
 
@@ -527,62 +601,14 @@ class CocoFramesDataset(ClipDataset):
         self.fps = fps_checked
         self.transfer = transfer
         j = str(self.json_path)
-        if not self.json_path.is_file():
-            raise InputError(f"{who}: annotations file {j!r} does not exist")
-        try:
-            doc = json.loads(self.json_path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise InputError(f"{who}: annotations file {j!r} is not JSON ({exc})") from None
-        for key in ("images", "annotations", "categories"):
-            if not isinstance(doc, dict) or not isinstance(doc.get(key), list):
-                raise InputError(f"{who}: annotations file {j!r}: field {key!r} missing or not a list")
-        cats = doc["categories"]
-        try:
-            cat_ids = sorted(int(c["id"]) for c in cats)
-        except (KeyError, TypeError, ValueError):
-            raise InputError(
-                f"{who}: annotations file {j!r}: field 'categories' entries need an integer 'id'"
-            ) from None
-        if not cat_ids:
-            raise InputError(f"{who}: annotations file {j!r}: field 'categories' is empty")
+        doc = _coco_document(self.json_path, who)
+        cat_ids, names = _coco_categories(doc, who, j)
         self.category_ids = tuple(cat_ids)
-        names = {int(c["id"]): str(c.get("name", c["id"])) for c in cats}
         self.class_names = tuple(names[c] for c in cat_ids)
         self.num_classes = len(cat_ids)
         rank = {c: k for k, c in enumerate(cat_ids)}
-        images: dict[int, dict[str, Any]] = {}
-        for k, im in enumerate(doc["images"]):
-            if not isinstance(im, dict) or not all(f in im for f in ("id", "file_name", "width", "height")):
-                raise InputError(f"{who}: annotations file {j!r}: images[{k}] needs fields 'id', 'file_name', "
-                                 "'width', 'height'")
-            path = self.frames_dir / str(im["file_name"])
-            if not path.is_file():
-                raise InputError(f"{who}: annotations file {j!r}: images[{k}] field 'file_name': image "
-                                 f"{str(path)!r} does not exist")
-            images[int(im["id"])] = im
-        boxes: dict[int, list[tuple[list[float], int]]] = {i: [] for i in images}
-        for k, a in enumerate(doc["annotations"]):
-            aid = a.get("id", k) if isinstance(a, dict) else k
-            try:
-                iid, cid = int(a["image_id"]), int(a["category_id"])
-                x, y, w, h = (float(v) for v in a["bbox"])
-            except (KeyError, TypeError, ValueError):
-                raise InputError(f"{who}: annotations file {j!r}: annotation {aid}: fields 'image_id', "
-                                 "'category_id' and 'bbox' [x, y, w, h] are required") from None
-            if iid not in images:
-                raise InputError(f"{who}: annotations file {j!r}: annotation {aid}: field 'image_id' {iid} "
-                                 "names no image")
-            if cid not in rank:
-                raise InputError(f"{who}: annotations file {j!r}: annotation {aid}: field 'category_id' {cid} "
-                                 f"is not among the categories {list(cat_ids)}")
-            im = images[iid]
-            W, H = float(im["width"]), float(im["height"])
-            if not (np.isfinite([x, y, w, h]).all() and w > 0 and h > 0 and x >= 0 and y >= 0
-                    and x + w <= W + 1e-6 and y + h <= H + 1e-6):
-                raise InputError(f"{who}: annotations file {j!r}: annotation {aid} (image "
-                                 f"{im['file_name']!r}): field 'bbox' {[x, y, w, h]} lies outside the "
-                                 f"{W:g}x{H:g} image or is empty")
-            boxes[iid].append(([x, y, x + w, y + h], rank[cid]))
+        images = _coco_images(doc, self.frames_dir, who, j)
+        boxes = _coco_boxes(doc, images, rank, who, j)
         if require_annotations:
             for iid, im in images.items():
                 if not boxes[iid]:

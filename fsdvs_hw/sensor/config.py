@@ -267,20 +267,7 @@ class SensorConfig:
         if not isinstance(self.random_reference_phase, bool):
             raise InputError(f"SensorConfig.random_reference_phase: must be True or False, got "
                              f"{one_line(self.random_reference_phase)}")
-        if self.response not in RESPONSES:
-            raise InputError(f"SensorConfig.response: {self.response!r} unknown; allowed: {', '.join(RESPONSES)}")
-        if self.placement not in PLACEMENTS:
-            raise InputError(f"SensorConfig.placement: {self.placement!r} unknown; allowed: {', '.join(PLACEMENTS)}")
-        if self.positivity not in POSITIVITY_MODES:
-            raise InputError(
-                f"SensorConfig.positivity: {self.positivity!r} unknown; allowed: {', '.join(POSITIVITY_MODES)}")
-        if self.shot_noise_draw not in SHOT_NOISE_DRAWS:
-            raise InputError(f"SensorConfig.shot_noise_draw: {self.shot_noise_draw!r} unknown; allowed: "
-                             f"{', '.join(SHOT_NOISE_DRAWS)}")
-        if self.convolution not in ("auto", "direct", "fft"):
-            raise InputError(f"SensorConfig.convolution: {self.convolution!r} unknown; allowed: auto, direct, fft")
-        if self.surrogate not in SURROGATES:
-            raise InputError(f"SensorConfig.surrogate: {self.surrogate!r} unknown; allowed: {', '.join(SURROGATES)}")
+        self._check_choices()
         if not isinstance(self.adaptive_region_px, int) or isinstance(self.adaptive_region_px, bool) \
                 or not 0 <= self.adaptive_region_px <= 100_000:
             raise InputError(
@@ -296,6 +283,23 @@ class SensorConfig:
         if not isinstance(self.seed, int) or isinstance(self.seed, bool) or not 0 <= self.seed <= MAX_SEED:
             raise InputError(f"SensorConfig.seed: must be an integer in [0, {MAX_SEED}] (2**32 - 1), "
                              f"got {self.seed!r}")
+
+    def _check_choices(self) -> None:
+        """Each named option is one of its allowed values (the message lists them)."""
+        if self.response not in RESPONSES:
+            raise InputError(f"SensorConfig.response: {self.response!r} unknown; allowed: {', '.join(RESPONSES)}")
+        if self.placement not in PLACEMENTS:
+            raise InputError(f"SensorConfig.placement: {self.placement!r} unknown; allowed: {', '.join(PLACEMENTS)}")
+        if self.positivity not in POSITIVITY_MODES:
+            raise InputError(
+                f"SensorConfig.positivity: {self.positivity!r} unknown; allowed: {', '.join(POSITIVITY_MODES)}")
+        if self.shot_noise_draw not in SHOT_NOISE_DRAWS:
+            raise InputError(f"SensorConfig.shot_noise_draw: {self.shot_noise_draw!r} unknown; allowed: "
+                             f"{', '.join(SHOT_NOISE_DRAWS)}")
+        if self.convolution not in ("auto", "direct", "fft"):
+            raise InputError(f"SensorConfig.convolution: {self.convolution!r} unknown; allowed: auto, direct, fft")
+        if self.surrogate not in SURROGATES:
+            raise InputError(f"SensorConfig.surrogate: {self.surrogate!r} unknown; allowed: {', '.join(SURROGATES)}")
 
     # ---------------------------------------------------------------- presets
     @classmethod

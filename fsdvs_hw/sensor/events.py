@@ -498,6 +498,43 @@ class _EventPipeline:
                 pool.shutdown(wait=True, cancel_futures=True)
 
 
+def _with_noise_counts(e_on: Any, e_off: Any, on_px: Any, off_px: Any, shape: tuple[int, int, int],
+                       dtype: Any) -> tuple[Any, Any]:
+    """The step's ON and OFF counts plus the shot-noise events at the flat pixel indices ``on_px``, ``off_px``."""
+    n = shape[0] * shape[1] * shape[2]
+    if len(on_px):
+        e_on = e_on + torch.bincount(on_px, minlength=n).view(*shape).to(dtype)
+    if len(off_px):
+        e_off = e_off + torch.bincount(off_px, minlength=n).view(*shape).to(dtype)
+    return e_on, e_off
+
+
+def _substep_target(Ls: Any, CI: Any, SU: Any, k: int, s: int, S: int, lp: Any, sur: Any, dt_sub: Any,
+                    config: SensorConfig) -> tuple[Any, Any, Any]:
+    """The log signal the comparator sees at sub-step ``s`` of ``S`` in interval ``k`` (frames interpolated),
+    after the photoreceptor low-pass (``CI`` given) and the surround transient (``SU`` given); with the
+    new low-pass and surround states ``(target, lp, sur)``."""
+    frac = s / S
+    target = Ls[k + 1] if s == S else torch.lerp(Ls[k], Ls[k + 1], frac)
+    if CI is not None:
+        inten = CI[k + 1] if s == S else torch.lerp(CI[k], CI[k + 1], frac)
+        fc = config.cutoff_hz * torch.clamp((inten + config.dark_intensity)
+                                            / config.full_scale_intensity, 0.0, 1.0)
+        lp = lowpass_step(lp, target, fc, dt_sub)
+        target = lp
+    if SU is not None:
+        stt = SU[k + 1] if s == S else torch.lerp(SU[k], SU[k + 1], frac)
+        alpha = -torch.expm1(-dt_sub / config.surround_tau_s)
+        sur = sur + alpha * (stt - sur)
+        target = target - config.surround_weight * sur
+    return target, lp, sur
+
+
+def _call(fn: Any, *args: Any) -> Any:
+    """``fn(*args)`` (the in-process twin of :meth:`_EventPipeline.emit`)."""
+    return fn(*args)
+
+
 def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: SensorConfig,
                    substeps: list[int], collect_events: bool, events: list, want_counts: bool, bar: Any,
                    pipe: _EventPipeline | None) -> list:
@@ -527,19 +564,8 @@ def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config:
         dt_sub = dt_sub64.to(dt_)
         on_acc = off_acc = None
         for s in range(1, S + 1):
-            frac = s / S
-            target = Ls[k + 1] if s == S else torch.lerp(Ls[k], Ls[k + 1], frac)
-            if has_lp:
-                inten = CI[k + 1] if s == S else torch.lerp(CI[k], CI[k + 1], frac)
-                fc = config.cutoff_hz * torch.clamp((inten + config.dark_intensity)
-                                                    / config.full_scale_intensity, 0.0, 1.0)
-                lp = lowpass_step(lp, target, fc, dt_sub)
-                target = lp
-            if transient:
-                stt = SU[k + 1] if s == S else torch.lerp(SU[k], SU[k + 1], frac)
-                alpha = -torch.expm1(-dt_sub / config.surround_tau_s)
-                sur = sur + alpha * (stt - sur)
-                target = target - config.surround_weight * sur
+            target, lp, sur = _substep_target(Ls, CI if has_lp else None, SU if transient else None, k, s, S, lp,
+                                              sur, dt_sub, config)
             ref_a = ref
             if leak > 0:
                 ref = ref - leak * c_on * dt_sub
@@ -578,27 +604,19 @@ def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config:
                 on_px, off_px = shot_noise_pixels(B, H * W, (0.5 * shot) * dt_sub64.reshape(B), shot_g, sparse_noise)
                 on_px, off_px = on_px.to(dev), off_px.to(dev)
                 noise_events += len(on_px) + len(off_px)
-                if len(on_px) and want_counts:
-                    e_on = e_on + torch.bincount(on_px, minlength=B * H * W).view(B, H, W).to(dt_)
-                if len(off_px) and want_counts:
-                    e_off = e_off + torch.bincount(off_px, minlength=B * H * W).view(B, H, W).to(dt_)
+                if want_counts:
+                    e_on, e_off = _with_noise_counts(e_on, e_off, on_px, off_px, (B, H, W), dt_)
                 if collect_events:
                     noise_args = (step_parts, on_px, off_px, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64,
                                   time_g)
-                    if pipe is not None:
-                        pipe.emit(noise_step, *noise_args)
-                    else:
-                        noise_step(*noise_args)
+                    (pipe.emit if pipe is not None else _call)(noise_step, *noise_args)
             sig_prev = target
             if want_counts:
                 on_acc = e_on if on_acc is None else on_acc + e_on
                 off_acc = e_off if off_acc is None else off_acc + e_off
         frames += [on_acc, off_acc]
         if collect_events:
-            if pipe is not None:
-                events.append(pipe.sort(step_parts, t_lo[k], t_hi[k + 1]))
-            else:
-                events.append(sort_interval(step_parts, t_lo[k], t_hi[k + 1]))
+            events.append((pipe.sort if pipe is not None else sort_interval)(step_parts, t_lo[k], t_hi[k + 1]))
         if bar is not None:
             bar.update(1)
     st.ref, st.lp, st.sur, st.sig_prev, st.last_t = ref, lp, sur, sig_prev, last_t

@@ -216,6 +216,20 @@ def _summarise(subs: tuple[int, ...]) -> str:
     return f"{min(subs)}..{max(subs)} (total {sum(subs)})"
 
 
+def _plan_arguments(tolerance: Any, config: SensorConfig | None) -> tuple[float, SensorConfig]:
+    """:func:`plan_model`'s tolerance as a float in (0, 1) and its config (default ``SensorConfig()``)."""
+    try:
+        tol = float(tolerance)
+    except (TypeError, ValueError):
+        raise InputError(f"tolerance: must be a number in (0, 1), got {tolerance!r}") from None
+    if not 0 < tol < 1:
+        raise InputError(f"tolerance: must be in (0, 1), got {tol!r}")
+    config = SensorConfig() if config is None else config
+    if not isinstance(config, SensorConfig):
+        raise InputError(f"config: must be a SensorConfig, got {type(config).__name__}")
+    return tol, config
+
+
 def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorConfig | None = None,
                kernel: Any = None, timestamps_s: Any = None) -> ModelPlan:
     """Decide which effects a scene requires and at what time resolution.
@@ -246,15 +260,7 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
     >>> plan.decision("refractory").included, plan.decision("photoreceptor").included
     (False, True)
     """
-    try:
-        tol = float(tolerance)
-    except (TypeError, ValueError):
-        raise InputError(f"tolerance: must be a number in (0, 1), got {tolerance!r}") from None
-    if not 0 < tol < 1:
-        raise InputError(f"tolerance: must be in (0, 1), got {tol!r}")
-    config = SensorConfig() if config is None else config
-    if not isinstance(config, SensorConfig):
-        raise InputError(f"config: must be a SensorConfig, got {type(config).__name__}")
+    tol, config = _plan_arguments(tolerance, config)
     if isinstance(video_or_stats, SceneStats):
         st = video_or_stats
     else:

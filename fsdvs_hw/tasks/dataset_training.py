@@ -290,8 +290,6 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
     >>> res.kernel.size, res.history[-1]["stage"]                                    # doctest: +SKIP
     (7, 'joint')
     """
-    import sys
-
     import torch
 
     from ..provenance import library_versions
@@ -309,16 +307,11 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
     lr_network = check_real("train.lr_network", lr_network, 0.0, 10.0)
     lr_kernel = check_real("train.lr_kernel", lr_kernel, 0.0, 10.0)
     ratios = getattr(evaluator, "joint_lr_ratios", (1.0, 1e-6 / 5e-4, 1e-5 / 5e-4))
-    lr_backbone = lr_kernel * ratios[1] if lr_backbone is None else check_real("train.lr_backbone", lr_backbone, 0.0,
-                                                                                10.0)
-    lr_head = lr_kernel * ratios[2] if lr_head is None else check_real("train.lr_head", lr_head, 0.0, 10.0)
+    lr_backbone = _rate_or_default("train.lr_backbone", lr_backbone, lr_kernel * ratios[1])
+    lr_head = _rate_or_default("train.lr_head", lr_head, lr_kernel * ratios[2])
     weight_decay = check_real("train.weight_decay", weight_decay, 0.0, 10.0)
     init_noise = check_real("train.init_noise", init_noise, 0.0, 10.0)
-    indices = np.asarray(list(train_indices), dtype=np.int64)
-    if len(indices) < 1 or len(set(indices.tolist())) != len(indices) or indices.min() < 0 \
-            or indices.max() >= len(dataset):
-        raise InputError(f"train_on_dataset: train_indices must be distinct clip indices in [0, {len(dataset)}), "
-                         f"got {len(indices)} of them")
+    indices = _checked_indices(train_indices, len(dataset))
     torch.manual_seed(seed)
     gen = torch.Generator().manual_seed(seed)
     taps0 = _initial_taps(init_kernel, kernel_size, init_noise, gen)
@@ -331,8 +324,7 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
                          f"{h}x{w} frames")
     net = _network_for(network, evaluator.name, 2 * (video.shape[1] - 1), evaluator.num_classes)
     rep = event_input_of(net)
-    if sensor is None:
-        sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(ts)[0])))
+    sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(ts)[0]))) if sensor is None else sensor
     video, net = video.to(dev), net.to(dev).train()
     targets = {k: v.to(dev) for k, v in targets.items()}
     kernel_param = torch.nn.Parameter(taps0.clone().to(dev), requires_grad=learn_filter)
@@ -342,44 +334,18 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
         return rep(_events(v, k, s, t).float(), t)
 
     def optimizer(stage: str) -> Any:
-        wd = weight_decay
-        if stage == "frozen_filter":
-            return torch.optim.AdamW([{"params": list(net.parameters()), "lr": lr_network, "weight_decay": wd}])
-        backbone, head = getattr(net, "backbone", None), getattr(net, "head", None)
-        if isinstance(backbone, torch.nn.Module) and isinstance(head, torch.nn.Module):
-            groups = [{"params": list(backbone.parameters()), "lr": lr_backbone, "weight_decay": wd},
-                      {"params": list(head.parameters()), "lr": lr_head, "weight_decay": wd}]
-        else:
-            groups = [{"params": list(net.parameters()), "lr": lr_head, "weight_decay": wd}]
-        if learn_filter:
-            groups.insert(0, {"params": [kernel_param], "lr": lr_kernel, "weight_decay": 0.0})
-        return torch.optim.AdamW(groups)
+        return _optimizer(stage, net, kernel_param if learn_filter else None, weight_decay,
+                          {"network": lr_network, "kernel": lr_kernel, "backbone": lr_backbone, "head": lr_head})
 
     fingerprint = None if fingerprint is None else json.loads(json.dumps(fingerprint))
     stem = None if out is None else _stem(out)
     partial = None if stem is None else Path(str(stem) + ".partial.pt")
     if stem is not None:
-        stem.parent.mkdir(parents=True, exist_ok=True)
-        done = load_trained(stem, net.cpu(), fingerprint=fingerprint, who="train_on_dataset")
+        finished = _finished_run(stem, net, fingerprint, indices)
+        if finished is not None:
+            return finished
         net = net.to(dev)
-        if done is not None:
-            net, kernel, prov = done
-            return DatasetTrainingResult(kernel=kernel, network=net.cpu(), history=prov.get("history", []),
-                                         train_indices=np.asarray(prov.get("train_indices", indices)),
-                                         provenance=prov, paths=_paths(stem), epochs_trained=0)
-    history: list[dict[str, Any]] = []
-    start = (0, 0)  # (stage, epoch) to continue from
-    opt_state = None
-    if partial is not None and partial.is_file():
-        state = torch.load(str(partial), map_location="cpu", weights_only=True)
-        _check_fingerprint(json.loads(state["fingerprint"]), fingerprint, partial)
-        net.load_state_dict(state["network"])
-        with torch.no_grad():
-            kernel_param.copy_(state["kernel"].to(dev))
-        gen.set_state(state["generator"])
-        history = json.loads(state["history"])
-        start, opt_state = (int(state["stage"]), int(state["epoch"])), state["optimizer"]
-    log = (lambda msg: print(msg, file=sys.stderr, flush=True)) if verbose else None
+    history, start, opt_state = _resume(partial, fingerprint, net, kernel_param, gen)
     trained = 0
     for s_idx, stage in enumerate(_STAGES):
         if s_idx < start[0] or epochs[stage] == 0:
@@ -390,11 +356,8 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
         opt = optimizer(stage)
         if opt_state is not None and s_idx == start[0]:
             opt.load_state_dict(opt_state)
-        cached = None
-        if stage == "frozen_filter" or not learn_filter:  # a frozen kernel: the events never change
-            with torch.no_grad():
-                cached = torch.cat([input_fn(video[s : s + 64], kernel_param, sensor, ts)
-                                    for s in range(0, video.shape[0], 64)])
+        frozen = stage == "frozen_filter" or not learn_filter  # a frozen kernel: the events never change
+        cached = _inputs_once(input_fn, video, kernel_param, sensor, ts) if frozen else None
         for epoch in range(first_epoch, epochs[stage]):
             n_before = len(history)
             _train_epochs(evaluator, net, kernel_param, video, targets, sensor, ts, opt, 1, batch_size, gen,
@@ -402,8 +365,8 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
                           taps_init, cached_inputs=cached, input_fn=input_fn)
             history[n_before]["epoch"] = epoch
             trained += 1
-            if log is not None:
-                log(f"[learn] {evaluator.name} {stage} epoch {epoch + 1}/{epochs[stage]}: loss "
+            if verbose:
+                _log(f"[learn] {evaluator.name} {stage} epoch {epoch + 1}/{epochs[stage]}: loss "
                     f"{history[-1]['loss']:.4f} ({history[-1]['seconds']:.1f} s)")
             if partial is not None:
                 _save_partial(partial, net, kernel_param, gen, opt, history, (s_idx, epoch + 1), fingerprint)
@@ -432,6 +395,84 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
             partial.unlink()
     return DatasetTrainingResult(kernel=kernel, network=net, history=history, train_indices=indices,
                                  provenance=provenance, paths=paths, epochs_trained=trained)
+
+
+def _log(message: str) -> None:
+    """One progress line on stderr."""
+    import sys
+
+    print(message, file=sys.stderr, flush=True)
+
+
+def _inputs_once(input_fn: Any, video: Any, kernel_param: Any, sensor: Any, ts: Any) -> Any:
+    """The network inputs of every clip through a frozen kernel, computed once (64 clips at a time)."""
+    import torch
+
+    with torch.no_grad():
+        return torch.cat([input_fn(video[s : s + 64], kernel_param, sensor, ts) for s in range(0, video.shape[0], 64)])
+
+
+def _optimizer(stage: str, net: Any, kernel_param: Any, weight_decay: float, lr: dict[str, float]) -> Any:
+    """AdamW of one stage: stage one the whole network at ``lr["network"]``; stage two the kernel
+    (``kernel_param``, None when frozen; no weight decay) at ``lr["kernel"]`` and the network at
+    ``lr["backbone"]`` / ``lr["head"]`` (one group at ``lr["head"]`` without ``backbone`` and ``head``)."""
+    import torch
+
+    wd = weight_decay
+    if stage == "frozen_filter":
+        return torch.optim.AdamW([{"params": list(net.parameters()), "lr": lr["network"], "weight_decay": wd}])
+    backbone, head = getattr(net, "backbone", None), getattr(net, "head", None)
+    if isinstance(backbone, torch.nn.Module) and isinstance(head, torch.nn.Module):
+        groups = [{"params": list(backbone.parameters()), "lr": lr["backbone"], "weight_decay": wd},
+                  {"params": list(head.parameters()), "lr": lr["head"], "weight_decay": wd}]
+    else:
+        groups = [{"params": list(net.parameters()), "lr": lr["head"], "weight_decay": wd}]
+    if kernel_param is not None:
+        groups.insert(0, {"params": [kernel_param], "lr": lr["kernel"], "weight_decay": 0.0})
+    return torch.optim.AdamW(groups)
+
+
+def _checked_indices(train_indices: Any, n_clips: int) -> np.ndarray:
+    """``train_indices`` as distinct int64 clip indices in ``[0, n_clips)`` (InputError otherwise)."""
+    indices = np.asarray(list(train_indices), dtype=np.int64)
+    if len(indices) < 1 or len(set(indices.tolist())) != len(indices) or indices.min() < 0 \
+            or indices.max() >= n_clips:
+        raise InputError(f"train_on_dataset: train_indices must be distinct clip indices in [0, {n_clips}), "
+                         f"got {len(indices)} of them")
+    return indices
+
+
+def _rate_or_default(key: str, value: float | None, default: float) -> float:
+    """A checked learning rate in [0, 10] (1/step), or ``default`` when ``value`` is None."""
+    return default if value is None else check_real(key, value, 0.0, 10.0)
+
+
+def _finished_run(stem: Path, net: Any, fingerprint: Any, indices: np.ndarray) -> DatasetTrainingResult | None:
+    """The finished checkpoint at ``stem`` trained with ``fingerprint`` (loaded into ``net``), or None."""
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    done = load_trained(stem, net.cpu(), fingerprint=fingerprint, who="train_on_dataset")
+    if done is None:
+        return None
+    net, kernel, prov = done
+    return DatasetTrainingResult(kernel=kernel, network=net.cpu(), history=prov.get("history", []),
+                                 train_indices=np.asarray(prov.get("train_indices", indices)),
+                                 provenance=prov, paths=_paths(stem), epochs_trained=0)
+
+
+def _resume(partial: Path | None, fingerprint: Any, net: Any, kernel_param: Any,
+            gen: Any) -> tuple[list[dict[str, Any]], tuple[int, int], Any]:
+    """Load ``STEM.partial.pt`` into the network, kernel and generator: (history, (stage, epoch), optimizer state)."""
+    if partial is None or not partial.is_file():
+        return [], (0, 0), None
+    import torch
+
+    state = torch.load(str(partial), map_location="cpu", weights_only=True)
+    _check_fingerprint(json.loads(state["fingerprint"]), fingerprint, partial)
+    net.load_state_dict(state["network"])
+    with torch.no_grad():
+        kernel_param.copy_(state["kernel"].to(kernel_param.device))
+    gen.set_state(state["generator"])
+    return json.loads(state["history"]), (int(state["stage"]), int(state["epoch"])), state["optimizer"]
 
 
 def _initial_taps(init_kernel: Any, kernel_size: Any, init_noise: float, gen: Any) -> Any:

@@ -381,6 +381,35 @@ def _as_kernel(kernel: Any, *, source: str = "kernel") -> Kernel:
 
 
 # --------------------------------------------------------------------------- public API
+def _check_learn_arguments(settings: TrainingSettings | None, size: Any, n_train: Any, n_test: Any,
+                           seed: Any) -> TrainingSettings:
+    """:func:`learn_kernel`'s settings (default ``TrainingSettings()``) once size, clip counts and seed are valid."""
+    settings = settings or TrainingSettings()
+    if not isinstance(settings, TrainingSettings):
+        raise InputError(f"learn_kernel: settings must be a TrainingSettings, got {type(settings).__name__}")
+    if isinstance(size, bool) or not isinstance(size, int) or size < 1 or size % 2 == 0 or size > 15:
+        raise InputError(f"learn_kernel: size must be an odd integer in [1, 15], got {size!r}")
+    for nm, v in (("n_train", n_train), ("n_test", n_test)):
+        if isinstance(v, bool) or not isinstance(v, int) or not 2 <= v <= 100_000:
+            raise InputError(f"learn_kernel: {nm} must be an integer in [2, 100000], got {v!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise InputError(f"learn_kernel: seed must be a non-negative integer, got {seed!r}")
+    return settings
+
+
+def _realisation_kernel(realisation: str, init_kernel: Any, learn_filter: bool) -> tuple[Any, dict[str, Any]]:
+    """Co-design's kernel: ``realisation`` fitted to ``init_kernel``, as a module of its parameters, and
+    the record of the starting design."""
+    from ..realise.registry import fit_realisation, get_realisation
+
+    if init_kernel is None or not learn_filter:
+        raise InputError("learn_kernel: realisation=... needs init_kernel (the kernel the realisation is first "
+                         "fitted to) and learn_filter=True")
+    spec = get_realisation(realisation)
+    record = fit_realisation(realisation, _as_kernel(init_kernel, source="init_kernel"))
+    return spec.differentiable_kernel(record), {"realisation": realisation, "realisation_initial": record.to_dict()}
+
+
 def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048, n_test: int = 2048,
                  settings: TrainingSettings | None = None, scene: Any = None, sensor: Any = None,
                  learn_filter: bool = True, init_kernel: Any = None, out: str | Path | None = None,
@@ -436,6 +465,22 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
     InputError
         Unknown task, bad size / counts, an ``init_kernel`` of another size, a scene that cannot
         provide the task's ground truth, or a kernel larger than the frame.
+
+    Examples
+    --------
+    A tiny run (16 clips, one epoch per stage, a narrow network; the defaults train for minutes):
+
+    >>> import tempfile
+    >>> from fsdvs_hw import learn_kernel
+    >>> from fsdvs_hw.tasks.learn import TrainingSettings
+    >>> quick = TrainingSettings(epochs_frozen=1, epochs_joint=1, batch_size=8, width=4)
+    >>> with tempfile.TemporaryDirectory() as out:
+    ...     res = learn_kernel("recognition", 3, n_train=16, n_test=16, settings=quick, out=out)
+    ...     files = sorted(res.paths)
+    >>> res.kernel.size, res.primary_metric, files
+    (3, 'top1', ['checkpoint', 'kernel', 'provenance'])
+    >>> bool(0 <= res.metrics["top1"] <= 1)
+    True
     """
     import sys
 
@@ -445,16 +490,7 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
     from .evaluators import get_evaluator
 
     evaluator = get_evaluator(task)
-    settings = settings or TrainingSettings()
-    if not isinstance(settings, TrainingSettings):
-        raise InputError(f"learn_kernel: settings must be a TrainingSettings, got {type(settings).__name__}")
-    if isinstance(size, bool) or not isinstance(size, int) or size < 1 or size % 2 == 0 or size > 15:
-        raise InputError(f"learn_kernel: size must be an odd integer in [1, 15], got {size!r}")
-    for nm, v in (("n_train", n_train), ("n_test", n_test)):
-        if isinstance(v, bool) or not isinstance(v, int) or not 2 <= v <= 100_000:
-            raise InputError(f"learn_kernel: {nm} must be an integer in [2, 100000], got {v!r}")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise InputError(f"learn_kernel: seed must be a non-negative integer, got {seed!r}")
+    settings = _check_learn_arguments(settings, size, n_train, n_test, seed)
     _check_common(scene=scene, sensor=sensor, who="learn_kernel")
     learn_filter = check_bool("learn_filter", learn_filter)
     verbose = check_bool("verbose", verbose)
@@ -483,15 +519,7 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
     kernel_param: Any = torch.nn.Parameter(taps0.clone(), requires_grad=learn_filter)
     realised: dict[str, Any] = {}
     if realisation is not None:  # co-design: the kernel is the realisation's, a function of its parameters
-        from ..realise.registry import fit_realisation, get_realisation
-
-        if init_kernel is None or not learn_filter:
-            raise InputError("learn_kernel: realisation=... needs init_kernel (the kernel the realisation is first "
-                             "fitted to) and learn_filter=True")
-        spec = get_realisation(realisation)
-        record = fit_realisation(realisation, _as_kernel(init_kernel, source="init_kernel"))
-        kernel_param = spec.differentiable_kernel(record)
-        realised = {"realisation": realisation, "realisation_initial": record.to_dict()}
+        kernel_param, realised = _realisation_kernel(realisation, init_kernel, learn_filter)
 
     def kernel_now() -> Any:
         return kernel_param() if callable(kernel_param) else kernel_param
@@ -703,6 +731,21 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
     InputError
         Missing / unreadable checkpoint, task mismatch, weights that do not fit the network, a
         kernel larger than the frame, bad ``n_test``.
+
+    Examples
+    --------
+    A shipped recognition network (trained with the learned 7×7 kernel) scored with a plain DVS
+    (a delta kernel) on 8 test clips:
+
+    >>> from fsdvs_hw import Kernel, evaluate_kernel
+    >>> import numpy as np
+    >>> delta = Kernel(np.pad([[1.0]], 3), name="delta")
+    >>> ev = evaluate_kernel(delta, "recognition",
+    ...                      "designs/kernels/networks/recognition_with_learned_detection_7x7_s0.safetensors", n_test=8)
+    >>> ev.task, ev.n_test, ev.primary_metric, ev.kernel_size
+    ('recognition', 8, 'top1', 7)
+    >>> bool(0 <= ev.metrics["top1"] <= 1), bool(ev.event_rate > 0)
+    (True, True)
     """
     import torch
 

@@ -201,6 +201,17 @@ class MeshDesign:
         The kernel this design was fitted to.
     fit : dict
         Fit report (errors, solver status, iterations, wall time, starts); empty if not fitted.
+
+    Examples
+    --------
+    Space constants λ = √(g_lateral / g_vertical) pixels and settling times τ = C / g_vertical, by hand:
+
+    >>> from fsdvs_hw import MeshDesign
+    >>> d = MeshDesign(1e-8, 1e-8, 4e-8, 1e-8, gain_narrow=1.0, gain_wide=0.5, pixel_weight=0.0)
+    >>> d.lambda_narrow_px, d.lambda_wide_px, d.tau_narrow_s
+    (1.0, 2.0, 1e-05)
+    >>> d.whole_dc_gain, d.kernel(7).size  # a − b over the whole plane; the 7×7 window of it
+    (0.5, 7)
     """
 
     g_lateral_narrow_s: float

@@ -505,6 +505,17 @@ class MetalensDesign:
         Wavelengths and weights used.
     fit_info : dict
         Wall time (s), iterations, numerical settings.
+
+    Examples
+    --------
+    A coarse fit (:func:`fit_metalens`), stored and read back:
+
+    >>> from fsdvs_hw import MetalensDesign, fit_metalens, reference_kernel
+    >>> lens = fit_metalens(reference_kernel("dog", 3), n_terms=2, n_wavelengths=2, max_iter=5, n_starts=1,
+    ...                     progress=False)
+    >>> again = MetalensDesign.from_dict(lens.to_dict())
+    >>> again.geometry.focal_length_m, again.kernel_error() == lens.kernel_error()
+    (0.0002, True)
     """
 
     target: Kernel
@@ -995,6 +1006,18 @@ def fit_metalens(
     Returns
     -------
     MetalensDesign
+
+    Examples
+    --------
+    A quick, coarse fit (few terms, wavelengths and iterations; the defaults fit far better):
+
+    >>> from fsdvs_hw import fit_metalens, reference_kernel
+    >>> lens = fit_metalens(reference_kernel("dog", 3), n_terms=2, n_wavelengths=2, max_iter=5, n_starts=1,
+    ...                     progress=False)
+    >>> lens.strategy, lens.kernel().size  # 3 taps and guard_px = 2 pixels each side
+    ('pedestal', 7)
+    >>> bool(0 < lens.kernel_error() < 1), bool(lens.pedestal > 0)
+    (True, True)
     """
     check_fit_arguments(MetalensOptions, locals())  # the registry's schema: same limits as design files
     import torch
