@@ -351,7 +351,8 @@ def _iter_frames(p: Path, start_frame: int, n_frames: int | None, stride: int, s
 
 def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, stride: int = 1,
                size: tuple[int, int] | None = None, transfer: str = "ITU-R BT.1886",
-               colourspace: str = "ITU-R BT.709", peak_intensity: float = 1.0) -> VideoClip:
+               colourspace: str = "ITU-R BT.709", peak_intensity: float = 1.0,
+               input_mapping: str = "linear_light") -> VideoClip:
     """Decode ``n_frames`` frames of a video file to linear relative luminance.
 
     Parameters
@@ -368,6 +369,8 @@ def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, st
     peak_intensity : float
         Intensity of display white in the simulator's units (default 1.0 = full scale); use it to
         set the scene's light level (e.g. 0.01 for a dim scene).
+    input_mapping : {"linear_light", "v2e_gray"}
+        :data:`INPUT_MAPPINGS`: display decoding (default) or v2e's gray code values / 255.
 
     Notes
     -----
@@ -376,7 +379,8 @@ def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, st
     """
     p = _check_reading(path, start_frame, n_frames, stride, size, colourspace, peak_intensity, 2)
     frames = list(iter_video(p, start_frame=start_frame, n_frames=n_frames, stride=stride, size=size,
-                             transfer=transfer, colourspace=colourspace, peak_intensity=peak_intensity))
+                             transfer=transfer, colourspace=colourspace, peak_intensity=peak_intensity,
+                             input_mapping=input_mapping))
     if len(frames) < n_frames:
         last = start_frame + (n_frames - 1) * stride
         raise InputError(f"video file {str(p)!r} has only {len(frames)} of the {n_frames} frames wanted "
@@ -389,6 +393,8 @@ def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, st
     fps = float(meta.get("fps"))
     times = (start_frame + stride * np.arange(n_frames)) / fps
     lum = np.stack([f for _, f in frames])
+    if input_mapping == "v2e_gray":  # no display decoding: the clip records what was used
+        transfer, colourspace = "none (v2e gray code values)", "OpenCV BGR2GRAY weights"
     return VideoClip(lum, times, fps, str(p), transfer, colourspace,
                      {"codec": meta.get("codec"), "source_size": meta.get("source_size")})
 

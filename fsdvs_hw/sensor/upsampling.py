@@ -112,14 +112,14 @@ def _flows(l0: np.ndarray, l1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return dis.calc(u0, u1, None), dis.calc(u1, u0, None)
 
 
-def _warp(image: np.ndarray, flow: np.ndarray) -> np.ndarray:
-    """``image(x + flow(x))``, bilinear, borders replicated."""
+def _warp(image: np.ndarray, flow: np.ndarray, *, cubic: bool = False) -> np.ndarray:
+    """``image(x + flow(x))``, bilinear (bicubic with ``cubic``: less blur of fine texture), borders replicated."""
     cv2 = _dis()
     h, w = image.shape
     gx, gy = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
     flow = flow.astype(np.float32, copy=False)
     return cv2.remap(image.astype(np.float32), gx + flow[..., 0], gy + flow[..., 1],
-                     interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+                     interpolation=cv2.INTER_CUBIC if cubic else cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
 def visible_masks(flow_fw: np.ndarray, flow_bw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -227,7 +227,7 @@ def interpolate_frames(frame0: Any, frame1: Any, fractions: Iterable[float], *, 
         none_visible = (w0 + w1) < 1e-6
         w0 = np.where(none_visible, 1 - tau, w0)
         w1 = np.where(none_visible, tau, w1)
-        out[k] = (w0 * _warp(l0f, ft0) + w1 * _warp(l1f, ft1)) / (w0 + w1)
+        out[k] = (w0 * _warp(l0f, ft0, cubic=True) + w1 * _warp(l1f, ft1, cubic=True)) / (w0 + w1)
     return np.clip(np.exp(out) - eps, 0.0, None)
 
 
