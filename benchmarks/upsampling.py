@@ -116,18 +116,6 @@ def _simulate(frames: list[np.ndarray], times: list[float], config: Any) -> Any:
     return event_list(video, timestamps_s=torch.as_tensor(np.asarray(times))[None], config=config)
 
 
-def _flow_px_per_frame(video: np.ndarray, stride: int) -> float:
-    """99th-percentile DIS flow magnitude between the subsampled frames (px per low-rate frame)."""
-    from fsdvs_hw.sensor.upsampling import _flows, _log_pair
-
-    mags = []
-    for a, b in zip(video[::stride][:-1], video[::stride][1:], strict=True):
-        l0, l1, _ = _log_pair(a, b)
-        f01, _ = _flows(l0, l1)
-        mags.append(np.hypot(f01[..., 0], f01[..., 1]).ravel())
-    return float(np.percentile(np.concatenate(mags), 99))
-
-
 @kept_global_state()
 def bench_upsampling(*, quick: bool = False) -> BenchRun:
     """The table: scene speed, frame rate, mode → timing error, count error, van Rossum, time per frame.
@@ -141,7 +129,7 @@ def bench_upsampling(*, quick: bool = False) -> BenchRun:
 
     from fsdvs_hw.scenes.synthetic import SceneConfig, make_scenes
     from fsdvs_hw.sensor import SensorConfig
-    from fsdvs_hw.sensor.upsampling import UPSAMPLE_MODES, upsample_frames
+    from fsdvs_hw.sensor.upsampling import UPSAMPLE_MODES, motion_px_per_frame, upsample_frames
 
     torch.set_num_threads(1)
     h, w = (32, 48) if quick else (64, 96)
@@ -183,7 +171,7 @@ def bench_upsampling(*, quick: bool = False) -> BenchRun:
             ref_ms.append((time.perf_counter() - t0) * 1e3 / n_frames)
         for rate in RATES_HZ:
             stride = REFERENCE_HZ // rate
-            motion = statistics.fmean(_flow_px_per_frame(clip, stride) for clip in batch.video)
+            motion = statistics.fmean(motion_px_per_frame(clip[::stride], max_pairs=64) or 0.0 for clip in batch.video)
             for mode in UPSAMPLE_MODES:
                 rows: dict[str, list[float]] = {}
                 for clip, ref in zip(batch.video, refs, strict=True):

@@ -126,3 +126,50 @@ def test_simulate_cli_upsample_inserts_frames_and_refuses_bad_rate(tmp_path, cap
     assert "--upsample-rate" in capsys.readouterr().err
     with pytest.raises(SystemExit):  # argparse refuses an unknown choice
         main([*args, "--out", str(up), "--upsample", "slomo"])
+
+
+def test_plan_turns_upsampling_on_for_fast_motion_and_says_why():
+    import torch
+
+    from fsdvs_hw.sensor import SensorConfig, plan_model
+    from fsdvs_hw.sensor.upsampling import UPSAMPLE_MOTION_PX
+
+    tex = _texture((32, 48), seed=3)
+    cfg = SensorConfig.ideal(0.2)
+
+    def plan(step_px):
+        video = torch.as_tensor(np.stack([np.roll(tex, step_px * k, axis=1) for k in range(4)]))[None]
+        return plan_model(video, config=cfg, timestamps_s=torch.arange(4.0)[None] / 25.0)
+
+    fast, slow = plan(6), plan(1)
+    d = fast.decision("frame upsampling")
+    # the 99th percentile includes the wrap-around seam of np.roll, a little above the true 6 px
+    assert d.included and 5.5 < d.value < 8 and d.limit == UPSAMPLE_MOTION_PX
+    rate = 25.0 * np.ceil(d.value)
+    assert fast.upsample_rate_hz == pytest.approx(rate) and f"upsample to {rate:g} Hz" in d.reason
+    assert not slow.decision("frame upsampling").included and slow.upsample_rate_hz is None
+    assert "frame upsampling" in slow.skipped and "frame upsampling" in str(fast)
+
+
+def test_design_key_emulation_upsample_is_checked_and_unset_keeps_the_fingerprint():
+    from fsdvs_hw.explore.design import DesignError, parse_design
+
+    plain = parse_design({"design": {"name": "u"}})
+    linear = parse_design({"design": {"name": "u"}, "emulation": {"upsample": "linear_light"}})
+    flow = parse_design({"design": {"name": "u"}, "emulation": {"upsample": "flow"}})
+    assert "upsample" not in plain.data["emulation"]  # unset: content and fingerprint as before the key existed
+    assert len({plain.fingerprint(), linear.fingerprint(), flow.fingerprint()}) == 3
+    with pytest.raises(DesignError, match=r"emulation\.upsample"):
+        parse_design({"design": {"name": "u"}, "emulation": {"upsample": "slomo"}})
+
+
+def test_emulation_flow_upsampling_keeps_the_source_frames():
+    from fsdvs_hw.explore.emulation import upsample_linear
+
+    tex = _texture((24, 24), seed=4)
+    video = np.stack([tex, np.roll(tex, 4, axis=1), np.roll(tex, 8, axis=1)])[None]
+    up, tu = upsample_linear(video, np.array([0.0, 0.04, 0.08]), 4, "flow")
+    assert up.shape == (1, 9, 24, 24) and np.allclose(tu, np.arange(9) * 0.01)
+    assert np.allclose(up[0, ::4], video[0])  # fraction 0 of each interval is the source frame
+    inner = (slice(4, -4), slice(8, -8))
+    assert np.median(np.abs(np.log(up[0, 2][inner] / np.roll(tex, 2, axis=1)[inner]))) < 0.02

@@ -66,12 +66,20 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["MAX_UPSAMPLE_RATE_HZ", "UPSAMPLE_MODES", "interpolate_frames", "upsample_frames", "visible_masks"]
+__all__ = ["MAX_UPSAMPLE_RATE_HZ", "UPSAMPLE_MODES", "UPSAMPLE_MOTION_PX", "interpolate_frames", "motion_px_per_frame",
+           "upsample_frames", "visible_masks"]
 
 #: The upsampling modes (module documentation).
 UPSAMPLE_MODES = ("none", "linear", "flow")
 #: Largest output frame rate accepted (Hz): 10 µs steps, far below any event camera's latency.
 MAX_UPSAMPLE_RATE_HZ = 100_000.0
+#: The plan's rule (:func:`fsdvs_hw.sensor.plan_model`): flow upsampling is needed when the scene's
+#: motion (99th-percentile DIS flow) exceeds this many pixels per frame and some pixel's log
+#: intensity changes by more than a threshold in a frame. Below it, the linear-in-log event times
+#: are as close to the 400 Hz reference as the flow's (``fsdvs-hw bench upsampling``, docs/upsampling.md).
+UPSAMPLE_MOTION_PX = 2.0
+#: Smallest frame side (px) DIS measures motion on (its finest patch is 8 px; two levels).
+_MIN_FLOW_SIDE = 16
 # ε of L = log(I + ε), relative to the pair's brightest pixel
 _LOG_OFFSET = 1e-4
 # forward-backward consistency constants (Sundaram et al. 2010): relative and absolute (px²)
@@ -156,6 +164,43 @@ def visible_masks(flow_fw: np.ndarray, flow_bw: np.ndarray) -> tuple[np.ndarray,
         return err <= _CONSISTENCY_REL * ((a ** 2).sum(-1) + (b_at ** 2).sum(-1)) + _CONSISTENCY_ABS
 
     return one(fw, bw), one(bw, fw)
+
+
+def motion_px_per_frame(frames: Any, *, max_pairs: int = 8) -> float | None:
+    """The scene's motion: 99th percentile of the DIS flow magnitude between neighbouring frames (px).
+
+    Parameters
+    ----------
+    frames : array_like, shape (T, H, W)
+        Linear intensity (>= 0); T >= 2.
+    max_pairs : int
+        At most this many neighbouring pairs, evenly spaced over the clip, are measured (cost).
+
+    Returns
+    -------
+    float or None
+        Pixels per frame interval; None for frames smaller than 16 px on a side (DIS needs them).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.ndimage import gaussian_filter
+    >>> tex = np.exp(3 * gaussian_filter(np.random.default_rng(0).normal(size=(48, 48)), 2.0, mode="wrap"))
+    >>> round(motion_px_per_frame(np.stack([np.roll(tex, 3 * k, axis=1) for k in range(3)])))
+    3
+    """
+    v = np.asarray(frames, dtype=np.float64)
+    if v.ndim != 3 or v.shape[0] < 2:
+        raise InputError(f"frames: must be (T, H, W) with T >= 2, got shape {v.shape}")
+    if min(v.shape[1:]) < _MIN_FLOW_SIDE:
+        return None
+    picks = np.unique(np.linspace(0, v.shape[0] - 2, min(max_pairs, v.shape[0] - 1)).round().astype(int))
+    mags = []
+    for i in picks:
+        l0, l1, _ = _log_pair(v[i], v[i + 1])
+        f01, _ = _flows(l0, l1)
+        mags.append(np.hypot(f01[..., 0], f01[..., 1]).ravel())
+    return float(np.percentile(np.concatenate(mags), 99))
 
 
 def _log_pair(frame0: np.ndarray, frame1: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
