@@ -22,7 +22,7 @@ leak events            the larger of: expected leak events ``rate · pixels · d
 shot noise             the same with the shot-noise rate
 surround transient     mesh lag ``τ_s · |dS/dt| · s`` in units of C versus ``tolerance``
 frame upsampling       scene motion (99th-percentile DIS optical flow, px per frame) versus
-                       :data:`~fsdvs_hw.sensor.upsampling.UPSAMPLE_MOTION_PX` (2 px), and the largest
+                       :data:`~fsdvs_hw.sensor.upsampling.UPSAMPLE_MOTION_PX` (1.5 px), and the largest
                        per-frame log change versus C: both above → event times need flow frames
                        between the video's (``ModelPlan.upsample_rate_hz``; measured in
                        ``fsdvs-hw bench upsampling``, docs/upsampling.md)
