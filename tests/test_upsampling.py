@@ -41,6 +41,18 @@ def test_linear_mode_is_linear_in_log_intensity():
     assert np.allclose(out[0], a) and np.allclose(out[-1], b)
 
 
+def test_sub_pixel_motion_is_left_to_linear_interpolation():
+    """Flow vectors under 0.5 px are zeroed (their error is as large as the motion): a 0.25 px
+    shift gives exactly the linear-in-log frames."""
+    from scipy.ndimage import shift
+
+    tex = _texture((32, 32), seed=5)
+    moved = shift(tex, (0.0, 0.25), order=3, mode="wrap")
+    taus = [0.25, 0.5, 0.75]
+    assert np.array_equal(interpolate_frames(tex, moved, taus, mode="flow"),
+                          interpolate_frames(tex, moved, taus, mode="linear"))
+
+
 @pytest.mark.parametrize("mode", ["linear", "flow"])
 def test_equal_frames_give_the_same_frame(mode):
     tex = _texture((32, 32), seed=1)
