@@ -81,9 +81,8 @@ MAX_UPSAMPLE_RATE_HZ = 100_000.0
 #: motion (99th-percentile DIS flow) exceeds this many pixels per frame and some pixel's log
 #: intensity changes by more than a threshold in a frame. Measured (``fsdvs-hw bench upsampling``,
 #: docs/upsampling.md): flow frames bring event times and counts closer to a 400 Hz reference at
-#: 1.8 and 4 px per frame and move them further away at 0.8 px and below (the flow's sub-pixel
-#: noise jitters events that linear-in-log interpolation already times within 0.4 ms); the limit
-#: lies between those measured points.
+#: 1.8 and 4 px per frame, and change nothing measurable at 0.8 px and below (where they cost 3-20x
+#: the simulation time); the limit lies between those measured points.
 UPSAMPLE_MOTION_PX = 1.5
 #: Smallest frame side (px) DIS measures motion on (its finest patch is 8 px; two levels).
 _MIN_FLOW_SIDE = 16
