@@ -38,6 +38,7 @@ BENCHMARKS: dict[str, str] = {
     "stats": "benchmarks.stats:bench_stats",
     "sensors": "benchmarks.sensors:bench_sensors",
     "user_data": "benchmarks.user_data:bench_user_data",
+    "upsampling": "benchmarks.upsampling:bench_upsampling",
 }
 
 

@@ -15,7 +15,7 @@ def test_simulate_cli_writes_the_whole_clip_events(tmp_path, capsys):
                "--preset", "v2e-noisy", "--chunk-frames", "2", "--no-progress", "--seed", "4"])
     assert rc == 0
     ev = read_events(out)
-    clip = load_example_clip("carphone", n_frames=6, size=(36, 44))
+    clip = load_example_clip("carphone", n_frames=6, size=(36, 44), input_mapping="v2e_gray")  # the v2e preset's
     want = event_list(clip.intensity[None], timestamps_s=clip.timestamps_s,
                       config=SensorConfig.preset("v2e-noisy", seed=4))
     assert (ev.width, ev.height) == (44, 36) and len(ev) == len(want) > 100

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import signal
 import sys
@@ -29,7 +30,8 @@ BYTES_PER_PIXEL = 128
 
 HELP = "simulate a video file to an event file (.h5 v2e layout, .aedat4, .npz), streamed chunk by chunk"
 DESCRIPTION = (
-    "Decode VIDEO frame by frame to linear luminance (BT.1886), run the event simulator chunk by chunk\n"
+    "Decode VIDEO frame by frame to linear luminance (BT.1886; the v2e presets: v2e's gray code values,\n"
+    "see --input-mapping), optionally insert frames (--upsample), run the event simulator chunk by chunk\n"
     "(all pixel state carried: the output equals a whole-clip run) and write the events to --out.\n"
     "Formats by suffix: .h5/.hdf5 (v2e's layout: 'events' (N, 4) uint32 [t_us, x, y, p], p 1 = ON,\n"
     "0 = OFF), .aedat4 (dv-processing), .npz (t int64 µs, x, y uint16, p int8 +1 ON / -1 OFF).\n"
@@ -39,7 +41,9 @@ DESCRIPTION = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from ..scenes.video import INPUT_MAPPINGS
     from ..sensor.config import PRESETS
+    from ..sensor.upsampling import UPSAMPLE_MODES
 
     parser.add_argument("video", help="video file, or example:NAME")
     parser.add_argument("--out", type=Path, required=True, help="event file (.h5, .hdf5, .aedat4 or .npz)")
@@ -54,6 +58,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--size", default=None, help="resize to HxW (linear light), e.g. 240x320")
     parser.add_argument("--peak-intensity", type=float, default=1.0,
                         help="intensity of display white (full scale 1.0; lower for a dim scene)")
+    parser.add_argument("--input-mapping", choices=INPUT_MAPPINGS, default=None,
+                        help="how code values become intensity: linear_light (display decoding) or v2e_gray "
+                             "(v2e's OpenCV gray code values / 255); default: the preset's (v2e-*: v2e_gray, "
+                             "others: linear_light)")
+    parser.add_argument("--upsample", choices=UPSAMPLE_MODES, default="none",
+                        help="insert frames before simulating: none (default), linear (in log intensity) or "
+                             "flow (DIS optical flow, both directions, occlusions by forward-backward consistency)")
+    parser.add_argument("--upsample-rate", type=float, default=400.0,
+                        help="frame rate after upsampling in Hz (default 400; in (0, 100000])")
     parser.add_argument("--chunk-frames", type=int, default=1,
                         help="frame intervals per chunk (default 1; peak memory grows with the events of one chunk)")
     parser.add_argument("--threads", type=int, default=None,
@@ -100,6 +113,10 @@ def _check_numbers(args: argparse.Namespace) -> None:
         raise InputError(f"--frames {args.frames}: must be >= 1")
     if not 1 <= args.chunk_frames <= 100_000:
         raise InputError(f"--chunk-frames {args.chunk_frames}: must be in [1, 100000]")
+    from ..sensor.upsampling import MAX_UPSAMPLE_RATE_HZ
+
+    if not (math.isfinite(args.upsample_rate) and 0 < args.upsample_rate <= MAX_UPSAMPLE_RATE_HZ):
+        raise InputError(f"--upsample-rate {args.upsample_rate:g}: must be in (0, {MAX_UPSAMPLE_RATE_HZ:g}] Hz")
 
 
 class _Stopped(KeyboardInterrupt):
@@ -139,6 +156,8 @@ def run(args: argparse.Namespace) -> int:
     from ..scenes.video import example_clip_path, iter_video, video_properties
     from ..sensor import SensorConfig, simulate
     from ..sensor.eventfile import EventFileWriter, event_format
+    from ..sensor.presets import preset_input_mapping
+    from ..sensor.upsampling import upsample_frames
 
     event_format(args.out)  # checked before decoding anything
     _check_numbers(args)
@@ -156,10 +175,16 @@ def run(args: argparse.Namespace) -> int:
     config = SensorConfig.preset(args.preset, **overrides)
     kernel = load_kernel_or_reference(args.kernel) if args.kernel else None
     props = video_properties(path)
+    mapping = args.input_mapping or preset_input_mapping(args.preset)
     frames = iter_video(path, start_frame=args.start_frame, n_frames=args.frames, size=size,
-                        peak_intensity=args.peak_intensity, allow_truncated=args.allow_truncated)
+                        peak_intensity=args.peak_intensity, allow_truncated=args.allow_truncated,
+                        input_mapping=mapping)
+    if args.upsample != "none":
+        frames = upsample_frames(frames, mode=args.upsample, rate_hz=args.upsample_rate)
     total = props.get("nframes")
     total = args.frames if args.frames is not None else (max(int(total) - args.start_frame, 0) if total else None)
+    if total and args.upsample != "none" and props.get("fps"):  # the bar counts simulated (upsampled) frames
+        total = (total - 1) * max(math.ceil(args.upsample_rate / float(props["fps"]) - 1e-9), 1) + 1
     t0 = time.perf_counter()
     n_events = n_on = 0
     writer = None
@@ -172,7 +197,9 @@ def run(args: argparse.Namespace) -> int:
                 if writer is None:
                     writer = EventFileWriter(args.out, chunk.width, chunk.height,
                                              metadata={"source": str(path), "preset": args.preset,
-                                                       "kernel": args.kernel or "none"})
+                                                       "kernel": args.kernel or "none", "input_mapping": mapping,
+                                                       "upsample": args.upsample if args.upsample == "none"
+                                                       else f"{args.upsample} {args.upsample_rate:g} Hz"})
                 assert chunk.events is not None  # simulate() yields events by default (events=True)
                 writer.write(chunk.events)
                 n_events += len(chunk.events)

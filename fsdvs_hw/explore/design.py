@@ -33,8 +33,8 @@ Layout (every section and key is optional; defaults in brackets)::
     [scoring]       task_weights = { detection = 1, ... } [equal], n_resamples [2000],
                     confidence [0.95], target_half_width [0.01]  (the paired loss CIs)
     [emulation]     enabled, n_clips, n_frames, display_bits, display_gamma, display_peak_nits,
-                    display_black_nits, upsample_factor, camera ["design" or a sensor preset such as
-                    "imx636"]  (fsdvs_hw.explore.emulation)
+                    display_black_nits, upsample_factor, upsample ["linear_light" or "flow"], camera
+                    ["design" or a sensor preset such as "imx636"]  (fsdvs_hw.explore.emulation)
     [rate]          enabled [false], thresholds [[0.1, 0.125, 0.15, 0.3, 0.45]], references [["delta", "learned"]]
                     (every point's losses at equal event rate; fsdvs_hw.explore.matched)
     [sweep]         axes = { "asic.bits" = [2, 4, 8], "sensor.threshold_on" = [0.1, 0.2] }
@@ -225,6 +225,10 @@ class EmulationSection(StrictModel):
     display_peak_nits: float = field(400.0, "cd/m^2", "display peak luminance in cd/m²", ge=1.0, le=10000.0)
     display_black_nits: float = field(0.3, "cd/m^2", "display black level in cd/m²", ge=0.0, le=100.0)
     upsample_factor: int = field(4, "", "temporal upsampling before display", ge=1, le=64)
+    upsample: Literal["linear_light", "flow"] = field(
+        "linear_light", "", "how the upsampled frames are made: 'linear_light' (blend in linear light, a cross-fade) or "
+        "'flow' (optical-flow interpolation in log intensity with occlusion handling, fsdvs_hw.sensor.upsampling; "
+        "closer to the paper's RIFE)")
     camera: Literal[EMULATION_CAMERAS] = field(  # type: ignore[valid-type]
         "design", "", "the camera that recaptures the display: 'design' (the design's [sensor]) or a sensor preset "
         "with sourced parameters (fsdvs_hw.sensor.presets; 'imx636' is the paper's EVK4)")
@@ -628,8 +632,9 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
         data["design"]["name"] = "design"
     if "costs" not in raw:  # a design without [costs] keeps its content and fingerprint (defaults apply)
         del data["costs"]
-    if "camera" not in (raw.get("emulation") or {}):  # likewise [emulation] without camera (the design's sensor)
-        del data["emulation"]["camera"]
+    for key in ("camera", "upsample"):  # likewise [emulation] without camera (the design's sensor) or upsample
+        if key not in (raw.get("emulation") or {}):
+            del data["emulation"][key]
     base = Path(base_dir)
     _check_cross(chk, data)
     _expand_checkpoint_patterns(chk, data, base, confine_paths)

@@ -14,9 +14,12 @@ same track:
    clipped fractions are reported. The drive level is gamma-encoded (``code = v^(1/γ)``) and
    quantised to ``display_bits``; the panel emits ``black + (peak − black)·(code/max)^γ``.
    Luminance is expressed relative to the peak (the camera sees [black/peak, 1]).
-3. **Temporal upsampling** by ``upsample_factor`` with linear blending in linear light, standing in
-   for RIFE's motion-compensated interpolation (a stated simplification: blending turns motion into
-   a cross-fade between frames, which spreads the same log change over more sub-steps).
+3. **Temporal upsampling** by ``upsample_factor``: by default (``upsample = "linear_light"``)
+   linear blending in linear light, standing in for RIFE's motion-compensated interpolation (a
+   stated simplification: blending turns motion into a cross-fade between frames, which spreads
+   the same log change over more sub-steps); with ``upsample = "flow"`` optical-flow
+   interpolation in log intensity with occlusion handling
+   (:func:`fsdvs_hw.sensor.upsampling.interpolate_frames`), closer to RIFE.
 4. **Recapture** by the exact event simulator (:func:`fsdvs_hw.sensor.event_frames`) with no
    in-pixel kernel and the design's noisy sensor (thresholds, mismatch, v2e noise defaults); the
    upsampled intervals are summed back onto the source frame intervals.
@@ -56,6 +59,8 @@ class DisplaySettings:
         Peak and black luminance in cd/m² (black < peak).
     upsample_factor : int
         Temporal upsampling before display (1 = none).
+    upsample : {"linear_light", "flow"}
+        How the new frames are made (module documentation, step 3).
     """
 
     bits: int = 8
@@ -63,6 +68,7 @@ class DisplaySettings:
     peak_nits: float = 400.0
     black_nits: float = 0.3
     upsample_factor: int = 4
+    upsample: str = "linear_light"
 
     def __post_init__(self) -> None:
         if not (isinstance(self.bits, int) and 1 <= self.bits <= 16):
@@ -77,13 +83,16 @@ class DisplaySettings:
             raise InputError(
                 f"DisplaySettings.upsample_factor must be an integer in [1, 64], got {self.upsample_factor!r}"
             )
+        if self.upsample not in ("linear_light", "flow"):
+            raise InputError(f"DisplaySettings.upsample {self.upsample!r} unknown; allowed: linear_light, flow")
 
     @classmethod
     def from_design(cls, section: Mapping[str, Any]) -> DisplaySettings:
         """From a design's ``[emulation]`` section."""
         return cls(bits=int(section["display_bits"]), gamma=float(section["display_gamma"]),
                    peak_nits=float(section["display_peak_nits"]), black_nits=float(section["display_black_nits"]),
-                   upsample_factor=int(section["upsample_factor"]))
+                   upsample_factor=int(section["upsample_factor"]),
+                   upsample=str(section.get("upsample", "linear_light")))
 
 
 def display_luminance(filtered: np.ndarray, display: DisplaySettings) -> tuple[np.ndarray, dict[str, float]]:
@@ -106,14 +115,25 @@ def display_luminance(filtered: np.ndarray, display: DisplaySettings) -> tuple[n
     return lo + (1.0 - lo) * (code / levels) ** display.gamma, info
 
 
-def upsample_linear(video: np.ndarray, timestamps_s: np.ndarray, factor: int) -> tuple[np.ndarray, np.ndarray]:
-    """Insert ``factor − 1`` linearly blended frames between neighbours: T → (T−1)·factor + 1 frames."""
+def upsample_linear(video: np.ndarray, timestamps_s: np.ndarray, factor: int,
+                    mode: str = "linear_light") -> tuple[np.ndarray, np.ndarray]:
+    """Insert ``factor − 1`` frames between neighbours: T → (T−1)·factor + 1 frames.
+
+    ``mode``: ``"linear_light"`` blends linearly in linear light; ``"flow"`` interpolates with
+    optical flow in log intensity (:func:`fsdvs_hw.sensor.upsampling.interpolate_frames`).
+    """
     if factor == 1:
         return video, timestamps_s
     t = np.asarray(timestamps_s, dtype=np.float64)
     w = np.arange(factor) / factor  # blend weights within one interval
     a, b = video[:, :-1], video[:, 1:]
-    mid = a[:, :, None] * (1 - w)[None, None, :, None, None] + b[:, :, None] * w[None, None, :, None, None]
+    if mode == "flow":
+        from ..sensor.upsampling import interpolate_frames
+
+        mid = np.stack([np.stack([interpolate_frames(a[i, k], b[i, k], w, mode="flow") for k in range(a.shape[1])])
+                        for i in range(a.shape[0])])
+    else:
+        mid = a[:, :, None] * (1 - w)[None, None, :, None, None] + b[:, :, None] * w[None, None, :, None, None]
     n, T = video.shape[:2]
     up = np.concatenate([mid.reshape(n, (T - 1) * factor, *video.shape[2:]), video[:, -1:]], axis=1)
     tu = np.concatenate([(t[:-1, None] * (1 - w) + t[1:, None] * w).ravel(), t[-1:]])
@@ -139,7 +159,8 @@ def recapture(video: np.ndarray, timestamps_s: np.ndarray, kernel: Kernel, *, di
     with torch.no_grad():
         filt = apply_kernel(torch.as_tensor(video, dtype=torch.float64), torch.as_tensor(np.array(kernel.taps)))
     lum, info = display_luminance(filt.numpy(), display)
-    up, tu = upsample_linear(lum, np.asarray(timestamps_s, dtype=np.float64), display.upsample_factor)
+    up, tu = upsample_linear(lum, np.asarray(timestamps_s, dtype=np.float64), display.upsample_factor,
+                             display.upsample)
     with torch.no_grad():
         fr = event_frames(torch.as_tensor(up), None, timestamps_s=torch.as_tensor(tu), config=sensor)
     n, tm1 = fr.shape[0], video.shape[1] - 1

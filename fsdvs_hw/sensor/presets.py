@@ -57,6 +57,7 @@ __all__ = [
     "STATUSES",
     "SensorPreset",
     "SourcedValue",
+    "preset_input_mapping",
     "presets_markdown",
     "sensor_config",
     "sensor_preset",
@@ -81,6 +82,8 @@ PRESET_FIELDS: dict[str, tuple[str, str]] = {
     "shot_noise_rate_hz": ("Hz", "shot-noise event rate per pixel (ON + OFF)"),
     "latency_s": ("s", "pixel latency (descriptive; not modelled)"),
 }
+# fsdvs_hw.scenes.video.INPUT_MAPPINGS (repeated: reading a preset does not import the video module)
+_INPUT_MAPPINGS = ("linear_light", "v2e_gray")
 # the quantities SensorConfig takes
 _CONFIG_FIELDS = ("threshold_on", "threshold_off", "threshold_sigma", "refractory_s", "cutoff_hz", "leak_rate_hz",
                   "shot_noise_rate_hz")
@@ -125,18 +128,26 @@ class SensorPreset:
         One entry per key of :data:`PRESET_FIELDS`.
     base : dict
         Further :class:`SensorConfig` fields fixed by the preset (model choices, not camera data).
+    input_mapping : {"linear_light", "v2e_gray"}
+        How a video file's code values become intensity (:data:`fsdvs_hw.scenes.video.INPUT_MAPPINGS`):
+        linear light for a camera (a pixel responds to photons); v2e's gray code values for the
+        v2e presets, so that they reproduce v2e from the same file.
     """
 
     name: str
     description: str
     values: dict[str, SourcedValue]
     base: dict[str, Any] = field(default_factory=dict)
+    input_mapping: str = "linear_light"
 
     def __post_init__(self) -> None:
         missing = set(PRESET_FIELDS) - set(self.values)
         extra = set(self.values) - set(PRESET_FIELDS)
         if missing or extra:
             raise InputError(f"SensorPreset {self.name!r}: fields missing {sorted(missing)}, unknown {sorted(extra)}")
+        if self.input_mapping not in _INPUT_MAPPINGS:
+            raise InputError(f"SensorPreset {self.name!r}: input_mapping {self.input_mapping!r} unknown; allowed: "
+                             f"{', '.join(_INPUT_MAPPINGS)}")
 
     def config(self, **overrides: Any) -> SensorConfig:
         """The simulator's :class:`SensorConfig` for this preset; ``overrides`` replace any field."""
@@ -176,7 +187,7 @@ def _v2e_preset(name: str, description: str, code_place: str) -> SensorPreset:
     }
     for k in _CONFIG_FIELDS:
         values[k] = _pub(float(getattr(cfg, k)), src)
-    return SensorPreset(name, description, values)
+    return SensorPreset(name, description, values, input_mapping="v2e_gray")
 
 
 # a camera has been running before a recording starts: each pixel's leak cycle is at a random phase
@@ -292,6 +303,24 @@ def sensor_config(name: str, **overrides: Any) -> SensorConfig:
     if name in PRESETS:
         return SensorConfig.preset(name, **overrides)
     raise InputError(f"sensor preset {name!r} unknown; allowed: {', '.join([*SENSOR_PRESETS, *PRESETS])}")
+
+
+def preset_input_mapping(name: str) -> str:
+    """How ``simulate`` maps a video file's code values for preset ``name`` (any preset name).
+
+    ``"v2e_gray"`` for v2e's parameter sets (``v2e-clean``, ``v2e-default``, ``v2e-noisy``): v2e's
+    gray code values as intensity; ``"linear_light"`` for every other preset (display decoding).
+
+    Examples
+    --------
+    >>> preset_input_mapping("v2e-default"), preset_input_mapping("default"), preset_input_mapping("imx636")
+    ('v2e_gray', 'linear_light', 'linear_light')
+    """
+    key = str(name).lower()
+    if key in SENSOR_PRESETS:
+        return SENSOR_PRESETS[key].input_mapping
+    sensor_config(name)  # unknown names raise InputError with the allowed ones
+    return "linear_light"
 
 
 def _cell(v: SourcedValue) -> str:
