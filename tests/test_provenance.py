@@ -57,7 +57,11 @@ def test_a_scored_point_keeps_the_versions_it_was_computed_with():
 
 
 def test_the_report_names_the_versions_or_says_they_were_not_kept():
-    from fsdvs_hw.report.html import _versions_note
+    from fsdvs_hw.report.html import _versions
+    from fsdvs_hw.report.templating import render
+
+    def _versions_note(points):
+        return str(render("macros.html.j2", macro="versions_note", versions=_versions(points)))
     from fsdvs_hw.kernels import reference_kernel
     from fsdvs_hw.records import Score, ScoredPoint
 
