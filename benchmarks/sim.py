@@ -53,6 +53,7 @@ __all__ = [
     "V2E_CLIPS",
     "bench_sim",
     "clip_frames",
+    "compare_checkouts",
     "compare_v2e",
     "compare_v2e_markdown",
     "default_cases",
@@ -60,6 +61,7 @@ __all__ = [
     "moving_texture",
     "records_markdown",
     "sim_records",
+    "simulate_command_stages",
     "v2e_records",
 ]
 
@@ -602,10 +604,11 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
             "device": str(device), "gpu_peak_mb": gpu_mb}
 
 
-def _run_child(cmd: list[str], what: str) -> tuple[dict[str, Any], list[float], list[float]]:
-    """Run a measuring child process; its last stdout line (JSON) and its rates per run in
-    Mpixel-frames per wall second and per CPU second."""
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # the checkout: `-m benchmarks.sim`
+def _run_child(cmd: list[str], what: str, root: str | None = None) -> tuple[dict[str, Any], list[float], list[float]]:
+    """Run a measuring child process (``root``: the checkout first on its path, default this
+    one); its last stdout line (JSON) and its rates per run in Mpixel-frames per wall second and
+    per CPU second."""
+    root = root or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # `-m benchmarks.sim`
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
     res = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
     if res.returncode != 0:
@@ -890,14 +893,154 @@ def compare_v2e(v2e_src: str, *, clips: tuple[str, ...] = V2E_CLIPS, rounds: int
     return out
 
 
-def compare_v2e_markdown(rows: list[dict[str, Any]]) -> str:
-    """The table of :func:`compare_v2e`: clip | v2e | fsdvs_hw (Mpixel-frames/s, median [min–max]
-    over rounds) | ratio of medians | per-CPU-second ratio | events | peak RSS."""
+_TREE_CHILD = r"""
+import json, resource, sys, time
+import numpy as np, torch
+from fsdvs_hw.sensor import SensorConfig, simulate
+from fsdvs_hw.sensor.threads import event_list_threads
+frames_path, preset, chunk = sys.argv[1], sys.argv[2], int(sys.argv[3])
+torch.set_num_threads(event_list_threads())
+video = torch.from_numpy(np.load(frames_path))
+cfg = SensorConfig.preset(preset)
+for _ in simulate(video[:3], config=cfg, chunk_frames=chunk):
+    pass
+rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+c0, t0, n = time.process_time(), time.perf_counter(), 0
+for c in simulate(video, config=cfg, chunk_frames=chunk):
+    n += len(c.events)
+    del c
+wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+T, H, W = video.shape
+print(json.dumps({"walls": [wall], "cpus": [cpu], "events": n, "n_frames": T, "height": H, "width": W,
+                  "rss_base_mb": rss0 / 1024, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
+def compare_checkouts(other_root: str, *, clips: tuple[str, ...] = V2E_CLIPS, rounds: int = 5,
+                      preset: str = "v2e-default", chunk_frames: int = 1) -> list[dict[str, Any]]:
+    """This checkout's exact event list against another checkout's (an A/B of two versions of
+    the simulator), on the same pre-decoded frames, alternating the two in ``rounds`` rounds of
+    one fresh child process each (public API only: :func:`fsdvs_hw.sensor.simulate`, so any
+    version runs it). Rows as :func:`compare_v2e`'s, "v2e" standing for ``other_root``."""
+    import tempfile
+    from pathlib import Path
+
+    import numpy as np
+
+    from fsdvs_hw.errors import InputError
+
+    if not (Path(other_root) / "fsdvs_hw" / "sensor" / "stream.py").is_file():
+        raise InputError(f"other_root: {other_root!r} is no fsdvs_hw checkout (fsdvs_hw/sensor/stream.py missing)")
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    out = []
+    for clip in clips:
+        with tempfile.TemporaryDirectory() as d:
+            frames = Path(d) / f"{clip}.npy"
+            np.save(frames, clip_frames(clip).numpy())
+            runs: dict[str, list] = {here: [], other_root: []}
+            for _ in range(rounds):
+                for root in runs:
+                    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+                    r, rates, cpu_rates = _run_child([sys.executable, "-c", _TREE_CHILD, str(frames), preset,
+                                                      str(chunk_frames)], f"A/B child ({root})", root=root)
+                    runs[root].append({**r, "rate": rates[0], "cpu_rate": cpu_rates[0], "load": load})
+        mine, other = runs[here], runs[other_root]
+        out.append({"clip": clip, "resolution": f"{mine[0]['height']}x{mine[0]['width']}",
+                    "n_frames": mine[0]["n_frames"], "events": mine[0]["events"], "v2e_events": other[0]["events"],
+                    "ours_mpf_s": [r["rate"] for r in mine], "v2e_mpf_s": [r["rate"] for r in other],
+                    "ours_mpf_cpu_s": [r["cpu_rate"] for r in mine], "v2e_mpf_cpu_s": [r["cpu_rate"] for r in other],
+                    "ratio_median": statistics.median(r["rate"] for r in mine)
+                    / statistics.median(r["rate"] for r in other),
+                    "ours_peak_rss_mb": max(r["peak_rss_mb"] for r in mine),
+                    "v2e_peak_rss_mb": max(r["peak_rss_mb"] for r in other), "rounds": rounds, "threads": 0,
+                    "device": "cpu", "load_avg": [r["load"] for r in mine], "other": other_root})
+    return out
+
+
+_STAGE_CHILD = r"""
+import json, resource, sys, time
+import torch
+from fsdvs_hw.scenes.video import example_clip_path, iter_video
+from fsdvs_hw.sensor import SensorConfig, simulate
+from fsdvs_hw.sensor.threads import event_list_threads
+clip, preset, stage = sys.argv[1:4]
+torch.set_num_threads(event_list_threads())
+for _ in simulate(torch.rand(3, 8, 8), config=SensorConfig.preset(preset)):
+    pass  # the C kernels loaded
+c0, t0, n = time.process_time(), time.perf_counter(), 0
+frames = iter_video(example_clip_path(clip))
+if stage == "decode":
+    for _ in frames:
+        n += 1
+else:
+    for c in simulate(frames, config=SensorConfig.preset(preset), chunk_frames=1):
+        n += len(c.events)
+        del c
+print(json.dumps({"wall": time.perf_counter() - t0, "cpu": time.process_time() - c0, "n": n,
+                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
+def simulate_command_stages(clip: str = "bikes", *, preset: str = "v2e-default", repeats: int = 3,
+                            suffix: str = ".h5") -> list[dict[str, Any]]:
+    """Where ``fsdvs-hw simulate example:CLIP --out events.h5 --preset PRESET`` spends its time.
+
+    Three fresh child processes per repeat, in turn: the video decoded only (frames to linear
+    luminance, :func:`fsdvs_hw.scenes.video.iter_video`), decoded and simulated (events counted,
+    not written), and the whole command (decode, simulate, write; the ``.h5`` writer is a child
+    process of the command, its CPU time counted). Returns one row per stage: ``stage``, ``walls``,
+    ``cpus`` (seconds per repeat, the command's children included), ``events`` (decode: frames),
+    ``peak_rss_mb`` (the stage child's, not the writer's).
+    """
+    import resource
+    import tempfile
+    from pathlib import Path
+
+    from fsdvs_hw.errors import InputError
+
+    if clip not in V2E_CLIPS:
+        raise InputError(f"clip {clip!r} unknown; allowed: {', '.join(V2E_CLIPS)}")
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (here, os.environ.get("PYTHONPATH")) if p)}
+    rows = {k: {"stage": k, "walls": [], "cpus": [], "events": 0, "peak_rss_mb": 0.0}
+            for k in ("decode", "decode + simulate", "decode + simulate + write (the command)")}
+    for _ in range(repeats):
+        for stage in ("decode", "decode + simulate"):
+            res = subprocess.run([sys.executable, "-c", _STAGE_CHILD, clip, preset, stage.split(" ")[-1]],
+                                 capture_output=True, text=True, env=env, check=False)
+            if res.returncode != 0:
+                raise RuntimeError(f"stage child ({stage}) failed: {res.stderr[-2000:]}")
+            r = json.loads(res.stdout.strip().splitlines()[-1])
+            row = rows[stage]
+            row["walls"].append(r["wall"])
+            row["cpus"].append(r["cpu"])
+            row["events"], row["peak_rss_mb"] = r["n"], max(row["peak_rss_mb"], r["peak_rss_mb"])
+        with tempfile.TemporaryDirectory() as d:
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t0 = time.perf_counter()
+            res = subprocess.run([sys.executable, "-m", "fsdvs_hw.cli", "simulate", f"example:{clip}", "--out",
+                                  str(Path(d) / f"events{suffix}"), "--preset", preset, "--no-progress"],
+                                 capture_output=True, text=True, env=env, check=False)
+            wall = time.perf_counter() - t0
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            if res.returncode != 0:
+                raise RuntimeError(f"fsdvs-hw simulate failed: {res.stderr[-2000:]}")
+        row = rows["decode + simulate + write (the command)"]
+        row["walls"].append(wall)
+        row["cpus"].append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+        row["events"] = rows["decode + simulate"]["events"]
+    return list(rows.values())
+
+
+def compare_v2e_markdown(rows: list[dict[str, Any]], other: str = "v2e") -> str:
+    """The table of :func:`compare_v2e` (or :func:`compare_checkouts`, ``other`` naming the other
+    checkout): clip | other | fsdvs_hw (Mpixel-frames/s, median [min–max] over rounds) | ratio of
+    medians | per-CPU-second ratio | events | peak RSS."""
     def cell(xs: list[float]) -> str:
         return f"{statistics.median(xs):.2f} [{min(xs):.2f}–{max(xs):.2f}]"
 
-    lines = ["| clip | v2e Mpixel-frames/s | fsdvs_hw Mpixel-frames/s | ratio (wall) | ratio (per CPU s) | "
-             "events (fsdvs_hw / v2e) | peak RSS fsdvs_hw / v2e (MB) | rounds | load |",
+    lines = [f"| clip | {other} Mpixel-frames/s | fsdvs_hw Mpixel-frames/s | ratio (wall) | ratio (per CPU s) | "
+             f"events (fsdvs_hw / {other}) | peak RSS fsdvs_hw / {other} (MB) | rounds | load |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         cpu_ratio = statistics.median(r["ours_mpf_cpu_s"]) / statistics.median(r["v2e_mpf_cpu_s"])
@@ -905,7 +1048,7 @@ def compare_v2e_markdown(rows: list[dict[str, Any]]) -> str:
                      f"{cell(r['ours_mpf_s'])} | **{r['ratio_median']:.2f}×** | {cpu_ratio:.2f}× | "
                      f"{r['events']} / {r['v2e_events']} | {r['ours_peak_rss_mb']:.0f} / {r['v2e_peak_rss_mb']:.0f} | "
                      f"{r['rounds']} | {min(r['load_avg']):.1f}–{max(r['load_avg']):.1f} |")
-    if rows:
+    if rows and other == "v2e":
         lines += ["", f"v2e-default settings, {rows[0]['device']}; v2e with {rows[0]['threads']} torch threads, "
                   "fsdvs_hw with event_list_threads() torch threads plus its two event workers; rounds alternate "
                   "the two (one fresh child process each per round)."]
@@ -935,17 +1078,26 @@ def _main(argv: list[str]) -> None:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--clips", default=",".join(V2E_CLIPS))
     ap.add_argument("--device", default="cpu")
+    ap.add_argument("--against", metavar="CHECKOUT", help="another fsdvs_hw checkout: print the A/B table")
+    ap.add_argument("--stages", metavar="CLIP", help="time the simulate command's stages on this clip")
     ap.add_argument("--json", default=None, help="also write the comparison rows (JSON) here")
     args = ap.parse_args(argv)
     if args.child:
         _child_main(args.child)
-    elif args.v2e:
-        rows = compare_v2e(args.v2e, clips=tuple(args.clips.split(",")), rounds=args.rounds, device=args.device)
+    elif args.stages:
+        for row in simulate_command_stages(args.stages, repeats=args.rounds):
+            w, c = row["walls"], row["cpus"]
+            print(f"| {row['stage']} | {statistics.median(w):.2f} [{min(w):.2f}–{max(w):.2f}] | "
+                  f"{statistics.median(c):.2f} [{min(c):.2f}–{max(c):.2f}] | {row['events']} | {len(w)} |")
+    elif args.v2e or args.against:
+        clips = tuple(args.clips.split(","))
+        rows = (compare_v2e(args.v2e, clips=clips, rounds=args.rounds, device=args.device) if args.v2e
+                else compare_checkouts(args.against, clips=clips, rounds=args.rounds))
         if args.json:
             from fsdvs_hw.paths import write_output
 
             write_output(args.json, json.dumps(rows, indent=1) + "\n")
-        print(compare_v2e_markdown(rows))
+        print(compare_v2e_markdown(rows, "v2e" if args.v2e else "other checkout"))
     else:
         print(bench_sim(quick=args.quick, long=args.long).markdown)
 
