@@ -31,6 +31,8 @@
         int64_t k = 0;                                                                              \
         double lost_sum = 0.0;                                                                      \
         int64_t n_b = hw > 0 ? n_pix / hw : 0;                                                    \
+        int32_t *act = malloc(sizeof(int32_t) * (hw > 0 ? hw : 1));                                 \
+        if (!act) return -1;                                                                        \
         for (int pol = 0; pol < 2; pol++) {                                                         \
             const REAL *h = pol == 0 ? h_on : h_off;                                                \
             const REAL *c = pol == 0 ? c_on : c_off;                                                \
@@ -43,9 +45,15 @@
             double lo = nextafter(ta, INFINITY);                                                    \
             const REAL *cb = n_c == 1 ? c : (n_c == hw ? c : c + b * hw);                           \
             int64_t cstride = n_c == 1 ? 0 : 1;                                                     \
-            for (int64_t i = b * hw, r = 0; r < hw; i++, r++) {                                     \
+            /* the active pixels first, without a branch per pixel (activity is unpredictable) */  \
+            int64_t n_act = 0;                                                                      \
+            for (int64_t r = 0; r < hw; r++) {                                                      \
+                act[n_act] = (int32_t)r;                                                            \
+                n_act += h[b * hw + r] > 0;                                                         \
+            }                                                                                       \
+            for (int64_t a = 0; a < n_act; a++) {                                                   \
+                int64_t r = act[a], i = b * hw + r;                                                 \
                 REAL hi = h[i];                                                                     \
-                if (!(hi > 0)) continue;                                                            \
                 double n = (double)hi;                                                              \
                 REAL da_r = sig_a[i] - ref_a[i];                                                    \
                 double da = (double)da_r;                                                           \
@@ -90,6 +98,7 @@
             }                                                                                       \
             }                                                                                       \
         }                                                                                           \
+        free(act);                                                                                  \
         *lost = lost_sum;                                                                           \
         return k;                                                                                   \
     }

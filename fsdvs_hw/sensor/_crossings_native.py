@@ -142,6 +142,8 @@ def step_events(h_on: np.ndarray, h_off: np.ndarray, sig_a: np.ndarray, ref_a: n
     n = fn(_ptr(h_on), _ptr(h_off), _ptr(sig_a), _ptr(ref_a), _ptr(d_b), _ptr(c_on), len(c_on), _ptr(c_off),
            len(c_off), _ptr(t_a), _ptr(t_b), _ptr(dt), len(h_on), hw, _ptr(last_t), float(refractory_s),
            int(last_t is not None), _ptr(em_on), _ptr(em_off), _ptr(flat), _ptr(t), _ptr(p), ctypes.byref(lost))
+    if n < 0:
+        raise MemoryError("step_events: out of memory for the active-pixel list")
     return int(n), float(lost.value)
 
 
