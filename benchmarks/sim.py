@@ -61,6 +61,7 @@ __all__ = [
     "long_clip_frames",
     "moving_texture",
     "records_markdown",
+    "save_clip_frames",
     "sim_records",
     "simulate_command_stages",
     "v2e_records",
@@ -514,6 +515,23 @@ def clip_frames(name: str, n_frames: int | None = None) -> Any:
     return torch.from_numpy(out[:T])
 
 
+def save_clip_frames(name: str, path: str | os.PathLike, n_frames: int | None = None) -> None:
+    """:func:`clip_frames` saved to ``path`` (``.npy``), decoded in a child process.
+
+    Not in this process: a child's peak RSS (``ru_maxrss``, what the records report) starts from
+    its parent's resident memory when it is forked, so a parent holding a decoded clip would
+    inflate every later child's peak by that clip.
+    """
+    code = ("import sys, numpy as np; from benchmarks.sim import clip_frames; "
+            "n = int(sys.argv[3]); np.save(sys.argv[2], clip_frames(sys.argv[1], n or None).numpy())")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
+    res = subprocess.run([sys.executable, "-c", code, name, str(path), str(n_frames or 0)], capture_output=True,
+                         text=True, env=env, check=False)
+    if res.returncode != 0:
+        raise RuntimeError(f"decoding {name!r} failed: {res.stderr[-2000:]}")
+
+
 def _case_config(case: dict[str, Any]) -> tuple[Any, Any]:
     """(SensorConfig, kernel or None) of a case."""
     import torch
@@ -681,7 +699,6 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
     import tempfile
     from pathlib import Path
 
-    import numpy as np
 
     out = []
     with tempfile.TemporaryDirectory() as d:
@@ -691,7 +708,7 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
             if case["clip"] in V2E_CLIPS:
                 if case["clip"] not in decoded:
                     decoded[case["clip"]] = str(Path(d) / f"{case['clip']}.npy")
-                    np.save(decoded[case["clip"]], clip_frames(case["clip"], 40 if quick else None).numpy())
+                    save_clip_frames(case["clip"], decoded[case["clip"]], 40 if quick else None)
                 case["frames_file"] = decoded[case["clip"]]
             reps = repeats if repeats is not None else (1 if quick or case["clip"] == "long" else 3)
             out.append(_case_record(name, case, reps, quick=quick, threads=threads, chunk_frames=chunk_frames,
@@ -819,7 +836,6 @@ def v2e_records(v2e_src: str, *, modes: tuple[str, ...] = ("default", "clean", "
     import tempfile
     from pathlib import Path
 
-    import numpy as np
     import torch
 
     from fsdvs_hw.errors import InputError
@@ -834,7 +850,7 @@ def v2e_records(v2e_src: str, *, modes: tuple[str, ...] = ("default", "clean", "
             (stubs / f"{name}.py").write_text(text)
         frames = Path(frames_file) if frames_file else Path(d) / f"{clip}.npy"
         if not frames_file:
-            np.save(frames, clip_frames(clip, n_frames or None).numpy())
+            save_clip_frames(clip, frames, n_frames or None)
         for mode in modes:
             load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
             r, rates, cpu_rates = _run_child([sys.executable, "-c", _V2E_CHILD, str(stubs), str(v2e_src), mode,
@@ -872,8 +888,6 @@ def compare_v2e(v2e_src: str, *, clips: tuple[str, ...] = V2E_CLIPS, rounds: int
     import tempfile
     from pathlib import Path
 
-    import numpy as np
-
     from fsdvs_hw.errors import InputError
 
     if not isinstance(rounds, int) or rounds < 1:
@@ -884,7 +898,7 @@ def compare_v2e(v2e_src: str, *, clips: tuple[str, ...] = V2E_CLIPS, rounds: int
             raise InputError(f"clip {clip!r} unknown; allowed: {', '.join(V2E_CLIPS)}")
         with tempfile.TemporaryDirectory() as d:
             frames = Path(d) / f"{clip}.npy"
-            np.save(frames, clip_frames(clip).numpy())
+            save_clip_frames(clip, frames)
             case = dict(clip=clip, path="event list", settings="v2e-default", device=device, frames_file=str(frames))
             ours, theirs = [], []
             for _ in range(rounds):
@@ -935,8 +949,6 @@ def compare_checkouts(other_root: str, *, clips: tuple[str, ...] = V2E_CLIPS, ro
     import tempfile
     from pathlib import Path
 
-    import numpy as np
-
     from fsdvs_hw.errors import InputError
 
     if not (Path(other_root) / "fsdvs_hw" / "sensor" / "stream.py").is_file():
@@ -946,7 +958,7 @@ def compare_checkouts(other_root: str, *, clips: tuple[str, ...] = V2E_CLIPS, ro
     for clip in clips:
         with tempfile.TemporaryDirectory() as d:
             frames = Path(d) / f"{clip}.npy"
-            np.save(frames, clip_frames(clip).numpy())
+            save_clip_frames(clip, frames)
             runs: dict[str, list] = {here: [], other_root: []}
             for _ in range(rounds):
                 for root in runs:
