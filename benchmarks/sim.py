@@ -58,6 +58,7 @@ __all__ = [
     "compare_v2e",
     "compare_v2e_markdown",
     "default_cases",
+    "h5_filter_costs",
     "long_clip_frames",
     "moving_texture",
     "records_markdown",
@@ -1054,6 +1055,51 @@ def simulate_command_stages(clip: str = "bikes", *, preset: str = "v2e-default",
     return list(rows.values())
 
 
+def h5_filter_costs(clip: str = "bikes", *, n_frames: int = 60, repeats: int = 2) -> list[dict[str, Any]]:
+    """CPU per event of writing v2e's ``.h5`` layout (dataset ``events`` (N, 4) uint32, chunks of
+    65 536 rows) with h5py under four filter settings — gzip 4 (v2e's and this toolkit's), gzip 1,
+    shuffle + gzip 4, shuffle + gzip 1 — on the exact events of the first ``n_frames`` of a clip
+    (``v2e-default``), each file read back and compared. Rows: ``filters``, ``cpu_ns_per_event``
+    (the best of ``repeats``), ``size_mib``, ``events``."""
+    import tempfile
+    from pathlib import Path
+
+    import h5py
+    import numpy as np
+
+    from fsdvs_hw.sensor import SensorConfig, simulate
+
+    cols = []
+    for c in simulate(clip_frames(clip, n_frames), config=SensorConfig.preset("v2e-default")):
+        e = c.events
+        cols.append(np.stack([np.round(e.t.numpy() * 1e6), e.x.numpy(), e.y.numpy(), e.p.numpy() > 0], 1)
+                    .astype(np.uint32))
+    block = np.concatenate(cols)
+    settings = {"gzip 4": dict(compression="gzip"), "gzip 1": dict(compression="gzip", compression_opts=1),
+                "shuffle + gzip 4": dict(compression="gzip", shuffle=True),
+                "shuffle + gzip 1": dict(compression="gzip", compression_opts=1, shuffle=True)}
+    rows = []
+    with tempfile.TemporaryDirectory() as d:
+        for name, kw in settings.items():
+            path, cpus = Path(d) / "events.h5", []
+            for _ in range(repeats):
+                c0 = time.process_time()
+                with h5py.File(path, "w") as f:
+                    ds = f.create_dataset("events", shape=(0, 4), maxshape=(None, 4), dtype="uint32",
+                                          chunks=(65536, 4), **kw)
+                    for i in range(0, len(block), 1 << 20):
+                        n0 = ds.shape[0]
+                        ds.resize(n0 + len(block[i:i + (1 << 20)]), axis=0)
+                        ds[n0:] = block[i:i + (1 << 20)]
+                cpus.append(time.process_time() - c0)
+                with h5py.File(path) as f:
+                    if not np.array_equal(f["events"][:], block):
+                        raise RuntimeError(f"h5 {name}: events read back differ")
+            rows.append({"filters": name, "cpu_ns_per_event": min(cpus) / len(block) * 1e9,
+                         "size_mib": path.stat().st_size / 2**20, "events": len(block)})
+    return rows
+
+
 def compare_v2e_markdown(rows: list[dict[str, Any]], other: str = "v2e") -> str:
     """The table of :func:`compare_v2e` (or :func:`compare_checkouts`, ``other`` naming the other
     checkout): clip | other | fsdvs_hw (Mpixel-frames/s, median [min–max] over rounds) | ratio of
@@ -1104,10 +1150,14 @@ def _main(argv: list[str]) -> None:
                     help="v2e's torch threads (default 2: equal cores with the simulator's 1 + 2 workers)")
     ap.add_argument("--against", metavar="CHECKOUT", help="another fsdvs_hw checkout: print the A/B table")
     ap.add_argument("--stages", metavar="CLIP", help="time the simulate command's stages on this clip")
+    ap.add_argument("--h5-filters", metavar="CLIP", help="CPU per event of the .h5 writer's filter settings")
     ap.add_argument("--json", default=None, help="also write the comparison rows (JSON) here")
     args = ap.parse_args(argv)
     if args.child:
         _child_main(args.child)
+    elif args.h5_filters:
+        for row in h5_filter_costs(args.h5_filters, repeats=args.rounds):
+            print(f"| {row['filters']} | {row['cpu_ns_per_event']:.0f} | {row['size_mib']:.1f} | {row['events']} |")
     elif args.stages:
         for row in simulate_command_stages(args.stages, repeats=args.rounds):
             w, c = row["walls"], row["cpus"]
