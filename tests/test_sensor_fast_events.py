@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fsdvs_hw.sensor import SensorConfig, event_frames, event_list
-from fsdvs_hw.sensor._crossings_native import sort_events
+from fsdvs_hw.sensor._crossings_native import sort_events, sort_intervals_to_columns
 from fsdvs_hw.sensor.crossings import (
     crossing_step,
     crossing_step_torch,
@@ -138,6 +138,32 @@ def test_compiled_bucket_sort_is_a_stable_sort(values, scale):
         flat, t, p = sort_events(parts, *bounds)
         assert np.array_equal(t, all_t[order]) and np.array_equal(flat, order)
         assert np.array_equal(p, np.concatenate([q[2] for q in parts])[order])
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.lists(st.lists(st.integers(0, 40), max_size=120), min_size=1, max_size=3), min_size=1, max_size=3),
+       st.sampled_from([0.25, 1e-9, 1e-300]))
+def test_compiled_sort_to_columns_is_a_stable_sort(intervals, scale):
+    """A chunk's columns, each interval bucket-sorted as records (``sort_intervals_to_columns``):
+    each interval's events in stable time order (ties in part order, clustered times taking the
+    merge-sort branch, spans of 1e-300 s), pixel indices split into x = f mod W, y = f div W."""
+    H, W = 7, 13
+    chunk, expect = [], []
+    for k, values in enumerate(intervals):
+        parts, lo = [], 3.0 + 10.0 * k
+        for v in values:
+            t = lo + np.asarray(v, dtype=np.float64) * scale
+            flat = ((np.arange(len(t)) * 37 + 11 * len(parts)) % (H * W)).astype(np.int32)
+            parts.append((flat, t, np.where(np.arange(len(t)) % 3 == 0, 1, -1).astype(np.int8)))
+        cat = [np.concatenate([q[i] for q in parts]) for i in range(3)]
+        order = np.argsort(cat[1], kind="stable")
+        expect.append((cat[0][order] % W, cat[0][order] // W, cat[1][order], cat[2][order]))
+        chunk.append((parts, lo - 1.0, lo + 50 * scale + 1.0))
+    x, y, t, p = sort_intervals_to_columns(chunk, H * W, W)
+    for got, want in zip((x, y, t, p), zip(*expect, strict=True), strict=True):
+        assert np.array_equal(got, np.concatenate(want))
+    assert x.dtype == np.int64 and t.dtype == np.float64 and p.dtype == np.int8
+    assert all(not parts for parts, _, _ in chunk)  # each interval's parts are released
 
 
 @pytest.mark.parametrize("sparse", [False, True], ids=["per_pixel", "sparse"])

@@ -28,6 +28,7 @@ DESCRIPTION = (
     "error (in the component's own metric) versus wall time on this machine.\n"
     "--json writes every measured value as a record (bench, table, case, metric, unit, value,\n"
     "repeats, spread, threads, machine, versions, settings, timestamp).\n"
+    "--long adds the long cases (sim: the 2-minute clip written to files, streaming memory).\n"
     "Example: fsdvs-hw bench csf --out out/bench.md --json out/bench.json"
 )
 
@@ -36,6 +37,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("names", nargs="*", default=["all"], metavar="NAME",
                         help=f"benchmarks to run: {_NAMES} or all (default)")
     parser.add_argument("--quick", action="store_true", help="small problem sizes (smoke test)")
+    parser.add_argument("--long", action="store_true",
+                        help="also the long cases of benches that have them (sim: the 2-minute clip written to "
+                             ".aedat4/.h5 and streaming memory, tens of minutes); default runs finish in minutes")
     parser.add_argument("--out", type=Path, default=None, help="also write the Markdown to this file")
     parser.add_argument("--json", type=Path, default=None, metavar="PATH",
                         help="also write the benchmark records (JSON) to this file")
@@ -89,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"[bench] {n} ...", file=sys.stderr, flush=True)
         if n == "metalens" and not args.quick:
             output_dir(figures, flag="--figures")
-        res = benchmark_run(n, quick=args.quick, figures=figures)
+        res = benchmark_run(n, quick=args.quick, figures=figures, long=args.long)
         print(f"[bench] {n} done in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
         print(res.markdown, flush=True)
         sections.append(res.markdown)

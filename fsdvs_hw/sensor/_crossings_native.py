@@ -91,10 +91,12 @@ def _load() -> ctypes.CDLL | None:
     for name in ("fsdvs_step_events_f32", "fsdvs_step_events_f64"):
         getattr(lib, name).argtypes = step
         getattr(lib, name).restype = _I
-    lib.fsdvs_sort_interval.argtypes = [_I, _P, _P, _P, _P, _D, _D, _I, _P, _P, _P, _P]
+    lib.fsdvs_sort_interval.argtypes = [_I, _P, _P, _P, _P, _D, _D, _I, _P, _P, _P, _P, _P]
     lib.fsdvs_sort_interval.restype = ctypes.c_int
     lib.fsdvs_write_columns.argtypes = [_P, _P, _P, _I, _I, _I, _P, _P, _P, _P]
     lib.fsdvs_write_columns.restype = None
+    lib.fsdvs_sort_interval_columns.argtypes = [_I, _P, _P, _P, _P, _D, _D, _I, _P, _P, _I, _I, _P, _P, _P, _P]
+    lib.fsdvs_sort_interval_columns.restype = ctypes.c_int
     _lib = lib
     return lib
 
@@ -140,10 +142,42 @@ def step_events(h_on: np.ndarray, h_off: np.ndarray, sig_a: np.ndarray, ref_a: n
     n = fn(_ptr(h_on), _ptr(h_off), _ptr(sig_a), _ptr(ref_a), _ptr(d_b), _ptr(c_on), len(c_on), _ptr(c_off),
            len(c_off), _ptr(t_a), _ptr(t_b), _ptr(dt), len(h_on), hw, _ptr(last_t), float(refractory_s),
            int(last_t is not None), _ptr(em_on), _ptr(em_off), _ptr(flat), _ptr(t), _ptr(p), ctypes.byref(lost))
+    if n < 0:
+        raise MemoryError("step_events: out of memory for the active-pixel list")
     return int(n), float(lost.value)
 
 
 _scratch = threading.local()  # each thread's bucket counts, reused from interval to interval
+
+
+def _interval_parts(parts: list) -> tuple[list, int]:
+    """Non-empty ``(flat, t, p)`` parts as contiguous int32/float64/int8 arrays, and their total
+    length (at most 2**31 - 1: the bucket counts are int32)."""
+    parts = [(np.ascontiguousarray(f, dtype=np.int32), np.ascontiguousarray(t, dtype=np.float64),
+              np.ascontiguousarray(p, dtype=np.int8)) for f, t, p in parts if len(t)]
+    n = sum(len(q[1]) for q in parts)
+    if n >= 2**31:
+        raise ValueError(f"sort_events: {n} events in one frame interval; at most 2**31 - 1")
+    return parts, n
+
+
+def _bucket_args(parts: list, n: int, lo: float | None, hi: float | None) -> tuple:
+    """The leading arguments of the C bucket sorts for the ``n`` events of ``parts`` (from
+    :func:`_interval_parts`) with times in ``[lo, hi]`` (default: the times' own range): part
+    count, lengths, the three pointer arrays, ``lo``, bucket scale, bucket count (one per event on
+    average: measured faster than n/2 and n/4) and this thread's count scratch."""
+    if lo is None or hi is None:
+        lo = min(float(q[1].min()) for q in parts)
+        hi = max(float(q[1].max()) for q in parts)
+    nb = n
+    scale = nb / (hi - lo) if hi > lo else 0.0
+    if not np.isfinite(scale):  # an interval shorter than the float64 spacing allows
+        scale = 0.0
+    counts = _scratch_array("counts", nb + 1, np.int32)
+    k = len(parts)
+    arrays = [(ctypes.c_void_p * k)(*(q[i].ctypes.data for q in parts)) for i in range(3)]
+    lens = np.array([len(q[1]) for q in parts], dtype=np.int64)
+    return (k, lens.ctypes, *arrays, float(lo), float(scale), nb, _ptr(counts))  # .ctypes keeps lens alive
 
 
 def sort_events(parts: list, lo: float | None = None, hi: float | None = None, *, out: tuple | None = None
@@ -154,16 +188,13 @@ def sort_events(parts: list, lo: float | None = None, hi: float | None = None, *
     into ``n`` buckets spaced evenly over ``[lo, hi]`` (a time's bucket is monotone in the time;
     default: the times' own range), then a stable insertion sort in each bucket (a stable merge
     sort above 32 events, so clustered times cannot make it quadratic), in one C call
-    (``fsdvs_sort_interval``). ``flat`` int32 (int64 parts are narrowed: pixel indices of a frame
-    below 2**31), ``t`` float64, ``p`` int8; into ``out`` (three such arrays of the total length)
-    when given.
+    (``fsdvs_sort_interval``: the events are scattered into buckets as 16-byte ``(t, flat, p)``
+    records in this thread's reused work array, one cache line per event, not three). ``flat``
+    int32 (int64 parts are narrowed: pixel indices of a frame below 2**31), ``t`` float64, ``p``
+    int8; into ``out`` (three such arrays of the total length) when given.
     """
     lib = _loaded()
-    parts = [(np.ascontiguousarray(f, dtype=np.int32), np.ascontiguousarray(t, dtype=np.float64),
-              np.ascontiguousarray(p, dtype=np.int8)) for f, t, p in parts if len(t)]
-    n = sum(len(q[1]) for q in parts)
-    if n >= 2**31:
-        raise ValueError(f"sort_events: {n} events in one frame interval; at most 2**31 - 1")
+    parts, n = _interval_parts(parts)
     if out is not None:
         flat_out, t_out, p_out = out
     else:
@@ -172,21 +203,8 @@ def sort_events(parts: list, lo: float | None = None, hi: float | None = None, *
         p_out = np.empty(n, dtype=np.int8)
     if n == 0:
         return flat_out, t_out, p_out
-    if lo is None or hi is None:
-        lo = min(float(q[1].min()) for q in parts)
-        hi = max(float(q[1].max()) for q in parts)
-    nb = n  # one bucket per event on average (measured faster than n/2 and n/4)
-    scale = nb / (hi - lo) if hi > lo else 0.0
-    if not np.isfinite(scale):  # an interval shorter than the float64 spacing allows
-        scale = 0.0
-    counts = getattr(_scratch, "counts", None)
-    if counts is None or len(counts) < nb + 1:
-        counts = _scratch.counts = np.empty(max(nb + 1, 1 << 16), dtype=np.int32)
-    k = len(parts)
-    arrays = [(ctypes.c_void_p * k)(*(q[i].ctypes.data for q in parts)) for i in range(3)]
-    lens = np.array([len(q[1]) for q in parts], dtype=np.int64)
-    if lib.fsdvs_sort_interval(k, _ptr(lens), *arrays, float(lo), float(scale), nb, _ptr(counts), _ptr(flat_out),
-                               _ptr(t_out), _ptr(p_out)) != 0:
+    if lib.fsdvs_sort_interval(*_bucket_args(parts, n, lo, hi), _ptr(_records(n)), _ptr(flat_out), _ptr(t_out),
+                               _ptr(p_out)) != 0:
         raise MemoryError("sort_events: out of memory sorting a bucket")
     return flat_out, t_out, p_out
 
@@ -200,14 +218,20 @@ def _scratch_array(name: str, n: int, dtype: Any) -> np.ndarray:
     return a[:n]
 
 
+def _records(n: int) -> np.ndarray:
+    """This thread's work array of ``n`` 16-byte event records (``event_rec`` in ``_crossings.c``)."""
+    return _scratch_array("records", 2 * n, np.float64)
+
+
 def sort_intervals_to_columns(intervals: list, hw: int, w: int) -> tuple[np.ndarray, ...]:
     """A chunk's event columns ``(x, y, t, p)`` from its intervals' unsorted parts.
 
     ``intervals``: ``(parts, lo, hi)`` per frame interval in time order (parts as for
-    :func:`sort_events`). Each interval is sorted into this thread's reused work arrays (no
-    allocation, still in cache) and written straight into the columns, which are allocated once
-    at the chunk's exact size: the same columns as sorting each interval with :func:`sort_events`
-    and concatenating (:func:`.crossings.to_event_columns`), one pass less over memory.
+    :func:`sort_events`). Each interval is bucket-sorted as 16-byte ``(t, flat, p)`` records in
+    this thread's reused work array (``fsdvs_sort_interval_columns``: the scatter into buckets
+    touches one cache line per event, not three) and written straight into the columns, which are
+    allocated once at the chunk's exact size: the same columns as sorting each interval with
+    :func:`sort_events` and concatenating (:func:`.crossings.to_event_columns`).
     """
     lib = _loaded()
     sizes = [sum(len(q[1]) for q in parts) for parts, _, _ in intervals]
@@ -217,14 +241,14 @@ def sort_intervals_to_columns(intervals: list, hw: int, w: int) -> tuple[np.ndar
     t = np.empty(n, dtype=np.float64)
     p = np.empty(n, dtype=np.int8)
     start = 0
-    for (parts, lo, hi), k in zip(intervals, sizes, strict=True):
-        if k:
-            out = sort_events(parts, lo, hi, out=(_scratch_array("flat", k, np.int32),
-                                                  _scratch_array("t", k, np.float64),
-                                                  _scratch_array("p", k, np.int8)))
-            lib.fsdvs_write_columns(_ptr(out[0]), _ptr(out[1]), _ptr(out[2]), k, hw, w, x.ctypes.data + 8 * start,
-                                    y.ctypes.data + 8 * start, t.ctypes.data + 8 * start, p.ctypes.data + start)
+    for parts, lo, hi in intervals:
+        prepared, k = _interval_parts(parts)
         parts.clear()
+        if k and lib.fsdvs_sort_interval_columns(
+                *_bucket_args(prepared, k, lo, hi), _ptr(_records(k)), hw, w,
+                x.ctypes.data + 8 * start, y.ctypes.data + 8 * start, t.ctypes.data + 8 * start,
+                p.ctypes.data + start) != 0:
+            raise MemoryError("sort_intervals_to_columns: out of memory sorting a bucket")
         start += k
     return x, y, t, p
 
