@@ -554,38 +554,76 @@ def _case_config(case: dict[str, Any]) -> tuple[Any, Any]:
     return cfg, kernel
 
 
+def _case_video(case: dict[str, Any], quick: bool, seconds: float, frame_rate_hz: float) -> tuple[Any, tuple[int, int, int]]:
+    """The case's frames (None for the streamed long clip) and their (T, H, W)."""
+    import torch
+
+    clip = case["clip"]
+    if case.get("frames_file"):  # pre-decoded frames (the v2e comparison feeds both the same file)
+        import numpy as np
+
+        video = torch.from_numpy(np.load(case["frames_file"]))
+    elif clip in V2E_CLIPS:
+        video = clip_frames(clip, 40 if quick else None)
+    elif clip == "synthetic":
+        T, H, W = (17, 120, 160) if quick else (17, 480, 640)
+        video = torch.rand(T, H, W, generator=torch.Generator().manual_seed(0)) * 0.9 + 0.05
+    else:
+        return None, (int(round(seconds * frame_rate_hz)), 480, 640)
+    return video, tuple(video.shape)
+
+
+def _simulate_to_file(frames: Any, kernel: Any, cfg: Any, chunk_frames: int, path: str, size: tuple[int, int]) -> int:
+    """Stream ``frames`` through the simulator into a temporary .aedat4 / .h5 file; the event count."""
+    import tempfile
+    from pathlib import Path
+
+    from fsdvs_hw.sensor.eventfile import EventFileWriter
+    from fsdvs_hw.sensor.stream import simulate
+
+    suffix = ".aedat4" if path.endswith(".aedat4") else ".h5"
+    n_events = 0
+    with tempfile.TemporaryDirectory() as d, EventFileWriter(Path(d) / f"events{suffix}", size[1], size[0]) as w:
+        for c in simulate(frames, kernel, config=cfg, chunk_frames=chunk_frames):
+            w.write(c.events)
+            n_events += len(c.events)
+            del c
+    return n_events
+
+
+def _simulate_once(video: Any, kernel: Any, cfg: Any, chunk_frames: int, path: str) -> int:
+    """One run of the event list / centre-surround (events) or frames / forward+backward (event frames)."""
+    from fsdvs_hw.sensor.stream import simulate
+
+    n_events = 0
+    if path in ("event list", "centre-surround"):
+        for c in simulate(video, kernel, config=cfg, chunk_frames=chunk_frames):
+            n_events += len(c.events)
+            del c
+        return n_events
+    grad = path == "forward+backward"
+    for c in simulate(video, kernel, config=cfg, chunk_frames=chunk_frames, events=False, event_frames=True):
+        if grad:
+            (c.frames * 1.0).sum().backward()
+        n_events += int(c.frames.detach().sum())
+        del c
+    return n_events
+
+
 def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int | None,
               long_seconds: float = 120.0) -> dict[str, Any]:
     """Run one case ``repeats`` times in this process; wall times, events, peak RSS (child side)."""
     import resource
-    import tempfile
-    from pathlib import Path
 
     import torch
 
-    from fsdvs_hw.sensor.eventfile import EventFileWriter
     from fsdvs_hw.sensor.stream import simulate
 
     cfg, kernel = _case_config(case)
     clip = case["clip"]
     device = torch.device(case.get("device", "cpu"))
-    if case.get("frames_file"):  # pre-decoded frames (the v2e comparison feeds both the same file)
-        import numpy as np
-
-        video = torch.from_numpy(np.load(case["frames_file"]))
-        T, H, W = video.shape
-    elif clip in V2E_CLIPS:
-        video = clip_frames(clip, 40 if quick else None)
-        T, H, W = video.shape
-    elif clip == "synthetic":
-        T, H, W = (17, 120, 160) if quick else (17, 480, 640)
-        g = torch.Generator().manual_seed(0)
-        video = torch.rand(T, H, W, generator=g) * 0.9 + 0.05
-    else:
-        seconds = 1.0 if quick else float(long_seconds)
-        H, W = (480, 640)
-        T = int(round(seconds * cfg.frame_rate_hz))
-        video = None
+    seconds = 1.0 if quick else float(long_seconds)
+    video, (T, H, W) = _case_video(case, quick, seconds, cfg.frame_rate_hz)
     if not chunk_frames:  # auto: about CHUNK_PIXELS pixels per chunk (small frames: fewer, larger chunks)
         chunk_frames = max(1, CHUNK_PIXELS // (H * W))
     if video is not None:
@@ -600,26 +638,11 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
     walls, cpus, n_events = [], [], 0
     for _ in range(repeats):
         c0, t0 = time.process_time(), time.perf_counter()
-        n_events = 0
         if clip == "long":
-            suffix = ".aedat4" if case["path"].endswith(".aedat4") else ".h5"
-            with tempfile.TemporaryDirectory() as d, EventFileWriter(Path(d) / f"events{suffix}", W, H) as w:
-                for c in simulate(long_clip_frames(seconds, (H, W), cfg.frame_rate_hz), kernel, config=cfg,
-                                  chunk_frames=chunk_frames):
-                    w.write(c.events)
-                    n_events += len(c.events)
-                    del c
-        elif case["path"] in ("event list", "centre-surround"):
-            for c in simulate(video, kernel, config=cfg, chunk_frames=chunk_frames):
-                n_events += len(c.events)
-                del c
+            frames = long_clip_frames(seconds, (H, W), cfg.frame_rate_hz)
+            n_events = _simulate_to_file(frames, kernel, cfg, chunk_frames, case["path"], (H, W))
         else:
-            grad = case["path"] == "forward+backward"
-            for c in simulate(video, kernel, config=cfg, chunk_frames=chunk_frames, events=False, event_frames=True):
-                if grad:
-                    (c.frames * 1.0).sum().backward()
-                n_events += int(c.frames.detach().sum())
-                del c
+            n_events = _simulate_once(video, kernel, cfg, chunk_frames, case["path"])
         if device.type == "cuda":
             torch.cuda.synchronize(device)
         walls.append(time.perf_counter() - t0)
