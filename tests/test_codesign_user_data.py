@@ -90,3 +90,35 @@ def test_codesign_tasks_may_name_a_user_data_task_but_not_an_unknown_one(folder)
     assert design.data["codesign"]["tasks"] == ["segmentation"]
     with pytest.raises(DesignError, match="not a task in tasks.checkpoints or tasks.datasets; allowed: segmentation"):
         load_design(_design(folder, name="unknown", codesign=CODESIGN + 'tasks = ["detection"]\n'))
+
+
+def test_a_killed_co_design_training_resumes_to_the_uninterrupted_result(folder, tmp_path, monkeypatch):
+    import numpy as np
+
+    import fsdvs_hw.tasks.dataset_training as dt
+    from fsdvs_hw.explore.user_data import finetune_user_network
+    from fsdvs_hw.realise.registry import fit_realisation
+
+    design = load_design(_design(folder))
+    entry = design.data["tasks"]["datasets"]["segmentation"]
+    fit = fit_realisation("asic", design.target, design.realisation_options("asic"), seed=0)
+    kw = {"realisation": fit, "epochs": 2, "n_train": 4, "lr_filter": 0.05, "fingerprint": {"run": 1}}
+    whole = finetune_user_network("segmentation", entry, folder, out=tmp_path / "whole", **kw)
+    assert whole.epochs_trained == 2 and [h["stage"] for h in whole.history] == ["joint", "joint"]
+    assert whole.history[-1]["kernel_change_l1"] > 0  # the ASIC's parameters moved the kernel
+
+    save = dt._save_partial
+
+    def killed_after_first_epoch(*args, **kwargs):
+        save(*args, **kwargs)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(dt, "_save_partial", killed_after_first_epoch)
+    with pytest.raises(KeyboardInterrupt):
+        finetune_user_network("segmentation", entry, folder, out=tmp_path / "killed", **kw)
+    monkeypatch.setattr(dt, "_save_partial", save)
+    assert (tmp_path / "killed.partial.pt").is_file()
+    resumed = finetune_user_network("segmentation", entry, folder, out=tmp_path / "killed", **kw)
+    assert resumed.epochs_trained == 1 and not (tmp_path / "killed.partial.pt").exists()
+    np.testing.assert_allclose(np.array(resumed.kernel.taps), np.array(whole.kernel.taps), rtol=0, atol=1e-10)
+    assert resumed.provenance["realisation_design"] == whole.provenance["realisation_design"]
