@@ -26,6 +26,13 @@ gain over the swap, ``metric(row) − metric(swap)``, its paired difference CI. 
 kernel's drift from the Mannos–Sakrison CSF shape is
 :func:`fsdvs_hw.explore.codesign_pilot.csf_drift`.
 
+On a ``[tasks.datasets.<task>]`` task (the user's clips and network) the rows are measured in its
+one network (``weights``, or the ``train`` table's checkpoint): fine-tune and co-design run
+:func:`fsdvs_hw.explore.user_data.finetune_user_network` (the loop of
+:func:`fsdvs_hw.tasks.dataset_training.train_on_dataset`, on the table's training clips, never a
+scored one), every row is scored by :func:`fsdvs_hw.explore.user_data.dataset_evidence` on the
+table's scored clips, and with one network the CIs resample clips only (the cell's ``ci_note``).
+
 Resumable: every (cell, network, row) is saved as soon as it is measured, as one JSON file under
 ``OUT/codesign/units/`` keyed by everything that determines it (written atomically); a killed run
 started again reuses every finished unit without retraining it. The trained networks are kept
