@@ -122,3 +122,15 @@ def test_a_killed_co_design_training_resumes_to_the_uninterrupted_result(folder,
     assert resumed.epochs_trained == 1 and not (tmp_path / "killed.partial.pt").exists()
     np.testing.assert_allclose(np.array(resumed.kernel.taps), np.array(whole.kernel.taps), rtol=0, atol=1e-10)
     assert resumed.provenance["realisation_design"] == whole.provenance["realisation_design"]
+
+
+def test_too_many_codesign_training_clips_name_the_key_and_the_clips_left(folder):
+    from fsdvs_hw.errors import InputError
+    from fsdvs_hw.explore.user_data import finetune_user_network
+
+    design = load_design(_design(folder))
+    entry = design.data["tasks"]["datasets"]["segmentation"]
+    with pytest.raises(InputError) as err:
+        finetune_user_network("segmentation", entry, folder, kernel=design.target, n_train=9)
+    msg = str(err.value)
+    assert "codesign.n_train = 9" in msg and "7 of the 10 clips are left" in msg and "2 to 7" in msg, msg

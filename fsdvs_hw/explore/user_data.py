@@ -631,7 +631,11 @@ def finetune_user_network(task: str, entry: Mapping[str, Any], base_dir: str | P
     base = Path(base_dir).resolve()
     spec = dict(entry.get("train") or TrainSpec().model_dump())
     spec["n_train"] = n_train or spec["n_train"]
-    train_ds, train_idx = _training_clips(entry, spec, base, confine, key)
+    try:
+        train_ds, train_idx = _training_clips(entry, spec, base, confine, key)
+    except InputError as exc:  # name the key that asked for the clips
+        raise InputError(f"{key} trained further with codesign.n_train = {n_train} (0 = its train.n_train): "
+                         f"{exc}") from None
     ds = open_dataset(entry["dataset"], base, confine=confine, key=f"{key}.dataset")
     net = open_network(entry, ds, base, confine=confine, key=key)
     stages = ({"init_kernel": kernel, "learn_filter": False, "epochs_frozen": epochs, "epochs_joint": 0}
