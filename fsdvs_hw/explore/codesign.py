@@ -26,6 +26,13 @@ gain over the swap, ``metric(row) − metric(swap)``, its paired difference CI. 
 kernel's drift from the Mannos–Sakrison CSF shape is
 :func:`fsdvs_hw.explore.codesign_pilot.csf_drift`.
 
+On a ``[tasks.datasets.<task>]`` task (the user's clips and network) the rows are measured in its
+one network (``weights``, or the ``train`` table's checkpoint): fine-tune and co-design run
+:func:`fsdvs_hw.explore.user_data.finetune_user_network` (the loop of
+:func:`fsdvs_hw.tasks.dataset_training.train_on_dataset`, on the table's training clips, never a
+scored one), every row is scored by :func:`fsdvs_hw.explore.user_data.dataset_evidence` on the
+table's scored clips, and with one network the CIs resample clips only (the cell's ``ci_note``).
+
 Resumable: every (cell, network, row) is saved as soon as it is measured, as one JSON file under
 ``OUT/codesign/units/`` keyed by everything that determines it (written atomically); a killed run
 started again reuses every finished unit without retraining it. The trained networks are kept
@@ -43,6 +50,7 @@ import os
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -53,6 +61,8 @@ from ..errors import InputError
 from ..paths import write_output
 from ..stats import multiplicities
 from .design import CODESIGN_MODES, Design
+from .paired import encode_evidence
+from .user_data import ONE_NETWORK_NOTE
 
 __all__ = [
     "CODESIGN_FORMAT",
@@ -70,9 +80,10 @@ _LABELS = {"swap": "fit then swap", "finetune": "fit then fine-tune the network"
 
 
 def codesign_cells(design: Design) -> list[tuple[str, str]]:
-    """The (realisation, task) cells of a design's ``[codesign]`` table, in run order."""
+    """The (realisation, task) cells of a design's ``[codesign]`` table, in run order (``tasks = []``:
+    every task of ``tasks.checkpoints``, then of ``tasks.datasets``)."""
     cd = design.spec.codesign
-    tasks = cd.tasks or list(design.spec.tasks.checkpoints)
+    tasks = cd.tasks or [*design.spec.tasks.checkpoints, *design.spec.tasks.datasets]
     if cd.cells:
         return [tuple(c.split("/", 1)) for c in cd.cells]
     return [(r, t) for r in cd.realisations for t in tasks]
@@ -134,6 +145,66 @@ def _codesign_outcome(provenance: Mapping[str, Any], target: Any) -> dict[str, A
             "realisation_design": provenance["realisation_design"]}
 
 
+@dataclass(frozen=True)
+class _Network:
+    """One network a cell's rows are measured in: a trained checkpoint, or a user-data table's network."""
+
+    task: str
+    index: int  # the network's place in its task (0 for user data: one network)
+    tag: str  # in the trained networks' file names
+    name: str
+    ident: dict[str, Any]  # what determines its units besides the kernel and the row
+    n_test: int | None
+    evidence: Callable[[Any, Any], Any]  # (kernel, trained network or None = this one) -> ClipEvidence
+    #: (fit, mode, stem, [codesign], key) -> (training result, trained network, training seconds)
+    train: Callable[[Any, str, Path, Any, str], tuple[Any, Any, float]]
+
+
+def _task_networks(design: Design, task: str) -> list[_Network]:
+    """The networks of ``task`` the cells use: the first ``codesign.seeds`` checkpoints, or the one
+    network of a ``[tasks.datasets.<task>]`` table (its ``weights`` or its ``train`` checkpoint)."""
+    from ..tasks.learn import finetune_network
+    from .paired import clip_evidence
+    from .user_data import dataset_evidence, finetune_user_network, user_network_identity
+
+    entry = design.data["tasks"]["datasets"].get(task)
+    if entry is not None:
+        base, confine = design.base_dir, design.confine_paths
+        ident = {"task": task, **user_network_identity(entry, base, confine=confine)}
+
+        def user_evidence(kernel: Any, trained: Any) -> Any:
+            return dataset_evidence(kernel, task, entry, base, network=trained, confine=confine)[0]
+
+        def user_train(rec: Any, mode: str, stem: Path, cd: Any, key: str) -> tuple[Any, Any, float]:
+            res = finetune_user_network(task, entry, base, kernel=rec.kernel() if mode == "finetune" else None,
+                                        realisation=rec if mode == "codesign" else None, epochs=cd.epochs,
+                                        n_train=cd.n_train, lr_network=cd.lr_network, lr_filter=cd.lr_filter,
+                                        out=stem, fingerprint={"codesign_unit": key}, confine=confine)
+            return res, res.network, float(res.provenance["train_seconds"])
+
+        return [_Network(task, 0, "0", entry["network"] or f"built-in {task} network", ident, entry["n_clips"] or None,
+                         user_evidence, user_train)]
+    per_net = design.spec.tasks.test_clips == "per_network"
+    nets = []
+    for s, ck in enumerate(design.checkpoints()[task][: design.spec.codesign.seeds]):
+        ident = {"task": task, "network": ck.name, "network_size": ck.stat().st_size, "n_test": design.n_test(task),
+                 "clip_set": s if per_net else 0, "seed_offset": s}
+
+        def ck_evidence(kernel: Any, trained: Any, ck: Path = ck, s: int = s) -> Any:
+            return clip_evidence(kernel, task, trained or ck, n_test=design.n_test(task), seed_offset=s,
+                                 clip_set=s if per_net else 0)
+
+        def ck_train(rec: Any, mode: str, stem: Path, cd: Any, key: str, ck: Path = ck) -> tuple[Any, Any, float]:
+            res = finetune_network(ck, task, kernel=rec.kernel() if mode == "finetune" else None,
+                                   realisation=rec if mode == "codesign" else None, epochs=cd.epochs,
+                                   n_train=cd.n_train or None, lr_network=cd.lr_network, lr_filter=cd.lr_filter,
+                                   out=stem)
+            return res, res.paths["checkpoint"], float(res.provenance["finetune"]["seconds"])
+
+        nets.append(_Network(task, s, ck.stem.rsplit("_s", 1)[-1], ck.name, ident, design.n_test(task), ck_evidence, ck_train))
+    return nets
+
+
 def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None = True) -> dict[str, Any]:
     """Measure every cell's rows (resuming finished units) and return :func:`summarise_codesign`.
 
@@ -155,8 +226,6 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
 
     from ..realise.base import realised_kernel_error
     from ..realise.registry import fit_realisation
-    from ..tasks.learn import finetune_network
-    from .paired import clip_evidence, encode_evidence
 
     cd = design.spec.codesign
     cells = _runnable_cells(design)
@@ -165,43 +234,38 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
     (root / "networks").mkdir(parents=True, exist_ok=True)
     if env("FSDVS_HW_WORKER_THREADS"):
         torch.set_num_threads(int(env("FSDVS_HW_WORKER_THREADS") or 1))
-    ckpts = design.checkpoints()
     target = design.target
-    per_net = design.spec.tasks.test_clips == "per_network"
     seed = design.spec.run.seed
     train = {k: getattr(cd, k) for k in ("epochs", "n_train", "lr_network", "lr_filter")}
     fits: dict[str, Any] = {}
     units: list[dict[str, Any]] = []
     t_run = time.perf_counter()
-
     log = _progress_log(progress)
+    networks = {task: _task_networks(design, task) for task in dict.fromkeys(t for _, t in cells)}
 
-    def unit(kind: str, task: str, s: int, real: str | None, mode: str, work: Any) -> dict[str, Any]:
-        ck = ckpts[task][s]
-        ident = {"target": target.to_dict()["taps"], "pitch_m": target.pitch_m, "task": task, "network": ck.name,
-                 "network_size": ck.stat().st_size, "n_test": design.n_test(task), "clip_set": s if per_net else 0,
-                 "seed_offset": s, "mode": mode, "realisation": real, "format": CODESIGN_FORMAT}
+    def unit(kind: str, net: _Network, real: str | None, mode: str, work: Any) -> dict[str, Any]:
+        ident = {"target": target.to_dict()["taps"], "pitch_m": target.pitch_m, **net.ident, "mode": mode,
+                 "realisation": real, "format": CODESIGN_FORMAT}
         if real is not None:
             ident.update(options=design.realisation_options(real), run_seed=seed)
         if mode in ("finetune", "codesign"):
             ident.update(train)
         key = _key(ident)
-        path = root / "units" / f"{real or 'learned'}_{task}_s{s}_{mode}_{key}.json"
+        path = root / "units" / f"{real or 'learned'}_{net.task}_s{net.index}_{mode}_{key}.json"
         stored = _stored_unit(path, key)
         if stored is not None:
             units.append(stored)
             return stored
         t0 = time.perf_counter()
-        extra, kernel, net = work(key)
-        ev = clip_evidence(kernel, task, net, n_test=design.n_test(task), seed_offset=s,
-                           clip_set=s if per_net else 0)
-        rec = {"key": key, "kind": kind, "realisation": real or "learned", "task": task, "seed_index": s,
-               "mode": mode, "network": ck.name, "metric_name": ev.metric_name, "metric": ev.value,
+        extra, kernel, trained = work(key)
+        ev = net.evidence(kernel, trained)
+        rec = {"key": key, "kind": kind, "realisation": real or "learned", "task": net.task, "seed_index": net.index,
+               "mode": mode, "network": net.name, "metric_name": ev.metric_name, "metric": ev.value,
                "n_clips": ev.n_clips, "test_seed": ev.test_seed, "sensor_seed": ev.sensor_seed,
                "evidence": encode_evidence(ev.metric), "wall_s": time.perf_counter() - t0, **extra}
         _save_atomic(path, rec)
         units.append(rec)
-        log(f"{real or 'learned'} / {task} / network {s} / {mode}: {ev.metric_name} {ev.value:.4f} "
+        log(f"{real or 'learned'} / {net.task} / network {net.index} / {mode}: {ev.metric_name} {ev.value:.4f} "
             f"({rec['wall_s']:.0f} s)")
         return rec
 
@@ -211,36 +275,39 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
         return fits[real]
 
     for real, task in cells:
-        for s in range(cd.seeds):
-            ck = ckpts[task][s]
-            unit("reference", task, s, None, "reference", lambda key, ck=ck: ({}, target, ck))
+        for net in networks[task]:
+            unit("reference", net, None, "reference", lambda key: ({}, target, None))
             for mode in [m for m in CODESIGN_MODES if m in cd.modes]:
-                def work(key: str, real: str = real, mode: str = mode, ck: Path = ck, task: str = task) -> Any:
+                def work(key: str, real: str = real, mode: str = mode, net: _Network = net) -> Any:
                     rec = fitted(real)
                     info: dict[str, Any] = {"kernel_error_fit": realised_kernel_error(rec, target),
                                             "kernel_error_fit_gain_free": realised_kernel_error(rec, target, fit_scale=True)}
                     if mode == "swap":
-                        return info, rec.kernel(), ck
-                    stem = root / "networks" / f"{real}_{task}_s{ck.stem.rsplit('_s', 1)[-1]}_{mode}_{key}"
-                    res = finetune_network(ck, task, kernel=rec.kernel() if mode == "finetune" else None,
-                                           realisation=rec if mode == "codesign" else None, epochs=cd.epochs,
-                                           n_train=cd.n_train or None, lr_network=cd.lr_network,
-                                           lr_filter=cd.lr_filter, out=stem)
-                    info["train_s"] = res.provenance["finetune"]["seconds"]
+                        return info, rec.kernel(), None
+                    stem = root / "networks" / f"{real}_{net.task}_s{net.tag}_{mode}_{key}"
+                    res, trained, info["train_s"] = net.train(rec, mode, stem, cd, key)
                     info["train_loss_last"] = res.history[-1]["loss"] if res.history else None
                     if mode == "codesign":
                         info.update(_codesign_outcome(res.provenance, target))
-                    return info, res.kernel, res.paths["checkpoint"]
+                    return info, res.kernel, trained
 
-                unit("row", task, s, real, mode, work)
+                unit("row", net, real, mode, work)
     sc = design.spec.scoring
     summary = summarise_codesign(units, n_resamples=sc.n_resamples, confidence=sc.confidence, rng=seed)
+    _note_user_cells(summary, design)
     summary["settings"] = {**design.section("codesign"), "test_clips": design.spec.tasks.test_clips,
-                           "n_test": {t: design.n_test(t) for _, t in cells}}
+                           "n_test": {t: networks[t][0].n_test for _, t in cells}}
     summary["design"] = design.name
     summary["wall_s"] = time.perf_counter() - t_run  # this call (a resumed run reuses finished units)
     summary["units_wall_s"] = float(sum(u["wall_s"] for u in units))  # when each unit was measured
     return summary
+
+
+def _note_user_cells(summary: Mapping[str, Any], design: Design) -> None:
+    """Mark the cells of user-data tasks: one network, so their CIs resample the clips only."""
+    for cell in summary["cells"]:
+        if cell["task"] in design.spec.tasks.datasets:
+            cell["data"], cell["ci_note"] = "user", ONE_NETWORK_NOTE
 
 
 def recovered_fraction_ci(reference: Sequence[Any], swap: Sequence[Any], candidate: Sequence[Any], *,

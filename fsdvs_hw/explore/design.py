@@ -300,10 +300,12 @@ def design_model() -> type[StrictModel]:
                                         "(fsdvs_hw.explore.codesign; trains networks: minutes per cell)")),
         realisations=(list[real_item], field(list(diff), "", "hardware realisations to co-design (those with a "
                                                              "differentiable form)")),
-        tasks=(list[str], field([], "", "tasks to co-design for; [] = every task in tasks.checkpoints")),
+        tasks=(list[str], field([], "", "tasks to co-design for; [] = every task in tasks.checkpoints and "
+                                        "tasks.datasets (a user-data task: its one network, weights or train)")),
         cells=(list[str], field([], "", "'realisation/task' pairs to run (e.g. 'metalens/detection'); [] = every "
                                         "realisation x task")),
-        seeds=(int, field(3, "", "networks per task: the first N of tasks.checkpoints (one per training seed)",
+        seeds=(int, field(3, "", "networks per task: the first N of tasks.checkpoints (one per training seed); a "
+                                 "user-data task has one",
                           ge=1, le=1000)),
         epochs=(int, field(4, "", "training epochs of the fine-tune and co-design rows", ge=1, le=1000)),
         n_train=(int, field(0, "", "training clips per network; 0 = the checkpoint's own training set", ge=0,
@@ -960,15 +962,17 @@ def _check_user_data(chk: _Problems, data: dict[str, Any], base: Path, confine: 
 
 
 def _check_codesign(chk: _Problems, data: dict[str, Any]) -> None:
-    """``[codesign]`` against ``[tasks]``: its tasks, cells and seeds must exist there."""
+    """``[codesign]`` against ``[tasks]``: its tasks, cells and seeds must exist there; a user-data task
+    needs a trained network (``weights`` or a ``train`` table)."""
     cd = data["codesign"]
     ckpts = data["tasks"]["checkpoints"]
-    tasks = cd["tasks"] or list(ckpts)
+    users = data["tasks"]["datasets"]
+    known = [*ckpts, *users]
+    tasks = cd["tasks"] or known
     for i, t in enumerate(cd["tasks"]):
-        if t not in ckpts:
-            chk.add(
-                f"codesign.tasks[{i}]", t, f"not a task in tasks.checkpoints; allowed: {', '.join(ckpts) or 'none'}"
-            )
+        if t not in known:
+            chk.add(f"codesign.tasks[{i}]", t, "not a task in tasks.checkpoints or tasks.datasets; allowed: "
+                    f"{', '.join(known) or 'none'}")
     for i, cell in enumerate(cd["cells"]):
         real, _, task = cell.partition("/")
         if real not in cd["realisations"] or task not in tasks:
@@ -979,9 +983,9 @@ def _check_codesign(chk: _Problems, data: dict[str, Any]) -> None:
         chk.add("codesign.cells", cd["cells"], "lists a cell twice")
     if not cd["enabled"]:
         return
-    if not ckpts:
-        chk.add("codesign.enabled", True, "needs trained networks; allowed: tasks.checkpoints set, or "
-                "codesign.enabled = false")
+    if not known:
+        chk.add("codesign.enabled", True, "needs trained networks; allowed: tasks.checkpoints or tasks.datasets set, "
+                "or codesign.enabled = false")
     if not cd["modes"]:
         chk.add("codesign.modes", cd["modes"], f"empty; allowed: a non-empty list of {', '.join(CODESIGN_MODES)}")
     if not cd["realisations"]:
@@ -990,14 +994,31 @@ def _check_codesign(chk: _Problems, data: dict[str, Any]) -> None:
         chk.add("tasks.sensor", data["tasks"]["sensor"], "codesign rows train and score with the checkpoint's "
                 "simulator; allowed with codesign.enabled: 'checkpoint'")
     for t in tasks:
-        n = len(_as_list(ckpts.get(t, [])))
-        if t in ckpts and cd["seeds"] > n:
-            chk.add("codesign.seeds", cd["seeds"], f"task {t!r} has {n} network(s) in tasks.checkpoints; "
-                    f"allowed: at most {n}")
-    for t, n in ((t, data["tasks"]["n_test"]) for t in tasks):
-        n = n.get(t, 0) if isinstance(n, dict) else n
-        if t in ckpts and n == 1:
-            chk.add("tasks.n_test", n, "codesign CIs need at least 2 test clips per network")
+        if t in ckpts:
+            _check_codesign_checkpoint_task(chk, t, data)
+        elif t in users:
+            _check_codesign_user_task(chk, t, users[t])
+
+
+def _check_codesign_checkpoint_task(chk: _Problems, task: str, data: dict[str, Any]) -> None:
+    """A co-designed checkpoint task needs ``codesign.seeds`` networks and 2+ test clips per network."""
+    seeds, n_nets = data["codesign"]["seeds"], len(_as_list(data["tasks"]["checkpoints"][task]))
+    if seeds > n_nets:
+        chk.add("codesign.seeds", seeds, f"task {task!r} has {n_nets} network(s) in tasks.checkpoints; "
+                f"allowed: at most {n_nets}")
+    n = data["tasks"]["n_test"]
+    n = n.get(task, 0) if isinstance(n, dict) else n
+    if n == 1:
+        chk.add("tasks.n_test", n, "codesign CIs need at least 2 test clips per network")
+
+
+def _check_codesign_user_task(chk: _Problems, task: str, entry: dict[str, Any]) -> None:
+    """A co-designed user-data task needs a trained network (``weights`` or ``train``) and 2+ scored clips."""
+    if not entry["weights"] and entry.get("train") is None:
+        chk.add(f"tasks.datasets.{task}", "no weights, no train", "codesign compares rows against a trained "
+                f"network; allowed: weights = '...' or a train = {{...}} table, or codesign.tasks without {task!r}")
+    if entry["n_clips"] == 1:
+        chk.add(f"tasks.datasets.{task}.n_clips", 1, "codesign CIs need at least 2 scored clips")
 
 
 def _safetensors_problem(path: Path) -> str | None:

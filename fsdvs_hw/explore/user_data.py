@@ -67,6 +67,7 @@ from ..schema import StrictModel, field
 
 __all__ = [
     "FORMAT_TASK",
+    "ONE_NETWORK_NOTE",
     "ClipCacheSpec",
     "CocoFramesSource",
     "DsecDetectionSource",
@@ -77,10 +78,12 @@ __all__ = [
     "check_disjoint_files",
     "check_user_task",
     "dataset_evidence",
+    "finetune_user_network",
     "open_dataset",
     "open_network",
     "train_split_dataset",
     "train_user_task",
+    "user_network_identity",
     "user_task_record",
 ]
 
@@ -433,12 +436,12 @@ def check_disjoint_files(train: Any, train_indices: Any, test: Any, test_indices
                          "trainlist0N.txt with testlist0N.txt of the same N)")
 
 
-def _train(task: str, entry: Mapping[str, Any], base: Path, confine: bool, key: str, net: Any,
-           verbose: bool, out_stem: Path | None = None) -> Any:
-    """Train ``net`` (a copy) on the task's clips not scored (or reuse / resume ``train.out``)."""
-    from ..tasks.dataset_training import disjoint_train_indices, train_on_dataset
+def _training_clips(entry: Mapping[str, Any], spec: Mapping[str, Any], base: Path, confine: bool,
+                    key: str) -> tuple[Any, np.ndarray]:
+    """(dataset, clip indices) a table trains on: ``spec["split"]`` (the dataset's own training split,
+    disjoint files checked) or a draw of ``spec["n_train"]`` with ``spec["seed"]`` from the clips not scored."""
+    from ..tasks.dataset_training import disjoint_train_indices
 
-    spec = dict(entry["train"])
     ds = open_dataset(entry["dataset"], base, confine=confine, key=f"{key}.dataset")
     scored = ds.draw(entry["n_clips"], entry["seed"]) if entry["n_clips"] else np.arange(len(ds))
     train_ds, train_idx = ds, None
@@ -456,10 +459,24 @@ def _train(task: str, entry: Mapping[str, Any], base: Path, confine: bool, key: 
                          f"({key}.train.split)")
     else:
         train_idx = disjoint_train_indices(len(ds), scored, spec["n_train"], spec["seed"])
+    return train_ds, train_idx
+
+
+def _scored_source(entry: Mapping[str, Any]) -> dict[str, Any]:
+    """The table's dataset without its disk cache (which changes no clip): what fingerprints hold."""
+    return {k: v for k, v in entry["dataset"].items() if k != "cache"}
+
+
+def _train(task: str, entry: Mapping[str, Any], base: Path, confine: bool, key: str, net: Any,
+           verbose: bool, out_stem: Path | None = None) -> Any:
+    """Train ``net`` (a copy) on the task's clips not scored (or reuse / resume ``train.out``)."""
+    from ..tasks.dataset_training import train_on_dataset
+
+    spec = dict(entry["train"])
+    train_ds, train_idx = _training_clips(entry, spec, base, confine, key)
     out = out_stem or _path(base, spec["out"] or f"trained/{task}", what=f"{key}.train.out", confine=confine)
     weights = _path(base, entry["weights"], what=f"{key}.weights", confine=confine) if entry["weights"] else None
-    source = {k: v for k, v in entry["dataset"].items() if k != "cache"}  # the disk cache changes no clip
-    fingerprint = {"dataset": source, "network": entry["network"], "options": entry["network_options"],
+    fingerprint = {"dataset": _scored_source(entry), "network": entry["network"], "options": entry["network_options"],
                    "weights_sha256": _file_digest(weights) if weights else None, "scored": [entry["n_clips"],
                    entry["seed"]], "sensor": "default",
                    # train.split only when set: checkpoints trained before the key existed keep their fingerprint
@@ -524,6 +541,111 @@ def train_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *
     if overrides:
         entry = {**entry, "train": TrainSpec.model_validate({**entry["train"], **overrides}).model_dump()}
     return _train(task, entry, base, confine, key, net, verbose, None if out is None else Path(out))
+
+
+def user_network_identity(entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True) -> dict[str, Any]:
+    """What determines a table's scores besides the kernel: data, clip draw, network, weights, training.
+
+    JSON-able, for result keys (:mod:`fsdvs_hw.explore.codesign` units): the dataset (its disk
+    cache left out: it changes no clip), ``n_clips`` and ``seed``, the factory and its options, the
+    SHA-256 of ``weights`` and the ``train`` table.
+
+    Examples
+    --------
+    >>> entry = UserTask(dataset={"format": "video_folder", "root": "ucf"}).model_dump()
+    >>> sorted(user_network_identity(entry, "."))[:3]
+    ['dataset', 'device', 'n_test']
+    """
+    weights = (_path(Path(base_dir).resolve(), entry["weights"], what="weights", confine=confine)
+               if entry["weights"] else None)
+    return {"dataset": _scored_source(entry), "n_test": entry["n_clips"], "clip_seed": entry["seed"],
+            "network": entry["network"] or "built-in", "options": dict(entry["network_options"]),
+            "weights_sha256": _file_digest(weights) if weights else None, "train": entry.get("train"),
+            "device": entry["device"]}
+
+
+def finetune_user_network(task: str, entry: Mapping[str, Any], base_dir: str | Path, *, kernel: Any = None,
+                          realisation: Any = None, epochs: int = 4, n_train: int = 0, lr_network: float = 1e-3,
+                          lr_filter: float = 1e-2, out: str | Path | None = None,
+                          fingerprint: Mapping[str, Any] | None = None, confine: bool = True,
+                          verbose: bool = False) -> Any:
+    """Train a table's network further with a realised kernel: frozen, or co-designed (user data).
+
+    The user-data counterpart of :func:`fsdvs_hw.tasks.learn.finetune_network` (the
+    ``finetune`` and ``codesign`` rows of :mod:`fsdvs_hw.explore.codesign`): the network the table
+    scores (:func:`open_network`: ``weights``, or the ``train`` table's checkpoint) trains on the
+    clips :func:`train_user_task` trains on (``train.split``, or the seeded draw from the clips not
+    scored: never a scored clip), through
+    :func:`~fsdvs_hw.tasks.dataset_training.train_on_dataset`'s loop:
+
+    * ``kernel`` given: stage one only, ``epochs`` epochs, the kernel frozen, the whole network at
+      ``lr_network``;
+    * ``realisation`` given: stage two only, ``epochs`` epochs, the realisation's physical
+      parameters at ``lr_filter`` and the network (backbone and head) at ``lr_network``.
+
+    Parameters
+    ----------
+    task : str
+    entry : mapping
+        A validated :class:`UserTask` dumped.
+    base_dir : path
+        The design file's folder.
+    kernel : Kernel, optional
+        The frozen kernel (exactly one of ``kernel`` and ``realisation``).
+    realisation : Realisation, optional
+        The fitted realisation to co-design (a differentiable form).
+    epochs : int
+        Training epochs (≥ 1).
+    n_train : int
+        Training clips; 0 = ``train.n_train`` (0 there: every clip not scored).
+    lr_network, lr_filter : float
+        AdamW rates (1/step) of the network and of the realisation's parameters.
+    out : path, optional
+        File stem of the trained network (resumes; a finished one is reused).
+    fingerprint : mapping, optional
+        Identity of the run stored with the checkpoint and compared on resume.
+
+    Returns
+    -------
+    DatasetTrainingResult
+        ``network`` (CPU, eval mode) and the kernel it ends with; co-designed, the provenance's
+        ``realisation_design`` is the realisation after training.
+
+    Raises
+    ------
+    InputError
+        Both or neither of ``kernel`` / ``realisation``, too few clips left to train on, a
+        checkpoint at ``out`` trained with another fingerprint.
+
+    Examples
+    --------
+    >>> res = finetune_user_network("segmentation", entry, "designs", kernel=fitted.kernel(), epochs=1)  # doctest: +SKIP
+    >>> res.history[-1]["stage"]                                                                         # doctest: +SKIP
+    'frozen_filter'
+    """
+    from ..tasks.dataset_training import train_on_dataset
+
+    if (kernel is None) == (realisation is None):
+        raise InputError("finetune_user_network: give exactly one of kernel= (frozen) and realisation= (co-designed)")
+    key = f"tasks.datasets.{task}"
+    base = Path(base_dir).resolve()
+    spec = dict(entry.get("train") or TrainSpec().model_dump())
+    spec["n_train"] = n_train or spec["n_train"]
+    try:
+        train_ds, train_idx = _training_clips(entry, spec, base, confine, key)
+    except InputError as exc:  # name the key that asked for the clips
+        raise InputError(f"{key} trained further with codesign.n_train = {n_train} (0 = its train.n_train): "
+                         f"{exc}") from None
+    ds = open_dataset(entry["dataset"], base, confine=confine, key=f"{key}.dataset")
+    net = open_network(entry, ds, base, confine=confine, key=key)
+    stages = ({"init_kernel": kernel, "learn_filter": False, "epochs_frozen": epochs, "epochs_joint": 0}
+              if realisation is None else
+              {"realisation": realisation, "epochs_frozen": 0, "epochs_joint": epochs, "lr_kernel": lr_filter,
+               "lr_backbone": lr_network, "lr_head": lr_network})
+    return train_on_dataset(train_ds, task, copy.deepcopy(net), train_indices=train_idx, lr_network=lr_network,
+                            weight_decay=spec["weight_decay"], batch_size=spec["batch_size"], seed=spec["seed"],
+                            device=entry["device"], out=out, fingerprint=None if fingerprint is None else
+                            dict(fingerprint), verbose=verbose, **stages)
 
 
 def open_network(entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *, confine: bool = True,
@@ -654,7 +776,7 @@ def _design_sensor(frame_rate_hz: float, design_sensor: Mapping[str, Any] | None
 
 def dataset_evidence(kernel: Any, task: str, entry: Mapping[str, Any], base_dir: str | Path, *,
                      design_sensor: Mapping[str, Any] | None = None, events_fn: Any = None,
-                     confine: bool = True) -> tuple[Any, dict[str, Any]]:
+                     confine: bool = True, network: Any = None) -> tuple[Any, dict[str, Any]]:
     """Score ``kernel`` on a user dataset with the user network and keep every clip's contribution.
 
     The counterpart of :func:`fsdvs_hw.explore.paired.clip_evidence` for a
@@ -678,6 +800,9 @@ def dataset_evidence(kernel: Any, task: str, entry: Mapping[str, Any], base_dir:
         default (:func:`fsdvs_hw.tasks.learn.default_sensor`) at the clips' frame rate.
     events_fn : callable, optional
         Event frames instead of the in-pixel simulator (the emulation track).
+    network : torch.nn.Module, optional
+        Score this network instead of the table's (a fine-tuned or co-designed one,
+        :func:`finetune_user_network`).
 
     Returns
     -------
@@ -703,7 +828,7 @@ def dataset_evidence(kernel: Any, task: str, entry: Mapping[str, Any], base_dir:
     t0 = time.perf_counter()
     key = f"tasks.datasets.{task}"
     ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"{key}.dataset")
-    net = open_network(entry, ds, base_dir, confine=confine, key=key)
+    net = open_network(entry, ds, base_dir, confine=confine, key=key) if network is None else network
     evaluator = evaluator_for_dataset(task, ds)
     first = ds[0]
     rate_hz = 1.0 / float(np.diff(first.timestamps_s)[0])

@@ -66,6 +66,6 @@ def codesign_section(summary: Mapping[str, Any]) -> Markup:
                      f"{c['kernel_error_fit_gain_free']:.3f} → {_mean(c.get('kernel_error_codesign_gain_free'))}"
                      if c.get("kernel_error_fit_gain_free") is not None else "—",
                      f"{_mean(c.get('ms_correlation_initial'))} → {_mean(c.get('ms_correlation_final'))}",
-                     c["verdict"]])
+                     c["verdict"] + (f" ({c['ci_note']})" if c.get("ci_note") else "")])
     return render("codesign.html.j2", epochs=str(st.get("epochs", "?")), n_train=str(st.get("n_train") or "all"),
                   headers=CODESIGN_HEADERS, rows=rows)

@@ -16,6 +16,10 @@ clips and network, through the same training loop (``_train_epochs``):
 From scratch, the network starts from the factory's initialisation; **fine-tuning** starts it
 from the user's weights (the caller loads them) and is the same two stages. With
 ``learn_filter=False`` the kernel stays frozen in both stages (a network for a fixed kernel).
+With ``realisation`` (a fitted record with a differentiable form), stage two trains the
+realisation's physical parameters instead of free taps
+(:func:`fsdvs_hw.tasks.learn.differentiable_realisation`), so the kernel stays buildable at
+every step: the co-designed row of :mod:`fsdvs_hw.explore.codesign` on user data.
 
 Train / test clips
     The caller passes the training clips' indices; :func:`disjoint_train_indices` draws them
@@ -222,6 +226,7 @@ def _check_fingerprint(stored: Any, wanted: dict[str, Any] | None, path: Path) -
 
 def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indices: Any,
                      kernel_size: int = 7, init_kernel: Any = None, learn_filter: bool = True,
+                     realisation: Any = None,
                      epochs_frozen: int = 2, epochs_joint: int = 2, lr_network: float = 3e-3,
                      lr_kernel: float = 1e-2, lr_backbone: float | None = None, lr_head: float | None = None,
                      weight_decay: float = 1e-4, batch_size: int = 8, seed: int = 0, init_noise: float = 1e-2,
@@ -246,6 +251,11 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
         Start from this kernel instead of delta + ``init_noise``.
     learn_filter : bool
         False: the kernel stays frozen in both stages.
+    realisation : Realisation, optional
+        A fitted realisation record with a differentiable form: its kernel is the start (instead
+        of ``init_kernel`` / the delta) and stage two trains its physical parameters at
+        ``lr_kernel``; the provenance adds ``realisation``, ``realisation_initial`` and
+        ``realisation_design`` (the record after training).
     epochs_frozen, epochs_joint : int
         Epochs of stage one (kernel frozen) and stage two (joint).
     lr_network : float
@@ -314,7 +324,7 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
     indices = _checked_indices(train_indices, len(dataset))
     torch.manual_seed(seed)
     gen = torch.Generator().manual_seed(seed)
-    taps0 = _initial_taps(init_kernel, kernel_size, init_noise, gen)
+    module, realised, taps0 = _kernel_start(realisation, init_kernel, kernel_size, init_noise, gen)
     learn_filter = bool(learn_filter and taps0.shape[0] > 1)
 
     video, targets, ts = _load_clips(dataset, indices, evaluator)
@@ -327,7 +337,7 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
     sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(ts)[0]))) if sensor is None else sensor
     video, net = video.to(dev), net.to(dev).train()
     targets = {k: v.to(dev) for k, v in targets.items()}
-    kernel_param = torch.nn.Parameter(taps0.clone().to(dev), requires_grad=learn_filter)
+    kernel_param, kernel_now = _kernel_parameter(module, taps0, learn_filter, dev)
     taps_init = taps0.to(dev)
 
     def input_fn(v: Any, k: Any, s: Any, t: Any) -> Any:
@@ -357,7 +367,7 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
         if opt_state is not None and s_idx == start[0]:
             opt.load_state_dict(opt_state)
         frozen = stage == "frozen_filter" or not learn_filter  # a frozen kernel: the events never change
-        cached = _inputs_once(input_fn, video, kernel_param, sensor, ts) if frozen else None
+        cached = _inputs_once(input_fn, video, kernel_now(), sensor, ts) if frozen else None
         for epoch in range(first_epoch, epochs[stage]):
             n_before = len(history)
             _train_epochs(evaluator, net, kernel_param, video, targets, sensor, ts, opt, 1, batch_size, gen,
@@ -371,7 +381,9 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
             if partial is not None:
                 _save_partial(partial, net, kernel_param, gen, opt, history, (s_idx, epoch + 1), fingerprint)
     net = net.cpu().eval()
-    taps = kernel_param.detach().cpu().numpy()
+    with torch.no_grad():
+        taps = kernel_now().detach().cpu().numpy()
+    realised.update(_realisation_after(module, evaluator.name))
     provenance = {
         "task": evaluator.name, "dataset": type(dataset).__name__, "num_classes": evaluator.num_classes,
         "protocol": "frozen kernel, then joint (decoupled rates)" if learn_filter else "kernel frozen",
@@ -383,7 +395,7 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
         "network": type(net).__name__, "event_input": rep.kind if rep.n_bins is None else f"voxel:{rep.n_bins}",
         "sensor": sensor.to_dict(), "history": history, "fingerprint": fingerprint,
         "train_seconds": time.perf_counter() - t_start, "device": str(dev), "versions": library_versions(),
-        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), **realised,
     }
     kernel = Kernel(taps, name=f"learned {evaluator.name} {taps.shape[0]}x{taps.shape[0]} on "
                     f"{type(dataset).__name__} (seed {seed})",
@@ -414,7 +426,7 @@ def _inputs_once(input_fn: Any, video: Any, kernel_param: Any, sensor: Any, ts: 
 
 def _optimizer(stage: str, net: Any, kernel_param: Any, weight_decay: float, lr: dict[str, float]) -> Any:
     """AdamW of one stage: stage one the whole network at ``lr["network"]``; stage two the kernel
-    (``kernel_param``, None when frozen; no weight decay) at ``lr["kernel"]`` and the network at
+    (``kernel_param``: taps or a realisation module, None when frozen; no weight decay) at ``lr["kernel"]`` and the network at
     ``lr["backbone"]`` / ``lr["head"]`` (one group at ``lr["head"]`` without ``backbone`` and ``head``)."""
     import torch
 
@@ -428,7 +440,8 @@ def _optimizer(stage: str, net: Any, kernel_param: Any, weight_decay: float, lr:
     else:
         groups = [{"params": list(net.parameters()), "lr": lr["head"], "weight_decay": wd}]
     if kernel_param is not None:
-        groups.insert(0, {"params": [kernel_param], "lr": lr["kernel"], "weight_decay": 0.0})
+        params = list(kernel_param.parameters()) if isinstance(kernel_param, torch.nn.Module) else [kernel_param]
+        groups.insert(0, {"params": params, "lr": lr["kernel"], "weight_decay": 0.0})
     return torch.optim.AdamW(groups)
 
 
@@ -469,10 +482,46 @@ def _resume(partial: Path | None, fingerprint: Any, net: Any, kernel_param: Any,
     state = torch.load(str(partial), map_location="cpu", weights_only=True)
     _check_fingerprint(json.loads(state["fingerprint"]), fingerprint, partial)
     net.load_state_dict(state["network"])
-    with torch.no_grad():
-        kernel_param.copy_(state["kernel"].to(kernel_param.device))
+    if isinstance(kernel_param, torch.nn.Module):  # a realisation's parameters
+        kernel_param.load_state_dict(state["kernel"])
+    else:
+        with torch.no_grad():
+            kernel_param.copy_(state["kernel"].to(kernel_param.device))
     gen.set_state(state["generator"])
     return json.loads(state["history"]), (int(state["stage"]), int(state["epoch"])), state["optimizer"]
+
+
+def _kernel_start(realisation: Any, init_kernel: Any, kernel_size: Any, init_noise: float,
+                  gen: Any) -> tuple[Any, dict[str, Any], Any]:
+    """(realisation module or None, its provenance, the initial taps as a float64 CPU tensor)."""
+    if realisation is None:
+        return None, {}, _initial_taps(init_kernel, kernel_size, init_noise, gen)
+    import torch
+
+    from .learn import differentiable_realisation
+
+    if init_kernel is not None:
+        raise InputError("train_on_dataset: give at most one of init_kernel= and realisation=")
+    module, realised = differentiable_realisation(realisation, who="train_on_dataset")
+    with torch.no_grad():
+        return module, realised, module().detach().to(torch.float64).cpu()
+
+
+def _kernel_parameter(module: Any, taps0: Any, learn_filter: bool, dev: Any) -> tuple[Any, Any]:
+    """What the optimiser trains — free taps (a Parameter) or the realisation's module, on ``dev`` — and
+    a function returning the kernel taps now (the module is called for them at every step)."""
+    import torch
+
+    if module is not None:
+        module = module.to(dev)
+        return module, module
+    param = torch.nn.Parameter(taps0.clone().to(dev), requires_grad=learn_filter)
+    return param, lambda: param
+
+
+def _realisation_after(module: Any, task: str) -> dict[str, Any]:
+    """``realisation_design``: the realisation record after training (``{}`` without a realisation)."""
+    return {} if module is None else {"realisation_design": module.to_design(codesign_task=task).to_dict()}
 
 
 def _initial_taps(init_kernel: Any, kernel_size: Any, init_noise: float, gen: Any) -> Any:
@@ -498,7 +547,9 @@ def _save_partial(path: Path, net: Any, kernel_param: Any, gen: Any, opt: Any, h
     from ..paths import write_output
 
     buf = io.BytesIO()
-    torch.save({"network": {k: v.cpu() for k, v in net.state_dict().items()}, "kernel": kernel_param.detach().cpu(),
+    kernel = ({k: v.cpu() for k, v in kernel_param.state_dict().items()} if isinstance(kernel_param, torch.nn.Module)
+              else kernel_param.detach().cpu())
+    torch.save({"network": {k: v.cpu() for k, v in net.state_dict().items()}, "kernel": kernel,
                 "generator": gen.get_state(), "optimizer": opt.state_dict(), "history": json.dumps(history),
                 "stage": position[0], "epoch": position[1], "fingerprint": json.dumps(fingerprint)}, buf)
     write_output(path, buf.getvalue(), flag=str(path))

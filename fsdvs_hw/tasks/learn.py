@@ -65,6 +65,7 @@ __all__ = [
     "LearnResult",
     "TrainingSettings",
     "default_sensor",
+    "differentiable_realisation",
     "evaluate_kernel",
     "finetune_network",
     "heldout_targets",
@@ -350,7 +351,9 @@ def _train_epochs(evaluator: Any, network: Any, kernel_param: Any, video: Any, t
             count += len(idx)
         rec = {"stage": stage, "epoch": epoch, "loss": total / count, "seconds": time.perf_counter() - t0}
         if kernel_init is not None:
-            rec["kernel_change_l1"] = float((kernel_param.detach() - kernel_init).abs().sum())
+            with torch.no_grad():
+                taps = kernel_param() if callable(kernel_param) else kernel_param
+            rec["kernel_change_l1"] = float((taps.detach() - kernel_init).abs().sum())
         history.append(rec)
         if log is not None:
             log(f"[learn] {evaluator.name} {stage} epoch {epoch + 1}/{epochs}: loss {rec['loss']:.4f} "
@@ -837,6 +840,50 @@ def load_network(checkpoint: str | Path, task: Any, *, who: str = "load_network"
     return network, provenance
 
 
+def differentiable_realisation(realisation: Any, *, who: str = "differentiable_realisation") -> tuple[Any, dict[str, Any]]:
+    """The trainable module of a fitted realisation record, and what a provenance says about it.
+
+    Parameters
+    ----------
+    realisation : Realisation
+        A fitted record of a registered realisation with a differentiable form
+        (:attr:`fsdvs_hw.realise.registry.RealisationSpec.differentiable`: ``mesh``, ``asic``, ...).
+    who : str
+        The caller, for messages.
+
+    Returns
+    -------
+    module : torch.nn.Module
+        :meth:`~fsdvs_hw.realise.registry.RealisationSpec.differentiable_kernel`: called, it returns
+        the kernel taps (float64); its parameters are the realisation's physical ones, and
+        ``to_design(codesign_task=...)`` gives the record after training.
+    provenance : dict
+        ``realisation`` (the registered name) and ``realisation_initial`` (the fitted record).
+
+    Raises
+    ------
+    InputError
+        ``realisation`` is not a fitted record of a realisation with a differentiable form.
+
+    Examples
+    --------
+    >>> module, info = differentiable_realisation(fit_realisation("mesh", target, {}))   # doctest: +SKIP
+    >>> info["realisation"], module().shape                                              # doctest: +SKIP
+    ('mesh', torch.Size([7, 7]))
+    """
+    from ..realise.registry import get_realisation, realisation_names
+
+    kind = getattr(realisation, "kind", None)
+    specs = [get_realisation(nm) for nm in realisation_names()]
+    spec = next((sp for sp in specs if sp.record_kind == kind and sp.differentiable
+                 and (sp.record_type is None or isinstance(realisation, sp.record_type))), None)
+    if spec is None:
+        raise InputError(f"{who}: realisation= must be a fitted realisation record, got "
+                         f"{type(realisation).__name__} (kind {kind!r})")
+    return spec.differentiable_kernel(realisation), {"realisation": spec.name,
+                                                     "realisation_initial": realisation.to_dict()}
+
+
 def finetune_network(checkpoint: str | Path, task: Any, *, kernel: Any = None, realisation: Any = None,
                      epochs: int = 4, lr_network: float = 1e-3, lr_filter: float = 1e-2, n_train: int | None = None,
                      out: str | Path | None = None, verbose: bool = False) -> LearnResult:
@@ -893,7 +940,6 @@ def finetune_network(checkpoint: str | Path, task: Any, *, kernel: Any = None, r
 
     import torch
 
-    from ..realise.registry import get_realisation, realisation_names
     from ..scenes.synthetic import SceneConfig
     from ..sensor import SensorConfig
     from .evaluators import get_evaluator
@@ -921,15 +967,7 @@ def finetune_network(checkpoint: str | Path, task: Any, *, kernel: Any = None, r
     gen = torch.Generator().manual_seed(seed)
     realised: dict[str, Any] = {}
     if realisation is not None:
-        kind = getattr(realisation, "kind", None)
-        specs = [get_realisation(nm) for nm in realisation_names()]
-        spec = next((sp for sp in specs if sp.record_kind == kind and sp.differentiable
-                     and (sp.record_type is None or isinstance(realisation, sp.record_type))), None)
-        if spec is None:
-            raise InputError(f"finetune_network: realisation= must be a fitted realisation record, got "
-                             f"{type(realisation).__name__} (kind {kind!r})")
-        kernel_param: Any = spec.differentiable_kernel(realisation)
-        realised = {"realisation": spec.name, "realisation_initial": realisation.to_dict()}
+        kernel_param, realised = differentiable_realisation(realisation, who="finetune_network")
     else:
         k = _as_kernel(kernel)
         kernel_param = torch.as_tensor(np.array(k.taps), dtype=torch.float64)
