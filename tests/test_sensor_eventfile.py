@@ -56,7 +56,7 @@ def test_hdf5_is_v2e_layout(tmp_path):
     write_events(tmp_path / "v2e.h5", ev, W, H)
     with h5py.File(tmp_path / "v2e.h5", "r") as f:
         d = f["events"]
-        assert d.dtype == np.uint32 and d.shape == (len(ev), 4) and d.compression == "gzip"
+        assert d.dtype == np.uint32 and d.shape == (len(ev), 4) and d.compression == "gzip" and d.compression_opts == 1 and d.shuffle
         a = d[()]
     assert np.array_equal(a[:, 3], (ev.p.numpy() > 0).astype(np.uint32))  # v2e: 1 = ON, 0 = OFF
     assert np.array_equal(a[:, 1], ev.x.numpy()) and np.array_equal(a[:, 2], ev.y.numpy())
