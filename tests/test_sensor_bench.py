@@ -117,7 +117,7 @@ def test_comparisons_refuse_bad_input_and_print_the_ratio(tmp_path):
 @pytest.mark.skipif(not __import__("torch").cuda.is_available(), reason="needs a CUDA device")
 def test_cuda_event_list_and_frames_match_the_cpu():
     """The torch path on CUDA against the CPU path (compiled kernels) on a small moving texture,
-    v2e-clean (no noise draws): event frames equal to within 0.1 % of the events (float32
+    v2e-clean without threshold mismatch (no random draws): event frames equal to within 0.1 % of the events (float32
     rounding of the comparator may move a crossing across a frame time), event counts per
     polarity within 0.5 %, event times within one frame interval of each other in order."""
     import torch
@@ -126,7 +126,9 @@ def test_cuda_event_list_and_frames_match_the_cpu():
     from fsdvs_hw.sensor import event_frames, event_list
 
     video = moving_texture(9, 48, 64, speed_px=1.5, level=0.3).float()
-    cfg = SensorConfig.preset("v2e-clean")
+    # v2e-clean less its threshold mismatch: the mismatch pattern is drawn from each device's own
+    # random stream (docs/your_data.md), so with it the two paths simulate different sensors
+    cfg = SensorConfig.preset("v2e-clean").replace(threshold_sigma=0.0)
     cpu_f, gpu_f = event_frames(video, config=cfg), event_frames(video.cuda(), config=cfg).cpu()
     assert float((cpu_f - gpu_f).abs().sum()) <= 1e-3 * float(cpu_f.sum())
     cpu_e, gpu_e = event_list(video, config=cfg), event_list(video.cuda(), config=cfg)

@@ -284,12 +284,9 @@ def sort_interval(parts: list, lo: float | None = None, hi: float | None = None)
         out = _crossings_native.sort_events([tuple(c.numpy() for c in q) for q in parts], lo, hi)
         parts.clear()
         return torch.from_numpy(out[0]), torch.from_numpy(out[1]), torch.from_numpy(out[2])
-    if len(parts) == 1:
-        flat, t, p = parts[0]
-    else:
-        flat, t, p = (torch.cat(c) for c in zip(*parts, strict=True))
+    # parts on other devices (a CUDA step's crossings beside CPU-made empty parts) meet on the CPU
+    flat, t, p = (torch.cat([x.cpu() for x in c]) for c in zip(*parts, strict=True))
     parts.clear()
-    flat, t, p = flat.cpu(), t.cpu(), p.cpu()
     order = torch.from_numpy(stable_time_order(t.numpy()))
     return flat[order], t[order], p[order]
 
