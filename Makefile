@@ -19,7 +19,7 @@ PYTEST_ARGS ?=
 DEMO_OUT ?= out/demo
 CODESIGN_OUT ?= out/codesign
 
-.PHONY: demo codesign lint typecheck test fuzz test-all test-latest lock bench notebooks mutation setup system-deps clean
+.PHONY: demo codesign lint typecheck format test fuzz test-all test-latest lock bench notebooks mutation setup system-deps clean
 
 demo: setup
 	$(BIN)/fsdvs-hw explore designs/default.toml --out $(DEMO_OUT)
@@ -29,14 +29,20 @@ demo: setup
 codesign: setup
 	$(BIN)/fsdvs-hw explore designs/codesign.toml --out $(CODESIGN_OUT)
 
-# Quality gates (issue 28): ruff on the package and the benchmarks, then mypy on the package
-# (both configured in pyproject.toml; `make typecheck` runs mypy alone). `make test` runs them first.
+# Quality gates (issue 28): ruff's formatter (check only: `make format` rewrites) and linter on the
+# package and the benchmarks (the formatter on the tests too), then mypy on the package (all configured
+# in pyproject.toml; `make typecheck` runs mypy alone). `make test` runs them first.
+FORMATTED = fsdvs_hw benchmarks tests docs/hooks.py docs/griffe_sphinx_roles.py
 lint: setup
+	$(BIN)/ruff format --check $(FORMATTED)
 	$(BIN)/ruff check fsdvs_hw benchmarks
 	$(BIN)/mypy
 
 typecheck: setup
 	$(BIN)/mypy
+
+format: setup
+	$(BIN)/ruff format $(FORMATTED)
 
 test: setup lint
 	$(BIN)/python -m pytest -m "not slow" -n 2 $(PYTEST_ARGS)

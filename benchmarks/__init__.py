@@ -76,8 +76,10 @@ def benchmark_run(name: str, *, quick: bool = False, figures: str | Path | None 
     with kept_global_state():
         out = fn(quick=quick, **kw)
     if not isinstance(out, BenchRun):
-        raise TypeError(f"benchmark {name!r} ({BENCHMARKS[name]}) returned {type(out).__name__}, not a BenchRun: "
-                        "measure into benchmarks.harness.BenchSection and return its run()")
+        raise TypeError(
+            f"benchmark {name!r} ({BENCHMARKS[name]}) returned {type(out).__name__}, not a BenchRun: "
+            "measure into benchmarks.harness.BenchSection and return its run()"
+        )
     return out
 
 

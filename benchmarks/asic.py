@@ -58,8 +58,13 @@ def learned_or_fallback_kernel() -> tuple[Kernel, str]:
 def _images(rng: np.random.Generator, input_bits: int, n_random: int = 2) -> np.ndarray:
     xmax = (1 << input_bits) - 1
     s = _IMAGE_SIDE
-    return np.concatenate([rng.integers(0, xmax + 1, size=(n_random, s, s)), np.zeros((1, s, s), np.int64),
-                           np.full((1, s, s), xmax, np.int64)])
+    return np.concatenate(
+        [
+            rng.integers(0, xmax + 1, size=(n_random, s, s)),
+            np.zeros((1, s, s), np.int64),
+            np.full((1, s, s), xmax, np.int64),
+        ]
+    )
 
 
 def _mismatches(d, rng) -> int:
@@ -81,8 +86,9 @@ def bench_asic(*, quick: bool = False) -> BenchRun:
     other, note = learned_or_fallback_kernel()
     reps = 2 if quick else 5
     bit_list = [2, 4, 8, 12, 16] if quick else list(range(2, 17))
-    sec = BenchSection("asic", settings={"quick": quick, "repeats": reps, "image_side_px": _IMAGE_SIDE,
-                                         "bits": bit_list})
+    sec = BenchSection(
+        "asic", settings={"quick": quick, "repeats": reps, "image_side_px": _IMAGE_SIDE, "bits": bit_list}
+    )
     sec.text("### Quantised ASIC taps (`fsdvs-hw bench asic`)", "")
 
     # 1. quantisation time
@@ -92,10 +98,14 @@ def bench_asic(*, quick: bool = False) -> BenchRun:
         f"{reps} runs. Error: relative L2 against the float kernel; naive: taps rounded at scale max|k| / (2^(b-1) - 1).",
         "",
     )
-    table = sec.table(Column.text("fit"), Column.number("kernel error", ".3e"),
-                      Column.number("naive-scale error", ".3e"), _count("adders"),
-                      Column.number("time (ms)", ".1f", summary="best", metric="fit time"),
-                      title="Quantisation time")
+    table = sec.table(
+        Column.text("fit"),
+        Column.number("kernel error", ".3e"),
+        Column.number("naive-scale error", ".3e"),
+        _count("adders"),
+        Column.number("time (ms)", ".1f", summary="best", metric="fit time"),
+        title="Quantisation time",
+    )
     for label, kw in [
         ("free scale (nlopt DIRECT-L + polish), 8 bit", {"bits": 8}),
         ("power-of-two scale, 8 bit", {"bits": 8, "scale": "pow2"}),
@@ -113,12 +123,15 @@ def bench_asic(*, quick: bool = False) -> BenchRun:
 
     # 2. RTL simulation and synthesis
     _log("RTL simulation and synthesis")
-    sec.text(f"Streaming RTL (8-bit taps, 8-bit pixels, {_IMAGE_SIDE}-pixel line buffers, symmetric pre-adds). "
-             f"Simulation: Icarus Verilog on {2} random + all-zero + all-max {_IMAGE_SIDE}×{_IMAGE_SIDE} images "
-             "(with input stalls), compared bit for bit with the integer model. Synthesis: yosys → "
-             "`fsdvs_demo45.lib` (areas ≈ NanGate 45 nm X1 cells, µm²); line buffers are flip-flops here.",
-             "Datapath: the arithmetic alone (pre-adds, shift-add, rounding, output register), synthesised separately. "
-             "Synth time covers both runs.", "")
+    sec.text(
+        f"Streaming RTL (8-bit taps, 8-bit pixels, {_IMAGE_SIDE}-pixel line buffers, symmetric pre-adds). "
+        f"Simulation: Icarus Verilog on {2} random + all-zero + all-max {_IMAGE_SIDE}×{_IMAGE_SIDE} images "
+        "(with input stalls), compared bit for bit with the integer model. Synthesis: yosys → "
+        "`fsdvs_demo45.lib` (areas ≈ NanGate 45 nm X1 cells, µm²); line buffers are flip-flops here.",
+        "Datapath: the arithmetic alone (pre-adds, shift-add, rounding, output register), synthesised separately. "
+        "Synth time covers both runs.",
+        "",
+    )
     table = sec.table(
         Column.text("kernel"),
         _count("adders"),
@@ -162,26 +175,41 @@ def bench_asic(*, quick: bool = False) -> BenchRun:
         _log(f"bit sweep on {kernel.name}")
         ref_csf = csf_agreement(kernel)
         geo = Geometry(kernel.pitch_m, ref_csf.implied_focal_length_m)
-        sec.text(f"Bit sweep on {label}: symmetry {fit_asic_taps(kernel, 8).symmetry}, free scale, λ = 0. "
-                 f"CSF: Mannos–Sakrison, at the target's fitted {ref_csf.pixels_per_degree:.1f} px/deg (linear RMS "
-                 "difference of the peak-normalised curves, and their correlation). Cells/area: yosys, "
-                 f"{_IMAGE_SIDE}-pixel lines. Mismatches: RTL vs integer model on 4 images.", "")
-        sweep = sec.table(Column.text("bits"), Column.number("kernel error", ".3e"),
-                          Column.number("naive-scale error", ".3e"), Column.number("shape error", ".3e"),
-                          Column.number("CSF rms error", ".4f"), Column.number("CSF correlation", ".4f"),
-                          _count("adders (pre-add)", "adders with symmetric pre-adds"),
-                          _count("adders (per tap)", "adders per tap"),
-                          Column.number("acc bits", "d", unit="bit", metric="accumulator width"), _count("cells"),
-                          Column.number("area (µm²)", ".0f"), _count("datapath cells"),
-                          Column.number("datapath area (µm²)", ".0f"), _count("mismatches", "RTL mismatches"),
-                          title=f"Bit sweep on {kernel.name}")
+        sec.text(
+            f"Bit sweep on {label}: symmetry {fit_asic_taps(kernel, 8).symmetry}, free scale, λ = 0. "
+            f"CSF: Mannos–Sakrison, at the target's fitted {ref_csf.pixels_per_degree:.1f} px/deg (linear RMS "
+            "difference of the peak-normalised curves, and their correlation). Cells/area: yosys, "
+            f"{_IMAGE_SIDE}-pixel lines. Mismatches: RTL vs integer model on 4 images.",
+            "",
+        )
+        sweep = sec.table(
+            Column.text("bits"),
+            Column.number("kernel error", ".3e"),
+            Column.number("naive-scale error", ".3e"),
+            Column.number("shape error", ".3e"),
+            Column.number("CSF rms error", ".4f"),
+            Column.number("CSF correlation", ".4f"),
+            _count("adders (pre-add)", "adders with symmetric pre-adds"),
+            _count("adders (per tap)", "adders per tap"),
+            Column.number("acc bits", "d", unit="bit", metric="accumulator width"),
+            _count("cells"),
+            Column.number("area (µm²)", ".0f"),
+            _count("datapath cells"),
+            Column.number("datapath area (µm²)", ".0f"),
+            _count("mismatches", "RTL mismatches"),
+            title=f"Bit sweep on {kernel.name}",
+        )
         sweep.row("float", "0", "–", "0", ref_csf.rms_error, ref_csf.correlation, *["–"] * 8)
         sec.text("", "Same kernel, `objective='csf'` (CSF-weighted frequency-response error, same geometry):", "")
-        csf_sweep = sec.table(Column.text("bits"), Column.number("kernel error", ".3e"),
-                              Column.number("CSF rms error", ".4f"), Column.number("CSF correlation", ".4f"),
-                              _count("adders (pre-add)", "adders with symmetric pre-adds"),
-                              Column.number("fit (s)", ".2f", metric="fit time"),
-                              title=f"Bit sweep on {kernel.name}, objective='csf'")
+        csf_sweep = sec.table(
+            Column.text("bits"),
+            Column.number("kernel error", ".3e"),
+            Column.number("CSF rms error", ".4f"),
+            Column.number("CSF correlation", ".4f"),
+            _count("adders (pre-add)", "adders with symmetric pre-adds"),
+            Column.number("fit (s)", ".2f", metric="fit time"),
+            title=f"Bit sweep on {kernel.name}, objective='csf'",
+        )
         for b in bit_list:
             tm = timed(lambda b=b: fit_asic_taps(kernel, b, objective="csf", geometry=geo), 1)
             dc = tm.result
@@ -190,9 +218,22 @@ def bench_asic(*, quick: bool = False) -> BenchRun:
             d = fit_asic_taps(kernel, b)
             a = csf_agreement(d.kernel(), geometry=geo)
             syn = d.synthesise(image_width=_IMAGE_SIDE, image_height=_IMAGE_SIDE).synthesis
-            sweep.row(str(b), d.error, d.fit_info["naive_error"], d.shape_error, a.rms_error, a.correlation, d.adders,
-                      d.adders_per_tap, d.accumulator_bits, syn["cells"], syn["area_m2"] * 1e12, syn["datapath_cells"],
-                      syn["datapath_area_m2"] * 1e12, _mismatches(d, rng))
+            sweep.row(
+                str(b),
+                d.error,
+                d.fit_info["naive_error"],
+                d.shape_error,
+                a.rms_error,
+                a.correlation,
+                d.adders,
+                d.adders_per_tap,
+                d.accumulator_bits,
+                syn["cells"],
+                syn["area_m2"] * 1e12,
+                syn["datapath_cells"],
+                syn["datapath_area_m2"] * 1e12,
+                _mismatches(d, rng),
+            )
         sec.text("")
 
     # 4. error against adders
@@ -201,9 +242,16 @@ def bench_asic(*, quick: bool = False) -> BenchRun:
         "Error against adders on the 7×7 DoG at 8 bits (adder weight λ = price of one adder in squared relative error).",
         "",
     )
-    table = sec.table(Column.text("λ"), Column.number("kernel error", ".3e"), _count("adders"),
-                      _count("non-zero taps"), _count("cells"), _count("datapath cells"), title="Error against adders")
-    for lam in ([0.0, 1e-4] if quick else [0.0, 1e-5, 1e-4, 3e-4, 1e-3, 3e-3]):
+    table = sec.table(
+        Column.text("λ"),
+        Column.number("kernel error", ".3e"),
+        _count("adders"),
+        _count("non-zero taps"),
+        _count("cells"),
+        _count("datapath cells"),
+        title="Error against adders",
+    )
+    for lam in [0.0, 1e-4] if quick else [0.0, 1e-5, 1e-4, 3e-4, 1e-3, 3e-3]:
         d = fit_asic_taps(dog, 8, adder_weight=lam)
         syn = d.synthesise(image_width=_IMAGE_SIDE, image_height=_IMAGE_SIDE).synthesis
         table.row(f"{lam:g}", d.error, d.adders, int((d.taps != 0).sum()), syn["cells"], syn["datapath_cells"])

@@ -39,8 +39,9 @@ def bench_csf(*, quick: bool = False) -> BenchRun:
         ("fft", {"n_freq": 129, "n_fft": 256}),
         ("fft", {"n_freq": 257, "n_fft": 1024}),
     ]
-    sec = BenchSection("csf", settings={"quick": quick, "reference_n_freq": ref_n, "reference_n_angles": ref_a,
-                                         "repeats": reps})
+    sec = BenchSection(
+        "csf", settings={"quick": quick, "reference_n_freq": ref_n, "reference_n_angles": ref_a, "repeats": reps}
+    )
     sec.text(
         "### Radial response and CSF agreement (`fsdvs-hw bench csf`)",
         "",
@@ -48,8 +49,12 @@ def bench_csf(*, quick: bool = False) -> BenchRun:
         "peak-normalised radial response (DoG 7×7 and LoG 9×9, worst of the two). Time: per call.",
         "",
     )
-    table = sec.table(Column.text("method"), Column.text("knobs"), Column.number("max error", ".2e"),
-                      Column.number("time (ms)", ".2f", metric="time per call", summary="mean"))
+    table = sec.table(
+        Column.text("method"),
+        Column.text("knobs"),
+        Column.number("max error", ".2e"),
+        Column.number("time (ms)", ".2f", metric="time per call", summary="mean"),
+    )
     refs = [radial_response(k, n_freq=ref_n, n_angles=ref_a) for k in kernels]
     for method, kw in settings:
         errs, times = [], []

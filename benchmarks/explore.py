@@ -37,17 +37,27 @@ def _emulation_table(sec: BenchSection, quick: bool) -> None:
     ref_up = 4 if quick else 8
 
     def run(n_clips: int, up: int) -> Timing[dict]:
-        return timed(lambda: emulation_scores(d.target, sensor=sensor,
-                                              emulation={**base, "n_clips": n_clips, "upsample_factor": up}))
+        return timed(
+            lambda: emulation_scores(
+                d.target, sensor=sensor, emulation={**base, "n_clips": n_clips, "upsample_factor": up}
+            )
+        )
 
-    sec.text("### Emulation track: estimate vs clips and temporal upsampling", "",
-             "7×7 DoG at the default design's sensor (48×64 px, thresholds 0.2, σ 0.03, v2e noise), "
-             "8-bit γ 2.2 display. Error = |estimate − reference|.", "")
-    table = sec.table(Column.text("setting"), Column.number("event ratio", ".3f"),
-                      Column.number("error vs reference", ".3f", metric="event ratio error vs reference"),
-                      Column.number("signed r", ".3f", metric="signed correlation"),
-                      Column.number("error vs reference", ".3f", metric="signed correlation error vs reference"),
-                      Column.number("time (s)", ".2f", metric="time"))
+    sec.text(
+        "### Emulation track: estimate vs clips and temporal upsampling",
+        "",
+        "7×7 DoG at the default design's sensor (48×64 px, thresholds 0.2, σ 0.03, v2e noise), "
+        "8-bit γ 2.2 display. Error = |estimate − reference|.",
+        "",
+    )
+    table = sec.table(
+        Column.text("setting"),
+        Column.number("event ratio", ".3f"),
+        Column.number("error vs reference", ".3f", metric="event ratio error vs reference"),
+        Column.number("signed r", ".3f", metric="signed correlation"),
+        Column.number("error vs reference", ".3f", metric="signed correlation error vs reference"),
+        Column.number("time (s)", ".2f", metric="time"),
+    )
     run(1, 1)  # warm-up: first-call imports and allocations are not part of any setting's time
     t_ref = run(ref_clips, ref_up)
     ref = t_ref.result
@@ -58,28 +68,49 @@ def _emulation_table(sec: BenchSection, quick: bool) -> None:
     for label, n, up in rows:
         t = run(n, up)
         res = t.result
-        table.row(label, res["event_ratio"], abs(res["event_ratio"] - ref["event_ratio"]), res["signed_correlation"],
-                  abs(res["signed_correlation"] - ref["signed_correlation"]), t)
-    table.row(f"**reference: {ref_clips} clips, x{ref_up}**", ref["event_ratio"], "0", ref["signed_correlation"], "0",
-              t_ref)  # its own error is 0 by definition: printed, not measured
+        table.row(
+            label,
+            res["event_ratio"],
+            abs(res["event_ratio"] - ref["event_ratio"]),
+            res["signed_correlation"],
+            abs(res["signed_correlation"] - ref["signed_correlation"]),
+            t,
+        )
+    table.row(
+        f"**reference: {ref_clips} clips, x{ref_up}**", ref["event_ratio"], "0", ref["signed_correlation"], "0", t_ref
+    )  # its own error is 0 by definition: printed, not measured
 
 
 def _executor_table(sec: BenchSection, quick: bool) -> None:
     n_focal = 3 if quick else 8
-    focals = [2e-3 * (1.5 ** i) for i in range(n_focal)]
-    d = parse_design({"realisations": {"include": ["learned", "delta"]},
-                      "analysis": {"csf_methods": ["mannos_sakrison_1974"]}, "emulation": {"enabled": False},
-                      "sweep": {"axes": {"optics.focal_length_m": focals}}})
+    focals = [2e-3 * (1.5**i) for i in range(n_focal)]
+    d = parse_design(
+        {
+            "realisations": {"include": ["learned", "delta"]},
+            "analysis": {"csf_methods": ["mannos_sakrison_1974"]},
+            "emulation": {"enabled": False},
+            "sweep": {"axes": {"optics.focal_length_m": focals}},
+        }
+    )
     points = expand_points(d)
     results: dict[str, dict[str, float]] = {}
-    sec.text("### Sweep executors", "",
-             "Ideal references over a viewing-geometry axis (Mannos–Sakrison agreement only; "
-             "each point ≈ 0.1–0.3 s of work), so the table shows executor overhead: process start-up "
-             "(spawn) and Dask scheduling.", "")
-    table = sec.table(Column.text("executor"), Column.text("points"), Column.number("wall time (s)", ".2f"),
-                      Column.number("points/s", ".2f", unit="points/s", metric="throughput"),
-                      Column.text("scores identical to in-process"))
+    sec.text(
+        "### Sweep executors",
+        "",
+        "Ideal references over a viewing-geometry axis (Mannos–Sakrison agreement only; "
+        "each point ≈ 0.1–0.3 s of work), so the table shows executor overhead: process start-up "
+        "(spawn) and Dask scheduling.",
+        "",
+    )
+    table = sec.table(
+        Column.text("executor"),
+        Column.text("points"),
+        Column.number("wall time (s)", ".2f"),
+        Column.number("points/s", ".2f", unit="points/s", metric="throughput"),
+        Column.text("scores identical to in-process"),
+    )
     with tempfile.TemporaryDirectory() as tmp:
+
         def one(name: str, **kw: object) -> None:
             with ResultsStore(Path(tmp) / f"{name.replace(' ', '_')}.sqlite") as store:
                 t = timed(lambda: run_points(points, store, progress=False, **kw))  # type: ignore[arg-type]

@@ -12,6 +12,7 @@ Two steps, because a GPU machine may have no video decoder and no package index:
 The record of 2026-11-27 on an NVIDIA H100 (16 CPU cores, torch 2.11.0+cu130) is
 ``benchmarks/records/device/h100_2026-11-27.json``; docs/speed.md shows its table.
 """
+
 # ruff: noqa: E402
 import argparse
 import json
@@ -50,14 +51,25 @@ if not ARGS.frames:
     ap.error("--frames NPZ (made with --make-frames) or --make-frames NPZ")
 
 OUT = os.environ.get("OUT", "/tmp/out")
-res = {"torch": torch.__version__, "python": platform.python_version(), "cpu_count": os.cpu_count(),
-       "gpu": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None, "rows": [], "errors": []}
+res = {
+    "torch": torch.__version__,
+    "python": platform.python_version(),
+    "cpu_count": os.cpu_count(),
+    "gpu": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
+    "rows": [],
+    "errors": [],
+}
 T0 = time.time()
+
+
 def save():
     with open(os.path.join(OUT, "gpu_bench.json"), "w") as f:
         json.dump(res, f, indent=1)
+
+
 def log(*a):
     print(f"[{time.time() - T0:6.1f}s]", *a, flush=True)
+
 
 d = np.load(ARGS.frames)
 files = {}
@@ -71,10 +83,15 @@ import benchmarks.sim as bs
 
 # 1. the simulator: CPU (all cores) vs CUDA, same frames, same process
 for clip in ("bikes", "carphone"):
-    for path, settings in ((("event list", "v2e-default"), ("frames", "v2e-default"))
-                           if ARGS.part2 else
-                           (("event list", "v2e-default"), ("frames", "v2e-default"),
-                            ("forward+backward", "v2e-default + 7x7 DoG pre-log"))):
+    for path, settings in (
+        (("event list", "v2e-default"), ("frames", "v2e-default"))
+        if ARGS.part2
+        else (
+            ("event list", "v2e-default"),
+            ("frames", "v2e-default"),
+            ("forward+backward", "v2e-default + 7x7 DoG pre-log"),
+        )
+    ):
         for dev, chunk in (("cpu", None), ("cuda", None), ("cuda", 16)):
             if time.time() - T0 > 300:
                 break
@@ -83,11 +100,23 @@ for clip in ("bikes", "carphone"):
                 r = bs._run_case(case, 3, False, chunk)
                 w = r["walls"]
                 mpf = r["n_frames"] * r["height"] * r["width"] / 1e6
-                row = {"clip": clip, "path": path, "settings": settings, "device": dev, "chunk_frames": r["chunk_frames"],
-                       "torch_threads": torch.get_num_threads(), "repeats": len(w), "walls_s": w,
-                       "mpix_frames_per_s_median": mpf / statistics.median(w), "mpix_frames_per_s_min": mpf / max(w),
-                       "mpix_frames_per_s_max": mpf / min(w), "events": r["events"], "gpu_peak_mb": r["gpu_peak_mb"],
-                       "peak_rss_mb": r["peak_rss_mb"], "shape": [r["n_frames"], r["height"], r["width"]]}
+                row = {
+                    "clip": clip,
+                    "path": path,
+                    "settings": settings,
+                    "device": dev,
+                    "chunk_frames": r["chunk_frames"],
+                    "torch_threads": torch.get_num_threads(),
+                    "repeats": len(w),
+                    "walls_s": w,
+                    "mpix_frames_per_s_median": mpf / statistics.median(w),
+                    "mpix_frames_per_s_min": mpf / max(w),
+                    "mpix_frames_per_s_max": mpf / min(w),
+                    "events": r["events"],
+                    "gpu_peak_mb": r["gpu_peak_mb"],
+                    "peak_rss_mb": r["peak_rss_mb"],
+                    "shape": [r["n_frames"], r["height"], r["width"]],
+                }
                 res["rows"].append(row)
                 log(clip, path, dev, chunk, f"{row['mpix_frames_per_s_median']:.1f} Mpf/s", r["events"])
             except Exception as exc:
@@ -112,7 +141,10 @@ for dev in ("cpu", "cuda"):
             ys = torch.randint(0, 272 - S, (B,), generator=g)
             xs = torch.randint(0, 640 - S, (B,), generator=g)
             ts = torch.randint(0, 250 - 8, (B,), generator=g)
-            video = torch.stack([bikes[t:t + 8, y:y + S, x:x + S] for t, y, x in zip(ts, ys, xs)]).to(dev) * 0.98 + 0.01
+            video = (
+                torch.stack([bikes[t : t + 8, y : y + S, x : x + S] for t, y, x in zip(ts, ys, xs)]).to(dev) * 0.98
+                + 0.01
+            )
             labels = torch.randint(0, 10, (B,), generator=g).to(dev)
             torch.manual_seed(0)
             net = Classifier(14, 10).to(dev)
@@ -134,9 +166,20 @@ for dev in ("cpu", "cuda"):
                 if i >= 2:
                     walls.append(time.perf_counter() - t0)
                 losses.append(float(loss.detach()))
-            res["rows"].append({"path": "7x7 co-design step", "device": dev, "batch": B, "size": S, "frames": 8,
-                                "torch_threads": torch.get_num_threads(), "repeats": len(walls), "walls_s": walls,
-                                "median_s": statistics.median(walls), "losses": losses})
+            res["rows"].append(
+                {
+                    "path": "7x7 co-design step",
+                    "device": dev,
+                    "batch": B,
+                    "size": S,
+                    "frames": 8,
+                    "torch_threads": torch.get_num_threads(),
+                    "repeats": len(walls),
+                    "walls_s": walls,
+                    "median_s": statistics.median(walls),
+                    "losses": losses,
+                }
+            )
             log("codesign step", dev, B, S, f"{statistics.median(walls) * 1e3:.1f} ms", losses[0], losses[-1])
         except Exception as exc:
             res["errors"].append(f"codesign/{dev}/{B}: {exc!r}")
@@ -149,8 +192,9 @@ for dev, threads, reps in (("cuda", 1, 3), ("cpu", 16, 2)) if ARGS.v2e else ():
     if time.time() - T0 > 420:
         break
     try:
-        rows = bs.v2e_records(ARGS.v2e, modes=("default",), repeats=reps, threads=threads, device=dev,
-                              frames_file=files["bikes"])
+        rows = bs.v2e_records(
+            ARGS.v2e, modes=("default",), repeats=reps, threads=threads, device=dev, frames_file=files["bikes"]
+        )
         for r in rows:
             r["walls_note"] = "rates per wall second (median, min, max over repeats)"
             res["rows"].append({"path": "v2e EventEmulator", "device": dev, **r})

@@ -230,15 +230,25 @@ def kept_global_state() -> Iterator[None]:
 def machine_info() -> dict[str, Any]:
     """CPU count, platform, processor and 1-minute load average of this machine."""
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
-    return {"cpu_count": os.cpu_count(), "platform": platform.platform(), "processor": platform.machine(),
-            "load_average_1min": load}
+    return {
+        "cpu_count": os.cpu_count(),
+        "platform": platform.platform(),
+        "processor": platform.machine(),
+        "load_average_1min": load,
+    }
 
 
 #: Seconds to each time unit a timing cell may be shown in.
 _TIME_SCALE = {"s": 1.0, "ms": 1e3, "µs": 1e6, "us": 1e6, "min": 1 / 60}
 #: The statistic a :class:`Measured` summarises its samples with.
 _SUMMARIES: dict[str, Callable[[Sequence[float]], float]] = {
-    "best": min, "min": min, "median": statistics.median, "mean": statistics.fmean, "worst": max, "max": max}
+    "best": min,
+    "min": min,
+    "median": statistics.median,
+    "mean": statistics.fmean,
+    "worst": max,
+    "max": max,
+}
 #: Units a header's parenthesised suffix may name (``"time (ms)"``); other suffixes need ``unit=``.
 _HEADER_UNITS = frozenset({*_TIME_SCALE, "MB", "MiB", "GB", "%", "µm²", "µm", "mm", "px", "bit", "Mpixel-frames/s"})
 _UNIT_SUFFIX = re.compile(r"^(?P<metric>.*?)\s*\((?P<unit>[^()]*)\)\s*$")
@@ -281,8 +291,12 @@ class Measured:
 
     def scaled(self, factor: float) -> Measured:
         """The same measurement in another unit: every value times ``factor``."""
-        return Measured(self.value * factor, self.repeats, None if self.low is None else self.low * factor,
-                        None if self.high is None else self.high * factor)
+        return Measured(
+            self.value * factor,
+            self.repeats,
+            None if self.low is None else self.low * factor,
+            None if self.high is None else self.high * factor,
+        )
 
 
 def _summary(name: str) -> Callable[[Sequence[float]], float]:
@@ -343,8 +357,17 @@ class Column:
         return cls(header)
 
     @classmethod
-    def number(cls, header: str, spec: str = ".4g", *, unit: str | None = None, metric: str | None = None,
-               suffix: str = "", summary: str = "median", spread: bool | str = False) -> Column:
+    def number(
+        cls,
+        header: str,
+        spec: str = ".4g",
+        *,
+        unit: str | None = None,
+        metric: str | None = None,
+        suffix: str = "",
+        summary: str = "median",
+        spread: bool | str = False,
+    ) -> Column:
         """A column of one number per cell.
 
         Parameters
@@ -370,13 +393,24 @@ class Column:
         if unit is None and m is not None and m["unit"] not in _HEADER_UNITS:
             from fsdvs_hw.errors import InputError
 
-            raise InputError(f"column {header!r}: {m['unit']!r} is not a unit ({', '.join(sorted(_HEADER_UNITS))}); "
-                             "give unit= and metric= explicitly")
+            raise InputError(
+                f"column {header!r}: {m['unit']!r} is not a unit ({', '.join(sorted(_HEADER_UNITS))}); "
+                "give unit= and metric= explicitly"
+            )
         _summary(summary)
-        return cls(header, (_Part(metric if metric is not None else (m["metric"] if m else header),
-                                  unit if unit is not None else (m["unit"] if m else ""), spec, summary,
-                                  " [{}–{}]" if spread is True else (spread or "")),),
-                   "{0}" + suffix.replace("{", "{{").replace("}", "}}"))
+        return cls(
+            header,
+            (
+                _Part(
+                    metric if metric is not None else (m["metric"] if m else header),
+                    unit if unit is not None else (m["unit"] if m else ""),
+                    spec,
+                    summary,
+                    " [{}–{}]" if spread is True else (spread or ""),
+                ),
+            ),
+            "{0}" + suffix.replace("{", "{{").replace("}", "}}"),
+        )
 
     @classmethod
     def numbers(cls, header: str, template: str, *parts: tuple[str, str, str]) -> Column:
@@ -426,8 +460,10 @@ def _as_measured(value: Any, part: _Part) -> Measured | None:
     if part.unit in _TIME_SCALE and (value.repeats is None or value.low is None or value.high is None):
         from fsdvs_hw.errors import InputError
 
-        raise InputError(f"{part.metric!r} is a time ({part.unit}): give a Timing or a Measured with repeats and "
-                         f"min–max (Measured.of([t]) for a single run), got {value!r}")
+        raise InputError(
+            f"{part.metric!r} is a time ({part.unit}): give a Timing or a Measured with repeats and "
+            f"min–max (Measured.of([t]) for a single run), got {value!r}"
+        )
     return None if math.isnan(value.value) else value
 
 
@@ -460,8 +496,14 @@ class _Pending:
 class Table:
     """A Markdown table whose value cells are records; made by :meth:`BenchSection.table`."""
 
-    def __init__(self, section: BenchSection, title: str, columns: Sequence[Column], settings: Mapping[str, Any],
-                 threads: int | str | None) -> None:
+    def __init__(
+        self,
+        section: BenchSection,
+        title: str,
+        columns: Sequence[Column],
+        settings: Mapping[str, Any],
+        threads: int | str | None,
+    ) -> None:
         if not columns:
             from fsdvs_hw.errors import InputError
 
@@ -490,12 +532,16 @@ class Table:
         threads = _torch_threads() if threads == "auto" else threads
         rendered = [col._render(cell) for col, cell in zip(self.columns, cells)]
         if case is None:
-            case = "; ".join(f"{col.header}={_plain(text)}" for col, (text, _) in zip(self.columns, rendered)
-                             if col.is_text and _plain(text))
+            case = "; ".join(
+                f"{col.header}={_plain(text)}"
+                for col, (text, _) in zip(self.columns, rendered)
+                if col.is_text and _plain(text)
+            )
         for _text, values in rendered:
             for part, m in values:
-                self._section._pending.append(_Pending(self.title, case, part.metric, part.unit, m,
-                                                       threads, self._settings))  # type: ignore[arg-type]
+                self._section._pending.append(
+                    _Pending(self.title, case, part.metric, part.unit, m, threads, self._settings)
+                )  # type: ignore[arg-type]
         self._lines.append("| " + " | ".join(text for text, _ in rendered) + " |")
 
     def markdown(self) -> str:
@@ -549,25 +595,47 @@ class BenchSection:
                 self._title = _plain(line.lstrip().lstrip("#")) or self._title
             self._parts.append(line)
 
-    def table(self, *columns: Column, title: str | None = None, settings: Mapping[str, Any] | None = None,
-              threads: int | str | None = "auto") -> Table:
+    def table(
+        self,
+        *columns: Column,
+        title: str | None = None,
+        settings: Mapping[str, Any] | None = None,
+        threads: int | str | None = "auto",
+    ) -> Table:
         """Add a table here (rows may be added later); ``title`` defaults to the last heading,
         ``settings`` extend the section's, ``threads`` fixes the torch threads of its records."""
         t = Table(self, title or self._title, columns, {**self.settings, **(settings or {})}, threads)
         self._parts.append(t)
         return t
 
-    def value(self, case: str, metric: str, value: Any, *, unit: str = "", spec: str = ".4g",
-              summary: str = "median", threads: int | str | None = "auto") -> str:
+    def value(
+        self,
+        case: str,
+        metric: str,
+        value: Any,
+        *,
+        unit: str = "",
+        spec: str = ".4g",
+        summary: str = "median",
+        threads: int | str | None = "auto",
+    ) -> str:
         """Record a value quoted in the text; returns it printed (``spec``; a :class:`Timing` in
         ``unit`` as ``summary``) for the caller's sentence."""
         part = _Part(metric, unit, spec, summary)
         m = _as_measured(value, part)
         if m is None:
             return "n/a" if value is not None else "—"
-        self._pending.append(_Pending(self._title, case, metric, unit, m,
-                                      _torch_threads() if threads == "auto" else threads,  # type: ignore[arg-type]
-                                      self.settings))
+        self._pending.append(
+            _Pending(
+                self._title,
+                case,
+                metric,
+                unit,
+                m,
+                _torch_threads() if threads == "auto" else threads,  # type: ignore[arg-type]
+                self.settings,
+            )
+        )
         return _format(m.value, spec)
 
     @property
@@ -579,10 +647,25 @@ class BenchSection:
         """One record per number printed so far, with this machine, the library versions and the time."""
         machine, versions = machine_info(), library_versions()
         stamp = datetime.now(UTC).isoformat(timespec="seconds")
-        return [BenchRecord(bench=self.bench, table=p.table, case=p.case, metric=p.metric, unit=p.unit,
-                            value=float(p.measured.value), repeats=p.measured.repeats, spread_min=p.measured.low,
-                            spread_max=p.measured.high, threads=p.threads, machine=machine, versions=versions,
-                            settings=dict(p.settings), timestamp=stamp) for p in self._pending]
+        return [
+            BenchRecord(
+                bench=self.bench,
+                table=p.table,
+                case=p.case,
+                metric=p.metric,
+                unit=p.unit,
+                value=float(p.measured.value),
+                repeats=p.measured.repeats,
+                spread_min=p.measured.low,
+                spread_max=p.measured.high,
+                threads=p.threads,
+                machine=machine,
+                versions=versions,
+                settings=dict(p.settings),
+                timestamp=stamp,
+            )
+            for p in self._pending
+        ]
 
     def run(self, extra: Sequence[BenchRecord] = ()) -> BenchRun:
         """The :class:`BenchRun`: this Markdown and its records (after ``extra`` records, if any)."""
@@ -596,8 +679,13 @@ def records_markdown(records: Sequence[BenchRecord]) -> str:
     for r in records:
         if (r.bench, r.table) != key:
             key = (r.bench, r.table)
-            out += ["", f"**{r.bench}: {r.table}**", "", "| case | metric | value | unit | repeats | min | max |",
-                    "|---|---|---|---|---|---|---|"]
+            out += [
+                "",
+                f"**{r.bench}: {r.table}**",
+                "",
+                "| case | metric | value | unit | repeats | min | max |",
+                "|---|---|---|---|---|---|---|",
+            ]
         spread = ("—", "—") if r.spread_min is None else (f"{r.spread_min:.4g}", f"{r.spread_max:.4g}")
         out.append(
             f"| {r.case} | {r.metric} | {r.value:.6g} | {r.unit} | {r.repeats or '—'} | {spread[0]} | {spread[1]} |"
@@ -609,8 +697,12 @@ def write_json(records: Sequence[BenchRecord], path: str | Path) -> Path:
     """Write records as ``{"schema": RECORD_SCHEMA, "records": [...]}`` (UTF-8, indented)."""
     from fsdvs_hw.paths import write_output
 
-    return write_output(Path(path), json.dumps({"schema": RECORD_SCHEMA, "records": [r.to_dict() for r in records]},
-                                               indent=1, ensure_ascii=False) + "\n", flag="--json")
+    return write_output(
+        Path(path),
+        json.dumps({"schema": RECORD_SCHEMA, "records": [r.to_dict() for r in records]}, indent=1, ensure_ascii=False)
+        + "\n",
+        flag="--json",
+    )
 
 
 def read_json(path: str | Path) -> list[BenchRecord]:

@@ -116,9 +116,14 @@ def _model_table(sec: BenchSection, quick: bool) -> None:
 
     radius = 3
     repeats = 3 if quick else 9
-    table = sec.table(Column.text("λ (px)"), Column.text("model"), Column.text("grid half-width (px)"),
-                      Column.number("max error / max tap", ".1e", unit="", metric="max error / max tap"),
-                      Column.number("time (ms)", ".3f", metric="time"), settings={"repeats": repeats})
+    table = sec.table(
+        Column.text("λ (px)"),
+        Column.text("model"),
+        Column.text("grid half-width (px)"),
+        Column.number("max error / max tap", ".1e", unit="", metric="max error / max tap"),
+        Column.number("time (ms)", ".3f", metric="time"),
+        settings={"repeats": repeats},
+    )
     for lam in (1.0, 3.0) if quick else (1.0, 3.0, 10.0):
         k, _w = quadrature_nodes(max(lam, 1.0), radius)
         n4 = 4 * k.size
@@ -148,8 +153,14 @@ def _model_table(sec: BenchSection, quick: bool) -> None:
             g = rt.result[h - radius : h + radius + 1, h - radius : h + radius + 1]
             case = f"λ (px)={lam:g}; model=finite grid, casadi KCL (MX, ldl); grid half-width (px)={h}"
             built = sec.value(case, "casadi build time", build, unit="ms", spec=".0f")
-            table.row(f"{lam:g}", f"finite grid, casadi KCL (MX, ldl; build {built} ms)", str(h),
-                      np.abs(g - ref).max() / scale, rt, case=case)
+            table.row(
+                f"{lam:g}",
+                f"finite grid, casadi KCL (MX, ldl; build {built} ms)",
+                str(h),
+                np.abs(g - ref).max() / scale,
+                rt,
+                case=case,
+            )
 
 
 def _spice_table(sec: BenchSection, quick: bool) -> None:
@@ -167,12 +178,15 @@ def _spice_table(sec: BenchSection, quick: bool) -> None:
         sec.text("ngspice not installed: table skipped (apt-get install ngspice).")
         return
     d = MeshDesign.from_space_constants(0.8, 2.5, 1.5, 1.2, size=7)
-    table = sec.table(Column.text("patch"), Column.text("nodes (2 meshes)"),
-                      Column.number("ngspice wall (s)", ".2f", metric="ngspice wall time"),
-                      Column.number("casadi build + solve (s)", ".3f", metric="casadi build + solve time"),
-                      Column.number("casadi solve (ms)", ".2f", metric="casadi solve time"),
-                      Column.number("max rel. difference", ".1e", metric="max relative node-voltage difference"),
-                      title="ngspice vs casadi circuit model (impulse at the patch centre)")
+    table = sec.table(
+        Column.text("patch"),
+        Column.text("nodes (2 meshes)"),
+        Column.number("ngspice wall (s)", ".2f", metric="ngspice wall time"),
+        Column.number("casadi build + solve (s)", ".3f", metric="casadi build + solve time"),
+        Column.number("casadi solve (ms)", ".2f", metric="casadi solve time"),
+        Column.number("max rel. difference", ".1e", metric="max relative node-voltage difference"),
+        title="ngspice vs casadi circuit model (impulse at the patch centre)",
+    )
     for h in (8, 16) if quick else (8, 16, 31):
         _log(f"ngspice patch {2 * h + 1}")
         res = simulate_mesh_spice(d, half_width=h)
@@ -182,8 +196,11 @@ def _spice_table(sec: BenchSection, quick: bool) -> None:
 
         def build_and_solve() -> tuple[np.ndarray, np.ndarray, object]:
             f = casadi_mesh_model(h)
-            return (np.array(f(d.g_lateral_narrow_s, d.g_vertical_narrow_s, i_in)).reshape(n, n),
-                    np.array(f(d.g_lateral_wide_s, d.g_vertical_wide_s, i_in)).reshape(n, n), f)
+            return (
+                np.array(f(d.g_lateral_narrow_s, d.g_vertical_narrow_s, i_in)).reshape(n, n),
+                np.array(f(d.g_lateral_wide_s, d.g_vertical_wide_s, i_in)).reshape(n, n),
+                f,
+            )
 
         total = timed(build_and_solve)
         vn, vw, f = total.result
@@ -193,11 +210,14 @@ def _spice_table(sec: BenchSection, quick: bool) -> None:
         )
         table.row(f"{n}x{n}", str(2 * n * n), Measured.of([res.wall_s]), total, solve, diff)
     sec.text("")
-    table = sec.table(Column.text("step-response transient"), Column.text("output points"),
-                      Column.number("ngspice wall (s)", ".2f", metric="ngspice wall time"),
-                      Column.number("exact DCT modes (s)", ".3f", metric="exact DCT modes time"),
-                      Column.number("max rel. difference", ".1e", metric="max relative difference"),
-                      title="ngspice step-response transients vs exact modal solution")
+    table = sec.table(
+        Column.text("step-response transient"),
+        Column.text("output points"),
+        Column.number("ngspice wall (s)", ".2f", metric="ngspice wall time"),
+        Column.number("exact DCT modes (s)", ".3f", metric="exact DCT modes time"),
+        Column.number("max rel. difference", ".1e", metric="max relative difference"),
+        title="ngspice step-response transients vs exact modal solution",
+    )
     for h, npts in ((5, 50),) if quick else ((5, 50), (8, 200)):  # 33x33 takes ~90 s: no KLU
         _log(f"ngspice transient patch {2 * h + 1}")
         res = simulate_mesh_step_spice(d, t_stop_s=3 * d.tau_wide_s, half_width=h, n_points=npts)
@@ -226,17 +246,22 @@ def _misc_table(sec: BenchSection, quick: bool) -> None:
 
     d = MeshDesign.from_space_constants(0.8, 2.5, 1.5, 1.2, size=7)
     trials = 20 if quick else 200
-    table = sec.table(Column.text("task"), Column.text("setting"),
-                      Column.number("result", unit="", metric="result"),  # cells: text quoting recorded values
-                      Column.number("time (s)", ".3f", metric="time"))
+    table = sec.table(
+        Column.text("task"),
+        Column.text("setting"),
+        Column.number("result", unit="", metric="result"),  # cells: text quoting recorded values
+        Column.number("time (s)", ".3f", metric="time"),
+    )
     mc = timed(lambda: mismatch_monte_carlo(d, sigma=0.01, n_trials=trials))
     r = mc.result
     s = r.summary()
     setting = f"σ = 1 %, {trials} trials, grid half-width {r.half_width}"
     case = f"task=Monte Carlo mismatch; setting={setting}"
-    result = (f"median error {sec.value(case, 'median kernel error', s['median'], spec='.2e')}, "
-              f"p95 {sec.value(case, 'p95 kernel error', s['p95'], spec='.2e')}, "
-              f"yield(≤ 5 %) {sec.value(case, 'yield (error ≤ 5 %)', 100 * s['yield'], unit='%', spec='.0f')}%")
+    result = (
+        f"median error {sec.value(case, 'median kernel error', s['median'], spec='.2e')}, "
+        f"p95 {sec.value(case, 'p95 kernel error', s['p95'], spec='.2e')}, "
+        f"yield(≤ 5 %) {sec.value(case, 'yield (error ≤ 5 %)', 100 * s['yield'], unit='%', spec='.0f')}%"
+    )
     table.row("Monte Carlo mismatch", setting, result, mc, case=case)
     for v in (1e3, 1e5):
         setting = f"{v:g} px/s, tolerance 1 %"

@@ -63,11 +63,20 @@ def _grid_table(sec: BenchSection, quick: bool) -> None:
     kw = dict(coefficients=[2.0, -3.0], sensor_distance_m=240e-6, n_pixels=9, illuminant=555e-9)
     _log("grid reference (radial, window ×4, 4× modes, 24 nodes/pixel side)")
     ref = pixel_psf(g, **kw, window_pad=4.0, n_modes=1600, n_sub=24)
-    table = sec.table(Column.text("path"), Column.text("setting"),
-                      Column.number("error vs reference", ".2e", metric="relative L2 error vs reference"),
-                      Column.number("time (s)", ".3f", summary="best", metric="time"))
-    radial = [("window ×1.5", dict(window_pad=1.5)), ("window ×2 (default)", {}), ("window ×3", dict(window_pad=3.0)),
-              ("n_sub 4", dict(n_sub=4)), ("n_sub 8", dict(n_sub=8)), ("2× modes", dict(n_modes=600))]
+    table = sec.table(
+        Column.text("path"),
+        Column.text("setting"),
+        Column.number("error vs reference", ".2e", metric="relative L2 error vs reference"),
+        Column.number("time (s)", ".3f", summary="best", metric="time"),
+    )
+    radial = [
+        ("window ×1.5", dict(window_pad=1.5)),
+        ("window ×2 (default)", {}),
+        ("window ×3", dict(window_pad=3.0)),
+        ("n_sub 4", dict(n_sub=4)),
+        ("n_sub 8", dict(n_sub=8)),
+        ("2× modes", dict(n_modes=600)),
+    ]
     planar = [(f"{m} samples/pixel", dict(samples_per_pixel=m)) for m in ((9, 15) if quick else (9, 15, 21, 27))]
     for label, opts in radial:
         tm = timed(lambda: pixel_psf(g, **kw, **opts), 1 if quick else 3)
@@ -83,13 +92,16 @@ def _spectral_table(sec: BenchSection, quick: bool) -> None:
 
     kw = dict(coefficients=[2.0, -3.0], sensor_distance_m=240e-6, n_pixels=9, illuminant="D65")
     _log("spectral reference (64 samples)")
-    table = sec.table(Column.text("dispersion"), Column.text("wavelength samples"),
-                      Column.number("error vs 64 samples", ".2e", metric="relative L2 error vs 64 samples"),
-                      Column.number("time (s)", ".3f", summary="best", metric="time"))
+    table = sec.table(
+        Column.text("dispersion"),
+        Column.text("wavelength samples"),
+        Column.number("error vs 64 samples", ".2e", metric="relative L2 error vs 64 samples"),
+        Column.number("time (s)", ".3f", summary="best", metric="time"),
+    )
     for disp in ("diffractive", "achromatic"):
         gd = LensGeometry(dispersion=disp)
         ref = pixel_psf(gd, **kw, n_wavelengths=64)
-        for n in ((1, 4, 16) if quick else (1, 2, 4, 8, 16, 24, 32)):
+        for n in (1, 4, 16) if quick else (1, 2, 4, 8, 16, 24, 32):
             tm = timed(lambda: pixel_psf(gd, **kw, n_wavelengths=n))
             table.row(disp, str(n), np.linalg.norm(tm.result - ref) / np.linalg.norm(ref), tm)
 
@@ -140,8 +152,10 @@ def _fit_table(sec: BenchSection, quick: bool) -> list[tuple[str, Any, Any]]:
             pair.append(d)
             case = f"target={label}; strategy={strategy}"
             ped = (d.pedestal, 100 * d.pedestal_fraction) if strategy == "pedestal" else "—"
-            defocus = ", ".join(sec.value(case, f"defocus of PSF {i}", (z - d.geometry.focal_length_m) * 1e6, unit="µm",
-                                          spec="+.1f") for i, z in enumerate(d.sensor_distance_m))
+            defocus = ", ".join(
+                sec.value(case, f"defocus of PSF {i}", (z - d.geometry.focal_length_m) * 1e6, unit="µm", spec="+.1f")
+                for i, z in enumerate(d.sensor_distance_m)
+            )
             table.row(
                 label,
                 strategy,

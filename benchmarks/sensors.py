@@ -24,8 +24,15 @@ from .harness import BenchRun, BenchSection, Column, kept_global_state
 
 __all__ = ["bench_sensors", "write_docs"]
 
-_FIELDS = ("threshold_on", "threshold_off", "threshold_sigma", "refractory_s", "cutoff_hz", "leak_rate_hz",
-           "shot_noise_rate_hz")
+_FIELDS = (
+    "threshold_on",
+    "threshold_off",
+    "threshold_sigma",
+    "refractory_s",
+    "cutoff_hz",
+    "leak_rate_hz",
+    "shot_noise_rate_hz",
+)
 
 
 def _own_pixels(config, height: int, width: int, like) -> dict[str, float]:
@@ -34,8 +41,11 @@ def _own_pixels(config, height: int, width: int, like) -> dict[str, float]:
 
     on, off = threshold_maps(config, (height, width), like)
     active = slice(int(0.25 * width), None)
-    return {"threshold_on": float(on[:, active].mean()), "threshold_off": float(off[:, active].mean()),
-            "threshold_sigma": float(np.sqrt(0.5 * (float(on[:, active].var()) + float(off[:, active].var()))))}
+    return {
+        "threshold_on": float(on[:, active].mean()),
+        "threshold_off": float(off[:, active].mean()),
+        "threshold_sigma": float(np.sqrt(0.5 * (float(on[:, active].var()) + float(off[:, active].var())))),
+    }
 
 
 @kept_global_state()
@@ -60,19 +70,40 @@ def bench_sensors(*, quick: bool = False) -> BenchRun:
     presets = ["davis346"] if quick else ["davis346", "v2e-noisy"]
     lengths = [0.2] if quick else [0.5, 2.0]
     n_boot = 50 if quick else 200
-    sec = BenchSection("sensors", settings={"quick": quick, "pixels": f"{size}x{size}", "frame_rate_hz": 1000,
-                                            "n_boot": n_boot, "level": 0.95, "fit_cutoff": not quick,
-                                            "start": "thresholds 0.2, cutoff 100 Hz"})
-    sec.text("### Calibration recovery (fsdvs-hw bench sensors)", "",
-             f"{size} x {size} pixels, calibration_video at 1 kHz, EVT 3.0 round trip, 95 % pixel-bootstrap "
-             f"intervals ({n_boot} resamples); `python -m benchmarks.sensors docs/sensors.md`.", "")
+    sec = BenchSection(
+        "sensors",
+        settings={
+            "quick": quick,
+            "pixels": f"{size}x{size}",
+            "frame_rate_hz": 1000,
+            "n_boot": n_boot,
+            "level": 0.95,
+            "fit_cutoff": not quick,
+            "start": "thresholds 0.2, cutoff 100 Hz",
+        },
+    )
+    sec.text(
+        "### Calibration recovery (fsdvs-hw bench sensors)",
+        "",
+        f"{size} x {size} pixels, calibration_video at 1 kHz, EVT 3.0 round trip, 95 % pixel-bootstrap "
+        f"intervals ({n_boot} resamples); `python -m benchmarks.sensors docs/sensors.md`.",
+        "",
+    )
     table = sec.table(
-        Column.text("preset"), Column.text("length s"), Column.text("parameter"),
+        Column.text("preset"),
+        Column.text("length s"),
+        Column.text("parameter"),
         Column.number("true (preset)", ".4g", unit="SensorConfig unit", metric="true value"),
         Column.number("this sensor's pixels", ".4g", unit="SensorConfig unit", metric="own-pixel value"),
-        Column.numbers("recovered [95 % CI]", "{0} [{1}, {2}]", ("recovered", "", ".4g"), ("ci low", "", ".4g"),
-                       ("ci high", "", ".4g")),
-        Column.text("CI holds true"))
+        Column.numbers(
+            "recovered [95 % CI]",
+            "{0} [{1}, {2}]",
+            ("recovered", "", ".4g"),
+            ("ci low", "", ".4g"),
+            ("ci high", "", ".4g"),
+        ),
+        Column.text("CI holds true"),
+    )
     with tempfile.TemporaryDirectory() as tmp:
         for name in presets:
             truth = sensor_config(name, seed=7)
@@ -80,17 +111,31 @@ def bench_sensors(*, quick: bool = False) -> BenchRun:
                 video, ts = calibration_video(int(round(length * 1000)), size, size)
                 ev = event_list(video, config=truth, timestamps_s=ts)
                 path = write_prophesee(Path(tmp) / f"{name}_{length}.raw", ev, width=size, height=size)
-                start = truth.replace(threshold_on=0.2, threshold_off=0.2,
-                                      cutoff_hz=100.0 if not quick else truth.cutoff_hz)
-                cal = calibrate_sensor(read_recording(path), video, timestamps_s=ts, config=start,
-                                       fit_cutoff=not quick and truth.cutoff_hz > 0, n_boot=n_boot)
+                start = truth.replace(
+                    threshold_on=0.2, threshold_off=0.2, cutoff_hz=100.0 if not quick else truth.cutoff_hz
+                )
+                cal = calibrate_sensor(
+                    read_recording(path),
+                    video,
+                    timestamps_s=ts,
+                    config=start,
+                    fit_cutoff=not quick and truth.cutoff_hz > 0,
+                    n_boot=n_boot,
+                )
                 own = _own_pixels(truth, size, size, video[0, 0])
                 for k in _FIELDS:
                     if k not in cal.estimates:
                         continue
                     e, tv = cal.estimates[k], float(getattr(truth, k))
-                    table.row(name, f"{length:g}", k, tv, own.get(k, tv), (e.value, e.low, e.high),
-                              "yes" if e.contains(tv) else "no")
+                    table.row(
+                        name,
+                        f"{length:g}",
+                        k,
+                        tv,
+                        own.get(k, tv),
+                        (e.value, e.low, e.high),
+                        "yes" if e.contains(tv) else "no",
+                    )
     sec.text("")
     return sec.run()
 

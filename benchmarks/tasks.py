@@ -38,8 +38,11 @@ def bootstrap_interval(evaluator, prediction, target, *, n_boot: int = 200, seed
     for _ in range(n_boot):
         idx = torch.from_numpy(rng.integers(0, n, n))
         try:
-            vals.append(evaluator.score({k: v[idx] for k, v in prediction.items()},
-                                        {k: v[idx] for k, v in target.items()})[evaluator.primary_metric])
+            vals.append(
+                evaluator.score({k: v[idx] for k, v in prediction.items()}, {k: v[idx] for k, v in target.items()})[
+                    evaluator.primary_metric
+                ]
+            )
         except ValueError:  # a resample without ground truth (tiny n): skip it
             continue
     lo, hi = np.percentile(vals, [2.5, 97.5])
@@ -67,12 +70,15 @@ def _predictions(task: str, checkpoint: Path, n_test: int):
     net.eval()
     scene = SceneConfig.from_dict(prov["scene"])
     sensor = SensorConfig(**prov["sensor"])
-    video, targets = _dataset(scene, n_test, int(prov["test_seed"]), task,
-                              TrainingSettings(**{"dtype": "float64", **prov["settings"]}).dtype)
+    video, targets = _dataset(
+        scene, n_test, int(prov["test_seed"]), task, TrainingSettings(**{"dtype": "float64", **prov["settings"]}).dtype
+    )
     k = torch.as_tensor(np.array(kernel.taps))
     with torch.no_grad():
-        preds = [ev.predict(net(_network_input(video[s : s + 64], k, sensor, scene.timestamps_s)))
-                 for s in range(0, n_test, 64)]
+        preds = [
+            ev.predict(net(_network_input(video[s : s + 64], k, sensor, scene.timestamps_s)))
+            for s in range(0, n_test, 64)
+        ]
     return ev, _cat_predictions(preds), targets, kernel
 
 
@@ -98,8 +104,11 @@ def _bench_tasks(quick: bool) -> BenchRun:
     n_boot = 50 if quick else 100
     sec = BenchSection("tasks", settings={"quick": quick, "n_train": n_train, "n_eval": n_eval, "n_boot": n_boot})
     sec.text("## tasks: training / evaluation cost and evaluation accuracy vs test-set size", "")
-    sec.text(f"Time per epoch ({n_train} training clips of 32×32×5 frames, batch 32, 7×7 kernel, one thread) "
-             "and per `evaluate_kernel` (256 test clips, shipped checkpoint, zero-shot).", "")
+    sec.text(
+        f"Time per epoch ({n_train} training clips of 32×32×5 frames, batch 32, 7×7 kernel, one thread) "
+        "and per `evaluate_kernel` (256 test clips, shipped checkpoint, zero-shot).",
+        "",
+    )
     cost = sec.table(
         Column.text("task"),
         Column.number("frozen-filter epoch (s)", ".2f"),
@@ -110,8 +119,9 @@ def _bench_tasks(quick: bool) -> BenchRun:
     )
     for task in ("detection", "recognition"):
         print(f"[bench tasks] timing {task}", file=sys.stderr, flush=True)
-        res = learn_kernel(task, 7, seed=0, n_train=n_train, n_test=32,
-                           settings=TrainingSettings(epochs_frozen=1, epochs_joint=1))
+        res = learn_kernel(
+            task, 7, seed=0, n_train=n_train, n_test=32, settings=TrainingSettings(epochs_frozen=1, epochs_joint=1)
+        )
         frozen = [h["seconds"] for h in res.history if h["stage"] == "frozen_filter"]
         joint = next(h["seconds"] for h in res.history if h["stage"] == "joint")
         ckpt = SHIPPED_DIR / f"learned_{task}_7x7.safetensors"
@@ -121,19 +131,30 @@ def _bench_tasks(quick: bool) -> BenchRun:
             t_eval: object = timed(lambda: evaluate_kernel(kern, task, ckpt, n_test=n_eval))
         else:
             t_eval = "no shipped checkpoint"
-        cost.row(task, Measured.of(frozen[:1]) if frozen else "— (joint from start)", Measured.of([joint]), t_eval,
-                 n_train / joint)
-    sec.text("", "Metric (×100) of the shipped 7×7 checkpoint versus test-set size: 95 % bootstrap interval "
-             "(100 resamples of clips), error against the largest set, and wall time (events + network + "
-             "metric).", "")
-    ci = sec.table(Column.text("task"), Column.text("n_test"), Column.number("metric", ".1f", unit="%",
-                                                                             metric="primary metric"),
-                   Column.numbers("95 % CI", "[{0}, {1}]", ("95 % CI low", "%", ".1f"),
-                                  ("95 % CI high", "%", ".1f")),
-                   Column.number("CI half-width", ".1f", unit="%", metric="95 % CI half-width"),
-                   Column.number("error vs largest", ".1f", unit="%", metric="error vs largest test set"),
-                   Column.number("wall time (s)", ".2f", metric="evaluate_kernel wall time"),
-                   title="Metric CI versus test-set size")
+        cost.row(
+            task,
+            Measured.of(frozen[:1]) if frozen else "— (joint from start)",
+            Measured.of([joint]),
+            t_eval,
+            n_train / joint,
+        )
+    sec.text(
+        "",
+        "Metric (×100) of the shipped 7×7 checkpoint versus test-set size: 95 % bootstrap interval "
+        "(100 resamples of clips), error against the largest set, and wall time (events + network + "
+        "metric).",
+        "",
+    )
+    ci = sec.table(
+        Column.text("task"),
+        Column.text("n_test"),
+        Column.number("metric", ".1f", unit="%", metric="primary metric"),
+        Column.numbers("95 % CI", "[{0}, {1}]", ("95 % CI low", "%", ".1f"), ("95 % CI high", "%", ".1f")),
+        Column.number("CI half-width", ".1f", unit="%", metric="95 % CI half-width"),
+        Column.number("error vs largest", ".1f", unit="%", metric="error vs largest test set"),
+        Column.number("wall time (s)", ".2f", metric="evaluate_kernel wall time"),
+        title="Metric CI versus test-set size",
+    )
     for task in ("detection", "recognition"):
         ckpt = SHIPPED_DIR / f"learned_{task}_7x7.safetensors"
         if not ckpt.is_file():
@@ -149,6 +170,9 @@ def _bench_tasks(quick: bool) -> BenchRun:
             val = ev.score(p, t)[ev.primary_metric]
             lo, hi = bootstrap_interval(ev, p, t, n_boot=n_boot)
             ci.row(task, str(n), val * 100, (lo * 100, hi * 100), (hi - lo) * 50, abs(val - ref) * 100, wall)
-    sec.text("", "Timings are on this machine under whatever load it carries; re-run "
-             "`fsdvs-hw bench tasks` to reproduce.", "")
+    sec.text(
+        "",
+        "Timings are on this machine under whatever load it carries; re-run `fsdvs-hw bench tasks` to reproduce.",
+        "",
+    )
     return sec.run()

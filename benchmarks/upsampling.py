@@ -139,32 +139,70 @@ def bench_upsampling(*, quick: bool = False) -> BenchRun:
     n_clips = 2 if quick else 5
     n_frames = (2 if quick else 12) * (REFERENCE_HZ // min(RATES_HZ)) + 1  # 0.08 / 0.48 s
     config = SensorConfig.ideal(0.2, threshold_sigma=0.03, seed=0)
-    sec = BenchSection("upsampling", settings={"quick": quick, "pixels": f"{h}x{w}", "clips": n_clips,
-                                               "reference_hz": REFERENCE_HZ, "duration_s": (n_frames - 1) / REFERENCE_HZ,
-                                               "sensor": "ideal, C = 0.2, sigma 0.03, seed 0", "threads": 1,
-                                               "van_rossum_tau_s": VAN_ROSSUM_TAU_S})
-    sec.text("### Event timing from low frame rates vs the 400 Hz reference (fsdvs-hw bench upsampling)", "",
-             f"{n_clips} synthetic clips per speed ({h}x{w} px, {(n_frames - 1) / REFERENCE_HZ:g} s at {REFERENCE_HZ} Hz), "
-             "subsampled and upsampled back to 400 Hz; ideal sensor with mismatch (C = 0.2, σ = 0.03, seed 0). "
-             "Mean over clips [95 % t-interval]; time: median [min–max] over clips.", "")
+    sec = BenchSection(
+        "upsampling",
+        settings={
+            "quick": quick,
+            "pixels": f"{h}x{w}",
+            "clips": n_clips,
+            "reference_hz": REFERENCE_HZ,
+            "duration_s": (n_frames - 1) / REFERENCE_HZ,
+            "sensor": "ideal, C = 0.2, sigma 0.03, seed 0",
+            "threads": 1,
+            "van_rossum_tau_s": VAN_ROSSUM_TAU_S,
+        },
+    )
+    sec.text(
+        "### Event timing from low frame rates vs the 400 Hz reference (fsdvs-hw bench upsampling)",
+        "",
+        f"{n_clips} synthetic clips per speed ({h}x{w} px, {(n_frames - 1) / REFERENCE_HZ:g} s at {REFERENCE_HZ} Hz), "
+        "subsampled and upsampled back to 400 Hz; ideal sensor with mismatch (C = 0.2, σ = 0.03, seed 0). "
+        "Mean over clips [95 % t-interval]; time: median [min–max] over clips.",
+        "",
+    )
     table = sec.table(
-        Column.text("object speed px/s"), Column.text("frame rate Hz"), Column.text("px / frame (flow p99)"),
+        Column.text("object speed px/s"),
+        Column.text("frame rate Hz"),
+        Column.text("px / frame (flow p99)"),
         Column.text("upsampling"),
-        Column.numbers("median abs dt ms [95 % CI]", "{0} [{1}, {2}]", ("median abs dt", "ms", ".3g"),
-                       ("median abs dt ci low", "ms", ".3g"), ("median abs dt ci high", "ms", ".3g")),
+        Column.numbers(
+            "median abs dt ms [95 % CI]",
+            "{0} [{1}, {2}]",
+            ("median abs dt", "ms", ".3g"),
+            ("median abs dt ci low", "ms", ".3g"),
+            ("median abs dt ci high", "ms", ".3g"),
+        ),
         Column.number("unmatched %", ".2g", unit="%", metric="unmatched reference events"),
-        Column.numbers("count error % [95 % CI]", "{0} [{1}, {2}]", ("count error", "%", "+.2f"),
-                       ("count error ci low", "%", "+.2f"), ("count error ci high", "%", "+.2f")),
-        Column.numbers("van Rossum per event [95 % CI]", "{0} [{1}, {2}]", ("van Rossum per event", "", ".3f"),
-                       ("van Rossum ci low", "", ".3f"), ("van Rossum ci high", "", ".3f")),
+        Column.numbers(
+            "count error % [95 % CI]",
+            "{0} [{1}, {2}]",
+            ("count error", "%", "+.2f"),
+            ("count error ci low", "%", "+.2f"),
+            ("count error ci high", "%", "+.2f"),
+        ),
+        Column.numbers(
+            "van Rossum per event [95 % CI]",
+            "{0} [{1}, {2}]",
+            ("van Rossum per event", "", ".3f"),
+            ("van Rossum ci low", "", ".3f"),
+            ("van Rossum ci high", "", ".3f"),
+        ),
         Column.number("ms per input frame", ".3g", unit="ms", metric="wall time per input frame"),
     )
     ref_ms: list[float] = []
     for speed in SPEEDS_PX_S:
-        scene = SceneConfig(height_px=h, width_px=w, n_frames=n_frames, frame_rate_hz=float(REFERENCE_HZ),
-                            n_objects=(2, 3), radius_px=(5.0, 9.0), edge_contrast=0.5,
-                            speed_px_per_frame=speed / REFERENCE_HZ, texture_contrast=0.3,
-                            background_speed_px_per_frame=0.25 * speed / REFERENCE_HZ)
+        scene = SceneConfig(
+            height_px=h,
+            width_px=w,
+            n_frames=n_frames,
+            frame_rate_hz=float(REFERENCE_HZ),
+            n_objects=(2, 3),
+            radius_px=(5.0, 9.0),
+            edge_contrast=0.5,
+            speed_px_per_frame=speed / REFERENCE_HZ,
+            texture_contrast=0.3,
+            background_speed_px_per_frame=0.25 * speed / REFERENCE_HZ,
+        )
         batch = make_scenes(scene, n_clips, seed=0)
         times = np.arange(n_frames) / REFERENCE_HZ
         refs = []
@@ -185,11 +223,22 @@ def bench_upsampling(*, quick: bool = False) -> BenchRun:
                     rows.setdefault("ms", []).append((time.perf_counter() - t0) * 1e3 / len(low))
                     for k, v in event_distances(ref, ev, w).items():
                         rows.setdefault(k, []).append(v)
-                table.row(f"{speed:g}", str(rate), f"{motion:.2g}", mode, _mean_ci(rows["median_dt_ms"], floor=0.0),
-                          statistics.fmean(rows["unmatched_pct"]), _mean_ci(rows["count_error_pct"]),
-                          _mean_ci(rows["van_rossum_per_event"], floor=0.0), Measured.of(rows["ms"], "median"))
-    sec.text("", f"The 400 Hz reference itself: {statistics.median(ref_ms):.3g} ms per 400 Hz frame "
-             f"(median of {len(ref_ms)} clips, {h}x{w} px, 1 torch thread); each cell over {n_clips} clips.")
+                table.row(
+                    f"{speed:g}",
+                    str(rate),
+                    f"{motion:.2g}",
+                    mode,
+                    _mean_ci(rows["median_dt_ms"], floor=0.0),
+                    statistics.fmean(rows["unmatched_pct"]),
+                    _mean_ci(rows["count_error_pct"]),
+                    _mean_ci(rows["van_rossum_per_event"], floor=0.0),
+                    Measured.of(rows["ms"], "median"),
+                )
+    sec.text(
+        "",
+        f"The 400 Hz reference itself: {statistics.median(ref_ms):.3g} ms per 400 Hz frame "
+        f"(median of {len(ref_ms)} clips, {h}x{w} px, 1 torch thread); each cell over {n_clips} clips.",
+    )
     return sec.run()
 
 

@@ -58,8 +58,14 @@ def _write_videos(root: Path, n_clips: int, t: int, side: int, fps: float) -> No
     for k in range(n_clips):
         folder = root / ("ClassA" if k % 2 == 0 else "ClassB")
         folder.mkdir(parents=True, exist_ok=True)
-        with imageio.get_writer(str(folder / f"v_{k:04d}.mp4"), fps=fps, codec="libx264", quality=8,
-                                macro_block_size=1, ffmpeg_log_level="error") as w:
+        with imageio.get_writer(
+            str(folder / f"v_{k:04d}.mp4"),
+            fps=fps,
+            codec="libx264",
+            quality=8,
+            macro_block_size=1,
+            ffmpeg_log_level="error",
+        ) as w:
             for f in frames[k * t : (k + 1) * t]:
                 w.append_data(f)
 
@@ -93,8 +99,9 @@ def _write_frames(root: Path, n: int, side: int) -> None:
         Image.fromarray(m).save(root / "masks" / f"f{i:05d}.png")
         images.append({"id": i, "file_name": f"f{i:05d}.png", "width": side, "height": side})
         anns.append({"id": i, "image_id": i, "category_id": 1, "bbox": b})
-    (root / "instances.json").write_text(json.dumps({"images": images, "annotations": anns,
-                                                     "categories": [{"id": 1, "name": "box"}]}))
+    (root / "instances.json").write_text(
+        json.dumps({"images": images, "annotations": anns, "categories": [{"id": 1, "name": "box"}]})
+    )
 
 
 def _datasets(root: Path, n_clips: int, t: int, side: int, fps: float) -> dict[str, Any]:
@@ -102,11 +109,17 @@ def _datasets(root: Path, n_clips: int, t: int, side: int, fps: float) -> dict[s
 
     _write_videos(root / "ucf", n_clips, t, side, fps)
     _write_frames(root / "seq", n_clips * t, side)
-    return {"video_folder": ("recognition", VideoFolderDataset(root / "ucf", n_frames=t)),
-            "coco_frames": ("detection", CocoFramesDataset(root / "seq" / "frames", root / "seq" / "instances.json",
-                                                           n_frames=t, fps=fps)),
-            "mask_frames": ("segmentation", MaskFramesDataset(root / "seq" / "frames", root / "seq" / "masks",
-                                                              num_classes=3, n_frames=t, fps=fps))}
+    return {
+        "video_folder": ("recognition", VideoFolderDataset(root / "ucf", n_frames=t)),
+        "coco_frames": (
+            "detection",
+            CocoFramesDataset(root / "seq" / "frames", root / "seq" / "instances.json", n_frames=t, fps=fps),
+        ),
+        "mask_frames": (
+            "segmentation",
+            MaskFramesDataset(root / "seq" / "frames", root / "seq" / "masks", num_classes=3, n_frames=t, fps=fps),
+        ),
+    }
 
 
 def _cpu_s() -> float:
@@ -136,22 +149,48 @@ def bench_user_data(*, quick: bool = False) -> BenchRun:
     side, t, fps = 64, 8, 25.0
     n_clips, repeats = (4, 2) if quick else (16, 3)
     threads = torch.get_num_threads()
-    sec = BenchSection("user_data", settings={"quick": quick, "side_px": side, "n_frames": t, "fps_hz": fps,
-                                              "n_clips": n_clips, "repeats": repeats, "kernel": "dog 7x7",
-                                              "network": "built-in (fsdvs_hw.tasks.networks)"})
-    sec.text(f"### User datasets: seconds per 1000 clips ({side}×{side} px, {t} frames, built-in networks, "
-             f"{threads} torch threads)", "")
+    sec = BenchSection(
+        "user_data",
+        settings={
+            "quick": quick,
+            "side_px": side,
+            "n_frames": t,
+            "fps_hz": fps,
+            "n_clips": n_clips,
+            "repeats": repeats,
+            "kernel": "dog 7x7",
+            "network": "built-in (fsdvs_hw.tasks.networks)",
+        },
+    )
+    sec.text(
+        f"### User datasets: seconds per 1000 clips ({side}×{side} px, {t} frames, built-in networks, "
+        f"{threads} torch threads)",
+        "",
+    )
     table = sec.table(
-        Column.text("format"), Column.text("task"), Column.text("clips timed"),
+        Column.text("format"),
+        Column.text("task"),
+        Column.text("clips timed"),
         Column.number("decode s / 1000 clips", ".1f", unit="s", metric="decode time per 1000 clips", spread=True),
-        Column.number("cached decode s / 1000 clips", ".1f", unit="s", metric="decode time per 1000 clips from the "
-                      "disk cache", spread=True),
-        Column.number("evaluate s / 1000 clips", ".1f", unit="s", metric="evaluate time per 1000 clips",
-                      spread=True),
-        Column.number("evaluate CPU s / 1000 clips", ".1f", unit="s", metric="evaluate CPU time per 1000 clips",
-                      spread=True),
-        Column.number("train s / 1000 clips / joint epoch", ".1f", unit="s",
-                      metric="training time per 1000 clips per joint epoch", spread=True))
+        Column.number(
+            "cached decode s / 1000 clips",
+            ".1f",
+            unit="s",
+            metric="decode time per 1000 clips from the disk cache",
+            spread=True,
+        ),
+        Column.number("evaluate s / 1000 clips", ".1f", unit="s", metric="evaluate time per 1000 clips", spread=True),
+        Column.number(
+            "evaluate CPU s / 1000 clips", ".1f", unit="s", metric="evaluate CPU time per 1000 clips", spread=True
+        ),
+        Column.number(
+            "train s / 1000 clips / joint epoch",
+            ".1f",
+            unit="s",
+            metric="training time per 1000 clips per joint epoch",
+            spread=True,
+        ),
+    )
     walls: list[float] = []
     kernel = reference_kernel("dog", 7)
     with tempfile.TemporaryDirectory(prefix="fsdvs_bench_user_data_") as tmp:
@@ -165,23 +204,36 @@ def bench_user_data(*, quick: bool = False) -> BenchRun:
                 evaluate = timed(lambda ds=ds, task=task: evaluate_on_dataset(kernel, task, ds))
                 cpu.append(_cpu_s() - c0)
                 walls.extend(evaluate.times_s)
-            train = timed(lambda ds=ds, task=task: train_on_dataset(
-                ds, task, train_indices=range(len(ds)), kernel_size=7, epochs_frozen=0, epochs_joint=1,
-                batch_size=8), repeats)
+            train = timed(
+                lambda ds=ds, task=task: train_on_dataset(
+                    ds, task, train_indices=range(len(ds)), kernel_size=7, epochs_frozen=0, epochs_joint=1, batch_size=8
+                ),
+                repeats,
+            )
             ds.disk_cache = ClipDiskCache(Path(tmp) / "clip_cache", max_mb=10_000.0)  # after the uncached timings
             [ds[i] for i in range(n)]  # fills the cache
             cached = timed(lambda ds=ds: [ds[i] for i in range(len(ds))], repeats)
             if ds.disk_cache.hits != n * repeats:
                 raise RuntimeError(f"bench user_data: {fmt}: {ds.disk_cache.hits} cache hits, expected {n * repeats}")
-            table.row(fmt, task, str(n), decode.measured().scaled(1000.0 / n), cached.measured().scaled(1000.0 / n),
-                      Measured.of(walls[-repeats:]).scaled(1000.0 / n), Measured.of(cpu).scaled(1000.0 / n),
-                      train.measured().scaled(1000.0 / n))
-    sec.text("", "Decode is part of evaluate (no clip cache); cached decode reads the same clips back from the disk "
-             "cache of decoded clips (dataset.cache) once it is filled; evaluate adds the simulator, the network and the "
-             "metric. Wall and CPU seconds (this process with all its threads, and its ffmpeg decoder "
-             "processes): median over the repeats after one warm-up "
-             "clip, range in brackets; on a shared machine the wall time grows with the load, the CPU time less. "
-             "Train: fsdvs_hw.tasks.dataset_training.train_on_dataset with one joint epoch (kernel and network "
-             "learned through the simulator, batches of 8; decoding the training clips once included); stage-one "
-             "epochs (kernel frozen, events simulated once) cost less.")
+            table.row(
+                fmt,
+                task,
+                str(n),
+                decode.measured().scaled(1000.0 / n),
+                cached.measured().scaled(1000.0 / n),
+                Measured.of(walls[-repeats:]).scaled(1000.0 / n),
+                Measured.of(cpu).scaled(1000.0 / n),
+                train.measured().scaled(1000.0 / n),
+            )
+    sec.text(
+        "",
+        "Decode is part of evaluate (no clip cache); cached decode reads the same clips back from the disk "
+        "cache of decoded clips (dataset.cache) once it is filled; evaluate adds the simulator, the network and the "
+        "metric. Wall and CPU seconds (this process with all its threads, and its ffmpeg decoder "
+        "processes): median over the repeats after one warm-up "
+        "clip, range in brackets; on a shared machine the wall time grows with the load, the CPU time less. "
+        "Train: fsdvs_hw.tasks.dataset_training.train_on_dataset with one joint epoch (kernel and network "
+        "learned through the simulator, batches of 8; decoding the training clips once included); stage-one "
+        "epochs (kernel frozen, events simulated once) cost less.",
+    )
     return sec.run()

@@ -85,7 +85,7 @@ def _site_target(target: Path, page_dir: Path) -> str | None:
     if site is None and rel.startswith("designs/figures/") and target.suffix == ".png":
         site = f"figures/{target.name}"
     if site is None and rel.startswith("docs/"):
-        site = rel[len("docs/"):]
+        site = rel[len("docs/") :]
     if site is None:
         return None
     return Path(*([".."] * len(page_dir.parts)), site).as_posix() if page_dir.parts else site
@@ -181,10 +181,12 @@ def _provenance(records: list) -> str:
     threads = sorted({r.threads for r in records if r.threads is not None})
     threads_text = f"; torch threads {', '.join(map(str, threads))}" if threads else ""
     quick = " (quick mode: small problem sizes)" if first.settings.get("quick") else ""
-    return (f"*Measured {first.timestamp.replace('T', ' ').replace('+00:00', ' UTC')} on "
-            f"{machine.get('cpu_count', '?')} CPU cores ({machine.get('platform', '?')}{load_text}){threads_text}; "
-            f"{libs}{quick}. Records: `benchmarks/records/{first.bench}.json`, written by "
-            f"`fsdvs-hw bench {first.bench} --json benchmarks/records/{first.bench}.json`.*")
+    return (
+        f"*Measured {first.timestamp.replace('T', ' ').replace('+00:00', ' UTC')} on "
+        f"{machine.get('cpu_count', '?')} CPU cores ({machine.get('platform', '?')}{load_text}){threads_text}; "
+        f"{libs}{quick}. Records: `benchmarks/records/{first.bench}.json`, written by "
+        f"`fsdvs-hw bench {first.bench} --json benchmarks/records/{first.bench}.json`.*"
+    )
 
 
 def _blocks(records: list) -> list[tuple[str, list]]:
@@ -211,8 +213,10 @@ def bench_tables(name: str) -> str:
     """Every table of benchmark ``name`` as Markdown, from its committed records."""
     records = _records(name)
     if not records:
-        return (f"*No committed records for `{name}` yet: `fsdvs-hw bench {name} --json "
-                f"benchmarks/records/{name}.json` writes them.*")
+        return (
+            f"*No committed records for `{name}` yet: `fsdvs-hw bench {name} --json "
+            f"benchmarks/records/{name}.json` writes them.*"
+        )
     out = []
     for title, rows in _blocks(records):
         text_cols: list[str] = []
@@ -248,7 +252,8 @@ def rate_table() -> str:
         return f"{est:+.3f} [{low:+.3f}, {high:+.3f}]".replace("-", "−")
 
     rows = {
-        "same threshold": [], "w/o with its threshold lowered to fire as many events as the learned kernel": [],
+        "same threshold": [],
+        "w/o with its threshold lowered to fire as many events as the learned kernel": [],
         "learned with its threshold raised to fire as few events as w/o": [],
     }
     names = list(rows)
@@ -257,20 +262,37 @@ def rate_table() -> str:
         down = data[t]["comparisons"]["wo_vs_learned_at_wo_rate"]
         rows[names[0]].append(ci(up["raw_estimate"], up["raw_low"], up["raw_high"]))
         rows[names[1]].append(f"**{ci(up['estimate'], up['low'], up['high'])}** (w/o at {up['matched_threshold']:.2f})")
-        rows[names[2]].append(f"{ci(-down['estimate'], -down['high'], -down['low'])} "
-                              f"(learned at {down['matched_threshold']:.2f})")
+        rows[names[2]].append(
+            f"{ci(-down['estimate'], -down['high'], -down['low'])} (learned at {down['matched_threshold']:.2f})"
+        )
     ref = data[tasks[0]]["settings"]["reference_threshold"]
-    lines = ["| learned − w/o | " + " | ".join(f"{t} ({data[t]['comparisons']['learned_vs_wo_at_learned_rate']['metric_name']})"
-                                           for t in tasks) + " |", "|---|" + "---|" * len(tasks)]
-    lines += [f"| {name.replace('same threshold', f'same threshold {ref}')} | " + " | ".join(cells) + " |"
-              for name, cells in rows.items()]
-    n = {t: (data[t]["comparisons"]["learned_vs_wo_at_learned_rate"]["n_clips"],
-             data[t]["comparisons"]["learned_vs_wo_at_learned_rate"]["n_networks"]) for t in tasks}
-    lines += ["", "*" + "; ".join(f"{t}: n = {c} clips, {k} networks" for t, (c, k) in n.items())
-              + f"; {int(100 * data[tasks[0]]['settings']['confidence'])} % percentile bootstrap, "
-              f"{data[tasks[0]]['settings']['n_resamples']} resamples. Generated from "
-              "`designs/results/rate/TASK_matched_rate.json`, written by: "
-              + "; ".join(f"`{data[t]['provenance']['command']}`" for t in tasks) + ".*"]
+    lines = [
+        "| learned − w/o | "
+        + " | ".join(f"{t} ({data[t]['comparisons']['learned_vs_wo_at_learned_rate']['metric_name']})" for t in tasks)
+        + " |",
+        "|---|" + "---|" * len(tasks),
+    ]
+    lines += [
+        f"| {name.replace('same threshold', f'same threshold {ref}')} | " + " | ".join(cells) + " |"
+        for name, cells in rows.items()
+    ]
+    n = {
+        t: (
+            data[t]["comparisons"]["learned_vs_wo_at_learned_rate"]["n_clips"],
+            data[t]["comparisons"]["learned_vs_wo_at_learned_rate"]["n_networks"],
+        )
+        for t in tasks
+    }
+    lines += [
+        "",
+        "*"
+        + "; ".join(f"{t}: n = {c} clips, {k} networks" for t, (c, k) in n.items())
+        + f"; {int(100 * data[tasks[0]]['settings']['confidence'])} % percentile bootstrap, "
+        f"{data[tasks[0]]['settings']['n_resamples']} resamples. Generated from "
+        "`designs/results/rate/TASK_matched_rate.json`, written by: "
+        + "; ".join(f"`{data[t]['provenance']['command']}`" for t in tasks)
+        + ".*",
+    ]
     return "\n".join(lines)
 
 
@@ -284,12 +306,20 @@ def codesign_table(name: str) -> str:
     path = ROOT / "designs" / "results" / name / "codesign.json"
     html = codesign_section(json.loads(path.read_text(encoding="utf-8")))
     note = " ".join(_html_text(p) for p in re.findall(r"<p[^>]*>(.*?)</p>", html, flags=re.DOTALL))
-    rows = [[_html_text(c) for c in re.findall(r"<t[hd][^>]*>(.*?)</t[hd]>", row, flags=re.DOTALL)]
-            for row in re.findall(r"<tr[^>]*>(.*?)</tr>", html, flags=re.DOTALL)]
+    rows = [
+        [_html_text(c) for c in re.findall(r"<t[hd][^>]*>(.*?)</t[hd]>", row, flags=re.DOTALL)]
+        for row in re.findall(r"<tr[^>]*>(.*?)</tr>", html, flags=re.DOTALL)
+    ]
     lines = ["| " + " | ".join(rows[0]) + " |", "|" + "---|" * len(rows[0])]
     lines += ["| " + " | ".join(c.replace("|", "\\|") for c in row) + " |" for row in rows[1:]]
-    return "\n".join([*lines, "", f"*{note} Generated from the shipped `designs/results/{name}/codesign.json` "
-                       "by the report's own co-design section.*"])
+    return "\n".join(
+        [
+            *lines,
+            "",
+            f"*{note} Generated from the shipped `designs/results/{name}/codesign.json` "
+            "by the report's own co-design section.*",
+        ]
+    )
 
 
 def _html_text(fragment: str) -> str:

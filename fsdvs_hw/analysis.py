@@ -45,7 +45,9 @@ class KernelAnalysis:
     def to_dict(self) -> dict[str, Any]:
         return {
             "kernel": self.kernel.to_dict(),
-            "geometry": None if self.geometry is None else {
+            "geometry": None
+            if self.geometry is None
+            else {
                 "pitch_m": self.geometry.pitch_m,
                 "focal_length_m": self.geometry.focal_length_m,
                 "pixels_per_degree": self.geometry.pixels_per_degree,
@@ -138,8 +140,10 @@ def write_analysis(analysis: KernelAnalysis, out_dir: str | Path) -> dict[str, P
     for key, make in (
         ("kernel", lambda: plot_kernel(analysis.kernel)),
         ("spectrum", lambda: plot_spectrum(analysis.kernel)),
-        ("radial_csf", lambda: plot_radial_vs_csf(analysis.kernel, methods=list(analysis.agreements),
-                                                  geometry=analysis.geometry)),
+        (
+            "radial_csf",
+            lambda: plot_radial_vs_csf(analysis.kernel, methods=list(analysis.agreements), geometry=analysis.geometry),
+        ),
     ):
         fig, _ = make()
         paths[key] = out / f"{key}.png"

@@ -123,8 +123,11 @@ def daly_1993(
     cd/m², i² image area in deg². S(0) = 0.
     """
     f = _frequencies(f_cpd)
-    for name, v in (("luminance_cd_m2", luminance_cd_m2), ("image_area_deg2", image_area_deg2),
-                    ("viewing_distance_m", viewing_distance_m)):
+    for name, v in (
+        ("luminance_cd_m2", luminance_cd_m2),
+        ("image_area_deg2", image_area_deg2),
+        ("viewing_distance_m", viewing_distance_m),
+    ):
         if not (math.isfinite(v) and v > 0):
             raise InputError(f"daly_1993: {name} must be positive, got {v!r}")
     if not (math.isfinite(eccentricity_deg) and eccentricity_deg >= 0):
@@ -242,8 +245,9 @@ def _csf_peak(name: str, f_max_cpd: float, kwargs: dict[str, Any]) -> tuple[floa
     vals = fn(grid, **kwargs)
     i = int(np.argmax(vals))
     lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-    res = minimize_scalar(lambda x: -float(fn(np.array([x]), **kwargs)[0]), bounds=(lo, hi), method="bounded",
-                          options={"xatol": 1e-9})
+    res = minimize_scalar(
+        lambda x: -float(fn(np.array([x]), **kwargs)[0]), bounds=(lo, hi), method="bounded", options={"xatol": 1e-9}
+    )
     return float(res.x), float(-res.fun)
 
 
@@ -365,8 +369,15 @@ def _kernel_spectrum(taps_bytes: bytes, size: int) -> tuple[RadialResponse, Spec
     return radial_response(taps, n_freq=1025), spectral_summary(taps)
 
 
-def _compare(f_cpp: np.ndarray, rr_f: np.ndarray, k_norm: np.ndarray, csf_fn: Callable[[np.ndarray], np.ndarray],
-             csf_max: float, ppd: float, floor: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+def _compare(
+    f_cpp: np.ndarray,
+    rr_f: np.ndarray,
+    k_norm: np.ndarray,
+    csf_fn: Callable[[np.ndarray], np.ndarray],
+    csf_max: float,
+    ppd: float,
+    floor: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
     f = f_cpp * ppd
     kc = np.interp(f_cpp, rr_f, k_norm)
     cc = csf_fn(f) / csf_max

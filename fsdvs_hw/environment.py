@@ -34,10 +34,14 @@ __all__ = ["ENVIRONMENT", "env", "set_env"]
 #: name → (former names still read, what it sets)
 ENVIRONMENT: dict[str, tuple[tuple[str, ...], str]] = {
     "FSDVS_HW_MAX_ALLOC_BYTES": (("FSDVS_MAX_ALLOC_BYTES",), "largest single array allocated (bytes)"),
-    "FSDVS_HW_WORKER_THREADS": (("FSDVS_SWEEP_THREADS", "FSDVS_CODESIGN_THREADS"),
-                                "torch threads per sweep, ablation and co-design worker process"),
-    "FSDVS_HW_REALISATION_PLUGINS": (("FSDVS_REALISATION_PLUGINS",),
-                                     "modules of realisations registered at run time (os.pathsep-separated)"),
+    "FSDVS_HW_WORKER_THREADS": (
+        ("FSDVS_SWEEP_THREADS", "FSDVS_CODESIGN_THREADS"),
+        "torch threads per sweep, ablation and co-design worker process",
+    ),
+    "FSDVS_HW_REALISATION_PLUGINS": (
+        ("FSDVS_REALISATION_PLUGINS",),
+        "modules of realisations registered at run time (os.pathsep-separated)",
+    ),
     "FSDVS_HW_CACHE": ((), "folder of the compiled event kernels"),
     "FSDVS_HW_NO_NATIVE": ((), "set: do not use the compiled event kernels"),
 }

@@ -85,8 +85,9 @@ def _validate_taps(taps: Any, *, source: str = "taps") -> np.ndarray:
     if raw.dtype.kind == "c":
         raise KernelError(f"{source}: kernel taps must be real, got a complex array")
     if raw.dtype.kind not in "biuf":  # datetimes, strings, objects would convert silently or oddly
-        raise KernelError(f"{source}: kernel taps must be numeric (booleans, integers, floats), "
-                          f"got array dtype {raw.dtype}")
+        raise KernelError(
+            f"{source}: kernel taps must be numeric (booleans, integers, floats), got array dtype {raw.dtype}"
+        )
     arr = np.array(raw, dtype=np.float64, copy=True)
     if arr.ndim != 2:
         raise KernelError(f"{source}: kernel taps must be 2-D, got {arr.ndim}-D with shape {arr.shape}")
@@ -94,13 +95,10 @@ def _validate_taps(taps: Any, *, source: str = "taps") -> np.ndarray:
     if rows != cols:
         raise KernelError(f"{source}: kernel must be square, got shape {rows}x{cols}")
     if rows % 2 == 0:
-        raise KernelError(
-            f"{source}: kernel size must be odd (so it has a centre tap), got {rows}x{cols}"
-        )
+        raise KernelError(f"{source}: kernel size must be odd (so it has a centre tap), got {rows}x{cols}")
     if rows > MAX_KERNEL_SIZE:
         raise KernelError(
-            f"{source}: kernel size {rows}x{cols} is absurd for a per-pixel filter; "
-            f"allowed 1..{MAX_KERNEL_SIZE} (odd)"
+            f"{source}: kernel size {rows}x{cols} is absurd for a per-pixel filter; allowed 1..{MAX_KERNEL_SIZE} (odd)"
         )
     bad = ~np.isfinite(arr)
     if bad.any():
@@ -125,9 +123,11 @@ def check_tap_magnitude(taps: Any, *, source: str = "kernel") -> None:
     peak = float(np.abs(arr).max()) if arr.size else 0.0
     lo, hi = TAP_MAGNITUDE_RANGE
     if not lo <= peak <= hi:
-        raise KernelError(f"{source}: largest |tap| is {peak:.3g}, outside the allowed [{lo:g}, {hi:g}] for "
-                          "the simulator and the hardware fits (float32 would overflow or lose it); "
-                          "rescale the kernel")
+        raise KernelError(
+            f"{source}: largest |tap| is {peak:.3g}, outside the allowed [{lo:g}, {hi:g}] for "
+            "the simulator and the hardware fits (float32 would overflow or lose it); "
+            "rescale the kernel"
+        )
 
 
 def _validate_pitch(pitch_m: Any, *, source: str = "pitch_m") -> float:
@@ -278,9 +278,7 @@ class Kernel:
 
     def allclose(self, other: Kernel, *, rtol: float = 1e-9, atol: float = 0.0) -> bool:
         """True when the taps have equal shape and agree elementwise (pitch ignored)."""
-        return self.taps.shape == other.taps.shape and bool(
-            np.allclose(self.taps, other.taps, rtol=rtol, atol=atol)
-        )
+        return self.taps.shape == other.taps.shape and bool(np.allclose(self.taps, other.taps, rtol=rtol, atol=atol))
 
     # ------------------------------------------------------------------ serialisation
     def to_dict(self) -> dict[str, Any]:
@@ -401,8 +399,10 @@ def as_kernel(kernel: Any, *, name: str = "kernel", pitch_m: float | None = None
         if pitch_m is not None and not math.isclose(float(pitch_m), kernel.pitch_m, rel_tol=1e-12):
             if repitch:
                 return Kernel(kernel.taps, pitch_m=pitch_m, name=kernel.name, provenance=kernel.provenance)
-            raise KernelError(f"{name}: a Kernel with pitch {kernel.pitch_m:.4g} m was given with pitch_m={pitch_m!r}; "
-                              "use kernel.with_taps or pass the taps as an array")
+            raise KernelError(
+                f"{name}: a Kernel with pitch {kernel.pitch_m:.4g} m was given with pitch_m={pitch_m!r}; "
+                "use kernel.with_taps or pass the taps as an array"
+            )
         return kernel
     if isinstance(kernel, (str, Path)):
         return load_kernel(kernel, pitch_m=pitch_m)
@@ -411,8 +411,10 @@ def as_kernel(kernel: Any, *, name: str = "kernel", pitch_m: float | None = None
     try:
         taps = np.asarray(kernel, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise KernelError(f"{name}: expected a Kernel, a kernel file path or a k×k array of numbers, got "
-                          f"{type(kernel).__name__} ({exc})") from None
+        raise KernelError(
+            f"{name}: expected a Kernel, a kernel file path or a k×k array of numbers, got "
+            f"{type(kernel).__name__} ({exc})"
+        ) from None
     kw: dict[str, Any] = {} if pitch_m is None else {"pitch_m": pitch_m}
     return Kernel(taps, name=name, **kw)
 
@@ -430,8 +432,9 @@ def _kernel_file_suffix(path: Path) -> str:
     except OSError as exc:
         raise KernelError(f"{src}: cannot read ({exc.strerror})") from None
     if n_bytes > MAX_KERNEL_FILE_BYTES:
-        raise KernelError(f"{src}: {n_bytes} bytes is too large for a kernel file "
-                          f"(limit {MAX_KERNEL_FILE_BYTES} bytes)")
+        raise KernelError(
+            f"{src}: {n_bytes} bytes is too large for a kernel file (limit {MAX_KERNEL_FILE_BYTES} bytes)"
+        )
     return suffix
 
 
@@ -467,8 +470,11 @@ def load_kernel(path: str | Path, *, pitch_m: float | None = None) -> Kernel:
         try:
             taps = np.load(path, allow_pickle=False)
         except (ValueError, EOFError, OSError) as exc:
-            why = ("not an .npy file, or an object array, which is never loaded" if "pickle" in str(exc)
-                   else type(exc).__name__)
+            why = (
+                "not an .npy file, or an object array, which is never loaded"
+                if "pickle" in str(exc)
+                else type(exc).__name__
+            )
             raise KernelError(f"{src}: not a plain numeric .npy array ({why})") from None
         if not isinstance(taps, np.ndarray):
             raise KernelError(f"{src}: not a plain .npy array (got a {type(taps).__name__})")
@@ -517,7 +523,7 @@ def _parse_csv(text: str, src: str) -> tuple[np.ndarray, dict[str, Any]]:
     meta: dict[str, Any] = {}
     if lines and lines[0].startswith("# fsdvs_hw "):
         try:
-            meta = json.loads(lines[0][len("# fsdvs_hw "):])
+            meta = json.loads(lines[0][len("# fsdvs_hw ") :])
         except (json.JSONDecodeError, RecursionError):
             raise KernelError(f"{src}: malformed '# fsdvs_hw' header line (not a JSON object)") from None
         if not isinstance(meta, dict):
@@ -641,9 +647,7 @@ def dog_taps(
     sc = _positive("sigma_centre_px", sigma_centre_px)
     ss = _positive("sigma_surround_px", sigma_surround_px)
     if ss <= sc:
-        raise KernelError(
-            f"sigma_surround_px ({ss}) must exceed sigma_centre_px ({sc}) for a centre-surround DoG"
-        )
+        raise KernelError(f"sigma_surround_px ({ss}) must exceed sigma_centre_px ({sc}) for a centre-surround DoG")
     wc, ws = float(w_centre), float(w_surround)
     if not (math.isfinite(wc) and math.isfinite(ws)) or wc <= 0 or ws < 0:
         raise KernelError(f"DoG weights must be finite with w_centre > 0, w_surround ≥ 0; got {wc}, {ws}")
@@ -677,9 +681,7 @@ REFERENCE_KERNELS: dict[str, Callable[..., np.ndarray]] = {
 }
 
 
-def reference_kernel(
-    name: str, size: int = 7, *, pitch_m: float = DEFAULT_PITCH_M, **params: float
-) -> Kernel:
+def reference_kernel(name: str, size: int = 7, *, pitch_m: float = DEFAULT_PITCH_M, **params: float) -> Kernel:
     """A reference kernel from :data:`REFERENCE_KERNELS`.
 
     Parameters

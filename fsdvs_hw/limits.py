@@ -98,8 +98,10 @@ def check_allocation(what: str, n_bytes: int | float) -> None:
     """
     limit = max_alloc_bytes()
     if n_bytes > limit:
-        raise InputError(f"{what}: would allocate {n_bytes / 2**30:.3g} GiB, more than the limit of "
-                         f"{limit / 2**30:.3g} GiB (raise it with ${_ENV} or fsdvs_hw.limits.allocation_limit)")
+        raise InputError(
+            f"{what}: would allocate {n_bytes / 2**30:.3g} GiB, more than the limit of "
+            f"{limit / 2**30:.3g} GiB (raise it with ${_ENV} or fsdvs_hw.limits.allocation_limit)"
+        )
 
 
 def check_count(what: str, value: object, lo: int, hi: int) -> int:

@@ -77,8 +77,9 @@ def _finite_1d(values: Any, name: str) -> np.ndarray:
     except (TypeError, ValueError):
         raise InputError(f"{name}: not an array of numbers") from None
     if arr.size < 2 or not np.all(np.isfinite(arr)):
-        raise InputError(f"{name}: {arr.size} values, {int(np.sum(~np.isfinite(arr)))} not finite; allowed: at "
-                         "least 2 finite values")
+        raise InputError(
+            f"{name}: {arr.size} values, {int(np.sum(~np.isfinite(arr)))} not finite; allowed: at least 2 finite values"
+        )
     return arr
 
 
@@ -175,8 +176,10 @@ def histogram_mi(counts: Any, *, correction: str = "miller_madow") -> np.ndarray
 
     c = np.asarray(counts, dtype=np.float64)
     if c.ndim < 2 or not np.all(np.isfinite(c)) or np.any(c < 0):
-        raise InputError(f"histogram_mi: counts of shape {c.shape}; allowed: finite non-negative counts with X and Y "
-                         "on the last two axes")
+        raise InputError(
+            f"histogram_mi: counts of shape {c.shape}; allowed: finite non-negative counts with X and Y "
+            "on the last two axes"
+        )
     if correction not in ("miller_madow", "none"):
         raise InputError(f"histogram_mi: correction={correction!r}; allowed: 'miller_madow', 'none'")
     n = c.sum(axis=(-2, -1))

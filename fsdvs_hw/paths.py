@@ -90,8 +90,10 @@ def confined_path(base: str | Path, path: str | Path, *, what: str) -> Path:
     p = Path(text)
     resolved = (p if p.is_absolute() else root / p).resolve()
     if resolved != root and root not in resolved.parents:
-        raise InputError(f"{what} = {text!r}: resolves to {resolved}, outside the design's folder {root}; "
-                         "paths in a design file must stay inside its folder (copy the file there)")
+        raise InputError(
+            f"{what} = {text!r}: resolves to {resolved}, outside the design's folder {root}; "
+            "paths in a design file must stay inside its folder (copy the file there)"
+        )
     return resolved
 
 
@@ -121,8 +123,9 @@ def output_file(path: str | Path, *, flag: str) -> Path:
     and it is not a symbolic link (writing would change the file the link points to)."""
     p = Path(path)
     if p.is_symlink():
-        raise InputError(f"{flag} {p}: is a symbolic link; refusing to write through it (remove the link or "
-                         "name another file)")
+        raise InputError(
+            f"{flag} {p}: is a symbolic link; refusing to write through it (remove the link or name another file)"
+        )
     if p.is_dir():
         raise InputError(f"{flag} {p}: is a folder, expected a file path")
     output_dir(p.parent if str(p.parent) else Path("."), flag=flag)

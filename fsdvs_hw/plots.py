@@ -33,8 +33,13 @@ def _one_kernel(kernels: Any) -> bool:
     """True if ``kernels`` is one kernel (a Kernel, a path, a 2-D array or nested list of numbers)."""
     if isinstance(kernels, (Kernel, str, Path)) or getattr(kernels, "ndim", None) == 2:
         return True
-    return (isinstance(kernels, (list, tuple)) and len(kernels) > 0 and isinstance(kernels[0], (list, tuple))
-            and len(kernels[0]) > 0 and np.isscalar(kernels[0][0]))
+    return (
+        isinstance(kernels, (list, tuple))
+        and len(kernels) > 0
+        and isinstance(kernels[0], (list, tuple))
+        and len(kernels[0]) > 0
+        and np.isscalar(kernels[0][0])
+    )
 
 
 def plot_kernel(
@@ -63,8 +68,15 @@ def plot_kernel(
         annotate = kernel.size <= 9
     if annotate:
         for (y, x), v in np.ndenumerate(t):
-            ax.text(x - r, y - r, f"{v:.2f}", ha="center", va="center", fontsize=7,
-                    color="white" if abs(v) > 0.6 * vmax else "black")
+            ax.text(
+                x - r,
+                y - r,
+                f"{v:.2f}",
+                ha="center",
+                va="center",
+                fontsize=7,
+                color="white" if abs(v) > 0.6 * vmax else "black",
+            )
     ax.set_xlabel("x (pixels)")
     ax.set_ylabel("y (pixels)")
     ax.set_title(title if title is not None else kernel.name, fontsize=9)
@@ -80,8 +92,9 @@ def plot_spectrum(
     fig, ax = _axes(ax)
     f, mag = magnitude_spectrum(kernel, n_fft)
     step = f[1] - f[0]
-    im = ax.imshow(mag, cmap="magma", origin="lower",
-                   extent=(f[0] - step / 2, f[-1] + step / 2, f[0] - step / 2, f[-1] + step / 2))
+    im = ax.imshow(
+        mag, cmap="magma", origin="lower", extent=(f[0] - step / 2, f[-1] + step / 2, f[0] - step / 2, f[-1] + step / 2)
+    )
     fig.colorbar(im, ax=ax, shrink=0.85, label="|H|")
     ax.set_xlabel("$f_x$ (cycles/pixel)")
     ax.set_ylabel("$f_y$ (cycles/pixel)")

@@ -56,8 +56,15 @@ def progress_enabled(progress: bool | None = None) -> bool:
         return False
 
 
-def progress_bar(iterable: Iterable[Any] | None = None, *, total: float | None = None, desc: str | None = None,
-                 unit: str = "it", progress: bool | None = None, **kwargs: Any) -> Any:
+def progress_bar(
+    iterable: Iterable[Any] | None = None,
+    *,
+    total: float | None = None,
+    desc: str | None = None,
+    unit: str = "it",
+    progress: bool | None = None,
+    **kwargs: Any,
+) -> Any:
     """A tqdm bar on stderr, shown per :func:`progress_enabled` (a disabled bar costs nothing).
 
     Parameters
@@ -81,5 +88,6 @@ def progress_bar(iterable: Iterable[Any] | None = None, *, total: float | None =
     from tqdm import tqdm
 
     kwargs.setdefault("dynamic_ncols", True)
-    return tqdm(iterable, total=total, desc=desc, unit=unit, file=sys.stderr,
-                disable=not progress_enabled(progress), **kwargs)
+    return tqdm(
+        iterable, total=total, desc=desc, unit=unit, file=sys.stderr, disable=not progress_enabled(progress), **kwargs
+    )

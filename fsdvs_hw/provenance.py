@@ -28,8 +28,18 @@ __all__ = ["NUMERICAL_PACKAGES", "ipopt_version", "library_versions"]
 
 #: Distributions whose arithmetic reaches a result (PyPI names), in the order they are listed.
 NUMERICAL_PACKAGES: tuple[str, ...] = (
-    "fsdvs_hw", "numpy", "scipy", "torch", "casadi", "nlopt", "colour-science", "scikit-image", "torchmetrics",
-    "pycocotools", "h5py", "imageio-ffmpeg",
+    "fsdvs_hw",
+    "numpy",
+    "scipy",
+    "torch",
+    "casadi",
+    "nlopt",
+    "colour-science",
+    "scikit-image",
+    "torchmetrics",
+    "pycocotools",
+    "h5py",
+    "imageio-ffmpeg",
 )
 
 

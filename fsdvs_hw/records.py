@@ -86,8 +86,9 @@ class Cost:
             item = _mapping(item, f"{where}.{name}")
             if "value" not in item or "unit" not in item:
                 raise InputError(f"{where}.{name}: a cost item needs 'value' and 'unit', got {sorted(item)}")
-            items[name] = CostItem(value=item["value"], unit=str(item["unit"]),
-                                   description=str(item.get("description", "")))
+            items[name] = CostItem(
+                value=item["value"], unit=str(item["unit"]), description=str(item.get("description", ""))
+            )
         return cls(items)
 
 
@@ -141,16 +142,34 @@ class TrackScore:
     def ok(self) -> bool:
         return self.status == "ok"
 
-    _TYPED = ("status", "metric", "metric_name", "per_seed", "n_seeds", "test_clips", "n_clips",
-              "n_clips_per_network", "event_rate", "wall_s")
+    _TYPED = (
+        "status",
+        "metric",
+        "metric_name",
+        "per_seed",
+        "n_seeds",
+        "test_clips",
+        "n_clips",
+        "n_clips_per_network",
+        "event_rate",
+        "wall_s",
+    )
 
     def to_dict(self) -> dict[str, Any]:
         if not self.ok:
             return {"status": self.status, **self.extra}
-        typed = {"status": self.status, "metric": float(self.metric), "metric_name": self.metric_name,
-                 "per_seed": list(self.per_seed), "n_seeds": int(self.n_seeds), "test_clips": self.test_clips,
-                 "n_clips": int(self.n_clips), "n_clips_per_network": int(self.n_clips_per_network),
-                 "event_rate": float(self.event_rate), "wall_s": float(self.wall_s)}
+        typed = {
+            "status": self.status,
+            "metric": float(self.metric),
+            "metric_name": self.metric_name,
+            "per_seed": list(self.per_seed),
+            "n_seeds": int(self.n_seeds),
+            "test_clips": self.test_clips,
+            "n_clips": int(self.n_clips),
+            "n_clips_per_network": int(self.n_clips_per_network),
+            "event_rate": float(self.event_rate),
+            "wall_s": float(self.wall_s),
+        }
         return {**typed, **self.extra}
 
     @classmethod
@@ -161,12 +180,19 @@ class TrackScore:
             return cls(status=status or "unknown", extra={k: v for k, v in data.items() if k != "status"})
         if not isinstance(data.get("metric"), (int, float)):
             raise InputError(f"{where}: status 'ok' but no numeric 'metric' ({data.get('metric')!r})")
-        return cls(status=status, metric=float(data["metric"]), metric_name=str(data.get("metric_name", "")),
-                   per_seed=tuple(data.get("per_seed", ())), n_clips=int(data.get("n_clips", 0)),
-                   n_clips_per_network=int(data.get("n_clips_per_network", 0)), n_seeds=int(data.get("n_seeds", 0)),
-                   test_clips=str(data.get("test_clips", "")), event_rate=_num(data.get("event_rate")),
-                   wall_s=_num(data.get("wall_s")),
-                   extra={k: v for k, v in data.items() if k not in cls._TYPED})
+        return cls(
+            status=status,
+            metric=float(data["metric"]),
+            metric_name=str(data.get("metric_name", "")),
+            per_seed=tuple(data.get("per_seed", ())),
+            n_clips=int(data.get("n_clips", 0)),
+            n_clips_per_network=int(data.get("n_clips_per_network", 0)),
+            n_seeds=int(data.get("n_seeds", 0)),
+            test_clips=str(data.get("test_clips", "")),
+            event_rate=_num(data.get("event_rate")),
+            wall_s=_num(data.get("wall_s")),
+            extra={k: v for k, v in data.items() if k not in cls._TYPED},
+        )
 
 
 @dataclass(frozen=True)
@@ -215,8 +241,12 @@ class WallTimes:
     emulation_s: float = math.nan
 
     def to_dict(self) -> dict[str, float]:
-        return {"fit": float(self.fit_s), "analysis": float(self.analysis_s), "tasks": float(self.tasks_s),
-                "emulation": float(self.emulation_s)}
+        return {
+            "fit": float(self.fit_s),
+            "analysis": float(self.analysis_s),
+            "tasks": float(self.tasks_s),
+            "emulation": float(self.emulation_s),
+        }
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, where: str = "wall_s") -> WallTimes:
@@ -296,17 +326,43 @@ class Score:
         """A copy with fields replaced (:func:`dataclasses.replace`)."""
         return replace(self, **changes)
 
-    _KEYS = ("kind", "label", "describe", "kernel", "kernel_error", "kernel_error_gain_free", "dc_gain", "asymmetry",
-             "spectral", "csf", "cost", "tasks", "emulation", "wall_s", "realisation", "warnings", "versions")
+    _KEYS = (
+        "kind",
+        "label",
+        "describe",
+        "kernel",
+        "kernel_error",
+        "kernel_error_gain_free",
+        "dc_gain",
+        "asymmetry",
+        "spectral",
+        "csf",
+        "cost",
+        "tasks",
+        "emulation",
+        "wall_s",
+        "realisation",
+        "warnings",
+        "versions",
+    )
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON-ready record (the store's, ``scores.json``'s and the report's one format)."""
         out: dict[str, Any] = {
-            "kind": self.kind, "label": self.label, "describe": self.describe, "kernel": self.kernel.to_dict(),
-            "kernel_error": float(self.kernel_error), "kernel_error_gain_free": float(self.kernel_error_gain_free),
-            "dc_gain": float(self.dc_gain), "asymmetry": float(self.asymmetry), "spectral": dict(self.spectral),
-            "csf": dict(self.csf), "cost": self.cost.to_dict(), "tasks": self.tasks.to_dict(),
-            "emulation": dict(self.emulation), "wall_s": self.wall.to_dict(),
+            "kind": self.kind,
+            "label": self.label,
+            "describe": self.describe,
+            "kernel": self.kernel.to_dict(),
+            "kernel_error": float(self.kernel_error),
+            "kernel_error_gain_free": float(self.kernel_error_gain_free),
+            "dc_gain": float(self.dc_gain),
+            "asymmetry": float(self.asymmetry),
+            "spectral": dict(self.spectral),
+            "csf": dict(self.csf),
+            "cost": self.cost.to_dict(),
+            "tasks": self.tasks.to_dict(),
+            "emulation": dict(self.emulation),
+            "wall_s": self.wall.to_dict(),
         }
         if self.realisation:
             out["realisation"] = dict(self.realisation)
@@ -325,10 +381,14 @@ class Score:
         if missing:
             raise InputError(f"{where}: not a score record (missing {', '.join(missing)})")
         return cls(
-            kind=str(data["kind"]), label=str(data.get("label", data["kind"])), describe=str(data.get("describe", "")),
+            kind=str(data["kind"]),
+            label=str(data.get("label", data["kind"])),
+            describe=str(data.get("describe", "")),
             kernel=Kernel.from_dict(data["kernel"], source=f"{where}.kernel"),
-            kernel_error=_num(data["kernel_error"]), kernel_error_gain_free=_num(data.get("kernel_error_gain_free")),
-            dc_gain=_num(data.get("dc_gain")), asymmetry=_num(data.get("asymmetry")),
+            kernel_error=_num(data["kernel_error"]),
+            kernel_error_gain_free=_num(data.get("kernel_error_gain_free")),
+            dc_gain=_num(data.get("dc_gain")),
+            asymmetry=_num(data.get("asymmetry")),
             spectral=_mapping(data.get("spectral", {}), f"{where}.spectral"),
             csf=_mapping(data.get("csf", {}), f"{where}.csf"),
             cost=Cost.from_dict(data.get("cost", {}), where=f"{where}.cost"),
@@ -403,18 +463,29 @@ class ScoredPoint:
         where = f"{where} {data['key']}"
         result = data.get("result") or {}
         ok = data["status"] == "ok"
-        return cls(key=str(data["key"]), realisation=str(data["realisation"]), params=data.get("params") or {},
-                   status=str(data["status"]), score=Score.from_dict(result, where=f"{where}.result") if ok else None,
-                   failure={} if ok else _mapping(result, f"{where}.result"),
-                   wall_s=_num(data.get("wall_s")), paired_loss=data.get("paired_loss") or {},
-                   extra={k: v for k, v in data.items() if k not in cls._KEYS})
+        return cls(
+            key=str(data["key"]),
+            realisation=str(data["realisation"]),
+            params=data.get("params") or {},
+            status=str(data["status"]),
+            score=Score.from_dict(result, where=f"{where}.result") if ok else None,
+            failure={} if ok else _mapping(result, f"{where}.result"),
+            wall_s=_num(data.get("wall_s")),
+            paired_loss=data.get("paired_loss") or {},
+            extra={k: v for k, v in data.items() if k not in cls._KEYS},
+        )
 
     def to_dict(self) -> dict[str, Any]:
         result = self.score.to_dict() if self.score is not None else dict(self.failure)
-        out = {"key": self.key, "realisation": self.realisation, "params": dict(self.params), "status": self.status,
-               "result": result, "wall_s": self.wall_s}
+        out = {
+            "key": self.key,
+            "realisation": self.realisation,
+            "params": dict(self.params),
+            "status": self.status,
+            "result": result,
+            "wall_s": self.wall_s,
+        }
         if self.paired_loss:
             out["paired_loss"] = dict(self.paired_loss)
         out.update(self.extra)
         return out
-

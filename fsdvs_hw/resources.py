@@ -46,14 +46,18 @@ def designs_dir() -> Path:
     embedded = package.joinpath("designs")
     if embedded.is_dir():
         if not isinstance(embedded, Path):
-            raise FileNotFoundError(f"fsdvs_hw's shipped designs are inside an archive ({embedded}); "
-                                    "install the wheel (pip install) instead of importing it from a zip")
+            raise FileNotFoundError(
+                f"fsdvs_hw's shipped designs are inside an archive ({embedded}); "
+                "install the wheel (pip install) instead of importing it from a zip"
+            )
         return embedded.resolve()
     checkout = Path(str(package)).resolve().parent / "designs"
     if (checkout / DEFAULT_DESIGN).is_file():
         return checkout
-    raise FileNotFoundError(f"fsdvs_hw: no shipped designs folder (looked in {embedded} and {checkout}); "
-                            "reinstall the package from its wheel or run from a full checkout")
+    raise FileNotFoundError(
+        f"fsdvs_hw: no shipped designs folder (looked in {embedded} and {checkout}); "
+        "reinstall the package from its wheel or run from a full checkout"
+    )
 
 
 def shipped_path(*parts: str) -> Path:
@@ -95,5 +99,6 @@ def resolve_design(arg: str | Path | None) -> Path:
         candidate = shipped_path(name)
         if candidate.is_file():
             return candidate
-    raise InputError(f"design {str(arg)!r}: no such file, and not a shipped design "
-                     f"(shipped: {', '.join(shipped_designs())})")
+    raise InputError(
+        f"design {str(arg)!r}: no such file, and not a shipped design (shipped: {', '.join(shipped_designs())})"
+    )

@@ -113,8 +113,12 @@ def field(default: Any, unit: str = "", doc: str = "", *, odd: bool = False, **b
     if odd:
         extra["odd"] = True
     if isinstance(default, (list, dict)):
-        return Field(default_factory=lambda d=default: json.loads(json.dumps(d)), description=doc,
-                     json_schema_extra=extra, **bounds)
+        return Field(
+            default_factory=lambda d=default: json.loads(json.dumps(d)),
+            description=doc,
+            json_schema_extra=extra,
+            **bounds,
+        )
     return Field(default, description=doc, json_schema_extra=extra, **bounds)
 
 
@@ -148,15 +152,17 @@ def structured(factory: str, what: str) -> Any:
             try:
                 _import(factory)(**value)
             except TypeError as exc:
-                raise PydanticCustomError("structured", "not valid {what} fields ({exc})",
-                                          {"what": what, "exc": str(exc)}) from None
+                raise PydanticCustomError(
+                    "structured", "not valid {what} fields ({exc})", {"what": what, "exc": str(exc)}
+                ) from None
             except InputError as exc:
                 raise PydanticCustomError("structured", "invalid ({exc})", {"exc": str(exc)}) from None
             return dict(value)
         return value
 
-    return Annotated[Any, PlainValidator(check),
-                     WithJsonSchema({"type": "object", "title": what, "description": f"{what} fields"})]
+    return Annotated[
+        Any, PlainValidator(check), WithJsonSchema({"type": "object", "title": what, "description": f"{what} fields"})
+    ]
 
 
 def _python_object(value: Any, info: ValidationInfo) -> Any:
@@ -170,8 +176,7 @@ def _python_object(value: Any, info: ValidationInfo) -> Any:
 
 
 #: A Python object the fit function checks itself (a ``Geometry``, a spectral distribution).
-PyObject = Annotated[Any, PlainValidator(_python_object),
-                     WithJsonSchema({"type": "array", "title": "Python object"})]
+PyObject = Annotated[Any, PlainValidator(_python_object), WithJsonSchema({"type": "array", "title": "Python object"})]
 
 
 def validate(model: type[BaseModel], values: Any, *, context: Mapping[str, Any] | None = None) -> BaseModel:
@@ -185,8 +190,15 @@ def validate(model: type[BaseModel], values: Any, *, context: Mapping[str, Any] 
 
 
 # ---------------------------------------------------------------------------------- messages
-_TYPE_WORDS = {"str": "string", "float": "number", "int": "integer", "bool": "boolean", "dict": "table",
-               "list": "list", "NoneType": "None"}
+_TYPE_WORDS = {
+    "str": "string",
+    "float": "number",
+    "int": "integer",
+    "bool": "boolean",
+    "dict": "table",
+    "list": "list",
+    "NoneType": "None",
+}
 _RANGE = {"greater_than", "greater_than_equal", "less_than", "less_than_equal", "odd"}
 
 
@@ -333,8 +345,11 @@ def problems(exc: ValidationError, model: type[BaseModel], *, prefix: str = "") 
         by_key.setdefault(key, []).append(entry)
     lines = []
     for key, errs in by_key.items():
-        err = next((e for e in errs if not e["type"].endswith("_type") and e["type"] != "literal_error"), None) \
-            or next((e for e in errs if e["type"] == "literal_error"), None) or errs[0]
+        err = (
+            next((e for e in errs if not e["type"].endswith("_type") and e["type"] != "literal_error"), None)
+            or next((e for e in errs if e["type"] == "literal_error"), None)
+            or errs[0]
+        )
         value: Any = err.get("input")
         if err["type"] == "extra_forbidden":
             table = _resolve(dict(err["_table"]), defs)

@@ -198,8 +198,10 @@ class ConfusionMIoU:
     def state(self) -> dict[str, np.ndarray]:
         """Arrays that rebuild this metric (:func:`metric_from_state`)."""
         small = self.confusions.max(initial=0) < 2**31
-        return {"kind": np.array("confusion_miou"),
-                "confusions": self.confusions.astype(np.int32 if small else np.float64)}
+        return {
+            "kind": np.array("confusion_miou"),
+            "confusions": self.confusions.astype(np.int32 if small else np.float64),
+        }
 
     def weighted(self, weights: Any) -> np.ndarray:
         w = _as_weights(weights, self.n_clips)
@@ -236,9 +238,16 @@ class _Category:
         return [np.flatnonzero(row) for row in self.tps]
 
 
-def coco_records(pred_boxes: np.ndarray, pred_scores: np.ndarray, pred_labels: np.ndarray, gt_boxes: np.ndarray,
-                 gt_labels: np.ndarray, *, num_classes: int, who: str = "coco_records"
-                 ) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]]]:
+def coco_records(
+    pred_boxes: np.ndarray,
+    pred_scores: np.ndarray,
+    pred_labels: np.ndarray,
+    gt_boxes: np.ndarray,
+    gt_labels: np.ndarray,
+    *,
+    num_classes: int,
+    who: str = "coco_records",
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]]]:
     """COCO ``images``, ``annotations`` and detection records of padded per-clip boxes.
 
     Boxes are ``(x0, y0, x1, y1)`` in pixels, shape (N, K, 4) predicted with (N, K) scores and
@@ -263,15 +272,29 @@ def coco_records(pred_boxes: np.ndarray, pred_scores: np.ndarray, pred_labels: n
             if not 0 <= c < num_classes:
                 raise InputError(f"{who}: gt label {int(c)} outside [0, {num_classes})")
             w, h = float(b[2] - b[0]), float(b[3] - b[1])
-            anns.append({"id": len(anns) + 1, "image_id": i, "category_id": int(c), "iscrowd": 0,
-                         "bbox": [float(b[0]), float(b[1]), w, h], "area": w * h})
+            anns.append(
+                {
+                    "id": len(anns) + 1,
+                    "image_id": i,
+                    "category_id": int(c),
+                    "iscrowd": 0,
+                    "bbox": [float(b[0]), float(b[1]), w, h],
+                    "area": w * h,
+                }
+            )
         for b, sc, c in zip(pred_boxes[i], pred_scores[i], pred_labels[i]):
             if c < 0 or not np.all(np.isfinite(b)) or not np.isfinite(sc):
                 continue
             if not 0 <= c < num_classes:
                 raise InputError(f"{who}: predicted label {int(c)} outside [0, {num_classes})")
-            dets.append({"image_id": i, "category_id": int(c), "score": float(sc),
-                         "bbox": [float(b[0]), float(b[1]), float(b[2] - b[0]), float(b[3] - b[1])]})
+            dets.append(
+                {
+                    "image_id": i,
+                    "category_id": int(c),
+                    "score": float(sc),
+                    "bbox": [float(b[0]), float(b[1]), float(b[2] - b[0]), float(b[3] - b[1])],
+                }
+            )
     return images, anns, dets
 
 
@@ -295,8 +318,14 @@ class CocoDetections:
         What :meth:`weighted` returns (:meth:`weighted_all` returns all three).
     """
 
-    def __init__(self, categories: list[_Category], iou_thresholds: np.ndarray, recall_thresholds: np.ndarray,
-                 n_clips: int, metric: str = "map") -> None:
+    def __init__(
+        self,
+        categories: list[_Category],
+        iou_thresholds: np.ndarray,
+        recall_thresholds: np.ndarray,
+        n_clips: int,
+        metric: str = "map",
+    ) -> None:
         if metric not in _COCO_METRICS:
             raise InputError(f"CocoDetections: metric {metric!r} unknown; allowed {', '.join(_COCO_METRICS)}")
         self.categories = categories
@@ -306,8 +335,17 @@ class CocoDetections:
         self.metric = metric
 
     @classmethod
-    def from_predictions(cls, pred_boxes: Any, pred_scores: Any, pred_labels: Any, gt_boxes: Any, gt_labels: Any,
-                         *, num_classes: int, metric: str = "map") -> CocoDetections:
+    def from_predictions(
+        cls,
+        pred_boxes: Any,
+        pred_scores: Any,
+        pred_labels: Any,
+        gt_boxes: Any,
+        gt_labels: Any,
+        *,
+        num_classes: int,
+        metric: str = "map",
+    ) -> CocoDetections:
         """Run ``COCOeval.evaluate`` once and keep every clip's matches per IoU threshold.
 
         Parameters are those of :func:`fsdvs_hw.tasks.metrics.detection_map` (boxes ``(x0, y0, x1,
@@ -323,16 +361,17 @@ class CocoDetections:
             or gb.ndim != 3
             or not (pb.shape[0] == ps.shape[0] == pl.shape[0] == gb.shape[0] == gl.shape[0])
         ):
-            raise InputError(f"CocoDetections: inconsistent shapes pred {pb.shape}, {ps.shape}, {pl.shape}; "
-                             f"gt {gb.shape}, {gl.shape}")
+            raise InputError(
+                f"CocoDetections: inconsistent shapes pred {pb.shape}, {ps.shape}, {pl.shape}; "
+                f"gt {gb.shape}, {gl.shape}"
+            )
         n = int(gb.shape[0])
         images, anns, dets = coco_records(pb, ps, pl, gb, gl, num_classes=num_classes, who="CocoDetections")
         if not anns:
             raise InputError("CocoDetections: no ground-truth boxes; mAP is undefined")
         with contextlib.redirect_stdout(io.StringIO()):
             gt = COCO()
-            gt.dataset = {"images": images, "annotations": anns,
-                          "categories": [{"id": c} for c in range(num_classes)]}
+            gt.dataset = {"images": images, "annotations": anns, "categories": [{"id": c} for c in range(num_classes)]}
             gt.createIndex()
             ev = COCOeval(gt, gt.loadRes(dets) if dets else COCO(), iouType="bbox")
             if not dets:
@@ -386,16 +425,27 @@ class CocoDetections:
             for a in gt.dataset["annotations"]:
                 if a["category_id"] == k:
                     ngt[a["image_id"]] += 1
-            cats.append(_Category(img=np.zeros(0, np.int64), tps=np.zeros((n_thr, 0), bool),
-                                  fps=np.zeros((n_thr, 0), bool), ngt=ngt, has_eval=ngt > 0))
+            cats.append(
+                _Category(
+                    img=np.zeros(0, np.int64),
+                    tps=np.zeros((n_thr, 0), bool),
+                    fps=np.zeros((n_thr, 0), bool),
+                    ngt=ngt,
+                    has_eval=ngt > 0,
+                )
+            )
         return cls(cats, params.iouThrs, params.recThrs, n, metric)
 
     def state(self) -> dict[str, np.ndarray]:
         """Arrays that rebuild this metric (:func:`metric_from_state`); matches bit-packed."""
-        out: dict[str, np.ndarray] = {"kind": np.array("coco_detections"), "metric": np.array(self.metric),
-                                      "iou_thresholds": self.iou_thresholds,
-                                      "recall_thresholds": self.recall_thresholds,
-                                      "n_clips": np.array(self.n_clips), "n_categories": np.array(len(self.categories))}
+        out: dict[str, np.ndarray] = {
+            "kind": np.array("coco_detections"),
+            "metric": np.array(self.metric),
+            "iou_thresholds": self.iou_thresholds,
+            "recall_thresholds": self.recall_thresholds,
+            "n_clips": np.array(self.n_clips),
+            "n_categories": np.array(len(self.categories)),
+        }
         for k, c in enumerate(self.categories):
             out[f"c{k}_img"] = c.img.astype(np.int32)
             out[f"c{k}_d"] = np.array(c.img.size)
@@ -411,11 +461,15 @@ class CocoDetections:
         cats = []
         for k in range(int(st["n_categories"])):
             d = int(st[f"c{k}_d"])
-            cats.append(_Category(img=np.asarray(st[f"c{k}_img"], np.int64),
-                                  tps=np.unpackbits(st[f"c{k}_tps"], axis=1, count=d).astype(bool),
-                                  fps=np.unpackbits(st[f"c{k}_fps"], axis=1, count=d).astype(bool),
-                                  ngt=np.asarray(st[f"c{k}_ngt"], np.int64),
-                                  has_eval=np.unpackbits(st[f"c{k}_has"], count=n).astype(bool)))
+            cats.append(
+                _Category(
+                    img=np.asarray(st[f"c{k}_img"], np.int64),
+                    tps=np.unpackbits(st[f"c{k}_tps"], axis=1, count=d).astype(bool),
+                    fps=np.unpackbits(st[f"c{k}_fps"], axis=1, count=d).astype(bool),
+                    ngt=np.asarray(st[f"c{k}_ngt"], np.int64),
+                    has_eval=np.unpackbits(st[f"c{k}_has"], count=n).astype(bool),
+                )
+            )
         return cls(cats, st["iou_thresholds"], st["recall_thresholds"], n, str(st["metric"]))
 
     def with_metric(self, metric: str) -> CocoDetections:
@@ -447,9 +501,11 @@ class CocoDetections:
         t50 = np.where(self.iou_thresholds == 0.5)[0]
         t75 = np.where(self.iou_thresholds == 0.75)[0]
         with np.errstate(invalid="ignore"), _quiet_nanmean():  # an all-NaN row (no gt drawn) stays NaN
-            return {"map": np.nanmean(ap.reshape(b_all, -1), axis=1),
-                    "map_50": np.nanmean(ap[:, t50[0], :], axis=1),
-                    "map_75": np.nanmean(ap[:, t75[0], :], axis=1)}
+            return {
+                "map": np.nanmean(ap.reshape(b_all, -1), axis=1),
+                "map_50": np.nanmean(ap[:, t50[0], :], axis=1),
+                "map_75": np.nanmean(ap[:, t75[0], :], axis=1),
+            }
 
     def _category_ap(self, cat: _Category, w: np.ndarray, npig: np.ndarray) -> np.ndarray:
         """Mean interpolated precision over recall thresholds, shape (B, T); NaN where npig = 0.
@@ -518,8 +574,9 @@ def metric_from_state(state: Mapping[str, Any]) -> ClipMetric:
         return ConfusionMIoU(state["confusions"])
     if kind == "coco_detections":
         return CocoDetections._from_state(state)
-    raise InputError(f"metric_from_state: unknown metric kind {kind!r}; allowed clip_means, confusion_miou, "
-                     f"coco_detections")
+    raise InputError(
+        f"metric_from_state: unknown metric kind {kind!r}; allowed clip_means, confusion_miou, coco_detections"
+    )
 
 
 # --------------------------------------------------------------------------- the interval
@@ -588,8 +645,13 @@ class DifferenceCI:
         return f"{self.estimate:.{digits}f} [{self.low:.{digits}f}, {self.high:.{digits}f}]"
 
     def to_dict(self) -> dict[str, Any]:
-        return {**self.__dict__, "resampled": list(self.resampled), "half_width": self.half_width,
-                "seed_variance_included": self.seed_variance_included, "contains_zero": self.contains_zero}
+        return {
+            **self.__dict__,
+            "resampled": list(self.resampled),
+            "half_width": self.half_width,
+            "seed_variance_included": self.seed_variance_included,
+            "contains_zero": self.contains_zero,
+        }
 
 
 def multiplicities(idx: np.ndarray, n: int) -> np.ndarray:
@@ -616,11 +678,20 @@ def _arm(metrics: Sequence[ClipMetric] | ClipMetric, name: str) -> list[ClipMetr
     return arm
 
 
-def difference_ci(reference: Sequence[ClipMetric] | ClipMetric, candidate: Sequence[ClipMetric] | ClipMetric, *,
-                  paired_seeds: bool = True, paired_clips: bool = True, nested_clips: bool = False,
-                  resample: Sequence[str] = ("clips", "seeds"),
-                  confidence: float = 0.95, n_resamples: int = DEFAULT_RESAMPLES, method: str = "percentile",
-                  rng: Any = 0, batch: int | None = 200) -> DifferenceCI:
+def difference_ci(
+    reference: Sequence[ClipMetric] | ClipMetric,
+    candidate: Sequence[ClipMetric] | ClipMetric,
+    *,
+    paired_seeds: bool = True,
+    paired_clips: bool = True,
+    nested_clips: bool = False,
+    resample: Sequence[str] = ("clips", "seeds"),
+    confidence: float = 0.95,
+    n_resamples: int = DEFAULT_RESAMPLES,
+    method: str = "percentile",
+    rng: Any = 0,
+    batch: int | None = 200,
+) -> DifferenceCI:
     """Bootstrap CI of ``metric(reference) − metric(candidate)`` over test clips and training seeds.
 
     Parameters
@@ -742,24 +813,37 @@ class _Task:
     nested: bool = False
 
 
-def _nested_task(tname: str, ref: list[ClipMetric], cands: list[list[ClipMetric]], resample: Sequence[str],
-                 paired_seeds: bool, paired_clips: bool) -> _Task:
+def _nested_task(
+    tname: str,
+    ref: list[ClipMetric],
+    cands: list[list[ClipMetric]],
+    resample: Sequence[str],
+    paired_seeds: bool,
+    paired_clips: bool,
+) -> _Task:
     """Validate one task of a nested design (network ``s`` on its own clips) and pick its slots."""
     if not (paired_seeds and paired_clips):
-        raise InputError(f"difference_ci: task {tname!r}: nested clips need paired_seeds and paired_clips "
-                         "(each network scores every kernel on its own clips)")
+        raise InputError(
+            f"difference_ci: task {tname!r}: nested clips need paired_seeds and paired_clips "
+            "(each network scores every kernel on its own clips)"
+        )
     for c in cands:
         if len(c) != len(ref):
-            raise InputError(f"difference_ci: task {tname!r}: paired seeds need one candidate per reference "
-                             f"network; got {len(ref)} and {len(c)}")
+            raise InputError(
+                f"difference_ci: task {tname!r}: paired seeds need one candidate per reference "
+                f"network; got {len(ref)} and {len(c)}"
+            )
         bad = [s for s, (a, m) in enumerate(zip(ref, c)) if a.n_clips != m.n_clips]
         if bad:
-            raise InputError(f"difference_ci: task {tname!r}: network {bad[0]} scored {ref[bad[0]].n_clips} "
-                             f"clips with the reference and {c[bad[0]].n_clips} with a candidate (nested clips: "
-                             "each network scores every kernel on the same clips)")
+            raise InputError(
+                f"difference_ci: task {tname!r}: network {bad[0]} scored {ref[bad[0]].n_clips} "
+                f"clips with the reference and {c[bad[0]].n_clips} with a candidate (nested clips: "
+                "each network scores every kernel on the same clips)"
+            )
     if any(m.n_clips < 2 for m in ref):
-        raise InputError(f"difference_ci: task {tname!r}: need at least 2 test clips per network, got "
-                         f"{[m.n_clips for m in ref]}")
+        raise InputError(
+            f"difference_ci: task {tname!r}: need at least 2 test clips per network, got {[m.n_clips for m in ref]}"
+        )
     if "seeds" in resample and len(ref) >= 2:
         slots = ["seeds"]  # whole (network, clips) clusters: carries the clip variance (module docstring)
     elif "clips" in resample:
@@ -819,8 +903,9 @@ def task_difference_cis(
     from scipy import stats
 
     _check_bootstrap_settings(resample, confidence, n_resamples, method)
-    names, parsed = _parse_tasks(tasks, nested_clips=nested_clips, resample=resample, paired_seeds=paired_seeds,
-                                 paired_clips=paired_clips)
+    names, parsed = _parse_tasks(
+        tasks, nested_clips=nested_clips, resample=resample, paired_seeds=paired_seeds, paired_clips=paired_clips
+    )
     wts = _task_weights(weights, parsed)
     layout = [(t, sl) for t, task in parsed.items() for sl in task.slots]
     statistic = _difference_statistic(parsed, layout, wts, paired_clips=paired_clips, paired_seeds=paired_seeds)
@@ -830,10 +915,18 @@ def task_difference_cis(
         ses = np.zeros_like(estimate)
         n_res = 0
     else:
-        res = stats.bootstrap(tuple(np.arange(_slot_size(parsed[t], sl)) for t, sl in layout), statistic,
-                              paired=False, vectorized=True, axis=-1, confidence_level=confidence,
-                              n_resamples=n_resamples, method=method, random_state=np.random.default_rng(rng),
-                              batch=batch)
+        res = stats.bootstrap(
+            tuple(np.arange(_slot_size(parsed[t], sl)) for t, sl in layout),
+            statistic,
+            paired=False,
+            vectorized=True,
+            axis=-1,
+            confidence_level=confidence,
+            n_resamples=n_resamples,
+            method=method,
+            random_state=np.random.default_rng(rng),
+            batch=batch,
+        )
         lows, highs = np.asarray(res.confidence_interval.low), np.asarray(res.confidence_interval.high)
         ses, n_res = np.asarray(res.standard_error), n_resamples
     out: dict[str, dict[str, DifferenceCI]] = {}
@@ -842,20 +935,42 @@ def task_difference_cis(
         out[cname] = {}
         for j, t in enumerate(tnames):
             task = parsed[t]
-            out[cname][t] = DifferenceCI(float(estimate[i, j]), float(lows[i, j]), float(highs[i, j]), confidence,
-                                         task.n, len(task.ref), len(task.cands[i]), paired_clips, paired_seeds,
-                                         _resampled(task), method, n_res if task.slots else 0, float(ses[i, j]),
-                                         "nested" if task.nested else "crossed")
+            out[cname][t] = DifferenceCI(
+                float(estimate[i, j]),
+                float(lows[i, j]),
+                float(highs[i, j]),
+                confidence,
+                task.n,
+                len(task.ref),
+                len(task.cands[i]),
+                paired_clips,
+                paired_seeds,
+                _resampled(task),
+                method,
+                n_res if task.slots else 0,
+                float(ses[i, j]),
+                "nested" if task.nested else "crossed",
+            )
         if wts is not None:
             used = [t for t, wt in zip(tnames, wts) if wt > 0]
             resampled = tuple(dict.fromkeys(f for t in used for f in _resampled(parsed[t])))
             j = len(tnames)
             out[cname]["weighted"] = DifferenceCI(
-                float(estimate[i, j]), float(lows[i, j]), float(highs[i, j]), confidence,
-                sum(parsed[t].n for t in used), min(len(parsed[t].ref) for t in used),
-                min(len(parsed[t].cands[i]) for t in used), paired_clips, paired_seeds, resampled, method,
-                n_res if resampled else 0, float(ses[i, j]),
-                "nested" if any(parsed[t].nested for t in used) else "crossed")
+                float(estimate[i, j]),
+                float(lows[i, j]),
+                float(highs[i, j]),
+                confidence,
+                sum(parsed[t].n for t in used),
+                min(len(parsed[t].ref) for t in used),
+                min(len(parsed[t].cands[i]) for t in used),
+                paired_clips,
+                paired_seeds,
+                resampled,
+                method,
+                n_res if resampled else 0,
+                float(ses[i, j]),
+                "nested" if any(parsed[t].nested for t in used) else "crossed",
+            )
     return out
 
 
@@ -872,8 +987,14 @@ def _check_bootstrap_settings(resample: Sequence[str], confidence: float, n_resa
         raise InputError(f"difference_ci: method must be 'percentile', 'BCa' or 'basic', got {method!r}")
 
 
-def _parse_tasks(tasks: Mapping[str, tuple[Any, Mapping[str, Any]]], *, nested_clips: bool | Mapping[str, bool],
-                 resample: Sequence[str], paired_seeds: bool, paired_clips: bool) -> tuple[list[str], dict[str, _Task]]:
+def _parse_tasks(
+    tasks: Mapping[str, tuple[Any, Mapping[str, Any]]],
+    *,
+    nested_clips: bool | Mapping[str, bool],
+    resample: Sequence[str],
+    paired_seeds: bool,
+    paired_clips: bool,
+) -> tuple[list[str], dict[str, _Task]]:
     """Candidate names and, per task, its arms and the index slots the bootstrap resamples."""
     if not tasks:
         raise InputError("difference_ci: no tasks")
@@ -883,8 +1004,10 @@ def _parse_tasks(tasks: Mapping[str, tuple[Any, Mapping[str, Any]]], *, nested_c
         if names is None:
             names = list(candidates)
         if list(candidates) != names or not names:
-            raise InputError(f"difference_ci: task {tname!r} lists candidates {list(candidates)}, expected {names} "
-                             f"(every task must score the same, non-empty set of candidates)")
+            raise InputError(
+                f"difference_ci: task {tname!r} lists candidates {list(candidates)}, expected {names} "
+                f"(every task must score the same, non-empty set of candidates)"
+            )
         ref = _arm(reference, "reference")
         cands = [_arm(candidates[k], f"candidate {k!r}") for k in names]
         if nested_clips.get(tname, False) if isinstance(nested_clips, Mapping) else nested_clips:
@@ -892,17 +1015,23 @@ def _parse_tasks(tasks: Mapping[str, tuple[Any, Mapping[str, Any]]], *, nested_c
             continue
         n = ref[0].n_clips
         if any(m.n_clips != n for m in ref) or any(m.n_clips != n for c in cands for m in c):
-            raise InputError(f"difference_ci: task {tname!r}: every metric must cover the same clips; got "
-                             f"{[m.n_clips for m in ref]} (reference) and {[[m.n_clips for m in c] for c in cands]}")
+            raise InputError(
+                f"difference_ci: task {tname!r}: every metric must cover the same clips; got "
+                f"{[m.n_clips for m in ref]} (reference) and {[[m.n_clips for m in c] for c in cands]}"
+            )
         if n < 2:
             raise InputError(f"difference_ci: task {tname!r}: need at least 2 test clips, got {n}")
         n_cs = {len(c) for c in cands}
         if paired_seeds and n_cs != {len(ref)}:
-            raise InputError(f"difference_ci: task {tname!r}: paired seeds need one candidate per reference network; "
-                             f"got {len(ref)} and {sorted(n_cs)} (pass paired_seeds=False for different networks)")
+            raise InputError(
+                f"difference_ci: task {tname!r}: paired seeds need one candidate per reference network; "
+                f"got {len(ref)} and {sorted(n_cs)} (pass paired_seeds=False for different networks)"
+            )
         if not paired_seeds and len(n_cs) != 1:
-            raise InputError(f"difference_ci: task {tname!r}: unpaired seeds need the same number of seeds in "
-                             f"every candidate, got {sorted(n_cs)}")
+            raise InputError(
+                f"difference_ci: task {tname!r}: unpaired seeds need the same number of seeds in "
+                f"every candidate, got {sorted(n_cs)}"
+            )
         slots: list[str] = []
         if "clips" in resample:
             slots += ["clips"] if paired_clips else ["clips_ref", "clips_cand"]
@@ -933,8 +1062,14 @@ def _slot_size(task: _Task, slot: str) -> int:
     return task.n if slot.startswith("clips") else (len(task.cands[0]) if slot == "seeds_cand" else len(task.ref))
 
 
-def _difference_statistic(parsed: Mapping[str, _Task], layout: Sequence[tuple[str, str]], wts: np.ndarray | None, *,
-                          paired_clips: bool, paired_seeds: bool) -> Any:
+def _difference_statistic(
+    parsed: Mapping[str, _Task],
+    layout: Sequence[tuple[str, str]],
+    wts: np.ndarray | None,
+    *,
+    paired_clips: bool,
+    paired_seeds: bool,
+) -> Any:
     """The vectorised bootstrap statistic: every candidate's per-task loss (and weighted mean).
 
     Takes one index sample per ``layout`` slot (``scipy.stats.bootstrap``'s ``*data``) and returns
@@ -947,8 +1082,13 @@ def _difference_statistic(parsed: Mapping[str, _Task], layout: Sequence[tuple[st
 
     def nested_value(arm: list[ClipMetric], wcs: list[np.ndarray | None], ws: np.ndarray) -> np.ndarray:
         b = ws.shape[0]
-        vals = np.stack([np.full(b, m.weighted(np.ones((1, m.n_clips)))[0]) if wc is None else m.weighted(wc)
-                         for m, wc in zip(arm, wcs)], axis=1)  # (B, S)
+        vals = np.stack(
+            [
+                np.full(b, m.weighted(np.ones((1, m.n_clips)))[0]) if wc is None else m.weighted(wc)
+                for m, wc in zip(arm, wcs)
+            ],
+            axis=1,
+        )  # (B, S)
         return (vals * ws).sum(axis=1) / ws.sum(axis=1)
 
     def statistic(*idx: np.ndarray, axis: int = -1) -> np.ndarray:
@@ -957,13 +1097,16 @@ def _difference_statistic(parsed: Mapping[str, _Task], layout: Sequence[tuple[st
         got = {key: arr.reshape(b, -1) for key, arr in zip(layout, idx)}
         per_task = []
         for t, task in parsed.items():
+
             def w(sl: str, n_items: int) -> np.ndarray:
                 return multiplicities(got[(t, sl)], n_items) if (t, sl) in got else np.ones((b, n_items))  # noqa: B023 - called in this iteration
 
             if task.nested:
                 ws = w("seeds", len(task.ref))
-                wcs = [multiplicities(got[(t, f"clips@{s}")], m.n_clips) if (t, f"clips@{s}") in got else None
-                       for s, m in enumerate(task.ref)]
+                wcs = [
+                    multiplicities(got[(t, f"clips@{s}")], m.n_clips) if (t, f"clips@{s}") in got else None
+                    for s, m in enumerate(task.ref)
+                ]
                 r = nested_value(task.ref, wcs, ws)
                 per_task.append(np.stack([r - nested_value(c, wcs, ws) for c in task.cands]))  # (C, B)
                 continue
@@ -982,9 +1125,14 @@ def _difference_statistic(parsed: Mapping[str, _Task], layout: Sequence[tuple[st
     return statistic
 
 
-def clips_for_half_width(pilot: DifferenceCI, target_half_width: float = 0.01, *,
-                         seed_half_width: float = 0.0, seed_noise_half_width: float = 0.0,
-                         max_clips: int = 100_000) -> int:
+def clips_for_half_width(
+    pilot: DifferenceCI,
+    target_half_width: float = 0.01,
+    *,
+    seed_half_width: float = 0.0,
+    seed_noise_half_width: float = 0.0,
+    max_clips: int = 100_000,
+) -> int:
     """Test clips needed for a CI half-width ``target_half_width``, from a pilot interval.
 
     The CI's variance has a part that falls as ``1/n`` — clip sampling, ``h_c`` in the clip-only
@@ -1022,7 +1170,9 @@ def clips_for_half_width(pilot: DifferenceCI, target_half_width: float = 0.01, *
         raise InputError("clips_for_half_width: the pilot interval must resample clips")
     room = target_half_width**2 - seed_half_width**2
     if room <= 0:
-        raise InputError(f"clips_for_half_width: the seed-to-seed part of the CI (± {seed_half_width:.4f}) is at "
-                         f"least the target ± {target_half_width:.4f}; more clips cannot reach it (train more seeds)")
+        raise InputError(
+            f"clips_for_half_width: the seed-to-seed part of the CI (± {seed_half_width:.4f}) is at "
+            f"least the target ± {target_half_width:.4f}; more clips cannot reach it (train more seeds)"
+        )
     n = math.ceil(pilot.n_clips * (pilot.half_width**2 + seed_noise_half_width**2) / room)
     return int(min(max(n, 2), max_clips))

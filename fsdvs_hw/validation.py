@@ -82,6 +82,7 @@ def check_fit_arguments(options: type[BaseModel], arguments: Mapping[str, Any]) 
 # arguments before any work, so a wrong type or value costs one line naming the argument, the value
 # and what is allowed, never a traceback from inside torch or numpy.
 
+
 def _allowed_range(lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> str:
     a = "-inf" if lo is None else f"{lo:g}"
     b = "inf" if hi is None else f"{hi:g}"
@@ -105,8 +106,16 @@ def check_int(name: str, value: Any, lo: int | None = None, hi: int | None = Non
     return v
 
 
-def check_real(name: str, value: Any, lo: float | None = None, hi: float | None = None, *,
-               lo_open: bool = False, hi_open: bool = False, unit: str = "") -> float:
+def check_real(
+    name: str,
+    value: Any,
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    lo_open: bool = False,
+    hi_open: bool = False,
+    unit: str = "",
+) -> float:
     """``value`` as a finite float in the range (ints and numpy numbers accepted; bools refused).
 
     Raises
@@ -138,21 +147,23 @@ def check_bool(name: str, value: Any, *, nullable: bool = False) -> bool | None:
     if value is None and nullable:
         return None
     if not isinstance(value, (bool, np.bool_)):
-        raise InputError(f"{name}={_show(value)}: wrong type {type(value).__name__}; allowed: True or False"
-                         + (" or None" if nullable else ""))
+        raise InputError(
+            f"{name}={_show(value)}: wrong type {type(value).__name__}; allowed: True or False"
+            + (" or None" if nullable else "")
+        )
     return bool(value)
 
 
-def check_instance(name: str, value: Any, types: type | tuple[type, ...], what: str, *,
-                   nullable: bool = False) -> Any:
+def check_instance(name: str, value: Any, types: type | tuple[type, ...], what: str, *, nullable: bool = False) -> Any:
     """``value`` itself if it is an instance of ``types`` (or ``None`` when ``nullable``).
 
     ``what`` says what is allowed in words (``"a SensorConfig"``).
     """
     if (value is None and nullable) or isinstance(value, types):
         return value
-    raise InputError(f"{name}={_show(value)}: wrong type {type(value).__name__}; allowed: {what}"
-                     + (" or None" if nullable else ""))
+    raise InputError(
+        f"{name}={_show(value)}: wrong type {type(value).__name__}; allowed: {what}" + (" or None" if nullable else "")
+    )
 
 
 def check_increasing_times(name: str, times: Any) -> np.ndarray:
@@ -161,8 +172,10 @@ def check_increasing_times(name: str, times: Any) -> np.ndarray:
     Accepts any array-like (lists, numpy arrays, CPU or GPU tensors).
     """
     if isinstance(times, (str, bytes)) or times is None:
-        raise InputError(f"{name}={_show(times)}: wrong type {type(times).__name__}; allowed: a 1-D array of "
-                         "frame times in seconds, finite and strictly increasing")
+        raise InputError(
+            f"{name}={_show(times)}: wrong type {type(times).__name__}; allowed: a 1-D array of "
+            "frame times in seconds, finite and strictly increasing"
+        )
     try:
         if hasattr(times, "detach"):
             times = times.detach().cpu().numpy()
@@ -177,6 +190,8 @@ def check_increasing_times(name: str, times: Any) -> np.ndarray:
     steps = np.diff(ts)
     if not (steps > 0).all():
         bad = int(np.nonzero(steps <= 0)[0][0]) + 1
-        raise InputError(f"{name}: must be strictly increasing; time {bad} ({ts[bad]:g} s) is not later than "
-                         f"time {bad - 1} ({ts[bad - 1]:g} s)")
+        raise InputError(
+            f"{name}: must be strictly increasing; time {bad} ({ts[bad]:g} s) is not later than "
+            f"time {bad - 1} ({ts[bad - 1]:g} s)"
+        )
     return ts

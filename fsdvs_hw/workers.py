@@ -40,8 +40,9 @@ def process_pool(max_workers: int, *, initializer: Any = None, initargs: tuple[A
     from concurrent.futures import ProcessPoolExecutor
 
     ctx = mp.get_context("spawn")  # fork after torch/BLAS threads started can deadlock
-    return ProcessPoolExecutor(max_workers=max_workers, mp_context=ctx, initializer=_init_worker,
-                               initargs=(os.getpid(), initializer, initargs))
+    return ProcessPoolExecutor(
+        max_workers=max_workers, mp_context=ctx, initializer=_init_worker, initargs=(os.getpid(), initializer, initargs)
+    )
 
 
 def _init_worker(parent_pid: int, initializer: Any, initargs: tuple[Any, ...]) -> None:

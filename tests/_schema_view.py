@@ -67,8 +67,24 @@ def _view(model, name, node, default, unit, doc, odd) -> FieldView:
                 hi = m.get("maximum", m.get("exclusiveMaximum"))
                 lo_open, hi_open = "exclusiveMinimum" in m, "exclusiveMaximum" in m
     table = any(m.get("type") == "object" for m in members(node))
-    return FieldView(model, name, frozenset(kinds), default, unit, doc, lo, hi, lo_open, hi_open, choices,
-                     nullable, odd, length, item, table)
+    return FieldView(
+        model,
+        name,
+        frozenset(kinds),
+        default,
+        unit,
+        doc,
+        lo,
+        hi,
+        lo_open,
+        hi_open,
+        choices,
+        nullable,
+        odd,
+        length,
+        item,
+        table,
+    )
 
 
 def view(model: type[BaseModel], name: str) -> FieldView:

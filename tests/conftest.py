@@ -15,8 +15,15 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 from hypothesis import HealthCheck, settings  # noqa: E402
 
 settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
-settings.register_profile("fuzz", max_examples=1000, derandomize=False, database=None, print_blob=True,
-                          deadline=None, suppress_health_check=list(HealthCheck))
+settings.register_profile(
+    "fuzz",
+    max_examples=1000,
+    derandomize=False,
+    database=None,
+    print_blob=True,
+    deadline=None,
+    suppress_health_check=list(HealthCheck),
+)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 

@@ -61,15 +61,23 @@ BAD_CALLS = {
     "event_list config int": (lambda: sensor.event_list(V, config=3), "config"),
     "event_list progress str": (lambda: sensor.event_list(V, progress="no"), "progress"),
     "voxel_grid n_bins str": (lambda: sensor.voxel_grid(torch.ones(1, 2, 2, 4, 4), "3"), "n_bins"),
-    "voxel_grid timestamps str": (lambda: sensor.voxel_grid(torch.ones(1, 2, 2, 4, 4), 3, timestamps_s="abc"),
-                                  "timestamps_s"),
+    "voxel_grid timestamps str": (
+        lambda: sensor.voxel_grid(torch.ones(1, 2, 2, 4, 4), 3, timestamps_s="abc"),
+        "timestamps_s",
+    ),
     "voxel_grid signed str": (lambda: sensor.voxel_grid(torch.ones(1, 2, 2, 4, 4), 3, signed="no"), "signed"),
-    "voxel_grid frames numpy int": (lambda: sensor.voxel_grid(torch.ones(1, 2, 2, 4, 4, dtype=torch.int64), 3),
-                                    "frames"),
-    "voxel_grid height str": (lambda: sensor.voxel_grid(sensor.event_list(V, config=CLEAN), 3,
-                                                        timestamps_s=[0, 1, 2], height="8", width=8), "height"),
-    "voxel_grid height negative": (lambda: sensor.voxel_grid(sensor.event_list(V, config=CLEAN), 3,
-                                                             timestamps_s=[0, 1, 2], height=-8, width=8), "height"),
+    "voxel_grid frames numpy int": (
+        lambda: sensor.voxel_grid(torch.ones(1, 2, 2, 4, 4, dtype=torch.int64), 3),
+        "frames",
+    ),
+    "voxel_grid height str": (
+        lambda: sensor.voxel_grid(sensor.event_list(V, config=CLEAN), 3, timestamps_s=[0, 1, 2], height="8", width=8),
+        "height",
+    ),
+    "voxel_grid height negative": (
+        lambda: sensor.voxel_grid(sensor.event_list(V, config=CLEAN), 3, timestamps_s=[0, 1, 2], height=-8, width=8),
+        "height",
+    ),
     "SensorConfig threshold str": (lambda: sensor.SensorConfig(threshold_on="abc"), "threshold_on"),
     "SensorConfig threshold 0": (lambda: sensor.SensorConfig(threshold_off=0.0), "threshold_off"),
     "SensorConfig placement list": (lambda: sensor.SensorConfig(placement=["pre_log"]), "placement"),
@@ -113,12 +121,18 @@ BAD_CALLS = {
     "learn_kernel size float": (lambda: _tasks().learn_kernel("detection", 3.0), "size"),
     "evaluate_kernel checkpoint int": (lambda: _tasks().evaluate_kernel(None, "detection", 3), "checkpoint"),
     "evaluate_kernel sensor str": (lambda: _tasks().evaluate_kernel(None, "detection", "c", sensor="x"), "sensor"),
-    "evaluate_kernel lr str": (lambda: _tasks().evaluate_kernel(None, "detection", "c", finetune_lr="x"),
-                               "finetune_lr"),
-    "evaluate_kernel events_fn int": (lambda: _tasks().evaluate_kernel(None, "detection", "c", events_fn=3),
-                                      "events_fn"),
-    "event_representation numpy": (lambda: __import__("fsdvs_hw.tasks.networks", fromlist=["x"])
-                                   .event_representation(np.zeros((1, 2, 2, 4, 4))), "frames"),
+    "evaluate_kernel lr str": (
+        lambda: _tasks().evaluate_kernel(None, "detection", "c", finetune_lr="x"),
+        "finetune_lr",
+    ),
+    "evaluate_kernel events_fn int": (
+        lambda: _tasks().evaluate_kernel(None, "detection", "c", events_fn=3),
+        "events_fn",
+    ),
+    "event_representation numpy": (
+        lambda: __import__("fsdvs_hw.tasks.networks", fromlist=["x"]).event_representation(np.zeros((1, 2, 2, 4, 4))),
+        "frames",
+    ),
 }
 
 
@@ -188,8 +202,9 @@ def test_extreme_finite_videos_give_finite_frames_and_events(value, setting):
     # counting the events per interval reproduces the frames, as for any valid video
     counts = torch.zeros_like(frames).double()
     k = torch.bucketize(ev.t, torch.arange(3, dtype=torch.float64) / cfg.frame_rate_hz, right=False) - 1
-    counts.index_put_((ev.b, k, (ev.p < 0).long(), ev.y, ev.x), torch.ones(len(ev), dtype=torch.float64),
-                      accumulate=True)
+    counts.index_put_(
+        (ev.b, k, (ev.p < 0).long(), ev.y, ev.x), torch.ones(len(ev), dtype=torch.float64), accumulate=True
+    )
     assert torch.equal(counts, frames.double())
 
 
@@ -253,9 +268,11 @@ def test_design_refuses_a_kernel_larger_than_a_checkpoints_clips(tmp_path):
 
     _fake_checkpoint(tmp_path / "small.safetensors", 8, 8)
     _fake_checkpoint(tmp_path / "big.safetensors", 32, 32)
-    raw = {"kernel": {"source": "reference", "family": "dog", "size": 9},
-           "tasks": {"checkpoints": {"detection": ["big.safetensors", "small.safetensors"]}},
-           "emulation": {"enabled": False}}
+    raw = {
+        "kernel": {"source": "reference", "family": "dog", "size": 9},
+        "tasks": {"checkpoints": {"detection": ["big.safetensors", "small.safetensors"]}},
+        "emulation": {"enabled": False},
+    }
     with pytest.raises(DesignError) as err:
         parse_design(raw, base_dir=tmp_path)
     msg = str(err.value)
@@ -281,18 +298,38 @@ def test_design_refuses_an_emulation_that_cannot_render_its_clips():
 
 # ---------------------------------------------------------------------------- property
 _values = st.one_of(
-    st.none(), st.booleans(), st.integers(-5, 5), st.floats(allow_nan=True, allow_infinity=True),
-    st.text(max_size=3), st.lists(st.floats(0, 2), max_size=3),
-    st.sampled_from([np.zeros((1, 2, 3, 3)), np.full((1, 2, 3, 3), 3e38), np.ones((1, 3, 2, 2), dtype=np.int64),
-                     np.array(["a"]), torch.rand(1, 2, 3, 3), torch.rand(2, 3, 4), torch.zeros(1, 2, 2, 2) - 1]),
+    st.none(),
+    st.booleans(),
+    st.integers(-5, 5),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=3),
+    st.lists(st.floats(0, 2), max_size=3),
+    st.sampled_from(
+        [
+            np.zeros((1, 2, 3, 3)),
+            np.full((1, 2, 3, 3), 3e38),
+            np.ones((1, 3, 2, 2), dtype=np.int64),
+            np.array(["a"]),
+            torch.rand(1, 2, 3, 3),
+            torch.rand(2, 3, 4),
+            torch.zeros(1, 2, 2, 2) - 1,
+        ]
+    ),
 )
-_kwargs = st.fixed_dictionaries({}, optional={
-    "kernel": st.one_of(st.none(), st.integers(-2, 2), st.text(max_size=2), st.sampled_from(
-        [np.ones((3, 3)), np.ones((2, 2)), torch.zeros(3, 3), [[1.0]]])),
-    "timestamps_s": _values,
-    "config": st.one_of(st.none(), st.text(max_size=2), st.sampled_from([CLEAN, sensor.SensorConfig()])),
-    "generator": st.one_of(st.none(), st.integers(0, 2)),
-})
+_kwargs = st.fixed_dictionaries(
+    {},
+    optional={
+        "kernel": st.one_of(
+            st.none(),
+            st.integers(-2, 2),
+            st.text(max_size=2),
+            st.sampled_from([np.ones((3, 3)), np.ones((2, 2)), torch.zeros(3, 3), [[1.0]]]),
+        ),
+        "timestamps_s": _values,
+        "config": st.one_of(st.none(), st.text(max_size=2), st.sampled_from([CLEAN, sensor.SensorConfig()])),
+        "generator": st.one_of(st.none(), st.integers(0, 2)),
+    },
+)
 
 
 @settings(max_examples=50, derandomize=True, deadline=None, suppress_health_check=list(HealthCheck))

@@ -81,8 +81,9 @@ def test_writer_reference_and_returned_names_are_checked(tmp_path):
     spec = REALISATIONS["learned"]
     with pytest.raises(InputError, match="write_artifacts must be 'module:name'"):
         RealisationSpec(name="x", fit=spec.fit, write_artifacts="no_colon_here")
-    rogue = RealisationSpec(name="x", fit=spec.fit, artifacts={"a": "declared"},
-                            write_artifacts="tests.test_artifacts:_undeclared_writer")
+    rogue = RealisationSpec(
+        name="x", fit=spec.fit, artifacts={"a": "declared"}, write_artifacts="tests.test_artifacts:_undeclared_writer"
+    )
     with pytest.raises(InputError, match="returned 'b'; declared artifacts: a"):
         rogue.write_artifacts_of(None, tmp_path)
 
@@ -148,7 +149,7 @@ def test_mesh_operating_point_is_the_decks_own_circuit(mesh_dir):
     n = math.isqrt(len(rows))
     k = np.array([float(r["kernel_tap_1"]) for r in rows]).reshape(n, n)
     h = n // 2
-    assert np.abs(k[h - 3:h + 4, h - 3:h + 4] - d.kernel_taps(7)).max() < 1e-3 * np.abs(d.kernel_taps(7)).max()
+    assert np.abs(k[h - 3 : h + 4, h - 3 : h + 4] - d.kernel_taps(7)).max() < 1e-3 * np.abs(d.kernel_taps(7)).max()
     i_n = np.array([float(r["i_narrow_A"]) for r in rows])
     assert np.allclose(i_n, d.g_vertical_narrow_s * np.array([float(r["v_narrow_V"]) for r in rows]), rtol=1e-15)
 
@@ -223,14 +224,18 @@ def test_verilator_reports_no_warning_on_the_generated_verilog(tmp_path, bits, s
     from fsdvs_hw.realise.asic.rtl import generate_datapath_verilog, generate_verilog
 
     q = fit_asic_taps(reference_kernel("dog", k), bits=bits, symmetry=symmetry).taps
-    for name, src in (("fsdvs_conv", generate_verilog(q, input_bits=8, image_width=33, image_height=9,
-                                                        out_shift=out_shift, symmetry=symmetry)),
-                      ("fsdvs_datapath", generate_datapath_verilog(q, input_bits=8, out_shift=out_shift,
-                                                                   symmetry=symmetry))):
+    for name, src in (
+        (
+            "fsdvs_conv",
+            generate_verilog(q, input_bits=8, image_width=33, image_height=9, out_shift=out_shift, symmetry=symmetry),
+        ),
+        ("fsdvs_datapath", generate_datapath_verilog(q, input_bits=8, out_shift=out_shift, symmetry=symmetry)),
+    ):
         assert "lint_off" not in src
         (tmp_path / f"{name}.v").write_text(src)
-        r = subprocess.run([verilator, "--lint-only", "-Wall", f"{name}.v"], cwd=tmp_path, capture_output=True,
-                           text=True, timeout=120)
+        r = subprocess.run(
+            [verilator, "--lint-only", "-Wall", f"{name}.v"], cwd=tmp_path, capture_output=True, text=True, timeout=120
+        )
         assert r.returncode == 0 and "%Warning" not in r.stderr + r.stdout, r.stderr[-1500:]
 
 
@@ -244,8 +249,9 @@ def test_phase_profile_files_hold_the_lens_in_si_units(metalens_dir):
         data = dict(z)
     assert data["radius_m"][0] == 0 and data["radius_m"][-1] == pytest.approx(g.aperture_m / 2, rel=1e-15)
     assert float(data["focal_length_m"]) == g.focal_length_m
-    assert float(data["numerical_aperture"]) == pytest.approx((g.aperture_m / 2) / math.hypot(g.aperture_m / 2,
-                                                                                            g.focal_length_m))
+    assert float(data["numerical_aperture"]) == pytest.approx(
+        (g.aperture_m / 2) / math.hypot(g.aperture_m / 2, g.focal_length_m)
+    )
     assert np.array_equal(data["wavelengths_m"], d.spectral.wavelengths_m)
     assert float(data["wavelength_weights"].sum()) == pytest.approx(1.0)
     assert float(data["pixel_pitch_m"]) == d.target.pitch_m
@@ -280,8 +286,11 @@ def test_reloaded_phase_profile_reproduces_the_written_psf(metalens_dir, tmp_pat
         data = dict(z)
     written = np.load(out / "psf.npz")["psf"]
     rho2 = (data["radius_m"] / data["radius_m"][-1]) ** 2
-    for change in ({"phase_rad": data["phase_rad"] + 1e-2 * rho2}, {"wavelengths_m": data["wavelengths_m"] * 1.001},
-                   {"sensor_distance_m": data["sensor_distance_m"] + 1e-7}):
+    for change in (
+        {"phase_rad": data["phase_rad"] + 1e-2 * rho2},
+        {"wavelengths_m": data["wavelengths_m"] * 1.001},
+        {"sensor_distance_m": data["sensor_distance_m"] + 1e-7},
+    ):
         psf = psf_from_phase_profile({**data, **change})["psf"]
         assert np.linalg.norm(psf - written) / np.linalg.norm(written) > 100 * PSF_RTOL, list(change)
 
@@ -296,12 +305,17 @@ def test_swept_points_get_their_own_folders_and_a_failing_writer_is_recorded(tmp
     assert "/" not in point_folder_name("asic", {"asic.x": "../../etc"})
     import dataclasses
 
-    monkeypatch.setitem(registry._REGISTRY, "mesh", dataclasses.replace(
-        registry.get_realisation("mesh"), write_artifacts="tests.test_artifacts:_failing_writer"))
+    monkeypatch.setitem(
+        registry._REGISTRY,
+        "mesh",
+        dataclasses.replace(registry.get_realisation("mesh"), write_artifacts="tests.test_artifacts:_failing_writer"),
+    )
     record = {"kind": "reference", "kernel": reference_kernel("delta", 3).to_dict(), "label": "x"}
-    pts = [{"realisation": "mesh", "params": {}, "status": "ok", "result": {"realisation": record}},
-           {"realisation": "learned", "params": {}, "status": "ok", "result": {"realisation": record}},
-           {"realisation": "asic", "params": {}, "status": "error", "result": {"reason": "x"}}]
+    pts = [
+        {"realisation": "mesh", "params": {}, "status": "ok", "result": {"realisation": record}},
+        {"realisation": "learned", "params": {}, "status": "ok", "result": {"realisation": record}},
+        {"realisation": "asic", "params": {}, "status": "error", "result": {"reason": "x"}},
+    ]
     path, entries = write_exploration_artifacts(pts, tmp_path)
     assert [(e["point"], e["error"]) for e in entries] == [("mesh", "RuntimeError: disk full")]
     assert read_index(path) == entries
@@ -367,9 +381,22 @@ def test_report_fragment_links_escape_and_show_a_failed_writer():
     from fsdvs_hw.report.artifacts import artifacts_html
 
     assert artifacts_html([{"realisation": "learned"}]) == ""
-    frag = artifacts_html([
-        {"realisation": "asic", "artifacts": [{"point": "asic", "name": "verilog", "file": "artifacts/asic/f v.v",
-                                               "what": "RTL <8-bit>", "checked_by": "verilator -Wall f.v"}]},
-        {"realisation": "mesh", "artifacts": [{"point": "mesh", "error": "RuntimeError: <disk> full"}]}])
+    frag = artifacts_html(
+        [
+            {
+                "realisation": "asic",
+                "artifacts": [
+                    {
+                        "point": "asic",
+                        "name": "verilog",
+                        "file": "artifacts/asic/f v.v",
+                        "what": "RTL <8-bit>",
+                        "checked_by": "verilator -Wall f.v",
+                    }
+                ],
+            },
+            {"realisation": "mesh", "artifacts": [{"point": "mesh", "error": "RuntimeError: <disk> full"}]},
+        ]
+    )
     assert 'href="artifacts/asic/f%20v.v"' in frag and "RTL &lt;8-bit&gt;" in frag
     assert "<code>verilator -Wall f.v</code>" in frag and "not written: RuntimeError: &lt;disk&gt; full" in frag

@@ -58,11 +58,11 @@ def test_a_moved_design_stays_a_valid_integer_design_with_the_same_integer_model
     moved = k.to_design(steps=20)
     assert not np.array_equal(moved.taps, design.taps) and moved.fit_info["codesigned"]
     np.testing.assert_allclose(moved.kernel().taps, k().detach().numpy(), rtol=0, atol=1e-15)
-    lo, hi = -2 ** 5, 2 ** 5 - 1
+    lo, hi = -(2**5), 2**5 - 1
     assert moved.taps.min() >= lo and moved.taps.max() <= hi and moved.scale == 2.0 ** round(np.log2(moved.scale))
     img = np.random.default_rng(1).integers(0, 256, size=(12, 12))
     out = moved.apply(img)  # the integer model the RTL is checked against (tests/test_asic_rtl.py)
-    direct = np.array([[np.sum(moved.taps * img[y:y + 7, x:x + 7]) for x in range(6)] for y in range(6)])  # valid
+    direct = np.array([[np.sum(moved.taps * img[y : y + 7, x : x + 7]) for x in range(6)] for y in range(6)])  # valid
     np.testing.assert_array_equal(np.asarray(out).reshape(direct.shape), direct)
 
 

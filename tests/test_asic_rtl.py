@@ -140,8 +140,9 @@ def test_rtl_larger_kernel_and_image_bit_exact(rng):
     """9×9 kernel, 12-bit taps, 12-bit pixels, 40×33 frames streamed back to back, rounding shift."""
     require_tool("iverilog")
     d = fit_asic_taps(reference_kernel("log", 9, sigma_px=1.5), 12, input_bits=12, symmetry="quadrant")
-    x = np.concatenate([rng.integers(0, 4096, size=(3, 40, 33)), np.zeros((1, 40, 33), np.int64),
-                        np.full((1, 40, 33), 4095, np.int64)])
+    x = np.concatenate(
+        [rng.integers(0, 4096, size=(3, 40, 33)), np.zeros((1, 40, 33), np.int64), np.full((1, 40, 33), 4095, np.int64)]
+    )
     for shift in (0, 7):
         _assert_bit_exact(d.taps, x, 12, out_shift=shift, symmetry="quadrant")
 

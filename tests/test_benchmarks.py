@@ -53,8 +53,11 @@ def _close(value: float, token: str) -> bool:
 def _rows_of(markdown: str, case: str) -> list[str]:
     """The table rows of ``markdown`` that hold every text value of ``case`` (``h=v; h=v``)."""
     values = [part.split("=", 1)[1] for part in case.split("; ") if "=" in part]
-    return [line for line in markdown.splitlines()
-            if line.startswith("|") and values and all(v in line.replace("**", "").replace("`", "") for v in values)]
+    return [
+        line
+        for line in markdown.splitlines()
+        if line.startswith("|") and values and all(v in line.replace("**", "").replace("`", "") for v in values)
+    ]
 
 
 def assert_records_are_what_is_printed(run: BenchRun) -> None:
@@ -78,23 +81,37 @@ def assert_records_are_what_is_printed(run: BenchRun) -> None:
 def _global_state() -> dict[str, object]:
     import torch
 
-    return {"threads": torch.get_num_threads(), "interop": torch.get_num_interop_threads(),
-            "dtype": torch.get_default_dtype(), "rng": torch.get_rng_state().numpy().tobytes(),
-            "np_err": np.geterr(), "np_rng": np.random.get_state()[1].tobytes(),
-            "warnings": list(warnings.filters), "environ": dict(os.environ)}
+    return {
+        "threads": torch.get_num_threads(),
+        "interop": torch.get_num_interop_threads(),
+        "dtype": torch.get_default_dtype(),
+        "rng": torch.get_rng_state().numpy().tobytes(),
+        "np_err": np.geterr(),
+        "np_rng": np.random.get_state()[1].tobytes(),
+        "warnings": list(warnings.filters),
+        "environ": dict(os.environ),
+    }
 
 
 # --------------------------------------------------------------------------------------- builder
 def _demo() -> BenchRun:
     sec = BenchSection("demo", settings={"quick": True})
     sec.text("### 2. Fits", "")
-    t = sec.table(Column.text("case"), Column.text("solver"), Column.number("error", ".2e"),
-                  Column.number("wall (ms)", ".1f", spread=True), Column.number("yield", ".0f", suffix=" %", unit="%"),
-                  Column.numbers("95 % CI", "[{0}, {1}]", ("CI low", "%", ".1f"), ("CI high", "%", ".1f")),
-                  threads=2)
+    t = sec.table(
+        Column.text("case"),
+        Column.text("solver"),
+        Column.number("error", ".2e"),
+        Column.number("wall (ms)", ".1f", spread=True),
+        Column.number("yield", ".0f", suffix=" %", unit="%"),
+        Column.numbers("95 % CI", "[{0}, {1}]", ("CI low", "%", ".1f"), ("CI high", "%", ".1f")),
+        threads=2,
+    )
     t.row("dog 7", "ipopt", 1.5e-3, Timing((0.010, 0.0125, 0.020), None), 95.0, (1.04, 2.96))
     t.row("dog 9", "—", "n/a", None, float("nan"), "no data")
-    sec.text("", f"Fit of the demo: {sec.value('demo fit', 'time per call', Measured(3.25, 4, 3.0, 3.5), unit='s', spec='.2f')} s.")
+    sec.text(
+        "",
+        f"Fit of the demo: {sec.value('demo fit', 'time per call', Measured(3.25, 4, 3.0, 3.5), unit='s', spec='.2f')} s.",
+    )
     return sec.run()
 
 
@@ -103,16 +120,23 @@ def test_section_prints_its_records_and_nothing_else():
     assert run.markdown == (
         "### 2. Fits\n\n| case | solver | error | wall (ms) | yield | 95 % CI |\n|---|---|---|---|---|---|\n"
         "| dog 7 | ipopt | 1.50e-03 | 12.5 [10.0–20.0] | 95 % | [1.0, 3.0] |\n"
-        "| dog 9 | — | n/a | — | n/a | no data |\n\nFit of the demo: 3.25 s.")
+        "| dog 9 | — | n/a | — | n/a | no data |\n\nFit of the demo: 3.25 s."
+    )
     by = {(r.case, r.metric): r for r in run.records}
     assert set(by) == {("case=dog 7; solver=ipopt", m) for m in ("error", "wall", "yield", "CI low", "CI high")} | {
-        ("demo fit", "time per call")}
+        ("demo fit", "time per call")
+    }
     wall = by[("case=dog 7; solver=ipopt", "wall")]
     # a Timing cell: the median of its runs in the column's unit, repeats and min–max kept
     assert (wall.unit, wall.value, wall.repeats) == ("ms", pytest.approx(12.5), 3)
     assert (wall.spread_min, wall.spread_max) == (pytest.approx(10.0), pytest.approx(20.0))
-    assert by[("case=dog 7; solver=ipopt", "error")].unit == "" and by[("case=dog 7; solver=ipopt", "yield")].unit == "%"
-    assert by[("case=dog 7; solver=ipopt", "CI low")].value == 1.04 and by[("case=dog 7; solver=ipopt", "CI high")].value == 2.96
+    assert (
+        by[("case=dog 7; solver=ipopt", "error")].unit == "" and by[("case=dog 7; solver=ipopt", "yield")].unit == "%"
+    )
+    assert (
+        by[("case=dog 7; solver=ipopt", "CI low")].value == 1.04
+        and by[("case=dog 7; solver=ipopt", "CI high")].value == 2.96
+    )
     assert all(r.table == "2. Fits" and r.bench == "demo" and r.settings == {"quick": True} for r in run.records)
     assert all(r.threads == 2 for r in run.records if r.case != "demo fit")
     quoted = by[("demo fit", "time per call")]
@@ -128,7 +152,9 @@ def test_columns_refuse_what_they_cannot_record():
     with pytest.raises(InputError, match="summary"):
         Column.number("t (s)", summary="average")
     sec = BenchSection("x")
-    t = sec.table(Column.text("a"), Column.number("b"), Column.numbers("c", "{0}/{1}", ("c0", "", ".1f"), ("c1", "", ".1f")))
+    t = sec.table(
+        Column.text("a"), Column.number("b"), Column.numbers("c", "{0}/{1}", ("c0", "", ".1f"), ("c1", "", ".1f"))
+    )
     with pytest.raises(InputError, match="3 cells"):
         t.row("only", 1.0)
     with pytest.raises(InputError, match="tuple of 2"):
@@ -150,7 +176,12 @@ def test_measured_summaries_and_timing_units():
     assert Measured.of([3.0, 1.0], "best").value == 1.0 and Measured.of([3.0, 1.0], "mean").value == 2.0
     t = Timing((0.002, 0.001, 0.004), "r")
     us = t.measured("µs", "best")
-    assert (us.value, us.repeats, us.low, us.high) == (pytest.approx(1000.0), 3, pytest.approx(1000.0), pytest.approx(4000.0))
+    assert (us.value, us.repeats, us.low, us.high) == (
+        pytest.approx(1000.0),
+        3,
+        pytest.approx(1000.0),
+        pytest.approx(4000.0),
+    )
     assert t.measured("ms").value == pytest.approx(2.0)
 
 
@@ -164,8 +195,10 @@ def test_case_override_and_row_threads():
 
 
 @settings(max_examples=60, deadline=None)
-@given(value=st.floats(min_value=-1e12, max_value=1e12, allow_nan=False) | st.floats(min_value=-1e-12, max_value=1e-12),
-       spec=st.sampled_from([".2e", ".3f", ".1f", ".0f", ".3g", ".2g", "d", "+.1f", ".1e"]))
+@given(
+    value=st.floats(min_value=-1e12, max_value=1e12, allow_nan=False) | st.floats(min_value=-1e-12, max_value=1e-12),
+    spec=st.sampled_from([".2e", ".3f", ".1f", ".0f", ".3g", ".2g", "d", "+.1f", ".1e"]),
+)
 def test_every_printed_number_is_its_record_to_the_printed_precision(value, spec):
     """Extremes included (tiny, huge, negative): the cell prints the record's value."""
     sec = BenchSection("p")
@@ -252,8 +285,9 @@ def test_csf_bench_records_are_its_markdown_and_it_leaves_state_alone(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["stats", "explore", "mesh", "metalens", "asic", "tasks", "sim", "sensors",
-                                  "user_data", "upsampling"])
+@pytest.mark.parametrize(
+    "name", ["stats", "explore", "mesh", "metalens", "asic", "tasks", "sim", "sensors", "user_data", "upsampling"]
+)
 def test_every_bench_measures_into_records_first(name, tmp_path):
     """Quick mode: a BenchRun whose records are what its Markdown prints; JSON round trip; no global
     state changed. (asic needs iverilog and yosys, mesh's spice table ngspice.)"""

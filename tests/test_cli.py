@@ -56,16 +56,19 @@ def test_every_help_shows_the_defaults(verb, capsys):
             assert "default" in shown, (verb, action.option_strings)
 
 
-@pytest.mark.parametrize("argv", [
-    ["analyse", "dog", "--out", "{f}"],
-    ["explore", "designs/default.toml", "--out", "{f}"],
-    ["ablation", "--out", "{f}"],
-    ["sizing", "designs/default.toml", "--out", "{f}"],
-    ["learn", "detection", "--out", "{f}/stem"],
-    ["bench", "csf", "--out", "{f}/bench.md"],
-    ["bench", "csf", "--json", "{f}/bench.json"],
-    ["sweep", "designs/sweep_asic_bits.toml", "--store", "{f}/x.sqlite"],
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["analyse", "dog", "--out", "{f}"],
+        ["explore", "designs/default.toml", "--out", "{f}"],
+        ["ablation", "--out", "{f}"],
+        ["sizing", "designs/default.toml", "--out", "{f}"],
+        ["learn", "detection", "--out", "{f}/stem"],
+        ["bench", "csf", "--out", "{f}/bench.md"],
+        ["bench", "csf", "--json", "{f}/bench.json"],
+        ["sweep", "designs/sweep_asic_bits.toml", "--store", "{f}/x.sqlite"],
+    ],
+)
 def test_out_naming_an_existing_file_is_a_one_line_error(argv, tmp_path, capsys):
     f = tmp_path / "a_file"
     f.write_text("x")
@@ -77,8 +80,13 @@ def test_out_naming_an_existing_file_is_a_one_line_error(argv, tmp_path, capsys)
 
 
 def test_python_m_fsdvs_hw_cli_is_the_command():
-    res = subprocess.run([sys.executable, "-m", "fsdvs_hw.cli", "--version"], capture_output=True, text=True,
-                         cwd=PACKAGE.parent, check=False)
+    res = subprocess.run(
+        [sys.executable, "-m", "fsdvs_hw.cli", "--version"],
+        capture_output=True,
+        text=True,
+        cwd=PACKAGE.parent,
+        check=False,
+    )
     assert res.returncode == 0 and res.stdout.startswith("fsdvs-hw ")
 
 
@@ -113,7 +121,9 @@ def test_bench_json_writes_records_with_machine_versions_and_units(tmp_path, cap
     assert data["schema"] == RECORD_SCHEMA
     records = read_json(out)
     assert [(r.bench, r.table, r.case, r.metric, r.unit) for r in records] == [
-        ("toy", "Toy table", "case=a", "max error", ""), ("toy", "Toy table", "case=a", "wall", "ms")]
+        ("toy", "Toy table", "case=a", "max error", ""),
+        ("toy", "Toy table", "case=a", "wall", "ms"),
+    ]
     assert all(r.settings == {"quick": True} for r in records)
     r = records[0]
     assert r.machine["cpu_count"] >= 1 and r.versions["python"] and r.versions["numpy"] and r.timestamp
@@ -149,6 +159,7 @@ def test_a_bench_that_changes_global_state_leaves_it_as_it_was(monkeypatch):
     run = bench.benchmark_run("toy", quick=True)
     assert (torch.get_num_threads(), torch.get_default_dtype(), np.geterr()) == before
     assert [(r.metric, r.unit) for r in run.records] == [("max error", ""), ("wall", "ms")]
+
     # the Markdown of a second run equals the first but for its wall time (the table's last column)
     def untimed(md: str) -> list[str]:
         return [re.sub(r"\| [0-9.]+ \|$", "| <t> |", line) for line in md.splitlines()]
@@ -236,7 +247,12 @@ def test_every_verb_takes_no_progress_and_it_switches_bars_off(monkeypatch):
 
 
 def test_the_installed_command_exits_2_without_a_traceback():
-    res = subprocess.run([sys.executable, "-m", "fsdvs_hw.cli", "sweep", "--workers", "many", "x.toml"],
-                         capture_output=True, text=True, cwd=PACKAGE.parent, check=False)
+    res = subprocess.run(
+        [sys.executable, "-m", "fsdvs_hw.cli", "sweep", "--workers", "many", "x.toml"],
+        capture_output=True,
+        text=True,
+        cwd=PACKAGE.parent,
+        check=False,
+    )
     assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1 and "Traceback" not in res.stderr
     assert "--workers" in res.stderr

@@ -49,9 +49,12 @@ def _seg(seg: tuple[Path, Path], cache: ClipDiskCache | None, **kw) -> MaskFrame
 
 
 def _same(a, b) -> bool:
-    return (np.array_equal(a.frames, b.frames) and np.array_equal(a.timestamps_s, b.timestamps_s)
-            and a.frames.dtype == b.frames.dtype
-            and all(np.array_equal(a.targets[k], b.targets[k]) for k in a.targets))
+    return (
+        np.array_equal(a.frames, b.frames)
+        and np.array_equal(a.timestamps_s, b.timestamps_s)
+        and a.frames.dtype == b.frames.dtype
+        and all(np.array_equal(a.targets[k], b.targets[k]) for k in a.targets)
+    )
 
 
 def test_second_pass_reads_the_cache_and_gives_the_decoded_arrays(seg, tmp_path, decodes):
@@ -96,8 +99,7 @@ def test_the_cap_holds_and_the_least_recently_used_entry_goes_first(seg, tmp_pat
     cache = ClipDiskCache(tmp_path / "cache", max_mb=2.5 * one / 1e6)  # room for two entries
     ds = _seg(seg, cache)
     ds[0], ds[1]
-    os.utime(cache.path(cache.key(ds.clip_files(0), ds.decode_options())),
-             ns=(0, 0))  # clip 0 used longest ago ...
+    os.utime(cache.path(cache.key(ds.clip_files(0), ds.decode_options())), ns=(0, 0))  # clip 0 used longest ago ...
     ds[1]  # ... and clip 1 just now
     ds[2]
     assert cache.usage_bytes() <= cache.max_bytes and cache.evicted == 1
@@ -135,8 +137,14 @@ def test_a_corrupt_entry_is_deleted_and_decoded_again(seg, tmp_path, decodes, da
 def test_video_clips_from_the_cache_equal_the_decoded_ones(tmp_path, decodes):
     root = tmp_path / "ucf"
     (root / "Jump").mkdir(parents=True)
-    with imageio.get_writer(str(root / "Jump" / "v_Jump_g01.mp4"), fps=FPS, codec="libx264", quality=9,
-                            macro_block_size=1, ffmpeg_log_level="error") as w:
+    with imageio.get_writer(
+        str(root / "Jump" / "v_Jump_g01.mp4"),
+        fps=FPS,
+        codec="libx264",
+        quality=9,
+        macro_block_size=1,
+        ffmpeg_log_level="error",
+    ) as w:
         for f in _bbb_frames(start=0, n=6):
             w.append_data(f)
     cache = ClipDiskCache(tmp_path / "cache", max_mb=10)
@@ -148,8 +156,9 @@ def test_video_clips_from_the_cache_equal_the_decoded_ones(tmp_path, decodes):
 
 
 def test_design_key_opens_a_confined_bounded_cache(seg, tmp_path):
-    src = MaskFramesSource(root="seg", frames="img", masks="lbl", num_classes=3, n_frames=3,
-                           cache={"dir": "clip_cache", "max_mb": 64.0}).model_dump()
+    src = MaskFramesSource(
+        root="seg", frames="img", masks="lbl", num_classes=3, n_frames=3, cache={"dir": "clip_cache", "max_mb": 64.0}
+    ).model_dump()
     ds = open_dataset(src, tmp_path)
     assert ds.disk_cache.folder == (tmp_path / "clip_cache").resolve() and ds.disk_cache.max_bytes == 64_000_000
     ds[0]
@@ -168,8 +177,9 @@ def test_the_cache_settings_change_no_explored_point_key(seg, tmp_path):
     from fsdvs_hw.explore.design import load_design
     from fsdvs_hw.explore.sweep import expand_points
 
-    source = ('format = "mask_frames", root = "seg", frames = "img", masks = "lbl", num_classes = 3, '
-              'n_frames = 3, fps = 25.0')
+    source = (
+        'format = "mask_frames", root = "seg", frames = "img", masks = "lbl", num_classes = 3, n_frames = 3, fps = 25.0'
+    )
     keys = []
     for name, extra in (("plain", ""), ("cached", ', cache = { dir = "cc", max_mb = 50.0 }')):
         path = tmp_path / f"{name}.toml"

@@ -21,8 +21,16 @@ LEARNED = Path(__file__).resolve().parents[1] / "designs" / "kernels" / "learned
 
 def test_asic_codesign_trains_integer_taps_and_saves_the_design():
     settings = TrainingSettings(epochs_frozen=1, epochs_joint=2, batch_size=16, lr_filter=0.5, dtype="float32")
-    res = learn_kernel("recognition", 7, seed=0, n_train=64, n_test=32, settings=settings,
-                       init_kernel=load_kernel(LEARNED), realisation="asic")
+    res = learn_kernel(
+        "recognition",
+        7,
+        seed=0,
+        n_train=64,
+        n_test=32,
+        settings=settings,
+        init_kernel=load_kernel(LEARNED),
+        realisation="asic",
+    )
     prov = res.kernel.provenance
     assert prov["realisation"] == "asic"
     start = AsicDesign.from_dict(prov["realisation_initial"])
@@ -46,8 +54,16 @@ def test_mesh_and_metalens_codesign_run_and_keep_the_kernel_the_realisations(nam
     from fsdvs_hw.realise.registry import get_realisation
 
     settings = TrainingSettings(epochs_frozen=1, epochs_joint=1, batch_size=16, dtype="float32")
-    res = learn_kernel("recognition", 7, seed=0, n_train=32, n_test=16, settings=settings,
-                       init_kernel=load_kernel(LEARNED), realisation=name)
+    res = learn_kernel(
+        "recognition",
+        7,
+        seed=0,
+        n_train=32,
+        n_test=16,
+        settings=settings,
+        init_kernel=load_kernel(LEARNED),
+        realisation=name,
+    )
     prov = res.kernel.provenance
     final = get_realisation(name).record_type.from_dict(prov["realisation_design"])
     assert final.kind == name and (final.fit if name == "mesh" else final.fit_info)["codesigned"]

@@ -20,12 +20,16 @@ NET = "kernels/networks/recognition_with_learned_detection_7x7_s{}.safetensors"
 
 
 def _raw(**codesign):
-    return {"design": {"name": "tiny"}, "kernel": {"source": "file", "path": "kernels/learned_detection_7x7.json"},
-            "realisations": {"include": ["learned", "asic"]},
-            "tasks": {"checkpoints": {"recognition": [NET.format(0), NET.format(1)]}, "n_test": 8},
-            "emulation": {"enabled": False}, "scoring": {"n_resamples": 200}, "run": {"workers": 1},
-            "codesign": {"enabled": True, "realisations": ["asic"], "seeds": 1, "epochs": 1, "n_train": 32,
-                         **codesign}}
+    return {
+        "design": {"name": "tiny"},
+        "kernel": {"source": "file", "path": "kernels/learned_detection_7x7.json"},
+        "realisations": {"include": ["learned", "asic"]},
+        "tasks": {"checkpoints": {"recognition": [NET.format(0), NET.format(1)]}, "n_test": 8},
+        "emulation": {"enabled": False},
+        "scoring": {"n_resamples": 200},
+        "run": {"workers": 1},
+        "codesign": {"enabled": True, "realisations": ["asic"], "seeds": 1, "epochs": 1, "n_train": 32, **codesign},
+    }
 
 
 # --------------------------------------------------------------------------- validation
@@ -34,22 +38,26 @@ def test_codesign_is_off_by_default_and_the_shipped_design_turns_it_on():
     d = load_design(DESIGNS / "codesign.toml")
     assert d.data["codesign"]["enabled"] is True
     from fsdvs_hw.explore.codesign import codesign_cells
+
     assert ("metalens", "recognition") in codesign_cells(d) and ("mesh", "segmentation") in codesign_cells(d)
 
 
-@pytest.mark.parametrize("codesign, key, words", [
-    ({"bogus": 1}, "codesign.bogus", "unknown key"),
-    ({"epochs": 0}, "codesign.epochs", "[1, 1000]"),
-    ({"seeds": 3}, "codesign.seeds", "at most 2"),
-    ({"realisations": ["learned"]}, "codesign.realisations[0]", "'mesh', 'asic', 'metalens'"),
-    ({"cells": ["asic/detection"]}, "codesign.cells[0]", "realisation/task"),
-    ({"cells": ["metalens/recognition"]}, "codesign.cells[0]", "codesign.realisations (asic)"),
-    ({"modes": ["zero-shot"]}, "codesign.modes[0]", "'swap', 'finetune', 'codesign'"),
-    ({"modes": []}, "codesign.modes", "non-empty"),
-    ({"lr_network": 0}, "codesign.lr_network", "(0, 10]"),
-    ({"tasks": ["detection"]}, "codesign.tasks[0]", "not a task in tasks.checkpoints"),
-    ({"enabled": "yes"}, "codesign.enabled", "boolean"),
-])
+@pytest.mark.parametrize(
+    "codesign, key, words",
+    [
+        ({"bogus": 1}, "codesign.bogus", "unknown key"),
+        ({"epochs": 0}, "codesign.epochs", "[1, 1000]"),
+        ({"seeds": 3}, "codesign.seeds", "at most 2"),
+        ({"realisations": ["learned"]}, "codesign.realisations[0]", "'mesh', 'asic', 'metalens'"),
+        ({"cells": ["asic/detection"]}, "codesign.cells[0]", "realisation/task"),
+        ({"cells": ["metalens/recognition"]}, "codesign.cells[0]", "codesign.realisations (asic)"),
+        ({"modes": ["zero-shot"]}, "codesign.modes[0]", "'swap', 'finetune', 'codesign'"),
+        ({"modes": []}, "codesign.modes", "non-empty"),
+        ({"lr_network": 0}, "codesign.lr_network", "(0, 10]"),
+        ({"tasks": ["detection"]}, "codesign.tasks[0]", "not a task in tasks.checkpoints"),
+        ({"enabled": "yes"}, "codesign.enabled", "boolean"),
+    ],
+)
 def test_bad_codesign_values_name_file_key_value_and_range(codesign, key, words):
     with pytest.raises(InputError) as err:
         parse_design(_raw(**codesign), source="tiny.toml", base_dir=DESIGNS)
@@ -81,8 +89,8 @@ def test_recovered_fraction_is_the_share_of_the_swap_loss_won_back_with_a_coveri
     from fsdvs_hw.explore.codesign import recovered_fraction_ci
 
     ref = _arm([1.0, 0.95, 0.9, 1.0])
-    swap = _arm([0.6, 0.55, 0.5, 0.6])          # loss 0.4 in every network
-    half = _arm([0.8, 0.75, 0.7, 0.8])          # loss 0.2: half recovered
+    swap = _arm([0.6, 0.55, 0.5, 0.6])  # loss 0.4 in every network
+    half = _arm([0.8, 0.75, 0.7, 0.8])  # loss 0.2: half recovered
     r = recovered_fraction_ci(ref, swap, half, n_resamples=500)
     assert r["estimate"] == pytest.approx(0.5, abs=1e-12)
     assert r["low"] <= 0.5 <= r["high"] and r["high"] - r["low"] < 1e-9  # the same share in every network
@@ -144,6 +152,7 @@ def test_three_rows_with_cis_and_a_killed_run_resumes_without_retraining(tmp_pat
     # a complete store: nothing is trained or scored again, and the summary is the same
     trained.clear()
     from fsdvs_hw.explore import paired
+
     monkeypatch.setattr(paired, "clip_evidence", lambda *a, **k: (_ for _ in ()).throw(AssertionError("rescored")))
     third = run_codesign(design, tmp_path, progress=False)
     assert trained == []
@@ -163,21 +172,42 @@ def test_a_changed_setting_is_measured_again(tmp_path):
     from fsdvs_hw.explore.codesign import run_codesign
 
     run_codesign(parse_design(_raw(modes=["swap"]), source="t", base_dir=DESIGNS), tmp_path, progress=False)
-    run_codesign(parse_design(_raw(modes=["swap"]), source="t", base_dir=DESIGNS).with_overrides(
-        {"tasks.n_test": 6}), tmp_path, progress=False)
+    run_codesign(
+        parse_design(_raw(modes=["swap"]), source="t", base_dir=DESIGNS).with_overrides({"tasks.n_test": 6}),
+        tmp_path,
+        progress=False,
+    )
     names = [u.name for u in (tmp_path / "codesign" / "units").glob("*_swap_*.json")]
     assert len(names) == 2  # n_test is part of a unit's key
 
 
 # --------------------------------------------------------------------------- the report section
 def test_section_lists_every_cell_and_escapes():
-    summary = {"settings": {"epochs": 2, "n_train": 0}, "cells": [{
-        "realisation": "<lens>", "task": "recognition", "metric_name": "top1", "n_seeds": 3,
-        "n_clips_per_network": 384, "kernel_error_fit_gain_free": 0.2, "kernel_error_codesign_gain_free": [0.3],
-        "ms_correlation_initial": [0.89], "ms_correlation_final": [0.5], "verdict": "v", "swap_loss_above_zero": True,
-        "rows": {m: {"loss": {"estimate": e, "low": e - 0.01, "high": e + 0.01},
-                     **({"recovered": {"estimate": 0.5, "low": 0.4, "high": 0.6}} if m != "swap" else {})}
-                 for m, e in (("swap", 0.25), ("finetune", 0.125), ("codesign", 0.125))}}]}
+    summary = {
+        "settings": {"epochs": 2, "n_train": 0},
+        "cells": [
+            {
+                "realisation": "<lens>",
+                "task": "recognition",
+                "metric_name": "top1",
+                "n_seeds": 3,
+                "n_clips_per_network": 384,
+                "kernel_error_fit_gain_free": 0.2,
+                "kernel_error_codesign_gain_free": [0.3],
+                "ms_correlation_initial": [0.89],
+                "ms_correlation_final": [0.5],
+                "verdict": "v",
+                "swap_loss_above_zero": True,
+                "rows": {
+                    m: {
+                        "loss": {"estimate": e, "low": e - 0.01, "high": e + 0.01},
+                        **({"recovered": {"estimate": 0.5, "low": 0.4, "high": 0.6}} if m != "swap" else {}),
+                    }
+                    for m, e in (("swap", 0.25), ("finetune", 0.125), ("codesign", 0.125))
+                },
+            }
+        ],
+    }
     html = codesign_section(summary)
     assert "&lt;lens&gt;" in html and "<lens>" not in html
     assert "0.2500 [0.2400, 0.2600]" in html and "50% [40%, 60%]" in html and "3 × 384" in html

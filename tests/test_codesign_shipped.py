@@ -59,8 +59,9 @@ def test_the_summary_is_recomputed_from_the_shipped_evidence(shipped, units):
     st = shipped["settings"]
     design = load_design(REPO / "designs" / "codesign.toml")
     sc = design.data["scoring"]
-    again = summarise_codesign(units, n_resamples=sc["n_resamples"], confidence=sc["confidence"],
-                               rng=design.data["run"]["seed"])
+    again = summarise_codesign(
+        units, n_resamples=sc["n_resamples"], confidence=sc["confidence"], rng=design.data["run"]["seed"]
+    )
     key = lambda c: (c["realisation"], c["task"])
     _close(sorted(again["cells"], key=key), sorted(shipped["cells"], key=key))
     assert st["test_clips"] == "per_network" and all(c["clips"] == "nested in networks" for c in shipped["cells"])

@@ -48,8 +48,9 @@ def test_user_data_codesign_rows_cover_their_estimates_and_a_rerun_reuses_every_
         loss = row["loss"]
         assert loss["low"] <= loss["estimate"] <= loss["high"]
         # the loss is the reference's metric minus the row's, on the same clips
-        assert loss["estimate"] == pytest.approx(cell["reference_metric_per_seed"][0] - row["metric_per_seed"][0],
-                                                 abs=1e-9)
+        assert loss["estimate"] == pytest.approx(
+            cell["reference_metric_per_seed"][0] - row["metric_per_seed"][0], abs=1e-9
+        )
     for mode in ("finetune", "codesign"):
         gain = cell["rows"][mode]["gain_over_swap"]
         assert gain["low"] <= gain["estimate"] <= gain["high"]
@@ -58,8 +59,9 @@ def test_user_data_codesign_rows_cover_their_estimates_and_a_rerun_reuses_every_
     assert len(units) == 4  # the design's kernel (reference) + three rows
     cd_unit = json.loads(next(p for p in units if "_codesign_" in p.name).read_text())
     assert cd_unit["realisation_design"]["kind"] == "asic" and cd_unit["kernel_error_codesign"] >= 0
-    prov = json.loads(next((out / "codesign" / "networks").glob("asic_segmentation_s0_finetune_*.provenance.json"))
-                      .read_text())
+    prov = json.loads(
+        next((out / "codesign" / "networks").glob("asic_segmentation_s0_finetune_*.provenance.json")).read_text()
+    )
     entry = design.data["tasks"]["datasets"]["segmentation"]
     from fsdvs_hw.explore.user_data import open_dataset
 

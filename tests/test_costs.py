@@ -22,10 +22,20 @@ PITCH = 4.86e-6
 def test_horowitz_table_is_the_published_one_and_scales_as_stated():
     # Horowitz, ISSCC 2014, 45 nm 0.9 V: add 8/32 bit 0.03/0.1 pJ, mult 0.2/3.1 pJ, 8 KB SRAM 64-bit read 10 pJ;
     # areas add 36/137 µm², mult 282/3495 µm²
-    assert dict(HOROWITZ_2014) == pytest.approx({
-        "add_8bit_j": 0.03e-12, "add_32bit_j": 0.1e-12, "mult_8bit_j": 0.2e-12, "mult_32bit_j": 3.1e-12,
-        "sram_8kb_read_64bit_j": 10e-12, "add_8bit_m2": 36e-12, "add_32bit_m2": 137e-12,
-        "mult_8bit_m2": 282e-12, "mult_32bit_m2": 3495e-12}, rel=1e-12)
+    assert dict(HOROWITZ_2014) == pytest.approx(
+        {
+            "add_8bit_j": 0.03e-12,
+            "add_32bit_j": 0.1e-12,
+            "mult_8bit_j": 0.2e-12,
+            "mult_32bit_j": 3.1e-12,
+            "sram_8kb_read_64bit_j": 10e-12,
+            "add_8bit_m2": 36e-12,
+            "add_32bit_m2": 137e-12,
+            "mult_8bit_m2": 282e-12,
+            "mult_32bit_m2": 3495e-12,
+        },
+        rel=1e-12,
+    )
     assert adder_energy_j(32) == pytest.approx(0.1e-12)
     assert adder_energy_j(20) == pytest.approx(0.065e-12)  # halfway between 8 and 32 bits
     # E ∝ F·V²: 90 nm at 1.8 V is 2 x 4 = 8 times 45 nm at 0.9 V; A ∝ F²
@@ -35,8 +45,15 @@ def test_horowitz_table_is_the_published_one_and_scales_as_stated():
 
 
 def test_mesh_cost_against_hand_computation():
-    items = {"g_lateral_narrow": 1e-8, "g_vertical_narrow": 4e-8, "g_lateral_wide": 1e-8, "g_vertical_wide": 2e-8,
-             "node_capacitance": 1e-13, "tau_narrow": 2.5e-6, "tau_wide": 5e-6}
+    items = {
+        "g_lateral_narrow": 1e-8,
+        "g_vertical_narrow": 4e-8,
+        "g_lateral_wide": 1e-8,
+        "g_vertical_wide": 2e-8,
+        "node_capacitance": 1e-13,
+        "tau_narrow": 2.5e-6,
+        "tau_wide": 5e-6,
+    }
     figs, flags = mesh_cost(items, A, pitch_m=PITCH)
     ut = 1.380649e-23 * 300 / 1.602176634e-19  # kT/q = 25.852 mV
     assert thermal_voltage_v(300) == pytest.approx(0.025852, abs=1e-6)
@@ -55,8 +72,9 @@ def test_mesh_cost_against_hand_computation():
     assert figs["latency_s"].value == 5e-6  # the slower mesh's tau
     assert "mismatch_error" not in figs
     # mismatch: sensitivity 3.28 x sigma 0.05 = 0.164 relative kernel error
-    assert mesh_cost({**items, "mismatch_sensitivity": 3.28}, A, pitch_m=PITCH)[0]["mismatch_error"].value == \
-        pytest.approx(0.164)
+    assert mesh_cost({**items, "mismatch_sensitivity": 3.28}, A, pitch_m=PITCH)[0][
+        "mismatch_error"
+    ].value == pytest.approx(0.164)
     # a smaller capacitor fits: 2 x 10 fF / 2 fF/µm² = 10 µm²; fill factor 1 - 17.938 / 23.62
     figs, flags = mesh_cost({**items, "node_capacitance": 1e-14}, A, pitch_m=PITCH)
     assert figs["fill_factor"].value == pytest.approx(1 - 17.938e-12 / PITCH**2, rel=1e-6) and not flags
@@ -90,8 +108,7 @@ def test_asic_cost_against_hand_computation():
 
 
 def test_metalens_photon_budget_against_hand_computation():
-    items = {"optical_efficiency": 0.72, "contrast_factor": 0.4658, "pedestal_fraction": 0.6,
-             "sensor_distance": 187e-6}
+    items = {"optical_efficiency": 0.72, "contrast_factor": 0.4658, "pedestal_fraction": 0.6, "sensor_distance": 187e-6}
     figs, _ = metalens_cost(items, A, pitch_m=PITCH)
     # photons per lux-second-m² at 555 nm: (1/683 W/m²) / (h c / 555 nm = 3.5793e-19 J) = 4.0906e15
     assert pytest.approx(4.0906e15, rel=1e-4) == PHOTONS_PER_LUX_S_M2
@@ -108,8 +125,13 @@ def test_metalens_photon_budget_against_hand_computation():
 
 
 def test_readout_rate_scales_to_the_array_and_is_flagged_above_the_limit():
-    figs, flags = readout_figures({"detection": {"mean": 1000.0, "low": 900.0, "high": 1100.0},
-                                   "recognition": {"mean": 1200.0, "low": 1100.0, "high": 1300.0}}, A)
+    figs, flags = readout_figures(
+        {
+            "detection": {"mean": 1000.0, "low": 900.0, "high": 1100.0},
+            "recognition": {"mean": 1200.0, "low": 1100.0, "high": 1300.0},
+        },
+        A,
+    )
     # busiest task: 1200 events/pixel/s x 921 600 pixels = 1.106 Geps > 1.066 Geps
     assert figs["event_rate_eps"].value == pytest.approx(1.10592e9)
     assert (figs["event_rate_eps"].low, figs["event_rate_eps"].high) == pytest.approx((1.01376e9, 1.19808e9))
@@ -127,8 +149,16 @@ def _asic_point(rate_per_pixel_s: float, *, key: str = "a", realisation: str = "
     real, _ = fit_realisation(realisation, target, {"bits": bits} if realisation == "asic" else {})
     s = score(real, target=target, csf_methods=["mannos_sakrison_1974"]).with_(realisation=real.to_dict())
     rate = {"mean": rate_per_pixel_s, "low": 0.9 * rate_per_pixel_s, "high": 1.1 * rate_per_pixel_s}
-    s = s.with_(tasks=TaskScores.from_dict({"status": "ok", "detection": {"simulator": {
-        "status": "ok", "metric": 0.5, "n_seeds": 1, "n_clips": 4, "event_rate_per_s": rate}}}))
+    s = s.with_(
+        tasks=TaskScores.from_dict(
+            {
+                "status": "ok",
+                "detection": {
+                    "simulator": {"status": "ok", "metric": 0.5, "n_seeds": 1, "n_clips": 4, "event_rate_per_s": rate}
+                },
+            }
+        )
+    )
     return {"key": key, "realisation": realisation, "params": {}, "status": "ok", "result": s.to_dict()}
 
 
@@ -139,8 +169,9 @@ def test_readout_breach_is_flagged_in_the_verdict():
     from fsdvs_hw.report.tables import score_rows
     from fsdvs_hw.report.verdict import advice
 
-    design = parse_design({"realisations": {"include": ["learned", "asic"]},
-                           "costs": {"readout_limit_eps": 1e9, "loss_budget": 0.5}})
+    design = parse_design(
+        {"realisations": {"include": ["learned", "asic"]}, "costs": {"readout_limit_eps": 1e9, "loss_budget": 0.5}}
+    )
     # 2000 events/pixel/s x 921 600 pixels = 1.84 Geps > 1 Geps
     points = [ScoredPoint.from_dict(p) for p in with_physical_costs([_asic_point(2000.0)], design)]
     rows = with_cost_columns(score_rows(points), points)
@@ -158,21 +189,32 @@ def test_reference_costs_nothing_and_unknown_kind_says_so():
     from fsdvs_hw.records import Score
 
     k = reference_kernel("delta", 3)
-    s = Score(kind="reference", label="delta", describe="", kernel=k, kernel_error=0.0, kernel_error_gain_free=0.0,
-              dc_gain=1.0, asymmetry=0.0)
+    s = Score(
+        kind="reference",
+        label="delta",
+        describe="",
+        kernel=k,
+        kernel_error=0.0,
+        kernel_error_gain_free=0.0,
+        dc_gain=1.0,
+        asymmetry=0.0,
+    )
     pc = physical_cost(s, A)
     assert [pc.value(c) for c in ("power_w", "area_m2", "latency_s")] == [0.0, 0.0, 0.0] and pc.status == "ok"
     other = physical_cost(s.with_(kind="hologram"), A)
     assert other.status.startswith("no cost model for kind 'hologram'") and math.isnan(other.value("power_w"))
 
 
-@pytest.mark.parametrize(("costs", "words"), [
-    ({"process_node_m": 1.0}, ["costs.process_node_m", "1", "[3e-09, 1e-06]"]),
-    ({"digital_supply_v": "high"}, ["costs.digital_supply_v", "high"]),
-    ({"array_resolution": [720]}, ["costs.array_resolution"]),
-    ({"readout_limit_eps": 0}, ["costs.readout_limit_eps", "0"]),
-    ({"proces_node_m": 45e-9}, ["costs.proces_node_m", "unknown key"]),
-])
+@pytest.mark.parametrize(
+    ("costs", "words"),
+    [
+        ({"process_node_m": 1.0}, ["costs.process_node_m", "1", "[3e-09, 1e-06]"]),
+        ({"digital_supply_v": "high"}, ["costs.digital_supply_v", "high"]),
+        ({"array_resolution": [720]}, ["costs.array_resolution"]),
+        ({"readout_limit_eps": 0}, ["costs.readout_limit_eps", "0"]),
+        ({"proces_node_m": 45e-9}, ["costs.proces_node_m", "unknown key"]),
+    ],
+)
 def test_bad_cost_keys_are_refused_naming_the_key(costs, words):
     with pytest.raises(DesignError) as err:
         parse_design({"costs": costs})
@@ -190,8 +232,9 @@ def test_design_without_costs_keeps_its_content_and_cost_axes_build_no_points():
 
     plain = parse_design({"realisations": {"include": ["learned", "asic"]}})
     assert "costs" not in plain.to_dict() and plain.spec.costs == CostAssumptions()
-    swept = parse_design({"realisations": {"include": ["learned", "asic"]},
-                          "sweep": {"axes": {"costs.process_node_m": [45e-9, 180e-9]}}})
+    swept = parse_design(
+        {"realisations": {"include": ["learned", "asic"]}, "sweep": {"axes": {"costs.process_node_m": [45e-9, 180e-9]}}}
+    )
     assert [p.key for p in expand_points(swept)] == [p.key for p in expand_points(plain)]
     assert parse_design({"costs": {"clock_hz": 1e9}}).spec.costs.clock_hz == 1e9
 
@@ -202,9 +245,13 @@ def test_cost_sweep_recosts_points_and_the_power_ranking_flips():
     from fsdvs_hw.report.costs import cost_advice, sweep_rows, with_cost_columns
     from fsdvs_hw.report.tables import score_rows
 
-    design = parse_design({"realisations": {"include": ["learned", "mesh", "asic"]},
-                           "costs": {"loss_budget": 1.0},
-                           "sweep": {"axes": {"costs.process_node_m": [45e-9, 180e-9]}}})
+    design = parse_design(
+        {
+            "realisations": {"include": ["learned", "mesh", "asic"]},
+            "costs": {"loss_budget": 1.0},
+            "sweep": {"axes": {"costs.process_node_m": [45e-9, 180e-9]}},
+        }
+    )
     raw = [_asic_point(100.0, key="a"), _asic_point(100.0, key="m", realisation="mesh")]
     points = [ScoredPoint.from_dict(p) for p in with_physical_costs(raw, design)]
     asic, mesh = (p.extra["physical_cost_sweep"] for p in points)
@@ -225,12 +272,25 @@ def test_cross_kind_front_respects_the_loss_cis():
     from fsdvs_hw.report.costs import mark_cost_fronts
 
     def row(kind, loss, lo, hi, power):
-        return {"status": "ok", "realisation": kind, "params": "{}", "weighted_loss": loss,
-                "weighted_loss_ci95_low": lo, "weighted_loss_ci95_high": hi, "power_w": power,
-                "area_m2": 0.0, "latency_s": 0.0, "event_rate_eps": math.nan}
+        return {
+            "status": "ok",
+            "realisation": kind,
+            "params": "{}",
+            "weighted_loss": loss,
+            "weighted_loss_ci95_low": lo,
+            "weighted_loss_ci95_high": hi,
+            "power_w": power,
+            "area_m2": 0.0,
+            "latency_s": 0.0,
+            "event_rate_eps": math.nan,
+        }
 
-    rows = [row("mesh", 0.01, 0.0, 0.02, 2.0), row("asic", 0.015, 0.005, 0.025, 1.0),
-            row("metalens", 0.1, 0.09, 0.11, 3.0), row("learned", 0.0, 0.0, 0.0, 0.0)]
+    rows = [
+        row("mesh", 0.01, 0.0, 0.02, 2.0),
+        row("asic", 0.015, 0.005, 0.025, 1.0),
+        row("metalens", 0.1, 0.09, 0.11, 3.0),
+        row("learned", 0.0, 0.0, 0.0, 0.0),
+    ]
     mark_cost_fronts(rows)
     # mesh and asic overlap in loss: neither dominates; the metalens is worse in both beyond the CIs
     assert [r["front_power_w"] for r in rows] == [True, True, False, False]

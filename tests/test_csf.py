@@ -152,8 +152,7 @@ def test_property_random_kernels_give_bounded_metrics():
     from hypothesis import strategies as st
 
     @settings(max_examples=12, deadline=None)
-    @given(size=st.sampled_from([1, 3, 5, 7, 9]), seed=st.integers(0, 2**31 - 1),
-           one_hot=st.booleans())
+    @given(size=st.sampled_from([1, 3, 5, 7, 9]), seed=st.integers(0, 2**31 - 1), one_hot=st.booleans())
     def check(size, seed, one_hot):
         r = np.random.default_rng(seed)
         taps = np.zeros((size, size))

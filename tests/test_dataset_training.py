@@ -65,17 +65,33 @@ def test_training_learns_separable_clips_and_stage_two_moves_the_kernel(monkeypa
     test = ds.draw(12, seed=0)
     train = disjoint_train_indices(len(ds), test, 0, seed=0)
     before = evaluate_on_dataset(None, "recognition", ds, TOY, n_clips=12, seed=0).value
-    res = train_on_dataset(ds, "recognition", TOY, train_indices=train, kernel_size=3, epochs_frozen=3,
-                           epochs_joint=2, lr_network=3e-2, lr_kernel=5e-2, lr_head=1e-3, batch_size=7, seed=0,
-                           out=tmp_path / "rec")
+    res = train_on_dataset(
+        ds,
+        "recognition",
+        TOY,
+        train_indices=train,
+        kernel_size=3,
+        epochs_frozen=3,
+        epochs_joint=2,
+        lr_network=3e-2,
+        lr_kernel=5e-2,
+        lr_head=1e-3,
+        batch_size=7,
+        seed=0,
+        out=tmp_path / "rec",
+    )
     after = evaluate_on_dataset(res.kernel, "recognition", ds, res.network, n_clips=12, seed=0).value
     assert after >= 11 / 12 and after > before  # chance is 1/2
     stages = [h["stage"] for h in res.history]
     assert stages == ["frozen_filter"] * 3 + ["joint"] * 2
     assert all(h["kernel_change_l1"] == 0.0 for h in res.history[:3])  # stage one: the kernel is fixed
     assert res.history[-1]["kernel_change_l1"] > 1e-3  # stage two: it moves
-    assert res.provenance["learning_rates"] == {"network_stage_one": 3e-2, "kernel": 5e-2,
-                                                "backbone": pytest.approx(5e-2 * 5e-5 / 5e-4), "head": 1e-3}
+    assert res.provenance["learning_rates"] == {
+        "network_stage_one": 3e-2,
+        "kernel": 5e-2,
+        "backbone": pytest.approx(5e-2 * 5e-5 / 5e-4),
+        "head": 1e-3,
+    }
     assert not (tmp_path / "rec.partial.pt").exists() and (tmp_path / "rec.safetensors").is_file()
 
 
@@ -83,8 +99,14 @@ def test_rerun_reuses_and_interrupted_run_resumes(monkeypatch, tmp_path):
     monkeypatch.syspath_prepend(str(Path(__file__).parent / "plugins"))
     ds = PolarityClips(16)
     train = disjoint_train_indices(len(ds), ds.draw(4, seed=0), 0, seed=0)
-    kw = {"train_indices": train, "kernel_size": 3, "epochs_frozen": 1, "epochs_joint": 2, "batch_size": 6,
-          "fingerprint": {"run": 1}}
+    kw = {
+        "train_indices": train,
+        "kernel_size": 3,
+        "epochs_frozen": 1,
+        "epochs_joint": 2,
+        "batch_size": 6,
+        "fingerprint": {"run": 1},
+    }
     full = train_on_dataset(ds, "recognition", TOY, **kw)  # reference, no files
 
     calls = {"n": 0}

@@ -36,15 +36,18 @@ def test_shipped_designs_validate_against_the_generated_json_schema(path, valida
     assert errors == [], [e.message for e in errors]
 
 
-@pytest.mark.parametrize("patch,where", [
-    ({"sensor": {"pitch_m": 4.86}}, "pitch_m"),                    # out of range
-    ({"sensor": {"threshold_on": True}}, "threshold_on"),          # a boolean is not a number
-    ({"sensor": {"placement": "after_log"}}, "placement"),         # not a choice
-    ({"sensor": {"threshhold_on": 0.2}}, "threshhold_on"),         # unknown key
-    ({"realisations": {"asic": {"bits": 7.5}}}, "bits"),           # an integer option
-    ({"realisations": {"include": ["learned", "fpga"]}}, "fpga"),  # not a registered realisation
-    ({"sensors": {}}, "sensors"),                                  # unknown section
-])
+@pytest.mark.parametrize(
+    "patch,where",
+    [
+        ({"sensor": {"pitch_m": 4.86}}, "pitch_m"),  # out of range
+        ({"sensor": {"threshold_on": True}}, "threshold_on"),  # a boolean is not a number
+        ({"sensor": {"placement": "after_log"}}, "placement"),  # not a choice
+        ({"sensor": {"threshhold_on": 0.2}}, "threshhold_on"),  # unknown key
+        ({"realisations": {"asic": {"bits": 7.5}}}, "bits"),  # an integer option
+        ({"realisations": {"include": ["learned", "fpga"]}}, "fpga"),  # not a registered realisation
+        ({"sensors": {}}, "sensors"),  # unknown section
+    ],
+)
 def test_a_bad_value_fails_the_json_schema(patch, where, validator):
     errors = list(validator.iter_errors(patch))
     assert errors, patch
@@ -84,19 +87,31 @@ def test_messages_are_generated_from_the_fields_schema():
     with pytest.raises(DesignError) as info:
         parse_design({"sensor": {"pitch_m": 4.86}, "realisations": {"asic": {"scale": -1.0}, "mesh": {"fit_size": 4}}})
     msg = str(info.value)
-    assert ("key 'sensor.pitch_m' = 4.86: out of range; allowed: a number in [1e-07, 0.001] m "
-            "(pixel pitch in metres)") in msg
+    assert (
+        "key 'sensor.pitch_m' = 4.86: out of range; allowed: a number in [1e-07, 0.001] m (pixel pitch in metres)"
+    ) in msg
     # a union: the value's own alternative explains the problem; an open bound is a round bracket
-    assert ("key 'realisations.asic.scale' = -1.0: out of range; allowed: a number in (0, inf] or one of "
-            "'free', 'pow2' (tap scale: 'free', 'pow2' or a fixed positive number)") in msg
-    assert "key 'realisations.mesh.fit_size' = 4: out of range (even); allowed: an odd integer in [1, 63] px or None" in msg
+    assert (
+        "key 'realisations.asic.scale' = -1.0: out of range; allowed: a number in (0, inf] or one of "
+        "'free', 'pow2' (tap scale: 'free', 'pow2' or a fixed positive number)"
+    ) in msg
+    assert (
+        "key 'realisations.mesh.fit_size' = 4: out of range (even); allowed: an odd integer in [1, 63] px or None"
+        in msg
+    )
     assert "(3 problems)" in msg
 
 
-@pytest.mark.parametrize("value,why", [
-    (True, "wrong type boolean"), (7.0, "wrong type number"), ("8", "wrong type string"), (None, "None is not allowed"),
-    (1, "out of range"),
-])
+@pytest.mark.parametrize(
+    "value,why",
+    [
+        (True, "wrong type boolean"),
+        (7.0, "wrong type number"),
+        ("8", "wrong type string"),
+        (None, "None is not allowed"),
+        (1, "out of range"),
+    ],
+)
 def test_strict_rules_of_an_integer_option(value, why):
     with pytest.raises(InputError, match=f"key 'bits' = .*: {why}; allowed: an integer in \\[2, 24\\] bit"):
         validate(AsicOptions, {"bits": value})

@@ -33,8 +33,14 @@ def _hooks():
 
 def _build(out: Path) -> Path:
     env = {**os.environ, "PYTHONPATH": str(REPO), "NO_MKDOCS_2_WARNING": "1"}
-    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(REPO / "mkdocs.yml"),
-                           "-d", str(out)], cwd=REPO, env=env, capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(REPO / "mkdocs.yml"), "-d", str(out)],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     log = proc.stdout + proc.stderr
     assert proc.returncode == 0, log[-5000:]
     assert "WARNING" not in log, log[-5000:]
@@ -118,21 +124,31 @@ def test_bench_tables_split_where_a_case_repeats_and_show_spread():
     from benchmarks.harness import BenchRecord
 
     hooks = _hooks()
-    rows = [BenchRecord("b", "T", "bits=2", "error", "", 0.5), BenchRecord("b", "T", "bits=2", "time", "ms", 1.5, 3, 1.0, 2.0),
-            BenchRecord("b", "T", "bits=2", "error", "", 0.25),  # same case and metric again: a second table
-            BenchRecord("b", "T", "fitted scale", "time", "ms", 7.0)]
+    rows = [
+        BenchRecord("b", "T", "bits=2", "error", "", 0.5),
+        BenchRecord("b", "T", "bits=2", "time", "ms", 1.5, 3, 1.0, 2.0),
+        BenchRecord("b", "T", "bits=2", "error", "", 0.25),  # same case and metric again: a second table
+        BenchRecord("b", "T", "fitted scale", "time", "ms", 7.0),
+    ]
     blocks = hooks._blocks(rows)
     assert [(title, len(r)) for title, r in blocks] == [("T", 2), ("", 1), ("", 1)]
     # two tables measured interleaved (per bit width, one row of each) come out as two tables
     mixed = [BenchRecord("b", t, f"bits={k}", "error", "", 0.1 * k) for k in (2, 3) for t in ("A", "B")]
     assert [(title, [r.case for r, _ in rows]) for title, rows in hooks._blocks(mixed)] == [
-        ("A", ["bits=2", "bits=3"]), ("B", ["bits=2", "bits=3"])]
+        ("A", ["bits=2", "bits=3"]),
+        ("B", ["bits=2", "bits=3"]),
+    ]
     # a cell holding "; " stays one cell when the table's headers are known
     case = "target=DoG; at a bound=pixel_weight; lambda ratio at 1.5; size=7x7"
     assert hooks._split_case(case, ("target", "at a bound", "size")) == [
-        ("target", "DoG"), ("at a bound", "pixel_weight; lambda ratio at 1.5"), ("size", "7x7")]
+        ("target", "DoG"),
+        ("at a bound", "pixel_weight; lambda ratio at 1.5"),
+        ("size", "7x7"),
+    ]
     assert hooks._split_case("method=angular; knobs=n_freq=129, n_angles=8") == [
-        ("method", "angular"), ("knobs", "n_freq=129, n_angles=8")]
+        ("method", "angular"),
+        ("knobs", "n_freq=129, n_angles=8"),
+    ]
     assert hooks._cell(rows[1]) == "1.5 [1–2], n=3"
     assert hooks._cell(rows[0]) == "0.5"
     assert hooks._cell(BenchRecord("b", "T", "one run", "time", "s", 4.0, 1, 4.0, 4.0)) == "4, n=1"

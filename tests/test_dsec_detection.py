@@ -18,8 +18,18 @@ from PIL import Image
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.scenes.datasets import DsecDetectionDataset
 
-TRACKS_DTYPE = np.dtype([("t", "<u8"), ("x", "<f4"), ("y", "<f4"), ("w", "<f4"), ("h", "<f4"), ("class_id", "u1"),
-                         ("class_confidence", "<f4"), ("track_id", "<u4")])
+TRACKS_DTYPE = np.dtype(
+    [
+        ("t", "<u8"),
+        ("x", "<f4"),
+        ("y", "<f4"),
+        ("w", "<f4"),
+        ("h", "<f4"),
+        ("class_id", "u1"),
+        ("class_confidence", "<f4"),
+        ("track_id", "<u4"),
+    ]
+)
 T0 = 58_000_000  # µs, DSEC timestamps are absolute
 
 
@@ -33,11 +43,15 @@ def _sequence(root: Path, class_id: int = 2) -> Path:
         Image.fromarray(frame).save(img / f"{k:06d}.png")
     np.savetxt(seq / "images" / "timestamps.txt", stamps, fmt="%d")
     (seq / "object_detections" / "left").mkdir(parents=True)
-    tracks = np.array([(stamps[3], 4.0, 5.0, 10.0, 6.0, class_id, 0.9, 1),
-                       (stamps[5], 26.0, -3.0, 10.0, 8.0, 0, 0.8, 2),  # past the right and top edges
-                       (stamps[5], 2.0, 2.0, 4.0, 4.0, 5, 0.7, 3),
-                       (T0 - 1, 0.0, 0.0, 4.0, 4.0, 1, 0.5, 4)],  # at no image: not used
-                      dtype=TRACKS_DTYPE)
+    tracks = np.array(
+        [
+            (stamps[3], 4.0, 5.0, 10.0, 6.0, class_id, 0.9, 1),
+            (stamps[5], 26.0, -3.0, 10.0, 8.0, 0, 0.8, 2),  # past the right and top edges
+            (stamps[5], 2.0, 2.0, 4.0, 4.0, 5, 0.7, 3),
+            (T0 - 1, 0.0, 0.0, 4.0, 4.0, 1, 0.5, 4),
+        ],  # at no image: not used
+        dtype=TRACKS_DTYPE,
+    )
     np.save(seq / "object_detections" / "left" / "tracks.npy", tracks)
     return seq
 
@@ -83,9 +97,11 @@ def test_design_reads_dsec_detection_and_scores_it(tmp_path):
     _sequence(tmp_path / "dsec" / "test")
     shutil.copy(PLUGINS / "toy_network.py", tmp_path / "toy_network.py")
     path = tmp_path / "d.toml"
-    path.write_text(cheap_design("dsec") + '[tasks.datasets.detection]\nnetwork = "toy_network:make"\n'
-                    'network_options = { task = "detection" }\n'
-                    'dataset = { format = "dsec_detection", root = "dsec", split = "test", n_frames = 3 }\n')
+    path.write_text(
+        cheap_design("dsec") + '[tasks.datasets.detection]\nnetwork = "toy_network:make"\n'
+        'network_options = { task = "detection" }\n'
+        'dataset = { format = "dsec_detection", root = "dsec", split = "test", n_frames = 3 }\n'
+    )
     entry = load_design(path).data["tasks"]["datasets"]["detection"]
     ev, _ = dataset_evidence(None, "detection", entry, tmp_path)
     assert ev.n_clips == 2 and ev.metric_name == "map" and 0.0 <= ev.value <= 1.0

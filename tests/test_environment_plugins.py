@@ -27,7 +27,7 @@ def test_new_names_win_and_former_names_still_work_with_a_warning(monkeypatch):
     with pytest.warns(DeprecationWarning, match=r"\$FSDVS_SWEEP_THREADS is deprecated; set \$FSDVS_HW_WORKER_THREADS"):
         assert env("FSDVS_HW_WORKER_THREADS") == "3"
     monkeypatch.setenv("FSDVS_HW_WORKER_THREADS", "2")
-    assert env("FSDVS_HW_WORKER_THREADS") == "2"       # the new name wins, no warning
+    assert env("FSDVS_HW_WORKER_THREADS") == "2"  # the new name wins, no warning
     set_env("FSDVS_HW_WORKER_THREADS", "1", default=True)
     assert os.environ["FSDVS_HW_WORKER_THREADS"] == "2"  # default=True keeps a value already set
     set_env("FSDVS_HW_WORKER_THREADS", None)
@@ -56,8 +56,9 @@ def _installed_plugin(root: Path, value: str) -> Path:
 def _fresh(site: Path, code: str) -> subprocess.CompletedProcess:
     env_ = {k: v for k, v in os.environ.items() if not k.endswith("REALISATION_PLUGINS")}
     env_["PYTHONPATH"] = os.pathsep.join([str(site), str(PLUGINS), str(Path(__file__).parents[1])])
-    return subprocess.run([sys.executable, "-W", "always", "-c", code], capture_output=True, text=True, env=env_,
-                          timeout=300)
+    return subprocess.run(
+        [sys.executable, "-W", "always", "-c", code], capture_output=True, text=True, env=env_, timeout=300
+    )
 
 
 def test_an_installed_plugin_is_known_in_a_fresh_process_without_any_variable(tmp_path):

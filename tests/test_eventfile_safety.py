@@ -74,8 +74,13 @@ def test_full_disk_leaves_no_file_and_keeps_the_previous_one(tmp_path, suffix):
     file (nothing hidden left either), and the previous file at the target is untouched."""
     target = tmp_path / f"ev{suffix}"
     target.write_bytes(OLD)
-    r = subprocess.run([sys.executable, "-c", WRITER, "full", str(target), str(256 * 1024)], env=_env(),
-                       capture_output=True, text=True, timeout=120)
+    r = subprocess.run(
+        [sys.executable, "-c", WRITER, "full", str(target), str(256 * 1024)],
+        env=_env(),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert r.returncode == 3, (r.returncode, r.stdout, r.stderr[-2000:])
     assert "OSError:" in r.stdout and str(target) in r.stdout
     assert target.read_bytes() == OLD
@@ -89,8 +94,13 @@ def test_kill_mid_write_leaves_only_a_hidden_temporary_file(tmp_path, suffix):
     and whatever remains is hidden (``.ev.partial-PID...``)."""
     target = tmp_path / f"ev{suffix}"
     target.write_bytes(OLD)
-    proc = subprocess.Popen([sys.executable, "-c", WRITER, "kill", str(target), "0"], env=_env(),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", WRITER, "kill", str(target), "0"],
+        env=_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert proc.stdout.readline().strip() == "first", proc.stderr.read()[-2000:]
         proc.kill()
@@ -123,9 +133,24 @@ def test_simulate_stopped_by_signal_exits_nonzero_without_a_file(tmp_path, sig, 
     out = tmp_path / "out" / "ev.npz"
     out.parent.mkdir()
     out.write_bytes(OLD)
-    proc = subprocess.Popen([sys.executable, "-m", "fsdvs_hw.cli", "simulate", str(video), "--out", str(out),
-                             "--no-progress", "--preset", "v2e-noisy"], env=_env(),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "fsdvs_hw.cli",
+            "simulate",
+            str(video),
+            "--out",
+            str(out),
+            "--no-progress",
+            "--preset",
+            "v2e-noisy",
+        ],
+        env=_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         deadline = time.monotonic() + 60
         while not any(p.name.startswith(".ev.partial-") for p in out.parent.iterdir()):
@@ -148,9 +173,14 @@ def test_simulate_stopped_by_signal_exits_nonzero_without_a_file(tmp_path, sig, 
 
 
 def _npz(path: Path, **arrays) -> Path:
-    base = {"t": np.array([0, 5, 9], np.int64), "x": np.array([0, 1, 2], np.uint16),
-            "y": np.array([0, 1, 1], np.uint16), "p": np.array([1, -1, 1], np.int8),
-            "width": np.int64(4), "height": np.int64(3)}
+    base = {
+        "t": np.array([0, 5, 9], np.int64),
+        "x": np.array([0, 1, 2], np.uint16),
+        "y": np.array([0, 1, 1], np.uint16),
+        "p": np.array([1, -1, 1], np.int8),
+        "width": np.int64(4),
+        "height": np.int64(3),
+    }
     base.update(arrays)
     np.savez(path, **{k: v for k, v in base.items() if v is not None})
     return path
@@ -180,8 +210,12 @@ def _good_aedat4(path: Path) -> Path:
     rng = np.random.default_rng(0)
     n = 3000
     t = np.sort(rng.integers(0, 10**6, n))
-    write_events(path, EventFile(t, rng.integers(0, 40, n), rng.integers(0, 30, n),
-                                 rng.choice(np.array([-1, 1], np.int8), n), 40, 30), 40, 30)
+    write_events(
+        path,
+        EventFile(t, rng.integers(0, 40, n), rng.integers(0, 30, n), rng.choice(np.array([-1, 1], np.int8), n), 40, 30),
+        40,
+        30,
+    )
     return path
 
 
@@ -201,16 +235,35 @@ def _cases():
         "npz missing width": ("width", lambda d: _npz(d / "a.npz", width=None)),
         "npz width 0": ("width", lambda d: _npz(d / "a.npz", width=np.int64(0))),
         "npz float height": ("height", lambda d: _npz(d / "a.npz", height=np.float64(3.0))),
-        "npz is one .npy": ("(file)", lambda d: (np.save(d / "a.npy", np.arange(3)), os.replace(d / "a.npy", d / "a.npz"),
-                                                 d / "a.npz")[-1]),
+        "npz is one .npy": (
+            "(file)",
+            lambda d: (np.save(d / "a.npy", np.arange(3)), os.replace(d / "a.npy", d / "a.npz"), d / "a.npz")[-1],
+        ),
         "npz not a zip": ("(file)", lambda d: (d / "a.npz").write_bytes(b"PK\x03\x04garbage") and d / "a.npz"),
         "h5 truncated": ("(file)", lambda d: _truncate(_h5(d / "a.h5"))),
-        "h5 group where the dataset belongs": ("events", lambda d: _h5(d / "a.h5", build=lambda f: f.create_group("events"))),
+        "h5 group where the dataset belongs": (
+            "events",
+            lambda d: _h5(d / "a.h5", build=lambda f: f.create_group("events")),
+        ),
         "h5 no events": ("events", lambda d: _h5(d / "a.h5", build=lambda f: f.create_dataset("other", data=[1]))),
-        "h5 declares 1e10 events": ("events", lambda d: _h5(d / "a.h5", build=lambda f: f.create_dataset(
-            "events", shape=(10**10, 4), maxshape=(None, 4), chunks=(65536, 4), dtype="uint32"))),
-        "h5 declared events absent": ("events", lambda d: _h5(d / "a.h5", build=lambda f: f.create_dataset(
-            "events", shape=(1000, 4), maxshape=(None, 4), chunks=(256, 4), dtype="uint32"))),
+        "h5 declares 1e10 events": (
+            "events",
+            lambda d: _h5(
+                d / "a.h5",
+                build=lambda f: f.create_dataset(
+                    "events", shape=(10**10, 4), maxshape=(None, 4), chunks=(65536, 4), dtype="uint32"
+                ),
+            ),
+        ),
+        "h5 declared events absent": (
+            "events",
+            lambda d: _h5(
+                d / "a.h5",
+                build=lambda f: f.create_dataset(
+                    "events", shape=(1000, 4), maxshape=(None, 4), chunks=(256, 4), dtype="uint32"
+                ),
+            ),
+        ),
         "h5 float times (seconds)": ("t_us", lambda d: _h5(d / "a.h5", np.array([[0.0, 0, 0, 1], [0.5, 1, 1, 0]]))),
         "h5 shape (N, 3)": ("events", lambda d: _h5(d / "a.h5", np.zeros((3, 3), np.uint32))),
         "h5 polarity 2": ("(p)", lambda d: _h5(d / "a.h5", np.array([[0, 0, 0, 2]], np.uint32))),
@@ -221,10 +274,19 @@ def _cases():
     }
     out = [pytest.param(field, make, id=name) for name, (field, make) in c.items()]
     for name, fraction in (("aedat4 truncated", 0.5), ("aedat4 header only", 0.01)):
-        out.append(pytest.param("(file)", lambda d, f=fraction: _truncate(_good_aedat4(d / "a.aedat4"), f),
-                                id=name, marks=NEEDS_DV))
-    out.append(pytest.param("(file)", lambda d: (d / "a.aedat4").write_bytes(b"#!AER-DAT4.0\r\n" + b"\0" * 64)
-                            and d / "a.aedat4", id="aedat4 garbage after the magic", marks=NEEDS_DV))
+        out.append(
+            pytest.param(
+                "(file)", lambda d, f=fraction: _truncate(_good_aedat4(d / "a.aedat4"), f), id=name, marks=NEEDS_DV
+            )
+        )
+    out.append(
+        pytest.param(
+            "(file)",
+            lambda d: (d / "a.aedat4").write_bytes(b"#!AER-DAT4.0\r\n" + b"\0" * 64) and d / "a.aedat4",
+            id="aedat4 garbage after the magic",
+            marks=NEEDS_DV,
+        )
+    )
     return out
 
 
@@ -263,14 +325,19 @@ def _good_file(d: Path, suffix: str) -> bytes:
     n = 200
     t = np.sort(rng.integers(0, 10**5, n))
     path = d / f"good{suffix}"
-    write_events(path, EventFile(t, rng.integers(0, 16, n), rng.integers(0, 12, n),
-                                 rng.choice(np.array([-1, 1], np.int8), n), 16, 12), 16, 12)
+    write_events(
+        path,
+        EventFile(t, rng.integers(0, 16, n), rng.integers(0, 12, n), rng.choice(np.array([-1, 1], np.int8), n), 16, 12),
+        16,
+        12,
+    )
     return path.read_bytes()
 
 
-MUTATIONS = st.tuples(st.lists(st.tuples(st.floats(0, 1, exclude_max=True), st.integers(0, 255)), min_size=1,
-                               max_size=8),
-                      st.one_of(st.none(), st.floats(0, 1)))
+MUTATIONS = st.tuples(
+    st.lists(st.tuples(st.floats(0, 1, exclude_max=True), st.integers(0, 255)), min_size=1, max_size=8),
+    st.one_of(st.none(), st.floats(0, 1)),
+)
 
 
 def _mutate(data: bytes, mutation) -> bytes:
@@ -281,8 +348,7 @@ def _mutate(data: bytes, mutation) -> bytes:
     return bytes(b[: int(cut * len(b))]) if cut is not None else bytes(b)
 
 
-@pytest.mark.parametrize("suffix, examples", [(".npz", 50), (".h5", 50),
-                                              pytest.param(".aedat4", 12, marks=NEEDS_DV)])
+@pytest.mark.parametrize("suffix, examples", [(".npz", 50), (".h5", 50), pytest.param(".aedat4", 12, marks=NEEDS_DV)])
 def test_garbled_files_read_valid_or_raise_input_error(tmp_path_factory, suffix, examples):
     """Any file with up to 8 changed bytes and/or cut short reads to valid events or raises
     InputError, never another exception (derandomized: the same examples every run)."""
@@ -292,8 +358,13 @@ def test_garbled_files_read_valid_or_raise_input_error(tmp_path_factory, suffix,
     eventfile.AEDAT4_READ_TIMEOUT_S = 5.0  # a garbled AEDAT4 file can make dv-processing loop forever
     outcomes = {"read": 0, "refused": 0}
 
-    @settings(max_examples=examples, deadline=None, derandomize=True, database=None,
-              suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+    @settings(
+        max_examples=examples,
+        deadline=None,
+        derandomize=True,
+        database=None,
+        suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+    )
     @given(mutation=MUTATIONS)
     def check(mutation):
         path = d / f"bad{suffix}"
@@ -319,16 +390,20 @@ def test_garbled_files_read_valid_or_raise_input_error(tmp_path_factory, suffix,
 # ------------------------------------------------------------------------------------------ CLI
 
 
-@pytest.mark.parametrize("argv, flag", [
-    (["--size", "100000x100000"], "--size"),
-    (["--size", "20000x20000"], "--size"),  # within the side limit, beyond the memory limit
-    (["--threads", "10000"], "--threads"),
-    (["--threads", "0"], "--threads"),
-    (["--seed", str(2**62)], "--seed"),
-    (["--seed", "-1"], "--seed"),
-    (["--frames", "0"], "--frames"),
-    (["--chunk-frames", "0"], "--chunk-frames"),
-], ids=["size side", "size memory", "threads many", "threads 0", "seed 2**62", "seed -1", "frames 0", "chunk 0"])
+@pytest.mark.parametrize(
+    "argv, flag",
+    [
+        (["--size", "100000x100000"], "--size"),
+        (["--size", "20000x20000"], "--size"),  # within the side limit, beyond the memory limit
+        (["--threads", "10000"], "--threads"),
+        (["--threads", "0"], "--threads"),
+        (["--seed", str(2**62)], "--seed"),
+        (["--seed", "-1"], "--seed"),
+        (["--frames", "0"], "--frames"),
+        (["--chunk-frames", "0"], "--chunk-frames"),
+    ],
+    ids=["size side", "size memory", "threads many", "threads 0", "seed 2**62", "seed -1", "frames 0", "chunk 0"],
+)
 def test_simulate_limits_are_one_line_errors(tmp_path, capsys, argv, flag):
     from fsdvs_hw.cli import main
 

@@ -62,42 +62,66 @@ def test_kernel_file_is_resolved_relative_to_the_design(tmp_path):
 
 # ---------------------------------------------------------------------- one clear error each
 BAD = {
-    "unknown key": ('[sensor]\npitch_m = 4.86e-6\nthreshhold_on = 0.2\n',
-                    ["sensor.threshhold_on", "unknown key", "threshold_on"]),
-    "unknown section": ('[sensors]\npitch_m = 4.86e-6\n', ["'sensors'", "unknown section", "sensor"]),
+    "unknown key": (
+        "[sensor]\npitch_m = 4.86e-6\nthreshhold_on = 0.2\n",
+        ["sensor.threshhold_on", "unknown key", "threshold_on"],
+    ),
+    "unknown section": ("[sensors]\npitch_m = 4.86e-6\n", ["'sensors'", "unknown section", "sensor"]),
     "wrong type": ('[sensor]\npitch_m = "4.86um"\n', ["sensor.pitch_m", '"4.86um"', "wrong type string", "number"]),
     "wrong type in list": ('[sensor]\nresolution = [48, "64"]\n', ["sensor.resolution[1]", "wrong type", "integer"]),
-    "out of range": ('[sensor]\npitch_m = 4.86\n', ["sensor.pitch_m", "4.86", "out of range", "[1e-07, 0.001]", "metres"]),
-    "even kernel size": ('[kernel]\nsize = 6\n', ["kernel.size", "6", "out of range", "odd"]),
+    "out of range": (
+        "[sensor]\npitch_m = 4.86\n",
+        ["sensor.pitch_m", "4.86", "out of range", "[1e-07, 0.001]", "metres"],
+    ),
+    "even kernel size": ("[kernel]\nsize = 6\n", ["kernel.size", "6", "out of range", "odd"]),
     "bad choice": ('[sensor]\nplacement = "after_log"\n', ["sensor.placement", "after_log", "'pre_log', 'post_log'"]),
-    "missing kernel file": ('[kernel]\nsource = "file"\npath = "nope.npy"\n',
-                            ["kernel.path", "nope.npy", "kernel file not found"]),
-    "bad realisation": ('[realisations]\ninclude = ["learned", "fpga"]\n',
-                        ["realisations.include[1]", "fpga", "'mesh', 'asic', 'metalens'"]),
+    "missing kernel file": (
+        '[kernel]\nsource = "file"\npath = "nope.npy"\n',
+        ["kernel.path", "nope.npy", "kernel file not found"],
+    ),
+    "bad realisation": (
+        '[realisations]\ninclude = ["learned", "fpga"]\n',
+        ["realisations.include[1]", "fpga", "'mesh', 'asic', 'metalens'"],
+    ),
     "bad sweep value": ('[sweep]\naxes = { "asic.bits" = [4, 0] }\n', ["sweep.axes.asic.bits", "0", "out of range"]),
-    "sweep axis on unknown key": ('[sweep]\naxes = { "sensor.gain" = [1, 2] }\n', ["sweep.axes.sensor.gain", "unknown key"]),
-    "unknown CSF": ('[analysis]\ncsf_methods = ["mannos_sakrison_1974", "kelly_1979"]\n',
-                    ["analysis.csf_methods[1]", "kelly_1979", "barten_1999"]),
-    "bad reference parameter": ('[kernel]\nfamily = "dog"\nparams = { sigma_centre_px = 3.0, sigma_surround_px = 1.0 }\n',
-                                ["kernel.params", "sigma_surround_px", "must exceed"]),
-    "sensor smaller than the kernel": ('[kernel]\nsize = 15\n[sensor]\nresolution = [12, 64]\n',
-                                       ["sensor.resolution", "smaller than the 15x15 kernel"]),
-    "missing checkpoint": ('[tasks]\ncheckpoints = { detection = "nowhere/learned_detection" }\n',
-                           ["tasks.checkpoints.detection", "checkpoint file not found"]),
+    "sweep axis on unknown key": (
+        '[sweep]\naxes = { "sensor.gain" = [1, 2] }\n',
+        ["sweep.axes.sensor.gain", "unknown key"],
+    ),
+    "unknown CSF": (
+        '[analysis]\ncsf_methods = ["mannos_sakrison_1974", "kelly_1979"]\n',
+        ["analysis.csf_methods[1]", "kelly_1979", "barten_1999"],
+    ),
+    "bad reference parameter": (
+        '[kernel]\nfamily = "dog"\nparams = { sigma_centre_px = 3.0, sigma_surround_px = 1.0 }\n',
+        ["kernel.params", "sigma_surround_px", "must exceed"],
+    ),
+    "sensor smaller than the kernel": (
+        "[kernel]\nsize = 15\n[sensor]\nresolution = [12, 64]\n",
+        ["sensor.resolution", "smaller than the 15x15 kernel"],
+    ),
+    "missing checkpoint": (
+        '[tasks]\ncheckpoints = { detection = "nowhere/learned_detection" }\n',
+        ["tasks.checkpoints.detection", "checkpoint file not found"],
+    ),
     "missing checkpoint in a seed list": (
-        f'[tasks]\ncheckpoints = {{ detection = ["ck.safetensors", '
-        '"nowhere/seed1"] }\n', ["tasks.checkpoints.detection[1]", "nowhere/seed1", "checkpoint file not found"]),
-    "empty seed list": ('[tasks]\ncheckpoints = { detection = [] }\n', ["tasks.checkpoints.detection", "empty list"]),
+        f'[tasks]\ncheckpoints = {{ detection = ["ck.safetensors", "nowhere/seed1"] }}\n',
+        ["tasks.checkpoints.detection[1]", "nowhere/seed1", "checkpoint file not found"],
+    ),
+    "empty seed list": ("[tasks]\ncheckpoints = { detection = [] }\n", ["tasks.checkpoints.detection", "empty list"]),
     "task weight for a task not scored": (
-        f'[tasks]\ncheckpoints = {{ detection = "ck.safetensors" }}\n'
-        '[scoring]\ntask_weights = { recognition = 1 }\n', ["scoring.task_weights.recognition", "not a task"]),
+        f'[tasks]\ncheckpoints = {{ detection = "ck.safetensors" }}\n[scoring]\ntask_weights = {{ recognition = 1 }}\n',
+        ["scoring.task_weights.recognition", "not a task"],
+    ),
     "negative task weight": (
-        f'[tasks]\ncheckpoints = {{ detection = "ck.safetensors" }}\n'
-        '[scoring]\ntask_weights = { detection = -1 }\n', ["scoring.task_weights.detection", ">= 0"]),
+        f'[tasks]\ncheckpoints = {{ detection = "ck.safetensors" }}\n[scoring]\ntask_weights = {{ detection = -1 }}\n',
+        ["scoring.task_weights.detection", ">= 0"],
+    ),
     "per-task n_test out of range": (
-        f'[tasks]\ncheckpoints = {{ detection = "ck.safetensors" }}\n'
-        'n_test = { detection = -5 }\n', ["tasks.n_test.detection", "[0, 100000]"]),
-    "bad confidence": ('[scoring]\nconfidence = 1.5\n', ["scoring.confidence", "out of range"]),
+        f'[tasks]\ncheckpoints = {{ detection = "ck.safetensors" }}\nn_test = {{ detection = -5 }}\n',
+        ["tasks.n_test.detection", "[0, 100000]"],
+    ),
+    "bad confidence": ("[scoring]\nconfidence = 1.5\n", ["scoring.confidence", "out of range"]),
 }
 
 
@@ -149,8 +173,13 @@ def test_missing_and_unparsable_files(tmp_path):
 def test_cli_rejects_a_bad_design_before_any_work(tmp_path):
     p = _write(tmp_path, "[sensor]\npitch_m = 4.86\n")
     out = tmp_path / "out"
-    r = subprocess.run([sys.executable, "-m", "fsdvs_hw.cli", "explore", str(p), "--out", str(out)],
-                       capture_output=True, text=True, cwd=REPO, timeout=120)
+    r = subprocess.run(
+        [sys.executable, "-m", "fsdvs_hw.cli", "explore", str(p), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=120,
+    )
     assert r.returncode == 2
     assert "sensor.pitch_m" in r.stderr and "out of range" in r.stderr
     assert "Traceback" not in r.stderr
@@ -166,8 +195,12 @@ def test_overrides_are_revalidated():
 
 
 def test_points_grid_per_realisation_and_global_axes():
-    d = parse_design({"realisations": {"include": ["learned", "delta", "asic"]},
-                      "sweep": {"axes": {"asic.bits": [2, 4, 8], "optics.focal_length_m": [2e-3, 4e-3]}}})
+    d = parse_design(
+        {
+            "realisations": {"include": ["learned", "delta", "asic"]},
+            "sweep": {"axes": {"asic.bits": [2, 4, 8], "optics.focal_length_m": [2e-3, 4e-3]}},
+        }
+    )
     pts = expand_points(d)
     # (learned + delta + 3 asic) for each of 2 focal lengths
     assert len(pts) == 2 * (1 + 1 + 3)
@@ -179,8 +212,13 @@ def test_points_grid_per_realisation_and_global_axes():
 
 def test_point_key_depends_only_on_what_decides_the_result():
     base = parse_design({"realisations": {"include": ["learned", "asic"]}})
-    other_mesh = parse_design({"realisations": {"include": ["learned", "asic"], "mesh": {}},
-                               "run": {"workers": 7}, "design": {"description": "x"}})
+    other_mesh = parse_design(
+        {
+            "realisations": {"include": ["learned", "asic"], "mesh": {}},
+            "run": {"workers": 7},
+            "design": {"description": "x"},
+        }
+    )
     keys = {p.realisation: p.key for p in expand_points(base)}
     assert keys == {p.realisation: p.key for p in expand_points(other_mesh)}
     moved = parse_design({"realisations": {"include": ["learned", "asic"]}, "sensor": {"threshold_on": 0.3}})
@@ -195,7 +233,13 @@ def test_checkpoint_glob_lists_networks_in_natural_order_and_an_empty_match_is_n
 
     from fsdvs_hw.explore.design import parse_design
 
-    src = Path(__file__).parents[1] / "designs" / "kernels" / "networks" / "recognition_with_learned_detection_7x7_s0.safetensors"
+    src = (
+        Path(__file__).parents[1]
+        / "designs"
+        / "kernels"
+        / "networks"
+        / "recognition_with_learned_detection_7x7_s0.safetensors"
+    )
     (tmp_path / "nets").mkdir()
     for s in (0, 2, 10, 1):
         shutil.copy(src, tmp_path / "nets" / f"rec_s{s}.safetensors")

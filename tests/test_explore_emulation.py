@@ -67,15 +67,22 @@ def test_ideal_recapture_of_an_unfiltered_clip_matches_the_direct_simulation():
     cfg = SensorConfig.ideal(0.2, dark_intensity=1e-6, full_scale_intensity=1e6)
     display = DisplaySettings(bits=16, gamma=1.0, black_nits=0.0, upsample_factor=1)
     rec, info = recapture(clips.video, clips.timestamps_s, reference_kernel("delta", 1), display=display, sensor=cfg)
-    direct = event_frames(torch.as_tensor(clips.video), None, timestamps_s=torch.as_tensor(clips.timestamps_s), config=cfg)
+    direct = event_frames(
+        torch.as_tensor(clips.video), None, timestamps_s=torch.as_tensor(clips.timestamps_s), config=cfg
+    )
     assert float(direct.sum()) > 50
     # clipping above the 99.9th percentile and 16-bit rounding may move a crossing or two at most
     assert float((rec - direct).abs().sum()) <= 2
     assert info["clipped_black"] == 0.0
     # blending in linear light is monotone within each interval: an ideal sensor counts the same
     # crossings per source interval whatever the upsampling factor
-    up4, _ = recapture(clips.video, clips.timestamps_s, reference_kernel("delta", 1),
-                       display=DisplaySettings(bits=16, gamma=1.0, black_nits=0.0, upsample_factor=4), sensor=cfg)
+    up4, _ = recapture(
+        clips.video,
+        clips.timestamps_s,
+        reference_kernel("delta", 1),
+        display=DisplaySettings(bits=16, gamma=1.0, black_nits=0.0, upsample_factor=4),
+        sensor=cfg,
+    )
     assert torch.equal(up4, rec)
 
 

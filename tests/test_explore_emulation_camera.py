@@ -20,7 +20,9 @@ def test_camera_preset_changes_the_recapture_only():
     dog = reference_kernel("dog", 7)
     design = emulation_scores(dog, sensor=sensor, emulation=emu)
     assert emulation_scores(dog, sensor=sensor, emulation=emu, camera="design") == {
-        **design, "wall_s": pytest.approx(design["wall_s"], abs=1e9)}
+        **design,
+        "wall_s": pytest.approx(design["wall_s"], abs=1e9),
+    }
     dvs128 = emulation_scores(dog, sensor=sensor, emulation=emu, camera="dvs128")
     assert dvs128["events_in_sensor"] == design["events_in_sensor"]  # the in-sensor reference is unchanged
     assert dvs128["events_recaptured"] != design["events_recaptured"]  # a 0.14 threshold camera recaptures more

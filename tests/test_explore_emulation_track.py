@@ -42,8 +42,9 @@ def test_task_scores_on_both_tracks():
     assert emu["event_rate"] != sim["event_rate"]
     assert emu["event_rate"] == pytest.approx(sim["event_rate"], rel=0.5)
     # a 1-bit display destroys the filtered image's grey levels: far fewer usable events
-    coarse = task_scores(k, {"recognition": REC}, n_test=64, tracks=("emulation",),
-                         display=DisplaySettings(bits=1, upsample_factor=1))
+    coarse = task_scores(
+        k, {"recognition": REC}, n_test=64, tracks=("emulation",), display=DisplaySettings(bits=1, upsample_factor=1)
+    )
     assert coarse["recognition"]["emulation"]["event_rate"] != emu["event_rate"]
 
 

@@ -87,18 +87,22 @@ def test_explore_writes_loss_cis_for_every_task_and_track(tmp_path, capsys):
     for src in (KERNELS / "learned_detection_7x7.json", DET, REC):
         shutil.copy(src, tmp_path / src.name)
     p = tmp_path / "d.toml"
-    p.write_text('[kernel]\nsource = "file"\npath = "learned_detection_7x7.json"\n'
-                 '[realisations]\ninclude = ["learned", "delta"]\n[analysis]\ncsf_methods = ["mannos_sakrison_1974"]\n'
-                 '[emulation]\nenabled = false\n'
-                 f'[tasks]\ncheckpoints = {{ detection = ["{DET.name}"], recognition = "{REC.name}" }}\n'
-                 'n_test = { detection = 64, recognition = 96 }\nn_test_emulation = 32\n'
-                 'tracks = ["simulator", "emulation"]\n[scoring]\nn_resamples = 300\n'
-                 'task_weights = { detection = 3, recognition = 1 }\n[run]\nworkers = 1\n')
+    p.write_text(
+        '[kernel]\nsource = "file"\npath = "learned_detection_7x7.json"\n'
+        '[realisations]\ninclude = ["learned", "delta"]\n[analysis]\ncsf_methods = ["mannos_sakrison_1974"]\n'
+        "[emulation]\nenabled = false\n"
+        f'[tasks]\ncheckpoints = {{ detection = ["{DET.name}"], recognition = "{REC.name}" }}\n'
+        "n_test = { detection = 64, recognition = 96 }\nn_test_emulation = 32\n"
+        'tracks = ["simulator", "emulation"]\n[scoring]\nn_resamples = 300\n'
+        "task_weights = { detection = 3, recognition = 1 }\n[run]\nworkers = 1\n"
+    )
     out = tmp_path / "out"
     assert main(["explore", str(p), "--out", str(out), "--no-progress"]) == 0
     printed = capsys.readouterr().out
     assert "| realisation | detection loss | recognition loss | weighted loss |" in printed
-    assert "losses measured in: detection: 1 network (training seeds 0) trained with the kernel being realised" in printed
+    assert (
+        "losses measured in: detection: 1 network (training seeds 0) trained with the kernel being realised" in printed
+    )
     assert "recognition: 1 network (training seeds 0) NOT trained with the kernel being realised" in printed
     rows = {r["realisation"]: r for r in json.loads((out / "scores.json").read_text())["rows"]}
     for prefix, n_det, n_rec in (("", 64, 96), ("emu_", 32, 32)):
@@ -107,7 +111,9 @@ def test_explore_writes_loss_cis_for_every_task_and_track(tmp_path, capsys):
             for f in ("loss", "loss_ci95_low", "loss_ci95_high", "n_clips", "n_seeds"):
                 assert f"{prefix}{task}_{f}" in d, f"{prefix}{task}_{f}"
             assert d[f"{prefix}{task}_n_clips"] == n and d[f"{prefix}{task}_n_seeds"] == 1
-            assert d[f"{prefix}{task}_loss_ci95_low"] <= d[f"{prefix}{task}_loss"] <= d[f"{prefix}{task}_loss_ci95_high"]
+            assert (
+                d[f"{prefix}{task}_loss_ci95_low"] <= d[f"{prefix}{task}_loss"] <= d[f"{prefix}{task}_loss_ci95_high"]
+            )
             assert rows["learned"][f"{prefix}{task}_loss"] == 0.0
             m = d[f"metric_{task}/{'emulation' if prefix else 'simulator'}"]
             m_ref = rows["learned"][f"metric_{task}/{'emulation' if prefix else 'simulator'}"]
@@ -157,8 +163,15 @@ def test_each_network_scores_its_own_clips_and_the_losses_are_nested(tmp_path):
                 assert r["n_clips"] == 96 and r["n_clips_per_network"] == 48 and len(set(r["test_seeds"])) == 2
             else:
                 assert r["n_clips"] == 48 and len(set(r["test_seeds"])) == 1
-            points.append({"key": f"{name}-{mode}", "realisation": name, "status": "ok",
-                           "params": {"mode": mode}, "result": {"tasks": rec}})
+            points.append(
+                {
+                    "key": f"{name}-{mode}",
+                    "realisation": name,
+                    "status": "ok",
+                    "params": {"mode": mode},
+                    "result": {"tasks": rec},
+                }
+            )
     losses = paired_losses(points, n_resamples=300)
     nested = losses["delta-per_network"]["simulator"]["recognition"]
     crossed = losses["delta-shared"]["simulator"]["recognition"]
@@ -166,6 +179,8 @@ def test_each_network_scores_its_own_clips_and_the_losses_are_nested(tmp_path):
     assert crossed["clip_design"] == "crossed" and crossed["n_clips"] == 48
     # the nested estimate is the mean of the two networks' own-clip differences
     pn = [p for p in points if p["params"]["mode"] == "per_network"]
-    per = np.subtract(pn[0]["result"]["tasks"]["recognition"]["simulator"]["per_seed"],
-                      pn[1]["result"]["tasks"]["recognition"]["simulator"]["per_seed"])
+    per = np.subtract(
+        pn[0]["result"]["tasks"]["recognition"]["simulator"]["per_seed"],
+        pn[1]["result"]["tasks"]["recognition"]["simulator"]["per_seed"],
+    )
     assert nested["estimate"] == pytest.approx(per.mean(), abs=1e-12)

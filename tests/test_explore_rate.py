@@ -12,8 +12,7 @@ import pytest
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.explore.paired import ClipEvidence, bootstrap_weights, event_rate_ci
-from fsdvs_hw.explore.rate import (RateCurve, RatePoint, interpolate_log_rate, matched_rate_difference,
-                                   rate_curve)
+from fsdvs_hw.explore.rate import RateCurve, RatePoint, interpolate_log_rate, matched_rate_difference, rate_curve
 from fsdvs_hw.kernels import Kernel
 from fsdvs_hw.stats import ClipMeans
 
@@ -22,11 +21,19 @@ ROOT = Path(__file__).parents[1]
 
 def _curve(name: str, thresholds, rates, metric_values, *, seeds=(1000, 1001)) -> RateCurve:
     """A curve from given per-point (networks, clips) rate and metric arrays."""
-    pts = [RatePoint(threshold=t, metrics=tuple(ClipMeans(m) for m in np.atleast_2d(mv)),
-                     clip_rates=np.atleast_2d(np.asarray(r, dtype=float)), test_seeds=tuple(seeds[: len(np.atleast_2d(mv))]),
-                     sensor_seeds=tuple(range(len(np.atleast_2d(mv)))))
-           for t, r, mv in zip(thresholds, rates, metric_values)]
-    return RateCurve(kernel_name=name, task="recognition", metric_name="top1", test_clips="per_network", points=tuple(pts))
+    pts = [
+        RatePoint(
+            threshold=t,
+            metrics=tuple(ClipMeans(m) for m in np.atleast_2d(mv)),
+            clip_rates=np.atleast_2d(np.asarray(r, dtype=float)),
+            test_seeds=tuple(seeds[: len(np.atleast_2d(mv))]),
+            sensor_seeds=tuple(range(len(np.atleast_2d(mv)))),
+        )
+        for t, r, mv in zip(thresholds, rates, metric_values)
+    ]
+    return RateCurve(
+        kernel_name=name, task="recognition", metric_name="top1", test_clips="per_network", points=tuple(pts)
+    )
 
 
 def test_interpolation_is_exact_on_a_curve_linear_in_log_rate():
@@ -46,7 +53,8 @@ def test_interpolation_is_exact_on_a_curve_linear_in_log_rate():
     # threshold at the matched rate: between 0.2 (40/s) and 0.3 (20/s), linear in log rate
     assert d.matched_threshold == pytest.approx(0.2 + 0.1 * math.log(40 / 27) / math.log(2), abs=1e-12)
     assert interpolate_log_rate(rates, [a + b * math.log(r) for r in rates], 15.0) == pytest.approx(
-        a + b * math.log(15.0), abs=1e-12)
+        a + b * math.log(15.0), abs=1e-12
+    )
 
 
 def test_reference_rate_outside_the_curve_is_refused_not_extrapolated():
@@ -77,13 +85,21 @@ def _noisy_study(rng: np.random.Generator, n_net: int = 16, n_clip: int = 24):
     true_rates = [40.0, 20.0, 10.0, 4.0]
     ref_rate, ref_metric = 15.0, 0.5
     activity = 1 + 0.2 * rng.standard_normal((n_net, n_clip))  # a busy clip is busy at every threshold
-    net_bias = 0.03 * rng.standard_normal((n_net, 1))           # networks differ
+    net_bias = 0.03 * rng.standard_normal((n_net, 1))  # networks differ
+
     def metric(r):
         return 0.2 + 0.1 * math.log(r / 10) + net_bias + 0.1 * rng.standard_normal((n_net, n_clip))
-    curve = _curve("w/o", ths, [r * activity for r in true_rates], [metric(r) for r in true_rates],
-                   seeds=tuple(range(n_net)))
-    ref = _curve("learned", [0.2], [ref_rate * activity], [ref_metric + net_bias + 0.1 * rng.standard_normal((n_net, n_clip))],
-                 seeds=tuple(range(n_net)))
+
+    curve = _curve(
+        "w/o", ths, [r * activity for r in true_rates], [metric(r) for r in true_rates], seeds=tuple(range(n_net))
+    )
+    ref = _curve(
+        "learned",
+        [0.2],
+        [ref_rate * activity],
+        [ref_metric + net_bias + 0.1 * rng.standard_normal((n_net, n_clip))],
+        seeds=tuple(range(n_net)),
+    )
     truth = ref_metric - (0.2 + 0.1 * math.log(ref_rate / 10))
     return curve, ref, truth
 
@@ -97,7 +113,7 @@ def test_matched_rate_ci_covers_the_truth_at_about_its_level():
         assert d.ok
         hits.append(d.low <= truth <= d.high)
         widths.append(d.high - d.low)
-    assert np.mean(hits) >= 0.85          # nominal 0.95, 40 replications
+    assert np.mean(hits) >= 0.85  # nominal 0.95, 40 replications
     assert 0.005 < np.median(widths) < 0.2  # an interval, not a point, not everything
 
 
@@ -120,17 +136,28 @@ class _Counter:
         activity, u = 1 + 0.3 * r.random(n), r.random(n)
         p = 0.9 - 1.5 * t_eff
         rates = activity * 40 * np.exp(-t_eff / 0.1)
-        return ClipEvidence(task=task, metric_name="top1", value=float(np.mean(u < p)), n_clips=n,
-                            metric=ClipMeans((u < p).astype(float)), checkpoint=str(checkpoint),
-                            sensor_seed=seed_offset, seconds=0.0, test_seed=1000 + clip_set,
-                            event_rate=float(rates.mean()) / 100, clip_event_rates=rates)
+        return ClipEvidence(
+            task=task,
+            metric_name="top1",
+            value=float(np.mean(u < p)),
+            n_clips=n,
+            metric=ClipMeans((u < p).astype(float)),
+            checkpoint=str(checkpoint),
+            sensor_seed=seed_offset,
+            seconds=0.0,
+            test_seed=1000 + clip_set,
+            event_rate=float(rates.mean()) / 100,
+            clip_event_rates=rates,
+        )
 
 
 def test_a_gain_that_only_lowers_the_threshold_vanishes_at_matched_rate(monkeypatch):
     from fsdvs_hw.explore import rate as rate_mod
 
     monkeypatch.setattr(rate_mod, "clip_evidence", _Counter())
-    ckpts = sorted((ROOT / "designs/kernels/networks").glob("recognition_with_learned_detection_7x7_s*.safetensors"))[:8]
+    ckpts = sorted((ROOT / "designs/kernels/networks").glob("recognition_with_learned_detection_7x7_s*.safetensors"))[
+        :8
+    ]
     double = Kernel(np.array([[2.0]]), name="delta x2")  # doubles the contrast: the effective threshold halves
     ths = (0.1, 0.15, 0.2, 0.3, 0.4)
     wo = rate_curve(None, "recognition", ckpts, ths, n_test=64)
@@ -138,8 +165,8 @@ def test_a_gain_that_only_lowers_the_threshold_vanishes_at_matched_rate(monkeypa
     assert dbl.point(0.2).rate > 2 * wo.point(0.2).rate  # it fires more events at the same threshold
     d = matched_rate_difference(wo, dbl, 0.2, n_resamples=500)
     assert d.ok and d.n_networks == 8 and d.n_clips == 8 * 64
-    assert d.raw_low > 0                                 # raw: a clear "gain"
-    assert abs(d.estimate) < 1e-12 < d.raw_estimate      # at equal rate it is w/o at 0.1: nothing left
+    assert d.raw_low > 0  # raw: a clear "gain"
+    assert abs(d.estimate) < 1e-12 < d.raw_estimate  # at equal rate it is w/o at 0.1: nothing left
     assert d.low <= 0 <= d.high
     assert d.matched_threshold == pytest.approx(0.1, abs=1e-12)
 
@@ -159,15 +186,28 @@ def test_clip_event_rates_are_the_mean_rate_in_events_per_pixel_second():
 
 
 def test_event_rate_ci_resamples_networks_when_clips_are_nested():
-    ev = [ClipEvidence("recognition", "top1", 0.5, 4, ClipMeans(np.ones(4)), "x", s, 0.0,
-                       clip_event_rates=np.full(4, 10.0 * (s + 1))) for s in range(5)]
+    ev = [
+        ClipEvidence(
+            "recognition",
+            "top1",
+            0.5,
+            4,
+            ClipMeans(np.ones(4)),
+            "x",
+            s,
+            0.0,
+            clip_event_rates=np.full(4, 10.0 * (s + 1)),
+        )
+        for s in range(5)
+    ]
     ci = event_rate_ci(ev, n_resamples=2000)
     assert ci["mean"] == pytest.approx(30.0) and ci["n_networks"] == 5 and ci["n_clips"] == 20
     assert ci["low"] < 25 and ci["high"] > 35  # the spread between networks enters (clips alone: zero width)
     ws, wc = bootstrap_weights(5, 4, n_resamples=100)
     assert wc is None and ws.shape == (100, 5) and np.all(ws.sum(axis=1) == 5)
     assert event_rate_ci([ClipEvidence("r", "top1", 0.5, 4, ClipMeans(np.ones(4)), "x", 0, 0.0)])["status"].startswith(
-        "unavailable")
+        "unavailable"
+    )
 
 
 def test_rate_curve_rejects_bad_thresholds():
@@ -183,8 +223,24 @@ def test_cli_rate_resumes_without_recomputing_a_point(monkeypatch, tmp_path):
 
     counter = _Counter()
     monkeypatch.setattr(rate_mod, "clip_evidence", counter)
-    argv = ["rate", str(ROOT / "designs/default.toml"), "--task", "recognition", "--networks", "3", "--n-test", "16",
-            "--thresholds", "0.1", "0.3", "--n-resamples", "200", "--out", str(tmp_path / "r"), "--no-progress"]
+    argv = [
+        "rate",
+        str(ROOT / "designs/default.toml"),
+        "--task",
+        "recognition",
+        "--networks",
+        "3",
+        "--n-test",
+        "16",
+        "--thresholds",
+        "0.1",
+        "0.3",
+        "--n-resamples",
+        "200",
+        "--out",
+        str(tmp_path / "r"),
+        "--no-progress",
+    ]
     assert main(argv) == 0
     assert counter.calls == 2 * 3 * 3  # (w/o, learned) × thresholds (0.1, 0.2 of the design, 0.3) × networks
     first = json.loads((tmp_path / "r/matched_rate.json").read_text())

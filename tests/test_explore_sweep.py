@@ -103,14 +103,23 @@ def test_paired_losses_through_a_plugged_per_clip_evaluator(monkeypatch, tmp_pat
 
     calls = []
 
-    def clip_evidence(kernel, task, checkpoint, *, n_test=None, sensor=None, seed_offset=0, clip_set=0,
-                      events_fn=None):
+    def clip_evidence(kernel, task, checkpoint, *, n_test=None, sensor=None, seed_offset=0, clip_set=0, events_fn=None):
         calls.append((task, Path(checkpoint).name, n_test, seed_offset, clip_set))
         if task == "segmentation":
             raise InputError("checkpoint missing")
         values = (np.arange(100) < 100 * float(kernel.centre)).astype(float)
-        return paired.ClipEvidence(task, "top1", float(values.mean()), 100, ClipMeans(values), str(checkpoint),
-                                   seed_offset, 0.0, test_seed=1000 + clip_set, event_rate=0.1)
+        return paired.ClipEvidence(
+            task,
+            "top1",
+            float(values.mean()),
+            100,
+            ClipMeans(values),
+            str(checkpoint),
+            seed_offset,
+            0.0,
+            test_seed=1000 + clip_set,
+            event_rate=0.1,
+        )
 
     monkeypatch.setattr(paired, "clip_evidence", clip_evidence)
     monkeypatch.setattr(scoring, "_task_sensor", lambda ckpt, design_sensor: (None, {"source": "checkpoint"}))
@@ -118,10 +127,16 @@ def test_paired_losses_through_a_plugged_per_clip_evaluator(monkeypatch, tmp_pat
     rows = []
     for name in ("learned", "delta"):
         real, _ = fit_realisation(name, k)
-        rec = score(real, target=k, csf_methods=["mannos_sakrison_1974"],
-                    checkpoints={"recognition": [tmp_path / "r0.safetensors", tmp_path / "r1.safetensors"],
-                                 "segmentation": tmp_path / "s"},
-                    task_options={"n_test": 100, "tracks": ["simulator"]})
+        rec = score(
+            real,
+            target=k,
+            csf_methods=["mannos_sakrison_1974"],
+            checkpoints={
+                "recognition": [tmp_path / "r0.safetensors", tmp_path / "r1.safetensors"],
+                "segmentation": tmp_path / "s",
+            },
+            task_options={"n_test": 100, "tracks": ["simulator"]},
+        )
         rows.append({"key": name, "realisation": name, "params": {}, "status": "ok", "result": rec.to_dict()})
     # each network its own mismatch pattern and its own clip set (the default test_clips = "per_network")
     assert calls[:2] == [("recognition", "r0.safetensors", 100, 0, 0), ("recognition", "r1.safetensors", 100, 1, 1)]
@@ -159,7 +174,9 @@ def test_run_resume_skips_finished_points(tmp_path):
     assert all(not r["worker"].endswith(f":{os.getpid()}") for r in pool_rows)
     assert sorted(r["key"] for r in rows) == sorted(p.key for p in pts)
     # the ppd follows the swept focal length: a longer lens gives more pixels per degree
-    learned = sorted((r for r in rows if r["realisation"] == "learned"), key=lambda r: r["params"]["optics.focal_length_m"])
+    learned = sorted(
+        (r for r in rows if r["realisation"] == "learned"), key=lambda r: r["params"]["optics.focal_length_m"]
+    )
     ppd = [r["result"]["csf"]["mannos_sakrison_1974"]["pixels_per_degree"] for r in learned]
     assert ppd == sorted(ppd) and ppd[0] < ppd[-1]
 
@@ -176,10 +193,22 @@ def test_failed_point_is_recorded_with_its_reason(tmp_path):
 def test_fitter_warnings_are_kept_with_the_score():
     # a DoG with centre tap 0.29 is out of reach of a mesh with pixel weight 1, the absolute gain
     # fixed (not the default since issue 13) and λ ≥ 1 px
-    d = parse_design({"realisations": {"include": ["mesh"], "mesh": {"n_init": 3, "max_iter": 30,
-                                                                 "pixel_weight": 1.0, "gain": "fixed",
-                                                                 "bounds": {"conductance_s": [1e-10, 1e-8]}}},
-                      "analysis": {"csf_methods": ["mannos_sakrison_1974"]}, "emulation": {"enabled": False}})
+    d = parse_design(
+        {
+            "realisations": {
+                "include": ["mesh"],
+                "mesh": {
+                    "n_init": 3,
+                    "max_iter": 30,
+                    "pixel_weight": 1.0,
+                    "gain": "fixed",
+                    "bounds": {"conductance_s": [1e-10, 1e-8]},
+                },
+            },
+            "analysis": {"csf_methods": ["mannos_sakrison_1974"]},
+            "emulation": {"enabled": False},
+        }
+    )
     (p,) = expand_points(d)
     res = evaluate_point(p)
     assert res["status"] == "ok"
@@ -214,8 +243,18 @@ def test_killed_sweep_resumes_with_every_point_exactly_once(tmp_path):
     design = _cheap_design(tmp_path, 12)
     n_points = 24
     db = tmp_path / "killed.sqlite"
-    cmd = [sys.executable, "-m", "fsdvs_hw.cli", "sweep", str(design), "--store", str(db), "--workers", "1",
-           "--no-progress"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "fsdvs_hw.cli",
+        "sweep",
+        str(design),
+        "--store",
+        str(db),
+        "--workers",
+        "1",
+        "--no-progress",
+    ]
     proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
     deadline = time.monotonic() + 120
     while _count(db) < 3 and time.monotonic() < deadline and proc.poll() is None:
@@ -227,8 +266,9 @@ def test_killed_sweep_resumes_with_every_point_exactly_once(tmp_path):
         before = {r["key"]: (r["finished_at"], r["worker"]) for r in store.rows()}
     assert 3 <= len(before) < n_points, "the kill must land mid-sweep"
 
-    r = subprocess.run([*cmd, "--report", str(tmp_path / "report")], cwd=REPO, capture_output=True, text=True,
-                       timeout=300)
+    r = subprocess.run(
+        [*cmd, "--report", str(tmp_path / "report")], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "report" / "report.html").is_file()
     assert f"{len(before)} already in the store, {n_points - len(before)} run now" in r.stderr
@@ -247,8 +287,9 @@ def test_sweep_on_a_dask_local_cluster_over_loopback(tmp_path):
     distributed = pytest.importorskip("distributed")
     d = load_design(_cheap_design(tmp_path, 2))
     pts = expand_points(d)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None, protocol="tcp") as cluster:
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None, protocol="tcp"
+    ) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
         with ResultsStore(tmp_path / "dask.sqlite") as store:
             summary = run_points(pts, store, scheduler=cluster.scheduler_address, progress=False)
@@ -274,7 +315,9 @@ def test_explore_benchmark_quick_runs_and_executors_agree():
 
     md = bench_explore(quick=True).markdown
     assert "### Emulation track" in md and "### Sweep executors" in md
-    rows = [line for line in md.splitlines() if line.startswith("| ") and "points" not in line and "executor" not in line]
+    rows = [
+        line for line in md.splitlines() if line.startswith("| ") and "points" not in line and "executor" not in line
+    ]
     executor_rows = [r for r in rows if "process" in r or "Dask" in r]
     assert len(executor_rows) >= 2 and all(r.rstrip().endswith("| yes |") for r in executor_rows)
 
@@ -288,10 +331,13 @@ def test_real_task_evaluation_gives_accuracy_loss_against_the_learned_kernel(tmp
         pytest.skip("no shipped detection checkpoint in this checkout")
     from fsdvs_hw.explore.sweep import run_design
 
-    raw = {"kernel": {"source": "file", "path": str(REPO / "designs" / "kernels" / "learned_detection_7x7.json")},
-           "realisations": {"include": ["learned", "delta"]}, "analysis": {"csf_methods": ["mannos_sakrison_1974"]},
-           "emulation": {"enabled": False},
-           "tasks": {"checkpoints": {"detection": str(ckpt)}, "n_test": 8}}
+    raw = {
+        "kernel": {"source": "file", "path": str(REPO / "designs" / "kernels" / "learned_detection_7x7.json")},
+        "realisations": {"include": ["learned", "delta"]},
+        "analysis": {"csf_methods": ["mannos_sakrison_1974"]},
+        "emulation": {"enabled": False},
+        "tasks": {"checkpoints": {"detection": str(ckpt)}, "n_test": 8},
+    }
     _, rows = run_design(parse_design(raw, base_dir=REPO), tmp_path / "t.sqlite", workers=1, progress=False)
     res = {r["realisation"]: r["result"]["tasks"]["detection"]["simulator"] for r in rows}
     assert all(v["status"] == "ok" and 0.0 <= v["metric"] <= 1.0 for v in res.values())
@@ -304,6 +350,12 @@ def test_real_task_evaluation_gives_accuracy_loss_against_the_learned_kernel(tmp
     raw["realisations"]["include"] = ["learned"]
     _, rows2 = run_design(parse_design(raw, base_dir=REPO), tmp_path / "t.sqlite", workers=1, progress=False)
     det = rows2[0]["result"]["tasks"]["detection"]["simulator"]
-    assert det["sensor"] == {"source": "design", "threshold_on": 0.3, "threshold_off": 0.3,
-                             "threshold_sigma": 0.03, "placement": "post_log", "positivity": "pedestal"}
+    assert det["sensor"] == {
+        "source": "design",
+        "threshold_on": 0.3,
+        "threshold_off": 0.3,
+        "threshold_sigma": 0.03,
+        "placement": "post_log",
+        "positivity": "pedestal",
+    }
     assert rows2[0]["key"] not in {r["key"] for r in rows}  # a different sensor is a different point

@@ -78,17 +78,20 @@ def test_quantile_edges_and_joint_histogram():
     assert h.tolist() == [[2, 0], [0, 2]]
 
 
-@pytest.mark.parametrize("call", [
-    lambda: histogram_mi(np.array([[1, -1], [0, 2]])),
-    lambda: histogram_mi(np.zeros((2, 2))),
-    lambda: histogram_mi(np.ones((2, 2)), correction="jackknife"),
-    lambda: joint_histogram([1, 2, 3], [1, 2], np.array([1.5]), np.array([1.5])),
-    lambda: mutual_information([1.0, np.nan, 2.0], [1.0, 2.0, 3.0]),
-    lambda: mutual_information([1.0, 2.0], [1.0, 2.0], n_bins=1),
-    lambda: gaussian_mi(1.0),
-    lambda: bits_per_event(1.0, -0.5),
-    lambda: InformationOptions(design="designs/default.toml", out="x", n_networks=1),
-])
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: histogram_mi(np.array([[1, -1], [0, 2]])),
+        lambda: histogram_mi(np.zeros((2, 2))),
+        lambda: histogram_mi(np.ones((2, 2)), correction="jackknife"),
+        lambda: joint_histogram([1, 2, 3], [1, 2], np.array([1.5]), np.array([1.5])),
+        lambda: mutual_information([1.0, np.nan, 2.0], [1.0, 2.0, 3.0]),
+        lambda: mutual_information([1.0, 2.0], [1.0, 2.0], n_bins=1),
+        lambda: gaussian_mi(1.0),
+        lambda: bits_per_event(1.0, -0.5),
+        lambda: InformationOptions(design="designs/default.toml", out="x", n_networks=1),
+    ],
+)
 def test_bad_input_raises_input_error(call):
     with pytest.raises(InputError):
         call()
@@ -105,9 +108,17 @@ def _evidence(name: str, diagonal: float, epp: float, n_net: int = 3, n_clips: i
     """Clips whose 4x4 joint histogram puts ``diagonal`` of the mass on the diagonal."""
     h = np.full((4, 4), (1 - diagonal) / 12 * 1200) + np.eye(4) * (diagonal - (1 - diagonal) / 12) * 1200
     hist = np.broadcast_to(np.round(h), (n_net, n_clips, 4, 4)).copy()
-    return ConditionEvidence(name=name, kernel=name, kernel_size=1, threshold=0.2, histograms=hist,
-                             events_per_pixel=np.full((n_net, n_clips), epp), span_s=0.04, r2=np.zeros(n_net),
-                             mi_shuffled=0.0)
+    return ConditionEvidence(
+        name=name,
+        kernel=name,
+        kernel_size=1,
+        threshold=0.2,
+        histograms=hist,
+        events_per_pixel=np.full((n_net, n_clips), epp),
+        span_s=0.04,
+        r2=np.zeros(n_net),
+        mi_shuffled=0.0,
+    )
 
 
 def test_information_table_gains_and_bits_per_event():
@@ -153,8 +164,16 @@ def test_reconstruction_network_learns_more_than_a_shuffled_pairing():
     from fsdvs_hw.tasks.learn import TrainingSettings, heldout_targets, learn_kernel
 
     scene = scene_regime("clutter", motion="random", height_px=16, width_px=16, radius_px=(3.0, 5.0))
-    result = learn_kernel("reconstruction", 1, seed=0, n_train=128, n_test=16, scene=scene, learn_filter=False,
-                          settings=TrainingSettings(epochs_frozen=0, epochs_joint=4, width=8))
+    result = learn_kernel(
+        "reconstruction",
+        1,
+        seed=0,
+        n_train=128,
+        n_test=16,
+        scene=scene,
+        learn_filter=False,
+        settings=TrainingSettings(epochs_frozen=0, epochs_joint=4, width=8),
+    )
     recon = result.predictions["image"]
     truth = heldout_targets("reconstruction", scene, 16)["image"]
     mi = mutual_information(truth, recon, n_bins=8)
@@ -168,8 +187,18 @@ def test_reconstruction_network_learns_more_than_a_shuffled_pairing():
 def test_study_resumes_without_retraining(tmp_path, monkeypatch):
     import fsdvs_hw.tasks.learn as learn
 
-    opts = InformationOptions(design="designs/default.toml", out=tmp_path / "info", n_networks=2, n_train=8,
-                              n_test=4, epochs=1, width=4, realisations=(), matched_rate=False, n_resamples=100)
+    opts = InformationOptions(
+        design="designs/default.toml",
+        out=tmp_path / "info",
+        n_networks=2,
+        n_train=8,
+        n_test=4,
+        epochs=1,
+        width=4,
+        realisations=(),
+        matched_rate=False,
+        n_resamples=100,
+    )
     first = run_information_study(opts)
     assert [r["condition"] for r in first.rows] == ["w/o", "learned"]
     assert (tmp_path / "info" / "information.csv").is_file()

@@ -10,8 +10,20 @@ import pytest
 from fsdvs_hw.explore.information import MATCHED, ConditionEvidence, information_table
 
 SHIPPED = Path(__file__).resolve().parents[1] / "designs" / "results" / "information"
-POINT_FIELDS = ("mi", "events_per_pixel", "rate", "bits_per_event", "mi_gain", "mi_gain_pct", "bits_per_event_gain",
-                "r2", "mi_shuffled", "n_networks", "n_clips", "threshold")
+POINT_FIELDS = (
+    "mi",
+    "events_per_pixel",
+    "rate",
+    "bits_per_event",
+    "mi_gain",
+    "mi_gain_pct",
+    "bits_per_event_gain",
+    "r2",
+    "mi_shuffled",
+    "n_networks",
+    "n_clips",
+    "threshold",
+)
 
 
 def _shipped() -> tuple[dict, list[ConditionEvidence]]:

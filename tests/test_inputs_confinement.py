@@ -49,16 +49,19 @@ def cheap(tmp_path) -> Path:
 
 
 # ---------------------------------------------------------------------- --set keys
-@pytest.mark.parametrize("item,named", [
-    ("foo.bar=1", "unknown section 'foo'"),
-    ("sensor..x=1", "empty part"),
-    ("sensor=3", "names a whole section"),
-    ("sensor.nope=1", "sensor.pitch_m"),  # the allowed keys of [sensor] are listed
-    ("sensor.resolution.x=1", "single value"),
-    ("design.name.x=1", "single value"),
-    ("asic.nope=2", "bits"),
-    ("realisations.nope=1", "include"),
-])
+@pytest.mark.parametrize(
+    "item,named",
+    [
+        ("foo.bar=1", "unknown section 'foo'"),
+        ("sensor..x=1", "empty part"),
+        ("sensor=3", "names a whole section"),
+        ("sensor.nope=1", "sensor.pitch_m"),  # the allowed keys of [sensor] are listed
+        ("sensor.resolution.x=1", "single value"),
+        ("design.name.x=1", "single value"),
+        ("asic.nope=2", "bits"),
+        ("realisations.nope=1", "include"),
+    ],
+)
 def test_malformed_set_key_is_one_line_before_any_work(cheap, tmp_path, capsys, item, named):
     out = tmp_path / "out"
     code, err = _cli(["explore", str(cheap), "--out", str(out), "--no-progress", "--set", item], capsys)
@@ -86,11 +89,18 @@ def test_a_bad_sweep_axis_key_is_a_design_error_not_a_crash(tmp_path):
 
 
 # ---------------------------------------------------------------------- scheduler addresses
-@pytest.mark.parametrize("address,named", [
-    ("nonsense", "expected an address"), ("tcp://host:notaport", "bad port"), ("tls://:99999", "bad port"),
-    ("ftp://a:1", "unknown scheme"), ("tcp://host", "no port"), ("tcp://:8786", "no host"),
-    ("tcp://h:0", "port 0"),
-])
+@pytest.mark.parametrize(
+    "address,named",
+    [
+        ("nonsense", "expected an address"),
+        ("tcp://host:notaport", "bad port"),
+        ("tls://:99999", "bad port"),
+        ("ftp://a:1", "unknown scheme"),
+        ("tcp://host", "no port"),
+        ("tcp://:8786", "no host"),
+        ("tcp://h:0", "port 0"),
+    ],
+)
 def test_malformed_scheduler_is_one_line_exit_2(cheap, capsys, address, named):
     code, err = _cli(["sweep", str(cheap), "--no-progress", "--scheduler", address], capsys)
     line = _one_clear_line(err)
@@ -106,8 +116,15 @@ def test_good_scheduler_addresses_pass_unchanged():
 def _stored(path: Path) -> None:
     with ResultsStore(path) as s:
         for i in range(40):
-            s.add(f"k{i}", design="d", realisation="asic", params={"i": i}, status="ok",
-                  result={"x": "y" * 200}, wall_s=0.1)
+            s.add(
+                f"k{i}",
+                design="d",
+                realisation="asic",
+                params={"i": i},
+                status="ok",
+                result={"x": "y" * 200},
+                wall_s=0.1,
+            )
 
 
 def test_a_store_with_a_damaged_page_is_refused_naming_the_file(tmp_path):
@@ -119,7 +136,7 @@ def test_a_store_with_a_damaged_page_is_refused_naming_the_file(tmp_path):
     db.close()
     blob = bytearray(path.read_bytes())
     at = (root - 1) * page_size
-    blob[at:at + 8] = b"\xff" * 8  # the b-tree page header of the points table
+    blob[at : at + 8] = b"\xff" * 8  # the b-tree page header of the points table
     path.write_bytes(bytes(blob))
     with pytest.raises(InputError, match="r.sqlite") as info:
         ResultsStore(path)
@@ -258,17 +275,20 @@ def test_a_wide_glob_is_refused_after_a_bounded_walk(tmp_path, monkeypatch):
 
 
 # ---------------------------------------------------------------------- limits of integer flags
-@pytest.mark.parametrize("argv,flag", [
-    (["sweep", "{d}", "--workers", "0"], "--workers"),
-    (["explore", "{d}", "--workers", str(MAX_WORKERS + 1)], "--workers"),
-    (["sweep", "{d}", "--max-points", "0"], "--max-points"),
-    (["learn", "detection", "--seed", "-1"], "--seed"),
-    (["learn", "detection", "--seed", str(MAX_SEED + 1)], "--seed"),
-    (["learn", "detection", "--n-train", "0"], "--n-train"),
-    (["ablation", "--seeds", "0", str(2**40)], "--seeds"),
-    (["ablation", "--sizes", "100000"], "--sizes"),
-    (["sizing", "{d}", "--pilot", "0"], "--pilot"),
-])
+@pytest.mark.parametrize(
+    "argv,flag",
+    [
+        (["sweep", "{d}", "--workers", "0"], "--workers"),
+        (["explore", "{d}", "--workers", str(MAX_WORKERS + 1)], "--workers"),
+        (["sweep", "{d}", "--max-points", "0"], "--max-points"),
+        (["learn", "detection", "--seed", "-1"], "--seed"),
+        (["learn", "detection", "--seed", str(MAX_SEED + 1)], "--seed"),
+        (["learn", "detection", "--n-train", "0"], "--n-train"),
+        (["ablation", "--seeds", "0", str(2**40)], "--seeds"),
+        (["ablation", "--sizes", "100000"], "--sizes"),
+        (["sizing", "{d}", "--pilot", "0"], "--pilot"),
+    ],
+)
 def test_integer_flags_outside_their_limits_are_one_line(cheap, capsys, argv, flag):
     code, err = _cli([a.format(d=cheap) for a in argv], capsys)
     line = _one_clear_line(err)
@@ -284,15 +304,27 @@ def test_check_count_names_the_range():
 
 # ---------------------------------------------------------------------- fuzz
 _SCHEMA = {s: list(info.annotation.model_fields) for s, info in design_mod.design_model().model_fields.items()}
-_GARBAGE = st.one_of(st.none(), st.booleans(), st.integers(-2**70, 2**70), st.floats(allow_nan=True),
-                     st.text(max_size=12), st.lists(st.integers(-5, 5000), max_size=3),
-                     st.dictionaries(st.text(max_size=6), st.integers(-3, 3), max_size=2))
-_VALUE = st.recursive(_GARBAGE, lambda inner: st.one_of(st.lists(inner, max_size=3),
-                                                        st.dictionaries(st.text(max_size=6), inner, max_size=3)),
-                      max_leaves=6)
+_GARBAGE = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(2**70), 2**70),
+    st.floats(allow_nan=True),
+    st.text(max_size=12),
+    st.lists(st.integers(-5, 5000), max_size=3),
+    st.dictionaries(st.text(max_size=6), st.integers(-3, 3), max_size=2),
+)
+_VALUE = st.recursive(
+    _GARBAGE,
+    lambda inner: st.one_of(st.lists(inner, max_size=3), st.dictionaries(st.text(max_size=6), inner, max_size=3)),
+    max_leaves=6,
+)
 _SECTION_KEYS = {s: sorted(f) + ["zz_unknown"] for s, f in _SCHEMA.items() if s != "tasks"}
-FUZZ = settings(max_examples=60, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+FUZZ = settings(
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 
 
 @st.composite
@@ -319,8 +351,10 @@ def test_fuzzed_design_tables_validate_or_raise_input_error(raw, tmp_path):
     assert d.target is not None and set(d.data) == set(_SCHEMA) - ({"costs"} - set(raw))
 
 
-_KEY_PART = st.one_of(st.sampled_from([*_SCHEMA, "asic", "mesh", "bits", "resolution", "pitch_m", "params", ""]),
-                      st.text(alphabet="abcxyz._=[]{} ", max_size=6))
+_KEY_PART = st.one_of(
+    st.sampled_from([*_SCHEMA, "asic", "mesh", "bits", "resolution", "pitch_m", "params", ""]),
+    st.text(alphabet="abcxyz._=[]{} ", max_size=6),
+)
 
 
 @FUZZ

@@ -31,16 +31,25 @@ from fsdvs_hw.paths import confined_path, safe_name  # noqa: E402
 from fsdvs_hw.realise.registry import REALISATIONS, realisation_names  # noqa: E402
 
 #: hardware realisation → option → its view (kinds, bounds, choices from the model's JSON Schema)
-FIT_OPTIONS = {n: {k: view(REALISATIONS[n].options, k) for k in REALISATIONS[n].options.model_fields}
-               for n in realisation_names("hardware")}
+FIT_OPTIONS = {
+    n: {k: view(REALISATIONS[n].options, k) for k in REALISATIONS[n].options.model_fields}
+    for n in realisation_names("hardware")
+}
 
-FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow,
-                                                                        HealthCheck.function_scoped_fixture])
+FAST = settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture]
+)
 
 # any JSON/TOML-like value, of every type a design file or a caller could give
-ANY = st.one_of(st.none(), st.booleans(), st.integers(-(2**70), 2**70), st.floats(),
-                st.text(max_size=12), st.lists(st.integers(-3, 3), max_size=3),
-                st.dictionaries(st.text(max_size=4), st.integers(), max_size=2))
+ANY = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(2**70), 2**70),
+    st.floats(),
+    st.text(max_size=12),
+    st.lists(st.integers(-3, 3), max_size=3),
+    st.dictionaries(st.text(max_size=4), st.integers(), max_size=2),
+)
 
 
 def _fit(name):
@@ -52,20 +61,23 @@ def _out_of_range_numbers(lo, hi, lo_open, hi_open, integer):
     """Numbers outside [lo, hi] (respecting open ends), and NaN/±inf for real-valued keys."""
     cands = []
     if lo is not None:
-        below = st.floats(max_value=lo, exclude_max=not lo_open, allow_nan=False, allow_infinity=False,
-                          min_value=lo - 1e6 - abs(lo))
+        below = st.floats(
+            max_value=lo, exclude_max=not lo_open, allow_nan=False, allow_infinity=False, min_value=lo - 1e6 - abs(lo)
+        )
         cands.append(below.map(math.floor).filter(lambda v: v < lo or (lo_open and v <= lo)) if integer else below)
     if hi is not None:
-        above = st.floats(min_value=hi, exclude_min=not hi_open, allow_nan=False, allow_infinity=False,
-                          max_value=hi + 1e6 + abs(hi))
+        above = st.floats(
+            min_value=hi, exclude_min=not hi_open, allow_nan=False, allow_infinity=False, max_value=hi + 1e6 + abs(hi)
+        )
         cands.append(above.map(math.ceil).filter(lambda v: v > hi or (hi_open and v >= hi)) if integer else above)
     if not integer:
         cands.append(st.sampled_from([math.nan, math.inf, -math.inf]))
     return st.one_of(cands) if cands else st.nothing()
 
 
-def _wrong_types(accepts_int, accepts_float, accepts_str, accepts_bool, accepts_none, accepts_list=False,
-                 accepts_dict=False):
+def _wrong_types(
+    accepts_int, accepts_float, accepts_str, accepts_bool, accepts_none, accepts_list=False, accepts_dict=False
+):
     cands = []
     if not accepts_bool:
         cands.append(st.booleans())
@@ -89,8 +101,17 @@ def _wrong_types(accepts_int, accepts_float, accepts_str, accepts_bool, accepts_
 def _bad_for_option(opt: FieldView, *, in_design: bool):
     k = set(opt.kinds)
     numeric = bool(k & {"int", "float"})
-    cands = [_wrong_types("int" in k, "float" in k, "str" in k, "bool" in k, opt.nullable or in_design,
-                          accepts_dict="object" in k and not in_design, accepts_list="object" in k)]
+    cands = [
+        _wrong_types(
+            "int" in k,
+            "float" in k,
+            "str" in k,
+            "bool" in k,
+            opt.nullable or in_design,
+            accepts_dict="object" in k and not in_design,
+            accepts_list="object" in k,
+        )
+    ]
     if numeric:
         cands.append(_out_of_range_numbers(opt.lo, opt.hi, opt.lo_open, opt.hi_open, "float" not in k))
         if opt.odd:
@@ -100,8 +121,9 @@ def _bad_for_option(opt: FieldView, *, in_design: bool):
     return st.one_of(cands)
 
 
-OPTION_KEYS = sorted((r, o) for r, opts in FIT_OPTIONS.items() for o, spec in opts.items()
-                     if set(spec.kinds) != {"object"})
+OPTION_KEYS = sorted(
+    (r, o) for r, opts in FIT_OPTIONS.items() for o, spec in opts.items() if set(spec.kinds) != {"object"}
+)
 
 
 @st.composite
@@ -121,8 +143,17 @@ def _bad_for_field(f: FieldView):
     cands = []
     accepts_int = "int" in types
     accepts_float = "float" in types
-    cands.append(_wrong_types(accepts_int, accepts_float, "str" in types, "bool" in types, True,
-                              accepts_list="list" in types, accepts_dict="dict" in types))
+    cands.append(
+        _wrong_types(
+            accepts_int,
+            accepts_float,
+            "str" in types,
+            "bool" in types,
+            True,
+            accepts_list="list" in types,
+            accepts_dict="dict" in types,
+        )
+    )
     if accepts_int or accepts_float:
         cands.append(_out_of_range_numbers(f.lo, f.hi, f.lo_open, f.hi_open, not accepts_float))
     if "str" in types and f.choices is not None:
@@ -131,8 +162,9 @@ def _bad_for_field(f: FieldView):
         if f.length is not None:
             cands.append(st.lists(st.integers(16, 64), min_size=0, max_size=4).filter(lambda v: len(v) != f.length))
         if f.item.choices is not None:
-            cands.append(st.lists(st.text(max_size=6).filter(lambda s: s not in f.item.choices), min_size=1,
-                                  max_size=2))
+            cands.append(
+                st.lists(st.text(max_size=6).filter(lambda s: s not in f.item.choices), min_size=1, max_size=2)
+            )
         if f.item.lo is not None:
             cands.append(st.integers(-1000, int(f.item.lo) - 1).map(lambda v: [v] * (f.length or 1)))
     return st.one_of(cands)
@@ -140,8 +172,12 @@ def _bad_for_field(f: FieldView):
 
 #: section → its model (the design file's model, built from the registry)
 SECTIONS = {s: info.annotation for s, info in design_mod.design_model().model_fields.items()}
-DESIGN_KEYS = sorted((s, k) for s, model in SECTIONS.items() for k in model.model_fields
-                     if not (s == "realisations" and k in FIT_OPTIONS))
+DESIGN_KEYS = sorted(
+    (s, k)
+    for s, model in SECTIONS.items()
+    for k in model.model_fields
+    if not (s == "realisations" and k in FIT_OPTIONS)
+)
 
 
 @st.composite
@@ -184,8 +220,13 @@ def test_every_bad_fit_argument_is_an_input_error_naming_it_before_any_work(case
         raise AssertionError(f"{name}: work started before {key}={value!r} was refused")
 
     # the expensive parts of each fit: reaching any of them means validation came too late
-    for module, attr in ((mesh, "_mesh_solver"), (mesh, "_numpy_orbit_response"), (asic, "_TapProblem"),
-                         (metalens, "_RadialKernelModel"), (metalens, "_spectral")):
+    for module, attr in (
+        (mesh, "_mesh_solver"),
+        (mesh, "_numpy_orbit_response"),
+        (asic, "_TapProblem"),
+        (metalens, "_RadialKernelModel"),
+        (metalens, "_spectral"),
+    ):
         monkeypatch.setattr(module, attr, work_started, raising=False)
     monkeypatch.chdir(tmp_path)
     target = reference_kernel("dog", 5)
@@ -216,12 +257,19 @@ def test_design_check_and_fit_function_agree_on_every_value(name_key, value):
 
 
 @FAST
-@given(taps=st.one_of(
-    st.none(), st.text(max_size=5), st.integers(),
-    st.lists(st.lists(st.floats(), min_size=1, max_size=3), min_size=1, max_size=3),
-    st.lists(st.lists(st.one_of(st.text(max_size=2), st.none(), st.booleans()), min_size=3, max_size=3),
-             min_size=3, max_size=3),
-))
+@given(
+    taps=st.one_of(
+        st.none(),
+        st.text(max_size=5),
+        st.integers(),
+        st.lists(st.lists(st.floats(), min_size=1, max_size=3), min_size=1, max_size=3),
+        st.lists(
+            st.lists(st.one_of(st.text(max_size=2), st.none(), st.booleans()), min_size=3, max_size=3),
+            min_size=3,
+            max_size=3,
+        ),
+    )
+)
 def test_bad_kernels_are_input_errors_for_every_fit_function(taps):
     import numpy as np
 
@@ -243,9 +291,10 @@ def test_bad_kernels_are_input_errors_for_every_fit_function(taps):
 
 
 # ---------------------------------------------------------------------- nothing outside its folder
-NAMES = st.one_of(st.text(max_size=40),
-                  st.lists(st.sampled_from(["..", ".", "/", "a", "\\", "~", "etc", "\x00", " ", "é"]),
-                           max_size=8).map("".join))
+NAMES = st.one_of(
+    st.text(max_size=40),
+    st.lists(st.sampled_from(["..", ".", "/", "a", "\\", "~", "etc", "\x00", " ", "é"]), max_size=8).map("".join),
+)
 
 
 @settings(max_examples=300, deadline=None)
@@ -283,8 +332,10 @@ def test_a_sweep_run_writes_only_inside_its_output_folder(name, tmp_path_factory
     work = root / "work"
     work.mkdir()
     toml_name = '"' + name.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    text = (f"[design]\nname = {toml_name}\n[realisations]\ninclude = [\"delta\"]\n[analysis]\n"
-            "csf_methods = [\"mannos_sakrison_1974\"]\n[emulation]\nenabled = false\n")
+    text = (
+        f'[design]\nname = {toml_name}\n[realisations]\ninclude = ["delta"]\n[analysis]\n'
+        'csf_methods = ["mannos_sakrison_1974"]\n[emulation]\nenabled = false\n'
+    )
     try:
         tomllib.loads(text)
     except tomllib.TOMLDecodeError:
@@ -303,29 +354,55 @@ def test_a_sweep_run_writes_only_inside_its_output_folder(name, tmp_path_factory
 
 
 @settings(max_examples=60, deadline=None)
-@given(on=st.floats(1e-4, 10.0), off=st.floats(1e-4, 10.0), sigma=st.floats(0.0, 1.0),
-       placement=st.sampled_from(design_mod._PLACEMENTS), positivity=st.sampled_from(design_mod._POSITIVITY),
-       seed=st.integers(0, 2**31 - 1))
-def test_every_sensor_section_a_design_accepts_builds_a_simulator_config(on, off, sigma, placement, positivity,
-                                                                         seed):
+@given(
+    on=st.floats(1e-4, 10.0),
+    off=st.floats(1e-4, 10.0),
+    sigma=st.floats(0.0, 1.0),
+    placement=st.sampled_from(design_mod._PLACEMENTS),
+    positivity=st.sampled_from(design_mod._POSITIVITY),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_every_sensor_section_a_design_accepts_builds_a_simulator_config(on, off, sigma, placement, positivity, seed):
     """No design-valid [sensor] value may fail only later, inside a worker, when the simulator starts."""
     from fsdvs_hw.explore.emulation import _sensor_config
 
-    d = parse_design({"sensor": {"threshold_on": on, "threshold_off": off, "threshold_sigma": sigma,
-                                 "placement": placement, "positivity": positivity}, "run": {"seed": seed}})
+    d = parse_design(
+        {
+            "sensor": {
+                "threshold_on": on,
+                "threshold_off": off,
+                "threshold_sigma": sigma,
+                "placement": placement,
+                "positivity": positivity,
+            },
+            "run": {"seed": seed},
+        }
+    )
     cfg = _sensor_config(d.data["sensor"], d.data["run"]["seed"], 25.0)
     assert cfg.threshold_on == on and cfg.positivity == positivity
 
 
 @settings(max_examples=80, deadline=None)
-@given(bits=st.integers(1, 16), gamma=st.floats(1.0, 4.0), peak=st.floats(1.0, 1e4), black=st.floats(0.0, 100.0),
-       up=st.integers(1, 64), enabled=st.booleans())
+@given(
+    bits=st.integers(1, 16),
+    gamma=st.floats(1.0, 4.0),
+    peak=st.floats(1.0, 1e4),
+    black=st.floats(0.0, 100.0),
+    up=st.integers(1, 64),
+    enabled=st.booleans(),
+)
 def test_an_emulation_section_is_accepted_only_if_its_display_can_be_built(bits, gamma, peak, black, up, enabled):
     """The design check and the emulation's DisplaySettings agree (black < peak is checked at load)."""
     from fsdvs_hw.explore.emulation import DisplaySettings
 
-    section = {"enabled": enabled, "display_bits": bits, "display_gamma": gamma, "display_peak_nits": peak,
-               "display_black_nits": black, "upsample_factor": up}
+    section = {
+        "enabled": enabled,
+        "display_bits": bits,
+        "display_gamma": gamma,
+        "display_peak_nits": peak,
+        "display_black_nits": black,
+        "upsample_factor": up,
+    }
     try:
         DisplaySettings.from_design(section)
         display_ok = True

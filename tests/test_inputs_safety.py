@@ -22,7 +22,6 @@ REPO = Path(__file__).resolve().parents[1]
 KERNEL_JSON = REPO / "designs" / "kernels" / "learned_detection_7x7.json"
 
 
-
 def _cli(argv: list[str], capsys) -> tuple[int, str]:
     try:
         code = main(argv)
@@ -91,8 +90,11 @@ def test_paths_inside_the_design_folder_still_work():
     d = load_design(REPO / "designs" / "default.toml")
     assert d.target.size == 7 and all(p.is_file() for paths in d.checkpoints().values() for p in paths)
     # one network per training seed, listed by a glob pattern inside the design's folder
-    assert {t: len(paths) for t, paths in d.checkpoints().items()} == {"detection": 32, "recognition": 64,
-                                                                       "segmentation": 32}
+    assert {t: len(paths) for t, paths in d.checkpoints().items()} == {
+        "detection": 32,
+        "recognition": 64,
+        "segmentation": 32,
+    }
 
 
 def test_yosys_top_cannot_inject_script_commands(tmp_path):
@@ -227,8 +229,10 @@ def test_garbage_kernel_file_on_the_command_line_is_one_clear_error(tmp_path, ca
     assert code == 2 and str(p) in _one_clear_line(err)
 
 
-@pytest.mark.parametrize("flag,value", [("--pitch-um", "0"), ("--pitch-um", "-3"), ("--pitch-um", "nan"),
-                                        ("--focal-mm", "0"), ("--focal-mm", "inf")])
+@pytest.mark.parametrize(
+    "flag,value",
+    [("--pitch-um", "0"), ("--pitch-um", "-3"), ("--pitch-um", "nan"), ("--focal-mm", "0"), ("--focal-mm", "inf")],
+)
 def test_zero_negative_or_nan_pitch_and_focal_are_refused_not_ignored(capsys, flag, value):
     code, err = _cli(["analyse", "dog", flag, value], capsys)
     assert code == 2 and flag in _one_clear_line(err)
@@ -254,8 +258,10 @@ def test_ablation_out_naming_a_file_is_one_clear_error(tmp_path, capsys):
 
 # ---------------------------------------------------------------------- limits
 def test_a_million_point_sweep_is_refused_before_it_is_built(monkeypatch):
-    axes = {"optics.focal_length_m": [1e-3 + 1e-6 * i for i in range(1000)],
-            "sensor.threshold_on": [0.1 + 1e-4 * i for i in range(1000)]}
+    axes = {
+        "optics.focal_length_m": [1e-3 + 1e-6 * i for i in range(1000)],
+        "sensor.threshold_on": [0.1 + 1e-4 * i for i in range(1000)],
+    }
     d = parse_design({"realisations": {"include": ["delta"]}, "sweep": {"axes": axes}})
     from fsdvs_hw.explore.sweep import expand_points
 
@@ -273,8 +279,13 @@ def test_a_million_point_sweep_is_refused_before_it_is_built(monkeypatch):
 
 
 def test_the_sweep_limit_can_be_raised():
-    d = parse_design({"realisations": {"include": ["delta"]}, "run": {"max_points": 3},
-                      "sweep": {"axes": {"optics.focal_length_m": [1e-3, 2e-3, 3e-3, 4e-3]}}})
+    d = parse_design(
+        {
+            "realisations": {"include": ["delta"]},
+            "run": {"max_points": 3},
+            "sweep": {"axes": {"optics.focal_length_m": [1e-3, 2e-3, 3e-3, 4e-3]}},
+        }
+    )
     from fsdvs_hw.explore.sweep import expand_points
 
     with pytest.raises(InputError, match="4 design points"):
@@ -289,8 +300,9 @@ def test_sweep_command_builds_the_point_list_once(tmp_path, monkeypatch, capsys)
     real = sweep.expand_points
     monkeypatch.setattr(sweep, "expand_points", lambda *a, **k: calls.append(1) or real(*a, **k))
     (tmp_path / "d.toml").write_text(cheap_design("once"))
-    code, err = _cli(["sweep", str(tmp_path / "d.toml"), "--store", str(tmp_path / "s.sqlite"), "--no-progress"],
-                     capsys)
+    code, err = _cli(
+        ["sweep", str(tmp_path / "d.toml"), "--store", str(tmp_path / "s.sqlite"), "--no-progress"], capsys
+    )
     assert code == 0, err
     assert len(calls) == 1
 
@@ -368,8 +380,18 @@ def test_sweep_workers_die_when_the_main_process_is_killed(tmp_path):
     focals = [round(2e-3 + 1e-5 * i, 8) for i in range(400)]
     design = tmp_path / "many.toml"
     design.write_text(cheap_design("many") + f'[sweep]\naxes = {{ "optics.focal_length_m" = {focals} }}\n')
-    cmd = [sys.executable, "-m", "fsdvs_hw.cli", "sweep", str(design), "--store", str(tmp_path / "s.sqlite"),
-           "--workers", "2", "--no-progress"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "fsdvs_hw.cli",
+        "sweep",
+        str(design),
+        "--store",
+        str(tmp_path / "s.sqlite"),
+        "--workers",
+        "2",
+        "--no-progress",
+    ]
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     workers: set[int] = set()
@@ -409,14 +431,55 @@ def _make_certs(d: Path) -> tuple[Path, Path, Path]:
         pytest.skip("openssl not installed")
     ca_key, ca, key, csr, cert = (d / n for n in ("ca.key", "ca.pem", "node.key", "node.csr", "node.pem"))
     run = lambda *a: subprocess.run(a, check=True, capture_output=True)  # noqa: E731
-    run("openssl", "req", "-x509", "-nodes", "-newkey", "rsa:2048", "-days", "1", "-keyout", str(ca_key),
-        "-out", str(ca), "-subj", "/CN=fsdvs test CA")
-    run("openssl", "req", "-nodes", "-newkey", "rsa:2048", "-keyout", str(key), "-out", str(csr),
-        "-subj", "/CN=127.0.0.1")
+    run(
+        "openssl",
+        "req",
+        "-x509",
+        "-nodes",
+        "-newkey",
+        "rsa:2048",
+        "-days",
+        "1",
+        "-keyout",
+        str(ca_key),
+        "-out",
+        str(ca),
+        "-subj",
+        "/CN=fsdvs test CA",
+    )
+    run(
+        "openssl",
+        "req",
+        "-nodes",
+        "-newkey",
+        "rsa:2048",
+        "-keyout",
+        str(key),
+        "-out",
+        str(csr),
+        "-subj",
+        "/CN=127.0.0.1",
+    )
     ext = d / "ext.cnf"
     ext.write_text("subjectAltName=IP:127.0.0.1,DNS:localhost\n")
-    run("openssl", "x509", "-req", "-in", str(csr), "-CA", str(ca), "-CAkey", str(ca_key), "-CAcreateserial",
-        "-out", str(cert), "-days", "1", "-extfile", str(ext))
+    run(
+        "openssl",
+        "x509",
+        "-req",
+        "-in",
+        str(csr),
+        "-CA",
+        str(ca),
+        "-CAkey",
+        str(ca_key),
+        "-CAcreateserial",
+        "-out",
+        str(cert),
+        "-days",
+        "1",
+        "-extfile",
+        str(ext),
+    )
     return ca, cert, key
 
 
@@ -426,18 +489,34 @@ def test_sweep_runs_on_a_tls_only_dask_cluster_and_plain_clients_are_refused(tmp
     from fsdvs_hw.explore.sweep import dask_security, expand_points, run_points
 
     ca, cert, key = _make_certs(tmp_path)
-    sec = distributed.Security(tls_ca_file=str(ca), tls_scheduler_cert=str(cert), tls_scheduler_key=str(key),
-                               tls_worker_cert=str(cert), tls_worker_key=str(key), tls_client_cert=str(cert),
-                               tls_client_key=str(key), require_encryption=True)
-    (tmp_path / "d.toml").write_text(cheap_design("tls") +
-                                     '[sweep]\naxes = { "optics.focal_length_m" = [2e-3, 3e-3] }\n')
+    sec = distributed.Security(
+        tls_ca_file=str(ca),
+        tls_scheduler_cert=str(cert),
+        tls_scheduler_key=str(key),
+        tls_worker_cert=str(cert),
+        tls_worker_key=str(key),
+        tls_client_cert=str(cert),
+        tls_client_key=str(key),
+        require_encryption=True,
+    )
+    (tmp_path / "d.toml").write_text(
+        cheap_design("tls") + '[sweep]\naxes = { "optics.focal_length_m" = [2e-3, 3e-3] }\n'
+    )
     pts = expand_points(load_design(tmp_path / "d.toml"))
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, host="127.0.0.1",
-                                  dashboard_address=None, protocol="tls://", security=sec) as cluster:
+    with distributed.LocalCluster(
+        n_workers=1,
+        threads_per_worker=1,
+        processes=False,
+        host="127.0.0.1",
+        dashboard_address=None,
+        protocol="tls://",
+        security=sec,
+    ) as cluster:
         assert cluster.scheduler_address.startswith("tls://")
         with ResultsStore(tmp_path / "s.sqlite") as store:
-            summary = run_points(pts, store, scheduler=cluster.scheduler_address, progress=False,
-                                 security=dask_security(ca, cert, key))
+            summary = run_points(
+                pts, store, scheduler=cluster.scheduler_address, progress=False, security=dask_security(ca, cert, key)
+            )
         assert summary.statuses == {"ok": len(pts)} and "Dask" in summary.executor
         plain = cluster.scheduler_address.replace("tls://", "tcp://")
         with ResultsStore(tmp_path / "t.sqlite") as store:
@@ -448,11 +527,35 @@ def test_sweep_runs_on_a_tls_only_dask_cluster_and_plain_clients_are_refused(tmp
 def test_tls_flags_need_a_tls_scheduler_and_existing_files(tmp_path, capsys):
     pytest.importorskip("distributed")
     (tmp_path / "d.toml").write_text(cheap_design("d"))
-    code, err = _cli(["sweep", str(tmp_path / "d.toml"), "--tls-ca-file", "ca.pem", "--tls-cert", "c.pem",
-                      "--scheduler", "tcp://127.0.0.1:1", "--no-progress"], capsys)
+    code, err = _cli(
+        [
+            "sweep",
+            str(tmp_path / "d.toml"),
+            "--tls-ca-file",
+            "ca.pem",
+            "--tls-cert",
+            "c.pem",
+            "--scheduler",
+            "tcp://127.0.0.1:1",
+            "--no-progress",
+        ],
+        capsys,
+    )
     assert code == 2 and "tls://" in _one_clear_line(err)
-    code, err = _cli(["sweep", str(tmp_path / "d.toml"), "--tls-ca-file", str(tmp_path / "none.pem"), "--tls-cert",
-                      "c.pem", "--scheduler", "tls://127.0.0.1:1", "--no-progress"], capsys)
+    code, err = _cli(
+        [
+            "sweep",
+            str(tmp_path / "d.toml"),
+            "--tls-ca-file",
+            str(tmp_path / "none.pem"),
+            "--tls-cert",
+            "c.pem",
+            "--scheduler",
+            "tls://127.0.0.1:1",
+            "--no-progress",
+        ],
+        capsys,
+    )
     assert code == 2 and "none.pem" in _one_clear_line(err)
 
 

@@ -19,9 +19,26 @@ PACKAGE = Path(__file__).resolve().parents[1] / "fsdvs_hw"
 LAYERS: tuple[str, ...] = ("core", "models", "tasks", "report", "explore", "cli")
 
 #: Top-level modules of the core layer (kernels, spectra, CSF, statistics and their helpers).
-_CORE = {"errors", "paths", "resources", "validation", "schema", "limits", "kernels", "spectra", "csf", "stats", "workers",
-         "plots", "analysis", "_lazy", "progress", "provenance", "mutual_information",
-         "environment"}
+_CORE = {
+    "errors",
+    "paths",
+    "resources",
+    "validation",
+    "schema",
+    "limits",
+    "kernels",
+    "spectra",
+    "csf",
+    "stats",
+    "workers",
+    "plots",
+    "analysis",
+    "_lazy",
+    "progress",
+    "provenance",
+    "mutual_information",
+    "environment",
+}
 _MODELS = {"sensor", "scenes", "realise", "records", "costs"}
 
 #: Import cycles known and owned elsewhere (none: sensor/events.py no longer imports sensor/plan.py).
@@ -81,9 +98,13 @@ def import_graph() -> dict[str, dict[str, int]]:
     for module, (path, is_pkg) in mods.items():
         tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
         # imports under ``if TYPE_CHECKING:`` never run (the lazy public names, listed for IDEs)
-        static_only = {id(n) for block in ast.walk(tree)
-                       if isinstance(block, ast.If) and ast.unparse(block.test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING")
-                       for stmt in block.body for n in ast.walk(stmt)}
+        static_only = {
+            id(n)
+            for block in ast.walk(tree)
+            if isinstance(block, ast.If) and ast.unparse(block.test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING")
+            for stmt in block.body
+            for n in ast.walk(stmt)
+        }
         for node in ast.walk(tree):
             if id(node) in static_only:
                 continue
@@ -141,9 +162,12 @@ def test_every_module_has_a_layer():
 
 def test_no_module_imports_from_a_higher_layer():
     graph = import_graph()
-    upward = [f"{m} ({layer_of(m)}) imports {t} ({layer_of(t)}) at line {line}"
-              for m, targets in graph.items() for t, line in targets.items()
-              if t in graph and LAYERS.index(layer_of(t)) > LAYERS.index(layer_of(m))]
+    upward = [
+        f"{m} ({layer_of(m)}) imports {t} ({layer_of(t)}) at line {line}"
+        for m, targets in graph.items()
+        for t, line in targets.items()
+        if t in graph and LAYERS.index(layer_of(t)) > LAYERS.index(layer_of(m))
+    ]
     assert not upward, "imports against the layer order:\n" + "\n".join(upward)
 
 
@@ -159,16 +183,23 @@ def test_the_known_cycle_list_is_not_stale():
     assert not stale, f"fixed cycles still listed as known: {stale}"
 
 
-@pytest.mark.parametrize("source,expected", [
-    ("from ..explore.scoring import score\n", {"fsdvs_hw.explore.scoring"}),
-    ("def f():\n    from fsdvs_hw.cli import main\n", {"fsdvs_hw.cli"}),
-    ("import fsdvs_hw.explore.sweep as sweep\n", {"fsdvs_hw.explore.sweep"}),
-])
+@pytest.mark.parametrize(
+    "source,expected",
+    [
+        ("from ..explore.scoring import score\n", {"fsdvs_hw.explore.scoring"}),
+        ("def f():\n    from fsdvs_hw.cli import main\n", {"fsdvs_hw.cli"}),
+        ("import fsdvs_hw.explore.sweep as sweep\n", {"fsdvs_hw.explore.sweep"}),
+    ],
+)
 def test_the_walker_sees_module_and_function_level_imports(source, expected):
     """The checker itself: an upward import at module level or inside a function is found."""
     tree = ast.parse(source)
     known = set(_modules())
-    got = {t for node in ast.walk(tree) if isinstance(node, (ast.Import, ast.ImportFrom))
-           for t in _targets("fsdvs_hw.report.tables", False, node, known)}
+    got = {
+        t
+        for node in ast.walk(tree)
+        if isinstance(node, (ast.Import, ast.ImportFrom))
+        for t in _targets("fsdvs_hw.report.tables", False, node, known)
+    }
     assert got == expected
     assert all(LAYERS.index(layer_of(t)) > LAYERS.index("report") for t in got)

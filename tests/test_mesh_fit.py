@@ -64,12 +64,18 @@ def test_whole_response_energy_is_exact_against_a_wide_lattice_sum(lam_n, lam_w)
     k[r, r] += 0.7
     assert d._whole_energy() == pytest.approx(float((k * k).sum()), rel=1e-10)
     inner = k[r - 3 : r + 4, r - 3 : r + 4]
-    assert d.tail_energy_fraction() == pytest.approx(1 - float((inner * inner).sum() / (k * k).sum()), rel=1e-8, abs=1e-14)
+    assert d.tail_energy_fraction() == pytest.approx(
+        1 - float((inner * inner).sum() / (k * k).sum()), rel=1e-8, abs=1e-14
+    )
     t = reference_kernel("dog", 7)
-    assert d.kernel_error(t) == pytest.approx(np.linalg.norm(k - np.pad(t.taps, r - 3)) / np.linalg.norm(t.taps), rel=1e-10)
+    assert d.kernel_error(t) == pytest.approx(
+        np.linalg.norm(k - np.pad(t.taps, r - 3)) / np.linalg.norm(t.taps), rel=1e-10
+    )
 
 
-@pytest.mark.parametrize("options", [{}, {"pixel_weight": 1.0}, {"gain": "fixed"}, {"pixel_weight": 1.0, "gain": "fixed"}])
+@pytest.mark.parametrize(
+    "options", [{}, {"pixel_weight": 1.0}, {"gain": "fixed"}, {"pixel_weight": 1.0, "gain": "fixed"}]
+)
 def test_default_fit_recovers_a_kernel_the_mesh_itself_produced(options):
     # issue 13: ≤ 1e-5 with default options (was 3e-4, and 7e-3 with a free pixel weight); the
     # target is the mesh's whole response (all but 1e-14 of its energy on the window)
@@ -142,8 +148,12 @@ def test_ipopt_beats_every_least_squares_start_and_respects_bounds():
     for g in (d.gain_narrow, d.gain_wide, d.pixel_weight):
         assert 1e-3 * (1 - 1e-9) <= g <= 4.0 * (1 + 1e-9)
     # a bounds mapping (design files) gives the same fit
-    d2 = fit_resistive_mesh(t, bounds={"lambda_px": [0.3, 6.0], "gain": [1e-3, 4.0], "min_lambda_ratio": 2.0}, pixel_weight=None,
-                            gain="fixed")
+    d2 = fit_resistive_mesh(
+        t,
+        bounds={"lambda_px": [0.3, 6.0], "gain": [1e-3, 4.0], "min_lambda_ratio": 2.0},
+        pixel_weight=None,
+        gain="fixed",
+    )
     assert d2.lambda_wide_px == pytest.approx(d.lambda_wide_px, rel=1e-9)
 
 
@@ -162,8 +172,10 @@ def test_mismatch_constraint_prevents_the_unbuildable_collapse():
         warnings.simplefilter("ignore", MeshFitWarning)  # (IPOPT stops at max_iter: reported, not hidden)
         collapsed = fit_resistive_mesh(t, bounds=loose, gain="fixed", max_mismatch_error=None)
     assert not collapsed.fit["success"]
-    robust = {m: fit_resistive_mesh(t, bounds=loose, gain="fixed", mismatch_sigma=0.01, max_mismatch_error=m)
-              for m in (0.01, 0.02, 0.05)}
+    robust = {
+        m: fit_resistive_mesh(t, bounds=loose, gain="fixed", mismatch_sigma=0.01, max_mismatch_error=m)
+        for m in (0.01, 0.02, 0.05)
+    }
     for m, d in robust.items():
         assert d.fit["expected_mismatch_error"] <= m * (1 + 1e-6)
         assert any("max_mismatch_error" in b for b in d.fit["on_bound"])
@@ -183,7 +195,15 @@ def test_mismatch_sensitivity_matches_finite_differences():
     base = t.taps
     total = 0.0
     eps = 1e-6
-    for field in ("g_lateral_narrow_s", "g_vertical_narrow_s", "g_lateral_wide_s", "g_vertical_wide_s", "gain_narrow", "gain_wide", "pixel_weight"):
+    for field in (
+        "g_lateral_narrow_s",
+        "g_vertical_narrow_s",
+        "g_lateral_wide_s",
+        "g_vertical_wide_s",
+        "gain_narrow",
+        "gain_wide",
+        "pixel_weight",
+    ):
         kw = {f: getattr(d, f) for f in d.__dataclass_fields__ if f not in ("kind", "fit", "target")}
         kw[field] = kw[field] * math.exp(eps)
         dk = (MeshDesign(**kw).kernel_taps(7) - base) / eps
@@ -318,7 +338,9 @@ def test_bad_kernels_raise():
 # ---------------------------------------------------------------------- issue 13: the canonical target
 def _canonical_dog() -> Kernel:
     """g(σ=0.8) − 0.7·g(σ=2.2) on 7×7 at 4.86 µm (the issue's headline target)."""
-    return reference_kernel("dog", 7, pitch_m=4.86e-6, sigma_centre_px=0.8, sigma_surround_px=2.2, w_centre=1.0, w_surround=0.7)
+    return reference_kernel(
+        "dog", 7, pitch_m=4.86e-6, sigma_centre_px=0.8, sigma_surround_px=2.2, w_centre=1.0, w_surround=0.7
+    )
 
 
 def _family_limit_on_a_grid(t: Kernel, n: int = 48, ratio: float = 1.5) -> float:

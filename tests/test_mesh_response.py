@@ -105,7 +105,11 @@ def test_dct_equals_sparse_and_truncation_rule():
 def test_extreme_conductance_ratios_are_finite(ratio):
     g_v = 1e-9
     lam = space_constant_px(ratio * g_v, g_v)
-    for h in (lattice_green_function(lam, 3), finite_grid_response(lam, 3, 10), finite_grid_response(lam, 3, 10, method="sparse")):
+    for h in (
+        lattice_green_function(lam, 3),
+        finite_grid_response(lam, 3, 10),
+        finite_grid_response(lam, 3, 10, method="sparse"),
+    ):
         # finite and non-negative up to rounding (the DCT form has ~1e-16 absolute rounding)
         assert np.all(np.isfinite(h)) and h.min() > -1e-14 and h[3, 3] == h.max()
     assert lattice_green_function(lam, 3).sum() <= 1.0 + 1e-12

@@ -63,8 +63,11 @@ def test_spectral_samples_errors_and_monochromatic():
 def test_spectral_sampling_converges():
     """PSF error vs a 64-sample reference falls as samples are added (defocused, chromatic lens)."""
     ref = pixel_psf(GEOM, sensor_distance_m=240e-6, n_pixels=7, n_wavelengths=64, n_sub=8)
-    errs = [np.linalg.norm(pixel_psf(GEOM, sensor_distance_m=240e-6, n_pixels=7, n_wavelengths=n, n_sub=8) - ref)
-            / np.linalg.norm(ref) for n in (2, 8, 32)]
+    errs = [
+        np.linalg.norm(pixel_psf(GEOM, sensor_distance_m=240e-6, n_pixels=7, n_wavelengths=n, n_sub=8) - ref)
+        / np.linalg.norm(ref)
+        for n in (2, 8, 32)
+    ]
     assert errs[0] > errs[1] > errs[2]
     assert errs[2] < 5e-3
 
@@ -92,7 +95,9 @@ def _airy_pixel_fraction(na: float, lam: float, pitch: float = 4.86e-6) -> float
     x, w = np.polynomial.legendre.leggauss(60)
     xs, ws = 0.5 * pitch * x, 0.5 * pitch * w
     rho = np.hypot(xs[:, None], xs[None, :])
-    return float(math.pi * na * na / lam**2 * (airy_intensity(rho, wavelength_m=lam, na=na) * ws[:, None] * ws[None, :]).sum())
+    return float(
+        math.pi * na * na / lam**2 * (airy_intensity(rho, wavelength_m=lam, na=na) * ws[:, None] * ws[None, :]).sum()
+    )
 
 
 def test_pixel_psf_in_focus_integrates_the_airy_pattern():
@@ -137,11 +142,16 @@ def test_gradients_reach_every_phase_coefficient_and_the_defocus():
         cp[i] += h
         cm[i] -= h
         with torch.no_grad():
-            fd = (((model.psf(cp, z) - 0.1 * target) ** 2).sum() - ((model.psf(cm, z) - 0.1 * target) ** 2).sum()) / (2 * h)
+            fd = (((model.psf(cp, z) - 0.1 * target) ** 2).sum() - ((model.psf(cm, z) - 0.1 * target) ** 2).sum()) / (
+                2 * h
+            )
         assert float(coeffs.grad[i]) == pytest.approx(float(fd), rel=1e-5, abs=1e-12)
     with torch.no_grad():
         h = 1e-9
-        fd = (((model.psf(coeffs, z + h) - 0.1 * target) ** 2).sum() - ((model.psf(coeffs, z - h) - 0.1 * target) ** 2).sum()) / (2 * h)
+        fd = (
+            ((model.psf(coeffs, z + h) - 0.1 * target) ** 2).sum()
+            - ((model.psf(coeffs, z - h) - 0.1 * target) ** 2).sum()
+        ) / (2 * h)
     assert float(z.grad) == pytest.approx(float(fd), rel=1e-4)
 
 
@@ -312,7 +322,9 @@ def _dense_airy_taps(na: float, lam: float, n_pixels: int = 7, pitch: float = 4.
     for i in range(r + 1):
         for j in range(i + 1):
             rho = np.hypot((j + 0.5 * x)[None, :], (i + 0.5 * x)[:, None]) * pitch
-            v = float((math.pi * na * na / lam**2 * airy_intensity(rho, wavelength_m=lam, na=na) * np.outer(w, w)).sum())
+            v = float(
+                (math.pi * na * na / lam**2 * airy_intensity(rho, wavelength_m=lam, na=na) * np.outer(w, w)).sum()
+            )
             v *= (0.5 * pitch) ** 2
             for a, b in {(i, j), (j, i), (-i, j), (i, -j), (-i, -j), (-j, i), (j, -i), (-j, -i)}:
                 out[r + a, r + b] = v
@@ -352,8 +364,10 @@ def test_differential_dc_is_held_on_the_whole_psf():
     k = reference_kernel("dog", 7)
     d = fit_metalens(k, strategy="differential", n_wavelengths=4, n_terms=2, n_starts=2, max_iter=30)
     assert d.whole_dc_gain == pytest.approx(k.dc_gain, rel=1e-9)
-    wide = [pixel_psf(GEOM, c, sensor_distance_m=z, pitch_m=k.pitch_m, n_pixels=41, illuminant=d.spectral)
-            for c, z in zip(d.coefficients, d.sensor_distance_m)]
+    wide = [
+        pixel_psf(GEOM, c, sensor_distance_m=z, pitch_m=k.pitch_m, n_pixels=41, illuminant=d.spectral)
+        for c, z in zip(d.coefficients, d.sensor_distance_m)
+    ]
     for t, p in zip(d.psf_totals, wide):
         assert t == pytest.approx(float(p.sum()), rel=5e-3)  # Parseval total = light on a 41x41 patch
     dc_41 = d.gains[0] * wide[0].sum() - d.gains[1] * wide[1].sum()

@@ -34,8 +34,9 @@ def test_a_differential_pair_is_reproduced_lens_by_lens():
     pair = fit_metalens(reference_kernel("dog", 5), strategy="differential", n_wavelengths=3, max_iter=15, n_starts=1)
     mk = MetalensKernel(pair)
     assert len(mk.psfs()) == 2
-    np.testing.assert_allclose(mk().detach().numpy(), pair.kernel().taps, rtol=1e-10,
-                               atol=1e-12 * float(np.abs(pair.kernel().taps).max()))
+    np.testing.assert_allclose(
+        mk().detach().numpy(), pair.kernel().taps, rtol=1e-10, atol=1e-12 * float(np.abs(pair.kernel().taps).max())
+    )
 
 
 def test_gradients_reach_phase_distance_and_gain(design):

@@ -39,8 +39,9 @@ def test_notebook_executes_on_small_settings(path, tmp_path, monkeypatch):
     monkeypatch.setenv("MPLBACKEND", "Agg")
     monkeypatch.setenv("OMP_NUM_THREADS", "1")
     nb = nbformat.read(path, as_version=4)
-    client = nbclient.NotebookClient(nb, timeout=300, kernel_name="python3",
-                                     resources={"metadata": {"path": str(path.parent)}})
+    client = nbclient.NotebookClient(
+        nb, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(path.parent)}}
+    )
     client.execute()
     text = "\n".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
     assert "quick settings" in text
@@ -89,8 +90,12 @@ def _check_metalens(s: list) -> None:
     assert 0 <= r["kernel_error"] < 1
 
 
-_CHECKS = {"asic_bitwidth_sweep": _check_asic, "csf_fit_comparison": _check_csf,
-           "mesh_conductance_sweep": _check_mesh, "metalens_aperture_sweep": _check_metalens}
+_CHECKS = {
+    "asic_bitwidth_sweep": _check_asic,
+    "csf_fit_comparison": _check_csf,
+    "mesh_conductance_sweep": _check_mesh,
+    "metalens_aperture_sweep": _check_metalens,
+}
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
@@ -118,9 +123,15 @@ def test_execute_stores_progress_bars_in_their_final_state():
     ex = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(ex)
     out = nbformat.v4.new_output
-    cell = nbformat.v4.new_code_cell("x", outputs=[
-        out("stream", name="stderr", text="\rpts:   0%| 0/2"), out("stream", name="stderr", text="\rpts:  50%| 1/2"),
-        out("stream", name="stderr", text="\rpts: 100%| 2/2\n"), out("stream", name="stdout", text="done\n")])
+    cell = nbformat.v4.new_code_cell(
+        "x",
+        outputs=[
+            out("stream", name="stderr", text="\rpts:   0%| 0/2"),
+            out("stream", name="stderr", text="\rpts:  50%| 1/2"),
+            out("stream", name="stderr", text="\rpts: 100%| 2/2\n"),
+            out("stream", name="stdout", text="done\n"),
+        ],
+    )
     nb = nbformat.v4.new_notebook(cells=[cell])
     ex.tidy_streams(nb)
     assert [(o.name, o.text) for o in nb.cells[0].outputs] == [("stderr", "pts: 100%| 2/2\n"), ("stdout", "done\n")]

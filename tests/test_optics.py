@@ -28,7 +28,9 @@ def _perfect_lens(r: np.ndarray, f: float, lam: float = LAM) -> np.ndarray:
     return np.exp(-1j * 2 * math.pi / lam * (np.sqrt(r * r + f * f) - f))
 
 
-def _focal_field(a: float, f: float, window: float, n_modes: int, rho: np.ndarray) -> tuple[np.ndarray, RadialPropagator]:
+def _focal_field(
+    a: float, f: float, window: float, n_modes: int, rho: np.ndarray
+) -> tuple[np.ndarray, RadialPropagator]:
     prop = RadialPropagator(a, window, n_modes)
     u0 = torch.from_numpy(_perfect_lens(prop.r_pupil, f))[None]
     u = prop.propagate(u0, np.array([LAM]), f, prop.evaluation_matrix(rho))[0]
@@ -113,7 +115,7 @@ def test_angular_spectrum_2d_conserves_energy_and_matches_gaussian_beam():
 def test_radial_path_matches_gaussian_beam():
     w0 = 8e-6
     prop = RadialPropagator(6 * w0, 8 * w0, 256)
-    u0 = torch.from_numpy(np.exp(-prop.r_pupil**2 / w0**2).astype(complex))[None]
+    u0 = torch.from_numpy(np.exp(-(prop.r_pupil**2) / w0**2).astype(complex))[None]
     for z in (100e-6, math.pi * w0 * w0 / LAM):
         u = prop.propagate(u0, np.array([LAM]), z, prop.evaluation_matrix(np.array([0.0])))[0, 0]
         assert float(abs(u) ** 2) == pytest.approx(_gaussian_on_axis(z, w0), rel=2e-3)

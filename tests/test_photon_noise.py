@@ -23,8 +23,9 @@ def test_photoelectrons_by_hand():
     by_hand = photons_per_s_m2 * (4.86e-6) ** 2 * 0.5 * 0.01  # pitch², QE, 10 ms
     n = photoelectrons_per_frame(illuminance_lux=1.0, pitch_m=4.86e-6, quantum_efficiency=0.5, frame_interval_s=0.01)
     assert n == pytest.approx(by_hand, rel=1e-12) and n == pytest.approx(483.1, abs=0.1)
-    assert photoelectrons_per_frame(illuminance_lux=10.0, pitch_m=9.72e-6, quantum_efficiency=0.5,
-                                    frame_interval_s=0.01) == pytest.approx(40 * n, rel=1e-12)  # ∝ E · p²
+    assert photoelectrons_per_frame(
+        illuminance_lux=10.0, pitch_m=9.72e-6, quantum_efficiency=0.5, frame_interval_s=0.01
+    ) == pytest.approx(40 * n, rel=1e-12)  # ∝ E · p²
 
 
 @pytest.mark.parametrize("bad", [0, -1.0, float("nan"), True, "1", 1e9])
@@ -43,7 +44,7 @@ def test_poisson_counts_keep_the_mean_and_have_variance_i_over_n_and_are_paired(
     assert dark.mean() == pytest.approx(0.2, rel=0.01) and bright.mean() == pytest.approx(0.8, rel=0.01)
     assert dark.var() == pytest.approx(0.2 / 50, rel=0.03) and bright.var() == pytest.approx(0.8 / 50, rel=0.03)
     assert np.allclose(dark * 50, np.round(dark * 50))
-    assert torch.equal(noise.noisy(video), a)            # the same clips meet the same photons ...
+    assert torch.equal(noise.noisy(video), a)  # the same clips meet the same photons ...
     assert not torch.equal(PhotonNoise(50.0, seed=4).noisy(video), a)  # ... another seed, other photons
     assert noise.relative_log_noise(0.2) == pytest.approx(1 / np.sqrt(10.0), rel=1e-12)
     with pytest.raises(InputError, match="photoelectrons_full_scale"):
@@ -64,8 +65,8 @@ def test_noise_budget_names_photon_noise_in_the_dark_and_the_avalanche_at_low_th
         assert r["dominant"] == "photon" and r["photon"] > r["signal"] > 0
         # the pixel's own shot and leak events (0.001 and 0.01 Hz) barely add to the photon noise
         assert r["all"] == pytest.approx(r["photon"], rel=0.01) and 0 < r["noise_fraction"] < 1
-    assert dim[0]["static"] > dim[1]["static"]           # lower threshold: more noise events
-    for d, b in zip(dim, bright):                        # more photons: less noise, same signal
+    assert dim[0]["static"] > dim[1]["static"]  # lower threshold: more noise events
+    for d, b in zip(dim, bright):  # more photons: less noise, same signal
         assert b["signal"] == d["signal"] and b["photon"] < d["photon"] and b["static"] < d["static"]
     filt = noise_budget(learned, "detection", ckpt, (0.1, 0.3), photoelectrons_full_scale=50.0, n_test=4)
     gain = np.linalg.norm(learned.taps) / abs(np.sum(learned.taps))

@@ -62,18 +62,37 @@ def test_the_report_names_the_versions_or_says_they_were_not_kept():
 
     def _versions_note(points):
         return str(render("macros.html.j2", macro="versions_note", versions=_versions(points)))
+
     from fsdvs_hw.kernels import reference_kernel
     from fsdvs_hw.records import Score, ScoredPoint
 
-    base = Score(kind="delta", label="delta", describe="", kernel=reference_kernel("delta", 3), kernel_error=0.0,
-                 kernel_error_gain_free=0.0, dc_gain=1.0, asymmetry=0.0)
+    base = Score(
+        kind="delta",
+        label="delta",
+        describe="",
+        kernel=reference_kernel("delta", 3),
+        kernel_error=0.0,
+        kernel_error_gain_free=0.0,
+        dc_gain=1.0,
+        asymmetry=0.0,
+    )
     old = ScoredPoint(key="a", realisation="delta", params={}, status="ok", score=base)
     assert "not recorded" in _versions_note([old])
-    new = ScoredPoint(key="b", realisation="delta", params={}, status="ok",
-                      score=base.with_(versions={"casadi": "3.8.2", "numpy": "2.4.6"}))
+    new = ScoredPoint(
+        key="b",
+        realisation="delta",
+        params={},
+        status="ok",
+        score=base.with_(versions={"casadi": "3.8.2", "numpy": "2.4.6"}),
+    )
     assert "casadi 3.8.2, numpy 2.4.6" in _versions_note([new, old])
-    other = ScoredPoint(key="c", realisation="delta", params={}, status="ok",
-                        score=base.with_(versions={"casadi": "3.7.2", "numpy": "2.4.6"}))
+    other = ScoredPoint(
+        key="c",
+        realisation="delta",
+        params={},
+        status="ok",
+        score=base.with_(versions={"casadi": "3.7.2", "numpy": "2.4.6"}),
+    )
     assert "2 different environments" in _versions_note([new, other])
 
 

@@ -17,12 +17,14 @@ PKG = Path(__file__).resolve().parents[1] / "fsdvs_hw"
 def test_type_checking_imports_list_exactly_the_lazy_names_and_each_resolves(package):
     path = PKG / ("__init__.py" if package == "fsdvs_hw" else "tasks/__init__.py")
     tree = ast.parse(path.read_text())
+
     def assigns_lazy(node: ast.stmt) -> bool:
         targets = node.targets if isinstance(node, ast.Assign) else [getattr(node, "target", None)]
         return any(isinstance(t, ast.Name) and t.id == "_LAZY" for t in targets)
 
-    lazy = next(ast.literal_eval(n.value) for n in tree.body if isinstance(n, (ast.Assign, ast.AnnAssign))
-                and assigns_lazy(n))
+    lazy = next(
+        ast.literal_eval(n.value) for n in tree.body if isinstance(n, (ast.Assign, ast.AnnAssign)) and assigns_lazy(n)
+    )
     block = next(n for n in tree.body if isinstance(n, ast.If) and ast.unparse(n.test) == "TYPE_CHECKING")
     static = {a.name: ("." * imp.level + (imp.module or "")) for imp in block.body for a in imp.names}
     assert set(static) == set(lazy)

@@ -31,9 +31,28 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
 #: The documents whose blocks run: the README and the documentation pages with runnable blocks.
-DOCUMENTS: tuple[Path, ...] = (README, *(REPO / "docs" / f"{name}.md" for name in (
-    "getting-started", "analyse", "simulator", "tasks", "mesh", "asic", "metalens", "explore", "sweeps",
-    "codesign", "rate", "security", "measured", "index")))
+DOCUMENTS: tuple[Path, ...] = (
+    README,
+    *(
+        REPO / "docs" / f"{name}.md"
+        for name in (
+            "getting-started",
+            "analyse",
+            "simulator",
+            "tasks",
+            "mesh",
+            "asic",
+            "metalens",
+            "explore",
+            "sweeps",
+            "codesign",
+            "rate",
+            "security",
+            "measured",
+            "index",
+        )
+    ),
+)
 RUNNABLE = {"python", "bash", "sh", "shell", "console"}
 
 #: Blocks shown but not run (first command line → why). Keep this short.
@@ -56,8 +75,8 @@ SKIPPED: dict[str, str] = {
 SLOW: tuple[str, ...] = (
     "import numpy as np\nimport fsdvs_hw as fh",  # tour: mesh, taps and lens fits
     "fsdvs-hw explore --out out/quick",
-    "import torch\nfrom fsdvs_hw.kernels",          # event simulator on a real clip
-    "from fsdvs_hw import fit_metalens",             # metalens: differential fit, 2-D propagation
+    "import torch\nfrom fsdvs_hw.kernels",  # event simulator on a real clip
+    "from fsdvs_hw import fit_metalens",  # metalens: differential fit, 2-D propagation
 )
 
 _FENCE = re.compile(r"^```([A-Za-z0-9_+-]*)\s*$")
@@ -70,7 +89,7 @@ class Block:
 
     lang: str
     code: str
-    line: int           # line of the opening fence (1-based)
+    line: int  # line of the opening fence (1-based)
     skip_reason: str | None
     document: str = "README.md"  # path relative to the repository
 
@@ -103,7 +122,7 @@ def readme_blocks(text: str | None = None, document: Path = README) -> list[Bloc
             j += 1
         prev = next((lines[k] for k in range(start - 1, -1, -1) if lines[k].strip()), "")
         skip = _SKIP.match(prev.strip())
-        blocks.append(Block(lang, "\n".join(lines[start + 1:j]), start + 1, skip.group(1) if skip else None, name))
+        blocks.append(Block(lang, "\n".join(lines[start + 1 : j]), start + 1, skip.group(1) if skip else None, name))
         i = j + 1
     return blocks
 
@@ -125,13 +144,18 @@ def _runnable() -> list[Block]:
 
 
 def _snapshot(folder: Path) -> dict[str, tuple[int, int]]:
-    return {str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns)
-            for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns)
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
 
 
 def test_the_parser_finds_blocks_and_markers():
-    text = ("x\n<!-- readme-test: skip (too long) -->\n```console\nmake demo\n```\n\n```python\n# c\nprint(1)\n```\n"
-            "```\noutput\n```\n")
+    text = (
+        "x\n<!-- readme-test: skip (too long) -->\n```console\nmake demo\n```\n\n```python\n# c\nprint(1)\n```\n"
+        "```\noutput\n```\n"
+    )
     a, b, c = readme_blocks(text)
     assert (a.lang, a.key, a.skip_reason, a.line) == ("console", "make demo", "too long", 3)
     assert (b.lang, b.key, b.skip_reason) == ("python", "print(1)", None)
@@ -148,8 +172,9 @@ def test_skipped_blocks_are_exactly_the_listed_ones_and_console_blocks_are_skipp
     skipped = {b.key: b for b in blocks if b.skip_reason is not None}
     assert all(any(k.startswith(p) for k in skipped) for p in SKIPPED), (sorted(skipped), sorted(SKIPPED))
     assert all(any(k.startswith(p) for p in SKIPPED) for k in skipped), sorted(skipped)
-    assert all(b.skip_reason is not None for b in blocks if b.lang == "console"), \
-        [(b.document, b.line) for b in blocks if b.lang == "console" and b.skip_reason is None]
+    assert all(b.skip_reason is not None for b in blocks if b.lang == "console"), [
+        (b.document, b.line) for b in blocks if b.lang == "console" and b.skip_reason is None
+    ]
     assert len(_runnable()) >= 8  # the tour and the reference snippets
 
 
@@ -179,9 +204,13 @@ def _needs_tools(code: str) -> list[str]:
     return [t for t in need if shutil.which(t) is None]
 
 
-@pytest.mark.parametrize("block", [pytest.param(b, id=f"{Path(b.document).stem}-L{b.line}-{b.lang}",
-                                                marks=[pytest.mark.slow] if b.slow else [])
-                                   for b in _runnable()])
+@pytest.mark.parametrize(
+    "block",
+    [
+        pytest.param(b, id=f"{Path(b.document).stem}-L{b.line}-{b.lang}", marks=[pytest.mark.slow] if b.slow else [])
+        for b in _runnable()
+    ],
+)
 def test_readme_block_runs(block: Block, tmp_path: Path):
     missing = _needs_tools(block.code)
     if missing:
@@ -198,6 +227,8 @@ def test_readme_block_runs(block: Block, tmp_path: Path):
         script.write_text(_PRELUDE + block.code + "\n", encoding="utf-8")
         cmd = ["bash", str(script)]
     proc = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=1200)
-    assert proc.returncode == 0, (f"{block.document} line {block.line} ({block.lang}) failed:\n{block.code}\n"
-                                  f"--- stdout\n{proc.stdout[-3000:]}\n--- stderr\n{proc.stderr[-5000:]}")
+    assert proc.returncode == 0, (
+        f"{block.document} line {block.line} ({block.lang}) failed:\n{block.code}\n"
+        f"--- stdout\n{proc.stdout[-3000:]}\n--- stderr\n{proc.stderr[-5000:]}"
+    )
     assert _snapshot(REPO / "designs") == before, f"{block.document} line {block.line} changed designs/"

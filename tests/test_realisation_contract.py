@@ -258,8 +258,21 @@ def test_a_score_carries_every_field_the_tables_read(name, target):
     # one serialisation: the record rebuilt from its dict writes the same dict
     assert Score.from_dict(json.loads(json.dumps(rec))).to_dict() == rec
     assert typed.wall.fit_s == 0.5 and typed.cost.to_dict() == rec["cost"]
-    for key in ("kind", "label", "describe", "kernel", "kernel_error", "kernel_error_gain_free", "dc_gain",
-                "spectral", "csf", "cost", "tasks", "emulation", "wall_s"):
+    for key in (
+        "kind",
+        "label",
+        "describe",
+        "kernel",
+        "kernel_error",
+        "kernel_error_gain_free",
+        "dc_gain",
+        "spectral",
+        "csf",
+        "cost",
+        "tasks",
+        "emulation",
+        "wall_s",
+    ):
         assert key in rec, key
     assert set(rec["wall_s"]) == {"fit", "analysis", "tasks", "emulation"} and rec["wall_s"]["fit"] == 0.5
     assert rec["kind"] == spec.record_kind
@@ -301,9 +314,11 @@ def test_a_plugin_realisation_is_explored_end_to_end(tmp_path, capsys):
     from fsdvs_hw.cli import main
 
     p = tmp_path / "box.toml"
-    p.write_text('[realisations]\ninclude = ["learned", "delta", "box"]\n[realisations.box]\nwidth = 3\n'
-                 '[sweep]\naxes = { "box.width" = [1, 3] }\n[analysis]\ncsf_methods = ["mannos_sakrison_1974"]\n'
-                 '[sensor]\nresolution = [24, 32]\n[emulation]\nenabled = false\n[run]\nworkers = 1\n')
+    p.write_text(
+        '[realisations]\ninclude = ["learned", "delta", "box"]\n[realisations.box]\nwidth = 3\n'
+        '[sweep]\naxes = { "box.width" = [1, 3] }\n[analysis]\ncsf_methods = ["mannos_sakrison_1974"]\n'
+        "[sensor]\nresolution = [24, 32]\n[emulation]\nenabled = false\n[run]\nworkers = 1\n"
+    )
     out = tmp_path / "out"
     assert main(["explore", str(p), "--out", str(out), "--no-progress"]) == 0
     printed = capsys.readouterr().out
@@ -313,7 +328,9 @@ def test_a_plugin_realisation_is_explored_end_to_end(tmp_path, capsys):
     box = sorted((r for r in rows if r["realisation"] == "box"), key=lambda r: r["kind_cost_value"])
     assert [r["status"] for r in box] == ["ok", "ok"]
     assert [(r["kind_cost"], r["kind_cost_value"], r["kind_cost_unit"]) for r in box] == [
-        ("box width", 1.0, "px"), ("box width", 3.0, "px")]
+        ("box width", 1.0, "px"),
+        ("box width", 3.0, "px"),
+    ]
     assert all(r["headline_cost"] == "box_width" and r["headline_cost_unit"] == "px" for r in box)
     assert all(r["cost_adders"] == r["kind_cost_value"] ** 2 - 1 for r in box)
     with (out / "scores.csv").open() as fh:
@@ -339,9 +356,15 @@ def test_spawned_workers_know_a_plugin_registered_in_the_parent(tmp_path):
     from fsdvs_hw.explore.sweep import run_design
 
     assert "toy_realisation" in os.environ[registry.PLUGIN_ENV].split(os.pathsep)
-    d = parse_design({"realisations": {"include": ["box"]}, "sweep": {"axes": {"box.width": [1, 3, 5]}},
-                      "analysis": {"csf_methods": ["mannos_sakrison_1974"]}, "emulation": {"enabled": False}},
-                     source="spawned")
+    d = parse_design(
+        {
+            "realisations": {"include": ["box"]},
+            "sweep": {"axes": {"box.width": [1, 3, 5]}},
+            "analysis": {"csf_methods": ["mannos_sakrison_1974"]},
+            "emulation": {"enabled": False},
+        },
+        source="spawned",
+    )
     summary, rows = run_design(d, tmp_path / "store.sqlite", workers=2, progress=False)
     assert summary.executor.startswith("2 local processes")
     assert summary.statuses == {"ok": 3}, [r.get("reason") for r in rows]

@@ -37,10 +37,13 @@ def target():
     return load_kernel(LEARNED)
 
 
-@pytest.mark.parametrize("name, options, params", [
-    ("mesh", {}, None),                                   # every parameter: λ narrow/wide, gain, DC
-    ("asic", {"bits": 8, "scale": "free"}, ["scale_param"]),  # continuous scale (rounding: straight-through)
-])
+@pytest.mark.parametrize(
+    "name, options, params",
+    [
+        ("mesh", {}, None),  # every parameter: λ narrow/wide, gain, DC
+        ("asic", {"bits": 8, "scale": "free"}, ["scale_param"]),  # continuous scale (rounding: straight-through)
+    ],
+)
 def test_gradcheck_float64(name, options, params, target):
     module = get_realisation(name).differentiable_kernel(fit_realisation(name, target, options))
     named = dict(module.named_parameters())
@@ -57,8 +60,7 @@ def test_gradcheck_float64_metalens(target):
     named = dict(module.named_parameters())
     names = list(named)
     inputs = tuple(named[n].detach().clone().requires_grad_(True) for n in names)
-    assert torch.autograd.gradcheck(_as_function(module, names), inputs, eps=1e-6, atol=1e-6, rtol=1e-4,
-                                     fast_mode=True)
+    assert torch.autograd.gradcheck(_as_function(module, names), inputs, eps=1e-6, atol=1e-6, rtol=1e-4, fast_mode=True)
 
 
 def test_gradcheck_catches_a_wrong_gradient(target):
@@ -77,5 +79,6 @@ def test_gradcheck_catches_a_wrong_gradient(target):
             return 1.1 * g
 
     assert torch.autograd.gradcheck(f, inputs, eps=1e-6, atol=1e-6, rtol=1e-4)
-    assert not torch.autograd.gradcheck(lambda *v: Scaled.apply(f(*v)), inputs, eps=1e-6, atol=1e-6, rtol=1e-4,
-                                        raise_exception=False)
+    assert not torch.autograd.gradcheck(
+        lambda *v: Scaled.apply(f(*v)), inputs, eps=1e-6, atol=1e-6, rtol=1e-4, raise_exception=False
+    )

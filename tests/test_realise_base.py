@@ -50,4 +50,7 @@ def test_unknown_kind_is_a_clear_error():
 
 def test_cost_item_to_dict():
     assert CostItem(1e-9, "S", "lateral conductance").to_dict() == {
-        "value": 1e-9, "unit": "S", "description": "lateral conductance"}
+        "value": 1e-9,
+        "unit": "S",
+        "description": "lateral conductance",
+    }

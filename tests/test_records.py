@@ -15,9 +15,20 @@ from fsdvs_hw.report.tables import score_rows
 
 
 def _track(metric: float, **extra) -> dict:
-    return {"status": "ok", "metric": metric, "metric_name": "top1", "per_seed": [metric - 0.01, metric + 0.01],
-            "n_seeds": 2, "test_clips": "per_network", "n_clips": 200, "n_clips_per_network": 100,
-            "test_seeds": [1000, 1001], "event_rate": 0.12, "wall_s": 3.5, **extra}
+    return {
+        "status": "ok",
+        "metric": metric,
+        "metric_name": "top1",
+        "per_seed": [metric - 0.01, metric + 0.01],
+        "n_seeds": 2,
+        "test_clips": "per_network",
+        "n_clips": 200,
+        "n_clips_per_network": 100,
+        "test_seeds": [1000, 1001],
+        "event_rate": 0.12,
+        "wall_s": 3.5,
+        **extra,
+    }
 
 
 @pytest.fixture(scope="module")
@@ -39,14 +50,29 @@ def test_a_score_round_trips_through_json_exactly(asic_score):
 
 def test_unknown_keys_survive_a_round_trip_and_known_ones_are_typed():
     k = reference_kernel("dog", 5)
-    d = {"kind": "box", "label": "box", "describe": "a box", "kernel": k.to_dict(), "kernel_error": 0.25,
-         "kernel_error_gain_free": 0.2, "dc_gain": 0.0, "asymmetry": 0.0, "spectral": {"status": "ok"},
-         "csf": {"status": "ok", "mannos_sakrison_1974": {"correlation": 0.8}},
-         "cost": {"taps": {"value": 9, "unit": "count", "description": "taps"}},
-         "tasks": {"status": "partial", "recognition": {"simulator": _track(0.9, networks=[{"seed": 0}]),
-                                                         "emulation": {"status": "unavailable: no display"}}},
-         "emulation": {"status": "not requested"}, "wall_s": {"fit": 1.0, "analysis": 2.0, "tasks": 3.0, "emulation": 4.0},
-         "from_the_future": {"x": 1}}
+    d = {
+        "kind": "box",
+        "label": "box",
+        "describe": "a box",
+        "kernel": k.to_dict(),
+        "kernel_error": 0.25,
+        "kernel_error_gain_free": 0.2,
+        "dc_gain": 0.0,
+        "asymmetry": 0.0,
+        "spectral": {"status": "ok"},
+        "csf": {"status": "ok", "mannos_sakrison_1974": {"correlation": 0.8}},
+        "cost": {"taps": {"value": 9, "unit": "count", "description": "taps"}},
+        "tasks": {
+            "status": "partial",
+            "recognition": {
+                "simulator": _track(0.9, networks=[{"seed": 0}]),
+                "emulation": {"status": "unavailable: no display"},
+            },
+        },
+        "emulation": {"status": "not requested"},
+        "wall_s": {"fit": 1.0, "analysis": 2.0, "tasks": 3.0, "emulation": 4.0},
+        "from_the_future": {"x": 1},
+    }
     s = Score.from_dict(d)
     assert s.to_dict() == d
     assert s.extra == {"from_the_future": {"x": 1}}
@@ -74,9 +100,15 @@ def test_the_tables_read_the_typed_fields(asic_score):
 
 
 def test_a_failed_point_keeps_its_reason_and_traceback():
-    d = {"key": "x", "realisation": "mesh", "params": {"mesh.g_max_s": 1.0}, "status": "error",
-         "result": {"reason": "ValueError: bad", "traceback": "Traceback ...", "warnings": ["W: w"]}, "wall_s": 0.5,
-         "worker": "h:1"}
+    d = {
+        "key": "x",
+        "realisation": "mesh",
+        "params": {"mesh.g_max_s": 1.0},
+        "status": "error",
+        "result": {"reason": "ValueError: bad", "traceback": "Traceback ...", "warnings": ["W: w"]},
+        "wall_s": 0.5,
+        "worker": "h:1",
+    }
     p = ScoredPoint.from_dict(d)
     assert not p.ok and p.score is None and p.reason == "ValueError: bad"
     assert p.to_dict() == d
@@ -84,10 +116,13 @@ def test_a_failed_point_keeps_its_reason_and_traceback():
     assert row["status"] == "error" and row["reason"] == "ValueError: bad" and row["warnings"] == "W: w"
 
 
-@pytest.mark.parametrize("bad, match", [
-    ({"kind": "x"}, r"score: not a score record \(missing kernel, kernel_error\)"),
-    ("not a dict", "score: expected a JSON object, got str"),
-])
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        ({"kind": "x"}, r"score: not a score record \(missing kernel, kernel_error\)"),
+        ("not a dict", "score: expected a JSON object, got str"),
+    ],
+)
 def test_a_malformed_score_names_what_is_missing(bad, match):
     with pytest.raises(InputError, match=match):
         Score.from_dict(bad)

@@ -41,42 +41,64 @@ def _chromium() -> str | None:
     return None
 
 
-sync_api = pytest.importorskip("playwright.sync_api", reason="Playwright is not installed (pip install playwright; "
-                               "it is in the 'test' extra)")
+sync_api = pytest.importorskip(
+    "playwright.sync_api", reason="Playwright is not installed (pip install playwright; it is in the 'test' extra)"
+)
 CHROMIUM = _chromium()
-pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="no Chromium binary: install the Debian package "
-                                "(apt-get install chromium; `make system-deps` does) or set FSDVS_CHROMIUM")
+pytestmark = pytest.mark.skipif(
+    CHROMIUM is None,
+    reason="no Chromium binary: install the Debian package "
+    "(apt-get install chromium; `make system-deps` does) or set FSDVS_CHROMIUM",
+)
 
 
 def _ci(est: float, h: float, n: int, seeds: int) -> dict:
     lo, hi = est - h, est + h
     text = f"no measurable loss (± {h:.3f})" if lo <= 0 <= hi else f"{est:.3f} [{lo:.3f}, {hi:.3f}]"
-    return {"estimate": est, "low": lo, "high": hi, "half_width": h, "confidence": 0.95, "n_clips": n,
-            "n_seeds_reference": seeds, "text": text}
+    return {
+        "estimate": est,
+        "low": lo,
+        "high": hi,
+        "half_width": h,
+        "confidence": 0.95,
+        "n_clips": n,
+        "n_seeds_reference": seeds,
+        "text": text,
+    }
 
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory) -> Path:
     tmp = tmp_path_factory.mktemp("browser")
     design = tmp / "tiny.toml"
-    design.write_text('[realisations]\ninclude = ["learned", "delta", "asic", "mesh"]\n[realisations.asic]\nbits = 4\n'
-                      '[analysis]\ncsf_methods = ["mannos_sakrison_1974", "barten_1999"]\n'
-                      '[emulation]\nenabled = false\n[run]\nworkers = 1\n')
+    design.write_text(
+        '[realisations]\ninclude = ["learned", "delta", "asic", "mesh"]\n[realisations.asic]\nbits = 4\n'
+        '[analysis]\ncsf_methods = ["mannos_sakrison_1974", "barten_1999"]\n'
+        "[emulation]\nenabled = false\n[run]\nworkers = 1\n"
+    )
     assert main(["explore", str(design), "--out", str(tmp / "run"), "--no-progress"]) == 0
     points = json.loads((tmp / "run" / "scores.json").read_text())["points"]
     ref = next(p["key"] for p in points if p["realisation"] == "learned")
     losses = {"learned": (0.0, 0.0), "delta": (0.09, 0.004), "asic": (0.012, 0.004), "mesh": (0.001, 0.003)}
     for p in points:  # the shape explore attaches (fsdvs_hw.explore.scoring.with_paired_losses)
         est, h = losses[p["realisation"]]
-        p["paired_loss"] = {"status": "ok", "reference": ref, "simulator": {
-            "detection": _ci(est, h, 64, 3), "recognition": _ci(est * 1.5, h, 384, 3),
-            "weighted": _ci(est * 1.25, h, 448, 3), "weights": {"detection": 1.0, "recognition": 1.0}}}
+        p["paired_loss"] = {
+            "status": "ok",
+            "reference": ref,
+            "simulator": {
+                "detection": _ci(est, h, 64, 3),
+                "recognition": _ci(est * 1.5, h, 384, 3),
+                "weighted": _ci(est * 1.25, h, 448, 3),
+                "weights": {"detection": 1.0, "recognition": 1.0},
+            },
+        }
     return write_report(points, load_design(design), tmp / "report")
 
 
 def _open(page, path: Path, problems: list[str]) -> None:
-    page.on("console", lambda m: problems.append(f"console {m.type}: {m.text}") if m.type in ("error", "warning")
-            else None)
+    page.on(
+        "console", lambda m: problems.append(f"console {m.type}: {m.text}") if m.type in ("error", "warning") else None
+    )
     page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
     page.on("requestfailed", lambda r: problems.append(f"request failed: {r.url}"))
 

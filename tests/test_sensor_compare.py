@@ -14,9 +14,13 @@ from fsdvs_hw.sensor.eventfile import EventFile
 
 def _list(t, x, y, p) -> EventList:
     n = len(t)
-    return EventList(torch.zeros(n, dtype=torch.int64), torch.as_tensor(x, dtype=torch.int64),
-                     torch.as_tensor(y, dtype=torch.int64), torch.as_tensor(t, dtype=torch.float64),
-                     torch.as_tensor(p, dtype=torch.int8))
+    return EventList(
+        torch.zeros(n, dtype=torch.int64),
+        torch.as_tensor(x, dtype=torch.int64),
+        torch.as_tensor(y, dtype=torch.int64),
+        torch.as_tensor(t, dtype=torch.float64),
+        torch.as_tensor(p, dtype=torch.int8),
+    )
 
 
 def _bursty(shift_s: float, seed: int = 0) -> EventList:
@@ -42,16 +46,21 @@ def test_lag_recovered_within_a_fraction_of_a_bin(shift):
 
 def test_on_fraction_maps_and_intervals_hand_computed():
     sim = _list([0.0, 0.1, 0.3, 0.35], [0, 0, 0, 1], [0, 0, 0, 0], [1, 1, -1, 1])
-    real = EventFile(np.array([0, 50_000, 60_000]), np.array([1, 1, 1]), np.array([0, 0, 0]),
-                     np.array([-1, -1, -1], np.int8), 2, 1)
+    real = EventFile(
+        np.array([0, 50_000, 60_000]), np.array([1, 1, 1]), np.array([0, 0, 0]), np.array([-1, -1, -1], np.int8), 2, 1
+    )
     c = compare_events(sim, real, bin_s=0.05)
     assert c.on_fraction_sim == 0.75 and c.on_fraction_real == 0.0
     assert c.count_map_sim.tolist() == [[3, 1]] and c.count_map_real.tolist() == [[0, 3]]
     assert c.count_map_correlation == pytest.approx(-1.0)
     assert c.iei_median_sim_s == pytest.approx(0.15)  # intervals 0.1 and 0.2
     assert c.iei_median_real_s == pytest.approx(0.03)  # 0.05 and 0.01
-    np.testing.assert_allclose(np.sort(inter_event_intervals(np.array([0.0, 0.1, 0.3, 0.35]), np.array([0, 0, 0, 1]),
-                                                             np.array([0, 0, 0, 0]), 2)), [0.1, 0.2])
+    np.testing.assert_allclose(
+        np.sort(
+            inter_event_intervals(np.array([0.0, 0.1, 0.3, 0.35]), np.array([0, 0, 0, 1]), np.array([0, 0, 0, 0]), 2)
+        ),
+        [0.1, 0.2],
+    )
 
 
 def test_noise_rate_of_a_static_scene_matches_the_shot_noise_rate():

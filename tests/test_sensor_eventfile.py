@@ -11,8 +11,14 @@ from fsdvs_hw.sensor import SensorConfig, simulate
 from fsdvs_hw.sensor.eventfile import EventFileWriter, read_events, write_events
 
 HAS_DV = importlib.util.find_spec("dv_processing") is not None
-FORMATS = [".h5", ".npz", pytest.param(".aedat4", marks=pytest.mark.skipif(
-    not HAS_DV, reason="dv-processing not installed (pip install 'fsdvs_hw[eventfiles]')"))]
+FORMATS = [
+    ".h5",
+    ".npz",
+    pytest.param(
+        ".aedat4",
+        marks=pytest.mark.skipif(not HAS_DV, reason="dv-processing not installed (pip install 'fsdvs_hw[eventfiles]')"),
+    ),
+]
 
 
 def _chunks(T=9, H=12, W=20):
@@ -56,7 +62,13 @@ def test_hdf5_is_v2e_layout(tmp_path):
     write_events(tmp_path / "v2e.h5", ev, W, H)
     with h5py.File(tmp_path / "v2e.h5", "r") as f:
         d = f["events"]
-        assert d.dtype == np.uint32 and d.shape == (len(ev), 4) and d.compression == "gzip" and d.compression_opts == 1 and d.shuffle
+        assert (
+            d.dtype == np.uint32
+            and d.shape == (len(ev), 4)
+            and d.compression == "gzip"
+            and d.compression_opts == 1
+            and d.shuffle
+        )
         a = d[()]
     assert np.array_equal(a[:, 3], (ev.p.numpy() > 0).astype(np.uint32))  # v2e: 1 = ON, 0 = OFF
     assert np.array_equal(a[:, 1], ev.x.numpy()) and np.array_equal(a[:, 2], ev.y.numpy())
@@ -82,8 +94,13 @@ from hypothesis import strategies as st  # noqa: E402
 
 # 10 examples: each HDF5/AEDAT4 write and AEDAT4 read starts a child process (~0.2 s), 25 took 15 s
 @settings(max_examples=10, deadline=None)
-@given(n=st.integers(0, 40), w=st.integers(1, 32767), h=st.integers(1, 32767),
-       t_max=st.sampled_from([1, 1000, 4_294_967_295]), seed=st.integers(0, 2 ** 31))
+@given(
+    n=st.integers(0, 40),
+    w=st.integers(1, 32767),
+    h=st.integers(1, 32767),
+    t_max=st.sampled_from([1, 1000, 4_294_967_295]),
+    seed=st.integers(0, 2**31),
+)
 def test_round_trip_property_at_extremes(tmp_path_factory, n, w, h, t_max, seed):
     """Any sorted events, sensor sizes up to 32767 px and times up to v2e's uint32 µs limit
     survive every format unchanged (also the empty file)."""
@@ -94,8 +111,13 @@ def test_round_trip_property_at_extremes(tmp_path_factory, n, w, h, t_max, seed)
     x, y = rng.integers(0, w, n), rng.integers(0, h, n)
     x[:1], y[:1] = w - 1, h - 1  # corner pixel
     p = rng.choice(np.array([-1, 1], dtype=np.int8), n)
-    ev = EventList(torch.zeros(n, dtype=torch.int64), torch.from_numpy(x), torch.from_numpy(y),
-                   torch.from_numpy(t_us * 1e-6), torch.from_numpy(p))
+    ev = EventList(
+        torch.zeros(n, dtype=torch.int64),
+        torch.from_numpy(x),
+        torch.from_numpy(y),
+        torch.from_numpy(t_us * 1e-6),
+        torch.from_numpy(p),
+    )
     d = tmp_path_factory.mktemp("rt")
     for suffix in (".h5", ".npz") + ((".aedat4",) if HAS_DV else ()):
         if suffix == ".aedat4" and (w > 32767 or h > 32767):

@@ -55,7 +55,9 @@ def test_event_list_counts_match_event_frames():
     ts = torch.arange(6, dtype=torch.float64) / cfg.frame_rate_hz
     rebuilt = torch.zeros_like(frames)
     k = torch.clamp(torch.searchsorted(ts, ev.t, right=False) - 1, 0, 4)
-    rebuilt.index_put_((ev.b, k, (ev.p < 0).long(), ev.y, ev.x), torch.ones(len(ev), dtype=frames.dtype), accumulate=True)
+    rebuilt.index_put_(
+        (ev.b, k, (ev.p < 0).long(), ev.y, ev.x), torch.ones(len(ev), dtype=frames.dtype), accumulate=True
+    )
     assert torch.equal(rebuilt, frames)
 
 
@@ -73,11 +75,13 @@ def test_post_log_zero_surround_equals_plain_dvs():
     g = torch.Generator().manual_seed(2)
     video = torch.rand(1, 5, 10, 12, generator=g) + 0.01
     plain = event_frames(video, None, config=SensorConfig(seed=1))
-    post = event_frames(video, None, config=SensorConfig(seed=1, placement="post_log",
-                                                          surround_lambda_px=3.0, surround_weight=0.0))
+    post = event_frames(
+        video, None, config=SensorConfig(seed=1, placement="post_log", surround_lambda_px=3.0, surround_weight=0.0)
+    )
     assert torch.equal(plain, post)
-    strong = event_frames(video, None, config=SensorConfig(seed=1, placement="post_log",
-                                                            surround_lambda_px=3.0, surround_weight=0.9))
+    strong = event_frames(
+        video, None, config=SensorConfig(seed=1, placement="post_log", surround_lambda_px=3.0, surround_weight=0.9)
+    )
     assert not torch.equal(plain, strong)
 
 
@@ -89,10 +93,12 @@ def test_mesh_surround_solves_screened_poisson_exactly():
     # 5-point Laplacian with reflecting (Neumann) borders
     up = torch.nn.functional.pad(u[None, None], (1, 1, 1, 1), mode="replicate")[0, 0]
     lap = up[:-2, 1:-1] + up[2:, 1:-1] + up[1:-1, :-2] + up[1:-1, 2:] - 4 * u
-    torch.testing.assert_close(u - lam ** 2 * lap, p, rtol=0, atol=1e-10)
+    torch.testing.assert_close(u - lam**2 * lap, p, rtol=0, atol=1e-10)
     # a uniform input is its own steady state (no current flows)
-    torch.testing.assert_close(mesh_surround_steady_state(torch.full((5, 6), 3.0, dtype=torch.float64), 4.0),
-                               torch.full((5, 6), 3.0, dtype=torch.float64))
+    torch.testing.assert_close(
+        mesh_surround_steady_state(torch.full((5, 6), 3.0, dtype=torch.float64), 4.0),
+        torch.full((5, 6), 3.0, dtype=torch.float64),
+    )
 
 
 def test_differential_positivity_equals_floor_for_positive_kernel():
@@ -110,8 +116,9 @@ def test_negative_lobes_hit_the_floor_and_are_reported():
     k = torch.tensor(reference_kernel("dog", 7).taps)
     _, info = event_frames(video, k, config=IDEAL, return_info=True)
     assert 0 < info.floor_fraction < 1
-    _, info_ped = event_frames(video, k, config=IDEAL.replace(positivity="pedestal", pedestal_intensity=10.0),
-                               return_info=True)
+    _, info_ped = event_frames(
+        video, k, config=IDEAL.replace(positivity="pedestal", pedestal_intensity=10.0), return_info=True
+    )
     assert info_ped.floor_fraction == 0.0
 
 

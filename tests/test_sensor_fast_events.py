@@ -96,8 +96,9 @@ def test_crossing_step_equals_full_frame_reference(refr, mismatch, B, step):
     if refr > 0:  # some pixels fired just before the step, some long ago, some never
         last = t0 - torch.rand(B, H, W, generator=g, dtype=torch.float64) * 2 * refr
         last[:, ::3] = -math.inf
-    ref_ev, ref_lt, ref_on, ref_off = _reference_step(h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t0, t_b, dt,
-                                                      None if last is None else last.clone(), refr)
+    ref_ev, ref_lt, ref_on, ref_off = _reference_step(
+        h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t0, t_b, dt, None if last is None else last.clone(), refr
+    )
     parts = []
     lt = None if last is None else last.clone()
     lost, em_on, em_off = step(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t0, t_b, dt, lt, refr, True, True)
@@ -120,8 +121,9 @@ def test_stable_time_order_is_a_stable_sort(values):
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.lists(st.integers(0, 40), max_size=200), min_size=1, max_size=4),
-       st.sampled_from([0.25, 1e-9, 1e-300]))
+@given(
+    st.lists(st.lists(st.integers(0, 40), max_size=200), min_size=1, max_size=4), st.sampled_from([0.25, 1e-9, 1e-300])
+)
 def test_compiled_bucket_sort_is_a_stable_sort(values, scale):
     """The compiled interval sort equals a stable argsort of the concatenated parts: ties (many
     here), clustered times (big buckets: the merge-sort branch) and spans too short for the bucket
@@ -141,8 +143,10 @@ def test_compiled_bucket_sort_is_a_stable_sort(values, scale):
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.lists(st.lists(st.integers(0, 40), max_size=120), min_size=1, max_size=3), min_size=1, max_size=3),
-       st.sampled_from([0.25, 1e-9, 1e-300]))
+@given(
+    st.lists(st.lists(st.lists(st.integers(0, 40), max_size=120), min_size=1, max_size=3), min_size=1, max_size=3),
+    st.sampled_from([0.25, 1e-9, 1e-300]),
+)
 def test_compiled_sort_to_columns_is_a_stable_sort(intervals, scale):
     """A chunk's columns, each interval bucket-sorted as records (``sort_intervals_to_columns``):
     each interval's events in stable time order (ties in part order, clustered times taking the
@@ -181,7 +185,7 @@ def test_shot_noise_pixels_are_independent_poisson_per_pixel(sparse):
         assert torch.equal(on, torch.sort(on).values) and on.dtype == torch.int64
         counts[i] = torch.bincount(on, minlength=B * HW).float()
     for b in range(B):
-        c = counts[:, b * HW:(b + 1) * HW]
+        c = counts[:, b * HW : (b + 1) * HW]
         se = math.sqrt(float(lam[b]) / c.numel())
         assert abs(float(c.mean()) - float(lam[b])) < 4 * se
         assert float(c.var()) / float(c.mean()) == pytest.approx(1.0, abs=0.05)

@@ -16,18 +16,35 @@ def _video(seed: int = 0, shape=(1, 4, 5, 6), lo: float = 0.2, hi: float = 0.8) 
     return lo + (hi - lo) * torch.rand(shape, generator=g, dtype=torch.float64)
 
 
-@pytest.mark.parametrize("config", [
-    SensorConfig.ideal(surrogate="relaxed"),
-    SensorConfig(surrogate="relaxed", cutoff_hz=300.0, substeps=3, leak_rate_hz=2.0,
-                 random_reference_phase=True, shot_noise_rate_hz=0.0),
-    SensorConfig.ideal(surrogate="relaxed", placement="post_log", surround_lambda_px=1.5,
-                       surround_weight=0.7, surround_tau_s=0.01),
-    SensorConfig.ideal(surrogate="relaxed", positivity="differential"),
-], ids=["ideal", "photoreceptor+leak+mismatch", "post_log_transient_surround", "differential"])
+@pytest.mark.parametrize(
+    "config",
+    [
+        SensorConfig.ideal(surrogate="relaxed"),
+        SensorConfig(
+            surrogate="relaxed",
+            cutoff_hz=300.0,
+            substeps=3,
+            leak_rate_hz=2.0,
+            random_reference_phase=True,
+            shot_noise_rate_hz=0.0,
+        ),
+        SensorConfig.ideal(
+            surrogate="relaxed", placement="post_log", surround_lambda_px=1.5, surround_weight=0.7, surround_tau_s=0.01
+        ),
+        SensorConfig.ideal(surrogate="relaxed", positivity="differential"),
+    ],
+    ids=["ideal", "photoreceptor+leak+mismatch", "post_log_transient_surround", "differential"],
+)
 def test_gradcheck_float64(config):
     video = _video(shape=(1, 3, 4, 5)).requires_grad_(True)
-    k = torch.tensor(reference_kernel("dog", 3, sigma_centre_px=0.6, sigma_surround_px=1.5).taps) if config.positivity == "differential" \
-        else (torch.full((3, 3), 0.05, dtype=torch.float64) + 0.6 * torch.eye(3, dtype=torch.float64)[1].outer(torch.eye(3, dtype=torch.float64)[1]))
+    k = (
+        torch.tensor(reference_kernel("dog", 3, sigma_centre_px=0.6, sigma_surround_px=1.5).taps)
+        if config.positivity == "differential"
+        else (
+            torch.full((3, 3), 0.05, dtype=torch.float64)
+            + 0.6 * torch.eye(3, dtype=torch.float64)[1].outer(torch.eye(3, dtype=torch.float64)[1])
+        )
+    )
     k.requires_grad_(True)
     c_on = torch.tensor(0.2, dtype=torch.float64, requires_grad=True)
     c_off = torch.tensor(0.25, dtype=torch.float64, requires_grad=True)
@@ -62,7 +79,7 @@ def test_gradients_reach_kernel_thresholds_and_video():
     cfg = SensorConfig(threshold_on=c, threshold_off=c, refractory_s=1e-3, seed=3)
     frames = event_frames(video, k, config=cfg)
     vox = voxel_grid(frames, 3)
-    (frames.sum() + (vox ** 2).sum()).backward()
+    (frames.sum() + (vox**2).sum()).backward()
     for name, g in (("kernel", k.grad), ("threshold", c.grad), ("video", video.grad)):
         assert g is not None and torch.isfinite(g).all() and g.abs().sum() > 0, name
     # more events when the threshold drops: the threshold gradient of the total count is negative
@@ -92,10 +109,12 @@ def test_gradients_finite_at_extremes(case):
     video.requires_grad_(True)
     k = torch.tensor(reference_kernel("dog", 5).taps, requires_grad=True)
     c = torch.tensor(threshold, dtype=torch.float64, requires_grad=True)
-    for cfg in (SensorConfig.ideal(threshold=c),
-                SensorConfig(threshold_on=c, threshold_off=c, cutoff_hz=300.0, substeps=4, seed=1),
-                SensorConfig.ideal(threshold=c, placement="post_log", surround_lambda_px=2.0, surround_weight=0.5),
-                SensorConfig.ideal(threshold=c, positivity="differential")):
+    for cfg in (
+        SensorConfig.ideal(threshold=c),
+        SensorConfig(threshold_on=c, threshold_off=c, cutoff_hz=300.0, substeps=4, seed=1),
+        SensorConfig.ideal(threshold=c, placement="post_log", surround_lambda_px=2.0, surround_weight=0.5),
+        SensorConfig.ideal(threshold=c, positivity="differential"),
+    ):
         frames = event_frames(video, k, config=cfg)
         assert torch.isfinite(frames).all() and (frames >= 0).all()
         gk, gc, gv = torch.autograd.grad(frames.sum() + frames[:, :, 0].pow(2).sum(), (k, c, video), allow_unused=True)

@@ -37,8 +37,9 @@ def test_leak_rate_matches_configured_hz_and_only_on_events():
     rate, duration = 0.2, 50.0
     video = _static()
     ts = torch.linspace(0, duration, 17, dtype=torch.float64)
-    cfg = SensorConfig(leak_rate_hz=rate, shot_noise_rate_hz=0.0, refractory_s=0.0, cutoff_hz=0.0,
-                       random_reference_phase=True, seed=5)
+    cfg = SensorConfig(
+        leak_rate_hz=rate, shot_noise_rate_hz=0.0, refractory_s=0.0, cutoff_hz=0.0, random_reference_phase=True, seed=5
+    )
     frames = event_frames(video, None, config=cfg, timestamps_s=ts)
     n_px = 64 * 64
     expected = rate * n_px * duration
@@ -82,12 +83,15 @@ def test_threshold_mismatch_has_configured_spread():
     assert not torch.equal(on, off)
 
 
-@pytest.mark.parametrize("bad, match", [
-    (lambda v: v[0], "shape \\(B, T, H, W\\)"),
-    (lambda v: -v, "must be >= 0"),
-    (lambda v: v * float("nan"), "NaN"),
-    (lambda v: v[:, :1], "T >= 2"),
-])
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        (lambda v: v[0], "shape \\(B, T, H, W\\)"),
+        (lambda v: -v, "must be >= 0"),
+        (lambda v: v * float("nan"), "NaN"),
+        (lambda v: v[:, :1], "T >= 2"),
+    ],
+)
 def test_bad_video_raises_input_error(bad, match):
     video = torch.rand(1, 4, 5, 5) + 0.1
     with pytest.raises(InputError, match=match):
@@ -125,7 +129,9 @@ def test_mismatched_devices_raise_and_cuda_matches_cpu():
     with pytest.raises(InputError, match="device"):
         event_frames(video.cuda(), k)
     cfg = SensorConfig.ideal()
-    torch.testing.assert_close(event_frames(video.cuda(), k.cuda(), config=cfg).cpu(), event_frames(video, k, config=cfg))
+    torch.testing.assert_close(
+        event_frames(video.cuda(), k.cuda(), config=cfg).cpu(), event_frames(video, k, config=cfg)
+    )
 
 
 def test_mismatched_devices_raise_on_meta_device():

@@ -16,15 +16,22 @@ FULL = SensorConfig(substeps=64)  # v2e-like sensor, every effect on, fine fixed
 
 def _moving_grating(speed_px: float, lo: float, hi: float, H: int = 40, W: int = 40, T: int = 17) -> torch.Tensor:
     y, x = torch.meshgrid(torch.arange(H, dtype=torch.float64), torch.arange(W, dtype=torch.float64), indexing="ij")
-    frames = [lo + (hi - lo) * (0.5 + 0.5 * torch.sin(2 * math.pi * (x - speed_px * t) / 12.0)
-                                * torch.cos(2 * math.pi * y / 20.0)) for t in range(T)]
+    frames = [
+        lo
+        + (hi - lo)
+        * (0.5 + 0.5 * torch.sin(2 * math.pi * (x - speed_px * t) / 12.0) * torch.cos(2 * math.pi * y / 20.0))
+        for t in range(T)
+    ]
     return torch.stack(frames)[None]
 
 
-@pytest.mark.parametrize("scene, skips_photoreceptor", [
-    ("slow_bright", True),
-    ("fast_dim", False),
-])
+@pytest.mark.parametrize(
+    "scene, skips_photoreceptor",
+    [
+        ("slow_bright", True),
+        ("fast_dim", False),
+    ],
+)
 def test_plan_within_tolerance_of_full_model_and_faster(scene, skips_photoreceptor):
     video = _moving_grating(0.5, 0.3, 1.0) if scene == "slow_bright" else _moving_grating(3.0, 0.003, 0.03)
     plan = plan_model(video, TOL, config=FULL)
@@ -45,8 +52,16 @@ def test_plan_within_tolerance_of_full_model_and_faster(scene, skips_photorecept
 def test_plan_text_names_every_effect_with_numbers():
     plan = plan_model(_moving_grating(0.5, 0.3, 1.0), TOL, config=FULL)
     text = str(plan)
-    for name in ("photoreceptor", "sub-steps", "threshold mismatch", "refractory", "leak events",
-                 "shot noise", "surround transient", "positivity floor"):
+    for name in (
+        "photoreceptor",
+        "sub-steps",
+        "threshold mismatch",
+        "refractory",
+        "leak events",
+        "shot noise",
+        "surround transient",
+        "positivity floor",
+    ):
         assert name in text
         assert plan.decision(name).reason
     assert "expected" in plan.decision("shot noise").reason and "Hz" in plan.decision("shot noise").reason
@@ -73,8 +88,9 @@ def test_plan_from_stats_and_photoreceptor_lag_scales_with_light():
     # dimmer light -> lower cut-off -> larger lag (bandwidth proportional to photocurrent);
     # same log contrast in both (above the linear-log knee): f_c 300 Hz vs 53 Hz
     assert lag(0.1) > 4 * lag(1.0)
-    stats = SceneStats(n_pixels=100, duration_s=1.0, interval_max_abs_change=(0.1, 0.1),
-                       max_log_rate_per_s=2.0, total_abs_change=50.0)
+    stats = SceneStats(
+        n_pixels=100, duration_s=1.0, interval_max_abs_change=(0.1, 0.1), max_log_rate_per_s=2.0, total_abs_change=50.0
+    )
     plan = plan_model(stats, TOL, config=SensorConfig())
     assert len(plan.substeps) == 2
 
@@ -83,14 +99,21 @@ def _small_fast_dim_object(H=64, W=64, T=6):
     video = torch.full((1, T, H, W), 0.8, dtype=torch.float64)  # bright, still background
     for t in range(T):
         x0 = 8 + 4 * t
-        video[0, t, 24:36, x0:x0 + 10] = 0.004  # a dim object moving 4 px/frame
+        video[0, t, 24:36, x0 : x0 + 10] = 0.004  # a dim object moving 4 px/frame
     return video
 
 
 def test_region_adaptive_steps_only_where_needed():
     video = _small_fast_dim_object()
-    cfg = SensorConfig(adaptive_fraction=1.0, threshold_sigma=0.0, refractory_s=0.0, leak_rate_hz=0.0,
-                       shot_noise_rate_hz=0.0, dark_intensity=1e-3, seed=2)
+    cfg = SensorConfig(
+        adaptive_fraction=1.0,
+        threshold_sigma=0.0,
+        refractory_s=0.0,
+        leak_rate_hz=0.0,
+        shot_noise_rate_hz=0.0,
+        dark_intensity=1e-3,
+        seed=2,
+    )
     glob, info_g = event_frames(video, None, config=cfg.replace(adaptive_region_px=0), return_info=True)
     reg, info_r = event_frames(video, None, config=cfg.replace(adaptive_region_px=16), return_info=True)
     assert info_r.substeps == info_g.substeps and max(info_g.substeps) > 8

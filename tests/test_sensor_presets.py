@@ -26,7 +26,7 @@ _DOCS = Path(__file__).resolve().parents[1] / "docs" / "sensors.md"
 def test_docs_table_is_generated_from_the_code():
     text = _DOCS.read_text(encoding="utf-8")
     begin, end = DOC_BLOCKS["presets"]
-    block = text[text.index(begin) + len(begin) + 1:text.index(end)]
+    block = text[text.index(begin) + len(begin) + 1 : text.index(end)]
     assert block == presets_markdown(), "regenerate: python -m fsdvs_hw.sensor.presets docs/sensors.md"
 
 
@@ -39,8 +39,9 @@ def test_every_value_has_a_source_and_status():
                 assert any(w in v.source for w in ("JSSC", "ISSCC", "datasheet")), (p.name, k, v.source)
 
 
-@pytest.mark.parametrize("name,width,height,pitch", [("dvs128", 128, 128, 40.0), ("davis346", 346, 260, 18.5),
-                                                     ("imx636", 1280, 720, 4.86)])
+@pytest.mark.parametrize(
+    "name,width,height,pitch", [("dvs128", 128, 128, 40.0), ("davis346", 346, 260, 18.5), ("imx636", 1280, 720, 4.86)]
+)
 def test_published_anchors(name, width, height, pitch):
     v = sensor_preset(name).values
     assert (v["width_px"].value, v["height_px"].value, v["pitch_um"].value) == (width, height, pitch)

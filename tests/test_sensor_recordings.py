@@ -56,11 +56,25 @@ def test_reads_files_written_by_expelliarmus(tmp_path, encoding, suffix):
 def test_evt3_time_high_and_wrap():
     """Gaps over 4096 µs (TIME_HIGH changes), a 24-bit clock turn, and vector events decode exactly."""
     # t = 4000, then 4100 (TIME_HIGH 0 -> 1 with TIME_LOW falling: expelliarmus 1.1.12 gives 8196)
-    w = [0x8000, 0x6FA0, 0x0001, 0x2805, 0x8001, 0x6004, 0x2006,
-         0x8FFF, 0x6FFF, 0x2007,  # t = 2**24 - 1
-         0x8000, 0x6002, 0x3000 | (1 << 11) | 100, 0x4000 | 0b100000000101, 0x5000 | 0b10]  # wrapped: 2**24 + 2
+    w = [
+        0x8000,
+        0x6FA0,
+        0x0001,
+        0x2805,
+        0x8001,
+        0x6004,
+        0x2006,
+        0x8FFF,
+        0x6FFF,
+        0x2007,  # t = 2**24 - 1
+        0x8000,
+        0x6002,
+        0x3000 | (1 << 11) | 100,
+        0x4000 | 0b100000000101,
+        0x5000 | 0b10,
+    ]  # wrapped: 2**24 + 2
     ev = decode_evt3(np.array(w, dtype="<u2"))
-    assert ev["t"].tolist() == [4000, 4100, 2 ** 24 - 1] + [2 ** 24 + 2] * 4
+    assert ev["t"].tolist() == [4000, 4100, 2**24 - 1] + [2**24 + 2] * 4
     assert ev["x"].tolist() == [5, 6, 7, 100, 102, 111, 113]
     assert ev["p"].tolist() == [1, 0, 0, 1, 1, 1, 1]
     assert set(ev["y"].tolist()) == {1}
@@ -180,8 +194,13 @@ def test_garbled_camera_files_read_valid_or_raise_input_error(tmp_path_factory, 
     data = good.read_bytes()
     outcomes = {"read": 0, "refused": 0}
 
-    @settings(max_examples=examples, deadline=None, derandomize=True, database=None,
-              suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+    @settings(
+        max_examples=examples,
+        deadline=None,
+        derandomize=True,
+        database=None,
+        suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+    )
     @given(mutation=MUTATIONS)
     def check(mutation):
         path = d / f"bad{suffix}"

@@ -26,8 +26,16 @@ def _same_events(a, b):
 
 # noisy v2e-like sensor with every stateful effect on: mismatch, refractory, leak (random phase),
 # shot noise, photoreceptor low-pass with adaptive per-interval sub-steps
-NOISY = SensorConfig(adaptive_fraction=0.5, max_substeps=12, adaptive_region_px=0, random_reference_phase=True,
-                     shot_noise_rate_hz=5.0, leak_rate_hz=1.0, refractory_s=2e-3, seed=3)
+NOISY = SensorConfig(
+    adaptive_fraction=0.5,
+    max_substeps=12,
+    adaptive_region_px=0,
+    random_reference_phase=True,
+    shot_noise_rate_hz=5.0,
+    leak_rate_hz=1.0,
+    refractory_s=2e-3,
+    seed=3,
+)
 
 
 @pytest.mark.parametrize("kernel", [None, "dog"])
@@ -48,9 +56,11 @@ def test_chunked_equals_whole_clip_bit_for_bit(kernel, chunk):
 
 @pytest.mark.parametrize("lookahead", [0, 1, 3])
 @pytest.mark.parametrize("chunk", [1, 3])
-@pytest.mark.parametrize("config", [NOISY.replace(refractory_s=0.02),
-                                    SensorConfig.preset("v2e-default", shot_noise_rate_hz=5.0, refractory_s=0.02)],
-                         ids=["per-pixel noise", "v2e preset, sparse noise"])
+@pytest.mark.parametrize(
+    "config",
+    [NOISY.replace(refractory_s=0.02), SensorConfig.preset("v2e-default", shot_noise_rate_hz=5.0, refractory_s=0.02)],
+    ids=["per-pixel noise", "v2e preset, sparse noise"],
+)
 def test_event_only_stream_equals_whole_clip_through_the_pipeline(config, chunk, lookahead, monkeypatch):
     """An event-only CPU stream runs on the worker pipeline (emit, sort, noise threads, chunks handed
     over ``LOOKAHEAD_CHUNKS`` late): same events, noise count and refractory losses as event_list."""

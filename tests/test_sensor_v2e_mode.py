@@ -24,8 +24,7 @@ def test_v2e_chord_gives_v2e_contrast_gain_below_the_knee():
     # the tangent sees 5/20 = 0.25 (1 event); above the knee both see log(2) = 0.693 (3 events)
     def count(lo, hi, preset):
         v = torch.tensor([lo, hi], dtype=torch.float64).view(1, 2, 1, 1) / 255
-        cfg = SensorConfig.preset(preset, threshold_sigma=0.0) if preset.startswith("v2e") \
-            else SensorConfig.ideal(0.2)
+        cfg = SensorConfig.preset(preset, threshold_sigma=0.0) if preset.startswith("v2e") else SensorConfig.ideal(0.2)
         return int(event_frames(v, config=cfg)[0, 0, 0].sum())
 
     assert count(5, 10, "v2e-clean") == 3 and count(5, 10, "ideal") == 1
@@ -43,7 +42,12 @@ def test_presets_carry_v2e_settings_and_default_is_unchanged():
     assert SensorConfig.preset("ideal") == SensorConfig.ideal()
     clean, noisy = SensorConfig.preset("v2e-clean"), SensorConfig.preset("v2e-noisy")
     assert (clean.threshold_sigma, clean.cutoff_hz, clean.shot_noise_rate_hz, clean.refractory_s) == (0.02, 0, 0, 0)
-    assert (noisy.threshold_sigma, noisy.cutoff_hz, noisy.leak_rate_hz, noisy.shot_noise_rate_hz) == (0.05, 30, 0.1, 5.0)
+    assert (noisy.threshold_sigma, noisy.cutoff_hz, noisy.leak_rate_hz, noisy.shot_noise_rate_hz) == (
+        0.05,
+        30,
+        0.1,
+        5.0,
+    )
     assert SensorConfig().response == "tangent"
     with pytest.raises(InputError, match="preset"):
         SensorConfig.preset("v2e-loud")
@@ -63,8 +67,15 @@ def test_linlog_v2e_rounding_equals_torch_round():
     from fsdvs_hw.sensor.pixel import _round_half_even, linlog_v2e
 
     g = torch.Generator().manual_seed(0)
-    inten = torch.cat([torch.zeros(3), torch.rand(2000, generator=g) * 0.1, torch.rand(2000, generator=g),
-                       torch.logspace(-30, 38, 500), torch.tensor([3.4e38])]).float()
+    inten = torch.cat(
+        [
+            torch.zeros(3),
+            torch.rand(2000, generator=g) * 0.1,
+            torch.rand(2000, generator=g),
+            torch.logspace(-30, 38, 500),
+            torch.tensor([3.4e38]),
+        ]
+    ).float()
     knee = 20 / 255
     x, k = inten * 255.0, knee * 255.0
     y = torch.where(x <= k, x * (math.log(k) / k), torch.log(torch.clamp(x, min=k)))
@@ -88,9 +99,15 @@ def test_shot_noise_draw_is_per_pixel_by_default_and_sparse_in_v2e_presets():
         SensorConfig(shot_noise_draw="fast")
     # same law: the mean noise count of a static clip agrees between the draws (5 Hz, 64x64, 60 frames)
     video = torch.full((1, 61, 64, 64), 0.5)
-    counts = [float(event_frames(video, None, config=SensorConfig.ideal(shot_noise_rate_hz=5.0, seed=s,
-                                                                        shot_noise_draw=d)).sum())
-              for d in ("per_pixel", "sparse") for s in (0, 1)]
+    counts = [
+        float(
+            event_frames(
+                video, None, config=SensorConfig.ideal(shot_noise_rate_hz=5.0, seed=s, shot_noise_draw=d)
+            ).sum()
+        )
+        for d in ("per_pixel", "sparse")
+        for s in (0, 1)
+    ]
     expect = 5.0 * 64 * 64 * 60 / SensorConfig().frame_rate_hz  # events: rate x pixels x duration
     for c in counts:
         assert abs(c - expect) < 5 * math.sqrt(expect)

@@ -13,16 +13,34 @@ from fsdvs_hw.scenes.synthetic import SceneConfig
 
 KERNELS = Path(__file__).resolve().parents[1] / "designs" / "kernels"
 SEEDS = (0, 1, 2)
-LEARNED = [KERNELS / f"learned_{t}_7x7{'' if s == 0 else f'_s{s}'}" for t in ("detection", "recognition")
-           for s in SEEDS]
+LEARNED = [
+    KERNELS / f"learned_{t}_7x7{'' if s == 0 else f'_s{s}'}" for t in ("detection", "recognition") for s in SEEDS
+]
 TASKS = ("detection", "recognition", "segmentation")
 #: The exploration's networks per task (designs/default.toml lists them with a glob pattern):
 #: recognition has twice as many because its zero-shot losses vary most from network to network.
 NETWORKS = sorted(Path(str(p)[: -len(".safetensors")]) for p in (KERNELS / "networks").glob("*.safetensors"))
 N_NETWORKS = {"detection": 32, "recognition": 64, "segmentation": 32}
-_FIELDS = ("task", "seed", "size", "n_train", "n_test", "test_seed", "settings", "scene", "sensor", "metrics",
-           "final_metric", "learning_rates_joint", "train_seconds", "protocol", "heldout_metric",
-           "heldout_ci95_low", "heldout_ci95_high", "heldout_n_clips")
+_FIELDS = (
+    "task",
+    "seed",
+    "size",
+    "n_train",
+    "n_test",
+    "test_seed",
+    "settings",
+    "scene",
+    "sensor",
+    "metrics",
+    "final_metric",
+    "learning_rates_joint",
+    "train_seconds",
+    "protocol",
+    "heldout_metric",
+    "heldout_ci95_low",
+    "heldout_ci95_high",
+    "heldout_n_clips",
+)
 
 
 def _prov(stem: Path) -> dict:
@@ -70,7 +88,10 @@ def test_every_task_has_its_trained_networks_and_none_is_stuck_at_chance():
         nets = [n for n in NETWORKS if n.name.startswith(f"{task}_with_")]
         assert len(nets) == N_NETWORKS[task], (task, len(nets))
         metric = np.array([_prov(n)["heldout_metric"] for n in nets])
-        assert metric.min() >= 0.5 * np.median(metric), (task, [n.name for n in nets if _prov(n)["heldout_metric"] < 0.5 * np.median(metric)])
+        assert metric.min() >= 0.5 * np.median(metric), (
+            task,
+            [n.name for n in nets if _prov(n)["heldout_metric"] < 0.5 * np.median(metric)],
+        )
         assert len({_prov(n)["seed"] for n in nets}) == N_NETWORKS[task]  # distinct training seeds
     assert not (KERNELS / "networks" / "recognition_with_learned_detection_7x7_s11.safetensors").exists()
 

@@ -11,13 +11,31 @@ from fsdvs_hw.sensor.eventfile import read_events
 
 def test_simulate_cli_writes_the_whole_clip_events(tmp_path, capsys):
     out = tmp_path / "carphone.npz"
-    rc = main(["simulate", "example:carphone", "--out", str(out), "--frames", "6", "--size", "36x44",
-               "--preset", "v2e-noisy", "--chunk-frames", "2", "--no-progress", "--seed", "4"])
+    rc = main(
+        [
+            "simulate",
+            "example:carphone",
+            "--out",
+            str(out),
+            "--frames",
+            "6",
+            "--size",
+            "36x44",
+            "--preset",
+            "v2e-noisy",
+            "--chunk-frames",
+            "2",
+            "--no-progress",
+            "--seed",
+            "4",
+        ]
+    )
     assert rc == 0
     ev = read_events(out)
     clip = load_example_clip("carphone", n_frames=6, size=(36, 44), input_mapping="v2e_gray")  # the v2e preset's
-    want = event_list(clip.intensity[None], timestamps_s=clip.timestamps_s,
-                      config=SensorConfig.preset("v2e-noisy", seed=4))
+    want = event_list(
+        clip.intensity[None], timestamps_s=clip.timestamps_s, config=SensorConfig.preset("v2e-noisy", seed=4)
+    )
     assert (ev.width, ev.height) == (44, 36) and len(ev) == len(want) > 100
     assert np.array_equal(ev.t_us, np.rint(want.t.numpy() * 1e6).astype(np.int64))
     assert np.array_equal(ev.x, want.x.numpy()) and np.array_equal(ev.p, want.p.numpy())

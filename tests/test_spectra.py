@@ -36,7 +36,7 @@ def test_gaussian_matches_continuous_transform(sigma):
     size = 2 * math.ceil(4 * sigma) + 1
     rr = radial_response(reference_kernel("gaussian", size, sigma_px=sigma), n_freq=101)
     expected = np.exp(-2 * np.pi**2 * sigma**2 * rr.f_cpp**2)
-    tol = 0.5 * np.exp(-np.pi**2 * sigma**2 / 2) + 5e-4
+    tol = 0.5 * np.exp(-(np.pi**2) * sigma**2 / 2) + 5e-4
     assert np.max(np.abs(rr.gain - expected)) < tol
     # and well inside the pass band the agreement is much tighter
     band = rr.f_cpp < 0.25

@@ -7,9 +7,15 @@ import numpy as np
 import pytest
 
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.stats import (ClipMeans, CocoDetections, ConfusionMIoU, DifferenceCI, clips_for_half_width,
-                            difference_cis,
-                            difference_ci)
+from fsdvs_hw.stats import (
+    ClipMeans,
+    CocoDetections,
+    ConfusionMIoU,
+    DifferenceCI,
+    clips_for_half_width,
+    difference_cis,
+    difference_ci,
+)
 from fsdvs_hw.tasks.metrics import detection_map, segmentation_scores, top1_accuracy
 
 
@@ -80,8 +86,9 @@ def test_coco_weighted_batches_agree_with_single_rows_and_chunking():
 
 def test_coco_without_detections_scores_zero_and_rejects_fractional_weights():
     gt = np.array([[[0, 0, 10, 10.0]]])
-    det = CocoDetections.from_predictions(np.zeros((1, 1, 4)), np.zeros((1, 1)), -np.ones((1, 1), int), gt,
-                                          np.array([[0]]), num_classes=2)
+    det = CocoDetections.from_predictions(
+        np.zeros((1, 1, 4)), np.zeros((1, 1)), -np.ones((1, 1), int), gt, np.array([[0]]), num_classes=2
+    )
     assert det.weighted(np.ones((1, 1)))[0] == 0.0
     with pytest.raises(InputError, match="integers"):
         det.weighted(np.full((1, 1), 0.5))
@@ -97,7 +104,10 @@ def test_miou_and_top1_equal_torchmetrics_on_the_full_set():
     assert abs(got - ref) < 1e-6  # torchmetrics computes in float32
     logits = rng.normal(size=(40, 6))
     lab = rng.integers(0, 6, 40)
-    assert abs(ClipMeans.top1(logits, lab).weighted(np.ones(40))[0] - top1_accuracy(logits, lab, num_classes=6)["top1"]) < 1e-7
+    assert (
+        abs(ClipMeans.top1(logits, lab).weighted(np.ones(40))[0] - top1_accuracy(logits, lab, num_classes=6)["top1"])
+        < 1e-7
+    )
 
 
 # --------------------------------------------------------------------------- the intervals
@@ -186,8 +196,10 @@ def test_mAP_difference_ci_through_the_detection_metric():
     worse_boxes = pb + rng.normal(0, 1.5, pb.shape)  # the same detector with extra box jitter
     worse = CocoDetections.from_predictions(worse_boxes, ps, pl, gt, gl, num_classes=3)
     ci = difference_ci(good, worse, n_resamples=300)
-    full = detection_map(pb, ps, pl, gt, gl, num_classes=3)["map"] - detection_map(worse_boxes, ps, pl, gt, gl,
-                                                                                   num_classes=3)["map"]
+    full = (
+        detection_map(pb, ps, pl, gt, gl, num_classes=3)["map"]
+        - detection_map(worse_boxes, ps, pl, gt, gl, num_classes=3)["map"]
+    )
     assert abs(ci.estimate - full) < 1e-12
     assert ci.low > 0 and ci.low < ci.estimate < ci.high
 
@@ -221,9 +233,11 @@ def test_metric_state_round_trip_is_exact():
     pb, ps, pl, gt, gl = _detections(40, rng)
     w = rng.multinomial(40, np.full(40, 1 / 40), size=5)
     target = rng.integers(0, 3, (40, 4, 4))
-    for m in (CocoDetections.from_predictions(pb, ps, pl, gt, gl, num_classes=3, metric="map_50"),
-              ConfusionMIoU.from_masks(rng.integers(0, 3, (40, 4, 4)), target, 3),
-              ClipMeans(rng.uniform(size=40))):
+    for m in (
+        CocoDetections.from_predictions(pb, ps, pl, gt, gl, num_classes=3, metric="map_50"),
+        ConfusionMIoU.from_masks(rng.integers(0, 3, (40, 4, 4)), target, 3),
+        ClipMeans(rng.uniform(size=40)),
+    ):
         back = metric_from_state(dict(m.state()))
         np.testing.assert_array_equal(back.weighted(w), m.weighted(w))
     with pytest.raises(InputError, match="unknown metric kind"):
@@ -238,14 +252,16 @@ def test_weighted_task_loss_combines_independent_tasks():
     rng = np.random.default_rng(13)
     r1, c1 = _crossed(rng, 400, 1, 0.04)
     r2, c2 = _crossed(rng, 300, 1, 0.00)
-    out = task_difference_cis({"a": (r1, {"x": c1}), "b": (r2, {"x": c2})}, weights={"a": 1, "b": 1},
-                              n_resamples=3000)["x"]
+    out = task_difference_cis({"a": (r1, {"x": c1}), "b": (r2, {"x": c2})}, weights={"a": 1, "b": 1}, n_resamples=3000)[
+        "x"
+    ]
     assert out["weighted"].estimate == pytest.approx(0.5 * (out["a"].estimate + out["b"].estimate), abs=1e-12)
     expected = 0.5 * np.hypot(out["a"].half_width, out["b"].half_width)
     assert out["weighted"].half_width == pytest.approx(expected, rel=0.1)
     assert out["weighted"].n_clips == 700
-    only_a = task_difference_cis({"a": (r1, {"x": c1}), "b": (r2, {"x": c2})}, weights={"a": 1},
-                                 n_resamples=3000)["x"]["weighted"]
+    only_a = task_difference_cis({"a": (r1, {"x": c1}), "b": (r2, {"x": c2})}, weights={"a": 1}, n_resamples=3000)["x"][
+        "weighted"
+    ]
     assert only_a.estimate == pytest.approx(out["a"].estimate, abs=1e-12)
     assert only_a.n_clips == 400
 
@@ -265,8 +281,14 @@ def test_test_set_sized_from_a_pilot_reaches_the_target_half_width():
     def points(ref, cand):
         def pt(key, v):
             rec = {"status": "ok", "evidence": [encode_evidence(ClipMeans(v))]}
-            return {"key": key, "realisation": key, "params": {}, "status": "ok",
-                    "result": {"tasks": {"recognition": {"simulator": rec}}}}
+            return {
+                "key": key,
+                "realisation": key,
+                "params": {},
+                "status": "ok",
+                "result": {"tasks": {"recognition": {"simulator": rec}}},
+            }
+
         return [pt("learned", ref), pt("delta", cand)]
 
     budget = size_test_sets(points(*draw(200, 1)), target_half_width=0.01, margin=1.15, batch=64)
@@ -297,8 +319,14 @@ def test_sizing_separates_clip_noise_from_a_true_seed_spread():
 
         def pt(key, arm):
             rec = {"status": "ok", "evidence": [encode_evidence(ClipMeans(v)) for v in arm]}
-            return {"key": key, "realisation": key, "params": {}, "status": "ok",
-                    "result": {"tasks": {"recognition": {"simulator": rec}}}}
+            return {
+                "key": key,
+                "realisation": key,
+                "params": {},
+                "status": "ok",
+                "result": {"tasks": {"recognition": {"simulator": rec}}},
+            }
+
         return [pt("learned", ref), pt("delta", cand)]
 
     for draw in (3, 11):
@@ -379,9 +407,19 @@ def test_nested_sizing_gives_clips_per_network_that_reach_the_target_on_a_fresh_
 
     def pts(ref, cand):
         def pt(key, arm):
-            rec = {"status": "ok", "test_clips": "per_network", "evidence": [encode_evidence(ClipMeans(v)) for v in arm]}
-            return {"key": key, "realisation": key, "params": {}, "status": "ok",
-                    "result": {"tasks": {"recognition": {"simulator": rec}}}}
+            rec = {
+                "status": "ok",
+                "test_clips": "per_network",
+                "evidence": [encode_evidence(ClipMeans(v)) for v in arm],
+            }
+            return {
+                "key": key,
+                "realisation": key,
+                "params": {},
+                "status": "ok",
+                "result": {"tasks": {"recognition": {"simulator": rec}}},
+            }
+
         return [pt("learned", ref), pt("delta", cand)]
 
     (b,) = size_test_sets(pts(*draw(1, 60, 0.01)), target_half_width=0.01, n_resamples=1000)
@@ -389,8 +427,7 @@ def test_nested_sizing_gives_clips_per_network_that_reach_the_target_on_a_fresh_
     # var per clip ≈ 0.085·0.915 ≈ 0.078 → m ≈ 1.15 · 1.96² · 0.078 / (24 · 0.01²) ≈ 140 with no seed part
     assert 100 <= b.n_clips <= 400, b.n_clips
     ref, cand = draw(2, b.n_clips, 0.01)
-    ci = difference_ci([ClipMeans(v) for v in ref], [ClipMeans(v) for v in cand], nested_clips=True,
-                       n_resamples=1000)
+    ci = difference_ci([ClipMeans(v) for v in ref], [ClipMeans(v) for v in cand], nested_clips=True, n_resamples=1000)
     assert ci.half_width <= 0.01, ci.half_width
     (wide,) = size_test_sets(pts(*draw(3, 60, 0.06)), target_half_width=0.01, n_resamples=1000)
     assert wide.n_clips is None and wide.seed_limited["delta"] > 0.01

@@ -55,8 +55,27 @@ def test_tiny_ablation_table_resumes_through_the_sweep_store(tmp_path):
 
 def test_cli_rebuilds_the_tables_from_the_store(tmp_path, capsys):
     out = tmp_path / "abl"
-    args = ["ablation", "--tasks", "recognition", "--sizes", "1", "3", "--seeds", "0", "--n-train", "16",
-            "--n-test", "16", "--epochs-frozen", "1", "--epochs-joint", "1", "--out", str(out), "--no-progress"]
+    args = [
+        "ablation",
+        "--tasks",
+        "recognition",
+        "--sizes",
+        "1",
+        "3",
+        "--seeds",
+        "0",
+        "--n-train",
+        "16",
+        "--n-test",
+        "16",
+        "--epochs-frozen",
+        "1",
+        "--epochs-joint",
+        "1",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
     assert main(args) == 0
     first = (out / "ablation.md").read_text()
     assert main(args + ["--from-store"]) == 0
@@ -109,19 +128,43 @@ def test_ablation_study_options_reach_the_jobs_and_every_table_is_written(tmp_pa
 
     def fake_collect(points, store, exe, from_store):
         seen.append((sorted(p.job["kind"] + " " + p.job["task"] for p in points), exe, from_store))
-        return [{"kind": p.job["kind"], "task": p.job["task"], "seed": p.job["seed"],
-                 "metrics": {"map": 0.5, "top1": 0.25, "miou": 0.75}} for p in points]
+        return [
+            {
+                "kind": p.job["kind"],
+                "task": p.job["task"],
+                "seed": p.job["seed"],
+                "metrics": {"map": 0.5, "top1": 0.25, "miou": 0.75},
+            }
+            for p in points
+        ]
 
     monkeypatch.setattr(ab, "_collect", fake_collect)
     monkeypatch.setattr(ab, "annotate_shipped", lambda records, pred_dir: [])
     monkeypatch.setattr(tab, "transfer_markdown", lambda records, stem, pred_dir: f"TRANSFER {stem} {len(records)}\n")
-    opts = ab.AblationOptions(seeds=(0,), transfer=str(kernel), frozen_tasks=("recognition",), transfer_only=True,
-                              workers=2, progress=False, out=tmp_path / "out", command="fsdvs-hw ablation --test")
+    opts = ab.AblationOptions(
+        seeds=(0,),
+        transfer=str(kernel),
+        frozen_tasks=("recognition",),
+        transfer_only=True,
+        workers=2,
+        progress=False,
+        out=tmp_path / "out",
+        command="fsdvs-hw ablation --test",
+    )
     study = ab.run_ablation_study(opts)
-    assert seen == [(["frozen recognition", "frozen segmentation", "zero_shot segmentation"], {"workers": 2, "scheduler": None, "progress": False},
-                     False)]
+    assert seen == [
+        (
+            ["frozen recognition", "frozen segmentation", "zero_shot segmentation"],
+            {"workers": 2, "scheduler": None, "progress": False},
+            False,
+        )
+    ]
     text = study.markdown
-    assert "TRANSFER k 3" in text and "networks trained with k frozen" in text and "| recognition | 0 | top1 | 25.0 |" in text
+    assert (
+        "TRANSFER k 3" in text
+        and "networks trained with k frozen" in text
+        and "| recognition | 0 | top1 | 25.0 |" in text
+    )
     assert "`fsdvs-hw ablation --test`" in text
     assert study.markdown_path.read_text() == text
     assert json.loads(study.json_path.read_text())["transfer"][0]["task"] in ("recognition", "segmentation")

@@ -18,8 +18,9 @@ from fsdvs_hw.tasks.learn import TrainingSettings, evaluate_kernel, learn_kernel
 TINY = TrainingSettings(epochs_frozen=2, epochs_joint=3, batch_size=16, width=8, lr_filter=2e-2)
 TINY_SCENE = {
     "detection": SceneConfig(height_px=16, width_px=16, radius_px=(3.0, 4.0), n_frames=4, n_objects=(1, 1)),
-    "recognition": SceneConfig(height_px=16, width_px=16, radius_px=(3.0, 4.0), n_frames=4, motion="classes",
-                               edge_contrast=0.3),
+    "recognition": SceneConfig(
+        height_px=16, width_px=16, radius_px=(3.0, 4.0), n_frames=4, motion="classes", edge_contrast=0.3
+    ),
     "segmentation": SceneConfig(height_px=16, width_px=16, radius_px=(3.0, 4.0), n_frames=4, n_objects=(1, 1)),
 }
 SHIPPED = Path(__file__).resolve().parents[1] / "designs" / "kernels"
@@ -32,8 +33,9 @@ def trained(tmp_path_factory):
     out = tmp_path_factory.mktemp("ckpt")
     runs = {}
     for task in ("recognition", "detection"):
-        runs[task] = learn_kernel(task, 5, seed=1, n_train=32, n_test=16, settings=TINY, scene=TINY_SCENE[task],
-                                  out=out / f"{task}_5x5")
+        runs[task] = learn_kernel(
+            task, 5, seed=1, n_train=32, n_test=16, settings=TINY, scene=TINY_SCENE[task], out=out / f"{task}_5x5"
+        )
     return runs
 
 
@@ -71,8 +73,18 @@ def test_files_and_provenance(trained):
     for key in ("kernel", "checkpoint", "provenance"):
         assert res.paths[key].is_file()
     prov = json.loads(res.paths["provenance"].read_text())
-    for key in ("task", "seed", "n_train", "n_test", "epochs_frozen", "epochs_joint", "final_metric", "sensor",
-                "scene", "metrics"):
+    for key in (
+        "task",
+        "seed",
+        "n_train",
+        "n_test",
+        "epochs_frozen",
+        "epochs_joint",
+        "final_metric",
+        "sensor",
+        "scene",
+        "metrics",
+    ):
         assert key in prov
     assert prov["final_metric"] == res.value and prov["n_train"] == 32 and prov["seed"] == 1
     k = load_kernel(res.paths["kernel"])
@@ -86,7 +98,9 @@ def test_evaluate_kernel_reproduces_the_stored_metric(trained, task):
     ev = evaluate_kernel(res.kernel, task, res.paths["checkpoint"])
     assert ev.metrics == pytest.approx(res.metrics, abs=1e-9)
     # the kernel stored in the JSON file gives the same number
-    assert evaluate_kernel(res.paths["kernel"], task, res.paths["checkpoint"]).value == pytest.approx(res.value, abs=1e-9)
+    assert evaluate_kernel(res.paths["kernel"], task, res.paths["checkpoint"]).value == pytest.approx(
+        res.value, abs=1e-9
+    )
 
 
 def test_evaluate_other_kernels_and_subsets(trained):
@@ -103,8 +117,17 @@ def test_evaluate_other_kernels_and_subsets(trained):
 
 def test_segmentation_transfer_with_frozen_kernel(trained):
     det_kernel = trained["detection"].kernel
-    res = learn_kernel("segmentation", 5, seed=0, n_train=32, n_test=16, settings=TINY, learn_filter=False,
-                       init_kernel=det_kernel, scene=TINY_SCENE["segmentation"])
+    res = learn_kernel(
+        "segmentation",
+        5,
+        seed=0,
+        n_train=32,
+        n_test=16,
+        settings=TINY,
+        learn_filter=False,
+        init_kernel=det_kernel,
+        scene=TINY_SCENE["segmentation"],
+    )
     np.testing.assert_array_equal(res.kernel.taps, det_kernel.taps)  # frozen: not retrained
     assert set(res.metrics) == {"miou", "macc", "pixel_accuracy"}
     assert [h["stage"] for h in res.history] == ["joint_frozen_filter"] * 3

@@ -14,8 +14,7 @@ GL = np.array([[0, 1], [2, -1]])
 
 
 def _det(boxes, scores, labels, gt=GT, gl=GL, n=3):
-    return detection_map(np.asarray(boxes, float), np.asarray(scores, float), np.asarray(labels), gt, gl,
-                         num_classes=n)
+    return detection_map(np.asarray(boxes, float), np.asarray(scores, float), np.asarray(labels), gt, gl, num_classes=n)
 
 
 def test_detection_perfect_predictor_scores_one():

@@ -32,8 +32,9 @@ def ucf(tmp_path) -> Path:
     train = [f"{c}/v_{c}_g0{g}_c01.avi {k + 1}" for k, c in enumerate(CLASSES) for g in (1, 2)]
     (root / "trainlist01.txt").write_text("\n".join(train) + "\n")
     (root / "testlist01.txt").write_text("".join(f"{c}/v_{c}_g03_c01.avi\n" for c in CLASSES))
-    (root / "leaky.txt").write_text(f"{CLASSES[0]}/v_{CLASSES[0]}_g01_c01.avi 1\n"
-                                    f"{CLASSES[1]}/v_{CLASSES[1]}_g03_c01.avi 2\n")
+    (root / "leaky.txt").write_text(
+        f"{CLASSES[0]}/v_{CLASSES[0]}_g01_c01.avi 1\n{CLASSES[1]}/v_{CLASSES[1]}_g03_c01.avi 2\n"
+    )
     return root
 
 
@@ -51,21 +52,26 @@ def recorded(monkeypatch) -> list[tuple]:
     import fsdvs_hw.tasks.dataset_training as training
 
     calls: list[tuple] = []
-    monkeypatch.setattr(training, "train_on_dataset",
-                        lambda ds, task, net, *, train_indices, **kw: calls.append((ds, np.asarray(train_indices))))
+    monkeypatch.setattr(
+        training,
+        "train_on_dataset",
+        lambda ds, task, net, *, train_indices, **kw: calls.append((ds, np.asarray(train_indices))),
+    )
     return calls
 
 
 def test_ucf101_trainlist_trains_and_testlist_scores_disjoint_by_file(ucf, recorded):
     from fsdvs_hw.explore.user_data import open_dataset
 
-    entry = _entry({"format": "video_folder", "root": "ucf", "split": "testlist01.txt", "n_frames": 4},
-                   {"split": "trainlist01.txt", "n_train": 0})
+    entry = _entry(
+        {"format": "video_folder", "root": "ucf", "split": "testlist01.txt", "n_frames": 4},
+        {"split": "trainlist01.txt", "n_train": 0},
+    )
     assert check_user_task("recognition", entry, ucf.parent) == []
     train = train_split_dataset(entry, ucf.parent, key="k")
     assert len(train) == 4 and [lab for _, lab in train.items] == [0, 0, 1, 1]  # the label column is ignored
     train_user_task("recognition", entry, ucf.parent)  # n_clips = 0: every test clip scored, allowed with a split
-    (ds, idx), = recorded
+    ((ds, idx),) = recorded
     test = open_dataset(entry["dataset"], ucf.parent)
     assert _names(ds, idx) == {f"v_{c}_g0{g}_c01.avi" for c in CLASSES for g in (1, 2)}
     assert not _names(ds, idx) & _names(test, range(len(test)))
@@ -75,9 +81,10 @@ def test_ucf101_trainlist_trains_and_testlist_scores_disjoint_by_file(ucf, recor
 
 
 def test_a_training_split_sharing_a_scored_file_is_refused_naming_it(ucf, recorded):
-    entry = _entry({"format": "video_folder", "root": "ucf", "split": "testlist01.txt", "n_frames": 4},
-                   {"split": "leaky.txt"})
-    (key, value, msg), = check_user_task("recognition", entry, ucf.parent)
+    entry = _entry(
+        {"format": "video_folder", "root": "ucf", "split": "testlist01.txt", "n_frames": 4}, {"split": "leaky.txt"}
+    )
+    ((key, value, msg),) = check_user_task("recognition", entry, ucf.parent)
     assert key == "tasks.datasets.recognition.train.split" and value == "leaky.txt"
     assert "v_Archery_g03_c01.avi" in msg and "scored" in msg
     with pytest.raises(InputError, match=r"v_Archery_g03_c01\.avi"):
@@ -86,24 +93,35 @@ def test_a_training_split_sharing_a_scored_file_is_refused_naming_it(ucf, record
     whole = _entry({"format": "video_folder", "root": "ucf", "n_frames": 4}, {"split": "trainlist01.txt"})
     assert "train.split" in check_user_task("recognition", whole, ucf.parent)[0][0]  # every video scored
     missing = _entry(entry["dataset"], {"split": "trainlist09.txt"})
-    (key, _, msg), = check_user_task("recognition", missing, ucf.parent)
+    ((key, _, msg),) = check_user_task("recognition", missing, ucf.parent)
     assert key.endswith("train.split") and "trainlist09.txt" in msg and "does not exist" in msg
     too_many = _entry(entry["dataset"], {"split": "trainlist01.txt", "n_train": 5})
-    (key, value, msg), = check_user_task("recognition", too_many, ucf.parent)
+    ((key, value, msg),) = check_user_task("recognition", too_many, ucf.parent)
     assert key.endswith("train.n_train") and value == 5 and "has 4 clips" in msg
 
 
 def test_frame_formats_train_on_a_subfolder(tmp_path, recorded):
     for split, n in (("train", 8), ("val", 6)):
         _write_masks(tmp_path / "seg" / split, *_masks(n))
-    entry = _entry({"format": "mask_frames", "root": "seg", "split": "val", "frames": "img", "masks": "lbl",
-                    "num_classes": 3, "n_frames": 3, "clip_stride": 1}, {"split": "train", "n_train": 3, "seed": 1})
+    entry = _entry(
+        {
+            "format": "mask_frames",
+            "root": "seg",
+            "split": "val",
+            "frames": "img",
+            "masks": "lbl",
+            "num_classes": 3,
+            "n_frames": 3,
+            "clip_stride": 1,
+        },
+        {"split": "train", "n_train": 3, "seed": 1},
+    )
     assert check_user_task("segmentation", entry, tmp_path) == []
     train_user_task("segmentation", entry, tmp_path)
-    (ds, idx), = recorded
+    ((ds, idx),) = recorded
     assert ds.frames_dir == (tmp_path / "seg" / "train" / "img").resolve() and len(idx) == 3
     same = _entry({**entry["dataset"], "split": "train"}, {"split": "train"})
-    (key, _, msg), = check_user_task("segmentation", same, tmp_path)
+    ((key, _, msg),) = check_user_task("segmentation", same, tmp_path)
     assert key.endswith("train.split") and "also in a scored clip" in msg
     default = _entry(entry["dataset"], {}, n_clips=2)  # no split: the seeded draw from the clips not scored
     train_user_task("segmentation", default, tmp_path)

@@ -49,8 +49,9 @@ def test_sub_pixel_motion_is_left_to_linear_interpolation():
     tex = _texture((32, 32), seed=5)
     moved = shift(tex, (0.0, 0.25), order=3, mode="wrap")
     taus = [0.25, 0.5, 0.75]
-    assert np.array_equal(interpolate_frames(tex, moved, taus, mode="flow"),
-                          interpolate_frames(tex, moved, taus, mode="linear"))
+    assert np.array_equal(
+        interpolate_frames(tex, moved, taus, mode="flow"), interpolate_frames(tex, moved, taus, mode="linear")
+    )
 
 
 @pytest.mark.parametrize("mode", ["linear", "flow"])
@@ -99,12 +100,15 @@ def test_upsample_frames_times_and_passthrough():
     assert [t for t, _ in same] == [0.0, 0.04, 0.08] and all(f is not None for _, f in same)
 
 
-@pytest.mark.parametrize("kwargs, words", [
-    ({"mode": "slomo"}, "allowed: none, linear, flow"),
-    ({"rate_hz": 0.0}, "(0, 100000]"),
-    ({"rate_hz": float("nan")}, "rate_hz"),
-    ({"rate_hz": "fast"}, "rate_hz"),
-])
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        ({"mode": "slomo"}, "allowed: none, linear, flow"),
+        ({"rate_hz": 0.0}, "(0, 100000]"),
+        ({"rate_hz": float("nan")}, "rate_hz"),
+        ({"rate_hz": "fast"}, "rate_hz"),
+    ],
+)
 def test_bad_options_raise_input_error(kwargs, words):
     with pytest.raises(InputError, match=None) as exc:
         list(upsample_frames([np.ones((4, 4))] * 2, frame_rate_hz=25.0, **kwargs))

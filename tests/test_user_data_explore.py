@@ -66,8 +66,14 @@ def user_folder(tmp_path_factory) -> Path:
     for c, cls in enumerate(("Jump", "Run")):
         (ucf / cls).mkdir(parents=True)
         for v in range(2):
-            with imageio.get_writer(str(ucf / cls / f"v_{cls}_g0{v}.mp4"), fps=FPS, codec="libx264", quality=9,
-                                    macro_block_size=1, ffmpeg_log_level="error") as w:
+            with imageio.get_writer(
+                str(ucf / cls / f"v_{cls}_g0{v}.mp4"),
+                fps=FPS,
+                codec="libx264",
+                quality=9,
+                macro_block_size=1,
+                ffmpeg_log_level="error",
+            ) as w:
                 for f in frames[20 * (2 * c + v) : 20 * (2 * c + v) + 6]:
                     w.append_data(f)
     (root / "data" / "coco").mkdir(parents=True)
@@ -113,22 +119,15 @@ def test_explore_on_user_datasets_writes_paired_losses_with_cis(user_folder, tmp
 
 def test_bad_user_data_keys_are_refused_naming_the_key(user_folder):
     cases = {
-        'dataset = { format = "video_folder", root = "data/ucf", n_frame = 5 }':
-            "key 'tasks.datasets.recognition.dataset.n_frame'",
-        'dataset = { format = "videos", root = "data/ucf" }':
-            "key 'tasks.datasets.recognition.dataset.format' = \"videos\"",
-        'dataset = { format = "coco_frames", root = "data/coco" }':
-            "key 'tasks.datasets.recognition.dataset.format' = \"coco_frames\": holds detection targets",
+        'dataset = { format = "video_folder", root = "data/ucf", n_frame = 5 }': "key 'tasks.datasets.recognition.dataset.n_frame'",
+        'dataset = { format = "videos", root = "data/ucf" }': "key 'tasks.datasets.recognition.dataset.format' = \"videos\"",
+        'dataset = { format = "coco_frames", root = "data/coco" }': "key 'tasks.datasets.recognition.dataset.format' = \"coco_frames\": holds detection targets",
         'dataset = { format = "video_folder", root = "../elsewhere" }': "outside the design's folder",
         'dataset = { format = "video_folder", root = "data/coco" }': "class folder",
-        'dataset = { format = "video_folder", root = "data/ucf", n_frames = 1 }':
-            "key 'tasks.datasets.recognition.dataset.n_frames' = 1: out of range; allowed: an integer in [2, 10000]",
-        'dataset = { format = "video_folder", root = "data/ucf" }\nn_clips = 9':
-            "key 'tasks.datasets.recognition.n_clips' = 9: the dataset has 4 clips",
-        'dataset = { format = "video_folder", root = "data/ucf" }\nnetwork = "toy_network:nope"':
-            "key 'tasks.datasets.recognition.network' = \"toy_network:nope\"",
-        'dataset = { format = "video_folder", root = "data/ucf" }\nweights = "missing.pt"':
-            "key 'tasks.datasets.recognition.weights' = \"missing.pt\"",
+        'dataset = { format = "video_folder", root = "data/ucf", n_frames = 1 }': "key 'tasks.datasets.recognition.dataset.n_frames' = 1: out of range; allowed: an integer in [2, 10000]",
+        'dataset = { format = "video_folder", root = "data/ucf" }\nn_clips = 9': "key 'tasks.datasets.recognition.n_clips' = 9: the dataset has 4 clips",
+        'dataset = { format = "video_folder", root = "data/ucf" }\nnetwork = "toy_network:nope"': "key 'tasks.datasets.recognition.network' = \"toy_network:nope\"",
+        'dataset = { format = "video_folder", root = "data/ucf" }\nweights = "missing.pt"': "key 'tasks.datasets.recognition.weights' = \"missing.pt\"",
     }
     for body, want in cases.items():
         with pytest.raises(DesignError) as err:
@@ -144,8 +143,18 @@ def test_a_clip_that_does_not_decode_is_a_task_status_not_a_traceback(user_folde
 
     folder = tmp_path / "d"
     shutil.copytree(user_folder / "data" / "seg", folder / "seg")
-    entry = UserTask.model_validate({"dataset": {"format": "mask_frames", "root": "seg", "frames": "img",
-                                                 "masks": "lbl", "num_classes": 3, "n_frames": 3}}).model_dump()
+    entry = UserTask.model_validate(
+        {
+            "dataset": {
+                "format": "mask_frames",
+                "root": "seg",
+                "frames": "img",
+                "masks": "lbl",
+                "num_classes": 3,
+                "n_frames": 3,
+            }
+        }
+    ).model_dump()
     bad = np.zeros((32, 32), np.uint8)
     bad[5, 5] = 7  # a class beyond the declared 3, found when clip 0's last mask is decoded
     Image.fromarray(bad).save(folder / "seg" / "lbl" / "s_002.png")
@@ -201,7 +210,9 @@ def test_device_cpu_is_the_default_and_an_absent_cuda_is_refused(user_folder, mo
     with pytest.raises(InputError, match="CUDA is not available"):
         evaluate_on_dataset(None, "segmentation", ds, device="cuda")
     body = '[tasks.datasets.recognition]\ndataset = { format = "video_folder", root = "data/ucf" }\ndevice = "cuda"\n'
-    with pytest.raises(DesignError, match=re.escape('key \'tasks.datasets.recognition.device\' = "cuda": CUDA is not available')):
+    with pytest.raises(
+        DesignError, match=re.escape("key 'tasks.datasets.recognition.device' = \"cuda\": CUDA is not available")
+    ):
         load_design(_design(user_folder, body, name="gpu"))
 
 
@@ -213,8 +224,10 @@ def test_cuda_gives_the_cpu_events_and_metric_on_a_noise_free_sensor(user_folder
 
     ds, net = _seg_dataset(user_folder, monkeypatch)
     sensor = SensorConfig.ideal(threshold=0.2, frame_rate_hz=FPS)  # no random stream: CPU and CUDA agree
-    runs = [evaluate_on_dataset(reference_kernel("dog", 7), "segmentation", ds, net, sensor=sensor, device=d)
-            for d in ("cpu", "cuda")]
+    runs = [
+        evaluate_on_dataset(reference_kernel("dog", 7), "segmentation", ds, net, sensor=sensor, device=d)
+        for d in ("cpu", "cuda")
+    ]
     np.testing.assert_allclose(runs[1].event_counts, runs[0].event_counts, rtol=1e-6)
     np.testing.assert_allclose(runs[1].per_clip, runs[0].per_clip, atol=1e-6)
 
@@ -224,12 +237,31 @@ def test_design_sensor_thresholds_reach_user_data_tasks(user_folder):
     from fsdvs_hw.explore.scoring import task_scores
     from fsdvs_hw.explore.user_data import UserTask
 
-    entry = UserTask.model_validate({"dataset": {"format": "mask_frames", "root": "data/seg", "frames": "img",
-                                                 "masks": "lbl", "num_classes": 3, "n_frames": 3}}).model_dump()
-    sensor = {"threshold_on": 0.5, "threshold_off": 0.5, "threshold_sigma": 0.0, "placement": "pre_log",
-              "positivity": "pedestal"}
-    recs = [task_scores(None, {}, datasets={"segmentation": entry}, base_dir=user_folder,
-                        design_sensor=s)["segmentation"]["simulator"] for s in (None, sensor)]
+    entry = UserTask.model_validate(
+        {
+            "dataset": {
+                "format": "mask_frames",
+                "root": "data/seg",
+                "frames": "img",
+                "masks": "lbl",
+                "num_classes": 3,
+                "n_frames": 3,
+            }
+        }
+    ).model_dump()
+    sensor = {
+        "threshold_on": 0.5,
+        "threshold_off": 0.5,
+        "threshold_sigma": 0.0,
+        "placement": "pre_log",
+        "positivity": "pedestal",
+    }
+    recs = [
+        task_scores(None, {}, datasets={"segmentation": entry}, base_dir=user_folder, design_sensor=s)["segmentation"][
+            "simulator"
+        ]
+        for s in (None, sensor)
+    ]
     assert recs[0]["sensor"]["source"] == "default" and recs[0]["sensor"]["threshold_on"] == 0.2
     assert recs[1]["sensor"] == {"source": "design", **sensor}
     assert 0 < recs[1]["event_rate"] < recs[0]["event_rate"]

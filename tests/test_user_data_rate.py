@@ -19,8 +19,10 @@ pytest.importorskip("torch")
 from conftest import cheap_design
 from test_user_datasets import PLUGINS, _masks, _write_masks
 
-SOURCE = ('format = "mask_frames", root = "seg", frames = "img", masks = "lbl", num_classes = 3, n_frames = 3, '
-          'clip_stride = 1, fps = 25.0')
+SOURCE = (
+    'format = "mask_frames", root = "seg", frames = "img", masks = "lbl", num_classes = 3, n_frames = 3, '
+    "clip_stride = 1, fps = 25.0"
+)
 TABLE = f"""
 [rate]
 enabled = true
@@ -57,8 +59,14 @@ def test_dataset_rate_curve_pairs_with_the_explored_score(tmp_path, monkeypatch)
     assert mid.metric == pytest.approx(own.value, abs=1e-12)
     assert mid.clip_rates[0] == pytest.approx(own.clip_event_rates, rel=1e-12)
     assert (mid.test_seeds, mid.sensor_seeds) == ((own.test_seed,), (own.sensor_seed,))
-    again = dataset_rate_curve(None, "segmentation", {**entry, "dataset": {**entry["dataset"], "cache": {
-        "dir": "cc", "max_mb": 8.0}}}, folder, [0.1, 0.2, 0.4], cache_dir=tmp_path / "c")  # saved points reused
+    again = dataset_rate_curve(
+        None,
+        "segmentation",
+        {**entry, "dataset": {**entry["dataset"], "cache": {"dir": "cc", "max_mb": 8.0}}},
+        folder,
+        [0.1, 0.2, 0.4],
+        cache_dir=tmp_path / "c",
+    )  # saved points reused
     assert [p.seconds for p in again.points] == [p.seconds for p in curve.points]
 
 

@@ -71,8 +71,14 @@ def ucf_root(tmp_path_factory) -> Path:
         (root / cls).mkdir()
         for v in range(2):
             frames = _bbb_frames(start=20 * (2 * c + v), n=6)
-            with imageio.get_writer(str(root / cls / f"v_{cls}_g0{v}.mp4"), fps=FPS, codec="libx264",
-                                    quality=9, macro_block_size=1, ffmpeg_log_level="error") as w:
+            with imageio.get_writer(
+                str(root / cls / f"v_{cls}_g0{v}.mp4"),
+                fps=FPS,
+                codec="libx264",
+                quality=9,
+                macro_block_size=1,
+                ffmpeg_log_level="error",
+            ) as w:
                 for f in frames:
                     w.append_data(f)
     (root / "testlist01.txt").write_text("Jump/v_Jump_g01.mp4\nRun/v_Run_g00.mp4\n")
@@ -90,8 +96,7 @@ def _coco_doc(n: int = 8) -> tuple[dict, list[np.ndarray]]:
         images.append({"id": 100 + t, "file_name": f"f{t:03d}.png", "width": SIDE, "height": SIDE})
         anns.append({"id": 2 * t, "image_id": 100 + t, "category_id": 7, "bbox": [x, y, 8, 6]})
         anns.append({"id": 2 * t + 1, "image_id": 100 + t, "category_id": 3, "bbox": [24 - t, 20, 4, 6]})
-    doc = {"images": images, "annotations": anns,
-           "categories": [{"id": 3, "name": "small"}, {"id": 7, "name": "big"}]}
+    doc = {"images": images, "annotations": anns, "categories": [{"id": 3, "name": "small"}, {"id": 7, "name": "big"}]}
     return doc, frames
 
 
@@ -231,12 +236,15 @@ def test_split_file_names_missing_video(ucf_root, tmp_path):
         VideoFolderDataset(ucf_root, n_frames=3, split_file=split)
 
 
-@pytest.mark.parametrize("case, pattern", [
-    ("no_annotation", r"instances\.json.*'f002\.png'.*'annotations'"),
-    ("bbox_outside", r"instances\.json.*annotation 5 \(image 'f002\.png'\): field 'bbox'"),
-    ("bad_category", r"instances\.json.*annotation 0: field 'category_id' 9"),
-    ("missing_image", r"instances\.json.*images\[3\] field 'file_name'.*f003\.png"),
-])
+@pytest.mark.parametrize(
+    "case, pattern",
+    [
+        ("no_annotation", r"instances\.json.*'f002\.png'.*'annotations'"),
+        ("bbox_outside", r"instances\.json.*annotation 5 \(image 'f002\.png'\): field 'bbox'"),
+        ("bad_category", r"instances\.json.*annotation 0: field 'category_id' 9"),
+        ("missing_image", r"instances\.json.*images\[3\] field 'file_name'.*f003\.png"),
+    ],
+)
 def test_coco_bad_layouts(tmp_path, case, pattern):
     doc, frames = _coco_doc()
     if case == "no_annotation":
@@ -272,7 +280,9 @@ def test_mask_bad_layouts(tmp_path):
 def test_network_factory_checks(plugin_path, tmp_path):
     net = load_network_factory("toy_network:make", in_channels=4, num_classes=2)
     assert isinstance(net, torch.nn.Module)
-    assert EventInput.parse(load_network_factory("toy_network:make_voxel", in_channels=1, num_classes=2).event_input) == EventInput("voxel", 4)
+    assert EventInput.parse(
+        load_network_factory("toy_network:make_voxel", in_channels=1, num_classes=2).event_input
+    ) == EventInput("voxel", 4)
     with pytest.raises(InputError, match="'no_such_module_xyz' does not import"):
         load_network_factory("no_such_module_xyz:make")
     with pytest.raises(InputError, match="has no attribute 'nope'"):
@@ -310,8 +320,9 @@ def test_end_to_end_recognition(ucf_root):
     net = load_network_factory("toy_network:make", in_channels=8, num_classes=2, task="recognition")
     r = evaluate_on_dataset(_dog(), "recognition", ds, net)
     assert 0.0 <= r.value <= 1.0 and r.per_clip.shape == (4,)
-    ref = top1_accuracy(torch.from_numpy(r.predictions["logits"]), torch.from_numpy(r.targets["motion"]),
-                        num_classes=2)["top1"]
+    ref = top1_accuracy(
+        torch.from_numpy(r.predictions["logits"]), torch.from_numpy(r.targets["motion"]), num_classes=2
+    )["top1"]
     assert r.value == ref
     assert np.nanmean(r.per_clip) == pytest.approx(ref)  # per-clip correctness averages to top-1
     voxel = load_network_factory("toy_network:make_voxel", in_channels=8, num_classes=2, task="recognition")

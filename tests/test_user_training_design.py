@@ -88,15 +88,21 @@ def test_learn_design_refuses_synthetic_options(folder, capsys):
     assert "error: --seed --out with --design" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize(("train", "n_clips", "want"), [
-    ("epochs_joint = -1", 3, "key 'tasks.datasets.segmentation.train.epochs_joint' = -1: out of range; allowed: "
-                             "an integer in [0, 1000]"),
-    ("kernel_size = 4", 3, "key 'tasks.datasets.segmentation.train.kernel_size' = 4"),
-    ("lr_kernel = 20.0", 3, "key 'tasks.datasets.segmentation.train.lr_kernel' = 20.0"),
-    ("n_train = 8", 3, "key 'tasks.datasets.segmentation.train.n_train' = 8: 7 clips are not scored; allowed: 0"),
-    ("", 0, "key 'tasks.datasets.segmentation.n_clips' = 0: with tasks.datasets.segmentation.train"),
-    ("epoch = 1", 3, "key 'tasks.datasets.segmentation.train.epoch'"),
-])
+@pytest.mark.parametrize(
+    ("train", "n_clips", "want"),
+    [
+        (
+            "epochs_joint = -1",
+            3,
+            "key 'tasks.datasets.segmentation.train.epochs_joint' = -1: out of range; allowed: an integer in [0, 1000]",
+        ),
+        ("kernel_size = 4", 3, "key 'tasks.datasets.segmentation.train.kernel_size' = 4"),
+        ("lr_kernel = 20.0", 3, "key 'tasks.datasets.segmentation.train.lr_kernel' = 20.0"),
+        ("n_train = 8", 3, "key 'tasks.datasets.segmentation.train.n_train' = 8: 7 clips are not scored; allowed: 0"),
+        ("", 0, "key 'tasks.datasets.segmentation.n_clips' = 0: with tasks.datasets.segmentation.train"),
+        ("epoch = 1", 3, "key 'tasks.datasets.segmentation.train.epoch'"),
+    ],
+)
 def test_bad_train_keys_name_file_key_value_and_range(folder, train, n_clips, want):
     with pytest.raises(DesignError) as err:
         load_design(_design(folder, train, name="bad", n_clips=n_clips))
@@ -107,8 +113,22 @@ def test_ablation_on_user_data_gives_paired_gains_and_refuses_synthetic_options(
     from fsdvs_hw.cli import main
 
     design = str(_design(folder))
-    args = ["ablation", "--design", design, "--tasks", "segmentation", "--sizes", "1", "3", "--seeds", "0", "1",
-            "--out", str(tmp_path / "abl"), "--no-progress"]
+    args = [
+        "ablation",
+        "--design",
+        design,
+        "--tasks",
+        "segmentation",
+        "--sizes",
+        "1",
+        "3",
+        "--seeds",
+        "0",
+        "1",
+        "--out",
+        str(tmp_path / "abl"),
+        "--no-progress",
+    ]
     assert main(args) == 0
     res = json.loads((tmp_path / "abl" / "ablation.json").read_text())
     wo, k3 = res["rows"]
@@ -130,8 +150,20 @@ def test_ablation_on_user_data_gives_paired_gains_and_refuses_synthetic_options(
 def test_ablation_on_user_data_with_workers_gives_the_sequential_result(folder, tmp_path):
     from fsdvs_hw.cli import main
 
-    args = ["ablation", "--design", str(_design(folder)), "--tasks", "segmentation", "--sizes", "1", "3",
-            "--seeds", "0", "1", "--no-progress"]
+    args = [
+        "ablation",
+        "--design",
+        str(_design(folder)),
+        "--tasks",
+        "segmentation",
+        "--sizes",
+        "1",
+        "3",
+        "--seeds",
+        "0",
+        "1",
+        "--no-progress",
+    ]
     assert main([*args, "--out", str(tmp_path / "seq")]) == 0
     assert main([*args, "--out", str(tmp_path / "par"), "--workers", "2"]) == 0  # trained in 2 processes
     seq, par = (json.loads((tmp_path / f / "ablation.json").read_text()) for f in ("seq", "par"))

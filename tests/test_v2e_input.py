@@ -29,7 +29,8 @@ def test_v2e_gray_is_opencv_bt601_luma_of_code_values():
 
 def test_presets_choose_their_input_mapping():
     assert {n: preset_input_mapping(n) for n in ("v2e-clean", "v2e-default", "v2e-noisy")} == dict.fromkeys(
-        ("v2e-clean", "v2e-default", "v2e-noisy"), "v2e_gray")
+        ("v2e-clean", "v2e-default", "v2e-noisy"), "v2e_gray"
+    )
     assert {preset_input_mapping(n) for n in ("default", "ideal", "dvs128", "davis346", "imx636")} == {"linear_light"}
     with pytest.raises(InputError, match="unknown"):
         preset_input_mapping("v2e-loud")
@@ -73,11 +74,23 @@ def test_v2e_default_preset_counts_match_v2e_from_the_same_file(clip, tmp_path, 
             (stubs / f"{name}.py").write_text(text)
         np.save(Path(d) / "frames.npy", np.stack(gray).astype(np.float32) / np.float32(255.0))
         child = _V2E_CHILD.replace("k / 25.0", f"k / {fps!r}")  # the clip's own frame times, as v2e's command
-        r, _, _ = _run_child([sys.executable, "-c", child, str(stubs), os.environ["FSDVS_HW_V2E_SRC"], "default",
-                              "1", "1", "0", str(Path(d) / "frames.npy")], "v2e EventEmulator")
+        r, _, _ = _run_child(
+            [
+                sys.executable,
+                "-c",
+                child,
+                str(stubs),
+                os.environ["FSDVS_HW_V2E_SRC"],
+                "default",
+                "1",
+                "1",
+                "0",
+                str(Path(d) / "frames.npy"),
+            ],
+            "v2e EventEmulator",
+        )
     out = tmp_path / "ev.h5"
     assert main(["simulate", str(path), "--out", str(out), "--preset", "v2e-default", "--no-progress"]) == 0
     n = len(read_events(out))
     print(f"{clip}: fsdvs-hw {n} events, v2e {r['events']}, ratio {n / r['events']:.4f} ({len(gray)} frames)")
     assert abs(n / r["events"] - 1) < 0.01
-

@@ -18,17 +18,33 @@ from fsdvs_hw.schema import field_schema, members
 
 # (realisation, option, bad value): the examples and NaN sizes
 BAD_OPTIONS = [
-    ("asic", "bits", 1), ("asic", "bits", 32), ("asic", "bits", 7.5), ("asic", "bits", True),
-    ("mesh", "tol", -1.0), ("mesh", "tol", 0.0), ("mesh", "fit_size", 4), ("mesh", "n_init", math.nan),
-    ("mesh", "mismatch_sigma", math.inf), ("mesh", "model", "magic"),
-    ("metalens", "strategy", "magic"), ("metalens", "aperture_m", math.nan), ("metalens", "pitch_m", math.nan),
-    ("metalens", "n_sub", math.nan), ("metalens", "window_pad", 0.0), ("metalens", "na_max", 1.0),
-    ("metalens", "n_wavelengths", "many"), ("asic", "scale", -1.0), ("asic", "adder_weight", math.nan),
+    ("asic", "bits", 1),
+    ("asic", "bits", 32),
+    ("asic", "bits", 7.5),
+    ("asic", "bits", True),
+    ("mesh", "tol", -1.0),
+    ("mesh", "tol", 0.0),
+    ("mesh", "fit_size", 4),
+    ("mesh", "n_init", math.nan),
+    ("mesh", "mismatch_sigma", math.inf),
+    ("mesh", "model", "magic"),
+    ("metalens", "strategy", "magic"),
+    ("metalens", "aperture_m", math.nan),
+    ("metalens", "pitch_m", math.nan),
+    ("metalens", "n_sub", math.nan),
+    ("metalens", "window_pad", 0.0),
+    ("metalens", "na_max", 1.0),
+    ("metalens", "n_wavelengths", "many"),
+    ("asic", "scale", -1.0),
+    ("asic", "adder_weight", math.nan),
 ]
 
 
-FIT_FUNCTIONS = {"mesh": "fsdvs_hw.realise.mesh:fit_resistive_mesh", "asic": "fsdvs_hw.realise.asic:fit_asic_taps",
-                 "metalens": "fsdvs_hw.realise.metalens:fit_metalens"}
+FIT_FUNCTIONS = {
+    "mesh": "fsdvs_hw.realise.mesh:fit_resistive_mesh",
+    "asic": "fsdvs_hw.realise.asic:fit_asic_taps",
+    "metalens": "fsdvs_hw.realise.metalens:fit_metalens",
+}
 
 
 def _fit_function(name):
@@ -95,12 +111,16 @@ def test_fit_metalens_does_not_ignore_a_nan_pitch():
 
 
 # ---------------------------------------------------------------------- kernels: nothing silently wrong
-@pytest.mark.parametrize("taps", [
-    np.array([["2020-01-01"]], dtype="datetime64[D]"),
-    np.array([[1]], dtype="timedelta64[s]"),
-    [["1"]],
-    [[1, None, 1], [1, 1, 1], [1, 1, 1]],
-], ids=["datetime", "timedelta", "strings", "object"])
+@pytest.mark.parametrize(
+    "taps",
+    [
+        np.array([["2020-01-01"]], dtype="datetime64[D]"),
+        np.array([[1]], dtype="timedelta64[s]"),
+        [["1"]],
+        [[1, None, 1], [1, 1, 1], [1, 1, 1]],
+    ],
+    ids=["datetime", "timedelta", "strings", "object"],
+)
 def test_non_numeric_taps_are_refused(taps):
     with pytest.raises(KernelError, match="numeric"):
         Kernel(taps)
@@ -144,12 +164,25 @@ def test_complex_pt_kernel_is_refused_not_truncated(tmp_path):
         load_kernel(tmp_path / "c.pt")
 
 
-@pytest.mark.parametrize("suffix,content", [
-    (".npy", b""), (".npy", b"garbage"), (".npy", b"\x93NUMPY\x01\x00"),
-    (".pt", b""), (".pt", b"garbage"), (".pt", b"PK\x03\x04broken zip"),
-    (".json", b"\xff\xfe{"), (".json", b"{"), (".json", b"[" * 100000), (".json", b"{\"taps\": [[1, 2], [3]]}"),
-    (".csv", b"\xff\xfe1"), (".csv", b""), (".csv", b"1,2\n3\n"), (".csv", b"# fsdvs_hw [1]\n1\n"),
-])
+@pytest.mark.parametrize(
+    "suffix,content",
+    [
+        (".npy", b""),
+        (".npy", b"garbage"),
+        (".npy", b"\x93NUMPY\x01\x00"),
+        (".pt", b""),
+        (".pt", b"garbage"),
+        (".pt", b"PK\x03\x04broken zip"),
+        (".json", b"\xff\xfe{"),
+        (".json", b"{"),
+        (".json", b"[" * 100000),
+        (".json", b'{"taps": [[1, 2], [3]]}'),
+        (".csv", b"\xff\xfe1"),
+        (".csv", b""),
+        (".csv", b"1,2\n3\n"),
+        (".csv", b"# fsdvs_hw [1]\n1\n"),
+    ],
+)
 def test_malformed_kernel_files_give_one_kernel_error_naming_the_file(tmp_path, suffix, content):
     p = tmp_path / f"bad{suffix}"
     p.write_bytes(content)

@@ -17,7 +17,7 @@ def test_display_to_linear_matches_published_transfer_functions_and_weights():
     # sRGB decoding (IEC 61966-2-1): V = 0.5 -> ((0.5 + 0.055) / 1.055) ** 2.4 = 0.21404
     assert display_to_linear(np.array([0.5]), transfer="sRGB")[0] == pytest.approx(0.214041, abs=1e-6)
     # BT.1886 with zero black level is a pure 2.4 power law
-    assert display_to_linear(np.array([0.5]), transfer="ITU-R BT.1886")[0] == pytest.approx(0.5 ** 2.4, rel=1e-6)
+    assert display_to_linear(np.array([0.5]), transfer="ITU-R BT.1886")[0] == pytest.approx(0.5**2.4, rel=1e-6)
     # 10-bit code values scale by 1023
     assert display_to_linear(np.array([1023], dtype=np.uint16), bit_depth=10, transfer="sRGB")[0] == pytest.approx(1.0)
 
@@ -60,8 +60,9 @@ def test_real_clip_through_the_simulator():
 
     clip = load_example_clip("bikes", n_frames=9, size=(68, 160))
     video = clip.as_batch(dtype=torch.float32)
-    frames = event_frames(video, reference_kernel("dog", 7), config=SensorConfig.ideal(),
-                          timestamps_s=clip.timestamps_s)
+    frames = event_frames(
+        video, reference_kernel("dog", 7), config=SensorConfig.ideal(), timestamps_s=clip.timestamps_s
+    )
     assert frames.shape == (1, 8, 2, 68, 160)
     assert frames[:, :, 0].sum() > 100 and frames[:, :, 1].sum() > 100  # moving cyclists: both polarities
 

@@ -37,14 +37,36 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-_IGNORE = shutil.ignore_patterns(".git", "out", ".venv", "build", "dist", "*.egg-info", "__pycache__",
-                                 ".pytest_cache", ".hypothesis", ".ipynb_checkpoints", "mutation")
-QUICK = ["--set", "tasks.checkpoints={" + ", ".join(
-             f'{t}="kernels/networks/{t}_with_learned_detection_7x7_s0.safetensors"'
-             for t in ("detection", "recognition", "segmentation")) + "}",
-         "--set", "tasks.n_test={detection=16, recognition=16, segmentation=16}",
-         "--set", 'tasks.tracks=["simulator"]', "--set", "emulation.enabled=false",
-         "--set", "scoring.n_resamples=200"]
+_IGNORE = shutil.ignore_patterns(
+    ".git",
+    "out",
+    ".venv",
+    "build",
+    "dist",
+    "*.egg-info",
+    "__pycache__",
+    ".pytest_cache",
+    ".hypothesis",
+    ".ipynb_checkpoints",
+    "mutation",
+)
+QUICK = [
+    "--set",
+    "tasks.checkpoints={"
+    + ", ".join(
+        f'{t}="kernels/networks/{t}_with_learned_detection_7x7_s0.safetensors"'
+        for t in ("detection", "recognition", "segmentation")
+    )
+    + "}",
+    "--set",
+    "tasks.n_test={detection=16, recognition=16, segmentation=16}",
+    "--set",
+    'tasks.tracks=["simulator"]',
+    "--set",
+    "emulation.enabled=false",
+    "--set",
+    "scoring.n_resamples=200",
+]
 
 pytestmark = pytest.mark.slow
 
@@ -62,8 +84,21 @@ def installed(tmp_path_factory):
     assert REPO not in root.parents
     src = root / "src"
     shutil.copytree(REPO, src, ignore=_IGNORE)
-    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(root / "dist"),
-          str(src)], cwd=root)
+    _run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            str(root / "dist"),
+            str(src),
+        ],
+        cwd=root,
+    )
     (wheel,) = (root / "dist").glob("fsdvs_hw-*.whl")
     env_dir = root / "venv"
     mode = os.environ.get("FSDVS_WHEEL_DEPS", "shared")
@@ -75,10 +110,16 @@ def installed(tmp_path_factory):
         _run([str(py), "-m", "pip", "install", "-q", "torch==2.13.0"], cwd=root, env=env, timeout=1800)
         _run([str(py), "-m", "pip", "install", "-q", str(wheel)], cwd=root, env=env, timeout=1800)
     else:
-        _run([sys.executable, "-m", "pip", "--python", str(py), "install", "-q", "--no-deps", "--no-index",
-              str(wheel)], cwd=root, env=env)
-        site = Path(_run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-                         cwd=root, env=env).strip())
+        _run(
+            [sys.executable, "-m", "pip", "--python", str(py), "install", "-q", "--no-deps", "--no-index", str(wheel)],
+            cwd=root,
+            env=env,
+        )
+        site = Path(
+            _run(
+                [str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], cwd=root, env=env
+            ).strip()
+        )
         (site / "zz_fsdvs_test_dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
     work = root / "elsewhere"
     work.mkdir()
@@ -87,10 +128,18 @@ def installed(tmp_path_factory):
 
 def test_the_wheel_carries_the_designs_and_imports_from_the_venv(installed):
     env_dir, env, work = installed
-    got = json.loads(_run([str(env_dir / "bin" / "python"), "-c",
-                           "import json, fsdvs_hw; from fsdvs_hw.resources import designs_dir, shipped_designs;"
-                           "print(json.dumps([fsdvs_hw.__file__, str(designs_dir()), shipped_designs()]))"],
-                          cwd=work, env=env))
+    got = json.loads(
+        _run(
+            [
+                str(env_dir / "bin" / "python"),
+                "-c",
+                "import json, fsdvs_hw; from fsdvs_hw.resources import designs_dir, shipped_designs;"
+                "print(json.dumps([fsdvs_hw.__file__, str(designs_dir()), shipped_designs()]))",
+            ],
+            cwd=work,
+            env=env,
+        )
+    )
     module, designs, names = got
     assert Path(module).is_relative_to(env_dir) and Path(designs).is_relative_to(env_dir), got
     assert Path(designs) == Path(module).parent / "designs"
@@ -102,9 +151,15 @@ def test_the_wheel_carries_the_designs_and_imports_from_the_venv(installed):
     # the event simulator's C source ships too, and builds from the installed package
     assert (Path(module).parent / "sensor" / "_crossings.c").is_file()
     cache = work / "kernel-cache"
-    built = _run([str(env_dir / "bin" / "python"), "-c",
-                  "from fsdvs_hw.sensor import _crossings_native as n; print(n.available(), n.why_unavailable())"],
-                 cwd=work, env={**env, "FSDVS_HW_CACHE": str(cache)})
+    built = _run(
+        [
+            str(env_dir / "bin" / "python"),
+            "-c",
+            "from fsdvs_hw.sensor import _crossings_native as n; print(n.available(), n.why_unavailable())",
+        ],
+        cwd=work,
+        env={**env, "FSDVS_HW_CACHE": str(cache)},
+    )
     assert built.strip().startswith("True"), built
     assert list(cache.glob("crossings-*.so"))
 
@@ -125,18 +180,27 @@ def _check_report(out: Path, *, n_test: int | None) -> None:
 def test_installed_fsdvs_hw_explore_runs_the_embedded_default_outside_the_checkout(installed):
     env_dir, env, work = installed
     out = work / "quick"
-    stdout = _run([str(env_dir / "bin" / "fsdvs-hw"), "explore", "--out", str(out), "--no-progress", "--workers", "1",
-                   *QUICK], cwd=work, env=env)
+    stdout = _run(
+        [str(env_dir / "bin" / "fsdvs-hw"), "explore", "--out", str(out), "--no-progress", "--workers", "1", *QUICK],
+        cwd=work,
+        env=env,
+    )
     assert f"report: {out / 'report.html'}" in stdout
     _check_report(out, n_test=16)
     assert not (work / "designs").exists() and not (work / "out").exists()  # wrote only where told
 
 
-@pytest.mark.skipif(os.environ.get("FSDVS_WHEEL_FULL") != "1",
-                    reason="the full main job takes ~5 min on 2 cores: set FSDVS_WHEEL_FULL=1")
+@pytest.mark.skipif(
+    os.environ.get("FSDVS_WHEEL_FULL") != "1",
+    reason="the full main job takes ~5 min on 2 cores: set FSDVS_WHEEL_FULL=1",
+)
 def test_installed_fsdvs_hw_explore_full_main_job(installed):
     env_dir, env, work = installed
     out = work / "demo"
-    _run([str(env_dir / "bin" / "fsdvs-hw"), "explore", "--out", str(out), "--no-progress"], cwd=work, env=env,
-         timeout=3600)
+    _run(
+        [str(env_dir / "bin" / "fsdvs-hw"), "explore", "--out", str(out), "--no-progress"],
+        cwd=work,
+        env=env,
+        timeout=3600,
+    )
     _check_report(out, n_test=None)

@@ -52,8 +52,11 @@ class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
-        if ("default" in text or action.default in (None, False, argparse.SUPPRESS)
-                or not (action.option_strings or action.nargs in (argparse.OPTIONAL, argparse.ZERO_OR_MORE))):
+        if (
+            "default" in text
+            or action.default in (None, False, argparse.SUPPRESS)
+            or not (action.option_strings or action.nargs in (argparse.OPTIONAL, argparse.ZERO_OR_MORE))
+        ):
             return text
         return text + " (default: %(default)s)"
 
@@ -90,8 +93,11 @@ def _parser() -> argparse.ArgumentParser:
         )
         module.add_arguments(p)
         if "--no-progress" not in p._option_string_actions:
-            p.add_argument("--no-progress", action="store_true",
-                           help="no progress bars (none either when stderr is not a terminal)")
+            p.add_argument(
+                "--no-progress",
+                action="store_true",
+                help="no progress bars (none either when stderr is not a terminal)",
+            )
         p.set_defaults(_module=module, _parser=p)
     return parser
 

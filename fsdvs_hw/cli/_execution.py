@@ -43,21 +43,43 @@ def scheduler_address(text: str) -> str:
 
 def add_execution_arguments(parser: argparse.ArgumentParser) -> None:
     """``--workers``, ``--scheduler``, ``--tls-*``, ``--no-progress``, ``--retry-errors``, ``--max-points``."""
-    parser.add_argument("--workers", type=int_in(1, MAX_WORKERS), default=None,
-                        help=f"local worker processes, 1..{MAX_WORKERS} (default: [run] workers)")
-    parser.add_argument("--scheduler", type=scheduler_address, default=None, metavar="tls://HOST:PORT",
-                        help="run on a Dask distributed scheduler instead of local processes (tls:// with the "
-                             "--tls-* files; plain tcp:// only on a trusted network)")
-    parser.add_argument("--tls-ca-file", type=Path, default=None, metavar="PEM",
-                        help="CA certificate of the Dask cluster (tls:// schedulers)")
+    parser.add_argument(
+        "--workers",
+        type=int_in(1, MAX_WORKERS),
+        default=None,
+        help=f"local worker processes, 1..{MAX_WORKERS} (default: [run] workers)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        type=scheduler_address,
+        default=None,
+        metavar="tls://HOST:PORT",
+        help="run on a Dask distributed scheduler instead of local processes (tls:// with the "
+        "--tls-* files; plain tcp:// only on a trusted network)",
+    )
+    parser.add_argument(
+        "--tls-ca-file",
+        type=Path,
+        default=None,
+        metavar="PEM",
+        help="CA certificate of the Dask cluster (tls:// schedulers)",
+    )
     parser.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="this client's certificate")
     parser.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="this client's private key")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("--retry-errors", action="store_true",
-                        help="rerun this design's points stored as failed (finished points, and other "
-                             "designs' points in the same store, are always kept)")
-    parser.add_argument("--max-points", type=int_in(1, MAX_POINTS), default=None, metavar="N",
-                        help="refuse sweeps of more than N design points (default: [run] max_points)")
+    parser.add_argument(
+        "--retry-errors",
+        action="store_true",
+        help="rerun this design's points stored as failed (finished points, and other "
+        "designs' points in the same store, are always kept)",
+    )
+    parser.add_argument(
+        "--max-points",
+        type=int_in(1, MAX_POINTS),
+        default=None,
+        metavar="N",
+        help="refuse sweeps of more than N design points (default: [run] max_points)",
+    )
 
 
 def security_from_args(args: argparse.Namespace) -> Any:

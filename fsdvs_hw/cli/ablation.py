@@ -26,35 +26,68 @@ DESCRIPTION = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tasks", nargs="+", default=["detection", "recognition"], help="tasks (default: both)")
-    parser.add_argument("--sizes", nargs="+", type=int_in(1, MAX_KERNEL_SIZE), default=[1, 3, 5, 7, 9],
-                        help="odd kernel sizes; 1 = w/o (default 1 3 5 7 9)")
-    parser.add_argument("--seeds", nargs="+", type=int_in(0, MAX_SEED), default=[0, 1, 2],
-                        help=f"training seeds, each 0..{MAX_SEED} (default 0 1 2)")
+    parser.add_argument(
+        "--sizes",
+        nargs="+",
+        type=int_in(1, MAX_KERNEL_SIZE),
+        default=[1, 3, 5, 7, 9],
+        help="odd kernel sizes; 1 = w/o (default 1 3 5 7 9)",
+    )
+    parser.add_argument(
+        "--seeds",
+        nargs="+",
+        type=int_in(0, MAX_SEED),
+        default=[0, 1, 2],
+        help=f"training seeds, each 0..{MAX_SEED} (default 0 1 2)",
+    )
     parser.add_argument("--n-train", type=int_in(1, MAX_CLIPS), default=None, help="training clips (default 2048)")
     parser.add_argument("--n-test", type=int_in(1, MAX_CLIPS), default=None, help="test clips (default 2048)")
     parser.add_argument(
         "--epochs-frozen", type=int_in(0, MAX_EPOCHS), default=None, help="frozen-filter epochs (default 16)"
     )
     parser.add_argument("--epochs-joint", type=int_in(0, MAX_EPOCHS), default=None, help="joint epochs (default 16)")
-    parser.add_argument("--workers", type=int_in(1, MAX_WORKERS), default=1,
-                        help=f"local worker processes, 1..{MAX_WORKERS} (default 1)")
-    parser.add_argument("--scheduler", type=scheduler_address, default=None, metavar="tcp://HOST:PORT",
-                        help="run on a Dask distributed scheduler instead of local processes")
+    parser.add_argument(
+        "--workers",
+        type=int_in(1, MAX_WORKERS),
+        default=1,
+        help=f"local worker processes, 1..{MAX_WORKERS} (default 1)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        type=scheduler_address,
+        default=None,
+        metavar="tcp://HOST:PORT",
+        help="run on a Dask distributed scheduler instead of local processes",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("--transfer", default=None, metavar="KERNEL",
-                        help="also run the segmentation transfer with this kernel file, or 'from-run' for the "
-                             "7x7 detection kernel of the first seed learned here")
-    parser.add_argument("--frozen-tasks", nargs="*", default=[], metavar="TASK",
-                        help="with --transfer: also train these tasks' networks with that kernel frozen "
-                             "(e.g. detection recognition)")
+    parser.add_argument(
+        "--transfer",
+        default=None,
+        metavar="KERNEL",
+        help="also run the segmentation transfer with this kernel file, or 'from-run' for the "
+        "7x7 detection kernel of the first seed learned here",
+    )
+    parser.add_argument(
+        "--frozen-tasks",
+        nargs="*",
+        default=[],
+        metavar="TASK",
+        help="with --transfer: also train these tasks' networks with that kernel frozen (e.g. detection recognition)",
+    )
     parser.add_argument("--transfer-only", action="store_true", help="skip the size ablation (needs a kernel file)")
-    parser.add_argument("--frozen-only", action="store_true",
-                        help="with --transfer KERNEL_FILE: train only the frozen-kernel networks of --frozen-tasks "
-                             "(segmentation allowed), seed by seed, so any prefix of the seeds is complete for every "
-                             "task (how the exploration's networks are made)")
-    parser.add_argument("--out", type=Path, default=Path("out") / "ablation",
-                        help="folder: store (runs.sqlite), predictions/, ablation.md, ablation.json "
-                             "(default out/ablation)")
+    parser.add_argument(
+        "--frozen-only",
+        action="store_true",
+        help="with --transfer KERNEL_FILE: train only the frozen-kernel networks of --frozen-tasks "
+        "(segmentation allowed), seed by seed, so any prefix of the seeds is complete for every "
+        "task (how the exploration's networks are made)",
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("out") / "ablation",
+        help="folder: store (runs.sqlite), predictions/, ablation.md, ablation.json (default out/ablation)",
+    )
     parser.add_argument(
         "--ship-dir",
         type=Path,
@@ -64,16 +97,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "into designs/kernels to ship them (default: not saved)",
     )
     parser.add_argument("--from-store", action="store_true", help="do not train: rebuild the tables from the store")
-    parser.add_argument("--design", type=Path, default=None, metavar="FILE",
-                        help="ablate on the user data of this design's [tasks.datasets.TASK] (with a train table; "
-                             "one --tasks entry): one network per --sizes x --seeds (--workers local processes), gains "
-                             "over w/o with paired-clip CIs; the synthetic-only options are refused")
+    parser.add_argument(
+        "--design",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="ablate on the user data of this design's [tasks.datasets.TASK] (with a train table; "
+        "one --tasks entry): one network per --sizes x --seeds (--workers local processes), gains "
+        "over w/o with paired-clip CIs; the synthetic-only options are refused",
+    )
 
 
 #: Options of the synthetic ablation (refused with --design, which sets clips and epochs in its train table).
-_SYNTHETIC_ONLY: dict[str, Any] = {"n_train": None, "n_test": None, "epochs_frozen": None, "epochs_joint": None,
-                   "scheduler": None, "transfer": None, "frozen_tasks": [], "transfer_only": False,
-                   "frozen_only": False, "ship_dir": None, "from_store": False}
+_SYNTHETIC_ONLY: dict[str, Any] = {
+    "n_train": None,
+    "n_test": None,
+    "epochs_frozen": None,
+    "epochs_joint": None,
+    "scheduler": None,
+    "transfer": None,
+    "frozen_tasks": [],
+    "transfer_only": False,
+    "frozen_only": False,
+    "ship_dir": None,
+    "from_store": False,
+}
 
 
 def _run_on_design(args: argparse.Namespace) -> int:
@@ -83,13 +131,22 @@ def _run_on_design(args: argparse.Namespace) -> int:
 
     given = [f"--{k.replace('_', '-')}" for k, v in _SYNTHETIC_ONLY.items() if getattr(args, k) != v]
     if given:
-        raise InputError(f"{' '.join(given)} with --design: not supported on user data (the design's train table "
-                         "sets clips and epochs; runs use local processes, not Dask); allowed with --design: "
-                         "--tasks TASK, --sizes, --seeds, --workers, --out")
+        raise InputError(
+            f"{' '.join(given)} with --design: not supported on user data (the design's train table "
+            "sets clips and epochs; runs use local processes, not Dask); allowed with --design: "
+            "--tasks TASK, --sizes, --seeds, --workers, --out"
+        )
     if len(args.tasks) != 1:
         raise InputError(f"--tasks {' '.join(args.tasks)} with --design: allowed: exactly one user-data task")
-    res = run_user_ablation(load_design(args.design), args.tasks[0], args.out, sizes=args.sizes, seeds=args.seeds,
-                            verbose=not args.no_progress, workers=args.workers)
+    res = run_user_ablation(
+        load_design(args.design),
+        args.tasks[0],
+        args.out,
+        sizes=args.sizes,
+        seeds=args.seeds,
+        verbose=not args.no_progress,
+        workers=args.workers,
+    )
     print(res["markdown"])
     return 0
 
@@ -102,11 +159,25 @@ def run(args: argparse.Namespace) -> int:
 
     cmd = "fsdvs-hw ablation " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "fsdvs-hw ablation"
     options = AblationOptions(
-        tasks=tuple(args.tasks), sizes=tuple(args.sizes), seeds=tuple(args.seeds), n_train=args.n_train,
-        n_test=args.n_test, epochs_frozen=args.epochs_frozen, epochs_joint=args.epochs_joint, workers=args.workers,
-        scheduler=args.scheduler, progress=False if args.no_progress else None, transfer=args.transfer,
-        frozen_tasks=tuple(args.frozen_tasks), transfer_only=args.transfer_only, frozen_only=args.frozen_only,
-        out=args.out, ship_dir=args.ship_dir, from_store=args.from_store, command=cmd)
+        tasks=tuple(args.tasks),
+        sizes=tuple(args.sizes),
+        seeds=tuple(args.seeds),
+        n_train=args.n_train,
+        n_test=args.n_test,
+        epochs_frozen=args.epochs_frozen,
+        epochs_joint=args.epochs_joint,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=False if args.no_progress else None,
+        transfer=args.transfer,
+        frozen_tasks=tuple(args.frozen_tasks),
+        transfer_only=args.transfer_only,
+        frozen_only=args.frozen_only,
+        out=args.out,
+        ship_dir=args.ship_dir,
+        from_store=args.from_store,
+        command=cmd,
+    )
     study = run_ablation_study(options)
     print(study.markdown)
     return 0

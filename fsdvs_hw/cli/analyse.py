@@ -31,14 +31,23 @@ Example:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("kernel", metavar="KERNEL_OR_REFERENCE", help="kernel file or reference spec (see above)")
-    p.add_argument("--pitch-um", type=float, default=None,
-                   help="pixel pitch in micrometres (default: the file's, else 4.86)")
-    p.add_argument("--focal-mm", type=float, default=None,
-                   help="lens focal length in millimetres; ties cycles/pixel to cycles/degree "
-                        "(without it the best scale is fitted and reported)")
-    p.add_argument("--csf", action="append", default=None, metavar="MODEL",
-                   help="CSF model (repeatable; default all: mannos_sakrison_1974, barten_1999, "
-                        "daly_1993, watson_ahumada_2005)")
+    p.add_argument(
+        "--pitch-um", type=float, default=None, help="pixel pitch in micrometres (default: the file's, else 4.86)"
+    )
+    p.add_argument(
+        "--focal-mm",
+        type=float,
+        default=None,
+        help="lens focal length in millimetres; ties cycles/pixel to cycles/degree "
+        "(without it the best scale is fitted and reported)",
+    )
+    p.add_argument(
+        "--csf",
+        action="append",
+        default=None,
+        metavar="MODEL",
+        help="CSF model (repeatable; default all: mannos_sakrison_1974, barten_1999, daly_1993, watson_ahumada_2005)",
+    )
     p.add_argument("--out", type=Path, default=None, help="directory for PNG figures and metrics.json")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of the table")
 

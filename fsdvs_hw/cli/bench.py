@@ -34,17 +34,27 @@ DESCRIPTION = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("names", nargs="*", default=["all"], metavar="NAME",
-                        help=f"benchmarks to run: {_NAMES} or all (default)")
+    parser.add_argument(
+        "names", nargs="*", default=["all"], metavar="NAME", help=f"benchmarks to run: {_NAMES} or all (default)"
+    )
     parser.add_argument("--quick", action="store_true", help="small problem sizes (smoke test)")
-    parser.add_argument("--long", action="store_true",
-                        help="also the long cases of benches that have them (sim: the 2-minute clip written to "
-                             ".aedat4/.h5 and streaming memory, tens of minutes); default runs finish in minutes")
+    parser.add_argument(
+        "--long",
+        action="store_true",
+        help="also the long cases of benches that have them (sim: the 2-minute clip written to "
+        ".aedat4/.h5 and streaming memory, tens of minutes); default runs finish in minutes",
+    )
     parser.add_argument("--out", type=Path, default=None, help="also write the Markdown to this file")
-    parser.add_argument("--json", type=Path, default=None, metavar="PATH",
-                        help="also write the benchmark records (JSON) to this file")
-    parser.add_argument("--figures", type=Path, default=None, metavar="DIR",
-                        help="folder for the figures a bench draws (default: next to --out, else out/bench)")
+    parser.add_argument(
+        "--json", type=Path, default=None, metavar="PATH", help="also write the benchmark records (JSON) to this file"
+    )
+    parser.add_argument(
+        "--figures",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="folder for the figures a bench draws (default: next to --out, else out/bench)",
+    )
 
 
 def load_benchmarks() -> ModuleType:
@@ -59,8 +69,10 @@ def load_benchmarks() -> ModuleType:
     root = Path(__file__).resolve().parents[2]
     folder = root / "benchmarks"
     if not (folder / "__init__.py").is_file():
-        raise InputError(f"fsdvs-hw bench runs the benchmarks of a source checkout ({folder} not found: "
-                         "an installed wheel does not ship them); clone the repository and run it there")
+        raise InputError(
+            f"fsdvs-hw bench runs the benchmarks of a source checkout ({folder} not found: "
+            "an installed wheel does not ship them); clone the repository and run it there"
+        )
     if str(root) not in sys.path:
         sys.path.insert(0, str(root))
     module = importlib.import_module("benchmarks")

@@ -28,17 +28,32 @@ DESCRIPTION = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("design", type=Path, nargs="?", default=None,
-                        help="TOML design file, or the name of a shipped design (default: the embedded "
-                             "designs/default.toml)")
-    parser.add_argument("--out", type=Path, default=Path("out/explore"), metavar="DIR",
-                        help="output folder (default: %(default)s)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="replace one design key for this run (dotted key, TOML value: "
-                             "--set asic.bits=6 --set 'tasks.n_test={detection=16}'); repeatable")
-    parser.add_argument("--device", choices=("cpu", "cuda"), default=None,
-                        help="run the simulator and the network of every [tasks.datasets.<task>] (user data) on "
-                             "this device (default: each table's 'device', cpu unless set)")
+    parser.add_argument(
+        "design",
+        type=Path,
+        nargs="?",
+        default=None,
+        help="TOML design file, or the name of a shipped design (default: the embedded designs/default.toml)",
+    )
+    parser.add_argument(
+        "--out", type=Path, default=Path("out/explore"), metavar="DIR", help="output folder (default: %(default)s)"
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="replace one design key for this run (dotted key, TOML value: "
+        "--set asic.bits=6 --set 'tasks.n_test={detection=16}'); repeatable",
+    )
+    parser.add_argument(
+        "--device",
+        choices=("cpu", "cuda"),
+        default=None,
+        help="run the simulator and the network of every [tasks.datasets.<task>] (user data) on "
+        "this device (default: each table's 'device', cpu unless set)",
+    )
     add_execution_arguments(parser)
 
 
@@ -80,8 +95,10 @@ def with_device(design: Any, device: str) -> Any:
     """
     user = design.spec.tasks.datasets
     if not user:
-        raise InputError(f"--device {device}: {design.source} has no [tasks.datasets.<task>] table; allowed: "
-                         "--device with user-data tasks (tasks from tasks.checkpoints are scored on the CPU)")
+        raise InputError(
+            f"--device {device}: {design.source} has no [tasks.datasets.<task>] table; allowed: "
+            "--device with user-data tasks (tasks from tasks.checkpoints are scored on the CPU)"
+        )
     return design.with_overrides({f"tasks.datasets.{t}": {**e.model_dump(), "device": device} for t, e in user.items()})
 
 
@@ -114,7 +131,9 @@ def run(args: argparse.Namespace) -> int:
     nets = networks_note(res.points)
     if nets:
         print(f"losses measured in: {nets}\n")
-    print(f"report: {res.report}\nscores: {res.scores_csv}, {res.scores_json}\nstore:  {res.store}\n"
-          f"artifacts: {res.artifacts_index}\n"
-          f"total {res.wall_s:.1f} s")
+    print(
+        f"report: {res.report}\nscores: {res.scores_csv}, {res.scores_json}\nstore:  {res.store}\n"
+        f"artifacts: {res.artifacts_index}\n"
+        f"total {res.wall_s:.1f} s"
+    )
     return 0 if res.summary.statuses.get("error", 0) == 0 else 1

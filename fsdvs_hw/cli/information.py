@@ -12,8 +12,10 @@ from .rate import _threshold
 
 __all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
-HELP = ("mutual information (bits/pixel) between ground truth and a reconstruction from events, and bits per "
-        "event, for w/o, the learned kernel and its realisations, with 95 % CIs; resumable")
+HELP = (
+    "mutual information (bits/pixel) between ground truth and a reconstruction from events, and bits per "
+    "event, for w/o, the learned kernel and its realisations, with 95 % CIs; resumable"
+)
 DESCRIPTION = (
     "Train a small reconstruction network (events -> intensity) per kernel condition (w/o = 1x1 delta,\n"
     "the design's learned kernel, each realisation, and w/o with its threshold lowered to the learned\n"
@@ -34,16 +36,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--n-test", type=int_in(2, MAX_CLIPS), default=64, help="test clips (shared by all networks)")
     parser.add_argument("--epochs", type=int_in(1, 10_000), default=16, help="training epochs per network")
     parser.add_argument("--width", type=int_in(4, 256), default=16, help="network width (channels)")
-    parser.add_argument("--realisations", nargs="*", default=["mesh", "asic", "metalens"],
-                        help="realisations to add (fitted with the design's options)")
-    parser.add_argument("--no-matched-rate", action="store_true",
-                        help="leave out w/o retrained at the learned kernel's event rate")
-    parser.add_argument("--rate-thresholds", nargs="+", type=_threshold, default=list(DEFAULT_RATE_THRESHOLDS),
-                        help="ON=OFF thresholds (log units) along which the w/o rate is measured for the match")
+    parser.add_argument(
+        "--realisations",
+        nargs="*",
+        default=["mesh", "asic", "metalens"],
+        help="realisations to add (fitted with the design's options)",
+    )
+    parser.add_argument(
+        "--no-matched-rate", action="store_true", help="leave out w/o retrained at the learned kernel's event rate"
+    )
+    parser.add_argument(
+        "--rate-thresholds",
+        nargs="+",
+        type=_threshold,
+        default=list(DEFAULT_RATE_THRESHOLDS),
+        help="ON=OFF thresholds (log units) along which the w/o rate is measured for the match",
+    )
     parser.add_argument("--bins", type=int_in(2, 4096), default=32, help="equal-mass bins per axis of the MI estimator")
     parser.add_argument("--n-resamples", type=int_in(100, 1_000_000), default=2000, help="bootstrap resamples per CI")
-    parser.add_argument("--out", type=Path, default=Path("out") / "info",
-                        help="folder: networks/, evidence/, kernels/, information.json/.csv")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("out") / "info",
+        help="folder: networks/, evidence/, kernels/, information.json/.csv",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -54,11 +70,24 @@ def run(args: argparse.Namespace) -> int:
     # one thread: on a shared machine PyTorch's second thread spins (measured ~10x the CPU time)
     torch.set_num_threads(1)
     cmd = "fsdvs-hw information " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "fsdvs-hw information"
-    study = run_information_study(InformationOptions(
-        design=args.design, out=args.out, n_networks=args.networks, n_train=args.n_train, n_test=args.n_test,
-        epochs=args.epochs, width=args.width, realisations=tuple(args.realisations),
-        matched_rate=not args.no_matched_rate, rate_thresholds=tuple(args.rate_thresholds), n_bins=args.bins,
-        n_resamples=args.n_resamples, progress=False if args.no_progress else None, command=cmd))
+    study = run_information_study(
+        InformationOptions(
+            design=args.design,
+            out=args.out,
+            n_networks=args.networks,
+            n_train=args.n_train,
+            n_test=args.n_test,
+            epochs=args.epochs,
+            width=args.width,
+            realisations=tuple(args.realisations),
+            matched_rate=not args.no_matched_rate,
+            rate_thresholds=tuple(args.rate_thresholds),
+            n_bins=args.bins,
+            n_resamples=args.n_resamples,
+            progress=False if args.no_progress else None,
+            command=cmd,
+        )
+    )
     print(study.text)
     for path in study.files.values():
         print(f"wrote {path}")

@@ -27,8 +27,18 @@ DESCRIPTION = (
 )
 
 #: Options of the synthetic-data run (refused with --design: the design's train table sets them).
-_SYNTHETIC_ONLY = ("size", "seed", "n_train", "n_test", "epochs_frozen", "epochs_joint", "lr_filter", "out",
-                   "realisation", "init_kernel")
+_SYNTHETIC_ONLY = (
+    "size",
+    "seed",
+    "n_train",
+    "n_test",
+    "epochs_frozen",
+    "epochs_joint",
+    "lr_filter",
+    "out",
+    "realisation",
+    "init_kernel",
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -36,8 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--size", type=int_in(1, MAX_KERNEL_SIZE), default=None, help="odd kernel size in pixels (default 7; 1 = w/o)"
     )
-    parser.add_argument("--seed", type=int_in(0, MAX_SEED), default=None,
-                        help=f"training seed, 0..{MAX_SEED} (default 0)")
+    parser.add_argument(
+        "--seed", type=int_in(0, MAX_SEED), default=None, help=f"training seed, 0..{MAX_SEED} (default 0)"
+    )
     parser.add_argument("--n-train", type=int_in(1, MAX_CLIPS), default=None, help="training clips (default 2048)")
     parser.add_argument("--n-test", type=int_in(1, MAX_CLIPS), default=None, help="test clips (default 2048)")
     parser.add_argument(
@@ -46,14 +57,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--epochs-joint", type=int_in(0, MAX_EPOCHS), default=None, help="joint epochs")
     parser.add_argument("--lr-filter", type=float, default=None, help="filter learning rate")
     parser.add_argument("--out", type=Path, default=None, help="file stem for kernel/checkpoint/provenance")
-    parser.add_argument("--realisation", default=None, metavar="NAME",
-                        help="co-design: fit this realisation (mesh, asic, metalens) to --init-kernel, then train "
-                             "the network and the realisation's own parameters together")
-    parser.add_argument("--init-kernel", type=Path, default=None, metavar="FILE",
-                        help="kernel file to start from (with --realisation: the kernel it is first fitted to)")
-    parser.add_argument("--design", type=Path, default=None, metavar="FILE",
-                        help="train on the user data of this design's [tasks.datasets.TASK] (its train table sets "
-                             "the protocol; the kernel and network go to train.out); the options above are refused")
+    parser.add_argument(
+        "--realisation",
+        default=None,
+        metavar="NAME",
+        help="co-design: fit this realisation (mesh, asic, metalens) to --init-kernel, then train "
+        "the network and the realisation's own parameters together",
+    )
+    parser.add_argument(
+        "--init-kernel",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="kernel file to start from (with --realisation: the kernel it is first fitted to)",
+    )
+    parser.add_argument(
+        "--design",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="train on the user data of this design's [tasks.datasets.TASK] (its train table sets "
+        "the protocol; the kernel and network go to train.out); the options above are refused",
+    )
 
 
 def _run_on_design(args: argparse.Namespace) -> int:
@@ -65,22 +90,44 @@ def _run_on_design(args: argparse.Namespace) -> int:
 
     given = [f"--{k.replace('_', '-')}" for k in _SYNTHETIC_ONLY if getattr(args, k) is not None]
     if given:
-        raise InputError(f"{' '.join(given)} with --design: the design's [tasks.datasets.{args.task}] train table "
-                         "sets the protocol and train.out the files; allowed: no other option with --design")
+        raise InputError(
+            f"{' '.join(given)} with --design: the design's [tasks.datasets.{args.task}] train table "
+            "sets the protocol and train.out the files; allowed: no other option with --design"
+        )
     design = load_design(args.design)
     user = design.spec.tasks.datasets
     if args.task not in user:
-        raise InputError(f"--design {args.design}: no [tasks.datasets.{args.task}] table; allowed tasks: "
-                         f"{', '.join(user) or 'none'}")
+        raise InputError(
+            f"--design {args.design}: no [tasks.datasets.{args.task}] table; allowed tasks: {', '.join(user) or 'none'}"
+        )
     entry = user[args.task].model_dump()
     res = train_user_task(args.task, entry, design.base_dir, confine=design.confine_paths, verbose=True)
-    ds = open_dataset(entry["dataset"], design.base_dir, confine=design.confine_paths,
-                      key=f"tasks.datasets.{args.task}.dataset")
-    scored = evaluate_on_dataset(res.kernel, args.task, ds, res.network, n_clips=entry["n_clips"] or None,
-                                 seed=entry["seed"], device=entry["device"])
-    print(json.dumps({"task": args.task, "size": res.kernel.size, "n_train": len(res.train_indices),
-                      "n_scored": len(scored.clip_indices), "epochs_trained_now": res.epochs_trained,
-                      "metrics": scored.metrics, "files": {k: str(v) for k, v in res.paths.items()}}, indent=1))
+    ds = open_dataset(
+        entry["dataset"], design.base_dir, confine=design.confine_paths, key=f"tasks.datasets.{args.task}.dataset"
+    )
+    scored = evaluate_on_dataset(
+        res.kernel,
+        args.task,
+        ds,
+        res.network,
+        n_clips=entry["n_clips"] or None,
+        seed=entry["seed"],
+        device=entry["device"],
+    )
+    print(
+        json.dumps(
+            {
+                "task": args.task,
+                "size": res.kernel.size,
+                "n_train": len(res.train_indices),
+                "n_scored": len(scored.clip_indices),
+                "epochs_trained_now": res.epochs_trained,
+                "metrics": scored.metrics,
+                "files": {k: str(v) for k, v in res.paths.items()},
+            },
+            indent=1,
+        )
+    )
     return 0
 
 
@@ -100,11 +147,36 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:  # checked before training: STEM.json etc. must be writable
         output_file(Path(str(args.out) + ".json"), flag="--out")
     torch.set_num_threads(1)
-    kw = {k: v for k, v in (("epochs_frozen", args.epochs_frozen), ("epochs_joint", args.epochs_joint),
-                            ("lr_filter", args.lr_filter)) if v is not None}
-    res = learn_kernel(args.task, args.size, seed=args.seed, n_train=args.n_train, n_test=args.n_test,
-                       settings=TrainingSettings(**kw), out=args.out, verbose=True,
-                       init_kernel=args.init_kernel, realisation=args.realisation)
-    print(json.dumps({"task": args.task, "size": args.size, "metrics": res.metrics,
-                      "files": {k: str(v) for k, v in res.paths.items()}}, indent=1))
+    kw = {
+        k: v
+        for k, v in (
+            ("epochs_frozen", args.epochs_frozen),
+            ("epochs_joint", args.epochs_joint),
+            ("lr_filter", args.lr_filter),
+        )
+        if v is not None
+    }
+    res = learn_kernel(
+        args.task,
+        args.size,
+        seed=args.seed,
+        n_train=args.n_train,
+        n_test=args.n_test,
+        settings=TrainingSettings(**kw),
+        out=args.out,
+        verbose=True,
+        init_kernel=args.init_kernel,
+        realisation=args.realisation,
+    )
+    print(
+        json.dumps(
+            {
+                "task": args.task,
+                "size": args.size,
+                "metrics": res.metrics,
+                "files": {k: str(v) for k, v in res.paths.items()},
+            },
+            indent=1,
+        )
+    )
     return 0

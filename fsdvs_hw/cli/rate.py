@@ -39,47 +39,98 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("design", type=Path, help="TOML design file, or a shipped design's name (default)")
     parser.add_argument("--task", default="detection", help="task of the design's checkpoints")
-    parser.add_argument("--thresholds", nargs="+", type=_threshold, default=list(DEFAULT_THRESHOLDS),
-                        help="ON=OFF contrast thresholds, log units (the design's threshold is added)")
-    parser.add_argument("--networks", type=int_in(1, 10_000), default=None,
-                        help="use the first N networks of the task (default: all)")
-    parser.add_argument("--n-test", type=int_in(2, MAX_CLIPS), default=None,
-                        help="test clips per network (default: the design's tasks.n_test)")
+    parser.add_argument(
+        "--thresholds",
+        nargs="+",
+        type=_threshold,
+        default=list(DEFAULT_THRESHOLDS),
+        help="ON=OFF contrast thresholds, log units (the design's threshold is added)",
+    )
+    parser.add_argument(
+        "--networks", type=int_in(1, 10_000), default=None, help="use the first N networks of the task (default: all)"
+    )
+    parser.add_argument(
+        "--n-test",
+        type=int_in(2, MAX_CLIPS),
+        default=None,
+        help="test clips per network (default: the design's tasks.n_test)",
+    )
     parser.add_argument(
         "--realisations", nargs="*", default=[], help="also curve these realisations (mesh asic metalens)"
     )
-    parser.add_argument("--protocol", choices=["fixed", "retrained"], default="fixed",
-                        help="fixed: every kernel zero-shot in the design's networks; retrained: networks trained per "
-                        "kernel, threshold and seed (w/o and learned; minutes per network)")
-    parser.add_argument("--seeds", type=int_in(1, 1000), default=3,
-                        help="retrained protocol: networks (training seeds 0..N-1) per kernel and threshold")
-    parser.add_argument("--n-train", type=int_in(2, MAX_CLIPS), default=2048,
-                        help="retrained protocol: training clips per network")
-    parser.add_argument("--zero-shot", action="store_true",
-                        help="retrained protocol: also swap the learned kernel into the w/o networks, threshold swept")
-    parser.add_argument("--illuminance-lux", type=float, default=None,
-                        help="fixed protocol: photon shot noise of the scene at this sensor-plane illuminance (lx, at "
-                        "full scale), and noise_budget.json (which noise fires the events at each threshold)")
-    parser.add_argument("--quantum-efficiency", type=float, default=0.5,
-                        help="photoelectrons per photon for --illuminance-lux")
-    parser.add_argument("--resolution", nargs=2, type=int_in(1, 100_000), default=[720, 1280], metavar=("H", "W"),
-                        help="sensor size for the Mev/s column")
+    parser.add_argument(
+        "--protocol",
+        choices=["fixed", "retrained"],
+        default="fixed",
+        help="fixed: every kernel zero-shot in the design's networks; retrained: networks trained per "
+        "kernel, threshold and seed (w/o and learned; minutes per network)",
+    )
+    parser.add_argument(
+        "--seeds",
+        type=int_in(1, 1000),
+        default=3,
+        help="retrained protocol: networks (training seeds 0..N-1) per kernel and threshold",
+    )
+    parser.add_argument(
+        "--n-train", type=int_in(2, MAX_CLIPS), default=2048, help="retrained protocol: training clips per network"
+    )
+    parser.add_argument(
+        "--zero-shot",
+        action="store_true",
+        help="retrained protocol: also swap the learned kernel into the w/o networks, threshold swept",
+    )
+    parser.add_argument(
+        "--illuminance-lux",
+        type=float,
+        default=None,
+        help="fixed protocol: photon shot noise of the scene at this sensor-plane illuminance (lx, at "
+        "full scale), and noise_budget.json (which noise fires the events at each threshold)",
+    )
+    parser.add_argument(
+        "--quantum-efficiency", type=float, default=0.5, help="photoelectrons per photon for --illuminance-lux"
+    )
+    parser.add_argument(
+        "--resolution",
+        nargs=2,
+        type=int_in(1, 100_000),
+        default=[720, 1280],
+        metavar=("H", "W"),
+        help="sensor size for the Mev/s column",
+    )
     parser.add_argument("--n-resamples", type=int_in(100, 1_000_000), default=2000, help="bootstrap resamples per CI")
-    parser.add_argument("--out", type=Path, default=Path("out") / "rate",
-                        help="folder: points/, rate_curves.json/.csv, matched_rate.json")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("out") / "rate",
+        help="folder: points/, rate_curves.json/.csv, matched_rate.json",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     from ..explore.rate_study import RateOptions, run_rate_study
 
     cmd = "fsdvs-hw rate " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "fsdvs-hw rate"
-    study = run_rate_study(RateOptions(
-        design=args.design, task=args.task, out=args.out, thresholds=tuple(args.thresholds),
-        n_networks=args.networks, n_test=args.n_test, realisations=tuple(args.realisations),
-        illuminance_lux=args.illuminance_lux, quantum_efficiency=args.quantum_efficiency,
-        protocol=args.protocol, seeds=tuple(range(args.seeds)), n_train=args.n_train, zero_shot=args.zero_shot,
-        resolution_px=(args.resolution[0], args.resolution[1]), n_resamples=args.n_resamples,
-        progress=False if args.no_progress else None, command=cmd))
+    study = run_rate_study(
+        RateOptions(
+            design=args.design,
+            task=args.task,
+            out=args.out,
+            thresholds=tuple(args.thresholds),
+            n_networks=args.networks,
+            n_test=args.n_test,
+            realisations=tuple(args.realisations),
+            illuminance_lux=args.illuminance_lux,
+            quantum_efficiency=args.quantum_efficiency,
+            protocol=args.protocol,
+            seeds=tuple(range(args.seeds)),
+            n_train=args.n_train,
+            zero_shot=args.zero_shot,
+            resolution_px=(args.resolution[0], args.resolution[1]),
+            n_resamples=args.n_resamples,
+            progress=False if args.no_progress else None,
+            command=cmd,
+        )
+    )
     print(study.text)
     for _name, path in study.files.items():
         print(f"wrote {path}")

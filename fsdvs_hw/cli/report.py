@@ -21,13 +21,25 @@ DESCRIPTION = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("design", type=Path, help="the TOML design file the run used")
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR",
-                        help="output folder of the earlier run (holds scores.json)")
-    parser.add_argument("--to", type=Path, default=None, metavar="DIR",
-                        help="folder to write the report into (default: replace the report in --out)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="the --set options the run used (the design must match the run's: a report of "
-                             "another design is refused); repeatable")
+    parser.add_argument(
+        "--out", type=Path, required=True, metavar="DIR", help="output folder of the earlier run (holds scores.json)"
+    )
+    parser.add_argument(
+        "--to",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="folder to write the report into (default: replace the report in --out)",
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="the --set options the run used (the design must match the run's: a report of "
+        "another design is refused); repeatable",
+    )
 
 
 def run(args: argparse.Namespace) -> int:

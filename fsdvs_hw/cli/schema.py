@@ -19,8 +19,9 @@ DESCRIPTION = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, default=None, metavar="FILE",
-                        help="file to write (its folder is created; default: stdout)")
+    parser.add_argument(
+        "--out", type=Path, default=None, metavar="FILE", help="file to write (its folder is created; default: stdout)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -47,33 +47,67 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("video", help="video file, or example:NAME")
     parser.add_argument("--out", type=Path, required=True, help="event file (.h5, .hdf5, .aedat4 or .npz)")
-    parser.add_argument("--kernel", default=None, help="kernel file or reference spec (as `fsdvs-hw analyse`); "
-                        "default: none (plain DVS)")
-    parser.add_argument("--placement", choices=("pre_log", "post_log"), default=None,
-                        help="kernel placement (default: the preset's, pre_log)")
+    parser.add_argument(
+        "--kernel",
+        default=None,
+        help="kernel file or reference spec (as `fsdvs-hw analyse`); default: none (plain DVS)",
+    )
+    parser.add_argument(
+        "--placement",
+        choices=("pre_log", "post_log"),
+        default=None,
+        help="kernel placement (default: the preset's, pre_log)",
+    )
     parser.add_argument("--preset", choices=PRESETS, default="default", help="sensor settings (default: default)")
     parser.add_argument("--seed", type=int, default=0, help="seed of every random effect (default 0)")
     parser.add_argument("--start-frame", type=int, default=0, help="first frame (default 0)")
     parser.add_argument("--frames", type=int, default=None, help="number of frames (default: to the end)")
     parser.add_argument("--size", default=None, help="resize to HxW (linear light), e.g. 240x320")
-    parser.add_argument("--peak-intensity", type=float, default=1.0,
-                        help="intensity of display white (full scale 1.0; lower for a dim scene)")
-    parser.add_argument("--input-mapping", choices=INPUT_MAPPINGS, default=None,
-                        help="how code values become intensity: linear_light (display decoding) or v2e_gray "
-                             "(v2e's OpenCV gray code values / 255); default: the preset's (v2e-*: v2e_gray, "
-                             "others: linear_light)")
-    parser.add_argument("--upsample", choices=UPSAMPLE_MODES, default="none",
-                        help="insert frames before simulating: none (default), linear (in log intensity) or "
-                             "flow (DIS optical flow, both directions, occlusions by forward-backward consistency)")
-    parser.add_argument("--upsample-rate", type=float, default=400.0,
-                        help="frame rate after upsampling in Hz (default 400; in (0, 100000])")
-    parser.add_argument("--chunk-frames", type=int, default=1,
-                        help="frame intervals per chunk (default 1; peak memory grows with the events of one chunk)")
-    parser.add_argument("--threads", type=int, default=None,
-                        help="torch intra-op threads (default: CPU cores minus 2, at least 1: the event list's "
-                             "emit and sort worker threads take the rest)")
-    parser.add_argument("--allow-truncated", action="store_true",
-                        help="simulate the decodable frames of a truncated or corrupt video instead of refusing it")
+    parser.add_argument(
+        "--peak-intensity",
+        type=float,
+        default=1.0,
+        help="intensity of display white (full scale 1.0; lower for a dim scene)",
+    )
+    parser.add_argument(
+        "--input-mapping",
+        choices=INPUT_MAPPINGS,
+        default=None,
+        help="how code values become intensity: linear_light (display decoding) or v2e_gray "
+        "(v2e's OpenCV gray code values / 255); default: the preset's (v2e-*: v2e_gray, "
+        "others: linear_light)",
+    )
+    parser.add_argument(
+        "--upsample",
+        choices=UPSAMPLE_MODES,
+        default="none",
+        help="insert frames before simulating: none (default), linear (in log intensity) or "
+        "flow (DIS optical flow, both directions, occlusions by forward-backward consistency)",
+    )
+    parser.add_argument(
+        "--upsample-rate",
+        type=float,
+        default=400.0,
+        help="frame rate after upsampling in Hz (default 400; in (0, 100000])",
+    )
+    parser.add_argument(
+        "--chunk-frames",
+        type=int,
+        default=1,
+        help="frame intervals per chunk (default 1; peak memory grows with the events of one chunk)",
+    )
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="torch intra-op threads (default: CPU cores minus 2, at least 1: the event list's "
+        "emit and sort worker threads take the rest)",
+    )
+    parser.add_argument(
+        "--allow-truncated",
+        action="store_true",
+        help="simulate the decodable frames of a truncated or corrupt video instead of refusing it",
+    )
     parser.add_argument(
         "--no-progress", action="store_true", help="no progress bar (none either when stderr is not a terminal)"
     )
@@ -103,8 +137,10 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
     cores = os.cpu_count() or 1
     if args.threads is not None and not 1 <= args.threads <= MAX_THREADS_PER_CORE * cores:
-        raise InputError(f"--threads {args.threads}: must be in [1, {MAX_THREADS_PER_CORE * cores}] "
-                         f"({MAX_THREADS_PER_CORE} x the {cores} CPU cores)")
+        raise InputError(
+            f"--threads {args.threads}: must be in [1, {MAX_THREADS_PER_CORE * cores}] "
+            f"({MAX_THREADS_PER_CORE} x the {cores} CPU cores)"
+        )
     if not 0 <= args.seed <= MAX_SEED:
         raise InputError(f"--seed {args.seed}: must be in [0, {MAX_SEED}] (2**32 - 1)")
     if args.start_frame < 0:
@@ -176,9 +212,15 @@ def run(args: argparse.Namespace) -> int:
     kernel = load_kernel_or_reference(args.kernel) if args.kernel else None
     props = video_properties(path)
     mapping = args.input_mapping or preset_input_mapping(args.preset)
-    frames = iter_video(path, start_frame=args.start_frame, n_frames=args.frames, size=size,
-                        peak_intensity=args.peak_intensity, allow_truncated=args.allow_truncated,
-                        input_mapping=mapping)
+    frames = iter_video(
+        path,
+        start_frame=args.start_frame,
+        n_frames=args.frames,
+        size=size,
+        peak_intensity=args.peak_intensity,
+        allow_truncated=args.allow_truncated,
+        input_mapping=mapping,
+    )
     if args.upsample != "none":
         frames = upsample_frames(frames, mode=args.upsample, rate_hz=args.upsample_rate)
     total = props.get("nframes")
@@ -195,11 +237,20 @@ def run(args: argparse.Namespace) -> int:
                 if stopped:  # the signal's exception was swallowed on its way up
                     raise _Stopped(stopped[0])
                 if writer is None:
-                    writer = EventFileWriter(args.out, chunk.width, chunk.height,
-                                             metadata={"source": str(path), "preset": args.preset,
-                                                       "kernel": args.kernel or "none", "input_mapping": mapping,
-                                                       "upsample": args.upsample if args.upsample == "none"
-                                                       else f"{args.upsample} {args.upsample_rate:g} Hz"})
+                    writer = EventFileWriter(
+                        args.out,
+                        chunk.width,
+                        chunk.height,
+                        metadata={
+                            "source": str(path),
+                            "preset": args.preset,
+                            "kernel": args.kernel or "none",
+                            "input_mapping": mapping,
+                            "upsample": args.upsample
+                            if args.upsample == "none"
+                            else f"{args.upsample} {args.upsample_rate:g} Hz",
+                        },
+                    )
                 assert chunk.events is not None  # simulate() yields events by default (events=True)
                 writer.write(chunk.events)
                 n_events += len(chunk.events)
@@ -215,8 +266,10 @@ def run(args: argparse.Namespace) -> int:
             if writer is not None:
                 writer.abort()
             bar.close()
-            print(f"fsdvs-hw simulate: stopped by {signal.Signals(exc.signum).name}; nothing written to {args.out}",
-                  file=sys.stderr)
+            print(
+                f"fsdvs-hw simulate: stopped by {signal.Signals(exc.signum).name}; nothing written to {args.out}",
+                file=sys.stderr,
+            )
             return 128 + exc.signum
         except BaseException:
             if writer is not None:

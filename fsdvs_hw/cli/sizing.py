@@ -24,12 +24,19 @@ DESCRIPTION = (
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("design", type=Path, help="TOML design file, or a shipped design's name (default)")
     parser.add_argument("--pilot", type=int_in(1, MAX_CLIPS), default=512, help="pilot test clips per task and network")
-    parser.add_argument("--target", type=float, default=None,
-                        help="CI half-width (default: the design's [scoring] target_half_width)")
+    parser.add_argument(
+        "--target", type=float, default=None, help="CI half-width (default: the design's [scoring] target_half_width)"
+    )
     parser.add_argument("--margin", type=float, default=1.15, help="safety factor on the clip count")
     parser.add_argument("--out", type=Path, default=Path("out/sizing"), metavar="DIR", help="pilot output folder")
-    parser.add_argument("--from", dest="from_run", type=Path, default=None, metavar="DIR",
-                        help="size from a finished exploration's DIR/results.sqlite (e.g. out/demo) instead of a pilot")
+    parser.add_argument(
+        "--from",
+        dest="from_run",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="size from a finished exploration's DIR/results.sqlite (e.g. out/demo) instead of a pilot",
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -27,10 +27,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=Path,
         help="TOML design file with a [sweep] section, or a shipped design's name (sweep_asic_bits)",
     )
-    parser.add_argument("--store", type=Path, default=None,
-                        help="SQLite results file (default: out/sweeps/<design name, made file-safe>.sqlite)")
-    parser.add_argument("--report", type=Path, default=None, metavar="DIR",
-                        help="also write the HTML report of the stored points to DIR")
+    parser.add_argument(
+        "--store",
+        type=Path,
+        default=None,
+        help="SQLite results file (default: out/sweeps/<design name, made file-safe>.sqlite)",
+    )
+    parser.add_argument(
+        "--report",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="also write the HTML report of the stored points to DIR",
+    )
     add_execution_arguments(parser)
 
 
@@ -64,8 +73,13 @@ def run(args: argparse.Namespace) -> int:
         from ..report import write_report
 
         sc = design.spec.scoring
-        rows = with_paired_losses(rows, task_weights=sc.task_weights or None, n_resamples=sc.n_resamples,
-                                  confidence=sc.confidence, rng=design.spec.run.seed)
+        rows = with_paired_losses(
+            rows,
+            task_weights=sc.task_weights or None,
+            n_resamples=sc.n_resamples,
+            confidence=sc.confidence,
+            rng=design.spec.run.seed,
+        )
         rows = with_physical_costs(rows, design)
         print(f"[sweep] report: {write_report(rows, design, args.report)}", file=sys.stderr, flush=True)
     return 0 if summary.statuses.get("error", 0) == 0 else 1

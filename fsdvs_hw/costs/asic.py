@@ -46,8 +46,9 @@ from .record import CostFigure
 __all__ = ["asic_cost"]
 
 
-def asic_cost(items: Mapping[str, float], a: CostAssumptions, *, kernel_size: int,
-              input_bits: int = 8) -> tuple[dict[str, CostFigure], list[str]]:
+def asic_cost(
+    items: Mapping[str, float], a: CostAssumptions, *, kernel_size: int, input_bits: int = 8
+) -> tuple[dict[str, CostFigure], list[str]]:
     """Power, area and latency figures of a fitted ASIC datapath (module docstring).
 
     Parameters
@@ -77,15 +78,18 @@ def asic_cost(items: Mapping[str, float], a: CostAssumptions, *, kernel_size: in
     e_mem = (rows + 1) * input_bits * sram_energy_per_bit_j(node_m=node, supply_v=vdd)
     energy = e_add + e_mem
     pixel_rate = h * w * a.sample_rate_hz
-    scaled = (f"{HOROWITZ_SOURCE}, scaled as F·V² to costs.process_node_m = {node:g} m, "
-              f"costs.digital_supply_v = {vdd:g} V")
+    scaled = (
+        f"{HOROWITZ_SOURCE}, scaled as F·V² to costs.process_node_m = {node:g} m, costs.digital_supply_v = {vdd:g} V"
+    )
     src_e = f"{int(n_add)} adders at {int(b_acc)} bits + {rows + 1} line-buffer accesses of {input_bits} bits; {scaled}"
     src_p = f"energy per pixel x {h}x{w} pixels x costs.sample_rate_hz = {a.sample_rate_hz:g} Hz"
     lanes = math.ceil(pixel_rate / a.clock_hz)
     sram_bits = rows * w * input_bits
-    array_area = lanes * n_add * adder_area_m2(b_acc, node_m=node) + sram_bits * a.sram_cell_area_f2 * node ** 2
-    src_a = (f"{lanes} lane(s) x {int(n_add)} adders ({HOROWITZ_SOURCE}, scaled as F²) + {sram_bits} line-buffer "
-             f"SRAM cells x costs.sram_cell_area_f2 = {a.sram_cell_area_f2:g} F², at costs.process_node_m = {node:g} m")
+    array_area = lanes * n_add * adder_area_m2(b_acc, node_m=node) + sram_bits * a.sram_cell_area_f2 * node**2
+    src_a = (
+        f"{lanes} lane(s) x {int(n_add)} adders ({HOROWITZ_SOURCE}, scaled as F²) + {sram_bits} line-buffer "
+        f"SRAM cells x costs.sram_cell_area_f2 = {a.sram_cell_area_f2:g} F², at costs.process_node_m = {node:g} m"
+    )
     stages = math.ceil(math.log2(max(2.0, float(items.get("nonzero_taps", n_add + 1)))))
     cycles = (rows // 2) * math.ceil(w / lanes) + rows // 2 + stages
     latency = cycles / a.clock_hz + 0.5 / a.sample_rate_hz
@@ -96,11 +100,17 @@ def asic_cost(items: Mapping[str, float], a: CostAssumptions, *, kernel_size: in
         "area_m2": CostFigure(array_area / (h * w), "m^2", "array datapath area / pixel count (periphery)"),
         "array_area_m2": CostFigure(array_area, "m^2", src_a),
         "fill_factor": CostFigure(1.0, "1", "datapath in the periphery: the pixel is unchanged"),
-        "latency_s": CostFigure(latency, "s", f"{cycles} cycles (window fill + {stages} adder stages) at "
-                                f"costs.clock_hz = {a.clock_hz:g} Hz + half a sample period "
-                                f"(costs.sample_rate_hz = {a.sample_rate_hz:g} Hz)"),
+        "latency_s": CostFigure(
+            latency,
+            "s",
+            f"{cycles} cycles (window fill + {stages} adder stages) at "
+            f"costs.clock_hz = {a.clock_hz:g} Hz + half a sample period "
+            f"(costs.sample_rate_hz = {a.sample_rate_hz:g} Hz)",
+        ),
     }
     if "area_m2" in items:
-        figs["yosys_area_m2"] = CostFigure(float(items["area_m2"]), "m^2", "yosys cell area with the fit's liberty file")
+        figs["yosys_area_m2"] = CostFigure(
+            float(items["area_m2"]), "m^2", "yosys cell area with the fit's liberty file"
+        )
     figs["lanes"] = CostFigure(float(lanes), "1", f"ceil(pixel rate {pixel_rate:g} pixels/s / costs.clock_hz)")
     return figs, []

@@ -48,34 +48,69 @@ __all__ = ["CostAssumptions"]
 class CostAssumptions(StrictModel):
     """``[costs]``: assumptions of the physical cost model (fsdvs_hw.costs)."""
 
-    process_node_m: float = field(45e-9, "m", "CMOS feature size F of the ASIC and the mesh; energies scale "
-                                  "as F·V², areas as F² from Horowitz's 45 nm tables", ge=3e-9, le=1e-6)
-    digital_supply_v: float = field(0.9, "V", "supply of the digital filter (ASIC); Horowitz's tables are at 0.9 V",
-                                    ge=0.3, le=5.0)
+    process_node_m: float = field(
+        45e-9,
+        "m",
+        "CMOS feature size F of the ASIC and the mesh; energies scale "
+        "as F·V², areas as F² from Horowitz's 45 nm tables",
+        ge=3e-9,
+        le=1e-6,
+    )
+    digital_supply_v: float = field(
+        0.9, "V", "supply of the digital filter (ASIC); Horowitz's tables are at 0.9 V", ge=0.3, le=5.0
+    )
     analog_supply_v: float = field(1.8, "V", "supply the mesh's bias currents are drawn from", ge=0.3, le=5.0)
-    mesh_mismatch_sigma: float = field(0.05, "", "relative die-level mismatch σ of the mesh's conductances (the "
-                                       "mismatch-driven kernel error is the fit's sensitivity times it)",
-                                       ge=0.0, le=1.0)
+    mesh_mismatch_sigma: float = field(
+        0.05,
+        "",
+        "relative die-level mismatch σ of the mesh's conductances (the "
+        "mismatch-driven kernel error is the fit's sensitivity times it)",
+        ge=0.0,
+        le=1.0,
+    )
     temperature_k: float = field(300.0, "K", "die temperature (sets the thermal voltage kT/q)", ge=200.0, le=450.0)
-    subthreshold_slope: float = field(0.7, "", "subthreshold slope factor κ of the mesh's transistors",
-                                      gt=0.3, le=1.0)
-    transistor_area_f2: float = field(80.0, "F^2", "laid-out area of one transistor in units of F² (80: from "
-                                      "Horowitz's 8-bit adder area)", ge=10.0, le=10000.0)
-    capacitor_density_f_m2: float = field(2e-3, "F/m^2", "capacitance per area of the mesh's node capacitors "
-                                          "(2 fF/µm²: a MIM capacitor)", ge=1e-5, le=1.0)
-    sram_cell_area_f2: float = field(171.0, "F^2", "6T SRAM cell of the ASIC's line buffers in units of F² "
-                                     "(Intel 45 nm: 0.346 µm²)", ge=20.0, le=2000.0)
+    subthreshold_slope: float = field(0.7, "", "subthreshold slope factor κ of the mesh's transistors", gt=0.3, le=1.0)
+    transistor_area_f2: float = field(
+        80.0,
+        "F^2",
+        "laid-out area of one transistor in units of F² (80: from Horowitz's 8-bit adder area)",
+        ge=10.0,
+        le=10000.0,
+    )
+    capacitor_density_f_m2: float = field(
+        2e-3, "F/m^2", "capacitance per area of the mesh's node capacitors (2 fF/µm²: a MIM capacitor)", ge=1e-5, le=1.0
+    )
+    sram_cell_area_f2: float = field(
+        171.0,
+        "F^2",
+        "6T SRAM cell of the ASIC's line buffers in units of F² (Intel 45 nm: 0.346 µm²)",
+        ge=20.0,
+        le=2000.0,
+    )
     clock_hz: float = field(200e6, "Hz", "ASIC clock (one pixel per cycle and lane)", ge=1e3, le=1e10)
-    sample_rate_hz: float = field(1e3, "Hz", "rate at which the ASIC refilters every pixel (the digital filter "
-                                  "sees sampled intensity)", ge=1.0, le=1e7)
+    sample_rate_hz: float = field(
+        1e3,
+        "Hz",
+        "rate at which the ASIC refilters every pixel (the digital filter sees sampled intensity)",
+        ge=1.0,
+        le=1e7,
+    )
     array_resolution: list[Annotated[int, Field(ge=1, le=100000)]] = field(
-        [720, 1280], "px", "sensor array [H, W] the costs are given for (IMX636)", min_length=2, max_length=2)
-    readout_limit_eps: float = field(1.066e9, "events/s", "largest event rate the readout carries (IMX636: "
-                                     "1.066 Geps)", gt=0.0, le=1e13)
-    sensor_illuminance_lux: float = field(10.0, "lx", "illuminance at the sensor plane for the photon budget",
-                                          gt=0.0, le=1e6)
-    integration_time_s: float = field(1e-3, "s", "photoreceptor integration time of the photon budget",
-                                      gt=0.0, le=10.0)
+        [720, 1280], "px", "sensor array [H, W] the costs are given for (IMX636)", min_length=2, max_length=2
+    )
+    readout_limit_eps: float = field(
+        1.066e9, "events/s", "largest event rate the readout carries (IMX636: 1.066 Geps)", gt=0.0, le=1e13
+    )
+    sensor_illuminance_lux: float = field(
+        10.0, "lx", "illuminance at the sensor plane for the photon budget", gt=0.0, le=1e6
+    )
+    integration_time_s: float = field(1e-3, "s", "photoreceptor integration time of the photon budget", gt=0.0, le=10.0)
     quantum_efficiency: float = field(0.5, "", "photodiode quantum efficiency of the photon budget", gt=0.0, le=1.0)
-    loss_budget: float = field(0.02, "", "largest accuracy loss (upper CI bound, metric fraction; kernel error "
-                               "when no task ran) the cost verdict accepts", ge=0.0, le=10.0)
+    loss_budget: float = field(
+        0.02,
+        "",
+        "largest accuracy loss (upper CI bound, metric fraction; kernel error "
+        "when no task ran) the cost verdict accepts",
+        ge=0.0,
+        le=10.0,
+    )

@@ -61,8 +61,9 @@ def thermal_voltage_v(temperature_k: float) -> float:
     return _BOLTZMANN_J_K * temperature_k / _ELEMENTARY_CHARGE_C
 
 
-def mesh_cost(items: Mapping[str, float], a: CostAssumptions, *, pitch_m: float,
-              transconductors: int = 5) -> tuple[dict[str, CostFigure], list[str]]:
+def mesh_cost(
+    items: Mapping[str, float], a: CostAssumptions, *, pitch_m: float, transconductors: int = 5
+) -> tuple[dict[str, CostFigure], list[str]]:
     """Power, area and latency figures of a fitted dual mesh (module docstring).
 
     Parameters
@@ -93,29 +94,37 @@ def mesh_cost(items: Mapping[str, float], a: CostAssumptions, *, pitch_m: float,
     i_ota = transconductors * 2.0 * ut * (sum(g_v) / 2.0) / a.subthreshold_slope
     p_pixel = a.analog_supply_v * (i_mesh + i_ota)
     n_pixels = a.array_resolution[0] * a.array_resolution[1]
-    src_p = (f"{_MEAD}; bias currents at costs.analog_supply_v = {a.analog_supply_v:g} V, "
-             f"costs.temperature_k = {a.temperature_k:g} K, costs.subthreshold_slope = {a.subthreshold_slope:g}")
+    src_p = (
+        f"{_MEAD}; bias currents at costs.analog_supply_v = {a.analog_supply_v:g} V, "
+        f"costs.temperature_k = {a.temperature_k:g} K, costs.subthreshold_slope = {a.subthreshold_slope:g}"
+    )
     n_transistors = 6 * HRES_TRANSISTORS + transconductors * OTA_TRANSISTORS
-    a_transistors = n_transistors * a.transistor_area_f2 * a.process_node_m ** 2
+    a_transistors = n_transistors * a.transistor_area_f2 * a.process_node_m**2
     a_caps = 2.0 * items["node_capacitance"] / a.capacitor_density_f_m2
     area = a_transistors + a_caps
-    pixel_area = pitch_m ** 2
-    src_a = (f"{n_transistors} transistors x costs.transistor_area_f2 = {a.transistor_area_f2:g} F² at "
-             f"costs.process_node_m = {a.process_node_m:g} m, 2 node capacitors at costs.capacitor_density_f_m2 = "
-             f"{a.capacitor_density_f_m2:g} F/m²")
+    pixel_area = pitch_m**2
+    src_a = (
+        f"{n_transistors} transistors x costs.transistor_area_f2 = {a.transistor_area_f2:g} F² at "
+        f"costs.process_node_m = {a.process_node_m:g} m, 2 node capacitors at costs.capacitor_density_f_m2 = "
+        f"{a.capacitor_density_f_m2:g} F/m²"
+    )
     tau = max(items["tau_narrow"], items["tau_wide"])
     figs = {
         "power_w": CostFigure(p_pixel * n_pixels, "W", src_p + f"; x {n_pixels} pixels (costs.array_resolution)"),
         "power_per_pixel_w": CostFigure(p_pixel, "W", src_p),
         "area_m2": CostFigure(area, "m^2", src_a),
-        "fill_factor": CostFigure(max(0.0, 1.0 - area / pixel_area), "1",
-                                  f"1 - mesh area / pixel area ({pitch_m:g} m pitch)"),
+        "fill_factor": CostFigure(
+            max(0.0, 1.0 - area / pixel_area), "1", f"1 - mesh area / pixel area ({pitch_m:g} m pitch)"
+        ),
         "latency_s": CostFigure(tau, "s", "the slower mesh's settling time constant C/g_v (fit)"),
     }
     if "mismatch_sensitivity" in items:
-        figs["mismatch_error"] = CostFigure(items["mismatch_sensitivity"] * a.mesh_mismatch_sigma, "1",
-                                           "fit's mismatch_sensitivity x costs.mesh_mismatch_sigma = "
-                                           f"{a.mesh_mismatch_sigma:g} (relative kernel error)")
+        figs["mismatch_error"] = CostFigure(
+            items["mismatch_sensitivity"] * a.mesh_mismatch_sigma,
+            "1",
+            "fit's mismatch_sensitivity x costs.mesh_mismatch_sigma = "
+            f"{a.mesh_mismatch_sigma:g} (relative kernel error)",
+        )
     flags = []
     if area > pixel_area:
         flags.append(f"the mesh ({area * 1e12:.3g} µm²) does not fit in the {pixel_area * 1e12:.3g} µm² pixel")

@@ -47,8 +47,9 @@ _LIGHT_M_S = 299792458.0
 PHOTONS_PER_LUX_S_M2 = (1.0 / 683.0) / (_PLANCK_J_S * _LIGHT_M_S / 555e-9)
 
 
-def metalens_cost(items: Mapping[str, float], a: CostAssumptions, *,
-                  pitch_m: float) -> tuple[dict[str, CostFigure], list[str]]:
+def metalens_cost(
+    items: Mapping[str, float], a: CostAssumptions, *, pitch_m: float
+) -> tuple[dict[str, CostFigure], list[str]]:
     """Zero electrical figures, the photon budget and the pedestal's dynamic range (module docstring).
 
     Parameters
@@ -72,26 +73,39 @@ def metalens_cost(items: Mapping[str, float], a: CostAssumptions, *,
     eta = float(items["optical_efficiency"])
     cf = float(items.get("contrast_factor", 1.0))
     ped = float(items.get("pedestal_fraction", 0.0))
-    n_ideal = (a.sensor_illuminance_lux * PHOTONS_PER_LUX_S_M2 * pitch_m ** 2 * a.quantum_efficiency
-               * a.integration_time_s)
+    n_ideal = a.sensor_illuminance_lux * PHOTONS_PER_LUX_S_M2 * pitch_m**2 * a.quantum_efficiency * a.integration_time_s
     n = n_ideal * eta
     d_snr = 20.0 * math.log10(cf) + 10.0 * math.log10(eta) if eta > 0 and cf > 0 else -math.inf
-    light = (f"costs.sensor_illuminance_lux = {a.sensor_illuminance_lux:g} lx at 555 nm, costs.quantum_efficiency = "
-             f"{a.quantum_efficiency:g}, costs.integration_time_s = {a.integration_time_s:g} s, {pitch_m:g} m pitch")
+    light = (
+        f"costs.sensor_illuminance_lux = {a.sensor_illuminance_lux:g} lx at 555 nm, costs.quantum_efficiency = "
+        f"{a.quantum_efficiency:g}, costs.integration_time_s = {a.integration_time_s:g} s, {pitch_m:g} m pitch"
+    )
     none = "optics: no electrical power, silicon or latency"
     figs = {
-        "power_w": CostFigure(0.0, "W", none), "power_per_pixel_w": CostFigure(0.0, "W", none),
-        "area_m2": CostFigure(0.0, "m^2", none), "fill_factor": CostFigure(1.0, "1", none),
+        "power_w": CostFigure(0.0, "W", none),
+        "power_per_pixel_w": CostFigure(0.0, "W", none),
+        "area_m2": CostFigure(0.0, "m^2", none),
+        "fill_factor": CostFigure(1.0, "1", none),
         "latency_s": CostFigure(0.0, "s", none),
-        "photon_snr_change_db": CostFigure(d_snr, "dB", "shot-noise SNR of a contrast step vs an ideal lens: "
-                                           "20 log10(contrast_factor) + 10 log10(optical_efficiency) (fit)"),
-        "photon_snr_db": CostFigure(20.0 * math.log10(cf * math.sqrt(n)) if n > 0 and cf > 0 else -math.inf, "dB",
-                                    "shot-noise SNR of a unit log-contrast step, 20 log10(contrast_factor sqrt(N)), "
-                                    + light),
-        "photoelectrons": CostFigure(n, "1", "photoelectrons per pixel and integration time through the lens, "
-                                     + light),
-        "dynamic_range_cost_db": CostFigure(-20.0 * math.log10(1.0 - ped) if ped < 1 else math.inf, "dB",
-                                            "-20 log10(1 - pedestal_fraction): signal range taken by the pedestal"),
+        "photon_snr_change_db": CostFigure(
+            d_snr,
+            "dB",
+            "shot-noise SNR of a contrast step vs an ideal lens: "
+            "20 log10(contrast_factor) + 10 log10(optical_efficiency) (fit)",
+        ),
+        "photon_snr_db": CostFigure(
+            20.0 * math.log10(cf * math.sqrt(n)) if n > 0 and cf > 0 else -math.inf,
+            "dB",
+            "shot-noise SNR of a unit log-contrast step, 20 log10(contrast_factor sqrt(N)), " + light,
+        ),
+        "photoelectrons": CostFigure(
+            n, "1", "photoelectrons per pixel and integration time through the lens, " + light
+        ),
+        "dynamic_range_cost_db": CostFigure(
+            -20.0 * math.log10(1.0 - ped) if ped < 1 else math.inf,
+            "dB",
+            "-20 log10(1 - pedestal_fraction): signal range taken by the pedestal",
+        ),
     }
     distance = items.get("sensor_distance", items.get("sensor_distance_plus"))
     if distance is not None:

@@ -45,13 +45,15 @@ def _items(score: Score) -> dict[str, float]:
 
 def _mesh(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure], list[str]]:
     items = _items(score)
-    return mesh_cost(items, a, pitch_m=score.kernel.pitch_m,
-                     transconductors=int(items.get("transconductors_per_pixel", 5)))
+    return mesh_cost(
+        items, a, pitch_m=score.kernel.pitch_m, transconductors=int(items.get("transconductors_per_pixel", 5))
+    )
 
 
 def _asic(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure], list[str]]:
-    return asic_cost(_items(score), a, kernel_size=score.kernel.size,
-                     input_bits=int(score.realisation.get("input_bits", 8)))
+    return asic_cost(
+        _items(score), a, kernel_size=score.kernel.size, input_bits=int(score.realisation.get("input_bits", 8))
+    )
 
 
 def _metalens(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure], list[str]]:
@@ -60,15 +62,24 @@ def _metalens(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure], 
 
 def _reference(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure], list[str]]:
     none = "ideal reference: no hardware"
-    return {"power_w": CostFigure(0.0, "W", none), "power_per_pixel_w": CostFigure(0.0, "W", none),
-            "area_m2": CostFigure(0.0, "m^2", none), "fill_factor": CostFigure(1.0, "1", none),
-            "latency_s": CostFigure(0.0, "s", none)}, []
+    return {
+        "power_w": CostFigure(0.0, "W", none),
+        "power_per_pixel_w": CostFigure(0.0, "W", none),
+        "area_m2": CostFigure(0.0, "m^2", none),
+        "fill_factor": CostFigure(1.0, "1", none),
+        "latency_s": CostFigure(0.0, "s", none),
+    }, []
 
 
 #: Cost model of each realisation kind (``Score.kind``).
-COST_MODELS: Mapping[str, CostModel] = MappingProxyType({
-    "mesh": _mesh, "asic": _asic, "metalens": _metalens, "reference": _reference,
-})
+COST_MODELS: Mapping[str, CostModel] = MappingProxyType(
+    {
+        "mesh": _mesh,
+        "asic": _asic,
+        "metalens": _metalens,
+        "reference": _reference,
+    }
+)
 
 
 def event_rates(score: Score, track: str = "simulator") -> dict[str, Mapping[str, Any]]:
@@ -108,5 +119,6 @@ def physical_cost(score: Score, assumptions: CostAssumptions) -> PhysicalCost:
         own, own_flags = model(score, assumptions)
         figs = {**own, **figs}
         flags = [*own_flags, *flags]
-    return PhysicalCost(kind=score.kind, figures=figs, flags=tuple(flags), status=status,
-                        assumptions=assumptions.model_dump())
+    return PhysicalCost(
+        kind=score.kind, figures=figs, flags=tuple(flags), status=status, assumptions=assumptions.model_dump()
+    )

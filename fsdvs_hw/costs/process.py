@@ -55,11 +55,19 @@ REFERENCE_NODE_M = 45e-9
 REFERENCE_SUPPLY_V = 0.9
 
 #: Horowitz, ISSCC 2014 (45 nm, 0.9 V): energy in joules and area in m² per operation.
-HOROWITZ_2014 = MappingProxyType({
-    "add_8bit_j": 0.03e-12, "add_32bit_j": 0.1e-12, "mult_8bit_j": 0.2e-12, "mult_32bit_j": 3.1e-12,
-    "sram_8kb_read_64bit_j": 10e-12,
-    "add_8bit_m2": 36e-12, "add_32bit_m2": 137e-12, "mult_8bit_m2": 282e-12, "mult_32bit_m2": 3495e-12,
-})
+HOROWITZ_2014 = MappingProxyType(
+    {
+        "add_8bit_j": 0.03e-12,
+        "add_32bit_j": 0.1e-12,
+        "mult_8bit_j": 0.2e-12,
+        "mult_32bit_j": 3.1e-12,
+        "sram_8kb_read_64bit_j": 10e-12,
+        "add_8bit_m2": 36e-12,
+        "add_32bit_m2": 137e-12,
+        "mult_8bit_m2": 282e-12,
+        "mult_32bit_m2": 3495e-12,
+    }
+)
 
 #: Where :data:`HOROWITZ_2014` comes from (shown with every figure built on it).
 HOROWITZ_SOURCE = "Horowitz, ISSCC 2014 (45 nm, 0.9 V energy and area tables)"
@@ -90,8 +98,7 @@ def adder_energy_j(bits: float, *, node_m: float = REFERENCE_NODE_M, supply_v: f
 
 def adder_area_m2(bits: float, *, node_m: float = REFERENCE_NODE_M) -> float:
     """Area of one ``bits``-wide adder (m²): Horowitz's 8- and 32-bit adders, linear in width, scaled."""
-    return scaled_area_m2(_adder_line(bits, HOROWITZ_2014["add_8bit_m2"], HOROWITZ_2014["add_32bit_m2"]),
-                          node_m=node_m)
+    return scaled_area_m2(_adder_line(bits, HOROWITZ_2014["add_8bit_m2"], HOROWITZ_2014["add_32bit_m2"]), node_m=node_m)
 
 
 def sram_energy_per_bit_j(*, node_m: float = REFERENCE_NODE_M, supply_v: float = REFERENCE_SUPPLY_V) -> float:

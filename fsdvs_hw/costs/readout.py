@@ -36,8 +36,9 @@ def _num(x: Any) -> float:
     return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else math.nan
 
 
-def readout_figures(rates: Mapping[str, Mapping[str, Any]],
-                    a: CostAssumptions) -> tuple[dict[str, CostFigure], list[str]]:
+def readout_figures(
+    rates: Mapping[str, Mapping[str, Any]], a: CostAssumptions
+) -> tuple[dict[str, CostFigure], list[str]]:
     """Array event rate, readout limit and utilisation, and a flag when the limit is exceeded.
 
     Parameters
@@ -59,17 +60,29 @@ def readout_figures(rates: Mapping[str, Mapping[str, Any]],
     good = {t: r for t, r in rates.items() if isinstance(r, Mapping) and math.isfinite(_num(r.get("mean")))}
     if not good:
         none = CostFigure(math.nan, "events/s", "not measured: no task evaluator ran (the [tasks] event rates)")
-        return {"event_rate_eps": none, "readout_limit_eps": limit,
-                "readout_utilisation": CostFigure(math.nan, "1", none.source)}, []
+        return {
+            "event_rate_eps": none,
+            "readout_limit_eps": limit,
+            "readout_utilisation": CostFigure(math.nan, "1", none.source),
+        }, []
     task = max(good, key=lambda t: _num(good[t]["mean"]))
     r = good[task]
-    rate = CostFigure(_num(r["mean"]) * n, "events/s",
-                      f"measured: {task} (busiest task) events/pixel/s x {n} pixels (costs.array_resolution)",
-                      low=_num(r.get("low")) * n, high=_num(r.get("high")) * n)
-    figs = {"event_rate_eps": rate, "readout_limit_eps": limit,
-            "readout_utilisation": CostFigure(rate.value / a.readout_limit_eps, "1", "event rate / readout limit")}
+    rate = CostFigure(
+        _num(r["mean"]) * n,
+        "events/s",
+        f"measured: {task} (busiest task) events/pixel/s x {n} pixels (costs.array_resolution)",
+        low=_num(r.get("low")) * n,
+        high=_num(r.get("high")) * n,
+    )
+    figs = {
+        "event_rate_eps": rate,
+        "readout_limit_eps": limit,
+        "readout_utilisation": CostFigure(rate.value / a.readout_limit_eps, "1", "event rate / readout limit"),
+    }
     flags = []
     if rate.value > a.readout_limit_eps:
-        flags.append(f"event rate {rate.value:.3g} events/s exceeds the readout limit {a.readout_limit_eps:.4g} "
-                     f"events/s (costs.readout_limit_eps)")
+        flags.append(
+            f"event rate {rate.value:.3g} events/s exceeds the readout limit {a.readout_limit_eps:.4g} "
+            f"events/s (costs.readout_limit_eps)"
+        )
     return figs, flags

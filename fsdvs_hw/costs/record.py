@@ -28,12 +28,14 @@ from ..errors import InputError
 __all__ = ["CROSS_KIND_COSTS", "CostFigure", "PhysicalCost"]
 
 #: The costs every realisation reports and the cross-kind fronts use: name → (unit, words).
-CROSS_KIND_COSTS: Mapping[str, tuple[str, str]] = MappingProxyType({
-    "power_w": ("W", "power of the array"),
-    "area_m2": ("m^2", "silicon area per pixel"),
-    "latency_s": ("s", "added event latency"),
-    "event_rate_eps": ("events/s", "event rate of the array"),
-})
+CROSS_KIND_COSTS: Mapping[str, tuple[str, str]] = MappingProxyType(
+    {
+        "power_w": ("W", "power of the array"),
+        "area_m2": ("m^2", "silicon area per pixel"),
+        "latency_s": ("s", "added event latency"),
+        "event_rate_eps": ("events/s", "event rate of the array"),
+    }
+)
 
 
 def _num(x: Any) -> float:
@@ -64,8 +66,11 @@ class CostFigure:
     high: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"value": None if math.isnan(self.value) else float(self.value), "unit": self.unit,
-                               "source": self.source}
+        out: dict[str, Any] = {
+            "value": None if math.isnan(self.value) else float(self.value),
+            "unit": self.unit,
+            "source": self.source,
+        }
         if not math.isnan(self.low):
             out["low"], out["high"] = float(self.low), float(self.high)
         return out
@@ -74,8 +79,13 @@ class CostFigure:
     def from_dict(cls, data: Mapping[str, Any], *, where: str = "figure") -> CostFigure:
         if not isinstance(data, Mapping) or "unit" not in data:
             raise InputError(f"{where}: a cost figure needs 'value', 'unit' and 'source', got {data!r:.80}")
-        return cls(_num(data.get("value")), str(data["unit"]), str(data.get("source", "")),
-                   _num(data.get("low")), _num(data.get("high")))
+        return cls(
+            _num(data.get("value")),
+            str(data["unit"]),
+            str(data.get("source", "")),
+            _num(data.get("low")),
+            _num(data.get("high")),
+        )
 
     def __eq__(self, other: object) -> bool:  # NaN == NaN for round trips
         if not isinstance(other, CostFigure):
@@ -122,18 +132,26 @@ class PhysicalCost:
         return f.value if f is not None else math.nan
 
     def to_dict(self) -> dict[str, Any]:
-        return {"kind": self.kind, "status": self.status, "figures": {k: f.to_dict() for k, f in self.figures.items()},
-                "flags": list(self.flags), "assumptions": dict(self.assumptions)}
+        return {
+            "kind": self.kind,
+            "status": self.status,
+            "figures": {k: f.to_dict() for k, f in self.figures.items()},
+            "flags": list(self.flags),
+            "assumptions": dict(self.assumptions),
+        }
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, where: str = "physical_cost") -> PhysicalCost:
         if not isinstance(data, Mapping) or "kind" not in data:
             raise InputError(f"{where}: not a physical cost record (no 'kind')")
         figs = data.get("figures") or {}
-        return cls(kind=str(data["kind"]),
-                   figures={k: CostFigure.from_dict(v, where=f"{where}.figures.{k}") for k, v in figs.items()},
-                   flags=tuple(data.get("flags") or ()), status=str(data.get("status", "ok")),
-                   assumptions=dict(data.get("assumptions") or {}))
+        return cls(
+            kind=str(data["kind"]),
+            figures={k: CostFigure.from_dict(v, where=f"{where}.figures.{k}") for k, v in figs.items()},
+            flags=tuple(data.get("flags") or ()),
+            status=str(data.get("status", "ok")),
+            assumptions=dict(data.get("assumptions") or {}),
+        )
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, PhysicalCost):

@@ -98,12 +98,23 @@ def evaluate_ablation_point(point: AblationPoint) -> dict[str, Any]:
         status, rec = "ok", run_job(point.job)
     except Exception as exc:  # noqa: BLE001 - one failed run must not stop the ablation; it is recorded
         status, rec = "error", {"reason": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc(limit=8)}
-    return {"key": point.key, "status": status, "result": rec, "wall_s": time.perf_counter() - t0,
-            "worker": f"{socket.gethostname()}:{os.getpid()}"}
+    return {
+        "key": point.key,
+        "status": status,
+        "result": rec,
+        "wall_s": time.perf_counter() - t0,
+        "worker": f"{socket.gethostname()}:{os.getpid()}",
+    }
 
 
-def run_ablation(points: list[AblationPoint], store_path: str | Path, *, workers: int = 1, scheduler: str | None = None,
-                 progress: bool | None = None) -> list[dict[str, Any]]:
+def run_ablation(
+    points: list[AblationPoint],
+    store_path: str | Path,
+    *,
+    workers: int = 1,
+    scheduler: str | None = None,
+    progress: bool | None = None,
+) -> list[dict[str, Any]]:
     """Run every point not yet stored; return the records of all ``points`` (status ``ok``) in order."""
     from .store import ResultsStore
     from .sweep import run_points
@@ -111,8 +122,15 @@ def run_ablation(points: list[AblationPoint], store_path: str | Path, *, workers
     if workers < 1:
         raise InputError(f"--workers must be >= 1, got {workers}")
     with ResultsStore(store_path) as store:
-        summary = run_points(points, store, workers=workers, scheduler=scheduler, progress=progress,
-                             evaluate=evaluate_ablation_point, desc="training runs")
+        summary = run_points(
+            points,
+            store,
+            workers=workers,
+            scheduler=scheduler,
+            progress=progress,
+            evaluate=evaluate_ablation_point,
+            desc="training runs",
+        )
         print(f"[ablation] {summary}", file=sys.stderr, flush=True)
         rows = {r["key"]: r for r in store.rows(design=_DESIGN)}
     out = []
@@ -193,8 +211,9 @@ class AblationStudy:
 
 
 def _settings(args: AblationOptions) -> dict[str, Any]:
-    return {k: v for k, v in (("epochs_frozen", args.epochs_frozen), ("epochs_joint", args.epochs_joint))
-            if v is not None}
+    return {
+        k: v for k, v in (("epochs_frozen", args.epochs_frozen), ("epochs_joint", args.epochs_joint)) if v is not None
+    }
 
 
 def _ship_stem(ship_dir: Path, job: dict[str, Any], first_seed: int, kernel_stem: str) -> Path | None:
@@ -251,8 +270,10 @@ def run_ablation_study(args: AblationOptions) -> AblationStudy:
         kpath = _transfer_kernel(args, records, out)
         stem = kpath.name.removesuffix(".json")
         if args.frozen_only:
-            jobs = sorted(frozen_kernel_jobs(kpath, list(args.frozen_tasks), list(args.seeds), **kw),
-                          key=lambda j: (args.seeds.index(j["seed"]), args.frozen_tasks.index(j["task"])))
+            jobs = sorted(
+                frozen_kernel_jobs(kpath, list(args.frozen_tasks), list(args.seeds), **kw),
+                key=lambda j: (args.seeds.index(j["seed"]), args.frozen_tasks.index(j["task"])),
+            )
         else:
             jobs = transfer_jobs(kpath, list(args.seeds), **kw)
         if args.frozen_tasks and not args.frozen_only:
@@ -314,14 +335,24 @@ def annotate_shipped(records: list[dict[str, Any]], pred_dir: Path, *, n_resampl
             w = np.stack([np.bincount(row, minlength=n) for row in flat]).astype(np.float64)  # noqa: B023 - bootstrap runs in this iteration
             return metric.weighted(w).reshape(idx.shape[:-1])  # noqa: B023
 
-        res = stats.bootstrap((np.arange(n),), statistic, vectorized=True, n_resamples=n_resamples,
-                              method="percentile", random_state=np.random.default_rng(0), batch=200)
+        res = stats.bootstrap(
+            (np.arange(n),),
+            statistic,
+            vectorized=True,
+            n_resamples=n_resamples,
+            method="percentile",
+            random_state=np.random.default_rng(0),
+            batch=200,
+        )
         prov = json.loads(prov_path.read_text())
-        prov.update(heldout_metric=float(metric.weighted(np.ones((1, n)))[0]),
-                    heldout_ci95_low=float(res.confidence_interval.low),
-                    heldout_ci95_high=float(res.confidence_interval.high), heldout_n_clips=n,
-                    heldout_ci_method="percentile bootstrap over test clips (scipy.stats.bootstrap), one network",
-                    ablation_key=r["key"])
+        prov.update(
+            heldout_metric=float(metric.weighted(np.ones((1, n)))[0]),
+            heldout_ci95_low=float(res.confidence_interval.low),
+            heldout_ci95_high=float(res.confidence_interval.high),
+            heldout_n_clips=n,
+            heldout_ci_method="percentile bootstrap over test clips (scipy.stats.bootstrap), one network",
+            ablation_key=r["key"],
+        )
         write_output(prov_path, json.dumps(prov, indent=1) + "\n", flag="provenance")
         done.append(prov_path)
     return done
@@ -350,15 +381,18 @@ def _transfer_kernel(args: AblationOptions, records: list[dict[str, Any]], out: 
 
     first = [r for r in records if r["task"] == "detection" and r["size"] == 7 and r["seed"] == args.seeds[0]]
     if not first:
-        raise InputError("--transfer from-run needs the 7x7 detection run of the first seed (--tasks detection, "
-                         "--sizes including 7)")
+        raise InputError(
+            "--transfer from-run needs the 7x7 detection run of the first seed (--tasks detection, --sizes including 7)"
+        )
     shipped = args.ship_dir / "learned_detection_7x7.json" if args.ship_dir is not None else None
     if shipped is not None and shipped.is_file():
         from ..kernels import load_kernel
 
         if not np.allclose(np.asarray(load_kernel(shipped).taps), np.asarray(first[0]["taps"]), atol=1e-6):
-            raise InputError(f"--transfer from-run: {str(shipped)!r} is not the kernel of the stored 7x7 detection "
-                             "run (written by another run?); pass that file as --transfer or re-ship it")
+            raise InputError(
+                f"--transfer from-run: {str(shipped)!r} is not the kernel of the stored 7x7 detection "
+                "run (written by another run?); pass that file as --transfer or re-ship it"
+            )
         return shipped
     k = Kernel(np.asarray(first[0]["taps"]), name=f"learned detection 7x7 (seed {args.seeds[0]})")
     path = out / "learned_detection_7x7.json"

@@ -33,8 +33,9 @@ def point_folder_name(realisation: str, params: Mapping[str, Any]) -> str:
     return safe_name("__".join(parts), fallback=realisation)
 
 
-def write_exploration_artifacts(points: Sequence[Mapping[str, Any]], out_dir: str | Path, *,
-                                resolution: tuple[int, int] | None = None) -> tuple[Path, list[dict[str, Any]]]:
+def write_exploration_artifacts(
+    points: Sequence[Mapping[str, Any]], out_dir: str | Path, *, resolution: tuple[int, int] | None = None
+) -> tuple[Path, list[dict[str, Any]]]:
     """Write every scored point's artifacts under ``out_dir/artifacts`` and its ``index.json``.
 
     Parameters
@@ -66,8 +67,17 @@ def write_exploration_artifacts(points: Sequence[Mapping[str, Any]], out_dir: st
         try:
             written = spec.write_artifacts_of(realisation_from_dict(record), root / name, resolution=resolution)
         except Exception as exc:  # noqa: BLE001 - one writer failing must not lose the exploration's report
-            entries.append({"point": name, "realisation": spec.name, "name": "", "file": "", "what": "",
-                            "checked_by": "", "error": f"{type(exc).__name__}: {exc}"[:500]})
+            entries.append(
+                {
+                    "point": name,
+                    "realisation": spec.name,
+                    "name": "",
+                    "file": "",
+                    "what": "",
+                    "checked_by": "",
+                    "error": f"{type(exc).__name__}: {exc}"[:500],
+                }
+            )
             continue
         entries += [a.entry(root, point=name, realisation=spec.name) for a in written]
     return write_index(entries, root / "index.json"), entries

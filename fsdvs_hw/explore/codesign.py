@@ -140,9 +140,12 @@ def _codesign_outcome(provenance: Mapping[str, Any], target: Any) -> dict[str, A
     from .codesign_pilot import csf_drift
 
     final = realisation_from_dict(provenance["realisation_design"])
-    return {**csf_drift(provenance), "kernel_error_codesign": realised_kernel_error(final, target),
-            "kernel_error_codesign_gain_free": realised_kernel_error(final, target, fit_scale=True),
-            "realisation_design": provenance["realisation_design"]}
+    return {
+        **csf_drift(provenance),
+        "kernel_error_codesign": realised_kernel_error(final, target),
+        "kernel_error_codesign_gain_free": realised_kernel_error(final, target, fit_scale=True),
+        "realisation_design": provenance["realisation_design"],
+    }
 
 
 @dataclass(frozen=True)
@@ -176,32 +179,68 @@ def _task_networks(design: Design, task: str) -> list[_Network]:
             return dataset_evidence(kernel, task, entry, base, network=trained, confine=confine)[0]
 
         def user_train(rec: Any, mode: str, stem: Path, cd: Any, key: str) -> tuple[Any, Any, float]:
-            res = finetune_user_network(task, entry, base, kernel=rec.kernel() if mode == "finetune" else None,
-                                        realisation=rec if mode == "codesign" else None, epochs=cd.epochs,
-                                        n_train=cd.n_train, lr_network=cd.lr_network, lr_filter=cd.lr_filter,
-                                        out=stem, fingerprint={"codesign_unit": key}, confine=confine)
+            res = finetune_user_network(
+                task,
+                entry,
+                base,
+                kernel=rec.kernel() if mode == "finetune" else None,
+                realisation=rec if mode == "codesign" else None,
+                epochs=cd.epochs,
+                n_train=cd.n_train,
+                lr_network=cd.lr_network,
+                lr_filter=cd.lr_filter,
+                out=stem,
+                fingerprint={"codesign_unit": key},
+                confine=confine,
+            )
             return res, res.network, float(res.provenance["train_seconds"])
 
-        return [_Network(task, 0, "0", entry["network"] or f"built-in {task} network", ident, entry["n_clips"] or None,
-                         user_evidence, user_train)]
+        return [
+            _Network(
+                task,
+                0,
+                "0",
+                entry["network"] or f"built-in {task} network",
+                ident,
+                entry["n_clips"] or None,
+                user_evidence,
+                user_train,
+            )
+        ]
     per_net = design.spec.tasks.test_clips == "per_network"
     nets = []
     for s, ck in enumerate(design.checkpoints()[task][: design.spec.codesign.seeds]):
-        ident = {"task": task, "network": ck.name, "network_size": ck.stat().st_size, "n_test": design.n_test(task),
-                 "clip_set": s if per_net else 0, "seed_offset": s}
+        ident = {
+            "task": task,
+            "network": ck.name,
+            "network_size": ck.stat().st_size,
+            "n_test": design.n_test(task),
+            "clip_set": s if per_net else 0,
+            "seed_offset": s,
+        }
 
         def ck_evidence(kernel: Any, trained: Any, ck: Path = ck, s: int = s) -> Any:
-            return clip_evidence(kernel, task, trained or ck, n_test=design.n_test(task), seed_offset=s,
-                                 clip_set=s if per_net else 0)
+            return clip_evidence(
+                kernel, task, trained or ck, n_test=design.n_test(task), seed_offset=s, clip_set=s if per_net else 0
+            )
 
         def ck_train(rec: Any, mode: str, stem: Path, cd: Any, key: str, ck: Path = ck) -> tuple[Any, Any, float]:
-            res = finetune_network(ck, task, kernel=rec.kernel() if mode == "finetune" else None,
-                                   realisation=rec if mode == "codesign" else None, epochs=cd.epochs,
-                                   n_train=cd.n_train or None, lr_network=cd.lr_network, lr_filter=cd.lr_filter,
-                                   out=stem)
+            res = finetune_network(
+                ck,
+                task,
+                kernel=rec.kernel() if mode == "finetune" else None,
+                realisation=rec if mode == "codesign" else None,
+                epochs=cd.epochs,
+                n_train=cd.n_train or None,
+                lr_network=cd.lr_network,
+                lr_filter=cd.lr_filter,
+                out=stem,
+            )
             return res, res.paths["checkpoint"], float(res.provenance["finetune"]["seconds"])
 
-        nets.append(_Network(task, s, ck.stem.rsplit("_s", 1)[-1], ck.name, ident, design.n_test(task), ck_evidence, ck_train))
+        nets.append(
+            _Network(task, s, ck.stem.rsplit("_s", 1)[-1], ck.name, ident, design.n_test(task), ck_evidence, ck_train)
+        )
     return nets
 
 
@@ -244,8 +283,14 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
     networks = {task: _task_networks(design, task) for task in dict.fromkeys(t for _, t in cells)}
 
     def unit(kind: str, net: _Network, real: str | None, mode: str, work: Any) -> dict[str, Any]:
-        ident = {"target": target.to_dict()["taps"], "pitch_m": target.pitch_m, **net.ident, "mode": mode,
-                 "realisation": real, "format": CODESIGN_FORMAT}
+        ident = {
+            "target": target.to_dict()["taps"],
+            "pitch_m": target.pitch_m,
+            **net.ident,
+            "mode": mode,
+            "realisation": real,
+            "format": CODESIGN_FORMAT,
+        }
         if real is not None:
             ident.update(options=design.realisation_options(real), run_seed=seed)
         if mode in ("finetune", "codesign"):
@@ -259,14 +304,29 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
         t0 = time.perf_counter()
         extra, kernel, trained = work(key)
         ev = net.evidence(kernel, trained)
-        rec = {"key": key, "kind": kind, "realisation": real or "learned", "task": net.task, "seed_index": net.index,
-               "mode": mode, "network": net.name, "metric_name": ev.metric_name, "metric": ev.value,
-               "n_clips": ev.n_clips, "test_seed": ev.test_seed, "sensor_seed": ev.sensor_seed,
-               "evidence": encode_evidence(ev.metric), "wall_s": time.perf_counter() - t0, **extra}
+        rec = {
+            "key": key,
+            "kind": kind,
+            "realisation": real or "learned",
+            "task": net.task,
+            "seed_index": net.index,
+            "mode": mode,
+            "network": net.name,
+            "metric_name": ev.metric_name,
+            "metric": ev.value,
+            "n_clips": ev.n_clips,
+            "test_seed": ev.test_seed,
+            "sensor_seed": ev.sensor_seed,
+            "evidence": encode_evidence(ev.metric),
+            "wall_s": time.perf_counter() - t0,
+            **extra,
+        }
         _save_atomic(path, rec)
         units.append(rec)
-        log(f"{real or 'learned'} / {net.task} / network {net.index} / {mode}: {ev.metric_name} {ev.value:.4f} "
-            f"({rec['wall_s']:.0f} s)")
+        log(
+            f"{real or 'learned'} / {net.task} / network {net.index} / {mode}: {ev.metric_name} {ev.value:.4f} "
+            f"({rec['wall_s']:.0f} s)"
+        )
         return rec
 
     def fitted(real: str) -> Any:
@@ -278,10 +338,13 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
         for net in networks[task]:
             unit("reference", net, None, "reference", lambda key: ({}, target, None))
             for mode in [m for m in CODESIGN_MODES if m in cd.modes]:
+
                 def work(key: str, real: str = real, mode: str = mode, net: _Network = net) -> Any:
                     rec = fitted(real)
-                    info: dict[str, Any] = {"kernel_error_fit": realised_kernel_error(rec, target),
-                                            "kernel_error_fit_gain_free": realised_kernel_error(rec, target, fit_scale=True)}
+                    info: dict[str, Any] = {
+                        "kernel_error_fit": realised_kernel_error(rec, target),
+                        "kernel_error_fit_gain_free": realised_kernel_error(rec, target, fit_scale=True),
+                    }
                     if mode == "swap":
                         return info, rec.kernel(), None
                     stem = root / "networks" / f"{real}_{net.task}_s{net.tag}_{mode}_{key}"
@@ -295,8 +358,11 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
     sc = design.spec.scoring
     summary = summarise_codesign(units, n_resamples=sc.n_resamples, confidence=sc.confidence, rng=seed)
     _note_user_cells(summary, design)
-    summary["settings"] = {**design.section("codesign"), "test_clips": design.spec.tasks.test_clips,
-                           "n_test": {t: networks[t][0].n_test for _, t in cells}}
+    summary["settings"] = {
+        **design.section("codesign"),
+        "test_clips": design.spec.tasks.test_clips,
+        "n_test": {t: networks[t][0].n_test for _, t in cells},
+    }
     summary["design"] = design.name
     summary["wall_s"] = time.perf_counter() - t_run  # this call (a resumed run reuses finished units)
     summary["units_wall_s"] = float(sum(u["wall_s"] for u in units))  # when each unit was measured
@@ -310,9 +376,16 @@ def _note_user_cells(summary: Mapping[str, Any], design: Design) -> None:
             cell["data"], cell["ci_note"] = "user", ONE_NETWORK_NOTE
 
 
-def recovered_fraction_ci(reference: Sequence[Any], swap: Sequence[Any], candidate: Sequence[Any], *,
-                          nested_clips: bool = True, confidence: float = 0.95, n_resamples: int = 2000,
-                          rng: Any = 0) -> dict[str, Any]:
+def recovered_fraction_ci(
+    reference: Sequence[Any],
+    swap: Sequence[Any],
+    candidate: Sequence[Any],
+    *,
+    nested_clips: bool = True,
+    confidence: float = 0.95,
+    n_resamples: int = 2000,
+    rng: Any = 0,
+) -> dict[str, Any]:
     """Fraction of the fit-then-swap loss a row recovers, ``1 − loss(candidate) / loss(swap)``, with a CI.
 
     ``loss(x) = metric(reference) − metric(x)``, every arm a list of per-network
@@ -359,15 +432,30 @@ def recovered_fraction_ci(reference: Sequence[Any], swap: Sequence[Any], candida
     r0, s0, c0 = (float(np.mean(v)) for v in ones)
     est = 1.0 - (r0 - c0) / (r0 - s0) if r0 != s0 else float("nan")
     with np.errstate(divide="ignore", invalid="ignore"):
-        res = stats.bootstrap(data, statistic, vectorized=True, confidence_level=confidence, n_resamples=n_resamples,
-                              method="percentile", random_state=np.random.default_rng(rng), batch=200)
+        res = stats.bootstrap(
+            data,
+            statistic,
+            vectorized=True,
+            confidence_level=confidence,
+            n_resamples=n_resamples,
+            method="percentile",
+            random_state=np.random.default_rng(rng),
+            batch=200,
+        )
     lo, hi = float(res.confidence_interval.low), float(res.confidence_interval.high)
-    return {"estimate": est, "low": lo, "high": hi, "confidence": confidence, "n_resamples": n_resamples,
-            "resampled": "networks (clips nested)" if cluster else "clips"}
+    return {
+        "estimate": est,
+        "low": lo,
+        "high": hi,
+        "confidence": confidence,
+        "n_resamples": n_resamples,
+        "resampled": "networks (clips nested)" if cluster else "clips",
+    }
 
 
-def summarise_codesign(units: Sequence[Mapping[str, Any]], *, n_resamples: int = 2000, confidence: float = 0.95,
-                       rng: Any = 0) -> dict[str, Any]:
+def summarise_codesign(
+    units: Sequence[Mapping[str, Any]], *, n_resamples: int = 2000, confidence: float = 0.95, rng: Any = 0
+) -> dict[str, Any]:
     """Per-cell rows with paired loss CIs, recovered fractions and CSF drift, from measured units.
 
     Parameters
@@ -408,29 +496,49 @@ def summarise_codesign(units: Sequence[Mapping[str, Any]], *, n_resamples: int =
         kw = {"nested_clips": nested, "n_resamples": n_resamples, "confidence": confidence, "rng": rng}
         losses = difference_cis(ref, arms, **kw)
         cell: dict[str, Any] = {
-            "realisation": real, "task": task, "metric_name": refs[(task, seeds[0])]["metric_name"],
-            "n_seeds": len(seeds), "seeds": seeds, "n_clips_per_network": int(ref[0].n_clips),
+            "realisation": real,
+            "task": task,
+            "metric_name": refs[(task, seeds[0])]["metric_name"],
+            "n_seeds": len(seeds),
+            "seeds": seeds,
+            "n_clips_per_network": int(ref[0].n_clips),
             "n_clips": int(sum(m.n_clips for m in ref)) if nested else int(ref[0].n_clips),
             "clips": "nested in networks" if nested else "shared",
-            "reference_metric_per_seed": [refs[(task, s)]["metric"] for s in seeds], "rows": {}}
+            "reference_metric_per_seed": [refs[(task, s)]["metric"] for s in seeds],
+            "rows": {},
+        }
         for m in names:
             ci = losses[m]
-            row = {"label": _LABELS[m], "loss": {**ci.to_dict(), "text": ci.describe()},
-                   "metric_per_seed": [modes[m][s]["metric"] for s in seeds],
-                   "wall_s": [modes[m][s]["wall_s"] for s in seeds]}
+            row = {
+                "label": _LABELS[m],
+                "loss": {**ci.to_dict(), "text": ci.describe()},
+                "metric_per_seed": [modes[m][s]["metric"] for s in seeds],
+                "wall_s": [modes[m][s]["wall_s"] for s in seeds],
+            }
             if m != "swap" and "swap" in arms:
                 gain = difference_cis(arms[m], {"swap": arms["swap"]}, **kw)["swap"]
                 row["gain_over_swap"] = {**gain.to_dict(), "text": gain.describe()}
-                row["recovered"] = recovered_fraction_ci(ref, arms["swap"], arms[m], nested_clips=nested,
-                                                         n_resamples=n_resamples, confidence=confidence, rng=rng)
+                row["recovered"] = recovered_fraction_ci(
+                    ref,
+                    arms["swap"],
+                    arms[m],
+                    nested_clips=nested,
+                    n_resamples=n_resamples,
+                    confidence=confidence,
+                    rng=rng,
+                )
             cell["rows"][m] = row
         any_unit = next(iter(modes.values()))[seeds[0]]
         cell["kernel_error_fit"] = any_unit.get("kernel_error_fit")
         cell["kernel_error_fit_gain_free"] = any_unit.get("kernel_error_fit_gain_free")
         if "codesign" in modes:
             cdu = [modes["codesign"][s] for s in seeds]
-            for f in ("kernel_error_codesign", "kernel_error_codesign_gain_free", "ms_correlation_initial",
-                      "ms_correlation_final"):
+            for f in (
+                "kernel_error_codesign",
+                "kernel_error_codesign_gain_free",
+                "ms_correlation_initial",
+                "ms_correlation_final",
+            ):
                 cell[f] = [u.get(f) for u in cdu]
         cell["swap_loss_above_zero"] = bool("swap" in cell["rows"] and cell["rows"]["swap"]["loss"]["low"] > 0)
         cell["verdict"] = _verdict(cell)
@@ -444,8 +552,10 @@ def _verdict(cell: Mapping[str, Any]) -> str:
         return "incomplete: the swap and co-designed rows are both needed"
     swap, cd = rows["swap"]["loss"], rows["codesign"]
     if swap["low"] <= 0:
-        return (f"no loss to recover: the fit-then-swap loss {swap['estimate']:.4f} "
-                f"[{swap['low']:.4f}, {swap['high']:.4f}] does not lie above 0")
+        return (
+            f"no loss to recover: the fit-then-swap loss {swap['estimate']:.4f} "
+            f"[{swap['low']:.4f}, {swap['high']:.4f}] does not lie above 0"
+        )
     rec = cd["recovered"]
     if not rec["high"] - rec["low"] <= 1.0:  # wider than the whole loss (or unbounded): nothing resolved
         return (
@@ -456,10 +566,14 @@ def _verdict(cell: Mapping[str, Any]) -> str:
     if rec["low"] >= 0.5:
         return f"co-design recovers at least half of the loss ({rec['estimate']:.0%} [{rec['low']:.0%}, {rec['high']:.0%}])"
     if rec["estimate"] >= 0.5:
-        return (f"co-design recovers {rec['estimate']:.0%} of the loss, but the CI [{rec['low']:.0%}, "
-                f"{rec['high']:.0%}] does not exclude less than half")
-    return (f"co-design recovers only {rec['estimate']:.0%} [{rec['low']:.0%}, {rec['high']:.0%}]; the co-designed "
-            f"loss {cd['loss']['estimate']:.4f} [{cd['loss']['low']:.4f}, {cd['loss']['high']:.4f}] remains")
+        return (
+            f"co-design recovers {rec['estimate']:.0%} of the loss, but the CI [{rec['low']:.0%}, "
+            f"{rec['high']:.0%}] does not exclude less than half"
+        )
+    return (
+        f"co-design recovers only {rec['estimate']:.0%} [{rec['low']:.0%}, {rec['high']:.0%}]; the co-designed "
+        f"loss {cd['loss']['estimate']:.4f} [{cd['loss']['low']:.4f}, {cd['loss']['high']:.4f}] remains"
+    )
 
 
 def write_codesign(summary: Mapping[str, Any], out_dir: str | Path) -> tuple[Path, Path]:
@@ -468,26 +582,56 @@ def write_codesign(summary: Mapping[str, Any], out_dir: str | Path) -> tuple[Pat
     out.mkdir(parents=True, exist_ok=True)
     jpath, cpath = out / "codesign.json", out / "codesign.csv"
     write_output(jpath, json.dumps(summary, indent=1, default=float) + "\n")
-    fields = ["realisation", "task", "row", "metric_name", "n_seeds", "n_clips", "loss", "loss_ci95_low",
-              "loss_ci95_high", "recovered", "recovered_ci95_low", "recovered_ci95_high", "gain_over_swap",
-              "gain_ci95_low", "gain_ci95_high", "kernel_error_fit", "ms_correlation_initial_mean",
-              "ms_correlation_final_mean", "verdict"]
+    fields = [
+        "realisation",
+        "task",
+        "row",
+        "metric_name",
+        "n_seeds",
+        "n_clips",
+        "loss",
+        "loss_ci95_low",
+        "loss_ci95_high",
+        "recovered",
+        "recovered_ci95_low",
+        "recovered_ci95_high",
+        "gain_over_swap",
+        "gain_ci95_low",
+        "gain_ci95_high",
+        "kernel_error_fit",
+        "ms_correlation_initial_mean",
+        "ms_correlation_final_mean",
+        "verdict",
+    ]
     fh = io.StringIO(newline="")
     w = csv.DictWriter(fh, fieldnames=fields)
     w.writeheader()
     for c in summary.get("cells", []):
         for m, r in c["rows"].items():
             rec, gain = r.get("recovered", {}), r.get("gain_over_swap", {})
-            w.writerow({"realisation": c["realisation"], "task": c["task"], "row": m,
-                        "metric_name": c["metric_name"], "n_seeds": c["n_seeds"], "n_clips": c["n_clips"],
-                        "loss": r["loss"]["estimate"], "loss_ci95_low": r["loss"]["low"],
-                        "loss_ci95_high": r["loss"]["high"], "recovered": rec.get("estimate"),
-                        "recovered_ci95_low": rec.get("low"), "recovered_ci95_high": rec.get("high"),
-                        "gain_over_swap": gain.get("estimate"), "gain_ci95_low": gain.get("low"),
-                        "gain_ci95_high": gain.get("high"), "kernel_error_fit": c.get("kernel_error_fit"),
-                        "ms_correlation_initial_mean": _mean(c.get("ms_correlation_initial")),
-                        "ms_correlation_final_mean": _mean(c.get("ms_correlation_final")),
-                        "verdict": c["verdict"] if m == "codesign" else ""})
+            w.writerow(
+                {
+                    "realisation": c["realisation"],
+                    "task": c["task"],
+                    "row": m,
+                    "metric_name": c["metric_name"],
+                    "n_seeds": c["n_seeds"],
+                    "n_clips": c["n_clips"],
+                    "loss": r["loss"]["estimate"],
+                    "loss_ci95_low": r["loss"]["low"],
+                    "loss_ci95_high": r["loss"]["high"],
+                    "recovered": rec.get("estimate"),
+                    "recovered_ci95_low": rec.get("low"),
+                    "recovered_ci95_high": rec.get("high"),
+                    "gain_over_swap": gain.get("estimate"),
+                    "gain_ci95_low": gain.get("low"),
+                    "gain_ci95_high": gain.get("high"),
+                    "kernel_error_fit": c.get("kernel_error_fit"),
+                    "ms_correlation_initial_mean": _mean(c.get("ms_correlation_initial")),
+                    "ms_correlation_final_mean": _mean(c.get("ms_correlation_final")),
+                    "verdict": c["verdict"] if m == "codesign" else "",
+                }
+            )
     write_output(cpath, fh.getvalue())
     return jpath, cpath
 

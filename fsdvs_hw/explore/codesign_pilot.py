@@ -52,12 +52,15 @@ def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_tes
         raise InputError(f"codesign pilot: realisation {realisation!r} has no differentiable form")
     if not seeds or len(set(seeds)) != len(seeds) or any(s < 0 for s in seeds):
         raise InputError(f"codesign pilot: seeds must be distinct non-negative integers, got {seeds}")
-    nets = [shipped_path("kernels", "networks", f"{ev.name}_with_learned_detection_7x7_s{s}.safetensors")
-            for s in seeds]
+    nets = [
+        shipped_path("kernels", "networks", f"{ev.name}_with_learned_detection_7x7_s{s}.safetensors") for s in seeds
+    ]
     missing = [n.name for n in nets if not n.is_file()]
     if missing:
-        raise InputError(f"codesign pilot: no shipped reference network {', '.join(missing)} (the shipped seeds are "
-                         "listed in designs/kernels/networks/)")
+        raise InputError(
+            f"codesign pilot: no shipped reference network {', '.join(missing)} (the shipped seeds are "
+            "listed in designs/kernels/networks/)"
+        )
     torch.set_num_threads(1)
     out.mkdir(parents=True, exist_ok=True)
     target = load_kernel(shipped_path("kernels", "learned_detection_7x7.json"))
@@ -72,26 +75,52 @@ def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_tes
             t0 = time.perf_counter()
             if mode == "retrain":
                 k = fit_realisation(realisation, target).kernel()
-                res = learn_kernel(task, k.size, seed=s, n_test=n_test, init_kernel=k, learn_filter=False,
-                                   out=out / f"{realisation}_{task}_retrain_s{s}")
+                res = learn_kernel(
+                    task,
+                    k.size,
+                    seed=s,
+                    n_test=n_test,
+                    init_kernel=k,
+                    learn_filter=False,
+                    out=out / f"{realisation}_{task}_retrain_s{s}",
+                )
             else:
-                res = learn_kernel(task, target.size, seed=s, n_test=n_test, init_kernel=target,
-                                   realisation=realisation, out=out / f"{realisation}_{task}_codesign_s{s}")
+                res = learn_kernel(
+                    task,
+                    target.size,
+                    seed=s,
+                    n_test=n_test,
+                    init_kernel=target,
+                    realisation=realisation,
+                    out=out / f"{realisation}_{task}_codesign_s{s}",
+                )
             wall[mode].append(time.perf_counter() - t0)
             if mode == "codesign":
                 drift.append(csf_drift(res.kernel.provenance))
             preds = {k: np.asarray(v) for k, v in res.predictions.items()}
             arms[mode].append(PER_CLIP_METRICS[ev.name](preds, targets, ev))
-            print(f"[codesign-pilot] {mode} seed {s}: {ev.primary_metric} {res.metrics[ev.primary_metric]:.4f} "
-                  f"({wall[mode][-1]:.0f} s)", file=sys.stderr, flush=True)
+            print(
+                f"[codesign-pilot] {mode} seed {s}: {ev.primary_metric} {res.metrics[ev.primary_metric]:.4f} "
+                f"({wall[mode][-1]:.0f} s)",
+                file=sys.stderr,
+                flush=True,
+            )
     ones = np.ones((1, n_test))
-    result: dict[str, Any] = {"task": task, "realisation": realisation, "seeds": seeds, "n_test": n_test,
-                              "reference_per_seed": [float(m.weighted(ones)[0]) for m in ref]}
+    result: dict[str, Any] = {
+        "task": task,
+        "realisation": realisation,
+        "seeds": seeds,
+        "n_test": n_test,
+        "reference_per_seed": [float(m.weighted(ones)[0]) for m in ref],
+    }
     for mode, arm in arms.items():
         ci = difference_ci(ref, arm, paired_seeds=False, n_resamples=2000)
-        result[mode] = {**{k: v for k, v in ci.to_dict().items() if k in ("estimate", "low", "high")},
-                        "text": ci.describe(), "per_seed": [float(m.weighted(ones)[0]) for m in arm],
-                        "wall_s": wall[mode]}
+        result[mode] = {
+            **{k: v for k, v in ci.to_dict().items() if k in ("estimate", "low", "high")},
+            "text": ci.describe(),
+            "per_seed": [float(m.weighted(ones)[0]) for m in arm],
+            "wall_s": wall[mode],
+        }
     result["codesign"]["csf_drift"] = drift
     write_output(out / f"pilot_{realisation}_{task}.json", json.dumps(result, indent=1))
     return result

@@ -54,8 +54,9 @@ def with_physical_costs(points: Sequence[Mapping[str, Any]], design: Design) -> 
     """
     base = design.spec.costs.model_dump()
     settings = cost_settings(design)
-    assumptions = [CostAssumptions.model_validate({**base, **{k.split(".", 1)[1]: v for k, v in s.items()}})
-                   for s in settings]
+    assumptions = [
+        CostAssumptions.model_validate({**base, **{k.split(".", 1)[1]: v for k, v in s.items()}}) for s in settings
+    ]
     out = []
     for p in points:
         q = dict(p)
@@ -63,7 +64,9 @@ def with_physical_costs(points: Sequence[Mapping[str, Any]], design: Design) -> 
             score = Score.from_dict(p["result"], where=f"point {p.get('key')}")
             q["physical_cost"] = physical_cost(score, design.spec.costs).to_dict()
             if settings != [{}]:
-                q["physical_cost_sweep"] = [{"setting": s, "physical_cost": physical_cost(score, a).to_dict()}
-                                            for s, a in zip(settings, assumptions)]
+                q["physical_cost_sweep"] = [
+                    {"setting": s, "physical_cost": physical_cost(score, a).to_dict()}
+                    for s, a in zip(settings, assumptions)
+                ]
         out.append(q)
     return out

@@ -156,7 +156,8 @@ class SensorSection(StrictModel):
 
     pitch_m: float = field(DEFAULT_PITCH_M, "m", "pixel pitch in metres", ge=1e-7, le=1e-3)
     resolution: list[Annotated[int, Field(ge=8, le=4096)]] = field(
-        [48, 64], "px", "simulated sensor size [H, W] in pixels", min_length=2, max_length=2)
+        [48, 64], "px", "simulated sensor size [H, W] in pixels", min_length=2, max_length=2
+    )
     threshold_on: float = field(0.2, "", "ON contrast threshold (log units)", ge=1e-4, le=10.0)
     threshold_off: float = field(0.2, "", "OFF contrast threshold (log units)", ge=1e-4, le=10.0)
     threshold_sigma: float = field(0.03, "", "per-pixel threshold mismatch σ (log units)", ge=0.0, le=1.0)
@@ -167,8 +168,7 @@ class SensorSection(StrictModel):
 class OpticsSection(StrictModel):
     """``[optics]``: the imaging lens (turns cycles/pixel into cycles/degree)."""
 
-    focal_length_m: float = field(4.0e-3, "m", "imaging focal length in metres (sets pixels/degree)",
-                                  ge=1e-4, le=1.0)
+    focal_length_m: float = field(4.0e-3, "m", "imaging focal length in metres (sets pixels/degree)", ge=1e-4, le=1.0)
 
 
 class AnalysisSection(StrictModel):
@@ -180,38 +180,67 @@ class AnalysisSection(StrictModel):
 class TasksSection(StrictModel):
     """``[tasks]``: the trained networks the realisations are scored with."""
 
-    checkpoints: dict[str, Any] = field({}, "", "task name → trained checkpoint, or a list of checkpoints (one "
-                                        "network per training seed), .safetensors relative to the design file; a "
-                                        "glob pattern ('networks/det_s*.safetensors') lists every match in natural "
-                                        "order; {} = no task evaluation")
-    n_test: _Clips | dict[str, Any] = field(0, "", "test clips per network and evaluation: one number for every "
-                                            "task or a table task → clips; 0 = the checkpoint's own test-set size")
+    checkpoints: dict[str, Any] = field(
+        {},
+        "",
+        "task name → trained checkpoint, or a list of checkpoints (one "
+        "network per training seed), .safetensors relative to the design file; a "
+        "glob pattern ('networks/det_s*.safetensors') lists every match in natural "
+        "order; {} = no task evaluation",
+    )
+    n_test: _Clips | dict[str, Any] = field(
+        0,
+        "",
+        "test clips per network and evaluation: one number for every "
+        "task or a table task → clips; 0 = the checkpoint's own test-set size",
+    )
     test_clips: Literal["per_network", "shared"] = field(
-        "per_network", "", "which clips a task's networks score: each its own held-out set (clips nested in "
-        "networks: the CI samples as many networks as there are) or the same set for all (crossed)")
-    n_test_emulation: _Clips | dict[str, Any] = field(0, "", "test clips of the emulation track (display + "
-                                                      "recapture costs about 8x the simulator per clip): a number or "
-                                                      "a table task → clips; 0 = as n_test")
-    finetune_epochs: int = field(0, "", "optional short fine-tune after the zero-shot swap (0 = zero-shot)",
-                                 ge=0, le=1000)
+        "per_network",
+        "",
+        "which clips a task's networks score: each its own held-out set (clips nested in "
+        "networks: the CI samples as many networks as there are) or the same set for all (crossed)",
+    )
+    n_test_emulation: _Clips | dict[str, Any] = field(
+        0,
+        "",
+        "test clips of the emulation track (display + "
+        "recapture costs about 8x the simulator per clip): a number or "
+        "a table task → clips; 0 = as n_test",
+    )
+    finetune_epochs: int = field(
+        0, "", "optional short fine-tune after the zero-shot swap (0 = zero-shot)", ge=0, le=1000
+    )
     tracks: list[_Track] = field(["simulator"], "", "evaluation tracks")
     sensor: Literal["checkpoint", "design"] = field(
-        "checkpoint", "", "simulator settings of the task track: the checkpoint's own (the trained condition) or "
-        "the checkpoint's with this design's [sensor] thresholds, mismatch, placement and positivity")
-    datasets: dict[str, UserTask] = field({}, "", "task name → the user's clips and network "
-                                          "([tasks.datasets.<task>]: dataset = {format, root, split, ...}, network, "
-                                          "weights, n_clips; fsdvs_hw.explore.user_data); {} = none")
+        "checkpoint",
+        "",
+        "simulator settings of the task track: the checkpoint's own (the trained condition) or "
+        "the checkpoint's with this design's [sensor] thresholds, mismatch, placement and positivity",
+    )
+    datasets: dict[str, UserTask] = field(
+        {},
+        "",
+        "task name → the user's clips and network "
+        "([tasks.datasets.<task>]: dataset = {format, root, split, ...}, network, "
+        "weights, n_clips; fsdvs_hw.explore.user_data); {} = none",
+    )
 
 
 class ScoringSection(StrictModel):
     """``[scoring]``: the weighted task loss and its confidence intervals."""
 
-    task_weights: dict[str, Any] = field({}, "", "task → weight of its loss in the weighted task loss; {} = equal "
-                                         "weights")
+    task_weights: dict[str, Any] = field(
+        {}, "", "task → weight of its loss in the weighted task loss; {} = equal weights"
+    )
     n_resamples: int = field(2000, "", "bootstrap resamples per confidence interval", ge=100, le=100000)
     confidence: float = field(0.95, "", "two-sided confidence level of the loss intervals", ge=0.5, le=0.999)
-    target_half_width: float = field(0.01, "", "loss CI half-width (metric fraction) the test set is sized for; "
-                                     "wider intervals are flagged", ge=1e-4, le=1.0)
+    target_half_width: float = field(
+        0.01,
+        "",
+        "loss CI half-width (metric fraction) the test set is sized for; wider intervals are flagged",
+        ge=1e-4,
+        le=1.0,
+    )
 
 
 class EmulationSection(StrictModel):
@@ -226,28 +255,47 @@ class EmulationSection(StrictModel):
     display_black_nits: float = field(0.3, "cd/m^2", "display black level in cd/m²", ge=0.0, le=100.0)
     upsample_factor: int = field(4, "", "temporal upsampling before display", ge=1, le=64)
     upsample: Literal["linear_light", "flow"] = field(
-        "linear_light", "", "how the upsampled frames are made: 'linear_light' (blend in linear light, a cross-fade) or "
+        "linear_light",
+        "",
+        "how the upsampled frames are made: 'linear_light' (blend in linear light, a cross-fade) or "
         "'flow' (optical-flow interpolation in log intensity with occlusion handling, fsdvs_hw.sensor.upsampling; "
-        "closer to the paper's RIFE)")
+        "closer to the paper's RIFE)",
+    )
     camera: Literal[EMULATION_CAMERAS] = field(  # type: ignore[valid-type]
-        "design", "", "the camera that recaptures the display: 'design' (the design's [sensor]) or a sensor preset "
-        "with sourced parameters (fsdvs_hw.sensor.presets; 'imx636' is the paper's EVK4)")
+        "design",
+        "",
+        "the camera that recaptures the display: 'design' (the design's [sensor]) or a sensor preset "
+        "with sourced parameters (fsdvs_hw.sensor.presets; 'imx636' is the paper's EVK4)",
+    )
 
 
 class RateSection(StrictModel):
     """``[rate]``: matched-event-rate losses of every point (fsdvs_hw.explore.matched)."""
 
-    enabled: bool = field(False, "", "measure the reference kernels' rate curves and give every point its losses "
-                          "at equal event rate (costs one task evaluation per reference and threshold)")
+    enabled: bool = field(
+        False,
+        "",
+        "measure the reference kernels' rate curves and give every point its losses "
+        "at equal event rate (costs one task evaluation per reference and threshold)",
+    )
     thresholds: list[Annotated[float, Field(ge=1e-4, le=10.0)]] = field(
-        [0.1, 0.125, 0.15, 0.3, 0.45], "", "ON = OFF contrast thresholds (log units) of the reference rate curves, "
+        [0.1, 0.125, 0.15, 0.3, 0.45],
+        "",
+        "ON = OFF contrast thresholds (log units) of the reference rate curves, "
         "besides the one the points were scored at; they must bracket every point's event rate (a rate outside a "
         "curve is refused, never extrapolated) and be dense where the rates are matched: a plain DVS's metric peaks "
-        "near 0.125, and linear interpolation across a peak underestimates it", min_length=1, max_length=64)
+        "near 0.125, and linear interpolation across a peak underestimates it",
+        min_length=1,
+        max_length=64,
+    )
     references: list[Literal["delta", "learned"]] = field(
-        ["delta", "learned"], "", "reference curves: 'delta' (a plain DVS with its threshold moved: the point's gain "
+        ["delta", "learned"],
+        "",
+        "reference curves: 'delta' (a plain DVS with its threshold moved: the point's gain "
         "over it at equal rate) and 'learned' (the kernel being realised: the point's matched-rate loss)",
-        min_length=1, max_length=2)
+        min_length=1,
+        max_length=2,
+    )
 
 
 class SweepSection(StrictModel):
@@ -261,8 +309,13 @@ class RunSection(StrictModel):
 
     workers: int = field(2, "", "local worker processes", ge=1, le=MAX_WORKERS)
     seed: int = field(0, "", "seed for fits and noise", ge=0, le=2**31 - 1)
-    max_points: int = field(10000, "", "largest sweep accepted (design points); a bigger one is refused before its "
-                            "list is built", ge=1, le=10**9)
+    max_points: int = field(
+        10000,
+        "",
+        "largest sweep accepted (design points); a bigger one is refused before its list is built",
+        ge=1,
+        le=10**9,
+    )
 
 
 def _default(model: type[StrictModel]) -> Any:
@@ -285,45 +338,96 @@ def design_model() -> type[StrictModel]:
     hardware = _option_tables()
     default_include = [n for n in names if get_realisation(n).in_default_design]
     tables: dict[str, Any] = {
-        n: (get_realisation(n).options, Field(default_factory=get_realisation(n).options,
-                                              description=f"keyword options of {get_realisation(n).fit_name}"))
-        for n in hardware}
+        n: (
+            get_realisation(n).options,
+            Field(
+                default_factory=get_realisation(n).options,
+                description=f"keyword options of {get_realisation(n).fit_name}",
+            ),
+        )
+        for n in hardware
+    }
     realisations = create_model(
-        "RealisationsSection", __base__=StrictModel, __doc__="``[realisations]``: what is fitted and scored.",
+        "RealisationsSection",
+        __base__=StrictModel,
+        __doc__="``[realisations]``: what is fitted and scored.",
         include=(list[Literal[names]], field(default_include, "", "realisations to fit and score")),  # type: ignore[valid-type]
-        **tables)
+        **tables,
+    )
     diff = tuple(n for n in hardware if get_realisation(n).differentiable)
     real_item: Any = Literal[diff] if diff else Annotated[str, Field(max_length=0)]
     codesign = create_model(
-        "CodesignSection", __base__=StrictModel, __doc__="``[codesign]``: networks trained with the realisations.",
-        enabled=(bool, field(False, "", "add the 'fit then swap' / 'fit then fine-tune' / 'co-designed' rows "
-                                        "(fsdvs_hw.explore.codesign; trains networks: minutes per cell)")),
-        realisations=(list[real_item], field(list(diff), "", "hardware realisations to co-design (those with a "
-                                                             "differentiable form)")),
-        tasks=(list[str], field([], "", "tasks to co-design for; [] = every task in tasks.checkpoints and "
-                                        "tasks.datasets (a user-data task: its one network, weights or train)")),
-        cells=(list[str], field([], "", "'realisation/task' pairs to run (e.g. 'metalens/detection'); [] = every "
-                                        "realisation x task")),
-        seeds=(int, field(3, "", "networks per task: the first N of tasks.checkpoints (one per training seed); a "
-                                 "user-data task has one",
-                          ge=1, le=1000)),
+        "CodesignSection",
+        __base__=StrictModel,
+        __doc__="``[codesign]``: networks trained with the realisations.",
+        enabled=(
+            bool,
+            field(
+                False,
+                "",
+                "add the 'fit then swap' / 'fit then fine-tune' / 'co-designed' rows "
+                "(fsdvs_hw.explore.codesign; trains networks: minutes per cell)",
+            ),
+        ),
+        realisations=(
+            list[real_item],
+            field(list(diff), "", "hardware realisations to co-design (those with a differentiable form)"),
+        ),
+        tasks=(
+            list[str],
+            field(
+                [],
+                "",
+                "tasks to co-design for; [] = every task in tasks.checkpoints and "
+                "tasks.datasets (a user-data task: its one network, weights or train)",
+            ),
+        ),
+        cells=(
+            list[str],
+            field([], "", "'realisation/task' pairs to run (e.g. 'metalens/detection'); [] = every realisation x task"),
+        ),
+        seeds=(
+            int,
+            field(
+                3,
+                "",
+                "networks per task: the first N of tasks.checkpoints (one per training seed); a user-data task has one",
+                ge=1,
+                le=1000,
+            ),
+        ),
         epochs=(int, field(4, "", "training epochs of the fine-tune and co-design rows", ge=1, le=1000)),
-        n_train=(int, field(0, "", "training clips per network; 0 = the checkpoint's own training set", ge=0,
-                            le=100000)),
+        n_train=(
+            int,
+            field(0, "", "training clips per network; 0 = the checkpoint's own training set", ge=0, le=100000),
+        ),
         lr_network=(float, field(1e-3, "", "AdamW learning rate of the network", gt=0.0, le=10.0)),
         lr_filter=(float, field(1e-2, "", "AdamW learning rate of the realisation's parameters", gt=0.0, le=10.0)),
         modes=(list[_CodesignMode], field(list(CODESIGN_MODES), "", "rows to measure")),
     )
     sections: dict[str, type[StrictModel]] = {
-        "design": DesignSection, "kernel": KernelSection, "sensor": SensorSection,
-        "optics": OpticsSection, "analysis": AnalysisSection, "realisations": realisations,
-        "tasks": TasksSection, "scoring": ScoringSection, "emulation": EmulationSection,
-        "rate": RateSection, "sweep": SweepSection, "run": RunSection, "codesign": codesign,
-        "costs": CostAssumptions}
+        "design": DesignSection,
+        "kernel": KernelSection,
+        "sensor": SensorSection,
+        "optics": OpticsSection,
+        "analysis": AnalysisSection,
+        "realisations": realisations,
+        "tasks": TasksSection,
+        "scoring": ScoringSection,
+        "emulation": EmulationSection,
+        "rate": RateSection,
+        "sweep": SweepSection,
+        "run": RunSection,
+        "codesign": codesign,
+        "costs": CostAssumptions,
+    }
     fields: dict[str, Any] = {k: (m, _default(m)) for k, m in sections.items()}
-    model = create_model("DesignFile", __base__=StrictModel,
-                         __doc__="A design file of fsdvs_hw (fsdvs_hw.explore.design): every section optional.",
-                         **fields)
+    model = create_model(
+        "DesignFile",
+        __base__=StrictModel,
+        __doc__="A design file of fsdvs_hw (fsdvs_hw.explore.design): every section optional.",
+        **fields,
+    )
     model.unknown_key = "unknown section"
     _MODELS[sig] = model
     return model
@@ -438,9 +542,13 @@ class Design:
 
     def checkpoints(self) -> dict[str, list[Path]]:
         """Task name → absolute checkpoint paths (one per training seed, in the design's order)."""
-        return {t: [_resolve(self.base_dir, p, what=f"tasks.checkpoints.{t}", confine=self.confine_paths)
-                    for p in _as_list(v)]
-                for t, v in self.spec.tasks.checkpoints.items()}
+        return {
+            t: [
+                _resolve(self.base_dir, p, what=f"tasks.checkpoints.{t}", confine=self.confine_paths)
+                for p in _as_list(v)
+            ]
+            for t, v in self.spec.tasks.checkpoints.items()
+        }
 
     def n_test(self, task: str) -> int | None:
         """Test clips per network of ``task`` (``[tasks] n_test``, one number or a table task → clips);
@@ -455,8 +563,12 @@ class Design:
         for key, value in overrides.items():
             _set_dotted(data, check_key(str(key), what="override"), value)
         data["sweep"] = {"axes": {}}
-        return parse_design(data, source=f"{self.source} with {dict(overrides)}", base_dir=self.base_dir,
-                            confine_paths=self.confine_paths)
+        return parse_design(
+            data,
+            source=f"{self.source} with {dict(overrides)}",
+            base_dir=self.base_dir,
+            confine_paths=self.confine_paths,
+        )
 
     def fingerprint(self) -> str:
         """SHA-1 over the validated content and the target taps (changes when any input changes)."""
@@ -518,8 +630,10 @@ def check_key(key: str, *, what: str = "--set") -> str:
     shown = repr(key[:80])
     parts = key.split(".")
     if not key or any(not p.strip() for p in parts):
-        raise DesignError(f"{what} {shown}: not a dotted design key (an empty part); allowed: section.key, "
-                          "e.g. sensor.threshold_on or asic.bits")
+        raise DesignError(
+            f"{what} {shown}: not a dotted design key (an empty part); allowed: section.key, "
+            "e.g. sensor.threshold_on or asic.bits"
+        )
     ckey = _canonical_key(key)
     cparts = ckey.split(".")
     section = cparts[0]
@@ -539,22 +653,28 @@ def check_key(key: str, *, what: str = "--set") -> str:
         spec = get_realisation(cparts[1])
         options = sorted(spec.options.model_fields)
         if len(cparts) < 3:
-            raise DesignError(f"{what} {shown}: names the [realisations.{cparts[1]}] table, not an option; "
-                              f"allowed: {cparts[1]}.<option> with option one of {', '.join(options)}")
+            raise DesignError(
+                f"{what} {shown}: names the [realisations.{cparts[1]}] table, not an option; "
+                f"allowed: {cparts[1]}.<option> with option one of {', '.join(options)}"
+            )
         if cparts[2] not in spec.options.model_fields:
             raise unknown(f"unknown option of {spec.fit_name}", ", ".join(options))
         if len(cparts) > (4 if _is_table(spec.options, cparts[2]) else 3):
-            raise DesignError(f"{what} {shown}: {cparts[1]}.{cparts[2]} is a single value, not a table; "
-                              f"allowed: {cparts[1]}.{cparts[2]}=VALUE")
+            raise DesignError(
+                f"{what} {shown}: {cparts[1]}.{cparts[2]} is a single value, not a table; "
+                f"allowed: {cparts[1]}.{cparts[2]}=VALUE"
+            )
         return ckey
     if cparts[1] not in _section_keys(section):
         extra = [*_option_tables()] if section == "realisations" else []
         raise unknown(f"unknown key {cparts[1][:40]!r} in [{section}]", ", ".join([*_section_keys(section), *extra]))
     table = _is_table(sections[section], cparts[1])
     if len(cparts) > (3 if table else 2):
-        raise DesignError(f"{what} {shown}: {section}.{cparts[1]} is "
-                          f"{'a table of single values' if table else 'a single value, not a table'}"
-                          f"; allowed: {section}.{cparts[1]}" + ("[.NAME]" if table else "") + "=VALUE")
+        raise DesignError(
+            f"{what} {shown}: {section}.{cparts[1]} is "
+            f"{'a table of single values' if table else 'a single value, not a table'}"
+            f"; allowed: {section}.{cparts[1]}" + ("[.NAME]" if table else "") + "=VALUE"
+        )
     return ckey
 
 
@@ -610,8 +730,9 @@ def load_design(path: str | Path) -> Design:
     return parse_design(raw, source=str(path), base_dir=path.parent)
 
 
-def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: str | Path = ".",
-                 confine_paths: bool = True) -> Design:
+def parse_design(
+    raw: Mapping[str, Any], *, source: str = "<design>", base_dir: str | Path = ".", confine_paths: bool = True
+) -> Design:
     """Validate a design given as nested mappings (what :func:`load_design` reads from TOML).
 
     Relative paths are resolved against ``base_dir``; with ``confine_paths`` (the default, and
@@ -628,8 +749,9 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
         given = raw.get("realisations", {})
         table = given.get(name, {}) if isinstance(given, Mapping) else {}
         dumped = getattr(spec.realisations, name).model_dump(exclude_unset=True)
-        data["realisations"][name] = {k: dumped[k] for k in (table if isinstance(table, Mapping) else {})
-                                      if k in dumped}
+        data["realisations"][name] = {
+            k: dumped[k] for k in (table if isinstance(table, Mapping) else {}) if k in dumped
+        }
     if data["design"]["name"] is None:
         data["design"]["name"] = "design"
     if "costs" not in raw:  # a design without [costs] keeps its content and fingerprint (defaults apply)
@@ -650,11 +772,17 @@ def parse_design(raw: Mapping[str, Any], *, source: str = "<design>", base_dir: 
             check_tap_magnitude(target)
         except KernelError as exc:
             key = "kernel.path" if data["kernel"]["source"] == "file" else "kernel.params"
-            chk.add(key, data["kernel"]["path"] if key == "kernel.path" else data["kernel"]["params"],
-                    str(exc).split(": ", 1)[-1])
+            chk.add(
+                key,
+                data["kernel"]["path"] if key == "kernel.path" else data["kernel"]["params"],
+                str(exc).split(": ", 1)[-1],
+            )
     if target is not None and target.size > min(data["sensor"]["resolution"]):
-        chk.add("sensor.resolution", data["sensor"]["resolution"],
-                f"smaller than the {target.size}x{target.size} kernel; allowed: at least {target.size} px each way")
+        chk.add(
+            "sensor.resolution",
+            data["sensor"]["resolution"],
+            f"smaller than the {target.size}x{target.size} kernel; allowed: at least {target.size} px each way",
+        )
     _check_sizes(chk, data, base, confine_paths, target)
     chk.raise_if_any()
     assert target is not None
@@ -673,8 +801,11 @@ def _validate_sections(chk: _Problems, model: type[StrictModel], raw: Mapping[st
             continue
         table = {k: v for k, v in given.items() if v is not None}
         if section == "realisations":
-            table = {k: (dict(v) if isinstance(v, Mapping) and k in _option_tables() else v)
-                     for k, v in given.items() if v is not None or k in _option_tables()}
+            table = {
+                k: (dict(v) if isinstance(v, Mapping) and k in _option_tables() else v)
+                for k, v in given.items()
+                if v is not None or k in _option_tables()
+            }
         work[section] = table
     for _ in range(8):
         try:
@@ -707,9 +838,12 @@ def _check_cross(chk: _Problems, data: dict[str, Any]) -> None:
         try:
             DisplaySettings.from_design(em)
         except InputError as exc:
-            chk.add("emulation.display_black_nits", em["display_black_nits"],
-                    f"the emulation display is invalid with emulation.display_peak_nits = "
-                    f"{em['display_peak_nits']:g} ({exc})")
+            chk.add(
+                "emulation.display_black_nits",
+                em["display_black_nits"],
+                f"the emulation display is invalid with emulation.display_peak_nits = "
+                f"{em['display_peak_nits']:g} ({exc})",
+            )
     k = data["kernel"]
     if k["source"] == "file" and not k["path"]:
         chk.add("kernel.path", k["path"], "required when kernel.source = 'file'")
@@ -742,16 +876,23 @@ def _check_sizes(chk: _Problems, data: dict[str, Any], base: Path, confine: bool
     if em["enabled"]:
         obj = SceneConfig().radius_px[1]
         if not reported and (max(h, w) > 2048 or 2 * obj + 2 >= min(h, w)):
-            chk.add("sensor.resolution", [h, w], f"the emulation track renders clips of this size with objects up to "
-                    f"{2 * obj + 2:g} px across; allowed with emulation.enabled = true: {int(2 * obj + 3)} to 2048 px "
-                    "each way (or emulation.enabled = false)")
+            chk.add(
+                "sensor.resolution",
+                [h, w],
+                f"the emulation track renders clips of this size with objects up to "
+                f"{2 * obj + 2:g} px across; allowed with emulation.enabled = true: {int(2 * obj + 3)} to 2048 px "
+                "each way (or emulation.enabled = false)",
+            )
         frames = (em["n_frames"] - 1) * em["upsample_factor"] + 1
         n_bytes = 8.0 * em["n_clips"] * frames * h * w
         if n_bytes > max_alloc_bytes():
-            chk.add("emulation.n_clips", em["n_clips"],
-                    f"with emulation.n_frames = {em['n_frames']}, emulation.upsample_factor = {em['upsample_factor']} "
-                    f"and sensor.resolution = [{h}, {w}] the upsampled video is {n_bytes / 2**30:.3g} GiB, more than "
-                    f"the allocation limit of {max_alloc_bytes() / 2**30:.3g} GiB (fsdvs_hw.limits)")
+            chk.add(
+                "emulation.n_clips",
+                em["n_clips"],
+                f"with emulation.n_frames = {em['n_frames']}, emulation.upsample_factor = {em['upsample_factor']} "
+                f"and sensor.resolution = [{h}, {w}] the upsampled video is {n_bytes / 2**30:.3g} GiB, more than "
+                f"the allocation limit of {max_alloc_bytes() / 2**30:.3g} GiB (fsdvs_hw.limits)",
+            )
     if target is None:
         return
     for task, entry in data["tasks"]["checkpoints"].items():
@@ -771,9 +912,13 @@ def _check_sizes(chk: _Problems, data: dict[str, Any], base: Path, confine: bool
                 continue
             if target.size > min(sh, sw):
                 key = f"tasks.checkpoints.{task}" + (f"[{i}]" if isinstance(entry, list) else "")
-                chk.add(key, path, f"its clips are {sh}x{sw} px, smaller than the {target.size}x{target.size} "
-                        f"kernel (kernel.size / kernel.path); allowed: checkpoints whose clips are at least "
-                        f"{target.size} px each way")
+                chk.add(
+                    key,
+                    path,
+                    f"its clips are {sh}x{sw} px, smaller than the {target.size}x{target.size} "
+                    f"kernel (kernel.size / kernel.path); allowed: checkpoints whose clips are at least "
+                    f"{target.size} px each way",
+                )
 
 
 def _natural_key(path: str) -> list[Any]:
@@ -802,7 +947,7 @@ def _bounded_glob(root: Path, parts: list[str], *, limit: int = MAX_GLOB_ENTRIES
             if not glob.has_magic(part):
                 cand = folder / part
                 seen += 1
-                if (cand.exists() if last else cand.is_dir()):
+                if cand.exists() if last else cand.is_dir():
                     nxt.append(cand)
                 continue
             try:
@@ -848,8 +993,12 @@ def _expand_checkpoint_patterns(chk: _Problems, data: dict[str, Any], base: Path
                 chk.add(key, path, "contains a NUL byte")
                 continue
             if confine and (pattern.is_absolute() or ".." in parts):
-                chk.add(key, path, f"a glob pattern must stay inside the design's folder {root}; allowed: a "
-                                   "relative pattern without '..' (e.g. 'networks/det_s*.safetensors')")
+                chk.add(
+                    key,
+                    path,
+                    f"a glob pattern must stay inside the design's folder {root}; allowed: a "
+                    "relative pattern without '..' (e.g. 'networks/det_s*.safetensors')",
+                )
                 continue
             if pattern.is_absolute():  # confine_paths=False: walk from the pattern's fixed prefix
                 n_fixed = next((j for j, p in enumerate(parts) if glob.has_magic(p)), len(parts))
@@ -859,12 +1008,17 @@ def _expand_checkpoint_patterns(chk: _Problems, data: dict[str, Any], base: Path
             try:
                 found = _bounded_glob(start, parts, limit=MAX_GLOB_ENTRIES)
             except _GlobTooWideError:
-                chk.add(key, path, f"the pattern looks at more than {MAX_GLOB_ENTRIES} files and folders; allowed: "
-                                   "a narrower pattern (e.g. 'networks/det_s*.safetensors')")
+                chk.add(
+                    key,
+                    path,
+                    f"the pattern looks at more than {MAX_GLOB_ENTRIES} files and folders; allowed: "
+                    "a narrower pattern (e.g. 'networks/det_s*.safetensors')",
+                )
                 continue
             inside = [m for m in found if not confine or m.resolve() == root or root in m.resolve().parents]
-            matches = sorted(((m.relative_to(root) if start == root else m).as_posix() for m in inside),
-                             key=_natural_key)
+            matches = sorted(
+                ((m.relative_to(root) if start == root else m).as_posix() for m in inside), key=_natural_key
+            )
             if not matches:
                 left = len(found) - len(inside)
                 why = f" ({left} match(es) lead out of the folder through a link and are not used)" if left else ""
@@ -881,6 +1035,7 @@ def _check_tasks(chk: _Problems, data: dict[str, Any], base: Path, confine: bool
     if not known:
         return
     from ..tasks import EVALUATORS  # torch: imported only when a design names tasks
+
     for task, entry in ckpts.items():
         key = f"tasks.checkpoints.{task}"
         if task not in EVALUATORS:
@@ -937,13 +1092,18 @@ def _check_task_weights(chk: _Problems, data: dict[str, Any], known: Mapping[str
     """``scoring.task_weights``: each a scored task's finite weight >= 0, at least one positive."""
     for task, w in data["scoring"]["task_weights"].items():
         if task not in known:
-            chk.add(f"scoring.task_weights.{task}", w, f"not a task in tasks.checkpoints or tasks.datasets; "
-                    f"allowed: {', '.join(known)}")
+            chk.add(
+                f"scoring.task_weights.{task}",
+                w,
+                f"not a task in tasks.checkpoints or tasks.datasets; allowed: {', '.join(known)}",
+            )
         elif isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w >= 0):
             chk.add(f"scoring.task_weights.{task}", w, "allowed: a finite number >= 0")
     weights = data["scoring"]["task_weights"]
-    valid = all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0
-                for v in weights.values())
+    valid = all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0
+        for v in weights.values()
+    )
     if weights and valid and not any(v > 0 for v in weights.values()):
         chk.add("scoring.task_weights", weights, "every weight is 0; allowed: at least one positive weight")
 
@@ -954,8 +1114,12 @@ def _check_user_data(chk: _Problems, data: dict[str, Any], base: Path, confine: 
 
     for task, entry in data["tasks"]["datasets"].items():
         if task in data["tasks"]["checkpoints"]:
-            chk.add(f"tasks.datasets.{task}", entry, f"task {task!r} is also in tasks.checkpoints; allowed: a task "
-                    "scored either with trained checkpoints or on user data (one table per task)")
+            chk.add(
+                f"tasks.datasets.{task}",
+                entry,
+                f"task {task!r} is also in tasks.checkpoints; allowed: a task "
+                "scored either with trained checkpoints or on user data (one table per task)",
+            )
             continue
         for key, value, why in check_user_task(task, entry, base, confine=confine):
             chk.add(key, value, why)
@@ -971,28 +1135,42 @@ def _check_codesign(chk: _Problems, data: dict[str, Any]) -> None:
     tasks = cd["tasks"] or known
     for i, t in enumerate(cd["tasks"]):
         if t not in known:
-            chk.add(f"codesign.tasks[{i}]", t, "not a task in tasks.checkpoints or tasks.datasets; allowed: "
-                    f"{', '.join(known) or 'none'}")
+            chk.add(
+                f"codesign.tasks[{i}]",
+                t,
+                f"not a task in tasks.checkpoints or tasks.datasets; allowed: {', '.join(known) or 'none'}",
+            )
     for i, cell in enumerate(cd["cells"]):
         real, _, task = cell.partition("/")
         if real not in cd["realisations"] or task not in tasks:
-            chk.add(f"codesign.cells[{i}]", cell, "allowed: 'realisation/task' with a realisation of "
-                    f"codesign.realisations ({', '.join(cd['realisations'])}) and a task of "
-                    f"{', '.join(tasks) or 'none'}")
+            chk.add(
+                f"codesign.cells[{i}]",
+                cell,
+                "allowed: 'realisation/task' with a realisation of "
+                f"codesign.realisations ({', '.join(cd['realisations'])}) and a task of "
+                f"{', '.join(tasks) or 'none'}",
+            )
     if len(set(cd["cells"])) != len(cd["cells"]):
         chk.add("codesign.cells", cd["cells"], "lists a cell twice")
     if not cd["enabled"]:
         return
     if not known:
-        chk.add("codesign.enabled", True, "needs trained networks; allowed: tasks.checkpoints or tasks.datasets set, "
-                "or codesign.enabled = false")
+        chk.add(
+            "codesign.enabled",
+            True,
+            "needs trained networks; allowed: tasks.checkpoints or tasks.datasets set, or codesign.enabled = false",
+        )
     if not cd["modes"]:
         chk.add("codesign.modes", cd["modes"], f"empty; allowed: a non-empty list of {', '.join(CODESIGN_MODES)}")
     if not cd["realisations"]:
         chk.add("codesign.realisations", cd["realisations"], "empty; allowed: a realisation with a differentiable form")
     if data["tasks"]["sensor"] != "checkpoint":
-        chk.add("tasks.sensor", data["tasks"]["sensor"], "codesign rows train and score with the checkpoint's "
-                "simulator; allowed with codesign.enabled: 'checkpoint'")
+        chk.add(
+            "tasks.sensor",
+            data["tasks"]["sensor"],
+            "codesign rows train and score with the checkpoint's "
+            "simulator; allowed with codesign.enabled: 'checkpoint'",
+        )
     for t in tasks:
         if t in ckpts:
             _check_codesign_checkpoint_task(chk, t, data)
@@ -1004,8 +1182,11 @@ def _check_codesign_checkpoint_task(chk: _Problems, task: str, data: dict[str, A
     """A co-designed checkpoint task needs ``codesign.seeds`` networks and 2+ test clips per network."""
     seeds, n_nets = data["codesign"]["seeds"], len(_as_list(data["tasks"]["checkpoints"][task]))
     if seeds > n_nets:
-        chk.add("codesign.seeds", seeds, f"task {task!r} has {n_nets} network(s) in tasks.checkpoints; "
-                f"allowed: at most {n_nets}")
+        chk.add(
+            "codesign.seeds",
+            seeds,
+            f"task {task!r} has {n_nets} network(s) in tasks.checkpoints; allowed: at most {n_nets}",
+        )
     n = data["tasks"]["n_test"]
     n = n.get(task, 0) if isinstance(n, dict) else n
     if n == 1:
@@ -1015,8 +1196,12 @@ def _check_codesign_checkpoint_task(chk: _Problems, task: str, data: dict[str, A
 def _check_codesign_user_task(chk: _Problems, task: str, entry: dict[str, Any]) -> None:
     """A co-designed user-data task needs a trained network (``weights`` or ``train``) and 2+ scored clips."""
     if not entry["weights"] and entry.get("train") is None:
-        chk.add(f"tasks.datasets.{task}", "no weights, no train", "codesign compares rows against a trained "
-                f"network; allowed: weights = '...' or a train = {{...}} table, or codesign.tasks without {task!r}")
+        chk.add(
+            f"tasks.datasets.{task}",
+            "no weights, no train",
+            "codesign compares rows against a trained "
+            f"network; allowed: weights = '...' or a train = {{...}} table, or codesign.tasks without {task!r}",
+        )
     if entry["n_clips"] == 1:
         chk.add(f"tasks.datasets.{task}.n_clips", 1, "codesign CIs need at least 2 scored clips")
 
@@ -1042,8 +1227,6 @@ def _safetensors_problem(path: Path) -> str | None:
     return None
 
 
-
-
 def _check_axes(chk: _Problems, data: dict[str, Any]) -> None:
     """Each sweep axis names one key (:func:`check_key`) and each of its values passes that key's model."""
     model = design_model()
@@ -1059,12 +1242,15 @@ def _check_axes(chk: _Problems, data: dict[str, Any]) -> None:
             continue
         section, _, rest = ckey.partition(".")
         if section in ("sweep", "run", "design") or not rest:
-            chk.add(full, values, "sweep axes must name a key inside [kernel], [sensor], [optics], [analysis], "
-                                  "[tasks], [emulation] or a realisation (e.g. 'asic.bits')")
+            chk.add(
+                full,
+                values,
+                "sweep axes must name a key inside [kernel], [sensor], [optics], [analysis], "
+                "[tasks], [emulation] or a realisation (e.g. 'asic.bits')",
+            )
             continue
         if section == "realisations" and rest.split(".")[0] not in _option_tables():
-            chk.add(full, values, f"unknown realisation {rest.split('.')[0]!r}; allowed: "
-                                  f"{', '.join(_option_tables())}")
+            chk.add(full, values, f"unknown realisation {rest.split('.')[0]!r}; allowed: {', '.join(_option_tables())}")
             continue
         for v in values:  # each value through the same model as a plain key
             probe: dict[str, Any] = {}
@@ -1101,4 +1287,3 @@ def _load_target(chk: _Problems, data: dict[str, Any], base: Path, confine: bool
 def axis_values(design: Design) -> dict[str, list[Any]]:
     """The sweep axes of a design as canonical dotted keys → values."""
     return {_canonical_key(k): list(v) for k, v in design.spec.sweep.axes.items()}
-

@@ -41,8 +41,7 @@ import numpy as np
 from ..errors import InputError
 from ..kernels import Kernel
 
-__all__ = ["DisplaySettings", "camera_config", "display_luminance", "emulation_scores", "recapture",
-           "upsample_linear"]
+__all__ = ["DisplaySettings", "camera_config", "display_luminance", "emulation_scores", "recapture", "upsample_linear"]
 
 
 @dataclass(frozen=True)
@@ -89,10 +88,14 @@ class DisplaySettings:
     @classmethod
     def from_design(cls, section: Mapping[str, Any]) -> DisplaySettings:
         """From a design's ``[emulation]`` section."""
-        return cls(bits=int(section["display_bits"]), gamma=float(section["display_gamma"]),
-                   peak_nits=float(section["display_peak_nits"]), black_nits=float(section["display_black_nits"]),
-                   upsample_factor=int(section["upsample_factor"]),
-                   upsample=str(section.get("upsample", "linear_light")))
+        return cls(
+            bits=int(section["display_bits"]),
+            gamma=float(section["display_gamma"]),
+            peak_nits=float(section["display_peak_nits"]),
+            black_nits=float(section["display_black_nits"]),
+            upsample_factor=int(section["upsample_factor"]),
+            upsample=str(section.get("upsample", "linear_light")),
+        )
 
 
 def display_luminance(filtered: np.ndarray, display: DisplaySettings) -> tuple[np.ndarray, dict[str, float]]:
@@ -109,14 +112,15 @@ def display_luminance(filtered: np.ndarray, display: DisplaySettings) -> tuple[n
     v = f / ref
     info = {"clipped_black": float(np.mean(v < 0)), "clipped_peak": float(np.mean(v > 1))}
     v = np.clip(v, 0.0, 1.0)
-    levels = 2 ** display.bits - 1
+    levels = 2**display.bits - 1
     code = np.round(v ** (1.0 / display.gamma) * levels)
     lo = display.black_nits / display.peak_nits
     return lo + (1.0 - lo) * (code / levels) ** display.gamma, info
 
 
-def upsample_linear(video: np.ndarray, timestamps_s: np.ndarray, factor: int,
-                    mode: str = "linear_light") -> tuple[np.ndarray, np.ndarray]:
+def upsample_linear(
+    video: np.ndarray, timestamps_s: np.ndarray, factor: int, mode: str = "linear_light"
+) -> tuple[np.ndarray, np.ndarray]:
     """Insert ``factor − 1`` frames between neighbours: T → (T−1)·factor + 1 frames.
 
     ``mode``: ``"linear_light"`` blends linearly in linear light; ``"flow"`` interpolates with
@@ -130,8 +134,12 @@ def upsample_linear(video: np.ndarray, timestamps_s: np.ndarray, factor: int,
     if mode == "flow":
         from ..sensor.upsampling import interpolate_frames
 
-        mid = np.stack([np.stack([interpolate_frames(a[i, k], b[i, k], w, mode="flow") for k in range(a.shape[1])])
-                        for i in range(a.shape[0])])
+        mid = np.stack(
+            [
+                np.stack([interpolate_frames(a[i, k], b[i, k], w, mode="flow") for k in range(a.shape[1])])
+                for i in range(a.shape[0])
+            ]
+        )
     else:
         mid = a[:, :, None] * (1 - w)[None, None, :, None, None] + b[:, :, None] * w[None, None, :, None, None]
     n, T = video.shape[:2]
@@ -140,8 +148,9 @@ def upsample_linear(video: np.ndarray, timestamps_s: np.ndarray, factor: int,
     return up, tu
 
 
-def recapture(video: np.ndarray, timestamps_s: np.ndarray, kernel: Kernel, *, display: DisplaySettings,
-              sensor: Any) -> tuple[Any, dict[str, float]]:
+def recapture(
+    video: np.ndarray, timestamps_s: np.ndarray, kernel: Kernel, *, display: DisplaySettings, sensor: Any
+) -> tuple[Any, dict[str, float]]:
     """Filter, display, upsample and recapture a clip; event frames on the source intervals.
 
     Returns
@@ -159,8 +168,7 @@ def recapture(video: np.ndarray, timestamps_s: np.ndarray, kernel: Kernel, *, di
     with torch.no_grad():
         filt = apply_kernel(torch.as_tensor(video, dtype=torch.float64), torch.as_tensor(np.array(kernel.taps)))
     lum, info = display_luminance(filt.numpy(), display)
-    up, tu = upsample_linear(lum, np.asarray(timestamps_s, dtype=np.float64), display.upsample_factor,
-                             display.upsample)
+    up, tu = upsample_linear(lum, np.asarray(timestamps_s, dtype=np.float64), display.upsample_factor, display.upsample)
     with torch.no_grad():
         fr = event_frames(torch.as_tensor(up), None, timestamps_s=torch.as_tensor(tu), config=sensor)
     n, tm1 = fr.shape[0], video.shape[1] - 1
@@ -171,9 +179,15 @@ def recapture(video: np.ndarray, timestamps_s: np.ndarray, kernel: Kernel, *, di
 def _sensor_config(sensor: Mapping[str, Any], seed: int, frame_rate_hz: float) -> Any:
     from ..sensor import SensorConfig
 
-    return SensorConfig(threshold_on=sensor["threshold_on"], threshold_off=sensor["threshold_off"],
-                        threshold_sigma=sensor["threshold_sigma"], placement=sensor["placement"],
-                        positivity=sensor["positivity"], frame_rate_hz=frame_rate_hz, seed=seed)
+    return SensorConfig(
+        threshold_on=sensor["threshold_on"],
+        threshold_off=sensor["threshold_off"],
+        threshold_sigma=sensor["threshold_sigma"],
+        placement=sensor["placement"],
+        positivity=sensor["positivity"],
+        frame_rate_hz=frame_rate_hz,
+        seed=seed,
+    )
 
 
 def camera_config(camera: str, design_sensor: Any) -> Any:
@@ -197,8 +211,9 @@ def camera_config(camera: str, design_sensor: Any) -> Any:
     return sensor_config(camera, frame_rate_hz=design_sensor.frame_rate_hz, seed=design_sensor.seed)
 
 
-def emulation_scores(kernel: Kernel, *, sensor: Mapping[str, Any], emulation: Mapping[str, Any],
-                     seed: int = 0, camera: str | None = None) -> dict[str, Any]:
+def emulation_scores(
+    kernel: Kernel, *, sensor: Mapping[str, Any], emulation: Mapping[str, Any], seed: int = 0, camera: str | None = None
+) -> dict[str, Any]:
     """Compare the in-sensor FS-DVS with its sensor-in-the-loop emulation on synthetic clips.
 
     Parameters
@@ -236,16 +251,32 @@ def emulation_scores(kernel: Kernel, *, sensor: Mapping[str, Any], emulation: Ma
     clips = make_scenes(scene, int(emulation["n_clips"]), seed=seed)
     cfg = _sensor_config(sensor, seed, scene.frame_rate_hz)
     with torch.no_grad():
-        ref = event_frames(torch.as_tensor(clips.video), torch.as_tensor(np.array(kernel.taps)),
-                           timestamps_s=torch.as_tensor(clips.timestamps_s), config=cfg)
+        ref = event_frames(
+            torch.as_tensor(clips.video),
+            torch.as_tensor(np.array(kernel.taps)),
+            timestamps_s=torch.as_tensor(clips.timestamps_s),
+            config=cfg,
+        )
     display = DisplaySettings.from_design(emulation)
-    rec, info = recapture(clips.video, clips.timestamps_s, kernel, display=display,
-                          sensor=camera_config(camera or emulation.get("camera", "design"), cfg))
+    rec, info = recapture(
+        clips.video,
+        clips.timestamps_s,
+        kernel,
+        display=display,
+        sensor=camera_config(camera or emulation.get("camera", "design"), cfg),
+    )
     a = (ref[:, :, 0] - ref[:, :, 1]).numpy().ravel()
     b = (rec[:, :, 0] - rec[:, :, 1]).numpy().ravel()
     corr = float(np.corrcoef(a, b)[0, 1]) if a.std() > 0 and b.std() > 0 else 0.0
     n_ref, n_rec = float(ref.sum()), float(rec.sum())
-    return {"status": "ok", "events_in_sensor": n_ref, "events_recaptured": n_rec,
-            "event_ratio": n_rec / n_ref if n_ref > 0 else float("nan"), "signed_correlation": corr,
-            **info, "n_clips": int(emulation["n_clips"]), "resolution": [int(h), int(w)],
-            "wall_s": time.perf_counter() - t0}
+    return {
+        "status": "ok",
+        "events_in_sensor": n_ref,
+        "events_recaptured": n_rec,
+        "event_ratio": n_rec / n_ref if n_ref > 0 else float("nan"),
+        "signed_correlation": corr,
+        **info,
+        "n_clips": int(emulation["n_clips"]),
+        "resolution": [int(h), int(w)],
+        "wall_s": time.perf_counter() - t0,
+    }

@@ -41,9 +41,17 @@ class Exploration:
     artifacts_index: Path | None = None
 
 
-def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers: int | None = None,
-                    scheduler: str | None = None, progress: bool | None = None, retry_errors: bool = False,
-                    max_points: int | None = None, security: Any = None) -> Exploration:
+def run_exploration(
+    design: Design | str | Path,
+    out_dir: str | Path,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: bool | None = None,
+    retry_errors: bool = False,
+    max_points: int | None = None,
+    security: Any = None,
+) -> Exploration:
     """Explore one design: fit, score and report every design point.
 
     After every point has run, each point's task losses against the learned kernel are computed
@@ -101,26 +109,49 @@ def run_exploration(design: Design | str | Path, out_dir: str | Path, *, workers
     out = output_dir(out_dir, flag="--out")  # checked before any work: a file, unwritable, ...
     store_path = out / "results.sqlite"
     _train_user_networks(design)
-    summary, rows = run_design(design, store_path, workers=workers, scheduler=scheduler, progress=progress,
-                               retry_errors=retry_errors, max_points=max_points, security=security)
+    summary, rows = run_design(
+        design,
+        store_path,
+        workers=workers,
+        scheduler=scheduler,
+        progress=progress,
+        retry_errors=retry_errors,
+        max_points=max_points,
+        security=security,
+    )
     sc = design.spec.scoring
     rows = with_matched_rates(rows, design, out, progress=progress)  # [rate]: needs the per-clip evidence
-    rows = with_paired_losses(rows, task_weights=sc.task_weights or None, n_resamples=sc.n_resamples,
-                              confidence=sc.confidence, rng=design.spec.run.seed)
+    rows = with_paired_losses(
+        rows,
+        task_weights=sc.task_weights or None,
+        n_resamples=sc.n_resamples,
+        confidence=sc.confidence,
+        rng=design.spec.run.seed,
+    )
     index, entries = write_exploration_artifacts(rows, out, resolution=tuple(design.spec.sensor.resolution))
     for row in rows:  # each point carries its files (paths relative to out) for the report's links
         name = point_folder_name(row["realisation"], row.get("params") or {})
-        row["artifacts"] = [{**e, "file": f"{ARTIFACTS_DIR}/{e['file']}" if e.get("file") else ""}
-                            for e in entries if e["point"] == name]
+        row["artifacts"] = [
+            {**e, "file": f"{ARTIFACTS_DIR}/{e['file']}" if e.get("file") else ""}
+            for e in entries
+            if e["point"] == name
+        ]
     rows = with_physical_costs(rows, design)  # SI cost records, and per [costs] sweep setting (issue 25)
     if design.spec.codesign.enabled:  # the fit-then-swap / fine-tune / co-designed rows (issue 16)
         from .codesign import run_codesign, write_codesign
 
         write_codesign(run_codesign(design, out, progress=progress), out)
     report = write_report(rows, design, out)
-    return Exploration(report=report, scores_csv=out / "scores.csv", scores_json=out / "scores.json",
-                       store=store_path, summary=summary, wall_s=time.perf_counter() - t0,
-                       points=tuple(rows), artifacts_index=index)
+    return Exploration(
+        report=report,
+        scores_csv=out / "scores.csv",
+        scores_json=out / "scores.json",
+        store=store_path,
+        summary=summary,
+        wall_s=time.perf_counter() - t0,
+        points=tuple(rows),
+        artifacts_index=index,
+    )
 
 
 def _train_user_networks(design: Any) -> None:
@@ -132,5 +163,9 @@ def _train_user_networks(design: Any) -> None:
     for task, table in design.spec.tasks.datasets.items():
         if table.train is not None:
             res = train_user_task(task, table.model_dump(), design.base_dir, confine=design.confine_paths, verbose=True)
-            print(f"[explore] {task}: network trained on {len(res.train_indices)} clips not scored "
-                  f"({res.epochs_trained} epochs now; {res.paths.get('checkpoint')})", file=sys.stderr, flush=True)
+            print(
+                f"[explore] {task}: network trained on {len(res.train_indices)} clips not scored "
+                f"({res.epochs_trained} epochs now; {res.paths.get('checkpoint')})",
+                file=sys.stderr,
+                flush=True,
+            )

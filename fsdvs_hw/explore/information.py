@@ -88,21 +88,51 @@ MATCHED: str = "w/o @ matched rate"
 #: Fields of the comparison of each condition against :data:`MATCHED` (``information.json``,
 #: ``vs_matched_rate``): the gains of :data:`TABLE_FIELDS`, taken against the matched w/o.
 MATCHED_FIELDS: tuple[str, ...] = (
-    "condition", "mi_gain", "mi_gain_low", "mi_gain_high", "mi_gain_pct", "mi_gain_pct_low", "mi_gain_pct_high",
-    "bits_per_event_gain", "bits_per_event_gain_low", "bits_per_event_gain_high", "confidence",
+    "condition",
+    "mi_gain",
+    "mi_gain_low",
+    "mi_gain_high",
+    "mi_gain_pct",
+    "mi_gain_pct_low",
+    "mi_gain_pct_high",
+    "bits_per_event_gain",
+    "bits_per_event_gain_low",
+    "bits_per_event_gain_high",
+    "confidence",
 )
 
 #: Columns of the table (``information.csv``); ``_low``/``_high`` are the CI bounds.
 TABLE_FIELDS: tuple[str, ...] = (
-    "condition", "kernel", "kernel_size", "threshold", "n_networks", "n_clips",
-    "mi", "mi_low", "mi_high", "mi_shuffled",
-    "events_per_pixel", "events_per_pixel_low", "events_per_pixel_high",
-    "rate", "rate_low", "rate_high",
-    "bits_per_event", "bits_per_event_low", "bits_per_event_high",
-    "mi_gain", "mi_gain_low", "mi_gain_high",
-    "mi_gain_pct", "mi_gain_pct_low", "mi_gain_pct_high",
-    "bits_per_event_gain", "bits_per_event_gain_low", "bits_per_event_gain_high",
-    "r2", "confidence",
+    "condition",
+    "kernel",
+    "kernel_size",
+    "threshold",
+    "n_networks",
+    "n_clips",
+    "mi",
+    "mi_low",
+    "mi_high",
+    "mi_shuffled",
+    "events_per_pixel",
+    "events_per_pixel_low",
+    "events_per_pixel_high",
+    "rate",
+    "rate_low",
+    "rate_high",
+    "bits_per_event",
+    "bits_per_event_low",
+    "bits_per_event_high",
+    "mi_gain",
+    "mi_gain_low",
+    "mi_gain_high",
+    "mi_gain_pct",
+    "mi_gain_pct_low",
+    "mi_gain_pct_high",
+    "bits_per_event_gain",
+    "bits_per_event_gain_low",
+    "bits_per_event_gain_high",
+    "r2",
+    "confidence",
 )
 
 
@@ -134,8 +164,10 @@ def bits_per_event(mi_bits_per_pixel: Any, events_per_pixel: Any) -> np.ndarray 
     mi = np.asarray(mi_bits_per_pixel, dtype=np.float64)
     ev = np.asarray(events_per_pixel, dtype=np.float64)
     if not (np.all(np.isfinite(mi)) and np.all(np.isfinite(ev))) or np.any(mi < 0) or np.any(ev < 0):
-        raise InputError(f"bits_per_event: MI {mi.tolist()} bits/pixel and events {ev.tolist()} per pixel; allowed: "
-                         "finite values >= 0")
+        raise InputError(
+            f"bits_per_event: MI {mi.tolist()} bits/pixel and events {ev.tolist()} per pixel; allowed: "
+            "finite values >= 0"
+        )
     with np.errstate(divide="ignore", invalid="ignore"):
         out = np.where(ev > 0, mi / np.where(ev > 0, ev, 1.0), np.nan)
     return float(out) if out.ndim == 0 else out
@@ -179,14 +211,21 @@ class ConditionEvidence:
     def __post_init__(self) -> None:
         h, e = np.shape(self.histograms), np.shape(self.events_per_pixel)
         if len(h) != 4 or h[:2] != e:
-            raise InputError(f"ConditionEvidence {self.name!r}: histograms {h} and events_per_pixel {e} do not "
-                             "share (networks, clips)")
+            raise InputError(
+                f"ConditionEvidence {self.name!r}: histograms {h} and events_per_pixel {e} do not "
+                "share (networks, clips)"
+            )
 
     def to_npz(self) -> bytes:
         buf = io.BytesIO()
         meta = {k: getattr(self, k) for k in ("name", "kernel", "kernel_size", "threshold", "span_s", "mi_shuffled")}
-        np.savez_compressed(buf, histograms=self.histograms, events_per_pixel=self.events_per_pixel, r2=self.r2,
-                            meta=np.array(json.dumps(meta)))
+        np.savez_compressed(
+            buf,
+            histograms=self.histograms,
+            events_per_pixel=self.events_per_pixel,
+            r2=self.r2,
+            meta=np.array(json.dumps(meta)),
+        )
         return buf.getvalue()
 
     @classmethod
@@ -216,8 +255,14 @@ def _condition_values(ev: ConditionEvidence, ws: np.ndarray, wc: np.ndarray) -> 
     return {"mi": mi, "events_per_pixel": epp, "bits_per_event": np.asarray(bits_per_event(mi, epp))}
 
 
-def information_table(conditions: Sequence[ConditionEvidence], *, reference: str = "w/o", confidence: float = 0.95,
-                      n_resamples: int = 2000, rng: Any = 0) -> list[dict[str, Any]]:
+def information_table(
+    conditions: Sequence[ConditionEvidence],
+    *,
+    reference: str = "w/o",
+    confidence: float = 0.95,
+    n_resamples: int = 2000,
+    rng: Any = 0,
+) -> list[dict[str, Any]]:
     """One row per condition: MI, events per pixel, rate, bits per event, gains over ``reference``, CIs.
 
     Parameters
@@ -290,8 +335,14 @@ def information_table(conditions: Sequence[ConditionEvidence], *, reference: str
     rows = []
     for c in conditions:
         b, p = boot[c.name], point[c.name]
-        row: dict[str, Any] = {"condition": c.name, "kernel": c.kernel, "kernel_size": c.kernel_size,
-                               "threshold": c.threshold, "n_networks": n_net, "n_clips": n_clips}
+        row: dict[str, Any] = {
+            "condition": c.name,
+            "kernel": c.kernel,
+            "kernel_size": c.kernel_size,
+            "threshold": c.threshold,
+            "n_networks": n_net,
+            "n_clips": n_clips,
+        }
         for key in ("mi", "events_per_pixel", "bits_per_event"):
             row[key] = p[key]
             row[f"{key}_low"], row[f"{key}_high"] = ci(b[key], p[key])
@@ -300,10 +351,14 @@ def information_table(conditions: Sequence[ConditionEvidence], *, reference: str
             if key == "events_per_pixel":
                 row["rate"] = p[key] / c.span_s
                 row["rate_low"], row["rate_high"] = row[f"{key}_low"] / c.span_s, row[f"{key}_high"] / c.span_s
-        gains = {"mi_gain": (p["mi"] - ref_p["mi"], b["mi"] - ref_b["mi"]),
-                 "mi_gain_pct": (_percent_gain(p["mi"], ref_p["mi"]), _percent_gain(b["mi"], ref_b["mi"])),
-                 "bits_per_event_gain": (p["bits_per_event"] - ref_p["bits_per_event"],
-                                         b["bits_per_event"] - ref_b["bits_per_event"])}
+        gains = {
+            "mi_gain": (p["mi"] - ref_p["mi"], b["mi"] - ref_b["mi"]),
+            "mi_gain_pct": (_percent_gain(p["mi"], ref_p["mi"]), _percent_gain(b["mi"], ref_b["mi"])),
+            "bits_per_event_gain": (
+                p["bits_per_event"] - ref_p["bits_per_event"],
+                b["bits_per_event"] - ref_b["bits_per_event"],
+            ),
+        }
         for key, (est, vals) in gains.items():
             row[key] = est
             row[f"{key}_low"], row[f"{key}_high"] = ci(vals, est)
@@ -365,9 +420,15 @@ class InformationOptions:
     command: str = ""
 
     def __post_init__(self) -> None:
-        for name, lo, hi in (("n_networks", 2, 1000), ("n_train", 2, 100_000), ("n_test", 2, 100_000),
-                             ("epochs", 1, 10_000), ("width", 4, 256), ("n_bins", 2, 4096),
-                             ("n_resamples", 100, 1_000_000)):
+        for name, lo, hi in (
+            ("n_networks", 2, 1000),
+            ("n_train", 2, 100_000),
+            ("n_test", 2, 100_000),
+            ("epochs", 1, 10_000),
+            ("width", 4, 256),
+            ("n_bins", 2, 4096),
+            ("n_resamples", 100, 1_000_000),
+        ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
                 raise InputError(f"InformationOptions.{name}={v!r}; allowed: an integer in [{lo}, {hi}]")
@@ -394,14 +455,16 @@ class InformationStudy:
                 f"{r['events_per_pixel']:.3f} events/pixel; {r['bits_per_event']:.3f} "
                 f"[{r['bits_per_event_low']:.3f}, {r['bits_per_event_high']:.3f}] bits/event; vs w/o "
                 f"{r['mi_gain']:+.3f} [{r['mi_gain_low']:+.3f}, {r['mi_gain_high']:+.3f}] bits/pixel "
-                f"({r['mi_gain_pct']:+.1f} %)")
+                f"({r['mi_gain_pct']:+.1f} %)"
+            )
         for r in self.vs_matched:
             if r["condition"] == "learned":
                 lines.append(
                     f"learned vs w/o @ matched rate: {r['mi_gain']:+.3f} [{r['mi_gain_low']:+.3f}, "
                     f"{r['mi_gain_high']:+.3f}] bits/pixel ({r['mi_gain_pct']:+.1f} % [{r['mi_gain_pct_low']:+.1f}, "
                     f"{r['mi_gain_pct_high']:+.1f}]); {r['bits_per_event_gain']:+.3f} [{r['bits_per_event_gain_low']:+.3f}, "
-                    f"{r['bits_per_event_gain_high']:+.3f}] bits/event")
+                    f"{r['bits_per_event_gain_high']:+.3f}] bits/event"
+                )
         return "\n".join(lines)
 
 
@@ -432,13 +495,18 @@ def _events_per_pixel(video: Any, kernel: Kernel | None, sensor: Any, timestamps
 
     taps = None if kernel is None else torch.as_tensor(np.array(kernel.taps), dtype=video.dtype)
     with torch.no_grad():
-        ev = torch.cat([event_frames(video[s: s + 64], taps, timestamps_s=timestamps_s, config=sensor)
-                        for s in range(0, video.shape[0], 64)])
+        ev = torch.cat(
+            [
+                event_frames(video[s : s + 64], taps, timestamps_s=timestamps_s, config=sensor)
+                for s in range(0, video.shape[0], 64)
+            ]
+        )
     return ev.reshape(ev.shape[0], -1).sum(dim=1).double().numpy() / (ev.shape[-2] * ev.shape[-1])
 
 
-def _matched_threshold(design: Any, scene: Any, target: Kernel, n_test: int, thresholds: Sequence[float],
-                       out: Path) -> tuple[float, dict[str, Any]]:
+def _matched_threshold(
+    design: Any, scene: Any, target: Kernel, n_test: int, thresholds: Sequence[float], out: Path
+) -> tuple[float, dict[str, Any]]:
     """The w/o threshold at which its event rate equals the learned kernel's at the design's threshold."""
     import torch
 
@@ -447,8 +515,13 @@ def _matched_threshold(design: Any, scene: Any, target: Kernel, n_test: int, thr
 
     t_ref = float(design.section("sensor")["threshold_on"])
     ts = sorted(set(float(t) for t in thresholds) | {t_ref})
-    fp = _fingerprint(scene=scene.to_dict(), n_test=n_test, thresholds=ts, taps=np.asarray(target.taps).tolist(),
-                      sensor=_sensor_for(design, scene).to_dict())
+    fp = _fingerprint(
+        scene=scene.to_dict(),
+        n_test=n_test,
+        thresholds=ts,
+        taps=np.asarray(target.taps).tolist(),
+        sensor=_sensor_for(design, scene).to_dict(),
+    )
     file = out / "matched_rate.json"
     if file.is_file():
         stored = json.loads(file.read_text())
@@ -456,43 +529,82 @@ def _matched_threshold(design: Any, scene: Any, target: Kernel, n_test: int, thr
             return float(stored["matched_threshold"]), stored
     video = torch.from_numpy(make_scenes(scene, n_test, seed=TEST_SEED).video).float()
     span = float(scene.timestamps_s[-1] - scene.timestamps_s[0])
-    wo = [float(_events_per_pixel(video, None, _sensor_for(design, scene, t), scene.timestamps_s).mean()) / span
-          for t in ts]
-    learned = float(_events_per_pixel(video, target, _sensor_for(design, scene, t_ref), scene.timestamps_s).mean()) / span
+    wo = [
+        float(_events_per_pixel(video, None, _sensor_for(design, scene, t), scene.timestamps_s).mean()) / span
+        for t in ts
+    ]
+    learned = (
+        float(_events_per_pixel(video, target, _sensor_for(design, scene, t_ref), scene.timestamps_s).mean()) / span
+    )
     matched = interpolate_log_rate(wo, ts, learned)
     if not math.isfinite(matched):
-        raise InputError(f"matched rate: the learned kernel's rate {learned:.4g} {EVENT_RATE_UNIT} lies outside the "
-                         f"w/o rates {[round(r, 3) for r in wo]} at thresholds {ts}; widen --rate-thresholds")
-    record = {"fingerprint": fp, "matched_threshold": matched, "reference_threshold": t_ref,
-              "learned_rate": learned, "wo_thresholds": ts, "wo_rates": wo, "rate_unit": EVENT_RATE_UNIT,
-              "n_test": n_test}
+        raise InputError(
+            f"matched rate: the learned kernel's rate {learned:.4g} {EVENT_RATE_UNIT} lies outside the "
+            f"w/o rates {[round(r, 3) for r in wo]} at thresholds {ts}; widen --rate-thresholds"
+        )
+    record = {
+        "fingerprint": fp,
+        "matched_threshold": matched,
+        "reference_threshold": t_ref,
+        "learned_rate": learned,
+        "wo_thresholds": ts,
+        "wo_rates": wo,
+        "rate_unit": EVENT_RATE_UNIT,
+        "n_test": n_test,
+    }
     write_output(file, json.dumps(record, indent=1))
     return matched, record
 
 
-def _train(name: str, kernel: Kernel | None, sensor: Any, scene: Any, seed: int, opts: InformationOptions,
-           folder: Path) -> Path:
+def _train(
+    name: str, kernel: Kernel | None, sensor: Any, scene: Any, seed: int, opts: InformationOptions, folder: Path
+) -> Path:
     """One reconstruction network (resumed when its checkpoint and fingerprint exist); its checkpoint path."""
     from ..tasks.learn import TrainingSettings, learn_kernel
 
     stem = folder / f"{_slug(name)}_s{seed}"
     settings = TrainingSettings(epochs_frozen=0, epochs_joint=opts.epochs, width=opts.width)
-    fp = _fingerprint(taps=None if kernel is None else np.asarray(kernel.taps).round(15).tolist(),
-                      sensor=sensor.to_dict(), scene=scene.to_dict(), seed=seed, n_train=opts.n_train,
-                      n_test=opts.n_test, settings=settings.to_dict())
+    fp = _fingerprint(
+        taps=None if kernel is None else np.asarray(kernel.taps).round(15).tolist(),
+        sensor=sensor.to_dict(),
+        scene=scene.to_dict(),
+        seed=seed,
+        n_train=opts.n_train,
+        n_test=opts.n_test,
+        settings=settings.to_dict(),
+    )
     done = Path(str(stem) + ".fingerprint")
     ckpt = Path(str(stem) + ".safetensors")
     if ckpt.is_file() and done.is_file() and done.read_text().strip() == fp:
         return ckpt
-    learn_kernel("reconstruction", 1 if kernel is None else kernel.size, seed=seed, n_train=opts.n_train,
-                 n_test=opts.n_test, settings=settings, scene=scene, sensor=sensor, learn_filter=False,
-                 init_kernel=kernel, out=stem, name=f"{name} (frozen) with reconstruction network s{seed}")
+    learn_kernel(
+        "reconstruction",
+        1 if kernel is None else kernel.size,
+        seed=seed,
+        n_train=opts.n_train,
+        n_test=opts.n_test,
+        settings=settings,
+        scene=scene,
+        sensor=sensor,
+        learn_filter=False,
+        init_kernel=kernel,
+        out=stem,
+        name=f"{name} (frozen) with reconstruction network s{seed}",
+    )
     write_output(done, fp + "\n")
     return ckpt
 
 
-def _score(name: str, kernel: Kernel | None, threshold: float, checkpoints: Sequence[Path], scene: Any,
-           ground_truth: np.ndarray, x_edges: np.ndarray, n_bins: int) -> ConditionEvidence:
+def _score(
+    name: str,
+    kernel: Kernel | None,
+    threshold: float,
+    checkpoints: Sequence[Path],
+    scene: Any,
+    ground_truth: np.ndarray,
+    x_edges: np.ndarray,
+    n_bins: int,
+) -> ConditionEvidence:
     """Reconstruct the test clips with each network; per-clip joint histograms and events per pixel."""
     from ..tasks.learn import evaluate_kernel
 
@@ -510,10 +622,17 @@ def _score(name: str, kernel: Kernel | None, threshold: float, checkpoints: Sequ
         shuffled.append(float(histogram_mi(joint_histogram(np.roll(ground_truth, 1, axis=0), recon, x_edges, y_edges))))
         epp.append(np.asarray(ev.clip_event_rates) * span)
         r2.append(ev.metrics["r2"])
-    return ConditionEvidence(name=name, kernel="w/o (1x1 delta)" if kernel is None else kernel.name,
-                             kernel_size=1 if kernel is None else kernel.size, threshold=threshold,
-                             histograms=np.stack(hists), events_per_pixel=np.stack(epp), span_s=span,
-                             r2=np.asarray(r2), mi_shuffled=float(np.mean(shuffled)))
+    return ConditionEvidence(
+        name=name,
+        kernel="w/o (1x1 delta)" if kernel is None else kernel.name,
+        kernel_size=1 if kernel is None else kernel.size,
+        threshold=threshold,
+        histograms=np.stack(hists),
+        events_per_pixel=np.stack(epp),
+        span_s=span,
+        r2=np.asarray(r2),
+        mi_shuffled=float(np.mean(shuffled)),
+    )
 
 
 def _realisation_kernel(name: str, design: Any, folder: Path) -> Kernel:
@@ -573,13 +692,17 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
         raise InputError(f"run_information_study: options must be InformationOptions, got {type(options).__name__}")
     unknown = [r for r in options.realisations if r not in realisation_names() or r in ("learned", "delta")]
     if unknown:
-        raise InputError(f"--realisations {unknown}: unknown; allowed: "
-                         f"{[r for r in realisation_names() if r not in ('learned', 'delta')]}")
+        raise InputError(
+            f"--realisations {unknown}: unknown; allowed: "
+            f"{[r for r in realisation_names() if r not in ('learned', 'delta')]}"
+        )
     design = load_design(resolve_design(options.design))
     sensor_section = design.section("sensor")
     if sensor_section["threshold_on"] != sensor_section["threshold_off"]:
-        raise InputError(f"sensor.threshold_on={sensor_section['threshold_on']} != threshold_off="
-                         f"{sensor_section['threshold_off']}; allowed: equal thresholds")
+        raise InputError(
+            f"sensor.threshold_on={sensor_section['threshold_on']} != threshold_off="
+            f"{sensor_section['threshold_off']}; allowed: equal thresholds"
+        )
     t_ref = float(sensor_section["threshold_on"])
     out = output_dir(options.out, flag="--out")
     for sub in ("networks", "evidence", "kernels"):
@@ -590,21 +713,25 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
         conditions[name] = (_realisation_kernel(name, design, out / "kernels"), t_ref)
     matched, matched_record = None, None
     if options.matched_rate:
-        matched, matched_record = _matched_threshold(design, scene, design.target, options.n_test,
-                                                     options.rate_thresholds, out)
+        matched, matched_record = _matched_threshold(
+            design, scene, design.target, options.n_test, options.rate_thresholds, out
+        )
         conditions[MATCHED] = (None, matched)
     truth = clean_last_frame(make_scenes(scene, options.n_test, seed=TEST_SEED))
     x_edges = quantile_edges(truth, options.n_bins)
     evidence: dict[str, ConditionEvidence] = {}
     seeds = range(options.n_networks)
-    with progress_bar(total=len(conditions) * options.n_networks, desc="information", unit="network",
-                      progress=options.progress) as bar:
+    with progress_bar(
+        total=len(conditions) * options.n_networks, desc="information", unit="network", progress=options.progress
+    ) as bar:
         for name, (kernel, threshold) in conditions.items():
             sensor = _sensor_for(design, scene, threshold)
             file = out / "evidence" / f"{_slug(name)}.npz"
-            fp = _fingerprint(taps=None if kernel is None else np.asarray(kernel.taps).round(15).tolist(),
-                              sensor=sensor.to_dict(), n=[options.n_networks, options.n_train, options.n_test,
-                                                          options.epochs, options.width, options.n_bins])
+            fp = _fingerprint(
+                taps=None if kernel is None else np.asarray(kernel.taps).round(15).tolist(),
+                sensor=sensor.to_dict(),
+                n=[options.n_networks, options.n_train, options.n_test, options.epochs, options.width, options.n_bins],
+            )
             stamp = Path(str(file) + ".fingerprint")
             if file.is_file() and stamp.is_file() and stamp.read_text().strip() == fp:
                 evidence[name] = ConditionEvidence.from_npz(file)
@@ -617,32 +744,62 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
             evidence[name] = _score(name, kernel, threshold, ckpts, scene, truth, x_edges, options.n_bins)
             write_output(file, evidence[name].to_npz())
             write_output(stamp, fp + "\n")
-    rows = information_table(list(evidence.values()), confidence=options.confidence,
-                             n_resamples=options.n_resamples, rng=0)
+    rows = information_table(
+        list(evidence.values()), confidence=options.confidence, n_resamples=options.n_resamples, rng=0
+    )
     vs_matched = []
     if MATCHED in evidence:
-        vs_matched = [{k: r[k] for k in MATCHED_FIELDS} for r in information_table(
-            list(evidence.values()), reference=MATCHED, confidence=options.confidence,
-            n_resamples=options.n_resamples, rng=0)]
-    settings = {"design": str(options.design), "conditions": list(conditions), "reference_threshold": t_ref,
-                "matched_threshold": matched, "matched_rate": matched_record,
-                "n_networks": options.n_networks, "training_seeds": list(seeds), "n_train": options.n_train,
-                "n_test": options.n_test, "test_seed": TEST_SEED, "epochs": options.epochs, "width": options.width,
-                "scene": scene.to_dict(), "sensor": _sensor_for(design, scene).to_dict(),
-                "estimator": f"equal-mass {options.n_bins}x{options.n_bins} joint histogram, plug-in entropies "
-                             "(scipy.stats.entropy), Miller-Madow correction; ground truth = noise-free last frame",
-                "mi_unit": MI_UNIT, "rate_unit": EVENT_RATE_UNIT, "n_resamples": options.n_resamples,
-                "confidence": options.confidence,
-                "bootstrap": "percentile, networks x clips crossed (clips shared by every network and condition), "
-                             "the same resamples for every condition (paired gains)",
-                "networks": {n: [f"{_slug(n)}_s{s}.safetensors" for s in seeds] for n in conditions}}
-    provenance = {"command": options.command, "versions": library_versions(),
-                  "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
+        vs_matched = [
+            {k: r[k] for k in MATCHED_FIELDS}
+            for r in information_table(
+                list(evidence.values()),
+                reference=MATCHED,
+                confidence=options.confidence,
+                n_resamples=options.n_resamples,
+                rng=0,
+            )
+        ]
+    settings = {
+        "design": str(options.design),
+        "conditions": list(conditions),
+        "reference_threshold": t_ref,
+        "matched_threshold": matched,
+        "matched_rate": matched_record,
+        "n_networks": options.n_networks,
+        "training_seeds": list(seeds),
+        "n_train": options.n_train,
+        "n_test": options.n_test,
+        "test_seed": TEST_SEED,
+        "epochs": options.epochs,
+        "width": options.width,
+        "scene": scene.to_dict(),
+        "sensor": _sensor_for(design, scene).to_dict(),
+        "estimator": f"equal-mass {options.n_bins}x{options.n_bins} joint histogram, plug-in entropies "
+        "(scipy.stats.entropy), Miller-Madow correction; ground truth = noise-free last frame",
+        "mi_unit": MI_UNIT,
+        "rate_unit": EVENT_RATE_UNIT,
+        "n_resamples": options.n_resamples,
+        "confidence": options.confidence,
+        "bootstrap": "percentile, networks x clips crossed (clips shared by every network and condition), "
+        "the same resamples for every condition (paired gains)",
+        "networks": {n: [f"{_slug(n)}_s{s}.safetensors" for s in seeds] for n in conditions},
+    }
+    provenance = {
+        "command": options.command,
+        "versions": library_versions(),
+        "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+    }
     files = {
-        "information.json": write_output(out / "information.json", json.dumps(
-            {"settings": settings, "rows": rows, "vs_matched_rate": vs_matched, "provenance": provenance},
-            indent=1, default=str)),
+        "information.json": write_output(
+            out / "information.json",
+            json.dumps(
+                {"settings": settings, "rows": rows, "vs_matched_rate": vs_matched, "provenance": provenance},
+                indent=1,
+                default=str,
+            ),
+        ),
         "information.csv": write_output(out / "information.csv", _csv(rows)),
     }
-    return InformationStudy(rows=rows, conditions=evidence, matched_threshold=matched, files=files,
-                            vs_matched=vs_matched)
+    return InformationStudy(
+        rows=rows, conditions=evidence, matched_threshold=matched, files=files, vs_matched=vs_matched
+    )

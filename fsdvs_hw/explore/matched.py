@@ -46,8 +46,14 @@ from .paired import EVENT_RATE_UNIT, decode_evidence
 from .rate import MatchedRateDifference, RateCurve, RatePoint, dataset_rate_curve, matched_rate_difference, rate_curve
 from .scoring import _DESIGN_SENSOR_FIELDS
 
-__all__ = ["CURVES_DIR", "REFERENCES", "matched_rate_records", "point_rate_curve", "reference_curves",
-           "with_matched_rates"]
+__all__ = [
+    "CURVES_DIR",
+    "REFERENCES",
+    "matched_rate_records",
+    "point_rate_curve",
+    "reference_curves",
+    "with_matched_rates",
+]
 
 #: Folder (under the exploration's output) of the saved reference-curve points.
 CURVES_DIR = "rate_curves"
@@ -102,12 +108,21 @@ def point_rate_curve(point: Mapping[str, Any], task: str) -> RateCurve | str:
     if threshold is None:
         return "scored with ON ≠ OFF thresholds (a rate curve moves both together)"
     rates = np.asarray(rec["clip_event_rates"], dtype=np.float64)
-    rp = RatePoint(threshold=threshold, metrics=tuple(decode_evidence(e) for e in rec["evidence"]), clip_rates=rates,
-                   test_seeds=tuple(int(s) for s in rec.get("test_seeds", ())),
-                   sensor_seeds=tuple(int(s) for s in rec.get("sensor_seeds", ())))
-    return RateCurve(kernel_name=str(point.get("realisation", "point")), task=task,
-                     metric_name=str(rec.get("metric_name", "")), test_clips=str(rec.get("test_clips", "per_network")),
-                     points=(rp,), checkpoints=tuple(Path(c).name for c in rec.get("checkpoints", ())))
+    rp = RatePoint(
+        threshold=threshold,
+        metrics=tuple(decode_evidence(e) for e in rec["evidence"]),
+        clip_rates=rates,
+        test_seeds=tuple(int(s) for s in rec.get("test_seeds", ())),
+        sensor_seeds=tuple(int(s) for s in rec.get("sensor_seeds", ())),
+    )
+    return RateCurve(
+        kernel_name=str(point.get("realisation", "point")),
+        task=task,
+        metric_name=str(rec.get("metric_name", "")),
+        test_clips=str(rec.get("test_clips", "per_network")),
+        points=(rp,),
+        checkpoints=tuple(Path(c).name for c in rec.get("checkpoints", ())),
+    )
 
 
 def _context(point: Mapping[str, Any]) -> str:
@@ -132,8 +147,9 @@ def _reference_kernel(dpoint: Any) -> Any:
     return real.kernel()
 
 
-def reference_curves(design: Any, points: Sequence[Mapping[str, Any]], out_dir: str | Path, *,
-                     progress: bool | None = None) -> dict[str, dict[str, dict[str, RateCurve | str]]]:
+def reference_curves(
+    design: Any, points: Sequence[Mapping[str, Any]], out_dir: str | Path, *, progress: bool | None = None
+) -> dict[str, dict[str, dict[str, RateCurve | str]]]:
     """Measure the reference kernels' rate curves of every sweep setting and task.
 
     Parameters
@@ -171,13 +187,27 @@ def reference_curves(design: Any, points: Sequence[Mapping[str, Any]], out_dir: 
                 if row is None or row["key"] not in by_key:
                     out[ctx][task][ref] = f"no {ref!r} point in this sweep setting (add it to [realisations] include)"
                     continue
-                out[ctx][task][ref] = _one_curve(design, by_key[row["key"]], row, task, spec.thresholds,
-                                                 Path(out_dir) / CURVES_DIR / tag / task, progress)
+                out[ctx][task][ref] = _one_curve(
+                    design,
+                    by_key[row["key"]],
+                    row,
+                    task,
+                    spec.thresholds,
+                    Path(out_dir) / CURVES_DIR / tag / task,
+                    progress,
+                )
     return out
 
 
-def _one_curve(design: Any, dpoint: Any, row: Mapping[str, Any], task: str, thresholds: Sequence[float],
-               cache: Path, progress: bool | None) -> RateCurve | str:
+def _one_curve(
+    design: Any,
+    dpoint: Any,
+    row: Mapping[str, Any],
+    task: str,
+    thresholds: Sequence[float],
+    cache: Path,
+    progress: bool | None,
+) -> RateCurve | str:
     own = point_rate_curve(row, task)
     rec = _track(row, task)
     t0 = _operating_threshold(rec)
@@ -194,9 +224,19 @@ def _one_curve(design: Any, dpoint: Any, row: Mapping[str, Any], task: str, thre
         sensor = dpoint.spec.sensor.model_dump()
         fields = {k: sensor[k] for k in _DESIGN_SENSOR_FIELDS} if tasks.sensor == "design" else None
         try:
-            curve = dataset_rate_curve(_reference_kernel(dpoint), task, user.model_dump(), base, run, design_sensor=fields,
-                                       test_clips=str(rec.get("test_clips", "per_network")), label=dpoint.realisation,
-                                       cache_dir=cache, progress=progress, confine=False)
+            curve = dataset_rate_curve(
+                _reference_kernel(dpoint),
+                task,
+                user.model_dump(),
+                base,
+                run,
+                design_sensor=fields,
+                test_clips=str(rec.get("test_clips", "per_network")),
+                label=dpoint.realisation,
+                cache_dir=cache,
+                progress=progress,
+                confine=False,
+            )
         except (InputError, FileNotFoundError) as exc:
             return f"unavailable: {exc}"
         return _with_own_point(curve, own, t0)
@@ -204,10 +244,18 @@ def _one_curve(design: Any, dpoint: Any, row: Mapping[str, Any], task: str, thre
     ckpts = [Path(c) if Path(c).is_absolute() else base / c for c in (entry if isinstance(entry, list) else [entry])]
     n_test = int(rec.get("n_clips_per_network", 0)) or None
     try:
-        curve = rate_curve(_reference_kernel(dpoint), task, ckpts, run, n_test=n_test,
-                           design_sensor=dpoint.spec.sensor.model_dump() if tasks.sensor == "design" else None,
-                           test_clips=str(rec.get("test_clips", "per_network")), label=dpoint.realisation,
-                           cache_dir=cache, progress=progress)
+        curve = rate_curve(
+            _reference_kernel(dpoint),
+            task,
+            ckpts,
+            run,
+            n_test=n_test,
+            design_sensor=dpoint.spec.sensor.model_dump() if tasks.sensor == "design" else None,
+            test_clips=str(rec.get("test_clips", "per_network")),
+            label=dpoint.realisation,
+            cache_dir=cache,
+            progress=progress,
+        )
     except (InputError, FileNotFoundError) as exc:
         return f"unavailable: {exc}"
     return _with_own_point(curve, own, t0)
@@ -216,9 +264,14 @@ def _one_curve(design: Any, dpoint: Any, row: Mapping[str, Any], task: str, thre
 def _with_own_point(curve: RateCurve, own: RateCurve | str, t0: float) -> RateCurve:
     """``curve`` plus the point's own score at the operating threshold ``t0`` (when not measured again)."""
     if isinstance(own, RateCurve) and t0 not in curve.thresholds:
-        curve = RateCurve(kernel_name=curve.kernel_name, task=curve.task, metric_name=curve.metric_name,
-                          test_clips=curve.test_clips, points=curve.points + own.points,
-                          checkpoints=curve.checkpoints)
+        curve = RateCurve(
+            kernel_name=curve.kernel_name,
+            task=curve.task,
+            metric_name=curve.metric_name,
+            test_clips=curve.test_clips,
+            points=curve.points + own.points,
+            checkpoints=curve.checkpoints,
+        )
     return curve
 
 
@@ -233,14 +286,21 @@ def _as_loss(d: MatchedRateDifference) -> dict[str, Any]:
 def _text(rec: Mapping[str, Any], digits: int = 3) -> str:
     if rec.get("status") != "ok":
         return str(rec.get("status", ""))
-    return (f"{rec['estimate']:+.{digits}f} [{rec['low']:+.{digits}f}, {rec['high']:+.{digits}f}] "
-            f"{rec['metric_name']} at {rec['reference_rate']:.3g} {EVENT_RATE_UNIT} (reference threshold "
-            f"{rec['matched_threshold']:.3g}); same threshold {rec['raw_estimate']:+.{digits}f}")
+    return (
+        f"{rec['estimate']:+.{digits}f} [{rec['low']:+.{digits}f}, {rec['high']:+.{digits}f}] "
+        f"{rec['metric_name']} at {rec['reference_rate']:.3g} {EVENT_RATE_UNIT} (reference threshold "
+        f"{rec['matched_threshold']:.3g}); same threshold {rec['raw_estimate']:+.{digits}f}"
+    )
 
 
-def matched_rate_records(points: Sequence[Mapping[str, Any]],
-                         curves: Mapping[str, Mapping[str, Mapping[str, RateCurve | str]]], *,
-                         confidence: float = 0.95, n_resamples: int = 2000, rng: int = 0) -> dict[str, dict[str, Any]]:
+def matched_rate_records(
+    points: Sequence[Mapping[str, Any]],
+    curves: Mapping[str, Mapping[str, Mapping[str, RateCurve | str]]],
+    *,
+    confidence: float = 0.95,
+    n_resamples: int = 2000,
+    rng: int = 0,
+) -> dict[str, dict[str, Any]]:
     """Every point's matched-rate comparisons against the reference curves of its sweep setting.
 
     Parameters
@@ -277,8 +337,9 @@ def matched_rate_records(points: Sequence[Mapping[str, Any]],
                     entry[name] = {"status": why if why.startswith("unavailable") else f"unavailable: {why}"}
                     continue
                 try:
-                    d = matched_rate_difference(curve, own, own.points[0].threshold, confidence=confidence,
-                                                n_resamples=n_resamples, rng=rng)
+                    d = matched_rate_difference(
+                        curve, own, own.points[0].threshold, confidence=confidence, n_resamples=n_resamples, rng=rng
+                    )
                 except InputError as exc:
                     entry[name] = {"status": f"unavailable: {exc}"}
                     continue
@@ -295,8 +356,9 @@ def matched_rate_records(points: Sequence[Mapping[str, Any]],
     return out
 
 
-def with_matched_rates(points: Sequence[Mapping[str, Any]], design: Any, out_dir: str | Path, *,
-                       progress: bool | None = None) -> list[dict[str, Any]]:
+def with_matched_rates(
+    points: Sequence[Mapping[str, Any]], design: Any, out_dir: str | Path, *, progress: bool | None = None
+) -> list[dict[str, Any]]:
     """Copies of ``points`` with ``"matched_rate"`` (:func:`matched_rate_records`) when the design's
     ``[rate] enabled``; otherwise each carries ``{"status": "not requested"}``.
 
@@ -318,6 +380,7 @@ def with_matched_rates(points: Sequence[Mapping[str, Any]], design: Any, out_dir
         return [{**p, "matched_rate": {"status": "not requested ([rate] enabled = false)"}} for p in points]
     sc = design.spec.scoring
     curves = reference_curves(design, points, out_dir, progress=progress)
-    recs = matched_rate_records(points, curves, confidence=sc.confidence, n_resamples=sc.n_resamples,
-                                rng=design.spec.run.seed)
+    recs = matched_rate_records(
+        points, curves, confidence=sc.confidence, n_resamples=sc.n_resamples, rng=design.spec.run.seed
+    )
     return [{**p, "matched_rate": recs.get(p["key"], {"status": "not scored"})} for p in points]

@@ -52,8 +52,16 @@ def _rate(video: Any, taps: Any, sensor: Any, ts: np.ndarray, photon: Any) -> fl
     return float(ev.sum()) / (ev.shape[0] * ev.shape[-2] * ev.shape[-1] * span)
 
 
-def noise_budget(kernel: Kernel | None, task: str, checkpoint: str | Path, thresholds: Sequence[float], *,
-                 photoelectrons_full_scale: float, n_test: int = 64, seed: int = 0) -> list[dict[str, Any]]:
+def noise_budget(
+    kernel: Kernel | None,
+    task: str,
+    checkpoint: str | Path,
+    thresholds: Sequence[float],
+    *,
+    photoelectrons_full_scale: float,
+    n_test: int = 64,
+    seed: int = 0,
+) -> list[dict[str, Any]]:
     """The event rate of ``kernel`` by noise source at each threshold (see the module docstring).
 
     Parameters
@@ -110,12 +118,17 @@ def noise_budget(kernel: Kernel | None, task: str, checkpoint: str | Path, thres
             s = dataclasses.replace(base, threshold_on=t, threshold_off=t)
             quiet = dataclasses.replace(s, shot_noise_rate_hz=0.0, leak_rate_hz=0.0)
             r: dict[str, Any]  # rates (float), then the dominant source and the unit (str)
-            r = {"threshold": t, "signal": _rate(video, taps, quiet, ts, None),
-                 "photon": _rate(video, taps, quiet, ts, photon),
-                 "shot": _rate(video, taps, dataclasses.replace(quiet, shot_noise_rate_hz=s.shot_noise_rate_hz), ts,
-                               None),
-                 "leak": _rate(video, taps, dataclasses.replace(quiet, leak_rate_hz=s.leak_rate_hz), ts, None),
-                 "all": _rate(video, taps, s, ts, photon), "static": _rate(static, taps, s, ts, photon)}
+            r = {
+                "threshold": t,
+                "signal": _rate(video, taps, quiet, ts, None),
+                "photon": _rate(video, taps, quiet, ts, photon),
+                "shot": _rate(
+                    video, taps, dataclasses.replace(quiet, shot_noise_rate_hz=s.shot_noise_rate_hz), ts, None
+                ),
+                "leak": _rate(video, taps, dataclasses.replace(quiet, leak_rate_hz=s.leak_rate_hz), ts, None),
+                "all": _rate(video, taps, s, ts, photon),
+                "static": _rate(static, taps, s, ts, photon),
+            }
             added = {k: r[k] - r["signal"] for k in NOISE_SOURCES}
             r["dominant"] = max(added, key=lambda k: added[k]) if max(added.values()) > 0 else "none"
             r["noise_fraction"] = (r["all"] - r["signal"]) / r["all"] if r["all"] > 0 else 0.0

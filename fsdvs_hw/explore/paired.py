@@ -69,9 +69,15 @@ EVAL_BATCH = 64
 
 
 def _detection(pred: dict[str, Any], targets: dict[str, Any], evaluator: Any) -> ClipMetric:
-    return CocoDetections.from_predictions(pred["boxes"], pred["scores"], pred["labels"],
-                                           targets["boxes"], targets["labels"],
-                                           num_classes=evaluator.num_classes, metric="map")
+    return CocoDetections.from_predictions(
+        pred["boxes"],
+        pred["scores"],
+        pred["labels"],
+        targets["boxes"],
+        targets["labels"],
+        num_classes=evaluator.num_classes,
+        metric="map",
+    )
 
 
 def _recognition(pred: dict[str, Any], targets: dict[str, Any], evaluator: Any) -> ClipMetric:
@@ -79,8 +85,9 @@ def _recognition(pred: dict[str, Any], targets: dict[str, Any], evaluator: Any) 
 
 
 def _segmentation(pred: dict[str, Any], targets: dict[str, Any], evaluator: Any) -> ClipMetric:
-    return ConfusionMIoU.from_masks(pred["mask"], targets["mask"], evaluator.num_classes,
-                                    ignore_index=getattr(evaluator, "ignore_index", None))
+    return ConfusionMIoU.from_masks(
+        pred["mask"], targets["mask"], evaluator.num_classes, ignore_index=getattr(evaluator, "ignore_index", None)
+    )
 
 
 #: task name → builder of its per-clip metric (the evaluator's primary metric) from predictions and targets
@@ -130,9 +137,17 @@ class ClipEvidence:
     clip_event_rates: np.ndarray | None = dataclasses.field(default=None, repr=False)
 
 
-def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n_test: int | None = None,
-                  sensor: Any = None, seed_offset: int = 0, clip_set: int = 0,
-                  events_fn: Any = None) -> ClipEvidence:
+def clip_evidence(
+    kernel: Kernel | None,
+    task: str,
+    checkpoint: str | Path,
+    *,
+    n_test: int | None = None,
+    sensor: Any = None,
+    seed_offset: int = 0,
+    clip_set: int = 0,
+    events_fn: Any = None,
+) -> ClipEvidence:
     """Score ``kernel`` zero-shot in one trained network and keep every clip's contribution.
 
     Parameters
@@ -173,8 +188,10 @@ def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n
     t0 = time.perf_counter()
     evaluator = get_evaluator(task)
     if evaluator.name not in PER_CLIP_METRICS:
-        raise InputError(f"task {evaluator.name!r} has no per-clip metric; allowed: {', '.join(PER_CLIP_METRICS)} "
-                         f"(add a builder to fsdvs_hw.explore.paired.PER_CLIP_METRICS)")
+        raise InputError(
+            f"task {evaluator.name!r} has no per-clip metric; allowed: {', '.join(PER_CLIP_METRICS)} "
+            f"(add a builder to fsdvs_hw.explore.paired.PER_CLIP_METRICS)"
+        )
     prov, _ = _training_kernel(str(checkpoint))
     n = int(prov["n_test"]) if n_test is None else n_test
     if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= 100_000:
@@ -186,15 +203,32 @@ def clip_evidence(kernel: Kernel | None, task: str, checkpoint: str | Path, *, n
     test_seed = int(prov["test_seed"]) + clip_set
     # the same code path (test clips, batches of EVAL_BATCH, noise streams) as evaluate_kernel, which
     # caches the test set, so every kernel scored in one process meets the same clips and noise draws
-    ev = evaluate_kernel(kernel, evaluator, checkpoint, n_test=n, sensor=cfg, events_fn=events_fn,
-                         keep_predictions=True, test_seed=test_seed)
+    ev = evaluate_kernel(
+        kernel,
+        evaluator,
+        checkpoint,
+        n_test=n,
+        sensor=cfg,
+        events_fn=events_fn,
+        keep_predictions=True,
+        test_seed=test_seed,
+    )
     targets = heldout_targets(evaluator, prov["scene"], n, test_seed=test_seed)
     metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, targets, evaluator)
     value = float(metric.weighted(np.ones((1, n)))[0])
-    return ClipEvidence(task=evaluator.name, metric_name=evaluator.primary_metric, value=value, n_clips=n,
-                        metric=metric, checkpoint=str(checkpoint), sensor_seed=int(cfg.seed),
-                        seconds=time.perf_counter() - t0, test_seed=test_seed, event_rate=ev.event_rate,
-                        clip_event_rates=np.asarray(ev.clip_event_rates, dtype=np.float64))
+    return ClipEvidence(
+        task=evaluator.name,
+        metric_name=evaluator.primary_metric,
+        value=value,
+        n_clips=n,
+        metric=metric,
+        checkpoint=str(checkpoint),
+        sensor_seed=int(cfg.seed),
+        seconds=time.perf_counter() - t0,
+        test_seed=test_seed,
+        event_rate=ev.event_rate,
+        clip_event_rates=np.asarray(ev.clip_event_rates, dtype=np.float64),
+    )
 
 
 @functools.lru_cache(maxsize=32)
@@ -218,12 +252,18 @@ def network_info(checkpoint: str | Path, target: Kernel | None = None) -> dict[s
     provenance, kernel = _training_kernel(str(checkpoint))
     same = None
     if target is not None:
-        same = bool(kernel.size == target.size and np.allclose(np.array(kernel.taps), np.array(target.taps),
-                                                               rtol=0, atol=1e-9))
-    return {"checkpoint": Path(checkpoint).name, "task": provenance.get("task"), "seed": provenance.get("seed"),
-            "learn_filter": provenance.get("learn_filter"),
-            "training_kernel": provenance.get("init_kernel_name") or kernel.name,
-            "trained_with_target": same, "final_metric": provenance.get("final_metric")}
+        same = bool(
+            kernel.size == target.size and np.allclose(np.array(kernel.taps), np.array(target.taps), rtol=0, atol=1e-9)
+        )
+    return {
+        "checkpoint": Path(checkpoint).name,
+        "task": provenance.get("task"),
+        "seed": provenance.get("seed"),
+        "learn_filter": provenance.get("learn_filter"),
+        "training_kernel": provenance.get("init_kernel_name") or kernel.name,
+        "trained_with_target": same,
+        "final_metric": provenance.get("final_metric"),
+    }
 
 
 class _SavedMetric(Protocol):
@@ -248,8 +288,9 @@ def decode_evidence(text: str) -> ClipMetric:
     return metric_from_state(state)
 
 
-def bootstrap_weights(n_networks: int, n_clips: int, *, test_clips: str = "per_network", n_resamples: int = 2000,
-                      rng: Any = 0) -> tuple[np.ndarray, np.ndarray | None]:
+def bootstrap_weights(
+    n_networks: int, n_clips: int, *, test_clips: str = "per_network", n_resamples: int = 2000, rng: Any = 0
+) -> tuple[np.ndarray, np.ndarray | None]:
     """Multiplicities of one bootstrap over networks × clips, as :mod:`fsdvs_hw.stats` draws them.
 
     Parameters
@@ -309,13 +350,22 @@ def weighted_rate(clip_rates: np.ndarray, network_weights: np.ndarray, clip_weig
         Σ_s w_s · mean_c(w_c r_sc) / Σ_s w_s, in the unit of ``clip_rates``.
     """
     r = np.asarray(clip_rates, dtype=np.float64)
-    per_net = (np.broadcast_to(r.mean(axis=1), network_weights.shape) if clip_weights is None
-               else (clip_weights @ r.T) / clip_weights.sum(axis=1, keepdims=True))  # (B, S)
+    per_net = (
+        np.broadcast_to(r.mean(axis=1), network_weights.shape)
+        if clip_weights is None
+        else (clip_weights @ r.T) / clip_weights.sum(axis=1, keepdims=True)
+    )  # (B, S)
     return (network_weights * per_net).sum(axis=1) / network_weights.sum(axis=1)
 
 
-def event_rate_ci(evidence: Sequence[ClipEvidence], *, test_clips: str = "per_network", confidence: float = 0.95,
-                  n_resamples: int = 2000, rng: Any = 0) -> dict[str, Any]:
+def event_rate_ci(
+    evidence: Sequence[ClipEvidence],
+    *,
+    test_clips: str = "per_network",
+    confidence: float = 0.95,
+    n_resamples: int = 2000,
+    rng: Any = 0,
+) -> dict[str, Any]:
     """Mean event rate of one kernel over its networks and clips, with a percentile bootstrap CI.
 
     Parameters
@@ -348,6 +398,12 @@ def event_rate_ci(evidence: Sequence[ClipEvidence], *, test_clips: str = "per_ne
     boot = weighted_rate(rates, ws, wc)
     alpha = (1.0 - confidence) / 2.0
     n_total = rates.size if test_clips == "per_network" else rates.shape[1]
-    return {"mean": float(rates.mean()), "low": float(np.quantile(boot, alpha)),
-            "high": float(np.quantile(boot, 1.0 - alpha)), "unit": EVENT_RATE_UNIT, "confidence": confidence,
-            "n_clips": int(n_total), "n_networks": int(rates.shape[0])}
+    return {
+        "mean": float(rates.mean()),
+        "low": float(np.quantile(boot, alpha)),
+        "high": float(np.quantile(boot, 1.0 - alpha)),
+        "unit": EVENT_RATE_UNIT,
+        "confidence": confidence,
+        "n_clips": int(n_total),
+        "n_networks": int(rates.shape[0]),
+    }

@@ -103,21 +103,29 @@ class RatePoint:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form (per-clip metrics as base64 ``.npz``, :func:`~fsdvs_hw.explore.paired.encode_evidence`)."""
-        return {"threshold": self.threshold, "metric": self.metric, "rate": self.rate,
-                "evidence": [encode_evidence(m) for m in self.metrics],
-                "clip_rates": np.asarray(self.clip_rates).tolist(), "test_seeds": list(self.test_seeds),
-                "sensor_seeds": list(self.sensor_seeds), "seconds": self.seconds}
+        return {
+            "threshold": self.threshold,
+            "metric": self.metric,
+            "rate": self.rate,
+            "evidence": [encode_evidence(m) for m in self.metrics],
+            "clip_rates": np.asarray(self.clip_rates).tolist(),
+            "test_seeds": list(self.test_seeds),
+            "sensor_seeds": list(self.sensor_seeds),
+            "seconds": self.seconds,
+        }
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> RatePoint:
         """Inverse of :meth:`to_dict`."""
         try:
-            return cls(threshold=float(data["threshold"]),
-                       metrics=tuple(decode_evidence(t) for t in data["evidence"]),
-                       clip_rates=np.asarray(data["clip_rates"], dtype=np.float64),
-                       test_seeds=tuple(int(s) for s in data["test_seeds"]),
-                       sensor_seeds=tuple(int(s) for s in data["sensor_seeds"]),
-                       seconds=float(data.get("seconds", math.nan)))
+            return cls(
+                threshold=float(data["threshold"]),
+                metrics=tuple(decode_evidence(t) for t in data["evidence"]),
+                clip_rates=np.asarray(data["clip_rates"], dtype=np.float64),
+                test_seeds=tuple(int(s) for s in data["test_seeds"]),
+                sensor_seeds=tuple(int(s) for s in data["sensor_seeds"]),
+                seconds=float(data.get("seconds", math.nan)),
+            )
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"RatePoint.from_dict: not a stored rate point ({exc!r})") from None
 
@@ -150,8 +158,10 @@ class RateCurve:
         object.__setattr__(self, "points", tuple(sorted(self.points, key=lambda p: p.threshold)))
         shapes = {np.shape(p.clip_rates) for p in self.points}
         if len(shapes) != 1 or len(next(iter(shapes))) != 2:
-            raise InputError(f"RateCurve {self.kernel_name!r}: every point needs the same (networks, clips) "
-                             f"per-clip rates; got shapes {sorted(shapes)}")
+            raise InputError(
+                f"RateCurve {self.kernel_name!r}: every point needs the same (networks, clips) "
+                f"per-clip rates; got shapes {sorted(shapes)}"
+            )
 
     @property
     def thresholds(self) -> tuple[float, ...]:
@@ -176,11 +186,18 @@ class RateCurve:
         for p in self.points:
             if abs(p.threshold - threshold) <= 1e-12:
                 return p
-        raise InputError(f"rate curve of {self.kernel_name!r}: no point at threshold {threshold!r}; "
-                         f"allowed: {list(self.thresholds)}")
+        raise InputError(
+            f"rate curve of {self.kernel_name!r}: no point at threshold {threshold!r}; allowed: {list(self.thresholds)}"
+        )
 
-    def summary(self, *, confidence: float = 0.95, n_resamples: int = 2000, rng: Any = 0,
-                resolution_px: tuple[int, int] = (720, 1280)) -> list[dict[str, Any]]:
+    def summary(
+        self,
+        *,
+        confidence: float = 0.95,
+        n_resamples: int = 2000,
+        rng: Any = 0,
+        resolution_px: tuple[int, int] = (720, 1280),
+    ) -> list[dict[str, Any]]:
         """One row per threshold: event rate and metric with percentile bootstrap CIs.
 
         Parameters
@@ -209,28 +226,54 @@ class RateCurve:
             m, r = _point_values(p, ws, wc)
             rlo, rhi = np.quantile(r, [alpha, 1 - alpha])
             mlo, mhi = np.quantile(m, [alpha, 1 - alpha])
-            rows.append({"kernel": self.kernel_name, "task": self.task, "threshold": p.threshold,
-                         "rate": p.rate, "rate_low": float(rlo), "rate_high": float(rhi), "rate_unit": EVENT_RATE_UNIT,
-                         "mev_s": p.rate * px / 1e6, "mev_s_low": float(rlo) * px / 1e6,
-                         "mev_s_high": float(rhi) * px / 1e6, "metric_name": self.metric_name,
-                         "metric": p.metric, "metric_low": float(mlo), "metric_high": float(mhi),
-                         "confidence": confidence, "n_clips": self.n_clips, "n_networks": self.n_networks})
+            rows.append(
+                {
+                    "kernel": self.kernel_name,
+                    "task": self.task,
+                    "threshold": p.threshold,
+                    "rate": p.rate,
+                    "rate_low": float(rlo),
+                    "rate_high": float(rhi),
+                    "rate_unit": EVENT_RATE_UNIT,
+                    "mev_s": p.rate * px / 1e6,
+                    "mev_s_low": float(rlo) * px / 1e6,
+                    "mev_s_high": float(rhi) * px / 1e6,
+                    "metric_name": self.metric_name,
+                    "metric": p.metric,
+                    "metric_low": float(mlo),
+                    "metric_high": float(mhi),
+                    "confidence": confidence,
+                    "n_clips": self.n_clips,
+                    "n_networks": self.n_networks,
+                }
+            )
         return rows
 
     def _weights(self, n_resamples: int, rng: Any) -> tuple[np.ndarray, np.ndarray | None]:
-        return bootstrap_weights(self.n_networks, self.n_clips_per_network, test_clips=self.test_clips,
-                                 n_resamples=n_resamples, rng=rng)
+        return bootstrap_weights(
+            self.n_networks, self.n_clips_per_network, test_clips=self.test_clips, n_resamples=n_resamples, rng=rng
+        )
 
     def to_dict(self) -> dict[str, Any]:
-        return {"kernel": self.kernel_name, "task": self.task, "metric_name": self.metric_name,
-                "test_clips": self.test_clips, "checkpoints": list(self.checkpoints),
-                "points": [p.to_dict() for p in self.points]}
+        return {
+            "kernel": self.kernel_name,
+            "task": self.task,
+            "metric_name": self.metric_name,
+            "test_clips": self.test_clips,
+            "checkpoints": list(self.checkpoints),
+            "points": [p.to_dict() for p in self.points],
+        }
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> RateCurve:
-        return cls(kernel_name=str(data["kernel"]), task=str(data["task"]), metric_name=str(data["metric_name"]),
-                   test_clips=str(data["test_clips"]), points=tuple(RatePoint.from_dict(p) for p in data["points"]),
-                   checkpoints=tuple(data.get("checkpoints", ())))
+        return cls(
+            kernel_name=str(data["kernel"]),
+            task=str(data["task"]),
+            metric_name=str(data["metric_name"]),
+            test_clips=str(data["test_clips"]),
+            points=tuple(RatePoint.from_dict(p) for p in data["points"]),
+            checkpoints=tuple(data.get("checkpoints", ())),
+        )
 
 
 def _check_confidence(confidence: float) -> None:
@@ -241,14 +284,17 @@ def _check_confidence(confidence: float) -> None:
 def _point_values(point: RatePoint, ws: np.ndarray, wc: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """(metric (B,), rate (B,)) of one point under bootstrap weights."""
     b = ws.shape[0]
-    per_net = np.stack([np.full(b, m.weighted(np.ones((1, m.n_clips)))[0]) if wc is None else m.weighted(wc)
-                        for m in point.metrics], axis=1)  # (B, S)
+    per_net = np.stack(
+        [np.full(b, m.weighted(np.ones((1, m.n_clips)))[0]) if wc is None else m.weighted(wc) for m in point.metrics],
+        axis=1,
+    )  # (B, S)
     metric = (ws * per_net).sum(axis=1) / ws.sum(axis=1)
     return metric, weighted_rate(point.clip_rates, ws, wc)
 
 
-def interpolate_log_rate(rates: Sequence[float] | np.ndarray, metrics: Sequence[float] | np.ndarray,
-                         target_rate: float) -> float:
+def interpolate_log_rate(
+    rates: Sequence[float] | np.ndarray, metrics: Sequence[float] | np.ndarray, target_rate: float
+) -> float:
     """A curve's metric at ``target_rate``, linear in log rate between the two nearest points.
 
     Parameters
@@ -273,8 +319,10 @@ def interpolate_log_rate(rates: Sequence[float] | np.ndarray, metrics: Sequence[
     r = np.asarray(rates, dtype=np.float64)
     m = np.asarray(metrics, dtype=np.float64)
     if r.ndim != 1 or r.shape != m.shape or r.size < 2:
-        raise InputError(f"interpolate_log_rate: rates and metrics must be 1-D of equal length >= 2; "
-                         f"got shapes {r.shape} and {m.shape}")
+        raise InputError(
+            f"interpolate_log_rate: rates and metrics must be 1-D of equal length >= 2; "
+            f"got shapes {r.shape} and {m.shape}"
+        )
     if not np.all(np.isfinite(r)) or np.any(r <= 0):
         raise InputError(f"interpolate_log_rate: rates must be finite and > 0 events/pixel/s; got {r.tolist()}")
     d = np.diff(r)
@@ -354,32 +402,48 @@ class MatchedRateDifference:
 
     def describe(self, digits: int = 3) -> str:
         """One line: the difference with its CI, or why there is none."""
-        head = (f"{self.task}: {self.reference_kernel} @ threshold {self.reference_threshold:g} "
-                f"({self.reference_rate:.3g} {EVENT_RATE_UNIT}) minus {self.curve_kernel} at that rate")
+        head = (
+            f"{self.task}: {self.reference_kernel} @ threshold {self.reference_threshold:g} "
+            f"({self.reference_rate:.3g} {EVENT_RATE_UNIT}) minus {self.curve_kernel} at that rate"
+        )
         if not self.ok:
             return f"{head}: {self.status}"
-        return (f"{head} (threshold {self.matched_threshold:.3g}): {self.estimate:+.{digits}f} {self.metric_name} "
-                f"[{self.low:+.{digits}f}, {self.high:+.{digits}f}] ({self.confidence:.0%} CI, n={self.n_clips} clips, "
-                f"{self.n_networks} networks); same threshold: {self.raw_estimate:+.{digits}f} "
-                f"[{self.raw_low:+.{digits}f}, {self.raw_high:+.{digits}f}]")
+        return (
+            f"{head} (threshold {self.matched_threshold:.3g}): {self.estimate:+.{digits}f} {self.metric_name} "
+            f"[{self.low:+.{digits}f}, {self.high:+.{digits}f}] ({self.confidence:.0%} CI, n={self.n_clips} clips, "
+            f"{self.n_networks} networks); same threshold: {self.raw_estimate:+.{digits}f} "
+            f"[{self.raw_low:+.{digits}f}, {self.raw_high:+.{digits}f}]"
+        )
 
 
 def _paired(curve: RateCurve, reference: RateCurve) -> None:
     if curve.task != reference.task:
         raise InputError(f"matched_rate_difference: curves of different tasks ({curve.task!r}, {reference.task!r})")
     if curve.test_clips != reference.test_clips or np.shape(curve.points[0].clip_rates) != np.shape(
-            reference.points[0].clip_rates):
-        raise InputError("matched_rate_difference: the curves are not paired (different networks × clips: "
-                         f"{np.shape(curve.points[0].clip_rates)} {curve.test_clips} vs "
-                         f"{np.shape(reference.points[0].clip_rates)} {reference.test_clips})")
+        reference.points[0].clip_rates
+    ):
+        raise InputError(
+            "matched_rate_difference: the curves are not paired (different networks × clips: "
+            f"{np.shape(curve.points[0].clip_rates)} {curve.test_clips} vs "
+            f"{np.shape(reference.points[0].clip_rates)} {reference.test_clips})"
+        )
     seeds = {(p.test_seeds, p.sensor_seeds) for p in curve.points + reference.points}
     if len(seeds) > 1:
-        raise InputError("matched_rate_difference: the curves are not paired (points scored on different test "
-                         f"clips or noise draws: {sorted(seeds)[:2]})")
+        raise InputError(
+            "matched_rate_difference: the curves are not paired (points scored on different test "
+            f"clips or noise draws: {sorted(seeds)[:2]})"
+        )
 
 
-def matched_rate_difference(curve: RateCurve, reference: RateCurve, reference_threshold: float, *,
-                            confidence: float = 0.95, n_resamples: int = 2000, rng: Any = 0) -> MatchedRateDifference:
+def matched_rate_difference(
+    curve: RateCurve,
+    reference: RateCurve,
+    reference_threshold: float,
+    *,
+    confidence: float = 0.95,
+    n_resamples: int = 2000,
+    rng: Any = 0,
+) -> MatchedRateDifference:
     """The reference's metric minus ``curve``'s metric at the reference's event rate, with a CI.
 
     Parameters
@@ -411,8 +475,10 @@ def matched_rate_difference(curve: RateCurve, reference: RateCurve, reference_th
     _check_confidence(confidence)
     _paired(curve, reference)
     if len(curve.points) < 2:
-        raise InputError(f"matched_rate_difference: the curve of {curve.kernel_name!r} has {len(curve.points)} "
-                         "point(s); allowed: at least 2 thresholds")
+        raise InputError(
+            f"matched_rate_difference: the curve of {curve.kernel_name!r} has {len(curve.points)} "
+            "point(s); allowed: at least 2 thresholds"
+        )
     ref_point = reference.point(reference_threshold)
     ws, wc = curve._weights(n_resamples, rng)
     ref_m, ref_r = _point_values(ref_point, ws, wc)
@@ -423,12 +489,20 @@ def matched_rate_difference(curve: RateCurve, reference: RateCurve, reference_th
     metrics = np.array([p.metric for p in curve.points])
     alpha = (1.0 - confidence) / 2.0
     nan = math.nan
-    base: dict[str, Any] = dict(n_clips=curve.n_clips, n_networks=curve.n_networks, confidence=confidence,
-                curve_kernel=curve.kernel_name, reference_kernel=reference.kernel_name,
-                reference_threshold=float(reference_threshold), metric_name=curve.metric_name, task=curve.task,
-                reference_rate=ref_point.rate, reference_rate_low=float(np.quantile(ref_r, alpha)),
-                reference_rate_high=float(np.quantile(ref_r, 1 - alpha)),
-                curve_rate_range=(float(rates.min()), float(rates.max())))
+    base: dict[str, Any] = dict(
+        n_clips=curve.n_clips,
+        n_networks=curve.n_networks,
+        confidence=confidence,
+        curve_kernel=curve.kernel_name,
+        reference_kernel=reference.kernel_name,
+        reference_threshold=float(reference_threshold),
+        metric_name=curve.metric_name,
+        task=curve.task,
+        reference_rate=ref_point.rate,
+        reference_rate_low=float(np.quantile(ref_r, alpha)),
+        reference_rate_high=float(np.quantile(ref_r, 1 - alpha)),
+        curve_rate_range=(float(rates.min()), float(rates.max())),
+    )
     raw = (nan, nan, nan)
     if any(abs(t - reference_threshold) <= 1e-12 for t in curve.thresholds):
         j = [abs(t - reference_threshold) <= 1e-12 for t in curve.thresholds].index(True)
@@ -436,19 +510,37 @@ def matched_rate_difference(curve: RateCurve, reference: RateCurve, reference_th
         raw = (ref_point.metric - metrics[j], float(np.quantile(d, alpha)), float(np.quantile(d, 1 - alpha)))
     raw_d: dict[str, Any] = dict(raw_estimate=raw[0], raw_low=raw[1], raw_high=raw[2])
     if np.any(rates <= 0) or not np.all(np.diff(rates) < 0):
-        return MatchedRateDifference(status=f"refused: the rate curve of {curve.kernel_name!r} does not fall strictly "
-                                     f"with threshold (rates {np.round(rates, 6).tolist()} {EVENT_RATE_UNIT} at "
-                                     f"thresholds {list(curve.thresholds)})", estimate=nan, low=nan, high=nan,
-                                     matched_threshold=nan, inside_range=False, fraction_outside=nan, **raw_d, **base)
+        return MatchedRateDifference(
+            status=f"refused: the rate curve of {curve.kernel_name!r} does not fall strictly "
+            f"with threshold (rates {np.round(rates, 6).tolist()} {EVENT_RATE_UNIT} at "
+            f"thresholds {list(curve.thresholds)})",
+            estimate=nan,
+            low=nan,
+            high=nan,
+            matched_threshold=nan,
+            inside_range=False,
+            fraction_outside=nan,
+            **raw_d,
+            **base,
+        )
     inside = bool(rates.min() <= ref_point.rate <= rates.max())
     if not inside:
         return MatchedRateDifference(
-            status=(f"refused: the reference rate {ref_point.rate:.4g} {EVENT_RATE_UNIT} ({reference.kernel_name} at "
-                    f"threshold {reference_threshold:g}) lies outside the measured rates of {curve.kernel_name!r} "
-                    f"[{rates.min():.4g}, {rates.max():.4g}] (thresholds {min(curve.thresholds):g}…"
-                    f"{max(curve.thresholds):g}); extend its thresholds instead of extrapolating"),
-            estimate=nan, low=nan, high=nan, matched_threshold=nan, inside_range=False, fraction_outside=nan,
-            **raw_d, **base)
+            status=(
+                f"refused: the reference rate {ref_point.rate:.4g} {EVENT_RATE_UNIT} ({reference.kernel_name} at "
+                f"threshold {reference_threshold:g}) lies outside the measured rates of {curve.kernel_name!r} "
+                f"[{rates.min():.4g}, {rates.max():.4g}] (thresholds {min(curve.thresholds):g}…"
+                f"{max(curve.thresholds):g}); extend its thresholds instead of extrapolating"
+            ),
+            estimate=nan,
+            low=nan,
+            high=nan,
+            matched_threshold=nan,
+            inside_range=False,
+            fraction_outside=nan,
+            **raw_d,
+            **base,
+        )
     estimate = ref_point.metric - interpolate_log_rate(rates, metrics, ref_point.rate)
     matched_t = interpolate_log_rate(rates, np.array(curve.thresholds), ref_point.rate)
     boot = np.full(ws.shape[0], nan)
@@ -460,15 +552,32 @@ def matched_rate_difference(curve: RateCurve, reference: RateCurve, reference_th
     outside = float(np.mean(~np.isfinite(boot)))
     if outside > alpha:
         return MatchedRateDifference(
-            status=(f"refused: in {outside:.1%} of the bootstrap resamples the reference rate fell outside the "
-                    f"resampled curve of {curve.kernel_name!r} (allowed: {alpha:.1%}); the CI would be cut; add "
-                    "thresholds beyond the reference rate"),
-            estimate=estimate, low=nan, high=nan, matched_threshold=matched_t, inside_range=True,
-            fraction_outside=outside, **raw_d, **base)
+            status=(
+                f"refused: in {outside:.1%} of the bootstrap resamples the reference rate fell outside the "
+                f"resampled curve of {curve.kernel_name!r} (allowed: {alpha:.1%}); the CI would be cut; add "
+                "thresholds beyond the reference rate"
+            ),
+            estimate=estimate,
+            low=nan,
+            high=nan,
+            matched_threshold=matched_t,
+            inside_range=True,
+            fraction_outside=outside,
+            **raw_d,
+            **base,
+        )
     lo, hi = np.quantile(boot[np.isfinite(boot)], [alpha, 1 - alpha])
-    return MatchedRateDifference(status="ok", estimate=float(estimate), low=float(lo), high=float(hi),
-                                 matched_threshold=float(matched_t), inside_range=True, fraction_outside=outside,
-                                 **raw_d, **base)
+    return MatchedRateDifference(
+        status="ok",
+        estimate=float(estimate),
+        low=float(lo),
+        high=float(hi),
+        matched_threshold=float(matched_t),
+        inside_range=True,
+        fraction_outside=outside,
+        **raw_d,
+        **base,
+    )
 
 
 # --------------------------------------------------------------------------- measuring a curve
@@ -483,12 +592,29 @@ def _sensor_at(checkpoint: Path, design_sensor: Mapping[str, Any] | None, thresh
     return cfg
 
 
-def _fingerprint(kernel: Kernel | None, task: str, paths: Sequence[Path], n_test: int | None, test_clips: str,
-                 design_sensor: Mapping[str, Any] | None, threshold: float) -> str:
+def _fingerprint(
+    kernel: Kernel | None,
+    task: str,
+    paths: Sequence[Path],
+    n_test: int | None,
+    test_clips: str,
+    design_sensor: Mapping[str, Any] | None,
+    threshold: float,
+) -> str:
     taps = [[1.0]] if kernel is None else np.asarray(kernel.taps).round(15).tolist()
-    blob = json.dumps({"taps": taps, "task": task, "checkpoints": [p.name for p in paths], "n_test": n_test,
-                       "test_clips": test_clips, "sensor": dict(design_sensor) if design_sensor else None,
-                       "threshold": threshold}, sort_keys=True, default=str)
+    blob = json.dumps(
+        {
+            "taps": taps,
+            "task": task,
+            "checkpoints": [p.name for p in paths],
+            "n_test": n_test,
+            "test_clips": test_clips,
+            "sensor": dict(design_sensor) if design_sensor else None,
+            "threshold": threshold,
+        },
+        sort_keys=True,
+        default=str,
+    )
     return hashlib.sha1(blob.encode()).hexdigest()[:16]
 
 
@@ -496,21 +622,35 @@ def _check_thresholds(thresholds: Sequence[float]) -> tuple[float, ...]:
     try:
         ts = tuple(float(t) for t in thresholds)
     except (TypeError, ValueError):
-        raise InputError(f"rate_curve: thresholds={thresholds!r}; allowed: numbers in "
-                         f"[{THRESHOLD_RANGE[0]:g}, {THRESHOLD_RANGE[1]:g}] log units") from None
+        raise InputError(
+            f"rate_curve: thresholds={thresholds!r}; allowed: numbers in "
+            f"[{THRESHOLD_RANGE[0]:g}, {THRESHOLD_RANGE[1]:g}] log units"
+        ) from None
     lo, hi = THRESHOLD_RANGE
     bad = [t for t in ts if not (math.isfinite(t) and lo <= t <= hi)]
     if bad or len(ts) < 2 or len(set(ts)) != len(ts):
-        raise InputError(f"rate_curve: thresholds={list(ts)}; allowed: at least 2 distinct values in "
-                         f"[{lo:g}, {hi:g}] log units" + (f" (out of range: {bad})" if bad else ""))
+        raise InputError(
+            f"rate_curve: thresholds={list(ts)}; allowed: at least 2 distinct values in "
+            f"[{lo:g}, {hi:g}] log units" + (f" (out of range: {bad})" if bad else "")
+        )
     return tuple(sorted(ts))
 
 
-def rate_curve(kernel: Kernel | None, task: str, checkpoints: Sequence[str | Path],
-               thresholds: Sequence[float] = DEFAULT_THRESHOLDS, *, n_test: int | None = None,
-               design_sensor: Mapping[str, Any] | None = None, test_clips: str = "per_network",
-               label: str | None = None, cache_dir: str | Path | None = None, progress: bool | None = None,
-               on_point: Callable[[RatePoint], None] | None = None, events_fn: Any = None) -> RateCurve:
+def rate_curve(
+    kernel: Kernel | None,
+    task: str,
+    checkpoints: Sequence[str | Path],
+    thresholds: Sequence[float] = DEFAULT_THRESHOLDS,
+    *,
+    n_test: int | None = None,
+    design_sensor: Mapping[str, Any] | None = None,
+    test_clips: str = "per_network",
+    label: str | None = None,
+    cache_dir: str | Path | None = None,
+    progress: bool | None = None,
+    on_point: Callable[[RatePoint], None] | None = None,
+    events_fn: Any = None,
+) -> RateCurve:
     """Measure a kernel's event rate and task metric at each contrast threshold, in fixed networks.
 
     Parameters
@@ -569,21 +709,45 @@ def rate_curve(kernel: Kernel | None, task: str, checkpoints: Sequence[str | Pat
     def evaluate(t: float, bar: Any) -> list[Any]:
         evid = []
         for s, ckpt in enumerate(paths):
-            evid.append(clip_evidence(kernel, task, ckpt, n_test=n_test, sensor=_sensor_at(ckpt, design_sensor, t),
-                                      events_fn=events_fn, seed_offset=s,
-                                      clip_set=s if test_clips == "per_network" else 0))
+            evid.append(
+                clip_evidence(
+                    kernel,
+                    task,
+                    ckpt,
+                    n_test=n_test,
+                    sensor=_sensor_at(ckpt, design_sensor, t),
+                    events_fn=events_fn,
+                    seed_offset=s,
+                    clip_set=s if test_clips == "per_network" else 0,
+                )
+            )
             bar.update(1)
         return evid
 
-    points, metric_name = _measure_points(name, task, ts, fingerprint, evaluate, len(paths), cache_dir, progress,
-                                          on_point)
-    return RateCurve(kernel_name=name, task=task, metric_name=metric_name, test_clips=test_clips,
-                     points=tuple(points), checkpoints=tuple(p.name for p in paths))
+    points, metric_name = _measure_points(
+        name, task, ts, fingerprint, evaluate, len(paths), cache_dir, progress, on_point
+    )
+    return RateCurve(
+        kernel_name=name,
+        task=task,
+        metric_name=metric_name,
+        test_clips=test_clips,
+        points=tuple(points),
+        checkpoints=tuple(p.name for p in paths),
+    )
 
 
-def _measure_points(name: str, task: str, ts: Sequence[float], fingerprint: Callable[[float], str],
-                    evaluate: Callable[[float, Any], list[Any]], n_networks: int, cache_dir: str | Path | None,
-                    progress: bool | None, on_point: Callable[[RatePoint], None] | None) -> tuple[list[RatePoint], str]:
+def _measure_points(
+    name: str,
+    task: str,
+    ts: Sequence[float],
+    fingerprint: Callable[[float], str],
+    evaluate: Callable[[float, Any], list[Any]],
+    n_networks: int,
+    cache_dir: str | Path | None,
+    progress: bool | None,
+    on_point: Callable[[RatePoint], None] | None,
+) -> tuple[list[RatePoint], str]:
     """Each threshold's :class:`RatePoint` from ``evaluate(t, bar)`` (one ClipEvidence per network), or
     from ``cache_dir`` when a saved point has ``fingerprint(t)``; finished points are saved there."""
     cache = Path(cache_dir) if cache_dir is not None else None
@@ -610,25 +774,47 @@ def _measure_points(name: str, task: str, ts: Sequence[float], fingerprint: Call
             if any(e.clip_event_rates is None for e in evid):
                 raise InputError(f"rate_curve: the evaluator returned no per-clip event rates for {name!r}")
             metric_name = evid[0].metric_name
-            point = RatePoint(threshold=t, metrics=tuple(e.metric for e in evid),
-                              clip_rates=np.stack([np.asarray(e.clip_event_rates, dtype=np.float64) for e in evid]),
-                              test_seeds=tuple(e.test_seed for e in evid),
-                              sensor_seeds=tuple(e.sensor_seed for e in evid),
-                              seconds=float(sum(e.seconds for e in evid)))
+            point = RatePoint(
+                threshold=t,
+                metrics=tuple(e.metric for e in evid),
+                clip_rates=np.stack([np.asarray(e.clip_event_rates, dtype=np.float64) for e in evid]),
+                test_seeds=tuple(e.test_seed for e in evid),
+                sensor_seeds=tuple(e.sensor_seed for e in evid),
+                seconds=float(sum(e.seconds for e in evid)),
+            )
             if file is not None:
-                write_output(file, json.dumps({"fingerprint": fp, "kernel": name, "task": task,
-                                               "metric_name": metric_name, "point": point.to_dict()}))
+                write_output(
+                    file,
+                    json.dumps(
+                        {
+                            "fingerprint": fp,
+                            "kernel": name,
+                            "task": task,
+                            "metric_name": metric_name,
+                            "point": point.to_dict(),
+                        }
+                    ),
+                )
             points.append(point)
             if on_point is not None:
                 on_point(point)
     return points, metric_name
 
 
-def dataset_rate_curve(kernel: Kernel | None, task: str, entry: Mapping[str, Any], base_dir: str | Path,
-                       thresholds: Sequence[float] = DEFAULT_THRESHOLDS, *,
-                       design_sensor: Mapping[str, Any] | None = None, test_clips: str = "per_network",
-                       label: str | None = None, cache_dir: str | Path | None = None, progress: bool | None = None,
-                       confine: bool = True) -> RateCurve:
+def dataset_rate_curve(
+    kernel: Kernel | None,
+    task: str,
+    entry: Mapping[str, Any],
+    base_dir: str | Path,
+    thresholds: Sequence[float] = DEFAULT_THRESHOLDS,
+    *,
+    design_sensor: Mapping[str, Any] | None = None,
+    test_clips: str = "per_network",
+    label: str | None = None,
+    cache_dir: str | Path | None = None,
+    progress: bool | None = None,
+    confine: bool = True,
+) -> RateCurve:
     """A kernel's rate curve on a user-data task: the user's network and clips at each threshold.
 
     The counterpart of :func:`rate_curve` for a ``[tasks.datasets.<task>]`` table: each threshold
@@ -683,17 +869,38 @@ def dataset_rate_curve(kernel: Kernel | None, task: str, entry: Mapping[str, Any
 
     def fingerprint(t: float) -> str:
         taps = [[1.0]] if kernel is None else np.asarray(kernel.taps).round(15).tolist()
-        blob = json.dumps({"taps": taps, "task": task, "user_task": recorded, "test_clips": test_clips,
-                           "sensor": dict(design_sensor) if design_sensor else None, "threshold": t},
-                          sort_keys=True, default=str)
+        blob = json.dumps(
+            {
+                "taps": taps,
+                "task": task,
+                "user_task": recorded,
+                "test_clips": test_clips,
+                "sensor": dict(design_sensor) if design_sensor else None,
+                "threshold": t,
+            },
+            sort_keys=True,
+            default=str,
+        )
         return hashlib.sha1(blob.encode()).hexdigest()[:16]
 
     def evaluate(t: float, bar: Any) -> list[Any]:
-        ev, _ = dataset_evidence(kernel, task, entry, base_dir, confine=confine,
-                                 design_sensor={**(design_sensor or {}), "threshold_on": t, "threshold_off": t})
+        ev, _ = dataset_evidence(
+            kernel,
+            task,
+            entry,
+            base_dir,
+            confine=confine,
+            design_sensor={**(design_sensor or {}), "threshold_on": t, "threshold_off": t},
+        )
         bar.update(1)
         return [ev]
 
     points, metric_name = _measure_points(name, task, ts, fingerprint, evaluate, 1, cache_dir, progress, None)
-    return RateCurve(kernel_name=name, task=task, metric_name=metric_name, test_clips=test_clips,
-                     points=tuple(points), checkpoints=(str(entry.get("network") or "built-in"),))
+    return RateCurve(
+        kernel_name=name,
+        task=task,
+        metric_name=metric_name,
+        test_clips=test_clips,
+        points=tuple(points),
+        checkpoints=(str(entry.get("network") or "built-in"),),
+    )

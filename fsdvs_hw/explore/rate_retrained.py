@@ -60,9 +60,19 @@ def network_stem(label: str, threshold: float, seed: int) -> str:
     return f"{_slug(label)}_t{threshold:g}_s{int(seed)}".replace(".", "p")
 
 
-def retrained_networks(kernel: Kernel | None, task: str, threshold: float, seeds: Sequence[int], folder: str | Path, *,
-                       label: str, n_train: int = 2048, n_test: int = 256, settings: Any = None,
-                       progress: bool | None = None) -> list[Path]:
+def retrained_networks(
+    kernel: Kernel | None,
+    task: str,
+    threshold: float,
+    seeds: Sequence[int],
+    folder: str | Path,
+    *,
+    label: str,
+    n_train: int = 2048,
+    n_test: int = 256,
+    settings: Any = None,
+    progress: bool | None = None,
+) -> list[Path]:
     """Train (or reuse) one network per seed with ``kernel`` frozen at ``threshold``.
 
     Parameters
@@ -94,23 +104,44 @@ def retrained_networks(kernel: Kernel | None, task: str, threshold: float, seeds
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    with progress_bar(total=len(seeds), desc=f"train {label} @ {threshold:g}", unit="network",
-                      progress=progress) as bar:
+    with progress_bar(
+        total=len(seeds), desc=f"train {label} @ {threshold:g}", unit="network", progress=progress
+    ) as bar:
         for s in seeds:
             stem = out / network_stem(label, threshold, s)
             ckpt = out / f"{stem.name}.safetensors"
             if not ckpt.is_file():
-                learn_kernel(task, 1 if kernel is None else kernel.size, seed=int(s), n_train=n_train, n_test=n_test,
-                             settings=settings, sensor=_sensor(task, threshold), learn_filter=False,
-                             init_kernel=kernel, out=stem, name=label)
+                learn_kernel(
+                    task,
+                    1 if kernel is None else kernel.size,
+                    seed=int(s),
+                    n_train=n_train,
+                    n_test=n_test,
+                    settings=settings,
+                    sensor=_sensor(task, threshold),
+                    learn_filter=False,
+                    init_kernel=kernel,
+                    out=stem,
+                    name=label,
+                )
             paths.append(ckpt)
             bar.update(1)
     return paths
 
 
-def retrained_rate_curve(kernel: Kernel | None, task: str, thresholds: Sequence[float], seeds: Sequence[int],
-                         out_dir: str | Path, *, label: str, n_train: int = 2048, n_test: int = 256,
-                         settings: Any = None, progress: bool | None = None) -> RateCurve:
+def retrained_rate_curve(
+    kernel: Kernel | None,
+    task: str,
+    thresholds: Sequence[float],
+    seeds: Sequence[int],
+    out_dir: str | Path,
+    *,
+    label: str,
+    n_train: int = 2048,
+    n_test: int = 256,
+    settings: Any = None,
+    progress: bool | None = None,
+) -> RateCurve:
     """A kernel's rate curve where every threshold has its own networks, trained at that threshold.
 
     Parameters
@@ -157,8 +188,13 @@ def retrained_rate_curve(kernel: Kernel | None, task: str, thresholds: Sequence[
     all_ckpts: list[str] = []
     for t in ts:
         file = out / "points" / f"{_slug(label)}_t{t:g}.json"
-        key = {"task": task, "seeds": seeds, "n_train": n_train, "n_test": n_test,
-               "taps": [[1.0]] if kernel is None else np.asarray(kernel.taps).round(15).tolist()}
+        key = {
+            "task": task,
+            "seeds": seeds,
+            "n_train": n_train,
+            "n_test": n_test,
+            "taps": [[1.0]] if kernel is None else np.asarray(kernel.taps).round(15).tolist(),
+        }
         if file.is_file():
             stored = json.loads(file.read_text())
             if stored.get("key") == key:
@@ -166,19 +202,50 @@ def retrained_rate_curve(kernel: Kernel | None, task: str, thresholds: Sequence[
                 metric_name = stored["metric_name"]
                 all_ckpts.extend(stored.get("checkpoints", []))
                 continue
-        ckpts = retrained_networks(kernel, task, t, seeds, networks_dir(out, n_train), label=label, n_train=n_train,
-                                   n_test=n_test, settings=settings, progress=progress)
+        ckpts = retrained_networks(
+            kernel,
+            task,
+            t,
+            seeds,
+            networks_dir(out, n_train),
+            label=label,
+            n_train=n_train,
+            n_test=n_test,
+            settings=settings,
+            progress=progress,
+        )
         sensor = _sensor(task, t)
-        evid = [clip_evidence(kernel, task, c, n_test=n_test, sensor=sensor, seed_offset=i, clip_set=i)
-                for i, c in enumerate(ckpts)]
+        evid = [
+            clip_evidence(kernel, task, c, n_test=n_test, sensor=sensor, seed_offset=i, clip_set=i)
+            for i, c in enumerate(ckpts)
+        ]
         metric_name = evid[0].metric_name
-        point = RatePoint(threshold=t, metrics=tuple(e.metric for e in evid),
-                          clip_rates=np.stack([np.asarray(e.clip_event_rates, dtype=np.float64) for e in evid]),
-                          test_seeds=tuple(e.test_seed for e in evid), sensor_seeds=tuple(e.sensor_seed for e in evid),
-                          seconds=float(sum(e.seconds for e in evid)))
-        write_output(file, json.dumps({"key": key, "metric_name": metric_name, "point": point.to_dict(),
-                                       "checkpoints": [c.name for c in ckpts]}))
+        point = RatePoint(
+            threshold=t,
+            metrics=tuple(e.metric for e in evid),
+            clip_rates=np.stack([np.asarray(e.clip_event_rates, dtype=np.float64) for e in evid]),
+            test_seeds=tuple(e.test_seed for e in evid),
+            sensor_seeds=tuple(e.sensor_seed for e in evid),
+            seconds=float(sum(e.seconds for e in evid)),
+        )
+        write_output(
+            file,
+            json.dumps(
+                {
+                    "key": key,
+                    "metric_name": metric_name,
+                    "point": point.to_dict(),
+                    "checkpoints": [c.name for c in ckpts],
+                }
+            ),
+        )
         points.append(point)
         all_ckpts.extend(c.name for c in ckpts)
-    return RateCurve(kernel_name=label, task=task, metric_name=metric_name, test_clips="per_network",
-                     points=tuple(points), checkpoints=tuple(all_ckpts))
+    return RateCurve(
+        kernel_name=label,
+        task=task,
+        metric_name=metric_name,
+        test_clips="per_network",
+        points=tuple(points),
+        checkpoints=tuple(all_ckpts),
+    )

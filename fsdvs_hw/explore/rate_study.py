@@ -164,8 +164,9 @@ def run_rate_study(options: RateOptions) -> RateStudy:
     paths = ckpts[options.task]
     if options.n_networks is not None:
         if not 1 <= options.n_networks <= len(paths):
-            raise InputError(f"--networks {options.n_networks}: allowed 1..{len(paths)} (the design's "
-                             f"{options.task} networks)")
+            raise InputError(
+                f"--networks {options.n_networks}: allowed 1..{len(paths)} (the design's {options.task} networks)"
+            )
         paths = paths[: options.n_networks]
     t_ref, thresholds = _thresholds(design, options)
     n_test = options.n_test
@@ -176,12 +177,17 @@ def run_rate_study(options: RateOptions) -> RateStudy:
     test_clips = tasks.test_clips
     out = output_dir(options.out, flag="--out")
     photon = _photon_noise(options, design, paths[0])
-    common: dict[str, Any] = dict(n_test=n_test, design_sensor=design_sensor, test_clips=test_clips, cache_dir=out / "points",
-                  progress=options.progress, events_fn=photon)
+    common: dict[str, Any] = dict(
+        n_test=n_test,
+        design_sensor=design_sensor,
+        test_clips=test_clips,
+        cache_dir=out / "points",
+        progress=options.progress,
+        events_fn=photon,
+    )
     kernels: dict[str, Any] = {"w/o": None, "learned": design.target}
     for name in options.realisations:
-        real, _ = fit_realisation(name, design.target, design.realisation_options(name),
-                                  seed=design.spec.run.seed)
+        real, _ = fit_realisation(name, design.target, design.realisation_options(name), seed=design.spec.run.seed)
         kernels[name] = real.kernel()
     curves = {name: rate_curve(k, options.task, paths, thresholds, label=name, **common) for name, k in kernels.items()}
     kw: dict[str, Any] = dict(confidence=options.confidence, n_resamples=options.n_resamples, rng=0)
@@ -191,21 +197,36 @@ def run_rate_study(options: RateOptions) -> RateStudy:
     }
     for name in options.realisations:
         comparisons[f"{name}_vs_wo_at_{name}_rate"] = matched_rate_difference(curves["w/o"], curves[name], t_ref, **kw)
-    settings = {"design": str(options.design), "task": options.task, "thresholds": list(thresholds),
-                "reference_threshold": t_ref, "n_networks": len(paths), "n_test_per_network": n_test,
-                "test_clips": test_clips, "sensor": "design" if design_sensor else "checkpoint",
-                "networks": [p.name for p in paths], "resolution_px": list(options.resolution_px),
-                "n_resamples": options.n_resamples, "confidence": options.confidence,
-                "protocol": "fixed networks (phase 1): every kernel zero-shot in the shipped networks trained with "
-                            "the learned kernel",
-                "photon_noise": None if photon is None else {
-                    "illuminance_lux": options.illuminance_lux, "quantum_efficiency": options.quantum_efficiency,
-                    "photoelectrons_full_scale": photon.photoelectrons_full_scale, "pitch_m": float(design.spec.sensor.pitch_m),
-                    "model": "Poisson photoelectrons per frame interval before the kernel (fsdvs_hw.sensor.photon_noise)"}}
+    settings = {
+        "design": str(options.design),
+        "task": options.task,
+        "thresholds": list(thresholds),
+        "reference_threshold": t_ref,
+        "n_networks": len(paths),
+        "n_test_per_network": n_test,
+        "test_clips": test_clips,
+        "sensor": "design" if design_sensor else "checkpoint",
+        "networks": [p.name for p in paths],
+        "resolution_px": list(options.resolution_px),
+        "n_resamples": options.n_resamples,
+        "confidence": options.confidence,
+        "protocol": "fixed networks (phase 1): every kernel zero-shot in the shipped networks trained with "
+        "the learned kernel",
+        "photon_noise": None
+        if photon is None
+        else {
+            "illuminance_lux": options.illuminance_lux,
+            "quantum_efficiency": options.quantum_efficiency,
+            "photoelectrons_full_scale": photon.photoelectrons_full_scale,
+            "pitch_m": float(design.spec.sensor.pitch_m),
+            "model": "Poisson photoelectrons per frame interval before the kernel (fsdvs_hw.sensor.photon_noise)",
+        },
+    }
     study = _write_study(options, out, curves, comparisons, settings)
     if photon is not None:
-        study.files.update(_write_noise_budget(options, out, design.target, paths[0], thresholds, photon,
-                                               n_test or 64, settings))
+        study.files.update(
+            _write_noise_budget(options, out, design.target, paths[0], thresholds, photon, n_test or 64, settings)
+        )
     return study
 
 
@@ -217,40 +238,89 @@ def _photon_noise(options: RateOptions, design: Any, checkpoint: Path) -> Any:
     from ..tasks.learn import load_checkpoint
 
     fps = float(load_checkpoint(checkpoint)[0]["scene"].get("frame_rate_hz", 100.0))
-    n = photoelectrons_per_frame(illuminance_lux=options.illuminance_lux, pitch_m=float(design.spec.sensor.pitch_m),
-                                 quantum_efficiency=options.quantum_efficiency, frame_interval_s=1.0 / fps)
+    n = photoelectrons_per_frame(
+        illuminance_lux=options.illuminance_lux,
+        pitch_m=float(design.spec.sensor.pitch_m),
+        quantum_efficiency=options.quantum_efficiency,
+        frame_interval_s=1.0 / fps,
+    )
     return PhotonNoise(photoelectrons_full_scale=n, seed=int(design.spec.run.seed))
 
 
-def _write_noise_budget(options: RateOptions, out: Path, target: Any, checkpoint: Path, thresholds: Sequence[float],
-                        photon: Any, n_test: int, settings: dict[str, Any]) -> dict[str, Path]:
+def _write_noise_budget(
+    options: RateOptions,
+    out: Path,
+    target: Any,
+    checkpoint: Path,
+    thresholds: Sequence[float],
+    photon: Any,
+    n_test: int,
+    settings: dict[str, Any],
+) -> dict[str, Path]:
     from .noise_budget import noise_budget
 
-    rows = [{"kernel": name, **r} for name, k in (("w/o", None), ("learned", target))
-            for r in noise_budget(k, options.task, checkpoint, thresholds,
-                                  photoelectrons_full_scale=photon.photoelectrons_full_scale, n_test=n_test,
-                                  seed=photon.seed)]
-    meta = {"settings": settings, "checkpoint": checkpoint.name, "n_clips": n_test,
-            "provenance": {"command": options.command, "versions": library_versions(),
-                           "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}}
-    return {"noise_budget.json": write_output(out / "noise_budget.json", json.dumps({**meta, "rows": rows}, indent=1)),
-            "noise_budget.csv": write_output(out / "noise_budget.csv", _csv(rows))}
+    rows = [
+        {"kernel": name, **r}
+        for name, k in (("w/o", None), ("learned", target))
+        for r in noise_budget(
+            k,
+            options.task,
+            checkpoint,
+            thresholds,
+            photoelectrons_full_scale=photon.photoelectrons_full_scale,
+            n_test=n_test,
+            seed=photon.seed,
+        )
+    ]
+    meta = {
+        "settings": settings,
+        "checkpoint": checkpoint.name,
+        "n_clips": n_test,
+        "provenance": {
+            "command": options.command,
+            "versions": library_versions(),
+            "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        },
+    }
+    return {
+        "noise_budget.json": write_output(out / "noise_budget.json", json.dumps({**meta, "rows": rows}, indent=1)),
+        "noise_budget.csv": write_output(out / "noise_budget.csv", _csv(rows)),
+    }
 
 
-def _write_study(options: RateOptions, out: Path, curves: dict[str, RateCurve], comparisons: dict[str, Any],
-                 settings: dict[str, Any]) -> RateStudy:
-    rows = [r for c in curves.values() for r in c.summary(confidence=options.confidence,
-                                                          n_resamples=options.n_resamples, rng=0,
-                                                          resolution_px=options.resolution_px)]
-    provenance = {"command": options.command, "versions": library_versions(),
-                  "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
+def _write_study(
+    options: RateOptions, out: Path, curves: dict[str, RateCurve], comparisons: dict[str, Any], settings: dict[str, Any]
+) -> RateStudy:
+    rows = [
+        r
+        for c in curves.values()
+        for r in c.summary(
+            confidence=options.confidence, n_resamples=options.n_resamples, rng=0, resolution_px=options.resolution_px
+        )
+    ]
+    provenance = {
+        "command": options.command,
+        "versions": library_versions(),
+        "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+    }
     files = {
-        "rate_curves.json": write_output(out / "rate_curves.json", json.dumps(
-            {"settings": settings, "rows": rows, "provenance": provenance}, indent=1)),
+        "rate_curves.json": write_output(
+            out / "rate_curves.json",
+            json.dumps({"settings": settings, "rows": rows, "provenance": provenance}, indent=1),
+        ),
         "rate_curves.csv": write_output(out / "rate_curves.csv", _csv(rows)),
-        "matched_rate.json": write_output(out / "matched_rate.json", json.dumps(
-            {"settings": settings, "comparisons": {k: v.to_dict() for k, v in comparisons.items()},
-             "provenance": provenance}, indent=1, default=str)),
+        "matched_rate.json": write_output(
+            out / "matched_rate.json",
+            json.dumps(
+                {
+                    "settings": settings,
+                    "comparisons": {k: v.to_dict() for k, v in comparisons.items()},
+                    "provenance": provenance,
+                },
+                indent=1,
+                default=str,
+            ),
+        ),
     }
     return RateStudy(curves=curves, comparisons=comparisons, rows=rows, files=files)
 
@@ -259,8 +329,10 @@ def _thresholds(design: Any, options: RateOptions) -> tuple[float, tuple[float, 
     """The design's operating threshold (ON = OFF, log units) and the study's thresholds with it."""
     sensor = design.spec.sensor
     if sensor.threshold_on != sensor.threshold_off:
-        raise InputError(f"sensor.threshold_on={sensor.threshold_on} != threshold_off={sensor.threshold_off}: the "
-                         "rate curve sets both together; allowed: equal thresholds")
+        raise InputError(
+            f"sensor.threshold_on={sensor.threshold_on} != threshold_off={sensor.threshold_off}: the "
+            "rate curve sets both together; allowed: equal thresholds"
+        )
     t_ref = float(sensor.threshold_on)
     return t_ref, tuple(sorted(set(options.thresholds) | {t_ref}))
 
@@ -270,42 +342,75 @@ def _retrained_study(design: Any, options: RateOptions) -> RateStudy:
     from .rate_retrained import network_stem, networks_dir, retrained_rate_curve
 
     if options.illuminance_lux is not None:
-        raise InputError(f"--illuminance-lux {options.illuminance_lux}: photon noise is measured with the fixed "
-                         "protocol only; allowed: --protocol fixed, or no --illuminance-lux")
+        raise InputError(
+            f"--illuminance-lux {options.illuminance_lux}: photon noise is measured with the fixed "
+            "protocol only; allowed: --protocol fixed, or no --illuminance-lux"
+        )
     if options.realisations:
-        raise InputError("--realisations: the retrained protocol trains networks for w/o and the learned kernel only; "
-                         "allowed: none (use the fixed protocol for realisations)")
+        raise InputError(
+            "--realisations: the retrained protocol trains networks for w/o and the learned kernel only; "
+            "allowed: none (use the fixed protocol for realisations)"
+        )
     t_ref, thresholds = _thresholds(design, options)
     n_test = options.n_test or 256
     out = output_dir(options.out, flag="--out")
     common: dict[str, Any] = dict(n_train=options.n_train, n_test=n_test, progress=options.progress)
-    curves = {"w/o": retrained_rate_curve(None, options.task, thresholds, options.seeds, out, label="w/o", **common),
-              "learned": retrained_rate_curve(design.target, options.task, thresholds, options.seeds, out,
-                                              label="learned", **common)}
+    curves = {
+        "w/o": retrained_rate_curve(None, options.task, thresholds, options.seeds, out, label="w/o", **common),
+        "learned": retrained_rate_curve(
+            design.target, options.task, thresholds, options.seeds, out, label="learned", **common
+        ),
+    }
     kw: dict[str, Any] = dict(confidence=options.confidence, n_resamples=options.n_resamples, rng=0)
     comparisons: dict[str, Any] = {
         "learned_vs_wo_at_learned_rate": matched_rate_difference(curves["w/o"], curves["learned"], t_ref, **kw),
         "wo_vs_learned_at_wo_rate": matched_rate_difference(curves["learned"], curves["w/o"], t_ref, **kw),
     }
     if options.zero_shot:  # the learned kernel swapped into the w/o networks trained at t_ref, threshold swept
-        wo_nets = [networks_dir(out, options.n_train) / f"{network_stem('w/o', t_ref, s)}.safetensors"
-                   for s in options.seeds]
+        wo_nets = [
+            networks_dir(out, options.n_train) / f"{network_stem('w/o', t_ref, s)}.safetensors" for s in options.seeds
+        ]
         swap_ts = tuple(t for t in thresholds if t >= t_ref)
         curves["learned swapped into w/o networks"] = rate_curve(
-            design.target, options.task, wo_nets, swap_ts, n_test=n_test, label="learned swapped into w/o networks",
-            cache_dir=out / "points_zero_shot", progress=options.progress)
-        wo_point = RateCurve(kernel_name="w/o", task=options.task, metric_name=curves["w/o"].metric_name,
-                             test_clips="per_network", points=(curves["w/o"].point(t_ref),))
+            design.target,
+            options.task,
+            wo_nets,
+            swap_ts,
+            n_test=n_test,
+            label="learned swapped into w/o networks",
+            cache_dir=out / "points_zero_shot",
+            progress=options.progress,
+        )
+        wo_point = RateCurve(
+            kernel_name="w/o",
+            task=options.task,
+            metric_name=curves["w/o"].metric_name,
+            test_clips="per_network",
+            points=(curves["w/o"].point(t_ref),),
+        )
         comparisons["wo_vs_swapped_learned_at_wo_rate"] = matched_rate_difference(
-            curves["learned swapped into w/o networks"], wo_point, t_ref, **kw)
-    settings = {"design": str(options.design), "task": options.task, "thresholds": list(thresholds),
-                "reference_threshold": t_ref, "n_networks": len(options.seeds), "seeds": list(options.seeds),
-                "n_train": options.n_train, "n_test_per_network": n_test, "test_clips": "per_network",
-                "resolution_px": list(options.resolution_px), "n_resamples": options.n_resamples,
-                "confidence": options.confidence,
-                "protocol": "retrained: a network per kernel, threshold and seed, trained at that threshold with the "
-                            "kernel frozen (tasks.learn_kernel, shipped settings); network i scores clip set i with "
-                            "sensor seed offset i at every threshold" + (
-                                "; zero-shot: the learned kernel swapped into the w/o networks trained at the "
-                                "reference threshold" if options.zero_shot else "")}
+            curves["learned swapped into w/o networks"], wo_point, t_ref, **kw
+        )
+    settings = {
+        "design": str(options.design),
+        "task": options.task,
+        "thresholds": list(thresholds),
+        "reference_threshold": t_ref,
+        "n_networks": len(options.seeds),
+        "seeds": list(options.seeds),
+        "n_train": options.n_train,
+        "n_test_per_network": n_test,
+        "test_clips": "per_network",
+        "resolution_px": list(options.resolution_px),
+        "n_resamples": options.n_resamples,
+        "confidence": options.confidence,
+        "protocol": "retrained: a network per kernel, threshold and seed, trained at that threshold with the "
+        "kernel frozen (tasks.learn_kernel, shipped settings); network i scores clip set i with "
+        "sensor seed offset i at every threshold"
+        + (
+            "; zero-shot: the learned kernel swapped into the w/o networks trained at the reference threshold"
+            if options.zero_shot
+            else ""
+        ),
+    }
     return _write_study(options, out, curves, comparisons, settings)

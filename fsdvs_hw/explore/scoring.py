@@ -74,8 +74,9 @@ TRACK_PREFIX: dict[str, str] = {"simulator": "", "emulation": "emu_"}
 PRIMARY_CSF_METHOD = "mannos_sakrison_1974"
 
 
-def fit_realisation(name: str, target: Kernel, options: Mapping[str, Any] | None = None, *,
-                    seed: int = 0) -> tuple[Realisation, float]:
+def fit_realisation(
+    name: str, target: Kernel, options: Mapping[str, Any] | None = None, *, seed: int = 0
+) -> tuple[Realisation, float]:
     """Fit one realisation of ``target`` by name.
 
     Parameters
@@ -143,12 +144,21 @@ def _task_sensor(checkpoint: Path, design_sensor: Mapping[str, Any] | None) -> t
     return SensorConfig(**settings), {"source": "design", **{k: settings[k] for k in _DESIGN_SENSOR_FIELDS}}
 
 
-def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[str | Path]], *,
-                n_test: int | Mapping[str, int] = 0, n_test_emulation: int | Mapping[str, int] = 0,
-                finetune_epochs: int = 0,
-                tracks: Sequence[str] = ("simulator",), design_sensor: Mapping[str, Any] | None = None,
-                display: Any = None, keep_evidence: bool = True, test_clips: str = "per_network",
-                datasets: Mapping[str, Mapping[str, Any]] | None = None, base_dir: str | Path = ".") -> dict[str, Any]:
+def task_scores(
+    kernel: Kernel,
+    checkpoints: Mapping[str, str | Path | Sequence[str | Path]],
+    *,
+    n_test: int | Mapping[str, int] = 0,
+    n_test_emulation: int | Mapping[str, int] = 0,
+    finetune_epochs: int = 0,
+    tracks: Sequence[str] = ("simulator",),
+    design_sensor: Mapping[str, Any] | None = None,
+    display: Any = None,
+    keep_evidence: bool = True,
+    test_clips: str = "per_network",
+    datasets: Mapping[str, Mapping[str, Any]] | None = None,
+    base_dir: str | Path = ".",
+) -> dict[str, Any]:
     """Evaluate ``kernel`` per clip in every trained network of every task (zero-shot swap).
 
     Parameters
@@ -214,6 +224,7 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
         raise InputError(f"test_clips {test_clips!r} unknown; allowed: {', '.join(TEST_CLIPS)}")
     from .paired import clip_evidence, encode_evidence, event_rate_ci  # torch: imported only when tasks are scored
     from .user_data import dataset_evidence, user_task_record
+
     out: dict[str, Any] = {"status": "ok"}
     entry: Any  # a checkpoint (or a list of them), or a user dataset's table
     for task, entry in [*checkpoints.items(), *datasets.items()]:
@@ -227,8 +238,9 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
             if track not in ("simulator", "emulation"):
                 raise InputError(f"task track {track!r} unknown; allowed 'simulator', 'emulation'")
             if finetune_epochs:
-                out[task][track] = {"status": "unavailable: paired per-clip scoring is zero-shot "
-                                              "(finetune_epochs must be 0)"}
+                out[task][track] = {
+                    "status": "unavailable: paired per-clip scoring is zero-shot (finetune_epochs must be 0)"
+                }
                 out["status"] = "partial"
                 continue
             events_fn = _recaptured_events(kernel, display) if track == "emulation" else None
@@ -237,27 +249,43 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
                 evid = []
                 if user:
                     fields = None if design_sensor is None else {k: design_sensor[k] for k in _DESIGN_SENSOR_FIELDS}
-                    ev, sensor_rec = dataset_evidence(kernel, task, entry, base_dir, design_sensor=fields,
-                                                      events_fn=events_fn, confine=False)
+                    ev, sensor_rec = dataset_evidence(
+                        kernel, task, entry, base_dir, design_sensor=fields, events_fn=events_fn, confine=False
+                    )
                     evid.append(ev)
                 for s, ckpt in enumerate(paths):
                     sensor_cfg, sensor_rec = _task_sensor(ckpt, design_sensor)
-                    evid.append(clip_evidence(kernel, task, ckpt, n_test=n or None, sensor=sensor_cfg,
-                                              seed_offset=s, clip_set=s if test_clips == "per_network" else 0,
-                                              events_fn=events_fn))
+                    evid.append(
+                        clip_evidence(
+                            kernel,
+                            task,
+                            ckpt,
+                            n_test=n or None,
+                            sensor=sensor_cfg,
+                            seed_offset=s,
+                            clip_set=s if test_clips == "per_network" else 0,
+                            events_fn=events_fn,
+                        )
+                    )
             except (InputError, FileNotFoundError) as exc:
                 out[task][track] = {"status": f"unavailable: {exc}"}
                 out["status"] = "partial"
                 continue
             per_seed = [e.value for e in evid]
             rec: dict[str, Any] = {
-                "status": "ok", "metric": float(np.mean(per_seed)), "metric_name": evid[0].metric_name,
-                "per_seed": per_seed, "n_seeds": len(evid), "test_clips": test_clips,
+                "status": "ok",
+                "metric": float(np.mean(per_seed)),
+                "metric_name": evid[0].metric_name,
+                "per_seed": per_seed,
+                "n_seeds": len(evid),
+                "test_clips": test_clips,
                 "n_clips": (sum(e.n_clips for e in evid) if test_clips == "per_network" else evid[0].n_clips),
-                "n_clips_per_network": evid[0].n_clips, "test_seeds": [e.test_seed for e in evid],
+                "n_clips_per_network": evid[0].n_clips,
+                "test_seeds": [e.test_seed for e in evid],
                 **(user_task_record(entry) if user else {"checkpoints": [str(p) for p in paths]}),
                 "sensor_seeds": [e.sensor_seed for e in evid],
-                "event_rate": float(np.mean([e.event_rate for e in evid])), "sensor": sensor_rec,
+                "event_rate": float(np.mean([e.event_rate for e in evid])),
+                "sensor": sensor_rec,
                 "event_rate_unit": "events/pixel/frame interval",
                 "event_rate_per_s": event_rate_ci(evid, test_clips=test_clips),
                 "wall_s": time.perf_counter() - t0,
@@ -273,6 +301,7 @@ def task_scores(kernel: Kernel, checkpoints: Mapping[str, str | Path | Sequence[
 def _record_networks(tasks: dict[str, Any], target: Kernel) -> None:
     """Say, per task, which networks scored it and whether they were trained with ``target``."""
     from .paired import network_info  # torch: imported only when tasks are scored
+
     for _task, tracks in tasks.items():
         if not isinstance(tracks, dict):
             continue
@@ -297,10 +326,17 @@ def _recaptured_events(kernel: Kernel, display: Any) -> Any:
     return events_fn
 
 
-def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str] = (PRIMARY_CSF_METHOD,),
-          focal_length_m: float = 4.0e-3, checkpoints: Mapping[str, str | Path | Sequence[str | Path]] | None = None,
-          task_options: Mapping[str, Any] | None = None, emulation: Mapping[str, Any] | None = None,
-          fit_wall_s: float = float("nan")) -> Score:
+def score(
+    realisation: Realisation,
+    *,
+    target: Kernel,
+    csf_methods: Sequence[str] = (PRIMARY_CSF_METHOD,),
+    focal_length_m: float = 4.0e-3,
+    checkpoints: Mapping[str, str | Path | Sequence[str | Path]] | None = None,
+    task_options: Mapping[str, Any] | None = None,
+    emulation: Mapping[str, Any] | None = None,
+    fit_wall_s: float = float("nan"),
+) -> Score:
     """Score one realisation against its target.
 
     Parameters
@@ -349,17 +385,28 @@ def score(realisation: Realisation, *, target: Kernel, csf_methods: Sequence[str
     if emulation is not None and emulation["emulation"].get("enabled", True):
         from .emulation import emulation_scores
 
-        emu = emulation_scores(realised, sensor=emulation["sensor"], emulation=emulation["emulation"],
-                               seed=int(emulation.get("seed", 0)))
+        emu = emulation_scores(
+            realised, sensor=emulation["sensor"], emulation=emulation["emulation"], seed=int(emulation.get("seed", 0))
+        )
     else:
         emu = {"status": "not requested"}
     return Score(
-        kind=realisation.kind, label=getattr(realisation, "label", realisation.kind), describe=realisation.describe(),
-        kernel=realised, kernel_error=kernel_error, kernel_error_gain_free=kernel_error_gain_free,
-        dc_gain=realised.dc_gain, asymmetry=realised.asymmetry(), spectral=spectral, csf=csf, cost=cost,
-        tasks=TaskScores.from_dict(tasks), emulation=emu,
-        wall=WallTimes(fit_s=float(fit_wall_s), analysis_s=t1 - t0, tasks_s=t2 - t1,
-                       emulation_s=time.perf_counter() - t2),
+        kind=realisation.kind,
+        label=getattr(realisation, "label", realisation.kind),
+        describe=realisation.describe(),
+        kernel=realised,
+        kernel_error=kernel_error,
+        kernel_error_gain_free=kernel_error_gain_free,
+        dc_gain=realised.dc_gain,
+        asymmetry=realised.asymmetry(),
+        spectral=spectral,
+        csf=csf,
+        cost=cost,
+        tasks=TaskScores.from_dict(tasks),
+        emulation=emu,
+        wall=WallTimes(
+            fit_s=float(fit_wall_s), analysis_s=t1 - t0, tasks_s=t2 - t1, emulation_s=time.perf_counter() - t2
+        ),
     )
 
 
@@ -396,8 +443,7 @@ def _context(point: Mapping[str, Any]) -> str:
     """The sweep setting a point shares with its reference: its params minus realisation-scoped axes."""
     params = point.get("params") or {}
     scoped = set(realisation_names()) | {"realisations"}
-    return json.dumps({k: v for k, v in params.items() if k.split(".")[0] not in scoped}, sort_keys=True,
-                      default=str)
+    return json.dumps({k: v for k, v in params.items() if k.split(".")[0] not in scoped}, sort_keys=True, default=str)
 
 
 def _track_rec(point: Mapping[str, Any], task: str, track: str) -> Mapping[str, Any]:
@@ -405,9 +451,15 @@ def _track_rec(point: Mapping[str, Any], task: str, track: str) -> Mapping[str, 
     return rec if isinstance(rec, Mapping) else {}
 
 
-def paired_losses(points: Iterable[Mapping[str, Any]], *, reference: str = "learned",
-                  task_weights: Mapping[str, float] | None = None, n_resamples: int = 2000, confidence: float = 0.95,
-                  rng: int = 0) -> dict[str, dict[str, Any]]:
+def paired_losses(
+    points: Iterable[Mapping[str, Any]],
+    *,
+    reference: str = "learned",
+    task_weights: Mapping[str, float] | None = None,
+    n_resamples: int = 2000,
+    confidence: float = 0.95,
+    rng: int = 0,
+) -> dict[str, dict[str, Any]]:
     """Paired accuracy loss of every point against the reference kernel, with bootstrap CIs.
 
     For every track and task, the reference row (``learned``: the kernel being realised, in the
@@ -452,8 +504,9 @@ def paired_losses(points: Iterable[Mapping[str, Any]], *, reference: str = "lear
             decoded[key] = [decode_evidence(e) for e in rec["evidence"]]
         return decoded[key]
 
-    out: dict[str, dict[str, Any]] = {p["key"]: {"status": f"no {reference!r} row in its sweep setting"}
-                                      for p in points}
+    out: dict[str, dict[str, Any]] = {
+        p["key"]: {"status": f"no {reference!r} row in its sweep setting"} for p in points
+    }
     for group in groups.values():
         ref = next((p for p in group if p["realisation"] == reference), None)
         if ref is None:
@@ -471,10 +524,13 @@ def paired_losses(points: Iterable[Mapping[str, Any]], *, reference: str = "lear
             missing: list[Mapping[str, Any]] = []
             for p in group:
                 arms = {t: arm(p, t, track) for t in ref_arms}
-                good = all(a is not None and len(a) == len(ref_arms[t])
-                           and [m.n_clips for m in a] == [m.n_clips for m in ref_arms[t]]
-                           and _track_rec(p, t, track).get("test_seeds") == _track_rec(ref, t, track).get("test_seeds")
-                           for t, a in arms.items())
+                good = all(
+                    a is not None
+                    and len(a) == len(ref_arms[t])
+                    and [m.n_clips for m in a] == [m.n_clips for m in ref_arms[t]]
+                    and _track_rec(p, t, track).get("test_seeds") == _track_rec(ref, t, track).get("test_seeds")
+                    for t, a in arms.items()
+                )
                 (ok if good else missing).append(p)
             for p in missing:
                 out[p["key"]][track] = {"status": "no paired evidence on every task of the reference"}
@@ -485,7 +541,12 @@ def paired_losses(points: Iterable[Mapping[str, Any]], *, reference: str = "lear
                 weights = {t: 1.0 for t in ref_arms}
             cis = task_difference_cis(
                 {t: (ref_arms[t], {p["key"]: decoded[(p["key"], t, track)] for p in ok}) for t in ref_arms},
-                weights=weights, nested_clips=nested, n_resamples=n_resamples, confidence=confidence, rng=rng)
+                weights=weights,
+                nested_clips=nested,
+                n_resamples=n_resamples,
+                confidence=confidence,
+                rng=rng,
+            )
             for p in ok:
                 rec = {t: {**ci.to_dict(), "text": ci.describe()} for t, ci in cis[p["key"]].items()}
                 rec["weights"] = weights
@@ -497,8 +558,9 @@ def paired_losses(points: Iterable[Mapping[str, Any]], *, reference: str = "lear
 EVIDENCE_FIELDS = frozenset({"evidence", "clip_event_rates"})
 
 
-def with_paired_losses(points: Sequence[Mapping[str, Any]], *, keep_evidence: bool = False,
-                       **options: Any) -> list[dict[str, Any]]:
+def with_paired_losses(
+    points: Sequence[Mapping[str, Any]], *, keep_evidence: bool = False, **options: Any
+) -> list[dict[str, Any]]:
     """Copies of ``points`` with ``"paired_loss"`` (:func:`paired_losses`) and, unless asked, the
     bulky per-clip fields (:data:`EVIDENCE_FIELDS`) removed (what the report and ``scores.json`` carry)."""
     points = list(points)
@@ -509,10 +571,17 @@ def with_paired_losses(points: Sequence[Mapping[str, Any]], *, keep_evidence: bo
         q["paired_loss"] = losses.get(p["key"], {"status": "not scored"})
         if not keep_evidence and isinstance(q.get("result"), Mapping) and isinstance(q["result"].get("tasks"), Mapping):
             res = dict(q["result"])
-            res["tasks"] = {t: ({k: ({f: v for f, v in r.items() if f not in EVIDENCE_FIELDS} if isinstance(r, Mapping)
-                                     else r)
-                                 for k, r in tracks.items()} if isinstance(tracks, Mapping) else tracks)
-                            for t, tracks in res["tasks"].items()}
+            res["tasks"] = {
+                t: (
+                    {
+                        k: ({f: v for f, v in r.items() if f not in EVIDENCE_FIELDS} if isinstance(r, Mapping) else r)
+                        for k, r in tracks.items()
+                    }
+                    if isinstance(tracks, Mapping)
+                    else tracks
+                )
+                for t, tracks in res["tasks"].items()
+            }
             q["result"] = res
         out.append(q)
     return out

@@ -77,9 +77,16 @@ class ClipBudget:
     nested: bool = False
 
 
-def size_test_sets(points: Iterable[Mapping[str, Any]], *, target_half_width: float = 0.01, margin: float = 1.15,
-                   batch: int = 64, n_resamples: int = 1000, confidence: float = 0.95,
-                   reference: str = "learned") -> list[ClipBudget]:
+def size_test_sets(
+    points: Iterable[Mapping[str, Any]],
+    *,
+    target_half_width: float = 0.01,
+    margin: float = 1.15,
+    batch: int = 64,
+    n_resamples: int = 1000,
+    confidence: float = 0.95,
+    reference: str = "learned",
+) -> list[ClipBudget]:
     """Clips per task and track for loss CIs of half-width ``target_half_width``, from pilot points.
 
     Parameters
@@ -139,9 +146,16 @@ def size_test_sets(points: Iterable[Mapping[str, Any]], *, target_half_width: fl
             clips = task_difference_cis({task: (r_arm, cands)}, resample=("clips",), **kw)
             n_seeds = len(r_arm)
             seeds = task_difference_cis({task: (r_arm, cands)}, resample=("seeds",), **kw) if n_seeds > 1 else {}
-            per_seed = ([task_difference_cis({task: ([r_arm[s]], {k: [a[s]] for k, a in cands.items()})},
-                                             resample=("clips",), **kw) for s in range(n_seeds)]
-                        if n_seeds > 1 else [])
+            per_seed = (
+                [
+                    task_difference_cis(
+                        {task: ([r_arm[s]], {k: [a[s]] for k, a in cands.items()})}, resample=("clips",), **kw
+                    )
+                    for s in range(n_seeds)
+                ]
+                if n_seeds > 1
+                else []
+            )
             rows = []
             for key in cands:
                 c: DifferenceCI = clips[key][task]
@@ -150,28 +164,50 @@ def size_test_sets(points: Iterable[Mapping[str, Any]], *, target_half_width: fl
                 if seeds:
                     h_n2 = (n_seeds - 1) / n_seeds * sum(ps[key][task].half_width ** 2 for ps in per_seed) / n_seeds**2
                     h_s = math.sqrt(max(0.0, seeds[key][task].half_width ** 2 - h_n2))
-                rows.append((labels[key], c, h_s, _clips_needed(c, target_half_width / margin**0.5, h_s,
-                                                                math.sqrt(h_n2), 1, batch)))
-            out.append(_budget(track, task, r_arm[0].n_clips, rows,
-                               "every realisation is seed-limited: train more seeds"))
+                rows.append(
+                    (
+                        labels[key],
+                        c,
+                        h_s,
+                        _clips_needed(c, target_half_width / margin**0.5, h_s, math.sqrt(h_n2), 1, batch),
+                    )
+                )
+            out.append(
+                _budget(track, task, r_arm[0].n_clips, rows, "every realisation is seed-limited: train more seeds")
+            )
     return out
 
 
-def _nested_budget(track: str, task: str, r_arm: list[Any], cands: dict[str, list[Any]], labels: dict[str, str],
-                   target: float, margin: float, kw: dict[str, Any], step: int = 16) -> ClipBudget:
+def _nested_budget(
+    track: str,
+    task: str,
+    r_arm: list[Any],
+    cands: dict[str, list[Any]],
+    labels: dict[str, str],
+    target: float,
+    margin: float,
+    kw: dict[str, Any],
+    step: int = 16,
+) -> ClipBudget:
     """Clips per network for one task of a nested design (module docstring)."""
     from ..stats import task_difference_cis
 
     n_seeds = len(r_arm)
     clips = task_difference_cis({task: (r_arm, cands)}, nested_clips=True, resample=("clips",), **kw)
-    both = (task_difference_cis({task: (r_arm, cands)}, nested_clips=True, **kw) if n_seeds > 1 else clips)
+    both = task_difference_cis({task: (r_arm, cands)}, nested_clips=True, **kw) if n_seeds > 1 else clips
     rows = []
     for key in cands:
         c, t = clips[key][task], both[key][task]
         h_s = math.sqrt(max(0.0, t.half_width**2 - c.half_width**2))
         rows.append((labels[key], c, h_s, _clips_needed(c, target / margin**0.5, h_s, 0.0, n_seeds, step)))
-    return _budget(track, task, r_arm[0].n_clips, rows,
-                   f"every realisation is seed-limited with {n_seeds} networks: train more", nested=True)
+    return _budget(
+        track,
+        task,
+        r_arm[0].n_clips,
+        rows,
+        f"every realisation is seed-limited with {n_seeds} networks: train more",
+        nested=True,
+    )
 
 
 def _clips_needed(pilot: Any, target: float, h_s: float, h_n: float, n_networks: int, step: int) -> int | None:
@@ -185,8 +221,15 @@ def _clips_needed(pilot: Any, target: float, h_s: float, h_n: float, n_networks:
     return int(math.ceil(total / n_networks / step) * step)
 
 
-def _budget(track: str, task: str, n_pilot: int, rows: list[tuple[str, Any, float, int | None]], reason: str, *,
-            nested: bool = False) -> ClipBudget:
+def _budget(
+    track: str,
+    task: str,
+    n_pilot: int,
+    rows: list[tuple[str, Any, float, int | None]],
+    reason: str,
+    *,
+    nested: bool = False,
+) -> ClipBudget:
     """One task's budget from (label, pilot clip CI, seed half-width, clips needed or None) per realisation."""
     need: dict[str, int | None] = {}
     limited: dict[str, float] = {}
@@ -198,18 +241,33 @@ def _budget(track: str, task: str, n_pilot: int, rows: list[tuple[str, Any, floa
         elif n > worst[0]:
             worst = (float(n), label, c.half_width, h_s)
     n_max = None if worst[0] < 0 else int(worst[0])
-    return ClipBudget(track, task, n_max, n_pilot, worst[1], worst[2], worst[3], need, limited,
-                      "" if n_max is not None else reason, nested=nested)
+    return ClipBudget(
+        track,
+        task,
+        n_max,
+        n_pilot,
+        worst[1],
+        worst[2],
+        worst[3],
+        need,
+        limited,
+        "" if n_max is not None else reason,
+        nested=nested,
+    )
 
 
 def budget_table(budgets: Iterable[ClipBudget]) -> str:
     """The clip budgets of :func:`size_test_sets` as a Markdown table (one row per track and task)."""
-    lines = ["| track | task | clips needed | limiting realisation | its pilot h (clips) | its h (seeds) | "
-             "clips per realisation | seed-limited (± h_s, more clips cannot help) |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| track | task | clips needed | limiting realisation | its pilot h (clips) | its h (seeds) | "
+        "clips per realisation | seed-limited (± h_s, more clips cannot help) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for b in budgets:
         per = ", ".join(f"{k}: {v}" for k, v in b.per_realisation.items() if v is not None)
         lim = ", ".join(f"{k}: ± {v:.3f}" for k, v in b.seed_limited.items()) or "none"
-        lines.append(f"| {b.track} | {b.task} | {b.n_clips if b.n_clips is not None else b.reason} | {b.limiting} | "
-                     f"{b.h_clip:.4f} | {b.h_seed:.4f} | {per} | {lim} |")
+        lines.append(
+            f"| {b.track} | {b.task} | {b.n_clips if b.n_clips is not None else b.reason} | {b.limiting} | "
+            f"{b.h_clip:.4f} | {b.h_seed:.4f} | {per} | {lim} |"
+        )
     return "\n".join(lines)

@@ -82,14 +82,18 @@ class ResultsStore:
             tables = {r[0] for r in self._db.execute("SELECT name FROM sqlite_master WHERE type='table'")}
             foreign = sorted(tables - {"meta", "points"})
             if foreign:
-                raise InputError(f"{self.path}: a SQLite database with other tables ({', '.join(foreign[:5])}), "
-                                 "not an fsdvs_hw results store; left unchanged (use a new --store file)")
+                raise InputError(
+                    f"{self.path}: a SQLite database with other tables ({', '.join(foreign[:5])}), "
+                    "not an fsdvs_hw results store; left unchanged (use a new --store file)"
+                )
             for table, expected in (("points", _COLUMNS), ("meta", ["key", "value"])):
                 if table in tables:
                     cols = [r[1] for r in self._db.execute(f"PRAGMA table_info({table})")]
                     if cols != expected:
-                        raise InputError(f"{self.path}: has a {table!r} table of another layout; not an fsdvs_hw "
-                                         "results store (use a new --store file)")
+                        raise InputError(
+                            f"{self.path}: has a {table!r} table of another layout; not an fsdvs_hw "
+                            "results store (use a new --store file)"
+                        )
             if tables:  # an existing store: a damaged page would otherwise surface mid-run or be skipped
                 check = [r[0] for r in self._db.execute("PRAGMA quick_check(3)")]
                 if check != ["ok"]:
@@ -105,8 +109,10 @@ class ResultsStore:
             if row is None:
                 self._db.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(_SCHEMA_VERSION),))
             elif str(row[0]) != str(_SCHEMA_VERSION):
-                raise InputError(f"{self.path}: results store schema version {str(row[0])[:20]!r}, this fsdvs_hw "
-                                 f"writes {_SCHEMA_VERSION}; use a new --store file")
+                raise InputError(
+                    f"{self.path}: results store schema version {str(row[0])[:20]!r}, this fsdvs_hw "
+                    f"writes {_SCHEMA_VERSION}; use a new --store file"
+                )
         except sqlite3.Error as exc:
             self._db.close()
             # sqlite's message ("file is not a database") never quotes the file's content
@@ -116,8 +122,18 @@ class ResultsStore:
             raise
 
     # ------------------------------------------------------------------ writing
-    def add(self, key: str, *, design: str, realisation: str, params: Mapping[str, Any], status: str,
-            result: Mapping[str, Any], wall_s: float, worker: str = "") -> bool:
+    def add(
+        self,
+        key: str,
+        *,
+        design: str,
+        realisation: str,
+        params: Mapping[str, Any],
+        status: str,
+        result: Mapping[str, Any],
+        wall_s: float,
+        worker: str = "",
+    ) -> bool:
         """Store one finished point in its own committed transaction.
 
         A point stored as ``"skipped"`` (its realisation was not installed) is replaced by a later
@@ -133,9 +149,18 @@ class ResultsStore:
             "status=excluded.status, result=excluded.result, wall_s=excluded.wall_s, "
             "finished_at=excluded.finished_at, host=excluded.host, worker=excluded.worker "
             "WHERE points.status = 'skipped'",
-            (key, design, realisation, json.dumps(dict(params), sort_keys=True, default=_json_default),
-             status, json.dumps(dict(result), default=_json_default), float(wall_s), time.time(),
-             socket.gethostname(), worker),
+            (
+                key,
+                design,
+                realisation,
+                json.dumps(dict(params), sort_keys=True, default=_json_default),
+                status,
+                json.dumps(dict(result), default=_json_default),
+                float(wall_s),
+                time.time(),
+                socket.gethostname(),
+                worker,
+            ),
         )
         return cur.rowcount == 1
 
@@ -196,10 +221,22 @@ class ResultsStore:
             try:
                 params, result = json.loads(r[3]), json.loads(r[5])
             except (TypeError, json.JSONDecodeError, RecursionError):
-                raise InputError(f"{self.path}: stored point {str(r[0])[:40]!r} is corrupt (params/result not JSON); "
-                                 "delete that row or use a new --store file") from None
-            yield StoredPoint(key=r[0], design=r[1], realisation=r[2], params=params, status=r[4],
-                              result=result, wall_s=r[6], finished_at=r[7], host=r[8], worker=r[9])
+                raise InputError(
+                    f"{self.path}: stored point {str(r[0])[:40]!r} is corrupt (params/result not JSON); "
+                    "delete that row or use a new --store file"
+                ) from None
+            yield StoredPoint(
+                key=r[0],
+                design=r[1],
+                realisation=r[2],
+                params=params,
+                status=r[4],
+                result=result,
+                wall_s=r[6],
+                finished_at=r[7],
+                host=r[8],
+                worker=r[9],
+            )
 
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:

@@ -135,8 +135,10 @@ def count_points(design: Design) -> int:
     """
     axes = _scored_axes(design)
     n_global = math.prod(len(v) for k, v in axes.items() if not k.startswith("realisations."))
-    per_real = sum(math.prod(len(v) for k, v in axes.items() if k.startswith(f"realisations.{name}."))
-                   for name in design.realisations)
+    per_real = sum(
+        math.prod(len(v) for k, v in axes.items() if k.startswith(f"realisations.{name}."))
+        for name in design.realisations
+    )
     return n_global * per_real
 
 
@@ -159,7 +161,8 @@ def check_sweep_size(design: Design, max_points: int | None = None) -> int:
         raise InputError(
             f"{design.source}: the sweep has {n:,} design points (about {gib:.3g} GiB to hold their list, "
             f"and each is validated before it runs), more than the limit of {limit:,}; raise it with "
-            f"[run] max_points or --max-points if that is what you mean")
+            f"[run] max_points or --max-points if that is what you mean"
+        )
     return n
 
 
@@ -190,8 +193,17 @@ def expand_points(design: Design, *, max_points: int | None = None) -> list[Desi
                     continue
                 seen.add(key)
                 params = {k.removeprefix("realisations."): v for k, v in over.items()}
-                points.append(DesignPoint(key=key, design=design.name, realisation=name, params=params,
-                                          data=d.to_dict(), target=d.target.to_dict(), base_dir=str(d.base_dir)))
+                points.append(
+                    DesignPoint(
+                        key=key,
+                        design=design.name,
+                        realisation=name,
+                        params=params,
+                        data=d.to_dict(),
+                        target=d.target.to_dict(),
+                        base_dir=str(d.base_dir),
+                    )
+                )
     return points
 
 
@@ -228,8 +240,7 @@ def evaluate_point(point: DesignPoint) -> dict[str, Any]:
         result = rec.with_(warnings=said, versions=versions).to_dict()
     else:
         result = {**rec, **({"warnings": said} if said else {}), "versions": versions}
-    return {"key": point.key, "status": status, "result": result, "wall_s": time.perf_counter() - t0,
-            "worker": worker}
+    return {"key": point.key, "status": status, "result": result, "wall_s": time.perf_counter() - t0, "worker": worker}
 
 
 def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, Score | dict[str, Any]]:
@@ -249,12 +260,20 @@ def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, Score
             target=target,
             csf_methods=data["analysis"]["csf_methods"],
             focal_length_m=data["optics"]["focal_length_m"],
-            checkpoints={t: [(p if Path(p).is_absolute() else base / p) for p in (v if isinstance(v, list) else [v])]
-                         for t, v in tasks["checkpoints"].items()},
-            task_options={"n_test": tasks["n_test"], "n_test_emulation": tasks["n_test_emulation"],
-                          "finetune_epochs": tasks["finetune_epochs"], "test_clips": tasks["test_clips"],
-                          "tracks": tasks["tracks"], "datasets": tasks.get("datasets", {}), "base_dir": base,
-                          "design_sensor": data["sensor"] if tasks["sensor"] == "design" else None},
+            checkpoints={
+                t: [(p if Path(p).is_absolute() else base / p) for p in (v if isinstance(v, list) else [v])]
+                for t, v in tasks["checkpoints"].items()
+            },
+            task_options={
+                "n_test": tasks["n_test"],
+                "n_test_emulation": tasks["n_test_emulation"],
+                "finetune_epochs": tasks["finetune_epochs"],
+                "test_clips": tasks["test_clips"],
+                "tracks": tasks["tracks"],
+                "datasets": tasks.get("datasets", {}),
+                "base_dir": base,
+                "design_sensor": data["sensor"] if tasks["sensor"] == "design" else None,
+            },
             emulation={"sensor": data["sensor"], "emulation": data["emulation"], "seed": data["run"]["seed"]},
             fit_wall_s=fit_s,
         )
@@ -279,8 +298,10 @@ class SweepSummary:
 
     def __str__(self) -> str:
         st = ", ".join(f"{v} {k}" for k, v in sorted(self.statuses.items())) or "nothing new"
-        return (f"{self.total} points: {self.already_done} already in the store, {self.ran} run now ({st}) "
-                f"in {self.wall_s:.1f} s on {self.executor}")
+        return (
+            f"{self.total} points: {self.already_done} already in the store, {self.ran} run now ({st}) "
+            f"in {self.wall_s:.1f} s on {self.executor}"
+        )
 
 
 class _Point(Protocol):
@@ -303,15 +324,30 @@ _P = TypeVar("_P", bound=_Point)
 
 
 def _record(store: ResultsStore, point: _Point, res: dict[str, Any]) -> None:
-    store.add(point.key, design=point.design, realisation=point.realisation, params=point.params,
-              status=res["status"], result=res["result"], wall_s=res["wall_s"], worker=res["worker"])
+    store.add(
+        point.key,
+        design=point.design,
+        realisation=point.realisation,
+        params=point.params,
+        status=res["status"],
+        result=res["result"],
+        wall_s=res["wall_s"],
+        worker=res["worker"],
+    )
 
 
-def run_points(points: Sequence[_P], store: ResultsStore, *, workers: int = 1,
-               scheduler: str | None = None, progress: bool | None = None,
-               on_result: Callable[[_P, dict[str, Any]], None] | None = None,
-               evaluate: Callable[[Any], dict[str, Any]] | None = None, desc: str = "design points",
-               security: Any = None) -> SweepSummary:
+def run_points(
+    points: Sequence[_P],
+    store: ResultsStore,
+    *,
+    workers: int = 1,
+    scheduler: str | None = None,
+    progress: bool | None = None,
+    on_result: Callable[[_P, dict[str, Any]], None] | None = None,
+    evaluate: Callable[[Any], dict[str, Any]] | None = None,
+    desc: str = "design points",
+    security: Any = None,
+) -> SweepSummary:
     """Run every point not yet in ``store`` and store each result as it finishes.
 
     Parameters
@@ -371,12 +407,22 @@ def run_points(points: Sequence[_P], store: ResultsStore, *, workers: int = 1,
             _run_pool(todo, workers, finish, evaluate)
     finally:
         bar.close()
-    return SweepSummary(total=len(points), already_done=len(points) - len(todo), ran=sum(statuses.values()),
-                        statuses=statuses, wall_s=time.perf_counter() - t0, executor=executor)
+    return SweepSummary(
+        total=len(points),
+        already_done=len(points) - len(todo),
+        ran=sum(statuses.values()),
+        statuses=statuses,
+        wall_s=time.perf_counter() - t0,
+        executor=executor,
+    )
 
 
-def _run_pool(todo: Sequence[_P], workers: int, finish: Callable[[_P, dict[str, Any]], None],
-              evaluate: Callable[[Any], dict[str, Any]] = evaluate_point) -> None:
+def _run_pool(
+    todo: Sequence[_P],
+    workers: int,
+    finish: Callable[[_P, dict[str, Any]], None],
+    evaluate: Callable[[Any], dict[str, Any]] = evaluate_point,
+) -> None:
     from concurrent.futures import as_completed
 
     from ..workers import process_pool
@@ -394,8 +440,9 @@ def _run_pool(todo: Sequence[_P], workers: int, finish: Callable[[_P, dict[str, 
     pool.shutdown(wait=True)
 
 
-def dask_security(ca_file: str | Path | None = None, cert: str | Path | None = None,
-                  key: str | Path | None = None) -> Any:
+def dask_security(
+    ca_file: str | Path | None = None, cert: str | Path | None = None, key: str | Path | None = None
+) -> Any:
     """A :class:`distributed.Security` for a ``tls://`` scheduler (mutual TLS, encryption required).
 
     Parameters
@@ -419,8 +466,12 @@ def dask_security(ca_file: str | Path | None = None, cert: str | Path | None = N
     for flag, f in (("--tls-ca-file", ca_file), ("--tls-cert", cert), ("--tls-key", key)):
         if f is not None and not Path(f).is_file():
             raise InputError(f"{flag} {f}: file not found")
-    return Security(tls_ca_file=str(ca_file), tls_client_cert=str(cert),
-                    tls_client_key=None if key is None else str(key), require_encryption=True)
+    return Security(
+        tls_ca_file=str(ca_file),
+        tls_client_cert=str(cert),
+        tls_client_key=None if key is None else str(key),
+        require_encryption=True,
+    )
 
 
 #: Address schemes a Dask scheduler is reached by (``inproc://`` only within one process).
@@ -448,16 +499,20 @@ def check_scheduler_address(address: str) -> str:
     """
     shown = repr(str(address)[:120])
     if not isinstance(address, str) or "://" not in address:
-        raise InputError(f"--scheduler {shown}: expected an address like tcp://HOST:PORT or tls://HOST:PORT "
-                         f"(schemes: {', '.join(s + '://' for s in SCHEDULER_SCHEMES)})")
+        raise InputError(
+            f"--scheduler {shown}: expected an address like tcp://HOST:PORT or tls://HOST:PORT "
+            f"(schemes: {', '.join(s + '://' for s in SCHEDULER_SCHEMES)})"
+        )
     try:
         parts = urllib.parse.urlsplit(address)
         port = parts.port
     except ValueError as exc:  # a port that is not a number, or outside 0..65535
         raise InputError(f"--scheduler {shown}: bad port ({exc}); allowed: HOST:PORT with PORT in 1..65535") from None
     if parts.scheme not in SCHEDULER_SCHEMES:
-        raise InputError(f"--scheduler {shown}: unknown scheme {parts.scheme[:20]!r}; allowed: "
-                         f"{', '.join(s + '://' for s in SCHEDULER_SCHEMES)}")
+        raise InputError(
+            f"--scheduler {shown}: unknown scheme {parts.scheme[:20]!r}; allowed: "
+            f"{', '.join(s + '://' for s in SCHEDULER_SCHEMES)}"
+        )
     if parts.scheme == "inproc":
         return address
     if not parts.hostname:
@@ -475,27 +530,37 @@ def _loopback(address: str) -> bool:
     return host in ("localhost", "::1") or host.startswith("127.")
 
 
-def _run_dask(todo: Sequence[_P], scheduler: str,
-              finish: Callable[[_P, dict[str, Any]], None], security: Any = None,
-              evaluate: Callable[[Any], dict[str, Any]] = evaluate_point) -> None:
+def _run_dask(
+    todo: Sequence[_P],
+    scheduler: str,
+    finish: Callable[[_P, dict[str, Any]], None],
+    security: Any = None,
+    evaluate: Callable[[Any], dict[str, Any]] = evaluate_point,
+) -> None:
     try:
         from distributed import Client, as_completed
     except ImportError as exc:  # pragma: no cover - optional extra
         raise InputError(f"--scheduler needs dask[distributed] (pip install 'fsdvs_hw[distributed]'): {exc}") from None
     check_scheduler_address(scheduler)
     if scheduler.startswith("tcp://") and not _loopback(scheduler):
-        warnings.warn(f"--scheduler {scheduler}: plain tcp:// is unencrypted and unauthenticated, and Dask tasks "
-                      "and results are pickles: anyone who can reach the scheduler can run code on the workers "
-                      "and on this machine. Use tls:// with --tls-ca-file/--tls-cert/--tls-key (README: "
-                      "'Sweeps on Dask with TLS') outside a trusted network.", RuntimeWarning, stacklevel=3)
+        warnings.warn(
+            f"--scheduler {scheduler}: plain tcp:// is unencrypted and unauthenticated, and Dask tasks "
+            "and results are pickles: anyone who can reach the scheduler can run code on the workers "
+            "and on this machine. Use tls:// with --tls-ca-file/--tls-cert/--tls-key (README: "
+            "'Sweeps on Dask with TLS') outside a trusted network.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
     kw = {} if security is None else {"security": security}
     try:
         client = Client(scheduler, timeout="20s", **kw)
     except (OSError, TimeoutError) as exc:
         raise InputError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler ({exc})") from None
     except (TypeError, ValueError) as exc:  # e.g. tls:// without certificates: Dask raises TypeError
-        raise InputError(f"--scheduler {scheduler}: cannot connect ({' '.join(str(exc).split())[:200]}); "
-                         "tls:// needs --tls-ca-file/--tls-cert/--tls-key") from None
+        raise InputError(
+            f"--scheduler {scheduler}: cannot connect ({' '.join(str(exc).split())[:200]}); "
+            "tls:// needs --tls-ca-file/--tls-cert/--tls-key"
+        ) from None
     try:
         futures = {client.submit(evaluate, p, key=f"fsdvs-point-{p.key}", pure=False): p for p in todo}
         for fut in as_completed(list(futures)):
@@ -504,10 +569,18 @@ def _run_dask(todo: Sequence[_P], scheduler: str,
         client.close()
 
 
-def run_design(design: Design, store_path: str | Path, *, workers: int | None = None, scheduler: str | None = None,
-               progress: bool | None = None, retry_errors: bool = False, max_points: int | None = None,
-               points: Sequence[DesignPoint] | None = None,
-               security: Any = None) -> tuple[SweepSummary, list[dict[str, Any]]]:
+def run_design(
+    design: Design,
+    store_path: str | Path,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: bool | None = None,
+    retry_errors: bool = False,
+    max_points: int | None = None,
+    points: Sequence[DesignPoint] | None = None,
+    security: Any = None,
+) -> tuple[SweepSummary, list[dict[str, Any]]]:
     """Run all points of ``design`` into the store at ``store_path``; return the summary and its rows.
 
     The rows are this design's points only (a store may hold other designs too), in the order of
@@ -524,8 +597,7 @@ def run_design(design: Design, store_path: str | Path, *, workers: int | None = 
         store.set_meta(f"design:{design.name}", design.to_dict())
         if retry_errors:
             store.forget(status="error", keys=[p.key for p in points])
-        summary = run_points(points, store, workers=workers, scheduler=scheduler, progress=progress,
-                             security=security)
+        summary = run_points(points, store, workers=workers, scheduler=scheduler, progress=progress, security=security)
         order = {p.key: i for i, p in enumerate(points)}
         rows = sorted((dict(r) for r in store.rows() if r["key"] in order), key=lambda r: order[r["key"]])
     return summary, rows

@@ -34,9 +34,17 @@ from ..errors import InputError
 __all__ = ["run_user_ablation"]
 
 
-def run_user_ablation(design: Any, task: str, out: str | Path, *, sizes: Sequence[int] = (1, 3, 5, 7),
-                      seeds: Sequence[int] = (0, 1, 2), n_resamples: int = 2000,
-                      verbose: bool = False, workers: int = 1) -> dict[str, Any]:
+def run_user_ablation(
+    design: Any,
+    task: str,
+    out: str | Path,
+    *,
+    sizes: Sequence[int] = (1, 3, 5, 7),
+    seeds: Sequence[int] = (0, 1, 2),
+    n_resamples: int = 2000,
+    verbose: bool = False,
+    workers: int = 1,
+) -> dict[str, Any]:
     """Kernel-size ablation of a design's user-data task; writes ``ablation.json`` and ``ablation.md``.
 
     Parameters
@@ -88,9 +96,11 @@ def run_user_ablation(design: Any, task: str, out: str | Path, *, sizes: Sequenc
 
     user = design.spec.tasks.datasets
     if task not in user or user[task].train is None:
-        raise InputError(f"ablation --design {design.source}: [tasks.datasets.{task}] with a train table is needed "
-                         f"(the ablation trains one network per size and seed); allowed tasks: "
-                         f"{', '.join(t for t, e in user.items() if e.train is not None) or 'none'}")
+        raise InputError(
+            f"ablation --design {design.source}: [tasks.datasets.{task}] with a train table is needed "
+            f"(the ablation trains one network per size and seed); allowed tasks: "
+            f"{', '.join(t for t, e in user.items() if e.train is not None) or 'none'}"
+        )
     entry = user[task].model_dump()
     sizes = sorted({int(k) for k in sizes})
     if 1 not in sizes or any(k % 2 == 0 or not 1 <= k <= 15 for k in sizes):
@@ -100,8 +110,20 @@ def run_user_ablation(design: Any, task: str, out: str | Path, *, sizes: Sequenc
     key = f"tasks.datasets.{task}.dataset"
     ds = open_dataset(entry["dataset"], design.base_dir, confine=design.confine_paths, key=key)
     evaluator = evaluator_for_dataset(task, ds)
-    jobs = [(task, entry, str(design.base_dir), bool(design.confine_paths), k, int(seed),
-             str(folder / "runs" / f"{task}_k{k}_s{seed}"), verbose) for k in sizes for seed in seeds]
+    jobs = [
+        (
+            task,
+            entry,
+            str(design.base_dir),
+            bool(design.confine_paths),
+            k,
+            int(seed),
+            str(folder / "runs" / f"{task}_k{k}_s{seed}"),
+            verbose,
+        )
+        for k in sizes
+        for seed in seeds
+    ]
     done = _run_jobs(jobs, workers)
     metrics: dict[int, list[Any]] = {k: [] for k in sizes}
     values: dict[int, list[float]] = {k: [] for k in sizes}
@@ -113,22 +135,44 @@ def run_user_ablation(design: Any, task: str, out: str | Path, *, sizes: Sequenc
     resample = ("clips", "seeds") if len(seeds) >= 2 else ("clips",)
     rows = []
     for k in sizes:
-        row: dict[str, Any] = {"size": k, "label": "w/o" if k == 1 else f"{k}x{k}",
-                               "metric_mean": float(np.mean(values[k])),
-                               "metric_std": float(np.std(values[k], ddof=1)) if len(seeds) > 1 else 0.0,
-                               "per_seed": values[k]}
+        row: dict[str, Any] = {
+            "size": k,
+            "label": "w/o" if k == 1 else f"{k}x{k}",
+            "metric_mean": float(np.mean(values[k])),
+            "metric_std": float(np.std(values[k], ddof=1)) if len(seeds) > 1 else 0.0,
+            "per_seed": values[k],
+        }
         if k != 1:
-            ci = difference_ci(metrics[k], metrics[1], paired_seeds=False, paired_clips=True, resample=resample,
-                               n_resamples=n_resamples, rng=0)
+            ci = difference_ci(
+                metrics[k],
+                metrics[1],
+                paired_seeds=False,
+                paired_clips=True,
+                resample=resample,
+                n_resamples=n_resamples,
+                rng=0,
+            )
             row.update(gain=ci.estimate, gain_ci95_low=ci.low, gain_ci95_high=ci.high)
         rows.append(row)
-    result = {"task": task, "metric": evaluator.primary_metric, "n_clips": n_clips, "seeds": list(map(int, seeds)),
-              "resampled": list(resample), "rows": rows, "design": str(design.source),
-              "ci_note": "gain = metric(size) - metric(w/o); different networks per arm, the same scored clips"}
-    lines = [f"# Kernel-size ablation on {task} ({design.source})", "",
-             f"{evaluator.primary_metric} on {n_clips} scored clips, {len(seeds)} seed(s); gain over w/o with a "
-             f"95 % bootstrap CI resampling {' and '.join(resample)}.", "",
-             f"| kernel | {evaluator.primary_metric} (mean ± std) | gain over w/o [95 % CI] |", "|---|---|---|"]
+    result = {
+        "task": task,
+        "metric": evaluator.primary_metric,
+        "n_clips": n_clips,
+        "seeds": list(map(int, seeds)),
+        "resampled": list(resample),
+        "rows": rows,
+        "design": str(design.source),
+        "ci_note": "gain = metric(size) - metric(w/o); different networks per arm, the same scored clips",
+    }
+    lines = [
+        f"# Kernel-size ablation on {task} ({design.source})",
+        "",
+        f"{evaluator.primary_metric} on {n_clips} scored clips, {len(seeds)} seed(s); gain over w/o with a "
+        f"95 % bootstrap CI resampling {' and '.join(resample)}.",
+        "",
+        f"| kernel | {evaluator.primary_metric} (mean ± std) | gain over w/o [95 % CI] |",
+        "|---|---|---|",
+    ]
     for r in rows:
         gain = "—" if r["size"] == 1 else f"{r['gain']:+.3f} [{r['gain_ci95_low']:+.3f}, {r['gain_ci95_high']:+.3f}]"
         lines.append(f"| {r['label']} | {r['metric_mean']:.3f} ± {r['metric_std']:.3f} | {gain} |")
@@ -161,8 +205,9 @@ def _run_jobs(jobs: Sequence[tuple[Any, ...]], workers: int) -> dict[tuple[int, 
     return out
 
 
-def _train_and_score(task: str, entry: dict[str, Any], base_dir: str, confine: bool, size: int, seed: int,
-                     stem: str, verbose: bool) -> tuple[Any, float, int]:
+def _train_and_score(
+    task: str, entry: dict[str, Any], base_dir: str, confine: bool, size: int, seed: int, stem: str, verbose: bool
+) -> tuple[Any, float, int]:
     """One run: train (or reuse / resume ``stem``) the network and kernel of one size and seed, score it.
 
     Returns the per-clip metric object, the metric and the number of scored clips.
@@ -178,10 +223,12 @@ def _train_and_score(task: str, entry: dict[str, Any], base_dir: str, confine: b
 
         torch.set_num_threads(int(threads))
     ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"tasks.datasets.{task}.dataset")
-    res = train_user_task(task, entry, base_dir, confine=confine, verbose=verbose,
-                          overrides={"kernel_size": size, "seed": seed}, out=stem)
-    ev = evaluate_on_dataset(res.kernel, task, ds, res.network, n_clips=entry["n_clips"] or None,
-                             seed=entry["seed"], device=entry["device"])
+    res = train_user_task(
+        task, entry, base_dir, confine=confine, verbose=verbose, overrides={"kernel_size": size, "seed": seed}, out=stem
+    )
+    ev = evaluate_on_dataset(
+        res.kernel, task, ds, res.network, n_clips=entry["n_clips"] or None, seed=entry["seed"], device=entry["device"]
+    )
     evaluator = evaluator_for_dataset(task, ds)
     metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, ev.targets, evaluator)
     n = len(ev.clip_indices)

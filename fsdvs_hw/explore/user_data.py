@@ -88,12 +88,17 @@ __all__ = [
 ]
 
 #: What a user-data task's record says about its loss CIs.
-ONE_NETWORK_NOTE = ("one user network: the loss CI resamples the clips only (n_seeds = 1); network-to-network "
-                    "variance is not in it")
+ONE_NETWORK_NOTE = (
+    "one user network: the loss CI resamples the clips only (n_seeds = 1); network-to-network variance is not in it"
+)
 
 #: Dataset format → the task (evaluator) its targets are for.
-FORMAT_TASK: dict[str, str] = {"video_folder": "recognition", "coco_frames": "detection",
-                               "dsec_detection": "detection", "mask_frames": "segmentation"}
+FORMAT_TASK: dict[str, str] = {
+    "video_folder": "recognition",
+    "coco_frames": "detection",
+    "dsec_detection": "detection",
+    "mask_frames": "segmentation",
+}
 
 _Side = Annotated[int, Field(ge=1, le=16384)]
 _Count = Annotated[int, Field(ge=1, le=100_000)]
@@ -104,10 +109,19 @@ class ClipCacheSpec(StrictModel):
 
     unknown_key = "unknown key of a dataset's cache table"
 
-    dir: str = field(..., "", "folder of the cache entries, relative to the design file (must stay inside its "
-                     "folder); may be shared by datasets and designs: max_mb bounds the folder")
-    max_mb: float = field(..., "MB", "most megabytes (10**6 bytes) of decoded clips kept; the least recently used "
-                          "are deleted beyond it", gt=0.0, le=1e9)
+    dir: str = field(
+        ...,
+        "",
+        "folder of the cache entries, relative to the design file (must stay inside its "
+        "folder); may be shared by datasets and designs: max_mb bounds the folder",
+    )
+    max_mb: float = field(
+        ...,
+        "MB",
+        "most megabytes (10**6 bytes) of decoded clips kept; the least recently used are deleted beyond it",
+        gt=0.0,
+        le=1e9,
+    )
 
 
 class _Source(StrictModel):
@@ -115,24 +129,33 @@ class _Source(StrictModel):
 
     root: str = field(..., "", "the dataset's folder, relative to the design file (must stay inside its folder)")
     n_frames: int = field(8, "frames", "frames per clip (T)", ge=2, le=10_000)
-    size: list[_Side] | None = field(None, "px", "resize every frame to [H, W] pixels (linear light; boxes scaled, "
-                                     "masks nearest-neighbour); None = the files' size (all must agree)",
-                                     min_length=2, max_length=2)
-    transfer: str = field("sRGB", "", "transfer function undone to get linear luminance (a colour-science "
-                          "CCTF_DECODINGS name)")
+    size: list[_Side] | None = field(
+        None,
+        "px",
+        "resize every frame to [H, W] pixels (linear light; boxes scaled, "
+        "masks nearest-neighbour); None = the files' size (all must agree)",
+        min_length=2,
+        max_length=2,
+    )
+    transfer: str = field(
+        "sRGB", "", "transfer function undone to get linear luminance (a colour-science CCTF_DECODINGS name)"
+    )
     cache_clips: int = field(0, "clips", "decoded clips kept in memory (LRU; 0 = none)", ge=0, le=MAX_CLIPS)
-    cache: ClipCacheSpec | None = field(None, "", "decoded clips kept on disk, bounded: {dir = 'folder', max_mb = "
-                                        "size}; None = decode every time")
+    cache: ClipCacheSpec | None = field(
+        None, "", "decoded clips kept on disk, bounded: {dir = 'folder', max_mb = size}; None = decode every time"
+    )
 
 
 class VideoFolderSource(_Source):
     """``format = "video_folder"``: ``root/<class>/<video>`` (UCF101 layout), one clip per video."""
 
     format: Literal["video_folder"] = field("video_folder", "", "class folders of videos (recognition)")
-    split: str | None = field(None, "", "UCF101 split file (testlist01.txt) relative to root: only the videos it "
-                              "lists; None = every video")
-    fps: float | None = field(None, "Hz", "frame rate for the timestamps; None = each video container's",
-                              gt=0.0, le=1e6)
+    split: str | None = field(
+        None, "", "UCF101 split file (testlist01.txt) relative to root: only the videos it lists; None = every video"
+    )
+    fps: float | None = field(
+        None, "Hz", "frame rate for the timestamps; None = each video container's", gt=0.0, le=1e6
+    )
     stride: _Count = field(1, "frames", "take every stride-th frame of a video")
     start_frame: int = field(0, "frames", "first frame of a video used", ge=0, le=10**9)
 
@@ -145,8 +168,9 @@ class CocoFramesSource(_Source):
     frames: str = field("frames", "", "folder of the frame images, relative to root/split")
     annotations: str = field("instances.json", "", "the COCO JSON, relative to root/split")
     fps: float = field(30.0, "Hz", "frame rate of the image sequence", gt=0.0, le=1e6)
-    clip_stride: _Count | None = field(None, "frames", "a clip starts every clip_stride frames; None = n_frames "
-                                       "(no overlap)")
+    clip_stride: _Count | None = field(
+        None, "frames", "a clip starts every clip_stride frames; None = n_frames (no overlap)"
+    )
     require_annotations: bool = field(True, "", "every image must have at least one box")
 
 
@@ -156,8 +180,9 @@ class DsecDetectionSource(_Source):
     format: Literal["dsec_detection"] = field("dsec_detection", "", "DSEC-Detection layout (detection)")
     split: str = field("", "", "subfolder of root holding this split's sequences ('test'); '' = root itself")
     clip_stride: _Count = field(1, "clips", "keep every clip_stride-th labelled image as a clip's last frame")
-    class_names: list[str] | None = field(None, "", "names of the class_id values; None = DSEC's 8 classes",
-                                          min_length=1)
+    class_names: list[str] | None = field(
+        None, "", "names of the class_id values; None = DSEC's 8 classes", min_length=1
+    )
 
 
 class MaskFramesSource(_Source):
@@ -167,10 +192,12 @@ class MaskFramesSource(_Source):
     split: str = field("", "", "subfolder of root holding this split ('val'); '' = root itself")
     frames: str = field("frames", "", "folder of the frame images, relative to root/split")
     masks: str = field("masks", "", "folder of the label PNGs (a class per pixel), relative to root/split")
-    num_classes: int = field(..., "", "classes of the masks (labels in [0, num_classes) or ignore_index)",
-                             ge=2, le=65535)
-    ignore_index: int | None = field(255, "", "label that is not scored (Cityscapes: 255); None = every pixel",
-                                     ge=0, le=65535)
+    num_classes: int = field(
+        ..., "", "classes of the masks (labels in [0, num_classes) or ignore_index)", ge=2, le=65535
+    )
+    ignore_index: int | None = field(
+        255, "", "label that is not scored (Cityscapes: 255); None = every pixel", ge=0, le=65535
+    )
     frame_suffix: str = field("", "", "stem suffix of a frame removed to find its mask (Cityscapes: '_leftImg8bit')")
     mask_suffix: str = field(".png", "", "appended to the stem to name the mask ('_gtFine_labelTrainIds.png')")
     fps: float = field(30.0, "Hz", "frame rate of the image sequence", gt=0.0, le=1e6)
@@ -189,31 +216,53 @@ class TrainSpec(StrictModel):
 
     unknown_key = "unknown key of a user-data task's train table"
 
-    out: str = field("", "", "file stem of the trained network + kernel (STEM.safetensors, STEM.json), relative "
-                     "to the design file; '' = trained/<task>")
-    split: str | None = field(None, "", "the dataset's own training split, read like dataset.split: video_folder a "
-                              "split file relative to root (UCF101 'trainlist01.txt'), the other formats a subfolder "
-                              "of root ('train'); None = a seeded draw from the clips not scored")
+    out: str = field(
+        "",
+        "",
+        "file stem of the trained network + kernel (STEM.safetensors, STEM.json), relative "
+        "to the design file; '' = trained/<task>",
+    )
+    split: str | None = field(
+        None,
+        "",
+        "the dataset's own training split, read like dataset.split: video_folder a "
+        "split file relative to root (UCF101 'trainlist01.txt'), the other formats a subfolder "
+        "of root ('train'); None = a seeded draw from the clips not scored",
+    )
     kernel_size: int = field(7, "px", "side of the learned kernel", ge=1, le=15, odd=True)
-    learn_kernel: bool = field(True, "", "false: the kernel stays the delta in both stages (a network for a "
-                               "conventional DVS)")
+    learn_kernel: bool = field(
+        True, "", "false: the kernel stays the delta in both stages (a network for a conventional DVS)"
+    )
     epochs_frozen: int = field(2, "epochs", "stage one: network only, kernel frozen", ge=0, le=MAX_EPOCHS)
     epochs_joint: int = field(2, "epochs", "stage two: kernel and network jointly", ge=0, le=MAX_EPOCHS)
     lr_network: float = field(3e-3, "1/step", "AdamW rate of the network in stage one", ge=0.0, le=10.0)
-    lr_kernel: float = field(1e-2, "1/step", "AdamW rate of the kernel taps in stage two (paper: 5e-4)",
-                             ge=0.0, le=10.0)
-    lr_backbone: float | None = field(None, "1/step", "stage-two rate of the network's backbone; None = lr_kernel "
-                                      "x the paper's ratio (detection 1e-6/5e-4, recognition 5e-5/5e-4)",
-                                      ge=0.0, le=10.0)
-    lr_head: float | None = field(None, "1/step", "stage-two rate of the head (of the whole network if it has no "
-                                  "backbone/head); None = lr_kernel x the paper's ratio (1e-5/5e-4, 1e-4/5e-4)",
-                                  ge=0.0, le=10.0)
+    lr_kernel: float = field(
+        1e-2, "1/step", "AdamW rate of the kernel taps in stage two (paper: 5e-4)", ge=0.0, le=10.0
+    )
+    lr_backbone: float | None = field(
+        None,
+        "1/step",
+        "stage-two rate of the network's backbone; None = lr_kernel "
+        "x the paper's ratio (detection 1e-6/5e-4, recognition 5e-5/5e-4)",
+        ge=0.0,
+        le=10.0,
+    )
+    lr_head: float | None = field(
+        None,
+        "1/step",
+        "stage-two rate of the head (of the whole network if it has no "
+        "backbone/head); None = lr_kernel x the paper's ratio (1e-5/5e-4, 1e-4/5e-4)",
+        ge=0.0,
+        le=10.0,
+    )
     weight_decay: float = field(1e-4, "", "AdamW weight decay of the network", ge=0.0, le=10.0)
     batch_size: int = field(8, "clips", "clips per step", ge=1, le=100_000)
-    n_train: int = field(0, "clips", "training clips, drawn with seed from the clips not scored; 0 = all of them",
-                         ge=0, le=MAX_CLIPS)
-    seed: int = field(0, "", "seed of the training draw, the kernel noise, the initialisation and the batch "
-                      "order", ge=0, le=MAX_SEED)
+    n_train: int = field(
+        0, "clips", "training clips, drawn with seed from the clips not scored; 0 = all of them", ge=0, le=MAX_CLIPS
+    )
+    seed: int = field(
+        0, "", "seed of the training draw, the kernel noise, the initialisation and the batch order", ge=0, le=MAX_SEED
+    )
 
 
 class UserTask(StrictModel):
@@ -221,22 +270,43 @@ class UserTask(StrictModel):
 
     unknown_key = "unknown key of a user-data task"
 
-    dataset: Annotated[VideoFolderSource | CocoFramesSource | DsecDetectionSource | MaskFramesSource,
-                       Field(discriminator="format")] = \
-        field(..., "", "the dataset: format = 'video_folder' | 'coco_frames' | 'dsec_detection' | 'mask_frames', "
-              "root, split, reader options")
-    network: str | None = field(None, "", "'package.module:factory' returning a torch.nn.Module (importable from "
-                                "sys.path or the design file's folder); None = the task's built-in network")
-    network_options: dict[str, Any] = field({}, "", "more keyword arguments of the factory (besides in_channels "
-                                            "and num_classes)")
-    weights: str | None = field(None, "", "state dict loaded into the network (.safetensors, .pt, .pth), relative "
-                                "to the design file; None = the factory's own weights")
+    dataset: Annotated[
+        VideoFolderSource | CocoFramesSource | DsecDetectionSource | MaskFramesSource, Field(discriminator="format")
+    ] = field(
+        ...,
+        "",
+        "the dataset: format = 'video_folder' | 'coco_frames' | 'dsec_detection' | 'mask_frames', "
+        "root, split, reader options",
+    )
+    network: str | None = field(
+        None,
+        "",
+        "'package.module:factory' returning a torch.nn.Module (importable from "
+        "sys.path or the design file's folder); None = the task's built-in network",
+    )
+    network_options: dict[str, Any] = field(
+        {}, "", "more keyword arguments of the factory (besides in_channels and num_classes)"
+    )
+    weights: str | None = field(
+        None,
+        "",
+        "state dict loaded into the network (.safetensors, .pt, .pth), relative "
+        "to the design file; None = the factory's own weights",
+    )
     n_clips: int = field(0, "clips", "clips scored, drawn with seed; 0 = every clip", ge=0, le=MAX_CLIPS)
     seed: int = field(0, "", "seed of the clip draw (the same clips for every kernel)", ge=0, le=MAX_SEED)
-    device: Literal["cpu", "cuda"] = field("cpu", "", "where the simulator and the network run ('cuda' needs a "
-                                           "CUDA build of torch and a GPU; its noise streams differ from the CPU's)")
-    train: TrainSpec | None = field(None, "", "train the network on the clips not scored first (two-stage "
-                                    "protocol; resumes); None = score the network as given")
+    device: Literal["cpu", "cuda"] = field(
+        "cpu",
+        "",
+        "where the simulator and the network run ('cuda' needs a "
+        "CUDA build of torch and a GPU; its noise streams differ from the CPU's)",
+    )
+    train: TrainSpec | None = field(
+        None,
+        "",
+        "train the network on the clips not scored first (two-stage "
+        "protocol; resumes); None = score the network as given",
+    )
 
 
 def _path(base: Path, path: str, *, what: str, confine: bool) -> Path:
@@ -274,27 +344,55 @@ def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
 
     s = json.loads(blob)
     paths = _reader_paths(s, Path(base), confine, key)
-    common = {"n_frames": s["n_frames"], "size": tuple(s["size"]) if s["size"] else None,
-              "transfer": s["transfer"], "cache_clips": s["cache_clips"], "disk_cache": None}
+    common = {
+        "n_frames": s["n_frames"],
+        "size": tuple(s["size"]) if s["size"] else None,
+        "transfer": s["transfer"],
+        "cache_clips": s["cache_clips"],
+        "disk_cache": None,
+    }
     if s.get("cache"):
         folder = _path(Path(base), s["cache"]["dir"], what=f"{key}.cache.dir", confine=confine)
         common["disk_cache"] = ClipDiskCache(folder, s["cache"]["max_mb"])
     if s["format"] == "video_folder":
-        return VideoFolderDataset(paths["root"], split_file=paths.get("split"), fps=s["fps"], stride=s["stride"],
-                                  start_frame=s["start_frame"], **common)
+        return VideoFolderDataset(
+            paths["root"],
+            split_file=paths.get("split"),
+            fps=s["fps"],
+            stride=s["stride"],
+            start_frame=s["start_frame"],
+            **common,
+        )
     if s["format"] == "dsec_detection":
-        return DsecDetectionDataset(paths["root"], clip_stride=s["clip_stride"],
-                                    class_names=s["class_names"] or DSEC_DETECTION_CLASSES, **common)
+        return DsecDetectionDataset(
+            paths["root"],
+            clip_stride=s["clip_stride"],
+            class_names=s["class_names"] or DSEC_DETECTION_CLASSES,
+            **common,
+        )
     if s["format"] == "coco_frames":
-        return CocoFramesDataset(paths["frames"], paths["annotations"], clip_stride=s["clip_stride"], fps=s["fps"],
-                                 require_annotations=s["require_annotations"], **common)
-    return MaskFramesDataset(paths["frames"], paths["masks"], num_classes=s["num_classes"],
-                             clip_stride=s["clip_stride"], fps=s["fps"], ignore_index=s["ignore_index"],
-                             frame_suffix=s["frame_suffix"], mask_suffix=s["mask_suffix"], **common)
+        return CocoFramesDataset(
+            paths["frames"],
+            paths["annotations"],
+            clip_stride=s["clip_stride"],
+            fps=s["fps"],
+            require_annotations=s["require_annotations"],
+            **common,
+        )
+    return MaskFramesDataset(
+        paths["frames"],
+        paths["masks"],
+        num_classes=s["num_classes"],
+        clip_stride=s["clip_stride"],
+        fps=s["fps"],
+        ignore_index=s["ignore_index"],
+        frame_suffix=s["frame_suffix"],
+        mask_suffix=s["mask_suffix"],
+        **common,
+    )
 
 
-def open_dataset(source: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True,
-                 key: str = "dataset") -> Any:
+def open_dataset(source: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True, key: str = "dataset") -> Any:
     """The :class:`~fsdvs_hw.scenes.datasets.ClipDataset` a design's ``dataset`` table names.
 
     Opened once per process (cached): only the layout is read; clips are decoded when scored.
@@ -341,8 +439,9 @@ def _importable_from(folder: Path) -> Iterator[None]:
 
 
 @functools.lru_cache(maxsize=16)
-def _open_network(blob: str, base: str, confine: bool, key: str, in_channels: int, num_classes: int,
-                  trained: bool = True) -> Any:
+def _open_network(
+    blob: str, base: str, confine: bool, key: str, in_channels: int, num_classes: int, trained: bool = True
+) -> Any:
     from ..tasks.user_networks import builtin_network, load_network_factory, load_weights
 
     entry = json.loads(blob)
@@ -352,11 +451,14 @@ def _open_network(blob: str, base: str, confine: bool, key: str, in_channels: in
     else:
         clash = sorted({"in_channels", "num_classes"} & set(entry["network_options"]))
         if clash:
-            raise InputError(f"{key}.network_options: {clash} are set from the dataset; allowed: other keyword "
-                             "arguments of the factory")
+            raise InputError(
+                f"{key}.network_options: {clash} are set from the dataset; allowed: other keyword "
+                "arguments of the factory"
+            )
         with _importable_from(Path(base)):
-            net = load_network_factory(entry["network"], in_channels=in_channels, num_classes=num_classes,
-                                       **entry["network_options"])
+            net = load_network_factory(
+                entry["network"], in_channels=in_channels, num_classes=num_classes, **entry["network_options"]
+            )
     if entry["weights"]:
         load_weights(net, _path(Path(base), entry["weights"], what=f"{key}.weights", confine=confine))
     if trained and entry.get("train") is not None:
@@ -373,8 +475,9 @@ def _file_digest(path: Path) -> str:
     return h.hexdigest()
 
 
-def train_split_dataset(entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True,
-                        key: str = "dataset") -> Any:
+def train_split_dataset(
+    entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True, key: str = "dataset"
+) -> Any:
     """The dataset of a table's training split (``train.split``): ``dataset`` with its ``split`` replaced.
 
     ``video_folder``: the split file (UCF101 ``trainlist01.txt``, lines ``<class>/<video> <label>``;
@@ -401,8 +504,10 @@ def train_split_dataset(entry: Mapping[str, Any], base_dir: str | Path, *, confi
     except InputError as exc:
         raise InputError(f"{key}.train.split = {split!r}: {exc}") from None
     if (train.num_classes, tuple(train.class_names)) != (ds.num_classes, tuple(ds.class_names)):
-        raise InputError(f"{key}.train.split = {split!r}: its classes {list(train.class_names)} differ from the "
-                         f"scored split's {list(ds.class_names)}; allowed: splits of one label set")
+        raise InputError(
+            f"{key}.train.split = {split!r}: its classes {list(train.class_names)} differ from the "
+            f"scored split's {list(ds.class_names)}; allowed: splits of one label set"
+        )
     return train
 
 
@@ -426,18 +531,25 @@ def check_disjoint_files(train: Any, train_indices: Any, test: Any, test_indices
     from ..scenes.datasets import IMAGE_SUFFIXES, VIDEO_SUFFIXES
 
     def files(ds: Any, indices: Any) -> set[Path]:
-        return {p.resolve() for i in indices for p in ds.clip_files(int(i))
-                if p.suffix.lower() in IMAGE_SUFFIXES + VIDEO_SUFFIXES}
+        return {
+            p.resolve()
+            for i in indices
+            for p in ds.clip_files(int(i))
+            if p.suffix.lower() in IMAGE_SUFFIXES + VIDEO_SUFFIXES
+        }
 
     shared = sorted(files(train, train_indices) & files(test, test_indices))
     if shared:
-        raise InputError(f"{what}: {len(shared)} file(s) of the training clips also in a scored clip, e.g. "
-                         f"{str(shared[0])!r}; allowed: a training split disjoint from the scored one (UCF101: "
-                         "trainlist0N.txt with testlist0N.txt of the same N)")
+        raise InputError(
+            f"{what}: {len(shared)} file(s) of the training clips also in a scored clip, e.g. "
+            f"{str(shared[0])!r}; allowed: a training split disjoint from the scored one (UCF101: "
+            "trainlist0N.txt with testlist0N.txt of the same N)"
+        )
 
 
-def _training_clips(entry: Mapping[str, Any], spec: Mapping[str, Any], base: Path, confine: bool,
-                    key: str) -> tuple[Any, np.ndarray]:
+def _training_clips(
+    entry: Mapping[str, Any], spec: Mapping[str, Any], base: Path, confine: bool, key: str
+) -> tuple[Any, np.ndarray]:
     """(dataset, clip indices) a table trains on: ``spec["split"]`` (the dataset's own training split,
     disjoint files checked) or a draw of ``spec["n_train"]`` with ``spec["seed"]`` from the clips not scored."""
     from ..tasks.dataset_training import disjoint_train_indices
@@ -447,16 +559,23 @@ def _training_clips(entry: Mapping[str, Any], spec: Mapping[str, Any], base: Pat
     train_ds, train_idx = ds, None
     if spec.get("split") is not None:
         train_ds = train_split_dataset(entry, base, confine=confine, key=key)
-        train_idx = (train_ds.draw(spec["n_train"], spec["seed"]) if spec["n_train"]
-                     else np.arange(len(train_ds), dtype=np.int64))
+        train_idx = (
+            train_ds.draw(spec["n_train"], spec["seed"])
+            if spec["n_train"]
+            else np.arange(len(train_ds), dtype=np.int64)
+        )
         if len(train_idx) < 2:
-            raise InputError(f"{key}.train.split = {spec['split']!r}: {len(train_idx)} training clip; allowed: 2 or "
-                             "more (train.n_train = 0: all of the split)")
+            raise InputError(
+                f"{key}.train.split = {spec['split']!r}: {len(train_idx)} training clip; allowed: 2 or "
+                "more (train.n_train = 0: all of the split)"
+            )
         check_disjoint_files(train_ds, train_idx, ds, scored, what=f"{key}.train.split = {spec['split']!r}")
     elif len(scored) >= len(ds):
-        raise InputError(f"{key}.n_clips = {entry['n_clips']}: every one of the {len(ds)} clips is scored, none is "
-                         f"left to train on ({key}.train); allowed: 1 to {len(ds) - 2}, or a training split "
-                         f"({key}.train.split)")
+        raise InputError(
+            f"{key}.n_clips = {entry['n_clips']}: every one of the {len(ds)} clips is scored, none is "
+            f"left to train on ({key}.train); allowed: 1 to {len(ds) - 2}, or a training split "
+            f"({key}.train.split)"
+        )
     else:
         train_idx = disjoint_train_indices(len(ds), scored, spec["n_train"], spec["seed"])
     return train_ds, train_idx
@@ -467,8 +586,16 @@ def _scored_source(entry: Mapping[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in entry["dataset"].items() if k != "cache"}
 
 
-def _train(task: str, entry: Mapping[str, Any], base: Path, confine: bool, key: str, net: Any,
-           verbose: bool, out_stem: Path | None = None) -> Any:
+def _train(
+    task: str,
+    entry: Mapping[str, Any],
+    base: Path,
+    confine: bool,
+    key: str,
+    net: Any,
+    verbose: bool,
+    out_stem: Path | None = None,
+) -> Any:
     """Train ``net`` (a copy) on the task's clips not scored (or reuse / resume ``train.out``)."""
     from ..tasks.dataset_training import train_on_dataset
 
@@ -476,22 +603,49 @@ def _train(task: str, entry: Mapping[str, Any], base: Path, confine: bool, key: 
     train_ds, train_idx = _training_clips(entry, spec, base, confine, key)
     out = out_stem or _path(base, spec["out"] or f"trained/{task}", what=f"{key}.train.out", confine=confine)
     weights = _path(base, entry["weights"], what=f"{key}.weights", confine=confine) if entry["weights"] else None
-    fingerprint = {"dataset": _scored_source(entry), "network": entry["network"], "options": entry["network_options"],
-                   "weights_sha256": _file_digest(weights) if weights else None, "scored": [entry["n_clips"],
-                   entry["seed"]], "sensor": "default",
-                   # train.split only when set: checkpoints trained before the key existed keep their fingerprint
-                   "train": {k: v for k, v in spec.items() if k != "out" and not (k == "split" and v is None)}}
-    return train_on_dataset(train_ds, task, copy.deepcopy(net), train_indices=train_idx, kernel_size=spec["kernel_size"],
-                            learn_filter=spec["learn_kernel"], epochs_frozen=spec["epochs_frozen"],
-                            epochs_joint=spec["epochs_joint"], lr_network=spec["lr_network"],
-                            lr_kernel=spec["lr_kernel"], lr_backbone=spec["lr_backbone"], lr_head=spec["lr_head"],
-                            weight_decay=spec["weight_decay"], batch_size=spec["batch_size"], seed=spec["seed"],
-                            device=entry["device"], out=out, fingerprint=fingerprint, verbose=verbose)
+    fingerprint = {
+        "dataset": _scored_source(entry),
+        "network": entry["network"],
+        "options": entry["network_options"],
+        "weights_sha256": _file_digest(weights) if weights else None,
+        "scored": [entry["n_clips"], entry["seed"]],
+        "sensor": "default",
+        # train.split only when set: checkpoints trained before the key existed keep their fingerprint
+        "train": {k: v for k, v in spec.items() if k != "out" and not (k == "split" and v is None)},
+    }
+    return train_on_dataset(
+        train_ds,
+        task,
+        copy.deepcopy(net),
+        train_indices=train_idx,
+        kernel_size=spec["kernel_size"],
+        learn_filter=spec["learn_kernel"],
+        epochs_frozen=spec["epochs_frozen"],
+        epochs_joint=spec["epochs_joint"],
+        lr_network=spec["lr_network"],
+        lr_kernel=spec["lr_kernel"],
+        lr_backbone=spec["lr_backbone"],
+        lr_head=spec["lr_head"],
+        weight_decay=spec["weight_decay"],
+        batch_size=spec["batch_size"],
+        seed=spec["seed"],
+        device=entry["device"],
+        out=out,
+        fingerprint=fingerprint,
+        verbose=verbose,
+    )
 
 
-def train_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True,
-                    verbose: bool = False, overrides: Mapping[str, Any] | None = None,
-                    out: str | Path | None = None) -> Any:
+def train_user_task(
+    task: str,
+    entry: Mapping[str, Any],
+    base_dir: str | Path,
+    *,
+    confine: bool = True,
+    verbose: bool = False,
+    overrides: Mapping[str, Any] | None = None,
+    out: str | Path | None = None,
+) -> Any:
     """Train (or reuse / resume) the network of a ``[tasks.datasets.<task>]`` table with a ``train`` table.
 
     The training clips are drawn with ``train.seed`` from the clips the table does not score
@@ -556,19 +710,37 @@ def user_network_identity(entry: Mapping[str, Any], base_dir: str | Path, *, con
     >>> sorted(user_network_identity(entry, "."))[:3]
     ['dataset', 'device', 'n_test']
     """
-    weights = (_path(Path(base_dir).resolve(), entry["weights"], what="weights", confine=confine)
-               if entry["weights"] else None)
-    return {"dataset": _scored_source(entry), "n_test": entry["n_clips"], "clip_seed": entry["seed"],
-            "network": entry["network"] or "built-in", "options": dict(entry["network_options"]),
-            "weights_sha256": _file_digest(weights) if weights else None, "train": entry.get("train"),
-            "device": entry["device"]}
+    weights = (
+        _path(Path(base_dir).resolve(), entry["weights"], what="weights", confine=confine) if entry["weights"] else None
+    )
+    return {
+        "dataset": _scored_source(entry),
+        "n_test": entry["n_clips"],
+        "clip_seed": entry["seed"],
+        "network": entry["network"] or "built-in",
+        "options": dict(entry["network_options"]),
+        "weights_sha256": _file_digest(weights) if weights else None,
+        "train": entry.get("train"),
+        "device": entry["device"],
+    }
 
 
-def finetune_user_network(task: str, entry: Mapping[str, Any], base_dir: str | Path, *, kernel: Any = None,
-                          realisation: Any = None, epochs: int = 4, n_train: int = 0, lr_network: float = 1e-3,
-                          lr_filter: float = 1e-2, out: str | Path | None = None,
-                          fingerprint: Mapping[str, Any] | None = None, confine: bool = True,
-                          verbose: bool = False) -> Any:
+def finetune_user_network(
+    task: str,
+    entry: Mapping[str, Any],
+    base_dir: str | Path,
+    *,
+    kernel: Any = None,
+    realisation: Any = None,
+    epochs: int = 4,
+    n_train: int = 0,
+    lr_network: float = 1e-3,
+    lr_filter: float = 1e-2,
+    out: str | Path | None = None,
+    fingerprint: Mapping[str, Any] | None = None,
+    confine: bool = True,
+    verbose: bool = False,
+) -> Any:
     """Train a table's network further with a realised kernel: frozen, or co-designed (user data).
 
     The user-data counterpart of :func:`fsdvs_hw.tasks.learn.finetune_network` (the
@@ -634,22 +806,49 @@ def finetune_user_network(task: str, entry: Mapping[str, Any], base_dir: str | P
     try:
         train_ds, train_idx = _training_clips(entry, spec, base, confine, key)
     except InputError as exc:  # name the key that asked for the clips
-        raise InputError(f"{key} trained further with codesign.n_train = {n_train} (0 = its train.n_train): "
-                         f"{exc}") from None
+        raise InputError(
+            f"{key} trained further with codesign.n_train = {n_train} (0 = its train.n_train): {exc}"
+        ) from None
     ds = open_dataset(entry["dataset"], base, confine=confine, key=f"{key}.dataset")
     net = open_network(entry, ds, base, confine=confine, key=key)
-    stages = ({"init_kernel": kernel, "learn_filter": False, "epochs_frozen": epochs, "epochs_joint": 0}
-              if realisation is None else
-              {"realisation": realisation, "epochs_frozen": 0, "epochs_joint": epochs, "lr_kernel": lr_filter,
-               "lr_backbone": lr_network, "lr_head": lr_network})
-    return train_on_dataset(train_ds, task, copy.deepcopy(net), train_indices=train_idx, lr_network=lr_network,
-                            weight_decay=spec["weight_decay"], batch_size=spec["batch_size"], seed=spec["seed"],
-                            device=entry["device"], out=out, fingerprint=None if fingerprint is None else
-                            dict(fingerprint), verbose=verbose, **stages)
+    stages = (
+        {"init_kernel": kernel, "learn_filter": False, "epochs_frozen": epochs, "epochs_joint": 0}
+        if realisation is None
+        else {
+            "realisation": realisation,
+            "epochs_frozen": 0,
+            "epochs_joint": epochs,
+            "lr_kernel": lr_filter,
+            "lr_backbone": lr_network,
+            "lr_head": lr_network,
+        }
+    )
+    return train_on_dataset(
+        train_ds,
+        task,
+        copy.deepcopy(net),
+        train_indices=train_idx,
+        lr_network=lr_network,
+        weight_decay=spec["weight_decay"],
+        batch_size=spec["batch_size"],
+        seed=spec["seed"],
+        device=entry["device"],
+        out=out,
+        fingerprint=None if fingerprint is None else dict(fingerprint),
+        verbose=verbose,
+        **stages,
+    )
 
 
-def open_network(entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *, confine: bool = True,
-                 key: str = "network", trained: bool = True) -> Any:
+def open_network(
+    entry: Mapping[str, Any],
+    dataset: Any,
+    base_dir: str | Path,
+    *,
+    confine: bool = True,
+    key: str = "network",
+    trained: bool = True,
+) -> Any:
     """The network a ``[tasks.datasets.<task>]`` table names, built for ``dataset`` (cached per process).
 
     Parameters
@@ -680,12 +879,20 @@ def open_network(entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *
     >>> net = open_network(entry, open_dataset(entry["dataset"], "."), ".")   # doctest: +SKIP
     """
     blob = json.dumps(dict(entry), sort_keys=True)
-    return _open_network(blob, str(Path(base_dir).resolve()), bool(confine), key, 2 * (int(dataset.n_frames) - 1),
-                         int(dataset.num_classes), bool(trained))
+    return _open_network(
+        blob,
+        str(Path(base_dir).resolve()),
+        bool(confine),
+        key,
+        2 * (int(dataset.n_frames) - 1),
+        int(dataset.num_classes),
+        bool(trained),
+    )
 
 
-def check_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *,
-                    confine: bool = True) -> list[tuple[str, Any, str]]:
+def check_user_task(
+    task: str, entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True
+) -> list[tuple[str, Any, str]]:
     """Problems of one validated ``[tasks.datasets.<task>]`` table, as ``(key, value, message)``.
 
     The format must hold the task's targets, the dataset must open (its layout is read: folders,
@@ -702,32 +909,55 @@ def check_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *
         import torch
 
         if not torch.cuda.is_available():
-            return [(f"{key}.device", "cuda", f"CUDA is not available on this machine (torch {torch.__version__}); "
-                     "allowed here: 'cpu'")]
+            return [
+                (
+                    f"{key}.device",
+                    "cuda",
+                    f"CUDA is not available on this machine (torch {torch.__version__}); allowed here: 'cpu'",
+                )
+            ]
     fmt = entry["dataset"]["format"]
     if FORMAT_TASK[fmt] != task:
         allowed = [f for f, t in FORMAT_TASK.items() if t == task]
-        return [(f"{key}.dataset.format", fmt, f"holds {FORMAT_TASK[fmt]} targets, not {task}; allowed for "
-                 f"[tasks.datasets.{task}]: {', '.join(map(repr, allowed)) or 'none (unknown task)'}")]
+        return [
+            (
+                f"{key}.dataset.format",
+                fmt,
+                f"holds {FORMAT_TASK[fmt]} targets, not {task}; allowed for "
+                f"[tasks.datasets.{task}]: {', '.join(map(repr, allowed)) or 'none (unknown task)'}",
+            )
+        ]
     try:
         ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"{key}.dataset")
     except InputError as exc:
         return [(f"{key}.dataset", entry["dataset"].get("root"), str(exc))]
     problems = []
     if entry["n_clips"] > len(ds):
-        problems.append((f"{key}.n_clips", entry["n_clips"], f"the dataset has {len(ds)} clips; allowed: 0 (all) "
-                         f"to {len(ds)}"))
+        problems.append(
+            (f"{key}.n_clips", entry["n_clips"], f"the dataset has {len(ds)} clips; allowed: 0 (all) to {len(ds)}")
+        )
     if entry.get("train") is not None and entry["train"].get("split") is not None:
         problems += _train_split_problems(entry, ds, base_dir, confine, key)
     elif entry.get("train") is not None:
         n_scored = entry["n_clips"] or len(ds)
         n_train = entry["train"]["n_train"]
         if n_scored > len(ds) - 2:
-            problems.append((f"{key}.n_clips", entry["n_clips"], f"with {key}.train, clips are needed for training "
-                             f"too; allowed: 1 to {len(ds) - 2} of the {len(ds)} clips"))
+            problems.append(
+                (
+                    f"{key}.n_clips",
+                    entry["n_clips"],
+                    f"with {key}.train, clips are needed for training "
+                    f"too; allowed: 1 to {len(ds) - 2} of the {len(ds)} clips",
+                )
+            )
         elif n_train > len(ds) - n_scored:
-            problems.append((f"{key}.train.n_train", n_train, f"{len(ds) - n_scored} clips are not scored; allowed: "
-                             f"0 (all of them) or 2 to {len(ds) - n_scored}"))
+            problems.append(
+                (
+                    f"{key}.train.n_train",
+                    n_train,
+                    f"{len(ds) - n_scored} clips are not scored; allowed: 0 (all of them) or 2 to {len(ds) - n_scored}",
+                )
+            )
     try:
         open_network(entry, ds, base_dir, confine=confine, key=key, trained=False)
     except InputError as exc:
@@ -736,18 +966,29 @@ def check_user_task(task: str, entry: Mapping[str, Any], base_dir: str | Path, *
     return problems
 
 
-def _train_split_problems(entry: Mapping[str, Any], ds: Any, base_dir: str | Path, confine: bool,
-                          key: str) -> list[tuple[str, Any, str]]:
+def _train_split_problems(
+    entry: Mapping[str, Any], ds: Any, base_dir: str | Path, confine: bool, key: str
+) -> list[tuple[str, Any, str]]:
     """A ``train.split`` must open, hold ``n_train`` clips and share no file with the scored clips."""
     split, n_train = entry["train"]["split"], entry["train"]["n_train"]
     try:
         train = train_split_dataset(entry, base_dir, confine=confine, key=key)
         if n_train > len(train):
-            return [(f"{key}.train.n_train", n_train, f"the training split {split!r} has {len(train)} clips; "
-                     f"allowed: 0 (all) to {len(train)}")]
+            return [
+                (
+                    f"{key}.train.n_train",
+                    n_train,
+                    f"the training split {split!r} has {len(train)} clips; allowed: 0 (all) to {len(train)}",
+                )
+            ]
         if (n_train or len(train)) < 2:
-            return [(f"{key}.train.n_train", n_train, f"1 training clip (the split {split!r} has {len(train)}); "
-                     "allowed: 2 or more")]
+            return [
+                (
+                    f"{key}.train.n_train",
+                    n_train,
+                    f"1 training clip (the split {split!r} has {len(train)}); allowed: 2 or more",
+                )
+            ]
         scored = ds.draw(entry["n_clips"], entry["seed"]) if entry["n_clips"] else range(len(ds))
         picked = train.draw(n_train, entry["train"]["seed"]) if n_train else range(len(train))
         check_disjoint_files(train, picked, ds, scored, what=f"{key}.train.split = {split!r}")
@@ -770,13 +1011,23 @@ def _design_sensor(frame_rate_hz: float, design_sensor: Mapping[str, Any] | None
     cfg = default_sensor(SimpleNamespace(frame_rate_hz=frame_rate_hz))
     if design_sensor is not None:
         cfg = dataclasses.replace(cfg, **dict(design_sensor))
-    return cfg, {"source": "design" if design_sensor is not None else "default",
-                 **{k: getattr(cfg, k) for k in _RECORDED_SENSOR_FIELDS}}
+    return cfg, {
+        "source": "design" if design_sensor is not None else "default",
+        **{k: getattr(cfg, k) for k in _RECORDED_SENSOR_FIELDS},
+    }
 
 
-def dataset_evidence(kernel: Any, task: str, entry: Mapping[str, Any], base_dir: str | Path, *,
-                     design_sensor: Mapping[str, Any] | None = None, events_fn: Any = None,
-                     confine: bool = True, network: Any = None) -> tuple[Any, dict[str, Any]]:
+def dataset_evidence(
+    kernel: Any,
+    task: str,
+    entry: Mapping[str, Any],
+    base_dir: str | Path,
+    *,
+    design_sensor: Mapping[str, Any] | None = None,
+    events_fn: Any = None,
+    confine: bool = True,
+    network: Any = None,
+) -> tuple[Any, dict[str, Any]]:
     """Score ``kernel`` on a user dataset with the user network and keep every clip's contribution.
 
     The counterpart of :func:`fsdvs_hw.explore.paired.clip_evidence` for a
@@ -833,18 +1084,33 @@ def dataset_evidence(kernel: Any, task: str, entry: Mapping[str, Any], base_dir:
     first = ds[0]
     rate_hz = 1.0 / float(np.diff(first.timestamps_s)[0])
     sensor, sensor_rec = _design_sensor(rate_hz, design_sensor)
-    ev = evaluate_on_dataset(kernel, task, ds, net, sensor=sensor, n_clips=entry["n_clips"] or None,
-                             seed=entry["seed"], events_fn=events_fn, device=entry["device"])
+    ev = evaluate_on_dataset(
+        kernel,
+        task,
+        ds,
+        net,
+        sensor=sensor,
+        n_clips=entry["n_clips"] or None,
+        seed=entry["seed"],
+        events_fn=events_fn,
+        device=entry["device"],
+    )
     metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, ev.targets, evaluator)
     n = len(ev.clip_indices)
     t, h, w = first.frames.shape
-    evidence = ClipEvidence(task=evaluator.name, metric_name=evaluator.primary_metric,
-                            value=float(metric.weighted(np.ones((1, n)))[0]), n_clips=n, metric=metric,
-                            checkpoint=entry["network"] or f"built-in {evaluator.name} network",
-                            sensor_seed=int(sensor.seed), seconds=time.perf_counter() - t0,
-                            test_seed=int(entry["seed"]),
-                            event_rate=float(np.mean(ev.event_counts)) / (h * w * (t - 1)),
-                            clip_event_rates=np.asarray(ev.event_counts, dtype=np.float64) / (h * w * ev.durations_s))
+    evidence = ClipEvidence(
+        task=evaluator.name,
+        metric_name=evaluator.primary_metric,
+        value=float(metric.weighted(np.ones((1, n)))[0]),
+        n_clips=n,
+        metric=metric,
+        checkpoint=entry["network"] or f"built-in {evaluator.name} network",
+        sensor_seed=int(sensor.seed),
+        seconds=time.perf_counter() - t0,
+        test_seed=int(entry["seed"]),
+        event_rate=float(np.mean(ev.event_counts)) / (h * w * (t - 1)),
+        clip_event_rates=np.asarray(ev.event_counts, dtype=np.float64) / (h * w * ev.durations_s),
+    )
     return evidence, sensor_rec
 
 
@@ -858,8 +1124,15 @@ def user_task_record(entry: Mapping[str, Any]) -> dict[str, Any]:
     ('video_folder', 'built-in')
     """
     src = entry["dataset"]
-    return {"dataset": {k: src.get(k) for k in ("format", "root", "split", "n_frames", "size")}
-            | {"n_clips": entry["n_clips"], "seed": entry["seed"]},
-            "network": {"factory": entry["network"] or "built-in", "options": dict(entry["network_options"]),
-                        "weights": entry["weights"], "device": entry["device"]},
-            "train": dict(entry["train"]) if entry.get("train") else None, "ci_note": ONE_NETWORK_NOTE}
+    return {
+        "dataset": {k: src.get(k) for k in ("format", "root", "split", "n_frames", "size")}
+        | {"n_clips": entry["n_clips"], "seed": entry["seed"]},
+        "network": {
+            "factory": entry["network"] or "built-in",
+            "options": dict(entry["network_options"]),
+            "weights": entry["weights"],
+            "device": entry["device"],
+        },
+        "train": dict(entry["train"]) if entry.get("train") else None,
+        "ci_note": ONE_NETWORK_NOTE,
+    }

@@ -65,8 +65,11 @@ def write_index(entries: Iterable[Mapping[str, Any]], path: str | Path) -> Path:
     """Write ``index.json``: ``{"version", "artifacts": [entry, ...]}``; return its path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    write_output(path, json.dumps({"version": INDEX_VERSION, "artifacts": [dict(e) for e in entries]}, indent=1) + "\n",
-                 flag="artifacts")
+    write_output(
+        path,
+        json.dumps({"version": INDEX_VERSION, "artifacts": [dict(e) for e in entries]}, indent=1) + "\n",
+        flag="artifacts",
+    )
     return path
 
 
@@ -86,6 +89,7 @@ def read_index(path: str | Path) -> list[dict[str, Any]]:
     if not (
         isinstance(data, dict) and data.get("version") == INDEX_VERSION and isinstance(data.get("artifacts"), list)
     ):
-        raise InputError(f"{path}: not an artifact index of version {INDEX_VERSION} "
-                         "({'version': 1, 'artifacts': [...]})")
+        raise InputError(
+            f"{path}: not an artifact index of version {INDEX_VERSION} ({{'version': 1, 'artifacts': [...]}})"
+        )
     return [dict(e) for e in data["artifacts"] if isinstance(e, dict)]

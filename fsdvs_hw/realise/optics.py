@@ -96,8 +96,9 @@ def transfer_function(nu2: Any, wavelength_m: Any, z_m: Any, nu_limit: Any) -> A
     return torch.polar(mask, phase)
 
 
-def required_modes(window_radius_m: float, na: float, wavelength_min_m: float, *, oversample: float = 1.5,
-                   minimum: int = 64) -> int:
+def required_modes(
+    window_radius_m: float, na: float, wavelength_min_m: float, *, oversample: float = 1.5, minimum: int = 64
+) -> int:
     r"""Number of radial modes N so that the frequency grid reaches ``oversample`` × NA/λ_min.
 
     The QDHT grid reaches :math:`\nu_{max} = j_{N+1}/(2\pi R) \approx (N + 3/4)/(2R)`; the
@@ -316,8 +317,9 @@ def airy_intensity(rho_m: np.ndarray, *, wavelength_m: float, na: float) -> np.n
     return out
 
 
-def pixel_nodes_for_bandwidth(pitch_m: float, cutoff_cycles_per_m: float, *, tol: float = 1e-5,
-                              max_nodes: int = 1024) -> int:
+def pixel_nodes_for_bandwidth(
+    pitch_m: float, cutoff_cycles_per_m: float, *, tol: float = 1e-5, max_nodes: int = 1024
+) -> int:
     r"""Gauss–Legendre order per pixel side that integrates a band-limited intensity over a pixel.
 
     An incoherent PSF formed with numerical aperture NA has no spatial frequency above
@@ -392,8 +394,15 @@ def pixel_quadrature(n_pixels: int, pitch_m: float, n_sub: int) -> tuple[np.ndar
     return rho_unique, index, weights
 
 
-def radial_pixel_integrator(n_pixels: int, pitch_m: float, cutoff_cycles_per_m: float, *, tol: float = 1e-3,
-                            panels_per_period: float = 1.0, order: int = 10) -> tuple[np.ndarray, np.ndarray]:
+def radial_pixel_integrator(
+    n_pixels: int,
+    pitch_m: float,
+    cutoff_cycles_per_m: float,
+    *,
+    tol: float = 1e-3,
+    panels_per_period: float = 1.0,
+    order: int = 10,
+) -> tuple[np.ndarray, np.ndarray]:
     r"""Linear map from a radial function on a 1-D grid to its integrals over each pixel.
 
     For a rotationally symmetric intensity :math:`I(\rho)` band-limited to ``cutoff_cycles_per_m``,

@@ -86,8 +86,7 @@ PLUGIN_ENV = "FSDVS_HW_REALISATION_PLUGINS"
 ENTRY_POINT_GROUP = "fsdvs_hw.realisations"
 
 #: Units a cost item may carry: SI units, "count", "bit", "px" and "1" (dimensionless).
-COST_UNITS: frozenset[str] = frozenset({"S", "F", "s", "m", "m^2", "W", "J", "A", "V", "Hz", "count", "bit", "px",
-                                        "1"})
+COST_UNITS: frozenset[str] = frozenset({"S", "F", "s", "m", "m^2", "W", "J", "A", "V", "Hz", "count", "bit", "px", "1"})
 
 
 @dataclass(frozen=True)
@@ -241,8 +240,10 @@ class RealisationSpec:
         if not callable(self.fit):
             raise InputError(f"realisation {self.name!r}: fit must be callable, got {type(self.fit).__name__}")
         if not (isinstance(self.options, type) and issubclass(self.options, StrictModel)):
-            raise InputError(f"realisation {self.name!r}: options must be a fsdvs_hw.schema.StrictModel subclass, "
-                             f"got {self.options!r}")
+            raise InputError(
+                f"realisation {self.name!r}: options must be a fsdvs_hw.schema.StrictModel subclass, "
+                f"got {self.options!r}"
+            )
         object.__setattr__(self, "artifacts", MappingProxyType(dict(self.artifacts)))
         for field_name in ("differentiable", "write_artifacts"):
             ref = getattr(self, field_name)
@@ -261,13 +262,16 @@ class RealisationSpec:
         """
         if not self.differentiable:
             with_form = [n for n, sp in _REGISTRY.items() if sp.differentiable]
-            raise InputError(f"realisation {self.name!r} has no differentiable form; realisations with one: "
-                             f"{', '.join(with_form) or 'none'}")
+            raise InputError(
+                f"realisation {self.name!r} has no differentiable form; realisations with one: "
+                f"{', '.join(with_form) or 'none'}"
+            )
         module, cls = self.differentiable.split(":")
         return getattr(importlib.import_module(module), cls)(record)
 
-    def write_artifacts_of(self, record: Realisation, out_dir: str | Path, *,
-                           resolution: tuple[int, int] | None = None) -> tuple[Artifact, ...]:
+    def write_artifacts_of(
+        self, record: Realisation, out_dir: str | Path, *, resolution: tuple[int, int] | None = None
+    ) -> tuple[Artifact, ...]:
         """Write the buildable files of ``record`` (a fitted realisation) into ``out_dir``.
 
         Returns
@@ -400,8 +404,11 @@ def _import_plugins() -> None:
             if callable(loaded):
                 loaded()
         except Exception as exc:  # noqa: BLE001 - a broken plugin must not break the package
-            warnings.warn(f"realisation plugin {ep.name!r} ({ep.value}) failed to load: {type(exc).__name__}: {exc}",
-                          RuntimeWarning, stacklevel=2)
+            warnings.warn(
+                f"realisation plugin {ep.name!r} ({ep.value}) failed to load: {type(exc).__name__}: {exc}",
+                RuntimeWarning,
+                stacklevel=2,
+            )
     for module in _plugin_modules():
         importlib.import_module(module)
 
@@ -456,8 +463,9 @@ def check_realisation_options(name: str, values: Mapping[str, Any]) -> dict[str,
     return get_realisation(name).check_options(values)
 
 
-def fit_realisation(name: str, target: Kernel | Any, options: Mapping[str, Any] | None = None, *,
-                    seed: int = 0) -> Realisation:
+def fit_realisation(
+    name: str, target: Kernel | Any, options: Mapping[str, Any] | None = None, *, seed: int = 0
+) -> Realisation:
     """Fit the realisation ``name`` to ``target`` with its options.
 
     ``target`` is anything :func:`~fsdvs_hw.kernels.as_kernel` accepts (a Kernel, a kernel file,
@@ -486,11 +494,31 @@ def fit_delta(target: Kernel) -> ReferenceRealisation:
     return ReferenceRealisation(reference_kernel("delta", target.size, pitch_m=target.pitch_m), label="delta")
 
 
-register_realisation(RealisationSpec(
-    name="learned", fit=fit_learned, kind="reference", record_type=ReferenceRealisation, record_kind="reference",
-    colour="#222222", title="learned kernel (ideal)", marker="o", in_default_design=True,
-    description="the target kernel applied ideally (no hardware)"))
-register_realisation(RealisationSpec(
-    name="delta", fit=fit_delta, kind="reference", record_type=ReferenceRealisation, record_kind="reference",
-    colour="#999999", title="no filter (delta)", marker="s", in_default_design=True,
-    description="no spatial filter: the 'w/o' baseline"))
+register_realisation(
+    RealisationSpec(
+        name="learned",
+        fit=fit_learned,
+        kind="reference",
+        record_type=ReferenceRealisation,
+        record_kind="reference",
+        colour="#222222",
+        title="learned kernel (ideal)",
+        marker="o",
+        in_default_design=True,
+        description="the target kernel applied ideally (no hardware)",
+    )
+)
+register_realisation(
+    RealisationSpec(
+        name="delta",
+        fit=fit_delta,
+        kind="reference",
+        record_type=ReferenceRealisation,
+        record_kind="reference",
+        colour="#999999",
+        title="no filter (delta)",
+        marker="s",
+        in_default_design=True,
+        description="no spatial filter: the 'w/o' baseline",
+    )
+)

@@ -76,8 +76,12 @@ class SpectralSamples:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> SpectralSamples:
-        return cls(np.asarray(data["wavelengths_m"], float), np.asarray(data["weights"], float),
-                   str(data["illuminant"]), str(data["response"]))
+        return cls(
+            np.asarray(data["wavelengths_m"], float),
+            np.asarray(data["weights"], float),
+            str(data["illuminant"]),
+            str(data["response"]),
+        )
 
 
 def _linear_copy(sd: Any) -> Any:

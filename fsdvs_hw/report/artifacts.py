@@ -34,9 +34,13 @@ def artifacts_html(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> Markup 
         if not entries:
             continue
         name = p.realisation if isinstance(p, ScoredPoint) else p.get("realisation", "")
-        rows.append({"point": str(entries[0].get("point") or name),
-                     "errors": [str(e["error"]) for e in entries if e.get("error")],
-                     "files": [str(e["file"]) for e in entries if e.get("file")],
-                     "what": [f"{e.get('name', '')}: {e.get('what', '')}" for e in entries],
-                     "checks": [str(e["checked_by"]) for e in entries if e.get("checked_by")]})
+        rows.append(
+            {
+                "point": str(entries[0].get("point") or name),
+                "errors": [str(e["error"]) for e in entries if e.get("error")],
+                "files": [str(e["file"]) for e in entries if e.get("file")],
+                "what": [f"{e.get('name', '')}: {e.get('what', '')}" for e in entries],
+                "checks": [str(e["checked_by"]) for e in entries if e.get("checked_by")],
+            }
+        )
     return render("artifacts.html.j2", rows=rows) if rows else ""

@@ -21,9 +21,19 @@ from .templating import render
 __all__ = ["CODESIGN_HEADERS", "codesign_section"]
 
 #: Column headers of the section's table, in order.
-CODESIGN_HEADERS = ("realisation", "task", "n (networks × clips)", "fit then swap", "fit then fine-tune",
-                    "co-designed", "recovered by fine-tune", "recovered by co-design", "kernel error fit → co-designed",
-                    "MS r initial → co-designed", "verdict")
+CODESIGN_HEADERS = (
+    "realisation",
+    "task",
+    "n (networks × clips)",
+    "fit then swap",
+    "fit then fine-tune",
+    "co-designed",
+    "recovered by fine-tune",
+    "recovered by co-design",
+    "kernel error fit → co-designed",
+    "MS r initial → co-designed",
+    "verdict",
+)
 
 
 def _ci(rec: Mapping[str, Any] | None, pct: bool = False) -> str:
@@ -58,14 +68,31 @@ def codesign_section(summary: Mapping[str, Any]) -> Markup:
     for c in cells:
         rows_of = c["rows"]
         loss = {m: (rows_of[m]["loss"] if m in rows_of else None) for m in ("swap", "finetune", "codesign")}
-        rows.append([c["realisation"], c["task"] + f" ({c['metric_name']})",
-                     f"{c['n_seeds']} × {c['n_clips_per_network']}",
-                     _ci(loss["swap"]), _ci(loss["finetune"]), _ci(loss["codesign"]),
-                     *(_ci(rows_of.get(m, {}).get("recovered"), pct=True) if c.get("swap_loss_above_zero")
-                       else "— (no loss above 0)" for m in ("finetune", "codesign")),
-                     f"{c['kernel_error_fit_gain_free']:.3f} → {_mean(c.get('kernel_error_codesign_gain_free'))}"
-                     if c.get("kernel_error_fit_gain_free") is not None else "—",
-                     f"{_mean(c.get('ms_correlation_initial'))} → {_mean(c.get('ms_correlation_final'))}",
-                     c["verdict"] + (f" ({c['ci_note']})" if c.get("ci_note") else "")])
-    return render("codesign.html.j2", epochs=str(st.get("epochs", "?")), n_train=str(st.get("n_train") or "all"),
-                  headers=CODESIGN_HEADERS, rows=rows)
+        rows.append(
+            [
+                c["realisation"],
+                c["task"] + f" ({c['metric_name']})",
+                f"{c['n_seeds']} × {c['n_clips_per_network']}",
+                _ci(loss["swap"]),
+                _ci(loss["finetune"]),
+                _ci(loss["codesign"]),
+                *(
+                    _ci(rows_of.get(m, {}).get("recovered"), pct=True)
+                    if c.get("swap_loss_above_zero")
+                    else "— (no loss above 0)"
+                    for m in ("finetune", "codesign")
+                ),
+                f"{c['kernel_error_fit_gain_free']:.3f} → {_mean(c.get('kernel_error_codesign_gain_free'))}"
+                if c.get("kernel_error_fit_gain_free") is not None
+                else "—",
+                f"{_mean(c.get('ms_correlation_initial'))} → {_mean(c.get('ms_correlation_final'))}",
+                c["verdict"] + (f" ({c['ci_note']})" if c.get("ci_note") else ""),
+            ]
+        )
+    return render(
+        "codesign.html.j2",
+        epochs=str(st.get("epochs", "?")),
+        n_train=str(st.get("n_train") or "all"),
+        headers=CODESIGN_HEADERS,
+        rows=rows,
+    )

@@ -44,17 +44,42 @@ from .present import number, point_title, si
 from .tables import accuracy_axis, is_reference, loss_interval, uncertain_pareto_front
 from .templating import render
 
-__all__ = ["COST_WORDS", "cost_advice", "cost_columns", "cost_section", "cost_text", "mark_cost_fronts",
-           "sweep_rows", "with_cost_columns"]
+__all__ = [
+    "COST_WORDS",
+    "cost_advice",
+    "cost_columns",
+    "cost_section",
+    "cost_text",
+    "mark_cost_fronts",
+    "sweep_rows",
+    "with_cost_columns",
+]
 
 #: How the verdict names the cheapest in each cross-kind cost.
-COST_WORDS: Mapping[str, str] = {"power_w": "least power", "area_m2": "least silicon per pixel",
-                                 "latency_s": "least added latency", "event_rate_eps": "fewest events"}
+COST_WORDS: Mapping[str, str] = {
+    "power_w": "least power",
+    "area_m2": "least silicon per pixel",
+    "latency_s": "least added latency",
+    "event_rate_eps": "fewest events",
+}
 
 #: Figures a kind adds to the four cross-kind costs, flattened into the rows when present.
-_EXTRA = ("power_per_pixel_w", "energy_per_pixel_j", "array_area_m2", "fill_factor", "readout_limit_eps",
-          "readout_utilisation", "photon_snr_change_db", "photon_snr_db", "photoelectrons", "dynamic_range_cost_db",
-          "thickness_m", "yosys_area_m2", "lanes", "mismatch_error")
+_EXTRA = (
+    "power_per_pixel_w",
+    "energy_per_pixel_j",
+    "array_area_m2",
+    "fill_factor",
+    "readout_limit_eps",
+    "readout_utilisation",
+    "photon_snr_change_db",
+    "photon_snr_db",
+    "photoelectrons",
+    "dynamic_range_cost_db",
+    "thickness_m",
+    "yosys_area_m2",
+    "lanes",
+    "mismatch_error",
+)
 
 
 def _num(x: Any) -> float:
@@ -89,8 +114,10 @@ def with_cost_columns(rows: Sequence[Mapping[str, Any]], points: Sequence[Any]) 
         :func:`cost_columns`; the others are unchanged.
     """
     records = {p.key: p.extra["physical_cost"] for p in points if isinstance(p.extra.get("physical_cost"), Mapping)}
-    out = [{**r, **cost_columns(records[r["key"]])} if r.get("key") in records and r.get("status") == "ok"
-           else dict(r) for r in rows]
+    out = [
+        {**r, **cost_columns(records[r["key"]])} if r.get("key") in records and r.get("status") == "ok" else dict(r)
+        for r in rows
+    ]
     if records:
         mark_cost_fronts(out)
     return out
@@ -112,8 +139,11 @@ def sweep_rows(rows: Sequence[Mapping[str, Any]], points: Sequence[Any]) -> list
     list of dict
         ``rows`` itself (copied) when no point carries a sweep.
     """
-    sweeps = {p.key: p.extra["physical_cost_sweep"] for p in points
-              if isinstance(p.extra.get("physical_cost_sweep"), (list, tuple))}
+    sweeps = {
+        p.key: p.extra["physical_cost_sweep"]
+        for p in points
+        if isinstance(p.extra.get("physical_cost_sweep"), (list, tuple))
+    }
     if not sweeps:
         return [dict(r) for r in rows]
     out: list[dict[str, Any]] = []
@@ -125,8 +155,13 @@ def sweep_rows(rows: Sequence[Mapping[str, Any]], points: Sequence[Any]) -> list
                 continue
             base = {k: v for k, v in r.items() if not k.startswith("front_")}
             params = json.loads(r["params"]) if isinstance(r.get("params"), str) else dict(r.get("params") or {})
-            out.append({**base, **cost_columns(entries[i]["physical_cost"]),
-                        "params": json.dumps({**params, **entries[i]["setting"]}, sort_keys=True)})
+            out.append(
+                {
+                    **base,
+                    **cost_columns(entries[i]["physical_cost"]),
+                    "params": json.dumps({**params, **entries[i]["setting"]}, sort_keys=True),
+                }
+            )
     mark_cost_fronts(out)
     return out
 
@@ -230,9 +265,11 @@ def cost_advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
         head = f"At {_setting_text(where)}: " if where else ""
         if not within:
             best = min(hardware, key=lambda r: loss_interval(r, acc)[2])
-            out.append(f"{head}No hardware realisation's {what} stays within the loss budget {number(budget)} "
-                       "(costs.loss_budget, upper CI bound); the smallest upper bound is "
-                       f"{point_title(best['realisation'], _own_params(best))}'s {number(loss_interval(best, acc)[2])}.")
+            out.append(
+                f"{head}No hardware realisation's {what} stays within the loss budget {number(budget)} "
+                "(costs.loss_budget, upper CI bound); the smallest upper bound is "
+                f"{point_title(best['realisation'], _own_params(best))}'s {number(loss_interval(best, acc)[2])}."
+            )
             continue
         parts = []
         for cost, words in COST_WORDS.items():
@@ -243,34 +280,56 @@ def cost_advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
             best = min(known, key=lambda r: _num(r[cost]))
             top = _cost_interval(best, cost)[2]  # a measured cost (event rate) ties within its CI
             cheapest = [r for r in known if _cost_interval(r, cost)[1] <= top]
-            parts.append(f"{words}: " + " and ".join(f"{point_title(r['realisation'], _own_params(r))} "
-                                                      f"({cost_text(_num(r[cost]), cost)})" for r in cheapest))
-        out.append(f"{head}Cheapest within the loss budget ({what} ≤ {number(budget)} at the upper CI bound, "
-                   f"costs.loss_budget): " + "; ".join(parts) + ".")
+            parts.append(
+                f"{words}: "
+                + " and ".join(
+                    f"{point_title(r['realisation'], _own_params(r))} ({cost_text(_num(r[cost]), cost)})"
+                    for r in cheapest
+                )
+            )
+        out.append(
+            f"{head}Cheapest within the loss budget ({what} ≤ {number(budget)} at the upper CI bound, "
+            f"costs.loss_budget): " + "; ".join(parts) + "."
+        )
     flagged = [r for g in groups.values() for r in g if r.get("cost_flags")]
     readout = [r for r in flagged if r.get("readout_exceeded")]
     if readout:
-        out.append("Readout limit exceeded: " + "; ".join(
-            f"{_name(r)} fires {_eps(_num(r.get('event_rate_eps')))}, more than "
-            f"the {_eps(_num(r.get('readout_limit_eps')))} the readout carries (costs.readout_limit_eps)"
-            for r in readout) + ".")
-    others = [(r, f) for r in flagged for f in str(r["cost_flags"]).split(" | ")
-              if f and not f.startswith("event rate")]
+        out.append(
+            "Readout limit exceeded: "
+            + "; ".join(
+                f"{_name(r)} fires {_eps(_num(r.get('event_rate_eps')))}, more than "
+                f"the {_eps(_num(r.get('readout_limit_eps')))} the readout carries (costs.readout_limit_eps)"
+                for r in readout
+            )
+            + "."
+        )
+    others = [
+        (r, f) for r in flagged for f in str(r["cost_flags"]).split(" | ") if f and not f.startswith("event rate")
+    ]
     if others:
         out.append("Cost limits broken: " + "; ".join(f"{_name(r)}: {f}" for r, f in others) + ".")
     return out
 
 
 #: Columns of the section's table: (row key, header).
-_TABLE = (("name", "realisation"), ("power_w", "power, array"), ("power_per_pixel_w", "power per pixel"),
-          ("area_m2", "silicon per pixel"), ("fill_factor", "fill factor"), ("latency_s", "added latency"),
-          ("event_rate_eps", "event rate, array"), ("readout_utilisation", "of the readout limit"),
-          ("photon_snr_change_db", "shot-noise SNR change"), ("dynamic_range_cost_db", "pedestal's range"),
-          ("cost_flags", "limits broken"))
+_TABLE = (
+    ("name", "realisation"),
+    ("power_w", "power, array"),
+    ("power_per_pixel_w", "power per pixel"),
+    ("area_m2", "silicon per pixel"),
+    ("fill_factor", "fill factor"),
+    ("latency_s", "added latency"),
+    ("event_rate_eps", "event rate, array"),
+    ("readout_utilisation", "of the readout limit"),
+    ("photon_snr_change_db", "shot-noise SNR change"),
+    ("dynamic_range_cost_db", "pedestal's range"),
+    ("cost_flags", "limits broken"),
+)
 
 
-def cost_section(rows: Sequence[Mapping[str, Any]], points: Sequence[Any] = (),
-                 figure: Callable[..., str] | None = None) -> str:
+def cost_section(
+    rows: Sequence[Mapping[str, Any]], points: Sequence[Any] = (), figure: Callable[..., str] | None = None
+) -> str:
     """The report's "What building it costs" section (HTML): verdict sentences, table and figure.
 
     ``rows`` are the score rows of ``points`` (:class:`~fsdvs_hw.records.ScoredPoint`), repeated
@@ -302,12 +361,20 @@ def cost_section(rows: Sequence[Mapping[str, Any]], points: Sequence[Any] = (),
     if figure is not None:
         from .figures import fig_cost_fronts
 
-        fig = figure(fig_cost_fronts(rows),
-                     "Scatter plots of accuracy loss with confidence bars against array power, silicon area per "
-                     "pixel, added latency and event rate, every realisation kind on the same axes.",
-                     "<b>Accuracy loss vs each physical cost, across kinds.</b> Bars: the loss CIs; rings: not "
-                     "dominated beyond the CIs in (loss, that cost). Zero costs (optics, ideal references) sit at "
-                     "the left edge of the symmetric-log axis.", fig_id="fig-costs")
-    return render("costs.html.j2", advice=cost_advice(rows), columns=_TABLE, rows=cells,
-                  figure=None if fig is None else Markup(fig),
-                  loss_budget=number(_num(shown[0].get("loss_budget"))))
+        fig = figure(
+            fig_cost_fronts(rows),
+            "Scatter plots of accuracy loss with confidence bars against array power, silicon area per "
+            "pixel, added latency and event rate, every realisation kind on the same axes.",
+            "<b>Accuracy loss vs each physical cost, across kinds.</b> Bars: the loss CIs; rings: not "
+            "dominated beyond the CIs in (loss, that cost). Zero costs (optics, ideal references) sit at "
+            "the left edge of the symmetric-log axis.",
+            fig_id="fig-costs",
+        )
+    return render(
+        "costs.html.j2",
+        advice=cost_advice(rows),
+        columns=_TABLE,
+        rows=cells,
+        figure=None if fig is None else Markup(fig),
+        loss_budget=number(_num(shown[0].get("loss_budget"))),
+    )

@@ -128,8 +128,15 @@ def fig_kernels(panels: Sequence[Panel]) -> Any:
         fig.colorbar(im, ax=ax, shrink=0.9, extend="both" if clipped else "neither", label="tap weight")
         for (y, x), v in np.ndenumerate(t):
             if pan.kernel.size <= 7 or (clipped and (y, x) == (r, r)):
-                ax.text(x - r, y - r, f"{v:.2f}", ha="center", va="center", fontsize=5.5,
-                        color="white" if abs(v) > 0.6 * vmax else "black")
+                ax.text(
+                    x - r,
+                    y - r,
+                    f"{v:.2f}",
+                    ha="center",
+                    va="center",
+                    fontsize=5.5,
+                    color="white" if abs(v) > 0.6 * vmax else "black",
+                )
         _label_panel(ax, pan, "x (pixels)", "y (pixels)")
     return fig
 
@@ -154,8 +161,14 @@ def fig_spectra(panels: Sequence[Panel], *, n_fft: int = 64) -> Any:
     im = None
     for ax, pan, (f, mag) in zip(axes.ravel(), panels, spectra):
         step = f[1] - f[0]
-        im = ax.imshow(mag, cmap="magma", origin="lower", vmin=0.0, vmax=vmax,
-                       extent=(f[0] - step / 2, f[-1] + step / 2, f[0] - step / 2, f[-1] + step / 2))
+        im = ax.imshow(
+            mag,
+            cmap="magma",
+            origin="lower",
+            vmin=0.0,
+            vmax=vmax,
+            extent=(f[0] - step / 2, f[-1] + step / 2, f[0] - step / 2, f[-1] + step / 2),
+        )
         _label_panel(ax, pan, "$f_x$ (cycles/pixel)", "$f_y$ (cycles/pixel)")
     if im is not None:
         fig.colorbar(im, ax=list(axes.ravel()[: len(panels)]), shrink=0.9, label="|H| (shared scale)")
@@ -174,11 +187,9 @@ def fig_radial(panels: Sequence[Panel], *, methods: Sequence[str], pitch_m: floa
     ks = [p.kernel for p in panels]
     labels = [p.label for p in panels]
     plot_radial_vs_csf(ks, methods=list(methods), geometry=Geometry(pitch_m, focal_length_m), ax=axes[0], labels=labels)
-    axes[0].set_title(f"design geometry (pitch {si(pitch_m, 'm')}, focal length {si(focal_length_m, 'm')})",
-                      fontsize=9)
+    axes[0].set_title(f"design geometry (pitch {si(pitch_m, 'm')}, focal length {si(focal_length_m, 'm')})", fontsize=9)
     plot_radial_vs_csf(ks, methods=list(methods[:1]), geometry=None, ax=axes[1], labels=labels)
-    axes[1].set_title("viewing scale fitted to the first kernel (shape comparison, as in the FS-DVS paper)",
-                      fontsize=9)
+    axes[1].set_title("viewing scale fitted to the first kernel (shape comparison, as in the FS-DVS paper)", fontsize=9)
     dashes = ["--", ":", "-.", (0, (5, 1, 1, 1, 1, 1))]
     for ax in axes:  # restyle: one colour and marker per realisation, CSF curves in greys
         lines = ax.get_lines()
@@ -189,7 +200,7 @@ def fig_radial(panels: Sequence[Panel], *, methods: Sequence[str], pitch_m: floa
             line.set_markevery(0.1)
             line.set_markersize(5)
             line.set_markerfacecolor("none")
-        for i, line in enumerate(lines[len(panels):]):
+        for i, line in enumerate(lines[len(panels) :]):
             line.set_color(str(0.15 + 0.15 * i))
             line.set_linestyle(dashes[i % len(dashes)])
             line.set_label(_csf_title(line.get_label()))
@@ -208,12 +219,32 @@ def _csf_title(label: str) -> str:
     return f"CSF {names.get(head, head)} {year if year.isdigit() else ''}".rstrip()
 
 
-def _errorbar(ax: Any, kind: str, x: Sequence[float], y: Sequence[float], lo: Sequence[float], hi: Sequence[float],
-              *, fmt: str = "", label: str | None = None) -> None:
+def _errorbar(
+    ax: Any,
+    kind: str,
+    x: Sequence[float],
+    y: Sequence[float],
+    lo: Sequence[float],
+    hi: Sequence[float],
+    *,
+    fmt: str = "",
+    label: str | None = None,
+) -> None:
     st = style(kind)
     ref = is_reference(kind)
-    ax.errorbar(x, y, yerr=[np.subtract(y, lo), np.subtract(hi, y)], fmt=st.marker + fmt, ms=10 if ref else 7,
-                mfc="none", mew=1.6, capsize=3, color=st.colour, label=label, zorder=3)
+    ax.errorbar(
+        x,
+        y,
+        yerr=[np.subtract(y, lo), np.subtract(hi, y)],
+        fmt=st.marker + fmt,
+        ms=10 if ref else 7,
+        mfc="none",
+        mew=1.6,
+        capsize=3,
+        color=st.colour,
+        label=label,
+        zorder=3,
+    )
 
 
 def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
@@ -225,8 +256,11 @@ def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
     """
     acc, acc_label = accuracy_axis(rows)
     ok = [r for r in rows if r["status"] == "ok"]
-    kinds = [k for k in dict.fromkeys(r["realisation"] for r in ok)
-             if any(not math.isnan(_val(r, "kind_cost_value")) for r in ok if r["realisation"] == k)]
+    kinds = [
+        k
+        for k in dict.fromkeys(r["realisation"] for r in ok)
+        if any(not math.isnan(_val(r, "kind_cost_value")) for r in ok if r["realisation"] == k)
+    ]
     n = 1 + max(1, len(kinds))
     fig, axes = _grid(n, w=3.0 if n >= 4 else 4.0, h=3.2, cols=4)
     axes = axes.ravel()
@@ -240,8 +274,9 @@ def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
             if r.get("pareto_all"):
                 ax.scatter([xi], [yi], s=260, facecolors="none", edgecolors=style(kind).colour, lw=1.0, zorder=2)
             if len(g) > 1 and len(ok) <= 10:
-                ax.annotate(params_text(r.get("params")), (xi, yi), fontsize=6, xytext=(4, 4),
-                            textcoords="offset points")
+                ax.annotate(
+                    params_text(r.get("params")), (xi, yi), fontsize=6, xytext=(4, 4), textcoords="offset points"
+                )
     ax.axhline(0.0, color="0.5", lw=0.8)
     ax.set_xlabel("CSF agreement (Mannos–Sakrison r, fitted scale)", fontsize=8)
     ax.set_ylabel(_short(acc_label), fontsize=8)
@@ -249,12 +284,20 @@ def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
     ax.legend(fontsize=7)
     ax.set_title("across kinds (rings: not dominated beyond the CIs)", fontsize=9)
     if not kinds:
-        axes[1].text(0.5, 0.5, "no hardware realisation with costs was scored", ha="center", va="center",
-                     transform=axes[1].transAxes)
+        axes[1].text(
+            0.5,
+            0.5,
+            "no hardware realisation with costs was scored",
+            ha="center",
+            va="center",
+            transform=axes[1].transAxes,
+        )
         axes[1].set_axis_off()
     for ax, kind in zip(axes[1:], kinds):
-        g = sorted((r for r in ok if r["realisation"] == kind and not math.isnan(_val(r, "kind_cost_value"))),
-                   key=lambda r: r["kind_cost_value"])
+        g = sorted(
+            (r for r in ok if r["realisation"] == kind and not math.isnan(_val(r, "kind_cost_value"))),
+            key=lambda r: r["kind_cost_value"],
+        )
         x = [r["kind_cost_value"] for r in g]
         y, lo, hi = zip(*(loss_interval(r, acc) for r in g))
         _errorbar(ax, kind, x, y, lo, hi, fmt="-")
@@ -262,14 +305,18 @@ def fig_pareto(rows: Sequence[Mapping[str, Any]]) -> Any:
             if r.get("pareto"):
                 ax.scatter([xi], [yi], s=260, facecolors="none", edgecolors=style(kind).colour, lw=1.0)
             if len(g) <= 8 and len(g) > 1:
-                ax.annotate(params_text(r.get("params")), (xi, yi), fontsize=6, xytext=(4, 4),
-                            textcoords="offset points")
+                ax.annotate(
+                    params_text(r.get("params")), (xi, yi), fontsize=6, xytext=(4, 4), textcoords="offset points"
+                )
         ax.axhline(0.0, color="0.5", lw=0.8)
         ax.set_xlabel(f"{g[0]['kind_cost']} ({g[0]['kind_cost_unit']})", fontsize=8)
         ax.set_ylabel(_short(acc_label), fontsize=8)
         ax.grid(alpha=0.3, which="both")
-        ax.set_title(f"{style(kind).title}: {_short(acc_label).split(' (')[0]} vs its own cost", fontsize=9,
-                     color=style(kind).colour)
+        ax.set_title(
+            f"{style(kind).title}: {_short(acc_label).split(' (')[0]} vs its own cost",
+            fontsize=9,
+            color=style(kind).colour,
+        )
     return fig
 
 
@@ -291,8 +338,16 @@ def fig_speed(rows: Sequence[Mapping[str, Any]]) -> Any:
     for kind in dict.fromkeys(r["realisation"] for r in ok):
         g = [r for r in ok if r["realisation"] == kind]
         st = style(kind)
-        ax.scatter([max(r["fit_s"], 1e-6) for r in g], [max(r["kernel_error"], 1e-12) for r in g], s=60,
-                   marker=st.marker, facecolors="none", edgecolors=st.colour, linewidths=1.6, label=st.title)
+        ax.scatter(
+            [max(r["fit_s"], 1e-6) for r in g],
+            [max(r["kernel_error"], 1e-12) for r in g],
+            s=60,
+            marker=st.marker,
+            facecolors="none",
+            edgecolors=st.colour,
+            linewidths=1.6,
+            label=st.title,
+        )
     if ok:
         from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
@@ -332,32 +387,54 @@ def fig_matched_rate(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> Any:
             if not isinstance(e, Mapping):
                 continue
             st = style(p.realisation)
-            for row in ([e["curve"]] if "curve" in e else []):
+            for row in [e["curve"]] if "curve" in e else []:
                 r = sorted(row, key=lambda q: q["rate"])
                 x, y = [q["rate"] for q in r], [q["metric"] for q in r]
-                ax.errorbar(x, y, xerr=[np.subtract(x, [q["rate_low"] for q in r]),
-                                        np.subtract([q["rate_high"] for q in r], x)],
-                            yerr=[np.subtract(y, [q["metric_low"] for q in r]),
-                                  np.subtract([q["metric_high"] for q in r], y)],
-                            fmt="-", lw=1.2, alpha=0.8, color=st.colour, capsize=2,
-                            label=f"{st.title}: threshold swept")
+                ax.errorbar(
+                    x,
+                    y,
+                    xerr=[np.subtract(x, [q["rate_low"] for q in r]), np.subtract([q["rate_high"] for q in r], x)],
+                    yerr=[np.subtract(y, [q["metric_low"] for q in r]), np.subtract([q["metric_high"] for q in r], y)],
+                    fmt="-",
+                    lw=1.2,
+                    alpha=0.8,
+                    color=st.colour,
+                    capsize=2,
+                    label=f"{st.title}: threshold swept",
+                )
                 for q in r:
-                    ax.annotate(f"{q['threshold']:g}", (q["rate"], q["metric"]), fontsize=6, xytext=(3, -8),
-                                textcoords="offset points", color=st.colour)
+                    ax.annotate(
+                        f"{q['threshold']:g}",
+                        (q["rate"], q["metric"]),
+                        fontsize=6,
+                        xytext=(3, -8),
+                        textcoords="offset points",
+                        color=st.colour,
+                    )
             q = e.get("point")
             if isinstance(q, Mapping):
                 metric_name = q.get("metric_name", metric_name)
-                ax.errorbar([q["rate"]], [q["metric"]], xerr=[[q["rate"] - q["rate_low"]], [q["rate_high"] - q["rate"]]],
-                            yerr=[[q["metric"] - q["metric_low"]], [q["metric_high"] - q["metric"]]],
-                            fmt=st.marker, ms=8, mfc="none", mew=1.6, capsize=3, color=st.colour, zorder=3,
-                            label=point_title(p.realisation, p.params))
+                ax.errorbar(
+                    [q["rate"]],
+                    [q["metric"]],
+                    xerr=[[q["rate"] - q["rate_low"]], [q["rate_high"] - q["rate"]]],
+                    yerr=[[q["metric"] - q["metric_low"]], [q["metric_high"] - q["metric"]]],
+                    fmt=st.marker,
+                    ms=8,
+                    mfc="none",
+                    mew=1.6,
+                    capsize=3,
+                    color=st.colour,
+                    zorder=3,
+                    label=point_title(p.realisation, p.params),
+                )
         ax.set_xscale("log")
         ax.set_xlabel("event rate (events/pixel/s)", fontsize=8)
         ax.set_ylabel(f"{task} {metric_name}".strip(), fontsize=8)
         ax.grid(alpha=0.3, which="both")
         ax.set_title(task, fontsize=9)
         ax.legend(fontsize=6)
-    for ax in axes[len(tasks):]:
+    for ax in axes[len(tasks) :]:
         ax.set_axis_off()
     return fig
 
@@ -388,8 +465,16 @@ def fig_cost_fronts(rows: Sequence[Mapping[str, Any]]) -> Any:
                     ax.scatter([_val(r, cost)], [yi], s=260, facecolors="none", edgecolors=style(kind).colour, lw=1.0)
                 swept = [_number(k, v) for k, v in _params(r).items() if k.startswith("costs.")]
                 if moves and swept and len(g) <= 8:
-                    ax.annotate(", ".join(swept), (_val(r, cost), yi), fontsize=6, xytext=(0, 12), ha="center",
-                                textcoords="offset points", rotation=90, va="bottom")
+                    ax.annotate(
+                        ", ".join(swept),
+                        (_val(r, cost), yi),
+                        fontsize=6,
+                        xytext=(0, 12),
+                        ha="center",
+                        textcoords="offset points",
+                        rotation=90,
+                        va="bottom",
+                    )
         if positive and len(positive) == len([v for v in vals if not math.isnan(v)]):
             ax.set_xscale("log")
         elif positive:

@@ -74,7 +74,6 @@ pre{background:#f7f7f7;padding:.6em;font-size:.8em;overflow:auto;white-space:pre
 """
 
 
-
 def _png(fig: Any) -> dict[str, Any]:
     """The figure as a base64 PNG at :data:`FIGURE_DPI` with its displayed size in CSS pixels (closes it)."""
     import matplotlib.pyplot as plt
@@ -83,8 +82,11 @@ def _png(fig: Any) -> dict[str, Any]:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=FIGURE_DPI)
     plt.close(fig)
-    return {"b64": base64.b64encode(buf.getvalue()).decode("ascii"), "width": round(w_in * CSS_DPI),
-            "height": round(h_in * CSS_DPI)}
+    return {
+        "b64": base64.b64encode(buf.getvalue()).decode("ascii"),
+        "width": round(w_in * CSS_DPI),
+        "height": round(h_in * CSS_DPI),
+    }
 
 
 def _figure(fig: Any, alt: str, caption: str, *, fig_id: str) -> Markup:
@@ -103,8 +105,10 @@ def _cell(v: Any) -> str:
 
 def _table_rows(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str]]) -> list[dict[str, Any]]:
     """Rows for the ``table`` macro: the formatted cells, and whether the row is on a Pareto front."""
-    return [{"front": bool(r.get("pareto") or r.get("pareto_all")), "cells": {c: _cell(r.get(c, "")) for c, _ in columns}}
-            for r in rows]
+    return [
+        {"front": bool(r.get("pareto") or r.get("pareto_all")), "cells": {c: _cell(r.get(c, "")) for c, _ in columns}}
+        for r in rows
+    ]
 
 
 def _names(items: Sequence[str]) -> str:
@@ -117,9 +121,14 @@ def _verdict_section(rows: Sequence[Mapping[str, Any]]) -> Markup:
     if not vt:
         return render("verdict.html.j2", rows=[])
     acc, acc_label = accuracy_axis(rows)
-    return render("verdict.html.j2", rows=[{**v, "colour": style(v["realisation_name"]).colour} for v in vt],
-                  advice=advice(rows), headers=[loss_header(rows) if c == "loss" else t for c, t in VERDICT_COLUMNS],
-                  acc_is_loss=acc.endswith("_loss"), acc_label=acc_label)
+    return render(
+        "verdict.html.j2",
+        rows=[{**v, "colour": style(v["realisation_name"]).colour} for v in vt],
+        advice=advice(rows),
+        headers=[loss_header(rows) if c == "loss" else t for c, t in VERDICT_COLUMNS],
+        acc_is_loss=acc.endswith("_loss"),
+        acc_label=acc_label,
+    )
 
 
 def _per_task_table(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
@@ -150,9 +159,14 @@ def _ci_cell(rec: Mapping[str, Any] | None, digits: int = 3) -> str:
 
 
 #: Columns of the equal-event-rate table.
-_MATCHED_COLUMNS = [("name", "point"), ("task", "task"), ("rate", "event rate (events/pixel/s)"),
-                    ("raw", "loss, same threshold"), ("matched", "loss at equal rate"),
-                    ("gain", "gain over a plain DVS at equal rate")]
+_MATCHED_COLUMNS = [
+    ("name", "point"),
+    ("task", "task"),
+    ("rate", "event rate (events/pixel/s)"),
+    ("raw", "loss, same threshold"),
+    ("matched", "loss at equal rate"),
+    ("gain", "gain over a plain DVS at equal rate"),
+]
 
 
 def _matched_rate_section(points: Sequence[ScoredPoint]) -> Markup | str:
@@ -161,10 +175,17 @@ def _matched_rate_section(points: Sequence[ScoredPoint]) -> Markup | str:
     if not any(m.get("status") == "ok" for _, m in recs):
         return ""
     tasks = list(dict.fromkeys(t for _, m in recs for t, e in m.items() if isinstance(e, Mapping)))
-    learned = next((m for p, m in recs if p.realisation == "learned" and not p.params), None) or \
-        next((m for p, m in recs if p.realisation == "learned"), {})
-    said = [(t, (learned.get(t) or {}).get("gain_over_plain_dvs_at_matched_rate") or
-             {"status": "no learned point with a plain-DVS curve"}) for t in tasks]
+    learned = next((m for p, m in recs if p.realisation == "learned" and not p.params), None) or next(
+        (m for p, m in recs if p.realisation == "learned"), {}
+    )
+    said = [
+        (
+            t,
+            (learned.get(t) or {}).get("gain_over_plain_dvs_at_matched_rate")
+            or {"status": "no learned point with a plain-DVS curve"},
+        )
+        for t in tasks
+    ]
     table = []
     for p, m in recs:
         for t in tasks:
@@ -173,18 +194,35 @@ def _matched_rate_section(points: Sequence[ScoredPoint]) -> Markup | str:
                 continue
             q = e.get("point") or {}
             loss = e.get("loss_at_matched_rate") or {}
-            raw = ({"status": "ok", "estimate": loss["raw_estimate"], "low": loss["raw_low"], "high": loss["raw_high"]}
-                   if loss.get("status") == "ok" else None)
-            table.append({"name": point_title(p.realisation, p.params), "task": t,
-                          "rate": (f"{q['rate']:.3g} [{q['rate_low']:.3g}, {q['rate_high']:.3g}]" if q else "–"),
-                          "raw": _ci_cell(raw), "matched": _ci_cell(loss),
-                          "gain": _ci_cell(e.get("gain_over_plain_dvs_at_matched_rate"))})
+            raw = (
+                {"status": "ok", "estimate": loss["raw_estimate"], "low": loss["raw_low"], "high": loss["raw_high"]}
+                if loss.get("status") == "ok"
+                else None
+            )
+            table.append(
+                {
+                    "name": point_title(p.realisation, p.params),
+                    "task": t,
+                    "rate": (f"{q['rate']:.3g} [{q['rate_low']:.3g}, {q['rate_high']:.3g}]" if q else "–"),
+                    "raw": _ci_cell(raw),
+                    "matched": _ci_cell(loss),
+                    "gain": _ci_cell(e.get("gain_over_plain_dvs_at_matched_rate")),
+                }
+            )
     png = _png(figures.fig_matched_rate(points))
-    alt = (f"Log-x line and scatter plots, one per task ({_names(tasks)}), of the task metric against the event rate: "
-           "the plain DVS and the learned kernel as their contrast threshold is swept, and every scored point at its "
-           "own threshold, with confidence bars on both axes.")
-    return render("matched_rate.html.j2", sentences=said, png=png, alt=alt, table=_table_rows(table, _MATCHED_COLUMNS),
-                  columns=_MATCHED_COLUMNS)
+    alt = (
+        f"Log-x line and scatter plots, one per task ({_names(tasks)}), of the task metric against the event rate: "
+        "the plain DVS and the learned kernel as their contrast threshold is swept, and every scored point at its "
+        "own threshold, with confidence bars on both axes."
+    )
+    return render(
+        "matched_rate.html.j2",
+        sentences=said,
+        png=png,
+        alt=alt,
+        table=_table_rows(table, _MATCHED_COLUMNS),
+        columns=_MATCHED_COLUMNS,
+    )
 
 
 def _score_tables(ok: Sequence[Mapping[str, Any]], methods: Sequence[str]) -> Markup:
@@ -194,16 +232,34 @@ def _score_tables(ok: Sequence[Mapping[str, Any]], methods: Sequence[str]) -> Ma
     def table(columns: list[tuple[str, str]]) -> dict[str, Any]:
         return {"rows": _table_rows(named, columns), "columns": columns}
 
-    fit = table([("name", "realisation"), ("kernel_error", "kernel error"), ("kernel_error_gain_free", "gain-free error"),
-                 ("peak_frequency_cpp", "peak (cycles/pixel)"), ("response_kind", "response")])
+    fit = table(
+        [
+            ("name", "realisation"),
+            ("kernel_error", "kernel error"),
+            ("kernel_error_gain_free", "gain-free error"),
+            ("peak_frequency_cpp", "peak (cycles/pixel)"),
+            ("response_kind", "response"),
+        ]
+    )
     csf_cols = [("name", "realisation")] + [(f"csf_{m}_correlation", _csf_name(m)) for m in methods]
     csf_cols += [("csf_fitted_correlation", "Mannos–Sakrison, fitted scale"), ("csf_fitted_ppd", "fitted px/degree")]
     metrics = list(dict.fromkeys(c for r in ok for c in r if c.startswith("metric_")))
     emulation = any("emu_event_ratio" in r for r in ok)
-    return render("scores.html.j2", fit=fit, csf=table(csf_cols),
-                  metrics=table([("name", "realisation")] + [(c, _metric_name(c)) for c in metrics]) if metrics else None,
-                  emulation=table([("name", "realisation"), ("emu_event_ratio", "events, emulated / in-sensor"),
-                                   ("emu_signed_correlation", "ON−OFF frame correlation")]) if emulation else None)
+    return render(
+        "scores.html.j2",
+        fit=fit,
+        csf=table(csf_cols),
+        metrics=table([("name", "realisation")] + [(c, _metric_name(c)) for c in metrics]) if metrics else None,
+        emulation=table(
+            [
+                ("name", "realisation"),
+                ("emu_event_ratio", "events, emulated / in-sensor"),
+                ("emu_signed_correlation", "ON−OFF frame correlation"),
+            ]
+        )
+        if emulation
+        else None,
+    )
 
 
 def _csf_name(method: str) -> str:
@@ -211,7 +267,7 @@ def _csf_name(method: str) -> str:
 
 
 def _metric_name(column: str) -> str:
-    task, _, track = column[len("metric_"):].partition("/")
+    task, _, track = column[len("metric_") :].partition("/")
     primary = {"detection": "mAP", "recognition": "top-1", "segmentation": "mIoU"}.get(task, "metric")
     return f"{task} {primary} ({track})"
 
@@ -228,12 +284,18 @@ _QUANTITY_COLUMNS = [("item", "quantity"), ("value", "value"), ("definition", "d
 
 def _realisation_details(points: Sequence[ScoredPoint]) -> Markup:
     """Per scored point: every stored cost and design quantity with its unit (SI prefixes) and definition."""
-    shown = [{"title": point_title(p.realisation, p.params),
-              "quantities": _table_rows(_quantities(p.realisation, p.score.cost), _QUANTITY_COLUMNS),
-              "warnings": [plain(w) for w in p.score.warnings]}
-             for p in points if p.ok and p.score is not None]
-    return render("realisations.html.j2", points=shown, columns=_QUANTITY_COLUMNS,
-                  shown_as_scores=list(_SHOWN_AS_SCORES.values()))
+    shown = [
+        {
+            "title": point_title(p.realisation, p.params),
+            "quantities": _table_rows(_quantities(p.realisation, p.score.cost), _QUANTITY_COLUMNS),
+            "warnings": [plain(w) for w in p.score.warnings],
+        }
+        for p in points
+        if p.ok and p.score is not None
+    ]
+    return render(
+        "realisations.html.j2", points=shown, columns=_QUANTITY_COLUMNS, shown_as_scores=list(_SHOWN_AS_SCORES.values())
+    )
 
 
 def _quantities(realisation: str, cost: Cost) -> list[dict[str, str]]:
@@ -264,8 +326,14 @@ def _float(v: Any) -> float:
     return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
 
 
-def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, *, title_text: str | None = None,
-                stamp: str | None = None, sections: Sequence[str] = ()) -> str:
+def render_html(
+    points: Sequence[Mapping[str, Any] | ScoredPoint],
+    design: Any,
+    *,
+    title_text: str | None = None,
+    stamp: str | None = None,
+    sections: Sequence[str] = (),
+) -> str:
     """The report as one HTML string (figures embedded), from the templates in ``report/templates``.
 
     Parameters
@@ -295,64 +363,108 @@ def render_html(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, 
     focal = spec.optics.focal_length_m
     n_ok, n_skip, n_err = (sum(r["status"] == s for r in rows) for s in ("ok", "skipped", "error"))
     page: dict[str, Any] = {
-        "page_title": title_text or f"FS-DVS design exploration: {design.name}", "css": Markup(_CSS), "target": t,
-        "focal": focal, "n_rows": len(rows), "n_ok": n_ok, "n_skip": n_skip, "n_err": n_err,
-        "verdict": _verdict_section(rows), "figures": None, "acc_label": acc_label,
-        "not_scored": _table_rows([{**r, "name": point_title(r["realisation"], r.get("params"))}
-                                   for r in rows if r["status"] != "ok"], [("name", ""), ("status", ""), ("reason", "")]),
+        "page_title": title_text or f"FS-DVS design exploration: {design.name}",
+        "css": Markup(_CSS),
+        "target": t,
+        "focal": focal,
+        "n_rows": len(rows),
+        "n_ok": n_ok,
+        "n_skip": n_skip,
+        "n_err": n_err,
+        "verdict": _verdict_section(rows),
+        "figures": None,
+        "acc_label": acc_label,
+        "not_scored": _table_rows(
+            [{**r, "name": point_title(r["realisation"], r.get("params"))} for r in rows if r["status"] != "ok"],
+            [("name", ""), ("status", ""), ("reason", "")],
+        ),
     }
     if ok:
         page.update(_figures_and_tables(points, rows, ok, acc, methods, t.pitch_m, focal))
     page.update(
         artifacts=artifacts_html(points),  # buildable files per hardware point (report/artifacts.py)
-        sections=[Markup(s) for s in sections if s], conditions=_conditions(points, rows, design),
-        version=__version__, python=platform.python_version(), node=platform.node(),
-        stamp=stamp or _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"), source=design.source,
-        versions=_versions(points), design_json=json.dumps(design.to_dict(), indent=1))
+        sections=[Markup(s) for s in sections if s],
+        conditions=_conditions(points, rows, design),
+        version=__version__,
+        python=platform.python_version(),
+        node=platform.node(),
+        stamp=stamp or _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        source=design.source,
+        versions=_versions(points),
+        design_json=json.dumps(design.to_dict(), indent=1),
+    )
     return str(render("report.html.j2", **page))
 
 
-def _figures_and_tables(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]],
-                        ok: Sequence[Mapping[str, Any]], acc: str, methods: Sequence[str], pitch_m: float,
-                        focal: float) -> dict[str, Any]:
+def _figures_and_tables(
+    points: Sequence[ScoredPoint],
+    rows: Sequence[Mapping[str, Any]],
+    ok: Sequence[Mapping[str, Any]],
+    acc: str,
+    methods: Sequence[str],
+    pitch_m: float,
+    focal: float,
+) -> dict[str, Any]:
     """The report's figures (PNG and alt text, drawn in page order) and the sections between them."""
     kinds = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok)]
     hw = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok if r.get("kind_cost"))]
     what = "accuracy loss" if acc.endswith("_loss") else "kernel error"
     bars = "with 95 % confidence bars " if acc.endswith("_loss") else ""
-    figs = {"pareto": {"png": _png(figures.fig_pareto(rows)),
-                       "alt": f"Scatter plots of {what} {bars}against CSF agreement for {_names(kinds)}, and against "
-                              f"each hardware kind's own cost{(' for ' + _names(hw)) if hw else ''}."}}
+    figs = {
+        "pareto": {
+            "png": _png(figures.fig_pareto(rows)),
+            "alt": f"Scatter plots of {what} {bars}against CSF agreement for {_names(kinds)}, and against "
+            f"each hardware kind's own cost{(' for ' + _names(hw)) if hw else ''}.",
+        }
+    }
     costs = cost_section(rows, points, _figure)  # physical costs across kinds (issue 25)
     panels = figures.realised_kernels(points)
     pnames = _names([p.label for p in panels])
-    figs["kernels"] = {"png": _png(figures.fig_kernels(panels)),
-                       "alt": f"Heat maps of the realised kernel taps of {pnames}, red positive and blue negative, "
-                              "each on its own colour scale centred at zero."}
-    figs["spectra"] = {"png": _png(figures.fig_spectra(panels)),
-                       "alt": f"Heat maps of the two-dimensional magnitude spectra of {pnames} on one shared colour "
-                              "scale."}
-    figs["radial"] = {"png": _png(figures.fig_radial(panels, methods=methods, pitch_m=pitch_m, focal_length_m=focal)),
-                      "alt": f"Line plots of the peak-normalised radial frequency responses of {pnames} against "
-                             "contrast sensitivity curves, at the design geometry and at a fitted viewing scale."}
+    figs["kernels"] = {
+        "png": _png(figures.fig_kernels(panels)),
+        "alt": f"Heat maps of the realised kernel taps of {pnames}, red positive and blue negative, "
+        "each on its own colour scale centred at zero.",
+    }
+    figs["spectra"] = {
+        "png": _png(figures.fig_spectra(panels)),
+        "alt": f"Heat maps of the two-dimensional magnitude spectra of {pnames} on one shared colour scale.",
+    }
+    figs["radial"] = {
+        "png": _png(figures.fig_radial(panels, methods=methods, pitch_m=pitch_m, focal_length_m=focal)),
+        "alt": f"Line plots of the peak-normalised radial frequency responses of {pnames} against "
+        "contrast sensitivity curves, at the design geometry and at a fitted viewing scale.",
+    }
     per_task = _per_task_table(rows)
     matched_rate = _matched_rate_section(points)
     scores = _score_tables(ok, methods)
     hw_kinds = [title(k) for k in dict.fromkeys(r["realisation"] for r in ok if r.get("kind_cost"))]
-    figs["speed"] = {"png": _png(figures.fig_speed(rows)),
-                     "alt": "Log-log scatter plot of kernel error against fit wall time for "
-                            f"{_names(hw_kinds) if hw_kinds else 'no hardware realisation'}."}
+    figs["speed"] = {
+        "png": _png(figures.fig_speed(rows)),
+        "alt": "Log-log scatter plot of kernel error against fit wall time for "
+        f"{_names(hw_kinds) if hw_kinds else 'no hardware realisation'}.",
+    }
     named = [{**r, "name": point_title(r["realisation"], r.get("params"))} for r in ok]
     wall = [{**r, **{c: si(_float(r.get(c)), "s") for c in _WALL}} for r in named]
-    return {"figures": figs, "what": what, "bars": bool(bars), "costs": costs, "per_task": per_task,
-            "matched_rate": matched_rate, "scores": scores, "realisations": _realisation_details(points),
-            "wall_times": _table_rows(wall, [("name", ""), *((c, "") for c in _WALL)])}
+    return {
+        "figures": figs,
+        "what": what,
+        "bars": bool(bars),
+        "costs": costs,
+        "per_task": per_task,
+        "matched_rate": matched_rate,
+        "scores": scores,
+        "realisations": _realisation_details(points),
+        "wall_times": _table_rows(wall, [("name", ""), *((c, "") for c in _WALL)]),
+    }
 
 
 def _versions(points: Sequence[ScoredPoint]) -> list[str]:
     """The numerical library versions the points were computed with (one line per distinct set)."""
-    sets = {tuple(sorted((k, str(v)) for k, v in p.score.versions.items()))
-            for p in points if p.score is not None and p.score.versions}
+    sets = {
+        tuple(sorted((k, str(v)) for k, v in p.score.versions.items()))
+        for p in points
+        if p.score is not None and p.score.versions
+    }
     return [", ".join(f"{k} {v}" for k, v in s) for s in sorted(sets)]
 
 
@@ -360,16 +472,23 @@ def _conditions(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]]
     """Run conditions: sensor, simulator of the task tracks, networks, task status."""
     sensors = set()
     for p in points:
-        for task, tracks in (p.score.tasks.tracks.items() if p.score is not None else ()):
+        for task, tracks in p.score.tasks.tracks.items() if p.score is not None else ():
             for track in tracks.values():
                 sensor = track.extra.get("sensor")
                 if isinstance(sensor, Mapping):
                     sensors.add(f"{task}: " + ", ".join(f"{k} = {v}" for k, v in sensor.items()))
     ok = [r for r in rows if r["status"] == "ok"]
     spec = design.spec
-    return render("conditions.html.j2", target=design.target, focal=spec.optics.focal_length_m,
-                  placement=spec.sensor.placement, positivity=spec.sensor.positivity, sensors=sorted(sensors),
-                  networks=networks_note(points), task_status=sorted({r.get("tasks_status", "") for r in ok} - {""}))
+    return render(
+        "conditions.html.j2",
+        target=design.target,
+        focal=spec.optics.focal_length_m,
+        placement=spec.sensor.placement,
+        positivity=spec.sensor.positivity,
+        sensors=sorted(sensors),
+        networks=networks_note(points),
+        task_status=sorted({r.get("tasks_status", "") for r in ok} - {""}),
+    )
 
 
 def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, out_dir: str | Path) -> Path:
@@ -399,7 +518,12 @@ def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any,
         if (out / name).is_symlink():
             raise InputError(f"--out: {out / name} is a symbolic link; refusing to write through it (remove the link)")
     points = _typed(points)
-    write_scores(with_cost_columns(score_rows(points), points), out, full=[p.to_dict() for p in points], design=design_stamp(design))
+    write_scores(
+        with_cost_columns(score_rows(points), points),
+        out,
+        full=[p.to_dict() for p in points],
+        design=design_stamp(design),
+    )
     path = out / "report.html"
     sections = []
     if (out / "codesign.json").is_file() and design.spec.codesign.enabled:  # issue 16 rows
@@ -448,17 +572,24 @@ def check_same_design(src: Path, stored: Any, points: Sequence[ScoredPoint], des
         diff = [
             k for k in dict.fromkeys([*run_flat, *now_flat]) if run_flat.get(k, "<unset>") != now_flat.get(k, "<unset>")
         ]
-        shown = "; ".join(f"{k}: run {json.dumps(run_flat.get(k, '<unset>'), default=str)[:40]}, given "
-                          f"{json.dumps(now_flat.get(k, '<unset>'), default=str)[:40]}" for k in diff[:3])
+        shown = "; ".join(
+            f"{k}: run {json.dumps(run_flat.get(k, '<unset>'), default=str)[:40]}, given "
+            f"{json.dumps(now_flat.get(k, '<unset>'), default=str)[:40]}"
+            for k in diff[:3]
+        )
         more = f" and {len(diff) - 3} more" if len(diff) > 3 else ""
-        raise InputError(f"{given}, fingerprint {design.fingerprint()[:12]}) does not match the design of the run "
-                         f"in {src} (design {str(stored.get('name'))[:60]!r}, fingerprint "
-                         f"{stored['fingerprint'][:12]}); differs in {shown or 'the target kernel'}{more}; pass "
-                         "the design file (and --set options) the run used")
+        raise InputError(
+            f"{given}, fingerprint {design.fingerprint()[:12]}) does not match the design of the run "
+            f"in {src} (design {str(stored.get('name'))[:60]!r}, fingerprint "
+            f"{stored['fingerprint'][:12]}); differs in {shown or 'the target kernel'}{more}; pass "
+            "the design file (and --set options) the run used"
+        )
     names = {str(p.extra.get("design")) for p in points if p.extra.get("design") is not None}
     if names and names != {design.name}:
-        raise InputError(f"{given}) does not match the design of the run in {src} (its points are of design "
-                         f"{', '.join(repr(n[:60]) for n in sorted(names)[:3])}); pass the design file the run used")
+        raise InputError(
+            f"{given}) does not match the design of the run in {src} (its points are of design "
+            f"{', '.join(repr(n[:60]) for n in sorted(names)[:3])}); pass the design file the run used"
+        )
 
 
 def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path | None = None) -> Path:
@@ -517,8 +648,10 @@ def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path
         raise InputError(f"{src}: field 'points' must be the list of stored points that write_report saves")
     points = [ScoredPoint.from_dict(p, where=f"{src}: points[{i}]") for i, p in enumerate(points)]
     if isinstance(design, (str, Path)) or not callable(getattr(design, "to_dict", None)):
-        raise InputError(f"write_report_from_scores: design must be a loaded design "
-                         f"(fsdvs_hw.explore.design.load_design(path)), got {type(design).__name__}")
+        raise InputError(
+            f"write_report_from_scores: design must be a loaded design "
+            f"(fsdvs_hw.explore.design.load_design(path)), got {type(design).__name__}"
+        )
     check_same_design(src, data.get("design"), points, design)
     dest = Path(to) if to is not None else Path(out_dir)
     extra = Path(out_dir) / "codesign.json"  # the co-design rows write_report reads beside the report

@@ -38,14 +38,34 @@ __all__ = [
 #: Units that take an SI prefix (``"m^2"`` takes it squared).
 PREFIXED_UNITS: frozenset[str] = frozenset({"m", "m^2", "s", "S", "F", "W", "J", "A", "V", "Hz"})
 
-_PREFIXES: tuple[tuple[int, str], ...] = ((-15, "f"), (-12, "p"), (-9, "n"), (-6, "µ"), (-3, "m"), (0, ""),
-                                          (3, "k"), (6, "M"), (9, "G"), (12, "T"))
+_PREFIXES: tuple[tuple[int, str], ...] = (
+    (-15, "f"),
+    (-12, "p"),
+    (-9, "n"),
+    (-6, "µ"),
+    (-3, "m"),
+    (0, ""),
+    (3, "k"),
+    (6, "M"),
+    (9, "G"),
+    (12, "T"),
+)
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 #: Markers handed to realisations that do not declare one (hollow-friendly shapes, in this order).
 _SPARE_MARKERS: tuple[str, ...] = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "p", "h", "*")
 #: Colours for realisations that do not declare one (matplotlib's tab10, in order).
-_SPARE_COLOURS: tuple[str, ...] = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
-                                   "#7f7f7f", "#bcbd22", "#17becf")
+_SPARE_COLOURS: tuple[str, ...] = (
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#d62728",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+    "#17becf",
+)
 
 
 @dataclass(frozen=True)
@@ -87,7 +107,7 @@ def style(name: str) -> Style:
         colour = spec.colour or free_colours[undeclared_c.index(name) % len(free_colours)]
         marker = spec.marker or free_markers[undeclared_m.index(name) % len(free_markers)]
         return Style(spec.title or name, colour, marker)
-    h = sum(ord(c) * 31 ** i for i, c in enumerate(name))  # not hash(): that changes per process
+    h = sum(ord(c) * 31**i for i, c in enumerate(name))  # not hash(): that changes per process
     return Style(name, free_colours[h % len(free_colours)], free_markers[h % len(free_markers)])
 
 
@@ -195,7 +215,7 @@ def si(value: float | None, unit: str, digits: int = 3) -> str:
     exp3 = min(max(exp3, _PREFIXES[0][0]), _PREFIXES[-1][0])
     scaled = value / 10.0 ** (exp3 * power)
     # rounding may carry into the next prefix (999.7 µm -> 1.00 mm)
-    if float(f"{abs(scaled):.{digits}g}") >= 1000 ** power and exp3 < _PREFIXES[-1][0]:
+    if float(f"{abs(scaled):.{digits}g}") >= 1000**power and exp3 < _PREFIXES[-1][0]:
         exp3 += 3
         scaled = value / 10.0 ** (exp3 * power)
     prefix = dict(_PREFIXES)[exp3]
@@ -222,7 +242,7 @@ def cost_label(realisation: str, item: str) -> str:
     """The label of cost item ``item`` of ``realisation``: its declared
     :class:`~fsdvs_hw.realise.registry.CostSpec` label, else the name with spaces."""
     spec = REALISATIONS.get(realisation)
-    for c in (spec.costs if spec is not None else ()):
+    for c in spec.costs if spec is not None else ():
         if c.name == item and c.label:
             return c.label
     words = item.removesuffix("_m2").removesuffix("_m").removesuffix("_px").split("_")

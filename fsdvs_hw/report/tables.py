@@ -50,6 +50,7 @@ __all__ = [
 #: Column prefix of each task track (the simulator track is unprefixed).
 TRACK_PREFIX: dict[str, str] = {"simulator": "", "emulation": "emu_"}
 
+
 def is_reference(name: str) -> bool:
     """Whether the realisation ``name`` is an ideal reference (no cost; never on a front)."""
     return name in REALISATIONS and REALISATIONS[name].kind == "reference"
@@ -191,8 +192,10 @@ def _loss_columns(row: dict[str, Any], paired: Mapping[str, Any]) -> None:
 
 
 #: Matched-rate comparison (:data:`fsdvs_hw.explore.matched.REFERENCES`) → its column stem.
-MATCHED_COLUMNS: dict[str, str] = {"loss_at_matched_rate": "loss_at_matched_rate",
-                                   "gain_over_plain_dvs_at_matched_rate": "gain_over_plain_dvs_at_matched_rate"}
+MATCHED_COLUMNS: dict[str, str] = {
+    "loss_at_matched_rate": "loss_at_matched_rate",
+    "gain_over_plain_dvs_at_matched_rate": "gain_over_plain_dvs_at_matched_rate",
+}
 
 
 def _rate_columns(row: dict[str, Any], res: Any, matched: Mapping[str, Any]) -> None:
@@ -302,8 +305,10 @@ def uncertain_pareto_front(objectives: Sequence[Sequence[tuple[float, float, flo
         better = any(ob[2] < oa[1] for ob, oa in zip(b, a))
         return no_worse and better
 
-    return [not bad[i] and not any(j != i and not bad[j] and dominates(pts[j], pts[i]) for j in range(len(pts)))
-            for i in range(len(pts))]
+    return [
+        not bad[i] and not any(j != i and not bad[j] and dominates(pts[j], pts[i]) for j in range(len(pts)))
+        for i in range(len(pts))
+    ]
 
 
 def _mark_pareto(rows: list[dict[str, Any]]) -> None:
@@ -336,9 +341,14 @@ def _mark_pareto(rows: list[dict[str, Any]]) -> None:
             r["pareto"] = f
 
 
-def write_scores(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, stem: str = "scores",
-                 full: Sequence[Mapping[str, Any]] | None = None,
-                 design: Mapping[str, Any] | None = None) -> tuple[Path, Path]:
+def write_scores(
+    rows: Sequence[Mapping[str, Any]],
+    out_dir: str | Path,
+    *,
+    stem: str = "scores",
+    full: Sequence[Mapping[str, Any]] | None = None,
+    design: Mapping[str, Any] | None = None,
+) -> tuple[Path, Path]:
     """Write ``<stem>.csv`` (flat rows) and ``<stem>.json`` (flat rows plus full records) to ``out_dir``.
 
     ``design`` (``{"name", "fingerprint", "data"}`` of the design the points came from) is kept in
@@ -375,8 +385,12 @@ def _fmt(v: Any) -> str:
 
 def _loss_tasks(rows: Sequence[Mapping[str, Any]], prefix: str = "") -> list[str]:
     """Task names with a loss column on a track (``weighted`` last)."""
-    names = [k[len(prefix):-len("_loss")] for r in rows for k in r
-             if _is_task_loss(k) and k.startswith(prefix) and (prefix or not k.startswith("emu_"))]
+    names = [
+        k[len(prefix) : -len("_loss")]
+        for r in rows
+        for k in r
+        if _is_task_loss(k) and k.startswith(prefix) and (prefix or not k.startswith("emu_"))
+    ]
     names = list(dict.fromkeys(names))
     return [n for n in names if n != "weighted"] + (["weighted"] if "weighted" in names else [])
 
@@ -415,8 +429,9 @@ def verdict_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
         if is_reference(r["realisation"]):
             v["Pareto"] = "reference"
         else:
-            fronts = [name for name, flag in (("within kind", r.get("pareto")), ("across kinds", r.get("pareto_all")))
-                      if flag]
+            fronts = [
+                name for name, flag in (("within kind", r.get("pareto")), ("across kinds", r.get("pareto_all"))) if flag
+            ]
             v["Pareto"] = ", ".join(fronts) if fronts else "dominated"
         out.append(v)
     return out
@@ -466,10 +481,15 @@ def networks_note(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> str:
         if not good:
             continue
         same = {n.get("trained_with_target") for n in good}
-        how = ("trained with the kernel being realised" if same == {True} else
-               "NOT trained with the kernel being realised (trained with: "
-               + ", ".join(sorted({str(n.get("training_kernel")) for n in good})) + ")" if same == {False} else
-               "some trained with the kernel being realised, some not")
+        how = (
+            "trained with the kernel being realised"
+            if same == {True}
+            else "NOT trained with the kernel being realised (trained with: "
+            + ", ".join(sorted({str(n.get("training_kernel")) for n in good}))
+            + ")"
+            if same == {False}
+            else "some trained with the kernel being realised, some not"
+        )
         frozen = {n.get("learn_filter") for n in good}
         mode = (
             " (kernel frozen while training)"

@@ -139,15 +139,24 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
         parts = []
         for r in rec:
             loss, n = loss_cell(r, acc)
-            parts.append(f"{point_title(str(r['realisation']), r.get('params'))} ({cost_cell(r)}; {loss}"
-                         f"{', ' + n if n else ''}; CSF r {number(_num(r.get('csf_fitted_correlation')))})")
-        how = ("with no measurable accuracy loss and not dominated in CSF agreement"
-               if all(_no_measurable_loss(r, acc) for r in rec) else f"smallest {what} among the undominated")
-        out.append(f"Build {' or '.join(parts)}: {how}. Costs of different kinds are in different units; "
-                   "pick the kind whose budget you have.")
+            parts.append(
+                f"{point_title(str(r['realisation']), r.get('params'))} ({cost_cell(r)}; {loss}"
+                f"{', ' + n if n else ''}; CSF r {number(_num(r.get('csf_fitted_correlation')))})"
+            )
+        how = (
+            "with no measurable accuracy loss and not dominated in CSF agreement"
+            if all(_no_measurable_loss(r, acc) for r in rec)
+            else f"smallest {what} among the undominated"
+        )
+        out.append(
+            f"Build {' or '.join(parts)}: {how}. Costs of different kinds are in different units; "
+            "pick the kind whose budget you have."
+        )
     for kind in dict.fromkeys(str(r["realisation"]) for r in hardware):
-        g = sorted((r for r in hardware if r["realisation"] == kind and r.get("kind_cost")),
-                   key=lambda r: _num(r.get("kind_cost_value")))
+        g = sorted(
+            (r for r in hardware if r["realisation"] == kind and r.get("kind_cost")),
+            key=lambda r: _num(r.get("kind_cost_value")),
+        )
         front = [r for r in g if r.get("pareto")]
         if len(front) < 2:  # one point: the table says it all
             continue
@@ -158,16 +167,20 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     best = {str(r["point"]) for r in rec}
     dominated = [r for r in hardware if _verdict_word(r, best, leading) == "not recommended"]
     if dominated:
-        out.append("Not recommended (another realisation is better beyond the CIs in "
-                   f"{what} and CSF agreement): "
-                   + "; ".join(f"{point_title(str(r['realisation']), r.get('params'))}, {phrase(r)}"
-                               for r in dominated) + ".")
+        out.append(
+            "Not recommended (another realisation is better beyond the CIs in "
+            f"{what} and CSF agreement): "
+            + "; ".join(f"{point_title(str(r['realisation']), r.get('params'))}, {phrase(r)}" for r in dominated)
+            + "."
+        )
     from .costs import cost_advice
 
     out.extend(cost_advice(rows))  # cheapest per physical cost within the loss budget; readout breaches
     if not acc.endswith("_loss"):
-        out.append("No task evaluator ran (no [tasks] checkpoints): points are ranked by kernel error (relative L2 "
-                   "against the target), not by accuracy loss.")
+        out.append(
+            "No task evaluator ran (no [tasks] checkpoints): points are ranked by kernel error (relative L2 "
+            "against the target), not by accuracy loss."
+        )
     return out
 
 
@@ -188,8 +201,16 @@ def verdict_table(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
     out = []
     for r in ok:
         loss, n = loss_cell(r, acc)
-        out.append({"realisation": point_title(str(r["realisation"]), r.get("params")), "loss": loss, "n": n,
-                    "agreement": number(_num(r.get("csf_fitted_correlation"))), "cost": cost_cell(r),
-                    "verdict": _verdict_word(r, best, leading), "realisation_name": str(r["realisation"]),
-                    "front": "1" if (r.get("pareto") or r.get("pareto_all")) else ""})
+        out.append(
+            {
+                "realisation": point_title(str(r["realisation"]), r.get("params")),
+                "loss": loss,
+                "n": n,
+                "agreement": number(_num(r.get("csf_fitted_correlation"))),
+                "cost": cost_cell(r),
+                "verdict": _verdict_word(r, best, leading),
+                "realisation_name": str(r["realisation"]),
+                "front": "1" if (r.get("pareto") or r.get("pareto_all")) else "",
+            }
+        )
     return out

@@ -116,8 +116,9 @@ class ClipDiskCache:
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise InputError(f"ClipDiskCache: folder {str(self.folder)!r} cannot be created "
-                             f"({exc.strerror or type(exc).__name__})") from None
+            raise InputError(
+                f"ClipDiskCache: folder {str(self.folder)!r} cannot be created ({exc.strerror or type(exc).__name__})"
+            ) from None
         if not os.access(self.folder, os.W_OK | os.X_OK):
             raise InputError(f"ClipDiskCache: folder {str(self.folder)!r} is not writable")
         self.max_bytes = int(float(max_mb) * 1e6)
@@ -153,8 +154,9 @@ class ClipDiskCache:
             except OSError:
                 raise InputError(f"ClipDiskCache: source file {str(p)!r} does not exist") from None
             stamps.append([str(p), st.st_size, st.st_mtime_ns])
-        blob = json.dumps({"format": CACHE_FORMAT, "files": stamps, "options": dict(options)}, sort_keys=True,
-                          default=str)
+        blob = json.dumps(
+            {"format": CACHE_FORMAT, "files": stamps, "options": dict(options)}, sort_keys=True, default=str
+        )
         return hashlib.sha256(blob.encode("utf-8")).hexdigest()
 
     def path(self, key: str) -> Path:

@@ -150,8 +150,11 @@ def _resize(img: np.ndarray, size: tuple[int, int], *, labels: bool = False) -> 
 def _check_size(size: Any, who: str) -> tuple[int, int] | None:
     if size is None:
         return None
-    if (not isinstance(size, (tuple, list)) or len(size) != 2
-            or not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 16384 for v in size)):
+    if (
+        not isinstance(size, (tuple, list))
+        or len(size) != 2
+        or not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 16384 for v in size)
+    ):
         raise InputError(f"{who}: size={size!r}; allowed: None or (H, W), integers in [1, 16384]")
     return int(size[0]), int(size[1])
 
@@ -240,8 +243,7 @@ class ClipDataset(Sequence[Clip], ABC):
 
     def decode_options(self) -> dict[str, Any]:
         """Every setting that changes a clip's decoded arrays (part of the disk cache's key)."""
-        return {"reader": type(self).__name__, "n_frames": self.n_frames, "size": self.size,
-                "transfer": self.transfer}
+        return {"reader": type(self).__name__, "n_frames": self.n_frames, "size": self.size, "transfer": self.transfer}
 
     def _decoded(self, i: int, decode: Callable[[], dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
         """``decode()``'s arrays for clip ``i``, through the disk cache when there is one."""
@@ -261,8 +263,9 @@ class ClipDataset(Sequence[Clip], ABC):
             return hit
         h, w = self.size if self.size is not None else (0, 0)
         if self.size is not None:
-            check_allocation(f"{type(self).__name__} clip {i} (T={self.n_frames}, H={h}, W={w}, float64)",
-                             8 * self.n_frames * h * w)
+            check_allocation(
+                f"{type(self).__name__} clip {i} (T={self.n_frames}, H={h}, W={w}, float64)", 8 * self.n_frames * h * w
+            )
         clip = self._load(i)
         if self.cache_clips:
             self._cache[i] = clip
@@ -284,7 +287,7 @@ class ClipDataset(Sequence[Clip], ABC):
 
     def iter_clips(self, indices: Sequence[int] | None = None) -> Iterator[Clip]:
         """Clips ``indices`` (default all), decoded one at a time."""
-        for i in (range(len(self)) if indices is None else indices):
+        for i in range(len(self)) if indices is None else indices:
             yield self[int(i)]
 
     def _frames(self, images: Sequence[np.ndarray], where: str) -> np.ndarray:
@@ -299,8 +302,10 @@ class ClipDataset(Sequence[Clip], ABC):
             if self.size is not None:
                 lum = _resize(lum, self.size)
             elif out and lum.shape != out[0].shape:
-                raise InputError(f"{where}: frame {k} is {lum.shape[0]}x{lum.shape[1]}, frame 0 "
-                                 f"{out[0].shape[0]}x{out[0].shape[1]}; field 'size': pass size=(H, W) to resize")
+                raise InputError(
+                    f"{where}: frame {k} is {lum.shape[0]}x{lum.shape[1]}, frame 0 "
+                    f"{out[0].shape[0]}x{out[0].shape[1]}; field 'size': pass size=(H, W) to resize"
+                )
             out.append(lum)
         return np.stack(out)
 
@@ -355,10 +360,20 @@ class VideoFolderDataset(ClipDataset):
 
     task = "recognition"
 
-    def __init__(self, root: str | Path, *, n_frames: int = 9, size: tuple[int, int] | None = None,
-                 split_file: str | Path | None = None, fps: float | None = None, stride: int = 1,
-                 start_frame: int = 0, transfer: str = "sRGB", cache_clips: int = 0,
-                 disk_cache: ClipDiskCache | None = None) -> None:
+    def __init__(
+        self,
+        root: str | Path,
+        *,
+        n_frames: int = 9,
+        size: tuple[int, int] | None = None,
+        split_file: str | Path | None = None,
+        fps: float | None = None,
+        stride: int = 1,
+        start_frame: int = 0,
+        transfer: str = "sRGB",
+        cache_clips: int = 0,
+        disk_cache: ClipDiskCache | None = None,
+    ) -> None:
         super().__init__(cache_clips=cache_clips, disk_cache=disk_cache)
         who = "VideoFolderDataset"
         self.root = Path(root)
@@ -377,8 +392,10 @@ class VideoFolderDataset(ClipDataset):
         for c in classes:
             files = sorted(p for p in (self.root / c).iterdir() if p.suffix.lower() in VIDEO_SUFFIXES)
             if not files:
-                raise InputError(f"{who}: class folder {str(self.root / c)!r} is empty: field 'videos' needs at "
-                                 f"least one file ending in {', '.join(VIDEO_SUFFIXES)}")
+                raise InputError(
+                    f"{who}: class folder {str(self.root / c)!r} is empty: field 'videos' needs at "
+                    f"least one file ending in {', '.join(VIDEO_SUFFIXES)}"
+                )
             videos[c] = files
         self.class_names = tuple(classes)
         self.num_classes = len(classes)
@@ -401,11 +418,15 @@ class VideoFolderDataset(ClipDataset):
             path = self.root / rel
             cls = Path(rel).parts[0] if len(Path(rel).parts) == 2 else None
             if cls not in label:
-                raise InputError(f"{who}: split_file {str(split)!r} line {n}: field 'path' {rel!r} is not "
-                                 f"<class>/<video> with a class folder of {str(self.root)!r}")
+                raise InputError(
+                    f"{who}: split_file {str(split)!r} line {n}: field 'path' {rel!r} is not "
+                    f"<class>/<video> with a class folder of {str(self.root)!r}"
+                )
             if not path.is_file():
-                raise InputError(f"{who}: split_file {str(split)!r} line {n}: field 'path' {rel!r}: "
-                                 f"file {str(path)!r} does not exist")
+                raise InputError(
+                    f"{who}: split_file {str(split)!r} line {n}: field 'path' {rel!r}: "
+                    f"file {str(path)!r} does not exist"
+                )
             items.append((path, label[cls]))
         if not items:
             raise InputError(f"{who}: split_file {str(split)!r} lists no videos")
@@ -456,13 +477,16 @@ class VideoFolderDataset(ClipDataset):
                     if j >= wanted[-1]:
                         break
             except Exception as exc:
-                raise InputError(f"{where}: field 'frames': decoding stopped after {j} frames "
-                                 f"({_ffmpeg_reason(exc)})") from None
+                raise InputError(
+                    f"{where}: field 'frames': decoding stopped after {j} frames ({_ffmpeg_reason(exc)})"
+                ) from None
         finally:
             reader.close()
         if len(images) < self.n_frames:
-            raise InputError(f"{where}: field 'frames': {len(images)} of the {self.n_frames} frames wanted "
-                             f"(start_frame={self.start_frame}, stride={self.stride})")
+            raise InputError(
+                f"{where}: field 'frames': {len(images)} of the {self.n_frames} frames wanted "
+                f"(start_frame={self.start_frame}, stride={self.stride})"
+            )
         return {"frames": self._frames(images, where), "fps": np.asarray(fps, dtype=np.float64)}
 
 
@@ -488,9 +512,7 @@ def _coco_categories(doc: Mapping[str, Any], who: str, j: str) -> tuple[list[int
     try:
         cat_ids = sorted(int(c["id"]) for c in cats)
     except (KeyError, TypeError, ValueError):
-        raise InputError(
-            f"{who}: annotations file {j!r}: field 'categories' entries need an integer 'id'"
-        ) from None
+        raise InputError(f"{who}: annotations file {j!r}: field 'categories' entries need an integer 'id'") from None
     if not cat_ids:
         raise InputError(f"{who}: annotations file {j!r}: field 'categories' is empty")
     names = {int(c["id"]): str(c.get("name", c["id"])) for c in cats}
@@ -502,18 +524,21 @@ def _coco_images(doc: Mapping[str, Any], frames_dir: Path, who: str, j: str) -> 
     images: dict[int, dict[str, Any]] = {}
     for k, im in enumerate(doc["images"]):
         if not isinstance(im, dict) or not all(f in im for f in ("id", "file_name", "width", "height")):
-            raise InputError(f"{who}: annotations file {j!r}: images[{k}] needs fields 'id', 'file_name', "
-                             "'width', 'height'")
+            raise InputError(
+                f"{who}: annotations file {j!r}: images[{k}] needs fields 'id', 'file_name', 'width', 'height'"
+            )
         path = frames_dir / str(im["file_name"])
         if not path.is_file():
-            raise InputError(f"{who}: annotations file {j!r}: images[{k}] field 'file_name': image "
-                             f"{str(path)!r} does not exist")
+            raise InputError(
+                f"{who}: annotations file {j!r}: images[{k}] field 'file_name': image {str(path)!r} does not exist"
+            )
         images[int(im["id"])] = im
     return images
 
 
-def _coco_boxes(doc: Mapping[str, Any], images: Mapping[int, Mapping[str, Any]], rank: Mapping[int, int], who: str,
-                j: str) -> dict[int, list[tuple[list[float], int]]]:
+def _coco_boxes(
+    doc: Mapping[str, Any], images: Mapping[int, Mapping[str, Any]], rank: Mapping[int, int], who: str, j: str
+) -> dict[int, list[tuple[list[float], int]]]:
     """Image id → its boxes ``([x0, y0, x1, y1] px, class index)``, each checked against its image and categories."""
     boxes: dict[int, list[tuple[list[float], int]]] = {i: [] for i in images}
     for k, a in enumerate(doc["annotations"]):
@@ -522,21 +547,33 @@ def _coco_boxes(doc: Mapping[str, Any], images: Mapping[int, Mapping[str, Any]],
             iid, cid = int(a["image_id"]), int(a["category_id"])
             x, y, w, h = (float(v) for v in a["bbox"])
         except (KeyError, TypeError, ValueError):
-            raise InputError(f"{who}: annotations file {j!r}: annotation {aid}: fields 'image_id', "
-                             "'category_id' and 'bbox' [x, y, w, h] are required") from None
+            raise InputError(
+                f"{who}: annotations file {j!r}: annotation {aid}: fields 'image_id', "
+                "'category_id' and 'bbox' [x, y, w, h] are required"
+            ) from None
         if iid not in images:
-            raise InputError(f"{who}: annotations file {j!r}: annotation {aid}: field 'image_id' {iid} "
-                             "names no image")
+            raise InputError(f"{who}: annotations file {j!r}: annotation {aid}: field 'image_id' {iid} names no image")
         if cid not in rank:
-            raise InputError(f"{who}: annotations file {j!r}: annotation {aid}: field 'category_id' {cid} "
-                             f"is not among the categories {list(rank)}")
+            raise InputError(
+                f"{who}: annotations file {j!r}: annotation {aid}: field 'category_id' {cid} "
+                f"is not among the categories {list(rank)}"
+            )
         im = images[iid]
         W, H = float(im["width"]), float(im["height"])
-        if not (np.isfinite([x, y, w, h]).all() and w > 0 and h > 0 and x >= 0 and y >= 0
-                and x + w <= W + 1e-6 and y + h <= H + 1e-6):
-            raise InputError(f"{who}: annotations file {j!r}: annotation {aid} (image "
-                             f"{im['file_name']!r}): field 'bbox' {[x, y, w, h]} lies outside the "
-                             f"{W:g}x{H:g} image or is empty")
+        if not (
+            np.isfinite([x, y, w, h]).all()
+            and w > 0
+            and h > 0
+            and x >= 0
+            and y >= 0
+            and x + w <= W + 1e-6
+            and y + h <= H + 1e-6
+        ):
+            raise InputError(
+                f"{who}: annotations file {j!r}: annotation {aid} (image "
+                f"{im['file_name']!r}): field 'bbox' {[x, y, w, h]} lies outside the "
+                f"{W:g}x{H:g} image or is empty"
+            )
         boxes[iid].append(([x, y, x + w, y + h], rank[cid]))
     return boxes
 
@@ -584,16 +621,27 @@ class CocoFramesDataset(ClipDataset):
 
     task = "detection"
 
-    def __init__(self, frames_dir: str | Path, annotations: str | Path, *, n_frames: int = 4,
-                 clip_stride: int | None = None, size: tuple[int, int] | None = None, fps: float = 30.0,
-                 require_annotations: bool = True, transfer: str = "sRGB", cache_clips: int = 0,
-                 disk_cache: ClipDiskCache | None = None) -> None:
+    def __init__(
+        self,
+        frames_dir: str | Path,
+        annotations: str | Path,
+        *,
+        n_frames: int = 4,
+        clip_stride: int | None = None,
+        size: tuple[int, int] | None = None,
+        fps: float = 30.0,
+        require_annotations: bool = True,
+        transfer: str = "sRGB",
+        cache_clips: int = 0,
+        disk_cache: ClipDiskCache | None = None,
+    ) -> None:
         super().__init__(cache_clips=cache_clips, disk_cache=disk_cache)
         who = "CocoFramesDataset"
         self.frames_dir, self.json_path = Path(frames_dir), Path(annotations)
         self.n_frames = check_count(f"{who}: n_frames", n_frames, 2, 100_000)
-        self.clip_stride = check_count(f"{who}: clip_stride", self.n_frames if clip_stride is None else clip_stride,
-                                       1, 100_000)
+        self.clip_stride = check_count(
+            f"{who}: clip_stride", self.n_frames if clip_stride is None else clip_stride, 1, 100_000
+        )
         self.size = _check_size(size, who)
         fps_checked = _check_fps(fps, who)
         if fps_checked is None:
@@ -612,8 +660,10 @@ class CocoFramesDataset(ClipDataset):
         if require_annotations:
             for iid, im in images.items():
                 if not boxes[iid]:
-                    raise InputError(f"{who}: annotations file {j!r}: image {im['file_name']!r} (id {iid}) has "
-                                     "no entry in field 'annotations' (pass require_annotations=False to allow)")
+                    raise InputError(
+                        f"{who}: annotations file {j!r}: image {im['file_name']!r} (id {iid}) has "
+                        "no entry in field 'annotations' (pass require_annotations=False to allow)"
+                    )
         seqs: dict[Any, list[int]] = collections.defaultdict(list)
         for iid, im in images.items():
             seqs[im.get("video_id", 0)].append(iid)
@@ -622,8 +672,9 @@ class CocoFramesDataset(ClipDataset):
         self.clips: list[list[int]] = []
         for key in sorted(seqs, key=str):
             order = sorted(seqs[key], key=lambda i: (images[i].get("frame_id", 0), str(images[i]["file_name"])))
-            self.clips += [order[s : s + self.n_frames] for s in _window_starts(len(order), self.n_frames,
-                                                                                  self.clip_stride)]
+            self.clips += [
+                order[s : s + self.n_frames] for s in _window_starts(len(order), self.n_frames, self.clip_stride)
+            ]
         if not self.clips:
             raise InputError(f"{who}: annotations file {j!r}: no sequence has {self.n_frames} frames (field 'images')")
         check_count(f"{who}: number of clips", len(self.clips), 1, MAX_CLIPS)
@@ -647,8 +698,14 @@ class CocoFramesDataset(ClipDataset):
             b[k] = np.asarray(box) * [sx, sy, sx, sy]
             lab[k] = c
         ts = np.arange(len(ids), dtype=np.float64) / self.fps
-        return Clip(frames, ts, {"boxes": b, "labels": lab},
-                    str(self.frames_dir / str(last["file_name"])), i, {"image_ids": list(ids)})
+        return Clip(
+            frames,
+            ts,
+            {"boxes": b, "labels": lab},
+            str(self.frames_dir / str(last["file_name"])),
+            i,
+            {"image_ids": list(ids)},
+        )
 
     def _decode(self, i: int) -> np.ndarray:
         """Clip ``i``'s frames (linear, at the stated size), each image checked against its stated size."""
@@ -659,8 +716,10 @@ class CocoFramesDataset(ClipDataset):
             where = f"CocoFramesDataset: clip {i} ({str(path)!r})"
             arr = _read_image(path, where)
             if arr.shape[:2] != (int(im["height"]), int(im["width"])):
-                raise InputError(f"{where}: image is {arr.shape[1]}x{arr.shape[0]} but the annotations file "
-                                 f"{str(self.json_path)!r} states field 'width'x'height' {im['width']}x{im['height']}")
+                raise InputError(
+                    f"{where}: image is {arr.shape[1]}x{arr.shape[0]} but the annotations file "
+                    f"{str(self.json_path)!r} states field 'width'x'height' {im['width']}x{im['height']}"
+                )
             imgs.append(arr)
         return self._frames(imgs, f"CocoFramesDataset: clip {i}")
 
@@ -707,18 +766,32 @@ class MaskFramesDataset(ClipDataset):
 
     task = "segmentation"
 
-    def __init__(self, frames_dir: str | Path, masks_dir: str | Path, *, num_classes: int, n_frames: int = 3,
-                 clip_stride: int | None = None, size: tuple[int, int] | None = None, fps: float = 30.0,
-                 ignore_index: int | None = 255, frame_suffix: str = "", mask_suffix: str = ".png",
-                 class_names: Sequence[str] | None = None, transfer: str = "sRGB", cache_clips: int = 0,
-                 disk_cache: ClipDiskCache | None = None) -> None:
+    def __init__(
+        self,
+        frames_dir: str | Path,
+        masks_dir: str | Path,
+        *,
+        num_classes: int,
+        n_frames: int = 3,
+        clip_stride: int | None = None,
+        size: tuple[int, int] | None = None,
+        fps: float = 30.0,
+        ignore_index: int | None = 255,
+        frame_suffix: str = "",
+        mask_suffix: str = ".png",
+        class_names: Sequence[str] | None = None,
+        transfer: str = "sRGB",
+        cache_clips: int = 0,
+        disk_cache: ClipDiskCache | None = None,
+    ) -> None:
         super().__init__(cache_clips=cache_clips, disk_cache=disk_cache)
         who = "MaskFramesDataset"
         self.frames_dir, self.masks_dir = Path(frames_dir), Path(masks_dir)
         self.num_classes = check_count(f"{who}: num_classes", num_classes, 2, 65535)
         self.n_frames = check_count(f"{who}: n_frames", n_frames, 2, 100_000)
-        self.clip_stride = check_count(f"{who}: clip_stride", self.n_frames if clip_stride is None else clip_stride,
-                                       1, 100_000)
+        self.clip_stride = check_count(
+            f"{who}: clip_stride", self.n_frames if clip_stride is None else clip_stride, 1, 100_000
+        )
         self.size = _check_size(size, who)
         fps_checked = _check_fps(fps, who)
         if fps_checked is None:
@@ -728,8 +801,9 @@ class MaskFramesDataset(ClipDataset):
             ignore_index = check_count(f"{who}: ignore_index", ignore_index, self.num_classes, 65535)
         self.ignore_index = ignore_index
         self.transfer = transfer
-        self.class_names = (tuple(class_names) if class_names is not None
-                            else tuple(str(k) for k in range(self.num_classes)))
+        self.class_names = (
+            tuple(class_names) if class_names is not None else tuple(str(k) for k in range(self.num_classes))
+        )
         if len(self.class_names) != self.num_classes:
             raise InputError(f"{who}: class_names has {len(self.class_names)} names for num_classes={num_classes}")
         for d, name in ((self.frames_dir, "frames_dir"), (self.masks_dir, "masks_dir")):
@@ -737,8 +811,9 @@ class MaskFramesDataset(ClipDataset):
                 raise InputError(f"{who}: {name} {str(d)!r} is not a folder")
         frames = sorted(p for p in self.frames_dir.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
         if not frames:
-            raise InputError(f"{who}: frames_dir {str(self.frames_dir)!r} holds no images "
-                             f"({', '.join(IMAGE_SUFFIXES)})")
+            raise InputError(
+                f"{who}: frames_dir {str(self.frames_dir)!r} holds no images ({', '.join(IMAGE_SUFFIXES)})"
+            )
         self.pairs: list[tuple[Path, Path]] = []
         for f in frames:
             stem = re.sub(re.escape(frame_suffix) + "$", "", f.stem) if frame_suffix else f.stem
@@ -747,14 +822,19 @@ class MaskFramesDataset(ClipDataset):
                 raise InputError(f"{who}: frame {str(f)!r}: field 'mask': label file {str(m)!r} does not exist")
             fs, ms = _image_size(f, who, "frame"), _image_size(m, who, "mask")
             if fs != ms:
-                raise InputError(f"{who}: mask {str(m)!r}: field 'size' {ms[1]}x{ms[0]} differs from its frame "
-                                 f"{str(f)!r} {fs[1]}x{fs[0]} (W x H)")
+                raise InputError(
+                    f"{who}: mask {str(m)!r}: field 'size' {ms[1]}x{ms[0]} differs from its frame "
+                    f"{str(f)!r} {fs[1]}x{fs[0]} (W x H)"
+                )
             self.pairs.append((f, m))
-        self.clips = [list(range(s, s + self.n_frames))
-                      for s in _window_starts(len(self.pairs), self.n_frames, self.clip_stride)]
+        self.clips = [
+            list(range(s, s + self.n_frames)) for s in _window_starts(len(self.pairs), self.n_frames, self.clip_stride)
+        ]
         if not self.clips:
-            raise InputError(f"{who}: frames_dir {str(self.frames_dir)!r} has {len(self.pairs)} frames, fewer than "
-                             f"n_frames={self.n_frames}")
+            raise InputError(
+                f"{who}: frames_dir {str(self.frames_dir)!r} has {len(self.pairs)} frames, fewer than "
+                f"n_frames={self.n_frames}"
+            )
         check_count(f"{who}: number of clips", len(self.clips), 1, MAX_CLIPS)
 
     def __len__(self) -> int:
@@ -784,14 +864,18 @@ class MaskFramesDataset(ClipDataset):
         mpath = self.pairs[idx[-1]][1]
         mask = _read_image(mpath, where)
         if mask.ndim != 2:
-            raise InputError(f"{where}: mask {str(mpath)!r}: field 'mode' has shape {mask.shape}; allowed: a "
-                             "single-channel (grey / palette) PNG of class ids")
+            raise InputError(
+                f"{where}: mask {str(mpath)!r}: field 'mode' has shape {mask.shape}; allowed: a "
+                "single-channel (grey / palette) PNG of class ids"
+            )
         mask = mask.astype(np.int64)
         bad = (mask >= self.num_classes) & (mask != (-1 if self.ignore_index is None else self.ignore_index))
         if bad.any():
             v = int(mask[bad][0])
-            raise InputError(f"{where}: mask {str(mpath)!r}: field 'class id' {v} is beyond the declared "
-                             f"{self.num_classes} classes (ignore_index={self.ignore_index})")
+            raise InputError(
+                f"{where}: mask {str(mpath)!r}: field 'class id' {v} is beyond the declared "
+                f"{self.num_classes} classes (ignore_index={self.ignore_index})"
+            )
         if self.size is not None:
             mask = _resize(mask, self.size, labels=True)
         return {"frames": frames, "mask": mask}
@@ -799,8 +883,16 @@ class MaskFramesDataset(ClipDataset):
 
 # --------------------------------------------------------------------------- DSEC-Detection
 #: The DSEC-Detection classes, in ``class_id`` order (Gehrig & Scaramuzza, Nature 2024).
-DSEC_DETECTION_CLASSES: tuple[str, ...] = ("pedestrian", "rider", "car", "bus", "truck", "bicycle", "motorcycle",
-                                           "train")
+DSEC_DETECTION_CLASSES: tuple[str, ...] = (
+    "pedestrian",
+    "rider",
+    "car",
+    "bus",
+    "truck",
+    "bicycle",
+    "motorcycle",
+    "train",
+)
 #: Fields of a DSEC-Detection ``tracks.npy`` record read here (``t`` in µs; box top-left x, y and w, h in px).
 DSEC_TRACK_FIELDS: tuple[str, ...] = ("t", "x", "y", "w", "h", "class_id")
 
@@ -852,10 +944,18 @@ class DsecDetectionDataset(ClipDataset):
 
     task = "detection"
 
-    def __init__(self, root: str | Path, *, n_frames: int = 4, clip_stride: int = 1,
-                 size: tuple[int, int] | None = None, class_names: Sequence[str] = DSEC_DETECTION_CLASSES,
-                 transfer: str = "sRGB", cache_clips: int = 0,
-                 disk_cache: ClipDiskCache | None = None) -> None:
+    def __init__(
+        self,
+        root: str | Path,
+        *,
+        n_frames: int = 4,
+        clip_stride: int = 1,
+        size: tuple[int, int] | None = None,
+        class_names: Sequence[str] = DSEC_DETECTION_CLASSES,
+        transfer: str = "sRGB",
+        cache_clips: int = 0,
+        disk_cache: ClipDiskCache | None = None,
+    ) -> None:
         super().__init__(cache_clips=cache_clips, disk_cache=disk_cache)
         who = "DsecDetectionDataset"
         self.root = Path(root)
@@ -867,11 +967,16 @@ class DsecDetectionDataset(ClipDataset):
         self.num_classes = check_count(f"{who}: number of class_names", len(self.class_names), 1, 65535)
         if not self.root.is_dir():
             raise InputError(f"{who}: root {str(self.root)!r} is not a folder")
-        seqs = ([self.root] if (self.root / "images" / "timestamps.txt").is_file()
-                else sorted(p for p in self.root.iterdir() if (p / "images" / "timestamps.txt").is_file()))
+        seqs = (
+            [self.root]
+            if (self.root / "images" / "timestamps.txt").is_file()
+            else sorted(p for p in self.root.iterdir() if (p / "images" / "timestamps.txt").is_file())
+        )
         if not seqs:
-            raise InputError(f"{who}: root {str(self.root)!r} holds no sequence (layout: <seq>/images/timestamps.txt, "
-                             "<seq>/images/left/rectified/*.png, <seq>/object_detections/left/tracks.npy)")
+            raise InputError(
+                f"{who}: root {str(self.root)!r} holds no sequence (layout: <seq>/images/timestamps.txt, "
+                "<seq>/images/left/rectified/*.png, <seq>/object_detections/left/tracks.npy)"
+            )
         self.images: list[list[Path]] = []
         self.stamps: list[np.ndarray] = []
         self.boxes: list[dict[int, list[tuple[list[float], int]]]] = []
@@ -884,8 +989,10 @@ class DsecDetectionDataset(ClipDataset):
             ends = [k for k in range(self.n_frames - 1, len(images)) if boxes.get(k)]
             self.clips += [(s, k) for k in ends[:: self.clip_stride]]
         if not self.clips:
-            raise InputError(f"{who}: root {str(self.root)!r}: no labelled image has {self.n_frames - 1} images "
-                             "before it (field 'tracks.t')")
+            raise InputError(
+                f"{who}: root {str(self.root)!r}: no labelled image has {self.n_frames - 1} images "
+                "before it (field 'tracks.t')"
+            )
         check_count(f"{who}: number of clips", len(self.clips), 1, MAX_CLIPS)
         self.max_objects = max(len(b) for bx in self.boxes for b in bx.values())
 
@@ -897,8 +1004,10 @@ class DsecDetectionDataset(ClipDataset):
             raise InputError(f"{who}: {str(ts_path)!r} is not one integer timestamp (µs) per line ({exc})") from None
         images = sorted((seq / "images" / "left" / "rectified").glob("*.png"))
         if len(images) != len(stamps):
-            raise InputError(f"{who}: {str(ts_path)!r} has {len(stamps)} timestamps for {len(images)} images in "
-                             f"{str(seq / 'images' / 'left' / 'rectified')!r}")
+            raise InputError(
+                f"{who}: {str(ts_path)!r} has {len(stamps)} timestamps for {len(images)} images in "
+                f"{str(seq / 'images' / 'left' / 'rectified')!r}"
+            )
         if len(stamps) > 1 and np.any(np.diff(stamps) <= 0):
             raise InputError(f"{who}: {str(ts_path)!r}: timestamps must increase")
         tr_path = seq / "object_detections" / "left" / "tracks.npy"
@@ -908,12 +1017,16 @@ class DsecDetectionDataset(ClipDataset):
             raise InputError(f"{who}: {str(tr_path)!r} cannot be read as a NumPy array ({exc})") from None
         missing = [f for f in DSEC_TRACK_FIELDS if tracks.dtype.names is None or f not in tracks.dtype.names]
         if missing:
-            raise InputError(f"{who}: {str(tr_path)!r}: fields {missing} missing; allowed: a structured array with "
-                             f"{', '.join(DSEC_TRACK_FIELDS)}")
+            raise InputError(
+                f"{who}: {str(tr_path)!r}: fields {missing} missing; allowed: a structured array with "
+                f"{', '.join(DSEC_TRACK_FIELDS)}"
+            )
         bad = tracks["class_id"].astype(np.int64) >= self.num_classes
         if bad.any():
-            raise InputError(f"{who}: {str(tr_path)!r}: field 'class_id' {int(tracks['class_id'][bad][0])} is beyond "
-                             f"the {self.num_classes} classes {list(self.class_names)}")
+            raise InputError(
+                f"{who}: {str(tr_path)!r}: field 'class_id' {int(tracks['class_id'][bad][0])} is beyond "
+                f"the {self.num_classes} classes {list(self.class_names)}"
+            )
         h, w = _image_size(images[0], who, "image") if images else (0, 0)
         where = {int(t): k for k, t in enumerate(stamps)}
         boxes: dict[int, list[tuple[list[float], int]]] = {}
@@ -939,8 +1052,9 @@ class DsecDetectionDataset(ClipDataset):
         s, last = self.clips[i]
         idx = range(last - self.n_frames + 1, last + 1)
         where = f"DsecDetectionDataset: clip {i}"
-        frames = self._decoded(i, lambda: {"frames": self._frames([_read_image(p, where) for p in self.clip_files(i)],
-                                                                  where)})["frames"]
+        frames = self._decoded(
+            i, lambda: {"frames": self._frames([_read_image(p, where) for p in self.clip_files(i)], where)}
+        )["frames"]
         h0, w0 = _image_size(self.images[s][last], where, "image")
         sy, sx = frames.shape[1] / h0, frames.shape[2] / w0
         b = np.full((self.max_objects, 4), -1.0)
@@ -949,5 +1063,11 @@ class DsecDetectionDataset(ClipDataset):
             b[k] = np.asarray(box) * [sx, sy, sx, sy]
             lab[k] = c
         t = self.stamps[s][list(idx)]
-        return Clip(frames, (t - t[0]) * 1e-6, {"boxes": b, "labels": lab}, str(self.images[s][last]), i,
-                    {"sequence": str(self.images[s][last].parents[3])})
+        return Clip(
+            frames,
+            (t - t[0]) * 1e-6,
+            {"boxes": b, "labels": lab},
+            str(self.images[s][last]),
+            i,
+            {"sequence": str(self.images[s][last].parents[3])},
+        )

@@ -165,9 +165,17 @@ class SceneConfig:
         _float_in("photon_count", 0.0, 1e9)
         for name in ("n_objects", "radius_px"):
             pair = getattr(self, name)
-            if isinstance(pair, (str, bytes)) or not isinstance(pair, (tuple, list)) or len(pair) != 2 \
-                    or not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
-                               and math.isfinite(v) for v in pair):
+            if (
+                isinstance(pair, (str, bytes))
+                or not isinstance(pair, (tuple, list))
+                or len(pair) != 2
+                or not all(
+                    isinstance(v, (int, float, np.integer, np.floating))
+                    and not isinstance(v, bool)
+                    and math.isfinite(v)
+                    for v in pair
+                )
+            ):
                 raise InputError(f"SceneConfig.{name} must be a (min, max) pair of numbers, got {one_line(pair)}")
         lo, hi = self.n_objects
         if not (isinstance(lo, int) and isinstance(hi, int) and 1 <= lo <= hi <= 16):
@@ -207,8 +215,9 @@ class SceneConfig:
     def from_dict(cls, data: dict[str, Any]) -> SceneConfig:
         """Inverse of :meth:`to_dict`; unknown fields raise :class:`InputError`."""
         if not isinstance(data, dict):
-            raise InputError(f"SceneConfig.from_dict: data must be a dict of SceneConfig fields, got "
-                             f"{type(data).__name__}")
+            raise InputError(
+                f"SceneConfig.from_dict: data must be a dict of SceneConfig fields, got {type(data).__name__}"
+            )
         known = set(cls.__dataclass_fields__)
         extra = set(data) - known
         if extra:
@@ -275,14 +284,22 @@ class SceneBatch:
     def subset(self, index: Any) -> SceneBatch:
         """The clips selected by ``index`` (int, slice, integer index array or boolean mask of clips)."""
         arr = np.asarray(index) if not isinstance(index, slice) else None
-        if arr is not None and (arr.dtype.kind not in "iub" or arr.ndim > 1
-                                or (arr.dtype.kind == "b" and arr.shape != (len(self),))):
-            raise InputError(f"SceneBatch.subset: index={one_line(index)}; allowed: an int, a slice, a 1-D integer "
-                             f"index array or a boolean mask of {len(self)} clips")
-        if arr is not None and arr.dtype.kind in "iu" and arr.size and not (-len(self) <= arr.min()
-                                                                              and arr.max() < len(self)):
-            raise InputError(f"SceneBatch.subset: index out of range for {len(self)} clips; allowed: "
-                             f"[{-len(self)}, {len(self) - 1}]")
+        if arr is not None and (
+            arr.dtype.kind not in "iub" or arr.ndim > 1 or (arr.dtype.kind == "b" and arr.shape != (len(self),))
+        ):
+            raise InputError(
+                f"SceneBatch.subset: index={one_line(index)}; allowed: an int, a slice, a 1-D integer "
+                f"index array or a boolean mask of {len(self)} clips"
+            )
+        if (
+            arr is not None
+            and arr.dtype.kind in "iu"
+            and arr.size
+            and not (-len(self) <= arr.min() and arr.max() < len(self))
+        ):
+            raise InputError(
+                f"SceneBatch.subset: index out of range for {len(self)} clips; allowed: [{-len(self)}, {len(self) - 1}]"
+            )
         return replace(
             self,
             video=self.video[index],
@@ -327,10 +344,20 @@ def is_sub_threshold(edge_contrast: float, threshold: float) -> bool:
 #: (static camera, noiseless 1/f texture of RMS 0.15, edge contrast 0.22), in which the detection
 #: network does not need the filter.
 SCENE_REGIMES: dict[str, dict[str, Any]] = {
-    "clutter": {"background": "gravel", "texture_contrast": 0.2, "background_speed_px_per_frame": 0.5,
-                "photon_count": 1000.0, "edge_contrast": 0.2},
-    "legacy": {"background": "noise_1f", "texture_contrast": 0.15, "background_speed_px_per_frame": 0.0,
-               "photon_count": 0.0, "edge_contrast": 0.22},
+    "clutter": {
+        "background": "gravel",
+        "texture_contrast": 0.2,
+        "background_speed_px_per_frame": 0.5,
+        "photon_count": 1000.0,
+        "edge_contrast": 0.2,
+    },
+    "legacy": {
+        "background": "noise_1f",
+        "texture_contrast": 0.15,
+        "background_speed_px_per_frame": 0.0,
+        "photon_count": 0.0,
+        "edge_contrast": 0.22,
+    },
 }
 
 
@@ -417,8 +444,9 @@ def _texture(cfg: SceneConfig, rng: np.random.Generator, h: int, w: int) -> np.n
 
 
 # --------------------------------------------------------------------------- shapes
-def _coverage(shape: int, cx: float, cy: float, r: float, angle: float, yy: np.ndarray, xx: np.ndarray,
-              softness: float) -> np.ndarray:
+def _coverage(
+    shape: int, cx: float, cy: float, r: float, angle: float, yy: np.ndarray, xx: np.ndarray, softness: float
+) -> np.ndarray:
     """Fractional coverage (0…1) of every pixel by a shape, from its signed distance (pixels)."""
     # pixel centres are at i + 0.5
     u = xx + 0.5 - cx
@@ -453,8 +481,14 @@ def _trajectory(
     else:
         name = MOTION_CLASSES[motion]
         sp = cfg.speed_px_per_frame
-        vx, vy, vr = {"right": (sp, 0, 0), "left": (-sp, 0, 0), "down": (0, sp, 0), "up": (0, -sp, 0),
-                      "expand": (0, 0, sp), "contract": (0, 0, -sp)}[name]
+        vx, vy, vr = {
+            "right": (sp, 0, 0),
+            "left": (-sp, 0, 0),
+            "down": (0, sp, 0),
+            "up": (0, -sp, 0),
+            "expand": (0, 0, sp),
+            "contract": (0, 0, -sp),
+        }[name]
     span = cfg.n_frames - 1
     if vr < 0:  # contracting objects start large enough to stay >= the smallest radius
         r0 = max(r0, cfg.radius_px[0] - vr * span)
@@ -513,8 +547,10 @@ def make_scenes(config: SceneConfig, n_clips: int, seed: int = 0) -> SceneBatch:
     n, t_len, h, w = int(n_clips), cfg.n_frames, cfg.height_px, cfg.width_px
     m_max = 1 if cfg.motion == "classes" else cfg.n_objects[1]
     # the video (float64) and the masks (int64) are the largest arrays: refused before allocation
-    check_allocation(f"make_scenes video and masks (n_clips={n}, n_frames={t_len}, {h}x{w} px, 8-byte values)",
-                     8.0 * n * t_len * h * w)
+    check_allocation(
+        f"make_scenes video and masks (n_clips={n}, n_frames={t_len}, {h}x{w} px, 8-byte values)",
+        8.0 * n * t_len * h * w,
+    )
     video = np.empty((n, t_len, h, w))
     masks = np.zeros((n, t_len, h, w), dtype=np.int64)
     boxes = np.full((n, t_len, m_max, 4), np.nan)
@@ -565,5 +601,14 @@ def make_scenes(config: SceneConfig, n_clips: int, seed: int = 0) -> SceneBatch:
             video[i, k] = cfg.illuminance * refl
         if cfg.photon_count > 0:  # photon shot noise, drawn from this clip's own stream
             video[i] = rng.poisson(video[i] * cfg.photon_count) / cfg.photon_count
-    return SceneBatch(video=video, timestamps_s=cfg.timestamps_s, boxes=boxes, labels=labels, motion=motion,
-                      masks=masks, contrast=contrast, config=cfg, seed=int(seed))
+    return SceneBatch(
+        video=video,
+        timestamps_s=cfg.timestamps_s,
+        boxes=boxes,
+        labels=labels,
+        motion=motion,
+        masks=masks,
+        contrast=contrast,
+        config=cfg,
+        seed=int(seed),
+    )

@@ -93,8 +93,7 @@ def v2e_gray(frame: Any, size: tuple[int, int] | None = None) -> np.ndarray:
 
     code = np.asarray(frame)
     if code.dtype != np.uint8 or code.ndim not in (2, 3) or (code.ndim == 3 and code.shape[-1] not in (3, 4)):
-        raise InputError(f"v2e_gray: frames must be 8-bit gray (H, W) or RGB (H, W, 3), got {code.dtype} "
-                         f"{code.shape}")
+        raise InputError(f"v2e_gray: frames must be 8-bit gray (H, W) or RGB (H, W, 3), got {code.dtype} {code.shape}")
     code = np.ascontiguousarray(code[..., :3]) if code.ndim == 3 else code
     if size is not None and tuple(size) != code.shape[:2]:
         code = cv2.resize(code, (int(size[1]), int(size[0])), interpolation=cv2.INTER_AREA)
@@ -151,13 +150,16 @@ def _luminance_weights(colourspace: str) -> np.ndarray:
     import colour
 
     if colourspace not in colour.RGB_COLOURSPACES:
-        raise InputError(f"colourspace {colourspace!r} unknown to colour-science; e.g. 'ITU-R BT.709', "
-                         "'sRGB', 'ITU-R BT.2020', 'Display P3'")
+        raise InputError(
+            f"colourspace {colourspace!r} unknown to colour-science; e.g. 'ITU-R BT.709', "
+            "'sRGB', 'ITU-R BT.2020', 'Display P3'"
+        )
     return np.asarray(colour.RGB_COLOURSPACES[colourspace].matrix_RGB_to_XYZ[1], dtype=np.float64)
 
 
-def display_to_linear(frames: Any, *, transfer: str = "ITU-R BT.1886", colourspace: str = "ITU-R BT.709",
-                      bit_depth: int | None = None) -> np.ndarray:
+def display_to_linear(
+    frames: Any, *, transfer: str = "ITU-R BT.1886", colourspace: str = "ITU-R BT.709", bit_depth: int | None = None
+) -> np.ndarray:
     """Decode display code values to linear relative luminance.
 
     Parameters
@@ -180,7 +182,7 @@ def display_to_linear(frames: Any, *, transfer: str = "ITU-R BT.1886", colourspa
     arr = np.asarray(frames)
     if arr.dtype.kind in "ui":
         bits = bit_depth or (8 * arr.dtype.itemsize)
-        code = arr.astype(np.float64) / (2 ** bits - 1)
+        code = arr.astype(np.float64) / (2**bits - 1)
     elif arr.dtype.kind == "f":
         code = arr.astype(np.float64)
     else:
@@ -188,17 +190,26 @@ def display_to_linear(frames: Any, *, transfer: str = "ITU-R BT.1886", colourspa
     if not np.all(np.isfinite(code)) or code.min(initial=0) < 0 or code.max(initial=0) > 1:
         raise InputError("frames: code values must be finite and within [0, 1] (or the integer range)")
     if transfer not in colour.CCTF_DECODINGS:
-        raise InputError(f"transfer {transfer!r} unknown; allowed e.g. 'ITU-R BT.1886', 'sRGB', "
-                         "'Gamma 2.2' (any colour.CCTF_DECODINGS name)")
+        raise InputError(
+            f"transfer {transfer!r} unknown; allowed e.g. 'ITU-R BT.1886', 'sRGB', "
+            "'Gamma 2.2' (any colour.CCTF_DECODINGS name)"
+        )
     linear = np.asarray(colour.cctf_decoding(code, function=transfer), dtype=np.float64)
     if linear.ndim >= 1 and linear.shape[-1] == 3:
         linear = linear @ _luminance_weights(colourspace)
     return np.clip(linear, 0.0, None)
 
 
-def _check_reading(path: str | Path, start_frame: int, n_frames: int | None, stride: int,
-                   size: tuple[int, int] | None, colourspace: str, peak_intensity: float,
-                   min_frames: int) -> Path:
+def _check_reading(
+    path: str | Path,
+    start_frame: int,
+    n_frames: int | None,
+    stride: int,
+    size: tuple[int, int] | None,
+    colourspace: str,
+    peak_intensity: float,
+    min_frames: int,
+) -> Path:
     p = Path(path)
     if not p.is_file():
         raise InputError(f"video file {str(p)!r} does not exist")
@@ -220,9 +231,24 @@ def _ffmpeg_reason(exc: BaseException) -> str:
     import re
 
     lines = [re.sub(r"^\[[^\]]*@ 0x[0-9a-f]+\]\s*", "", ln).strip() for ln in str(exc).splitlines()]
-    keep = [ln for ln in lines if ln and not ln.startswith(("ffmpeg version", "built with", "configuration:",
-                                                            "lib", "===", "Input #", "Metadata", "Duration",
-                                                            "Stream #"))]
+    keep = [
+        ln
+        for ln in lines
+        if ln
+        and not ln.startswith(
+            (
+                "ffmpeg version",
+                "built with",
+                "configuration:",
+                "lib",
+                "===",
+                "Input #",
+                "Metadata",
+                "Duration",
+                "Stream #",
+            )
+        )
+    ]
     text = keep[-1] if keep else type(exc).__name__
     return text if len(text) <= 200 else text[:197] + "..."
 
@@ -266,11 +292,19 @@ def video_properties(path: str | Path) -> dict[str, Any]:
     return {k: meta.get(k) for k in ("fps", "nframes", "source_size", "codec", "duration")}
 
 
-def iter_video(path: str | Path, *, start_frame: int = 0, n_frames: int | None = None, stride: int = 1,
-               size: tuple[int, int] | None = None, transfer: str = "ITU-R BT.1886",
-               colourspace: str = "ITU-R BT.709", peak_intensity: float = 1.0,
-               allow_truncated: bool = False,
-               input_mapping: str = "linear_light") -> Iterator[tuple[float, np.ndarray]]:
+def iter_video(
+    path: str | Path,
+    *,
+    start_frame: int = 0,
+    n_frames: int | None = None,
+    stride: int = 1,
+    size: tuple[int, int] | None = None,
+    transfer: str = "ITU-R BT.1886",
+    colourspace: str = "ITU-R BT.709",
+    peak_intensity: float = 1.0,
+    allow_truncated: bool = False,
+    input_mapping: str = "linear_light",
+) -> Iterator[tuple[float, np.ndarray]]:
     """Decode a video file frame by frame to linear relative luminance (constant memory).
 
     Yields ``(t_s, frame)``: the frame's time in seconds from the start of the file and a
@@ -291,10 +325,22 @@ def iter_video(path: str | Path, *, start_frame: int = 0, n_frames: int | None =
     if input_mapping not in INPUT_MAPPINGS:
         raise InputError(f"input_mapping {input_mapping!r} unknown; allowed: {', '.join(INPUT_MAPPINGS)}")
     if transfer not in _cctf_names():
-        raise InputError(f"transfer {transfer!r} unknown; allowed e.g. 'ITU-R BT.1886', 'sRGB', "
-                         "'Gamma 2.2' (any colour.CCTF_DECODINGS name)")
-    return _iter_frames(p, start_frame, n_frames, stride, size, transfer, colourspace, float(peak_intensity),
-                        allow_truncated, input_mapping)
+        raise InputError(
+            f"transfer {transfer!r} unknown; allowed e.g. 'ITU-R BT.1886', 'sRGB', "
+            "'Gamma 2.2' (any colour.CCTF_DECODINGS name)"
+        )
+    return _iter_frames(
+        p,
+        start_frame,
+        n_frames,
+        stride,
+        size,
+        transfer,
+        colourspace,
+        float(peak_intensity),
+        allow_truncated,
+        input_mapping,
+    )
 
 
 def _cctf_names() -> Any:
@@ -303,9 +349,18 @@ def _cctf_names() -> Any:
     return colour.CCTF_DECODINGS
 
 
-def _iter_frames(p: Path, start_frame: int, n_frames: int | None, stride: int, size: tuple[int, int] | None,
-                 transfer: str, colourspace: str, peak: float,
-                 allow_truncated: bool = False, input_mapping: str = "linear_light") -> Iterator[tuple[float, np.ndarray]]:
+def _iter_frames(
+    p: Path,
+    start_frame: int,
+    n_frames: int | None,
+    stride: int,
+    size: tuple[int, int] | None,
+    transfer: str,
+    colourspace: str,
+    peak: float,
+    allow_truncated: bool = False,
+    input_mapping: str = "linear_light",
+) -> Iterator[tuple[float, np.ndarray]]:
     reader = _open_reader(p)
     try:
         meta = dict(reader.get_meta_data())
@@ -322,9 +377,11 @@ def _iter_frames(p: Path, start_frame: int, n_frames: int | None, stride: int, s
             except (RuntimeError, OSError, ValueError) as exc:  # imageio: "Could not read frame ..."
                 if allow_truncated:
                     break
-                raise InputError(f"video file {str(p)!r}: frame {i} cannot be decoded ({_ffmpeg_reason(exc)}); "
-                                 "truncated or corrupt file (allow_truncated / --allow-truncated uses the "
-                                 f"{i} frames before it)") from None
+                raise InputError(
+                    f"video file {str(p)!r}: frame {i} cannot be decoded ({_ffmpeg_reason(exc)}); "
+                    "truncated or corrupt file (allow_truncated / --allow-truncated uses the "
+                    f"{i} frames before it)"
+                ) from None
             decoded = i + 1
             if i < start_frame or (i - start_frame) % stride:
                 continue
@@ -342,17 +399,27 @@ def _iter_frames(p: Path, start_frame: int, n_frames: int | None, stride: int, s
                 return
         declared = _declared_frames(meta)
         if declared is not None and decoded < declared - 1 and not allow_truncated:
-            raise InputError(f"video file {str(p)!r}: decoded {decoded} frames but the container declares "
-                             f"{declared} ({meta.get('duration')} s at {fps:g} fps): truncated or corrupt file "
-                             "(allow_truncated / --allow-truncated uses the decodable frames)")
+            raise InputError(
+                f"video file {str(p)!r}: decoded {decoded} frames but the container declares "
+                f"{declared} ({meta.get('duration')} s at {fps:g} fps): truncated or corrupt file "
+                "(allow_truncated / --allow-truncated uses the decodable frames)"
+            )
     finally:
         reader.close()
 
 
-def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, stride: int = 1,
-               size: tuple[int, int] | None = None, transfer: str = "ITU-R BT.1886",
-               colourspace: str = "ITU-R BT.709", peak_intensity: float = 1.0,
-               input_mapping: str = "linear_light") -> VideoClip:
+def load_video(
+    path: str | Path,
+    *,
+    start_frame: int = 0,
+    n_frames: int = 17,
+    stride: int = 1,
+    size: tuple[int, int] | None = None,
+    transfer: str = "ITU-R BT.1886",
+    colourspace: str = "ITU-R BT.709",
+    peak_intensity: float = 1.0,
+    input_mapping: str = "linear_light",
+) -> VideoClip:
     """Decode ``n_frames`` frames of a video file to linear relative luminance.
 
     Parameters
@@ -378,13 +445,25 @@ def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, st
     streaming simulator :func:`fsdvs_hw.sensor.simulate`.
     """
     p = _check_reading(path, start_frame, n_frames, stride, size, colourspace, peak_intensity, 2)
-    frames = list(iter_video(p, start_frame=start_frame, n_frames=n_frames, stride=stride, size=size,
-                             transfer=transfer, colourspace=colourspace, peak_intensity=peak_intensity,
-                             input_mapping=input_mapping))
+    frames = list(
+        iter_video(
+            p,
+            start_frame=start_frame,
+            n_frames=n_frames,
+            stride=stride,
+            size=size,
+            transfer=transfer,
+            colourspace=colourspace,
+            peak_intensity=peak_intensity,
+            input_mapping=input_mapping,
+        )
+    )
     if len(frames) < n_frames:
         last = start_frame + (n_frames - 1) * stride
-        raise InputError(f"video file {str(p)!r} has only {len(frames)} of the {n_frames} frames wanted "
-                         f"(asked for frames up to {last})")
+        raise InputError(
+            f"video file {str(p)!r} has only {len(frames)} of the {n_frames} frames wanted "
+            f"(asked for frames up to {last})"
+        )
     reader = _open_reader(p)
     try:
         meta = reader.get_meta_data()
@@ -395,8 +474,15 @@ def load_video(path: str | Path, *, start_frame: int = 0, n_frames: int = 17, st
     lum = np.stack([f for _, f in frames])
     if input_mapping == "v2e_gray":  # no display decoding: the clip records what was used
         transfer, colourspace = "none (v2e gray code values)", "OpenCV BGR2GRAY weights"
-    return VideoClip(lum, times, fps, str(p), transfer, colourspace,
-                     {"codec": meta.get("codec"), "source_size": meta.get("source_size")})
+    return VideoClip(
+        lum,
+        times,
+        fps,
+        str(p),
+        transfer,
+        colourspace,
+        {"codec": meta.get("codec"), "source_size": meta.get("source_size")},
+    )
 
 
 def load_example_clip(name: str = "bikes", **kwargs: Any) -> VideoClip:

@@ -61,8 +61,7 @@ def _build() -> Path:
     fd, tmp = tempfile.mkstemp(suffix=".so", dir=out.parent)
     os.close(fd)
     try:
-        res = subprocess.run([cc, *_FLAGS, "-o", tmp, str(_SOURCE), "-lm"], capture_output=True, text=True,
-                             check=False)
+        res = subprocess.run([cc, *_FLAGS, "-o", tmp, str(_SOURCE), "-lm"], capture_output=True, text=True, check=False)
         if res.returncode != 0:
             raise OSError(f"{cc} failed: {res.stderr.strip()[-500:]}")
         os.replace(tmp, out)  # atomic: parallel builders (pytest -n) never load a half-written file
@@ -123,11 +122,26 @@ def _ptr(a: np.ndarray | None) -> int | None:
     return None if a is None else a.ctypes.data
 
 
-def step_events(h_on: np.ndarray, h_off: np.ndarray, sig_a: np.ndarray, ref_a: np.ndarray, d_b: np.ndarray,
-                c_on: np.ndarray, c_off: np.ndarray, t_a: np.ndarray, t_b: np.ndarray, dt: np.ndarray, hw: int,
-                last_t: np.ndarray | None, refractory_s: float, em_on: np.ndarray | None,
-                em_off: np.ndarray | None, flat: np.ndarray | None, t: np.ndarray | None,
-                p: np.ndarray | None) -> tuple[int, float]:
+def step_events(
+    h_on: np.ndarray,
+    h_off: np.ndarray,
+    sig_a: np.ndarray,
+    ref_a: np.ndarray,
+    d_b: np.ndarray,
+    c_on: np.ndarray,
+    c_off: np.ndarray,
+    t_a: np.ndarray,
+    t_b: np.ndarray,
+    dt: np.ndarray,
+    hw: int,
+    last_t: np.ndarray | None,
+    refractory_s: float,
+    em_on: np.ndarray | None,
+    em_off: np.ndarray | None,
+    flat: np.ndarray | None,
+    t: np.ndarray | None,
+    p: np.ndarray | None,
+) -> tuple[int, float]:
     """Events of one comparator step (``_crossings.c``: ``fsdvs_step_events_*``).
 
     All arrays C-contiguous and 1-D over the B·H·W pixels, ``h_on`` … ``c_off`` and ``em_*`` of one
@@ -139,9 +153,31 @@ def step_events(h_on: np.ndarray, h_off: np.ndarray, sig_a: np.ndarray, ref_a: n
     lib = _loaded()
     fn = lib.fsdvs_step_events_f32 if h_on.dtype == np.float32 else lib.fsdvs_step_events_f64
     lost = ctypes.c_double(0.0)
-    n = fn(_ptr(h_on), _ptr(h_off), _ptr(sig_a), _ptr(ref_a), _ptr(d_b), _ptr(c_on), len(c_on), _ptr(c_off),
-           len(c_off), _ptr(t_a), _ptr(t_b), _ptr(dt), len(h_on), hw, _ptr(last_t), float(refractory_s),
-           int(last_t is not None), _ptr(em_on), _ptr(em_off), _ptr(flat), _ptr(t), _ptr(p), ctypes.byref(lost))
+    n = fn(
+        _ptr(h_on),
+        _ptr(h_off),
+        _ptr(sig_a),
+        _ptr(ref_a),
+        _ptr(d_b),
+        _ptr(c_on),
+        len(c_on),
+        _ptr(c_off),
+        len(c_off),
+        _ptr(t_a),
+        _ptr(t_b),
+        _ptr(dt),
+        len(h_on),
+        hw,
+        _ptr(last_t),
+        float(refractory_s),
+        int(last_t is not None),
+        _ptr(em_on),
+        _ptr(em_off),
+        _ptr(flat),
+        _ptr(t),
+        _ptr(p),
+        ctypes.byref(lost),
+    )
     if n < 0:
         raise MemoryError("step_events: out of memory for the active-pixel list")
     return int(n), float(lost.value)
@@ -153,8 +189,15 @@ _scratch = threading.local()  # each thread's bucket counts, reused from interva
 def _interval_parts(parts: list) -> tuple[list, int]:
     """Non-empty ``(flat, t, p)`` parts as contiguous int32/float64/int8 arrays, and their total
     length (at most 2**31 - 1: the bucket counts are int32)."""
-    parts = [(np.ascontiguousarray(f, dtype=np.int32), np.ascontiguousarray(t, dtype=np.float64),
-              np.ascontiguousarray(p, dtype=np.int8)) for f, t, p in parts if len(t)]
+    parts = [
+        (
+            np.ascontiguousarray(f, dtype=np.int32),
+            np.ascontiguousarray(t, dtype=np.float64),
+            np.ascontiguousarray(p, dtype=np.int8),
+        )
+        for f, t, p in parts
+        if len(t)
+    ]
     n = sum(len(q[1]) for q in parts)
     if n >= 2**31:
         raise ValueError(f"sort_events: {n} events in one frame interval; at most 2**31 - 1")
@@ -180,8 +223,9 @@ def _bucket_args(parts: list, n: int, lo: float | None, hi: float | None) -> tup
     return (k, lens.ctypes, *arrays, float(lo), float(scale), nb, _ptr(counts))  # .ctypes keeps lens alive
 
 
-def sort_events(parts: list, lo: float | None = None, hi: float | None = None, *, out: tuple | None = None
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def sort_events(
+    parts: list, lo: float | None = None, hi: float | None = None, *, out: tuple | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stable time sort of one frame interval's ``(flat, t, p)`` parts, concatenated in order.
 
     Equal to concatenating the parts and applying ``argsort(t, kind="stable")``: a counting sort
@@ -203,8 +247,12 @@ def sort_events(parts: list, lo: float | None = None, hi: float | None = None, *
         p_out = np.empty(n, dtype=np.int8)
     if n == 0:
         return flat_out, t_out, p_out
-    if lib.fsdvs_sort_interval(*_bucket_args(parts, n, lo, hi), _ptr(_records(n)), _ptr(flat_out), _ptr(t_out),
-                               _ptr(p_out)) != 0:
+    if (
+        lib.fsdvs_sort_interval(
+            *_bucket_args(parts, n, lo, hi), _ptr(_records(n)), _ptr(flat_out), _ptr(t_out), _ptr(p_out)
+        )
+        != 0
+    ):
         raise MemoryError("sort_events: out of memory sorting a bucket")
     return flat_out, t_out, p_out
 
@@ -244,21 +292,50 @@ def sort_intervals_to_columns(intervals: list, hw: int, w: int) -> tuple[np.ndar
     for parts, lo, hi in intervals:
         prepared, k = _interval_parts(parts)
         parts.clear()
-        if k and lib.fsdvs_sort_interval_columns(
-                *_bucket_args(prepared, k, lo, hi), _ptr(_records(k)), hw, w,
-                x.ctypes.data + 8 * start, y.ctypes.data + 8 * start, t.ctypes.data + 8 * start,
-                p.ctypes.data + start) != 0:
+        if (
+            k
+            and lib.fsdvs_sort_interval_columns(
+                *_bucket_args(prepared, k, lo, hi),
+                _ptr(_records(k)),
+                hw,
+                w,
+                x.ctypes.data + 8 * start,
+                y.ctypes.data + 8 * start,
+                t.ctypes.data + 8 * start,
+                p.ctypes.data + start,
+            )
+            != 0
+        ):
             raise MemoryError("sort_intervals_to_columns: out of memory sorting a bucket")
         start += k
     return x, y, t, p
 
 
-def write_columns(flat: np.ndarray, t: np.ndarray, p: np.ndarray, hw: int, w: int, x_out: np.ndarray,
-                  y_out: np.ndarray, t_out: np.ndarray, p_out: np.ndarray, start: int) -> None:
+def write_columns(
+    flat: np.ndarray,
+    t: np.ndarray,
+    p: np.ndarray,
+    hw: int,
+    w: int,
+    x_out: np.ndarray,
+    y_out: np.ndarray,
+    t_out: np.ndarray,
+    p_out: np.ndarray,
+    start: int,
+) -> None:
     """One sorted interval (int32 ``flat``) into the int64 ``x``, ``y`` and the ``t``, ``p`` columns
     from ``start``: ``y = (f mod hw) // w``, ``x = (f mod hw) - y w``."""
     n = len(t)
     lib = _loaded()
-    lib.fsdvs_write_columns(_ptr(flat), _ptr(t), _ptr(p), n, hw, w, x_out.ctypes.data + 8 * start,
-                            y_out.ctypes.data + 8 * start, t_out.ctypes.data + 8 * start,
-                            p_out.ctypes.data + start)
+    lib.fsdvs_write_columns(
+        _ptr(flat),
+        _ptr(t),
+        _ptr(p),
+        n,
+        hw,
+        w,
+        x_out.ctypes.data + 8 * start,
+        y_out.ctypes.data + 8 * start,
+        t_out.ctypes.data + 8 * start,
+        p_out.ctypes.data + start,
+    )

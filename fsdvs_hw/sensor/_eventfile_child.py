@@ -77,10 +77,24 @@ def _h5_writer(path: str, width: int, height: int, metadata: dict) -> tuple:
     # v2e's layout (events (N, 4) uint32, chunks of 65 536 rows, gzip), with HDF5's byte shuffle and
     # gzip level 1: about half the writer's CPU of v2e's level 4 for a smaller file (docs/speed.md);
     # every HDF5 reader undoes both filters itself
-    ds = f.create_dataset("events", shape=(0, 4), maxshape=(None, 4), dtype="uint32", chunks=(65536, 4),
-                          compression="gzip", compression_opts=1, shuffle=True)
-    attrs = {"width": width, "height": height, "time_unit": "us", "polarity": "1 = ON, 0 = OFF (v2e)",
-             "columns": "t_us, x, y, p", **metadata}
+    ds = f.create_dataset(
+        "events",
+        shape=(0, 4),
+        maxshape=(None, 4),
+        dtype="uint32",
+        chunks=(65536, 4),
+        compression="gzip",
+        compression_opts=1,
+        shuffle=True,
+    )
+    attrs = {
+        "width": width,
+        "height": height,
+        "time_unit": "us",
+        "polarity": "1 = ON, 0 = OFF (v2e)",
+        "columns": "t_us, x, y, p",
+        **metadata,
+    }
     for k, v in attrs.items():
         f.attrs[k] = v
 

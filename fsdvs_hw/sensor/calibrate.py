@@ -78,8 +78,15 @@ from .config import SensorConfig
 __all__ = ["CALIBRATED_FIELDS", "Estimate", "SensorCalibration", "calibrate_sensor", "comparator_input"]
 
 #: Parameters :func:`calibrate_sensor` can estimate (SensorConfig field names).
-CALIBRATED_FIELDS = ("threshold_on", "threshold_off", "threshold_sigma", "refractory_s", "leak_rate_hz",
-                     "shot_noise_rate_hz", "cutoff_hz")
+CALIBRATED_FIELDS = (
+    "threshold_on",
+    "threshold_off",
+    "threshold_sigma",
+    "refractory_s",
+    "leak_rate_hz",
+    "shot_noise_rate_hz",
+    "cutoff_hz",
+)
 
 
 @dataclass(frozen=True)
@@ -190,8 +197,13 @@ def _photoreceptor(video: Any, timestamps_s: Any, config: SensorConfig) -> _Phot
         if not cfg.has_photoreceptor:
             return _Photoreceptor(tsd, L[0], L[1:], np.ones_like(L[1:]), np.diff(tsd), False)
         subs = _choose_substeps_for(sig.log_signal, cfg, False)
-        frac = torch.clamp((sig.cutoff_intensity[0].to(torch.float64) + cfg.dark_intensity)
-                           / cfg.full_scale_intensity, 0.0, 1.0).reshape(T, -1).numpy()
+        frac = (
+            torch.clamp(
+                (sig.cutoff_intensity[0].to(torch.float64) + cfg.dark_intensity) / cfg.full_scale_intensity, 0.0, 1.0
+            )
+            .reshape(T, -1)
+            .numpy()
+        )
     times, targets, bands, dts = [tsd[:1]], [], [], []
     for k in range(T - 1):
         S = subs[k]
@@ -200,8 +212,9 @@ def _photoreceptor(video: Any, timestamps_s: Any, config: SensorConfig) -> _Phot
         bands.append(frac[k] + a * (frac[k + 1] - frac[k]))
         dts.append(np.full(S, (tsd[k + 1] - tsd[k]) / S))
         times.append(tsd[k] + (tsd[k + 1] - tsd[k]) * a[:, 0])
-    return _Photoreceptor(np.concatenate(times), L[0], np.concatenate(targets), np.concatenate(bands),
-                          np.concatenate(dts), True)
+    return _Photoreceptor(
+        np.concatenate(times), L[0], np.concatenate(targets), np.concatenate(bands), np.concatenate(dts), True
+    )
 
 
 def comparator_input(video: Any, timestamps_s: Any, config: SensorConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -242,8 +255,9 @@ class _Pairs:
     d: np.ndarray
 
 
-def _pairs(t: np.ndarray, pix: np.ndarray, p: np.ndarray, grid_t: np.ndarray, grid_L: np.ndarray,
-           leak_drift: float) -> _Pairs:
+def _pairs(
+    t: np.ndarray, pix: np.ndarray, p: np.ndarray, grid_t: np.ndarray, grid_L: np.ndarray, leak_drift: float
+) -> _Pairs:
     """The pairs of events sorted by pixel, then time (as :func:`calibrate_sensor` sorts them)."""
     Lv = _sample(grid_t, grid_L, t, pix)
     same = pix[1:] == pix[:-1]
@@ -254,6 +268,7 @@ def _pairs(t: np.ndarray, pix: np.ndarray, p: np.ndarray, grid_t: np.ndarray, gr
 
 def _group_medians(pix: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, ...]:
     """Per pixel present: (ids, counts, median of v, median absolute deviation around it); vectorised."""
+
     def medians(keys: np.ndarray, vals: np.ndarray) -> tuple[np.ndarray, ...]:
         order = np.lexsort((vals, keys))
         k, x = keys[order], vals[order]
@@ -307,10 +322,19 @@ def _check_level(level: float, n_boot: int, min_events: int) -> None:
 
 
 # ---------------------------------------------------------------------------- the fit
-def calibrate_sensor(recording: Any, video: Any = None, *, timestamps_s: Any = None,
-                     config: SensorConfig | None = None, duration_s: float | None = None,
-                     fit_cutoff: bool = False, n_boot: int = 200, level: float = 0.95,
-                     min_events: int = 5, seed: int = 0) -> SensorCalibration:
+def calibrate_sensor(
+    recording: Any,
+    video: Any = None,
+    *,
+    timestamps_s: Any = None,
+    config: SensorConfig | None = None,
+    duration_s: float | None = None,
+    fit_cutoff: bool = False,
+    n_boot: int = 200,
+    level: float = 0.95,
+    min_events: int = 5,
+    seed: int = 0,
+) -> SensorCalibration:
     """Fit thresholds, their spread, refractory period, noise rates (and bandwidth) to a recording.
 
     Parameters
@@ -401,8 +425,14 @@ def calibrate_sensor(recording: Any, video: Any = None, *, timestamps_s: Any = N
         pairs = _pairs(t, pix, p, grid_t, grid_L, leak * c_on)
     # time resolution of the recording: whole µs from a file (EventFile), else float rounding
     resolution = 1e-6 if hasattr(recording, "t_us") or isinstance(recording, (str, Path)) else 1e-9
-    _refractory(est, pairs, np.where(np.isnan(map_on), c_on, map_on),
-                np.where(np.isnan(map_off), est["threshold_off"].value, map_off), level, resolution)
+    _refractory(
+        est,
+        pairs,
+        np.where(np.isnan(map_on), c_on, map_on),
+        np.where(np.isnan(map_off), est["threshold_off"].value, map_off),
+        level,
+        resolution,
+    )
     if "refractory_s" in est and est["refractory_s"].value > 0:
         min_dt = max(min_dt, 2.0 * est["refractory_s"].high)
     if leak > 0 or "refractory_s" in est:
@@ -412,9 +442,17 @@ def calibrate_sensor(recording: Any, video: Any = None, *, timestamps_s: Any = N
     return SensorCalibration(est, base.replace(**{k: e.value for k, e in est.items()}), level, notes)
 
 
-def _thresholds(est: dict[str, Estimate], pairs: _Pairs, n_pix: int, min_events: int, n_boot: int,
-                level: float, rng: np.random.Generator, min_dt: float,
-                active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _thresholds(
+    est: dict[str, Estimate],
+    pairs: _Pairs,
+    n_pix: int,
+    min_events: int,
+    n_boot: int,
+    level: float,
+    rng: np.random.Generator,
+    min_dt: float,
+    active: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """Fill the threshold estimates; return the per-pixel ON and OFF threshold maps (nan: too few pairs)."""
     meds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     maps: dict[str, np.ndarray] = {}
@@ -422,8 +460,10 @@ def _thresholds(est: dict[str, Estimate], pairs: _Pairs, n_pix: int, min_events:
         sel = (pairs.pol == sign) & (sign * pairs.d > 0) & (pairs.dt >= min_dt) & active[pairs.pix]
         ids, med, var_med = _per_pixel_median(pairs.pix[sel], sign * pairs.d[sel], n_pix, min_events)
         if ids.size < 3:
-            raise InputError(f"calibrate_sensor: only {ids.size} pixels with {min_events} or more "
-                             f"{name[10:].upper()} event pairs: the video moves too little for a threshold fit")
+            raise InputError(
+                f"calibrate_sensor: only {ids.size} pixels with {min_events} or more "
+                f"{name[10:].upper()} event pairs: the video moves too little for a threshold fit"
+            )
         meds[name] = (med, var_med)
         maps[name] = np.full(n_pix, np.nan)
         maps[name][ids] = med
@@ -431,8 +471,13 @@ def _thresholds(est: dict[str, Estimate], pairs: _Pairs, n_pix: int, min_events:
     for name, (med, _) in meds.items():
         boot = med[boot_idx[name]].mean(axis=1)
         lo, hi = _percentile_ci(boot, level)
-        est[name] = Estimate(float(med.mean()), lo, hi, int(med.size), "mean over pixels of the median "
-                             "log change between consecutive events; pixel bootstrap")
+        est[name] = Estimate(
+            float(med.mean()),
+            lo,
+            hi,
+            int(med.size),
+            "mean over pixels of the median log change between consecutive events; pixel bootstrap",
+        )
 
     def sigma(sel: dict[str, np.ndarray] | None) -> float:
         var = []
@@ -443,14 +488,26 @@ def _thresholds(est: dict[str, Estimate], pairs: _Pairs, n_pix: int, min_events:
 
     boots = np.array([sigma({k: boot_idx[k][i] for k in meds}) for i in range(n_boot)])
     lo, hi = _percentile_ci(boots, level)
-    est["threshold_sigma"] = Estimate(sigma(None), lo, hi, int(sum(m[0].size for m in meds.values())),
-                                      "between-pixel SD of the per-pixel thresholds (median's variance "
-                                      "removed), ON and OFF pooled; pixel bootstrap")
+    est["threshold_sigma"] = Estimate(
+        sigma(None),
+        lo,
+        hi,
+        int(sum(m[0].size for m in meds.values())),
+        "between-pixel SD of the per-pixel thresholds (median's variance removed), ON and OFF pooled; pixel bootstrap",
+    )
     return maps["threshold_on"], maps["threshold_off"]
 
 
-def _noise(est: dict[str, Estimate], pix: np.ndarray, p: np.ndarray, static: np.ndarray, duration: float,
-           n_boot: int, level: float, rng: np.random.Generator) -> None:
+def _noise(
+    est: dict[str, Estimate],
+    pix: np.ndarray,
+    p: np.ndarray,
+    static: np.ndarray,
+    duration: float,
+    n_boot: int,
+    level: float,
+    rng: np.random.Generator,
+) -> None:
     ids = np.flatnonzero(static)
     n_on = np.bincount(pix[p > 0], minlength=static.size)[ids].astype(np.float64)
     n_off = np.bincount(pix[p < 0], minlength=static.size)[ids].astype(np.float64)
@@ -465,17 +522,24 @@ def _noise(est: dict[str, Estimate], pix: np.ndarray, p: np.ndarray, static: np.
     # a pixel bootstrap of zero counts has no spread: fall back to the Poisson bound on the total (3/N rule)
     pois = 3.0 / (ids.size * duration)
     lo, hi = _percentile_ci(shot_b, level)
-    est["shot_noise_rate_hz"] = Estimate(float(shot), lo, max(hi, 2 * pois if n_off.sum() == 0 else hi),
-                                         int(ids.size), "2 x OFF events per static pixel per second; pixel bootstrap")
+    est["shot_noise_rate_hz"] = Estimate(
+        float(shot),
+        lo,
+        max(hi, 2 * pois if n_off.sum() == 0 else hi),
+        int(ids.size),
+        "2 x OFF events per static pixel per second; pixel bootstrap",
+    )
     lo, hi = _percentile_ci(leak_b, level)
     if n_on.sum() == 0:
         hi = max(hi, pois)
-    est["leak_rate_hz"] = Estimate(float(leak), lo, hi, int(ids.size),
-                                   "(ON - OFF) events per static pixel per second; pixel bootstrap")
+    est["leak_rate_hz"] = Estimate(
+        float(leak), lo, hi, int(ids.size), "(ON - OFF) events per static pixel per second; pixel bootstrap"
+    )
 
 
-def _refractory(est: dict[str, Estimate], pairs: _Pairs, map_on: np.ndarray, map_off: np.ndarray,
-                level: float, resolution: float) -> None:
+def _refractory(
+    est: dict[str, Estimate], pairs: _Pairs, map_on: np.ndarray, map_off: np.ndarray, level: float, resolution: float
+) -> None:
     c = np.where(pairs.pol > 0, map_on[pairs.pix], map_off[pairs.pix])  # each pixel's own thresholds
     m = pairs.pol * pairs.d / c
     consistent = (np.abs(m - np.round(m)) < 0.1) & (np.round(m) >= 1)
@@ -488,21 +552,38 @@ def _refractory(est: dict[str, Estimate], pairs: _Pairs, map_on: np.ndarray, map
     background = int((np.abs(m - 2.5) < 0.1).sum())
     a = 1 - level
     if swallowed < max(20, 0.002 * iei.size) or swallowed < 3 * background + 5 * math.sqrt(background + 1):
-        est["refractory_s"] = Estimate(0.0, 0.0, float(iei[0]), int(iei.size),
-                                       f"no swallowed crossings ({swallowed} pairs of 2 thresholds, "
-                                       f"{background} at 2.5): "
-                                       "bounded by the smallest interval")
+        est["refractory_s"] = Estimate(
+            0.0,
+            0.0,
+            float(iei[0]),
+            int(iei.size),
+            f"no swallowed crossings ({swallowed} pairs of 2 thresholds, "
+            f"{background} at 2.5): "
+            "bounded by the smallest interval",
+        )
         return
     spacing = float(iei[9] - iei[0]) / 9
-    est["refractory_s"] = Estimate(max(float(iei[0]) - spacing * math.log(2), 0.0),
-                                   max(float(iei[0]) - spacing * math.log(2 / a) - resolution, 0.0),
-                                   float(iei[0]) - spacing * math.log(1 / (1 - a / 2)) + resolution, int(iei.size),
-                                   f"smallest interval less the exponential gap ({swallowed} pairs with "
-                                   "swallowed crossings)")
+    est["refractory_s"] = Estimate(
+        max(float(iei[0]) - spacing * math.log(2), 0.0),
+        max(float(iei[0]) - spacing * math.log(2 / a) - resolution, 0.0),
+        float(iei[0]) - spacing * math.log(1 / (1 - a / 2)) + resolution,
+        int(iei.size),
+        f"smallest interval less the exponential gap ({swallowed} pairs with swallowed crossings)",
+    )
 
 
-def _fit_cutoff(est: dict[str, Estimate], t: np.ndarray, pix: np.ndarray, p: np.ndarray, photo: _Photoreceptor,
-                base: SensorConfig, n_pix: int, n_boot: int, level: float, rng: np.random.Generator) -> SensorConfig:
+def _fit_cutoff(
+    est: dict[str, Estimate],
+    t: np.ndarray,
+    pix: np.ndarray,
+    p: np.ndarray,
+    photo: _Photoreceptor,
+    base: SensorConfig,
+    n_pix: int,
+    n_boot: int,
+    level: float,
+    rng: np.random.Generator,
+) -> SensorConfig:
     from scipy.optimize import minimize_scalar
 
     f0 = float(base.cutoff_hz)
@@ -516,8 +597,7 @@ def _fit_cutoff(est: dict[str, Estimate], t: np.ndarray, pix: np.ndarray, p: np.
     scores = [per_pixel(v).sum() for v in scan]
     i = int(np.argmin(scores))
     lo_b, hi_b = scan[max(i - 1, 0)], scan[min(i + 1, scan.size - 1)]
-    res = minimize_scalar(lambda v: per_pixel(v).sum(), bounds=(lo_b, hi_b), method="bounded",
-                          options={"xatol": 1e-4})
+    res = minimize_scalar(lambda v: per_pixel(v).sum(), bounds=(lo_b, hi_b), method="bounded", options={"xatol": 1e-4})
     best = float(res.x)
     fine = best + np.linspace(-0.1, 0.1, 21) * (hi_b - lo_b)
     table = np.stack([per_pixel(v) for v in fine])  # (grid, pixels)
@@ -525,8 +605,12 @@ def _fit_cutoff(est: dict[str, Estimate], t: np.ndarray, pix: np.ndarray, p: np.
     boot = fine[np.argmin(table[:, b].sum(axis=2), axis=0)]
     step = float(fine[1] - fine[0])
     lo, hi = _percentile_ci(boot, level)
-    est["cutoff_hz"] = Estimate(float(np.exp(best)), float(np.exp(min(lo, best) - step)),
-                                float(np.exp(max(hi, best) + step)), n_pix,
-                                "cut-off minimising the per-pixel spread of the log change between events; "
-                                "pixel bootstrap on a local grid (+- one grid step)")
+    est["cutoff_hz"] = Estimate(
+        float(np.exp(best)),
+        float(np.exp(min(lo, best) - step)),
+        float(np.exp(max(hi, best) + step)),
+        n_pix,
+        "cut-off minimising the per-pixel spread of the log change between events; "
+        "pixel bootstrap on a local grid (+- one grid step)",
+    )
     return base.replace(cutoff_hz=float(np.exp(best)))

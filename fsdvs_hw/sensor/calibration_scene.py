@@ -27,8 +27,9 @@ from ..errors import InputError
 __all__ = ["calibration_video"]
 
 
-def calibration_video(n_frames: int, height: int, width: int, *, frame_rate_hz: float = 1000.0,
-                      static_fraction: float = 0.25) -> tuple[Any, Any]:
+def calibration_video(
+    n_frames: int, height: int, width: int, *, frame_rate_hz: float = 1000.0, static_fraction: float = 0.25
+) -> tuple[Any, Any]:
     """The calibration pattern: ``(video (1, T, H, W) float32 intensities in (0, 1], times (T,) float64 s)``.
 
     Parameters
@@ -47,15 +48,18 @@ def calibration_video(n_frames: int, height: int, width: int, *, frame_rate_hz: 
         if not isinstance(v, int) or isinstance(v, bool) or v < 2:
             raise InputError(f"calibration_video: {name} must be an integer >= 2, got {v!r}")
     if not 0 <= static_fraction < 1 or not frame_rate_hz > 0:
-        raise InputError(f"calibration_video: static_fraction in [0, 1) and frame_rate_hz > 0, got "
-                         f"{static_fraction!r}, {frame_rate_hz!r}")
+        raise InputError(
+            f"calibration_video: static_fraction in [0, 1) and frame_rate_hz > 0, got "
+            f"{static_fraction!r}, {frame_rate_hz!r}"
+        )
     ts = torch.arange(n_frames, dtype=torch.float64) / frame_rate_hz
-    yy, xx = torch.meshgrid(torch.arange(height, dtype=torch.float64), torch.arange(width, dtype=torch.float64),
-                            indexing="ij")
+    yy, xx = torch.meshgrid(
+        torch.arange(height, dtype=torch.float64), torch.arange(width, dtype=torch.float64), indexing="ij"
+    )
     bars = 2 * math.pi * (0.11 * xx + 0.05 * yy)
     speed = 2 * math.pi * (20 + 15 * torch.sin(2 * math.pi * 0.7 * ts))  # rad/s
     phase = torch.cumsum(speed / frame_rate_hz, 0)
     video = 0.5 * (1.05 + torch.tanh(2.5 * torch.sin(bars[None] - phase[:, None, None])))
     video = video * (0.6 + 0.4 * torch.sin(2 * math.pi * 1.3 * ts)[:, None, None] ** 2)
-    video[:, :, :int(static_fraction * width)] = 0.4
+    video[:, :, : int(static_fraction * width)] = 0.4
     return video[None].float(), ts

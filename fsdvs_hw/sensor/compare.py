@@ -49,8 +49,9 @@ from ..errors import InputError
 __all__ = ["EventComparison", "compare_events", "event_columns", "plot_event_comparison"]
 
 
-def event_columns(events: Any, shape: tuple[int, int] | None = None
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, int]:
+def event_columns(
+    events: Any, shape: tuple[int, int] | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, int]:
     """``(t_s float64, x int64, y int64, p int8, height, width)`` of an EventList, EventFile or file path.
 
     ``shape`` = (height, width) where the events do not carry it (an EventList); default the
@@ -129,10 +130,23 @@ class EventComparison:
 
     def summary(self) -> dict[str, float]:
         """The scalar statistics as a dict (for tables and JSON)."""
-        return {k: float(getattr(self, k)) for k in (
-            "lag_s", "rate_correlation", "on_fraction_sim", "on_fraction_real", "count_map_correlation",
-            "iei_median_sim_s", "iei_median_real_s", "iei_ks_statistic", "noise_rate_sim_hz",
-            "noise_rate_real_hz", "events_sim", "events_real")}
+        return {
+            k: float(getattr(self, k))
+            for k in (
+                "lag_s",
+                "rate_correlation",
+                "on_fraction_sim",
+                "on_fraction_real",
+                "count_map_correlation",
+                "iei_median_sim_s",
+                "iei_median_real_s",
+                "iei_ks_statistic",
+                "noise_rate_sim_hz",
+                "noise_rate_real_hz",
+                "events_sim",
+                "events_real",
+            )
+        }
 
 
 def inter_event_intervals(t: np.ndarray, x: np.ndarray, y: np.ndarray, width: int) -> np.ndarray:
@@ -144,8 +158,9 @@ def inter_event_intervals(t: np.ndarray, x: np.ndarray, y: np.ndarray, width: in
     return (ts[1:] - ts[:-1])[same]
 
 
-def isolated_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, height: int, width: int,
-                    support_s: float) -> np.ndarray:
+def isolated_events(
+    t: np.ndarray, x: np.ndarray, y: np.ndarray, height: int, width: int, support_s: float
+) -> np.ndarray:
     """Boolean per event: no other event in its 3 x 3 neighbourhood in its window or the previous one."""
     if not t.size:
         return np.zeros(0, dtype=bool)
@@ -194,8 +209,15 @@ def _lag(sim: np.ndarray, real: np.ndarray, max_lag: int) -> tuple[float, float]
     return float(lg[i] + frac), float(cc[i])
 
 
-def compare_events(sim: Any, real: Any, *, bin_s: float = 0.01, max_lag_s: float = 0.1,
-                   support_s: float = 0.01, shape: tuple[int, int] | None = None) -> EventComparison:
+def compare_events(
+    sim: Any,
+    real: Any,
+    *,
+    bin_s: float = 0.01,
+    max_lag_s: float = 0.1,
+    support_s: float = 0.01,
+    shape: tuple[int, int] | None = None,
+) -> EventComparison:
     """Compare a simulated event stream with a recording (or any two streams of one sensor size).
 
     Parameters
@@ -225,15 +247,20 @@ def compare_events(sim: Any, real: Any, *, bin_s: float = 0.01, max_lag_s: float
             raise InputError(f"compare_events: {name} must be a positive number of seconds, got {v!r}")
     ts, xs, ys, ps, hs, ws = event_columns(sim, shape)
     tr, xr, yr, pr, hr, wr = event_columns(real, shape)
-    known = [(h_, w_) for ev, h_, w_ in ((sim, hs, ws), (real, hr, wr)) if shape is not None or hasattr(ev, "t_us")
-             or isinstance(ev, (str, Path))]
+    known = [
+        (h_, w_)
+        for ev, h_, w_ in ((sim, hs, ws), (real, hr, wr))
+        if shape is not None or hasattr(ev, "t_us") or isinstance(ev, (str, Path))
+    ]
     if len(set(known)) > 1:
         raise InputError(f"compare_events: sensor sizes differ: simulation {ws}x{hs}, recording {wr}x{hr}")
     h, w = known[0] if known else (max(hs, hr), max(ws, wr))
     for name, hh, ww in (("simulation", hs, ws), ("recording", hr, wr)):
         if hh > h or ww > w:
-            raise InputError(f"compare_events: sensor sizes differ: {name} has pixels up to {ww - 1}, {hh - 1}, "
-                             f"outside the {w}x{h} sensor")
+            raise InputError(
+                f"compare_events: sensor sizes differ: {name} has pixels up to {ww - 1}, {hh - 1}, "
+                f"outside the {w}x{h} sensor"
+            )
     if not ts.size or not tr.size:
         raise InputError(f"compare_events: empty stream (simulation {ts.size} events, recording {tr.size})")
     t0 = min(ts.min(), tr.min())
@@ -255,14 +282,25 @@ def compare_events(sim: Any, real: Any, *, bin_s: float = 0.01, max_lag_s: float
     noise_s = isolated_events(ts, xs, ys, h, w, support_s).sum() / (h * w * dur_s)
     noise_r = isolated_events(tr, xr, yr, h, w, support_s).sum() / (h * w * dur_r)
     return EventComparison(
-        bin_s=float(bin_s), bin_start_s=edges[:-1], rate_sim_hz=rate_s, rate_real_hz=rate_r,
-        lag_s=lag_bins * bin_s, rate_correlation=corr,
-        on_fraction_sim=float((ps > 0).mean()), on_fraction_real=float((pr > 0).mean()),
-        count_map_sim=maps[0], count_map_real=maps[1], count_map_correlation=_pearson(maps[0], maps[1]),
+        bin_s=float(bin_s),
+        bin_start_s=edges[:-1],
+        rate_sim_hz=rate_s,
+        rate_real_hz=rate_r,
+        lag_s=lag_bins * bin_s,
+        rate_correlation=corr,
+        on_fraction_sim=float((ps > 0).mean()),
+        on_fraction_real=float((pr > 0).mean()),
+        count_map_sim=maps[0],
+        count_map_real=maps[1],
+        count_map_correlation=_pearson(maps[0], maps[1]),
         iei_median_sim_s=float(np.median(iei_s)) if iei_s.size else float("nan"),
         iei_median_real_s=float(np.median(iei_r)) if iei_r.size else float("nan"),
-        iei_ks_statistic=ks, noise_rate_sim_hz=float(noise_s), noise_rate_real_hz=float(noise_r),
-        events_sim=int(ts.size), events_real=int(tr.size))
+        iei_ks_statistic=ks,
+        noise_rate_sim_hz=float(noise_s),
+        noise_rate_real_hz=float(noise_r),
+        events_sim=int(ts.size),
+        events_real=int(tr.size),
+    )
 
 
 def plot_event_comparison(comparison: EventComparison, axes: Any = None) -> tuple[Any, Any]:
@@ -298,7 +336,10 @@ def plot_event_comparison(comparison: EventComparison, axes: Any = None) -> tupl
     fig.colorbar(im, ax=[ax[1], ax[2]], shrink=0.8)
     ax[2].set_xlabel(f"map correlation {c.count_map_correlation:.3f}")
     ax[3].bar([0, 1], [c.on_fraction_sim, c.on_fraction_real], tick_label=["simulation", "recording"])
-    ax[3].set(ylim=(0, 1), ylabel="ON fraction",
-              title=f"IEI median {c.iei_median_sim_s * 1e3:.2f} / {c.iei_median_real_s * 1e3:.2f} ms, "
-                    f"KS {c.iei_ks_statistic:.2f}")
+    ax[3].set(
+        ylim=(0, 1),
+        ylabel="ON fraction",
+        title=f"IEI median {c.iei_median_sim_s * 1e3:.2f} / {c.iei_median_real_s * 1e3:.2f} ms, "
+        f"KS {c.iei_ks_statistic:.2f}",
+    )
     return fig, axes

@@ -69,17 +69,15 @@ SHOT_NOISE_DRAWS = ("per_pixel", "sparse")
 # v2e's --dvs_params sets and command-line defaults (v2ecore/emulator.py set_dvs_params,
 # v2ecore/v2e_args.py); leak_jitter_fraction and noise_rate_cov_decades are not modelled here
 _V2E_SETTINGS: dict[str, dict[str, Any]] = {
-    "v2e-clean": dict(threshold_sigma=0.02, cutoff_hz=0.0, leak_rate_hz=0.0, shot_noise_rate_hz=0.0,
-                      refractory_s=0.0),
-    "v2e-default": dict(threshold_sigma=0.03, cutoff_hz=300.0, leak_rate_hz=0.01, shot_noise_rate_hz=0.001,
-                        refractory_s=5e-4),
-    "v2e-noisy": dict(threshold_sigma=0.05, cutoff_hz=30.0, leak_rate_hz=0.1, shot_noise_rate_hz=5.0,
-                      refractory_s=0.0),
+    "v2e-clean": dict(threshold_sigma=0.02, cutoff_hz=0.0, leak_rate_hz=0.0, shot_noise_rate_hz=0.0, refractory_s=0.0),
+    "v2e-default": dict(
+        threshold_sigma=0.03, cutoff_hz=300.0, leak_rate_hz=0.01, shot_noise_rate_hz=0.001, refractory_s=5e-4
+    ),
+    "v2e-noisy": dict(threshold_sigma=0.05, cutoff_hz=30.0, leak_rate_hz=0.1, shot_noise_rate_hz=5.0, refractory_s=0.0),
 }
 
 
-def _check_number(name: str, value: Any, *, low: float = 0.0, high: float = math.inf,
-                  low_open: bool = False) -> None:
+def _check_number(name: str, value: Any, *, low: float = 0.0, high: float = math.inf, low_open: bool = False) -> None:
     try:
         v = float(value.detach()) if hasattr(value, "detach") else float(value)  # numbers, 0-d tensors
     except (TypeError, ValueError):
@@ -264,27 +262,35 @@ class SensorConfig:
         _check_number("frame_rate_hz", self.frame_rate_hz, low=0.0, high=1e9, low_open=True)
         for name in ("response", "placement", "positivity", "shot_noise_draw", "convolution", "surrogate"):
             if not isinstance(getattr(self, name), str):
-                raise InputError(f"SensorConfig.{name}: must be a string, got {type(getattr(self, name)).__name__} "
-                                 f"{one_line(getattr(self, name))}")
+                raise InputError(
+                    f"SensorConfig.{name}: must be a string, got {type(getattr(self, name)).__name__} "
+                    f"{one_line(getattr(self, name))}"
+                )
         if not isinstance(self.random_reference_phase, bool):
-            raise InputError(f"SensorConfig.random_reference_phase: must be True or False, got "
-                             f"{one_line(self.random_reference_phase)}")
+            raise InputError(
+                f"SensorConfig.random_reference_phase: must be True or False, got "
+                f"{one_line(self.random_reference_phase)}"
+            )
         self._check_choices()
-        if not isinstance(self.adaptive_region_px, int) or isinstance(self.adaptive_region_px, bool) \
-                or not 0 <= self.adaptive_region_px <= 100_000:
+        if (
+            not isinstance(self.adaptive_region_px, int)
+            or isinstance(self.adaptive_region_px, bool)
+            or not 0 <= self.adaptive_region_px <= 100_000
+        ):
             raise InputError(
                 f"SensorConfig.adaptive_region_px: must be an integer >= 0, got {self.adaptive_region_px!r}"
             )
         for name in ("substeps", "max_substeps"):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= MAX_SUBSTEPS:
-                raise InputError(f"SensorConfig.{name}: must be an integer in [1, {MAX_SUBSTEPS}] "
-                                 f"(fsdvs_hw.limits.MAX_SUBSTEPS), got {v!r}")
+                raise InputError(
+                    f"SensorConfig.{name}: must be an integer in [1, {MAX_SUBSTEPS}] "
+                    f"(fsdvs_hw.limits.MAX_SUBSTEPS), got {v!r}"
+                )
         if self.adaptive_fraction is not None:
             _check_number("adaptive_fraction", self.adaptive_fraction, low=0.0, high=100.0, low_open=True)
         if not isinstance(self.seed, int) or isinstance(self.seed, bool) or not 0 <= self.seed <= MAX_SEED:
-            raise InputError(f"SensorConfig.seed: must be an integer in [0, {MAX_SEED}] (2**32 - 1), "
-                             f"got {self.seed!r}")
+            raise InputError(f"SensorConfig.seed: must be an integer in [0, {MAX_SEED}] (2**32 - 1), got {self.seed!r}")
 
     def _check_choices(self) -> None:
         """Each named option is one of its allowed values (the message lists them)."""
@@ -294,10 +300,13 @@ class SensorConfig:
             raise InputError(f"SensorConfig.placement: {self.placement!r} unknown; allowed: {', '.join(PLACEMENTS)}")
         if self.positivity not in POSITIVITY_MODES:
             raise InputError(
-                f"SensorConfig.positivity: {self.positivity!r} unknown; allowed: {', '.join(POSITIVITY_MODES)}")
+                f"SensorConfig.positivity: {self.positivity!r} unknown; allowed: {', '.join(POSITIVITY_MODES)}"
+            )
         if self.shot_noise_draw not in SHOT_NOISE_DRAWS:
-            raise InputError(f"SensorConfig.shot_noise_draw: {self.shot_noise_draw!r} unknown; allowed: "
-                             f"{', '.join(SHOT_NOISE_DRAWS)}")
+            raise InputError(
+                f"SensorConfig.shot_noise_draw: {self.shot_noise_draw!r} unknown; allowed: "
+                f"{', '.join(SHOT_NOISE_DRAWS)}"
+            )
         if self.convolution not in ("auto", "direct", "fft"):
             raise InputError(f"SensorConfig.convolution: {self.convolution!r} unknown; allowed: auto, direct, fft")
         if self.surrogate not in SURROGATES:
@@ -312,9 +321,17 @@ class SensorConfig:
         noise, no photoreceptor low-pass, one sub-step per frame interval, pre-log placement with
         a dark-current floor. ``overrides`` replace any field.
         """
-        base = dict(threshold_on=threshold, threshold_off=threshold, threshold_sigma=0.0,
-                    refractory_s=0.0, leak_rate_hz=0.0, shot_noise_rate_hz=0.0, cutoff_hz=0.0,
-                    substeps=1, adaptive_fraction=None)
+        base = dict(
+            threshold_on=threshold,
+            threshold_off=threshold,
+            threshold_sigma=0.0,
+            refractory_s=0.0,
+            leak_rate_hz=0.0,
+            shot_noise_rate_hz=0.0,
+            cutoff_hz=0.0,
+            substeps=1,
+            adaptive_fraction=None,
+        )
         base.update(overrides)
         return cls(**base)
 
@@ -350,9 +367,17 @@ class SensorConfig:
             return cls(**overrides)
         if name == "ideal":
             return cls.ideal(**overrides)
-        base = dict(threshold_on=0.2, threshold_off=0.2, response="v2e", full_scale_intensity=275.0 / 255.0,
-                    dark_intensity=20.0 / 255.0, substeps=1, adaptive_fraction=None, shot_noise_draw="sparse",
-                    **_V2E_SETTINGS[name])
+        base = dict(
+            threshold_on=0.2,
+            threshold_off=0.2,
+            response="v2e",
+            full_scale_intensity=275.0 / 255.0,
+            dark_intensity=20.0 / 255.0,
+            substeps=1,
+            adaptive_fraction=None,
+            shot_noise_draw="sparse",
+            **_V2E_SETTINGS[name],
+        )
         base.update(overrides)
         return cls(**base)
 
@@ -376,8 +401,10 @@ class SensorConfig:
             raise InputError(f"{source}: sensor config must be a table/dict, got {type(data).__name__}")
         unknown = set(data) - {f.name for f in fields(cls)}
         if unknown:
-            raise InputError(f"{source}: unknown sensor field(s) {sorted(unknown)}; "
-                             f"allowed: {', '.join(f.name for f in fields(cls))}")
+            raise InputError(
+                f"{source}: unknown sensor field(s) {sorted(unknown)}; "
+                f"allowed: {', '.join(f.name for f in fields(cls))}"
+            )
         return cls(**data)
 
     def to_dict(self) -> dict[str, Any]:

@@ -64,9 +64,23 @@ def _gather(x: Any, idx: Any, shape: tuple[int, int, int]) -> Any:
     return x.expand(shape).reshape(-1)[idx]
 
 
-def crossing_step(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_b: Any, c_on: Any,
-                  c_off: Any, t_a: Any, t_b: Any, dt: Any, last_t: Any, refractory_s: float,
-                  collect: bool, want_counts: bool) -> tuple[float, Any, Any]:
+def crossing_step(
+    parts: list,
+    h_on: Any,
+    h_off: Any,
+    sig_a: Any,
+    ref_a: Any,
+    d_b: Any,
+    c_on: Any,
+    c_off: Any,
+    t_a: Any,
+    t_b: Any,
+    dt: Any,
+    last_t: Any,
+    refractory_s: float,
+    collect: bool,
+    want_counts: bool,
+) -> tuple[float, Any, Any]:
     """Emit the crossings of one comparator step.
 
     On the CPU this runs the compiled kernel (:mod:`._crossings_native`), elsewhere (or without a
@@ -105,18 +119,24 @@ def crossing_step(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_
         Emitted counts (``want_counts``), dtype of ``h_on``.
     """
     if _native_ok(h_on, h_off, sig_a, ref_a, d_b, c_on, c_off):
-        return _crossing_step_cpu(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t,
-                                  refractory_s, collect, want_counts)
-    return crossing_step_torch(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t,
-                               refractory_s, collect, want_counts)
+        return _crossing_step_cpu(
+            parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t, refractory_s, collect, want_counts
+        )
+    return crossing_step_torch(
+        parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t, refractory_s, collect, want_counts
+    )
 
 
 def _native_ok(h: Any, *same_dtype: Any) -> bool:
     """Whether the compiled kernel applies: CPU, float32/64 counts with every other per-pixel input
     of the same dtype, pixel indices within int32, and the kernel built (:mod:`._crossings_native`)."""
-    return (h.device.type == "cpu" and h.dtype in (torch.float32, torch.float64)
-            and all(x.dtype == h.dtype for x in same_dtype) and h.numel() < 2**31
-            and _crossings_native.available())
+    return (
+        h.device.type == "cpu"
+        and h.dtype in (torch.float32, torch.float64)
+        and all(x.dtype == h.dtype for x in same_dtype)
+        and h.numel() < 2**31
+        and _crossings_native.available()
+    )
 
 
 def _flat_np(x: Any) -> np.ndarray:
@@ -135,9 +155,23 @@ def _threshold_np(c: Any, B: int, H: int, W: int) -> np.ndarray:
     return out.contiguous().numpy()
 
 
-def _crossing_step_cpu(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_b: Any, c_on: Any,
-                       c_off: Any, t_a: Any, t_b: Any, dt: Any, last_t: Any, refractory_s: float,
-                       collect: bool, want_counts: bool) -> tuple[float, Any, Any]:
+def _crossing_step_cpu(
+    parts: list,
+    h_on: Any,
+    h_off: Any,
+    sig_a: Any,
+    ref_a: Any,
+    d_b: Any,
+    c_on: Any,
+    c_off: Any,
+    t_a: Any,
+    t_b: Any,
+    dt: Any,
+    last_t: Any,
+    refractory_s: float,
+    collect: bool,
+    want_counts: bool,
+) -> tuple[float, Any, Any]:
     """:func:`crossing_step` through the compiled kernel (same arguments and results)."""
     B, H, W = h_on.shape
     # NumPy, not torch, for the work arrays: this may run on a worker thread (events.py), where a
@@ -149,8 +183,9 @@ def _crossing_step_cpu(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: An
     if collect:  # a tiny threshold makes the list unbounded: refuse it with its size, not a MemoryError
         from ..limits import check_allocation
 
-        check_allocation(f"event list: {cap} threshold crossings in one step ({B}x{H}x{W} px; 13 bytes each)",
-                         13.0 * cap)
+        check_allocation(
+            f"event list: {cap} threshold crossings in one step ({B}x{H}x{W} px; 13 bytes each)", 13.0 * cap
+        )
     flat = np.empty(cap, dtype=np.int32) if collect else None
     t = np.empty(cap, dtype=np.float64) if collect else None
     p = np.empty(cap, dtype=np.int8) if collect else None
@@ -160,9 +195,25 @@ def _crossing_step_cpu(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: An
         return _flat_np(x.expand(B, 1, 1).to(torch.float64))
 
     n, lost = _crossings_native.step_events(
-        hon, hoff, _flat_np(sig_a), _flat_np(ref_a), _flat_np(d_b), _threshold_np(c_on, B, H, W),
-        _threshold_np(c_off, B, H, W), times(t_a), times(t_b), times(dt), H * W,
-        last_t.view(-1).numpy() if refr else None, float(refractory_s), em_on, em_off, flat, t, p)
+        hon,
+        hoff,
+        _flat_np(sig_a),
+        _flat_np(ref_a),
+        _flat_np(d_b),
+        _threshold_np(c_on, B, H, W),
+        _threshold_np(c_off, B, H, W),
+        times(t_a),
+        times(t_b),
+        times(dt),
+        H * W,
+        last_t.view(-1).numpy() if refr else None,
+        float(refractory_s),
+        em_on,
+        em_off,
+        flat,
+        t,
+        p,
+    )
     if collect and n:
         assert flat is not None and t is not None and p is not None  # allocated when collect
         if n < cap // 2:  # many crossings lost: do not keep the spare capacity alive
@@ -172,9 +223,23 @@ def _crossing_step_cpu(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: An
     return float(lost) if refr else 0.0, em[0], em[1]
 
 
-def crossing_step_torch(parts: list, h_on: Any, h_off: Any, sig_a: Any, ref_a: Any, d_b: Any, c_on: Any,
-                        c_off: Any, t_a: Any, t_b: Any, dt: Any, last_t: Any, refractory_s: float,
-                        collect: bool, want_counts: bool) -> tuple[float, Any, Any]:
+def crossing_step_torch(
+    parts: list,
+    h_on: Any,
+    h_off: Any,
+    sig_a: Any,
+    ref_a: Any,
+    d_b: Any,
+    c_on: Any,
+    c_off: Any,
+    t_a: Any,
+    t_b: Any,
+    dt: Any,
+    last_t: Any,
+    refractory_s: float,
+    collect: bool,
+    want_counts: bool,
+) -> tuple[float, Any, Any]:
     """:func:`crossing_step` in vectorised torch (any device; same arguments and results)."""
     shape = tuple(h_on.shape)
     B, H, W = shape
@@ -309,8 +374,9 @@ def to_event_columns(pieces: list, H: int, W: int, B: int) -> tuple[Any, Any, An
     for i, (flat, tq, pq) in enumerate(pieces):
         end = start + len(tq)
         if flat.device.type == "cpu" and flat.dtype == torch.int32 and _crossings_native.available():
-            _crossings_native.write_columns(flat.numpy(), tq.numpy(), pq.numpy(), HW, W, x.numpy(), y.numpy(),
-                                            t.numpy(), p.numpy(), start)
+            _crossings_native.write_columns(
+                flat.numpy(), tq.numpy(), pq.numpy(), HW, W, x.numpy(), y.numpy(), t.numpy(), p.numpy(), start
+            )
         else:
             f32 = flat.to(torch.int32) if B * HW < 2**31 else flat  # int32 division is faster
             if B > 1:
@@ -370,13 +436,15 @@ def shot_noise_pixels(B: int, HW: int, lam: Any, generator: Any, sparse: bool = 
     for _ in range(2):  # ON, then OFF
         k = torch.poisson(rate, generator=generator).view(-1)
         idx = torch.nonzero(k > 0).squeeze(1)
-        out.append(idx if idx.numel() == 0 or bool((k[idx] == 1).all())
-                   else torch.repeat_interleave(idx, k[idx].long()))
+        out.append(
+            idx if idx.numel() == 0 or bool((k[idx] == 1).all()) else torch.repeat_interleave(idx, k[idx].long())
+        )
     return out[0], out[1]
 
 
-def noise_step(parts: list, on_px: Any, off_px: Any, shape: tuple[int, int, int], t_a: Any, t_b: Any,
-               dt: Any, time_g: Any) -> None:
+def noise_step(
+    parts: list, on_px: Any, off_px: Any, shape: tuple[int, int, int], t_a: Any, t_b: Any, dt: Any, time_g: Any
+) -> None:
     """Append the shot-noise events of one step (:func:`shot_noise_pixels`' flat indices ``on_px``,
     ``off_px`` of a (B, H, W) frame), each at a uniform time in ``(t_a, t_b]`` drawn from
     ``time_g`` (ON events first, raster order)."""

@@ -59,8 +59,9 @@ def _plugins() -> Any:
     try:
         import hdf5plugin
     except ImportError:
-        raise ToolMissingError("DSEC events.h5 files are Blosc-compressed: pip install 'fsdvs_hw[eventfiles]' "
-                               "(or pip install hdf5plugin)") from None
+        raise ToolMissingError(
+            "DSEC events.h5 files are Blosc-compressed: pip install 'fsdvs_hw[eventfiles]' (or pip install hdf5plugin)"
+        ) from None
     return hdf5plugin
 
 
@@ -81,8 +82,9 @@ def ms_to_idx(t_us: np.ndarray) -> np.ndarray:
     return np.searchsorted(t_us, np.arange(n_ms, dtype=np.int64) * 1000, side="left").astype(np.uint64)
 
 
-def write_dsec(path: str | Path, events: Any, *, width: int | None = None, height: int | None = None,
-               t_offset_us: int = 0) -> Path:
+def write_dsec(
+    path: str | Path, events: Any, *, width: int | None = None, height: int | None = None, t_offset_us: int = 0
+) -> Path:
     """Write events in DSEC's ``events.h5`` layout (Blosc zstd), atomically.
 
     Parameters
@@ -108,17 +110,22 @@ def write_dsec(path: str | Path, events: Any, *, width: int | None = None, heigh
     w = int(width if width is not None else getattr(events, "width", DSEC_SIZE[0]))
     h = int(height if height is not None else getattr(events, "height", DSEC_SIZE[1]))
     t, x, y, pol = _columns(events, w, h)
-    if t.size and (bool((np.diff(t) < 0).any()) or int(t[-1]) > 2 ** 32 - 1):
+    if t.size and (bool((np.diff(t) < 0).any()) or int(t[-1]) > 2**32 - 1):
         raise InputError("write_dsec: times must be non-decreasing and below 2**32 µs (DSEC stores uint32)")
     tmp = _partial_path(p)
     try:
         with h5py.File(tmp, "w") as f:
             comp = hp.Blosc(cname="zstd", clevel=5, shuffle=hp.Blosc.SHUFFLE)
             g = f.create_group("events")
-            for name, arr, dt in (("x", x, "<u2"), ("y", y, "<u2"), ("t", t, "<u4"),
-                                  ("p", (pol > 0).astype(np.uint8), "u1")):
-                g.create_dataset(name, data=arr.astype(dt), chunks=True if arr.size else None,
-                                 **(comp if arr.size else {}))
+            for name, arr, dt in (
+                ("x", x, "<u2"),
+                ("y", y, "<u2"),
+                ("t", t, "<u4"),
+                ("p", (pol > 0).astype(np.uint8), "u1"),
+            ):
+                g.create_dataset(
+                    name, data=arr.astype(dt), chunks=True if arr.size else None, **(comp if arr.size else {})
+                )
             f.create_dataset("ms_to_idx", data=ms_to_idx(t))
             f.create_dataset("t_offset", data=np.int64(t_offset_us))
             f.attrs["width"], f.attrs["height"] = w, h
@@ -201,11 +208,22 @@ def _read_open(p: Path, f: Any, width: int | None, height: int | None) -> EventF
     if "ms_to_idx" in f:
         idx = np.asarray(f["ms_to_idx"][()])
         want = ms_to_idx(t)
-        if idx.ndim != 1 or idx.size < want.size or not np.array_equal(idx[:want.size].astype(np.int64), want):
-            k = int(np.flatnonzero(idx[:want.size].astype(np.int64) != want[:idx.size])[0]) \
-                if idx.ndim == 1 and min(idx.size, want.size) and \
-                not np.array_equal(idx[:want.size].astype(np.int64), want[:idx.size]) else min(idx.size, want.size)
+        if idx.ndim != 1 or idx.size < want.size or not np.array_equal(idx[: want.size].astype(np.int64), want):
+            k = (
+                int(np.flatnonzero(idx[: want.size].astype(np.int64) != want[: idx.size])[0])
+                if idx.ndim == 1
+                and min(idx.size, want.size)
+                and not np.array_equal(idx[: want.size].astype(np.int64), want[: idx.size])
+                else min(idx.size, want.size)
+            )
             raise _bad(p, "ms_to_idx", f"disagrees with events/t at millisecond {k} (truncated or inconsistent file)")
         meta["ms_to_idx"] = idx
-    return EventFile(t + off, cols["x"].astype(np.int64), cols["y"].astype(np.int64),
-                     np.where(cols["p"] > 0, 1, -1).astype(np.int8), w, h, meta)
+    return EventFile(
+        t + off,
+        cols["x"].astype(np.int64),
+        cols["y"].astype(np.int64),
+        np.where(cols["p"] > 0, 1, -1).astype(np.int8),
+        w,
+        h,
+        meta,
+    )

@@ -48,15 +48,16 @@ __all__ = ["FORMATS", "EventFile", "EventFileWriter", "event_format", "read_even
 
 #: file suffix -> format name
 FORMATS: dict[str, str] = {".h5": "hdf5", ".hdf5": "hdf5", ".aedat4": "aedat4", ".npz": "npz"}
-_UINT32_MAX = 2 ** 32 - 1
+_UINT32_MAX = 2**32 - 1
 
 
 def event_format(path: str | Path) -> str:
     """The format of an event file from its suffix (``hdf5``, ``aedat4`` or ``npz``)."""
     suffix = Path(path).suffix.lower()
     if suffix not in FORMATS:
-        raise InputError(f"event file {str(path)!r}: suffix {suffix or '(none)'!r} unknown; "
-                         f"allowed: {', '.join(FORMATS)}")
+        raise InputError(
+            f"event file {str(path)!r}: suffix {suffix or '(none)'!r} unknown; allowed: {', '.join(FORMATS)}"
+        )
     return FORMATS[suffix]
 
 
@@ -64,8 +65,9 @@ def _dv() -> Any:
     try:
         import dv_processing
     except ImportError:
-        raise ToolMissingError("AEDAT4 needs dv-processing: pip install 'fsdvs_hw[eventfiles]' "
-                               "(or pip install dv-processing)") from None
+        raise ToolMissingError(
+            "AEDAT4 needs dv-processing: pip install 'fsdvs_hw[eventfiles]' (or pip install dv-processing)"
+        ) from None
     return dv_processing
 
 
@@ -98,10 +100,13 @@ class EventFile:
         from .events import EventList
 
         n = len(self)
-        return EventList(torch.zeros(n, dtype=torch.int64), torch.from_numpy(self.x.astype(np.int64)),
-                         torch.from_numpy(self.y.astype(np.int64)),
-                         torch.from_numpy(self.t_us.astype(np.float64) * 1e-6),
-                         torch.from_numpy(self.p.astype(np.int8)))
+        return EventList(
+            torch.zeros(n, dtype=torch.int64),
+            torch.from_numpy(self.x.astype(np.int64)),
+            torch.from_numpy(self.y.astype(np.int64)),
+            torch.from_numpy(self.t_us.astype(np.float64) * 1e-6),
+            torch.from_numpy(self.p.astype(np.int8)),
+        )
 
 
 def _columns(events: Any, width: int, height: int) -> tuple[np.ndarray, ...]:
@@ -111,8 +116,9 @@ def _columns(events: Any, width: int, height: int) -> tuple[np.ndarray, ...]:
     else:
         b = np.asarray(events.b)
         if b.size and int(b.max()) > 0:
-            raise InputError("events: an event file holds one sensor; select one batch element "
-                             "(EventList.select(b)) per file")
+            raise InputError(
+                "events: an event file holds one sensor; select one batch element (EventList.select(b)) per file"
+            )
         t = np.asarray(events.t, dtype=np.float64)
         t_us = np.rint(t * 1e6).astype(np.int64)
         x, y, p = np.asarray(events.x), np.asarray(events.y), np.asarray(events.p)
@@ -135,10 +141,18 @@ WRITE_SLICE = 1 << 18
 def _slice_events(events: Any, start: int, end: int) -> Any:
     """Events ``start:end`` of an EventList or EventFile (views, no copies)."""
     if isinstance(events, EventFile):
-        return EventFile(events.t_us[start:end], events.x[start:end], events.y[start:end], events.p[start:end],
-                         events.width, events.height, events.metadata)
-    return type(events)(events.b[start:end], events.x[start:end], events.y[start:end], events.t[start:end],
-                        events.p[start:end])
+        return EventFile(
+            events.t_us[start:end],
+            events.x[start:end],
+            events.y[start:end],
+            events.p[start:end],
+            events.width,
+            events.height,
+            events.metadata,
+        )
+    return type(events)(
+        events.b[start:end], events.x[start:end], events.y[start:end], events.t[start:end], events.p[start:end]
+    )
 
 
 def _child_command(mode: str) -> list[str]:
@@ -164,7 +178,7 @@ def _fsync(path: Path, *, directory: bool = False) -> None:
 
 def _one_line(exc: BaseException, limit: int = 200) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 class EventFileWriter:
@@ -221,7 +235,11 @@ class EventFileWriter:
             self._err = tempfile.TemporaryFile()  # noqa: SIM115  the child's stderr, read if it fails
             self._child = subprocess.Popen(
                 [*_child_command("write"), self.format, str(self._tmp_path), str(self.width), str(self.height), meta],
-                stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._err, process_group=0)
+                stdin=subprocess.PIPE,
+                stdout=subprocess.DEVNULL,
+                stderr=self._err,
+                process_group=0,
+            )
         else:
             self._cols_dir = self.path.parent / f"{self._tmp_path.name}.cols"
             self._cols_dir.mkdir()
@@ -231,8 +249,11 @@ class EventFileWriter:
         """A one-line :class:`OSError` naming the target file (nothing was written to it)."""
         code = getattr(exc, "errno", None) or errno.EIO
         why = os.strerror(code) if getattr(exc, "errno", None) else _one_line(exc)
-        return OSError(code, f"writing the {self.format} event file failed ({why}); nothing was written "
-                       "there (a previous file is kept)", str(self.path))
+        return OSError(
+            code,
+            f"writing the {self.format} event file failed ({why}); nothing was written there (a previous file is kept)",
+            str(self.path),
+        )
 
     def _child_failed(self) -> OSError:
         """The writer child died or failed: an OSError naming the file and its error or signal."""
@@ -249,8 +270,12 @@ class EventFileWriter:
         detail = f": {' '.join(lines[-1].split())[:200]}" if lines else ""
         lib = "h5py" if self.format == "hdf5" else "dv-processing"
         hint = " (full disk?)" if rc < 0 or "errno" not in detail.lower() else ""
-        return OSError(errno.EIO, f"the {self.format} writer ({lib}, child process) {how}{detail}{hint}; "
-                       "nothing was written there (a previous file is kept)", str(self.path))
+        return OSError(
+            errno.EIO,
+            f"the {self.format} writer ({lib}, child process) {how}{detail}{hint}; "
+            "nothing was written there (a previous file is kept)",
+            str(self.path),
+        )
 
     def write(self, events: Any) -> None:
         """Append an :class:`~fsdvs_hw.sensor.EventList` (batch 0) or :class:`EventFile`.
@@ -280,8 +305,10 @@ class EventFileWriter:
         if int(t_us[0]) < self._last_t or bool((np.diff(t_us) < 0).any()):
             raise InputError("events: must be written in non-decreasing time")
         if self.format == "hdf5" and int(t_us[-1]) > _UINT32_MAX:
-            raise InputError(f"events: time {int(t_us[-1])} µs exceeds the uint32 µs range of v2e's HDF5 "
-                             "layout (4294 s); use .aedat4 or .npz")
+            raise InputError(
+                f"events: time {int(t_us[-1])} µs exceeds the uint32 µs range of v2e's HDF5 "
+                "layout (4294 s); use .aedat4 or .npz"
+            )
         try:
             self._write_columns(t_us, x, y, p)
         except (OSError, RuntimeError) as exc:  # full disk, a dead child: nothing half-written stays
@@ -322,8 +349,11 @@ class EventFileWriter:
             os.replace(self._tmp_path, self.path)
             _fsync(self.path.parent if str(self.path.parent) else Path("."), directory=True)
         except (OSError, RuntimeError) as exc:
-            failed = self._child_failed() if self._child is not None and self._child.poll() not in (None, 0) \
+            failed = (
+                self._child_failed()
+                if self._child is not None and self._child.poll() not in (None, 0)
                 else self._os_error(exc)
+            )
             self._discard()
             raise failed from exc
         except BaseException:
@@ -348,8 +378,13 @@ class EventFileWriter:
                 for k, dt in dtypes.items():
                     with z.open(f"{k}.npy", "w", force_zip64=True) as out:
                         np.lib.format.write_array_header_1_0(
-                            out, {"descr": np.lib.format.dtype_to_descr(np.dtype(dt)),
-                                  "fortran_order": False, "shape": (self.count,)})
+                            out,
+                            {
+                                "descr": np.lib.format.dtype_to_descr(np.dtype(dt)),
+                                "fortran_order": False,
+                                "shape": (self.count,),
+                            },
+                        )
                         with open(self._cols_dir / k, "rb") as src:
                             while block := src.read(1 << 22):
                                 out.write(block)
@@ -402,8 +437,9 @@ class EventFileWriter:
             self.abort()
 
 
-def write_events(path: str | Path, events: Any, width: int, height: int, *,
-                 metadata: dict[str, Any] | None = None) -> int:
+def write_events(
+    path: str | Path, events: Any, width: int, height: int, *, metadata: dict[str, Any] | None = None
+) -> int:
     """Write one :class:`~fsdvs_hw.sensor.EventList` (batch 0) to ``path``; returns the count."""
     with EventFileWriter(path, width, height, metadata=metadata) as w:
         w.write(events)
@@ -447,8 +483,9 @@ class _Checker:
                 hint = " (times must be integer microseconds; float times look like seconds)" if k == "t" else ""
                 raise _bad(self.path, self.names[k], f"dtype {np.dtype(dt)} is not an integer type{hint}")
 
-    def check(self, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray,
-              width: int | None, height: int | None) -> None:
+    def check(
+        self, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, width: int | None, height: int | None
+    ) -> None:
         self.dtypes(t=t.dtype, x=x.dtype, y=y.dtype, p=p.dtype)
         t = t.astype(np.int64, copy=False)  # unsigned columns: np.diff would wrap around
         n = t.size
@@ -463,12 +500,18 @@ class _Checker:
             for k, arr, hi in (("x", x, width), ("y", y, height)):
                 lo_v, hi_v = int(arr.min()), int(arr.max())
                 if lo_v < 0 or (hi is not None and hi_v >= hi):
-                    raise _bad(self.path, self.names[k], f"value {lo_v if lo_v < 0 else hi_v} outside "
-                               f"[0, {hi}) of the {width}x{height} sensor")
+                    raise _bad(
+                        self.path,
+                        self.names[k],
+                        f"value {lo_v if lo_v < 0 else hi_v} outside [0, {hi}) of the {width}x{height} sensor",
+                    )
             bad = ~np.isin(p, self.polarities)
             if bad.any():
-                raise _bad(self.path, self.names["p"], f"polarity {int(p[bad][0])}; this format allows "
-                           f"{' / '.join(str(v) for v in self.polarities)}")
+                raise _bad(
+                    self.path,
+                    self.names["p"],
+                    f"polarity {int(p[bad][0])}; this format allows {' / '.join(str(v) for v in self.polarities)}",
+                )
         self.seen += n
 
 
@@ -547,15 +590,22 @@ def _read_hdf5_open(p: Path, f: Any) -> EventFile:
             want = math.ceil(n / ds.chunks[0]) * math.ceil(4 / ds.chunks[1])
             got = ds.id.get_num_chunks()
             if got < want:
-                raise _bad(p, "events", f"declares {n} events but only {got} of its {want} chunks are stored "
-                           "(truncated or unfinished file)")
+                raise _bad(
+                    p,
+                    "events",
+                    f"declares {n} events but only {got} of its {want} chunks are stored "
+                    "(truncated or unfinished file)",
+                )
         elif ds.id.get_storage_size() < ds.size * ds.dtype.itemsize:
-            raise _bad(p, "events", f"declares {n} events but stores only {ds.id.get_storage_size()} bytes "
-                       "(truncated or unfinished file)")
+            raise _bad(
+                p,
+                "events",
+                f"declares {n} events but stores only {ds.id.get_storage_size()} bytes (truncated or unfinished file)",
+            )
     t, x, y = (np.empty(n, dtype=np.int64) for _ in range(3))
     pol = np.empty(n, dtype=np.int8)
     for i in range(0, n, READ_SLICE):
-        a = ds[i:i + READ_SLICE]
+        a = ds[i : i + READ_SLICE]
         chk.check(a[:, 0], a[:, 1], a[:, 2], a[:, 3], w, h)
         sl = slice(i, i + a.shape[0])
         t[sl], x[sl], y[sl] = a[:, 0], a[:, 1], a[:, 2]
@@ -626,8 +676,14 @@ def _read_npz(p: Path) -> EventFile:
         except errors as exc:
             raise _bad(p, k, f"unreadable, truncated or corrupt ({_one_line(exc)})") from None
     chk.check(cols["t"], cols["x"], cols["y"], cols["p"], w, h)
-    return EventFile(cols["t"].astype(np.int64), cols["x"].astype(np.int64), cols["y"].astype(np.int64),
-                     cols["p"].astype(np.int8), w, h)
+    return EventFile(
+        cols["t"].astype(np.int64),
+        cols["x"].astype(np.int64),
+        cols["y"].astype(np.int64),
+        cols["p"].astype(np.int8),
+        w,
+        h,
+    )
 
 
 class _ChildPipe:
@@ -643,8 +699,11 @@ class _ChildPipe:
         while len(buf) < n:
             ready, _, _ = select.select([self.fd], [], [], self.timeout)
             if not ready:
-                raise _bad(self.path, "(file)", f"dv-processing made no progress for {self.timeout:g} s reading it "
-                           "(corrupt AEDAT4 file?)")
+                raise _bad(
+                    self.path,
+                    "(file)",
+                    f"dv-processing made no progress for {self.timeout:g} s reading it (corrupt AEDAT4 file?)",
+                )
             block = os.read(self.fd, min(n - len(buf), 1 << 22))
             if not block:
                 raise EOFError
@@ -663,8 +722,13 @@ def _read_aedat4(p: Path) -> EventFile:
     if importlib.util.find_spec("dv_processing") is None:
         _dv()  # raises ToolMissingError with the install hint
     with tempfile.TemporaryFile() as err:
-        proc = subprocess.Popen([*_child_command("read"), str(p)], stdin=subprocess.DEVNULL,
-                                stdout=subprocess.PIPE, stderr=err, process_group=0)
+        proc = subprocess.Popen(
+            [*_child_command("read"), str(p)],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=err,
+            process_group=0,
+        )
         assert proc.stdout is not None  # stdout=PIPE
         try:
             pipe = _ChildPipe(proc.stdout, AEDAT4_READ_TIMEOUT_S, p)
@@ -687,15 +751,27 @@ def _read_aedat4(p: Path) -> EventFile:
                 rc = proc.wait()
                 err.seek(0)
                 msg = " ".join(err.read().decode("utf-8", "replace").split())[:200]
-                how = f"dv-processing was killed by {signal.Signals(-rc).name}" if rc < 0 else \
-                    f"not a readable AEDAT4 file ({msg or f'reader exit status {rc}'})"
+                how = (
+                    f"dv-processing was killed by {signal.Signals(-rc).name}"
+                    if rc < 0
+                    else f"not a readable AEDAT4 file ({msg or f'reader exit status {rc}'})"
+                )
                 raise _bad(p, "(file)", how) from None
         finally:
             if proc.poll() is None:
                 proc.kill()
             proc.wait()
             proc.stdout.close()
-    cols = [np.concatenate([part[i] for part in parts]) if parts else np.zeros(0, dt)
-            for i, dt in enumerate(("<i8", "<i2", "<i2", "u1"))]
-    return EventFile(cols[0].astype(np.int64), cols[1].astype(np.int64), cols[2].astype(np.int64),
-                     np.where(cols[3] > 0, 1, -1).astype(np.int8), w, h, {"camera": camera})
+    cols = [
+        np.concatenate([part[i] for part in parts]) if parts else np.zeros(0, dt)
+        for i, dt in enumerate(("<i8", "<i2", "<i2", "u1"))
+    ]
+    return EventFile(
+        cols[0].astype(np.int64),
+        cols[1].astype(np.int64),
+        cols[2].astype(np.int64),
+        np.where(cols[3] > 0, 1, -1).astype(np.int8),
+        w,
+        h,
+        {"camera": camera},
+    )

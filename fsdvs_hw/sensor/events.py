@@ -85,11 +85,15 @@ def prepare_video(video: Any) -> Any:
     import numpy as np
     import torch
 
-    if video is None or isinstance(video, (str, bytes, dict)) or (
-            not isinstance(video, (torch.Tensor, np.ndarray, list, tuple))
-            and not hasattr(video, "__array__")):
-        raise InputError(f"video: wrong type {type(video).__name__}; allowed: a (B, T, H, W) torch tensor or "
-                         "numpy array of linear intensities >= 0")
+    if (
+        video is None
+        or isinstance(video, (str, bytes, dict))
+        or (not isinstance(video, (torch.Tensor, np.ndarray, list, tuple)) and not hasattr(video, "__array__"))
+    ):
+        raise InputError(
+            f"video: wrong type {type(video).__name__}; allowed: a (B, T, H, W) torch tensor or "
+            "numpy array of linear intensities >= 0"
+        )
     if not isinstance(video, torch.Tensor):
         try:
             arr = np.asarray(video)
@@ -124,8 +128,10 @@ def prepare_video(video: Any) -> Any:
 def _check_video_size(shape: tuple[int, ...], itemsize: int) -> None:
     """Refuse a video whose event frames (B, T-1, 2, H, W) would exceed the allocation limit."""
     B, T, H, W = (int(n) for n in shape)
-    check_allocation(f"event frames of video shape (B={B}, T={T}, H={H}, W={W}): (B, T-1, 2, H, W) of "
-                     f"{itemsize}-byte values", float(itemsize) * B * max(T - 1, 1) * 2 * H * W)
+    check_allocation(
+        f"event frames of video shape (B={B}, T={T}, H={H}, W={W}): (B, T-1, 2, H, W) of {itemsize}-byte values",
+        float(itemsize) * B * max(T - 1, 1) * 2 * H * W,
+    )
 
 
 def saturate(video: Any) -> tuple[Any, int]:
@@ -136,8 +142,7 @@ def saturate(video: Any) -> tuple[Any, int]:
     number ``n`` of clipped pixel-frames.
     """
     with torch.no_grad():
-        n = int(torch.count_nonzero(video > SATURATION_INTENSITY)) if float(video.max()) > SATURATION_INTENSITY \
-            else 0
+        n = int(torch.count_nonzero(video > SATURATION_INTENSITY)) if float(video.max()) > SATURATION_INTENSITY else 0
     if n == 0:
         return video, 0
     return torch.clamp(video, max=SATURATION_INTENSITY), n
@@ -154,13 +159,17 @@ def prepare_timestamps(timestamps_s: Any, video: Any, config: SensorConfig) -> A
         return ts.expand(B, T)
     if isinstance(timestamps_s, torch.Tensor):
         if timestamps_s.device != video.device:
-            raise InputError(f"timestamps_s: on device {timestamps_s.device} but the video is on "
-                             f"{video.device}; move both to the same device")
+            raise InputError(
+                f"timestamps_s: on device {timestamps_s.device} but the video is on "
+                f"{video.device}; move both to the same device"
+            )
         ts = timestamps_s.detach().to(torch.float64)
     else:
         if isinstance(timestamps_s, (str, bytes, dict)):
-            raise InputError(f"timestamps_s: wrong type {type(timestamps_s).__name__}; allowed: (T,) or (B, T) "
-                             "frame times in seconds, finite and strictly increasing")
+            raise InputError(
+                f"timestamps_s: wrong type {type(timestamps_s).__name__}; allowed: (T,) or (B, T) "
+                "frame times in seconds, finite and strictly increasing"
+            )
         try:
             ts = torch.as_tensor(np.asarray(timestamps_s, dtype=np.float64), device=video.device)
         except (TypeError, ValueError) as exc:
@@ -338,8 +347,15 @@ class _PixelState:
     lost: float = 0.0
 
 
-def _init_state(L0: Any, SU0: Any, config: SensorConfig, thresholds: tuple[Any, Any] | None,
-                phase: Any, generator: Any, collect_events: bool) -> _PixelState:
+def _init_state(
+    L0: Any,
+    SU0: Any,
+    config: SensorConfig,
+    thresholds: tuple[Any, Any] | None,
+    phase: Any,
+    generator: Any,
+    collect_events: bool,
+) -> _PixelState:
     """Pixel state at the first frame ``L0`` (B, H, W) (``SU0``: its settled surround or None)."""
     B, H, W = L0.shape
     dev = L0.device
@@ -359,13 +375,25 @@ def _init_state(L0: Any, SU0: Any, config: SensorConfig, thresholds: tuple[Any, 
     # noise-event times draw from their own stream so event_list and event_frames agree
     time_g = effect_generator(config.seed, "shot_time", dev) if shot > 0 and collect_events else None
     sig_prev = (L0 - config.surround_weight * SU0) if transient else L0
-    return _PixelState(c_on, c_off, eps, ref, L0 if config.has_photoreceptor else None, SU0, sig_prev,
-                       last_t, shot_g, time_g)
+    return _PixelState(
+        c_on, c_off, eps, ref, L0 if config.has_photoreceptor else None, SU0, sig_prev, last_t, shot_g, time_g
+    )
 
 
-def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: SensorConfig, substeps: list[int],
-             collect_events: bool, events: list, want_counts: bool = True, bar: Any = None,
-             pipe: _EventPipeline | None = None) -> list:
+def _advance(
+    st: _PixelState,
+    Ls: Any,
+    CI: Any,
+    SU: Any,
+    tsd: Any,
+    config: SensorConfig,
+    substeps: list[int],
+    collect_events: bool,
+    events: list,
+    want_counts: bool = True,
+    bar: Any = None,
+    pipe: _EventPipeline | None = None,
+) -> list:
     """Step the pixels of ``st`` through frames ``Ls[0] → Ls[1] → ...`` (tuples of (B, H, W));
     ``Ls[0]`` is the frame the state is at. Returns the [on, off, on, off, ...] interval counts
     (``None`` entries unless ``want_counts``); each interval's time-sorted ``(flat, t, p)`` events
@@ -383,8 +411,7 @@ def _advance(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: Senso
         pipe = _EventPipeline()
     first_event = len(events)
     try:
-        frames = _advance_steps(st, Ls, CI, SU, tsd, config, substeps, collect_events, events, want_counts, bar,
-                                pipe)
+        frames = _advance_steps(st, Ls, CI, SU, tsd, config, substeps, collect_events, events, want_counts, bar, pipe)
         if pipe is not None:
             for i in range(first_event, len(events)):
                 events[i] = events[i].result()
@@ -448,6 +475,7 @@ class _EventPipeline:
         each of its intervals. Chunked, one sensor, compiled kernels: the intervals are sorted
         straight into the chunk's columns (:func:`._crossings_native.sort_intervals_to_columns`);
         otherwise :func:`.crossings.to_event_columns` of the sorted intervals."""
+
         def run() -> Any:
             if not self.chunked:
                 return to_event_columns([q.result() if isinstance(q, Future) else q for q in pieces], H, W, B)
@@ -498,8 +526,9 @@ class _EventPipeline:
                 pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _with_noise_counts(e_on: Any, e_off: Any, on_px: Any, off_px: Any, shape: tuple[int, int, int],
-                       dtype: Any) -> tuple[Any, Any]:
+def _with_noise_counts(
+    e_on: Any, e_off: Any, on_px: Any, off_px: Any, shape: tuple[int, int, int], dtype: Any
+) -> tuple[Any, Any]:
     """The step's ON and OFF counts plus the shot-noise events at the flat pixel indices ``on_px``, ``off_px``."""
     n = shape[0] * shape[1] * shape[2]
     if len(on_px):
@@ -509,8 +538,9 @@ def _with_noise_counts(e_on: Any, e_off: Any, on_px: Any, off_px: Any, shape: tu
     return e_on, e_off
 
 
-def _substep_target(Ls: Any, CI: Any, SU: Any, k: int, s: int, S: int, lp: Any, sur: Any, dt_sub: Any,
-                    config: SensorConfig) -> tuple[Any, Any, Any]:
+def _substep_target(
+    Ls: Any, CI: Any, SU: Any, k: int, s: int, S: int, lp: Any, sur: Any, dt_sub: Any, config: SensorConfig
+) -> tuple[Any, Any, Any]:
     """The log signal the comparator sees at sub-step ``s`` of ``S`` in interval ``k`` (frames interpolated),
     after the photoreceptor low-pass (``CI`` given) and the surround transient (``SU`` given); with the
     new low-pass and surround states ``(target, lp, sur)``."""
@@ -518,8 +548,7 @@ def _substep_target(Ls: Any, CI: Any, SU: Any, k: int, s: int, S: int, lp: Any, 
     target = Ls[k + 1] if s == S else torch.lerp(Ls[k], Ls[k + 1], frac)
     if CI is not None:
         inten = CI[k + 1] if s == S else torch.lerp(CI[k], CI[k + 1], frac)
-        fc = config.cutoff_hz * torch.clamp((inten + config.dark_intensity)
-                                            / config.full_scale_intensity, 0.0, 1.0)
+        fc = config.cutoff_hz * torch.clamp((inten + config.dark_intensity) / config.full_scale_intensity, 0.0, 1.0)
         lp = lowpass_step(lp, target, fc, dt_sub)
         target = lp
     if SU is not None:
@@ -535,9 +564,20 @@ def _call(fn: Any, *args: Any) -> Any:
     return fn(*args)
 
 
-def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config: SensorConfig,
-                   substeps: list[int], collect_events: bool, events: list, want_counts: bool, bar: Any,
-                   pipe: _EventPipeline | None) -> list:
+def _advance_steps(
+    st: _PixelState,
+    Ls: Any,
+    CI: Any,
+    SU: Any,
+    tsd: Any,
+    config: SensorConfig,
+    substeps: list[int],
+    collect_events: bool,
+    events: list,
+    want_counts: bool,
+    bar: Any,
+    pipe: _EventPipeline | None,
+) -> list:
     """The stepping loop of :func:`_advance` (same arguments and result); with ``pipe`` the event
     work is submitted to it (each interval's sort future appended to ``events``)."""
     B, H, W = Ls[0].shape
@@ -559,13 +599,14 @@ def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config:
     for k in range(len(Ls) - 1):
         step_parts: list = []
         S = substeps[k]
-        dt_int = (tsd[:, k + 1] - tsd[:, k])  # (B,)
+        dt_int = tsd[:, k + 1] - tsd[:, k]  # (B,)
         dt_sub64 = (dt_int / S).view(B, 1, 1)
         dt_sub = dt_sub64.to(dt_)
         on_acc = off_acc = None
         for s in range(1, S + 1):
-            target, lp, sur = _substep_target(Ls, CI if has_lp else None, SU if transient else None, k, s, S, lp,
-                                              sur, dt_sub, config)
+            target, lp, sur = _substep_target(
+                Ls, CI if has_lp else None, SU if transient else None, k, s, S, lp, sur, dt_sub, config
+            )
             ref_a = ref
             if leak > 0:
                 ref = ref - leak * c_on * dt_sub
@@ -582,9 +623,23 @@ def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config:
                 if exact_times:
                     with torch.no_grad():
                         t_a, t_b = _substep_times(tsd, k, s, S)
-                        args = (step_parts, h_on, h_off, sig_prev.detach(), ref_a.detach(), d_b, c_on.detach(),
-                                c_off.detach(), t_a, t_b, dt_sub64, last_t, refr, collect_events,
-                                refr > 0 and want_counts)
+                        args = (
+                            step_parts,
+                            h_on,
+                            h_off,
+                            sig_prev.detach(),
+                            ref_a.detach(),
+                            d_b,
+                            c_on.detach(),
+                            c_off.detach(),
+                            t_a,
+                            t_b,
+                            dt_sub64,
+                            last_t,
+                            refr,
+                            collect_events,
+                            refr > 0 and want_counts,
+                        )
                         if pipe is not None:
                             pipe.emit(crossing_step, *args, crossing=True)
                         else:
@@ -598,8 +653,12 @@ def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config:
             ref = ref_next
             if shot > 0 and pipe is not None and not want_counts:  # draws and events on the workers
                 lam = (0.5 * shot) * dt_sub64.reshape(B)
-                pipe.noise(shot_noise_pixels, noise_step, (B, H * W, lam, shot_g, sparse_noise),
-                           (step_parts, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64, time_g))
+                pipe.noise(
+                    shot_noise_pixels,
+                    noise_step,
+                    (B, H * W, lam, shot_g, sparse_noise),
+                    (step_parts, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64, time_g),
+                )
             elif shot > 0:
                 on_px, off_px = shot_noise_pixels(B, H * W, (0.5 * shot) * dt_sub64.reshape(B), shot_g, sparse_noise)
                 on_px, off_px = on_px.to(dev), off_px.to(dev)
@@ -607,8 +666,7 @@ def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config:
                 if want_counts:
                     e_on, e_off = _with_noise_counts(e_on, e_off, on_px, off_px, (B, H, W), dt_)
                 if collect_events:
-                    noise_args = (step_parts, on_px, off_px, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64,
-                                  time_g)
+                    noise_args = (step_parts, on_px, off_px, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64, time_g)
                     (pipe.emit if pipe is not None else _call)(noise_step, *noise_args)
             sig_prev = target
             if want_counts:
@@ -624,9 +682,17 @@ def _advance_steps(st: _PixelState, Ls: Any, CI: Any, SU: Any, tsd: Any, config:
     return frames
 
 
-def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[int],
-         generator: Any, collect_events: bool, thresholds: tuple[Any, Any] | None = None,
-         phase: Any = None, bar: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
+def _run(
+    signal: FilteredSignal,
+    ts: Any,
+    config: SensorConfig,
+    substeps: list[int],
+    generator: Any,
+    collect_events: bool,
+    thresholds: tuple[Any, Any] | None = None,
+    phase: Any = None,
+    bar: Any = None,
+) -> tuple[Any, SimulationInfo, EventList | None]:
     """Step every pixel through time; return counts (B, T-1, 2, H, W), info and events.
 
     ``thresholds`` and ``phase`` (per-pixel maps) are drawn here unless given (region stepping
@@ -639,8 +705,12 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     CI = signal.cutoff_intensity.unbind(1) if config.has_photoreceptor else None
     SU = signal.surround.unbind(1) if transient else None
     st = _init_state(Ls[0], SU[0] if SU is not None else None, config, thresholds, phase, generator, collect_events)
-    if float(config.refractory_s) > 0 and not config.has_photoreceptor and not transient \
-            and _refractory_never_binds(Ls, ts, st.c_on, st.c_off, config):
+    if (
+        float(config.refractory_s) > 0
+        and not config.has_photoreceptor
+        and not transient
+        and _refractory_never_binds(Ls, ts, st.c_on, st.c_off, config)
+    ):
         config = config.replace(refractory_s=0.0)  # nothing can be lost: skip the refractory path
     events: list = []
     frames = _advance(st, Ls, CI, SU, ts.to(dtype=torch.float64), config, substeps, collect_events, events, bar=bar)
@@ -648,8 +718,9 @@ def _run(signal: FilteredSignal, ts: Any, config: SensorConfig, substeps: list[i
     ev = None
     if collect_events:
         ev = EventList(*to_event_columns(events, H, W, B))
-    info = SimulationInfo(signal.floor_fraction, tuple(substeps), st.noise_events, int(round(st.lost)),
-                          B * H * W * sum(substeps))
+    info = SimulationInfo(
+        signal.floor_fraction, tuple(substeps), st.noise_events, int(round(st.lost)), B * H * W * sum(substeps)
+    )
     return out, info, ev
 
 
@@ -657,8 +728,10 @@ def _plan_config(config: SensorConfig | None, plan: Any) -> SensorConfig:
     """The configuration to simulate with: the plan's (checked against ``config``) or ``config``."""
     if plan is not None:
         # checked by what it carries, not by importing plan.py (which imports this module)
-        if not (isinstance(getattr(plan, "config", None), SensorConfig)
-                and isinstance(getattr(plan, "base_config", None), SensorConfig)):
+        if not (
+            isinstance(getattr(plan, "config", None), SensorConfig)
+            and isinstance(getattr(plan, "base_config", None), SensorConfig)
+        ):
             raise InputError(f"plan: must be a ModelPlan from plan_model(), got {type(plan).__name__}")
         if config is not None and config is not plan.base_config and config != plan.base_config:
             raise InputError("config and plan disagree: pass either config or plan (the plan carries its config)")
@@ -669,8 +742,9 @@ def _plan_config(config: SensorConfig | None, plan: Any) -> SensorConfig:
     return config
 
 
-def _resolve(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | None,
-             plan: Any) -> tuple[Any, Any, Any, SensorConfig, list[int] | None, int]:
+def _resolve(
+    video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | None, plan: Any
+) -> tuple[Any, Any, Any, SensorConfig, list[int] | None, int]:
     config = _plan_config(config, plan)
     video = prepare_video(video)
     ts = prepare_timestamps(timestamps_s, video, config)
@@ -686,8 +760,16 @@ def _as_float(x: Any) -> float:
     return float(x.detach()) if isinstance(x, torch.Tensor) else float(x)
 
 
-def _simulate(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | None, plan: Any,
-              generator: Any, collect_events: bool, bar: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
+def _simulate(
+    video: Any,
+    kernel: Any,
+    timestamps_s: Any,
+    config: SensorConfig | None,
+    plan: Any,
+    generator: Any,
+    collect_events: bool,
+    bar: Any = None,
+) -> tuple[Any, SimulationInfo, EventList | None]:
     check_instance("generator", generator, torch.Generator, "a torch.Generator", nullable=True)
     video, w, ts, config, subs, saturated = _resolve(video, kernel, timestamps_s, config, plan)
     out = _simulate_resolved(video, w, ts, config, subs, plan, generator, collect_events, bar)
@@ -695,8 +777,17 @@ def _simulate(video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig |
     return out
 
 
-def _simulate_resolved(video: Any, w: Any, ts: Any, config: SensorConfig, subs: list[int] | None, plan: Any,
-                       generator: Any, collect_events: bool, bar: Any) -> tuple[Any, SimulationInfo, EventList | None]:
+def _simulate_resolved(
+    video: Any,
+    w: Any,
+    ts: Any,
+    config: SensorConfig,
+    subs: list[int] | None,
+    plan: Any,
+    generator: Any,
+    collect_events: bool,
+    bar: Any,
+) -> tuple[Any, SimulationInfo, EventList | None]:
     signal = filtered_log_signal(video, w, config)
     step = None  # log-signal change allowed per sub-step (adaptive stepping)
     if subs is None:
@@ -763,8 +854,16 @@ def _reference_phase(config: SensorConfig, H: int, W: int, like: Any) -> Any:
     return torch.rand((H, W), generator=g, device=g.device, dtype=torch.float64).to(like.device, like.dtype)
 
 
-def _run_regions(signal: FilteredSignal, ts: Any, config: SensorConfig, subs: list[int], step: float,
-                 generator: Any, collect_events: bool, bar: Any = None) -> tuple[Any, SimulationInfo, EventList | None]:
+def _run_regions(
+    signal: FilteredSignal,
+    ts: Any,
+    config: SensorConfig,
+    subs: list[int],
+    step: float,
+    generator: Any,
+    collect_events: bool,
+    bar: Any = None,
+) -> tuple[Any, SimulationInfo, EventList | None]:
     """Adaptive stepping per square region: each region gets the sub-steps its own largest log
     change needs (rounded up to a power of two, at most the global count), so still regions are
     not stepped at the rate of the fastest one. Pixels are independent after the spatial filter,
@@ -796,15 +895,20 @@ def _run_regions(signal: FilteredSignal, ts: Any, config: SensorConfig, subs: li
 
         part = FilteredSignal(take(L), take(signal.surround), take(signal.cutoff_intensity), signal.floor_fraction)
         thr = tuple(take(c) if c.ndim else c for c in (c_on, c_off))
-        sub_part = [min(s, 2 ** lv) for s in subs]
+        sub_part = [min(s, 2**lv) for s in subs]
         f, info, ev = _run(part, ts, config, sub_part, generator, collect_events, thr, take(phase), bar)
         out = out.index_copy(-1, idx, f.reshape(B, T - 1, 2, -1))
         infos.append(info)
         if ev is not None and len(ev):
             flat = idx.cpu()[ev.x]
             events.append(EventList(ev.b, flat % W, flat // W, ev.t, ev.p))
-    info = SimulationInfo(signal.floor_fraction, tuple(subs), sum(i.noise_events for i in infos),
-                          sum(i.refractory_lost for i in infos), sum(i.pixel_steps for i in infos))
+    info = SimulationInfo(
+        signal.floor_fraction,
+        tuple(subs),
+        sum(i.noise_events for i in infos),
+        sum(i.refractory_lost for i in infos),
+        sum(i.pixel_steps for i in infos),
+    )
     ev_all = None
     if collect_events:
         ev_all = _merge_events(events)
@@ -823,9 +927,16 @@ def _merge_events(parts: list[EventList]) -> EventList:
 
 
 # ---------------------------------------------------------------------------- public API
-def event_frames(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
-                 config: SensorConfig | None = None, plan: Any = None, generator: Any = None,
-                 return_info: bool = False) -> Any:
+def event_frames(
+    video: Any,
+    kernel: Any = None,
+    *,
+    timestamps_s: Any = None,
+    config: SensorConfig | None = None,
+    plan: Any = None,
+    generator: Any = None,
+    return_info: bool = False,
+) -> Any:
     """Differentiable event frames: ON/OFF event counts per frame interval.
 
     Parameters
@@ -885,9 +996,16 @@ def event_frames(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
     return (frames, info) if return_info else frames
 
 
-def event_list(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
-               config: SensorConfig | None = None, plan: Any = None, generator: Any = None,
-               progress: bool | None = None) -> EventList:
+def event_list(
+    video: Any,
+    kernel: Any = None,
+    *,
+    timestamps_s: Any = None,
+    config: SensorConfig | None = None,
+    plan: Any = None,
+    generator: Any = None,
+    progress: bool | None = None,
+) -> EventList:
     """Exact, non-differentiable events (b, x, y, t, p) with per-event interpolated timestamps.
 
     Same model and arguments as :func:`event_frames` (the "realistic track"); counting the
@@ -912,8 +1030,10 @@ def event_list(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
 
     progress = check_bool("progress", progress, nullable=True)
     n_intervals = max(int(getattr(video, "shape", (0, 1))[1]) - 1, 0) if getattr(video, "ndim", 0) >= 2 else None
-    with torch.no_grad(), progress_bar(total=n_intervals, desc="event_list", unit="frame", progress=progress,
-                                       leave=False) as bar:
+    with (
+        torch.no_grad(),
+        progress_bar(total=n_intervals, desc="event_list", unit="frame", progress=progress, leave=False) as bar,
+    ):
         _, _, ev = _simulate(video, kernel, timestamps_s, config, plan, generator, True, bar)
     assert ev is not None  # collect_events=True
     return ev
@@ -922,13 +1042,22 @@ def event_list(video: Any, kernel: Any = None, *, timestamps_s: Any = None,
 def _hat_integral(u: Any) -> Any:
     import torch
 
-    return torch.where(u < -1, torch.zeros_like(u),
-                       torch.where(u < 0, 0.5 * (u + 1) ** 2,
-                                   torch.where(u < 1, 1 - 0.5 * (1 - u) ** 2, torch.ones_like(u))))
+    return torch.where(
+        u < -1,
+        torch.zeros_like(u),
+        torch.where(u < 0, 0.5 * (u + 1) ** 2, torch.where(u < 1, 1 - 0.5 * (1 - u) ** 2, torch.ones_like(u))),
+    )
 
 
-def voxel_grid(events_or_frames: Any, n_bins: int, *, timestamps_s: Any = None,
-               height: int | None = None, width: int | None = None, signed: bool = True) -> Any:
+def voxel_grid(
+    events_or_frames: Any,
+    n_bins: int,
+    *,
+    timestamps_s: Any = None,
+    height: int | None = None,
+    width: int | None = None,
+    signed: bool = True,
+) -> Any:
     """Event voxel grid (Zhu et al. 2019): events spread over ``n_bins`` time bins by linear
     (hat) interpolation in time.
 
@@ -977,14 +1106,19 @@ def voxel_grid(events_or_frames: Any, n_bins: int, *, timestamps_s: Any = None,
         height = check_int("height", height, 1, None)
         width = check_int("width", width, 1, None)
         ts = torch.from_numpy(check_increasing_times("timestamps_s", timestamps_s))
-        if len(ev) and (int(ev.x.max()) >= width or int(ev.y.max()) >= height or int(ev.x.min()) < 0
-                        or int(ev.y.min()) < 0):
-            raise InputError(f"voxel_grid: events reach pixel (x={int(ev.x.max())}, y={int(ev.y.max())}) outside "
-                             f"height={height}, width={width}; allowed: the sensor size the events were made with")
+        if len(ev) and (
+            int(ev.x.max()) >= width or int(ev.y.max()) >= height or int(ev.x.min()) < 0 or int(ev.y.min()) < 0
+        ):
+            raise InputError(
+                f"voxel_grid: events reach pixel (x={int(ev.x.max())}, y={int(ev.y.max())}) outside "
+                f"height={height}, width={width}; allowed: the sensor size the events were made with"
+            )
         t0, t1 = float(ts[0]), float(ts[-1])
         B = int(ev.b.max()) + 1 if len(ev) else 1
-        check_allocation(f"voxel_grid (B={B}, n_bins={n_bins}, 2, H={height}, W={width}, float64)",
-                         8.0 * B * n_bins * 2 * height * width)
+        check_allocation(
+            f"voxel_grid (B={B}, n_bins={n_bins}, 2, H={height}, W={width}, float64)",
+            8.0 * B * n_bins * 2 * height * width,
+        )
         out = torch.zeros((B, n_bins, 2, height, width), dtype=torch.float64)
         if len(ev):
             pos = (ev.t - t0) / (t1 - t0) * (n_bins - 1) if n_bins > 1 else torch.zeros_like(ev.t)
@@ -1009,8 +1143,10 @@ def voxel_grid(events_or_frames: Any, n_bins: int, *, timestamps_s: Any = None,
                 raise InputError(f"timestamps_s: needs {n_int + 1} frame times for {n_int} intervals")
         t0, t1 = float(ts[0]), float(ts[-1])
         B, _, _, H, W = frames.shape
-        check_allocation(f"voxel_grid (B={B}, n_bins={n_bins}, 2, H={H}, W={W}, {frames.dtype})",
-                         float(frames.element_size()) * B * n_bins * 2 * H * W)
+        check_allocation(
+            f"voxel_grid (B={B}, n_bins={n_bins}, 2, H={H}, W={W}, {frames.dtype})",
+            float(frames.element_size()) * B * n_bins * 2 * H * W,
+        )
         width_s = (t1 - t0) / max(n_bins - 1, 1)
         centres = torch.linspace(t0, t1, n_bins, dtype=torch.float64) if n_bins > 1 else torch.tensor([t0])
         a, b = ts[:-1, None], ts[1:, None]
@@ -1047,16 +1183,16 @@ class EventSimulator(torch.nn.Module):
     (torch.Size([1, 2, 2, 8, 8]), True)
     """
 
-    def __init__(self, config: SensorConfig | None = None, kernel: Any = None,
-                 learnable: bool = False) -> None:
+    def __init__(self, config: SensorConfig | None = None, kernel: Any = None, learnable: bool = False) -> None:
         super().__init__()
         self.config = SensorConfig.ideal() if config is None else config
         if not isinstance(self.config, SensorConfig):
             raise InputError(f"config: must be a SensorConfig, got {type(self.config).__name__}")
         like = torch.zeros((), dtype=torch.float32)
         if isinstance(kernel, torch.Tensor):
-            like = torch.zeros((), dtype=kernel.dtype if kernel.is_floating_point() else torch.float32,
-                               device=kernel.device)
+            like = torch.zeros(
+                (), dtype=kernel.dtype if kernel.is_floating_point() else torch.float32, device=kernel.device
+            )
         w = kernel_tensor(kernel, like).detach().clone()
         if learnable:
             self.kernel = torch.nn.Parameter(w)

@@ -62,8 +62,9 @@ def kernel_tensor(kernel: Any, like: Any) -> Any:
         except (TypeError, ValueError) as exc:
             raise KernelError(f"kernel: must be a Kernel, a tensor or a 2-D array ({exc})") from None
     elif kernel.device != like.device:
-        raise InputError(f"kernel: on device {kernel.device} but the video is on {like.device}; "
-                         "move both to the same device")
+        raise InputError(
+            f"kernel: on device {kernel.device} but the video is on {like.device}; move both to the same device"
+        )
     if kernel.ndim == 4 and kernel.shape[:2] == (1, 1):  # conv weight
         kernel = kernel[0, 0]
     if kernel.ndim != 2 or kernel.shape[0] != kernel.shape[1]:
@@ -118,7 +119,7 @@ def apply_kernel(frames: Any, kernel: Any, method: str = "auto") -> Any:
         # still only touches the first k - 1 rows and columns, which are cut off.
         s = (next_fast_len(H + 2 * r), next_fast_len(W + 2 * r, real=True))
         spec = torch.fft.rfft2(kernel.flip(0, 1), s=s)
-        y = torch.fft.irfft2(torch.fft.rfft2(x, s=s) * spec, s=s)[..., 2 * r:2 * r + H, 2 * r:2 * r + W]
+        y = torch.fft.irfft2(torch.fft.rfft2(x, s=s) * spec, s=s)[..., 2 * r : 2 * r + H, 2 * r : 2 * r + W]
     else:
         raise InputError(f"convolution method {method!r} unknown; allowed: auto, direct, fft")
     return y.reshape(shape)
@@ -138,8 +139,10 @@ def mesh_surround_steady_state(signal: Any, lambda_px: float) -> Any:
 
     check_instance("signal", signal, torch.Tensor, "a real torch tensor (..., H, W)")
     if signal.ndim < 2 or not signal.is_floating_point():
-        raise InputError(f"signal: shape {tuple(signal.shape)}, dtype {signal.dtype}; allowed: a floating "
-                         "tensor of at least 2 dimensions (..., H, W)")
+        raise InputError(
+            f"signal: shape {tuple(signal.shape)}, dtype {signal.dtype}; allowed: a floating "
+            "tensor of at least 2 dimensions (..., H, W)"
+        )
     lambda_px = check_real("lambda_px", lambda_px, 0.0, 1e4, unit="px")
     if lambda_px == 0:
         return signal
@@ -150,7 +153,7 @@ def mesh_surround_steady_state(signal: Any, lambda_px: float) -> Any:
     ky = torch.arange(2 * H, device=signal.device, dtype=real_dtype)
     kx = torch.arange(W + 1, device=signal.device, dtype=real_dtype)
     eig = (4 * torch.sin(math.pi * ky / (2 * H)) ** 2)[:, None] + (4 * torch.sin(math.pi * kx / (2 * W)) ** 2)[None, :]
-    spec = torch.fft.rfft2(ext) / (1.0 + lambda_px ** 2 * eig)
+    spec = torch.fft.rfft2(ext) / (1.0 + lambda_px**2 * eig)
     out = torch.fft.irfft2(spec, s=(2 * H, 2 * W))
     return out[..., :H, :W]
 

@@ -45,8 +45,8 @@ __all__ = ["LUMINOUS_EFFICACY_LM_PER_W", "PhotonNoise", "photoelectrons_per_fram
 
 #: Maximum luminous efficacy of radiation (lm/W at 555 nm), SI definition of the candela.
 LUMINOUS_EFFICACY_LM_PER_W = 683.0
-_H = 6.62607015e-34   # J s (exact, SI 2019)
-_C = 299_792_458.0    # m/s (exact)
+_H = 6.62607015e-34  # J s (exact, SI 2019)
+_C = 299_792_458.0  # m/s (exact)
 
 
 def _positive(name: str, value: Any, high: float) -> float:
@@ -55,8 +55,14 @@ def _positive(name: str, value: Any, high: float) -> float:
     return float(value)
 
 
-def photoelectrons_per_frame(*, illuminance_lux: float, pitch_m: float, quantum_efficiency: float = 0.5,
-                             frame_interval_s: float = 0.01, wavelength_m: float = 555e-9) -> float:
+def photoelectrons_per_frame(
+    *,
+    illuminance_lux: float,
+    pitch_m: float,
+    quantum_efficiency: float = 0.5,
+    frame_interval_s: float = 0.01,
+    wavelength_m: float = 555e-9,
+) -> float:
     """Mean photoelectrons a pixel collects in one frame interval at full-scale intensity.
 
     Parameters
@@ -132,9 +138,10 @@ class PhotonNoise:
 
         n = float(self.photoelectrons_full_scale)
         digest = hashlib.sha1(np.ascontiguousarray(video.detach().cpu().numpy()[..., ::7, ::7]).tobytes())
-        gen = torch.Generator(device="cpu").manual_seed((int.from_bytes(digest.digest()[:7], "little") + self.seed)
-                                                        % 2**63)
-        rate = (video.detach().cpu().double().clamp(min=0.0) * n)
+        gen = torch.Generator(device="cpu").manual_seed(
+            (int.from_bytes(digest.digest()[:7], "little") + self.seed) % 2**63
+        )
+        rate = video.detach().cpu().double().clamp(min=0.0) * n
         counts = torch.poisson(rate, generator=gen)
         return (counts / n).to(video.dtype).to(video.device)
 

@@ -140,8 +140,7 @@ def _randn(shape: tuple[int, ...], generator: Any, like: Any) -> Any:
     return z.to(device=like.device, dtype=like.dtype)
 
 
-def threshold_maps(config: SensorConfig, shape: tuple[int, ...], like: Any,
-                   generator: Any = None) -> tuple[Any, Any]:
+def threshold_maps(config: SensorConfig, shape: tuple[int, ...], like: Any, generator: Any = None) -> tuple[Any, Any]:
     """Per-pixel ON and OFF thresholds (log units) of shape ``shape`` = (H, W).
 
     ``C_pixel = C + σ z`` with ``z ~ N(0, 1)`` drawn from the mismatch stream, clipped below at

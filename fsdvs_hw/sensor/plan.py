@@ -94,8 +94,9 @@ class SceneStats:
     motion_px_per_frame: float | None = None
 
     @classmethod
-    def from_video(cls, video: Any, kernel: Any = None, *, timestamps_s: Any = None,
-                   config: SensorConfig | None = None) -> SceneStats:
+    def from_video(
+        cls, video: Any, kernel: Any = None, *, timestamps_s: Any = None, config: SensorConfig | None = None
+    ) -> SceneStats:
         """Measure a (B, T, H, W) linear-intensity clip through the kernel and the config's pixel."""
         import torch
 
@@ -147,9 +148,17 @@ def _mismatch_probe(video: Any, kernel: Any, ts: Any, config: SensorConfig, crop
 
     H, W = video.shape[-2:]
     y0, x0 = max((H - crop) // 2, 0), max((W - crop) // 2, 0)
-    v = video[:, :, y0:y0 + crop, x0:x0 + crop]
-    base = config.replace(cutoff_hz=0.0, refractory_s=0.0, leak_rate_hz=0.0, shot_noise_rate_hz=0.0,
-                          substeps=1, adaptive_fraction=None, surround_tau_s=0.0, random_reference_phase=False)
+    v = video[:, :, y0 : y0 + crop, x0 : x0 + crop]
+    base = config.replace(
+        cutoff_hz=0.0,
+        refractory_s=0.0,
+        leak_rate_hz=0.0,
+        shot_noise_rate_hz=0.0,
+        substeps=1,
+        adaptive_fraction=None,
+        surround_tau_s=0.0,
+        random_reference_phase=False,
+    )
     with_mm = event_frames(v, kernel, timestamps_s=ts, config=base)
     without = event_frames(v, kernel, timestamps_s=ts, config=base.replace(threshold_sigma=0.0))
     total = float(with_mm.sum())
@@ -215,16 +224,23 @@ class ModelPlan:
         return tuple(d.name for d in self.decisions if not d.included)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"tolerance": self.tolerance, "substeps": list(self.substeps), "upsample_rate_hz": self.upsample_rate_hz,
-                "decisions": [d.__dict__ for d in self.decisions], "config": self.config.to_dict()}
+        return {
+            "tolerance": self.tolerance,
+            "substeps": list(self.substeps),
+            "upsample_rate_hz": self.upsample_rate_hz,
+            "decisions": [d.__dict__ for d in self.decisions],
+            "config": self.config.to_dict(),
+        }
 
     def __str__(self) -> str:
-        lines = [f"Model plan (tolerance {self.tolerance:g}; sub-steps per interval: "
-                 f"{_summarise(self.substeps)})",
-                 f"{'effect':<20} {'':8} {'value':>10} {'limit':>10}  reason"]
+        lines = [
+            f"Model plan (tolerance {self.tolerance:g}; sub-steps per interval: {_summarise(self.substeps)})",
+            f"{'effect':<20} {'':8} {'value':>10} {'limit':>10}  reason",
+        ]
         for d in self.decisions:
-            lines.append(f"{d.name:<20} {'INCLUDED' if d.included else 'skipped':8} "
-                         f"{d.value:10.3g} {d.limit:10.3g}  {d.reason}")
+            lines.append(
+                f"{d.name:<20} {'INCLUDED' if d.included else 'skipped':8} {d.value:10.3g} {d.limit:10.3g}  {d.reason}"
+            )
         return "\n".join(lines)
 
 
@@ -250,8 +266,14 @@ def _plan_arguments(tolerance: Any, config: SensorConfig | None) -> tuple[float,
     return tol, config
 
 
-def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorConfig | None = None,
-               kernel: Any = None, timestamps_s: Any = None) -> ModelPlan:
+def plan_model(
+    video_or_stats: Any,
+    tolerance: float = 0.05,
+    *,
+    config: SensorConfig | None = None,
+    kernel: Any = None,
+    timestamps_s: Any = None,
+) -> ModelPlan:
     """Decide which effects a scene requires and at what time resolution.
 
     Parameters
@@ -285,8 +307,9 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
         st = video_or_stats
     else:
         st = SceneStats.from_video(video_or_stats, kernel, timestamps_s=timestamps_s, config=config)
-    c_on, c_off = (float(x.detach()) if hasattr(x, "detach") else float(x)
-                   for x in (config.threshold_on, config.threshold_off))
+    c_on, c_off = (
+        float(x.detach()) if hasattr(x, "detach") else float(x) for x in (config.threshold_on, config.threshold_off)
+    )
     c_nom = min(c_on, c_off)
     c_low = max(c_nom - 3 * config.threshold_sigma, config.threshold_min_fraction * c_nom)
     signal_events = st.total_abs_change / c_nom
@@ -299,11 +322,17 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
     else:
         lag = st.max_lowpass_lag / c_nom
         inc = lag > tol
-        decisions.append(PlanDecision(
-            "photoreceptor", inc, lag, tol,
-            f"worst low-pass lag {st.max_lowpass_lag:.3g} log units = {lag:.3g} C "
-            f"(intensity {st.min_intensity:.3g}..{st.max_intensity:.3g}, cut-off {config.cutoff_hz:g} Hz at full scale)"
-            + (" > tolerance" if inc else " <= tolerance")))
+        decisions.append(
+            PlanDecision(
+                "photoreceptor",
+                inc,
+                lag,
+                tol,
+                f"worst low-pass lag {st.max_lowpass_lag:.3g} log units = {lag:.3g} C "
+                f"(intensity {st.min_intensity:.3g}..{st.max_intensity:.3g}, cut-off {config.cutoff_hz:g} Hz at full scale)"
+                + (" > tolerance" if inc else " <= tolerance"),
+            )
+        )
         if not inc:
             changes["cutoff_hz"] = 0.0
     # surround transient
@@ -334,17 +363,31 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
     # sub-steps
     temporal = [d.name for d in decisions if d.included]
     if temporal:
-        subs = tuple(int(min(max(math.ceil(x / (tol * c_low)), 1), config.max_substeps))
-                     for x in st.interval_max_abs_change)
-        decisions.append(PlanDecision(
-            "sub-steps", True, float(max(subs)), float(config.max_substeps),
-            f"{' and '.join(temporal)} filter(s) run: per interval ceil(max|ΔL| / ({tol:g} C)), "
-            f"max |ΔL| {max(st.interval_max_abs_change):.3g} log units -> {_summarise(subs)}"))
+        subs = tuple(
+            int(min(max(math.ceil(x / (tol * c_low)), 1), config.max_substeps)) for x in st.interval_max_abs_change
+        )
+        decisions.append(
+            PlanDecision(
+                "sub-steps",
+                True,
+                float(max(subs)),
+                float(config.max_substeps),
+                f"{' and '.join(temporal)} filter(s) run: per interval ceil(max|ΔL| / ({tol:g} C)), "
+                f"max |ΔL| {max(st.interval_max_abs_change):.3g} log units -> {_summarise(subs)}",
+            )
+        )
     else:
         subs = tuple(1 for _ in st.interval_max_abs_change)
-        decisions.append(PlanDecision("sub-steps", False, 1.0, float(config.max_substeps),
-                                      "no temporal filter: crossings of the linearly interpolated signal are "
-                                      "exact in closed form, 1 step per interval"))
+        decisions.append(
+            PlanDecision(
+                "sub-steps",
+                False,
+                1.0,
+                float(config.max_substeps),
+                "no temporal filter: crossings of the linearly interpolated signal are "
+                "exact in closed form, 1 step per interval",
+            )
+        )
     # threshold mismatch
     ratio = config.threshold_sigma / c_nom
     if st.mismatch_frame_error is not None:
@@ -354,8 +397,9 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
         value = 4 * ratio
         how = f"estimated frame error without it 4 sigma/C = {value:.3g} (no video to probe)"
     inc = value > tol
-    decisions.append(PlanDecision("threshold mismatch", inc, value, tol,
-                                  how + (" > tolerance" if inc else " <= tolerance")))
+    decisions.append(
+        PlanDecision("threshold mismatch", inc, value, tol, how + (" > tolerance" if inc else " <= tolerance"))
+    )
     if not inc:
         changes["threshold_sigma"] = 0.0
     # refractory
@@ -378,8 +422,10 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
         rate = float(getattr(config, key))
         expected = rate * st.n_pixels * st.duration_s
         ratio = expected / max(signal_events, 1.0)
-        text = (f"expected {expected:.3g} events ({rate:g} Hz x {st.n_pixels} px x {st.duration_s:.3g} s) vs "
-                f"{signal_events:.3g} signal events: ratio {ratio:.3g}")
+        text = (
+            f"expected {expected:.3g} events ({rate:g} Hz x {st.n_pixels} px x {st.duration_s:.3g} s) vs "
+            f"{signal_events:.3g} signal events: ratio {ratio:.3g}"
+        )
         value = ratio
         if key == "leak_rate_hz":
             # the leak also drifts every reference by rate x duration thresholds, shifting signal
@@ -391,10 +437,16 @@ def plan_model(video_or_stats: Any, tolerance: float = 0.05, *, config: SensorCo
         decisions.append(PlanDecision(name, inc, value, tol, text + (" > tolerance" if inc else " <= tolerance")))
         if not inc:
             changes[key] = 0.0
-    decisions.append(PlanDecision(
-        "positivity floor", True, st.floor_fraction, 0.0,
-        f"{config.placement}/{config.positivity}: {100 * st.floor_fraction:.3g} % of pixel-frames at the floor "
-        "(always modelled; reported)"))
+    decisions.append(
+        PlanDecision(
+            "positivity floor",
+            True,
+            st.floor_fraction,
+            0.0,
+            f"{config.placement}/{config.positivity}: {100 * st.floor_fraction:.3g} % of pixel-frames at the floor "
+            "(always modelled; reported)",
+        )
+    )
     upsample = _upsampling_decision(st, c_nom)
     decisions.append(upsample[0])
     eff = config.replace(adaptive_fraction=None, **changes)
@@ -408,15 +460,25 @@ def _upsampling_decision(st: SceneStats, c_nom: float) -> tuple[PlanDecision, fl
 
     motion = st.motion_px_per_frame
     if motion is None:
-        return PlanDecision("frame upsampling", False, 0.0, UPSAMPLE_MOTION_PX,
-                            "motion not measured (frames under 16 px, or statistics given without it)"), None
+        return PlanDecision(
+            "frame upsampling",
+            False,
+            0.0,
+            UPSAMPLE_MOTION_PX,
+            "motion not measured (frames under 16 px, or statistics given without it)",
+        ), None
     change = max(st.interval_max_abs_change, default=0.0)
     inc = motion > UPSAMPLE_MOTION_PX and change > c_nom
     fps = len(st.interval_max_abs_change) / st.duration_s if st.duration_s > 0 else float("nan")
     rate = fps * math.ceil(motion) if inc and math.isfinite(fps) else None
-    text = (f"motion {motion:.3g} px/frame (99th percentile optical flow) {'>' if motion > UPSAMPLE_MOTION_PX else '<='} "
-            f"{UPSAMPLE_MOTION_PX:g} px, largest log change per frame {change:.3g} {'>' if change > c_nom else '<='} "
-            f"C = {c_nom:.3g}: ")
-    text += (f"linear-in-log event times are off by a large part of a frame; upsample to {rate:.4g} Hz "
-             "(mode 'flow')" if rate is not None else "the video's frames time events as well as upsampling would")
+    text = (
+        f"motion {motion:.3g} px/frame (99th percentile optical flow) {'>' if motion > UPSAMPLE_MOTION_PX else '<='} "
+        f"{UPSAMPLE_MOTION_PX:g} px, largest log change per frame {change:.3g} {'>' if change > c_nom else '<='} "
+        f"C = {c_nom:.3g}: "
+    )
+    text += (
+        f"linear-in-log event times are off by a large part of a frame; upsample to {rate:.4g} Hz (mode 'flow')"
+        if rate is not None
+        else "the video's frames time events as well as upsampling would"
+    )
     return PlanDecision("frame upsampling", inc, motion, UPSAMPLE_MOTION_PX, text), rate

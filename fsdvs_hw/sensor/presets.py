@@ -85,8 +85,15 @@ PRESET_FIELDS: dict[str, tuple[str, str]] = {
 # fsdvs_hw.scenes.video.INPUT_MAPPINGS (repeated: reading a preset does not import the video module)
 _INPUT_MAPPINGS = ("linear_light", "v2e_gray")
 # the quantities SensorConfig takes
-_CONFIG_FIELDS = ("threshold_on", "threshold_off", "threshold_sigma", "refractory_s", "cutoff_hz", "leak_rate_hz",
-                  "shot_noise_rate_hz")
+_CONFIG_FIELDS = (
+    "threshold_on",
+    "threshold_off",
+    "threshold_sigma",
+    "refractory_s",
+    "cutoff_hz",
+    "leak_rate_hz",
+    "shot_noise_rate_hz",
+)
 
 
 @dataclass(frozen=True)
@@ -146,8 +153,10 @@ class SensorPreset:
         if missing or extra:
             raise InputError(f"SensorPreset {self.name!r}: fields missing {sorted(missing)}, unknown {sorted(extra)}")
         if self.input_mapping not in _INPUT_MAPPINGS:
-            raise InputError(f"SensorPreset {self.name!r}: input_mapping {self.input_mapping!r} unknown; allowed: "
-                             f"{', '.join(_INPUT_MAPPINGS)}")
+            raise InputError(
+                f"SensorPreset {self.name!r}: input_mapping {self.input_mapping!r} unknown; allowed: "
+                f"{', '.join(_INPUT_MAPPINGS)}"
+            )
 
     def config(self, **overrides: Any) -> SensorConfig:
         """The simulator's :class:`SensorConfig` for this preset; ``overrides`` replace any field."""
@@ -181,7 +190,8 @@ def _v2e_preset(name: str, description: str, code_place: str) -> SensorPreset:
     cfg = SensorConfig.preset(name)
     src = f"{_V2E}, {code_place}"
     values = {
-        "width_px": _ass(None, _SIZE_FROM_VIDEO), "height_px": _ass(None, _SIZE_FROM_VIDEO),
+        "width_px": _ass(None, _SIZE_FROM_VIDEO),
+        "height_px": _ass(None, _SIZE_FROM_VIDEO),
         "pitch_um": _ass(None, "v2e has no pixel pitch (an emulator, not a chip)"),
         "latency_s": _ass(None, _NOT_MODELLED),
     }
@@ -198,20 +208,30 @@ _FINATEU = "Finateu et al., ISSCC 2020, paper 5.10"
 
 _PRESET_LIST = [
     SensorPreset(
-        "dvs128", "DVS128 (Lichtsteiner, Posch & Delbruck, IEEE JSSC 2008)",
+        "dvs128",
+        "DVS128 (Lichtsteiner, Posch & Delbruck, IEEE JSSC 2008)",
         {
             "width_px": _pub(128, f"{_LICHTSTEINER}, title (128x128)"),
             "height_px": _pub(128, f"{_LICHTSTEINER}, title (128x128)"),
             "pitch_um": _pub(40.0, f"{_LICHTSTEINER}, abstract and specification table (40 x 40 µm² pixel)"),
-            "threshold_on": _unv(round(math.log(1.15), 4), f"{_LICHTSTEINER}: about 15 % contrast at the "
-                                 "characterisation biases (bias-dependent, not a chip constant)"),
-            "threshold_off": _unv(round(math.log(1.15), 4), f"{_LICHTSTEINER}: about 15 % contrast at the "
-                                  "characterisation biases (bias-dependent, not a chip constant)"),
-            "threshold_sigma": _pub(0.021, f"{_LICHTSTEINER}, abstract: 2.1 % contrast-threshold mismatch "
-                                    "(ln(1 + c) ≈ c at 2 %)"),
+            "threshold_on": _unv(
+                round(math.log(1.15), 4),
+                f"{_LICHTSTEINER}: about 15 % contrast at the "
+                "characterisation biases (bias-dependent, not a chip constant)",
+            ),
+            "threshold_off": _unv(
+                round(math.log(1.15), 4),
+                f"{_LICHTSTEINER}: about 15 % contrast at the "
+                "characterisation biases (bias-dependent, not a chip constant)",
+            ),
+            "threshold_sigma": _pub(
+                0.021, f"{_LICHTSTEINER}, abstract: 2.1 % contrast-threshold mismatch (ln(1 + c) ≈ c at 2 %)"
+            ),
             "refractory_s": _ass(5e-4, "bias-dependent (refractory bias); v2e's default 0.5 ms"),
-            "cutoff_hz": _ass(300.0, "bandwidth grows with photocurrent [1] (bias- and light-dependent); "
-                              "v2e's default 300 Hz at full scale"),
+            "cutoff_hz": _ass(
+                300.0,
+                "bandwidth grows with photocurrent [1] (bias- and light-dependent); v2e's default 300 Hz at full scale",
+            ),
             "leak_rate_hz": _ass(0.01, "junction leakage, temperature-dependent; v2e's default 0.01 Hz"),
             "shot_noise_rate_hz": _ass(1e-3, "light-dependent; v2e's default 0.001 Hz"),
             "latency_s": _pub(15e-6, f"{_LICHTSTEINER}, title (15 µs at high illuminance)"),
@@ -219,15 +239,22 @@ _PRESET_LIST = [
         _CAMERA_BASE,
     ),
     SensorPreset(
-        "davis346", "DAVIS346 (iniVation AG datasheet; the DAVIS pixel of Brandli et al., IEEE JSSC 2014, DAVIS240)",
+        "davis346",
+        "DAVIS346 (iniVation AG datasheet; the DAVIS pixel of Brandli et al., IEEE JSSC 2014, DAVIS240)",
         {
             "width_px": _pub(346, "iniVation DAVIS346 datasheet (346 x 260 pixels)"),
             "height_px": _pub(260, "iniVation DAVIS346 datasheet (346 x 260 pixels)"),
             "pitch_um": _pub(18.5, "iniVation DAVIS346 datasheet (18.5 µm pixel)"),
-            "threshold_on": _unv(round(math.log(1.143), 4), "iniVation DAVIS346 specifications, contrast "
-                                 "sensitivity 14.3 % ON (recalled, not checked against the current PDF)"),
-            "threshold_off": _unv(round(math.log(1.225), 4), "iniVation DAVIS346 specifications, contrast "
-                                  "sensitivity 22.5 % OFF (recalled, not checked against the current PDF)"),
+            "threshold_on": _unv(
+                round(math.log(1.143), 4),
+                "iniVation DAVIS346 specifications, contrast "
+                "sensitivity 14.3 % ON (recalled, not checked against the current PDF)",
+            ),
+            "threshold_off": _unv(
+                round(math.log(1.225), 4),
+                "iniVation DAVIS346 specifications, contrast "
+                "sensitivity 22.5 % OFF (recalled, not checked against the current PDF)",
+            ),
             "threshold_sigma": _ass(0.03, _V2E_TUNED),
             "refractory_s": _ass(5e-4, _V2E_TUNED),
             "cutoff_hz": _ass(300.0, _V2E_TUNED),
@@ -238,15 +265,18 @@ _PRESET_LIST = [
         _CAMERA_BASE,
     ),
     SensorPreset(
-        "imx636", "Prophesee Gen4.1 / Sony IMX636, as in the EVK4 (Finateu et al., ISSCC 2020)",
+        "imx636",
+        "Prophesee Gen4.1 / Sony IMX636, as in the EVK4 (Finateu et al., ISSCC 2020)",
         {
             "width_px": _pub(1280, f"{_FINATEU}, title (1280x720)"),
             "height_px": _pub(720, f"{_FINATEU}, title (1280x720)"),
             "pitch_um": _pub(4.86, f"{_FINATEU}, title (4.86 µm pixels)"),
-            "threshold_on": _ass(0.2, "no published nominal threshold checked here (bias-programmable); "
-                                 "v2e's default 0.2"),
-            "threshold_off": _ass(0.2, "no published nominal threshold checked here (bias-programmable); "
-                                  "v2e's default 0.2"),
+            "threshold_on": _ass(
+                0.2, "no published nominal threshold checked here (bias-programmable); v2e's default 0.2"
+            ),
+            "threshold_off": _ass(
+                0.2, "no published nominal threshold checked here (bias-programmable); v2e's default 0.2"
+            ),
             "threshold_sigma": _ass(0.03, "no published mismatch checked here; v2e's default 0.03"),
             "refractory_s": _ass(5e-4, "bias-programmable (bias_refr); v2e's default 0.5 ms"),
             "cutoff_hz": _ass(300.0, "bias-programmable (bias_fo); v2e's default 300 Hz"),
@@ -256,11 +286,13 @@ _PRESET_LIST = [
         },
         _CAMERA_BASE,
     ),
-    _v2e_preset("v2e-clean", "v2e --dvs_params clean (v2e's frame mapping)",
-                "v2ecore/emulator.py set_dvs_params('clean')"),
+    _v2e_preset(
+        "v2e-clean", "v2e --dvs_params clean (v2e's frame mapping)", "v2ecore/emulator.py set_dvs_params('clean')"
+    ),
     _v2e_preset("v2e-default", "v2e command-line defaults (v2e's frame mapping)", "v2ecore/v2e_args.py defaults"),
-    _v2e_preset("v2e-noisy", "v2e --dvs_params noisy (v2e's frame mapping)",
-                "v2ecore/emulator.py set_dvs_params('noisy')"),
+    _v2e_preset(
+        "v2e-noisy", "v2e --dvs_params noisy (v2e's frame mapping)", "v2ecore/emulator.py set_dvs_params('noisy')"
+    ),
 ]
 
 #: preset name -> :class:`SensorPreset`
@@ -343,14 +375,16 @@ def presets_markdown() -> str:
     True
     """
     names = list(SENSOR_PRESETS)
-    lines = ["| quantity | unit | " + " | ".join(f"`{n}`" for n in names) + " |",
-             "|---|---|" + "---|" * len(names)]
+    lines = ["| quantity | unit | " + " | ".join(f"`{n}`" for n in names) + " |", "|---|---|" + "---|" * len(names)]
     for k, (unit, desc) in PRESET_FIELDS.items():
-        lines.append(f"| {desc} (`{k}`) | {unit} | "
-                     + " | ".join(_cell(SENSOR_PRESETS[n].values[k]) for n in names) + " |")
+        lines.append(
+            f"| {desc} (`{k}`) | {unit} | " + " | ".join(_cell(SENSOR_PRESETS[n].values[k]) for n in names) + " |"
+        )
     lines.append("")
-    lines.append("(u) unverified: recalled from the named source, not checked here; (a) assumed: no source, "
-                 "reason given below; — no value.")
+    lines.append(
+        "(u) unverified: recalled from the named source, not checked here; (a) assumed: no source, "
+        "reason given below; — no value."
+    )
     for n in names:
         p = SENSOR_PRESETS[n]
         lines += ["", f"**`{n}`** — {p.description}", ""]
@@ -361,8 +395,10 @@ def presets_markdown() -> str:
 
 
 #: Markers of the generated block in ``docs/sensors.md``; name -> (begin, end).
-DOC_BLOCKS = {name: (f"<!-- generated:{name} begin (do not edit; regenerate) -->", f"<!-- generated:{name} end -->")
-              for name in ("presets", "calibration")}
+DOC_BLOCKS = {
+    name: (f"<!-- generated:{name} begin (do not edit; regenerate) -->", f"<!-- generated:{name} end -->")
+    for name in ("presets", "calibration")
+}
 
 
 def splice_block(text: str, name: str, content: str) -> str:
@@ -383,7 +419,7 @@ def splice_block(text: str, name: str, content: str) -> str:
     i, j = text.find(begin), text.find(end)
     if i < 0 or j < i:
         raise InputError(f"page: no generated block {name!r} (markers {begin!r} ... {end!r})")
-    return text[:i + len(begin)] + "\n" + content + text[j:]
+    return text[: i + len(begin)] + "\n" + content + text[j:]
 
 
 def write_presets_page(path: str | Path) -> Path:

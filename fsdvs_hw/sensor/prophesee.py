@@ -76,8 +76,10 @@ def _wizard(encoding: str) -> Any:
     try:
         from expelliarmus import Wizard  # type: ignore[import-untyped]
     except ImportError:
-        raise ToolMissingError("Prophesee RAW/DAT files need expelliarmus: pip install 'fsdvs_hw[eventfiles]' "
-                               "(or pip install expelliarmus)") from None
+        raise ToolMissingError(
+            "Prophesee RAW/DAT files need expelliarmus: pip install 'fsdvs_hw[eventfiles]' "
+            "(or pip install expelliarmus)"
+        ) from None
     return Wizard(encoding=encoding)
 
 
@@ -86,11 +88,11 @@ def _parse_header(path: Path, data: bytes) -> tuple[dict[str, str], int]:
     """The ``% key value`` header lines of a RAW or DAT file and the body's byte offset."""
     header: dict[str, str] = {}
     pos = 0
-    while pos < len(data) and data[pos:pos + 1] == b"%":
+    while pos < len(data) and data[pos : pos + 1] == b"%":
         end = data.find(b"\n", pos)
         if end < 0 or end > _MAX_HEADER_BYTES:
             raise _bad(path, "header", f"header line at byte {pos} does not end (truncated file?)")
-        line = data[pos + 1:end].decode("ascii", "replace").strip()
+        line = data[pos + 1 : end].decode("ascii", "replace").strip()
         pos = end + 1
         if line == "end":
             break
@@ -123,8 +125,11 @@ def _raw_encoding(path: Path, header: dict[str, str]) -> str:
         return "evt2"
     if evt.startswith("3"):
         return "evt3"
-    raise _bad(path, "header", "no '% evt 2.0|3.0' or '% format EVT2|EVT3' line: not a Prophesee RAW file "
-               "(expected EVT 2.0 or EVT 3.0)")
+    raise _bad(
+        path,
+        "header",
+        "no '% evt 2.0|3.0' or '% format EVT2|EVT3' line: not a Prophesee RAW file (expected EVT 2.0 or EVT 3.0)",
+    )
 
 
 # ---------------------------------------------------------------------------- EVT 3.0 decoder
@@ -250,18 +255,29 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
         if not header:
             raise _bad(p, "header", "no '%' header lines: not a Prophesee DAT file")
         if size < body + 2:
-            raise _bad(p, "event type", f"file ends at byte {size}, before the event type and size bytes at "
-                       f"offset {body} (truncated DAT file)")
+            raise _bad(
+                p,
+                "event type",
+                f"file ends at byte {size}, before the event type and size bytes at offset {body} (truncated DAT file)",
+            )
         etype, esize = head[body], head[body + 1]
         if etype not in _DAT_TYPES or esize != _DAT_CD_SIZE:
-            raise _bad(p, "event type", f"type 0x{etype:02X} size {esize} at offset {body}; expected CD events "
-                       f"(type 0x0C, or 0x00 for older TD files, size {_DAT_CD_SIZE})")
+            raise _bad(
+                p,
+                "event type",
+                f"type 0x{etype:02X} size {esize} at offset {body}; expected CD events "
+                f"(type 0x0C, or 0x00 for older TD files, size {_DAT_CD_SIZE})",
+            )
         body += 2
     word = _WORD_BYTES[encoding]
     if (size - body) % word:
         cut = size - (size - body) % word
-        raise _bad(p, "(body)", f"{encoding.upper()} body of {size - body} bytes from offset {body} is not a whole "
-                   f"number of {word}-byte words: the last word at offset {cut} is cut (truncated file)")
+        raise _bad(
+            p,
+            "(body)",
+            f"{encoding.upper()} body of {size - body} bytes from offset {body} is not a whole "
+            f"number of {word}-byte words: the last word at offset {cut} is cut (truncated file)",
+        )
     hw, hh = _geometry(p, header)
     for name, given, found in (("width", width, hw), ("height", height, hh)):
         if given is not None and found is not None and int(given) != found:
@@ -276,8 +292,11 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
         arr = _wizard(encoding).read(p) if n_max else None
     if arr is None:
         if n_max:
-            raise _bad(p, "(body)", f"expelliarmus could not decode the {encoding.upper()} body at offset {body} "
-                       "(corrupt or foreign file)")
+            raise _bad(
+                p,
+                "(body)",
+                f"expelliarmus could not decode the {encoding.upper()} body at offset {body} (corrupt or foreign file)",
+            )
         arr = np.zeros(0, dtype=[("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("p", "u1")])
     t, x, y, pol = (np.ascontiguousarray(arr[k]) for k in ("t", "x", "y", "p"))
     if w is None:
@@ -286,8 +305,15 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
         h = int(y.max()) + 1 if y.size else 1
     names = {"t": "t (µs)", "x": "x", "y": "y", "p": "polarity"}
     _Checker(p, names, (0, 1)).check(t, x, y, pol, w, h)
-    return EventFile(t.astype(np.int64), x.astype(np.int64), y.astype(np.int64),
-                     np.where(pol > 0, 1, -1).astype(np.int8), int(w), int(h), {"format": encoding, "header": header})
+    return EventFile(
+        t.astype(np.int64),
+        x.astype(np.int64),
+        y.astype(np.int64),
+        np.where(pol > 0, 1, -1).astype(np.int8),
+        int(w),
+        int(h),
+        {"format": encoding, "header": header},
+    )
 
 
 # ---------------------------------------------------------------------------- write
@@ -308,8 +334,12 @@ def _changes(v: np.ndarray) -> np.ndarray:
 def _encode_evt2(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray) -> np.ndarray:
     th = t >> 6
     time_high = (np.uint64(0x8) << np.uint64(28)) | (th.astype(np.uint64) & np.uint64(0x0FFFFFFF))
-    cd = ((np.where(p > 0, 1, 0).astype(np.uint64) << np.uint64(28)) | ((t & 63).astype(np.uint64) << np.uint64(22))
-          | (x.astype(np.uint64) << np.uint64(11)) | y.astype(np.uint64))
+    cd = (
+        (np.where(p > 0, 1, 0).astype(np.uint64) << np.uint64(28))
+        | ((t & 63).astype(np.uint64) << np.uint64(22))
+        | (x.astype(np.uint64) << np.uint64(11))
+        | y.astype(np.uint64)
+    )
     return _interleave([time_high, cd], [_changes(th), np.ones(t.size, bool)], "<u4")
 
 
@@ -328,8 +358,9 @@ def _encode_dat(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray) -> n
     return out.reshape(-1)
 
 
-def write_prophesee(path: str | Path, events: Any, *, encoding: str | None = None, width: int | None = None,
-                    height: int | None = None) -> Path:
+def write_prophesee(
+    path: str | Path, events: Any, *, encoding: str | None = None, width: int | None = None, height: int | None = None
+) -> Path:
     """Write events as a Prophesee EVT 2.0 / EVT 3.0 RAW file or a DAT file (atomically).
 
     Parameters
@@ -358,8 +389,10 @@ def write_prophesee(path: str | Path, events: Any, *, encoding: str | None = Non
     suffix = p.suffix.lower()
     encoding = encoding or {".raw": "evt3", ".dat": "dat"}.get(suffix)
     if encoding not in ENCODINGS or ENCODINGS[encoding] != suffix:
-        raise InputError(f"event file {str(p)!r}: encoding {encoding!r} with suffix {suffix!r}; allowed: "
-                         + ", ".join(f"{k} ({v})" for k, v in ENCODINGS.items()))
+        raise InputError(
+            f"event file {str(p)!r}: encoding {encoding!r} with suffix {suffix!r}; allowed: "
+            + ", ".join(f"{k} ({v})" for k, v in ENCODINGS.items())
+        )
     w = width if width is not None else getattr(events, "width", None)
     h = height if height is not None else getattr(events, "height", None)
     if w is None or h is None:
@@ -372,16 +405,21 @@ def write_prophesee(path: str | Path, events: Any, *, encoding: str | None = Non
         raise InputError(f"write_prophesee: a {w}x{h} sensor exceeds {encoding.upper()}'s {addr_limit}-pixel addresses")
     t_limit = {"evt2": _EVT2_TIME_LIMIT_US, "evt3": _EVT3_TIME_LIMIT_US, "dat": 1 << 32}[encoding]
     if t.size and int(t[-1]) >= t_limit:
-        raise InputError(f"write_prophesee: time {int(t[-1])} µs beyond {encoding.upper()}'s clock "
-                         f"({t_limit} µs without wrap-around)")
+        raise InputError(
+            f"write_prophesee: time {int(t[-1])} µs beyond {encoding.upper()}'s clock "
+            f"({t_limit} µs without wrap-around)"
+        )
     stamp = "1970-01-01 00:00:00"  # a fixed date: the same events give the same bytes
     if encoding == "dat":
-        head = (f"% Date {stamp}\n% Version 2\n% Height {h}\n% Width {w}\n").encode() \
-            + bytes([_DAT_CD_TYPE, _DAT_CD_SIZE])
+        head = (f"% Date {stamp}\n% Version 2\n% Height {h}\n% Width {w}\n").encode() + bytes(
+            [_DAT_CD_TYPE, _DAT_CD_SIZE]
+        )
         body = _encode_dat(t, x, y, pol)
     else:
         fmt = encoding.upper()
-        head = (f"% date {stamp}\n% evt {encoding[-1]}.0\n% format {fmt};height={h};width={w}\n"
-                f"% geometry {w}x{h}\n% integrator_name fsdvs_hw\n% end\n").encode()
+        head = (
+            f"% date {stamp}\n% evt {encoding[-1]}.0\n% format {fmt};height={h};width={w}\n"
+            f"% geometry {w}x{h}\n% integrator_name fsdvs_hw\n% end\n"
+        ).encode()
         body = (_encode_evt2 if encoding == "evt2" else _encode_evt3)(t, x, y, pol)
     return write_output(p, head + body.tobytes(), flag="path")

@@ -67,8 +67,9 @@ def read_recording(path: str | Path, *, width: int | None = None, height: int | 
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix not in RECORDING_SUFFIXES:
-        raise InputError(f"recording {str(p)!r}: suffix {suffix or '(none)'!r} unknown; allowed: "
-                         f"{', '.join(RECORDING_SUFFIXES)}")
+        raise InputError(
+            f"recording {str(p)!r}: suffix {suffix or '(none)'!r} unknown; allowed: {', '.join(RECORDING_SUFFIXES)}"
+        )
     if suffix in (".raw", ".dat"):
         from .prophesee import read_prophesee
 

@@ -145,14 +145,25 @@ def _frame_source(frames: Any) -> Iterator[Any]:
             return iter(frames.unbind(1) if isinstance(frames, torch.Tensor) else list(np.moveaxis(frames, 1, 0)))
         raise InputError(f"frames: an array must be (T, H, W) or (B, T, H, W), got shape {tuple(frames.shape)}")
     if isinstance(frames, (str, bytes)) or not isinstance(frames, Iterable):
-        raise InputError("frames: must be an array or an iterable of frames (for a video file use "
-                         "fsdvs_hw.scenes.video.iter_video(path))")
+        raise InputError(
+            "frames: must be an array or an iterable of frames (for a video file use "
+            "fsdvs_hw.scenes.video.iter_video(path))"
+        )
     return iter(frames)
 
 
-def simulate(frames: Any, kernel: Any = None, *, timestamps_s: Any = None, config: SensorConfig | None = None,
-             plan: Any = None, chunk_frames: int = 16, events: bool = True, event_frames: bool = False,
-             generator: Any = None) -> Iterator[EventChunk]:
+def simulate(
+    frames: Any,
+    kernel: Any = None,
+    *,
+    timestamps_s: Any = None,
+    config: SensorConfig | None = None,
+    plan: Any = None,
+    chunk_frames: int = 16,
+    events: bool = True,
+    event_frames: bool = False,
+    generator: Any = None,
+) -> Iterator[EventChunk]:
     """Simulate a clip chunk by chunk; yield an :class:`EventChunk` per ``chunk_frames`` intervals.
 
     Parameters
@@ -198,16 +209,30 @@ def simulate(frames: Any, kernel: Any = None, *, timestamps_s: Any = None, confi
     events = check_bool("events", events)
     event_frames = check_bool("event_frames", event_frames)
     check_instance("generator", generator, torch.Generator, "a torch.Generator", nullable=True)
-    if timestamps_s is not None and (isinstance(timestamps_s, (str, bytes, dict))
-                                     or not isinstance(timestamps_s, (Iterable, torch.Tensor, np.ndarray))):
-        raise InputError(f"timestamps_s: wrong type {type(timestamps_s).__name__}; allowed: frame times in seconds "
-                         "(an array or iterable), finite and strictly increasing")
+    if timestamps_s is not None and (
+        isinstance(timestamps_s, (str, bytes, dict))
+        or not isinstance(timestamps_s, (Iterable, torch.Tensor, np.ndarray))
+    ):
+        raise InputError(
+            f"timestamps_s: wrong type {type(timestamps_s).__name__}; allowed: frame times in seconds "
+            "(an array or iterable), finite and strictly increasing"
+        )
     if not (events or event_frames):
         raise InputError("simulate: ask for events, event_frames or both")
     config = _plan_config(config, plan)
     subs_plan = list(plan.substeps) if plan is not None and plan.substeps else None
-    return _stream(_frame_source(frames), kernel, timestamps_s, config, plan, subs_plan, chunk_frames,
-                   events, event_frames, generator)
+    return _stream(
+        _frame_source(frames),
+        kernel,
+        timestamps_s,
+        config,
+        plan,
+        subs_plan,
+        chunk_frames,
+        events,
+        event_frames,
+        generator,
+    )
 
 
 @dataclass
@@ -239,13 +264,23 @@ class _Submitted:
             ev = EventList(*self.events.result())
         elif self.events is not None:
             ev = EventList(*to_event_columns(self.events, shape[1], shape[2], self.batch))
-        return EventChunk(self.first_interval, self.timestamps_s, self.frames, ev, self.info, self.n_frames,
-                          shape[1], shape[2])
+        return EventChunk(
+            self.first_interval, self.timestamps_s, self.frames, ev, self.info, self.n_frames, shape[1], shape[2]
+        )
 
 
-def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: SensorConfig, plan: Any,  # noqa: C901 - one streaming loop; split left as follow-up
-            subs_plan: list[int] | None, chunk: int, want_events: bool, want_frames: bool,
-            generator: Any) -> Iterator[EventChunk]:
+def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
+    source: Iterator[Any],
+    kernel: Any,
+    timestamps_s: Any,
+    config: SensorConfig,
+    plan: Any,
+    subs_plan: list[int] | None,
+    chunk: int,
+    want_events: bool,
+    want_frames: bool,
+    generator: Any,
+) -> Iterator[EventChunk]:
     times = iter(timestamps_s) if timestamps_s is not None else None
     gen_state = generator.get_state() if generator is not None else None
     dtype = None
@@ -317,8 +352,9 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
                 t = frame_time(t_item, index)
                 last_t = ts[-1] if ts else (prev[3] if prev is not None else None)
                 if last_t is not None and not t > last_t:
-                    raise InputError(f"timestamps_s: must be strictly increasing; frame {index} is not later "
-                                     f"than frame {index - 1}")
+                    raise InputError(
+                        f"timestamps_s: must be strictly increasing; frame {index} is not later than frame {index - 1}"
+                    )
                 batch.append(fr)
                 ts.append(t)
                 index += 1
@@ -335,8 +371,9 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
             SU = list(sig.surround.unbind(1)) if sig.surround is not None else None
             if prev is None:
                 c_on, c_off = thresholds(Ls[0])
-                state = _init_state(Ls[0], SU[0] if SU is not None else None, config, (c_on, c_off), None, None,
-                                    want_events)
+                state = _init_state(
+                    Ls[0], SU[0] if SU is not None else None, config, (c_on, c_off), None, None, want_events
+                )
             else:
                 assert state is not None  # set with the first chunk (prev is not None)
                 state.c_on, state.c_off = thresholds(Ls[0])
@@ -355,7 +392,7 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
             if subs_plan is not None:
                 if first_interval + n_int > len(subs_plan):
                     raise InputError(f"plan: made for {len(subs_plan) + 1} frames, the stream has more")
-                subs = subs_plan[first_interval:first_interval + n_int]
+                subs = subs_plan[first_interval : first_interval + n_int]
             else:
                 subs = _choose_substeps_for(torch.stack(Ls, dim=1), config, sig.surround is not None)
             noise0, lost0 = state.noise_events, state.lost
@@ -368,20 +405,35 @@ def _stream(source: Iterator[Any], kernel: Any, timestamps_s: Any, config: Senso
             frames = torch.stack(out, dim=1).view(B, n_int, 2, *shape[1:]) if want_frames else None
             if pipe is not None and want_events:  # the columns too are built on the worker
                 ev_parts = pipe.columns(ev_parts, shape[1], shape[2], B)
-            done = _Submitted(first_interval, tsd, frames, ev_parts if want_events else None,
-                              pipe.take_steps() if pipe is not None else [],
-                              pipe.take_noise() if pipe is not None else [],
-                              SimulationInfo(sig.floor_fraction, tuple(subs), state.noise_events - noise0,
-                                             int(round(state.lost - lost0)), B * shape[1] * shape[2] * sum(subs),
-                                             saturated),
-                              len(batch), B)
+            done = _Submitted(
+                first_interval,
+                tsd,
+                frames,
+                ev_parts if want_events else None,
+                pipe.take_steps() if pipe is not None else [],
+                pipe.take_noise() if pipe is not None else [],
+                SimulationInfo(
+                    sig.floor_fraction,
+                    tuple(subs),
+                    state.noise_events - noise0,
+                    int(round(state.lost - lost0)),
+                    B * shape[1] * shape[2] * sum(subs),
+                    saturated,
+                ),
+                len(batch),
+                B,
+            )
             pending.append(done)
             saturated = 0
             # hand chunks over once LOOKAHEAD_CHUNKS newer ones are submitted (at once without a pipeline)
             while len(pending) > (LOOKAHEAD_CHUNKS if pipe is not None else 0):
                 yield pending.pop(0).finish(state, shape)
-            prev = (Ls[-1].detach(), CI[-1].detach() if CI is not None else None,
-                    SU[-1].detach() if SU is not None else None, ts[-1])
+            prev = (
+                Ls[-1].detach(),
+                CI[-1].detach() if CI is not None else None,
+                SU[-1].detach() if SU is not None else None,
+                ts[-1],
+            )
             first_interval += n_int
             del video, sig, Ls, CI, SU, out, frames, done, ev_parts, batch  # only the chunks in flight stay alive
         while pending:

@@ -70,8 +70,15 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["MAX_UPSAMPLE_RATE_HZ", "UPSAMPLE_MODES", "UPSAMPLE_MOTION_PX", "interpolate_frames", "motion_px_per_frame",
-           "upsample_frames", "visible_masks"]
+__all__ = [
+    "MAX_UPSAMPLE_RATE_HZ",
+    "UPSAMPLE_MODES",
+    "UPSAMPLE_MOTION_PX",
+    "interpolate_frames",
+    "motion_px_per_frame",
+    "upsample_frames",
+    "visible_masks",
+]
 
 #: The upsampling modes (module documentation).
 UPSAMPLE_MODES = ("none", "linear", "flow")
@@ -139,8 +146,13 @@ def _warp(image: np.ndarray, flow: np.ndarray, *, cubic: bool = False) -> np.nda
     h, w = image.shape
     gx, gy = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
     flow = flow.astype(np.float32, copy=False)
-    return cv2.remap(image.astype(np.float32), gx + flow[..., 0], gy + flow[..., 1],
-                     interpolation=cv2.INTER_CUBIC if cubic else cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return cv2.remap(
+        image.astype(np.float32),
+        gx + flow[..., 0],
+        gy + flow[..., 1],
+        interpolation=cv2.INTER_CUBIC if cubic else cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_REPLICATE,
+    )
 
 
 def visible_masks(flow_fw: np.ndarray, flow_bw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -174,7 +186,7 @@ def visible_masks(flow_fw: np.ndarray, flow_bw: np.ndarray) -> tuple[np.ndarray,
     def one(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         b_at = np.stack([_warp(b[..., k], a) for k in range(2)], axis=-1)
         err = ((a + b_at) ** 2).sum(-1)
-        return err <= _CONSISTENCY_REL * ((a ** 2).sum(-1) + (b_at ** 2).sum(-1)) + _CONSISTENCY_ABS
+        return err <= _CONSISTENCY_REL * ((a**2).sum(-1) + (b_at**2).sum(-1)) + _CONSISTENCY_ABS
 
     return one(fw, bw), one(bw, fw)
 
@@ -309,9 +321,14 @@ def _timed(frames: Any, timestamps_s: Any, frame_rate_hz: float | None) -> Itera
         yield float(t), np.asarray(frame, dtype=np.float64)
 
 
-def upsample_frames(frames: Iterable[Any], *, mode: str = "flow", rate_hz: float = 400.0,
-                    timestamps_s: Iterable[float] | None = None,
-                    frame_rate_hz: float | None = None) -> Iterator[tuple[float, np.ndarray]]:
+def upsample_frames(
+    frames: Iterable[Any],
+    *,
+    mode: str = "flow",
+    rate_hz: float = 400.0,
+    timestamps_s: Iterable[float] | None = None,
+    frame_rate_hz: float | None = None,
+) -> Iterator[tuple[float, np.ndarray]]:
     """Frames at (at least) ``rate_hz``: each interval split into ``ceil(Δt · rate_hz)`` equal steps.
 
     Streams: one pair of frames in memory at a time, so a video of any length can be upsampled

@@ -92,8 +92,11 @@ def kernel_shape(kernel: Kernel) -> dict[str, Any]:
     out.update(dc_gain=float(summ.dc_gain), peak_frequency_cpp=float(summ.peak_frequency_cpp), kind=summ.kind)
     if r >= 1:
         agr = csf_agreement(kernel)
-        out.update(ms_correlation=float(agr.correlation), ms_peak_ratio=float(agr.peak_ratio),
-                   ms_rms_error=float(agr.rms_error))
+        out.update(
+            ms_correlation=float(agr.correlation),
+            ms_peak_ratio=float(agr.peak_ratio),
+            ms_rms_error=float(agr.rms_error),
+        )
     return out
 
 
@@ -109,15 +112,37 @@ def _check_common(tasks: Sequence[str], seeds: Sequence[int]) -> None:
             raise InputError(f"ablation: seeds must be non-negative integers, got {sd!r}")
 
 
-def _job(kind: str, task: str, size: int, seed: int, n_train: int | None, n_test: int | None,
-         settings: dict[str, Any] | None, **extra: Any) -> dict[str, Any]:
-    return {"kind": kind, "task": task, "size": int(size), "seed": int(seed), "n_train": n_train, "n_test": n_test,
-            "settings": dict(settings or {}), **extra}
+def _job(
+    kind: str,
+    task: str,
+    size: int,
+    seed: int,
+    n_train: int | None,
+    n_test: int | None,
+    settings: dict[str, Any] | None,
+    **extra: Any,
+) -> dict[str, Any]:
+    return {
+        "kind": kind,
+        "task": task,
+        "size": int(size),
+        "seed": int(seed),
+        "n_train": n_train,
+        "n_test": n_test,
+        "settings": dict(settings or {}),
+        **extra,
+    }
 
 
-def ablation_jobs(tasks: Sequence[str] = ("detection", "recognition"), sizes: Sequence[int] = (1, 3, 5, 7, 9),
-                  seeds: Sequence[int] = (0, 1, 2), *, n_train: int | None = None, n_test: int | None = None,
-                  settings: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+def ablation_jobs(
+    tasks: Sequence[str] = ("detection", "recognition"),
+    sizes: Sequence[int] = (1, 3, 5, 7, 9),
+    seeds: Sequence[int] = (0, 1, 2),
+    *,
+    n_train: int | None = None,
+    n_test: int | None = None,
+    settings: dict[str, Any] | None = None,
+) -> list[dict[str, Any]]:
     """One ``size`` run per (task, kernel size, seed), longest first.
 
     Parameters
@@ -142,21 +167,36 @@ def ablation_jobs(tasks: Sequence[str] = ("detection", "recognition"), sizes: Se
     return jobs
 
 
-def frozen_kernel_jobs(kernel_path: str | Path, tasks: Sequence[str] = ("detection", "recognition", "segmentation"),
-                       seeds: Sequence[int] = (0, 1, 2), *, n_train: int | None = None, n_test: int | None = None,
-                       settings: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+def frozen_kernel_jobs(
+    kernel_path: str | Path,
+    tasks: Sequence[str] = ("detection", "recognition", "segmentation"),
+    seeds: Sequence[int] = (0, 1, 2),
+    *,
+    n_train: int | None = None,
+    n_test: int | None = None,
+    settings: dict[str, Any] | None = None,
+) -> list[dict[str, Any]]:
     """One ``frozen`` run per (task, seed): a network trained with the kernel in ``kernel_path`` frozen."""
     from ..kernels import load_kernel
 
     _check_common(tasks, seeds)
     k = load_kernel(kernel_path)
     taps = np.asarray(k.taps).tolist()
-    return [_job("frozen", t, k.size, sd, n_train, n_test, settings, kernel=taps, kernel_name=k.name)
-            for t in tasks for sd in seeds]
+    return [
+        _job("frozen", t, k.size, sd, n_train, n_test, settings, kernel=taps, kernel_name=k.name)
+        for t in tasks
+        for sd in seeds
+    ]
 
 
-def transfer_jobs(kernel_path: str | Path, seeds: Sequence[int] = (0, 1, 2), *, n_train: int | None = None,
-                  n_test: int | None = None, settings: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+def transfer_jobs(
+    kernel_path: str | Path,
+    seeds: Sequence[int] = (0, 1, 2),
+    *,
+    n_train: int | None = None,
+    n_test: int | None = None,
+    settings: dict[str, Any] | None = None,
+) -> list[dict[str, Any]]:
     """Table III: segmentation w/o (plus the kernel swapped in zero-shot) and with the kernel frozen."""
     from ..kernels import load_kernel
 
@@ -164,8 +204,9 @@ def transfer_jobs(kernel_path: str | Path, seeds: Sequence[int] = (0, 1, 2), *, 
     jobs = ablation_jobs(["segmentation"], [1], seeds, n_train=n_train, n_test=n_test, settings=settings)
     for j in jobs:
         j.update(kind="zero_shot", kernel=np.asarray(k.taps).tolist(), kernel_name=k.name)
-    return jobs + frozen_kernel_jobs(kernel_path, ["segmentation"], seeds, n_train=n_train, n_test=n_test,
-                                     settings=settings)
+    return jobs + frozen_kernel_jobs(
+        kernel_path, ["segmentation"], seeds, n_train=n_train, n_test=n_test, settings=settings
+    )
 
 
 def job_key(job: dict[str, Any]) -> str:
@@ -216,15 +257,25 @@ def run_job(job: dict[str, Any]) -> dict[str, Any]:
     size = job["size"] if kind != "zero_shot" else 1
     with tempfile.TemporaryDirectory() as tmp:
         out = job.get("out") or (Path(tmp) / "run" if kind == "zero_shot" else None)
-        res = learn_kernel(job["task"], size, seed=job["seed"], settings=settings, learn_filter=learn,
-                           init_kernel=init, out=out, **kw)
+        res = learn_kernel(
+            job["task"], size, seed=job["seed"], settings=settings, learn_filter=learn, init_kernel=init, out=out, **kw
+        )
         rec: dict[str, Any] = {
-            "key": key, "kind": kind, "task": job["task"], "size": job["size"], "seed": job["seed"],
-            "metrics": res.metrics, "primary": res.primary_metric, "n_test": res.provenance["n_test"],
-            "n_train": res.provenance["n_train"], "scene": res.provenance["scene"],
-            "event_rate": res.provenance["test_event_rate_per_pixel_frame"], "taps": res.kernel.taps.tolist(),
+            "key": key,
+            "kind": kind,
+            "task": job["task"],
+            "size": job["size"],
+            "seed": job["seed"],
+            "metrics": res.metrics,
+            "primary": res.primary_metric,
+            "n_test": res.provenance["n_test"],
+            "n_train": res.provenance["n_train"],
+            "scene": res.provenance["scene"],
+            "event_rate": res.provenance["test_event_rate_per_pixel_frame"],
+            "taps": res.kernel.taps.tolist(),
             "final_loss": res.history[-1]["loss"] if res.history else None,
-            "train_seconds": res.provenance["train_seconds"], "kernel_name": job.get("kernel_name"),
+            "train_seconds": res.provenance["train_seconds"],
+            "kernel_name": job.get("kernel_name"),
         }
         if job.get("pred_dir"):
             _save_predictions(Path(job["pred_dir"]) / f"{key}.npz", res.predictions)
@@ -242,8 +293,12 @@ def run_job(job: dict[str, Any]) -> dict[str, Any]:
         rec["shape"] = kernel_shape(res.kernel)
         rec["kernel_change_l1"] = float(np.abs(np.asarray(res.kernel.taps) - _delta(job["size"])).sum())
     rec["seconds"] = time.perf_counter() - t0
-    print(f"[ablation] {kind} {job['task']} {job['size']}x{job['size']} seed {job['seed']}: "
-          f"{res.primary_metric} {res.value:.4f} ({rec['seconds']:.0f} s)", file=sys.stderr, flush=True)
+    print(
+        f"[ablation] {kind} {job['task']} {job['size']}x{job['size']} seed {job['seed']}: "
+        f"{res.primary_metric} {res.value:.4f} ({rec['seconds']:.0f} s)",
+        file=sys.stderr,
+        flush=True,
+    )
     return rec
 
 
@@ -261,9 +316,15 @@ def clip_metric(task: str, predictions: dict[str, np.ndarray], targets: dict[str
 
     ev: Any = get_evaluator(task)  # the map and miou evaluators (built-in) carry num_classes
     if ev.primary_metric == "map":
-        return CocoDetections.from_predictions(predictions["boxes"], predictions["scores"], predictions["labels"],
-                                               targets["boxes"], targets["labels"], num_classes=ev.num_classes,
-                                               metric="map")
+        return CocoDetections.from_predictions(
+            predictions["boxes"],
+            predictions["scores"],
+            predictions["labels"],
+            targets["boxes"],
+            targets["labels"],
+            num_classes=ev.num_classes,
+            metric="map",
+        )
     if ev.primary_metric == "top1":
         return ClipMeans.top1(predictions["logits"], targets["motion"])
     if ev.primary_metric == "miou":
@@ -271,8 +332,14 @@ def clip_metric(task: str, predictions: dict[str, np.ndarray], targets: dict[str
     raise InputError(f"ablation: no per-clip metric for task {task!r} (primary metric {ev.primary_metric!r})")
 
 
-def _gains(records: list[dict[str, Any]], pred_dir: Path | None, task: str, baseline: list[dict[str, Any]],
-           arms: dict[str, tuple[list[dict[str, Any]], str]], n_resamples: int) -> dict[str, Any]:
+def _gains(
+    records: list[dict[str, Any]],
+    pred_dir: Path | None,
+    task: str,
+    baseline: list[dict[str, Any]],
+    arms: dict[str, tuple[list[dict[str, Any]], str]],
+    n_resamples: int,
+) -> dict[str, Any]:
     """Gain of every arm over the baseline with its 95 % CI (None where predictions are missing)."""
     from ..stats import difference_cis
     from .learn import heldout_targets
@@ -305,8 +372,13 @@ def _gains(records: list[dict[str, Any]], pred_dir: Path | None, task: str, base
     for group in by_seeds.values():
         cis = difference_cis(base, group, paired_seeds=False, n_resamples=n_resamples)
         for name, ci in cis.items():  # reference − candidate = w/o − arm: the gain is its negative
-            out[name] = {"gain": -ci.estimate, "low": -ci.high, "high": -ci.low, "n_clips": ci.n_clips,
-                         "n_seeds": min(ci.n_seeds_reference, ci.n_seeds_candidate)}
+            out[name] = {
+                "gain": -ci.estimate,
+                "low": -ci.high,
+                "high": -ci.low,
+                "n_clips": ci.n_clips,
+                "n_seeds": min(ci.n_seeds_reference, ci.n_seeds_candidate),
+            }
     return out
 
 
@@ -333,8 +405,9 @@ def _group(records: list[dict[str, Any]], task: str, kind: str = "size") -> dict
     return dict(sorted(out.items()))
 
 
-def ablation_markdown(records: list[dict[str, Any]], pred_dir: str | Path | None = None, *,
-                      n_resamples: int = 1000) -> str:
+def ablation_markdown(
+    records: list[dict[str, Any]], pred_dir: str | Path | None = None, *, n_resamples: int = 1000
+) -> str:
     """Paper-style tables (metrics ×100, mean ± std over seeds; gain over w/o with its 95 % CI).
 
     Parameters
@@ -359,10 +432,18 @@ def ablation_markdown(records: list[dict[str, Any]], pred_dir: str | Path | None
         n_clips = max(int(r.get("n_test", 0)) for v in groups.values() for r in v)
         names = list(ev.metric_names)
         base = _mean_std([r["metrics"][ev.primary_metric] for r in groups.get(1, [])]) if 1 in groups else None
-        gains = _gains(recs_all, pdir, task, groups.get(1, []),
-                       {str(s): (v, "predictions") for s, v in groups.items() if s != 1}, n_resamples)
-        lines.append(f"**{task}** ({n_seeds} seeds × {n_clips} test clips; metrics ×100, mean ± std over seeds; "
-                     f"Δ = gain over w/o with its 95 % CI, bootstrap over test clips (paired) and seeds)\n")
+        gains = _gains(
+            recs_all,
+            pdir,
+            task,
+            groups.get(1, []),
+            {str(s): (v, "predictions") for s, v in groups.items() if s != 1},
+            n_resamples,
+        )
+        lines.append(
+            f"**{task}** ({n_seeds} seeds × {n_clips} test clips; metrics ×100, mean ± std over seeds; "
+            f"Δ = gain over w/o with its 95 % CI, bootstrap over test clips (paired) and seeds)\n"
+        )
         lines.append("| Filter | " + " | ".join(names) + f" | Δ {ev.primary_metric} [95 % CI] | events / px / frame |")
         lines.append("|---" * (len(names) + 3) + "|")
         for size, recs in groups.items():
@@ -375,17 +456,30 @@ def ablation_markdown(records: list[dict[str, Any]], pred_dir: str | Path | None
         lines.append("")
     shaped = [r for r in recs_all if "shape" in r]
     if shaped:
-        lines.append("**Learned kernels** (per task and size: how many seeds gave a centre-surround kernel; "
-                     "means over seeds; L1 change = Σ|taps − delta|)\n")
-        lines.append("| Task | Filter | centre-surround | centre | surround sum | DC gain | L1 change from delta "
-                     "| radial peak (cyc/px) | MS correlation | MS peak ratio |")
+        lines.append(
+            "**Learned kernels** (per task and size: how many seeds gave a centre-surround kernel; "
+            "means over seeds; L1 change = Σ|taps − delta|)\n"
+        )
+        lines.append(
+            "| Task | Filter | centre-surround | centre | surround sum | DC gain | L1 change from delta "
+            "| radial peak (cyc/px) | MS correlation | MS peak ratio |"
+        )
         lines.append("|---|---|---|---|---|---|---|---|---|---|")
         for task in dict.fromkeys(r["task"] for r in shaped):
             for size, recs in _group(shaped, task).items():
                 sh = [r["shape"] for r in recs]
                 n_cs = sum(s["centre_surround"] for s in sh)
-                m = {k: float(np.mean([s[k] for s in sh])) for k in
-                     ("centre", "surround_sum", "dc_gain", "peak_frequency_cpp", "ms_correlation", "ms_peak_ratio")}
+                m = {
+                    k: float(np.mean([s[k] for s in sh]))
+                    for k in (
+                        "centre",
+                        "surround_sum",
+                        "dc_gain",
+                        "peak_frequency_cpp",
+                        "ms_correlation",
+                        "ms_peak_ratio",
+                    )
+                }
                 l1 = float(np.mean([r.get("kernel_change_l1", float("nan")) for r in recs]))
                 lines.append(
                     f"| {task} | {size}×{size} | {n_cs}/{len(sh)} | {m['centre']:.3f} | "
@@ -396,8 +490,9 @@ def ablation_markdown(records: list[dict[str, Any]], pred_dir: str | Path | None
     return "\n".join(lines)
 
 
-def transfer_markdown(records: list[dict[str, Any]], kernel_name: str, pred_dir: str | Path | None = None, *,
-                      n_resamples: int = 1000) -> str:
+def transfer_markdown(
+    records: list[dict[str, Any]], kernel_name: str, pred_dir: str | Path | None = None, *, n_resamples: int = 1000
+) -> str:
     """Table III: segmentation with the delta vs the (frozen) detection kernel, gains with 95 % CIs."""
     from .evaluators import get_evaluator
 
@@ -414,23 +509,29 @@ def transfer_markdown(records: list[dict[str, Any]], kernel_name: str, pred_dir:
     arms["zero_shot"] = (wo, "zero_shot_predictions")
     gains = _gains(records, pdir, "segmentation", wo, arms, n_resamples)
     n_clips = max(int(r.get("n_test", 0)) for r in wo)
-    lines = [f"**segmentation, kernel transfer** ({len(wo)} seeds × {n_clips} test clips; kernel = {kernel_name}, "
-             "frozen, never trained on segmentation; metrics ×100, mean ± std; Δ = gain over w/o with its 95 % CI)\n",
-             "| Filter | " + " | ".join(ev.metric_names) + " | Δ miou [95 % CI] |",
-             "|---" * (len(ev.metric_names) + 2) + "|"]
+    lines = [
+        f"**segmentation, kernel transfer** ({len(wo)} seeds × {n_clips} test clips; kernel = {kernel_name}, "
+        "frozen, never trained on segmentation; metrics ×100, mean ± std; Δ = gain over w/o with its 95 % CI)\n",
+        "| Filter | " + " | ".join(ev.metric_names) + " | Δ miou [95 % CI] |",
+        "|---" * (len(ev.metric_names) + 2) + "|",
+    ]
     cells = [_fmt(*_mean_std([r["metrics"][k] for r in wo])) for k in ev.metric_names]
     lines.append("| w/o | " + " | ".join(cells) + " | — |")
     if frozen:
         cells = [_fmt(*_mean_std([r["metrics"][k] for r in frozen])) for k in ev.metric_names]
         prim = _mean_std([r["metrics"]["miou"] for r in frozen])[0]
-        lines.append("| detection kernel, segmentation network trained on its events | " + " | ".join(cells)
-                     + f" | {_fmt_gain(gains.get('frozen'), prim - base)} |")
+        lines.append(
+            "| detection kernel, segmentation network trained on its events | "
+            + " | ".join(cells)
+            + f" | {_fmt_gain(gains.get('frozen'), prim - base)} |"
+        )
     zs = [r for r in wo if "zero_shot_metrics" in r]
     if zs:
         cells = [_fmt(*_mean_std([r["zero_shot_metrics"][k] for r in zs])) for k in ev.metric_names]
         prim = _mean_std([r["zero_shot_metrics"]["miou"] for r in zs])[0]
-        lines.append("| detection kernel swapped into the w/o network (zero-shot, no retraining at all) | "
-                     + " | ".join(cells) + f" | {_fmt_gain(gains.get('zero_shot'), prim - base)} |")
+        lines.append(
+            "| detection kernel swapped into the w/o network (zero-shot, no retraining at all) | "
+            + " | ".join(cells)
+            + f" | {_fmt_gain(gains.get('zero_shot'), prim - base)} |"
+        )
     return "\n".join(lines) + "\n"
-
-

@@ -83,8 +83,10 @@ def evaluator_for_dataset(task: Any, dataset: Any) -> Any:
 
     base = get_evaluator(task)
     if base.name != dataset.task:
-        raise InputError(f"evaluate_on_dataset: task {base.name!r} but the dataset {type(dataset).__name__} "
-                         f"holds {dataset.task!r} targets")
+        raise InputError(
+            f"evaluate_on_dataset: task {base.name!r} but the dataset {type(dataset).__name__} "
+            f"holds {dataset.task!r} targets"
+        )
     ev: Any = copy.copy(base)  # the built-in evaluator's code, the dataset's class count (set on any evaluator)
     ev.num_classes = int(dataset.num_classes)
     if dataset.task == "segmentation":
@@ -104,8 +106,10 @@ def _network_for(network: Any, task: str, in_channels: int, num_classes: int) ->
         return load_network_factory(network, in_channels=in_channels, num_classes=num_classes)
     if isinstance(network, nn.Module):
         return network
-    raise InputError(f"evaluate_on_dataset: network={one_line(network)}; allowed: None (built-in), "
-                     "'package.module:factory', or a torch.nn.Module")
+    raise InputError(
+        f"evaluate_on_dataset: network={one_line(network)}; allowed: None (built-in), "
+        "'package.module:factory', or a torch.nn.Module"
+    )
 
 
 def _device(device: Any) -> Any:
@@ -115,14 +119,26 @@ def _device(device: Any) -> Any:
     if not isinstance(device, str) or not re.fullmatch(r"cpu|cuda(:\d{1,2})?", device):
         raise InputError(f"evaluate_on_dataset: device={one_line(device)}; allowed: 'cpu', 'cuda' or 'cuda:N'")
     if device.startswith("cuda") and not torch.cuda.is_available():
-        raise InputError(f"evaluate_on_dataset: device={device!r} but CUDA is not available on this machine "
-                         f"(torch {torch.__version__}); allowed here: 'cpu'")
+        raise InputError(
+            f"evaluate_on_dataset: device={device!r} but CUDA is not available on this machine "
+            f"(torch {torch.__version__}); allowed here: 'cpu'"
+        )
     return torch.device(device)
 
 
-def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = None, *, sensor: Any = None,
-                        n_clips: int | None = None, seed: int = 0, weights: Any = None,
-                        events_fn: Any = None, device: str = "cpu") -> DatasetEvaluation:
+def evaluate_on_dataset(
+    kernel: Any,
+    task: Any,
+    dataset: Any,
+    network: Any = None,
+    *,
+    sensor: Any = None,
+    n_clips: int | None = None,
+    seed: int = 0,
+    weights: Any = None,
+    events_fn: Any = None,
+    device: str = "cpu",
+) -> DatasetEvaluation:
     """Score ``kernel`` on clips of a user dataset with a network.
 
     Parameters
@@ -180,8 +196,10 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     t0 = time.perf_counter()
     dev = _device(device)
     if not isinstance(dataset, ClipDataset):
-        raise InputError(f"evaluate_on_dataset: dataset is a {type(dataset).__name__}; allowed: a "
-                         "fsdvs_hw.scenes.datasets.ClipDataset")
+        raise InputError(
+            f"evaluate_on_dataset: dataset is a {type(dataset).__name__}; allowed: a "
+            "fsdvs_hw.scenes.datasets.ClipDataset"
+        )
     evaluator = evaluator_for_dataset(task, dataset)
     if sensor is not None and not isinstance(sensor, SensorConfig):
         raise InputError(f"evaluate_on_dataset: sensor is a {type(sensor).__name__}; allowed: a SensorConfig")
@@ -201,8 +219,10 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     if k.size > min(h, w):
         raise KernelError(f"evaluate_on_dataset: a {k.size}x{k.size} kernel is larger than the {h}x{w} frames")
     if evaluator.name == "detection" and (h % 2 or w % 2):
-        raise InputError(f"evaluate_on_dataset: detection needs an even frame size (stride 2), got {h}x{w}; "
-                         "pass size=(H, W) to the dataset")
+        raise InputError(
+            f"evaluate_on_dataset: detection needs an even frame size (stride 2), got {h}x{w}; "
+            "pass size=(H, W) to the dataset"
+        )
     net = _network_for(network, evaluator.name, 2 * (first.frames.shape[0] - 1), evaluator.num_classes)
     if weights is not None:
         load_weights(net, weights)
@@ -217,21 +237,30 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
         for i in indices:
             clip = first if int(i) == first.index else dataset[int(i)]
             if clip.frames.shape[1:] != (h, w):
-                raise InputError(f"evaluate_on_dataset: clip {int(i)} ({clip.source!r}) is "
-                                 f"{clip.frames.shape[1]}x{clip.frames.shape[2]}, clip {first.index} {h}x{w}; "
-                                 "field 'size': give the dataset a size=(H, W)")
+                raise InputError(
+                    f"evaluate_on_dataset: clip {int(i)} ({clip.source!r}) is "
+                    f"{clip.frames.shape[1]}x{clip.frames.shape[2]}, clip {first.index} {h}x{w}; "
+                    "field 'size': give the dataset a size=(H, W)"
+                )
             video = clip.as_batch(torch.float64).to(dev)
-            ev = (events_fn(video, kernel_t, sensor, clip.timestamps_s) if events_fn is not None
-                  else event_frames(video, kernel_t, timestamps_s=clip.timestamps_s, config=sensor))
+            ev = (
+                events_fn(video, kernel_t, sensor, clip.timestamps_s)
+                if events_fn is not None
+                else event_frames(video, kernel_t, timestamps_s=clip.timestamps_s, config=sensor)
+            )
             counts.append(float(ev.sum()))
             spans.append(float(clip.timestamps_s[-1] - clip.timestamps_s[0]))
             try:
-                preds.append({key: v.cpu() for key, v in evaluator.predict(net(rep(ev.float(), clip.timestamps_s))).items()})
+                preds.append(
+                    {key: v.cpu() for key, v in evaluator.predict(net(rep(ev.float(), clip.timestamps_s))).items()}
+                )
             except (RuntimeError, KeyError, TypeError, IndexError) as exc:
-                raise InputError(f"evaluate_on_dataset: the network's output on clip {int(i)} cannot be read by "
-                                 f"the {evaluator.name} evaluator ({type(exc).__name__}: "
-                                 f"{one_line(str(exc), 120)}); input was {rep.kind} "
-                                 f"with {rep.channels(clip.frames.shape[0])} channels") from None
+                raise InputError(
+                    f"evaluate_on_dataset: the network's output on clip {int(i)} cannot be read by "
+                    f"the {evaluator.name} evaluator ({type(exc).__name__}: "
+                    f"{one_line(str(exc), 120)}); input was {rep.kind} "
+                    f"with {rep.channels(clip.frames.shape[0])} channels"
+                ) from None
             clips.append(clip)
     cat = _cat_predictions(preds)
     targets = stack_targets(clips)
@@ -240,13 +269,21 @@ def evaluate_on_dataset(kernel: Any, task: Any, dataset: Any, network: Any = Non
     per_clip = np.full(len(clips), np.nan)
     for n in range(len(clips)):
         try:
-            one = evaluator.score({key: v[n : n + 1] for key, v in cat.items()},
-                                  {key: v[n : n + 1] for key, v in t_torch.items()})
+            one = evaluator.score(
+                {key: v[n : n + 1] for key, v in cat.items()}, {key: v[n : n + 1] for key, v in t_torch.items()}
+            )
             per_clip[n] = one[evaluator.primary_metric]
         except InputError:  # undefined on this clip alone (no ground truth)
             pass
-    return DatasetEvaluation(task=evaluator.name, metrics=metrics, primary_metric=evaluator.primary_metric,
-                             per_clip=per_clip, clip_indices=np.asarray(indices, dtype=np.int64),
-                             event_counts=np.asarray(counts), predictions={key: v.numpy() for key, v in cat.items()},
-                             targets=targets, seconds=time.perf_counter() - t0,
-                             durations_s=np.asarray(spans))
+    return DatasetEvaluation(
+        task=evaluator.name,
+        metrics=metrics,
+        primary_metric=evaluator.primary_metric,
+        per_clip=per_clip,
+        clip_indices=np.asarray(indices, dtype=np.int64),
+        event_counts=np.asarray(counts),
+        predictions={key: v.numpy() for key, v in cat.items()},
+        targets=targets,
+        seconds=time.perf_counter() - t0,
+        durations_s=np.asarray(spans),
+    )

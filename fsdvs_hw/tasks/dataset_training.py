@@ -127,9 +127,11 @@ def disjoint_train_indices(n_total: int, test_indices: Any, n_train: int, seed: 
     n_train = check_count("train.n_train", n_train, 0, MAX_CLIPS)
     want = len(free) if n_train == 0 else n_train
     if len(free) < max(2, want):
-        raise InputError(f"train.n_train = {n_train}: {len(free)} of the {n_total} clips are left once the "
-                         f"{n_total - len(free)} scored clips are set aside; allowed: 0 (all of them) or 2 to "
-                         f"{len(free)} (score fewer clips: n_clips)")
+        raise InputError(
+            f"train.n_train = {n_train}: {len(free)} of the {n_total} clips are left once the "
+            f"{n_total - len(free)} scored clips are set aside; allowed: 0 (all of them) or 2 to "
+            f"{len(free)} (score fewer clips: n_clips)"
+        )
     return np.sort(np.random.default_rng(seed).choice(free, size=want, replace=False)).astype(np.int64)
 
 
@@ -138,8 +140,11 @@ def _training_targets(evaluator: Any, targets: dict[str, np.ndarray], h: int, w:
     import torch
 
     if evaluator.name == "detection":
-        batch = SimpleNamespace(boxes=targets["boxes"][:, None], labels=targets["labels"].copy(),
-                                config=SimpleNamespace(height_px=h, width_px=w))
+        batch = SimpleNamespace(
+            boxes=targets["boxes"][:, None],
+            labels=targets["labels"].copy(),
+            config=SimpleNamespace(height_px=h, width_px=w),
+        )
         return evaluator.targets(batch)
     return {k: torch.from_numpy(np.ascontiguousarray(v)) for k, v in targets.items()}
 
@@ -158,8 +163,10 @@ def _load_clips(dataset: Any, indices: np.ndarray, evaluator: Any) -> tuple[Any,
     for n, i in enumerate(indices):
         clip = first if n == 0 else dataset[int(i)]
         if clip.frames.shape != (t, h, w):
-            raise InputError(f"train_on_dataset: clip {int(i)} ({clip.source!r}) has shape {clip.frames.shape}, "
-                             f"clip {int(indices[0])} {(t, h, w)}; field 'size': give the dataset a size=(H, W)")
+            raise InputError(
+                f"train_on_dataset: clip {int(i)} ({clip.source!r}) has shape {clip.frames.shape}, "
+                f"clip {int(indices[0])} {(t, h, w)}; field 'size': give the dataset a size=(H, W)"
+            )
         video[n] = torch.from_numpy(clip.frames)
         clips.append(clip)
     return video, _training_targets(evaluator, stack_targets(clips), h, w), first.timestamps_s
@@ -170,8 +177,9 @@ def _stem(out: str | Path) -> Path:
     return p.with_suffix("") if p.suffix in (".json", ".safetensors") else p
 
 
-def load_trained(out: str | Path, network: Any, *, fingerprint: dict[str, Any] | None = None,
-                 who: str = "load_trained") -> tuple[Any, Kernel, dict[str, Any]] | None:
+def load_trained(
+    out: str | Path, network: Any, *, fingerprint: dict[str, Any] | None = None, who: str = "load_trained"
+) -> tuple[Any, Kernel, dict[str, Any]] | None:
     """A finished :func:`train_on_dataset` checkpoint at ``out`` loaded into ``network``, or None if absent.
 
     Parameters
@@ -207,8 +215,9 @@ def load_trained(out: str | Path, network: Any, *, fingerprint: dict[str, Any] |
     try:
         network.load_state_dict(state, strict=True)
     except RuntimeError as exc:
-        raise InputError(f"{who}: checkpoint {stem!s}.safetensors does not fit the network "
-                         f"({str(exc).splitlines()[0]})") from None
+        raise InputError(
+            f"{who}: checkpoint {stem!s}.safetensors does not fit the network ({str(exc).splitlines()[0]})"
+        ) from None
     return network.eval(), kernel, provenance
 
 
@@ -219,19 +228,39 @@ def _check_fingerprint(stored: Any, wanted: dict[str, Any] | None, path: Path) -
     if stored != wanted:
         stored = stored if isinstance(stored, dict) else {}
         diff = sorted(k for k in set(stored) | set(wanted) if stored.get(k) != wanted.get(k))
-        raise InputError(f"{path}: trained with other settings (differing: {', '.join(diff) or 'all'}); allowed: "
-                         "the same data, network and train settings, or another train.out (delete the file to "
-                         "retrain)")
+        raise InputError(
+            f"{path}: trained with other settings (differing: {', '.join(diff) or 'all'}); allowed: "
+            "the same data, network and train settings, or another train.out (delete the file to "
+            "retrain)"
+        )
 
 
-def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indices: Any,
-                     kernel_size: int = 7, init_kernel: Any = None, learn_filter: bool = True,
-                     realisation: Any = None,
-                     epochs_frozen: int = 2, epochs_joint: int = 2, lr_network: float = 3e-3,
-                     lr_kernel: float = 1e-2, lr_backbone: float | None = None, lr_head: float | None = None,
-                     weight_decay: float = 1e-4, batch_size: int = 8, seed: int = 0, init_noise: float = 1e-2,
-                     sensor: Any = None, device: str = "cpu", out: str | Path | None = None,
-                     fingerprint: dict[str, Any] | None = None, verbose: bool = False) -> DatasetTrainingResult:
+def train_on_dataset(
+    dataset: Any,
+    task: Any,
+    network: Any = None,
+    *,
+    train_indices: Any,
+    kernel_size: int = 7,
+    init_kernel: Any = None,
+    learn_filter: bool = True,
+    realisation: Any = None,
+    epochs_frozen: int = 2,
+    epochs_joint: int = 2,
+    lr_network: float = 3e-3,
+    lr_kernel: float = 1e-2,
+    lr_backbone: float | None = None,
+    lr_head: float | None = None,
+    weight_decay: float = 1e-4,
+    batch_size: int = 8,
+    seed: int = 0,
+    init_noise: float = 1e-2,
+    sensor: Any = None,
+    device: str = "cpu",
+    out: str | Path | None = None,
+    fingerprint: dict[str, Any] | None = None,
+    verbose: bool = False,
+) -> DatasetTrainingResult:
     """Train ``network`` and learn a k×k kernel on clips of a user dataset (two stages, decoupled rates).
 
     Parameters
@@ -310,8 +339,10 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
     t_start = time.perf_counter()
     evaluator = evaluator_for_dataset(task, dataset)
     dev = _device(device)
-    epochs = {"frozen_filter": check_count("train.epochs_frozen", epochs_frozen, 0, MAX_EPOCHS),
-              "joint": check_count("train.epochs_joint", epochs_joint, 0, MAX_EPOCHS)}
+    epochs = {
+        "frozen_filter": check_count("train.epochs_frozen", epochs_frozen, 0, MAX_EPOCHS),
+        "joint": check_count("train.epochs_joint", epochs_joint, 0, MAX_EPOCHS),
+    }
     batch_size = check_count("train.batch_size", batch_size, 1, 100_000)
     seed = check_count("train.seed", seed, 0, MAX_SEED)
     lr_network = check_real("train.lr_network", lr_network, 0.0, 10.0)
@@ -330,8 +361,9 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
     video, targets, ts = _load_clips(dataset, indices, evaluator)
     h, w = video.shape[-2:]
     if taps0.shape[0] > min(h, w):
-        raise InputError(f"train_on_dataset: a {taps0.shape[0]}x{taps0.shape[0]} kernel is larger than the "
-                         f"{h}x{w} frames")
+        raise InputError(
+            f"train_on_dataset: a {taps0.shape[0]}x{taps0.shape[0]} kernel is larger than the {h}x{w} frames"
+        )
     net = _network_for(network, evaluator.name, 2 * (video.shape[1] - 1), evaluator.num_classes)
     rep = event_input_of(net)
     sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(ts)[0]))) if sensor is None else sensor
@@ -344,8 +376,13 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
         return rep(_events(v, k, s, t).float(), t)
 
     def optimizer(stage: str) -> Any:
-        return _optimizer(stage, net, kernel_param if learn_filter else None, weight_decay,
-                          {"network": lr_network, "kernel": lr_kernel, "backbone": lr_backbone, "head": lr_head})
+        return _optimizer(
+            stage,
+            net,
+            kernel_param if learn_filter else None,
+            weight_decay,
+            {"network": lr_network, "kernel": lr_kernel, "backbone": lr_backbone, "head": lr_head},
+        )
 
     fingerprint = None if fingerprint is None else json.loads(json.dumps(fingerprint))
     stem = None if out is None else _stem(out)
@@ -370,14 +407,31 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
         cached = _inputs_once(input_fn, video, kernel_now(), sensor, ts) if frozen else None
         for epoch in range(first_epoch, epochs[stage]):
             n_before = len(history)
-            _train_epochs(evaluator, net, kernel_param, video, targets, sensor, ts, opt, 1, batch_size, gen,
-                          stage if learn_filter or stage == "frozen_filter" else "joint_frozen_filter", history,
-                          taps_init, cached_inputs=cached, input_fn=input_fn)
+            _train_epochs(
+                evaluator,
+                net,
+                kernel_param,
+                video,
+                targets,
+                sensor,
+                ts,
+                opt,
+                1,
+                batch_size,
+                gen,
+                stage if learn_filter or stage == "frozen_filter" else "joint_frozen_filter",
+                history,
+                taps_init,
+                cached_inputs=cached,
+                input_fn=input_fn,
+            )
             history[n_before]["epoch"] = epoch
             trained += 1
             if verbose:
-                _log(f"[learn] {evaluator.name} {stage} epoch {epoch + 1}/{epochs[stage]}: loss "
-                    f"{history[-1]['loss']:.4f} ({history[-1]['seconds']:.1f} s)")
+                _log(
+                    f"[learn] {evaluator.name} {stage} epoch {epoch + 1}/{epochs[stage]}: loss "
+                    f"{history[-1]['loss']:.4f} ({history[-1]['seconds']:.1f} s)"
+                )
             if partial is not None:
                 _save_partial(partial, net, kernel_param, gen, opt, history, (s_idx, epoch + 1), fingerprint)
     net = net.cpu().eval()
@@ -385,28 +439,55 @@ def train_on_dataset(dataset: Any, task: Any, network: Any = None, *, train_indi
         taps = kernel_now().detach().cpu().numpy()
     realised.update(_realisation_after(module, evaluator.name))
     provenance = {
-        "task": evaluator.name, "dataset": type(dataset).__name__, "num_classes": evaluator.num_classes,
+        "task": evaluator.name,
+        "dataset": type(dataset).__name__,
+        "num_classes": evaluator.num_classes,
         "protocol": "frozen kernel, then joint (decoupled rates)" if learn_filter else "kernel frozen",
-        "epochs_frozen": epochs["frozen_filter"], "epochs_joint": epochs["joint"],
-        "learning_rates": {"network_stage_one": lr_network, "kernel": lr_kernel if learn_filter else 0.0,
-                           "backbone": lr_backbone, "head": lr_head},
-        "weight_decay": weight_decay, "batch_size": batch_size, "seed": seed, "init_noise": init_noise,
-        "learn_filter": learn_filter, "n_train": int(len(indices)), "train_indices": indices.tolist(),
-        "network": type(net).__name__, "event_input": rep.kind if rep.n_bins is None else f"voxel:{rep.n_bins}",
-        "sensor": sensor.to_dict(), "history": history, "fingerprint": fingerprint,
-        "train_seconds": time.perf_counter() - t_start, "device": str(dev), "versions": library_versions(),
-        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), **realised,
+        "epochs_frozen": epochs["frozen_filter"],
+        "epochs_joint": epochs["joint"],
+        "learning_rates": {
+            "network_stage_one": lr_network,
+            "kernel": lr_kernel if learn_filter else 0.0,
+            "backbone": lr_backbone,
+            "head": lr_head,
+        },
+        "weight_decay": weight_decay,
+        "batch_size": batch_size,
+        "seed": seed,
+        "init_noise": init_noise,
+        "learn_filter": learn_filter,
+        "n_train": int(len(indices)),
+        "train_indices": indices.tolist(),
+        "network": type(net).__name__,
+        "event_input": rep.kind if rep.n_bins is None else f"voxel:{rep.n_bins}",
+        "sensor": sensor.to_dict(),
+        "history": history,
+        "fingerprint": fingerprint,
+        "train_seconds": time.perf_counter() - t_start,
+        "device": str(dev),
+        "versions": library_versions(),
+        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        **realised,
     }
-    kernel = Kernel(taps, name=f"learned {evaluator.name} {taps.shape[0]}x{taps.shape[0]} on "
-                    f"{type(dataset).__name__} (seed {seed})",
-                    provenance={k: v for k, v in provenance.items() if k not in ("history", "train_indices")})
+    kernel = Kernel(
+        taps,
+        name=f"learned {evaluator.name} {taps.shape[0]}x{taps.shape[0]} on {type(dataset).__name__} (seed {seed})",
+        provenance={k: v for k, v in provenance.items() if k not in ("history", "train_indices")},
+    )
     paths: dict[str, Path] = {}
     if stem is not None:
         paths = _save_checkpoint(stem, kernel, net, provenance)
         if partial is not None and partial.is_file():
             partial.unlink()
-    return DatasetTrainingResult(kernel=kernel, network=net, history=history, train_indices=indices,
-                                 provenance=provenance, paths=paths, epochs_trained=trained)
+    return DatasetTrainingResult(
+        kernel=kernel,
+        network=net,
+        history=history,
+        train_indices=indices,
+        provenance=provenance,
+        paths=paths,
+        epochs_trained=trained,
+    )
 
 
 def _log(message: str) -> None:
@@ -435,8 +516,10 @@ def _optimizer(stage: str, net: Any, kernel_param: Any, weight_decay: float, lr:
         return torch.optim.AdamW([{"params": list(net.parameters()), "lr": lr["network"], "weight_decay": wd}])
     backbone, head = getattr(net, "backbone", None), getattr(net, "head", None)
     if isinstance(backbone, torch.nn.Module) and isinstance(head, torch.nn.Module):
-        groups = [{"params": list(backbone.parameters()), "lr": lr["backbone"], "weight_decay": wd},
-                  {"params": list(head.parameters()), "lr": lr["head"], "weight_decay": wd}]
+        groups = [
+            {"params": list(backbone.parameters()), "lr": lr["backbone"], "weight_decay": wd},
+            {"params": list(head.parameters()), "lr": lr["head"], "weight_decay": wd},
+        ]
     else:
         groups = [{"params": list(net.parameters()), "lr": lr["head"], "weight_decay": wd}]
     if kernel_param is not None:
@@ -448,10 +531,11 @@ def _optimizer(stage: str, net: Any, kernel_param: Any, weight_decay: float, lr:
 def _checked_indices(train_indices: Any, n_clips: int) -> np.ndarray:
     """``train_indices`` as distinct int64 clip indices in ``[0, n_clips)`` (InputError otherwise)."""
     indices = np.asarray(list(train_indices), dtype=np.int64)
-    if len(indices) < 1 or len(set(indices.tolist())) != len(indices) or indices.min() < 0 \
-            or indices.max() >= n_clips:
-        raise InputError(f"train_on_dataset: train_indices must be distinct clip indices in [0, {n_clips}), "
-                         f"got {len(indices)} of them")
+    if len(indices) < 1 or len(set(indices.tolist())) != len(indices) or indices.min() < 0 or indices.max() >= n_clips:
+        raise InputError(
+            f"train_on_dataset: train_indices must be distinct clip indices in [0, {n_clips}), "
+            f"got {len(indices)} of them"
+        )
     return indices
 
 
@@ -467,13 +551,20 @@ def _finished_run(stem: Path, net: Any, fingerprint: Any, indices: np.ndarray) -
     if done is None:
         return None
     net, kernel, prov = done
-    return DatasetTrainingResult(kernel=kernel, network=net.cpu(), history=prov.get("history", []),
-                                 train_indices=np.asarray(prov.get("train_indices", indices)),
-                                 provenance=prov, paths=_paths(stem), epochs_trained=0)
+    return DatasetTrainingResult(
+        kernel=kernel,
+        network=net.cpu(),
+        history=prov.get("history", []),
+        train_indices=np.asarray(prov.get("train_indices", indices)),
+        provenance=prov,
+        paths=_paths(stem),
+        epochs_trained=0,
+    )
 
 
-def _resume(partial: Path | None, fingerprint: Any, net: Any, kernel_param: Any,
-            gen: Any) -> tuple[list[dict[str, Any]], tuple[int, int], Any]:
+def _resume(
+    partial: Path | None, fingerprint: Any, net: Any, kernel_param: Any, gen: Any
+) -> tuple[list[dict[str, Any]], tuple[int, int], Any]:
     """Load ``STEM.partial.pt`` into the network, kernel and generator: (history, (stage, epoch), optimizer state)."""
     if partial is None or not partial.is_file():
         return [], (0, 0), None
@@ -491,8 +582,9 @@ def _resume(partial: Path | None, fingerprint: Any, net: Any, kernel_param: Any,
     return json.loads(state["history"]), (int(state["stage"]), int(state["epoch"])), state["optimizer"]
 
 
-def _kernel_start(realisation: Any, init_kernel: Any, kernel_size: Any, init_noise: float,
-                  gen: Any) -> tuple[Any, dict[str, Any], Any]:
+def _kernel_start(
+    realisation: Any, init_kernel: Any, kernel_size: Any, init_noise: float, gen: Any
+) -> tuple[Any, dict[str, Any], Any]:
     """(realisation module or None, its provenance, the initial taps as a float64 CPU tensor)."""
     if realisation is None:
         return None, {}, _initial_taps(init_kernel, kernel_size, init_noise, gen)
@@ -533,28 +625,56 @@ def _initial_taps(init_kernel: Any, kernel_size: Any, init_noise: float, gen: An
 
     if init_kernel is not None:
         return torch.as_tensor(np.array(as_kernel(init_kernel, name="init_kernel").taps), dtype=torch.float64)
-    if isinstance(kernel_size, bool) or not isinstance(kernel_size, int) or not 1 <= kernel_size <= 15 \
-            or kernel_size % 2 == 0:
+    if (
+        isinstance(kernel_size, bool)
+        or not isinstance(kernel_size, int)
+        or not 1 <= kernel_size <= 15
+        or kernel_size % 2 == 0
+    ):
         raise InputError(f"train.kernel_size = {kernel_size!r}; allowed: an odd integer in [1, 15] (pixels)")
     return _delta_init(kernel_size, init_noise if kernel_size > 1 else 0.0, gen)
 
 
-def _save_partial(path: Path, net: Any, kernel_param: Any, gen: Any, opt: Any, history: list[dict[str, Any]],
-                  position: tuple[int, int], fingerprint: Any) -> None:
+def _save_partial(
+    path: Path,
+    net: Any,
+    kernel_param: Any,
+    gen: Any,
+    opt: Any,
+    history: list[dict[str, Any]],
+    position: tuple[int, int],
+    fingerprint: Any,
+) -> None:
     """The state after a finished epoch, written atomically (``position`` = (stage, next epoch))."""
     import torch
 
     from ..paths import write_output
 
     buf = io.BytesIO()
-    kernel = ({k: v.cpu() for k, v in kernel_param.state_dict().items()} if isinstance(kernel_param, torch.nn.Module)
-              else kernel_param.detach().cpu())
-    torch.save({"network": {k: v.cpu() for k, v in net.state_dict().items()}, "kernel": kernel,
-                "generator": gen.get_state(), "optimizer": opt.state_dict(), "history": json.dumps(history),
-                "stage": position[0], "epoch": position[1], "fingerprint": json.dumps(fingerprint)}, buf)
+    kernel = (
+        {k: v.cpu() for k, v in kernel_param.state_dict().items()}
+        if isinstance(kernel_param, torch.nn.Module)
+        else kernel_param.detach().cpu()
+    )
+    torch.save(
+        {
+            "network": {k: v.cpu() for k, v in net.state_dict().items()},
+            "kernel": kernel,
+            "generator": gen.get_state(),
+            "optimizer": opt.state_dict(),
+            "history": json.dumps(history),
+            "stage": position[0],
+            "epoch": position[1],
+            "fingerprint": json.dumps(fingerprint),
+        },
+        buf,
+    )
     write_output(path, buf.getvalue(), flag=str(path))
 
 
 def _paths(stem: Path) -> dict[str, Path]:
-    return {"kernel": Path(str(stem) + ".json"), "checkpoint": Path(str(stem) + ".safetensors"),
-            "provenance": Path(str(stem) + ".provenance.json")}
+    return {
+        "kernel": Path(str(stem) + ".json"),
+        "checkpoint": Path(str(stem) + ".safetensors"),
+        "provenance": Path(str(stem) + ".provenance.json"),
+    }

@@ -169,9 +169,14 @@ class DetectionEvaluator(TaskEvaluator):
                 size[i, :, iy, ix] = (x1 - x0, y1 - y0)
                 offset[i, :, iy, ix] = (cx - ix, cy - iy)
                 regmask[i, 0, iy, ix] = 1.0
-        return {"heatmap": torch.from_numpy(heat), "size": torch.from_numpy(size),
-                "offset": torch.from_numpy(offset), "regmask": torch.from_numpy(regmask),
-                "boxes": torch.from_numpy(boxes), "labels": torch.from_numpy(labels)}
+        return {
+            "heatmap": torch.from_numpy(heat),
+            "size": torch.from_numpy(size),
+            "offset": torch.from_numpy(offset),
+            "regmask": torch.from_numpy(regmask),
+            "boxes": torch.from_numpy(boxes),
+            "labels": torch.from_numpy(labels),
+        }
 
     def loss(self, output: dict[str, torch.Tensor], target: Targets) -> torch.Tensor:
         # CenterNet penalty-reduced focal loss (Zhou et al. 2019) + L1 on size and offset
@@ -206,8 +211,14 @@ class DetectionEvaluator(TaskEvaluator):
         return {"boxes": boxes, "scores": scores, "labels": cls}
 
     def score(self, prediction: dict[str, torch.Tensor], target: Targets) -> dict[str, float]:
-        return detection_map(prediction["boxes"], prediction["scores"], prediction["labels"],
-                             target["boxes"], target["labels"], num_classes=self.num_classes)
+        return detection_map(
+            prediction["boxes"],
+            prediction["scores"],
+            prediction["labels"],
+            target["boxes"],
+            target["labels"],
+            num_classes=self.num_classes,
+        )
 
 
 # --------------------------------------------------------------------------- recognition
@@ -288,8 +299,9 @@ class SegmentationEvaluator(TaskEvaluator):
         return {"mask": output.detach().argmax(dim=1)}
 
     def score(self, prediction: dict[str, torch.Tensor], target: Targets) -> dict[str, float]:
-        return segmentation_scores(prediction["mask"], target["mask"], num_classes=self.num_classes,
-                                   ignore_index=self.ignore_index)
+        return segmentation_scores(
+            prediction["mask"], target["mask"], num_classes=self.num_classes, ignore_index=self.ignore_index
+        )
 
 
 #: task name -> evaluator instance
@@ -301,8 +313,10 @@ def register_evaluator(evaluator: TaskEvaluator, *, overwrite: bool = False) -> 
     if not isinstance(evaluator, TaskEvaluator):
         raise InputError(f"register_evaluator: expected a TaskEvaluator instance, got {type(evaluator).__name__}")
     if evaluator.primary_metric not in evaluator.metric_names:
-        raise InputError(f"register_evaluator: primary_metric {evaluator.primary_metric!r} not in metric_names "
-                         f"{evaluator.metric_names}")
+        raise InputError(
+            f"register_evaluator: primary_metric {evaluator.primary_metric!r} not in metric_names "
+            f"{evaluator.metric_names}"
+        )
     if evaluator.name in EVALUATORS and not overwrite:
         raise InputError(f"register_evaluator: task {evaluator.name!r} already registered (pass overwrite=True)")
     EVALUATORS[evaluator.name] = evaluator

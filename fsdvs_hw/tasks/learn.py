@@ -199,8 +199,10 @@ class Evaluation:
         return self.metrics[self.primary_metric]
 
     def to_dict(self) -> dict[str, Any]:
-        return {**{k: v for k, v in self.__dict__.items() if k not in ("predictions", "clip_event_rates")},
-                "value": self.value}
+        return {
+            **{k: v for k, v in self.__dict__.items() if k not in ("predictions", "clip_event_rates")},
+            "value": self.value,
+        }
 
 
 # --------------------------------------------------------------------------- simulator glue
@@ -221,9 +223,15 @@ def default_sensor(scene: Any) -> Any:
     """
     from ..sensor import SensorConfig
 
-    return SensorConfig.ideal(threshold=0.2, threshold_sigma=0.03, leak_rate_hz=0.01, shot_noise_rate_hz=0.001,
-                              positivity="pedestal", pedestal_intensity=0.1,
-                              frame_rate_hz=float(scene.frame_rate_hz))
+    return SensorConfig.ideal(
+        threshold=0.2,
+        threshold_sigma=0.03,
+        leak_rate_hz=0.01,
+        shot_noise_rate_hz=0.001,
+        positivity="pedestal",
+        pedestal_intensity=0.1,
+        frame_rate_hz=float(scene.frame_rate_hz),
+    )
 
 
 def _events(video: Any, kernel: Any, sensor: Any, timestamps_s: np.ndarray) -> Any:
@@ -284,10 +292,19 @@ def _cat_predictions(preds: list[dict[str, Any]]) -> dict[str, Any]:
     return {k: torch.cat([p[k] for p in preds]) for k in preds[0]}
 
 
-def _score(evaluator: Any, network: Any, kernel_t: Any, video: Any, targets: dict[str, Any], sensor: Any,
-           timestamps_s: np.ndarray, batch_size: int = 64, events_fn: Any = None,
-           keep: dict[str, Any] | None = None, clip_rates: list[np.ndarray] | None = None,
-           ) -> tuple[dict[str, float], float]:
+def _score(
+    evaluator: Any,
+    network: Any,
+    kernel_t: Any,
+    video: Any,
+    targets: dict[str, Any],
+    sensor: Any,
+    timestamps_s: np.ndarray,
+    batch_size: int = 64,
+    events_fn: Any = None,
+    keep: dict[str, Any] | None = None,
+    clip_rates: list[np.ndarray] | None = None,
+) -> tuple[dict[str, float], float]:
     """Metrics of ``network`` with ``kernel_t`` on a test set, and the mean event count per pixel-frame.
 
     If ``keep`` is a dict, the concatenated per-clip predictions are stored in it (numpy arrays).
@@ -317,10 +334,25 @@ def _score(evaluator: Any, network: Any, kernel_t: Any, video: Any, targets: dic
     return evaluator.score(cat, targets), n_events / max(n_px, 1)
 
 
-def _train_epochs(evaluator: Any, network: Any, kernel_param: Any, video: Any, targets: dict[str, Any],
-                  sensor: Any, timestamps_s: np.ndarray, optimizer: Any, epochs: int, batch_size: int,
-                  generator: Any, stage: str, history: list[dict[str, Any]], kernel_init: Any = None,
-                  cached_inputs: Any = None, log: Any = None, input_fn: Any = None) -> None:
+def _train_epochs(
+    evaluator: Any,
+    network: Any,
+    kernel_param: Any,
+    video: Any,
+    targets: dict[str, Any],
+    sensor: Any,
+    timestamps_s: np.ndarray,
+    optimizer: Any,
+    epochs: int,
+    batch_size: int,
+    generator: Any,
+    stage: str,
+    history: list[dict[str, Any]],
+    kernel_init: Any = None,
+    cached_inputs: Any = None,
+    log: Any = None,
+    input_fn: Any = None,
+) -> None:
     """Train ``network`` (and the kernel, if in ``optimizer``) for ``epochs`` epochs, appending to ``history``.
 
     ``input_fn(video, kernel, sensor, timestamps_s)`` makes the network input of a batch (default
@@ -356,8 +388,10 @@ def _train_epochs(evaluator: Any, network: Any, kernel_param: Any, video: Any, t
             rec["kernel_change_l1"] = float((taps.detach() - kernel_init).abs().sum())
         history.append(rec)
         if log is not None:
-            log(f"[learn] {evaluator.name} {stage} epoch {epoch + 1}/{epochs}: loss {rec['loss']:.4f} "
-                f"({rec['seconds']:.1f} s)")
+            log(
+                f"[learn] {evaluator.name} {stage} epoch {epoch + 1}/{epochs}: loss {rec['loss']:.4f} "
+                f"({rec['seconds']:.1f} s)"
+            )
 
 
 def _delta_init(size: int, noise: float, generator: Any) -> Any:
@@ -384,8 +418,9 @@ def _as_kernel(kernel: Any, *, source: str = "kernel") -> Kernel:
 
 
 # --------------------------------------------------------------------------- public API
-def _check_learn_arguments(settings: TrainingSettings | None, size: Any, n_train: Any, n_test: Any,
-                           seed: Any) -> TrainingSettings:
+def _check_learn_arguments(
+    settings: TrainingSettings | None, size: Any, n_train: Any, n_test: Any, seed: Any
+) -> TrainingSettings:
     """:func:`learn_kernel`'s settings (default ``TrainingSettings()``) once size, clip counts and seed are valid."""
     settings = settings or TrainingSettings()
     if not isinstance(settings, TrainingSettings):
@@ -406,17 +441,32 @@ def _realisation_kernel(realisation: str, init_kernel: Any, learn_filter: bool) 
     from ..realise.registry import fit_realisation, get_realisation
 
     if init_kernel is None or not learn_filter:
-        raise InputError("learn_kernel: realisation=... needs init_kernel (the kernel the realisation is first "
-                         "fitted to) and learn_filter=True")
+        raise InputError(
+            "learn_kernel: realisation=... needs init_kernel (the kernel the realisation is first "
+            "fitted to) and learn_filter=True"
+        )
     spec = get_realisation(realisation)
     record = fit_realisation(realisation, _as_kernel(init_kernel, source="init_kernel"))
     return spec.differentiable_kernel(record), {"realisation": realisation, "realisation_initial": record.to_dict()}
 
 
-def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048, n_test: int = 2048,
-                 settings: TrainingSettings | None = None, scene: Any = None, sensor: Any = None,
-                 learn_filter: bool = True, init_kernel: Any = None, out: str | Path | None = None,
-                 name: str | None = None, verbose: bool = False, realisation: str | None = None) -> LearnResult:
+def learn_kernel(
+    task: Any,
+    size: int = 7,
+    *,
+    seed: int = 0,
+    n_train: int = 2048,
+    n_test: int = 2048,
+    settings: TrainingSettings | None = None,
+    scene: Any = None,
+    sensor: Any = None,
+    learn_filter: bool = True,
+    init_kernel: Any = None,
+    out: str | Path | None = None,
+    name: str | None = None,
+    verbose: bool = False,
+    realisation: str | None = None,
+) -> LearnResult:
     """Learn a k×k FS-DVS kernel end to end with a task network (the paper's protocol).
 
     Parameters
@@ -503,8 +553,9 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
     scene = scene if scene is not None else evaluator.default_scene()
     evaluator.check_scene(scene)
     if size > min(scene.height_px, scene.width_px):
-        raise InputError(f"learn_kernel: a {size}x{size} kernel is larger than the "
-                         f"{scene.height_px}x{scene.width_px} frame")
+        raise InputError(
+            f"learn_kernel: a {size}x{size} kernel is larger than the {scene.height_px}x{scene.width_px} frame"
+        )
     sensor = sensor if sensor is not None else default_sensor(scene)
     log = (lambda msg: print(msg, file=sys.stderr, flush=True)) if verbose else None
 
@@ -544,23 +595,45 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
     cached: torch.Tensor | None  # the frozen filter's network inputs, computed once
     if epochs_frozen:
         with torch.no_grad():
-            cached = torch.cat([_network_input(video[s : s + 128], kernel_now(), sensor, ts)
-                                for s in range(0, video.shape[0], 128)])
+            cached = torch.cat(
+                [_network_input(video[s : s + 128], kernel_now(), sensor, ts) for s in range(0, video.shape[0], 128)]
+            )
         opt = torch.optim.AdamW([_group(network.parameters(), settings.lr_network, settings.weight_decay)])
-        _train_epochs(evaluator, network, kernel_param, video, targets, sensor, ts, opt, epochs_frozen, bs, gen,
-                      "frozen_filter", history, None, cached_inputs=cached, log=log)
+        _train_epochs(
+            evaluator,
+            network,
+            kernel_param,
+            video,
+            targets,
+            sensor,
+            ts,
+            opt,
+            epochs_frozen,
+            bs,
+            gen,
+            "frozen_filter",
+            history,
+            None,
+            cached_inputs=cached,
+            log=log,
+        )
         del cached
     if staged:
         ratios = getattr(evaluator, "joint_lr_ratios", PAPER_LR_RATIOS)
-        lrs = {"filter": settings.lr_filter, "backbone": settings.lr_filter * ratios[1],
-               "head": settings.lr_filter * ratios[2]}
+        lrs = {
+            "filter": settings.lr_filter,
+            "backbone": settings.lr_filter * ratios[1],
+            "head": settings.lr_filter * ratios[2],
+        }
     else:
         lrs = {"filter": settings.lr_filter, "backbone": settings.lr_network, "head": settings.lr_network}
     if not learn_filter:
         lrs["filter"] = 0.0
     if epochs_joint:
-        groups = [_group(network.backbone.parameters(), lrs["backbone"], settings.weight_decay),
-                  _group(network.head.parameters(), lrs["head"], settings.weight_decay)]
+        groups = [
+            _group(network.backbone.parameters(), lrs["backbone"], settings.weight_decay),
+            _group(network.head.parameters(), lrs["head"], settings.weight_decay),
+        ]
         if learn_filter:
             filt = list(kernel_param.parameters()) if realised else [kernel_param]
             groups.insert(0, _group(filt, lrs["filter"], 0.0))
@@ -568,19 +641,39 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
         cached = None
         if not learn_filter:  # frozen filter: the events never change, compute them once
             with torch.no_grad():
-                cached = torch.cat([_network_input(video[s : s + 128], kernel_param, sensor, ts)
-                                    for s in range(0, video.shape[0], 128)])
-        _train_epochs(evaluator, network, kernel_param, video, targets, sensor, ts, opt, epochs_joint, bs, gen,
-                      "joint" if learn_filter else "joint_frozen_filter", history,
-                      taps0 if learn_filter and not realised else None, cached_inputs=cached, log=log)
+                cached = torch.cat(
+                    [
+                        _network_input(video[s : s + 128], kernel_param, sensor, ts)
+                        for s in range(0, video.shape[0], 128)
+                    ]
+                )
+        _train_epochs(
+            evaluator,
+            network,
+            kernel_param,
+            video,
+            targets,
+            sensor,
+            ts,
+            opt,
+            epochs_joint,
+            bs,
+            gen,
+            "joint" if learn_filter else "joint_frozen_filter",
+            history,
+            taps0 if learn_filter and not realised else None,
+            cached_inputs=cached,
+            log=log,
+        )
 
     with torch.no_grad():
         kernel_final = kernel_now().detach().clone()
     if realised:
         realised["realisation_design"] = kernel_param.to_design(codesign_task=evaluator.name).to_dict()
     predictions: dict[str, np.ndarray] = {}
-    metrics, event_rate = _score(evaluator, network, kernel_final, test_video, test_targets, sensor, ts,
-                                 keep=predictions)
+    metrics, event_rate = _score(
+        evaluator, network, kernel_final, test_video, test_targets, sensor, ts, keep=predictions
+    )
     train_seconds = time.perf_counter() - t_start
     provenance = {
         "task": evaluator.name,
@@ -615,13 +708,21 @@ def learn_kernel(task: Any, size: int = 7, *, seed: int = 0, n_train: int = 2048
         "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
     kname = name or f"learned {evaluator.name} {size}x{size} (seed {seed})"
-    kernel = Kernel(kernel_final.numpy(), name=kname,
-                    provenance={k: v for k, v in provenance.items() if k != "history"})
+    kernel = Kernel(
+        kernel_final.numpy(), name=kname, provenance={k: v for k, v in provenance.items() if k != "history"}
+    )
     paths: dict[str, Path] = {}
     if out is not None:
         paths = _save_checkpoint(Path(out), kernel, network, provenance)
-    return LearnResult(kernel=kernel, metrics=metrics, primary_metric=evaluator.primary_metric,
-                       history=history, provenance=provenance, paths=paths, predictions=predictions)
+    return LearnResult(
+        kernel=kernel,
+        metrics=metrics,
+        primary_metric=evaluator.primary_metric,
+        history=history,
+        provenance=provenance,
+        paths=paths,
+        predictions=predictions,
+    )
 
 
 def _save_checkpoint(stem: Path, kernel: Kernel, network: Any, provenance: dict[str, Any]) -> dict[str, Path]:
@@ -635,12 +736,25 @@ def _save_checkpoint(stem: Path, kernel: Kernel, network: Any, provenance: dict[
     tensors = {f"network.{k}": v.detach().contiguous() for k, v in network.state_dict().items()}
     tensors["kernel"] = torch.as_tensor(np.array(kernel.taps))
     ckpt = Path(str(base) + ".safetensors")
-    write_output(ckpt, save(tensors, metadata={"format": CHECKPOINT_FORMAT, "version": _CHECKPOINT_VERSION,
-                                               "provenance": json.dumps(provenance)}), flag=str(ckpt))
+    write_output(
+        ckpt,
+        save(
+            tensors,
+            metadata={
+                "format": CHECKPOINT_FORMAT,
+                "version": _CHECKPOINT_VERSION,
+                "provenance": json.dumps(provenance),
+            },
+        ),
+        flag=str(ckpt),
+    )
     kpath = kernel.save(Path(str(base) + ".json"))
     ppath = Path(str(base) + ".provenance.json")
-    write_output(ppath, json.dumps({**provenance, "checkpoint": ckpt.name, "kernel_file": kpath.name}, indent=1) + "\n",
-                 flag=str(ppath))
+    write_output(
+        ppath,
+        json.dumps({**provenance, "checkpoint": ckpt.name, "kernel_file": kpath.name}, indent=1) + "\n",
+        flag=str(ppath),
+    )
     return {"kernel": kpath, "checkpoint": ckpt, "provenance": ppath}
 
 
@@ -665,11 +779,15 @@ def load_checkpoint(checkpoint: str | Path) -> tuple[dict[str, Any], dict[str, A
     except Exception as exc:  # safetensors raises its own error types for corrupt headers
         raise InputError(f"checkpoint {str(path)!r}: not a readable safetensors file ({exc})") from None
     if meta.get("format") != CHECKPOINT_FORMAT:
-        raise InputError(f"checkpoint {str(path)!r}: metadata 'format' is not {CHECKPOINT_FORMAT!r}: not a "
-                         "checkpoint written by fsdvs_hw learn")
+        raise InputError(
+            f"checkpoint {str(path)!r}: metadata 'format' is not {CHECKPOINT_FORMAT!r}: not a "
+            "checkpoint written by fsdvs_hw learn"
+        )
     if meta.get("version") != _CHECKPOINT_VERSION:
-        raise InputError(f"checkpoint {str(path)!r}: version {str(meta.get('version'))[:12]!r} not supported "
-                         f"(this library reads version {_CHECKPOINT_VERSION})")
+        raise InputError(
+            f"checkpoint {str(path)!r}: version {str(meta.get('version'))[:12]!r} not supported "
+            f"(this library reads version {_CHECKPOINT_VERSION})"
+        )
     try:
         provenance = json.loads(meta["provenance"])
     except (KeyError, json.JSONDecodeError, RecursionError) as exc:
@@ -678,16 +796,28 @@ def load_checkpoint(checkpoint: str | Path) -> tuple[dict[str, Any], dict[str, A
         raise InputError(f"checkpoint {str(path)!r}: metadata 'provenance' is not a JSON object")
     if "kernel" not in tensors:
         raise InputError(f"checkpoint {str(path)!r}: tensor 'kernel' missing")
-    state = {k[len("network."):]: v for k, v in tensors.items() if k.startswith("network.")}
-    kernel = Kernel(tensors["kernel"].double().numpy(), name=f"training kernel of {path.name}",
-                    provenance={k: v for k, v in provenance.items() if k != "history"})
+    state = {k[len("network.") :]: v for k, v in tensors.items() if k.startswith("network.")}
+    kernel = Kernel(
+        tensors["kernel"].double().numpy(),
+        name=f"training kernel of {path.name}",
+        provenance={k: v for k, v in provenance.items() if k != "history"},
+    )
     return provenance, state, kernel
 
 
-def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: int | None = None,
-                    finetune_epochs: int = 0, finetune_lr: float = 1e-3, sensor: Any = None,
-                    events_fn: Any = None, keep_predictions: bool = False,
-                    test_seed: int | None = None) -> Evaluation:
+def evaluate_kernel(
+    kernel: Any,
+    task: Any,
+    checkpoint: str | Path,
+    *,
+    n_test: int | None = None,
+    finetune_epochs: int = 0,
+    finetune_lr: float = 1e-3,
+    sensor: Any = None,
+    events_fn: Any = None,
+    keep_predictions: bool = False,
+    test_seed: int | None = None,
+) -> Evaluation:
     """Score ``kernel`` on a trained task: swap it into the checkpoint's frozen network.
 
     Parameters
@@ -763,14 +893,18 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
     finetune_lr = check_real("finetune_lr", finetune_lr, 0.0, 10.0)
     keep_predictions = check_bool("keep_predictions", keep_predictions)
     if events_fn is not None and not callable(events_fn):
-        raise InputError(f"events_fn={one_line(events_fn)}: not callable; allowed: a function "
-                         "(video, kernel_taps, sensor, timestamps_s) -> event frames, or None")
+        raise InputError(
+            f"events_fn={one_line(events_fn)}: not callable; allowed: a function "
+            "(video, kernel_taps, sensor, timestamps_s) -> event frames, or None"
+        )
     network, provenance = load_network(checkpoint, evaluator, who="evaluate_kernel")
     k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else _as_kernel(kernel)
     scene = SceneConfig.from_dict(provenance["scene"])
     if k.size > min(scene.height_px, scene.width_px):
-        raise KernelError(f"evaluate_kernel: a {k.size}x{k.size} kernel is larger than the checkpoint's "
-                          f"{scene.height_px}x{scene.width_px} frames")
+        raise KernelError(
+            f"evaluate_kernel: a {k.size}x{k.size} kernel is larger than the checkpoint's "
+            f"{scene.height_px}x{scene.width_px} frames"
+        )
     if sensor is None:
         sensor = SensorConfig(**provenance["sensor"])
     n_stored = int(provenance["n_test"])
@@ -785,24 +919,60 @@ def evaluate_kernel(kernel: Any, task: Any, checkpoint: str | Path, *, n_test: i
     if finetune_epochs:
         torch.manual_seed(int(provenance["seed"]))
         gen = torch.Generator().manual_seed(int(provenance["seed"]))
-        video, targets = _dataset(scene, int(provenance["n_train"]), int(provenance["seed"]), evaluator.name,
-                                  settings.dtype)
+        video, targets = _dataset(
+            scene, int(provenance["n_train"]), int(provenance["seed"]), evaluator.name, settings.dtype
+        )
         with torch.no_grad():
-            cached = torch.cat([_network_input(video[s : s + 128], kernel_t, sensor, ts)
-                                for s in range(0, video.shape[0], 128)])
+            cached = torch.cat(
+                [_network_input(video[s : s + 128], kernel_t, sensor, ts) for s in range(0, video.shape[0], 128)]
+            )
         opt = torch.optim.AdamW(network.parameters(), lr=finetune_lr, weight_decay=settings.weight_decay)
-        _train_epochs(evaluator, network, kernel_t, video, targets, sensor, ts, opt, finetune_epochs,
-                      settings.batch_size, gen, "finetune", [], None, cached_inputs=cached)
+        _train_epochs(
+            evaluator,
+            network,
+            kernel_t,
+            video,
+            targets,
+            sensor,
+            ts,
+            opt,
+            finetune_epochs,
+            settings.batch_size,
+            gen,
+            "finetune",
+            [],
+            None,
+            cached_inputs=cached,
+        )
     tseed = int(provenance["test_seed"]) if test_seed is None else _check_test_seed(test_seed, "evaluate_kernel")
     test_video, test_targets = _dataset(scene, n_test, tseed, evaluator.name, settings.dtype)
     kept: dict[str, np.ndarray] | None = {} if keep_predictions else None
     rates: list[np.ndarray] = []
-    metrics, event_rate = _score(evaluator, network, kernel_t, test_video, test_targets, sensor, ts,
-                                 events_fn=events_fn, keep=kept, clip_rates=rates)
-    return Evaluation(task=evaluator.name, metrics=metrics, primary_metric=evaluator.primary_metric,
-                      kernel_name=k.name, kernel_size=k.size, n_test=n_test, finetune_epochs=finetune_epochs,
-                      seconds=time.perf_counter() - t0, event_rate=event_rate, predictions=kept or {},
-                      clip_event_rates=np.concatenate(rates))
+    metrics, event_rate = _score(
+        evaluator,
+        network,
+        kernel_t,
+        test_video,
+        test_targets,
+        sensor,
+        ts,
+        events_fn=events_fn,
+        keep=kept,
+        clip_rates=rates,
+    )
+    return Evaluation(
+        task=evaluator.name,
+        metrics=metrics,
+        primary_metric=evaluator.primary_metric,
+        kernel_name=k.name,
+        kernel_size=k.size,
+        n_test=n_test,
+        finetune_epochs=finetune_epochs,
+        seconds=time.perf_counter() - t0,
+        event_rate=event_rate,
+        predictions=kept or {},
+        clip_event_rates=np.concatenate(rates),
+    )
 
 
 def load_network(checkpoint: str | Path, task: Any, *, who: str = "load_network") -> tuple[Any, dict[str, Any]]:
@@ -827,20 +997,26 @@ def load_network(checkpoint: str | Path, task: Any, *, who: str = "load_network"
     evaluator = get_evaluator(task)
     provenance, state, _ = load_checkpoint(checkpoint)
     if provenance.get("task") != evaluator.name:
-        raise InputError(f"{who}: checkpoint {str(checkpoint)!r} was trained for task "
-                         f"{provenance.get('task')!r}, not {evaluator.name!r}")
+        raise InputError(
+            f"{who}: checkpoint {str(checkpoint)!r} was trained for task "
+            f"{provenance.get('task')!r}, not {evaluator.name!r}"
+        )
     settings = TrainingSettings(**{"dtype": "float64", **provenance["settings"]})
     network = evaluator.build_network(int(provenance["in_channels"]), settings.width)
     try:
         network.load_state_dict(state, strict=True)
     except RuntimeError as exc:
-        raise InputError(f"{who}: checkpoint {str(checkpoint)!r} does not fit the {evaluator.name} "
-                         f"network ({str(exc).splitlines()[0]})") from None
+        raise InputError(
+            f"{who}: checkpoint {str(checkpoint)!r} does not fit the {evaluator.name} "
+            f"network ({str(exc).splitlines()[0]})"
+        ) from None
     network.eval()
     return network, provenance
 
 
-def differentiable_realisation(realisation: Any, *, who: str = "differentiable_realisation") -> tuple[Any, dict[str, Any]]:
+def differentiable_realisation(
+    realisation: Any, *, who: str = "differentiable_realisation"
+) -> tuple[Any, dict[str, Any]]:
     """The trainable module of a fitted realisation record, and what a provenance says about it.
 
     Parameters
@@ -875,18 +1051,39 @@ def differentiable_realisation(realisation: Any, *, who: str = "differentiable_r
 
     kind = getattr(realisation, "kind", None)
     specs = [get_realisation(nm) for nm in realisation_names()]
-    spec = next((sp for sp in specs if sp.record_kind == kind and sp.differentiable
-                 and (sp.record_type is None or isinstance(realisation, sp.record_type))), None)
+    spec = next(
+        (
+            sp
+            for sp in specs
+            if sp.record_kind == kind
+            and sp.differentiable
+            and (sp.record_type is None or isinstance(realisation, sp.record_type))
+        ),
+        None,
+    )
     if spec is None:
-        raise InputError(f"{who}: realisation= must be a fitted realisation record, got "
-                         f"{type(realisation).__name__} (kind {kind!r})")
-    return spec.differentiable_kernel(realisation), {"realisation": spec.name,
-                                                     "realisation_initial": realisation.to_dict()}
+        raise InputError(
+            f"{who}: realisation= must be a fitted realisation record, got {type(realisation).__name__} (kind {kind!r})"
+        )
+    return spec.differentiable_kernel(realisation), {
+        "realisation": spec.name,
+        "realisation_initial": realisation.to_dict(),
+    }
 
 
-def finetune_network(checkpoint: str | Path, task: Any, *, kernel: Any = None, realisation: Any = None,
-                     epochs: int = 4, lr_network: float = 1e-3, lr_filter: float = 1e-2, n_train: int | None = None,
-                     out: str | Path | None = None, verbose: bool = False) -> LearnResult:
+def finetune_network(
+    checkpoint: str | Path,
+    task: Any,
+    *,
+    kernel: Any = None,
+    realisation: Any = None,
+    epochs: int = 4,
+    lr_network: float = 1e-3,
+    lr_filter: float = 1e-2,
+    n_train: int | None = None,
+    out: str | Path | None = None,
+    verbose: bool = False,
+) -> LearnResult:
     """Continue training a trained task network with a realised kernel: frozen, or co-designed.
 
     The network of ``checkpoint`` (trained with the ideal kernel) is trained further on the
@@ -957,8 +1154,10 @@ def finetune_network(checkpoint: str | Path, task: Any, *, kernel: Any = None, r
     n_stored = int(prov["n_train"])
     n = n_stored if n_train is None else n_train
     if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= n_stored:
-        raise InputError(f"finetune_network: n_train must be an integer in [2, {n_stored}] (the checkpoint's "
-                         f"training clips), got {n_train!r}")
+        raise InputError(
+            f"finetune_network: n_train must be an integer in [2, {n_stored}] (the checkpoint's "
+            f"training clips), got {n_train!r}"
+        )
     settings = TrainingSettings(**prov["settings"])
     scene = SceneConfig.from_dict(prov["scene"])
     sensor = SensorConfig(**prov["sensor"])
@@ -980,32 +1179,66 @@ def finetune_network(checkpoint: str | Path, task: Any, *, kernel: Any = None, r
         groups.insert(0, {"params": list(kernel_param.parameters()), "lr": lr_filter, "weight_decay": 0.0})
     else:
         with torch.no_grad():
-            cached = torch.cat([_network_input(video[s : s + 128], kernel_param, sensor, ts)
-                                for s in range(0, video.shape[0], 128)])
+            cached = torch.cat(
+                [_network_input(video[s : s + 128], kernel_param, sensor, ts) for s in range(0, video.shape[0], 128)]
+            )
     history: list[dict[str, Any]] = []
     log = (lambda msg: print(msg, file=sys.stderr, flush=True)) if verbose else None
-    _train_epochs(evaluator, network, kernel_param, video, targets, sensor, ts, torch.optim.AdamW(groups), epochs,
-                  settings.batch_size, gen, "codesign" if realised else "finetune", history, cached_inputs=cached,
-                  log=log)
+    _train_epochs(
+        evaluator,
+        network,
+        kernel_param,
+        video,
+        targets,
+        sensor,
+        ts,
+        torch.optim.AdamW(groups),
+        epochs,
+        settings.batch_size,
+        gen,
+        "codesign" if realised else "finetune",
+        history,
+        cached_inputs=cached,
+        log=log,
+    )
     network.eval()
     with torch.no_grad():
         taps = (kernel_param() if realised else kernel_param).detach().clone()
     if realised:
         realised["realisation_design"] = kernel_param.to_design(codesign_task=evaluator.name).to_dict()
     provenance = {k: v for k, v in prov.items() if k not in ("history", "metrics", "final_metric")}
-    provenance.update({
-        "finetune": {"mode": "codesign" if realised else "frozen kernel", "epochs": epochs, "lr_network": lr_network,
-                     "lr_filter": lr_filter if realised else 0.0, "n_train": n,
-                     "source_checkpoint": Path(checkpoint).name, "seconds": time.perf_counter() - t0},
-        "learn_filter": bool(realised), "history": history, **realised,
-        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-    })
-    name = (f"{realised['realisation']} co-designed with {evaluator.name} network s{seed}" if realised
-            else f"{_as_kernel(kernel).name} (network fine-tuned)")
+    provenance.update(
+        {
+            "finetune": {
+                "mode": "codesign" if realised else "frozen kernel",
+                "epochs": epochs,
+                "lr_network": lr_network,
+                "lr_filter": lr_filter if realised else 0.0,
+                "n_train": n,
+                "source_checkpoint": Path(checkpoint).name,
+                "seconds": time.perf_counter() - t0,
+            },
+            "learn_filter": bool(realised),
+            "history": history,
+            **realised,
+            "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        }
+    )
+    name = (
+        f"{realised['realisation']} co-designed with {evaluator.name} network s{seed}"
+        if realised
+        else f"{_as_kernel(kernel).name} (network fine-tuned)"
+    )
     out_kernel = Kernel(taps.numpy(), name=name, provenance={k: v for k, v in provenance.items() if k != "history"})
     paths = _save_checkpoint(Path(out), out_kernel, network, provenance) if out is not None else {}
-    return LearnResult(kernel=out_kernel, metrics={}, primary_metric=evaluator.primary_metric, history=history,
-                       provenance=provenance, paths=paths)
+    return LearnResult(
+        kernel=out_kernel,
+        metrics={},
+        primary_metric=evaluator.primary_metric,
+        history=history,
+        provenance=provenance,
+        paths=paths,
+    )
 
 
 def _check_test_seed(seed: Any, who: str) -> int:

@@ -50,8 +50,9 @@ def _as_numpy(x: Any, name: str, ndim: int | None = None) -> np.ndarray:
     return arr
 
 
-def detection_map(pred_boxes: Any, pred_scores: Any, pred_labels: Any, gt_boxes: Any, gt_labels: Any,
-                  *, num_classes: int) -> dict[str, float]:
+def detection_map(
+    pred_boxes: Any, pred_scores: Any, pred_labels: Any, gt_boxes: Any, gt_labels: Any, *, num_classes: int
+) -> dict[str, float]:
     """COCO box mAP@[.50:.95], AP50 and AP75 (pycocotools, 101-point interpolation, maxDets 100).
 
     Parameters
@@ -99,11 +100,15 @@ def detection_map(pred_boxes: Any, pred_scores: Any, pred_labels: Any, gt_boxes:
     gb = _as_numpy(gt_boxes, "gt_boxes", 3)
     gl = _as_numpy(gt_labels, "gt_labels", 2)
     if not (pb.shape[0] == ps.shape[0] == pl.shape[0] == gb.shape[0] == gl.shape[0]):
-        raise InputError(f"detection_map: batch sizes differ: pred {pb.shape[0]}, {ps.shape[0]}, {pl.shape[0]}; "
-                         f"gt {gb.shape[0]}, {gl.shape[0]}")
+        raise InputError(
+            f"detection_map: batch sizes differ: pred {pb.shape[0]}, {ps.shape[0]}, {pl.shape[0]}; "
+            f"gt {gb.shape[0]}, {gl.shape[0]}"
+        )
     if pb.shape[-1] != 4 or gb.shape[-1] != 4 or pb.shape[:2] != ps.shape or gb.shape[:2] != gl.shape:
-        raise InputError(f"detection_map: shapes do not match: pred boxes {pb.shape}, scores {ps.shape}, "
-                         f"gt boxes {gb.shape}, labels {gl.shape} (boxes need a last axis of 4)")
+        raise InputError(
+            f"detection_map: shapes do not match: pred boxes {pb.shape}, scores {ps.shape}, "
+            f"gt boxes {gb.shape}, labels {gl.shape} (boxes need a last axis of 4)"
+        )
     images, anns, dets = coco_records(pb, ps, pl, gb, gl, num_classes=num_classes, who="detection_map")
     if not anns:
         raise InputError("detection_map: no ground-truth boxes; mAP is undefined")
@@ -111,8 +116,7 @@ def detection_map(pred_boxes: Any, pred_scores: Any, pred_labels: Any, gt_boxes:
         return {k: 0.0 for k in DETECTION_METRICS}
     with contextlib.redirect_stdout(io.StringIO()):
         gt = COCO()
-        gt.dataset = {"images": images, "annotations": anns,
-                      "categories": [{"id": c} for c in range(num_classes)]}
+        gt.dataset = {"images": images, "annotations": anns, "categories": [{"id": c} for c in range(num_classes)]}
         gt.createIndex()
         dt = gt.loadRes(dets)
         ev = COCOeval(gt, dt, iouType="bbox")
@@ -143,8 +147,10 @@ def top1_accuracy(logits: Any, target: Any, *, num_classes: int) -> dict[str, fl
     p = torch.as_tensor(logits)
     t = torch.as_tensor(target).long()
     if t.ndim != 1 or p.shape[0] != t.shape[0] or p.ndim not in (1, 2) or (p.ndim == 2 and p.shape[1] != num_classes):
-        raise InputError(f"top1_accuracy: logits must be (N, {num_classes}) or (N,) and target (N,); "
-                         f"got {tuple(p.shape)} and {tuple(t.shape)}")
+        raise InputError(
+            f"top1_accuracy: logits must be (N, {num_classes}) or (N,) and target (N,); "
+            f"got {tuple(p.shape)} and {tuple(t.shape)}"
+        )
     if t.numel() == 0:
         raise InputError("top1_accuracy: empty target; accuracy is undefined")
     if p.ndim == 1:
@@ -153,8 +159,9 @@ def top1_accuracy(logits: Any, target: Any, *, num_classes: int) -> dict[str, fl
     return {"top1": float(metric(p, t))}
 
 
-def segmentation_scores(pred: Any, target: Any, *, num_classes: int,
-                        ignore_index: int | None = None) -> dict[str, float]:
+def segmentation_scores(
+    pred: Any, target: Any, *, num_classes: int, ignore_index: int | None = None
+) -> dict[str, float]:
     """mIoU, mean class accuracy and pixel accuracy (torchmetrics).
 
     Parameters
@@ -184,18 +191,22 @@ def segmentation_scores(pred: Any, target: Any, *, num_classes: int,
     p = torch.as_tensor(pred).long()
     t = torch.as_tensor(target).long()
     if p.shape != t.shape or p.ndim != 3:
-        raise InputError(f"segmentation_scores: pred and target must both be (N, H, W); got {tuple(p.shape)} "
-                         f"and {tuple(t.shape)}")
+        raise InputError(
+            f"segmentation_scores: pred and target must both be (N, H, W); got {tuple(p.shape)} and {tuple(t.shape)}"
+        )
     if ignore_index is not None:
         keep = t != int(ignore_index)
         if not bool(keep.any()):
-            raise InputError(f"segmentation_scores: every target pixel is ignore_index={ignore_index}; "
-                             "the scores are undefined")
+            raise InputError(
+                f"segmentation_scores: every target pixel is ignore_index={ignore_index}; the scores are undefined"
+            )
         p, t = p[keep].reshape(1, 1, -1), t[keep].reshape(1, 1, -1)
     for name, x in (("pred", p), ("target", t)):
         if x.numel() and (int(x.min()) < 0 or int(x.max()) >= num_classes):
-            raise InputError(f"segmentation_scores: {name} classes must lie in [0, {num_classes}), "
-                             f"got range [{int(x.min())}, {int(x.max())}]")
+            raise InputError(
+                f"segmentation_scores: {name} classes must lie in [0, {num_classes}), "
+                f"got range [{int(x.min())}, {int(x.max())}]"
+            )
     # classes absent from both prediction and target are left out of the macro averages
     present = torch.zeros(num_classes, dtype=torch.bool)
     present[torch.unique(torch.cat([p.flatten(), t.flatten()]))] = True
@@ -204,5 +215,4 @@ def segmentation_scores(pred: Any, target: Any, *, num_classes: int,
     in_target = torch.zeros(num_classes, dtype=torch.bool)
     in_target[torch.unique(t)] = True
     pa = MulticlassAccuracy(num_classes=num_classes, average="micro")(p, t)
-    return {"miou": float(jac[present].mean()), "macc": float(acc_c[in_target].mean()),
-            "pixel_accuracy": float(pa)}
+    return {"miou": float(jac[present].mean()), "macc": float(acc_c[in_target].mean()), "pixel_accuracy": float(pa)}

@@ -32,14 +32,23 @@ def event_representation(frames: torch.Tensor) -> torch.Tensor:
     InputError
         ``frames`` not a floating 5-D tensor with 2 polarity channels.
     """
-    if not isinstance(frames, torch.Tensor) or frames.ndim != 5 or frames.shape[2] != 2 \
-            or not frames.is_floating_point():
+    if (
+        not isinstance(frames, torch.Tensor)
+        or frames.ndim != 5
+        or frames.shape[2] != 2
+        or not frames.is_floating_point()
+    ):
         from ..errors import InputError
 
-        what = (f"shape {tuple(frames.shape)}, dtype {frames.dtype}" if isinstance(frames, torch.Tensor)
-                else f"type {type(frames).__name__}")
-        raise InputError(f"frames: {what}; allowed: a floating (B, T-1, 2, H, W) tensor of event counts "
-                         "(fsdvs_hw.sensor.event_frames)")
+        what = (
+            f"shape {tuple(frames.shape)}, dtype {frames.dtype}"
+            if isinstance(frames, torch.Tensor)
+            else f"type {type(frames).__name__}"
+        )
+        raise InputError(
+            f"frames: {what}; allowed: a floating (B, T-1, 2, H, W) tensor of event counts "
+            "(fsdvs_hw.sensor.event_frames)"
+        )
     b, t, p, h, w = frames.shape
     return torch.log1p(frames.clamp(min=0.0).reshape(b, t * p, h, w))
 
@@ -82,10 +91,12 @@ class CenterNetDetector(nn.Module):
         super().__init__()
         self.backbone = EventBackbone(in_channels, width)
         c = self.backbone.out_channels
-        self.head = nn.ModuleDict({
-            "heatmap": nn.Sequential(_conv(c, c), nn.Conv2d(c, num_classes, 1)),
-            "regress": nn.Sequential(_conv(c, c), nn.Conv2d(c, 4, 1)),
-        })
+        self.head = nn.ModuleDict(
+            {
+                "heatmap": nn.Sequential(_conv(c, c), nn.Conv2d(c, num_classes, 1)),
+                "regress": nn.Sequential(_conv(c, c), nn.Conv2d(c, 4, 1)),
+            }
+        )
         # focal-loss prior: start at p = 0.05 everywhere (Lin et al. 2017)
         heat_out = cast(nn.Conv2d, cast(nn.Sequential, self.head["heatmap"])[-1])
         assert heat_out.bias is not None  # a Conv2d with its default bias
@@ -94,8 +105,11 @@ class CenterNetDetector(nn.Module):
     def forward(self, x: torch.Tensor) -> dict[str, torch.Tensor]:
         _, coarse = self.backbone(x)
         reg = self.head["regress"](coarse)
-        return {"heatmap": self.head["heatmap"](coarse), "size": F.softplus(reg[:, :2]) * 4.0,
-                "offset": torch.sigmoid(reg[:, 2:])}
+        return {
+            "heatmap": self.head["heatmap"](coarse),
+            "size": F.softplus(reg[:, :2]) * 4.0,
+            "offset": torch.sigmoid(reg[:, 2:]),
+        }
 
 
 class Classifier(nn.Module):

@@ -80,8 +80,7 @@ class EventInput:
 
 def event_input_of(network: Any) -> EventInput:
     """The :class:`EventInput` a network declares (attribute ``event_input``; default frames)."""
-    return EventInput.parse(getattr(network, "event_input", "frames"),
-                            f"{type(network).__name__}.event_input")
+    return EventInput.parse(getattr(network, "event_input", "frames"), f"{type(network).__name__}.event_input")
 
 
 def load_network_factory(spec: str, **kwargs: Any) -> Any:
@@ -117,8 +116,10 @@ def load_network_factory(spec: str, **kwargs: Any) -> Any:
     try:
         module = importlib.import_module(mod_name)
     except Exception as exc:  # any import failure is the user's module
-        raise InputError(f"network factory {spec!r}: module {mod_name!r} does not import "
-                         f"({type(exc).__name__}: {one_line(str(exc), 120)})") from None
+        raise InputError(
+            f"network factory {spec!r}: module {mod_name!r} does not import "
+            f"({type(exc).__name__}: {one_line(str(exc), 120)})"
+        ) from None
     factory = getattr(module, attr, None)
     if factory is None:
         raise InputError(f"network factory {spec!r}: module {mod_name!r} has no attribute {attr!r}")
@@ -127,8 +128,10 @@ def load_network_factory(spec: str, **kwargs: Any) -> Any:
     try:
         net = factory(**kwargs)
     except Exception as exc:
-        raise InputError(f"network factory {spec!r}: calling it with {sorted(kwargs)} raised "
-                         f"{type(exc).__name__}: {one_line(str(exc), 120)}") from None
+        raise InputError(
+            f"network factory {spec!r}: calling it with {sorted(kwargs)} raised "
+            f"{type(exc).__name__}: {one_line(str(exc), 120)}"
+        ) from None
     if not isinstance(net, nn.Module):
         raise InputError(f"network factory {spec!r} returned a {type(net).__name__}; allowed: a torch.nn.Module")
     event_input_of(net)
@@ -165,15 +168,18 @@ def load_weights(network: Any, path: str | Path, *, strict: bool = True) -> Any:
     except InputError:
         raise
     except Exception as exc:
-        raise InputError(f"weights file {str(p)!r} cannot be read ({type(exc).__name__}: "
-                         f"{one_line(str(exc), 120)})") from None
+        raise InputError(
+            f"weights file {str(p)!r} cannot be read ({type(exc).__name__}: {one_line(str(exc), 120)})"
+        ) from None
     if not isinstance(state, dict) or not all(isinstance(v, torch.Tensor) for v in state.values()):
         raise InputError(f"weights file {str(p)!r}: not a state dict of tensors")
     own = network.state_dict()
     for k, v in state.items():
         if k in own and tuple(own[k].shape) != tuple(v.shape):
-            raise InputError(f"weights file {str(p)!r}: parameter {k!r} has shape {tuple(v.shape)}, the network's "
-                             f"is {tuple(own[k].shape)}")
+            raise InputError(
+                f"weights file {str(p)!r}: parameter {k!r} has shape {tuple(v.shape)}, the network's "
+                f"is {tuple(own[k].shape)}"
+            )
     missing, unexpected = sorted(set(own) - set(state)), sorted(set(state) - set(own))
     if strict and (missing or unexpected):
         raise InputError(f"weights file {str(p)!r}: missing parameters {missing[:5]}, unexpected {unexpected[:5]}")

@@ -10,7 +10,9 @@ from pathlib import Path
 from fsdvs_hw.explore.design import load_design
 
 REPO = Path(__file__).resolve().parents[2]
-snap = {p.name: {"data": load_design(p).to_dict(), "fingerprint": load_design(p).fingerprint()}
-        for p in sorted((REPO / "designs").glob("*.toml"))}
+snap = {
+    p.name: {"data": load_design(p).to_dict(), "fingerprint": load_design(p).fingerprint()}
+    for p in sorted((REPO / "designs").glob("*.toml"))
+}
 (REPO / "tests" / "data" / "design_snapshots.json").write_text(json.dumps(snap, indent=1) + "\n")
 print(f"{len(snap)} designs")

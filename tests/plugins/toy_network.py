@@ -29,8 +29,11 @@ class _Toy(nn.Module):
             return y
         y = nn.functional.avg_pool2d(y, 2)  # CenterNet layout at stride 2
         c = self.num_classes
-        return {"heatmap": y[:, :c], "size": nn.functional.softplus(y[:, c : c + 2]) * 4.0,
-                "offset": torch.sigmoid(y[:, c + 2 :])}
+        return {
+            "heatmap": y[:, :c],
+            "size": nn.functional.softplus(y[:, c : c + 2]) * 4.0,
+            "offset": torch.sigmoid(y[:, c + 2 :]),
+        }
 
 
 def make(in_channels: int, num_classes: int, task: str = "recognition") -> nn.Module:

@@ -29,8 +29,9 @@ class BoxOptions(schema.StrictModel):
     unknown_key = "unknown option of fit_box"
 
     width: int = schema.field(3, "px", "side of the uniform window", ge=1, le=MAX_KERNEL_SIZE, odd=True)
-    pitch_m: Optional[float] = schema.field(None, "m", "pixel pitch (default: the kernel's)",
-                                            ge=PITCH_RANGE_M[0], le=PITCH_RANGE_M[1])
+    pitch_m: Optional[float] = schema.field(
+        None, "m", "pixel pitch (default: the kernel's)", ge=PITCH_RANGE_M[0], le=PITCH_RANGE_M[1]
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,19 +48,26 @@ class BoxDesign:
         k = self.target.size
         taps = np.zeros((k, k))
         lo = (k - self.width) // 2
-        taps[lo:lo + self.width, lo:lo + self.width] = self.gain / self.width**2
+        taps[lo : lo + self.width, lo : lo + self.width] = self.gain / self.width**2
         return Kernel(taps, pitch_m=self.pitch_m, name=f"box {self.width}x{self.width}")
 
     def cost(self) -> dict[str, CostItem]:
-        return {"box_width": CostItem(self.width, "px", "side of the uniform window"),
-                "adders": CostItem(self.width**2 - 1, "count", "two-input adders of a direct sum")}
+        return {
+            "box_width": CostItem(self.width, "px", "side of the uniform window"),
+            "adders": CostItem(self.width**2 - 1, "count", "two-input adders of a direct sum"),
+        }
 
     def describe(self) -> str:
         return f"box filter {self.width}x{self.width}, gain {self.gain:.4g}"
 
     def to_dict(self) -> dict[str, Any]:
-        return {"kind": self.kind, "target": self.target.to_dict(), "width": self.width, "gain": self.gain,
-                "pitch_m": self.pitch_m}
+        return {
+            "kind": self.kind,
+            "target": self.target.to_dict(),
+            "width": self.width,
+            "gain": self.gain,
+            "pitch_m": self.pitch_m,
+        }
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> BoxDesign:
@@ -75,14 +83,16 @@ def fit_box(kernel: Kernel, *, width: int = 3, pitch_m: float | None = None) -> 
     return BoxDesign(kernel, width, gain, kernel.pitch_m if pitch_m is None else pitch_m)
 
 
-SPEC = register_realisation(RealisationSpec(
-    name="box",
-    fit=fit_box,
-    options=BoxOptions,
-    record_type=BoxDesign,
-    costs=(CostSpec("box_width", "px", "box width", pareto=True, headline=True),
-           CostSpec("adders", "count")),
-    artifacts={},
-    colour="#8c564b",
-    description="uniform box filter (test plugin)",
-), replace=True)
+SPEC = register_realisation(
+    RealisationSpec(
+        name="box",
+        fit=fit_box,
+        options=BoxOptions,
+        record_type=BoxDesign,
+        costs=(CostSpec("box_width", "px", "box width", pareto=True, headline=True), CostSpec("adders", "count")),
+        artifacts={},
+        colour="#8c564b",
+        description="uniform box filter (test plugin)",
+    ),
+    replace=True,
+)

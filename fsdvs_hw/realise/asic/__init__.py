@@ -24,40 +24,44 @@ from .fit import OBJECTIVES, SCALE_MODES, AsicDesign, exhaustive_asic_taps, fit_
 from .options import AsicOptions
 
 __all__ = [
-           "OBJECTIVES",
-           "SCALE_MODES",
-           "SPEC",
-           "AsicDesign",
-           "AsicOptions",
-           "exhaustive_asic_taps",
-           "fit_asic_taps",
+    "OBJECTIVES",
+    "SCALE_MODES",
+    "SPEC",
+    "AsicDesign",
+    "AsicOptions",
+    "exhaustive_asic_taps",
+    "fit_asic_taps",
 ]
 
 #: The registry entry (own cost axis and headline: yosys cell area, else the adder count).
-SPEC = register_realisation(RealisationSpec(
-    name="asic",
-    differentiable="fsdvs_hw.realise.asic.differentiable:QuantisedAsicKernel",
-    fit=fit_asic_taps,
-    options=AsicOptions,
-    kind="hardware",
-    record_type=AsicDesign,
-    costs=(
-        CostSpec("area_m2", "m^2", "cell area", "µm²", 1e12, pareto=True, headline=True, optional=True),
-        CostSpec("yosys_cells", "count", "yosys cells", headline=True, optional=True),
-        CostSpec("adders", "count", "adders", pareto=True, headline=True),
-        CostSpec("tap_bits", "bit", "tap width"),
-        CostSpec("accumulator_bits", "bit", "accumulator width"),
-        CostSpec("csd_digits", "count", "CSD digits"),
-    ),
-    artifacts={"verilog": "streaming k×k shift-add filter RTL (fsdvs_conv.v, verilator -Wall clean)",
-               "testbench": "self-checking Icarus Verilog testbench (tb_fsdvs_conv.v)",
-               "stimulus": "test frames, hex (stimulus.hex)",
-               "expected_outputs": "expected outputs of the bit-exact integer model, hex (expected.hex)",
-               "taps": "integer taps and scale (taps.csv)"},
-    write_artifacts="fsdvs_hw.realise.asic.artifacts:write_asic_artifacts",
-    colour="#d62728",
-    title="ASIC taps",
-    marker="^",
-    in_default_design=True,
-    description="quantised integer taps as a shift-add digital filter (nlopt scale + CSD tap search)",
-))
+SPEC = register_realisation(
+    RealisationSpec(
+        name="asic",
+        differentiable="fsdvs_hw.realise.asic.differentiable:QuantisedAsicKernel",
+        fit=fit_asic_taps,
+        options=AsicOptions,
+        kind="hardware",
+        record_type=AsicDesign,
+        costs=(
+            CostSpec("area_m2", "m^2", "cell area", "µm²", 1e12, pareto=True, headline=True, optional=True),
+            CostSpec("yosys_cells", "count", "yosys cells", headline=True, optional=True),
+            CostSpec("adders", "count", "adders", pareto=True, headline=True),
+            CostSpec("tap_bits", "bit", "tap width"),
+            CostSpec("accumulator_bits", "bit", "accumulator width"),
+            CostSpec("csd_digits", "count", "CSD digits"),
+        ),
+        artifacts={
+            "verilog": "streaming k×k shift-add filter RTL (fsdvs_conv.v, verilator -Wall clean)",
+            "testbench": "self-checking Icarus Verilog testbench (tb_fsdvs_conv.v)",
+            "stimulus": "test frames, hex (stimulus.hex)",
+            "expected_outputs": "expected outputs of the bit-exact integer model, hex (expected.hex)",
+            "taps": "integer taps and scale (taps.csv)",
+        },
+        write_artifacts="fsdvs_hw.realise.asic.artifacts:write_asic_artifacts",
+        colour="#d62728",
+        title="ASIC taps",
+        marker="^",
+        in_default_design=True,
+        description="quantised integer taps as a shift-add digital filter (nlopt scale + CSD tap search)",
+    )
+)

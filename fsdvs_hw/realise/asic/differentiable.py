@@ -68,8 +68,9 @@ class QuantisedAsicKernel(torch.nn.Module):
     def __init__(self, design: AsicDesign, *, learn_scale: bool = True) -> None:
         super().__init__()
         if not isinstance(design, AsicDesign):
-            raise InputError(f"QuantisedAsicKernel: expected an AsicDesign (from fit_asic_taps), got "
-                             f"{type(design).__name__}")
+            raise InputError(
+                f"QuantisedAsicKernel: expected an AsicDesign (from fit_asic_taps), got {type(design).__name__}"
+            )
         self.design = design
         cls = design.classes
         self.register_buffer("labels", torch.as_tensor(cls.labels, dtype=torch.long), persistent=False)

@@ -319,8 +319,13 @@ class AsicDesign:
         """Run the generated RTL in Icarus Verilog on ``images`` (N, H, W); returns the outputs."""
         from .rtl import simulate_rtl
 
-        return simulate_rtl(self.taps, images, input_bits=self.input_bits, out_shift=out_shift,
-                            symmetry=self.symmetry if self.pre_add else "none")
+        return simulate_rtl(
+            self.taps,
+            images,
+            input_bits=self.input_bits,
+            out_shift=out_shift,
+            symmetry=self.symmetry if self.pre_add else "none",
+        )
 
     def synthesise(self, *, image_width: int = 16, image_height: int = 16, out_shift: int = 0) -> AsicDesign:
         """Synthesise the RTL with yosys and the shipped liberty file; returns a copy with ``synthesis`` set."""
@@ -328,9 +333,15 @@ class AsicDesign:
 
         src = self.verilog(image_width=image_width, image_height=image_height, out_shift=out_shift)
         rep = synthesise_verilog(src, top="fsdvs_conv")
-        dp = synthesise_verilog(generate_datapath_verilog(self.taps, input_bits=self.input_bits, out_shift=out_shift,
-                                                          symmetry=self.symmetry if self.pre_add else "none"),
-                                top="fsdvs_datapath")
+        dp = synthesise_verilog(
+            generate_datapath_verilog(
+                self.taps,
+                input_bits=self.input_bits,
+                out_shift=out_shift,
+                symmetry=self.symmetry if self.pre_add else "none",
+            ),
+            top="fsdvs_datapath",
+        )
         return replace(
             self,
             synthesis={
@@ -364,7 +375,7 @@ def _csd_truncations(n: np.ndarray, n_digits: int) -> np.ndarray:
     if not planes:
         return np.zeros(v.shape + (n_digits + 1,), dtype=np.int64)
     D = np.stack(planes[::-1], axis=-1)  # most significant first
-    w = (1 << np.arange(len(planes) - 1, -1, -1, dtype=np.int64))
+    w = 1 << np.arange(len(planes) - 1, -1, -1, dtype=np.int64)
     rank = np.cumsum(D != 0, axis=-1)
     return np.stack([(D * (rank <= k) * w).sum(axis=-1) for k in range(n_digits + 1)], axis=-1)
 
@@ -386,8 +397,16 @@ class _TapProblem:
     weighted Gram matrix of the classes' spectra; the solve is then exact coordinate descent.
     """
 
-    def __init__(self, target: np.ndarray, classes: SymmetryClasses, bits: int, adder_weight: float, pre_add: bool,
-                 weights: np.ndarray | None = None, n_fft: int = 0):
+    def __init__(
+        self,
+        target: np.ndarray,
+        classes: SymmetryClasses,
+        bits: int,
+        adder_weight: float,
+        pre_add: bool,
+        weights: np.ndarray | None = None,
+        n_fft: int = 0,
+    ):
         self.t = target
         self.cls = classes
         self.m = classes.sizes.astype(np.float64)
@@ -609,8 +628,11 @@ def _fit_free_scale(p: _TapProblem, amax: float, n_polish: int = 5) -> tuple[flo
             J = p.objective(q_c, s_c)
             if p.better(J, q_c, best):
                 best.update(J=J, s=s_c, q=q_c)
-    return best["s"], best["q"], {"nlopt_algorithm": "GN_DIRECT_L", "nlopt_evaluations": int(evals),
-                                  "scale_direct": float(starts[0][1])}
+    return (
+        best["s"],
+        best["q"],
+        {"nlopt_algorithm": "GN_DIRECT_L", "nlopt_evaluations": int(evals), "scale_direct": float(starts[0][1])},
+    )
 
 
 def _divide_common_factor(
@@ -719,8 +741,11 @@ def fit_asic_taps(
     # the naive scale uses the full two's-complement range: -2**(bits-1) for the most negative tap
     naive_s = max(float(p.tbar.max()) / lim, -float(p.tbar.min()) / -lo_q)
     naive_q = cls.expand(np.clip(np.round(p.tbar / naive_s), lo_q, lim))
-    info: dict[str, Any] = {"naive_scale": naive_s, "naive_error": kernel_error(naive_s * naive_q, kernel),
-                            "objective_name": objective}
+    info: dict[str, Any] = {
+        "naive_scale": naive_s,
+        "naive_error": kernel_error(naive_s * naive_q, kernel),
+        "objective_name": objective,
+    }
     if ppd is not None:
         info.update(csf_method=csf_method, pixels_per_degree=ppd)
     if isinstance(scale, str):
@@ -752,8 +777,11 @@ def fit_asic_taps(
         if mode == "pow2":
             info["scale_exponent"] = int(round(-math.log2(s)))
     if not np.any(q):
-        why = (f"at the fixed scale {s:.4g} (largest tap {amax:.4g} is below half a step)" if mode == "fixed"
-               else f"with adder_weight={lam:g} (an adder costs more than the whole kernel error)")
+        why = (
+            f"at the fixed scale {s:.4g} (largest tap {amax:.4g} is below half a step)"
+            if mode == "fixed"
+            else f"with adder_weight={lam:g} (an adder costs more than the whole kernel error)"
+        )
         raise InputError(f"kernel '{kernel.name}' rounds to all-zero {bits}-bit taps {why}")
     info["fit_time_s"] = time.perf_counter() - t0
     info["objective"] = p.objective(q, s)
@@ -771,10 +799,18 @@ def fit_asic_taps(
     )
 
 
-def exhaustive_asic_taps(kernel: Kernel | Any, bits: int, *, symmetry: str, adder_weight: float = 0.0,
-                         pre_add: bool = True, objective: str = "kernel", geometry: Any = None,
-                         csf_method: str = "mannos_sakrison_1974",
-                         max_combinations: int = 2_000_000) -> tuple[np.ndarray, float, float]:
+def exhaustive_asic_taps(
+    kernel: Kernel | Any,
+    bits: int,
+    *,
+    symmetry: str,
+    adder_weight: float = 0.0,
+    pre_add: bool = True,
+    objective: str = "kernel",
+    geometry: Any = None,
+    csf_method: str = "mannos_sakrison_1974",
+    max_combinations: int = 2_000_000,
+) -> tuple[np.ndarray, float, float]:
     """Brute-force optimum over every integer tap vector, each with its least-squares free scale.
 
     The test oracle of :func:`fit_asic_taps` (``scale="free"``) on tiny problems: enumerates all

@@ -46,8 +46,9 @@ __all__ += fit.__all__  # the fit module's public names, re-exported above
 def _conductance_per_pixel(cost: "_Mapping[str, _Mapping[str, _Any]]") -> float | None:
     """Summed conductances of one pixel's two meshes (S): ``2 g_l + g_v`` each (a node shares each
     of its four lateral links with a neighbour); proportional to the static current at a bias."""
-    parts: list[_Any] = [(cost.get(f"g_{d}_{w}") or {}).get("value") for w in ("narrow", "wide")
-                         for d in ("lateral", "vertical")]
+    parts: list[_Any] = [
+        (cost.get(f"g_{d}_{w}") or {}).get("value") for w in ("narrow", "wide") for d in ("lateral", "vertical")
+    ]
     if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in parts):
         return None
     gl_n, gv_n, gl_w, gv_w = (float(v) for v in parts)
@@ -56,27 +57,41 @@ def _conductance_per_pixel(cost: "_Mapping[str, _Mapping[str, _Any]]") -> float 
 
 #: The registry entry (the mesh's own cost axis: conductance per pixel; headline: the wide mesh's
 #: settling time, since its area is fixed at six conductances per pixel).
-SPEC = register_realisation(RealisationSpec(
-    name="mesh",
-    differentiable="fsdvs_hw.realise.mesh.differentiable:MeshKernel",
-    fit=fit_resistive_mesh,
-    options=MeshOptions,
-    kind="hardware",
-    record_type=MeshDesign,
-    costs=(
-        CostSpec("conductance_per_pixel", "S", "conductance per pixel", "µS", 1e6, pareto=True,
-                 derive=_conductance_per_pixel),
-        CostSpec("tau_wide", "s", "wide-mesh settling time", "µs", 1e6, headline=True),
-        CostSpec("g_lateral_narrow", "S"), CostSpec("g_vertical_narrow", "S"),
-        CostSpec("g_lateral_wide", "S"), CostSpec("g_vertical_wide", "S"),
-        CostSpec("node_capacitance", "F"), CostSpec("resistors_per_pixel", "count"),
-    ),
-    artifacts={"spice_netlist": "ngspice deck of both meshes with an impulse current (mesh.cir)",
-               "operating_point": "node voltages, ground currents and kernel taps the deck reproduces (CSV)"},
-    write_artifacts="fsdvs_hw.realise.mesh.artifacts:write_mesh_artifacts",
-    colour="#1f77b4",
-    title="resistive mesh",
-    marker="D",
-    in_default_design=True,
-    description="dual resistive mesh: K = w·δ + a·H_narrow − b·H_wide (casadi/IPOPT)",
-))
+SPEC = register_realisation(
+    RealisationSpec(
+        name="mesh",
+        differentiable="fsdvs_hw.realise.mesh.differentiable:MeshKernel",
+        fit=fit_resistive_mesh,
+        options=MeshOptions,
+        kind="hardware",
+        record_type=MeshDesign,
+        costs=(
+            CostSpec(
+                "conductance_per_pixel",
+                "S",
+                "conductance per pixel",
+                "µS",
+                1e6,
+                pareto=True,
+                derive=_conductance_per_pixel,
+            ),
+            CostSpec("tau_wide", "s", "wide-mesh settling time", "µs", 1e6, headline=True),
+            CostSpec("g_lateral_narrow", "S"),
+            CostSpec("g_vertical_narrow", "S"),
+            CostSpec("g_lateral_wide", "S"),
+            CostSpec("g_vertical_wide", "S"),
+            CostSpec("node_capacitance", "F"),
+            CostSpec("resistors_per_pixel", "count"),
+        ),
+        artifacts={
+            "spice_netlist": "ngspice deck of both meshes with an impulse current (mesh.cir)",
+            "operating_point": "node voltages, ground currents and kernel taps the deck reproduces (CSV)",
+        },
+        write_artifacts="fsdvs_hw.realise.mesh.artifacts:write_mesh_artifacts",
+        colour="#1f77b4",
+        title="resistive mesh",
+        marker="D",
+        in_default_design=True,
+        description="dual resistive mesh: K = w·δ + a·H_narrow − b·H_wide (casadi/IPOPT)",
+    )
+)

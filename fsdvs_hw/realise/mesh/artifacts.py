@@ -50,12 +50,22 @@ OP_RTOL: float = 1e-9
 NGSPICE_COMMAND: str = "ngspice -b mesh.cir -r mesh.raw"
 
 _I_IN_A = 1e-9
-_COLUMNS = ("y_px", "x_px", "node_narrow", "node_wide", "v_narrow_V", "v_wide_V", "i_narrow_A", "i_wide_A",
-            "kernel_tap_1")
+_COLUMNS = (
+    "y_px",
+    "x_px",
+    "node_narrow",
+    "node_wide",
+    "v_narrow_V",
+    "v_wide_V",
+    "i_narrow_A",
+    "i_wide_A",
+    "kernel_tap_1",
+)
 
 
-def mesh_operating_point(design: MeshDesign, *, half_width: int | None = None,
-                         i_in_a: float = _I_IN_A) -> dict[str, Any]:
+def mesh_operating_point(
+    design: MeshDesign, *, half_width: int | None = None, i_in_a: float = _I_IN_A
+) -> dict[str, Any]:
     """Node voltages of both meshes of ``design`` on the SPICE patch, from the exact nodal solve.
 
     Returns
@@ -71,18 +81,28 @@ def mesh_operating_point(design: MeshDesign, *, half_width: int | None = None,
     rhs = np.zeros(n * n)
     rhs[h * n + h] = i_in_a
     v = {}
-    for tag, g_l, g_v in (("narrow", design.g_lateral_narrow_s, design.g_vertical_narrow_s),
-                          ("wide", design.g_lateral_wide_s, design.g_vertical_wide_s)):
+    for tag, g_l, g_v in (
+        ("narrow", design.g_lateral_narrow_s, design.g_vertical_narrow_s),
+        ("wide", design.g_lateral_wide_s, design.g_vertical_wide_s),
+    ):
         v[tag] = spla.spsolve(mesh_kcl_matrix(h, g_l, g_v), rhs).reshape(n, n)
-    k = (design.gain_narrow * design.g_vertical_narrow_s * v["narrow"]
-         - design.gain_wide * design.g_vertical_wide_s * v["wide"]) / i_in_a
+    k = (
+        design.gain_narrow * design.g_vertical_narrow_s * v["narrow"]
+        - design.gain_wide * design.g_vertical_wide_s * v["wide"]
+    ) / i_in_a
     k[h, h] += design.pixel_weight
-    return {"half_width": h, "i_in_a": float(i_in_a), "v_narrow_v": v["narrow"], "v_wide_v": v["wide"],
-            "kernel_taps": k}
+    return {
+        "half_width": h,
+        "i_in_a": float(i_in_a),
+        "v_narrow_v": v["narrow"],
+        "v_wide_v": v["wide"],
+        "kernel_taps": k,
+    }
 
 
-def write_mesh_artifacts(design: MeshDesign, out_dir: str | Path, *,
-                         resolution: tuple[int, int] | None = None) -> tuple[Artifact, ...]:
+def write_mesh_artifacts(
+    design: MeshDesign, out_dir: str | Path, *, resolution: tuple[int, int] | None = None
+) -> tuple[Artifact, ...]:
     """Write ``mesh.cir`` and ``operating_point.csv`` for ``design`` into ``out_dir`` (module docstring).
 
     ``resolution`` is accepted for the writer protocol and not used (the patch size follows the
@@ -101,12 +121,24 @@ def write_mesh_artifacts(design: MeshDesign, out_dir: str | Path, *,
     for y in range(n):
         for x in range(n):
             vn, vw = op["v_narrow_v"][y, x], op["v_wide_v"][y, x]
-            rows.append([y, x, f"n{y}_{x}", f"w{y}_{x}", repr(float(vn)), repr(float(vw)),
-                         repr(float(design.g_vertical_narrow_s * vn)), repr(float(design.g_vertical_wide_s * vw)),
-                         repr(float(op["kernel_taps"][y, x]))])
+            rows.append(
+                [
+                    y,
+                    x,
+                    f"n{y}_{x}",
+                    f"w{y}_{x}",
+                    repr(float(vn)),
+                    repr(float(vw)),
+                    repr(float(design.g_vertical_narrow_s * vn)),
+                    repr(float(design.g_vertical_wide_s * vw)),
+                    repr(float(op["kernel_taps"][y, x])),
+                ]
+            )
     write_output(out / "operating_point.csv", csv_text(rows), flag="artifacts")
-    check = (f"{NGSPICE_COMMAND}; every v(n<y>_<x>), v(w<y>_<x>) in mesh.raw equals operating_point.csv within "
-             f"1 part in {1 / OP_RTOL:,.0f} of the largest (fsdvs_hw.realise.mesh.artifacts.check_mesh_artifacts)")
+    check = (
+        f"{NGSPICE_COMMAND}; every v(n<y>_<x>), v(w<y>_<x>) in mesh.raw equals operating_point.csv within "
+        f"1 part in {1 / OP_RTOL:,.0f} of the largest (fsdvs_hw.realise.mesh.artifacts.check_mesh_artifacts)"
+    )
     return (
         Artifact(
             "spice_netlist",
@@ -185,6 +217,8 @@ def check_mesh_artifacts(folder: str | Path, *, timeout_s: float = 300.0) -> dic
     scale = max(np.abs(expected["v_narrow_V"]).max(), np.abs(expected["v_wide_V"]).max())
     err = max(np.abs(got_n - expected["v_narrow_V"]).max(), np.abs(got_w - expected["v_wide_V"]).max()) / scale
     if not err <= OP_RTOL:
-        raise InputError(f"{folder}: ngspice's node voltages differ from operating_point.csv by {err:.3g} of the "
-                         f"largest (allowed {OP_RTOL:g})")
+        raise InputError(
+            f"{folder}: ngspice's node voltages differ from operating_point.csv by {err:.3g} of the "
+            f"largest (allowed {OP_RTOL:g})"
+        )
     return {"max_rel_error": float(err), "nodes": int(2 * n * n), "ngspice_s": wall}

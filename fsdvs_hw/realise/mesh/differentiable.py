@@ -81,8 +81,10 @@ class MeshKernel(torch.nn.Module):
         self.ratio = float(b.min_lambda_ratio)
         ln, lw = design.lambda_narrow_px, design.lambda_wide_px
         if not (self.lam_lo <= ln <= self.lam_hi and ln * self.ratio <= lw <= self.lam_hi):
-            raise InputError(f"MeshKernel: the design's λ = ({ln:.4g}, {lw:.4g}) px lies outside the bounds "
-                             f"{b.lambda_px} with ratio ≥ {self.ratio}")
+            raise InputError(
+                f"MeshKernel: the design's λ = ({ln:.4g}, {lw:.4g}) px lies outside the bounds "
+                f"{b.lambda_px} with ratio ≥ {self.ratio}"
+            )
         if design.whole_dc_gain < 0:
             raise InputError(f"MeshKernel: the design's whole DC gain {design.whole_dc_gain:.4g} is negative")
         r = self.size // 2
@@ -93,8 +95,9 @@ class MeshKernel(torch.nn.Module):
         self.register_buffer("cos_w", torch.as_tensor(np.cos(np.outer(np.arange(r + 1), k)) * w), persistent=False)
         dtype = torch.float64
         self.lam_narrow_hi = self.lam_hi / self.ratio  # so that the wide mesh's range is never empty
-        self.u_narrow = torch.nn.Parameter(torch.tensor(_logit((ln - self.lam_lo) / (self.lam_narrow_hi - self.lam_lo)),
-                                                        dtype=dtype))
+        self.u_narrow = torch.nn.Parameter(
+            torch.tensor(_logit((ln - self.lam_lo) / (self.lam_narrow_hi - self.lam_lo)), dtype=dtype)
+        )
         lo_w = ln * self.ratio
         self.u_wide = torch.nn.Parameter(torch.tensor(_logit((lw - lo_w) / (self.lam_hi - lo_w)), dtype=dtype))
         # with gain="free" the fit scales every gain by one overall factor (it folds into the event
@@ -104,8 +107,10 @@ class MeshKernel(torch.nn.Module):
             raise InputError(f"MeshKernel: the design's overall gain {self.overall!r} must be positive")
         a0, b0, wp0 = (v / self.overall for v in (design.gain_narrow, design.gain_wide, design.pixel_weight))
         if not self.g_lo * (1 - 1e-9) <= a0 <= self.g_hi * (1 + 1e-9):
-            raise InputError(f"MeshKernel: the design's narrow gain {a0:.4g} (before its overall gain) lies outside "
-                             f"the gain bounds {b.gain}")
+            raise InputError(
+                f"MeshKernel: the design's narrow gain {a0:.4g} (before its overall gain) lies outside "
+                f"the gain bounds {b.gain}"
+            )
         lg = (math.log(self.g_lo), math.log(self.g_hi))
         self.u_gain = torch.nn.Parameter(torch.tensor(_logit((math.log(a0) - lg[0]) / (lg[1] - lg[0])), dtype=dtype))
         self.u_dc = torch.nn.Parameter(torch.tensor(_logit(b0 / (wp0 + a0)), dtype=dtype))
@@ -151,6 +156,11 @@ class MeshKernel(torch.nn.Module):
             raise InputError(f"MeshKernel.to_design: wide gain {b:.4g} outside the gain bounds {self.bounds.gain}")
         o = self.overall
         return dataclasses.replace(
-            d, g_lateral_narrow_s=ln * ln * d.g_vertical_narrow_s, g_lateral_wide_s=lw * lw * d.g_vertical_wide_s,
-            gain_narrow=o * a, gain_wide=o * b, pixel_weight=o * float(self.pixel_weight),
-            fit={**dict(d.fit), "codesigned": True, **fit_info})
+            d,
+            g_lateral_narrow_s=ln * ln * d.g_vertical_narrow_s,
+            g_lateral_wide_s=lw * lw * d.g_vertical_wide_s,
+            gain_narrow=o * a,
+            gain_wide=o * b,
+            pixel_weight=o * float(self.pixel_weight),
+            fit={**dict(d.fit), "codesigned": True, **fit_info},
+        )

@@ -141,9 +141,7 @@ class MeshBounds:
             raise InputError(f"bounds.lambda_px=({lo:g}, {hi:g}) px exceeds the modelled range {LAMBDA_RANGE_PX} px")
         r = self.min_lambda_ratio
         if not (isinstance(r, (int, float)) and math.isfinite(r) and 1.0 <= r < hi / lo):
-            raise InputError(
-                f"bounds.min_lambda_ratio={r!r}: must be ≥ 1 and below lambda_px high/low = {hi / lo:g}"
-            )
+            raise InputError(f"bounds.min_lambda_ratio={r!r}: must be ≥ 1 and below lambda_px high/low = {hi / lo:g}")
 
 
 # ---------------------------------------------------------------------- orbits (D4 symmetry)
@@ -507,9 +505,18 @@ class MeshDesign:
         if not isinstance(data, Mapping) or data.get("kind") != "mesh":
             raise InputError("MeshDesign.from_dict: expected a dict with kind 'mesh'")
         fields = {
-            "g_lateral_narrow_s", "g_vertical_narrow_s", "g_lateral_wide_s", "g_vertical_wide_s",
-            "gain_narrow", "gain_wide", "pixel_weight", "size", "pitch_m", "node_capacitance_f",
-            "model", "grid_half_width",
+            "g_lateral_narrow_s",
+            "g_vertical_narrow_s",
+            "g_lateral_wide_s",
+            "g_vertical_wide_s",
+            "gain_narrow",
+            "gain_wide",
+            "pixel_weight",
+            "size",
+            "pitch_m",
+            "node_capacitance_f",
+            "model",
+            "grid_half_width",
         }
         missing = {
             "g_lateral_narrow_s",
@@ -681,8 +688,17 @@ GAIN_MODES = ("free", "fixed")
 
 
 @functools.lru_cache(maxsize=32)
-def _mesh_solver(radius: int, model: str, lam_max: float, half_width: int | None, free_wp: bool, gain_free: bool,
-                 whole: bool, max_iter: int, tol: float):
+def _mesh_solver(
+    radius: int,
+    model: str,
+    lam_max: float,
+    half_width: int | None,
+    free_wp: bool,
+    gain_free: bool,
+    whole: bool,
+    max_iter: int,
+    tol: float,
+):
     """IPOPT solver of the dual-mesh fit for one problem structure; target and weights are parameters.
 
     Constraints ``g``: [ln λ_w² − ln λ_n², whole-circuit DC w_p + a − b, (σS / max error)², ⟨K, T⟩ (gain free),
@@ -822,10 +838,26 @@ class _MeshSettings:
     lam_hi: float
 
 
-def _mesh_settings(kernel: Any, *, bounds: Any, pitch_m: float | None, pixel_weight: Any, gain: str,
-                   nonnegative_dc: Any, mismatch_sigma: float, max_mismatch_error: float | None, g_lateral_s: float,
-                   node_capacitance_f: float, model: str, grid_half_width: Any, fit_size: Any, n_init: int,
-                   n_starts: int, max_iter: int, tol: float) -> _MeshSettings:
+def _mesh_settings(
+    kernel: Any,
+    *,
+    bounds: Any,
+    pitch_m: float | None,
+    pixel_weight: Any,
+    gain: str,
+    nonnegative_dc: Any,
+    mismatch_sigma: float,
+    max_mismatch_error: float | None,
+    g_lateral_s: float,
+    node_capacitance_f: float,
+    model: str,
+    grid_half_width: Any,
+    fit_size: Any,
+    n_init: int,
+    n_starts: int,
+    max_iter: int,
+    tol: float,
+) -> _MeshSettings:
     """Validate and resolve every option; the feasible λ range from the λ and conductance bounds."""
     target = _coerce_kernel(kernel, pitch_m)
     bounds = _coerce_bounds(bounds)
@@ -847,8 +879,10 @@ def _mesh_settings(kernel: Any, *, bounds: Any, pitch_m: float | None, pixel_wei
     if model not in MESH_MODELS:
         raise InputError(f"model={model!r} unknown; allowed {MESH_MODELS}")
     if fit_size is not None and not (
-        isinstance(fit_size, (int, np.integer)) and not isinstance(fit_size, bool)
-        and fit_size % 2 == 1 and target.size <= fit_size <= MAX_KERNEL_SIZE
+        isinstance(fit_size, (int, np.integer))
+        and not isinstance(fit_size, bool)
+        and fit_size % 2 == 1
+        and target.size <= fit_size <= MAX_KERNEL_SIZE
     ):
         raise InputError(
             f"fit_size: must be None (whole response) or odd in {target.size}..{MAX_KERNEL_SIZE}, got {fit_size!r}"
@@ -881,11 +915,28 @@ def _mesh_settings(kernel: Any, *, bounds: Any, pitch_m: float | None, pixel_wei
             f"bounds: with g_lateral_s={g_l:g} S and conductance_s={bounds.conductance_s} the feasible λ range "
             f"[{lam_lo:g}, {lam_hi:g}] px is narrower than min_lambda_ratio={bounds.min_lambda_ratio:g}"
         )
-    return _MeshSettings(target=target, bounds=bounds, gain=gain, gain_free=gain_free, free_wp=free_wp,
-                         wp_fixed=wp_fixed, nonnegative_dc=bool(nonnegative_dc), sigma=sigma, max_err=max_err, g_l=g_l,
-                         c_node=c_node, model=model, grid_half_width=grid_half_width,
-                         fit_size=None if fit_size is None else int(fit_size), n_init=int(n_init),
-                         n_starts=int(n_starts), max_iter=int(max_iter), tol=tol, lam_lo=lam_lo, lam_hi=lam_hi)
+    return _MeshSettings(
+        target=target,
+        bounds=bounds,
+        gain=gain,
+        gain_free=gain_free,
+        free_wp=free_wp,
+        wp_fixed=wp_fixed,
+        nonnegative_dc=bool(nonnegative_dc),
+        sigma=sigma,
+        max_err=max_err,
+        g_l=g_l,
+        c_node=c_node,
+        model=model,
+        grid_half_width=grid_half_width,
+        fit_size=None if fit_size is None else int(fit_size),
+        n_init=int(n_init),
+        n_starts=int(n_starts),
+        max_iter=int(max_iter),
+        tol=tol,
+        lam_lo=lam_lo,
+        lam_hi=lam_hi,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -915,9 +966,17 @@ def _mesh_problem(s: _MeshSettings) -> _MeshProblem:
         radius = target.radius if s.fit_size is None else s.fit_size // 2  # whole: fit_size is None
     t_sym = _d4_symmetrise(np.pad(target.taps, radius - target.radius))  # plain array: the chip may exceed 63 px
     ii, jj, mult = _orbits(radius)
-    return _MeshProblem(radius=radius, whole=whole, lattice_whole=whole and s.model == "lattice", t_sym=t_sym,
-                        t_orb=t_sym[radius + ii, radius + jj], mult=mult, delta=(ii == 0).astype(np.float64),
-                        norm2=float((target.taps**2).sum()), asymmetry=target.asymmetry())
+    return _MeshProblem(
+        radius=radius,
+        whole=whole,
+        lattice_whole=whole and s.model == "lattice",
+        t_sym=t_sym,
+        t_orb=t_sym[radius + ii, radius + jj],
+        mult=mult,
+        delta=(ii == 0).astype(np.float64),
+        norm2=float((target.taps**2).sum()),
+        asymmetry=target.asymmetry(),
+    )
 
 
 def _initial_starts(
@@ -1028,8 +1087,9 @@ def _solve(s: _MeshSettings, p: _MeshProblem, lams: np.ndarray, chosen: list) ->
     sig2 = s.sigma * s.sigma
     maxerr2 = math.inf if s.max_err is None else s.max_err * s.max_err
     nx = 5 if s.free_wp else 4
-    solver = _mesh_solver(p.radius, s.model, float(s.lam_hi), s.grid_half_width, s.free_wp, s.gain_free, p.whole,
-                          s.max_iter, float(s.tol))
+    solver = _mesh_solver(
+        p.radius, s.model, float(s.lam_hi), s.grid_half_width, s.free_wp, s.gain_free, p.whole, s.max_iter, float(s.tol)
+    )
     p_val = np.concatenate([p.t_orb, [1.0 / p.norm2, s.wp_fixed, sig2 / (maxerr2 if s.max_err is not None else 1.0)]])
     g_hi = 0.0 if (s.gain_free and s.free_wp) else math.log(ghi)
     lbx = [2 * math.log(s.lam_lo)] * 2 + [math.log(glo)] * (nx - 2)
@@ -1106,8 +1166,17 @@ def _build_design(
     return MeshDesign(gain_narrow=a_s, gain_wide=b_s, pixel_weight=wp_s, **common), wp, a, b, overall
 
 
-def _fit_report(s: _MeshSettings, p: _MeshProblem, sol: _MeshSolution, design: MeshDesign, wp: float, a: float,
-                b: float, overall: float, init_objective: float) -> dict[str, Any]:
+def _fit_report(
+    s: _MeshSettings,
+    p: _MeshProblem,
+    sol: _MeshSolution,
+    design: MeshDesign,
+    wp: float,
+    a: float,
+    b: float,
+    overall: float,
+    init_objective: float,
+) -> dict[str, Any]:
     """The fit record (step 6): errors, what sits on a bound, mismatch and solver status
     (``wall_s`` is added by the caller, so it covers the whole fit)."""
     target, xo, lbx, ubx = s.target, sol.xo, sol.lbx, sol.ubx
@@ -1261,11 +1330,25 @@ def fit_resistive_mesh(
     """
     check_fit_arguments(MeshOptions, locals())  # the registry's schema: same limits as design files
     t0 = time.perf_counter()
-    s = _mesh_settings(kernel, bounds=bounds, pitch_m=pitch_m, pixel_weight=pixel_weight, gain=gain,
-                       nonnegative_dc=nonnegative_dc, mismatch_sigma=mismatch_sigma,
-                       max_mismatch_error=max_mismatch_error, g_lateral_s=g_lateral_s,
-                       node_capacitance_f=node_capacitance_f, model=model, grid_half_width=grid_half_width,
-                       fit_size=fit_size, n_init=n_init, n_starts=n_starts, max_iter=max_iter, tol=tol)
+    s = _mesh_settings(
+        kernel,
+        bounds=bounds,
+        pitch_m=pitch_m,
+        pixel_weight=pixel_weight,
+        gain=gain,
+        nonnegative_dc=nonnegative_dc,
+        mismatch_sigma=mismatch_sigma,
+        max_mismatch_error=max_mismatch_error,
+        g_lateral_s=g_lateral_s,
+        node_capacitance_f=node_capacitance_f,
+        model=model,
+        grid_half_width=grid_half_width,
+        fit_size=fit_size,
+        n_init=n_init,
+        n_starts=n_starts,
+        max_iter=max_iter,
+        tol=tol,
+    )
     target = s.target
     problem = _mesh_problem(s)
     if problem.asymmetry > 1e-6:

@@ -26,25 +26,38 @@ class MeshOptions(StrictModel):
 
     # a pydantic Annotated type built at run time, which a static checker cannot evaluate
     bounds: structured("fsdvs_hw.realise.mesh.fit:MeshBounds", "MeshBounds") | None = field(  # type: ignore[valid-type]
-        None, "", "MeshBounds fields: lambda_px, gain, min_lambda_ratio, conductance_s")
-    pitch_m: float | None = field(None, "m", "pixel pitch (default: the kernel's)",
-                                     ge=PITCH_RANGE_M[0], le=PITCH_RANGE_M[1])
+        None, "", "MeshBounds fields: lambda_px, gain, min_lambda_ratio, conductance_s"
+    )
+    pitch_m: float | None = field(
+        None, "m", "pixel pitch (default: the kernel's)", ge=PITCH_RANGE_M[0], le=PITCH_RANGE_M[1]
+    )
     pixel_weight: Annotated[float, Field(ge=0.0, le=1000.0)] | Literal["free"] | None = field(
-        "free", "", "fixed weight of the pixel's own signal, or 'free'")
-    gain: Literal["free", "fixed"] = field("free", "", "overall gain: 'free' (folds into the event threshold) "
-                                           "or 'fixed'")
+        "free", "", "fixed weight of the pixel's own signal, or 'free'"
+    )
+    gain: Literal["free", "fixed"] = field(
+        "free", "", "overall gain: 'free' (folds into the event threshold) or 'fixed'"
+    )
     nonnegative_dc: bool = field(True, "", "constrain the whole-circuit DC gain w_p + a − b ≥ 0")
     mismatch_sigma: float = field(0.01, "", "relative die-level mismatch σ", ge=0.0, le=0.5)
-    max_mismatch_error: float | None = field(0.05, "", "largest first-order kernel error at mismatch σ "
-                                                "(None: off)", ge=1e-6, le=10.0)
-    g_lateral_s: float = field(1e-8, "S", "lateral conductance of both meshes (within bounds.conductance_s)",
-                               ge=1e-13, le=1e-3)
+    max_mismatch_error: float | None = field(
+        0.05, "", "largest first-order kernel error at mismatch σ (None: off)", ge=1e-6, le=10.0
+    )
+    g_lateral_s: float = field(
+        1e-8, "S", "lateral conductance of both meshes (within bounds.conductance_s)", ge=1e-13, le=1e-3
+    )
     node_capacitance_f: float = field(100e-15, "F", "node capacitance of both meshes", ge=1e-18, le=1e-6)
     model: Literal["lattice", "grid"] = field("lattice", "", "single-mesh model")
-    grid_half_width: int | None = field(None, "px", "half-width of the finite grid (model 'grid'; ≥ kernel "
-                                           "radius)", ge=0, le=60)
-    fit_size: int | None = field(None, "px", "odd window the error is minimised on (≥ kernel size; None: the "
-                                    "whole response)", ge=1, le=63, odd=True)
+    grid_half_width: int | None = field(
+        None, "px", "half-width of the finite grid (model 'grid'; ≥ kernel radius)", ge=0, le=60
+    )
+    fit_size: int | None = field(
+        None,
+        "px",
+        "odd window the error is minimised on (≥ kernel size; None: the whole response)",
+        ge=1,
+        le=63,
+        odd=True,
+    )
     n_init: int = field(16, "", "λ values per mesh in the initialisation grid", ge=2, le=40)
     n_starts: int = field(3, "", "IPOPT runs from the best distinct grid points", ge=1, le=10)
     max_iter: int = field(200, "", "IPOPT iteration limit", ge=1, le=10000)

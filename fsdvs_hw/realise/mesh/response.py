@@ -253,9 +253,7 @@ def mesh_kcl_matrix(half_width: int, g_lateral_s: Any, g_vertical_s: Any):
     return sp.csc_matrix((vals, (rows, cols)), shape=(n * n, n * n))
 
 
-def finite_grid_response(
-    lambda_px: float, radius: int, half_width: int, *, method: str = "dct"
-) -> np.ndarray:
+def finite_grid_response(lambda_px: float, radius: int, half_width: int, *, method: str = "dct") -> np.ndarray:
     """Normalised impulse response of a finite (2h+1)² open-edge mesh, pixel at the centre.
 
     Parameters

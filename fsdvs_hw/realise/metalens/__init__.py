@@ -35,28 +35,32 @@ __all__ = ["SPEC", "MetalensOptions"]
 __all__ += fit.__all__  # the fit module's public names, re-exported above
 
 #: The registry entry (own cost axis and headline: the aperture diameter).
-SPEC = register_realisation(RealisationSpec(
-    name="metalens",
-    differentiable="fsdvs_hw.realise.metalens.differentiable:MetalensKernel",
-    fit=fit_metalens,
-    options=MetalensOptions,
-    kind="hardware",
-    record_type=MetalensDesign,
-    costs=(
-        CostSpec("aperture_diameter", "m", "aperture", "µm", 1e6, pareto=True, headline=True),
-        CostSpec("focal_length", "m"),
-        CostSpec("optical_efficiency", "1", "optical efficiency"),
-        CostSpec("lens_count", "count"),
-        CostSpec("kernel_error", "1"),
-    ),
-    artifacts={"phase_profile_csv": "phase vs radius per lens, SI columns (phase_profile.csv)",
-               "phase_profile_npz": "the profile with wavelengths, focal length, NA, pitch (phase_profile.npz)",
-               "psf": "pixel-integrated PSF per lens and the applied kernel (psf.npz)",
-               "plot": "phase profile and PSF (phase_psf.png)"},
-    write_artifacts="fsdvs_hw.realise.metalens.artifacts:write_metalens_artifacts",
-    colour="#2ca02c",
-    title="metalens",
-    marker="v",
-    in_default_design=True,
-    description="metalens whose pixel-integrated PSF is the kernel (pedestal or differential pair)",
-))
+SPEC = register_realisation(
+    RealisationSpec(
+        name="metalens",
+        differentiable="fsdvs_hw.realise.metalens.differentiable:MetalensKernel",
+        fit=fit_metalens,
+        options=MetalensOptions,
+        kind="hardware",
+        record_type=MetalensDesign,
+        costs=(
+            CostSpec("aperture_diameter", "m", "aperture", "µm", 1e6, pareto=True, headline=True),
+            CostSpec("focal_length", "m"),
+            CostSpec("optical_efficiency", "1", "optical efficiency"),
+            CostSpec("lens_count", "count"),
+            CostSpec("kernel_error", "1"),
+        ),
+        artifacts={
+            "phase_profile_csv": "phase vs radius per lens, SI columns (phase_profile.csv)",
+            "phase_profile_npz": "the profile with wavelengths, focal length, NA, pitch (phase_profile.npz)",
+            "psf": "pixel-integrated PSF per lens and the applied kernel (psf.npz)",
+            "plot": "phase profile and PSF (phase_psf.png)",
+        },
+        write_artifacts="fsdvs_hw.realise.metalens.artifacts:write_metalens_artifacts",
+        colour="#2ca02c",
+        title="metalens",
+        marker="v",
+        in_default_design=True,
+        description="metalens whose pixel-integrated PSF is the kernel (pedestal or differential pair)",
+    )
+)

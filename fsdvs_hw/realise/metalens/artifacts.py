@@ -74,8 +74,9 @@ def _profile(design: MetalensDesign) -> tuple[np.ndarray, np.ndarray]:
     return r, phase
 
 
-def write_metalens_artifacts(design: MetalensDesign, out_dir: str | Path, *,
-                             resolution: tuple[int, int] | None = None) -> tuple[Artifact, ...]:
+def write_metalens_artifacts(
+    design: MetalensDesign, out_dir: str | Path, *, resolution: tuple[int, int] | None = None
+) -> tuple[Artifact, ...]:
     """Write the phase profile (CSV, NPZ), the PSF (NPZ) and a plot into ``out_dir`` (module docstring).
 
     ``resolution`` is accepted for the writer protocol and not used.
@@ -91,44 +92,88 @@ def write_metalens_artifacts(design: MetalensDesign, out_dir: str | Path, *,
     budget = float(design.fit_info.get("na_budget", max(local_na, g.numerical_aperture)))
     n_pix = int(design.psfs[0].shape[0])
     scalars: dict[str, Any] = {
-        "design_wavelength_m": g.design_wavelength_m, "focal_length_m": g.focal_length_m,
-        "aperture_m": g.aperture_m, "numerical_aperture": g.numerical_aperture, "local_na_max": local_na,
-        "na_budget": budget, "unit_cell_max_m": float(lam.min() / (2 * local_na)),
-        "pixel_pitch_m": design.target.pitch_m, "n_pixels": n_pix, "dispersion": g.dispersion,
+        "design_wavelength_m": g.design_wavelength_m,
+        "focal_length_m": g.focal_length_m,
+        "aperture_m": g.aperture_m,
+        "numerical_aperture": g.numerical_aperture,
+        "local_na_max": local_na,
+        "na_budget": budget,
+        "unit_cell_max_m": float(lam.min() / (2 * local_na)),
+        "pixel_pitch_m": design.target.pitch_m,
+        "n_pixels": n_pix,
+        "dispersion": g.dispersion,
     }
-    write_output(out / "phase_profile.npz", npz_bytes(
-        radius_m=r, phase_rad=phase, wavelengths_m=lam, wavelength_weights=np.asarray(spec.weights, dtype=float),
-        sensor_distance_m=np.asarray(design.sensor_distance_m, dtype=float),
-        coefficients=np.array([list(c) for c in design.coefficients], dtype=float), **scalars), flag="artifacts")
-    head = ["# fsdvs_hw metalens phase profile: phase_rad at the design wavelength (unwrapped), radius_m from "
-            "the optical axis"]
+    write_output(
+        out / "phase_profile.npz",
+        npz_bytes(
+            radius_m=r,
+            phase_rad=phase,
+            wavelengths_m=lam,
+            wavelength_weights=np.asarray(spec.weights, dtype=float),
+            sensor_distance_m=np.asarray(design.sensor_distance_m, dtype=float),
+            coefficients=np.array([list(c) for c in design.coefficients], dtype=float),
+            **scalars,
+        ),
+        flag="artifacts",
+    )
+    head = [
+        "# fsdvs_hw metalens phase profile: phase_rad at the design wavelength (unwrapped), radius_m from "
+        "the optical axis"
+    ]
     head += [f"# {key} = {val!r}" for key, val in scalars.items()]
-    head += [f"# sensor_distance_m = {[float(z) for z in design.sensor_distance_m]!r}",
-             f"# wavelengths_m = {[float(v) for v in lam]!r}"]
+    head += [
+        f"# sensor_distance_m = {[float(z) for z in design.sensor_distance_m]!r}",
+        f"# wavelengths_m = {[float(v) for v in lam]!r}",
+    ]
     rows: list[list[Any]] = [["lens", "radius_m", "phase_rad", "phase_wrapped_rad"]]
-    rows += [[i, repr(float(rr)), repr(float(ph)), repr(float(np.mod(ph, 2 * math.pi)))]
-             for i in range(phase.shape[0]) for rr, ph in zip(r, phase[i])]
+    rows += [
+        [i, repr(float(rr)), repr(float(ph)), repr(float(np.mod(ph, 2 * math.pi)))]
+        for i in range(phase.shape[0])
+        for rr, ph in zip(r, phase[i])
+    ]
     write_output(out / "phase_profile.csv", "\n".join(head) + "\n" + csv_text(rows), flag="artifacts")
     psf = np.stack([np.asarray(p, dtype=float) for p in design.psfs])
-    write_output(out / "psf.npz", npz_bytes(
-        psf=psf, kernel=np.asarray(design.kernel().taps, dtype=float), gains=np.asarray(design.gains, dtype=float),
-        pedestal=float(design.pedestal), guard_px=int(design.guard_px), pixel_pitch_m=design.target.pitch_m,
-        strategy=design.strategy), flag="artifacts")
+    write_output(
+        out / "psf.npz",
+        npz_bytes(
+            psf=psf,
+            kernel=np.asarray(design.kernel().taps, dtype=float),
+            gains=np.asarray(design.gains, dtype=float),
+            pedestal=float(design.pedestal),
+            guard_px=int(design.guard_px),
+            pixel_pitch_m=design.target.pitch_m,
+            strategy=design.strategy,
+        ),
+        flag="artifacts",
+    )
     _plot(out / "phase_psf.png", r, phase, psf, design)
     n_lens = phase.shape[0]
-    check = ("reload phase_profile.npz (or .csv), interpolate onto the propagator's pupil radii, propagate "
-             f"(fsdvs_hw.realise.metalens.artifacts.check_metalens_artifacts): equals psf.npz within 1 part in "
-             f"{1 / PSF_RTOL:,.0f} (relative L2)")
+    check = (
+        "reload phase_profile.npz (or .csv), interpolate onto the propagator's pupil radii, propagate "
+        f"(fsdvs_hw.realise.metalens.artifacts.check_metalens_artifacts): equals psf.npz within 1 part in "
+        f"{1 / PSF_RTOL:,.0f} (relative L2)"
+    )
     return (
-        Artifact("phase_profile_csv", out / "phase_profile.csv",
-                 f"{n_lens} lens phase profile(s): radius_m, phase_rad at {g.design_wavelength_m * 1e9:.0f} nm "
-                 f"(unwrapped and mod 2π), f = {g.focal_length_m * 1e3:.3g} mm, NA {g.numerical_aperture:.3f}", check),
-        Artifact("phase_profile_npz", out / "phase_profile.npz",
-                 "the profile with wavelengths (m) and weights, focal length, aperture, NA, unit cell, sensor "
-                 "distance, pixel pitch (SI)", check),
-        Artifact("psf", out / "psf.npz",
-                 f"pixel-integrated PSF per lens ({n_pix}x{n_pix}, fractions of aperture power) and the applied "
-                 "kernel", ""),
+        Artifact(
+            "phase_profile_csv",
+            out / "phase_profile.csv",
+            f"{n_lens} lens phase profile(s): radius_m, phase_rad at {g.design_wavelength_m * 1e9:.0f} nm "
+            f"(unwrapped and mod 2π), f = {g.focal_length_m * 1e3:.3g} mm, NA {g.numerical_aperture:.3f}",
+            check,
+        ),
+        Artifact(
+            "phase_profile_npz",
+            out / "phase_profile.npz",
+            "the profile with wavelengths (m) and weights, focal length, aperture, NA, unit cell, sensor "
+            "distance, pixel pitch (SI)",
+            check,
+        ),
+        Artifact(
+            "psf",
+            out / "psf.npz",
+            f"pixel-integrated PSF per lens ({n_pix}x{n_pix}, fractions of aperture power) and the applied kernel",
+            "",
+        ),
         Artifact("plot", out / "phase_psf.png", "phase vs radius and the PSF it implies (PNG)", ""),
     )
 
@@ -172,8 +217,9 @@ def read_phase_profile_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return radius, np.stack([ph[lens == i] for i in range(n_lens)])
 
 
-def psf_from_phase_profile(profile: str | Path | dict[str, Any], *, radius_m: np.ndarray | None = None,
-                           phase_rad: np.ndarray | None = None) -> dict[str, Any]:
+def psf_from_phase_profile(
+    profile: str | Path | dict[str, Any], *, radius_m: np.ndarray | None = None, phase_rad: np.ndarray | None = None
+) -> dict[str, Any]:
     """Propagate a written phase profile to the pixel PSF with the fit's forward model.
 
     Parameters
@@ -196,13 +242,27 @@ def psf_from_phase_profile(profile: str | Path | dict[str, Any], *, radius_m: np
     data = dict(np.load(profile)) if isinstance(profile, (str, Path)) else dict(profile)
     r = np.asarray(data["radius_m"] if radius_m is None else radius_m, dtype=float)
     phase = np.atleast_2d(np.asarray(data["phase_rad"] if phase_rad is None else phase_rad, dtype=float))
-    geometry = LensGeometry(float(data["aperture_m"]), float(data["focal_length_m"]),
-                            float(data["design_wavelength_m"]), str(data["dispersion"]))
-    spectral = SpectralSamples(np.asarray(data["wavelengths_m"], dtype=float),
-                               np.asarray(data["wavelength_weights"], dtype=float), "artifact", "artifact")
-    model = _RadialKernelModel(geometry, pitch_m=float(data["pixel_pitch_m"]), n_pixels=int(data["n_pixels"]),
-                               spectral=spectral, n_sub=None, window_pad=_WINDOW_PAD,
-                               na_budget=float(data["na_budget"]))
+    geometry = LensGeometry(
+        float(data["aperture_m"]),
+        float(data["focal_length_m"]),
+        float(data["design_wavelength_m"]),
+        str(data["dispersion"]),
+    )
+    spectral = SpectralSamples(
+        np.asarray(data["wavelengths_m"], dtype=float),
+        np.asarray(data["wavelength_weights"], dtype=float),
+        "artifact",
+        "artifact",
+    )
+    model = _RadialKernelModel(
+        geometry,
+        pitch_m=float(data["pixel_pitch_m"]),
+        n_pixels=int(data["n_pixels"]),
+        spectral=spectral,
+        n_sub=None,
+        window_pad=_WINDOW_PAD,
+        na_budget=float(data["na_budget"]),
+    )
     nodes = model.prop.r_pupil
     if nodes.max() > r.max() * (1 + 1e-12) or nodes.min() < r.min() - 1e-18:
         raise InputError(f"phase profile covers {r.min():.3g}..{r.max():.3g} m; the pupil needs 0..{nodes.max():.3g} m")
@@ -243,8 +303,10 @@ def check_metalens_artifacts(folder: str | Path) -> dict[str, float]:
         res = psf_from_phase_profile(data, **kwargs)
         rel = float(np.linalg.norm(res["psf"] - written) / np.linalg.norm(written))
         if not rel <= PSF_RTOL:
-            raise InputError(f"{folder}: the PSF propagated from the {tag} profile differs from psf.npz by {rel:.3g} "
-                             f"(relative L2; allowed {PSF_RTOL:g})")
+            raise InputError(
+                f"{folder}: the PSF propagated from the {tag} profile differs from psf.npz by {rel:.3g} "
+                f"(relative L2; allowed {PSF_RTOL:g})"
+            )
         out[f"rel_error_{tag}"] = rel
         out["phase_error_rad"] = res["phase_error_rad"]
     return out

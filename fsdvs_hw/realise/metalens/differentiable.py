@@ -58,27 +58,39 @@ class MetalensKernel(torch.nn.Module):
     def __init__(self, design: MetalensDesign, *, window_pad: float = 3.0) -> None:
         super().__init__()
         if not isinstance(design, MetalensDesign):
-            raise InputError(f"MetalensKernel: expected a MetalensDesign (from fit_metalens), got "
-                             f"{type(design).__name__}")
+            raise InputError(
+                f"MetalensKernel: expected a MetalensDesign (from fit_metalens), got {type(design).__name__}"
+            )
         if not design.gains or design.gains[0] <= 0 or any(g < 0 for g in design.gains[1:]):
-            raise InputError(f"MetalensKernel: the first lens's gain must be > 0 and a second lens's ≥ 0, "
-                             f"got {design.gains}")
+            raise InputError(
+                f"MetalensKernel: the first lens's gain must be > 0 and a second lens's ≥ 0, got {design.gains}"
+            )
         self.design = design
         target = design.target
         n_eval = target.size + 2 * design.guard_px
         budget = float(design.fit_info.get("na_budget", 0.9))
-        self.model = _RadialKernelModel(design.geometry, pitch_m=target.pitch_m, n_pixels=n_eval,
-                                        spectral=design.spectral, n_sub=None, window_pad=window_pad, na_budget=budget)
+        self.model = _RadialKernelModel(
+            design.geometry,
+            pitch_m=target.pitch_m,
+            n_pixels=n_eval,
+            spectral=design.spectral,
+            n_sub=None,
+            window_pad=window_pad,
+            na_budget=budget,
+        )
         self.na_budget = budget
         dt = torch.float64
         self.coefficients = torch.nn.ParameterList(
-            [torch.nn.Parameter(torch.tensor(c, dtype=dt)) for c in design.coefficients])
-        self.register_buffer("z0_m", torch.tensor([float(z) for z in design.sensor_distance_m], dtype=dt),
-                             persistent=False)
+            [torch.nn.Parameter(torch.tensor(c, dtype=dt)) for c in design.coefficients]
+        )
+        self.register_buffer(
+            "z0_m", torch.tensor([float(z) for z in design.sensor_distance_m], dtype=dt), persistent=False
+        )
         self.defocus_um = torch.nn.Parameter(torch.zeros(len(design.sensor_distance_m), dtype=dt))
         # a differential pair's second gain may be 0 (the fit's fallback): keep it at a tiny value
-        self.log_gains = torch.nn.Parameter(torch.log(torch.tensor([max(float(g), 1e-30) for g in design.gains],
-                                                                   dtype=dt)))
+        self.log_gains = torch.nn.Parameter(
+            torch.log(torch.tensor([max(float(g), 1e-30) for g in design.gains], dtype=dt))
+        )
 
     def distance_m(self) -> torch.Tensor:
         """Per lens, the lens-to-sensor distance (m)."""
@@ -126,6 +138,12 @@ class MetalensKernel(torch.nn.Module):
             gains = tuple(float(v) for v in torch.exp(self.log_gains))
             coeffs = tuple(tuple(float(v) for v in c) for c in self.coefficients)
             dist = tuple(float(z) for z in self.distance_m())
-        return dataclasses.replace(self.design, coefficients=coeffs, sensor_distance_m=dist, gains=gains, psfs=psfs,
-                                   psf_totals=totals, fit_info={**dict(self.design.fit_info), "codesigned": True,
-                                                                **fit_info})
+        return dataclasses.replace(
+            self.design,
+            coefficients=coeffs,
+            sensor_distance_m=dist,
+            gains=gains,
+            psfs=psfs,
+            psf_totals=totals,
+            fit_info={**dict(self.design.fit_info), "codesigned": True, **fit_info},
+        )

@@ -130,8 +130,12 @@ class LensGeometry:
         return self.radius_m / math.hypot(self.radius_m, self.focal_length_m)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"aperture_m": self.aperture_m, "focal_length_m": self.focal_length_m,
-                "design_wavelength_m": self.design_wavelength_m, "dispersion": self.dispersion}
+        return {
+            "aperture_m": self.aperture_m,
+            "focal_length_m": self.focal_length_m,
+            "design_wavelength_m": self.design_wavelength_m,
+            "dispersion": self.dispersion,
+        }
 
 
 def _phase0(r: np.ndarray, geometry: LensGeometry, coefficients: Any) -> Any:
@@ -176,9 +180,19 @@ def local_numerical_aperture(
 class _RadialKernelModel:
     """Cached forward model: (coefficients, sensor distance) -> pixel-integrated PSF (torch)."""
 
-    def __init__(self, geometry: LensGeometry, *, pitch_m: float, n_pixels: int, spectral: SpectralSamples,
-                 n_sub: int | None = None, n_modes: int | None = None, window_pad: float = 2.0,
-                 na_budget: float | None = None, oversample: float = 1.5):
+    def __init__(
+        self,
+        geometry: LensGeometry,
+        *,
+        pitch_m: float,
+        n_pixels: int,
+        spectral: SpectralSamples,
+        n_sub: int | None = None,
+        n_modes: int | None = None,
+        window_pad: float = 2.0,
+        na_budget: float | None = None,
+        oversample: float = 1.5,
+    ):
         import torch
 
         self.geometry = geometry
@@ -203,8 +217,9 @@ class _RadialKernelModel:
         if n_modes is None:
             # oversample the phase, and hold every wave that stays inside the window (band limit at z ≈ f)
             na_window = R / math.hypot(R, geometry.focal_length_m)
-            n_modes = max(required_modes(R, na, lam_min, oversample=oversample),
-                          int(math.ceil(2 * R * na_window / lam_min)) + 16)
+            n_modes = max(
+                required_modes(R, na, lam_min, oversample=oversample), int(math.ceil(2 * R * na_window / lam_min)) + 16
+            )
         elif n_modes < needed:
             raise InputError(
                 f"n_modes={n_modes} undersamples the lens plane: Δx = {R / n_modes:.3g} m > "
@@ -285,10 +300,22 @@ def _spectral(illuminant: Any, response: Any, n_wavelengths: Any) -> SpectralSam
     return spectral_samples(illuminant, n=n_wavelengths, **kwargs)
 
 
-def pixel_psf(geometry: LensGeometry, coefficients: Sequence[float] = (), *, sensor_distance_m: float | None = None,
-              pitch_m: float = DEFAULT_PITCH_M, n_pixels: int = 7, illuminant: Any = "D65", response: Any = None,
-              n_wavelengths: int = 8, method: str = "radial", n_sub: int | None = None, n_modes: int | None = None,
-              window_pad: float = 2.0, samples_per_pixel: int | None = None) -> np.ndarray:
+def pixel_psf(
+    geometry: LensGeometry,
+    coefficients: Sequence[float] = (),
+    *,
+    sensor_distance_m: float | None = None,
+    pitch_m: float = DEFAULT_PITCH_M,
+    n_pixels: int = 7,
+    illuminant: Any = "D65",
+    response: Any = None,
+    n_wavelengths: int = 8,
+    method: str = "radial",
+    n_sub: int | None = None,
+    n_modes: int | None = None,
+    window_pad: float = 2.0,
+    samples_per_pixel: int | None = None,
+) -> np.ndarray:
     """The PSF integrated over each pixel and the spectrum, as fractions of the incident power.
 
     Parameters
@@ -333,8 +360,16 @@ def pixel_psf(geometry: LensGeometry, coefficients: Sequence[float] = (), *, sen
     coeffs = torch.tensor(np.asarray(coefficients, dtype=float), dtype=torch.float64)
     na = local_numerical_aperture(geometry, coefficients, spectral.wavelengths_m)
     if method == "radial":
-        model = _RadialKernelModel(geometry, pitch_m=pitch_m, n_pixels=n_pixels, spectral=spectral, n_sub=n_sub,
-                                   n_modes=n_modes, window_pad=window_pad, na_budget=na)
+        model = _RadialKernelModel(
+            geometry,
+            pitch_m=pitch_m,
+            n_pixels=n_pixels,
+            spectral=spectral,
+            n_sub=n_sub,
+            n_modes=n_modes,
+            window_pad=window_pad,
+            na_budget=na,
+        )
         with torch.no_grad():
             return model.psf(coeffs, z).numpy()
     if method == "angular_2d":
@@ -342,8 +377,17 @@ def pixel_psf(geometry: LensGeometry, coefficients: Sequence[float] = (), *, sen
     raise InputError(f"method {method!r} unknown; allowed: 'radial', 'angular_2d'")
 
 
-def _pixel_psf_2d(geometry: LensGeometry, coeffs: Any, z: float, pitch_m: float, n_pixels: int,
-                  spectral: SpectralSamples, na: float, window_pad: float, samples_per_pixel: int | None) -> np.ndarray:
+def _pixel_psf_2d(
+    geometry: LensGeometry,
+    coeffs: Any,
+    z: float,
+    pitch_m: float,
+    n_pixels: int,
+    spectral: SpectralSamples,
+    na: float,
+    window_pad: float,
+    samples_per_pixel: int | None,
+) -> np.ndarray:
     import torch
 
     lam_min = float(spectral.wavelengths_m.min())
@@ -415,9 +459,17 @@ class WavelengthPlan:
     reason: str
 
 
-def plan_wavelength_samples(geometry: LensGeometry, illuminant: Any = "D65", response: Any = None, *,
-                            sensor_distance_m: float | None = None, pitch_m: float = DEFAULT_PITCH_M,
-                            n_pixels: int = 7, tolerance: float = 1e-2, n_max: int = 64) -> WavelengthPlan:
+def plan_wavelength_samples(
+    geometry: LensGeometry,
+    illuminant: Any = "D65",
+    response: Any = None,
+    *,
+    sensor_distance_m: float | None = None,
+    pitch_m: float = DEFAULT_PITCH_M,
+    n_pixels: int = 7,
+    tolerance: float = 1e-2,
+    n_max: int = 64,
+) -> WavelengthPlan:
     r"""Choose the number of wavelength samples from the scene's spectrum and the lens's dispersion.
 
     Doubles the number of equal-weight samples from 1 until the pixel PSF of the nominal lens
@@ -433,20 +485,44 @@ def plan_wavelength_samples(geometry: LensGeometry, illuminant: Any = "D65", res
         return WavelengthPlan(1, tolerance, (), "monochromatic source: 1 wavelength")
     history: list[tuple[int, float]] = []
     n = 1
-    prev = pixel_psf(geometry, sensor_distance_m=z, pitch_m=pitch_m, n_pixels=n_pixels, illuminant=illuminant,
-                     response=response, n_wavelengths=1, n_sub=8)
+    prev = pixel_psf(
+        geometry,
+        sensor_distance_m=z,
+        pitch_m=pitch_m,
+        n_pixels=n_pixels,
+        illuminant=illuminant,
+        response=response,
+        n_wavelengths=1,
+        n_sub=8,
+    )
     while 2 * n <= n_max:
-        nxt = pixel_psf(geometry, sensor_distance_m=z, pitch_m=pitch_m, n_pixels=n_pixels, illuminant=illuminant,
-                        response=response, n_wavelengths=2 * n, n_sub=8)
+        nxt = pixel_psf(
+            geometry,
+            sensor_distance_m=z,
+            pitch_m=pitch_m,
+            n_pixels=n_pixels,
+            illuminant=illuminant,
+            response=response,
+            n_wavelengths=2 * n,
+            n_sub=8,
+        )
         change = float(np.linalg.norm(nxt - prev) / np.linalg.norm(nxt))
         history.append((n, change))
         if change < tolerance:
-            return WavelengthPlan(n, tolerance, tuple(history),
-                                  f"{geometry.dispersion} lens: PSF changes {change:.1e} from {n} to {2 * n} samples "
-                                  f"(< {tolerance:g}): {n} wavelength(s)")
+            return WavelengthPlan(
+                n,
+                tolerance,
+                tuple(history),
+                f"{geometry.dispersion} lens: PSF changes {change:.1e} from {n} to {2 * n} samples "
+                f"(< {tolerance:g}): {n} wavelength(s)",
+            )
         n, prev = 2 * n, nxt
-    return WavelengthPlan(n, tolerance, tuple(history),
-                          f"{geometry.dispersion} lens: not converged to {tolerance:g} by {n} samples; using {n}")
+    return WavelengthPlan(
+        n,
+        tolerance,
+        tuple(history),
+        f"{geometry.dispersion} lens: not converged to {tolerance:g} by {n} samples; using {n}",
+    )
 
 
 def _check_extremes(geometry: LensGeometry, spectral: SpectralSamples, z: float, pitch_m: float) -> None:
@@ -538,8 +614,9 @@ class MetalensDesign:
         taps = self.gains[0] * self.psfs[0]
         if self.strategy == "differential":
             taps = taps - self.gains[1] * self.psfs[1]
-        return self.target.with_taps(taps, name=f"metalens[{self.strategy}] {self.target.name}",
-                                     realisation="metalens", strategy=self.strategy)
+        return self.target.with_taps(
+            taps, name=f"metalens[{self.strategy}] {self.target.name}", realisation="metalens", strategy=self.strategy
+        )
 
     def signal_kernel(self) -> Kernel:
         """The applied kernel minus the pedestal c inside the k×k window (comparable with the target)."""
@@ -652,12 +729,17 @@ class MetalensDesign:
             f"({self.spectral.illuminant} × {self.spectral.response})",
         ]
         for i, (c, z) in enumerate(zip(self.coefficients, self.sensor_distance_m)):
-            lines.append(f"  lens {i + 1}: defocus {(z - g.focal_length_m) * 1e6:+.2f} µm, phase coefficients [rad] "
-                         + ", ".join(f"{v:+.2f}" for v in c) + f"; efficiency {self.optical_efficiency[i]:.3f}")
+            lines.append(
+                f"  lens {i + 1}: defocus {(z - g.focal_length_m) * 1e6:+.2f} µm, phase coefficients [rad] "
+                + ", ".join(f"{v:+.2f}" for v in c)
+                + f"; efficiency {self.optical_efficiency[i]:.3f}"
+            )
         if self.strategy == "pedestal":
             cf = self.contrast_factor
-            lines.append(f"  pedestal c = {self.pedestal:.4g} ({100 * self.pedestal_fraction:.1f} % of collected light)"
-                         + (f"; contrast factor {cf:.3f}" if math.isfinite(cf) else ""))
+            lines.append(
+                f"  pedestal c = {self.pedestal:.4g} ({100 * self.pedestal_fraction:.1f} % of collected light)"
+                + (f"; contrast factor {cf:.3f}" if math.isfinite(cf) else "")
+            )
         else:
             lines.append(f"  subtraction ratio g₋/g₊ = {self.gains[1] / self.gains[0]:.4g} (before the log)")
         lines.append(f"  fit {float(self.fit_info.get('wall_time_s', float('nan'))):.1f} s")
@@ -747,8 +829,15 @@ def _lbfgs(x: Any, loss_fn: Any, iters: int, bar: Any = None) -> int:
     ``iters`` in all: iteration by iteration, the rest at once when it converges early."""
     import torch
 
-    opt = torch.optim.LBFGS([x], lr=1.0, max_iter=iters, history_size=20, line_search_fn="strong_wolfe",
-                            tolerance_grad=1e-10, tolerance_change=1e-12)
+    opt = torch.optim.LBFGS(
+        [x],
+        lr=1.0,
+        max_iter=iters,
+        history_size=20,
+        line_search_fn="strong_wolfe",
+        tolerance_grad=1e-10,
+        tolerance_change=1e-12,
+    )
     shown = 0
 
     def closure() -> Any:
@@ -781,10 +870,24 @@ class _MetalensSetup:
     budget: float
 
 
-def _metalens_setup(kernel: Any, *, pitch_m: float | None, illuminant: Any, response: Any, strategy: str,
-                    aperture_m: float | None, focal_length_m: float | None, design_wavelength_m: float,
-                    dispersion: str, n_terms: Any, n_wavelengths: int | str, guard_px: Any, max_iter: Any,
-                    n_starts: Any, na_max: float | None) -> _MetalensSetup:
+def _metalens_setup(
+    kernel: Any,
+    *,
+    pitch_m: float | None,
+    illuminant: Any,
+    response: Any,
+    strategy: str,
+    aperture_m: float | None,
+    focal_length_m: float | None,
+    design_wavelength_m: float,
+    dispersion: str,
+    n_terms: Any,
+    n_wavelengths: int | str,
+    guard_px: Any,
+    max_iter: Any,
+    n_starts: Any,
+    na_max: float | None,
+) -> _MetalensSetup:
     """Validate the options; the lens geometry, the wavelength samples (planned when ``"auto"``) and
     the numerical-aperture budget of the phase."""
     kernel = as_kernel(kernel, pitch_m=pitch_m, repitch=True)
@@ -798,16 +901,20 @@ def _metalens_setup(kernel: Any, *, pitch_m: float | None, illuminant: Any, resp
         raise InputError(f"n_starts and max_iter must be positive integers, got {n_starts!r}, {max_iter!r}")
     pitch = kernel.pitch_m
     defaults = LensGeometry()
-    geometry = LensGeometry(defaults.aperture_m if aperture_m is None else aperture_m,
-                            defaults.focal_length_m if focal_length_m is None else focal_length_m,
-                            design_wavelength_m, dispersion)
+    geometry = LensGeometry(
+        defaults.aperture_m if aperture_m is None else aperture_m,
+        defaults.focal_length_m if focal_length_m is None else focal_length_m,
+        design_wavelength_m,
+        dispersion,
+    )
     focal_length_m = geometry.focal_length_m
     plan = None
     if n_wavelengths == "auto":
         # nominal lens defocused to blur a point over the kernel radius (geometric optics)
         z_nominal = focal_length_m * (1 + (kernel.size / 2) * pitch / geometry.radius_m)
-        plan = plan_wavelength_samples(geometry, illuminant, response, sensor_distance_m=z_nominal, pitch_m=pitch,
-                                       n_pixels=kernel.size)
+        plan = plan_wavelength_samples(
+            geometry, illuminant, response, sensor_distance_m=z_nominal, pitch_m=pitch, n_pixels=kernel.size
+        )
         n_wavelengths = plan.n_wavelengths
     spectral = _spectral(illuminant, response, n_wavelengths)
     _check_extremes(geometry, spectral, focal_length_m, pitch)
@@ -823,19 +930,38 @@ def _metalens_setup(kernel: Any, *, pitch_m: float | None, illuminant: Any, resp
     return _MetalensSetup(kernel=kernel, geometry=geometry, spectral=spectral, plan=plan, budget=budget)
 
 
-def _metalens_models(setup: _MetalensSetup, *, illuminant: Any, response: Any, guard_px: int, n_sub: int | None,
-                     window_pad: float) -> tuple[_RadialKernelModel, _RadialKernelModel]:
+def _metalens_models(
+    setup: _MetalensSetup, *, illuminant: Any, response: Any, guard_px: int, n_sub: int | None, window_pad: float
+) -> tuple[_RadialKernelModel, _RadialKernelModel]:
     """Step 2, the forward models: coarse-to-fine in wavelength (starts and the first refinement on
     ≤ 8 samples, the polish on all); returns ``(coarse, full)`` (the same object when ≤ 8 samples)."""
     spectral, pitch = setup.spectral, setup.kernel.pitch_m
     n_eval = setup.kernel.size + 2 * guard_px
-    coarse_spectral = spectral if spectral.n <= 8 or isinstance(illuminant, SpectralSamples) else \
-        _spectral(illuminant, response, 8)
-    coarse = _RadialKernelModel(setup.geometry, pitch_m=pitch, n_pixels=n_eval, spectral=coarse_spectral, n_sub=n_sub,
-                                window_pad=window_pad, na_budget=setup.budget)
-    model = coarse if coarse_spectral is spectral else _RadialKernelModel(
-        setup.geometry, pitch_m=pitch, n_pixels=n_eval, spectral=spectral, n_sub=n_sub, window_pad=window_pad,
-        na_budget=setup.budget)
+    coarse_spectral = (
+        spectral if spectral.n <= 8 or isinstance(illuminant, SpectralSamples) else _spectral(illuminant, response, 8)
+    )
+    coarse = _RadialKernelModel(
+        setup.geometry,
+        pitch_m=pitch,
+        n_pixels=n_eval,
+        spectral=coarse_spectral,
+        n_sub=n_sub,
+        window_pad=window_pad,
+        na_budget=setup.budget,
+    )
+    model = (
+        coarse
+        if coarse_spectral is spectral
+        else _RadialKernelModel(
+            setup.geometry,
+            pitch_m=pitch,
+            n_pixels=n_eval,
+            spectral=spectral,
+            n_sub=n_sub,
+            window_pad=window_pad,
+            na_budget=setup.budget,
+        )
+    )
     return coarse, model
 
 
@@ -858,7 +984,9 @@ class _MetalensObjective:
         self.d_hyp = torch.from_numpy(-(2 * math.pi / lam0) * r_chk / np.sqrt(r_chk**2 + f * f))
         self.d_pow = torch.from_numpy(
             np.stack([2 * (k + 1) * r_chk ** (2 * k + 1) / a ** (2 * k + 2) for k in range(n_terms)], -1)
-            if n_terms else np.zeros((r_chk.size, 0)))
+            if n_terms
+            else np.zeros((r_chk.size, 0))
+        )
         p_exp = DISPERSION_MODELS[geometry.dispersion]
         wl = setup.spectral.wavelengths_m
         self.na_scale = float(np.max(wl * (lam0 / wl) ** p_exp)) / (2 * math.pi)
@@ -889,12 +1017,22 @@ class _MetalensObjective:
                     tots.append(fwd.total(c, z))
                 pen = pen + self.penalty(x[i])
             return _solve_gains(psfs, targets, self.mask, mode, tots or None)[2] + pen
+
         return loss
 
 
-def _solve_metalens(obj: _MetalensObjective, coarse: _RadialKernelModel, model: _RadialKernelModel, *, strategy: str,
-                    kernel_size: int, n_terms: int, n_starts: int, max_iter: int,
-                    progress: bool | None = None) -> tuple[np.ndarray, int]:
+def _solve_metalens(
+    obj: _MetalensObjective,
+    coarse: _RadialKernelModel,
+    model: _RadialKernelModel,
+    *,
+    strategy: str,
+    kernel_size: int,
+    n_terms: int,
+    n_starts: int,
+    max_iter: int,
+    progress: bool | None = None,
+) -> tuple[np.ndarray, int]:
     """Step 4, the solve: L-BFGS from defocus starts on the coarse model, refined, polished on the
     full spectrum; a differential pair from its two single-lens halves. Returns ``(x, iterations)``.
     The progress bar counts the iteration budget (:mod:`fsdvs_hw.progress`)."""
@@ -1023,24 +1161,53 @@ def fit_metalens(
     import torch
 
     t0, c0 = time.perf_counter(), time.process_time()
-    setup = _metalens_setup(kernel, pitch_m=pitch_m, illuminant=illuminant, response=response, strategy=strategy,
-                            aperture_m=aperture_m, focal_length_m=focal_length_m,
-                            design_wavelength_m=design_wavelength_m, dispersion=dispersion, n_terms=n_terms,
-                            n_wavelengths=n_wavelengths, guard_px=guard_px, max_iter=max_iter, n_starts=n_starts,
-                            na_max=na_max)
+    setup = _metalens_setup(
+        kernel,
+        pitch_m=pitch_m,
+        illuminant=illuminant,
+        response=response,
+        strategy=strategy,
+        aperture_m=aperture_m,
+        focal_length_m=focal_length_m,
+        design_wavelength_m=design_wavelength_m,
+        dispersion=dispersion,
+        n_terms=n_terms,
+        n_wavelengths=n_wavelengths,
+        guard_px=guard_px,
+        max_iter=max_iter,
+        n_starts=n_starts,
+        na_max=na_max,
+    )
     kernel, geometry, spectral, plan, budget = setup.kernel, setup.geometry, setup.spectral, setup.plan, setup.budget
     pitch, n_eval = kernel.pitch_m, kernel.size + 2 * guard_px
-    coarse, model = _metalens_models(setup, illuminant=illuminant, response=response, guard_px=guard_px, n_sub=n_sub,
-                                     window_pad=window_pad)
+    coarse, model = _metalens_models(
+        setup, illuminant=illuminant, response=response, guard_px=guard_px, n_sub=n_sub, window_pad=window_pad
+    )
     obj = _MetalensObjective(setup, n_terms=n_terms, guard_px=guard_px)
-    x, iters = _solve_metalens(obj, coarse, model, strategy=strategy, kernel_size=kernel.size, n_terms=n_terms,
-                               n_starts=n_starts, max_iter=max_iter, progress=progress)
+    x, iters = _solve_metalens(
+        obj,
+        coarse,
+        model,
+        strategy=strategy,
+        kernel_size=kernel.size,
+        n_terms=n_terms,
+        n_starts=n_starts,
+        max_iter=max_iter,
+        progress=progress,
+    )
     scale, k_pad, mask, unpack = obj.scale, obj.k_pad, obj.mask, obj.unpack
 
     # ---- the report: PSFs on the reference model, closed-form gains, NA reached, timing
     xt = torch.from_numpy(x)
-    reference = _RadialKernelModel(geometry, pitch_m=pitch, n_pixels=n_eval, spectral=spectral, n_sub=None,
-                                   window_pad=max(window_pad, 3.0), na_budget=budget)
+    reference = _RadialKernelModel(
+        geometry,
+        pitch_m=pitch,
+        n_pixels=n_eval,
+        spectral=spectral,
+        n_sub=None,
+        window_pad=max(window_pad, 3.0),
+        na_budget=budget,
+    )
     with torch.no_grad():
         psfs, totals, zs, cs, model_err = [], [], [], [], 0.0
         for i in range(x.shape[0]):
@@ -1073,8 +1240,16 @@ def fit_metalens(
     if na_fit > budget * 1.02:
         raise InputError(f"fit left the sampling budget (local NA {na_fit:.3f} > na_max {budget:.3f}); raise na_max")
     return MetalensDesign(
-        target=kernel, strategy=strategy, geometry=geometry, coefficients=tuple(cs), sensor_distance_m=tuple(zs),
-        gains=tuple(float(g) * scale for g in gains), pedestal=float(c) * scale, guard_px=guard_px,
-        psfs=tuple(p.numpy() for p in psfs), spectral=spectral, fit_info=info,
+        target=kernel,
+        strategy=strategy,
+        geometry=geometry,
+        coefficients=tuple(cs),
+        sensor_distance_m=tuple(zs),
+        gains=tuple(float(g) * scale for g in gains),
+        pedestal=float(c) * scale,
+        guard_px=guard_px,
+        psfs=tuple(p.numpy() for p in psfs),
+        spectral=spectral,
+        fit_info=info,
         psf_totals=tuple(float(t) for t in totals),
     )

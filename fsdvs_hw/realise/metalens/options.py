@@ -23,10 +23,12 @@ class MetalensOptions(StrictModel):
 
     unknown_key = "unknown option of fit_metalens"
 
-    pitch_m: float | None = field(None, "m", "pixel pitch (default: the kernel's)",
-                                     ge=PITCH_RANGE_M[0], le=PITCH_RANGE_M[1])
+    pitch_m: float | None = field(
+        None, "m", "pixel pitch (default: the kernel's)", ge=PITCH_RANGE_M[0], le=PITCH_RANGE_M[1]
+    )
     illuminant: str | Annotated[float, Field(ge=1e-7, le=2e-5)] | PyObject = field(
-        "D65", "m", "colour illuminant name, a spectral distribution, or one wavelength in metres")
+        "D65", "m", "colour illuminant name, a spectral distribution, or one wavelength in metres"
+    )
     response: str | PyObject | None = field(None, "", "sensor spectral response (default photopic V(λ))")
     strategy: Literal["pedestal", "differential"] = field("pedestal", "", "signed-kernel strategy")
     aperture_m: float | None = field(100e-6, "m", "lens aperture diameter", gt=1e-7, le=1e-1)
@@ -34,14 +36,13 @@ class MetalensOptions(StrictModel):
     design_wavelength_m: float = field(555e-9, "m", "design wavelength", ge=1e-7, le=2e-5)
     dispersion: Literal["diffractive", "achromatic"] = field("diffractive", "", "dispersion model")
     n_terms: int = field(4, "", "polynomial phase terms", ge=0, le=12)
-    n_wavelengths: Annotated[int, Field(ge=1, le=200)] | Literal["auto"] = field(24, "", "spectral samples, "
-                                                                                 "or 'auto'")
+    n_wavelengths: Annotated[int, Field(ge=1, le=200)] | Literal["auto"] = field(24, "", "spectral samples, or 'auto'")
     guard_px: int = field(2, "px", "ring of pixels where spilled light counts as error", ge=0, le=8)
     max_iter: int = field(150, "", "L-BFGS iterations of the final refinement", ge=1, le=100000)
     n_starts: int = field(6, "", "defocus starting points", ge=1, le=1000)
-    n_sub: int | None = field(None, "", "pixel-integration nodes per axis (None: from the PSF's bandwidth)",
-                                 ge=1, le=4096)
+    n_sub: int | None = field(
+        None, "", "pixel-integration nodes per axis (None: from the PSF's bandwidth)", ge=1, le=4096
+    )
     window_pad: float = field(2.0, "", "radial-model window padding factor", ge=1.0, le=16.0)
     na_max: float | None = field(None, "", "largest local numerical aperture of the phase", gt=0.0, lt=1.0)
-    progress: bool | None = field(None, "", "progress bar of the fit's iterations (None: when stderr is a "
-                                     "terminal)")
+    progress: bool | None = field(None, "", "progress bar of the fit's iterations (None: when stderr is a terminal)")
