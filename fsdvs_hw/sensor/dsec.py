@@ -46,7 +46,7 @@ import numpy as np
 
 from ..errors import InputError, ToolMissingError
 from ..limits import check_allocation
-from .eventfile import _EVENT_BYTES, EventFile, _bad, _Checker, _columns, _one_line, _partial_path, _side
+from .eventfile import _EVENT_BYTES, EventFile, _bad, _columns, _EventColumnsCheck, _one_line, _partial_path, _side
 
 __all__ = ["DSEC_SIZE", "is_dsec", "read_dsec", "write_dsec"]
 
@@ -186,7 +186,7 @@ def _read_open(p: Path, f: Any, width: int | None, height: int | None) -> EventF
     if missing:
         raise _bad(p, ", ".join(f"events/{c}" for c in missing), "missing datasets (DSEC layout: events/x, y, t, p)")
     names = {c: f"events/{c}" for c in _COLUMNS}
-    chk = _Checker(p, names, (0, 1))
+    chk = _EventColumnsCheck(p, names, (0, 1))
     chk.dtypes(**{c: g[c].dtype for c in _COLUMNS})
     lengths = {c: g[c].shape for c in _COLUMNS}
     if len(set(lengths.values())) != 1 or len(lengths["t"]) != 1:

@@ -469,7 +469,7 @@ def _side(path: Path, fld: str, v: Any) -> int:
     return int(arr.reshape(-1)[0])
 
 
-class _Checker:
+class _EventColumnsCheck:
     """Checks the columns of an event file slice by slice (dtype, ranges, time order)."""
 
     def __init__(self, path: Path, names: dict[str, str], polarities: tuple[int, ...]) -> None:
@@ -572,7 +572,7 @@ def _read_hdf5_open(p: Path, f: Any) -> EventFile:
     if ds.ndim != 2 or ds.shape[1] != 4:
         raise _bad(p, "events", f"shape {ds.shape}, expected (N, 4) [t_us, x, y, p] (v2e layout)")
     names = {"t": "events[:, 0] (t_us)", "x": "events[:, 1] (x)", "y": "events[:, 2] (y)", "p": "events[:, 3] (p)"}
-    chk = _Checker(p, names, (0, 1))
+    chk = _EventColumnsCheck(p, names, (0, 1))
     chk.dtypes(t=ds.dtype)
     attrs: dict[str, Any] = {}
     for k in f.attrs:
@@ -648,7 +648,7 @@ def _read_npz(p: Path) -> EventFile:
         missing = {"t", "x", "y", "p", "width", "height"} - set(z.files)
         if missing:
             raise _bad(p, ", ".join(sorted(missing)), "missing arrays (an event npz holds t, x, y, p, width, height)")
-        chk = _Checker(p, {k: k for k in "txyp"}, (-1, 1))
+        chk = _EventColumnsCheck(p, {k: k for k in "txyp"}, (-1, 1))
         k = "(file)"
         try:
             headers = {}
@@ -732,7 +732,7 @@ def _read_aedat4(p: Path) -> EventFile:
         assert proc.stdout is not None  # stdout=PIPE
         try:
             pipe = _ChildPipe(proc.stdout, AEDAT4_READ_TIMEOUT_S, p)
-            chk = _Checker(p, {"t": "timestamp", "x": "x", "y": "y", "p": "polarity"}, (0, 1))
+            chk = _EventColumnsCheck(p, {"t": "timestamp", "x": "x", "y": "y", "p": "polarity"}, (0, 1))
             try:
                 w_raw, h_raw, name_len = (int(v) for v in pipe.ints(3, "<i8"))
                 w, h = _side(p, "event resolution width", w_raw), _side(p, "event resolution height", h_raw)

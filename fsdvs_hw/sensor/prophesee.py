@@ -58,7 +58,7 @@ import numpy as np
 from ..errors import InputError, ToolMissingError
 from ..limits import check_allocation
 from ..paths import write_output
-from .eventfile import _EVENT_BYTES, EventFile, _bad, _Checker, _columns
+from .eventfile import _EVENT_BYTES, EventFile, _bad, _columns, _EventColumnsCheck
 
 __all__ = ["ENCODINGS", "decode_evt3", "read_prophesee", "write_prophesee"]
 
@@ -304,7 +304,7 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
     if h is None:
         h = int(y.max()) + 1 if y.size else 1
     names = {"t": "t (µs)", "x": "x", "y": "y", "p": "polarity"}
-    _Checker(p, names, (0, 1)).check(t, x, y, pol, w, h)
+    _EventColumnsCheck(p, names, (0, 1)).check(t, x, y, pol, w, h)
     return EventFile(
         t.astype(np.int64),
         x.astype(np.int64),
