@@ -63,8 +63,9 @@ T0 = time.time()
 
 
 def save():
-    with open(os.path.join(OUT, "gpu_bench.json"), "w") as f:
-        json.dump(res, f, indent=1)
+    from fsdvs_hw.paths import write_output
+
+    write_output(os.path.join(OUT, "gpu_bench.json"), json.dumps(res, indent=1) + "\n")
 
 
 def log(*a):

@@ -105,3 +105,18 @@ def test_design_reads_dsec_detection_and_scores_it(tmp_path):
     entry = load_design(path).data["tasks"]["datasets"]["detection"]
     ev, _ = dataset_evidence(None, "detection", entry, tmp_path)
     assert ev.n_clips == 2 and ev.metric_name == "map" and 0.0 <= ev.value <= 1.0
+
+
+@pytest.mark.parametrize("claimed", [10**4, 10**10])
+def test_a_tracks_header_claiming_more_than_the_file_holds_is_refused_before_allocating(tmp_path, claimed):
+    """A ``tracks.npy`` whose header claims ``claimed`` records (one record of data present, up to
+    400 GB claimed) is refused with the file named, without allocating what the header claims
+    (the header is read memory-mapped first)."""
+    seq = _sequence(tmp_path / "a")
+    path = seq / "object_detections" / "left" / "tracks.npy"
+    with open(path, "wb") as f:
+        header = {"descr": np.lib.format.dtype_to_descr(TRACKS_DTYPE), "fortran_order": False, "shape": (claimed,)}
+        np.lib.format.write_array_header_2_0(f, header)
+        f.write(np.zeros(1, TRACKS_DTYPE).tobytes())
+    with pytest.raises(InputError, match=r"tracks\.npy"):
+        DsecDetectionDataset(seq)

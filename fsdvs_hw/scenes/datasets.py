@@ -1011,8 +1011,11 @@ class DsecDetectionDataset(ClipDataset):
         if len(stamps) > 1 and np.any(np.diff(stamps) <= 0):
             raise InputError(f"{who}: {str(ts_path)!r}: timestamps must increase")
         tr_path = seq / "object_detections" / "left" / "tracks.npy"
-        try:
-            tracks = np.load(tr_path, allow_pickle=False)
+        try:  # the header first (memory-mapped): a file cut short, or claiming more than it holds, is refused
+            mapped = np.load(tr_path, allow_pickle=False, mmap_mode="r")
+            check_allocation(f"{who}: {str(tr_path)!r} ({mapped.shape[0] if mapped.ndim else 1} tracks)", mapped.nbytes)
+            tracks = np.array(mapped)
+            del mapped
         except (OSError, ValueError) as exc:
             raise InputError(f"{who}: {str(tr_path)!r} cannot be read as a NumPy array ({exc})") from None
         missing = [f for f in DSEC_TRACK_FIELDS if tracks.dtype.names is None or f not in tracks.dtype.names]

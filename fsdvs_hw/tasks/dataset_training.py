@@ -333,7 +333,7 @@ def train_on_dataset(
 
     from ..provenance import library_versions
     from .dataset_eval import _device, _network_for, evaluator_for_dataset
-    from .learn import _events, _save_checkpoint, _train_epochs, default_sensor
+    from .learn import _events, _inputs_once, _save_checkpoint, _train_epochs, default_sensor
     from .user_networks import event_input_of
 
     t_start = time.perf_counter()
@@ -404,7 +404,7 @@ def train_on_dataset(
         if opt_state is not None and s_idx == start[0]:
             opt.load_state_dict(opt_state)
         frozen = stage == "frozen_filter" or not learn_filter  # a frozen kernel: the events never change
-        cached = _inputs_once(input_fn, video, kernel_now(), sensor, ts) if frozen else None
+        cached = _inputs_once(input_fn, video, kernel_now(), sensor, ts, chunk=64) if frozen else None
         for epoch in range(first_epoch, epochs[stage]):
             n_before = len(history)
             _train_epochs(
@@ -495,14 +495,6 @@ def _log(message: str) -> None:
     import sys
 
     print(message, file=sys.stderr, flush=True)
-
-
-def _inputs_once(input_fn: Any, video: Any, kernel_param: Any, sensor: Any, ts: Any) -> Any:
-    """The network inputs of every clip through a frozen kernel, computed once (64 clips at a time)."""
-    import torch
-
-    with torch.no_grad():
-        return torch.cat([input_fn(video[s : s + 64], kernel_param, sensor, ts) for s in range(0, video.shape[0], 64)])
 
 
 def _optimizer(stage: str, net: Any, kernel_param: Any, weight_decay: float, lr: dict[str, float]) -> Any:

@@ -292,6 +292,15 @@ def _cat_predictions(preds: list[dict[str, Any]]) -> dict[str, Any]:
     return {k: torch.cat([p[k] for p in preds]) for k in preds[0]}
 
 
+def _inputs_once(input_fn: Any, video: Any, kernel: Any, sensor: Any, ts: Any, chunk: int = 128) -> Any:
+    """The network inputs ``input_fn(clips, kernel, sensor, ts)`` of every clip through a frozen
+    kernel, computed once without gradients, ``chunk`` clips at a time."""
+    import torch
+
+    with torch.no_grad():
+        return torch.cat([input_fn(video[s : s + chunk], kernel, sensor, ts) for s in range(0, video.shape[0], chunk)])
+
+
 def _score(
     evaluator: Any,
     network: Any,
@@ -594,10 +603,7 @@ def learn_kernel(
     epochs_joint = settings.epochs_joint
     cached: torch.Tensor | None  # the frozen filter's network inputs, computed once
     if epochs_frozen:
-        with torch.no_grad():
-            cached = torch.cat(
-                [_network_input(video[s : s + 128], kernel_now(), sensor, ts) for s in range(0, video.shape[0], 128)]
-            )
+        cached = _inputs_once(_network_input, video, kernel_now(), sensor, ts)
         opt = torch.optim.AdamW([_group(network.parameters(), settings.lr_network, settings.weight_decay)])
         _train_epochs(
             evaluator,
@@ -640,13 +646,7 @@ def learn_kernel(
         opt = torch.optim.AdamW(groups)
         cached = None
         if not learn_filter:  # frozen filter: the events never change, compute them once
-            with torch.no_grad():
-                cached = torch.cat(
-                    [
-                        _network_input(video[s : s + 128], kernel_param, sensor, ts)
-                        for s in range(0, video.shape[0], 128)
-                    ]
-                )
+            cached = _inputs_once(_network_input, video, kernel_param, sensor, ts)
         _train_epochs(
             evaluator,
             network,
