@@ -1,6 +1,7 @@
 """``fsdvs-hw simulate``: a real clip streamed to an event file equals the whole-clip simulation."""
 
 import numpy as np
+import pytest
 import torch
 
 from fsdvs_hw.cli import main
@@ -9,7 +10,8 @@ from fsdvs_hw.sensor import SensorConfig, event_list
 from fsdvs_hw.sensor.eventfile import read_events
 
 
-def test_simulate_cli_writes_the_whole_clip_events(tmp_path, capsys):
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_simulate_cli_writes_the_whole_clip_events(tmp_path, capsys, dtype):
     out = tmp_path / "carphone.npz"
     rc = main(
         [
@@ -28,13 +30,17 @@ def test_simulate_cli_writes_the_whole_clip_events(tmp_path, capsys):
             "--no-progress",
             "--seed",
             "4",
+            "--dtype",
+            dtype,
         ]
     )
     assert rc == 0
     ev = read_events(out)
     clip = load_example_clip("carphone", n_frames=6, size=(36, 44), input_mapping="v2e_gray")  # the v2e preset's
-    want = event_list(
-        clip.intensity[None], timestamps_s=clip.timestamps_s, config=SensorConfig.preset("v2e-noisy", seed=4)
+    want = event_list(  # the in-memory run in the same precision: the same events, to the microsecond
+        clip.intensity[None].astype(dtype),
+        timestamps_s=clip.timestamps_s,
+        config=SensorConfig.preset("v2e-noisy", seed=4),
     )
     assert (ev.width, ev.height) == (44, 36) and len(ev) == len(want) > 100
     assert np.array_equal(ev.t_us, np.rint(want.t.numpy() * 1e6).astype(np.int64))

@@ -86,11 +86,16 @@ def test_v2e_default_preset_counts_match_v2e_from_the_same_file(clip, tmp_path, 
                 "1",
                 "0",
                 str(Path(d) / "frames.npy"),
+                "cpu",
             ],
             "v2e EventEmulator",
         )
-    out = tmp_path / "ev.h5"
-    assert main(["simulate", str(path), "--out", str(out), "--preset", "v2e-default", "--no-progress"]) == 0
-    n = len(read_events(out))
-    print(f"{clip}: fsdvs-hw {n} events, v2e {r['events']}, ratio {n / r['events']:.4f} ({len(gray)} frames)")
-    assert abs(n / r["events"] - 1) < 0.01
+    for dtype in ("float32", "float64"):  # the command's default precision (v2e's) and float64
+        out = tmp_path / f"ev_{dtype}.h5"
+        args = ["simulate", str(path), "--out", str(out), "--preset", "v2e-default", "--no-progress", "--dtype", dtype]
+        assert main(args) == 0
+        n = len(read_events(out))
+        print(
+            f"{clip} {dtype}: fsdvs-hw {n} events, v2e {r['events']}, ratio {n / r['events']:.4f} ({len(gray)} frames)"
+        )
+        assert abs(n / r["events"] - 1) < 0.01

