@@ -1352,6 +1352,148 @@ def simulate_command_stages(
     return list(rows.values())
 
 
+#: v2e's command-line modules that a CPU machine without its GUI and SuperSloMo extras cannot
+#: import: torchvision (SuperSloMo, not run with --disable_slomo; its PyPI wheel is a CUDA build
+#: that does not import next to the CPU torch). Everything else v2e.py imports must be installed
+#: (``--v2e-pythonpath``).
+_V2E_COMMAND_STUBS = {"torchvision/__init__.py": "", "torchvision/transforms.py": ""}
+
+
+def _timed_command(cmd: list[str], env: dict[str, str], cwd: str, what: str) -> dict[str, float]:
+    """Run ``cmd``; its wall time, CPU time and peak RSS (the process and the children it waited
+    for, from ``wait4``)."""
+    import tempfile
+
+    with tempfile.TemporaryFile() as err:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, env=env, cwd=cwd)
+        _, status, ru = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        if proc.returncode != 0:
+            err.seek(0)
+            raise RuntimeError(f"{what} failed ({proc.returncode}): {err.read()[-2000:].decode(errors='replace')}")
+    return {"wall": wall, "cpu": ru.ru_utime + ru.ru_stime, "peak_rss_mb": ru.ru_maxrss / 1024}
+
+
+def compare_v2e_command(
+    v2e_src: str,
+    *,
+    clips: tuple[str, ...] = V2E_CLIPS,
+    rounds: int = 3,
+    v2e_pythonpath: str = "",
+    preset: str = "v2e-default",
+) -> list[dict[str, Any]]:
+    """The whole ``fsdvs-hw simulate`` command against v2e's whole command, from the same video
+    file to an HDF5 event file, as a user runs each (decode, simulate, write; start-up included).
+
+    Per clip and round, one run of each alternates (fresh processes; the order flips every
+    round): ``fsdvs-hw simulate FILE --out ours.h5 --preset v2e-default`` and
+    ``python v2e.py -i FILE --disable_slomo --dvs_h5 events.h5 --skip_video_output --no_preview
+    --output_width W --output_height H`` (v2e's defaults otherwise: the settings ``v2e-default``
+    reproduces, v2e's frame mapping). Each command uses the machine's cores as it does by itself.
+    ``v2e_pythonpath``: where v2e.py's other imports are installed (e.g. ``pip install --target
+    DIR argcomplete engineering_notation easygui screeninfo numba dv-processing``).
+
+    Returns
+    -------
+    list of dict
+        Per clip: ``clip``, ``resolution``, ``n_frames``, ``events`` / ``v2e_events`` (events in
+        each file), ``ours_s`` / ``v2e_s`` (wall seconds per round), ``ours_cpu_s`` / ``v2e_cpu_s``,
+        ``ratio_median`` (v2e's median wall over ours), ``ours_peak_rss_mb`` / ``v2e_peak_rss_mb``,
+        ``rounds``, ``load_avg``.
+    """
+    import tempfile
+    from pathlib import Path
+
+    import h5py
+
+    from fsdvs_hw.errors import InputError
+    from fsdvs_hw.scenes.video import example_clip_path, video_properties
+
+    if not isinstance(rounds, int) or rounds < 1:
+        raise InputError(f"rounds: must be an integer >= 1, got {rounds!r}")
+    if not (Path(v2e_src) / "v2e.py").is_file():
+        raise InputError(f"v2e source {v2e_src!r}: no v2e.py there (the folder of a v2e checkout)")
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    out = []
+    with tempfile.TemporaryDirectory() as d:
+        stubs = Path(d) / "stubs"
+        for name, text in _V2E_COMMAND_STUBS.items():
+            (stubs / name).parent.mkdir(parents=True, exist_ok=True)
+            (stubs / name).write_text(text)
+        paths = [str(stubs), *([v2e_pythonpath] if v2e_pythonpath else []), str(v2e_src)]
+        v2e_env = {**os.environ, "PYTHONPATH": os.pathsep.join(paths)}
+        our_env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (here, os.environ.get("PYTHONPATH")) if p)}
+        for clip in clips:
+            if clip not in V2E_CLIPS:
+                raise InputError(f"clip {clip!r} unknown; allowed: {', '.join(V2E_CLIPS)}")
+            path = str(example_clip_path(clip))
+            props = video_properties(path)
+            width, height = props["source_size"]
+            ours_cmd = [sys.executable, "-m", "fsdvs_hw.cli", "simulate", path, "--out", str(Path(d) / "ours.h5")]
+            ours_cmd += ["--preset", preset, "--no-progress"]
+            v2e_cmd = [sys.executable, str(Path(v2e_src) / "v2e.py"), "-i", path, "--disable_slomo"]
+            v2e_cmd += ["--dvs_h5", "events.h5", "--skip_video_output", "--no_preview", "--overwrite"]
+            v2e_cmd += ["--output_folder", str(Path(d) / "v2e"), "--output_width", str(width)]
+            v2e_cmd += ["--output_height", str(height)]
+            ours, theirs, loads, n_ours, n_v2e = [], [], [], 0, 0
+            for k in range(rounds):
+                loads.append(os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan"))
+                for who in ("ours", "v2e") if k % 2 == 0 else ("v2e", "ours"):
+                    if who == "ours":
+                        ours.append(_timed_command(ours_cmd, our_env, d, "fsdvs-hw simulate"))
+                        with h5py.File(Path(d) / "ours.h5", "r") as f:
+                            n_ours = int(f["events"].shape[0])
+                    else:
+                        theirs.append(_timed_command(v2e_cmd, v2e_env, str(v2e_src), "v2e.py"))
+                        with h5py.File(Path(d) / "v2e" / "events.h5", "r") as f:
+                            n_v2e = int(f["events"].shape[0])
+            out.append(
+                {
+                    "clip": clip,
+                    "resolution": f"{height}×{width}",
+                    "n_frames": props.get("nframes"),
+                    "events": n_ours,
+                    "v2e_events": n_v2e,
+                    "ours_s": [r["wall"] for r in ours],
+                    "v2e_s": [r["wall"] for r in theirs],
+                    "ours_cpu_s": [r["cpu"] for r in ours],
+                    "v2e_cpu_s": [r["cpu"] for r in theirs],
+                    "ratio_median": statistics.median(r["wall"] for r in theirs)
+                    / statistics.median(r["wall"] for r in ours),
+                    "ours_peak_rss_mb": max(r["peak_rss_mb"] for r in ours),
+                    "v2e_peak_rss_mb": max(r["peak_rss_mb"] for r in theirs),
+                    "rounds": rounds,
+                    "load_avg": loads,
+                }
+            )
+    return out
+
+
+def compare_v2e_command_markdown(rows: list[dict[str, Any]]) -> str:
+    """The table of :func:`compare_v2e_command`: clip | v2e s | fsdvs_hw s (wall, median [min–max])
+    | ratio of medians | CPU ratio | events | peak RSS | rounds | load."""
+
+    def cell(xs: list[float]) -> str:
+        return f"{statistics.median(xs):.2f} [{min(xs):.2f}–{max(xs):.2f}]"
+
+    lines = [
+        "| clip | v2e command s | fsdvs-hw simulate s | ratio (wall) | ratio (CPU s) | events (fsdvs_hw / v2e) "
+        "| peak RSS fsdvs_hw / v2e (MB) | rounds | load |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        cpu = statistics.median(r["v2e_cpu_s"]) / statistics.median(r["ours_cpu_s"])
+        lines.append(
+            f"| {r['clip']} {r['resolution']} × {r['n_frames']} | {cell(r['v2e_s'])} | {cell(r['ours_s'])} | "
+            f"**{r['ratio_median']:.2f}×** | {cpu:.2f}× | {r['events']} / {r['v2e_events']} | "
+            f"{r['ours_peak_rss_mb']:.0f} / {r['v2e_peak_rss_mb']:.0f} | {r['rounds']} | "
+            f"{min(r['load_avg']):.1f}–{max(r['load_avg']):.1f} |"
+        )
+    return "\n".join(lines)
+
+
 def h5_filter_costs(clip: str = "bikes", *, n_frames: int = 60, repeats: int = 2) -> list[dict[str, Any]]:
     """CPU per event of writing v2e's ``.h5`` layout (dataset ``events`` (N, 4) uint32, chunks of
     65 536 rows) with h5py under four filter settings — gzip 4 (v2e's and this toolkit's), gzip 1,
@@ -1473,6 +1615,17 @@ def _main(argv: list[str]) -> None:
         default=2,
         help="v2e's torch threads (default 2: equal cores with the simulator's 1 + 2 workers)",
     )
+    ap.add_argument(
+        "--v2e-command",
+        metavar="V2E_SRC",
+        help="a v2e checkout: the whole simulate command against v2e.py, video file to .h5",
+    )
+    ap.add_argument(
+        "--v2e-pythonpath",
+        default="",
+        help="where v2e.py's other imports are installed (pip install --target DIR argcomplete "
+        "engineering_notation easygui screeninfo numba dv-processing)",
+    )
     ap.add_argument("--against", metavar="CHECKOUT", help="another fsdvs_hw checkout: print the A/B table")
     ap.add_argument("--stages", metavar="CLIP", help="time the simulate command's stages on this clip")
     ap.add_argument("--h5-filters", metavar="CLIP", help="CPU per event of the .h5 writer's filter settings")
@@ -1483,6 +1636,15 @@ def _main(argv: list[str]) -> None:
     elif args.h5_filters:
         for row in h5_filter_costs(args.h5_filters, repeats=args.rounds):
             print(f"| {row['filters']} | {row['cpu_ns_per_event']:.0f} | {row['size_mib']:.1f} | {row['events']} |")
+    elif args.v2e_command:
+        rows = compare_v2e_command(
+            args.v2e_command, clips=tuple(args.clips.split(",")), rounds=args.rounds, v2e_pythonpath=args.v2e_pythonpath
+        )
+        if args.json:
+            from fsdvs_hw.paths import write_output
+
+            write_output(args.json, json.dumps(rows, indent=1) + "\n")
+        print(compare_v2e_command_markdown(rows))
     elif args.stages:
         for row in simulate_command_stages(args.stages, repeats=args.rounds):
             w, c = row["walls"], row["cpus"]

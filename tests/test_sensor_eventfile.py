@@ -138,3 +138,48 @@ def test_hdf5_refuses_times_beyond_uint32_microseconds(tmp_path):
         write_events(tmp_path / "late.h5", ev, 4, 4)
     write_events(tmp_path / "late.npz", ev, 4, 4)
     assert read_events(tmp_path / "late.npz").t_us.tolist() == [4_295_000_000]
+
+
+def test_hdf5_chunks_deflated_in_parallel_decode_as_hdf5_filters_define(tmp_path):
+    """Writes of odd sizes across the 65 536-row chunks: the file reads back exactly, and each
+    stored chunk is what HDF5's shuffle (element size 4) + deflate filters define — a zlib stream
+    of the byte-shuffled rows, the edge chunk zero-padded."""
+    import zlib
+
+    import h5py
+
+    from fsdvs_hw.sensor.events import EventList
+
+    rng = np.random.default_rng(5)
+    sizes = [70_000, 65_536, 1, 130_000, 3]
+    n = sum(sizes)
+    t = np.sort(rng.uniform(0, 2.0, n))
+    x, y = rng.integers(0, 346, n), rng.integers(0, 260, n)
+    p = rng.choice(np.array([-1, 1], dtype=np.int8), n)
+    with EventFileWriter(tmp_path / "odd.h5", 346, 260) as w:
+        start = 0
+        for k in sizes:
+            sl = slice(start, start + k)
+            w.write(
+                EventList(
+                    torch.zeros(k, dtype=torch.int64),
+                    torch.from_numpy(x[sl]),
+                    torch.from_numpy(y[sl]),
+                    torch.from_numpy(t[sl]),
+                    torch.from_numpy(p[sl]),
+                )
+            )
+            start += k
+    want = np.stack([np.rint(t * 1e6), x, y, p > 0], axis=1).astype(np.uint32)
+    with h5py.File(tmp_path / "odd.h5", "r") as f:
+        d = f["events"]
+        assert np.array_equal(d[()], want)
+        assert (d.compression, d.compression_opts, d.shuffle, d.chunks) == ("gzip", 1, True, (65536, 4))
+        n_chunks = -(-n // 65536)
+        assert d.id.get_num_chunks() == n_chunks
+        for i in (0, n_chunks - 1):  # a whole chunk and the edge chunk
+            mask, raw = d.id.read_direct_chunk((i * 65536, 0))
+            rows = np.frombuffer(zlib.decompress(raw), np.uint8).reshape(4, -1).T.copy().view(np.uint32).reshape(-1, 4)
+            assert mask == 0 and rows.shape == (65536, 4)
+            part = want[i * 65536 : (i + 1) * 65536]
+            assert np.array_equal(rows[: len(part)], part) and not rows[len(part) :].any()

@@ -70,6 +70,10 @@ def read(path: str) -> int:
 
 
 def _h5_writer(path: str, width: int, height: int, metadata: dict) -> tuple:
+    import collections
+    import zlib
+    from concurrent.futures import ThreadPoolExecutor
+
     import h5py
     import numpy as np
 
@@ -98,14 +102,51 @@ def _h5_writer(path: str, width: int, height: int, metadata: dict) -> tuple:
     for k, v in attrs.items():
         f.attrs[k] = v
 
+    # The filters' work (deflate: ~160 ns per event, the whole command's longest stage) runs on
+    # two threads: each whole chunk is shuffled and deflated here exactly as HDF5's shuffle and
+    # deflate filters would (zlib streams, element size 4) and written with write_direct_chunk,
+    # in order; the dataset records both filters, so every HDF5 reader decodes it as before.
+    rows = int(ds.chunks[0])
+    pool = ThreadPoolExecutor(2, thread_name_prefix="h5-deflate")
+    pending: collections.deque = collections.deque()  # (first row, future of the chunk's bytes)
+    held: list = []  # rows not yet in a whole chunk
+    state = {"rows": 0}  # rows handed to the pool
+
+    def deflate(block) -> bytes:
+        full = block if len(block) == rows else np.concatenate([block, np.zeros((rows - len(block), 4), np.uint32)])
+        shuffled = np.ascontiguousarray(full).view(np.uint8).reshape(-1, 4).T.tobytes()
+        return zlib.compress(shuffled, 1)
+
+    def submit(block) -> None:
+        first = state["rows"]
+        state["rows"] = first + len(block)
+        ds.resize(state["rows"], axis=0)
+        pending.append((first, pool.submit(deflate, block)))
+
+    def drain(keep: int) -> None:
+        while len(pending) > keep:
+            first, fut = pending.popleft()
+            ds.id.write_direct_chunk((first, 0), fut.result())
+
     def write(t, x, y, p) -> None:
         block = np.empty((t.size, 4), dtype=np.uint32)
         block[:, 0], block[:, 1], block[:, 2], block[:, 3] = t, x, y, p
-        n0 = ds.shape[0]
-        ds.resize(n0 + t.size, axis=0)
-        ds[n0:] = block
+        held.append(block)
+        n = sum(len(b) for b in held)
+        if n < rows:
+            return
+        whole = np.concatenate(held) if len(held) > 1 else held[0]
+        cut = n - n % rows
+        for i in range(0, cut, rows):
+            submit(whole[i : i + rows])
+        held[:] = [whole[cut:]] if cut < n else []
+        drain(4)  # at most a few chunks (1 MiB each) in flight
 
     def close() -> None:
+        if held:
+            submit(np.concatenate(held))  # the edge chunk, zero-padded as HDF5 stores it
+        drain(0)
+        pool.shutdown()
         f.flush()
         f.close()
 
