@@ -1259,13 +1259,15 @@ import json, resource, sys, time
 import torch
 from fsdvs_hw.scenes.video import example_clip_path, iter_video
 from fsdvs_hw.sensor import SensorConfig, simulate
+from fsdvs_hw.sensor.presets import preset_input_mapping
 from fsdvs_hw.sensor.threads import event_list_threads
 clip, preset, stage = sys.argv[1:4]
 torch.set_num_threads(event_list_threads())
 for _ in simulate(torch.rand(3, 8, 8), config=SensorConfig.preset(preset)):
     pass  # the C kernels loaded
 c0, t0, n = time.process_time(), time.perf_counter(), 0
-frames = iter_video(example_clip_path(clip))
+# as the command: the preset's input mapping, float32 frames
+frames = iter_video(example_clip_path(clip), input_mapping=preset_input_mapping(preset), dtype="float32")
 if stage == "decode":
     for _ in frames:
         n += 1
@@ -1278,15 +1280,20 @@ print(json.dumps({"wall": time.perf_counter() - t0, "cpu": time.process_time() -
 """
 
 
+_STARTUP_CHILD = "import fsdvs_hw.cli, fsdvs_hw.cli.simulate, fsdvs_hw.sensor, fsdvs_hw.scenes.video, torch"
+
+
 def simulate_command_stages(
     clip: str = "bikes", *, preset: str = "v2e-default", repeats: int = 3, suffix: str = ".h5"
 ) -> list[dict[str, Any]]:
     """Where ``fsdvs-hw simulate example:CLIP --out events.h5 --preset PRESET`` spends its time.
 
-    Three fresh child processes per repeat, in turn: the video decoded only (frames to linear
-    luminance, :func:`fsdvs_hw.scenes.video.iter_video`), decoded and simulated (events counted,
-    not written), and the whole command (decode, simulate, write; the ``.h5`` writer is a child
-    process of the command, its CPU time counted). Returns one row per stage: ``stage``, ``walls``,
+    Four fresh child processes per repeat, in turn: start-up (Python and the command's imports,
+    whole process), the video decoded only (the preset's input mapping, float32, as the command:
+    :func:`fsdvs_hw.scenes.video.iter_video`), decoded and simulated (events counted, not
+    written), and the whole command (start-up, decode, simulate, write; the ``.h5`` writer is a
+    child process of the command, its CPU time counted). The decode and simulate stages are timed
+    inside their child, after its imports. Returns one row per stage: ``stage``, ``walls``,
     ``cpus`` (seconds per repeat, the command's children included), ``events`` (decode: frames),
     ``peak_rss_mb`` (the stage child's, not the writer's).
     """
@@ -1302,9 +1309,14 @@ def simulate_command_stages(
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (here, os.environ.get("PYTHONPATH")) if p)}
     rows = {
         k: {"stage": k, "walls": [], "cpus": [], "events": 0, "peak_rss_mb": 0.0}
-        for k in ("decode", "decode + simulate", "decode + simulate + write (the command)")
+        for k in ("start-up", "decode", "decode + simulate", "decode + simulate + write (the command)")
     }
     for _ in range(repeats):
+        # start-up: Python and the command's imports (torch, the simulator), nothing decoded
+        r = _timed_command([sys.executable, "-c", _STARTUP_CHILD], env, here, "start-up child")
+        rows["start-up"]["walls"].append(r["wall"])
+        rows["start-up"]["cpus"].append(r["cpu"])
+        rows["start-up"]["peak_rss_mb"] = max(rows["start-up"]["peak_rss_mb"], r["peak_rss_mb"])
         for stage in ("decode", "decode + simulate"):
             res = subprocess.run(
                 [sys.executable, "-c", _STAGE_CHILD, clip, preset, stage.split(" ")[-1]],

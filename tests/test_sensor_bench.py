@@ -177,3 +177,40 @@ def test_cuda_event_list_and_frames_match_the_cpu():
         n_cpu, n_gpu = int((cpu_e.p == pol).sum()), int((gpu_e.p == pol).sum())
         assert abs(n_cpu - n_gpu) <= 0.005 * max(n_cpu, 1)
     assert bool((gpu_e.t[1:] >= gpu_e.t[:-1]).all())
+
+
+def test_whole_command_comparison_runs_both_commands_and_counts_their_files(tmp_path):
+    """The orchestration of ``--v2e-command`` with a stand-in v2e.py (it writes v2e's layout with
+    as many events as the file's frames): both commands run, both files are counted, the
+    ratio is v2e's median wall over ours; bad input is refused by name."""
+    import json
+
+    from benchmarks.sim import compare_v2e_command, compare_v2e_command_markdown
+
+    with pytest.raises(InputError, match="no v2e.py there"):
+        compare_v2e_command(str(tmp_path))
+    (tmp_path / "v2e.py").write_text(
+        "import argparse, h5py, json, numpy as np, os, sys\n"
+        "ap = argparse.ArgumentParser(); ap.add_argument('-i'); ap.add_argument('--dvs_h5')\n"
+        "ap.add_argument('--output_folder'); ap.add_argument('--output_width', type=int)\n"
+        "ap.add_argument('--output_height', type=int)\n"
+        "a, rest = ap.parse_known_args()\n"
+        "assert {'--disable_slomo', '--skip_video_output', '--no_preview'} <= set(rest), rest\n"
+        "import torchvision  # v2e.py imports it: the comparison's stub must be on the path\n"
+        "os.makedirs(a.output_folder, exist_ok=True)\n"
+        "with h5py.File(os.path.join(a.output_folder, a.dvs_h5), 'w') as f:\n"
+        "    f['events'] = np.zeros((a.output_width * 0 + 7, 4), np.uint32)\n"
+        "print(json.dumps([a.output_width, a.output_height]))\n"
+    )
+    with pytest.raises(InputError, match="rounds"):
+        compare_v2e_command(str(tmp_path), rounds=0)
+    with pytest.raises(InputError, match="clip 'nope' unknown"):
+        compare_v2e_command(str(tmp_path), clips=("nope",))
+    (row,) = compare_v2e_command(str(tmp_path), clips=("carphone",), rounds=1)
+    assert row["v2e_events"] == 7 and row["events"] > 1000  # carphone at v2e-default: ~357 000
+    assert row["resolution"] == "144×176" and len(row["ours_s"]) == len(row["v2e_s"]) == 1
+    assert row["ratio_median"] == pytest.approx(row["v2e_s"][0] / row["ours_s"][0])
+    assert row["ours_cpu_s"][0] > 0 and row["ours_peak_rss_mb"] > 50
+    json.dumps(row)  # the record is JSON
+    text = compare_v2e_command_markdown([{**row, "v2e_s": [6.0, 4.0], "ours_s": [2.0, 1.0]}])
+    assert "| 5.00 [4.00–6.00] | 1.50 [1.00–2.00] |" in text

@@ -29,14 +29,19 @@ import sys
 __all__: list[str] = []
 
 
-def _read_exact(stream, n: int) -> bytes:
-    buf = bytearray()
-    while len(buf) < n:
-        block = stream.read(n - len(buf))
-        if not block:
+def _read_array(stream, n: int, dtype: str):
+    """``n`` items of ``dtype`` read from ``stream`` straight into a new array (EOFError if it ends first)."""
+    import numpy as np
+
+    out = np.empty(n, dtype=dtype)
+    view = memoryview(out).cast("B")
+    got = 0
+    while got < len(view):
+        k = stream.readinto(view[got:])
+        if not k:
             raise EOFError
-        buf += block
-    return bytes(buf)
+        got += k
+    return out
 
 
 def read(path: str) -> int:
@@ -206,13 +211,10 @@ def main(argv: list[str]) -> int:
     stdin = sys.stdin.buffer
     try:
         while True:
-            n = int(np.frombuffer(_read_exact(stdin, 8), dtype="<i8")[0])
+            n = int(_read_array(stdin, 1, "<i8")[0])
             if n < 0:
                 break
-            t = np.frombuffer(_read_exact(stdin, 8 * n), dtype="<i8")
-            x = np.frombuffer(_read_exact(stdin, 2 * n), dtype="<i2")
-            y = np.frombuffer(_read_exact(stdin, 2 * n), dtype="<i2")
-            p = np.frombuffer(_read_exact(stdin, n), dtype="u1")
+            t, x, y, p = (_read_array(stdin, n, dt) for dt in ("<i8", "<i2", "<i2", "u1"))
             write(t, x, y, p)
         close()
         fd = os.open(path, os.O_RDONLY)
