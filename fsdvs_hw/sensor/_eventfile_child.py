@@ -201,8 +201,6 @@ def main(argv: list[str]) -> int:
         return read(argv[0])
     import json
 
-    import numpy as np
-
     fmt, path, width, height = argv[0], argv[1], int(argv[2]), int(argv[3])
     try:
         write, close = (_h5_writer if fmt == "hdf5" else _aedat4_writer)(path, width, height, json.loads(argv[4]))
