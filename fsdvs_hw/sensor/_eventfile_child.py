@@ -34,7 +34,7 @@ def _read_array(stream, n: int, dtype: str):
     import numpy as np
 
     out = np.empty(n, dtype=dtype)
-    view = memoryview(out).cast("B")
+    view = out.data.cast("B")
     got = 0
     while got < len(view):
         k = stream.readinto(view[got:])

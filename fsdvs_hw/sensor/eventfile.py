@@ -327,7 +327,7 @@ class EventFileWriter:
             pipe = self._child.stdin
             pipe.write(np.int64(t_us.size).astype("<i8").tobytes())
             for arr, dt in ((t_us, "<i8"), (x, "<i2"), (y, "<i2"), (p > 0, "u1")):
-                pipe.write(memoryview(np.ascontiguousarray(arr, dtype=dt)).cast("B"))  # no bytes copy
+                pipe.write(np.ascontiguousarray(arr, dtype=dt).data.cast("B"))  # no bytes copy
             pipe.flush()
         else:
             for k, arr in (("t", t_us), ("x", x.astype(np.uint16)), ("y", y.astype(np.uint16)), ("p", p)):
