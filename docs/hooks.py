@@ -12,7 +12,8 @@ Three jobs, all at build time, so that nothing measured is typed by hand into a 
   differences of ``designs/results/rate/TASK_matched_rate.json`` (``fsdvs-hw rate``);
   ``<!-- codesign-table: NAME -->`` the report's co-design table of
   ``designs/results/NAME/codesign.json``; ``<!-- limits-table -->`` the constants of
-  ``fsdvs_hw/limits.py``.
+  ``fsdvs_hw/limits.py``; ``<!-- v2e-table: NAME -->`` the side-by-side record
+  ``benchmarks/records/v2e/NAME.json`` (this simulator against v2e, or two checkouts).
 * **Repository files on the site.** ``CONTRIBUTING.md``, ``CHANGELOG.md`` and ``benchmarks/README.md``
   become pages, the README figures (``designs/figures/*.png``) site files, and links from a page to
   those repository paths (``../designs/figures/x.png``) are rewritten to their site address; a link
@@ -47,6 +48,7 @@ REPO_PAGES = {
 _BENCH = re.compile(r"^<!--\s*bench-tables:\s*([a-z0-9_]+)\s*-->\s*$", re.MULTILINE)
 _RATE = re.compile(r"^<!--\s*rate-table\s*-->\s*$", re.MULTILINE)
 _CODESIGN = re.compile(r"^<!--\s*codesign-table:\s*([a-z0-9_]+)\s*-->\s*$", re.MULTILINE)
+_V2E = re.compile(r"^<!--\s*v2e-table:\s*([a-z0-9_]+)\s*-->\s*$", re.MULTILINE)
 _LIMITS = re.compile(r"^<!--\s*limits-table\s*-->\s*$", re.MULTILINE)
 _CONSTANT = re.compile(r"((?:^#:.*\n)+)^([A-Z_]+): \w+ = (.+)$", re.MULTILINE)
 _LINK = re.compile(r"(!?)\[([^\]]*)\]\(([^)\s]+)\)")
@@ -322,6 +324,17 @@ def codesign_table(name: str) -> str:
     )
 
 
+def v2e_table(name: str) -> str:
+    """A side-by-side record ``benchmarks/records/v2e/NAME.json`` (``python -m benchmarks.sim
+    --v2e / --v2e-command / --against ... --json``) as its table and provenance line."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from benchmarks.sim import comparison_markdown
+
+    path = RECORDS / "v2e" / f"{name}.json"
+    return comparison_markdown(json.loads(path.read_text(encoding="utf-8"))) + f" *Record: `{path.relative_to(ROOT)}`.*"
+
+
 def _html_text(fragment: str) -> str:
     """The text of an HTML fragment (tags dropped, entities decoded, whitespace collapsed)."""
     import html
@@ -351,4 +364,5 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
     markdown = _RATE.sub(lambda m: rate_table(), markdown)
     markdown = _LIMITS.sub(lambda m: limits_table(), markdown)
     markdown = _CODESIGN.sub(lambda m: codesign_table(m.group(1)), markdown)
+    markdown = _V2E.sub(lambda m: v2e_table(m.group(1)), markdown)
     return _rewrite_links(markdown, page)

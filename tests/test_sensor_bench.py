@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 
 import pytest
@@ -214,3 +215,31 @@ def test_whole_command_comparison_runs_both_commands_and_counts_their_files(tmp_
     json.dumps(row)  # the record is JSON
     text = compare_v2e_command_markdown([{**row, "v2e_s": [6.0, 4.0], "ours_s": [2.0, 1.0]}])
     assert "| 5.00 [4.00–6.00] | 1.50 [1.00–2.00] |" in text
+
+
+def test_comparison_records_carry_their_command_and_render_their_table():
+    from benchmarks.sim import comparison_markdown, comparison_record
+
+    row = {
+        "clip": "bikes",
+        "resolution": "272×640",
+        "n_frames": 250,
+        "events": 17_303_741,
+        "v2e_events": 17_304_972,
+        "ours_s": [8.0, 7.5, 8.5],
+        "v2e_s": [19.0, 19.5, 18.0],
+        "ours_cpu_s": [11.0],
+        "v2e_cpu_s": [27.5],
+        "ratio_median": 19.0 / 8.0,
+        "ours_peak_rss_mb": 340.0,
+        "v2e_peak_rss_mb": 590.0,
+        "rounds": 3,
+        "load_avg": [1.5, 1.6, 1.6],
+    }
+    rec = comparison_record("command", [row], "python -m benchmarks.sim --v2e-command SRC")
+    assert rec["commit"] and rec["machine"]["cpu_count"] >= 1 and rec["versions"]["torch"]
+    text = comparison_markdown(json.loads(json.dumps(rec)))
+    assert "| bikes 272×640 × 250 | 19.00 [18.00–19.50] | 8.00 [7.50–8.50] | **2.38×** | 2.50× |" in text
+    assert "command: `python -m benchmarks.sim --v2e-command SRC`" in text
+    with pytest.raises(InputError, match="kind 'gpu' unknown"):
+        comparison_markdown({**rec, "kind": "gpu"})
