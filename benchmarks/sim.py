@@ -1513,6 +1513,81 @@ def compare_v2e_command_markdown(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+_THREAD_CPU_CHILD = r"""
+import json, os, sys, threading, time
+import numpy as np, torch
+from fsdvs_hw.scenes.video import example_clip_path, iter_video
+from fsdvs_hw.sensor import SensorConfig, simulate
+from fsdvs_hw.sensor.threads import event_list_threads
+clip, mapping, preset, n_frames = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
+torch.set_num_threads(event_list_threads())
+frames = [f for _, f in iter_video(example_clip_path(clip), input_mapping=mapping, dtype="float32",
+                                   n_frames=n_frames or None)]
+video = torch.from_numpy(np.stack(frames))
+cfg = SensorConfig.preset(preset, seed=0)
+for _ in simulate(video[:3], config=cfg):
+    pass
+tick, main_tid = os.sysconf("SC_CLK_TCK"), str(os.getpid())
+def cpu():
+    out = {}
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            name = open(f"/proc/self/task/{tid}/comm").read().strip()
+            f = open(f"/proc/self/task/{tid}/stat").read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue  # the thread ended
+        out[(tid, "stepping (main)" if tid == main_tid else name.rstrip("0123456789").rstrip("_"))] = (
+            int(f[11]) + int(f[12])) / tick
+    return out
+before, last, stop = cpu(), {}, threading.Event()
+def poll():  # the pipeline's workers end with the run: keep their last reading
+    while not stop.wait(0.01):
+        last.update(cpu())
+poller = threading.Thread(target=poll, daemon=True)
+poller.start()
+t0, n = time.perf_counter(), 0
+for c in simulate(video, config=cfg, chunk_frames=1):
+    n += len(c.events)
+wall = time.perf_counter() - t0
+stop.set(); poller.join()
+after = {**last, **cpu()}
+per = {}
+for key, v in after.items():
+    if key[0] != str(poller.native_id):
+        per[key[1]] = per.get(key[1], 0.0) + v - before.get(key, 0.0)
+print(json.dumps({"wall": wall, "events": n, "frames": len(frames), "cpu": per}))
+"""
+
+
+def thread_cpu_seconds(
+    clip: str = "bikes", *, input_mapping: str = "v2e_gray", preset: str = "v2e-default", n_frames: int = 0
+) -> dict[str, Any]:
+    """CPU seconds of each thread of one exact event list (Linux: ``/proc/self/task``), in a fresh
+    child: the clip's decoded frames (``n_frames``, 0 = all) through ``simulate(frames)`` at
+    ``preset``. The workers carry their names (:func:`fsdvs_hw.sensor.threads.name_os_thread`); a
+    poller keeps their last reading, since they end with the run (its own time is left out).
+
+    Returns
+    -------
+    dict
+        ``wall`` (s), ``events``, ``frames``, ``cpu``: thread name -> CPU seconds
+        (``stepping (main)``, ``fsdvs-emit``, ``fsdvs-sort``, ``fsdvs-noise``; others as named).
+    """
+    from fsdvs_hw.errors import InputError
+
+    if clip not in V2E_CLIPS:
+        raise InputError(f"clip {clip!r} unknown; allowed: {', '.join(V2E_CLIPS)}")
+    if not os.path.isdir("/proc/self/task"):
+        raise InputError("per-thread CPU times need Linux's /proc/self/task")
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (here, os.environ.get("PYTHONPATH")) if p)}
+    cmd = [sys.executable, "-c", _THREAD_CPU_CHILD, clip, input_mapping, preset, str(int(n_frames))]
+    res = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
+    if res.returncode != 0:
+        raise RuntimeError(f"per-thread CPU child failed: {res.stderr[-2000:]}")
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
 def h5_filter_costs(clip: str = "bikes", *, n_frames: int = 60, repeats: int = 2) -> list[dict[str, Any]]:
     """CPU per event of writing v2e's ``.h5`` layout (dataset ``events`` (N, 4) uint32, chunks of
     65 536 rows) with h5py under four filter settings — gzip 4 (v2e's and this toolkit's), gzip 1,
@@ -1701,10 +1776,18 @@ def _main(argv: list[str]) -> None:
     ap.add_argument("--against", metavar="CHECKOUT", help="another fsdvs_hw checkout: print the A/B table")
     ap.add_argument("--stages", metavar="CLIP", help="time the simulate command's stages on this clip")
     ap.add_argument("--h5-filters", metavar="CLIP", help="CPU per event of the .h5 writer's filter settings")
+    ap.add_argument("--thread-cpu", metavar="CLIP", help="CPU seconds of each event-list thread on this clip")
     ap.add_argument("--json", default=None, help="also write the comparison rows (JSON) here")
     args = ap.parse_args(argv)
     if args.child:
         _child_main(args.child)
+    elif args.thread_cpu:
+        for _ in range(args.rounds):
+            r = thread_cpu_seconds(args.thread_cpu, input_mapping=args.input_mapping)
+            cpu = ", ".join(f"{k} {v:.2f}" for k, v in sorted(r["cpu"].items()) if v >= 0.005)
+            print(
+                f"{args.thread_cpu} ({args.input_mapping}): {r['events']} events, wall {r['wall']:.2f} s; CPU s: {cpu}"
+            )
     elif args.h5_filters:
         for row in h5_filter_costs(args.h5_filters, repeats=args.rounds):
             print(f"| {row['filters']} | {row['cpu_ns_per_event']:.0f} | {row['size_mib']:.1f} | {row['events']} |")

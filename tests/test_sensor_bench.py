@@ -243,3 +243,18 @@ def test_comparison_records_carry_their_command_and_render_their_table():
     assert "command: `python -m benchmarks.sim --v2e-command SRC`" in text
     with pytest.raises(InputError, match="kind 'gpu' unknown"):
         comparison_markdown({**rec, "kind": "gpu"})
+
+
+@pytest.mark.skipif(not __import__("os").path.isdir("/proc/self/task"), reason="needs Linux /proc")
+def test_thread_cpu_names_every_event_list_thread():
+    """The pipeline's workers carry their names at the OS level (unnamed threads read as the
+    process name, 'python'), so each one's CPU time is read by name; the stepping thread does
+    measurable work."""
+    from benchmarks.sim import thread_cpu_seconds
+
+    r = thread_cpu_seconds("carphone", n_frames=30)
+    assert r["frames"] == 30 and r["events"] > 1000
+    assert {"stepping (main)", "fsdvs-emit", "fsdvs-sort"} <= set(r["cpu"])
+    assert r["cpu"]["stepping (main)"] > 0 and all(v >= 0 for v in r["cpu"].values())
+    with pytest.raises(InputError, match="clip 'nope' unknown"):
+        thread_cpu_seconds("nope")

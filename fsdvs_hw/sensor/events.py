@@ -53,6 +53,7 @@ from .config import SATURATION_INTENSITY, SensorConfig
 from .crossings import crossing_step, noise_step, shot_noise_pixels, sort_interval, to_event_columns
 from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
 from .pixel import effect_generator, lowpass_step, threshold_maps
+from .threads import name_os_thread
 
 __all__ = [
     "EventList",
@@ -443,8 +444,8 @@ class _EventPipeline:
 
     def __init__(self, chunked: bool = False) -> None:
         self.chunked = chunked  # sort a whole chunk at once, into its columns (see columns())
-        self.emit_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-emit")
-        self.sort_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-sort")
+        self.emit_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-emit", initializer=name_os_thread)
+        self.sort_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-sort", initializer=name_os_thread)
         self.noise_pool: ThreadPoolExecutor | None = None  # started by the first noise draw
         self.steps: list = []  # futures of crossing_step: (lost, em_on, em_off)
         self.noise_draws: list = []  # futures of shot-noise draws: (on_px, off_px)
@@ -495,7 +496,7 @@ class _EventPipeline:
         step order on the noise worker, ahead of the emitter) then ``emit(parts, on_px, off_px,
         *rest)`` in step order on the emit worker. The draw is kept for :meth:`take_noise`."""
         if self.noise_pool is None:
-            self.noise_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-noise")
+            self.noise_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-noise", initializer=name_os_thread)
         drawn = self.noise_pool.submit(draw, *draw_args)
         self.noise_draws.append(drawn)
         parts, *rest = emit_args
