@@ -258,3 +258,23 @@ def test_thread_cpu_names_every_event_list_thread():
     assert r["cpu"]["stepping (main)"] > 0 and all(v >= 0 for v in r["cpu"].values())
     with pytest.raises(InputError, match="clip 'nope' unknown"):
         thread_cpu_seconds("nope")
+
+
+def test_h5_filter_costs_cover_the_writer_and_read_every_file_back():
+    """Each filter setting and the toolkit's threaded writer write the same events, read back
+    equal (the function raises otherwise); the shuffle filter shrinks the file."""
+    from benchmarks.sim import h5_filter_costs
+
+    rows = h5_filter_costs("carphone", n_frames=6, repeats=1)
+    names = [r["filters"] for r in rows]
+    assert names == [
+        "gzip 4",
+        "gzip 1",
+        "shuffle + gzip 4",
+        "shuffle + gzip 1",
+        "the writer (shuffle + gzip 1, 2 threads)",
+    ]
+    assert len({r["events"] for r in rows}) == 1 and rows[0]["events"] > 1000
+    by = {r["filters"]: r for r in rows}
+    assert by["shuffle + gzip 1"]["size_mib"] < by["gzip 1"]["size_mib"]
+    assert all(r["cpu_ns_per_event"] > 0 and r["wall_ns_per_event"] > 0 for r in rows)
