@@ -1490,12 +1490,14 @@ def compare_v2e_command(
     return out
 
 
+def _median_range(xs: list[float]) -> str:
+    """``median [min–max]`` of a list of per-round figures, two decimals."""
+    return f"{statistics.median(xs):.2f} [{min(xs):.2f}–{max(xs):.2f}]"
+
+
 def compare_v2e_command_markdown(rows: list[dict[str, Any]]) -> str:
     """The table of :func:`compare_v2e_command`: clip | v2e s | fsdvs_hw s (wall, median [min–max])
     | ratio of medians | CPU ratio | events | peak RSS | rounds | load."""
-
-    def cell(xs: list[float]) -> str:
-        return f"{statistics.median(xs):.2f} [{min(xs):.2f}–{max(xs):.2f}]"
 
     lines = [
         "| clip | v2e command s | fsdvs-hw simulate s | ratio (wall) | ratio (CPU s) | events (fsdvs_hw / v2e) "
@@ -1505,7 +1507,7 @@ def compare_v2e_command_markdown(rows: list[dict[str, Any]]) -> str:
     for r in rows:
         cpu = statistics.median(r["v2e_cpu_s"]) / statistics.median(r["ours_cpu_s"])
         lines.append(
-            f"| {r['clip']} {r['resolution']} × {r['n_frames']} | {cell(r['v2e_s'])} | {cell(r['ours_s'])} | "
+            f"| {r['clip']} {r['resolution']} × {r['n_frames']} | {_median_range(r['v2e_s'])} | {_median_range(r['ours_s'])} | "
             f"**{r['ratio_median']:.2f}×** | {cpu:.2f}× | {r['events']} / {r['v2e_events']} | "
             f"{r['ours_peak_rss_mb']:.0f} / {r['v2e_peak_rss_mb']:.0f} | {r['rounds']} | "
             f"{min(r['load_avg']):.1f}–{max(r['load_avg']):.1f} |"
@@ -1669,9 +1671,6 @@ def compare_v2e_markdown(rows: list[dict[str, Any]], other: str = "v2e") -> str:
     checkout): clip | other | fsdvs_hw (Mpixel-frames/s, median [min–max] over rounds) | ratio of
     medians | per-CPU-second ratio | events | peak RSS."""
 
-    def cell(xs: list[float]) -> str:
-        return f"{statistics.median(xs):.2f} [{min(xs):.2f}–{max(xs):.2f}]"
-
     lines = [
         f"| clip | {other} Mpixel-frames/s | fsdvs_hw Mpixel-frames/s | ratio (wall) | ratio (per CPU s) | "
         f"events (fsdvs_hw / {other}) | peak RSS fsdvs_hw / {other} (MB) | rounds | load |",
@@ -1680,8 +1679,8 @@ def compare_v2e_markdown(rows: list[dict[str, Any]], other: str = "v2e") -> str:
     for r in rows:
         cpu_ratio = statistics.median(r["ours_mpf_cpu_s"]) / statistics.median(r["v2e_mpf_cpu_s"])
         lines.append(
-            f"| {r['clip']} {r['resolution']} × {r['n_frames']} | {cell(r['v2e_mpf_s'])} | "
-            f"{cell(r['ours_mpf_s'])} | **{r['ratio_median']:.2f}×** | {cpu_ratio:.2f}× | "
+            f"| {r['clip']} {r['resolution']} × {r['n_frames']} | {_median_range(r['v2e_mpf_s'])} | "
+            f"{_median_range(r['ours_mpf_s'])} | **{r['ratio_median']:.2f}×** | {cpu_ratio:.2f}× | "
             f"{r['events']} / {r['v2e_events']} | {r['ours_peak_rss_mb']:.0f} / {r['v2e_peak_rss_mb']:.0f} | "
             f"{r['rounds']} | {min(r['load_avg']):.1f}–{max(r['load_avg']):.1f} |"
         )
@@ -1740,6 +1739,14 @@ def comparison_markdown(record: dict[str, Any]) -> str:
         f"{record.get('commit') or 'unknown'}, torch {record['versions'].get('torch')}; "
         f"median [min–max] over rounds; command: `{record['command']}`.*"
     )
+
+
+def _write_comparison(path: str, kind: str, rows: list[dict[str, Any]], argv: list[str]) -> None:
+    """Write :func:`comparison_record` of ``rows`` to ``path`` (atomically), with the command line."""
+    from fsdvs_hw.paths import write_output
+
+    record = comparison_record(kind, rows, "python -m benchmarks.sim " + " ".join(argv))
+    write_output(path, json.dumps(record, indent=1) + "\n")
 
 
 def _child_main(spec_json: str) -> None:
@@ -1819,10 +1826,7 @@ def _main(argv: list[str]) -> None:
             args.v2e_command, clips=tuple(args.clips.split(",")), rounds=args.rounds, v2e_pythonpath=args.v2e_pythonpath
         )
         if args.json:
-            from fsdvs_hw.paths import write_output
-
-            record = comparison_record("command", rows, "python -m benchmarks.sim " + " ".join(argv))
-            write_output(args.json, json.dumps(record, indent=1) + "\n")
+            _write_comparison(args.json, "command", rows, argv)
         print(compare_v2e_command_markdown(rows))
     elif args.stages:
         for row in simulate_command_stages(args.stages, repeats=args.rounds):
@@ -1846,11 +1850,7 @@ def _main(argv: list[str]) -> None:
             else compare_checkouts(args.against, clips=clips, rounds=args.rounds)
         )
         if args.json:
-            from fsdvs_hw.paths import write_output
-
-            kind = "emulator" if args.v2e else "checkouts"
-            record = comparison_record(kind, rows, "python -m benchmarks.sim " + " ".join(argv))
-            write_output(args.json, json.dumps(record, indent=1) + "\n")
+            _write_comparison(args.json, "emulator" if args.v2e else "checkouts", rows, argv)
         print(compare_v2e_markdown(rows, "v2e" if args.v2e else "other checkout"))
     else:
         print(bench_sim(quick=args.quick, long=args.long).markdown)

@@ -108,6 +108,8 @@ def test_integer_code_values_decode_through_the_table_as_each_sample(transfer):
         display_to_linear(np.array([1024], dtype=np.uint16), transfer=transfer, bit_depth=10)
     with pytest.raises(InputError, match=r"within \[0, 255\] \(8-bit\)"):
         display_to_linear(np.array([-1], dtype=np.int8), transfer=transfer)
+    with pytest.raises(InputError, match=r"bit_depth: must be an integer in \[1, 32\], got -1"):
+        display_to_linear(ten, transfer=transfer, bit_depth=-1)
 
 
 def test_example_clip_paths_are_scikit_videos_files_without_importing_its_datasets():

@@ -81,8 +81,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--dtype",
         choices=("float32", "float64"),
         default="float32",
-        help="precision of the simulation (default float32, v2e's; float64 halves the speed and "
-        "moves events that sit within float32 rounding of a threshold)",
+        help="precision of the simulation (default float32, v2e's; float64 is about 1.3x slower and "
+        "moves only events that sit within float32 rounding of a threshold)",
     )
     parser.add_argument(
         "--upsample",

@@ -215,6 +215,8 @@ def display_to_linear(
             f"transfer {transfer!r} unknown; allowed e.g. 'ITU-R BT.1886', 'sRGB', "
             "'Gamma 2.2' (any colour.CCTF_DECODINGS name)"
         )
+    if bit_depth is not None and not (isinstance(bit_depth, int) and 1 <= bit_depth <= 32):
+        raise InputError(f"bit_depth: must be an integer in [1, 32], got {bit_depth!r}")
     if arr.dtype.kind in "ui":
         bits = bit_depth or (8 * arr.dtype.itemsize)
         if arr.size and (arr.min() < 0 or int(arr.max()) > 2**bits - 1):
