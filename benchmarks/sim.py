@@ -1207,11 +1207,13 @@ def compare_checkouts(
     rounds: int = 5,
     preset: str = "v2e-default",
     chunk_frames: int = 1,
+    input_mapping: str = "v2e_gray",
 ) -> list[dict[str, Any]]:
     """This checkout's exact event list against another checkout's (an A/B of two versions of
-    the simulator), on the same pre-decoded frames, alternating the two in ``rounds`` rounds of
-    one fresh child process each (public API only: :func:`fsdvs_hw.sensor.simulate`, so any
-    version runs it). Rows as :func:`compare_v2e`'s, "v2e" standing for ``other_root``."""
+    the simulator), on the same pre-decoded frames (``input_mapping`` as in :func:`compare_v2e`),
+    alternating the two in ``rounds`` rounds of one fresh child process each (public API only:
+    :func:`fsdvs_hw.sensor.simulate`, so any version runs it). Rows as :func:`compare_v2e`'s,
+    "v2e" standing for ``other_root``."""
     import tempfile
     from pathlib import Path
 
@@ -1224,7 +1226,7 @@ def compare_checkouts(
     for clip in clips:
         with tempfile.TemporaryDirectory() as d:
             frames = Path(d) / f"{clip}.npy"
-            save_clip_frames(clip, frames)
+            save_clip_frames(clip, frames, input_mapping=input_mapping)
             runs: dict[str, list] = {here: [], other_root: []}
             for _ in range(rounds):
                 for root in runs:
@@ -1256,6 +1258,7 @@ def compare_checkouts(
                 "device": "cpu",
                 "load_avg": [r["load"] for r in mine],
                 "other": other_root,
+                "input_mapping": input_mapping,
             }
         )
     return out
@@ -1847,7 +1850,7 @@ def _main(argv: list[str]) -> None:
                 input_mapping=args.input_mapping,
             )
             if args.v2e
-            else compare_checkouts(args.against, clips=clips, rounds=args.rounds)
+            else compare_checkouts(args.against, clips=clips, rounds=args.rounds, input_mapping=args.input_mapping)
         )
         if args.json:
             _write_comparison(args.json, "emulator" if args.v2e else "checkouts", rows, argv)

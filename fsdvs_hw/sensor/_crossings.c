@@ -14,6 +14,8 @@
 #include <stdint.h>
 #include <stdlib.h>
 
+#include "_native_clones.h"
+
 #define BIG_BUCKET 32
 
 /* Events of one step in input order (ON pixels first, raster order, each pixel's events
@@ -23,7 +25,7 @@
  * every emitted event. Returns the number of events written; *lost receives the crossings lost to
  * the refractory period. */
 #define STEP_EVENTS(NAME, REAL)                                                          \
-    int64_t NAME(const REAL *h_on, const REAL *h_off, const REAL *sig_a, const REAL *ref_a,         \
+    FSDVS_CLONES int64_t NAME(const REAL *h_on, const REAL *h_off, const REAL *sig_a, const REAL *ref_a,         \
                  const REAL *d_b, const REAL *c_on, int64_t n_c_on, const REAL *c_off,               \
                  int64_t n_c_off, const double *t_a, const double *t_b, const double *dt,           \
                  int64_t n_pix, int64_t hw, double *last_t, double refr, int use_refr,               \

@@ -1,6 +1,7 @@
-"""Build, load and call the compiled kernels of :mod:`.crossings` (``_crossings.c``).
+"""Build, load and call the compiled kernels of :mod:`.crossings` (``_crossings.c``) and the fused
+no-grad pixel step of :mod:`.fused` (``_fused.c``).
 
-The C source is compiled once per machine with the system C compiler (``$CC``, else ``cc``) into
+The C sources are compiled once per machine with the system C compiler (``$CC``, else ``cc``) into
 a per-user cache (``$FSDVS_HW_CACHE``, else ``$XDG_CACHE_HOME/fsdvs_hw``, else
 ``~/.cache/fsdvs_hw``), keyed by a hash of the source and flags, and loaded with :mod:`ctypes`,
 which releases the GIL during each call (so the event pipeline's worker threads run in parallel
@@ -27,9 +28,10 @@ import numpy as np
 
 __all__: list[str] = []  # private helpers of .crossings
 
-_SOURCE = Path(__file__).with_name("_crossings.c")
+_SOURCES = [Path(__file__).with_name(n) for n in ("_crossings.c", "_fused.c")]
+_HEADERS = [Path(__file__).with_name("_native_clones.h")]  # hashed with the sources
 # no FMA contraction and no reassociation: results bit-identical to the torch path
-_FLAGS = ["-O3", "-std=c99", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math"]
+_FLAGS = ["-O3", "-std=c99", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math", "-fno-trapping-math"]
 _lib: ctypes.CDLL | None = None
 _tried = False
 _error = ""
@@ -51,7 +53,7 @@ def _cache_dir() -> Path:
 
 def _build() -> Path:
     """Compile the kernels if this source and these flags have not been compiled yet."""
-    src = _SOURCE.read_bytes()
+    src = b"".join(p.read_bytes() for p in (*_SOURCES, *_HEADERS))
     cc = os.environ.get("CC", "cc")
     key = hashlib.sha256(src + " ".join([cc, *_FLAGS, platform.machine()]).encode()).hexdigest()[:16]
     out = _cache_dir() / f"crossings-{key}.so"
@@ -61,7 +63,9 @@ def _build() -> Path:
     fd, tmp = tempfile.mkstemp(suffix=".so", dir=out.parent)
     os.close(fd)
     try:
-        res = subprocess.run([cc, *_FLAGS, "-o", tmp, str(_SOURCE), "-lm"], capture_output=True, text=True, check=False)
+        res = subprocess.run(
+            [cc, *_FLAGS, "-o", tmp, *map(str, _SOURCES), "-lm"], capture_output=True, text=True, check=False
+        )
         if res.returncode != 0:
             raise OSError(f"{cc} failed: {res.stderr.strip()[-500:]}")
         os.replace(tmp, out)  # atomic: parallel builders (pytest -n) never load a half-written file
@@ -90,6 +94,16 @@ def _load() -> ctypes.CDLL | None:
     for name in ("fsdvs_step_events_f32", "fsdvs_step_events_f64"):
         getattr(lib, name).argtypes = step
         getattr(lib, name).restype = _I
+    for real, name in ((ctypes.c_float, "f32"), (ctypes.c_double, "f64")):
+        fn = getattr(lib, f"fsdvs_lowpass_exponent_{name}")
+        fn.argtypes, fn.restype = [_P, _I, _I, _P, real, real, real, real, _P], None
+        fn = getattr(lib, f"fsdvs_pixel_step_{name}")
+        fn.argtypes = [_P] * 4 + [_P, _I, _P, _I, _P, real, real, _I, _I] + [_P] * 5
+        fn.restype = None
+        fn = getattr(lib, f"fsdvs_linlog_clamp_{name}")
+        fn.argtypes, fn.restype = [_P, _I, real, real, _P], None
+        fn = getattr(lib, f"fsdvs_linlog_finish_{name}")
+        fn.argtypes, fn.restype = [_P, _P, _I, real, real, real, _D, _P], None
     lib.fsdvs_sort_interval.argtypes = [_I, _P, _P, _P, _P, _D, _D, _I, _P, _P, _P, _P, _P]
     lib.fsdvs_sort_interval.restype = ctypes.c_int
     lib.fsdvs_write_columns.argtypes = [_P, _P, _P, _I, _I, _I, _P, _P, _P, _P]

@@ -52,6 +52,7 @@ from . import _crossings_native
 from .config import SATURATION_INTENSITY, SensorConfig
 from .crossings import crossing_step, noise_step, shot_noise_pixels, sort_interval, to_event_columns
 from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
+from .fused import fused_substep, fused_substep_applies
 from .pixel import effect_generator, lowpass_step, threshold_maps
 from .threads import name_os_thread
 
@@ -560,6 +561,47 @@ def _substep_target(
     return target, lp, sur
 
 
+def _compare(
+    Ls: Any,
+    CI: Any,
+    SU: Any,
+    k: int,
+    s: int,
+    S: int,
+    lp: Any,
+    sur: Any,
+    ref: Any,
+    st: _PixelState,
+    dt_sub: Any,
+    config: SensorConfig,
+    fused: bool,
+) -> tuple[Any, ...]:
+    """Sub-step ``s`` of ``S`` in interval ``k`` up to the comparator's output: the target
+    (:func:`_substep_target`), the leak, then :class:`_Comparator` (or the relaxed surrogate).
+    ``fused``: the same arithmetic through :func:`.fused.fused_substep` (no gradient wanted).
+    Returns ``(target, lp, sur, ref, ref_next, n_on, n_off, d_b)``, ``ref`` after the leak; with
+    the relaxed surrogate ``n_on``/``n_off`` are its fractional counts."""
+    c_on, c_off = st.c_on, st.c_off
+    if fused:
+        target = Ls[k + 1] if s == S else torch.lerp(Ls[k], Ls[k + 1], s / S)
+        inten = (CI[k + 1] if s == S else torch.lerp(CI[k], CI[k + 1], s / S)) if CI is not None else None
+        lp_new, ref_next, n_on, n_off, d_b = fused_substep(target, inten, lp, ref, c_on, c_off, dt_sub, st.eps, config)
+        if CI is not None:
+            lp = target = lp_new
+        return target, lp, sur, ref, ref_next, n_on, n_off, d_b
+    target, lp, sur = _substep_target(Ls, CI, SU, k, s, S, lp, sur, dt_sub, config)
+    leak = float(config.leak_rate_hz)
+    if leak > 0:
+        ref = ref - leak * c_on * dt_sub
+    if config.surrogate == "relaxed":
+        d_b = target - ref
+        e_on = torch.relu(d_b) / c_on
+        e_off = torch.relu(-d_b) / c_off
+        return target, lp, sur, ref, ref + e_on * c_on - e_off * c_off, e_on, e_off, d_b
+    n_on, n_off, ref_next, d_b = _Comparator.apply(target, ref, c_on, c_off, st.eps)
+    return target, lp, sur, ref, ref_next, n_on, n_off, d_b
+
+
 def _call(fn: Any, *args: Any) -> Any:
     """``fn(*args)`` (the in-process twin of :meth:`_EventPipeline.emit`)."""
     return fn(*args)
@@ -583,15 +625,15 @@ def _advance_steps(
     work is submitted to it (each interval's sort future appended to ``events``)."""
     B, H, W = Ls[0].shape
     dev, dt_ = Ls[0].device, Ls[0].dtype
-    c_on, c_off, eps = st.c_on, st.c_off, st.eps
+    c_on, c_off = st.c_on, st.c_off
     relaxed = config.surrogate == "relaxed"
     has_lp = config.has_photoreceptor
     refr = float(config.refractory_s)
-    leak = float(config.leak_rate_hz)
     shot = float(config.shot_noise_rate_hz)
     transient = SU is not None
     exact_times = collect_events or refr > 0
     sparse_noise = config.shot_noise_draw == "sparse"
+    fused = fused_substep_applies(Ls[0], config, transient)
     ref, lp, sur, sig_prev, last_t = st.ref, st.lp, st.sur, st.sig_prev, st.last_t
     shot_g, time_g = st.shot_g, st.time_g
     noise_events, lost = st.noise_events, st.lost
@@ -605,21 +647,13 @@ def _advance_steps(
         dt_sub = dt_sub64.to(dt_)
         on_acc = off_acc = None
         for s in range(1, S + 1):
-            target, lp, sur = _substep_target(
-                Ls, CI if has_lp else None, SU if transient else None, k, s, S, lp, sur, dt_sub, config
-            )
             ref_a = ref
-            if leak > 0:
-                ref = ref - leak * c_on * dt_sub
-            if relaxed:
-                d_b = target - ref
-                e_on = torch.relu(d_b) / c_on
-                e_off = torch.relu(-d_b) / c_off
-                ref_next = ref + e_on * c_on - e_off * c_off
-            else:
-                n_on, n_off, ref_next, d_b = _Comparator.apply(target, ref, c_on, c_off, eps)
+            target, lp, sur, ref, ref_next, n_on, n_off, d_b = _compare(
+                Ls, CI if has_lp else None, SU if transient else None, k, s, S, lp, sur, ref, st, dt_sub, config, fused
+            )
+            e_on, e_off = n_on, n_off
+            if not relaxed:
                 h_on, h_off = n_on.detach(), n_off.detach()
-                e_on, e_off = n_on, n_off
                 lost_s = 0.0
                 if exact_times:
                     with torch.no_grad():

@@ -71,6 +71,10 @@ def linlog_v2e(intensity: Any, knee: float) -> Any:
     """
     import torch
 
+    from .fused import fused_applies, fused_linlog_v2e
+
+    if isinstance(knee, float) and knee > 0 and fused_applies(intensity):
+        return fused_linlog_v2e(intensity, knee, V2E_DN_PER_FULL_SCALE)  # the same bits in two compiled passes
     x = intensity * V2E_DN_PER_FULL_SCALE
     k = knee * V2E_DN_PER_FULL_SCALE
     y = torch.where(x <= k, x * (math.log(k) / k), torch.log(torch.clamp(x, min=k)))
@@ -79,17 +83,14 @@ def linlog_v2e(intensity: Any, knee: float) -> Any:
     if not (torch.is_grad_enabled() and y.requires_grad):
         return rounded  # = y + (rounded - y) exactly: y >= 0 and the two within a factor 2 (Sterbenz)
     # straight-through rounding; where 255·I overflows float32 (I > 1.3e36) y is inf and stays inf
-    return y + torch.where(torch.isinf(y), 0.0, rounded - y)
-
-
-#: 1.5 · 2**52: adding and subtracting it rounds a float64 of magnitude below 2**51 to an integer,
-#: ties to even (IEEE round-to-nearest), as ``torch.round`` does, in two vectorised passes.
-_ROUND_MAGIC = 6755399441055744.0
+    return y + torch.where(torch.isinf(y), 0.0, rounded - y.detach())
 
 
 def _round_half_even(v: Any) -> Any:
     """``torch.round`` of a float64 tensor with ``|v| < 2**51`` (here: log responses × 1e8 < 1e11)."""
-    return v.add_(_ROUND_MAGIC).sub_(_ROUND_MAGIC)
+    from .fused import ROUND_MAGIC
+
+    return v.add_(ROUND_MAGIC).sub_(ROUND_MAGIC)
 
 
 def log_response(intensity: Any, config: SensorConfig) -> Any:
