@@ -777,10 +777,15 @@ def _run_child(cmd: list[str], what: str, root: str | None = None) -> tuple[dict
     per CPU second."""
     root = root or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # `-m benchmarks.sim`
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
-    res = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
+    # run in the checkout: `python -c` puts the working directory first on sys.path, ahead of
+    # PYTHONPATH, so a child started in another checkout would import that one
+    res = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=root, check=False)
     if res.returncode != 0:
         raise RuntimeError(f"{what} failed: {res.stderr[-2000:]}")
     r = json.loads(res.stdout.strip().splitlines()[-1])
+    pkg = r.get("package")
+    if pkg is not None and not os.path.realpath(pkg).startswith(os.path.realpath(root) + os.sep):
+        raise RuntimeError(f"{what}: imported fsdvs_hw from {pkg}, not from {root}")
     px = r["height"] * r["width"] * r["n_frames"] / 1e6
     return r, [px / w for w in r["walls"]], [px / max(c, 1e-9) for c in r["cpus"]]
 
@@ -1180,6 +1185,7 @@ def compare_v2e(
 _TREE_CHILD = r"""
 import json, resource, sys, time
 import numpy as np, torch
+import fsdvs_hw
 from fsdvs_hw.sensor import SensorConfig, simulate
 from fsdvs_hw.sensor.threads import event_list_threads
 frames_path, preset, chunk = sys.argv[1], sys.argv[2], int(sys.argv[3])
@@ -1195,7 +1201,7 @@ for c in simulate(video, config=cfg, chunk_frames=chunk):
     del c
 wall, cpu = time.perf_counter() - t0, time.process_time() - c0
 T, H, W = video.shape
-print(json.dumps({"walls": [wall], "cpus": [cpu], "events": n, "n_frames": T, "height": H, "width": W,
+print(json.dumps({"package": fsdvs_hw.__file__, "walls": [wall], "cpus": [cpu], "events": n, "n_frames": T, "height": H, "width": W,
                   "rss_base_mb": rss0 / 1024, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 

@@ -193,3 +193,34 @@ def test_event_list_is_the_same_with_and_without_fused_paths(monkeypatch, subste
     assert len(fused_ev) > 500
     for a in ("b", "x", "y", "t", "p"):
         assert torch.equal(getattr(fused_ev, a), getattr(torch_ev, a)), a
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_floor_bits_and_count_equal_torch(dtype):
+    g = torch.Generator().manual_seed(2)
+    x = torch.cat([torch.rand(50_001, generator=g, dtype=dtype) * 2e-3, torch.tensor(_extremes(dtype), dtype=dtype)])
+    floor = 1e-3
+    y, n = fused_mod.fused_floor(x.reshape(-1, 7), floor)
+    assert y.shape == (x.numel() // 7, 7)
+    assert n == int(torch.count_nonzero(x < floor)) and n > 20_000
+    assert _same_bits(y.reshape(-1), torch.clamp(x, min=floor))
+
+
+def test_filtered_log_signal_is_the_same_with_and_without_fused_paths(monkeypatch):
+    """The no-grad filtered signal (floor, v2e response, identity kernel skipped) against the torch path."""
+    from fsdvs_hw.sensor.filtering import _is_identity, apply_kernel, filtered_log_signal, kernel_tensor
+
+    g = torch.Generator().manual_seed(4)
+    video = torch.rand(2, 3, 9, 11, generator=g)
+    video[0, 0, 0, :4] = torch.tensor([0.0, 1e-4, 1.0, 3.0])  # below the floor, at white, above
+    cfg = SensorConfig.preset("v2e-default")
+    w = kernel_tensor(None, video)
+    assert _is_identity(w) and _same_bits(apply_kernel(video, w), video)  # what skipping it skips
+    assert not _is_identity(w * 0.5)
+    with torch.no_grad():
+        got = filtered_log_signal(video, w, cfg)
+        monkeypatch.setattr(fused_mod, "fused_applies", lambda like: False)
+        want = filtered_log_signal(video, w, cfg)
+    assert got.floor_fraction == want.floor_fraction > 0
+    assert _same_bits(got.log_signal, want.log_signal)
+    assert _same_bits(got.cutoff_intensity, want.cutoff_intensity)

@@ -104,6 +104,8 @@ def _load() -> ctypes.CDLL | None:
         fn.argtypes, fn.restype = [_P, _I, real, real, _P], None
         fn = getattr(lib, f"fsdvs_linlog_finish_{name}")
         fn.argtypes, fn.restype = [_P, _P, _I, real, real, real, _D, _P], None
+        fn = getattr(lib, f"fsdvs_floor_count_{name}")
+        fn.argtypes, fn.restype = [_P, _I, real, _P], _I
     lib.fsdvs_sort_interval.argtypes = [_I, _P, _P, _P, _P, _D, _D, _I, _P, _P, _P, _P, _P]
     lib.fsdvs_sort_interval.restype = ctypes.c_int
     lib.fsdvs_write_columns.argtypes = [_P, _P, _P, _I, _I, _I, _P, _P, _P, _P]

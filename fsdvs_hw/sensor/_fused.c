@@ -130,3 +130,20 @@ PIXEL_STEP(fsdvs_pixel_step_f64, double, step_row_lp_f64, step_row_f64)
 
 LINLOG(fsdvs_linlog_clamp_f32, fsdvs_linlog_finish_f32, float)
 LINLOG(fsdvs_linlog_clamp_f64, fsdvs_linlog_finish_f64, double)
+
+/* The positivity floor (filtering._FloorSTE forward and its count): out = max(x, floor) (a NaN
+ * stays NaN, as torch.clamp), returning how many x < floor. */
+#define FLOOR_COUNT(NAME, REAL)                                                                     \
+    FSDVS_CLONES int64_t NAME(const REAL *restrict x, int64_t n, REAL floor_v, REAL *restrict out) { \
+        int64_t below = 0;                                                                          \
+        for (int64_t i = 0; i < n; i++) {                                                           \
+            REAL v = x[i];                                                                          \
+            int lo = v < floor_v;                                                                   \
+            below += lo;                                                                            \
+            out[i] = lo ? floor_v : v;                                                              \
+        }                                                                                           \
+        return below;                                                                               \
+    }
+
+FLOOR_COUNT(fsdvs_floor_count_f32, float)
+FLOOR_COUNT(fsdvs_floor_count_f64, double)

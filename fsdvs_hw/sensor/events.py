@@ -848,9 +848,14 @@ def _adaptive_step(config: SensorConfig, transient: bool) -> float | None:
 
 
 def _choose_substeps_for(log_signal: Any, config: SensorConfig, transient: bool) -> list[int]:
+    """Sub-steps per interval of ``log_signal``: (B, T, H, W), or a list of its T (B, H, W) frames
+    (stacked only when the adaptive rule reads them)."""
     step = _adaptive_step(config, transient)
-    if step is None and config.adaptive_fraction is not None:
-        return [1] * (log_signal.shape[1] - 1)
+    T = len(log_signal) if isinstance(log_signal, list) else log_signal.shape[1]
+    if step is None:
+        return [1 if config.adaptive_fraction is not None else config.substeps] * (T - 1)
+    if isinstance(log_signal, list):
+        log_signal = torch.stack(log_signal, dim=1)
     return _choose_substeps(log_signal, step, config)
 
 

@@ -208,6 +208,18 @@ class FilteredSignal:
     floor_fraction: float
 
 
+def _is_identity(kernel: Any) -> bool:
+    """A 1×1 kernel of weight 1 that needs no gradient."""
+    import torch
+
+    return (
+        tuple(kernel.shape[-2:]) == (1, 1)
+        and kernel.numel() == 1
+        and not (kernel.requires_grad and torch.is_grad_enabled())
+        and bool(kernel.reshape(()) == 1.0)
+    )
+
+
 def filtered_log_signal(video: Any, kernel: Any, config: SensorConfig) -> FilteredSignal:
     """Apply the kernel at ``config.placement`` with ``config.positivity``; return the log signal."""
     import torch
@@ -224,14 +236,21 @@ def filtered_log_signal(video: Any, kernel: Any, config: SensorConfig) -> Filter
             log_signal = log_response(pos, config) - log_response(neg, config)
             cutoff_intensity = pos + neg
         else:
-            agg = apply_kernel(video, kernel, config.convolution)
+            # the 1×1 identity (no kernel): frames × 1 is the frames themselves, bit for bit, so no
+            # pass over them (nothing below writes into agg)
+            agg = video if _is_identity(kernel) else apply_kernel(video, kernel, config.convolution)
             if config.positivity == "pedestal":
                 agg = agg + config.pedestal_intensity
-            with torch.no_grad():
-                n_below = int(torch.count_nonzero(agg < config.floor_intensity))
+            from .fused import fused_applies, fused_floor
+
+            if fused_applies(agg):  # the same bits in one compiled pass (no gradient wanted)
+                agg, n_below = fused_floor(agg, float(config.floor_intensity))
+            else:
+                with torch.no_grad():
+                    n_below = int(torch.count_nonzero(agg < config.floor_intensity))
+                if n_below:  # identity otherwise: skip the pass
+                    agg = _FloorSTE.apply(agg, float(config.floor_intensity))
             floor_fraction = n_below / agg.numel()
-            if n_below:  # identity otherwise: skip the pass
-                agg = _FloorSTE.apply(agg, float(config.floor_intensity))
             log_signal = log_response(agg, config)
             cutoff_intensity = agg
     else:

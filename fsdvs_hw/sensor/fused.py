@@ -33,7 +33,7 @@ import torch
 from . import _crossings_native
 from .config import SensorConfig
 
-__all__ = ["ROUND_MAGIC", "fused_applies", "fused_linlog_v2e", "fused_substep", "fused_substep_applies"]
+__all__ = ["ROUND_MAGIC", "fused_applies", "fused_floor", "fused_linlog_v2e", "fused_substep", "fused_substep_applies"]
 
 _SUFFIX = {torch.float32: "f32", torch.float64: "f64"}
 
@@ -259,6 +259,39 @@ def fused_linlog_v2e(intensity: Any, knee: float, dn_per_full_scale: float = 255
         out.data_ptr(),
     )
     return out.view(intensity.shape) if n else out.reshape(intensity.shape)
+
+
+def fused_floor(x: Any, floor: float) -> tuple[Any, int]:
+    """The positivity floor without its gradient: ``torch.clamp(x, min=floor)`` and the number of
+    values below ``floor``, in one compiled pass (``filtering._FloorSTE`` and its count).
+
+    Parameters
+    ----------
+    x : torch.Tensor
+        Aggregated intensities (relative units) of any shape; CPU, float32 or float64.
+    floor : float
+        The floor (relative units; ``config.floor_intensity``).
+
+    Returns
+    -------
+    tuple
+        ``(clamped, n_below)``: a new tensor of ``x``'s shape and dtype, and the count (int).
+
+    Examples
+    --------
+    >>> import torch
+    >>> y, n = fused_floor(torch.tensor([0.0, 0.5, 2e-4]), 1e-3)
+    >>> y.tolist() == [torch.tensor(1e-3).item(), 0.5, torch.tensor(1e-3).item()], n
+    (True, 2)
+    """
+    lib = _crossings_native._loaded()
+    dtype = x.dtype
+    flat = _flat(x, dtype)
+    out = torch.empty(flat.numel(), dtype=dtype)
+    n_below = getattr(lib, f"fsdvs_floor_count_{_SUFFIX[dtype]}")(
+        flat.data_ptr(), flat.numel(), _ctypes_real(dtype)(floor), out.data_ptr()
+    )
+    return out.reshape(x.shape), int(n_below)
 
 
 def _ctypes_real(dtype: Any) -> Any:

@@ -42,7 +42,7 @@ import torch
 
 from ..errors import InputError
 from ..validation import check_bool, check_instance
-from .config import SensorConfig
+from .config import SATURATION_INTENSITY, SensorConfig
 from .crossings import to_event_columns
 from .events import (
     EventList,
@@ -103,7 +103,8 @@ class EventChunk:
         return int(self.timestamps_s.shape[1]) - 1
 
 
-def _as_frame(item: Any, index: int, dtype: Any) -> tuple[float | None, Any]:
+def _as_frame(item: Any, index: int, dtype: Any) -> tuple[float | None, Any, float]:
+    """``(t or None, frame (B, H, W), its largest intensity)``, the frame checked (finite, >= 0)."""
     t = None
     if isinstance(item, tuple):
         if len(item) != 2:
@@ -126,6 +127,7 @@ def _as_frame(item: Any, index: int, dtype: Any) -> tuple[float | None, Any]:
         item = item.float()
     if dtype is not None and item.dtype != dtype:
         item = item.to(dtype)
+    hi = -math.inf
     if item.numel():
         with torch.no_grad():
             lo, hi = (float(v) for v in torch.aminmax(item))  # one pass; NaN propagates into both
@@ -133,7 +135,7 @@ def _as_frame(item: Any, index: int, dtype: Any) -> tuple[float | None, Any]:
             raise InputError(f"frames[{index}]: contains NaN or inf intensities")
         if lo < 0:
             raise InputError(f"frames[{index}]: linear intensities must be >= 0, got minimum {lo:g}")
-    return t, item
+    return t, item, hi
 
 
 def _frame_source(frames: Any) -> Iterator[Any]:
@@ -341,9 +343,10 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
                 except StopIteration:
                     exhausted = True
                     break
-                t_item, fr = _as_frame(item, index, dtype)
-                fr, n_sat = saturate(fr)
-                saturated += n_sat
+                t_item, fr, hi = _as_frame(item, index, dtype)
+                if hi > SATURATION_INTENSITY:  # the check's maximum spares saturate() its own pass
+                    fr, n_sat = saturate(fr)
+                    saturated += n_sat
                 if dtype is None:
                     dtype, shape = fr.dtype, tuple(fr.shape)
                     w = kernel_tensor(kernel, fr)
@@ -363,7 +366,8 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
                     raise InputError(f"frames: need at least 2 frames, got {len(batch)}")
                 break
             assert shape is not None  # set by the first frame (batch is not empty)
-            video = torch.stack(batch, dim=1)  # (B, n, H, W)
+            # (B, n, H, W); one frame (every chunk after the first, at one interval per chunk) as a view
+            video = batch[0].unsqueeze(1) if len(batch) == 1 else torch.stack(batch, dim=1)
             sig = filtered_log_signal(video, w, config)
             B = video.shape[0]
             Ls = list(sig.log_signal.unbind(1))
@@ -394,7 +398,7 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
                     raise InputError(f"plan: made for {len(subs_plan) + 1} frames, the stream has more")
                 subs = subs_plan[first_interval : first_interval + n_int]
             else:
-                subs = _choose_substeps_for(torch.stack(Ls, dim=1), config, sig.surround is not None)
+                subs = _choose_substeps_for(Ls, config, sig.surround is not None)
             noise0, lost0 = state.noise_events, state.lost
             ev_parts: list = []
             if pipe is None and want_events and not want_frames and _pipelined(video.device, config, False):
