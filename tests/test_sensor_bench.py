@@ -278,3 +278,26 @@ def test_h5_filter_costs_cover_the_writer_and_read_every_file_back():
     by = {r["filters"]: r for r in rows}
     assert by["shuffle + gzip 1"]["size_mib"] < by["gzip 1"]["size_mib"]
     assert all(r["cpu_ns_per_event"] > 0 and r["wall_ns_per_event"] > 0 for r in rows)
+
+
+def test_ab_child_runs_in_and_imports_the_checkout_asked_for(tmp_path):
+    """An A/B child runs in the other checkout (``python -c`` puts its working directory ahead of
+    PYTHONPATH) and stops when the fsdvs_hw it imported is not that checkout's."""
+    import sys
+    from pathlib import Path
+
+    from benchmarks.sim import _run_child
+
+    report = (
+        "import json, os, fsdvs_hw; print(json.dumps({'package': fsdvs_hw.__file__, 'cwd': os.getcwd(), "
+        "'walls': [1.0], 'cpus': [1.0], 'height': 1, 'width': 1, 'n_frames': 1}))"
+    )
+    here = str(Path(__file__).resolve().parents[1])
+    r, rates, _ = _run_child([sys.executable, "-c", report], "this checkout", root=here)
+    assert Path(r["package"]).resolve().is_relative_to(Path(here)) and Path(r["cwd"]).resolve() == Path(here)
+    assert rates == [1e-6]
+    other = tmp_path / "other"
+    (other / "fsdvs_hw").mkdir(parents=True)  # a checkout whose package is not importable as such
+    fake = report.replace("fsdvs_hw.__file__", "'/elsewhere/fsdvs_hw/__init__.py'")
+    with pytest.raises(RuntimeError, match="imported fsdvs_hw from /elsewhere/fsdvs_hw/__init__.py, not from"):
+        _run_child([sys.executable, "-c", fake], "other checkout", root=str(other))

@@ -241,3 +241,16 @@ def test_event_list_without_compiled_kernels_is_identical(monkeypatch):
     assert len(native) > 100
     for a in ("b", "x", "y", "t", "p"):
         assert torch.equal(getattr(native, a), getattr(fallback, a)), a
+
+
+def test_crossing_totals_are_exact_on_both_sides_of_float32s_exact_range():
+    from fsdvs_hw.sensor.crossings import _total
+
+    small = np.floor(np.random.default_rng(0).random(200_000, dtype=np.float32) * 3)
+    assert _total(small) == int(small.astype(np.int64).sum())
+    big = np.array([2.0**24, 1.0, 1.0], dtype=np.float32)  # float32 rounds 2**24 + 1 back to 2**24
+    assert float(big.sum()) != 2**24 + 2  # the rounding _total must not inherit
+    assert _total(big) == 2**24 + 2
+    assert _total(big.astype(np.float64)) == 2**24 + 2
+    with pytest.raises(ValueError):
+        _total(np.array([1.0, np.nan], dtype=np.float32))  # as before: a NaN count is refused

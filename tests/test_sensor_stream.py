@@ -137,3 +137,25 @@ def test_stream_runs_a_plan_like_the_whole_clip():
     assert info.substeps == tuple(plan.substeps)
     with pytest.raises(InputError, match="plan: made for"):
         list(simulate(_clip(T=8, H=12, W=16).double(), plan=plan, chunk_frames=4))
+
+
+def test_chunks_of_one_clip_are_views_and_equal_the_stack():
+    """Consecutive frames of one clip in memory make a chunk without a copy; any other frames
+    (a list of separate tensors, a strided clip) are stacked; the values agree either way."""
+    from fsdvs_hw.sensor.stream import _stack_frames
+
+    clip = torch.rand(5, 2, 6, 7)  # (T, B, H, W): frames are (B, H, W) views with a batch stride
+    frames = list(clip.unbind(0))
+    view = _stack_frames(frames[1:4])
+    assert view.untyped_storage().data_ptr() == clip.untyped_storage().data_ptr()
+    assert torch.equal(view, torch.stack(frames[1:4], dim=1))
+    one = _stack_frames(frames[2:3])
+    assert one.shape == (2, 1, 6, 7) and torch.equal(one[:, 0], frames[2])
+    separate = [f.clone() for f in frames[:3]]
+    copied = _stack_frames(separate)
+    assert copied.untyped_storage().data_ptr() != separate[0].untyped_storage().data_ptr()
+    assert torch.equal(copied, torch.stack(frames[:3], dim=1))
+    reversed_frames = frames[3::-1]  # same storage, backwards: not a forward stride, stacked
+    assert torch.equal(_stack_frames(reversed_frames), torch.stack(reversed_frames, dim=1))
+    gaps = frames[0:5:2]  # every other frame: a larger stride, still one view
+    assert torch.equal(_stack_frames(gaps), torch.stack(gaps, dim=1))

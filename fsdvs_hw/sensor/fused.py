@@ -80,7 +80,10 @@ def fused_substep_applies(like: Any, config: SensorConfig, transient: bool) -> b
 
 
 def _flat(t: Any, dtype: Any) -> Any:
-    """``t`` as a contiguous 1-D CPU tensor of ``dtype`` (no copy when it already is one)."""
+    """``t``'s values as one contiguous block of ``dtype`` for the C kernels (``t`` itself when it
+    already is one: only its data pointer and size are read)."""
+    if t.dtype == dtype and t.is_contiguous():
+        return t
     return t.reshape(-1).to(dtype).contiguous()
 
 
@@ -88,7 +91,7 @@ def _thresholds(c: Any, hw: int, n: int, dtype: Any, name: str) -> Any:
     """Thresholds as H·W (shared by the batch) or B·H·W contiguous values (a single value expanded)."""
     flat = _flat(c, dtype)
     if flat.numel() == 1:
-        return flat.expand(hw).contiguous()
+        return flat.reshape(1).expand(hw).contiguous()
     if flat.numel() not in (hw, n):
         raise ValueError(f"{name}: needs 1, H*W={hw} or B*H*W={n} values, got {flat.numel()}")
     return flat

@@ -138,6 +138,29 @@ def _as_frame(item: Any, index: int, dtype: Any) -> tuple[float | None, Any, flo
     return t, item, hi
 
 
+def _stack_frames(batch: list) -> Any:
+    """``torch.stack(batch, dim=1)`` of (B, H, W) frames, as a view where that is the same tensor:
+    one frame, or consecutive frames of one clip in memory (a (T, H, W) or (B, T, H, W) tensor
+    given to :func:`simulate`), so the chunk's frames are not copied. Values are the same either way.
+    """
+    f0 = batch[0]
+    if len(batch) == 1:
+        return f0.unsqueeze(1)
+    if not any(f.requires_grad for f in batch):
+        step = batch[1].storage_offset() - f0.storage_offset()
+        base = f0.untyped_storage().data_ptr()
+        if step > 0 and all(
+            f.untyped_storage().data_ptr() == base
+            and f.stride() == f0.stride()
+            and f.storage_offset() == f0.storage_offset() + i * step
+            for i, f in enumerate(batch)
+        ):
+            B, H, W = f0.shape
+            sB, sH, sW = f0.stride()
+            return f0.as_strided((B, len(batch), H, W), (sB, step, sH, sW), f0.storage_offset())
+    return torch.stack(batch, dim=1)
+
+
 def _frame_source(frames: Any) -> Iterator[Any]:
     """Iterate frames of a 3-D/4-D array (over T) or of any iterable of frames / (t, frame)."""
     if isinstance(frames, (torch.Tensor, np.ndarray)):
@@ -366,8 +389,7 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
                     raise InputError(f"frames: need at least 2 frames, got {len(batch)}")
                 break
             assert shape is not None  # set by the first frame (batch is not empty)
-            # (B, n, H, W); one frame (every chunk after the first, at one interval per chunk) as a view
-            video = batch[0].unsqueeze(1) if len(batch) == 1 else torch.stack(batch, dim=1)
+            video = _stack_frames(batch)  # (B, n, H, W)
             sig = filtered_log_signal(video, w, config)
             B = video.shape[0]
             Ls = list(sig.log_signal.unbind(1))
