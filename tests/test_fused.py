@@ -224,3 +224,37 @@ def test_filtered_log_signal_is_the_same_with_and_without_fused_paths(monkeypatc
     assert got.floor_fraction == want.floor_fraction > 0
     assert _same_bits(got.log_signal, want.log_signal)
     assert _same_bits(got.cutoff_intensity, want.cutoff_intensity)
+
+
+def test_baseline_build_without_clones_gives_the_same_events(monkeypatch, tmp_path):
+    """The kernels built for baseline x86-64 alone (``-DFSDVS_NO_CLONES``: floor and fma through
+    libm, no AVX2) against the default build, whose x86-64-v3 clone runs on this machine: the
+    fused outputs and a whole event list, bit for bit, so a machine without AVX2 sees the same."""
+    import ctypes
+
+    from fsdvs_hw.sensor import _crossings_native as native
+
+    default = native._loaded()
+    monkeypatch.setenv("FSDVS_HW_CACHE", str(tmp_path))
+    path = native._build(("-DFSDVS_NO_CLONES",))
+    baseline = ctypes.CDLL(str(path))
+    native._declare(baseline)
+    assert path.parent == tmp_path and path.name.startswith("crossings-")
+
+    g = torch.Generator().manual_seed(9)
+    video = (torch.rand(1, 7, 20, 26, generator=g) * 0.9 + 0.02).cumsum(1) / 3
+    video[0, 2, :3, :3] = 0.0  # below the floor
+    cfg = SensorConfig.preset("v2e-default", shot_noise_rate_hz=2.0, leak_rate_hz=0.5)
+    L, inten, lp, ref, c_on, c_off, dt = _substep_case(torch.float32, 2, "hw", seed=3)
+    outputs = []
+    for lib in (default, baseline):
+        monkeypatch.setattr(native, "_lib", lib)
+        with torch.no_grad():
+            step = fused_substep(L, inten, lp, ref, c_on, c_off, dt, 1e-4, cfg)
+        outputs.append((step, fused_linlog_v2e(inten, KNEE), event_list(video, None, config=cfg)))
+    (step_a, lin_a, ev_a), (step_b, lin_b, ev_b) = outputs
+    assert all(_same_bits(a, b) for a, b in zip(step_a, step_b, strict=True))
+    assert _same_bits(lin_a, lin_b)
+    assert len(ev_a) > 300
+    for a in ("x", "y", "t", "p"):
+        assert torch.equal(getattr(ev_a, a), getattr(ev_b, a)), a

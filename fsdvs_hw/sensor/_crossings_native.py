@@ -51,11 +51,13 @@ def _cache_dir() -> Path:
     return Path(base) / "fsdvs_hw"
 
 
-def _build() -> Path:
-    """Compile the kernels if this source and these flags have not been compiled yet."""
+def _build(extra_flags: tuple[str, ...] = ()) -> Path:
+    """Compile the kernels if these sources and flags have not been compiled yet (``extra_flags``:
+    for tests, e.g. ``-DFSDVS_NO_CLONES`` for the baseline x86-64 code alone)."""
     src = b"".join(p.read_bytes() for p in (*_SOURCES, *_HEADERS))
     cc = os.environ.get("CC", "cc")
-    key = hashlib.sha256(src + " ".join([cc, *_FLAGS, platform.machine()]).encode()).hexdigest()[:16]
+    flags = [*_FLAGS, *extra_flags]
+    key = hashlib.sha256(src + " ".join([cc, *flags, platform.machine()]).encode()).hexdigest()[:16]
     out = _cache_dir() / f"crossings-{key}.so"
     if out.exists():
         return out
@@ -64,7 +66,7 @@ def _build() -> Path:
     os.close(fd)
     try:
         res = subprocess.run(
-            [cc, *_FLAGS, "-o", tmp, *map(str, _SOURCES), "-lm"], capture_output=True, text=True, check=False
+            [cc, *flags, "-o", tmp, *map(str, _SOURCES), "-lm"], capture_output=True, text=True, check=False
         )
         if res.returncode != 0:
             raise OSError(f"{cc} failed: {res.stderr.strip()[-500:]}")
@@ -75,21 +77,8 @@ def _build() -> Path:
     return out
 
 
-def _load() -> ctypes.CDLL | None:
-    global _lib, _tried, _error
-    if _tried:
-        return _lib
-    _tried = True
-    from ..environment import env as _env
-
-    if _env("FSDVS_HW_NO_NATIVE"):
-        _error = "disabled by FSDVS_HW_NO_NATIVE"
-        return None
-    try:
-        lib = ctypes.CDLL(str(_build()))
-    except (OSError, FileNotFoundError) as exc:
-        _error = str(exc)
-        return None
+def _declare(lib: ctypes.CDLL) -> None:
+    """Argument and result types of every kernel in ``lib``."""
     step = [_P] * 5 + [_P, _I, _P, _I, _P, _P, _P, _I, _I, _P, _D, ctypes.c_int, _P, _P, _P, _P, _P, _P]
     for name in ("fsdvs_step_events_f32", "fsdvs_step_events_f64"):
         getattr(lib, name).argtypes = step
@@ -112,6 +101,24 @@ def _load() -> ctypes.CDLL | None:
     lib.fsdvs_write_columns.restype = None
     lib.fsdvs_sort_interval_columns.argtypes = [_I, _P, _P, _P, _P, _D, _D, _I, _P, _P, _I, _I, _P, _P, _P, _P]
     lib.fsdvs_sort_interval_columns.restype = ctypes.c_int
+
+
+def _load() -> ctypes.CDLL | None:
+    global _lib, _tried, _error
+    if _tried:
+        return _lib
+    _tried = True
+    from ..environment import env as _env
+
+    if _env("FSDVS_HW_NO_NATIVE"):
+        _error = "disabled by FSDVS_HW_NO_NATIVE"
+        return None
+    try:
+        lib = ctypes.CDLL(str(_build()))
+    except (OSError, FileNotFoundError) as exc:
+        _error = str(exc)
+        return None
+    _declare(lib)
     _lib = lib
     return lib
 
