@@ -111,6 +111,15 @@ def test_crossing_step_equals_full_frame_reference(refr, mismatch, B, step):
         assert torch.equal(lt, ref_lt)
         expect = float((h_on + h_off).sum() - (ref_on + ref_off).sum())
         assert lost == expect and (refr < 0.01 or lost > 0)  # the long period loses crossings
+    if refr == 0.02:  # the kernel skips the divisions where j0 = m = 1: both sides are exercised here
+        d_a = (sig_a - ref_a).double()
+        v = (d_b.double() - d_a) / dt
+        on = (h_on > 0) & (v > 0)
+        co = c_on.double().expand_as(v)
+        xj = v * (last + refr - t0) + d_a
+        xm = refr * v
+        assert bool((xm[on] > co[on]).any()) and bool((xm[on] <= co[on]).any())  # m > 1 and m = 1
+        assert bool((xj[on] > co[on]).any()) and bool((xj[on] <= co[on]).any())  # j0 > 1 and j0 = 1
 
 
 @settings(max_examples=60, deadline=None)

@@ -71,11 +71,16 @@
                     emitted = rising ? n : 0.0;                                                     \
                 } else {                                                                            \
                     double vs = rising ? v : 1.0;                                                   \
-                    j0 = ceil((vs * (last_t[i] + refr - ta) + da) / cc);                            \
+                    /* x <= cc (cc > 0) gives x / cc <= 1 (rounding is monotone), so ceil <= 1 and   \
+                     * the clamp makes it 1: the division is skipped, not changed. Most pixels have   \
+                     * not fired within the refractory period and change slowly: j0 = m = 1. */      \
+                    double xj = vs * (last_t[i] + refr - ta) + da, xm = refr * vs;                  \
+                    j0 = cc > 0 && xj <= cc ? 1.0 : ceil(xj / cc);                                  \
                     if (!(j0 >= 1.0)) j0 = 1.0;                                                     \
-                    m = ceil(refr * vs / cc);                                                       \
+                    m = cc > 0 && xm <= cc ? 1.0 : ceil(xm / cc);                                   \
                     if (!(m >= 1.0)) m = 1.0;                                                       \
-                    emitted = n >= j0 ? 1.0 + floor((n - j0) / m) : 0.0;                            \
+                    /* n and j0 are whole numbers: (n - j0) / 1 is exact and its floor itself */     \
+                    emitted = n >= j0 ? 1.0 + (m == 1.0 ? n - j0 : floor((n - j0) / m)) : 0.0;      \
                     if (!rising) emitted = 0.0;                                                     \
                     if (emitted > 0) {                                                              \
                         double j_last = j0 + (emitted - 1.0) * m;                                   \
