@@ -1615,6 +1615,7 @@ def h5_filter_costs(clip: str = "bikes", *, n_frames: int = 60, repeats: int = 2
     import numpy as np
 
     from fsdvs_hw.sensor import SensorConfig, simulate
+    from fsdvs_hw.sensor._eventfile_child import H5_CHUNK_ROWS
     from fsdvs_hw.sensor.eventfile import EventFileWriter
 
     cols, lists = [], []
@@ -1646,7 +1647,7 @@ def h5_filter_costs(clip: str = "bikes", *, n_frames: int = 60, repeats: int = 2
                             shape=(0, 4),
                             maxshape=(None, 4),
                             dtype="uint32",
-                            chunks=(65536, 4),
+                            chunks=(H5_CHUNK_ROWS, 4),
                             **settings[name],
                         )
                         for i in range(0, len(block), 1 << 20):

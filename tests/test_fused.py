@@ -70,6 +70,14 @@ def test_linlog_v2e_bits_equal_torch_property(values):
     assert _same_bits(fused_linlog_v2e(x, KNEE), _torch_linlog(x))
 
 
+@pytest.mark.parametrize("knee", [0.0, -0.1, math.nan, math.inf])
+def test_linlog_v2e_refuses_a_knee_without_a_chord(knee):
+    from fsdvs_hw.errors import InputError
+
+    with pytest.raises(InputError, match="knee: must be a finite number > 0"):
+        fused_linlog_v2e(torch.rand(3), knee)
+
+
 def test_linlog_v2e_takes_the_fused_path_only_without_gradient():
     x = torch.tensor([0.02, 0.05, 0.3, 0.9], requires_grad=True)  # two below the knee, two above
     assert not fused_applies(x)

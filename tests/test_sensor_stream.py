@@ -156,6 +156,10 @@ def test_chunks_of_one_clip_are_views_and_equal_the_stack():
     assert copied.untyped_storage().data_ptr() != separate[0].untyped_storage().data_ptr()
     assert torch.equal(copied, torch.stack(frames[:3], dim=1))
     reversed_frames = frames[3::-1]  # same storage, backwards: not a forward stride, stacked
-    assert torch.equal(_stack_frames(reversed_frames), torch.stack(reversed_frames, dim=1))
+    backwards = _stack_frames(reversed_frames)
+    assert backwards.untyped_storage().data_ptr() != clip.untyped_storage().data_ptr()
+    assert torch.equal(backwards, torch.stack(reversed_frames, dim=1))
     gaps = frames[0:5:2]  # every other frame: a larger stride, still one view
-    assert torch.equal(_stack_frames(gaps), torch.stack(gaps, dim=1))
+    gapped = _stack_frames(gaps)
+    assert gapped.untyped_storage().data_ptr() == clip.untyped_storage().data_ptr()
+    assert torch.equal(gapped, torch.stack(gaps, dim=1))

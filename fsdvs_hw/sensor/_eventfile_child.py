@@ -28,6 +28,9 @@ import sys
 
 __all__: list[str] = []
 
+#: Rows (events) per HDF5 chunk of the ``.h5`` layout: v2e's ``--dvs_h5`` value.
+H5_CHUNK_ROWS = 65536
+
 
 def _read_array(stream, n: int, dtype: str):
     """``n`` items of ``dtype`` read from ``stream`` straight into a new array (EOFError if it ends first)."""
@@ -91,7 +94,7 @@ def _h5_writer(path: str, width: int, height: int, metadata: dict) -> tuple:
         shape=(0, 4),
         maxshape=(None, 4),
         dtype="uint32",
-        chunks=(65536, 4),
+        chunks=(H5_CHUNK_ROWS, 4),
         compression="gzip",
         compression_opts=1,
         shuffle=True,

@@ -1,14 +1,17 @@
-/* Compiled pixel step of fsdvs_hw/sensor/events.py: one sub-step of the photoreceptor low-pass,
- * the reference leak and the comparator, fused into one pass over the pixels (built and loaded by
- * _crossings_native.py, no-grad CPU path of events._advance_steps).
+/* Compiled no-grad CPU paths of fsdvs_hw/sensor/fused.py (built and loaded by _crossings_native.py):
+ * one sub-step of the photoreceptor low-pass, the reference leak and the comparator in one pass
+ * over the pixels (events._advance_steps); v2e's linear-log response around torch's log
+ * (pixel.linlog_v2e); the positivity floor and its count (filtering._FloorSTE).
  *
- * The formulas are those of events._substep_target, pixel.lowpass_step and events._Comparator,
- * operation for operation, in the same order and in the same precision (torch evaluates a
+ * The formulas are those of events._substep_target, pixel.lowpass_step, events._Comparator,
+ * pixel.linlog_v2e and filtering._FloorSTE, operation for operation, in the same order and in
+ * the same precision (torch evaluates a
  * float32 tensor op with a Python scalar in float32: the scalars arrive here already rounded).
  * IEEE + - * / and floor are correctly rounded, so with -ffp-contract=off and no -ffast-math the
- * results are bit-identical to torch's. The one transcendental, expm1 of the low-pass exponent,
- * stays with torch (its vectorised and scalar expm1 differ in the last bit): the caller computes
- * the exponent with lowpass_exponent, applies torch.expm1 in place, and passes it to pixel_step.
+ * results are bit-identical to torch's. The transcendentals stay with torch (its vectorised and
+ * scalar lanes differ in the last bit): for the sub-step the caller computes the exponent with
+ * lowpass_exponent, applies torch.expm1 in place, and passes it to pixel_step; for the response
+ * it applies torch.log between linlog_clamp and linlog_finish.
  * Comparisons are written so that a NaN propagates as in torch.clamp.
  */
 #include <math.h>

@@ -1,4 +1,4 @@
-"""Compiled no-grad CPU paths of the pixel model: v2e's response and one pixel sub-step.
+"""Compiled no-grad CPU paths of the pixel model: v2e's response, the positivity floor and one pixel sub-step.
 
 The differentiable pixel model of :mod:`.pixel` and :mod:`.events` is written as torch
 operations, each of which reads and writes whole frames: v2e's linear-log response takes about a
@@ -25,11 +25,13 @@ than float32/float64, the transient surround, the relaxed surrogate, or no C com
 
 from __future__ import annotations
 
+import ctypes
 import math
 from typing import Any
 
 import torch
 
+from ..errors import InputError
 from . import _crossings_native
 from .config import SensorConfig
 
@@ -217,7 +219,7 @@ ROUND_MAGIC = 6755399441055744.0
 
 
 def fused_linlog_v2e(intensity: Any, knee: float, dn_per_full_scale: float = 255.0) -> Any:
-    """:func:`.pixel.linlog_v2e` without its gradient: ``log(255 I)`` above the knee, the chord
+    """:func:`.pixel.linlog_v2e` without its gradient: ``log(dn I)`` above the knee, the chord
     below it, rounded to 1e-8 (natural-log units of DN), bit for bit as the torch operations.
 
     Parameters
@@ -227,12 +229,17 @@ def fused_linlog_v2e(intensity: Any, knee: float, dn_per_full_scale: float = 255
     knee : float
         The knee (relative units; ``config.dark_intensity``), > 0.
     dn_per_full_scale : float
-        Digital numbers of white (:data:`.pixel.dn_per_full_scale`, v2e's 255).
+        Digital numbers (DN) of white (:data:`.pixel.V2E_DN_PER_FULL_SCALE`, v2e's 255).
 
     Returns
     -------
     torch.Tensor
         The response, a new tensor of ``intensity``'s shape and dtype.
+
+    Raises
+    ------
+    InputError
+        ``knee`` or ``dn_per_full_scale`` not a finite number > 0 (the chord's slope is log(k)/k).
 
     Examples
     --------
@@ -241,6 +248,9 @@ def fused_linlog_v2e(intensity: Any, knee: float, dn_per_full_scale: float = 255
     >>> [round(v, 6) for v in y.tolist()]  # log(255) at white, 0 at black
     [5.541264, 0.0]
     """
+    for name, v in (("knee", knee), ("dn_per_full_scale", dn_per_full_scale)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise InputError(f"{name}: must be a finite number > 0, got {v!r}")
     lib = _crossings_native._loaded()
     dtype = intensity.dtype
     suffix = _SUFFIX[dtype]
@@ -299,6 +309,4 @@ def fused_floor(x: Any, floor: float) -> tuple[Any, int]:
 
 def _ctypes_real(dtype: Any) -> Any:
     """The ctypes scalar type of a float32 or float64 torch dtype (rounds a Python float like torch)."""
-    import ctypes
-
     return ctypes.c_float if dtype == torch.float32 else ctypes.c_double
