@@ -1604,8 +1604,9 @@ def h5_filter_costs(clip: str = "bikes", *, n_frames: int = 60, repeats: int = 2
     65 536 rows) with h5py under four filter settings — gzip 4 (v2e's and this toolkit's), gzip 1,
     shuffle + gzip 4, shuffle + gzip 1 — on the exact events of the first ``n_frames`` of a clip
     (``v2e-default``), each file read back and compared; then the toolkit's own writer
-    (:class:`~fsdvs_hw.sensor.eventfile.EventFileWriter`: shuffle + gzip 1, each whole chunk deflated
-    on two threads of its writer process), its CPU counted with that process's. Rows: ``filters``,
+    (:class:`~fsdvs_hw.sensor.eventfile.EventFileWriter`: shuffle + deflate level 1, each whole
+    chunk shuffled and deflated by ISA-L on two threads of its writer process, the dataset
+    recording shuffle + gzip 1), its CPU counted with that process's. Rows: ``filters``,
     ``cpu_ns_per_event`` and ``wall_ns_per_event`` (the best of ``repeats``), ``size_mib``, ``events``."""
     import resource
     import tempfile
@@ -1635,7 +1636,7 @@ def h5_filter_costs(clip: str = "bikes", *, n_frames: int = 60, repeats: int = 2
     rows = []
     with tempfile.TemporaryDirectory() as d:
         H, W = int(lists[0].y.max()) + 1, int(lists[0].x.max()) + 1  # any size holding the events
-        for name in [*settings, "the writer (shuffle + gzip 1, 2 threads)"]:
+        for name in [*settings, "the writer (shuffle + ISA-L deflate 1, 2 threads)"]:
             path, cpus, walls = Path(d) / "events.h5", [], []
             for _ in range(repeats):
                 c0, t0 = time.process_time(), time.perf_counter()

@@ -272,7 +272,7 @@ def test_h5_filter_costs_cover_the_writer_and_read_every_file_back():
         "gzip 1",
         "shuffle + gzip 4",
         "shuffle + gzip 1",
-        "the writer (shuffle + gzip 1, 2 threads)",
+        "the writer (shuffle + ISA-L deflate 1, 2 threads)",
     ]
     assert len({r["events"] for r in rows}) == 1 and rows[0]["events"] > 1000
     by = {r["filters"]: r for r in rows}

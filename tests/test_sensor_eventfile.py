@@ -183,3 +183,18 @@ def test_hdf5_chunks_deflated_in_parallel_decode_as_hdf5_filters_define(tmp_path
             assert mask == 0 and rows.shape == (65536, 4)
             part = want[i * 65536 : (i + 1) * 65536]
             assert np.array_equal(rows[: len(part)], part) and not rows[len(part) :].any()
+
+
+@pytest.mark.skipif(not hasattr(__import__("fcntl"), "F_GETPIPE_SZ"), reason="Linux pipe sizes only")
+def test_writer_pipe_is_widened_to_one_mebibyte(tmp_path):
+    """The pipe to the writer child holds 1 MiB (not Linux's 64 KiB default): fewer hand-offs
+    between a busy parent and its writer (docs/speed.md). Skipped where the system caps pipes lower."""
+    import fcntl
+
+    from pathlib import Path
+
+    cap = int(Path("/proc/sys/fs/pipe-max-size").read_text())
+    if cap < 1 << 20:
+        pytest.skip(f"/proc/sys/fs/pipe-max-size is {cap}")
+    with EventFileWriter(tmp_path / "e.h5", 4, 4) as w:
+        assert fcntl.fcntl(w._child.stdin.fileno(), fcntl.F_GETPIPE_SZ) == 1 << 20
