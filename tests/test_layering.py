@@ -31,6 +31,7 @@ _CORE = {
     "csf",
     "stats",
     "workers",
+    "prefetch",
     "plots",
     "analysis",
     "_lazy",

@@ -13,9 +13,9 @@ import pytest
 PKG = Path(__file__).resolve().parents[1] / "fsdvs_hw"
 
 
-@pytest.mark.parametrize("package", ["fsdvs_hw", "fsdvs_hw.tasks"])
+@pytest.mark.parametrize("package", ["fsdvs_hw", "fsdvs_hw.tasks", "fsdvs_hw.sensor"])
 def test_type_checking_imports_list_exactly_the_lazy_names_and_each_resolves(package):
-    path = PKG / ("__init__.py" if package == "fsdvs_hw" else "tasks/__init__.py")
+    path = PKG / ("__init__.py" if package == "fsdvs_hw" else f"{package.split('.')[1]}/__init__.py")
     tree = ast.parse(path.read_text())
 
     def assigns_lazy(node: ast.stmt) -> bool:
@@ -42,3 +42,18 @@ def test_importing_the_package_does_not_import_torch_or_casadi():
     code = "import sys, fsdvs_hw, fsdvs_hw.tasks; print('torch' in sys.modules, 'casadi' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["False", "False"]
+
+
+def test_the_simulate_command_line_is_parsed_without_torch():
+    """Parsing ``fsdvs-hw simulate`` (presets, input mappings, upsampling modes) and reading a
+    preset and its mapping load no torch: a bad argument is refused at once, and the command's
+    own imports start only once its arguments hold."""
+    code = (
+        "import sys; from fsdvs_hw.cli import _parser; "
+        "_parser('simulate').parse_args(['simulate', 'example:bikes', '--out', 'e.h5']); "
+        "from fsdvs_hw.sensor.config import SensorConfig; from fsdvs_hw.sensor.presets import preset_input_mapping; "
+        "SensorConfig.preset('v2e-default'); preset_input_mapping('v2e-default'); "
+        "print('torch' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False"]

@@ -191,32 +191,39 @@ def _stop_on_signals() -> Iterator[list[int]]:
             signal.signal(s, h)
 
 
+#: Bytes of decoded frames the decoding thread may hold ahead of the simulation.
+_PREFETCH_BYTES = 64 << 20
+
+
+def _prefetch_frames(props: dict, size: tuple[int, int] | None, dtype: str) -> int:
+    """Frames the decoding thread may hold ahead: :data:`_PREFETCH_BYTES` of frames of the output
+    size (``size``, else the source's), at least 2 and at most 256; 8 if the size is unknown."""
+    h_w = size if size is not None else (tuple(reversed(props["source_size"])) if props.get("source_size") else None)
+    if not h_w:
+        return 8
+    per_frame = int(h_w[0]) * int(h_w[1]) * (8 if dtype == "float64" else 4)
+    return int(min(max(_PREFETCH_BYTES // max(per_frame, 1), 2), 256))
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the verb; returns the exit status (0, or 130 / 143 when stopped by SIGINT / SIGTERM)."""
-    from ..kernels import load_kernel_or_reference
     from ..paths import output_file
+    from ..prefetch import prefetch
     from ..progress import progress_bar
     from ..scenes.video import example_clip_path, iter_video, video_properties
-    from ..sensor import SensorConfig, simulate
+    from ..sensor.config import SensorConfig
     from ..sensor.eventfile import EventFileWriter, event_format
     from ..sensor.presets import preset_input_mapping
-    from ..sensor.upsampling import upsample_frames
 
     event_format(args.out)  # checked before decoding anything
     _check_numbers(args)
     size = _size(args.size)
-    import torch
-
-    from ..sensor.threads import event_list_threads
-
-    torch.set_num_threads(args.threads if args.threads is not None else event_list_threads())
     output_file(args.out, flag="--out")  # its folder is created (as every verb's --out), or a one-line error
     path = example_clip_path(args.video.split(":", 1)[1]) if args.video.startswith("example:") else Path(args.video)
     overrides = {"seed": args.seed}
     if args.placement is not None:
         overrides["placement"] = args.placement
     config = SensorConfig.preset(args.preset, **overrides)
-    kernel = load_kernel_or_reference(args.kernel) if args.kernel else None
     props = video_properties(path)
     mapping = args.input_mapping or preset_input_mapping(args.preset)
     frames = iter_video(
@@ -230,7 +237,25 @@ def run(args: argparse.Namespace) -> int:
         dtype=args.dtype,
     )
     if args.upsample != "none":
+        from ..sensor.upsampling import upsample_frames
+
         frames = upsample_frames(frames, mode=args.upsample, rate_hz=args.upsample_rate)
+    import torch
+
+    # Decoding runs in its own thread, beside the simulation (docs/speed.md); at most
+    # _PREFETCH_BYTES of frames wait ahead.
+    frames = prefetch(frames, max_items=_prefetch_frames(props, size, args.dtype), name="fsdvs-decode")
+
+    from ..kernels import load_kernel_or_reference
+    from ..sensor.stream import simulate
+    from ..sensor.threads import event_list_threads
+
+    torch.set_num_threads(args.threads if args.threads is not None else event_list_threads())
+    try:
+        kernel = load_kernel_or_reference(args.kernel) if args.kernel else None
+    except BaseException:
+        frames.close()  # stops the decoding thread and its ffmpeg
+        raise
     total = props.get("nframes")
     total = args.frames if args.frames is not None else (max(int(total) - args.start_frame, 0) if total else None)
     if total and args.upsample != "none" and props.get("fps"):  # the bar counts simulated (upsampled) frames
@@ -285,6 +310,7 @@ def run(args: argparse.Namespace) -> int:
                 writer.abort()
             raise
         finally:
+            frames.close()
             bar.close()
     wall = time.perf_counter() - t0
     print(f"{args.out}: {n_events} events ({n_on} ON, {n_events - n_on} OFF) in {wall:.1f} s")

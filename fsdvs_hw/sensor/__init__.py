@@ -21,45 +21,57 @@ compare_events        simulation vs recording: rates, alignment, polarity, pixel
 calibrate_sensor      thresholds, spread, refractory, noise, bandwidth fitted to a recording, with CIs
 """
 
-from .calibrate import SensorCalibration, calibrate_sensor
-from .compare import EventComparison, compare_events
-from .config import PLACEMENTS, POSITIVITY_MODES, SURROGATES, SensorConfig
-from .events import EventList, EventSimulator, SimulationInfo, event_frames, event_list, voxel_grid
-from .filtering import mesh_surround_steady_state
-from .pixel import linlog
-from .plan import ModelPlan, PlanDecision, SceneStats, plan_model
-from .presets import SensorPreset, sensor_config, sensor_preset
-from .recordings import read_recording
-from .stream import EventChunk, collect, simulate
-from .upsampling import upsample_frames
+from __future__ import annotations
 
-__all__ = [
-    "PLACEMENTS",
-    "POSITIVITY_MODES",
-    "SURROGATES",
-    "EventChunk",
-    "EventComparison",
-    "EventList",
-    "EventSimulator",
-    "ModelPlan",
-    "PlanDecision",
-    "SceneStats",
-    "SensorCalibration",
-    "SensorConfig",
-    "SensorPreset",
-    "SimulationInfo",
-    "calibrate_sensor",
-    "collect",
-    "compare_events",
-    "event_frames",
-    "event_list",
-    "linlog",
-    "mesh_surround_steady_state",
-    "plan_model",
-    "read_recording",
-    "sensor_config",
-    "sensor_preset",
-    "simulate",
-    "upsample_frames",
-    "voxel_grid",
-]
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
+
+# public name -> module that defines it. Loaded on first use, so that reading a preset, its input
+# mapping or the config's field names (the ``simulate`` command's parser) does not import torch:
+# the command decodes the video while torch loads (docs/speed.md).
+_LAZY: dict[str, str] = {
+    "PLACEMENTS": "fsdvs_hw.sensor.config",
+    "POSITIVITY_MODES": "fsdvs_hw.sensor.config",
+    "SURROGATES": "fsdvs_hw.sensor.config",
+    "EventChunk": "fsdvs_hw.sensor.stream",
+    "EventComparison": "fsdvs_hw.sensor.compare",
+    "EventList": "fsdvs_hw.sensor.events",
+    "EventSimulator": "fsdvs_hw.sensor.events",
+    "ModelPlan": "fsdvs_hw.sensor.plan",
+    "PlanDecision": "fsdvs_hw.sensor.plan",
+    "SceneStats": "fsdvs_hw.sensor.plan",
+    "SensorCalibration": "fsdvs_hw.sensor.calibrate",
+    "SensorConfig": "fsdvs_hw.sensor.config",
+    "SensorPreset": "fsdvs_hw.sensor.presets",
+    "SimulationInfo": "fsdvs_hw.sensor.events",
+    "calibrate_sensor": "fsdvs_hw.sensor.calibrate",
+    "collect": "fsdvs_hw.sensor.stream",
+    "compare_events": "fsdvs_hw.sensor.compare",
+    "event_frames": "fsdvs_hw.sensor.events",
+    "event_list": "fsdvs_hw.sensor.events",
+    "linlog": "fsdvs_hw.sensor.pixel",
+    "mesh_surround_steady_state": "fsdvs_hw.sensor.filtering",
+    "plan_model": "fsdvs_hw.sensor.plan",
+    "read_recording": "fsdvs_hw.sensor.recordings",
+    "sensor_config": "fsdvs_hw.sensor.presets",
+    "sensor_preset": "fsdvs_hw.sensor.presets",
+    "simulate": "fsdvs_hw.sensor.stream",
+    "upsample_frames": "fsdvs_hw.sensor.upsampling",
+    "voxel_grid": "fsdvs_hw.sensor.events",
+}
+
+__all__, __getattr__, __dir__ = lazy_exports("fsdvs_hw.sensor", _LAZY, globals())
+
+if TYPE_CHECKING:  # the same names, visible to IDEs and type checkers
+    from .calibrate import SensorCalibration, calibrate_sensor
+    from .compare import EventComparison, compare_events
+    from .config import PLACEMENTS, POSITIVITY_MODES, SURROGATES, SensorConfig
+    from .events import EventList, EventSimulator, SimulationInfo, event_frames, event_list, voxel_grid
+    from .filtering import mesh_surround_steady_state
+    from .pixel import linlog
+    from .plan import ModelPlan, PlanDecision, SceneStats, plan_model
+    from .presets import SensorPreset, sensor_config, sensor_preset
+    from .recordings import read_recording
+    from .stream import EventChunk, collect, simulate
+    from .upsampling import upsample_frames
