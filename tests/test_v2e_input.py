@@ -99,3 +99,26 @@ def test_v2e_default_preset_counts_match_v2e_from_the_same_file(clip, tmp_path, 
             f"{clip} {dtype}: fsdvs-hw {n} events, v2e {r['events']}, ratio {n / r['events']:.4f} ({len(gray)} frames)"
         )
         assert abs(n / r["events"] - 1) < 0.01
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+@pytest.mark.parametrize("peak", [1.0, 3.7, 1e-40, 1e29])
+def test_iter_video_v2e_frames_are_the_bits_of_the_whole_frame_formula(dtype, peak):
+    """iter_video converts v2e's gray codes by a 256-entry table; each frame must carry the same
+    bits as the frame-wide formula (gray / 255 in float64, times the peak, then the dtype), also
+    at the extremes of the allowed peaks (float32 subnormals and zeros at 1e-40, 1e29 below 1e30)."""
+    import imageio
+
+    path = example_clip_path("carphone")
+    with imageio.get_reader(str(path), "ffmpeg") as reader:
+        raw = [np.asarray(f) for _, f in zip(range(4), reader, strict=False)]
+    got = [f for _, f in iter_video(path, input_mapping="v2e_gray", dtype=dtype, peak_intensity=peak, n_frames=4)]
+    assert len(got) == 4
+    for frame, out in zip(raw, got, strict=True):
+        lum = v2e_gray(frame)
+        lum = np.maximum(lum, 0.0, out=lum)
+        if peak != 1.0:
+            lum *= peak
+        want = lum.astype(dtype)
+        assert out.dtype == np.dtype(dtype) and out.shape == want.shape
+        assert np.array_equal(out.view(f"u{out.itemsize}"), want.view(f"u{want.itemsize}"))

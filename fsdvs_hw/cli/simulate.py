@@ -100,8 +100,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--chunk-frames",
         type=int,
-        default=1,
-        help="frame intervals per chunk (default 1; peak memory grows with the events of one chunk)",
+        default=None,
+        help="frame intervals per chunk (default: about 262 144 pixels per chunk, at least 1 frame: "
+        "1 for 640x272 and larger, 10 for 176x144; peak memory grows with the events of one chunk)",
     )
     parser.add_argument(
         "--threads",
@@ -154,7 +155,7 @@ def _check_numbers(args: argparse.Namespace) -> None:
         raise InputError(f"--start-frame {args.start_frame}: must be >= 0")
     if args.frames is not None and args.frames < 1:
         raise InputError(f"--frames {args.frames}: must be >= 1")
-    if not 1 <= args.chunk_frames <= 100_000:
+    if args.chunk_frames is not None and not 1 <= args.chunk_frames <= 100_000:
         raise InputError(f"--chunk-frames {args.chunk_frames}: must be in [1, 100000]")
     from ..sensor.upsampling import MAX_UPSAMPLE_RATE_HZ
 
@@ -195,10 +196,18 @@ def _stop_on_signals() -> Iterator[list[int]]:
 _PREFETCH_BYTES = 64 << 20
 
 
+def _frame_size(props: dict, size: tuple[int, int] | None) -> tuple[int, int] | None:
+    """(H, W) of the simulated frames: ``--size``, else the source's; None if the file does not say."""
+    if size is not None:
+        return size
+    src = props.get("source_size")
+    return (int(src[1]), int(src[0])) if src else None
+
+
 def _prefetch_frames(props: dict, size: tuple[int, int] | None, dtype: str) -> int:
     """Frames the decoding thread may hold ahead: :data:`_PREFETCH_BYTES` of frames of the output
     size (``size``, else the source's), at least 2 and at most 256; 8 if the size is unknown."""
-    h_w = size if size is not None else (tuple(reversed(props["source_size"])) if props.get("source_size") else None)
+    h_w = _frame_size(props, size)
     if not h_w:
         return 8
     per_frame = int(h_w[0]) * int(h_w[1]) * (8 if dtype == "float64" else 4)
@@ -207,6 +216,7 @@ def _prefetch_frames(props: dict, size: tuple[int, int] | None, dtype: str) -> i
 
 def run(args: argparse.Namespace) -> int:
     """Run the verb; returns the exit status (0, or 130 / 143 when stopped by SIGINT / SIGTERM)."""
+    from ..allocator import retain_freed_memory
     from ..paths import output_file
     from ..prefetch import prefetch
     from ..progress import progress_bar
@@ -215,6 +225,7 @@ def run(args: argparse.Namespace) -> int:
     from ..sensor.eventfile import EventFileWriter, event_format
     from ..sensor.presets import preset_input_mapping
 
+    retain_freed_memory()  # the same frame-sized buffers, freed and allocated again at every step
     event_format(args.out)  # checked before decoding anything
     _check_numbers(args)
     size = _size(args.size)
@@ -247,7 +258,7 @@ def run(args: argparse.Namespace) -> int:
     frames = prefetch(frames, max_items=_prefetch_frames(props, size, args.dtype), name="fsdvs-decode")
 
     from ..kernels import load_kernel_or_reference
-    from ..sensor.stream import simulate
+    from ..sensor.stream import chunk_frames_for, simulate
     from ..sensor.threads import event_list_threads
 
     torch.set_num_threads(args.threads if args.threads is not None else event_list_threads())
@@ -260,13 +271,17 @@ def run(args: argparse.Namespace) -> int:
     total = args.frames if args.frames is not None else (max(int(total) - args.start_frame, 0) if total else None)
     if total and args.upsample != "none" and props.get("fps"):  # the bar counts simulated (upsampled) frames
         total = (total - 1) * max(math.ceil(args.upsample_rate / float(props["fps"]) - 1e-9), 1) + 1
+    chunk_frames = args.chunk_frames
+    if chunk_frames is None:
+        h_w = _frame_size(props, size)
+        chunk_frames = chunk_frames_for(*h_w) if h_w else 1
     t0 = time.perf_counter()
     n_events = n_on = 0
     writer = None
     bar = progress_bar(total=total, unit="frame", desc="simulate", progress=False if args.no_progress else None)
     with _stop_on_signals() as stopped:
         try:
-            for chunk in simulate(frames, kernel, config=config, chunk_frames=args.chunk_frames):
+            for chunk in simulate(frames, kernel, config=config, chunk_frames=chunk_frames):
                 if stopped:  # the signal's exception was swallowed on its way up
                     raise _Stopped(stopped[0])
                 if writer is None:

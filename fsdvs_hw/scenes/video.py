@@ -98,6 +98,11 @@ def v2e_gray(frame: Any, size: tuple[int, int] | None = None) -> np.ndarray:
     >>> (v2e_gray(rgb) * 255).round().astype(int).tolist()  # 0.299 R + 0.587 G + 0.114 B, rounded
     [[76, 150, 29, 124]]
     """
+    return _v2e_gray_code(frame, size).astype(np.float64) / 255.0
+
+
+def _v2e_gray_code(frame: Any, size: tuple[int, int] | None) -> np.ndarray:
+    """The uint8 gray code values of :func:`v2e_gray` (before the division by 255)."""
     import cv2
 
     code = np.asarray(frame)
@@ -106,8 +111,17 @@ def v2e_gray(frame: Any, size: tuple[int, int] | None = None) -> np.ndarray:
     code = np.ascontiguousarray(code[..., :3]) if code.ndim == 3 else code
     if size is not None and tuple(size) != code.shape[:2]:
         code = cv2.resize(code, (int(size[1]), int(size[0])), interpolation=cv2.INTER_AREA)
-    gray = cv2.cvtColor(code, cv2.COLOR_RGB2GRAY) if code.ndim == 3 else code
-    return gray.astype(np.float64) / 255.0
+    return cv2.cvtColor(code, cv2.COLOR_RGB2GRAY) if code.ndim == 3 else code
+
+
+def _v2e_gray_table(peak: float, dtype: str) -> np.ndarray:
+    """What :func:`iter_video` makes of each gray code value 0..255 under v2e's mapping: the value
+    / 255 in float64, times ``peak``, in ``dtype``: the same operations on the same values as
+    converting a whole frame, so a lookup gives the same bits in one pass instead of four."""
+    table = np.arange(256, dtype=np.float64) / 255.0
+    if peak != 1.0:
+        table *= peak
+    return table.astype(dtype)
 
 
 @dataclass(frozen=True)
@@ -418,6 +432,7 @@ def _iter_frames(
         if not fps > 0:
             raise InputError(f"video file {str(p)!r} reports no frame rate")
         emitted = decoded = 0
+        gray_table = _v2e_gray_table(peak, dtype) if input_mapping == "v2e_gray" else None
         frames = iter(reader)
         for i in itertools.count():
             try:
@@ -435,18 +450,19 @@ def _iter_frames(
             decoded = i + 1
             if i < start_frame or (i - start_frame) % stride:
                 continue
-            if input_mapping == "v2e_gray":
-                lum = v2e_gray(frame, size)
+            if gray_table is not None:  # v2e's mapping: one lookup per pixel (_v2e_gray_table)
+                out = np.take(gray_table, _v2e_gray_code(frame, size))
             else:
                 lum = display_to_linear(np.asarray(frame)[..., :3], transfer=transfer, colourspace=colourspace)
                 if size is not None:
                     from skimage.transform import resize
 
                     lum = resize(lum, tuple(size), anti_aliasing=True, preserve_range=True)
-            lum = np.maximum(lum, 0.0, out=lum)
-            if peak != 1.0:
-                lum *= peak
-            yield i / fps, lum if lum.dtype == dtype else lum.astype(dtype)
+                lum = np.maximum(lum, 0.0, out=lum)
+                if peak != 1.0:
+                    lum *= peak
+                out = lum if lum.dtype == dtype else lum.astype(dtype)
+            yield i / fps, out
             emitted += 1
             if n_frames is not None and emitted >= n_frames:
                 return
