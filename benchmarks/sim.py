@@ -814,10 +814,11 @@ def sim_records(
         cases, whose event work keeps two worker threads (emit, sort) busy besides;
         ``min(2, cpu_count)`` for the others).
     chunk_frames : int, optional
-        Frame intervals per streamed chunk (default: :func:`fsdvs_hw.sensor.stream.chunk_frames_for`,
-        :data:`~fsdvs_hw.sensor.stream.CHUNK_PIXELS` pixels per chunk, at
-        least one frame: 1 for bikes and bigbuckbunny, as ``fsdvs-hw simulate``, the smallest
-        peak memory; 10 for the small carphone frames, whose per-chunk overhead would dominate).
+        Frame intervals per streamed chunk (default, as ``fsdvs-hw simulate``:
+        :func:`fsdvs_hw.sensor.stream.chunk_frames_for`, about
+        :data:`~fsdvs_hw.sensor.stream.CHUNK_PIXELS` pixels per chunk and at least
+        :data:`~fsdvs_hw.sensor.stream.MIN_CHUNK_FRAMES` frames: 3 for bikes, 2 for bigbuckbunny,
+        20 for carphone).
     long_seconds : float
         Length of the long 640×480 clip (default 120 s = 3000 frames; 1 s with ``quick``).
     long : bool

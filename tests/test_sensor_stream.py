@@ -165,18 +165,20 @@ def test_chunks_of_one_clip_are_views_and_equal_the_stack():
     assert torch.equal(gapped, torch.stack(gaps, dim=1))
 
 
-def test_chunk_frames_for_aims_at_chunk_pixels_and_at_least_one_frame():
-    from fsdvs_hw.sensor.stream import CHUNK_PIXELS, chunk_frames_for
+def test_chunk_frames_for_aims_at_chunk_pixels_and_at_least_min_chunk_frames():
+    from fsdvs_hw.sensor.stream import CHUNK_PIXELS, MIN_CHUNK_FRAMES, chunk_frames_for
 
-    assert chunk_frames_for(272, 640) == 1 and chunk_frames_for(720, 1280) == 1  # one frame: least memory
-    assert chunk_frames_for(144, 176) == CHUNK_PIXELS // (144 * 176) == 10
-    assert chunk_frames_for(1, 1) == CHUNK_PIXELS and chunk_frames_for(512, 512) == 1
+    assert MIN_CHUNK_FRAMES == 2 and CHUNK_PIXELS == 2**19
+    assert chunk_frames_for(272, 640) == CHUNK_PIXELS // (272 * 640) == 3
+    assert chunk_frames_for(720, 1280) == chunk_frames_for(2160, 3840) == MIN_CHUNK_FRAMES
+    assert chunk_frames_for(144, 176) == 20
+    assert chunk_frames_for(1, 1) == CHUNK_PIXELS
     assert chunk_frames_for(0, 5) == CHUNK_PIXELS  # a degenerate size does not divide by zero
 
 
 def test_simulate_command_default_chunks_follow_the_frame_size(tmp_path):
     """The command's default --chunk-frames is chunk_frames_for(H, W) of the simulated frames
-    (--size if given, else the file's), 1 if the file does not say its size."""
+    (--size if given, else the file's), MIN_CHUNK_FRAMES if the file does not say its size."""
     from fsdvs_hw.cli import main
     from fsdvs_hw.cli.simulate import _frame_size
     from fsdvs_hw.sensor import stream
@@ -196,5 +198,5 @@ def test_simulate_command_default_chunks_follow_the_frame_size(tmp_path):
         base = ["simulate", "example:carphone", "--frames", "12", "--preset", "v2e-default", "--no-progress"]
         assert main([*base, "--out", str(tmp_path / "a.npz")]) == 0
         assert main([*base, "--out", str(tmp_path / "b.npz"), "--size", "272x640"]) == 0
-        assert main([*base, "--out", str(tmp_path / "c.npz"), "--chunk-frames", "3"]) == 0
-    assert seen == [10, 1, 3]
+        assert main([*base, "--out", str(tmp_path / "c.npz"), "--chunk-frames", "5"]) == 0
+    assert seen == [20, 3, 5]

@@ -101,8 +101,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--chunk-frames",
         type=int,
         default=None,
-        help="frame intervals per chunk (default: about 262 144 pixels per chunk, at least 1 frame: "
-        "1 for 640x272 and larger, 10 for 176x144; peak memory grows with the events of one chunk)",
+        help="frame intervals per chunk (default: about 2**19 pixels per chunk, at least 2 frames: "
+        "3 for 640x272, 20 for 176x144; peak memory grows with the frames and events of one chunk)",
     )
     parser.add_argument(
         "--threads",
@@ -258,7 +258,7 @@ def run(args: argparse.Namespace) -> int:
     frames = prefetch(frames, max_items=_prefetch_frames(props, size, args.dtype), name="fsdvs-decode")
 
     from ..kernels import load_kernel_or_reference
-    from ..sensor.stream import chunk_frames_for, simulate
+    from ..sensor.stream import MIN_CHUNK_FRAMES, chunk_frames_for, simulate
     from ..sensor.threads import event_list_threads
 
     torch.set_num_threads(args.threads if args.threads is not None else event_list_threads())
@@ -274,7 +274,7 @@ def run(args: argparse.Namespace) -> int:
     chunk_frames = args.chunk_frames
     if chunk_frames is None:
         h_w = _frame_size(props, size)
-        chunk_frames = chunk_frames_for(*h_w) if h_w else 1
+        chunk_frames = chunk_frames_for(*h_w) if h_w else MIN_CHUNK_FRAMES
     t0 = time.perf_counter()
     n_events = n_on = 0
     writer = None

@@ -60,30 +60,39 @@ from .events import (
 from .filtering import filtered_log_signal, kernel_tensor
 from .pixel import threshold_maps
 
-__all__ = ["CHUNK_PIXELS", "EventChunk", "chunk_frames_for", "collect", "simulate"]
+__all__ = ["CHUNK_PIXELS", "MIN_CHUNK_FRAMES", "EventChunk", "chunk_frames_for", "collect", "simulate"]
 
 #: Chunks whose events are still being computed when the stream hands one over (CPU event lists).
 LOOKAHEAD_CHUNKS = 1
 
-#: Pixels per chunk that :func:`chunk_frames_for` aims at (2**18: one frame of 640×272 or larger).
-CHUNK_PIXELS = 2**18
+#: Pixels per chunk that :func:`chunk_frames_for` aims at (2**19: three frames of 640×272).
+CHUNK_PIXELS = 2**19
+
+#: The fewest frame intervals per chunk :func:`chunk_frames_for` gives.
+MIN_CHUNK_FRAMES = 2
 
 
 def chunk_frames_for(height: int, width: int) -> int:
     """Frame intervals per chunk for frames of ``height`` × ``width`` pixels: about
-    :data:`CHUNK_PIXELS` pixels per chunk, at least one frame.
+    :data:`CHUNK_PIXELS` pixels per chunk, at least :data:`MIN_CHUNK_FRAMES` frames.
 
-    Large frames get one interval per chunk (the smallest peak memory); small frames get several,
-    because every chunk has a fixed cost (its log signal, the hand-offs to the event workers, the
-    writer's slice), which on 176×144 frames made a one-frame-per-chunk ``simulate`` command
-    spend about 0.7 s on 120 frames that take 0.2 s in 16-frame chunks (docs/speed.md).
+    Every chunk has a fixed cost (its log signal, the hand-offs to the event workers, the writer's
+    slice), and the event workers run at most one chunk behind the stepping
+    (:data:`LOOKAHEAD_CHUNKS`), so one-frame chunks leave them idle between frames. On 2 cores
+    (in-process event list, ``v2e-default``, 3 runs each) bikes took 1.2–1.35 s in one-frame
+    chunks and 0.93–0.98 s in four-frame ones, with no further gain from 6, 8 or 24;
+    bigbuckbunny 1.54–1.78 s in one-frame chunks, 1.42–1.48 s in two-frame ones, no faster in
+    four; 176×144 frames ran 0.7 s in the one-frame chunks of the ``simulate`` command and
+    0.2 s in chunks of 10 or more (docs/speed.md). Memory grows with the chunk: the ``simulate``
+    command on bigbuckbunny peaked at 521 MB in one-frame chunks, 615 MB in two-frame ones and
+    739 MB in four-frame ones (bikes: 414 MB in one-frame chunks, 452 MB in three-frame ones).
 
     Examples
     --------
-    >>> chunk_frames_for(272, 640), chunk_frames_for(144, 176), chunk_frames_for(1, 1) > 1000
-    (1, 10, True)
+    >>> chunk_frames_for(272, 640), chunk_frames_for(720, 1280), chunk_frames_for(144, 176)
+    (3, 2, 20)
     """
-    return max(1, CHUNK_PIXELS // max(int(height) * int(width), 1))
+    return max(MIN_CHUNK_FRAMES, CHUNK_PIXELS // max(int(height) * int(width), 1))
 
 
 @dataclass
