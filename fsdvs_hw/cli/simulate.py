@@ -17,6 +17,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 __all__ = ["BYTES_PER_PIXEL", "DESCRIPTION", "HELP", "MAX_SIDE", "MAX_THREADS_PER_CORE", "add_arguments", "run"]
 
@@ -196,47 +197,10 @@ def _stop_on_signals() -> Iterator[list[int]]:
 _PREFETCH_BYTES = 64 << 20
 
 
-def _frame_size(props: dict, size: tuple[int, int] | None) -> tuple[int, int] | None:
-    """(H, W) of the simulated frames: ``--size``, else the source's; None if the file does not say."""
-    if size is not None:
-        return size
-    src = props.get("source_size")
-    return (int(src[1]), int(src[0])) if src else None
+def _frames(args: argparse.Namespace, path: Path, size: tuple[int, int] | None, mapping: str) -> Iterator[Any]:
+    """The video's frames as the command simulates them: decoded, mapped, upsampled if asked."""
+    from ..scenes.video import iter_video
 
-
-def _prefetch_frames(props: dict, size: tuple[int, int] | None, dtype: str) -> int:
-    """Frames the decoding thread may hold ahead: :data:`_PREFETCH_BYTES` of frames of the output
-    size (``size``, else the source's), at least 2 and at most 256; 8 if the size is unknown."""
-    h_w = _frame_size(props, size)
-    if not h_w:
-        return 8
-    per_frame = int(h_w[0]) * int(h_w[1]) * (8 if dtype == "float64" else 4)
-    return int(min(max(_PREFETCH_BYTES // max(per_frame, 1), 2), 256))
-
-
-def run(args: argparse.Namespace) -> int:
-    """Run the verb; returns the exit status (0, or 130 / 143 when stopped by SIGINT / SIGTERM)."""
-    from ..allocator import retain_freed_memory
-    from ..paths import output_file
-    from ..prefetch import prefetch
-    from ..progress import progress_bar
-    from ..scenes.video import example_clip_path, iter_video, video_properties
-    from ..sensor.config import SensorConfig
-    from ..sensor.eventfile import EventFileWriter, event_format
-    from ..sensor.presets import preset_input_mapping
-
-    retain_freed_memory()  # the same frame-sized buffers, freed and allocated again at every step
-    event_format(args.out)  # checked before decoding anything
-    _check_numbers(args)
-    size = _size(args.size)
-    output_file(args.out, flag="--out")  # its folder is created (as every verb's --out), or a one-line error
-    path = example_clip_path(args.video.split(":", 1)[1]) if args.video.startswith("example:") else Path(args.video)
-    overrides = {"seed": args.seed}
-    if args.placement is not None:
-        overrides["placement"] = args.placement
-    config = SensorConfig.preset(args.preset, **overrides)
-    props = video_properties(path)
-    mapping = args.input_mapping or preset_input_mapping(args.preset)
     frames = iter_video(
         path,
         start_frame=args.start_frame,
@@ -251,82 +215,168 @@ def run(args: argparse.Namespace) -> int:
         from ..sensor.upsampling import upsample_frames
 
         frames = upsample_frames(frames, mode=args.upsample, rate_hz=args.upsample_rate)
-    import torch
+    return frames
 
-    # Decoding runs in its own thread, beside the simulation (docs/speed.md); at most
-    # _PREFETCH_BYTES of frames wait ahead.
-    frames = prefetch(frames, max_items=_prefetch_frames(props, size, args.dtype), name="fsdvs-decode")
 
-    from ..kernels import load_kernel_or_reference
-    from ..sensor.stream import MIN_CHUNK_FRAMES, chunk_frames_for, simulate
-    from ..sensor.threads import event_list_threads
-
-    torch.set_num_threads(args.threads if args.threads is not None else event_list_threads())
-    try:
-        kernel = load_kernel_or_reference(args.kernel) if args.kernel else None
-    except BaseException:
-        frames.close()  # stops the decoding thread and its ffmpeg
-        raise
+def _bar_total(args: argparse.Namespace, props: dict) -> int | None:
+    """Frames the progress bar counts: the simulated (upsampled) ones; None if the file does not say."""
     total = props.get("nframes")
     total = args.frames if args.frames is not None else (max(int(total) - args.start_frame, 0) if total else None)
-    if total and args.upsample != "none" and props.get("fps"):  # the bar counts simulated (upsampled) frames
+    if total and args.upsample != "none" and props.get("fps"):
         total = (total - 1) * max(math.ceil(args.upsample_rate / float(props["fps"]) - 1e-9), 1) + 1
-    chunk_frames = args.chunk_frames
-    if chunk_frames is None:
-        h_w = _frame_size(props, size)
-        chunk_frames = chunk_frames_for(*h_w) if h_w else MIN_CHUNK_FRAMES
-    t0 = time.perf_counter()
-    n_events = n_on = 0
-    writer = None
-    bar = progress_bar(total=total, unit="frame", desc="simulate", progress=False if args.no_progress else None)
+    return total
+
+
+def _open_writer(writer_class: Any, args: argparse.Namespace, path: Path, mapping: str, h_w: tuple[int, int]) -> Any:
+    """The event file writer for ``--out``, for frames of ``h_w`` = (H, W), with the run's metadata."""
+    upsample = args.upsample if args.upsample == "none" else f"{args.upsample} {args.upsample_rate:g} Hz"
+    metadata = {
+        "source": str(path),
+        "preset": args.preset,
+        "kernel": args.kernel or "none",
+        "input_mapping": mapping,
+        "dtype": args.dtype,
+        "upsample": upsample,
+    }
+    return writer_class(args.out, int(h_w[1]), int(h_w[0]), metadata=metadata)
+
+
+def _frame_size(props: dict, size: tuple[int, int] | None) -> tuple[int, int] | None:
+    """(H, W) of the simulated frames: ``--size``, else the source's; None if the file does not say."""
+    if size is not None:
+        return size
+    src = props.get("source_size")
+    return (int(src[1]), int(src[0])) if src else None
+
+
+def _prefetch_frames(h_w: tuple[int, int] | None, dtype: str) -> int:
+    """Frames the decoding thread may hold ahead: :data:`_PREFETCH_BYTES` of frames of ``h_w`` =
+    (H, W), at least 2 and at most 256; 8 if the size is unknown."""
+    if not h_w:
+        return 8
+    per_frame = int(h_w[0]) * int(h_w[1]) * (8 if dtype == "float64" else 4)
+    return int(min(max(_PREFETCH_BYTES // max(per_frame, 1), 2), 256))
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the verb; returns the exit status (0, or 130 / 143 when stopped by SIGINT / SIGTERM)."""
+    from ..allocator import retain_freed_memory
+    from ..paths import output_file
+    from ..scenes.video import example_clip_path, video_properties
+    from ..sensor.config import SensorConfig
+    from ..sensor.eventfile import event_format
+    from ..sensor.presets import preset_input_mapping
+
+    retain_freed_memory()  # the same frame-sized buffers, freed and allocated again at every step
+    event_format(args.out)  # checked before decoding anything
+    _check_numbers(args)
+    size = _size(args.size)
+    output_file(args.out, flag="--out")  # its folder is created (as every verb's --out), or a one-line error
+    path = example_clip_path(args.video.split(":", 1)[1]) if args.video.startswith("example:") else Path(args.video)
+    overrides = {"seed": args.seed}
+    if args.placement is not None:
+        overrides["placement"] = args.placement
+    config = SensorConfig.preset(args.preset, **overrides)
+    props = video_properties(path)
+    mapping = args.input_mapping or preset_input_mapping(args.preset)
+    run_state = _Run(args, path, mapping, props, size)
     with _stop_on_signals() as stopped:
         try:
-            for chunk in simulate(frames, kernel, config=config, chunk_frames=chunk_frames):
-                if stopped:  # the signal's exception was swallowed on its way up
-                    raise _Stopped(stopped[0])
-                if writer is None:
-                    writer = EventFileWriter(
-                        args.out,
-                        chunk.width,
-                        chunk.height,
-                        metadata={
-                            "source": str(path),
-                            "preset": args.preset,
-                            "kernel": args.kernel or "none",
-                            "input_mapping": mapping,
-                            "dtype": args.dtype,
-                            "upsample": args.upsample
-                            if args.upsample == "none"
-                            else f"{args.upsample} {args.upsample_rate:g} Hz",
-                        },
-                    )
-                assert chunk.events is not None  # simulate() yields events by default (events=True)
-                writer.write(chunk.events)
-                n_events += len(chunk.events)
-                n_on += int((chunk.events.p > 0).sum())
-                bar.update(chunk.n_frames)
-                bar.set_postfix_str(f"{n_events / max(time.perf_counter() - t0, 1e-9):.3g} ev/s, {n_events} events")
-                del chunk  # free this chunk's events before the next one is simulated
-            if stopped:
-                raise _Stopped(stopped[0])
-            if writer is not None:
-                writer.close()  # renames the finished file onto --out
+            n_events, n_on, wall = run_state.simulate_to_file(config, stopped)
         except _Stopped as exc:
-            if writer is not None:
-                writer.abort()
-            bar.close()
+            run_state.abort()
             print(
                 f"fsdvs-hw simulate: stopped by {signal.Signals(exc.signum).name}; nothing written to {args.out}",
                 file=sys.stderr,
             )
             return 128 + exc.signum
         except BaseException:
-            if writer is not None:
-                writer.abort()
+            run_state.abort()
             raise
-        finally:
-            frames.close()
-            bar.close()
-    wall = time.perf_counter() - t0
     print(f"{args.out}: {n_events} events ({n_on} ON, {n_events - n_on} OFF) in {wall:.1f} s")
     return 0
+
+
+class _Run:
+    """One run of the command: its frames (decoded in a thread), its writer, its progress bar;
+    :meth:`abort` stops them all and leaves no file."""
+
+    def __init__(
+        self, args: argparse.Namespace, path: Path, mapping: str, props: dict, size: tuple[int, int] | None
+    ) -> None:
+        self.args, self.path, self.mapping, self.props, self.size = args, path, mapping, props, size
+        self.frames: Any = None
+        self.writer: Any = None
+        self.bar: Any = None
+
+    def simulate_to_file(self, config: Any, stopped: list[int]) -> tuple[int, int, float]:
+        """Simulate and write every chunk; the events, ON events and seconds since the first frame."""
+        from ..sensor.eventfile import EventFileWriter
+
+        args = self.args
+        h_w = _frame_size(self.props, self.size)
+        # The writer process starts now, where the file says its frame size: it loads h5py or
+        # dv-processing on the other core while this one loads torch (docs/speed.md).
+        if h_w:
+            self.writer = _open_writer(EventFileWriter, args, self.path, self.mapping, h_w)
+        simulate, kernel, chunk_frames = self._load(h_w)
+        t0 = time.perf_counter()
+        n_events = n_on = 0
+        for chunk in simulate(self.frames, kernel, config=config, chunk_frames=chunk_frames):
+            if stopped:  # the signal's exception was swallowed on its way up
+                raise _Stopped(stopped[0])
+            if self.writer is None or (self.writer.width, self.writer.height) != (chunk.width, chunk.height):
+                if self.writer is not None:  # the container's declared size was not the frames' size
+                    self.writer.abort()
+                self.writer = _open_writer(EventFileWriter, args, self.path, self.mapping, (chunk.height, chunk.width))
+            assert chunk.events is not None  # simulate() yields events by default (events=True)
+            self.writer.write(chunk.events)
+            n_events += len(chunk.events)
+            n_on += int((chunk.events.p > 0).sum())
+            self.bar.update(chunk.n_frames)
+            self.bar.set_postfix_str(f"{n_events / max(time.perf_counter() - t0, 1e-9):.3g} ev/s, {n_events} events")
+            del chunk  # free this chunk's events before the next one is simulated
+        if stopped:
+            raise _Stopped(stopped[0])
+        if self.writer is not None:
+            self.writer.close()  # renames the finished file onto --out
+        self._release()
+        return n_events, n_on, time.perf_counter() - t0
+
+    def _load(self, h_w: tuple[int, int] | None) -> tuple[Any, Any, int]:
+        """torch and the simulator loaded, decoding started: ``(simulate, kernel, chunk_frames)``."""
+        import torch
+
+        from ..kernels import load_kernel_or_reference
+        from ..prefetch import prefetch
+        from ..progress import progress_bar
+        from ..sensor.stream import MIN_CHUNK_FRAMES, chunk_frames_for, simulate
+        from ..sensor.threads import event_list_threads
+
+        args = self.args
+        # Decoding runs in its own thread, beside the simulation (docs/speed.md); at most
+        # _PREFETCH_BYTES of frames wait ahead.
+        frames = _frames(args, self.path, self.size, self.mapping)
+        self.frames = prefetch(frames, max_items=_prefetch_frames(h_w, args.dtype), name="fsdvs-decode")
+        torch.set_num_threads(args.threads if args.threads is not None else event_list_threads())
+        kernel = load_kernel_or_reference(args.kernel) if args.kernel else None
+        chunk_frames = args.chunk_frames
+        if chunk_frames is None:
+            chunk_frames = chunk_frames_for(*h_w) if h_w else MIN_CHUNK_FRAMES
+        total = _bar_total(args, self.props)
+        self.bar = progress_bar(
+            total=total, unit="frame", desc="simulate", progress=False if args.no_progress else None
+        )
+        return simulate, kernel, chunk_frames
+
+    def _release(self) -> None:
+        if self.frames is not None:
+            self.frames.close()  # stops the decoding thread and its ffmpeg
+        if self.bar is not None:
+            self.bar.close()
+
+    def abort(self) -> None:
+        """Remove the partial file, stop decoding, close the bar."""
+        if self.writer is not None:
+            self.writer.abort()
+        self._release()
