@@ -86,6 +86,20 @@ def test_event_file_errors(tmp_path):
         with EventFileWriter(tmp_path / "ev2.npz", W, H) as w:
             w.write(chunks[1].events)
             w.write(chunks[0].events)
+    from fsdvs_hw.sensor.events import EventList
+
+    for bad in (0, 2, -2, 127, -128):  # -128: abs() overflows back to -128 in int8
+        p = torch.tensor([1, bad, -1], dtype=torch.int8)
+        three = EventList(
+            torch.zeros(3, dtype=torch.int64),
+            torch.zeros(3, dtype=torch.int64),
+            torch.zeros(3, dtype=torch.int64),
+            torch.tensor([0.0, 0.1, 0.2], dtype=torch.float64),
+            p,
+        )
+        with pytest.raises(InputError, match="polarity must be"):
+            write_events(tmp_path / f"bad{bad}.npz", three, W, H)
+        assert not (tmp_path / f"bad{bad}.npz").exists()
 
 
 from hypothesis import given, settings  # noqa: E402

@@ -130,7 +130,7 @@ def _columns(events: Any, width: int, height: int) -> tuple[np.ndarray, ...]:
             raise InputError(f"events: negative time {int(t_us.min())} µs; event files need t >= 0")
         if int(x.min()) < 0 or int(x.max()) >= width or int(y.min()) < 0 or int(y.max()) >= height:
             raise InputError(f"events: pixel outside the {width}x{height} sensor")
-        if not bool(np.isin(p, (-1, 1)).all()):
+        if not bool((np.abs(p) == 1).all()):  # one pass (np.isin: ~30x the time); abs(-128) stays -128
             raise InputError("events: polarity must be +1 (ON) or -1 (OFF)")
     return t_us, x, y, p
 
