@@ -12,7 +12,8 @@ Layouts
     ``.h5`` / ``.hdf5``: dataset ``events``, shape (N, 4), ``uint32``, columns ``[t_us, x, y, p]``,
     resizable, chunked 65 536 rows, v2e's ``--dvs_h5`` layout [1]_ (so v2e's readers and analysis
     scripts load it), compressed with HDF5's shuffle + gzip level 1 (v2e: gzip 4; any HDF5 reader
-    undoes either); the sensor size and conventions are added as file attributes
+    undoes either; the writer deflates with ISA-L, whose zlib streams every reader's zlib
+    decodes); the sensor size and conventions are added as file attributes
     (``width``, ``height``, ``time_unit``, ``polarity``). uint32 µs limits a file to 4294 s.
     ``.aedat4``: an event stream written and read by iniVation's maintained dv-processing
     library [2]_ (optional dependency: ``pip install fsdvs_hw[eventfiles]``).
