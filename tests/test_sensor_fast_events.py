@@ -151,6 +151,35 @@ def test_compiled_bucket_sort_is_a_stable_sort(values, scale):
         assert np.array_equal(p, np.concatenate([q[2] for q in parts])[order])
 
 
+@pytest.mark.parametrize(
+    "n, kind",
+    [
+        (50_000, "uniform"),
+        (50_000, "ties"),
+        (50_000, "one_cluster"),  # nearly every event in one bucket: the merge-sort branch
+    ],
+)
+def test_compiled_bucket_sort_of_an_interval_sized_list_is_a_stable_sort(n, kind):
+    """At the size of a real interval (bikes: ~70 000 events in 3 parts), as the hypothesis tests
+    above cannot reach: the stable argsort of the concatenated parts, ties in part order, pixel
+    and polarity carried along, with uniform, tied and one-bucket-clustered times."""
+    rng = np.random.default_rng(n)
+    if kind == "uniform":
+        t = 5.0 + rng.random(n)
+    elif kind == "ties":
+        t = 5.0 + rng.integers(0, 300, n) * 0.125
+    else:
+        t = 5.0 + np.where(rng.random(n) < 0.999, 0.5 + rng.random(n) * 1e-12, rng.random(n))
+    cuts = np.sort(rng.choice(np.arange(1, n), 3, replace=False))
+    flat = rng.permutation(n).astype(np.int32)
+    pol = np.where(rng.random(n) < 0.5, 1, -1).astype(np.int8)
+    parts = [(flat[a:b], t[a:b], pol[a:b]) for a, b in zip([0, *cuts], [*cuts, n], strict=True)]
+    order = np.argsort(t, kind="stable")
+    got_flat, got_t, got_p = sort_events(parts, 4.0, 7.0)
+    assert np.array_equal(got_t, t[order]) and np.array_equal(got_flat, flat[order])
+    assert np.array_equal(got_p, pol[order])
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     st.lists(st.lists(st.lists(st.integers(0, 40), max_size=120), min_size=1, max_size=3), min_size=1, max_size=3),
