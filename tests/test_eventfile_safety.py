@@ -430,18 +430,22 @@ def test_seed_limit_in_sensor_config():
         SensorConfig(seed=MAX_SEED + 1)
 
 
-def test_simulate_refuses_a_truncated_video_unless_allowed(tmp_path, capsys):
-    """Half a 40-frame clip decodes 19 frames: refused (exit 2, one line, no file at --out);
-    --allow-truncated simulates the decodable frames."""
+@pytest.mark.parametrize("preset", ["default", "v2e-default"], ids=["imageio decoder", "OpenCV decoder"])
+def test_simulate_refuses_a_truncated_video_unless_allowed(tmp_path, capfd, preset):
+    """Half a 40-frame clip decodes 17-19 frames: refused (exit 2, one line on the process's
+    stderr, libav's own messages included, no file at --out); --allow-truncated simulates the
+    decodable frames. Both decoders: imageio's ffmpeg (linear light) and OpenCV's (v2e's gray
+    frames, as v2e reads a video)."""
     from fsdvs_hw.cli import main
 
     video = _truncate(_fast_video(tmp_path / "clip.mp4"))
     out = tmp_path / "ev.npz"
-    assert main(["simulate", str(video), "--out", str(out), "--no-progress"]) == 2
-    err = capsys.readouterr().err.strip()
+    base = ["simulate", str(video), "--out", str(out), "--no-progress", "--preset", preset]
+    assert main(base) == 2
+    err = capfd.readouterr().err.strip()
     assert "truncated" in err and "declares 40" in err and len(err.splitlines()) == 1, err
     assert not out.exists() and os.listdir(tmp_path) == ["clip.mp4"]
-    assert main(["simulate", str(video), "--out", str(out), "--no-progress", "--allow-truncated"]) == 0
+    assert main([*base, "--allow-truncated"]) == 0
     assert len(read_events(out)) > 0
 
 
