@@ -420,6 +420,16 @@ def _cctf_names() -> Any:
     return colour.CCTF_DECODINGS
 
 
+def _check_not_truncated(p: Path, decoded: int, declared: int | None, rate: str, allow_truncated: bool) -> None:
+    """InputError if the decoder stopped more than one frame before the count the container declares."""
+    if declared is not None and decoded < declared - 1 and not allow_truncated:
+        raise InputError(
+            f"video file {str(p)!r}: decoded {decoded} frames but the container declares "
+            f"{declared} {rate}: truncated or corrupt file "
+            "(allow_truncated / --allow-truncated uses the decodable frames)"
+        )
+
+
 def _opencv_capture(p: Path) -> Any:
     """OpenCV's ``VideoCapture`` of ``p``, libav's own log quiet.
 
@@ -491,12 +501,7 @@ def _iter_v2e_frames(
             emitted += 1
             if n_frames is not None and emitted >= n_frames:
                 return
-        if declared is not None and decoded < declared - 1 and not allow_truncated:
-            raise InputError(
-                f"video file {str(p)!r}: decoded {decoded} frames but the container declares "
-                f"{declared} at {fps:g} fps: truncated or corrupt file "
-                "(allow_truncated / --allow-truncated uses the decodable frames)"
-            )
+        _check_not_truncated(p, decoded, declared, f"at {fps:g} fps", allow_truncated)
     finally:
         cap.release()
 
@@ -555,13 +560,8 @@ def _iter_frames(
             emitted += 1
             if n_frames is not None and emitted >= n_frames:
                 return
-        declared = _declared_frames(meta)
-        if declared is not None and decoded < declared - 1 and not allow_truncated:
-            raise InputError(
-                f"video file {str(p)!r}: decoded {decoded} frames but the container declares "
-                f"{declared} ({meta.get('duration')} s at {fps:g} fps): truncated or corrupt file "
-                "(allow_truncated / --allow-truncated uses the decodable frames)"
-            )
+        rate = f"({meta.get('duration')} s at {fps:g} fps)"
+        _check_not_truncated(p, decoded, _declared_frames(meta), rate, allow_truncated)
     finally:
         reader.close()
 
