@@ -26,14 +26,15 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Mapping
-from typing import Any, Literal, overload
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
-from pydantic import BaseModel
 
 from .errors import InputError
 from .kernels import Kernel, check_tap_magnitude
-from .schema import validate
+
+if TYPE_CHECKING:  # pydantic loads on the first fit-argument check, not with the simulator's checks
+    from pydantic import BaseModel
 
 __all__ = [
     "PITCH_RANGE_M",
@@ -64,6 +65,8 @@ def check_fit_arguments(options: type[BaseModel], arguments: Mapping[str, Any]) 
     :data:`fsdvs_hw.kernels.TAP_MAGNITUDE_RANGE` (design files check the same); other names
     (arguments added later) are left to the function.
     """
+    from .schema import validate
+
     validate(options, {name: arguments[name] for name in options.model_fields if name in arguments})
     kernel = arguments.get("kernel")
     if isinstance(kernel, Kernel):

@@ -57,3 +57,14 @@ def test_the_simulate_command_line_is_parsed_without_torch():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["False"]
+
+
+def test_the_simulator_loads_without_pydantic():
+    """pydantic (about 0.2 s to import) serves the design files and fit options; the simulator's own
+    argument checks (``fsdvs_hw.validation``) and the ``simulate`` command do not load it."""
+    code = (
+        "import sys, fsdvs_hw.sensor.stream, fsdvs_hw.sensor.eventfile, fsdvs_hw.cli.simulate, fsdvs_hw.validation; "
+        "print('pydantic' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False"]
