@@ -49,6 +49,7 @@ from ..errors import InputError
 from ..limits import check_allocation
 from ..validation import check_bool, check_increasing_times, check_instance, check_int
 from . import _crossings_native
+from .chunk_steps import BufferPool, advance_chunk, chunk_applies
 from .config import SATURATION_INTENSITY, SensorConfig
 from .crossings import crossing_step, noise_step, shot_noise_pixels, sort_interval, to_event_columns
 from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
@@ -451,12 +452,14 @@ class _EventPipeline:
         self.steps: list = []  # futures of crossing_step: (lost, em_on, em_off)
         self.noise_draws: list = []  # futures of shot-noise draws: (on_px, off_px)
         self.pending: list = []  # emit futures of the interval being stepped
+        self.buffers = BufferPool()  # work tensors of advance_chunk, reused from chunk to chunk
 
-    def emit(self, fn: Any, *args: Any, crossing: bool = False) -> None:
+    def emit(self, fn: Any, *args: Any, crossing: bool = False) -> Future:
         f = self.emit_pool.submit(fn, *args)
         self.pending.append(f)
         if crossing:
             self.steps.append(f)
+        return f
 
     def sort(self, parts: list, lo: float, hi: float) -> Any:
         """Future of :func:`.crossings.sort_interval` of an interval's parts (times in [lo, hi]);
@@ -492,14 +495,21 @@ class _EventPipeline:
 
         return self.sort_pool.submit(run)
 
+    def submit_noise(self, fn: Any, *args: Any) -> Future:
+        """Run ``fn(*args)`` on the noise worker (started here if need be), after every noise task
+        submitted before it; its result, ``(on_px, off_px)`` sized by the noise events drawn, is
+        kept for :meth:`take_noise`. Returns its future."""
+        if self.noise_pool is None:
+            self.noise_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-noise", initializer=name_os_thread)
+        drawn = self.noise_pool.submit(fn, *args)
+        self.noise_draws.append(drawn)
+        return drawn
+
     def noise(self, draw: Any, emit: Any, draw_args: tuple, emit_args: tuple) -> None:
         """Shot noise of one step: ``draw(*draw_args)`` (the count draw, per-pixel or sparse, in
         step order on the noise worker, ahead of the emitter) then ``emit(parts, on_px, off_px,
         *rest)`` in step order on the emit worker. The draw is kept for :meth:`take_noise`."""
-        if self.noise_pool is None:
-            self.noise_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-noise", initializer=name_os_thread)
-        drawn = self.noise_pool.submit(draw, *draw_args)
-        self.noise_draws.append(drawn)
+        drawn = self.submit_noise(draw, *draw_args)
         parts, *rest = emit_args
 
         def run() -> None:
@@ -622,7 +632,10 @@ def _advance_steps(
     pipe: _EventPipeline | None,
 ) -> list:
     """The stepping loop of :func:`_advance` (same arguments and result); with ``pipe`` the event
-    work is submitted to it (each interval's sort future appended to ``events``)."""
+    work is submitted to it (each interval's sort future appended to ``events``), by
+    :func:`.chunk_steps.advance_chunk` where :func:`.chunk_steps.chunk_applies`."""
+    if pipe is not None and chunk_applies(Ls[0], substeps, config, SU is not None, collect_events, want_counts):
+        return advance_chunk(st, Ls, CI if config.has_photoreceptor else None, tsd, config, events, pipe, bar)
     B, H, W = Ls[0].shape
     dev, dt_ = Ls[0].device, Ls[0].dtype
     c_on, c_off = st.c_on, st.c_off

@@ -1,0 +1,331 @@
+"""A chunk of frame intervals stepped and emitted by the compiled kernels, one worker task per chunk.
+
+This is the event-list fast path of :func:`.events._advance_steps`: the same kernels
+(``fsdvs_lowpass_exponent``, torch's ``expm1``, ``fsdvs_pixel_step``, ``fsdvs_step_events``) in the
+same order on the same values, so the events are bit for bit those of the step-by-step path. What
+changes is the dispatch around them. The step-by-step path pays, for every frame interval, a few
+dozen torch operations, tensor allocations and three thread-pool submissions (crossings, noise
+draw, noise events), all holding the GIL that the worker threads also need; on a 176×144 frame
+that dispatch was most of the ~1.3 ms each interval took. Here the stepping thread makes two
+ctypes calls and one ``expm1_`` per interval into buffers allocated once per chunk, and submits
+one crossing task and one noise task per chunk.
+
+It applies (:func:`chunk_applies`) to an event list on the CPU through an event pipeline (the
+streaming simulator and :func:`.events.event_list`), one sensor (batch of 1), one sub-step per
+frame interval, no transient surround, the straight-through comparator and no gradient: the
+case of a video simulated to events. Everything else takes the step-by-step path.
+
+Example
+-------
+>>> import torch
+>>> from fsdvs_hw.sensor import SensorConfig, event_list
+>>> video = torch.rand(1, 6, 8, 8) + 0.1
+>>> ev, _ = event_list(video, config=SensorConfig.preset("v2e-default"))  # runs through here
+>>> bool((ev.t[1:] >= ev.t[:-1]).all())
+True
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import threading
+from typing import Any
+
+import numpy as np
+import torch
+
+from ..limits import check_allocation
+from . import _crossings_native
+from .config import SensorConfig
+from .crossings import _threshold_np, _total, noise_step, shot_noise_pixels
+from .fused import _SUFFIX, _ctypes_real, _thresholds, fused_substep_applies
+
+__all__ = ["GROUP_PIXELS", "BufferPool", "advance_chunk", "chunk_applies"]
+
+#: Pixel-intervals per crossing task: a chunk's intervals go to the crossing worker in groups of
+#: about this many pixels, so its work overlaps the stepping of the rest of the chunk on large
+#: frames (one interval per task at 1280x720) while small frames still pay one hand-off per group
+#: (11 intervals at 176x144).
+GROUP_PIXELS = 2**18
+
+
+class BufferPool:
+    """Work tensors handed back and forth between the stepping thread and a worker, so a chunk's
+    buffers are the same pages every chunk: a fresh multi-megabyte ``torch.empty`` is a fresh
+    ``mmap`` whose every page the kernel must clear and fault in (on 1280×720 frames that was a
+    quarter of the CPU time). Thread-safe; at most ``keep`` tensors are kept.
+
+    Examples
+    --------
+    >>> pool = BufferPool()
+    >>> a = pool.take((2, 3), torch.float32)
+    >>> pool.give(a)
+    >>> pool.take((2, 3), torch.float32) is a
+    True
+    """
+
+    def __init__(self, keep: int = 8) -> None:
+        self._free: dict[tuple, list] = {}
+        self._lock = threading.Lock()
+        self._keep = keep
+
+    def take(self, shape: tuple[int, ...], dtype: Any) -> Any:
+        """A tensor of ``shape`` and ``dtype`` (contents undefined): a kept one when one fits."""
+        with self._lock:
+            kept = self._free.get((tuple(shape), dtype))
+            if kept:
+                return kept.pop()
+        return torch.empty(shape, dtype=dtype)
+
+    def give(self, t: Any) -> None:
+        """Hand ``t`` back: no one may use it afterwards."""
+        with self._lock:
+            kept = self._free.setdefault((tuple(t.shape), t.dtype), [])
+            if len(kept) < self._keep:
+                kept.append(t)
+
+
+def chunk_applies(
+    like: Any, substeps: list[int], config: SensorConfig, transient: bool, collect_events: bool, want_counts: bool
+) -> bool:
+    """Whether :func:`advance_chunk` can stand in for the step-by-step loop: an event list without
+    counts (``collect_events`` and not ``want_counts``), one sensor (``like`` is (1, H, W)), one
+    sub-step in every interval, and :func:`.fused.fused_substep_applies` (CPU, float32 or float64,
+    no gradient, no transient surround, the straight-through comparator, kernels available).
+
+    Examples
+    --------
+    >>> import torch
+    >>> from fsdvs_hw.sensor import SensorConfig
+    >>> with torch.no_grad():
+    ...     ok = chunk_applies(torch.zeros(1, 4, 4), [1, 1], SensorConfig(), False, True, False)
+    >>> ok == _crossings_native.available()
+    True
+    >>> chunk_applies(torch.zeros(1, 4, 4), [2, 1], SensorConfig(), False, True, False)
+    False
+    """
+    return (
+        collect_events
+        and not want_counts
+        and like.shape[0] == 1
+        and all(s == 1 for s in substeps)
+        and fused_substep_applies(like, config, transient)
+    )
+
+
+def _contiguous(x: Any) -> Any:
+    return x if x.is_contiguous() else x.contiguous()
+
+
+def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, events: list, pipe: Any, bar: Any) -> list:
+    """Step the pixel state ``st`` (:class:`.events._PixelState`) through the frames ``Ls`` (and
+    low-pass intensities ``CI``, or None) and submit their events to ``pipe``
+    (:class:`.events._EventPipeline`), as :func:`.events._advance_steps` does where
+    :func:`chunk_applies` holds.
+
+    Parameters
+    ----------
+    st : _PixelState
+        State at ``Ls[0]``; advanced to the last frame (``ref``, ``lp``, ``sig_prev`` replaced,
+        ``last_t`` updated in place by the crossing task).
+    Ls, CI : sequence of torch.Tensor
+        (1, H, W) log signal (log units) and photoreceptor intensity (relative) per frame.
+    tsd : torch.Tensor
+        (1, len(Ls)) float64 frame times (s).
+    config : SensorConfig
+        The sensor.
+    events : list
+        Each interval's :meth:`~.events._EventPipeline.sort` result is appended.
+    pipe : _EventPipeline
+        Where the crossing task (one per chunk), the noise task (one per chunk, with shot noise)
+        and the sorts run.
+    bar : tqdm or None
+        Advanced by one per interval.
+
+    Returns
+    -------
+    list
+        ``[None, None] * (len(Ls) - 1)``: no counts (the event-list path).
+    """
+    lib = _crossings_native._loaded()
+    B, H, W = Ls[0].shape
+    hw, K = H * W, len(Ls) - 1
+    dtype = Ls[0].dtype
+    sfx, real = _SUFFIX[dtype], _ctypes_real(dtype)
+    has_lp = config.has_photoreceptor
+    t_np = np.ascontiguousarray(tsd[0].numpy(), dtype=np.float64)  # frame times
+    dt64 = t_np[1:] - t_np[:-1]  # (t1 - t0) / 1, as _advance_steps' dt_sub64 with one sub-step
+    dtr = torch.from_numpy(dt64).to(dtype).numpy()  # rounded as torch rounds dt_sub to the signal dtype
+    con = _thresholds(st.c_on, hw, hw, dtype, "c_on")
+    coff = _thresholds(st.c_off, hw, hw, dtype, "c_off")
+    n_out = 5 if has_lp else 4
+    out = pipe.buffers.take((n_out, K, hw), dtype)  # [lp,] ref, n_on, n_off, d per interval
+    ref_out, n_on, n_off, d_out = out[n_out - 4], out[n_out - 3], out[n_out - 2], out[n_out - 1]
+    lp_out = out[0] if has_lp else None
+    em1 = pipe.buffers.take((K, hw), dtype) if has_lp else None
+    frames = [_contiguous(x) for x in Ls]
+    inten = [_contiguous(x) for x in CI] if has_lp else None
+    lp0 = _contiguous(st.lp) if has_lp else None
+    ref0, sig0 = _contiguous(st.ref), _contiguous(st.sig_prev)
+    step = getattr(lib, f"fsdvs_pixel_step_{sfx}")
+    exponent = getattr(lib, f"fsdvs_lowpass_exponent_{sfx}")
+    dark, fs, cutoff = real(config.dark_intensity), real(config.full_scale_intensity), real(config.cutoff_hz)
+    m2pi, leak, eps = real(-2.0 * math.pi), real(float(config.leak_rate_hz)), real(st.eps)
+    size = out.element_size()
+    dt_ptr = dtr.ctypes.data
+    parts: list[list] = [[] for _ in range(K)]
+    noise_parts: list[list] = [[] for _ in range(K)]
+    noise_f = None
+    if float(config.shot_noise_rate_hz) > 0:  # drawn while the pixels step: it needs no pixel state
+        noise_f = pipe.submit_noise(_noise_task, tsd, K, (B, H, W), config, st.shot_g, st.time_g, noise_parts)
+    # comparator input and reference at each interval's start
+    sig_a = [sig0, *(lp_out if lp_out is not None else frames[1:K])]
+    ref_a = [ref0, *ref_out[: K - 1]]
+    refr = float(config.refractory_s) if st.last_t is not None else 0.0
+    group = max(1, -(-GROUP_PIXELS // hw))
+    rows = (n_on, n_off, sig_a, ref_a, d_out, parts, noise_parts)
+    task = None
+    for k in range(K):
+        e = None
+        if em1 is not None:
+            assert inten is not None
+            row = em1[k]
+            exponent(inten[k + 1].data_ptr(), hw, hw, dt_ptr + k * size, dark, fs, cutoff, m2pi, row.data_ptr())
+            row.expm1_()  # torch's own expm1, per interval as the step-by-step path calls it
+            e = row.data_ptr()
+        step(
+            frames[k + 1].data_ptr(),
+            (lp0 if k == 0 else lp_out[k - 1]).data_ptr() if lp_out is not None and lp0 is not None else None,
+            e,
+            ref_a[k].data_ptr(),
+            con.data_ptr(),
+            con.numel(),
+            coff.data_ptr(),
+            coff.numel(),
+            dt_ptr + k * size,
+            leak,
+            eps,
+            hw,
+            hw,
+            lp_out[k].data_ptr() if lp_out is not None else None,
+            ref_out[k].data_ptr(),
+            n_on[k].data_ptr(),
+            n_off[k].data_ptr(),
+            d_out[k].data_ptr(),
+        )
+        if bar is not None:
+            bar.update(1)
+        if (k + 1) % group == 0 or k == K - 1:  # the group's crossings go out while the next ones step
+            ks = range(k + 1 - ((k % group) + 1), k + 1)
+            task = pipe.emit(_crossings_task, lib, sfx, (H, W), ks, rows, st, refr, t_np, dt64, noise_f, crossing=True)
+    if em1 is not None:
+        pipe.buffers.give(em1)
+    # the state leaves the chunk's buffer, which goes back to the pool once the crossings are out
+    st.ref = ref_out[K - 1].clone().view(B, H, W)
+    if lp_out is not None:
+        st.lp = st.sig_prev = lp_out[K - 1].clone().view(B, H, W)  # the comparator saw the low-pass output
+    else:
+        st.sig_prev = Ls[K]
+    assert task is not None  # K >= 1
+    task.add_done_callback(lambda _: pipe.buffers.give(out))  # the chunk's last task: the others are done
+    for k in range(K):
+        events.append(pipe.sort(parts[k], float(t_np[k]), float(t_np[k + 1])))
+    return [None, None] * K
+
+
+def _crossings_task(
+    lib: Any,
+    sfx: str,
+    hw_shape: tuple[int, int],
+    ks: range,
+    rows: tuple,
+    st: Any,
+    refr: float,
+    t_np: np.ndarray,
+    dt64: np.ndarray,
+    noise_f: Any,
+) -> tuple[float, None, None]:
+    """The crossings of intervals ``ks`` in order (``fsdvs_step_events``, as
+    :func:`.crossings.crossing_step` calls it). ``rows``: per interval of the chunk, the ON and OFF
+    counts, comparator input and reference at the start, difference at the end, the interval's
+    event parts (its crossing part is appended) and its shot-noise parts (appended after it once
+    ``noise_f`` is done). Returns ``(lost, None, None)`` like :func:`.crossings.crossing_step`
+    (the crossings lost to the refractory period)."""
+    h_on, h_off, sig_a, ref_a, d_b, parts, noise_parts = rows
+    emit = getattr(lib, f"fsdvs_step_events_{sfx}")
+    H, W = hw_shape
+    hw = H * W
+    c_on = _threshold_np(st.c_on, 1, H, W)
+    c_off = _threshold_np(st.c_off, 1, H, W)
+    last_t = st.last_t.view(-1).numpy() if st.last_t is not None else None
+    lost = 0.0
+    lost_k = ctypes.c_double(0.0)
+    for k in ks:
+        hon, hoff = h_on[k].numpy(), h_off[k].numpy()
+        cap = _total(hon) + _total(hoff)
+        if cap == 0:
+            continue
+        check_allocation(f"event list: {cap} threshold crossings in one step (1x{H}x{W} px; 13 bytes each)", 13.0 * cap)
+        flat = np.empty(cap, dtype=np.int32)
+        t = np.empty(cap, dtype=np.float64)
+        p = np.empty(cap, dtype=np.int8)
+        n = emit(
+            hon.ctypes.data,
+            hoff.ctypes.data,
+            sig_a[k].data_ptr(),
+            ref_a[k].data_ptr(),
+            d_b[k].data_ptr(),
+            c_on.ctypes.data,
+            len(c_on),
+            c_off.ctypes.data,
+            len(c_off),
+            t_np.ctypes.data + 8 * k,
+            t_np.ctypes.data + 8 * (k + 1),
+            dt64.ctypes.data + 8 * k,
+            hw,
+            hw,
+            last_t.ctypes.data if last_t is not None else None,
+            refr,
+            int(last_t is not None),
+            None,
+            None,
+            flat.ctypes.data,
+            t.ctypes.data,
+            p.ctypes.data,
+            ctypes.byref(lost_k),
+        )
+        if n < 0:
+            raise MemoryError("step_events: out of memory for the active-pixel list")
+        if last_t is not None:
+            lost += lost_k.value
+        if n:
+            if n < cap // 2:  # many crossings lost: do not keep the spare capacity alive
+                flat, t, p = flat[:n].copy(), t[:n].copy(), p[:n].copy()
+            parts[k].append((torch.from_numpy(flat[:n]), torch.from_numpy(t[:n]), torch.from_numpy(p[:n])))
+    if noise_f is not None:
+        noise_f.result()
+        for k in ks:
+            parts[k].extend(noise_parts[k])
+    return lost, None, None
+
+
+def _noise_task(
+    tsd: Any, K: int, shape: tuple[int, int, int], config: SensorConfig, shot_g: Any, time_g: Any, noise_parts: list
+) -> tuple[Any, Any]:
+    """Shot noise of a chunk's intervals in order: each interval's draw
+    (:func:`.crossings.shot_noise_pixels`) and its events (:func:`.crossings.noise_step`) into
+    ``noise_parts[k]``, the draws and times from the same streams in the same order as the
+    step-by-step path. Returns every ON and OFF noise pixel (their count is the noise total)."""
+    B = shape[0]
+    shot = float(config.shot_noise_rate_hz)
+    sparse = config.shot_noise_draw == "sparse"
+    ons, offs = [], []
+    for k in range(K):
+        t_a, t_b = tsd[:, k].view(B, 1, 1), tsd[:, k + 1].view(B, 1, 1)
+        dt_sub64 = ((tsd[:, k + 1] - tsd[:, k]) / 1).view(B, 1, 1)
+        on_px, off_px = shot_noise_pixels(B, shape[1] * shape[2], (0.5 * shot) * dt_sub64.reshape(B), shot_g, sparse)
+        noise_step(noise_parts[k], on_px, off_px, shape, t_a, t_b, dt_sub64, time_g)
+        ons.append(on_px)
+        offs.append(off_px)
+    return torch.cat(ons), torch.cat(offs)

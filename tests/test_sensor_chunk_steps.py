@@ -1,0 +1,104 @@
+"""The chunk fast path (fsdvs_hw.sensor.chunk_steps) gives the step-by-step path's events bit for bit."""
+
+import pytest
+import torch
+
+from fsdvs_hw.sensor import SensorConfig, _crossings_native, chunk_steps, event_frames, event_list, events
+from fsdvs_hw.sensor.chunk_steps import BufferPool
+from fsdvs_hw.sensor.stream import collect, simulate
+
+pytestmark = pytest.mark.skipif(not _crossings_native.available(), reason="compiled kernels unavailable")
+
+
+def _clip(T=13, H=12, W=20, seed=1, dtype=torch.float32):
+    g = torch.Generator().manual_seed(seed)
+    base = torch.rand(1, 1, H, W, generator=g) * 0.8 + 0.05
+    drift = torch.linspace(0, 1, T).view(1, T, 1, 1)
+    wave = torch.sin(6.28 * (drift + torch.arange(W).view(1, 1, 1, W) / 7.0))
+    return (base * (1 + 0.7 * wave)).clamp(min=0.0).to(dtype)
+
+
+CONFIGS = {
+    # photoreceptor low-pass, refractory period that binds, sparse shot noise
+    "v2e preset": SensorConfig.preset("v2e-default", shot_noise_rate_hz=20.0, refractory_s=0.02, seed=2),
+    # no photoreceptor, no noise, no refractory period
+    "v2e clean": SensorConfig.preset("v2e-clean", seed=2),
+    # per-pixel noise draw, leak with a random reference phase, mismatch
+    "per-pixel noise": SensorConfig(
+        shot_noise_rate_hz=10.0, leak_rate_hz=2.0, random_reference_phase=True, refractory_s=5e-3, seed=4
+    ),
+}
+
+
+def _without_chunk_path(monkeypatch):
+    monkeypatch.setattr(events, "chunk_applies", lambda *a, **k: False)
+
+
+def _run(video, config, chunk):
+    whole = event_list(video, config=config)
+    _, info = event_frames(video, config=config, return_info=True)
+    _, ev, s_info = collect(simulate(video, config=config, chunk_frames=chunk))
+    return whole, ev, s_info, info
+
+
+def _same(a, b):
+    assert len(a) == len(b) > 0
+    for name in ("b", "x", "y", "t", "p"):
+        assert torch.equal(getattr(a, name), getattr(b, name)), name
+
+
+@pytest.mark.parametrize("group_pixels", [None, 1, 3 * 240])
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+@pytest.mark.parametrize("name", list(CONFIGS))
+def test_chunk_path_equals_step_by_step_bit_for_bit(name, dtype, group_pixels, monkeypatch):
+    """Chunks of 5 intervals in crossing tasks of 1, 3 (with a remainder) or all intervals."""
+    config, video = CONFIGS[name], _clip(dtype=dtype)
+    if group_pixels is not None:
+        monkeypatch.setattr(chunk_steps, "GROUP_PIXELS", group_pixels)
+    taken = []
+    real = chunk_steps.advance_chunk
+
+    def spy(*args, **kwargs):
+        taken.append(len(args[1]) - 1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(events, "advance_chunk", spy)
+    fast_list, fast_stream, fast_info, _ = _run(video, config, chunk=5)
+    assert taken == [5, 5, 2]  # the stream's chunks went through it (event_list counts too: it does not)
+    monkeypatch.undo()
+    _without_chunk_path(monkeypatch)
+    slow_list, slow_stream, slow_info, frames_info = _run(video, config, chunk=5)
+    _same(fast_list, slow_list)
+    _same(fast_stream, slow_stream)
+    _same(fast_stream, fast_list)
+    assert fast_info.noise_events == slow_info.noise_events == frames_info.noise_events
+    assert fast_info.refractory_lost == slow_info.refractory_lost
+    if name == "v2e preset":
+        assert fast_info.noise_events > 0 and fast_info.refractory_lost > 0
+
+
+def test_chunk_path_is_not_taken_where_it_does_not_apply(monkeypatch):
+    """Sub-steps, a batch of sensors and event counts stay on the step-by-step path."""
+    taken = []
+    monkeypatch.setattr(events, "advance_chunk", lambda *a, **k: taken.append(1))
+    video = _clip(T=5)
+    event_list(video, config=SensorConfig(substeps=2))
+    event_list(torch.cat([video, video]), config=SensorConfig())
+    frames = event_frames(video, config=SensorConfig())
+    assert taken == [] and frames.shape[1] == 4
+
+
+def test_buffer_pool_keeps_each_shape_apart():
+    """A tensor of another shape handed back is kept, not dropped, and never handed out for this one."""
+    pool = BufferPool(keep=2)
+    a, b = pool.take((2, 3), torch.float32), pool.take((4,), torch.float32)
+    pool.give(a)
+    pool.give(b)
+    assert pool.take((4,), torch.float32) is b
+    assert pool.take((2, 3), torch.float32) is a
+    assert pool.take((2, 3), torch.float64).dtype == torch.float64  # nothing kept: a new one
+    given = [torch.empty(5) for _ in range(3)]
+    for t in given:
+        pool.give(t)
+    taken = [pool.take((5,), torch.float32) for _ in range(3)]
+    assert sum(any(t is g for g in given) for t in taken) == 2  # keep=2: the third given was dropped
