@@ -209,14 +209,21 @@ def step_events(
 _scratch = threading.local()  # each thread's bucket counts, reused from interval to interval
 
 
+def _as_numpy(x: Any) -> Any:
+    """A CPU torch tensor's NumPy view through its C method (NumPy's ``__array__`` protocol goes
+    through Python and took ~3 µs per column); anything else as it is."""
+    to_numpy = getattr(x, "numpy", None)
+    return to_numpy() if to_numpy is not None else x
+
+
 def _interval_parts(parts: list) -> tuple[list, int]:
     """Non-empty ``(flat, t, p)`` parts as contiguous int32/float64/int8 arrays, and their total
     length (at most 2**31 - 1: the bucket counts are int32)."""
     parts = [
         (
-            np.ascontiguousarray(f, dtype=np.int32),
-            np.ascontiguousarray(t, dtype=np.float64),
-            np.ascontiguousarray(p, dtype=np.int8),
+            np.ascontiguousarray(_as_numpy(f), dtype=np.int32),
+            np.ascontiguousarray(_as_numpy(t), dtype=np.float64),
+            np.ascontiguousarray(_as_numpy(p), dtype=np.int8),
         )
         for f, t, p in parts
         if len(t)

@@ -178,7 +178,17 @@ def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, eve
     noise_parts: list[list] = [[] for _ in range(K)]
     noise_f = None
     if float(config.shot_noise_rate_hz) > 0:  # drawn while the pixels step: it needs no pixel state
-        noise_f = pipe.submit_noise(_noise_task, tsd, K, (B, H, W), config, st.shot_g, st.time_g, noise_parts)
+        noise_f = pipe.submit_noise(
+            _noise_task,
+            tsd,
+            K,
+            (B, H, W),
+            config,
+            st.shot_g,
+            st.time_g,
+            noise_parts,
+            on_emit_worker=config.shot_noise_draw == "sparse",  # O(events): not worth a thread hand-off
+        )
     # comparator input and reference at each interval's start
     sig_a = [sig0, *(lp_out if lp_out is not None else frames[1:K])]
     ref_a = [ref0, *ref_out[: K - 1]]

@@ -495,13 +495,17 @@ class _EventPipeline:
 
         return self.sort_pool.submit(run)
 
-    def submit_noise(self, fn: Any, *args: Any) -> Future:
+    def submit_noise(self, fn: Any, *args: Any, on_emit_worker: bool = False) -> Future:
         """Run ``fn(*args)`` on the noise worker (started here if need be), after every noise task
-        submitted before it; its result, ``(on_px, off_px)`` sized by the noise events drawn, is
-        kept for :meth:`take_noise`. Returns its future."""
-        if self.noise_pool is None:
-            self.noise_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-noise", initializer=name_os_thread)
-        drawn = self.noise_pool.submit(fn, *args)
+        submitted before it, or (``on_emit_worker``, for cheap draws: one thread fewer to hand over
+        to) on the emit worker, in order with the emit tasks; its result, ``(on_px, off_px)`` sized
+        by the noise events drawn, is kept for :meth:`take_noise`. Returns its future."""
+        if on_emit_worker:
+            drawn = self.emit_pool.submit(fn, *args)
+        else:
+            if self.noise_pool is None:
+                self.noise_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-noise", initializer=name_os_thread)
+            drawn = self.noise_pool.submit(fn, *args)
         self.noise_draws.append(drawn)
         return drawn
 
