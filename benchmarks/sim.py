@@ -1212,18 +1212,23 @@ def compare_checkouts(
     clips: tuple[str, ...] = V2E_CLIPS,
     rounds: int = 5,
     preset: str = "v2e-default",
-    chunk_frames: int = 1,
+    chunk_frames: int | None = None,
     input_mapping: str = "v2e_gray",
 ) -> list[dict[str, Any]]:
     """This checkout's exact event list against another checkout's (an A/B of two versions of
     the simulator), on the same pre-decoded frames (``input_mapping`` as in :func:`compare_v2e`),
     alternating the two in ``rounds`` rounds of one fresh child process each (public API only:
-    :func:`fsdvs_hw.sensor.simulate`, so any version runs it). Rows as :func:`compare_v2e`'s,
-    "v2e" standing for ``other_root``."""
+    :func:`fsdvs_hw.sensor.simulate`, so any version runs it). Both sides get the same chunks:
+    ``chunk_frames``, by default this checkout's :func:`fsdvs_hw.sensor.stream.chunk_frames_for`
+    of the frame size (what :func:`compare_v2e` and the command use). Rows as
+    :func:`compare_v2e`'s, "v2e" standing for ``other_root``."""
     import tempfile
     from pathlib import Path
 
+    import numpy as np
+
     from fsdvs_hw.errors import InputError
+    from fsdvs_hw.sensor.stream import chunk_frames_for
 
     if not (Path(other_root) / "fsdvs_hw" / "sensor" / "stream.py").is_file():
         raise InputError(f"other_root: {other_root!r} is no fsdvs_hw checkout (fsdvs_hw/sensor/stream.py missing)")
@@ -1233,12 +1238,14 @@ def compare_checkouts(
         with tempfile.TemporaryDirectory() as d:
             frames = Path(d) / f"{clip}.npy"
             save_clip_frames(clip, frames, input_mapping=input_mapping)
+            _, height, width = np.load(frames, mmap_mode="r").shape
+            chunk = chunk_frames if chunk_frames is not None else chunk_frames_for(height, width)
             runs: dict[str, list] = {here: [], other_root: []}
             for _ in range(rounds):
                 for root in runs:
                     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
                     r, rates, cpu_rates = _run_child(
-                        [sys.executable, "-c", _TREE_CHILD, str(frames), preset, str(chunk_frames)],
+                        [sys.executable, "-c", _TREE_CHILD, str(frames), preset, str(chunk)],
                         f"A/B child ({root})",
                         root=root,
                     )
@@ -1265,6 +1272,7 @@ def compare_checkouts(
                 "load_avg": [r["load"] for r in mine],
                 "other": other_root,
                 "input_mapping": input_mapping,
+                "chunk_frames": chunk,
             }
         )
     return out

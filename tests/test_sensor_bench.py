@@ -301,3 +301,30 @@ def test_ab_child_runs_in_and_imports_the_checkout_asked_for(tmp_path):
     fake = report.replace("fsdvs_hw.__file__", "'/elsewhere/fsdvs_hw/__init__.py'")
     with pytest.raises(RuntimeError, match="imported fsdvs_hw from /elsewhere/fsdvs_hw/__init__.py, not from"):
         _run_child([sys.executable, "-c", fake], "other checkout", root=str(other))
+
+
+def test_checkout_ab_gives_both_sides_the_default_chunks(tmp_path, monkeypatch):
+    """The A/B runs both checkouts with the chunks the command and the v2e comparison use
+    (chunk_frames_for of the frame size), not one-frame chunks; an explicit value wins."""
+    import numpy as np
+
+    from benchmarks import sim
+    from fsdvs_hw.sensor.stream import chunk_frames_for
+
+    other = tmp_path / "other"
+    (other / "fsdvs_hw" / "sensor").mkdir(parents=True)
+    (other / "fsdvs_hw" / "sensor" / "stream.py").write_text("")
+    monkeypatch.setattr(sim, "save_clip_frames", lambda clip, path, **kw: np.save(path, np.zeros((3, 144, 176), "f4")))
+    seen = []
+
+    def child(cmd, what, root=None):
+        seen.append(int(cmd[-1]))
+        r = {"n_frames": 3, "height": 144, "width": 176, "events": 0, "peak_rss_mb": 1.0}
+        return r, [1.0], [1.0]
+
+    monkeypatch.setattr(sim, "_run_child", child)
+    rows = sim.compare_checkouts(str(other), clips=("carphone",), rounds=1)
+    assert seen == [chunk_frames_for(144, 176)] * 2 == [rows[0]["chunk_frames"]] * 2 and seen[0] > 1
+    seen.clear()
+    sim.compare_checkouts(str(other), clips=("carphone",), rounds=1, chunk_frames=1)
+    assert seen == [1, 1]
