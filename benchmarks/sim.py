@@ -1585,6 +1585,8 @@ def thread_cpu_seconds(
     child: the clip's decoded frames (``n_frames``, 0 = all) through ``simulate(frames)`` at
     ``preset``. The workers carry their names (:func:`fsdvs_hw.sensor.threads.name_os_thread`); a
     poller keeps their last reading, since they end with the run (its own time is left out).
+    Frames below :data:`fsdvs_hw.sensor.stream.INLINE_PIXELS` (carphone) have no workers: all
+    their event work is the stepping thread's.
 
     Returns
     -------

@@ -47,12 +47,17 @@ def _same(a, b):
         assert torch.equal(getattr(a, name), getattr(b, name)), name
 
 
+@pytest.mark.parametrize("inline", [False, True], ids=["worker threads", "inline"])
 @pytest.mark.parametrize("group_pixels", [None, 1, 3 * 240])
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
 @pytest.mark.parametrize("name", list(CONFIGS))
-def test_chunk_path_equals_step_by_step_bit_for_bit(name, dtype, group_pixels, monkeypatch):
-    """Chunks of 5 intervals in crossing tasks of 1, 3 (with a remainder) or all intervals."""
+def test_chunk_path_equals_step_by_step_bit_for_bit(name, dtype, group_pixels, inline, monkeypatch):
+    """Chunks of 5 intervals in crossing tasks of 1, 3 (with a remainder) or all intervals, on the
+    worker threads or inline (stream.INLINE_PIXELS)."""
+    from fsdvs_hw.sensor import stream
+
     config, video = CONFIGS[name], _clip(dtype=dtype)
+    monkeypatch.setattr(stream, "INLINE_PIXELS", 2**30 if inline else 0)
     if group_pixels is not None:
         monkeypatch.setattr(chunk_steps, "GROUP_PIXELS", group_pixels)
     taken = []
@@ -66,6 +71,7 @@ def test_chunk_path_equals_step_by_step_bit_for_bit(name, dtype, group_pixels, m
     fast_list, fast_stream, fast_info, _ = _run(video, config, chunk=5)
     assert taken == [5, 5, 2]  # the stream's chunks went through it (event_list counts too: it does not)
     monkeypatch.undo()
+    monkeypatch.setattr(stream, "INLINE_PIXELS", 0)  # the reference: step by step, on the workers
     _without_chunk_path(monkeypatch)
     slow_list, slow_stream, slow_info, frames_info = _run(video, config, chunk=5)
     _same(fast_list, slow_list)

@@ -54,6 +54,7 @@ def test_chunked_equals_whole_clip_bit_for_bit(kernel, chunk):
     assert info.floor_fraction == pytest.approx(whole_info.floor_fraction, abs=1e-12)
 
 
+@pytest.mark.parametrize("inline", [False, True], ids=["worker threads", "inline"])
 @pytest.mark.parametrize("lookahead", [0, 1, 3])
 @pytest.mark.parametrize("chunk", [1, 3])
 @pytest.mark.parametrize(
@@ -61,21 +62,54 @@ def test_chunked_equals_whole_clip_bit_for_bit(kernel, chunk):
     [NOISY.replace(refractory_s=0.02), SensorConfig.preset("v2e-default", shot_noise_rate_hz=5.0, refractory_s=0.02)],
     ids=["per-pixel noise", "v2e preset, sparse noise"],
 )
-def test_event_only_stream_equals_whole_clip_through_the_pipeline(config, chunk, lookahead, monkeypatch):
+def test_event_only_stream_equals_whole_clip_through_the_pipeline(config, chunk, lookahead, inline, monkeypatch):
     """An event-only CPU stream runs on the worker pipeline (emit, sort, noise threads, chunks handed
-    over ``LOOKAHEAD_CHUNKS`` late): same events, noise count and refractory losses as event_list."""
-    from fsdvs_hw.sensor import stream
+    over ``LOOKAHEAD_CHUNKS`` late), or on the stepping thread below ``INLINE_PIXELS``: same
+    events, noise count and refractory losses as event_list."""
+    from fsdvs_hw.sensor import events, stream
 
     monkeypatch.setattr(stream, "LOOKAHEAD_CHUNKS", lookahead)
+    monkeypatch.setattr(stream, "INLINE_PIXELS", 2**30 if inline else 0)
+    made = []
+    real_init = events._EventPipeline.__init__
+
+    def spy(self, *args, **kwargs):
+        real_init(self, *args, **kwargs)
+        made.append(self.inline)
+
+    monkeypatch.setattr(events._EventPipeline, "__init__", spy)
     video = _clip(T=11)
     whole_ev = event_list(video, None, config=config)
     _, whole_info = event_frames(video, None, config=config, return_info=True)
     chunks = list(simulate(video, None, config=config, chunk_frames=chunk))
     assert [c.first_interval for c in chunks] == list(range(0, 10, chunk))
+    assert made[-1] is inline  # the stream's pipeline (event_list, with counts, makes its own threaded one)
     _, ev, info = collect(iter(chunks))
     _same_events(ev, whole_ev)
     assert info.noise_events == whole_info.noise_events > 0
     assert info.refractory_lost == whole_info.refractory_lost > 0
+
+
+def test_stream_runs_small_frames_inline_and_large_ones_on_workers(monkeypatch):
+    """The pipeline is inline below INLINE_PIXELS pixels per frame (all sensors), threaded from it;
+    a task's error reaches the caller either way."""
+    from fsdvs_hw.sensor import events, stream
+
+    made = []
+    real_init = events._EventPipeline.__init__
+
+    def spy(self, *args, **kwargs):
+        real_init(self, *args, **kwargs)
+        made.append(self.inline)
+
+    monkeypatch.setattr(events._EventPipeline, "__init__", spy)
+    small = _clip(T=4, H=8, W=8)
+    list(simulate(small, None, config=SensorConfig()))
+    monkeypatch.setattr(stream, "INLINE_PIXELS", 64)  # 8x8 is no longer below it
+    list(simulate(small, None, config=SensorConfig()))
+    assert made == [True, False]
+    with pytest.raises(ZeroDivisionError):
+        events._InlineExecutor().submit(lambda: 1 / 0).result()
 
 
 def test_stream_from_a_generator_of_time_frame_pairs_equals_array_input():

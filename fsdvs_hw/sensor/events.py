@@ -431,10 +431,32 @@ def _noise_count(draws: list) -> int:
     return sum(len(a) + len(b) for a, b in (f.result() for f in draws))
 
 
+def _worker(name: str) -> ThreadPoolExecutor:
+    """One worker thread named ``name`` at the OS level too (``top -H``)."""
+    return ThreadPoolExecutor(1, thread_name_prefix=name, initializer=name_os_thread)
+
+
 def _pipelined(device: Any, config: SensorConfig, want_counts: bool) -> bool:
     """Whether event work can leave the stepping thread: CPU, and the refractory counts do not feed
     back into the frames."""
     return device.type == "cpu" and not (float(config.refractory_s) > 0 and want_counts)
+
+
+class _InlineExecutor:
+    """The :class:`~concurrent.futures.ThreadPoolExecutor` interface, run on the caller's thread:
+    ``submit`` runs the task at once and returns its finished future (its exception, if it raised,
+    is raised by ``result()``, as from a thread)."""
+
+    def submit(self, fn: Any, *args: Any) -> Future:
+        f: Future = Future()
+        try:
+            f.set_result(fn(*args))
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller through the future
+            f.set_exception(exc)
+        return f
+
+    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
+        pass
 
 
 class _EventPipeline:
@@ -444,11 +466,14 @@ class _EventPipeline:
     interval (or, ``chunked``, a whole chunk) once every emit task submitted before it has
     finished; a third thread, started by the first :meth:`noise`, draws shot noise in step order."""
 
-    def __init__(self, chunked: bool = False) -> None:
+    def __init__(self, chunked: bool = False, inline: bool = False) -> None:
         self.chunked = chunked  # sort a whole chunk at once, into its columns (see columns())
-        self.emit_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-emit", initializer=name_os_thread)
-        self.sort_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-sort", initializer=name_os_thread)
-        self.noise_pool: ThreadPoolExecutor | None = None  # started by the first noise draw
+        # inline: every task runs on the caller's thread as it is submitted (small frames, where
+        # handing work between threads costs more than it overlaps: .stream.INLINE_PIXELS)
+        self.inline = inline
+        self.emit_pool: Any = _InlineExecutor() if inline else _worker("fsdvs-emit")
+        self.sort_pool: Any = _InlineExecutor() if inline else _worker("fsdvs-sort")
+        self.noise_pool: Any = None  # started by the first noise draw
         self.steps: list = []  # futures of crossing_step: (lost, em_on, em_off)
         self.noise_draws: list = []  # futures of shot-noise draws: (on_px, off_px)
         self.pending: list = []  # emit futures of the interval being stepped
@@ -504,7 +529,7 @@ class _EventPipeline:
             drawn = self.emit_pool.submit(fn, *args)
         else:
             if self.noise_pool is None:
-                self.noise_pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-noise", initializer=name_os_thread)
+                self.noise_pool = _InlineExecutor() if self.inline else _worker("fsdvs-noise")
             drawn = self.noise_pool.submit(fn, *args)
         self.noise_draws.append(drawn)
         return drawn

@@ -60,7 +60,7 @@ from .events import (
 from .filtering import filtered_log_signal, kernel_tensor
 from .pixel import threshold_maps
 
-__all__ = ["CHUNK_PIXELS", "MIN_CHUNK_FRAMES", "EventChunk", "chunk_frames_for", "collect", "simulate"]
+__all__ = ["CHUNK_PIXELS", "INLINE_PIXELS", "MIN_CHUNK_FRAMES", "EventChunk", "chunk_frames_for", "collect", "simulate"]
 
 #: Chunks whose events are still being computed when the stream hands one over (CPU event lists).
 LOOKAHEAD_CHUNKS = 1
@@ -70,6 +70,15 @@ CHUNK_PIXELS = 2**19
 
 #: The fewest frame intervals per chunk :func:`chunk_frames_for` gives.
 MIN_CHUNK_FRAMES = 2
+
+#: Below this many pixels per frame (all sensors of the batch) a CPU event list runs its event
+#: work on the stepping thread instead of the emit, sort and noise workers: on small frames handing
+#: each task to a thread costs more than the overlap gains. In-process event list, ``v2e-default``,
+#: default chunks, medians of 7 alternating runs (5 for the crops; docs/speed.md): carphone
+#: (176×144, 25 344 px) 0.077 s on one thread against 0.099 s with the workers; a 240×180 crop of
+#: bikes (43 200 px) 0.279 against 0.271 s; 346×260 (89 960 px) 0.556 against 0.404 s; bikes
+#: (640×272) 1.06 against 0.74 s.
+INLINE_PIXELS = 2**15
 
 
 def chunk_frames_for(height: int, width: int) -> int:
@@ -454,7 +463,7 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
             noise0, lost0 = state.noise_events, state.lost
             ev_parts: list = []
             if pipe is None and want_events and not want_frames and _pipelined(video.device, config, False):
-                pipe = _EventPipeline(chunked=True)
+                pipe = _EventPipeline(chunked=True, inline=B * shape[1] * shape[2] < INLINE_PIXELS)
             ctx = torch.no_grad() if not want_frames else contextlib.nullcontext()
             with ctx:
                 out = _advance(state, Ls, CI, SU, tsd, config, subs, want_events, ev_parts, want_frames, pipe=pipe)
