@@ -54,6 +54,21 @@ def test_chunked_equals_whole_clip_bit_for_bit(kernel, chunk):
     assert info.floor_fraction == pytest.approx(whole_info.floor_fraction, abs=1e-12)
 
 
+def _record_pipelines(monkeypatch):
+    """The ``inline`` flag of every event pipeline made from now on, in order."""
+    from fsdvs_hw.sensor import events
+
+    made = []
+    real_init = events._EventPipeline.__init__
+
+    def spy(self, *args, **kwargs):
+        real_init(self, *args, **kwargs)
+        made.append(self.inline)
+
+    monkeypatch.setattr(events._EventPipeline, "__init__", spy)
+    return made
+
+
 @pytest.mark.parametrize("inline", [False, True], ids=["worker threads", "inline"])
 @pytest.mark.parametrize("lookahead", [0, 1, 3])
 @pytest.mark.parametrize("chunk", [1, 3])
@@ -66,18 +81,11 @@ def test_event_only_stream_equals_whole_clip_through_the_pipeline(config, chunk,
     """An event-only CPU stream runs on the worker pipeline (emit, sort, noise threads, chunks handed
     over ``LOOKAHEAD_CHUNKS`` late), or on the stepping thread below ``INLINE_PIXELS``: same
     events, noise count and refractory losses as event_list."""
-    from fsdvs_hw.sensor import events, stream
+    from fsdvs_hw.sensor import stream
 
     monkeypatch.setattr(stream, "LOOKAHEAD_CHUNKS", lookahead)
     monkeypatch.setattr(stream, "INLINE_PIXELS", 2**30 if inline else 0)
-    made = []
-    real_init = events._EventPipeline.__init__
-
-    def spy(self, *args, **kwargs):
-        real_init(self, *args, **kwargs)
-        made.append(self.inline)
-
-    monkeypatch.setattr(events._EventPipeline, "__init__", spy)
+    made = _record_pipelines(monkeypatch)
     video = _clip(T=11)
     whole_ev = event_list(video, None, config=config)
     _, whole_info = event_frames(video, None, config=config, return_info=True)
@@ -95,14 +103,7 @@ def test_stream_runs_small_frames_inline_and_large_ones_on_workers(monkeypatch):
     a task's error reaches the caller either way."""
     from fsdvs_hw.sensor import events, stream
 
-    made = []
-    real_init = events._EventPipeline.__init__
-
-    def spy(self, *args, **kwargs):
-        real_init(self, *args, **kwargs)
-        made.append(self.inline)
-
-    monkeypatch.setattr(events._EventPipeline, "__init__", spy)
+    made = _record_pipelines(monkeypatch)
     small = _clip(T=4, H=8, W=8)
     list(simulate(small, None, config=SensorConfig()))
     monkeypatch.setattr(stream, "INLINE_PIXELS", 64)  # 8x8 is no longer below it
