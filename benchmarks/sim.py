@@ -1279,11 +1279,12 @@ def compare_checkouts(
 
 
 _STAGE_CHILD = r"""
-import json, resource, sys, time
+import itertools, json, resource, sys, time
 import torch
 from fsdvs_hw.scenes.video import example_clip_path, iter_video
 from fsdvs_hw.sensor import SensorConfig, simulate
 from fsdvs_hw.sensor.presets import preset_input_mapping
+from fsdvs_hw.sensor.stream import chunk_frames_for
 from fsdvs_hw.sensor.threads import event_list_threads
 clip, preset, stage = sys.argv[1:4]
 torch.set_num_threads(event_list_threads())
@@ -1295,8 +1296,11 @@ frames = iter_video(example_clip_path(clip), input_mapping=preset_input_mapping(
 if stage == "decode":
     for _ in frames:
         n += 1
-else:
-    for c in simulate(frames, config=SensorConfig.preset(preset), chunk_frames=1):
+else:  # in the command's chunks
+    first = next(frames)  # (time, frame)
+    chunk = chunk_frames_for(*first[1].shape[-2:])
+    frames = itertools.chain([first], frames)
+    for c in simulate(frames, config=SensorConfig.preset(preset), chunk_frames=chunk):
         n += len(c.events)
         del c
 print(json.dumps({"wall": time.perf_counter() - t0, "cpu": time.process_time() - c0, "n": n,
