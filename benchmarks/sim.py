@@ -1541,6 +1541,7 @@ import json, os, sys, threading, time
 import numpy as np, torch
 from fsdvs_hw.scenes.video import example_clip_path, iter_video
 from fsdvs_hw.sensor import SensorConfig, simulate
+from fsdvs_hw.sensor.stream import chunk_frames_for
 from fsdvs_hw.sensor.threads import event_list_threads
 clip, mapping, preset, n_frames = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
 torch.set_num_threads(event_list_threads())
@@ -1569,7 +1570,7 @@ def poll():  # the pipeline's workers end with the run: keep their last reading
 poller = threading.Thread(target=poll, daemon=True)
 poller.start()
 t0, n = time.perf_counter(), 0
-for c in simulate(video, config=cfg, chunk_frames=1):
+for c in simulate(video, config=cfg, chunk_frames=chunk_frames_for(*video.shape[-2:])):
     n += len(c.events)
 wall = time.perf_counter() - t0
 stop.set(); poller.join()

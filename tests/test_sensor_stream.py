@@ -235,3 +235,19 @@ def test_simulate_command_default_chunks_follow_the_frame_size(tmp_path):
         assert main([*base, "--out", str(tmp_path / "b.npz"), "--size", "272x640"]) == 0
         assert main([*base, "--out", str(tmp_path / "c.npz"), "--chunk-frames", "5"]) == 0
     assert seen == [20, 3, 5]
+
+
+def test_default_chunks_follow_the_frame_size_for_events_and_stay_16_for_frames():
+    """chunk_frames=None: an event list alone in chunk_frames_for(H, W) intervals (its events do
+    not depend on the chunks); with event frames, 16 (the truncated-BPTT window)."""
+    from fsdvs_hw.sensor.stream import DEFAULT_FRAMES_CHUNK, chunk_frames_for
+
+    video = _clip(T=7, H=512, W=512)
+    assert chunk_frames_for(512, 512) == 2
+    ev_chunks = list(simulate(video, None, config=SensorConfig()))
+    assert [c.first_interval for c in ev_chunks] == [0, 2, 4]
+    small = _clip(T=40)
+    fr_chunks = list(simulate(small, None, config=SensorConfig(), event_frames=True))
+    assert DEFAULT_FRAMES_CHUNK == 16 and [c.first_interval for c in fr_chunks] == [0, 16, 32]
+    _, ev, _ = collect(iter(ev_chunks))
+    _same_events(ev, event_list(video, None, config=SensorConfig()))

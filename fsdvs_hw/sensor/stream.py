@@ -71,6 +71,9 @@ CHUNK_PIXELS = 2**19
 #: The fewest frame intervals per chunk :func:`chunk_frames_for` gives.
 MIN_CHUNK_FRAMES = 2
 
+#: :func:`simulate`'s chunk when event frames are asked for (the truncated-BPTT window).
+DEFAULT_FRAMES_CHUNK = 16
+
 #: Below this many pixels per frame (all sensors of the batch) a CPU event list runs its event
 #: work on the stepping thread instead of the emit, sort and noise workers: on small frames handing
 #: each task to a thread costs more than the overlap gains. In-process event list, ``v2e-default``,
@@ -223,7 +226,7 @@ def simulate(
     timestamps_s: Any = None,
     config: SensorConfig | None = None,
     plan: Any = None,
-    chunk_frames: int = 16,
+    chunk_frames: int | None = None,
     events: bool = True,
     event_frames: bool = False,
     generator: Any = None,
@@ -246,8 +249,12 @@ def simulate(
         Sensor parameters (default ``SensorConfig()``).
     plan : ModelPlan, optional
         A :func:`~fsdvs_hw.sensor.plan_model` plan (its config and per-interval sub-steps).
-    chunk_frames : int
-        Frame intervals per chunk (>= 1). Peak memory grows with one chunk's frames and events:
+    chunk_frames : int or None
+        Frame intervals per chunk (>= 1). Default (None): for an event list alone,
+        :func:`chunk_frames_for` of the frame size, as ``fsdvs-hw simulate`` uses (640×272: 3,
+        1280×720: 2, 176×144: 20; the events do not depend on the chunks); with ``event_frames``,
+        16, since the chunk is also the window of truncated backpropagation through time (it was
+        16 for both before 2026-11-28). Peak memory grows with one chunk's frames and events:
         on the event-list path each event of the chunk costs 17 bytes while the chunk is built
         (pixel index, time, polarity) and 25 bytes in the returned columns (x, y int64, t
         float64, p int8; the batch column of a B = 1 stream is a broadcast zero), plus the
@@ -268,8 +275,10 @@ def simulate(
         Bad frames (rank, NaN, negative, shape change), non-increasing times, a plan for fewer
         frames than given, bad ``chunk_frames``.
     """
-    if not isinstance(chunk_frames, int) or isinstance(chunk_frames, bool) or chunk_frames < 1:
-        raise InputError(f"chunk_frames: must be an integer >= 1, got {chunk_frames!r}")
+    if chunk_frames is not None and (
+        not isinstance(chunk_frames, int) or isinstance(chunk_frames, bool) or chunk_frames < 1
+    ):
+        raise InputError(f"chunk_frames: must be an integer >= 1 (or None: by frame size), got {chunk_frames!r}")
     events = check_bool("events", events)
     event_frames = check_bool("event_frames", event_frames)
     check_instance("generator", generator, torch.Generator, "a torch.Generator", nullable=True)
@@ -340,7 +349,7 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
     config: SensorConfig,
     plan: Any,
     subs_plan: list[int] | None,
-    chunk: int,
+    chunk: int | None,
     want_events: bool,
     want_frames: bool,
     generator: Any,
@@ -398,7 +407,7 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
         while not exhausted:
             batch: list[Any] = []
             ts: list[float] = []
-            need = chunk + (1 if prev is None else 0)
+            need = (chunk or 1) + (1 if prev is None else 0)  # chunk None: set by the first frame
             while len(batch) < need:
                 try:
                     item = next(source)
@@ -411,6 +420,9 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
                     saturated += n_sat
                 if dtype is None:
                     dtype, shape = fr.dtype, tuple(fr.shape)
+                    if chunk is None:
+                        chunk = DEFAULT_FRAMES_CHUNK if want_frames else chunk_frames_for(shape[-2], shape[-1])
+                        need = chunk + 1
                     w = kernel_tensor(kernel, fr)
                 elif tuple(fr.shape) != shape:
                     raise InputError(f"frames[{index}]: shape {tuple(fr.shape)} differs from the first frame's {shape}")
