@@ -18,11 +18,12 @@ case of a video simulated to events. Everything else takes the step-by-step path
 Example
 -------
 >>> import torch
->>> from fsdvs_hw.sensor import SensorConfig, event_list
->>> video = torch.rand(1, 6, 8, 8) + 0.1
->>> ev, _ = event_list(video, config=SensorConfig.preset("v2e-default"))  # runs through here
->>> bool((ev.t[1:] >= ev.t[:-1]).all())
-True
+>>> from fsdvs_hw.sensor import SensorConfig, simulate
+>>> video = torch.rand(6, 8, 8) + 0.1
+>>> chunks = list(simulate(video, config=SensorConfig.preset("v2e-default")))  # runs through here
+>>> ev = chunks[0].events
+>>> len(chunks), bool((ev.t[1:] >= ev.t[:-1]).all())
+(1, True)
 """
 
 from __future__ import annotations
