@@ -108,3 +108,24 @@ def test_buffer_pool_keeps_each_shape_apart():
         pool.give(t)
     taken = [pool.take((5,), torch.float32) for _ in range(3)]
     assert sum(any(t is g for g in given) for t in taken) == 2  # keep=2: the third given was dropped
+
+
+def test_chunk_path_with_a_kernel_and_irregular_frame_times(monkeypatch):
+    """A 5x5 DoG before the log stage and frame times with uneven gaps (each interval its own dt
+    in the low-pass exponent, the crossing times and the noise rate): the same events either way."""
+    from fsdvs_hw.kernels import reference_kernel
+
+    config = CONFIGS["v2e preset"]
+    video, kernel = _clip(T=11), reference_kernel("dog", 5)
+    gaps = torch.tensor([0.0, 0.01, 0.013, 0.05, 0.0401, 0.002, 0.02, 0.03, 0.011, 0.04, 0.007])
+    times = torch.cumsum(gaps, 0).double()
+    taken = []
+    real = chunk_steps.advance_chunk
+    monkeypatch.setattr(events, "advance_chunk", lambda *a, **k: taken.append(1) or real(*a, **k))
+    _, fast, fast_info = collect(simulate(video, kernel, timestamps_s=times, config=config, chunk_frames=4))
+    assert taken
+    monkeypatch.undo()
+    _without_chunk_path(monkeypatch)
+    _, slow, slow_info = collect(simulate(video, kernel, timestamps_s=times, config=config, chunk_frames=4))
+    _same(fast, slow)
+    assert fast_info.noise_events == slow_info.noise_events and fast_info.refractory_lost == slow_info.refractory_lost
