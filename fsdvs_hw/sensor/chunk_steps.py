@@ -139,8 +139,9 @@ def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, eve
     events : list
         Each interval's :meth:`~.events._EventPipeline.sort` result is appended.
     pipe : _EventPipeline
-        Where the crossing task (one per chunk), the noise task (one per chunk, with shot noise)
-        and the sorts run.
+        Where the crossing tasks (one per :data:`GROUP_PIXELS` pixel-intervals, in order), the
+        noise task (one per chunk, with shot noise) and the sorts run; its ``buffers`` pool lends
+        the work tensors.
     bar : tqdm or None
         Advanced by one per interval.
 
