@@ -15,6 +15,7 @@ Example
 
 from __future__ import annotations
 
+import contextvars
 import queue
 import threading
 from collections.abc import Iterable, Iterator
@@ -92,7 +93,9 @@ def prefetch(items: Iterable[T], *, max_items: int = 8, name: str = "fsdvs-prefe
         raise InputError(f"prefetch: max_items must be an integer >= 1, got {max_items!r}")
     q: queue.Queue = queue.Queue(maxsize=max_items)
     stop = threading.Event()
-    thread = threading.Thread(target=_produce, args=(iter(items), q, stop), name=name, daemon=True)
+    # in a copy of the caller's context: the items see its context variables (an allocation_limit)
+    run_in = contextvars.copy_context().run
+    thread = threading.Thread(target=run_in, args=(_produce, iter(items), q, stop), name=name, daemon=True)
     thread.start()
     return Prefetched(q, stop, thread)
 

@@ -95,3 +95,16 @@ def test_consumer_error_mid_loop_also_stops_the_producer():
 def test_bad_max_items_is_refused_by_name(bad):
     with pytest.raises(InputError, match="max_items"):
         prefetch(iter([1]), max_items=bad)
+
+
+def test_the_producer_sees_the_callers_context_variables():
+    """Items are made in a copy of the caller's context: an allocation_limit block holds there too."""
+    from fsdvs_hw.limits import allocation_limit, max_alloc_bytes
+
+    def limits():
+        for _ in range(2):
+            yield max_alloc_bytes()
+
+    with allocation_limit(12345):
+        seen = list(prefetch(limits(), max_items=1))
+    assert seen == [12345, 12345]

@@ -129,3 +129,20 @@ def test_chunk_path_with_a_kernel_and_irregular_frame_times(monkeypatch):
     _, slow, slow_info = collect(simulate(video, kernel, timestamps_s=times, config=config, chunk_frames=4))
     _same(fast, slow)
     assert fast_info.noise_events == slow_info.noise_events and fast_info.refractory_lost == slow_info.refractory_lost
+
+
+@pytest.mark.parametrize("inline", [False, True], ids=["worker threads", "inline"])
+@pytest.mark.parametrize("chunk_path", [True, False], ids=["chunk path", "step by step"])
+def test_an_event_list_past_the_allocation_limit_is_refused_by_name(inline, chunk_path, monkeypatch):
+    """A step whose crossings would not fit under the allocation limit stops the stream with an
+    InputError that names the event list and the step's size (raised from the worker or inline)."""
+    from fsdvs_hw.errors import InputError
+    from fsdvs_hw.limits import allocation_limit
+    from fsdvs_hw.sensor import stream
+
+    monkeypatch.setattr(stream, "INLINE_PIXELS", 2**30 if inline else 0)
+    if not chunk_path:
+        _without_chunk_path(monkeypatch)
+    config = SensorConfig.preset("v2e-clean", threshold_on=0.01, threshold_off=0.01)
+    with allocation_limit(2000), pytest.raises(InputError, match=r"threshold crossings in one step \(1x12x20 px"):
+        collect(simulate(_clip(), config=config, chunk_frames=4))

@@ -28,7 +28,6 @@ Example
 
 from __future__ import annotations
 
-import ctypes
 import math
 import threading
 from typing import Any
@@ -36,10 +35,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..limits import check_allocation
 from . import _crossings_native
 from .config import SensorConfig
-from .crossings import _threshold_np, _total, noise_step, shot_noise_pixels
+from .crossings import _threshold_np, append_part, event_arrays, noise_step, shot_noise_pixels
 from .fused import _SUFFIX, _ctypes_real, _thresholds, fused_substep_applies
 
 __all__ = ["GROUP_PIXELS", "BufferPool", "advance_chunk", "chunk_applies"]
@@ -230,7 +228,7 @@ def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, eve
             bar.update(1)
         if (k + 1) % group == 0 or k == K - 1:  # the group's crossings go out while the next ones step
             ks = range(k + 1 - ((k % group) + 1), k + 1)
-            task = pipe.emit(_crossings_task, lib, sfx, (H, W), ks, rows, st, refr, t_np, dt64, noise_f, crossing=True)
+            task = pipe.emit(_crossings_task, (H, W), ks, rows, st, refr, t_np, dt64, noise_f, crossing=True)
     if em1 is not None:
         pipe.buffers.give(em1)
     # the state leaves the chunk's buffer, which goes back to the pool once the crossings are out
@@ -247,8 +245,6 @@ def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, eve
 
 
 def _crossings_task(
-    lib: Any,
-    sfx: str,
     hw_shape: tuple[int, int],
     ks: range,
     rows: tuple,
@@ -258,63 +254,45 @@ def _crossings_task(
     dt64: np.ndarray,
     noise_f: Any,
 ) -> tuple[float, None, None]:
-    """The crossings of intervals ``ks`` in order (``fsdvs_step_events``, as
+    """The crossings of intervals ``ks`` in order (:func:`._crossings_native.step_events`, as
     :func:`.crossings.crossing_step` calls it). ``rows``: per interval of the chunk, the ON and OFF
     counts, comparator input and reference at the start, difference at the end, the interval's
     event parts (its crossing part is appended) and its shot-noise parts (appended after it once
     ``noise_f`` is done). Returns ``(lost, None, None)`` like :func:`.crossings.crossing_step`
     (the crossings lost to the refractory period)."""
     h_on, h_off, sig_a, ref_a, d_b, parts, noise_parts = rows
-    emit = getattr(lib, f"fsdvs_step_events_{sfx}")
     H, W = hw_shape
-    hw = H * W
     c_on = _threshold_np(st.c_on, 1, H, W)
     c_off = _threshold_np(st.c_off, 1, H, W)
     last_t = st.last_t.view(-1).numpy() if st.last_t is not None else None
     lost = 0.0
-    lost_k = ctypes.c_double(0.0)
     for k in ks:
         hon, hoff = h_on[k].numpy(), h_off[k].numpy()
-        cap = _total(hon) + _total(hoff)
-        if cap == 0:
+        flat, t, p = event_arrays(hon, hoff, (1, H, W))
+        if not len(t):
             continue
-        check_allocation(f"event list: {cap} threshold crossings in one step (1x{H}x{W} px; 13 bytes each)", 13.0 * cap)
-        flat = np.empty(cap, dtype=np.int32)
-        t = np.empty(cap, dtype=np.float64)
-        p = np.empty(cap, dtype=np.int8)
-        n = emit(
-            hon.ctypes.data,
-            hoff.ctypes.data,
-            sig_a[k].data_ptr(),
-            ref_a[k].data_ptr(),
-            d_b[k].data_ptr(),
-            c_on.ctypes.data,
-            len(c_on),
-            c_off.ctypes.data,
-            len(c_off),
-            t_np.ctypes.data + 8 * k,
-            t_np.ctypes.data + 8 * (k + 1),
-            dt64.ctypes.data + 8 * k,
-            hw,
-            hw,
-            last_t.ctypes.data if last_t is not None else None,
+        n, lost_k = _crossings_native.step_events(
+            hon,
+            hoff,
+            sig_a[k].reshape(-1).numpy(),
+            ref_a[k].reshape(-1).numpy(),
+            d_b[k].numpy(),
+            c_on,
+            c_off,
+            t_np[k : k + 1],
+            t_np[k + 1 : k + 2],
+            dt64[k : k + 1],
+            H * W,
+            last_t,
             refr,
-            int(last_t is not None),
             None,
             None,
-            flat.ctypes.data,
-            t.ctypes.data,
-            p.ctypes.data,
-            ctypes.byref(lost_k),
+            flat,
+            t,
+            p,
         )
-        if n < 0:
-            raise MemoryError("step_events: out of memory for the active-pixel list")
-        if last_t is not None:
-            lost += lost_k.value
-        if n:
-            if n < cap // 2:  # many crossings lost: do not keep the spare capacity alive
-                flat, t, p = flat[:n].copy(), t[:n].copy(), p[:n].copy()
-            parts[k].append((torch.from_numpy(flat[:n]), torch.from_numpy(t[:n]), torch.from_numpy(p[:n])))
+        lost += lost_k
+        append_part(parts[k], flat, t, p, n)
     if noise_f is not None:
         noise_f.result()
         for k in ks:

@@ -164,6 +164,30 @@ def _threshold_np(c: Any, B: int, H: int, W: int) -> np.ndarray:
     return out.contiguous().numpy()
 
 
+def event_arrays(h_on: np.ndarray, h_off: np.ndarray, shape: tuple[int, int, int]) -> tuple[np.ndarray, ...]:
+    """Empty ``(flat, t, p)`` arrays (int32, float64, int8) with room for every crossing a step's
+    ON and OFF counts ``h_on``, ``h_off`` announce, on a (B, H, W) frame ``shape``. A tiny threshold
+    makes the list unbounded: it is refused with its size (:class:`~fsdvs_hw.errors.InputError`),
+    not a ``MemoryError``."""
+    from ..limits import check_allocation
+
+    cap = _total(h_on) + _total(h_off)
+    B, H, W = shape
+    check_allocation(f"event list: {cap} threshold crossings in one step ({B}x{H}x{W} px; 13 bytes each)", 13.0 * cap)
+    return np.empty(cap, dtype=np.int32), np.empty(cap, dtype=np.float64), np.empty(cap, dtype=np.int8)
+
+
+def append_part(parts: list, flat: np.ndarray, t: np.ndarray, p: np.ndarray, n: int) -> None:
+    """Append the first ``n`` events of :func:`event_arrays`' arrays to ``parts`` as a ``(flat, t,
+    p)`` tensor triple (nothing when ``n`` is 0); copied when under half the room was used (many
+    crossings lost to the refractory period), so the spare capacity is not kept alive."""
+    if not n:
+        return
+    if n < len(t) // 2:
+        flat, t, p = flat[:n].copy(), t[:n].copy(), p[:n].copy()
+    parts.append((torch.from_numpy(flat[:n]), torch.from_numpy(t[:n]), torch.from_numpy(p[:n])))
+
+
 def _crossing_step_cpu(
     parts: list,
     h_on: Any,
@@ -188,16 +212,7 @@ def _crossing_step_cpu(
     hon, hoff = _flat_np(h_on), _flat_np(h_off)
     em_on = np.zeros(hon.shape, hon.dtype) if want_counts else None
     em_off = np.zeros(hoff.shape, hoff.dtype) if want_counts else None
-    cap = _total(hon) + _total(hoff) if collect else 0
-    if collect:  # a tiny threshold makes the list unbounded: refuse it with its size, not a MemoryError
-        from ..limits import check_allocation
-
-        check_allocation(
-            f"event list: {cap} threshold crossings in one step ({B}x{H}x{W} px; 13 bytes each)", 13.0 * cap
-        )
-    flat = np.empty(cap, dtype=np.int32) if collect else None
-    t = np.empty(cap, dtype=np.float64) if collect else None
-    p = np.empty(cap, dtype=np.int8) if collect else None
+    flat, t, p = event_arrays(hon, hoff, (B, H, W)) if collect else (None, None, None)
     refr = last_t is not None
 
     def times(x: Any) -> np.ndarray:
@@ -223,11 +238,9 @@ def _crossing_step_cpu(
         t,
         p,
     )
-    if collect and n:
+    if collect:
         assert flat is not None and t is not None and p is not None  # allocated when collect
-        if n < cap // 2:  # many crossings lost: do not keep the spare capacity alive
-            flat, t, p = flat[:n].copy(), t[:n].copy(), p[:n].copy()
-        parts.append((torch.from_numpy(flat[:n]), torch.from_numpy(t[:n]), torch.from_numpy(p[:n])))
+        append_part(parts, flat, t, p, n)
     em = [None if e is None else torch.from_numpy(e).view(B, H, W) for e in (em_on, em_off)]
     return float(lost) if refr else 0.0, em[0], em[1]
 

@@ -38,6 +38,7 @@ Surrogate gradient (``SensorConfig.surrogate``)
 
 from __future__ import annotations
 
+import contextvars
 import math
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
@@ -436,6 +437,13 @@ def _worker(name: str) -> ThreadPoolExecutor:
     return ThreadPoolExecutor(1, thread_name_prefix=name, initializer=name_os_thread)
 
 
+def _submit(pool: Any, fn: Any, *args: Any) -> Future:
+    """``pool.submit(fn, *args)`` in a copy of the caller's context, so a worker sees the
+    caller's context variables (an :func:`~fsdvs_hw.limits.allocation_limit` block: a worker
+    thread otherwise starts from an empty context and checked the default limit)."""
+    return pool.submit(contextvars.copy_context().run, fn, *args)
+
+
 def _pipelined(device: Any, config: SensorConfig, want_counts: bool) -> bool:
     """Whether event work can leave the stepping thread: CPU, and the refractory counts do not feed
     back into the frames."""
@@ -445,13 +453,13 @@ def _pipelined(device: Any, config: SensorConfig, want_counts: bool) -> bool:
 class _InlineExecutor:
     """The :class:`~concurrent.futures.ThreadPoolExecutor` interface, run on the caller's thread:
     ``submit`` runs the task at once and returns its finished future (its exception, if it raised,
-    is raised by ``result()``, as from a thread)."""
+    is raised by ``result()``, as from a thread; an interrupt or exit propagates at once)."""
 
     def submit(self, fn: Any, *args: Any) -> Future:
         f: Future = Future()
         try:
             f.set_result(fn(*args))
-        except BaseException as exc:  # noqa: BLE001 - handed to the caller through the future
+        except Exception as exc:  # noqa: BLE001 - handed to the caller through the future
             f.set_exception(exc)
         return f
 
@@ -464,7 +472,9 @@ class _EventPipeline:
     compiled kernels release the GIL). ``emit`` runs step work (crossings, noise events) in
     submission order, since the refractory state passes from step to step; ``sort`` sorts an
     interval (or, ``chunked``, a whole chunk) once every emit task submitted before it has
-    finished; a third thread, started by the first :meth:`noise`, draws shot noise in step order."""
+    finished; a third thread, started by the first :meth:`noise`, draws shot noise in step order.
+    ``inline``: the same tasks, run on the caller's thread as they are submitted (small frames).
+    Tasks run in a copy of the submitter's context (:func:`_submit`)."""
 
     def __init__(self, chunked: bool = False, inline: bool = False) -> None:
         self.chunked = chunked  # sort a whole chunk at once, into its columns (see columns())
@@ -480,7 +490,7 @@ class _EventPipeline:
         self.buffers = BufferPool()  # work tensors of advance_chunk, reused from chunk to chunk
 
     def emit(self, fn: Any, *args: Any, crossing: bool = False) -> Future:
-        f = self.emit_pool.submit(fn, *args)
+        f = _submit(self.emit_pool, fn, *args)
         self.pending.append(f)
         if crossing:
             self.steps.append(f)
@@ -498,7 +508,7 @@ class _EventPipeline:
                 f.result()
             return sort_interval(parts, lo, hi)
 
-        return self.sort_pool.submit(run)
+        return _submit(self.sort_pool, run)
 
     def columns(self, pieces: list, H: int, W: int, B: int) -> Any:
         """Future of the chunk's ``(b, x, y, t, p)`` columns, from what :meth:`sort` returned for
@@ -518,7 +528,7 @@ class _EventPipeline:
                 return torch.zeros(1, dtype=torch.int64).expand(len(t)), x, y, t, p
             return to_event_columns([sort_interval(parts, lo, hi) for _, parts, lo, hi in pieces], H, W, B)
 
-        return self.sort_pool.submit(run)
+        return _submit(self.sort_pool, run)
 
     def submit_noise(self, fn: Any, *args: Any, on_emit_worker: bool = False) -> Future:
         """Run ``fn(*args)`` on the noise worker (started here if need be), after every noise task
@@ -526,11 +536,11 @@ class _EventPipeline:
         to) on the emit worker, in order with the emit tasks; its result, ``(on_px, off_px)`` sized
         by the noise events drawn, is kept for :meth:`take_noise`. Returns its future."""
         if on_emit_worker:
-            drawn = self.emit_pool.submit(fn, *args)
+            drawn = _submit(self.emit_pool, fn, *args)
         else:
             if self.noise_pool is None:
                 self.noise_pool = _InlineExecutor() if self.inline else _worker("fsdvs-noise")
-            drawn = self.noise_pool.submit(fn, *args)
+            drawn = _submit(self.noise_pool, fn, *args)
         self.noise_draws.append(drawn)
         return drawn
 

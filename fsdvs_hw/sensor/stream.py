@@ -77,10 +77,11 @@ DEFAULT_FRAMES_CHUNK = 16
 #: Below this many pixels per frame (all sensors of the batch) a CPU event list runs its event
 #: work on the stepping thread instead of the emit, sort and noise workers: on small frames handing
 #: each task to a thread costs more than the overlap gains. In-process event list, ``v2e-default``,
-#: default chunks, medians of 7 alternating runs (5 for the crops; docs/speed.md): carphone
-#: (176×144, 25 344 px) 0.077 s on one thread against 0.099 s with the workers; a 240×180 crop of
-#: bikes (43 200 px) 0.279 against 0.271 s; 346×260 (89 960 px) 0.556 against 0.404 s; bikes
-#: (640×272) 1.06 against 0.74 s.
+#: default chunks, medians [min–max] of 7 alternating runs (5 for the crops, 3 for bikes;
+#: docs/speed.md): carphone (176×144, 25 344 px) 0.077 [0.069–0.118] s on one thread against 0.099
+#: [0.079–0.164] s with the workers; a 240×180 crop of bikes (43 200 px) 0.279 [0.249–0.409] against
+#: 0.271 [0.260–0.322] s (a tie); 346×260 (89 960 px) 0.556 [0.492–0.584] against 0.404
+#: [0.380–0.729] s; bikes (640×272) 1.06 [0.98–1.20] against 0.74 [0.63–1.07] s.
 INLINE_PIXELS = 2**15
 
 
