@@ -10,12 +10,13 @@ Each verb is a module of this package, registered in :data:`COMMANDS` as a dotte
 verb module defines ``HELP`` (one line), optionally ``DESCRIPTION``, ``add_arguments(parser)``
 and ``run(args) -> int``: it turns the parsed arguments into the typed options of one library
 function, calls it and prints. It imports heavy dependencies inside ``run`` so that ``--help``
-is fast. ``python -m fsdvs_hw.cli`` is the same command.
+is fast. ``python -m fsdvs_hw.cli`` is the same command (:func:`console`).
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import sys
 from collections.abc import Sequence
@@ -23,7 +24,7 @@ from typing import NoReturn
 
 from ..errors import InputError, ToolMissingError
 
-__all__ = ["COMMANDS", "main"]
+__all__ = ["COMMANDS", "console", "main"]
 
 #: sub-command name -> module implementing it
 COMMANDS: dict[str, str] = {
@@ -137,3 +138,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"fsdvs-hw {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def console() -> int:
+    """The ``fsdvs-hw`` console script and ``python -m fsdvs_hw.cli``: :func:`main` on
+    ``sys.argv``, then every live object frozen (``gc.freeze``) before the interpreter exits.
+
+    The interpreter's last cycle collection at exit walks every object alive, torch's ~10⁵
+    included: 0.4 s of a 1.6 s process that only imports torch (2-core machine, 3 runs each:
+    1.63–1.71 s plain, 1.21–1.28 s frozen at the end). Frozen objects are skipped. Only for a
+    process of its own, so :func:`main` (called in-process by tests and notebooks) does not.
+
+    Returns
+    -------
+    int
+        The exit status.
+    """
+    try:
+        return main()
+    finally:
+        gc.freeze()
