@@ -1279,13 +1279,16 @@ def compare_checkouts(
 
 
 _STAGE_CHILD = r"""
-import itertools, json, resource, sys, time
+import gc, itertools, json, resource, sys, time
+gc.disable()  # as the command: imports without the cycle collector, then frozen (cli/simulate.py)
 import torch
 from fsdvs_hw.scenes.video import example_clip_path, iter_video
 from fsdvs_hw.sensor import SensorConfig, simulate
 from fsdvs_hw.sensor.presets import preset_input_mapping
 from fsdvs_hw.sensor.stream import chunk_frames_for
 from fsdvs_hw.sensor.threads import event_list_threads
+gc.freeze()
+gc.enable()
 clip, preset, stage = sys.argv[1:4]
 torch.set_num_threads(event_list_threads())
 for _ in simulate(torch.rand(3, 8, 8), config=SensorConfig.preset(preset)):
@@ -1308,7 +1311,13 @@ print(json.dumps({"wall": time.perf_counter() - t0, "cpu": time.process_time() -
 """
 
 
-_STARTUP_CHILD = "import fsdvs_hw.cli, fsdvs_hw.cli.simulate, fsdvs_hw.sensor, fsdvs_hw.scenes.video, torch"
+#: The command's start-up: its imports as it makes them (cycle collector off, then everything
+#: frozen: :mod:`fsdvs_hw.cli.simulate`, :func:`fsdvs_hw.cli.console`), then exit.
+_STARTUP_CHILD = (
+    "import gc; gc.disable()\n"
+    "import fsdvs_hw.cli, fsdvs_hw.cli.simulate, fsdvs_hw.sensor, fsdvs_hw.scenes.video, torch\n"
+    "gc.freeze(); gc.enable()"
+)
 
 
 def simulate_command_stages(
