@@ -1,14 +1,18 @@
-"""The command's handling of Python's cycle collector: imports without it, a freeze that the
-``simulate`` verb undoes for in-process callers, and the console script's freeze before exit."""
+"""The command's process settings: Python's cycle collector (imports without it, a freeze that the
+``simulate`` verb undoes for in-process callers, the console script's freeze before exit) and
+OpenBLAS's threads (one for ``simulate`` and its writer process)."""
 
 import gc
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from fsdvs_hw import cli
 from fsdvs_hw.cli import simulate as simulate_verb
+from fsdvs_hw.sensor.eventfile import EventFileWriter
 
 
 @pytest.fixture
@@ -75,3 +79,30 @@ def test_python_m_runs_the_console_entry():
         check=True,
     )
     assert "status 2 frozen True" in res.stdout
+
+
+def test_simulate_gets_one_openblas_thread_unless_the_user_chose(monkeypatch, capsys, unfrozen):
+    for preset_value, want in ((None, "1"), ("3", "3")):
+        if preset_value is None:
+            monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+        else:
+            monkeypatch.setenv("OPENBLAS_NUM_THREADS", preset_value)
+        monkeypatch.setattr(sys, "argv", ["fsdvs-hw", "simulate"])  # no video: argparse's error, status 2
+        with pytest.raises(SystemExit):
+            cli.console()
+        assert os.environ["OPENBLAS_NUM_THREADS"] == want
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    monkeypatch.setattr(sys, "argv", ["fsdvs-hw"])
+    cli.console()
+    assert "OPENBLAS_NUM_THREADS" not in os.environ  # other verbs: untouched
+    capsys.readouterr()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_the_h5_writer_process_runs_with_one_openblas_thread(tmp_path, monkeypatch):
+    pytest.importorskip("h5py")
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "8")
+    with EventFileWriter(tmp_path / "e.h5", 4, 4) as w:
+        env = (Path("/proc") / str(w._child.pid) / "environ").read_bytes().split(b"\0")
+    assert b"OPENBLAS_NUM_THREADS=1" in env
+    assert (tmp_path / "e.h5").exists()

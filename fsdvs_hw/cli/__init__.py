@@ -18,13 +18,14 @@ from __future__ import annotations
 import argparse
 import gc
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
 from ..errors import InputError, ToolMissingError
 
-__all__ = ["COMMANDS", "console", "main"]
+__all__ = ["COMMANDS", "VERB_ENVIRONMENT", "console", "main"]
 
 #: sub-command name -> module implementing it
 COMMANDS: dict[str, str] = {
@@ -140,9 +141,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
 
 
+#: Environment defaults that :func:`console` gives a verb's process before NumPy loads (a value
+#: the user set wins). ``simulate`` makes no NumPy linear algebra (torch has its own threads), and
+#: OpenBLAS's idle worker thread spun for 0.13 of the 0.23 CPU s a bare ``import numpy`` took (2-core
+#: machine, 3 runs each; ``perf stat``): CPU that the command's start-up, on both cores, needs.
+VERB_ENVIRONMENT: dict[str, dict[str, str]] = {"simulate": {"OPENBLAS_NUM_THREADS": "1"}}
+
+
 def console() -> int:
-    """The ``fsdvs-hw`` console script and ``python -m fsdvs_hw.cli``: :func:`main` on
-    ``sys.argv``, then every live object frozen (``gc.freeze``) before the interpreter exits.
+    """The ``fsdvs-hw`` console script and ``python -m fsdvs_hw.cli``: the verb's
+    :data:`VERB_ENVIRONMENT`, :func:`main` on ``sys.argv``, then every live object frozen
+    (``gc.freeze``) before the interpreter exits.
 
     The interpreter's last cycle collection at exit walks every object alive, torch's ~10⁵
     included: 0.4 s of a 1.6 s process that only imports torch (2-core machine, 3 runs each:
@@ -154,6 +163,9 @@ def console() -> int:
     int
         The exit status.
     """
+    verb = sys.argv[1] if len(sys.argv) > 1 else ""
+    for name, value in VERB_ENVIRONMENT.get(verb, {}).items():
+        os.environ.setdefault(name, value)
     try:
         return main()
     finally:
