@@ -106,3 +106,31 @@ def test_the_h5_writer_process_runs_with_one_openblas_thread(tmp_path, monkeypat
         env = (Path("/proc") / str(w._child.pid) / "environ").read_bytes().split(b"\0")
     assert b"OPENBLAS_NUM_THREADS=1" in env
     assert (tmp_path / "e.h5").exists()
+
+
+_QUICK_EXIT_CHILD = """
+import atexit, sys
+atexit.register(lambda: print("exit handler ran", flush=True))
+sys.argv = ["fsdvs-hw"] + sys.argv[1:]
+from fsdvs_hw.cli import console
+print("status", console())  # a quick-exit verb never gets here
+"""
+
+
+def test_simulate_ends_its_process_without_teardown_after_committing_the_file(tmp_path):
+    out = tmp_path / "e.h5"
+    args = ["simulate", "example:carphone", "--out", str(out), "--frames", "3", "--size", "12x16", "--no-progress"]
+    res = subprocess.run([sys.executable, "-c", _QUICK_EXIT_CHILD, *args], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    assert "exit handler ran" in res.stdout and f"{out}: " in res.stdout  # handlers ran, the summary flushed
+    assert "status" not in res.stdout  # the process ended inside console()
+    assert out.exists()
+    # a failing run keeps its status; another verb returns to the caller and tears down as usual
+    bad = subprocess.run(
+        [sys.executable, "-c", _QUICK_EXIT_CHILD, "simulate", str(tmp_path / "missing.mp4"), "--out", str(out)],
+        capture_output=True,
+        text=True,
+    )
+    assert bad.returncode == 2 and "missing.mp4" in bad.stderr
+    other = subprocess.run([sys.executable, "-c", _QUICK_EXIT_CHILD], capture_output=True, text=True)
+    assert "status 2" in other.stdout and "exit handler ran" in other.stdout
