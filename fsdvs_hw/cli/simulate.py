@@ -17,6 +17,8 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
+from concurrent.futures import Future
+from concurrent.futures import wait as futures_wait
 from pathlib import Path
 from typing import Any
 
@@ -283,9 +285,10 @@ def _run(args: argparse.Namespace) -> int:
     if args.placement is not None:
         overrides["placement"] = args.placement
     config = SensorConfig.preset(args.preset, **overrides)
-    props = video_properties(path)
+    if not path.is_file():
+        video_properties(path)  # its one-line error at once, before torch loads
     mapping = args.input_mapping or preset_input_mapping(args.preset)
-    run_state = _Run(args, path, mapping, props, size)
+    run_state = _Run(args, path, mapping, size)
     with _stop_on_signals() as stopped:
         try:
             n_events, n_on, wall = run_state.simulate_to_file(config, stopped)
@@ -338,14 +341,29 @@ def _frozen_objects_restored() -> Iterator[None]:
             gc.unfreeze()
 
 
-class _Run:
-    """One run of the command: its frames (decoded in a thread), its writer, its progress bar;
-    :meth:`abort` stops them all and leaves no file."""
+def _in_thread(fn: Any, name: str) -> Future:
+    """``fn()`` run in a new daemon thread ``name``; its result or exception in the future."""
+    fut: Future = Future()
 
-    def __init__(
-        self, args: argparse.Namespace, path: Path, mapping: str, props: dict, size: tuple[int, int] | None
-    ) -> None:
-        self.args, self.path, self.mapping, self.props, self.size = args, path, mapping, props, size
+    def target() -> None:
+        try:
+            fut.set_result(fn())
+        except BaseException as exc:  # noqa: BLE001  handed to whoever waits on the future
+            fut.set_exception(exc)
+
+    threading.Thread(target=target, name=name, daemon=True).start()
+    return fut
+
+
+class _Run:
+    """One run of the command: the video's properties and its writer (opened in a thread while
+    torch loads), its frames (decoded in a thread), its progress bar; :meth:`abort` stops them all
+    and leaves no file."""
+
+    def __init__(self, args: argparse.Namespace, path: Path, mapping: str, size: tuple[int, int] | None) -> None:
+        self.args, self.path, self.mapping, self.size = args, path, mapping, size
+        self.props: dict = {}
+        self.probe: Future | None = None
         self.frames: Any = None
         self.writer: Any = None
         self.bar: Any = None
@@ -355,12 +373,14 @@ class _Run:
         from ..sensor.eventfile import EventFileWriter
 
         args = self.args
+        # The video is probed (an ffmpeg process) and the writer process started, where the file
+        # says its frame size, in a thread while this one loads torch: the writer loads h5py or
+        # dv-processing on the other core meanwhile (docs/speed.md).
+        self.probe = _in_thread(self._probe_and_open_writer, "fsdvs-probe")
+        simulate = self._import()
+        self.probe.result()  # the probe's error (an unreadable video) is raised here
         h_w = _frame_size(self.props, self.size)
-        # The writer process starts now, where the file says its frame size: it loads h5py or
-        # dv-processing on the other core while this one loads torch (docs/speed.md).
-        if h_w:
-            self.writer = _open_writer(EventFileWriter, args, self.path, self.mapping, h_w)
-        simulate, kernel, chunk_frames = self._load(h_w)
+        kernel, chunk_frames = self._start(h_w)
         t0 = time.perf_counter()
         n_events = n_on = 0
         for chunk in simulate(self.frames, kernel, config=config, chunk_frames=chunk_frames):
@@ -384,16 +404,33 @@ class _Run:
         self._release()
         return n_events, n_on, time.perf_counter() - t0
 
-    def _load(self, h_w: tuple[int, int] | None) -> tuple[Any, Any, int]:
-        """torch and the simulator loaded, decoding started: ``(simulate, kernel, chunk_frames)``."""
-        with _collector_spares_imports():
-            import torch
+    def _probe_and_open_writer(self) -> None:
+        """The video's properties, then the writer where they give the frame size."""
+        from ..scenes.video import video_properties
+        from ..sensor.eventfile import EventFileWriter
 
-            from ..kernels import load_kernel_or_reference
-            from ..prefetch import prefetch
-            from ..progress import progress_bar
-            from ..sensor.stream import MIN_CHUNK_FRAMES, chunk_frames_for, simulate
-            from ..sensor.threads import event_list_threads
+        self.props = video_properties(self.path)
+        h_w = _frame_size(self.props, self.size)
+        if h_w:
+            self.writer = _open_writer(EventFileWriter, self.args, self.path, self.mapping, h_w)
+
+    def _import(self) -> Any:
+        """torch and the simulator loaded: the streaming ``simulate``."""
+        with _collector_spares_imports():
+            import torch  # noqa: F401  the bulk of the command's start-up
+
+            from ..sensor.stream import simulate
+        return simulate
+
+    def _start(self, h_w: tuple[int, int] | None) -> tuple[Any, int]:
+        """Decoding started, threads set, the progress bar open: ``(kernel, chunk_frames)``."""
+        import torch
+
+        from ..kernels import load_kernel_or_reference
+        from ..prefetch import prefetch
+        from ..progress import progress_bar
+        from ..sensor.stream import MIN_CHUNK_FRAMES, chunk_frames_for
+        from ..sensor.threads import event_list_threads
 
         args = self.args
         # Decoding runs in its own thread, beside the simulation (docs/speed.md); at most
@@ -409,7 +446,7 @@ class _Run:
         self.bar = progress_bar(
             total=total, unit="frame", desc="simulate", progress=False if args.no_progress else None
         )
-        return simulate, kernel, chunk_frames
+        return kernel, chunk_frames
 
     def _release(self) -> None:
         if self.frames is not None:
@@ -419,6 +456,8 @@ class _Run:
 
     def abort(self) -> None:
         """Remove the partial file, stop decoding, close the bar."""
+        if self.probe is not None:
+            futures_wait([self.probe])  # a writer it is opening is aborted below
         if self.writer is not None:
             self.writer.abort()
         self._release()

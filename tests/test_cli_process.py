@@ -134,3 +134,24 @@ def test_simulate_ends_its_process_without_teardown_after_committing_the_file(tm
     assert bad.returncode == 2 and "missing.mp4" in bad.stderr
     other = subprocess.run([sys.executable, "-c", _QUICK_EXIT_CHILD], capture_output=True, text=True)
     assert "status 2" in other.stdout and "exit handler ran" in other.stdout
+
+
+def test_a_missing_video_is_reported_before_torch_loads(tmp_path):
+    code = (
+        "import sys\nfrom fsdvs_hw.cli import main\n"
+        f"rc = main(['simulate', {str(tmp_path / 'missing.mp4')!r}, '--out', {str(tmp_path / 'e.h5')!r}])\n"
+        "print('status', rc, 'torch loaded', 'torch' in sys.modules)"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert "status 2 torch loaded False" in res.stdout
+    assert "missing.mp4" in res.stderr and "does not exist" in res.stderr
+
+
+def test_an_undecodable_video_found_by_the_probe_thread_is_one_line_and_leaves_no_file(tmp_path, capsys):
+    bad = tmp_path / "bad.mp4"
+    bad.write_bytes(b"not a video")
+    out = tmp_path / "e.h5"
+    assert cli.main(["simulate", str(bad), "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "bad.mp4" in err and "cannot be decoded" in err and len(err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == [bad]
