@@ -1,5 +1,6 @@
-"""Build, load and call the compiled kernels of :mod:`.crossings` (``_crossings.c``) and the fused
-no-grad pixel step of :mod:`.fused` (``_fused.c``).
+"""Build, load and call the compiled kernels of :mod:`.crossings` (``_crossings.c``), the fused
+no-grad pixel step of :mod:`.fused` (``_fused.c``) and the event-file message conversion of
+:mod:`.eventfile` (``_eventfile.c``).
 
 The C sources are compiled once per machine with the system C compiler (``$CC``, else ``cc``) into
 a per-user cache (``$FSDVS_HW_CACHE``, else ``$XDG_CACHE_HOME/fsdvs_hw``, else
@@ -28,7 +29,7 @@ import numpy as np
 
 __all__: list[str] = []  # private helpers of .crossings
 
-_SOURCES = [Path(__file__).with_name(n) for n in ("_crossings.c", "_fused.c")]
+_SOURCES = [Path(__file__).with_name(n) for n in ("_crossings.c", "_fused.c", "_eventfile.c")]
 _HEADERS = [Path(__file__).with_name("_native_clones.h")]  # hashed with the sources
 # no FMA contraction and no reassociation: results bit-identical to the torch path
 _FLAGS = ["-O3", "-std=c99", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math", "-fno-trapping-math"]
@@ -101,6 +102,8 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.fsdvs_write_columns.restype = None
     lib.fsdvs_sort_interval_columns.argtypes = [_I, _P, _P, _P, _P, _D, _D, _I, _P, _P, _I, _I, _P, _P, _P, _P]
     lib.fsdvs_sort_interval_columns.restype = ctypes.c_int
+    lib.fsdvs_event_message.argtypes = [_P, _P, _P, _P, _I, _I, _I, _I, _I, _P, _P, _P, _P]
+    lib.fsdvs_event_message.restype = ctypes.c_int
 
 
 def _load() -> ctypes.CDLL | None:
@@ -369,3 +372,39 @@ def write_columns(
         t_out.ctypes.data + 8 * start,
         p_out.ctypes.data + start,
     )
+
+
+#: Latest time (µs) :func:`event_message` converts itself; later ones go to NumPy's path.
+_MESSAGE_T_MAX_US = 2**62
+
+
+def event_message(
+    t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, width: int, height: int, last_t_us: int, max_t_us: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """Contiguous float64 ``t`` (s), int64 ``x``, ``y`` and int8 ``p`` in the event-file writer's
+    message layout, checked in one pass (``fsdvs_event_message``): ``(t_us int64, x int16,
+    y int16, p uint8 1 ON / 0 OFF)``, NumPy's ``rint(t * 1e6)`` and casts bit for bit. None where
+    a check fails (a negative or non-finite time, a pixel outside ``width`` × ``height``, a
+    polarity not ±1, times decreasing from ``last_t_us`` on, a time after ``max_t_us``): the
+    caller's NumPy path then words the problem."""
+    n = len(t)
+    t_us = np.empty(n, dtype=np.int64)
+    x16 = np.empty(n, dtype=np.int16)
+    y16 = np.empty(n, dtype=np.int16)
+    on = np.empty(n, dtype=np.uint8)
+    code = _loaded().fsdvs_event_message(
+        _ptr(t),
+        _ptr(x),
+        _ptr(y),
+        _ptr(p),
+        n,
+        int(width),
+        int(height),
+        int(last_t_us),
+        min(int(max_t_us), _MESSAGE_T_MAX_US),
+        _ptr(t_us),
+        _ptr(x16),
+        _ptr(y16),
+        _ptr(on),
+    )
+    return (t_us, x16, y16, on) if code == 0 else None

@@ -136,6 +136,39 @@ def _columns(events: Any, width: int, height: int) -> tuple[np.ndarray, ...]:
     return t_us, x, y, p
 
 
+#: Latest event time (µs) of the formats without v2e's uint32 limit (int64 µs).
+_MAX_T_US = 2**63 - 1
+
+
+def _message_columns(
+    events: Any, width: int, height: int, last_t_us: int, max_t_us: int
+) -> tuple[np.ndarray, ...] | None:
+    """The writer process's message columns (t_us int64, x int16, y int16, ON uint8) of an
+    :class:`~fsdvs_hw.sensor.EventList` with the columns a stream yields (contiguous CPU float64
+    ``t``, int64 ``x``, ``y``, int8 ``p``, batch 0), converted and checked in one compiled pass
+    (:func:`._crossings_native.event_message`: the same values as :func:`_columns`, ~1.5 against
+    ~11 ns per event). None where that does not apply or a check failed: :func:`_columns` then
+    converts and words the problem."""
+    from . import _crossings_native
+
+    if isinstance(events, EventFile) or not _crossings_native.available():
+        return None
+    cols = []
+    for col, dtype in ((events.t, np.float64), (events.x, np.int64), (events.y, np.int64), (events.p, np.int8)):
+        try:
+            a = col.numpy() if hasattr(col, "numpy") else col
+        except (RuntimeError, TypeError):  # on a GPU, or part of a graph
+            return None
+        if not isinstance(a, np.ndarray) or a.dtype != dtype or not a.flags.c_contiguous or a.ndim != 1:
+            return None
+        cols.append(a)
+    b = np.asarray(events.b)
+    if b.size and int(b.max()) > 0:
+        return None
+    t, x, y, p = cols
+    return _crossings_native.event_message(t, x, y, p, width, height, last_t_us, max_t_us)
+
+
 #: Events converted and written per slice by :meth:`EventFileWriter.write` (bounds its memory).
 WRITE_SLICE = 1 << 18
 
@@ -325,18 +358,30 @@ class EventFileWriter:
             self._write_slice(_slice_events(events, start, min(start + WRITE_SLICE, n)))
 
     def _write_slice(self, events: Any) -> None:
-        t_us, x, y, p = _columns(events, self.width, self.height)
+        max_t_us = _UINT32_MAX if self.format == "hdf5" else _MAX_T_US
+        message = None
+        if self._child is not None:
+            message = _message_columns(events, self.width, self.height, self._last_t, max_t_us)
+        if message is not None:  # converted and checked in one compiled pass
+            t_us = message[0]
+        else:
+            t_us, x, y, p = _columns(events, self.width, self.height)
+            if not t_us.size:
+                return
+            if int(t_us[0]) < self._last_t or bool((np.diff(t_us) < 0).any()):
+                raise InputError("events: must be written in non-decreasing time")
+            if int(t_us[-1]) > max_t_us:
+                raise InputError(
+                    f"events: time {int(t_us[-1])} µs exceeds the uint32 µs range of v2e's HDF5 "
+                    "layout (4294 s); use .aedat4 or .npz"
+                )
         if not t_us.size:
             return
-        if int(t_us[0]) < self._last_t or bool((np.diff(t_us) < 0).any()):
-            raise InputError("events: must be written in non-decreasing time")
-        if self.format == "hdf5" and int(t_us[-1]) > _UINT32_MAX:
-            raise InputError(
-                f"events: time {int(t_us[-1])} µs exceeds the uint32 µs range of v2e's HDF5 "
-                "layout (4294 s); use .aedat4 or .npz"
-            )
         try:
-            self._write_columns(t_us, x, y, p)
+            if message is not None:
+                self._send(*message)
+            else:
+                self._write_columns(t_us, x, y, p)
         except (OSError, RuntimeError) as exc:  # full disk, a dead child: nothing half-written stays
             failed = self._child_failed() if self._child is not None else self._os_error(exc)
             self._discard()
@@ -349,14 +394,19 @@ class EventFileWriter:
 
     def _write_columns(self, t_us: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
         if self._child is not None:
-            pipe = self._child.stdin
-            pipe.write(np.int64(t_us.size).astype("<i8").tobytes())
-            for arr, dt in ((t_us, "<i8"), (x, "<i2"), (y, "<i2"), (p > 0, "u1")):
-                pipe.write(np.ascontiguousarray(arr, dtype=dt).data.cast("B"))  # no bytes copy
-            pipe.flush()
+            self._send(t_us, x, y, p > 0)
         else:
             for k, arr in (("t", t_us), ("x", x.astype(np.uint16)), ("y", y.astype(np.uint16)), ("p", p)):
                 self._cols[k].write(np.ascontiguousarray(arr).tobytes())
+
+    def _send(self, t_us: np.ndarray, x: np.ndarray, y: np.ndarray, on: np.ndarray) -> None:
+        """One message to the writer process (layout in ``_eventfile_child``): the count, then the
+        µs times, x, y and ON flags in the message's dtypes (converted here where they differ)."""
+        pipe = self._child.stdin
+        pipe.write(np.int64(t_us.size).astype("<i8").tobytes())
+        for arr, dt in ((t_us, "<i8"), (x, "<i2"), (y, "<i2"), (on, "u1")):
+            pipe.write(np.ascontiguousarray(arr, dtype=dt).data.cast("B"))  # no bytes copy
+        pipe.flush()
 
     def close(self) -> None:
         """Finish the file and rename it onto ``path`` (idempotent; a no-op after :meth:`abort`).
