@@ -125,12 +125,15 @@ def _fast_video(path: Path, n: int = 40, side: int = 64, faststart: bool = True)
     return path
 
 
+@pytest.mark.parametrize("suffix", [".npz", ".h5"])
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["SIGINT", "SIGTERM"])
-def test_simulate_stopped_by_signal_exits_nonzero_without_a_file(tmp_path, sig, code):
-    """Ctrl-C / SIGTERM mid-run (sent once the first chunk is being written): exit 130 / 143, one
-    line on stderr naming the signal, the previous file at --out untouched, no temporary left."""
+def test_simulate_stopped_by_signal_exits_nonzero_without_a_file(tmp_path, sig, code, suffix):
+    """Ctrl-C / SIGTERM sent as soon as the temporary file appears (the writer is opened from a
+    thread while torch loads, so this lands during start-up or the first chunks): exit 130 / 143,
+    one line on stderr naming the signal, the previous file at --out untouched, no temporary
+    left, no writer process left."""
     video = _fast_video(tmp_path / "clip.mp4", n=400, side=128)
-    out = tmp_path / "out" / "ev.npz"
+    out = tmp_path / "out" / f"ev{suffix}"
     out.parent.mkdir()
     out.write_bytes(OLD)
     proc = subprocess.Popen(
@@ -166,7 +169,16 @@ def test_simulate_stopped_by_signal_exits_nonzero_without_a_file(tmp_path, sig, 
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert len(lines) == 1 and sig.name in lines[0] and "nothing written" in lines[0], err
     assert out.read_bytes() == OLD
-    assert os.listdir(out.parent) == ["ev.npz"]
+    assert os.listdir(out.parent) == [out.name]
+    if sys.platform.startswith("linux"):  # the writer process (.h5) went with the run
+        left = []
+        for cmdline in Path("/proc").glob("[0-9]*/cmdline"):
+            try:
+                if str(out.parent).encode() in cmdline.read_bytes():
+                    left.append(cmdline.parent.name)
+            except OSError:  # a process that ended meanwhile
+                pass
+        assert not left, left
 
 
 # ------------------------------------------------------------------------------------------ readers
