@@ -4,6 +4,7 @@ OpenBLAS's threads (one for ``simulate`` and its writer process)."""
 
 import gc
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -155,3 +156,24 @@ def test_an_undecodable_video_found_by_the_probe_thread_is_one_line_and_leaves_n
     err = capsys.readouterr().err
     assert "bad.mp4" in err and "cannot be decoded" in err and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == [bad]
+
+
+def test_a_signal_while_torch_loads_stops_the_run_after_the_import(unfrozen):
+    """Inside ``_signals_deferred`` a SIGTERM is only recorded (an exception raised inside
+    torch's import, from Python called by C++, aborted the process); it stops the run on the way
+    out. Outside, a signal raises at once."""
+    reached = False
+    with simulate_verb._stop_on_signals() as stopped:
+        with pytest.raises(simulate_verb._Stopped) as info:
+            with simulate_verb._signals_deferred(stopped):
+                os.kill(os.getpid(), signal.SIGTERM)
+                for _ in range(1000):  # the handler runs between bytecodes: recorded, not raised
+                    pass
+                reached = True
+        assert reached and info.value.signum == signal.SIGTERM
+        with pytest.raises(simulate_verb._Stopped) as info:
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):
+                pass
+        assert info.value.signum == signal.SIGINT
+    assert stopped == [signal.SIGTERM, signal.SIGINT]

@@ -175,10 +175,15 @@ class _Stopped(KeyboardInterrupt):
         self.signum = signum
 
 
+#: True while :func:`_signals_deferred` holds: the handler records a signal without raising.
+_defer_signals = [False]
+
+
 @contextlib.contextmanager
 def _stop_on_signals() -> Iterator[list[int]]:
     """SIGINT and SIGTERM raise :class:`_Stopped` in the main thread (and are recorded in the
-    yielded list, so a library that swallows the exception cannot make the run succeed)."""
+    yielded list, so a library that swallows the exception cannot make the run succeed), except
+    inside :func:`_signals_deferred`."""
     got: list[int] = []
     if threading.current_thread() is not threading.main_thread():
         yield got
@@ -186,7 +191,8 @@ def _stop_on_signals() -> Iterator[list[int]]:
 
     def handler(signum: int, frame: object) -> None:
         got.append(signum)
-        raise _Stopped(signum)
+        if not _defer_signals[0]:
+            raise _Stopped(signum)
 
     previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -194,6 +200,22 @@ def _stop_on_signals() -> Iterator[list[int]]:
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
+
+
+@contextlib.contextmanager
+def _signals_deferred(stopped: list[int]) -> Iterator[None]:
+    """Inside, SIGINT and SIGTERM are only recorded in ``stopped``; on the way out the first one
+    raises :class:`_Stopped`. For importing torch: its import runs Python called from C++
+    (pybind11), and an exception raised there by a signal handler cannot unwind through C++: the
+    process aborted (SIGABRT) instead of stopping cleanly (``tests/test_eventfile_safety.py``,
+    a signal sent during start-up)."""
+    _defer_signals[0] = True
+    try:
+        yield
+    finally:
+        _defer_signals[0] = False
+    if stopped:
+        raise _Stopped(stopped[0])
 
 
 #: Bytes of decoded frames the decoding thread may hold ahead of the simulation.
@@ -377,7 +399,8 @@ class _Run:
         # says its frame size, in a thread while this one loads torch: the writer loads h5py or
         # dv-processing on the other core meanwhile (docs/speed.md).
         self.probe = _in_thread(self._probe_and_open_writer, "fsdvs-probe")
-        simulate = self._import()
+        with _signals_deferred(stopped):
+            simulate = self._import()
         self.probe.result()  # the probe's error (an unreadable video) is raised here
         h_w = _frame_size(self.props, self.size)
         kernel, chunk_frames = self._start(h_w)
