@@ -177,3 +177,18 @@ def test_a_signal_while_torch_loads_stops_the_run_after_the_import(unfrozen):
                 pass
         assert info.value.signum == signal.SIGINT
     assert stopped == [signal.SIGTERM, signal.SIGINT]
+
+
+def test_a_closed_stdout_ends_quietly_after_the_file_is_written(tmp_path):
+    """``fsdvs-hw simulate … | head -0``: the summary line meets a closed pipe after the file is
+    committed. The file stays, nothing is printed on stderr, the status is SIGPIPE's 141."""
+    out = tmp_path / "e.npz"
+    cmd = [sys.executable, "-m", "fsdvs_hw.cli", "simulate", "example:carphone", "--frames", "3"]
+    cmd += ["--size", "12x16", "--out", str(out), "--no-progress"]
+    with open(tmp_path / "err.txt", "wb") as err:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err)
+        proc.stdout.close()  # the reader is gone before the command prints
+        rc = proc.wait(timeout=120)
+    assert rc == 141
+    assert (tmp_path / "err.txt").read_text().strip() == ""
+    assert out.exists()

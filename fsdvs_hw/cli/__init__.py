@@ -134,6 +134,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (InputError, ToolMissingError) as exc:
         print(f"fsdvs-hw {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # whoever read our stdout closed it (`| head`): nothing left to tell them
+        _silence_stdout()
+        return 128 + 13  # as a process ended by SIGPIPE (13), the status shells expect
     except OSError as exc:  # a file or folder named on the command line: missing, unreadable, full disk
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"fsdvs-hw {args.command}: error: {where}{exc.strerror or type(exc).__name__}", file=sys.stderr)
@@ -186,6 +189,17 @@ def console() -> int:
     if verb in QUICK_EXIT_VERBS:
         _quick_exit(status)
     return status
+
+
+def _silence_stdout() -> None:
+    """Point stdout at the null device, so that the interpreter's final flush of a closed pipe
+    does not print a second error (Python's documented recipe for SIGPIPE)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):  # no real stdout (a test's capture): nothing to flush
+        pass
 
 
 def _quick_exit(status: int) -> None:
