@@ -192,3 +192,15 @@ def test_a_closed_stdout_ends_quietly_after_the_file_is_written(tmp_path):
     assert rc == 141
     assert (tmp_path / "err.txt").read_text().strip() == ""
     assert out.exists()
+
+
+def test_a_broken_pipe_elsewhere_is_reported_as_an_error(monkeypatch, capsys):
+    """A BrokenPipeError that is not our stdout's (a child process's pipe) is not mistaken for a
+    reader that went away: the usual one-line error and status 2."""
+
+    def broken(args):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(simulate_verb, "run", broken)
+    assert cli.main(["simulate", "example:carphone", "--out", "e.h5"]) == 2
+    assert "fsdvs-hw simulate: error: Broken pipe" in capsys.readouterr().err

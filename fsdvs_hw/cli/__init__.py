@@ -20,6 +20,7 @@ import atexit
 import gc
 import importlib
 import os
+import select
 import sys
 import threading
 from collections.abc import Sequence
@@ -134,10 +135,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (InputError, ToolMissingError) as exc:
         print(f"fsdvs-hw {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except BrokenPipeError:  # whoever read our stdout closed it (`| head`): nothing left to tell them
-        _silence_stdout()
-        return 128 + 13  # as a process ended by SIGPIPE (13), the status shells expect
     except OSError as exc:  # a file or folder named on the command line: missing, unreadable, full disk
+        if isinstance(exc, BrokenPipeError) and _stdout_closed():  # our reader went away (`| head`)
+            _silence_stdout()
+            return 128 + 13  # as a process ended by SIGPIPE (13), the status shells expect
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"fsdvs-hw {args.command}: error: {where}{exc.strerror or type(exc).__name__}", file=sys.stderr)
         return 2
@@ -189,6 +190,18 @@ def console() -> int:
     if verb in QUICK_EXIT_VERBS:
         _quick_exit(status)
     return status
+
+
+def _stdout_closed() -> bool:
+    """Whether stdout is a pipe whose reader has closed it (``poll`` reports ``POLLERR``); False
+    where that cannot be asked (no ``poll``, no file descriptor), so a broken pipe elsewhere (a
+    child process's) is reported as the error it is."""
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(events & select.POLLERR for _, events in poller.poll(0))
+    except (AttributeError, OSError, ValueError):
+        return False
 
 
 def _silence_stdout() -> None:

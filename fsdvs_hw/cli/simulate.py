@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
-from concurrent.futures import Future
+from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import wait as futures_wait
 from pathlib import Path
 from typing import Any
@@ -363,20 +363,6 @@ def _frozen_objects_restored() -> Iterator[None]:
             gc.unfreeze()
 
 
-def _in_thread(fn: Any, name: str) -> Future:
-    """``fn()`` run in a new daemon thread ``name``; its result or exception in the future."""
-    fut: Future = Future()
-
-    def target() -> None:
-        try:
-            fut.set_result(fn())
-        except BaseException as exc:  # noqa: BLE001  handed to whoever waits on the future
-            fut.set_exception(exc)
-
-    threading.Thread(target=target, name=name, daemon=True).start()
-    return fut
-
-
 class _Run:
     """One run of the command: the video's properties and its writer (opened in a thread while
     torch loads), its frames (decoded in a thread), its progress bar; :meth:`abort` stops them all
@@ -398,7 +384,9 @@ class _Run:
         # The video is probed (an ffmpeg process) and the writer process started, where the file
         # says its frame size, in a thread while this one loads torch: the writer loads h5py or
         # dv-processing on the other core meanwhile (docs/speed.md).
-        self.probe = _in_thread(self._probe_and_open_writer, "fsdvs-probe")
+        pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-probe")
+        self.probe = pool.submit(self._probe_and_open_writer)
+        pool.shutdown(wait=False)  # its thread ends with the probe; nothing waits here
         with _signals_deferred(stopped):
             simulate = self._import()
         self.probe.result()  # the probe's error (an unreadable video) is raised here

@@ -146,9 +146,9 @@ def _message_columns(
     """The writer process's message columns (t_us int64, x int16, y int16, ON uint8) of an
     :class:`~fsdvs_hw.sensor.EventList` with the columns a stream yields (contiguous CPU float64
     ``t``, int64 ``x``, ``y``, int8 ``p``, batch 0), converted and checked in one compiled pass
-    (:func:`._crossings_native.event_message`: the same values as :func:`_columns`, ~1.5 against
-    ~11 ns per event). None where that does not apply or a check failed: :func:`_columns` then
-    converts and words the problem."""
+    (:func:`._crossings_native.event_message`: the same values as :func:`_columns`, 3.4–4.0
+    against 11.0–11.4 ns per event; docs/speed.md). None where that does not apply or a check
+    failed: :func:`_columns` then converts and words the problem."""
     from . import _crossings_native
 
     if isinstance(events, EventFile) or not _crossings_native.available():
@@ -156,7 +156,7 @@ def _message_columns(
     cols = []
     for col, dtype in ((events.t, np.float64), (events.x, np.int64), (events.y, np.int64), (events.p, np.int8)):
         try:
-            a = col.numpy() if hasattr(col, "numpy") else col
+            a = _crossings_native._as_numpy(col)
         except (RuntimeError, TypeError):  # on a GPU, or part of a graph
             return None
         if not isinstance(a, np.ndarray) or a.dtype != dtype or not a.flags.c_contiguous or a.ndim != 1:
