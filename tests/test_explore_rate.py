@@ -12,7 +12,14 @@ import pytest
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.explore.paired import ClipEvidence, bootstrap_weights, event_rate_ci
-from fsdvs_hw.explore.rate import RateCurve, RatePoint, interpolate_log_rate, matched_rate_difference, rate_curve
+from fsdvs_hw.explore.rate import (
+    INTERPOLATIONS,
+    RateCurve,
+    RatePoint,
+    interpolate_log_rate,
+    matched_rate_difference,
+    rate_curve,
+)
 from fsdvs_hw.kernels import Kernel
 from fsdvs_hw.stats import ClipMeans
 
@@ -253,3 +260,118 @@ def test_cli_rate_resumes_without_recomputing_a_point(monkeypatch, tmp_path):
     # a changed setting (clips per network) is a new point, not a stale one
     argv[argv.index("16")] = "12"
     assert main(argv) == 0 and counter.calls == 36
+
+
+# --------------------------------------------------------------------------- interpolation options (issue 38)
+def test_linear_interpolation_is_np_interp_in_log_rate():
+    rng = np.random.default_rng(3)
+    rates = np.sort(rng.uniform(0.5, 300.0, 7))[::-1]  # falling with threshold
+    metrics = rng.uniform(0.0, 1.0, 7)
+    for target in rng.uniform(rates.min(), rates.max(), 20):
+        expected = np.interp(math.log(target), np.log(rates[::-1]), metrics[::-1])
+        assert interpolate_log_rate(rates, metrics, target) == expected
+        assert interpolate_log_rate(rates, metrics, target, interpolation="linear") == expected
+
+
+def test_quadratic_interpolation_reproduces_a_parabola_in_log_rate():
+    def truth(r):  # a peak at 20 events/pixel/s, like a plain DVS's metric vs rate
+        return 0.2 - 0.03 * (math.log(r) - math.log(20.0)) ** 2
+
+    rates = [250.0, 90.0, 40.0, 12.0, 3.0, 0.5]
+    metrics = [truth(r) for r in rates]
+    for target in (0.7, 5.0, 15.0, 20.0, 33.0, 100.0, 240.0):
+        assert interpolate_log_rate(rates, metrics, target, interpolation="quadratic") == pytest.approx(
+            truth(target), abs=1e-12
+        )
+    # the chord of a concave curve lies below it: linear underestimates the peak
+    assert interpolate_log_rate(rates, metrics, 20.0) < truth(20.0) - 1e-3
+    # every interpolation passes through the measured points and refuses to extrapolate
+    for how in ("linear", "pchip", "quadratic"):
+        assert interpolate_log_rate(rates, metrics, 40.0, interpolation=how) == pytest.approx(truth(40.0), abs=1e-12)
+        assert math.isnan(interpolate_log_rate(rates, metrics, 300.0, interpolation=how))
+
+
+def test_pchip_interpolation_preserves_monotonicity_and_never_overshoots():
+    rates = [100.0, 50.0, 20.0, 10.0, 5.0]
+    metrics = [0.1, 0.5, 0.52, 0.9, 0.95]  # monotone in rate, with a near-flat step a cubic spline overshoots
+    grid = np.geomspace(5.0, 100.0, 400)
+    for how in ("pchip", "linear"):
+        values = np.array([interpolate_log_rate(rates, metrics, g, interpolation=how) for g in grid])
+        assert np.all(np.diff(values) <= 1e-15)  # metrics fall with rate here, and so does the curve
+        assert values.min() >= 0.1 - 1e-15 and values.max() <= 0.95 + 1e-15
+    # at a peak pchip stays at or below the peak value (a quadratic through it may rise above)
+    peak = [0.1, 0.5, 0.9, 0.5, 0.2]
+    values = [interpolate_log_rate(rates, peak, g, interpolation="pchip") for g in grid]
+    assert max(values) <= 0.9 + 1e-15
+
+
+def test_interpolation_option_is_checked():
+    with pytest.raises(InputError, match="allowed: linear, pchip, quadratic"):
+        interpolate_log_rate([10, 5, 2], [0.5, 0.4, 0.3], 8.0, interpolation="cubic")
+    with pytest.raises(InputError, match=r"quadratic.*3 points"):
+        interpolate_log_rate([10, 5], [0.5, 0.4], 8.0, interpolation="quadratic")
+    ones = np.ones((2, 5))
+    curve = _curve("w/o", [0.2, 0.3], [10 * ones, 5 * ones], [0.5 * ones, 0.4 * ones])
+    ref = _curve("learned", [0.2], [7 * ones], [0.8 * ones])
+    with pytest.raises(InputError, match="at least 3 thresholds"):
+        matched_rate_difference(curve, ref, 0.2, interpolation="quadratic")
+
+
+def test_matched_rate_difference_applies_the_interpolation_in_every_resample():
+    """A noise-free curve quadratic in log rate: each option's CI collapses onto its own estimate."""
+
+    def truth(r):
+        return 0.3 - 0.02 * (math.log(r) - math.log(25.0)) ** 2
+
+    rates = [160.0, 80.0, 40.0, 20.0, 10.0]
+    ths = [0.1, 0.15, 0.2, 0.3, 0.4]
+    ones = np.ones((3, 6))
+    curve = _curve("w/o", ths, [r * ones for r in rates], [truth(r) * ones for r in rates], seeds=(0, 1, 2))
+    ref = _curve("learned", [0.2], [27.0 * ones], [0.5 * ones], seeds=(0, 1, 2))
+    d = {how: matched_rate_difference(curve, ref, 0.2, n_resamples=200, interpolation=how) for how in INTERPOLATIONS}
+    assert d["quadratic"].estimate == pytest.approx(0.5 - truth(27.0), abs=1e-12)
+    assert d["linear"].estimate > d["quadratic"].estimate + 1e-4  # the chord under a concave curve
+    for how, res in d.items():
+        assert res.ok and res.interpolation == how and res.to_dict()["interpolation"] == how
+        assert res.low == pytest.approx(res.estimate, abs=1e-12) and res.high == pytest.approx(res.estimate, abs=1e-12)
+    assert "quadratic interpolation" in d["quadratic"].describe() and "interpolation" not in d["linear"].describe()
+
+
+def test_interpolation_sensitivity_rows_and_cli_flag(monkeypatch, tmp_path):
+    from fsdvs_hw.cli import main
+    from fsdvs_hw.explore import rate as rate_mod
+
+    monkeypatch.setattr(rate_mod, "clip_evidence", _Counter())
+    out = tmp_path / "r"
+    argv = [
+        "rate",
+        str(ROOT / "designs/default.toml"),
+        "--task",
+        "recognition",
+        "--networks",
+        "3",
+        "--n-test",
+        "16",
+        "--thresholds",
+        "0.1",
+        "0.3",
+        "--n-resamples",
+        "200",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
+    assert main(argv) == 0 and not (out / "interpolation_sensitivity.json").exists()
+    assert main([*argv, "--interpolation-sensitivity"]) == 0
+    stored = json.loads((out / "interpolation_sensitivity.json").read_text())
+    matched = json.loads((out / "matched_rate.json").read_text())["comparisons"]
+    rows = {(r["comparison"], r["interpolation"]): r for r in stored["rows"]}
+    assert set(rows) == {(c, how) for c in matched for how in INTERPOLATIONS}
+    assert stored["settings"]["interpolations"] == list(INTERPOLATIONS) and "command" in stored["provenance"]
+    for c, m in matched.items():  # the linear rows are matched_rate.json's numbers, to the bit
+        lin = rows[(c, "linear")]
+        assert (lin["estimate"], lin["low"], lin["high"]) == (m["estimate"], m["low"], m["high"])
+        assert lin["shift_vs_linear"] == 0.0
+        for how in ("pchip", "quadratic"):
+            assert rows[(c, how)]["shift_vs_linear"] == pytest.approx(rows[(c, how)]["estimate"] - m["estimate"])
+    assert len((out / "interpolation_sensitivity.csv").read_text().splitlines()) == 1 + len(rows)

@@ -99,6 +99,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--n-resamples", type=int_in(100, 1_000_000), default=2000, help="bootstrap resamples per CI")
     parser.add_argument(
+        "--interpolation-sensitivity",
+        action="store_true",
+        help="also write interpolation_sensitivity.json/.csv: every comparison with the curve read linearly, "
+        "by pchip and quadratically in log rate (same resamples; on a finished --out folder it reuses points/)",
+    )
+    parser.add_argument(
         "--out",
         type=Path,
         default=Path("out") / "rate",
@@ -127,6 +133,7 @@ def run(args: argparse.Namespace) -> int:
             zero_shot=args.zero_shot,
             resolution_px=(args.resolution[0], args.resolution[1]),
             n_resamples=args.n_resamples,
+            interpolation_sensitivity=args.interpolation_sensitivity,
             progress=False if args.no_progress else None,
             command=cmd,
         )

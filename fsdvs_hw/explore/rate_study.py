@@ -20,6 +20,11 @@ for one task, in the design's trained networks, and writes to ``out``:
     * ``wo_vs_learned_at_wo_rate``: w/o at the design's threshold minus the learned kernel at the
       w/o rate (the learned gain at a plain DVS's bandwidth is minus this);
     * ``{realisation}_vs_wo_at_{realisation}_rate`` for each realisation asked for.
+``interpolation_sensitivity.json`` / ``.csv`` (with ``interpolation_sensitivity=True``)
+    Every comparison again under each interpolation of
+    :data:`fsdvs_hw.explore.rate.INTERPOLATIONS` (linear, pchip, quadratic in log rate), with the
+    same bootstrap resamples: how much a matched-rate difference depends on how the curve is read
+    between its thresholds. A rerun on a finished ``out`` folder reuses ``points/`` (seconds).
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ import csv
 import datetime as _dt
 import io
 import json
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,9 +42,9 @@ from typing import Any
 from ..errors import InputError
 from ..paths import output_dir, write_output
 from ..provenance import library_versions
-from .rate import DEFAULT_THRESHOLDS, RateCurve, matched_rate_difference, rate_curve
+from .rate import DEFAULT_THRESHOLDS, INTERPOLATIONS, RateCurve, matched_rate_difference, rate_curve
 
-__all__ = ["RateOptions", "RateStudy", "run_rate_study"]
+__all__ = ["RateOptions", "RateStudy", "interpolation_sensitivity", "run_rate_study"]
 
 
 @dataclass(frozen=True)
@@ -83,6 +89,9 @@ class RateOptions:
     n_resamples : int
         Bootstrap resamples per CI.
     confidence : float
+    interpolation_sensitivity : bool
+        Also write ``interpolation_sensitivity.json``/``.csv``: every comparison under each of
+        :data:`fsdvs_hw.explore.rate.INTERPOLATIONS` (the headline comparisons stay linear).
     progress : bool or None
     command : str
         The command line, recorded in the provenance.
@@ -104,6 +113,7 @@ class RateOptions:
     resolution_px: tuple[int, int] = (720, 1280)
     n_resamples: int = 2000
     confidence: float = 0.95
+    interpolation_sensitivity: bool = False
     progress: bool | None = None
     command: str = ""
 
@@ -190,13 +200,13 @@ def run_rate_study(options: RateOptions) -> RateStudy:
         real, _ = fit_realisation(name, design.target, design.realisation_options(name), seed=design.spec.run.seed)
         kernels[name] = real.kernel()
     curves = {name: rate_curve(k, options.task, paths, thresholds, label=name, **common) for name, k in kernels.items()}
-    kw: dict[str, Any] = dict(confidence=options.confidence, n_resamples=options.n_resamples, rng=0)
-    comparisons = {
-        "learned_vs_wo_at_learned_rate": matched_rate_difference(curves["w/o"], curves["learned"], t_ref, **kw),
-        "wo_vs_learned_at_wo_rate": matched_rate_difference(curves["learned"], curves["w/o"], t_ref, **kw),
+    pairs = {
+        "learned_vs_wo_at_learned_rate": (curves["w/o"], curves["learned"]),
+        "wo_vs_learned_at_wo_rate": (curves["learned"], curves["w/o"]),
     }
     for name in options.realisations:
-        comparisons[f"{name}_vs_wo_at_{name}_rate"] = matched_rate_difference(curves["w/o"], curves[name], t_ref, **kw)
+        pairs[f"{name}_vs_wo_at_{name}_rate"] = (curves["w/o"], curves[name])
+    comparisons = _compare(pairs, t_ref, options)
     settings = {
         "design": str(options.design),
         "task": options.task,
@@ -223,6 +233,8 @@ def run_rate_study(options: RateOptions) -> RateStudy:
         },
     }
     study = _write_study(options, out, curves, comparisons, settings)
+    if options.interpolation_sensitivity:
+        study.files.update(_write_sensitivity(options, out, pairs, t_ref, settings))
     if photon is not None:
         study.files.update(
             _write_noise_budget(options, out, design.target, paths[0], thresholds, photon, n_test or 64, settings)
@@ -325,6 +337,146 @@ def _write_study(
     return RateStudy(curves=curves, comparisons=comparisons, rows=rows, files=files)
 
 
+def _compare(pairs: dict[str, tuple[RateCurve, RateCurve]], t_ref: float, options: RateOptions) -> dict[str, Any]:
+    """``matched_rate_difference(curve, reference, t_ref)`` (linear) for every named (curve, reference) pair."""
+    kw: dict[str, Any] = dict(confidence=options.confidence, n_resamples=options.n_resamples, rng=0)
+    return {name: matched_rate_difference(curve, ref, t_ref, **kw) for name, (curve, ref) in pairs.items()}
+
+
+def interpolation_sensitivity(
+    pairs: dict[str, tuple[RateCurve, RateCurve]],
+    reference_threshold: float,
+    *,
+    confidence: float = 0.95,
+    n_resamples: int = 2000,
+    rng: int = 0,
+) -> list[dict[str, Any]]:
+    """Every comparison under each interpolation of :data:`~fsdvs_hw.explore.rate.INTERPOLATIONS`.
+
+    Parameters
+    ----------
+    pairs : dict of str to (RateCurve, RateCurve)
+        Comparison name → (curve read at the matched rate, reference), as in ``matched_rate.json``.
+    reference_threshold : float
+        The references' operating threshold (log units).
+    confidence : float
+        Two-sided CI level in (0, 1).
+    n_resamples : int
+        Bootstrap resamples; the same resamples (seed ``rng``) for every interpolation.
+    rng : int
+        Seed of the resamples.
+
+    Returns
+    -------
+    list of dict
+        One row per (comparison, interpolation): ``comparison``, ``interpolation``, ``status``,
+        ``estimate``/``low``/``high`` (metric units, fraction), ``shift_vs_linear`` (estimate minus
+        the linear estimate), ``matched_threshold`` (log units), ``n_clips``, ``n_networks``,
+        ``confidence``, ``metric_name``, ``task``. A curve with too few points for an
+        interpolation (quadratic needs 3) gives a row whose ``status`` says so, with NaN numbers.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fsdvs_hw.explore.rate import RateCurve, RatePoint
+    >>> from fsdvs_hw.stats import ClipMeans
+    >>> def curve(name, ts, rates, metrics):
+    ...     pts = tuple(RatePoint(threshold=t, metrics=(ClipMeans(np.full(4, m)),),
+    ...                           clip_rates=np.full((1, 4), r), test_seeds=(0,), sensor_seeds=(0,))
+    ...                 for t, r, m in zip(ts, rates, metrics))
+    ...     return RateCurve(kernel_name=name, task="recognition", metric_name="top1",
+    ...                      test_clips="per_network", points=pts)
+    >>> wo = curve("w/o", [0.1, 0.2, 0.3], [np.e**2, np.e, 1.0], [0.0, 1.0, 0.0])
+    >>> learned = curve("learned", [0.2], [np.e**1.5], [1.0])
+    >>> rows = interpolation_sensitivity({"learned_vs_wo": (wo, learned)}, 0.2, n_resamples=100)
+    >>> [(r["interpolation"], round(r["estimate"], 3)) for r in rows]
+    [('linear', 0.5), ('pchip', 0.25), ('quadratic', 0.25)]
+    """
+    rows: list[dict[str, Any]] = []
+    for name, (curve, ref) in pairs.items():
+        linear = math.nan
+        for how in INTERPOLATIONS:
+            base = {"comparison": name, "interpolation": how, "task": curve.task, "metric_name": curve.metric_name}
+            if how == "quadratic" and len(curve.points) < 3:
+                nan = math.nan
+                rows.append(
+                    {
+                        **base,
+                        "status": f"not computed: quadratic needs 3 points, the curve of {curve.kernel_name!r} "
+                        f"has {len(curve.points)}",
+                        "estimate": nan,
+                        "low": nan,
+                        "high": nan,
+                        "shift_vs_linear": nan,
+                        "matched_threshold": nan,
+                        "n_clips": curve.n_clips,
+                        "n_networks": curve.n_networks,
+                        "confidence": confidence,
+                    }
+                )
+                continue
+            d = matched_rate_difference(
+                curve,
+                ref,
+                reference_threshold,
+                confidence=confidence,
+                n_resamples=n_resamples,
+                rng=rng,
+                interpolation=how,
+            )
+            if how == "linear":
+                linear = d.estimate
+            rows.append(
+                {
+                    **base,
+                    "status": d.status,
+                    "estimate": d.estimate,
+                    "low": d.low,
+                    "high": d.high,
+                    "shift_vs_linear": d.estimate - linear,
+                    "matched_threshold": d.matched_threshold,
+                    "n_clips": d.n_clips,
+                    "n_networks": d.n_networks,
+                    "confidence": confidence,
+                }
+            )
+    return rows
+
+
+def _write_sensitivity(
+    options: RateOptions,
+    out: Path,
+    pairs: dict[str, tuple[RateCurve, RateCurve]],
+    t_ref: float,
+    settings: dict[str, Any],
+) -> dict[str, Path]:
+    """``interpolation_sensitivity.json``/``.csv``: every comparison under each interpolation."""
+    rows = interpolation_sensitivity(
+        pairs, t_ref, confidence=options.confidence, n_resamples=options.n_resamples, rng=0
+    )
+    meta = {
+        "settings": {
+            **settings,
+            "interpolations": list(INTERPOLATIONS),
+            "interpolation_note": "x = ln(event rate); linear: np.interp (the default of matched_rate.json); "
+            "pchip: scipy.interpolate.PchipInterpolator (monotone piecewise cubic); quadratic: the parabola "
+            "through the two bracketing points and the nearer outer neighbour; the same interpolation in the "
+            "estimate, the matched threshold and every bootstrap resample, the same resamples for all three",
+        },
+        "provenance": {
+            "command": options.command,
+            "versions": library_versions(),
+            "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        },
+    }
+    return {
+        "interpolation_sensitivity.json": write_output(
+            out / "interpolation_sensitivity.json", json.dumps({**meta, "rows": rows}, indent=1)
+        ),
+        "interpolation_sensitivity.csv": write_output(out / "interpolation_sensitivity.csv", _csv(rows)),
+    }
+
+
 def _thresholds(design: Any, options: RateOptions) -> tuple[float, tuple[float, ...]]:
     """The design's operating threshold (ON = OFF, log units) and the study's thresholds with it."""
     sensor = design.spec.sensor
@@ -361,10 +513,9 @@ def _retrained_study(design: Any, options: RateOptions) -> RateStudy:
             design.target, options.task, thresholds, options.seeds, out, label="learned", **common
         ),
     }
-    kw: dict[str, Any] = dict(confidence=options.confidence, n_resamples=options.n_resamples, rng=0)
-    comparisons: dict[str, Any] = {
-        "learned_vs_wo_at_learned_rate": matched_rate_difference(curves["w/o"], curves["learned"], t_ref, **kw),
-        "wo_vs_learned_at_wo_rate": matched_rate_difference(curves["learned"], curves["w/o"], t_ref, **kw),
+    pairs = {
+        "learned_vs_wo_at_learned_rate": (curves["w/o"], curves["learned"]),
+        "wo_vs_learned_at_wo_rate": (curves["learned"], curves["w/o"]),
     }
     if options.zero_shot:  # the learned kernel swapped into the w/o networks trained at t_ref, threshold swept
         wo_nets = [
@@ -388,9 +539,8 @@ def _retrained_study(design: Any, options: RateOptions) -> RateStudy:
             test_clips="per_network",
             points=(curves["w/o"].point(t_ref),),
         )
-        comparisons["wo_vs_swapped_learned_at_wo_rate"] = matched_rate_difference(
-            curves["learned swapped into w/o networks"], wo_point, t_ref, **kw
-        )
+        pairs["wo_vs_swapped_learned_at_wo_rate"] = (curves["learned swapped into w/o networks"], wo_point)
+    comparisons = _compare(pairs, t_ref, options)
     settings = {
         "design": str(options.design),
         "task": options.task,
@@ -413,4 +563,7 @@ def _retrained_study(design: Any, options: RateOptions) -> RateStudy:
             else ""
         ),
     }
-    return _write_study(options, out, curves, comparisons, settings)
+    study = _write_study(options, out, curves, comparisons, settings)
+    if options.interpolation_sensitivity:
+        study.files.update(_write_sensitivity(options, out, pairs, t_ref, settings))
+    return study
