@@ -51,3 +51,26 @@ def test_shipped_networks_carry_provenance():
             prov = json.loads((SHIPPED / "networks" / name.replace(".safetensors", ".provenance.json")).read_text())
             assert prov["task"] == "reconstruction" and prov["learn_filter"] is False, condition
             assert "versions" in prov and prov["n_train"] == stored["settings"]["n_train"]
+
+
+def test_shipped_record_names_its_interval_method_exactly():
+    """settings.bootstrap is the writer's exact text, and the interval is the bias-shifted percentile it names."""
+    import numpy as np
+
+    from fsdvs_hw.explore.information import BOOTSTRAP_METHOD, _condition_values
+    from fsdvs_hw.explore.paired import bootstrap_weights
+
+    stored, evidence = _shipped()
+    assert stored["settings"]["bootstrap"] == BOOTSTRAP_METHOD
+    assert "bias" in BOOTSTRAP_METHOD and "not BCa" in BOOTSTRAP_METHOD
+    n = 300
+    row = {r["condition"]: r for r in information_table(evidence, n_resamples=n, rng=7)}["learned"]
+    learned = next(e for e in evidence if e.name == "learned")
+    n_net, n_clips = np.shape(learned.events_per_pixel)
+    ws, wc = bootstrap_weights(n_net, n_clips, test_clips="shared", n_resamples=n, rng=7)
+    boot = _condition_values(learned, ws, wc)["mi"]
+    a = (1 - 0.95) / 2
+    shifted = np.quantile(boot - (boot.mean() - row["mi"]), [a, 1 - a])
+    assert (row["mi_low"], row["mi_high"]) == pytest.approx(tuple(shifted), rel=1e-12)
+    plain = np.quantile(boot, [a, 1 - a])  # the plain percentile interval is a different one here
+    assert abs(plain[0] - shifted[0]) > 1e-6

@@ -67,6 +67,7 @@ from .paired import EVENT_RATE_UNIT, bootstrap_weights
 from .rate import interpolate_log_rate
 
 __all__ = [
+    "BOOTSTRAP_METHOD",
     "DEFAULT_RATE_THRESHOLDS",
     "MATCHED",
     "MATCHED_FIELDS",
@@ -78,6 +79,15 @@ __all__ = [
     "information_table",
     "run_information_study",
 ]
+
+#: The interval method of every CI in ``information.json`` (its ``settings.bootstrap``), named exactly.
+BOOTSTRAP_METHOD = (
+    "bias-shifted percentile (not BCa): the (1 - confidence)/2 and (1 + confidence)/2 quantiles of "
+    "resampled value - (mean of the resamples - estimate), i.e. the percentile interval moved by minus the "
+    "bootstrap bias estimate (Efron & Tibshirani 1993, ch. 10); non-finite resamples dropped, no interval "
+    "when over 10 % are; resamples of networks x clips crossed (clips shared by every network and "
+    "condition), the same resamples for every condition (paired gains)"
+)
 
 #: ON = OFF thresholds (log units) along which the w/o event rate is measured for the matched rate.
 DEFAULT_RATE_THRESHOLDS: tuple[float, ...] = (0.05, 0.07, 0.1, 0.125, 0.15, 0.2, 0.3)
@@ -780,8 +790,7 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
         "rate_unit": EVENT_RATE_UNIT,
         "n_resamples": options.n_resamples,
         "confidence": options.confidence,
-        "bootstrap": "percentile, networks x clips crossed (clips shared by every network and condition), "
-        "the same resamples for every condition (paired gains)",
+        "bootstrap": BOOTSTRAP_METHOD,
         "networks": {n: [f"{_slug(n)}_s{s}.safetensors" for s in seeds] for n in conditions},
     }
     provenance = {
