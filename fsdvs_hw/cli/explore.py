@@ -23,7 +23,11 @@ DESCRIPTION = (
     "A rerun into the same DIR skips points already scored. With no DESIGN, the embedded default design\n"
     "(designs/default.toml, shipped with the package) runs.\n\n"
     "Examples:\n  fsdvs-hw explore --out out/demo\n  fsdvs-hw explore my_design.toml --out out/mine\n"
-    "  fsdvs-hw explore --set tasks.tracks='[\"simulator\"]' --set emulation.enabled=false --out out/quick"
+    "  fsdvs-hw explore --set tasks.tracks='[\"simulator\"]' --set emulation.enabled=false --out out/quick\n\n"
+    "Exit status: 0 every point and every requested task scored; 1 a design point failed; 2 bad input\n"
+    "(before any work); 3 every point ran but a requested task failed on some of them (one line each on\n"
+    "stderr; the report's first section lists them, with the clips skipped). The report and the scores\n"
+    "are written in every case but 2."
 )
 
 
@@ -106,6 +110,7 @@ def run(args: argparse.Namespace) -> int:
     from ..explore.design import load_design
     from ..explore.explore import run_exploration
     from ..paths import output_dir
+    from ..report.failures import EXIT_TASK_FAILED, failure_lines, task_failures
     from ..report.tables import networks_note, score_rows, summary_markdown
     from ..resources import resolve_design
 
@@ -127,6 +132,9 @@ def run(args: argparse.Namespace) -> int:
         security=security_from_args(args),
     )
     print(f"[explore] {res.summary}", file=sys.stderr)
+    failed = task_failures(res.points)
+    for line in failure_lines(res.points):  # after the work: the report and scores are written
+        print(line, file=sys.stderr)
     print(summary_markdown(score_rows(res.points)) + "\n")
     nets = networks_note(res.points)
     if nets:
@@ -136,4 +144,6 @@ def run(args: argparse.Namespace) -> int:
         f"artifacts: {res.artifacts_index}\n"
         f"total {res.wall_s:.1f} s"
     )
-    return 0 if res.summary.statuses.get("error", 0) == 0 else 1
+    if res.summary.statuses.get("error", 0):
+        return 1
+    return EXIT_TASK_FAILED if failed else 0

@@ -28,7 +28,9 @@ Layout (every section and key is optional; defaults in brackets)::
                     tracks = ["simulator", "emulation"], sensor = "checkpoint" | "design"
     [tasks.datasets.<task>]  the user's clips and network instead of checkpoints:
                     dataset = {format = "video_folder" | "coco_frames" | "dsec_detection" | "mask_frames", ...},
-                    network = "package.module:factory", network_options, weights, n_clips, seed
+                    network = "package.module:factory", network_options, weights, n_clips, seed,
+                    max_failed_clip_fraction [0.05] (fraction in [0, 1] of the drawn clips that may
+                    fail to read and be skipped, counted and named; beyond it the task fails)
                     (fsdvs_hw.explore.user_data)
     [scoring]       task_weights = { detection = 1, ... } [equal], n_resamples [2000],
                     confidence [0.95], target_half_width [0.01]  (the paired loss CIs)
@@ -222,7 +224,7 @@ class TasksSection(StrictModel):
         "",
         "task name → the user's clips and network "
         "([tasks.datasets.<task>]: dataset = {format, root, split, ...}, network, "
-        "weights, n_clips; fsdvs_hw.explore.user_data); {} = none",
+        "weights, n_clips, max_failed_clip_fraction; fsdvs_hw.explore.user_data); {} = none",
     )
 
 

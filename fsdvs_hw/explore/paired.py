@@ -122,6 +122,12 @@ class ClipEvidence:
     clip_event_rates : ndarray or None
         Events per pixel per second of each clip (ON + OFF, over the clip's duration; None where
         not recorded): what :mod:`fsdvs_hw.explore.rate` resamples for an event rate's CI.
+    failures : tuple of ClipFailure
+        User data (:func:`fsdvs_hw.explore.user_data.dataset_evidence`): the drawn clips skipped
+        because they failed to read (:class:`fsdvs_hw.tasks.dataset_eval.ClipFailure`); ``n_clips``
+        counts the others.
+    n_drawn : int
+        User data: the clips drawn (scored + failed); 0 where not recorded.
     """
 
     task: str
@@ -135,6 +141,8 @@ class ClipEvidence:
     test_seed: int = -1
     event_rate: float = float("nan")
     clip_event_rates: np.ndarray | None = dataclasses.field(default=None, repr=False)
+    failures: tuple[Any, ...] = ()
+    n_drawn: int = 0
 
 
 def clip_evidence(

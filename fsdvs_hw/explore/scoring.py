@@ -195,7 +195,9 @@ def task_scores(
         Task name → a validated ``[tasks.datasets.<task>]`` table: the task is scored on the user's
         clips with the user's network (:func:`fsdvs_hw.explore.user_data.dataset_evidence`), one
         network, so its CI resamples clips only (``n_seeds = 1``, said in ``"ci_note"``); its
-        record names ``"dataset"`` and ``"network"`` instead of ``"checkpoints"``.
+        record names ``"dataset"`` and ``"network"`` instead of ``"checkpoints"``, and the clips
+        skipped because they failed to read (``"failed_clips"``, ``"failed_clip_files"``,
+        ``"failed_clip_indices"``, ``"n_clips_drawn"``; also on a task that failed because too many did).
     base_dir : path
         The design file's folder (the user datasets' ``root``, network imports and weights).
     keep_evidence : bool
@@ -223,7 +225,7 @@ def task_scores(
     if test_clips not in TEST_CLIPS:
         raise InputError(f"test_clips {test_clips!r} unknown; allowed: {', '.join(TEST_CLIPS)}")
     from .paired import clip_evidence, encode_evidence, event_rate_ci  # torch: imported only when tasks are scored
-    from .user_data import dataset_evidence, user_task_record
+    from .user_data import DEFAULT_MAX_FAILED_CLIP_FRACTION, dataset_evidence, user_task_record
 
     out: dict[str, Any] = {"status": "ok"}
     entry: Any  # a checkpoint (or a list of them), or a user dataset's table
@@ -268,7 +270,7 @@ def task_scores(
                         )
                     )
             except (InputError, FileNotFoundError) as exc:
-                out[task][track] = {"status": f"unavailable: {exc}"}
+                out[task][track] = {"status": f"unavailable: {exc}", **_failed_clips_record(exc)}
                 out["status"] = "partial"
                 continue
             per_seed = [e.value for e in evid]
@@ -290,12 +292,41 @@ def task_scores(
                 "event_rate_per_s": event_rate_ci(evid, test_clips=test_clips),
                 "wall_s": time.perf_counter() - t0,
             }
+            if user:
+                rec.update(_failed_clips_record(evid[0]))
+                rec["max_failed_clip_fraction"] = float(
+                    entry.get("max_failed_clip_fraction", DEFAULT_MAX_FAILED_CLIP_FRACTION)
+                )
             if keep_evidence:
                 rec["evidence"] = [encode_evidence(e.metric) for e in evid]
                 if all(e.clip_event_rates is not None for e in evid):  # matched-rate losses (explore.matched)
                     rec["clip_event_rates"] = [np.asarray(e.clip_event_rates, dtype=np.float64).tolist() for e in evid]
             out[task][track] = rec
     return out
+
+
+def _failed_clips_record(source: Any) -> dict[str, Any]:
+    """A user-data track's skipped clips: ``failed_clips`` (count), ``failed_clip_files`` (the first
+    :data:`~fsdvs_hw.tasks.dataset_eval.MAX_NAMED_FAILURES` as ``{index, file, reason}``),
+    ``failed_clip_indices`` (all, for the pairing check of :func:`paired_losses`) and ``n_clips_drawn``;
+    ``{}`` for anything without clip failures (a checkpoint task, another error)."""
+    from ..tasks.dataset_eval import MAX_NAMED_FAILURES
+
+    failures = tuple(getattr(source, "failures", ()) or ())
+    n_drawn = int(getattr(source, "n_drawn", 0) or 0)
+    if not failures and not n_drawn:
+        return {}
+    return {
+        "failed_clips": len(failures),
+        "failed_clip_files": [f.to_dict() for f in failures[:MAX_NAMED_FAILURES]],
+        "failed_clip_indices": sorted(int(f.index) for f in failures),
+        "n_clips_drawn": n_drawn,
+        **(
+            {"max_failed_clip_fraction": float(source.max_failed_fraction)}
+            if hasattr(source, "max_failed_fraction")
+            else {}
+        ),
+    }
 
 
 def _record_networks(tasks: dict[str, Any], target: Kernel) -> None:
@@ -529,6 +560,9 @@ def paired_losses(
                     and len(a) == len(ref_arms[t])
                     and [m.n_clips for m in a] == [m.n_clips for m in ref_arms[t]]
                     and _track_rec(p, t, track).get("test_seeds") == _track_rec(ref, t, track).get("test_seeds")
+                    # user data: the same clips skipped (decided from the clips' files, so always so)
+                    and (_track_rec(p, t, track).get("failed_clip_indices") or [])
+                    == (_track_rec(ref, t, track).get("failed_clip_indices") or [])
                     for t, a in arms.items()
                 )
                 (ok if good else missing).append(p)

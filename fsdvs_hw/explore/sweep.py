@@ -42,6 +42,7 @@ from ..records import Score
 from ..schema import DESIGN_CONTEXT
 from .design import Design, axis_values, design_model
 from .store import ResultsStore
+from .user_data import DEFAULT_MAX_FAILED_CLIP_FRACTION
 
 __all__ = [
     "DesignPoint",
@@ -113,6 +114,8 @@ def _point_key(realisation: str, design: Design) -> str:
         relevant["tasks"].pop("datasets", None)
     for entry in relevant["tasks"].get("datasets", {}).values():
         entry["dataset"].pop("cache", None)  # where decoded clips are kept changes no score
+        if entry.get("max_failed_clip_fraction") == DEFAULT_MAX_FAILED_CLIP_FRACTION:
+            entry.pop("max_failed_clip_fraction")  # the key of a store written before the key existed
     relevant["realisation"] = realisation
     relevant["options"] = design.realisation_options(realisation)
     relevant["target"] = design.target.to_dict()["taps"]

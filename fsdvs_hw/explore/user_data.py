@@ -10,6 +10,7 @@ them per task::
     network_options = { width = 16 }       # more keyword arguments of the factory
     weights = "nets/tiny.safetensors"      # .safetensors / .pt / .pth state dict (optional)
     n_clips = 200                          # clips drawn with `seed` (0 = every clip)
+    max_failed_clip_fraction = 0.05        # clips that fail to read are skipped, up to this fraction
     train = { split = "trainlist01.txt" }  # optional: train first, on the dataset's own training split
 
 The ``format`` picks the reader (:mod:`fsdvs_hw.scenes.datasets`) and with it the task, which
@@ -33,8 +34,15 @@ evaluate_on_dataset`) and keeps each clip's contribution as the same :mod:`fsdvs
 object :func:`fsdvs_hw.explore.paired.clip_evidence` keeps for a trained checkpoint, so
 :func:`fsdvs_hw.explore.scoring.paired_losses` pairs every kernel with the learned one clip by clip.
 Pairing: every kernel meets the same clips (one seeded draw) and the same noise draws (the
-simulator is reseeded for every clip). With one user network the loss CI resamples clips only
-(``n_seeds = 1``: network-to-network variance cannot enter), which the track record says.
+simulator is reseeded for every clip). A clip that fails to read (a video that does not decode, a
+mask label beyond ``num_classes``, another frame size) is skipped, counted and named, up to
+``max_failed_clip_fraction`` of the drawn clips; whether it fails is decided from its files alone
+(:func:`fsdvs_hw.tasks.dataset_eval.read_clip`), so every kernel skips the same clips and the
+comparison stays paired (the record's ``failed_clip_indices`` are compared again when losses are
+paired). Beyond the fraction, or on a problem of the task (the network's output, an odd frame size
+for the stride-2 detector), the task fails with a message naming the key, the file and the reason.
+With one user network the loss CI resamples clips only (``n_seeds = 1``: network-to-network
+variance cannot enter), which the track record says.
 
 References
 ----------
@@ -66,6 +74,7 @@ from ..paths import confined_path
 from ..schema import StrictModel, field
 
 __all__ = [
+    "DEFAULT_MAX_FAILED_CLIP_FRACTION",
     "FORMAT_TASK",
     "ONE_NETWORK_NOTE",
     "ClipCacheSpec",
@@ -91,6 +100,9 @@ __all__ = [
 ONE_NETWORK_NOTE = (
     "one user network: the loss CI resamples the clips only (n_seeds = 1); network-to-network variance is not in it"
 )
+
+#: ``[tasks.datasets.<task>] max_failed_clip_fraction`` when a table does not set it.
+DEFAULT_MAX_FAILED_CLIP_FRACTION = 0.05
 
 #: Dataset format → the task (evaluator) its targets are for.
 FORMAT_TASK: dict[str, str] = {
@@ -294,6 +306,15 @@ class UserTask(StrictModel):
         "to the design file; None = the factory's own weights",
     )
     n_clips: int = field(0, "clips", "clips scored, drawn with seed; 0 = every clip", ge=0, le=MAX_CLIPS)
+    max_failed_clip_fraction: float = field(
+        DEFAULT_MAX_FAILED_CLIP_FRACTION,
+        "",
+        "fraction of the drawn clips that may fail to read (a video that does not decode, a mask "
+        "label beyond num_classes, another frame size) and be skipped, counted and named in the "
+        "task's record; beyond it the task fails, naming the first files and reasons",
+        ge=0.0,
+        le=1.0,
+    )
     seed: int = field(0, "", "seed of the clip draw (the same clips for every kernel)", ge=0, le=MAX_SEED)
     device: Literal["cpu", "cuda"] = field(
         "cpu",
@@ -895,9 +916,10 @@ def check_user_task(
 ) -> list[tuple[str, Any, str]]:
     """Problems of one validated ``[tasks.datasets.<task>]`` table, as ``(key, value, message)``.
 
-    The format must hold the task's targets, the dataset must open (its layout is read: folders,
-    the JSON, image headers; no clip is decoded), ``n_clips`` must not exceed its clips, and the
-    network must build with its weights.
+    The format must hold the task's targets, a detection dataset's ``size`` must be even (the
+    network works at stride 2), the dataset must open (its layout is read: folders, the JSON, image
+    headers; no clip is decoded), ``n_clips`` must not exceed its clips, and the network must build
+    with its weights.
 
     Examples
     --------
@@ -925,6 +947,16 @@ def check_user_task(
                 fmt,
                 f"holds {FORMAT_TASK[fmt]} targets, not {task}; allowed for "
                 f"[tasks.datasets.{task}]: {', '.join(map(repr, allowed)) or 'none (unknown task)'}",
+            )
+        ]
+    size = entry["dataset"].get("size")
+    if task == "detection" and size and (size[0] % 2 or size[1] % 2):
+        return [
+            (
+                f"{key}.dataset.size",
+                size,
+                "the detection network works at stride 2; allowed: even H and W, e.g. "
+                f"[{size[0] + size[0] % 2}, {size[1] + size[1] % 2}]",
             )
         ]
     try:
@@ -1058,14 +1090,19 @@ def dataset_evidence(
     Returns
     -------
     evidence : ClipEvidence
-        ``checkpoint`` names the network; ``test_seed`` is the clip-draw seed.
+        ``checkpoint`` names the network; ``test_seed`` is the clip-draw seed; ``failures`` the
+        drawn clips skipped (at most ``max_failed_clip_fraction`` of ``n_drawn``).
     sensor_record : dict
         Which simulator settings were used.
 
     Raises
     ------
+    ClipFailuresError
+        More than ``max_failed_clip_fraction`` of the drawn clips failed to read (naming the key,
+        the first files and reasons; ``failures`` lists them all).
     InputError
-        Any dataset, network or clip problem (naming the file, the clip and the field).
+        Any dataset or network problem, or a problem of the task (the network's output, an odd
+        frame size for the detector), naming the key, the file and the field.
 
     Examples
     --------
@@ -1073,7 +1110,13 @@ def dataset_evidence(
     >>> ev.metric_name, ev.n_clips                                       # doctest: +SKIP
     ('top1', 4)
     """
-    from ..tasks.dataset_eval import evaluate_on_dataset, evaluator_for_dataset
+    from ..tasks.dataset_eval import (
+        ClipFailuresError,
+        NetworkOutputError,
+        evaluate_on_dataset,
+        evaluator_for_dataset,
+        read_clip,
+    )
     from .paired import PER_CLIP_METRICS, ClipEvidence
 
     t0 = time.perf_counter()
@@ -1081,23 +1124,37 @@ def dataset_evidence(
     ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"{key}.dataset")
     net = open_network(entry, ds, base_dir, confine=confine, key=key) if network is None else network
     evaluator = evaluator_for_dataset(task, ds)
-    first = ds[0]
-    rate_hz = 1.0 / float(np.diff(first.timestamps_s)[0])
+    fraction = float(entry.get("max_failed_clip_fraction", DEFAULT_MAX_FAILED_CLIP_FRACTION))
+    drawn = ds.draw(entry["n_clips"], entry["seed"]) if entry["n_clips"] else np.arange(len(ds))
+    first = next((c for c in (read_clip(ds, int(i))[0] for i in drawn) if c is not None), None)
+    # the first readable clip's frame rate (none readable: evaluate_on_dataset names every failure)
+    rate_hz = 1.0 if first is None else 1.0 / float(np.diff(first.timestamps_s)[0])
     sensor, sensor_rec = _design_sensor(rate_hz, design_sensor)
-    ev = evaluate_on_dataset(
-        kernel,
-        task,
-        ds,
-        net,
-        sensor=sensor,
-        n_clips=entry["n_clips"] or None,
-        seed=entry["seed"],
-        events_fn=events_fn,
-        device=entry["device"],
-    )
+    try:
+        ev = evaluate_on_dataset(
+            kernel,
+            task,
+            ds,
+            net,
+            sensor=sensor,
+            n_clips=entry["n_clips"] or None,
+            seed=entry["seed"],
+            events_fn=events_fn,
+            device=entry["device"],
+            max_failed_fraction=fraction,
+        )
+    except ClipFailuresError as exc:
+        raise ClipFailuresError(
+            exc.detail, exc.failures, exc.n_drawn, fraction, setting=f"{key}.max_failed_clip_fraction"
+        ) from None
+    except NetworkOutputError as exc:
+        name = entry["network"] or f"built-in {evaluator.name} network"
+        raise NetworkOutputError(f"{key}.network = {name!r}: {exc}") from None
+    except InputError as exc:
+        raise InputError(f"{key} ({entry['dataset']['format']} at {entry['dataset']['root']!r}): {exc}") from None
     metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, ev.targets, evaluator)
     n = len(ev.clip_indices)
-    t, h, w = first.frames.shape
+    t, h, w = (first if first is not None else ds[int(ev.clip_indices[0])]).frames.shape
     evidence = ClipEvidence(
         task=evaluator.name,
         metric_name=evaluator.primary_metric,
@@ -1110,6 +1167,8 @@ def dataset_evidence(
         test_seed=int(entry["seed"]),
         event_rate=float(np.mean(ev.event_counts)) / (h * w * (t - 1)),
         clip_event_rates=np.asarray(ev.event_counts, dtype=np.float64) / (h * w * ev.durations_s),
+        failures=ev.failures,
+        n_drawn=len(drawn),
     )
     return evidence, sensor_rec
 

@@ -31,6 +31,7 @@ from ..records import Cost, ScoredPoint
 from . import figures
 from .artifacts import artifacts_html
 from .costs import cost_section, with_cost_columns
+from .failures import failures_section, task_failures
 from .present import cost_label, number, plain, point_title, si, style, title
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
 from .templating import render
@@ -116,10 +117,12 @@ def _names(items: Sequence[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
 
 
-def _verdict_section(rows: Sequence[Mapping[str, Any]]) -> Markup:
+def _verdict_section(rows: Sequence[Mapping[str, Any]], failed_tasks: Sequence[str] = ()) -> Markup:
+    """The verdict; ``failed_tasks`` names the requested tasks that failed (``"task (track)"``), so
+    the template can say that no loss was measured because they failed, not because none was asked."""
     vt = verdict_table(rows)
     if not vt:
-        return render("verdict.html.j2", rows=[])
+        return render("verdict.html.j2", rows=[], failed_tasks=list(failed_tasks))
     acc, acc_label = accuracy_axis(rows)
     return render(
         "verdict.html.j2",
@@ -128,6 +131,7 @@ def _verdict_section(rows: Sequence[Mapping[str, Any]]) -> Markup:
         headers=[loss_header(rows) if c == "loss" else t for c, t in VERDICT_COLUMNS],
         acc_is_loss=acc.endswith("_loss"),
         acc_label=acc_label,
+        failed_tasks=list(failed_tasks),
     )
 
 
@@ -371,7 +375,8 @@ def render_html(
         "n_ok": n_ok,
         "n_skip": n_skip,
         "n_err": n_err,
-        "verdict": _verdict_section(rows),
+        "failures": failures_section(points),  # tasks that failed, clips skipped: first (report/failures.py)
+        "verdict": _verdict_section(rows, [f"{f.task} ({f.track})" for f in task_failures(points)]),
         "figures": None,
         "acc_label": acc_label,
         "not_scored": _table_rows(

@@ -6,6 +6,13 @@ through the in-pixel simulator (:func:`fsdvs_hw.sensor.event_frames`, the same p
 (:mod:`fsdvs_hw.tasks.user_networks`) and the network, and scores the predictions with the task's
 built-in evaluator (its ``predict`` and ``score``: pycocotools mAP, torchmetrics top-1 / mIoU),
 set to the dataset's class count (and ignore index). No metric is computed here.
+
+A clip that cannot be read (a video that does not decode, a mask label beyond the class count, a
+frame size other than the first readable clip's) is skipped, counted and named
+(:class:`ClipFailure`), up to ``max_failed_fraction`` of the drawn clips; beyond it the evaluation
+fails with :class:`ClipFailuresError`, naming the first few files and reasons. A problem of the
+task rather than of one clip (the network's output, an odd frame size for the stride-2 detector, a
+kernel larger than the frames) fails the evaluation at once.
 """
 
 from __future__ import annotations
@@ -13,6 +20,7 @@ from __future__ import annotations
 import copy
 import re
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 from typing import Any
@@ -22,7 +30,144 @@ import numpy as np
 from ..errors import InputError, KernelError, one_line
 from ..limits import MAX_CLIPS, MAX_SEED, check_count
 
-__all__ = ["DatasetEvaluation", "evaluate_on_dataset", "evaluator_for_dataset"]
+__all__ = [
+    "MAX_NAMED_FAILURES",
+    "ClipFailure",
+    "ClipFailuresError",
+    "DatasetEvaluation",
+    "NetworkOutputError",
+    "evaluate_on_dataset",
+    "evaluator_for_dataset",
+    "read_clip",
+]
+
+#: Failed clips a record or a message names one by one (the count covers them all).
+MAX_NAMED_FAILURES = 20
+
+#: Failed clips an error message names before "and N more".
+_SHOWN_IN_MESSAGE = 3
+
+
+@dataclass(frozen=True)
+class ClipFailure:
+    """A drawn clip that was not scored, and why.
+
+    Attributes
+    ----------
+    index : int
+        The clip's index in the dataset.
+    file : str
+        The file the reader named (the video, the frame image or the label mask), else the clip's
+        first file, else ``"clip <index>"``.
+    reason : str
+        The reader's message (field, value, allowed range).
+
+    Example
+    -------
+    >>> ClipFailure(3, "ucf/Run/v_Run_g01.mp4", "field 'frames': the video does not decode").to_dict()["file"]
+    'ucf/Run/v_Run_g01.mp4'
+    """
+
+    index: int
+    file: str
+    reason: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"index", "file", "reason"}`` (JSON)."""
+        return {"index": int(self.index), "file": self.file, "reason": self.reason}
+
+
+def _short(text: str, limit: int = 240) -> str:
+    """``text`` on one line, cut to ``limit`` characters."""
+    flat = " ".join(str(text).split())
+    return flat if len(flat) <= limit else flat[: limit - 1] + "…"
+
+
+def _describe_failures(failures: list[ClipFailure], limit: int = _SHOWN_IN_MESSAGE) -> str:
+    shown = "; ".join(
+        _short(f.reason) if f.file in f.reason else f"{f.file!r}: {_short(f.reason)}" for f in failures[:limit]
+    )
+    more = f"; and {len(failures) - limit} more" if len(failures) > limit else ""
+    return shown + more
+
+
+class ClipFailuresError(InputError):
+    """More clips failed than the allowed fraction (or every clip did); ``failures`` lists them all.
+
+    Attributes
+    ----------
+    failures : tuple of ClipFailure
+    n_drawn : int
+        The clips drawn for scoring.
+    max_failed_fraction : float
+        The fraction that was allowed to fail.
+    detail : str
+        The message without the name of the setting ("2 of the 4 drawn clips failed to read ...:
+        'file': reason; ..."), for callers that name it their own way.
+    """
+
+    def __init__(
+        self, detail: str, failures: Sequence[ClipFailure], n_drawn: int, max_failed_fraction: float, *, setting: str
+    ) -> None:
+        super().__init__(f"{setting} = {max_failed_fraction:g} (allowed: a fraction in [0, 1]): {detail}")
+        self.detail = detail
+        self.failures = tuple(failures)
+        self.n_drawn = int(n_drawn)
+        self.max_failed_fraction = float(max_failed_fraction)
+
+
+class NetworkOutputError(InputError):
+    """The network's output cannot be read or scored by the task's evaluator: a problem of the
+    network (every clip), never skipped as a clip failure."""
+
+
+def _failed_file(dataset: Any, i: int, reason: str) -> str:
+    """The file of clip ``i`` that ``reason`` names, else its first file, else ``"clip i"``."""
+    try:
+        files = [str(p) for p in dataset.clip_files(i)]
+    except (NotImplementedError, IndexError, OSError):
+        files = []
+    return next((f for f in files if f in reason), files[0] if files else f"clip {i}")
+
+
+def read_clip(dataset: Any, i: int, shape: tuple[int, int] | None = None) -> tuple[Any, ClipFailure | None]:
+    """Decode clip ``i``, or say why it cannot be scored: ``(clip, None)`` or ``(None, failure)``.
+
+    A failure depends on the clip's files only (the reader's checks: decoding, labels, boxes, and
+    the frame size against ``shape``, the first readable clip's (H, W)), never on a kernel or a
+    network, so every kernel scored on a draw skips the same clips.
+
+    Example
+    -------
+    >>> clip, failed = read_clip(ds, 0)   # doctest: +SKIP
+    """
+    try:
+        clip = dataset[int(i)]
+    except (InputError, OSError) as exc:
+        reason = str(exc)
+        return None, ClipFailure(int(i), _failed_file(dataset, int(i), reason), reason)
+    if shape is not None and tuple(clip.frames.shape[1:]) != tuple(shape):
+        h, w = clip.frames.shape[1:]
+        reason = (
+            f"clip {int(i)} ({clip.source!r}) is {h}x{w}, the first readable clip {shape[0]}x{shape[1]}; "
+            "field 'size': give the dataset a size=(H, W)"
+        )
+        return None, ClipFailure(int(i), str(clip.source), reason)
+    return clip, None
+
+
+def _check_failures(failures: list[ClipFailure], n_drawn: int, max_failed_fraction: float, n_scored: int) -> None:
+    """Refuse more failed clips than ``floor(max_failed_fraction * n_drawn)``, or no clip scored."""
+    allowed = int(np.floor(max_failed_fraction * n_drawn + 1e-9))
+    if failures and (len(failures) > allowed or n_scored == 0):
+        why = "none is left to score" if n_scored == 0 else f"at most {allowed} may be skipped"
+        raise ClipFailuresError(
+            f"{len(failures)} of the {n_drawn} drawn clips failed to read ({why}): {_describe_failures(failures)}",
+            failures,
+            n_drawn,
+            max_failed_fraction,
+            setting="evaluate_on_dataset: max_failed_fraction",
+        )
 
 
 @dataclass(frozen=True)
@@ -47,6 +192,8 @@ class DatasetEvaluation:
         Wall time of the call.
     durations_s : numpy.ndarray, float64, shape (N,)
         Each scored clip's span in seconds (last minus first timestamp).
+    failures : tuple of ClipFailure
+        The drawn clips that were skipped (in draw order); ``clip_indices`` holds the others.
     """
 
     task: str
@@ -59,6 +206,7 @@ class DatasetEvaluation:
     targets: dict[str, np.ndarray] = field(repr=False)
     seconds: float = 0.0
     durations_s: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    failures: tuple[ClipFailure, ...] = ()
 
     @property
     def value(self) -> float:
@@ -93,6 +241,32 @@ def evaluator_for_dataset(task: Any, dataset: Any) -> Any:
         ev.ignore_index = dataset.ignore_index
         ev.background_weight = 1.0  # class 0 of a user's masks is a class (Cityscapes: road), not background
     return ev
+
+
+def _check_frames(kernel: Any, task: str, clip: Any, shape: tuple[int, int]) -> None:
+    """Problems of the task, not of one clip: a kernel larger than the frames, an odd frame size for the
+    stride-2 detector (both fail the evaluation, naming the clip's file and the field)."""
+    h, w = shape
+    if kernel.size > min(h, w):
+        raise KernelError(
+            f"evaluate_on_dataset: a {kernel.size}x{kernel.size} kernel is larger than the {h}x{w} frames of "
+            f"clip {clip.index} ({clip.source!r}); field 'size': allowed: frames of at least "
+            f"{kernel.size}x{kernel.size} px"
+        )
+    if task == "detection" and (h % 2 or w % 2):
+        raise InputError(
+            f"evaluate_on_dataset: detection needs an even frame size (its network works at stride 2): "
+            f"clip {clip.index} ({clip.source!r}) is {h}x{w}; field 'size' = [{h}, {w}]; allowed: even H "
+            f"and W, e.g. size = [{h + h % 2}, {w + w % 2}]"
+        )
+
+
+def _output_shape(out: Any) -> str:
+    """A network output's shapes, for messages: ``"(1, 3, 32, 32)"`` or ``"{heatmap: (1, 2, 16, 16), ...}"``."""
+    if isinstance(out, dict):
+        return "{" + ", ".join(f"{k}: {_output_shape(v)}" for k, v in out.items()) + "}"
+    shape = getattr(out, "shape", None)
+    return str(tuple(int(n) for n in shape)) if shape is not None else type(out).__name__
 
 
 def _network_for(network: Any, task: str, in_channels: int, num_classes: int) -> Any:
@@ -138,6 +312,7 @@ def evaluate_on_dataset(
     weights: Any = None,
     events_fn: Any = None,
     device: str = "cpu",
+    max_failed_fraction: float = 0.0,
 ) -> DatasetEvaluation:
     """Score ``kernel`` on clips of a user dataset with a network.
 
@@ -168,16 +343,33 @@ def evaluate_on_dataset(
         (the network is moved there); predictions come back to the CPU for the metric. On CUDA the
         simulator's random streams (mismatch, noise) differ from the CPU's, so only a noise-free
         sensor gives the same events to rounding.
+    max_failed_fraction : float
+        Fraction in [0, 1] of the drawn clips that may fail to read (:func:`read_clip`) and be
+        skipped; 0 (default): any failed clip fails the evaluation.
 
     Returns
     -------
     DatasetEvaluation
+        ``failures`` names the skipped clips.
 
     Raises
     ------
     InputError
         Task / dataset mismatch, bad ``n_clips`` / ``seed``, a kernel larger than the frames, a
-        network that does not load or whose output the evaluator cannot read, and any reader error.
+        network that does not load, an odd frame size for the stride-2 detector.
+    NetworkOutputError
+        The network's output cannot be read or scored by the evaluator (a problem of the task).
+    ClipFailuresError
+        More than ``max_failed_fraction`` of the drawn clips (or all of them) failed to read,
+        naming the first few files and reasons.
+
+    Notes
+    -----
+    Pairing: which clips are skipped is decided by :func:`read_clip` before the simulator runs,
+    from the clip's files alone, never from the kernel, the sensor or the network's output (an
+    unreadable output fails the whole evaluation instead of skipping the clip). Every kernel scored
+    on the same draw therefore skips the same clips, and its per-clip metrics stay paired with every
+    other kernel's clip by clip.
 
     Example
     -------
@@ -206,6 +398,10 @@ def evaluate_on_dataset(
     if events_fn is not None and not callable(events_fn):
         raise InputError(f"evaluate_on_dataset: events_fn={one_line(events_fn)} is not callable")
     seed = check_count("evaluate_on_dataset: seed", seed, 0, MAX_SEED)
+    if not (isinstance(max_failed_fraction, (int, float)) and 0.0 <= max_failed_fraction <= 1.0):
+        raise InputError(
+            f"evaluate_on_dataset: max_failed_fraction={one_line(max_failed_fraction)}; allowed: a fraction in [0, 1]"
+        )
     if n_clips is None:
         indices = np.arange(len(dataset))
     else:
@@ -214,35 +410,29 @@ def evaluate_on_dataset(
     k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else _as_kernel(kernel)
     kernel_t = torch.as_tensor(np.array(k.taps), dtype=torch.float64, device=dev)
 
-    first = dataset[int(indices[0])]
-    _, h, w = first.frames.shape
-    if k.size > min(h, w):
-        raise KernelError(f"evaluate_on_dataset: a {k.size}x{k.size} kernel is larger than the {h}x{w} frames")
-    if evaluator.name == "detection" and (h % 2 or w % 2):
-        raise InputError(
-            f"evaluate_on_dataset: detection needs an even frame size (stride 2), got {h}x{w}; "
-            "pass size=(H, W) to the dataset"
-        )
-    net = _network_for(network, evaluator.name, 2 * (first.frames.shape[0] - 1), evaluator.num_classes)
-    if weights is not None:
-        load_weights(net, weights)
-    rep = event_input_of(net)
-    net = net.to(dev)
-    if sensor is None:
-        sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(first.timestamps_s)[0])))
-
+    failures: list[ClipFailure] = []
     preds, clips, counts, spans = [], [], [], []
-    net.eval()
-    with torch.no_grad():
-        for i in indices:
-            clip = first if int(i) == first.index else dataset[int(i)]
-            if clip.frames.shape[1:] != (h, w):
-                raise InputError(
-                    f"evaluate_on_dataset: clip {int(i)} ({clip.source!r}) is "
-                    f"{clip.frames.shape[1]}x{clip.frames.shape[2]}, clip {first.index} {h}x{w}; "
-                    "field 'size': give the dataset a size=(H, W)"
-                )
-            video = clip.as_batch(torch.float64).to(dev)
+    shape: tuple[int, int] | None = None
+    net: Any = None
+    rep: Any = None
+    output_shape = ""
+    for i in indices:
+        clip, failed = read_clip(dataset, int(i), shape)
+        if failed is not None:
+            failures.append(failed)
+            continue
+        if shape is None:  # the first readable clip sets the frame size, the network and the sensor
+            shape = (int(clip.frames.shape[1]), int(clip.frames.shape[2]))
+            _check_frames(k, evaluator.name, clip, shape)
+            net = _network_for(network, evaluator.name, 2 * (clip.frames.shape[0] - 1), evaluator.num_classes)
+            if weights is not None:
+                load_weights(net, weights)
+            rep = event_input_of(net)
+            net = net.to(dev).eval()
+            if sensor is None:
+                sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(clip.timestamps_s)[0])))
+        video = clip.as_batch(torch.float64).to(dev)
+        with torch.no_grad():
             ev = (
                 events_fn(video, kernel_t, sensor, clip.timestamps_s)
                 if events_fn is not None
@@ -251,21 +441,31 @@ def evaluate_on_dataset(
             counts.append(float(ev.sum()))
             spans.append(float(clip.timestamps_s[-1] - clip.timestamps_s[0]))
             try:
-                preds.append(
-                    {key: v.cpu() for key, v in evaluator.predict(net(rep(ev.float(), clip.timestamps_s))).items()}
-                )
-            except (RuntimeError, KeyError, TypeError, IndexError) as exc:
-                raise InputError(
-                    f"evaluate_on_dataset: the network's output on clip {int(i)} cannot be read by "
-                    f"the {evaluator.name} evaluator ({type(exc).__name__}: "
+                out = net(rep(ev.float(), clip.timestamps_s))
+                output_shape = output_shape or _output_shape(out)
+                preds.append({key: v.cpu() for key, v in evaluator.predict(out).items()})
+            except (RuntimeError, KeyError, TypeError, IndexError, ValueError, AttributeError) as exc:
+                raise NetworkOutputError(
+                    f"evaluate_on_dataset: the network's output on clip {int(i)} ({clip.source!r}) cannot be "
+                    f"read by the {evaluator.name} evaluator ({type(exc).__name__}: "
                     f"{one_line(str(exc), 120)}); input was {rep.kind} "
-                    f"with {rep.channels(clip.frames.shape[0])} channels"
+                    f"with {rep.channels(clip.frames.shape[0])} channels; a problem of the network, not of "
+                    "the clip: the task fails"
                 ) from None
-            clips.append(clip)
+        clips.append(clip)
+    _check_failures(failures, len(indices), float(max_failed_fraction), len(clips))
     cat = _cat_predictions(preds)
     targets = stack_targets(clips)
     t_torch = {key: torch.from_numpy(np.ascontiguousarray(v)) for key, v in targets.items()}
-    metrics = evaluator.score(cat, t_torch)
+    try:
+        metrics = evaluator.score(cat, t_torch)
+    except (InputError, RuntimeError, KeyError, TypeError, IndexError, ValueError) as exc:
+        raise NetworkOutputError(
+            f"evaluate_on_dataset: the network's predictions cannot be scored by the {evaluator.name} evaluator "
+            f"({one_line(str(exc), 160)}); the network returned {output_shape} for frames of "
+            f"{clips[0].frames.shape[1]}x{clips[0].frames.shape[2]} px: a problem of the network, not of the "
+            "clips: the task fails"
+        ) from None
     per_clip = np.full(len(clips), np.nan)
     for n in range(len(clips)):
         try:
@@ -280,10 +480,11 @@ def evaluate_on_dataset(
         metrics=metrics,
         primary_metric=evaluator.primary_metric,
         per_clip=per_clip,
-        clip_indices=np.asarray(indices, dtype=np.int64),
+        clip_indices=np.asarray([c.index for c in clips], dtype=np.int64),
         event_counts=np.asarray(counts),
         predictions={key: v.numpy() for key, v in cat.items()},
         targets=targets,
         seconds=time.perf_counter() - t0,
         durations_s=np.asarray(spans),
+        failures=tuple(failures),
     )
