@@ -76,6 +76,7 @@ __all__ = [
     "CocoDetections",
     "ConfusionMIoU",
     "DifferenceCI",
+    "chance_metric",
     "clips_for_half_width",
     "coco_records",
     "difference_ci",
@@ -127,12 +128,16 @@ class ClipMeans:
         Per-clip value (finite).
     """
 
-    def __init__(self, values: Any) -> None:
+    def __init__(self, values: Any, *, labels: Any = None, num_classes: int | None = None) -> None:
         v = np.asarray(values, dtype=np.float64)
         if v.ndim != 1 or v.size == 0 or not np.all(np.isfinite(v)):
             raise InputError(f"ClipMeans: values must be a finite non-empty 1-D array, got shape {v.shape}")
         self.values = v
         self.n_clips = int(v.size)
+        #: True class of each clip and the class count, where a classifier's top-1 was measured
+        #: (:meth:`top1`): what :func:`chance_metric` needs.
+        self.labels = None if labels is None else np.asarray(labels, dtype=np.int64).reshape(-1)
+        self.num_classes = None if num_classes is None else int(num_classes)
 
     @classmethod
     def top1(cls, logits: Any, target: Any) -> ClipMeans:
@@ -141,11 +146,14 @@ class ClipMeans:
         t = np.asarray(target).astype(np.int64)
         if lg.ndim != 2 or t.shape != (lg.shape[0],):
             raise InputError(f"ClipMeans.top1: logits (N, C) and target (N,) expected, got {lg.shape}, {t.shape}")
-        return cls((lg.argmax(axis=1) == t).astype(np.float64))
+        return cls((lg.argmax(axis=1) == t).astype(np.float64), labels=t, num_classes=int(lg.shape[1]))
 
     def state(self) -> dict[str, np.ndarray]:
         """Arrays that rebuild this metric (:func:`metric_from_state`)."""
-        return {"kind": np.array("clip_means"), "values": self.values}
+        out = {"kind": np.array("clip_means"), "values": self.values}
+        if self.labels is not None and self.num_classes is not None:
+            out["labels"], out["num_classes"] = self.labels.astype(np.int32), np.array(self.num_classes)
+        return out
 
     def weighted(self, weights: Any) -> np.ndarray:
         w = _as_weights(weights, self.n_clips)
@@ -569,6 +577,8 @@ def metric_from_state(state: Mapping[str, Any]) -> ClipMetric:
     """
     kind = str(np.asarray(state.get("kind", ""))) if isinstance(state, Mapping) else ""
     if kind == "clip_means":
+        if "labels" in state and "num_classes" in state:
+            return ClipMeans(state["values"], labels=state["labels"], num_classes=int(state["num_classes"]))
         return ClipMeans(state["values"])
     if kind == "confusion_miou":
         return ConfusionMIoU(state["confusions"])
@@ -577,6 +587,70 @@ def metric_from_state(state: Mapping[str, Any]) -> ClipMetric:
     raise InputError(
         f"metric_from_state: unknown metric kind {kind!r}; allowed clip_means, confusion_miou, coco_detections"
     )
+
+
+# --------------------------------------------------------------------------- chance
+def chance_metric(metric: ClipMetric) -> tuple[ClipMetric, str] | None:
+    """The same metric, on the same clips, for a predictor that has learned nothing from its input.
+
+    * **Top-1** (:class:`ClipMeans` from :meth:`ClipMeans.top1`): always the test set's most
+      frequent class (= 1/classes on a balanced set).
+    * **Mean IoU** (:class:`ConfusionMIoU`): every pixel the most frequent class of the test set.
+    * **COCO mAP** (:class:`CocoDetections`): a detector that returns no boxes (its mAP is 0: a
+      detector whose interval does not lie above 0 has not been shown to detect anything).
+
+    Parameters
+    ----------
+    metric : ClipMetric
+        A measured metric (its ground truth is what the chance predictor is scored on).
+
+    Returns
+    -------
+    (ClipMetric, str) or None
+        The chance predictor's metric (recomputable for any clip weights, so a bootstrap can pair
+        it with ``metric``) and how it was made; None when ``metric`` does not keep its ground truth
+        (a top-1 metric stored before labels were kept).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fsdvs_hw.stats import ClipMeans, chance_metric
+    >>> m = ClipMeans.top1(np.eye(4)[[0, 1, 2, 3, 0, 0]], np.array([0, 1, 2, 3, 0, 0]))
+    >>> c, how = chance_metric(m)
+    >>> float(c.weighted(np.ones((1, 6)))[0]), how
+    (0.5, 'always class 0, the most frequent of 4 (top-1)')
+    """
+    if isinstance(metric, ClipMeans):
+        if metric.labels is None or metric.num_classes is None:
+            return None
+        counts = np.bincount(metric.labels, minlength=metric.num_classes)
+        top = int(np.argmax(counts))
+        return (
+            ClipMeans((metric.labels == top).astype(np.float64), labels=metric.labels, num_classes=metric.num_classes),
+            f"always class {top}, the most frequent of {metric.num_classes} (top-1)",
+        )
+    if isinstance(metric, ConfusionMIoU):
+        truth = metric.confusions.sum(axis=2)  # (n_clips, C): pixels of each true class
+        top = int(np.argmax(truth.sum(axis=0)))
+        conf = np.zeros_like(metric.confusions)
+        conf[:, :, top] = truth
+        return ConfusionMIoU(conf), f"every pixel class {top}, the most frequent of {metric.num_classes} (mIoU)"
+    if isinstance(metric, CocoDetections):
+        empty = [
+            _Category(
+                img=np.zeros(0, np.int64),
+                tps=np.zeros((len(metric.iou_thresholds), 0), bool),
+                fps=np.zeros((len(metric.iou_thresholds), 0), bool),
+                ngt=c.ngt,
+                has_eval=c.ngt > 0,
+            )
+            for c in metric.categories
+        ]
+        return (
+            CocoDetections(empty, metric.iou_thresholds, metric.recall_thresholds, metric.n_clips, metric.metric),
+            f"a detector that returns no boxes ({metric.metric})",
+        )
+    return None
 
 
 # --------------------------------------------------------------------------- the interval

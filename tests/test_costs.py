@@ -245,10 +245,12 @@ def test_cost_sweep_recosts_points_and_the_power_ranking_flips():
     from fsdvs_hw.report.costs import cost_advice, sweep_rows, with_cost_columns
     from fsdvs_hw.report.tables import score_rows
 
+    # a dense node capacitor (50 fF/µm²) so that the mesh fits in the pixel and competes (a mesh that
+    # does not fit is never cheapest: tests/test_verdict_guards.py)
     design = parse_design(
         {
             "realisations": {"include": ["learned", "mesh", "asic"]},
-            "costs": {"loss_budget": 1.0},
+            "costs": {"loss_budget": 1.0, "capacitor_density_f_m2": 0.05},
             "sweep": {"axes": {"costs.process_node_m": [45e-9, 180e-9]}},
         }
     )
@@ -263,9 +265,11 @@ def test_cost_sweep_recosts_points_and_the_power_ranking_flips():
     said = cost_advice(rows)
     cheaper_at = ["ASIC taps" if a < m else "resistive mesh" for a, m in zip(p_asic, p_mesh)]
     assert cheaper_at == ["ASIC taps", "resistive mesh"]  # the ASIC's F·V² energy overtakes the mesh's bias
-    for line, who in zip(said, cheaper_at):
-        assert f"least power: {who} (" in line
+    # ... but at 180 nm the mesh's 49 transistors (127 µm²) no longer fit in the 4.86 µm pixel: a
+    # realisation that breaks a hard limit is never the cheapest, and the limit is said
+    assert "least power: ASIC taps (" in said[0] and "least power: ASIC taps (" in said[1]
     assert said[0].startswith("At process_node_m = 45 nm") and said[1].startswith("At process_node_m = 180 nm")
+    assert any("resistive mesh, process_node_m = 180 nm: the mesh (131 µm²) does not fit" in line for line in said)
 
 
 def test_cross_kind_front_respects_the_loss_cis():

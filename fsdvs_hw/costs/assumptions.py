@@ -22,6 +22,10 @@ Defaults and their sources
 * ``mesh_mismatch_sigma = 0.05``: a stated 5 % relative conductance mismatch, the order of
   subthreshold current mismatch of small devices (M. Pelgrom et al., "Matching properties of MOS
   transistors", IEEE JSSC 24(5), 1989, gives the area law; the value is the user's to set).
+* ``latency_budget_s = 1e-3`` and ``power_budget_w = 0.1``: hard limits (a realisation beyond
+  either is never recommended; :mod:`fsdvs_hw.costs.limits` says what would meet them). Stated
+  assumptions: a millisecond is the order of an event camera's latency in dim light, 100 mW the
+  order of a whole event sensor's power; set them to the product's budget.
 * The others (analog supply, bias model, capacitor density, clock, sample rate, photon budget,
   loss budget) are stated assumptions: typical values, no single source.
 
@@ -106,6 +110,20 @@ class CostAssumptions(StrictModel):
     )
     integration_time_s: float = field(1e-3, "s", "photoreceptor integration time of the photon budget", gt=0.0, le=10.0)
     quantum_efficiency: float = field(0.5, "", "photodiode quantum efficiency of the photon budget", gt=0.0, le=1.0)
+    latency_budget_s: float = field(
+        1e-3,
+        "s",
+        "largest added event latency a realisation may have (a hard limit: beyond it, never 'build')",
+        gt=0.0,
+        le=10.0,
+    )
+    power_budget_w: float = field(
+        0.1,
+        "W",
+        "largest array power of the filter (a hard limit: beyond it, never 'build')",
+        gt=0.0,
+        le=1e3,
+    )
     loss_budget: float = field(
         0.02,
         "",

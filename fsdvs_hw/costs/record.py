@@ -113,6 +113,10 @@ class PhysicalCost:
         ``"ok"``, or why there is no cost model for this kind.
     assumptions : mapping
         The ``[costs]`` values used (:class:`fsdvs_hw.costs.assumptions.CostAssumptions`).
+    limits : tuple of mapping
+        The hard limits broken (:func:`fsdvs_hw.costs.limits.broken_limits`: ``figure``, ``value``,
+        ``limit``, ``key``, ``words``), each with its ``remedies`` (:func:`fsdvs_hw.costs.limits.remedies`);
+        a realisation with any is never recommended.
     """
 
     kind: str
@@ -120,11 +124,13 @@ class PhysicalCost:
     flags: tuple[str, ...] = ()
     status: str = "ok"
     assumptions: Mapping[str, Any] = field(default_factory=dict)
+    limits: tuple[Mapping[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "figures", MappingProxyType(dict(self.figures)))
         object.__setattr__(self, "assumptions", MappingProxyType(dict(self.assumptions)))
         object.__setattr__(self, "flags", tuple(str(f) for f in self.flags))
+        object.__setattr__(self, "limits", tuple(dict(x) for x in self.limits))
 
     def value(self, name: str) -> float:
         """The figure's value (NaN when absent)."""
@@ -138,6 +144,7 @@ class PhysicalCost:
             "figures": {k: f.to_dict() for k, f in self.figures.items()},
             "flags": list(self.flags),
             "assumptions": dict(self.assumptions),
+            "limits": [dict(x) for x in self.limits],
         }
 
     @classmethod
@@ -151,6 +158,7 @@ class PhysicalCost:
             flags=tuple(data.get("flags") or ()),
             status=str(data.get("status", "ok")),
             assumptions=dict(data.get("assumptions") or {}),
+            limits=tuple(x for x in (data.get("limits") or ()) if isinstance(x, Mapping)),
         )
 
     def __eq__(self, other: object) -> bool:
@@ -160,3 +168,8 @@ class PhysicalCost:
 
     def __hash__(self) -> int:
         return hash(self.kind)
+
+    @property
+    def fits(self) -> bool:
+        """No hard limit broken (:attr:`limits` empty)."""
+        return not self.limits

@@ -21,7 +21,7 @@ from .artifacts import ARTIFACTS_DIR, point_folder_name, write_exploration_artif
 from .costing import with_physical_costs
 from .design import Design, load_design
 from .matched import with_matched_rates
-from .scoring import with_paired_losses
+from .measurability import measured_losses
 from .sweep import SweepSummary, run_design
 
 __all__ = ["Exploration", "run_exploration"]
@@ -121,12 +121,13 @@ def run_exploration(
     )
     sc = design.spec.scoring
     rows = with_matched_rates(rows, design, out, progress=progress)  # [rate]: needs the per-clip evidence
-    rows = with_paired_losses(
+    rows = measured_losses(  # paired losses; tasks at chance or degenerate weigh 0 (explore.measurability)
         rows,
         task_weights=sc.task_weights or None,
         n_resamples=sc.n_resamples,
         confidence=sc.confidence,
         rng=design.spec.run.seed,
+        target_half_width=sc.target_half_width,
     )
     index, entries = write_exploration_artifacts(rows, out, resolution=tuple(design.spec.sensor.resolution))
     for row in rows:  # each point carries its files (paths relative to out) for the report's links

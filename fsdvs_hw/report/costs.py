@@ -50,6 +50,7 @@ __all__ = [
     "cost_columns",
     "cost_section",
     "cost_text",
+    "flip_phrases",
     "mark_cost_fronts",
     "sweep_rows",
     "with_cost_columns",
@@ -98,6 +99,8 @@ def cost_columns(record: Mapping[str, Any]) -> dict[str, Any]:
         out["event_rate_eps_low"], out["event_rate_eps_high"] = rate.low, rate.high
     out["readout_exceeded"] = bool(pc.value("event_rate_eps") > pc.value("readout_limit_eps"))
     out["cost_flags"] = " | ".join(pc.flags)
+    out["fits"] = pc.fits
+    out["hard_limits"] = json.dumps(list(pc.limits)) if pc.limits else ""
     out["loss_budget"] = _num(pc.assumptions.get("loss_budget"))
     return out
 
@@ -114,8 +117,11 @@ def with_cost_columns(rows: Sequence[Mapping[str, Any]], points: Sequence[Any]) 
         :func:`cost_columns`; the others are unchanged.
     """
     records = {p.key: p.extra["physical_cost"] for p in points if isinstance(p.extra.get("physical_cost"), Mapping)}
+    flips = {p.key: p.extra["cost_flips"] for p in points if isinstance(p.extra.get("cost_flips"), list)}
     out = [
-        {**r, **cost_columns(records[r["key"]])} if r.get("key") in records and r.get("status") == "ok" else dict(r)
+        {**r, **cost_columns(records[r["key"]]), "cost_flips": json.dumps(flips.get(r["key"], []))}
+        if r.get("key") in records and r.get("status") == "ok"
+        else dict(r)
         for r in rows
     ]
     if records:
@@ -260,14 +266,14 @@ def cost_advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
         if not hardware:
             continue
         budget = _num(group[0].get("loss_budget"))
-        within = [r for r in hardware if loss_interval(r, acc)[2] <= budget]
+        within = [r for r in hardware if loss_interval(r, acc)[2] <= budget and r.get("fits") is not False]
         where = json.loads(setting)
         head = f"At {_setting_text(where)}: " if where else ""
         if not within:
             best = min(hardware, key=lambda r: loss_interval(r, acc)[2])
             out.append(
-                f"{head}No hardware realisation's {what} stays within the loss budget {number(budget)} "
-                "(costs.loss_budget, upper CI bound); the smallest upper bound is "
+                f"{head}No hardware realisation within the hard limits keeps its {what} within the loss budget "
+                f"{number(budget)} (costs.loss_budget, upper CI bound); the smallest upper bound is "
                 f"{point_title(best['realisation'], _own_params(best))}'s {number(loss_interval(best, acc)[2])}."
             )
             continue
@@ -286,10 +292,11 @@ def cost_advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
                     f"{point_title(r['realisation'], _own_params(r))} ({cost_text(_num(r[cost]), cost)})"
                     for r in cheapest
                 )
+                + _flip_text(cheapest, [r for r in known if r not in cheapest], cost)
             )
         out.append(
             f"{head}Cheapest within the loss budget ({what} ≤ {number(budget)} at the upper CI bound, "
-            f"costs.loss_budget): " + "; ".join(parts) + "."
+            f"costs.loss_budget) and the hard limits: " + "; ".join(parts) + "."
         )
     flagged = [r for g in groups.values() for r in g if r.get("cost_flags")]
     readout = [r for r in flagged if r.get("readout_exceeded")]
@@ -308,7 +315,56 @@ def cost_advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     ]
     if others:
         out.append("Cost limits broken: " + "; ".join(f"{_name(r)}: {f}" for r, f in others) + ".")
+    for r in [r for g in groups.values() for r in g if r.get("hard_limits")]:
+        fixes = [
+            t
+            for lim in json.loads(str(r["hard_limits"]))
+            for t in (x.get("text") for x in lim.get("remedies", []))
+            if t
+        ]
+        if fixes:
+            out.append(f"What would make {_name(r)} fit (from its cost model): " + "; or ".join(fixes) + ".")
     return out
+
+
+def _flips_of(r: Mapping[str, Any]) -> list[dict[str, Any]]:
+    raw = r.get("cost_flips")
+    if isinstance(raw, str):
+        raw = json.loads(raw) if raw.strip() else []
+    return [f for f in raw or [] if isinstance(f, Mapping)]
+
+
+def flip_phrases(r: Mapping[str, Any], other: Mapping[str, Any], cost: str) -> list[str]:
+    """Why ``r`` is cheaper than ``other`` in ``cost``, in words: each assumption key whose change
+    reverses the order (:func:`fsdvs_hw.costs.limits.cost_flips`, stored by
+    :func:`fsdvs_hw.explore.costing.with_physical_costs` as the row's ``cost_flips``) and the value
+    at which it does ("while costs.sample_rate_hz stays below 2.16 kHz (now 1 kHz)")."""
+    from ..costs.limits import key_text
+
+    out = []
+    for f in _flips_of(r):
+        if f.get("cost") != cost or f.get("other") != other.get("key") or f.get("cheaper") != r.get("key"):
+            continue
+        value, now, key = _num(f.get("value")), _num(f.get("now")), str(f.get("key"))
+        side = "below" if value > now else "above"
+        out.append(f"while {key} stays {side} {key_text(value, key)} (now {key_text(now, key)})")
+    return out
+
+
+def _flip_text(cheapest: Sequence[Mapping[str, Any]], others: Sequence[Mapping[str, Any]], cost: str) -> str:
+    """ " — rests on: ..." for the cheapest against the next cheapest of another kind (empty if none flips)."""
+    if len(cheapest) != 1 or not others:
+        return ""
+    r = cheapest[0]
+    rivals = sorted((o for o in others if o["realisation"] != r["realisation"]), key=lambda o: _num(o.get(cost)))
+    if not rivals:
+        return ""
+    phrases = flip_phrases(r, rivals[0], cost)
+    if not phrases:
+        return ""
+    return f" — cheaper than {point_title(rivals[0]['realisation'], _own_params(rivals[0]))} only " + ", and ".join(
+        phrases
+    )
 
 
 #: Columns of the section's table: (row key, header).

@@ -35,7 +35,7 @@ from .failures import failures_section, task_failures
 from .present import cost_label, number, plain, point_title, si, style, title
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
 from .templating import render
-from .verdict import VERDICT_COLUMNS, advice, loss_header, verdict_table
+from .verdict import VERDICT_COLUMNS, advice, loss_header, measurability_table, verdict_table
 
 __all__ = [
     "CSS_DPI",
@@ -132,6 +132,7 @@ def _verdict_section(rows: Sequence[Mapping[str, Any]], failed_tasks: Sequence[s
         acc_is_loss=acc.endswith("_loss"),
         acc_label=acc_label,
         failed_tasks=list(failed_tasks),
+        measure=measurability_table(rows),
     )
 
 

@@ -138,6 +138,7 @@ def score_rows(
                 row[f"metric_{name}"] = _num(metric)
             _loss_columns(row, p.paired_loss)
             _rate_columns(row, res, p.extra.get("matched_rate") or {})
+            _measurability_columns(row, p.extra.get("measurability") or {})
             emu = res.emulation
             row["emulation_status"] = emu.get("status", "")
             if emu.get("status") == "ok":
@@ -234,6 +235,33 @@ def _rate_columns(row: dict[str, Any], res: Any, matched: Mapping[str, Any]) -> 
             row[f"{col}_text"] = str(rec.get("text", rec.get("status", "")))
 
 
+def _measurability_columns(row: dict[str, Any], meas: Mapping[str, Any]) -> None:
+    """Per task ``T`` (simulator track; ``emu_T`` for emulation): ``T_chance`` (the metric of a
+    predictor that learned nothing, same clips), ``T_reference_metric``, ``T_measurable`` and
+    ``T_not_measurable`` (the reason); a task that cannot measure gets ``T_loss_text`` "not
+    measurable: …". ``measurable_tasks`` lists the simulator-track tasks that can (space-separated;
+    absent when no measurability was assessed)."""
+    if not meas:
+        return
+    for track, prefix in TRACK_PREFIX.items():
+        for task, rec in (meas.get(track) or {}).items():
+            if not isinstance(rec, Mapping):
+                continue
+            name = f"{prefix}{task}"
+            row[f"{name}_chance"] = _num(rec.get("chance"))
+            row[f"{name}_reference_metric"] = _num(rec.get("reference_metric"))
+            row[f"{name}_measurable"] = bool(rec.get("measurable"))
+            if not rec.get("measurable"):
+                row[f"{name}_not_measurable"] = str(rec.get("reason", ""))
+                if f"{name}_loss" in row:
+                    row[f"{name}_loss_text"] = "not measurable"
+    row["_measurability"] = meas  # the whole record, for the report's table (not a CSV column)
+    sim = meas.get("simulator") or {}
+    row["measurable_tasks"] = " ".join(
+        t for t, rec in sim.items() if isinstance(rec, Mapping) and rec.get("measurable")
+    )
+
+
 def loss_interval(row: Mapping[str, Any], column: str) -> tuple[float, float, float]:
     """``(estimate, low, high)`` of a loss column (low = high = estimate where it has no CI)."""
     v = _num(row.get(column))
@@ -255,6 +283,9 @@ def accuracy_axis(rows: Sequence[Mapping[str, Any]]) -> tuple[str, str]:
     """The column used as 'accuracy loss': the weighted task loss (simulator), else the first task
     loss, else kernel error when no task ran."""
     keys = list(dict.fromkeys(k for r in rows for k in r))
+    assessed = [r for r in rows if "measurable_tasks" in r]
+    if assessed and not any(str(r["measurable_tasks"]).strip() for r in assessed):
+        return "kernel_error", "kernel error (relative L2; no task could measure an accuracy loss)"
     if "weighted_loss" in keys:
         return "weighted_loss", "weighted task loss (learned − realised, simulator)"
     for k in keys:
@@ -357,6 +388,7 @@ def write_scores(
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    rows = [{k: v for k, v in r.items() if not k.startswith("_")} for r in rows]  # "_x": the report's own
     columns: list[str] = []
     for r in rows:
         columns.extend(k for k in r if k not in columns)

@@ -16,7 +16,19 @@ from typing import Any
 from .present import cost_label, number, point_title, si, title
 from .tables import accuracy_axis, is_reference, loss_interval
 
-__all__ = ["VERDICT_COLUMNS", "advice", "cost_cell", "loss_cell", "loss_header", "verdict_table"]
+__all__ = [
+    "MEASURE_COLUMNS",
+    "VERDICT_COLUMNS",
+    "advice",
+    "cost_cell",
+    "first_question",
+    "fits",
+    "loss_cell",
+    "loss_header",
+    "measurability_advice",
+    "measurability_table",
+    "verdict_table",
+]
 
 #: Column keys and headers of :func:`verdict_table`.
 VERDICT_COLUMNS: tuple[tuple[str, str], ...] = (
@@ -67,9 +79,32 @@ def _budget_text(r: Mapping[str, Any]) -> str:
     return f"{r['kind_cost']} {number(_num(r['kind_cost_value']))} {r['kind_cost_unit']}".replace(" count", "")
 
 
+def fits(r: Mapping[str, Any]) -> bool:
+    """The row breaks no hard limit (``fits`` of :func:`fsdvs_hw.report.costs.cost_columns`; rows
+    without physical costs fit)."""
+    return r.get("fits") is not False
+
+
+def _broken(r: Mapping[str, Any]) -> str:
+    """The hard limits a row breaks, in words ("area 108 µm² > 23.6 µm², the pixel's area ...")."""
+    import json
+
+    raw = r.get("hard_limits")
+    limits = json.loads(raw) if isinstance(raw, str) and raw.strip() else []
+    from .costs import cost_text
+
+    return "; ".join(
+        f"{lim['figure'].split('_')[0]} {cost_text(_num(lim['value']), lim['figure'])} beyond {lim['words']} "
+        f"{cost_text(_num(lim['limit']), lim['figure'])} ({lim['key']})"
+        for lim in limits
+    )
+
+
 def _verdict_word(r: Mapping[str, Any], best: set[str], leading: set[str]) -> str:
     if is_reference(str(r["realisation"])):
         return "reference (not hardware)"
+    if not fits(r):
+        return f"does not fit: {_broken(r)}"
     if r["point"] in best:
         return "build"
     if r.get("pareto_all"):
@@ -92,7 +127,7 @@ def _no_measurable_loss(r: Mapping[str, Any], acc: str) -> bool:
 def _recommended(ok: Sequence[Mapping[str, Any]], acc: str) -> list[Mapping[str, Any]]:
     """Hardware points on the across-kinds front: those with no measurable loss, the cheapest per kind;
     else the front point(s) with the smallest upper loss bound."""
-    front = [r for r in ok if not is_reference(str(r["realisation"])) and r.get("pareto_all")]
+    front = [r for r in ok if not is_reference(str(r["realisation"])) and r.get("pareto_all") and fits(r)]
     clean = [r for r in front if _no_measurable_loss(r, acc)]
     if clean:
         per_kind: dict[str, Mapping[str, Any]] = {}
@@ -128,12 +163,12 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
         return ["No hardware realisation was scored: nothing to recommend."]
     acc, _acc_label = accuracy_axis(rows)
     what = "loss" if acc.endswith("_loss") else "kernel error"
+    out = [*first_question(ok), *measurability_advice(ok)]
 
     def phrase(r: Mapping[str, Any]) -> str:
         text = loss_cell(r, acc)[0]
         return text if text.startswith(("no measurable", "0 (")) else f"{what} {text}"
 
-    out = []
     rec = _recommended(ok, acc)
     if rec:
         parts = []
@@ -149,8 +184,13 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
             else f"smallest {what} among the undominated"
         )
         out.append(
-            f"Build {' or '.join(parts)}: {how}. Costs of different kinds are in different units; "
-            "pick the kind whose budget you have."
+            f"Build {' or '.join(parts)}: {how}, within every hard limit. Which is cheapest in power, "
+            "area, latency and events, and the assumptions that ranking rests on: below."
+        )
+    elif any(not fits(r) for r in hardware):
+        out.append(
+            "Build nothing of these as costed: every realisation on the front breaks a hard limit "
+            "(what would make it fit: below)."
         )
     for kind in dict.fromkeys(str(r["realisation"]) for r in hardware):
         g = sorted(
@@ -182,6 +222,133 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
             "against the target), not by accuracy loss."
         )
     return out
+
+
+def first_question(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Is the kernel worth building at all? Its gain over a plain DVS whose threshold is lowered to
+    fire as many events, per measurable task, with its CI (the ``[rate]`` control: the loss
+    reference's ``T_gain_over_plain_dvs_at_matched_rate`` columns), said before any ranking.
+
+    Returns one sentence (none when no task ran)."""
+    ref = next((r for r in rows if _is_loss_reference(r)), None)
+    if ref is None or not any(_is_task_column(k) for k in ref):
+        return []
+    status = str(ref.get("matched_rate_status", "not requested"))
+    if status != "ok":
+        return [
+            "First question, not answered: does the kernel beat a plain DVS whose threshold is lowered to fire "
+            f"as many events? The matched-rate control did not run ({status}); without it a gain over the plain "
+            "DVS may be only a lower threshold."
+        ]
+    measurable = str(ref.get("measurable_tasks", "")).split() if "measurable_tasks" in ref else None
+    parts, gains = [], []
+    for col in [k for k in ref if k.endswith("_gain_over_plain_dvs_at_matched_rate")]:
+        task = col[: -len("_gain_over_plain_dvs_at_matched_rate")]
+        if measurable is not None and task not in measurable:
+            continue
+        lo_key = next((k for k in ref if k.startswith(f"{col}_ci") and k.endswith("_low")), None)
+        if lo_key is None:
+            parts.append(f"{task}: {ref.get(f'{col}_status', 'no comparison')}")
+            continue
+        est, lo, hi = _num(ref[col]), _num(ref[lo_key]), _num(ref[lo_key[: -len("_low")] + "_high"])
+        n = ref.get(f"{task}_n_clips")
+        parts.append(
+            f"{task} {est:+.3f} [{lo:+.3f}, {hi:+.3f}] (plain DVS at threshold "
+            f"{_num(ref.get(f'{col}_threshold')):.3g}{f', n = {number(int(n))} clips' if n else ''})"
+        )
+        gains.append(lo > 0.0)
+    if not parts:
+        return ["First question, not answered: no measurable task has a matched-rate comparison."]
+    head = "First question — does the kernel beat a plain DVS at equal event rate? Its gain, 95 % CI: "
+    if gains and not any(gains):
+        tail = (
+            "Building any of these gains nothing measurable over lowering the threshold of a plain DVS, "
+            "in this world; the ranking below is what each realisation loses against the kernel itself."
+        )
+    elif gains and all(gains):
+        tail = "The filter's gain holds at equal event rate on every measurable task."
+    else:
+        tail = "The filter's gain holds at equal event rate only where its interval lies above 0."
+    return [head + "; ".join(parts) + ". " + tail]
+
+
+def measurability_advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Which tasks can measure a loss, and why the others cannot (chance level, degenerate
+    intervals: :mod:`fsdvs_hw.explore.measurability`); nothing when every task can."""
+    ref = next((r for r in rows if _is_loss_reference(r)), None)
+    if ref is None or "measurable_tasks" not in ref:
+        return []
+    bad = [
+        (k[: -len("_not_measurable")], str(ref[k]))
+        for k in ref
+        if k.endswith("_not_measurable") and not k.startswith("emu_")
+    ]
+    if not bad:
+        return []
+    good = str(ref["measurable_tasks"]).split()
+    rest = (
+        f"the verdict rests on {', '.join(good)} only (the others weigh 0 in the weighted loss)"
+        if good
+        else "no task can: realisations are ranked by kernel error alone, and no accuracy loss is claimed"
+    )
+    return ["Not measurable: " + "; ".join(f"{t} — {why}" for t, why in bad) + f". So {rest}."]
+
+
+#: Columns of :func:`measurability_table`: (key, header).
+MEASURE_COLUMNS: tuple[tuple[str, str], ...] = (
+    ("task", "task"),
+    ("reference", "learned kernel"),
+    ("chance", "chance level"),
+    ("above", "learned − chance, 95 % CI"),
+    ("interval", "intervals resample"),
+    ("verdict", "can it measure a loss?"),
+)
+
+
+def measurability_table(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
+    """One row per task and track: the reference's metric, the chance level on the same clips (how
+    it is made), the reference's margin over chance with its CI, what the intervals resample, and
+    whether the task can measure a loss (the reason when not; the clips ``sizing`` asks for when
+    its intervals are wider than the design's target). Read from the loss reference's
+    ``measurability`` (:mod:`fsdvs_hw.explore.measurability`, via the rows' ``_measurability``)."""
+    ref = next((r for r in rows if _is_loss_reference(r)), None)
+    meas = ref.get("_measurability") if ref is not None else None
+    if not isinstance(meas, Mapping):
+        return []
+    out = []
+    for track, per in meas.items():
+        for task, rec in (per or {}).items():
+            if not isinstance(rec, Mapping):
+                continue
+            above = rec.get("above_chance") or {}
+            a = (
+                f"{_num(above.get('estimate')):+.3f} [{_num(above.get('low')):+.3f}, {_num(above.get('high')):+.3f}]"
+                if above
+                else "–"
+            )
+            verdict = "yes" if rec.get("measurable") else f"no: {rec.get('reason', '')}"
+            need = rec.get("clips_needed")
+            if rec.get("measurable") and need:
+                verdict += (
+                    f"; for ± {number(_num(rec.get('half_width_target')))} `fsdvs-hw sizing` asks for "
+                    f"{number(int(need))} clips per network (now {number(int(rec.get('clips_now') or 0))})"
+                )
+            metric = str(rec.get("metric_name", ""))
+            out.append(
+                {
+                    "task": f"{task}{'' if track == 'simulator' else f' ({track})'}",
+                    "reference": f"{metric} {_num(rec.get('reference_metric')):.3f}",
+                    "chance": f"{_num(rec.get('chance')):.3f} ({rec.get('chance_method', '')})",
+                    "above": a,
+                    "interval": f"{rec.get('resampled', '')}; n = {number(int(rec.get('n_clips') or 0))} clips",
+                    "verdict": verdict,
+                }
+            )
+    return out
+
+
+def _is_task_column(k: str) -> bool:
+    return k.endswith("_loss") and not k.startswith("cost_")
 
 
 def loss_header(rows: Sequence[Mapping[str, Any]]) -> str:
