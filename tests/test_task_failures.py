@@ -248,3 +248,16 @@ def test_a_failed_task_makes_explore_exit_3_say_why_and_head_the_report(tmp_path
     assert "recognition" in section and "v_Run_g00.mp4" in section and "1 of 4" in section
     assert "s_003.png" in section and "field &#39;class id&#39; 7" in section
     assert "<td class='l'>1 of 4</td> <td class='l'>0.25</td>" in " ".join(section.split())  # skipped, allowed
+
+
+def test_a_report_whose_tasks_all_failed_does_not_say_none_were_requested(tmp_path):
+    """Every clip of the only requested task fails: the verdict says the task failed, not that none was asked."""
+    from fsdvs_hw.explore.explore import run_exploration
+
+    folder = _seg_folder(tmp_path / "d", bad=("s_002.png", "s_003.png", "s_004.png", "s_005.png"))
+    design = folder / "all.toml"
+    design.write_text(cheap_design("all") + SEG_TOML)
+    html = run_exploration(load_design(design), tmp_path / "out", progress=False).report.read_text()
+    assert "Tasks that failed" in html
+    assert "4 of the 4 drawn clips failed to read (none is left to score)" in html
+    assert "lists no" not in html
