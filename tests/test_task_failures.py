@@ -156,6 +156,27 @@ def test_a_clip_that_fails_to_read_is_skipped_named_and_the_loss_on_the_rest_sta
     assert "status" in paired_losses(_points(other), n_resamples=200)["delta"]["simulator"]
 
 
+def test_a_corrupt_video_among_good_ones_is_skipped_and_named(tmp_path, video_frames):
+    from fsdvs_hw.explore.scoring import task_scores
+
+    _ucf(tmp_path, video_frames, corrupt="v_Jump_g01.mp4")
+    shutil.copy(PLUGINS / "toy_network.py", tmp_path / "toy_network.py")
+    entry = UserTask.model_validate(
+        {
+            "dataset": {"format": "video_folder", "root": "ucf", "n_frames": 5},
+            "network": "toy_network:make",
+            "max_failed_clip_fraction": 0.25,
+        }
+    ).model_dump()
+    rec = task_scores(None, {}, datasets={"recognition": entry}, base_dir=tmp_path)["recognition"]["simulator"]
+    assert rec["status"] == "ok" and rec["n_clips"] == 3 and rec["failed_clips"] == 1
+    (named,) = rec["failed_clip_files"]
+    assert (
+        Path(named["file"]).name == "v_Jump_g01.mp4" and "field 'frames': the video does not decode" in named["reason"]
+    )
+    assert rec["failed_clip_indices"] == [1] and rec["event_rate_per_s"]["n_clips"] == 3
+
+
 def test_skipped_clips_leave_the_other_clips_scores_unchanged(tmp_path, toy):
     """Clip by clip, the clips left score exactly what they score when nothing fails (same noise draws)."""
     from fsdvs_hw.scenes.datasets import MaskFramesDataset
