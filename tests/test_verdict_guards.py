@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from fsdvs_hw.costs import CostAssumptions, physical_cost
-from fsdvs_hw.costs.limits import assumption_at, cost_flips, shared_node_error
+from fsdvs_hw.costs.limits import assumption_at, cost_flips, costed, shared_node_error
 from fsdvs_hw.explore.design import parse_design
 from fsdvs_hw.records import Score, ScoredPoint
 from fsdvs_hw.stats import ClipMeans, CocoDetections, ConfusionMIoU, chance_metric
@@ -57,7 +57,7 @@ def test_a_mesh_larger_than_the_pixel_is_never_build_and_the_verdict_says_what_w
 def test_every_remedy_meets_its_limit_in_the_cost_model(mesh_point):
     score = Score.from_dict(mesh_point["result"])
     a = CostAssumptions()
-    pc = physical_cost(score, a)
+    pc = costed(score, a)
     (lim,) = pc.limits
     assert lim["figure"] == "area_m2" and lim["limit"] == pytest.approx(4.86e-6**2)
     keyed = [r for r in lim["remedies"] if r["key"].startswith("costs.")]

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Any
 
@@ -41,6 +41,7 @@ import numpy as np
 
 from ..records import Score
 from .assumptions import CostAssumptions
+from .record import PhysicalCost
 
 __all__ = [
     "FLIP_KEYS",
@@ -51,7 +52,7 @@ __all__ = [
     "assumption_at",
     "broken_limits",
     "cost_flips",
-    "key_text",
+    "costed",
     "remedies",
     "shared_node_error",
 ]
@@ -111,7 +112,7 @@ _SCAN = 49  # log-grid points over a key's range before the root is refined
 
 @dataclass(frozen=True)
 class Remedy:
-    """One way to meet a broken limit.
+    """One way to meet a broken limit (the report words it: :func:`fsdvs_hw.report.costs.remedy_text`).
 
     Attributes
     ----------
@@ -123,8 +124,9 @@ class Remedy:
         shared node).
     now : float
         The key's present value (same unit).
-    text : str
-        The remedy for people, with its side effects where the cost model knows them.
+    effects : mapping
+        Other figures at that value, where the change moves them (``latency_s``, ``power_w``,
+        ``area_m2``; SI units).
     kernel_error : float
         The relative kernel error the change costs (NaN: none; a shared node's placement error).
     """
@@ -132,11 +134,11 @@ class Remedy:
     key: str
     value: float
     now: float
-    text: str
+    effects: Mapping[str, float] = field(default_factory=dict)
     kernel_error: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
-        out = {"key": self.key, "value": self.value, "now": self.now, "text": self.text}
+        out: dict[str, Any] = {"key": self.key, "value": self.value, "now": self.now, "effects": dict(self.effects)}
         if not math.isnan(self.kernel_error):
             out["kernel_error"] = self.kernel_error
         return out
@@ -184,7 +186,7 @@ def _with_key(score: Score, a: CostAssumptions, key: str, value: float) -> tuple
 def _figure(score: Score, a: CostAssumptions, figure: str) -> float:
     from .physical import physical_cost
 
-    return physical_cost(score, a, limits=False).value(figure)
+    return physical_cost(score, a).value(figure)
 
 
 def _solve(f: Callable[[float], float], lo: float, hi: float) -> list[float]:
@@ -257,6 +259,37 @@ def assumption_at(score: Score, a: CostAssumptions, key: str, figure: str, targe
     return _solve(f, lo, hi)
 
 
+def costed(score: Score, a: CostAssumptions) -> PhysicalCost:
+    """:func:`fsdvs_hw.costs.physical_cost` with its hard limits checked: every limit broken
+    (:func:`broken_limits`) in ``limits`` with its :func:`remedies`, and the budgets' flags.
+
+    Parameters
+    ----------
+    score : Score
+    a : CostAssumptions
+
+    Returns
+    -------
+    PhysicalCost
+        Its ``fits`` is False when a limit is broken.
+    """
+    from .physical import physical_cost
+
+    pc = physical_cost(score, a)
+    figs = pc.figures
+    flags = list(pc.flags)
+    broken = []
+    for lim in broken_limits(score, a, {k: f.value for k, f in figs.items()}):
+        if lim["figure"] in ("latency_s", "power_w"):  # the area and readout models flag their own
+            unit = figs[lim["figure"]].unit
+            flags.append(
+                f"{lim['figure'].split('_')[0]} {lim['value']:.3g} {unit} exceeds {lim['words']} "
+                f"{lim['limit']:.3g} {unit} ({lim['key']})"
+            )
+        broken.append({**lim, "remedies": [r.to_dict() for r in remedies(score, a, lim)]})
+    return replace(pc, flags=tuple(flags), limits=tuple(broken))
+
+
 def broken_limits(score: Score, a: CostAssumptions, figures: Mapping[str, float]) -> list[dict[str, Any]]:
     """The hard limits ``figures`` break (:data:`HARD_LIMITS`), each ``{figure, value, limit, key, words}``.
 
@@ -307,7 +340,7 @@ def shared_node_error(kernel: np.ndarray, k: int) -> float:
     >>> from fsdvs_hw.costs.limits import shared_node_error
     >>> t = np.zeros((7, 7)); t[3, 3] = 1.0
     >>> shared_node_error(t, 1) < 1e-12, round(shared_node_error(t, 3), 3)
-    (True, 0.745)
+    (True, 0.853)
     """
     from scipy.signal import convolve2d
 
@@ -338,25 +371,6 @@ def shared_node_error(kernel: np.ndarray, k: int) -> float:
     return float(np.linalg.norm(a_mat @ coef - tt.ravel()) / norm) if norm > 0 else math.nan
 
 
-def key_text(value: float, key: str) -> str:
-    """A key's value for people, with its unit: ``key_text(2155.1, "costs.sample_rate_hz")`` → ``"2.16 kHz"``."""
-    unit = {
-        "costs.sample_rate_hz": "Hz",
-        "costs.clock_hz": "Hz",
-        "costs.process_node_m": "m",
-        "costs.digital_supply_v": "V",
-        "costs.analog_supply_v": "V",
-        "costs.capacitor_density_f_m2": "F/m^2",
-        "costs.transistor_area_f2": "F^2",
-        "costs.sram_cell_area_f2": "F^2",
-        "sensor.pitch_m": "m",
-        MESH_CONDUCTANCE: "S",
-    }.get(key, "")
-    from ..report.present import si  # the one SI formatter (present: no heavy imports)
-
-    return si(value, unit) if unit not in ("", "F^2") else f"{value:.3g}{' F²' if unit == 'F^2' else ''}"
-
-
 def remedies(score: Score, a: CostAssumptions, limit: Mapping[str, Any]) -> list[Remedy]:
     """What would bring one broken limit (:func:`broken_limits`) within it, from the cost model.
 
@@ -383,51 +397,29 @@ def remedies(score: Score, a: CostAssumptions, limit: Mapping[str, Any]) -> list
     if figure == "area_m2":
         area = float(limit["value"])
         pitch = float(score.kernel.pitch_m)
-        out.append(
-            Remedy(
-                "sensor.pitch_m",
-                math.sqrt(area),
-                pitch,
-                f"a pixel pitch of at least {key_text(math.sqrt(area), 'sensor.pitch_m')} (now {key_text(pitch, 'sensor.pitch_m')})",
-            )
-        )
+        out.append(Remedy("sensor.pitch_m", math.sqrt(area), pitch))
         k = math.ceil(math.sqrt(area / pitch**2))
         if k >= 2:
-            err = shared_node_error(score.kernel.taps, k)
             out.append(
                 Remedy(
                     "placement.shared_node",
                     float(k),
                     1.0,
-                    f"one mesh node shared by {k} × {k} pixels ({area / k**2 * 1e12:.3g} µm² per pixel), at a "
-                    f"kernel error of at least {err:.2f} (the best filter on a {k}× coarser node lattice)",
-                    kernel_error=err,
+                    effects={"area_m2": area / k**2},
+                    kernel_error=shared_node_error(score.kernel.taps, k),
                 )
             )
     for key in _REMEDY_KEYS.get(figure, ()):
         now = _key_now(score, a, key)
         if not math.isfinite(now):
             continue
-        if figure == "area_m2":
-            roots = assumption_at(score, a, key, "fill_factor", 1e-9)  # area = pitch² ⇔ fill factor 0+
-            roots = roots or assumption_at(score, a, key, figure, target)
-        else:
-            roots = assumption_at(score, a, key, figure, target)
+        roots = assumption_at(score, a, key, figure, target)
         if not roots:
             continue
         v = min(roots, key=lambda r: abs(math.log(r / now)))  # the nearest crossing
-        side = "above" if v > now else "below"
-        extra = ""
-        if key == MESH_CONDUCTANCE or key == "costs.sample_rate_hz" or key == "costs.capacitor_density_f_m2":
-            s, aa = _with_key(score, a, key, v)
-            lat = _figure(s, aa, "latency_s")
-            pw = _figure(s, aa, "power_w")
-            extra = (
-                f"; there: {lat * 1e6:.3g} µs added latency, {pw * 1e3:.3g} mW array power"
-                if math.isfinite(lat) and math.isfinite(pw)
-                else ""
-            )
-        out.append(Remedy(key, v, now, f"{key} {side} {key_text(v, key)} (now {key_text(now, key)}){extra}"))
+        s, aa = _with_key(score, a, key, v)
+        effects = {f: _figure(s, aa, f) for f in ("latency_s", "power_w") if f != figure}
+        out.append(Remedy(key, v, now, effects={f: x for f, x in effects.items() if math.isfinite(x)}))
     return out
 
 

@@ -93,7 +93,7 @@ def event_rates(score: Score, track: str = "simulator") -> dict[str, Mapping[str
     return out
 
 
-def physical_cost(score: Score, assumptions: CostAssumptions, *, limits: bool = True) -> PhysicalCost:
+def physical_cost(score: Score, assumptions: CostAssumptions) -> PhysicalCost:
     """The physical cost of a scored realisation (module docstring).
 
     Parameters
@@ -103,17 +103,14 @@ def physical_cost(score: Score, assumptions: CostAssumptions, *, limits: bool = 
         record where the kind needs it (the ASIC's input width).
     assumptions : CostAssumptions
         The design's ``[costs]`` section.
-    limits : bool
-        Check the hard limits (:data:`fsdvs_hw.costs.limits.HARD_LIMITS`) and say what would meet
-        each (``limits`` of the record, :func:`fsdvs_hw.costs.limits.remedies`); off inside the
-        remedies' own root finding.
 
     Returns
     -------
     PhysicalCost
         ``power_w``, ``area_m2``, ``latency_s``, ``event_rate_eps`` and the kind's own figures,
-        each with its source; ``flags`` name every limit broken, ``limits`` the hard limits broken
-        with their remedies.
+        each with its source; ``flags`` name every limit the models know (the mesh beyond the
+        pixel, the readout); :func:`fsdvs_hw.costs.limits.costed` adds the budgets and what
+        would meet each hard limit.
     """
     figs, flags = readout_figures(event_rates(score), assumptions)
     model = COST_MODELS.get(score.kind)
@@ -124,22 +121,10 @@ def physical_cost(score: Score, assumptions: CostAssumptions, *, limits: bool = 
         own, own_flags = model(score, assumptions)
         figs = {**own, **figs}
         flags = [*own_flags, *flags]
-    broken: list[dict[str, Any]] = []
-    if limits:
-        from .limits import broken_limits, remedies
-
-        for lim in broken_limits(score, assumptions, {k: f.value for k, f in figs.items()}):
-            if lim["figure"] in ("latency_s", "power_w"):  # the area and readout models flag their own
-                flags.append(
-                    f"{lim['figure'].split('_')[0]} {lim['value']:.3g} {figs[lim['figure']].unit} exceeds "
-                    f"{lim['words']} {lim['limit']:.3g} {figs[lim['figure']].unit} ({lim['key']})"
-                )
-            broken.append({**lim, "remedies": [r.to_dict() for r in remedies(score, assumptions, lim)]})
     return PhysicalCost(
         kind=score.kind,
         figures=figs,
         flags=tuple(flags),
         status=status,
         assumptions=assumptions.model_dump(),
-        limits=tuple(broken),
     )

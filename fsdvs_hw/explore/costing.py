@@ -28,7 +28,8 @@ import itertools
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from ..costs import CostAssumptions, physical_cost
+from ..costs import CostAssumptions
+from ..costs.limits import costed
 from ..records import Score
 from .design import Design, axis_values
 
@@ -42,7 +43,8 @@ def cost_settings(design: Design) -> list[dict[str, Any]]:
 
 
 def with_physical_costs(points: Sequence[Mapping[str, Any]], design: Design) -> list[dict[str, Any]]:
-    """Copies of the stored ``points`` with ``"physical_cost"`` (:func:`fsdvs_hw.costs.physical_cost`).
+    """Copies of the stored ``points`` with ``"physical_cost"`` (:func:`fsdvs_hw.costs.limits.costed`:
+    the cost record with its hard limits and remedies).
 
     Parameters
     ----------
@@ -69,11 +71,10 @@ def with_physical_costs(points: Sequence[Mapping[str, Any]], design: Design) -> 
         if p.get("status") == "ok" and isinstance(p.get("result"), Mapping):
             score = Score.from_dict(p["result"], where=f"point {p.get('key')}")
             scores[str(p["key"])] = score
-            q["physical_cost"] = physical_cost(score, design.spec.costs).to_dict()
+            q["physical_cost"] = costed(score, design.spec.costs).to_dict()
             if settings != [{}]:
                 q["physical_cost_sweep"] = [
-                    {"setting": s, "physical_cost": physical_cost(score, a).to_dict()}
-                    for s, a in zip(settings, assumptions)
+                    {"setting": s, "physical_cost": costed(score, a).to_dict()} for s, a in zip(settings, assumptions)
                 ]
         out.append(q)
     flips = _flips(out, scores, design.spec.costs)

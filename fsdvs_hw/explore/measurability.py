@@ -268,11 +268,10 @@ def measured_losses(
                     w[task] = 0.0
         return w
 
-    options = {"n_resamples": n_resamples, "confidence": confidence, "rng": rng}
     w = weights() if tasks else dict(task_weights or {})
     if tasks and not any(v > 0 for v in w.values()):
         w = {}  # nothing measurable: paired_losses weighs all; the verdict ranks by kernel error
-    out = with_paired_losses(points, task_weights=w or None, **options)
+    out = with_paired_losses(points, task_weights=w or None, n_resamples=n_resamples, confidence=confidence, rng=rng)
     for q in out:
         widen_degenerate({q["key"]: q["paired_loss"]}, confidence)
     if target_half_width is not None and _widest({q["key"]: q["paired_loss"] for q in out}) > target_half_width:

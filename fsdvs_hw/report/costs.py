@@ -45,13 +45,16 @@ from .tables import accuracy_axis, is_reference, loss_interval, uncertain_pareto
 from .templating import render
 
 __all__ = [
+    "COST_NAMES",
     "COST_WORDS",
     "cost_advice",
     "cost_columns",
     "cost_section",
     "cost_text",
     "flip_phrases",
+    "key_text",
     "mark_cost_fronts",
+    "remedy_text",
     "sweep_rows",
     "with_cost_columns",
 ]
@@ -316,22 +319,61 @@ def cost_advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     if others:
         out.append("Cost limits broken: " + "; ".join(f"{_name(r)}: {f}" for r, f in others) + ".")
     for r in [r for g in groups.values() for r in g if r.get("hard_limits")]:
-        fixes = [
-            t
-            for lim in json.loads(str(r["hard_limits"]))
-            for t in (x.get("text") for x in lim.get("remedies", []))
-            if t
-        ]
+        fixes = [remedy_text(x) for lim in json.loads(str(r["hard_limits"])) for x in lim.get("remedies", [])]
         if fixes:
             out.append(f"What would make {_name(r)} fit (from its cost model): " + "; or ".join(fixes) + ".")
     return out
 
 
-def _flips_of(r: Mapping[str, Any]) -> list[dict[str, Any]]:
+def _flips_of(r: Mapping[str, Any]) -> list[Mapping[str, Any]]:
     raw = r.get("cost_flips")
     if isinstance(raw, str):
         raw = json.loads(raw) if raw.strip() else []
     return [f for f in raw or [] if isinstance(f, Mapping)]
+
+
+#: Units of the keys the limits and flips name (:mod:`fsdvs_hw.costs.limits`).
+_KEY_UNITS: Mapping[str, str] = {
+    "costs.sample_rate_hz": "Hz",
+    "costs.clock_hz": "Hz",
+    "costs.process_node_m": "m",
+    "costs.digital_supply_v": "V",
+    "costs.analog_supply_v": "V",
+    "sensor.pitch_m": "m",
+    "realisations.mesh.g_lateral_s": "S",
+    "costs.capacitor_density_f_m2": "F/m²",
+    "costs.transistor_area_f2": "F²",
+    "costs.sram_cell_area_f2": "F²",
+}
+
+#: Short names of the figures a remedy's effects list.
+COST_NAMES: Mapping[str, str] = {"latency_s": "added latency", "power_w": "array power", "area_m2": "per pixel"}
+
+
+def key_text(value: float, key: str) -> str:
+    """A key's value for people with its unit: ``key_text(2155.1, "costs.sample_rate_hz")`` → ``"2.16 kHz"``."""
+    unit = _KEY_UNITS.get(key, "")
+    if unit in ("Hz", "m", "V", "S"):
+        return si(value, unit)
+    return f"{number(value)} {unit}".strip()
+
+
+def remedy_text(rem: Mapping[str, Any]) -> str:
+    """One remedy (:class:`fsdvs_hw.costs.limits.Remedy` as a dict) in words, with its side effects."""
+    key, value, now = str(rem.get("key")), _num(rem.get("value")), _num(rem.get("now"))
+    effects = rem.get("effects") or {}
+    if key == "sensor.pitch_m":
+        return f"a pixel pitch of at least {key_text(value, key)} (now {key_text(now, key)})"
+    if key == "placement.shared_node":
+        k = int(value)
+        return (
+            f"one mesh node shared by {k} × {k} pixels ({cost_text(_num(effects.get('area_m2')), 'area_m2')} per "
+            f"pixel), at a kernel error of at least {_num(rem.get('kernel_error')):.2f} (the best filter on a "
+            f"{k}× coarser node lattice)"
+        )
+    side = "above" if value > now else "below"
+    there = ", ".join(f"{cost_text(_num(v), f)} {COST_NAMES.get(f, f)}" for f, v in effects.items())
+    return f"{key} {side} {key_text(value, key)} (now {key_text(now, key)})" + (f"; there: {there}" if there else "")
 
 
 def flip_phrases(r: Mapping[str, Any], other: Mapping[str, Any], cost: str) -> list[str]:
@@ -339,8 +381,6 @@ def flip_phrases(r: Mapping[str, Any], other: Mapping[str, Any], cost: str) -> l
     reverses the order (:func:`fsdvs_hw.costs.limits.cost_flips`, stored by
     :func:`fsdvs_hw.explore.costing.with_physical_costs` as the row's ``cost_flips``) and the value
     at which it does ("while costs.sample_rate_hz stays below 2.16 kHz (now 1 kHz)")."""
-    from ..costs.limits import key_text
-
     out = []
     for f in _flips_of(r):
         if f.get("cost") != cost or f.get("other") != other.get("key") or f.get("cheaper") != r.get("key"):
