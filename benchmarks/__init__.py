@@ -39,6 +39,7 @@ BENCHMARKS: dict[str, str] = {
     "sensors": "benchmarks.sensors:bench_sensors",
     "user_data": "benchmarks.user_data:bench_user_data",
     "upsampling": "benchmarks.upsampling:bench_upsampling",
+    "demo": "benchmarks.demo:bench_demo",
 }
 
 

@@ -286,7 +286,8 @@ def test_csf_bench_records_are_its_markdown_and_it_leaves_state_alone(tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "name", ["stats", "explore", "mesh", "metalens", "asic", "tasks", "sim", "sensors", "user_data", "upsampling"]
+    "name",
+    ["stats", "explore", "mesh", "metalens", "asic", "tasks", "sim", "sensors", "user_data", "upsampling", "demo"],
 )
 def test_every_bench_measures_into_records_first(name, tmp_path):
     """Quick mode: a BenchRun whose records are what its Markdown prints; JSON round trip; no global

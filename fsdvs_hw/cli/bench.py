@@ -19,7 +19,7 @@ from ..errors import InputError
 
 __all__ = ["DESCRIPTION", "HELP", "add_arguments", "load_benchmarks", "run"]
 
-_NAMES = "csf, tasks, asic, mesh, metalens, sim, explore, stats, sensors, user_data, upsampling"
+_NAMES = "csf, tasks, asic, mesh, metalens, sim, explore, stats, sensors, user_data, upsampling, demo"
 
 HELP = "speed/accuracy benchmarks (error vs run time) for each component"
 DESCRIPTION = (
