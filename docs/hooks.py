@@ -10,6 +10,9 @@ Three jobs, all at build time, so that nothing measured is typed by hand into a 
   machine, the library versions, the time and the command that produced it.
 * **Tables from the shipped results.** ``<!-- rate-table -->`` becomes the learned − w/o
   differences of ``designs/results/rate/TASK_matched_rate.json`` (``fsdvs-hw rate``);
+  ``<!-- rate-interpolation-table -->`` the learned − w/o difference at matched rate under each
+  interpolation of ``designs/results/rate/*_interpolation_sensitivity.json``
+  (``fsdvs-hw rate … --interpolation-sensitivity``);
   ``<!-- codesign-table: NAME -->`` the report's co-design table of
   ``designs/results/NAME/codesign.json``; ``<!-- limits-table -->`` the constants of
   ``fsdvs_hw/limits.py``; ``<!-- v2e-table: NAME -->`` the side-by-side record
@@ -47,6 +50,7 @@ REPO_PAGES = {
 
 _BENCH = re.compile(r"^<!--\s*bench-tables:\s*([a-z0-9_]+)\s*-->\s*$", re.MULTILINE)
 _RATE = re.compile(r"^<!--\s*rate-table\s*-->\s*$", re.MULTILINE)
+_RATE_INTERP = re.compile(r"^<!--\s*rate-interpolation-table\s*-->\s*$", re.MULTILINE)
 _CODESIGN = re.compile(r"^<!--\s*codesign-table:\s*([a-z0-9_]+)\s*-->\s*$", re.MULTILINE)
 _V2E = re.compile(r"^<!--\s*v2e-table:\s*([a-z0-9_]+)\s*-->\s*$", re.MULTILINE)
 _LIMITS = re.compile(r"^<!--\s*limits-table\s*-->\s*$", re.MULTILINE)
@@ -358,10 +362,52 @@ def limits_table() -> str:
     return "\n".join(lines)
 
 
+def rate_interpolation_table() -> str:
+    """Learned − w/o at the learned kernel's rate under each interpolation, from ``*_interpolation_sensitivity.json``."""
+    files = sorted(RATE.glob("*_interpolation_sensitivity.json"))
+    if not files:
+        return "*No shipped interpolation-sensitivity results.*"
+    comparison = "learned_vs_wo_at_learned_rate"
+    lines, commands, hows = [], [], None
+    for path in files:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        rows = [r for r in data["rows"] if r["comparison"] == comparison]
+        if hows is None:
+            hows = [r["interpolation"] for r in rows]
+            lines += [
+                "| result (learned − w/o at the learned kernel's rate) | n clips, networks | "
+                + " | ".join(hows)
+                + " |",
+                "|---|---|" + "---|" * len(hows),
+            ]
+        cells = []
+        for r in rows:
+            if r["status"] != "ok":
+                cells.append(r["status"])
+            else:
+                cells.append(f"{r['estimate']:+.4f} [{r['low']:+.4f}, {r['high']:+.4f}]".replace("-", "−"))
+        name = path.name.removesuffix("_interpolation_sensitivity.json")
+        lines.append(
+            f"| {name} ({rows[0]['metric_name']}) | {rows[0]['n_clips']}, {rows[0]['n_networks']} | "
+            + " | ".join(cells)
+            + " |"
+        )
+        commands.append(f"`{data['provenance']['command']}`")
+    first = json.loads(files[0].read_text(encoding="utf-8"))["settings"]
+    lines += [
+        "",
+        f"*{int(100 * first['confidence'])} % percentile bootstrap, {first['n_resamples']} resamples, the same "
+        "for every interpolation. Generated from `designs/results/rate/*_interpolation_sensitivity.json`, "
+        "written by: " + "; ".join(commands) + ".*",
+    ]
+    return "\n".join(lines)
+
+
 def on_page_markdown(markdown: str, page, config, files) -> str:
     """Expand the generated tables and rewrite links to repository files."""
     markdown = _BENCH.sub(lambda m: bench_tables(m.group(1)), markdown)
     markdown = _RATE.sub(lambda m: rate_table(), markdown)
+    markdown = _RATE_INTERP.sub(lambda m: rate_interpolation_table(), markdown)
     markdown = _LIMITS.sub(lambda m: limits_table(), markdown)
     markdown = _CODESIGN.sub(lambda m: codesign_table(m.group(1)), markdown)
     markdown = _V2E.sub(lambda m: v2e_table(m.group(1)), markdown)
