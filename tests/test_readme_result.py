@@ -6,18 +6,20 @@ must appear in at least one **record**: a JSON or CSV data file under ``designs/
 number that exists only in prose (a README of those folders, a docs page) is not traceable, and
 neither is one that a person typed from a run that was not shipped.
 
-What counts as a number of the section (:func:`numbers_in`): signed or unsigned decimals and
-integers in the text, after dropping what is a name, not a figure: link targets (``](…)``), inline
-code, HTML comments, and digits glued to a word (``top-1``, ``s0``, ``mAP@…``). The minus sign
-U+2212 and the hyphen are the same sign; an en dash (U+2013) or hyphen between two numbers is a
-range (``12–26`` is the numbers 12 and 26); a leading ``+`` is kept as "positive".
+What counts as a number of the section (:func:`numbers_in`): signed or unsigned decimals,
+integers and scientific notation (``9.4e-8``) in the text, after dropping what is a name, not a
+figure: link targets (``](…)``), inline code, HTML comments, and digits glued to a word
+(``top-1``, ``s0``, ``mAP@…``). The minus sign U+2212 and the hyphen are the same sign; an en dash
+(U+2013) or hyphen between two numbers is a range (``12–26`` is the numbers 12 and 26); a leading
+``+`` is kept as "positive".
 
 When a shown number matches a record value (:func:`matches`): an integer matches an equal
 integer-valued record value; a decimal with d digits after the point matches a record value that
 rounds to it (|value − shown| ≤ ½·10⁻ᵈ, the sign included: −0.002 does not match +0.002); a
 percentage also matches a fraction in the record (``95 %`` ↔ 0.95, ``+11.8 %`` ↔ 11.803 or
-0.118). Strings inside records (commands, notes) are not searched: only numeric JSON values and
-CSV cells that parse as numbers.
+0.118). Units are not converted: write a figure in its record's unit (a record's 9.38e-8 S is not
+"0.094 µS" here). Strings inside records (commands, notes) are not searched: only numeric JSON
+values and CSV cells that parse as numbers.
 
 An estimate with its interval, ``A [B, C]``, is one figure: A, B and C must come from **one**
 record object (one JSON object's own numbers, or one CSV row), so an interval cannot be assembled
@@ -54,7 +56,7 @@ _NUMBER = re.compile(
     r"""
     (?<![\w.@])                        # not glued to a word, a decimal point or an @
     (?P<sign>(?:(?<=[\s(\[,;:/=])|^)[+\-\u2212])?   # a sign only after a space or an opening mark
-    (?P<digits>\d+(?:\.\d+)?)
+    (?P<digits>\d+(?:\.\d+)?(?:[eE][+\-\u2212]?\d+)?)
     """,
     re.VERBOSE | re.MULTILINE,
 )
@@ -82,7 +84,7 @@ def _strip_names(text: str) -> str:
     text = re.sub(r"<!--.*?-->", " ", text, flags=re.DOTALL)
     text = re.sub(r"\]\([^)]*\)", "] ", text)  # [label](target) → [label]
     text = re.sub(r"`[^`]*`", " ", text)
-    text = re.sub(r"[A-Za-z]+[-_]?\d[\w.]*", " ", text)  # top-1, s0, bits2, x2.5
+    text = re.sub(r"(?<![\d.])[A-Za-z]+[-_]?\d[\w.]*", " ", text)  # top-1, s0, bits2, x2.5 (not 9.4e-8)
     return text
 
 
@@ -129,11 +131,12 @@ def _scan(text: str) -> list[tuple[Shown, int, int]]:
     """(number, start, end) of every number of an already stripped text."""
     out = []
     for m in _NUMBER.finditer(text):
-        digits = m.group("digits")
+        digits = m.group("digits").replace("\u2212", "-")
         sign = m.group("sign") or ""
         sign = "-" if sign in ("-", "\u2212") else sign
         value = float(digits) * (-1.0 if sign == "-" else 1.0)
-        decimals = len(digits.split(".")[1]) if "." in digits else 0
+        mantissa, _, exponent = digits.lower().partition("e")
+        decimals = (len(mantissa.split(".")[1]) if "." in mantissa else 0) - int(exponent or 0)
         percent = bool(re.match(r"\s?%", text[m.end() :]))
         shown = Shown(f"{sign}{digits}" + (" %" if percent else ""), value, decimals, percent)
         out.append((shown, m.start(), m.end()))
@@ -211,7 +214,7 @@ def matches(shown: Shown, value: float) -> bool:
     """Whether a record ``value`` is the ``shown`` number (rounded to its digits; see the module docstring)."""
     candidates = [value, value * 100.0] if shown.percent else [value]
     for v in candidates:
-        if shown.decimals == 0:  # an integer: equal, up to float noise (0.95 * 100)
+        if shown.decimals <= 0:  # an integer: equal, up to float noise (0.95 * 100)
             if abs(v - shown.value) <= 1e-9 * max(1.0, abs(v)):
                 return True
         elif abs(v - shown.value) <= 0.5 * 10.0 ** (-shown.decimals) * (1 + 1e-9):
@@ -251,7 +254,7 @@ def test_extractor_reads_signs_ranges_percentages_and_skips_names():
     text = (
         "detection +0.006 [−0.002, +0.014] mAP, top-1 −0.028 [-0.036, -0.020], 12–26 points, 12-32 points, "
         "+11.8 % (n = 1024 clips, 16 networks), at 1 lx; [the table](docs/x2.md#s3), `out/rate_1`, "
-        "<!-- 7 --> learned_s0, 3.3× the events"
+        "<!-- 7 --> learned_s0, 3.3× the events, 9.4e-8 S"
     )
     got = [(s.text, s.value, s.decimals, s.percent) for s in numbers_in(text)]
     assert got == [
@@ -270,6 +273,7 @@ def test_extractor_reads_signs_ranges_percentages_and_skips_names():
         ("16", 16.0, 0, False),
         ("1", 1.0, 0, False),
         ("3.3", 3.3, 1, False),
+        ("9.4e-8", 9.4e-8, 9, False),
     ]
 
 
