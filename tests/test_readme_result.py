@@ -324,3 +324,9 @@ def test_every_number_in_the_readme_result_section_is_in_a_shipped_record():
 def test_exceptions_are_still_used(number):
     texts = [s.text for s in numbers_in(section(README.read_text(encoding="utf-8")))]
     assert number in texts, f"EXCEPTIONS lists {number!r}, which the result section no longer shows: remove it"
+
+
+def test_a_made_up_figure_is_not_found_in_the_shipped_records():
+    made_up = "detection +0.0123 [+0.0045, +0.0201] mAP, segmentation +0.009 [+0.001, +0.015] mIoU"
+    # the second is the shipped segmentation figure with its lower bound changed by one digit
+    assert untraceable(made_up, _index()) == ["+0.0123 [+0.0045, +0.0201]", "+0.009 [+0.001, +0.015]"]
