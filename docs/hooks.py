@@ -386,7 +386,7 @@ def rate_interpolation_table() -> str:
                 cells.append(r["status"])
             else:
                 cells.append(f"{r['estimate']:+.4f} [{r['low']:+.4f}, {r['high']:+.4f}]".replace("-", "−"))
-        name = path.name.removesuffix("_interpolation_sensitivity.json")
+        name = path.name.removesuffix("_interpolation_sensitivity.json").replace("_", ", ")
         lines.append(
             f"| {name} ({rows[0]['metric_name']}) | {rows[0]['n_clips']}, {rows[0]['n_networks']} | "
             + " | ".join(cells)
