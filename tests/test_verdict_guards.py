@@ -294,7 +294,7 @@ def test_the_verdict_opens_with_the_kernel_against_a_plain_dvs_at_equal_rate(low
 
     (line,) = first_question(_first_question_rows(low, high))
     assert line.startswith("First question — does the kernel beat a plain DVS at equal event rate?")
-    assert f"detection {(low + high) / 2:+.3f} [{low:+.3f}, {high:+.3f}] (plain DVS at threshold 0.111, n = 2" in line
+    assert f"detection {(low + high) / 2:+.3f} [{low:+.3f}, {high:+.3f}] (plain DVS at threshold 0.111; n = 2" in line
     assert words in line
 
 

@@ -57,10 +57,11 @@ __all__ = [
     "shared_node_error",
 ]
 
-#: Figure → (the limit it is held to, in words; the key or quantity that sets the limit).
+#: Figure → (the limit it is held to, in words; the key or quantity that sets the limit). The area
+#: limit holds for a filter inside the pixel (:data:`IN_PIXEL_KINDS`).
 HARD_LIMITS: Mapping[str, tuple[str, str]] = MappingProxyType(
     {
-        "area_m2": ("the pixel's area (pitch²), for a filter inside the pixel", "sensor.pitch_m"),
+        "area_m2": ("the pixel's area (pitch²)", "sensor.pitch_m"),
         "event_rate_eps": ("the readout limit", "costs.readout_limit_eps"),
         "latency_s": ("the latency budget", "costs.latency_budget_s"),
         "power_w": ("the power budget", "costs.power_budget_w"),

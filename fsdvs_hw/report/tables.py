@@ -232,6 +232,8 @@ def _rate_columns(row: dict[str, Any], res: Any, matched: Mapping[str, Any]) -> 
                 row[f"{col}_{tag}_low"] = float(rec["low"])
                 row[f"{col}_{tag}_high"] = float(rec["high"])
                 row[f"{col}_threshold"] = float(rec["matched_threshold"])
+                if "raw_estimate" in rec:  # the same comparison at the same threshold
+                    row[f"{col}_raw"] = float(rec["raw_estimate"])
             row[f"{col}_text"] = str(rec.get("text", rec.get("status", "")))
 
 

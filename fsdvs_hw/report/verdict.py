@@ -94,8 +94,8 @@ def _broken(r: Mapping[str, Any]) -> str:
     from .costs import cost_text
 
     return "; ".join(
-        f"{lim['figure'].split('_')[0]} {cost_text(_num(lim['value']), lim['figure'])} beyond {lim['words']} "
-        f"{cost_text(_num(lim['limit']), lim['figure'])} ({lim['key']})"
+        f"{lim['figure'].split('_')[0]} {cost_text(_num(lim['value']), lim['figure'])} > "
+        f"{cost_text(_num(lim['limit']), lim['figure'])}, {lim['words']} ({lim['key']})"
         for lim in limits
     )
 
@@ -252,23 +252,30 @@ def first_question(rows: Sequence[Mapping[str, Any]]) -> list[str]:
             continue
         est, lo, hi = _num(ref[col]), _num(ref[lo_key]), _num(ref[lo_key[: -len("_low")] + "_high"])
         n = ref.get(f"{task}_n_clips")
+        raw = _num(ref.get(f"{col}_raw"))
         parts.append(
             f"{task} {est:+.3f} [{lo:+.3f}, {hi:+.3f}] (plain DVS at threshold "
-            f"{_num(ref.get(f'{col}_threshold')):.3g}{f', n = {number(int(n))} clips' if n else ''})"
+            f"{_num(ref.get(f'{col}_threshold')):.3g}{f'; same threshold {raw:+.3f}' if not math.isnan(raw) else ''}"
+            f"{f'; n = {number(int(n))} clips' if n else ''})"
         )
-        gains.append(lo > 0.0)
+        gains.append((task, lo > 0.0))
     if not parts:
         return ["First question, not answered: no measurable task has a matched-rate comparison."]
     head = "First question — does the kernel beat a plain DVS at equal event rate? Its gain, 95 % CI: "
-    if gains and not any(gains):
+    held = [t for t, above in gains if above]
+    lost = [t for t, above in gains if not above]
+    if gains and not held:
         tail = (
             "Building any of these gains nothing measurable over lowering the threshold of a plain DVS, "
             "in this world; the ranking below is what each realisation loses against the kernel itself."
         )
-    elif gains and all(gains):
+    elif gains and not lost:
         tail = "The filter's gain holds at equal event rate on every measurable task."
     else:
-        tail = "The filter's gain holds at equal event rate only where its interval lies above 0."
+        tail = (
+            f"The filter's gain holds at equal event rate for {', '.join(held)}; for {', '.join(lost)} it is "
+            "not measurable: there a plain DVS with a lowered threshold does as well."
+        )
     return [head + "; ".join(parts) + ". " + tail]
 
 
@@ -327,12 +334,19 @@ def measurability_table(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str
                 else "–"
             )
             verdict = "yes" if rec.get("measurable") else f"no: {rec.get('reason', '')}"
-            need = rec.get("clips_needed")
-            if rec.get("measurable") and need:
-                verdict += (
-                    f"; for ± {number(_num(rec.get('half_width_target')))} `fsdvs-hw sizing` asks for "
-                    f"{number(int(need))} clips per network (now {number(int(rec.get('clips_now') or 0))})"
-                )
+            if rec.get("measurable") and "clips_needed" in rec:
+                need, now = rec.get("clips_needed"), int(rec.get("clips_now") or 0)
+                target = number(_num(rec.get("half_width_target")))
+                if need is None:
+                    verdict += (
+                        f"; for ± {target} no number of clips suffices (the network-to-network spread "
+                        "alone is wider: `fsdvs-hw sizing` says how many networks)"
+                    )
+                elif int(need) > now:
+                    verdict += (
+                        f"; for ± {target} `fsdvs-hw sizing` asks for {number(int(need))} clips per network "
+                        f"(now {number(now)})"
+                    )
             metric = str(rec.get("metric_name", ""))
             out.append(
                 {
