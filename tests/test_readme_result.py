@@ -327,6 +327,8 @@ def test_exceptions_are_still_used(number):
 
 
 def test_a_made_up_figure_is_not_found_in_the_shipped_records():
-    made_up = "detection +0.0123 [+0.0045, +0.0201] mAP, segmentation +0.009 [+0.001, +0.015] mIoU"
-    # the second is the shipped segmentation figure with its lower bound changed by one digit
-    assert untraceable(made_up, _index()) == ["+0.0123 [+0.0045, +0.0201]", "+0.009 [+0.001, +0.015]"]
+    made_up = "detection +0.0123 [+0.0045, +0.0201] mAP, segmentation +0.009 [+0.002, +0.016] mIoU"
+    # the second is the shipped segmentation figure with its upper bound changed by one digit (a change
+    # of the lower bound, +0.001, happens to match another comparison of the shipped demo record: short
+    # intervals can match by chance, the weakness the module docstring names)
+    assert untraceable(made_up, _index()) == ["+0.0123 [+0.0045, +0.0201]", "+0.009 [+0.002, +0.016]"]
