@@ -115,6 +115,24 @@ def test_explore_on_user_datasets_writes_paired_losses_with_cis(user_folder, tmp
     header = (out / "scores.csv").read_text().splitlines()[0].split(",")
     assert {f"{t}_loss_ci95_high" for t in TASKS} <= set(header)
     assert "segmentation" in (out / "report.html").read_text()
+    # issue 38, on real footage (bigbuckbunny, COCO-style frames, label masks) with the untrained toy
+    # network: every task is at chance, so no loss is claimed and the verdict ranks by kernel error
+    meas = points["learned"]["measurability"]["simulator"]
+    assert meas["detection"]["chance"] == 0.0 and meas["detection"]["reference_metric"] == 0.0
+    assert meas["recognition"]["chance"] == 0.5 and "most frequent of 2" in meas["recognition"]["chance_method"]
+    assert meas["segmentation"]["above_chance"]["high"] < 0  # worse than calling every pixel the commonest class
+    for task in TASKS:
+        assert meas[task]["measurable"] is False and "is not above chance" in meas[task]["reason"]
+        assert rows["delta"][f"{task}_loss_text"] == "not measurable"
+    assert rows["learned"]["measurable_tasks"] == ""
+    html = " ".join((out / "report.html").read_text().split())
+    assert "What each task can measure" in html and "a detector that returns no boxes" in html
+    assert (
+        "no task can: realisations are ranked by kernel error alone, and no accuracy loss is claimed"
+        in html.replace("&#39;", "'")
+    )
+    assert "test clips only (one network: the network-to-network spread is not in the interval)" in html
+    assert "kernel error (no task could measure a loss)" in html and "(no task ran)" not in html
 
 
 def test_bad_user_data_keys_are_refused_naming_the_key(user_folder):

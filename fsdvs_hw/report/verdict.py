@@ -159,11 +159,11 @@ def advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     """
     ok = [r for r in rows if r.get("status") == "ok"]
     hardware = [r for r in ok if not is_reference(str(r["realisation"]))]
+    out = [*first_question(ok), *measurability_advice(ok)]
     if not hardware:
-        return ["No hardware realisation was scored: nothing to recommend."]
+        return [*out, "No hardware realisation was scored: nothing to recommend."]
     acc, _acc_label = accuracy_axis(rows)
     what = "loss" if acc.endswith("_loss") else "kernel error"
-    out = [*first_question(ok), *measurability_advice(ok)]
 
     def phrase(r: Mapping[str, Any]) -> str:
         text = loss_cell(r, acc)[0]
@@ -367,8 +367,10 @@ def _is_task_column(k: str) -> bool:
 
 def loss_header(rows: Sequence[Mapping[str, Any]]) -> str:
     """Header of the verdict table's loss column: the accuracy loss, or the kernel error when no task ran."""
-    acc, _ = accuracy_axis(rows)
-    return dict(VERDICT_COLUMNS)["loss"] if acc.endswith("_loss") else "kernel error (no task ran)"
+    acc, label = accuracy_axis(rows)
+    if acc.endswith("_loss"):
+        return dict(VERDICT_COLUMNS)["loss"]
+    return "kernel error (no task could measure a loss)" if "no task could" in label else "kernel error (no task ran)"
 
 
 def verdict_table(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
