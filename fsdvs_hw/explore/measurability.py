@@ -197,14 +197,7 @@ def widen_degenerate(paired: dict[str, dict[str, Any]], confidence: float = 0.95
                     continue
                 b = 1.0 - (1.0 - confidence) ** (1.0 / n)
                 bounds[task] = b
-                ci.update(
-                    low=float(ci["estimate"]) - b,
-                    high=float(ci["estimate"]) + b,
-                    half_width=b,
-                    contains_zero=True,
-                    degenerate=True,
-                    text=f"no clip changed (n = {n}): |loss| ≤ {b:.3f} (rule of three)",
-                )
+                _widen(ci, b, f"no clip changed (n = {n}): |loss| ≤ {b:.3f} (rule of three)")
                 n_widened += 1
             w = per.get("weighted")
             weights = per.get("weights") or {}
@@ -212,15 +205,14 @@ def widen_degenerate(paired: dict[str, dict[str, Any]], confidence: float = 0.95
                 tot = sum(float(weights.get(t, 0.0)) for t in per if t not in ("weighted", "weights"))
                 b = sum(float(weights.get(t, 0.0)) * bounds.get(t, 0.0) for t in bounds) / tot if tot > 0 else 0.0
                 if b > 0:
-                    w.update(
-                        low=float(w["estimate"]) - b,
-                        high=float(w["estimate"]) + b,
-                        half_width=b,
-                        contains_zero=True,
-                        degenerate=True,
-                        text=f"no clip changed in any task: |loss| ≤ {b:.3f} (rule of three)",
-                    )
+                    _widen(w, b, f"no clip changed in any task: |loss| ≤ {b:.3f} (rule of three)")
     return n_widened
+
+
+def _widen(ci: dict[str, Any], b: float, text: str) -> None:
+    """Give a zero-width interval record the bound ``± b`` around its estimate, marked degenerate."""
+    est = float(ci["estimate"])
+    ci.update(low=est - b, high=est + b, half_width=b, contains_zero=True, degenerate=True, text=text)
 
 
 def measured_losses(
