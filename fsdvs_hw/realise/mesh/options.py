@@ -61,4 +61,4 @@ class MeshOptions(StrictModel):
     n_init: int = field(16, "", "λ values per mesh in the initialisation grid", ge=2, le=40)
     n_starts: int = field(3, "", "IPOPT runs from the best distinct grid points", ge=1, le=10)
     max_iter: int = field(200, "", "IPOPT iteration limit", ge=1, le=10000)
-    tol: float = field(1e-14, "", "IPOPT tolerance", gt=0.0, le=1.0)
+    tol: float = field(1e-14, "", "IPOPT tolerance", ge=1e-16, le=1e-2)

@@ -1,0 +1,74 @@
+"""The mesh fit's options model and the fit's own checks accept the same values (issue 43).
+
+``MeshOptions`` (what a design file is checked against when it is loaded) and the fit's first step
+(``_mesh_settings``, which every call runs before any work) must refuse the same values, or a design
+is accepted and fails after work has started (it did: ``tol = 0.1`` passed the loader, the fit
+refused anything above 1e-2). For every numeric option with a range, values at each bound and just
+beyond it are put to both; the context rules (``g_lateral_s`` within ``bounds.conductance_s``,
+``fit_size`` at least the kernel's size, ``grid_half_width`` at least its radius) are the fit's alone
+and are left out here.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from pydantic import ValidationError
+
+from fsdvs_hw.errors import InputError
+from fsdvs_hw.explore.design import DesignError, parse_design
+from fsdvs_hw.kernels import reference_kernel
+from fsdvs_hw.realise.mesh.fit import _mesh_settings
+from fsdvs_hw.realise.mesh.options import MeshOptions
+
+CONTEXT = {"g_lateral_s", "fit_size", "grid_half_width", "pitch_m", "bounds"}
+DEFAULTS = {name: f.default for name, f in MeshOptions.model_fields.items() if name != "pitch_m"}
+
+
+def _range(name: str) -> tuple[float, float]:
+    lo, hi = -math.inf, math.inf
+    for m in MeshOptions.model_fields[name].metadata:
+        lo = max(lo, float(getattr(m, "ge", None) or getattr(m, "gt", None) or -math.inf))
+        hi = min(hi, float(getattr(m, "le", None) or getattr(m, "lt", None) or math.inf))
+    return lo, hi
+
+
+def _numeric() -> list[str]:
+    return [n for n in MeshOptions.model_fields if n not in CONTEXT and math.isfinite(_range(n)[1])]
+
+
+def _model_accepts(name: str, value: float) -> bool:
+    try:
+        MeshOptions.model_validate({name: value})
+    except ValidationError:
+        return False
+    return True
+
+
+def _fit_accepts(name: str, value: float) -> bool:
+    try:
+        _mesh_settings(reference_kernel("dog", 7), **{**DEFAULTS, "pitch_m": None, name: value})
+    except InputError:
+        return False
+    return True
+
+
+@pytest.mark.parametrize("name", _numeric())
+def test_the_options_model_and_the_fit_accept_the_same_range(name):
+    lo, hi = _range(name)
+    integer = MeshOptions.model_fields[name].annotation is int
+    probes = [lo, hi, lo - 1 if integer else lo - max(abs(lo), 1e-300) * 1e-6, hi + 1 if integer else hi * (1 + 1e-6)]
+    for v in probes:
+        v = int(v) if integer else v
+        assert _model_accepts(name, v) == _fit_accepts(name, v), (name, v)
+
+
+def test_the_numeric_options_are_probed():
+    assert {"tol", "max_iter", "n_init", "mismatch_sigma", "node_capacitance_f"} <= set(_numeric())
+
+
+def test_a_tolerance_the_fit_refuses_is_refused_when_the_design_is_loaded():
+    with pytest.raises(DesignError, match=r"realisations\.mesh\.tol.*0\.1"):
+        parse_design({"realisations": {"include": ["learned", "mesh"], "mesh": {"tol": 0.1}}})
+    assert parse_design({"realisations": {"include": ["mesh"], "mesh": {"tol": 1e-2}}}).spec is not None
