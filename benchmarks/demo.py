@@ -45,7 +45,9 @@ _ROOT = Path(__file__).resolve().parents[1]
 
 def _explore(out: Path, quick: bool) -> tuple[float, float, dict]:
     """Run the command once; (wall s, peak RSS MiB of it and its children, scores.json)."""
-    cmd = [sys.executable, "-m", "fsdvs_hw.cli", "explore", str(_ROOT / "designs" / "default.toml"), "--out", str(out)]
+    # the design by its path relative to the checkout, as `make demo` names it (the stored checkpoint
+    # paths stay relative, not this machine's)
+    cmd = [sys.executable, "-m", "fsdvs_hw.cli", "explore", "designs/default.toml", "--out", str(out)]
     cmd.append("--no-progress")
     for s in QUICK_SETTINGS if quick else ():
         cmd += ["--set", s]
