@@ -24,12 +24,13 @@ _TESTS: list[tuple[str, list[str]]] = [
     ("explore/sweep", ["test_explore_sweep.py"]),
     ("explore/store", ["test_explore_sweep.py", "test_explore_paired.py"]),
     ("explore/emulation", ["test_explore_emulation.py", "test_explore_emulation_track.py"]),
-    ("explore/ablation", ["test_tasks_ablation.py"]),
+    ("studies/kernel_size_ablation", ["test_tasks_ablation.py"]),
     ("explore/sizing", ["test_stats.py"]),
     ("explore/paired", ["test_explore_paired.py", "test_stats.py"]),
     ("explore/scoring", ["test_explore_paired.py", "test_explore_emulation_track.py", "test_report.py",
                          "test_explore_sweep.py", "test_records.py", "test_realisation_contract.py"]),
     ("explore/", ["test_explore_design.py", "test_explore_paired.py"]),
+    ("studies/", ["test_explore_design.py", "test_explore_paired.py"]),  # as when they lived in explore/
 ]
 
 

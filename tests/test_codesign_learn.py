@@ -73,8 +73,9 @@ def test_mesh_and_metalens_codesign_run_and_keep_the_kernel_the_realisations(nam
 
 def test_codesign_pilot_checks_its_inputs_before_training_and_measures_csf_drift(tmp_path):
     from fsdvs_hw.csf import csf_agreement
-    from fsdvs_hw.explore.codesign_pilot import csf_drift, run_pilot
+    from fsdvs_hw.explore.codesign import csf_drift
     from fsdvs_hw.realise.asic import fit_asic_taps
+    from fsdvs_hw.studies.codesign_pilot import run_pilot
 
     with pytest.raises(InputError, match="no differentiable form"):
         run_pilot("recognition", "delta", [0], tmp_path)

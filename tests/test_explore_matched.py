@@ -208,9 +208,9 @@ def test_retrained_curves_are_paired_across_thresholds_and_resume(tmp_path, monk
     threshold and seed, the same clip sets and noise draws at every threshold (so the matched-rate
     comparison pairs them), fewer events at a higher threshold, and a rerun trains nothing."""
     pytest.importorskip("torch")
-    from fsdvs_hw.explore import rate_retrained
     from fsdvs_hw.explore.rate import matched_rate_difference
     from fsdvs_hw.kernels import load_kernel
+    from fsdvs_hw.studies import rate_retrained
     from fsdvs_hw.tasks.learn import TrainingSettings
 
     tiny = dict(n_train=64, n_test=16, settings=TrainingSettings(epochs_frozen=1, epochs_joint=1, width=4))

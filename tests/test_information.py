@@ -8,20 +8,20 @@ import numpy as np
 import pytest
 
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.information import (
-    TABLE_FIELDS,
-    ConditionEvidence,
-    InformationOptions,
-    bits_per_event,
-    information_table,
-    run_information_study,
-)
 from fsdvs_hw.mutual_information import (
     gaussian_mi,
     histogram_mi,
     joint_histogram,
     mutual_information,
     quantile_edges,
+)
+from fsdvs_hw.studies.information import (
+    TABLE_FIELDS,
+    ConditionEvidence,
+    InformationOptions,
+    bits_per_event,
+    information_table,
+    run_information_study,
 )
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from fsdvs_hw.explore.information import MATCHED, ConditionEvidence, information_table
+from fsdvs_hw.studies.information import MATCHED, ConditionEvidence, information_table
 
 SHIPPED = Path(__file__).resolve().parents[1] / "designs" / "results" / "information"
 POINT_FIELDS = (
@@ -57,8 +57,8 @@ def test_shipped_record_names_its_interval_method_exactly():
     """settings.bootstrap is the writer's exact text, and the interval is the bias-shifted percentile it names."""
     import numpy as np
 
-    from fsdvs_hw.explore.information import BOOTSTRAP_METHOD, _condition_values
     from fsdvs_hw.explore.paired import bootstrap_weights
+    from fsdvs_hw.studies.information import BOOTSTRAP_METHOD, _condition_values
 
     stored, evidence = _shipped()
     assert stored["settings"]["bootstrap"] == BOOTSTRAP_METHOD

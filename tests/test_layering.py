@@ -1,4 +1,4 @@
-"""The package's layering, as a test: core → models → tasks → report → explore → cli.
+"""The package's layering, as a test: core → models → tasks → report → explore → studies → cli.
 
 Every ``import`` in fsdvs_hw — at module level *and* inside functions — is read with :mod:`ast`
 (no code runs), resolved to the fsdvs_hw module it names, and checked: no module imports from a
@@ -16,7 +16,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "fsdvs_hw"
 
 #: Layers, lowest first. A module may import from its own layer and the ones below.
-LAYERS: tuple[str, ...] = ("core", "models", "tasks", "report", "explore", "cli")
+LAYERS: tuple[str, ...] = ("core", "models", "tasks", "report", "explore", "studies", "cli")
 
 #: Top-level modules of the core layer (kernels, spectra, CSF, statistics and their helpers).
 _CORE = {
@@ -65,6 +65,8 @@ def layer_of(module: str) -> str:
         return "report"
     if top == "explore":
         return "explore"
+    if top == "studies":
+        return "studies"
     raise AssertionError(f"{module}: no layer assigned; add it to tests/test_layering.py")
 
 

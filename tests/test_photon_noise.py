@@ -1,5 +1,5 @@
 """Photon shot noise of the scene (fsdvs_hw.sensor.photon_noise) and the noise budget by source
-(fsdvs_hw.explore.noise_budget): the photometry by hand, Poisson statistics, pairing across kernels,
+(fsdvs_hw.studies.noise_budget): the photometry by hand, Poisson statistics, pairing across kernels,
 and which noise fires the events."""
 
 from __future__ import annotations
@@ -54,8 +54,8 @@ def test_poisson_counts_keep_the_mean_and_have_variance_i_over_n_and_are_paired(
 def test_noise_budget_names_photon_noise_in_the_dark_and_the_avalanche_at_low_threshold():
     """Shipped detection clips, 4 of them: with few photons the photon noise adds most events, a still
     scene fires more at a lower threshold, and a centre-surround kernel amplifies the noise floor."""
-    from fsdvs_hw.explore.noise_budget import noise_budget
     from fsdvs_hw.kernels import load_kernel
+    from fsdvs_hw.studies.noise_budget import noise_budget
 
     ckpt = KERNELS / "networks" / "detection_with_learned_detection_7x7_s0.safetensors"
     learned = load_kernel(KERNELS / "learned_detection_7x7.json")

@@ -27,8 +27,8 @@ TINY = {"epochs_frozen": 1, "epochs_joint": 1, "width": 8}
 
 
 def test_tiny_ablation_table_resumes_through_the_sweep_store(tmp_path):
-    from fsdvs_hw.explore.ablation import ablation_points, run_ablation
     from fsdvs_hw.explore.store import ResultsStore
+    from fsdvs_hw.studies.kernel_size_ablation import ablation_points, run_ablation
 
     jobs = ablation_jobs(["recognition"], sizes=[1, 3], seeds=[0, 1], n_train=16, n_test=24, settings=TINY)
     points = ablation_points(jobs, tmp_path / "pred")
@@ -119,7 +119,7 @@ def test_bootstrap_interval_matches_binomial_theory():
 def test_ablation_study_options_reach_the_jobs_and_every_table_is_written(tmp_path, monkeypatch):
     """run_ablation_study (what `fsdvs-hw ablation` calls): the typed options reach the jobs, and the
     transfer and frozen-kernel tables both end up in ablation.md (training replaced by canned records)."""
-    from fsdvs_hw.explore import ablation as ab
+    from fsdvs_hw.studies import kernel_size_ablation as ab
     from fsdvs_hw.tasks import ablation as tab
 
     kernel = tmp_path / "k.json"

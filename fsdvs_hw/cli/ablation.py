@@ -1,4 +1,4 @@
-"""``fsdvs-hw ablation``: the kernel-size ablation over :func:`fsdvs_hw.explore.ablation.run_ablation_study`."""
+"""``fsdvs-hw ablation``: the kernel-size ablation over :func:`fsdvs_hw.studies.kernel_size_ablation.run_ablation_study`."""
 
 from __future__ import annotations
 
@@ -127,7 +127,7 @@ _SYNTHETIC_ONLY: dict[str, Any] = {
 def _run_on_design(args: argparse.Namespace) -> int:
     from ..errors import InputError
     from ..explore.design import load_design
-    from ..explore.user_ablation import run_user_ablation
+    from ..studies.user_kernel_size_ablation import run_user_ablation
 
     given = [f"--{k.replace('_', '-')}" for k, v in _SYNTHETIC_ONLY.items() if getattr(args, k) != v]
     if given:
@@ -152,7 +152,7 @@ def _run_on_design(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..explore.ablation import AblationOptions, run_ablation_study
+    from ..studies.kernel_size_ablation import AblationOptions, run_ablation_study
 
     if args.design is not None:
         return _run_on_design(args)

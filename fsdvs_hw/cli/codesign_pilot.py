@@ -27,8 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..explore.codesign_pilot import run_pilot
     from ..paths import output_dir
+    from ..studies.codesign_pilot import run_pilot
 
     out = output_dir(args.out, flag="--out")
     print(json.dumps(run_pilot(args.task, args.realisation, list(args.seeds), out), indent=1))

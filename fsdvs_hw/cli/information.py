@@ -1,4 +1,4 @@
-"""``fsdvs-hw information``: MI and bits per event over :func:`fsdvs_hw.explore.information.run_information_study`."""
+"""``fsdvs-hw information``: MI and bits per event over :func:`fsdvs_hw.studies.information.run_information_study`."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ DESCRIPTION = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from ..explore.information import DEFAULT_RATE_THRESHOLDS
+    from ..studies.information import DEFAULT_RATE_THRESHOLDS
 
     parser.add_argument("design", type=Path, help="TOML design file, or a shipped design's name (default)")
     parser.add_argument("--networks", type=int_in(2, 1000), default=3, help="reconstruction networks per condition")
@@ -65,7 +65,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import torch
 
-    from ..explore.information import InformationOptions, run_information_study
+    from ..studies.information import InformationOptions, run_information_study
 
     # one thread: on a shared machine PyTorch's second thread spins (measured ~10x the CPU time)
     torch.set_num_threads(1)

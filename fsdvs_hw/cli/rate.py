@@ -1,4 +1,4 @@
-"""``fsdvs-hw rate``: bandwidth-matched comparison over :func:`fsdvs_hw.explore.rate_study.run_rate_study`."""
+"""``fsdvs-hw rate``: bandwidth-matched comparison over :func:`fsdvs_hw.studies.rate_study.run_rate_study`."""
 
 from __future__ import annotations
 
@@ -113,7 +113,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..explore.rate_study import RateOptions, run_rate_study
+    from ..studies.rate_study import RateOptions, run_rate_study
 
     cmd = "fsdvs-hw rate " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "fsdvs-hw rate"
     study = run_rate_study(

@@ -24,7 +24,7 @@ fraction of the fit-then-swap loss a row recovers, ``1 − loss(row) / loss(swap
 percentile bootstrap CI from the same cluster resampling (:func:`recovered_fraction_ci`), and the
 gain over the swap, ``metric(row) − metric(swap)``, its paired difference CI. The co-designed
 kernel's drift from the Mannos–Sakrison CSF shape is
-:func:`fsdvs_hw.explore.codesign_pilot.csf_drift`.
+:func:`csf_drift` (also the co-design pilot's, :mod:`fsdvs_hw.studies.codesign_pilot`).
 
 On a ``[tasks.datasets.<task>]`` task (the user's clips and network) the rows are measured in its
 one network (``weights``, or the ``train`` table's checkpoint): fine-tune and co-design run
@@ -67,6 +67,7 @@ from .user_data import ONE_NETWORK_NOTE
 __all__ = [
     "CODESIGN_FORMAT",
     "codesign_cells",
+    "csf_drift",
     "recovered_fraction_ci",
     "run_codesign",
     "summarise_codesign",
@@ -133,11 +134,28 @@ def _stored_unit(path: Path, key: str) -> dict[str, Any] | None:
     return rec if isinstance(rec, dict) and rec.get("key") == key else None
 
 
+def csf_drift(provenance: Mapping[str, Any]) -> dict[str, float]:
+    """Mannos–Sakrison correlation of the realisation's kernel before and after co-design.
+
+    The kernel compared is the realisation's *shape*: its ``signal_kernel()`` where it has one (a
+    metalens with the pedestal subtracted), else ``kernel()``. ``provenance``: a co-designed
+    checkpoint's (``realisation``, ``realisation_initial``, ``realisation_design``).
+    """
+    from ..csf import csf_agreement
+    from ..realise.registry import realisation_from_dict
+
+    out = {}
+    for key, label in (("realisation_initial", "initial"), ("realisation_design", "final")):
+        rec = realisation_from_dict(provenance[key])
+        shape = getattr(rec, "signal_kernel", rec.kernel)()
+        out[f"ms_correlation_{label}"] = float(csf_agreement(shape, method="mannos_sakrison_1974").correlation)
+    return out
+
+
 def _codesign_outcome(provenance: Mapping[str, Any], target: Any) -> dict[str, Any]:
     """A co-designed row's realisation after training: its kernel errors, CSF drift and design."""
     from ..realise.base import realised_kernel_error
     from ..realise.registry import realisation_from_dict
-    from .codesign_pilot import csf_drift
 
     final = realisation_from_dict(provenance["realisation_design"])
     return {

@@ -11,9 +11,9 @@
   scores a kernel on a user dataset (:mod:`fsdvs_hw.scenes.datasets`).
 * :mod:`~fsdvs_hw.tasks.reconstruction` — events → intensity (a small E2VID-like network), task
   ``"reconstruction"``, registered when that module is imported (the information study,
-  :mod:`fsdvs_hw.explore.information`).
+  :mod:`fsdvs_hw.studies.information`).
 * :mod:`~fsdvs_hw.tasks.ablation` — one run of the kernel-size ablation (the paper's Tables I-III)
-  and its tables; :mod:`fsdvs_hw.explore.ablation` shards the runs over the sweep executor.
+  and its tables; :mod:`fsdvs_hw.studies.kernel_size_ablation` shards the runs over the sweep executor.
 
 Names are imported lazily so ``import fsdvs_hw.tasks`` does not import torch.
 """

@@ -15,7 +15,7 @@ comparison is paired over clips. Three kinds of run (:func:`ablation_jobs`, :fun
 ``zero_shot``
     a given kernel swapped into a trained w/o network with no retraining at all.
 
-:func:`run_job` executes one run (the sweep executor in :mod:`fsdvs_hw.explore.ablation` shards
+:func:`run_job` executes one run (the sweep executor in :mod:`fsdvs_hw.studies.kernel_size_ablation` shards
 them over processes or a Dask cluster and stores each as it finishes); :func:`ablation_markdown`
 and :func:`transfer_markdown` build the tables, with the gain over w/o and its 95 % confidence
 interval from :func:`fsdvs_hw.stats.difference_cis` (bootstrap over test clips, paired, and

@@ -20,7 +20,7 @@ Loss: mean squared error. Scores (:meth:`ReconstructionEvaluator.score`): ``r2``
 Pearson correlation of reconstruction and ground truth over all test pixels (for a jointly Gaussian
 pair, MI = −½ log2(1 − r²) bits), and ``ssim`` (torchmetrics' structural similarity, Wang et al.,
 IEEE TIP 2004, clipped to [0, 1]). The information measurement itself is
-:mod:`fsdvs_hw.explore.information`.
+:mod:`fsdvs_hw.studies.information`.
 
 The evaluator registers as task ``"reconstruction"`` when this module is imported, so
 :func:`~fsdvs_hw.tasks.learn.learn_kernel` trains it (with the kernel frozen:

@@ -58,13 +58,13 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..explore.paired import EVENT_RATE_UNIT, bootstrap_weights
+from ..explore.rate import interpolate_log_rate
 from ..kernels import Kernel
 from ..mutual_information import DEFAULT_BINS, MI_UNIT, histogram_mi, joint_histogram, quantile_edges
 from ..paths import output_dir, write_output
 from ..progress import progress_bar
 from ..provenance import library_versions
-from .paired import EVENT_RATE_UNIT, bootstrap_weights
-from .rate import interpolate_log_rate
 
 __all__ = [
     "BOOTSTRAP_METHOD",
@@ -488,8 +488,8 @@ def _fingerprint(**parts: Any) -> str:
 
 def _sensor_for(design: Any, scene: Any, threshold: float | None = None) -> Any:
     """The training simulator (:func:`~fsdvs_hw.tasks.learn.default_sensor`) with the design's sensor fields."""
+    from ..explore.scoring import _DESIGN_SENSOR_FIELDS
     from ..tasks.learn import default_sensor
-    from .scoring import _DESIGN_SENSOR_FIELDS
 
     fields = {k: design.section("sensor")[k] for k in _DESIGN_SENSOR_FIELDS}
     if threshold is not None:
@@ -646,7 +646,7 @@ def _score(
 
 
 def _realisation_kernel(name: str, design: Any, folder: Path) -> Kernel:
-    from .scoring import fit_realisation
+    from ..explore.scoring import fit_realisation
 
     file = folder / f"{_slug(name)}.json"
     fp = _fingerprint(taps=np.asarray(design.target.taps).round(15).tolist(), options=design.realisation_options(name))
@@ -691,12 +691,12 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
     ...                                                  out=Path("out/info")))  # doctest: +SKIP
     >>> print(study.text)  # doctest: +SKIP
     """
+    from ..explore.design import load_design
     from ..realise.registry import realisation_names
     from ..resources import resolve_design
     from ..scenes.synthetic import make_scenes
     from ..tasks.learn import TEST_SEED
     from ..tasks.reconstruction import ReconstructionEvaluator, clean_last_frame
-    from .design import load_design
 
     if not isinstance(options, InformationOptions):
         raise InputError(f"run_information_study: options must be InformationOptions, got {type(options).__name__}")

@@ -34,8 +34,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..explore.rate import _check_thresholds
 from ..kernels import Kernel
-from .rate import _check_thresholds
 
 __all__ = ["NOISE_SOURCES", "noise_budget"]
 

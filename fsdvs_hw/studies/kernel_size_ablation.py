@@ -116,8 +116,8 @@ def run_ablation(
     progress: bool | None = None,
 ) -> list[dict[str, Any]]:
     """Run every point not yet stored; return the records of all ``points`` (status ``ok``) in order."""
-    from .store import ResultsStore
-    from .sweep import run_points
+    from ..explore.store import ResultsStore
+    from ..explore.sweep import run_points
 
     if workers < 1:
         raise InputError(f"--workers must be >= 1, got {workers}")
@@ -360,7 +360,7 @@ def annotate_shipped(records: list[dict[str, Any]], pred_dir: Path, *, n_resampl
 
 def _collect(points: list[AblationPoint], store: Path, exe: dict[str, Any], from_store: bool) -> list[dict[str, Any]]:
     if from_store:
-        from .store import ResultsStore
+        from ..explore.store import ResultsStore
 
         if not store.is_file():
             raise InputError(f"--from-store: {str(store)!r} not found")

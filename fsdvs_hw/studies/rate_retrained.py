@@ -29,11 +29,11 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..explore.paired import clip_evidence
+from ..explore.rate import RateCurve, RatePoint, _check_thresholds
 from ..kernels import Kernel
 from ..paths import write_output
 from ..progress import progress_bar
-from .paired import clip_evidence
-from .rate import RateCurve, RatePoint, _check_thresholds
 
 __all__ = ["network_stem", "networks_dir", "retrained_networks", "retrained_rate_curve"]
 
@@ -173,7 +173,7 @@ def retrained_rate_curve(
 
     Examples
     --------
-    >>> from fsdvs_hw.explore.rate_retrained import retrained_rate_curve
+    >>> from fsdvs_hw.studies.rate_retrained import retrained_rate_curve
     >>> curve = retrained_rate_curve(None, "detection", [0.1, 0.2], [0, 1, 2], "out/rt",
     ...                              label="w/o")  # doctest: +SKIP
     """

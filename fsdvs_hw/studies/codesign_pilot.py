@@ -21,7 +21,6 @@ from __future__ import annotations
 import json
 import sys
 import time
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +29,7 @@ import numpy as np
 from ..paths import write_output
 from ..resources import shipped_path
 
-__all__ = ["csf_drift", "run_pilot"]
+__all__ = ["run_pilot"]
 
 
 def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_test: int = 2048) -> dict[str, Any]:
@@ -38,12 +37,13 @@ def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_tes
     import torch
 
     from ..errors import InputError
+    from ..explore.codesign import csf_drift
+    from ..explore.paired import PER_CLIP_METRICS, clip_evidence
     from ..kernels import load_kernel
     from ..realise.registry import fit_realisation, get_realisation
     from ..stats import difference_ci
     from ..tasks import get_evaluator
     from ..tasks.learn import heldout_targets, learn_kernel, load_checkpoint
-    from .paired import PER_CLIP_METRICS, clip_evidence
 
     # every input checked before the first (minutes-long) training
     ev = get_evaluator(task)
@@ -124,21 +124,3 @@ def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_tes
     result["codesign"]["csf_drift"] = drift
     write_output(out / f"pilot_{realisation}_{task}.json", json.dumps(result, indent=1))
     return result
-
-
-def csf_drift(provenance: Mapping[str, Any]) -> dict[str, float]:
-    """Mannos–Sakrison correlation of the realisation's kernel before and after co-design.
-
-    The kernel compared is the realisation's *shape*: its ``signal_kernel()`` where it has one (a
-    metalens with the pedestal subtracted), else ``kernel()``. ``provenance``: a co-designed
-    checkpoint's (``realisation``, ``realisation_initial``, ``realisation_design``).
-    """
-    from ..csf import csf_agreement
-    from ..realise.registry import realisation_from_dict
-
-    out = {}
-    for key, label in (("realisation_initial", "initial"), ("realisation_design", "final")):
-        rec = realisation_from_dict(provenance[key])
-        shape = getattr(rec, "signal_kernel", rec.kernel)()
-        out[f"ms_correlation_{label}"] = float(csf_agreement(shape, method="mannos_sakrison_1974").correlation)
-    return out

@@ -40,9 +40,9 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..explore.rate import DEFAULT_THRESHOLDS, INTERPOLATIONS, RateCurve, matched_rate_difference, rate_curve
 from ..paths import output_dir, write_output
 from ..provenance import library_versions
-from .rate import DEFAULT_THRESHOLDS, INTERPOLATIONS, RateCurve, matched_rate_difference, rate_curve
 
 __all__ = ["RateOptions", "RateStudy", "interpolation_sensitivity", "run_rate_study"]
 
@@ -69,7 +69,7 @@ class RateOptions:
         Hardware realisations to add (``"mesh"``, ``"asic"``, ``"metalens"``; fitted with the design's options).
     protocol : {"fixed", "retrained"}
         ``"fixed"``: every kernel zero-shot in the design's networks; ``"retrained"``: networks trained
-        per kernel, threshold and seed (:mod:`fsdvs_hw.explore.rate_retrained`; w/o and learned only).
+        per kernel, threshold and seed (:mod:`fsdvs_hw.studies.rate_retrained`; w/o and learned only).
     seeds : sequence of int
         Training seeds of the retrained protocol (one network per seed and threshold).
     n_train : int
@@ -80,7 +80,7 @@ class RateOptions:
     illuminance_lux : float or None
         Fixed protocol: add photon shot noise of the scene at this sensor-plane illuminance (lx) at
         full scale (:mod:`fsdvs_hw.sensor.photon_noise`, the design's pixel pitch, one frame interval
-        of integration), and write ``noise_budget.json``/``.csv`` (:func:`fsdvs_hw.explore.noise_budget.noise_budget`:
+        of integration), and write ``noise_budget.json``/``.csv`` (:func:`fsdvs_hw.studies.noise_budget.noise_budget`:
         which noise fires the events at each threshold). None: no photon noise.
     quantum_efficiency : float
         Photoelectrons per photon for ``illuminance_lux``.
@@ -157,9 +157,9 @@ def run_rate_study(options: RateOptions) -> RateStudy:
     InputError
         Unknown task, unequal ON/OFF thresholds in the design, bad counts, unknown realisation.
     """
+    from ..explore.design import load_design
+    from ..explore.scoring import fit_realisation
     from ..resources import resolve_design
-    from .design import load_design
-    from .scoring import fit_realisation
 
     design = load_design(resolve_design(options.design))
     if options.protocol == "retrained":

@@ -88,11 +88,11 @@ def run_user_ablation(
     >>> res["rows"][-1]["gain_ci95_low"] <= res["rows"][-1]["gain"]                               # doctest: +SKIP
     True
     """
+    from ..explore.user_data import open_dataset
     from ..limits import MAX_WORKERS, check_count
     from ..paths import output_dir, write_output
     from ..stats import difference_ci
     from ..tasks.dataset_eval import evaluator_for_dataset
-    from .user_data import open_dataset
 
     user = design.spec.tasks.datasets
     if task not in user or user[task].train is None:
@@ -213,9 +213,9 @@ def _train_and_score(
     Returns the per-clip metric object, the metric and the number of scored clips.
     """
     from ..environment import env
+    from ..explore.paired import PER_CLIP_METRICS
+    from ..explore.user_data import open_dataset, train_user_task
     from ..tasks.dataset_eval import evaluate_on_dataset, evaluator_for_dataset
-    from .paired import PER_CLIP_METRICS
-    from .user_data import open_dataset, train_user_task
 
     threads = env("FSDVS_HW_WORKER_THREADS")
     if threads:
