@@ -89,8 +89,8 @@ def test_good_options_pass_and_are_normalised():
     from fsdvs_hw.realise.registry import get_realisation
 
     assert get_realisation("asic").check_option("bits", np.int64(4)) == 4
-    tol = get_realisation("mesh").check_option("tol", 1)
-    assert tol == 1.0 and isinstance(tol, float)
+    sigma = get_realisation("mesh").check_option("mismatch_sigma", 0)  # an int in range (tol: [1e-16, 1e-2], 9b1db6b)
+    assert sigma == 0.0 and isinstance(sigma, float)
     d = parse_design({"realisations": {"asic": {"bits": 4}, "mesh": {"pixel_weight": "free"}}})
     assert d.realisation_options("asic") == {"bits": 4}
 
