@@ -28,9 +28,13 @@ DEFAULTS = {name: f.default for name, f in MeshOptions.model_fields.items() if n
 
 def _range(name: str) -> tuple[float, float]:
     lo, hi = -math.inf, math.inf
-    for m in MeshOptions.model_fields[name].metadata:
-        lo = max(lo, float(getattr(m, "ge", None) or getattr(m, "gt", None) or -math.inf))
-        hi = min(hi, float(getattr(m, "le", None) or getattr(m, "lt", None) or math.inf))
+    for m in MeshOptions.model_fields[name].metadata:  # a bound of 0 is a bound
+        for attr in ("ge", "gt"):
+            if getattr(m, attr, None) is not None:
+                lo = max(lo, float(getattr(m, attr)))
+        for attr in ("le", "lt"):
+            if getattr(m, attr, None) is not None:
+                hi = min(hi, float(getattr(m, attr)))
     return lo, hi
 
 
@@ -66,6 +70,7 @@ def test_the_options_model_and_the_fit_accept_the_same_range(name):
 
 def test_the_numeric_options_are_probed():
     assert {"tol", "max_iter", "n_init", "mismatch_sigma", "node_capacitance_f"} <= set(_numeric())
+    assert _range("mismatch_sigma") == (0.0, 0.5) and _range("tol") == (1e-16, 1e-2)
 
 
 def test_a_tolerance_the_fit_refuses_is_refused_when_the_design_is_loaded():

@@ -150,9 +150,13 @@ def _key_range(key: str) -> tuple[float, float]:
         return _MESH_CONDUCTANCE_RANGE
     field = CostAssumptions.model_fields[key.split(".", 1)[1]]
     lo, hi = -math.inf, math.inf
-    for m in field.metadata:
-        lo = max(lo, float(getattr(m, "ge", getattr(m, "gt", -math.inf)) or -math.inf))
-        hi = min(hi, float(getattr(m, "le", getattr(m, "lt", math.inf)) or math.inf))
+    for m in field.metadata:  # annotated_types Ge / Gt / Le / Lt (a bound of 0 is a bound)
+        for name in ("ge", "gt"):
+            if getattr(m, name, None) is not None:
+                lo = max(lo, float(getattr(m, name)))
+        for name in ("le", "lt"):
+            if getattr(m, name, None) is not None:
+                hi = min(hi, float(getattr(m, name)))
     return lo, hi
 
 
