@@ -256,6 +256,8 @@ def test_a_realisation_identical_on_every_clip_gets_the_rule_of_three_not_a_zero
     b = 1 - 0.05 ** (1 / 80)
     assert ci["degenerate"] is True and ci["high"] == pytest.approx(b) and ci["low"] == pytest.approx(-b)
     assert ci["text"] == f"no clip changed (n = 80): |loss| ≤ {b:.3f} (rule of three)"
+    own = points[0]["paired_loss"]["simulator"]["recognition"]  # the reference against itself: 0, not widened
+    assert own["high"] == own["low"] == 0.0 and "degenerate" not in own
     assert points[0]["measurability"]["simulator"]["recognition"]["measurable"] is True  # one kernel alike is no reason
     # every kernel alike: the task cannot rank kernels
     world[2]["result"]["tasks"]["recognition"] = world[0]["result"]["tasks"]["recognition"]

@@ -298,8 +298,9 @@ def costed(score: Score, a: CostAssumptions) -> PhysicalCost:
 def broken_limits(score: Score, a: CostAssumptions, figures: Mapping[str, float]) -> list[dict[str, Any]]:
     """The hard limits ``figures`` break (:data:`HARD_LIMITS`), each ``{figure, value, limit, key, words}``.
 
-    ``figures`` are a :class:`~fsdvs_hw.costs.record.PhysicalCost`'s values; the area limit holds
-    for a filter inside the pixel (its ``fill_factor`` < 1 is computed against the pitch).
+    ``figures`` are a :class:`~fsdvs_hw.costs.record.PhysicalCost`'s values; the area limit (the
+    kernel's pitch squared, m²) holds for the kinds whose filter sits inside the pixel
+    (:data:`IN_PIXEL_KINDS`).
     """
     out = []
     pitch = float(score.kernel.pitch_m)

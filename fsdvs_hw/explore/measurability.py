@@ -264,8 +264,9 @@ def measured_losses(
     if tasks and not any(v > 0 for v in w.values()):
         w = {}  # nothing measurable: paired_losses weighs all; the verdict ranks by kernel error
     out = with_paired_losses(points, task_weights=w or None, n_resamples=n_resamples, confidence=confidence, rng=rng)
-    for q in out:
-        widen_degenerate({q["key"]: q["paired_loss"]}, confidence)
+    for q in out:  # the reference against itself is 0 by construction, not a degenerate measurement
+        if q["paired_loss"].get("reference") != q["key"]:
+            widen_degenerate({q["key"]: q["paired_loss"]}, confidence)
     if target_half_width is not None and _widest({q["key"]: q["paired_loss"] for q in out}) > target_half_width:
         _clips_needed(points, meas, target_half_width, confidence)
     for q in out:
