@@ -1,0 +1,307 @@
+"""Training trajectories of every path through the training engine, pinned to the numbers they gave.
+
+Tiny deterministic runs (16 clips of 16x16, one thread) of :func:`~fsdvs_hw.tasks.learn.learn_kernel`
+(staged, joint with a frozen filter, co-designed ASIC), :func:`~fsdvs_hw.tasks.learn.finetune_network`
+(frozen kernel, co-designed ASIC), :func:`~fsdvs_hw.tasks.learn.evaluate_kernel` with fine-tuning and
+:func:`~fsdvs_hw.tasks.dataset_training.train_on_dataset` (learned, frozen and co-designed kernel):
+the learned taps, the per-epoch losses and kernel moves and a checksum of the trained weights
+must stay what they were (relative 1e-6), so a change of the random draws, their order, the
+optimiser steps or the stages shows here.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from test_dataset_training import PolarityClips  # noqa: E402
+
+from fsdvs_hw.kernels import reference_kernel  # noqa: E402
+from fsdvs_hw.realise.registry import fit_realisation  # noqa: E402
+from fsdvs_hw.scenes.synthetic import SceneConfig  # noqa: E402
+from fsdvs_hw.tasks.dataset_training import disjoint_train_indices, train_on_dataset  # noqa: E402
+from fsdvs_hw.tasks.learn import (  # noqa: E402
+    TrainingSettings,
+    evaluate_kernel,
+    finetune_network,
+    learn_kernel,
+    load_checkpoint,
+)
+
+REL = 1e-6
+REC = SceneConfig(height_px=16, width_px=16, radius_px=(3.0, 4.0), n_frames=4, motion="classes", edge_contrast=0.3)
+SEG = SceneConfig(height_px=16, width_px=16, radius_px=(3.0, 4.0), n_frames=4, n_objects=(1, 1))
+SETTINGS = TrainingSettings(epochs_frozen=1, epochs_joint=2, batch_size=8, width=4, lr_filter=2e-2)
+TOY = "toy_network:make"
+
+#: Recorded with the code before the training engine existed (one thread, CPU).
+PINNED: dict[str, dict] = {
+    "learn_staged": {
+        "taps": [
+            0.0075666706298788,
+            0.007658558335725754,
+            -0.056563650816351556,
+            -0.0023158848427815007,
+            1.001878965290557,
+            -0.07120776291655895,
+            -0.001640490783869096,
+            -0.0695702600780615,
+            -0.07660594673154707,
+        ],
+        "loss": [1.7232109904289246, 1.5951439142227173, 1.5884503722190857],
+        "l1": [None, 0.23409909069429574, 0.2984336667326395],
+        "stage": ["frozen_filter", "joint", "joint"],
+        "weights": 165.26157836399216,
+        "metrics": {"top1": 0.375},
+    },
+    "learn_joint_frozen_filter": {
+        "taps": [
+            0.006613521715704522,
+            0.002669240982925188,
+            0.0006167725823734831,
+            0.0062131732868542155,
+            1.0,
+            -0.0016613023453557194,
+            -0.015227684840130555,
+            0.0038168390241818894,
+            -0.010276085758313883,
+        ],
+        "loss": [1.36990624666214, 1.2137064337730408],
+        "l1": [None, None],
+        "stage": ["joint_frozen_filter", "joint_frozen_filter"],
+        "weights": 166.8590668018005,
+        "metrics": {"miou": 0.2000042200088501, "macc": 0.4141903519630432, "pixel_accuracy": 0.65185546875},
+    },
+    "learn_codesign": {
+        "taps": [
+            -0.040514384348073744,
+            0.031511187826279576,
+            -0.040514384348073744,
+            0.031511187826279576,
+            0.24983870347978807,
+            0.031511187826279576,
+            -0.040514384348073744,
+            0.031511187826279576,
+            -0.040514384348073744,
+        ],
+        "loss": [1.990310251712799, 1.9065079092979431, 1.8253615498542786],
+        "l1": [None, None, None],
+        "stage": ["frozen_filter", "joint", "joint"],
+        "weights": 165.33986690221354,
+        "metrics": {"top1": 0.25},
+    },
+    "finetune_frozen": {
+        "taps": [
+            -0.037623637397229986,
+            0.029366668590936562,
+            -0.037623637397229986,
+            0.029366668590936562,
+            0.23302787522517357,
+            0.029366668590936562,
+            -0.037623637397229986,
+            0.029366668590936562,
+            -0.037623637397229986,
+        ],
+        "loss": [1.5839364528656006, 1.5213940143585205],
+        "l1": [None, None],
+        "stage": ["finetune", "finetune"],
+        "weights": 165.30518986885727,
+    },
+    "finetune_codesign": {
+        "taps": [
+            -0.03653623301860907,
+            0.02841707012558483,
+            -0.03653623301860907,
+            0.02841707012558483,
+            0.22530677028142257,
+            0.02841707012558483,
+            -0.03653623301860907,
+            0.02841707012558483,
+            -0.03653623301860907,
+        ],
+        "loss": [1.5839364528656006, 1.5197153488794963],
+        "l1": [None, None],
+        "stage": ["codesign", "codesign"],
+        "weights": 165.30887186166365,
+    },
+    "evaluate_finetuned": {"metrics": {"top1": 0.375}, "event_rate": 0.033040364583333336},
+    "dataset_learned": {
+        "taps": [
+            0.26424207003284095,
+            0.25788270363882293,
+            0.2571220742925875,
+            0.250156175591413,
+            1.257288247890791,
+            0.24270999917338468,
+            0.2597064359030199,
+            0.2667461962306524,
+            0.24214595183205656,
+        ],
+        "loss": [0.6757224053144455, 0.5678543150424957, 0.3839489469925563],
+        "l1": [0.0, 1.2610846221235652, 2.3080144345093117],
+        "stage": ["frozen_filter", "joint", "joint"],
+        "weights": 36.72966841404559,
+    },
+    "dataset_frozen": {
+        "taps": [
+            0.006613521715704522,
+            0.002669240982925188,
+            0.0006167725823734831,
+            0.0062131732868542155,
+            1.0,
+            -0.0016613023453557194,
+            -0.015227684840130555,
+            0.0038168390241818894,
+            -0.010276085758313883,
+        ],
+        "loss": [0.6755696088075638, 0.6055364559094111],
+        "l1": [0.0, 0.0],
+        "stage": ["frozen_filter", "joint_frozen_filter"],
+        "weights": 34.05135610769503,
+    },
+    "dataset_codesign": {
+        "taps": [
+            -0.053297405964342084,
+            0.04145353797226607,
+            -0.053297405964342084,
+            0.04145353797226607,
+            0.32866733678010956,
+            0.04145353797226607,
+            -0.053297405964342084,
+            0.04145353797226607,
+            -0.053297405964342084,
+        ],
+        "loss": [0.7036242783069611, 0.6766934394836426],
+        "l1": [0.0, 0.2061456942927274],
+        "stage": ["frozen_filter", "joint"],
+        "weights": 795.5689267428825,
+    },
+}
+
+
+def _weights(state: dict) -> float:
+    """Sum of the absolute values of every weight (a checksum of a trained network)."""
+    return float(sum(v.detach().double().abs().sum() for v in state.values()))
+
+
+def _trajectory(result, state: dict | None = None) -> dict:
+    out = {
+        "taps": np.asarray(result.kernel.taps).ravel().tolist(),
+        "loss": [h["loss"] for h in result.history],
+        "l1": [h.get("kernel_change_l1") for h in result.history],
+        "stage": [h["stage"] for h in result.history],
+    }
+    if state is not None:
+        out["weights"] = _weights(state)
+    if getattr(result, "metrics", None):
+        out["metrics"] = dict(result.metrics)
+    return out
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    torch.set_num_threads(1)
+    out = tmp_path_factory.mktemp("engine")
+    got = {}
+    rec = learn_kernel("recognition", 3, seed=2, n_train=16, n_test=8, settings=SETTINGS, scene=REC, out=out / "rec")
+    got["learn_staged"] = _trajectory(rec, load_checkpoint(out / "rec.safetensors")[1])
+    seg = learn_kernel(
+        "segmentation",
+        3,
+        seed=1,
+        n_train=16,
+        n_test=8,
+        settings=SETTINGS,
+        scene=SEG,
+        learn_filter=False,
+        out=out / "seg",
+    )
+    got["learn_joint_frozen_filter"] = _trajectory(seg, load_checkpoint(out / "seg.safetensors")[1])
+    asic = learn_kernel(
+        "recognition",
+        3,
+        seed=0,
+        n_train=16,
+        n_test=8,
+        settings=SETTINGS,
+        scene=REC,
+        init_kernel=reference_kernel("dog", 3),
+        realisation="asic",
+        out=out / "asic",
+    )
+    got["learn_codesign"] = _trajectory(asic, load_checkpoint(out / "asic.safetensors")[1])
+    ckpt = out / "rec.safetensors"
+    dog = reference_kernel("dog", 3)
+    frozen = finetune_network(ckpt, "recognition", kernel=dog, epochs=2, n_train=12, out=out / "ft")
+    got["finetune_frozen"] = _trajectory(frozen, load_checkpoint(out / "ft.safetensors")[1])
+    fit = fit_realisation("asic", dog)
+    codesign = finetune_network(ckpt, "recognition", realisation=fit, epochs=2, n_train=12, out=out / "cd")
+    got["finetune_codesign"] = _trajectory(codesign, load_checkpoint(out / "cd.safetensors")[1])
+    ev = evaluate_kernel(dog, "recognition", ckpt, n_test=8, finetune_epochs=2)
+    got["evaluate_finetuned"] = {"metrics": dict(ev.metrics), "event_rate": ev.event_rate}
+    return got
+
+
+@pytest.fixture(scope="module")
+def dataset_runs():
+    torch.set_num_threads(1)
+    mp = pytest.MonkeyPatch()
+    mp.syspath_prepend(str(Path(__file__).parent / "plugins"))
+    ds = PolarityClips(16)
+    train = disjoint_train_indices(len(ds), ds.draw(4, seed=0), 0, seed=0)
+    common = {"train_indices": train, "epochs_frozen": 1}
+    got = {}
+    try:
+        res = train_on_dataset(
+            ds, "recognition", TOY, kernel_size=3, epochs_joint=2, batch_size=5, seed=3, lr_kernel=5e-2, **common
+        )
+        got["dataset_learned"] = _trajectory(res, res.network.state_dict())
+        res = train_on_dataset(
+            ds, "recognition", TOY, kernel_size=3, epochs_joint=1, batch_size=5, seed=1, learn_filter=False, **common
+        )
+        got["dataset_frozen"] = _trajectory(res, res.network.state_dict())
+        fit = fit_realisation("asic", reference_kernel("dog", 3))
+        res = train_on_dataset(
+            ds, "recognition", None, epochs_joint=1, batch_size=6, seed=0, realisation=fit, lr_kernel=0.2, **common
+        )
+        got["dataset_codesign"] = _trajectory(res, res.network.state_dict())
+    finally:
+        mp.undo()
+    return got
+
+
+def _check(got: dict, want: dict) -> None:
+    assert set(got) == set(want)
+    for key, value in want.items():
+        if key == "stage":
+            assert got[key] == value
+        elif key == "l1":
+            assert got[key] == [None if v is None else pytest.approx(v, rel=REL, abs=1e-12) for v in value]
+        elif isinstance(value, dict):
+            assert got[key] == {k: pytest.approx(v, rel=REL, abs=1e-12) for k, v in value.items()}
+        else:
+            assert got[key] == pytest.approx(value, rel=REL, abs=1e-12), key
+
+
+@pytest.mark.parametrize(
+    "path",
+    [
+        "learn_staged",
+        "learn_joint_frozen_filter",
+        "learn_codesign",
+        "finetune_frozen",
+        "finetune_codesign",
+        "evaluate_finetuned",
+    ],
+)
+def test_synthetic_training_follows_its_pinned_trajectory(runs, path):
+    _check(runs[path], PINNED[path])
+
+
+@pytest.mark.parametrize("path", ["dataset_learned", "dataset_frozen", "dataset_codesign"])
+def test_user_data_training_follows_its_pinned_trajectory(dataset_runs, path):
+    _check(dataset_runs[path], PINNED[path])
