@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import hashlib
 import io
 import os
 import re
@@ -26,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import InputError
+from .fingerprints import text_fingerprint
 
 __all__ = [
     "MAX_NAME_LENGTH",
@@ -62,7 +62,7 @@ def safe_name(name: str, *, fallback: str = "design") -> str:
     text = str(name)
     slug = _UNSAFE.sub("_", text).strip("._-")[:MAX_NAME_LENGTH] or fallback
     if slug != text:
-        slug = f"{slug}-{hashlib.sha1(text.encode('utf-8', 'surrogatepass')).hexdigest()[:8]}"
+        slug = f"{slug}-{text_fingerprint(text, length=8)}"
     return slug
 
 

@@ -40,6 +40,7 @@ _CORE = {
     "provenance",
     "mutual_information",
     "environment",
+    "fingerprints",
 }
 _MODELS = {"sensor", "scenes", "realise", "records", "costs"}
 

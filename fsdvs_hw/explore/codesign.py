@@ -43,7 +43,6 @@ under ``OUT/codesign/networks/``. :func:`write_codesign` writes ``OUT/codesign.j
 from __future__ import annotations
 
 import csv
-import hashlib
 import io
 import json
 import os
@@ -58,6 +57,7 @@ import numpy as np
 
 from ..environment import env
 from ..errors import InputError
+from ..fingerprints import fingerprint
 from ..paths import write_output
 from ..stats import multiplicities
 from .design import CODESIGN_MODES, Design
@@ -91,7 +91,7 @@ def codesign_cells(design: Design) -> list[tuple[str, str]]:
 
 
 def _key(blob: Mapping[str, Any]) -> str:
-    return hashlib.sha1(json.dumps(blob, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    return fingerprint(blob, length=16)
 
 
 def _save_atomic(path: Path, record: Mapping[str, Any]) -> None:

@@ -63,7 +63,6 @@ import copy
 import difflib
 import fnmatch
 import glob
-import hashlib
 import json
 import math
 import os
@@ -80,6 +79,7 @@ from pydantic import Field, ValidationError, create_model
 from ..costs.assumptions import CostAssumptions
 from ..csf import CSF_METHODS
 from ..errors import InputError, KernelError
+from ..fingerprints import fingerprint
 from ..kernels import (
     DEFAULT_PITCH_M,
     MAX_KERNEL_SIZE,
@@ -574,8 +574,7 @@ class Design:
 
     def fingerprint(self) -> str:
         """SHA-1 over the validated content and the target taps (changes when any input changes)."""
-        blob = json.dumps({"data": self.data, "target": self.target.to_dict()}, sort_keys=True, default=str)
-        return hashlib.sha1(blob.encode()).hexdigest()
+        return fingerprint({"data": self.data, "target": self.target.to_dict()})
 
     def to_dict(self) -> dict[str, Any]:
         return copy.deepcopy(self.data)

@@ -34,7 +34,6 @@ In a design file::
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -42,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..fingerprints import text_fingerprint
 from .paired import EVENT_RATE_UNIT, decode_evidence
 from .rate import MatchedRateDifference, RateCurve, RatePoint, dataset_rate_curve, matched_rate_difference, rate_curve
 from .scoring import _DESIGN_SENSOR_FIELDS
@@ -177,7 +177,7 @@ def reference_curves(
             groups.setdefault(_context(p), []).append(p)
     out: dict[str, dict[str, dict[str, RateCurve | str]]] = {}
     for ctx, group in groups.items():
-        tag = hashlib.sha1(ctx.encode()).hexdigest()[:10]
+        tag = text_fingerprint(ctx, length=10)
         out[ctx] = {}
         tasks = dict.fromkeys(t for p in group for t in ((p.get("result") or {}).get("tasks") or {}) if _track(p, t))
         for task in tasks:

@@ -19,7 +19,6 @@ The ``fsdvs-hw sweep`` command is :mod:`fsdvs_hw.cli.sweep`.
 
 from __future__ import annotations
 
-import hashlib
 import itertools
 import json
 import math
@@ -36,6 +35,7 @@ from typing import Any, Protocol, TypeVar, cast
 
 from ..environment import env, set_env
 from ..errors import InputError
+from ..fingerprints import fingerprint
 from ..limits import MAX_WORKERS, check_count
 from ..provenance import library_versions
 from ..records import Score
@@ -120,8 +120,7 @@ def _point_key(realisation: str, design: Design) -> str:
     relevant["options"] = design.realisation_options(realisation)
     relevant["target"] = design.target.to_dict()["taps"]
     relevant["pitch_m"] = design.target.pitch_m
-    blob = json.dumps(relevant, sort_keys=True, default=str)
-    return hashlib.sha1(blob.encode()).hexdigest()[:20]
+    return fingerprint(relevant, length=20)
 
 
 def _scored_axes(design: Design) -> dict[str, list[Any]]:

@@ -46,7 +46,6 @@ from __future__ import annotations
 import csv
 import dataclasses
 import datetime as _dt
-import hashlib
 import io
 import json
 import math
@@ -60,6 +59,7 @@ import numpy as np
 from ..errors import InputError
 from ..explore.paired import EVENT_RATE_UNIT, bootstrap_weights
 from ..explore.rate import interpolate_log_rate
+from ..fingerprints import fingerprint
 from ..kernels import Kernel
 from ..mutual_information import DEFAULT_BINS, MI_UNIT, histogram_mi, joint_histogram, quantile_edges
 from ..paths import output_dir, write_output
@@ -483,7 +483,7 @@ def _slug(name: str) -> str:
 
 
 def _fingerprint(**parts: Any) -> str:
-    return hashlib.sha1(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    return fingerprint(parts, length=16)
 
 
 def _sensor_for(design: Any, scene: Any, threshold: float | None = None) -> Any:

@@ -26,7 +26,6 @@ agreement with the Mannos-Sakrison CSF.
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import math
@@ -39,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from ..fingerprints import fingerprint
 from ..errors import InputError
 from ..kernels import Kernel
 from ..paths import write_output
@@ -212,7 +212,7 @@ def transfer_jobs(
 def job_key(job: dict[str, Any]) -> str:
     """SHA-1 (20 hex chars) of everything that decides a run's result (not where it writes)."""
     decisive = {k: v for k, v in job.items() if k not in ("out", "pred_dir", "kernel_name")}
-    return hashlib.sha1(json.dumps(decisive, sort_keys=True).encode()).hexdigest()[:20]
+    return fingerprint(decisive, length=20)
 
 
 def _save_predictions(path: Path, predictions: dict[str, np.ndarray]) -> None:
