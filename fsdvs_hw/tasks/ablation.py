@@ -27,7 +27,6 @@ agreement with the Mannos-Sakrison CSF.
 from __future__ import annotations
 
 import io
-import json
 import math
 import sys
 import tempfile
