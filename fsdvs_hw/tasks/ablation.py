@@ -37,8 +37,8 @@ from typing import Any
 
 import numpy as np
 
-from ..fingerprints import fingerprint
 from ..errors import InputError
+from ..fingerprints import fingerprint
 from ..kernels import Kernel
 from ..paths import write_output
 
