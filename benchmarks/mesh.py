@@ -106,12 +106,12 @@ def _fit_table(sec: BenchSection, quick: bool) -> None:
 
 def _model_table(sec: BenchSection, quick: bool) -> None:
     from fsdvs_hw.realise.mesh.response import (
-        _unfold_quarter,
         casadi_mesh_model,
         finite_grid_response,
         grid_half_width_for,
         lattice_green_quarter,
         quadrature_nodes,
+        unfold_quarter,
     )
 
     radius = 3
@@ -131,9 +131,9 @@ def _model_table(sec: BenchSection, quick: bool) -> None:
         s = 1.0 / math.sqrt(1.0 + 2.8 * max(lam, 1.0))
         t = np.tan(th / 2)
         ref_nodes = (2 * np.arctan(s * t), s * (1 + t * t) / (1 + s * s * t * t) / n4)
-        ref = _unfold_quarter(lattice_green_quarter(lam, radius, nodes=ref_nodes))
+        ref = unfold_quarter(lattice_green_quarter(lam, radius, nodes=ref_nodes))
         scale = np.abs(ref).max()
-        rt = timed(lambda: _unfold_quarter(lattice_green_quarter(lam, radius)), repeats)
+        rt = timed(lambda: unfold_quarter(lattice_green_quarter(lam, radius)), repeats)
         table.row(
             f"{lam:g}", f"lattice Green's function ({k.size} nodes)", "∞", np.abs(rt.result - ref).max() / scale, rt
         )

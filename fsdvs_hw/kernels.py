@@ -130,7 +130,8 @@ def check_tap_magnitude(taps: Any, *, source: str = "kernel") -> None:
         )
 
 
-def _validate_pitch(pitch_m: Any, *, source: str = "pitch_m") -> float:
+def validate_pitch(pitch_m: Any, *, source: str = "pitch_m") -> float:
+    """``pitch_m`` as a float in metres within the allowed pitch range (KernelError naming ``source``)."""
     try:
         p = float(pitch_m)
     except (TypeError, ValueError):
@@ -186,7 +187,7 @@ class Kernel:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "taps", _validate_taps(self.taps))
-        object.__setattr__(self, "pitch_m", _validate_pitch(self.pitch_m))
+        object.__setattr__(self, "pitch_m", validate_pitch(self.pitch_m))
         if not isinstance(self.name, str):
             raise KernelError(f"name: kernel name must be a string, got {type(self.name).__name__}")
         try:
@@ -303,7 +304,7 @@ class Kernel:
         if fmt != _FORMAT_TAG:
             raise KernelError(f"{source}: field 'format' is not {_FORMAT_TAG!r}: not an fsdvs_hw kernel file")
         taps = _validate_taps(data["taps"], source=f"{source}: field 'taps'")
-        pitch = _validate_pitch(data.get("pitch_m", DEFAULT_PITCH_M), source=f"{source}: field 'pitch_m'")
+        pitch = validate_pitch(data.get("pitch_m", DEFAULT_PITCH_M), source=f"{source}: field 'pitch_m'")
         prov = data.get("provenance", {})
         if not isinstance(prov, Mapping):
             raise KernelError(f"{source}: field 'provenance' must be an object")
@@ -498,7 +499,7 @@ def load_kernel(path: str | Path, *, pitch_m: float | None = None) -> Kernel:
         taps = taps[0]
     taps = _validate_taps(taps, source=src)
     pitch = pitch_m if pitch_m is not None else meta.get("pitch_m", DEFAULT_PITCH_M)
-    pitch = _validate_pitch(pitch, source=f"{src}: pitch_m")
+    pitch = validate_pitch(pitch, source=f"{src}: pitch_m")
     prov = meta.get("provenance", {}) or {"loaded_from": path.name}
     if not isinstance(prov, Mapping):
         raise KernelError(f"{src}: provenance must be a JSON object, got {type(prov).__name__}")

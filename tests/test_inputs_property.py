@@ -224,7 +224,7 @@ def test_every_bad_fit_argument_is_an_input_error_naming_it_before_any_work(case
         (mesh, "_mesh_solver"),
         (mesh, "_numpy_orbit_response"),
         (asic, "_TapProblem"),
-        (metalens, "_RadialKernelModel"),
+        (metalens, "RadialKernelModel"),
         (metalens, "_spectral"),
     ):
         monkeypatch.setattr(module, attr, work_started, raising=False)

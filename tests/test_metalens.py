@@ -17,7 +17,7 @@ from fsdvs_hw.realise import Realisation, kernel_error, realisation_from_dict, r
 from fsdvs_hw.realise.metalens.fit import (
     LensGeometry,
     MetalensDesign,
-    _RadialKernelModel,
+    RadialKernelModel,
     fit_metalens,
     local_numerical_aperture,
     pixel_psf,
@@ -128,7 +128,7 @@ def test_dispersion_models_move_the_focus_as_stated():
 
 def test_gradients_reach_every_phase_coefficient_and_the_defocus():
     spectral = spectral_samples("D65", n=2)
-    model = _RadialKernelModel(GEOM, pitch_m=4.86e-6, n_pixels=3, spectral=spectral, n_sub=4)
+    model = RadialKernelModel(GEOM, pitch_m=4.86e-6, n_pixels=3, spectral=spectral, n_sub=4)
     coeffs = torch.tensor([1.0, -2.0, 0.5, 0.3], dtype=torch.float64, requires_grad=True)
     z = torch.tensor(230e-6, dtype=torch.float64, requires_grad=True)
     target = torch.from_numpy(np.array(reference_kernel("dog", 3).taps))
@@ -354,7 +354,7 @@ def test_fit_and_score_use_the_bandwidth_rule_not_twelve_nodes():
     budget = d.fit_info["na_budget"]
     assert d.fit_info["n_sub"] == max(6, pixel_nodes_for_bandwidth(k.pitch_m, 2 * budget / 555e-9, tol=1e-3)) != 12
     spectral = spectral_samples(555e-9, n=1)
-    ref = _RadialKernelModel(GEOM, pitch_m=k.pitch_m, n_pixels=3, spectral=spectral, window_pad=3.0, na_budget=budget)
+    ref = RadialKernelModel(GEOM, pitch_m=k.pitch_m, n_pixels=3, spectral=spectral, window_pad=3.0, na_budget=budget)
     assert ref.n_sub == d.fit_info["n_sub"]  # the same quadrature in the fit and in the returned PSFs
 
 

@@ -24,9 +24,9 @@ from .registry import (
 
 # the built-in hardware forms register themselves on import (order = report order)
 from . import mesh, asic, metalens  # noqa: E402, F401  isort: skip
-from .registry import _import_plugins  # noqa: E402  isort: skip
+from .registry import import_plugins  # noqa: E402  isort: skip
 
-_import_plugins()  # realisations registered from outside the package in a parent process
+import_plugins()  # realisations registered from outside the package in a parent process
 
 __all__ = [
     "REALISATIONS",

@@ -392,7 +392,7 @@ def _plugin_modules() -> list[str]:
     return [m for m in (env(PLUGIN_ENV) or "").split(os.pathsep) if m]
 
 
-def _import_plugins() -> None:
+def import_plugins() -> None:
     """Load the installed plugins (:data:`ENTRY_POINT_GROUP`) and the modules named in :data:`PLUGIN_ENV`
     (spawned workers inherit the variable). A plugin that fails to load is reported as a warning
     naming it and the error; the built-in realisations stay usable."""

@@ -37,7 +37,7 @@ from ...paths import csv_text, write_output
 from ..artifacts import Artifact
 from .arith import integer_correlate, output_bits
 from .fit import AsicDesign
-from .rtl import _tool, testbench_ports
+from .rtl import find_tool, testbench_ports
 
 __all__ = [
     "IVERILOG_COMMAND",
@@ -209,7 +209,7 @@ def check_asic_artifacts(folder: str | Path, *, timeout_s: float = 300.0) -> dic
         The testbench failed or verilator reported anything.
     """
     folder = Path(folder)
-    iverilog, vvp, verilator = _tool("iverilog"), _tool("vvp"), _tool("verilator")
+    iverilog, vvp, verilator = find_tool("iverilog"), find_tool("vvp"), find_tool("verilator")
     t0 = time.perf_counter()
     comp = subprocess.run(
         [iverilog, "-g2005", "-o", "tb.vvp", "tb_fsdvs_conv.v", "fsdvs_conv.v"],

@@ -73,7 +73,8 @@ class RtlError(FsdvsError, RuntimeError):
     """An external RTL tool failed, or its output could not be read; the message has its log."""
 
 
-def _tool(name: str) -> str:
+def find_tool(name: str) -> str:
+    """Path of the external tool ``name`` on PATH, or ToolMissingError saying how to install it."""
     path = shutil.which(name)
     if path is None:
         raise ToolMissingError(
@@ -442,7 +443,7 @@ def simulate_rtl(
     # validates shapes and pixel range, and is the expected output size
     expected_shape = integer_correlate(x, q, input_bits=input_bits, out_shift=out_shift).shape
     n, H, W = x.shape
-    iverilog, vvp = _tool("iverilog"), _tool("vvp")
+    iverilog, vvp = find_tool("iverilog"), find_tool("vvp")
     ob = output_bits(q, input_bits, out_shift)
     with tempfile.TemporaryDirectory(prefix="fsdvs_rtl_") as tmp:
         d = Path(workdir) if workdir is not None else Path(tmp)
@@ -551,7 +552,7 @@ def synthesise_verilog(
         raise InputError(
             f"top: {str(top)[:80]!r} is not a Verilog identifier ([A-Za-z_][A-Za-z0-9_]*, ≤ 128 characters)"
         )
-    yosys = _tool("yosys")
+    yosys = find_tool("yosys")
     lib = Path(liberty) if liberty is not None else LIBERTY_PATH
     if not lib.is_file():
         raise InputError(f"liberty: file {lib} not found")

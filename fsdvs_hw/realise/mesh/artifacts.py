@@ -36,7 +36,7 @@ from ...paths import csv_text, write_output
 from ..artifacts import Artifact
 from .fit import MeshDesign
 from .response import mesh_kcl_matrix
-from .spice import _parse_ascii_raw, _resolve_half_width, to_spice_netlist
+from .spice import parse_ascii_raw, resolve_half_width, to_spice_netlist
 
 __all__ = ["NGSPICE_COMMAND", "OP_RTOL", "check_mesh_artifacts", "mesh_operating_point", "write_mesh_artifacts"]
 
@@ -76,7 +76,7 @@ def mesh_operating_point(
     """
     import scipy.sparse.linalg as spla
 
-    h = _resolve_half_width(design, half_width)
+    h = resolve_half_width(design, half_width)
     n = 2 * h + 1
     rhs = np.zeros(n * n)
     rhs[h * n + h] = i_in_a
@@ -210,7 +210,7 @@ def check_mesh_artifacts(folder: str | Path, *, timeout_s: float = 300.0) -> dic
     raw = folder / "mesh.raw"
     if proc.returncode != 0 or not raw.is_file():
         raise InputError(f"ngspice failed (exit code {proc.returncode}):\n{(proc.stdout + proc.stderr)[-2000:]}")
-    v = _parse_ascii_raw(raw.read_text())
+    v = parse_ascii_raw(raw.read_text())
     n = expected["v_narrow_V"].shape[0]
     got_n = np.array([[v[f"v(n{y}_{x})"][0] for x in range(n)] for y in range(n)])
     got_w = np.array([[v[f"v(w{y}_{x})"][0] for x in range(n)] for y in range(n)])

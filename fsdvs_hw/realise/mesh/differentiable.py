@@ -31,7 +31,7 @@ import torch
 
 from ...errors import InputError
 from .fit import MeshBounds, MeshDesign
-from .response import _green_terms, quadrature_nodes
+from .response import green_terms, quadrature_nodes
 
 __all__ = ["MeshKernel"]
 
@@ -131,7 +131,7 @@ class MeshKernel(torch.nn.Module):
         return a, (self.pixel_weight + a) * torch.sigmoid(self.u_dc)
 
     def _green(self, lam: torch.Tensor) -> torch.Tensor:
-        rho, inv_sq = _green_terms(lam * lam, self.c, xp=torch)
+        rho, inv_sq = green_terms(lam * lam, self.c, xp=torch)
         quarter = (self.cos_w * inv_sq) @ (rho[:, None] ** self.m[None, :])  # (m, n)
         full = torch.cat([quarter.flip(0)[:-1], quarter], dim=0)
         return torch.cat([full.flip(1)[:, :-1], full], dim=1)

@@ -221,7 +221,7 @@ def moving_edge_response(
     n_samples : int
         Output samples over the run (edge crossing the whole chain).
     """
-    from .response import _dct_basis
+    from .response import dct_basis
 
     design = _check_design(design)
     v = _check_speed(edge_speed_px_per_s)
@@ -233,7 +233,7 @@ def moving_edge_response(
         raise InputError(f"n_pixels: must be an integer in 3..4096, got {n_pixels!r}")
     if not (isinstance(n_samples, (int, np.integer)) and 2 <= n_samples <= 100000):
         raise InputError(f"n_samples: must be an integer in 2..100000, got {n_samples!r}")
-    phi, s = _dct_basis(int(n_pixels))
+    phi, s = dct_basis(int(n_pixels))
     x = np.arange(n_pixels, dtype=np.float64)
     t_end = (n_pixels + 1.0) / v
     meshes = []
@@ -306,18 +306,18 @@ def mesh_step_response(
     ndarray, shape (T, 2h+1, 2h+1)
         Node voltage per ampere of step (V/A = Ω).
     """
-    from .response import _check_radius, _dct_basis, space_constant_px
+    from .response import check_radius, dct_basis, space_constant_px
 
     space_constant_px(g_lateral_s, g_vertical_s)  # validates both conductances
     c = float(node_capacitance_f)
     if not (math.isfinite(c) and c > 0):
         raise InputError(f"node_capacitance_f: must be a positive capacitance in farads, got {node_capacitance_f!r}")
-    h = _check_radius(half_width, "half_width")
+    h = check_radius(half_width, "half_width")
     t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
     if np.any(~np.isfinite(t)) or np.any(t < 0):
         raise InputError("t_s: times must be finite and ≥ 0 seconds")
     n = 2 * h + 1
-    phi, s = _dct_basis(n)
+    phi, s = dct_basis(n)
     g = g_vertical_s + g_lateral_s * (s[:, None] + s[None, :])
     c0 = np.outer(phi[h], phi[h])
     out = np.empty((t.size, n, n))

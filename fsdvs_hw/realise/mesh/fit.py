@@ -55,19 +55,19 @@ from typing import Any
 import numpy as np
 
 from ...errors import InputError
-from ...kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, _validate_pitch, as_kernel
+from ...kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, as_kernel, validate_pitch
 from ...validation import check_fit_arguments
 from ..base import CostItem, kernel_error
 from .options import MeshOptions
 from .response import (
     LAMBDA_RANGE_PX,
-    _dct_basis,
-    _green_terms,
-    _unfold_quarter,
+    dct_basis,
     finite_grid_response,
+    green_terms,
     lattice_green_quarter,
     quadrature_nodes,
     space_constant_px,
+    unfold_quarter,
 )
 
 __all__ = [
@@ -233,7 +233,7 @@ class MeshDesign:
         self.lambda_wide_px  # noqa: B018
         for name in ("g_lateral_narrow_s", "g_vertical_narrow_s", "g_lateral_wide_s", "g_vertical_wide_s"):
             object.__setattr__(self, name, float(getattr(self, name)))
-        object.__setattr__(self, "pitch_m", _validate_pitch(self.pitch_m, source="MeshDesign.pitch_m"))
+        object.__setattr__(self, "pitch_m", validate_pitch(self.pitch_m, source="MeshDesign.pitch_m"))
         for name in ("gain_narrow", "gain_wide", "pixel_weight", "node_capacitance_f"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float, np.floating)) and math.isfinite(v) and v >= 0):
@@ -310,7 +310,7 @@ class MeshDesign:
                 h = self._grid_half_width()
                 out.append(np.pad(finite_grid_response(lam, min(radius, h), h), max(0, radius - h)))
             else:
-                out.append(_unfold_quarter(np.asarray(lattice_green_quarter(lam, radius))))
+                out.append(unfold_quarter(np.asarray(lattice_green_quarter(lam, radius))))
         return out[0], out[1]
 
     def _grid_half_width(self) -> int:
@@ -584,7 +584,7 @@ def _responses_and_derivatives(
         hm = finite_grid_response(lam * math.exp(-eps / 2), radius, h)
         return finite_grid_response(lam, radius, h), (hp - hm) / (2 * eps)
     q, dq = lattice_green_quarter(lam, radius, derivative=True)
-    return _unfold_quarter(q), _unfold_quarter(dq * lam * lam)
+    return unfold_quarter(q), unfold_quarter(dq * lam * lam)
 
 
 # ---------------------------------------------------------------------- casadi models of H on orbits
@@ -597,14 +597,14 @@ def _casadi_orbit_response(u, radius: int, model: str, lam_max: float, half_widt
     if model == "lattice":
         k, w = quadrature_nodes(lam_max, radius)
         c = ca.DM(2.0 - 2.0 * np.cos(k))
-        rho, inv_sq = _green_terms(lam2, c, xp=ca)
+        rho, inv_sq = green_terms(lam2, c, xp=ca)
         cos_w = ca.DM(np.cos(np.outer(np.arange(radius + 1), k)) * w)  # (m, node)
         pows = ca.horzcat(*[rho**j for j in range(radius + 1)])  # (node, n)
         q = ca.mtimes(cos_w, pows * ca.repmat(inv_sq, 1, radius + 1))
     else:
         assert half_width is not None  # model "grid" carries its half-width
         n = 2 * half_width + 1
-        phi, s = _dct_basis(n)
+        phi, s = dct_basis(n)
         c0 = phi[half_width]
         m = ca.DM(np.outer(c0, c0)) / (1.0 + lam2 * ca.DM(s[:, None] + s[None, :]))
         p = ca.DM(phi[half_width : half_width + radius + 1])

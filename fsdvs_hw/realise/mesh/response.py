@@ -90,7 +90,8 @@ def _check_lambda(lambda_px: Any, name: str = "lambda_px") -> float:
     return lam
 
 
-def _check_radius(radius: Any, name: str = "radius") -> int:
+def check_radius(radius: Any, name: str = "radius") -> int:
+    """``radius`` (pixels) as an int in 0…512, or an InputError naming ``name``."""
     if not isinstance(radius, (int, np.integer)) or isinstance(radius, bool) or not 0 <= radius <= 512:
         raise InputError(f"{name}: must be an integer number of pixels in 0..512, got {radius!r}")
     return int(radius)
@@ -119,7 +120,7 @@ def quadrature_nodes(lambda_max_px: float, radius: int = 0) -> tuple[np.ndarray,
     centre. The weights include the :math:`1/\pi` prefactor and the Jacobian of the circle map.
     """
     lam = _check_lambda(lambda_max_px, "lambda_max_px")
-    radius = _check_radius(radius)
+    radius = check_radius(radius)
     n = 64 + 4 * radius + int(math.ceil(40.0 * math.sqrt(lam)))
     n = int(16 * math.ceil(n / 16))
     s = 1.0 / math.sqrt(1.0 + 2.8 * lam)
@@ -130,7 +131,7 @@ def quadrature_nodes(lambda_max_px: float, radius: int = 0) -> tuple[np.ndarray,
     return k, dk_dtheta / n
 
 
-def _green_terms(lam2, c, xp=np):
+def green_terms(lam2, c, xp=np):
     """Per-node pieces (rho, 1/sqrt(D)) of the integrand, stable for λ² from 1e-8 to 1e8."""
     a = 1.0 + lam2 * c
     sq = xp.sqrt(a * (a + 4.0 * lam2))
@@ -155,11 +156,11 @@ def lattice_green_quarter(
         Quadrature from :func:`quadrature_nodes` (reuse it when evaluating many λ).
     """
     lam = _check_lambda(lambda_px)
-    radius = _check_radius(radius)
+    radius = check_radius(radius)
     k, w = nodes if nodes is not None else quadrature_nodes(max(lam, 1.0), radius)
     lam2 = lam * lam
     c = 2.0 - 2.0 * np.cos(k)
-    rho, inv_sq = _green_terms(lam2, c)
+    rho, inv_sq = green_terms(lam2, c)
     m = np.arange(radius + 1)
     cos_mk = np.cos(np.outer(m, k)) * (w * inv_sq)  # (m, node)
     pow_rho = rho[:, None] ** m[None, :]  # (node, n)
@@ -181,7 +182,7 @@ def lattice_green_quarter(
     return h, dh
 
 
-def _unfold_quarter(q: np.ndarray) -> np.ndarray:
+def unfold_quarter(q: np.ndarray) -> np.ndarray:
     """Mirror a quadrant ``q[|y|, |x|]`` into the full (2r+1)² array."""
     full = np.concatenate([q[:0:-1], q], axis=0)
     return np.concatenate([full[:, :0:-1], full], axis=1)
@@ -203,16 +204,16 @@ def lattice_green_function(lambda_px: float, radius: int) -> np.ndarray:
         :math:`g_v V / I_0` (dimensionless); sums to 1 over the whole lattice.
     """
     q = lattice_green_quarter(lambda_px, radius)
-    return _unfold_quarter(np.asarray(q))
+    return unfold_quarter(np.asarray(q))
 
 
 # ---------------------------------------------------------------------- finite grid
 def grid_half_width_for(lambda_px: float, radius: int) -> int:
     """Grid half-width (pixels) keeping a (2r+1)² window within ~1e-3 of the infinite lattice: r + 3 + 3λ."""
-    return int(_check_radius(radius) + 3 + math.ceil(3.0 * _check_lambda(lambda_px)))
+    return int(check_radius(radius) + 3 + math.ceil(3.0 * _check_lambda(lambda_px)))
 
 
-def _dct_basis(n: int) -> tuple[np.ndarray, np.ndarray]:
+def dct_basis(n: int) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvectors (columns) and eigenvalues of the open-boundary path-graph Laplacian."""
     i = np.arange(n)
     x = np.arange(n)
@@ -241,7 +242,7 @@ def mesh_kcl_matrix(half_width: int, g_lateral_s: Any, g_vertical_s: Any):
     """
     import scipy.sparse as sp
 
-    n = 2 * _check_radius(half_width, "half_width") + 1
+    n = 2 * check_radius(half_width, "half_width") + 1
     idx = np.arange(n * n).reshape(n, n)
     a = np.concatenate([idx[:, :-1].ravel(), idx[:-1, :].ravel()])
     b = np.concatenate([idx[:, 1:].ravel(), idx[1:, :].ravel()])
@@ -273,14 +274,14 @@ def finite_grid_response(lambda_px: float, radius: int, half_width: int, *, meth
         :math:`g_v V / I_0` on the window around the injecting node.
     """
     lam = _check_lambda(lambda_px)
-    radius = _check_radius(radius)
-    half_width = _check_radius(half_width, "half_width")
+    radius = check_radius(radius)
+    half_width = check_radius(half_width, "half_width")
     if radius > half_width:
         raise InputError(f"radius={radius} exceeds the grid half_width={half_width}")
     n = 2 * half_width + 1
     lo, hi = half_width - radius, half_width + radius + 1
     if method == "dct":
-        phi, s = _dct_basis(n)
+        phi, s = dct_basis(n)
         c0 = phi[half_width]
         m = (c0[:, None] * c0[None, :]) / (1.0 + lam * lam * (s[:, None] + s[None, :]))
         p = phi[lo:hi]
@@ -328,7 +329,7 @@ def casadi_mesh_model(half_width: int, *, per_element: bool = False):
     """
     import casadi as ca
 
-    n = 2 * _check_radius(half_width, "half_width") + 1
+    n = 2 * check_radius(half_width, "half_width") + 1
     nn = n * n
     idx = np.arange(nn).reshape(n, n)
     a = np.concatenate([idx[:, :-1].ravel(), idx[:-1, :].ravel()])

@@ -50,7 +50,8 @@ def _check_half_width(half_width: Any) -> int:
     return int(half_width)
 
 
-def _resolve_half_width(design: Any, half_width: int | None) -> int:
+def resolve_half_width(design: Any, half_width: int | None) -> int:
+    """Half-width (pixels) of the netlist's grid: ``half_width`` checked, or the design's own."""
     from .fit import MeshDesign
     from .response import grid_half_width_for
 
@@ -118,7 +119,7 @@ def to_spice_netlist(
     >>> deck.splitlines()[0][:40], ".op" in deck
     ('* fsdvs_hw dual resistive mesh: 7x7 patc', True)
     """
-    h = _resolve_half_width(design, half_width)
+    h = resolve_half_width(design, half_width)
     if not (isinstance(i_in_a, (int, float)) and 0 < i_in_a <= 1e-3):
         raise InputError(f"i_in_a: injected current must be in (0, 1e-3] A, got {i_in_a!r}")
     n = 2 * h + 1
@@ -149,7 +150,8 @@ def to_spice_netlist(
     return "\n".join(lines)
 
 
-def _parse_ascii_raw(text: str) -> dict[str, np.ndarray]:
+def parse_ascii_raw(text: str) -> dict[str, np.ndarray]:
+    """The vectors of an ngspice ASCII ``.raw`` file, by variable name (one value per point)."""
     lines = text.splitlines()
     try:
         nvar = int(next(ln for ln in lines if ln.startswith("No. Variables:")).split(":")[1])
@@ -196,7 +198,7 @@ def run_ngspice(netlist: str, *, timeout_s: float = 300.0) -> dict[str, np.ndarr
         if proc.returncode != 0 or not raw.is_file():
             tail = (proc.stdout + proc.stderr)[-2000:]
             raise InputError(f"ngspice failed (exit code {proc.returncode}):\n{tail}")
-        return _parse_ascii_raw(raw.read_text())
+        return parse_ascii_raw(raw.read_text())
 
 
 @dataclass(frozen=True)
@@ -225,7 +227,7 @@ class SpiceMeshResult:
 def simulate_mesh_spice(design: Any, *, half_width: int | None = None, i_in_a: float = 1e-9) -> SpiceMeshResult:
     """Export ``design``, run ngspice, and return node voltages and the kernel they imply."""
     t0 = time.perf_counter()
-    h = _resolve_half_width(design, half_width)
+    h = resolve_half_width(design, half_width)
     netlist = to_spice_netlist(design, half_width=h, i_in_a=i_in_a)
     n = 2 * h + 1
     v = run_ngspice(netlist)
@@ -267,7 +269,7 @@ def simulate_mesh_step_spice(
 ) -> SpiceStepResult:
     """Transient of both meshes after a current step into the centre node, with ngspice."""
     t0 = time.perf_counter()
-    h = _resolve_half_width(design, half_width)
+    h = resolve_half_width(design, half_width)
     netlist = to_spice_netlist(design, half_width=h, i_in_a=i_in_a, step_stop_s=t_stop_s, n_points=n_points)
     v = run_ngspice(netlist)
     n = 2 * h + 1

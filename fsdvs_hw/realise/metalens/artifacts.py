@@ -25,7 +25,7 @@
 
 :func:`psf_from_phase_profile` reloads a profile and propagates it with the fit's forward model
 (radial angular spectrum, spectral weights, pixel integration;
-:class:`~fsdvs_hw.realise.metalens.fit._RadialKernelModel`); :func:`check_metalens_artifacts`
+:class:`~fsdvs_hw.realise.metalens.fit.RadialKernelModel`); :func:`check_metalens_artifacts`
 compares the result with ``psf.npz``.
 """
 
@@ -42,7 +42,7 @@ from ...errors import InputError
 from ...paths import csv_text, figure_png, npz_bytes, write_output
 from ..artifacts import Artifact
 from ..spectral import SpectralSamples
-from .fit import LensGeometry, MetalensDesign, _phase0, _RadialKernelModel, local_numerical_aperture
+from .fit import LensGeometry, MetalensDesign, RadialKernelModel, design_phase, local_numerical_aperture
 
 __all__ = [
     "N_RADII",
@@ -70,7 +70,7 @@ _WINDOW_PAD = 3.0  # the window padding fit_metalens evaluates its returned PSFs
 
 def _profile(design: MetalensDesign) -> tuple[np.ndarray, np.ndarray]:
     r = np.linspace(0.0, design.geometry.radius_m, N_RADII)
-    phase = np.stack([_phase0(r, design.geometry, np.asarray(c, dtype=float)) for c in design.coefficients])
+    phase = np.stack([design_phase(r, design.geometry, np.asarray(c, dtype=float)) for c in design.coefficients])
     return r, phase
 
 
@@ -254,7 +254,7 @@ def psf_from_phase_profile(
         "artifact",
         "artifact",
     )
-    model = _RadialKernelModel(
+    model = RadialKernelModel(
         geometry,
         pitch_m=float(data["pixel_pitch_m"]),
         n_pixels=int(data["n_pixels"]),
@@ -270,7 +270,7 @@ def psf_from_phase_profile(
     coeffs = np.atleast_2d(np.asarray(data.get("coefficients", np.zeros((phase.shape[0], 0))), dtype=float))
     for i, z in enumerate(np.asarray(data["sensor_distance_m"], dtype=float)):
         phi = CubicSpline(r, phase[i])(nodes)
-        err = max(err, float(np.abs(phi - _phase0(nodes, geometry, coeffs[i])).max()))
+        err = max(err, float(np.abs(phi - design_phase(nodes, geometry, coeffs[i])).max()))
         with torch.no_grad():
             psfs.append(model.psf_of_phase(torch.from_numpy(phi), float(z)).numpy())
     return {"psf": np.stack(psfs), "phase_error_rad": err}

@@ -25,7 +25,7 @@ from typing import Any
 import torch
 
 from ...errors import InputError
-from .fit import MetalensDesign, _RadialKernelModel
+from .fit import MetalensDesign, RadialKernelModel
 
 __all__ = ["MetalensKernel"]
 
@@ -69,7 +69,7 @@ class MetalensKernel(torch.nn.Module):
         target = design.target
         n_eval = target.size + 2 * design.guard_px
         budget = float(design.fit_info.get("na_budget", 0.9))
-        self.model = _RadialKernelModel(
+        self.model = RadialKernelModel(
             design.geometry,
             pitch_m=target.pitch_m,
             n_pixels=n_eval,

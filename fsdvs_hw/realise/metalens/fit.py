@@ -138,7 +138,7 @@ class LensGeometry:
         }
 
 
-def _phase0(r: np.ndarray, geometry: LensGeometry, coefficients: Any) -> Any:
+def design_phase(r: np.ndarray, geometry: LensGeometry, coefficients: Any) -> Any:
     """φ0(r) in rad at λ0; ``coefficients`` may be a torch tensor (then the result is one)."""
     a, f, lam0 = geometry.radius_m, geometry.focal_length_m, geometry.design_wavelength_m
     hyp = -(2 * math.pi / lam0) * (np.sqrt(r * r + f * f) - f)
@@ -169,7 +169,7 @@ def local_numerical_aperture(
     """
     a = geometry.radius_m
     r = np.linspace(0, a, 2049)
-    phi = _phase0(r, geometry, np.asarray(coefficients, dtype=float))
+    phi = design_phase(r, geometry, np.asarray(coefficients, dtype=float))
     grad = np.abs(np.gradient(phi, r)).max()
     p = DISPERSION_MODELS[geometry.dispersion]
     lam = np.asarray(wavelengths_m, dtype=float)
@@ -177,7 +177,7 @@ def local_numerical_aperture(
     return float(np.max(lam * grad * scale) / (2 * math.pi))
 
 
-class _RadialKernelModel:
+class RadialKernelModel:
     """Cached forward model: (coefficients, sensor distance) -> pixel-integrated PSF (torch)."""
 
     def __init__(
@@ -251,7 +251,7 @@ class _RadialKernelModel:
         self.phase_scale = torch.from_numpy((geometry.design_wavelength_m / spectral.wavelengths_m) ** p)[:, None]
         self.w_lambda = torch.from_numpy(spectral.weights)
         r = self.prop.r_pupil
-        self._hyp = torch.from_numpy(_phase0(r, geometry, ()))
+        self._hyp = torch.from_numpy(design_phase(r, geometry, ()))
         self._powers = torch.from_numpy(np.stack([(r / a) ** (2 * k + 2) for k in range(12)], axis=-1))
 
     def _pupil(self, coefficients: Any) -> Any:
@@ -360,7 +360,7 @@ def pixel_psf(
     coeffs = torch.tensor(np.asarray(coefficients, dtype=float), dtype=torch.float64)
     na = local_numerical_aperture(geometry, coefficients, spectral.wavelengths_m)
     if method == "radial":
-        model = _RadialKernelModel(
+        model = RadialKernelModel(
             geometry,
             pitch_m=pitch_m,
             n_pixels=n_pixels,
@@ -422,7 +422,7 @@ def _pixel_psf_2d(
     amp = np.clip((a - r) / dx + 0.5, 0.0, 1.0)
     inside = amp > 0
     phi0 = np.zeros_like(r)
-    phi0[inside] = _phase0(r[inside], geometry, coeffs.numpy())
+    phi0[inside] = design_phase(r[inside], geometry, coeffs.numpy())
     p = DISPERSION_MODELS[geometry.dispersion]
     scale = (geometry.design_wavelength_m / spectral.wavelengths_m) ** p
     field = torch.from_numpy(amp[None] * np.exp(1j * phi0[None] * scale[:, None, None]))
@@ -932,7 +932,7 @@ def _metalens_setup(
 
 def _metalens_models(
     setup: _MetalensSetup, *, illuminant: Any, response: Any, guard_px: int, n_sub: int | None, window_pad: float
-) -> tuple[_RadialKernelModel, _RadialKernelModel]:
+) -> tuple[RadialKernelModel, RadialKernelModel]:
     """Step 2, the forward models: coarse-to-fine in wavelength (starts and the first refinement on
     ≤ 8 samples, the polish on all); returns ``(coarse, full)`` (the same object when ≤ 8 samples)."""
     spectral, pitch = setup.spectral, setup.kernel.pitch_m
@@ -940,7 +940,7 @@ def _metalens_models(
     coarse_spectral = (
         spectral if spectral.n <= 8 or isinstance(illuminant, SpectralSamples) else _spectral(illuminant, response, 8)
     )
-    coarse = _RadialKernelModel(
+    coarse = RadialKernelModel(
         setup.geometry,
         pitch_m=pitch,
         n_pixels=n_eval,
@@ -952,7 +952,7 @@ def _metalens_models(
     model = (
         coarse
         if coarse_spectral is spectral
-        else _RadialKernelModel(
+        else RadialKernelModel(
             setup.geometry,
             pitch_m=pitch,
             n_pixels=n_eval,
@@ -1007,7 +1007,7 @@ class _MetalensObjective:
             + 10.0 * self._clamp(x[0].abs() - self.dz_bound, min=0.0) ** 2
         )
 
-    def loss(self, targets: Any, mode: str, n_lens: int, fwd: _RadialKernelModel) -> Any:
+    def loss(self, targets: Any, mode: str, n_lens: int, fwd: RadialKernelModel) -> Any:
         def loss(x: Any) -> Any:
             psfs, tots, pen = [], [], 0.0
             for i in range(n_lens):
@@ -1023,8 +1023,8 @@ class _MetalensObjective:
 
 def _solve_metalens(
     obj: _MetalensObjective,
-    coarse: _RadialKernelModel,
-    model: _RadialKernelModel,
+    coarse: RadialKernelModel,
+    model: RadialKernelModel,
     *,
     strategy: str,
     kernel_size: int,
@@ -1199,7 +1199,7 @@ def fit_metalens(
 
     # ---- the report: PSFs on the reference model, closed-form gains, NA reached, timing
     xt = torch.from_numpy(x)
-    reference = _RadialKernelModel(
+    reference = RadialKernelModel(
         geometry,
         pitch_m=pitch,
         n_pixels=n_eval,
