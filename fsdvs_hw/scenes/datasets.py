@@ -454,14 +454,16 @@ class VideoFolderDataset(ClipDataset):
         """Clip ``i``'s frames (linear, at the stated size) and its frame rate, from the video."""
         import imageio
 
-        from .video import _ffmpeg_reason
+        from .video import ffmpeg_failure_reason
 
         path, _ = self.items[i]
         where = f"VideoFolderDataset: clip {i} ({str(path)!r})"
         try:
             reader = imageio.get_reader(str(path), "ffmpeg")
         except Exception as exc:
-            raise InputError(f"{where}: field 'frames': the video does not decode ({_ffmpeg_reason(exc)})") from None
+            raise InputError(
+                f"{where}: field 'frames': the video does not decode ({ffmpeg_failure_reason(exc)})"
+            ) from None
         try:
             fps = self.fps or float(reader.get_meta_data().get("fps") or 0.0)
             if not fps > 0:
@@ -478,7 +480,7 @@ class VideoFolderDataset(ClipDataset):
                         break
             except Exception as exc:
                 raise InputError(
-                    f"{where}: field 'frames': decoding stopped after {j} frames ({_ffmpeg_reason(exc)})"
+                    f"{where}: field 'frames': decoding stopped after {j} frames ({ffmpeg_failure_reason(exc)})"
                 ) from None
         finally:
             reader.close()

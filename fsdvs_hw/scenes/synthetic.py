@@ -333,7 +333,7 @@ def is_sub_threshold(edge_contrast: float, threshold: float) -> bool:
 
 
 #: Named scene families shared by the task evaluators (fields common to all tasks; the task adds its
-#: motion pattern). ``"clutter"`` (the default since issue 12) is where the filter matters, for the
+#: motion pattern). ``"clutter"`` (the default) is where the filter matters, for the
 #: reason the FS-DVS paper gives: fine texture (scikit-image ``gravel``, RMS contrast 0.2, resampled
 #: 1-4x finer) moving with camera ego-motion (0.5 px/frame pan) fires the comparator everywhere, the
 #: image carries photon shot noise (1000 e⁻ per pixel and frame at the mean: 3.2 % per frame), and

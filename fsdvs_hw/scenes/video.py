@@ -282,7 +282,7 @@ def _check_reading(
     return p
 
 
-def _ffmpeg_reason(exc: BaseException) -> str:
+def ffmpeg_failure_reason(exc: BaseException) -> str:
     """One line of an imageio/ffmpeg error: ffmpeg's last message, without its banner and config."""
     import re
 
@@ -315,7 +315,9 @@ def _open_reader(p: Path) -> Any:
     try:
         return imageio.get_reader(str(p), "ffmpeg")
     except Exception as exc:  # imageio raises several types for unreadable files
-        raise InputError(f"video file {str(p)!r} cannot be decoded by imageio/ffmpeg ({_ffmpeg_reason(exc)})") from None
+        raise InputError(
+            f"video file {str(p)!r} cannot be decoded by imageio/ffmpeg ({ffmpeg_failure_reason(exc)})"
+        ) from None
 
 
 def _declared_frames(meta: dict[str, Any]) -> int | None:
@@ -532,7 +534,7 @@ def _iter_frames(
                 if allow_truncated:
                     break
                 raise InputError(
-                    f"video file {str(p)!r}: frame {i} cannot be decoded ({_ffmpeg_reason(exc)}); "
+                    f"video file {str(p)!r}: frame {i} cannot be decoded ({ffmpeg_failure_reason(exc)}); "
                     "truncated or corrupt file (allow_truncated / --allow-truncated uses the "
                     f"{i} frames before it)"
                 ) from None
