@@ -303,11 +303,11 @@ def rate_table() -> str:
 
 
 def codesign_table(name: str) -> str:
-    """The report's co-design table (:func:`fsdvs_hw.report.codesign.codesign_section`) of the shipped
+    """The report's co-design table (:func:`fsdvs_hw.report.codesign_section.codesign_section`) of the shipped
     ``designs/results/NAME/codesign.json``, without its heading."""
     if str(ROOT) not in sys.path:
         sys.path.insert(0, str(ROOT))
-    from fsdvs_hw.report.codesign import codesign_section
+    from fsdvs_hw.report.codesign_section import codesign_section
 
     path = ROOT / "designs" / "results" / name / "codesign.json"
     html = codesign_section(json.loads(path.read_text(encoding="utf-8")))

@@ -297,7 +297,7 @@ def test_reloaded_phase_profile_reproduces_the_written_psf(metalens_dir, tmp_pat
 
 # ---------------------------------------------------------------------------- an exploration writes them all
 def test_swept_points_get_their_own_folders_and_a_failing_writer_is_recorded(tmp_path, monkeypatch):
-    from fsdvs_hw.explore.artifacts import point_folder_name, write_exploration_artifacts
+    from fsdvs_hw.explore.point_artifacts import point_folder_name, write_exploration_artifacts
     from fsdvs_hw.realise import registry
 
     assert point_folder_name("asic", {}) == "asic"
@@ -378,7 +378,7 @@ def test_explore_writes_every_hardware_realisations_artifacts_and_the_report_lin
 
 
 def test_report_fragment_links_escape_and_show_a_failed_writer():
-    from fsdvs_hw.report.artifacts import artifacts_html
+    from fsdvs_hw.report.artifact_links import artifacts_html
 
     assert artifacts_html([{"realisation": "learned"}]) == ""
     frag = artifacts_html(

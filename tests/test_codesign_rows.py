@@ -11,7 +11,7 @@ import pytest
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.explore.design import load_design, parse_design
-from fsdvs_hw.report.codesign import CODESIGN_HEADERS, codesign_section
+from fsdvs_hw.report.codesign_section import CODESIGN_HEADERS, codesign_section
 from fsdvs_hw.stats import ClipMeans
 
 REPO = Path(__file__).resolve().parents[1]

@@ -12,7 +12,7 @@ import pytest
 
 from fsdvs_hw.explore.codesign import CODESIGN_FORMAT, summarise_codesign
 from fsdvs_hw.explore.design import load_design
-from fsdvs_hw.report.codesign import codesign_section
+from fsdvs_hw.report.codesign_section import codesign_section
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = REPO / "designs" / "results" / "codesign"

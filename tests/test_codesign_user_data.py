@@ -33,7 +33,7 @@ def _design(folder: Path, train: str = TRAIN, name: str = "cd", codesign: str = 
 
 def test_user_data_codesign_rows_cover_their_estimates_and_a_rerun_reuses_every_unit(folder, tmp_path):
     from fsdvs_hw.explore.codesign import codesign_cells, run_codesign, write_codesign
-    from fsdvs_hw.report.codesign import codesign_section
+    from fsdvs_hw.report.codesign_section import codesign_section
 
     design = load_design(_design(folder))
     assert codesign_cells(design) == [("asic", "segmentation")]

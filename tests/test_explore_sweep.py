@@ -122,7 +122,7 @@ def test_paired_losses_through_a_plugged_per_clip_evaluator(monkeypatch, tmp_pat
         )
 
     monkeypatch.setattr(paired, "clip_evidence", clip_evidence)
-    monkeypatch.setattr(scoring, "_task_sensor", lambda ckpt, design_sensor: (None, {"source": "checkpoint"}))
+    monkeypatch.setattr(scoring, "task_sensor", lambda ckpt, design_sensor: (None, {"source": "checkpoint"}))
     k = reference_kernel("dog", 7)
     rows = []
     for name in ("learned", "delta"):

@@ -281,8 +281,8 @@ def test_labels_with_markup_are_escaped_in_the_html():
     """The templates autoescape: a design name, a realisation, a failure reason, artifact names and
     co-design labels holding ``<script>`` and ``&`` appear as text, never as markup."""
     from fsdvs_hw.explore.design import parse_design
-    from fsdvs_hw.report.artifacts import artifacts_html
-    from fsdvs_hw.report.codesign import codesign_section
+    from fsdvs_hw.report.artifact_links import artifacts_html
+    from fsdvs_hw.report.codesign_section import codesign_section
     from fsdvs_hw.report.html import render_html
 
     design = parse_design({"design": {"name": HOSTILE}})

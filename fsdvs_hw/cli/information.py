@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..limits import MAX_CLIPS
 from ._execution import int_in
-from .rate import _threshold
+from .rate import contrast_threshold
 
 __all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
@@ -48,7 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--rate-thresholds",
         nargs="+",
-        type=_threshold,
+        type=contrast_threshold,
         default=list(DEFAULT_RATE_THRESHOLDS),
         help="ON=OFF thresholds (log units) along which the w/o rate is measured for the match",
     )

@@ -24,7 +24,8 @@ DESCRIPTION = (
 )
 
 
-def _threshold(text: str) -> float:
+def contrast_threshold(text: str) -> float:
+    """argparse ``type`` of an ON = OFF contrast threshold flag (log units, allowed 1e-4 to 10)."""
     try:
         v = float(text)
     except ValueError:
@@ -42,7 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--thresholds",
         nargs="+",
-        type=_threshold,
+        type=contrast_threshold,
         default=list(DEFAULT_THRESHOLDS),
         help="ON=OFF contrast thresholds, log units (the design's threshold is added)",
     )

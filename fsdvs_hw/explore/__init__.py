@@ -9,7 +9,7 @@ process pool or a Dask cluster. Design files are read and validated by
 :mod:`~fsdvs_hw.explore.emulation`; ``fsdvs-hw bench explore`` is ``benchmarks/explore.py`` (a checkout).
 Per-clip task evidence (same clips, noise and networks for every kernel) is
 :mod:`~fsdvs_hw.explore.paired`; the losses' confidence intervals come from :mod:`fsdvs_hw.stats`;
-:mod:`~fsdvs_hw.explore.sizing` sizes the test sets from a pilot run; :mod:`~fsdvs_hw.explore.artifacts` writes
+:mod:`~fsdvs_hw.explore.sizing` sizes the test sets from a pilot run; :mod:`~fsdvs_hw.explore.point_artifacts` writes
 every hardware point's buildable files (SPICE deck, Verilog and testbench, phase profile) and their index.
 With ``[rate] enabled`` every point also gets its losses at equal event rate (:mod:`~fsdvs_hw.explore.matched`,
 on the rate curves of :mod:`~fsdvs_hw.explore.rate`).

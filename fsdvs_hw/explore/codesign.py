@@ -1,4 +1,4 @@
-"""Scoring both ways (issue 16): fit then swap, fit then fine-tune the network, co-designed.
+"""Scoring both ways: fit then swap, fit then fine-tune the network, co-designed.
 
 With ``[codesign] enabled = true`` the exploration measures, per hardware realisation with a
 differentiable form and per task (a *cell*), three rows against the design's kernel (the
@@ -37,7 +37,7 @@ Resumable: every (cell, network, row) is saved as soon as it is measured, as one
 ``OUT/codesign/units/`` keyed by everything that determines it (written atomically); a killed run
 started again reuses every finished unit without retraining it. The trained networks are kept
 under ``OUT/codesign/networks/``. :func:`write_codesign` writes ``OUT/codesign.json`` and
-``OUT/codesign.csv``; :func:`fsdvs_hw.report.codesign.codesign_section` renders the report section.
+``OUT/codesign.csv``; :func:`fsdvs_hw.report.codesign_section.codesign_section` renders the report section.
 """
 
 from __future__ import annotations

@@ -32,6 +32,7 @@ from ..costs import CostAssumptions
 from ..costs.limits import costed
 from ..records import Score
 from .design import Design, axis_values
+from .scoring import sweep_setting
 
 __all__ = ["cost_settings", "with_physical_costs"]
 
@@ -91,13 +92,12 @@ def _flips(
     of its sweep setting (``{"other", "cost", "key", "value", "now", "cheaper"}``, ``cheaper`` the
     key of the point that is cheaper at the present value)."""
     from ..costs.limits import FLIP_KEYS, cost_flips
-    from .scoring import _context
 
     hardware = [p for p in points if str(p.get("key")) in scores and scores[str(p["key"])].kind != "reference"]
     out: dict[str, list[dict[str, Any]]] = {}
     for i, p in enumerate(hardware):
         for q in hardware[i + 1 :]:
-            if p["realisation"] == q["realisation"] or _context(p) != _context(q):
+            if p["realisation"] == q["realisation"] or sweep_setting(p) != sweep_setting(q):
                 continue
             kp, kq = str(p["key"]), str(q["key"])
             for cost in FLIP_KEYS:

@@ -4,7 +4,7 @@
 the design (all errors before any work), expands its design points, runs those not already in
 ``DIR/results.sqlite`` (local processes or a Dask scheduler, with a progress bar), and writes
 ``DIR/report.html`` with ``DIR/scores.csv`` and ``DIR/scores.json``, and every hardware point's buildable
-files under ``DIR/artifacts/`` with ``DIR/artifacts/index.json`` (:mod:`fsdvs_hw.explore.artifacts`); with
+files under ``DIR/artifacts/`` with ``DIR/artifacts/index.json`` (:mod:`fsdvs_hw.explore.point_artifacts`); with
 ``[codesign] enabled`` also ``DIR/codesign.json`` and ``DIR/codesign.csv`` (:mod:`fsdvs_hw.explore.codesign`).
 """
 
@@ -17,11 +17,11 @@ from pathlib import Path
 from typing import Any
 
 from ..paths import output_dir
-from .artifacts import ARTIFACTS_DIR, point_folder_name, write_exploration_artifacts
 from .costing import with_physical_costs
 from .design import Design, load_design
 from .matched import with_matched_rates
 from .measurability import measured_losses
+from .point_artifacts import ARTIFACTS_DIR, point_folder_name, write_exploration_artifacts
 from .sweep import SweepSummary, run_design
 
 __all__ = ["Exploration", "run_exploration"]
@@ -137,8 +137,8 @@ def run_exploration(
             for e in entries
             if e["point"] == name
         ]
-    rows = with_physical_costs(rows, design)  # SI cost records, and per [costs] sweep setting (issue 25)
-    if design.spec.codesign.enabled:  # the fit-then-swap / fine-tune / co-designed rows (issue 16)
+    rows = with_physical_costs(rows, design)  # SI cost records, and per [costs] sweep setting
+    if design.spec.codesign.enabled:  # the fit-then-swap / fine-tune / co-designed rows
         from .codesign import run_codesign, write_codesign
 
         write_codesign(run_codesign(design, out, progress=progress), out)

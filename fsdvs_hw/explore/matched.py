@@ -44,7 +44,7 @@ from ..errors import InputError
 from ..fingerprints import text_fingerprint
 from .paired import EVENT_RATE_UNIT, decode_evidence
 from .rate import MatchedRateDifference, RateCurve, RatePoint, dataset_rate_curve, matched_rate_difference, rate_curve
-from .scoring import _DESIGN_SENSOR_FIELDS
+from .scoring import DESIGN_SENSOR_FIELDS, sweep_setting
 
 __all__ = [
     "CURVES_DIR",
@@ -125,12 +125,6 @@ def point_rate_curve(point: Mapping[str, Any], task: str) -> RateCurve | str:
     )
 
 
-def _context(point: Mapping[str, Any]) -> str:
-    from .scoring import _context as ctx
-
-    return ctx(point)
-
-
 def _design_points(design: Any) -> dict[str, Any]:
     from .sweep import expand_points
 
@@ -174,7 +168,7 @@ def reference_curves(
     groups: dict[str, list[Mapping[str, Any]]] = {}
     for p in points:
         if p.get("status") == "ok":
-            groups.setdefault(_context(p), []).append(p)
+            groups.setdefault(sweep_setting(p), []).append(p)
     out: dict[str, dict[str, dict[str, RateCurve | str]]] = {}
     for ctx, group in groups.items():
         tag = text_fingerprint(ctx, length=10)
@@ -222,7 +216,7 @@ def _one_curve(
     user = tasks.datasets.get(task)
     if user is not None:  # a user-data task: the user's network and clips, as the point was scored
         sensor = dpoint.spec.sensor.model_dump()
-        fields = {k: sensor[k] for k in _DESIGN_SENSOR_FIELDS} if tasks.sensor == "design" else None
+        fields = {k: sensor[k] for k in DESIGN_SENSOR_FIELDS} if tasks.sensor == "design" else None
         try:
             curve = dataset_rate_curve(
                 _reference_kernel(dpoint),
@@ -323,7 +317,7 @@ def matched_rate_records(
     for p in points:
         if p.get("status") != "ok":
             continue
-        per_task = curves.get(_context(p), {})
+        per_task = curves.get(sweep_setting(p), {})
         rec: dict[str, Any] = {"status": "ok" if per_task else "no reference curves in this sweep setting"}
         for task, refs in per_task.items():
             own = point_rate_curve(p, task)

@@ -35,13 +35,9 @@ from typing import Any
 
 import numpy as np
 
+from .scoring import TRACK_PREFIX, sweep_setting, track_record, with_paired_losses
+
 __all__ = ["measured_losses", "task_measurability", "widen_degenerate"]
-
-
-def _track_rec(point: Mapping[str, Any], task: str, track: str) -> Mapping[str, Any]:
-    from .scoring import _track_rec as rec
-
-    return rec(point, task, track)
 
 
 def _same_evidence(arms: Sequence[Sequence[Any]]) -> bool:
@@ -85,12 +81,11 @@ def task_measurability(
     """
     from ..stats import chance_metric, difference_ci
     from .paired import decode_evidence
-    from .scoring import TRACK_PREFIX, _context
 
     groups: dict[str, list[Mapping[str, Any]]] = {}
     for p in points:
         if p.get("status") == "ok":
-            groups.setdefault(_context(p), []).append(p)
+            groups.setdefault(sweep_setting(p), []).append(p)
     out: dict[str, dict[str, dict[str, dict[str, Any]]]] = {}
     for ctx, group in groups.items():
         ref = next((p for p in group if p.get("realisation") == reference), None)
@@ -99,7 +94,7 @@ def task_measurability(
         tasks = [t for t, v in ((ref.get("result") or {}).get("tasks") or {}).items() if isinstance(v, Mapping)]
         for track in TRACK_PREFIX:
             for task in tasks:
-                rrec = _track_rec(ref, task, track)
+                rrec = track_record(ref, task, track)
                 if rrec.get("status") != "ok" or not rrec.get("evidence"):
                     continue
                 arm = [decode_evidence(e) for e in rrec["evidence"]]
@@ -139,11 +134,11 @@ def task_measurability(
                             f"{round(100 * confidence)} % CI ({ci.estimate:+.3f} [{ci.low:+.3f}, {ci.high:+.3f}])"
                         )
                 others = [
-                    [decode_evidence(e) for e in _track_rec(p, task, track)["evidence"]]
+                    [decode_evidence(e) for e in track_record(p, task, track)["evidence"]]
                     for p in group
                     if p is not ref
-                    and _track_rec(p, task, track).get("status") == "ok"
-                    and len(_track_rec(p, task, track).get("evidence") or []) == len(arm)
+                    and track_record(p, task, track).get("status") == "ok"
+                    and len(track_record(p, task, track).get("evidence") or []) == len(arm)
                 ]
                 if others and _same_evidence([arm, *others]):
                     reasons.append(
@@ -246,7 +241,6 @@ def measured_losses(
         The points with ``"paired_loss"`` (evidence dropped) and ``"measurability"``:
         ``{track: {task: record}}`` of :func:`task_measurability` for the point's sweep setting.
     """
-    from .scoring import _context, with_paired_losses
 
     points = list(points)
     meas = task_measurability(points, confidence=confidence, n_resamples=n_resamples, rng=rng)
@@ -270,7 +264,7 @@ def measured_losses(
     if target_half_width is not None and _widest({q["key"]: q["paired_loss"] for q in out}) > target_half_width:
         _clips_needed(points, meas, target_half_width, confidence)
     for q in out:
-        q["measurability"] = meas.get(_context(q), {})
+        q["measurability"] = meas.get(sweep_setting(q), {})
     return out
 
 

@@ -45,7 +45,7 @@ from ..paths import write_output
 from ..progress import progress_bar
 from ..stats import ClipMetric
 from .paired import EVENT_RATE_UNIT, bootstrap_weights, clip_evidence, decode_evidence, encode_evidence, weighted_rate
-from .scoring import _DESIGN_SENSOR_FIELDS, _task_sensor
+from .scoring import DESIGN_SENSOR_FIELDS, task_sensor
 
 __all__ = [
     "DEFAULT_THRESHOLDS",
@@ -667,8 +667,8 @@ def _sensor_at(checkpoint: Path, design_sensor: Mapping[str, Any] | None, thresh
 
     if design_sensor is None:
         stored = dict(load_checkpoint(checkpoint)[0].get("sensor", {}))
-        design_sensor = {k: stored[k] for k in _DESIGN_SENSOR_FIELDS}
-    cfg, _ = _task_sensor(checkpoint, {**design_sensor, "threshold_on": threshold, "threshold_off": threshold})
+        design_sensor = {k: stored[k] for k in DESIGN_SENSOR_FIELDS}
+    cfg, _ = task_sensor(checkpoint, {**design_sensor, "threshold_on": threshold, "threshold_off": threshold})
     return cfg
 
 
@@ -698,7 +698,7 @@ def _fingerprint(
     return hashlib.sha1(blob.encode()).hexdigest()[:16]
 
 
-def _check_thresholds(thresholds: Sequence[float]) -> tuple[float, ...]:
+def check_thresholds(thresholds: Sequence[float]) -> tuple[float, ...]:
     try:
         ts = tuple(float(t) for t in thresholds)
     except (TypeError, ValueError):
@@ -774,7 +774,7 @@ def rate_curve(
     InputError
         Bad thresholds, no checkpoints, unknown task, missing checkpoint.
     """
-    ts = _check_thresholds(thresholds)
+    ts = check_thresholds(thresholds)
     paths = [Path(p) for p in checkpoints]
     if not paths:
         raise InputError("rate_curve: checkpoints is empty; allowed: one or more trained networks")
@@ -943,7 +943,7 @@ def dataset_rate_curve(
     """
     from .user_data import dataset_evidence
 
-    ts = _check_thresholds(thresholds)
+    ts = check_thresholds(thresholds)
     name = label or ("w/o" if kernel is None else kernel.name)
     recorded = {**entry, "dataset": {k: v for k, v in entry["dataset"].items() if k != "cache"}}
 

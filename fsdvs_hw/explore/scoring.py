@@ -122,11 +122,26 @@ def _spectral(kernel: Kernel) -> dict[str, Any]:
 
 
 #: Fields of the design's ``[sensor]`` section that replace a checkpoint's simulator settings.
-_DESIGN_SENSOR_FIELDS = ("threshold_on", "threshold_off", "threshold_sigma", "placement", "positivity")
+DESIGN_SENSOR_FIELDS = ("threshold_on", "threshold_off", "threshold_sigma", "placement", "positivity")
 
 
-def _task_sensor(checkpoint: Path, design_sensor: Mapping[str, Any] | None) -> tuple[Any, dict[str, Any]]:
-    """The SensorConfig for a task evaluation (None = the checkpoint's) and a record of what it is."""
+def task_sensor(checkpoint: Path, design_sensor: Mapping[str, Any] | None) -> tuple[Any, dict[str, Any]]:
+    """The sensor a task evaluation runs and a record of what it is.
+
+    Parameters
+    ----------
+    checkpoint : Path
+        The task network's checkpoint (its own simulator settings are the default).
+    design_sensor : mapping, optional
+        The design's ``[sensor]`` settings; those in :data:`DESIGN_SENSOR_FIELDS` replace the
+        checkpoint's. None: the checkpoint's sensor.
+
+    Returns
+    -------
+    (SensorConfig or None, dict)
+        The configuration (None = the checkpoint's) and ``{"source", <DESIGN_SENSOR_FIELDS>}``
+        (thresholds in log units).
+    """
     if design_sensor is None:
         try:
             from ..tasks.learn import load_checkpoint
@@ -134,14 +149,14 @@ def _task_sensor(checkpoint: Path, design_sensor: Mapping[str, Any] | None) -> t
             settings = dict(load_checkpoint(checkpoint)[0].get("sensor", {}))
         except InputError:  # the evaluator itself will say what is wrong
             return None, {"source": "checkpoint"}
-        return None, {"source": "checkpoint", **{k: settings.get(k) for k in _DESIGN_SENSOR_FIELDS}}
+        return None, {"source": "checkpoint", **{k: settings.get(k) for k in DESIGN_SENSOR_FIELDS}}
     from ..sensor import SensorConfig
     from ..tasks.learn import load_checkpoint
 
     settings = dict(load_checkpoint(checkpoint)[0].get("sensor", {}))
 
-    settings.update({k: design_sensor[k] for k in _DESIGN_SENSOR_FIELDS})
-    return SensorConfig(**settings), {"source": "design", **{k: settings[k] for k in _DESIGN_SENSOR_FIELDS}}
+    settings.update({k: design_sensor[k] for k in DESIGN_SENSOR_FIELDS})
+    return SensorConfig(**settings), {"source": "design", **{k: settings[k] for k in DESIGN_SENSOR_FIELDS}}
 
 
 def task_scores(
@@ -250,13 +265,13 @@ def task_scores(
             try:
                 evid = []
                 if user:
-                    fields = None if design_sensor is None else {k: design_sensor[k] for k in _DESIGN_SENSOR_FIELDS}
+                    fields = None if design_sensor is None else {k: design_sensor[k] for k in DESIGN_SENSOR_FIELDS}
                     ev, sensor_rec = dataset_evidence(
                         kernel, task, entry, base_dir, design_sensor=fields, events_fn=events_fn, confine=False
                     )
                     evid.append(ev)
                 for s, ckpt in enumerate(paths):
-                    sensor_cfg, sensor_rec = _task_sensor(ckpt, design_sensor)
+                    sensor_cfg, sensor_rec = task_sensor(ckpt, design_sensor)
                     evid.append(
                         clip_evidence(
                             kernel,
@@ -470,14 +485,26 @@ def _flat_metrics(result: Mapping[str, Any]) -> dict[str, float]:
     return TaskScores.from_dict(tasks).metrics() if isinstance(tasks, Mapping) else {}
 
 
-def _context(point: Mapping[str, Any]) -> str:
-    """The sweep setting a point shares with its reference: its params minus realisation-scoped axes."""
+def sweep_setting(point: Mapping[str, Any]) -> str:
+    """The sweep setting a stored point shares with its reference, as sorted JSON.
+
+    Parameters
+    ----------
+    point : mapping
+        A stored point (its ``params``).
+
+    Returns
+    -------
+    str
+        Its params minus the realisation-scoped axes; points of one setting compare to one reference.
+    """
     params = point.get("params") or {}
     scoped = set(realisation_names()) | {"realisations"}
     return json.dumps({k: v for k, v in params.items() if k.split(".")[0] not in scoped}, sort_keys=True, default=str)
 
 
-def _track_rec(point: Mapping[str, Any], task: str, track: str) -> Mapping[str, Any]:
+def track_record(point: Mapping[str, Any], task: str, track: str) -> Mapping[str, Any]:
+    """A stored point's record of one task on one track (``result.tasks[task][track]``; ``{}`` when absent)."""
     rec = (((point.get("result") or {}).get("tasks") or {}).get(task) or {}).get(track)
     return rec if isinstance(rec, Mapping) else {}
 
@@ -523,11 +550,11 @@ def paired_losses(
     points = [p for p in points if p.get("status") == "ok"]
     groups: dict[str, list[Mapping[str, Any]]] = {}
     for p in points:
-        groups.setdefault(_context(p), []).append(p)
+        groups.setdefault(sweep_setting(p), []).append(p)
     decoded: dict[tuple[str, str, str], list[Any]] = {}
 
     def arm(p: Mapping[str, Any], task: str, track: str) -> list[Any] | None:
-        rec = _track_rec(p, task, track)
+        rec = track_record(p, task, track)
         if not isinstance(rec, Mapping) or rec.get("status") != "ok" or not rec.get("evidence"):
             return None
         key = (p["key"], task, track)
@@ -550,7 +577,7 @@ def paired_losses(
             ref_arms = {t: a for t, a in all_arms.items() if a is not None}
             if not ref_arms:
                 continue
-            nested = {t: _track_rec(ref, t, track).get("test_clips") == "per_network" for t in ref_arms}
+            nested = {t: track_record(ref, t, track).get("test_clips") == "per_network" for t in ref_arms}
             ok: list[Mapping[str, Any]] = []
             missing: list[Mapping[str, Any]] = []
             for p in group:
@@ -559,10 +586,10 @@ def paired_losses(
                     a is not None
                     and len(a) == len(ref_arms[t])
                     and [m.n_clips for m in a] == [m.n_clips for m in ref_arms[t]]
-                    and _track_rec(p, t, track).get("test_seeds") == _track_rec(ref, t, track).get("test_seeds")
+                    and track_record(p, t, track).get("test_seeds") == track_record(ref, t, track).get("test_seeds")
                     # user data: the same clips skipped (decided from the clips' files, so always so)
-                    and (_track_rec(p, t, track).get("failed_clip_indices") or [])
-                    == (_track_rec(ref, t, track).get("failed_clip_indices") or [])
+                    and (track_record(p, t, track).get("failed_clip_indices") or [])
+                    == (track_record(ref, t, track).get("failed_clip_indices") or [])
                     for t, a in arms.items()
                 )
                 (ok if good else missing).append(p)

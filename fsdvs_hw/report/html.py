@@ -29,7 +29,7 @@ from .. import __version__
 from ..paths import write_output
 from ..records import Cost, ScoredPoint
 from . import figures
-from .artifacts import artifacts_html
+from .artifact_links import artifacts_html
 from .costs import cost_section, with_cost_columns
 from .failures import failures_section, task_failures
 from .present import cost_label, number, plain, point_title, si, style, title
@@ -356,11 +356,11 @@ def render_html(
     sections : sequence of str
         Further HTML fragments (each starting with its own ``<h2>``, inserted as given), placed after
         the buildable artifacts and before the run conditions, e.g.
-        :func:`fsdvs_hw.report.codesign.codesign_section`.
+        :func:`fsdvs_hw.report.codesign_section.codesign_section`.
     """
     points = _typed(points)
     spec = design.spec
-    rows = with_cost_columns(score_rows(points), points)  # power_w, area_m2, ... (issue 25)
+    rows = with_cost_columns(score_rows(points), points)  # power_w, area_m2, ...
     ok = [r for r in rows if r["status"] == "ok"]
     acc, acc_label = accuracy_axis(rows)
     methods = list(spec.analysis.csf_methods)
@@ -388,7 +388,7 @@ def render_html(
     if ok:
         page.update(_figures_and_tables(points, rows, ok, acc, methods, t.pitch_m, focal))
     page.update(
-        artifacts=artifacts_html(points),  # buildable files per hardware point (report/artifacts.py)
+        artifacts=artifacts_html(points),  # buildable files per hardware point (report/artifact_links.py)
         sections=[Markup(s) for s in sections if s],
         conditions=_conditions(points, rows, design),
         version=__version__,
@@ -423,7 +423,7 @@ def _figures_and_tables(
             f"each hardware kind's own cost{(' for ' + _names(hw)) if hw else ''}.",
         }
     }
-    costs = cost_section(rows, points, _figure)  # physical costs across kinds (issue 25)
+    costs = cost_section(rows, points, _figure)  # physical costs across kinds
     panels = figures.realised_kernels(points)
     pnames = _names([p.label for p in panels])
     figs["kernels"] = {
@@ -532,8 +532,8 @@ def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any,
     )
     path = out / "report.html"
     sections = []
-    if (out / "codesign.json").is_file() and design.spec.codesign.enabled:  # issue 16 rows
-        from .codesign import codesign_section
+    if (out / "codesign.json").is_file() and design.spec.codesign.enabled:  # the co-design rows
+        from .codesign_section import codesign_section
 
         sections.append(codesign_section(json.loads((out / "codesign.json").read_text())))
     # atomically, never through a symbolic link planted in the folder

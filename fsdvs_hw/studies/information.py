@@ -488,10 +488,10 @@ def _fingerprint(**parts: Any) -> str:
 
 def _sensor_for(design: Any, scene: Any, threshold: float | None = None) -> Any:
     """The training simulator (:func:`~fsdvs_hw.tasks.learn.default_sensor`) with the design's sensor fields."""
-    from ..explore.scoring import _DESIGN_SENSOR_FIELDS
+    from ..explore.scoring import DESIGN_SENSOR_FIELDS
     from ..tasks.learn import default_sensor
 
-    fields = {k: design.section("sensor")[k] for k in _DESIGN_SENSOR_FIELDS}
+    fields = {k: design.section("sensor")[k] for k in DESIGN_SENSOR_FIELDS}
     if threshold is not None:
         fields.update(threshold_on=threshold, threshold_off=threshold)
     return dataclasses.replace(default_sensor(scene), **fields)

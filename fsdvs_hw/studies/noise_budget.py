@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..explore.rate import _check_thresholds
+from ..explore.rate import check_thresholds
 from ..kernels import Kernel
 
 __all__ = ["NOISE_SOURCES", "noise_budget"]
@@ -101,7 +101,7 @@ def noise_budget(
     from ..tasks import get_evaluator
     from ..tasks.learn import _dataset, load_checkpoint
 
-    ts_list = _check_thresholds(thresholds)
+    ts_list = check_thresholds(thresholds)
     if isinstance(n_test, bool) or not isinstance(n_test, int) or not 1 <= n_test <= 100_000:
         raise InputError(f"noise_budget: n_test={n_test!r}; allowed: an integer in [1, 100000]")
     photon = PhotonNoise(photoelectrons_full_scale=photoelectrons_full_scale, seed=seed)

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..explore.paired import clip_evidence
-from ..explore.rate import RateCurve, RatePoint, _check_thresholds
+from ..explore.rate import RateCurve, RatePoint, check_thresholds
 from ..kernels import Kernel
 from ..paths import write_output
 from ..progress import progress_bar
@@ -177,7 +177,7 @@ def retrained_rate_curve(
     >>> curve = retrained_rate_curve(None, "detection", [0.1, 0.2], [0, 1, 2], "out/rt",
     ...                              label="w/o")  # doctest: +SKIP
     """
-    ts = _check_thresholds(thresholds)
+    ts = check_thresholds(thresholds)
     seeds = [int(s) for s in seeds]
     if not seeds or len(set(seeds)) != len(seeds):
         raise InputError(f"retrained_rate_curve: seeds={seeds}; allowed: one or more distinct integers")

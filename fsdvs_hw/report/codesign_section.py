@@ -1,4 +1,4 @@
-"""The report's co-design section (issue 16): fit then swap vs fine-tune vs co-designed, per cell.
+"""The report's co-design section: fit then swap vs fine-tune vs co-designed, per cell.
 
 :func:`codesign_section` turns the summary that :func:`fsdvs_hw.explore.codesign.run_codesign`
 writes to ``codesign.json`` into an HTML fragment: one table row per (realisation, task) cell with

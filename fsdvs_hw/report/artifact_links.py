@@ -3,7 +3,7 @@
 ``fsdvs-hw explore`` writes each scored hardware point's files under ``OUT/artifacts/`` and
 attaches the index entries to the point (``point["artifacts"]``: ``name, file`` relative to the
 report, ``what, checked_by`` and, for a writer that failed, ``error``;
-:mod:`fsdvs_hw.explore.artifacts`). :func:`artifacts_html` turns them into one small table.
+:mod:`fsdvs_hw.explore.point_artifacts`). :func:`artifacts_html` turns them into one small table.
 """
 
 from __future__ import annotations
