@@ -607,6 +607,64 @@ def _scored_source(entry: Mapping[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in entry["dataset"].items() if k != "cache"}
 
 
+def _train_on_clips(
+    train_ds: Any,
+    train_indices: np.ndarray | None,
+    task: str,
+    net: Any,
+    spec: Mapping[str, Any],
+    device: str,
+    *,
+    out: Path | str | None,
+    fingerprint: dict[str, Any] | None,
+    verbose: bool,
+    **stages: Any,
+) -> Any:
+    """Train a copy of ``net`` on a table's training clips with its ``train`` table's common settings.
+
+    Parameters
+    ----------
+    train_ds : ClipDataset
+        The dataset trained on (:func:`_training_clips`).
+    train_indices : ndarray or None
+        Its training clips.
+    task : str
+    net : torch.nn.Module
+        Copied; the original is left as it is.
+    spec : mapping
+        The ``train`` table: ``weight_decay``, ``batch_size`` and ``seed`` are used.
+    device : str
+    out : path, optional
+        File stem of the trained network (resumes; a finished one is reused).
+    fingerprint : dict, optional
+        Identity of the run stored with the checkpoint and compared on resume.
+    verbose : bool
+        One line per epoch on stderr.
+    **stages
+        The stages and their rates (:func:`fsdvs_hw.tasks.dataset_training.train_on_dataset`).
+
+    Returns
+    -------
+    DatasetTrainingResult
+    """
+    from ..tasks.dataset_training import train_on_dataset
+
+    return train_on_dataset(
+        train_ds,
+        task,
+        copy.deepcopy(net),
+        train_indices=train_indices,
+        weight_decay=spec["weight_decay"],
+        batch_size=spec["batch_size"],
+        seed=spec["seed"],
+        device=device,
+        out=out,
+        fingerprint=fingerprint,
+        verbose=verbose,
+        **stages,
+    )
+
+
 def _train(
     task: str,
     entry: Mapping[str, Any],
@@ -618,8 +676,6 @@ def _train(
     out_stem: Path | None = None,
 ) -> Any:
     """Train ``net`` (a copy) on the task's clips not scored (or reuse / resume ``train.out``)."""
-    from ..tasks.dataset_training import train_on_dataset
-
     spec = dict(entry["train"])
     train_ds, train_idx = _training_clips(entry, spec, base, confine, key)
     out = out_stem or _path(base, spec["out"] or f"trained/{task}", what=f"{key}.train.out", confine=confine)
@@ -634,11 +690,16 @@ def _train(
         # train.split only when set: checkpoints trained before the key existed keep their fingerprint
         "train": {k: v for k, v in spec.items() if k != "out" and not (k == "split" and v is None)},
     }
-    return train_on_dataset(
+    return _train_on_clips(
         train_ds,
+        train_idx,
         task,
-        copy.deepcopy(net),
-        train_indices=train_idx,
+        net,
+        spec,
+        entry["device"],
+        out=out,
+        fingerprint=fingerprint,
+        verbose=verbose,
         kernel_size=spec["kernel_size"],
         learn_filter=spec["learn_kernel"],
         epochs_frozen=spec["epochs_frozen"],
@@ -647,13 +708,6 @@ def _train(
         lr_kernel=spec["lr_kernel"],
         lr_backbone=spec["lr_backbone"],
         lr_head=spec["lr_head"],
-        weight_decay=spec["weight_decay"],
-        batch_size=spec["batch_size"],
-        seed=spec["seed"],
-        device=entry["device"],
-        out=out,
-        fingerprint=fingerprint,
-        verbose=verbose,
     )
 
 
@@ -746,6 +800,36 @@ def user_network_identity(entry: Mapping[str, Any], base_dir: str | Path, *, con
     }
 
 
+def _finetune_stages(kernel: Any, realisation: Any, epochs: int, lr_network: float, lr_filter: float) -> dict[str, Any]:
+    """The training stages of :func:`finetune_user_network`: frozen ``kernel``, or co-designed ``realisation``.
+
+    Parameters
+    ----------
+    kernel : Kernel or None
+        Trained frozen (stage one only) when ``realisation`` is None.
+    realisation : Realisation or None
+        Otherwise co-designed (stage two only).
+    epochs : int
+    lr_network, lr_filter : float
+        AdamW rates (1/step) of the network and of the realisation's parameters.
+
+    Returns
+    -------
+    dict
+        Keyword arguments of :func:`fsdvs_hw.tasks.dataset_training.train_on_dataset`.
+    """
+    if realisation is None:
+        return {"init_kernel": kernel, "learn_filter": False, "epochs_frozen": epochs, "epochs_joint": 0}
+    return {
+        "realisation": realisation,
+        "epochs_frozen": 0,
+        "epochs_joint": epochs,
+        "lr_kernel": lr_filter,
+        "lr_backbone": lr_network,
+        "lr_head": lr_network,
+    }
+
+
 def finetune_user_network(
     task: str,
     entry: Mapping[str, Any],
@@ -816,8 +900,6 @@ def finetune_user_network(
     >>> res.history[-1]["stage"]                                                                         # doctest: +SKIP
     'frozen_filter'
     """
-    from ..tasks.dataset_training import train_on_dataset
-
     if (kernel is None) == (realisation is None):
         raise InputError("finetune_user_network: give exactly one of kernel= (frozen) and realisation= (co-designed)")
     key = f"tasks.datasets.{task}"
@@ -832,31 +914,18 @@ def finetune_user_network(
         ) from None
     ds = open_dataset(entry["dataset"], base, confine=confine, key=f"{key}.dataset")
     net = open_network(entry, ds, base, confine=confine, key=key)
-    stages = (
-        {"init_kernel": kernel, "learn_filter": False, "epochs_frozen": epochs, "epochs_joint": 0}
-        if realisation is None
-        else {
-            "realisation": realisation,
-            "epochs_frozen": 0,
-            "epochs_joint": epochs,
-            "lr_kernel": lr_filter,
-            "lr_backbone": lr_network,
-            "lr_head": lr_network,
-        }
-    )
-    return train_on_dataset(
+    stages = _finetune_stages(kernel, realisation, epochs, lr_network, lr_filter)
+    return _train_on_clips(
         train_ds,
+        train_idx,
         task,
-        copy.deepcopy(net),
-        train_indices=train_idx,
-        lr_network=lr_network,
-        weight_decay=spec["weight_decay"],
-        batch_size=spec["batch_size"],
-        seed=spec["seed"],
-        device=entry["device"],
+        net,
+        spec,
+        entry["device"],
         out=out,
         fingerprint=None if fingerprint is None else dict(fingerprint),
         verbose=verbose,
+        lr_network=lr_network,
         **stages,
     )
 
@@ -1049,6 +1118,74 @@ def _design_sensor(frame_rate_hz: float, design_sensor: Mapping[str, Any] | None
     }
 
 
+def _evaluate_table(
+    kernel: Any,
+    task: str,
+    entry: Mapping[str, Any],
+    dataset: Any,
+    network: Any,
+    evaluator: Any,
+    sensor: Any,
+    events_fn: Any,
+    max_failed_fraction: float,
+) -> Any:
+    """Evaluate ``kernel`` on a table's drawn clips, its errors naming the table's keys.
+
+    Parameters
+    ----------
+    kernel : Kernel or None
+    task : str
+        The table's name.
+    entry : mapping
+        A validated :class:`UserTask` dumped (``n_clips``, ``seed``, ``device``, ``network``).
+    dataset : ClipDataset
+    network : torch.nn.Module
+    evaluator : Evaluator
+        The dataset's task evaluator (its ``name`` enters the messages).
+    sensor : SensorConfig
+    events_fn : callable or None
+    max_failed_fraction : float
+        Drawn clips that may fail to read (fraction).
+
+    Returns
+    -------
+    DatasetEvaluation
+        As :func:`fsdvs_hw.tasks.dataset_eval.evaluate_on_dataset`.
+
+    Raises
+    ------
+    ClipFailuresError
+        Naming ``tasks.datasets.<task>.max_failed_clip_fraction``.
+    NetworkOutputError, InputError
+        Prefixed with the table's key (and its network, or its dataset).
+    """
+    from ..tasks.dataset_eval import ClipFailuresError, NetworkOutputError, evaluate_on_dataset
+
+    key = f"tasks.datasets.{task}"
+    try:
+        return evaluate_on_dataset(
+            kernel,
+            task,
+            dataset,
+            network,
+            sensor=sensor,
+            n_clips=entry["n_clips"] or None,
+            seed=entry["seed"],
+            events_fn=events_fn,
+            device=entry["device"],
+            max_failed_fraction=max_failed_fraction,
+        )
+    except ClipFailuresError as exc:
+        raise ClipFailuresError(
+            exc.detail, exc.failures, exc.n_drawn, max_failed_fraction, setting=f"{key}.max_failed_clip_fraction"
+        ) from None
+    except NetworkOutputError as exc:
+        name = entry["network"] or f"built-in {evaluator.name} network"
+        raise NetworkOutputError(f"{key}.network = {name!r}: {exc}") from None
+    except InputError as exc:
+        raise InputError(f"{key} ({entry['dataset']['format']} at {entry['dataset']['root']!r}): {exc}") from None
+
+
 def dataset_evidence(
     kernel: Any,
     task: str,
@@ -1110,13 +1247,7 @@ def dataset_evidence(
     >>> ev.metric_name, ev.n_clips                                       # doctest: +SKIP
     ('top1', 4)
     """
-    from ..tasks.dataset_eval import (
-        ClipFailuresError,
-        NetworkOutputError,
-        evaluate_on_dataset,
-        evaluator_for_dataset,
-        read_clip,
-    )
+    from ..tasks.dataset_eval import evaluator_for_dataset, read_clip
     from .paired import PER_CLIP_METRICS, ClipEvidence
 
     t0 = time.perf_counter()
@@ -1130,28 +1261,7 @@ def dataset_evidence(
     # the first readable clip's frame rate (none readable: evaluate_on_dataset names every failure)
     rate_hz = 1.0 if first is None else 1.0 / float(np.diff(first.timestamps_s)[0])
     sensor, sensor_rec = _design_sensor(rate_hz, design_sensor)
-    try:
-        ev = evaluate_on_dataset(
-            kernel,
-            task,
-            ds,
-            net,
-            sensor=sensor,
-            n_clips=entry["n_clips"] or None,
-            seed=entry["seed"],
-            events_fn=events_fn,
-            device=entry["device"],
-            max_failed_fraction=fraction,
-        )
-    except ClipFailuresError as exc:
-        raise ClipFailuresError(
-            exc.detail, exc.failures, exc.n_drawn, fraction, setting=f"{key}.max_failed_clip_fraction"
-        ) from None
-    except NetworkOutputError as exc:
-        name = entry["network"] or f"built-in {evaluator.name} network"
-        raise NetworkOutputError(f"{key}.network = {name!r}: {exc}") from None
-    except InputError as exc:
-        raise InputError(f"{key} ({entry['dataset']['format']} at {entry['dataset']['root']!r}): {exc}") from None
+    ev = _evaluate_table(kernel, task, entry, ds, net, evaluator, sensor, events_fn, fraction)
     metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, ev.targets, evaluator)
     n = len(ev.clip_indices)
     t, h, w = (first if first is not None else ds[int(ev.clip_indices[0])]).frames.shape
