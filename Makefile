@@ -87,7 +87,7 @@ setup: system-deps $(STAMP)
 
 # Debian packages the realisation checks need (SPICE, Verilog simulation and synthesis), and the
 # headless browser the report test drives (chromium, through Playwright; tests/test_report_browser.py),
-# and the C compiler that builds the event kernels on first use (sensor/_crossings.c).
+# and the C compiler that builds the event kernels on first use (sensor/native/_crossings.c).
 system-deps:
 	@missing=""; for t in $(SYSTEM_TOOLS); do command -v $$t >/dev/null 2>&1 || missing="$$missing $$t"; done; \
 	if [ -n "$$missing" ]; then \

@@ -130,8 +130,8 @@ if ARGS.part2:
     sys.exit(0)
 # 2. a 7x7 co-design step: kernel + classifier through the differentiable event frames
 from fsdvs_hw.kernels import reference_kernel
-from fsdvs_hw.sensor.config import SensorConfig
-from fsdvs_hw.sensor.events import event_frames
+from fsdvs_hw.sensor.simulation.config import SensorConfig
+from fsdvs_hw.sensor.simulation.events import event_frames
 from fsdvs_hw.tasks.networks import Classifier, event_representation
 
 bikes = torch.from_numpy(np.load(files["bikes"]))

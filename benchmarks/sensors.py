@@ -1,9 +1,9 @@
 """``fsdvs-hw bench sensors``: calibration recovery — parameters fitted back from simulated recordings.
 
 For two sensor presets and two recording lengths, the display-recapture test pattern
-(:func:`fsdvs_hw.sensor.calibration_scene.calibration_video`, 40 x 40 pixels at 1 kHz) is
+(:func:`fsdvs_hw.sensor.cameras.calibration_scene.calibration_video`, 40 x 40 pixels at 1 kHz) is
 simulated with the preset's parameters, written as a Prophesee EVT 3.0 file (µs timestamps, as an
-EVK4 records) and read back, then :func:`fsdvs_hw.sensor.calibrate.calibrate_sensor` fits it from
+EVK4 records) and read back, then :func:`fsdvs_hw.sensor.cameras.calibrate.calibrate_sensor` fits it from
 a neutral start (thresholds 0.2, bandwidth guess 100 Hz, fitted). Each row: the preset's value, the
 value of this simulated sensor's own pixels (thresholds and their spread: the mean and SD of the
 per-pixel draws over the pixels the fit uses; the interval is for the preset's population value),
@@ -37,7 +37,7 @@ _FIELDS = (
 
 def _own_pixels(config, height: int, width: int, like) -> dict[str, float]:
     """This sensor's own threshold mean/SD over the pixels the fit sees (the pattern's moving part)."""
-    from fsdvs_hw.sensor.pixel import threshold_maps
+    from fsdvs_hw.sensor.simulation.pixel import threshold_maps
 
     on, off = threshold_maps(config, (height, width), like)
     active = slice(int(0.25 * width), None)
@@ -60,11 +60,11 @@ def bench_sensors(*, quick: bool = False) -> BenchRun:
     import tempfile
 
     from fsdvs_hw.sensor import event_list
-    from fsdvs_hw.sensor.calibrate import calibrate_sensor
-    from fsdvs_hw.sensor.calibration_scene import calibration_video
-    from fsdvs_hw.sensor.presets import sensor_config
-    from fsdvs_hw.sensor.prophesee import write_prophesee
-    from fsdvs_hw.sensor.recordings import read_recording
+    from fsdvs_hw.sensor.cameras.calibrate import calibrate_sensor
+    from fsdvs_hw.sensor.cameras.calibration_scene import calibration_video
+    from fsdvs_hw.sensor.cameras.presets import sensor_config
+    from fsdvs_hw.sensor.eventfiles.prophesee import write_prophesee
+    from fsdvs_hw.sensor.eventfiles.recordings import read_recording
 
     size = 16 if quick else 40
     presets = ["davis346"] if quick else ["davis346", "v2e-noisy"]
@@ -143,7 +143,7 @@ def bench_sensors(*, quick: bool = False) -> BenchRun:
 def write_docs(path: str | Path = "docs/sensors.md", *, quick: bool = False) -> Path:
     """Run the bench and write its table into the calibration block of ``path`` (atomically)."""
     from fsdvs_hw.paths import write_output
-    from fsdvs_hw.sensor.presets import splice_block
+    from fsdvs_hw.sensor.cameras.presets import splice_block
 
     p = Path(path)
     md = bench_sensors(quick=quick).markdown

@@ -46,7 +46,7 @@ import sys
 import time
 from typing import Any
 
-from fsdvs_hw.sensor.threads import event_list_threads
+from fsdvs_hw.sensor.simulation.threads import event_list_threads
 
 __all__ = [
     "SIM_CASES",
@@ -281,9 +281,9 @@ def _throughput(sec: Any, quick: bool) -> None:
 
 def _accuracy(sec: Any, quick: bool) -> None:
     from fsdvs_hw.kernels import reference_kernel
-    from fsdvs_hw.sensor.config import SensorConfig
-    from fsdvs_hw.sensor.events import event_frames
-    from fsdvs_hw.sensor.plan import plan_model
+    from fsdvs_hw.sensor.simulation.config import SensorConfig
+    from fsdvs_hw.sensor.simulation.events import event_frames
+    from fsdvs_hw.sensor.simulation.plan import plan_model
 
     from .harness import Column, timed
 
@@ -362,8 +362,8 @@ def _accuracy(sec: Any, quick: bool) -> None:
 def _regions(sec: Any, quick: bool) -> None:
     import torch
 
-    from fsdvs_hw.sensor.config import SensorConfig
-    from fsdvs_hw.sensor.events import event_frames
+    from fsdvs_hw.sensor.simulation.config import SensorConfig
+    from fsdvs_hw.sensor.simulation.events import event_frames
 
     from .harness import Column, timed
 
@@ -638,7 +638,7 @@ def _case_config(case: dict[str, Any]) -> tuple[Any, Any]:
     import torch
 
     from fsdvs_hw.kernels import reference_kernel
-    from fsdvs_hw.sensor.config import SensorConfig
+    from fsdvs_hw.sensor.simulation.config import SensorConfig
 
     kernel = None
     settings = case["settings"]
@@ -681,8 +681,8 @@ def _simulate_to_file(frames: Any, kernel: Any, cfg: Any, chunk_frames: int, pat
     import tempfile
     from pathlib import Path
 
-    from fsdvs_hw.sensor.eventfile import EventFileWriter
-    from fsdvs_hw.sensor.stream import simulate
+    from fsdvs_hw.sensor.eventfiles.eventfile import EventFileWriter
+    from fsdvs_hw.sensor.simulation.stream import simulate
 
     suffix = ".aedat4" if path.endswith(".aedat4") else ".h5"
     n_events = 0
@@ -696,7 +696,7 @@ def _simulate_to_file(frames: Any, kernel: Any, cfg: Any, chunk_frames: int, pat
 
 def _simulate_once(video: Any, kernel: Any, cfg: Any, chunk_frames: int, path: str) -> int:
     """One run of the event list / centre-surround (events) or frames / forward+backward (event frames)."""
-    from fsdvs_hw.sensor.stream import simulate
+    from fsdvs_hw.sensor.simulation.stream import simulate
 
     n_events = 0
     if path in ("event list", "centre-surround"):
@@ -721,7 +721,7 @@ def _run_case(
 
     import torch
 
-    from fsdvs_hw.sensor.stream import simulate
+    from fsdvs_hw.sensor.simulation.stream import simulate
 
     cfg, kernel = _case_config(case)
     clip = case["clip"]
@@ -729,7 +729,7 @@ def _run_case(
     seconds = 1.0 if quick else float(long_seconds)
     video, (T, H, W) = _case_video(case, quick, seconds, cfg.frame_rate_hz)
     if not chunk_frames:  # auto, as the simulate command: about CHUNK_PIXELS pixels per chunk
-        from fsdvs_hw.sensor.stream import chunk_frames_for
+        from fsdvs_hw.sensor.simulation.stream import chunk_frames_for
 
         chunk_frames = chunk_frames_for(H, W)
     if video is not None:
@@ -815,9 +815,9 @@ def sim_records(
         ``min(2, cpu_count)`` for the others).
     chunk_frames : int, optional
         Frame intervals per streamed chunk (default, as ``fsdvs-hw simulate``:
-        :func:`fsdvs_hw.sensor.stream.chunk_frames_for`, about
-        :data:`~fsdvs_hw.sensor.stream.CHUNK_PIXELS` pixels per chunk and at least
-        :data:`~fsdvs_hw.sensor.stream.MIN_CHUNK_FRAMES` frames: 3 for bikes, 2 for bigbuckbunny,
+        :func:`fsdvs_hw.sensor.simulation.stream.chunk_frames_for`, about
+        :data:`~fsdvs_hw.sensor.simulation.stream.CHUNK_PIXELS` pixels per chunk and at least
+        :data:`~fsdvs_hw.sensor.simulation.stream.MIN_CHUNK_FRAMES` frames: 3 for bikes, 2 for bigbuckbunny,
         20 for carphone).
     long_seconds : float
         Length of the long 640×480 clip (default 120 s = 3000 frames; 1 s with ``quick``).
@@ -1187,7 +1187,7 @@ import json, resource, sys, time
 import numpy as np, torch
 import fsdvs_hw
 from fsdvs_hw.sensor import SensorConfig, simulate
-from fsdvs_hw.sensor.threads import event_list_threads
+from fsdvs_hw.sensor.simulation.threads import event_list_threads
 frames_path, preset, chunk = sys.argv[1], sys.argv[2], int(sys.argv[3])
 torch.set_num_threads(event_list_threads())
 video = torch.from_numpy(np.load(frames_path))
@@ -1219,7 +1219,7 @@ def compare_checkouts(
     the simulator), on the same pre-decoded frames (``input_mapping`` as in :func:`compare_v2e`),
     alternating the two in ``rounds`` rounds of one fresh child process each (public API only:
     :func:`fsdvs_hw.sensor.simulate`, so any version runs it). Both sides get the same chunks:
-    ``chunk_frames``, by default this checkout's :func:`fsdvs_hw.sensor.stream.chunk_frames_for`
+    ``chunk_frames``, by default this checkout's :func:`fsdvs_hw.sensor.simulation.stream.chunk_frames_for`
     of the frame size (what :func:`compare_v2e` and the command use). Rows as
     :func:`compare_v2e`'s, "v2e" standing for ``other_root``."""
     import tempfile
@@ -1228,10 +1228,10 @@ def compare_checkouts(
     import numpy as np
 
     from fsdvs_hw.errors import InputError
-    from fsdvs_hw.sensor.stream import chunk_frames_for
+    from fsdvs_hw.sensor.simulation.stream import chunk_frames_for
 
-    if not (Path(other_root) / "fsdvs_hw" / "sensor" / "stream.py").is_file():
-        raise InputError(f"other_root: {other_root!r} is no fsdvs_hw checkout (fsdvs_hw/sensor/stream.py missing)")
+    if not (Path(other_root) / "fsdvs_hw" / "sensor" / "__init__.py").is_file():
+        raise InputError(f"other_root: {other_root!r} is no fsdvs_hw checkout (fsdvs_hw/sensor/__init__.py missing)")
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     out = []
     for clip in clips:
@@ -1284,9 +1284,9 @@ gc.disable()  # as the command: imports without the cycle collector, then frozen
 import torch
 from fsdvs_hw.scenes.video import example_clip_path, iter_video
 from fsdvs_hw.sensor import SensorConfig, simulate
-from fsdvs_hw.sensor.presets import preset_input_mapping
-from fsdvs_hw.sensor.stream import chunk_frames_for
-from fsdvs_hw.sensor.threads import event_list_threads
+from fsdvs_hw.sensor.cameras.presets import preset_input_mapping
+from fsdvs_hw.sensor.simulation.stream import chunk_frames_for
+from fsdvs_hw.sensor.simulation.threads import event_list_threads
 gc.freeze()
 gc.enable()
 clip, preset, stage = sys.argv[1:4]
@@ -1550,8 +1550,8 @@ import json, os, sys, threading, time
 import numpy as np, torch
 from fsdvs_hw.scenes.video import example_clip_path, iter_video
 from fsdvs_hw.sensor import SensorConfig, simulate
-from fsdvs_hw.sensor.stream import chunk_frames_for
-from fsdvs_hw.sensor.threads import event_list_threads
+from fsdvs_hw.sensor.simulation.stream import chunk_frames_for
+from fsdvs_hw.sensor.simulation.threads import event_list_threads
 clip, mapping, preset, n_frames = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
 torch.set_num_threads(event_list_threads())
 frames = [f for _, f in iter_video(example_clip_path(clip), input_mapping=mapping, dtype="float32",
@@ -1597,9 +1597,9 @@ def thread_cpu_seconds(
 ) -> dict[str, Any]:
     """CPU seconds of each thread of one exact event list (Linux: ``/proc/self/task``), in a fresh
     child: the clip's decoded frames (``n_frames``, 0 = all) through ``simulate(frames)`` at
-    ``preset``. The workers carry their names (:func:`fsdvs_hw.sensor.threads.name_os_thread`); a
+    ``preset``. The workers carry their names (:func:`fsdvs_hw.sensor.simulation.threads.name_os_thread`); a
     poller keeps their last reading, since they end with the run (its own time is left out).
-    Frames below :data:`fsdvs_hw.sensor.stream.INLINE_PIXELS` (carphone) have no workers: all
+    Frames below :data:`fsdvs_hw.sensor.simulation.stream.INLINE_PIXELS` (carphone) have no workers: all
     their event work is the stepping thread's.
 
     Returns
@@ -1628,7 +1628,7 @@ def h5_filter_costs(clip: str = "bikes", *, n_frames: int = 60, repeats: int = 2
     65 536 rows) with h5py under four filter settings — gzip 4 (v2e's and this toolkit's), gzip 1,
     shuffle + gzip 4, shuffle + gzip 1 — on the exact events of the first ``n_frames`` of a clip
     (``v2e-default``), each file read back and compared; then the toolkit's own writer
-    (:class:`~fsdvs_hw.sensor.eventfile.EventFileWriter`: shuffle + deflate level 1, each whole
+    (:class:`~fsdvs_hw.sensor.eventfiles.eventfile.EventFileWriter`: shuffle + deflate level 1, each whole
     chunk shuffled and deflated by ISA-L on two threads of its writer process, the dataset
     recording shuffle + gzip 1), its CPU counted with that process's. Rows: ``filters``,
     ``cpu_ns_per_event`` and ``wall_ns_per_event`` (the best of ``repeats``), ``size_mib``, ``events``."""
@@ -1640,8 +1640,8 @@ def h5_filter_costs(clip: str = "bikes", *, n_frames: int = 60, repeats: int = 2
     import numpy as np
 
     from fsdvs_hw.sensor import SensorConfig, simulate
-    from fsdvs_hw.sensor._eventfile_child import H5_CHUNK_ROWS
-    from fsdvs_hw.sensor.eventfile import EventFileWriter
+    from fsdvs_hw.sensor.eventfiles.child_process import H5_CHUNK_ROWS
+    from fsdvs_hw.sensor.eventfiles.eventfile import EventFileWriter
 
     cols, lists = [], []
     for c in simulate(clip_frames(clip, n_frames), config=SensorConfig.preset("v2e-default")):

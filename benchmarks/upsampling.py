@@ -4,7 +4,7 @@ Ground truth: synthetic clips (:func:`fsdvs_hw.scenes.make_scenes`: textured ``1
 panning, 2–3 moving shapes with 50 % edges) rendered at 400 Hz and simulated at 400 Hz. Each clip
 is subsampled to 25, 50 and 100 Hz and simulated again (same sensor, same seed, so the same
 per-pixel thresholds) after upsampling back to 400 Hz with each mode of
-:func:`fsdvs_hw.sensor.upsampling.upsample_frames` (``none`` simulates the low-rate frames as they
+:func:`fsdvs_hw.sensor.simulation.upsampling.upsample_frames` (``none`` simulates the low-rate frames as they
 are: the simulator interpolates linearly in log between them). Two scene speeds: objects at
 40 px/s and 160 px/s (the pan a quarter of that), i.e. 1.6 and 6.4 px per frame at 25 Hz.
 
@@ -132,7 +132,7 @@ def bench_upsampling(*, quick: bool = False) -> BenchRun:
 
     from fsdvs_hw.scenes.synthetic import SceneConfig, make_scenes
     from fsdvs_hw.sensor import SensorConfig
-    from fsdvs_hw.sensor.upsampling import UPSAMPLE_MODES, motion_px_per_frame, upsample_frames
+    from fsdvs_hw.sensor.simulation.upsampling import UPSAMPLE_MODES, motion_px_per_frame, upsample_frames
 
     torch.set_num_threads(1)
     h, w = (32, 48) if quick else (64, 96)

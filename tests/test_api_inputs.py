@@ -22,7 +22,7 @@ from fsdvs_hw.errors import InputError
 from fsdvs_hw.limits import MAX_SUBSTEPS, allocation_limit
 from fsdvs_hw.scenes import synthetic as scenes
 from fsdvs_hw import sensor
-from fsdvs_hw.sensor.config import SATURATION_INTENSITY
+from fsdvs_hw.sensor.simulation.config import SATURATION_INTENSITY
 
 V = torch.rand(1, 3, 8, 8, generator=torch.Generator().manual_seed(0))
 CLEAN = sensor.SensorConfig.ideal()
@@ -220,7 +220,7 @@ def test_saturated_video_is_the_video_clipped_at_the_saturation_intensity():
 def test_valid_video_is_not_saturated_and_runs_unchanged():
     frames, info = sensor.event_frames(V * 5, config=CLEAN, return_info=True)
     assert info.saturated == 0
-    from fsdvs_hw.sensor.events import saturate
+    from fsdvs_hw.sensor.simulation.events import saturate
 
     assert saturate(V)[0] is V  # no copy, no rounding: bit-identical results
 

@@ -13,7 +13,7 @@ import pytest
 
 from fsdvs_hw import cli
 from fsdvs_hw.cli import simulate as simulate_verb
-from fsdvs_hw.sensor.eventfile import EventFileWriter
+from fsdvs_hw.sensor.eventfiles.eventfile import EventFileWriter
 
 
 @pytest.fixture

@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.sensor import EventList
-from fsdvs_hw.sensor import _crossings_native as native
-from fsdvs_hw.sensor import eventfile
-from fsdvs_hw.sensor.eventfile import EventFileWriter, read_events
+from fsdvs_hw.sensor.native import library as native
+from fsdvs_hw.sensor.eventfiles import eventfile
+from fsdvs_hw.sensor.eventfiles.eventfile import EventFileWriter, read_events
 
 pytestmark = pytest.mark.skipif(not native.available(), reason="compiled kernels unavailable")
 

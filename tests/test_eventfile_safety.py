@@ -24,8 +24,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.sensor import eventfile
-from fsdvs_hw.sensor.eventfile import EventFile, read_events, write_events
+from fsdvs_hw.sensor.eventfiles import eventfile
+from fsdvs_hw.sensor.eventfiles.eventfile import EventFile, read_events, write_events
 
 ROOT = Path(__file__).resolve().parents[1]
 HAS_DV = importlib.util.find_spec("dv_processing") is not None
@@ -38,7 +38,7 @@ OLD = b"previous file: must survive byte for byte\n"
 WRITER = r"""
 import resource, signal, sys
 import numpy as np
-from fsdvs_hw.sensor.eventfile import EventFile, EventFileWriter
+from fsdvs_hw.sensor.eventfiles.eventfile import EventFile, EventFileWriter
 mode, path, limit = sys.argv[1], sys.argv[2], int(sys.argv[3])
 rng = np.random.default_rng(0)
 n = 50_000
@@ -435,7 +435,7 @@ def test_simulate_limits_are_one_line_errors(tmp_path, capsys, argv, flag):
 
 def test_seed_limit_in_sensor_config():
     from fsdvs_hw.sensor import SensorConfig
-    from fsdvs_hw.sensor.config import MAX_SEED
+    from fsdvs_hw.sensor.simulation.config import MAX_SEED
 
     assert SensorConfig(seed=MAX_SEED).seed == MAX_SEED
     with pytest.raises(InputError, match="seed"):

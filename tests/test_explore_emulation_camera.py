@@ -13,7 +13,7 @@ def test_camera_preset_changes_the_recapture_only():
     from fsdvs_hw.explore.design import parse_design
     from fsdvs_hw.explore.emulation import camera_config, emulation_scores
     from fsdvs_hw.sensor import SensorConfig
-    from fsdvs_hw.sensor.presets import sensor_config
+    from fsdvs_hw.sensor.cameras.presets import sensor_config
 
     d = parse_design({"sensor": {"resolution": [24, 32]}, "emulation": {"n_clips": 1, "n_frames": 4}})
     sensor, emu = d.data["sensor"], d.data["emulation"]

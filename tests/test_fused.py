@@ -1,4 +1,4 @@
-"""The compiled no-grad paths (sensor/fused.py) against the torch operations they stand in for.
+"""The compiled no-grad paths (sensor/native/fused.py) against the torch operations they stand in for.
 
 Bit for bit, not approximately: the event list must not depend on whether the fused path ran.
 Each check compares the raw bits (NaN included) on random frames plus the extremes a sensor sees:
@@ -14,11 +14,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fsdvs_hw.sensor import SensorConfig, event_list
-from fsdvs_hw.sensor import fused as fused_mod
-from fsdvs_hw.sensor._crossings_native import available
-from fsdvs_hw.sensor.events import _COUNT_EPS, _Comparator
-from fsdvs_hw.sensor.fused import fused_applies, fused_linlog_v2e, fused_substep
-from fsdvs_hw.sensor.pixel import linlog_v2e, lowpass_step
+from fsdvs_hw.sensor.native import fused as fused_mod
+from fsdvs_hw.sensor.native.library import available
+from fsdvs_hw.sensor.simulation.events import _COUNT_EPS, _Comparator
+from fsdvs_hw.sensor.native.fused import fused_applies, fused_linlog_v2e, fused_substep
+from fsdvs_hw.sensor.simulation.pixel import linlog_v2e, lowpass_step
 
 pytestmark = pytest.mark.skipif(not available(), reason="no C compiler: the fused paths do not run")
 
@@ -191,10 +191,10 @@ def test_event_list_is_the_same_with_and_without_fused_paths(monkeypatch, subste
         calls.append(1)
         return real(*a)
 
-    monkeypatch.setattr("fsdvs_hw.sensor.events.fused_substep", counting)
+    monkeypatch.setattr("fsdvs_hw.sensor.simulation.events.fused_substep", counting)
     fused_ev = event_list(video, None, config=cfg)
     assert len(calls) == 7 * substeps  # every sub-step took the fused path
-    monkeypatch.setattr("fsdvs_hw.sensor.events.fused_substep_applies", lambda *a: False)
+    monkeypatch.setattr("fsdvs_hw.sensor.simulation.events.fused_substep_applies", lambda *a: False)
     monkeypatch.setattr(fused_mod, "fused_applies", lambda like: False)
     torch_ev = event_list(video, None, config=cfg)
     assert len(calls) == 7 * substeps
@@ -216,7 +216,7 @@ def test_floor_bits_and_count_equal_torch(dtype):
 
 def test_filtered_log_signal_is_the_same_with_and_without_fused_paths(monkeypatch):
     """The no-grad filtered signal (floor, v2e response, identity kernel skipped) against the torch path."""
-    from fsdvs_hw.sensor.filtering import _is_identity, apply_kernel, filtered_log_signal, kernel_tensor
+    from fsdvs_hw.sensor.simulation.filtering import _is_identity, apply_kernel, filtered_log_signal, kernel_tensor
 
     g = torch.Generator().manual_seed(4)
     video = torch.rand(2, 3, 9, 11, generator=g)
@@ -240,7 +240,7 @@ def test_baseline_build_without_clones_gives_the_same_events(monkeypatch, tmp_pa
     fused outputs and a whole event list, bit for bit, so a machine without AVX2 sees the same."""
     import ctypes
 
-    from fsdvs_hw.sensor import _crossings_native as native
+    from fsdvs_hw.sensor.native import library as native
 
     default = native._loaded()
     monkeypatch.setenv("FSDVS_HW_CACHE", str(tmp_path))

@@ -1,4 +1,4 @@
-"""Photon shot noise of the scene (fsdvs_hw.sensor.photon_noise) and the noise budget by source
+"""Photon shot noise of the scene (fsdvs_hw.sensor.simulation.photon_noise) and the noise budget by source
 (fsdvs_hw.studies.noise_budget): the photometry by hand, Poisson statistics, pairing across kernels,
 and which noise fires the events."""
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.sensor.photon_noise import PhotonNoise, photoelectrons_per_frame
+from fsdvs_hw.sensor.simulation.photon_noise import PhotonNoise, photoelectrons_per_frame
 
 torch = pytest.importorskip("torch")
 KERNELS = Path(__file__).parents[1] / "designs" / "kernels"

@@ -51,7 +51,7 @@ def test_the_simulate_command_line_is_parsed_without_torch():
     code = (
         "import sys; from fsdvs_hw.cli import _parser; "
         "_parser('simulate').parse_args(['simulate', 'example:bikes', '--out', 'e.h5']); "
-        "from fsdvs_hw.sensor.config import SensorConfig; from fsdvs_hw.sensor.presets import preset_input_mapping; "
+        "from fsdvs_hw.sensor.simulation.config import SensorConfig; from fsdvs_hw.sensor.cameras.presets import preset_input_mapping; "
         "SensorConfig.preset('v2e-default'); preset_input_mapping('v2e-default'); "
         "print('torch' in sys.modules)"
     )
@@ -63,7 +63,7 @@ def test_the_simulator_loads_without_pydantic():
     """pydantic (about 0.2 s to import) serves the design files and fit options; the simulator's own
     argument checks (``fsdvs_hw.validation``) and the ``simulate`` command do not load it."""
     code = (
-        "import sys, fsdvs_hw.sensor.stream, fsdvs_hw.sensor.eventfile, fsdvs_hw.cli.simulate, fsdvs_hw.validation; "
+        "import sys, fsdvs_hw.sensor.simulation.stream, fsdvs_hw.sensor.eventfiles.eventfile, fsdvs_hw.cli.simulate, fsdvs_hw.validation; "
         "print('pydantic' in sys.modules)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()

@@ -309,11 +309,11 @@ def test_checkout_ab_gives_both_sides_the_default_chunks(tmp_path, monkeypatch):
     import numpy as np
 
     from benchmarks import sim
-    from fsdvs_hw.sensor.stream import chunk_frames_for
+    from fsdvs_hw.sensor.simulation.stream import chunk_frames_for
 
     other = tmp_path / "other"
     (other / "fsdvs_hw" / "sensor").mkdir(parents=True)
-    (other / "fsdvs_hw" / "sensor" / "stream.py").write_text("")
+    (other / "fsdvs_hw" / "sensor" / "__init__.py").write_text("")
     monkeypatch.setattr(sim, "save_clip_frames", lambda clip, path, **kw: np.save(path, np.zeros((3, 144, 176), "f4")))
     seen = []
 

@@ -10,8 +10,8 @@ import torch
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.sensor import SensorConfig, event_list
-from fsdvs_hw.sensor.calibrate import calibrate_sensor, comparator_input
-from fsdvs_hw.sensor.calibration_scene import calibration_video
+from fsdvs_hw.sensor.cameras.calibrate import calibrate_sensor, comparator_input
+from fsdvs_hw.sensor.cameras.calibration_scene import calibration_video
 
 
 def _check_all_covered(cal, truth, names):
@@ -23,7 +23,7 @@ def _check_all_covered(cal, truth, names):
 def _check_thresholds(cal, truth, video):
     """Exact against this sensor's own pixels; near the preset (population) value within 3 half-widths
     (the interval is for the population: one sensor's draw misses it 1 time in 20)."""
-    from fsdvs_hw.sensor.pixel import threshold_maps
+    from fsdvs_hw.sensor.simulation.pixel import threshold_maps
 
     H, W = video.shape[-2:]
     active = slice(int(0.25 * W), None)  # calibration_video's static border has no threshold pairs
@@ -38,8 +38,8 @@ def _check_thresholds(cal, truth, video):
 
 def test_recovers_asymmetric_thresholds_mismatch_and_refractory_through_evt3(tmp_path):
     pytest.importorskip("expelliarmus")
-    from fsdvs_hw.sensor.prophesee import write_prophesee
-    from fsdvs_hw.sensor.recordings import read_recording
+    from fsdvs_hw.sensor.eventfiles.prophesee import write_prophesee
+    from fsdvs_hw.sensor.eventfiles.recordings import read_recording
 
     video, ts = calibration_video(250, 24, 24)
     truth = SensorConfig.ideal(0.15, threshold_off=0.25, threshold_sigma=0.03, refractory_s=8e-4, seed=5)

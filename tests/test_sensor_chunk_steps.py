@@ -1,13 +1,15 @@
-"""The chunk fast path (fsdvs_hw.sensor.chunk_steps) gives the step-by-step path's events bit for bit."""
+"""The chunk fast path (fsdvs_hw.sensor.native.chunk_steps) gives the step-by-step path's events bit for bit."""
 
 import pytest
 import torch
 
-from fsdvs_hw.sensor import SensorConfig, _crossings_native, chunk_steps, event_frames, event_list, events
-from fsdvs_hw.sensor.chunk_steps import BufferPool
-from fsdvs_hw.sensor.stream import collect, simulate
+from fsdvs_hw.sensor import SensorConfig, event_frames, event_list
+from fsdvs_hw.sensor.native import chunk_steps, library
+from fsdvs_hw.sensor.simulation import events
+from fsdvs_hw.sensor.native.chunk_steps import BufferPool
+from fsdvs_hw.sensor.simulation.stream import collect, simulate
 
-pytestmark = pytest.mark.skipif(not _crossings_native.available(), reason="compiled kernels unavailable")
+pytestmark = pytest.mark.skipif(not library.available(), reason="compiled kernels unavailable")
 
 
 def _clip(T=13, H=12, W=20, seed=1, dtype=torch.float32):
@@ -54,7 +56,7 @@ def _same(a, b):
 def test_chunk_path_equals_step_by_step_bit_for_bit(name, dtype, group_pixels, inline, monkeypatch):
     """Chunks of 5 intervals in crossing tasks of 1, 3 (with a remainder) or all intervals, on the
     worker threads or inline (stream.INLINE_PIXELS)."""
-    from fsdvs_hw.sensor import stream
+    from fsdvs_hw.sensor.simulation import stream
 
     config, video = CONFIGS[name], _clip(dtype=dtype)
     monkeypatch.setattr(stream, "INLINE_PIXELS", 2**30 if inline else 0)
@@ -138,7 +140,7 @@ def test_an_event_list_past_the_allocation_limit_is_refused_by_name(inline, chun
     InputError that names the event list and the step's size (raised from the worker or inline)."""
     from fsdvs_hw.errors import InputError
     from fsdvs_hw.limits import allocation_limit
-    from fsdvs_hw.sensor import stream
+    from fsdvs_hw.sensor.simulation import stream
 
     monkeypatch.setattr(stream, "INLINE_PIXELS", 2**30 if inline else 0)
     if not chunk_path:

@@ -8,8 +8,8 @@ import torch
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.sensor import EventList, SensorConfig, event_list
-from fsdvs_hw.sensor.compare import compare_events, inter_event_intervals, plot_event_comparison
-from fsdvs_hw.sensor.eventfile import EventFile
+from fsdvs_hw.sensor.cameras.compare import compare_events, inter_event_intervals, plot_event_comparison
+from fsdvs_hw.sensor.eventfiles.eventfile import EventFile
 
 
 def _list(t, x, y, p) -> EventList:

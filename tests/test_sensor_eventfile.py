@@ -8,7 +8,7 @@ import torch
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.sensor import SensorConfig, simulate
-from fsdvs_hw.sensor.eventfile import EventFileWriter, read_events, write_events
+from fsdvs_hw.sensor.eventfiles.eventfile import EventFileWriter, read_events, write_events
 
 HAS_DV = importlib.util.find_spec("dv_processing") is not None
 FORMATS = [
@@ -33,7 +33,7 @@ def _chunks(T=9, H=12, W=20):
 def test_round_trip_chunk_by_chunk(tmp_path, suffix, write_slice, monkeypatch):
     """Chunks written one by one read back exactly; also when each write is cut into slices of 7
     events (the writer bounds its memory by slicing large chunks)."""
-    from fsdvs_hw.sensor import eventfile
+    from fsdvs_hw.sensor.eventfiles import eventfile
 
     monkeypatch.setattr(eventfile, "WRITE_SLICE", write_slice)
     chunks, H, W = _chunks()
@@ -86,7 +86,7 @@ def test_event_file_errors(tmp_path):
         with EventFileWriter(tmp_path / "ev2.npz", W, H) as w:
             w.write(chunks[1].events)
             w.write(chunks[0].events)
-    from fsdvs_hw.sensor.events import EventList
+    from fsdvs_hw.sensor.simulation.events import EventList
 
     for bad in (0, 2, -2, 127, -128):  # -128: abs() overflows back to -128 in int8
         p = torch.tensor([1, bad, -1], dtype=torch.int8)
@@ -162,7 +162,7 @@ def test_hdf5_chunks_deflated_in_parallel_decode_as_hdf5_filters_define(tmp_path
 
     import h5py
 
-    from fsdvs_hw.sensor.events import EventList
+    from fsdvs_hw.sensor.simulation.events import EventList
 
     rng = np.random.default_rng(5)
     sizes = [70_000, 65_536, 1, 130_000, 3]

@@ -181,7 +181,7 @@ def test_fast_surround_transient_equals_steady_state_and_slow_one_lags():
 
 
 def test_floor_gradient_is_straight_through_and_clipped():
-    from fsdvs_hw.sensor.filtering import filtered_log_signal
+    from fsdvs_hw.sensor.simulation.filtering import filtered_log_signal
 
     video = torch.tensor([[[[1e-5, 1.0]], [[1e-5, 1.0]]]], dtype=torch.float64, requires_grad=True)
     cfg = IDEAL.replace(floor_intensity=1e-3, dark_intensity=1e-6)
@@ -198,7 +198,7 @@ def test_floor_gradient_is_straight_through_and_clipped():
 def test_fft_correlation_equals_conv2d_at_any_frame_size(H, W, k):
     """The FFT path (transforms at fast sizes, larger than the padded frame) equals conv2d with
     replicated borders, values and kernel gradients, including prime frame sizes."""
-    from fsdvs_hw.sensor.filtering import apply_kernel
+    from fsdvs_hw.sensor.simulation.filtering import apply_kernel
 
     g = torch.Generator().manual_seed(H + W + k)
     frames = torch.rand(2, H, W, generator=g, dtype=torch.float64)

@@ -1,4 +1,4 @@
-"""The fast exact event path (sensor/crossings.py) against the full-frame formulation it replaced.
+"""The fast exact event path (sensor/simulation/crossings.py) against the full-frame formulation it replaced.
 
 The reference below is the previous implementation's per-step code (full-frame refractory
 arithmetic, per-polarity expansion, one stable sort): the fast path must give the same events bit
@@ -14,8 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fsdvs_hw.sensor import SensorConfig, event_frames, event_list
-from fsdvs_hw.sensor._crossings_native import sort_events, sort_intervals_to_columns
-from fsdvs_hw.sensor.crossings import (
+from fsdvs_hw.sensor.native.library import sort_events, sort_intervals_to_columns
+from fsdvs_hw.sensor.simulation.crossings import (
     crossing_step,
     crossing_step_torch,
     shot_noise_pixels,
@@ -258,23 +258,23 @@ def test_event_list_counts_match_frames_with_every_effect():
 def test_compiled_kernels_build_here():
     """The C kernels build with this machine's compiler (the Makefile installs gcc); otherwise every
     event list silently takes the slower torch path."""
-    from fsdvs_hw.sensor import _crossings_native
+    from fsdvs_hw.sensor.native import library
 
-    assert _crossings_native.available(), _crossings_native.why_unavailable()
+    assert library.available(), library.why_unavailable()
 
 
 def test_event_list_without_compiled_kernels_is_identical(monkeypatch):
     """The torch fallback (no C compiler) gives the same events, bit for bit and in the same order,
     as the compiled path, with every effect on (refractory losses, leak, shot noise, mismatch)."""
-    from fsdvs_hw.sensor import _crossings_native
+    from fsdvs_hw.sensor.native import library
 
     g = torch.Generator().manual_seed(3)
     video = (torch.rand(1, 9, 24, 32, generator=g) * 0.8 + 0.1).cumsum(1) / 5
     cfg = SensorConfig.preset("v2e-default", refractory_s=0.01, shot_noise_rate_hz=5.0, leak_rate_hz=1.0)
     native = event_list(video, None, config=cfg)
-    monkeypatch.setattr(_crossings_native, "_lib", None)
-    monkeypatch.setattr(_crossings_native, "_tried", True)
-    assert not _crossings_native.available()
+    monkeypatch.setattr(library, "_lib", None)
+    monkeypatch.setattr(library, "_tried", True)
+    assert not library.available()
     fallback = event_list(video, None, config=cfg)
     assert len(native) > 100
     for a in ("b", "x", "y", "t", "p"):
@@ -282,7 +282,7 @@ def test_event_list_without_compiled_kernels_is_identical(monkeypatch):
 
 
 def test_crossing_totals_are_exact_on_both_sides_of_float32s_exact_range():
-    from fsdvs_hw.sensor.crossings import _total
+    from fsdvs_hw.sensor.simulation.crossings import _total
 
     small = np.floor(np.random.default_rng(0).random(200_000, dtype=np.float32) * 3)
     assert _total(small) == int(small.astype(np.int64).sum())

@@ -74,7 +74,7 @@ def test_seed_makes_runs_repeatable_and_streams_independent():
 
 
 def test_threshold_mismatch_has_configured_spread():
-    from fsdvs_hw.sensor.pixel import threshold_maps
+    from fsdvs_hw.sensor.simulation.pixel import threshold_maps
 
     cfg = SensorConfig(threshold_sigma=0.03, seed=2)
     on, off = threshold_maps(cfg, (200, 200), torch.zeros((), dtype=torch.float64))

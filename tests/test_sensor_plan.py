@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from fsdvs_hw.sensor import SensorConfig, event_frames, event_list, plan_model
-from fsdvs_hw.sensor.plan import SceneStats
+from fsdvs_hw.sensor.simulation.plan import SceneStats
 
 TOL = 0.05
 FULL = SensorConfig(substeps=64)  # v2e-like sensor, every effect on, fine fixed time steps

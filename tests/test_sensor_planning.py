@@ -35,7 +35,7 @@ def test_adaptive_fraction_adds_no_substeps_without_a_temporal_filter():
 
 @pytest.mark.parametrize("safe", [True, False])
 def test_refractory_path_skipped_only_when_nothing_can_be_lost(safe, monkeypatch):
-    import fsdvs_hw.sensor.events as ev_mod
+    import fsdvs_hw.sensor.simulation.events as ev_mod
 
     video = _moving_edge() * 2.0  # above the linear-log knee: the comparator input is log(I)
     steepest = float((torch.log(video[:, 1:]) - torch.log(video[:, :-1])).abs().max()) * 25.0  # log units / s

@@ -9,7 +9,7 @@ import pytest
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.sensor import SensorConfig
-from fsdvs_hw.sensor.presets import (
+from fsdvs_hw.sensor.cameras.presets import (
     DOC_BLOCKS,
     PRESET_FIELDS,
     SENSOR_PRESETS,
@@ -27,7 +27,7 @@ def test_docs_table_is_generated_from_the_code():
     text = _DOCS.read_text(encoding="utf-8")
     begin, end = DOC_BLOCKS["presets"]
     block = text[text.index(begin) + len(begin) + 1 : text.index(end)]
-    assert block == presets_markdown(), "regenerate: python -m fsdvs_hw.sensor.presets docs/sensors.md"
+    assert block == presets_markdown(), "regenerate: python -m fsdvs_hw.sensor.cameras.presets docs/sensors.md"
 
 
 def test_every_value_has_a_source_and_status():
@@ -77,7 +77,7 @@ def test_design_files_offer_every_preset_as_the_emulation_camera():
     """design.py lists the cameras without importing the simulator; the list must follow the presets,
     and a design that names one records it (a design that does not keeps its content unchanged)."""
     from fsdvs_hw.explore.design import EMULATION_CAMERAS, parse_design
-    from fsdvs_hw.sensor.presets import SENSOR_PRESETS
+    from fsdvs_hw.sensor.cameras.presets import SENSOR_PRESETS
 
     assert set(EMULATION_CAMERAS) == {"design", *SENSOR_PRESETS}
     assert parse_design({"emulation": {"camera": "imx636"}}).data["emulation"]["camera"] == "imx636"

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.sensor.eventfile import EventFile, write_events
-from fsdvs_hw.sensor.prophesee import decode_evt3, read_prophesee, write_prophesee
-from fsdvs_hw.sensor.recordings import read_recording, read_recording_events
+from fsdvs_hw.sensor.eventfiles.eventfile import EventFile, write_events
+from fsdvs_hw.sensor.eventfiles.prophesee import decode_evt3, read_prophesee, write_prophesee
+from fsdvs_hw.sensor.eventfiles.recordings import read_recording, read_recording_events
 
 expelliarmus = pytest.importorskip("expelliarmus")
 pytest.importorskip("hdf5plugin")
@@ -81,7 +81,7 @@ def test_evt3_time_high_and_wrap():
 
 
 def test_dsec_round_trip_identical_and_ms_index(tmp_path):
-    from fsdvs_hw.sensor.dsec import read_dsec, write_dsec
+    from fsdvs_hw.sensor.eventfiles.dsec import read_dsec, write_dsec
 
     ev = _events(width=640, height=480, span_us=2_500_000)
     path = write_dsec(tmp_path / "events.h5", ev, t_offset_us=123)
@@ -154,7 +154,7 @@ def test_foreign_and_cut_header_refused(tmp_path):
 def test_truncated_and_inconsistent_dsec_refused(tmp_path):
     import h5py
 
-    from fsdvs_hw.sensor.dsec import write_dsec
+    from fsdvs_hw.sensor.eventfiles.dsec import write_dsec
 
     path = write_dsec(tmp_path / "events.h5", _events(n=20000, width=640, height=480, span_us=500_000))
     data = path.read_bytes()
@@ -179,7 +179,7 @@ def test_garbled_camera_files_read_valid_or_raise_input_error(tmp_path_factory, 
     """Any Prophesee / DSEC file with up to 8 changed bytes and/or cut short reads to valid events
     (times in µs that never decrease, x < width, y < height, polarity ±1) or raises one InputError
     naming the file, never another exception or a crash (derandomized: the same examples every run)."""
-    from fsdvs_hw.sensor.dsec import write_dsec
+    from fsdvs_hw.sensor.eventfiles.dsec import write_dsec
     from tests.test_eventfile_safety import garbled_outcomes
 
     d = tmp_path_factory.mktemp(f"fuzz_{kind}")

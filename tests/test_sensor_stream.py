@@ -7,7 +7,7 @@ import torch
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.kernels import reference_kernel
 from fsdvs_hw.sensor import SensorConfig, event_frames, event_list
-from fsdvs_hw.sensor.stream import collect, simulate
+from fsdvs_hw.sensor.simulation.stream import collect, simulate
 
 
 def _clip(T=9, H=16, W=24, seed=0):
@@ -56,7 +56,7 @@ def test_chunked_equals_whole_clip_bit_for_bit(kernel, chunk):
 
 def _record_pipelines(monkeypatch):
     """The ``inline`` flag of every event pipeline made from now on, in order."""
-    from fsdvs_hw.sensor import events
+    from fsdvs_hw.sensor.simulation import events
 
     made = []
     real_init = events._EventPipeline.__init__
@@ -81,7 +81,7 @@ def test_event_only_stream_equals_whole_clip_through_the_pipeline(config, chunk,
     """An event-only CPU stream runs on the worker pipeline (emit, sort, noise threads, chunks handed
     over ``LOOKAHEAD_CHUNKS`` late), or on the stepping thread below ``INLINE_PIXELS``: same
     events, noise count and refractory losses as event_list."""
-    from fsdvs_hw.sensor import stream
+    from fsdvs_hw.sensor.simulation import stream
 
     monkeypatch.setattr(stream, "LOOKAHEAD_CHUNKS", lookahead)
     monkeypatch.setattr(stream, "INLINE_PIXELS", 2**30 if inline else 0)
@@ -101,7 +101,7 @@ def test_event_only_stream_equals_whole_clip_through_the_pipeline(config, chunk,
 def test_stream_runs_small_frames_inline_and_large_ones_on_workers(monkeypatch):
     """The pipeline is inline below INLINE_PIXELS pixels per frame (all sensors), threaded from it;
     a task's error reaches the caller either way."""
-    from fsdvs_hw.sensor import events, stream
+    from fsdvs_hw.sensor.simulation import events, stream
 
     made = _record_pipelines(monkeypatch)
     small = _clip(T=4, H=8, W=8)
@@ -177,7 +177,7 @@ def test_stream_runs_a_plan_like_the_whole_clip():
 def test_chunks_of_one_clip_are_views_and_equal_the_stack():
     """Consecutive frames of one clip in memory make a chunk without a copy; any other frames
     (a list of separate tensors, a strided clip) are stacked; the values agree either way."""
-    from fsdvs_hw.sensor.stream import _stack_frames
+    from fsdvs_hw.sensor.simulation.stream import _stack_frames
 
     clip = torch.rand(5, 2, 6, 7)  # (T, B, H, W): frames are (B, H, W) views with a batch stride
     frames = list(clip.unbind(0))
@@ -201,7 +201,7 @@ def test_chunks_of_one_clip_are_views_and_equal_the_stack():
 
 
 def test_chunk_frames_for_aims_at_chunk_pixels_and_at_least_min_chunk_frames():
-    from fsdvs_hw.sensor.stream import CHUNK_PIXELS, MIN_CHUNK_FRAMES, chunk_frames_for
+    from fsdvs_hw.sensor.simulation.stream import CHUNK_PIXELS, MIN_CHUNK_FRAMES, chunk_frames_for
 
     assert MIN_CHUNK_FRAMES == 2 and CHUNK_PIXELS == 2**19
     assert chunk_frames_for(272, 640) == CHUNK_PIXELS // (272 * 640) == 3
@@ -216,7 +216,7 @@ def test_simulate_command_default_chunks_follow_the_frame_size(tmp_path):
     (--size if given, else the file's), MIN_CHUNK_FRAMES if the file does not say its size."""
     from fsdvs_hw.cli import main
     from fsdvs_hw.cli.simulate import _frame_size
-    from fsdvs_hw.sensor import stream
+    from fsdvs_hw.sensor.simulation import stream
 
     assert _frame_size({"source_size": (640, 272)}, None) == (272, 640)
     assert _frame_size({"source_size": (640, 272)}, (30, 40)) == (30, 40)
@@ -240,7 +240,7 @@ def test_simulate_command_default_chunks_follow_the_frame_size(tmp_path):
 def test_default_chunks_follow_the_frame_size_for_events_and_stay_16_for_frames():
     """chunk_frames=None: an event list alone in chunk_frames_for(H, W) intervals (its events do
     not depend on the chunks); with event frames, 16 (the truncated-BPTT window)."""
-    from fsdvs_hw.sensor.stream import DEFAULT_FRAMES_CHUNK, chunk_frames_for
+    from fsdvs_hw.sensor.simulation.stream import DEFAULT_FRAMES_CHUNK, chunk_frames_for
 
     video = _clip(T=7, H=512, W=512)
     assert chunk_frames_for(512, 512) == 2

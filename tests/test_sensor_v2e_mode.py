@@ -7,7 +7,7 @@ import torch
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.sensor import SensorConfig, event_frames
-from fsdvs_hw.sensor.pixel import linlog_v2e, photoreceptor_cutoff_hz
+from fsdvs_hw.sensor.simulation.pixel import linlog_v2e, photoreceptor_cutoff_hz
 
 
 def test_v2e_response_matches_v2e_lin_log_values():
@@ -64,7 +64,7 @@ def test_linlog_v2e_rounding_equals_torch_round():
 
     import torch
 
-    from fsdvs_hw.sensor.pixel import _round_half_even, linlog_v2e
+    from fsdvs_hw.sensor.simulation.pixel import _round_half_even, linlog_v2e
 
     g = torch.Generator().manual_seed(0)
     inten = torch.cat(

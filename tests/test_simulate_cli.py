@@ -7,7 +7,7 @@ import torch
 from fsdvs_hw.cli import main
 from fsdvs_hw.scenes.video import load_example_clip
 from fsdvs_hw.sensor import SensorConfig, event_list
-from fsdvs_hw.sensor.eventfile import read_events
+from fsdvs_hw.sensor.eventfiles.eventfile import read_events
 
 
 @pytest.mark.parametrize("dtype", ["float32", "float64"])

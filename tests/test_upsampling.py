@@ -7,8 +7,8 @@ from scipy.ndimage import gaussian_filter
 
 from fsdvs_hw.cli import main
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.sensor.eventfile import read_events
-from fsdvs_hw.sensor.upsampling import interpolate_frames, upsample_frames, visible_masks
+from fsdvs_hw.sensor.eventfiles.eventfile import read_events
+from fsdvs_hw.sensor.simulation.upsampling import interpolate_frames, upsample_frames, visible_masks
 
 
 def _texture(shape=(64, 64), seed=0):
@@ -148,7 +148,7 @@ def test_plan_turns_upsampling_on_for_fast_motion_and_says_why():
     import torch
 
     from fsdvs_hw.sensor import SensorConfig, plan_model
-    from fsdvs_hw.sensor.upsampling import UPSAMPLE_MOTION_PX
+    from fsdvs_hw.sensor.simulation.upsampling import UPSAMPLE_MOTION_PX
 
     tex = _texture((32, 48), seed=3)
     cfg = SensorConfig.ideal(0.2)

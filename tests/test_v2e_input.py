@@ -13,8 +13,8 @@ import pytest
 from fsdvs_hw.cli import main
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.scenes.video import example_clip_path, iter_video, v2e_gray
-from fsdvs_hw.sensor.eventfile import read_events
-from fsdvs_hw.sensor.presets import preset_input_mapping
+from fsdvs_hw.sensor.eventfiles.eventfile import read_events
+from fsdvs_hw.sensor.cameras.presets import preset_input_mapping
 
 
 def test_v2e_gray_is_opencv_bt601_luma_of_code_values():

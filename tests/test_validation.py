@@ -129,7 +129,7 @@ def test_non_numeric_taps_are_refused(taps):
 @pytest.mark.parametrize("peak", [1e300, 1e16, 1e-300, 1e-16])
 def test_taps_that_overflow_or_vanish_in_float32_are_refused_where_float32_or_hardware_starts(peak, tmp_path):
     torch = pytest.importorskip("torch")
-    from fsdvs_hw.sensor.events import event_frames
+    from fsdvs_hw.sensor.simulation.events import event_frames
 
     k = Kernel(np.full((3, 3), peak))  # a float64 kernel; its (scale-invariant) analysis is fine
     for name in ("mesh", "asic", "metalens"):
@@ -203,7 +203,7 @@ def test_kernel_file_errors_never_echo_the_files_content(tmp_path):
 def test_float16_video_counts_do_not_overflow_to_inf():
     torch = pytest.importorskip("torch")
     from fsdvs_hw.sensor import SensorConfig
-    from fsdvs_hw.sensor.events import event_frames
+    from fsdvs_hw.sensor.simulation.events import event_frames
 
     v = torch.full((1, 2, 8, 8), 1e-3, dtype=torch.float16)
     v[:, 1] = 1000.0
@@ -217,7 +217,7 @@ def test_float16_video_counts_do_not_overflow_to_inf():
 
 def test_float16_frames_with_an_fft_sized_kernel_work():
     torch = pytest.importorskip("torch")
-    from fsdvs_hw.sensor.events import event_frames
+    from fsdvs_hw.sensor.simulation.events import event_frames
 
     g = torch.Generator().manual_seed(0)
     v = torch.rand(1, 3, 64, 64, generator=g) + 0.1

@@ -149,13 +149,13 @@ def test_the_wheel_carries_the_designs_and_imports_from_the_venv(installed):
     assert shipped <= inside  # every design file, kernel, checkpoint and figure
     assert (Path(module).parent / "realise" / "asic" / "data" / "fsdvs_demo45.lib").is_file()
     # the event simulator's C source ships too, and builds from the installed package
-    assert (Path(module).parent / "sensor" / "_crossings.c").is_file()
+    assert (Path(module).parent / "sensor" / "native" / "_crossings.c").is_file()
     cache = work / "kernel-cache"
     built = _run(
         [
             str(env_dir / "bin" / "python"),
             "-c",
-            "from fsdvs_hw.sensor import _crossings_native as n; print(n.available(), n.why_unavailable())",
+            "from fsdvs_hw.sensor.native import library as n; print(n.available(), n.why_unavailable())",
         ],
         cwd=work,
         env={**env, "FSDVS_HW_CACHE": str(cache)},

@@ -46,8 +46,8 @@ DESCRIPTION = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from ..scenes.video import INPUT_MAPPINGS
-    from ..sensor.config import PRESETS
-    from ..sensor.upsampling import UPSAMPLE_MODES
+    from ..sensor.simulation.config import PRESETS
+    from ..sensor.simulation.upsampling import UPSAMPLE_MODES
 
     parser.add_argument("video", help="video file, or example:NAME")
     parser.add_argument("--out", type=Path, required=True, help="event file (.h5, .hdf5, .aedat4 or .npz)")
@@ -145,7 +145,7 @@ def _size(text: str | None) -> tuple[int, int] | None:
 def _check_numbers(args: argparse.Namespace) -> None:
     """Ranges of the numeric options, checked before anything is decoded."""
     from ..errors import InputError
-    from ..sensor.config import MAX_SEED
+    from ..sensor.simulation.config import MAX_SEED
 
     cores = os.cpu_count() or 1
     if args.threads is not None and not 1 <= args.threads <= MAX_THREADS_PER_CORE * cores:
@@ -161,7 +161,7 @@ def _check_numbers(args: argparse.Namespace) -> None:
         raise InputError(f"--frames {args.frames}: must be >= 1")
     if args.chunk_frames is not None and not 1 <= args.chunk_frames <= 100_000:
         raise InputError(f"--chunk-frames {args.chunk_frames}: must be in [1, 100000]")
-    from ..sensor.upsampling import MAX_UPSAMPLE_RATE_HZ
+    from ..sensor.simulation.upsampling import MAX_UPSAMPLE_RATE_HZ
 
     if not (math.isfinite(args.upsample_rate) and 0 < args.upsample_rate <= MAX_UPSAMPLE_RATE_HZ):
         raise InputError(f"--upsample-rate {args.upsample_rate:g}: must be in (0, {MAX_UPSAMPLE_RATE_HZ:g}] Hz")
@@ -237,7 +237,7 @@ def _frames(args: argparse.Namespace, path: Path, size: tuple[int, int] | None, 
         dtype=args.dtype,
     )
     if args.upsample != "none":
-        from ..sensor.upsampling import upsample_frames
+        from ..sensor.simulation.upsampling import upsample_frames
 
         frames = upsample_frames(frames, mode=args.upsample, rate_hz=args.upsample_rate)
     return frames
@@ -293,9 +293,9 @@ def _run(args: argparse.Namespace) -> int:
     from ..allocator import retain_freed_memory
     from ..paths import output_file
     from ..scenes.video import example_clip_path, video_properties
-    from ..sensor.config import SensorConfig
-    from ..sensor.eventfile import event_format
-    from ..sensor.presets import preset_input_mapping
+    from ..sensor.simulation.config import SensorConfig
+    from ..sensor.eventfiles.eventfile import event_format
+    from ..sensor.cameras.presets import preset_input_mapping
 
     retain_freed_memory()  # the same frame-sized buffers, freed and allocated again at every step
     event_format(args.out)  # checked before decoding anything
@@ -378,7 +378,7 @@ class _Run:
 
     def simulate_to_file(self, config: Any, stopped: list[int]) -> tuple[int, int, float]:
         """Simulate and write every chunk; the events, ON events and seconds since the first frame."""
-        from ..sensor.eventfile import EventFileWriter
+        from ..sensor.eventfiles.eventfile import EventFileWriter
 
         args = self.args
         # The video is probed (an ffmpeg process) and the writer process started, where the file
@@ -418,7 +418,7 @@ class _Run:
     def _probe_and_open_writer(self) -> None:
         """The video's properties, then the writer where they give the frame size."""
         from ..scenes.video import video_properties
-        from ..sensor.eventfile import EventFileWriter
+        from ..sensor.eventfiles.eventfile import EventFileWriter
 
         self.props = video_properties(self.path)
         h_w = _frame_size(self.props, self.size)
@@ -430,7 +430,7 @@ class _Run:
         with _collector_spares_imports():
             import torch  # noqa: F401  the bulk of the command's start-up
 
-            from ..sensor.stream import simulate
+            from ..sensor.simulation.stream import simulate
         return simulate
 
     def _start(self, h_w: tuple[int, int] | None) -> tuple[Any, int]:
@@ -440,8 +440,8 @@ class _Run:
         from ..kernels import load_kernel_or_reference
         from ..prefetch import prefetch
         from ..progress import progress_bar
-        from ..sensor.stream import MIN_CHUNK_FRAMES, chunk_frames_for
-        from ..sensor.threads import event_list_threads
+        from ..sensor.simulation.stream import MIN_CHUNK_FRAMES, chunk_frames_for
+        from ..sensor.simulation.threads import event_list_threads
 
         args = self.args
         # Decoding runs in its own thread, beside the simulation (docs/speed.md); at most

@@ -125,7 +125,7 @@ _PLACEMENTS = get_args(_Placement)
 _POSITIVITY = get_args(_Positivity)
 _TRACKS = get_args(_Track)
 #: The emulation track's recapturing camera: the design's [sensor], or a preset of
-#: :data:`fsdvs_hw.sensor.presets.SENSOR_PRESETS` (listed here so reading a design never imports torch;
+#: :data:`fsdvs_hw.sensor.cameras.presets.SENSOR_PRESETS` (listed here so reading a design never imports torch;
 #: tests/test_sensor_presets.py checks that the two agree).
 EMULATION_CAMERAS = ("design", "dvs128", "davis346", "imx636", "v2e-clean", "v2e-default", "v2e-noisy")
 _CodesignMode = Literal["swap", "finetune", "codesign"]
@@ -260,14 +260,14 @@ class EmulationSection(StrictModel):
         "linear_light",
         "",
         "how the upsampled frames are made: 'linear_light' (blend in linear light, a cross-fade) or "
-        "'flow' (optical-flow interpolation in log intensity with occlusion handling, fsdvs_hw.sensor.upsampling; "
+        "'flow' (optical-flow interpolation in log intensity with occlusion handling, fsdvs_hw.sensor.simulation.upsampling; "
         "closer to the paper's RIFE)",
     )
     camera: Literal[EMULATION_CAMERAS] = field(  # type: ignore[valid-type]
         "design",
         "",
         "the camera that recaptures the display: 'design' (the design's [sensor]) or a sensor preset "
-        "with sourced parameters (fsdvs_hw.sensor.presets; 'imx636' is the paper's EVK4)",
+        "with sourced parameters (fsdvs_hw.sensor.cameras.presets; 'imx636' is the paper's EVK4)",
     )
 
 

@@ -6,7 +6,7 @@ Prophesee EVK4. This module emulates that chain so that every realisation can be
 same track:
 
 1. **Filter** the linear-intensity video with the realised kernel (cross-correlation with
-   replicated borders, :func:`fsdvs_hw.sensor.filtering.apply_kernel`, the simulator's own
+   replicated borders, :func:`fsdvs_hw.sensor.simulation.filtering.apply_kernel`, the simulator's own
    convention).
 2. **Display**: a display cannot emit negative light or exceed its peak. The filtered clip is
    mapped affinely onto [black, peak] luminance with one gain per clip (so temporal contrast is
@@ -19,7 +19,7 @@ same track:
    stated simplification: blending turns motion into a cross-fade between frames, which spreads
    the same log change over more sub-steps); with ``upsample = "flow"`` optical-flow
    interpolation in log intensity with occlusion handling
-   (:func:`fsdvs_hw.sensor.upsampling.interpolate_frames`), closer to RIFE.
+   (:func:`fsdvs_hw.sensor.simulation.upsampling.interpolate_frames`), closer to RIFE.
 4. **Recapture** by the exact event simulator (:func:`fsdvs_hw.sensor.event_frames`) with no
    in-pixel kernel and the design's noisy sensor (thresholds, mismatch, v2e noise defaults); the
    upsampled intervals are summed back onto the source frame intervals.
@@ -124,7 +124,7 @@ def upsample_linear(
     """Insert ``factor − 1`` frames between neighbours: T → (T−1)·factor + 1 frames.
 
     ``mode``: ``"linear_light"`` blends linearly in linear light; ``"flow"`` interpolates with
-    optical flow in log intensity (:func:`fsdvs_hw.sensor.upsampling.interpolate_frames`).
+    optical flow in log intensity (:func:`fsdvs_hw.sensor.simulation.upsampling.interpolate_frames`).
     """
     if factor == 1:
         return video, timestamps_s
@@ -132,7 +132,7 @@ def upsample_linear(
     w = np.arange(factor) / factor  # blend weights within one interval
     a, b = video[:, :-1], video[:, 1:]
     if mode == "flow":
-        from ..sensor.upsampling import interpolate_frames
+        from ..sensor.simulation.upsampling import interpolate_frames
 
         mid = np.stack(
             [
@@ -163,7 +163,7 @@ def recapture(
     import torch
 
     from ..sensor import event_frames
-    from ..sensor.filtering import apply_kernel
+    from ..sensor.simulation.filtering import apply_kernel
 
     with torch.no_grad():
         filt = apply_kernel(torch.as_tensor(video, dtype=torch.float64), torch.as_tensor(np.array(kernel.taps)))
@@ -193,7 +193,7 @@ def _sensor_config(sensor: Mapping[str, Any], seed: int, frame_rate_hz: float) -
 def camera_config(camera: str, design_sensor: Any) -> Any:
     """The recapturing camera's SensorConfig: ``"design"`` (the design's sensor) or a preset name.
 
-    A preset (:mod:`fsdvs_hw.sensor.presets`) brings its thresholds, mismatch, refractory period,
+    A preset (:mod:`fsdvs_hw.sensor.cameras.presets`) brings its thresholds, mismatch, refractory period,
     bandwidth and noise; the frame rate and seed stay the design's.
 
     Examples
@@ -206,7 +206,7 @@ def camera_config(camera: str, design_sensor: Any) -> Any:
     """
     if camera == "design":
         return design_sensor
-    from ..sensor.presets import sensor_config
+    from ..sensor.cameras.presets import sensor_config
 
     return sensor_config(camera, frame_rate_hz=design_sensor.frame_rate_hz, seed=design_sensor.seed)
 

@@ -18,7 +18,7 @@ Pairing
   loss's CI that more clips cannot shrink (:mod:`fsdvs_hw.stats`, nested design). With
   ``"shared"`` every network scores the same clips (crossed).
 * **Noise draws**: the simulator seeds every random effect from ``SensorConfig.seed`` at each call
-  (:func:`fsdvs_hw.sensor.pixel.effect_generator`), and every kernel is run on the same batches of
+  (:func:`fsdvs_hw.sensor.simulation.pixel.effect_generator`), and every kernel is run on the same batches of
   ``batch_size`` clips, so every kernel sees the same threshold-mismatch pattern and the same shot
   noise.
 * **Mismatch patterns**: network ``s`` (the ``s``-th checkpoint of a task) is scored with sensor

@@ -762,7 +762,7 @@ def rate_curve(
         Called with each finished point (loaded or computed).
     events_fn : callable, optional
         Replaces the simulator (:func:`fsdvs_hw.tasks.learn.evaluate_kernel`'s ``events_fn``), e.g.
-        :class:`fsdvs_hw.sensor.photon_noise.PhotonNoise` for photon shot noise of the scene; its
+        :class:`fsdvs_hw.sensor.simulation.photon_noise.PhotonNoise` for photon shot noise of the scene; its
         ``repr`` enters the saved points' fingerprint.
 
     Returns

@@ -31,47 +31,47 @@ from .._lazy import lazy_exports
 # mapping or the config's field names (the ``simulate`` command's parser) does not import torch:
 # the command decodes the video while torch loads (docs/speed.md).
 _LAZY: dict[str, str] = {
-    "PLACEMENTS": "fsdvs_hw.sensor.config",
-    "POSITIVITY_MODES": "fsdvs_hw.sensor.config",
-    "SURROGATES": "fsdvs_hw.sensor.config",
-    "EventChunk": "fsdvs_hw.sensor.stream",
-    "EventComparison": "fsdvs_hw.sensor.compare",
-    "EventList": "fsdvs_hw.sensor.events",
-    "EventSimulator": "fsdvs_hw.sensor.events",
-    "ModelPlan": "fsdvs_hw.sensor.plan",
-    "PlanDecision": "fsdvs_hw.sensor.plan",
-    "SceneStats": "fsdvs_hw.sensor.plan",
-    "SensorCalibration": "fsdvs_hw.sensor.calibrate",
-    "SensorConfig": "fsdvs_hw.sensor.config",
-    "SensorPreset": "fsdvs_hw.sensor.presets",
-    "SimulationInfo": "fsdvs_hw.sensor.events",
-    "calibrate_sensor": "fsdvs_hw.sensor.calibrate",
-    "collect": "fsdvs_hw.sensor.stream",
-    "compare_events": "fsdvs_hw.sensor.compare",
-    "event_frames": "fsdvs_hw.sensor.events",
-    "event_list": "fsdvs_hw.sensor.events",
-    "linlog": "fsdvs_hw.sensor.pixel",
-    "mesh_surround_steady_state": "fsdvs_hw.sensor.filtering",
-    "plan_model": "fsdvs_hw.sensor.plan",
-    "read_recording": "fsdvs_hw.sensor.recordings",
-    "sensor_config": "fsdvs_hw.sensor.presets",
-    "sensor_preset": "fsdvs_hw.sensor.presets",
-    "simulate": "fsdvs_hw.sensor.stream",
-    "upsample_frames": "fsdvs_hw.sensor.upsampling",
-    "voxel_grid": "fsdvs_hw.sensor.events",
+    "PLACEMENTS": "fsdvs_hw.sensor.simulation.config",
+    "POSITIVITY_MODES": "fsdvs_hw.sensor.simulation.config",
+    "SURROGATES": "fsdvs_hw.sensor.simulation.config",
+    "EventChunk": "fsdvs_hw.sensor.simulation.stream",
+    "EventComparison": "fsdvs_hw.sensor.cameras.compare",
+    "EventList": "fsdvs_hw.sensor.simulation.events",
+    "EventSimulator": "fsdvs_hw.sensor.simulation.events",
+    "ModelPlan": "fsdvs_hw.sensor.simulation.plan",
+    "PlanDecision": "fsdvs_hw.sensor.simulation.plan",
+    "SceneStats": "fsdvs_hw.sensor.simulation.plan",
+    "SensorCalibration": "fsdvs_hw.sensor.cameras.calibrate",
+    "SensorConfig": "fsdvs_hw.sensor.simulation.config",
+    "SensorPreset": "fsdvs_hw.sensor.cameras.presets",
+    "SimulationInfo": "fsdvs_hw.sensor.simulation.events",
+    "calibrate_sensor": "fsdvs_hw.sensor.cameras.calibrate",
+    "collect": "fsdvs_hw.sensor.simulation.stream",
+    "compare_events": "fsdvs_hw.sensor.cameras.compare",
+    "event_frames": "fsdvs_hw.sensor.simulation.events",
+    "event_list": "fsdvs_hw.sensor.simulation.events",
+    "linlog": "fsdvs_hw.sensor.simulation.pixel",
+    "mesh_surround_steady_state": "fsdvs_hw.sensor.simulation.filtering",
+    "plan_model": "fsdvs_hw.sensor.simulation.plan",
+    "read_recording": "fsdvs_hw.sensor.eventfiles.recordings",
+    "sensor_config": "fsdvs_hw.sensor.cameras.presets",
+    "sensor_preset": "fsdvs_hw.sensor.cameras.presets",
+    "simulate": "fsdvs_hw.sensor.simulation.stream",
+    "upsample_frames": "fsdvs_hw.sensor.simulation.upsampling",
+    "voxel_grid": "fsdvs_hw.sensor.simulation.events",
 }
 
 __all__, __getattr__, __dir__ = lazy_exports("fsdvs_hw.sensor", _LAZY, globals())
 
 if TYPE_CHECKING:  # the same names, visible to IDEs and type checkers
-    from .calibrate import SensorCalibration, calibrate_sensor
-    from .compare import EventComparison, compare_events
-    from .config import PLACEMENTS, POSITIVITY_MODES, SURROGATES, SensorConfig
-    from .events import EventList, EventSimulator, SimulationInfo, event_frames, event_list, voxel_grid
-    from .filtering import mesh_surround_steady_state
-    from .pixel import linlog
-    from .plan import ModelPlan, PlanDecision, SceneStats, plan_model
-    from .presets import SensorPreset, sensor_config, sensor_preset
-    from .recordings import read_recording
-    from .stream import EventChunk, collect, simulate
-    from .upsampling import upsample_frames
+    from .cameras.calibrate import SensorCalibration, calibrate_sensor
+    from .cameras.compare import EventComparison, compare_events
+    from .cameras.presets import SensorPreset, sensor_config, sensor_preset
+    from .eventfiles.recordings import read_recording
+    from .simulation.config import PLACEMENTS, POSITIVITY_MODES, SURROGATES, SensorConfig
+    from .simulation.events import EventList, EventSimulator, SimulationInfo, event_frames, event_list, voxel_grid
+    from .simulation.filtering import mesh_surround_steady_state
+    from .simulation.pixel import linlog
+    from .simulation.plan import ModelPlan, PlanDecision, SceneStats, plan_model
+    from .simulation.stream import EventChunk, collect, simulate
+    from .simulation.upsampling import upsample_frames

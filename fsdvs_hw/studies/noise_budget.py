@@ -7,7 +7,7 @@ measures at each threshold the event rate (events/pixel/s, ON + OFF)
 
 * ``signal``: moving scene, no temporal noise (threshold mismatch kept: it is fixed pattern);
 * ``photon``, ``shot``, ``leak``: the signal plus that one source alone — photon shot noise of
-  the scene (:class:`~fsdvs_hw.sensor.photon_noise.PhotonNoise`, before the kernel), the pixel's
+  the scene (:class:`~fsdvs_hw.sensor.simulation.photon_noise.PhotonNoise`, before the kernel), the pixel's
   shot-noise events and its leak events (:class:`~fsdvs_hw.sensor.SensorConfig`);
 * ``all``: every source together, and ``static``: every source on a still scene (the first
   frame held), i.e. the noise floor a pixel fires with nothing moving;
@@ -76,7 +76,7 @@ def noise_budget(
         ON = OFF contrast thresholds (log units), at least 2.
     photoelectrons_full_scale : float
         Photon noise level: mean photoelectrons per pixel per frame at full scale
-        (:func:`fsdvs_hw.sensor.photon_noise.photoelectrons_per_frame`).
+        (:func:`fsdvs_hw.sensor.simulation.photon_noise.photoelectrons_per_frame`).
     n_test : int
         Clips simulated.
     seed : int
@@ -97,7 +97,7 @@ def noise_budget(
 
     from ..scenes.synthetic import SceneConfig
     from ..sensor import SensorConfig
-    from ..sensor.photon_noise import PhotonNoise
+    from ..sensor.simulation.photon_noise import PhotonNoise
     from ..tasks import get_evaluator
     from ..tasks.learn import _dataset, load_checkpoint
 

@@ -79,7 +79,7 @@ class RateOptions:
         design's threshold, with its threshold swept (the paper's transfer experiment at matched rate).
     illuminance_lux : float or None
         Fixed protocol: add photon shot noise of the scene at this sensor-plane illuminance (lx) at
-        full scale (:mod:`fsdvs_hw.sensor.photon_noise`, the design's pixel pitch, one frame interval
+        full scale (:mod:`fsdvs_hw.sensor.simulation.photon_noise`, the design's pixel pitch, one frame interval
         of integration), and write ``noise_budget.json``/``.csv`` (:func:`fsdvs_hw.studies.noise_budget.noise_budget`:
         which noise fires the events at each threshold). None: no photon noise.
     quantum_efficiency : float
@@ -229,7 +229,7 @@ def run_rate_study(options: RateOptions) -> RateStudy:
             "quantum_efficiency": options.quantum_efficiency,
             "photoelectrons_full_scale": photon.photoelectrons_full_scale,
             "pitch_m": float(design.spec.sensor.pitch_m),
-            "model": "Poisson photoelectrons per frame interval before the kernel (fsdvs_hw.sensor.photon_noise)",
+            "model": "Poisson photoelectrons per frame interval before the kernel (fsdvs_hw.sensor.simulation.photon_noise)",
         },
     }
     study = _write_study(options, out, curves, comparisons, settings)
@@ -246,7 +246,7 @@ def _photon_noise(options: RateOptions, design: Any, checkpoint: Path) -> Any:
     """The photon-noise ``events_fn`` of ``--illuminance-lux`` (None without it)."""
     if options.illuminance_lux is None:
         return None
-    from ..sensor.photon_noise import PhotonNoise, photoelectrons_per_frame
+    from ..sensor.simulation.photon_noise import PhotonNoise, photoelectrons_per_frame
     from ..tasks.learn import load_checkpoint
 
     fps = float(load_checkpoint(checkpoint)[0]["scene"].get("frame_rate_hz", 100.0))

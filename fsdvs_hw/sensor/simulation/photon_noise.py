@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from ...errors import InputError
 
 __all__ = ["LUMINOUS_EFFICACY_LM_PER_W", "PhotonNoise", "photoelectrons_per_frame"]
 
@@ -146,6 +146,6 @@ class PhotonNoise:
         return (counts / n).to(video.dtype).to(video.device)
 
     def __call__(self, video: Any, kernel_taps: Any, sensor: Any, timestamps_s: Any) -> Any:
-        from . import event_frames
+        from .. import event_frames
 
         return event_frames(self.noisy(video), kernel_taps, timestamps_s=timestamps_s, config=sensor)

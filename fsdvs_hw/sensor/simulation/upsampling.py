@@ -51,7 +51,7 @@ References
 Examples
 --------
 >>> import numpy as np
->>> from fsdvs_hw.sensor.upsampling import upsample_frames
+>>> from fsdvs_hw.sensor.simulation.upsampling import upsample_frames
 >>> frames = [np.full((8, 8), 0.5), np.full((8, 8), 2.0)]
 >>> out = list(upsample_frames(frames, mode="linear", rate_hz=100.0, frame_rate_hz=25.0))
 >>> [round(t, 3) for t, _ in out]
@@ -68,7 +68,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from ...errors import InputError
 
 __all__ = [
     "MAX_UPSAMPLE_RATE_HZ",

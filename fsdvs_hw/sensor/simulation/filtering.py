@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from ..errors import InputError, KernelError
+from ...errors import InputError, KernelError
 from .config import SensorConfig
 from .pixel import log_response
 
@@ -48,7 +48,7 @@ def kernel_tensor(kernel: Any, like: Any) -> Any:
     import numpy as np
     import torch
 
-    from ..kernels import Kernel, check_tap_magnitude
+    from ...kernels import Kernel, check_tap_magnitude
 
     if kernel is None:
         return torch.ones((1, 1), dtype=like.dtype, device=like.device)
@@ -135,7 +135,7 @@ def mesh_surround_steady_state(signal: Any, lambda_px: float) -> Any:
     """
     import torch
 
-    from ..validation import check_instance, check_real
+    from ...validation import check_instance, check_real
 
     check_instance("signal", signal, torch.Tensor, "a real torch tensor (..., H, W)")
     if signal.ndim < 2 or not signal.is_floating_point():
@@ -241,7 +241,7 @@ def filtered_log_signal(video: Any, kernel: Any, config: SensorConfig) -> Filter
             agg = video if _is_identity(kernel) else apply_kernel(video, kernel, config.convolution)
             if config.positivity == "pedestal":
                 agg = agg + config.pedestal_intensity
-            from .fused import fused_applies, fused_floor
+            from ..native.fused import fused_applies, fused_floor
 
             if fused_applies(agg):  # the same bits in one compiled pass (no gradient wanted)
                 agg, n_below = fused_floor(agg, float(config.floor_intensity))

@@ -46,15 +46,15 @@ from typing import Any
 
 import torch
 
-from ..errors import InputError
-from ..limits import check_allocation
-from ..validation import check_bool, check_increasing_times, check_instance, check_int
-from . import _crossings_native
-from .chunk_steps import BufferPool, advance_chunk, chunk_applies
+from ...errors import InputError
+from ...limits import check_allocation
+from ...validation import check_bool, check_increasing_times, check_instance, check_int
+from ..native import library as native
+from ..native.chunk_steps import BufferPool, advance_chunk, chunk_applies
+from ..native.fused import fused_substep, fused_substep_applies
 from .config import SATURATION_INTENSITY, SensorConfig
 from .crossings import crossing_step, noise_step, shot_noise_pixels, sort_interval, to_event_columns
 from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
-from .fused import fused_substep, fused_substep_applies
 from .pixel import effect_generator, lowpass_step, threshold_maps
 from .threads import name_os_thread
 
@@ -139,7 +139,7 @@ def _check_video_size(shape: tuple[int, ...], itemsize: int) -> None:
 
 
 def saturate(video: Any) -> tuple[Any, int]:
-    """Clip intensities above :data:`~fsdvs_hw.sensor.config.SATURATION_INTENSITY` (a saturated pixel).
+    """Clip intensities above :data:`~fsdvs_hw.sensor.simulation.config.SATURATION_INTENSITY` (a saturated pixel).
 
     Returns ``(video, n)``: ``video`` itself when nothing exceeds the saturation intensity (so a
     valid video runs bit-identically), else a clipped copy (zero gradient where clipped), and the
@@ -230,7 +230,7 @@ class SimulationInfo:
     refractory_lost : crossings lost to the refractory period.
     pixel_steps : pixel sub-steps computed (the work; smaller with region stepping).
     saturated : pixel-frames of the input above
-        :data:`~fsdvs_hw.sensor.config.SATURATION_INTENSITY`, clipped to it (0 for a valid scene).
+        :data:`~fsdvs_hw.sensor.simulation.config.SATURATION_INTENSITY`, clipped to it (0 for a valid scene).
     """
 
     floor_fraction: float
@@ -513,7 +513,7 @@ class _EventPipeline:
     def columns(self, pieces: list, H: int, W: int, B: int) -> Any:
         """Future of the chunk's ``(b, x, y, t, p)`` columns, from what :meth:`sort` returned for
         each of its intervals. Chunked, one sensor, compiled kernels: the intervals are sorted
-        straight into the chunk's columns (:func:`._crossings_native.sort_intervals_to_columns`);
+        straight into the chunk's columns (:func:`~fsdvs_hw.sensor.native.library.sort_intervals_to_columns`);
         otherwise :func:`.crossings.to_event_columns` of the sorted intervals."""
 
         def run() -> Any:
@@ -522,8 +522,8 @@ class _EventPipeline:
             for waits, *_ in pieces:
                 for f in waits:
                     f.result()
-            if B == 1 and B * H * W < 2**31 and _crossings_native.available():
-                cols = _crossings_native.sort_intervals_to_columns([w[1:] for w in pieces], H * W, W)
+            if B == 1 and B * H * W < 2**31 and native.available():
+                cols = native.sort_intervals_to_columns([w[1:] for w in pieces], H * W, W)
                 x, y, t, p = (torch.from_numpy(c) for c in cols)
                 return torch.zeros(1, dtype=torch.int64).expand(len(t)), x, y, t, p
             return to_event_columns([sort_interval(parts, lo, hi) for _, parts, lo, hi in pieces], H, W, B)
@@ -1036,7 +1036,7 @@ def event_frames(
     video : torch.Tensor or numpy.ndarray, shape (B, T, H, W)
         Linear intensity (>= 0, video units; full scale 1.0 for a normalised clip).
         Differentiable. Intensities above
-        :data:`~fsdvs_hw.sensor.config.SATURATION_INTENSITY` (1e20) saturate: they are clipped
+        :data:`~fsdvs_hw.sensor.simulation.config.SATURATION_INTENSITY` (1e20) saturate: they are clipped
         to it, as a photodiode saturates, and counted in ``SimulationInfo.saturated``, so any
         finite video gives finite event frames. Videos whose event frames would exceed the
         allocation limit (:mod:`fsdvs_hw.limits`) are refused from their shape before any work.
@@ -1118,7 +1118,7 @@ def event_list(
     """
     import torch
 
-    from ..progress import progress_bar
+    from ...progress import progress_bar
 
     progress = check_bool("progress", progress, nullable=True)
     n_intervals = max(int(getattr(video, "shape", (0, 1))[1]) - 1, 0) if getattr(video, "ndim", 0) >= 2 else None

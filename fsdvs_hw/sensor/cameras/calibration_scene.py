@@ -1,7 +1,7 @@
 """A known source video for calibrating a sensor: a display-recapture test pattern.
 
 :func:`calibration_video` makes what a display shown to the camera would play for
-:func:`~fsdvs_hw.sensor.calibrate.calibrate_sensor`: an oblique grating with soft-square bars
+:func:`~fsdvs_hw.sensor.cameras.calibrate.calibrate_sensor`: an oblique grating with soft-square bars
 (``tanh`` of a sinusoid, so pixels see both slow ramps and steep edges) drifting at a speed that
 sweeps between 5 and 35 cycles per second, under a slow brightness modulation, with a static
 border (a quarter of the columns, constant intensity) where only noise and leak events occur.
@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from ..errors import InputError
+from ...errors import InputError
 
 __all__ = ["calibration_video"]
 

@@ -1,6 +1,6 @@
-/* Compiled kernel of fsdvs_hw/sensor/eventfile.py: one slice of event columns converted to the
+/* Compiled kernel of fsdvs_hw/sensor/eventfiles/eventfile.py: one slice of event columns converted to the
  * writer process's message layout and checked, in one pass (built and loaded by
- * _crossings_native.py).
+ * library.py).
  *
  * The conversion is NumPy's, operation for operation: t_us = rint(t * 1e6) (IEEE multiply, then
  * rounding to nearest even in the default mode, as np.rint), x and y narrowed to int16, p to

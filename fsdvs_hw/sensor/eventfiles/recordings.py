@@ -18,8 +18,8 @@ file, the field or byte offset and the format it expected.
 Examples
 --------
 >>> import numpy as np, tempfile, os
->>> from fsdvs_hw.sensor.eventfile import EventFile
->>> from fsdvs_hw.sensor.dsec import write_dsec
+>>> from fsdvs_hw.sensor.eventfiles.eventfile import EventFile
+>>> from fsdvs_hw.sensor.eventfiles.dsec import write_dsec
 >>> ev = EventFile(np.array([10, 20]), np.array([1, 2]), np.array([3, 4]), np.array([1, -1], dtype=np.int8), 64, 48)
 >>> path = os.path.join(tempfile.mkdtemp(), "events.h5")
 >>> _ = write_dsec(path, ev)
@@ -33,7 +33,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..errors import InputError
+from ...errors import InputError
 from .eventfile import FORMATS, EventFile, read_events
 
 __all__ = ["RECORDING_SUFFIXES", "read_recording", "read_recording_events"]

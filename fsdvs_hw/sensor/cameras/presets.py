@@ -32,7 +32,7 @@ References
 
 Examples
 --------
->>> from fsdvs_hw.sensor.presets import sensor_preset
+>>> from fsdvs_hw.sensor.cameras.presets import sensor_preset
 >>> p = sensor_preset("dvs128")
 >>> p.values["pitch_um"].value, p.values["pitch_um"].status
 (40.0, 'published')
@@ -47,8 +47,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import InputError
-from .config import SensorConfig
+from ...errors import InputError
+from ..simulation.config import SensorConfig
 
 __all__ = [
     "DOC_BLOCKS",
@@ -330,7 +330,7 @@ def sensor_config(name: str, **overrides: Any) -> SensorConfig:
     """
     if str(name).lower() in SENSOR_PRESETS:
         return sensor_preset(name).config(**overrides)
-    from .config import PRESETS
+    from ..simulation.config import PRESETS
 
     if name in PRESETS:
         return SensorConfig.preset(name, **overrides)
@@ -425,9 +425,9 @@ def splice_block(text: str, name: str, content: str) -> str:
 def write_presets_page(path: str | Path) -> Path:
     """Regenerate the presets table inside ``path`` (``docs/sensors.md``), atomically.
 
-    Run as ``python -m fsdvs_hw.sensor.presets docs/sensors.md``.
+    Run as ``python -m fsdvs_hw.sensor.cameras.presets docs/sensors.md``.
     """
-    from ..paths import write_output
+    from ...paths import write_output
 
     p = Path(path)
     return write_output(p, splice_block(p.read_text(encoding="utf-8"), "presets", presets_markdown()), flag="path")

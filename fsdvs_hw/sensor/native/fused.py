@@ -20,7 +20,7 @@ and extreme inputs, and whole event lists on both paths.
 
 Not fused (the torch path runs): a gradient is wanted, a device other than the CPU, a dtype other
 than float32/float64, the transient surround, the relaxed surrogate, or no C compiler (see
-:func:`._crossings_native.why_unavailable`).
+:func:`~fsdvs_hw.sensor.native.library.why_unavailable`).
 """
 
 from __future__ import annotations
@@ -31,9 +31,9 @@ from typing import Any
 
 import torch
 
-from ..errors import InputError
-from . import _crossings_native
-from .config import SensorConfig
+from ...errors import InputError
+from ..simulation.config import SensorConfig
+from . import library
 
 __all__ = ["ROUND_MAGIC", "fused_applies", "fused_floor", "fused_linlog_v2e", "fused_substep", "fused_substep_applies"]
 
@@ -48,7 +48,7 @@ def fused_applies(like: Any) -> bool:
     Examples
     --------
     >>> import torch
-    >>> fused_applies(torch.zeros(3)) == _crossings_native.available()
+    >>> fused_applies(torch.zeros(3)) == library.available()
     True
     >>> fused_applies(torch.zeros(3, requires_grad=True))
     False
@@ -57,7 +57,7 @@ def fused_applies(like: Any) -> bool:
         not (torch.is_grad_enabled() and like.requires_grad)
         and like.device.type == "cpu"
         and like.dtype in _SUFFIX
-        and _crossings_native.available()
+        and library.available()
     )
 
 
@@ -73,7 +73,7 @@ def fused_substep_applies(like: Any, config: SensorConfig, transient: bool) -> b
     >>> from fsdvs_hw.sensor import SensorConfig
     >>> with torch.no_grad():
     ...     ok = fused_substep_applies(torch.zeros(1, 4, 4), SensorConfig(), transient=False)
-    >>> ok == _crossings_native.available()
+    >>> ok == library.available()
     True
     >>> fused_substep_applies(torch.zeros(1, 4, 4), SensorConfig(), transient=False)  # grad enabled
     False
@@ -153,7 +153,7 @@ def fused_substep(
     >>> n_on.tolist(), n_off.tolist()
     ([[[2.0, 0.0]]], [[[0.0, 1.0]]])
     """
-    lib = _crossings_native._loaded()
+    lib = library._loaded()
     dtype = target.dtype
     suffix = _SUFFIX[dtype]
     B = target.shape[0]
@@ -251,7 +251,7 @@ def fused_linlog_v2e(intensity: Any, knee: float, dn_per_full_scale: float = 255
     for name, v in (("knee", knee), ("dn_per_full_scale", dn_per_full_scale)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
             raise InputError(f"{name}: must be a finite number > 0, got {v!r}")
-    lib = _crossings_native._loaded()
+    lib = library._loaded()
     dtype = intensity.dtype
     suffix = _SUFFIX[dtype]
     real = _ctypes_real(dtype)
@@ -297,7 +297,7 @@ def fused_floor(x: Any, floor: float) -> tuple[Any, int]:
     >>> y.tolist() == [torch.tensor(1e-3).item(), 0.5, torch.tensor(1e-3).item()], n
     (True, 2)
     """
-    lib = _crossings_native._loaded()
+    lib = library._loaded()
     dtype = x.dtype
     flat = _flat(x, dtype)
     out = torch.empty(flat.numel(), dtype=dtype)

@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from ...errors import InputError
 
 __all__ = ["EventComparison", "compare_events", "event_columns", "plot_event_comparison"]
 
@@ -58,7 +58,7 @@ def event_columns(
     largest pixel + 1.
     """
     if isinstance(events, (str, Path)):
-        from .recordings import read_recording
+        from ..eventfiles.recordings import read_recording
 
         events = read_recording(events)
     if hasattr(events, "t_us"):  # EventFile
@@ -223,7 +223,7 @@ def compare_events(
     Parameters
     ----------
     sim, real : EventList, EventFile or path
-        The two streams (a path is read by :func:`~fsdvs_hw.sensor.recordings.read_recording`).
+        The two streams (a path is read by :func:`~fsdvs_hw.sensor.eventfiles.recordings.read_recording`).
     bin_s : float
         Rate bin width in seconds (default 10 ms).
     max_lag_s : float

@@ -1,5 +1,5 @@
-/* Compiled kernels of fsdvs_hw/sensor/crossings.py: one comparator step's events and one frame
- * interval's stable time sort, on CPU arrays (built and loaded by _crossings_native.py).
+/* Compiled kernels of fsdvs_hw/sensor/simulation/crossings.py: one comparator step's events and one frame
+ * interval's stable time sort, on CPU arrays (built and loaded by library.py).
  *
  * The formulas are those of crossings.crossing_step_torch, operation for operation and in the
  * same order. IEEE + - * / are correctly rounded and floor, ceil, fmin/fmax and nextafter exact,

@@ -47,7 +47,7 @@ def linlog(intensity: Any, knee: float) -> Any:
     """
     import torch
 
-    from ..validation import check_instance, check_real
+    from ...validation import check_instance, check_real
 
     check_instance("intensity", intensity, torch.Tensor, "a torch tensor of linear intensities")
     knee = check_real("knee", knee, 0.0, lo_open=True, unit="(video units)")
@@ -71,7 +71,7 @@ def linlog_v2e(intensity: Any, knee: float) -> Any:
     """
     import torch
 
-    from .fused import fused_applies, fused_linlog_v2e
+    from ..native.fused import fused_applies, fused_linlog_v2e
 
     if isinstance(knee, float) and knee > 0 and fused_applies(intensity):
         return fused_linlog_v2e(intensity, knee, V2E_DN_PER_FULL_SCALE)  # the same bits in two compiled passes
@@ -88,7 +88,7 @@ def linlog_v2e(intensity: Any, knee: float) -> Any:
 
 def _round_half_even(v: Any) -> Any:
     """``torch.round`` of a float64 tensor with ``|v| < 2**51`` (here: log responses × 1e8 < 1e11)."""
-    from .fused import ROUND_MAGIC
+    from ..native.fused import ROUND_MAGIC
 
     return v.add_(ROUND_MAGIC).sub_(ROUND_MAGIC)
 

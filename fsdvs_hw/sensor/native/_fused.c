@@ -1,4 +1,4 @@
-/* Compiled no-grad CPU paths of fsdvs_hw/sensor/fused.py (built and loaded by _crossings_native.py):
+/* Compiled no-grad CPU paths of fsdvs_hw/sensor/native/fused.py (built and loaded by library.py):
  * one sub-step of the photoreceptor low-pass, the reference leak and the comparator in one pass
  * over the pixels (events._advance_steps); v2e's linear-log response around torch's log
  * (pixel.linlog_v2e); the positivity floor and its count (filtering._FloorSTE).

@@ -35,9 +35,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from . import _crossings_native
-from .config import SensorConfig
-from .crossings import _threshold_np, append_part, event_arrays, noise_step, shot_noise_pixels
+from ..simulation.config import SensorConfig
+from ..simulation.crossings import _threshold_np, append_part, event_arrays, noise_step, shot_noise_pixels
+from . import library
 from .fused import _SUFFIX, _ctypes_real, _thresholds, fused_substep_applies
 
 __all__ = ["GROUP_PIXELS", "BufferPool", "advance_chunk", "chunk_applies"]
@@ -99,7 +99,7 @@ def chunk_applies(
     >>> from fsdvs_hw.sensor import SensorConfig
     >>> with torch.no_grad():
     ...     ok = chunk_applies(torch.zeros(1, 4, 4), [1, 1], SensorConfig(), False, True, False)
-    >>> ok == _crossings_native.available()
+    >>> ok == library.available()
     True
     >>> chunk_applies(torch.zeros(1, 4, 4), [2, 1], SensorConfig(), False, True, False)
     False
@@ -148,7 +148,7 @@ def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, eve
     list
         ``[None, None] * (len(Ls) - 1)``: no counts (the event-list path).
     """
-    lib = _crossings_native._loaded()
+    lib = library._loaded()
     B, H, W = Ls[0].shape
     hw, K = H * W, len(Ls) - 1
     dtype = Ls[0].dtype
@@ -254,7 +254,7 @@ def _crossings_task(
     dt64: np.ndarray,
     noise_f: Any,
 ) -> tuple[float, None, None]:
-    """The crossings of intervals ``ks`` in order (:func:`._crossings_native.step_events`, as
+    """The crossings of intervals ``ks`` in order (:func:`~fsdvs_hw.sensor.native.library.step_events`, as
     :func:`.crossings.crossing_step` calls it). ``rows``: per interval of the chunk, the ON and OFF
     counts, comparator input and reference at the start, difference at the end, the interval's
     event parts (its crossing part is appended) and its shot-noise parts (appended after it once
@@ -271,7 +271,7 @@ def _crossings_task(
         flat, t, p = event_arrays(hon, hoff, (1, H, W))
         if not len(t):
             continue
-        n, lost_k = _crossings_native.step_events(
+        n, lost_k = library.step_events(
             hon,
             hoff,
             sig_a[k].reshape(-1).numpy(),

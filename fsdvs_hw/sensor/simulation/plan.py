@@ -22,7 +22,7 @@ leak events            the larger of: expected leak events ``rate · pixels · d
 shot noise             the same with the shot-noise rate
 surround transient     mesh lag ``τ_s · |dS/dt| · s`` in units of C versus ``tolerance``
 frame upsampling       scene motion (99th-percentile DIS optical flow, px per frame) versus
-                       :data:`~fsdvs_hw.sensor.upsampling.UPSAMPLE_MOTION_PX` (1.5 px), and the largest
+                       :data:`~fsdvs_hw.sensor.simulation.upsampling.UPSAMPLE_MOTION_PX` (1.5 px), and the largest
                        per-frame log change versus C: both above → event times need flow frames
                        between the video's (``ModelPlan.upsample_rate_hz``; measured in
                        ``fsdvs-hw bench upsampling``, docs/upsampling.md)
@@ -39,7 +39,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..errors import InputError
+from ...errors import InputError
 from .config import SensorConfig
 
 __all__ = ["ModelPlan", "PlanDecision", "SceneStats", "plan_model"]
@@ -76,7 +76,7 @@ class SceneStats:
         uses the upper estimate ``4 σ / C``).
     motion_px_per_frame : float or None
         Scene motion: 99th percentile of the DIS optical-flow magnitude between neighbouring frames
-        (first clip of the batch, at most 8 pairs; :func:`fsdvs_hw.sensor.upsampling.motion_px_per_frame`),
+        (first clip of the batch, at most 8 pairs; :func:`fsdvs_hw.sensor.simulation.upsampling.motion_px_per_frame`),
         pixels per frame interval. ``None`` when not measured (frames under 16 px, or statistics given).
     """
 

@@ -5,7 +5,7 @@ refractory period, the leak and shot-noise rates and (optionally) the photorecep
 each with a confidence interval, and returns a :class:`SensorCalibration` whose ``config`` is the
 fitted :class:`~fsdvs_hw.sensor.SensorConfig`.
 
-Method (the pixel model of :mod:`fsdvs_hw.sensor.events`)
+Method (the pixel model of :mod:`fsdvs_hw.sensor.simulation.events`)
     The comparator input ``L`` of every pixel is rebuilt from the known video with the base
     configuration's photoreceptor (response, knee, low-pass at the candidate bandwidth, the
     simulator's sub-steps), linear between sub-steps as the simulator takes it. After an event
@@ -71,9 +71,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from ...errors import InputError
+from ..simulation.config import SensorConfig
 from .compare import event_columns
-from .config import SensorConfig
 
 __all__ = ["CALIBRATED_FIELDS", "Estimate", "SensorCalibration", "calibrate_sensor", "comparator_input"]
 
@@ -180,8 +180,8 @@ class _Photoreceptor:
 def _photoreceptor(video: Any, timestamps_s: Any, config: SensorConfig) -> _Photoreceptor:
     import torch
 
-    from .events import _choose_substeps_for, _resolve
-    from .filtering import filtered_log_signal
+    from ..simulation.events import _choose_substeps_for, _resolve
+    from ..simulation.filtering import filtered_log_signal
 
     vid = torch.as_tensor(video)
     if vid.ndim == 3:
@@ -340,7 +340,7 @@ def calibrate_sensor(
     Parameters
     ----------
     recording : EventList, EventFile or path
-        The events (a path is read by :func:`~fsdvs_hw.sensor.recordings.read_recording`).
+        The events (a path is read by :func:`~fsdvs_hw.sensor.eventfiles.recordings.read_recording`).
     video : array or tensor (T, H, W) or (1, T, H, W), optional
         The known source video in linear intensity, registered to the sensor pixel for pixel;
         None for a recording of a static scene (noise rates only).

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from . import _crossings_native
+from ..native import library as native
 
 __all__: list[str] = []  # private helpers of .events and .stream
 
@@ -83,7 +83,7 @@ def crossing_step(
 ) -> tuple[float, Any, Any]:
     """Emit the crossings of one comparator step.
 
-    On the CPU this runs the compiled kernel (:mod:`._crossings_native`), elsewhere (or without a
+    On the CPU this runs the compiled kernel (:mod:`~fsdvs_hw.sensor.native.library`), elsewhere (or without a
     C compiler) the vectorised torch path (:func:`crossing_step_torch`); both give the same events
     bit for bit.
 
@@ -129,13 +129,13 @@ def crossing_step(
 
 def _native_ok(h: Any, *same_dtype: Any) -> bool:
     """Whether the compiled kernel applies: CPU, float32/64 counts with every other per-pixel input
-    of the same dtype, pixel indices within int32, and the kernel built (:mod:`._crossings_native`)."""
+    of the same dtype, pixel indices within int32, and the kernel built (:mod:`~fsdvs_hw.sensor.native.library`)."""
     return (
         h.device.type == "cpu"
         and h.dtype in (torch.float32, torch.float64)
         and all(x.dtype == h.dtype for x in same_dtype)
         and h.numel() < 2**31
-        and _crossings_native.available()
+        and native.available()
     )
 
 
@@ -169,7 +169,7 @@ def event_arrays(h_on: np.ndarray, h_off: np.ndarray, shape: tuple[int, int, int
     ON and OFF counts ``h_on``, ``h_off`` announce, on a (B, H, W) frame ``shape``. A tiny threshold
     makes the list unbounded: it is refused with its size (:class:`~fsdvs_hw.errors.InputError`),
     not a ``MemoryError``."""
-    from ..limits import check_allocation
+    from ...limits import check_allocation
 
     cap = _total(h_on) + _total(h_off)
     B, H, W = shape
@@ -218,7 +218,7 @@ def _crossing_step_cpu(
     def times(x: Any) -> np.ndarray:
         return _flat_np(x.expand(B, 1, 1).to(torch.float64))
 
-    n, lost = _crossings_native.step_events(
+    n, lost = native.step_events(
         hon,
         hoff,
         _flat_np(sig_a),
@@ -362,13 +362,13 @@ def sort_interval(parts: list, lo: float | None = None, hi: float | None = None)
     """Concatenate one frame interval's ``(flat, t, p)`` parts and sort them stably by time
     (``lo``, ``hi``: bounds of the times, e.g. the interval's frame times, if known).
 
-    CPU parts go through the compiled bucket sort (:func:`._crossings_native.sort_events`: one
+    CPU parts go through the compiled bucket sort (:func:`~fsdvs_hw.sensor.native.library.sort_events`: one
     move per event, no concatenated copy); others through :func:`stable_time_order`.
     """
     if not parts:
         return None
-    if all(q[1].device.type == "cpu" for q in parts) and _crossings_native.available():
-        out = _crossings_native.sort_events([tuple(c.numpy() for c in q) for q in parts], lo, hi)
+    if all(q[1].device.type == "cpu" for q in parts) and native.available():
+        out = native.sort_events([tuple(c.numpy() for c in q) for q in parts], lo, hi)
         parts.clear()
         return torch.from_numpy(out[0]), torch.from_numpy(out[1]), torch.from_numpy(out[2])
     # parts on other devices (a CUDA step's crossings beside CPU-made empty parts) meet on the CPU
@@ -395,8 +395,8 @@ def to_event_columns(pieces: list, H: int, W: int, B: int) -> tuple[Any, Any, An
     HW = H * W
     for i, (flat, tq, pq) in enumerate(pieces):
         end = start + len(tq)
-        if flat.device.type == "cpu" and flat.dtype == torch.int32 and _crossings_native.available():
-            _crossings_native.write_columns(
+        if flat.device.type == "cpu" and flat.dtype == torch.int32 and native.available():
+            native.write_columns(
                 flat.numpy(), tq.numpy(), pq.numpy(), HW, W, x.numpy(), y.numpy(), t.numpy(), p.numpy(), start
             )
         else:

@@ -1,9 +1,9 @@
 """HDF5 / AEDAT4 writers and the AEDAT4 reader, run as a child process
-(``python -P _eventfile_child.py write FORMAT PATH WIDTH HEIGHT METADATA_JSON`` / ``... read PATH``).
+(``python -P child_process.py write FORMAT PATH WIDTH HEIGHT METADATA_JSON`` / ``... read PATH``).
 
 dv-processing and HDF5 are C/C++ libraries: an error deep inside them can end the process
 instead of raising (dv-processing ``abort()``s; h5py segfaulted at exit after a write failed
-with EFBIG, measured). :class:`fsdvs_hw.sensor.eventfile.EventFileWriter` therefore runs them
+with EFBIG, measured). :class:`fsdvs_hw.sensor.eventfiles.eventfile.EventFileWriter` therefore runs them
 here, in a child process that imports only numpy and h5py or dv-processing, and feeds it events
 through a pipe; if this process fails or dies, the parent reports the file and the reason or
 signal, and the partial file is removed. Reading runs here too: a corrupt file can make dv-processing loop

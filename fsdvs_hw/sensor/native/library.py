@@ -1,6 +1,6 @@
-"""Build, load and call the compiled kernels of :mod:`.crossings` (``_crossings.c``), the fused
+"""Build, load and call the compiled kernels of :mod:`~fsdvs_hw.sensor.simulation.crossings` (``_crossings.c``), the fused
 no-grad pixel step of :mod:`.fused` (``_fused.c``) and the event-file message conversion of
-:mod:`.eventfile` (``_eventfile.c``).
+:mod:`~fsdvs_hw.sensor.eventfiles.eventfile` (``_eventfile.c``).
 
 The C sources are compiled once per machine with the system C compiler (``$CC``, else ``cc``) into
 a per-user cache (``$FSDVS_HW_CACHE``, else ``$XDG_CACHE_HOME/fsdvs_hw``, else
@@ -43,7 +43,7 @@ _D = ctypes.c_double
 
 
 def _cache_dir() -> Path:
-    from ..environment import env as _env
+    from ...environment import env as _env
 
     env = _env("FSDVS_HW_CACHE")
     if env:
@@ -111,7 +111,7 @@ def _load() -> ctypes.CDLL | None:
     if _tried:
         return _lib
     _tried = True
-    from ..environment import env as _env
+    from ...environment import env as _env
 
     if _env("FSDVS_HW_NO_NATIVE"):
         _error = "disabled by FSDVS_HW_NO_NATIVE"

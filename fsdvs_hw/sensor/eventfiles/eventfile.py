@@ -43,8 +43,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError, ToolMissingError
-from ..limits import check_allocation
+from ...errors import InputError, ToolMissingError
+from ...limits import check_allocation
 
 __all__ = ["FORMATS", "EventFile", "EventFileWriter", "event_format", "read_events", "write_events"]
 
@@ -99,7 +99,7 @@ class EventFile:
         """As a :class:`~fsdvs_hw.sensor.EventList` (batch 0, time in seconds)."""
         import torch
 
-        from .events import EventList
+        from ..simulation.events import EventList
 
         n = len(self)
         return EventList(
@@ -146,17 +146,17 @@ def _message_columns(
     """The writer process's message columns (t_us int64, x int16, y int16, ON uint8) of an
     :class:`~fsdvs_hw.sensor.EventList` with the columns a stream yields (contiguous CPU float64
     ``t``, int64 ``x``, ``y``, int8 ``p``, batch 0), converted and checked in one compiled pass
-    (:func:`._crossings_native.event_message`: the same values as :func:`_columns`, 3.4–4.0
+    (:func:`~fsdvs_hw.sensor.native.library.event_message`: the same values as :func:`_columns`, 3.4–4.0
     against 11.0–11.4 ns per event; docs/speed.md). None where that does not apply or a check
     failed: :func:`_columns` then converts and words the problem."""
-    from . import _crossings_native
+    from ..native import library as native
 
-    if isinstance(events, EventFile) or not _crossings_native.available():
+    if isinstance(events, EventFile) or not native.available():
         return None
     cols = []
     for col, dtype in ((events.t, np.float64), (events.x, np.int64), (events.y, np.int64), (events.p, np.int8)):
         try:
-            a = _crossings_native._as_numpy(col)
+            a = native._as_numpy(col)
         except (RuntimeError, TypeError):  # on a GPU, or part of a graph
             return None
         if not isinstance(a, np.ndarray) or a.dtype != dtype or not a.flags.c_contiguous or a.ndim != 1:
@@ -166,7 +166,7 @@ def _message_columns(
     if b.size and int(b.max()) > 0:
         return None
     t, x, y, p = cols
-    return _crossings_native.event_message(t, x, y, p, width, height, last_t_us, max_t_us)
+    return native.event_message(t, x, y, p, width, height, last_t_us, max_t_us)
 
 
 #: Events converted and written per slice by :meth:`EventFileWriter.write` (bounds its memory).
@@ -194,7 +194,7 @@ def _child_command(mode: str) -> list[str]:
     """The command line of the writer/reader child process (imports only numpy and h5py or dv-processing)."""
     import sys
 
-    return [sys.executable, "-P", str(Path(__file__).with_name("_eventfile_child.py")), mode]
+    return [sys.executable, "-P", str(Path(__file__).with_name("child_process.py")), mode]
 
 
 def _writer_environment() -> dict[str, str]:
@@ -400,7 +400,7 @@ class EventFileWriter:
                 self._cols[k].write(np.ascontiguousarray(arr).tobytes())
 
     def _send(self, t_us: np.ndarray, x: np.ndarray, y: np.ndarray, on: np.ndarray) -> None:
-        """One message to the writer process (layout in ``_eventfile_child``): the count, then the
+        """One message to the writer process (layout in :mod:`.child_process`): the count, then the
         µs times, x, y and ON flags in the message's dtypes (converted here where they differ)."""
         pipe = self._child.stdin
         pipe.write(np.int64(t_us.size).astype("<i8").tobytes())

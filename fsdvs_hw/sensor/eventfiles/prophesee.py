@@ -38,7 +38,7 @@ References
 Examples
 --------
 >>> import numpy as np, tempfile, os
->>> from fsdvs_hw.sensor.eventfile import EventFile
+>>> from fsdvs_hw.sensor.eventfiles.eventfile import EventFile
 >>> ev = EventFile(np.array([5, 70, 9000]), np.array([1, 2, 3]), np.array([4, 5, 6]),
 ...                np.array([1, -1, 1], dtype=np.int8), 1280, 720)
 >>> path = os.path.join(tempfile.mkdtemp(), "rec.raw")
@@ -55,9 +55,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError, ToolMissingError
-from ..limits import check_allocation
-from ..paths import write_output
+from ...errors import InputError, ToolMissingError
+from ...limits import check_allocation
+from ...paths import write_output
 from .eventfile import _EVENT_BYTES, EventFile, _bad, _columns, _EventColumnsCheck
 
 __all__ = ["ENCODINGS", "decode_evt3", "read_prophesee", "write_prophesee"]

@@ -29,8 +29,8 @@ import math
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
-from ..errors import InputError, one_line
-from ..limits import MAX_SEED, MAX_SUBSTEPS
+from ...errors import InputError, one_line
+from ...limits import MAX_SEED, MAX_SUBSTEPS
 
 __all__ = [
     "MAX_SEED",
@@ -137,10 +137,10 @@ class SensorConfig:
         and slope, unlike v2e's chord through the origin), so it is finite at ``I = 0``.
     response : {"tangent", "v2e"}
         The linear part of the photoreceptor response below the knee. ``"tangent"`` (default):
-        the log's tangent (:func:`~fsdvs_hw.sensor.pixel.linlog`), continuous in value and slope,
+        the log's tangent (:func:`~fsdvs_hw.sensor.simulation.pixel.linlog`), continuous in value and slope,
         scale-invariant (a dimmer copy of a scene gives the same events above the knee and
         proportionally fewer below it). ``"v2e"``: v2e's chord through the origin in 8-bit code
-        values (:func:`~fsdvs_hw.sensor.pixel.linlog_v2e`), for event counts comparable with
+        values (:func:`~fsdvs_hw.sensor.simulation.pixel.linlog_v2e`), for event counts comparable with
         v2e; its slope below the knee is ``log(20)`` = 3.0× the log's at the knee, a contrast gain
         that jumps at the knee and depends on the arbitrary DN scale.
     placement : {"pre_log", "post_log"}
@@ -171,7 +171,7 @@ class SensorConfig:
     random_reference_phase : bool
         Start each pixel's memorised reference a uniform random fraction of ``C_on`` below the
         first frame's signal, as after an unknown earlier reset (desynchronises leak events; the
-        camera presets of :mod:`fsdvs_hw.sensor.presets` use it). Default False: the reference is
+        camera presets of :mod:`fsdvs_hw.sensor.cameras.presets` use it). Default False: the reference is
         the first frame (ESIM, and v2e 1.5.1, whose random start is commented out in
         ``v2ecore/emulator.py``).
     convolution : {"auto", "direct", "fft"}
@@ -357,7 +357,7 @@ class SensorConfig:
         commented out; with it, carphone.mp4 gave 2.4 % more events than v2e); shot noise drawn
         sparsely (``shot_noise_draw="sparse"``: same law, O(events)). From a video file,
         ``fsdvs-hw simulate`` feeds these presets v2e's gray code values
-        (:func:`fsdvs_hw.sensor.presets.preset_input_mapping`).
+        (:func:`fsdvs_hw.sensor.cameras.presets.preset_input_mapping`).
         Not modelled: v2e's leak-rate jitter (``leak_jitter_fraction``), shot-noise rate spread
         (``noise_rate_cov_decades``) and its forward-Euler low-pass step (exact here).
         """

@@ -26,7 +26,7 @@ References
 Examples
 --------
 >>> import numpy as np, tempfile, os
->>> from fsdvs_hw.sensor.eventfile import EventFile
+>>> from fsdvs_hw.sensor.eventfiles.eventfile import EventFile
 >>> ev = EventFile(np.array([0, 1500, 2500]), np.array([1, 2, 3]), np.array([4, 5, 6]),
 ...                np.array([1, -1, 1], dtype=np.int8), 640, 480)
 >>> path = os.path.join(tempfile.mkdtemp(), "events.h5")
@@ -44,8 +44,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError, ToolMissingError
-from ..limits import check_allocation
+from ...errors import InputError, ToolMissingError
+from ...limits import check_allocation
 from .eventfile import _EVENT_BYTES, EventFile, _bad, _columns, _EventColumnsCheck, _one_line, _partial_path, _side
 
 __all__ = ["DSEC_SIZE", "is_dsec", "read_dsec", "write_dsec"]
