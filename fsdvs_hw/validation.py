@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any, Literal, overload
+from typing import TYPE_CHECKING, Any, Literal, TypeVar, overload
 
 import numpy as np
 
@@ -35,6 +35,8 @@ from .kernels import Kernel, check_tap_magnitude
 
 if TYPE_CHECKING:  # pydantic loads on the first fit-argument check, not with the simulator's checks
     from pydantic import BaseModel
+
+ModelT = TypeVar("ModelT", bound="BaseModel")
 
 __all__ = [
     "PITCH_RANGE_M",
@@ -56,18 +58,26 @@ def _show(value: Any) -> str:
 PITCH_RANGE_M: tuple[float, float] = (1e-7, 1e-3)
 
 
-def check_fit_arguments(options: type[BaseModel], arguments: Mapping[str, Any]) -> None:
-    """Check a fit function's arguments at its first line (``check_fit_arguments(AsicOptions, locals())``).
+def check_fit_arguments(options: type[ModelT], arguments: Mapping[str, Any]) -> ModelT:
+    """Check a fit function's arguments at its first line (``o = check_fit_arguments(AsicOptions, locals())``).
 
     Every argument that is a field of the model ``options`` is validated against it (all problems
     in one :class:`~fsdvs_hw.errors.InputError`, each naming the argument, the value and what is
     allowed), and the target kernel's largest tap must lie in
     :data:`fsdvs_hw.kernels.TAP_MAGNITUDE_RANGE` (design files check the same); other names
-    (arguments added later) are left to the function.
+    (arguments added later) are left to the function. A model with a ``with_target`` method
+    (:class:`fsdvs_hw.realise.fit_options.FitOptions`) then coerces the ``kernel`` argument and
+    checks its rules on the target kernel.
+
+    Returns
+    -------
+    pydantic.BaseModel
+        The validated options object (holding the target kernel when the model checks one).
     """
     from .schema import validate
 
-    validate(options, {name: arguments[name] for name in options.model_fields if name in arguments})
+    checked = validate(options, {name: arguments[name] for name in options.model_fields if name in arguments})
+    assert isinstance(checked, options)
     kernel = arguments.get("kernel")
     if isinstance(kernel, Kernel):
         check_tap_magnitude(kernel, source=f"kernel '{kernel.name}'")
@@ -75,9 +85,11 @@ def check_fit_arguments(options: type[BaseModel], arguments: Mapping[str, Any]) 
         try:
             taps = np.asarray(kernel, dtype=np.float64)
         except (TypeError, ValueError):
-            return  # not numeric: the function's own check names the problem
-        if taps.size and np.isfinite(taps).all() and np.any(taps != 0):
+            taps = None  # not numeric: the coercion of the target names the problem
+        if taps is not None and taps.size and np.isfinite(taps).all() and np.any(taps != 0):
             check_tap_magnitude(taps, source="kernel")
+    with_target = getattr(checked, "with_target", None)
+    return with_target(kernel) if callable(with_target) else checked
 
 
 # ---------------------------------------------------------------------------- Python API arguments

@@ -1,12 +1,13 @@
-"""The mesh fit's options model and the fit's own checks accept the same values (issue 43).
+"""The mesh fit's options model and the fit's own checks accept the same values.
 
 ``MeshOptions`` (what a design file is checked against when it is loaded) and the fit's first step
-(``_mesh_settings``, which every call runs before any work) must refuse the same values, or a design
+(``check_fit_arguments``, which every call runs before any work) must refuse the same values, or a design
 is accepted and fails after work has started (it did: ``tol = 0.1`` passed the loader, the fit
 refused anything above 1e-2). For every numeric option with a range, values at each bound and just
-beyond it are put to both; the context rules (``g_lateral_s`` within ``bounds.conductance_s``,
-``fit_size`` at least the kernel's size, ``grid_half_width`` at least its radius) are the fit's alone
-and are left out here.
+beyond it are put to both; the options whose range depends on others or on the target
+(``g_lateral_s`` within ``bounds.conductance_s``, ``fit_size`` at least the kernel's size,
+``grid_half_width`` at least its radius) are left out here: the realisation contract test puts
+every option of every realisation to a design file and to the fit.
 """
 
 from __future__ import annotations
@@ -19,8 +20,8 @@ from pydantic import ValidationError
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.explore.design import DesignError, parse_design
 from fsdvs_hw.kernels import reference_kernel
-from fsdvs_hw.realise.mesh.fit import _mesh_settings
 from fsdvs_hw.realise.mesh.options import MeshOptions
+from fsdvs_hw.validation import check_fit_arguments
 
 CONTEXT = {"g_lateral_s", "fit_size", "grid_half_width", "pitch_m", "bounds"}
 DEFAULTS = {name: f.default for name, f in MeshOptions.model_fields.items() if name != "pitch_m"}
@@ -52,7 +53,7 @@ def _model_accepts(name: str, value: float) -> bool:
 
 def _fit_accepts(name: str, value: float) -> bool:
     try:
-        _mesh_settings(reference_kernel("dog", 7), **{**DEFAULTS, "pitch_m": None, name: value})
+        check_fit_arguments(MeshOptions, {**DEFAULTS, "pitch_m": None, name: value, "kernel": reference_kernel("dog", 7)})
     except InputError:
         return False
     return True

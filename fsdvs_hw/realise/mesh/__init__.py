@@ -3,7 +3,9 @@
 Modules
 -------
 fit
-    :class:`MeshDesign`, :class:`MeshBounds` and :func:`fit_resistive_mesh`.
+    :class:`MeshDesign` and :func:`fit_resistive_mesh`.
+bounds
+    :class:`MeshBounds`: the reachable space constants, gains and conductances.
 response
     Single-mesh responses: exact lattice Green's function, finite grid (DCT), continuum.
 dynamics
@@ -17,7 +19,7 @@ artifacts
 bench
     ``fsdvs-hw bench mesh``.
 options
-    The fit options' schema (type, unit, range, default, help).
+    :class:`MeshOptions`: the fit options (type, unit, range, default, help) and their rules.
 
 Importing this package registers ``"mesh"`` in :mod:`fsdvs_hw.realise.registry`.
 """
@@ -27,11 +29,11 @@ from typing import Any as _Any
 
 from ..registry import CostSpec, RealisationSpec, register_realisation
 from . import fit
+from .bounds import MeshBounds, as_mesh_bounds
 from .fit import (
     GAIN_MODES,
     MESH_MODELS,
     MeshAsymmetryWarning,
-    MeshBounds,
     MeshDesign,
     MeshFitWarning,
     fit_resistive_mesh,
@@ -39,7 +41,7 @@ from .fit import (
 )
 from .options import MeshOptions
 
-__all__ = ["SPEC", "MeshOptions"]
+__all__ = ["SPEC", "MeshBounds", "MeshOptions", "as_mesh_bounds"]
 __all__ += fit.__all__  # the fit module's public names, re-exported above
 
 

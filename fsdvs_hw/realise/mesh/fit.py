@@ -55,12 +55,12 @@ from typing import Any
 import numpy as np
 
 from ...errors import InputError
-from ...kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, as_kernel, validate_pitch
+from ...kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, Kernel, validate_pitch
 from ...validation import check_fit_arguments
 from ..base import CostItem, kernel_error
+from .bounds import MeshBounds
 from .options import MeshOptions
 from .response import (
-    LAMBDA_RANGE_PX,
     dct_basis,
     finite_grid_response,
     green_terms,
@@ -74,7 +74,6 @@ __all__ = [
     "GAIN_MODES",
     "MESH_MODELS",
     "MeshAsymmetryWarning",
-    "MeshBounds",
     "MeshDesign",
     "MeshFitWarning",
     "fit_resistive_mesh",
@@ -95,53 +94,6 @@ class MeshAsymmetryWarning(UserWarning):
 
 class MeshFitWarning(UserWarning):
     """The fit is unusable: worse than no kernel at all, or IPOPT did not converge."""
-
-
-@dataclass(frozen=True)
-class MeshBounds:
-    """Physical bounds of the dual-mesh fit.
-
-    Parameters
-    ----------
-    lambda_px : (float, float)
-        Allowed space constants in pixel pitches (both meshes).
-    gain : (float, float)
-        Allowed DC gains a, b of the mesh paths and, when free, the pixel weight (dimensionless,
-        positive: transconductor / current-mirror ratios).
-    min_lambda_ratio : float
-        Smallest λ_wide / λ_narrow (≥ 1).
-    conductance_s : (float, float)
-        Allowed conductances in siemens; with ``g_lateral_s`` fixed this bounds λ as well.
-
-    Examples
-    --------
-    >>> from fsdvs_hw import MeshBounds
-    >>> b = MeshBounds(lambda_px=(0.5, 5.0))
-    >>> b.lambda_px, b.min_lambda_ratio
-    ((0.5, 5.0), 1.5)
-    """
-
-    lambda_px: tuple[float, float] = (0.1, 20.0)
-    gain: tuple[float, float] = (1e-4, 10.0)
-    min_lambda_ratio: float = 1.5
-    conductance_s: tuple[float, float] = (1e-13, 1e-3)
-
-    def __post_init__(self) -> None:
-        for name in ("lambda_px", "gain", "conductance_s"):
-            v = getattr(self, name)
-            try:
-                lo, hi = (float(x) for x in v)
-            except (TypeError, ValueError):
-                raise InputError(f"bounds.{name}: must be a (low, high) pair of numbers, got {v!r}") from None
-            if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
-                raise InputError(f"bounds.{name}: need 0 < low < high (finite), got ({lo!r}, {hi!r})")
-            object.__setattr__(self, name, (lo, hi))
-        lo, hi = self.lambda_px
-        if lo < LAMBDA_RANGE_PX[0] or hi > LAMBDA_RANGE_PX[1]:
-            raise InputError(f"bounds.lambda_px=({lo:g}, {hi:g}) px exceeds the modelled range {LAMBDA_RANGE_PX} px")
-        r = self.min_lambda_ratio
-        if not (isinstance(r, (int, float)) and math.isfinite(r) and 1.0 <= r < hi / lo):
-            raise InputError(f"bounds.min_lambda_ratio={r!r}: must be ≥ 1 and below lambda_px high/low = {hi / lo:g}")
 
 
 # ---------------------------------------------------------------------- orbits (D4 symmetry)
@@ -779,166 +731,7 @@ def _mesh_solver(
     return ca.nlpsol("mesh_fit", "ipopt", {"x": x, "p": p, "f": f, "g": ca.vertcat(*g)}, opts)
 
 
-def _coerce_kernel(kernel: Any, pitch_m: float | None) -> Kernel:
-    if kernel is None:
-        raise InputError("kernel: expected a fsdvs_hw Kernel, a kernel file or a 2-D array of taps, got None")
-    return as_kernel(kernel, name="target", pitch_m=pitch_m, repitch=True)
-
-
-def _check_scalar(name: str, v: Any, lo: float, hi: float) -> float:
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        raise InputError(f"{name}: must be a number, got {v!r}") from None
-    if not (math.isfinite(f) and lo <= f <= hi):
-        raise InputError(f"{name}={v!r} outside the allowed range [{lo:g}, {hi:g}]")
-    return f
-
-
-def _coerce_bounds(bounds: Any) -> MeshBounds:
-    if bounds is None:
-        return MeshBounds()
-    if isinstance(bounds, Mapping):  # e.g. a [realisations.mesh.bounds] table of a design file
-        unknown = set(bounds) - set(MeshBounds.__dataclass_fields__)
-        if unknown:
-            raise InputError(
-                f"bounds: unknown key(s) {sorted(unknown)}; allowed {sorted(MeshBounds.__dataclass_fields__)}"
-            )
-        fields: dict[str, Any] = {k: (tuple(v) if isinstance(v, (list, tuple)) else v) for k, v in bounds.items()}
-        bounds = MeshBounds(**fields)
-    if not isinstance(bounds, MeshBounds):
-        raise InputError(f"bounds: expected a MeshBounds or a mapping of its fields, got {type(bounds).__name__}")
-    return bounds
-
-
 # ---------------------------------------------------------------------------- the fit, in steps
-@dataclass(frozen=True)
-class _MeshSettings:
-    """The fit's options, validated and resolved (step 1 of :func:`fit_resistive_mesh`)."""
-
-    target: Kernel
-    bounds: MeshBounds
-    gain: str
-    gain_free: bool
-    free_wp: bool
-    wp_fixed: float
-    nonnegative_dc: bool
-    sigma: float
-    max_err: float | None
-    g_l: float
-    c_node: float
-    model: str
-    grid_half_width: int | None
-    fit_size: int | None
-    n_init: int
-    n_starts: int
-    max_iter: int
-    tol: float
-    lam_lo: float
-    lam_hi: float
-
-
-def _mesh_settings(
-    kernel: Any,
-    *,
-    bounds: Any,
-    pitch_m: float | None,
-    pixel_weight: Any,
-    gain: str,
-    nonnegative_dc: Any,
-    mismatch_sigma: float,
-    max_mismatch_error: float | None,
-    g_lateral_s: float,
-    node_capacitance_f: float,
-    model: str,
-    grid_half_width: Any,
-    fit_size: Any,
-    n_init: int,
-    n_starts: int,
-    max_iter: int,
-    tol: float,
-) -> _MeshSettings:
-    """Validate and resolve every option; the feasible λ range from the λ and conductance bounds."""
-    target = _coerce_kernel(kernel, pitch_m)
-    bounds = _coerce_bounds(bounds)
-    if pixel_weight is not None and isinstance(pixel_weight, str):
-        if pixel_weight != "free":
-            raise InputError(f"pixel_weight: a number, None or 'free', got {pixel_weight!r}")
-        pixel_weight = None
-    if gain not in GAIN_MODES:
-        raise InputError(f"gain={gain!r} unknown; allowed {GAIN_MODES}")
-    gain_free = gain == "free"
-    if not isinstance(nonnegative_dc, (bool, np.bool_)):
-        raise InputError(f"nonnegative_dc: must be true or false, got {nonnegative_dc!r}")
-    sigma = _check_scalar("mismatch_sigma", mismatch_sigma, 0.0, 0.5)
-    max_err = (
-        None if max_mismatch_error is None else _check_scalar("max_mismatch_error", max_mismatch_error, 1e-6, 10.0)
-    )
-    g_l = _check_scalar("g_lateral_s", g_lateral_s, *bounds.conductance_s)
-    c_node = _check_scalar("node_capacitance_f", node_capacitance_f, 1e-18, 1e-6)
-    if model not in MESH_MODELS:
-        raise InputError(f"model={model!r} unknown; allowed {MESH_MODELS}")
-    if fit_size is not None and not (
-        isinstance(fit_size, (int, np.integer))
-        and not isinstance(fit_size, bool)
-        and fit_size % 2 == 1
-        and target.size <= fit_size <= MAX_KERNEL_SIZE
-    ):
-        raise InputError(
-            f"fit_size: must be None (whole response) or odd in {target.size}..{MAX_KERNEL_SIZE}, got {fit_size!r}"
-        )
-    if model == "grid":
-        if not (isinstance(grid_half_width, (int, np.integer)) and target.radius <= grid_half_width <= 60):
-            raise InputError(
-                f"grid_half_width: model 'grid' needs an integer in {target.radius}..60, got {grid_half_width!r}"
-            )
-        grid_half_width = int(grid_half_width)
-    else:
-        grid_half_width = None
-    for name, v, lo, hi in (("n_init", n_init, 2, 40), ("n_starts", n_starts, 1, 10), ("max_iter", max_iter, 1, 10000)):
-        if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and lo <= v <= hi):
-            raise InputError(f"{name}: must be an integer in {lo}..{hi}, got {v!r}")
-    tol = _check_scalar("tol", tol, 1e-16, 1e-2)
-    free_wp = pixel_weight is None
-    wp_fixed = 0.0 if free_wp else _check_scalar("pixel_weight", pixel_weight, 0.0, 1e3)
-    if gain_free and not free_wp and wp_fixed == 0.0:
-        raise InputError(
-            "pixel_weight=0 with gain='free': the pixel path is the gain reference; use pixel_weight='free'"
-        )
-
-    # λ range from the λ bounds and the conductance bounds (g_v = g_l / λ² within conductance_s)
-    gmin, gmax = bounds.conductance_s
-    lam_lo = max(bounds.lambda_px[0], math.sqrt(g_l / gmax))
-    lam_hi = min(bounds.lambda_px[1], math.sqrt(g_l / gmin))
-    if not lam_hi / lam_lo > bounds.min_lambda_ratio:
-        raise InputError(
-            f"bounds: with g_lateral_s={g_l:g} S and conductance_s={bounds.conductance_s} the feasible λ range "
-            f"[{lam_lo:g}, {lam_hi:g}] px is narrower than min_lambda_ratio={bounds.min_lambda_ratio:g}"
-        )
-    return _MeshSettings(
-        target=target,
-        bounds=bounds,
-        gain=gain,
-        gain_free=gain_free,
-        free_wp=free_wp,
-        wp_fixed=wp_fixed,
-        nonnegative_dc=bool(nonnegative_dc),
-        sigma=sigma,
-        max_err=max_err,
-        g_l=g_l,
-        c_node=c_node,
-        model=model,
-        grid_half_width=grid_half_width,
-        fit_size=None if fit_size is None else int(fit_size),
-        n_init=int(n_init),
-        n_starts=int(n_starts),
-        max_iter=int(max_iter),
-        tol=tol,
-        lam_lo=lam_lo,
-        lam_hi=lam_hi,
-    )
-
-
 @dataclass(frozen=True, eq=False)
 class _MeshProblem:
     """The window the fit sums over and the target on its D4 orbits (step 2: the model)."""
@@ -954,22 +747,22 @@ class _MeshProblem:
     asymmetry: float
 
 
-def _mesh_problem(s: _MeshSettings) -> _MeshProblem:
+def _mesh_problem(o: MeshOptions) -> _MeshProblem:
     """The window the NLP sums over: the target's (whole lattice energy in closed form), the fit
     window, or the whole finite chip; the D4-symmetric target on its orbits."""
-    target = s.target
-    whole = s.fit_size is None
-    if s.model == "grid" and whole:
-        assert s.grid_half_width is not None  # model "grid": set by _mesh_settings
-        radius = s.grid_half_width
+    target = o.target
+    whole = o.fit_size is None
+    if o.model == "grid" and whole:
+        assert o.grid_half_width is not None  # model "grid": required by MeshOptions
+        radius = o.grid_half_width
     else:
-        radius = target.radius if s.fit_size is None else s.fit_size // 2  # whole: fit_size is None
+        radius = target.radius if o.fit_size is None else o.fit_size // 2  # whole: fit_size is None
     t_sym = _d4_symmetrise(np.pad(target.taps, radius - target.radius))  # plain array: the chip may exceed 63 px
     ii, jj, mult = _orbits(radius)
     return _MeshProblem(
         radius=radius,
         whole=whole,
-        lattice_whole=whole and s.model == "lattice",
+        lattice_whole=whole and o.model == "lattice",
         t_sym=t_sym,
         t_orb=t_sym[radius + ii, radius + jj],
         mult=mult,
@@ -980,24 +773,25 @@ def _mesh_problem(s: _MeshSettings) -> _MeshProblem:
 
 
 def _initial_starts(
-    s: _MeshSettings, p: _MeshProblem
+    o: MeshOptions, p: _MeshProblem
 ) -> tuple[np.ndarray, list[tuple[float, float, int, int, np.ndarray]]]:
     """Step 3, the objective on a grid: exact constrained least-squares gains at every (λ_n, λ_w)
     pair; return the λ grid and the best distinct starts ``(penalised f, f, i_n, i_w, gains)``."""
-    glo, ghi = s.bounds.gain
+    glo, ghi = o.mesh_bounds.gain
     radius, mult, delta, norm2 = p.radius, p.mult, p.delta, p.norm2
-    lams = np.geomspace(s.lam_lo, s.lam_hi, s.n_init)
-    nodes = quadrature_nodes(s.lam_hi, radius) if s.model == "lattice" else None
-    resp = [_numpy_orbit_response(float(lam), radius, s.model, s.grid_half_width, nodes) for lam in lams]
+    lam_lo, lam_hi = o.lambda_range_px
+    lams = np.geomspace(lam_lo, lam_hi, o.n_init)
+    nodes = quadrature_nodes(lam_hi, radius) if o.model == "lattice" else None
+    resp = [_numpy_orbit_response(float(lam), radius, o.model, o.model_half_width, nodes) for lam in lams]
     norms = [_lattice_norm_terms(float(lam), nodes) for lam in lams] if p.lattice_whole else None
     sens_parts = [(float((mult * dh * dh).sum()), float((mult * h * h).sum())) for h, dh in resp]
-    sig2 = s.sigma * s.sigma
-    maxerr2 = math.inf if s.max_err is None else s.max_err * s.max_err
+    sig2 = o.mismatch_sigma * o.mismatch_sigma
+    maxerr2 = math.inf if o.max_mismatch_error is None else o.max_mismatch_error * o.max_mismatch_error
 
     def evaluate(gram: np.ndarray, cvec: np.ndarray, x: np.ndarray, sp_n, sp_w) -> tuple[float, float]:
         n_k = float(x @ gram @ x)
         cx = float(cvec @ x)
-        if s.gain_free:
+        if o.gain_free:
             f = 1.0 - (cx * cx / (n_k * norm2) if n_k > 0 and cx > 0 else 0.0)
             g2 = (cx / n_k) ** 2 if n_k > 0 else 0.0
         else:
@@ -1020,7 +814,7 @@ def _initial_starts(
         hn, _ = resp[i_n]
         for i_w in range(i_n + 1, len(lams)):
             lam_w = lams[i_w]
-            if lam_w < s.bounds.min_lambda_ratio * lam_n * (1 - 1e-12):
+            if lam_w < o.mesh_bounds.min_lambda_ratio * lam_n * (1 - 1e-12):
                 continue
             hw, _ = resp[i_w]
             basis = np.column_stack([delta, hn, -hw])
@@ -1033,24 +827,24 @@ def _initial_starts(
             else:
                 gram = basis.T @ (mult[:, None] * basis)
             cvec = basis.T @ (mult * p.t_orb)
-            if s.free_wp or s.gain_free:
-                x = _small_qp(gram, cvec, np.zeros(3), [0, 1, 2], s.nonnegative_dc)
-                if not s.free_wp:  # gain free, pixel path is the reference
+            if o.free_pixel_weight or o.gain_free:
+                x = _small_qp(gram, cvec, np.zeros(3), [0, 1, 2], o.nonnegative_dc)
+                if not o.free_pixel_weight:  # gain free, pixel path is the reference
                     x = (
-                        x / x[0] * s.wp_fixed
+                        x / x[0] * o.fixed_pixel_weight
                         if x[0] > 0
-                        else np.array([s.wp_fixed, ghi * s.wp_fixed, ghi * s.wp_fixed])
+                        else np.array([o.fixed_pixel_weight, ghi * o.fixed_pixel_weight, ghi * o.fixed_pixel_weight])
                     )
                     x[1:] = np.clip(x[1:], glo, ghi)
-                elif s.gain_free:  # normalised to w_p + a + b = 1
+                elif o.gain_free:  # normalised to w_p + a + b = 1
                     x = np.maximum(x / x.sum() if x.sum() > 0 else np.full(3, 1 / 3), glo)
                     x /= x.sum()
                 else:
                     x = np.clip(x, glo, ghi)
             else:
-                x = _small_qp(gram, cvec, np.array([s.wp_fixed, 0.0, 0.0]), [1, 2], s.nonnegative_dc)
+                x = _small_qp(gram, cvec, np.array([o.fixed_pixel_weight, 0.0, 0.0]), [1, 2], o.nonnegative_dc)
                 x[1:] = np.clip(x[1:], glo, ghi)
-            if s.nonnegative_dc and x[0] + x[1] - x[2] < 0:
+            if o.nonnegative_dc and x[0] + x[1] - x[2] < 0:
                 x[2] = max(x[0] + x[1], glo)
             f, mm2 = evaluate(gram, cvec, x, sens_parts[i_n], sens_parts[i_w])
             starts.append((f + max(0.0, mm2 - maxerr2), f, i_n, i_w, x))
@@ -1061,7 +855,7 @@ def _initial_starts(
     for st in starts:  # the best distinct grid points (not neighbours of one already chosen)
         if all(abs(st[2] - c[2]) > 1 or abs(st[3] - c[3]) > 1 for c in chosen):
             chosen.append(st)
-        if len(chosen) == s.n_starts:
+        if len(chosen) == o.n_starts:
             break
     return lams, chosen
 
@@ -1079,27 +873,38 @@ class _MeshSolution:
     runs: int
 
 
-def _solve(s: _MeshSettings, p: _MeshProblem, lams: np.ndarray, chosen: list) -> _MeshSolution:
+def _solve(o: MeshOptions, p: _MeshProblem, lams: np.ndarray, chosen: list) -> _MeshSolution:
     """IPOPT in log-parameters from each start (the solver is cached per problem structure)."""
     import casadi as ca
 
-    glo, ghi = s.bounds.gain
-    sig2 = s.sigma * s.sigma
-    maxerr2 = math.inf if s.max_err is None else s.max_err * s.max_err
-    nx = 5 if s.free_wp else 4
+    glo, ghi = o.mesh_bounds.gain
+    sig2 = o.mismatch_sigma * o.mismatch_sigma
+    maxerr2 = math.inf if o.max_mismatch_error is None else o.max_mismatch_error * o.max_mismatch_error
+    nx = 5 if o.free_pixel_weight else 4
+    lam_lo, lam_hi = o.lambda_range_px
     solver = _mesh_solver(
-        p.radius, s.model, float(s.lam_hi), s.grid_half_width, s.free_wp, s.gain_free, p.whole, s.max_iter, float(s.tol)
+        p.radius,
+        o.model,
+        float(lam_hi),
+        o.model_half_width,
+        o.free_pixel_weight,
+        o.gain_free,
+        p.whole,
+        o.max_iter,
+        float(o.tol),
     )
-    p_val = np.concatenate([p.t_orb, [1.0 / p.norm2, s.wp_fixed, sig2 / (maxerr2 if s.max_err is not None else 1.0)]])
-    g_hi = 0.0 if (s.gain_free and s.free_wp) else math.log(ghi)
-    lbx = [2 * math.log(s.lam_lo)] * 2 + [math.log(glo)] * (nx - 2)
-    ubx = [2 * math.log(s.lam_hi)] * 2 + [g_hi] * (nx - 2)
-    lbg = [2 * math.log(s.bounds.min_lambda_ratio), 0.0 if s.nonnegative_dc else -ca.inf, -ca.inf]
-    ubg = [ca.inf, ca.inf, 1.0 if s.max_err is not None else ca.inf]
-    if s.gain_free:
+    p_val = np.concatenate(
+        [p.t_orb, [1.0 / p.norm2, o.fixed_pixel_weight, sig2 / (maxerr2 if o.max_mismatch_error is not None else 1.0)]]
+    )
+    g_hi = 0.0 if (o.gain_free and o.free_pixel_weight) else math.log(ghi)
+    lbx = [2 * math.log(lam_lo)] * 2 + [math.log(glo)] * (nx - 2)
+    ubx = [2 * math.log(lam_hi)] * 2 + [g_hi] * (nx - 2)
+    lbg = [2 * math.log(o.mesh_bounds.min_lambda_ratio), 0.0 if o.nonnegative_dc else -ca.inf, -ca.inf]
+    ubg = [ca.inf, ca.inf, 1.0 if o.max_mismatch_error is not None else ca.inf]
+    if o.gain_free:
         lbg.append(0.0)
         ubg.append(ca.inf)
-        if s.free_wp:
+        if o.free_pixel_weight:
             lbg.append(1.0)
             ubg.append(1.0)
     best = None
@@ -1107,16 +912,16 @@ def _solve(s: _MeshSettings, p: _MeshProblem, lams: np.ndarray, chosen: list) ->
     runs = 0
     for _, _f0, i_n, i_w, x in chosen:
         runs += 1
-        gains = np.clip(x, glo, ghi if not (s.gain_free and s.free_wp) else 1.0)
+        gains = np.clip(x, glo, ghi if not (o.gain_free and o.free_pixel_weight) else 1.0)
         x0 = [2 * math.log(lams[i_n]), 2 * math.log(lams[i_w]), math.log(gains[1]), math.log(gains[2])]
-        if s.free_wp:
+        if o.free_pixel_weight:
             x0.append(math.log(gains[0]))
         sol = solver(x0=x0, p=p_val, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         st = solver.stats()
         total_iter += int(st.get("iter_count", 0))
         f = float(sol["f"])
         gv = np.array(sol["g"]).ravel()
-        feasible = (gv[1] >= -1e-9 or not s.nonnegative_dc) and (s.max_err is None or gv[2] <= 1 + 1e-6)
+        feasible = (gv[1] >= -1e-9 or not o.nonnegative_dc) and (o.max_mismatch_error is None or gv[2] <= 1 + 1e-6)
         key = (not feasible, f)
         if best is None or key < best[0]:
             best = (key, np.array(sol["x"]).ravel(), st, f)
@@ -1126,48 +931,46 @@ def _solve(s: _MeshSettings, p: _MeshProblem, lams: np.ndarray, chosen: list) ->
     _, xo, st, f_opt = best
     # IPOPT may relax bounds by ~1e-8 relative; the built circuit must respect them exactly
     xo = np.clip(xo, lbx, ubx)
-    xo[1] = min(max(xo[1], xo[0] + 2 * math.log(s.bounds.min_lambda_ratio)), ubx[1])
+    xo[1] = min(max(xo[1], xo[0] + 2 * math.log(o.mesh_bounds.min_lambda_ratio)), ubx[1])
     return _MeshSolution(xo=xo, lbx=lbx, ubx=ubx, objective=f_opt, stats=st, iterations=total_iter, runs=runs)
 
 
-def _build_design(
-    s: _MeshSettings, p: _MeshProblem, sol: _MeshSolution
-) -> tuple[MeshDesign, float, float, float, float]:
+def _build_design(o: MeshOptions, p: _MeshProblem, sol: _MeshSolution) -> tuple[MeshDesign, float, float, float, float]:
     """The circuit from the solution (step 5): conductances from λ, gains scaled by the
     least-squares overall gain when it is free; return the design, w_p, a, b (unscaled) and the gain."""
-    target, xo = s.target, sol.xo
+    target, xo = o.target, sol.xo
     lam_n, lam_w = math.exp(xo[0] / 2), math.exp(xo[1] / 2)
     a, b = math.exp(xo[2]), math.exp(xo[3])
-    wp = math.exp(xo[4]) if s.free_wp else s.wp_fixed
-    if s.nonnegative_dc and wp + a - b < 0:  # solver tolerance: never ship a negative whole-circuit DC
+    wp = math.exp(xo[4]) if o.free_pixel_weight else o.fixed_pixel_weight
+    if o.nonnegative_dc and wp + a - b < 0:  # solver tolerance: never ship a negative whole-circuit DC
         b = wp + a
     common: dict[str, Any] = dict(
-        g_lateral_narrow_s=s.g_l,
-        g_vertical_narrow_s=s.g_l / lam_n**2,
-        g_lateral_wide_s=s.g_l,
-        g_vertical_wide_s=s.g_l / lam_w**2,
+        g_lateral_narrow_s=o.g_lateral_s,
+        g_vertical_narrow_s=o.g_lateral_s / lam_n**2,
+        g_lateral_wide_s=o.g_lateral_s,
+        g_vertical_wide_s=o.g_lateral_s / lam_w**2,
         size=target.size,
         pitch_m=target.pitch_m,
-        node_capacitance_f=s.c_node,
-        model=s.model,
-        grid_half_width=s.grid_half_width,
+        node_capacitance_f=o.node_capacitance_f,
+        model=o.model,
+        grid_half_width=o.model_half_width,
         target=target,
     )
     overall = 1.0
-    if s.gain_free:  # the least-squares overall gain (it folds into the event threshold)
+    if o.gain_free:  # the least-squares overall gain (it folds into the event threshold)
         unit = MeshDesign(gain_narrow=a, gain_wide=b, pixel_weight=wp, **common)
         kw = unit._taps(p.radius)
         n_k = unit._whole_energy() if p.whole else float((kw * kw).sum())
         cx = float((kw * p.t_sym).sum())
         overall = cx / n_k if n_k > 0 and cx > 0 else 0.0
     wp_s, a_s, b_s = overall * wp, overall * a, overall * b
-    if s.nonnegative_dc and wp_s + a_s - b_s < 0:  # rounding of the scaling: keep the whole-circuit DC ≥ 0 exactly
+    if o.nonnegative_dc and wp_s + a_s - b_s < 0:  # rounding of the scaling: keep the whole-circuit DC ≥ 0 exactly
         b_s = wp_s + a_s
     return MeshDesign(gain_narrow=a_s, gain_wide=b_s, pixel_weight=wp_s, **common), wp, a, b, overall
 
 
 def _fit_report(
-    s: _MeshSettings,
+    o: MeshOptions,
     p: _MeshProblem,
     sol: _MeshSolution,
     design: MeshDesign,
@@ -1179,23 +982,25 @@ def _fit_report(
 ) -> dict[str, Any]:
     """The fit record (step 6): errors, what sits on a bound, mismatch and solver status
     (``wall_s`` is added by the caller, so it covers the whole fit)."""
-    target, xo, lbx, ubx = s.target, sol.xo, sol.lbx, sol.ubx
+    target, xo, lbx, ubx = o.target, sol.xo, sol.lbx, sol.ubx
     on_bound = []
-    names = ["lambda_narrow_px", "lambda_wide_px", "gain_narrow", "gain_wide"] + (["pixel_weight"] if s.free_wp else [])
+    names = ["lambda_narrow_px", "lambda_wide_px", "gain_narrow", "gain_wide"] + (
+        ["pixel_weight"] if o.free_pixel_weight else []
+    )
     for k, name in enumerate(names):
         for side, lim in (("low", lbx[k]), ("high", ubx[k])):
             if abs(xo[k] - lim) <= 1e-6 * max(1.0, abs(lim)):
                 on_bound.append(
                     f"{name} at its {side} bound"
-                    + (" (relative to the reference path)" if s.gain_free and k >= 2 else "")
+                    + (" (relative to the reference path)" if o.gain_free and k >= 2 else "")
                 )
-    if abs((xo[1] - xo[0]) - 2 * math.log(s.bounds.min_lambda_ratio)) <= 1e-6:
-        on_bound.append(f"lambda_wide/lambda_narrow at min_lambda_ratio={s.bounds.min_lambda_ratio:g}")
-    if s.nonnegative_dc and wp + a - b <= 1e-6 * max(wp, a, b):
+    if abs((xo[1] - xo[0]) - 2 * math.log(o.mesh_bounds.min_lambda_ratio)) <= 1e-6:
+        on_bound.append(f"lambda_wide/lambda_narrow at min_lambda_ratio={o.mesh_bounds.min_lambda_ratio:g}")
+    if o.nonnegative_dc and wp + a - b <= 1e-6 * max(wp, a, b):
         on_bound.append("whole-circuit DC gain at 0 (nonnegative_dc)")
     sens = mismatch_sensitivity(design, target)
-    if s.max_err is not None and s.sigma * sens >= s.max_err * (1 - 1e-4):
-        on_bound.append(f"mismatch error sigma*S at max_mismatch_error={s.max_err:g}")
+    if o.max_mismatch_error is not None and o.mismatch_sigma * sens >= o.max_mismatch_error * (1 - 1e-4):
+        on_bound.append(f"mismatch error sigma*S at max_mismatch_error={o.max_mismatch_error:g}")
     return {
         "error": design.kernel_error(target),
         "error_window": kernel_error(design.kernel(target.size), target),
@@ -1205,11 +1010,11 @@ def _fit_report(
         "whole_dc_gain": design.whole_dc_gain,
         "window_dc_gain": float(design.kernel_taps(target.size).sum()),
         "overall_gain": overall,
-        "gain": s.gain,
-        "fit_size": "whole" if p.whole else s.fit_size,
+        "gain": o.gain,
+        "fit_size": "whole" if p.whole else o.fit_size,
         "asymmetry": p.asymmetry,
         "mismatch_sensitivity": sens,
-        "expected_mismatch_error": s.sigma * sens,
+        "expected_mismatch_error": o.mismatch_sigma * sens,
         "on_bound": on_bound,
         "objective": sol.objective,
         "init_objective": init_objective,
@@ -1218,11 +1023,11 @@ def _fit_report(
         "iterations": sol.iterations,
         "starts": sol.runs,
         "wall_s": math.nan,
-        "model": s.model,
-        "mismatch_sigma": s.sigma,
-        "max_mismatch_error": s.max_err,
-        "nonnegative_dc": bool(s.nonnegative_dc),
-        "pixel_weight_free": s.free_wp,
+        "model": o.model,
+        "mismatch_sigma": o.mismatch_sigma,
+        "max_mismatch_error": o.max_mismatch_error,
+        "nonnegative_dc": bool(o.nonnegative_dc),
+        "pixel_weight_free": o.free_pixel_weight,
     }
 
 
@@ -1250,55 +1055,18 @@ def fit_resistive_mesh(
 
     The error minimised and reported is that of the **whole circuit response** against the target
     (zero outside its window): on the infinite lattice its energy is exact in closed form, on the
-    finite grid the whole chip is summed.
+    finite grid the whole chip is summed. The options are validated once, at entry, into a
+    :class:`~fsdvs_hw.realise.mesh.MeshOptions` (the same model and rules a design file's
+    ``[realisations.mesh]`` table is checked against) that every step of the fit reads.
 
     Parameters
     ----------
     kernel : Kernel or array_like
         Target kernel (odd square taps).
-    bounds : MeshBounds or mapping, optional
-        λ range (px), gain range, minimum λ_wide/λ_narrow, conductance range (S); a mapping of
-        :class:`MeshBounds` fields is accepted (design files). With ``gain="free"`` the gain range
-        bounds the path gains *relative* to the reference (the fixed pixel weight, or, with a free
-        pixel weight, the sum w_p + a + b = 1, so only its low end applies).
-    pitch_m : float, optional
-        Pixel pitch in metres (default: the kernel's).
-    pixel_weight : float, "free" or None
-        Fixed weight of the pixel's own signal (1.0: the paper's sketch), or "free" / None
-        (default) to fit it (a pure difference of meshes when it reaches its lower bound).
-    gain : {"free", "fixed"}
-        ``"free"`` (default): the overall gain folds into the event threshold, so the shape is
-        fitted (scale-invariant error) and the returned gains are scaled by the least-squares
-        overall gain; ``"fixed"``: the target's absolute scale must be met within ``bounds.gain``.
-    nonnegative_dc : bool
-        Constrain the whole-circuit DC gain w_p + a − b ≥ 0 (default), so a bright uniform scene
-        never drives negative pre-log current.
-    mismatch_sigma : float
-        Relative die-level conductance/gain mismatch σ (0 … 0.5) the design must tolerate.
-    max_mismatch_error : float or None
-        Constraint σ·S ≤ this (S: :func:`mismatch_sensitivity`), the first-order kernel error at
-        mismatch σ. It stops the unbuildable near-cancellation of two similar meshes with huge
-        opposing gains without biasing fits that are robust anyway (a mesh-made target is
-        recovered exactly). None disables it.
-    g_lateral_s : float
-        Lateral conductance of both meshes, siemens; g_v = g_l / λ².
-    node_capacitance_f : float
-        Node capacitance (F) of both meshes, for the settling time.
-    model : {"lattice", "grid"}
-        Single-mesh model: infinite lattice (exact lattice Green's function), or a finite open-edge
-        grid of half-width ``grid_half_width`` pixels (exact DCT form).
-    grid_half_width : int, optional
-        Required with ``model="grid"``.
-    fit_size : int, optional
-        Fit on an odd window (≥ the target's size) instead of the whole response (the tail
-        outside it is then unpriced; ``fit["error"]`` still reports the whole response).
-    n_init : int
-        λ values per mesh in the initialisation grid (2 … 40): at each (λ_n, λ_w) pair the gains
-        are the exact constrained least-squares optimum (a convex QP in ≤ 3 gains).
-    n_starts : int
-        IPOPT runs from the best distinct grid points (1 … 10); the best result is kept.
-    max_iter, tol : int, float
-        IPOPT iteration limit and tolerance.
+    bounds, pitch_m, pixel_weight, gain, nonnegative_dc, mismatch_sigma, max_mismatch_error, \
+g_lateral_s, node_capacitance_f, model, grid_half_width, fit_size, n_init, n_starts, max_iter, tol
+        The fit's options: each one's type, unit, range, default and meaning, and the rules between
+        them, are those of :class:`~fsdvs_hw.realise.mesh.MeshOptions`.
 
     Returns
     -------
@@ -1328,59 +1096,47 @@ def fit_resistive_mesh(
     >>> d.kernel_error() < 0.5, d.lambda_narrow_px < d.lambda_wide_px
     (True, True)
     """
-    check_fit_arguments(MeshOptions, locals())  # the registry's schema: same limits as design files
+    o = check_fit_arguments(MeshOptions, locals())
     t0 = time.perf_counter()
-    s = _mesh_settings(
-        kernel,
-        bounds=bounds,
-        pitch_m=pitch_m,
-        pixel_weight=pixel_weight,
-        gain=gain,
-        nonnegative_dc=nonnegative_dc,
-        mismatch_sigma=mismatch_sigma,
-        max_mismatch_error=max_mismatch_error,
-        g_lateral_s=g_lateral_s,
-        node_capacitance_f=node_capacitance_f,
-        model=model,
-        grid_half_width=grid_half_width,
-        fit_size=fit_size,
-        n_init=n_init,
-        n_starts=n_starts,
-        max_iter=max_iter,
-        tol=tol,
-    )
-    target = s.target
-    problem = _mesh_problem(s)
+    problem = _mesh_problem(o)
     if problem.asymmetry > 1e-6:
         warnings.warn(
-            f"target '{target.name}' is not D4-symmetric (asymmetric part {problem.asymmetry:.3g} of its L2 norm); a "
-            "resistive mesh realises only the symmetric part, fitted in the least-squares sense",
+            f"target '{o.target.name}' is not D4-symmetric (asymmetric part {problem.asymmetry:.3g} of its L2 norm); "
+            "a resistive mesh realises only the symmetric part, fitted in the least-squares sense",
             MeshAsymmetryWarning,
             stacklevel=2,
         )
-    lams, chosen = _initial_starts(s, problem)
-    sol = _solve(s, problem, lams, chosen)
-    design, wp, a, b, overall = _build_design(s, problem, sol)
-    fit = _fit_report(s, problem, sol, design, wp, a, b, overall, float(chosen[0][1]))
+    lams, chosen = _initial_starts(o, problem)
+    sol = _solve(o, problem, lams, chosen)
+    design, wp, a, b, overall = _build_design(o, problem, sol)
+    fit = _fit_report(o, problem, sol, design, wp, a, b, overall, float(chosen[0][1]))
     fit["wall_s"] = time.perf_counter() - t0
+    _warn_if_unusable(o, fit, stacklevel=3)
+    return MeshDesign(
+        **{**{k: getattr(design, k) for k in design.__dataclass_fields__ if k not in ("fit", "kind")}, "fit": fit}
+    )
+
+
+def _warn_if_unusable(o: MeshOptions, fit: Mapping[str, Any], *, stacklevel: int) -> None:
+    """:class:`MeshFitWarning` when the fit is no better than a zero kernel or IPOPT did not succeed."""
+    target = o.target
     if fit["error"] >= 0.999:
         peak = float(np.abs(target.taps).max())
         warnings.warn(
             f"mesh fit of '{target.name}' has kernel error {fit['error']:.6g} (a zero kernel has 1): "
             + (
-                f"the target's scale (max |tap| = {peak:.3g}) is out of reach of bounds.gain={s.bounds.gain}"
-                f"{'' if s.free_wp else f' with pixel_weight fixed at {s.wp_fixed:g}'}; normalise the target, widen the "
-                "bounds or use gain='free'"
-                if not s.gain_free
+                f"the target's scale (max |tap| = {peak:.3g}) is out of reach of bounds.gain={o.mesh_bounds.gain}"
+                f"{'' if o.free_pixel_weight else f' with pixel_weight fixed at {o.fixed_pixel_weight:g}'}; normalise "
+                "the target, widen the bounds or use gain='free'"
+                if not o.gain_free
                 else "no dual mesh with these bounds correlates with the target"
             ),
             MeshFitWarning,
-            stacklevel=2,
+            stacklevel=stacklevel,
         )
     elif not fit["success"]:
         warnings.warn(
-            f"mesh fit of '{target.name}': IPOPT ended with status {fit['status']}", MeshFitWarning, stacklevel=2
+            f"mesh fit of '{target.name}': IPOPT ended with status {fit['status']}",
+            MeshFitWarning,
+            stacklevel=stacklevel,
         )
-    return MeshDesign(
-        **{**{k: getattr(design, k) for k in design.__dataclass_fields__ if k not in ("fit", "kind")}, "fit": fit}
-    )
