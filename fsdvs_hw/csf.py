@@ -388,6 +388,53 @@ def _compare(
     return f, kc, cc, log_err, lin_err
 
 
+def _check_band(f_low_cpp: float, n_samples: int, floor: float) -> None:
+    """Refuse a compared band outside (0, 0.25) cycles/pixel, under 8 samples, or a floor outside (0, 1)."""
+    if not (0 < f_low_cpp < NYQUIST_CPP / 2):
+        raise InputError(f"f_low_cpp must be in (0, 0.25) cycles/pixel, got {f_low_cpp}")
+    if n_samples < 8:
+        raise InputError(f"n_samples must be ≥ 8, got {n_samples}")
+    if not (0 < floor < 1):
+        raise InputError(f"floor must be in (0, 1), got {floor}")
+
+
+def _fitted_pixels_per_degree(cost: Callable[[float], float], ppd_bounds: tuple[float, float]) -> float:
+    """The pixels-per-degree scale minimising ``cost(ln ppd)`` within ``ppd_bounds``.
+
+    A grid of 121 log-spaced scales, then a bounded refinement between the best one's neighbours
+    (kept only where it does better than the grid).
+
+    Parameters
+    ----------
+    cost : callable
+        ln(pixels per degree) → the error to minimise.
+    ppd_bounds : (float, float)
+        Lowest and highest scale (pixels/degree), ``0 < low < high``.
+
+    Returns
+    -------
+    float
+        Pixels per degree.
+
+    Raises
+    ------
+    InputError
+        Bounds not ``0 < low < high``.
+    """
+    from scipy.optimize import minimize_scalar
+
+    lo, hi = float(ppd_bounds[0]), float(ppd_bounds[1])
+    if not 0 < lo < hi:
+        raise InputError(f"ppd_bounds must satisfy 0 < low < high, got {ppd_bounds}")
+    grid = np.linspace(math.log(lo), math.log(hi), 121)
+    errs = [cost(g) for g in grid]
+    i = int(np.argmin(errs))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    res = minimize_scalar(cost, bounds=(a, b), method="bounded", options={"xatol": 1e-6})
+    best = float(res.x) if res.fun <= errs[i] else float(grid[i])
+    return math.exp(best)
+
+
 def csf_agreement(
     kernel: Kernel,
     *,
@@ -442,12 +489,7 @@ def csf_agreement(
         kernel = Kernel(kernel)
     name = _method_name(method)
     kw = dict(csf_kwargs or {})
-    if not (0 < f_low_cpp < NYQUIST_CPP / 2):
-        raise InputError(f"f_low_cpp must be in (0, 0.25) cycles/pixel, got {f_low_cpp}")
-    if n_samples < 8:
-        raise InputError(f"n_samples must be ≥ 8, got {n_samples}")
-    if not (0 < floor < 1):
-        raise InputError(f"floor must be in (0, 1), got {floor}")
+    _check_band(f_low_cpp, n_samples, floor)
 
     def csf_fn(f: np.ndarray) -> np.ndarray:
         return CSF_METHODS[name](f, **kw)
@@ -461,22 +503,11 @@ def csf_agreement(
         ppd = geometry.pixels_per_degree
         fitted, focal = False, geometry.focal_length_m
     else:
-        from scipy.optimize import minimize_scalar
-
-        lo, hi = float(ppd_bounds[0]), float(ppd_bounds[1])
-        if not 0 < lo < hi:
-            raise InputError(f"ppd_bounds must satisfy 0 < low < high, got {ppd_bounds}")
 
         def cost(log_ppd: float) -> float:
             return _compare(f_cpp, rr.f_cpp, k_norm, csf_fn, csf_max, math.exp(log_ppd), floor)[4]
 
-        grid = np.linspace(math.log(lo), math.log(hi), 121)
-        errs = [cost(g) for g in grid]
-        i = int(np.argmin(errs))
-        a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-        res = minimize_scalar(cost, bounds=(a, b), method="bounded", options={"xatol": 1e-6})
-        best = float(res.x) if res.fun <= errs[i] else float(grid[i])
-        ppd = math.exp(best)
+        ppd = _fitted_pixels_per_degree(cost, ppd_bounds)
         fitted, focal = True, _focal_length_for(ppd, kernel.pitch_m)
 
     f, kc, cc, err, lin_err = _compare(f_cpp, rr.f_cpp, k_norm, csf_fn, csf_max, ppd, floor)
