@@ -17,7 +17,7 @@ torch = pytest.importorskip("torch")
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.scenes.datasets import Clip, ClipDataset
-from fsdvs_hw.tasks import learn
+from fsdvs_hw.tasks import training
 from fsdvs_hw.tasks.dataset_eval import evaluate_on_dataset
 from fsdvs_hw.tasks.dataset_training import disjoint_train_indices, train_on_dataset
 
@@ -111,7 +111,7 @@ def test_rerun_reuses_and_interrupted_run_resumes(monkeypatch, tmp_path):
 
     calls = {"n": 0}
 
-    orig = learn._train_epochs
+    orig = training.train_epoch
 
     def crash_on_third(*a, **k):
         calls["n"] += 1
@@ -119,11 +119,11 @@ def test_rerun_reuses_and_interrupted_run_resumes(monkeypatch, tmp_path):
             raise KeyboardInterrupt
         return orig(*a, **k)
 
-    monkeypatch.setattr(learn, "_train_epochs", crash_on_third)
+    monkeypatch.setattr(training, "train_epoch", crash_on_third)
     with pytest.raises(KeyboardInterrupt):
         train_on_dataset(ds, "recognition", TOY, out=tmp_path / "r", **kw)
     assert (tmp_path / "r.partial.pt").is_file()
-    monkeypatch.setattr(learn, "_train_epochs", orig)
+    monkeypatch.setattr(training, "train_epoch", orig)
     resumed = train_on_dataset(ds, "recognition", TOY, out=tmp_path / "r", **kw)
     assert resumed.epochs_trained == 1  # two of three epochs were done before the interruption
     np.testing.assert_allclose(resumed.kernel.taps, full.kernel.taps, rtol=0, atol=1e-6)

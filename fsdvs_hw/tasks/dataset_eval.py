@@ -269,24 +269,7 @@ def _output_shape(out: Any) -> str:
     return str(tuple(int(n) for n in shape)) if shape is not None else type(out).__name__
 
 
-def _network_for(network: Any, task: str, in_channels: int, num_classes: int) -> Any:
-    from torch import nn
-
-    from .user_networks import builtin_network, load_network_factory
-
-    if network is None:
-        return builtin_network(task, in_channels, num_classes)
-    if isinstance(network, str):
-        return load_network_factory(network, in_channels=in_channels, num_classes=num_classes)
-    if isinstance(network, nn.Module):
-        return network
-    raise InputError(
-        f"evaluate_on_dataset: network={one_line(network)}; allowed: None (built-in), "
-        "'package.module:factory', or a torch.nn.Module"
-    )
-
-
-def _device(device: Any) -> Any:
+def torch_device(device: Any) -> Any:
     """``device`` as a ``torch.device``; CUDA only where it is available."""
     import torch
 
@@ -379,14 +362,15 @@ def evaluate_on_dataset(
     """
     import torch
 
-    from ..kernels import Kernel
+    from ..kernels import Kernel, as_kernel
     from ..scenes.datasets import ClipDataset, stack_targets
     from ..sensor import SensorConfig, event_frames
-    from .learn import _as_kernel, _cat_predictions, default_sensor
-    from .user_networks import event_input_of, load_weights
+    from .evaluators import concat_predictions
+    from .learn import default_sensor
+    from .user_networks import event_input_of, load_weights, network_for
 
     t0 = time.perf_counter()
-    dev = _device(device)
+    dev = torch_device(device)
     if not isinstance(dataset, ClipDataset):
         raise InputError(
             f"evaluate_on_dataset: dataset is a {type(dataset).__name__}; allowed: a "
@@ -407,7 +391,7 @@ def evaluate_on_dataset(
     else:
         check_count("evaluate_on_dataset: n_clips", n_clips, 1, min(MAX_CLIPS, len(dataset)))
         indices = dataset.draw(n_clips, seed)
-    k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else _as_kernel(kernel)
+    k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else as_kernel(kernel, name="kernel")
     kernel_t = torch.as_tensor(np.array(k.taps), dtype=torch.float64, device=dev)
 
     failures: list[ClipFailure] = []
@@ -424,7 +408,7 @@ def evaluate_on_dataset(
         if shape is None:  # the first readable clip sets the frame size, the network and the sensor
             shape = (int(clip.frames.shape[1]), int(clip.frames.shape[2]))
             _check_frames(k, evaluator.name, clip, shape)
-            net = _network_for(network, evaluator.name, 2 * (clip.frames.shape[0] - 1), evaluator.num_classes)
+            net = network_for(network, evaluator.name, 2 * (clip.frames.shape[0] - 1), evaluator.num_classes)
             if weights is not None:
                 load_weights(net, weights)
             rep = event_input_of(net)
@@ -454,7 +438,7 @@ def evaluate_on_dataset(
                 ) from None
         clips.append(clip)
     _check_failures(failures, len(indices), float(max_failed_fraction), len(clips))
-    cat = _cat_predictions(preds)
+    cat = concat_predictions(preds)
     targets = stack_targets(clips)
     t_torch = {key: torch.from_numpy(np.ascontiguousarray(v)) for key, v in targets.items()}
     try:

@@ -40,9 +40,9 @@ Loshchilov & Hutter, "Decoupled weight decay regularization" (AdamW), ICLR (2019
 
 from __future__ import annotations
 
-import io
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
@@ -54,6 +54,25 @@ from ..errors import InputError
 from ..kernels import Kernel
 from ..limits import MAX_CLIPS, MAX_EPOCHS, MAX_SEED, check_allocation, check_count
 from ..validation import check_real
+from .checkpoints import (
+    check_fingerprint,
+    checkpoint_paths,
+    checkpoint_stem,
+    load_checkpoint,
+    load_partial,
+    save_checkpoint,
+    save_partial,
+)
+from .event_inputs import simulated_events
+from .training import (
+    TrainingConfig,
+    TrainingData,
+    adamw_optimizer,
+    delta_init,
+    kernel_taps,
+    print_progress,
+    train_epochs,
+)
 
 __all__ = ["DatasetTrainingResult", "disjoint_train_indices", "load_trained", "train_on_dataset"]
 
@@ -172,11 +191,6 @@ def _load_clips(dataset: Any, indices: np.ndarray, evaluator: Any) -> tuple[Any,
     return video, _training_targets(evaluator, stack_targets(clips), h, w), first.timestamps_s
 
 
-def _stem(out: str | Path) -> Path:
-    p = Path(out)
-    return p.with_suffix("") if p.suffix in (".json", ".safetensors") else p
-
-
 def load_trained(
     out: str | Path, network: Any, *, fingerprint: dict[str, Any] | None = None, who: str = "load_trained"
 ) -> tuple[Any, Kernel, dict[str, Any]] | None:
@@ -205,13 +219,11 @@ def load_trained(
     >>> load_trained("nets/does_not_exist", None) is None
     True
     """
-    from .learn import load_checkpoint
-
-    stem = _stem(out)
+    stem = checkpoint_stem(out)
     if not Path(str(stem) + ".safetensors").is_file():
         return None
     provenance, state, kernel = load_checkpoint(stem)
-    _check_fingerprint(provenance.get("fingerprint"), fingerprint, Path(str(stem) + ".safetensors"))
+    check_fingerprint(provenance.get("fingerprint"), fingerprint, Path(str(stem) + ".safetensors"))
     try:
         network.load_state_dict(state, strict=True)
     except RuntimeError as exc:
@@ -219,20 +231,6 @@ def load_trained(
             f"{who}: checkpoint {stem!s}.safetensors does not fit the network ({str(exc).splitlines()[0]})"
         ) from None
     return network.eval(), kernel, provenance
-
-
-def _check_fingerprint(stored: Any, wanted: dict[str, Any] | None, path: Path) -> None:
-    if wanted is None:
-        return
-    wanted = json.loads(json.dumps(wanted))  # the JSON round trip the stored one went through
-    if stored != wanted:
-        stored = stored if isinstance(stored, dict) else {}
-        diff = sorted(k for k in set(stored) | set(wanted) if stored.get(k) != wanted.get(k))
-        raise InputError(
-            f"{path}: trained with other settings (differing: {', '.join(diff) or 'all'}); allowed: "
-            "the same data, network and train settings, or another train.out (delete the file to "
-            "retrain)"
-        )
 
 
 def train_on_dataset(
@@ -272,8 +270,8 @@ def train_on_dataset(
         None: the task's built-in network; ``"package.module:factory"``; or a module (weights
         already loaded for fine-tuning). Its ``event_input`` picks the representation.
     train_indices : array of int
-        The clips trained on (:func:`disjoint_train_indices`); they are decoded once and held in
-        memory as float32 (checked against the allocation limit).
+        The clips trained on (:func:`disjoint_train_indices`); decoded once and held in memory as
+        float32 (checked against the allocation limit).
     kernel_size : int
         Odd kernel side in pixels, 1 … 15 (ignored with ``init_kernel``).
     init_kernel : Kernel, path or array, optional
@@ -290,8 +288,8 @@ def train_on_dataset(
     lr_network : float
         AdamW rate of the network in stage one (1/step).
     lr_kernel, lr_backbone, lr_head : float
-        Stage-two AdamW rates of the kernel, the backbone and the head; None = ``lr_kernel`` times
-        the evaluator's :attr:`joint_lr_ratios` (the paper's).
+        Stage-two AdamW rates (1/step) of the kernel, the backbone and the head; None =
+        ``lr_kernel`` times the evaluator's :attr:`joint_lr_ratios` (the paper's).
     weight_decay : float
         AdamW weight decay of the network (the kernel has none).
     batch_size : int
@@ -301,8 +299,7 @@ def train_on_dataset(
     init_noise : float
         Standard deviation of the noise on the delta initialisation.
     sensor : SensorConfig, optional
-        Default: the training sensor (:func:`~fsdvs_hw.tasks.learn.default_sensor`) at the clips'
-        frame rate.
+        Default: the training sensor (:func:`~fsdvs_hw.tasks.learn.default_sensor`) at the clips' frame rate.
     device : str
         ``"cpu"`` or ``"cuda"`` / ``"cuda:N"``: where the simulator and the network train.
     out : path, optional
@@ -329,16 +326,40 @@ def train_on_dataset(
     >>> res.kernel.size, res.history[-1]["stage"]                                    # doctest: +SKIP
     (7, 'joint')
     """
-    import torch
-
-    from ..provenance import library_versions
-    from .dataset_eval import _device, _network_for, evaluator_for_dataset
-    from .learn import _events, _inputs_once, _save_checkpoint, _train_epochs, default_sensor
-    from .user_networks import event_input_of
+    from .dataset_eval import evaluator_for_dataset, torch_device
 
     t_start = time.perf_counter()
     evaluator = evaluator_for_dataset(task, dataset)
-    dev = _device(device)
+    dev = torch_device(device)
+    rates = (lr_network, lr_kernel, lr_backbone, lr_head, weight_decay, init_noise)
+    schedule = _checked_schedule(evaluator, epochs_frozen, epochs_joint, batch_size, seed, rates)
+    indices = _checked_indices(train_indices, len(dataset))
+    kernel = (kernel_size, init_kernel, learn_filter, realisation)
+    return _train(
+        dataset, evaluator, network, indices, schedule, kernel, sensor, dev, out, fingerprint, verbose, t_start
+    )
+
+
+@dataclass(frozen=True)
+class _Schedule:
+    """:func:`train_on_dataset`'s checked schedule: epochs per stage, batch size, seed, AdamW rates
+    (``network`` stage one; ``kernel``, ``backbone``, ``head`` stage two; 1/step), weight decay and
+    the delta's noise."""
+
+    epochs: dict[str, int]
+    batch_size: int
+    seed: int
+    rates: dict[str, float]
+    weight_decay: float
+    init_noise: float
+
+
+def _checked_schedule(
+    evaluator: Any, epochs_frozen: Any, epochs_joint: Any, batch_size: Any, seed: Any, rates: tuple[Any, ...]
+) -> _Schedule:
+    """The schedule of :func:`train_on_dataset`, each value checked in turn (InputError naming its key);
+    ``rates`` = (lr_network, lr_kernel, lr_backbone, lr_head, weight_decay, init_noise)."""
+    lr_network, lr_kernel, lr_backbone, lr_head, weight_decay, init_noise = rates
     epochs = {
         "frozen_filter": check_count("train.epochs_frozen", epochs_frozen, 0, MAX_EPOCHS),
         "joint": check_count("train.epochs_joint", epochs_joint, 0, MAX_EPOCHS),
@@ -350,12 +371,42 @@ def train_on_dataset(
     ratios = getattr(evaluator, "joint_lr_ratios", (1.0, 1e-6 / 5e-4, 1e-5 / 5e-4))
     lr_backbone = _rate_or_default("train.lr_backbone", lr_backbone, lr_kernel * ratios[1])
     lr_head = _rate_or_default("train.lr_head", lr_head, lr_kernel * ratios[2])
-    weight_decay = check_real("train.weight_decay", weight_decay, 0.0, 10.0)
-    init_noise = check_real("train.init_noise", init_noise, 0.0, 10.0)
-    indices = _checked_indices(train_indices, len(dataset))
-    torch.manual_seed(seed)
-    gen = torch.Generator().manual_seed(seed)
-    module, realised, taps0 = _kernel_start(realisation, init_kernel, kernel_size, init_noise, gen)
+    return _Schedule(
+        epochs=epochs,
+        batch_size=batch_size,
+        seed=seed,
+        rates={"network": lr_network, "kernel": lr_kernel, "backbone": lr_backbone, "head": lr_head},
+        weight_decay=check_real("train.weight_decay", weight_decay, 0.0, 10.0),
+        init_noise=check_real("train.init_noise", init_noise, 0.0, 10.0),
+    )
+
+
+def _train(
+    dataset: Any,
+    evaluator: Any,
+    network: Any,
+    indices: np.ndarray,
+    schedule: _Schedule,
+    kernel: tuple[Any, Any, bool, Any],
+    sensor: Any,
+    dev: Any,
+    out: str | Path | None,
+    fingerprint: dict[str, Any] | None,
+    verbose: bool,
+    t_start: float,
+) -> DatasetTrainingResult:
+    """:func:`train_on_dataset` once its arguments are checked; ``kernel`` = (kernel_size,
+    init_kernel, learn_filter, realisation)."""
+    import torch
+
+    from ..provenance import library_versions
+    from .learn import default_sensor
+    from .user_networks import event_input_of, network_for
+
+    kernel_size, init_kernel, learn_filter, realisation = kernel
+    torch.manual_seed(schedule.seed)
+    gen = torch.Generator().manual_seed(schedule.seed)
+    module, realised, taps0 = _kernel_start(realisation, init_kernel, kernel_size, schedule.init_noise, gen)
     learn_filter = bool(learn_filter and taps0.shape[0] > 1)
 
     video, targets, ts = _load_clips(dataset, indices, evaluator)
@@ -364,97 +415,47 @@ def train_on_dataset(
         raise InputError(
             f"train_on_dataset: a {taps0.shape[0]}x{taps0.shape[0]} kernel is larger than the {h}x{w} frames"
         )
-    net = _network_for(network, evaluator.name, 2 * (video.shape[1] - 1), evaluator.num_classes)
+    net = network_for(network, evaluator.name, 2 * (video.shape[1] - 1), evaluator.num_classes)
     rep = event_input_of(net)
     sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(ts)[0]))) if sensor is None else sensor
     video, net = video.to(dev), net.to(dev).train()
     targets = {k: v.to(dev) for k, v in targets.items()}
-    kernel_param, kernel_now = _kernel_parameter(module, taps0, learn_filter, dev)
-    taps_init = taps0.to(dev)
+    kernel_param = _kernel_parameter(module, taps0, learn_filter, dev)
 
     def input_fn(v: Any, k: Any, s: Any, t: Any) -> Any:
-        return rep(_events(v, k, s, t).float(), t)
-
-    def optimizer(stage: str) -> Any:
-        return _optimizer(
-            stage,
-            net,
-            kernel_param if learn_filter else None,
-            weight_decay,
-            {"network": lr_network, "kernel": lr_kernel, "backbone": lr_backbone, "head": lr_head},
-        )
+        return rep(simulated_events(v, k, s, t).float(), t)
 
     fingerprint = None if fingerprint is None else json.loads(json.dumps(fingerprint))
-    stem = None if out is None else _stem(out)
-    partial = None if stem is None else Path(str(stem) + ".partial.pt")
+    stem = None if out is None else checkpoint_stem(out)
     if stem is not None:
         finished = _finished_run(stem, net, fingerprint, indices)
         if finished is not None:
             return finished
         net = net.to(dev)
-    history, start, opt_state = _resume(partial, fingerprint, net, kernel_param, gen)
-    trained = 0
-    for s_idx, stage in enumerate(_STAGES):
-        if s_idx < start[0] or epochs[stage] == 0:
-            continue
-        first_epoch = start[1] if s_idx == start[0] else 0
-        if first_epoch >= epochs[stage]:
-            continue
-        opt = optimizer(stage)
-        if opt_state is not None and s_idx == start[0]:
-            opt.load_state_dict(opt_state)
-        frozen = stage == "frozen_filter" or not learn_filter  # a frozen kernel: the events never change
-        cached = _inputs_once(input_fn, video, kernel_now(), sensor, ts, chunk=64) if frozen else None
-        for epoch in range(first_epoch, epochs[stage]):
-            n_before = len(history)
-            _train_epochs(
-                evaluator,
-                net,
-                kernel_param,
-                video,
-                targets,
-                sensor,
-                ts,
-                opt,
-                1,
-                batch_size,
-                gen,
-                stage if learn_filter or stage == "frozen_filter" else "joint_frozen_filter",
-                history,
-                taps_init,
-                cached_inputs=cached,
-                input_fn=input_fn,
-            )
-            history[n_before]["epoch"] = epoch
-            trained += 1
-            if verbose:
-                _log(
-                    f"[learn] {evaluator.name} {stage} epoch {epoch + 1}/{epochs[stage]}: loss "
-                    f"{history[-1]['loss']:.4f} ({history[-1]['seconds']:.1f} s)"
-                )
-            if partial is not None:
-                _save_partial(partial, net, kernel_param, gen, opt, history, (s_idx, epoch + 1), fingerprint)
+    data = TrainingData(video, targets, sensor, ts, input_fn)
+    run = _Run(evaluator, net, kernel_param, gen, schedule, learn_filter, taps0.to(dev), fingerprint, verbose)
+    history, trained = _train_stages(run, data, None if stem is None else Path(str(stem) + ".partial.pt"))
     net = net.cpu().eval()
     with torch.no_grad():
-        taps = kernel_now().detach().cpu().numpy()
+        taps = kernel_taps(kernel_param).detach().cpu().numpy()
     realised.update(_realisation_after(module, evaluator.name))
     provenance = {
         "task": evaluator.name,
         "dataset": type(dataset).__name__,
         "num_classes": evaluator.num_classes,
         "protocol": "frozen kernel, then joint (decoupled rates)" if learn_filter else "kernel frozen",
-        "epochs_frozen": epochs["frozen_filter"],
-        "epochs_joint": epochs["joint"],
+        "epochs_frozen": schedule.epochs["frozen_filter"],
+        "epochs_joint": schedule.epochs["joint"],
         "learning_rates": {
-            "network_stage_one": lr_network,
-            "kernel": lr_kernel if learn_filter else 0.0,
-            "backbone": lr_backbone,
-            "head": lr_head,
+            "network_stage_one": schedule.rates["network"],
+            "kernel": schedule.rates["kernel"] if learn_filter else 0.0,
+            "backbone": schedule.rates["backbone"],
+            "head": schedule.rates["head"],
         },
-        "weight_decay": weight_decay,
-        "batch_size": batch_size,
-        "seed": seed,
-        "init_noise": init_noise,
+        "weight_decay": schedule.weight_decay,
+        "batch_size": schedule.batch_size,
+        "seed": schedule.seed,
+        "init_noise": schedule.init_noise,
         "learn_filter": learn_filter,
         "n_train": int(len(indices)),
         "train_indices": indices.tolist(),
@@ -469,6 +470,99 @@ def train_on_dataset(
         "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         **realised,
     }
+    return _result(dataset, evaluator, taps, net, history, indices, provenance, stem, trained)
+
+
+@dataclass(frozen=True)
+class _Run:
+    """What :func:`_train_stages` trains: the network and the kernel (taps or a realisation module),
+    on ``dev``, with the batch-order generator, the schedule, whether the kernel learns, its initial
+    taps, the run's fingerprint and whether progress is printed."""
+
+    evaluator: Any
+    net: Any
+    kernel_param: Any
+    gen: Any
+    schedule: _Schedule
+    learn_filter: bool
+    taps_init: Any
+    fingerprint: Any
+    verbose: bool
+
+
+def _train_stages(run: _Run, data: TrainingData, partial: Path | None) -> tuple[list[dict[str, Any]], int]:
+    """Both stages from the last finished epoch of ``partial`` (if any), saving it after each epoch:
+    (history, epochs trained by this call)."""
+    history, start, opt_state = load_partial(partial, run.fingerprint, run.net, run.kernel_param, run.gen)
+    trained = 0
+    for s_idx, stage in enumerate(_STAGES):
+        epochs = run.schedule.epochs[stage]
+        if s_idx < start[0] or epochs == 0:
+            continue
+        first_epoch = start[1] if s_idx == start[0] else 0
+        if first_epoch >= epochs:
+            continue
+        rates = run.schedule.rates
+        if stage == "frozen_filter":
+            opt = adamw_optimizer(run.net, run.schedule.weight_decay, {"network": rates["network"]})
+        else:
+            trained_kernel = run.kernel_param if run.learn_filter else None
+            joint_rates = {k: rates[k] for k in ("kernel", "backbone", "head")}
+            opt = adamw_optimizer(run.net, run.schedule.weight_decay, joint_rates, trained_kernel)
+        if opt_state is not None and s_idx == start[0]:
+            opt.load_state_dict(opt_state)
+        frozen = stage == "frozen_filter" or not run.learn_filter  # a frozen kernel: the events never change
+        config = TrainingConfig(
+            stage if run.learn_filter or stage == "frozen_filter" else "joint_frozen_filter",
+            epochs,
+            run.schedule.batch_size,
+            first_epoch=first_epoch,
+            progress=print_progress if run.verbose else None,
+            progress_stage=stage,
+            on_epoch_end=_partial_saver(partial, run, opt, history, s_idx),
+        )
+        trained += train_epochs(
+            config,
+            evaluator=run.evaluator,
+            network=run.net,
+            kernel=run.kernel_param,
+            data=data.with_frozen_kernel(kernel_taps(run.kernel_param), chunk=64) if frozen else data,
+            optimizer=opt,
+            generator=run.gen,
+            history=history,
+            kernel_init=run.taps_init,
+        )
+    return history, trained
+
+
+def _partial_saver(
+    partial: Path | None, run: _Run, opt: Any, history: list[dict[str, Any]], stage_index: int
+) -> Callable[[int], None] | None:
+    """The ``on_epoch_end`` of a stage: the state after the epoch to ``partial`` (None: no file)."""
+    if partial is None:
+        return None
+
+    def save(epoch: int) -> None:
+        save_partial(
+            partial, run.net, run.kernel_param, run.gen, opt, history, (stage_index, epoch + 1), run.fingerprint
+        )
+
+    return save
+
+
+def _result(
+    dataset: Any,
+    evaluator: Any,
+    taps: np.ndarray,
+    net: Any,
+    history: list[dict[str, Any]],
+    indices: np.ndarray,
+    provenance: dict[str, Any],
+    stem: Path | None,
+    trained: int,
+) -> DatasetTrainingResult:
+    """The learned kernel, the checkpoint files at ``stem`` (the partial file removed) and the result."""
+    seed = provenance["seed"]
     kernel = Kernel(
         taps,
         name=f"learned {evaluator.name} {taps.shape[0]}x{taps.shape[0]} on {type(dataset).__name__} (seed {seed})",
@@ -476,8 +570,9 @@ def train_on_dataset(
     )
     paths: dict[str, Path] = {}
     if stem is not None:
-        paths = _save_checkpoint(stem, kernel, net, provenance)
-        if partial is not None and partial.is_file():
+        paths = save_checkpoint(stem, kernel, net, provenance)
+        partial = Path(str(stem) + ".partial.pt")
+        if partial.is_file():
             partial.unlink()
     return DatasetTrainingResult(
         kernel=kernel,
@@ -488,36 +583,6 @@ def train_on_dataset(
         paths=paths,
         epochs_trained=trained,
     )
-
-
-def _log(message: str) -> None:
-    """One progress line on stderr."""
-    import sys
-
-    print(message, file=sys.stderr, flush=True)
-
-
-def _optimizer(stage: str, net: Any, kernel_param: Any, weight_decay: float, lr: dict[str, float]) -> Any:
-    """AdamW of one stage: stage one the whole network at ``lr["network"]``; stage two the kernel
-    (``kernel_param``: taps or a realisation module, None when frozen; no weight decay) at ``lr["kernel"]`` and the network at
-    ``lr["backbone"]`` / ``lr["head"]`` (one group at ``lr["head"]`` without ``backbone`` and ``head``)."""
-    import torch
-
-    wd = weight_decay
-    if stage == "frozen_filter":
-        return torch.optim.AdamW([{"params": list(net.parameters()), "lr": lr["network"], "weight_decay": wd}])
-    backbone, head = getattr(net, "backbone", None), getattr(net, "head", None)
-    if isinstance(backbone, torch.nn.Module) and isinstance(head, torch.nn.Module):
-        groups = [
-            {"params": list(backbone.parameters()), "lr": lr["backbone"], "weight_decay": wd},
-            {"params": list(head.parameters()), "lr": lr["head"], "weight_decay": wd},
-        ]
-    else:
-        groups = [{"params": list(net.parameters()), "lr": lr["head"], "weight_decay": wd}]
-    if kernel_param is not None:
-        params = list(kernel_param.parameters()) if isinstance(kernel_param, torch.nn.Module) else [kernel_param]
-        groups.insert(0, {"params": params, "lr": lr["kernel"], "weight_decay": 0.0})
-    return torch.optim.AdamW(groups)
 
 
 def _checked_indices(train_indices: Any, n_clips: int) -> np.ndarray:
@@ -549,29 +614,9 @@ def _finished_run(stem: Path, net: Any, fingerprint: Any, indices: np.ndarray) -
         history=prov.get("history", []),
         train_indices=np.asarray(prov.get("train_indices", indices)),
         provenance=prov,
-        paths=_paths(stem),
+        paths=checkpoint_paths(stem),
         epochs_trained=0,
     )
-
-
-def _resume(
-    partial: Path | None, fingerprint: Any, net: Any, kernel_param: Any, gen: Any
-) -> tuple[list[dict[str, Any]], tuple[int, int], Any]:
-    """Load ``STEM.partial.pt`` into the network, kernel and generator: (history, (stage, epoch), optimizer state)."""
-    if partial is None or not partial.is_file():
-        return [], (0, 0), None
-    import torch
-
-    state = torch.load(str(partial), map_location="cpu", weights_only=True)
-    _check_fingerprint(json.loads(state["fingerprint"]), fingerprint, partial)
-    net.load_state_dict(state["network"])
-    if isinstance(kernel_param, torch.nn.Module):  # a realisation's parameters
-        kernel_param.load_state_dict(state["kernel"])
-    else:
-        with torch.no_grad():
-            kernel_param.copy_(state["kernel"].to(kernel_param.device))
-    gen.set_state(state["generator"])
-    return json.loads(state["history"]), (int(state["stage"]), int(state["epoch"])), state["optimizer"]
 
 
 def _kernel_start(
@@ -591,16 +636,14 @@ def _kernel_start(
         return module, realised, module().detach().to(torch.float64).cpu()
 
 
-def _kernel_parameter(module: Any, taps0: Any, learn_filter: bool, dev: Any) -> tuple[Any, Any]:
-    """What the optimiser trains — free taps (a Parameter) or the realisation's module, on ``dev`` — and
-    a function returning the kernel taps now (the module is called for them at every step)."""
+def _kernel_parameter(module: Any, taps0: Any, learn_filter: bool, dev: Any) -> Any:
+    """What the optimiser trains, on ``dev``: free taps (a Parameter) or the realisation's module
+    (called for the taps at every step, :func:`~fsdvs_hw.tasks.training.kernel_taps`)."""
     import torch
 
     if module is not None:
-        module = module.to(dev)
-        return module, module
-    param = torch.nn.Parameter(taps0.clone().to(dev), requires_grad=learn_filter)
-    return param, lambda: param
+        return module.to(dev)
+    return torch.nn.Parameter(taps0.clone().to(dev), requires_grad=learn_filter)
 
 
 def _realisation_after(module: Any, task: str) -> dict[str, Any]:
@@ -613,7 +656,6 @@ def _initial_taps(init_kernel: Any, kernel_size: Any, init_noise: float, gen: An
     import torch
 
     from ..kernels import as_kernel
-    from .learn import _delta_init
 
     if init_kernel is not None:
         return torch.as_tensor(np.array(as_kernel(init_kernel, name="init_kernel").taps), dtype=torch.float64)
@@ -624,49 +666,4 @@ def _initial_taps(init_kernel: Any, kernel_size: Any, init_noise: float, gen: An
         or kernel_size % 2 == 0
     ):
         raise InputError(f"train.kernel_size = {kernel_size!r}; allowed: an odd integer in [1, 15] (pixels)")
-    return _delta_init(kernel_size, init_noise if kernel_size > 1 else 0.0, gen)
-
-
-def _save_partial(
-    path: Path,
-    net: Any,
-    kernel_param: Any,
-    gen: Any,
-    opt: Any,
-    history: list[dict[str, Any]],
-    position: tuple[int, int],
-    fingerprint: Any,
-) -> None:
-    """The state after a finished epoch, written atomically (``position`` = (stage, next epoch))."""
-    import torch
-
-    from ..paths import write_output
-
-    buf = io.BytesIO()
-    kernel = (
-        {k: v.cpu() for k, v in kernel_param.state_dict().items()}
-        if isinstance(kernel_param, torch.nn.Module)
-        else kernel_param.detach().cpu()
-    )
-    torch.save(
-        {
-            "network": {k: v.cpu() for k, v in net.state_dict().items()},
-            "kernel": kernel,
-            "generator": gen.get_state(),
-            "optimizer": opt.state_dict(),
-            "history": json.dumps(history),
-            "stage": position[0],
-            "epoch": position[1],
-            "fingerprint": json.dumps(fingerprint),
-        },
-        buf,
-    )
-    write_output(path, buf.getvalue(), flag=str(path))
-
-
-def _paths(stem: Path) -> dict[str, Path]:
-    return {
-        "kernel": Path(str(stem) + ".json"),
-        "checkpoint": Path(str(stem) + ".safetensors"),
-        "provenance": Path(str(stem) + ".provenance.json"),
-    }
+    return delta_init(kernel_size, init_noise if kernel_size > 1 else 0.0, gen)

@@ -53,6 +53,7 @@ __all__ = [
     "RecognitionEvaluator",
     "SegmentationEvaluator",
     "TaskEvaluator",
+    "concat_predictions",
     "get_evaluator",
     "register_evaluator",
 ]
@@ -330,6 +331,11 @@ def get_evaluator(task: str | TaskEvaluator) -> TaskEvaluator:
     if not isinstance(task, str) or task not in EVALUATORS:
         raise InputError(f"task {task!r} unknown; allowed: {', '.join(EVALUATORS)}")
     return EVALUATORS[task]
+
+
+def concat_predictions(preds: list[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
+    """Batches of :meth:`TaskEvaluator.predict` output joined along the first axis (clips), key by key."""
+    return {k: torch.cat([p[k] for p in preds]) for k in preds[0]}
 
 
 for _ev in (DetectionEvaluator(), RecognitionEvaluator(), SegmentationEvaluator()):

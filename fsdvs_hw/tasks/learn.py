@@ -30,7 +30,9 @@ frozen network (zero-shot; optionally fine-tunes the network for a few epochs wi
 frozen) and scores it on the checkpoint's test set, regenerated bit-identically from its seed. With
 the training kernel it reproduces the stored metric.
 
-Checkpoint files (written next to each other from one stem, e.g. ``designs/kernels/learned_detection_7x7``):
+Checkpoint files (written next to each other from one stem, e.g. ``designs/kernels/learned_detection_7x7``,
+by :func:`fsdvs_hw.tasks.checkpoints.save_checkpoint`; read by
+:func:`~fsdvs_hw.tasks.checkpoints.load_checkpoint`):
 
 ``STEM.json``
     The kernel (:class:`~fsdvs_hw.kernels.Kernel` JSON) with the provenance inside.
@@ -44,10 +46,9 @@ Checkpoint files (written next to each other from one stem, e.g. ``designs/kerne
 
 from __future__ import annotations
 
-import collections
-import json
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -57,9 +58,21 @@ import numpy as np
 from ..errors import InputError, KernelError, one_line
 from ..kernels import Kernel
 from ..validation import check_bool, check_instance, check_real
+from .checkpoints import load_checkpoint, save_checkpoint
+from .evaluators import concat_predictions
+from .event_inputs import simulated_events
+from .synthetic_data import synthetic_dataset
+from .training import (
+    TrainingConfig,
+    TrainingData,
+    adamw_optimizer,
+    delta_init,
+    kernel_taps,
+    print_progress,
+    train_epochs,
+)
 
 __all__ = [
-    "CHECKPOINT_FORMAT",
     "TEST_SEED",
     "Evaluation",
     "LearnResult",
@@ -70,15 +83,12 @@ __all__ = [
     "finetune_network",
     "heldout_targets",
     "learn_kernel",
-    "load_checkpoint",
     "load_network",
 ]
 
 #: Seed of every task's test clips (fixed, so that runs with different training seeds and kernel
 #: sizes are scored on the same clips).
 TEST_SEED: int = 1_000_003
-CHECKPOINT_FORMAT = "fsdvs_hw.task_checkpoint"
-_CHECKPOINT_VERSION = "1"
 
 #: Joint-phase learning-rate ratios (filter, backbone, head) relative to the filter rate after a
 #: frozen-filter stage, from the FS-DVS paper's detection protocol: 5e-4 / 1e-6 / 1e-5.
@@ -234,73 +244,6 @@ def default_sensor(scene: Any) -> Any:
     )
 
 
-def _events(video: Any, kernel: Any, sensor: Any, timestamps_s: np.ndarray) -> Any:
-    """Event frames (B, T-1, 2, H, W) of a video batch through the simulator (differentiable)."""
-    from ..sensor import event_frames
-
-    return event_frames(video, kernel, timestamps_s=timestamps_s, config=sensor)
-
-
-def _network_input(video: Any, kernel: Any, sensor: Any, timestamps_s: np.ndarray) -> Any:
-    from .networks import event_representation
-
-    return event_representation(_events(video, kernel, sensor, timestamps_s).float())
-
-
-# --------------------------------------------------------------------------- data
-#: Bytes of scene video :func:`_dataset` keeps (test sets are re-scored for every realised kernel;
-#: the exploration's default design holds about 0.9 GB of them).
-DATASET_CACHE_BYTES: int = 2 * 1024**3
-_DATASET_CACHE: collections.OrderedDict[tuple[Any, ...], tuple[Any, Any, int]] = collections.OrderedDict()
-
-
-def _dataset(scene: Any, n: int, seed: int, task_name: str, dtype: str = "float64") -> tuple[Any, Any]:
-    """(video tensor (N,T,H,W) of ``dtype``, targets) for a scene family.
-
-    Cached, least recently used first out beyond :data:`DATASET_CACHE_BYTES`; clip ``i`` does not
-    depend on ``n``, so a request for fewer clips than a cached set is served as its first ``n``.
-    """
-    import torch
-
-    from ..scenes.synthetic import make_scenes
-    from .evaluators import get_evaluator
-
-    key = (scene, int(seed), task_name, dtype)
-    hit = _DATASET_CACHE.get(key)
-    if hit is not None and hit[2] >= n:
-        _DATASET_CACHE.move_to_end(key)
-        video, targets, n_cached = hit
-        return (video, targets) if n_cached == n else (video[:n], _take(targets, slice(0, n)))
-    batch = make_scenes(scene, n, seed=seed)
-    video = torch.from_numpy(batch.video).to(getattr(torch, dtype))
-    targets = get_evaluator(task_name).targets(batch)
-    _DATASET_CACHE[key] = (video, targets, n)
-    used = sum(v.element_size() * v.nelement() for v, _, _ in _DATASET_CACHE.values())
-    while used > DATASET_CACHE_BYTES and len(_DATASET_CACHE) > 1:
-        old, _, _ = _DATASET_CACHE.popitem(last=False)[1]
-        used -= old.element_size() * old.nelement()
-    return video, targets
-
-
-def _take(targets: dict[str, Any], idx: Any) -> dict[str, Any]:
-    return {k: v[idx] for k, v in targets.items()}
-
-
-def _cat_predictions(preds: list[dict[str, Any]]) -> dict[str, Any]:
-    import torch
-
-    return {k: torch.cat([p[k] for p in preds]) for k in preds[0]}
-
-
-def _inputs_once(input_fn: Any, video: Any, kernel: Any, sensor: Any, ts: Any, chunk: int = 128) -> Any:
-    """The network inputs ``input_fn(clips, kernel, sensor, ts)`` of every clip through a frozen
-    kernel, computed once without gradients, ``chunk`` clips at a time."""
-    import torch
-
-    with torch.no_grad():
-        return torch.cat([input_fn(video[s : s + chunk], kernel, sensor, ts) for s in range(0, video.shape[0], chunk)])
-
-
 def _score(
     evaluator: Any,
     network: Any,
@@ -326,7 +269,7 @@ def _score(
     preds, n_events, n_px = [], 0.0, 0
     with torch.no_grad():
         for s in range(0, video.shape[0], batch_size):
-            ev = (events_fn or _events)(video[s : s + batch_size], kernel_t, sensor, timestamps_s)
+            ev = (events_fn or simulated_events)(video[s : s + batch_size], kernel_t, sensor, timestamps_s)
             n_events += float(ev.sum())
             n_px += ev[:, :, 0].numel()
             if clip_rates is not None:
@@ -337,78 +280,10 @@ def _score(
 
             preds.append(evaluator.predict(network(event_representation(ev.float()))))
     network.train()
-    cat = _cat_predictions(preds)
+    cat = concat_predictions(preds)
     if keep is not None:
         keep.update({k: v.numpy() for k, v in cat.items()})
     return evaluator.score(cat, targets), n_events / max(n_px, 1)
-
-
-def _train_epochs(
-    evaluator: Any,
-    network: Any,
-    kernel_param: Any,
-    video: Any,
-    targets: dict[str, Any],
-    sensor: Any,
-    timestamps_s: np.ndarray,
-    optimizer: Any,
-    epochs: int,
-    batch_size: int,
-    generator: Any,
-    stage: str,
-    history: list[dict[str, Any]],
-    kernel_init: Any = None,
-    cached_inputs: Any = None,
-    log: Any = None,
-    input_fn: Any = None,
-) -> None:
-    """Train ``network`` (and the kernel, if in ``optimizer``) for ``epochs`` epochs, appending to ``history``.
-
-    ``input_fn(video, kernel, sensor, timestamps_s)`` makes the network input of a batch (default
-    :func:`_network_input`, log1p event frames); ``cached_inputs`` replaces it for a frozen kernel.
-    """
-    import torch
-
-    n = video.shape[0]
-    for epoch in range(epochs):
-        t0 = time.perf_counter()
-        perm = torch.randperm(n, generator=generator)
-        total, count = 0.0, 0
-        for s in range(0, n, batch_size):
-            idx = perm[s : s + batch_size]
-            if cached_inputs is not None:
-                x = cached_inputs[idx]
-            else:  # a realisation module is called for its kernel at every step (co-design)
-                k = kernel_param() if callable(kernel_param) else kernel_param
-                x = (input_fn or _network_input)(video[idx], k, sensor, timestamps_s)
-            loss = evaluator.loss(network(x), _take(targets, idx))
-            value = float(loss.detach())
-            if not math.isfinite(value):
-                raise FloatingPointError(f"{stage} epoch {epoch}: training loss is not finite ({value})")
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            optimizer.step()
-            total += value * len(idx)
-            count += len(idx)
-        rec = {"stage": stage, "epoch": epoch, "loss": total / count, "seconds": time.perf_counter() - t0}
-        if kernel_init is not None:
-            with torch.no_grad():
-                taps = kernel_param() if callable(kernel_param) else kernel_param
-            rec["kernel_change_l1"] = float((taps.detach() - kernel_init).abs().sum())
-        history.append(rec)
-        if log is not None:
-            log(
-                f"[learn] {evaluator.name} {stage} epoch {epoch + 1}/{epochs}: loss {rec['loss']:.4f} "
-                f"({rec['seconds']:.1f} s)"
-            )
-
-
-def _delta_init(size: int, noise: float, generator: Any) -> Any:
-    import torch
-
-    taps = torch.randn((size, size), generator=generator, dtype=torch.float64) * noise
-    taps[size // 2, size // 2] = 1.0
-    return taps
 
 
 def _check_common(*, who: str, scene: Any = None, sensor: Any = None) -> None:
@@ -544,11 +419,44 @@ def learn_kernel(
     >>> bool(0 <= res.metrics["top1"] <= 1)
     True
     """
-    import sys
+    evaluator, settings, scene, sensor, learn_filter, progress = _learn_setup(
+        task, size, seed, n_train, n_test, settings, scene, sensor, learn_filter, verbose, name, out, realisation
+    )
+    return _learn(
+        evaluator,
+        size,
+        seed=seed,
+        n_train=n_train,
+        n_test=n_test,
+        settings=settings,
+        scene=scene,
+        sensor=sensor,
+        learn_filter=learn_filter,
+        init_kernel=init_kernel,
+        out=out,
+        name=name,
+        progress=progress,
+        realisation=realisation,
+    )
 
-    import torch
 
-    from ..provenance import library_versions
+def _learn_setup(
+    task: Any,
+    size: Any,
+    seed: Any,
+    n_train: Any,
+    n_test: Any,
+    settings: TrainingSettings | None,
+    scene: Any,
+    sensor: Any,
+    learn_filter: Any,
+    verbose: Any,
+    name: Any,
+    out: Any,
+    realisation: Any,
+) -> tuple[Any, TrainingSettings, Any, Any, bool, Callable[[str], None] | None]:
+    """:func:`learn_kernel`'s arguments checked, in order: (evaluator, settings, scene, sensor,
+    learn_filter, progress printer or None); the defaults of ``scene`` and ``sensor`` filled in."""
     from .evaluators import get_evaluator
 
     evaluator = get_evaluator(task)
@@ -566,65 +474,35 @@ def learn_kernel(
             f"learn_kernel: a {size}x{size} kernel is larger than the {scene.height_px}x{scene.width_px} frame"
         )
     sensor = sensor if sensor is not None else default_sensor(scene)
-    log = (lambda msg: print(msg, file=sys.stderr, flush=True)) if verbose else None
+    return evaluator, settings, scene, sensor, learn_filter, print_progress if verbose else None
 
-    t_start = time.perf_counter()
-    torch.manual_seed(seed)
-    gen = torch.Generator().manual_seed(seed)
+
+def _learn_start(
+    size: int, settings: TrainingSettings, init_kernel: Any, learn_filter: bool, realisation: str | None, gen: Any
+) -> tuple[Any, Any, bool, dict[str, Any]]:
+    """(initial taps, the trained kernel — a Parameter or a realisation's module —, whether it
+    learns, the realisation's record ``{}`` without one); the delta's noise is drawn from ``gen``."""
+    import torch
+
     if init_kernel is not None:
         k0 = _as_kernel(init_kernel, source="init_kernel")
         if k0.size != size:
             raise KernelError(f"learn_kernel: init_kernel is {k0.size}x{k0.size} but size={size}")
         taps0 = torch.as_tensor(np.array(k0.taps), dtype=torch.float64)
     else:
-        taps0 = _delta_init(size, settings.init_noise if size > 1 else 0.0, gen)
+        taps0 = delta_init(size, settings.init_noise if size > 1 else 0.0, gen)
     learn_filter = bool(learn_filter and size > 1)
-    kernel_param: Any = torch.nn.Parameter(taps0.clone(), requires_grad=learn_filter)
+    kernel: Any = torch.nn.Parameter(taps0.clone(), requires_grad=learn_filter)
     realised: dict[str, Any] = {}
     if realisation is not None:  # co-design: the kernel is the realisation's, a function of its parameters
-        kernel_param, realised = _realisation_kernel(realisation, init_kernel, learn_filter)
+        kernel, realised = _realisation_kernel(realisation, init_kernel, learn_filter)
+    return taps0, kernel, learn_filter, realised
 
-    def kernel_now() -> Any:
-        return kernel_param() if callable(kernel_param) else kernel_param
 
-    video, targets = _dataset(scene, n_train, seed, evaluator.name, settings.dtype)
-    test_video, test_targets = _dataset(scene, n_test, TEST_SEED, evaluator.name, settings.dtype)
-    ts = scene.timestamps_s
-    in_channels = 2 * (scene.n_frames - 1)
-    network: Any = evaluator.build_network(in_channels, settings.width)  # a Module with .backbone and .head
-    history: list[dict[str, Any]] = []
-    bs = settings.batch_size
-
-    def _group(params: Any, lr: float, wd: float) -> dict[str, Any]:
-        return {"params": list(params), "lr": lr, "weight_decay": wd}
-
-    staged = evaluator.staged
-    epochs_frozen = settings.epochs_frozen if staged else 0
-    epochs_joint = settings.epochs_joint
-    cached: torch.Tensor | None  # the frozen filter's network inputs, computed once
-    if epochs_frozen:
-        cached = _inputs_once(_network_input, video, kernel_now(), sensor, ts)
-        opt = torch.optim.AdamW([_group(network.parameters(), settings.lr_network, settings.weight_decay)])
-        _train_epochs(
-            evaluator,
-            network,
-            kernel_param,
-            video,
-            targets,
-            sensor,
-            ts,
-            opt,
-            epochs_frozen,
-            bs,
-            gen,
-            "frozen_filter",
-            history,
-            None,
-            cached_inputs=cached,
-            log=log,
-        )
-        del cached
-    if staged:
+def _joint_rates(evaluator: Any, settings: TrainingSettings, learn_filter: bool) -> dict[str, float]:
+    """Joint-stage rates of ``filter``, ``backbone`` and ``head`` (1/step): staged tasks follow the
+    evaluator's :attr:`joint_lr_ratios` to the filter rate, joint-from-start tasks ``lr_network``."""
+    if evaluator.staged:
         ratios = getattr(evaluator, "joint_lr_ratios", PAPER_LR_RATIOS)
         lrs = {
             "filter": settings.lr_filter,
@@ -635,46 +513,86 @@ def learn_kernel(
         lrs = {"filter": settings.lr_filter, "backbone": settings.lr_network, "head": settings.lr_network}
     if not learn_filter:
         lrs["filter"] = 0.0
-    if epochs_joint:
-        groups = [
-            _group(network.backbone.parameters(), lrs["backbone"], settings.weight_decay),
-            _group(network.head.parameters(), lrs["head"], settings.weight_decay),
-        ]
-        if learn_filter:
-            filt = list(kernel_param.parameters()) if realised else [kernel_param]
-            groups.insert(0, _group(filt, lrs["filter"], 0.0))
-        opt = torch.optim.AdamW(groups)
-        cached = None
-        if not learn_filter:  # frozen filter: the events never change, compute them once
-            cached = _inputs_once(_network_input, video, kernel_param, sensor, ts)
-        _train_epochs(
-            evaluator,
-            network,
-            kernel_param,
-            video,
-            targets,
-            sensor,
-            ts,
-            opt,
-            epochs_joint,
-            bs,
-            gen,
-            "joint" if learn_filter else "joint_frozen_filter",
-            history,
-            taps0 if learn_filter and not realised else None,
-            cached_inputs=cached,
-            log=log,
-        )
+    return lrs
 
+
+def _learn_stages(
+    evaluator: Any,
+    network: Any,
+    kernel: Any,
+    data: TrainingData,
+    settings: TrainingSettings,
+    gen: Any,
+    learn_filter: bool,
+    kernel_init: Any,
+    progress: Callable[[str], None] | None,
+) -> tuple[list[dict[str, Any]], int]:
+    """The frozen-filter stage (staged tasks) and the joint stage: (history, frozen-stage epochs).
+
+    ``kernel_init`` (the initial taps, or None) puts ``kernel_change_l1`` in the joint records.
+    """
+    history: list[dict[str, Any]] = []
+    epochs_frozen = settings.epochs_frozen if evaluator.staged else 0
+    common = {"evaluator": evaluator, "network": network, "kernel": kernel, "generator": gen, "history": history}
+    if epochs_frozen:  # the frozen filter's network inputs, computed once
+        frozen = TrainingConfig("frozen_filter", epochs_frozen, settings.batch_size, progress=progress)
+        optimizer = adamw_optimizer(network, settings.weight_decay, {"network": settings.lr_network})
+        train_epochs(frozen, data=data.with_frozen_kernel(kernel_taps(kernel)), optimizer=optimizer, **common)
+    if settings.epochs_joint:
+        lrs = _joint_rates(evaluator, settings, learn_filter)
+        rates = {"kernel": lrs["filter"], "backbone": lrs["backbone"], "head": lrs["head"]}
+        optimizer = adamw_optimizer(network, settings.weight_decay, rates, kernel if learn_filter else None)
+        stage = "joint" if learn_filter else "joint_frozen_filter"
+        joint = TrainingConfig(stage, settings.epochs_joint, settings.batch_size, progress=progress)
+        joint_data = data if learn_filter else data.with_frozen_kernel(kernel)  # frozen: the events never change
+        train_epochs(joint, data=joint_data, optimizer=optimizer, kernel_init=kernel_init, **common)
+    return history, epochs_frozen
+
+
+def _learn(
+    evaluator: Any,
+    size: int,
+    *,
+    seed: int,
+    n_train: int,
+    n_test: int,
+    settings: TrainingSettings,
+    scene: Any,
+    sensor: Any,
+    learn_filter: bool,
+    init_kernel: Any,
+    out: str | Path | None,
+    name: str | None,
+    progress: Callable[[str], None] | None,
+    realisation: str | None,
+) -> LearnResult:
+    """:func:`learn_kernel` once its arguments are checked."""
+    import torch
+
+    from ..provenance import library_versions
+
+    t_start = time.perf_counter()
+    torch.manual_seed(seed)
+    gen = torch.Generator().manual_seed(seed)
+    taps0, kernel, learn_filter, realised = _learn_start(size, settings, init_kernel, learn_filter, realisation, gen)
+    video, targets = synthetic_dataset(scene, n_train, seed, evaluator.name, settings.dtype)
+    test_video, test_targets = synthetic_dataset(scene, n_test, TEST_SEED, evaluator.name, settings.dtype)
+    ts = scene.timestamps_s
+    in_channels = 2 * (scene.n_frames - 1)
+    network: Any = evaluator.build_network(in_channels, settings.width)  # a Module with .backbone and .head
+    data = TrainingData(video, targets, sensor, ts)
+    kernel_init = taps0 if learn_filter and not realised else None
+    history, epochs_frozen = _learn_stages(
+        evaluator, network, kernel, data, settings, gen, learn_filter, kernel_init, progress
+    )
     with torch.no_grad():
-        kernel_final = kernel_now().detach().clone()
+        kernel_final = kernel_taps(kernel).detach().clone()
     if realised:
-        realised["realisation_design"] = kernel_param.to_design(codesign_task=evaluator.name).to_dict()
+        realised["realisation_design"] = kernel.to_design(codesign_task=evaluator.name).to_dict()
     predictions: dict[str, np.ndarray] = {}
     metrics, event_rate = _score(
         evaluator, network, kernel_final, test_video, test_targets, sensor, ts, keep=predictions
     )
-    train_seconds = time.perf_counter() - t_start
     provenance = {
         "task": evaluator.name,
         "evaluator": f"{type(evaluator).__module__}:{type(evaluator).__qualname__}",
@@ -686,11 +604,12 @@ def learn_kernel(
         "learn_filter": learn_filter,
         "init": "init_kernel" if init_kernel is not None else f"delta + N(0, {settings.init_noise}^2)",
         "init_kernel_name": _as_kernel(init_kernel).name if init_kernel is not None else None,
-        "protocol": ("frozen filter, then joint" if staged else "joint") + ("" if learn_filter else " (filter frozen)"),
+        "protocol": ("frozen filter, then joint" if evaluator.staged else "joint")
+        + ("" if learn_filter else " (filter frozen)"),
         "epochs_frozen": epochs_frozen,
-        "epochs_joint": epochs_joint,
+        "epochs_joint": settings.epochs_joint,
         "settings": settings.to_dict(),
-        "learning_rates_joint": lrs,
+        "learning_rates_joint": _joint_rates(evaluator, settings, learn_filter),
         "learning_rate_frozen_stage": settings.lr_network if epochs_frozen else None,
         "network": type(network).__name__,
         "in_channels": in_channels,
@@ -702,20 +621,18 @@ def learn_kernel(
         "final_metric": metrics[evaluator.primary_metric],
         "test_event_rate_per_pixel_frame": event_rate,
         "history": history,
-        "train_seconds": train_seconds,
+        "train_seconds": time.perf_counter() - t_start,
         **realised,
         "versions": library_versions(),
         "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
     kname = name or f"learned {evaluator.name} {size}x{size} (seed {seed})"
-    kernel = Kernel(
+    kernel_out = Kernel(
         kernel_final.numpy(), name=kname, provenance={k: v for k, v in provenance.items() if k != "history"}
     )
-    paths: dict[str, Path] = {}
-    if out is not None:
-        paths = _save_checkpoint(Path(out), kernel, network, provenance)
+    paths = save_checkpoint(Path(out), kernel_out, network, provenance) if out is not None else {}
     return LearnResult(
-        kernel=kernel,
+        kernel=kernel_out,
         metrics=metrics,
         primary_metric=evaluator.primary_metric,
         history=history,
@@ -723,86 +640,6 @@ def learn_kernel(
         paths=paths,
         predictions=predictions,
     )
-
-
-def _save_checkpoint(stem: Path, kernel: Kernel, network: Any, provenance: dict[str, Any]) -> dict[str, Path]:
-    import torch
-    from safetensors.torch import save
-
-    from ..paths import write_output
-
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    base = stem.with_suffix("") if stem.suffix in (".json", ".safetensors") else stem
-    tensors = {f"network.{k}": v.detach().contiguous() for k, v in network.state_dict().items()}
-    tensors["kernel"] = torch.as_tensor(np.array(kernel.taps))
-    ckpt = Path(str(base) + ".safetensors")
-    write_output(
-        ckpt,
-        save(
-            tensors,
-            metadata={
-                "format": CHECKPOINT_FORMAT,
-                "version": _CHECKPOINT_VERSION,
-                "provenance": json.dumps(provenance),
-            },
-        ),
-        flag=str(ckpt),
-    )
-    kpath = kernel.save(Path(str(base) + ".json"))
-    ppath = Path(str(base) + ".provenance.json")
-    write_output(
-        ppath,
-        json.dumps({**provenance, "checkpoint": ckpt.name, "kernel_file": kpath.name}, indent=1) + "\n",
-        flag=str(ppath),
-    )
-    return {"kernel": kpath, "checkpoint": ckpt, "provenance": ppath}
-
-
-def load_checkpoint(checkpoint: str | Path) -> tuple[dict[str, Any], dict[str, Any], Kernel]:
-    """Read a task checkpoint: ``(provenance, network state dict, training kernel)``.
-
-    ``checkpoint`` may be the ``.safetensors`` file or its stem (``STEM.json`` alongside is
-    accepted too). Raises :class:`InputError` naming the file for a missing, unreadable or
-    foreign file.
-    """
-    from safetensors import safe_open
-
-    path = Path(checkpoint)
-    if path.suffix != ".safetensors":
-        path = path.with_suffix(".safetensors") if path.suffix == ".json" else Path(str(path) + ".safetensors")
-    if not path.is_file():
-        raise InputError(f"checkpoint {str(path)!r} not found (expected a .safetensors file written by learn_kernel)")
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            meta = f.metadata() or {}
-            tensors = {k: f.get_tensor(k) for k in f.keys()}  # noqa: SIM118 - safe_open is not a dict
-    except Exception as exc:  # safetensors raises its own error types for corrupt headers
-        raise InputError(f"checkpoint {str(path)!r}: not a readable safetensors file ({exc})") from None
-    if meta.get("format") != CHECKPOINT_FORMAT:
-        raise InputError(
-            f"checkpoint {str(path)!r}: metadata 'format' is not {CHECKPOINT_FORMAT!r}: not a "
-            "checkpoint written by fsdvs_hw learn"
-        )
-    if meta.get("version") != _CHECKPOINT_VERSION:
-        raise InputError(
-            f"checkpoint {str(path)!r}: version {str(meta.get('version'))[:12]!r} not supported "
-            f"(this library reads version {_CHECKPOINT_VERSION})"
-        )
-    try:
-        provenance = json.loads(meta["provenance"])
-    except (KeyError, json.JSONDecodeError, RecursionError) as exc:
-        raise InputError(f"checkpoint {str(path)!r}: metadata 'provenance' missing or not JSON ({exc})") from None
-    if not isinstance(provenance, dict):
-        raise InputError(f"checkpoint {str(path)!r}: metadata 'provenance' is not a JSON object")
-    if "kernel" not in tensors:
-        raise InputError(f"checkpoint {str(path)!r}: tensor 'kernel' missing")
-    state = {k[len("network.") :]: v for k, v in tensors.items() if k.startswith("network.")}
-    kernel = Kernel(
-        tensors["kernel"].double().numpy(),
-        name=f"training kernel of {path.name}",
-        provenance={k: v for k, v in provenance.items() if k != "history"},
-    )
-    return provenance, state, kernel
 
 
 def evaluate_kernel(
@@ -880,72 +717,20 @@ def evaluate_kernel(
     >>> bool(0 <= ev.metrics["top1"] <= 1), bool(ev.event_rate > 0)
     (True, True)
     """
-    import torch
-
-    from ..scenes.synthetic import SceneConfig
-    from ..sensor import SensorConfig
-    from .evaluators import get_evaluator
-
     t0 = time.perf_counter()
-    evaluator = get_evaluator(task)
-    _check_common(sensor=sensor, who="evaluate_kernel")
-    check_instance("checkpoint", checkpoint, (str, Path), "a path (str or pathlib.Path) to a .safetensors checkpoint")
-    finetune_lr = check_real("finetune_lr", finetune_lr, 0.0, 10.0)
-    keep_predictions = check_bool("keep_predictions", keep_predictions)
-    if events_fn is not None and not callable(events_fn):
-        raise InputError(
-            f"events_fn={one_line(events_fn)}: not callable; allowed: a function "
-            "(video, kernel_taps, sensor, timestamps_s) -> event frames, or None"
-        )
-    network, provenance = load_network(checkpoint, evaluator, who="evaluate_kernel")
-    k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else _as_kernel(kernel)
-    scene = SceneConfig.from_dict(provenance["scene"])
-    if k.size > min(scene.height_px, scene.width_px):
-        raise KernelError(
-            f"evaluate_kernel: a {k.size}x{k.size} kernel is larger than the checkpoint's "
-            f"{scene.height_px}x{scene.width_px} frames"
-        )
-    if sensor is None:
-        sensor = SensorConfig(**provenance["sensor"])
-    n_stored = int(provenance["n_test"])
-    n_test = n_stored if n_test is None else n_test
-    if isinstance(n_test, bool) or not isinstance(n_test, int) or not 1 <= n_test <= 100_000:
-        raise InputError(f"evaluate_kernel: n_test must be an integer in [1, 100000], got {n_test!r}")
-    if isinstance(finetune_epochs, bool) or not isinstance(finetune_epochs, int) or finetune_epochs < 0:
-        raise InputError(f"evaluate_kernel: finetune_epochs must be a non-negative integer, got {finetune_epochs!r}")
+    checked = _evaluation_setup(
+        kernel, task, checkpoint, n_test, finetune_epochs, finetune_lr, sensor, events_fn, keep_predictions
+    )
+    evaluator, network, provenance, k, scene, sensor, n_test, finetune_lr, keep_predictions = checked
     settings = TrainingSettings(**{"dtype": "float64", **provenance["settings"]})
-    kernel_t = torch.as_tensor(np.array(k.taps))
+    kernel_t = _kernel_tensor(k)
     ts = scene.timestamps_s
     if finetune_epochs:
-        torch.manual_seed(int(provenance["seed"]))
-        gen = torch.Generator().manual_seed(int(provenance["seed"]))
-        video, targets = _dataset(
-            scene, int(provenance["n_train"]), int(provenance["seed"]), evaluator.name, settings.dtype
-        )
-        with torch.no_grad():
-            cached = torch.cat(
-                [_network_input(video[s : s + 128], kernel_t, sensor, ts) for s in range(0, video.shape[0], 128)]
-            )
-        opt = torch.optim.AdamW(network.parameters(), lr=finetune_lr, weight_decay=settings.weight_decay)
-        _train_epochs(
-            evaluator,
-            network,
-            kernel_t,
-            video,
-            targets,
-            sensor,
-            ts,
-            opt,
-            finetune_epochs,
-            settings.batch_size,
-            gen,
-            "finetune",
-            [],
-            None,
-            cached_inputs=cached,
+        _finetune_for_evaluation(
+            evaluator, network, provenance, settings, scene, sensor, kernel_t, finetune_epochs, finetune_lr
         )
     tseed = int(provenance["test_seed"]) if test_seed is None else _check_test_seed(test_seed, "evaluate_kernel")
-    test_video, test_targets = _dataset(scene, n_test, tseed, evaluator.name, settings.dtype)
+    test_video, test_targets = synthetic_dataset(scene, n_test, tseed, evaluator.name, settings.dtype)
     kept: dict[str, np.ndarray] | None = {} if keep_predictions else None
     rates: list[np.ndarray] = []
     metrics, event_rate = _score(
@@ -972,6 +757,91 @@ def evaluate_kernel(
         event_rate=event_rate,
         predictions=kept or {},
         clip_event_rates=np.concatenate(rates),
+    )
+
+
+def _kernel_tensor(kernel: Kernel) -> Any:
+    """A kernel's taps as a torch tensor (float64)."""
+    import torch
+
+    return torch.as_tensor(np.array(kernel.taps))
+
+
+def _evaluation_setup(
+    kernel: Any,
+    task: Any,
+    checkpoint: Any,
+    n_test: Any,
+    finetune_epochs: Any,
+    finetune_lr: Any,
+    sensor: Any,
+    events_fn: Any,
+    keep_predictions: Any,
+) -> tuple[Any, Any, dict[str, Any], Kernel, Any, Any, int, float, bool]:
+    """:func:`evaluate_kernel`'s arguments checked, in order, and the checkpoint's network loaded:
+    (evaluator, network, provenance, kernel, scene, sensor, n_test, finetune_lr, keep_predictions)."""
+    from ..scenes.synthetic import SceneConfig
+    from ..sensor import SensorConfig
+    from .evaluators import get_evaluator
+
+    evaluator = get_evaluator(task)
+    _check_common(sensor=sensor, who="evaluate_kernel")
+    check_instance("checkpoint", checkpoint, (str, Path), "a path (str or pathlib.Path) to a .safetensors checkpoint")
+    finetune_lr = check_real("finetune_lr", finetune_lr, 0.0, 10.0)
+    keep_predictions = check_bool("keep_predictions", keep_predictions)
+    if events_fn is not None and not callable(events_fn):
+        raise InputError(
+            f"events_fn={one_line(events_fn)}: not callable; allowed: a function "
+            "(video, kernel_taps, sensor, timestamps_s) -> event frames, or None"
+        )
+    network, provenance = load_network(checkpoint, evaluator, who="evaluate_kernel")
+    k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else _as_kernel(kernel)
+    scene = SceneConfig.from_dict(provenance["scene"])
+    if k.size > min(scene.height_px, scene.width_px):
+        raise KernelError(
+            f"evaluate_kernel: a {k.size}x{k.size} kernel is larger than the checkpoint's "
+            f"{scene.height_px}x{scene.width_px} frames"
+        )
+    if sensor is None:
+        sensor = SensorConfig(**provenance["sensor"])
+    n_stored = int(provenance["n_test"])
+    n_test = n_stored if n_test is None else n_test
+    if isinstance(n_test, bool) or not isinstance(n_test, int) or not 1 <= n_test <= 100_000:
+        raise InputError(f"evaluate_kernel: n_test must be an integer in [1, 100000], got {n_test!r}")
+    if isinstance(finetune_epochs, bool) or not isinstance(finetune_epochs, int) or finetune_epochs < 0:
+        raise InputError(f"evaluate_kernel: finetune_epochs must be a non-negative integer, got {finetune_epochs!r}")
+    return evaluator, network, provenance, k, scene, sensor, n_test, finetune_lr, keep_predictions
+
+
+def _finetune_for_evaluation(
+    evaluator: Any,
+    network: Any,
+    provenance: dict[str, Any],
+    settings: TrainingSettings,
+    scene: Any,
+    sensor: Any,
+    kernel_t: Any,
+    epochs: int,
+    lr: float,
+) -> None:
+    """:func:`evaluate_kernel`'s fine-tuning: the network (AdamW at ``lr``) for ``epochs`` epochs on
+    the checkpoint's training clips, with the kernel ``kernel_t`` frozen."""
+    import torch
+
+    seed = int(provenance["seed"])
+    torch.manual_seed(seed)
+    gen = torch.Generator().manual_seed(seed)
+    video, targets = synthetic_dataset(scene, int(provenance["n_train"]), seed, evaluator.name, settings.dtype)
+    data = TrainingData(video, targets, sensor, scene.timestamps_s).with_frozen_kernel(kernel_t)
+    train_epochs(
+        TrainingConfig("finetune", epochs, settings.batch_size),
+        evaluator=evaluator,
+        network=network,
+        kernel=kernel_t,
+        data=data,
+        optimizer=adamw_optimizer(network, settings.weight_decay, {"network": lr}),
+        generator=gen,
+        history=[],
     )
 
 
@@ -1133,79 +1003,13 @@ def finetune_network(
         Both or neither of ``kernel`` / ``realisation``, a realisation without a differentiable
         form, bad counts or rates, an unreadable checkpoint.
     """
-    import sys
-
-    import torch
-
-    from ..scenes.synthetic import SceneConfig
-    from ..sensor import SensorConfig
-    from .evaluators import get_evaluator
-
     t0 = time.perf_counter()
-    evaluator = get_evaluator(task)
-    if (kernel is None) == (realisation is None):
-        raise InputError("finetune_network: give exactly one of kernel= (frozen) and realisation= (co-designed)")
-    if isinstance(epochs, bool) or not isinstance(epochs, int) or not 1 <= epochs <= 100_000:
-        raise InputError(f"finetune_network: epochs must be an integer in [1, 100000], got {epochs!r}")
-    for nm, v in (("lr_network", lr_network), ("lr_filter", lr_filter)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0 <= v <= 10):
-            raise InputError(f"finetune_network: {nm} must be a finite number in [0, 10], got {v!r}")
-    network, prov = load_network(checkpoint, evaluator, who="finetune_network")
-    n_stored = int(prov["n_train"])
-    n = n_stored if n_train is None else n_train
-    if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= n_stored:
-        raise InputError(
-            f"finetune_network: n_train must be an integer in [2, {n_stored}] (the checkpoint's "
-            f"training clips), got {n_train!r}"
-        )
-    settings = TrainingSettings(**prov["settings"])
-    scene = SceneConfig.from_dict(prov["scene"])
-    sensor = SensorConfig(**prov["sensor"])
-    seed = int(prov["seed"])
-    torch.manual_seed(seed)
-    gen = torch.Generator().manual_seed(seed)
-    realised: dict[str, Any] = {}
-    if realisation is not None:
-        kernel_param, realised = differentiable_realisation(realisation, who="finetune_network")
-    else:
-        k = _as_kernel(kernel)
-        kernel_param = torch.as_tensor(np.array(k.taps), dtype=torch.float64)
-    video, targets = _dataset(scene, n, seed, evaluator.name, settings.dtype)
-    ts = scene.timestamps_s
-    network.train()
-    groups = [{"params": list(network.parameters()), "lr": lr_network, "weight_decay": settings.weight_decay}]
-    cached = None
-    if realised:
-        groups.insert(0, {"params": list(kernel_param.parameters()), "lr": lr_filter, "weight_decay": 0.0})
-    else:
-        with torch.no_grad():
-            cached = torch.cat(
-                [_network_input(video[s : s + 128], kernel_param, sensor, ts) for s in range(0, video.shape[0], 128)]
-            )
-    history: list[dict[str, Any]] = []
-    log = (lambda msg: print(msg, file=sys.stderr, flush=True)) if verbose else None
-    _train_epochs(
-        evaluator,
-        network,
-        kernel_param,
-        video,
-        targets,
-        sensor,
-        ts,
-        torch.optim.AdamW(groups),
-        epochs,
-        settings.batch_size,
-        gen,
-        "codesign" if realised else "finetune",
-        history,
-        cached_inputs=cached,
-        log=log,
+    evaluator, network, prov, n = _finetune_setup(
+        checkpoint, task, kernel, realisation, epochs, lr_network, lr_filter, n_train
     )
-    network.eval()
-    with torch.no_grad():
-        taps = (kernel_param() if realised else kernel_param).detach().clone()
-    if realised:
-        realised["realisation_design"] = kernel_param.to_design(codesign_task=evaluator.name).to_dict()
+    taps, realised, history = _finetune_train(
+        evaluator, network, prov, kernel, realisation, n, epochs, {"network": lr_network, "kernel": lr_filter}, verbose
+    )
     provenance = {k: v for k, v in prov.items() if k not in ("history", "metrics", "final_metric")}
     provenance.update(
         {
@@ -1225,12 +1029,12 @@ def finetune_network(
         }
     )
     name = (
-        f"{realised['realisation']} co-designed with {evaluator.name} network s{seed}"
+        f"{realised['realisation']} co-designed with {evaluator.name} network s{int(prov['seed'])}"
         if realised
         else f"{_as_kernel(kernel).name} (network fine-tuned)"
     )
     out_kernel = Kernel(taps.numpy(), name=name, provenance={k: v for k, v in provenance.items() if k != "history"})
-    paths = _save_checkpoint(Path(out), out_kernel, network, provenance) if out is not None else {}
+    paths = save_checkpoint(Path(out), out_kernel, network, provenance) if out is not None else {}
     return LearnResult(
         kernel=out_kernel,
         metrics={},
@@ -1239,6 +1043,97 @@ def finetune_network(
         provenance=provenance,
         paths=paths,
     )
+
+
+def _finetune_train(
+    evaluator: Any,
+    network: Any,
+    prov: dict[str, Any],
+    kernel: Any,
+    realisation: Any,
+    n: int,
+    epochs: int,
+    rates: dict[str, float],
+    verbose: bool,
+) -> tuple[Any, dict[str, Any], list[dict[str, Any]]]:
+    """:func:`finetune_network`'s training on the checkpoint's first ``n`` training clips: (the
+    final taps, the realisation's records ``{}`` without one, the history); ``rates`` of the
+    ``network`` and the realisation's parameters (``kernel``)."""
+    import torch
+
+    from ..scenes.synthetic import SceneConfig
+    from ..sensor import SensorConfig
+
+    settings = TrainingSettings(**prov["settings"])
+    scene = SceneConfig.from_dict(prov["scene"])
+    sensor = SensorConfig(**prov["sensor"])
+    seed = int(prov["seed"])
+    torch.manual_seed(seed)
+    gen = torch.Generator().manual_seed(seed)
+    realised: dict[str, Any] = {}
+    if realisation is not None:
+        kernel_param, realised = differentiable_realisation(realisation, who="finetune_network")
+    else:
+        kernel_param = torch.as_tensor(np.array(_as_kernel(kernel).taps), dtype=torch.float64)
+    video, targets = synthetic_dataset(scene, n, seed, evaluator.name, settings.dtype)
+    network.train()
+    optimizer = adamw_optimizer(network, settings.weight_decay, rates, kernel_param if realised else None)
+    data = TrainingData(video, targets, sensor, scene.timestamps_s)
+    history: list[dict[str, Any]] = []
+    train_epochs(
+        TrainingConfig(
+            "codesign" if realised else "finetune",
+            epochs,
+            settings.batch_size,
+            progress=print_progress if verbose else None,
+        ),
+        evaluator=evaluator,
+        network=network,
+        kernel=kernel_param,
+        data=data if realised else data.with_frozen_kernel(kernel_param),  # frozen: simulated once
+        optimizer=optimizer,
+        generator=gen,
+        history=history,
+    )
+    network.eval()
+    with torch.no_grad():
+        taps = kernel_taps(kernel_param).detach().clone()
+    if realised:
+        realised["realisation_design"] = kernel_param.to_design(codesign_task=evaluator.name).to_dict()
+    return taps, realised, history
+
+
+def _finetune_setup(
+    checkpoint: Any,
+    task: Any,
+    kernel: Any,
+    realisation: Any,
+    epochs: Any,
+    lr_network: Any,
+    lr_filter: Any,
+    n_train: Any,
+) -> tuple[Any, Any, dict[str, Any], int]:
+    """:func:`finetune_network`'s arguments checked, in order, and the checkpoint's network loaded:
+    (evaluator, network, provenance, training clips)."""
+    from .evaluators import get_evaluator
+
+    evaluator = get_evaluator(task)
+    if (kernel is None) == (realisation is None):
+        raise InputError("finetune_network: give exactly one of kernel= (frozen) and realisation= (co-designed)")
+    if isinstance(epochs, bool) or not isinstance(epochs, int) or not 1 <= epochs <= 100_000:
+        raise InputError(f"finetune_network: epochs must be an integer in [1, 100000], got {epochs!r}")
+    for nm, v in (("lr_network", lr_network), ("lr_filter", lr_filter)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0 <= v <= 10):
+            raise InputError(f"finetune_network: {nm} must be a finite number in [0, 10], got {v!r}")
+    network, prov = load_network(checkpoint, evaluator, who="finetune_network")
+    n_stored = int(prov["n_train"])
+    n = n_stored if n_train is None else n_train
+    if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= n_stored:
+        raise InputError(
+            f"finetune_network: n_train must be an integer in [2, {n_stored}] (the checkpoint's "
+            f"training clips), got {n_train!r}"
+        )
+    return evaluator, network, prov, n
 
 
 def _check_test_seed(seed: Any, who: str) -> int:
@@ -1273,5 +1168,5 @@ def heldout_targets(task: Any, scene: Any, n_test: int, *, test_seed: int | None
     if isinstance(scene, dict):
         scene = SceneConfig.from_dict(scene)
     seed = TEST_SEED if test_seed is None else _check_test_seed(test_seed, "heldout_targets")
-    _, targets = _dataset(scene, int(n_test), seed, evaluator.name, "float32")
+    _, targets = synthetic_dataset(scene, int(n_test), seed, evaluator.name, "float32")
     return {k: v.numpy() for k, v in targets.items()}

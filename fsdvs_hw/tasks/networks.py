@@ -53,7 +53,8 @@ def event_representation(frames: torch.Tensor) -> torch.Tensor:
     return torch.log1p(frames.clamp(min=0.0).reshape(b, t * p, h, w))
 
 
-def _conv(cin: int, cout: int, *, stride: int = 1, dilation: int = 1) -> nn.Sequential:
+def conv_block(cin: int, cout: int, *, stride: int = 1, dilation: int = 1) -> nn.Sequential:
+    """3×3 convolution (padding = ``dilation``: same size at stride 1), GroupNorm of 4 groups, ReLU."""
     return nn.Sequential(
         nn.Conv2d(cin, cout, 3, stride=stride, padding=dilation, dilation=dilation),
         nn.GroupNorm(4, cout),
@@ -66,9 +67,9 @@ class EventBackbone(nn.Module):
 
     def __init__(self, in_channels: int, width: int = 16) -> None:
         super().__init__()
-        self.stem = _conv(in_channels, width)
-        self.down = _conv(width, 2 * width, stride=2)
-        self.context = nn.Sequential(_conv(2 * width, 2 * width), _conv(2 * width, 2 * width, dilation=2))
+        self.stem = conv_block(in_channels, width)
+        self.down = conv_block(width, 2 * width, stride=2)
+        self.context = nn.Sequential(conv_block(2 * width, 2 * width), conv_block(2 * width, 2 * width, dilation=2))
         self.out_channels = 2 * width
         self.fine_channels = width
 
@@ -93,8 +94,8 @@ class CenterNetDetector(nn.Module):
         c = self.backbone.out_channels
         self.head = nn.ModuleDict(
             {
-                "heatmap": nn.Sequential(_conv(c, c), nn.Conv2d(c, num_classes, 1)),
-                "regress": nn.Sequential(_conv(c, c), nn.Conv2d(c, 4, 1)),
+                "heatmap": nn.Sequential(conv_block(c, c), nn.Conv2d(c, num_classes, 1)),
+                "regress": nn.Sequential(conv_block(c, c), nn.Conv2d(c, 4, 1)),
             }
         )
         # focal-loss prior: start at p = 0.05 everywhere (Lin et al. 2017)
@@ -134,7 +135,7 @@ class Segmenter(nn.Module):
         super().__init__()
         self.backbone = EventBackbone(in_channels, width)
         c = self.backbone.out_channels + self.backbone.fine_channels
-        self.head = nn.Sequential(_conv(c, width), nn.Conv2d(width, num_classes, 1))
+        self.head = nn.Sequential(conv_block(c, width), nn.Conv2d(width, num_classes, 1))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         fine, coarse = self.backbone(x)

@@ -46,7 +46,7 @@ from torch.nn import functional as F
 from ..errors import InputError
 from ..scenes.synthetic import SceneBatch, SceneConfig, make_scenes, scene_regime
 from .evaluators import EVALUATORS, TaskEvaluator, register_evaluator
-from .networks import EventBackbone, _conv
+from .networks import EventBackbone, conv_block
 
 __all__ = ["RECONSTRUCTION_METRICS", "IntensityReconstructor", "ReconstructionEvaluator", "clean_last_frame"]
 
@@ -70,7 +70,7 @@ class IntensityReconstructor(nn.Module):
         super().__init__()
         self.backbone = EventBackbone(in_channels, width)
         c = self.backbone.out_channels + self.backbone.fine_channels
-        self.head = nn.Sequential(_conv(c, width), nn.Conv2d(width, 1, 1))
+        self.head = nn.Sequential(conv_block(c, width), nn.Conv2d(width, 1, 1))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         fine, coarse = self.backbone(x)

@@ -28,7 +28,14 @@ from typing import Any
 
 from ..errors import InputError, one_line
 
-__all__ = ["EventInput", "builtin_network", "event_input_of", "load_network_factory", "load_weights"]
+__all__ = [
+    "EventInput",
+    "builtin_network",
+    "event_input_of",
+    "load_network_factory",
+    "load_weights",
+    "network_for",
+]
 
 
 @dataclass(frozen=True)
@@ -195,3 +202,35 @@ def builtin_network(task: str, in_channels: int, num_classes: int, width: int = 
     if cls is None:
         raise InputError(f"builtin_network: task {task!r}; allowed: detection, recognition, segmentation")
     return cls(in_channels, num_classes, width)
+
+
+def network_for(network: Any, task: str, in_channels: int, num_classes: int) -> Any:
+    """The network to train or score: the task's built-in one, a factory's, or the module given.
+
+    Parameters
+    ----------
+    network : None, str or torch.nn.Module
+        None: :func:`builtin_network`; ``"package.module:factory"``: :func:`load_network_factory`
+        called with ``in_channels`` and ``num_classes``; a module is returned as it is.
+    task : str
+    in_channels : int
+        Channels of the built-in representation, 2(T-1).
+    num_classes : int
+
+    Raises
+    ------
+    InputError
+        Anything else (the message names ``evaluate_on_dataset``'s ``network=``).
+    """
+    from torch import nn
+
+    if network is None:
+        return builtin_network(task, in_channels, num_classes)
+    if isinstance(network, str):
+        return load_network_factory(network, in_channels=in_channels, num_classes=num_classes)
+    if isinstance(network, nn.Module):
+        return network
+    raise InputError(
+        f"evaluate_on_dataset: network={one_line(network)}; allowed: None (built-in), "
+        "'package.module:factory', or a torch.nn.Module"
+    )
