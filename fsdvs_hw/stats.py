@@ -61,7 +61,7 @@ import contextlib
 import functools
 import io
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
@@ -934,6 +934,57 @@ def _resampled(task: _Task) -> tuple[str, ...]:
     return tuple(dict.fromkeys("clips" if sl.startswith("clips") else "seeds" for sl in task.slots))
 
 
+def _bootstrap_intervals(
+    samples: tuple[np.ndarray, ...],
+    statistic: Callable[..., np.ndarray],
+    estimate: np.ndarray,
+    confidence: float,
+    n_resamples: int,
+    method: str,
+    rng: Any,
+    batch: int | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """One ``scipy.stats.bootstrap`` call over every slot's index sample, resampled independently.
+
+    Parameters
+    ----------
+    samples : tuple of ndarray
+        Each slot's indices (clips of a network, or seeds); none: nothing to resample (seeds only,
+        one seed everywhere), and the interval is the estimate.
+    statistic : callable
+        Vectorised: the slots' resampled indices → (candidates, tasks [+ weighted], resamples).
+    estimate : ndarray (candidates, tasks [+ weighted])
+        The statistic on the data as they are.
+    confidence, n_resamples, method, rng, batch
+        As :func:`difference_ci`.
+
+    Returns
+    -------
+    low, high, standard_error : ndarray
+        The shape of ``estimate`` (metric units).
+    n_resamples : int
+        0 where nothing was resampled.
+    """
+    from scipy import stats
+
+    if not samples:
+        return estimate, estimate, np.zeros_like(estimate), 0
+    res = stats.bootstrap(
+        samples,
+        statistic,
+        paired=False,
+        vectorized=True,
+        axis=-1,
+        confidence_level=confidence,
+        n_resamples=n_resamples,
+        method=method,
+        random_state=np.random.default_rng(rng),
+        batch=batch,
+    )
+    lows, highs = np.asarray(res.confidence_interval.low), np.asarray(res.confidence_interval.high)
+    return lows, highs, np.asarray(res.standard_error), n_resamples
+
+
 def task_difference_cis(
     tasks: Mapping[str, tuple[Sequence[ClipMetric] | ClipMetric, Mapping[str, Sequence[ClipMetric] | ClipMetric]]],
     *,
@@ -974,8 +1025,6 @@ def task_difference_cis(
         Candidate → {task (and ``"weighted"``) → :class:`DifferenceCI`}. The weighted interval's
         ``n_clips`` is the total over the weighted tasks and its seed counts the smallest.
     """
-    from scipy import stats
-
     _check_bootstrap_settings(resample, confidence, n_resamples, method)
     names, parsed = _parse_tasks(
         tasks, nested_clips=nested_clips, resample=resample, paired_seeds=paired_seeds, paired_clips=paired_clips
@@ -984,25 +1033,10 @@ def task_difference_cis(
     layout = [(t, sl) for t, task in parsed.items() for sl in task.slots]
     statistic = _difference_statistic(parsed, layout, wts, paired_clips=paired_clips, paired_seeds=paired_seeds)
     estimate = statistic(*[np.arange(_slot_size(parsed[t], sl)) for t, sl in layout])
-    if not layout:  # nothing to resample (seeds only, one seed everywhere)
-        lows = highs = estimate
-        ses = np.zeros_like(estimate)
-        n_res = 0
-    else:
-        res = stats.bootstrap(
-            tuple(np.arange(_slot_size(parsed[t], sl)) for t, sl in layout),
-            statistic,
-            paired=False,
-            vectorized=True,
-            axis=-1,
-            confidence_level=confidence,
-            n_resamples=n_resamples,
-            method=method,
-            random_state=np.random.default_rng(rng),
-            batch=batch,
-        )
-        lows, highs = np.asarray(res.confidence_interval.low), np.asarray(res.confidence_interval.high)
-        ses, n_res = np.asarray(res.standard_error), n_resamples
+    samples = tuple(np.arange(_slot_size(parsed[t], sl)) for t, sl in layout)
+    lows, highs, ses, n_res = _bootstrap_intervals(
+        samples, statistic, estimate, confidence, n_resamples, method, rng, batch
+    )
     out: dict[str, dict[str, DifferenceCI]] = {}
     tnames = list(parsed)
     for i, cname in enumerate(names):
