@@ -59,13 +59,13 @@ def _record_pipelines(monkeypatch):
     from fsdvs_hw.sensor.simulation import events
 
     made = []
-    real_init = events._EventPipeline.__init__
+    real_init = events.EventPipeline.__init__
 
     def spy(self, *args, **kwargs):
         real_init(self, *args, **kwargs)
         made.append(self.inline)
 
-    monkeypatch.setattr(events._EventPipeline, "__init__", spy)
+    monkeypatch.setattr(events.EventPipeline, "__init__", spy)
     return made
 
 

@@ -180,7 +180,7 @@ class _Photoreceptor:
 def _photoreceptor(video: Any, timestamps_s: Any, config: SensorConfig) -> _Photoreceptor:
     import torch
 
-    from ..simulation.events import _choose_substeps_for, _resolve
+    from ..simulation.events import resolve_inputs, substeps_per_interval
     from ..simulation.filtering import filtered_log_signal
 
     vid = torch.as_tensor(video)
@@ -188,7 +188,7 @@ def _photoreceptor(video: Any, timestamps_s: Any, config: SensorConfig) -> _Phot
         vid = vid[None]
     if vid.ndim != 4 or vid.shape[0] != 1:
         raise InputError(f"video: expected (T, H, W) or (1, T, H, W) intensities, got shape {tuple(vid.shape)}")
-    vid, w, ts, cfg = _resolve(vid, None, timestamps_s, config, None)[:4]
+    vid, w, ts, cfg = resolve_inputs(vid, None, timestamps_s, config, None)[:4]
     with torch.no_grad():
         sig = filtered_log_signal(vid, w, cfg)
         L = sig.log_signal[0].to(torch.float64).reshape(vid.shape[1], -1).numpy()
@@ -196,7 +196,7 @@ def _photoreceptor(video: Any, timestamps_s: Any, config: SensorConfig) -> _Phot
         tsd = ts.to(torch.float64).reshape(-1)[:T].numpy()
         if not cfg.has_photoreceptor:
             return _Photoreceptor(tsd, L[0], L[1:], np.ones_like(L[1:]), np.diff(tsd), False)
-        subs = _choose_substeps_for(sig.log_signal, cfg, False)
+        subs = substeps_per_interval(sig.log_signal, cfg, False)
         frac = (
             torch.clamp(
                 (sig.cutoff_intensity[0].to(torch.float64) + cfg.dark_intensity) / cfg.full_scale_intensity, 0.0, 1.0

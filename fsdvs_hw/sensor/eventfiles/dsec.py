@@ -46,7 +46,16 @@ import numpy as np
 
 from ...errors import InputError, ToolMissingError
 from ...limits import check_allocation
-from .eventfile import _EVENT_BYTES, EventFile, _bad, _columns, _EventColumnsCheck, _one_line, _partial_path, _side
+from .eventfile import (
+    EVENT_BYTES,
+    EventColumnsCheck,
+    EventFile,
+    checked_columns,
+    checked_side,
+    exception_line,
+    field_error,
+    partial_path,
+)
 
 __all__ = ["DSEC_SIZE", "is_dsec", "read_dsec", "write_dsec"]
 
@@ -109,10 +118,10 @@ def write_dsec(
     p = Path(path)
     w = int(width if width is not None else getattr(events, "width", DSEC_SIZE[0]))
     h = int(height if height is not None else getattr(events, "height", DSEC_SIZE[1]))
-    t, x, y, pol = _columns(events, w, h)
+    t, x, y, pol = checked_columns(events, w, h)
     if t.size and (bool((np.diff(t) < 0).any()) or int(t[-1]) > 2**32 - 1):
         raise InputError("write_dsec: times must be non-decreasing and below 2**32 µs (DSEC stores uint32)")
-    tmp = _partial_path(p)
+    tmp = partial_path(p)
     try:
         with h5py.File(tmp, "w") as f:
             comp = hp.Blosc(cname="zstd", clevel=5, shuffle=hp.Blosc.SHUFFLE)
@@ -166,14 +175,16 @@ def read_dsec(path: str | Path, *, width: int | None = None, height: int | None 
     try:
         f = h5py.File(p, "r")
     except (OSError, ValueError) as exc:
-        raise _bad(p, "(file)", f"not a readable HDF5 file, expected DSEC's events.h5 ({_one_line(exc)})") from None
+        raise field_error(
+            p, "(file)", f"not a readable HDF5 file, expected DSEC's events.h5 ({exception_line(exc)})"
+        ) from None
     with f:
         try:
             return _read_open(p, f, width, height)
         except InputError:
             raise
         except (OSError, ValueError, KeyError, TypeError, RuntimeError, IndexError) as exc:
-            raise _bad(p, "events", f"unreadable, truncated or corrupt ({_one_line(exc)})") from None
+            raise field_error(p, "events", f"unreadable, truncated or corrupt ({exception_line(exc)})") from None
 
 
 def _read_open(p: Path, f: Any, width: int | None, height: int | None) -> EventFile:
@@ -181,20 +192,22 @@ def _read_open(p: Path, f: Any, width: int | None, height: int | None) -> EventF
 
     g = f.get("events")
     if not isinstance(g, h5py.Group):
-        raise _bad(p, "events", "no 'events' group: not DSEC's layout (events/x, events/y, events/t, events/p)")
+        raise field_error(p, "events", "no 'events' group: not DSEC's layout (events/x, events/y, events/t, events/p)")
     missing = [c for c in _COLUMNS if not isinstance(g.get(c), h5py.Dataset)]
     if missing:
-        raise _bad(p, ", ".join(f"events/{c}" for c in missing), "missing datasets (DSEC layout: events/x, y, t, p)")
+        raise field_error(
+            p, ", ".join(f"events/{c}" for c in missing), "missing datasets (DSEC layout: events/x, y, t, p)"
+        )
     names = {c: f"events/{c}" for c in _COLUMNS}
-    chk = _EventColumnsCheck(p, names, (0, 1))
+    chk = EventColumnsCheck(p, names, (0, 1))
     chk.dtypes(**{c: g[c].dtype for c in _COLUMNS})
     lengths = {c: g[c].shape for c in _COLUMNS}
     if len(set(lengths.values())) != 1 or len(lengths["t"]) != 1:
-        raise _bad(p, "events/x, y, t, p", f"shapes {lengths}; expected four columns of one length")
+        raise field_error(p, "events/x, y, t, p", f"shapes {lengths}; expected four columns of one length")
     n = lengths["t"][0]
-    check_allocation(f"event file {str(p)!r}: events ({n} declared events)", n * _EVENT_BYTES)
-    w = _side(p, "attribute width", f.attrs["width"]) if "width" in f.attrs else (width or DSEC_SIZE[0])
-    h = _side(p, "attribute height", f.attrs["height"]) if "height" in f.attrs else (height or DSEC_SIZE[1])
+    check_allocation(f"event file {str(p)!r}: events ({n} declared events)", n * EVENT_BYTES)
+    w = checked_side(p, "attribute width", f.attrs["width"]) if "width" in f.attrs else (width or DSEC_SIZE[0])
+    h = checked_side(p, "attribute height", f.attrs["height"]) if "height" in f.attrs else (height or DSEC_SIZE[1])
     cols = {c: g[c][()] for c in _COLUMNS}
     chk.check(cols["t"], cols["x"], cols["y"], cols["p"], w, h)
     t = cols["t"].astype(np.int64)
@@ -202,7 +215,9 @@ def _read_open(p: Path, f: Any, width: int | None, height: int | None) -> EventF
     if "t_offset" in f:
         off_arr = np.asarray(f["t_offset"][()])
         if off_arr.shape not in ((), (1,)) or off_arr.dtype.kind not in "iu":
-            raise _bad(p, "t_offset", f"must be one integer (µs), got dtype {off_arr.dtype} shape {off_arr.shape}")
+            raise field_error(
+                p, "t_offset", f"must be one integer (µs), got dtype {off_arr.dtype} shape {off_arr.shape}"
+            )
         off = int(off_arr.reshape(-1)[0])
     meta: dict[str, Any] = {"format": "dsec", "t_offset": off}
     if "ms_to_idx" in f:
@@ -216,7 +231,9 @@ def _read_open(p: Path, f: Any, width: int | None, height: int | None) -> EventF
                 and not np.array_equal(idx[: want.size].astype(np.int64), want[: idx.size])
                 else min(idx.size, want.size)
             )
-            raise _bad(p, "ms_to_idx", f"disagrees with events/t at millisecond {k} (truncated or inconsistent file)")
+            raise field_error(
+                p, "ms_to_idx", f"disagrees with events/t at millisecond {k} (truncated or inconsistent file)"
+            )
         meta["ms_to_idx"] = idx
     return EventFile(
         t + off,

@@ -111,7 +111,7 @@ class EventFile:
         )
 
 
-def _columns(events: Any, width: int, height: int) -> tuple[np.ndarray, ...]:
+def checked_columns(events: Any, width: int, height: int) -> tuple[np.ndarray, ...]:
     """(t_us int64, x int64, y int64, p int8 ±1) of an EventList or EventFile, checked."""
     if isinstance(events, EventFile):
         t_us, x, y, p = events.t_us.astype(np.int64, copy=False), events.x, events.y, events.p
@@ -146,9 +146,9 @@ def _message_columns(
     """The writer process's message columns (t_us int64, x int16, y int16, ON uint8) of an
     :class:`~fsdvs_hw.sensor.EventList` with the columns a stream yields (contiguous CPU float64
     ``t``, int64 ``x``, ``y``, int8 ``p``, batch 0), converted and checked in one compiled pass
-    (:func:`~fsdvs_hw.sensor.native.library.event_message`: the same values as :func:`_columns`, 3.4–4.0
+    (:func:`~fsdvs_hw.sensor.native.library.event_message`: the same values as :func:`checked_columns`, 3.4–4.0
     against 11.0–11.4 ns per event; docs/speed.md). None where that does not apply or a check
-    failed: :func:`_columns` then converts and words the problem."""
+    failed: :func:`checked_columns` then converts and words the problem."""
     from ..native import library as native
 
     if isinstance(events, EventFile) or not native.available():
@@ -219,7 +219,7 @@ def _widen_pipe(pipe: Any) -> None:
         pass
 
 
-def _partial_path(path: Path) -> Path:
+def partial_path(path: Path) -> Path:
     """The hidden temporary file a writer fills before renaming it onto ``path``; it keeps the
     suffix (dv-processing aborts on an AEDAT4 file name without ``.aedat4``)."""
     return path.parent / f".{path.stem}.partial-{os.getpid()}{path.suffix}"
@@ -233,7 +233,7 @@ def _fsync(path: Path, *, directory: bool = False) -> None:
         os.close(fd)
 
 
-def _one_line(exc: BaseException, limit: int = 200) -> str:
+def exception_line(exc: BaseException, limit: int = 200) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
@@ -266,7 +266,7 @@ class EventFileWriter:
         self.count = 0
         self._last_t = -1
         self._closed = False
-        self._tmp_path = _partial_path(self.path)
+        self._tmp_path = partial_path(self.path)
         self._cols_dir: Path | None = None
         self._child: Any = None
         try:
@@ -307,7 +307,7 @@ class EventFileWriter:
     def _os_error(self, exc: BaseException) -> OSError:
         """A one-line :class:`OSError` naming the target file (nothing was written to it)."""
         code = getattr(exc, "errno", None) or errno.EIO
-        why = os.strerror(code) if getattr(exc, "errno", None) else _one_line(exc)
+        why = os.strerror(code) if getattr(exc, "errno", None) else exception_line(exc)
         return OSError(
             code,
             f"writing the {self.format} event file failed ({why}); nothing was written there (a previous file is kept)",
@@ -365,7 +365,7 @@ class EventFileWriter:
         if message is not None:  # converted and checked in one compiled pass
             t_us = message[0]
         else:
-            t_us, x, y, p = _columns(events, self.width, self.height)
+            t_us, x, y, p = checked_columns(events, self.width, self.height)
             if not t_us.size:
                 return
             if int(t_us[0]) < self._last_t or bool((np.diff(t_us) < 0).any()):
@@ -528,24 +528,24 @@ AEDAT4_READ_TIMEOUT_S = 30.0
 #: Events read and checked per slice from an HDF5 file (bounds the reader's temporaries).
 READ_SLICE = 1 << 20
 #: Bytes of memory per event read: int64 time, x, y, int8 polarity, plus the file's own row.
-_EVENT_BYTES = 41
+EVENT_BYTES = 41
 #: Largest sensor side accepted (pixels): the writers' limit, and AEDAT4's int16 coordinates.
 _MAX_SIDE = 32767
 
 
-def _bad(path: Path, fld: str, what: str) -> InputError:
+def field_error(path: Path, fld: str, what: str) -> InputError:
     return InputError(f"event file {str(path)!r}: {fld}: {what}")
 
 
-def _side(path: Path, fld: str, v: Any) -> int:
+def checked_side(path: Path, fld: str, v: Any) -> int:
     """A sensor width/height read from a file: an integer in [1, 32767]."""
     arr = np.asarray(v)
     if arr.shape not in ((), (1,)) or arr.dtype.kind not in "iu" or not 1 <= int(arr.reshape(-1)[0]) <= _MAX_SIDE:
-        raise _bad(path, fld, f"must be an integer in [1, {_MAX_SIDE}] pixels, got {np.array2string(arr)[:40]}")
+        raise field_error(path, fld, f"must be an integer in [1, {_MAX_SIDE}] pixels, got {np.array2string(arr)[:40]}")
     return int(arr.reshape(-1)[0])
 
 
-class _EventColumnsCheck:
+class EventColumnsCheck:
     """Checks the columns of an event file slice by slice (dtype, ranges, time order)."""
 
     def __init__(self, path: Path, names: dict[str, str], polarities: tuple[int, ...]) -> None:
@@ -557,7 +557,7 @@ class _EventColumnsCheck:
         for k, dt in cols.items():
             if np.dtype(dt).kind not in "iu":
                 hint = " (times must be integer microseconds; float times look like seconds)" if k == "t" else ""
-                raise _bad(self.path, self.names[k], f"dtype {np.dtype(dt)} is not an integer type{hint}")
+                raise field_error(self.path, self.names[k], f"dtype {np.dtype(dt)} is not an integer type{hint}")
 
     def check(
         self, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, width: int | None, height: int | None
@@ -567,23 +567,25 @@ class _EventColumnsCheck:
         n = t.size
         if n:
             if int(t.min()) < 0:
-                raise _bad(self.path, self.names["t"], f"negative time {int(t.min())} µs; times must be >= 0")
+                raise field_error(self.path, self.names["t"], f"negative time {int(t.min())} µs; times must be >= 0")
             back = np.flatnonzero(np.diff(t) < 0)
             if int(t[0]) < self.last_t or back.size:
                 i = self.seen + (int(back[0]) + 1 if not int(t[0]) < self.last_t else 0)
-                raise _bad(self.path, self.names["t"], f"times decrease at event {i}; they must be non-decreasing µs")
+                raise field_error(
+                    self.path, self.names["t"], f"times decrease at event {i}; they must be non-decreasing µs"
+                )
             self.last_t = int(t[-1])
             for k, arr, hi in (("x", x, width), ("y", y, height)):
                 lo_v, hi_v = int(arr.min()), int(arr.max())
                 if lo_v < 0 or (hi is not None and hi_v >= hi):
-                    raise _bad(
+                    raise field_error(
                         self.path,
                         self.names[k],
                         f"value {lo_v if lo_v < 0 else hi_v} outside [0, {hi}) of the {width}x{height} sensor",
                     )
             bad = ~np.isin(p, self.polarities)
             if bad.any():
-                raise _bad(
+                raise field_error(
                     self.path,
                     self.names["p"],
                     f"polarity {int(p[bad][0])}; this format allows {' / '.join(str(v) for v in self.polarities)}",
@@ -625,14 +627,14 @@ def _read_hdf5(p: Path) -> EventFile:
     try:
         f = h5py.File(p, "r")
     except (OSError, ValueError) as exc:
-        raise _bad(p, "(file)", f"not a readable HDF5 file ({_one_line(exc)})") from None
+        raise field_error(p, "(file)", f"not a readable HDF5 file ({exception_line(exc)})") from None
     with f:
         try:
             return _read_hdf5_open(p, f)
         except InputError:
             raise
         except (OSError, ValueError, KeyError, TypeError, RuntimeError, IndexError) as exc:
-            raise _bad(p, "events", f"unreadable, truncated or corrupt ({_one_line(exc)})") from None
+            raise field_error(p, "events", f"unreadable, truncated or corrupt ({exception_line(exc)})") from None
 
 
 def _read_hdf5_open(p: Path, f: Any) -> EventFile:
@@ -642,13 +644,13 @@ def _read_hdf5_open(p: Path, f: Any) -> EventFile:
 
     ds = f.get("events")
     if ds is None:
-        raise _bad(p, "events", "no 'events' dataset (v2e layout: (N, 4) [t_us, x, y, p])")
+        raise field_error(p, "events", "no 'events' dataset (v2e layout: (N, 4) [t_us, x, y, p])")
     if not isinstance(ds, h5py.Dataset):
-        raise _bad(p, "events", f"is a {type(ds).__name__}, expected an (N, 4) dataset (v2e layout)")
+        raise field_error(p, "events", f"is a {type(ds).__name__}, expected an (N, 4) dataset (v2e layout)")
     if ds.ndim != 2 or ds.shape[1] != 4:
-        raise _bad(p, "events", f"shape {ds.shape}, expected (N, 4) [t_us, x, y, p] (v2e layout)")
+        raise field_error(p, "events", f"shape {ds.shape}, expected (N, 4) [t_us, x, y, p] (v2e layout)")
     names = {"t": "events[:, 0] (t_us)", "x": "events[:, 1] (x)", "y": "events[:, 2] (y)", "p": "events[:, 3] (p)"}
-    chk = _EventColumnsCheck(p, names, (0, 1))
+    chk = EventColumnsCheck(p, names, (0, 1))
     chk.dtypes(t=ds.dtype)
     attrs: dict[str, Any] = {}
     for k in f.attrs:
@@ -657,23 +659,23 @@ def _read_hdf5_open(p: Path, f: Any) -> EventFile:
         except (OSError, TypeError, ValueError):
             continue  # an attribute h5py cannot decode is not needed to read events
         attrs[k] = v.item() if isinstance(v, np.generic) else v
-    w = _side(p, "attribute width", f.attrs["width"]) if "width" in f.attrs else None
-    h = _side(p, "attribute height", f.attrs["height"]) if "height" in f.attrs else None
+    w = checked_side(p, "attribute width", f.attrs["width"]) if "width" in f.attrs else None
+    h = checked_side(p, "attribute height", f.attrs["height"]) if "height" in f.attrs else None
     n = int(ds.shape[0])
-    check_allocation(f"event file {str(p)!r}: events ({n} declared events)", n * _EVENT_BYTES)
+    check_allocation(f"event file {str(p)!r}: events ({n} declared events)", n * EVENT_BYTES)
     if n:
         if ds.chunks is not None:
             want = math.ceil(n / ds.chunks[0]) * math.ceil(4 / ds.chunks[1])
             got = ds.id.get_num_chunks()
             if got < want:
-                raise _bad(
+                raise field_error(
                     p,
                     "events",
                     f"declares {n} events but only {got} of its {want} chunks are stored "
                     "(truncated or unfinished file)",
                 )
         elif ds.id.get_storage_size() < ds.size * ds.dtype.itemsize:
-            raise _bad(
+            raise field_error(
                 p,
                 "events",
                 f"declares {n} events but stores only {ds.id.get_storage_size()} bytes (truncated or unfinished file)",
@@ -689,7 +691,7 @@ def _read_hdf5_open(p: Path, f: Any) -> EventFile:
     w = w if w is not None else (int(x.max()) + 1 if n else 1)
     h = h if h is not None else (int(y.max()) + 1 if n else 1)
     if max(w, h) > _MAX_SIDE:
-        raise _bad(
+        raise field_error(
             p,
             "events[:, 1:3] (x, y)",
             f"pixels up to {w - 1}, {h - 1}: beyond {_MAX_SIDE} (no width/height attributes)",
@@ -706,7 +708,7 @@ def _npy_header(p: Path, z: Any, k: str) -> tuple[tuple[int, ...], np.dtype]:
         elif version == (2, 0):
             shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
         else:
-            raise _bad(p, k, f"unsupported .npy format version {version}")
+            raise field_error(p, k, f"unsupported .npy format version {version}")
     return tuple(shape), np.dtype(dtype)
 
 
@@ -717,40 +719,42 @@ def _read_npz(p: Path) -> EventFile:
     try:
         z = np.load(p, allow_pickle=False)
     except errors as exc:
-        raise _bad(p, "(file)", f"not a readable npz file ({_one_line(exc)})") from None
+        raise field_error(p, "(file)", f"not a readable npz file ({exception_line(exc)})") from None
     if not isinstance(z, np.lib.npyio.NpzFile):
-        raise _bad(p, "(file)", "holds a single .npy array, not an npz archive of t, x, y, p, width, height")
+        raise field_error(p, "(file)", "holds a single .npy array, not an npz archive of t, x, y, p, width, height")
     with z:
         missing = {"t", "x", "y", "p", "width", "height"} - set(z.files)
         if missing:
-            raise _bad(p, ", ".join(sorted(missing)), "missing arrays (an event npz holds t, x, y, p, width, height)")
-        chk = _EventColumnsCheck(p, {k: k for k in "txyp"}, (-1, 1))
+            raise field_error(
+                p, ", ".join(sorted(missing)), "missing arrays (an event npz holds t, x, y, p, width, height)"
+            )
+        chk = EventColumnsCheck(p, {k: k for k in "txyp"}, (-1, 1))
         k = "(file)"
         try:
             headers = {}
             for k in ("t", "x", "y", "p"):
                 headers[k] = _npy_header(p, z, k)
                 if len(headers[k][0]) != 1:
-                    raise _bad(p, k, f"shape {headers[k][0]}, expected one column (N,)")
+                    raise field_error(p, k, f"shape {headers[k][0]}, expected one column (N,)")
             chk.dtypes(**{k: hd[1] for k, hd in headers.items()})
             lengths = {k: hd[0][0] for k, hd in headers.items()}
             if len(set(lengths.values())) > 1:
-                raise _bad(p, "t, x, y, p", f"columns of different lengths {lengths} (ragged)")
+                raise field_error(p, "t, x, y, p", f"columns of different lengths {lengths} (ragged)")
             n = lengths["t"]
-            check_allocation(f"event file {str(p)!r}: t, x, y, p ({n} declared events)", n * _EVENT_BYTES)
+            check_allocation(f"event file {str(p)!r}: t, x, y, p ({n} declared events)", n * EVENT_BYTES)
             k = "width"
-            w = _side(p, "width", z["width"])
+            w = checked_side(p, "width", z["width"])
             k = "height"
-            h = _side(p, "height", z["height"])
+            h = checked_side(p, "height", z["height"])
             cols = {}
             for k in ("t", "x", "y", "p"):
                 cols[k] = z[k]
                 if cols[k].shape != (n,):
-                    raise _bad(p, k, f"holds {cols[k].size} values, its header declares {n} (truncated?)")
+                    raise field_error(p, k, f"holds {cols[k].size} values, its header declares {n} (truncated?)")
         except InputError:
             raise
         except errors as exc:
-            raise _bad(p, k, f"unreadable, truncated or corrupt ({_one_line(exc)})") from None
+            raise field_error(p, k, f"unreadable, truncated or corrupt ({exception_line(exc)})") from None
     chk.check(cols["t"], cols["x"], cols["y"], cols["p"], w, h)
     return EventFile(
         cols["t"].astype(np.int64),
@@ -775,7 +779,7 @@ class _ChildPipe:
         while len(buf) < n:
             ready, _, _ = select.select([self.fd], [], [], self.timeout)
             if not ready:
-                raise _bad(
+                raise field_error(
                     self.path,
                     "(file)",
                     f"dv-processing made no progress for {self.timeout:g} s reading it (corrupt AEDAT4 file?)",
@@ -808,18 +812,21 @@ def _read_aedat4(p: Path) -> EventFile:
         assert proc.stdout is not None  # stdout=PIPE
         try:
             pipe = _ChildPipe(proc.stdout, AEDAT4_READ_TIMEOUT_S, p)
-            chk = _EventColumnsCheck(p, {"t": "timestamp", "x": "x", "y": "y", "p": "polarity"}, (0, 1))
+            chk = EventColumnsCheck(p, {"t": "timestamp", "x": "x", "y": "y", "p": "polarity"}, (0, 1))
             try:
                 w_raw, h_raw, name_len = (int(v) for v in pipe.ints(3, "<i8"))
-                w, h = _side(p, "event resolution width", w_raw), _side(p, "event resolution height", h_raw)
+                w, h = (
+                    checked_side(p, "event resolution width", w_raw),
+                    checked_side(p, "event resolution height", h_raw),
+                )
                 if not 0 <= name_len <= 4096:
-                    raise _bad(p, "camera name", f"length {name_len} out of range")
+                    raise field_error(p, "camera name", f"length {name_len} out of range")
                 camera = pipe.read(name_len).decode("utf-8", "replace")
                 parts: list[tuple[np.ndarray, ...]] = []
                 total = 0
                 while (n := int(pipe.ints(1, "<i8")[0])) != -1:
                     total += n
-                    check_allocation(f"event file {str(p)!r}: events ({total} events so far)", total * _EVENT_BYTES)
+                    check_allocation(f"event file {str(p)!r}: events ({total} events so far)", total * EVENT_BYTES)
                     t, x, y, pol = (pipe.ints(n, dt) for dt in ("<i8", "<i2", "<i2", "u1"))
                     chk.check(t, x, y, pol, w, h)
                     parts.append((t, x, y, pol))
@@ -832,7 +839,7 @@ def _read_aedat4(p: Path) -> EventFile:
                     if rc < 0
                     else f"not a readable AEDAT4 file ({msg or f'reader exit status {rc}'})"
                 )
-                raise _bad(p, "(file)", how) from None
+                raise field_error(p, "(file)", how) from None
         finally:
             if proc.poll() is None:
                 proc.kill()

@@ -58,7 +58,7 @@ import numpy as np
 from ...errors import InputError, ToolMissingError
 from ...limits import check_allocation
 from ...paths import write_output
-from .eventfile import _EVENT_BYTES, EventFile, _bad, _columns, _EventColumnsCheck
+from .eventfile import EVENT_BYTES, EventColumnsCheck, EventFile, checked_columns, field_error
 
 __all__ = ["ENCODINGS", "decode_evt3", "read_prophesee", "write_prophesee"]
 
@@ -91,7 +91,7 @@ def _parse_header(path: Path, data: bytes) -> tuple[dict[str, str], int]:
     while pos < len(data) and data[pos : pos + 1] == b"%":
         end = data.find(b"\n", pos)
         if end < 0 or end > _MAX_HEADER_BYTES:
-            raise _bad(path, "header", f"header line at byte {pos} does not end (truncated file?)")
+            raise field_error(path, "header", f"header line at byte {pos} does not end (truncated file?)")
         line = data[pos + 1 : end].decode("ascii", "replace").strip()
         pos = end + 1
         if line == "end":
@@ -111,21 +111,21 @@ def _geometry(path: Path, header: dict[str, str]) -> tuple[int | None, int | Non
     try:
         return (int(w) if w else None), (int(h) if h else None)
     except ValueError:
-        raise _bad(path, "header geometry", f"width {w!r} / height {h!r} are not integers") from None
+        raise field_error(path, "header geometry", f"width {w!r} / height {h!r} are not integers") from None
 
 
 def _raw_encoding(path: Path, header: dict[str, str]) -> str:
     fmt = header.get("format", "").split(";")[0].strip().upper()
     if fmt in ("EVT2", "EVT21", "EVT3"):
         if fmt == "EVT21":
-            raise _bad(path, "header format", "EVT 2.1 is not supported; expected EVT2 or EVT3")
+            raise field_error(path, "header format", "EVT 2.1 is not supported; expected EVT2 or EVT3")
         return fmt.lower()
     evt = header.get("evt", "")
     if evt.startswith("2"):
         return "evt2"
     if evt.startswith("3"):
         return "evt3"
-    raise _bad(
+    raise field_error(
         path,
         "header",
         "no '% evt 2.0|3.0' or '% format EVT2|EVT3' line: not a Prophesee RAW file (expected EVT 2.0 or EVT 3.0)",
@@ -203,7 +203,9 @@ def decode_evt3(words: np.ndarray, *, path: str | Path = "(memory)") -> np.ndarr
     out["y"] = y[src[order]]
     out["p"] = ps[order]
     if out.size and int(out["x"].max()) > 0x7FF:
-        raise _bad(Path(path), "x", f"vector event at column {int(out['x'].max())} beyond EVT 3.0's 2048 columns")
+        raise field_error(
+            Path(path), "x", f"vector event at column {int(out['x'].max())} beyond EVT 3.0's 2048 columns"
+        )
     return out
 
 
@@ -253,16 +255,16 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
     else:
         encoding = "dat"
         if not header:
-            raise _bad(p, "header", "no '%' header lines: not a Prophesee DAT file")
+            raise field_error(p, "header", "no '%' header lines: not a Prophesee DAT file")
         if size < body + 2:
-            raise _bad(
+            raise field_error(
                 p,
                 "event type",
                 f"file ends at byte {size}, before the event type and size bytes at offset {body} (truncated DAT file)",
             )
         etype, esize = head[body], head[body + 1]
         if etype not in _DAT_TYPES or esize != _DAT_CD_SIZE:
-            raise _bad(
+            raise field_error(
                 p,
                 "event type",
                 f"type 0x{etype:02X} size {esize} at offset {body}; expected CD events "
@@ -272,7 +274,7 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
     word = _WORD_BYTES[encoding]
     if (size - body) % word:
         cut = size - (size - body) % word
-        raise _bad(
+        raise field_error(
             p,
             "(body)",
             f"{encoding.upper()} body of {size - body} bytes from offset {body} is not a whole "
@@ -284,7 +286,7 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
             raise InputError(f"event file {str(p)!r}: {name}={given} given, the header says {found}")
     w, h = hw or width, hh or height
     n_max = (size - body) // word
-    check_allocation(f"event file {str(p)!r}: up to {n_max} events", n_max * (_EVENT_BYTES + 16))
+    check_allocation(f"event file {str(p)!r}: up to {n_max} events", n_max * (EVENT_BYTES + 16))
     arr: np.ndarray | None
     if encoding == "evt3":
         arr = decode_evt3(np.fromfile(p, dtype="<u2", offset=body), path=p)
@@ -292,7 +294,7 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
         arr = _wizard(encoding).read(p) if n_max else None
     if arr is None:
         if n_max:
-            raise _bad(
+            raise field_error(
                 p,
                 "(body)",
                 f"expelliarmus could not decode the {encoding.upper()} body at offset {body} (corrupt or foreign file)",
@@ -304,7 +306,7 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
     if h is None:
         h = int(y.max()) + 1 if y.size else 1
     names = {"t": "t (µs)", "x": "x", "y": "y", "p": "polarity"}
-    _EventColumnsCheck(p, names, (0, 1)).check(t, x, y, pol, w, h)
+    EventColumnsCheck(p, names, (0, 1)).check(t, x, y, pol, w, h)
     return EventFile(
         t.astype(np.int64),
         x.astype(np.int64),
@@ -397,7 +399,7 @@ def write_prophesee(
     h = height if height is not None else getattr(events, "height", None)
     if w is None or h is None:
         raise InputError("write_prophesee: width and height are required for an EventList")
-    t, x, y, pol = _columns(events, int(w), int(h))
+    t, x, y, pol = checked_columns(events, int(w), int(h))
     if t.size and bool((np.diff(t) < 0).any()):
         raise InputError("write_prophesee: events must be in non-decreasing time")
     addr_limit = 1 << (14 if encoding == "dat" else 11)

@@ -36,9 +36,9 @@ import numpy as np
 import torch
 
 from ..simulation.config import SensorConfig
-from ..simulation.crossings import _threshold_np, append_part, event_arrays, noise_step, shot_noise_pixels
+from ..simulation.crossings import append_part, event_arrays, noise_step, shot_noise_pixels, threshold_array
 from . import library
-from .fused import _SUFFIX, _ctypes_real, _thresholds, fused_substep_applies
+from .fused import DTYPE_SUFFIX, ctypes_real, fused_substep_applies, threshold_values
 
 __all__ = ["GROUP_PIXELS", "BufferPool", "advance_chunk", "chunk_applies"]
 
@@ -118,14 +118,14 @@ def _contiguous(x: Any) -> Any:
 
 
 def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, events: list, pipe: Any, bar: Any) -> list:
-    """Step the pixel state ``st`` (:class:`.events._PixelState`) through the frames ``Ls`` (and
+    """Step the pixel state ``st`` (:class:`.events.PixelState`) through the frames ``Ls`` (and
     low-pass intensities ``CI``, or None) and submit their events to ``pipe``
-    (:class:`.events._EventPipeline`), as :func:`.events._advance_steps` does where
+    (:class:`.events.EventPipeline`), as :func:`.events._advance_steps` does where
     :func:`chunk_applies` holds.
 
     Parameters
     ----------
-    st : _PixelState
+    st : PixelState
         State at ``Ls[0]``; advanced to the last frame (``ref``, ``lp``, ``sig_prev`` replaced,
         ``last_t`` updated in place by the crossing task).
     Ls, CI : sequence of torch.Tensor
@@ -135,8 +135,8 @@ def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, eve
     config : SensorConfig
         The sensor.
     events : list
-        Each interval's :meth:`~.events._EventPipeline.sort` result is appended.
-    pipe : _EventPipeline
+        Each interval's :meth:`~.events.EventPipeline.sort` result is appended.
+    pipe : EventPipeline
         Where the crossing tasks (one per :data:`GROUP_PIXELS` pixel-intervals, in order), the
         noise task (one per chunk, with shot noise) and the sorts run; its ``buffers`` pool lends
         the work tensors.
@@ -152,13 +152,13 @@ def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, eve
     B, H, W = Ls[0].shape
     hw, K = H * W, len(Ls) - 1
     dtype = Ls[0].dtype
-    sfx, real = _SUFFIX[dtype], _ctypes_real(dtype)
+    sfx, real = DTYPE_SUFFIX[dtype], ctypes_real(dtype)
     has_lp = config.has_photoreceptor
     t_np = np.ascontiguousarray(tsd[0].numpy(), dtype=np.float64)  # frame times
     dt64 = t_np[1:] - t_np[:-1]  # (t1 - t0) / 1, as _advance_steps' dt_sub64 with one sub-step
     dtr = torch.from_numpy(dt64).to(dtype).numpy()  # rounded as torch rounds dt_sub to the signal dtype
-    con = _thresholds(st.c_on, hw, hw, dtype, "c_on")
-    coff = _thresholds(st.c_off, hw, hw, dtype, "c_off")
+    con = threshold_values(st.c_on, hw, hw, dtype, "c_on")
+    coff = threshold_values(st.c_off, hw, hw, dtype, "c_off")
     n_out = 5 if has_lp else 4
     out = pipe.buffers.take((n_out, K, hw), dtype)  # [lp,] ref, n_on, n_off, d per interval
     ref_out, n_on, n_off, d_out = out[n_out - 4], out[n_out - 3], out[n_out - 2], out[n_out - 1]
@@ -262,8 +262,8 @@ def _crossings_task(
     (the crossings lost to the refractory period)."""
     h_on, h_off, sig_a, ref_a, d_b, parts, noise_parts = rows
     H, W = hw_shape
-    c_on = _threshold_np(st.c_on, 1, H, W)
-    c_off = _threshold_np(st.c_off, 1, H, W)
+    c_on = threshold_array(st.c_on, 1, H, W)
+    c_off = threshold_array(st.c_off, 1, H, W)
     last_t = st.last_t.view(-1).numpy() if st.last_t is not None else None
     lost = 0.0
     for k in ks:

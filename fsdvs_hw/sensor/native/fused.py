@@ -37,7 +37,7 @@ from . import library
 
 __all__ = ["ROUND_MAGIC", "fused_applies", "fused_floor", "fused_linlog_v2e", "fused_substep", "fused_substep_applies"]
 
-_SUFFIX = {torch.float32: "f32", torch.float64: "f64"}
+DTYPE_SUFFIX = {torch.float32: "f32", torch.float64: "f64"}
 
 
 def fused_applies(like: Any) -> bool:
@@ -56,7 +56,7 @@ def fused_applies(like: Any) -> bool:
     return (
         not (torch.is_grad_enabled() and like.requires_grad)
         and like.device.type == "cpu"
-        and like.dtype in _SUFFIX
+        and like.dtype in DTYPE_SUFFIX
         and library.available()
     )
 
@@ -89,7 +89,7 @@ def _flat(t: Any, dtype: Any) -> Any:
     return t.reshape(-1).to(dtype).contiguous()
 
 
-def _thresholds(c: Any, hw: int, n: int, dtype: Any, name: str) -> Any:
+def threshold_values(c: Any, hw: int, n: int, dtype: Any, name: str) -> Any:
     """Thresholds as H·W (shared by the batch) or B·H·W contiguous values (a single value expanded)."""
     flat = _flat(c, dtype)
     if flat.numel() == 1:
@@ -155,7 +155,7 @@ def fused_substep(
     """
     lib = library._loaded()
     dtype = target.dtype
-    suffix = _SUFFIX[dtype]
+    suffix = DTYPE_SUFFIX[dtype]
     B = target.shape[0]
     shape = tuple(target.shape)
     n = target.numel()
@@ -166,8 +166,8 @@ def fused_substep(
     dt = _flat(dt_sub, dtype)
     if dt.numel() != B:
         raise ValueError(f"dt_sub: needs {B} values (one per batch element), got {dt.numel()}")
-    con, coff = _thresholds(c_on, hw, n, dtype, "c_on"), _thresholds(c_off, hw, n, dtype, "c_off")
-    real = _ctypes_real(dtype)
+    con, coff = threshold_values(c_on, hw, n, dtype, "c_on"), threshold_values(c_off, hw, n, dtype, "c_off")
+    real = ctypes_real(dtype)
     em1 = lp_flat = lp_new = None
     if intensity is not None:
         em1 = torch.empty(n, dtype=dtype)
@@ -253,8 +253,8 @@ def fused_linlog_v2e(intensity: Any, knee: float, dn_per_full_scale: float = 255
             raise InputError(f"{name}: must be a finite number > 0, got {v!r}")
     lib = library._loaded()
     dtype = intensity.dtype
-    suffix = _SUFFIX[dtype]
-    real = _ctypes_real(dtype)
+    suffix = DTYPE_SUFFIX[dtype]
+    real = ctypes_real(dtype)
     flat = _flat(intensity, dtype)
     n = flat.numel()
     k = float(knee) * dn_per_full_scale
@@ -301,12 +301,12 @@ def fused_floor(x: Any, floor: float) -> tuple[Any, int]:
     dtype = x.dtype
     flat = _flat(x, dtype)
     out = torch.empty(flat.numel(), dtype=dtype)
-    n_below = getattr(lib, f"fsdvs_floor_count_{_SUFFIX[dtype]}")(
-        flat.data_ptr(), flat.numel(), _ctypes_real(dtype)(floor), out.data_ptr()
+    n_below = getattr(lib, f"fsdvs_floor_count_{DTYPE_SUFFIX[dtype]}")(
+        flat.data_ptr(), flat.numel(), ctypes_real(dtype)(floor), out.data_ptr()
     )
     return out.reshape(x.shape), int(n_below)
 
 
-def _ctypes_real(dtype: Any) -> Any:
+def ctypes_real(dtype: Any) -> Any:
     """The ctypes scalar type of a float32 or float64 torch dtype (rounds a Python float like torch)."""
     return ctypes.c_float if dtype == torch.float32 else ctypes.c_double

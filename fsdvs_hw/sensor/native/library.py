@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-__all__: list[str] = []  # private helpers of .crossings
+__all__: list[str] = []  # the compiled kernels are called by the simulation, the fused steps and the event files
 
 _SOURCES = [Path(__file__).with_name(n) for n in ("_crossings.c", "_fused.c", "_eventfile.c")]
 _HEADERS = [Path(__file__).with_name("_native_clones.h")]  # hashed with the sources

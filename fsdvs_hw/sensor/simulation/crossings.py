@@ -152,7 +152,7 @@ def _total(h: np.ndarray) -> int:
     return int(s) if s < exact_below else int(h.sum(dtype=np.float64))
 
 
-def _threshold_np(c: Any, B: int, H: int, W: int) -> np.ndarray:
+def threshold_array(c: Any, B: int, H: int, W: int) -> np.ndarray:
     """Thresholds as 1, H·W or B·H·W values (the kernel's three layouts)."""
     c = c.detach()
     if c.numel() == 1:
@@ -224,8 +224,8 @@ def _crossing_step_cpu(
         _flat_np(sig_a),
         _flat_np(ref_a),
         _flat_np(d_b),
-        _threshold_np(c_on, B, H, W),
-        _threshold_np(c_off, B, H, W),
+        threshold_array(c_on, B, H, W),
+        threshold_array(c_off, B, H, W),
         times(t_a),
         times(t_b),
         times(dt),

@@ -330,7 +330,7 @@ class _Comparator(torch.autograd.Function):
 
 
 @dataclass
-class _PixelState:
+class PixelState:
     """Everything a pixel carries from one frame interval to the next (one simulation run).
 
     Streaming (:mod:`.stream`) keeps one of these across chunks of frames, so a clip simulated
@@ -351,7 +351,7 @@ class _PixelState:
     lost: float = 0.0
 
 
-def _init_state(
+def initial_pixel_state(
     L0: Any,
     SU0: Any,
     config: SensorConfig,
@@ -359,7 +359,7 @@ def _init_state(
     phase: Any,
     generator: Any,
     collect_events: bool,
-) -> _PixelState:
+) -> PixelState:
     """Pixel state at the first frame ``L0`` (B, H, W) (``SU0``: its settled surround or None)."""
     B, H, W = L0.shape
     dev = L0.device
@@ -379,13 +379,13 @@ def _init_state(
     # noise-event times draw from their own stream so event_list and event_frames agree
     time_g = effect_generator(config.seed, "shot_time", dev) if shot > 0 and collect_events else None
     sig_prev = (L0 - config.surround_weight * SU0) if transient else L0
-    return _PixelState(
+    return PixelState(
         c_on, c_off, eps, ref, L0 if config.has_photoreceptor else None, SU0, sig_prev, last_t, shot_g, time_g
     )
 
 
-def _advance(
-    st: _PixelState,
+def advance_pixels(
+    st: PixelState,
     Ls: Any,
     CI: Any,
     SU: Any,
@@ -396,7 +396,7 @@ def _advance(
     events: list,
     want_counts: bool = True,
     bar: Any = None,
-    pipe: _EventPipeline | None = None,
+    pipe: EventPipeline | None = None,
 ) -> list:
     """Step the pixels of ``st`` through frames ``Ls[0] → Ls[1] → ...`` (tuples of (B, H, W));
     ``Ls[0]`` is the frame the state is at. Returns the [on, off, on, off, ...] interval counts
@@ -404,15 +404,15 @@ def _advance(
     (:func:`.crossings.sort_interval`, or None) are appended to ``events``. ``tsd``: (B, len(Ls))
     float64 frame times. ``bar`` (tqdm, optional) advances by one per frame interval.
 
-    ``pipe``: a caller-owned :class:`_EventPipeline` (:mod:`.stream` keeps one across chunks);
+    ``pipe``: a caller-owned :class:`EventPipeline` (:mod:`.stream` keeps one across chunks);
     then ``events`` receives futures and the refractory losses stay in ``pipe`` (``take_lost``),
     for the caller to collect. Without it the event work of a CPU event list still runs on a
     pipeline of its own, collected before returning.
     """
     if pipe is not None:
         return _advance_steps(st, Ls, CI, SU, tsd, config, substeps, collect_events, events, want_counts, bar, pipe)
-    if collect_events and _pipelined(Ls[0].device, config, want_counts):
-        pipe = _EventPipeline()
+    if collect_events and events_pipelined(Ls[0].device, config, want_counts):
+        pipe = EventPipeline()
     first_event = len(events)
     try:
         frames = _advance_steps(st, Ls, CI, SU, tsd, config, substeps, collect_events, events, want_counts, bar, pipe)
@@ -420,15 +420,15 @@ def _advance(
             for i in range(first_event, len(events)):
                 events[i] = events[i].result()
             st.lost += pipe.take_lost()
-            st.noise_events += _noise_count(pipe.take_noise())
+            st.noise_events += noise_event_count(pipe.take_noise())
     finally:
         if pipe is not None:
             pipe.close()
     return frames
 
 
-def _noise_count(draws: list) -> int:
-    """Noise events in finished (or pending: waits) draw futures of :meth:`_EventPipeline.noise`."""
+def noise_event_count(draws: list) -> int:
+    """Noise events in finished (or pending: waits) draw futures of :meth:`EventPipeline.noise`."""
     return sum(len(a) + len(b) for a, b in (f.result() for f in draws))
 
 
@@ -444,7 +444,7 @@ def _submit(pool: Any, fn: Any, *args: Any) -> Future:
     return pool.submit(contextvars.copy_context().run, fn, *args)
 
 
-def _pipelined(device: Any, config: SensorConfig, want_counts: bool) -> bool:
+def events_pipelined(device: Any, config: SensorConfig, want_counts: bool) -> bool:
     """Whether event work can leave the stepping thread: CPU, and the refractory counts do not feed
     back into the frames."""
     return device.type == "cpu" and not (float(config.refractory_s) > 0 and want_counts)
@@ -467,7 +467,7 @@ class _InlineExecutor:
         pass
 
 
-class _EventPipeline:
+class EventPipeline:
     """Where the event-list work runs while the caller computes the next steps: worker threads (the
     compiled kernels release the GIL). ``emit`` runs step work (crossings, noise events) in
     submission order, since the refractory state passes from step to step; ``sort`` sorts an
@@ -620,7 +620,7 @@ def _compare(
     lp: Any,
     sur: Any,
     ref: Any,
-    st: _PixelState,
+    st: PixelState,
     dt_sub: Any,
     config: SensorConfig,
     fused: bool,
@@ -652,12 +652,12 @@ def _compare(
 
 
 def _call(fn: Any, *args: Any) -> Any:
-    """``fn(*args)`` (the in-process twin of :meth:`_EventPipeline.emit`)."""
+    """``fn(*args)`` (the in-process twin of :meth:`EventPipeline.emit`)."""
     return fn(*args)
 
 
 def _advance_steps(
-    st: _PixelState,
+    st: PixelState,
     Ls: Any,
     CI: Any,
     SU: Any,
@@ -668,9 +668,9 @@ def _advance_steps(
     events: list,
     want_counts: bool,
     bar: Any,
-    pipe: _EventPipeline | None,
+    pipe: EventPipeline | None,
 ) -> list:
-    """The stepping loop of :func:`_advance` (same arguments and result); with ``pipe`` the event
+    """The stepping loop of :func:`advance_pixels` (same arguments and result); with ``pipe`` the event
     work is submitted to it (each interval's sort future appended to ``events``), by
     :func:`.chunk_steps.advance_chunk` where :func:`.chunk_steps.chunk_applies`."""
     if pipe is not None and chunk_applies(Ls[0], substeps, config, SU is not None, collect_events, want_counts):
@@ -791,7 +791,9 @@ def _run(
     Ls = L.unbind(1)  # one unbind: its backward is one stack, not T full-size zero tensors
     CI = signal.cutoff_intensity.unbind(1) if config.has_photoreceptor else None
     SU = signal.surround.unbind(1) if transient else None
-    st = _init_state(Ls[0], SU[0] if SU is not None else None, config, thresholds, phase, generator, collect_events)
+    st = initial_pixel_state(
+        Ls[0], SU[0] if SU is not None else None, config, thresholds, phase, generator, collect_events
+    )
     if (
         float(config.refractory_s) > 0
         and not config.has_photoreceptor
@@ -800,7 +802,9 @@ def _run(
     ):
         config = config.replace(refractory_s=0.0)  # nothing can be lost: skip the refractory path
     events: list = []
-    frames = _advance(st, Ls, CI, SU, ts.to(dtype=torch.float64), config, substeps, collect_events, events, bar=bar)
+    frames = advance_pixels(
+        st, Ls, CI, SU, ts.to(dtype=torch.float64), config, substeps, collect_events, events, bar=bar
+    )
     out = torch.stack(frames, dim=1).view(B, T - 1, 2, H, W)
     ev = None
     if collect_events:
@@ -811,7 +815,7 @@ def _run(
     return out, info, ev
 
 
-def _plan_config(config: SensorConfig | None, plan: Any) -> SensorConfig:
+def config_from_plan(config: SensorConfig | None, plan: Any) -> SensorConfig:
     """The configuration to simulate with: the plan's (checked against ``config``) or ``config``."""
     if plan is not None:
         # checked by what it carries, not by importing plan.py (which imports this module)
@@ -829,10 +833,12 @@ def _plan_config(config: SensorConfig | None, plan: Any) -> SensorConfig:
     return config
 
 
-def _resolve(
+def resolve_inputs(
     video: Any, kernel: Any, timestamps_s: Any, config: SensorConfig | None, plan: Any
 ) -> tuple[Any, Any, Any, SensorConfig, list[int] | None, int]:
-    config = _plan_config(config, plan)
+    """The checked inputs of a simulation: ``(video, kernel tensor, frame times, config, planned
+    sub-steps or None, saturated pixel count)``, the configuration taken from ``plan`` if given."""
+    config = config_from_plan(config, plan)
     video = prepare_video(video)
     ts = prepare_timestamps(timestamps_s, video, config)
     video, saturated = saturate(video)
@@ -858,7 +864,7 @@ def _simulate(
     bar: Any = None,
 ) -> tuple[Any, SimulationInfo, EventList | None]:
     check_instance("generator", generator, torch.Generator, "a torch.Generator", nullable=True)
-    video, w, ts, config, subs, saturated = _resolve(video, kernel, timestamps_s, config, plan)
+    video, w, ts, config, subs, saturated = resolve_inputs(video, kernel, timestamps_s, config, plan)
     out = _simulate_resolved(video, w, ts, config, subs, plan, generator, collect_events, bar)
     out[1].saturated = saturated
     return out
@@ -879,7 +885,7 @@ def _simulate_resolved(
     step = None  # log-signal change allowed per sub-step (adaptive stepping)
     if subs is None:
         step = _adaptive_step(config, signal.surround is not None)
-        subs = _choose_substeps_for(signal.log_signal, config, signal.surround is not None)
+        subs = substeps_per_interval(signal.log_signal, config, signal.surround is not None)
     elif plan is not None:
         step = plan.step_log_units
     if step is not None and config.adaptive_region_px > 0 and max(subs) > 1:
@@ -899,7 +905,7 @@ def _adaptive_step(config: SensorConfig, transient: bool) -> float | None:
     return config.adaptive_fraction * _low_threshold(config)
 
 
-def _choose_substeps_for(log_signal: Any, config: SensorConfig, transient: bool) -> list[int]:
+def substeps_per_interval(log_signal: Any, config: SensorConfig, transient: bool) -> list[int]:
     """Sub-steps per interval of ``log_signal``: (B, T, H, W), or a list of its T (B, H, W) frames
     (stacked only when the adaptive rule reads them)."""
     step = _adaptive_step(config, transient)

@@ -9,7 +9,7 @@ chunk runs exactly the operations of a whole-clip :func:`~fsdvs_hw.sensor.event_
 :func:`~fsdvs_hw.sensor.event_frames` run, so the concatenated output equals the whole-clip output
 bit for bit at a fixed seed (tested). Memory: the chunk's frames, their filtered log signal and
 the per-pixel state, O(chunk × H × W) plus the kernel's FFT/conv workspace; an event-only CPU
-stream computes its events on worker threads (:class:`~fsdvs_hw.sensor.simulation.events._EventPipeline`)
+stream computes its events on worker threads (:class:`~fsdvs_hw.sensor.simulation.events.EventPipeline`)
 and keeps :data:`LOOKAHEAD_CHUNKS` more chunks in flight.
 
 Differences from the whole-clip functions (both stated where they matter):
@@ -46,16 +46,16 @@ from .config import SATURATION_INTENSITY, SensorConfig
 from .crossings import to_event_columns
 from .events import (
     EventList,
+    EventPipeline,
+    PixelState,
     SimulationInfo,
-    _advance,
-    _choose_substeps_for,
-    _EventPipeline,
-    _init_state,
-    _noise_count,
-    _pipelined,
-    _PixelState,
-    _plan_config,
+    advance_pixels,
+    config_from_plan,
+    events_pipelined,
+    initial_pixel_state,
+    noise_event_count,
     saturate,
+    substeps_per_interval,
 )
 from .filtering import filtered_log_signal, kernel_tensor
 from .pixel import threshold_maps
@@ -296,7 +296,7 @@ def simulate(
         )
     if not (events or event_frames):
         raise InputError("simulate: ask for events, event_frames or both")
-    config = _plan_config(config, plan)
+    config = config_from_plan(config, plan)
     subs_plan = list(plan.substeps) if plan is not None and plan.substeps else None
     return _stream(
         _frame_source(frames),
@@ -334,7 +334,7 @@ class _Submitted:
             state.lost += lost
             self.info.refractory_lost = int(round(self.info.refractory_lost + lost))
         if self.noise:
-            n_noise = _noise_count(self.noise)
+            n_noise = noise_event_count(self.noise)
             state.noise_events += n_noise
             self.info.noise_events += n_noise
         if isinstance(self.events, Future):
@@ -363,7 +363,7 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
     dtype = None
     shape: tuple[int, ...] | None = None
     w = None
-    state: _PixelState | None = None
+    state: PixelState | None = None
     prev = None  # (L, CI, SU, t) of the last frame of the previous chunk
     index = 0
     first_interval = 0
@@ -452,7 +452,7 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
             SU = list(sig.surround.unbind(1)) if sig.surround is not None else None
             if prev is None:
                 c_on, c_off = thresholds(Ls[0])
-                state = _init_state(
+                state = initial_pixel_state(
                     Ls[0], SU[0] if SU is not None else None, config, (c_on, c_off), None, None, want_events
                 )
             else:
@@ -475,14 +475,16 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
                     raise InputError(f"plan: made for {len(subs_plan) + 1} frames, the stream has more")
                 subs = subs_plan[first_interval : first_interval + n_int]
             else:
-                subs = _choose_substeps_for(Ls, config, sig.surround is not None)
+                subs = substeps_per_interval(Ls, config, sig.surround is not None)
             noise0, lost0 = state.noise_events, state.lost
             ev_parts: list = []
-            if pipe is None and want_events and not want_frames and _pipelined(video.device, config, False):
-                pipe = _EventPipeline(chunked=True, inline=B * shape[1] * shape[2] < INLINE_PIXELS)
+            if pipe is None and want_events and not want_frames and events_pipelined(video.device, config, False):
+                pipe = EventPipeline(chunked=True, inline=B * shape[1] * shape[2] < INLINE_PIXELS)
             ctx = torch.no_grad() if not want_frames else contextlib.nullcontext()
             with ctx:
-                out = _advance(state, Ls, CI, SU, tsd, config, subs, want_events, ev_parts, want_frames, pipe=pipe)
+                out = advance_pixels(
+                    state, Ls, CI, SU, tsd, config, subs, want_events, ev_parts, want_frames, pipe=pipe
+                )
             frames = torch.stack(out, dim=1).view(B, n_int, 2, *shape[1:]) if want_frames else None
             if pipe is not None and want_events:  # the columns too are built on the worker
                 ev_parts = pipe.columns(ev_parts, shape[1], shape[2], B)
