@@ -22,7 +22,8 @@ _CKPT = shipped_path("kernels", "learned_detection_7x7.safetensors")
 
 def _detections(n: int) -> tuple[np.ndarray, ...]:
     from fsdvs_hw.kernels import load_kernel
-    from fsdvs_hw.tasks.learn import evaluate_kernel, heldout_targets, load_checkpoint
+    from fsdvs_hw.tasks.checkpoints import load_checkpoint
+    from fsdvs_hw.tasks.learn import evaluate_kernel, heldout_targets
 
     prov, _, _ = load_checkpoint(_CKPT)
     ev = evaluate_kernel(load_kernel(_CKPT.with_suffix(".json")), "detection", _CKPT, n_test=n, keep_predictions=True)

@@ -54,14 +54,11 @@ def _predictions(task: str, checkpoint: Path, n_test: int):
 
     from fsdvs_hw.scenes.synthetic import SceneConfig
     from fsdvs_hw.sensor import SensorConfig
-    from fsdvs_hw.tasks.evaluators import get_evaluator
-    from fsdvs_hw.tasks.learn import (
-        TrainingSettings,
-        _cat_predictions,
-        _dataset,
-        _network_input,
-        load_checkpoint,
-    )
+    from fsdvs_hw.tasks.checkpoints import load_checkpoint
+    from fsdvs_hw.tasks.evaluators import concat_predictions, get_evaluator
+    from fsdvs_hw.tasks.event_inputs import network_input
+    from fsdvs_hw.tasks.learn import TrainingSettings
+    from fsdvs_hw.tasks.synthetic_data import synthetic_dataset
 
     ev = get_evaluator(task)
     prov, state, kernel = load_checkpoint(checkpoint)
@@ -70,16 +67,16 @@ def _predictions(task: str, checkpoint: Path, n_test: int):
     net.eval()
     scene = SceneConfig.from_dict(prov["scene"])
     sensor = SensorConfig(**prov["sensor"])
-    video, targets = _dataset(
+    video, targets = synthetic_dataset(
         scene, n_test, int(prov["test_seed"]), task, TrainingSettings(**{"dtype": "float64", **prov["settings"]}).dtype
     )
     k = torch.as_tensor(np.array(kernel.taps))
     with torch.no_grad():
         preds = [
-            ev.predict(net(_network_input(video[s : s + 64], k, sensor, scene.timestamps_s)))
+            ev.predict(net(network_input(video[s : s + 64], k, sensor, scene.timestamps_s)))
             for s in range(0, n_test, 64)
         ]
-    return ev, _cat_predictions(preds), targets, kernel
+    return ev, concat_predictions(preds), targets, kernel
 
 
 def bench_tasks(*, quick: bool = False) -> BenchRun:

@@ -12,8 +12,9 @@ import torch
 from fsdvs_hw.errors import InputError, KernelError
 from fsdvs_hw.kernels import Kernel, load_kernel, reference_kernel
 from fsdvs_hw.scenes.synthetic import SceneConfig
+from fsdvs_hw.tasks.checkpoints import load_checkpoint
 from fsdvs_hw.tasks.evaluators import EVALUATORS, DetectionEvaluator, get_evaluator, register_evaluator
-from fsdvs_hw.tasks.learn import TrainingSettings, evaluate_kernel, learn_kernel, load_checkpoint
+from fsdvs_hw.tasks.learn import TrainingSettings, evaluate_kernel, learn_kernel
 
 TINY = TrainingSettings(epochs_frozen=2, epochs_joint=3, batch_size=16, width=8, lr_filter=2e-2)
 TINY_SCENE = {
@@ -161,8 +162,8 @@ def test_bad_input(trained, tmp_path):
 
 def _mismatched(trained, tmp_path):
     """A recognition checkpoint whose weights were swapped for another width's."""
-    from safetensors.torch import load_file, save_file
     from safetensors import safe_open
+    from safetensors.torch import load_file, save_file
 
     src = trained["recognition"].paths["checkpoint"]
     with safe_open(str(src), framework="pt") as f:

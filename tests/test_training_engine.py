@@ -23,14 +23,9 @@ from test_dataset_training import PolarityClips  # noqa: E402
 from fsdvs_hw.kernels import reference_kernel  # noqa: E402
 from fsdvs_hw.realise.registry import fit_realisation  # noqa: E402
 from fsdvs_hw.scenes.synthetic import SceneConfig  # noqa: E402
+from fsdvs_hw.tasks.checkpoints import load_checkpoint  # noqa: E402
 from fsdvs_hw.tasks.dataset_training import disjoint_train_indices, train_on_dataset  # noqa: E402
-from fsdvs_hw.tasks.learn import (  # noqa: E402
-    TrainingSettings,
-    evaluate_kernel,
-    finetune_network,
-    learn_kernel,
-    load_checkpoint,
-)
+from fsdvs_hw.tasks.learn import TrainingSettings, evaluate_kernel, finetune_network, learn_kernel  # noqa: E402
 
 REL = 1e-6
 REC = SceneConfig(height_px=16, width_px=16, radius_px=(3.0, 4.0), n_frames=4, motion="classes", edge_contrast=0.3)

@@ -241,7 +241,7 @@ def clip_evidence(
 
 @functools.lru_cache(maxsize=32)
 def _training_kernel(checkpoint: str) -> tuple[dict[str, Any], Kernel]:
-    from ..tasks.learn import load_checkpoint
+    from ..tasks.checkpoints import load_checkpoint
 
     provenance, _, kernel = load_checkpoint(checkpoint)
     return provenance, kernel

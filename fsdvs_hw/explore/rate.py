@@ -29,7 +29,6 @@ retrained-network protocol (a network per kernel and threshold) is what removes 
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from collections.abc import Callable, Mapping, Sequence
@@ -40,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..fingerprints import fingerprint, text_fingerprint
 from ..kernels import Kernel
 from ..paths import write_output
 from ..progress import progress_bar
@@ -123,6 +123,31 @@ class RatePoint:
             "sensor_seeds": list(self.sensor_seeds),
             "seconds": self.seconds,
         }
+
+    @classmethod
+    def from_evidence(cls, threshold: float, evidence: Sequence[Any]) -> RatePoint:
+        """The point of one threshold from each network's scores there.
+
+        Parameters
+        ----------
+        threshold : float
+            ON = OFF contrast threshold (log units).
+        evidence : sequence of ClipEvidence
+            One per network (:func:`fsdvs_hw.explore.paired.clip_evidence`), with per-clip event rates.
+
+        Returns
+        -------
+        RatePoint
+            ``seconds`` is the evaluations' summed wall time (s).
+        """
+        return cls(
+            threshold=threshold,
+            metrics=tuple(e.metric for e in evidence),
+            clip_rates=np.stack([np.asarray(e.clip_event_rates, dtype=np.float64) for e in evidence]),
+            test_seeds=tuple(e.test_seed for e in evidence),
+            sensor_seeds=tuple(e.sensor_seed for e in evidence),
+            seconds=float(sum(e.seconds for e in evidence)),
+        )
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> RatePoint:
@@ -507,6 +532,170 @@ def _paired(curve: RateCurve, reference: RateCurve) -> None:
         )
 
 
+def _check_curve_length(curve: RateCurve, interpolation: str) -> None:
+    """Refuse a curve with too few points for ``interpolation`` (2, or 3 for ``"quadratic"``)."""
+    if len(curve.points) < (3 if interpolation == "quadratic" else 2):
+        raise InputError(
+            f"matched_rate_difference: the curve of {curve.kernel_name!r} has {len(curve.points)} "
+            f"point(s); allowed: at least {3 if interpolation == 'quadratic' else 2} thresholds "
+            f"(interpolation={interpolation!r})"
+        )
+
+
+def _falls_strictly(rates: np.ndarray) -> bool:
+    """Whether event rates (events/pixel/s, in increasing threshold) are all > 0 and strictly falling."""
+    return not (np.any(rates <= 0) or not np.all(np.diff(rates) < 0))
+
+
+def _resampled_values(
+    curve: RateCurve, reference_point: RatePoint, n_resamples: int, rng: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The reference point's and the curve's metric and event rate in each bootstrap resample.
+
+    Parameters
+    ----------
+    curve : RateCurve
+        Whose (network, clips) clusters are resampled (:meth:`RateCurve._weights`).
+    reference_point : RatePoint
+        The reference at its threshold, paired with ``curve``.
+    n_resamples : int
+    rng : int or numpy Generator
+
+    Returns
+    -------
+    reference_metrics, reference_rates : ndarray (B,)
+        Metric (fraction) and event rate (events/pixel/s) of the reference.
+    curve_metrics, curve_rates : ndarray (B, P)
+        The same at each point of ``curve``, in increasing threshold.
+    """
+    ws, wc = curve._weights(n_resamples, rng)
+    ref_m, ref_r = _point_values(reference_point, ws, wc)
+    vals = [_point_values(p, ws, wc) for p in curve.points]
+    cm = np.stack([v[0] for v in vals], axis=1)
+    cr = np.stack([v[1] for v in vals], axis=1)
+    return ref_m, ref_r, cm, cr
+
+
+def _unreadable_curve(
+    curve: RateCurve, reference: RateCurve, reference_threshold: float, reference_rate: float, rates: np.ndarray
+) -> str | None:
+    """Why ``curve`` cannot be read at the reference's event rate (a refusal status), or None.
+
+    Parameters
+    ----------
+    curve, reference : RateCurve
+    reference_threshold : float
+        Log units.
+    reference_rate : float
+        The reference's event rate at that threshold (events/pixel/s).
+    rates : ndarray (P,)
+        The curve's event rates (events/pixel/s), in increasing threshold.
+
+    Returns
+    -------
+    str or None
+        The curve does not fall strictly with threshold, or the reference rate lies outside it.
+    """
+    if not _falls_strictly(rates):
+        return (
+            f"refused: the rate curve of {curve.kernel_name!r} does not fall strictly "
+            f"with threshold (rates {np.round(rates, 6).tolist()} {EVENT_RATE_UNIT} at "
+            f"thresholds {list(curve.thresholds)})"
+        )
+    if not rates.min() <= reference_rate <= rates.max():
+        return (
+            f"refused: the reference rate {reference_rate:.4g} {EVENT_RATE_UNIT} ({reference.kernel_name} at "
+            f"threshold {reference_threshold:g}) lies outside the measured rates of {curve.kernel_name!r} "
+            f"[{rates.min():.4g}, {rates.max():.4g}] (thresholds {min(curve.thresholds):g}…"
+            f"{max(curve.thresholds):g}); extend its thresholds instead of extrapolating"
+        )
+    return None
+
+
+def _same_threshold_difference(
+    curve: RateCurve,
+    reference_metric: float,
+    reference_resamples: np.ndarray,
+    curve_resamples: np.ndarray,
+    reference_threshold: float,
+    alpha: float,
+) -> dict[str, Any]:
+    """``raw_estimate``, ``raw_low``, ``raw_high`` of :class:`MatchedRateDifference`.
+
+    Parameters
+    ----------
+    curve : RateCurve
+    reference_metric : float
+        The reference's metric at ``reference_threshold`` (fraction).
+    reference_resamples : ndarray (B,)
+        That metric in each bootstrap resample.
+    curve_resamples : ndarray (B, P)
+        The curve's metric at each of its points in each resample.
+    reference_threshold : float
+        Log units.
+    alpha : float
+        Each tail's probability of the CI.
+
+    Returns
+    -------
+    dict
+        The difference at the curve's own point at ``reference_threshold`` and its percentile CI
+        (metric units); NaN when the curve has no point there.
+    """
+    nan = math.nan
+    raw = (nan, nan, nan)
+    if any(abs(t - reference_threshold) <= 1e-12 for t in curve.thresholds):
+        j = [abs(t - reference_threshold) <= 1e-12 for t in curve.thresholds].index(True)
+        d = reference_resamples - curve_resamples[:, j]
+        metrics = np.array([p.metric for p in curve.points])
+        raw = (reference_metric - metrics[j], float(np.quantile(d, alpha)), float(np.quantile(d, 1 - alpha)))
+    return dict(raw_estimate=raw[0], raw_low=raw[1], raw_high=raw[2])
+
+
+def _resampled_matched_differences(
+    reference_metrics: np.ndarray,
+    reference_rates: np.ndarray,
+    curve_metrics: np.ndarray,
+    curve_rates: np.ndarray,
+    interpolation: str,
+) -> np.ndarray:
+    """The matched-rate difference in each bootstrap resample.
+
+    Parameters
+    ----------
+    reference_metrics, reference_rates : ndarray (B,)
+        The reference's metric (fraction) and event rate (events/pixel/s) in each resample.
+    curve_metrics, curve_rates : ndarray (B, P)
+        The curve's metric and event rate at each point (increasing threshold) in each resample.
+    interpolation : str
+        As :func:`interpolate_log_rate`.
+
+    Returns
+    -------
+    ndarray (B,)
+        NaN where the resampled curve does not fall strictly or the resampled reference rate lies
+        outside it.
+    """
+    boot = np.full(reference_metrics.shape[0], math.nan)
+    for b in range(reference_metrics.shape[0]):
+        rb = curve_rates[b]
+        if not _falls_strictly(rb):
+            continue
+        boot[b] = reference_metrics[b] - interpolate_log_rate(
+            rb, curve_metrics[b], float(reference_rates[b]), interpolation=interpolation
+        )
+    return boot
+
+
+def _refused(status: str, fields: Mapping[str, Any], **known: Any) -> MatchedRateDifference:
+    """A :class:`MatchedRateDifference` refused with ``status``: the numbers not in ``known`` are NaN."""
+    nan = math.nan
+    numbers: dict[str, Any] = dict(
+        estimate=nan, low=nan, high=nan, matched_threshold=nan, inside_range=False, fraction_outside=nan
+    )
+    return MatchedRateDifference(status=status, **{**numbers, **known}, **fields)
+
+
 def matched_rate_difference(
     curve: RateCurve,
     reference: RateCurve,
@@ -551,23 +740,13 @@ def matched_rate_difference(
     _check_confidence(confidence)
     _check_interpolation(interpolation)
     _paired(curve, reference)
-    if len(curve.points) < (3 if interpolation == "quadratic" else 2):
-        raise InputError(
-            f"matched_rate_difference: the curve of {curve.kernel_name!r} has {len(curve.points)} "
-            f"point(s); allowed: at least {3 if interpolation == 'quadratic' else 2} thresholds "
-            f"(interpolation={interpolation!r})"
-        )
+    _check_curve_length(curve, interpolation)
     ref_point = reference.point(reference_threshold)
-    ws, wc = curve._weights(n_resamples, rng)
-    ref_m, ref_r = _point_values(ref_point, ws, wc)
-    vals = [_point_values(p, ws, wc) for p in curve.points]
-    cm = np.stack([v[0] for v in vals], axis=1)  # (B, P), increasing threshold
-    cr = np.stack([v[1] for v in vals], axis=1)
+    ref_m, ref_r, cm, cr = _resampled_values(curve, ref_point, n_resamples, rng)
     rates = np.array([p.rate for p in curve.points])
     metrics = np.array([p.metric for p in curve.points])
     alpha = (1.0 - confidence) / 2.0
-    nan = math.nan
-    base: dict[str, Any] = dict(
+    fields: dict[str, Any] = dict(
         n_clips=curve.n_clips,
         n_networks=curve.n_networks,
         confidence=confidence,
@@ -581,71 +760,23 @@ def matched_rate_difference(
         reference_rate_low=float(np.quantile(ref_r, alpha)),
         reference_rate_high=float(np.quantile(ref_r, 1 - alpha)),
         curve_rate_range=(float(rates.min()), float(rates.max())),
+        **_same_threshold_difference(curve, ref_point.metric, ref_m, cm, reference_threshold, alpha),
     )
-    raw = (nan, nan, nan)
-    if any(abs(t - reference_threshold) <= 1e-12 for t in curve.thresholds):
-        j = [abs(t - reference_threshold) <= 1e-12 for t in curve.thresholds].index(True)
-        d = ref_m - cm[:, j]
-        raw = (ref_point.metric - metrics[j], float(np.quantile(d, alpha)), float(np.quantile(d, 1 - alpha)))
-    raw_d: dict[str, Any] = dict(raw_estimate=raw[0], raw_low=raw[1], raw_high=raw[2])
-    if np.any(rates <= 0) or not np.all(np.diff(rates) < 0):
-        return MatchedRateDifference(
-            status=f"refused: the rate curve of {curve.kernel_name!r} does not fall strictly "
-            f"with threshold (rates {np.round(rates, 6).tolist()} {EVENT_RATE_UNIT} at "
-            f"thresholds {list(curve.thresholds)})",
-            estimate=nan,
-            low=nan,
-            high=nan,
-            matched_threshold=nan,
-            inside_range=False,
-            fraction_outside=nan,
-            **raw_d,
-            **base,
-        )
-    inside = bool(rates.min() <= ref_point.rate <= rates.max())
-    if not inside:
-        return MatchedRateDifference(
-            status=(
-                f"refused: the reference rate {ref_point.rate:.4g} {EVENT_RATE_UNIT} ({reference.kernel_name} at "
-                f"threshold {reference_threshold:g}) lies outside the measured rates of {curve.kernel_name!r} "
-                f"[{rates.min():.4g}, {rates.max():.4g}] (thresholds {min(curve.thresholds):g}…"
-                f"{max(curve.thresholds):g}); extend its thresholds instead of extrapolating"
-            ),
-            estimate=nan,
-            low=nan,
-            high=nan,
-            matched_threshold=nan,
-            inside_range=False,
-            fraction_outside=nan,
-            **raw_d,
-            **base,
-        )
-    how = dict(interpolation=interpolation)
-    estimate = ref_point.metric - interpolate_log_rate(rates, metrics, ref_point.rate, **how)
-    matched_t = interpolate_log_rate(rates, np.array(curve.thresholds), ref_point.rate, **how)
-    boot = np.full(ws.shape[0], nan)
-    for b in range(ws.shape[0]):
-        rb = cr[b]
-        if np.any(rb <= 0) or not np.all(np.diff(rb) < 0):
-            continue
-        boot[b] = ref_m[b] - interpolate_log_rate(rb, cm[b], float(ref_r[b]), **how)
+    unreadable = _unreadable_curve(curve, reference, reference_threshold, ref_point.rate, rates)
+    if unreadable is not None:
+        return _refused(unreadable, fields)
+    estimate = ref_point.metric - interpolate_log_rate(rates, metrics, ref_point.rate, interpolation=interpolation)
+    matched_t = interpolate_log_rate(rates, np.array(curve.thresholds), ref_point.rate, interpolation=interpolation)
+    boot = _resampled_matched_differences(ref_m, ref_r, cm, cr, interpolation)
     outside = float(np.mean(~np.isfinite(boot)))
     if outside > alpha:
-        return MatchedRateDifference(
-            status=(
-                f"refused: in {outside:.1%} of the bootstrap resamples the reference rate fell outside the "
-                f"resampled curve of {curve.kernel_name!r} (allowed: {alpha:.1%}); the CI would be cut; add "
-                "thresholds beyond the reference rate"
-            ),
-            estimate=estimate,
-            low=nan,
-            high=nan,
-            matched_threshold=matched_t,
-            inside_range=True,
-            fraction_outside=outside,
-            **raw_d,
-            **base,
+        status = (
+            f"refused: in {outside:.1%} of the bootstrap resamples the reference rate fell outside the "
+            f"resampled curve of {curve.kernel_name!r} (allowed: {alpha:.1%}); the CI would be cut; add "
+            "thresholds beyond the reference rate"
         )
+        known = dict(estimate=estimate, matched_threshold=matched_t, inside_range=True, fraction_outside=outside)
+        return _refused(status, fields, **known)
     lo, hi = np.quantile(boot[np.isfinite(boot)], [alpha, 1 - alpha])
     return MatchedRateDifference(
         status="ok",
@@ -655,15 +786,14 @@ def matched_rate_difference(
         matched_threshold=float(matched_t),
         inside_range=True,
         fraction_outside=outside,
-        **raw_d,
-        **base,
+        **fields,
     )
 
 
 # --------------------------------------------------------------------------- measuring a curve
 def _sensor_at(checkpoint: Path, design_sensor: Mapping[str, Any] | None, threshold: float) -> Any:
     """The simulator settings of one network at ``threshold`` (ON = OFF), the design's sensor path."""
-    from ..tasks.learn import load_checkpoint
+    from ..tasks.checkpoints import load_checkpoint
 
     if design_sensor is None:
         stored = dict(load_checkpoint(checkpoint)[0].get("sensor", {}))
@@ -672,30 +802,47 @@ def _sensor_at(checkpoint: Path, design_sensor: Mapping[str, Any] | None, thresh
     return cfg
 
 
-def _fingerprint(
+def _point_key(
     kernel: Kernel | None,
     task: str,
-    paths: Sequence[Path],
-    n_test: int | None,
+    networks: Mapping[str, Any],
     test_clips: str,
     design_sensor: Mapping[str, Any] | None,
     threshold: float,
 ) -> str:
+    """The fingerprint under which a measured :class:`RatePoint` is saved and found again.
+
+    Parameters
+    ----------
+    kernel : Kernel or None
+        None: the 1×1 delta of a plain DVS.
+    task : str
+    networks : mapping
+        What names the networks and their clips: ``checkpoints`` and ``n_test`` (fixed shipped
+        networks) or ``user_task`` (a user-data table).
+    test_clips : str
+    design_sensor : mapping or None
+        The design's sensor settings, thresholds aside.
+    threshold : float
+        ON = OFF contrast threshold (log units).
+
+    Returns
+    -------
+    str
+        16 hex characters.
+    """
     taps = [[1.0]] if kernel is None else np.asarray(kernel.taps).round(15).tolist()
-    blob = json.dumps(
+    return fingerprint(
         {
             "taps": taps,
             "task": task,
-            "checkpoints": [p.name for p in paths],
-            "n_test": n_test,
+            **networks,
             "test_clips": test_clips,
             "sensor": dict(design_sensor) if design_sensor else None,
             "threshold": threshold,
         },
-        sort_keys=True,
-        default=str,
+        length=16,
     )
-    return hashlib.sha1(blob.encode()).hexdigest()[:16]
 
 
 def check_thresholds(thresholds: Sequence[float]) -> tuple[float, ...]:
@@ -782,9 +929,10 @@ def rate_curve(
         raise InputError(f"rate_curve: test_clips={test_clips!r}; allowed: 'per_network', 'shared'")
     name = label or ("w/o" if kernel is None else kernel.name)
 
-    def fingerprint(t: float) -> str:
-        fp = _fingerprint(kernel, task, paths, n_test, test_clips, design_sensor, t)
-        return fp if events_fn is None else hashlib.sha1(f"{fp}|{events_fn!r}".encode()).hexdigest()[:16]
+    def point_key(t: float) -> str:
+        networks = {"checkpoints": [p.name for p in paths], "n_test": n_test}
+        fp = _point_key(kernel, task, networks, test_clips, design_sensor, t)
+        return fp if events_fn is None else text_fingerprint(f"{fp}|{events_fn!r}", length=16)
 
     def evaluate(t: float, bar: Any) -> list[Any]:
         evid = []
@@ -805,7 +953,7 @@ def rate_curve(
         return evid
 
     points, metric_name = _measure_points(
-        name, task, ts, fingerprint, evaluate, len(paths), cache_dir, progress, on_point
+        name, task, ts, point_key, evaluate, len(paths), cache_dir, progress, on_point
     )
     return RateCurve(
         kernel_name=name,
@@ -821,7 +969,7 @@ def _measure_points(
     name: str,
     task: str,
     ts: Sequence[float],
-    fingerprint: Callable[[float], str],
+    point_key: Callable[[float], str],
     evaluate: Callable[[float, Any], list[Any]],
     n_networks: int,
     cache_dir: str | Path | None,
@@ -829,7 +977,7 @@ def _measure_points(
     on_point: Callable[[RatePoint], None] | None,
 ) -> tuple[list[RatePoint], str]:
     """Each threshold's :class:`RatePoint` from ``evaluate(t, bar)`` (one ClipEvidence per network), or
-    from ``cache_dir`` when a saved point has ``fingerprint(t)``; finished points are saved there."""
+    from ``cache_dir`` when a saved point has ``point_key(t)``; finished points are saved there."""
     cache = Path(cache_dir) if cache_dir is not None else None
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
@@ -838,7 +986,7 @@ def _measure_points(
     metric_name = ""
     with progress_bar(total=len(ts) * n_networks, desc=f"rate curve {name}", unit="eval", progress=progress) as bar:
         for t in ts:
-            fp = fingerprint(t)
+            fp = point_key(t)
             file = cache / f"{slug}_t{t:g}.json" if cache is not None else None
             if file is not None and file.is_file():
                 stored = json.loads(file.read_text())
@@ -854,14 +1002,7 @@ def _measure_points(
             if any(e.clip_event_rates is None for e in evid):
                 raise InputError(f"rate_curve: the evaluator returned no per-clip event rates for {name!r}")
             metric_name = evid[0].metric_name
-            point = RatePoint(
-                threshold=t,
-                metrics=tuple(e.metric for e in evid),
-                clip_rates=np.stack([np.asarray(e.clip_event_rates, dtype=np.float64) for e in evid]),
-                test_seeds=tuple(e.test_seed for e in evid),
-                sensor_seeds=tuple(e.sensor_seed for e in evid),
-                seconds=float(sum(e.seconds for e in evid)),
-            )
+            point = RatePoint.from_evidence(t, evid)
             if file is not None:
                 write_output(
                     file,
@@ -947,21 +1088,8 @@ def dataset_rate_curve(
     name = label or ("w/o" if kernel is None else kernel.name)
     recorded = {**entry, "dataset": {k: v for k, v in entry["dataset"].items() if k != "cache"}}
 
-    def fingerprint(t: float) -> str:
-        taps = [[1.0]] if kernel is None else np.asarray(kernel.taps).round(15).tolist()
-        blob = json.dumps(
-            {
-                "taps": taps,
-                "task": task,
-                "user_task": recorded,
-                "test_clips": test_clips,
-                "sensor": dict(design_sensor) if design_sensor else None,
-                "threshold": t,
-            },
-            sort_keys=True,
-            default=str,
-        )
-        return hashlib.sha1(blob.encode()).hexdigest()[:16]
+    def point_key(t: float) -> str:
+        return _point_key(kernel, task, {"user_task": recorded}, test_clips, design_sensor, t)
 
     def evaluate(t: float, bar: Any) -> list[Any]:
         ev, _ = dataset_evidence(
@@ -975,7 +1103,7 @@ def dataset_rate_curve(
         bar.update(1)
         return [ev]
 
-    points, metric_name = _measure_points(name, task, ts, fingerprint, evaluate, 1, cache_dir, progress, None)
+    points, metric_name = _measure_points(name, task, ts, point_key, evaluate, 1, cache_dir, progress, None)
     return RateCurve(
         kernel_name=name,
         task=task,

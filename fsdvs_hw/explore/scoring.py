@@ -50,7 +50,7 @@ from ..kernels import Kernel
 from ..realise.base import Realisation, realised_kernel_error
 from ..realise.registry import fit_realisation as _fit_registered
 from ..realise.registry import realisation_names
-from ..records import Cost, Score, TaskScores, WallTimes
+from ..records import Cost, Score, ScoredPoint, TaskScores, WallTimes
 from ..spectra import spectral_summary
 
 __all__ = [
@@ -144,14 +144,14 @@ def task_sensor(checkpoint: Path, design_sensor: Mapping[str, Any] | None) -> tu
     """
     if design_sensor is None:
         try:
-            from ..tasks.learn import load_checkpoint
+            from ..tasks.checkpoints import load_checkpoint
 
             settings = dict(load_checkpoint(checkpoint)[0].get("sensor", {}))
         except InputError:  # the evaluator itself will say what is wrong
             return None, {"source": "checkpoint"}
         return None, {"source": "checkpoint", **{k: settings.get(k) for k in DESIGN_SENSOR_FIELDS}}
     from ..sensor import SensorConfig
-    from ..tasks.learn import load_checkpoint
+    from ..tasks.checkpoints import load_checkpoint
 
     settings = dict(load_checkpoint(checkpoint)[0].get("sensor", {}))
 
@@ -620,18 +620,37 @@ EVIDENCE_FIELDS = frozenset({"evidence", "clip_event_rates"})
 
 
 def with_paired_losses(
-    points: Sequence[Mapping[str, Any]], *, keep_evidence: bool = False, **options: Any
-) -> list[dict[str, Any]]:
-    """Copies of ``points`` with ``"paired_loss"`` (:func:`paired_losses`) and, unless asked, the
-    bulky per-clip fields (:data:`EVIDENCE_FIELDS`) removed (what the report and ``scores.json`` carry)."""
-    points = list(points)
-    losses = paired_losses(points, **options)
+    points: Sequence[ScoredPoint], *, keep_evidence: bool = False, **options: Any
+) -> list[ScoredPoint]:
+    """Copies of ``points`` with their paired losses (:func:`paired_losses`) and, unless asked, the
+    bulky per-clip fields (:data:`EVIDENCE_FIELDS`) removed (what the report and ``scores.json`` carry).
+
+    Parameters
+    ----------
+    points : sequence of ScoredPoint
+        Stored points with their per-clip evidence.
+    keep_evidence : bool
+        Keep the per-clip fields in the copies.
+    **options
+        :func:`paired_losses`'s bootstrap settings.
+
+    Returns
+    -------
+    list of ScoredPoint
+        The points, each with :attr:`~fsdvs_hw.records.ScoredPoint.paired_loss` (``{"status":
+        "not scored"}`` for a point :func:`paired_losses` gave none).
+    """
+    rows = [p.to_dict() for p in points]
+    losses = paired_losses(rows, **options)
     out = []
-    for p in points:
-        q = dict(p)
-        q["paired_loss"] = losses.get(p["key"], {"status": "not scored"})
-        if not keep_evidence and isinstance(q.get("result"), Mapping) and isinstance(q["result"].get("tasks"), Mapping):
-            res = dict(q["result"])
+    for row in rows:
+        row["paired_loss"] = losses.get(row["key"], {"status": "not scored"})
+        if (
+            not keep_evidence
+            and isinstance(row.get("result"), Mapping)
+            and isinstance(row["result"].get("tasks"), Mapping)
+        ):
+            res = dict(row["result"])
             res["tasks"] = {
                 t: (
                     {
@@ -643,6 +662,6 @@ def with_paired_losses(
                 )
                 for t, tracks in res["tasks"].items()
             }
-            q["result"] = res
-        out.append(q)
+            row["result"] = res
+        out.append(ScoredPoint.from_dict(row))
     return out

@@ -43,7 +43,8 @@ def run_pilot(task: str, realisation: str, seeds: list[int], out: Path, *, n_tes
     from ..realise.registry import fit_realisation, get_realisation
     from ..stats import difference_ci
     from ..tasks import get_evaluator
-    from ..tasks.learn import heldout_targets, learn_kernel, load_checkpoint
+    from ..tasks.checkpoints import load_checkpoint
+    from ..tasks.learn import heldout_targets, learn_kernel
 
     # every input checked before the first (minutes-long) training
     ev = get_evaluator(task)

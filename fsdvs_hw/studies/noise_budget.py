@@ -99,7 +99,8 @@ def noise_budget(
     from ..sensor import SensorConfig
     from ..sensor.simulation.photon_noise import PhotonNoise
     from ..tasks import get_evaluator
-    from ..tasks.learn import _dataset, load_checkpoint
+    from ..tasks.checkpoints import load_checkpoint
+    from ..tasks.synthetic_data import synthetic_dataset
 
     ts_list = check_thresholds(thresholds)
     if isinstance(n_test, bool) or not isinstance(n_test, int) or not 1 <= n_test <= 100_000:
@@ -107,7 +108,7 @@ def noise_budget(
     photon = PhotonNoise(photoelectrons_full_scale=photoelectrons_full_scale, seed=seed)
     prov = load_checkpoint(checkpoint)[0]
     scene = SceneConfig.from_dict(prov["scene"])
-    video, _ = _dataset(scene, n_test, int(prov["test_seed"]), get_evaluator(task).name, "float64")
+    video, _ = synthetic_dataset(scene, n_test, int(prov["test_seed"]), get_evaluator(task).name, "float64")
     static = video[:, :1].expand_as(video).contiguous()
     ts = scene.timestamps_s
     taps = torch.as_tensor(np.ones((1, 1)) if kernel is None else np.array(kernel.taps, dtype=np.float64))

@@ -247,7 +247,7 @@ def _photon_noise(options: RateOptions, design: Any, checkpoint: Path) -> Any:
     if options.illuminance_lux is None:
         return None
     from ..sensor.simulation.photon_noise import PhotonNoise, photoelectrons_per_frame
-    from ..tasks.learn import load_checkpoint
+    from ..tasks.checkpoints import load_checkpoint
 
     fps = float(load_checkpoint(checkpoint)[0]["scene"].get("frame_rate_hz", 100.0))
     n = photoelectrons_per_frame(
