@@ -31,7 +31,7 @@ import numpy as np
 import pytest
 
 from fsdvs_hw.kernels import Kernel, reference_kernel
-from fsdvs_hw.records import Score
+from fsdvs_hw.records import Score, ScoredPoint
 from fsdvs_hw.realise import registry
 from _schema_view import view
 from fsdvs_hw.realise.registry import (
@@ -55,8 +55,9 @@ CHEAP = {
     "box": {"width": 3},
 }
 
-#: Non-default values of options a generic rule cannot make up (structured tables).
-SAMPLES = {("mesh", "bounds"): {"lambda_px": [0.2, 15.0]}}
+#: Non-default values of options a generic rule cannot make up (structured tables; a range that
+#: depends on the target: the fit window holds the 7x7 target of a design file).
+SAMPLES = {("mesh", "bounds"): {"lambda_px": [0.2, 15.0]}, ("mesh", "fit_size"): 9}
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -278,7 +279,7 @@ def test_a_score_carries_every_field_the_tables_read(name, target):
     assert rec["kind"] == spec.record_kind
     assert all(set(c) >= {"value", "unit"} and c["unit"] in COST_UNITS for c in rec["cost"].values())
     assert Kernel.from_dict(rec["kernel"]).pitch_m == pytest.approx(PITCH_M)
-    [row] = score_rows([{"key": "k", "realisation": name, "params": {}, "status": "ok", "result": rec}])
+    [row] = score_rows([ScoredPoint("k", name, {}, "ok", score=Score.from_dict(rec))])
     assert row["kernel_error"] == pytest.approx(rec["kernel_error"])
     assert row["csf_agreement"] == pytest.approx(rec["csf"]["mannos_sakrison_1974"]["correlation"])
     assert row["fit_s"] == 0.5
@@ -367,5 +368,89 @@ def test_spawned_workers_know_a_plugin_registered_in_the_parent(tmp_path):
     )
     summary, rows = run_design(d, tmp_path / "store.sqlite", workers=2, progress=False)
     assert summary.executor.startswith("2 local processes")
-    assert summary.statuses == {"ok": 3}, [r.get("reason") for r in rows]
-    assert sorted(r["result"]["cost"]["box_width"]["value"] for r in rows) == [1, 3, 5]
+    assert summary.statuses == {"ok": 3}, [r.reason for r in rows]
+    assert sorted(r.score.cost.value("box_width") for r in rows if r.score is not None) == [1, 3, 5]
+
+
+# --------------------------------------------------------------------------------- accepted ranges
+def _bound_probes(opt) -> list:
+    """Values at and just beyond each bound of an option (from its model's metadata), each of its
+    choices and one value outside them, and both booleans: a new option is probed without an edit."""
+    values: list = []
+    kinds = set(opt.kinds)
+    if kinds & {"int", "float"}:
+        integer = "float" not in kinds
+        for bound, side in ((opt.lo, -1), (opt.hi, 1)):
+            if bound is None:
+                continue
+            if integer:
+                values += [int(bound), int(bound) + side]
+            else:
+                values += [float(bound), float(bound) + side * max(abs(float(bound)), 1e-300) * 1e-6]
+    if opt.choices:
+        values += [*opt.choices, "no-such-choice"]
+    if "bool" in kinds:
+        values += [True, False]
+    return values
+
+
+def _design_accepts(name, key, value) -> bool:
+    from fsdvs_hw.explore.design import DesignError, parse_design
+
+    try:
+        parse_design({"realisations": {"include": [name], name: {key: value}}}, source="ranges")
+    except DesignError as exc:
+        assert f"'realisations.{name}." in str(exc), str(exc)  # refused for the option, not for something else
+        return False
+    return True
+
+
+def _fit_accepts(spec, target, key, value, monkeypatch) -> bool:
+    """The fit function's own validation: it is called with the value and stopped right after its
+    entry check (every fit validates its whole options object there, before any work)."""
+    from fsdvs_hw.errors import InputError
+
+    module = sys.modules[spec.fit.__module__]
+    entry = module.check_fit_arguments
+
+    def validated_then_stop(options, arguments):
+        entry(options, arguments)
+        raise _Landed("validated")
+
+    monkeypatch.setattr(module, "check_fit_arguments", validated_then_stop)
+    try:
+        spec.fit(target, **{key: value})
+    except _Landed:
+        return True
+    except InputError:
+        return False
+    finally:
+        monkeypatch.setattr(module, "check_fit_arguments", entry)
+    raise AssertionError(f"{spec.name}: the fit did not stop at its entry check")
+
+
+@pytest.mark.parametrize("name", [*realisation_names("hardware"), "box"])
+def test_a_design_file_and_the_fit_accept_the_same_values_at_every_bound(name, monkeypatch):
+    from fsdvs_hw.explore.design import parse_design
+
+    spec = get_realisation(name)
+    target = parse_design({}, source="ranges").target  # the target a design file's fit gets
+    differ = []
+    for key in spec.options.model_fields:
+        for value in _bound_probes(view(spec.options, key)):
+            design = _design_accepts(name, key, value)
+            if design != _fit_accepts(spec, target, key, value, monkeypatch):
+                differ.append(
+                    f"{key} = {value!r}: the design file {'accepts' if design else 'refuses'} it, the fit not"
+                )
+    assert not differ, "\n".join(differ)
+
+
+def test_the_bounds_of_every_option_are_probed():
+    probed = {
+        (n, k): len(_bound_probes(view(get_realisation(n).options, k)))
+        for n in realisation_names("hardware")
+        for k in get_realisation(n).options.model_fields
+    }
+    assert probed[("mesh", "tol")] == 4 and probed[("asic", "bits")] == 4 and probed[("metalens", "strategy")] == 3
+    assert sum(probed.values()) >= 100

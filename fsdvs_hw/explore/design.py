@@ -785,6 +785,7 @@ def parse_design(
             f"smaller than the {target.size}x{target.size} kernel; allowed: at least {target.size} px each way",
         )
     _check_sizes(chk, data, base, confine_paths, target)
+    _check_options_on_target(chk, data, target)
     chk.raise_if_any()
     assert target is not None
     typed = model.model_validate(data, context=DESIGN_CONTEXT)  # the final values (patterns expanded), typed
@@ -829,6 +830,21 @@ def _drop(work: dict[Any, Any], loc: tuple[Any, ...]) -> None:
         table[key].pop(loc[2], None)
     else:
         table.pop(key, None)
+
+
+def _check_options_on_target(chk: _Problems, data: dict[str, Any], target: Kernel | None) -> None:
+    """Each included realisation's options against its fit's rules on the target kernel (its options
+    model validated with the target in the context, as the fit does: the same rules and words)."""
+    if target is None:
+        return
+    for name in dict.fromkeys(data["realisations"]["include"]):
+        if name not in _option_tables():
+            continue
+        options = get_realisation(name).options
+        try:
+            options.model_validate(data["realisations"][name], context={**DESIGN_CONTEXT, "target": target})
+        except ValidationError as exc:
+            chk.problems.extend(problems(exc, options, prefix=f"realisations.{name}."))
 
 
 def _check_cross(chk: _Problems, data: dict[str, Any]) -> None:
