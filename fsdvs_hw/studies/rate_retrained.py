@@ -129,6 +129,53 @@ def retrained_networks(
     return paths
 
 
+def _scored_point(
+    kernel: Kernel | None, task: str, threshold: float, checkpoints: Sequence[Path], n_test: int
+) -> tuple[RatePoint, str]:
+    """Score each network with the kernel it was trained with at its own threshold.
+
+    Parameters
+    ----------
+    kernel : Kernel or None
+        None: w/o (a plain DVS).
+    task : str
+    threshold : float
+        ON = OFF contrast threshold (log units), the networks' own.
+    checkpoints : sequence of path
+        Network ``i`` scores clip set ``i`` with sensor seed offset ``i``.
+    n_test : int
+        Test clips per network.
+
+    Returns
+    -------
+    point : RatePoint
+    metric_name : str
+    """
+    sensor = _sensor(task, threshold)
+    evid = [
+        clip_evidence(kernel, task, c, n_test=n_test, sensor=sensor, seed_offset=i, clip_set=i)
+        for i, c in enumerate(checkpoints)
+    ]
+    return RatePoint.from_evidence(threshold, evid), evid[0].metric_name
+
+
+def _save_point(
+    file: Path, key: dict[str, Any], metric_name: str, point: RatePoint, checkpoints: Sequence[Path]
+) -> None:
+    """Save a scored point with the key that a rerun must match to reuse it, and its networks' files."""
+    write_output(
+        file,
+        json.dumps(
+            {
+                "key": key,
+                "metric_name": metric_name,
+                "point": point.to_dict(),
+                "checkpoints": [c.name for c in checkpoints],
+            }
+        ),
+    )
+
+
 def retrained_rate_curve(
     kernel: Kernel | None,
     task: str,
@@ -214,31 +261,8 @@ def retrained_rate_curve(
             settings=settings,
             progress=progress,
         )
-        sensor = _sensor(task, t)
-        evid = [
-            clip_evidence(kernel, task, c, n_test=n_test, sensor=sensor, seed_offset=i, clip_set=i)
-            for i, c in enumerate(ckpts)
-        ]
-        metric_name = evid[0].metric_name
-        point = RatePoint(
-            threshold=t,
-            metrics=tuple(e.metric for e in evid),
-            clip_rates=np.stack([np.asarray(e.clip_event_rates, dtype=np.float64) for e in evid]),
-            test_seeds=tuple(e.test_seed for e in evid),
-            sensor_seeds=tuple(e.sensor_seed for e in evid),
-            seconds=float(sum(e.seconds for e in evid)),
-        )
-        write_output(
-            file,
-            json.dumps(
-                {
-                    "key": key,
-                    "metric_name": metric_name,
-                    "point": point.to_dict(),
-                    "checkpoints": [c.name for c in ckpts],
-                }
-            ),
-        )
+        point, metric_name = _scored_point(kernel, task, t, ckpts, n_test)
+        _save_point(file, key, metric_name, point, ckpts)
         points.append(point)
         all_ckpts.extend(c.name for c in ckpts)
     return RateCurve(
