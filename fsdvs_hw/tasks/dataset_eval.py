@@ -308,27 +308,26 @@ def evaluate_on_dataset(
     dataset : ClipDataset
         :mod:`fsdvs_hw.scenes.datasets`.
     network : None, str or torch.nn.Module
-        None: the built-in network of the task; ``"package.module:factory"``: called as
-        ``factory(in_channels=..., num_classes=...)``; or a module. Its ``event_input``
-        (``"frames"`` / ``"voxel:N"``) picks the representation. Scored in eval mode.
+        None: the built-in network of the task; ``"package.module:factory"``: called as ``factory(in_channels=...,
+        num_classes=...)``; or a module. Its ``event_input`` (``"frames"`` / ``"voxel:N"``) picks the representation.
+        Scored in eval mode.
     sensor : SensorConfig, optional
-        Default: the task training sensor (:func:`~fsdvs_hw.tasks.learn.default_sensor`) at the
-        first clip's frame rate.
+        Default: the task training sensor (:func:`~fsdvs_hw.tasks.learn.default_sensor`) at the first clip's frame
+        rate.
     n_clips : int, optional
         Score ``n_clips`` clips drawn with ``seed`` (:meth:`ClipDataset.draw`); default all.
     weights : path, optional
         ``.pt`` / ``.safetensors`` state dict loaded into the network (shapes checked).
     events_fn : callable, optional
-        ``events_fn(video (1, T, H, W), kernel_taps, sensor, timestamps_s) -> (1, T-1, 2, H, W)``
-        instead of the in-pixel simulator.
+        ``events_fn(video (1, T, H, W), kernel_taps, sensor, timestamps_s) -> (1, T-1, 2, H, W)`` instead of the
+        in-pixel simulator.
     device : str
-        ``"cpu"`` (default) or ``"cuda"`` / ``"cuda:N"``: where the simulator and the network run
-        (the network is moved there); predictions come back to the CPU for the metric. On CUDA the
-        simulator's random streams (mismatch, noise) differ from the CPU's, so only a noise-free
-        sensor gives the same events to rounding.
+        ``"cpu"`` (default) or ``"cuda"`` / ``"cuda:N"``: where the simulator and the network run (the network is
+        moved there); predictions come back to the CPU for the metric. On CUDA the simulator's random streams
+        (mismatch, noise) differ from the CPU's, so only a noise-free sensor gives the same events to rounding.
     max_failed_fraction : float
-        Fraction in [0, 1] of the drawn clips that may fail to read (:func:`read_clip`) and be
-        skipped; 0 (default): any failed clip fails the evaluation.
+        Fraction in [0, 1] of the drawn clips that may fail to read (:func:`read_clip`) and be skipped; 0 (default):
+        any failed clip fails the evaluation.
 
     Returns
     -------
@@ -338,13 +337,13 @@ def evaluate_on_dataset(
     Raises
     ------
     InputError
-        Task / dataset mismatch, bad ``n_clips`` / ``seed``, a kernel larger than the frames, a
-        network that does not load, an odd frame size for the stride-2 detector.
+        Task / dataset mismatch, bad ``n_clips`` / ``seed``, a kernel larger than the frames, a network that does not
+        load, an odd frame size for the stride-2 detector.
     NetworkOutputError
         The network's output cannot be read or scored by the evaluator (a problem of the task).
     ClipFailuresError
-        More than ``max_failed_fraction`` of the drawn clips (or all of them) failed to read,
-        naming the first few files and reasons.
+        More than ``max_failed_fraction`` of the drawn clips (or all of them) failed to read, naming the first few
+        files and reasons.
 
     Notes
     -----

@@ -63,6 +63,7 @@ from .checkpoints import (
     save_checkpoint,
     save_partial,
 )
+from .dataset_eval import evaluator_for_dataset, torch_device
 from .event_inputs import simulated_events
 from .training import (
     TrainingConfig,
@@ -267,11 +268,11 @@ def train_on_dataset(
         :mod:`fsdvs_hw.scenes.datasets`; its task must be ``task``'s.
     task : str or TaskEvaluator
     network : None, str or torch.nn.Module
-        None: the task's built-in network; ``"package.module:factory"``; or a module (weights
-        already loaded for fine-tuning). Its ``event_input`` picks the representation.
+        None: the task's built-in network; ``"package.module:factory"``; or a module (weights already loaded for
+        fine-tuning). Its ``event_input`` picks the representation.
     train_indices : array of int
-        The clips trained on (:func:`disjoint_train_indices`); decoded once and held in memory as
-        float32 (checked against the allocation limit).
+        The clips trained on (:func:`disjoint_train_indices`); decoded once and held in memory as float32 (checked
+        against the allocation limit).
     kernel_size : int
         Odd kernel side in pixels, 1 … 15 (ignored with ``init_kernel``).
     init_kernel : Kernel, path or array, optional
@@ -279,17 +280,14 @@ def train_on_dataset(
     learn_filter : bool
         False: the kernel stays frozen in both stages.
     realisation : Realisation, optional
-        A fitted realisation record with a differentiable form: its kernel is the start (instead
-        of ``init_kernel`` / the delta) and stage two trains its physical parameters at
-        ``lr_kernel``; the provenance adds ``realisation``, ``realisation_initial`` and
-        ``realisation_design`` (the record after training).
+        A fitted realisation record with a differentiable form: its kernel is the start (instead of ``init_kernel`` /
+        the delta) and stage two trains its physical parameters at ``lr_kernel``; the provenance adds ``realisation``,
+        ``realisation_initial`` and ``realisation_design`` (the record after training).
     epochs_frozen, epochs_joint : int
         Epochs of stage one (kernel frozen) and stage two (joint).
-    lr_network : float
-        AdamW rate of the network in stage one (1/step).
-    lr_kernel, lr_backbone, lr_head : float
-        Stage-two AdamW rates (1/step) of the kernel, the backbone and the head; None =
-        ``lr_kernel`` times the evaluator's :attr:`joint_lr_ratios` (the paper's).
+    lr_network, lr_kernel, lr_backbone, lr_head : float
+        AdamW rates (1/step): of the network in stage one; of the kernel, the backbone and the head in stage two
+        (``lr_backbone`` / ``lr_head`` None = ``lr_kernel`` times the evaluator's :attr:`joint_lr_ratios`, the paper's).
     weight_decay : float
         AdamW weight decay of the network (the kernel has none).
     batch_size : int
@@ -316,8 +314,8 @@ def train_on_dataset(
     Raises
     ------
     InputError
-        Bad counts or rates, a task / dataset mismatch, clips of different sizes, a kernel larger
-        than the frames, a checkpoint or partial file trained with another fingerprint.
+        Bad counts or rates, a task / dataset mismatch, clips of different sizes, a kernel larger than the frames, a
+        checkpoint or partial file trained with another fingerprint.
 
     Examples
     --------
@@ -326,8 +324,6 @@ def train_on_dataset(
     >>> res.kernel.size, res.history[-1]["stage"]                                    # doctest: +SKIP
     (7, 'joint')
     """
-    from .dataset_eval import evaluator_for_dataset, torch_device
-
     t_start = time.perf_counter()
     evaluator = evaluator_for_dataset(task, dataset)
     dev = torch_device(device)

@@ -358,11 +358,11 @@ def learn_kernel(
     task : str or TaskEvaluator
         ``"detection"``, ``"recognition"``, ``"segmentation"`` or a registered/plug-in evaluator.
     size : int
-        Odd kernel side in pixels (1 … 15). ``size=1`` is the paper's "w/o" baseline: a 1×1
-        kernel before the log is a pure gain and cannot change any event, so it is not learned.
+        Odd kernel side in pixels (1 … 15). ``size=1`` is the paper's "w/o" baseline: a 1×1 kernel before the log is a
+        pure gain and cannot change any event, so it is not learned.
     seed : int
-        Seeds the training clips, the kernel's initial noise, the network initialisation and the
-        batch order. The test clips always use :data:`TEST_SEED`.
+        Seeds the training clips, the kernel's initial noise, the network initialisation and the batch order. The test
+        clips always use :data:`TEST_SEED`.
     n_train, n_test : int
         Numbers of training and test clips.
     settings : TrainingSettings, optional
@@ -372,26 +372,24 @@ def learn_kernel(
     sensor : SensorConfig, optional
         Simulator settings (default :func:`default_sensor`).
     learn_filter : bool
-        False keeps the filter fixed at its initial value (delta + noise, or ``init_kernel``) and
-        trains the network only — the baseline rows and the zero-shot transfer (a kernel learned
-        on one task, frozen, with a network trained on another).
+        False keeps the filter fixed at its initial value (delta + noise, or ``init_kernel``) and trains the network
+        only — the baseline rows and the zero-shot transfer (a kernel learned on one task, frozen, with a network
+        trained on another).
     init_kernel : Kernel or array, optional
         Start from this kernel instead of delta + noise; its size must equal ``size``.
     out : path, optional
-        File stem; writes ``STEM.json`` (kernel), ``STEM.safetensors`` (checkpoint) and
-        ``STEM.provenance.json``.
+        File stem; writes ``STEM.json`` (kernel), ``STEM.safetensors`` (checkpoint) and ``STEM.provenance.json``.
     name : str, optional
         Kernel name (default ``"learned {task} {k}x{k} (seed s)"``).
     verbose : bool
         Print one progress line per epoch to stderr.
     realisation : str, optional
         Co-design (issue 16): a registered realisation with a differentiable form
-        (:attr:`fsdvs_hw.realise.registry.RealisationSpec.differentiable`: ``mesh``, ``asic``,
-        ``metalens``). It is first fitted to ``init_kernel``; training then moves the realisation's
-        own parameters (conductance ratios and gains; integer taps and scale, straight-through;
-        phase, distance and gains) with the network, at the filter learning rate, so the kernel is
-        buildable at every step. The provenance records the initial and the final design
-        (``realisation_initial``, ``realisation_design``); the saved kernel is the design's.
+        (:attr:`fsdvs_hw.realise.registry.RealisationSpec.differentiable`: ``mesh``, ``asic``, ``metalens``). It is
+        first fitted to ``init_kernel``; training then moves the realisation's own parameters (conductance ratios and
+        gains; integer taps and scale, straight-through; phase, distance and gains) with the network, at the filter
+        learning rate, so the kernel is buildable at every step. The provenance records the initial and the final
+        design (``realisation_initial``, ``realisation_design``); the saved kernel is the design's.
 
     Returns
     -------
@@ -400,8 +398,8 @@ def learn_kernel(
     Raises
     ------
     InputError
-        Unknown task, bad size / counts, an ``init_kernel`` of another size, a scene that cannot
-        provide the task's ground truth, or a kernel larger than the frame.
+        Unknown task, bad size / counts, an ``init_kernel`` of another size, a scene that cannot provide the task's
+        ground truth, or a kernel larger than the frame.
 
     Examples
     --------
@@ -419,11 +417,8 @@ def learn_kernel(
     >>> bool(0 <= res.metrics["top1"] <= 1)
     True
     """
-    evaluator, settings, scene, sensor, learn_filter, progress = _learn_setup(
-        task, size, seed, n_train, n_test, settings, scene, sensor, learn_filter, verbose, name, out, realisation
-    )
     return _learn(
-        evaluator,
+        task,
         size,
         seed=seed,
         n_train=n_train,
@@ -435,7 +430,7 @@ def learn_kernel(
         init_kernel=init_kernel,
         out=out,
         name=name,
-        progress=progress,
+        verbose=verbose,
         realisation=realisation,
     )
 
@@ -550,27 +545,30 @@ def _learn_stages(
 
 
 def _learn(
-    evaluator: Any,
+    task: Any,
     size: int,
     *,
     seed: int,
     n_train: int,
     n_test: int,
-    settings: TrainingSettings,
+    settings: TrainingSettings | None,
     scene: Any,
     sensor: Any,
     learn_filter: bool,
     init_kernel: Any,
     out: str | Path | None,
     name: str | None,
-    progress: Callable[[str], None] | None,
+    verbose: bool,
     realisation: str | None,
 ) -> LearnResult:
-    """:func:`learn_kernel` once its arguments are checked."""
+    """:func:`learn_kernel`: its arguments checked, the stages trained, the kernel scored and saved."""
     import torch
 
     from ..provenance import library_versions
 
+    evaluator, settings, scene, sensor, learn_filter, progress = _learn_setup(
+        task, size, seed, n_train, n_test, settings, scene, sensor, learn_filter, verbose, name, out, realisation
+    )
     t_start = time.perf_counter()
     torch.manual_seed(seed)
     gen = torch.Generator().manual_seed(seed)
@@ -660,37 +658,32 @@ def evaluate_kernel(
     Parameters
     ----------
     kernel : Kernel, path or k×k array
-        Any odd size that fits the frame (a realised kernel may be larger or smaller than the
-        trained one: the filter acts on the image, not on the network). ``None`` or a 1×1 kernel
-        is the "w/o" conventional DVS.
+        Any odd size that fits the frame (a realised kernel may be larger or smaller than the trained one: the filter
+        acts on the image, not on the network). ``None`` or a 1×1 kernel is the "w/o" conventional DVS.
     task : str or TaskEvaluator
         Must equal the checkpoint's task.
     checkpoint : path
         ``STEM.safetensors`` (or its stem) written by :func:`learn_kernel`.
     n_test : int, optional
-        Score on the first ``n_test`` test clips (default: the checkpoint's ``n_test``; clip
-        ``i`` is the same for any ``n_test``). Smaller is faster but noisier: see
-        ``fsdvs-hw bench tasks`` for the confidence interval versus ``n_test``.
+        Score on the first ``n_test`` test clips (default: the checkpoint's ``n_test``; clip ``i`` is the same for any
+        ``n_test``). Smaller is faster but noisier: see ``fsdvs-hw bench tasks`` for the confidence interval versus
+        ``n_test``.
     finetune_epochs : int
-        0 (default) is zero-shot. ``> 0`` first trains the network (backbone and head, AdamW at
-        ``finetune_lr``) for that many epochs on the checkpoint's training clips with ``kernel``
-        frozen.
+        0 (default) is zero-shot. ``> 0`` first trains the network (backbone and head, AdamW at ``finetune_lr``) for
+        that many epochs on the checkpoint's training clips with ``kernel`` frozen.
     sensor : SensorConfig, optional
         Simulator settings (default: the checkpoint's). Another sensor tests robustness.
     events_fn : callable, optional
-        How the test clips become event frames when scoring:
-        ``events_fn(video (B, T, H, W), kernel_taps (k, k) tensor, sensor, timestamps_s) ->
-        (B, T-1, 2, H, W)``. Default: the in-pixel simulator (kernel before the comparator). The
-        exploration layer passes its sensor-in-the-loop emulation here (filtered video shown on a
-        display and recaptured by a plain DVS). Fine-tuning, when asked for, always uses the
-        in-pixel simulator.
+        How the test clips become event frames when scoring: ``events_fn(video (B, T, H, W), kernel_taps (k, k)
+        tensor, sensor, timestamps_s) -> (B, T-1, 2, H, W)``. Default: the in-pixel simulator (kernel before the
+        comparator). The exploration layer passes its sensor-in-the-loop emulation here (filtered video shown on a
+        display and recaptured by a plain DVS). Fine-tuning, when asked for, always uses the in-pixel simulator.
     keep_predictions : bool
-        Return the per-clip test predictions in :attr:`Evaluation.predictions` (for paired
-        statistics, :mod:`fsdvs_hw.stats`).
+        Return the per-clip test predictions in :attr:`Evaluation.predictions` (for paired statistics,
+        :mod:`fsdvs_hw.stats`).
     test_seed : int, optional
-        Seed of the test clips (default: the checkpoint's ``test_seed``). Another seed draws
-        another held-out set of the same scene family (the exploration gives each network its
-        own, :mod:`fsdvs_hw.explore.paired`).
+        Seed of the test clips (default: the checkpoint's ``test_seed``). Another seed draws another held-out set of
+        the same scene family (the exploration gives each network its own, :mod:`fsdvs_hw.explore.paired`).
 
     Returns
     -------
@@ -699,8 +692,8 @@ def evaluate_kernel(
     Raises
     ------
     InputError
-        Missing / unreadable checkpoint, task mismatch, weights that do not fit the network, a
-        kernel larger than the frame, bad ``n_test``.
+        Missing / unreadable checkpoint, task mismatch, weights that do not fit the network, a kernel larger than the
+        frame, bad ``n_test``.
 
     Examples
     --------
@@ -730,7 +723,27 @@ def evaluate_kernel(
             evaluator, network, provenance, settings, scene, sensor, kernel_t, finetune_epochs, finetune_lr
         )
     tseed = int(provenance["test_seed"]) if test_seed is None else _check_test_seed(test_seed, "evaluate_kernel")
-    test_video, test_targets = synthetic_dataset(scene, n_test, tseed, evaluator.name, settings.dtype)
+    test_data = synthetic_dataset(scene, n_test, tseed, evaluator.name, settings.dtype)
+    return _evaluation(evaluator, network, k, test_data, sensor, ts, events_fn, keep_predictions, finetune_epochs, t0)
+
+
+def _evaluation(
+    evaluator: Any,
+    network: Any,
+    k: Kernel,
+    test_data: tuple[Any, Any],
+    sensor: Any,
+    ts: np.ndarray,
+    events_fn: Any,
+    keep_predictions: bool,
+    finetune_epochs: int,
+    t0: float,
+) -> Evaluation:
+    """:func:`evaluate_kernel`'s scores of ``network`` with ``k`` on the test clips ``test_data``
+    (video, targets); ``t0`` the call's start (``time.perf_counter``)."""
+    test_video, test_targets = test_data
+    n_test = int(test_video.shape[0])
+    kernel_t = _kernel_tensor(k)
     kept: dict[str, np.ndarray] | None = {} if keep_predictions else None
     rates: list[np.ndarray] = []
     metrics, event_rate = _score(
@@ -985,10 +998,10 @@ def finetune_network(
     n_train : int, optional
         Training clips (default: the checkpoint's ``n_train``; at most that many).
     out : path, optional
-        File stem: writes the checkpoint (``STEM.safetensors``, scored like any other by
-        :func:`evaluate_kernel`), its kernel and provenance. The provenance is the original's with
-        ``finetune`` (mode, epochs, rates, clips, the source checkpoint, history) and, co-designed,
-        ``realisation``, ``realisation_initial`` and ``realisation_design``.
+        File stem: writes the checkpoint (``STEM.safetensors``, scored like any other by :func:`evaluate_kernel`), its
+        kernel and provenance. The provenance is the original's with ``finetune`` (mode, epochs, rates, clips, the
+        source checkpoint, history) and, co-designed, ``realisation``, ``realisation_initial`` and
+        ``realisation_design``.
     verbose : bool
         One progress line per epoch on stderr.
 
@@ -1000,8 +1013,8 @@ def finetune_network(
     Raises
     ------
     InputError
-        Both or neither of ``kernel`` / ``realisation``, a realisation without a differentiable
-        form, bad counts or rates, an unreadable checkpoint.
+        Both or neither of ``kernel`` / ``realisation``, a realisation without a differentiable form, bad counts or
+        rates, an unreadable checkpoint.
     """
     t0 = time.perf_counter()
     evaluator, network, prov, n = _finetune_setup(
@@ -1010,24 +1023,16 @@ def finetune_network(
     taps, realised, history = _finetune_train(
         evaluator, network, prov, kernel, realisation, n, epochs, {"network": lr_network, "kernel": lr_filter}, verbose
     )
-    provenance = {k: v for k, v in prov.items() if k not in ("history", "metrics", "final_metric")}
-    provenance.update(
-        {
-            "finetune": {
-                "mode": "codesign" if realised else "frozen kernel",
-                "epochs": epochs,
-                "lr_network": lr_network,
-                "lr_filter": lr_filter if realised else 0.0,
-                "n_train": n,
-                "source_checkpoint": Path(checkpoint).name,
-                "seconds": time.perf_counter() - t0,
-            },
-            "learn_filter": bool(realised),
-            "history": history,
-            **realised,
-            "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        }
-    )
+    finetune = {
+        "mode": "codesign" if realised else "frozen kernel",
+        "epochs": epochs,
+        "lr_network": lr_network,
+        "lr_filter": lr_filter if realised else 0.0,
+        "n_train": n,
+        "source_checkpoint": Path(checkpoint).name,
+        "seconds": time.perf_counter() - t0,
+    }
+    provenance = _finetuned_provenance(prov, finetune, realised, history)
     name = (
         f"{realised['realisation']} co-designed with {evaluator.name} network s{int(prov['seed'])}"
         if realised
@@ -1043,6 +1048,24 @@ def finetune_network(
         provenance=provenance,
         paths=paths,
     )
+
+
+def _finetuned_provenance(
+    prov: dict[str, Any], finetune: dict[str, Any], realised: dict[str, Any], history: list[dict[str, Any]]
+) -> dict[str, Any]:
+    """The source checkpoint's provenance less its history and metrics, with ``finetune``,
+    ``learn_filter``, the new ``history``, the realisation's records and ``created_utc``."""
+    provenance = {k: v for k, v in prov.items() if k not in ("history", "metrics", "final_metric")}
+    provenance.update(
+        {
+            "finetune": finetune,
+            "learn_filter": bool(realised),
+            "history": history,
+            **realised,
+            "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        }
+    )
+    return provenance
 
 
 def _finetune_train(
