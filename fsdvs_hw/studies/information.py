@@ -95,10 +95,8 @@ DEFAULT_RATE_THRESHOLDS: tuple[float, ...] = (0.05, 0.07, 0.1, 0.125, 0.15, 0.2,
 #: The condition "w/o with its threshold moved to the learned kernel's event rate".
 MATCHED: str = "w/o @ matched rate"
 
-#: Fields of the comparison of each condition against :data:`MATCHED` (``information.json``,
-#: ``vs_matched_rate``): the gains of :data:`TABLE_FIELDS`, taken against the matched w/o.
-MATCHED_FIELDS: tuple[str, ...] = (
-    "condition",
+#: The gains over a reference condition and their CI bounds, in :data:`TABLE_FIELDS` and :data:`MATCHED_FIELDS`.
+_GAIN_FIELDS: tuple[str, ...] = (
     "mi_gain",
     "mi_gain_low",
     "mi_gain_high",
@@ -108,8 +106,11 @@ MATCHED_FIELDS: tuple[str, ...] = (
     "bits_per_event_gain",
     "bits_per_event_gain_low",
     "bits_per_event_gain_high",
-    "confidence",
 )
+
+#: Fields of the comparison of each condition against :data:`MATCHED` (``information.json``,
+#: ``vs_matched_rate``): the gains of :data:`TABLE_FIELDS`, taken against the matched w/o.
+MATCHED_FIELDS: tuple[str, ...] = ("condition", *_GAIN_FIELDS, "confidence")
 
 #: Columns of the table (``information.csv``); ``_low``/``_high`` are the CI bounds.
 TABLE_FIELDS: tuple[str, ...] = (
@@ -132,15 +133,7 @@ TABLE_FIELDS: tuple[str, ...] = (
     "bits_per_event",
     "bits_per_event_low",
     "bits_per_event_high",
-    "mi_gain",
-    "mi_gain_low",
-    "mi_gain_high",
-    "mi_gain_pct",
-    "mi_gain_pct_low",
-    "mi_gain_pct_high",
-    "bits_per_event_gain",
-    "bits_per_event_gain_low",
-    "bits_per_event_gain_high",
+    *_GAIN_FIELDS,
     "r2",
     "confidence",
 )
@@ -265,6 +258,89 @@ def _condition_values(ev: ConditionEvidence, ws: np.ndarray, wc: np.ndarray) -> 
     return {"mi": mi, "events_per_pixel": epp, "bits_per_event": np.asarray(bits_per_event(mi, epp))}
 
 
+def _bias_shifted_ci(values: np.ndarray, estimate: float, alpha: float) -> tuple[float, float]:
+    """A percentile interval of bootstrap ``values`` moved by minus their bias (:data:`BOOTSTRAP_METHOD`).
+
+    Centred on the estimate: a resample repeats clips, which biases a histogram MI up (fewer distinct
+    samples than Miller-Madow's N); the bootstrap's own mean shift is that bias.
+
+    Parameters
+    ----------
+    values : ndarray (B,)
+        The resampled values (the unit of ``estimate``).
+    estimate : float
+        The value on the data as they are.
+    alpha : float
+        Each tail's probability, ``(1 - confidence) / 2``.
+
+    Returns
+    -------
+    (float, float)
+        The bounds; NaN when the estimate is not finite or over 10 % of the resamples are not.
+    """
+    v = values[np.isfinite(values)]
+    if v.size < 0.9 * values.size or not math.isfinite(estimate):
+        return math.nan, math.nan
+    lo, hi = np.quantile(v - (v.mean() - estimate), [alpha, 1 - alpha])
+    return float(lo), float(hi)
+
+
+def _condition_row(
+    c: ConditionEvidence,
+    b: Mapping[str, np.ndarray],
+    p: Mapping[str, float],
+    ref_b: Mapping[str, np.ndarray],
+    ref_p: Mapping[str, float],
+    alpha: float,
+) -> dict[str, Any]:
+    """One condition's values, gains over the reference and their CIs (:data:`TABLE_FIELDS` but the counts).
+
+    Parameters
+    ----------
+    c : ConditionEvidence
+    b, p : mapping
+        The condition's bootstrap values (B,) and estimates of ``mi`` (bits/pixel),
+        ``events_per_pixel`` and ``bits_per_event`` (bits/event).
+    ref_b, ref_p : mapping
+        The same of the reference condition.
+    alpha : float
+        Each tail's probability of the CIs.
+
+    Returns
+    -------
+    dict
+        Every field of :data:`TABLE_FIELDS` except ``n_networks``, ``n_clips`` and ``confidence``;
+        the rate in events/pixel/s.
+    """
+    row: dict[str, Any] = {
+        "condition": c.name,
+        "kernel": c.kernel,
+        "kernel_size": c.kernel_size,
+        "threshold": c.threshold,
+    }
+    for key in ("mi", "events_per_pixel", "bits_per_event"):
+        row[key] = p[key]
+        row[f"{key}_low"], row[f"{key}_high"] = _bias_shifted_ci(b[key], p[key], alpha)
+        if key == "mi":
+            row["mi_shuffled"] = c.mi_shuffled
+        if key == "events_per_pixel":
+            row["rate"] = p[key] / c.span_s
+            row["rate_low"], row["rate_high"] = row[f"{key}_low"] / c.span_s, row[f"{key}_high"] / c.span_s
+    gains = {
+        "mi_gain": (p["mi"] - ref_p["mi"], b["mi"] - ref_b["mi"]),
+        "mi_gain_pct": (_percent_gain(p["mi"], ref_p["mi"]), _percent_gain(b["mi"], ref_b["mi"])),
+        "bits_per_event_gain": (
+            p["bits_per_event"] - ref_p["bits_per_event"],
+            b["bits_per_event"] - ref_b["bits_per_event"],
+        ),
+    }
+    for key, (est, vals) in gains.items():
+        row[key] = est
+        row[f"{key}_low"], row[f"{key}_high"] = _bias_shifted_ci(vals, est, alpha)
+    row["r2"] = float(np.mean(c.r2))
+    return row
+
+
 def information_table(
     conditions: Sequence[ConditionEvidence],
     *,
@@ -330,50 +406,11 @@ def information_table(
     ones_s, ones_c = np.ones((1, n_net)), np.ones((1, n_clips))
     boot = {c.name: _condition_values(c, ws, wc) for c in conditions}
     point = {c.name: {k: float(v[0]) for k, v in _condition_values(c, ones_s, ones_c).items()} for c in conditions}
-    a = (1.0 - confidence) / 2.0
-
-    def ci(values: np.ndarray, estimate: float) -> tuple[float, float]:
-        # centred on the estimate: a resample repeats clips, which biases a histogram MI up (fewer
-        # distinct samples than Miller-Madow's N); the bootstrap's own mean shift is that bias
-        v = values[np.isfinite(values)]
-        if v.size < 0.9 * values.size or not math.isfinite(estimate):
-            return math.nan, math.nan
-        lo, hi = np.quantile(v - (v.mean() - estimate), [a, 1 - a])
-        return float(lo), float(hi)
-
-    ref_b, ref_p = boot[reference], point[reference]
+    alpha = (1.0 - confidence) / 2.0
     rows = []
     for c in conditions:
-        b, p = boot[c.name], point[c.name]
-        row: dict[str, Any] = {
-            "condition": c.name,
-            "kernel": c.kernel,
-            "kernel_size": c.kernel_size,
-            "threshold": c.threshold,
-            "n_networks": n_net,
-            "n_clips": n_clips,
-        }
-        for key in ("mi", "events_per_pixel", "bits_per_event"):
-            row[key] = p[key]
-            row[f"{key}_low"], row[f"{key}_high"] = ci(b[key], p[key])
-            if key == "mi":
-                row["mi_shuffled"] = c.mi_shuffled
-            if key == "events_per_pixel":
-                row["rate"] = p[key] / c.span_s
-                row["rate_low"], row["rate_high"] = row[f"{key}_low"] / c.span_s, row[f"{key}_high"] / c.span_s
-        gains = {
-            "mi_gain": (p["mi"] - ref_p["mi"], b["mi"] - ref_b["mi"]),
-            "mi_gain_pct": (_percent_gain(p["mi"], ref_p["mi"]), _percent_gain(b["mi"], ref_b["mi"])),
-            "bits_per_event_gain": (
-                p["bits_per_event"] - ref_p["bits_per_event"],
-                b["bits_per_event"] - ref_b["bits_per_event"],
-            ),
-        }
-        for key, (est, vals) in gains.items():
-            row[key] = est
-            row[f"{key}_low"], row[f"{key}_high"] = ci(vals, est)
-        row["r2"] = float(np.mean(c.r2))
-        row["confidence"] = confidence
+        row = _condition_row(c, boot[c.name], point[c.name], boot[reference], point[reference], alpha)
+        row.update(n_networks=n_net, n_clips=n_clips, confidence=confidence)
         rows.append({k: row[k] for k in TABLE_FIELDS})
     return rows
 
@@ -668,6 +705,146 @@ def _csv(rows: Sequence[Mapping[str, Any]]) -> str:
     return buf.getvalue()
 
 
+def _check_realisations(realisations: Sequence[str]) -> None:
+    """Refuse names that are not registered hardware realisations (``--realisations``)."""
+    from ..realise.registry import realisation_names
+
+    unknown = [r for r in realisations if r not in realisation_names() or r in ("learned", "delta")]
+    if unknown:
+        raise InputError(
+            f"--realisations {unknown}: unknown; allowed: "
+            f"{[r for r in realisation_names() if r not in ('learned', 'delta')]}"
+        )
+
+
+def _design_threshold(design: Any) -> float:
+    """The design's contrast threshold (log units); its ON and OFF thresholds must be equal."""
+    sensor_section = design.section("sensor")
+    if sensor_section["threshold_on"] != sensor_section["threshold_off"]:
+        raise InputError(
+            f"sensor.threshold_on={sensor_section['threshold_on']} != threshold_off="
+            f"{sensor_section['threshold_off']}; allowed: equal thresholds"
+        )
+    return float(sensor_section["threshold_on"])
+
+
+def _condition_evidence(
+    name: str,
+    kernel: Kernel | None,
+    threshold: float,
+    sensor: Any,
+    scene: Any,
+    truth: np.ndarray,
+    x_edges: np.ndarray,
+    options: InformationOptions,
+    out: Path,
+    bar: Any,
+) -> ConditionEvidence:
+    """One condition's evidence: loaded from ``out/evidence`` when its fingerprint matches, else measured.
+
+    Measuring trains (or resumes) ``options.n_networks`` networks in ``out/networks`` and scores
+    them (:func:`_score`); the evidence and its fingerprint are then saved.
+
+    Parameters
+    ----------
+    name : str
+        The condition.
+    kernel : Kernel or None
+        None: w/o (1×1 delta).
+    threshold : float
+        ON = OFF contrast threshold (log units).
+    sensor : SensorConfig
+        The simulator at that threshold.
+    scene : SceneConfig
+    truth : ndarray
+        Ground truth of the test clips.
+    x_edges : ndarray
+        Its MI bin edges (shared by every condition).
+    options : InformationOptions
+    out : path
+        The study's output folder.
+    bar : progress bar
+        Advanced by one per network.
+
+    Returns
+    -------
+    ConditionEvidence
+    """
+    file = out / "evidence" / f"{_slug(name)}.npz"
+    fp = _fingerprint(
+        taps=None if kernel is None else np.asarray(kernel.taps).round(15).tolist(),
+        sensor=sensor.to_dict(),
+        n=[options.n_networks, options.n_train, options.n_test, options.epochs, options.width, options.n_bins],
+    )
+    stamp = Path(str(file) + ".fingerprint")
+    if file.is_file() and stamp.is_file() and stamp.read_text().strip() == fp:
+        bar.update(options.n_networks)
+        return ConditionEvidence.from_npz(file)
+    ckpts = []
+    for s in range(options.n_networks):
+        ckpts.append(_train(name, kernel, sensor, scene, s, options, out / "networks"))
+        bar.update(1)
+    evidence = _score(name, kernel, threshold, ckpts, scene, truth, x_edges, options.n_bins)
+    write_output(file, evidence.to_npz())
+    write_output(stamp, fp + "\n")
+    return evidence
+
+
+def _study_settings(
+    options: InformationOptions,
+    design: Any,
+    scene: Any,
+    conditions: list[str],
+    t_ref: float,
+    matched: float | None,
+    matched_record: dict[str, Any] | None,
+) -> dict[str, Any]:
+    """The ``settings`` of ``information.json``: what was measured, how, and the networks' files.
+
+    Parameters
+    ----------
+    options : InformationOptions
+    design : Design
+    scene : SceneConfig
+    conditions : list of str
+    t_ref : float
+        The design's threshold (log units).
+    matched, matched_record
+        The matched w/o threshold (log units) and its record, or None.
+
+    Returns
+    -------
+    dict
+    """
+    from ..tasks.learn import TEST_SEED
+
+    seeds = range(options.n_networks)
+    return {
+        "design": str(options.design),
+        "conditions": conditions,
+        "reference_threshold": t_ref,
+        "matched_threshold": matched,
+        "matched_rate": matched_record,
+        "n_networks": options.n_networks,
+        "training_seeds": list(seeds),
+        "n_train": options.n_train,
+        "n_test": options.n_test,
+        "test_seed": TEST_SEED,
+        "epochs": options.epochs,
+        "width": options.width,
+        "scene": scene.to_dict(),
+        "sensor": _sensor_for(design, scene).to_dict(),
+        "estimator": f"equal-mass {options.n_bins}x{options.n_bins} joint histogram, plug-in entropies "
+        "(scipy.stats.entropy), Miller-Madow correction; ground truth = noise-free last frame",
+        "mi_unit": MI_UNIT,
+        "rate_unit": EVENT_RATE_UNIT,
+        "n_resamples": options.n_resamples,
+        "confidence": options.confidence,
+        "bootstrap": BOOTSTRAP_METHOD,
+        "networks": {n: [f"{_slug(n)}_s{s}.safetensors" for s in seeds] for n in conditions},
+    }
+
+
 def run_information_study(options: InformationOptions) -> InformationStudy:
     """Train reconstruction networks per kernel condition and measure MI and bits per event with CIs.
 
@@ -692,7 +869,6 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
     >>> print(study.text)  # doctest: +SKIP
     """
     from ..explore.design import load_design
-    from ..realise.registry import realisation_names
     from ..resources import resolve_design
     from ..scenes.synthetic import make_scenes
     from ..tasks.learn import TEST_SEED
@@ -700,20 +876,9 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
 
     if not isinstance(options, InformationOptions):
         raise InputError(f"run_information_study: options must be InformationOptions, got {type(options).__name__}")
-    unknown = [r for r in options.realisations if r not in realisation_names() or r in ("learned", "delta")]
-    if unknown:
-        raise InputError(
-            f"--realisations {unknown}: unknown; allowed: "
-            f"{[r for r in realisation_names() if r not in ('learned', 'delta')]}"
-        )
+    _check_realisations(options.realisations)
     design = load_design(resolve_design(options.design))
-    sensor_section = design.section("sensor")
-    if sensor_section["threshold_on"] != sensor_section["threshold_off"]:
-        raise InputError(
-            f"sensor.threshold_on={sensor_section['threshold_on']} != threshold_off="
-            f"{sensor_section['threshold_off']}; allowed: equal thresholds"
-        )
-    t_ref = float(sensor_section["threshold_on"])
+    t_ref = _design_threshold(design)
     out = output_dir(options.out, flag="--out")
     for sub in ("networks", "evidence", "kernels"):
         (out / sub).mkdir(exist_ok=True)
@@ -730,30 +895,14 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
     truth = clean_last_frame(make_scenes(scene, options.n_test, seed=TEST_SEED))
     x_edges = quantile_edges(truth, options.n_bins)
     evidence: dict[str, ConditionEvidence] = {}
-    seeds = range(options.n_networks)
     with progress_bar(
         total=len(conditions) * options.n_networks, desc="information", unit="network", progress=options.progress
     ) as bar:
         for name, (kernel, threshold) in conditions.items():
             sensor = _sensor_for(design, scene, threshold)
-            file = out / "evidence" / f"{_slug(name)}.npz"
-            fp = _fingerprint(
-                taps=None if kernel is None else np.asarray(kernel.taps).round(15).tolist(),
-                sensor=sensor.to_dict(),
-                n=[options.n_networks, options.n_train, options.n_test, options.epochs, options.width, options.n_bins],
+            evidence[name] = _condition_evidence(
+                name, kernel, threshold, sensor, scene, truth, x_edges, options, out, bar
             )
-            stamp = Path(str(file) + ".fingerprint")
-            if file.is_file() and stamp.is_file() and stamp.read_text().strip() == fp:
-                evidence[name] = ConditionEvidence.from_npz(file)
-                bar.update(options.n_networks)
-                continue
-            ckpts = []
-            for s in seeds:
-                ckpts.append(_train(name, kernel, sensor, scene, s, options, out / "networks"))
-                bar.update(1)
-            evidence[name] = _score(name, kernel, threshold, ckpts, scene, truth, x_edges, options.n_bins)
-            write_output(file, evidence[name].to_npz())
-            write_output(stamp, fp + "\n")
     rows = information_table(
         list(evidence.values()), confidence=options.confidence, n_resamples=options.n_resamples, rng=0
     )
@@ -769,30 +918,7 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
                 rng=0,
             )
         ]
-    settings = {
-        "design": str(options.design),
-        "conditions": list(conditions),
-        "reference_threshold": t_ref,
-        "matched_threshold": matched,
-        "matched_rate": matched_record,
-        "n_networks": options.n_networks,
-        "training_seeds": list(seeds),
-        "n_train": options.n_train,
-        "n_test": options.n_test,
-        "test_seed": TEST_SEED,
-        "epochs": options.epochs,
-        "width": options.width,
-        "scene": scene.to_dict(),
-        "sensor": _sensor_for(design, scene).to_dict(),
-        "estimator": f"equal-mass {options.n_bins}x{options.n_bins} joint histogram, plug-in entropies "
-        "(scipy.stats.entropy), Miller-Madow correction; ground truth = noise-free last frame",
-        "mi_unit": MI_UNIT,
-        "rate_unit": EVENT_RATE_UNIT,
-        "n_resamples": options.n_resamples,
-        "confidence": options.confidence,
-        "bootstrap": BOOTSTRAP_METHOD,
-        "networks": {n: [f"{_slug(n)}_s{s}.safetensors" for s in seeds] for n in conditions},
-    }
+    settings = _study_settings(options, design, scene, list(conditions), t_ref, matched, matched_record)
     provenance = {
         "command": options.command,
         "versions": library_versions(),

@@ -91,17 +91,9 @@ def run_user_ablation(
     from ..explore.user_data import open_dataset
     from ..limits import MAX_WORKERS, check_count
     from ..paths import output_dir, write_output
-    from ..stats import difference_ci
     from ..tasks.dataset_eval import evaluator_for_dataset
 
-    user = design.spec.tasks.datasets
-    if task not in user or user[task].train is None:
-        raise InputError(
-            f"ablation --design {design.source}: [tasks.datasets.{task}] with a train table is needed "
-            f"(the ablation trains one network per size and seed); allowed tasks: "
-            f"{', '.join(t for t, e in user.items() if e.train is not None) or 'none'}"
-        )
-    entry = user[task].model_dump()
+    entry = _trained_task(design, task)
     sizes = sorted({int(k) for k in sizes})
     if 1 not in sizes or any(k % 2 == 0 or not 1 <= k <= 15 for k in sizes):
         raise InputError(f"ablation --sizes {sizes}: allowed: odd sides in [1, 15] including 1 (the w/o reference)")
@@ -124,36 +116,9 @@ def run_user_ablation(
         for k in sizes
         for seed in seeds
     ]
-    done = _run_jobs(jobs, workers)
-    metrics: dict[int, list[Any]] = {k: [] for k in sizes}
-    values: dict[int, list[float]] = {k: [] for k in sizes}
-    n_clips = 0
-    for job in jobs:  # in (size, seed) order, whatever order the workers finished in
-        metric, value, n_clips = done[job[4], job[5]]
-        metrics[job[4]].append(metric)
-        values[job[4]].append(value)
+    metrics, values, n_clips = _by_size(jobs, _run_jobs(jobs, workers), sizes)
     resample = ("clips", "seeds") if len(seeds) >= 2 else ("clips",)
-    rows = []
-    for k in sizes:
-        row: dict[str, Any] = {
-            "size": k,
-            "label": "w/o" if k == 1 else f"{k}x{k}",
-            "metric_mean": float(np.mean(values[k])),
-            "metric_std": float(np.std(values[k], ddof=1)) if len(seeds) > 1 else 0.0,
-            "per_seed": values[k],
-        }
-        if k != 1:
-            ci = difference_ci(
-                metrics[k],
-                metrics[1],
-                paired_seeds=False,
-                paired_clips=True,
-                resample=resample,
-                n_resamples=n_resamples,
-                rng=0,
-            )
-            row.update(gain=ci.estimate, gain_ci95_low=ci.low, gain_ci95_high=ci.high)
-        rows.append(row)
+    rows = [_size_row(k, metrics, values, len(seeds), resample, n_resamples) for k in sizes]
     result = {
         "task": task,
         "metric": evaluator.primary_metric,
@@ -164,22 +129,131 @@ def run_user_ablation(
         "design": str(design.source),
         "ci_note": "gain = metric(size) - metric(w/o); different networks per arm, the same scored clips",
     }
+    result["markdown"] = _markdown(task, design.source, evaluator.primary_metric, n_clips, len(seeds), resample, rows)
+    write_output(folder / "ablation.json", json.dumps(result, indent=1) + "\n", flag="--out")
+    write_output(folder / "ablation.md", result["markdown"], flag="--out")
+    return result
+
+
+def _trained_task(design: Any, task: str) -> dict[str, Any]:
+    """The design's ``[tasks.datasets.<task>]`` table dumped; it must have a ``train`` table."""
+    user = design.spec.tasks.datasets
+    if task not in user or user[task].train is None:
+        raise InputError(
+            f"ablation --design {design.source}: [tasks.datasets.{task}] with a train table is needed "
+            f"(the ablation trains one network per size and seed); allowed tasks: "
+            f"{', '.join(t for t, e in user.items() if e.train is not None) or 'none'}"
+        )
+    return user[task].model_dump()
+
+
+def _size_row(
+    size: int,
+    metrics: dict[int, list[Any]],
+    values: dict[int, list[float]],
+    n_seeds: int,
+    resample: tuple[str, ...],
+    n_resamples: int,
+) -> dict[str, Any]:
+    """One kernel size's row: its metric over seeds and, beside w/o, its gain with a bootstrap CI.
+
+    Parameters
+    ----------
+    size : int
+        Kernel side (pixels); 1 is w/o.
+    metrics : dict
+        Size → per-seed per-clip metric objects (:mod:`fsdvs_hw.stats`).
+    values : dict
+        Size → per-seed metric (fraction).
+    n_seeds : int
+    resample : tuple of str
+        What the CI resamples (:func:`fsdvs_hw.stats.difference_ci`).
+    n_resamples : int
+
+    Returns
+    -------
+    dict
+        ``size``, ``label``, ``metric_mean``, ``metric_std``, ``per_seed`` and, for a size other than
+        1, ``gain``, ``gain_ci95_low``, ``gain_ci95_high`` (metric units).
+    """
+    from ..stats import difference_ci
+
+    row: dict[str, Any] = {
+        "size": size,
+        "label": "w/o" if size == 1 else f"{size}x{size}",
+        "metric_mean": float(np.mean(values[size])),
+        "metric_std": float(np.std(values[size], ddof=1)) if n_seeds > 1 else 0.0,
+        "per_seed": values[size],
+    }
+    if size != 1:
+        ci = difference_ci(
+            metrics[size],
+            metrics[1],
+            paired_seeds=False,
+            paired_clips=True,
+            resample=resample,
+            n_resamples=n_resamples,
+            rng=0,
+        )
+        row.update(gain=ci.estimate, gain_ci95_low=ci.low, gain_ci95_high=ci.high)
+    return row
+
+
+def _markdown(
+    task: str,
+    source: Any,
+    metric_name: str,
+    n_clips: int,
+    n_seeds: int,
+    resample: tuple[str, ...],
+    rows: Sequence[dict[str, Any]],
+) -> str:
+    """``ablation.md``: a table of each size's metric (mean ± std over seeds) and gain over w/o."""
     lines = [
-        f"# Kernel-size ablation on {task} ({design.source})",
+        f"# Kernel-size ablation on {task} ({source})",
         "",
-        f"{evaluator.primary_metric} on {n_clips} scored clips, {len(seeds)} seed(s); gain over w/o with a "
+        f"{metric_name} on {n_clips} scored clips, {n_seeds} seed(s); gain over w/o with a "
         f"95 % bootstrap CI resampling {' and '.join(resample)}.",
         "",
-        f"| kernel | {evaluator.primary_metric} (mean ± std) | gain over w/o [95 % CI] |",
+        f"| kernel | {metric_name} (mean ± std) | gain over w/o [95 % CI] |",
         "|---|---|---|",
     ]
     for r in rows:
         gain = "—" if r["size"] == 1 else f"{r['gain']:+.3f} [{r['gain_ci95_low']:+.3f}, {r['gain_ci95_high']:+.3f}]"
         lines.append(f"| {r['label']} | {r['metric_mean']:.3f} ± {r['metric_std']:.3f} | {gain} |")
-    result["markdown"] = "\n".join(lines) + "\n"
-    write_output(folder / "ablation.json", json.dumps(result, indent=1) + "\n", flag="--out")
-    write_output(folder / "ablation.md", result["markdown"], flag="--out")
-    return result
+    return "\n".join(lines) + "\n"
+
+
+def _by_size(
+    jobs: Sequence[tuple[Any, ...]], done: dict[tuple[int, int], tuple[Any, float, int]], sizes: Sequence[int]
+) -> tuple[dict[int, list[Any]], dict[int, list[float]], int]:
+    """The runs' results grouped by kernel size, in (size, seed) order whatever order the workers finished in.
+
+    Parameters
+    ----------
+    jobs : sequence of tuple
+        :func:`_train_and_score` arguments (size at 4, seed at 5).
+    done : dict
+        (size, seed) → its result (:func:`_run_jobs`).
+    sizes : sequence of int
+
+    Returns
+    -------
+    metrics : dict
+        Size → per-seed per-clip metric objects.
+    values : dict
+        Size → per-seed metric (fraction).
+    n_clips : int
+        Scored clips (of the last run; every run scores the same clips).
+    """
+    metrics: dict[int, list[Any]] = {k: [] for k in sizes}
+    values: dict[int, list[float]] = {k: [] for k in sizes}
+    n_clips = 0
+    for job in jobs:
+        metric, value, n_clips = done[job[4], job[5]]
+        metrics[job[4]].append(metric)
+        values[job[4]].append(value)
+    return metrics, values, n_clips
 
 
 def _run_jobs(jobs: Sequence[tuple[Any, ...]], workers: int) -> dict[tuple[int, int], tuple[Any, float, int]]:
