@@ -327,17 +327,20 @@ def _default(model: type[StrictModel]) -> Any:
 _MODELS: dict[tuple[Any, ...], type[StrictModel]] = {}
 
 
-def design_model() -> type[StrictModel]:
-    """The model of a whole design file, with ``[realisations]`` and ``[codesign]`` built from the
-    registry as it is now: ``include`` and ``codesign.realisations`` choose among the registered
-    names, and every hardware realisation's fit options are a ``[realisations.<name>]`` table
-    (its :attr:`~fsdvs_hw.realise.registry.RealisationSpec.options` model)."""
-    specs = [get_realisation(n) for n in realisation_names()]
-    sig = tuple((s.name, s.kind, s.options, s.in_default_design, bool(s.differentiable)) for s in specs)
-    if sig in _MODELS:
-        return _MODELS[sig]
-    names = realisation_names()
-    hardware = _option_tables()
+def _realisations_section(names: tuple[str, ...], hardware: tuple[str, ...]) -> type[StrictModel]:
+    """The ``[realisations]`` model: ``include`` among ``names``, a fit-options table per hardware realisation.
+
+    Parameters
+    ----------
+    names : tuple of str
+        Every registered realisation (:func:`~fsdvs_hw.realise.registry.realisation_names`).
+    hardware : tuple of str
+        Those with fit options (their ``[realisations.<name>]`` tables).
+
+    Returns
+    -------
+    type of StrictModel
+    """
     default_include = [n for n in names if get_realisation(n).in_default_design]
     tables: dict[str, Any] = {
         n: (
@@ -356,6 +359,21 @@ def design_model() -> type[StrictModel]:
         include=(list[Literal[names]], field(default_include, "", "realisations to fit and score")),  # type: ignore[valid-type]
         **tables,
     )
+    return realisations
+
+
+def _codesign_section(hardware: tuple[str, ...]) -> type[StrictModel]:
+    """The ``[codesign]`` model: its ``realisations`` among the differentiable ones of ``hardware``.
+
+    Parameters
+    ----------
+    hardware : tuple of str
+        The realisations with fit options.
+
+    Returns
+    -------
+    type of StrictModel
+    """
     diff = tuple(n for n in hardware if get_realisation(n).differentiable)
     real_item: Any = Literal[diff] if diff else Annotated[str, Field(max_length=0)]
     codesign = create_model(
@@ -407,6 +425,22 @@ def design_model() -> type[StrictModel]:
         lr_filter=(float, field(1e-2, "", "AdamW learning rate of the realisation's parameters", gt=0.0, le=10.0)),
         modes=(list[_CodesignMode], field(list(CODESIGN_MODES), "", "rows to measure")),
     )
+    return codesign
+
+
+def design_model() -> type[StrictModel]:
+    """The model of a whole design file, with ``[realisations]`` and ``[codesign]`` built from the
+    registry as it is now: ``include`` and ``codesign.realisations`` choose among the registered
+    names, and every hardware realisation's fit options are a ``[realisations.<name>]`` table
+    (its :attr:`~fsdvs_hw.realise.registry.RealisationSpec.options` model)."""
+    specs = [get_realisation(n) for n in realisation_names()]
+    sig = tuple((s.name, s.kind, s.options, s.in_default_design, bool(s.differentiable)) for s in specs)
+    if sig in _MODELS:
+        return _MODELS[sig]
+    names = realisation_names()
+    hardware = _option_tables()
+    realisations = _realisations_section(names, hardware)
+    codesign = _codesign_section(hardware)
     sections: dict[str, type[StrictModel]] = {
         "design": DesignSection,
         "kernel": KernelSection,
