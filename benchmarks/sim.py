@@ -1280,7 +1280,7 @@ def compare_checkouts(
 
 _STAGE_CHILD = r"""
 import gc, itertools, json, resource, sys, time
-gc.disable()  # as the command: imports without the cycle collector, then frozen (cli/simulate.py)
+gc.disable()  # as the command: imports without the cycle collector, then frozen (sensor/eventfiles/run_control.py)
 import torch
 from fsdvs_hw.scenes.video import example_clip_path, iter_video
 from fsdvs_hw.sensor import SensorConfig, simulate
@@ -1312,7 +1312,7 @@ print(json.dumps({"wall": time.perf_counter() - t0, "cpu": time.process_time() -
 
 
 #: The command's start-up: its imports as it makes them (cycle collector off, then everything
-#: frozen: :mod:`fsdvs_hw.cli.simulate`, :func:`fsdvs_hw.cli.console`), then exit.
+#: frozen: :mod:`fsdvs_hw.sensor.eventfiles.run_control`, :func:`fsdvs_hw.cli.console`), then exit.
 _STARTUP_CHILD = (
     "import gc; gc.disable()\n"
     "import fsdvs_hw.cli, fsdvs_hw.cli.simulate, fsdvs_hw.sensor, fsdvs_hw.scenes.video, torch\n"

@@ -13,6 +13,7 @@ import pytest
 
 from fsdvs_hw import cli
 from fsdvs_hw.cli import simulate as simulate_verb
+from fsdvs_hw.sensor.eventfiles import run_control
 from fsdvs_hw.sensor.eventfiles.eventfile import EventFileWriter
 
 
@@ -27,7 +28,7 @@ def unfrozen():
 
 
 def test_imports_run_without_the_collector_and_are_frozen_after(unfrozen):
-    with simulate_verb._collector_spares_imports():
+    with run_control.collector_spares_imports():
         assert not gc.isenabled()
         made_inside = [[] for _ in range(1000)]  # tracked containers created while importing
     assert gc.isenabled()
@@ -36,7 +37,7 @@ def test_imports_run_without_the_collector_and_are_frozen_after(unfrozen):
 
 def test_a_disabled_collector_stays_disabled(unfrozen):
     gc.disable()
-    with simulate_verb._collector_spares_imports():
+    with run_control.collector_spares_imports():
         pass
     assert not gc.isenabled()
 
@@ -53,8 +54,8 @@ def test_the_verb_undoes_its_freeze_for_an_in_process_caller(tmp_path, unfrozen)
 def test_the_verb_leaves_a_callers_own_freeze_alone(unfrozen):
     gc.freeze()
     before = gc.get_freeze_count()
-    with simulate_verb._frozen_objects_restored():
-        with simulate_verb._collector_spares_imports():
+    with run_control.frozen_objects_restored():
+        with run_control.collector_spares_imports():
             pass
     assert gc.get_freeze_count() >= before > 0
 
@@ -159,19 +160,19 @@ def test_an_undecodable_video_found_by_the_probe_thread_is_one_line_and_leaves_n
 
 
 def test_a_signal_while_torch_loads_stops_the_run_after_the_import(unfrozen):
-    """Inside ``_signals_deferred`` a SIGTERM is only recorded (an exception raised inside
+    """Inside ``signals_deferred`` a SIGTERM is only recorded (an exception raised inside
     torch's import, from Python called by C++, aborted the process); it stops the run on the way
     out. Outside, a signal raises at once."""
     reached = False
-    with simulate_verb._stop_on_signals() as stopped:
-        with pytest.raises(simulate_verb._Stopped) as info:
-            with simulate_verb._signals_deferred(stopped):
+    with run_control.stop_on_signals() as stopped:
+        with pytest.raises(run_control.Stopped) as info:
+            with run_control.signals_deferred(stopped):
                 os.kill(os.getpid(), signal.SIGTERM)
                 for _ in range(1000):  # the handler runs between bytecodes: recorded, not raised
                     pass
                 reached = True
         assert reached and info.value.signum == signal.SIGTERM
-        with pytest.raises(simulate_verb._Stopped) as info:
+        with pytest.raises(run_control.Stopped) as info:
             os.kill(os.getpid(), signal.SIGINT)
             for _ in range(1000):
                 pass

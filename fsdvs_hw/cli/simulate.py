@@ -8,19 +8,11 @@ temporary file onto it). Ctrl-C (SIGINT) and SIGTERM stop the run at once with e
 from __future__ import annotations
 
 import argparse
-import contextlib
-import gc
 import math
 import os
 import signal
 import sys
-import threading
-import time
-from collections.abc import Iterator
-from concurrent.futures import Future, ThreadPoolExecutor
-from concurrent.futures import wait as futures_wait
 from pathlib import Path
-from typing import Any
 
 __all__ = ["BYTES_PER_PIXEL", "DESCRIPTION", "HELP", "MAX_SIDE", "MAX_THREADS_PER_CORE", "add_arguments", "run"]
 
@@ -167,135 +159,16 @@ def _check_numbers(args: argparse.Namespace) -> None:
         raise InputError(f"--upsample-rate {args.upsample_rate:g}: must be in (0, {MAX_UPSAMPLE_RATE_HZ:g}] Hz")
 
 
-class _Stopped(KeyboardInterrupt):
-    """SIGINT or SIGTERM arrived; ``signum`` says which."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-#: True while :func:`_signals_deferred` holds: the handler records a signal without raising.
-_defer_signals = [False]
-
-
-@contextlib.contextmanager
-def _stop_on_signals() -> Iterator[list[int]]:
-    """SIGINT and SIGTERM raise :class:`_Stopped` in the main thread (and are recorded in the
-    yielded list, so a library that swallows the exception cannot make the run succeed), except
-    inside :func:`_signals_deferred`."""
-    got: list[int] = []
-    if threading.current_thread() is not threading.main_thread():
-        yield got
-        return
-
-    def handler(signum: int, frame: object) -> None:
-        got.append(signum)
-        if not _defer_signals[0]:
-            raise _Stopped(signum)
-
-    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield got
-    finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
-
-
-@contextlib.contextmanager
-def _signals_deferred(stopped: list[int]) -> Iterator[None]:
-    """Inside, SIGINT and SIGTERM are only recorded in ``stopped``; on the way out the first one
-    raises :class:`_Stopped`. For importing torch: its import runs Python called from C++
-    (pybind11), and an exception raised there by a signal handler cannot unwind through C++: the
-    process aborted (SIGABRT) instead of stopping cleanly (``tests/test_eventfile_safety.py``,
-    a signal sent during start-up)."""
-    _defer_signals[0] = True
-    try:
-        yield
-    finally:
-        _defer_signals[0] = False
-    if stopped:
-        raise _Stopped(stopped[0])
-
-
-#: Bytes of decoded frames the decoding thread may hold ahead of the simulation.
-_PREFETCH_BYTES = 64 << 20
-
-
-def _frames(args: argparse.Namespace, path: Path, size: tuple[int, int] | None, mapping: str) -> Iterator[Any]:
-    """The video's frames as the command simulates them: decoded, mapped, upsampled if asked."""
-    from ..scenes.video import iter_video
-
-    frames = iter_video(
-        path,
-        start_frame=args.start_frame,
-        n_frames=args.frames,
-        size=size,
-        peak_intensity=args.peak_intensity,
-        allow_truncated=args.allow_truncated,
-        input_mapping=mapping,
-        dtype=args.dtype,
-    )
-    if args.upsample != "none":
-        from ..sensor.simulation.upsampling import upsample_frames
-
-        frames = upsample_frames(frames, mode=args.upsample, rate_hz=args.upsample_rate)
-    return frames
-
-
-def _bar_total(args: argparse.Namespace, props: dict) -> int | None:
-    """Frames the progress bar counts: the simulated (upsampled) ones; None if the file does not say."""
-    total = props.get("nframes")
-    total = args.frames if args.frames is not None else (max(int(total) - args.start_frame, 0) if total else None)
-    if total and args.upsample != "none" and props.get("fps"):
-        total = (total - 1) * max(math.ceil(args.upsample_rate / float(props["fps"]) - 1e-9), 1) + 1
-    return total
-
-
-def _open_writer(writer_class: Any, args: argparse.Namespace, path: Path, mapping: str, h_w: tuple[int, int]) -> Any:
-    """The event file writer for ``--out``, for frames of ``h_w`` = (H, W), with the run's metadata."""
-    upsample = args.upsample if args.upsample == "none" else f"{args.upsample} {args.upsample_rate:g} Hz"
-    metadata = {
-        "source": str(path),
-        "preset": args.preset,
-        "kernel": args.kernel or "none",
-        "input_mapping": mapping,
-        "dtype": args.dtype,
-        "upsample": upsample,
-    }
-    return writer_class(args.out, int(h_w[1]), int(h_w[0]), metadata=metadata)
-
-
-def _frame_size(props: dict, size: tuple[int, int] | None) -> tuple[int, int] | None:
-    """(H, W) of the simulated frames: ``--size``, else the source's; None if the file does not say."""
-    if size is not None:
-        return size
-    src = props.get("source_size")
-    return (int(src[1]), int(src[0])) if src else None
-
-
-def _prefetch_frames(h_w: tuple[int, int] | None, dtype: str) -> int:
-    """Frames the decoding thread may hold ahead: :data:`_PREFETCH_BYTES` of frames of ``h_w`` =
-    (H, W), at least 2 and at most 256; 8 if the size is unknown."""
-    if not h_w:
-        return 8
-    per_frame = int(h_w[0]) * int(h_w[1]) * (8 if dtype == "float64" else 4)
-    return int(min(max(_PREFETCH_BYTES // max(per_frame, 1), 2), 256))
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the verb; returns the exit status (0, or 130 / 143 when stopped by SIGINT / SIGTERM)."""
-    with _frozen_objects_restored():
-        return _run(args)
-
-
-def _run(args: argparse.Namespace) -> int:
     from ..allocator import retain_freed_memory
     from ..paths import output_file
     from ..scenes.video import example_clip_path, video_properties
-    from ..sensor.simulation.config import SensorConfig
-    from ..sensor.eventfiles.eventfile import event_format
     from ..sensor.cameras.presets import preset_input_mapping
+    from ..sensor.eventfiles.eventfile import event_format
+    from ..sensor.eventfiles.run_control import Stopped
+    from ..sensor.eventfiles.video_to_file import VideoToFileOptions, simulate_video_to_file
+    from ..sensor.simulation.config import SensorConfig
 
     retain_freed_memory()  # the same frame-sized buffers, freed and allocated again at every step
     event_format(args.out)  # checked before decoding anything
@@ -309,166 +182,30 @@ def _run(args: argparse.Namespace) -> int:
     config = SensorConfig.preset(args.preset, **overrides)
     if not path.is_file():
         video_properties(path)  # its one-line error at once, before torch loads
-    mapping = args.input_mapping or preset_input_mapping(args.preset)
-    run_state = _Run(args, path, mapping, size)
-    with _stop_on_signals() as stopped:
-        try:
-            n_events, n_on, wall = run_state.simulate_to_file(config, stopped)
-        except _Stopped as exc:
-            run_state.abort()
-            print(
-                f"fsdvs-hw simulate: stopped by {signal.Signals(exc.signum).name}; nothing written to {args.out}",
-                file=sys.stderr,
-            )
-            return 128 + exc.signum
-        except BaseException:
-            run_state.abort()
-            raise
+    options = VideoToFileOptions(
+        out=args.out,
+        preset=args.preset,
+        kernel=args.kernel,
+        start_frame=args.start_frame,
+        frames=args.frames,
+        size=size,
+        peak_intensity=args.peak_intensity,
+        allow_truncated=args.allow_truncated,
+        input_mapping=args.input_mapping or preset_input_mapping(args.preset),
+        dtype=args.dtype,
+        upsample=args.upsample,
+        upsample_rate=args.upsample_rate,
+        threads=args.threads,
+        chunk_frames=args.chunk_frames,
+        progress=False if args.no_progress else None,
+    )
+    try:
+        n_events, n_on, wall = simulate_video_to_file(options, path, config)
+    except Stopped as exc:
+        print(
+            f"fsdvs-hw simulate: stopped by {signal.Signals(exc.signum).name}; nothing written to {args.out}",
+            file=sys.stderr,
+        )
+        return 128 + exc.signum
     print(f"{args.out}: {n_events} events ({n_on} ON, {n_events - n_on} OFF) in {wall:.1f} s")
     return 0
-
-
-@contextlib.contextmanager
-def _collector_spares_imports() -> Iterator[None]:
-    """Import inside without Python's cycle collector, then freeze what exists (``gc.freeze``).
-
-    Importing torch creates some 10⁵ long-lived objects: the collector ran ~370 times during the
-    command's imports (0.08–0.13 s) and one full collection during the run walked all of them
-    again (0.09–0.11 s; bikes, ``gc.callbacks``, 2 runs each). Frozen objects are never scanned
-    by later collections; the collector is back on for the run (the simulation's own cycles are
-    still collected). Process-wide, so only this command does it, never the library, and
-    :func:`run` undoes the freeze when it returns (:func:`_frozen_objects_restored`).
-    """
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        gc.freeze()
-        if enabled:
-            gc.enable()
-
-
-@contextlib.contextmanager
-def _frozen_objects_restored() -> Iterator[None]:
-    """Unfreeze (``gc.unfreeze``) on the way out what :func:`_collector_spares_imports` froze
-    inside, where nothing was frozen before: a caller of :func:`fsdvs_hw.cli.main` in its own
-    process (a test, a notebook) gets its collector back as it was. The console script freezes
-    again before the interpreter exits (:func:`fsdvs_hw.cli.console`)."""
-    frozen_before = gc.get_freeze_count()
-    try:
-        yield
-    finally:
-        if frozen_before == 0:
-            gc.unfreeze()
-
-
-class _Run:
-    """One run of the command: the video's properties and its writer (opened in a thread while
-    torch loads), its frames (decoded in a thread), its progress bar; :meth:`abort` stops them all
-    and leaves no file."""
-
-    def __init__(self, args: argparse.Namespace, path: Path, mapping: str, size: tuple[int, int] | None) -> None:
-        self.args, self.path, self.mapping, self.size = args, path, mapping, size
-        self.props: dict = {}
-        self.probe: Future | None = None
-        self.frames: Any = None
-        self.writer: Any = None
-        self.bar: Any = None
-
-    def simulate_to_file(self, config: Any, stopped: list[int]) -> tuple[int, int, float]:
-        """Simulate and write every chunk; the events, ON events and seconds since the first frame."""
-        from ..sensor.eventfiles.eventfile import EventFileWriter
-
-        args = self.args
-        # The video is probed (an ffmpeg process) and the writer process started, where the file
-        # says its frame size, in a thread while this one loads torch: the writer loads h5py or
-        # dv-processing on the other core meanwhile (docs/speed.md).
-        pool = ThreadPoolExecutor(1, thread_name_prefix="fsdvs-probe")
-        self.probe = pool.submit(self._probe_and_open_writer)
-        pool.shutdown(wait=False)  # its thread ends with the probe; nothing waits here
-        with _signals_deferred(stopped):
-            simulate = self._import()
-        self.probe.result()  # the probe's error (an unreadable video) is raised here
-        h_w = _frame_size(self.props, self.size)
-        kernel, chunk_frames = self._start(h_w)
-        t0 = time.perf_counter()
-        n_events = n_on = 0
-        for chunk in simulate(self.frames, kernel, config=config, chunk_frames=chunk_frames):
-            if stopped:  # the signal's exception was swallowed on its way up
-                raise _Stopped(stopped[0])
-            if self.writer is None or (self.writer.width, self.writer.height) != (chunk.width, chunk.height):
-                if self.writer is not None:  # the container's declared size was not the frames' size
-                    self.writer.abort()
-                self.writer = _open_writer(EventFileWriter, args, self.path, self.mapping, (chunk.height, chunk.width))
-            assert chunk.events is not None  # simulate() yields events by default (events=True)
-            self.writer.write(chunk.events)
-            n_events += len(chunk.events)
-            n_on += int((chunk.events.p > 0).sum())
-            self.bar.update(chunk.n_frames)
-            self.bar.set_postfix_str(f"{n_events / max(time.perf_counter() - t0, 1e-9):.3g} ev/s, {n_events} events")
-            del chunk  # free this chunk's events before the next one is simulated
-        if stopped:
-            raise _Stopped(stopped[0])
-        if self.writer is not None:
-            self.writer.close()  # renames the finished file onto --out
-        self._release()
-        return n_events, n_on, time.perf_counter() - t0
-
-    def _probe_and_open_writer(self) -> None:
-        """The video's properties, then the writer where they give the frame size."""
-        from ..scenes.video import video_properties
-        from ..sensor.eventfiles.eventfile import EventFileWriter
-
-        self.props = video_properties(self.path)
-        h_w = _frame_size(self.props, self.size)
-        if h_w:
-            self.writer = _open_writer(EventFileWriter, self.args, self.path, self.mapping, h_w)
-
-    def _import(self) -> Any:
-        """torch and the simulator loaded: the streaming ``simulate``."""
-        with _collector_spares_imports():
-            import torch  # noqa: F401  the bulk of the command's start-up
-
-            from ..sensor.simulation.stream import simulate
-        return simulate
-
-    def _start(self, h_w: tuple[int, int] | None) -> tuple[Any, int]:
-        """Decoding started, threads set, the progress bar open: ``(kernel, chunk_frames)``."""
-        import torch
-
-        from ..kernels import load_kernel_or_reference
-        from ..prefetch import prefetch
-        from ..progress import progress_bar
-        from ..sensor.simulation.stream import MIN_CHUNK_FRAMES, chunk_frames_for
-        from ..sensor.simulation.threads import event_list_threads
-
-        args = self.args
-        # Decoding runs in its own thread, beside the simulation (docs/speed.md); at most
-        # _PREFETCH_BYTES of frames wait ahead.
-        frames = _frames(args, self.path, self.size, self.mapping)
-        self.frames = prefetch(frames, max_items=_prefetch_frames(h_w, args.dtype), name="fsdvs-decode")
-        torch.set_num_threads(args.threads if args.threads is not None else event_list_threads())
-        kernel = load_kernel_or_reference(args.kernel) if args.kernel else None
-        chunk_frames = args.chunk_frames
-        if chunk_frames is None:
-            chunk_frames = chunk_frames_for(*h_w) if h_w else MIN_CHUNK_FRAMES
-        total = _bar_total(args, self.props)
-        self.bar = progress_bar(
-            total=total, unit="frame", desc="simulate", progress=False if args.no_progress else None
-        )
-        return kernel, chunk_frames
-
-    def _release(self) -> None:
-        if self.frames is not None:
-            self.frames.close()  # stops the decoding thread and its ffmpeg
-        if self.bar is not None:
-            self.bar.close()
-
-    def abort(self) -> None:
-        """Remove the partial file, stop decoding, close the bar."""
-        if self.probe is not None:
-            futures_wait([self.probe])  # a writer it is opening is aborted below
-        if self.writer is not None:
-            self.writer.abort()
-        self._release()
