@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError, KernelError, one_line
+from ..kernels import Kernel, as_kernel
 from ..limits import MAX_CLIPS, MAX_SEED, check_count
 
 __all__ = [
@@ -361,15 +362,29 @@ def evaluate_on_dataset(
     """
     import torch
 
-    from ..kernels import Kernel, as_kernel
-    from ..scenes.datasets import ClipDataset, stack_targets
-    from ..sensor import SensorConfig, event_frames
-    from .evaluators import concat_predictions
-    from .learn import default_sensor
-    from .user_networks import event_input_of, load_weights, network_for
-
     t0 = time.perf_counter()
     dev = torch_device(device)
+    evaluator, indices = _evaluation_request(task, dataset, sensor, events_fn, seed, max_failed_fraction, n_clips)
+    k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else as_kernel(kernel, name="kernel")
+    kernel_t = torch.as_tensor(np.array(k.taps), dtype=torch.float64, device=dev)
+    run = _ClipScoring(evaluator, k, kernel_t, network, weights, sensor, events_fn, dev)
+    for i in indices:
+        clip, failed = read_clip(dataset, int(i), run.shape)
+        if failed is not None:
+            run.failures.append(failed)
+            continue
+        run.predict(clip, int(i))
+    _check_failures(run.failures, len(indices), float(max_failed_fraction), len(run.clips))
+    return _dataset_evaluation(run, t0)
+
+
+def _evaluation_request(
+    task: Any, dataset: Any, sensor: Any, events_fn: Any, seed: Any, max_failed_fraction: Any, n_clips: Any
+) -> tuple[Any, np.ndarray]:
+    """:func:`evaluate_on_dataset`'s arguments checked, in order: (the evaluator, the drawn clip indices)."""
+    from ..scenes.datasets import ClipDataset
+    from ..sensor import SensorConfig
+
     if not isinstance(dataset, ClipDataset):
         raise InputError(
             f"evaluate_on_dataset: dataset is a {type(dataset).__name__}; allowed: a "
@@ -386,58 +401,92 @@ def evaluate_on_dataset(
             f"evaluate_on_dataset: max_failed_fraction={one_line(max_failed_fraction)}; allowed: a fraction in [0, 1]"
         )
     if n_clips is None:
-        indices = np.arange(len(dataset))
-    else:
-        check_count("evaluate_on_dataset: n_clips", n_clips, 1, min(MAX_CLIPS, len(dataset)))
-        indices = dataset.draw(n_clips, seed)
-    k = Kernel(np.ones((1, 1)), name="w/o (1x1 delta)") if kernel is None else as_kernel(kernel, name="kernel")
-    kernel_t = torch.as_tensor(np.array(k.taps), dtype=torch.float64, device=dev)
+        return evaluator, np.arange(len(dataset))
+    check_count("evaluate_on_dataset: n_clips", n_clips, 1, min(MAX_CLIPS, len(dataset)))
+    return evaluator, dataset.draw(n_clips, seed)
 
-    failures: list[ClipFailure] = []
-    preds, clips, counts, spans = [], [], [], []
+
+@dataclass
+class _ClipScoring:
+    """The state of :func:`evaluate_on_dataset` while it runs the drawn clips: the kernel, the network
+    (built, loaded and put on ``dev`` at the first readable clip, which also sets the frame size and the
+    default sensor), and per scored clip its predictions, event count and span."""
+
+    evaluator: Any
+    kernel: Any
+    kernel_t: Any
+    network: Any
+    weights: Any
+    sensor: Any
+    events_fn: Any
+    dev: Any
     shape: tuple[int, int] | None = None
     net: Any = None
     rep: Any = None
-    output_shape = ""
-    for i in indices:
-        clip, failed = read_clip(dataset, int(i), shape)
-        if failed is not None:
-            failures.append(failed)
-            continue
-        if shape is None:  # the first readable clip sets the frame size, the network and the sensor
-            shape = (int(clip.frames.shape[1]), int(clip.frames.shape[2]))
-            _check_frames(k, evaluator.name, clip, shape)
-            net = network_for(network, evaluator.name, 2 * (clip.frames.shape[0] - 1), evaluator.num_classes)
-            if weights is not None:
-                load_weights(net, weights)
-            rep = event_input_of(net)
-            net = net.to(dev).eval()
-            if sensor is None:
-                sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(clip.timestamps_s)[0])))
-        video = clip.as_batch(torch.float64).to(dev)
+    output_shape: str = ""
+    failures: list[ClipFailure] = field(default_factory=list)
+    preds: list[dict[str, Any]] = field(default_factory=list)
+    clips: list[Any] = field(default_factory=list)
+    counts: list[float] = field(default_factory=list)
+    spans: list[float] = field(default_factory=list)
+
+    def _first_clip(self, clip: Any) -> None:
+        """The frame size, the network and the sensor, from the first readable clip."""
+        from .learn import default_sensor
+        from .user_networks import event_input_of, load_weights, network_for
+
+        self.shape = (int(clip.frames.shape[1]), int(clip.frames.shape[2]))
+        _check_frames(self.kernel, self.evaluator.name, clip, self.shape)
+        ev = self.evaluator
+        net = network_for(self.network, ev.name, 2 * (clip.frames.shape[0] - 1), ev.num_classes)
+        if self.weights is not None:
+            load_weights(net, self.weights)
+        self.rep = event_input_of(net)
+        self.net = net.to(self.dev).eval()
+        if self.sensor is None:
+            self.sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(clip.timestamps_s)[0])))
+
+    def predict(self, clip: Any, i: int) -> None:
+        """Simulate clip ``i``, run the network and keep its predictions (NetworkOutputError if unreadable)."""
+        import torch
+
+        from ..sensor import event_frames
+
+        if self.shape is None:
+            self._first_clip(clip)
+        video = clip.as_batch(torch.float64).to(self.dev)
         with torch.no_grad():
             ev = (
-                events_fn(video, kernel_t, sensor, clip.timestamps_s)
-                if events_fn is not None
-                else event_frames(video, kernel_t, timestamps_s=clip.timestamps_s, config=sensor)
+                self.events_fn(video, self.kernel_t, self.sensor, clip.timestamps_s)
+                if self.events_fn is not None
+                else event_frames(video, self.kernel_t, timestamps_s=clip.timestamps_s, config=self.sensor)
             )
-            counts.append(float(ev.sum()))
-            spans.append(float(clip.timestamps_s[-1] - clip.timestamps_s[0]))
+            self.counts.append(float(ev.sum()))
+            self.spans.append(float(clip.timestamps_s[-1] - clip.timestamps_s[0]))
             try:
-                out = net(rep(ev.float(), clip.timestamps_s))
-                output_shape = output_shape or _output_shape(out)
-                preds.append({key: v.cpu() for key, v in evaluator.predict(out).items()})
+                out = self.net(self.rep(ev.float(), clip.timestamps_s))
+                self.output_shape = self.output_shape or _output_shape(out)
+                self.preds.append({key: v.cpu() for key, v in self.evaluator.predict(out).items()})
             except (RuntimeError, KeyError, TypeError, IndexError, ValueError, AttributeError) as exc:
                 raise NetworkOutputError(
-                    f"evaluate_on_dataset: the network's output on clip {int(i)} ({clip.source!r}) cannot be "
-                    f"read by the {evaluator.name} evaluator ({type(exc).__name__}: "
-                    f"{one_line(str(exc), 120)}); input was {rep.kind} "
-                    f"with {rep.channels(clip.frames.shape[0])} channels; a problem of the network, not of "
+                    f"evaluate_on_dataset: the network's output on clip {i} ({clip.source!r}) cannot be "
+                    f"read by the {self.evaluator.name} evaluator ({type(exc).__name__}: "
+                    f"{one_line(str(exc), 120)}); input was {self.rep.kind} "
+                    f"with {self.rep.channels(clip.frames.shape[0])} channels; a problem of the network, not of "
                     "the clip: the task fails"
                 ) from None
-        clips.append(clip)
-    _check_failures(failures, len(indices), float(max_failed_fraction), len(clips))
-    cat = concat_predictions(preds)
+        self.clips.append(clip)
+
+
+def _dataset_evaluation(run: _ClipScoring, t0: float) -> DatasetEvaluation:
+    """The metrics over the scored clips and per clip (NetworkOutputError if the predictions cannot be scored)."""
+    import torch
+
+    from ..scenes.datasets import stack_targets
+    from .evaluators import concat_predictions
+
+    evaluator, clips = run.evaluator, run.clips
+    cat = concat_predictions(run.preds)
     targets = stack_targets(clips)
     t_torch = {key: torch.from_numpy(np.ascontiguousarray(v)) for key, v in targets.items()}
     try:
@@ -445,7 +494,7 @@ def evaluate_on_dataset(
     except (InputError, RuntimeError, KeyError, TypeError, IndexError, ValueError) as exc:
         raise NetworkOutputError(
             f"evaluate_on_dataset: the network's predictions cannot be scored by the {evaluator.name} evaluator "
-            f"({one_line(str(exc), 160)}); the network returned {output_shape} for frames of "
+            f"({one_line(str(exc), 160)}); the network returned {run.output_shape} for frames of "
             f"{clips[0].frames.shape[1]}x{clips[0].frames.shape[2]} px: a problem of the network, not of the "
             "clips: the task fails"
         ) from None
@@ -464,10 +513,10 @@ def evaluate_on_dataset(
         primary_metric=evaluator.primary_metric,
         per_clip=per_clip,
         clip_indices=np.asarray([c.index for c in clips], dtype=np.int64),
-        event_counts=np.asarray(counts),
+        event_counts=np.asarray(run.counts),
         predictions={key: v.numpy() for key, v in cat.items()},
         targets=targets,
         seconds=time.perf_counter() - t0,
-        durations_s=np.asarray(spans),
-        failures=tuple(failures),
+        durations_s=np.asarray(run.spans),
+        failures=tuple(run.failures),
     )
