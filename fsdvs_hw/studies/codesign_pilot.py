@@ -1,4 +1,4 @@
-"""Co-design pilot (issue 16): how much of a realisation's loss do retraining and co-design recover?
+"""Co-design pilot: how much of a realisation's loss do retraining and co-design recover?
 
 For one task and one realisation, against the learned kernel in its own networks (the shipped
 ``designs/kernels/networks/{task}_with_learned_detection_7x7_sSEED``), on the checkpoint's fixed
