@@ -46,6 +46,7 @@ __all__ = [
     "MAX_INPUT_BITS",
     "MAX_TAP_BITS",
     "SYMMETRIES",
+    "SYMMETRY_TOL",
     "SymmetryClasses",
     "accumulator_bits",
     "accumulator_range",
@@ -54,6 +55,7 @@ __all__ = [
     "csd_weight",
     "integer_correlate",
     "output_bits",
+    "resolve_symmetry",
     "symmetry_classes",
     "tap_limit",
     "tap_range",
@@ -189,6 +191,32 @@ def symmetry_classes(size: int, symmetry: str) -> SymmetryClasses:
     sizes = np.bincount(labels.ravel())
     reps = [divmod(int(i), size) for i in np.sort(first)]
     return SymmetryClasses(labels=labels, sizes=sizes, representatives=reps)
+
+
+#: Relative L2 distance below which a kernel counts as having a symmetry (``symmetry="auto"``).
+SYMMETRY_TOL = 1e-9
+
+
+def resolve_symmetry(taps: np.ndarray, symmetry: str) -> str:
+    """The symmetry to impose on ``taps``: ``symmetry`` itself, or for ``"auto"`` the highest one the
+    taps have (``"8-fold"``, ``"quadrant"``, else ``"none"``; to :data:`SYMMETRY_TOL` relative).
+
+    Raises
+    ------
+    InputError
+        ``symmetry`` is none of ``"auto"`` and :data:`SYMMETRIES`.
+    """
+    if symmetry != "auto":
+        if symmetry not in SYMMETRIES:
+            raise InputError(f"symmetry: {symmetry!r} unknown; allowed: auto, {', '.join(SYMMETRIES)}")
+        return symmetry
+    t = np.asarray(taps, dtype=np.float64)
+    norm = float(np.linalg.norm(t))
+    for sym in ("8-fold", "quadrant"):
+        cls = symmetry_classes(t.shape[0], sym)
+        if np.linalg.norm(t - cls.expand(cls.class_means(t))) <= SYMMETRY_TOL * norm:
+            return sym
+    return "none"
 
 
 def adder_count(taps: np.ndarray, classes: SymmetryClasses | None = None) -> int:

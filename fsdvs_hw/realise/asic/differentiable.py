@@ -1,6 +1,6 @@
 """Quantisation-aware ASIC taps: the ASIC kernel as a torch function of its own parameters.
 
-For co-design (issue 16) a realisation must expose its kernel as a differentiable function of its
+For co-design a realisation must expose its kernel as a differentiable function of its
 physical parameters, on the same numerics as the fit. For the ASIC those parameters are the
 integer coefficients of the symmetry classes and the output scale of an :class:`AsicDesign`:
 

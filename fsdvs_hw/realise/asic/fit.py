@@ -61,6 +61,7 @@ from .arith import (
     csd_weight,
     integer_correlate,
     output_bits,
+    resolve_symmetry,
     symmetry_classes,
     tap_range,
 )
@@ -76,7 +77,6 @@ SCALE_MODES: tuple[str, ...] = ("free", "pow2")
 #: frequency-response error.
 OBJECTIVES: tuple[str, ...] = ("kernel", "csf")
 
-_SYMMETRY_TOL = 1e-9
 _CSF_NFFT = 64
 _DIRECT_MAXEVAL = 400
 
@@ -561,20 +561,6 @@ def _csf_weights(kernel: Kernel, method: str, geometry: Any) -> tuple[np.ndarray
     return w / w.max(), float(ppd)
 
 
-def _resolve_symmetry(kernel: Kernel, symmetry: str) -> str:
-    if symmetry != "auto":
-        if symmetry not in SYMMETRIES:
-            raise InputError(f"symmetry: {symmetry!r} unknown; allowed: auto, {', '.join(SYMMETRIES)}")
-        return symmetry
-    t = kernel.taps
-    norm = float(np.linalg.norm(t))
-    for sym in ("8-fold", "quadrant"):
-        cls = symmetry_classes(kernel.size, sym)
-        if np.linalg.norm(t - cls.expand(cls.class_means(t))) <= _SYMMETRY_TOL * norm:
-            return sym
-    return "none"
-
-
 def _polish(p: _TapProblem, s: float, q: np.ndarray) -> tuple[float, np.ndarray]:
     """Alternate the least-squares scale of ``q`` and the integer solve at it (J never increases)."""
     for _ in range(50):
@@ -665,40 +651,18 @@ def fit_asic_taps(
 ) -> AsicDesign:
     """Fit integer taps and one scale to a kernel (see the module docstring for the method).
 
+    The options are validated once, at entry, into an :class:`~fsdvs_hw.realise.asic.AsicOptions`
+    (the same model and rules a design file's ``[realisations.asic]`` table is checked against)
+    that the fit reads.
+
     Parameters
     ----------
     kernel : Kernel or array_like
         Target kernel: a :class:`~fsdvs_hw.kernels.Kernel`, a kernel file or odd k×k taps (see
         :func:`~fsdvs_hw.kernels.as_kernel`).
-    bits : int
-        Signed tap width including the sign, 2…24 (``-2**(bits-1) ≤ q ≤ 2**(bits-1) - 1``).
-    pitch_m : float, optional
-        Pixel pitch in metres (default: the kernel's; an array's is
-        :data:`~fsdvs_hw.kernels.DEFAULT_PITCH_M`). It matters only to ``objective="csf"``.
-    symmetry : {"auto", "none", "quadrant", "8-fold"}
-        Symmetry imposed on the taps. ``auto`` picks the highest symmetry the target has (to 1e-9
-        relative); an explicit one projects the target onto it first.
-    scale : {"free", "pow2"} or float
-        ``free``: any positive scale (nlopt DIRECT-L over log2 s, then polished); ``pow2``:
-        ``2**-e`` for an integer ``e``; a positive float fixes the scale (e.g. the gain one LSB of
-        the comparator threshold stands for).
-    adder_weight : float
-        λ ≥ 0: the price of one adder in squared relative kernel error (0: lowest error, ties to
-        fewer adders). Sweep it to trace error against adders.
-    input_bits : int
-        Unsigned pixel width the accumulator is sized for (1…32).
-    pre_add : bool
-        Count (and build) symmetric pre-adds.
-    objective : {"kernel", "csf"}
-        What the error term measures. ``kernel``: the relative L2 kernel error (separable; exact).
-        ``csf``: the relative L2 error of the 2-D frequency response weighted by the CSF,
-        ``‖w (K̂_q − K̂)‖ / ‖w K̂‖`` with ``w(f) = CSF(|f| · ppd) / max CSF`` on a 64×64 DFT grid —
-        errors where the eye is sensitive cost more (coordinate-wise optimum).
-    csf_method : str
-        CSF model for ``objective="csf"`` (see :data:`fsdvs_hw.csf.CSF_METHODS`).
-    geometry : fsdvs_hw.csf.Geometry, optional
-        Pixel pitch and focal length giving pixels per degree for ``objective="csf"``; without it
-        the scale that best aligns the target with the CSF is fitted (:func:`fsdvs_hw.csf.csf_agreement`).
+    bits, pitch_m, symmetry, scale, adder_weight, input_bits, pre_add, objective, csf_method, geometry
+        The fit's options: each one's type, unit, range, default and meaning, and the rules between
+        them, are those of :class:`~fsdvs_hw.realise.asic.AsicOptions`.
 
     Returns
     -------
@@ -722,67 +686,33 @@ def fit_asic_taps(
     >>> d.apply(np.full((5, 5), 100)).tolist()     # the bit-exact integer model, valid-mode output
     [[200, 200, 200], [200, 200, 200], [200, 200, 200]]
     """
-    check_fit_arguments(AsicOptions, locals())  # the registry's schema: same limits as design files
+    o = check_fit_arguments(AsicOptions, locals())
     t0 = time.perf_counter()
-    kernel = as_kernel(kernel, pitch_m=pitch_m, repitch=True)
-    lo_q, lim = tap_range(bits)
-    if objective not in OBJECTIVES:
-        raise InputError(f"objective: {objective!r} unknown; allowed: {', '.join(OBJECTIVES)}")
-    lam = float(adder_weight)
-    if not (math.isfinite(lam) and lam >= 0):
-        raise InputError(f"adder_weight: must be a finite number ≥ 0, got {adder_weight!r}")
-    sym = _resolve_symmetry(kernel, symmetry)
+    kernel = o.target
+    lo_q, lim = tap_range(o.bits)
+    sym = resolve_symmetry(kernel.taps, o.symmetry)
     cls = symmetry_classes(kernel.size, sym)
-    weights, ppd = (None, None) if objective == "kernel" else _csf_weights(kernel, csf_method, geometry)
-    p = _TapProblem(kernel.taps, cls, int(bits), lam, bool(pre_add), weights=weights, n_fft=_CSF_NFFT)
+    weights, ppd = (None, None) if o.objective == "kernel" else _csf_weights(kernel, o.csf_method, o.geometry)
+    p = _TapProblem(kernel.taps, cls, o.bits, o.adder_weight, o.pre_add, weights=weights, n_fft=_CSF_NFFT)
     amax = float(np.abs(p.tbar).max())
-    if amax == 0:
-        raise InputError(f"kernel '{kernel.name}': its {sym}-symmetric part is all zeros; choose symmetry='none'")
     # the naive scale uses the full two's-complement range: -2**(bits-1) for the most negative tap
     naive_s = max(float(p.tbar.max()) / lim, -float(p.tbar.min()) / -lo_q)
     naive_q = cls.expand(np.clip(np.round(p.tbar / naive_s), lo_q, lim))
     info: dict[str, Any] = {
         "naive_scale": naive_s,
         "naive_error": kernel_error(naive_s * naive_q, kernel),
-        "objective_name": objective,
+        "objective_name": o.objective,
     }
     if ppd is not None:
-        info.update(csf_method=csf_method, pixels_per_degree=ppd)
-    if isinstance(scale, str):
-        if scale not in SCALE_MODES:
-            raise InputError(f"scale: {scale!r} unknown; allowed: {', '.join(SCALE_MODES)} or a positive number")
-        if scale == "free":
-            s, q, extra = _fit_free_scale(p, amax)
-            info.update(extra)
-            mode = "free"
-        else:
-            e_lo = math.floor(-math.log2(2.0 * amax))
-            e_hi = math.ceil(math.log2(2.0 * (lim + 1) / amax))
-            best: dict[str, Any] = {"J": math.inf}
-            for e in range(e_lo, e_hi + 1):
-                qe = p.solve(2.0**-e)
-                J = p.objective(qe, 2.0**-e)
-                if p.better(J, qe, best):
-                    best.update(J=J, e=e, q=qe)
-            e, q = best["e"], best["q"]
-            s, mode = 2.0**-e, "pow2"
-            info["scale_exponent"] = int(e)
-    else:
-        s = float(scale)
-        if not (math.isfinite(s) and s > 0):
-            raise InputError(f"scale: a fixed scale must be a positive finite number, got {scale!r}")
-        q, mode = p.solve(s), "fixed"
-    if mode != "fixed" and np.any(q):
-        q, s = _divide_common_factor(p, q, s, powers_of_two_only=(mode == "pow2"))
-        if mode == "pow2":
-            info["scale_exponent"] = int(round(-math.log2(s)))
+        info.update(csf_method=o.csf_method, pixels_per_degree=ppd)
+    s, q, mode = _fit_scale(p, o.scale, amax, lim, info)
     if not np.any(q):
         why = (
             f"at the fixed scale {s:.4g} (largest tap {amax:.4g} is below half a step)"
             if mode == "fixed"
-            else f"with adder_weight={lam:g} (an adder costs more than the whole kernel error)"
+            else f"with adder_weight={o.adder_weight:g} (an adder costs more than the whole kernel error)"
         )
-        raise InputError(f"kernel '{kernel.name}' rounds to all-zero {bits}-bit taps {why}")
+        raise InputError(f"kernel '{kernel.name}' rounds to all-zero {o.bits}-bit taps {why}")
     info["fit_time_s"] = time.perf_counter() - t0
     info["objective"] = p.objective(q, s)
     return AsicDesign(
@@ -790,13 +720,45 @@ def fit_asic_taps(
         taps=cls.expand(q).astype(np.int64),
         scale=float(s),
         scale_mode=mode,
-        bits=int(bits),
+        bits=o.bits,
         symmetry=sym,
-        input_bits=int(input_bits),
-        pre_add=bool(pre_add),
-        adder_weight=lam,
+        input_bits=o.input_bits,
+        pre_add=o.pre_add,
+        adder_weight=o.adder_weight,
         fit_info=info,
     )
+
+
+def _fit_scale(
+    p: _TapProblem, scale: str | float, amax: float, lim: int, info: dict[str, Any]
+) -> tuple[float, np.ndarray, str]:
+    """The scale and class taps of one ``scale`` option (``"free"``, ``"pow2"`` or a fixed number);
+    returns ``(s, q, mode)`` and records the search in ``info``. A free or power-of-two scale has
+    the taps' common factor that leaves the fewest adders folded into it."""
+    if scale == "free":
+        s, q, extra = _fit_free_scale(p, amax)
+        info.update(extra)
+        mode = "free"
+    elif scale == "pow2":
+        e_lo = math.floor(-math.log2(2.0 * amax))
+        e_hi = math.ceil(math.log2(2.0 * (lim + 1) / amax))
+        best: dict[str, Any] = {"J": math.inf}
+        for e in range(e_lo, e_hi + 1):
+            qe = p.solve(2.0**-e)
+            J = p.objective(qe, 2.0**-e)
+            if p.better(J, qe, best):
+                best.update(J=J, e=e, q=qe)
+        e, q = best["e"], best["q"]
+        s, mode = 2.0**-e, "pow2"
+        info["scale_exponent"] = int(e)
+    else:
+        s = float(scale)
+        q, mode = p.solve(s), "fixed"
+    if mode != "fixed" and np.any(q):
+        q, s = _divide_common_factor(p, q, s, powers_of_two_only=(mode == "pow2"))
+        if mode == "pow2":
+            info["scale_exponent"] = int(round(-math.log2(s)))
+    return s, q, mode
 
 
 def exhaustive_asic_taps(
@@ -821,7 +783,7 @@ def exhaustive_asic_taps(
     (taps, scale, objective)
     """
     kernel = as_kernel(kernel)
-    sym = _resolve_symmetry(kernel, symmetry)
+    sym = resolve_symmetry(kernel.taps, symmetry)
     cls = symmetry_classes(kernel.size, sym)
     if objective not in OBJECTIVES:
         raise InputError(f"objective: {objective!r} unknown; allowed: {', '.join(OBJECTIVES)}")

@@ -1,29 +1,72 @@
-"""Fit options of :func:`~fsdvs_hw.realise.asic.fit_asic_taps`: type, unit, range, default, meaning.
+"""Fit options of :func:`~fsdvs_hw.realise.asic.fit_asic_taps`: type, unit, range, default, meaning, rules.
 
 The design loader checks a ``[realisations.asic]`` table against :class:`AsicOptions` and
-:func:`fit_asic_taps` checks its own arguments against it at its first line
+:func:`fit_asic_taps` builds its options object from its arguments at its first line
 (:func:`fsdvs_hw.validation.check_fit_arguments`), so both refuse the same values with the same
-words. The ranges are the fit function's own (see its docstring).
+words, the rules between options and on the target kernel included
+(:mod:`fsdvs_hw.realise.fit_options`).
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Literal, Self
 
-from pydantic import Field
+import numpy as np
+from pydantic import Field, model_validator
 
-from ...schema import PyObject, StrictModel, field
+from ...kernels import Kernel
+from ...schema import PyObject, field
 from ...validation import PITCH_RANGE_M
+from ..fit_options import FitOptions, OptionProblem, raise_option_problems
+from .arith import MAX_INPUT_BITS, MAX_TAP_BITS, resolve_symmetry, symmetry_classes
 
 __all__ = ["AsicOptions"]
 
 
-class AsicOptions(StrictModel):
-    """Keyword options of :func:`~fsdvs_hw.realise.asic.fit_asic_taps`."""
+class AsicOptions(FitOptions):
+    """Keyword options of :func:`~fsdvs_hw.realise.asic.fit_asic_taps`, validated, with their rules.
+
+    Parameters
+    ----------
+    bits : int
+        Signed tap width including the sign, 2…24 (``-2**(bits-1) ≤ q ≤ 2**(bits-1) - 1``).
+    pitch_m : float, optional
+        Pixel pitch in metres (default: the kernel's; an array's is
+        :data:`~fsdvs_hw.kernels.DEFAULT_PITCH_M`). It matters only to ``objective="csf"``.
+    symmetry : {"auto", "none", "quadrant", "8-fold"}
+        Symmetry imposed on the taps. ``auto`` picks the highest symmetry the target has (to 1e-9
+        relative); an explicit one projects the target onto it first.
+    scale : {"free", "pow2"} or float
+        ``free``: any positive scale (nlopt DIRECT-L over log2 s, then polished); ``pow2``:
+        ``2**-e`` for an integer ``e``; a positive float fixes the scale (e.g. the gain one LSB of
+        the comparator threshold stands for).
+    adder_weight : float
+        λ ≥ 0: the price of one adder in squared relative kernel error (0: lowest error, ties to
+        fewer adders). Sweep it to trace error against adders.
+    input_bits : int
+        Unsigned pixel width the accumulator is sized for (1…32).
+    pre_add : bool
+        Count (and build) symmetric pre-adds.
+    objective : {"kernel", "csf"}
+        What the error term measures. ``kernel``: the relative L2 kernel error (separable; exact).
+        ``csf``: the relative L2 error of the 2-D frequency response weighted by the CSF,
+        ``‖w (K̂_q − K̂)‖ / ‖w K̂‖`` with ``w(f) = CSF(|f| · ppd) / max CSF`` on a 64×64 DFT grid —
+        errors where the eye is sensitive cost more (coordinate-wise optimum).
+    csf_method : str
+        CSF model for ``objective="csf"`` (see :data:`fsdvs_hw.csf.CSF_METHODS`).
+    geometry : fsdvs_hw.csf.Geometry, optional
+        Pixel pitch and focal length giving pixels per degree for ``objective="csf"``; without it
+        the scale that best aligns the target with the CSF is fitted (:func:`fsdvs_hw.csf.csf_agreement`).
+
+    Notes
+    -----
+    Rule between options: with ``objective="csf"`` a ``geometry`` is a :class:`fsdvs_hw.csf.Geometry`.
+    Rule on the target: its part with the chosen ``symmetry`` is not all zeros.
+    """
 
     unknown_key = "unknown option of fit_asic_taps"
 
-    bits: int = field(8, "bit", "signed tap width including the sign", ge=2, le=24)
+    bits: int = field(8, "bit", "signed tap width including the sign", ge=2, le=MAX_TAP_BITS)
     pitch_m: float | None = field(
         None, "m", "pixel pitch (default: the kernel's)", ge=PITCH_RANGE_M[0], le=PITCH_RANGE_M[1]
     )
@@ -32,10 +75,34 @@ class AsicOptions(StrictModel):
         "free", "", "tap scale: 'free', 'pow2' or a fixed positive number"
     )
     adder_weight: float = field(0.0, "", "price of one adder in squared relative error", ge=0.0)
-    input_bits: int = field(8, "bit", "unsigned pixel width the accumulator is sized for", ge=1, le=32)
+    input_bits: int = field(8, "bit", "unsigned pixel width the accumulator is sized for", ge=1, le=MAX_INPUT_BITS)
     pre_add: bool = field(True, "", "count and build symmetric pre-adds")
     objective: Literal["kernel", "csf"] = field("kernel", "", "what the error term measures")
     csf_method: Literal["mannos_sakrison_1974", "barten_1999", "daly_1993", "watson_ahumada_2005"] = field(
         "mannos_sakrison_1974", "", "CSF model for objective 'csf'"
     )
     geometry: PyObject | None = field(None, "", "fsdvs_hw.csf.Geometry (pixels per degree) for objective 'csf'")
+
+    @model_validator(mode="after")
+    def _options_agree(self) -> Self:
+        """With ``objective="csf"`` a ``geometry`` is a :class:`fsdvs_hw.csf.Geometry` (or None)."""
+        from ...csf import Geometry
+
+        if self.objective == "csf" and self.geometry is not None and not isinstance(self.geometry, Geometry):
+            found = [
+                OptionProblem(
+                    "geometry",
+                    self.geometry,
+                    f"expected a fsdvs_hw.csf.Geometry or None, got {type(self.geometry).__name__}",
+                )
+            ]
+            raise_option_problems(type(self), found)
+        return self
+
+    def target_problems(self, target: Kernel) -> list[OptionProblem]:
+        """The target's part with the chosen symmetry must not be all zeros (nothing to quantise)."""
+        sym = resolve_symmetry(target.taps, self.symmetry)
+        if np.any(symmetry_classes(target.size, sym).class_means(target.taps)):
+            return []
+        why = f"the {sym}-symmetric part of kernel '{target.name}' is all zeros; choose symmetry='none'"
+        return [OptionProblem("symmetry", self.symmetry, why)]

@@ -1,6 +1,6 @@
 r"""The dual resistive mesh's kernel as a torch function of its circuit parameters.
 
-For co-design (issue 16) a realisation exposes its kernel as a differentiable function of its
+For co-design a realisation exposes its kernel as a differentiable function of its
 physical parameters, inside their bounds, on the same numerics as the fit. For the mesh (the
 infinite-lattice model of :class:`MeshDesign`) the kernel on a (2r+1)² window is
 

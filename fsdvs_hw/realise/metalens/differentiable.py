@@ -1,6 +1,6 @@
 r"""The metalens kernel as a torch function of its phase profile, sensor distance and gains.
 
-For co-design (issue 16) a realisation exposes its kernel as a differentiable function of its
+For co-design a realisation exposes its kernel as a differentiable function of its
 physical parameters on the same numerics as the fit. For a :class:`MetalensDesign` those are, per
 lens, the radial phase coefficients :math:`c_k` of :math:`(r/a)^{2k+2}` added to the hyperbolic
 focusing phase, the lens-to-sensor distance :math:`z`, and the gain applied to the PSF taps. The
