@@ -6,9 +6,15 @@
 * :mod:`~fsdvs_hw.tasks.evaluators` — the :class:`TaskEvaluator` plug-in interface, the detection /
   recognition / segmentation evaluators and their registry.
 * :mod:`~fsdvs_hw.tasks.learn` — :func:`learn_kernel` and :func:`evaluate_kernel`.
+* :mod:`~fsdvs_hw.tasks.training` — the training engine every training path runs (a
+  :class:`~fsdvs_hw.tasks.training.TrainingConfig` per stage, one epoch loop);
+  :mod:`~fsdvs_hw.tasks.checkpoints` — checkpoint files and the partial state a run resumes from;
+  :mod:`~fsdvs_hw.tasks.event_inputs` — clips through the simulator to the network's input;
+  :mod:`~fsdvs_hw.tasks.synthetic_data` — the cached synthetic clips.
 * :mod:`~fsdvs_hw.tasks.user_networks` — a user network by import path (``"pkg.mod:factory"``), its
   event representation, user weights; :mod:`~fsdvs_hw.tasks.dataset_eval` — :func:`evaluate_on_dataset`
-  scores a kernel on a user dataset (:mod:`fsdvs_hw.scenes.datasets`).
+  scores a kernel on a user dataset (:mod:`fsdvs_hw.scenes.datasets`);
+  :mod:`~fsdvs_hw.tasks.dataset_training` trains a network and a kernel on one.
 * :mod:`~fsdvs_hw.tasks.reconstruction` — events → intensity (a small E2VID-like network), task
   ``"reconstruction"``, registered when that module is imported (the information study,
   :mod:`fsdvs_hw.studies.information`).
