@@ -1,7 +1,7 @@
 """Train a network (and learn its kernel) on a user clip dataset with the FS-DVS two-stage protocol.
 
 :func:`train_on_dataset` is :func:`fsdvs_hw.tasks.learn.learn_kernel`'s protocol on the user's
-clips and network, through the same training loop (``_train_epochs``):
+clips and network, through the same training engine (:func:`fsdvs_hw.tasks.training.train_epochs`):
 
 1. **stage one** (``epochs_frozen``): the spatial kernel is frozen (a Dirac delta plus small
    Gaussian noise, or ``init_kernel``) and the network trains alone with AdamW at
