@@ -266,6 +266,147 @@ def _plan_arguments(tolerance: Any, config: SensorConfig | None) -> tuple[float,
     return tol, config
 
 
+def _temporal_filter_decisions(
+    st: SceneStats, config: SensorConfig, tol: float, c_nom: float, changes: dict[str, Any]
+) -> list[PlanDecision]:
+    """The photoreceptor low-pass and surround-transient decisions; ``changes`` receives the
+    config fields that switch off a filter the scene does not need (``c_nom``: nominal threshold,
+    log units)."""
+    decisions: list[PlanDecision] = []
+    if not config.has_photoreceptor:
+        decisions.append(PlanDecision("photoreceptor", False, 0.0, tol, "disabled in config (cutoff_hz = 0 or inf)"))
+    else:
+        lag = st.max_lowpass_lag / c_nom
+        inc = lag > tol
+        decisions.append(
+            PlanDecision(
+                "photoreceptor",
+                inc,
+                lag,
+                tol,
+                f"worst low-pass lag {st.max_lowpass_lag:.3g} log units = {lag:.3g} C "
+                f"(intensity {st.min_intensity:.3g}..{st.max_intensity:.3g}, cut-off {config.cutoff_hz:g} Hz at full scale)"
+                + (" > tolerance" if inc else " <= tolerance"),
+            )
+        )
+        if not inc:
+            changes["cutoff_hz"] = 0.0
+    if (
+        config.placement != "post_log"
+        or config.surround_tau_s <= 0
+        or config.surround_weight <= 0
+        or config.surround_lambda_px <= 0
+    ):
+        decisions.append(
+            PlanDecision("surround transient", False, 0.0, tol, "no surround mesh with a time constant in config")
+        )
+    else:
+        lag = st.max_surround_lag / c_nom
+        inc = lag > tol
+        decisions.append(
+            PlanDecision(
+                "surround transient",
+                inc,
+                lag,
+                tol,
+                f"mesh lag {st.max_surround_lag:.3g} log units = {lag:.3g} C"
+                f" (tau {config.surround_tau_s:g} s)" + (" > tolerance" if inc else " <= tolerance"),
+            )
+        )
+        if not inc:
+            changes["surround_tau_s"] = 0.0
+    return decisions
+
+
+def _substep_decision(
+    st: SceneStats, config: SensorConfig, tol: float, c_low: float, temporal: list[str]
+) -> tuple[tuple[int, ...], PlanDecision]:
+    """Sub-steps per frame interval and their decision: where a temporal filter runs
+    (``temporal``: their names), ``ceil(max|ΔL| / (tol · c_low))`` per interval (``c_low``: the
+    lowest likely threshold, log units), else one."""
+    if temporal:
+        subs = tuple(
+            int(min(max(math.ceil(x / (tol * c_low)), 1), config.max_substeps)) for x in st.interval_max_abs_change
+        )
+        return subs, PlanDecision(
+            "sub-steps",
+            True,
+            float(max(subs)),
+            float(config.max_substeps),
+            f"{' and '.join(temporal)} filter(s) run: per interval ceil(max|ΔL| / ({tol:g} C)), "
+            f"max |ΔL| {max(st.interval_max_abs_change):.3g} log units -> {_summarise(subs)}",
+        )
+    subs = tuple(1 for _ in st.interval_max_abs_change)
+    return subs, PlanDecision(
+        "sub-steps",
+        False,
+        1.0,
+        float(config.max_substeps),
+        "no temporal filter: crossings of the linearly interpolated signal are "
+        "exact in closed form, 1 step per interval",
+    )
+
+
+def _mismatch_decision(
+    st: SceneStats, config: SensorConfig, tol: float, c_nom: float, changes: dict[str, Any]
+) -> PlanDecision:
+    """The threshold-mismatch decision: the measured (or estimated) frame error without it."""
+    ratio = config.threshold_sigma / c_nom
+    if st.mismatch_frame_error is not None:
+        value = st.mismatch_frame_error
+        how = f"measured frame error without it {value:.3g} (probe on a <= 64x64 crop; sigma/C = {ratio:.3g})"
+    else:
+        value = 4 * ratio
+        how = f"estimated frame error without it 4 sigma/C = {value:.3g} (no video to probe)"
+    inc = value > tol
+    if not inc:
+        changes["threshold_sigma"] = 0.0
+    return PlanDecision("threshold mismatch", inc, value, tol, how + (" > tolerance" if inc else " <= tolerance"))
+
+
+def _refractory_decision(st: SceneStats, config: SensorConfig, c_low: float, changes: dict[str, Any]) -> PlanDecision:
+    """The refractory decision: whether two crossings can ever fall within one refractory period."""
+    per_ref = st.max_log_rate_per_s / c_low * config.refractory_s
+    inc = per_ref >= 1.0
+    if not inc:
+        changes["refractory_s"] = 0.0
+    return PlanDecision(
+        "refractory",
+        inc,
+        per_ref,
+        1.0,
+        f"max crossing rate {st.max_log_rate_per_s / c_low:.3g} /s x refractory {config.refractory_s:g} s = {per_ref:.3g}"
+        + (" >= 1: crossings can be lost" if inc else " < 1: no crossing is ever lost"),
+    )
+
+
+def _noise_decisions(
+    st: SceneStats, config: SensorConfig, tol: float, signal_events: float, changes: dict[str, Any]
+) -> list[PlanDecision]:
+    """The leak-event and shot-noise decisions: their expected events against the scene's."""
+    decisions = []
+    for name, key in (("leak events", "leak_rate_hz"), ("shot noise", "shot_noise_rate_hz")):
+        rate = float(getattr(config, key))
+        expected = rate * st.n_pixels * st.duration_s
+        ratio = expected / max(signal_events, 1.0)
+        text = (
+            f"expected {expected:.3g} events ({rate:g} Hz x {st.n_pixels} px x {st.duration_s:.3g} s) vs "
+            f"{signal_events:.3g} signal events: ratio {ratio:.3g}"
+        )
+        value = ratio
+        if key == "leak_rate_hz":
+            # the leak also drifts every reference by rate x duration thresholds, shifting signal
+            # events in time; in event-frame L1 each shifted event counts twice
+            drift = rate * st.duration_s
+            value = max(ratio, 2 * drift)
+            text += f"; reference drift {drift:.3g} C over the clip (frame error ~ {2 * drift:.3g})"
+        inc = value > tol
+        decisions.append(PlanDecision(name, inc, value, tol, text + (" > tolerance" if inc else " <= tolerance")))
+        if not inc:
+            changes[key] = 0.0
+    return decisions
+
+
 def plan_model(
     video_or_stats: Any,
     tolerance: float = 0.05,
@@ -313,130 +454,14 @@ def plan_model(
     c_nom = min(c_on, c_off)
     c_low = max(c_nom - 3 * config.threshold_sigma, config.threshold_min_fraction * c_nom)
     signal_events = st.total_abs_change / c_nom
-    decisions: list[PlanDecision] = []
     changes: dict[str, Any] = {}
-
-    # photoreceptor low-pass
-    if not config.has_photoreceptor:
-        decisions.append(PlanDecision("photoreceptor", False, 0.0, tol, "disabled in config (cutoff_hz = 0 or inf)"))
-    else:
-        lag = st.max_lowpass_lag / c_nom
-        inc = lag > tol
-        decisions.append(
-            PlanDecision(
-                "photoreceptor",
-                inc,
-                lag,
-                tol,
-                f"worst low-pass lag {st.max_lowpass_lag:.3g} log units = {lag:.3g} C "
-                f"(intensity {st.min_intensity:.3g}..{st.max_intensity:.3g}, cut-off {config.cutoff_hz:g} Hz at full scale)"
-                + (" > tolerance" if inc else " <= tolerance"),
-            )
-        )
-        if not inc:
-            changes["cutoff_hz"] = 0.0
-    # surround transient
-    if (
-        config.placement != "post_log"
-        or config.surround_tau_s <= 0
-        or config.surround_weight <= 0
-        or config.surround_lambda_px <= 0
-    ):
-        decisions.append(
-            PlanDecision("surround transient", False, 0.0, tol, "no surround mesh with a time constant in config")
-        )
-    else:
-        lag = st.max_surround_lag / c_nom
-        inc = lag > tol
-        decisions.append(
-            PlanDecision(
-                "surround transient",
-                inc,
-                lag,
-                tol,
-                f"mesh lag {st.max_surround_lag:.3g} log units = {lag:.3g} C"
-                f" (tau {config.surround_tau_s:g} s)" + (" > tolerance" if inc else " <= tolerance"),
-            )
-        )
-        if not inc:
-            changes["surround_tau_s"] = 0.0
-    # sub-steps
+    decisions = _temporal_filter_decisions(st, config, tol, c_nom, changes)
     temporal = [d.name for d in decisions if d.included]
-    if temporal:
-        subs = tuple(
-            int(min(max(math.ceil(x / (tol * c_low)), 1), config.max_substeps)) for x in st.interval_max_abs_change
-        )
-        decisions.append(
-            PlanDecision(
-                "sub-steps",
-                True,
-                float(max(subs)),
-                float(config.max_substeps),
-                f"{' and '.join(temporal)} filter(s) run: per interval ceil(max|ΔL| / ({tol:g} C)), "
-                f"max |ΔL| {max(st.interval_max_abs_change):.3g} log units -> {_summarise(subs)}",
-            )
-        )
-    else:
-        subs = tuple(1 for _ in st.interval_max_abs_change)
-        decisions.append(
-            PlanDecision(
-                "sub-steps",
-                False,
-                1.0,
-                float(config.max_substeps),
-                "no temporal filter: crossings of the linearly interpolated signal are "
-                "exact in closed form, 1 step per interval",
-            )
-        )
-    # threshold mismatch
-    ratio = config.threshold_sigma / c_nom
-    if st.mismatch_frame_error is not None:
-        value = st.mismatch_frame_error
-        how = f"measured frame error without it {value:.3g} (probe on a <= 64x64 crop; sigma/C = {ratio:.3g})"
-    else:
-        value = 4 * ratio
-        how = f"estimated frame error without it 4 sigma/C = {value:.3g} (no video to probe)"
-    inc = value > tol
-    decisions.append(
-        PlanDecision("threshold mismatch", inc, value, tol, how + (" > tolerance" if inc else " <= tolerance"))
-    )
-    if not inc:
-        changes["threshold_sigma"] = 0.0
-    # refractory
-    per_ref = st.max_log_rate_per_s / c_low * config.refractory_s
-    inc = per_ref >= 1.0
-    decisions.append(
-        PlanDecision(
-            "refractory",
-            inc,
-            per_ref,
-            1.0,
-            f"max crossing rate {st.max_log_rate_per_s / c_low:.3g} /s x refractory {config.refractory_s:g} s = {per_ref:.3g}"
-            + (" >= 1: crossings can be lost" if inc else " < 1: no crossing is ever lost"),
-        )
-    )
-    if not inc:
-        changes["refractory_s"] = 0.0
-    # noise sources
-    for name, key in (("leak events", "leak_rate_hz"), ("shot noise", "shot_noise_rate_hz")):
-        rate = float(getattr(config, key))
-        expected = rate * st.n_pixels * st.duration_s
-        ratio = expected / max(signal_events, 1.0)
-        text = (
-            f"expected {expected:.3g} events ({rate:g} Hz x {st.n_pixels} px x {st.duration_s:.3g} s) vs "
-            f"{signal_events:.3g} signal events: ratio {ratio:.3g}"
-        )
-        value = ratio
-        if key == "leak_rate_hz":
-            # the leak also drifts every reference by rate x duration thresholds, shifting signal
-            # events in time; in event-frame L1 each shifted event counts twice
-            drift = rate * st.duration_s
-            value = max(ratio, 2 * drift)
-            text += f"; reference drift {drift:.3g} C over the clip (frame error ~ {2 * drift:.3g})"
-        inc = value > tol
-        decisions.append(PlanDecision(name, inc, value, tol, text + (" > tolerance" if inc else " <= tolerance")))
-        if not inc:
-            changes[key] = 0.0
+    subs, substeps = _substep_decision(st, config, tol, c_low, temporal)
+    decisions.append(substeps)
+    decisions.append(_mismatch_decision(st, config, tol, c_nom, changes))
+    decisions.append(_refractory_decision(st, config, c_low, changes))
+    decisions.extend(_noise_decisions(st, config, tol, signal_events, changes))
     decisions.append(
         PlanDecision(
             "positivity floor",

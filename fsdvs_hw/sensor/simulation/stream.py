@@ -346,7 +346,143 @@ class _Submitted:
         )
 
 
-def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
+class _FrameReader:
+    """The stream's frames, a batch at a time: each converted, saturated, timed and checked (shape,
+    time order); the first one sets the dtype, frame shape, kernel tensor and, unless given, the
+    chunk length (frame intervals)."""
+
+    def __init__(
+        self,
+        source: Iterator[Any],
+        kernel: Any,
+        timestamps_s: Any,
+        config: SensorConfig,
+        chunk: int | None,
+        want_frames: bool,
+    ) -> None:
+        self.source, self.kernel, self.config, self.chunk, self.want_frames = source, kernel, config, chunk, want_frames
+        self.times = iter(timestamps_s) if timestamps_s is not None else None
+        self.dtype = None
+        self.shape: tuple[int, ...] | None = None
+        self.w = None
+        self.index = 0
+        self.saturated = 0  # pixel-frames clipped at SATURATION_INTENSITY since the last chunk
+        self.exhausted = False
+
+    def frame_time(self, t_item: float | None, i: int) -> float:
+        """Time of frame ``i`` (s): from ``timestamps_s``, else the item's own, else the frame rate's."""
+        if self.times is not None:
+            try:
+                t = float(next(self.times))
+            except StopIteration:
+                raise InputError(f"timestamps_s: has fewer times than frames (ran out at frame {i})") from None
+            except (TypeError, ValueError):
+                raise InputError(f"timestamps_s[{i}]: not a number") from None
+        elif t_item is not None:
+            t = t_item
+        else:
+            t = i / self.config.frame_rate_hz
+        if not math.isfinite(t):
+            raise InputError(f"timestamps_s[{i}]: {t!r} is not finite")
+        return t
+
+    def read(self, first: bool, prev_t: float | None) -> tuple[list[Any], list[float]]:
+        """The next chunk's frames and times (one more frame for the ``first`` chunk); ``prev_t``:
+        the previous chunk's last time (s). Fewer at the end of the source (then :attr:`exhausted`)."""
+        batch: list[Any] = []
+        ts: list[float] = []
+        need = (self.chunk or 1) + (1 if first else 0)  # chunk None: set by the first frame
+        while len(batch) < need:
+            try:
+                item = next(self.source)
+            except StopIteration:
+                self.exhausted = True
+                break
+            t_item, fr, hi = _as_frame(item, self.index, self.dtype)
+            if hi > SATURATION_INTENSITY:  # the check's maximum spares saturate() its own pass
+                fr, n_sat = saturate(fr)
+                self.saturated += n_sat
+            if self.dtype is None:
+                self.dtype, self.shape = fr.dtype, tuple(fr.shape)
+                if self.chunk is None:
+                    self.chunk = (
+                        DEFAULT_FRAMES_CHUNK if self.want_frames else chunk_frames_for(self.shape[-2], self.shape[-1])
+                    )
+                    need = self.chunk + 1
+                self.w = kernel_tensor(self.kernel, fr)
+            elif tuple(fr.shape) != self.shape:
+                raise InputError(
+                    f"frames[{self.index}]: shape {tuple(fr.shape)} differs from the first frame's {self.shape}"
+                )
+            t = self.frame_time(t_item, self.index)
+            last_t = ts[-1] if ts else prev_t
+            if last_t is not None and not t > last_t:
+                raise InputError(
+                    f"timestamps_s: must be strictly increasing; frame {self.index} is not later than frame {self.index - 1}"
+                )
+            batch.append(fr)
+            ts.append(t)
+            self.index += 1
+        return batch, ts
+
+
+class _ChunkThresholds:
+    """The per-pixel thresholds of every chunk: the same draw (from the generator's state at the
+    start), drawn again only when it carries a graph (truncated BPTT)."""
+
+    def __init__(self, config: SensorConfig, generator: Any) -> None:
+        self.config, self.generator = config, generator
+        self.gen_state = generator.get_state() if generator is not None else None
+        self.cache: list = []
+        self.grad = any(
+            isinstance(c, torch.Tensor) and c.requires_grad for c in (config.threshold_on, config.threshold_off)
+        )
+
+    def draw(self, like: Any, shape: tuple[int, ...]) -> Any:
+        """``(c_on, c_off)`` for frames like ``like`` of ``shape`` (B, H, W)."""
+        if self.cache and not (self.grad and torch.is_grad_enabled()):
+            return self.cache[0]
+        g = None
+        if self.gen_state is not None:
+            g = torch.Generator(device=self.generator.device)
+            g.set_state(self.gen_state)
+        thr = threshold_maps(self.config, tuple(shape[1:]), like, generator=g)
+        self.cache[:] = [thr]
+        return thr
+
+
+def _carry_over(
+    state: PixelState, thresholds: Any, prev: tuple, Ls: list, CI: list | None, SU: list | None, ts: list
+) -> None:
+    """Continue ``state`` into a new chunk: its thresholds, its tensors detached (truncated BPTT:
+    no graph across chunks), and the previous chunk's last frame ``prev`` = (L, CI, SU, t) put
+    first in the chunk's frames and times."""
+    state.c_on, state.c_off = thresholds
+    for name in ("ref", "lp", "sur", "sig_prev"):
+        v = getattr(state, name)
+        if v is not None:
+            setattr(state, name, v.detach())
+    Ls.insert(0, prev[0])
+    if CI is not None:
+        CI.insert(0, prev[1])
+    if SU is not None:
+        SU.insert(0, prev[2])
+    ts.insert(0, prev[3])
+
+
+def _chunk_substeps(
+    subs_plan: list[int] | None, first_interval: int, Ls: list, config: SensorConfig, transient: bool
+) -> list[int]:
+    """Sub-steps of the chunk's ``len(Ls) - 1`` intervals: the plan's, else chosen from its signal."""
+    n_int = len(Ls) - 1
+    if subs_plan is not None:
+        if first_interval + n_int > len(subs_plan):
+            raise InputError(f"plan: made for {len(subs_plan) + 1} frames, the stream has more")
+        return subs_plan[first_interval : first_interval + n_int]
+    return substeps_per_interval(Ls, config, transient)
+
+
+def _stream(
     source: Iterator[Any],
     kernel: Any,
     timestamps_s: Any,
@@ -358,124 +494,48 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
     want_frames: bool,
     generator: Any,
 ) -> Iterator[EventChunk]:
-    times = iter(timestamps_s) if timestamps_s is not None else None
-    gen_state = generator.get_state() if generator is not None else None
-    dtype = None
-    shape: tuple[int, ...] | None = None
-    w = None
+    """The chunks of :func:`simulate` (arguments resolved), pixel state carried between them."""
+    thresholds = _ChunkThresholds(config, generator)
+    reader = _FrameReader(source, kernel, timestamps_s, config, chunk, want_frames)
     state: PixelState | None = None
     prev = None  # (L, CI, SU, t) of the last frame of the previous chunk
-    index = 0
     first_interval = 0
-    saturated = 0  # pixel-frames clipped at SATURATION_INTENSITY since the last chunk
-
-    def frame_time(t_item: float | None, i: int) -> float:
-        if times is not None:
-            try:
-                t = float(next(times))
-            except StopIteration:
-                raise InputError(f"timestamps_s: has fewer times than frames (ran out at frame {i})") from None
-            except (TypeError, ValueError):
-                raise InputError(f"timestamps_s[{i}]: not a number") from None
-        elif t_item is not None:
-            t = t_item
-        else:
-            t = i / config.frame_rate_hz
-        if not math.isfinite(t):
-            raise InputError(f"timestamps_s[{i}]: {t!r} is not finite")
-        return t
-
-    thr_cache: list = []
-    thr_grad = any(isinstance(c, torch.Tensor) and c.requires_grad for c in (config.threshold_on, config.threshold_off))
-
-    def thresholds(like: Any) -> Any:
-        # the same draw for every chunk; drawn again only when it carries a graph (truncated BPTT)
-        if thr_cache and not (thr_grad and torch.is_grad_enabled()):
-            return thr_cache[0]
-        g = None
-        if gen_state is not None:
-            g = torch.Generator(device=generator.device)
-            g.set_state(gen_state)
-        assert shape is not None  # set by the first frame, before the first draw
-        thr = threshold_maps(config, tuple(shape[1:]), like, generator=g)
-        thr_cache[:] = [thr]
-        return thr
-
-    exhausted = False
     # An event-only stream on the CPU keeps one event pipeline for the whole clip and hands each
     # chunk over after submitting the next LOOKAHEAD_CHUNKS chunks' steps: the worker threads never
     # drain at a chunk boundary (that many extra chunks of events are in flight).
     pipe = None
     pending: list = []
     try:
-        while not exhausted:
-            batch: list[Any] = []
-            ts: list[float] = []
-            need = (chunk or 1) + (1 if prev is None else 0)  # chunk None: set by the first frame
-            while len(batch) < need:
-                try:
-                    item = next(source)
-                except StopIteration:
-                    exhausted = True
-                    break
-                t_item, fr, hi = _as_frame(item, index, dtype)
-                if hi > SATURATION_INTENSITY:  # the check's maximum spares saturate() its own pass
-                    fr, n_sat = saturate(fr)
-                    saturated += n_sat
-                if dtype is None:
-                    dtype, shape = fr.dtype, tuple(fr.shape)
-                    if chunk is None:
-                        chunk = DEFAULT_FRAMES_CHUNK if want_frames else chunk_frames_for(shape[-2], shape[-1])
-                        need = chunk + 1
-                    w = kernel_tensor(kernel, fr)
-                elif tuple(fr.shape) != shape:
-                    raise InputError(f"frames[{index}]: shape {tuple(fr.shape)} differs from the first frame's {shape}")
-                t = frame_time(t_item, index)
-                last_t = ts[-1] if ts else (prev[3] if prev is not None else None)
-                if last_t is not None and not t > last_t:
-                    raise InputError(
-                        f"timestamps_s: must be strictly increasing; frame {index} is not later than frame {index - 1}"
-                    )
-                batch.append(fr)
-                ts.append(t)
-                index += 1
+        while not reader.exhausted:
+            batch, ts = reader.read(prev is None, prev[3] if prev is not None else None)
             if not batch or (prev is None and len(batch) < 2):
                 if prev is None:
                     raise InputError(f"frames: need at least 2 frames, got {len(batch)}")
                 break
+            shape = reader.shape
             assert shape is not None  # set by the first frame (batch is not empty)
             video = _stack_frames(batch)  # (B, n, H, W)
-            sig = filtered_log_signal(video, w, config)
+            sig = filtered_log_signal(video, reader.w, config)
             B = video.shape[0]
             Ls = list(sig.log_signal.unbind(1))
             CI = list(sig.cutoff_intensity.unbind(1)) if config.has_photoreceptor else None
             SU = list(sig.surround.unbind(1)) if sig.surround is not None else None
             if prev is None:
-                c_on, c_off = thresholds(Ls[0])
                 state = initial_pixel_state(
-                    Ls[0], SU[0] if SU is not None else None, config, (c_on, c_off), None, None, want_events
+                    Ls[0],
+                    SU[0] if SU is not None else None,
+                    config,
+                    thresholds.draw(Ls[0], shape),
+                    None,
+                    None,
+                    want_events,
                 )
             else:
                 assert state is not None  # set with the first chunk (prev is not None)
-                state.c_on, state.c_off = thresholds(Ls[0])
-                for name in ("ref", "lp", "sur", "sig_prev"):  # truncated BPTT: no graph across chunks
-                    v = getattr(state, name)
-                    if v is not None:
-                        setattr(state, name, v.detach())
-                Ls.insert(0, prev[0])
-                if CI is not None:
-                    CI.insert(0, prev[1])
-                if SU is not None:
-                    SU.insert(0, prev[2])
-                ts.insert(0, prev[3])
+                _carry_over(state, thresholds.draw(Ls[0], shape), prev, Ls, CI, SU, ts)
             n_int = len(Ls) - 1
             tsd = torch.tensor(ts, dtype=torch.float64, device=video.device).expand(B, -1)
-            if subs_plan is not None:
-                if first_interval + n_int > len(subs_plan):
-                    raise InputError(f"plan: made for {len(subs_plan) + 1} frames, the stream has more")
-                subs = subs_plan[first_interval : first_interval + n_int]
-            else:
-                subs = substeps_per_interval(Ls, config, sig.surround is not None)
+            subs = _chunk_substeps(subs_plan, first_interval, Ls, config, sig.surround is not None)
             noise0, lost0 = state.noise_events, state.lost
             ev_parts: list = []
             if pipe is None and want_events and not want_frames and events_pipelined(video.device, config, False):
@@ -488,26 +548,20 @@ def _stream(  # noqa: C901 - one streaming loop; split left as follow-up
             frames = torch.stack(out, dim=1).view(B, n_int, 2, *shape[1:]) if want_frames else None
             if pipe is not None and want_events:  # the columns too are built on the worker
                 ev_parts = pipe.columns(ev_parts, shape[1], shape[2], B)
+            steps, noise = (pipe.take_steps(), pipe.take_noise()) if pipe is not None else ([], [])
+            info = SimulationInfo(
+                sig.floor_fraction,
+                tuple(subs),
+                state.noise_events - noise0,
+                int(round(state.lost - lost0)),
+                B * shape[1] * shape[2] * sum(subs),
+                reader.saturated,
+            )
             done = _Submitted(
-                first_interval,
-                tsd,
-                frames,
-                ev_parts if want_events else None,
-                pipe.take_steps() if pipe is not None else [],
-                pipe.take_noise() if pipe is not None else [],
-                SimulationInfo(
-                    sig.floor_fraction,
-                    tuple(subs),
-                    state.noise_events - noise0,
-                    int(round(state.lost - lost0)),
-                    B * shape[1] * shape[2] * sum(subs),
-                    saturated,
-                ),
-                len(batch),
-                B,
+                first_interval, tsd, frames, ev_parts if want_events else None, steps, noise, info, len(batch), B
             )
             pending.append(done)
-            saturated = 0
+            reader.saturated = 0
             # hand chunks over once LOOKAHEAD_CHUNKS newer ones are submitted (at once without a pipeline)
             while len(pending) > (LOOKAHEAD_CHUNKS if pipe is not None else 0):
                 yield pending.pop(0).finish(state, shape)
