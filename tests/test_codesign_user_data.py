@@ -109,16 +109,16 @@ def test_a_killed_co_design_training_resumes_to_the_uninterrupted_result(folder,
     assert whole.epochs_trained == 2 and [h["stage"] for h in whole.history] == ["joint", "joint"]
     assert whole.history[-1]["kernel_change_l1"] > 0  # the ASIC's parameters moved the kernel
 
-    save = dt._save_partial
+    save = dt.save_partial
 
     def killed_after_first_epoch(*args, **kwargs):
         save(*args, **kwargs)
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(dt, "_save_partial", killed_after_first_epoch)
+    monkeypatch.setattr(dt, "save_partial", killed_after_first_epoch)
     with pytest.raises(KeyboardInterrupt):
         finetune_user_network("segmentation", entry, folder, out=tmp_path / "killed", **kw)
-    monkeypatch.setattr(dt, "_save_partial", save)
+    monkeypatch.setattr(dt, "save_partial", save)
     assert (tmp_path / "killed.partial.pt").is_file()
     resumed = finetune_user_network("segmentation", entry, folder, out=tmp_path / "killed", **kw)
     assert resumed.epochs_trained == 1 and not (tmp_path / "killed.partial.pt").exists()
