@@ -783,7 +783,7 @@ def user_network_identity(entry: Mapping[str, Any], base_dir: str | Path, *, con
     --------
     >>> entry = UserTask(dataset={"format": "video_folder", "root": "ucf"}).model_dump()
     >>> sorted(user_network_identity(entry, "."))[:3]
-    ['dataset', 'device', 'n_test']
+    ['clip_seed', 'dataset', 'device']
     """
     weights = (
         _path(Path(base_dir).resolve(), entry["weights"], what="weights", confine=confine) if entry["weights"] else None
