@@ -308,9 +308,10 @@ def codesign_table(name: str) -> str:
     if str(ROOT) not in sys.path:
         sys.path.insert(0, str(ROOT))
     from fsdvs_hw.report.codesign_section import codesign_section
+    from fsdvs_hw.report.report_input import CodesignSummary
 
     path = ROOT / "designs" / "results" / name / "codesign.json"
-    html = codesign_section(json.loads(path.read_text(encoding="utf-8")))
+    html = codesign_section(CodesignSummary.from_dict(json.loads(path.read_text(encoding="utf-8"))))
     note = " ".join(_html_text(p) for p in re.findall(r"<p[^>]*>(.*?)</p>", html, flags=re.DOTALL))
     rows = [
         [_html_text(c) for c in re.findall(r"<t[hd][^>]*>(.*?)</t[hd]>", row, flags=re.DOTALL)]

@@ -4,7 +4,10 @@ A design point's score (:func:`fsdvs_hw.explore.scoring.score`) is a :class:`Sco
 kernel, its errors against the target, CSF agreement, spectral summary, hardware :class:`Cost`,
 task metrics per task and track (:class:`TrackScore`), the emulation comparison and the
 :class:`WallTimes` spent. A stored point (:class:`ScoredPoint`) wraps a score with its sweep key,
-parameters, status and paired losses.
+parameters and status, and what the exploration adds to it: its paired task losses
+(:class:`PairedLoss`), its physical cost with its limits (:class:`fsdvs_hw.costs.PhysicalCost`,
+per ``costs.*`` sweep setting :class:`CostSetting`, and the :class:`CostFlip` assumptions that
+reorder it against other kinds) and its buildable files (:class:`ArtifactLink`).
 
 :meth:`Score.to_dict` is the one serialisation: the results store (SQLite), ``scores.json`` and
 the report all read and write it, and :meth:`Score.from_dict` rebuilds the record from it
@@ -24,13 +27,28 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .errors import InputError
 from .kernels import Kernel
 from .realise.base import CostItem
 
-__all__ = ["Cost", "CostItem", "Score", "ScoredPoint", "TaskScores", "TrackScore", "WallTimes"]
+if TYPE_CHECKING:
+    from .costs.record import PhysicalCost
+
+__all__ = [
+    "ArtifactLink",
+    "Cost",
+    "CostFlip",
+    "CostItem",
+    "CostSetting",
+    "PairedLoss",
+    "Score",
+    "ScoredPoint",
+    "TaskScores",
+    "TrackScore",
+    "WallTimes",
+]
 
 
 def _ro(m: Mapping[str, Any] | None) -> Mapping[str, Any]:
@@ -403,8 +421,195 @@ class Score:
 
 
 @dataclass(frozen=True)
+class PairedLoss:
+    """A point's paired task losses against the reference kernel, per track and task.
+
+    Parameters
+    ----------
+    status : str or None
+        ``"ok"``, or why there are no losses (``"not scored"``, ``"no 'learned' row in its sweep
+        setting"``); None when the record names none.
+    reference : str or None
+        Store key of the reference point (None when there is none).
+    tracks : mapping
+        Track (``"simulator"``, ``"emulation"``) → ``{task: interval record, "weighted": interval
+        record, "weights": {task: weight}}`` as :func:`fsdvs_hw.explore.scoring.paired_losses`
+        writes it (each interval: ``estimate, low, high`` in metric units, positive = accuracy
+        lost, ``text``), or ``{"status": why}`` for a track without paired evidence.
+    """
+
+    status: str | None = None
+    reference: str | None = None
+    tracks: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "tracks", _ro(self.tracks))
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.status is not None:
+            out["status"] = self.status
+        if self.reference is not None:
+            out["reference"] = self.reference
+        out.update(self.tracks)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, where: str = "paired_loss") -> PairedLoss:
+        data = _mapping(data, where)
+        status, reference = data.get("status"), data.get("reference")
+        return cls(
+            status=None if status is None else str(status),
+            reference=None if reference is None else str(reference),
+            tracks={k: v for k, v in data.items() if k not in ("status", "reference")},
+        )
+
+
+@dataclass(frozen=True)
+class ArtifactLink:
+    """One buildable file of a point, as its report links it (an ``artifacts/index.json`` entry).
+
+    Parameters
+    ----------
+    point : str
+        The point's folder under ``artifacts/`` (:func:`fsdvs_hw.explore.point_artifacts.point_folder_name`).
+    realisation : str
+        Registry name of the realisation.
+    name, what, checked_by : str
+        The file's short name, what it is, and the tool command that checks it.
+    file : str
+        Its path relative to the exploration's output folder (``""`` when the writer failed).
+    error : str or None
+        Why the writer failed (None when it did not).
+    extra : mapping
+        Other keys of the entry, kept for the round trip.
+    """
+
+    point: str = ""
+    realisation: str = ""
+    name: str = ""
+    file: str = ""
+    what: str = ""
+    checked_by: str = ""
+    error: str | None = None
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    _KEYS = ("point", "realisation", "name", "file", "what", "checked_by", "error")
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "extra", _ro(self.extra))
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "point": self.point,
+            "realisation": self.realisation,
+            "name": self.name,
+            "file": self.file,
+            "what": self.what,
+            "checked_by": self.checked_by,
+        }
+        if self.error is not None:
+            out["error"] = self.error
+        out.update(self.extra)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, where: str = "artifact") -> ArtifactLink:
+        data = _mapping(data, where)
+        error = data.get("error")
+        return cls(
+            **{k: str(data.get(k, "")) for k in cls._KEYS[:-1]},
+            error=None if error is None else str(error),
+            extra={k: v for k, v in data.items() if k not in cls._KEYS},
+        )
+
+
+@dataclass(frozen=True)
+class CostSetting:
+    """A point's physical cost under one setting of the design's ``costs.*`` sweep axes.
+
+    Parameters
+    ----------
+    setting : mapping
+        The axes' values by dotted key (``{"costs.process_node_m": 4.5e-08}``, SI units).
+    physical_cost : PhysicalCost
+        The cost record under it.
+    """
+
+    setting: Mapping[str, Any]
+    physical_cost: PhysicalCost
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "setting", _ro(self.setting))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"setting": dict(self.setting), "physical_cost": self.physical_cost.to_dict()}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, where: str = "physical_cost_sweep") -> CostSetting:
+        from .costs.record import PhysicalCost
+
+        data = _mapping(data, where)
+        return cls(
+            setting=_mapping(data.get("setting", {}), f"{where}.setting"),
+            physical_cost=PhysicalCost.from_dict(
+                _mapping(data.get("physical_cost"), f"{where}.physical_cost"), where=f"{where}.physical_cost"
+            ),
+        )
+
+
+@dataclass(frozen=True)
+class CostFlip:
+    """A ``[costs]`` assumption whose change within its range reverses which of two points is cheaper.
+
+    Parameters
+    ----------
+    cost : str
+        The cost compared (``"power_w"``, ``"area_m2"``, ``"latency_s"``).
+    key : str
+        The assumption (``[costs]`` key, or the mesh's conductance).
+    value, now : float
+        The value at which the order flips, and the present value (in the key's unit).
+    other : str
+        Store key of the other point.
+    cheaper : str
+        Store key of the point that is cheaper at the present value.
+    """
+
+    cost: str
+    key: str
+    value: float
+    now: float
+    other: str
+    cheaper: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "cost": self.cost,
+            "key": self.key,
+            "value": self.value,
+            "now": self.now,
+            "other": self.other,
+            "cheaper": self.cheaper,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, where: str = "cost_flips") -> CostFlip:
+        data = _mapping(data, where)
+        missing = [k for k in ("cost", "key", "value", "now", "other", "cheaper") if k not in data]
+        if missing:
+            raise InputError(f"{where}: a cost flip needs {', '.join(missing)}")
+        return cls(data["cost"], data["key"], data["value"], data["now"], data["other"], data["cheaper"])
+
+
+@dataclass(frozen=True)
 class ScoredPoint:
-    """A stored design point: its key, realisation, sweep parameters, status and score.
+    """A stored design point: its key, realisation, sweep parameters, status and score, and what the
+    exploration adds to it.
 
     Parameters
     ----------
@@ -422,10 +627,20 @@ class ScoredPoint:
         Why it failed (``reason``: ``"ValueError: …"``, ``traceback``, ``warnings``); empty when ok.
     wall_s : float
         Seconds the whole point took.
-    paired_loss : mapping
-        :func:`fsdvs_hw.explore.scoring.paired_losses` entry of the point (losses with CIs).
+    paired_loss : PairedLoss or None
+        Its task losses against the reference kernel (:func:`fsdvs_hw.explore.scoring.paired_losses`);
+        None when not computed.
+    artifacts : tuple of ArtifactLink or None
+        Its buildable files (:mod:`fsdvs_hw.explore.point_artifacts`); None when none were written.
+    physical_cost : PhysicalCost or None
+        Its physical cost with the hard limits it breaks (:func:`fsdvs_hw.costs.limits.costed`).
+    physical_cost_sweep : tuple of CostSetting
+        The cost under each setting of the design's ``costs.*`` sweep axes (empty without such axes).
+    cost_flips : tuple of CostFlip or None
+        The assumptions that reorder its cost against the other kinds of its sweep setting.
     extra : mapping
-        The store's other columns (design, worker, host, finished_at, traceback).
+        The store's other columns (design, worker, host, finished_at, traceback) and the other
+        records the exploration attaches (``matched_rate``, ``measurability``), kept as written.
     """
 
     key: str
@@ -435,12 +650,20 @@ class ScoredPoint:
     score: Score | None = None
     failure: Mapping[str, Any] = field(default_factory=dict)
     wall_s: float = math.nan
-    paired_loss: Mapping[str, Any] = field(default_factory=dict)
+    paired_loss: PairedLoss | None = None
+    artifacts: tuple[ArtifactLink, ...] | None = None
+    physical_cost: PhysicalCost | None = None
+    physical_cost_sweep: tuple[CostSetting, ...] = ()
+    cost_flips: tuple[CostFlip, ...] | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        for name in ("params", "failure", "paired_loss", "extra"):
+        for name in ("params", "failure", "extra"):
             object.__setattr__(self, name, _ro(getattr(self, name)))
+        object.__setattr__(self, "physical_cost_sweep", tuple(self.physical_cost_sweep))
+        for name in ("artifacts", "cost_flips"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, tuple(getattr(self, name)))
 
     @property
     def ok(self) -> bool:
@@ -451,11 +674,29 @@ class ScoredPoint:
         """Why the point failed ("" when it did not)."""
         return str(self.failure.get("reason", ""))
 
-    _KEYS = ("key", "realisation", "params", "status", "result", "wall_s", "paired_loss")
+    def with_(self, **changes: Any) -> ScoredPoint:
+        """A copy with fields replaced (:func:`dataclasses.replace`)."""
+        return replace(self, **changes)
+
+    _KEYS = (
+        "key",
+        "realisation",
+        "params",
+        "status",
+        "result",
+        "wall_s",
+        "paired_loss",
+        "artifacts",
+        "physical_cost",
+        "physical_cost_sweep",
+        "cost_flips",
+    )
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, where: str = "point") -> ScoredPoint:
         """A stored point (the store's row dict, or an entry of ``scores.json``'s ``points``)."""
+        from .costs.record import PhysicalCost
+
         data = _mapping(data, where)
         for k in ("key", "realisation", "status"):
             if k not in data:
@@ -463,6 +704,7 @@ class ScoredPoint:
         where = f"{where} {data['key']}"
         result = data.get("result") or {}
         ok = data["status"] == "ok"
+        paired, links, flips = data.get("paired_loss"), data.get("artifacts"), data.get("cost_flips")
         return cls(
             key=str(data["key"]),
             realisation=str(data["realisation"]),
@@ -471,11 +713,25 @@ class ScoredPoint:
             score=Score.from_dict(result, where=f"{where}.result") if ok else None,
             failure={} if ok else _mapping(result, f"{where}.result"),
             wall_s=_num(data.get("wall_s")),
-            paired_loss=data.get("paired_loss") or {},
+            paired_loss=PairedLoss.from_dict(paired, where=f"{where}.paired_loss") if paired else None,
+            artifacts=None
+            if links is None
+            else tuple(ArtifactLink.from_dict(e, where=f"{where}.artifacts") for e in links if isinstance(e, Mapping)),
+            physical_cost=PhysicalCost.from_dict(data["physical_cost"], where=f"{where}.physical_cost")
+            if isinstance(data.get("physical_cost"), Mapping)
+            else None,
+            physical_cost_sweep=tuple(
+                CostSetting.from_dict(e, where=f"{where}.physical_cost_sweep")
+                for e in data.get("physical_cost_sweep") or ()
+            ),
+            cost_flips=None
+            if flips is None
+            else tuple(CostFlip.from_dict(f, where=f"{where}.cost_flips") for f in flips if isinstance(f, Mapping)),
             extra={k: v for k, v in data.items() if k not in cls._KEYS},
         )
 
     def to_dict(self) -> dict[str, Any]:
+        """The JSON-ready record (``scores.json``'s ``points`` entries): :meth:`from_dict`'s input."""
         result = self.score.to_dict() if self.score is not None else dict(self.failure)
         out = {
             "key": self.key,
@@ -485,7 +741,15 @@ class ScoredPoint:
             "result": result,
             "wall_s": self.wall_s,
         }
-        if self.paired_loss:
-            out["paired_loss"] = dict(self.paired_loss)
+        if self.paired_loss is not None:
+            out["paired_loss"] = self.paired_loss.to_dict()
         out.update(self.extra)
+        if self.artifacts is not None:
+            out["artifacts"] = [a.to_dict() for a in self.artifacts]
+        if self.physical_cost is not None:
+            out["physical_cost"] = self.physical_cost.to_dict()
+        if self.physical_cost_sweep:
+            out["physical_cost_sweep"] = [c.to_dict() for c in self.physical_cost_sweep]
+        if self.cost_flips is not None:
+            out["cost_flips"] = [f.to_dict() for f in self.cost_flips]
         return out

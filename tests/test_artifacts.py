@@ -310,11 +310,14 @@ def test_swept_points_get_their_own_folders_and_a_failing_writer_is_recorded(tmp
         "mesh",
         dataclasses.replace(registry.get_realisation("mesh"), write_artifacts="tests.test_artifacts:_failing_writer"),
     )
+    from fsdvs_hw.records import Score, ScoredPoint
+
     record = {"kind": "reference", "kernel": reference_kernel("delta", 3).to_dict(), "label": "x"}
+    score = Score("reference", "x", "", reference_kernel("delta", 3), 0.0, 0.0, 1.0, 0.0, realisation=record)
     pts = [
-        {"realisation": "mesh", "params": {}, "status": "ok", "result": {"realisation": record}},
-        {"realisation": "learned", "params": {}, "status": "ok", "result": {"realisation": record}},
-        {"realisation": "asic", "params": {}, "status": "error", "result": {"reason": "x"}},
+        ScoredPoint("m", "mesh", {}, "ok", score=score),
+        ScoredPoint("l", "learned", {}, "ok", score=score),
+        ScoredPoint("a", "asic", {}, "error", failure={"reason": "x"}),
     ]
     path, entries = write_exploration_artifacts(pts, tmp_path)
     assert [(e["point"], e["error"]) for e in entries] == [("mesh", "RuntimeError: disk full")]
@@ -373,29 +376,36 @@ def test_explore_writes_every_hardware_realisations_artifacts_and_the_report_lin
     assert "<h2>Buildable artifacts</h2>" in html
     for e in index:
         assert f'href="artifacts/{e["file"]}"' in html
-    assert all(not pt.get("artifacts") for pt in res.points if pt["realisation"] in ("learned", "delta"))
+    assert all(not pt.artifacts for pt in res.points if pt.realisation in ("learned", "delta"))
     json.loads((tmp_path / "out" / "scores.json").read_text())  # still valid JSON with the entries attached
 
 
 def test_report_fragment_links_escape_and_show_a_failed_writer():
+    from fsdvs_hw.records import ScoredPoint
     from fsdvs_hw.report.artifact_links import artifacts_html
 
-    assert artifacts_html([{"realisation": "learned"}]) == ""
+    def point(data):
+        return ScoredPoint.from_dict({"key": data["realisation"], "status": "error", **data})
+
+    assert artifacts_html([point({"realisation": "learned"})]) == ""
     frag = artifacts_html(
         [
-            {
-                "realisation": "asic",
-                "artifacts": [
-                    {
-                        "point": "asic",
-                        "name": "verilog",
-                        "file": "artifacts/asic/f v.v",
-                        "what": "RTL <8-bit>",
-                        "checked_by": "verilator -Wall f.v",
-                    }
-                ],
-            },
-            {"realisation": "mesh", "artifacts": [{"point": "mesh", "error": "RuntimeError: <disk> full"}]},
+            point(d)
+            for d in (
+                {
+                    "realisation": "asic",
+                    "artifacts": [
+                        {
+                            "point": "asic",
+                            "name": "verilog",
+                            "file": "artifacts/asic/f v.v",
+                            "what": "RTL <8-bit>",
+                            "checked_by": "verilator -Wall f.v",
+                        }
+                    ],
+                },
+                {"realisation": "mesh", "artifacts": [{"point": "mesh", "error": "RuntimeError: <disk> full"}]},
+            )
         ]
     )
     assert 'href="artifacts/asic/f%20v.v"' in frag and "RTL &lt;8-bit&gt;" in frag

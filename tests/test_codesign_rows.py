@@ -12,6 +12,7 @@ import pytest
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.explore.design import load_design, parse_design
 from fsdvs_hw.report.codesign_section import CODESIGN_HEADERS, codesign_section
+from fsdvs_hw.report.report_input import CodesignSummary
 from fsdvs_hw.stats import ClipMeans
 
 REPO = Path(__file__).resolve().parents[1]
@@ -163,7 +164,7 @@ def test_three_rows_with_cis_and_a_killed_run_resumes_without_retraining(tmp_pat
     assert json.dumps(json.loads(jpath.read_text())["cells"]) == json.dumps(third["cells"])
     lines = cpath.read_text().splitlines()
     assert len(lines) == 4 and lines[1].startswith("asic,recognition,swap,top1,1,8,")
-    html = codesign_section(third)
+    html = codesign_section(CodesignSummary.from_dict(third))
     assert all(h in html for h in ("fit then swap", "co-designed", "asic", "recognition"))
 
 
@@ -208,10 +209,11 @@ def test_section_lists_every_cell_and_escapes():
             }
         ],
     }
-    html = codesign_section(summary)
+    html = codesign_section(CodesignSummary.from_dict(summary))
     assert "&lt;lens&gt;" in html and "<lens>" not in html
     assert "0.2500 [0.2400, 0.2600]" in html and "50% [40%, 60%]" in html and "3 × 384" in html
     assert "0.890 → 0.500" in html and html.count("<th>") == len(CODESIGN_HEADERS)
-    assert "No co-design cell" in codesign_section({"cells": []})
+    assert "No co-design cell" in codesign_section(CodesignSummary.from_dict({"cells": []}))
     summary["cells"][0]["swap_loss_above_zero"] = False  # no loss: no recovered share is shown
-    assert "50% [40%, 60%]" not in codesign_section(summary) and "no loss above 0" in codesign_section(summary)
+    html = codesign_section(CodesignSummary.from_dict(summary))
+    assert "50% [40%, 60%]" not in html and "no loss above 0" in html

@@ -13,6 +13,7 @@ import pytest
 from fsdvs_hw.explore.codesign import CODESIGN_FORMAT, summarise_codesign
 from fsdvs_hw.explore.design import load_design
 from fsdvs_hw.report.codesign_section import codesign_section
+from fsdvs_hw.report.report_input import CodesignSummary
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = REPO / "designs" / "results" / "codesign"
@@ -68,7 +69,7 @@ def test_the_summary_is_recomputed_from_the_shipped_evidence(shipped, units):
 
 
 def test_the_report_section_shows_every_cell_with_its_cis(shipped):
-    html = codesign_section(shipped)
+    html = codesign_section(CodesignSummary.from_dict(shipped))
     for c in shipped["cells"]:
         for m in ("swap", "finetune", "codesign"):
             loss = c["rows"][m]["loss"]
@@ -94,17 +95,24 @@ def test_every_verdict_follows_from_its_numbers(shipped):
 
 
 def test_the_explore_report_carries_the_section_before_the_run_conditions(shipped, tmp_path):
-    """write_report reads OUT/codesign.json for a design with [codesign] enabled (and only then)."""
+    """write_report shows the co-design summary it is handed for a design with [codesign] enabled
+    (and only then); the redraw reads OUT/codesign.json for it."""
     import shutil
 
+    from fsdvs_hw.explore.reporting import report_input
     from fsdvs_hw.report.html import write_report
+    from fsdvs_hw.report.redraw import write_report_from_scores
 
-    section = codesign_section(shipped)
+    section = codesign_section(CodesignSummary.from_dict(shipped))
     pages = {}
     for name in ("codesign", "default"):
-        (tmp_path / name).mkdir()
-        shutil.copy(SHIPPED / "codesign.json", tmp_path / name / "codesign.json")
-        pages[name] = write_report([], load_design(REPO / "designs" / f"{name}.toml"), tmp_path / name).read_text()
+        design = load_design(REPO / "designs" / f"{name}.toml")
+        pages[name] = write_report([], report_input(design, codesign=shipped), tmp_path / name).read_text()
     assert section in pages["codesign"]
     assert pages["codesign"].index(section) < pages["codesign"].index("id='conditions'")
     assert section not in pages["default"]  # [codesign] off: a stray codesign.json is not reported
+    for name in ("codesign", "default"):
+        shutil.copy(SHIPPED / "codesign.json", tmp_path / name / "codesign.json")
+        design = load_design(REPO / "designs" / f"{name}.toml")
+        redrawn = write_report_from_scores(tmp_path / name, report_input(design), to=tmp_path / f"{name}_redrawn")
+        assert (section in redrawn.read_text()) == (name == "codesign")

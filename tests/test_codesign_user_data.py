@@ -34,6 +34,7 @@ def _design(folder: Path, train: str = TRAIN, name: str = "cd", codesign: str = 
 def test_user_data_codesign_rows_cover_their_estimates_and_a_rerun_reuses_every_unit(folder, tmp_path):
     from fsdvs_hw.explore.codesign import codesign_cells, run_codesign, write_codesign
     from fsdvs_hw.report.codesign_section import codesign_section
+    from fsdvs_hw.report.report_input import CodesignSummary
 
     design = load_design(_design(folder))
     assert codesign_cells(design) == [("asic", "segmentation")]
@@ -77,7 +78,7 @@ def test_user_data_codesign_rows_cover_their_estimates_and_a_rerun_reuses_every_
     assert again["cells"][0]["rows"]["codesign"]["loss"] == cell["rows"]["codesign"]["loss"]
     jpath, cpath = write_codesign(again, out)
     assert cpath.read_text().count("asic,segmentation,") == 3
-    assert "resamples the clips only" in codesign_section(again)
+    assert "resamples the clips only" in codesign_section(CodesignSummary.from_dict(again))
 
 
 def test_user_data_codesign_needs_a_trained_network(folder):

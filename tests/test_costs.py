@@ -173,14 +173,14 @@ def test_readout_breach_is_flagged_in_the_verdict():
         {"realisations": {"include": ["learned", "asic"]}, "costs": {"readout_limit_eps": 1e9, "loss_budget": 0.5}}
     )
     # 2000 events/pixel/s x 921 600 pixels = 1.84 Geps > 1 Geps
-    points = [ScoredPoint.from_dict(p) for p in with_physical_costs([_asic_point(2000.0)], design)]
+    points = with_physical_costs([ScoredPoint.from_dict(_asic_point(2000.0))], design)
     rows = with_cost_columns(score_rows(points), points)
     assert rows[0]["event_rate_eps"] == pytest.approx(1.8432e9) and rows[0]["readout_exceeded"] is True
     said = " ".join(advice(rows))
     assert "Readout limit exceeded: ASIC taps fires 1.84 Geps, more than the 1 Geps the readout carries" in said
     assert "Readout limit exceeded" in cost_section(rows, points)
     # under the limit: no breach said
-    points = [ScoredPoint.from_dict(p) for p in with_physical_costs([_asic_point(500.0)], design)]
+    points = with_physical_costs([ScoredPoint.from_dict(_asic_point(500.0))], design)
     assert "Readout limit exceeded" not in " ".join(advice(with_cost_columns(score_rows(points), points)))
 
 
@@ -255,10 +255,10 @@ def test_cost_sweep_recosts_points_and_the_power_ranking_flips():
         }
     )
     raw = [_asic_point(100.0, key="a"), _asic_point(100.0, key="m", realisation="mesh")]
-    points = [ScoredPoint.from_dict(p) for p in with_physical_costs(raw, design)]
-    asic, mesh = (p.extra["physical_cost_sweep"] for p in points)
-    p_asic = [e["physical_cost"]["figures"]["power_w"]["value"] for e in asic]
-    p_mesh = [e["physical_cost"]["figures"]["power_w"]["value"] for e in mesh]
+    points = with_physical_costs([ScoredPoint.from_dict(p) for p in raw], design)
+    asic, mesh = (p.physical_cost_sweep for p in points)
+    p_asic = [e.physical_cost.value("power_w") for e in asic]
+    p_mesh = [e.physical_cost.value("power_w") for e in mesh]
     assert p_asic[1] == pytest.approx(4 * p_asic[0]) and p_mesh[1] == pytest.approx(p_mesh[0])
     rows = sweep_rows(with_cost_columns(score_rows(points), points), points)
     assert len(rows) == 4

@@ -20,6 +20,7 @@ from fsdvs_hw.explore.store import ResultsStore
 from fsdvs_hw.explore.sweep import evaluate_point, expand_points, run_points
 from fsdvs_hw.kernels import reference_kernel
 from fsdvs_hw.realise.base import kernel_error
+from fsdvs_hw.records import ScoredPoint
 from fsdvs_hw.report.tables import score_rows
 
 REPO = Path(__file__).resolve().parents[1]
@@ -152,10 +153,10 @@ def test_paired_losses_through_a_plugged_per_clip_evaluator(monkeypatch, tmp_pat
     assert d["low"] <= d["estimate"] <= d["high"] and d["n_seeds_reference"] == 2 and d["clip_design"] == "nested"
     assert losses["learned"]["simulator"]["recognition"]["estimate"] == 0.0
     assert losses["delta"]["simulator"]["weighted"]["estimate"] == pytest.approx(d["estimate"])  # one task scored
-    lean = scoring.with_paired_losses(rows, n_resamples=200)
-    assert "evidence" not in lean[1]["result"]["tasks"]["recognition"]["simulator"]
+    lean = scoring.with_paired_losses([ScoredPoint.from_dict(r) for r in rows], n_resamples=200)
+    assert "evidence" not in lean[1].score.tasks.tracks["recognition"]["simulator"].extra
     assert "evidence" in rows[1]["result"]["tasks"]["recognition"]["simulator"]  # the stored record is untouched
-    assert lean[1]["paired_loss"]["reference"] == "learned"
+    assert lean[1].paired_loss.reference == "learned"
 
 
 # ---------------------------------------------------------------------- running points
@@ -213,7 +214,7 @@ def test_fitter_warnings_are_kept_with_the_score():
     res = evaluate_point(p)
     assert res["status"] == "ok"
     assert any(w.startswith("MeshFitWarning") and "out of reach" in w for w in res["result"]["warnings"])
-    rows = score_rows([{**res, "realisation": "mesh", "params": {}}])
+    rows = score_rows([ScoredPoint.from_dict({**res, "realisation": "mesh", "params": {}})])
     assert "MeshFitWarning" in rows[0]["warnings"]
 
 
@@ -222,7 +223,7 @@ def test_failed_points_are_final_unless_retried(tmp_path):
 
     d = parse_design({"realisations": {"include": ["asic"], "asic": {"scale": 1e6}}, "emulation": {"enabled": False}})
     s1, rows = run_design(d, tmp_path / "e.sqlite", workers=1, progress=False)
-    assert s1.statuses == {"error": 1} and rows[0]["status"] == "error"
+    assert s1.statuses == {"error": 1} and rows[0].status == "error"
     s2, _ = run_design(d, tmp_path / "e.sqlite", workers=1, progress=False)
     assert s2.ran == 0 and s2.already_done == 1
     s3, rows3 = run_design(d, tmp_path / "e.sqlite", workers=1, progress=False, retry_errors=True)
@@ -339,6 +340,7 @@ def test_real_task_evaluation_gives_accuracy_loss_against_the_learned_kernel(tmp
         "tasks": {"checkpoints": {"detection": str(ckpt)}, "n_test": 8},
     }
     _, rows = run_design(parse_design(raw, base_dir=REPO), tmp_path / "t.sqlite", workers=1, progress=False)
+    rows = [r.to_dict() for r in rows]  # the stored records, JSON-ready
     res = {r["realisation"]: r["result"]["tasks"]["detection"]["simulator"] for r in rows}
     assert all(v["status"] == "ok" and 0.0 <= v["metric"] <= 1.0 for v in res.values())
     assert res["learned"]["sensor"]["source"] == "checkpoint"
@@ -349,7 +351,7 @@ def test_real_task_evaluation_gives_accuracy_loss_against_the_learned_kernel(tmp
     raw["sensor"] = {"placement": "post_log", "threshold_on": 0.3, "threshold_off": 0.3}
     raw["realisations"]["include"] = ["learned"]
     _, rows2 = run_design(parse_design(raw, base_dir=REPO), tmp_path / "t.sqlite", workers=1, progress=False)
-    det = rows2[0]["result"]["tasks"]["detection"]["simulator"]
+    det = rows2[0].to_dict()["result"]["tasks"]["detection"]["simulator"]
     assert det["sensor"] == {
         "source": "design",
         "threshold_on": 0.3,
@@ -358,4 +360,4 @@ def test_real_task_evaluation_gives_accuracy_loss_against_the_learned_kernel(tmp
         "placement": "post_log",
         "positivity": "pedestal",
     }
-    assert rows2[0]["key"] not in {r["key"] for r in rows}  # a different sensor is a different point
+    assert rows2[0].key not in {r["key"] for r in rows}  # a different sensor is a different point

@@ -31,7 +31,7 @@ import numpy as np
 import pytest
 
 from fsdvs_hw.kernels import Kernel, reference_kernel
-from fsdvs_hw.records import Score
+from fsdvs_hw.records import Score, ScoredPoint
 from fsdvs_hw.realise import registry
 from _schema_view import view
 from fsdvs_hw.realise.registry import (
@@ -279,7 +279,7 @@ def test_a_score_carries_every_field_the_tables_read(name, target):
     assert rec["kind"] == spec.record_kind
     assert all(set(c) >= {"value", "unit"} and c["unit"] in COST_UNITS for c in rec["cost"].values())
     assert Kernel.from_dict(rec["kernel"]).pitch_m == pytest.approx(PITCH_M)
-    [row] = score_rows([{"key": "k", "realisation": name, "params": {}, "status": "ok", "result": rec}])
+    [row] = score_rows([ScoredPoint("k", name, {}, "ok", score=Score.from_dict(rec))])
     assert row["kernel_error"] == pytest.approx(rec["kernel_error"])
     assert row["csf_agreement"] == pytest.approx(rec["csf"]["mannos_sakrison_1974"]["correlation"])
     assert row["fit_s"] == 0.5
@@ -368,8 +368,8 @@ def test_spawned_workers_know_a_plugin_registered_in_the_parent(tmp_path):
     )
     summary, rows = run_design(d, tmp_path / "store.sqlite", workers=2, progress=False)
     assert summary.executor.startswith("2 local processes")
-    assert summary.statuses == {"ok": 3}, [r.get("reason") for r in rows]
-    assert sorted(r["result"]["cost"]["box_width"]["value"] for r in rows) == [1, 3, 5]
+    assert summary.statuses == {"ok": 3}, [r.reason for r in rows]
+    assert sorted(r.score.cost.value("box_width") for r in rows if r.score is not None) == [1, 3, 5]
 
 
 # --------------------------------------------------------------------------------- accepted ranges

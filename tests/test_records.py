@@ -88,7 +88,7 @@ def test_the_tables_read_the_typed_fields(asic_score):
     """A swapped field (kernel error ↔ gain-free error, fit ↔ analysis time) would show here."""
     p = ScoredPoint(key="k", realisation="asic", params={}, status="ok", score=asic_score)
     [row] = score_rows([p])
-    [row_from_dict] = score_rows([p.to_dict()])
+    [row_from_dict] = score_rows([ScoredPoint.from_dict(p.to_dict())])
     assert set(row) == set(row_from_dict)
     same = lambda a, b: a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))  # noqa: E731
     assert all(same(row[c], row_from_dict[c]) for c in row), [c for c in row if not same(row[c], row_from_dict[c])]
@@ -112,7 +112,7 @@ def test_a_failed_point_keeps_its_reason_and_traceback():
     p = ScoredPoint.from_dict(d)
     assert not p.ok and p.score is None and p.reason == "ValueError: bad"
     assert p.to_dict() == d
-    [row] = score_rows([d])
+    [row] = score_rows([p])
     assert row["status"] == "error" and row["reason"] == "ValueError: bad" and row["warnings"] == "W: w"
 
 
@@ -139,3 +139,18 @@ def test_malformed_parts_name_their_field():
         ScoredPoint.from_dict({"key": "k", "realisation": "mesh"})
     assert TrackScore.from_dict({"status": "unavailable: x"}).to_dict() == {"status": "unavailable: x"}
     assert Cost({"a": CostItem(1.0, "m^2")}).to_dict() == {"a": {"value": 1.0, "unit": "m^2", "description": ""}}
+
+
+def test_the_shipped_scores_round_trip_through_the_typed_points_unchanged():
+    """scores.json's points → ScoredPoint (paired losses, artifact links, physical cost, cost flips
+    typed) → to_dict is the file's content, key order included."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "designs" / "results" / "demo" / "scores.json").read_text()
+    stored = json.loads(text)["points"]
+    points = [ScoredPoint.from_dict(p) for p in stored]
+    assert all(p.physical_cost is not None and p.paired_loss is not None for p in points if p.ok)
+    assert all(p.artifacts is not None and p.cost_flips is not None for p in points)
+    back = [p.to_dict() for p in points]
+    assert back == stored
+    assert json.dumps(back, indent=1) == json.dumps(stored, indent=1)

@@ -18,6 +18,7 @@ from fsdvs_hw.cli import main
 from fsdvs_hw.explore.design import parse_design
 from fsdvs_hw.kernels import Kernel, reference_kernel
 from fsdvs_hw.realise.base import kernel_error
+from fsdvs_hw.records import ScoredPoint
 from fsdvs_hw.report.tables import (
     accuracy_axis,
     headline_cost,
@@ -159,7 +160,7 @@ def test_score_rows_flatten_losses_with_cis_and_mark_uncertain_fronts():
             losses=[(0.05, 0.01), (0.05, 0.01), (0.05, 0.007)],
         ),
     ]
-    rows = {r["key"]: r for r in score_rows(pts)}
+    rows = {r["key"]: r for r in score_rows([ScoredPoint.from_dict(p) for p in pts])}
     a8 = rows["a8"]
     for f in (
         "detection_loss",
@@ -204,7 +205,7 @@ def test_a_cost_item_named_like_a_loss_is_not_a_task():
         _point("L", "learned", 0.0, 0.9, losses=[(0, 0), (0, 0), (0, 0)]),
         _point("ml", "metalens", 0.3, 0.5, pedestal, losses=[(0.1, 0.01), (0.2, 0.01), (0.15, 0.01)]),
     ]
-    rows = score_rows(pts)
+    rows = score_rows([ScoredPoint.from_dict(p) for p in pts])
     assert rows[1]["cost_contrast_loss"] == pytest.approx(0.7)
     header = verdict_markdown(rows).splitlines()[0]
     assert "contrast" not in header and header.startswith("| realisation | detection loss | recognition loss |")

@@ -25,6 +25,8 @@ import pytest
 
 from fsdvs_hw.cli import main
 from fsdvs_hw.explore.design import load_design
+from fsdvs_hw.explore.reporting import report_input
+from fsdvs_hw.records import ScoredPoint
 from fsdvs_hw.report import write_report
 
 VIEWPORT = {"width": 1280, "height": 800}
@@ -92,7 +94,7 @@ def report(tmp_path_factory) -> Path:
                 "weights": {"detection": 1.0, "recognition": 1.0},
             },
         }
-    return write_report(points, load_design(design), tmp / "report")
+    return write_report([ScoredPoint.from_dict(p) for p in points], report_input(load_design(design)), tmp / "report")
 
 
 def _open(page, path: Path, problems: list[str]) -> None:

@@ -15,9 +15,10 @@ from fsdvs_hw.report import present
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.kernels import Kernel, reference_kernel
 from fsdvs_hw.realise.registry import REALISATIONS
-from fsdvs_hw.records import Cost
+from fsdvs_hw.records import Cost, ScoredPoint
 from fsdvs_hw.report import figures
-from fsdvs_hw.report.html import _quantities, write_report_from_scores
+from fsdvs_hw.report.html import _quantities
+from fsdvs_hw.report.redraw import write_report_from_scores
 from fsdvs_hw.report.present import number, point_title, si, style
 from fsdvs_hw.report.tables import score_rows
 from fsdvs_hw.report.verdict import advice, verdict_table
@@ -174,7 +175,7 @@ def test_verdict_recommends_the_cheapest_undominated_point_without_measurable_lo
         _row_point("m", "metalens", 0.5, {"aperture_diameter": {"value": 1e-4, "unit": "m"}}, 0.2),
     ]
     pts[0]["key"] = "L"
-    rows = score_rows(pts)
+    rows = score_rows([ScoredPoint.from_dict(p) for p in pts])
     lines = advice(rows)
     # the first question first: no matched-rate control ran, so it is said to be unanswered
     assert lines[0].startswith("First question, not answered") and "not requested" in lines[0]
@@ -240,9 +241,12 @@ def test_each_realisation_keeps_its_registry_colour_and_marker_in_every_figure()
     add = lambda n: {"adders": {"value": n, "unit": "count"}}
     rows = score_rows(
         [
-            _row_point("L", "learned", 0.9, {}, 0.0),
-            _row_point(4, "asic", 0.88, add(30), 0.001),
-            _row_point("m", "metalens", 0.5, {"aperture_diameter": {"value": 1e-4, "unit": "m"}}, 0.2),
+            ScoredPoint.from_dict(p)
+            for p in (
+                _row_point("L", "learned", 0.9, {}, 0.0),
+                _row_point(4, "asic", 0.88, add(30), 0.001),
+                _row_point("m", "metalens", 0.5, {"aperture_diameter": {"value": 1e-4, "unit": "m"}}, 0.2),
+            )
         ]
     )
     for make in (figures.fig_pareto, figures.fig_speed):
@@ -283,7 +287,9 @@ def test_labels_with_markup_are_escaped_in_the_html():
     from fsdvs_hw.explore.design import parse_design
     from fsdvs_hw.report.artifact_links import artifacts_html
     from fsdvs_hw.report.codesign_section import codesign_section
+    from fsdvs_hw.explore.reporting import report_input
     from fsdvs_hw.report.html import render_html
+    from fsdvs_hw.report.report_input import CodesignSummary
 
     design = parse_design({"design": {"name": HOSTILE}})
     failed = {
@@ -294,22 +300,28 @@ def test_labels_with_markup_are_escaped_in_the_html():
         "result": {"reason": f"RuntimeError: {HOSTILE}"},
         "artifacts": [{"point": HOSTILE, "error": HOSTILE}],
     }
-    page = render_html([failed], design, stamp="now", sections=["<h2>given as HTML</h2>"])
+    page = render_html(
+        [ScoredPoint.from_dict(failed)], report_input(design), stamp="now", sections=["<h2>given as HTML</h2>"]
+    )
     escaped = "&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt; &amp; co"
     assert "<script" not in page and HOSTILE not in page
     assert page.count(escaped) >= 5  # title, heading, not-scored row (name and reason), artifacts, design JSON
     assert "<h2>given as HTML</h2>" in page  # a section is a fragment of HTML, kept as given
     frag = artifacts_html(
         [
-            {
-                "realisation": "asic",
-                "artifacts": [
-                    {"point": "asic", "name": "v", "file": "a&b <c>.v", "what": HOSTILE, "checked_by": HOSTILE}
-                ],
-            }
+            ScoredPoint.from_dict(
+                {
+                    "key": "a",
+                    "realisation": "asic",
+                    "status": "error",
+                    "artifacts": [
+                        {"point": "asic", "name": "v", "file": "a&b <c>.v", "what": HOSTILE, "checked_by": HOSTILE}
+                    ],
+                }
+            )
         ]
     )
     assert '<a href="a%26b%20%3Cc%3E.v">a&amp;b &lt;c&gt;.v</a>' in frag and "<script" not in frag
     assert f"<code>{escaped}</code>" in frag
-    table = codesign_section({"settings": {"epochs": HOSTILE}, "cells": []})
+    table = codesign_section(CodesignSummary.from_dict({"settings": {"epochs": HOSTILE}, "cells": []}))
     assert f"{escaped} epochs" in table and "<script" not in table

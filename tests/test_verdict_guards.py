@@ -27,7 +27,7 @@ def _rows(raw, design):
     from fsdvs_hw.report.costs import with_cost_columns
     from fsdvs_hw.report.tables import score_rows
 
-    points = [ScoredPoint.from_dict(p) for p in with_physical_costs(raw, design)]
+    points = with_physical_costs([ScoredPoint.from_dict(p) for p in raw], design)
     return with_cost_columns(score_rows(points), points), points
 
 
@@ -81,7 +81,7 @@ def test_a_latency_budget_vetoes_the_asic_and_the_sample_rate_that_meets_it_is_e
     rows, points = _rows([raw], design)
     assert rows[0]["fits"] is False and "latency" in rows[0]["cost_flags"]
     assert verdict_table(rows)[0]["verdict"].startswith("does not fit: latency")
-    (lim,) = points[0].extra["physical_cost"]["limits"]
+    (lim,) = points[0].physical_cost.limits
     fs = next(r for r in lim["remedies"] if r["key"] == "costs.sample_rate_hz")
     score = Score.from_dict(raw["result"])
     a = design.spec.costs.model_copy(update={"sample_rate_hz": fs["value"]})
@@ -198,6 +198,10 @@ def _task_point(key, realisation, values, labels, classes=4, *, n_networks=2):
     return raw
 
 
+def _points(rows):
+    return [ScoredPoint.from_dict(r) for r in rows]
+
+
 def _chance_world(correct_ref, correct_cand, n=40, seed=0):
     rng = np.random.default_rng(seed)
     labels = np.arange(n) % 4  # balanced: chance = 1/4
@@ -214,7 +218,7 @@ def test_a_network_at_chance_is_not_measurable_and_no_verdict_rests_on_it():
     from fsdvs_hw.report.tables import accuracy_axis, score_rows
     from fsdvs_hw.report.verdict import advice, measurability_table
 
-    points = [ScoredPoint.from_dict(p) for p in measured_losses(_chance_world(0.25, 0.25), n_resamples=400)]
+    points = measured_losses(_points(_chance_world(0.25, 0.25)), n_resamples=400)
     rec = points[0].extra["measurability"]["simulator"]["recognition"]
     assert rec["chance"] == pytest.approx(0.25) and rec["measurable"] is False
     assert "not above chance" in rec["reason"] and rec["above_chance"]["low"] <= 0.0
@@ -235,7 +239,7 @@ def test_a_trained_network_is_measurable_and_its_chance_level_is_shown():
     from fsdvs_hw.report.tables import accuracy_axis, score_rows
     from fsdvs_hw.report.verdict import measurability_table
 
-    points = [ScoredPoint.from_dict(p) for p in measured_losses(_chance_world(0.9, 0.8), n_resamples=400)]
+    points = measured_losses(_points(_chance_world(0.9, 0.8)), n_resamples=400)
     rec = points[0].extra["measurability"]["simulator"]["recognition"]
     assert rec["measurable"] is True and rec["above_chance"]["low"] > 0.4
     rows = score_rows(points)
@@ -251,17 +255,19 @@ def test_a_realisation_identical_on_every_clip_gets_the_rule_of_three_not_a_zero
     world[1]["result"]["tasks"]["recognition"] = world[0]["result"]["tasks"]["recognition"]
     rng = np.random.default_rng(5)
     world.append(_task_point("D", "delta", [(rng.random(40) < 0.6).astype(float) for _ in range(2)], np.arange(40) % 4))
-    points = measured_losses(world, n_resamples=400)
-    ci = points[1]["paired_loss"]["simulator"]["recognition"]
+    points = measured_losses(_points(world), n_resamples=400)
+    ci = points[1].paired_loss.tracks["simulator"]["recognition"]
     b = 1 - 0.05 ** (1 / 80)
     assert ci["degenerate"] is True and ci["high"] == pytest.approx(b) and ci["low"] == pytest.approx(-b)
     assert ci["text"] == f"no clip changed (n = 80): |loss| ≤ {b:.3f} (rule of three)"
-    own = points[0]["paired_loss"]["simulator"]["recognition"]  # the reference against itself: 0, not widened
+    own = points[0].paired_loss.tracks["simulator"]["recognition"]  # the reference against itself: 0, not widened
     assert own["high"] == own["low"] == 0.0 and "degenerate" not in own
-    assert points[0]["measurability"]["simulator"]["recognition"]["measurable"] is True  # one kernel alike is no reason
+    assert (
+        points[0].extra["measurability"]["simulator"]["recognition"]["measurable"] is True
+    )  # one kernel alike is no reason
     # every kernel alike: the task cannot rank kernels
     world[2]["result"]["tasks"]["recognition"] = world[0]["result"]["tasks"]["recognition"]
-    rec = measured_losses(world, n_resamples=400)[0]["measurability"]["simulator"]["recognition"]
+    rec = measured_losses(_points(world), n_resamples=400)[0].extra["measurability"]["simulator"]["recognition"]
     assert rec["measurable"] is False and "every kernel's per-clip result is identical (3 kernels)" in rec["reason"]
 
 

@@ -44,6 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..explore.design import load_design
+    from ..explore.reporting import report_input
     from ..paths import output_dir
     from ..report import write_report_from_scores
     from .explore import parse_overrides
@@ -53,5 +54,5 @@ def run(args: argparse.Namespace) -> int:
         design = design.with_overrides(parse_overrides(args.overrides))
     if args.to is not None:
         output_dir(args.to, flag="--to")
-    print(f"report: {write_report_from_scores(args.out, design, to=args.to)}")
+    print(f"report: {write_report_from_scores(args.out, report_input(design), to=args.to)}")
     return 0

@@ -69,17 +69,19 @@ def run(args: argparse.Namespace) -> int:
     print(f"[sweep] {summary}", file=sys.stderr, flush=True)
     if args.report is not None:
         from ..explore.costing import with_physical_costs
+        from ..explore.reporting import report_input
         from ..explore.scoring import with_paired_losses
         from ..report import write_report
 
         sc = design.spec.scoring
-        rows = with_paired_losses(
+        scored = with_paired_losses(
             rows,
             task_weights=sc.task_weights or None,
             n_resamples=sc.n_resamples,
             confidence=sc.confidence,
             rng=design.spec.run.seed,
         )
-        rows = with_physical_costs(rows, design)
-        print(f"[sweep] report: {write_report(rows, design, args.report)}", file=sys.stderr, flush=True)
+        scored = with_physical_costs(scored, design)
+        page = write_report(scored, report_input(design), args.report)
+        print(f"[sweep] report: {page}", file=sys.stderr, flush=True)
     return 0 if summary.statuses.get("error", 0) == 0 else 1

@@ -25,12 +25,12 @@ Examples
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any
 
-from ..costs import CostAssumptions
+from ..costs import CostAssumptions, PhysicalCost
 from ..costs.limits import costed
-from ..records import Score
+from ..records import CostFlip, CostSetting, ScoredPoint
 from .design import Design, axis_values
 from .scoring import sweep_setting
 
@@ -43,63 +43,72 @@ def cost_settings(design: Design) -> list[dict[str, Any]]:
     return [dict(zip(axes, vals)) for vals in itertools.product(*axes.values())] if axes else [{}]
 
 
-def with_physical_costs(points: Sequence[Mapping[str, Any]], design: Design) -> list[dict[str, Any]]:
-    """Copies of the stored ``points`` with ``"physical_cost"`` (:func:`fsdvs_hw.costs.limits.costed`:
-    the cost record with its hard limits and remedies).
+def with_physical_costs(points: Sequence[ScoredPoint], design: Design) -> list[ScoredPoint]:
+    """Copies of ``points`` with their physical cost (:func:`fsdvs_hw.costs.limits.costed`: the cost
+    record with its hard limits and remedies), per ``costs.*`` sweep setting, and their cost flips.
 
     Parameters
     ----------
-    points : sequence of mappings
-        Stored points (``key``, ``realisation``, ``params``, ``status``, ``result``).
+    points : sequence of ScoredPoint
+        Stored points.
     design : Design
         The design they came from: its ``[costs]`` section, and its ``costs.*`` sweep axes.
 
     Returns
     -------
-    list of dict
-        The points, each ``ok`` one with ``"physical_cost"`` and, with ``costs.*`` sweep axes,
-        ``"physical_cost_sweep"`` (the setting's values by dotted key, and the record under it).
+    list of ScoredPoint
+        The points, each ``ok`` one with :attr:`~fsdvs_hw.records.ScoredPoint.physical_cost`, its
+        :attr:`~fsdvs_hw.records.ScoredPoint.cost_flips` and, with ``costs.*`` sweep axes,
+        :attr:`~fsdvs_hw.records.ScoredPoint.physical_cost_sweep` (each setting's values by dotted
+        key, and the record under it). Each record is kept as ``scores.json`` holds it.
     """
     base = design.spec.costs.model_dump()
     settings = cost_settings(design)
     assumptions = [
         CostAssumptions.model_validate({**base, **{k.split(".", 1)[1]: v for k, v in s.items()}}) for s in settings
     ]
+    scored = [p for p in points if p.ok and p.score is not None]
+    flips = _flips(scored, design.spec.costs)
     out = []
-    scores: dict[str, Score] = {}
     for p in points:
-        q = dict(p)
-        if p.get("status") == "ok" and isinstance(p.get("result"), Mapping):
-            score = Score.from_dict(p["result"], where=f"point {p.get('key')}")
-            scores[str(p["key"])] = score
-            q["physical_cost"] = costed(score, design.spec.costs).to_dict()
-            if settings != [{}]:
-                q["physical_cost_sweep"] = [
-                    {"setting": s, "physical_cost": costed(score, a).to_dict()} for s, a in zip(settings, assumptions)
-                ]
-        out.append(q)
-    flips = _flips(out, scores, design.spec.costs)
-    for q in out:
-        if str(q.get("key")) in scores:
-            q["cost_flips"] = flips.get(str(q["key"]), [])
+        if p.score is None or not p.ok:
+            out.append(p)
+            continue
+        sweep = (
+            []
+            if settings == [{}]
+            else [CostSetting(s, _as_stored(costed(p.score, a))) for s, a in zip(settings, assumptions)]
+        )
+        out.append(
+            p.with_(
+                physical_cost=_as_stored(costed(p.score, design.spec.costs)),
+                physical_cost_sweep=tuple(sweep),
+                cost_flips=tuple(CostFlip.from_dict(f) for f in flips.get(p.key, [])),
+            )
+        )
     return out
 
 
-def _flips(
-    points: Sequence[Mapping[str, Any]], scores: Mapping[str, Score], a: CostAssumptions
-) -> dict[str, list[dict[str, Any]]]:
+def _as_stored(cost: PhysicalCost) -> PhysicalCost:
+    """The record as ``scores.json`` holds it (plain floats, NaN figures as absent values)."""
+    return PhysicalCost.from_dict(cost.to_dict())
+
+
+def _flips(points: Sequence[ScoredPoint], a: CostAssumptions) -> dict[str, list[dict[str, Any]]]:
     """Point key → its :func:`~fsdvs_hw.costs.limits.cost_flips` against every other hardware kind
-    of its sweep setting (``{"other", "cost", "key", "value", "now", "cheaper"}``, ``cheaper`` the
+    of its sweep setting (``{"cost", "key", "value", "now", "other", "cheaper"}``, ``cheaper`` the
     key of the point that is cheaper at the present value)."""
     from ..costs.limits import FLIP_KEYS, cost_flips
 
-    hardware = [p for p in points if str(p.get("key")) in scores and scores[str(p["key"])].kind != "reference"]
+    scores = {p.key: p.score for p in points if p.score is not None and p.score.kind != "reference"}
+    hardware = [p for p in points if p.key in scores]
+    setting = {p.key: sweep_setting({"params": p.params}) for p in hardware}
     out: dict[str, list[dict[str, Any]]] = {}
     for i, p in enumerate(hardware):
         for q in hardware[i + 1 :]:
-            if p["realisation"] == q["realisation"] or sweep_setting(p) != sweep_setting(q):
+            if p.realisation == q.realisation or setting[p.key] != setting[q.key]:
                 continue
-            kp, kq = str(p["key"]), str(q["key"])
+            kp, kq = p.key, q.key
             for cost in FLIP_KEYS:
                 for f in cost_flips(scores[kp], scores[kq], a, cost):
                     rec = {"cost": cost, "key": f["key"], "value": f["value"], "now": f["now"]}

@@ -17,11 +17,13 @@ from pathlib import Path
 from typing import Any
 
 from ..paths import output_dir
+from ..records import ScoredPoint
 from .costing import with_physical_costs
 from .design import Design, load_design
 from .matched import with_matched_rates
 from .measurability import measured_losses
-from .point_artifacts import ARTIFACTS_DIR, point_folder_name, write_exploration_artifacts
+from .point_artifacts import with_point_artifacts
+from .reporting import report_input
 from .sweep import SweepSummary, run_design
 
 __all__ = ["Exploration", "run_exploration"]
@@ -29,7 +31,7 @@ __all__ = ["Exploration", "run_exploration"]
 
 @dataclass(frozen=True)
 class Exploration:
-    """What :func:`run_exploration` produced (paths, the run summary, the stored design points)."""
+    """What :func:`run_exploration` produced (paths, the run summary, the scored design points)."""
 
     report: Path
     scores_csv: Path
@@ -37,7 +39,7 @@ class Exploration:
     store: Path
     summary: SweepSummary
     wall_s: float
-    points: tuple[dict, ...] = ()
+    points: tuple[ScoredPoint, ...] = ()
     artifacts_index: Path | None = None
 
 
@@ -56,10 +58,13 @@ def run_exploration(
 
     After every point has run, each point's task losses against the learned kernel are computed
     with paired bootstrap CIs (:func:`fsdvs_hw.explore.scoring.paired_losses`); the points handed to
-    the report (and :attr:`Exploration.points`) carry them as ``"paired_loss"``, without the bulky
-    per-clip evidence (which stays in ``results.sqlite``), and each carries its physical cost record
-    (``"physical_cost"``, and ``"physical_cost_sweep"`` over the design's ``costs.*`` sweep axes:
-    :func:`fsdvs_hw.explore.costing.with_physical_costs`).
+    the report (and :attr:`Exploration.points`, :class:`~fsdvs_hw.records.ScoredPoint`) carry them
+    (:attr:`~fsdvs_hw.records.ScoredPoint.paired_loss`), without the bulky per-clip evidence (which
+    stays in ``results.sqlite``), with their matched-rate and measurability records, their
+    buildable files (:func:`fsdvs_hw.explore.point_artifacts.with_point_artifacts`) and their
+    physical cost (also over the design's ``costs.*`` sweep axes:
+    :func:`fsdvs_hw.explore.costing.with_physical_costs`). With ``[codesign]`` enabled the co-design
+    comparison runs last and its summary goes to the report as it is.
 
     Parameters
     ----------
@@ -96,9 +101,9 @@ def run_exploration(
     ...     written = sorted(p.name for p in (ex.report, ex.scores_csv, ex.scores_json) if p.is_file())
     >>> written
     ['report.html', 'scores.csv', 'scores.json']
-    >>> [(p["realisation"], p["status"]) for p in ex.points]
+    >>> [(p.realisation, p.status) for p in ex.points]
     [('learned', 'ok'), ('delta', 'ok'), ('asic', 'ok')]
-    >>> ex.points[0]["result"]["kernel_error"]  # the learned kernel is the target itself
+    >>> ex.points[0].score.kernel_error  # the learned kernel is the target itself
     0.0
     """
     from ..report import write_report
@@ -109,7 +114,7 @@ def run_exploration(
     out = output_dir(out_dir, flag="--out")  # checked before any work: a file, unwritable, ...
     store_path = out / "results.sqlite"
     _train_user_networks(design)
-    summary, rows = run_design(
+    summary, points = run_design(
         design,
         store_path,
         workers=workers,
@@ -119,30 +124,14 @@ def run_exploration(
         max_points=max_points,
         security=security,
     )
-    sc = design.spec.scoring
-    rows = with_matched_rates(rows, design, out, progress=progress)  # [rate]: needs the per-clip evidence
-    rows = measured_losses(  # paired losses; tasks at chance or degenerate weigh 0 (explore.measurability)
-        rows,
-        task_weights=sc.task_weights or None,
-        n_resamples=sc.n_resamples,
-        confidence=sc.confidence,
-        rng=design.spec.run.seed,
-        target_half_width=sc.target_half_width,
-    )
-    index, entries = write_exploration_artifacts(rows, out, resolution=tuple(design.spec.sensor.resolution))
-    for row in rows:  # each point carries its files (paths relative to out) for the report's links
-        name = point_folder_name(row["realisation"], row.get("params") or {})
-        row["artifacts"] = [
-            {**e, "file": f"{ARTIFACTS_DIR}/{e['file']}" if e.get("file") else ""}
-            for e in entries
-            if e["point"] == name
-        ]
-    rows = with_physical_costs(rows, design)  # SI cost records, and per [costs] sweep setting
+    index, points = _enriched(points, design, out, progress=progress)
+    codesign = None
     if design.spec.codesign.enabled:  # the fit-then-swap / fine-tune / co-designed rows
         from .codesign import run_codesign, write_codesign
 
-        write_codesign(run_codesign(design, out, progress=progress), out)
-    report = write_report(rows, design, out)
+        codesign = run_codesign(design, out, progress=progress)
+        write_codesign(codesign, out)
+    report = write_report(points, report_input(design, codesign=codesign), out)
     return Exploration(
         report=report,
         scores_csv=out / "scores.csv",
@@ -150,12 +139,32 @@ def run_exploration(
         store=store_path,
         summary=summary,
         wall_s=time.perf_counter() - t0,
-        points=tuple(rows),
+        points=tuple(points),
         artifacts_index=index,
     )
 
 
-def _train_user_networks(design: Any) -> None:
+def _enriched(
+    points: list[ScoredPoint], design: Design, out: Path, *, progress: bool | None
+) -> tuple[Path, list[ScoredPoint]]:
+    """What the exploration adds to the stored points, in order: matched rates (they need the
+    per-clip evidence), paired losses with measurability (the evidence dropped), buildable files
+    (``artifacts/index.json``'s path is returned) and physical costs."""
+    sc = design.spec.scoring
+    points = with_matched_rates(points, design, out, progress=progress)  # [rate]: needs the per-clip evidence
+    points = measured_losses(  # paired losses; tasks at chance or degenerate weigh 0 (explore.measurability)
+        points,
+        task_weights=sc.task_weights or None,
+        n_resamples=sc.n_resamples,
+        confidence=sc.confidence,
+        rng=design.spec.run.seed,
+        target_half_width=sc.target_half_width,
+    )
+    index, points = with_point_artifacts(points, out, resolution=tuple(design.spec.sensor.resolution))
+    return index, with_physical_costs(points, design)  # SI cost records, and per [costs] sweep setting
+
+
+def _train_user_networks(design: Design) -> None:
     """Train (or reuse / resume) every ``[tasks.datasets.<task>]`` network with a ``train`` table once,
     here, before the sweep's workers load the finished checkpoints (:func:`fsdvs_hw.explore.user_data.
     train_user_task`)."""

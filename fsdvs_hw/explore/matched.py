@@ -42,6 +42,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..fingerprints import text_fingerprint
+from ..records import ScoredPoint
 from .paired import EVENT_RATE_UNIT, decode_evidence
 from .rate import MatchedRateDifference, RateCurve, RatePoint, dataset_rate_curve, matched_rate_difference, rate_curve
 from .scoring import DESIGN_SENSOR_FIELDS, sweep_setting
@@ -351,14 +352,14 @@ def matched_rate_records(
 
 
 def with_matched_rates(
-    points: Sequence[Mapping[str, Any]], design: Any, out_dir: str | Path, *, progress: bool | None = None
-) -> list[dict[str, Any]]:
-    """Copies of ``points`` with ``"matched_rate"`` (:func:`matched_rate_records`) when the design's
-    ``[rate] enabled``; otherwise each carries ``{"status": "not requested"}``.
+    points: Sequence[ScoredPoint], design: Any, out_dir: str | Path, *, progress: bool | None = None
+) -> list[ScoredPoint]:
+    """Copies of ``points`` with ``"matched_rate"`` (:func:`matched_rate_records`) in their ``extra``
+    when the design's ``[rate] enabled``; otherwise each carries ``{"status": "not requested"}``.
 
     Parameters
     ----------
-    points : sequence of mapping
+    points : sequence of ScoredPoint
         Stored points, before the per-clip evidence is dropped.
     design : fsdvs_hw.explore.design.Design
     out_dir : path
@@ -367,14 +368,15 @@ def with_matched_rates(
 
     Returns
     -------
-    list of dict
+    list of ScoredPoint
     """
-    points = list(points)
     if not design.spec.rate.enabled:
-        return [{**p, "matched_rate": {"status": "not requested ([rate] enabled = false)"}} for p in points]
+        off = {"status": "not requested ([rate] enabled = false)"}
+        return [p.with_(extra={**p.extra, "matched_rate": off}) for p in points]
     sc = design.spec.scoring
-    curves = reference_curves(design, points, out_dir, progress=progress)
+    rows = [p.to_dict() for p in points]
+    curves = reference_curves(design, rows, out_dir, progress=progress)
     recs = matched_rate_records(
-        points, curves, confidence=sc.confidence, n_resamples=sc.n_resamples, rng=design.spec.run.seed
+        rows, curves, confidence=sc.confidence, n_resamples=sc.n_resamples, rng=design.spec.run.seed
     )
-    return [{**p, "matched_rate": recs.get(p["key"], {"status": "not scored"})} for p in points]
+    return [p.with_(extra={**p.extra, "matched_rate": recs.get(p.key, {"status": "not scored"})}) for p in points]

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from ..records import ScoredPoint
 from .scoring import TRACK_PREFIX, sweep_setting, track_record, with_paired_losses
 
 __all__ = ["measured_losses", "task_measurability", "widen_degenerate"]
@@ -211,20 +212,20 @@ def _widen(ci: dict[str, Any], b: float, text: str) -> None:
 
 
 def measured_losses(
-    points: Sequence[Mapping[str, Any]],
+    points: Sequence[ScoredPoint],
     *,
     task_weights: Mapping[str, float] | None = None,
     n_resamples: int = 2000,
     confidence: float = 0.95,
     rng: int = 0,
     target_half_width: float | None = None,
-) -> list[dict[str, Any]]:
+) -> list[ScoredPoint]:
     """:func:`fsdvs_hw.explore.scoring.with_paired_losses`, with the tasks that cannot measure a loss
     weighted 0 and every point carrying its setting's ``"measurability"`` record.
 
     Parameters
     ----------
-    points : sequence of mappings
+    points : sequence of ScoredPoint
         Stored points with their per-clip evidence.
     task_weights : mapping, optional
         The design's ``[scoring] task_weights`` (default: equal).
@@ -237,13 +238,12 @@ def measured_losses(
 
     Returns
     -------
-    list of dict
-        The points with ``"paired_loss"`` (evidence dropped) and ``"measurability"``:
+    list of ScoredPoint
+        The points with their paired losses (evidence dropped) and, in ``extra``, ``"measurability"``:
         ``{track: {task: record}}`` of :func:`task_measurability` for the point's sweep setting.
     """
-
-    points = list(points)
-    meas = task_measurability(points, confidence=confidence, n_resamples=n_resamples, rng=rng)
+    rows = [p.to_dict() for p in points]
+    meas = task_measurability(rows, confidence=confidence, n_resamples=n_resamples, rng=rng)
     tasks = {t for per_track in meas.values() for per_task in per_track.values() for t in per_task}
 
     def weights() -> dict[str, float]:
@@ -257,15 +257,15 @@ def measured_losses(
     w = weights() if tasks else dict(task_weights or {})
     if tasks and not any(v > 0 for v in w.values()):
         w = {}  # nothing measurable: paired_losses weighs all; the verdict ranks by kernel error
-    out = with_paired_losses(points, task_weights=w or None, n_resamples=n_resamples, confidence=confidence, rng=rng)
+    lean = with_paired_losses(points, task_weights=w or None, n_resamples=n_resamples, confidence=confidence, rng=rng)
+    out = [q.to_dict() for q in lean]
     for q in out:  # the reference against itself is 0 by construction, not a degenerate measurement
         if q["paired_loss"].get("reference") != q["key"]:
             widen_degenerate({q["key"]: q["paired_loss"]}, confidence)
     if target_half_width is not None and _widest({q["key"]: q["paired_loss"] for q in out}) > target_half_width:
-        _clips_needed(points, meas, target_half_width, confidence)
-    for q in out:
-        q["measurability"] = meas.get(sweep_setting(q), {})
-    return out
+        _clips_needed(rows, meas, target_half_width, confidence)
+    measured = [ScoredPoint.from_dict(q) for q in out]
+    return [p.with_(extra={**p.extra, "measurability": meas.get(sweep_setting(q), {})}) for p, q in zip(measured, out)]
 
 
 def _widest(paired: Mapping[str, Mapping[str, Any]]) -> float:

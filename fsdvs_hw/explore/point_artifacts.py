@@ -20,8 +20,9 @@ from typing import Any
 from ..paths import safe_name
 from ..realise.artifacts import write_index
 from ..realise.registry import REALISATIONS, realisation_from_dict
+from ..records import ArtifactLink, ScoredPoint
 
-__all__ = ["ARTIFACTS_DIR", "point_folder_name", "write_exploration_artifacts"]
+__all__ = ["ARTIFACTS_DIR", "point_folder_name", "with_point_artifacts", "write_exploration_artifacts"]
 
 #: Folder under the exploration's output that holds the artifacts and ``index.json``.
 ARTIFACTS_DIR: str = "artifacts"
@@ -34,14 +35,14 @@ def point_folder_name(realisation: str, params: Mapping[str, Any]) -> str:
 
 
 def write_exploration_artifacts(
-    points: Sequence[Mapping[str, Any]], out_dir: str | Path, *, resolution: tuple[int, int] | None = None
+    points: Sequence[ScoredPoint], out_dir: str | Path, *, resolution: tuple[int, int] | None = None
 ) -> tuple[Path, list[dict[str, Any]]]:
     """Write every scored point's artifacts under ``out_dir/artifacts`` and its ``index.json``.
 
     Parameters
     ----------
-    points : sequence of mappings
-        Stored design points (``realisation``, ``params``, ``status``, ``result["realisation"]``).
+    points : sequence of ScoredPoint
+        Stored design points (their realisation, params, status and the fitted realisation's record).
     out_dir : path
         The exploration's output folder.
     resolution : (int, int), optional
@@ -56,11 +57,11 @@ def write_exploration_artifacts(
     entries: list[dict[str, Any]] = []
     used: set[str] = set()
     for p in points:
-        spec = REALISATIONS.get(str(p.get("realisation")))
-        record = (p.get("result") or {}).get("realisation")
-        if spec is None or not spec.write_artifacts or p.get("status") != "ok" or not isinstance(record, Mapping):
+        spec = REALISATIONS.get(p.realisation)
+        record = p.score.realisation if p.score is not None and p.status == "ok" else None
+        if spec is None or not spec.write_artifacts or not record:
             continue
-        name = point_folder_name(spec.name, p.get("params") or {})
+        name = point_folder_name(spec.name, p.params)
         while name in used:
             name += "_"
         used.add(name)
@@ -81,3 +82,36 @@ def write_exploration_artifacts(
             continue
         entries += [a.entry(root, point=name, realisation=spec.name) for a in written]
     return write_index(entries, root / "index.json"), entries
+
+
+def with_point_artifacts(
+    points: Sequence[ScoredPoint], out_dir: str | Path, *, resolution: tuple[int, int] | None = None
+) -> tuple[Path, list[ScoredPoint]]:
+    """Write every scored point's artifacts (:func:`write_exploration_artifacts`) and link each point to its files.
+
+    Parameters
+    ----------
+    points : sequence of ScoredPoint
+        Stored design points.
+    out_dir : path
+        The exploration's output folder.
+    resolution : (int, int), optional
+        The sensor's (H, W) in pixels, passed to the writers.
+
+    Returns
+    -------
+    (Path, list of ScoredPoint)
+        ``index.json``'s path, and the points, each with its :class:`~fsdvs_hw.records.ArtifactLink`
+        list (paths relative to ``out_dir``, for the report's links; empty for a point without files).
+    """
+    index, entries = write_exploration_artifacts(points, out_dir, resolution=resolution)
+    linked = []
+    for p in points:
+        name = point_folder_name(p.realisation, p.params)
+        links = [
+            ArtifactLink.from_dict({**e, "file": f"{ARTIFACTS_DIR}/{e['file']}" if e.get("file") else ""})
+            for e in entries
+            if e["point"] == name
+        ]
+        linked.append(p.with_(artifacts=tuple(links)))
+    return index, linked

@@ -38,7 +38,7 @@ from ..errors import InputError
 from ..fingerprints import fingerprint
 from ..limits import MAX_WORKERS, check_count
 from ..provenance import library_versions
-from ..records import Score
+from ..records import Score, ScoredPoint
 from ..schema import DESIGN_CONTEXT
 from .design import Design, axis_values, design_model
 from .store import ResultsStore
@@ -582,11 +582,12 @@ def run_design(
     max_points: int | None = None,
     points: Sequence[DesignPoint] | None = None,
     security: Any = None,
-) -> tuple[SweepSummary, list[dict[str, Any]]]:
-    """Run all points of ``design`` into the store at ``store_path``; return the summary and its rows.
+) -> tuple[SweepSummary, list[ScoredPoint]]:
+    """Run all points of ``design`` into the store at ``store_path``; return the summary and its points.
 
-    The rows are this design's points only (a store may hold other designs too), in the order of
-    :func:`expand_points`, each a dict with ``key, realisation, params, status, result, wall_s, ...``.
+    The points are this design's only (a store may hold other designs too), in the order of
+    :func:`expand_points`, each a :class:`~fsdvs_hw.records.ScoredPoint` of its stored row (with
+    its per-clip evidence).
     Points stored as failed are final unless ``retry_errors``: then this design's failed points
     (and no other design's) are deleted and rerun. ``points`` (from :func:`expand_points`) saves
     building the list again; ``max_points`` overrides the design's ``[run] max_points``.
@@ -602,4 +603,4 @@ def run_design(
         summary = run_points(points, store, workers=workers, scheduler=scheduler, progress=progress, security=security)
         order = {p.key: i for i, p in enumerate(points)}
         rows = sorted((dict(r) for r in store.rows() if r["key"] in order), key=lambda r: order[r["key"]])
-    return summary, rows
+    return summary, [ScoredPoint.from_dict(r) for r in rows]

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from markupsafe import Markup
 
+from .report_input import CodesignSummary
 from .templating import render
 
 __all__ = ["CODESIGN_HEADERS", "codesign_section"]
@@ -48,13 +49,13 @@ def _mean(values: Any) -> str:
     return f"{np.mean(vals):.3f}" if vals else "—"
 
 
-def codesign_section(summary: Mapping[str, Any]) -> Markup:
+def codesign_section(summary: CodesignSummary) -> Markup:
     """The co-design section as an HTML fragment (an ``<h2>``, a note and a table).
 
     Parameters
     ----------
-    summary : mapping
-        The content of ``codesign.json`` (:func:`fsdvs_hw.explore.codesign.summarise_codesign`
+    summary : CodesignSummary
+        The co-design comparison (``codesign.json``: :func:`fsdvs_hw.explore.codesign.summarise_codesign`
         plus ``settings``).
 
     Returns
@@ -62,8 +63,8 @@ def codesign_section(summary: Mapping[str, Any]) -> Markup:
     str
         HTML (:class:`markupsafe.Markup`, a ``str``); every value escaped by the template.
     """
-    cells = list(summary.get("cells", []))
-    st = summary.get("settings", {})
+    cells = list(summary.cells)
+    st = summary.settings
     rows = []
     for c in cells:
         rows_of = c["rows"]

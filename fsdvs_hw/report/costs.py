@@ -1,6 +1,6 @@
 """The cross-kind cost front: physical costs in the score rows, their fronts, verdict and section.
 
-Every stored point carries a physical cost record (:mod:`fsdvs_hw.costs`, attached by
+Every stored point carries a physical cost record (:attr:`fsdvs_hw.records.ScoredPoint.physical_cost`, attached by
 :func:`fsdvs_hw.explore.costing.with_physical_costs`). This module
 
 * flattens it into the score rows (:func:`with_cost_columns`, :func:`cost_columns`): ``power_w`` (array, W),
@@ -40,6 +40,7 @@ from typing import Any, TypeVar
 from markupsafe import Markup
 
 from ..costs import CROSS_KIND_COSTS, PhysicalCost
+from ..records import ScoredPoint
 from .present import number, point_title, si
 from .tables import accuracy_axis, is_reference, loss_interval, uncertain_pareto_front
 from .templating import render
@@ -90,9 +91,8 @@ def _num(x: Any) -> float:
     return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else math.nan
 
 
-def cost_columns(record: Mapping[str, Any]) -> dict[str, Any]:
+def cost_columns(pc: PhysicalCost) -> dict[str, Any]:
     """The score-row columns of one point's physical cost record (module docstring; units in the names)."""
-    pc = PhysicalCost.from_dict(record)
     out: dict[str, Any] = {"cost_status": pc.status}
     for name in (*CROSS_KIND_COSTS, *_EXTRA):
         if name in pc.figures:
@@ -108,7 +108,7 @@ def cost_columns(record: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-def with_cost_columns(rows: Sequence[Mapping[str, Any]], points: Sequence[Any]) -> list[dict[str, Any]]:
+def with_cost_columns(rows: Sequence[Mapping[str, Any]], points: Sequence[ScoredPoint]) -> list[dict[str, Any]]:
     """Copies of the score ``rows`` with each point's physical cost columns and ``front_<cost>`` flags.
 
     Parameters
@@ -119,8 +119,8 @@ def with_cost_columns(rows: Sequence[Mapping[str, Any]], points: Sequence[Any]) 
         Those with a ``physical_cost`` record (:mod:`fsdvs_hw.explore.costing`) give their rows
         :func:`cost_columns`; the others are unchanged.
     """
-    records = {p.key: p.extra["physical_cost"] for p in points if isinstance(p.extra.get("physical_cost"), Mapping)}
-    flips = {p.key: p.extra["cost_flips"] for p in points if isinstance(p.extra.get("cost_flips"), list)}
+    records = {p.key: p.physical_cost for p in points if p.physical_cost is not None}
+    flips = {p.key: [f.to_dict() for f in p.cost_flips] for p in points if p.cost_flips is not None}
     out = [
         {**r, **cost_columns(records[r["key"]]), "cost_flips": json.dumps(flips.get(r["key"], []))}
         if r.get("key") in records and r.get("status") == "ok"
@@ -132,7 +132,7 @@ def with_cost_columns(rows: Sequence[Mapping[str, Any]], points: Sequence[Any]) 
     return out
 
 
-def sweep_rows(rows: Sequence[Mapping[str, Any]], points: Sequence[Any]) -> list[dict[str, Any]]:
+def sweep_rows(rows: Sequence[Mapping[str, Any]], points: Sequence[ScoredPoint]) -> list[dict[str, Any]]:
     """The score rows once per ``costs.*`` sweep setting, with that setting's cost columns and fronts.
 
     Parameters
@@ -148,11 +148,7 @@ def sweep_rows(rows: Sequence[Mapping[str, Any]], points: Sequence[Any]) -> list
     list of dict
         ``rows`` itself (copied) when no point carries a sweep.
     """
-    sweeps = {
-        p.key: p.extra["physical_cost_sweep"]
-        for p in points
-        if isinstance(p.extra.get("physical_cost_sweep"), (list, tuple))
-    }
+    sweeps = {p.key: p.physical_cost_sweep for p in points if p.physical_cost_sweep}
     if not sweeps:
         return [dict(r) for r in rows]
     out: list[dict[str, Any]] = []
@@ -167,8 +163,8 @@ def sweep_rows(rows: Sequence[Mapping[str, Any]], points: Sequence[Any]) -> list
             out.append(
                 {
                     **base,
-                    **cost_columns(entries[i]["physical_cost"]),
-                    "params": json.dumps({**params, **entries[i]["setting"]}, sort_keys=True),
+                    **cost_columns(entries[i].physical_cost),
+                    "params": json.dumps({**params, **entries[i].setting}, sort_keys=True),
                 }
             )
     mark_cost_fronts(out)
@@ -424,7 +420,7 @@ _TABLE = (
 
 
 def cost_section(
-    rows: Sequence[Mapping[str, Any]], points: Sequence[Any] = (), figure: Callable[..., str] | None = None
+    rows: Sequence[Mapping[str, Any]], points: Sequence[ScoredPoint] = (), figure: Callable[..., str] | None = None
 ) -> str:
     """The report's "What building it costs" section (HTML): verdict sentences, table and figure.
 

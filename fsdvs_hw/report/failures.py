@@ -104,10 +104,6 @@ class SkippedClips:
     points: tuple[str, ...]
 
 
-def _typed(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> list[ScoredPoint]:
-    return [p if isinstance(p, ScoredPoint) else ScoredPoint.from_dict(p) for p in points]
-
-
 def _tracks(points: Sequence[ScoredPoint]) -> list[tuple[str, str, str, Any]]:
     """``(point title, task, track, TrackScore)`` of every scored point, in order."""
     out = []
@@ -125,13 +121,13 @@ def _reason(status: str) -> str:
     return status.removeprefix("unavailable: ")
 
 
-def task_failures(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> list[TaskFailure]:
+def task_failures(points: Sequence[ScoredPoint]) -> list[TaskFailure]:
     """Every requested task and track without a number on at least one scored point.
 
     Parameters
     ----------
-    points : sequence of ScoredPoint or mappings
-        Stored points (:meth:`fsdvs_hw.explore.store.ResultsStore.rows` or ``scores.json``'s ``points``).
+    points : sequence of ScoredPoint
+        The scored points.
 
     Returns
     -------
@@ -143,10 +139,9 @@ def task_failures(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> list[Tas
     >>> task_failures([])
     []
     """
-    typed = _typed(points)
-    n_ok = sum(1 for p in typed if p.ok)
+    n_ok = sum(1 for p in points if p.ok)
     groups: dict[tuple[str, str], list[tuple[str, Any]]] = {}
-    for name, task, track, rec in _tracks(typed):
+    for name, task, track, rec in _tracks(points):
         if not rec.ok:
             groups.setdefault((task, track), []).append((name, rec))
     out = []
@@ -169,7 +164,7 @@ def task_failures(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> list[Tas
     return out
 
 
-def skipped_clips(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> list[SkippedClips]:
+def skipped_clips(points: Sequence[ScoredPoint]) -> list[SkippedClips]:
     """Every user-data task and track scored without some clips that failed to read.
 
     Examples
@@ -178,7 +173,7 @@ def skipped_clips(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> list[Ski
     []
     """
     groups: dict[tuple[str, str], list[tuple[str, Any]]] = {}
-    for name, task, track, rec in _tracks(_typed(points)):
+    for name, task, track, rec in _tracks(points):
         if rec.ok and int(rec.extra.get("failed_clips", 0) or 0) > 0:
             groups.setdefault((task, track), []).append((name, rec))
     out = []
@@ -204,7 +199,7 @@ def _short(text: str, limit: int = 800) -> str:
     return flat if len(flat) <= limit else flat[: limit - 1] + "…"
 
 
-def failure_lines(points: Sequence[Mapping[str, Any] | ScoredPoint], *, prefix: str = "[explore] ") -> list[str]:
+def failure_lines(points: Sequence[ScoredPoint], *, prefix: str = "[explore] ") -> list[str]:
     """One console line per failed task (task, track, points, reason), then one per task that skipped clips.
 
     Examples
@@ -236,7 +231,7 @@ def _files(files: Sequence[Mapping[str, Any]], total: int) -> list[dict[str, str
     return shown
 
 
-def failures_section(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> Markup:
+def failures_section(points: Sequence[ScoredPoint]) -> Markup:
     """The report's "Tasks that failed" and "Clips skipped" sections (empty when there is nothing to say).
 
     Examples

@@ -1,7 +1,6 @@
 """Report figures: kernels side by side, spectra, radial responses vs CSF, Pareto and speed plots.
 
-Each function takes stored design points (:class:`fsdvs_hw.records.ScoredPoint`, or the dicts
-they serialise to) or the flat rows of
+Each function takes the scored design points (:class:`fsdvs_hw.records.ScoredPoint`) or the flat rows of
 :func:`fsdvs_hw.report.tables.score_rows`, and returns a matplotlib ``Figure``; nothing is shown.
 
 Every realisation keeps one colour and one marker across all figures
@@ -54,11 +53,11 @@ class Panel:
     kernel: Kernel
 
 
-def realised_kernels(points: Sequence[Mapping[str, Any] | ScoredPoint], *, limit: int = _MAX_PANELS) -> list[Panel]:
+def realised_kernels(points: Sequence[ScoredPoint], *, limit: int = _MAX_PANELS) -> list[Panel]:
     """One :class:`Panel` per distinct successful point's realised kernel, at most ``limit`` (evenly picked)."""
     ok: list[ScoredPoint] = []
     seen = set()
-    for p in _typed(points):  # one panel per distinct kernel (axes such as the optics do not change it)
+    for p in points:  # one panel per distinct kernel (axes such as the optics do not change it)
         if p.ok and p.score is not None:
             taps = np.round(np.asarray(p.score.kernel.taps, dtype=float), 12)
             sig = (p.realisation, taps.shape, taps.tobytes())
@@ -69,10 +68,6 @@ def realised_kernels(points: Sequence[Mapping[str, Any] | ScoredPoint], *, limit
         idx = np.unique(np.linspace(0, len(ok) - 1, limit).round().astype(int))
         ok = [ok[i] for i in idx]
     return [Panel(point_title(p.realisation, p.params), p.realisation, p.score.kernel) for p in ok if p.score]
-
-
-def _typed(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> list[ScoredPoint]:
-    return [p if isinstance(p, ScoredPoint) else ScoredPoint.from_dict(p) for p in points]
 
 
 def kernel_colour_limit(taps: np.ndarray) -> tuple[float, bool]:
@@ -367,7 +362,7 @@ def fig_speed(rows: Sequence[Mapping[str, Any]]) -> Any:
     return fig
 
 
-def fig_matched_rate(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> Any:
+def fig_matched_rate(points: Sequence[ScoredPoint]) -> Any:
     """Task metric against event rate, one panel per task: the reference rate curves and every point.
 
     The reference curves (``delta``: a plain DVS, ``learned``) are lines through their thresholds;
@@ -375,8 +370,7 @@ def fig_matched_rate(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> Any:
     bootstrap CIs over (network, clips) clusters (:mod:`fsdvs_hw.explore.matched`); the event-rate
     axis is logarithmic (events/pixel/s).
     """
-    pts = [p if isinstance(p, ScoredPoint) else ScoredPoint.from_dict(p) for p in points]
-    recs = [(p, p.extra.get("matched_rate") or {}) for p in pts if p.ok]
+    recs = [(p, p.extra.get("matched_rate") or {}) for p in points if p.ok]
     tasks = list(dict.fromkeys(t for _, m in recs for t, e in m.items() if isinstance(e, Mapping)))
     fig, axes = _grid(max(1, len(tasks)), w=3.6, h=3.2, cols=3)
     axes = axes.ravel()

@@ -7,8 +7,9 @@ in a ``<figure>`` with a caption and a descriptive alt text, drawn at twice thei
 for sharp screens; the wide tables are split by topic and sit behind ``<details>`` toggles in
 containers that scroll on their own, so the page fits a 1280 px window.
 
-:func:`write_report` writes a report from stored points; :func:`write_report_from_scores` rebuilds
-one from the ``scores.json`` an earlier run left, without rerunning anything.
+:func:`write_report` writes a report from the scored points and the design's
+:class:`~fsdvs_hw.report.report_input.ReportInput`; :func:`fsdvs_hw.report.redraw.write_report_from_scores`
+rebuilds one from the ``scores.json`` an earlier run left, without rerunning anything.
 """
 
 from __future__ import annotations
@@ -30,22 +31,16 @@ from ..paths import write_output
 from ..records import Cost, ScoredPoint
 from . import figures
 from .artifact_links import artifacts_html
+from .codesign_section import codesign_section
 from .costs import cost_section, with_cost_columns
 from .failures import failures_section, task_failures
 from .present import cost_label, number, plain, point_title, si, style, title
+from .report_input import ReportInput
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
 from .templating import render
 from .verdict import VERDICT_COLUMNS, advice, loss_header, measurability_table, verdict_table
 
-__all__ = [
-    "CSS_DPI",
-    "FIGURE_DPI",
-    "check_same_design",
-    "design_stamp",
-    "render_html",
-    "write_report",
-    "write_report_from_scores",
-]
+__all__ = ["CSS_DPI", "FIGURE_DPI", "render_html", "write_report"]
 
 #: CSS pixels per inch: a figure of w inches is shown w × CSS_DPI px wide.
 CSS_DPI = 96
@@ -323,17 +318,13 @@ def _quantities(realisation: str, cost: Cost) -> list[dict[str, str]]:
     return rows
 
 
-def _typed(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> list[ScoredPoint]:
-    return [p if isinstance(p, ScoredPoint) else ScoredPoint.from_dict(p) for p in points]
-
-
 def _float(v: Any) -> float:
     return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
 
 
 def render_html(
-    points: Sequence[Mapping[str, Any] | ScoredPoint],
-    design: Any,
+    points: Sequence[ScoredPoint],
+    report: ReportInput,
     *,
     title_text: str | None = None,
     stamp: str | None = None,
@@ -343,12 +334,11 @@ def render_html(
 
     Parameters
     ----------
-    points : sequence of ScoredPoint or mappings
-        Stored design points (:class:`fsdvs_hw.records.ScoredPoint`, or the dicts of
-        :meth:`fsdvs_hw.explore.store.ResultsStore.rows`), with ``paired_loss`` where task losses
-        were computed.
-    design : fsdvs_hw.explore.design.Design
-        The design they came from (sensor, optics and CSF settings are read from it).
+    points : sequence of ScoredPoint
+        The scored design points, with their paired losses where task losses were computed.
+    report : ReportInput
+        The design they came from (:func:`fsdvs_hw.explore.reporting.report_input`): its name,
+        target, sensor, optics and CSF settings.
     title_text : str, optional
         Page title (default: "FS-DVS design exploration: <design name>").
     stamp : str, optional
@@ -358,17 +348,15 @@ def render_html(
         the buildable artifacts and before the run conditions, e.g.
         :func:`fsdvs_hw.report.codesign_section.codesign_section`.
     """
-    points = _typed(points)
-    spec = design.spec
     rows = with_cost_columns(score_rows(points), points)  # power_w, area_m2, ...
     ok = [r for r in rows if r["status"] == "ok"]
     acc, acc_label = accuracy_axis(rows)
-    methods = list(spec.analysis.csf_methods)
-    t = design.target
-    focal = spec.optics.focal_length_m
+    methods = list(report.csf_methods)
+    t = report.target
+    focal = report.focal_length_m
     n_ok, n_skip, n_err = (sum(r["status"] == s for r in rows) for s in ("ok", "skipped", "error"))
     page: dict[str, Any] = {
-        "page_title": title_text or f"FS-DVS design exploration: {design.name}",
+        "page_title": title_text or f"FS-DVS design exploration: {report.name}",
         "css": Markup(_CSS),
         "target": t,
         "focal": focal,
@@ -390,14 +378,14 @@ def render_html(
     page.update(
         artifacts=artifacts_html(points),  # buildable files per hardware point (report/artifact_links.py)
         sections=[Markup(s) for s in sections if s],
-        conditions=_conditions(points, rows, design),
+        conditions=_conditions(points, rows, report),
         version=__version__,
         python=platform.python_version(),
         node=platform.node(),
         stamp=stamp or _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
-        source=design.source,
+        source=report.source,
         versions=_versions(points),
-        design_json=json.dumps(design.to_dict(), indent=1),
+        design_json=json.dumps(dict(report.design_data), indent=1),
     )
     return str(render("report.html.j2", **page))
 
@@ -474,7 +462,7 @@ def _versions(points: Sequence[ScoredPoint]) -> list[str]:
     return [", ".join(f"{k} {v}" for k, v in s) for s in sorted(sets)]
 
 
-def _conditions(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]], design: Any) -> Markup:
+def _conditions(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]], report: ReportInput) -> Markup:
     """Run conditions: sensor, simulator of the task tracks, networks, task status."""
     sensors = set()
     for p in points:
@@ -484,21 +472,35 @@ def _conditions(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]]
                 if isinstance(sensor, Mapping):
                     sensors.add(f"{task}: " + ", ".join(f"{k} = {v}" for k, v in sensor.items()))
     ok = [r for r in rows if r["status"] == "ok"]
-    spec = design.spec
     return render(
         "conditions.html.j2",
-        target=design.target,
-        focal=spec.optics.focal_length_m,
-        placement=spec.sensor.placement,
-        positivity=spec.sensor.positivity,
+        target=report.target,
+        focal=report.focal_length_m,
+        placement=report.placement,
+        positivity=report.positivity,
         sensors=sorted(sensors),
         networks=networks_note(points),
         task_status=sorted({r.get("tasks_status", "") for r in ok} - {""}),
     )
 
 
-def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any, out_dir: str | Path) -> Path:
+def write_report(points: Sequence[ScoredPoint], report: ReportInput, out_dir: str | Path) -> Path:
     """Write ``report.html``, ``scores.csv`` and ``scores.json`` into ``out_dir``; return the HTML path.
+
+    Parameters
+    ----------
+    points : sequence of ScoredPoint
+        The scored design points.
+    report : ReportInput
+        The design they came from and, with ``[codesign]`` enabled, the co-design summary this
+        run produced (its section goes before the run conditions).
+    out_dir : path
+        Output folder (created).
+
+    Raises
+    ------
+    InputError
+        A file to write is a symbolic link.
 
     Examples
     --------
@@ -509,8 +511,9 @@ def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any,
     >>> from pathlib import Path
     >>> from fsdvs_hw import write_report
     >>> from fsdvs_hw.explore.design import parse_design
+    >>> from fsdvs_hw.explore.reporting import report_input
     >>> with tempfile.TemporaryDirectory() as out:
-    ...     page = write_report([], parse_design({"design": {"name": "empty"}}), out)
+    ...     page = write_report([], report_input(parse_design({"design": {"name": "empty"}})), out)
     ...     text = page.read_text()
     ...     stored = json.loads((Path(out) / "scores.json").read_text())
     >>> page.name, "No design point was scored" in text, stored["design"]["name"], stored["points"]
@@ -523,145 +526,15 @@ def write_report(points: Sequence[Mapping[str, Any] | ScoredPoint], design: Any,
     for name in ("report.html", "scores.csv", "scores.json"):  # refused before any file is replaced
         if (out / name).is_symlink():
             raise InputError(f"--out: {out / name} is a symbolic link; refusing to write through it (remove the link)")
-    points = _typed(points)
     write_scores(
         with_cost_columns(score_rows(points), points),
         out,
         full=[p.to_dict() for p in points],
-        design=design_stamp(design),
+        design=report.stamp(),
     )
     path = out / "report.html"
     sections = []
-    if (out / "codesign.json").is_file() and design.spec.codesign.enabled:  # the co-design rows
-        from .codesign_section import codesign_section
-
-        sections.append(codesign_section(json.loads((out / "codesign.json").read_text())))
+    if report.codesign is not None and report.codesign_enabled:
+        sections.append(codesign_section(report.codesign))
     # atomically, never through a symbolic link planted in the folder
-    return write_output(path, render_html(points, design, sections=sections))
-
-
-def design_stamp(design: Any) -> dict[str, Any]:
-    """What ``scores.json`` records of the design its points came from: name, fingerprint
-    (:meth:`fsdvs_hw.explore.design.Design.fingerprint`: SHA-1 of the validated content and target
-    taps) and the validated data, so that :func:`write_report_from_scores` can refuse another design."""
-    return {"name": design.name, "fingerprint": design.fingerprint(), "data": design.to_dict()}
-
-
-def _flat(data: Any, prefix: str = "") -> dict[str, Any]:
-    if isinstance(data, Mapping) and data:
-        out: dict[str, Any] = {}
-        for k, v in data.items():
-            out.update(_flat(v, f"{prefix}{k}."))
-        return out
-    return {prefix[:-1]: data}
-
-
-def check_same_design(src: Path, stored: Any, points: Sequence[ScoredPoint], design: Any) -> None:
-    """Refuse to redraw the points of ``src`` (a ``scores.json``) with a design other than theirs.
-
-    Compares the stored fingerprint (:func:`design_stamp`) with ``design``'s; a ``scores.json``
-    written before fingerprints were kept is checked by the design name its points carry.
-
-    Raises
-    ------
-    InputError
-        Naming both designs (source, name, fingerprint) and the first keys that differ.
-    """
-    from ..errors import InputError
-
-    given = f"{design.source} (design {design.name!r}"
-    if isinstance(stored, Mapping) and isinstance(stored.get("fingerprint"), str):
-        if stored["fingerprint"] == design.fingerprint():
-            return
-        run_flat = _flat(stored.get("data") or {})
-        now_flat = _flat(design.to_dict())
-        diff = [
-            k for k in dict.fromkeys([*run_flat, *now_flat]) if run_flat.get(k, "<unset>") != now_flat.get(k, "<unset>")
-        ]
-        shown = "; ".join(
-            f"{k}: run {json.dumps(run_flat.get(k, '<unset>'), default=str)[:40]}, given "
-            f"{json.dumps(now_flat.get(k, '<unset>'), default=str)[:40]}"
-            for k in diff[:3]
-        )
-        more = f" and {len(diff) - 3} more" if len(diff) > 3 else ""
-        raise InputError(
-            f"{given}, fingerprint {design.fingerprint()[:12]}) does not match the design of the run "
-            f"in {src} (design {str(stored.get('name'))[:60]!r}, fingerprint "
-            f"{stored['fingerprint'][:12]}); differs in {shown or 'the target kernel'}{more}; pass "
-            "the design file (and --set options) the run used"
-        )
-    names = {str(p.extra.get("design")) for p in points if p.extra.get("design") is not None}
-    if names and names != {design.name}:
-        raise InputError(
-            f"{given}) does not match the design of the run in {src} (its points are of design "
-            f"{', '.join(repr(n[:60]) for n in sorted(names)[:3])}); pass the design file the run used"
-        )
-
-
-def write_report_from_scores(out_dir: str | Path, design: Any, *, to: str | Path | None = None) -> Path:
-    """Rebuild ``report.html`` from the ``scores.json`` an earlier run wrote, without rerunning anything.
-
-    ``scores.json`` keeps every stored point with its paired task losses (``"points"``), so the
-    report of ``fsdvs-hw explore`` (or ``sweep --report``) can be redrawn after a change to the
-    report code, or into another folder.
-
-    Parameters
-    ----------
-    out_dir : path
-        Folder of the earlier run (holds ``scores.json``).
-    design : Design
-        The design the run used (:func:`fsdvs_hw.explore.design.load_design` of its TOML file;
-        the report layer sits below explore and does not load designs itself).
-    to : path, optional
-        Folder to write ``report.html``, ``scores.csv`` and ``scores.json`` into (default:
-        ``out_dir`` itself, replacing the report there).
-
-    Returns
-    -------
-    Path
-        The written ``report.html``.
-
-    Raises
-    ------
-    InputError
-        ``out_dir`` is not a folder; ``out_dir/scores.json`` is missing, is not JSON, or holds no
-        ``"points"`` list of stored points; ``design`` is not a loaded design, or not the design
-        the run used (:func:`check_same_design`); a file to write is a symbolic link.
-
-    Examples
-    --------
-    >>> from fsdvs_hw.explore.design import load_design
-    >>> write_report_from_scores("out/demo", load_design("designs/default.toml"))  # doctest: +SKIP
-    PosixPath('out/demo/report.html')
-    """
-    from ..errors import InputError
-
-    if not Path(out_dir).is_dir():
-        raise InputError(f"{out_dir}: not a folder (the --out folder of an earlier explore or sweep run)")
-    src = Path(out_dir) / "scores.json"
-    if src.is_symlink():  # it would be read from, and the report rewrites it, elsewhere
-        raise InputError(f"--out: {src} is a symbolic link; refusing to read or write through it (remove the link)")
-    try:
-        data = json.loads(src.read_text())
-    except FileNotFoundError:
-        raise InputError(
-            f"{src}: no scores.json here (write one with `fsdvs-hw explore DESIGN --out {out_dir}`)"
-        ) from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{src}: not a scores file (not JSON: {exc})") from None
-    points = data.get("points") if isinstance(data, Mapping) else None
-    if not isinstance(points, list):
-        raise InputError(f"{src}: field 'points' must be the list of stored points that write_report saves")
-    points = [ScoredPoint.from_dict(p, where=f"{src}: points[{i}]") for i, p in enumerate(points)]
-    if isinstance(design, (str, Path)) or not callable(getattr(design, "to_dict", None)):
-        raise InputError(
-            f"write_report_from_scores: design must be a loaded design "
-            f"(fsdvs_hw.explore.design.load_design(path)), got {type(design).__name__}"
-        )
-    check_same_design(src, data.get("design"), points, design)
-    dest = Path(to) if to is not None else Path(out_dir)
-    extra = Path(out_dir) / "codesign.json"  # the co-design rows write_report reads beside the report
-    if extra.is_file() and dest.resolve() != Path(out_dir).resolve():
-        dest.mkdir(parents=True, exist_ok=True)
-        write_output(dest / extra.name, extra.read_bytes(), flag="--to")
-    return write_report(points, design, dest)
+    return write_output(path, render_html(points, report, sections=sections))

@@ -1,8 +1,8 @@
 """Score tables: flatten stored design points into one row each, write CSV and JSON.
 
-A stored point (:class:`fsdvs_hw.records.ScoredPoint`, or the dict it serialises to) carries a
-:class:`fsdvs_hw.records.Score` and its
-``paired_loss`` the paired task losses with bootstrap CIs (attached by the explore layer); the
+A scored point (:class:`fsdvs_hw.records.ScoredPoint`) carries a :class:`fsdvs_hw.records.Score`
+and its paired task losses with bootstrap CIs (:class:`fsdvs_hw.records.PairedLoss`, attached by
+the explore layer); the
 tables flatten both to named columns with units in the names (``fit_s``, ``cost_area_m2``), give
 each kind of realisation its own cost axis in its own unit (declared in its registry entry,
 :class:`fsdvs_hw.realise.registry.CostSpec`), and mark the points that no other point
@@ -28,7 +28,7 @@ from typing import Any
 
 from ..paths import write_output
 from ..realise.registry import REALISATIONS
-from ..records import ScoredPoint
+from ..records import PairedLoss, ScoredPoint
 
 __all__ = [
     "TRACK_PREFIX",
@@ -85,9 +85,7 @@ def _num(x: Any) -> float:
     return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else math.nan
 
 
-def score_rows(
-    points: Iterable[Mapping[str, Any] | ScoredPoint], *, primary_csf: str = "mannos_sakrison_1974"
-) -> list[dict[str, Any]]:
+def score_rows(points: Iterable[ScoredPoint], *, primary_csf: str = "mannos_sakrison_1974") -> list[dict[str, Any]]:
     """One flat dict per stored point (see the module docstring); stable column names.
 
     Columns: ``point, realisation, params, status, reason, kernel_error, kernel_error_gain_free,
@@ -99,8 +97,7 @@ def score_rows(
     and ``pareto_all`` (across kinds on loss vs CSF agreement).
     """
     rows: list[dict[str, Any]] = []
-    for raw in points:
-        p = raw if isinstance(raw, ScoredPoint) else ScoredPoint.from_dict(raw)
+    for p in points:
         params = dict(p.params)
         label = p.realisation + (
             "" if not params else " " + ", ".join(f"{k.split('.')[-1]}={v}" for k, v in params.items())
@@ -166,13 +163,13 @@ def _ci_tag(confidence: float) -> str:
     return f"ci{round(100 * confidence):d}"
 
 
-def _loss_columns(row: dict[str, Any], paired: Mapping[str, Any]) -> None:
-    """Flatten one point's ``paired_loss`` into the loss columns (module docstring)."""
-    row["loss_status"] = paired.get("status", "not scored")
-    if paired.get("reference"):
-        row["loss_reference"] = paired["reference"]
+def _loss_columns(row: dict[str, Any], paired: PairedLoss | None) -> None:
+    """Flatten one point's paired losses into the loss columns (module docstring)."""
+    row["loss_status"] = paired.status if paired is not None and paired.status is not None else "not scored"
+    if paired is not None and paired.reference:
+        row["loss_reference"] = paired.reference
     for track, prefix in TRACK_PREFIX.items():
-        per = paired.get(track)
+        per = paired.tracks.get(track) if paired is not None else None
         if not isinstance(per, Mapping):
             continue
         if "status" in per and len(per) == 1:
@@ -491,15 +488,14 @@ def summary_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
     return text
 
 
-def networks_note(points: Sequence[Mapping[str, Any] | ScoredPoint]) -> str:
+def networks_note(points: Sequence[ScoredPoint]) -> str:
     """Which networks each task's loss is measured in, as one sentence per task.
 
     ``"detection: 3 networks (training seeds 0, 1, 2) trained with the kernel being realised (kernel
     frozen while training); ..."``, read from the ``networks`` records of the stored points.
     """
     seen: dict[str, list[Mapping[str, Any]]] = {}
-    for raw in points:
-        p = raw if isinstance(raw, ScoredPoint) else ScoredPoint.from_dict(raw)
+    for p in points:
         if p.score is None:
             continue
         for task, tracks in p.score.tasks.tracks.items():
