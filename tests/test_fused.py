@@ -242,7 +242,7 @@ def test_baseline_build_without_clones_gives_the_same_events(monkeypatch, tmp_pa
 
     from fsdvs_hw.sensor.native import library as native
 
-    default = native._loaded()
+    default = native.loaded()
     monkeypatch.setenv("FSDVS_HW_CACHE", str(tmp_path))
     path = native._build(("-DFSDVS_NO_CLONES",))
     baseline = ctypes.CDLL(str(path))

@@ -156,7 +156,7 @@ def _message_columns(
     cols = []
     for col, dtype in ((events.t, np.float64), (events.x, np.int64), (events.y, np.int64), (events.p, np.int8)):
         try:
-            a = native._as_numpy(col)
+            a = native.as_numpy(col)
         except (RuntimeError, TypeError):  # on a GPU, or part of a graph
             return None
         if not isinstance(a, np.ndarray) or a.dtype != dtype or not a.flags.c_contiguous or a.ndim != 1:

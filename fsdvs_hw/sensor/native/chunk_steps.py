@@ -148,47 +148,26 @@ def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, eve
     list
         ``[None, None] * (len(Ls) - 1)``: no counts (the event-list path).
     """
-    lib = library._loaded()
+    lib = library.loaded()
     B, H, W = Ls[0].shape
     hw, K = H * W, len(Ls) - 1
     dtype = Ls[0].dtype
     sfx, real = DTYPE_SUFFIX[dtype], ctypes_real(dtype)
     has_lp = config.has_photoreceptor
-    t_np = np.ascontiguousarray(tsd[0].numpy(), dtype=np.float64)  # frame times
-    dt64 = t_np[1:] - t_np[:-1]  # (t1 - t0) / 1, as _advance_steps' dt_sub64 with one sub-step
-    dtr = torch.from_numpy(dt64).to(dtype).numpy()  # rounded as torch rounds dt_sub to the signal dtype
-    con = threshold_values(st.c_on, hw, hw, dtype, "c_on")
-    coff = threshold_values(st.c_off, hw, hw, dtype, "c_off")
-    n_out = 5 if has_lp else 4
-    out = pipe.buffers.take((n_out, K, hw), dtype)  # [lp,] ref, n_on, n_off, d per interval
+    t_np, dt64, dtr = _interval_times(tsd, dtype)
+    frames, inten, lp0, ref0, sig0, con, coff = _kernel_inputs(st, Ls, CI, has_lp, dtype)
+    out, em1 = _chunk_buffers(pipe.buffers, has_lp, K, hw, dtype)
+    n_out = out.shape[0]
     ref_out, n_on, n_off, d_out = out[n_out - 4], out[n_out - 3], out[n_out - 2], out[n_out - 1]
     lp_out = out[0] if has_lp else None
-    em1 = pipe.buffers.take((K, hw), dtype) if has_lp else None
-    frames = [_contiguous(x) for x in Ls]
-    inten = [_contiguous(x) for x in CI] if has_lp else None
-    lp0 = _contiguous(st.lp) if has_lp else None
-    ref0, sig0 = _contiguous(st.ref), _contiguous(st.sig_prev)
     step = getattr(lib, f"fsdvs_pixel_step_{sfx}")
     exponent = getattr(lib, f"fsdvs_lowpass_exponent_{sfx}")
-    dark, fs, cutoff = real(config.dark_intensity), real(config.full_scale_intensity), real(config.cutoff_hz)
-    m2pi, leak, eps = real(-2.0 * math.pi), real(float(config.leak_rate_hz)), real(st.eps)
+    dark, fs, cutoff, m2pi, leak, eps = _kernel_scalars(real, config, st.eps)
     size = out.element_size()
     dt_ptr = dtr.ctypes.data
     parts: list[list] = [[] for _ in range(K)]
     noise_parts: list[list] = [[] for _ in range(K)]
-    noise_f = None
-    if float(config.shot_noise_rate_hz) > 0:  # drawn while the pixels step: it needs no pixel state
-        noise_f = pipe.submit_noise(
-            _noise_task,
-            tsd,
-            K,
-            (B, H, W),
-            config,
-            st.shot_g,
-            st.time_g,
-            noise_parts,
-            on_emit_worker=config.shot_noise_draw == "sparse",  # O(events): not worth a thread hand-off
-        )
+    noise_f = _submit_noise(pipe, st, tsd, K, (B, H, W), config, noise_parts)
     # comparator input and reference at each interval's start
     sig_a = [sig0, *(lp_out if lp_out is not None else frames[1:K])]
     ref_a = [ref0, *ref_out[: K - 1]]
@@ -231,17 +210,84 @@ def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, eve
             task = pipe.emit(_crossings_task, (H, W), ks, rows, st, refr, t_np, dt64, noise_f, crossing=True)
     if em1 is not None:
         pipe.buffers.give(em1)
-    # the state leaves the chunk's buffer, which goes back to the pool once the crossings are out
-    st.ref = ref_out[K - 1].clone().view(B, H, W)
-    if lp_out is not None:
-        st.lp = st.sig_prev = lp_out[K - 1].clone().view(B, H, W)  # the comparator saw the low-pass output
-    else:
-        st.sig_prev = Ls[K]
+    _leave_chunk(st, ref_out, lp_out, Ls, (B, H, W))
     assert task is not None  # K >= 1
     task.add_done_callback(lambda _: pipe.buffers.give(out))  # the chunk's last task: the others are done
     for k in range(K):
         events.append(pipe.sort(parts[k], float(t_np[k]), float(t_np[k + 1])))
     return [None, None] * K
+
+
+def _interval_times(tsd: Any, dtype: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frame times (s, float64), interval lengths (s, float64: ``(t1 - t0) / 1``, as the
+    step-by-step path's ``dt_sub64`` with one sub-step) and the lengths rounded to the signal
+    ``dtype`` as torch rounds ``dt_sub``."""
+    t_np = np.ascontiguousarray(tsd[0].numpy(), dtype=np.float64)
+    dt64 = t_np[1:] - t_np[:-1]
+    dtr = torch.from_numpy(dt64).to(dtype).numpy()
+    return t_np, dt64, dtr
+
+
+def _kernel_inputs(st: Any, Ls: Any, CI: Any, has_lp: bool, dtype: Any) -> tuple:
+    """Contiguous tensors for the kernels: the frames, the low-pass intensities (None without a
+    photoreceptor), the state's low-pass output (or None), reference and comparator input, and the
+    ON and OFF thresholds (H·W values each)."""
+    H, W = Ls[0].shape[1:]
+    con = threshold_values(st.c_on, H * W, H * W, dtype, "c_on")
+    coff = threshold_values(st.c_off, H * W, H * W, dtype, "c_off")
+    frames = [_contiguous(x) for x in Ls]
+    inten = [_contiguous(x) for x in CI] if has_lp else None
+    lp0 = _contiguous(st.lp) if has_lp else None
+    ref0, sig0 = _contiguous(st.ref), _contiguous(st.sig_prev)
+    return frames, inten, lp0, ref0, sig0, con, coff
+
+
+def _kernel_scalars(real: Any, config: SensorConfig, eps: float) -> tuple:
+    """The pixel kernels' scalar arguments in the signal's ctypes type ``real``: dark and
+    full-scale intensity, cut-off (Hz), -2π, leak rate (Hz) and the count guard ``eps``."""
+    dark, fs, cutoff = real(config.dark_intensity), real(config.full_scale_intensity), real(config.cutoff_hz)
+    m2pi, leak, eps_real = real(-2.0 * math.pi), real(float(config.leak_rate_hz)), real(eps)
+    return dark, fs, cutoff, m2pi, leak, eps_real
+
+
+def _chunk_buffers(buffers: BufferPool, has_lp: bool, K: int, hw: int, dtype: Any) -> tuple[Any, Any]:
+    """The chunk's work tensors from the pool: ``out`` ([lp,] ref, n_on, n_off, d per interval:
+    (5 or 4, K, hw)) and the low-pass ``expm1`` rows (K, hw), or None without a photoreceptor."""
+    n_out = 5 if has_lp else 4
+    out = buffers.take((n_out, K, hw), dtype)
+    em1 = buffers.take((K, hw), dtype) if has_lp else None
+    return out, em1
+
+
+def _submit_noise(
+    pipe: Any, st: Any, tsd: Any, K: int, shape: tuple[int, int, int], config: SensorConfig, noise_parts: list
+) -> Any:
+    """The chunk's shot-noise task submitted (drawn while the pixels step: it needs no pixel state);
+    its future, or None without shot noise. ``shape``: (B, H, W)."""
+    if not float(config.shot_noise_rate_hz) > 0:
+        return None
+    return pipe.submit_noise(
+        _noise_task,
+        tsd,
+        K,
+        shape,
+        config,
+        st.shot_g,
+        st.time_g,
+        noise_parts,
+        on_emit_worker=config.shot_noise_draw == "sparse",  # O(events): not worth a thread hand-off
+    )
+
+
+def _leave_chunk(st: Any, ref_out: Any, lp_out: Any, Ls: Any, shape: tuple[int, int, int]) -> None:
+    """The state at the chunk's last frame, out of the chunk's buffer (which goes back to the pool
+    once the crossings are out): reference, and low-pass output or frame as the comparator saw it."""
+    K = len(Ls) - 1
+    st.ref = ref_out[K - 1].clone().view(*shape)
+    if lp_out is not None:
+        st.lp = st.sig_prev = lp_out[K - 1].clone().view(*shape)  # the comparator saw the low-pass output
+    else:
+        st.sig_prev = Ls[K]
 
 
 def _crossings_task(

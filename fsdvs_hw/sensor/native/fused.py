@@ -153,7 +153,7 @@ def fused_substep(
     >>> n_on.tolist(), n_off.tolist()
     ([[[2.0, 0.0]]], [[[0.0, 1.0]]])
     """
-    lib = library._loaded()
+    lib = library.loaded()
     dtype = target.dtype
     suffix = DTYPE_SUFFIX[dtype]
     B = target.shape[0]
@@ -251,7 +251,7 @@ def fused_linlog_v2e(intensity: Any, knee: float, dn_per_full_scale: float = 255
     for name, v in (("knee", knee), ("dn_per_full_scale", dn_per_full_scale)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
             raise InputError(f"{name}: must be a finite number > 0, got {v!r}")
-    lib = library._loaded()
+    lib = library.loaded()
     dtype = intensity.dtype
     suffix = DTYPE_SUFFIX[dtype]
     real = ctypes_real(dtype)
@@ -297,7 +297,7 @@ def fused_floor(x: Any, floor: float) -> tuple[Any, int]:
     >>> y.tolist() == [torch.tensor(1e-3).item(), 0.5, torch.tensor(1e-3).item()], n
     (True, 2)
     """
-    lib = library._loaded()
+    lib = library.loaded()
     dtype = x.dtype
     flat = _flat(x, dtype)
     out = torch.empty(flat.numel(), dtype=dtype)

@@ -137,7 +137,7 @@ def why_unavailable() -> str:
     return _error
 
 
-def _loaded() -> ctypes.CDLL:
+def loaded() -> ctypes.CDLL:
     """The loaded library; every caller checks :func:`available` first."""
     lib = _load()
     assert lib is not None, "compiled kernels unavailable: check available() first"
@@ -176,7 +176,7 @@ def step_events(
     ``p`` int8 with room for every crossing, or None (counts only). Returns (events written,
     crossings lost to the refractory period).
     """
-    lib = _loaded()
+    lib = loaded()
     fn = lib.fsdvs_step_events_f32 if h_on.dtype == np.float32 else lib.fsdvs_step_events_f64
     lost = ctypes.c_double(0.0)
     n = fn(
@@ -212,7 +212,7 @@ def step_events(
 _scratch = threading.local()  # each thread's bucket counts, reused from interval to interval
 
 
-def _as_numpy(x: Any) -> Any:
+def as_numpy(x: Any) -> Any:
     """A CPU torch tensor's NumPy view through its C method (NumPy's ``__array__`` protocol goes
     through Python and took ~3 µs per column); anything else as it is."""
     to_numpy = getattr(x, "numpy", None)
@@ -224,9 +224,9 @@ def _interval_parts(parts: list) -> tuple[list, int]:
     length (at most 2**31 - 1: the bucket counts are int32)."""
     parts = [
         (
-            np.ascontiguousarray(_as_numpy(f), dtype=np.int32),
-            np.ascontiguousarray(_as_numpy(t), dtype=np.float64),
-            np.ascontiguousarray(_as_numpy(p), dtype=np.int8),
+            np.ascontiguousarray(as_numpy(f), dtype=np.int32),
+            np.ascontiguousarray(as_numpy(t), dtype=np.float64),
+            np.ascontiguousarray(as_numpy(p), dtype=np.int8),
         )
         for f, t, p in parts
         if len(t)
@@ -270,7 +270,7 @@ def sort_events(
     int32 (int64 parts are narrowed: pixel indices of a frame below 2**31), ``t`` float64, ``p``
     int8; into ``out`` (three such arrays of the total length) when given.
     """
-    lib = _loaded()
+    lib = loaded()
     parts, n = _interval_parts(parts)
     if out is not None:
         flat_out, t_out, p_out = out
@@ -314,7 +314,7 @@ def sort_intervals_to_columns(intervals: list, hw: int, w: int) -> tuple[np.ndar
     allocated once at the chunk's exact size: the same columns as sorting each interval with
     :func:`sort_events` and concatenating (:func:`.crossings.to_event_columns`).
     """
-    lib = _loaded()
+    lib = loaded()
     sizes = [sum(len(q[1]) for q in parts) for parts, _, _ in intervals]
     n = sum(sizes)
     x = np.empty(n, dtype=np.int64)
@@ -359,7 +359,7 @@ def write_columns(
     """One sorted interval (int32 ``flat``) into the int64 ``x``, ``y`` and the ``t``, ``p`` columns
     from ``start``: ``y = (f mod hw) // w``, ``x = (f mod hw) - y w``."""
     n = len(t)
-    lib = _loaded()
+    lib = loaded()
     lib.fsdvs_write_columns(
         _ptr(flat),
         _ptr(t),
@@ -392,7 +392,7 @@ def event_message(
     x16 = np.empty(n, dtype=np.int16)
     y16 = np.empty(n, dtype=np.int16)
     on = np.empty(n, dtype=np.uint8)
-    code = _loaded().fsdvs_event_message(
+    code = loaded().fsdvs_event_message(
         _ptr(t),
         _ptr(x),
         _ptr(y),
