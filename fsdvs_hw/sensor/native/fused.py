@@ -170,20 +170,7 @@ def fused_substep(
     real = ctypes_real(dtype)
     em1 = lp_flat = lp_new = None
     if intensity is not None:
-        em1 = torch.empty(n, dtype=dtype)
-        inten = _flat(intensity, dtype)
-        getattr(lib, f"fsdvs_lowpass_exponent_{suffix}")(
-            inten.data_ptr(),
-            n,
-            hw,
-            dt.data_ptr(),
-            real(config.dark_intensity),
-            real(config.full_scale_intensity),
-            real(config.cutoff_hz),
-            real(-2.0 * math.pi),
-            em1.data_ptr(),
-        )
-        em1.expm1_()  # torch's own expm1: see the module docstring
+        em1 = _lowpass_expm1(lib, intensity, dt, n, hw, config, dtype)
         lp_flat = _flat(lp, dtype)
         lp_new = torch.empty(n, dtype=dtype)
     ref_new, n_on, n_off, d = (torch.empty(n, dtype=dtype) for _ in range(4))
@@ -305,6 +292,28 @@ def fused_floor(x: Any, floor: float) -> tuple[Any, int]:
         flat.data_ptr(), flat.numel(), ctypes_real(dtype)(floor), out.data_ptr()
     )
     return out.reshape(x.shape), int(n_below)
+
+
+def _lowpass_expm1(lib: Any, intensity: Any, dt: Any, n: int, hw: int, config: SensorConfig, dtype: Any) -> Any:
+    """``expm1`` of every pixel's low-pass exponent ``-2π f_c(I) dt`` over one sub-step (flat, in
+    ``dtype``): the exponent by the compiled kernel, then torch's own ``expm1`` (see the module
+    docstring). ``dt``: (B,) flat sub-step lengths (s); ``n``: pixels in all, ``hw`` per batch element."""
+    em1 = torch.empty(n, dtype=dtype)
+    inten = _flat(intensity, dtype)
+    real = ctypes_real(dtype)
+    getattr(lib, f"fsdvs_lowpass_exponent_{DTYPE_SUFFIX[dtype]}")(
+        inten.data_ptr(),
+        n,
+        hw,
+        dt.data_ptr(),
+        real(config.dark_intensity),
+        real(config.full_scale_intensity),
+        real(config.cutoff_hz),
+        real(-2.0 * math.pi),
+        em1.data_ptr(),
+    )
+    em1.expm1_()
+    return em1
 
 
 def ctypes_real(dtype: Any) -> Any:
