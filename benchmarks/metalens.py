@@ -57,7 +57,8 @@ def radial_symmetric_floor(taps: np.ndarray) -> float:
 
 
 def _grid_table(sec: BenchSection, quick: bool) -> None:
-    from fsdvs_hw.realise.metalens.fit import LensGeometry, pixel_psf
+    from fsdvs_hw.realise.metalens.fit import pixel_psf
+    from fsdvs_hw.realise.metalens.lens import LensGeometry
 
     g = LensGeometry()
     kw = dict(coefficients=[2.0, -3.0], sensor_distance_m=240e-6, n_pixels=9, illuminant=555e-9)
@@ -88,7 +89,8 @@ def _grid_table(sec: BenchSection, quick: bool) -> None:
 
 
 def _spectral_table(sec: BenchSection, quick: bool) -> None:
-    from fsdvs_hw.realise.metalens.fit import LensGeometry, pixel_psf
+    from fsdvs_hw.realise.metalens.fit import pixel_psf
+    from fsdvs_hw.realise.metalens.lens import LensGeometry
 
     kw = dict(coefficients=[2.0, -3.0], sensor_distance_m=240e-6, n_pixels=9, illuminant="D65")
     _log("spectral reference (64 samples)")

@@ -225,7 +225,7 @@ def test_every_bad_fit_argument_is_an_input_error_naming_it_before_any_work(case
         (mesh, "_numpy_orbit_response"),
         (asic, "_TapProblem"),
         (metalens, "RadialKernelModel"),
-        (metalens, "_spectral"),
+        (metalens, "sampled_spectrum"),
     ):
         monkeypatch.setattr(module, attr, work_started, raising=False)
     monkeypatch.chdir(tmp_path)

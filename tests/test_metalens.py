@@ -15,14 +15,13 @@ from fsdvs_hw import reference_kernel
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.realise import Realisation, kernel_error, realisation_from_dict, realised_kernel_error
 from fsdvs_hw.realise.metalens.fit import (
-    LensGeometry,
     MetalensDesign,
     RadialKernelModel,
     fit_metalens,
-    local_numerical_aperture,
     pixel_psf,
     plan_wavelength_samples,
 )
+from fsdvs_hw.realise.metalens.lens import LensGeometry, local_numerical_aperture
 from benchmarks.metalens import radial_symmetric_floor
 from fsdvs_hw.realise.spectral import spectral_samples
 

@@ -29,7 +29,7 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from ..errors import InputError
 from ..kernels import Kernel, as_kernel
-from ..schema import StrictModel, validate
+from ..schema import StrictModel, problems, validate
 
 __all__ = ["FitOptions", "OptionProblem", "raise_option_problems"]
 
@@ -106,6 +106,22 @@ class FitOptions(StrictModel):
         assert isinstance(checked, type(self))
         checked._target = target
         return checked
+
+    def refuse(self, found: list[OptionProblem]) -> None:
+        """Raise the problems ``found`` outside a validation, in the words a validation uses.
+
+        Raises
+        ------
+        InputError
+            Each problem, one line each (nothing is raised when ``found`` is empty).
+        """
+        try:
+            raise_option_problems(type(self), found)
+        except ValidationError as exc:
+            lines = problems(exc, type(self))
+            raise InputError(
+                lines[0] if len(lines) == 1 else f"{len(lines)} problems:\n  " + "\n  ".join(lines)
+            ) from None
 
     @property
     def target(self) -> Kernel:

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["PHOTOPIC", "SpectralSamples", "spectral_samples", "weighted_spectrum"]
+__all__ = ["PHOTOPIC", "SpectralSamples", "sampled_spectrum", "spectral_samples", "weighted_spectrum"]
 
 #: Name of the default sensor response: the CIE 1924 photopic luminous efficiency V(λ).
 PHOTOPIC = "CIE 1924 Photopic Standard Observer"
@@ -179,3 +179,12 @@ def spectral_samples(illuminant: Any = "D65", response: Any = PHOTOPIC, n: int =
         centroids[i] = (m * 0.5 * (lo + hi)).sum() / m.sum() if m.sum() > 0 else 0.5 * (a + b)
     weights = weights / weights.sum()
     return SpectralSamples(centroids * 1e-9, weights, name_s, name_r)
+
+
+def sampled_spectrum(illuminant: Any, response: Any, n_wavelengths: Any) -> SpectralSamples:
+    """``illuminant`` itself when it is already :class:`SpectralSamples`, else
+    :func:`spectral_samples` of it (``response`` None: the default, :data:`PHOTOPIC`)."""
+    if isinstance(illuminant, SpectralSamples):
+        return illuminant
+    kwargs = {} if response is None else {"response": response}
+    return spectral_samples(illuminant, n=n_wavelengths, **kwargs)

@@ -2,14 +2,16 @@
 
 Modules
 -------
+lens
+    :class:`LensGeometry`, the phase profile and the local numerical aperture.
 fit
-    :class:`LensGeometry`, :class:`MetalensDesign`, :func:`pixel_psf` and :func:`fit_metalens`.
+    :class:`MetalensDesign`, :func:`pixel_psf` and :func:`fit_metalens`.
 artifacts
     The buildable files an exploration writes: phase profile (CSV/NPZ), PSF and plot.
 bench
     ``fsdvs-hw bench metalens``.
 options
-    The fit options' schema (type, unit, range, default, help).
+    :class:`MetalensOptions`: the fit options (type, unit, range, default, help) and their rules.
 
 The shared wave-optics and spectral sampling live one level up (:mod:`fsdvs_hw.realise.optics`,
 :mod:`fsdvs_hw.realise.spectral`). Importing this package registers ``"metalens"`` in
@@ -19,19 +21,17 @@ The shared wave-optics and spectral sampling live one level up (:mod:`fsdvs_hw.r
 from ..registry import CostSpec, RealisationSpec, register_realisation
 from . import fit
 from .fit import (
-    DISPERSION_MODELS,
     STRATEGIES,
-    LensGeometry,
     MetalensDesign,
     WavelengthPlan,
     fit_metalens,
-    local_numerical_aperture,
     pixel_psf,
     plan_wavelength_samples,
 )
+from .lens import DISPERSION_MODELS, LensGeometry, design_phase, local_numerical_aperture
 from .options import MetalensOptions
 
-__all__ = ["SPEC", "MetalensOptions"]
+__all__ = ["DISPERSION_MODELS", "SPEC", "LensGeometry", "MetalensOptions", "design_phase", "local_numerical_aperture"]
 __all__ += fit.__all__  # the fit module's public names, re-exported above
 
 #: The registry entry (own cost axis and headline: the aperture diameter).

@@ -42,7 +42,8 @@ from ...errors import InputError
 from ...paths import csv_text, figure_png, npz_bytes, write_output
 from ..artifacts import Artifact
 from ..spectral import SpectralSamples
-from .fit import LensGeometry, MetalensDesign, RadialKernelModel, design_phase, local_numerical_aperture
+from .fit import MetalensDesign, RadialKernelModel
+from .lens import LensGeometry, design_phase, local_numerical_aperture
 
 __all__ = [
     "N_RADII",

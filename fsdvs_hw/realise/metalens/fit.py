@@ -57,7 +57,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import InputError
-from ...kernels import DEFAULT_PITCH_M, Kernel, as_kernel
+from ...kernels import DEFAULT_PITCH_M, Kernel
 from ...validation import check_fit_arguments
 from ..base import CostItem, kernel_error
 from ..optics import (
@@ -68,113 +68,21 @@ from ..optics import (
     radial_pixel_integrator,
     required_modes,
 )
-from ..spectral import SpectralSamples, spectral_samples
+from ..spectral import SpectralSamples, sampled_spectrum
+from .lens import DISPERSION_MODELS, LensGeometry, design_phase, local_numerical_aperture
 from .options import MetalensOptions
 
 __all__ = [
-    "DISPERSION_MODELS",
     "STRATEGIES",
-    "LensGeometry",
     "MetalensDesign",
     "WavelengthPlan",
     "fit_metalens",
-    "local_numerical_aperture",
     "pixel_psf",
     "plan_wavelength_samples",
 ]
 
-#: dispersion model -> exponent p in φ(r, λ) = φ0(r) (λ0/λ)^p
-DISPERSION_MODELS: dict[str, float] = {"diffractive": 0.0, "achromatic": 1.0}
 #: signed-kernel strategies
 STRATEGIES = ("pedestal", "differential")
-
-
-@dataclass(frozen=True)
-class LensGeometry:
-    """Fixed lens parameters (the fit varies only the phase polynomial and the sensor distance).
-
-    Parameters
-    ----------
-    aperture_m : float
-        Aperture diameter D (m).
-    focal_length_m : float
-        Focal length f of the hyperbolic term at the design wavelength (m).
-    design_wavelength_m : float
-        λ0 (m) at which the phase coefficients are defined.
-    dispersion : {"diffractive", "achromatic"}
-        How the phase scales with wavelength (see module docstring).
-    """
-
-    aperture_m: float = 100e-6
-    focal_length_m: float = 200e-6
-    design_wavelength_m: float = 555e-9
-    dispersion: str = "diffractive"
-
-    def __post_init__(self) -> None:
-        for name in ("aperture_m", "focal_length_m", "design_wavelength_m"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InputError(f"{name} must be a positive finite length in metres, got {v!r}")
-        if not (100e-9 <= self.design_wavelength_m <= 20e-6):
-            raise InputError(f"design_wavelength_m must be in [100 nm, 20 µm], got {self.design_wavelength_m!r}")
-        if self.dispersion not in DISPERSION_MODELS:
-            raise InputError(f"dispersion {self.dispersion!r} unknown; allowed: {', '.join(DISPERSION_MODELS)}")
-
-    @property
-    def radius_m(self) -> float:
-        return 0.5 * self.aperture_m
-
-    @property
-    def numerical_aperture(self) -> float:
-        """Geometric NA of the hyperbolic focusing term, a/√(a² + f²)."""
-        return self.radius_m / math.hypot(self.radius_m, self.focal_length_m)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "aperture_m": self.aperture_m,
-            "focal_length_m": self.focal_length_m,
-            "design_wavelength_m": self.design_wavelength_m,
-            "dispersion": self.dispersion,
-        }
-
-
-def design_phase(r: np.ndarray, geometry: LensGeometry, coefficients: Any) -> Any:
-    """φ0(r) in rad at λ0; ``coefficients`` may be a torch tensor (then the result is one)."""
-    a, f, lam0 = geometry.radius_m, geometry.focal_length_m, geometry.design_wavelength_m
-    hyp = -(2 * math.pi / lam0) * (np.sqrt(r * r + f * f) - f)
-    rho2 = (r / a) ** 2
-    n = len(coefficients)
-    if n == 0:
-        if hasattr(coefficients, "detach"):
-            import torch
-
-            return torch.from_numpy(hyp)
-        return hyp
-    powers = np.stack([rho2 ** (k + 1) for k in range(n)], axis=-1)  # (M, K)
-    if hasattr(coefficients, "detach"):
-        import torch
-
-        return torch.from_numpy(hyp) + torch.from_numpy(powers) @ coefficients
-    return hyp + powers @ np.asarray(coefficients, dtype=float)
-
-
-def local_numerical_aperture(
-    geometry: LensGeometry, coefficients: Sequence[float] | np.ndarray, wavelengths_m: Sequence[float] | np.ndarray
-) -> float:
-    r"""Largest local NA of the phase, :math:`\max_{r,\lambda} \lambda |\partial_r\phi(r,\lambda)|/(2\pi)`.
-
-    The lens-plane sampling (and the metasurface unit cell) must satisfy
-    :math:`\Delta x \le \lambda_{min}/(2\,NA)`; a value ≥ 1 means the phase asks for evanescent
-    waves and cannot be built.
-    """
-    a = geometry.radius_m
-    r = np.linspace(0, a, 2049)
-    phi = design_phase(r, geometry, np.asarray(coefficients, dtype=float))
-    grad = np.abs(np.gradient(phi, r)).max()
-    p = DISPERSION_MODELS[geometry.dispersion]
-    lam = np.asarray(wavelengths_m, dtype=float)
-    scale = (geometry.design_wavelength_m / lam) ** p
-    return float(np.max(lam * grad * scale) / (2 * math.pi))
 
 
 class RadialKernelModel:
@@ -293,13 +201,6 @@ class RadialKernelModel:
         return (intensity[self.index] * self.weights).sum(-1) / self.p_in
 
 
-def _spectral(illuminant: Any, response: Any, n_wavelengths: Any) -> SpectralSamples:  # n: checked by spectral_samples
-    if isinstance(illuminant, SpectralSamples):
-        return illuminant
-    kwargs = {} if response is None else {"response": response}
-    return spectral_samples(illuminant, n=n_wavelengths, **kwargs)
-
-
 def pixel_psf(
     geometry: LensGeometry,
     coefficients: Sequence[float] = (),
@@ -354,7 +255,7 @@ def pixel_psf(
     """
     import torch
 
-    spectral = _spectral(illuminant, response, n_wavelengths)
+    spectral = sampled_spectrum(illuminant, response, n_wavelengths)
     z = geometry.focal_length_m if sensor_distance_m is None else float(sensor_distance_m)
     _check_extremes(geometry, spectral, z, pitch_m)
     coeffs = torch.tensor(np.asarray(coefficients, dtype=float), dtype=torch.float64)
@@ -870,64 +771,28 @@ class _MetalensSetup:
     budget: float
 
 
-def _metalens_setup(
-    kernel: Any,
-    *,
-    pitch_m: float | None,
-    illuminant: Any,
-    response: Any,
-    strategy: str,
-    aperture_m: float | None,
-    focal_length_m: float | None,
-    design_wavelength_m: float,
-    dispersion: str,
-    n_terms: Any,
-    n_wavelengths: int | str,
-    guard_px: Any,
-    max_iter: Any,
-    n_starts: Any,
-    na_max: float | None,
-) -> _MetalensSetup:
-    """Validate the options; the lens geometry, the wavelength samples (planned when ``"auto"``) and
-    the numerical-aperture budget of the phase."""
-    kernel = as_kernel(kernel, pitch_m=pitch_m, repitch=True)
-    if strategy not in STRATEGIES:
-        raise InputError(f"strategy {strategy!r} unknown; allowed: {', '.join(STRATEGIES)}")
-    if not (isinstance(n_terms, int) and 0 <= n_terms <= 12):
-        raise InputError(f"n_terms must be an integer in 0..12, got {n_terms!r}")
-    if not (isinstance(guard_px, int) and 0 <= guard_px <= 8):
-        raise InputError(f"guard_px must be an integer in 0..8, got {guard_px!r}")
-    if not (isinstance(n_starts, int) and n_starts >= 1) or not (isinstance(max_iter, int) and max_iter >= 1):
-        raise InputError(f"n_starts and max_iter must be positive integers, got {n_starts!r}, {max_iter!r}")
-    pitch = kernel.pitch_m
-    defaults = LensGeometry()
-    geometry = LensGeometry(
-        defaults.aperture_m if aperture_m is None else aperture_m,
-        defaults.focal_length_m if focal_length_m is None else focal_length_m,
-        design_wavelength_m,
-        dispersion,
-    )
-    focal_length_m = geometry.focal_length_m
-    plan = None
+def _metalens_setup(o: MetalensOptions) -> _MetalensSetup:
+    """The lens geometry, the wavelength samples (for ``"auto"`` planned from the target, then put to
+    the options' lens rules, :meth:`MetalensOptions.lens_problems`) and the NA budget of the phase."""
+    kernel, geometry, plan = o.target, o.lens_geometry, None
+    n_wavelengths = o.n_wavelengths
     if n_wavelengths == "auto":
         # nominal lens defocused to blur a point over the kernel radius (geometric optics)
-        z_nominal = focal_length_m * (1 + (kernel.size / 2) * pitch / geometry.radius_m)
+        z_nominal = geometry.focal_length_m * (1 + (kernel.size / 2) * kernel.pitch_m / geometry.radius_m)
         plan = plan_wavelength_samples(
-            geometry, illuminant, response, sensor_distance_m=z_nominal, pitch_m=pitch, n_pixels=kernel.size
+            geometry,
+            o.illuminant,
+            o.response,
+            sensor_distance_m=z_nominal,
+            pitch_m=kernel.pitch_m,
+            n_pixels=kernel.size,
         )
         n_wavelengths = plan.n_wavelengths
-    spectral = _spectral(illuminant, response, n_wavelengths)
-    _check_extremes(geometry, spectral, focal_length_m, pitch)
-    if strategy == "differential" and not (kernel.taps < 0).any():
-        raise InputError("strategy='differential' needs a kernel with negative taps; use 'pedestal' (c = 0)")
-    if strategy == "differential" and not (kernel.taps > 0).any():  # its positive lens would fit nothing
-        raise InputError(f"strategy='differential' needs a kernel with positive taps; all {kernel.taps.size} are <= 0")
-
+    spectral = o.spectral_samples(n_wavelengths)
+    if plan is not None:
+        o.refuse(o.lens_problems(spectral))
     na0 = local_numerical_aperture(geometry, [], spectral.wavelengths_m)
-    budget = float(na_max) if na_max is not None else min(0.9, max(1.5 * na0, na0 + 0.1))
-    if not (na0 <= budget < 1):
-        raise InputError(f"na_max={budget:.3g} must be in [NA of the focusing term {na0:.3g}, 1)")
-    return _MetalensSetup(kernel=kernel, geometry=geometry, spectral=spectral, plan=plan, budget=budget)
+    return _MetalensSetup(kernel=kernel, geometry=geometry, spectral=spectral, plan=plan, budget=o.na_budget(na0))
 
 
 def _metalens_models(
@@ -938,7 +803,9 @@ def _metalens_models(
     spectral, pitch = setup.spectral, setup.kernel.pitch_m
     n_eval = setup.kernel.size + 2 * guard_px
     coarse_spectral = (
-        spectral if spectral.n <= 8 or isinstance(illuminant, SpectralSamples) else _spectral(illuminant, response, 8)
+        spectral
+        if spectral.n <= 8 or isinstance(illuminant, SpectralSamples)
+        else sampled_spectrum(illuminant, response, 8)
     )
     coarse = RadialKernelModel(
         setup.geometry,
@@ -1103,43 +970,20 @@ def fit_metalens(
 ) -> MetalensDesign:
     """Fit a radially symmetric metalens (or a differential pair) whose pixel PSF applies ``kernel``.
 
+    The options are validated once, at entry, into a :class:`~fsdvs_hw.realise.metalens.MetalensOptions`
+    (the same model and rules a design file's ``[realisations.metalens]`` table is checked against)
+    that the fit reads.
+
     Parameters
     ----------
     kernel : Kernel or array_like
         Target kernel (signed allowed): a :class:`~fsdvs_hw.kernels.Kernel`, or odd square taps
         (with ``pitch_m``; see :func:`~fsdvs_hw.kernels.as_kernel`). Only its radially symmetric
         part can be realised; the error reports the rest.
-    pitch_m : float, optional
-        Pixel pitch (m); default the kernel's own pitch (an array's: :data:`~fsdvs_hw.kernels.DEFAULT_PITCH_M`).
-    illuminant, response : see :func:`~fsdvs_hw.realise.spectral.spectral_samples`
-        Default D65 × CIE 1924 photopic V(λ); a float illuminant is one wavelength (m).
-    strategy : {"pedestal", "differential"}
-        Signed-kernel strategy (module docstring).
-    aperture_m, focal_length_m, design_wavelength_m, dispersion
-        Fixed lens geometry (:class:`LensGeometry`); ``None`` means the default (100 µm, 200 µm).
-    n_terms : int
-        Polynomial phase terms (r/a)^2 … (r/a)^(2·n_terms), 0…12.
-    n_wavelengths : int or "auto"
-        Spectral samples (equal-weight bins); ``"auto"`` chooses them with
-        :func:`plan_wavelength_samples` (recorded in ``fit_info["wavelength_plan"]``). The multi-start search and the first refinement
-        use at most 8; the final polish and the returned PSFs use all of them.
-    guard_px : int
-        Ring of pixels around the window where spilled light is counted as error.
-    max_iter : int
-        L-BFGS iterations of the final refinement (each start gets max_iter // 6).
-    n_starts : int
-        Defocus starting points (blur radii spread over the kernel radius, both signs).
-    n_sub, window_pad
-        Numerical settings of the radial model used while fitting (:func:`pixel_psf`). ``n_sub``
-        None (default) chooses the pixel quadrature from the PSF's bandwidth 2·NA/λ_min at the NA
-        budget — the same rule in the fit and in the returned PSFs; the returned PSFs are
-        re-evaluated with window_pad ≥ 3 and ``fit_info["model_error"]`` says how far the two differ.
-    na_max : float, optional
-        Largest local NA the phase may use (sets the sampling; penalised in the fit); default
-        ``min(0.9, max(1.5 NA, NA + 0.1))`` of the hyperbolic term.
-    progress : bool, optional
-        A progress bar of the L-BFGS iteration budget on stderr: True, False, or None (default)
-        when stderr is a terminal (:func:`fsdvs_hw.progress.progress_enabled`).
+    pitch_m, illuminant, response, strategy, aperture_m, focal_length_m, design_wavelength_m, dispersion, \
+n_terms, n_wavelengths, guard_px, max_iter, n_starts, n_sub, window_pad, na_max, progress
+        The fit's options: each one's type, unit, range, default and meaning, and the rules between
+        them, are those of :class:`~fsdvs_hw.realise.metalens.MetalensOptions`.
 
     Returns
     -------
@@ -1157,73 +1001,70 @@ def fit_metalens(
     >>> bool(0 < lens.kernel_error() < 1), bool(lens.pedestal > 0)
     (True, True)
     """
-    check_fit_arguments(MetalensOptions, locals())  # the registry's schema: same limits as design files
-    import torch
-
+    o = check_fit_arguments(MetalensOptions, locals())
     t0, c0 = time.perf_counter(), time.process_time()
-    setup = _metalens_setup(
-        kernel,
-        pitch_m=pitch_m,
-        illuminant=illuminant,
-        response=response,
-        strategy=strategy,
-        aperture_m=aperture_m,
-        focal_length_m=focal_length_m,
-        design_wavelength_m=design_wavelength_m,
-        dispersion=dispersion,
-        n_terms=n_terms,
-        n_wavelengths=n_wavelengths,
-        guard_px=guard_px,
-        max_iter=max_iter,
-        n_starts=n_starts,
-        na_max=na_max,
-    )
-    kernel, geometry, spectral, plan, budget = setup.kernel, setup.geometry, setup.spectral, setup.plan, setup.budget
-    pitch, n_eval = kernel.pitch_m, kernel.size + 2 * guard_px
+    setup = _metalens_setup(o)
     coarse, model = _metalens_models(
-        setup, illuminant=illuminant, response=response, guard_px=guard_px, n_sub=n_sub, window_pad=window_pad
+        setup, illuminant=o.illuminant, response=o.response, guard_px=o.guard_px, n_sub=o.n_sub, window_pad=o.window_pad
     )
-    obj = _MetalensObjective(setup, n_terms=n_terms, guard_px=guard_px)
+    obj = _MetalensObjective(setup, n_terms=o.n_terms, guard_px=o.guard_px)
     x, iters = _solve_metalens(
         obj,
         coarse,
         model,
-        strategy=strategy,
-        kernel_size=kernel.size,
-        n_terms=n_terms,
-        n_starts=n_starts,
-        max_iter=max_iter,
-        progress=progress,
+        strategy=o.strategy,
+        kernel_size=setup.kernel.size,
+        n_terms=o.n_terms,
+        n_starts=o.n_starts,
+        max_iter=o.max_iter,
+        progress=o.progress,
     )
-    scale, k_pad, mask, unpack = obj.scale, obj.k_pad, obj.mask, obj.unpack
+    return _metalens_design(o, setup, obj, model, x, iterations=iters, started=(t0, c0))
 
-    # ---- the report: PSFs on the reference model, closed-form gains, NA reached, timing
+
+def _metalens_design(
+    o: MetalensOptions,
+    setup: _MetalensSetup,
+    obj: _MetalensObjective,
+    model: RadialKernelModel,
+    x: np.ndarray,
+    *,
+    iterations: int,
+    started: tuple[float, float],
+) -> MetalensDesign:
+    """Step 5, the design: the solution's PSFs on the reference model (window_pad ≥ 3), closed-form
+    gains, the NA reached and the fit record (``started``: wall and CPU clocks at the fit's start)."""
+    import torch
+
+    kernel, geometry, spectral, budget = setup.kernel, setup.geometry, setup.spectral, setup.budget
     xt = torch.from_numpy(x)
     reference = RadialKernelModel(
         geometry,
-        pitch_m=pitch,
-        n_pixels=n_eval,
+        pitch_m=kernel.pitch_m,
+        n_pixels=kernel.size + 2 * o.guard_px,
         spectral=spectral,
         n_sub=None,
-        window_pad=max(window_pad, 3.0),
+        window_pad=max(o.window_pad, 3.0),
         na_budget=budget,
     )
     with torch.no_grad():
         psfs, totals, zs, cs, model_err = [], [], [], [], 0.0
         for i in range(x.shape[0]):
-            z, c = unpack(xt[i])
+            z, c = obj.unpack(xt[i])
             fast = model.psf(c, z)
             psfs.append(reference.psf(c, z))
             totals.append(reference.total(c, z))
             model_err = max(model_err, float((fast - psfs[-1]).norm() / psfs[-1].norm()))
             zs.append(float(z))
             cs.append(tuple(float(v) for v in c))
-        gains, c, _ = _solve_gains(psfs, k_pad, mask, strategy, totals if strategy == "differential" else None)
+        gains, c, _ = _solve_gains(
+            psfs, obj.k_pad, obj.mask, o.strategy, totals if o.strategy == "differential" else None
+        )
     na_fit = max(local_numerical_aperture(geometry, cc, spectral.wavelengths_m) for cc in cs)
     info = {
-        "wall_time_s": time.perf_counter() - t0,
-        "cpu_time_s": time.process_time() - c0,  # all threads; under contention wall ≫ cpu / threads
-        "iterations": iters,
+        "wall_time_s": time.perf_counter() - started[0],
+        "cpu_time_s": time.process_time() - started[1],  # all threads; under contention wall ≫ cpu / threads
+        "iterations": iterations,
         "n_modes": model.n_modes,
         "n_sub": model.n_sub,
         "radial_samples": model.radial_samples,
@@ -1231,23 +1072,23 @@ def fit_metalens(
         "window_radius_m": model.window_radius_m,
         "na_budget": budget,
         "na_fit": na_fit,
-        "n_terms": n_terms,
+        "n_terms": o.n_terms,
         "optimiser": "torch L-BFGS (strong Wolfe), float64, closed-form gains",
         "n_wavelengths": spectral.n,
     }
-    if plan is not None:
-        info["wavelength_plan"] = plan.reason
+    if setup.plan is not None:
+        info["wavelength_plan"] = setup.plan.reason
     if na_fit > budget * 1.02:
         raise InputError(f"fit left the sampling budget (local NA {na_fit:.3f} > na_max {budget:.3f}); raise na_max")
     return MetalensDesign(
         target=kernel,
-        strategy=strategy,
+        strategy=o.strategy,
         geometry=geometry,
         coefficients=tuple(cs),
         sensor_distance_m=tuple(zs),
-        gains=tuple(float(g) * scale for g in gains),
-        pedestal=float(c) * scale,
-        guard_px=guard_px,
+        gains=tuple(float(g) * obj.scale for g in gains),
+        pedestal=float(c) * obj.scale,
+        guard_px=o.guard_px,
         psfs=tuple(p.numpy() for p in psfs),
         spectral=spectral,
         fit_info=info,
