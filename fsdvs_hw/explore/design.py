@@ -871,6 +871,10 @@ def _check_options_on_target(chk: _Problems, data: dict[str, Any], target: Kerne
     model validated with the target in the context, as the fit does: the same rules and words)."""
     if target is None:
         return
+    try:
+        check_tap_magnitude(target)
+    except KernelError:  # reported with the kernel; as in a fit, the rules need a representable target
+        return
     for name in dict.fromkeys(data["realisations"]["include"]):
         if name not in _option_tables():
             continue
