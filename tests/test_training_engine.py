@@ -20,12 +20,20 @@ torch = pytest.importorskip("torch")
 
 from test_dataset_training import PolarityClips  # noqa: E402
 
+from fsdvs_hw.errors import InputError  # noqa: E402
 from fsdvs_hw.kernels import reference_kernel  # noqa: E402
 from fsdvs_hw.realise.registry import fit_realisation  # noqa: E402
 from fsdvs_hw.scenes.synthetic import SceneConfig  # noqa: E402
 from fsdvs_hw.tasks.checkpoints import load_checkpoint  # noqa: E402
 from fsdvs_hw.tasks.dataset_training import disjoint_train_indices, train_on_dataset  # noqa: E402
 from fsdvs_hw.tasks.learn import TrainingSettings, evaluate_kernel, finetune_network, learn_kernel  # noqa: E402
+from fsdvs_hw.tasks.training import (  # noqa: E402
+    TrainingConfig,
+    TrainingData,
+    adamw_optimizer,
+    delta_init,
+    train_epochs,
+)
 
 REL = 1e-6
 REC = SceneConfig(height_px=16, width_px=16, radius_px=(3.0, 4.0), n_frames=4, motion="classes", edge_contrast=0.3)
@@ -300,3 +308,84 @@ def test_synthetic_training_follows_its_pinned_trajectory(runs, path):
 @pytest.mark.parametrize("path", ["dataset_learned", "dataset_frozen", "dataset_codesign"])
 def test_user_data_training_follows_its_pinned_trajectory(dataset_runs, path):
     _check(dataset_runs[path], PINNED[path])
+
+
+class _MeanSquare:
+    """A stand-in evaluator: the mean square of the network output minus the clips' ``y``."""
+
+    name = "toy"
+
+    def loss(self, output, targets):
+        return ((output.squeeze(1) - targets["y"]) ** 2).mean()
+
+
+def _toy_stage(**config):
+    torch.manual_seed(0)
+    video = torch.randn(10, 3)
+    data = TrainingData(video, {"y": video.sum(dim=1)}, None, np.arange(2.0), input_fn=lambda v, k, s, t: v * k)
+    network = torch.nn.Linear(3, 1)
+    kernel = torch.nn.Parameter(torch.ones(()))
+    optimizer = adamw_optimizer(network, 0.0, {"network": 1e-2, "kernel": 1e-2}, kernel)
+    return data, network, kernel, optimizer, TrainingConfig(**config)
+
+
+def test_train_epochs_resumes_at_first_epoch_reports_progress_and_checkpoints_after_each_epoch():
+    lines, ends, history = [], [], []
+    data, network, kernel, optimizer, config = _toy_stage(
+        stage="joint",
+        epochs=3,
+        batch_size=4,
+        first_epoch=1,
+        progress=lines.append,
+        progress_stage="stage two",
+        on_epoch_end=ends.append,
+    )
+    trained = train_epochs(
+        config,
+        evaluator=_MeanSquare(),
+        network=network,
+        kernel=kernel,
+        data=data,
+        optimizer=optimizer,
+        generator=torch.Generator().manual_seed(0),
+        history=history,
+        kernel_init=torch.ones(()),
+    )
+    assert trained == 2 and ends == [1, 2]
+    assert [(h["stage"], h["epoch"]) for h in history] == [("joint", 1), ("joint", 2)]
+    assert history[-1]["kernel_change_l1"] > 0  # the kernel is in the optimiser: it moved
+    assert [line.split(":")[0] for line in lines] == [
+        "[learn] toy stage two epoch 2/3",
+        "[learn] toy stage two epoch 3/3",
+    ]
+
+
+def test_a_frozen_kernel_is_simulated_once_and_a_non_finite_loss_names_stage_and_epoch():
+    data, network, kernel, optimizer, config = _toy_stage(stage="finetune", epochs=1, batch_size=10)
+    frozen = data.with_frozen_kernel(kernel.detach(), chunk=3)
+    torch.testing.assert_close(frozen.cached_inputs, data.video)
+    bad = TrainingData(data.video, {"y": data.targets["y"] * float("nan")}, None, data.timestamps_s, data.input_fn)
+    with pytest.raises(FloatingPointError, match=r"finetune epoch 0: training loss is not finite"):
+        train_epochs(
+            config,
+            evaluator=_MeanSquare(),
+            network=network,
+            kernel=kernel,
+            data=bad,
+            optimizer=optimizer,
+            generator=torch.Generator().manual_seed(0),
+            history=[],
+        )
+
+
+@pytest.mark.parametrize("field, value", [("epochs", -1), ("batch_size", 0), ("first_epoch", 1.5), ("epochs", True)])
+def test_training_config_refuses_counts_out_of_range(field, value):
+    with pytest.raises(InputError, match=rf"TrainingConfig.{field} must be an integer"):
+        TrainingConfig(**{"stage": "joint", "epochs": 1, "batch_size": 1, field: value})
+
+
+def test_delta_init_is_a_centred_delta_plus_seeded_noise():
+    taps = delta_init(5, 0.1, torch.Generator().manual_seed(0))
+    again = delta_init(5, 0.1, torch.Generator().manual_seed(0))
+    assert taps.dtype == torch.float64 and taps[2, 2] == 1.0 and torch.equal(taps, again)
+    assert 0 < float(taps.abs().sum() - 1.0) < 25 * 0.5
