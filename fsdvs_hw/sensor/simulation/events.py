@@ -656,6 +656,71 @@ def _call(fn: Any, *args: Any) -> Any:
     return fn(*args)
 
 
+class _SubstepNoise:
+    """The shot noise of one stepping run's sub-steps: drawn and emitted on the pipeline's workers
+    (events only), or drawn here, its counts added to the comparator's and its events emitted.
+
+    Parameters
+    ----------
+    pipe : EventPipeline or None
+        The run's pipeline, if any.
+    st : PixelState
+        Its shot-noise count and time streams are drawn from.
+    config : SensorConfig
+        ``shot_noise_rate_hz`` and ``shot_noise_draw`` are read.
+    like : torch.Tensor
+        A (B, H, W) frame: the shape, device and dtype of the counts.
+    tsd : torch.Tensor
+        (B, T) float64 frame times (s).
+    want_counts, collect_events : bool
+        Whether counts and events are made.
+    """
+
+    def __init__(
+        self,
+        pipe: Any,
+        st: PixelState,
+        config: SensorConfig,
+        like: Any,
+        tsd: Any,
+        want_counts: bool,
+        collect_events: bool,
+    ) -> None:
+        self.pipe, self.tsd, self.want_counts, self.collect_events = pipe, tsd, want_counts, collect_events
+        self.shape = tuple(like.shape)
+        self.dev, self.dtype = like.device, like.dtype
+        self.shot = float(config.shot_noise_rate_hz)
+        self.sparse = config.shot_noise_draw == "sparse"
+        self.shot_g, self.time_g = st.shot_g, st.time_g
+
+    def step(
+        self, step_parts: list, e_on: Any, e_off: Any, k: int, s: int, S: int, dt_sub64: Any
+    ) -> tuple[Any, Any, int]:
+        """Sub-step ``s`` of ``S`` in interval ``k`` (``dt_sub64``: (B, 1, 1) float64 length, s):
+        ``(e_on, e_off)`` with the noise counts added (if counts are wanted) and the noise events
+        drawn here (0 when they are drawn on the workers); its events go to ``step_parts``."""
+        B, H, W = self.shape
+        pipe, tsd = self.pipe, self.tsd
+        if pipe is not None and not self.want_counts:  # draws and events on the workers
+            lam = (0.5 * self.shot) * dt_sub64.reshape(B)
+            pipe.noise(
+                shot_noise_pixels,
+                noise_step,
+                (B, H * W, lam, self.shot_g, self.sparse),
+                (step_parts, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64, self.time_g),
+            )
+            return e_on, e_off, 0
+        on_px, off_px = shot_noise_pixels(B, H * W, (0.5 * self.shot) * dt_sub64.reshape(B), self.shot_g, self.sparse)
+        on_px, off_px = on_px.to(self.dev), off_px.to(self.dev)
+        n_noise = len(on_px) + len(off_px)
+        if self.want_counts:
+            e_on, e_off = _with_noise_counts(e_on, e_off, on_px, off_px, (B, H, W), self.dtype)
+        if self.collect_events:
+            noise_args = (step_parts, on_px, off_px, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64, self.time_g)
+            (pipe.emit if pipe is not None else _call)(noise_step, *noise_args)
+        return e_on, e_off, n_noise
+
+
 def _advance_steps(
     st: PixelState,
     Ls: Any,
@@ -675,8 +740,8 @@ def _advance_steps(
     :func:`.chunk_steps.advance_chunk` where :func:`.chunk_steps.chunk_applies`."""
     if pipe is not None and chunk_applies(Ls[0], substeps, config, SU is not None, collect_events, want_counts):
         return advance_chunk(st, Ls, CI if config.has_photoreceptor else None, tsd, config, events, pipe, bar)
-    B, H, W = Ls[0].shape
-    dev, dt_ = Ls[0].device, Ls[0].dtype
+    B = Ls[0].shape[0]
+    dt_ = Ls[0].dtype
     c_on, c_off = st.c_on, st.c_off
     relaxed = config.surrogate == "relaxed"
     has_lp = config.has_photoreceptor
@@ -684,10 +749,9 @@ def _advance_steps(
     shot = float(config.shot_noise_rate_hz)
     transient = SU is not None
     exact_times = collect_events or refr > 0
-    sparse_noise = config.shot_noise_draw == "sparse"
     fused = fused_substep_applies(Ls[0], config, transient)
     ref, lp, sur, sig_prev, last_t = st.ref, st.lp, st.sur, st.sig_prev, st.last_t
-    shot_g, time_g = st.shot_g, st.time_g
+    noise = _SubstepNoise(pipe, st, config, Ls[0], tsd, want_counts, collect_events)
     noise_events, lost = st.noise_events, st.lost
     frames = []
     t_lo, t_hi = tsd.amin(0).tolist(), tsd.amax(0).tolist()  # each frame time over the batch
@@ -738,23 +802,9 @@ def _advance_steps(
                         e_on = _refractory_surrogate(n_on, h_on, em_on)
                         e_off = _refractory_surrogate(n_off, h_off, em_off)
             ref = ref_next
-            if shot > 0 and pipe is not None and not want_counts:  # draws and events on the workers
-                lam = (0.5 * shot) * dt_sub64.reshape(B)
-                pipe.noise(
-                    shot_noise_pixels,
-                    noise_step,
-                    (B, H * W, lam, shot_g, sparse_noise),
-                    (step_parts, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64, time_g),
-                )
-            elif shot > 0:
-                on_px, off_px = shot_noise_pixels(B, H * W, (0.5 * shot) * dt_sub64.reshape(B), shot_g, sparse_noise)
-                on_px, off_px = on_px.to(dev), off_px.to(dev)
-                noise_events += len(on_px) + len(off_px)
-                if want_counts:
-                    e_on, e_off = _with_noise_counts(e_on, e_off, on_px, off_px, (B, H, W), dt_)
-                if collect_events:
-                    noise_args = (step_parts, on_px, off_px, (B, H, W), *_substep_times(tsd, k, s, S), dt_sub64, time_g)
-                    (pipe.emit if pipe is not None else _call)(noise_step, *noise_args)
+            if shot > 0:
+                e_on, e_off, n_noise = noise.step(step_parts, e_on, e_off, k, s, S, dt_sub64)
+                noise_events += n_noise
             sig_prev = target
             if want_counts:
                 on_acc = e_on if on_acc is None else on_acc + e_on
