@@ -1197,6 +1197,65 @@ def _hat_integral(u: Any) -> Any:
     )
 
 
+def _events_voxel_grid(ev: EventList, n_bins: int, timestamps_s: Any, height: Any, width: Any) -> Any:
+    """The (B, n_bins, 2, H, W) float64 ON/OFF voxel grid of an exact :class:`EventList`."""
+    if height is None or width is None or timestamps_s is None:
+        raise InputError("voxel_grid: an EventList needs height, width and timestamps_s")
+    height = check_int("height", height, 1, None)
+    width = check_int("width", width, 1, None)
+    ts = torch.from_numpy(check_increasing_times("timestamps_s", timestamps_s))
+    if len(ev) and (
+        int(ev.x.max()) >= width or int(ev.y.max()) >= height or int(ev.x.min()) < 0 or int(ev.y.min()) < 0
+    ):
+        raise InputError(
+            f"voxel_grid: events reach pixel (x={int(ev.x.max())}, y={int(ev.y.max())}) outside "
+            f"height={height}, width={width}; allowed: the sensor size the events were made with"
+        )
+    t0, t1 = float(ts[0]), float(ts[-1])
+    B = int(ev.b.max()) + 1 if len(ev) else 1
+    check_allocation(
+        f"voxel_grid (B={B}, n_bins={n_bins}, 2, H={height}, W={width}, float64)",
+        8.0 * B * n_bins * 2 * height * width,
+    )
+    out = torch.zeros((B, n_bins, 2, height, width), dtype=torch.float64)
+    if len(ev):
+        pos = (ev.t - t0) / (t1 - t0) * (n_bins - 1) if n_bins > 1 else torch.zeros_like(ev.t)
+        lo = torch.floor(pos).clamp(0, n_bins - 1)
+        frac = pos - lo
+        ch = (ev.p < 0).long()
+        for off, wgt in ((0, 1 - frac), (1, frac)):
+            bins = (lo.long() + off).clamp(max=n_bins - 1)
+            out.index_put_((ev.b, bins, ch, ev.y, ev.x), wgt, accumulate=True)
+    return out
+
+
+def _frames_voxel_grid(frames: Any, n_bins: int, timestamps_s: Any) -> Any:
+    """The (B, n_bins, 2, H, W) ON/OFF voxel grid of (B, T-1, 2, H, W) event frames, each
+    interval's events spread evenly over it and integrated against each bin's hat (differentiable)."""
+    if not isinstance(frames, torch.Tensor) or frames.ndim != 5 or frames.shape[2] != 2:
+        raise InputError("voxel_grid: frames must be a (B, T-1, 2, H, W) tensor from event_frames")
+    if not frames.is_floating_point():
+        raise InputError(f"voxel_grid: frames must be a floating tensor (event counts), got dtype {frames.dtype}")
+    n_int = frames.shape[1]
+    if timestamps_s is None:
+        ts = torch.arange(n_int + 1, dtype=torch.float64)
+    else:
+        ts = torch.from_numpy(check_increasing_times("timestamps_s", timestamps_s))
+        if ts.numel() != n_int + 1:
+            raise InputError(f"timestamps_s: needs {n_int + 1} frame times for {n_int} intervals")
+    t0, t1 = float(ts[0]), float(ts[-1])
+    B, _, _, H, W = frames.shape
+    check_allocation(
+        f"voxel_grid (B={B}, n_bins={n_bins}, 2, H={H}, W={W}, {frames.dtype})",
+        float(frames.element_size()) * B * n_bins * 2 * H * W,
+    )
+    width_s = (t1 - t0) / max(n_bins - 1, 1)
+    centres = torch.linspace(t0, t1, n_bins, dtype=torch.float64) if n_bins > 1 else torch.tensor([t0])
+    a, b = ts[:-1, None], ts[1:, None]
+    wgt = width_s / (b - a) * (_hat_integral((b - centres) / width_s) - _hat_integral((a - centres) / width_s))
+    return torch.einsum("ij,bicyx->bjcyx", wgt.to(frames.dtype).to(frames.device), frames)
+
+
 def voxel_grid(
     events_or_frames: Any,
     n_bins: int,
@@ -1242,64 +1301,14 @@ def voxel_grid(
     >>> voxel_grid(event_frames(video, config=SensorConfig.ideal()), 3).shape
     torch.Size([1, 3, 4, 4])
     """
-    import torch
 
     if not isinstance(n_bins, int) or isinstance(n_bins, bool) or n_bins < 1:
         raise InputError(f"n_bins: must be a positive integer, got {n_bins!r}")
     signed = check_bool("signed", signed)
     if isinstance(events_or_frames, EventList):
-        ev = events_or_frames
-        if height is None or width is None or timestamps_s is None:
-            raise InputError("voxel_grid: an EventList needs height, width and timestamps_s")
-        height = check_int("height", height, 1, None)
-        width = check_int("width", width, 1, None)
-        ts = torch.from_numpy(check_increasing_times("timestamps_s", timestamps_s))
-        if len(ev) and (
-            int(ev.x.max()) >= width or int(ev.y.max()) >= height or int(ev.x.min()) < 0 or int(ev.y.min()) < 0
-        ):
-            raise InputError(
-                f"voxel_grid: events reach pixel (x={int(ev.x.max())}, y={int(ev.y.max())}) outside "
-                f"height={height}, width={width}; allowed: the sensor size the events were made with"
-            )
-        t0, t1 = float(ts[0]), float(ts[-1])
-        B = int(ev.b.max()) + 1 if len(ev) else 1
-        check_allocation(
-            f"voxel_grid (B={B}, n_bins={n_bins}, 2, H={height}, W={width}, float64)",
-            8.0 * B * n_bins * 2 * height * width,
-        )
-        out = torch.zeros((B, n_bins, 2, height, width), dtype=torch.float64)
-        if len(ev):
-            pos = (ev.t - t0) / (t1 - t0) * (n_bins - 1) if n_bins > 1 else torch.zeros_like(ev.t)
-            lo = torch.floor(pos).clamp(0, n_bins - 1)
-            frac = pos - lo
-            ch = (ev.p < 0).long()
-            for off, wgt in ((0, 1 - frac), (1, frac)):
-                bins = (lo.long() + off).clamp(max=n_bins - 1)
-                out.index_put_((ev.b, bins, ch, ev.y, ev.x), wgt, accumulate=True)
+        out = _events_voxel_grid(events_or_frames, n_bins, timestamps_s, height, width)
     else:
-        frames = events_or_frames
-        if not isinstance(frames, torch.Tensor) or frames.ndim != 5 or frames.shape[2] != 2:
-            raise InputError("voxel_grid: frames must be a (B, T-1, 2, H, W) tensor from event_frames")
-        if not frames.is_floating_point():
-            raise InputError(f"voxel_grid: frames must be a floating tensor (event counts), got dtype {frames.dtype}")
-        n_int = frames.shape[1]
-        if timestamps_s is None:
-            ts = torch.arange(n_int + 1, dtype=torch.float64)
-        else:
-            ts = torch.from_numpy(check_increasing_times("timestamps_s", timestamps_s))
-            if ts.numel() != n_int + 1:
-                raise InputError(f"timestamps_s: needs {n_int + 1} frame times for {n_int} intervals")
-        t0, t1 = float(ts[0]), float(ts[-1])
-        B, _, _, H, W = frames.shape
-        check_allocation(
-            f"voxel_grid (B={B}, n_bins={n_bins}, 2, H={H}, W={W}, {frames.dtype})",
-            float(frames.element_size()) * B * n_bins * 2 * H * W,
-        )
-        width_s = (t1 - t0) / max(n_bins - 1, 1)
-        centres = torch.linspace(t0, t1, n_bins, dtype=torch.float64) if n_bins > 1 else torch.tensor([t0])
-        a, b = ts[:-1, None], ts[1:, None]
-        wgt = width_s / (b - a) * (_hat_integral((b - centres) / width_s) - _hat_integral((a - centres) / width_s))
-        out = torch.einsum("ij,bicyx->bjcyx", wgt.to(frames.dtype).to(frames.device), frames)
+        out = _frames_voxel_grid(events_or_frames, n_bins, timestamps_s)
     return out[:, :, 0] - out[:, :, 1] if signed else out
 
 
