@@ -49,7 +49,7 @@ import os
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -262,6 +262,68 @@ def _task_networks(design: Design, task: str) -> list[_Network]:
     return nets
 
 
+@dataclass
+class _Units:
+    """The measured units of one co-design run: each measured once, saved under ``root/units`` and
+    reused by a rerun with the same identity (target, network, mode, realisation and its options,
+    and the training settings for the trained modes)."""
+
+    design: Design
+    root: Path
+    train: Mapping[str, Any]
+    log: Callable[[str], None]
+    done: list[dict[str, Any]] = field(default_factory=list)
+
+    def measure(self, kind: str, net: _Network, real: str | None, mode: str, work: Any) -> dict[str, Any]:
+        """The unit's record, stored or measured now (``work(key)`` gives its extra fields, kernel and network)."""
+        target = self.design.target
+        ident = {
+            "target": target.to_dict()["taps"],
+            "pitch_m": target.pitch_m,
+            **net.ident,
+            "mode": mode,
+            "realisation": real,
+            "format": CODESIGN_FORMAT,
+        }
+        if real is not None:
+            ident.update(options=self.design.realisation_options(real), run_seed=self.design.spec.run.seed)
+        if mode in ("finetune", "codesign"):
+            ident.update(self.train)
+        key = _key(ident)
+        path = self.root / "units" / f"{real or 'learned'}_{net.task}_s{net.index}_{mode}_{key}.json"
+        stored = _stored_unit(path, key)
+        if stored is not None:
+            self.done.append(stored)
+            return stored
+        t0 = time.perf_counter()
+        extra, kernel, trained = work(key)
+        ev = net.evidence(kernel, trained)
+        rec = {
+            "key": key,
+            "kind": kind,
+            "realisation": real or "learned",
+            "task": net.task,
+            "seed_index": net.index,
+            "mode": mode,
+            "network": net.name,
+            "metric_name": ev.metric_name,
+            "metric": ev.value,
+            "n_clips": ev.n_clips,
+            "test_seed": ev.test_seed,
+            "sensor_seed": ev.sensor_seed,
+            "evidence": encode_evidence(ev.metric),
+            "wall_s": time.perf_counter() - t0,
+            **extra,
+        }
+        _save_atomic(path, rec)
+        self.done.append(rec)
+        self.log(
+            f"{real or 'learned'} / {net.task} / network {net.index} / {mode}: {ev.metric_name} {ev.value:.4f} "
+            f"({rec['wall_s']:.0f} s)"
+        )
+        return rec
+
+
 def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None = True) -> dict[str, Any]:
     """Measure every cell's rows (resuming finished units) and return :func:`summarise_codesign`.
 
@@ -295,57 +357,9 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
     seed = design.spec.run.seed
     train = {k: getattr(cd, k) for k in ("epochs", "n_train", "lr_network", "lr_filter")}
     fits: dict[str, Any] = {}
-    units: list[dict[str, Any]] = []
     t_run = time.perf_counter()
-    log = _progress_log(progress)
+    units = _Units(design, root, train, _progress_log(progress))
     networks = {task: _task_networks(design, task) for task in dict.fromkeys(t for _, t in cells)}
-
-    def unit(kind: str, net: _Network, real: str | None, mode: str, work: Any) -> dict[str, Any]:
-        ident = {
-            "target": target.to_dict()["taps"],
-            "pitch_m": target.pitch_m,
-            **net.ident,
-            "mode": mode,
-            "realisation": real,
-            "format": CODESIGN_FORMAT,
-        }
-        if real is not None:
-            ident.update(options=design.realisation_options(real), run_seed=seed)
-        if mode in ("finetune", "codesign"):
-            ident.update(train)
-        key = _key(ident)
-        path = root / "units" / f"{real or 'learned'}_{net.task}_s{net.index}_{mode}_{key}.json"
-        stored = _stored_unit(path, key)
-        if stored is not None:
-            units.append(stored)
-            return stored
-        t0 = time.perf_counter()
-        extra, kernel, trained = work(key)
-        ev = net.evidence(kernel, trained)
-        rec = {
-            "key": key,
-            "kind": kind,
-            "realisation": real or "learned",
-            "task": net.task,
-            "seed_index": net.index,
-            "mode": mode,
-            "network": net.name,
-            "metric_name": ev.metric_name,
-            "metric": ev.value,
-            "n_clips": ev.n_clips,
-            "test_seed": ev.test_seed,
-            "sensor_seed": ev.sensor_seed,
-            "evidence": encode_evidence(ev.metric),
-            "wall_s": time.perf_counter() - t0,
-            **extra,
-        }
-        _save_atomic(path, rec)
-        units.append(rec)
-        log(
-            f"{real or 'learned'} / {net.task} / network {net.index} / {mode}: {ev.metric_name} {ev.value:.4f} "
-            f"({rec['wall_s']:.0f} s)"
-        )
-        return rec
 
     def fitted(real: str) -> Any:
         if real not in fits:
@@ -354,7 +368,7 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
 
     for real, task in cells:
         for net in networks[task]:
-            unit("reference", net, None, "reference", lambda key: ({}, target, None))
+            units.measure("reference", net, None, "reference", lambda key: ({}, target, None))
             for mode in [m for m in CODESIGN_MODES if m in cd.modes]:
 
                 def work(key: str, real: str = real, mode: str = mode, net: _Network = net) -> Any:
@@ -372,14 +386,21 @@ def run_codesign(design: Design, out_dir: str | Path, *, progress: bool | None =
                         info.update(_codesign_outcome(res.provenance, target))
                     return info, res.kernel, trained
 
-                unit("row", net, real, mode, work)
+                units.measure("row", net, real, mode, work)
+    return _run_summary(design, units.done, {t: networks[t][0].n_test for _, t in cells}, t_run)
+
+
+def _run_summary(
+    design: Design, units: Sequence[dict[str, Any]], n_test: Mapping[str, Any], t_run: float
+) -> dict[str, Any]:
+    """:func:`summarise_codesign` of the run's units with its settings, design name and wall times (s)."""
     sc = design.spec.scoring
-    summary = summarise_codesign(units, n_resamples=sc.n_resamples, confidence=sc.confidence, rng=seed)
+    summary = summarise_codesign(units, n_resamples=sc.n_resamples, confidence=sc.confidence, rng=design.spec.run.seed)
     _note_user_cells(summary, design)
     summary["settings"] = {
         **design.section("codesign"),
         "test_clips": design.spec.tasks.test_clips,
-        "n_test": {t: networks[t][0].n_test for _, t in cells},
+        "n_test": dict(n_test),
     }
     summary["design"] = design.name
     summary["wall_s"] = time.perf_counter() - t_run  # this call (a resumed run reuses finished units)

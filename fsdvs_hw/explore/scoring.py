@@ -183,11 +183,9 @@ def task_scores(
     checkpoints : mapping
         Task name → checkpoint, or a list of checkpoints (one network per training seed), written
         by ``fsdvs_hw.tasks.learn_kernel``.
-    n_test : int or mapping
-        Test clips per network (0 = the checkpoint's own test-set size), for every task or per task.
-    n_test_emulation : int or mapping
-        Test clips per network of the emulation track (0 = as ``n_test``); the first clips of the
-        same test sets.
+    n_test, n_test_emulation : int or mapping
+        Test clips per network (0 = the checkpoint's own test-set size), for every task or per task;
+        of the emulation track (0 = as ``n_test``: the first clips of the same test sets).
     finetune_epochs : int
         Must be 0: the paired per-clip scoring is zero-shot (a fine-tune would give every kernel
         its own network, and the loss would no longer be paired by network).
@@ -222,102 +220,166 @@ def task_scores(
     Returns
     -------
     dict
-        ``{"status", task: {track: {"status", "metric" (mean over networks), "metric_name",
-        "per_seed", "n_clips" (total over the networks), "n_clips_per_network", "n_seeds",
-        "test_clips", "test_seeds", "checkpoints", "sensor_seeds", "event_rate", "event_rate_unit",
-        "event_rate_per_s", "evidence", "sensor", "wall_s"}}}``; ``status`` names what is missing
-        instead of inventing a number. ``event_rate`` is the mean over networks of the events per
-        pixel and frame interval (``event_rate_unit``); ``event_rate_per_s`` is the same rate in
-        events/pixel/s with its 95 % bootstrap CI over networks × clips
-        (:func:`fsdvs_hw.explore.paired.event_rate_ci`: ``mean``, ``low``, ``high``, ``unit``,
-        ``n_clips``, ``n_networks``).
-        Network ``s`` of a task is scored with sensor seed ``checkpoint seed + s`` (its own
-        mismatch pattern, :mod:`fsdvs_hw.explore.paired`).
+        ``{"status", task: {track: record}}``: each record has the fields of
+        :class:`fsdvs_hw.records.TrackScore` (``metric`` the mean over networks, ``n_clips`` the
+        total, ``event_rate`` in events per pixel and frame interval, ``event_rate_unit``) and
+        ``test_seeds``, ``checkpoints``, ``sensor_seeds``, ``evidence``, ``sensor`` and
+        ``event_rate_per_s`` (events/pixel/s with its 95 % bootstrap CI over networks × clips,
+        :func:`fsdvs_hw.explore.paired.event_rate_ci`: ``mean, low, high, unit, n_clips, n_networks``);
+        ``status`` names what is missing instead of inventing a number. Network ``s`` of a task is
+        scored with sensor seed ``checkpoint seed + s`` (its own mismatch pattern, :mod:`fsdvs_hw.explore.paired`).
     """
     datasets = dict(datasets or {})
     if not checkpoints and not datasets:
         return {"status": "not requested"}
     if test_clips not in TEST_CLIPS:
         raise InputError(f"test_clips {test_clips!r} unknown; allowed: {', '.join(TEST_CLIPS)}")
-    from .paired import clip_evidence, encode_evidence, event_rate_ci  # torch: imported only when tasks are scored
-    from .user_data import DEFAULT_MAX_FAILED_CLIP_FRACTION, dataset_evidence, user_task_record
-
     out: dict[str, Any] = {"status": "ok"}
     entry: Any  # a checkpoint (or a list of them), or a user dataset's table
     for task, entry in [*checkpoints.items(), *datasets.items()]:
         user = task in datasets and entry is datasets[task]
         paths = [] if user else [Path(p) for p in (entry if isinstance(entry, (list, tuple)) else [entry])]
-        n_sim = int(n_test.get(task, 0)) if isinstance(n_test, Mapping) else int(n_test)
-        n_emu = int(n_test_emulation.get(task, 0)) if isinstance(n_test_emulation, Mapping) else int(n_test_emulation)
+        n_sim, n_emu = _of_task(n_test, task), _of_task(n_test_emulation, task)
         out[task] = {}
         for track in tracks:
-            n = (n_emu or n_sim) if track == "emulation" else n_sim
             if track not in ("simulator", "emulation"):
                 raise InputError(f"task track {track!r} unknown; allowed 'simulator', 'emulation'")
-            if finetune_epochs:
-                out[task][track] = {
-                    "status": "unavailable: paired per-clip scoring is zero-shot (finetune_epochs must be 0)"
-                }
-                out["status"] = "partial"
-                continue
-            events_fn = _recaptured_events(kernel, display) if track == "emulation" else None
-            t0 = time.perf_counter()
-            try:
-                evid = []
-                if user:
-                    fields = None if design_sensor is None else {k: design_sensor[k] for k in DESIGN_SENSOR_FIELDS}
-                    ev, sensor_rec = dataset_evidence(
-                        kernel, task, entry, base_dir, design_sensor=fields, events_fn=events_fn, confine=False
-                    )
-                    evid.append(ev)
-                for s, ckpt in enumerate(paths):
-                    sensor_cfg, sensor_rec = task_sensor(ckpt, design_sensor)
-                    evid.append(
-                        clip_evidence(
-                            kernel,
-                            task,
-                            ckpt,
-                            n_test=n or None,
-                            sensor=sensor_cfg,
-                            seed_offset=s,
-                            clip_set=s if test_clips == "per_network" else 0,
-                            events_fn=events_fn,
-                        )
-                    )
-            except (InputError, FileNotFoundError) as exc:
-                out[task][track] = {"status": f"unavailable: {exc}", **_failed_clips_record(exc)}
-                out["status"] = "partial"
-                continue
-            per_seed = [e.value for e in evid]
-            rec: dict[str, Any] = {
-                "status": "ok",
-                "metric": float(np.mean(per_seed)),
-                "metric_name": evid[0].metric_name,
-                "per_seed": per_seed,
-                "n_seeds": len(evid),
-                "test_clips": test_clips,
-                "n_clips": (sum(e.n_clips for e in evid) if test_clips == "per_network" else evid[0].n_clips),
-                "n_clips_per_network": evid[0].n_clips,
-                "test_seeds": [e.test_seed for e in evid],
-                **(user_task_record(entry) if user else {"checkpoints": [str(p) for p in paths]}),
-                "sensor_seeds": [e.sensor_seed for e in evid],
-                "event_rate": float(np.mean([e.event_rate for e in evid])),
-                "sensor": sensor_rec,
-                "event_rate_unit": "events/pixel/frame interval",
-                "event_rate_per_s": event_rate_ci(evid, test_clips=test_clips),
-                "wall_s": time.perf_counter() - t0,
-            }
-            if user:
-                rec.update(_failed_clips_record(evid[0]))
-                rec["max_failed_clip_fraction"] = float(
-                    entry.get("max_failed_clip_fraction", DEFAULT_MAX_FAILED_CLIP_FRACTION)
-                )
-            if keep_evidence:
-                rec["evidence"] = [encode_evidence(e.metric) for e in evid]
-                if all(e.clip_event_rates is not None for e in evid):  # matched-rate losses (explore.matched)
-                    rec["clip_event_rates"] = [np.asarray(e.clip_event_rates, dtype=np.float64).tolist() for e in evid]
-            out[task][track] = rec
+            out[task][track] = rec = _track_score(
+                kernel,
+                task,
+                entry if user else paths,
+                track,
+                n_test=(n_emu or n_sim) if track == "emulation" else n_sim,
+                finetune_epochs=finetune_epochs,
+                design_sensor=design_sensor,
+                display=display,
+                keep_evidence=keep_evidence,
+                test_clips=test_clips,
+                base_dir=base_dir,
+            )
+            out["status"] = out["status"] if rec["status"] == "ok" else "partial"
     return out
+
+
+def _of_task(n: int | Mapping[str, int], task: str) -> int:
+    """A per-task setting given for every task or per task (0 when the task is not named)."""
+    return int(n.get(task, 0)) if isinstance(n, Mapping) else int(n)
+
+
+def _track_score(
+    kernel: Kernel,
+    task: str,
+    networks: Mapping[str, Any] | list[Path],
+    track: str,
+    *,
+    n_test: int,
+    finetune_epochs: int,
+    design_sensor: Mapping[str, Any] | None,
+    display: Any,
+    keep_evidence: bool,
+    test_clips: str,
+    base_dir: str | Path,
+) -> dict[str, Any]:
+    """One task's record on one track (:func:`task_scores`); ``networks`` is a user dataset's
+    table, or the task's checkpoints (one network per training seed)."""
+    if finetune_epochs:
+        return {"status": "unavailable: paired per-clip scoring is zero-shot (finetune_epochs must be 0)"}
+    events_fn = _recaptured_events(kernel, display) if track == "emulation" else None
+    t0 = time.perf_counter()
+    try:
+        evid, sensor_rec = _network_evidence(
+            kernel, task, networks, n_test, design_sensor, events_fn, test_clips=test_clips, base_dir=base_dir
+        )
+    except (InputError, FileNotFoundError) as exc:
+        return {"status": f"unavailable: {exc}", **_failed_clips_record(exc)}
+    return _evidence_record(evid, sensor_rec, networks, test_clips=test_clips, keep_evidence=keep_evidence, t0=t0)
+
+
+def _network_evidence(
+    kernel: Kernel,
+    task: str,
+    networks: Mapping[str, Any] | list[Path],
+    n_test: int,
+    design_sensor: Mapping[str, Any] | None,
+    events_fn: Any,
+    *,
+    test_clips: str,
+    base_dir: str | Path,
+) -> tuple[list[Any], dict[str, Any]]:
+    """Every network's per-clip evidence of one task and track, and the record of the sensor it ran."""
+    from .paired import clip_evidence  # torch: imported only when tasks are scored
+    from .user_data import dataset_evidence
+
+    evid = []
+    sensor_rec: dict[str, Any] = {}
+    if isinstance(networks, Mapping):
+        fields = None if design_sensor is None else {k: design_sensor[k] for k in DESIGN_SENSOR_FIELDS}
+        ev, sensor_rec = dataset_evidence(
+            kernel, task, networks, base_dir, design_sensor=fields, events_fn=events_fn, confine=False
+        )
+        evid.append(ev)
+        return evid, sensor_rec
+    for s, ckpt in enumerate(networks):
+        sensor_cfg, sensor_rec = task_sensor(ckpt, design_sensor)
+        evid.append(
+            clip_evidence(
+                kernel,
+                task,
+                ckpt,
+                n_test=n_test or None,
+                sensor=sensor_cfg,
+                seed_offset=s,
+                clip_set=s if test_clips == "per_network" else 0,
+                events_fn=events_fn,
+            )
+        )
+    return evid, sensor_rec
+
+
+def _evidence_record(
+    evid: Sequence[Any],
+    sensor_rec: dict[str, Any],
+    networks: Mapping[str, Any] | list[Path],
+    *,
+    test_clips: str,
+    keep_evidence: bool,
+    t0: float,
+) -> dict[str, Any]:
+    """A scored track's record from its networks' evidence (:func:`task_scores`' Returns)."""
+    from .paired import encode_evidence, event_rate_ci
+    from .user_data import DEFAULT_MAX_FAILED_CLIP_FRACTION, user_task_record
+
+    per_seed = [e.value for e in evid]
+    rec: dict[str, Any] = {
+        "status": "ok",
+        "metric": float(np.mean(per_seed)),
+        "metric_name": evid[0].metric_name,
+        "per_seed": per_seed,
+        "n_seeds": len(evid),
+        "test_clips": test_clips,
+        "n_clips": (sum(e.n_clips for e in evid) if test_clips == "per_network" else evid[0].n_clips),
+        "n_clips_per_network": evid[0].n_clips,
+        "test_seeds": [e.test_seed for e in evid],
+        **(
+            user_task_record(networks) if isinstance(networks, Mapping) else {"checkpoints": [str(p) for p in networks]}
+        ),
+        "sensor_seeds": [e.sensor_seed for e in evid],
+        "event_rate": float(np.mean([e.event_rate for e in evid])),
+        "sensor": sensor_rec,
+        "event_rate_unit": "events/pixel/frame interval",
+        "event_rate_per_s": event_rate_ci(evid, test_clips=test_clips),
+        "wall_s": time.perf_counter() - t0,
+    }
+    if isinstance(networks, Mapping):
+        rec.update(_failed_clips_record(evid[0]))
+        rec["max_failed_clip_fraction"] = float(
+            networks.get("max_failed_clip_fraction", DEFAULT_MAX_FAILED_CLIP_FRACTION)
+        )
+    if keep_evidence:
+        rec["evidence"] = [encode_evidence(e.metric) for e in evid]
+        if all(e.clip_event_rates is not None for e in evid):  # matched-rate losses (explore.matched)
+            rec["clip_event_rates"] = [np.asarray(e.clip_event_rates, dtype=np.float64).tolist() for e in evid]
+    return rec
 
 
 def _failed_clips_record(source: Any) -> dict[str, Any]:
@@ -582,17 +644,7 @@ def paired_losses(
             missing: list[Mapping[str, Any]] = []
             for p in group:
                 arms = {t: arm(p, t, track) for t in ref_arms}
-                good = all(
-                    a is not None
-                    and len(a) == len(ref_arms[t])
-                    and [m.n_clips for m in a] == [m.n_clips for m in ref_arms[t]]
-                    and track_record(p, t, track).get("test_seeds") == track_record(ref, t, track).get("test_seeds")
-                    # user data: the same clips skipped (decided from the clips' files, so always so)
-                    and (track_record(p, t, track).get("failed_clip_indices") or [])
-                    == (track_record(ref, t, track).get("failed_clip_indices") or [])
-                    for t, a in arms.items()
-                )
-                (ok if good else missing).append(p)
+                (ok if _pairs_with(p, ref, track, arms, ref_arms) else missing).append(p)
             for p in missing:
                 out[p["key"]][track] = {"status": "no paired evidence on every task of the reference"}
             if not ok:
@@ -613,6 +665,27 @@ def paired_losses(
                 rec["weights"] = weights
                 out[p["key"]][track] = rec
     return out
+
+
+def _pairs_with(
+    point: Mapping[str, Any],
+    ref: Mapping[str, Any],
+    track: str,
+    arms: Mapping[str, list[Any] | None],
+    ref_arms: Mapping[str, list[Any]],
+) -> bool:
+    """Whether ``point``'s per-clip evidence (``arms``, by task) pairs with the reference's on every
+    task: as many networks, as many clips per network, the same test seeds and skipped clips."""
+    return all(
+        a is not None
+        and len(a) == len(ref_arms[t])
+        and [m.n_clips for m in a] == [m.n_clips for m in ref_arms[t]]
+        and track_record(point, t, track).get("test_seeds") == track_record(ref, t, track).get("test_seeds")
+        # user data: the same clips skipped (decided from the clips' files, so always so)
+        and (track_record(point, t, track).get("failed_clip_indices") or [])
+        == (track_record(ref, t, track).get("failed_clip_indices") or [])
+        for t, a in arms.items()
+    )
 
 
 #: A task track's per-clip fields: kept in ``results.sqlite``, dropped from ``scores.json`` and the report.

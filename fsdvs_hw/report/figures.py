@@ -198,12 +198,12 @@ def fig_radial(panels: Sequence[Panel], *, methods: Sequence[str], pitch_m: floa
         for i, line in enumerate(lines[len(panels) :]):
             line.set_color(str(0.15 + 0.15 * i))
             line.set_linestyle(dashes[i % len(dashes)])
-            line.set_label(_csf_title(line.get_label()))
+            line.set_label(csf_title(line.get_label()))
         ax.legend(fontsize=7, loc="best")
     return fig
 
 
-def _csf_title(label: str) -> str:
+def csf_title(label: str) -> str:
     """``"CSF mannos_sakrison_1974"`` → ``"CSF Mannos–Sakrison 1974"``."""
     names = {"mannos": "Mannos–Sakrison", "barten": "Barten", "daly": "Daly", "watson": "Watson–Ahumada"}
     if not label.startswith("CSF "):

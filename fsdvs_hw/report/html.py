@@ -263,7 +263,7 @@ def _score_tables(ok: Sequence[Mapping[str, Any]], methods: Sequence[str]) -> Ma
 
 
 def _csf_name(method: str) -> str:
-    return figures._csf_title("CSF " + method)[4:]
+    return figures.csf_title("CSF " + method)[4:]
 
 
 def _metric_name(column: str) -> str:
