@@ -230,6 +230,50 @@ def generate_datapath_verilog(
     return "\n".join(L) + "\n"
 
 
+def _stream_lines(k: int, W: int, H: int, cb: int, rb: int) -> list[str]:
+    """Verilog of the streaming front end: the raster counters (``cb``/``rb`` bits wide) that tell a
+    complete k×k window, the k−1 line buffers of ``W`` pixels and the window registers."""
+    L: list[str] = []
+    a = L.append
+    a("  // control: raster position of the incoming pixel; a window is complete when row, col >= k-1")
+    a("  always @(posedge clk) begin")
+    a("    if (rst) begin")
+    a(f"      col <= {cb}'d0; row <= {rb}'d0; win_valid <= 1'b0;")
+    a("    end else begin")
+    a(
+        f"      win_valid <= in_valid && (row >= {rb}'d{k - 1}) && (col >= {cb}'d{k - 1});"
+        if k > 1
+        else "      win_valid <= in_valid;"
+    )
+    a("      if (in_valid) begin")
+    a(f"        if (col == {cb}'d{W - 1}) begin")
+    a(f"          col <= {cb}'d0;")
+    a(f"          row <= (row == {rb}'d{H - 1}) ? {rb}'d0 : row + {rb}'d1;")
+    a("        end else begin")
+    a(f"          col <= col + {cb}'d1;")
+    a("        end")
+    a("      end")
+    a("    end")
+    a("  end")
+    a("")
+    a("  // line buffers and the k x k window (w<row>_<col>; row 0 = oldest line, col k-1 = newest pixel)")
+    a("  always @(posedge clk) begin")
+    a("    if (in_valid) begin")
+    if k > 1:
+        a("      lb0[col] <= in_pixel;")
+    for j in range(1, k - 1):
+        a(f"      lb{j}[col] <= lb{j - 1}[col];")
+    for i in range(k):
+        for j in range(k - 1):
+            a(f"      w{i}_{j} <= w{i}_{j + 1};")
+        src = "in_pixel" if i == k - 1 else f"lb{k - 2 - i}[col]"
+        a(f"      w{i}_{k - 1} <= {src};")
+    a("    end")
+    a("  end")
+    a("")
+    return L
+
+
 def generate_verilog(
     taps: np.ndarray,
     *,
@@ -297,42 +341,7 @@ def generate_verilog(
     for i in range(k):
         a("  reg [{}:0] {};".format(IN - 1, ", ".join(f"w{i}_{j}" for j in range(k))))
     a("")
-    a("  // control: raster position of the incoming pixel; a window is complete when row, col >= k-1")
-    a("  always @(posedge clk) begin")
-    a("    if (rst) begin")
-    a(f"      col <= {cb}'d0; row <= {rb}'d0; win_valid <= 1'b0;")
-    a("    end else begin")
-    a(
-        f"      win_valid <= in_valid && (row >= {rb}'d{k - 1}) && (col >= {cb}'d{k - 1});"
-        if k > 1
-        else "      win_valid <= in_valid;"
-    )
-    a("      if (in_valid) begin")
-    a(f"        if (col == {cb}'d{W - 1}) begin")
-    a(f"          col <= {cb}'d0;")
-    a(f"          row <= (row == {rb}'d{H - 1}) ? {rb}'d0 : row + {rb}'d1;")
-    a("        end else begin")
-    a(f"          col <= col + {cb}'d1;")
-    a("        end")
-    a("      end")
-    a("    end")
-    a("  end")
-    a("")
-    a("  // line buffers and the k x k window (w<row>_<col>; row 0 = oldest line, col k-1 = newest pixel)")
-    a("  always @(posedge clk) begin")
-    a("    if (in_valid) begin")
-    if k > 1:
-        a("      lb0[col] <= in_pixel;")
-    for j in range(1, k - 1):
-        a(f"      lb{j}[col] <= lb{j - 1}[col];")
-    for i in range(k):
-        for j in range(k - 1):
-            a(f"      w{i}_{j} <= w{i}_{j + 1};")
-        src = "in_pixel" if i == k - 1 else f"lb{k - 2 - i}[col]"
-        a(f"      w{i}_{k - 1} <= {src};")
-    a("    end")
-    a("  end")
-    a("")
+    L += _stream_lines(k, W, H, cb, rb)
     L += _datapath_lines(cls, reps, IN, acc, out_shift, ob)
     result = _result(acc, ob, out_shift)
     a("")

@@ -109,23 +109,10 @@ def mismatch_monte_carlo(
     """
     import scipy.sparse.linalg as spla
 
-    from .fit import MeshDesign
-    from .response import grid_half_width_for, mesh_kcl_matrix
+    from .response import mesh_kcl_matrix
 
-    if not isinstance(design, MeshDesign):
-        raise InputError(f"design: expected a MeshDesign, got {type(design).__name__}")
-    gain_sigma = sigma if gain_sigma is None else gain_sigma
-    for name, v, hi in (("sigma", sigma, 0.5), ("gain_sigma", gain_sigma, 0.5), ("tolerance", tolerance, 1e6)):
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and 0 <= v <= hi):
-            raise InputError(f"{name}={v!r} outside the allowed range [0, {hi:g}]")
-    if not (isinstance(n_trials, (int, np.integer)) and 1 <= n_trials <= 100000):
-        raise InputError(f"n_trials: must be an integer in 1..100000, got {n_trials!r}")
+    gain_sigma, h = _checked_arguments(design, sigma, gain_sigma, tolerance, n_trials, half_width)
     r = design.size // 2
-    if half_width is None:
-        half_width = min(60, grid_half_width_for(design.lambda_wide_px, r))
-    if not (isinstance(half_width, (int, np.integer)) and r <= half_width <= 200):
-        raise InputError(f"half_width: must be an integer in {r}..200, got {half_width!r}")
-    h = int(half_width)
     n = 2 * h + 1
     n_edges = 2 * n * (n - 1)
     centre = h * n + h
@@ -170,3 +157,27 @@ def mismatch_monte_carlo(
         gain_sigma=float(gain_sigma),
         half_width=h,
     )
+
+
+def _checked_arguments(
+    design: Any, sigma: Any, gain_sigma: Any, tolerance: Any, n_trials: Any, half_width: Any
+) -> tuple[float, int]:
+    """The arguments of :func:`mismatch_monte_carlo` checked; returns the gain σ (default: ``sigma``)
+    and the grid half-width (pixels; default from the wide mesh's space constant)."""
+    from .fit import MeshDesign
+    from .response import grid_half_width_for
+
+    if not isinstance(design, MeshDesign):
+        raise InputError(f"design: expected a MeshDesign, got {type(design).__name__}")
+    gain_sigma = sigma if gain_sigma is None else gain_sigma
+    for name, v, hi in (("sigma", sigma, 0.5), ("gain_sigma", gain_sigma, 0.5), ("tolerance", tolerance, 1e6)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and 0 <= v <= hi):
+            raise InputError(f"{name}={v!r} outside the allowed range [0, {hi:g}]")
+    if not (isinstance(n_trials, (int, np.integer)) and 1 <= n_trials <= 100000):
+        raise InputError(f"n_trials: must be an integer in 1..100000, got {n_trials!r}")
+    r = design.size // 2
+    if half_width is None:
+        half_width = min(60, grid_half_width_for(design.lambda_wide_px, r))
+    if not (isinstance(half_width, (int, np.integer)) and r <= half_width <= 200):
+        raise InputError(f"half_width: must be an integer in {r}..200, got {half_width!r}")
+    return gain_sigma, int(half_width)

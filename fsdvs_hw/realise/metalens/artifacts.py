@@ -75,6 +75,34 @@ def _profile(design: MetalensDesign) -> tuple[np.ndarray, np.ndarray]:
     return r, phase
 
 
+def _write_phase_csv(
+    path: Path,
+    r: np.ndarray,
+    phase: np.ndarray,
+    scalars: dict[str, Any],
+    sensor_distance_m: Any,
+    wavelengths_m: np.ndarray,
+) -> None:
+    """The phase profile as CSV: ``#`` header lines with the scalars, then one row per lens and radius
+    (radius in m, phase in rad unwrapped and mod 2π)."""
+    head = [
+        "# fsdvs_hw metalens phase profile: phase_rad at the design wavelength (unwrapped), radius_m from "
+        "the optical axis"
+    ]
+    head += [f"# {key} = {val!r}" for key, val in scalars.items()]
+    head += [
+        f"# sensor_distance_m = {[float(z) for z in sensor_distance_m]!r}",
+        f"# wavelengths_m = {[float(v) for v in wavelengths_m]!r}",
+    ]
+    rows: list[list[Any]] = [["lens", "radius_m", "phase_rad", "phase_wrapped_rad"]]
+    rows += [
+        [i, repr(float(rr)), repr(float(ph)), repr(float(np.mod(ph, 2 * math.pi)))]
+        for i in range(phase.shape[0])
+        for rr, ph in zip(r, phase[i])
+    ]
+    write_output(path, "\n".join(head) + "\n" + csv_text(rows), flag="artifacts")
+
+
 def write_metalens_artifacts(
     design: MetalensDesign, out_dir: str | Path, *, resolution: tuple[int, int] | None = None
 ) -> tuple[Artifact, ...]:
@@ -117,22 +145,7 @@ def write_metalens_artifacts(
         ),
         flag="artifacts",
     )
-    head = [
-        "# fsdvs_hw metalens phase profile: phase_rad at the design wavelength (unwrapped), radius_m from "
-        "the optical axis"
-    ]
-    head += [f"# {key} = {val!r}" for key, val in scalars.items()]
-    head += [
-        f"# sensor_distance_m = {[float(z) for z in design.sensor_distance_m]!r}",
-        f"# wavelengths_m = {[float(v) for v in lam]!r}",
-    ]
-    rows: list[list[Any]] = [["lens", "radius_m", "phase_rad", "phase_wrapped_rad"]]
-    rows += [
-        [i, repr(float(rr)), repr(float(ph)), repr(float(np.mod(ph, 2 * math.pi)))]
-        for i in range(phase.shape[0])
-        for rr, ph in zip(r, phase[i])
-    ]
-    write_output(out / "phase_profile.csv", "\n".join(head) + "\n" + csv_text(rows), flag="artifacts")
+    _write_phase_csv(out / "phase_profile.csv", r, phase, scalars, design.sensor_distance_m, lam)
     psf = np.stack([np.asarray(p, dtype=float) for p in design.psfs])
     write_output(
         out / "psf.npz",
