@@ -380,26 +380,8 @@ def calibrate_sensor(
     notes: list[str] = []
     est: dict[str, Estimate] = {}
     if video is None:
-        t, x, y, p, h, w = event_columns(recording)
-        if duration_s is None:
-            duration_s = float(t.max() - t.min()) if t.size > 1 else 0.0
-        if not duration_s or duration_s <= 0:
-            raise InputError("calibrate_sensor: a static-scene recording needs duration_s > 0 (or two events)")
-        notes.append("static scene: thresholds, refractory period and bandwidth need a known video")
-        _noise(est, y * w + x, p, np.ones(h * w, bool), float(duration_s), n_boot, level, rng)
-        return SensorCalibration(est, base.replace(**{k: e.value for k, e in est.items()}), level, notes)
-
-    import torch
-
-    vid = torch.as_tensor(np.asarray(video) if not isinstance(video, torch.Tensor) else video)
-    H, W = int(vid.shape[-2]), int(vid.shape[-1])
-    t, x, y, p, h, w = event_columns(recording)
-    if (hasattr(recording, "t_us") and (h, w) != (H, W)) or (x.size and (int(x.max()) >= W or int(y.max()) >= H)):
-        size = f"a {w}x{h} sensor" if hasattr(recording, "t_us") else f"pixels up to x={w - 1}, y={h - 1}"
-        raise InputError(f"calibrate_sensor: recording has {size}, the video is {W}x{H}; register them first")
-    order = np.lexsort((t, y * W + x))  # by pixel, then time: consecutive events of a pixel are neighbours
-    t, p, pix = t[order], p[order], (y * W + x)[order]
-    n_pix = H * W
+        return _static_scene_calibration(recording, duration_s, base, n_boot, level, rng)
+    t, p, pix, n_pix = _events_by_pixel(recording, video)
     if base.has_photoreceptor is False and fit_cutoff:
         raise InputError("calibrate_sensor: fit_cutoff needs config.cutoff_hz > 0 as the starting guess")
     photo = _photoreceptor(video, timestamps_s, base)
@@ -440,6 +422,39 @@ def calibrate_sensor(
         # would look like (noise-corrupted) thresholds, so the threshold fit leaves them out
         _thresholds(est, pairs, n_pix, min_events, n_boot, level, rng, min_dt, ~static)
     return SensorCalibration(est, base.replace(**{k: e.value for k, e in est.items()}), level, notes)
+
+
+def _static_scene_calibration(
+    recording: Any, duration_s: float | None, base: SensorConfig, n_boot: int, level: float, rng: Any
+) -> SensorCalibration:
+    """Noise rates alone, from a recording of a static scene (``duration_s``: its length, s;
+    default its first to last event)."""
+    notes: list[str] = []
+    est: dict[str, Estimate] = {}
+    t, x, y, p, h, w = event_columns(recording)
+    if duration_s is None:
+        duration_s = float(t.max() - t.min()) if t.size > 1 else 0.0
+    if not duration_s or duration_s <= 0:
+        raise InputError("calibrate_sensor: a static-scene recording needs duration_s > 0 (or two events)")
+    notes.append("static scene: thresholds, refractory period and bandwidth need a known video")
+    _noise(est, y * w + x, p, np.ones(h * w, bool), float(duration_s), n_boot, level, rng)
+    return SensorCalibration(est, base.replace(**{k: e.value for k, e in est.items()}), level, notes)
+
+
+def _events_by_pixel(recording: Any, video: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """``(t, p, pixel, n_pixels)`` of the recording's events, sorted by pixel (row-major index in
+    the video's frame) then time, so that consecutive events of a pixel are neighbours; the
+    recording checked to fit the video's H x W."""
+    import torch
+
+    vid = torch.as_tensor(np.asarray(video) if not isinstance(video, torch.Tensor) else video)
+    H, W = int(vid.shape[-2]), int(vid.shape[-1])
+    t, x, y, p, h, w = event_columns(recording)
+    if (hasattr(recording, "t_us") and (h, w) != (H, W)) or (x.size and (int(x.max()) >= W or int(y.max()) >= H)):
+        size = f"a {w}x{h} sensor" if hasattr(recording, "t_us") else f"pixels up to x={w - 1}, y={h - 1}"
+        raise InputError(f"calibrate_sensor: recording has {size}, the video is {W}x{H}; register them first")
+    order = np.lexsort((t, y * W + x))
+    return t[order], p[order], (y * W + x)[order], H * W
 
 
 def _thresholds(
