@@ -1,6 +1,6 @@
 """A chunk of frame intervals stepped and emitted by the compiled kernels, one worker task per chunk.
 
-This is the event-list fast path of :func:`.events._advance_steps`: the same kernels
+This is the event-list fast path of :func:`~fsdvs_hw.sensor.simulation.events._advance_steps`: the same kernels
 (``fsdvs_lowpass_exponent``, torch's ``expm1``, ``fsdvs_pixel_step``, ``fsdvs_step_events``) in the
 same order on the same values, so the events are bit for bit those of the step-by-step path. What
 changes is the dispatch around them. The step-by-step path pays, for every frame interval, a few
@@ -11,7 +11,7 @@ ctypes calls and one ``expm1_`` per interval into buffers allocated once per chu
 one crossing task and one noise task per chunk.
 
 It applies (:func:`chunk_applies`) to an event list on the CPU through an event pipeline (the
-streaming simulator and :func:`.events.event_list`), one sensor (batch of 1), one sub-step per
+streaming simulator and :func:`~fsdvs_hw.sensor.simulation.events.event_list`), one sensor (batch of 1), one sub-step per
 frame interval, no transient surround, the straight-through comparator and no gradient: the
 case of a video simulated to events. Everything else takes the step-by-step path.
 
@@ -118,9 +118,9 @@ def _contiguous(x: Any) -> Any:
 
 
 def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, events: list, pipe: Any, bar: Any) -> list:
-    """Step the pixel state ``st`` (:class:`.events.PixelState`) through the frames ``Ls`` (and
+    """Step the pixel state ``st`` (:class:`~fsdvs_hw.sensor.simulation.events.PixelState`) through the frames ``Ls`` (and
     low-pass intensities ``CI``, or None) and submit their events to ``pipe``
-    (:class:`.events.EventPipeline`), as :func:`.events._advance_steps` does where
+    (:class:`~fsdvs_hw.sensor.simulation.events.EventPipeline`), as :func:`~fsdvs_hw.sensor.simulation.events._advance_steps` does where
     :func:`chunk_applies` holds.
 
     Parameters
@@ -135,7 +135,7 @@ def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, eve
     config : SensorConfig
         The sensor.
     events : list
-        Each interval's :meth:`~.events.EventPipeline.sort` result is appended.
+        Each interval's :meth:`~fsdvs_hw.sensor.simulation.events.EventPipeline.sort` result is appended.
     pipe : EventPipeline
         Where the crossing tasks (one per :data:`GROUP_PIXELS` pixel-intervals, in order), the
         noise task (one per chunk, with shot noise) and the sorts run; its ``buffers`` pool lends
@@ -301,10 +301,10 @@ def _crossings_task(
     noise_f: Any,
 ) -> tuple[float, None, None]:
     """The crossings of intervals ``ks`` in order (:func:`~fsdvs_hw.sensor.native.library.step_events`, as
-    :func:`.crossings.crossing_step` calls it). ``rows``: per interval of the chunk, the ON and OFF
+    :func:`~fsdvs_hw.sensor.simulation.crossings.crossing_step` calls it). ``rows``: per interval of the chunk, the ON and OFF
     counts, comparator input and reference at the start, difference at the end, the interval's
     event parts (its crossing part is appended) and its shot-noise parts (appended after it once
-    ``noise_f`` is done). Returns ``(lost, None, None)`` like :func:`.crossings.crossing_step`
+    ``noise_f`` is done). Returns ``(lost, None, None)`` like :func:`~fsdvs_hw.sensor.simulation.crossings.crossing_step`
     (the crossings lost to the refractory period)."""
     h_on, h_off, sig_a, ref_a, d_b, parts, noise_parts = rows
     H, W = hw_shape
@@ -350,9 +350,10 @@ def _noise_task(
     tsd: Any, K: int, shape: tuple[int, int, int], config: SensorConfig, shot_g: Any, time_g: Any, noise_parts: list
 ) -> tuple[Any, Any]:
     """Shot noise of a chunk's intervals in order: each interval's draw
-    (:func:`.crossings.shot_noise_pixels`) and its events (:func:`.crossings.noise_step`) into
-    ``noise_parts[k]``, the draws and times from the same streams in the same order as the
-    step-by-step path. Returns every ON and OFF noise pixel (their count is the noise total)."""
+    (:func:`~fsdvs_hw.sensor.simulation.crossings.shot_noise_pixels`) and its events
+    (:func:`~fsdvs_hw.sensor.simulation.crossings.noise_step`) into ``noise_parts[k]``, the draws and
+    times from the same streams in the same order as the step-by-step path. Returns every ON and
+    OFF noise pixel (their count is the noise total)."""
     B = shape[0]
     shot = float(config.shot_noise_rate_hz)
     sparse = config.shot_noise_draw == "sparse"

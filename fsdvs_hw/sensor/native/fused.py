@@ -1,6 +1,6 @@
 """Compiled no-grad CPU paths of the pixel model: v2e's response, the positivity floor and one pixel sub-step.
 
-The differentiable pixel model of :mod:`.pixel` and :mod:`.events` is written as torch
+The differentiable pixel model of :mod:`~fsdvs_hw.sensor.simulation.pixel` and :mod:`~fsdvs_hw.sensor.simulation.events` is written as torch
 operations, each of which reads and writes whole frames: v2e's linear-log response takes about a
 dozen (half in float64, for v2e's rounding to 1e-8) and every comparator sub-step about twenty
 (the low-pass cut-off from the intensity, its exponent, the low-pass update, the leak, the

@@ -7,7 +7,7 @@ a per-user cache (``$FSDVS_HW_CACHE``, else ``$XDG_CACHE_HOME/fsdvs_hw``, else
 ``~/.cache/fsdvs_hw``), keyed by a hash of the source and flags, and loaded with :mod:`ctypes`,
 which releases the GIL during each call (so the event pipeline's worker threads run in parallel
 with the stepping thread). Without a compiler (or with ``FSDVS_HW_NO_NATIVE`` set)
-:func:`available` is False and :mod:`.crossings` uses its torch path: same events, slower.
+:func:`available` is False and :mod:`~fsdvs_hw.sensor.simulation.crossings` uses its torch path: same events, slower.
 
 Why C and not numba: the two are equally fast here, but numba's LLVM adds ~125 MB of resident
 memory to every process that loads a kernel, a quarter of the streaming simulator's budget.
@@ -312,7 +312,7 @@ def sort_intervals_to_columns(intervals: list, hw: int, w: int) -> tuple[np.ndar
     this thread's reused work array (``fsdvs_sort_interval_columns``: the scatter into buckets
     touches one cache line per event, not three) and written straight into the columns, which are
     allocated once at the chunk's exact size: the same columns as sorting each interval with
-    :func:`sort_events` and concatenating (:func:`.crossings.to_event_columns`).
+    :func:`sort_events` and concatenating (:func:`~fsdvs_hw.sensor.simulation.crossings.to_event_columns`).
     """
     lib = loaded()
     sizes = [sum(len(q[1]) for q in parts) for parts, _, _ in intervals]

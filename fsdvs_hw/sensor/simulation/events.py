@@ -627,7 +627,7 @@ def _compare(
 ) -> tuple[Any, ...]:
     """Sub-step ``s`` of ``S`` in interval ``k`` up to the comparator's output: the target
     (:func:`_substep_target`), the leak, then :class:`_Comparator` (or the relaxed surrogate).
-    ``fused``: the same arithmetic through :func:`.fused.fused_substep` (no gradient wanted).
+    ``fused``: the same arithmetic through :func:`~fsdvs_hw.sensor.native.fused.fused_substep` (no gradient wanted).
     Returns ``(target, lp, sur, ref, ref_next, n_on, n_off, d_b)``, ``ref`` after the leak; with
     the relaxed surrogate ``n_on``/``n_off`` are its fractional counts."""
     c_on, c_off = st.c_on, st.c_off
@@ -737,7 +737,7 @@ def _advance_steps(
 ) -> list:
     """The stepping loop of :func:`advance_pixels` (same arguments and result); with ``pipe`` the event
     work is submitted to it (each interval's sort future appended to ``events``), by
-    :func:`.chunk_steps.advance_chunk` where :func:`.chunk_steps.chunk_applies`."""
+    :func:`~fsdvs_hw.sensor.native.chunk_steps.advance_chunk` where :func:`~fsdvs_hw.sensor.native.chunk_steps.chunk_applies`."""
     if pipe is not None and chunk_applies(Ls[0], substeps, config, SU is not None, collect_events, want_counts):
         return advance_chunk(st, Ls, CI if config.has_photoreceptor else None, tsd, config, events, pipe, bar)
     B = Ls[0].shape[0]

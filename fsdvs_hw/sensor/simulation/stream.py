@@ -260,7 +260,7 @@ def simulate(
         (pixel index, time, polarity) and 25 bytes in the returned columns (x, y int64, t
         float64, p int8; the batch column of a B = 1 stream is a broadcast zero), plus the
         transient work arrays of the busiest single step (about 100 bytes per event of that
-        step), plus, where the chunk path applies (:mod:`.chunk_steps`), 24 bytes per pixel and
+        step), plus, where the chunk path applies (:mod:`~fsdvs_hw.sensor.native.chunk_steps`), 24 bytes per pixel and
         interval of the chunk in float32 (48 in float64) of pooled work buffers, up to a few
         chunks' worth while they are in flight (1280×720 in chunks of 16: about 350 MB per
         chunk; in the default 2: 44 MB). The per-frame work does not depend on it.
