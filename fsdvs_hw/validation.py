@@ -4,9 +4,11 @@ Every realisation declares its fit options as a pydantic model (:mod:`fsdvs_hw.s
 registry entry (:attr:`fsdvs_hw.realise.registry.RealisationSpec.options`). The design loader
 (:mod:`fsdvs_hw.explore.design`) checks a ``[realisations.<name>]`` table against that model, and
 the fit function checks its own arguments against the same model at its first line
-(:func:`check_fit_arguments`), so a value a design file refuses is refused by the Python call too,
-and the other way round, with the same words: the option, the value and what is allowed. Both
-check before any work starts (a bad value never costs a fit). The rules (no boolean as a number,
+(:func:`check_fit_arguments`, which returns the validated options object the fit then reads), so a
+value a design file refuses is refused by the Python call too, and the other way round, with the
+same words: the option, the value and what is allowed; the rules between options and on the target
+kernel included (:mod:`fsdvs_hw.realise.fit_options`). Both check before any work starts (a bad
+value never costs a fit). The rules (no boolean as a number,
 finite numbers, no float for an integer, ``None`` only where allowed) are those of
 :class:`fsdvs_hw.schema.StrictModel`.
 
