@@ -1,7 +1,8 @@
 """The report's co-design section: fit then swap vs fine-tune vs co-designed, per cell.
 
 :func:`codesign_section` turns the summary that :func:`fsdvs_hw.explore.codesign.run_codesign`
-writes to ``codesign.json`` into an HTML fragment: one table row per (realisation, task) cell with
+returns (and writes to ``codesign.json``), as a :class:`~fsdvs_hw.report.report_input.CodesignSummary`,
+into an HTML fragment: one table row per (realisation, task) cell with
 each row's loss and 95 % CI, the fraction of the fit-then-swap loss that fine-tuning the network
 and co-design recover (with CIs), the realisation's kernel error before and after co-design (the
 hardware's limit) and the Mannos–Sakrison correlation of its kernel before and after (drift
