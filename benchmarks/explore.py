@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fsdvs_hw.explore.design import parse_design
+from fsdvs_hw.design import parse_design
 from fsdvs_hw.explore.emulation import emulation_scores
 from fsdvs_hw.explore.store import ResultsStore
 from fsdvs_hw.explore.sweep import expand_points, run_points

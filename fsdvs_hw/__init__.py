@@ -60,8 +60,12 @@ _LAZY: dict[str, str] = {
     # tasks
     "learn_kernel": "fsdvs_hw.tasks.learn",
     "evaluate_kernel": "fsdvs_hw.tasks.learn",
+    # design files
+    "Design": "fsdvs_hw.design",
+    "DesignError": "fsdvs_hw.design",
+    "load_design": "fsdvs_hw.design",
+    "parse_design": "fsdvs_hw.design",
     # exploration
-    "load_design": "fsdvs_hw.explore.design",
     "run_exploration": "fsdvs_hw.explore.explore",
     "ResultsStore": "fsdvs_hw.explore.store",
     "write_report": "fsdvs_hw.report",
@@ -72,8 +76,8 @@ __all__, __getattr__, __dir__ = lazy_exports("fsdvs_hw", _LAZY, globals(), extra
 if TYPE_CHECKING:  # the same names, visible to IDEs and type checkers
     from .analysis import analyse_kernel
     from .csf import Geometry, contrast_sensitivity, csf_agreement
+    from .design import Design, DesignError, load_design, parse_design
     from .errors import InputError, KernelError
-    from .explore.design import load_design
     from .explore.explore import run_exploration
     from .explore.store import ResultsStore
     from .kernels import Kernel, as_kernel, load_kernel, reference_kernel

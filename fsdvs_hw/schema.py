@@ -1,7 +1,7 @@
 """The one schema engine: strict pydantic models, a field helper with units, one error formatter.
 
 Every checked table of the package is a :class:`StrictModel`: the sections of a design file
-(:mod:`fsdvs_hw.explore.design`) and the fit options of every realisation
+(:mod:`fsdvs_hw.design`) and the fit options of every realisation
 (``fsdvs_hw/realise/*/options.py``, held by :attr:`fsdvs_hw.realise.registry.RealisationSpec.options`).
 The rules are the model's configuration: an unknown key is refused (``extra="forbid"``); a
 boolean is never a number and an integer refuses ``7.0`` (``strict=True``); numbers are finite

@@ -2,7 +2,7 @@
 
 Every realisation declares its fit options as a pydantic model (:mod:`fsdvs_hw.schema`) in its
 registry entry (:attr:`fsdvs_hw.realise.registry.RealisationSpec.options`). The design loader
-(:mod:`fsdvs_hw.explore.design`) checks a ``[realisations.<name>]`` table against that model, and
+(:mod:`fsdvs_hw.design`) checks a ``[realisations.<name>]`` table against that model, and
 the fit function checks its own arguments against the same model at its first line
 (:func:`check_fit_arguments`, which returns the validated options object the fit then reads), so a
 value a design file refuses is refused by the Python call too, and the other way round, with the

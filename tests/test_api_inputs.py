@@ -18,10 +18,10 @@ import torch
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from fsdvs_hw import sensor
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.limits import MAX_SUBSTEPS, allocation_limit
 from fsdvs_hw.scenes import synthetic as scenes
-from fsdvs_hw import sensor
 from fsdvs_hw.sensor.simulation.config import SATURATION_INTENSITY
 
 V = torch.rand(1, 3, 8, 8, generator=torch.Generator().manual_seed(0))
@@ -264,7 +264,7 @@ def _fake_checkpoint(path, height: int, width: int) -> None:
 
 
 def test_design_refuses_a_kernel_larger_than_a_checkpoints_clips(tmp_path):
-    from fsdvs_hw.explore.design import DesignError, parse_design
+    from fsdvs_hw.design import DesignError, parse_design
 
     _fake_checkpoint(tmp_path / "small.safetensors", 8, 8)
     _fake_checkpoint(tmp_path / "big.safetensors", 32, 32)
@@ -283,7 +283,7 @@ def test_design_refuses_a_kernel_larger_than_a_checkpoints_clips(tmp_path):
 
 
 def test_design_refuses_an_emulation_that_cannot_render_its_clips():
-    from fsdvs_hw.explore.design import DesignError, parse_design
+    from fsdvs_hw.design import DesignError, parse_design
 
     small = {"kernel": {"size": 3}, "sensor": {"resolution": [12, 64]}}
     with pytest.raises(DesignError, match=r"sensor\.resolution.*emulation"):

@@ -17,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import require_tool
 from scipy.signal import correlate2d
 
-from conftest import require_tool
+from fsdvs_hw.design import parse_design
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.design import parse_design
 from fsdvs_hw.kernels import reference_kernel
 from fsdvs_hw.realise.artifacts import Artifact, read_index
 from fsdvs_hw.realise.registry import REALISATIONS, RealisationSpec, get_realisation, realisation_names

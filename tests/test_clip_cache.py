@@ -18,8 +18,9 @@ pytest.importorskip("torch")
 imageio = pytest.importorskip("imageio")
 from test_user_datasets import FPS, _bbb_frames, _masks, _write_masks
 
+from fsdvs_hw.design.user_data_inputs import open_dataset
+from fsdvs_hw.design.user_data_section import MaskFramesSource
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.user_data import MaskFramesSource, open_dataset
 from fsdvs_hw.scenes.clip_cache import ENTRY_SUFFIX, ClipDiskCache
 from fsdvs_hw.scenes.datasets import MaskFramesDataset, VideoFolderDataset
 
@@ -174,7 +175,7 @@ def test_design_key_opens_a_confined_bounded_cache(seg, tmp_path):
 def test_the_cache_settings_change_no_explored_point_key(seg, tmp_path):
     from conftest import cheap_design
 
-    from fsdvs_hw.explore.design import load_design
+    from fsdvs_hw.design import load_design
     from fsdvs_hw.explore.sweep import expand_points
 
     source = (

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fsdvs_hw.design import load_design, parse_design
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.design import load_design, parse_design
 from fsdvs_hw.report.codesign_section import CODESIGN_HEADERS, codesign_section
 from fsdvs_hw.report.report_input import CodesignSummary
 from fsdvs_hw.stats import ClipMeans

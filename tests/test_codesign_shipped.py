@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from fsdvs_hw.design import load_design
 from fsdvs_hw.explore.codesign import CODESIGN_FORMAT, summarise_codesign
-from fsdvs_hw.explore.design import load_design
 from fsdvs_hw.report.codesign_section import codesign_section
 from fsdvs_hw.report.report_input import CodesignSummary
 

@@ -17,7 +17,7 @@ pytest.importorskip("torch")
 from conftest import cheap_design
 from test_user_training_design import TABLE, TRAIN, folder  # noqa: F401 (the module fixture)
 
-from fsdvs_hw.explore.design import DesignError, load_design
+from fsdvs_hw.design import DesignError, load_design
 
 CODESIGN = '[codesign]\nenabled = true\nrealisations = ["asic"]\nepochs = 1\nn_train = 4\nlr_filter = 0.05\n'
 
@@ -64,7 +64,7 @@ def test_user_data_codesign_rows_cover_their_estimates_and_a_rerun_reuses_every_
         next((out / "codesign" / "networks").glob("asic_segmentation_s0_finetune_*.provenance.json")).read_text()
     )
     entry = design.data["tasks"]["datasets"]["segmentation"]
-    from fsdvs_hw.explore.user_data import open_dataset
+    from fsdvs_hw.design.user_data_inputs import open_dataset
 
     scored = set(open_dataset(entry["dataset"], folder, key="k").draw(3, 0).tolist())
     assert len(prov["train_indices"]) == 4 and not scored & set(prov["train_indices"])

@@ -13,7 +13,7 @@ from fsdvs_hw.costs.mesh import mesh_cost, thermal_voltage_v
 from fsdvs_hw.costs.metalens import PHOTONS_PER_LUX_S_M2, metalens_cost
 from fsdvs_hw.costs.process import HOROWITZ_2014, adder_area_m2, adder_energy_j, sram_energy_per_bit_j
 from fsdvs_hw.costs.readout import readout_figures
-from fsdvs_hw.explore.design import DesignError, parse_design
+from fsdvs_hw.design import DesignError, parse_design
 
 A = CostAssumptions()
 PITCH = 4.86e-6

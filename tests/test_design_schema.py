@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from fsdvs_hw.cli import main
+from fsdvs_hw.design import DesignError, design_json_schema, load_design, parse_design
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.design import DesignError, design_json_schema, load_design, parse_design
 from fsdvs_hw.realise.asic.options import AsicOptions
 from fsdvs_hw.schema import validate
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from fsdvs_hw.explore.design import load_design
+from fsdvs_hw.design import load_design
 
 REPO = Path(__file__).resolve().parents[1]
 SNAPSHOTS = json.loads((REPO / "tests" / "data" / "design_snapshots.json").read_text())

@@ -91,7 +91,7 @@ def test_design_reads_dsec_detection_and_scores_it(tmp_path):
     from conftest import cheap_design
     from test_user_datasets import PLUGINS
 
-    from fsdvs_hw.explore.design import load_design
+    from fsdvs_hw.design import load_design
     from fsdvs_hw.explore.user_data import dataset_evidence
 
     _sequence(tmp_path / "dsec" / "test")

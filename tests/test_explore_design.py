@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fsdvs_hw.design import DesignError, load_design, parse_design
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.design import DesignError, load_design, parse_design
 from fsdvs_hw.explore.sweep import expand_points
 from fsdvs_hw.kernels import Kernel, load_kernel, reference_kernel
 
@@ -231,7 +231,7 @@ def test_point_key_depends_only_on_what_decides_the_result():
 def test_checkpoint_glob_lists_networks_in_natural_order_and_an_empty_match_is_named(tmp_path):
     import shutil
 
-    from fsdvs_hw.explore.design import parse_design
+    from fsdvs_hw.design import parse_design
 
     src = (
         Path(__file__).parents[1]

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fsdvs_hw.design.display_settings import DisplaySettings
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.emulation import DisplaySettings, display_luminance, recapture, upsample_linear
+from fsdvs_hw.explore.emulation import display_luminance, recapture, upsample_linear
 from fsdvs_hw.kernels import reference_kernel
 
 
@@ -90,7 +91,7 @@ def test_emulation_scores_stay_finite_at_the_extremes():
     """An inverted kernel (negative DC: the filtered clip is mostly below zero and the display
     clips it to black) and a kernel scaled by 1e6 (the display gain removes any scale)."""
     pytest.importorskip("torch")
-    from fsdvs_hw.explore.design import parse_design
+    from fsdvs_hw.design import parse_design
     from fsdvs_hw.explore.emulation import emulation_scores
 
     d = parse_design({"sensor": {"resolution": [24, 32]}, "emulation": {"n_clips": 1, "n_frames": 4}})

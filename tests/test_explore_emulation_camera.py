@@ -10,7 +10,7 @@ from fsdvs_hw.kernels import reference_kernel
 
 def test_camera_preset_changes_the_recapture_only():
     pytest.importorskip("torch")
-    from fsdvs_hw.explore.design import parse_design
+    from fsdvs_hw.design import parse_design
     from fsdvs_hw.explore.emulation import camera_config, emulation_scores
     from fsdvs_hw.sensor import SensorConfig
     from fsdvs_hw.sensor.cameras.presets import sensor_config

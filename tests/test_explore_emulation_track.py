@@ -30,7 +30,7 @@ def test_events_fn_is_what_the_network_sees():
 
 
 def test_task_scores_on_both_tracks():
-    from fsdvs_hw.explore.emulation import DisplaySettings
+    from fsdvs_hw.design.display_settings import DisplaySettings
     from fsdvs_hw.explore.scoring import task_scores
 
     k = load_kernel(KERNELS / "learned_recognition_7x7.json")

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fsdvs_hw.design import load_design, parse_design
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.design import load_design, parse_design
 from fsdvs_hw.explore.scoring import accuracy_losses, fit_realisation, score
 from fsdvs_hw.explore.store import ResultsStore
 from fsdvs_hw.explore.sweep import evaluate_point, expand_points, run_points

@@ -13,9 +13,10 @@ import pytest
 from conftest import cheap_design
 
 from fsdvs_hw.cli import main
+from fsdvs_hw.design import DesignError, check_key, load_design, parse_design
+from fsdvs_hw.design import checkpoints as design_checkpoints
+from fsdvs_hw.design import sections as design_sections
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore import design as design_mod
-from fsdvs_hw.explore.design import DesignError, check_key, load_design, parse_design
 from fsdvs_hw.explore.store import ResultsStore
 from fsdvs_hw.explore.sweep import check_scheduler_address
 from fsdvs_hw.limits import MAX_SEED, MAX_WORKERS, check_count
@@ -267,10 +268,10 @@ def test_a_wide_glob_is_refused_after_a_bounded_walk(tmp_path, monkeypatch):
     (folder / "nets").mkdir(parents=True)
     for i in range(30):
         (folder / "nets" / f"f{i}.txt").write_bytes(b"")
-    monkeypatch.setattr(design_mod, "MAX_GLOB_ENTRIES", 10)
+    monkeypatch.setattr(design_checkpoints, "MAX_GLOB_ENTRIES", 10)
     with pytest.raises(DesignError, match="more than 10 files and folders"):
         load_design(_ckpt_design(folder, "*/*.safetensors"))
-    walked = design_mod._bounded_glob(folder, ["nets", "f1*.txt"], limit=100)
+    walked = design_checkpoints.bounded_glob(folder, ["nets", "f1*.txt"], limit=100)
     assert sorted(p.name for p in walked) == ["f1.txt"] + [f"f{i}.txt" for i in range(10, 20)]
 
 
@@ -303,7 +304,7 @@ def test_check_count_names_the_range():
 
 
 # ---------------------------------------------------------------------- fuzz
-_SCHEMA = {s: list(info.annotation.model_fields) for s, info in design_mod.design_model().model_fields.items()}
+_SCHEMA = {s: list(info.annotation.model_fields) for s, info in design_sections.design_model().model_fields.items()}
 _GARBAGE = st.one_of(
     st.none(),
     st.booleans(),

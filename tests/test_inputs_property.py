@@ -20,13 +20,13 @@ from pathlib import Path
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
+from _schema_view import FieldView, view  # noqa: E402
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from _schema_view import FieldView, view  # noqa: E402
+from fsdvs_hw.design import parse_design  # noqa: E402
+from fsdvs_hw.design import sections as design_sections  # noqa: E402
 from fsdvs_hw.errors import InputError  # noqa: E402
-from fsdvs_hw.explore import design as design_mod  # noqa: E402
-from fsdvs_hw.explore.design import parse_design  # noqa: E402
 from fsdvs_hw.paths import confined_path, safe_name  # noqa: E402
 from fsdvs_hw.realise.registry import REALISATIONS, realisation_names  # noqa: E402
 
@@ -171,7 +171,7 @@ def _bad_for_field(f: FieldView):
 
 
 #: section → its model (the design file's model, built from the registry)
-SECTIONS = {s: info.annotation for s, info in design_mod.design_model().model_fields.items()}
+SECTIONS = {s: info.annotation for s, info in design_sections.design_model().model_fields.items()}
 DESIGN_KEYS = sorted(
     (s, k)
     for s, model in SECTIONS.items()
@@ -358,8 +358,8 @@ def test_a_sweep_run_writes_only_inside_its_output_folder(name, tmp_path_factory
     on=st.floats(1e-4, 10.0),
     off=st.floats(1e-4, 10.0),
     sigma=st.floats(0.0, 1.0),
-    placement=st.sampled_from(design_mod._PLACEMENTS),
-    positivity=st.sampled_from(design_mod._POSITIVITY),
+    placement=st.sampled_from(design_sections._PLACEMENTS),
+    positivity=st.sampled_from(design_sections._POSITIVITY),
     seed=st.integers(0, 2**31 - 1),
 )
 def test_every_sensor_section_a_design_accepts_builds_a_simulator_config(on, off, sigma, placement, positivity, seed):
@@ -393,7 +393,7 @@ def test_every_sensor_section_a_design_accepts_builds_a_simulator_config(on, off
 )
 def test_an_emulation_section_is_accepted_only_if_its_display_can_be_built(bits, gamma, peak, black, up, enabled):
     """The design check and the emulation's DisplaySettings agree (black < peak is checked at load)."""
-    from fsdvs_hw.explore.emulation import DisplaySettings
+    from fsdvs_hw.design.display_settings import DisplaySettings
 
     section = {
         "enabled": enabled,

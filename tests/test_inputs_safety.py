@@ -15,8 +15,8 @@ import pytest
 from conftest import cheap_design
 
 from fsdvs_hw.cli import main
+from fsdvs_hw.design import DesignError, load_design, parse_design
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.design import DesignError, load_design, parse_design
 
 REPO = Path(__file__).resolve().parents[1]
 KERNEL_JSON = REPO / "designs" / "kernels" / "learned_detection_7x7.json"

@@ -1,9 +1,13 @@
-"""The package's layering, as a test: core → models → tasks → report → explore → studies → cli.
+"""The package's layering, as a test: core → models → tasks → design → report → explore → studies → cli.
 
 Every ``import`` in fsdvs_hw — at module level *and* inside functions — is read with :mod:`ast`
 (no code runs), resolved to the fsdvs_hw module it names, and checked: no module imports from a
 higher layer, and no two modules import each other, directly or round a longer loop (a
 function-level cycle is still a cycle: it only moves the failure to run time).
+
+The design layer (:mod:`fsdvs_hw.design`: a design file's schema, validation and the ``Design``
+object) is the input every layer above reads, so it sits below the report and the exploration
+pipeline and may use the tasks and models below it, never explore.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "fsdvs_hw"
 
 #: Layers, lowest first. A module may import from its own layer and the ones below.
-LAYERS: tuple[str, ...] = ("core", "models", "tasks", "report", "explore", "studies", "cli")
+LAYERS: tuple[str, ...] = ("core", "models", "tasks", "design", "report", "explore", "studies", "cli")
 
 #: Top-level modules of the core layer (kernels, spectra, CSF, statistics and their helpers).
 _CORE = {
@@ -62,6 +66,8 @@ def layer_of(module: str) -> str:
         return "models"
     if top == "tasks":
         return "tasks"
+    if top == "design":
+        return "design"
     if top == "report":
         return "report"
     if top == "explore":

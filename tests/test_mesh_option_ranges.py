@@ -17,8 +17,8 @@ import math
 import pytest
 from pydantic import ValidationError
 
+from fsdvs_hw.design import DesignError, parse_design
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.design import DesignError, parse_design
 from fsdvs_hw.kernels import reference_kernel
 from fsdvs_hw.realise.mesh.options import MeshOptions
 from fsdvs_hw.validation import check_fit_arguments

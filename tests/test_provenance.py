@@ -40,7 +40,7 @@ def test_ipopt_version_is_the_one_that_solves(capfd):
 
 
 def test_a_scored_point_keeps_the_versions_it_was_computed_with():
-    from fsdvs_hw.explore.design import parse_design
+    from fsdvs_hw.design import parse_design
     from fsdvs_hw.explore.sweep import evaluate_point, expand_points
     from fsdvs_hw.records import Score
 

@@ -29,11 +29,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _schema_view import view
 
 from fsdvs_hw.kernels import Kernel, reference_kernel
-from fsdvs_hw.records import Score, ScoredPoint
 from fsdvs_hw.realise import registry
-from _schema_view import view
 from fsdvs_hw.realise.registry import (
     COST_UNITS,
     get_realisation,
@@ -42,6 +41,7 @@ from fsdvs_hw.realise.registry import (
     register_realisation,
     unregister_realisation,
 )
+from fsdvs_hw.records import Score, ScoredPoint
 
 PLUGINS = Path(__file__).resolve().parent / "plugins"
 NAMES = [*realisation_names(), "box"]
@@ -210,7 +210,7 @@ def test_json_round_trip_rebuilds_the_same_realisation(name, target):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_every_option_reaches_the_fit_function_from_a_design_file(name, monkeypatch):
-    from fsdvs_hw.explore.design import parse_design
+    from fsdvs_hw.design import parse_design
     from fsdvs_hw.explore.sweep import evaluate_point, expand_points
 
     spec = get_realisation(name)
@@ -353,7 +353,7 @@ def test_spawned_workers_know_a_plugin_registered_in_the_parent(tmp_path):
     refused as unknown."""
     import os
 
-    from fsdvs_hw.explore.design import parse_design
+    from fsdvs_hw.design import parse_design
     from fsdvs_hw.explore.sweep import run_design
 
     assert "toy_realisation" in os.environ[registry.PLUGIN_ENV].split(os.pathsep)
@@ -395,7 +395,7 @@ def _bound_probes(opt) -> list:
 
 
 def _design_accepts(name, key, value) -> bool:
-    from fsdvs_hw.explore.design import DesignError, parse_design
+    from fsdvs_hw.design import DesignError, parse_design
 
     try:
         parse_design({"realisations": {"include": [name], name: {key: value}}}, source="ranges")
@@ -431,7 +431,7 @@ def _fit_accepts(spec, target, key, value, monkeypatch) -> bool:
 
 @pytest.mark.parametrize("name", [*realisation_names("hardware"), "box"])
 def test_a_design_file_and_the_fit_accept_the_same_values_at_every_bound(name, monkeypatch):
-    from fsdvs_hw.explore.design import parse_design
+    from fsdvs_hw.design import parse_design
 
     spec = get_realisation(name)
     target = parse_design({}, source="ranges").target  # the target a design file's fit gets

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from fsdvs_hw.cli import main
-from fsdvs_hw.explore.design import parse_design
+from fsdvs_hw.design import parse_design
 from fsdvs_hw.kernels import Kernel, reference_kernel
 from fsdvs_hw.realise.base import kernel_error
 from fsdvs_hw.records import ScoredPoint

@@ -24,7 +24,7 @@ from pathlib import Path
 import pytest
 
 from fsdvs_hw.cli import main
-from fsdvs_hw.explore.design import load_design
+from fsdvs_hw.design import load_design
 from fsdvs_hw.explore.reporting import report_input
 from fsdvs_hw.records import ScoredPoint
 from fsdvs_hw.report import write_report

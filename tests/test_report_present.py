@@ -11,15 +11,14 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fsdvs_hw.report import present
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.kernels import Kernel, reference_kernel
 from fsdvs_hw.realise.registry import REALISATIONS
 from fsdvs_hw.records import Cost, ScoredPoint
-from fsdvs_hw.report import figures
+from fsdvs_hw.report import figures, present
 from fsdvs_hw.report.html import _quantities
-from fsdvs_hw.report.redraw import write_report_from_scores
 from fsdvs_hw.report.present import number, point_title, si, style
+from fsdvs_hw.report.redraw import write_report_from_scores
 from fsdvs_hw.report.tables import score_rows
 from fsdvs_hw.report.verdict import advice, verdict_table
 
@@ -284,10 +283,10 @@ HOSTILE = "<script>alert('x')</script> & co"
 def test_labels_with_markup_are_escaped_in_the_html():
     """The templates autoescape: a design name, a realisation, a failure reason, artifact names and
     co-design labels holding ``<script>`` and ``&`` appear as text, never as markup."""
-    from fsdvs_hw.explore.design import parse_design
+    from fsdvs_hw.design import parse_design
+    from fsdvs_hw.explore.reporting import report_input
     from fsdvs_hw.report.artifact_links import artifacts_html
     from fsdvs_hw.report.codesign_section import codesign_section
-    from fsdvs_hw.explore.reporting import report_input
     from fsdvs_hw.report.html import render_html
     from fsdvs_hw.report.report_input import CodesignSummary
 

@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 
 from fsdvs_hw.cli.explore import parse_overrides
+from fsdvs_hw.design import load_design
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.design import load_design
 from fsdvs_hw.resources import DEFAULT_DESIGN, designs_dir, resolve_design, shipped_designs, shipped_path
 
 REPO = Path(__file__).resolve().parents[1]

@@ -76,7 +76,8 @@ def test_camera_configs_build_and_unknown_names_refused():
 def test_design_files_offer_every_preset_as_the_emulation_camera():
     """design.py lists the cameras without importing the simulator; the list must follow the presets,
     and a design that names one records it (a design that does not keeps its content unchanged)."""
-    from fsdvs_hw.explore.design import EMULATION_CAMERAS, parse_design
+    from fsdvs_hw.design import parse_design
+    from fsdvs_hw.design.sections import EMULATION_CAMERAS
     from fsdvs_hw.sensor.cameras.presets import SENSOR_PRESETS
 
     assert set(EMULATION_CAMERAS) == {"design", *SENSOR_PRESETS}

@@ -21,9 +21,9 @@ imageio = pytest.importorskip("imageio")
 from conftest import cheap_design
 from test_user_datasets import FPS, PLUGINS, _bbb_frames, _coco_doc, _masks, _write_coco, _write_masks
 
+from fsdvs_hw.design import DesignError, load_design
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.design import DesignError, load_design
-from fsdvs_hw.explore.user_data import UserTask
+from fsdvs_hw.design.user_data_section import UserTask
 
 #: The mask dataset's table: 6 frames, clips of 3 starting every frame → 4 clips; clip c is scored
 #: on the label mask s_00{c+2}.png.

@@ -16,8 +16,10 @@ import pytest
 pytest.importorskip("torch")
 from test_user_datasets import _masks, _write_masks
 
+from fsdvs_hw.design.user_data_inputs import check_user_task, train_split_dataset
+from fsdvs_hw.design.user_data_section import UserTask
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.user_data import UserTask, check_user_task, train_split_dataset, train_user_task
+from fsdvs_hw.explore.user_data import train_user_task
 
 CLASSES = ("ApplyEyeMakeup", "Archery")
 
@@ -61,7 +63,7 @@ def recorded(monkeypatch) -> list[tuple]:
 
 
 def test_ucf101_trainlist_trains_and_testlist_scores_disjoint_by_file(ucf, recorded):
-    from fsdvs_hw.explore.user_data import open_dataset
+    from fsdvs_hw.design.user_data_inputs import open_dataset
 
     entry = _entry(
         {"format": "video_folder", "root": "ucf", "split": "testlist01.txt", "n_frames": 4},

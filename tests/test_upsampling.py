@@ -168,7 +168,7 @@ def test_plan_turns_upsampling_on_for_fast_motion_and_says_why():
 
 
 def test_design_key_emulation_upsample_is_checked_and_unset_keeps_the_fingerprint():
-    from fsdvs_hw.explore.design import DesignError, parse_design
+    from fsdvs_hw.design import DesignError, parse_design
 
     plain = parse_design({"design": {"name": "u"}})
     linear = parse_design({"design": {"name": "u"}, "emulation": {"upsample": "linear_light"}})

@@ -23,8 +23,8 @@ imageio = pytest.importorskip("imageio")
 from conftest import cheap_design
 from test_user_datasets import FPS, PLUGINS, _bbb_frames, _coco_doc, _masks, _write_coco, _write_masks
 
+from fsdvs_hw.design import DesignError, load_design
 from fsdvs_hw.errors import InputError
-from fsdvs_hw.explore.design import DesignError, load_design
 from fsdvs_hw.stats import ConfusionMIoU
 from fsdvs_hw.tasks.metrics import segmentation_scores
 
@@ -157,7 +157,7 @@ def test_bad_user_data_keys_are_refused_naming_the_key(user_folder):
 def test_a_clip_that_does_not_decode_is_a_task_status_not_a_traceback(user_folder, tmp_path):
     """Layouts are checked at load; a frame that breaks later surfaces as the task's status."""
     from fsdvs_hw.explore.scoring import task_scores
-    from fsdvs_hw.explore.user_data import UserTask
+    from fsdvs_hw.design.user_data_section import UserTask
 
     folder = tmp_path / "d"
     shutil.copytree(user_folder / "data" / "seg", folder / "seg")
@@ -253,7 +253,7 @@ def test_cuda_gives_the_cpu_events_and_metric_on_a_noise_free_sensor(user_folder
 def test_design_sensor_thresholds_reach_user_data_tasks(user_folder):
     """``tasks.sensor = "design"``: the design's thresholds replace the default's; a higher one fires less."""
     from fsdvs_hw.explore.scoring import task_scores
-    from fsdvs_hw.explore.user_data import UserTask
+    from fsdvs_hw.design.user_data_section import UserTask
 
     entry = UserTask.model_validate(
         {

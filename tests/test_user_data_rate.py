@@ -42,7 +42,7 @@ def _folder(tmp_path: Path) -> Path:
 
 
 def test_dataset_rate_curve_pairs_with_the_explored_score(tmp_path, monkeypatch):
-    from fsdvs_hw.explore.design import load_design
+    from fsdvs_hw.design import load_design
     from fsdvs_hw.explore.rate import dataset_rate_curve
     from fsdvs_hw.explore.user_data import dataset_evidence
 

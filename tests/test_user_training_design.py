@@ -18,8 +18,8 @@ pytest.importorskip("torch")
 from conftest import cheap_design
 from test_user_datasets import PLUGINS, _masks, _write_masks
 
-from fsdvs_hw.explore.design import DesignError, load_design
-from fsdvs_hw.explore.user_data import open_dataset
+from fsdvs_hw.design import DesignError, load_design
+from fsdvs_hw.design.user_data_inputs import open_dataset
 
 TABLE = """
 [tasks.datasets.segmentation]

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fsdvs_hw.design import DesignError, parse_design
 from fsdvs_hw.errors import InputError, KernelError
-from fsdvs_hw.explore.design import DesignError, parse_design
 from fsdvs_hw.kernels import Kernel, load_kernel, reference_kernel
 from fsdvs_hw.schema import field_schema, members
 
@@ -143,7 +143,7 @@ def test_taps_that_overflow_or_vanish_in_float32_are_refused_where_float32_or_ha
         event_frames(torch.ones(1, 2, 8, 8), torch.full((3, 3), peak, dtype=torch.float64))
     k.save(tmp_path / "k.json")
     (tmp_path / "d.toml").write_text('[kernel]\nsource = "file"\npath = "k.json"\n')
-    from fsdvs_hw.explore.design import load_design
+    from fsdvs_hw.design import load_design
 
     with pytest.raises(DesignError, match=r"kernel\.path.*largest"):
         load_design(tmp_path / "d.toml")

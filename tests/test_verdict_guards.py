@@ -14,7 +14,7 @@ import pytest
 
 from fsdvs_hw.costs import CostAssumptions, physical_cost
 from fsdvs_hw.costs.limits import assumption_at, cost_flips, costed, shared_node_error
-from fsdvs_hw.explore.design import parse_design
+from fsdvs_hw.design import parse_design
 from fsdvs_hw.records import Score, ScoredPoint
 from fsdvs_hw.stats import ClipMeans, CocoDetections, ConfusionMIoU, chance_metric
 

@@ -125,8 +125,8 @@ _SYNTHETIC_ONLY: dict[str, Any] = {
 
 
 def _run_on_design(args: argparse.Namespace) -> int:
+    from ..design import load_design
     from ..errors import InputError
-    from ..explore.design import load_design
     from ..studies.user_kernel_size_ablation import run_user_ablation
 
     given = [f"--{k.replace('_', '-')}" for k, v in _SYNTHETIC_ONLY.items() if getattr(args, k) != v]

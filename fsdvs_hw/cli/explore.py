@@ -70,9 +70,9 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
     ------
     InputError
         An item without ``=`` or with an empty key; a key that is not in the design schema
-        (:func:`fsdvs_hw.explore.design.check_key`: one line with the closest allowed keys).
+        (:func:`fsdvs_hw.design.keys.check_key`: one line with the closest allowed keys).
     """
-    from ..explore.design import check_key
+    from ..design import check_key
 
     out: dict[str, Any] = {}
     for item in items:
@@ -107,7 +107,7 @@ def with_device(design: Any, device: str) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..explore.design import load_design
+    from ..design import load_design
     from ..explore.explore import run_exploration
     from ..paths import output_dir
     from ..report.failures import EXIT_TASK_FAILED, failure_lines, task_failures

@@ -83,9 +83,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _run_on_design(args: argparse.Namespace) -> int:
     """``--design``: train the user-data task's network and kernel (:func:`fsdvs_hw.explore.user_data.train_user_task`)."""
+    from ..design import load_design
+    from ..design.user_data_inputs import open_dataset
     from ..errors import InputError
-    from ..explore.design import load_design
-    from ..explore.user_data import open_dataset, train_user_task
+    from ..explore.user_data import train_user_task
     from ..tasks.dataset_eval import evaluate_on_dataset
 
     given = [f"--{k.replace('_', '-')}" for k in _SYNTHETIC_ONLY if getattr(args, k) is not None]

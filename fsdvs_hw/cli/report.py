@@ -43,7 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..explore.design import load_design
+    from ..design import load_design
     from ..explore.reporting import report_input
     from ..paths import output_dir
     from ..report import write_report_from_scores

@@ -1,4 +1,4 @@
-"""``fsdvs-hw schema``: write the JSON Schema of design files (:func:`fsdvs_hw.explore.design.design_json_schema`)."""
+"""``fsdvs-hw schema``: write the JSON Schema of design files (:func:`fsdvs_hw.design.sections.design_json_schema`)."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import fsdvs_hw.realise  # noqa: F401  (registers the built-in realisations)
 
-    from ..explore.design import design_json_schema
+    from ..design import design_json_schema
     from ..paths import output_file, write_output
 
     out = None if args.out is None else output_file(args.out, flag="--out")  # checked before any work

@@ -40,7 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..explore.design import load_design
+    from ..design import load_design
     from ..explore.explore import run_exploration
     from ..explore.sizing import budget_table, size_test_sets
     from ..explore.store import ResultsStore

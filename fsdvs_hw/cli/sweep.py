@@ -44,7 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..explore.design import load_design
+    from ..design import load_design
     from ..explore.sweep import expand_points, run_design
     from ..paths import output_dir, output_file
     from ..resources import resolve_design

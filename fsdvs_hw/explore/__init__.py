@@ -5,7 +5,7 @@ of a design's kernel, scores each (:mod:`~fsdvs_hw.explore.scoring`), stores one
 point (:mod:`~fsdvs_hw.explore.store`) and writes the HTML report (:mod:`fsdvs_hw.report`).
 ``fsdvs-hw sweep DESIGN`` (:mod:`~fsdvs_hw.explore.sweep`) runs a design's sweep axes on a local
 process pool or a Dask cluster. Design files are read and validated by
-:mod:`~fsdvs_hw.explore.design`; the sensor-in-the-loop emulation track lives in
+:mod:`fsdvs_hw.design`; the sensor-in-the-loop emulation track lives in
 :mod:`~fsdvs_hw.explore.emulation`; ``fsdvs-hw bench explore`` is ``benchmarks/explore.py`` (a checkout).
 Per-clip task evidence (same clips, noise and networks for every kernel) is
 :mod:`~fsdvs_hw.explore.paired`; the losses' confidence intervals come from :mod:`fsdvs_hw.stats`;
@@ -17,24 +17,19 @@ on the rate curves of :mod:`~fsdvs_hw.explore.rate`).
 
 from __future__ import annotations
 
-from .design import Design, DesignError, load_design, parse_design
 from .matched import with_matched_rates
 from .scoring import accuracy_losses, fit_realisation, paired_losses, score, with_paired_losses
 from .store import ResultsStore
 from .sweep import DesignPoint, evaluate_point, expand_points, run_design, run_points
 
 __all__ = [
-    "Design",
-    "DesignError",
     "DesignPoint",
     "ResultsStore",
     "accuracy_losses",
     "evaluate_point",
     "expand_points",
     "fit_realisation",
-    "load_design",
     "paired_losses",
-    "parse_design",
     "run_design",
     "run_exploration",
     "run_points",

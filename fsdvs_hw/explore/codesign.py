@@ -55,12 +55,13 @@ from typing import Any
 
 import numpy as np
 
+from ..design import Design
+from ..design.sections import CODESIGN_MODES
 from ..environment import env
 from ..errors import InputError
 from ..fingerprints import fingerprint
 from ..paths import write_output
 from ..stats import multiplicities
-from .design import CODESIGN_MODES, Design
 from .paired import encode_evidence
 from .user_data import ONE_NETWORK_NOTE
 

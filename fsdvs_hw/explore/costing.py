@@ -15,7 +15,7 @@ assumptions they rest on.
 
 Examples
 --------
->>> from fsdvs_hw.explore.design import parse_design
+>>> from fsdvs_hw.design import parse_design
 >>> d = parse_design({"realisations": {"include": ["learned"]},
 ...                   "sweep": {"axes": {"costs.process_node_m": [45e-9, 180e-9]}}})
 >>> cost_settings(d)
@@ -30,8 +30,8 @@ from typing import Any
 
 from ..costs import CostAssumptions, PhysicalCost
 from ..costs.limits import costed
+from ..design.design import Design, axis_values
 from ..records import CostFlip, CostSetting, ScoredPoint
-from .design import Design, axis_values
 from .scoring import sweep_setting
 
 __all__ = ["cost_settings", "with_physical_costs"]

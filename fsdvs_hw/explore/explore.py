@@ -16,10 +16,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..design import Design, load_design
 from ..paths import output_dir
 from ..records import ScoredPoint
 from .costing import with_physical_costs
-from .design import Design, load_design
 from .matched import with_matched_rates
 from .measurability import measured_losses
 from .point_artifacts import with_point_artifacts
@@ -92,7 +92,7 @@ def run_exploration(
 
     >>> import tempfile
     >>> from fsdvs_hw import run_exploration
-    >>> from fsdvs_hw.explore.design import parse_design
+    >>> from fsdvs_hw.design import parse_design
     >>> design = parse_design({"realisations": {"include": ["learned", "delta", "asic"]},
     ...                        "emulation": {"enabled": False}, "run": {"workers": 1},
     ...                        "analysis": {"csf_methods": ["mannos_sakrison_1974"]}})

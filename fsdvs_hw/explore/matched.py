@@ -149,7 +149,7 @@ def reference_curves(
 
     Parameters
     ----------
-    design : fsdvs_hw.explore.design.Design
+    design : fsdvs_hw.design.Design
         With ``[rate]`` (thresholds, references) and ``[tasks]``.
     points : sequence of mapping
         The exploration's stored points (with per-clip evidence): the references' points at the
@@ -361,7 +361,7 @@ def with_matched_rates(
     ----------
     points : sequence of ScoredPoint
         Stored points, before the per-clip evidence is dropped.
-    design : fsdvs_hw.explore.design.Design
+    design : fsdvs_hw.design.Design
     out_dir : path
         The exploration's output folder (curve points saved under ``rate_curves/``).
     progress : bool, optional

@@ -1050,7 +1050,7 @@ def dataset_rate_curve(
     task : str
         The table's task.
     entry : mapping
-        The validated ``[tasks.datasets.<task>]`` table (:class:`fsdvs_hw.explore.user_data.UserTask` dumped).
+        The validated ``[tasks.datasets.<task>]`` table (:class:`fsdvs_hw.design.user_data_section.UserTask` dumped).
     base_dir : path
         The design file's folder.
     thresholds : sequence of float

@@ -9,8 +9,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from ..design import Design
 from ..report.report_input import CodesignSummary, ReportInput
-from .design import Design
 
 __all__ = ["report_input"]
 

@@ -346,8 +346,9 @@ def _evidence_record(
     t0: float,
 ) -> dict[str, Any]:
     """A scored track's record from its networks' evidence (:func:`task_scores`' Returns)."""
+    from ..design.user_data_section import DEFAULT_MAX_FAILED_CLIP_FRACTION
     from .paired import encode_evidence, event_rate_ci
-    from .user_data import DEFAULT_MAX_FAILED_CLIP_FRACTION, user_task_record
+    from .user_data import user_task_record
 
     per_seed = [e.value for e in evid]
     rec: dict[str, Any] = {
@@ -423,7 +424,8 @@ def _record_networks(tasks: dict[str, Any], target: Kernel) -> None:
 
 def _recaptured_events(kernel: Kernel, display: Any) -> Any:
     """``events_fn`` for ``evaluate_kernel``: the sensor-in-the-loop emulation of ``kernel``."""
-    from .emulation import DisplaySettings, recapture
+    from ..design.display_settings import DisplaySettings
+    from .emulation import recapture
 
     shown = display if display is not None else DisplaySettings()
 
@@ -484,7 +486,7 @@ def score(
     t1 = time.perf_counter()
     opts = dict(task_options or {})
     if "emulation" in opts.get("tracks", ()) and emulation is not None and "display" not in opts:
-        from .emulation import DisplaySettings
+        from ..design.display_settings import DisplaySettings
 
         opts["display"] = DisplaySettings.from_design(emulation["emulation"])
     tasks = task_scores(realised, dict(checkpoints or {}), **opts)

@@ -33,6 +33,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol, TypeVar, cast
 
+from ..design.design import Design, axis_values
+from ..design.sections import design_model
+from ..design.user_data_section import DEFAULT_MAX_FAILED_CLIP_FRACTION
 from ..environment import env, set_env
 from ..errors import InputError
 from ..fingerprints import fingerprint
@@ -40,9 +43,7 @@ from ..limits import MAX_WORKERS, check_count
 from ..provenance import library_versions
 from ..records import Score, ScoredPoint
 from ..schema import DESIGN_CONTEXT
-from .design import Design, axis_values, design_model
 from .store import ResultsStore
-from .user_data import DEFAULT_MAX_FAILED_CLIP_FRACTION
 
 __all__ = [
     "DesignPoint",
@@ -97,7 +98,7 @@ class DesignPoint:
 
     @property
     def spec(self) -> Any:
-        """The point's design, typed (the model of :func:`~fsdvs_hw.explore.design.design_model`):
+        """The point's design, typed (the model of :func:`~fsdvs_hw.design.sections.design_model`):
         ``point.spec.run.seed``, ``point.spec.tasks.checkpoints``; :attr:`data` is its JSON form."""
         return design_model().model_validate(self.data, context=DESIGN_CONTEXT)
 

@@ -1,33 +1,10 @@
-"""User datasets and networks in a design file: ``[tasks.datasets.<task>]`` and its paired evidence.
+"""User datasets and networks at run time: training a ``[tasks.datasets.<task>]`` network and its paired evidence.
 
-A design scores its realisations on the user's own clips with the user's own network by naming
-them per task::
-
-    [tasks.datasets.recognition]
-    dataset = { format = "video_folder", root = "data/ucf", split = "testlist01.txt", n_frames = 8,
-                size = [64, 64], cache = { dir = "clip_cache", max_mb = 2000.0 } }   # cache: optional
-    network = "mynets.video:tiny"          # "package.module:factory" (None: the built-in network)
-    network_options = { width = 16 }       # more keyword arguments of the factory
-    weights = "nets/tiny.safetensors"      # .safetensors / .pt / .pth state dict (optional)
-    n_clips = 200                          # clips drawn with `seed` (0 = every clip)
-    max_failed_clip_fraction = 0.05        # clips that fail to read are skipped, up to this fraction
-    train = { split = "trainlist01.txt" }  # optional: train first, on the dataset's own training split
-
-The ``format`` picks the reader (:mod:`fsdvs_hw.scenes.datasets`) and with it the task, which
-must be the table's name: ``video_folder`` → recognition (UCF101 layout), ``coco_frames`` →
-detection (frames + COCO JSON), ``mask_frames`` → segmentation (frames + label PNGs). ``root``
-is relative to the design file and, like every path of a design, must stay inside its folder
-(symbolic links are followed first); the reader's other paths are relative to ``root``.
-
-``dataset.cache`` keeps decoded clips in a bounded folder (:mod:`fsdvs_hw.scenes.clip_cache`);
-it changes no clip, so it is left out of the training fingerprint (and the exploration's point
-keys). ``train.split`` trains on the dataset's own training split
-(:func:`train_split_dataset`), refused when it shares a file with the scored clips
-(:func:`check_disjoint_files`).
-
-The factory is imported from ``sys.path`` or from the design file's folder, and called as
-``factory(in_channels=2 * (n_frames - 1), num_classes=<the dataset's>, **network_options)``
-(:func:`fsdvs_hw.tasks.user_networks.load_network_factory`).
+The table itself (its keys and their checks) is :mod:`fsdvs_hw.design.user_data_section`; the
+dataset and network it names are opened by :mod:`fsdvs_hw.design.user_data_inputs`.
+:func:`train_user_task` trains the table's network on the clips not scored (or on its
+``train.split``), :func:`finetune_user_network` trains it further with a realised kernel, and
+:func:`open_network` is the network a table scores with (trained where it has a ``train`` table).
 
 :func:`dataset_evidence` scores a kernel on the drawn clips (:func:`fsdvs_hw.tasks.dataset_eval.
 evaluate_on_dataset`) and keeps each clip's contribution as the same :mod:`fsdvs_hw.stats` metric
@@ -53,44 +30,34 @@ Cordts et al., "The Cityscapes Dataset", CVPR (2016) — label-mask PNGs with an
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import dataclasses
 import functools
 import hashlib
 import json
-import sys
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Any
 
 import numpy as np
-from pydantic import Field
 
+from ..design.design_paths import resolve_design_path
+from ..design.user_data_inputs import (
+    build_user_network,
+    check_disjoint_files,
+    open_dataset,
+    open_untrained_network,
+    train_split_dataset,
+)
+from ..design.user_data_section import DEFAULT_MAX_FAILED_CLIP_FRACTION, FORMAT_TASK, TrainSpec
 from ..errors import InputError
-from ..limits import MAX_CLIPS, MAX_EPOCHS, MAX_SEED
-from ..paths import confined_path
-from ..schema import StrictModel, field
 
 __all__ = [
-    "DEFAULT_MAX_FAILED_CLIP_FRACTION",
-    "FORMAT_TASK",
     "ONE_NETWORK_NOTE",
-    "ClipCacheSpec",
-    "CocoFramesSource",
-    "DsecDetectionSource",
-    "MaskFramesSource",
-    "TrainSpec",
-    "UserTask",
-    "VideoFolderSource",
-    "check_disjoint_files",
-    "check_user_task",
     "dataset_evidence",
     "finetune_user_network",
-    "open_dataset",
     "open_network",
-    "train_split_dataset",
     "train_user_task",
     "user_network_identity",
     "user_task_record",
@@ -101,388 +68,14 @@ ONE_NETWORK_NOTE = (
     "one user network: the loss CI resamples the clips only (n_seeds = 1); network-to-network variance is not in it"
 )
 
-#: ``[tasks.datasets.<task>] max_failed_clip_fraction`` when a table does not set it.
-DEFAULT_MAX_FAILED_CLIP_FRACTION = 0.05
-
-#: Dataset format → the task (evaluator) its targets are for.
-FORMAT_TASK: dict[str, str] = {
-    "video_folder": "recognition",
-    "coco_frames": "detection",
-    "dsec_detection": "detection",
-    "mask_frames": "segmentation",
-}
-
-_Side = Annotated[int, Field(ge=1, le=16384)]
-_Count = Annotated[int, Field(ge=1, le=100_000)]
-
-
-class ClipCacheSpec(StrictModel):
-    """``dataset.cache = {dir = "...", max_mb = ...}``: decoded clips kept on disk (:mod:`fsdvs_hw.scenes.clip_cache`)."""
-
-    unknown_key = "unknown key of a dataset's cache table"
-
-    dir: str = field(
-        ...,
-        "",
-        "folder of the cache entries, relative to the design file (must stay inside its "
-        "folder); may be shared by datasets and designs: max_mb bounds the folder",
-    )
-    max_mb: float = field(
-        ...,
-        "MB",
-        "most megabytes (10**6 bytes) of decoded clips kept; the least recently used are deleted beyond it",
-        gt=0.0,
-        le=1e9,
-    )
-
-
-class _Source(StrictModel):
-    """Keys every dataset format shares."""
-
-    root: str = field(..., "", "the dataset's folder, relative to the design file (must stay inside its folder)")
-    n_frames: int = field(8, "frames", "frames per clip (T)", ge=2, le=10_000)
-    size: list[_Side] | None = field(
-        None,
-        "px",
-        "resize every frame to [H, W] pixels (linear light; boxes scaled, "
-        "masks nearest-neighbour); None = the files' size (all must agree)",
-        min_length=2,
-        max_length=2,
-    )
-    transfer: str = field(
-        "sRGB", "", "transfer function undone to get linear luminance (a colour-science CCTF_DECODINGS name)"
-    )
-    cache_clips: int = field(0, "clips", "decoded clips kept in memory (LRU; 0 = none)", ge=0, le=MAX_CLIPS)
-    cache: ClipCacheSpec | None = field(
-        None, "", "decoded clips kept on disk, bounded: {dir = 'folder', max_mb = size}; None = decode every time"
-    )
-
-
-class VideoFolderSource(_Source):
-    """``format = "video_folder"``: ``root/<class>/<video>`` (UCF101 layout), one clip per video."""
-
-    format: Literal["video_folder"] = field("video_folder", "", "class folders of videos (recognition)")
-    split: str | None = field(
-        None, "", "UCF101 split file (testlist01.txt) relative to root: only the videos it lists; None = every video"
-    )
-    fps: float | None = field(
-        None, "Hz", "frame rate for the timestamps; None = each video container's", gt=0.0, le=1e6
-    )
-    stride: _Count = field(1, "frames", "take every stride-th frame of a video")
-    start_frame: int = field(0, "frames", "first frame of a video used", ge=0, le=10**9)
-
-
-class CocoFramesSource(_Source):
-    """``format = "coco_frames"``: frame images plus a COCO JSON of boxes per frame (detection)."""
-
-    format: Literal["coco_frames"] = field("coco_frames", "", "frames + COCO-JSON boxes (detection)")
-    split: str = field("", "", "subfolder of root holding this split ('val'); '' = root itself")
-    frames: str = field("frames", "", "folder of the frame images, relative to root/split")
-    annotations: str = field("instances.json", "", "the COCO JSON, relative to root/split")
-    fps: float = field(30.0, "Hz", "frame rate of the image sequence", gt=0.0, le=1e6)
-    clip_stride: _Count | None = field(
-        None, "frames", "a clip starts every clip_stride frames; None = n_frames (no overlap)"
-    )
-    require_annotations: bool = field(True, "", "every image must have at least one box")
-
-
-class DsecDetectionSource(_Source):
-    """``format = "dsec_detection"``: DSEC-Detection sequences (rectified left images + tracks.npy)."""
-
-    format: Literal["dsec_detection"] = field("dsec_detection", "", "DSEC-Detection layout (detection)")
-    split: str = field("", "", "subfolder of root holding this split's sequences ('test'); '' = root itself")
-    clip_stride: _Count = field(1, "clips", "keep every clip_stride-th labelled image as a clip's last frame")
-    class_names: list[str] | None = field(
-        None, "", "names of the class_id values; None = DSEC's 8 classes", min_length=1
-    )
-
-
-class MaskFramesSource(_Source):
-    """``format = "mask_frames"``: frame images plus label-mask PNGs (segmentation)."""
-
-    format: Literal["mask_frames"] = field("mask_frames", "", "frames + label-mask PNGs (segmentation)")
-    split: str = field("", "", "subfolder of root holding this split ('val'); '' = root itself")
-    frames: str = field("frames", "", "folder of the frame images, relative to root/split")
-    masks: str = field("masks", "", "folder of the label PNGs (a class per pixel), relative to root/split")
-    num_classes: int = field(
-        ..., "", "classes of the masks (labels in [0, num_classes) or ignore_index)", ge=2, le=65535
-    )
-    ignore_index: int | None = field(
-        255, "", "label that is not scored (Cityscapes: 255); None = every pixel", ge=0, le=65535
-    )
-    frame_suffix: str = field("", "", "stem suffix of a frame removed to find its mask (Cityscapes: '_leftImg8bit')")
-    mask_suffix: str = field(".png", "", "appended to the stem to name the mask ('_gtFine_labelTrainIds.png')")
-    fps: float = field(30.0, "Hz", "frame rate of the image sequence", gt=0.0, le=1e6)
-    clip_stride: _Count | None = field(None, "frames", "a clip starts every clip_stride frames; None = n_frames")
-
-
-class TrainSpec(StrictModel):
-    """``[tasks.datasets.<task>] train = {...}``: train the network (and learn a kernel) on the user's clips.
-
-    The FS-DVS two-stage protocol (:func:`fsdvs_hw.tasks.dataset_training.train_on_dataset`):
-    stage one trains the network with the kernel frozen (delta + noise), stage two trains both
-    with decoupled AdamW rates. From scratch without ``weights``; fine-tuning from them with.
-    The training clips are a seeded draw from the clips NOT scored (disjoint from them), or from
-    the dataset's own training split (``split``), which must share no file with the scored clips.
-    """
-
-    unknown_key = "unknown key of a user-data task's train table"
-
-    out: str = field(
-        "",
-        "",
-        "file stem of the trained network + kernel (STEM.safetensors, STEM.json), relative "
-        "to the design file; '' = trained/<task>",
-    )
-    split: str | None = field(
-        None,
-        "",
-        "the dataset's own training split, read like dataset.split: video_folder a "
-        "split file relative to root (UCF101 'trainlist01.txt'), the other formats a subfolder "
-        "of root ('train'); None = a seeded draw from the clips not scored",
-    )
-    kernel_size: int = field(7, "px", "side of the learned kernel", ge=1, le=15, odd=True)
-    learn_kernel: bool = field(
-        True, "", "false: the kernel stays the delta in both stages (a network for a conventional DVS)"
-    )
-    epochs_frozen: int = field(2, "epochs", "stage one: network only, kernel frozen", ge=0, le=MAX_EPOCHS)
-    epochs_joint: int = field(2, "epochs", "stage two: kernel and network jointly", ge=0, le=MAX_EPOCHS)
-    lr_network: float = field(3e-3, "1/step", "AdamW rate of the network in stage one", ge=0.0, le=10.0)
-    lr_kernel: float = field(
-        1e-2, "1/step", "AdamW rate of the kernel taps in stage two (paper: 5e-4)", ge=0.0, le=10.0
-    )
-    lr_backbone: float | None = field(
-        None,
-        "1/step",
-        "stage-two rate of the network's backbone; None = lr_kernel "
-        "x the paper's ratio (detection 1e-6/5e-4, recognition 5e-5/5e-4)",
-        ge=0.0,
-        le=10.0,
-    )
-    lr_head: float | None = field(
-        None,
-        "1/step",
-        "stage-two rate of the head (of the whole network if it has no "
-        "backbone/head); None = lr_kernel x the paper's ratio (1e-5/5e-4, 1e-4/5e-4)",
-        ge=0.0,
-        le=10.0,
-    )
-    weight_decay: float = field(1e-4, "", "AdamW weight decay of the network", ge=0.0, le=10.0)
-    batch_size: int = field(8, "clips", "clips per step", ge=1, le=100_000)
-    n_train: int = field(
-        0, "clips", "training clips, drawn with seed from the clips not scored; 0 = all of them", ge=0, le=MAX_CLIPS
-    )
-    seed: int = field(
-        0, "", "seed of the training draw, the kernel noise, the initialisation and the batch order", ge=0, le=MAX_SEED
-    )
-
-
-class UserTask(StrictModel):
-    """``[tasks.datasets.<task>]``: one task scored on the user's clips with the user's network."""
-
-    unknown_key = "unknown key of a user-data task"
-
-    dataset: Annotated[
-        VideoFolderSource | CocoFramesSource | DsecDetectionSource | MaskFramesSource, Field(discriminator="format")
-    ] = field(
-        ...,
-        "",
-        "the dataset: format = 'video_folder' | 'coco_frames' | 'dsec_detection' | 'mask_frames', "
-        "root, split, reader options",
-    )
-    network: str | None = field(
-        None,
-        "",
-        "'package.module:factory' returning a torch.nn.Module (importable from "
-        "sys.path or the design file's folder); None = the task's built-in network",
-    )
-    network_options: dict[str, Any] = field(
-        {}, "", "more keyword arguments of the factory (besides in_channels and num_classes)"
-    )
-    weights: str | None = field(
-        None,
-        "",
-        "state dict loaded into the network (.safetensors, .pt, .pth), relative "
-        "to the design file; None = the factory's own weights",
-    )
-    n_clips: int = field(0, "clips", "clips scored, drawn with seed; 0 = every clip", ge=0, le=MAX_CLIPS)
-    max_failed_clip_fraction: float = field(
-        DEFAULT_MAX_FAILED_CLIP_FRACTION,
-        "",
-        "fraction of the drawn clips that may fail to read (a video that does not decode, a mask "
-        "label beyond num_classes, another frame size) and be skipped, counted and named in the "
-        "task's record; beyond it the task fails, naming the first files and reasons",
-        ge=0.0,
-        le=1.0,
-    )
-    seed: int = field(0, "", "seed of the clip draw (the same clips for every kernel)", ge=0, le=MAX_SEED)
-    device: Literal["cpu", "cuda"] = field(
-        "cpu",
-        "",
-        "where the simulator and the network run ('cuda' needs a "
-        "CUDA build of torch and a GPU; its noise streams differ from the CPU's)",
-    )
-    train: TrainSpec | None = field(
-        None,
-        "",
-        "train the network on the clips not scored first (two-stage "
-        "protocol; resumes); None = score the network as given",
-    )
-
-
-def _path(base: Path, path: str, *, what: str, confine: bool) -> Path:
-    """``path`` against the design's folder; with ``confine`` it must stay inside it."""
-    if confine:
-        return confined_path(base, path, what=what)
-    return (base / path).resolve()
-
-
-def _reader_paths(source: Mapping[str, Any], base: Path, confine: bool, key: str) -> dict[str, Path]:
-    """The reader's paths, resolved against the design's folder (and confined to it)."""
-    root = Path(str(source["root"]))
-    split = source.get("split") or ""
-    if source["format"] == "video_folder":
-        rel = {"root": root, **({"split": root / split} if split else {})}
-    elif source["format"] == "coco_frames":
-        rel = {"frames": root / split / source["frames"], "annotations": root / split / source["annotations"]}
-    elif source["format"] == "dsec_detection":
-        rel = {"root": root / split}
-    else:
-        rel = {"frames": root / split / source["frames"], "masks": root / split / source["masks"]}
-    return {name: _path(base, str(p), what=f"{key}.{name}", confine=confine) for name, p in rel.items()}
-
 
 @functools.lru_cache(maxsize=16)
-def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
-    from ..scenes.clip_cache import ClipDiskCache
-    from ..scenes.datasets import (
-        DSEC_DETECTION_CLASSES,
-        CocoFramesDataset,
-        DsecDetectionDataset,
-        MaskFramesDataset,
-        VideoFolderDataset,
-    )
-
-    s = json.loads(blob)
-    paths = _reader_paths(s, Path(base), confine, key)
-    common = {
-        "n_frames": s["n_frames"],
-        "size": tuple(s["size"]) if s["size"] else None,
-        "transfer": s["transfer"],
-        "cache_clips": s["cache_clips"],
-        "disk_cache": None,
-    }
-    if s.get("cache"):
-        folder = _path(Path(base), s["cache"]["dir"], what=f"{key}.cache.dir", confine=confine)
-        common["disk_cache"] = ClipDiskCache(folder, s["cache"]["max_mb"])
-    if s["format"] == "video_folder":
-        return VideoFolderDataset(
-            paths["root"],
-            split_file=paths.get("split"),
-            fps=s["fps"],
-            stride=s["stride"],
-            start_frame=s["start_frame"],
-            **common,
-        )
-    if s["format"] == "dsec_detection":
-        return DsecDetectionDataset(
-            paths["root"],
-            clip_stride=s["clip_stride"],
-            class_names=s["class_names"] or DSEC_DETECTION_CLASSES,
-            **common,
-        )
-    if s["format"] == "coco_frames":
-        return CocoFramesDataset(
-            paths["frames"],
-            paths["annotations"],
-            clip_stride=s["clip_stride"],
-            fps=s["fps"],
-            require_annotations=s["require_annotations"],
-            **common,
-        )
-    return MaskFramesDataset(
-        paths["frames"],
-        paths["masks"],
-        num_classes=s["num_classes"],
-        clip_stride=s["clip_stride"],
-        fps=s["fps"],
-        ignore_index=s["ignore_index"],
-        frame_suffix=s["frame_suffix"],
-        mask_suffix=s["mask_suffix"],
-        **common,
-    )
-
-
-def open_dataset(source: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True, key: str = "dataset") -> Any:
-    """The :class:`~fsdvs_hw.scenes.datasets.ClipDataset` a design's ``dataset`` table names.
-
-    Opened once per process (cached): only the layout is read; clips are decoded when scored.
-
-    Parameters
-    ----------
-    source : mapping
-        A validated ``dataset`` table (:class:`VideoFolderSource`, :class:`CocoFramesSource`,
-        :class:`MaskFramesSource` dumped), e.g. ``UserTask(...).model_dump()["dataset"]``.
-    base_dir : path
-        The design file's folder (``root`` is relative to it).
-    confine : bool
-        Refuse paths outside ``base_dir`` (always for design files).
-    key : str
-        The design key, for messages (``"tasks.datasets.recognition.dataset"``).
-
-    Raises
-    ------
-    InputError
-        A path outside the design folder, or any reader error (naming the file and field).
-
-    Examples
-    --------
-    >>> src = VideoFolderSource(root="ucf", size=[64, 64]).model_dump()   # doctest: +SKIP
-    >>> len(open_dataset(src, "designs"))                                  # doctest: +SKIP
-    4
-    """
-    return _open_dataset(json.dumps(dict(source), sort_keys=True), str(Path(base_dir).resolve()), bool(confine), key)
-
-
-@contextlib.contextmanager
-def _importable_from(folder: Path) -> Iterator[None]:
-    """``folder`` first on ``sys.path`` while a user factory is imported."""
-    entry = str(folder)
-    added = entry not in sys.path
-    if added:
-        sys.path.insert(0, entry)
-    try:
-        yield
-    finally:
-        if added:
-            with contextlib.suppress(ValueError):
-                sys.path.remove(entry)
-
-
-@functools.lru_cache(maxsize=16)
-def _open_network(
-    blob: str, base: str, confine: bool, key: str, in_channels: int, num_classes: int, trained: bool = True
-) -> Any:
-    from ..tasks.user_networks import builtin_network, load_network_factory, load_weights
-
+def _open_network(blob: str, base: str, confine: bool, key: str, in_channels: int, num_classes: int) -> Any:
+    """A new network of the table (:func:`~fsdvs_hw.design.user_data_inputs.build_user_network`),
+    trained on the clips not scored where the table has a ``train`` table, in eval mode."""
     entry = json.loads(blob)
-    task = FORMAT_TASK[entry["dataset"]["format"]]
-    if entry["network"] is None:
-        net = builtin_network(task, in_channels, num_classes)
-    else:
-        clash = sorted({"in_channels", "num_classes"} & set(entry["network_options"]))
-        if clash:
-            raise InputError(
-                f"{key}.network_options: {clash} are set from the dataset; allowed: other keyword "
-                "arguments of the factory"
-            )
-        with _importable_from(Path(base)):
-            net = load_network_factory(
-                entry["network"], in_channels=in_channels, num_classes=num_classes, **entry["network_options"]
-            )
-    if entry["weights"]:
-        load_weights(net, _path(Path(base), entry["weights"], what=f"{key}.weights", confine=confine))
-    if trained and entry.get("train") is not None:
+    net = build_user_network(entry, Path(base), confine, key, in_channels, num_classes)
+    if entry.get("train") is not None:
         net = _train(FORMAT_TASK[entry["dataset"]["format"]], entry, Path(base), confine, key, net, False).network
     return net.eval()
 
@@ -494,78 +87,6 @@ def _file_digest(path: Path) -> str:
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
-
-
-def train_split_dataset(
-    entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True, key: str = "dataset"
-) -> Any:
-    """The dataset of a table's training split (``train.split``): ``dataset`` with its ``split`` replaced.
-
-    ``video_folder``: the split file (UCF101 ``trainlist01.txt``, lines ``<class>/<video> <label>``;
-    the class is the folder) relative to ``root``; the other formats: the subfolder of ``root``.
-
-    Raises
-    ------
-    InputError
-        No ``train.split``; the split does not open (naming ``<key>.train.split``), or its classes
-        differ from the scored split's (a network needs one label set).
-
-    Examples
-    --------
-    >>> len(train_split_dataset(entry, "designs", key="tasks.datasets.recognition"))   # doctest: +SKIP
-    9537
-    """
-    split = (entry.get("train") or {}).get("split")
-    if split is None:
-        raise InputError(f"{key}.train.split is not set; allowed: a split file (video_folder) or a subfolder of root")
-    source = {**entry["dataset"], "split": split}
-    ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"{key}.dataset")
-    try:
-        train = open_dataset(source, base_dir, confine=confine, key=f"{key}.train.split")
-    except InputError as exc:
-        raise InputError(f"{key}.train.split = {split!r}: {exc}") from None
-    if (train.num_classes, tuple(train.class_names)) != (ds.num_classes, tuple(ds.class_names)):
-        raise InputError(
-            f"{key}.train.split = {split!r}: its classes {list(train.class_names)} differ from the "
-            f"scored split's {list(ds.class_names)}; allowed: splits of one label set"
-        )
-    return train
-
-
-def check_disjoint_files(train: Any, train_indices: Any, test: Any, test_indices: Any, *, what: str) -> None:
-    """Refuse training clips that share a video, frame image or mask file with the scored clips.
-
-    Files are compared after resolving links (:meth:`~fsdvs_hw.scenes.datasets.ClipDataset.clip_files`;
-    annotation files such as a COCO JSON are not clip files and are left out).
-
-    Raises
-    ------
-    InputError
-        Naming ``what``, how many files are shared and one of them.
-
-    Examples
-    --------
-    >>> check_disjoint_files(ds, [0, 1], ds, [1], what="train.split")   # doctest: +SKIP
-    Traceback (most recent call last):
-    InputError: train.split: 1 file of the training clips is also in a scored clip, e.g. ...
-    """
-    from ..scenes.datasets import IMAGE_SUFFIXES, VIDEO_SUFFIXES
-
-    def files(ds: Any, indices: Any) -> set[Path]:
-        return {
-            p.resolve()
-            for i in indices
-            for p in ds.clip_files(int(i))
-            if p.suffix.lower() in IMAGE_SUFFIXES + VIDEO_SUFFIXES
-        }
-
-    shared = sorted(files(train, train_indices) & files(test, test_indices))
-    if shared:
-        raise InputError(
-            f"{what}: {len(shared)} file(s) of the training clips also in a scored clip, e.g. "
-            f"{str(shared[0])!r}; allowed: a training split disjoint from the scored one (UCF101: "
-            "trainlist0N.txt with testlist0N.txt of the same N)"
-        )
 
 
 def _training_clips(
@@ -678,8 +199,14 @@ def _train(
     """Train ``net`` (a copy) on the task's clips not scored (or reuse / resume ``train.out``)."""
     spec = dict(entry["train"])
     train_ds, train_idx = _training_clips(entry, spec, base, confine, key)
-    out = out_stem or _path(base, spec["out"] or f"trained/{task}", what=f"{key}.train.out", confine=confine)
-    weights = _path(base, entry["weights"], what=f"{key}.weights", confine=confine) if entry["weights"] else None
+    out = out_stem or resolve_design_path(
+        base, spec["out"] or f"trained/{task}", what=f"{key}.train.out", confine=confine
+    )
+    weights = (
+        resolve_design_path(base, entry["weights"], what=f"{key}.weights", confine=confine)
+        if entry["weights"]
+        else None
+    )
     fingerprint = {
         "dataset": _scored_source(entry),
         "network": entry["network"],
@@ -765,8 +292,7 @@ def train_user_task(
         raise InputError(f"{key}.train is not set; allowed: a train = {{...}} table to train on the user's clips")
     base = Path(base_dir).resolve()
     ds = open_dataset(entry["dataset"], base, confine=confine, key=f"{key}.dataset")
-    blob = json.dumps(dict(entry), sort_keys=True)
-    net = _open_network(blob, str(base), bool(confine), key, 2 * (int(ds.n_frames) - 1), int(ds.num_classes), False)
+    net = open_untrained_network(entry, ds, base, confine=confine, key=key)
     if overrides:
         entry = {**entry, "train": TrainSpec.model_validate({**entry["train"], **overrides}).model_dump()}
     return _train(task, entry, base, confine, key, net, verbose, None if out is None else Path(out))
@@ -786,7 +312,9 @@ def user_network_identity(entry: Mapping[str, Any], base_dir: str | Path, *, con
     ['clip_seed', 'dataset', 'device']
     """
     weights = (
-        _path(Path(base_dir).resolve(), entry["weights"], what="weights", confine=confine) if entry["weights"] else None
+        resolve_design_path(Path(base_dir).resolve(), entry["weights"], what="weights", confine=confine)
+        if entry["weights"]
+        else None
     )
     return {
         "dataset": _scored_source(entry),
@@ -968,134 +496,16 @@ def open_network(
     --------
     >>> net = open_network(entry, open_dataset(entry["dataset"], "."), ".")   # doctest: +SKIP
     """
-    blob = json.dumps(dict(entry), sort_keys=True)
+    if not trained:
+        return open_untrained_network(entry, dataset, base_dir, confine=confine, key=key)
     return _open_network(
-        blob,
+        json.dumps(dict(entry), sort_keys=True),
         str(Path(base_dir).resolve()),
         bool(confine),
         key,
         2 * (int(dataset.n_frames) - 1),
         int(dataset.num_classes),
-        bool(trained),
     )
-
-
-def check_user_task(
-    task: str, entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True
-) -> list[tuple[str, Any, str]]:
-    """Problems of one validated ``[tasks.datasets.<task>]`` table, as ``(key, value, message)``.
-
-    The format must hold the task's targets, a detection dataset's ``size`` must be even (the
-    network works at stride 2), the dataset must open (its layout is read: folders, the JSON, image
-    headers; no clip is decoded), ``n_clips`` must not exceed its clips, and the network must build
-    with its weights.
-
-    Examples
-    --------
-    >>> check_user_task("detection", entry, "designs")   # doctest: +SKIP
-    []
-    """
-    key = f"tasks.datasets.{task}"
-    if entry["device"] == "cuda":
-        import torch
-
-        if not torch.cuda.is_available():
-            return [
-                (
-                    f"{key}.device",
-                    "cuda",
-                    f"CUDA is not available on this machine (torch {torch.__version__}); allowed here: 'cpu'",
-                )
-            ]
-    fmt = entry["dataset"]["format"]
-    if FORMAT_TASK[fmt] != task:
-        allowed = [f for f, t in FORMAT_TASK.items() if t == task]
-        return [
-            (
-                f"{key}.dataset.format",
-                fmt,
-                f"holds {FORMAT_TASK[fmt]} targets, not {task}; allowed for "
-                f"[tasks.datasets.{task}]: {', '.join(map(repr, allowed)) or 'none (unknown task)'}",
-            )
-        ]
-    size = entry["dataset"].get("size")
-    if task == "detection" and size and (size[0] % 2 or size[1] % 2):
-        return [
-            (
-                f"{key}.dataset.size",
-                size,
-                "the detection network works at stride 2; allowed: even H and W, e.g. "
-                f"[{size[0] + size[0] % 2}, {size[1] + size[1] % 2}]",
-            )
-        ]
-    try:
-        ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"{key}.dataset")
-    except InputError as exc:
-        return [(f"{key}.dataset", entry["dataset"].get("root"), str(exc))]
-    problems = []
-    if entry["n_clips"] > len(ds):
-        problems.append(
-            (f"{key}.n_clips", entry["n_clips"], f"the dataset has {len(ds)} clips; allowed: 0 (all) to {len(ds)}")
-        )
-    if entry.get("train") is not None and entry["train"].get("split") is not None:
-        problems += _train_split_problems(entry, ds, base_dir, confine, key)
-    elif entry.get("train") is not None:
-        n_scored = entry["n_clips"] or len(ds)
-        n_train = entry["train"]["n_train"]
-        if n_scored > len(ds) - 2:
-            problems.append(
-                (
-                    f"{key}.n_clips",
-                    entry["n_clips"],
-                    f"with {key}.train, clips are needed for training "
-                    f"too; allowed: 1 to {len(ds) - 2} of the {len(ds)} clips",
-                )
-            )
-        elif n_train > len(ds) - n_scored:
-            problems.append(
-                (
-                    f"{key}.train.n_train",
-                    n_train,
-                    f"{len(ds) - n_scored} clips are not scored; allowed: 0 (all of them) or 2 to {len(ds) - n_scored}",
-                )
-            )
-    try:
-        open_network(entry, ds, base_dir, confine=confine, key=key, trained=False)
-    except InputError as exc:
-        where = "weights" if "weights file" in str(exc) or ".weights" in str(exc) else "network"
-        problems.append((f"{key}.{where}", entry[where], str(exc)))
-    return problems
-
-
-def _train_split_problems(
-    entry: Mapping[str, Any], ds: Any, base_dir: str | Path, confine: bool, key: str
-) -> list[tuple[str, Any, str]]:
-    """A ``train.split`` must open, hold ``n_train`` clips and share no file with the scored clips."""
-    split, n_train = entry["train"]["split"], entry["train"]["n_train"]
-    try:
-        train = train_split_dataset(entry, base_dir, confine=confine, key=key)
-        if n_train > len(train):
-            return [
-                (
-                    f"{key}.train.n_train",
-                    n_train,
-                    f"the training split {split!r} has {len(train)} clips; allowed: 0 (all) to {len(train)}",
-                )
-            ]
-        if (n_train or len(train)) < 2:
-            return [
-                (
-                    f"{key}.train.n_train",
-                    n_train,
-                    f"1 training clip (the split {split!r} has {len(train)}); allowed: 2 or more",
-                )
-            ]
-        scored = ds.draw(entry["n_clips"], entry["seed"]) if entry["n_clips"] else range(len(ds))
-        picked = train.draw(n_train, entry["train"]["seed"]) if n_train else range(len(train))
-        check_disjoint_files(train, picked, ds, scored, what=f"{key}.train.split = {split!r}")
-    except InputError as exc:
-        return [(f"{key}.train.split", split, str(exc))]
-    return []
 
 
 #: ``SensorConfig`` fields recorded with a user-data task's scores.

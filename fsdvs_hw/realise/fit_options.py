@@ -5,19 +5,19 @@ its folder, held by :attr:`~fsdvs_hw.realise.registry.RealisationSpec.options`):
 type, default, range and unit (:func:`fsdvs_hw.schema.field`), and the rules no single option's
 range can state, of two kinds:
 
-* rules between options (a fixed ``pixel_weight`` of 0 with ``gain = 'free'``): ``model_validator``
-  methods of the model, run whenever it is validated;
-* rules on the target kernel (``fit_size`` at least the kernel's size): :meth:`FitOptions.target_problems`,
-  run when the validation context holds the target (``{"target": kernel}``).
+* rules between options (a fixed ``pixel_weight`` of 0 with ``gain = 'free'``):
+  :meth:`FitOptions.option_problems`;
+* rules on the target kernel (``fit_size`` at least the kernel's size): :meth:`FitOptions.target_problems`.
 
-A design file's ``[realisations.<name>]`` table is validated against the model when the design is
-loaded, and again with the design's target in the context once the target is known
-(:mod:`fsdvs_hw.explore.design`). A fit validates its own arguments with
-:func:`fsdvs_hw.validation.check_fit_arguments`, which builds the options object, coerces the target
-(:meth:`FitOptions.target_of`) and checks it against the target (:meth:`FitOptions.with_target`);
-the fit then works from that object (its :attr:`FitOptions.target` is the coerced kernel). Both
-paths run the same rules and a broken rule reads the same in both (:func:`raise_option_problems`):
-``key '<option>' = <value>: <why>; allowed: <what the option allows>``.
+Both run in one model validator when the validation context holds the target (``{"target":
+kernel}``), that is when the whole set of options and the kernel are known: a design file's
+``[realisations.<name>]`` table once the design's target is loaded (:mod:`fsdvs_hw.design`), and a
+fit's arguments at its entry (:func:`fsdvs_hw.validation.check_fit_arguments` builds the options
+object, coerces the target with :meth:`FitOptions.target_of` and checks both with
+:meth:`FitOptions.with_target`); the fit then works from that object (its :attr:`FitOptions.target`
+is the coerced kernel). A table checked one key at a time (a sweep axis) meets only the ranges.
+Both paths run the same rules and a broken rule reads the same in both
+(:func:`raise_option_problems`): ``key '<option>' = <value>: <why>; allowed: <what the option allows>``.
 """
 
 from __future__ import annotations
@@ -60,9 +60,8 @@ def raise_option_problems(model: type[StrictModel], found: list[OptionProblem]) 
 class FitOptions(StrictModel):
     """Base of a hardware fit's options model: fields, rules between options, rules on the target.
 
-    A subclass declares one field per keyword option of its fit, its rules between options as
-    ``model_validator(mode="after")`` methods that call :func:`raise_option_problems`, and its
-    rules on the target by overriding :meth:`target_problems`.
+    A subclass declares one field per keyword option of its fit, and its rules by overriding
+    :meth:`option_problems` (between options) and :meth:`target_problems` (on the target).
     """
 
     #: Name of the target kernel the fit coerces (:func:`fsdvs_hw.kernels.as_kernel`'s ``name``).
@@ -70,16 +69,21 @@ class FitOptions(StrictModel):
 
     _target: Kernel | None = PrivateAttr(default=None)
 
+    def option_problems(self) -> list[OptionProblem]:
+        """The rules between options this set of options breaks; none here."""
+        return []
+
     def target_problems(self, target: Kernel) -> list[OptionProblem]:
         """The options the target kernel rules out (at the pitch :meth:`target_of` gives it); none here."""
         return []
 
     @model_validator(mode="after")
-    def _fits_the_target(self, info: ValidationInfo) -> Self:
-        """The rules on the target, when the validation context holds one (``{"target": kernel}``)."""
+    def _follows_the_rules(self, info: ValidationInfo) -> Self:
+        """The rules between options and on the target, when the validation context holds the target."""
         target = (info.context or {}).get("target")
         if target is not None:
-            raise_option_problems(type(self), self.target_problems(self.target_of(target)))
+            found = self.option_problems()
+            raise_option_problems(type(self), found + self.target_problems(self.target_of(target)))
         return self
 
     def target_of(self, kernel: Any) -> Kernel:

@@ -510,7 +510,7 @@ def write_report(points: Sequence[ScoredPoint], report: ReportInput, out_dir: st
     >>> import json, tempfile
     >>> from pathlib import Path
     >>> from fsdvs_hw import write_report
-    >>> from fsdvs_hw.explore.design import parse_design
+    >>> from fsdvs_hw.design import parse_design
     >>> from fsdvs_hw.explore.reporting import report_input
     >>> with tempfile.TemporaryDirectory() as out:
     ...     page = write_report([], report_input(parse_design({"design": {"name": "empty"}})), out)

@@ -120,7 +120,7 @@ def write_report_from_scores(out_dir: str | Path, report: ReportInput, *, to: st
         Folder of the earlier run (holds ``scores.json``).
     report : ReportInput
         The design the run used (:func:`fsdvs_hw.explore.reporting.report_input` of
-        :func:`fsdvs_hw.explore.design.load_design`; the report layer sits below explore and does
+        :func:`fsdvs_hw.design.load_design`; the report layer sits below explore and does
         not load designs itself).
     to : path, optional
         Folder to write ``report.html``, ``scores.csv`` and ``scores.json`` into (default:
@@ -140,7 +140,7 @@ def write_report_from_scores(out_dir: str | Path, report: ReportInput, *, to: st
 
     Examples
     --------
-    >>> from fsdvs_hw.explore.design import load_design
+    >>> from fsdvs_hw.design import load_design
     >>> from fsdvs_hw.explore.reporting import report_input
     >>> write_report_from_scores("out/demo", report_input(load_design("designs/default.toml")))  # doctest: +SKIP
     PosixPath('out/demo/report.html')
@@ -149,7 +149,7 @@ def write_report_from_scores(out_dir: str | Path, report: ReportInput, *, to: st
     if not isinstance(report, ReportInput):
         raise InputError(
             f"write_report_from_scores: design must be a loaded design "
-            f"(fsdvs_hw.explore.reporting.report_input(fsdvs_hw.explore.design.load_design(path))), "
+            f"(fsdvs_hw.explore.reporting.report_input(fsdvs_hw.design.load_design(path))), "
             f"got {type(report).__name__}"
         )
     check_same_design(src, data.get("design"), points, report)

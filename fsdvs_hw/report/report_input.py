@@ -71,9 +71,9 @@ class ReportInput:
     name, source : str
         The design's name and where it came from (its TOML file).
     fingerprint : str
-        :meth:`fsdvs_hw.explore.design.Design.fingerprint` (SHA-1 of the validated content and target taps).
+        :meth:`fsdvs_hw.design.Design.fingerprint` (SHA-1 of the validated content and target taps).
     design_data : mapping
-        The validated design (:meth:`fsdvs_hw.explore.design.Design.to_dict`), JSON-ready.
+        The validated design (:meth:`fsdvs_hw.design.Design.to_dict`), JSON-ready.
     target : Kernel
         The target kernel (pitch in metres).
     focal_length_m : float

@@ -868,7 +868,7 @@ def run_information_study(options: InformationOptions) -> InformationStudy:
     ...                                                  out=Path("out/info")))  # doctest: +SKIP
     >>> print(study.text)  # doctest: +SKIP
     """
-    from ..explore.design import load_design
+    from ..design import load_design
     from ..resources import resolve_design
     from ..scenes.synthetic import make_scenes
     from ..tasks.learn import TEST_SEED

@@ -157,7 +157,7 @@ def run_rate_study(options: RateOptions) -> RateStudy:
     InputError
         Unknown task, unequal ON/OFF thresholds in the design, bad counts, unknown realisation.
     """
-    from ..explore.design import load_design
+    from ..design import load_design
     from ..explore.scoring import fit_realisation
     from ..resources import resolve_design
 

@@ -50,7 +50,7 @@ def run_user_ablation(
     Parameters
     ----------
     design : Design
-        A loaded design (:func:`fsdvs_hw.explore.design.load_design`) whose
+        A loaded design (:func:`fsdvs_hw.design.load_design`) whose
         ``[tasks.datasets.<task>]`` has a ``train`` table (epochs, rates, clips).
     task : str
         The table's task.
@@ -88,7 +88,7 @@ def run_user_ablation(
     >>> res["rows"][-1]["gain_ci95_low"] <= res["rows"][-1]["gain"]                               # doctest: +SKIP
     True
     """
-    from ..explore.user_data import open_dataset
+    from ..design.user_data_inputs import open_dataset
     from ..limits import MAX_WORKERS, check_count
     from ..paths import output_dir, write_output
     from ..tasks.dataset_eval import evaluator_for_dataset
@@ -286,9 +286,10 @@ def _train_and_score(
 
     Returns the per-clip metric object, the metric and the number of scored clips.
     """
+    from ..design.user_data_inputs import open_dataset
     from ..environment import env
     from ..explore.paired import PER_CLIP_METRICS
-    from ..explore.user_data import open_dataset, train_user_task
+    from ..explore.user_data import train_user_task
     from ..tasks.dataset_eval import evaluate_on_dataset, evaluator_for_dataset
 
     threads = env("FSDVS_HW_WORKER_THREADS")

@@ -7,7 +7,7 @@ to the design schema, e.g. a new section, and say so in the commit):
 import json
 from pathlib import Path
 
-from fsdvs_hw.explore.design import load_design
+from fsdvs_hw.design import load_design
 
 REPO = Path(__file__).resolve().parents[2]
 snap = {

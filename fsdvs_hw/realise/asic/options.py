@@ -9,15 +9,15 @@ words, the rules between options and on the target kernel included
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Self
+from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field
 
 from ...kernels import Kernel
 from ...schema import PyObject, field
 from ...validation import PITCH_RANGE_M
-from ..fit_options import FitOptions, OptionProblem, raise_option_problems
+from ..fit_options import FitOptions, OptionProblem
 from .arith import MAX_INPUT_BITS, MAX_TAP_BITS, resolve_symmetry, symmetry_classes
 
 __all__ = ["AsicOptions"]
@@ -83,21 +83,14 @@ class AsicOptions(FitOptions):
     )
     geometry: PyObject | None = field(None, "", "fsdvs_hw.csf.Geometry (pixels per degree) for objective 'csf'")
 
-    @model_validator(mode="after")
-    def _options_agree(self) -> Self:
+    def option_problems(self) -> list[OptionProblem]:
         """With ``objective="csf"`` a ``geometry`` is a :class:`fsdvs_hw.csf.Geometry` (or None)."""
         from ...csf import Geometry
 
         if self.objective == "csf" and self.geometry is not None and not isinstance(self.geometry, Geometry):
-            found = [
-                OptionProblem(
-                    "geometry",
-                    self.geometry,
-                    f"expected a fsdvs_hw.csf.Geometry or None, got {type(self.geometry).__name__}",
-                )
-            ]
-            raise_option_problems(type(self), found)
-        return self
+            why = f"expected a fsdvs_hw.csf.Geometry or None, got {type(self.geometry).__name__}"
+            return [OptionProblem("geometry", self.geometry, why)]
+        return []
 
     def target_problems(self, target: Kernel) -> list[OptionProblem]:
         """The target's part with the chosen symmetry must not be all zeros (nothing to quantise)."""

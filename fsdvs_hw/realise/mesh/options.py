@@ -13,15 +13,15 @@ from __future__ import annotations
 
 import math
 from functools import cached_property
-from typing import Annotated, Any, Literal, Self
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field
 
 from ...errors import InputError
 from ...kernels import MAX_KERNEL_SIZE, Kernel
 from ...schema import field, structured
 from ...validation import PITCH_RANGE_M
-from ..fit_options import FitOptions, OptionProblem, raise_option_problems
+from ..fit_options import FitOptions, OptionProblem
 from .bounds import MeshBounds, as_mesh_bounds
 
 __all__ = ["MeshOptions"]
@@ -132,8 +132,7 @@ class MeshOptions(FitOptions):
     tol: float = field(1e-14, "", "IPOPT tolerance", ge=1e-16, le=1e-2)
 
     # ------------------------------------------------------------------ rules
-    @model_validator(mode="after")
-    def _options_agree(self) -> Self:
+    def option_problems(self) -> list[OptionProblem]:
         """The rules between options (see Notes)."""
         found: list[OptionProblem] = []
         if self.gain == "free" and not self.free_pixel_weight and self.fixed_pixel_weight == 0.0:
@@ -150,27 +149,19 @@ class MeshOptions(FitOptions):
         try:
             bounds = self.mesh_bounds
         except InputError as exc:
-            raise_option_problems(type(self), [*found, OptionProblem("bounds", self.bounds, str(exc))])
-            raise
+            return [*found, OptionProblem("bounds", self.bounds, str(exc))]
         lo, hi = bounds.conductance_s
         if not lo <= self.g_lateral_s <= hi:
-            found.append(
-                OptionProblem("g_lateral_s", self.g_lateral_s, f"outside bounds.conductance_s = [{lo:g}, {hi:g}] S")
+            why = f"outside bounds.conductance_s = [{lo:g}, {hi:g}] S"
+            return [*found, OptionProblem("g_lateral_s", self.g_lateral_s, why)]
+        lam_lo, lam_hi = self.lambda_range_px
+        if not lam_hi / lam_lo > bounds.min_lambda_ratio:
+            why = (
+                f"with g_lateral_s={self.g_lateral_s:g} S and conductance_s={bounds.conductance_s} the feasible "
+                f"λ range [{lam_lo:g}, {lam_hi:g}] px is narrower than min_lambda_ratio={bounds.min_lambda_ratio:g}"
             )
-        else:
-            lam_lo, lam_hi = self.lambda_range_px
-            if not lam_hi / lam_lo > bounds.min_lambda_ratio:
-                found.append(
-                    OptionProblem(
-                        "bounds",
-                        self.bounds,
-                        f"with g_lateral_s={self.g_lateral_s:g} S and conductance_s={bounds.conductance_s} the "
-                        f"feasible λ range [{lam_lo:g}, {lam_hi:g}] px is narrower than "
-                        f"min_lambda_ratio={bounds.min_lambda_ratio:g}",
-                    )
-                )
-        raise_option_problems(type(self), found)
-        return self
+            found.append(OptionProblem("bounds", self.bounds, why))
+        return found
 
     def target_problems(self, target: Kernel) -> list[OptionProblem]:
         """``fit_size`` at least the target's size; ``grid_half_width`` (model "grid") at least its radius."""

@@ -12,15 +12,15 @@ which then puts them to the same lens rules (:meth:`MetalensOptions.lens_problem
 from __future__ import annotations
 
 from functools import cached_property
-from typing import Annotated, Literal, Self
+from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field
 
 from ...errors import InputError
 from ...kernels import Kernel
 from ...schema import PyObject, field
 from ...validation import PITCH_RANGE_M
-from ..fit_options import FitOptions, OptionProblem, raise_option_problems
+from ..fit_options import FitOptions, OptionProblem
 from ..spectral import SpectralSamples, sampled_spectrum
 from .lens import LensGeometry, local_numerical_aperture
 
@@ -103,19 +103,16 @@ class MetalensOptions(FitOptions):
     progress: bool | None = field(None, "", "progress bar of the fit's iterations (None: when stderr is a terminal)")
 
     # ------------------------------------------------------------------ rules
-    @model_validator(mode="after")
-    def _options_agree(self) -> Self:
+    def option_problems(self) -> list[OptionProblem]:
         """The lens rules on the spectral samples (for ``n_wavelengths="auto"``: the fit's plan)."""
         if self.n_wavelengths == "auto":
-            return self
+            return []
         try:
             spectral = self.spectral_samples(self.n_wavelengths)
         except InputError as exc:
             option = "response" if str(exc).startswith("response") else "illuminant"
-            raise_option_problems(type(self), [OptionProblem(option, getattr(self, option), str(exc))])
-            raise
-        raise_option_problems(type(self), self.lens_problems(spectral))
-        return self
+            return [OptionProblem(option, getattr(self, option), str(exc))]
+        return self.lens_problems(spectral)
 
     def lens_problems(self, spectral: SpectralSamples) -> list[OptionProblem]:
         """The lens rules on ``spectral``: aperture and focal length above 2 λ_max, and the NA of the

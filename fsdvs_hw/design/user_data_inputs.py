@@ -1,0 +1,433 @@
+"""The dataset and network a ``[tasks.datasets.<task>]`` table names: opened, and checked when a design is read.
+
+:func:`open_dataset` opens the reader of a table's ``dataset`` (its layout only; clips are
+decoded when scored), :func:`open_untrained_network` builds the table's network with its
+``weights`` (both cached per process), :func:`train_split_dataset` opens a ``train.split`` and
+:func:`check_disjoint_files` refuses training clips that share a file with the scored ones.
+:func:`check_user_task` is what reading a design checks of each table. Training the network
+and scoring on the clips is :mod:`fsdvs_hw.explore.user_data`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import json
+import sys
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from .design_paths import resolve_design_path
+from .user_data_section import FORMAT_TASK
+
+__all__ = [
+    "build_user_network",
+    "check_disjoint_files",
+    "check_user_task",
+    "open_dataset",
+    "open_untrained_network",
+    "train_split_dataset",
+]
+
+
+def _reader_paths(source: Mapping[str, Any], base: Path, confine: bool, key: str) -> dict[str, Path]:
+    """The reader's paths, resolved against the design's folder (and confined to it)."""
+    root = Path(str(source["root"]))
+    split = source.get("split") or ""
+    if source["format"] == "video_folder":
+        rel = {"root": root, **({"split": root / split} if split else {})}
+    elif source["format"] == "coco_frames":
+        rel = {"frames": root / split / source["frames"], "annotations": root / split / source["annotations"]}
+    elif source["format"] == "dsec_detection":
+        rel = {"root": root / split}
+    else:
+        rel = {"frames": root / split / source["frames"], "masks": root / split / source["masks"]}
+    return {name: resolve_design_path(base, str(p), what=f"{key}.{name}", confine=confine) for name, p in rel.items()}
+
+
+@functools.lru_cache(maxsize=16)
+def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
+    from ..scenes.clip_cache import ClipDiskCache
+    from ..scenes.datasets import (
+        DSEC_DETECTION_CLASSES,
+        CocoFramesDataset,
+        DsecDetectionDataset,
+        MaskFramesDataset,
+        VideoFolderDataset,
+    )
+
+    s = json.loads(blob)
+    paths = _reader_paths(s, Path(base), confine, key)
+    common = {
+        "n_frames": s["n_frames"],
+        "size": tuple(s["size"]) if s["size"] else None,
+        "transfer": s["transfer"],
+        "cache_clips": s["cache_clips"],
+        "disk_cache": None,
+    }
+    if s.get("cache"):
+        folder = resolve_design_path(Path(base), s["cache"]["dir"], what=f"{key}.cache.dir", confine=confine)
+        common["disk_cache"] = ClipDiskCache(folder, s["cache"]["max_mb"])
+    if s["format"] == "video_folder":
+        return VideoFolderDataset(
+            paths["root"],
+            split_file=paths.get("split"),
+            fps=s["fps"],
+            stride=s["stride"],
+            start_frame=s["start_frame"],
+            **common,
+        )
+    if s["format"] == "dsec_detection":
+        return DsecDetectionDataset(
+            paths["root"],
+            clip_stride=s["clip_stride"],
+            class_names=s["class_names"] or DSEC_DETECTION_CLASSES,
+            **common,
+        )
+    if s["format"] == "coco_frames":
+        return CocoFramesDataset(
+            paths["frames"],
+            paths["annotations"],
+            clip_stride=s["clip_stride"],
+            fps=s["fps"],
+            require_annotations=s["require_annotations"],
+            **common,
+        )
+    return MaskFramesDataset(
+        paths["frames"],
+        paths["masks"],
+        num_classes=s["num_classes"],
+        clip_stride=s["clip_stride"],
+        fps=s["fps"],
+        ignore_index=s["ignore_index"],
+        frame_suffix=s["frame_suffix"],
+        mask_suffix=s["mask_suffix"],
+        **common,
+    )
+
+
+def open_dataset(source: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True, key: str = "dataset") -> Any:
+    """The :class:`~fsdvs_hw.scenes.datasets.ClipDataset` a design's ``dataset`` table names.
+
+    Opened once per process (cached): only the layout is read; clips are decoded when scored.
+
+    Parameters
+    ----------
+    source : mapping
+        A validated ``dataset`` table (:class:`VideoFolderSource`, :class:`CocoFramesSource`,
+        :class:`MaskFramesSource` dumped), e.g. ``UserTask(...).model_dump()["dataset"]``.
+    base_dir : path
+        The design file's folder (``root`` is relative to it).
+    confine : bool
+        Refuse paths outside ``base_dir`` (always for design files).
+    key : str
+        The design key, for messages (``"tasks.datasets.recognition.dataset"``).
+
+    Raises
+    ------
+    InputError
+        A path outside the design folder, or any reader error (naming the file and field).
+
+    Examples
+    --------
+    >>> src = VideoFolderSource(root="ucf", size=[64, 64]).model_dump()   # doctest: +SKIP
+    >>> len(open_dataset(src, "designs"))                                  # doctest: +SKIP
+    4
+    """
+    return _open_dataset(json.dumps(dict(source), sort_keys=True), str(Path(base_dir).resolve()), bool(confine), key)
+
+
+@contextlib.contextmanager
+def _importable_from(folder: Path) -> Iterator[None]:
+    """``folder`` first on ``sys.path`` while a user factory is imported."""
+    entry = str(folder)
+    added = entry not in sys.path
+    if added:
+        sys.path.insert(0, entry)
+    try:
+        yield
+    finally:
+        if added:
+            with contextlib.suppress(ValueError):
+                sys.path.remove(entry)
+
+
+def build_user_network(
+    entry: Mapping[str, Any], base: Path, confine: bool, key: str, in_channels: int, num_classes: int
+) -> Any:
+    """A new network of a ``[tasks.datasets.<task>]`` table (not cached, not trained): its factory
+    (or the task's built-in network) with its ``weights`` loaded.
+
+    Parameters
+    ----------
+    entry : mapping
+        A validated :class:`~fsdvs_hw.design.user_data_section.UserTask` dumped.
+    base : Path
+        The design file's folder (factory import, ``weights``).
+    confine : bool
+        Refuse paths outside ``base``.
+    key : str
+        The design key, for messages.
+    in_channels, num_classes : int
+        Set from the dataset.
+
+    Returns
+    -------
+    torch.nn.Module
+
+    Raises
+    ------
+    InputError
+        The factory does not import, fails or returns no module; a weights file that is missing
+        or does not fit; ``network_options`` that set ``in_channels`` or ``num_classes``.
+    """
+    from ..tasks.user_networks import builtin_network, load_network_factory, load_weights
+
+    task = FORMAT_TASK[entry["dataset"]["format"]]
+    if entry["network"] is None:
+        net = builtin_network(task, in_channels, num_classes)
+    else:
+        clash = sorted({"in_channels", "num_classes"} & set(entry["network_options"]))
+        if clash:
+            raise InputError(
+                f"{key}.network_options: {clash} are set from the dataset; allowed: other keyword "
+                "arguments of the factory"
+            )
+        with _importable_from(base):
+            net = load_network_factory(
+                entry["network"], in_channels=in_channels, num_classes=num_classes, **entry["network_options"]
+            )
+    if entry["weights"]:
+        load_weights(net, resolve_design_path(base, entry["weights"], what=f"{key}.weights", confine=confine))
+    return net
+
+
+@functools.lru_cache(maxsize=16)
+def _open_untrained_network(blob: str, base: str, confine: bool, key: str, in_channels: int, num_classes: int) -> Any:
+    return build_user_network(json.loads(blob), Path(base), confine, key, in_channels, num_classes).eval()
+
+
+def open_untrained_network(
+    entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *, confine: bool = True, key: str = "network"
+) -> Any:
+    """The network a ``[tasks.datasets.<task>]`` table names, built for ``dataset`` with its ``weights``
+    and not trained (its ``train`` table ignored; cached per process).
+
+    Parameters
+    ----------
+    entry : mapping
+        A validated :class:`~fsdvs_hw.design.user_data_section.UserTask` dumped.
+    dataset : ClipDataset
+        Sets ``in_channels = 2 (T - 1)`` and ``num_classes``.
+    base_dir : path
+        The design file's folder (factory import, ``weights``).
+    confine : bool
+        Refuse paths outside ``base_dir``.
+    key : str
+        The design key, for messages.
+
+    Returns
+    -------
+    torch.nn.Module
+        In eval mode, with the weights loaded.
+    """
+    return _open_untrained_network(
+        json.dumps(dict(entry), sort_keys=True),
+        str(Path(base_dir).resolve()),
+        bool(confine),
+        key,
+        2 * (int(dataset.n_frames) - 1),
+        int(dataset.num_classes),
+    )
+
+
+def train_split_dataset(
+    entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True, key: str = "dataset"
+) -> Any:
+    """The dataset of a table's training split (``train.split``): ``dataset`` with its ``split`` replaced.
+
+    ``video_folder``: the split file (UCF101 ``trainlist01.txt``, lines ``<class>/<video> <label>``;
+    the class is the folder) relative to ``root``; the other formats: the subfolder of ``root``.
+
+    Raises
+    ------
+    InputError
+        No ``train.split``; the split does not open (naming ``<key>.train.split``), or its classes
+        differ from the scored split's (a network needs one label set).
+
+    Examples
+    --------
+    >>> len(train_split_dataset(entry, "designs", key="tasks.datasets.recognition"))   # doctest: +SKIP
+    9537
+    """
+    split = (entry.get("train") or {}).get("split")
+    if split is None:
+        raise InputError(f"{key}.train.split is not set; allowed: a split file (video_folder) or a subfolder of root")
+    source = {**entry["dataset"], "split": split}
+    ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"{key}.dataset")
+    try:
+        train = open_dataset(source, base_dir, confine=confine, key=f"{key}.train.split")
+    except InputError as exc:
+        raise InputError(f"{key}.train.split = {split!r}: {exc}") from None
+    if (train.num_classes, tuple(train.class_names)) != (ds.num_classes, tuple(ds.class_names)):
+        raise InputError(
+            f"{key}.train.split = {split!r}: its classes {list(train.class_names)} differ from the "
+            f"scored split's {list(ds.class_names)}; allowed: splits of one label set"
+        )
+    return train
+
+
+def check_disjoint_files(train: Any, train_indices: Any, test: Any, test_indices: Any, *, what: str) -> None:
+    """Refuse training clips that share a video, frame image or mask file with the scored clips.
+
+    Files are compared after resolving links (:meth:`~fsdvs_hw.scenes.datasets.ClipDataset.clip_files`;
+    annotation files such as a COCO JSON are not clip files and are left out).
+
+    Raises
+    ------
+    InputError
+        Naming ``what``, how many files are shared and one of them.
+
+    Examples
+    --------
+    >>> check_disjoint_files(ds, [0, 1], ds, [1], what="train.split")   # doctest: +SKIP
+    Traceback (most recent call last):
+    InputError: train.split: 1 file of the training clips is also in a scored clip, e.g. ...
+    """
+    from ..scenes.datasets import IMAGE_SUFFIXES, VIDEO_SUFFIXES
+
+    def files(ds: Any, indices: Any) -> set[Path]:
+        return {
+            p.resolve()
+            for i in indices
+            for p in ds.clip_files(int(i))
+            if p.suffix.lower() in IMAGE_SUFFIXES + VIDEO_SUFFIXES
+        }
+
+    shared = sorted(files(train, train_indices) & files(test, test_indices))
+    if shared:
+        raise InputError(
+            f"{what}: {len(shared)} file(s) of the training clips also in a scored clip, e.g. "
+            f"{str(shared[0])!r}; allowed: a training split disjoint from the scored one (UCF101: "
+            "trainlist0N.txt with testlist0N.txt of the same N)"
+        )
+
+
+def check_user_task(
+    task: str, entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True
+) -> list[tuple[str, Any, str]]:
+    """Problems of one validated ``[tasks.datasets.<task>]`` table, as ``(key, value, message)``.
+
+    The format must hold the task's targets, a detection dataset's ``size`` must be even (the
+    network works at stride 2), the dataset must open (its layout is read: folders, the JSON, image
+    headers; no clip is decoded), ``n_clips`` must not exceed its clips, and the network must build
+    with its weights.
+
+    Examples
+    --------
+    >>> check_user_task("detection", entry, "designs")   # doctest: +SKIP
+    []
+    """
+    key = f"tasks.datasets.{task}"
+    if entry["device"] == "cuda":
+        import torch
+
+        if not torch.cuda.is_available():
+            return [
+                (
+                    f"{key}.device",
+                    "cuda",
+                    f"CUDA is not available on this machine (torch {torch.__version__}); allowed here: 'cpu'",
+                )
+            ]
+    fmt = entry["dataset"]["format"]
+    if FORMAT_TASK[fmt] != task:
+        allowed = [f for f, t in FORMAT_TASK.items() if t == task]
+        return [
+            (
+                f"{key}.dataset.format",
+                fmt,
+                f"holds {FORMAT_TASK[fmt]} targets, not {task}; allowed for "
+                f"[tasks.datasets.{task}]: {', '.join(map(repr, allowed)) or 'none (unknown task)'}",
+            )
+        ]
+    size = entry["dataset"].get("size")
+    if task == "detection" and size and (size[0] % 2 or size[1] % 2):
+        return [
+            (
+                f"{key}.dataset.size",
+                size,
+                "the detection network works at stride 2; allowed: even H and W, e.g. "
+                f"[{size[0] + size[0] % 2}, {size[1] + size[1] % 2}]",
+            )
+        ]
+    try:
+        ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"{key}.dataset")
+    except InputError as exc:
+        return [(f"{key}.dataset", entry["dataset"].get("root"), str(exc))]
+    problems = []
+    if entry["n_clips"] > len(ds):
+        problems.append(
+            (f"{key}.n_clips", entry["n_clips"], f"the dataset has {len(ds)} clips; allowed: 0 (all) to {len(ds)}")
+        )
+    if entry.get("train") is not None and entry["train"].get("split") is not None:
+        problems += _train_split_problems(entry, ds, base_dir, confine, key)
+    elif entry.get("train") is not None:
+        n_scored = entry["n_clips"] or len(ds)
+        n_train = entry["train"]["n_train"]
+        if n_scored > len(ds) - 2:
+            problems.append(
+                (
+                    f"{key}.n_clips",
+                    entry["n_clips"],
+                    f"with {key}.train, clips are needed for training "
+                    f"too; allowed: 1 to {len(ds) - 2} of the {len(ds)} clips",
+                )
+            )
+        elif n_train > len(ds) - n_scored:
+            problems.append(
+                (
+                    f"{key}.train.n_train",
+                    n_train,
+                    f"{len(ds) - n_scored} clips are not scored; allowed: 0 (all of them) or 2 to {len(ds) - n_scored}",
+                )
+            )
+    try:
+        open_untrained_network(entry, ds, base_dir, confine=confine, key=key)
+    except InputError as exc:
+        where = "weights" if "weights file" in str(exc) or ".weights" in str(exc) else "network"
+        problems.append((f"{key}.{where}", entry[where], str(exc)))
+    return problems
+
+
+def _train_split_problems(
+    entry: Mapping[str, Any], ds: Any, base_dir: str | Path, confine: bool, key: str
+) -> list[tuple[str, Any, str]]:
+    """A ``train.split`` must open, hold ``n_train`` clips and share no file with the scored clips."""
+    split, n_train = entry["train"]["split"], entry["train"]["n_train"]
+    try:
+        train = train_split_dataset(entry, base_dir, confine=confine, key=key)
+        if n_train > len(train):
+            return [
+                (
+                    f"{key}.train.n_train",
+                    n_train,
+                    f"the training split {split!r} has {len(train)} clips; allowed: 0 (all) to {len(train)}",
+                )
+            ]
+        if (n_train or len(train)) < 2:
+            return [
+                (
+                    f"{key}.train.n_train",
+                    n_train,
+                    f"1 training clip (the split {split!r} has {len(train)}); allowed: 2 or more",
+                )
+            ]
+        scored = ds.draw(entry["n_clips"], entry["seed"]) if entry["n_clips"] else range(len(ds))
+        picked = train.draw(n_train, entry["train"]["seed"]) if n_train else range(len(train))
+        check_disjoint_files(train, picked, ds, scored, what=f"{key}.train.split = {split!r}")
+    except InputError as exc:
+        return [(f"{key}.train.split", split, str(exc))]
+    return []
