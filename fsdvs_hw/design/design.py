@@ -113,6 +113,13 @@ class Design:
         ``design.spec.realisations.asic.bits`` (every option's value, its default where unset).
         Read values from here; :attr:`data` / :meth:`to_dict` is the JSON form stored with
         results and fingerprinted.
+
+    Examples
+    --------
+    >>> from fsdvs_hw import parse_design
+    >>> design = parse_design({"design": {"name": "demo"}, "sensor": {"threshold_on": 0.15}})
+    >>> design.name, design.spec.sensor.threshold_on, design.target.size
+    ('demo', 0.15, 7)
     """
 
     data: dict[str, Any]
@@ -233,6 +240,17 @@ def parse_design(
     Relative paths are resolved against ``base_dir``; with ``confine_paths`` (the default, and
     always for design files) every path must stay inside it. Pass ``confine_paths=False`` only
     for designs built in your own code that point at files elsewhere.
+
+    Raises
+    ------
+    DesignError
+        Every problem found, in one message (as :func:`load_design`).
+
+    Examples
+    --------
+    >>> from fsdvs_hw import parse_design
+    >>> parse_design({"realisations": {"include": ["learned", "asic"], "asic": {"bits": 4}}}).realisations
+    ['learned', 'asic']
     """
     chk = DesignProblems(source)
     if not isinstance(raw, Mapping):
