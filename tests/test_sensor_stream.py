@@ -56,16 +56,16 @@ def test_chunked_equals_whole_clip_bit_for_bit(kernel, chunk):
 
 def _record_pipelines(monkeypatch):
     """The ``inline`` flag of every event pipeline made from now on, in order."""
-    from fsdvs_hw.sensor.simulation import events
+    from fsdvs_hw.sensor.simulation import event_pipeline
 
     made = []
-    real_init = events.EventPipeline.__init__
+    real_init = event_pipeline.EventPipeline.__init__
 
     def spy(self, *args, **kwargs):
         real_init(self, *args, **kwargs)
         made.append(self.inline)
 
-    monkeypatch.setattr(events.EventPipeline, "__init__", spy)
+    monkeypatch.setattr(event_pipeline.EventPipeline, "__init__", spy)
     return made
 
 
@@ -101,7 +101,7 @@ def test_event_only_stream_equals_whole_clip_through_the_pipeline(config, chunk,
 def test_stream_runs_small_frames_inline_and_large_ones_on_workers(monkeypatch):
     """The pipeline is inline below INLINE_PIXELS pixels per frame (all sensors), threaded from it;
     a task's error reaches the caller either way."""
-    from fsdvs_hw.sensor.simulation import events, stream
+    from fsdvs_hw.sensor.simulation import event_pipeline, stream
 
     made = _record_pipelines(monkeypatch)
     small = _clip(T=4, H=8, W=8)
@@ -110,7 +110,7 @@ def test_stream_runs_small_frames_inline_and_large_ones_on_workers(monkeypatch):
     list(simulate(small, None, config=SensorConfig()))
     assert made == [True, False]
     with pytest.raises(ZeroDivisionError):
-        events._InlineExecutor().submit(lambda: 1 / 0).result()
+        event_pipeline._InlineExecutor().submit(lambda: 1 / 0).result()
 
 
 def test_stream_from_a_generator_of_time_frame_pairs_equals_array_input():

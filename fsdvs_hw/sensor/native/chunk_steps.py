@@ -118,10 +118,10 @@ def _contiguous(x: Any) -> Any:
 
 
 def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, events: list, pipe: Any, bar: Any) -> list:
-    """Step the pixel state ``st`` (:class:`~fsdvs_hw.sensor.simulation.events.PixelState`) through the frames ``Ls`` (and
-    low-pass intensities ``CI``, or None) and submit their events to ``pipe``
-    (:class:`~fsdvs_hw.sensor.simulation.events.EventPipeline`), as :func:`~fsdvs_hw.sensor.simulation.events._advance_steps` does where
-    :func:`chunk_applies` holds.
+    """Step the pixel state ``st`` (:class:`~fsdvs_hw.sensor.simulation.events.PixelState`) through
+    the frames ``Ls`` (and low-pass intensities ``CI``, or None) and submit their events to ``pipe``
+    (:class:`~fsdvs_hw.sensor.simulation.event_pipeline.EventPipeline`), as
+    :func:`~fsdvs_hw.sensor.simulation.events._advance_steps` does where :func:`chunk_applies` holds.
 
     Parameters
     ----------
@@ -135,7 +135,7 @@ def advance_chunk(st: Any, Ls: Any, CI: Any, tsd: Any, config: SensorConfig, eve
     config : SensorConfig
         The sensor.
     events : list
-        Each interval's :meth:`~fsdvs_hw.sensor.simulation.events.EventPipeline.sort` result is appended.
+        Each interval's :meth:`~fsdvs_hw.sensor.simulation.event_pipeline.EventPipeline.sort` result is appended.
     pipe : EventPipeline
         Where the crossing tasks (one per :data:`GROUP_PIXELS` pixel-intervals, in order), the
         noise task (one per chunk, with shot noise) and the sorts run; its ``buffers`` pool lends

@@ -9,7 +9,7 @@ chunk runs exactly the operations of a whole-clip :func:`~fsdvs_hw.sensor.event_
 :func:`~fsdvs_hw.sensor.event_frames` run, so the concatenated output equals the whole-clip output
 bit for bit at a fixed seed (tested). Memory: the chunk's frames, their filtered log signal and
 the per-pixel state, O(chunk × H × W) plus the kernel's FFT/conv workspace; an event-only CPU
-stream computes its events on worker threads (:class:`~fsdvs_hw.sensor.simulation.events.EventPipeline`)
+stream computes its events on worker threads (:class:`~fsdvs_hw.sensor.simulation.event_pipeline.EventPipeline`)
 and keeps :data:`LOOKAHEAD_CHUNKS` more chunks in flight.
 
 Differences from the whole-clip functions (both stated where they matter):
@@ -44,16 +44,14 @@ from ...errors import InputError
 from ...validation import check_bool, check_instance
 from .config import SATURATION_INTENSITY, SensorConfig
 from .crossings import to_event_columns
+from .event_pipeline import EventPipeline, events_pipelined, noise_event_count
 from .events import (
     EventList,
-    EventPipeline,
     PixelState,
     SimulationInfo,
     advance_pixels,
     config_from_plan,
-    events_pipelined,
     initial_pixel_state,
-    noise_event_count,
     saturate,
     substeps_per_interval,
 )

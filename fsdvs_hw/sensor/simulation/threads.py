@@ -20,7 +20,7 @@ __all__ = ["event_list_threads", "name_os_thread"]
 def event_list_threads() -> int:
     """torch intra-op threads for an event-list run: the CPU cores minus two, at least 1.
 
-    The event pipeline (:class:`~fsdvs_hw.sensor.simulation.events.EventPipeline`) keeps two worker threads
+    The event pipeline (:class:`~fsdvs_hw.sensor.simulation.event_pipeline.EventPipeline`) keeps two worker threads
     busy (emit, sort) beside torch's stepping thread. On 2 cores this gives 1: measured with
     ``fsdvs-hw bench sim``, 2 torch threads made the bikes event list ~25 % slower, their OpenMP
     team competing with the workers.
