@@ -309,7 +309,8 @@ def test_sweep_command_builds_the_point_list_once(tmp_path, monkeypatch, capsys)
 
 def test_a_huge_voxel_grid_is_refused_with_its_size_before_allocation():
     torch = pytest.importorskip("torch")
-    from fsdvs_hw.sensor.simulation.events import EventList, voxel_grid
+    from fsdvs_hw.sensor.simulation.events import EventList
+    from fsdvs_hw.sensor.simulation.voxels import voxel_grid
 
     z = torch.zeros(1, dtype=torch.int64)
     ev = EventList(z, z.clone(), z.clone(), torch.zeros(1, dtype=torch.float64), torch.ones(1, dtype=torch.int8))

@@ -58,7 +58,7 @@ _LAZY: dict[str, str] = {
     "sensor_preset": "fsdvs_hw.sensor.cameras.presets",
     "simulate": "fsdvs_hw.sensor.simulation.stream",
     "upsample_frames": "fsdvs_hw.sensor.simulation.upsampling",
-    "voxel_grid": "fsdvs_hw.sensor.simulation.events",
+    "voxel_grid": "fsdvs_hw.sensor.simulation.voxels",
 }
 
 __all__, __getattr__, __dir__ = lazy_exports("fsdvs_hw.sensor", _LAZY, globals())
@@ -69,9 +69,10 @@ if TYPE_CHECKING:  # the same names, visible to IDEs and type checkers
     from .cameras.presets import SensorPreset, sensor_config, sensor_preset
     from .eventfiles.recordings import read_recording
     from .simulation.config import PLACEMENTS, POSITIVITY_MODES, SURROGATES, SensorConfig
-    from .simulation.events import EventList, EventSimulator, SimulationInfo, event_frames, event_list, voxel_grid
+    from .simulation.events import EventList, EventSimulator, SimulationInfo, event_frames, event_list
     from .simulation.filtering import mesh_surround_steady_state
     from .simulation.pixel import linlog
     from .simulation.plan import ModelPlan, PlanDecision, SceneStats, plan_model
     from .simulation.stream import EventChunk, collect, simulate
     from .simulation.upsampling import upsample_frames
+    from .simulation.voxels import voxel_grid
