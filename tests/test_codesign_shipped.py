@@ -116,3 +116,16 @@ def test_the_explore_report_carries_the_section_before_the_run_conditions(shippe
         design = load_design(REPO / "designs" / f"{name}.toml")
         redrawn = write_report_from_scores(tmp_path / name, report_input(design), to=tmp_path / f"{name}_redrawn")
         assert (section in redrawn.read_text()) == (name == "codesign")
+
+
+def test_write_report_shows_the_summary_it_is_handed_and_reads_no_file(tmp_path):
+    """The exploration hands its co-design summary to the report in memory: a codesign.json lying in
+    the output folder is not read by write_report (only the redraw of a finished run reads it)."""
+    from fsdvs_hw.explore.reporting import report_input
+    from fsdvs_hw.report.html import write_report
+
+    design = load_design(REPO / "designs" / "codesign.toml")
+    (tmp_path / "codesign.json").write_text(json.dumps({"cells": [], "settings": {"epochs": 7}}))
+    assert "7 epochs" not in write_report([], report_input(design), tmp_path).read_text()
+    handed = report_input(design, codesign={"cells": [], "settings": {"epochs": 7}})
+    assert "7 epochs" in write_report([], handed, tmp_path).read_text()

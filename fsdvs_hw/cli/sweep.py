@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -82,6 +83,8 @@ def run(args: argparse.Namespace) -> int:
             rng=design.spec.run.seed,
         )
         scored = with_physical_costs(scored, design)
-        page = write_report(scored, report_input(design), args.report)
+        stored = Path(args.report) / "codesign.json"  # an earlier co-design run's rows beside the report
+        codesign = json.loads(stored.read_text()) if design.spec.codesign.enabled and stored.is_file() else None
+        page = write_report(scored, report_input(design, codesign=codesign), args.report)
         print(f"[sweep] report: {page}", file=sys.stderr, flush=True)
     return 0 if summary.statuses.get("error", 0) == 0 else 1

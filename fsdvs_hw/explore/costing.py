@@ -3,10 +3,11 @@ setting of its ``costs.*`` sweep axes.
 
 The physical costs (:mod:`fsdvs_hw.costs`) depend on a point's score and on the design's
 ``[costs]`` assumptions, never the other way round, so a sweep over ``costs.*`` keys needs no
-refit and no rescoring: :func:`with_physical_costs` computes each point's ``"physical_cost"``
-under the design's own ``[costs]`` values and, when the design sweeps ``costs.*`` keys,
-``"physical_cost_sweep"``: one ``{"setting", "physical_cost"}`` per setting of those axes.
-``scores.json`` and the report read both from there. Each point also carries ``"cost_flips"``:
+refit and no rescoring: :func:`with_physical_costs` computes each point's physical cost
+(:attr:`fsdvs_hw.records.ScoredPoint.physical_cost`) under the design's own ``[costs]`` values and,
+when the design sweeps ``costs.*`` keys, one :class:`~fsdvs_hw.records.CostSetting` per setting of
+those axes (``physical_cost_sweep``). ``scores.json`` and the report read both from there. Each
+point also carries its :class:`~fsdvs_hw.records.CostFlip` records (``cost_flips``):
 for every other hardware kind in its sweep setting and each cost that can reorder them (power,
 area, latency), the ``[costs]`` keys (and the mesh's conductance) whose change within their
 range reverses which is cheaper, with the value at which it does
