@@ -68,7 +68,7 @@ NOTEBOOK_ARGS ?=
 notebooks: setup
 	PYTHONPATH=$(CURDIR) $(BIN)/python notebooks/execute.py $(NOTEBOOK_ARGS)
 
-# Sampled mutation check of fsdvs_hw/realise, fsdvs_hw/explore and fsdvs_hw/studies (cosmic-ray; see mutation/):
+# Sampled mutation check of fsdvs_hw/realise, fsdvs_hw/design, fsdvs_hw/explore and fsdvs_hw/studies (cosmic-ray; see mutation/):
 # MUTANTS mutants drawn with MUTATION_SEED from all of them, each run against its module's fast
 # tests. Needs fsdvs_hw/ committed (the test command finds the mutated file with git diff).
 MUTANTS ?= 60

@@ -20,7 +20,7 @@ _TESTS: list[tuple[str, list[str]]] = [
     ("optics", ["test_optics.py", "test_metalens.py"]),
     ("spectral", ["test_metalens.py", "test_optics.py"]),
     ("realise/", ["test_realise_base.py", "test_optics.py", "test_realisation_contract.py"]),
-    ("explore/design", ["test_explore_design.py", "test_validation.py", "test_inputs_safety.py"]),
+    ("design/", ["test_explore_design.py", "test_validation.py", "test_inputs_safety.py"]),
     ("explore/sweep", ["test_explore_sweep.py"]),
     ("explore/store", ["test_explore_sweep.py", "test_explore_paired.py"]),
     ("explore/emulation", ["test_explore_emulation.py", "test_explore_emulation_track.py"]),
