@@ -57,7 +57,14 @@ CHEAP = {
 
 #: Non-default values of options a generic rule cannot make up (structured tables; a range that
 #: depends on the target: the fit window holds the 7x7 target of a design file).
-SAMPLES = {("mesh", "bounds"): {"lambda_px": [0.2, 15.0]}, ("mesh", "fit_size"): 9}
+SAMPLES = {
+    ("mesh", "bounds"): {"lambda_px": [0.2, 15.0]},
+    ("mesh", "fit_size"): 9,
+    ("metalens", "illuminant"): 600e-9,  # one visible wavelength: the default lens's NA stays below 1
+}
+
+#: Options a design must set with a sample so that the fit's rules between options accept it.
+COMPANIONS = {("mesh", "model"): {"grid_half_width": 5}}
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -220,7 +227,8 @@ def test_every_option_reaches_the_fit_function_from_a_design_file(name, monkeypa
     for key, value in _option_values(name):
         if view(spec.options, key).kinds == {"object"} and not view(spec.options, key).table:
             continue  # a Python object: cannot come from a design file (the next test passes it)
-        d = parse_design({"realisations": {"include": [name], name: {key: value}}}, source="contract")
+        table = {key: value, **COMPANIONS.get((name, key), {})}
+        d = parse_design({"realisations": {"include": [name], name: table}}, source="contract")
         [point] = expand_points(d)
         res = evaluate_point(point)
         assert res["status"] == "error" and "options recorded" in res["result"]["reason"], res

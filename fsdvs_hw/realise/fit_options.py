@@ -97,13 +97,15 @@ class FitOptions(StrictModel):
         return as_kernel(kernel, name=self.kernel_name, pitch_m=getattr(self, "pitch_m", None), repitch=True)
 
     def with_target(self, kernel: Any) -> Self:
-        """These options checked against the target ``kernel`` (:meth:`target_problems`), holding it.
+        """These options checked against each other (:meth:`option_problems`, before ``kernel`` is
+        looked at) and against the target ``kernel`` (:meth:`target_problems`), holding it.
 
         Raises
         ------
         InputError
             ``kernel`` is not a kernel, or every option the target rules out, one line each.
         """
+        self.refuse(self.option_problems())  # before the kernel is looked at, as a design file does
         target = self.target_of(kernel)
         given = {name: getattr(self, name) for name in self.model_fields_set}
         checked = validate(type(self), given, context={"target": target})
