@@ -48,7 +48,7 @@ _CORE = {
 }
 _MODELS = {"sensor", "scenes", "realise", "records", "costs"}
 
-#: Import cycles known and owned elsewhere (none: sensor/events.py no longer imports sensor/plan.py).
+#: Import cycles known and owned elsewhere (none).
 KNOWN_CYCLES: tuple[frozenset[str], ...] = ()
 
 
