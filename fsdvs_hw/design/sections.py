@@ -188,14 +188,14 @@ class EmulationSection(StrictModel):
         "linear_light",
         "",
         "how the upsampled frames are made: 'linear_light' (blend in linear light, a cross-fade) or "
-        "'flow' (optical-flow interpolation in log intensity with occlusion handling, fsdvs_hw.sensor.upsampling; "
+        "'flow' (optical-flow interpolation in log intensity with occlusion handling, fsdvs_hw.sensor.simulation.upsampling; "
         "closer to the paper's RIFE)",
     )
     camera: Literal[EMULATION_CAMERAS] = field(  # type: ignore[valid-type]
         "design",
         "",
         "the camera that recaptures the display: 'design' (the design's [sensor]) or a sensor preset "
-        "with sourced parameters (fsdvs_hw.sensor.presets; 'imx636' is the paper's EVK4)",
+        "with sourced parameters (fsdvs_hw.sensor.cameras.presets; 'imx636' is the paper's EVK4)",
     )
 
 
