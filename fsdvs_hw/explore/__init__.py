@@ -2,7 +2,8 @@
 
 ``fsdvs-hw explore DESIGN --out DIR`` (:mod:`fsdvs_hw.explore.explore`) fits every realisation
 of a design's kernel, scores each (:mod:`~fsdvs_hw.explore.scoring`), stores one row per design
-point (:mod:`~fsdvs_hw.explore.store`) and writes the HTML report (:mod:`fsdvs_hw.report`).
+point (:mod:`~fsdvs_hw.explore.store`) and writes the HTML report (:mod:`fsdvs_hw.report`, from the
+scored points and the design's report input, :mod:`~fsdvs_hw.explore.reporting`).
 ``fsdvs-hw sweep DESIGN`` (:mod:`~fsdvs_hw.explore.sweep`) runs a design's sweep axes on a local
 process pool or a Dask cluster. Design files are read and validated by
 :mod:`fsdvs_hw.design`; the sensor-in-the-loop emulation track lives in
