@@ -10,7 +10,7 @@ Examples
 --------
 >>> from fsdvs_hw.kernels import reference_kernel
 >>> r = ReportInput(name="demo", source="demo.toml", fingerprint="ab12", design_data={},
-...                 target=reference_kernel(), focal_length_m=4e-3)
+...                 target=reference_kernel("delta", 3), focal_length_m=4e-3)
 >>> r.codesign_enabled, r.codesign is None
 (False, True)
 """
