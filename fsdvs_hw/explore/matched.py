@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from ..design import Design
 from ..errors import InputError
 from ..fingerprints import text_fingerprint
 from ..records import ScoredPoint
@@ -126,7 +127,7 @@ def point_rate_curve(point: Mapping[str, Any], task: str) -> RateCurve | str:
     )
 
 
-def _design_points(design: Any) -> dict[str, Any]:
+def _design_points(design: Design) -> dict[str, Any]:
     from .sweep import expand_points
 
     return {p.key: p for p in expand_points(design)}
@@ -143,7 +144,7 @@ def _reference_kernel(dpoint: Any) -> Any:
 
 
 def reference_curves(
-    design: Any, points: Sequence[Mapping[str, Any]], out_dir: str | Path, *, progress: bool | None = None
+    design: Design, points: Sequence[Mapping[str, Any]], out_dir: str | Path, *, progress: bool | None = None
 ) -> dict[str, dict[str, dict[str, RateCurve | str]]]:
     """Measure the reference kernels' rate curves of every sweep setting and task.
 
@@ -195,7 +196,7 @@ def reference_curves(
 
 
 def _one_curve(
-    design: Any,
+    design: Design,
     dpoint: Any,
     row: Mapping[str, Any],
     task: str,
@@ -352,7 +353,7 @@ def matched_rate_records(
 
 
 def with_matched_rates(
-    points: Sequence[ScoredPoint], design: Any, out_dir: str | Path, *, progress: bool | None = None
+    points: Sequence[ScoredPoint], design: Design, out_dir: str | Path, *, progress: bool | None = None
 ) -> list[ScoredPoint]:
     """Copies of ``points`` with ``"matched_rate"`` (:func:`matched_rate_records`) in their ``extra``
     when the design's ``[rate] enabled``; otherwise each carries ``{"status": "not requested"}``.
