@@ -1,5 +1,5 @@
 """learn_kernel(realisation=...): the network and the realisation's own parameters train together
-(co-design, issue 16); the kernel stays the realisation's at every step."""
+(co-design); the kernel stays the realisation's at every step."""
 
 from __future__ import annotations
 

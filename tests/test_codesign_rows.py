@@ -1,4 +1,4 @@
-"""The exploration's co-design rows (issue 16): [codesign] validation, the three rows with CIs,
+"""The exploration's co-design rows: [codesign] validation, the three rows with CIs,
 the recovered fraction's CI, resuming a killed run, and the report section."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The shipped co-design results (``make codesign``, designs/results/codesign/) are what the code makes
 of their own measurements: the summary is recomputed from the shipped per-unit evidence, and the
-report section is rebuilt from it, cell by cell (issue 16, "Must show")."""
+report section is rebuilt from it, cell by cell."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Physical costs across kinds (issue 25): each cost model against a hand computation, the
+"""Physical costs across kinds: each cost model against a hand computation, the
 readout-limit breach in the verdict, the [costs] design keys, and the cross-kind front."""
 
 from __future__ import annotations

@@ -193,7 +193,7 @@ def test_failed_point_is_recorded_with_its_reason(tmp_path):
 
 def test_fitter_warnings_are_kept_with_the_score():
     # a DoG with centre tap 0.29 is out of reach of a mesh with pixel weight 1, the absolute gain
-    # fixed (not the default since issue 13) and λ ≥ 1 px
+    # fixed (not the default) and λ ≥ 1 px
     d = parse_design(
         {
             "realisations": {

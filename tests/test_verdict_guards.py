@@ -1,4 +1,4 @@
-"""A verdict that knows when it cannot answer (issue 38): hard limits veto 'build' and say what
+"""A verdict that knows when it cannot answer: hard limits veto 'build' and say what
 would fit; a task at chance or with degenerate intervals is 'not measurable'; the verdict opens
 with the kernel against a plain DVS at equal event rate; a cross-kind 'cheapest' sentence names
 the assumption key that flips it and the value at which it does."""
