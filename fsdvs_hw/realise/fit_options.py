@@ -103,9 +103,10 @@ class FitOptions(StrictModel):
         Raises
         ------
         InputError
-            ``kernel`` is not a kernel, or every option the target rules out, one line each.
+            A broken rule between options, ``kernel`` not a kernel, or every option the target rules
+            out, one line each.
         """
-        self.refuse(self.option_problems())  # before the kernel is looked at, as a design file does
+        self.refuse(self.option_problems())  # a bad kernel does not hide a broken rule between options
         target = self.target_of(kernel)
         given = {name: getattr(self, name) for name in self.model_fields_set}
         checked = validate(type(self), given, context={"target": target})
