@@ -26,7 +26,7 @@ __all__ = ["AsicOptions"]
 class AsicOptions(FitOptions):
     """Keyword options of :func:`~fsdvs_hw.realise.asic.fit_asic_taps`, validated, with their rules.
 
-    Parameters
+    Attributes
     ----------
     bits : int
         Signed tap width including the sign, 2…24 (``-2**(bits-1) ≤ q ≤ 2**(bits-1) - 1``).

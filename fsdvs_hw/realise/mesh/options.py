@@ -33,7 +33,7 @@ MAX_GRID_HALF_WIDTH = 60
 class MeshOptions(FitOptions):
     """Keyword options of :func:`~fsdvs_hw.realise.mesh.fit_resistive_mesh`, validated, with their rules.
 
-    Parameters
+    Attributes
     ----------
     bounds : MeshBounds or mapping, optional
         λ range (px), gain range, minimum λ_wide/λ_narrow, conductance range (S); a mapping of

@@ -30,7 +30,7 @@ __all__ = ["MetalensOptions"]
 class MetalensOptions(FitOptions):
     """Keyword options of :func:`~fsdvs_hw.realise.metalens.fit_metalens`, validated, with their rules.
 
-    Parameters
+    Attributes
     ----------
     pitch_m : float, optional
         Pixel pitch (m); default the kernel's own pitch (an array's: :data:`~fsdvs_hw.kernels.DEFAULT_PITCH_M`).
