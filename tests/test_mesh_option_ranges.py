@@ -53,7 +53,9 @@ def _model_accepts(name: str, value: float) -> bool:
 
 def _fit_accepts(name: str, value: float) -> bool:
     try:
-        check_fit_arguments(MeshOptions, {**DEFAULTS, "pitch_m": None, name: value, "kernel": reference_kernel("dog", 7)})
+        check_fit_arguments(
+            MeshOptions, {**DEFAULTS, "pitch_m": None, name: value, "kernel": reference_kernel("dog", 7)}
+        )
     except InputError:
         return False
     return True
