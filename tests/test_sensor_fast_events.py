@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from fsdvs_hw.sensor import SensorConfig, event_frames, event_list
 from fsdvs_hw.sensor.native.library import sort_events, sort_intervals_to_columns
 from fsdvs_hw.sensor.simulation.crossings import (
+    ComparatorStep,
     crossing_step,
     crossing_step_torch,
     shot_noise_pixels,
@@ -101,7 +102,8 @@ def test_crossing_step_equals_full_frame_reference(refr, mismatch, B, step):
     )
     parts = []
     lt = None if last is None else last.clone()
-    lost, em_on, em_off = step(parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t0, t_b, dt, lt, refr, True, True)
+    comparator = ComparatorStep(h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t0, t_b, dt, lt, refr)
+    lost, em_on, em_off = step(parts, comparator, True, True)
     got = to_event_columns([sort_interval(parts)], H, W, B)
     assert ref_ev is not None and len(ref_ev[0]) > 10
     for a, r in zip(got, ref_ev, strict=True):

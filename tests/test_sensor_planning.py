@@ -43,9 +43,9 @@ def test_refractory_path_skipped_only_when_nothing_can_be_lost(safe, monkeypatch
     refractory_s = 0.3 * 0.1 / steepest if safe else 3.0 * 0.2 / steepest
     cfg = SensorConfig.ideal(0.2, threshold_sigma=0.03, refractory_s=refractory_s, leak_rate_hz=0.5)
     calls = []
-    real = ev_mod.crossing_step  # its 11th argument is the last-event-time map (None: no refractory arithmetic)
+    real = ev_mod.crossing_step  # its step's last-event-time map is None without refractory arithmetic
     monkeypatch.setattr(
-        ev_mod, "crossing_step", lambda *a: (calls.append(1) if a[10] is not None else None) or real(*a)
+        ev_mod, "crossing_step", lambda *a: (calls.append(1) if a[1].last_t is not None else None) or real(*a)
     )
     f, info = event_frames(video, config=cfg, return_info=True)
     assert bool(calls) is not safe  # the exact refractory path runs only where events can be lost

@@ -27,7 +27,7 @@ seconds (float64) and polarity (int8); :func:`to_event_columns` splits the index
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -64,34 +64,11 @@ def _gather(x: Any, idx: Any, shape: tuple[int, int, int]) -> Any:
     return x.expand(shape).reshape(-1)[idx]
 
 
-def crossing_step(
-    parts: list,
-    h_on: Any,
-    h_off: Any,
-    sig_a: Any,
-    ref_a: Any,
-    d_b: Any,
-    c_on: Any,
-    c_off: Any,
-    t_a: Any,
-    t_b: Any,
-    dt: Any,
-    last_t: Any,
-    refractory_s: float,
-    collect: bool,
-    want_counts: bool,
-) -> tuple[float, Any, Any]:
-    """Emit the crossings of one comparator step.
+class ComparatorStep(NamedTuple):
+    """One comparator step of every pixel: what :func:`crossing_step` turns into events.
 
-    On the CPU this runs the compiled kernel (:mod:`~fsdvs_hw.sensor.native.library`), elsewhere (or without a
-    C compiler) the vectorised torch path (:func:`crossing_step_torch`); both give the same events
-    bit for bit.
-
-    Parameters
+    Attributes
     ----------
-    parts : list
-        ``(flat, t, p)`` event triples are appended here (ON pixels first, then OFF; within a
-        polarity in raster order, each pixel's events consecutive) when ``collect``.
     h_on, h_off : torch.Tensor (B, H, W)
         Crossing counts (whole numbers, floating).
     sig_a, ref_a : torch.Tensor (B, H, W)
@@ -106,6 +83,43 @@ def crossing_step(
         Each pixel's last event time (updated in place); None without a refractory period.
     refractory_s : float
         Refractory period (seconds).
+    """
+
+    h_on: Any
+    h_off: Any
+    sig_a: Any
+    ref_a: Any
+    d_b: Any
+    c_on: Any
+    c_off: Any
+    t_a: Any
+    t_b: Any
+    dt: Any
+    last_t: Any
+    refractory_s: float
+
+
+def crossing_step(
+    parts: list,
+    step: ComparatorStep,
+    collect: bool,
+    want_counts: bool,
+) -> tuple[float, Any, Any]:
+    """Emit the crossings of one comparator step.
+
+    On the CPU this runs the compiled kernel (:mod:`~fsdvs_hw.sensor.native.library`), elsewhere (or without a
+    C compiler) the vectorised torch path (:func:`crossing_step_torch`); both give the same events
+    bit for bit.
+
+    Parameters
+    ----------
+    parts : list
+        ``(flat, t, p)`` event triples are appended here (ON pixels first, then OFF; within a
+        polarity in raster order, each pixel's events consecutive) when ``collect``.
+    step : ComparatorStep
+        The step of every pixel: crossing counts, comparator input and reference at its start,
+        the difference at its end, thresholds, times and the last-event-time map (updated in
+        place).
     collect : bool
         Append the events to ``parts``.
     want_counts : bool
@@ -118,13 +132,9 @@ def crossing_step(
     em_on, em_off : torch.Tensor (B, H, W) or None
         Emitted counts (``want_counts``), dtype of ``h_on``.
     """
-    if _native_ok(h_on, h_off, sig_a, ref_a, d_b, c_on, c_off):
-        return _crossing_step_cpu(
-            parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t, refractory_s, collect, want_counts
-        )
-    return crossing_step_torch(
-        parts, h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t, refractory_s, collect, want_counts
-    )
+    if _native_ok(*step[:7]):
+        return _crossing_step_cpu(parts, step, collect, want_counts)
+    return crossing_step_torch(parts, step, collect, want_counts)
 
 
 def _native_ok(h: Any, *same_dtype: Any) -> bool:
@@ -190,22 +200,12 @@ def append_part(parts: list, flat: np.ndarray, t: np.ndarray, p: np.ndarray, n: 
 
 def _crossing_step_cpu(
     parts: list,
-    h_on: Any,
-    h_off: Any,
-    sig_a: Any,
-    ref_a: Any,
-    d_b: Any,
-    c_on: Any,
-    c_off: Any,
-    t_a: Any,
-    t_b: Any,
-    dt: Any,
-    last_t: Any,
-    refractory_s: float,
+    step: ComparatorStep,
     collect: bool,
     want_counts: bool,
 ) -> tuple[float, Any, Any]:
     """:func:`crossing_step` through the compiled kernel (same arguments and results)."""
+    h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t, refractory_s = step
     B, H, W = h_on.shape
     # NumPy, not torch, for the work arrays: this may run on a worker thread (events.py), where a
     # parallel torch op would start its own OpenMP team
@@ -247,22 +247,12 @@ def _crossing_step_cpu(
 
 def crossing_step_torch(
     parts: list,
-    h_on: Any,
-    h_off: Any,
-    sig_a: Any,
-    ref_a: Any,
-    d_b: Any,
-    c_on: Any,
-    c_off: Any,
-    t_a: Any,
-    t_b: Any,
-    dt: Any,
-    last_t: Any,
-    refractory_s: float,
+    step: ComparatorStep,
     collect: bool,
     want_counts: bool,
 ) -> tuple[float, Any, Any]:
     """:func:`crossing_step` in vectorised torch (any device; same arguments and results)."""
+    h_on, h_off, sig_a, ref_a, d_b, c_on, c_off, t_a, t_b, dt, last_t, refractory_s = step
     shape = tuple(h_on.shape)
     B, H, W = shape
     HW = H * W

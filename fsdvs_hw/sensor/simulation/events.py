@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import torch
 
@@ -50,7 +50,7 @@ from ...validation import check_bool, check_instance
 from ..native.chunk_steps import advance_chunk, chunk_applies
 from ..native.fused import fused_substep, fused_substep_applies
 from .config import SATURATION_INTENSITY, SensorConfig
-from .crossings import crossing_step, noise_step, shot_noise_pixels, sort_interval, to_event_columns
+from .crossings import ComparatorStep, crossing_step, noise_step, shot_noise_pixels, sort_interval, to_event_columns
 from .event_pipeline import EventPipeline, events_pipelined, noise_event_count
 from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
 from .pixel import effect_generator, lowpass_step, threshold_maps
@@ -456,6 +456,35 @@ def _substep_target(
     return target, lp, sur
 
 
+class ComparatorOutput(NamedTuple):
+    """One sub-step of every pixel up to the comparator's output (what :func:`_compare` returns).
+
+    Attributes
+    ----------
+    target : torch.Tensor (B, H, W)
+        The comparator's input (log units) at the sub-step's end.
+    lp, sur : torch.Tensor (B, H, W) or None
+        Photoreceptor low-pass and post-log transient states after the sub-step.
+    ref : torch.Tensor (B, H, W)
+        The reference after the leak.
+    ref_next : torch.Tensor (B, H, W)
+        The reference after the sub-step's crossings.
+    n_on, n_off : torch.Tensor (B, H, W)
+        Crossing counts; with the relaxed surrogate its fractional counts.
+    d_b : torch.Tensor (B, H, W)
+        Comparator input minus reference (after the leak) at the sub-step's end.
+    """
+
+    target: Any
+    lp: Any
+    sur: Any
+    ref: Any
+    ref_next: Any
+    n_on: Any
+    n_off: Any
+    d_b: Any
+
+
 def _compare(
     Ls: Any,
     CI: Any,
@@ -470,12 +499,10 @@ def _compare(
     dt_sub: Any,
     config: SensorConfig,
     fused: bool,
-) -> tuple[Any, ...]:
+) -> ComparatorOutput:
     """Sub-step ``s`` of ``S`` in interval ``k`` up to the comparator's output: the target
     (:func:`_substep_target`), the leak, then :class:`_Comparator` (or the relaxed surrogate).
-    ``fused``: the same arithmetic through :func:`~fsdvs_hw.sensor.native.fused.fused_substep` (no gradient wanted).
-    Returns ``(target, lp, sur, ref, ref_next, n_on, n_off, d_b)``, ``ref`` after the leak; with
-    the relaxed surrogate ``n_on``/``n_off`` are its fractional counts."""
+    ``fused``: the same arithmetic through :func:`~fsdvs_hw.sensor.native.fused.fused_substep` (no gradient wanted)."""
     c_on, c_off = st.c_on, st.c_off
     if fused:
         target = Ls[k + 1] if s == S else torch.lerp(Ls[k], Ls[k + 1], s / S)
@@ -483,7 +510,7 @@ def _compare(
         lp_new, ref_next, n_on, n_off, d_b = fused_substep(target, inten, lp, ref, c_on, c_off, dt_sub, st.eps, config)
         if CI is not None:
             lp = target = lp_new
-        return target, lp, sur, ref, ref_next, n_on, n_off, d_b
+        return ComparatorOutput(target, lp, sur, ref, ref_next, n_on, n_off, d_b)
     target, lp, sur = _substep_target(Ls, CI, SU, k, s, S, lp, sur, dt_sub, config)
     leak = float(config.leak_rate_hz)
     if leak > 0:
@@ -492,9 +519,9 @@ def _compare(
         d_b = target - ref
         e_on = torch.relu(d_b) / c_on
         e_off = torch.relu(-d_b) / c_off
-        return target, lp, sur, ref, ref + e_on * c_on - e_off * c_off, e_on, e_off, d_b
+        return ComparatorOutput(target, lp, sur, ref, ref + e_on * c_on - e_off * c_off, e_on, e_off, d_b)
     n_on, n_off, ref_next, d_b = _Comparator.apply(target, ref, c_on, c_off, st.eps)
-    return target, lp, sur, ref, ref_next, n_on, n_off, d_b
+    return ComparatorOutput(target, lp, sur, ref, ref_next, n_on, n_off, d_b)
 
 
 def _call(fn: Any, *args: Any) -> Any:
@@ -620,8 +647,7 @@ def _advance_steps(
                 if exact_times:
                     with torch.no_grad():
                         t_a, t_b = _substep_times(tsd, k, s, S)
-                        args = (
-                            step_parts,
+                        step = ComparatorStep(
                             h_on,
                             h_off,
                             sig_prev.detach(),
@@ -634,9 +660,8 @@ def _advance_steps(
                             dt_sub64,
                             last_t,
                             refr,
-                            collect_events,
-                            refr > 0 and want_counts,
                         )
+                        args = (step_parts, step, collect_events, refr > 0 and want_counts)
                         if pipe is not None:
                             pipe.emit(crossing_step, *args, crossing=True)
                         else:
