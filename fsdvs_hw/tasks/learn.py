@@ -384,7 +384,7 @@ def learn_kernel(
     verbose : bool
         Print one progress line per epoch to stderr.
     realisation : str, optional
-        Co-design (issue 16): a registered realisation with a differentiable form
+        Co-design: a registered realisation with a differentiable form
         (:attr:`fsdvs_hw.realise.registry.RealisationSpec.differentiable`: ``mesh``, ``asic``, ``metalens``). It is
         first fitted to ``init_kernel``; training then moves the realisation's own parameters (conductance ratios and
         gains; integer taps and scale, straight-through; phase, distance and gains) with the network, at the filter
@@ -971,7 +971,7 @@ def finetune_network(
 
     The network of ``checkpoint`` (trained with the ideal kernel) is trained further on the
     checkpoint's own training clips (its ``seed``; the first ``n_train`` of them), with AdamW on
-    the backbone and head at ``lr_network``, for ``epochs`` epochs (issue 16, "fit then fine-tune"
+    the backbone and head at ``lr_network``, for ``epochs`` epochs (the "fit then fine-tune"
     and "co-designed" rows of the exploration, :mod:`fsdvs_hw.explore.codesign`):
 
     * ``kernel`` given: the kernel is frozen (the realisation's fitted kernel); the events never
