@@ -42,6 +42,20 @@ SETTINGS = TrainingSettings(epochs_frozen=1, epochs_joint=2, batch_size=8, width
 TOY = "toy_network:make"
 
 #: Recorded with the code before the training engine existed (one thread, CPU).
+#: The taps of both frozen-filter runs (``learn_joint_frozen_filter``, ``dataset_frozen``): the
+#: same start, not moved by training.
+FROZEN_TAPS = [
+    0.006613521715704522,
+    0.002669240982925188,
+    0.0006167725823734831,
+    0.0062131732868542155,
+    1.0,
+    -0.0016613023453557194,
+    -0.015227684840130555,
+    0.0038168390241818894,
+    -0.010276085758313883,
+]
+
 PINNED: dict[str, dict] = {
     "learn_staged": {
         "taps": [
@@ -62,17 +76,7 @@ PINNED: dict[str, dict] = {
         "metrics": {"top1": 0.375},
     },
     "learn_joint_frozen_filter": {
-        "taps": [
-            0.006613521715704522,
-            0.002669240982925188,
-            0.0006167725823734831,
-            0.0062131732868542155,
-            1.0,
-            -0.0016613023453557194,
-            -0.015227684840130555,
-            0.0038168390241818894,
-            -0.010276085758313883,
-        ],
+        "taps": FROZEN_TAPS,
         "loss": [1.36990624666214, 1.2137064337730408],
         "l1": [None, None],
         "stage": ["joint_frozen_filter", "joint_frozen_filter"],
@@ -150,17 +154,7 @@ PINNED: dict[str, dict] = {
         "weights": 36.72966841404559,
     },
     "dataset_frozen": {
-        "taps": [
-            0.006613521715704522,
-            0.002669240982925188,
-            0.0006167725823734831,
-            0.0062131732868542155,
-            1.0,
-            -0.0016613023453557194,
-            -0.015227684840130555,
-            0.0038168390241818894,
-            -0.010276085758313883,
-        ],
+        "taps": FROZEN_TAPS,
         "loss": [0.6755696088075638, 0.6055364559094111],
         "l1": [0.0, 0.0],
         "stage": ["frozen_filter", "joint_frozen_filter"],

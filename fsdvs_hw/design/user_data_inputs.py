@@ -233,7 +233,18 @@ def open_untrained_network(
     torch.nn.Module
         In eval mode, with the weights loaded.
     """
-    return _open_untrained_network(
+    return _open_untrained_network(*network_cache_key(entry, dataset, base_dir, confine=confine, key=key))
+
+
+def network_cache_key(
+    entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *, confine: bool, key: str
+) -> tuple[str, str, bool, str, int, int]:
+    """The hashable arguments under which a table's network is cached per process.
+
+    ``(entry as canonical JSON, base_dir resolved, confine, key, input channels, classes)``: the
+    network's input has ``2 (n_frames - 1)`` channels (ON and OFF counts per frame interval).
+    """
+    return (
         json.dumps(dict(entry), sort_keys=True),
         str(Path(base_dir).resolve()),
         bool(confine),

@@ -46,6 +46,7 @@ from ..design.design_paths import resolve_design_path
 from ..design.user_data_inputs import (
     build_user_network,
     check_disjoint_files,
+    network_cache_key,
     open_dataset,
     open_untrained_network,
     train_split_dataset,
@@ -498,14 +499,7 @@ def open_network(
     """
     if not trained:
         return open_untrained_network(entry, dataset, base_dir, confine=confine, key=key)
-    return _open_network(
-        json.dumps(dict(entry), sort_keys=True),
-        str(Path(base_dir).resolve()),
-        bool(confine),
-        key,
-        2 * (int(dataset.n_frames) - 1),
-        int(dataset.num_classes),
-    )
+    return _open_network(*network_cache_key(entry, dataset, base_dir, confine=confine, key=key))
 
 
 #: ``SensorConfig`` fields recorded with a user-data task's scores.
