@@ -11,6 +11,7 @@ optimiser steps or the stages shows here.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -41,143 +42,10 @@ SEG = SceneConfig(height_px=16, width_px=16, radius_px=(3.0, 4.0), n_frames=4, n
 SETTINGS = TrainingSettings(epochs_frozen=1, epochs_joint=2, batch_size=8, width=4, lr_filter=2e-2)
 TOY = "toy_network:make"
 
-#: Recorded with the code before the training engine existed (one thread, CPU).
-#: The taps of both frozen-filter runs (``learn_joint_frozen_filter``, ``dataset_frozen``): the
-#: same start, not moved by training.
-FROZEN_TAPS = [
-    0.006613521715704522,
-    0.002669240982925188,
-    0.0006167725823734831,
-    0.0062131732868542155,
-    1.0,
-    -0.0016613023453557194,
-    -0.015227684840130555,
-    0.0038168390241818894,
-    -0.010276085758313883,
-]
-
-PINNED: dict[str, dict] = {
-    "learn_staged": {
-        "taps": [
-            0.0075666706298788,
-            0.007658558335725754,
-            -0.056563650816351556,
-            -0.0023158848427815007,
-            1.001878965290557,
-            -0.07120776291655895,
-            -0.001640490783869096,
-            -0.0695702600780615,
-            -0.07660594673154707,
-        ],
-        "loss": [1.7232109904289246, 1.5951439142227173, 1.5884503722190857],
-        "l1": [None, 0.23409909069429574, 0.2984336667326395],
-        "stage": ["frozen_filter", "joint", "joint"],
-        "weights": 165.26157836399216,
-        "metrics": {"top1": 0.375},
-    },
-    "learn_joint_frozen_filter": {
-        "taps": FROZEN_TAPS,
-        "loss": [1.36990624666214, 1.2137064337730408],
-        "l1": [None, None],
-        "stage": ["joint_frozen_filter", "joint_frozen_filter"],
-        "weights": 166.8590668018005,
-        "metrics": {"miou": 0.2000042200088501, "macc": 0.4141903519630432, "pixel_accuracy": 0.65185546875},
-    },
-    "learn_codesign": {
-        "taps": [
-            -0.040514384348073744,
-            0.031511187826279576,
-            -0.040514384348073744,
-            0.031511187826279576,
-            0.24983870347978807,
-            0.031511187826279576,
-            -0.040514384348073744,
-            0.031511187826279576,
-            -0.040514384348073744,
-        ],
-        "loss": [1.990310251712799, 1.9065079092979431, 1.8253615498542786],
-        "l1": [None, None, None],
-        "stage": ["frozen_filter", "joint", "joint"],
-        "weights": 165.33986690221354,
-        "metrics": {"top1": 0.25},
-    },
-    "finetune_frozen": {
-        "taps": [
-            -0.037623637397229986,
-            0.029366668590936562,
-            -0.037623637397229986,
-            0.029366668590936562,
-            0.23302787522517357,
-            0.029366668590936562,
-            -0.037623637397229986,
-            0.029366668590936562,
-            -0.037623637397229986,
-        ],
-        "loss": [1.5839364528656006, 1.5213940143585205],
-        "l1": [None, None],
-        "stage": ["finetune", "finetune"],
-        "weights": 165.30518986885727,
-    },
-    "finetune_codesign": {
-        "taps": [
-            -0.03653623301860907,
-            0.02841707012558483,
-            -0.03653623301860907,
-            0.02841707012558483,
-            0.22530677028142257,
-            0.02841707012558483,
-            -0.03653623301860907,
-            0.02841707012558483,
-            -0.03653623301860907,
-        ],
-        "loss": [1.5839364528656006, 1.5197153488794963],
-        "l1": [None, None],
-        "stage": ["codesign", "codesign"],
-        "weights": 165.30887186166365,
-    },
-    "evaluate_finetuned": {"metrics": {"top1": 0.375}, "event_rate": 0.033040364583333336},
-    "dataset_learned": {
-        "taps": [
-            0.26424207003284095,
-            0.25788270363882293,
-            0.2571220742925875,
-            0.250156175591413,
-            1.257288247890791,
-            0.24270999917338468,
-            0.2597064359030199,
-            0.2667461962306524,
-            0.24214595183205656,
-        ],
-        "loss": [0.6757224053144455, 0.5678543150424957, 0.3839489469925563],
-        "l1": [0.0, 1.2610846221235652, 2.3080144345093117],
-        "stage": ["frozen_filter", "joint", "joint"],
-        "weights": 36.72966841404559,
-    },
-    "dataset_frozen": {
-        "taps": FROZEN_TAPS,
-        "loss": [0.6755696088075638, 0.6055364559094111],
-        "l1": [0.0, 0.0],
-        "stage": ["frozen_filter", "joint_frozen_filter"],
-        "weights": 34.05135610769503,
-    },
-    "dataset_codesign": {
-        "taps": [
-            -0.053297405964342084,
-            0.04145353797226607,
-            -0.053297405964342084,
-            0.04145353797226607,
-            0.32866733678010956,
-            0.04145353797226607,
-            -0.053297405964342084,
-            0.04145353797226607,
-            -0.053297405964342084,
-        ],
-        "loss": [0.7036242783069611, 0.6766934394836426],
-        "l1": [0.0, 0.2061456942927274],
-        "stage": ["frozen_filter", "joint"],
-        "weights": 795.5689267428825,
-    },
-}
+#: Recorded with the code before the training engine existed (one thread, CPU): per run, the
+#: final taps, per-epoch losses, kernel movement (L1 from the start), stages, a weight checksum and
+#: the metrics (tests/data/training_trajectories.json).
+PINNED: dict[str, dict] = json.loads((Path(__file__).parent / "data" / "training_trajectories.json").read_text())
 
 
 def _weights(state: dict) -> float:

@@ -217,12 +217,7 @@ class VideoToFileRun:
     """One run: the video's properties and its writer (opened in a thread while torch loads), its
     frames (decoded in a thread), its progress bar; :meth:`abort` stops them all and leaves no file.
 
-    Parameters
-    ----------
-    options : VideoToFileOptions
-        What to decode, simulate and write.
-    video : Path
-        The video file.
+    ``options`` and ``video`` are those of :func:`simulate_video_to_file`, which drives a run.
     """
 
     def __init__(self, options: VideoToFileOptions, video: Path) -> None:
