@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
 from ..kernels import MAX_KERNEL_SIZE
 from ..limits import MAX_CLIPS, MAX_EPOCHS, MAX_SEED, MAX_WORKERS
 from ._execution import int_in, scheduler_address
+from ._options import options_from_args
 
 __all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
@@ -157,27 +157,7 @@ def run(args: argparse.Namespace) -> int:
     if args.design is not None:
         return _run_on_design(args)
 
-    cmd = "fsdvs-hw ablation " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "fsdvs-hw ablation"
-    options = AblationOptions(
-        tasks=tuple(args.tasks),
-        sizes=tuple(args.sizes),
-        seeds=tuple(args.seeds),
-        n_train=args.n_train,
-        n_test=args.n_test,
-        epochs_frozen=args.epochs_frozen,
-        epochs_joint=args.epochs_joint,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        progress=False if args.no_progress else None,
-        transfer=args.transfer,
-        frozen_tasks=tuple(args.frozen_tasks),
-        transfer_only=args.transfer_only,
-        frozen_only=args.frozen_only,
-        out=args.out,
-        ship_dir=args.ship_dir,
-        from_store=args.from_store,
-        command=cmd,
-    )
+    options = options_from_args(AblationOptions, args)
     study = run_ablation_study(options)
     print(study.markdown)
     return 0

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from ..limits import MAX_CLIPS
 from ._execution import int_in
+from ._options import options_from_args
 from .rate import contrast_threshold
 
 __all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
@@ -69,23 +69,13 @@ def run(args: argparse.Namespace) -> int:
 
     # one thread: on a shared machine PyTorch's second thread spins (measured ~10x the CPU time)
     torch.set_num_threads(1)
-    cmd = "fsdvs-hw information " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "fsdvs-hw information"
     study = run_information_study(
-        InformationOptions(
-            design=args.design,
-            out=args.out,
+        options_from_args(
+            InformationOptions,
+            args,
             n_networks=args.networks,
-            n_train=args.n_train,
-            n_test=args.n_test,
-            epochs=args.epochs,
-            width=args.width,
-            realisations=tuple(args.realisations),
             matched_rate=not args.no_matched_rate,
-            rate_thresholds=tuple(args.rate_thresholds),
             n_bins=args.bins,
-            n_resamples=args.n_resamples,
-            progress=False if args.no_progress else None,
-            command=cmd,
         )
     )
     print(study.text)

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from ..limits import MAX_CLIPS
 from ._execution import int_in
+from ._options import options_from_args
 
 __all__ = ["DESCRIPTION", "HELP", "add_arguments", "run"]
 
@@ -116,27 +116,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..studies.rate_study import RateOptions, run_rate_study
 
-    cmd = "fsdvs-hw rate " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "fsdvs-hw rate"
     study = run_rate_study(
-        RateOptions(
-            design=args.design,
-            task=args.task,
-            out=args.out,
-            thresholds=tuple(args.thresholds),
+        options_from_args(
+            RateOptions,
+            args,
             n_networks=args.networks,
-            n_test=args.n_test,
-            realisations=tuple(args.realisations),
-            illuminance_lux=args.illuminance_lux,
-            quantum_efficiency=args.quantum_efficiency,
-            protocol=args.protocol,
             seeds=tuple(range(args.seeds)),
-            n_train=args.n_train,
-            zero_shot=args.zero_shot,
             resolution_px=(args.resolution[0], args.resolution[1]),
-            n_resamples=args.n_resamples,
-            interpolation_sensitivity=args.interpolation_sensitivity,
-            progress=False if args.no_progress else None,
-            command=cmd,
         )
     )
     print(study.text)

@@ -14,6 +14,8 @@ import signal
 import sys
 from pathlib import Path
 
+from ._options import options_from_args
+
 __all__ = ["BYTES_PER_PIXEL", "DESCRIPTION", "HELP", "MAX_SIDE", "MAX_THREADS_PER_CORE", "add_arguments", "run"]
 
 #: Largest --size side (pixels): the event files' coordinate limit.
@@ -182,22 +184,8 @@ def run(args: argparse.Namespace) -> int:
     config = SensorConfig.preset(args.preset, **overrides)
     if not path.is_file():
         video_properties(path)  # its one-line error at once, before torch loads
-    options = VideoToFileOptions(
-        out=args.out,
-        preset=args.preset,
-        kernel=args.kernel,
-        start_frame=args.start_frame,
-        frames=args.frames,
-        size=size,
-        peak_intensity=args.peak_intensity,
-        allow_truncated=args.allow_truncated,
-        input_mapping=args.input_mapping or preset_input_mapping(args.preset),
-        dtype=args.dtype,
-        upsample=args.upsample,
-        upsample_rate=args.upsample_rate,
-        threads=args.threads,
-        chunk_frames=args.chunk_frames,
-        progress=False if args.no_progress else None,
+    options = options_from_args(
+        VideoToFileOptions, args, size=size, input_mapping=args.input_mapping or preset_input_mapping(args.preset)
     )
     try:
         n_events, n_on, wall = simulate_video_to_file(options, path, config)
