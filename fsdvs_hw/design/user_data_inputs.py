@@ -47,16 +47,26 @@ def _reader_paths(source: Mapping[str, Any], base: Path, confine: bool, key: str
     return {name: resolve_design_path(base, str(p), what=f"{key}.{name}", confine=confine) for name, p in rel.items()}
 
 
+#: Each ``dataset.format``: its reader (a class of :mod:`fsdvs_hw.scenes.datasets`), the paths the
+#: reader takes first, in order (named as in :func:`_reader_paths`), and the table's fields it takes
+#: by name. Besides: ``video_folder``'s ``split_file`` (the split path, if any), ``dsec_detection``'s
+#: ``class_names`` (the DSEC classes when none are given) and every reader's :func:`_open_dataset` ``common``.
+_READERS: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
+    "video_folder": ("VideoFolderDataset", ("root",), ("fps", "stride", "start_frame")),
+    "dsec_detection": ("DsecDetectionDataset", ("root",), ("clip_stride",)),
+    "coco_frames": ("CocoFramesDataset", ("frames", "annotations"), ("clip_stride", "fps", "require_annotations")),
+    "mask_frames": (
+        "MaskFramesDataset",
+        ("frames", "masks"),
+        ("num_classes", "clip_stride", "fps", "ignore_index", "frame_suffix", "mask_suffix"),
+    ),
+}
+
+
 @functools.lru_cache(maxsize=16)
 def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
+    from ..scenes import datasets
     from ..scenes.clip_cache import ClipDiskCache
-    from ..scenes.datasets import (
-        DSEC_DETECTION_CLASSES,
-        CocoFramesDataset,
-        DsecDetectionDataset,
-        MaskFramesDataset,
-        VideoFolderDataset,
-    )
 
     s = json.loads(blob)
     paths = _reader_paths(s, Path(base), confine, key)
@@ -70,42 +80,13 @@ def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
     if s.get("cache"):
         folder = resolve_design_path(Path(base), s["cache"]["dir"], what=f"{key}.cache.dir", confine=confine)
         common["disk_cache"] = ClipDiskCache(folder, s["cache"]["max_mb"])
+    reader, positional, named = _READERS[s["format"]]
+    options = {name: s[name] for name in named}
     if s["format"] == "video_folder":
-        return VideoFolderDataset(
-            paths["root"],
-            split_file=paths.get("split"),
-            fps=s["fps"],
-            stride=s["stride"],
-            start_frame=s["start_frame"],
-            **common,
-        )
-    if s["format"] == "dsec_detection":
-        return DsecDetectionDataset(
-            paths["root"],
-            clip_stride=s["clip_stride"],
-            class_names=s["class_names"] or DSEC_DETECTION_CLASSES,
-            **common,
-        )
-    if s["format"] == "coco_frames":
-        return CocoFramesDataset(
-            paths["frames"],
-            paths["annotations"],
-            clip_stride=s["clip_stride"],
-            fps=s["fps"],
-            require_annotations=s["require_annotations"],
-            **common,
-        )
-    return MaskFramesDataset(
-        paths["frames"],
-        paths["masks"],
-        num_classes=s["num_classes"],
-        clip_stride=s["clip_stride"],
-        fps=s["fps"],
-        ignore_index=s["ignore_index"],
-        frame_suffix=s["frame_suffix"],
-        mask_suffix=s["mask_suffix"],
-        **common,
-    )
+        options["split_file"] = paths.get("split")
+    elif s["format"] == "dsec_detection":
+        options["class_names"] = s["class_names"] or datasets.DSEC_DETECTION_CLASSES
+    return getattr(datasets, reader)(*(paths[name] for name in positional), **options, **common)
 
 
 def open_dataset(source: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True, key: str = "dataset") -> Any:
