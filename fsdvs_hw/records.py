@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
@@ -588,22 +588,16 @@ class CostFlip:
     cheaper: str
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "cost": self.cost,
-            "key": self.key,
-            "value": self.value,
-            "now": self.now,
-            "other": self.other,
-            "cheaper": self.cheaper,
-        }
+        return asdict(self)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, where: str = "cost_flips") -> CostFlip:
         data = _mapping(data, where)
-        missing = [k for k in ("cost", "key", "value", "now", "other", "cheaper") if k not in data]
+        names = [f.name for f in fields(cls)]
+        missing = [k for k in names if k not in data]
         if missing:
             raise InputError(f"{where}: a cost flip needs {', '.join(missing)}")
-        return cls(data["cost"], data["key"], data["value"], data["now"], data["other"], data["cheaper"])
+        return cls(**{k: data[k] for k in names})
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -64,12 +64,7 @@ class LensGeometry:
         return self.radius_m / math.hypot(self.radius_m, self.focal_length_m)
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "aperture_m": self.aperture_m,
-            "focal_length_m": self.focal_length_m,
-            "design_wavelength_m": self.design_wavelength_m,
-            "dispersion": self.dispersion,
-        }
+        return asdict(self)
 
 
 def design_phase(r: np.ndarray, geometry: LensGeometry, coefficients: Any) -> Any:
