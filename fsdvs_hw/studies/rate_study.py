@@ -229,7 +229,7 @@ def run_rate_study(options: RateOptions) -> RateStudy:
             "quantum_efficiency": options.quantum_efficiency,
             "photoelectrons_full_scale": photon.photoelectrons_full_scale,
             "pitch_m": float(design.spec.sensor.pitch_m),
-            "model": "Poisson photoelectrons per frame interval before the kernel (fsdvs_hw.sensor.photon_noise)",
+            "model": "Poisson photoelectrons per frame interval before the kernel (fsdvs_hw.sensor.simulation.photon_noise)",
         },
     }
     study = _write_study(options, out, curves, comparisons, settings)
