@@ -66,6 +66,20 @@ def _mapping(data: Any, where: str) -> Mapping[str, Any]:
     return data
 
 
+def _list(data: Any, where: str) -> list[Any] | tuple[Any, ...]:
+    if not isinstance(data, (list, tuple)):
+        raise InputError(f"{where}: expected a JSON list, got {type(data).__name__}")
+    return data
+
+
+def _int(data: Mapping[str, Any], key: str, where: str) -> int:
+    """``data[key]`` (0 when absent) as an int; an InputError naming the field when it is not a number."""
+    v = data.get(key, 0)
+    if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+        raise InputError(f"{where}.{key}: expected a number, got {v!r}"[:200])
+    return int(v)
+
+
 @dataclass(frozen=True)
 class Cost:
     """A realisation's hardware cost: named items, each with its value and SI unit.
@@ -198,14 +212,17 @@ class TrackScore:
             return cls(status=status or "unknown", extra={k: v for k, v in data.items() if k != "status"})
         if not isinstance(data.get("metric"), (int, float)):
             raise InputError(f"{where}: status 'ok' but no numeric 'metric' ({data.get('metric')!r})")
+        seeds = _list(data.get("per_seed", ()), f"{where}.per_seed")
+        if any(not isinstance(v, (int, float)) or isinstance(v, bool) for v in seeds):
+            raise InputError(f"{where}.per_seed: expected a list of numbers, got {seeds!r}"[:200])
         return cls(
             status=status,
             metric=float(data["metric"]),
             metric_name=str(data.get("metric_name", "")),
-            per_seed=tuple(data.get("per_seed", ())),
-            n_clips=int(data.get("n_clips", 0)),
-            n_clips_per_network=int(data.get("n_clips_per_network", 0)),
-            n_seeds=int(data.get("n_seeds", 0)),
+            per_seed=tuple(seeds),
+            n_clips=_int(data, "n_clips", where),
+            n_clips_per_network=_int(data, "n_clips_per_network", where),
+            n_seeds=_int(data, "n_seeds", where),
             test_clips=str(data.get("test_clips", "")),
             event_rate=_num(data.get("event_rate")),
             wall_s=_num(data.get("wall_s")),
@@ -702,7 +719,7 @@ class ScoredPoint:
         return cls(
             key=str(data["key"]),
             realisation=str(data["realisation"]),
-            params=data.get("params") or {},
+            params=_mapping(data.get("params") or {}, f"{where}.params"),
             status=str(data["status"]),
             score=Score.from_dict(result, where=f"{where}.result") if ok else None,
             failure={} if ok else _mapping(result, f"{where}.result"),
@@ -710,17 +727,25 @@ class ScoredPoint:
             paired_loss=PairedLoss.from_dict(paired, where=f"{where}.paired_loss") if paired else None,
             artifacts=None
             if links is None
-            else tuple(ArtifactLink.from_dict(e, where=f"{where}.artifacts") for e in links if isinstance(e, Mapping)),
+            else tuple(
+                ArtifactLink.from_dict(e, where=f"{where}.artifacts")
+                for e in _list(links, f"{where}.artifacts")
+                if isinstance(e, Mapping)
+            ),
             physical_cost=PhysicalCost.from_dict(data["physical_cost"], where=f"{where}.physical_cost")
             if isinstance(data.get("physical_cost"), Mapping)
             else None,
             physical_cost_sweep=tuple(
                 CostSetting.from_dict(e, where=f"{where}.physical_cost_sweep")
-                for e in data.get("physical_cost_sweep") or ()
+                for e in _list(data.get("physical_cost_sweep") or (), f"{where}.physical_cost_sweep")
             ),
             cost_flips=None
             if flips is None
-            else tuple(CostFlip.from_dict(f, where=f"{where}.cost_flips") for f in flips if isinstance(f, Mapping)),
+            else tuple(
+                CostFlip.from_dict(f, where=f"{where}.cost_flips")
+                for f in _list(flips, f"{where}.cost_flips")
+                if isinstance(f, Mapping)
+            ),
             extra={k: v for k, v in data.items() if k not in cls._KEYS},
         )
 

@@ -141,6 +141,35 @@ def test_malformed_parts_name_their_field():
     assert Cost({"a": CostItem(1.0, "m^2")}).to_dict() == {"a": {"value": 1.0, "unit": "m^2", "description": ""}}
 
 
+@pytest.mark.parametrize(
+    "key, value, match",
+    [
+        ("params", [1, 2], r"point k\.params: expected a JSON object, got list"),
+        ("artifacts", 3, r"point k\.artifacts: expected a JSON list, got int"),
+        ("cost_flips", {"a": 1}, r"point k\.cost_flips: expected a JSON list, got dict"),
+        ("physical_cost_sweep", 5, r"point k\.physical_cost_sweep: expected a JSON list, got int"),
+    ],
+)
+def test_a_malformed_stored_point_names_its_field(key, value, match):
+    """scores.json is a user file the redraw reads: a wrong type is an InputError naming the field."""
+    with pytest.raises(InputError, match=match):
+        ScoredPoint.from_dict({"key": "k", "realisation": "mesh", "status": "error", "result": {}, key: value})
+
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        ({"n_clips": "x"}, r"track\.n_clips: expected a number, got 'x'"),
+        ({"n_seeds": None}, r"track\.n_seeds: expected a number, got None"),
+        ({"per_seed": 0.5}, r"track\.per_seed: expected a JSON list, got float"),
+        ({"per_seed": ["a"]}, r"track\.per_seed: expected a list of numbers"),
+    ],
+)
+def test_a_malformed_track_score_names_its_field(change, match):
+    with pytest.raises(InputError, match=match):
+        TrackScore.from_dict({"status": "ok", "metric": 0.5, **change})
+
+
 def test_the_shipped_scores_round_trip_through_the_typed_points_unchanged():
     """scores.json's points → ScoredPoint (paired losses, artifact links, physical cost, cost flips
     typed) → to_dict is the file's content, key order included."""
