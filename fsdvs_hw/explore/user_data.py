@@ -308,6 +308,7 @@ def user_network_identity(entry: Mapping[str, Any], base_dir: str | Path, *, con
 
     Examples
     --------
+    >>> from fsdvs_hw.design.user_data_section import UserTask
     >>> entry = UserTask(dataset={"format": "video_folder", "root": "ucf"}).model_dump()
     >>> sorted(user_network_identity(entry, "."))[:3]
     ['clip_seed', 'dataset', 'device']
@@ -692,6 +693,7 @@ def user_task_record(entry: Mapping[str, Any]) -> dict[str, Any]:
 
     Examples
     --------
+    >>> from fsdvs_hw.design.user_data_section import UserTask
     >>> rec = user_task_record(UserTask(dataset={"format": "video_folder", "root": "ucf"}).model_dump())
     >>> rec["dataset"]["format"], rec["network"]["factory"]
     ('video_folder', 'built-in')
