@@ -224,13 +224,9 @@ def test_rate_curve_rejects_bad_thresholds():
         rate_curve(None, "detection", ["x.safetensors"], (0.2, -1.0))
 
 
-def test_cli_rate_resumes_without_recomputing_a_point(monkeypatch, tmp_path):
-    from fsdvs_hw.cli import main
-    from fsdvs_hw.explore import rate as rate_mod
-
-    counter = _Counter()
-    monkeypatch.setattr(rate_mod, "clip_evidence", counter)
-    argv = [
+def _rate_argv(out: Path) -> list[str]:
+    """``fsdvs-hw rate`` on the default design: recognition, 3 networks × 16 clips, thresholds 0.1 and 0.3."""
+    return [
         "rate",
         str(ROOT / "designs/default.toml"),
         "--task",
@@ -245,9 +241,18 @@ def test_cli_rate_resumes_without_recomputing_a_point(monkeypatch, tmp_path):
         "--n-resamples",
         "200",
         "--out",
-        str(tmp_path / "r"),
+        str(out),
         "--no-progress",
     ]
+
+
+def test_cli_rate_resumes_without_recomputing_a_point(monkeypatch, tmp_path):
+    from fsdvs_hw.cli import main
+    from fsdvs_hw.explore import rate as rate_mod
+
+    counter = _Counter()
+    monkeypatch.setattr(rate_mod, "clip_evidence", counter)
+    argv = _rate_argv(tmp_path / "r")
     assert main(argv) == 0
     assert counter.calls == 2 * 3 * 3  # (w/o, learned) × thresholds (0.1, 0.2 of the design, 0.3) × networks
     first = json.loads((tmp_path / "r/matched_rate.json").read_text())
@@ -343,24 +348,7 @@ def test_interpolation_sensitivity_rows_and_cli_flag(monkeypatch, tmp_path):
 
     monkeypatch.setattr(rate_mod, "clip_evidence", _Counter())
     out = tmp_path / "r"
-    argv = [
-        "rate",
-        str(ROOT / "designs/default.toml"),
-        "--task",
-        "recognition",
-        "--networks",
-        "3",
-        "--n-test",
-        "16",
-        "--thresholds",
-        "0.1",
-        "0.3",
-        "--n-resamples",
-        "200",
-        "--out",
-        str(out),
-        "--no-progress",
-    ]
+    argv = _rate_argv(out)
     assert main(argv) == 0 and not (out / "interpolation_sensitivity.json").exists()
     assert main([*argv, "--interpolation-sensitivity"]) == 0
     stored = json.loads((out / "interpolation_sensitivity.json").read_text())
