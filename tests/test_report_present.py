@@ -225,6 +225,19 @@ def test_write_report_from_scores_refuses_what_is_not_a_run(tmp_path):
         write_report_from_scores(tmp_path, "designs/default.toml")
 
 
+def test_write_report_from_scores_refuses_a_malformed_codesign_json(tmp_path):
+    """The redraw of a [codesign] run reads the run's codesign.json: a broken one is an InputError naming it."""
+    from fsdvs_hw.design import load_design
+    from fsdvs_hw.explore.reporting import report_input
+
+    report = report_input(load_design("designs/codesign.toml"))
+    (tmp_path / "scores.json").write_text('{"points": []}')
+    for bad, match in (("{not json", "not JSON"), ("[1, 2]", "expected a JSON object with a 'cells' list")):
+        (tmp_path / "codesign.json").write_text(bad)
+        with pytest.raises(InputError, match=rf"codesign.json: not a co-design summary \({match}"):
+            write_report_from_scores(tmp_path, report, to=tmp_path / "redrawn")
+
+
 def test_each_realisation_keeps_its_registry_colour_and_marker_in_every_figure():
     import matplotlib.pyplot as plt
     from matplotlib.colors import to_hex

@@ -106,6 +106,17 @@ def _read_scores(out_dir: str | Path) -> tuple[Path, Mapping[str, Any], list[Sco
     return src, data, [ScoredPoint.from_dict(p, where=f"{src}: points[{i}]") for i, p in enumerate(points)]
 
 
+def _read_codesign(path: Path) -> CodesignSummary:
+    """The co-design summary in ``path`` (a ``codesign.json``); an InputError when it is not one."""
+    try:
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not a co-design summary (not JSON: {exc})") from None
+    if not isinstance(data, Mapping) or not isinstance(data.get("cells", []), list):
+        raise InputError(f"{path}: not a co-design summary (expected a JSON object with a 'cells' list)")
+    return CodesignSummary.from_dict(data)
+
+
 def write_report_from_scores(out_dir: str | Path, report: ReportInput, *, to: str | Path | None = None) -> Path:
     """Rebuild ``report.html`` from the ``scores.json`` an earlier run wrote, without rerunning anything.
 
@@ -135,8 +146,9 @@ def write_report_from_scores(out_dir: str | Path, report: ReportInput, *, to: st
     ------
     InputError
         ``out_dir`` is not a folder; ``out_dir/scores.json`` is missing, is not JSON, or holds no
-        ``"points"`` list of stored points; ``report`` is not a loaded design's report input, or
-        not of the design the run used (:func:`check_same_design`); a file to write is a symbolic link.
+        ``"points"`` list of stored points, or ``codesign.json`` is not a co-design summary; ``report``
+        is not a loaded design's report input, or not of the design the run used
+        (:func:`check_same_design`); a file to write is a symbolic link.
 
     Examples
     --------
@@ -160,5 +172,5 @@ def write_report_from_scores(out_dir: str | Path, report: ReportInput, *, to: st
         write_output(dest / extra.name, extra.read_bytes(), flag="--to")
     shown = dest / extra.name  # the copy beside the report
     if report.codesign_enabled and shown.is_file():
-        report = replace(report, codesign=CodesignSummary.from_dict(json.loads(shown.read_text())))
+        report = replace(report, codesign=_read_codesign(shown))
     return write_report(points, report, dest)
