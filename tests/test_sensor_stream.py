@@ -211,7 +211,7 @@ def test_chunk_frames_for_aims_at_chunk_pixels_and_at_least_min_chunk_frames():
     assert chunk_frames_for(0, 5) == CHUNK_PIXELS  # a degenerate size does not divide by zero
 
 
-def test_simulate_command_default_chunks_follow_theframe_size(tmp_path):
+def test_simulate_command_default_chunks_follow_the_frame_size(tmp_path):
     """The command's default --chunk-frames is chunk_frames_for(H, W) of the simulated frames
     (--size if given, else the file's), MIN_CHUNK_FRAMES if the file does not say its size."""
     from fsdvs_hw.cli import main
