@@ -51,7 +51,6 @@ _Positivity = Literal["floor", "pedestal", "differential"]
 _Track = Literal["simulator", "emulation"]
 _PLACEMENTS = get_args(_Placement)
 _POSITIVITY = get_args(_Positivity)
-_TRACKS = get_args(_Track)
 #: The emulation track's recapturing camera: the design's [sensor], or a preset of
 #: :data:`fsdvs_hw.sensor.cameras.presets.SENSOR_PRESETS` (listed here so reading a design never imports torch;
 #: tests/test_sensor_presets.py checks that the two agree).
