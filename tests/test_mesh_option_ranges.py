@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from _schema_view import view
 from pydantic import ValidationError
 
 from fsdvs_hw.design import DesignError, parse_design
@@ -28,19 +29,18 @@ DEFAULTS = {name: f.default for name, f in MeshOptions.model_fields.items() if n
 
 
 def _range(name: str) -> tuple[float, float]:
-    lo, hi = -math.inf, math.inf
-    for m in MeshOptions.model_fields[name].metadata:  # a bound of 0 is a bound
-        for attr in ("ge", "gt"):
-            if getattr(m, attr, None) is not None:
-                lo = max(lo, float(getattr(m, attr)))
-        for attr in ("le", "lt"):
-            if getattr(m, attr, None) is not None:
-                hi = min(hi, float(getattr(m, attr)))
-    return lo, hi
+    """The option's declared bounds (its JSON Schema, as the contract test reads them; ±inf: none)."""
+    opt = view(MeshOptions, name)
+    return (-math.inf if opt.lo is None else float(opt.lo), math.inf if opt.hi is None else float(opt.hi))
 
 
 def _numeric() -> list[str]:
-    return [n for n in MeshOptions.model_fields if n not in CONTEXT and math.isfinite(_range(n)[1])]
+    """Options that are one number (not a number or a word) with an upper bound."""
+    return [
+        n
+        for n in MeshOptions.model_fields
+        if n not in CONTEXT and view(MeshOptions, n).kinds in ({"int"}, {"float"}) and math.isfinite(_range(n)[1])
+    ]
 
 
 def _model_accepts(name: str, value: float) -> bool:
@@ -64,7 +64,7 @@ def _fit_accepts(name: str, value: float) -> bool:
 @pytest.mark.parametrize("name", _numeric())
 def test_the_options_model_and_the_fit_accept_the_same_range(name):
     lo, hi = _range(name)
-    integer = MeshOptions.model_fields[name].annotation is int
+    integer = view(MeshOptions, name).kinds == {"int"}
     probes = [lo, hi, lo - 1 if integer else lo - max(abs(lo), 1e-300) * 1e-6, hi + 1 if integer else hi * (1 + 1e-6)]
     for v in probes:
         v = int(v) if integer else v
