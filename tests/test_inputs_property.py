@@ -227,7 +227,7 @@ def test_every_bad_fit_argument_is_an_input_error_naming_it_before_any_work(case
         (metalens, "RadialKernelModel"),
         (metalens, "sampled_spectrum"),
     ):
-        monkeypatch.setattr(module, attr, work_started, raising=False)
+        monkeypatch.setattr(module, attr, work_started)  # raises if renamed: the guard would watch nothing
     monkeypatch.chdir(tmp_path)
     target = reference_kernel("dog", 5)
     with pytest.raises(InputError) as info:
