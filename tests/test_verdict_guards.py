@@ -271,6 +271,26 @@ def test_a_realisation_identical_on_every_clip_gets_the_rule_of_three_not_a_zero
     assert rec["measurable"] is False and "every kernel's per-clip result is identical (3 kernels)" in rec["reason"]
 
 
+def test_a_metric_undefined_on_its_clips_is_not_measurable_with_its_reason_not_nan():
+    """A mean IoU over clips without a labelled pixel is NaN: the task reads "not measurable" with
+    why, and no NaN interval is drawn around it."""
+    from fsdvs_hw.explore.measurability import task_measurability
+    from fsdvs_hw.explore.paired import encode_evidence
+
+    world = _chance_world(0.9, 0.8)
+    for p in world:
+        track = p["result"]["tasks"]["recognition"]["simulator"]
+        track["metric_name"] = "mIoU"
+        track["evidence"] = [encode_evidence(ConfusionMIoU(np.zeros((40, 3, 3)))) for _ in range(2)]
+    (per_setting,) = task_measurability(world, n_resamples=200).values()
+    rec = per_setting["simulator"]["recognition"]
+    assert rec["measurable"] is False and "above_chance" not in rec
+    assert rec["reason"].startswith(
+        "the learned kernel's mIoU is undefined on its 80 test clips (nothing to score: no labelled pixels or boxes)"
+    )
+    assert "nan" not in rec["reason"]
+
+
 # --------------------------------------------------------------------------- the first question
 def _first_question_rows(low, high, status="ok"):
     ref = {

@@ -80,7 +80,6 @@ def task_measurability(
         ``n_networks``, ``resampled`` (the interval's resampling unit in words), ``measurable``
         and ``reason`` (why not; empty when measurable).
     """
-    from ..stats import chance_metric, difference_ci
     from .paired import decode_evidence
 
     groups: dict[str, list[Mapping[str, Any]]] = {}
@@ -111,29 +110,9 @@ def task_measurability(
                         else "test clips only (one network: the network-to-network spread is not in the interval)"
                     ),
                 }
-                reasons: list[str] = []
-                chances = [chance_metric(m) for m in arm]
-                if any(c is None for c in chances):
-                    rec["chance"], rec["chance_method"] = math.nan, "unknown (evidence keeps no ground truth)"
-                else:
-                    cm = [c[0] for c in chances if c is not None]
-                    rec["chance"] = float(np.mean([float(m.weighted(np.ones((1, m.n_clips)))[0]) for m in cm]))
-                    rec["chance_method"] = chances[0][1] if chances[0] is not None else ""
-                    ci = difference_ci(
-                        arm,
-                        cm,
-                        nested_clips=nested,
-                        confidence=confidence,
-                        n_resamples=n_resamples,
-                        rng=rng,
-                    )
-                    rec["above_chance"] = {"estimate": ci.estimate, "low": ci.low, "high": ci.high}
-                    if not ci.low > 0.0:
-                        reasons.append(
-                            f"the {reference} kernel's {rec['metric_name']} {rec['reference_metric']:.3f} is not above "
-                            f"chance ({rec['chance']:.3f}: {rec['chance_method']}) beyond its "
-                            f"{round(100 * confidence)} % CI ({ci.estimate:+.3f} [{ci.low:+.3f}, {ci.high:+.3f}])"
-                        )
+                reasons = _chance_reasons(
+                    rec, arm, nested, reference=reference, confidence=confidence, n_resamples=n_resamples, rng=rng
+                )
                 others = [
                     [decode_evidence(e) for e in track_record(p, task, track)["evidence"]]
                     for p in group
@@ -150,6 +129,54 @@ def task_measurability(
                 rec["reason"] = "; ".join(reasons)
                 out.setdefault(ctx, {}).setdefault(track, {})[task] = rec
     return out
+
+
+def _chance_reasons(
+    rec: dict[str, Any],
+    arm: Sequence[Any],
+    nested: bool,
+    *,
+    reference: str,
+    confidence: float,
+    n_resamples: int,
+    rng: int,
+) -> list[str]:
+    """Fill ``rec``'s ``chance``, ``chance_method`` and ``above_chance``; the reasons it is not measurable.
+
+    A reference metric that is undefined on its clips (NaN: a mean IoU over clips without a labelled
+    pixel) is not measurable for that reason, and no interval is drawn around it.
+    """
+    from ..stats import chance_metric, difference_ci
+
+    if not math.isfinite(rec["reference_metric"]):
+        rec["chance"], rec["chance_method"] = math.nan, "undefined (the metric is undefined on these clips)"
+        return [
+            f"the {reference} kernel's {rec['metric_name']} is undefined on its {rec['n_clips']} test clips "
+            "(nothing to score: no labelled pixels or boxes)"
+        ]
+    chances = [chance_metric(m) for m in arm]
+    if any(c is None for c in chances):
+        rec["chance"], rec["chance_method"] = math.nan, "unknown (evidence keeps no ground truth)"
+        return []
+    cm = [c[0] for c in chances if c is not None]
+    rec["chance"] = float(np.mean([float(m.weighted(np.ones((1, m.n_clips)))[0]) for m in cm]))
+    rec["chance_method"] = chances[0][1] if chances[0] is not None else ""
+    ci = difference_ci(
+        arm,
+        cm,
+        nested_clips=nested,
+        confidence=confidence,
+        n_resamples=n_resamples,
+        rng=rng,
+    )
+    rec["above_chance"] = {"estimate": ci.estimate, "low": ci.low, "high": ci.high}
+    if ci.low > 0.0:
+        return []
+    return [
+        f"the {reference} kernel's {rec['metric_name']} {rec['reference_metric']:.3f} is not above "
+        f"chance ({rec['chance']:.3f}: {rec['chance_method']}) beyond its "
+        f"{round(100 * confidence)} % CI ({ci.estimate:+.3f} [{ci.low:+.3f}, {ci.high:+.3f}])"
+    ]
 
 
 def widen_degenerate(paired: dict[str, dict[str, Any]], confidence: float = 0.95) -> int:
