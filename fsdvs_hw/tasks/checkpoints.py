@@ -84,10 +84,10 @@ def save_checkpoint(stem: Path, kernel: Kernel, network: Any, provenance: dict[s
     from ..paths import write_output
 
     stem.parent.mkdir(parents=True, exist_ok=True)
-    base = stem.with_suffix("") if stem.suffix in (".json", ".safetensors") else stem
+    paths = checkpoint_paths(checkpoint_stem(stem))
     tensors = {f"network.{k}": v.detach().contiguous() for k, v in network.state_dict().items()}
     tensors["kernel"] = torch.as_tensor(np.array(kernel.taps))
-    ckpt = Path(str(base) + ".safetensors")
+    ckpt = paths["checkpoint"]
     write_output(
         ckpt,
         save(
@@ -100,8 +100,8 @@ def save_checkpoint(stem: Path, kernel: Kernel, network: Any, provenance: dict[s
         ),
         flag=str(ckpt),
     )
-    kpath = kernel.save(Path(str(base) + ".json"))
-    ppath = Path(str(base) + ".provenance.json")
+    kpath = kernel.save(paths["kernel"])
+    ppath = paths["provenance"]
     write_output(
         ppath,
         json.dumps({**provenance, "checkpoint": ckpt.name, "kernel_file": kpath.name}, indent=1) + "\n",
