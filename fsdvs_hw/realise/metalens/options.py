@@ -128,14 +128,16 @@ class MetalensOptions(FitOptions):
             found.append(OptionProblem("aperture_m", self.aperture_m, why))
         if not geometry.focal_length_m > 2 * lam_max:
             why = (
-                f"sensor_distance_m must be finite and > 2 λ_max = {2 * lam_max:.3g} m, got {geometry.focal_length_m!r}"
+                f"focal_length_m={geometry.focal_length_m:.3g} m is not above 2 λ_max = {2 * lam_max:.3g} m: scalar "
+                "diffraction is not valid there"
             )
             found.append(OptionProblem("focal_length_m", self.focal_length_m, why))
         na0 = local_numerical_aperture(geometry, [], spectral.wavelengths_m)
         budget = self.na_budget(na0)
         if not na0 <= budget < 1:
             why = f"na_max={budget:.3g} must be in [NA of the focusing term {na0:.3g}, 1)"
-            found.append(OptionProblem("na_max" if self.na_max is not None else "aperture_m", self.na_max, why))
+            option = "na_max" if self.na_max is not None else "aperture_m"  # the default budget: the aperture's NA
+            found.append(OptionProblem(option, getattr(self, option), why))
         return found
 
     def target_problems(self, target: Kernel) -> list[OptionProblem]:
