@@ -234,6 +234,7 @@ def _fsync(path: Path, *, directory: bool = False) -> None:
 
 
 def exception_line(exc: BaseException, limit: int = 200) -> str:
+    """``str(exc)`` on one line (its type's name where empty), cut to ``limit`` characters, for a message."""
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
@@ -534,6 +535,7 @@ _MAX_SIDE = 32767
 
 
 def field_error(path: Path, fld: str, what: str) -> InputError:
+    """The :class:`~fsdvs_hw.errors.InputError` of a bad field ``fld`` of the event file ``path``: ``what`` is wrong."""
     return InputError(f"event file {str(path)!r}: {fld}: {what}")
 
 
