@@ -46,7 +46,8 @@ PREFETCH_BYTES = 64 << 20
 
 @dataclass(frozen=True)
 class VideoToFileOptions:
-    """What a run reads, simulates and writes (the ``simulate`` command's options, checked).
+    """What a run reads, simulates and writes: the ``simulate`` command's options, whose ranges the
+    command checks before it builds them (``fsdvs_hw.cli.simulate``); this class checks nothing.
 
     Attributes
     ----------
