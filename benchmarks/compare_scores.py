@@ -2,8 +2,11 @@
 
 A refactor must leave ``make demo``'s scores unchanged (issue 43): every field of every row and
 point the same, except what measures the machine rather than the method — wall and fit times (keys
-naming ``wall``, ``seconds``, ``fit_time``, ending in ``_s`` other than ``latency_s``), the fit time
-printed inside a realisation's ``describe`` text, library versions, worker names and timestamps.
+naming ``wall``, ``seconds``, ``fit_time``, and the rows' ``fit_s``, ``analysis_s``, ``tasks_s``,
+``emulation_s``, ``point_s`` and the fit's ``cpu_time_s``), the fit time printed inside a
+realisation's ``describe`` text, library versions, worker names and timestamps. Other keys ending in
+``_s`` are results in SI units (``g_lateral_narrow_s`` siemens, ``event_rate_per_s``, ``mev_s``) and
+are compared.
 Strings are compared after removing a given checkout prefix (a run from another folder stores
 absolute checkpoint paths).
 
@@ -33,12 +36,14 @@ __all__ = ["compare", "main"]
 
 #: Key fragments of what measures the machine, not the method.
 _MACHINE = ("wall", "seconds", "fit_time", "versions", "worker", "timestamp", "finished_at", "started_at")
+#: Seconds spent, by exact key (a key ending in ``_s`` is otherwise a result: siemens, events/s).
+_TIMINGS = frozenset({"fit_s", "analysis_s", "tasks_s", "emulation_s", "point_s", "cpu_time_s"})
 #: Seconds printed inside a describe text ("after 56 iterations, 0.543 s", "fit 4.1 s").
 _SECONDS = re.compile(r"\d+(?:\.\d+)? s\b")
 
 
 def _machine(key: str) -> bool:
-    return any(m in key for m in _MACHINE) or (key.endswith("_s") and key != "latency_s")
+    return any(m in key for m in _MACHINE) or key in _TIMINGS
 
 
 def compare(a: Any, b: Any, *, strip: str = "", path: str = "") -> list[str]:

@@ -31,3 +31,13 @@ def test_a_checkout_prefix_is_stripped_and_missing_fields_are_named():
     a = {"rows": [{"checkpoint": "designs/k.safetensors", "latency_s": 1.0}]}
     b = {"rows": [{"checkpoint": "/tmp/x/designs/k.safetensors", "latency_s": 2.0, "extra": 1}]}
     assert compare(a, b, strip="/tmp/x/") == [".rows[0].extra: only in the second", ".rows[0].latency_s: 1.0 vs 2.0"]
+
+
+def test_a_result_in_si_units_ending_in_s_is_compared_and_a_row_timing_is_not():
+    """``g_lateral_narrow_s`` (siemens) and ``event_rate_per_s`` are results; ``tasks_s`` is time spent."""
+    a = {"rows": [{"tasks_s": 1.0, "g_lateral_narrow_s": 1e-8, "event_rate_per_s": {"mean": 32.5}}]}
+    b = {"rows": [{"tasks_s": 9.0, "g_lateral_narrow_s": 2e-8, "event_rate_per_s": {"mean": 30.0}}]}
+    assert compare(a, b) == [
+        ".rows[0].event_rate_per_s.mean: 32.5 vs 30.0",
+        ".rows[0].g_lateral_narrow_s: 1e-08 vs 2e-08",
+    ]
