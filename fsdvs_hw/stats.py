@@ -126,6 +126,10 @@ class ClipMeans:
     ----------
     values : array, shape (n_clips,)
         Per-clip value (finite).
+    labels : array of int, shape (n_clips,), optional
+        Each clip's true class (class index ≥ 0), kept by :meth:`top1` for :func:`chance_metric`.
+    num_classes : int, optional
+        The classifier's class count, kept with ``labels``.
     """
 
     def __init__(self, values: Any, *, labels: Any = None, num_classes: int | None = None) -> None:
@@ -138,6 +142,10 @@ class ClipMeans:
         #: (:meth:`top1`): what :func:`chance_metric` needs.
         self.labels = None if labels is None else np.asarray(labels, dtype=np.int64).reshape(-1)
         self.num_classes = None if num_classes is None else int(num_classes)
+        if self.labels is not None and (self.labels.size != v.size or np.any(self.labels < 0)):
+            raise InputError(
+                f"ClipMeans: labels must be one class index >= 0 per clip ({v.size}), got shape {np.shape(labels)}"
+            )
 
     @classmethod
     def top1(cls, logits: Any, target: Any) -> ClipMeans:

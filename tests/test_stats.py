@@ -110,6 +110,12 @@ def test_miou_and_top1_equal_torchmetrics_on_the_full_set():
     )
 
 
+@pytest.mark.parametrize("labels", [[0, 1], [0, -1, 2]])
+def test_clip_means_refuses_labels_that_are_not_one_class_per_clip(labels):
+    with pytest.raises(InputError, match="labels must be one class index >= 0 per clip"):
+        ClipMeans([1.0, 0.0, 1.0], labels=labels, num_classes=3)
+
+
 # --------------------------------------------------------------------------- the intervals
 def _crossed(rng, n, s, delta, *, sd_clip=0.3, sd_seed=0.0, sd_noise=0.2, corr=True):
     """Per-seed reference and candidate per-clip values with a known population difference ``delta``."""
