@@ -40,6 +40,7 @@ __all__ = [
     "DEFAULT_PITCH_M",
     "MAX_KERNEL_FILE_BYTES",
     "MAX_KERNEL_SIZE",
+    "PITCH_RANGE_M",
     "REFERENCE_KERNELS",
     "TAP_MAGNITUDE_RANGE",
     "Kernel",
@@ -52,6 +53,7 @@ __all__ = [
     "load_kernel_or_reference",
     "log_taps",
     "reference_kernel",
+    "validate_pitch",
 ]
 
 #: Default sensor pixel pitch in metres: 4.86 µm, the pitch of the Sony IMX636 / Prophesee Gen4
@@ -71,7 +73,9 @@ TAP_MAGNITUDE_RANGE: tuple[float, float] = (1e-15, 1e15)
 #: Largest kernel file read (bytes); kernels are at most 63×63 taps, a few hundred kB as text.
 MAX_KERNEL_FILE_BYTES: int = 16 * 2**20
 
-_PITCH_RANGE_M = (1e-7, 1e-3)
+#: Allowed pixel pitch in metres, [low, high] (:func:`validate_pitch`; did you pass µm?).
+PITCH_RANGE_M: tuple[float, float] = (1e-7, 1e-3)
+
 _FORMAT_TAG = "fsdvs_hw.kernel"
 _SUFFIXES = (".npy", ".csv", ".json", ".pt")
 
@@ -136,7 +140,7 @@ def validate_pitch(pitch_m: Any, *, source: str = "pitch_m") -> float:
         p = float(pitch_m)
     except (TypeError, ValueError):
         raise KernelError(f"{source}: pixel pitch must be a number in metres, got {pitch_m!r}") from None
-    lo, hi = _PITCH_RANGE_M
+    lo, hi = PITCH_RANGE_M
     if not (math.isfinite(p) and lo <= p <= hi):
         raise KernelError(
             f"{source}: pixel pitch {p!r} m is outside the allowed range [{lo:g}, {hi:g}] m "

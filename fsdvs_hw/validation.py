@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any, Literal, TypeVar, overload
 import numpy as np
 
 from .errors import InputError
-from .kernels import Kernel, check_tap_magnitude
+from .kernels import PITCH_RANGE_M, Kernel, check_tap_magnitude  # PITCH_RANGE_M: re-exported
 
 if TYPE_CHECKING:  # pydantic loads on the first fit-argument check, not with the simulator's checks
     from pydantic import BaseModel
@@ -54,10 +54,6 @@ __all__ = [
 def _show(value: Any) -> str:
     s = " ".join(repr(value).split())  # one line (numpy arrays print on several)
     return s if len(s) <= 60 else s[:57] + "..."
-
-
-#: Allowed pixel pitch in metres (the same range as :mod:`fsdvs_hw.kernels`; did you pass µm?).
-PITCH_RANGE_M: tuple[float, float] = (1e-7, 1e-3)
 
 
 def check_fit_arguments(options: type[ModelT], arguments: Mapping[str, Any]) -> ModelT:
