@@ -331,3 +331,19 @@ def test_without_the_matched_rate_control_the_first_question_is_said_unanswered(
 
     (line,) = first_question(_first_question_rows(0.0, 0.0, status="not requested ([rate] enabled = false)"))
     assert line.startswith("First question, not answered") and "[rate] enabled = false" in line
+
+
+def test_a_refused_matched_rate_comparison_is_said_in_the_first_question_not_dropped():
+    from fsdvs_hw.report.verdict import first_question
+
+    [ref] = _first_question_rows(0.004, 0.02)
+    ref["recognition_loss"] = 0.0
+    ref["recognition_gain_over_plain_dvs_at_matched_rate_status"] = "refused: outside the plain DVS's curve"
+    (line,) = first_question([ref])
+    assert "detection +0.012 [+0.004, +0.020]" in line
+    assert "recognition: refused: outside the plain DVS's curve" in line
+    only = {k: v for k, v in ref.items() if not k.startswith("detection_gain")}
+    (line,) = first_question([only])
+    assert "recognition: refused" in line and line.endswith(
+        "No task's comparison could be made, so the question stays open."
+    )

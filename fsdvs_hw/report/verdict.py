@@ -242,8 +242,10 @@ def first_question(rows: Sequence[Mapping[str, Any]]) -> list[str]:
         ]
     measurable = str(ref.get("measurable_tasks", "")).split() if "measurable_tasks" in ref else None
     parts, gains = [], []
-    for col in [k for k in ref if k.endswith("_gain_over_plain_dvs_at_matched_rate")]:
-        task = col[: -len("_gain_over_plain_dvs_at_matched_rate")]
+    stem = "_gain_over_plain_dvs_at_matched_rate"
+    cols = dict.fromkeys(k.removesuffix("_status") for k in ref if k.endswith((stem, f"{stem}_status")))
+    for col in cols:  # a refused comparison (status only) is said, not dropped
+        task = col[: -len(stem)]
         if measurable is not None and task not in measurable:
             continue
         lo_key = next((k for k in ref if k.startswith(f"{col}_ci") and k.endswith("_low")), None)
@@ -264,12 +266,14 @@ def first_question(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     head = "First question — does the kernel beat a plain DVS at equal event rate? Its gain, 95 % CI: "
     held = [t for t, above in gains if above]
     lost = [t for t, above in gains if not above]
-    if gains and not held:
+    if not gains:
+        tail = "No task's comparison could be made, so the question stays open."
+    elif not held:
         tail = (
             "Building any of these gains nothing measurable over lowering the threshold of a plain DVS, "
             "in this world; the ranking below is what each realisation loses against the kernel itself."
         )
-    elif gains and not lost:
+    elif not lost:
         tail = "The filter's gain holds at equal event rate on every measurable task."
     else:
         tail = (
