@@ -45,7 +45,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -93,12 +92,6 @@ def codesign_cells(design: Design) -> list[tuple[str, str]]:
 
 def _key(blob: Mapping[str, Any]) -> str:
     return fingerprint(blob, length=16)
-
-
-def _save_atomic(path: Path, record: Mapping[str, Any]) -> None:
-    tmp = path.with_name(path.name + f".tmp{os.getpid()}")
-    tmp.write_text(json.dumps(record, default=float))
-    os.replace(tmp, path)
 
 
 def _runnable_cells(design: Design) -> list[tuple[str, str]]:
@@ -316,7 +309,7 @@ class _Units:
             "wall_s": time.perf_counter() - t0,
             **extra,
         }
-        _save_atomic(path, rec)
+        write_output(path, json.dumps(rec, default=float))
         self.done.append(rec)
         self.log(
             f"{real or 'learned'} / {net.task} / network {net.index} / {mode}: {ev.metric_name} {ev.value:.4f} "
