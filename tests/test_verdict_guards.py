@@ -15,6 +15,7 @@ import pytest
 from fsdvs_hw.costs import CostAssumptions, physical_cost
 from fsdvs_hw.costs.limits import assumption_at, cost_flips, costed, shared_node_error
 from fsdvs_hw.design import parse_design
+from fsdvs_hw.errors import InputError
 from fsdvs_hw.records import Score, ScoredPoint
 from fsdvs_hw.stats import ClipMeans, CocoDetections, ConfusionMIoU, chance_metric
 
@@ -95,6 +96,9 @@ def test_assumption_at_inverts_a_linear_cost_exactly():
     (fs,) = assumption_at(score, a, "costs.sample_rate_hz", "power_w", 3.7 * p0)
     assert fs == pytest.approx(3700.0, rel=1e-8)  # P = E·HW·f_s
     assert assumption_at(score, a, "costs.sample_rate_hz", "power_w", 1e6) == []  # beyond the key's range
+    for key in ("costs.no_such_key", "costs.array_resolution", "sample_rate_hz"):  # unknown, not a number, no section
+        with pytest.raises(InputError, match=rf"key '{key}': not a number of the \[costs\] section; allowed: "):
+            assumption_at(score, a, key, "power_w", 2 * p0)
 
 
 def test_shared_node_error_bounds():

@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from ..records import Score
 from .assumptions import CostAssumptions
 from .record import PhysicalCost
@@ -145,10 +146,23 @@ class Remedy:
         return out
 
 
+def _cost_name(key: str) -> str:
+    """The :class:`CostAssumptions` field a ``"costs.<name>"`` key names (a number; InputError otherwise)."""
+    section, _, name = key.partition(".")
+    info = CostAssumptions.model_fields.get(name) if section == "costs" else None
+    if info is None or info.annotation is not float:
+        scalars = ", ".join(n for n, f in CostAssumptions.model_fields.items() if f.annotation is float)
+        raise InputError(
+            f"key {key!r}: not a number of the [costs] section; allowed: {MESH_CONDUCTANCE!r} or costs.<name>, "
+            f"name one of {scalars}"
+        )
+    return name
+
+
 def _key_range(key: str) -> tuple[float, float]:
     if key == MESH_CONDUCTANCE:
         return _MESH_CONDUCTANCE_RANGE
-    field = CostAssumptions.model_fields[key.split(".", 1)[1]]
+    field = CostAssumptions.model_fields[_cost_name(key)]
     lo, hi = -math.inf, math.inf
     for m in field.metadata:  # annotated_types Ge / Gt / Le / Lt (a bound of 0 is a bound)
         for name in ("ge", "gt"):
@@ -164,13 +178,13 @@ def _key_now(score: Score, a: CostAssumptions, key: str) -> float:
     if key == MESH_CONDUCTANCE:
         items = {k: score.cost.value(k) for k in score.cost.items}
         return float(items.get("g_lateral_narrow", math.nan))
-    return float(getattr(a, key.split(".", 1)[1]))
+    return float(getattr(a, _cost_name(key)))
 
 
 def _with_key(score: Score, a: CostAssumptions, key: str, value: float) -> tuple[Score, CostAssumptions]:
     """``score`` and ``a`` with ``key`` set to ``value`` (the mesh's conductances scaled together)."""
     if key != MESH_CONDUCTANCE:
-        return score, a.model_copy(update={key.split(".", 1)[1]: value})
+        return score, a.model_copy(update={_cost_name(key): value})
     from ..records import Cost
 
     items = {k: score.cost.value(k) for k in score.cost.items}
@@ -235,6 +249,11 @@ def assumption_at(score: Score, a: CostAssumptions, key: str, figure: str, targe
     -------
     list of float
         Every crossing, ascending (empty: the figure never reaches ``target`` in the key's range).
+
+    Raises
+    ------
+    InputError
+        ``key`` is neither a number of the ``[costs]`` section nor :data:`MESH_CONDUCTANCE`.
 
     Examples
     --------
