@@ -70,17 +70,18 @@ def run(args: argparse.Namespace) -> int:
     print(f"[sweep] {summary}", file=sys.stderr, flush=True)
     if args.report is not None:
         from ..explore.costing import with_physical_costs
+        from ..explore.measurability import measured_losses
         from ..explore.reporting import report_input
-        from ..explore.scoring import with_paired_losses
         from ..report import write_report
 
         sc = design.spec.scoring
-        scored = with_paired_losses(
+        scored = measured_losses(  # as explore: tasks at chance or with degenerate intervals weigh 0
             rows,
             task_weights=sc.task_weights or None,
             n_resamples=sc.n_resamples,
             confidence=sc.confidence,
             rng=design.spec.run.seed,
+            target_half_width=sc.target_half_width,
         )
         scored = with_physical_costs(scored, design)
         stored = Path(args.report) / "codesign.json"  # an earlier co-design run's rows beside the report
