@@ -76,6 +76,12 @@ def test_the_numeric_options_are_probed():
     assert _range("mismatch_sigma") == (0.0, 0.5) and _range("tol") == (1e-16, 1e-2)
 
 
+def test_the_public_gain_modes_are_the_options_choices():
+    from fsdvs_hw.realise.mesh import GAIN_MODES
+
+    assert view(MeshOptions, "gain").choices == GAIN_MODES
+
+
 def test_a_tolerance_the_fit_refuses_is_refused_when_the_design_is_loaded():
     with pytest.raises(DesignError, match=r"realisations\.mesh\.tol.*0\.1"):
         parse_design({"realisations": {"include": ["learned", "mesh"], "mesh": {"tol": 0.1}}})
