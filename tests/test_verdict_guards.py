@@ -101,6 +101,20 @@ def test_assumption_at_inverts_a_linear_cost_exactly():
             assumption_at(score, a, key, "power_w", 2 * p0)
 
 
+def test_the_mesh_conductance_is_scanned_over_the_range_a_design_allows(mesh_point):
+    from _schema_view import view
+
+    from fsdvs_hw.costs.limits import MESH_CONDUCTANCE
+    from fsdvs_hw.realise.mesh import MeshOptions
+
+    score, a = Score.from_dict(mesh_point["result"]), CostAssumptions()
+    g0, tau0 = score.cost.value("g_lateral_narrow"), physical_cost(score, a).value("latency_s")  # tau ∝ 1/g
+    opt = view(MeshOptions, "g_lateral_s")
+    for g, reached in ((2 * opt.lo, True), (0.5 * opt.hi, True), (0.5 * opt.lo, False), (2 * opt.hi, False)):
+        roots = assumption_at(score, a, MESH_CONDUCTANCE, "latency_s", tau0 * g0 / g)
+        assert roots == ([pytest.approx(g, rel=1e-8)] if reached else []), (g, roots)
+
+
 def test_shared_node_error_bounds():
     delta = np.zeros((7, 7))
     delta[3, 3] = 1.0
