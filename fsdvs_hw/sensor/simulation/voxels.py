@@ -20,8 +20,7 @@ __all__ = ["voxel_grid"]
 
 
 def _hat_integral(u: Any) -> Any:
-    import torch
-
+    """The unit hat ``1 - |v|`` on [-1, 1] integrated from -1 to ``u`` (0 below, 1 above)."""
     return torch.where(
         u < -1,
         torch.zeros_like(u),
