@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from ._execution import add_execution_arguments, security_from_args
@@ -73,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
         from ..explore.measurability import measured_losses
         from ..explore.reporting import report_input
         from ..report import write_report
+        from ..report.redraw import read_codesign
 
         sc = design.spec.scoring
         scored = measured_losses(  # as explore: tasks at chance or with degenerate intervals weigh 0
@@ -85,7 +86,9 @@ def run(args: argparse.Namespace) -> int:
         )
         scored = with_physical_costs(scored, design)
         stored = Path(args.report) / "codesign.json"  # an earlier co-design run's rows beside the report
-        codesign = json.loads(stored.read_text()) if design.spec.codesign.enabled and stored.is_file() else None
-        page = write_report(scored, report_input(design, codesign=codesign), args.report)
+        report = report_input(design)
+        if design.spec.codesign.enabled and stored.is_file():
+            report = replace(report, codesign=read_codesign(stored))
+        page = write_report(scored, report, args.report)
         print(f"[sweep] report: {page}", file=sys.stderr, flush=True)
     return 0 if summary.statuses.get("error", 0) == 0 else 1

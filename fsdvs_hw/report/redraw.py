@@ -22,7 +22,7 @@ from ..records import ScoredPoint
 from .html import write_report
 from .report_input import CodesignSummary, ReportInput
 
-__all__ = ["check_same_design", "write_report_from_scores"]
+__all__ = ["check_same_design", "read_codesign", "write_report_from_scores"]
 
 
 def _flat(data: Any, prefix: str = "") -> dict[str, Any]:
@@ -106,7 +106,7 @@ def _read_scores(out_dir: str | Path) -> tuple[Path, Mapping[str, Any], list[Sco
     return src, data, [ScoredPoint.from_dict(p, where=f"{src}: points[{i}]") for i, p in enumerate(points)]
 
 
-def _read_codesign(path: Path) -> CodesignSummary:
+def read_codesign(path: Path) -> CodesignSummary:
     """The co-design summary in ``path`` (a ``codesign.json``); an InputError when it is not one."""
     try:
         data = json.loads(path.read_text())
@@ -172,5 +172,5 @@ def write_report_from_scores(out_dir: str | Path, report: ReportInput, *, to: st
         write_output(dest / extra.name, extra.read_bytes(), flag="--to")
     shown = dest / extra.name  # the copy beside the report
     if report.codesign_enabled and shown.is_file():
-        report = replace(report, codesign=_read_codesign(shown))
+        report = replace(report, codesign=read_codesign(shown))
     return write_report(points, report, dest)
