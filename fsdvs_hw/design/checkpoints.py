@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..tasks.checkpoints import checkpoint_paths, checkpoint_stem
 from .design_paths import resolve_design_path
 from .problems import DesignProblems
 
@@ -151,8 +152,7 @@ def check_checkpoint_entry(chk: DesignProblems, key: str, path: Any, base: Path,
     except InputError as exc:
         chk.add(key, path, str(exc).split(": ", 1)[-1])
         return
-    if p.suffix != ".safetensors":
-        p = p.with_suffix(".safetensors") if p.suffix == ".json" else Path(str(p) + ".safetensors")
+    p = checkpoint_paths(checkpoint_stem(p))["checkpoint"]
     if not p.is_file():
         chk.add(key, path, f"checkpoint file not found (looked for {p})")
     else:

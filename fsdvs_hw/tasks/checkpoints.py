@@ -119,9 +119,7 @@ def load_checkpoint(checkpoint: str | Path) -> tuple[dict[str, Any], dict[str, A
     """
     from safetensors import safe_open
 
-    path = Path(checkpoint)
-    if path.suffix != ".safetensors":
-        path = path.with_suffix(".safetensors") if path.suffix == ".json" else Path(str(path) + ".safetensors")
+    path = checkpoint_paths(checkpoint_stem(checkpoint))["checkpoint"]
     if not path.is_file():
         raise InputError(f"checkpoint {str(path)!r} not found (expected a .safetensors file written by learn_kernel)")
     try:
