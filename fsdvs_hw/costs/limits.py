@@ -40,8 +40,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..records import Score
+from ..records import Cost, Score
 from .assumptions import CostAssumptions
+from .physical import physical_cost
 from .record import PhysicalCost
 
 __all__ = [
@@ -185,8 +186,6 @@ def _with_key(score: Score, a: CostAssumptions, key: str, value: float) -> tuple
     """``score`` and ``a`` with ``key`` set to ``value`` (the mesh's conductances scaled together)."""
     if key != MESH_CONDUCTANCE:
         return score, a.model_copy(update={_cost_name(key): value})
-    from ..records import Cost
-
     items = {k: score.cost.value(k) for k in score.cost.items}
     g0 = items.get("g_lateral_narrow", math.nan)
     if not (math.isfinite(g0) and g0 > 0):
@@ -203,8 +202,6 @@ def _with_key(score: Score, a: CostAssumptions, key: str, value: float) -> tuple
 
 
 def _figure(score: Score, a: CostAssumptions, figure: str) -> float:
-    from .physical import physical_cost
-
     return physical_cost(score, a).value(figure)
 
 
@@ -297,8 +294,6 @@ def costed(score: Score, a: CostAssumptions) -> PhysicalCost:
     PhysicalCost
         Its ``fits`` is False when a limit is broken.
     """
-    from .physical import physical_cost
-
     pc = physical_cost(score, a)
     figs = pc.figures
     flags = list(pc.flags)
