@@ -614,6 +614,9 @@ class CostFlip:
         missing = [k for k in names if k not in data]
         if missing:
             raise InputError(f"{where}: a cost flip needs {', '.join(missing)}")
+        for k in ("value", "now"):
+            if not isinstance(data[k], (int, float)) or isinstance(data[k], bool):
+                raise InputError(f"{where}.{k}: expected a number, got {data[k]!r}"[:200])
         return cls(**{k: data[k] for k in names})
 
 

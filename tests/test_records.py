@@ -156,6 +156,14 @@ def test_a_malformed_stored_point_names_its_field(key, value, match):
         ScoredPoint.from_dict({"key": "k", "realisation": "mesh", "status": "error", "result": {}, key: value})
 
 
+def test_a_cost_flip_with_a_non_numeric_value_names_its_field():
+    from fsdvs_hw.records import CostFlip
+
+    flip = {"cost": "power_w", "key": "costs.node", "value": "x", "now": 1.0, "other": "a", "cheaper": "b"}
+    with pytest.raises(InputError, match=r"cost_flips\.value: expected a number, got 'x'"):
+        CostFlip.from_dict(flip)
+
+
 @pytest.mark.parametrize(
     "change, match",
     [
