@@ -221,10 +221,11 @@ def load_trained(
     True
     """
     stem = checkpoint_stem(out)
-    if not Path(str(stem) + ".safetensors").is_file():
+    ckpt = checkpoint_paths(stem)["checkpoint"]
+    if not ckpt.is_file():
         return None
     provenance, state, kernel = load_checkpoint(stem)
-    check_fingerprint(provenance.get("fingerprint"), fingerprint, Path(str(stem) + ".safetensors"))
+    check_fingerprint(provenance.get("fingerprint"), fingerprint, ckpt)
     try:
         network.load_state_dict(state, strict=True)
     except RuntimeError as exc:
