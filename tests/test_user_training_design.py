@@ -144,6 +144,9 @@ def test_ablation_on_user_data_gives_paired_gains_and_refuses_synthetic_options(
     capsys.readouterr()
     assert main([*args, "--scheduler", "tcp://127.0.0.1:8786", "--transfer", "k.json"]) == 2
     assert "--scheduler --transfer with --design: not supported on user data" in capsys.readouterr().err
+    seeds = args.index("--seeds")
+    assert main([*args[: seeds + 1], "1", "1", *args[seeds + 3 :]]) == 2  # a repeated seed, before any training
+    assert "--seeds [1, 1]: allowed: one or more distinct seeds" in capsys.readouterr().err
 
 
 @pytest.mark.slow

@@ -80,7 +80,8 @@ def run_user_ablation(
     Raises
     ------
     InputError
-        No such user-data task or no ``train`` table, sizes without 1 or not odd, too few clips.
+        No such user-data task or no ``train`` table, sizes without 1 or not odd, no seeds or a repeated
+        one, too few clips.
 
     Examples
     --------
@@ -97,6 +98,8 @@ def run_user_ablation(
     sizes = sorted({int(k) for k in sizes})
     if 1 not in sizes or any(k % 2 == 0 or not 1 <= k <= 15 for k in sizes):
         raise InputError(f"ablation --sizes {sizes}: allowed: odd sides in [1, 15] including 1 (the w/o reference)")
+    if not seeds or len(set(map(int, seeds))) != len(seeds):
+        raise InputError(f"ablation --seeds {list(seeds)}: allowed: one or more distinct seeds (one network each)")
     workers = check_count("ablation --workers", workers, 1, MAX_WORKERS)
     folder = output_dir(out, flag="--out")
     key = f"tasks.datasets.{task}.dataset"
