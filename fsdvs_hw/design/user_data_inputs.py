@@ -97,8 +97,9 @@ def open_dataset(source: Mapping[str, Any], base_dir: str | Path, *, confine: bo
     Parameters
     ----------
     source : mapping
-        A validated ``dataset`` table (:class:`VideoFolderSource`, :class:`CocoFramesSource`,
-        :class:`MaskFramesSource` dumped), e.g. ``UserTask(...).model_dump()["dataset"]``.
+        A validated ``dataset`` table (a source model of :mod:`fsdvs_hw.design.user_data_section`:
+        ``VideoFolderSource``, ``CocoFramesSource``, ``DsecDetectionSource``, ``MaskFramesSource``,
+        dumped), e.g. ``UserTask(...).model_dump()["dataset"]``.
     base_dir : path
         The design file's folder (``root`` is relative to it).
     confine : bool

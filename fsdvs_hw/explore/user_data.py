@@ -261,7 +261,7 @@ def train_user_task(
     ----------
     task : str
     entry : mapping
-        A validated :class:`UserTask` dumped, with ``train`` set.
+        A validated :class:`~fsdvs_hw.design.user_data_section.UserTask` dumped, with ``train`` set.
     base_dir : path
         The design file's folder.
     verbose : bool
@@ -394,7 +394,7 @@ def finetune_user_network(
     ----------
     task : str
     entry : mapping
-        A validated :class:`UserTask` dumped.
+        A validated :class:`~fsdvs_hw.design.user_data_section.UserTask` dumped.
     base_dir : path
         The design file's folder.
     kernel : Kernel, optional
@@ -474,7 +474,7 @@ def open_network(
     Parameters
     ----------
     entry : mapping
-        A validated :class:`UserTask` dumped.
+        A validated :class:`~fsdvs_hw.design.user_data_section.UserTask` dumped.
     dataset : ClipDataset
         Sets ``in_channels = 2 (T - 1)`` and ``num_classes``.
     base_dir : path
@@ -542,7 +542,8 @@ def _evaluate_table(
     task : str
         The table's name.
     entry : mapping
-        A validated :class:`UserTask` dumped (``n_clips``, ``seed``, ``device``, ``network``).
+        A validated :class:`~fsdvs_hw.design.user_data_section.UserTask` dumped (``n_clips``, ``seed``,
+        ``device``, ``network``).
     dataset : ClipDataset
     network : torch.nn.Module
     evaluator : Evaluator
@@ -616,7 +617,7 @@ def dataset_evidence(
     task : str
         ``"detection"``, ``"recognition"`` or ``"segmentation"`` (the table's name).
     entry : mapping
-        A validated :class:`UserTask` dumped.
+        A validated :class:`~fsdvs_hw.design.user_data_section.UserTask` dumped.
     base_dir : path
         The design file's folder.
     design_sensor : mapping, optional
