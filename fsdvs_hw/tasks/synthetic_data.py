@@ -33,7 +33,7 @@ def synthetic_dataset(scene: Any, n: int, seed: int, task_name: str, dtype: str 
     seed : int
         Seed of the clips.
     task_name : str
-        The evaluator whose :meth:`targets` are made.
+        The evaluator whose :meth:`~fsdvs_hw.tasks.evaluators.TaskEvaluator.targets` are made.
     dtype : {"float64", "float32"}
         Precision of the video.
 
