@@ -39,7 +39,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..fingerprints import fingerprint
-from ..kernels import Kernel
+from ..kernels import Kernel, delta_taps
 from ..paths import write_output
 
 __all__ = [
@@ -290,7 +290,7 @@ def run_job(job: dict[str, Any]) -> dict[str, Any]:
             rec["files"] = {k: str(v) for k, v in res.paths.items()}
     if learn:
         rec["shape"] = kernel_shape(res.kernel)
-        rec["kernel_change_l1"] = float(np.abs(np.asarray(res.kernel.taps) - _delta(job["size"])).sum())
+        rec["kernel_change_l1"] = float(np.abs(np.asarray(res.kernel.taps) - delta_taps(job["size"])).sum())
     rec["seconds"] = time.perf_counter() - t0
     print(
         f"[ablation] {kind} {job['task']} {job['size']}x{job['size']} seed {job['seed']}: "
@@ -299,12 +299,6 @@ def run_job(job: dict[str, Any]) -> dict[str, Any]:
         flush=True,
     )
     return rec
-
-
-def _delta(size: int) -> np.ndarray:
-    d = np.zeros((size, size))
-    d[size // 2, size // 2] = 1.0
-    return d
 
 
 # --------------------------------------------------------------------------- tables
