@@ -44,6 +44,8 @@ NOISE_SOURCES = ("photon", "shot", "leak")
 
 
 def _rate(video: Any, taps: Any, sensor: Any, ts: np.ndarray, photon: Any) -> float:
+    """Event rate of ``video`` through ``taps`` in events/pixel/s (ON + OFF, over the clips' span ``ts`` in s);
+    ``photon`` (or None) adds its shot noise to the video first."""
     from ..sensor import event_frames
 
     v = photon.noisy(video) if photon is not None else video
