@@ -95,11 +95,7 @@ def run_user_ablation(
     from ..tasks.dataset_eval import evaluator_for_dataset
 
     entry = _trained_task(design, task)
-    sizes = sorted({int(k) for k in sizes})
-    if 1 not in sizes or any(k % 2 == 0 or not 1 <= k <= 15 for k in sizes):
-        raise InputError(f"ablation --sizes {sizes}: allowed: odd sides in [1, 15] including 1 (the w/o reference)")
-    if not seeds or len(set(map(int, seeds))) != len(seeds):
-        raise InputError(f"ablation --seeds {list(seeds)}: allowed: one or more distinct seeds (one network each)")
+    sizes = _checked_sizes(sizes, seeds)
     workers = check_count("ablation --workers", workers, 1, MAX_WORKERS)
     folder = output_dir(out, flag="--out")
     key = f"tasks.datasets.{task}.dataset"
@@ -136,6 +132,17 @@ def run_user_ablation(
     write_output(folder / "ablation.json", json.dumps(result, indent=1) + "\n", flag="--out")
     write_output(folder / "ablation.md", result["markdown"], flag="--out")
     return result
+
+
+def _checked_sizes(sizes: Sequence[int], seeds: Sequence[int]) -> list[int]:
+    """The kernel sizes sorted, once each; InputError for sizes without 1 or not odd in [1, 15], and
+    for no seeds or a repeated one (one network per seed)."""
+    out = sorted({int(k) for k in sizes})
+    if 1 not in out or any(k % 2 == 0 or not 1 <= k <= 15 for k in out):
+        raise InputError(f"ablation --sizes {out}: allowed: odd sides in [1, 15] including 1 (the w/o reference)")
+    if not seeds or len(set(map(int, seeds))) != len(seeds):
+        raise InputError(f"ablation --seeds {list(seeds)}: allowed: one or more distinct seeds (one network each)")
+    return out
 
 
 def _trained_task(design: Any, task: str) -> dict[str, Any]:
