@@ -330,9 +330,9 @@ def _first_question_rows(low, high, status="ok"):
 @pytest.mark.parametrize(
     ("low", "high", "words"),
     [
-        (-0.002, 0.014, "Building any of these gains nothing measurable over lowering the threshold of a plain DVS"),
+        (-0.002, 0.014, "None of these gains is resolved above 0: building the filter gains nothing shown"),
         (0.004, 0.02, "The filter's gain holds at equal event rate on every measurable task"),
-        (-0.03, -0.01, "Building any of these gains nothing measurable"),
+        (-0.03, -0.01, "None of these gains is resolved above 0"),
     ],
 )
 def test_the_verdict_opens_with_the_kernel_against_a_plain_dvs_at_equal_rate(low, high, words):
@@ -365,3 +365,18 @@ def test_a_refused_matched_rate_comparison_is_said_in_the_first_question_not_dro
     assert "recognition: refused" in line and line.endswith(
         "No task's comparison could be made, so the question stays open."
     )
+
+
+def test_the_first_question_tells_held_open_and_worse_gains_apart():
+    """An interval above 0 holds, one containing 0 is "not resolved" (never "not measurable": that
+    word is kept for tasks at chance), one below 0 says the lowered-threshold DVS does better."""
+    from fsdvs_hw.report.verdict import _gain_tail
+
+    tail = _gain_tail([("recognition", 1), ("detection", 0), ("segmentation", -1)])
+    assert tail.startswith("The filter's gain holds at equal event rate for recognition;")
+    assert "for detection it is not resolved: the interval contains 0" in tail
+    assert "for segmentation a plain DVS with a lowered threshold does better" in tail
+    assert "not measurable" not in tail
+    assert _gain_tail([("detection", 1)]) == "The filter's gain holds at equal event rate on every measurable task."
+    assert _gain_tail([("detection", 0), ("recognition", -1)]).startswith("None of these gains is resolved above 0")
+    assert _gain_tail([]).startswith("No task's comparison could be made")

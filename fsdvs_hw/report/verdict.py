@@ -260,27 +260,39 @@ def first_question(rows: Sequence[Mapping[str, Any]]) -> list[str]:
             f"{_num(ref.get(f'{col}_threshold')):.3g}{f'; same threshold {raw:+.3f}' if not math.isnan(raw) else ''}"
             f"{f'; n = {number(int(n))} clips' if n else ''})"
         )
-        gains.append((task, lo > 0.0))
+        gains.append((task, 1 if lo > 0.0 else -1 if hi < 0.0 else 0))
     if not parts:
         return ["First question, not answered: no measurable task has a matched-rate comparison."]
     head = "First question — does the kernel beat a plain DVS at equal event rate? Its gain, 95 % CI: "
-    held = [t for t, above in gains if above]
-    lost = [t for t, above in gains if not above]
+    return [head + "; ".join(parts) + ". " + _gain_tail(gains)]
+
+
+def _gain_tail(gains: Sequence[tuple[str, int]]) -> str:
+    """What the gains' intervals say, per task: ``1`` above 0 (the gain holds), ``0`` containing 0
+    (not resolved: this measurement cannot tell the kernel from a plain DVS with a lowered
+    threshold), ``-1`` below 0 (the plain DVS does better)."""
+    held = [t for t, sign in gains if sign > 0]
+    open_ = [t for t, sign in gains if sign == 0]
+    worse = [t for t, sign in gains if sign < 0]
     if not gains:
-        tail = "No task's comparison could be made, so the question stays open."
-    elif not held:
-        tail = (
-            "Building any of these gains nothing measurable over lowering the threshold of a plain DVS, "
-            "in this world; the ranking below is what each realisation loses against the kernel itself."
+        return "No task's comparison could be made, so the question stays open."
+    if not held:
+        return (
+            "None of these gains is resolved above 0: building the filter gains nothing shown over lowering "
+            "the threshold of a plain DVS, in this world; the ranking below is what each realisation loses "
+            "against the kernel itself."
         )
-    elif not lost:
-        tail = "The filter's gain holds at equal event rate on every measurable task."
-    else:
-        tail = (
-            f"The filter's gain holds at equal event rate for {', '.join(held)}; for {', '.join(lost)} it is "
-            "not measurable: there a plain DVS with a lowered threshold does as well."
+    if not open_ and not worse:
+        return "The filter's gain holds at equal event rate on every measurable task."
+    tail = f"The filter's gain holds at equal event rate for {', '.join(held)}"
+    if open_:
+        tail += (
+            f"; for {', '.join(open_)} it is not resolved: the interval contains 0, so these clips cannot tell "
+            "the kernel from a plain DVS with a lowered threshold"
         )
-    return [head + "; ".join(parts) + ". " + tail]
+    if worse:
+        tail += f"; for {', '.join(worse)} a plain DVS with a lowered threshold does better"
+    return tail + "."
 
 
 def measurability_advice(rows: Sequence[Mapping[str, Any]]) -> list[str]:
