@@ -46,7 +46,7 @@ _CORE = {
     "environment",
     "fingerprints",
 }
-_MODELS = {"sensor", "scenes", "realise", "records", "costs"}
+_MODELS = {"sensor", "scenes", "realise", "records", "costs", "process"}
 
 #: Import cycles known and owned elsewhere (none).
 KNOWN_CYCLES: tuple[frozenset[str], ...] = ()
