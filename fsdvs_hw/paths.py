@@ -1,9 +1,10 @@
 """Paths from untrusted places: confine them to their folder, sanitise names, check output folders.
 
 A design file may come from anyone (a colleague, a downloaded sweep), so every path it names
-(kernel file, task checkpoints) must stay inside the design's own folder: ``../`` and absolute
-paths that leave it, and symbolic links that point out of it, are refused with an
-:class:`~fsdvs_hw.errors.InputError`. Names that are not paths (``[design] name``) are turned
+(kernel file, task checkpoints, datasets and every file a dataset names) must stay inside the
+design's own folder, or inside one of the folders its ``[design] data_roots`` allow
+(:class:`DataRoots`): ``../`` and absolute paths that leave them, and symbolic links that point
+out of them, are refused with an :class:`~fsdvs_hw.errors.InputError`. Names that are not paths (``[design] name``) are turned
 into safe file names by :func:`safe_name` before they become part of a path. Output folders and
 files given on the command line are checked before any work (exists as a file? writable?) so a
 long run never fails at its last step. Files written into an output folder never go through a
@@ -21,6 +22,7 @@ import os
 import re
 import tempfile
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +31,8 @@ from .fingerprints import text_fingerprint
 
 __all__ = [
     "MAX_NAME_LENGTH",
+    "Confinement",
+    "DataRoots",
     "confined_path",
     "csv_text",
     "figure_png",
@@ -66,8 +70,39 @@ def safe_name(name: str, *, fallback: str = "design") -> str:
     return slug
 
 
-def confined_path(base: str | Path, path: str | Path, *, what: str) -> Path:
-    """``path`` resolved against ``base``; refused unless it stays inside ``base``.
+@dataclass(frozen=True)
+class DataRoots:
+    """The folders besides a design's own that its paths may lie in (``[design] data_roots``).
+
+    Passed where a ``confine`` flag is taken (:data:`Confinement`): it confines like ``True``
+    (always truthy) and allows these folders too, so a multi-GB dataset, weights, a ``train.out``
+    or a clip cache can stay where it lives (a shared or read-only disk).
+
+    Attributes
+    ----------
+    folders : tuple of Path
+        Absolute, resolved folders (symbolic links followed).
+
+    Examples
+    --------
+    >>> roots = DataRoots((Path("/data/ucf101"),))
+    >>> bool(roots), roots.folders[0].name
+    (True, 'ucf101')
+    """
+
+    folders: tuple[Path, ...] = ()
+
+    def __bool__(self) -> bool:
+        return True
+
+
+#: How a design's paths are confined: ``False`` not at all (designs built in code), ``True`` to
+#: the design's folder, :class:`DataRoots` to the design's folder or one of the roots.
+Confinement = bool | DataRoots
+
+
+def confined_path(base: str | Path, path: str | Path, *, what: str, roots: Sequence[Path] = ()) -> Path:
+    """``path`` resolved against ``base``; refused unless it stays inside ``base`` or one of ``roots``.
 
     Parameters
     ----------
@@ -77,11 +112,20 @@ def confined_path(base: str | Path, path: str | Path, *, what: str) -> Path:
         Relative (to ``base``) or absolute path; symbolic links are followed before the check.
     what : str
         Name used in the message (``"kernel.path"``).
+    roots : sequence of Path
+        Further allowed folders (``[design] data_roots``, resolved).
 
     Raises
     ------
     InputError
-        The path (after ``..`` and links are resolved) lies outside ``base``, or contains a NUL byte.
+        The path (after ``..`` and links are resolved) lies outside ``base`` and every root, or
+        contains a NUL byte. The message names the path, where it resolves to and the fix.
+
+    Examples
+    --------
+    >>> confined_path("/tmp", "../etc/passwd", what="kernel.path")   # doctest: +SKIP
+    Traceback (most recent call last):
+    InputError: kernel.path = '../etc/passwd': resolves to /etc/passwd, outside the design's folder /tmp; ...
     """
     text = str(path)
     if "\x00" in text:
@@ -89,10 +133,15 @@ def confined_path(base: str | Path, path: str | Path, *, what: str) -> Path:
     root = Path(base).resolve()
     p = Path(text)
     resolved = (p if p.is_absolute() else root / p).resolve()
-    if resolved != root and root not in resolved.parents:
+    allowed = (root, *(Path(r).resolve() for r in roots))
+    if not any(resolved == a or a in resolved.parents for a in allowed):
+        where = f"the design's folder {root}" + (
+            f" and its data_roots {[str(a) for a in allowed[1:]]}" if len(allowed) > 1 else ""
+        )
         raise InputError(
-            f"{what} = {text!r}: resolves to {resolved}, outside the design's folder {root}; "
-            "paths in a design file must stay inside its folder (copy the file there)"
+            f"{what} = {text!r}: resolves to {resolved}, outside {where}; paths in a design file must "
+            "stay inside its folder or a folder listed in [design] data_roots (add the folder there, "
+            "or copy the file)"
         )
     return resolved
 

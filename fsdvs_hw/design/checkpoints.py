@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..paths import Confinement
 from ..tasks.checkpoints import checkpoint_paths, checkpoint_stem
 from .design_paths import resolve_design_path
 from .problems import DesignProblems
@@ -82,7 +83,9 @@ def bounded_glob(root: Path, parts: list[str], *, limit: int = MAX_GLOB_ENTRIES)
     return level
 
 
-def expand_checkpoint_patterns(chk: DesignProblems, data: dict[str, Any], base: Path, confine: bool = True) -> None:
+def expand_checkpoint_patterns(
+    chk: DesignProblems, data: dict[str, Any], base: Path, confine: Confinement = True
+) -> None:
     """Replace glob patterns in ``[tasks] checkpoints`` by the files they match, in natural order.
 
     ``"networks/detection_*_s*.safetensors"`` lists one network per training seed (``s2`` before
@@ -142,7 +145,7 @@ def expand_checkpoint_patterns(chk: DesignProblems, data: dict[str, Any], base: 
             ckpts[task] = out
 
 
-def check_checkpoint_entry(chk: DesignProblems, key: str, path: Any, base: Path, confine: bool) -> None:
+def check_checkpoint_entry(chk: DesignProblems, key: str, path: Any, base: Path, confine: Confinement) -> None:
     """One checkpoint entry: a path string to a readable ``.safetensors`` file (``.json`` or no suffix: its pair)."""
     if not isinstance(path, str):
         chk.add(key, path, "must be a path string to a .safetensors checkpoint")

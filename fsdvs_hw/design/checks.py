@@ -19,6 +19,7 @@ from pydantic import ValidationError
 from ..csf import CSF_METHODS
 from ..errors import InputError, KernelError
 from ..kernels import Kernel, check_tap_magnitude, load_kernel, reference_kernel
+from ..paths import Confinement
 from ..realise.registry import get_realisation
 from ..schema import DESIGN_CONTEXT, problems
 from .checkpoints import check_checkpoint_entry, checkpoint_entries, expand_checkpoint_patterns
@@ -32,7 +33,7 @@ from .user_data_inputs import check_user_task
 __all__ = ["check_design"]
 
 
-def check_design(chk: DesignProblems, data: dict[str, Any], base: Path, confine: bool) -> Kernel | None:
+def check_design(chk: DesignProblems, data: dict[str, Any], base: Path, confine: Confinement) -> Kernel | None:
     """Run every cross-section check on ``data`` (validated sections), adding each problem to ``chk``.
 
     Checkpoint glob patterns in ``data`` are replaced by the files they match.
@@ -126,7 +127,9 @@ def _check_cross(chk: DesignProblems, data: dict[str, Any]) -> None:
         chk.add("realisations.include", data["realisations"]["include"], "lists a realisation twice")
 
 
-def _check_sizes(chk: DesignProblems, data: dict[str, Any], base: Path, confine: bool, target: Kernel | None) -> None:
+def _check_sizes(
+    chk: DesignProblems, data: dict[str, Any], base: Path, confine: Confinement, target: Kernel | None
+) -> None:
     """Sizes that must agree across sections, checked at load so no run fails after work started.
 
     The emulation track renders ``emulation.n_clips`` synthetic clips of ``sensor.resolution``
@@ -189,7 +192,7 @@ def _check_sizes(chk: DesignProblems, data: dict[str, Any], base: Path, confine:
                 )
 
 
-def _check_tasks(chk: DesignProblems, data: dict[str, Any], base: Path, confine: bool) -> None:
+def _check_tasks(chk: DesignProblems, data: dict[str, Any], base: Path, confine: Confinement) -> None:
     """Each task must be a registered evaluator and its checkpoint must exist."""
     ckpts = data["tasks"]["checkpoints"]
     known = {**ckpts, **data["tasks"]["datasets"]}  # tasks scored: trained checkpoints and user data
@@ -249,7 +252,7 @@ def _check_task_weights(chk: DesignProblems, data: dict[str, Any], known: Mappin
         chk.add("scoring.task_weights", weights, "every weight is 0; allowed: at least one positive weight")
 
 
-def _check_user_data(chk: DesignProblems, data: dict[str, Any], base: Path, confine: bool) -> None:
+def _check_user_data(chk: DesignProblems, data: dict[str, Any], base: Path, confine: Confinement) -> None:
     """Each ``[tasks.datasets.<task>]`` opens (layout read, network built; fsdvs_hw.design.user_data_inputs)."""
     for task, entry in data["tasks"]["datasets"].items():
         if task in data["tasks"]["checkpoints"]:
@@ -379,7 +382,7 @@ def _check_axes(chk: DesignProblems, data: dict[str, Any]) -> None:
                 chk.problems.extend(p.replace(f"key '{ckey}", f"key '{full}", 1) for p in problems(exc, model))
 
 
-def _load_target(chk: DesignProblems, data: dict[str, Any], base: Path, confine: bool) -> Kernel | None:
+def _load_target(chk: DesignProblems, data: dict[str, Any], base: Path, confine: Confinement) -> Kernel | None:
     k = data["kernel"]
     pitch = data["sensor"]["pitch_m"]
     try:

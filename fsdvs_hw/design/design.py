@@ -70,7 +70,7 @@ from pydantic import ValidationError
 
 from ..fingerprints import fingerprint
 from ..kernels import Kernel
-from ..paths import safe_name
+from ..paths import Confinement, DataRoots, safe_name
 from ..schema import DESIGN_CONTEXT, StrictModel, problems
 from .checkpoints import checkpoint_entries
 from .checks import check_design
@@ -105,9 +105,11 @@ class Design:
         Folder that relative paths (kernel file, checkpoints) are resolved against.
     target : Kernel
         The kernel every realisation is fitted to, at ``sensor.pitch_m``.
-    confine_paths : bool
-        Paths in the design (kernel file, checkpoints) must stay inside ``base_dir``
-        (:func:`fsdvs_hw.paths.confined_path`); always true for design files.
+    confine_paths : bool or DataRoots
+        Paths in the design (kernel file, checkpoints, datasets) must stay inside ``base_dir``
+        (:func:`fsdvs_hw.paths.confined_path`); always true for design files. A design with
+        ``[design] data_roots`` holds them here (:class:`~fsdvs_hw.paths.DataRoots`, truthy):
+        its paths may lie in those folders too.
     spec : pydantic model of :func:`design_model`
         The same design, typed: ``design.spec.sensor.threshold_on``,
         ``design.spec.realisations.asic.bits`` (every option's value, its default where unset).
@@ -126,7 +128,7 @@ class Design:
     source: str
     base_dir: Path
     target: Kernel = dc_field(repr=False)
-    confine_paths: bool = True
+    confine_paths: Confinement = True
     spec: Any = dc_field(default=None, repr=False)
 
     @property
@@ -234,7 +236,11 @@ def load_design(path: str | Path) -> Design:
 
 
 def parse_design(
-    raw: Mapping[str, Any], *, source: str = "<design>", base_dir: str | Path = ".", confine_paths: bool = True
+    raw: Mapping[str, Any],
+    *,
+    source: str = "<design>",
+    base_dir: str | Path = ".",
+    confine_paths: Confinement = True,
 ) -> Design:
     """Validate a design given as nested mappings (what :func:`load_design` reads from TOML).
     Relative paths are resolved against ``base_dir``; with ``confine_paths`` (the default, and
@@ -272,12 +278,37 @@ def parse_design(
     for key in ("camera", "upsample"):  # likewise [emulation] without camera (the design's sensor) or upsample
         if key not in (raw.get("emulation") or {}):
             del data["emulation"][key]
+    if not (raw.get("design") or {}).get("data_roots"):  # a design without data_roots keeps its fingerprint
+        del data["design"]["data_roots"]
     base = Path(base_dir)
+    confine_paths = _data_roots(chk, data, base, confine_paths)
     target = check_design(chk, data, base, confine_paths)
     chk.raise_if_any()
     assert target is not None
     typed = model.model_validate(data, context=DESIGN_CONTEXT)  # the final values (patterns expanded), typed
     return Design(data=data, source=source, base_dir=base, target=target, confine_paths=confine_paths, spec=typed)
+
+
+def _data_roots(chk: DesignProblems, data: dict[str, Any], base: Path, confine: Confinement) -> Confinement:
+    """``[design] data_roots`` resolved (absolute, or relative to ``base``): each must be a folder.
+
+    Returns the confinement of the design's paths: :class:`~fsdvs_hw.paths.DataRoots` when the
+    design confines its paths and names roots, else ``confine`` as given (``True`` / ``False``).
+    """
+    roots = []
+    for i, text in enumerate(data["design"].get("data_roots", [])):
+        if "\x00" in text:
+            chk.add(f"design.data_roots[{i}]", text, "contains a NUL byte")
+            continue
+        p = Path(text).expanduser()
+        folder = (p if p.is_absolute() else base / p).resolve()
+        if not folder.is_dir():
+            chk.add(
+                f"design.data_roots[{i}]", text, f"not a folder (resolves to {folder}); allowed: an existing folder"
+            )
+        else:
+            roots.append(folder)
+    return DataRoots(tuple(roots)) if confine and roots else bool(confine)
 
 
 def _validate_sections(chk: DesignProblems, model: type[StrictModel], raw: Mapping[str, Any]) -> Any:

@@ -68,6 +68,13 @@ class DesignSection(StrictModel):
 
     name: str | None = field(None, "", "short name used in reports")
     description: str = field("", "", "free text")
+    data_roots: list[str] = field(
+        [],
+        "",
+        "folders outside the design's folder that its paths may name (datasets and every file they "
+        "name, weights, kernel, train.out, clip cache): absolute or relative to the design file",
+        max_length=64,
+    )
 
 
 class KernelSection(StrictModel):

@@ -19,11 +19,13 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..paths import Confinement
 from .design_paths import resolve_design_path
 from .user_data_section import FORMAT_TASK
 
 __all__ = [
     "build_user_network",
+    "check_dataset_files",
     "check_disjoint_files",
     "check_user_task",
     "open_dataset",
@@ -32,7 +34,7 @@ __all__ = [
 ]
 
 
-def _reader_paths(source: Mapping[str, Any], base: Path, confine: bool, key: str) -> dict[str, Path]:
+def _reader_paths(source: Mapping[str, Any], base: Path, confine: Confinement, key: str) -> dict[str, Path]:
     """The reader's paths, resolved against the design's folder (and confined to it)."""
     root = Path(str(source["root"]))
     split = source.get("split") or ""
@@ -64,7 +66,7 @@ _READERS: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
 
 
 @functools.lru_cache(maxsize=16)
-def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
+def _open_dataset(blob: str, base: str, confine: Confinement, key: str) -> Any:
     from ..scenes import datasets
     from ..scenes.clip_cache import ClipDiskCache
 
@@ -86,10 +88,47 @@ def _open_dataset(blob: str, base: str, confine: bool, key: str) -> Any:
         options["split_file"] = paths.get("split")
     elif s["format"] == "dsec_detection":
         options["class_names"] = s["class_names"] or datasets.DSEC_DETECTION_CLASSES
-    return getattr(datasets, reader)(*(paths[name] for name in positional), **options, **common)
+    ds = getattr(datasets, reader)(*(paths[name] for name in positional), **options, **common)
+    if confine:
+        check_dataset_files(ds, Path(base), confine, key)
+    return ds
 
 
-def open_dataset(source: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True, key: str = "dataset") -> Any:
+def check_dataset_files(dataset: Any, base: Path, confine: Confinement, key: str) -> None:
+    """Refuse a dataset that names a file outside the design's folder and its data roots.
+
+    Every file a clip is decoded from (:meth:`~fsdvs_hw.scenes.datasets.ClipDataset.clip_files`:
+    videos, frame images, masks, a COCO ``file_name`` with ``../``) and, for COCO, every image of
+    the annotations, is resolved (links followed: a class folder or a file inside a root that links
+    out of it) and must lie inside the design's folder or a ``[design] data_roots`` folder.
+
+    Raises
+    ------
+    InputError
+        One, naming the key, the clip, the file and where it resolves to.
+
+    Examples
+    --------
+    >>> check_dataset_files(ds, Path("designs"), True, "tasks.datasets.detection.dataset")   # doctest: +SKIP
+    """
+    seen: set[Path] = set()
+    named: list[tuple[str, Path]] = [(f"clip {i}", p) for i in range(len(dataset)) for p in dataset.clip_files(i)]
+    frames_dir, images = getattr(dataset, "frames_dir", None), getattr(dataset, "images", None)
+    if frames_dir is not None and isinstance(images, Mapping):  # COCO: images outside every clip too
+        named += [(f"image id {iid}", Path(frames_dir) / str(im["file_name"])) for iid, im in images.items()]
+    for where, path in named:
+        if path in seen:
+            continue
+        seen.add(path)
+        try:
+            resolve_design_path(base, str(path), what=f"{key}: {where}: file", confine=confine)
+        except InputError as exc:
+            raise InputError(f"{exc} (a file the dataset names, e.g. through a link or '../')") from None
+
+
+def open_dataset(
+    source: Mapping[str, Any], base_dir: str | Path, *, confine: Confinement = True, key: str = "dataset"
+) -> Any:
     """The :class:`~fsdvs_hw.scenes.datasets.ClipDataset` a design's ``dataset`` table names.
 
     Opened once per process (cached): only the layout is read; clips are decoded when scored.
@@ -118,7 +157,7 @@ def open_dataset(source: Mapping[str, Any], base_dir: str | Path, *, confine: bo
     >>> len(open_dataset(src, "designs"))                                  # doctest: +SKIP
     4
     """
-    return _open_dataset(json.dumps(dict(source), sort_keys=True), str(Path(base_dir).resolve()), bool(confine), key)
+    return _open_dataset(json.dumps(dict(source), sort_keys=True), str(Path(base_dir).resolve()), confine, key)
 
 
 @contextlib.contextmanager
@@ -137,7 +176,7 @@ def _importable_from(folder: Path) -> Iterator[None]:
 
 
 def build_user_network(
-    entry: Mapping[str, Any], base: Path, confine: bool, key: str, in_channels: int, num_classes: int
+    entry: Mapping[str, Any], base: Path, confine: Confinement, key: str, in_channels: int, num_classes: int
 ) -> Any:
     """A new network of a ``[tasks.datasets.<task>]`` table (not cached, not trained): its factory
     (or the task's built-in network) with its ``weights`` loaded.
@@ -187,12 +226,14 @@ def build_user_network(
 
 
 @functools.lru_cache(maxsize=16)
-def _open_untrained_network(blob: str, base: str, confine: bool, key: str, in_channels: int, num_classes: int) -> Any:
+def _open_untrained_network(
+    blob: str, base: str, confine: Confinement, key: str, in_channels: int, num_classes: int
+) -> Any:
     return build_user_network(json.loads(blob), Path(base), confine, key, in_channels, num_classes).eval()
 
 
 def open_untrained_network(
-    entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *, confine: bool = True, key: str = "network"
+    entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *, confine: Confinement = True, key: str = "network"
 ) -> Any:
     """The network a ``[tasks.datasets.<task>]`` table names, built for ``dataset`` with its ``weights``
     and not trained (its ``train`` table ignored; cached per process).
@@ -219,8 +260,8 @@ def open_untrained_network(
 
 
 def network_cache_key(
-    entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *, confine: bool, key: str
-) -> tuple[str, str, bool, str, int, int]:
+    entry: Mapping[str, Any], dataset: Any, base_dir: str | Path, *, confine: Confinement, key: str
+) -> tuple[str, str, Confinement, str, int, int]:
     """The hashable arguments under which a table's network is cached per process.
 
     ``(entry as canonical JSON, base_dir resolved, confine, key, input channels, classes)``: the
@@ -229,7 +270,7 @@ def network_cache_key(
     return (
         json.dumps(dict(entry), sort_keys=True),
         str(Path(base_dir).resolve()),
-        bool(confine),
+        confine,
         key,
         2 * (int(dataset.n_frames) - 1),
         int(dataset.num_classes),
@@ -237,7 +278,7 @@ def network_cache_key(
 
 
 def train_split_dataset(
-    entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True, key: str = "dataset"
+    entry: Mapping[str, Any], base_dir: str | Path, *, confine: Confinement = True, key: str = "dataset"
 ) -> Any:
     """The dataset of a table's training split (``train.split``): ``dataset`` with its ``split`` replaced.
 
@@ -309,7 +350,7 @@ def check_disjoint_files(train: Any, train_indices: Any, test: Any, test_indices
 
 
 def check_user_task(
-    task: str, entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True
+    task: str, entry: Mapping[str, Any], base_dir: str | Path, *, confine: Confinement = True
 ) -> list[tuple[str, Any, str]]:
     """Problems of one validated ``[tasks.datasets.<task>]`` table, as ``(key, value, message)``.
 
@@ -396,7 +437,7 @@ def check_user_task(
 
 
 def _train_split_problems(
-    entry: Mapping[str, Any], ds: Any, base_dir: str | Path, confine: bool, key: str
+    entry: Mapping[str, Any], ds: Any, base_dir: str | Path, confine: Confinement, key: str
 ) -> list[tuple[str, Any, str]]:
     """A ``train.split`` must open, hold ``n_train`` clips and share no file with the scored clips."""
     split, n_train = entry["train"]["split"], entry["train"]["n_train"]

@@ -41,7 +41,7 @@ import numpy as np
 from ..errors import InputError
 from ..fingerprints import fingerprint, text_fingerprint
 from ..kernels import Kernel
-from ..paths import write_output
+from ..paths import Confinement, write_output
 from ..progress import progress_bar
 from ..stats import ClipMetric
 from .paired import EVENT_RATE_UNIT, bootstrap_weights, clip_evidence, decode_evidence, encode_evidence, weighted_rate
@@ -1034,7 +1034,7 @@ def dataset_rate_curve(
     label: str | None = None,
     cache_dir: str | Path | None = None,
     progress: bool | None = None,
-    confine: bool = True,
+    confine: Confinement = True,
 ) -> RateCurve:
     """A kernel's rate curve on a user-data task: the user's network and clips at each threshold.
 

@@ -53,6 +53,7 @@ from ..design.user_data_inputs import (
 )
 from ..design.user_data_section import DEFAULT_MAX_FAILED_CLIP_FRACTION, FORMAT_TASK, TrainSpec
 from ..errors import InputError
+from ..paths import Confinement
 
 __all__ = [
     "ONE_NETWORK_NOTE",
@@ -71,7 +72,7 @@ ONE_NETWORK_NOTE = (
 
 
 @functools.lru_cache(maxsize=16)
-def _open_network(blob: str, base: str, confine: bool, key: str, in_channels: int, num_classes: int) -> Any:
+def _open_network(blob: str, base: str, confine: Confinement, key: str, in_channels: int, num_classes: int) -> Any:
     """A new network of the table (:func:`~fsdvs_hw.design.user_data_inputs.build_user_network`),
     trained on the clips not scored where the table has a ``train`` table, in eval mode."""
     entry = json.loads(blob)
@@ -91,7 +92,7 @@ def _file_digest(path: Path) -> str:
 
 
 def _training_clips(
-    entry: Mapping[str, Any], spec: Mapping[str, Any], base: Path, confine: bool, key: str
+    entry: Mapping[str, Any], spec: Mapping[str, Any], base: Path, confine: Confinement, key: str
 ) -> tuple[Any, np.ndarray]:
     """(dataset, clip indices) a table trains on: ``spec["split"]`` (the dataset's own training split,
     disjoint files checked) or a draw of ``spec["n_train"]`` with ``spec["seed"]`` from the clips not scored."""
@@ -191,7 +192,7 @@ def _train(
     task: str,
     entry: Mapping[str, Any],
     base: Path,
-    confine: bool,
+    confine: Confinement,
     key: str,
     net: Any,
     verbose: bool,
@@ -244,7 +245,7 @@ def train_user_task(
     entry: Mapping[str, Any],
     base_dir: str | Path,
     *,
-    confine: bool = True,
+    confine: Confinement = True,
     verbose: bool = False,
     overrides: Mapping[str, Any] | None = None,
     out: str | Path | None = None,
@@ -299,7 +300,9 @@ def train_user_task(
     return _train(task, entry, base, confine, key, net, verbose, None if out is None else Path(out))
 
 
-def user_network_identity(entry: Mapping[str, Any], base_dir: str | Path, *, confine: bool = True) -> dict[str, Any]:
+def user_network_identity(
+    entry: Mapping[str, Any], base_dir: str | Path, *, confine: Confinement = True
+) -> dict[str, Any]:
     """What determines a table's scores besides the kernel: data, clip draw, network, weights, training.
 
     JSON-able, for result keys (:mod:`fsdvs_hw.explore.codesign` units): the dataset (its disk
@@ -373,7 +376,7 @@ def finetune_user_network(
     lr_filter: float = 1e-2,
     out: str | Path | None = None,
     fingerprint: Mapping[str, Any] | None = None,
-    confine: bool = True,
+    confine: Confinement = True,
     verbose: bool = False,
 ) -> Any:
     """Train a table's network further with a realised kernel: frozen, or co-designed (user data).
@@ -465,7 +468,7 @@ def open_network(
     dataset: Any,
     base_dir: str | Path,
     *,
-    confine: bool = True,
+    confine: Confinement = True,
     key: str = "network",
     trained: bool = True,
 ) -> Any:
@@ -600,7 +603,7 @@ def dataset_evidence(
     *,
     design_sensor: Mapping[str, Any] | None = None,
     events_fn: Any = None,
-    confine: bool = True,
+    confine: Confinement = True,
     network: Any = None,
 ) -> tuple[Any, dict[str, Any]]:
     """Score ``kernel`` on a user dataset with the user network and keep every clip's contribution.

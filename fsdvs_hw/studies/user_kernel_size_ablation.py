@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..paths import Confinement
 
 __all__ = ["run_user_ablation"]
 
@@ -106,7 +107,7 @@ def run_user_ablation(
             task,
             entry,
             str(design.base_dir),
-            bool(design.confine_paths),
+            design.confine_paths,
             k,
             int(seed),
             str(folder / "runs" / f"{task}_k{k}_s{seed}"),
@@ -290,7 +291,14 @@ def _run_jobs(jobs: Sequence[tuple[Any, ...]], workers: int) -> dict[tuple[int, 
 
 
 def _train_and_score(
-    task: str, entry: dict[str, Any], base_dir: str, confine: bool, size: int, seed: int, stem: str, verbose: bool
+    task: str,
+    entry: dict[str, Any],
+    base_dir: str,
+    confine: Confinement,
+    size: int,
+    seed: int,
+    stem: str,
+    verbose: bool,
 ) -> tuple[Any, float, int]:
     """One run: train (or reuse / resume ``stem``) the network and kernel of one size and seed, score it.
 
