@@ -15,7 +15,7 @@ Protocol (stdin, little-endian): messages of an int64 count ``n`` followed by ``
 the writer is closed, the file flushed and fsync'ed, and the process exits 0. End of input
 without the commit message (the parent was killed) removes the file and exits 3; a
 failure (full disk) prints one line on stderr, removes the file and exits 4.
-Reading writes to stdout: int64 width, height, the camera name's length and UTF-8 bytes, then
+Reading writes to stdout: one byte ``R`` once started (imports done), int64 width, height, the camera name's length and UTF-8 bytes, then
 batches in the message layout above, then ``-1``. A file dv-processing refuses: the message on
 stderr and exit status 2.
 """
@@ -53,6 +53,8 @@ def read(path: str) -> int:
     import numpy as np
 
     out = sys.stdout.buffer
+    out.write(b"R")  # started: the parent's start-up wait ends, its per-batch timeout begins
+    out.flush()
     try:
         rec = dv.io.MonoCameraRecording(path)
         if not rec.isEventStreamAvailable():

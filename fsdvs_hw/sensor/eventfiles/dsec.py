@@ -51,13 +51,14 @@ from .eventfile import (
     EventColumnsCheck,
     EventFile,
     checked_columns,
+    checked_file,
     checked_side,
     exception_line,
     field_error,
     partial_path,
 )
 
-__all__ = ["DSEC_SIZE", "is_dsec", "read_dsec", "write_dsec"]
+__all__ = ["DSEC_SIZE", "MAX_T_OFFSET_US", "MS_TO_IDX_SLACK", "is_dsec", "read_dsec", "write_dsec"]
 
 #: DSEC's event cameras (Prophesee Gen3.1): width, height in pixels.
 DSEC_SIZE = (640, 480)
@@ -169,9 +170,7 @@ def read_dsec(path: str | Path, *, width: int | None = None, height: int | None 
     import h5py
 
     _plugins()
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"event file {str(p)!r} does not exist")
+    p = checked_file(path)
     try:
         f = h5py.File(p, "r")
     except (OSError, ValueError) as exc:
@@ -185,6 +184,41 @@ def read_dsec(path: str | Path, *, width: int | None = None, height: int | None 
             raise
         except (OSError, ValueError, KeyError, TypeError, RuntimeError, IndexError) as exc:
             raise field_error(p, "events", f"unreadable, truncated or corrupt ({exception_line(exc)})") from None
+
+
+#: Entries of ``ms_to_idx`` accepted beyond the last event's millisecond (a declared size is
+#: checked against the events before anything is allocated).
+MS_TO_IDX_SLACK = 100_000
+#: Largest ``t_offset`` accepted (µs): 2**53 (285 years), exact in float64 and far from int64's end.
+MAX_T_OFFSET_US = 1 << 53
+
+
+def _check_stored(p: Path, name: str, ds: Any) -> None:
+    """Refuse a chunked dataset that declares more chunks than it stores (a huge declared size
+    in a small file would be filled with zeros at read time)."""
+    import math
+
+    if ds.chunks is None or ds.size == 0:
+        return
+    want = math.prod(math.ceil(n / c) for n, c in zip(ds.shape, ds.chunks))
+    got = ds.id.get_num_chunks()
+    if got < want:
+        raise field_error(
+            p, name, f"declares {ds.shape[0]} entries but stores only {got} of its {want} chunks (truncated file?)"
+        )
+
+
+def _t_offset(p: Path, f: Any, t_last: int) -> int:
+    """``t_offset`` (µs; 0 without it): one integer in [0, 2**53) with ``t_offset + t`` in range."""
+    if "t_offset" not in f:
+        return 0
+    off_arr = np.asarray(f["t_offset"][()])
+    if off_arr.shape not in ((), (1,)) or off_arr.dtype.kind not in "iu":
+        raise field_error(p, "t_offset", f"must be one integer (µs), got dtype {off_arr.dtype} shape {off_arr.shape}")
+    off = int(off_arr.reshape(-1)[0])
+    if not 0 <= off < MAX_T_OFFSET_US - t_last:
+        raise field_error(p, "t_offset", f"{off} µs outside [0, 2**53) µs (times would wrap or lose precision)")
+    return off
 
 
 def _read_open(p: Path, f: Any, width: int | None, height: int | None) -> EventFile:
@@ -208,21 +242,25 @@ def _read_open(p: Path, f: Any, width: int | None, height: int | None) -> EventF
     check_allocation(f"event file {str(p)!r}: events ({n} declared events)", n * EVENT_BYTES)
     w = checked_side(p, "attribute width", f.attrs["width"]) if "width" in f.attrs else (width or DSEC_SIZE[0])
     h = checked_side(p, "attribute height", f.attrs["height"]) if "height" in f.attrs else (height or DSEC_SIZE[1])
+    for c in _COLUMNS:
+        _check_stored(p, f"events/{c}", g[c])
     cols = {c: g[c][()] for c in _COLUMNS}
     chk.check(cols["t"], cols["x"], cols["y"], cols["p"], w, h)
     t = cols["t"].astype(np.int64)
-    off = 0
-    if "t_offset" in f:
-        off_arr = np.asarray(f["t_offset"][()])
-        if off_arr.shape not in ((), (1,)) or off_arr.dtype.kind not in "iu":
-            raise field_error(
-                p, "t_offset", f"must be one integer (µs), got dtype {off_arr.dtype} shape {off_arr.shape}"
-            )
-        off = int(off_arr.reshape(-1)[0])
+    off = _t_offset(p, f, int(t[-1]) if t.size else 0)
     meta: dict[str, Any] = {"format": "dsec", "t_offset": off}
     if "ms_to_idx" in f:
-        idx = np.asarray(f["ms_to_idx"][()])
         want = ms_to_idx(t)
+        ds = f["ms_to_idx"]
+        if not isinstance(ds, h5py.Dataset) or ds.ndim != 1 or ds.shape[0] > want.size + MS_TO_IDX_SLACK:
+            raise field_error(
+                p,
+                "ms_to_idx",
+                f"declares shape {getattr(ds, 'shape', None)}; the events span {want.size} ms "
+                f"(at most {MS_TO_IDX_SLACK} more entries accepted)",
+            )
+        _check_stored(p, "ms_to_idx", ds)
+        idx = np.asarray(ds[()])
         if idx.ndim != 1 or idx.size < want.size or not np.array_equal(idx[: want.size].astype(np.int64), want):
             k = (
                 int(np.flatnonzero(idx[: want.size].astype(np.int64) != want[: idx.size])[0])

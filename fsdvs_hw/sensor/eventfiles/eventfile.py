@@ -46,7 +46,17 @@ import numpy as np
 from ...errors import InputError, ToolMissingError
 from ...limits import check_allocation
 
-__all__ = ["FORMATS", "EventFile", "EventFileWriter", "event_format", "read_events", "write_events"]
+__all__ = [
+    "FORMATS",
+    "TRIGGER_DTYPE",
+    "EventFile",
+    "EventFileWriter",
+    "checked_file",
+    "event_format",
+    "no_triggers",
+    "read_events",
+    "write_events",
+]
 
 #: file suffix -> format name
 FORMATS: dict[str, str] = {".h5": "hdf5", ".hdf5": "hdf5", ".aedat4": "aedat4", ".npz": "npz"}
@@ -73,15 +83,70 @@ def _dv() -> Any:
     return dv_processing
 
 
+#: External trigger events (Prophesee ``EXT_TRIGGER``): time (µs), trigger channel, edge (1 rising, 0 falling).
+TRIGGER_DTYPE = np.dtype([("t_us", "<i8"), ("id", "<i2"), ("value", "i1")])
+
+
+def no_triggers() -> np.ndarray:
+    """An empty array of :data:`TRIGGER_DTYPE` (a file without trigger events)."""
+    return np.zeros(0, dtype=TRIGGER_DTYPE)
+
+
+def checked_file(path: str | Path, what: str = "event file") -> Path:
+    """``path`` as a :class:`Path` if it is a readable regular file; else an
+    :class:`~fsdvs_hw.errors.InputError` that says what it is: missing, a directory, a loop of
+    symbolic links, a dangling link, another kind of file, or not readable.
+
+    Examples
+    --------
+    >>> checked_file(".")
+    Traceback (most recent call last):
+    ...
+    fsdvs_hw.errors.InputError: event file '.': is a directory, not a file
+    """
+    p = Path(path)
+    try:
+        st = os.stat(p)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise InputError(f"{what} {str(p)!r}: a loop of symbolic links (it resolves to itself)") from None
+        if exc.errno == errno.ENOENT and os.path.islink(p):
+            raise InputError(
+                f"{what} {str(p)!r}: a symbolic link to {os.readlink(p)!r}, which does not exist"
+            ) from None
+        if exc.errno == errno.ENOENT:
+            raise InputError(f"{what} {str(p)!r} does not exist") from None
+        raise InputError(f"{what} {str(p)!r}: cannot be read ({os.strerror(exc.errno or errno.EIO)})") from None
+    import stat
+
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"{what} {str(p)!r}: is a directory, not a file")
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{what} {str(p)!r}: is not a regular file (a device, pipe or socket)")
+    if not os.access(p, os.R_OK):
+        raise InputError(f"{what} {str(p)!r}: cannot be read (permission denied)")
+    return p
+
+
 @dataclass
 class EventFile:
     """Events read from a file (one sensor).
 
     Attributes
     ----------
-    t_us : numpy.ndarray int64 — time in microseconds; x, y : int64 — column, row;
-    p : int8 — polarity +1 ON / -1 OFF; width, height : int — sensor size (pixels);
-    metadata : dict — format-specific attributes.
+    t_us : numpy.ndarray
+        int64, time in microseconds.
+    x, y : numpy.ndarray
+        int64, column and row (pixels).
+    p : numpy.ndarray
+        int8, polarity +1 ON / -1 OFF.
+    width, height : int
+        Sensor size (pixels).
+    metadata : dict
+        Format-specific attributes.
+    triggers : numpy.ndarray
+        External trigger events beside the CD events (:data:`TRIGGER_DTYPE`: ``t_us``, ``id``,
+        ``value``); empty for formats and files without them.
     """
 
     t_us: np.ndarray
@@ -91,6 +156,7 @@ class EventFile:
     width: int
     height: int
     metadata: dict[str, Any] = field(default_factory=dict)
+    triggers: np.ndarray = field(default_factory=no_triggers)
 
     def __len__(self) -> int:
         return int(self.t_us.size)
@@ -524,8 +590,14 @@ def write_events(
 
 
 #: Seconds the AEDAT4 reader waits for dv-processing's next batch before it refuses the file
-#: (a corrupt file can make the library loop forever).
-AEDAT4_READ_TIMEOUT_S = 30.0
+#: (a corrupt file can make the library loop forever); counted once the reader process has
+#: started (its imports can take longer on a busy machine: :data:`AEDAT4_START_TIMEOUT_S`).
+#: A batch of a valid file takes milliseconds.
+AEDAT4_READ_TIMEOUT_S = 5.0
+#: Seconds the AEDAT4 reader process may take to start (Python and dv-processing's imports).
+AEDAT4_START_TIMEOUT_S = 120.0
+#: The first bytes of an AEDAT 4 file.
+AEDAT4_MAGIC = b"#!AER-DAT4.0"
 #: Events read and checked per slice from an HDF5 file (bounds the reader's temporaries).
 READ_SLICE = 1 << 20
 #: Bytes of memory per event read: int64 time, x, y, int8 polarity, plus the file's own row.
@@ -614,8 +686,7 @@ def read_events(path: str | Path) -> EventFile:
     """
     p = Path(path)
     fmt = event_format(p)
-    if not p.is_file():
-        raise InputError(f"event file {str(p)!r} does not exist")
+    checked_file(p)
     if fmt == "hdf5":
         return _read_hdf5(p)
     if fmt == "aedat4":
@@ -803,6 +874,10 @@ def _read_aedat4(p: Path) -> EventFile:
 
     if importlib.util.find_spec("dv_processing") is None:
         _dv()  # raises ToolMissingError with the install hint
+    with open(p, "rb") as fh:
+        magic = fh.read(len(AEDAT4_MAGIC))
+    if magic != AEDAT4_MAGIC:
+        raise field_error(p, "(file)", f"starts with {magic[:12]!r}, not {AEDAT4_MAGIC!r}: not an AEDAT 4 file")
     with tempfile.TemporaryFile() as err:
         proc = subprocess.Popen(
             [*_child_command("read"), str(p)],
@@ -813,9 +888,11 @@ def _read_aedat4(p: Path) -> EventFile:
         )
         assert proc.stdout is not None  # stdout=PIPE
         try:
-            pipe = _ChildPipe(proc.stdout, AEDAT4_READ_TIMEOUT_S, p)
+            pipe = _ChildPipe(proc.stdout, AEDAT4_START_TIMEOUT_S, p)
             chk = EventColumnsCheck(p, {"t": "timestamp", "x": "x", "y": "y", "p": "polarity"}, (0, 1))
             try:
+                pipe.read(1)  # the reader has started
+                pipe.timeout = AEDAT4_READ_TIMEOUT_S
                 w_raw, h_raw, name_len = (int(v) for v in pipe.ints(3, "<i8"))
                 w, h = (
                     checked_side(p, "event resolution width", w_raw),

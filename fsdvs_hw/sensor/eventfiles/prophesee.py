@@ -1,15 +1,20 @@
-"""Prophesee event files: RAW EVT 2.0, RAW EVT 3.0 and DAT; read through expelliarmus, written to spec.
+"""Prophesee event files: RAW EVT 2.0, RAW EVT 3.0 and DAT (versions 1 and 2); read and written to spec.
 
-Reading decodes EVT 2.0 and DAT through the maintained ``expelliarmus`` library [1]_ (C
-decoders). Its EVT 3.0 decoder (1.1.12) counts a time-low wrap on top of the ``EVT_TIME_HIGH``
-word that a conforming stream sends with it (events at 4000 and 4100 µs come back at 4000 and
-8196 µs), so EVT 3.0 is decoded here by :func:`decode_evt3` (NumPy, vectorised), which follows
-the published description [2]_ including vectorised events. expelliarmus does not check a
-file's shape, so :func:`read_prophesee` first parses the ASCII header itself (the format, the
-sensor geometry), checks that the binary body is a whole number of words of the format, and refuses a foreign or truncated file with an
-:class:`~fsdvs_hw.errors.InputError` naming the file, the byte offset and the format expected.
-These formats are streams without an event count: a file cut exactly at a word boundary reads as
-a shorter recording, and only a cut inside a word (or inside the header) is detectable.
+Reading decodes all three with vectorised NumPy decoders written to Prophesee's published
+descriptions [2]_ (:func:`decode_evt2`, :func:`decode_evt3_all`, :func:`decode_dat`): the
+maintained ``expelliarmus`` library [1]_ decodes EVT 2.0 and DAT the same way but returns no
+trigger events, reads a time that goes backwards in a DAT file as a clock wrap (30 → 5 µs came
+back as 5 + 2**32 µs) and has no DAT version 1; its EVT 3.0 decoder (1.1.12) counts a
+time-low wrap on top of the ``EVT_TIME_HIGH`` word that a conforming stream sends with it.
+expelliarmus and faery (an independent encoder and decoder) are the cross-checks in the tests.
+:func:`read_prophesee` first parses the ASCII header itself (the format, the DAT version, the
+sensor geometry, the ``% t0`` time offset), checks that the binary body is a whole number of
+words of the format, and refuses a foreign, truncated or malformed file with an
+:class:`~fsdvs_hw.errors.InputError` naming the file, the field or byte offset and the format
+expected. EVT 2.1 is refused (its 64-bit word order depends on the sensor, which the header
+does not name). These formats are streams without an event count: a file cut exactly at a word
+boundary reads as a shorter recording, and only a cut inside a word (or inside the header) is
+detectable.
 
 Writing follows Prophesee's published format descriptions [2]_ exactly (expelliarmus 1.1's EVT3
 writer emits a single ``EVT_TIME_HIGH`` word, so any gap of 4096 µs or more between consecutive
@@ -31,7 +36,8 @@ DAT
 
 References
 ----------
-.. [1] expelliarmus, open-neuromorphic (github.com/open-neuromorphic/expelliarmus), version 1.1.
+.. [1] expelliarmus, open-neuromorphic (github.com/open-neuromorphic/expelliarmus), version 1.1;
+   faery (github.com/aestream/faery), version 0.7.
 .. [2] Prophesee, Metavision SDK documentation, "Event Data Formats": EVT 2.0, EVT 3.0 and DAT
    (docs.prophesee.ai, data formats pages).
 
@@ -55,37 +61,46 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import InputError, ToolMissingError
+from ...errors import InputError
 from ...limits import check_allocation
 from ...paths import write_output
-from .eventfile import EVENT_BYTES, EventColumnsCheck, EventFile, checked_columns, field_error
+from .eventfile import (
+    EVENT_BYTES,
+    TRIGGER_DTYPE,
+    EventColumnsCheck,
+    EventFile,
+    checked_columns,
+    checked_file,
+    field_error,
+    no_triggers,
+)
 
-__all__ = ["ENCODINGS", "decode_evt3", "read_prophesee", "write_prophesee"]
+__all__ = [
+    "ENCODINGS",
+    "SIDE_LIMITS",
+    "decode_dat",
+    "decode_evt2",
+    "decode_evt3",
+    "decode_evt3_all",
+    "read_prophesee",
+    "write_prophesee",
+]
 
 #: encodings -> file suffix
 ENCODINGS: dict[str, str] = {"evt2": ".raw", "evt3": ".raw", "dat": ".dat"}
-_WORD_BYTES = {"evt2": 4, "evt3": 2, "dat": 8}
+_WORD_BYTES = {"evt2": 4, "evt3": 2, "dat": 8, "dat1": 8}
 _DAT_CD_TYPE, _DAT_CD_SIZE = 0x0C, 8
 _DAT_TYPES = (0x00, 0x0C)  # TD (older ATIS files, and expelliarmus's writer) and CD: the same 8-byte event
+_DAT_TRIGGER_TYPE = 0x0E  # external triggers (EXT_TRIGGER)
+_MAX_T0_US = 1 << 53  # the largest % t0 accepted (µs; 285 years, exact in float64)
 _EVT3_TIME_LIMIT_US = 1 << 24
 _EVT2_TIME_LIMIT_US = 1 << 34
 _MAX_HEADER_BYTES = 1 << 20
 
 
-def _wizard(encoding: str) -> Any:
-    try:
-        from expelliarmus import Wizard  # type: ignore[import-untyped]
-    except ImportError:
-        raise ToolMissingError(
-            "Prophesee RAW/DAT files need expelliarmus: pip install 'fsdvs_hw[eventfiles]' "
-            "(or pip install expelliarmus)"
-        ) from None
-    return Wizard(encoding=encoding)
-
-
 # ---------------------------------------------------------------------------- header
 def _parse_header(path: Path, data: bytes) -> tuple[dict[str, str], int]:
-    """The ``% key value`` header lines of a RAW or DAT file and the body's byte offset."""
+    """The ``% key value`` header lines of a RAW or DAT file (keys lower-cased) and the body's byte offset."""
     header: dict[str, str] = {}
     pos = 0
     while pos < len(data) and data[pos : pos + 1] == b"%":
@@ -101,26 +116,56 @@ def _parse_header(path: Path, data: bytes) -> tuple[dict[str, str], int]:
     return header, pos
 
 
-def _geometry(path: Path, header: dict[str, str]) -> tuple[int | None, int | None]:
-    """(width, height) from ``% format ...;width=W;height=H``, ``% geometry WxH`` or DAT's lines."""
+#: Largest sensor side each encoding can address (pixels): EVT 11-bit addresses, DAT 2 14 bits,
+#: DAT 1 9-bit x and 8-bit y.
+SIDE_LIMITS: dict[str, tuple[int, int]] = {
+    "evt2": (2048, 2048),
+    "evt3": (2048, 2048),
+    "dat": (16384, 16384),
+    "dat1": (512, 256),
+}
+
+
+def _side(path: Path, name: str, value: Any, limit: int, encoding: str, where: str) -> int | None:
+    """A declared width/height: None where absent, else an integer in [1, limit] or an InputError."""
+    if value is None or value == "":
+        return None
+    try:
+        v = int(str(value).strip())
+    except ValueError:
+        raise field_error(path, f"{where} {name}", f"{value!r} is not an integer") from None
+    if not 1 <= v <= limit:
+        raise field_error(
+            path, f"{where} {name}", f"{v} pixels outside [1, {limit}], the sides {encoding.upper()} can address"
+        )
+    return v
+
+
+def _geometry(path: Path, header: dict[str, str], encoding: str) -> tuple[int | None, int | None]:
+    """(width, height) from ``% format ...;width=W;height=H``, ``% geometry WxH`` or DAT's lines,
+    each checked against the encoding's address range (0 and larger sides are refused)."""
     fmt = dict(kv.split("=", 1) for kv in header.get("format", "").split(";")[1:] if "=" in kv)
     w, h = fmt.get("width"), fmt.get("height")
     if (w is None or h is None) and "geometry" in header:
         w, _, h = header["geometry"].partition("x")
     w, h = w or header.get("width"), h or header.get("height")
-    try:
-        return (int(w) if w else None), (int(h) if h else None)
-    except ValueError:
-        raise field_error(path, "header geometry", f"width {w!r} / height {h!r} are not integers") from None
+    lw, lh = SIDE_LIMITS[encoding]
+    return _side(path, "width", w, lw, encoding, "header"), _side(path, "height", h, lh, encoding, "header")
 
 
 def _raw_encoding(path: Path, header: dict[str, str]) -> str:
     fmt = header.get("format", "").split(";")[0].strip().upper()
-    if fmt in ("EVT2", "EVT21", "EVT3"):
-        if fmt == "EVT21":
-            raise field_error(path, "header format", "EVT 2.1 is not supported; expected EVT2 or EVT3")
+    evt = header.get("evt", "").strip()
+    if fmt in ("EVT21", "EVT2.1") or evt.startswith("2.1"):
+        raise field_error(
+            path,
+            "header format",
+            "EVT 2.1 is not supported: its 64-bit words are ordered differently by different sensors "
+            "(IMX636 and GenX320) and the header does not say which; convert it to EVT 2.0 or 3.0 "
+            "(metavision_file_to_raw) or read it with the Metavision SDK",
+        )
+    if fmt in ("EVT2", "EVT3"):
         return fmt.lower()
-    evt = header.get("evt", "")
     if evt.startswith("2"):
         return "evt2"
     if evt.startswith("3"):
@@ -132,8 +177,38 @@ def _raw_encoding(path: Path, header: dict[str, str]) -> str:
     )
 
 
-# ---------------------------------------------------------------------------- EVT 3.0 decoder
+def _dat_version(path: Path, header: dict[str, str]) -> str:
+    """``"dat1"`` or ``"dat"`` (version 2) from the ``% Version`` line (absent: version 2)."""
+    v = header.get("version", "2").strip()
+    if v in ("1", "1.0"):
+        return "dat1"
+    if v in ("2", "2.0"):
+        return "dat"
+    raise field_error(path, "header Version", f"unsupported DAT version {v!r}; this reader reads versions 1 and 2")
+
+
+def _t0(path: Path, header: dict[str, str]) -> int:
+    """The ``% t0`` line (µs added to every stored time; 0 without the line)."""
+    if "t0" not in header:
+        return 0
+    try:
+        t0 = int(header["t0"])
+    except ValueError:
+        raise field_error(path, "header t0", f"{header['t0']!r} is not an integer (µs)") from None
+    if not 0 <= t0 < _MAX_T0_US:
+        raise field_error(path, "header t0", f"{t0} µs outside [0, 2**53) µs")
+    return t0
+
+
+# ---------------------------------------------------------------------------- decoders
 _EVT3_DTYPE = np.dtype([("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("p", "u1")])
+
+
+class _Decoded:
+    """Decoded CD events (structured ``t, x, y, p``) and trigger events (:data:`TRIGGER_DTYPE`)."""
+
+    def __init__(self, events: np.ndarray, triggers: np.ndarray) -> None:
+        self.events, self.triggers = events, triggers
 
 
 def _forward_fill(is_set: np.ndarray, values: np.ndarray, initial: int = 0) -> np.ndarray:
@@ -144,15 +219,85 @@ def _forward_fill(is_set: np.ndarray, values: np.ndarray, initial: int = 0) -> n
     return out.astype(np.int64)
 
 
-def decode_evt3(words: np.ndarray, *, path: str | Path = "(memory)") -> np.ndarray:
-    """Decode EVT 3.0 words (little-endian uint16) to events (structured ``t, x, y, p``).
+def _unwrap(path: Path, fld: str, values: np.ndarray, bits: int, offsets: np.ndarray, unit: int) -> np.ndarray:
+    """A wrapping counter of ``bits`` bits made monotonic: a fall of more than half its range is a
+    wrap (one turn added); a smaller fall is time going backwards, refused naming the byte offset
+    (``unit``: µs per count, for the message)."""
+    v = values.astype(np.int64)
+    if v.size < 2:
+        return v
+    d = np.diff(v)
+    half = 1 << (bits - 1)
+    back = np.flatnonzero((d < 0) & (d >= -half))
+    if back.size:
+        i = int(back[0]) + 1
+        raise field_error(
+            path,
+            fld,
+            f"time goes back from {int(v[i - 1]) * unit} to {int(v[i]) * unit} µs at byte offset "
+            f"{int(offsets[i])}: times must not decrease (a {bits}-bit clock wrap falls by more than half its range)",
+        )
+    turns = np.concatenate([[0], np.cumsum(d < -half)])
+    return v + (turns << bits)
 
-    Follows Prophesee's EVT 3.0 description [2]_: ``EVT_ADDR_Y`` (0x0), ``EVT_ADDR_X`` (0x2),
-    ``VECT_BASE_X`` (0x3), ``VECT_12`` (0x4), ``VECT_8`` (0x5), ``EVT_TIME_LOW`` (0x6),
-    ``EVT_TIME_HIGH`` (0x8); other types (triggers, ``OTHERS``, ``CONTINUED``) carry no CD event
-    and are skipped. Time = ``TIME_HIGH << 12 | TIME_LOW``, 24 bits, unwrapped (+2**24) where
-    ``TIME_HIGH`` decreases. Events before the first ``TIME_HIGH`` or ``ADDR_Y`` word are dropped
-    (a stream starts with them).
+
+def _refuse_before(
+    path: Path, need: np.ndarray, have: np.ndarray, offsets: np.ndarray, what: str, need_what: str
+) -> None:
+    """Refuse the first word of ``need`` that comes before any word of ``have`` (``what`` / ``need_what``)."""
+    first = int(np.argmax(have)) if have.any() else have.size
+    early = np.flatnonzero(need[:first])
+    if early.size:
+        raise field_error(
+            path,
+            "(body)",
+            f"{what} word at byte offset {int(offsets[early[0]])} before any {need_what}: its "
+            "address or time is unknown (a corrupt or cut stream)",
+        )
+
+
+def decode_evt2(words: np.ndarray, *, path: str | Path = "(memory)", offset: int = 0) -> _Decoded:
+    """Decode EVT 2.0 words (little-endian uint32) to CD and trigger events.
+
+    ``CD_OFF`` (0x0) / ``CD_ON`` (0x1): time bits 5..0 in 27..22, ``x`` 21..11, ``y`` 10..0;
+    ``EVT_TIME_HIGH`` (0x8): time bits 33..6 in 27..0 (a 34-bit µs clock, unwrapped: a fall of
+    more than half its range is a wrap, a smaller one an error); ``EXT_TRIGGER`` (0xA): time
+    bits 5..0 in 27..22, channel in 12..8, edge in bit 0; ``OTHERS`` (0xE) and ``CONTINUED``
+    (0xF) carry no event. Reserved types, and CD or trigger words before the first
+    ``EVT_TIME_HIGH``, are refused (:class:`~fsdvs_hw.errors.InputError` naming the byte offset,
+    counted from ``offset``).
+
+    Examples
+    --------
+    >>> w = np.array([0x80000001, 0x10000000 | (5 << 22) | (3 << 11) | 7], dtype="<u4")
+    >>> decode_evt2(w).events[["t", "x", "y", "p"]].tolist()
+    [(69, 3, 7, 1)]
+    """
+    p = Path(path)
+    w = np.asarray(words, dtype=np.uint32).astype(np.int64)
+    typ = w >> 28
+    offsets = offset + 4 * np.arange(w.size)
+    bad = ~np.isin(typ, (0x0, 0x1, 0x8, 0xA, 0xE, 0xF))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise field_error(p, "(body)", f"reserved EVT 2.0 word type 0x{int(typ[i]):X} at byte offset {int(offsets[i])}")
+    is_th = typ == 0x8
+    is_cd, is_trig = typ <= 0x1, typ == 0xA
+    _refuse_before(p, is_cd | is_trig, is_th, offsets, "CD or EXT_TRIGGER", "EVT_TIME_HIGH")
+    th_vals = _unwrap(p, "EVT_TIME_HIGH", w[is_th] & 0x0FFFFFFF, 28, offsets[is_th], 64)
+    th = _forward_fill(is_th, _scatter(w.size, is_th, th_vals))
+    t = (th << 6) | ((w >> 22) & 0x3F)
+    ev = np.empty(int(is_cd.sum()), dtype=_EVT3_DTYPE)
+    ev["t"], ev["x"], ev["y"], ev["p"] = t[is_cd], (w[is_cd] >> 11) & 0x7FF, w[is_cd] & 0x7FF, typ[is_cd]
+    tr = np.empty(int(is_trig.sum()), dtype=TRIGGER_DTYPE)
+    tr["t_us"], tr["id"], tr["value"] = t[is_trig], (w[is_trig] >> 8) & 0x1F, w[is_trig] & 1
+    return _Decoded(ev, tr)
+
+
+def decode_evt3(words: np.ndarray, *, path: str | Path = "(memory)", offset: int = 0) -> np.ndarray:
+    """Decode EVT 3.0 words (little-endian uint16) to CD events (structured ``t, x, y, p``).
+
+    :func:`decode_evt3_all` with the trigger events left out.
 
     Examples
     --------
@@ -160,53 +305,99 @@ def decode_evt3(words: np.ndarray, *, path: str | Path = "(memory)") -> np.ndarr
     >>> decode_evt3(w)[["t", "x", "y", "p"]].tolist()
     [(4100, 5, 7, 1)]
     """
+    return decode_evt3_all(words, path=path, offset=offset).events
+
+
+def decode_evt3_all(words: np.ndarray, *, path: str | Path = "(memory)", offset: int = 0) -> _Decoded:
+    """Decode EVT 3.0 words (little-endian uint16) to CD events and trigger events.
+
+    Follows Prophesee's EVT 3.0 description [2]_: ``EVT_ADDR_Y`` (0x0), ``EVT_ADDR_X`` (0x2),
+    ``VECT_BASE_X`` (0x3), ``VECT_12`` (0x4), ``VECT_8`` (0x5), ``EVT_TIME_LOW`` (0x6),
+    ``EVT_TIME_HIGH`` (0x8), ``EXT_TRIGGER`` (0xA: edge in bit 0, channel in 11..8, at the
+    current time); ``CONTINUED_4`` (0x7), ``OTHERS`` (0xE) and ``CONTINUED_12`` (0xF) carry no
+    event. Time = ``TIME_HIGH << 12 | TIME_LOW``, 24 bits, unwrapped: a fall of ``TIME_HIGH``
+    by more than half its range is a 2**24 µs turn, a smaller fall is time going backwards
+    (refused). Refused with an :class:`~fsdvs_hw.errors.InputError` naming the byte offset
+    (counted from ``offset``): reserved word types; an event or trigger before the first
+    ``EVT_TIME_HIGH``; an event before the first ``EVT_ADDR_Y``; a vector word before any
+    ``VECT_BASE_X``; vector events beyond column 2047.
+    """
+    p = Path(path)
     w = np.asarray(words, dtype=np.uint16).astype(np.int64)
     typ = w >> 12
     val = w & 0xFFF
+    offsets = offset + 2 * np.arange(w.size)
+    bad = ~np.isin(typ, (0x0, 0x2, 0x3, 0x4, 0x5, 0x6, 0x7, 0x8, 0xA, 0xE, 0xF))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise field_error(p, "(body)", f"reserved EVT 3.0 word type 0x{int(typ[i]):X} at byte offset {int(offsets[i])}")
     is_th, is_tl, is_y = typ == 0x8, typ == 0x6, typ == 0x0
-    th = _forward_fill(is_th, val, -1)
-    tl = _forward_fill(is_tl, val)
-    # unwrap the 24-bit clock: each decrease of TIME_HIGH is one 2**24 µs turn
-    th_seq = val[is_th]
-    turns = np.zeros(th_seq.size, dtype=np.int64)
-    if th_seq.size > 1:
-        turns[1:] = np.cumsum(np.diff(th_seq) < 0)
-    turn = _forward_fill(is_th, _scatter(w.size, is_th, turns))
-    t = (turn << 24) | (np.maximum(th, 0) << 12) | tl
-    y = _forward_fill(is_y, val & 0x7FF, -1)
-    valid = (th >= 0) & (y >= 0)
-    # single events
-    single = (typ == 0x2) & valid
+    is_base, is_vec, is_trig = typ == 0x3, (typ == 0x4) | (typ == 0x5), typ == 0xA
+    single = typ == 0x2
+    _refuse_before(p, single | is_base | is_vec | is_trig, is_th, offsets, "event or trigger", "EVT_TIME_HIGH")
+    _refuse_before(p, single | is_base | is_vec, is_y, offsets, "event", "EVT_ADDR_Y")
+    _refuse_before(p, is_vec, is_base, offsets, "VECT_12 / VECT_8", "VECT_BASE_X")
+    th_vals = _unwrap(p, "EVT_TIME_HIGH", val[is_th], 12, offsets[is_th], 4096)
+    th = _forward_fill(is_th, _scatter(w.size, is_th, th_vals))
+    t = (th << 12) | _forward_fill(is_tl, val)
+    y = _forward_fill(is_y, val & 0x7FF)
     # vectors: VECT_BASE_X sets x and polarity; each VECT_12 / VECT_8 covers 12 / 8 columns from it
-    is_base = typ == 0x3
-    is_vec = (typ == 0x4) | (typ == 0x5)
     width = np.where(typ == 0x4, 12, np.where(typ == 0x5, 8, 0))
-    base_x = _forward_fill(is_base, val & 0x7FF, -1)
+    base_x = _forward_fill(is_base, val & 0x7FF)
     base_pol = _forward_fill(is_base, (val >> 11) & 1)
     consumed = np.cumsum(width) - width  # columns covered by vectors before this word
     since_base = consumed - _forward_fill(is_base, consumed)
-    vec = is_vec & valid & (base_x >= 0)
-    vi = np.flatnonzero(vec)
+    vi = np.flatnonzero(is_vec)
     bits = np.arange(12)
     mask = ((val[vi, None] >> bits) & 1).astype(bool) & (bits < width[vi, None])
     vec_word, vec_bit = np.nonzero(mask)
     si = np.flatnonzero(single)
-    order_word = np.concatenate([si, vi[vec_word]])
-    order_bit = np.concatenate([np.zeros(si.size, np.int64), vec_bit])
     xs = np.concatenate([val[si] & 0x7FF, base_x[vi][vec_word] + since_base[vi][vec_word] + vec_bit])
     ps = np.concatenate([(val[si] >> 11) & 1, base_pol[vi][vec_word]])
     src = np.concatenate([si, vi[vec_word]])
-    order = np.lexsort((order_bit, order_word))
+    order = np.lexsort((np.concatenate([np.zeros(si.size, np.int64), vec_bit]), src))
     out = np.empty(order.size, dtype=_EVT3_DTYPE)
-    out["t"] = t[src[order]]
-    out["x"] = xs[order]
-    out["y"] = y[src[order]]
-    out["p"] = ps[order]
+    out["t"], out["x"], out["y"], out["p"] = t[src[order]], xs[order], y[src[order]], ps[order]
     if out.size and int(out["x"].max()) > 0x7FF:
-        raise field_error(
-            Path(path), "x", f"vector event at column {int(out['x'].max())} beyond EVT 3.0's 2048 columns"
-        )
-    return out
+        raise field_error(p, "x", f"vector event at column {int(out['x'].max())} beyond EVT 3.0's 2048 columns")
+    tr = np.empty(int(is_trig.sum()), dtype=TRIGGER_DTYPE)
+    tr["t_us"], tr["id"], tr["value"] = t[is_trig], (val[is_trig] >> 8) & 0xF, val[is_trig] & 1
+    return _Decoded(out, tr)
+
+
+def decode_dat(
+    records: np.ndarray, *, version: int = 2, triggers: bool = False, path: str | Path = "(memory)", offset: int = 0
+) -> _Decoded:
+    """Decode DAT records (little-endian uint32 pairs: time µs, address) to CD or trigger events.
+
+    Version 2: ``x`` in bits 13..0, ``y`` in 27..14, polarity in 31..28; version 1 (older ATIS
+    files): ``x`` in 8..0, ``y`` in 16..9, polarity in bit 17. A trigger file (event type 0x0E)
+    carries the channel where ``x`` is and the edge where the polarity is (as faery writes
+    it). The 32-bit µs time is unwrapped: a fall of more than 2**31 µs is a wrap (+2**32), a
+    smaller fall (30 → 5 µs) is time going backwards, refused naming the byte offset.
+
+    Examples
+    --------
+    >>> r = np.array([[10, 3 | (4 << 14) | (1 << 28)], [4294967290, 1], [6, 2]], dtype="<u4")
+    >>> decode_dat(r).events[["t", "x", "p"]].tolist()
+    [(10, 3, 1), (4294967290, 1, 0), (4294967302, 2, 0)]
+    """
+    p = Path(path)
+    r = np.asarray(records, dtype=np.uint32).reshape(-1, 2)
+    offsets = offset + 8 * np.arange(r.shape[0])
+    t = _unwrap(p, "t (µs)", r[:, 0], 32, offsets, 1)
+    a = r[:, 1].astype(np.int64)
+    if version == 1:
+        x, y, pol = a & 0x1FF, (a >> 9) & 0xFF, (a >> 17) & 1
+    else:
+        x, y, pol = a & 0x3FFF, (a >> 14) & 0x3FFF, (a >> 28) & 0xF
+    if triggers:
+        tr = np.empty(t.size, dtype=TRIGGER_DTYPE)
+        tr["t_us"], tr["id"], tr["value"] = t, x, np.minimum(pol, 1)
+        return _Decoded(np.zeros(0, _EVT3_DTYPE), tr)
+    ev = np.empty(t.size, dtype=_EVT3_DTYPE)
+    ev["t"], ev["x"], ev["y"], ev["p"] = t, x, y, pol
+    return _Decoded(ev, no_triggers())
 
 
 def _scatter(n: int, where: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -216,8 +407,47 @@ def _scatter(n: int, where: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- read
+def _dat_body(p: Path, head: bytes, body: int, size: int, header: dict[str, str]) -> tuple[str, bool, int]:
+    """(encoding, trigger file, body offset) of a DAT file after its header: the version and the
+    event type and size bytes checked."""
+    if not header:
+        raise field_error(p, "header", "no '%' header lines: not a Prophesee DAT file")
+    encoding = _dat_version(p, header)
+    if size < body + 2:
+        raise field_error(
+            p,
+            "event type",
+            f"file ends at byte {size}, before the event type and size bytes at offset {body} (truncated DAT file)",
+        )
+    etype, esize = head[body], head[body + 1]
+    if etype not in (*_DAT_TYPES, _DAT_TRIGGER_TYPE) or esize != _DAT_CD_SIZE:
+        raise field_error(
+            p,
+            "event type",
+            f"type 0x{etype:02X} size {esize} at offset {body}: unsupported; this reader reads CD events "
+            f"(type 0x0C, or 0x00 for older TD files) and triggers (0x0E), size {_DAT_CD_SIZE}",
+        )
+    return encoding, etype == _DAT_TRIGGER_TYPE, body + 2
+
+
+def _decode_body(p: Path, encoding: str, trigger_file: bool, body: int) -> _Decoded:
+    if encoding == "evt3":
+        return decode_evt3_all(np.fromfile(p, dtype="<u2", offset=body), path=p, offset=body)
+    if encoding == "evt2":
+        return decode_evt2(np.fromfile(p, dtype="<u4", offset=body), path=p, offset=body)
+    version = 1 if encoding == "dat1" else 2
+    return decode_dat(
+        np.fromfile(p, dtype="<u4", offset=body), version=version, triggers=trigger_file, path=p, offset=body
+    )
+
+
 def read_prophesee(path: str | Path, *, width: int | None = None, height: int | None = None) -> EventFile:
-    """Read a Prophesee RAW (EVT 2.0 / 3.0, from the header) or DAT file into an :class:`EventFile`.
+    """Read a Prophesee RAW (EVT 2.0 / 3.0, from the header) or DAT (version 1 or 2) file.
+
+    The header's ``% t0`` line (written by faery and other encoders that store times from the
+    first event) is applied: every time comes back as stored + ``t0`` µs, the recording's own
+    clock (``metadata["t0_us"]`` says how much was added). Trigger events (``EXT_TRIGGER``; a DAT
+    file of event type 0x0E) come back in :attr:`EventFile.triggers`, beside the CD events.
 
     Parameters
     ----------
@@ -225,24 +455,24 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
         ``.raw`` or ``.dat`` file.
     width, height : int, optional
         Sensor size (pixels) where the header has no geometry; the header wins otherwise (a
-        mismatch is an error).
+        mismatch is an error). Without either, the largest pixel + 1.
 
     Returns
     -------
     EventFile
-        Times in µs, polarity ±1, ``metadata`` with ``format`` and the header's lines.
+        Times in µs, polarity ±1, ``metadata`` with ``format`` (``evt2``, ``evt3``, ``dat``,
+        ``dat1``), ``t0_us`` and the header's lines; ``triggers``.
 
     Raises
     ------
     InputError
-        Missing file, no Prophesee header, a body that is not a whole number of words (truncated:
-        the byte offset is named), an event outside the sensor or times that decrease.
-    ToolMissingError
-        expelliarmus is not installed.
+        Missing file, a directory or a link loop; no Prophesee header; EVT 2.1 or a DAT version
+        other than 1 and 2 (unsupported); a declared width/height of 0 or beyond what the
+        encoding addresses; a body that is not a whole number of words (truncated: the byte
+        offset is named); a reserved word type; events before the stream's time or address;
+        time going backwards (told apart from a clock wrap); an event outside the sensor.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"event file {str(p)!r} does not exist")
+    p = checked_file(path)
     suffix = p.suffix.lower()
     if suffix not in (".raw", ".dat"):
         raise InputError(f"event file {str(p)!r}: suffix {suffix!r} is not a Prophesee file (.raw EVT2/EVT3, .dat)")
@@ -250,27 +480,11 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
         head = fh.read(_MAX_HEADER_BYTES + 1)
     header, body = _parse_header(p, head)
     size = p.stat().st_size
+    trigger_file = False
     if suffix == ".raw":
         encoding = _raw_encoding(p, header)
     else:
-        encoding = "dat"
-        if not header:
-            raise field_error(p, "header", "no '%' header lines: not a Prophesee DAT file")
-        if size < body + 2:
-            raise field_error(
-                p,
-                "event type",
-                f"file ends at byte {size}, before the event type and size bytes at offset {body} (truncated DAT file)",
-            )
-        etype, esize = head[body], head[body + 1]
-        if etype not in _DAT_TYPES or esize != _DAT_CD_SIZE:
-            raise field_error(
-                p,
-                "event type",
-                f"type 0x{etype:02X} size {esize} at offset {body}; expected CD events "
-                f"(type 0x0C, or 0x00 for older TD files, size {_DAT_CD_SIZE})",
-            )
-        body += 2
+        encoding, trigger_file, body = _dat_body(p, head, body, size, header)
     word = _WORD_BYTES[encoding]
     if (size - body) % word:
         cut = size - (size - body) % word
@@ -280,41 +494,34 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
             f"{encoding.upper()} body of {size - body} bytes from offset {body} is not a whole "
             f"number of {word}-byte words: the last word at offset {cut} is cut (truncated file)",
         )
-    hw, hh = _geometry(p, header)
+    hw, hh = _geometry(p, header, encoding)
+    lw, lh = SIDE_LIMITS[encoding]
+    width, height = _side(p, "width", width, lw, encoding, "given"), _side(p, "height", height, lh, encoding, "given")
     for name, given, found in (("width", width, hw), ("height", height, hh)):
-        if given is not None and found is not None and int(given) != found:
+        if given is not None and found is not None and given != found:
             raise InputError(f"event file {str(p)!r}: {name}={given} given, the header says {found}")
-    w, h = hw or width, hh or height
+    t0 = _t0(p, header)
     n_max = (size - body) // word
     check_allocation(f"event file {str(p)!r}: up to {n_max} events", n_max * (EVENT_BYTES + 16))
-    arr: np.ndarray | None
-    if encoding == "evt3":
-        arr = decode_evt3(np.fromfile(p, dtype="<u2", offset=body), path=p)
-    else:
-        arr = _wizard(encoding).read(p) if n_max else None
-    if arr is None:
-        if n_max:
-            raise field_error(
-                p,
-                "(body)",
-                f"expelliarmus could not decode the {encoding.upper()} body at offset {body} (corrupt or foreign file)",
-            )
-        arr = np.zeros(0, dtype=[("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("p", "u1")])
+    decoded = _decode_body(p, encoding, trigger_file, body)
+    arr = decoded.events
     t, x, y, pol = (np.ascontiguousarray(arr[k]) for k in ("t", "x", "y", "p"))
-    if w is None:
-        w = int(x.max()) + 1 if x.size else 1
-    if h is None:
-        h = int(y.max()) + 1 if y.size else 1
+    t = t.astype(np.int64) + t0
+    w = hw or width or (int(x.max()) + 1 if x.size else 1)
+    h = hh or height or (int(y.max()) + 1 if y.size else 1)
     names = {"t": "t (µs)", "x": "x", "y": "y", "p": "polarity"}
     EventColumnsCheck(p, names, (0, 1)).check(t, x, y, pol, w, h)
+    triggers = decoded.triggers
+    triggers["t_us"] += t0
     return EventFile(
-        t.astype(np.int64),
+        t,
         x.astype(np.int64),
         y.astype(np.int64),
         np.where(pol > 0, 1, -1).astype(np.int8),
         int(w),
         int(h),
-        {"format": encoding, "header": header},
+        {"format": encoding, "t0_us": t0, "header": header},
+        triggers,
     )
 
 

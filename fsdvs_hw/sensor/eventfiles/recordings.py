@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import InputError
-from .eventfile import FORMATS, EventFile, read_events
+from .eventfile import FORMATS, EventFile, checked_file, read_events
 
 __all__ = ["RECORDING_SUFFIXES", "read_recording", "read_recording_events"]
 
@@ -70,11 +70,12 @@ def read_recording(path: str | Path, *, width: int | None = None, height: int | 
         raise InputError(
             f"recording {str(p)!r}: suffix {suffix or '(none)'!r} unknown; allowed: {', '.join(RECORDING_SUFFIXES)}"
         )
+    checked_file(p, "recording")
     if suffix in (".raw", ".dat"):
         from .prophesee import read_prophesee
 
         return read_prophesee(p, width=width, height=height)
-    if suffix in (".h5", ".hdf5") and p.is_file():
+    if suffix in (".h5", ".hdf5"):
         from .dsec import is_dsec, read_dsec
 
         if is_dsec(p):
