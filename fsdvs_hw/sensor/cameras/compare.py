@@ -6,9 +6,13 @@ recording of the same scene, or two recordings) in an :class:`EventComparison`;
 
 Statistics (per stream unless said otherwise)
     *Event rate over time*: events per second of the whole array in bins of ``bin_s``.
-    *Temporal alignment*: the lag maximising the normalised cross-correlation of the two rate
-    curves (mean removed), searched within ``max_lag_s`` and refined by a parabola through the
-    peak; positive when the recording is later. The rate correlation is taken at that lag.
+    *Temporal alignment*: where the two streams' first events are more than ``max_lag_s``
+    apart (a recording on its camera's clock, e.g. DSEC's ``t_offset``, against a simulation
+    from 0), the recording is first shifted by that difference (``start_offset_s``); then the
+    lag maximising the normalised cross-correlation of the two rate curves (mean removed),
+    computed by FFT (O(n log n) in the bins) and searched within ``max_lag_s``, refined by a
+    parabola through the peak; positive when the recording is later. The rate correlation is
+    taken at that lag. At most :data:`MAX_BINS` rate bins (memory is bounded).
     *ON fraction*: ON events / all events.
     *Count maps*: events per pixel; their Pearson correlation.
     *Inter-event intervals*: between consecutive events of one pixel; medians, and the two-sample
@@ -46,7 +50,10 @@ import numpy as np
 
 from ...errors import InputError
 
-__all__ = ["EventComparison", "compare_events", "event_columns", "plot_event_comparison"]
+__all__ = ["MAX_BINS", "EventComparison", "compare_events", "event_columns", "plot_event_comparison"]
+
+#: Most rate bins :func:`compare_events` allocates (a smaller ``bin_s`` over a long span is refused).
+MAX_BINS = 1 << 21
 
 
 def event_columns(
@@ -74,7 +81,31 @@ def event_columns(
         h, w = shape or ((int(y.max()) + 1 if y.size else 1), (int(x.max()) + 1 if x.size else 1))
     else:
         raise InputError(f"events: expected an EventList, EventFile or event-file path, got {type(events).__name__}")
+    _check_columns(t, x, y, p, int(h), int(w), shape is not None or hasattr(events, "t_us"))
     return t, x, y, p, int(h), int(w)
+
+
+def _check_columns(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, h: int, w: int, declared: bool) -> None:
+    """Finite times, pixels inside the sensor (or at least >= 0), polarity ±1: else an InputError."""
+    if not (t.size == x.size == y.size == p.size):
+        raise InputError(f"events: columns of different lengths (t {t.size}, x {x.size}, y {y.size}, p {p.size})")
+    if not t.size:
+        return
+    bad = ~np.isfinite(t)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise InputError(f"events: time of event {i} is {float(t[i])}; times must be finite seconds")
+    for name, v, n in (("x", x, w), ("y", y, h)):
+        lo, hi = int(v.min()), int(v.max())
+        if lo < 0 or (declared and hi >= n):
+            i = int(np.argmax(v < 0)) if lo < 0 else int(np.argmax(v >= n))
+            raise InputError(
+                f"events: {name} of event {i} is {int(v[i])}, outside [0, {n}) of the {w}x{h} sensor"
+                if declared
+                else f"events: {name} of event {i} is {int(v[i])}; pixel coordinates must be >= 0"
+            )
+    if not bool((np.abs(p.astype(np.int16)) == 1).all()):
+        raise InputError("events: polarity must be +1 (ON) or -1 (OFF)")
 
 
 @dataclass(frozen=True)
@@ -107,6 +138,9 @@ class EventComparison:
         Isolated (unsupported) events per pixel per second.
     events_sim, events_real : int
         Event counts.
+    start_offset_s : float
+        Shift applied to the recording before the rate curves are binned (s): the difference of
+        the streams' first events where it exceeds ``max_lag_s``, else 0; part of ``lag_s``.
     """
 
     bin_s: float
@@ -127,12 +161,14 @@ class EventComparison:
     noise_rate_real_hz: float
     events_sim: int
     events_real: int
+    start_offset_s: float = 0.0
 
     def summary(self) -> dict[str, float]:
         """The scalar statistics as a dict (for tables and JSON)."""
         return {
             k: float(getattr(self, k))
             for k in (
+                "start_offset_s",
                 "lag_s",
                 "rate_correlation",
                 "on_fraction_sim",
@@ -147,6 +183,59 @@ class EventComparison:
                 "events_real",
             )
         }
+
+    def __repr__(self) -> str:
+        return (
+            f"EventComparison(events {self.events_sim} / {self.events_real}, ON fraction "
+            f"{self.on_fraction_sim:.3f} / {self.on_fraction_real:.3f}, rate r {self.rate_correlation:.3f}, "
+            f"IEI KS {self.iei_ks_statistic:.3f}, lag {self.lag_s:.6g} s)"
+        )
+
+    def __str__(self) -> str:
+        """A table for people: first the statistics that separate good from bad sensor parameters
+        (counts, ON fraction, rate correlation, inter-event-interval KS), then the others."""
+
+        def pct(a: float, b: float) -> str:
+            return f"{100 * (a / b - 1):+.1f} %" if b else "—"
+
+        def ms(v: float) -> str:
+            return f"{v * 1e3:.3f} ms" if np.isfinite(v) else "—"
+
+        h, w = self.count_map_sim.shape
+        rows = [
+            (
+                "events",
+                f"{self.events_sim}",
+                f"{self.events_real}",
+                f"sim/rec {pct(self.events_sim, self.events_real)}",
+            ),
+            (
+                "ON fraction",
+                f"{self.on_fraction_sim:.4f}",
+                f"{self.on_fraction_real:.4f}",
+                f"difference {self.on_fraction_sim - self.on_fraction_real:+.4f}",
+            ),
+            ("rate correlation", "", "", f"{self.rate_correlation:.4f} (1 = same rate curve; bins {self.bin_s:g} s)"),
+            ("IEI KS statistic", "", "", f"{self.iei_ks_statistic:.4f} (0 = same interval distribution)"),
+            ("IEI median", ms(self.iei_median_sim_s), ms(self.iei_median_real_s), ""),
+            (
+                "noise rate (Hz/px)",
+                f"{self.noise_rate_sim_hz:.4g}",
+                f"{self.noise_rate_real_hz:.4g}",
+                "isolated events",
+            ),
+            ("count-map correlation", "", "", f"{self.count_map_correlation:.4f} (weak: ranks parameters poorly)"),
+            (
+                "lag",
+                "",
+                "",
+                f"{self.lag_s:.6g} s (recording after simulation; start offset {self.start_offset_s:.6g} s)",
+            ),
+        ]
+        head = f"event comparison ({w}x{h} sensor): simulation vs recording"
+        lines = [head, f"  {'statistic':<22} {'simulation':>12} {'recording':>12}  note"]
+        lines += [f"  {n:<22} {a:>12} {b:>12}  {c}".rstrip() for n, a, b, c in rows]
+        return "\n".join(lines)
 
 
 def inter_event_intervals(t: np.ndarray, x: np.ndarray, y: np.ndarray, width: int) -> np.ndarray:
@@ -191,22 +280,27 @@ def _pearson(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def _lag(sim: np.ndarray, real: np.ndarray, max_lag: int) -> tuple[float, float]:
-    """Lag (bins, real after sim, parabola-refined) and the correlation at the integer peak."""
+    """Lag (bins, real after sim, parabola-refined) and the correlation at the integer peak.
+
+    The cross-correlation is computed by FFT (:func:`scipy.signal.correlate`, O(n log n) in the
+    bins) and searched within ``|lag| <= max_lag``."""
+    from scipy.signal import correlate
+
     a, b = sim - sim.mean(), real - real.mean()
     den = float(np.sqrt((a * a).sum() * (b * b).sum()))
     if den == 0:
         return 0.0, float("nan")
-    full = np.correlate(b, a, mode="full") / den  # index n-1 is lag 0; k > 0: real later
+    full = correlate(b, a, mode="full", method="fft") / den  # index n-1 is lag 0; k > 0: real later
     n = a.size
-    lags = np.arange(-n + 1, n)
-    keep = np.abs(lags) <= max_lag
-    cc, lg = full[keep], lags[keep]
+    m = min(max_lag, n - 1)
+    cc = full[n - 1 - m : n + m]
+    lg = np.arange(-m, m + 1)
     i = int(np.argmax(cc))
     frac = 0.0
     if 0 < i < cc.size - 1:
         d = cc[i - 1] - 2 * cc[i] + cc[i + 1]
         frac = 0.5 * (cc[i - 1] - cc[i + 1]) / d if d < 0 else 0.0
-    return float(lg[i] + frac), float(cc[i])
+    return float(lg[i] + frac), float(min(cc[i], 1.0))
 
 
 def compare_events(
@@ -240,13 +334,20 @@ def compare_events(
     Raises
     ------
     InputError
-        Sensor sizes differ, a stream is empty, or a non-positive ``bin_s``/``support_s``.
+        Sensor sizes differ, a stream is empty, a time that is not finite, a pixel outside the
+        sensor (or negative), a polarity other than ±1, a non-positive ``bin_s``/``support_s``,
+        or more than :data:`MAX_BINS` rate bins.
     """
     for name, v in (("bin_s", bin_s), ("support_s", support_s), ("max_lag_s", max_lag_s)):
         if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
             raise InputError(f"compare_events: {name} must be a positive number of seconds, got {v!r}")
-    ts, xs, ys, ps, hs, ws = event_columns(sim, shape)
-    tr, xr, yr, pr, hr, wr = event_columns(real, shape)
+    columns = []
+    for name, ev in (("simulation", sim), ("recording", real)):
+        try:
+            columns.append(event_columns(ev, shape))
+        except InputError as exc:
+            raise InputError(f"compare_events: {name}: {exc}") from None
+    (ts, xs, ys, ps, hs, ws), (tr, xr, yr, pr, hr, wr) = columns
     known = [
         (h_, w_)
         for ev, h_, w_ in ((sim, hs, ws), (real, hr, wr))
@@ -263,9 +364,17 @@ def compare_events(
             )
     if not ts.size or not tr.size:
         raise InputError(f"compare_events: empty stream (simulation {ts.size} events, recording {tr.size})")
+    offset = float(tr.min() - ts.min())
+    offset = offset if abs(offset) > max_lag_s else 0.0
+    tr = tr - offset  # a recording on its own clock (DSEC's t_offset) brought to the simulation's start
     t0 = min(ts.min(), tr.min())
     t1 = max(ts.max(), tr.max())
     n_bins = max(int(np.ceil((t1 - t0) / bin_s)), 1)
+    if n_bins > MAX_BINS:
+        raise InputError(
+            f"compare_events: bin_s {bin_s:g} s gives {n_bins} rate bins over the {t1 - t0:g} s span "
+            f"(start offset {offset:g} s removed); at most {MAX_BINS}: use bin_s >= {(t1 - t0) / MAX_BINS:.3g} s"
+        )
     edges = t0 + bin_s * np.arange(n_bins + 1)
     rate_s = np.histogram(ts, edges)[0] / bin_s
     rate_r = np.histogram(tr, edges)[0] / bin_s
@@ -286,7 +395,7 @@ def compare_events(
         bin_start_s=edges[:-1],
         rate_sim_hz=rate_s,
         rate_real_hz=rate_r,
-        lag_s=lag_bins * bin_s,
+        lag_s=offset + lag_bins * bin_s,
         rate_correlation=corr,
         on_fraction_sim=float((ps > 0).mean()),
         on_fraction_real=float((pr > 0).mean()),
@@ -300,6 +409,7 @@ def compare_events(
         noise_rate_real_hz=float(noise_r),
         events_sim=int(ts.size),
         events_real=int(tr.size),
+        start_offset_s=offset,
     )
 
 
@@ -326,7 +436,8 @@ def plot_event_comparison(comparison: EventComparison, axes: Any = None) -> tupl
         fig = np.asarray(axes).ravel()[0].figure
     ax = np.asarray(axes).ravel()
     ax[0].plot(c.bin_start_s, c.rate_sim_hz, label="simulation")
-    ax[0].plot(c.bin_start_s - c.lag_s, c.rate_real_hz, label=f"recording (shifted {c.lag_s * 1e3:.1f} ms)")
+    fine = c.lag_s - c.start_offset_s  # the rate curves are binned after the start offset
+    ax[0].plot(c.bin_start_s - fine, c.rate_real_hz, label=f"recording (shifted {c.lag_s * 1e3:.1f} ms)")
     ax[0].set(xlabel="time (s)", ylabel="events / s", title=f"rate, r = {c.rate_correlation:.3f}")
     ax[0].legend(fontsize="small")
     vmax = max(float(c.count_map_sim.max()), float(c.count_map_real.max()), 1.0)
