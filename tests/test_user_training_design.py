@@ -49,17 +49,22 @@ def folder(tmp_path_factory) -> Path:
     return root
 
 
-def _design(folder: Path, train: str = TRAIN, name: str = "train", n_clips: int = 3) -> Path:
+#: The kernel the training writes (``train.out`` + ``.json``), named before it exists: explore
+#: refuses a kernel the network was not trained with (tests/test_user_data_chaining.py).
+LEARNED_KERNEL = '[kernel]\nsource = "file"\npath = "nets/seg.json"\n'
+
+
+def _design(folder: Path, train: str = TRAIN, name: str = "train", n_clips: int = 3, kernel: str = "") -> Path:
     path = folder / f"{name}.toml"
     table = TABLE.format(train=train).replace("n_clips = 3", f"n_clips = {n_clips}")
-    path.write_text(cheap_design(name) + "[scoring]\nn_resamples = 200\n" + table)
+    path.write_text(cheap_design(name) + kernel + "[scoring]\nn_resamples = 200\n" + table)
     return path
 
 
 def test_learn_on_design_trains_disjoint_clips_then_reruns_and_explore_reuse(folder, tmp_path, capsys):
     from fsdvs_hw.cli import main
 
-    design = _design(folder)
+    design = _design(folder, kernel=LEARNED_KERNEL)
     assert main(["learn", "segmentation", "--design", str(design)]) == 0
     first = json.loads(capsys.readouterr().out)
     assert first["epochs_trained_now"] == 2 and first["n_train"] == 5 and first["n_scored"] == 3

@@ -86,6 +86,7 @@ def _run_on_design(args: argparse.Namespace) -> int:
     from ..design import load_design
     from ..design.user_data_inputs import open_dataset
     from ..errors import InputError
+    from ..explore.trained_kernel import write_pending_kernel
     from ..explore.user_data import train_user_task
     from ..tasks.dataset_eval import evaluate_on_dataset
 
@@ -103,6 +104,7 @@ def _run_on_design(args: argparse.Namespace) -> int:
         )
     entry = user[args.task].model_dump()
     res = train_user_task(args.task, entry, design.base_dir, confine=design.confine_paths, verbose=True)
+    design_kernel = write_pending_kernel(design, args.task, res.kernel)  # [kernel] path named before it existed
     ds = open_dataset(
         entry["dataset"], design.base_dir, confine=design.confine_paths, key=f"tasks.datasets.{args.task}.dataset"
     )
@@ -124,7 +126,10 @@ def _run_on_design(args: argparse.Namespace) -> int:
                 "n_scored": len(scored.clip_indices),
                 "epochs_trained_now": res.epochs_trained,
                 "metrics": scored.metrics,
-                "files": {k: str(v) for k, v in res.paths.items()},
+                "files": {
+                    **{k: str(v) for k, v in res.paths.items()},
+                    **({"design_kernel": str(design_kernel)} if design_kernel else {}),
+                },
             },
             indent=1,
         )

@@ -28,7 +28,7 @@ from .display_settings import DisplaySettings
 from .keys import check_key, set_dotted_key
 from .problems import DesignError, DesignProblems
 from .sections import CODESIGN_MODES, design_model, option_tables
-from .user_data_inputs import check_user_task
+from .user_data_inputs import check_user_task, pending_kernel
 
 __all__ = ["check_design"]
 
@@ -395,8 +395,10 @@ def _load_target(chk: DesignProblems, data: dict[str, Any], base: Path, confine:
                 chk.add("kernel.path", k["path"], str(exc).split(": ", 1)[-1])
                 return None
             if not path.is_file():
-                chk.add("kernel.path", k["path"], f"kernel file not found (looked for {path})")
-                return None
+                stand_in = pending_kernel(data["tasks"]["datasets"], base, confine, path, pitch)
+                if stand_in is None:
+                    chk.add("kernel.path", k["path"], f"kernel file not found (looked for {path})")
+                return stand_in  # a file a train table will write (learn / explore write it first)
             return load_kernel(path, pitch_m=pitch)
         return reference_kernel(k["family"], k["size"], pitch_m=pitch, **k["params"])
     except KernelError as exc:

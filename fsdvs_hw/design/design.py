@@ -174,6 +174,20 @@ class Design:
         n = n.get(task, 0) if isinstance(n, Mapping) else n
         return int(n or 0) or None
 
+    @property
+    def pending_kernel_task(self) -> str | None:
+        """The task whose ``train`` table will write the ``[kernel] path`` file not there yet, else None.
+
+        Such a design's :attr:`target` is a stand-in (a delta): train first (``fsdvs-hw learn``,
+        or ``explore``, which trains and then calls :meth:`reloaded`).
+        """
+        task = self.target.provenance.get("pending_training")
+        return None if task is None else str(task)
+
+    def reloaded(self) -> Design:
+        """The same design read again (its kernel file re-read: after training has written it)."""
+        return parse_design(self.data, source=self.source, base_dir=self.base_dir, confine_paths=self.confine_paths)
+
     def with_overrides(self, overrides: Mapping[str, Any]) -> Design:
         """A new, re-validated design with dotted keys replaced (``{"asic.bits": 4}``)."""
         data = copy.deepcopy(self.data)

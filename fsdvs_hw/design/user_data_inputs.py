@@ -28,8 +28,10 @@ __all__ = [
     "check_dataset_files",
     "check_disjoint_files",
     "check_user_task",
+    "learned_kernel_path",
     "open_dataset",
     "open_untrained_network",
+    "pending_kernel",
     "train_split_dataset",
 ]
 
@@ -465,3 +467,68 @@ def _train_split_problems(
     except InputError as exc:
         return [(f"{key}.train.split", split, str(exc))]
     return []
+
+
+def learned_kernel_path(task: str, entry: Mapping[str, Any], base_dir: str | Path, *, confine: Confinement) -> Path:
+    """The kernel file a table's ``train`` table writes: ``train.out`` (default ``trained/<task>``) + ``.json``.
+
+    Examples
+    --------
+    >>> from fsdvs_hw.design.user_data_section import UserTask
+    >>> entry = UserTask(dataset={"format": "video_folder", "root": "ucf"}, train={}).model_dump()
+    >>> learned_kernel_path("recognition", entry, "/d", confine=False).as_posix()
+    '/d/trained/recognition.json'
+    """
+    from ..tasks.checkpoints import checkpoint_paths, checkpoint_stem
+
+    out = (entry.get("train") or {}).get("out") or f"trained/{task}"
+    stem = resolve_design_path(Path(base_dir), out, what=f"tasks.datasets.{task}.train.out", confine=confine)
+    return checkpoint_paths(checkpoint_stem(stem))["kernel"]
+
+
+def pending_kernel(
+    tables: Mapping[str, Mapping[str, Any]], base_dir: str | Path, confine: Confinement, path: Path, pitch_m: float
+) -> Any:
+    """The stand-in for a ``[kernel] path`` that does not exist yet because training will write it, or None.
+
+    The file is the one a table with a ``train`` table writes (its :func:`learned_kernel_path`),
+    or any missing file when exactly one table trains (``learn`` / ``explore`` then write the
+    learned kernel there too). The stand-in is the Dirac delta of ``train.kernel_size`` with
+    ``provenance["pending_training"]`` = the task: nothing is scored with it (``explore`` trains,
+    writes and re-reads the design first; :func:`fsdvs_hw.explore.user_data.settle_design_kernel`).
+
+    Returns
+    -------
+    Kernel or None
+        None when no table trains (a missing kernel file is then an error).
+
+    Examples
+    --------
+    >>> pending_kernel({}, ".", True, Path("k.json"), 4.86e-6) is None
+    True
+    """
+    from ..kernels import Kernel
+
+    trained = {t: e for t, e in tables.items() if e.get("train") is not None}
+    task = None
+    for t, e in trained.items():
+        try:
+            if learned_kernel_path(t, e, base_dir, confine=confine) == Path(path):
+                task = t
+        except InputError:
+            continue
+    if task is None and len(trained) == 1:
+        task = next(iter(trained))
+    if task is None:
+        return None
+    import numpy as np
+
+    size = int(trained[task]["train"]["kernel_size"])
+    taps = np.zeros((size, size))
+    taps[size // 2, size // 2] = 1.0
+    return Kernel(
+        taps,
+        pitch_m=pitch_m,
+        name=f"not trained yet (tasks.datasets.{task}.train writes {Path(path).name})",
+        provenance={"pending_training": task, "path": str(path)},
+    )

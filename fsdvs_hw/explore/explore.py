@@ -25,6 +25,7 @@ from .measurability import measured_losses
 from .point_artifacts import with_point_artifacts
 from .reporting import report_input
 from .sweep import SweepSummary, run_design
+from .trained_kernel import settle_design_kernel
 
 __all__ = ["Exploration", "run_exploration"]
 
@@ -114,6 +115,7 @@ def run_exploration(
     out = output_dir(out_dir, flag="--out")  # checked before any work: a file, unwritable, ...
     store_path = out / "results.sqlite"
     _train_user_networks(design)
+    design = settle_design_kernel(design)  # the kernel learn wrote; refused if not the networks' own
     summary, points = run_design(
         design,
         store_path,

@@ -6,7 +6,10 @@ Checkpoint files (written next to each other from one stem, e.g. ``designs/kerne
     The kernel (:class:`~fsdvs_hw.kernels.Kernel` JSON) with the provenance inside.
 ``STEM.safetensors``
     Network weights (``network.*``) and the kernel taps (``kernel``); metadata ``format``
-    (:data:`CHECKPOINT_FORMAT`), ``version`` (:data:`CHECKPOINT_VERSION`) and ``provenance`` (JSON).
+    (:data:`CHECKPOINT_FORMAT`), ``version`` (:data:`CHECKPOINT_VERSION`) and ``provenance`` (JSON,
+    with ``kernel_fingerprint``: :func:`kernel_fingerprint` of the taps the network was trained with).
+    It loads as a user table's ``weights`` too (:func:`is_task_checkpoint`, the ``network.`` prefix
+    stripped and the kernel set aside).
 ``STEM.provenance.json``
     The provenance, with ``checkpoint`` and ``kernel_file`` (the two files' names).
 ``STEM.partial.pt``
@@ -25,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..fingerprints import text_fingerprint
 from ..kernels import Kernel
 
 __all__ = [
@@ -33,6 +37,8 @@ __all__ = [
     "check_fingerprint",
     "checkpoint_paths",
     "checkpoint_stem",
+    "is_task_checkpoint",
+    "kernel_fingerprint",
     "load_checkpoint",
     "load_partial",
     "save_checkpoint",
@@ -59,6 +65,44 @@ def checkpoint_paths(stem: Path) -> dict[str, Path]:
     }
 
 
+def kernel_fingerprint(taps: Any) -> str:
+    """SHA-1 (hex) of a kernel's taps as float64 and their shape: equal exactly when the taps are equal.
+
+    What a checkpoint stores as ``provenance["kernel_fingerprint"]`` and what ``explore`` compares
+    with the design's kernel (the pitch and the name are left out: they do not change what the
+    network sees).
+
+    Examples
+    --------
+    >>> kernel_fingerprint(np.eye(3)) == kernel_fingerprint(np.eye(3).tolist())
+    True
+    >>> kernel_fingerprint(np.eye(3)) == kernel_fingerprint(np.eye(3) * 1.0000001)
+    False
+    """
+    a = np.ascontiguousarray(np.asarray(taps, dtype=np.float64))
+    return text_fingerprint(repr(a.shape).encode() + a.tobytes())
+
+
+def is_task_checkpoint(path: str | Path) -> bool:
+    """Whether ``path`` is a ``.safetensors`` checkpoint this toolkit wrote (metadata ``format``).
+
+    Examples
+    --------
+    >>> is_task_checkpoint("designs/kernels/learned_detection_7x7.safetensors")   # doctest: +SKIP
+    True
+    """
+    p = Path(path)
+    if p.suffix != ".safetensors" or not p.is_file():
+        return False
+    try:
+        from safetensors import safe_open
+
+        with safe_open(str(p), framework="pt") as f:
+            return (f.metadata() or {}).get("format") == CHECKPOINT_FORMAT
+    except Exception:  # not readable: not ours (the weights loader names the problem)
+        return False
+
+
 def save_checkpoint(stem: Path, kernel: Kernel, network: Any, provenance: dict[str, Any]) -> dict[str, Path]:
     """Write ``STEM.safetensors``, ``STEM.json`` and ``STEM.provenance.json``; their paths.
 
@@ -71,7 +115,8 @@ def save_checkpoint(stem: Path, kernel: Kernel, network: Any, provenance: dict[s
     network : torch.nn.Module
         Its state dict is stored as ``network.*``.
     provenance : dict
-        JSON-able record of the run.
+        JSON-able record of the run; ``kernel_fingerprint`` (:func:`kernel_fingerprint` of
+        ``kernel``) is added.
 
     Returns
     -------
@@ -85,6 +130,7 @@ def save_checkpoint(stem: Path, kernel: Kernel, network: Any, provenance: dict[s
 
     stem.parent.mkdir(parents=True, exist_ok=True)
     paths = checkpoint_paths(checkpoint_stem(stem))
+    provenance = {**provenance, "kernel_fingerprint": kernel_fingerprint(kernel.taps)}
     tensors = {f"network.{k}": v.detach().contiguous() for k, v in network.state_dict().items()}
     tensors["kernel"] = torch.as_tensor(np.array(kernel.taps))
     ckpt = paths["checkpoint"]

@@ -148,6 +148,11 @@ def load_network_factory(spec: str, **kwargs: Any) -> Any:
 def load_weights(network: Any, path: str | Path, *, strict: bool = True) -> Any:
     """Load a ``.pt`` / ``.pth`` or ``.safetensors`` state dict into ``network``, shapes checked.
 
+    A checkpoint this toolkit wrote (``fsdvs-hw learn``, a ``train`` table's ``STEM.safetensors``:
+    :func:`fsdvs_hw.tasks.checkpoints.is_task_checkpoint`) loads too: its ``network.*`` tensors
+    without the prefix; its ``kernel`` (the taps the network was trained with) is not a network
+    parameter and is left out (``explore`` compares it with the design's kernel).
+
     Raises
     ------
     InputError
@@ -160,11 +165,15 @@ def load_weights(network: Any, path: str | Path, *, strict: bool = True) -> Any:
     """
     import torch
 
+    from .checkpoints import is_task_checkpoint, load_checkpoint
+
     p = Path(path)
     if not p.is_file():
         raise InputError(f"weights file {str(p)!r} does not exist")
     try:
-        if p.suffix == ".safetensors":
+        if is_task_checkpoint(p):
+            state = load_checkpoint(p)[1]
+        elif p.suffix == ".safetensors":
             from safetensors.torch import load_file
 
             state = load_file(str(p))
