@@ -20,6 +20,12 @@ no latency. What it costs is light (model stated):
 * **Dynamic range.** The pedestal takes ``pedestal_fraction`` of the collected light at every
   pixel, so the signal range above it shrinks by :math:`-20\log_{10}(1 - \mathrm{pedestal\_fraction})` dB.
 * **Thickness**: the lens-to-sensor distance (the fit's ``sensor_distance``).
+* **Layout** (the ``metalens_layout`` realisation, :mod:`fsdvs_hw.realise.metalens.layout_design`):
+  the efficiency above is then the layout PSF's, whose taps are fractions of the power on the ideal
+  aperture, so the library's transmission losses are in it; the record adds the pillar count and
+  radius levels (the GDS), the mean library power transmission over the used sites and the
+  spectrum, the pillar height and lattice period (the meta-atom library), and the kernel errors of
+  the ideal-phase and library steps beside the layout's.
 
 Examples
 --------
@@ -107,7 +113,33 @@ def metalens_cost(
             "-20 log10(1 - pedestal_fraction): signal range taken by the pedestal",
         ),
     }
+    figs.update(_layout_figures(items))
     distance = items.get("sensor_distance", items.get("sensor_distance_plus"))
     if distance is not None:
         figs["thickness_m"] = CostFigure(float(distance), "m", "lens-to-sensor distance (fit)")
     return figs, []
+
+
+#: The layout's items (when present) → (figure name, unit, source).
+_LAYOUT_ITEMS = {
+    "pillar_count": ("pillars", "1", "pillars in the GDS, one per lattice site in the aperture (layout)"),
+    "radius_levels": ("radius_levels", "1", "distinct pillar radii used (layout, meta-atom library)"),
+    "library_transmission": (
+        "library_transmission",
+        "1",
+        "mean power transmission |t|² of the used pillars over the spectrum (meta-atom library, RCWA)",
+    ),
+    "pillar_height": ("pillar_height_m", "m", "pillar height (meta-atom library)"),
+    "lattice_period": ("lattice_period_m", "m", "lattice period (meta-atom library)"),
+    "ideal_kernel_error": ("ideal_kernel_error", "1", "kernel error of the ideal-phase lens (fit)"),
+    "library_kernel_error": ("library_kernel_error", "1", "kernel error with the library's pillars, radial (fit)"),
+}
+
+
+def _layout_figures(items: Mapping[str, float]) -> dict[str, CostFigure]:
+    """The metalens layout's own figures, with their sources (none for an ideal-phase lens)."""
+    return {
+        name: CostFigure(float(items[key]), unit, source)
+        for key, (name, unit, source) in _LAYOUT_ITEMS.items()
+        if items.get(key) is not None
+    }

@@ -77,6 +77,7 @@ COST_MODELS: Mapping[str, CostModel] = MappingProxyType(
         "mesh": _mesh,
         "asic": _asic,
         "metalens": _metalens,
+        "metalens_layout": _metalens,  # the same photon budget, plus the layout's figures (pillars, library)
         "reference": _reference,
     }
 )

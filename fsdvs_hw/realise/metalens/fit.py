@@ -75,7 +75,9 @@ from .options import MetalensOptions
 __all__ = [
     "STRATEGIES",
     "MetalensDesign",
+    "RadialKernelModel",
     "WavelengthPlan",
+    "fit_gains",
     "fit_metalens",
     "pixel_psf",
     "plan_wavelength_samples",
@@ -183,6 +185,16 @@ class RadialKernelModel:
         profile given as numbers rather than coefficients (a reloaded artifact).
         """
         return self._psf_of_field(self._pupil_of_phase(phi0), z_m)
+
+    def psf_of_field(self, field: Any, z_m: Any) -> Any:
+        """Pixel taps (n, n) of a pupil field (L, M) given per wavelength on ``self.prop.r_pupil``
+        (complex torch; unit amplitude = a lossless pupil), at distance ``z_m``."""
+        return self._psf_of_field(field, z_m)
+
+    def total_of_field(self, field: Any, z_m: Any) -> Any:
+        """Whole-PSF sum of a pupil field (L, M): the fraction of the aperture's power reaching the plane."""
+        power = self.prop.plane_power(field, self.spectral.wavelengths_m, z_m)
+        return (self.w_lambda * power).sum() / self.p_in
 
     def total(self, coefficients: Any, z_m: Any) -> Any:
         """Whole-PSF sum: the fraction of the aperture's power reaching the sensor plane (all pixels)."""
@@ -685,6 +697,35 @@ class MetalensDesign:
 
 
 # ---------------------------------------------------------------------------------- fitting
+def fit_gains(
+    psfs: Sequence[np.ndarray],
+    target: Kernel,
+    *,
+    guard_px: int,
+    strategy: str,
+    totals: Sequence[float] | None = None,
+) -> tuple[tuple[float, ...], float]:
+    """The closed-form gains and pedestal of :func:`fit_metalens` for given PSFs (target units).
+
+    ``psfs``: per lens, the (k + 2·guard)² taps; ``totals``: their whole-PSF sums (the
+    differential pair holds its whole-PSF DC gain at the target's). Returns ``(gains, pedestal)``.
+    """
+    import torch
+
+    scale = float(np.linalg.norm(target.taps))
+    k_pad = torch.from_numpy(np.pad(target.taps / scale, guard_px))
+    mask = torch.from_numpy(np.pad(np.ones_like(target.taps), guard_px))
+    with torch.no_grad():
+        gains, c, _ = _solve_gains(
+            [torch.from_numpy(np.asarray(p, dtype=float)) for p in psfs],
+            k_pad,
+            mask,
+            strategy,
+            [torch.tensor(float(t), dtype=torch.float64) for t in totals] if totals is not None else None,
+        )
+    return tuple(float(g) * scale for g in gains), float(c) * scale
+
+
 def _solve_gains(
     psfs: list[Any], k: Any, m: Any, mode: str, totals: Sequence[Any] | None = None
 ) -> tuple[list[Any], Any, Any]:

@@ -12,7 +12,7 @@ which then puts them to the same lens rules (:meth:`MetalensOptions.lens_problem
 from __future__ import annotations
 
 from functools import cached_property
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field
 
@@ -24,7 +24,10 @@ from ..fit_options import FitOptions, OptionProblem
 from ..spectral import SpectralSamples, sampled_spectrum
 from .lens import LensGeometry, local_numerical_aperture
 
-__all__ = ["MetalensOptions"]
+__all__ = ["DEFAULT_LIBRARY_WAVELENGTHS_M", "MetalensLayoutOptions", "MetalensOptions"]
+
+#: The library's wavelengths when a design does not say (m): they span D65 × V(λ)'s samples (468–647 nm).
+DEFAULT_LIBRARY_WAVELENGTHS_M: tuple[float, ...] = (460e-9, 510e-9, 600e-9, 650e-9)
 
 
 class MetalensOptions(FitOptions):
@@ -173,3 +176,118 @@ class MetalensOptions(FitOptions):
         """Largest local NA the phase may use: ``na_max``, or ``min(0.9, max(1.5 na0, na0 + 0.1))``
         from the focusing term's NA ``na0``."""
         return float(self.na_max) if self.na_max is not None else min(0.9, max(1.5 * na0, na0 + 0.1))
+
+
+class MetalensLayoutOptions(MetalensOptions):
+    """Options of :func:`~fsdvs_hw.realise.metalens.layout_design.fit_metalens_layout`: the lens's
+    (:class:`MetalensOptions`, the same fit) plus the meta-atoms, the layout and its design rules.
+
+    Attributes
+    ----------
+    material, substrate : str or float
+        Pillar and substrate (meent's cited tables, e.g. ``"TiO2_siefke"``, ``"SiO2_malitson"``,
+        ``"Si3N4_luke"``, or a constant index); :mod:`fsdvs_hw.realise.metalens.meta_atoms`.
+    pillar_height_m, period_m : float
+        Pillar height and lattice period (m).
+    lattice : {"square", "hexagonal"}
+        Lattice of the pillar sites.
+    min_radius_m, max_radius_m, n_radii
+        The library's radii: ``n_radii`` equal steps from ``min_radius_m`` to ``max_radius_m``.
+    library_wavelengths_m : list of float, optional
+        Wavelengths (m) the library is computed at (the design wavelength is added); they must
+        span the illuminant's spectral samples. Default :data:`DEFAULT_LIBRARY_WAVELENGTHS_M`.
+    fourier_orders, check_orders : int
+        RCWA truncation orders per axis of the library and of its convergence check.
+    transmission_min, phase_tolerance_rad : float
+        A radius is used when its power transmission at the design wavelength is at least
+        ``transmission_min`` and its phase moves by at most ``phase_tolerance_rad`` between the
+        two truncation orders.
+    min_width_m, min_space_m : float
+        Design rules: smallest pillar diameter and smallest gap between pillars (m).
+    gds_layer, gds_datatype : int
+        GDSII layer and datatype of the pillars.
+    drc : bool
+        Run KLayout's DRC on the written GDS (a separate process; skipped with a message when
+        the ``klayout`` package is absent).
+    compute_library : bool
+        Compute the library by RCWA when no cached one matches (else refuse).
+
+    Notes
+    -----
+    Rules: ``2·min_radius_m ≥ min_width_m + 2 nm`` and ``period_m − 2·max_radius_m ≥ min_space_m +
+    2 nm`` (the 2 nm cover the 1 nm grid of the GDS polygons); the period at most λ_min/n_substrate
+    (:class:`~fsdvs_hw.realise.metalens.meta_atoms.MetaAtomSpec`).
+    """
+
+    unknown_key = "unknown option of fit_metalens_layout"
+
+    material: str | float = field("TiO2_siefke", "", "pillar material (meent table name) or a constant index")
+    substrate: str | float = field("SiO2_malitson", "", "substrate material (meent table name) or a constant index")
+    pillar_height_m: float = field(600e-9, "m", "pillar height", gt=1e-8, le=2e-5)
+    period_m: float = field(300e-9, "m", "lattice period", gt=1e-8, le=2e-5)
+    lattice: Literal["square", "hexagonal"] = field("square", "", "lattice of the pillar sites")
+    min_radius_m: float = field(40e-9, "m", "smallest pillar radius of the library", gt=1e-9, le=1e-5)
+    max_radius_m: float = field(125e-9, "m", "largest pillar radius of the library", gt=1e-9, le=1e-5)
+    n_radii: int = field(44, "", "library radii (equal steps)", ge=2, le=2000)
+    library_wavelengths_m: list[Annotated[float, Field(ge=1e-7, le=2e-5)]] | None = field(
+        None, "m", "library wavelengths; None: 460, 510, 600, 650 nm (the design wavelength is added)", min_length=1
+    )
+    fourier_orders: int = field(7, "", "RCWA truncation order per axis ((2N+1)² harmonics)", ge=1, le=20)
+    check_orders: int = field(5, "", "truncation order of the convergence check", ge=1, le=19)
+    transmission_min: float = field(0.5, "", "least power transmission of a used radius", ge=0.0, le=1.0)
+    phase_tolerance_rad: float = field(0.1, "", "largest phase change between truncation orders", gt=0.0, le=3.2)
+    min_width_m: float = field(70e-9, "m", "design rule: smallest pillar diameter", ge=0.0, le=1e-5)
+    min_space_m: float = field(40e-9, "m", "design rule: smallest gap between pillars", ge=0.0, le=1e-5)
+    gds_layer: int = field(1, "", "GDSII layer of the pillars", ge=0, le=65535)
+    gds_datatype: int = field(0, "", "GDSII datatype of the pillars", ge=0, le=65535)
+    drc: bool = field(True, "", "run KLayout DRC on the written GDS")
+    compute_library: bool = field(True, "", "compute the library by RCWA when no cached one matches")
+
+    def option_problems(self) -> list[OptionProblem]:
+        """The lens rules, the design rules and the library's own (period rule, orders)."""
+        found = super().option_problems()
+        grid = 2e-9
+        if self.min_radius_m >= self.max_radius_m:
+            found.append(
+                OptionProblem("max_radius_m", self.max_radius_m, f"must exceed min_radius_m={self.min_radius_m:.4g} m")
+            )
+        if 2 * self.min_radius_m < self.min_width_m + grid:
+            why = f"2·min_radius_m = {2 * self.min_radius_m:.4g} m is below min_width_m + 2 nm = {self.min_width_m + grid:.4g} m"
+            found.append(OptionProblem("min_radius_m", self.min_radius_m, why))
+        if self.period_m - 2 * self.max_radius_m < self.min_space_m + grid:
+            why = (
+                f"period_m − 2·max_radius_m = {self.period_m - 2 * self.max_radius_m:.4g} m is below min_space_m + 2 nm = "
+                f"{self.min_space_m + grid:.4g} m"
+            )
+            found.append(OptionProblem("max_radius_m", self.max_radius_m, why))
+        if self.check_orders >= self.fourier_orders:
+            found.append(
+                OptionProblem("check_orders", self.check_orders, f"must be below fourier_orders={self.fourier_orders}")
+            )
+        if not found:
+            try:
+                self.meta_atom_spec()
+            except InputError as exc:
+                found.append(OptionProblem("period_m", self.period_m, str(exc)))
+        return found
+
+    def meta_atom_spec(self) -> Any:
+        """The :class:`~fsdvs_hw.realise.metalens.meta_atoms.MetaAtomSpec` these options ask for."""
+        import numpy as np
+
+        from .meta_atoms import MetaAtomSpec
+
+        given = DEFAULT_LIBRARY_WAVELENGTHS_M if self.library_wavelengths_m is None else self.library_wavelengths_m
+        lam = sorted({round(float(v), 12) for v in [*given, self.design_wavelength_m]})
+        radii = np.round(np.linspace(self.min_radius_m, self.max_radius_m, self.n_radii), 12)
+        return MetaAtomSpec(
+            material=self.material,
+            substrate=self.substrate,
+            height_m=self.pillar_height_m,
+            period_m=self.period_m,
+            lattice=self.lattice,
+            radii_m=tuple(float(r) for r in radii),
+            wavelengths_m=tuple(lam),
+            fourier_orders=self.fourier_orders,
+            check_orders=self.check_orders,
+        )
