@@ -39,6 +39,8 @@ __all__ = [
     "NetworkOutputError",
     "evaluate_on_dataset",
     "evaluator_for_dataset",
+    "mean_over_videos",
+    "per_video_evaluation",
     "read_clip",
 ]
 
@@ -519,4 +521,109 @@ def _dataset_evaluation(run: _ClipScoring, t0: float) -> DatasetEvaluation:
         seconds=time.perf_counter() - t0,
         durations_s=np.asarray(run.spans),
         failures=tuple(run.failures),
+    )
+
+
+# --------------------------------------------------------------------------- several clips per video
+def mean_over_videos(logits: Any, video_of: Any) -> tuple[np.ndarray, Any]:
+    """Each video's class scores: the log of its clips' mean softmax probability.
+
+    The multi-clip test of action recognition (several clips per video, the video's prediction the
+    mean of its clips' class probabilities; Wang et al., TSN, ECCV 2016; Feichtenhofer et al.,
+    SlowFast, ICCV 2019).
+
+    Parameters
+    ----------
+    logits : torch.Tensor, shape (N, C)
+        Per-clip logits.
+    video_of : array of int, shape (N,)
+        The video of each clip.
+
+    Returns
+    -------
+    (videos, log mean probabilities)
+        The distinct videos in order of first appearance, and a (V, C) tensor: its argmax is the
+        video's class.
+
+    Example
+    -------
+    >>> import torch
+    >>> v, p = mean_over_videos(torch.tensor([[2.0, 0.0], [0.0, 1.0], [0.0, 3.0]]), [4, 4, 9])
+    >>> v.tolist(), p.argmax(dim=1).tolist()
+    ([4, 9], [0, 1])
+    """
+    import torch
+
+    video_of = np.asarray(video_of, dtype=np.int64)
+    if len(video_of) != int(logits.shape[0]):
+        raise InputError(f"mean_over_videos: {len(video_of)} video indices for {int(logits.shape[0])} clips")
+    videos = np.asarray(list(dict.fromkeys(video_of.tolist())), dtype=np.int64)
+    probs = torch.softmax(logits.double(), dim=1)
+    means = torch.stack([probs[torch.from_numpy(np.flatnonzero(video_of == v))].mean(dim=0) for v in videos])
+    return videos, torch.log(means)
+
+
+def per_video_evaluation(
+    evaluation: DatasetEvaluation, video_of: Any, task: Any, num_classes: int
+) -> DatasetEvaluation:
+    """A recognition evaluation of several clips per video scored per video (the mean over its clips).
+
+    Parameters
+    ----------
+    evaluation : DatasetEvaluation
+        Of the clips (:func:`evaluate_on_dataset` on a
+        :class:`~fsdvs_hw.tasks.clip_sampling.SampledVideoClips`); skipped clips are left out of
+        their video's mean (a video with none scored is left out).
+    video_of : array of int
+        The video of every clip of the dataset (``SampledVideoClips.video_of``).
+    task : str or TaskEvaluator
+        ``"recognition"`` (the other tasks' targets differ from clip to clip).
+    num_classes : int
+
+    Returns
+    -------
+    DatasetEvaluation
+        One entry per video: ``per_clip`` is each video's top-1, ``clip_indices`` the video indices,
+        ``event_counts`` and ``durations_s`` the sums over its clips, ``predictions["logits"]`` the
+        log mean probabilities; ``metrics`` over the videos.
+
+    Example
+    -------
+    >>> ev = evaluate_on_dataset(k, "recognition", clips, net)                          # doctest: +SKIP
+    >>> per_video_evaluation(ev, clips.video_of, "recognition", clips.num_classes).value  # doctest: +SKIP
+    0.75
+    """
+    import torch
+
+    from .evaluators import get_evaluator
+
+    ev: Any = copy.copy(get_evaluator(task))
+    if ev.name != "recognition":
+        raise InputError(
+            f"per_video_evaluation: task {ev.name!r}; allowed: 'recognition' (clips_per_video > 1 averages a "
+            "video's class probabilities; detection and segmentation clips each have their own targets)"
+        )
+    ev.num_classes = int(num_classes)
+    vid = np.asarray(video_of, dtype=np.int64)[evaluation.clip_indices]
+    logits = torch.as_tensor(evaluation.predictions["logits"])
+    videos, scores = mean_over_videos(logits, vid)
+    first = np.asarray([np.flatnonzero(vid == v)[0] for v in videos])
+    labels = np.asarray(evaluation.targets["motion"])[first]
+    per_video = (scores.argmax(dim=1).numpy() == labels).astype(np.float64)
+    sums = {
+        name: np.asarray([arr[vid == v].sum() for v in videos])
+        for name, arr in (("events", evaluation.event_counts), ("durations", evaluation.durations_s))
+    }
+    return DatasetEvaluation(
+        task=ev.name,
+        metrics=ev.score({"logits": scores.float()}, {"motion": torch.from_numpy(labels)}),
+        primary_metric=ev.primary_metric,
+        per_clip=per_video,
+        clip_indices=videos,
+        event_counts=sums["events"],
+        predictions={"logits": scores.numpy()},
+        targets={"motion": labels},
+        seconds=evaluation.seconds,
+        durations_s=sums["durations"],
+        failures=evaluation.failures,
     )

@@ -24,6 +24,19 @@ every step: the co-designed row of :mod:`fsdvs_hw.explore.codesign` on user data
 Train / test clips
     The caller passes the training clips' indices; :func:`disjoint_train_indices` draws them
     (seeded) from the clips NOT scored, so the two sets are disjoint by construction.
+Streamed training
+    With ``stream`` (:class:`~fsdvs_hw.tasks.clip_stream.StreamSpec`), ``sampling``
+    (:class:`~fsdvs_hw.tasks.clip_sampling.SamplingSpec`) or ``val_fraction`` > 0 the training
+    clips are not held in memory: a DataLoader decodes them per batch (``workers`` processes; at
+    most ``memory_mb`` of clips held, default 1024 MB), and a frozen kernel's events are simulated
+    per batch too. ``sampling`` (a ``video_folder`` dataset with a ``size``) trains on
+    ``train_clips_per_video`` random clips of each video per epoch with a seeded crop and flip and
+    validates on ``clips_per_video`` evenly spaced, centre-cropped ones. ``val_fraction`` (0 … 0.9)
+    of the training videos (seeded with ``seed``, :func:`validation_split`) are held out and scored
+    after every epoch with the task's primary metric (recognition per video: the mean of its
+    clips' probabilities): the history's ``val_metric`` / ``val_loss``; the result and the
+    checkpoint are the **best** epoch's network and kernel (the first of equal bests;
+    ``provenance["streaming"]["best_epoch"]``; ``STEM.best.pt`` holds it while training).
 Resume
     With ``out``, the state after every epoch (network, kernel, optimiser, batch-order generator,
     history) is written atomically to ``STEM.partial.pt``; the finished run writes the checkpoint
@@ -260,6 +273,9 @@ def train_on_dataset(
     out: str | Path | None = None,
     fingerprint: dict[str, Any] | None = None,
     verbose: bool = False,
+    sampling: Any = None,
+    stream: Any = None,
+    val_fraction: float = 0.0,
 ) -> DatasetTrainingResult:
     """Train ``network`` and learn a k×k kernel on clips of a user dataset (two stages, decoupled rates).
 
@@ -272,41 +288,37 @@ def train_on_dataset(
         None: the task's built-in network; ``"package.module:factory"``; or a module (weights already loaded for
         fine-tuning). Its ``event_input`` picks the representation.
     train_indices : array of int
-        The clips trained on (:func:`disjoint_train_indices`); decoded once and held in memory as float32 (checked
-        against the allocation limit).
+        The clips trained on (:func:`disjoint_train_indices`); held in memory as float32 unless streamed.
     kernel_size : int
         Odd kernel side in pixels, 1 … 15 (ignored with ``init_kernel``).
     init_kernel : Kernel, path or array, optional
         Start from this kernel instead of delta + ``init_noise``.
     learn_filter : bool
-        False: the kernel stays frozen in both stages.
+        False: the kernel stays frozen in both stages. ``init_noise``: the delta's noise (standard deviation).
     realisation : Realisation, optional
         A fitted realisation record with a differentiable form: its kernel is the start (instead of ``init_kernel`` /
         the delta) and stage two trains its physical parameters at ``lr_kernel``; the provenance adds ``realisation``,
         ``realisation_initial`` and ``realisation_design`` (the record after training).
     epochs_frozen, epochs_joint : int
         Epochs of stage one (kernel frozen) and stage two (joint).
+    batch_size, seed : int
+        Clips per step; seeds the kernel noise, the torch initialisation and the batch order.
     lr_network, lr_kernel, lr_backbone, lr_head : float
         AdamW rates (1/step): of the network in stage one; of the kernel, the backbone and the head in stage two
         (``lr_backbone`` / ``lr_head`` None = ``lr_kernel`` times the evaluator's :attr:`joint_lr_ratios`, the paper's).
     weight_decay : float
         AdamW weight decay of the network (the kernel has none).
-    batch_size : int
-        Clips per step.
-    seed : int
-        Seeds the kernel noise, the torch initialisation and the batch order.
-    init_noise : float
-        Standard deviation of the noise on the delta initialisation.
-    sensor : SensorConfig, optional
-        Default: the training sensor (:func:`~fsdvs_hw.tasks.learn.default_sensor`) at the clips' frame rate.
-    device : str
+    sensor, device : SensorConfig, str
+        Default: the training sensor (:func:`~fsdvs_hw.tasks.learn.default_sensor`) at the clips' frame rate;
         ``"cpu"`` or ``"cuda"`` / ``"cuda:N"``: where the simulator and the network train.
-    out : path, optional
-        File stem of the checkpoint (and of ``STEM.partial.pt`` while training); resumes.
-    fingerprint : dict, optional
-        JSON-able identity of the run (data, network, settings) stored and compared on resume.
+    out, fingerprint : path, dict, optional
+        File stem of the checkpoint (and of ``STEM.partial.pt`` while training; resumes); the JSON-able identity
+        of the run (data, network, settings) stored and compared on resume.
     verbose : bool
-        One line per epoch on stderr.
+        One line per epoch on stderr (with the validation metric).
+    sampling, stream, val_fraction : SamplingSpec, StreamSpec, float
+        Clips per video, crop and flip; the loader's memory bound and workers; the fraction of the training videos
+        validated after every epoch (the best epoch kept): the module text's *Streamed training*.
 
     Returns
     -------
@@ -332,9 +344,9 @@ def train_on_dataset(
     schedule = _checked_schedule(evaluator, epochs_frozen, epochs_joint, batch_size, seed, rates)
     indices = _checked_indices(train_indices, len(dataset))
     kernel = (kernel_size, init_kernel, learn_filter, realisation)
-    return _train(
-        dataset, evaluator, network, indices, schedule, kernel, sensor, dev, out, fingerprint, verbose, t_start
-    )
+    args = (dataset, evaluator, network, indices, schedule, kernel, sensor, dev, out, fingerprint, verbose, t_start)
+    streaming = _streaming_options(sampling, stream, val_fraction)
+    return _train(*args) if streaming is None else _train_streamed(*args, streaming)
 
 
 @dataclass(frozen=True)
@@ -396,7 +408,6 @@ def _train(
     init_kernel, learn_filter, realisation)."""
     import torch
 
-    from ..provenance import library_versions
     from .learn import default_sensor
     from .user_networks import event_input_of, network_for
 
@@ -436,9 +447,32 @@ def _train(
     with torch.no_grad():
         taps = kernel_taps(kernel_param).detach().cpu().numpy()
     realised.update(_realisation_after(module, evaluator.name))
-    provenance = {
+    facts = {"dataset": type(dataset).__name__, "network": type(net).__name__, "device": str(dev)}
+    provenance = _provenance(
+        evaluator, schedule, learn_filter, indices, facts, rep, sensor, history, fingerprint, t_start, realised
+    )
+    return _result(dataset, evaluator, taps, net, history, indices, provenance, stem, trained)
+
+
+def _provenance(
+    evaluator: Any,
+    schedule: _Schedule,
+    learn_filter: bool,
+    indices: np.ndarray,
+    facts: dict[str, str],
+    rep: Any,
+    sensor: Any,
+    history: list[dict[str, Any]],
+    fingerprint: Any,
+    t_start: float,
+    realised: dict[str, Any],
+) -> dict[str, Any]:
+    """The provenance of a training run (``facts``: the dataset's, the network's and the device's names)."""
+    from ..provenance import library_versions
+
+    return {
         "task": evaluator.name,
-        "dataset": type(dataset).__name__,
+        "dataset": facts["dataset"],
         "num_classes": evaluator.num_classes,
         "protocol": "frozen kernel, then joint (decoupled rates)" if learn_filter else "kernel frozen",
         "epochs_frozen": schedule.epochs["frozen_filter"],
@@ -456,18 +490,17 @@ def _train(
         "learn_filter": learn_filter,
         "n_train": int(len(indices)),
         "train_indices": indices.tolist(),
-        "network": type(net).__name__,
+        "network": facts["network"],
         "event_input": rep.kind if rep.n_bins is None else f"voxel:{rep.n_bins}",
         "sensor": sensor.to_dict(),
         "history": history,
         "fingerprint": fingerprint,
         "train_seconds": time.perf_counter() - t_start,
-        "device": str(dev),
+        "device": facts["device"],
         "versions": library_versions(),
         "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         **realised,
     }
-    return _result(dataset, evaluator, taps, net, history, indices, provenance, stem, trained)
 
 
 @dataclass(frozen=True)
@@ -664,3 +697,308 @@ def _initial_taps(init_kernel: Any, kernel_size: Any, init_noise: float, gen: An
     ):
         raise InputError(f"train.kernel_size = {kernel_size!r}; allowed: an odd integer in [1, 15] (pixels)")
     return delta_init(kernel_size, init_noise if kernel_size > 1 else 0.0, gen)
+
+
+# --------------------------------------------------------------------------- streamed training
+@dataclass(frozen=True)
+class _Streaming:
+    """Streamed training's options: the sampling (or None), the loader's bound and the validation fraction."""
+
+    sampling: Any
+    stream: Any
+    val_fraction: float
+
+
+def _streaming_options(sampling: Any, stream: Any, val_fraction: Any) -> _Streaming | None:
+    """The checked options of a streamed run, or None for the in-memory run (none of them given)."""
+    from .clip_sampling import SamplingSpec
+    from .clip_stream import StreamSpec
+
+    val_fraction = check_real("train.val_fraction", val_fraction, 0.0, 0.9)
+    if sampling is None and stream is None and val_fraction == 0.0:
+        return None
+    if sampling is not None and not isinstance(sampling, SamplingSpec):
+        raise InputError(f"train_on_dataset: sampling is a {type(sampling).__name__}; allowed: a SamplingSpec")
+    if stream is not None and not isinstance(stream, StreamSpec):
+        raise InputError(f"train_on_dataset: stream is a {type(stream).__name__}; allowed: a StreamSpec")
+    return _Streaming(sampling, StreamSpec() if stream is None else stream, val_fraction)
+
+
+def validation_split(indices: Any, val_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(training, validation) clip indices: ``round(val_fraction × N)`` of ``indices`` (at least 1) held out with ``seed``.
+
+    Examples
+    --------
+    >>> tr, va = validation_split(range(10), 0.2, seed=0)
+    >>> len(tr), len(va), sorted(set(tr) & set(va))
+    (8, 2, [])
+    >>> validation_split(range(10), 0.0, seed=0)[1].tolist()
+    []
+    """
+    indices = np.asarray(list(indices), dtype=np.int64)
+    if val_fraction <= 0:
+        return indices, indices[:0]
+    n_val = max(1, int(round(val_fraction * len(indices))))
+    if n_val >= len(indices):
+        raise InputError(
+            f"train.val_fraction = {val_fraction:g}: {n_val} of the {len(indices)} training videos would be held "
+            "out, none left to train on; allowed: a smaller fraction or more training clips (train.n_train)"
+        )
+    held = np.random.default_rng([seed, 1]).choice(len(indices), size=n_val, replace=False)
+    mask = np.zeros(len(indices), dtype=bool)
+    mask[held] = True
+    return indices[~mask], indices[mask]
+
+
+def _streams(dataset: Any, indices: np.ndarray, options: _Streaming, seed: int) -> tuple[Any, Any, np.ndarray]:
+    """(training stream, validation stream or None, video of each validation clip)."""
+    from .clip_sampling import SampledVideoClips
+    from .clip_stream import ClipStream
+
+    train_idx, val_idx = validation_split(indices, options.val_fraction, seed)
+    spec = options.sampling
+    if spec is None:
+        val = ClipStream(dataset, val_idx) if len(val_idx) else None
+        return ClipStream(dataset, train_idx), val, val_idx
+    if dataset.size is None:
+        raise InputError(
+            "train_on_dataset: sampling crops to the dataset's size; field 'size': give dataset.size = [H, W]"
+        )
+    train_ds = SampledVideoClips(dataset, dataset.size, spec, train=True)
+    val_ds = SampledVideoClips(dataset, dataset.size, spec, train=False)
+    k, kv = spec.train_clips_per_video, spec.clips_per_video
+    train = ClipStream(train_ds, (train_idx[:, None] * k + np.arange(k)).ravel())
+    val_clips = (val_idx[:, None] * kv + np.arange(kv)).ravel()
+    return train, (ClipStream(val_ds, val_clips) if len(val_idx) else None), np.repeat(val_idx, kv)
+
+
+def _val_metric(evaluator: Any, preds: dict[str, Any], targets: dict[str, np.ndarray], videos: np.ndarray) -> float:
+    """The primary metric on the validation clips (recognition: per video, the mean over its clips)."""
+    import torch
+
+    from .dataset_eval import mean_over_videos
+
+    if evaluator.name == "recognition":
+        vids, scores = mean_over_videos(preds["logits"], videos)
+        first = [int(np.flatnonzero(videos == v)[0]) for v in vids]
+        preds, targets = {"logits": scores.float()}, {"motion": targets["motion"][first]}
+    t = {k: torch.from_numpy(np.ascontiguousarray(v)) for k, v in targets.items()}
+    return float(evaluator.score(preds, t)[evaluator.primary_metric])
+
+
+@dataclass
+class _Validation:
+    """The validation loader, each clip's video, and the best epoch so far (its state kept in memory
+    and in ``STEM.best.pt``)."""
+
+    loader: Any
+    videos: np.ndarray
+    path: Path | None
+    best_metric: float = -np.inf
+    best_epoch: int | None = None
+    state: dict[str, Any] | None = None
+
+
+def _keep_if_best(val: _Validation, run: _Run, record: dict[str, Any], epoch_number: int) -> None:
+    """Record ``val_metric`` is the best so far (ties keep the earlier epoch): keep the network and kernel."""
+    import os
+
+    import torch
+
+    if not record["val_metric"] > val.best_metric:
+        return
+    val.best_metric, val.best_epoch = record["val_metric"], epoch_number
+    kernel = run.kernel_param
+    val.state = {
+        "network": {k: v.detach().cpu().clone() for k, v in run.net.state_dict().items()},
+        "kernel": {k: v.detach().cpu().clone() for k, v in kernel.state_dict().items()}
+        if isinstance(kernel, torch.nn.Module)
+        else kernel.detach().cpu().clone(),
+        "epoch": epoch_number,
+        "val_metric": val.best_metric,
+    }
+    if val.path is not None:
+        tmp = val.path.with_name(val.path.name + ".tmp")
+        torch.save(val.state, tmp)
+        os.replace(tmp, val.path)
+
+
+def _restore_best(val: _Validation, run: _Run) -> None:
+    """Load the best epoch's network and kernel into the run (from memory or ``STEM.best.pt`` on a resume)."""
+    import torch
+
+    state = val.state
+    if state is None and val.path is not None and val.path.is_file():
+        state = torch.load(val.path, map_location="cpu", weights_only=True)
+    if state is None:
+        return
+    run.net.load_state_dict(state["network"])
+    with torch.no_grad():
+        if isinstance(run.kernel_param, torch.nn.Module):
+            run.kernel_param.load_state_dict(state["kernel"])
+        else:
+            run.kernel_param.copy_(state["kernel"].to(run.kernel_param.device))
+    val.best_epoch, val.best_metric = int(state["epoch"]), float(state["val_metric"])
+
+
+def _stream_stages(
+    run: _Run, loader: Any, batch_input: Any, targets_fn: Any, val: _Validation | None, partial: Path | None
+) -> tuple[list[dict[str, Any]], int]:
+    """Both stages over the streamed loader (as :func:`_train_stages`), validating after every epoch."""
+    from .clip_stream import predict_stream, train_epoch_streamed
+
+    history, start, opt_state = load_partial(partial, run.fingerprint, run.net, run.kernel_param, run.gen)
+    if val is not None:  # a resumed run: the best so far from the history
+        done = [h.get("val_metric", -np.inf) for h in history]
+        val.best_metric = max(done, default=-np.inf)
+    trained = 0
+    for s_idx, stage in enumerate(_STAGES):
+        epochs = run.schedule.epochs[stage]
+        first_epoch = start[1] if s_idx == start[0] else 0
+        if s_idx < start[0] or epochs == 0 or first_epoch >= epochs:
+            continue
+        rates = run.schedule.rates
+        trains_kernel = stage == "joint" and run.learn_filter
+        if stage == "frozen_filter":
+            opt = adamw_optimizer(run.net, run.schedule.weight_decay, {"network": rates["network"]})
+        else:
+            joint_rates = {k: rates[k] for k in ("kernel", "backbone", "head")}
+            opt = adamw_optimizer(
+                run.net, run.schedule.weight_decay, joint_rates, run.kernel_param if trains_kernel else None
+            )
+        if opt_state is not None and s_idx == start[0]:
+            opt.load_state_dict(opt_state)
+        name = stage if run.learn_filter or stage == "frozen_filter" else "joint_frozen_filter"
+        save = _partial_saver(partial, run, opt, history, s_idx)
+        for epoch in range(first_epoch, epochs):
+            record = train_epoch_streamed(
+                name,
+                epoch,
+                run.evaluator,
+                run.net,
+                run.kernel_param,
+                loader,
+                batch_input,
+                targets_fn,
+                opt,
+                run.taps_init,
+            )
+            if val is not None:
+                preds, targets, loss = predict_stream(
+                    run.evaluator, run.net, run.kernel_param, val.loader, batch_input, targets_fn
+                )
+                record["val_metric"] = _val_metric(run.evaluator, preds, targets, val.videos)
+                record["val_loss"] = loss
+                record["val_metric_name"] = run.evaluator.primary_metric
+                _keep_if_best(val, run, record, len(history))
+            history.append(record)
+            trained += 1
+            if run.verbose:
+                extra = f", val {record['val_metric_name']} {record['val_metric']:.4f}" if val is not None else ""
+                print_progress(
+                    f"[learn] {run.evaluator.name} {stage} epoch {epoch + 1}/{epochs}: loss {record['loss']:.4f}"
+                    f"{extra} ({record['seconds']:.1f} s)"
+                )
+            if save is not None:
+                save(epoch)
+    return history, trained
+
+
+def _train_streamed(
+    dataset: Any,
+    evaluator: Any,
+    network: Any,
+    indices: np.ndarray,
+    schedule: _Schedule,
+    kernel: tuple[Any, Any, bool, Any],
+    sensor: Any,
+    dev: Any,
+    out: str | Path | None,
+    fingerprint: dict[str, Any] | None,
+    verbose: bool,
+    t_start: float,
+    options: _Streaming,
+) -> DatasetTrainingResult:
+    """:func:`_train` with the clips streamed (bounded memory), sampled and validated per epoch."""
+    import torch
+
+    from .clip_stream import clip_loader
+    from .learn import default_sensor
+    from .user_networks import event_input_of, network_for
+
+    kernel_size, init_kernel, learn_filter, realisation = kernel
+    torch.manual_seed(schedule.seed)
+    gen = torch.Generator().manual_seed(schedule.seed)
+    module, realised, taps0 = _kernel_start(realisation, init_kernel, kernel_size, schedule.init_noise, gen)
+    learn_filter = bool(learn_filter and taps0.shape[0] > 1)
+    train_stream, val_stream, val_videos = _streams(dataset, indices, options, schedule.seed)
+    loader, plan = clip_loader(train_stream, schedule.batch_size, options.stream, generator=gen)
+    first = train_stream.dataset[int(train_stream.indices[0])]
+    t, h, w = first.frames.shape
+    ts = first.timestamps_s
+    if taps0.shape[0] > min(h, w):
+        raise InputError(
+            f"train_on_dataset: a {taps0.shape[0]}x{taps0.shape[0]} kernel is larger than the {h}x{w} frames"
+        )
+    net = network_for(network, evaluator.name, 2 * (t - 1), evaluator.num_classes)
+    rep = event_input_of(net)
+    sensor = default_sensor(SimpleNamespace(frame_rate_hz=1.0 / float(np.diff(ts)[0]))) if sensor is None else sensor
+    net = net.to(dev).train()
+    kernel_param = _kernel_parameter(module, taps0, learn_filter, dev)
+
+    def batch_input(video: Any, taps: Any) -> Any:
+        return rep(simulated_events(video.to(dev), taps, sensor, ts).float(), ts)
+
+    def targets_fn(tgt: dict[str, np.ndarray]) -> dict[str, Any]:
+        return {k: v.to(dev) for k, v in _training_targets(evaluator, tgt, h, w).items()}
+
+    fingerprint = None if fingerprint is None else json.loads(json.dumps(fingerprint))
+    stem = None if out is None else checkpoint_stem(out)
+    if stem is not None:
+        finished = _finished_run(stem, net, fingerprint, indices)
+        if finished is not None:
+            return finished
+        net = net.to(dev)
+    val = None
+    if val_stream is not None:
+        val_loader, _ = clip_loader(val_stream, schedule.batch_size, options.stream)
+        val = _Validation(val_loader, val_videos, None if stem is None else Path(str(stem) + ".best.pt"))
+    run = _Run(evaluator, net, kernel_param, gen, schedule, learn_filter, taps0.to(dev), fingerprint, verbose)
+    partial = None if stem is None else Path(str(stem) + ".partial.pt")
+    history, trained = _stream_stages(run, loader, batch_input, targets_fn, val, partial)
+    if val is not None:
+        _restore_best(val, run)
+    net = net.cpu().eval()
+    with torch.no_grad():
+        taps = kernel_taps(kernel_param).detach().cpu().numpy()
+    realised.update(_realisation_after(module, evaluator.name))
+    facts = {"dataset": type(dataset).__name__, "network": type(net).__name__, "device": str(dev)}
+    provenance = _provenance(
+        evaluator, schedule, learn_filter, indices, facts, rep, sensor, history, fingerprint, t_start, realised
+    )
+    provenance["streaming"] = _streaming_record(options, plan, train_stream, val, val_stream)
+    result = _result(dataset, evaluator, taps, net, history, indices, provenance, stem, trained)
+    if val is not None and val.path is not None and val.path.is_file():
+        val.path.unlink()
+    return result
+
+
+def _streaming_record(
+    options: _Streaming, plan: dict[str, int], train: Any, val: Any, val_stream: Any
+) -> dict[str, Any]:
+    """What the provenance says of a streamed run: the loader's plan, the sampling, the validation."""
+    from dataclasses import asdict
+
+    return {
+        "memory_mb": options.stream.memory_mb,
+        "workers": plan["workers"],
+        "prefetch": plan["prefetch"],
+        "held_bytes_bound": plan["held_bytes"],
+        "train_clips_per_epoch": len(train),
+        "sampling": None if options.sampling is None else asdict(options.sampling),
+        "val_fraction": options.val_fraction,
+        "val_clips": 0 if val_stream is None else len(val_stream),
+        "best_epoch": None if val is None else val.best_epoch,
+        "best_val_metric": None if val is None or val.best_epoch is None else val.best_metric,
+        "selected": "the best validation epoch" if val is not None else "the last epoch",
+    }
