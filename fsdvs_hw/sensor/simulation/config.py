@@ -33,6 +33,7 @@ from ...errors import InputError, one_line
 from ...limits import MAX_SEED, MAX_SUBSTEPS
 
 __all__ = [
+    "CONVENTIONS",
     "MAX_SEED",
     "PLACEMENTS",
     "POSITIVITY_MODES",
@@ -63,6 +64,9 @@ PRESETS = ("default", "ideal", "v2e-clean", "v2e-default", "v2e-noisy")
 #: or an FFT of a saturated frame stays finite in float32. The simulator reports how many
 #: pixel-frames it clipped (``SimulationInfo.saturated``); valid videos below it are untouched.
 SATURATION_INTENSITY: float = 1e20
+#: Named event-generation conventions (``SensorConfig.conventions``): this package's pixel model,
+#: or the v2e emulator's rules (:mod:`fsdvs_hw.sensor.simulation.conventions`).
+CONVENTIONS = ("native", "v2e")
 #: How shot-noise counts are drawn (``SensorConfig.shot_noise_draw``).
 SHOT_NOISE_DRAWS = ("per_pixel", "sparse")
 
@@ -201,6 +205,14 @@ class SensorConfig:
         ``"relaxed"``: forward emits the continuous count ``relu(±ΔL) / C`` of a reference that
         tracks the signal exactly (smooth, for gradcheck and analysis); in the first interval its
         gradient is exactly the straight-through one.
+    conventions : {"native", "v2e"}
+        Event-generation rules (:mod:`fsdvs_hw.sensor.simulation.conventions`). ``"native"``
+        (default): this model, every crossing at its interpolated time. ``"v2e"``: the v2e
+        emulator's rules, for recordings compared with v2e's: events stamped on a grid inside
+        each frame interval, a refractory period that delays a crossing instead of dropping it,
+        shot noise whose rate falls with intensity and that resets the reference, one
+        forward-Euler photoreceptor update per frame (event lists only). Left out of
+        :meth:`to_dict` when native, so stored fingerprints do not change.
     seed : int
         Seed for every random draw (mismatch, leak phase, shot noise); each effect draws from its
         own stream derived from this seed, so switching one effect off does not change the others.
@@ -240,6 +252,7 @@ class SensorConfig:
     max_substeps: int = 256
     adaptive_region_px: int = 32
     surrogate: str = "straight_through"
+    conventions: str = "native"
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -260,7 +273,15 @@ class SensorConfig:
         _check_number("surround_weight", self.surround_weight, high=1.0)
         _check_number("surround_tau_s", self.surround_tau_s, high=1e3)
         _check_number("frame_rate_hz", self.frame_rate_hz, low=0.0, high=1e9, low_open=True)
-        for name in ("response", "placement", "positivity", "shot_noise_draw", "convolution", "surrogate"):
+        for name in (
+            "response",
+            "placement",
+            "positivity",
+            "shot_noise_draw",
+            "convolution",
+            "surrogate",
+            "conventions",
+        ):
             if not isinstance(getattr(self, name), str):
                 raise InputError(
                     f"SensorConfig.{name}: must be a string, got {type(getattr(self, name)).__name__} "
@@ -309,6 +330,10 @@ class SensorConfig:
             )
         if self.convolution not in ("auto", "direct", "fft"):
             raise InputError(f"SensorConfig.convolution: {self.convolution!r} unknown; allowed: auto, direct, fft")
+        if self.conventions not in CONVENTIONS:
+            raise InputError(
+                f"SensorConfig.conventions: {self.conventions!r} unknown; allowed: {', '.join(CONVENTIONS)}"
+            )
         if self.surrogate not in SURROGATES:
             raise InputError(f"SensorConfig.surrogate: {self.surrogate!r} unknown; allowed: {', '.join(SURROGATES)}")
 
@@ -410,6 +435,8 @@ class SensorConfig:
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly dict (tensor thresholds become floats)."""
         d = asdict(self)
+        if d["conventions"] == "native":  # the default: absent, as before the field existed
+            del d["conventions"]
         for k in ("threshold_on", "threshold_off"):
             d[k] = float(d[k].detach()) if hasattr(d[k], "detach") else float(d[k])
         return d

@@ -50,6 +50,7 @@ from ...validation import check_bool, check_instance
 from ..native.chunk_steps import advance_chunk, chunk_applies
 from ..native.fused import fused_substep, fused_substep_applies
 from .config import SATURATION_INTENSITY, SensorConfig
+from .conventions import check_native, frame_grid_events
 from .crossings import ComparatorStep, crossing_step, noise_step, shot_noise_pixels, sort_interval, to_event_columns
 from .event_pipeline import EventPipeline, events_pipelined, noise_event_count
 from .filtering import FilteredSignal, filtered_log_signal, kernel_tensor
@@ -786,6 +787,12 @@ def _simulate(
 ) -> tuple[Any, SimulationInfo, EventList | None]:
     check_instance("generator", generator, torch.Generator, "a torch.Generator", nullable=True)
     video, w, ts, config, subs, saturated = resolve_inputs(video, kernel, timestamps_s, config, plan)
+    if config.conventions != "native":  # another simulator's rules: event lists only
+        if not collect_events or plan is not None or generator is not None:
+            check_native(config, "event_frames" if not collect_events else "plan/generator")
+        columns, n_noise = frame_grid_events(video, w, ts, config)
+        ev = EventList(*(torch.from_numpy(c) for c in columns))
+        return None, SimulationInfo(0.0, (1,) * (video.shape[1] - 1), n_noise, 0, saturated=saturated), ev
     out = _simulate_resolved(video, w, ts, config, subs, plan, generator, collect_events, bar)
     out[1].saturated = saturated
     return out

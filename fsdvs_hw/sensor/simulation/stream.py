@@ -43,6 +43,7 @@ import torch
 from ...errors import InputError
 from ...validation import check_bool, check_instance
 from .config import SATURATION_INTENSITY, SensorConfig
+from .conventions import check_native
 from .crossings import to_event_columns
 from .event_pipeline import EventPipeline, events_pipelined, noise_event_count
 from .events import (
@@ -295,6 +296,7 @@ def simulate(
     if not (events or event_frames):
         raise InputError("simulate: ask for events, event_frames or both")
     config = config_from_plan(config, plan)
+    check_native(config, "stream")
     subs_plan = list(plan.substeps) if plan is not None and plan.substeps else None
     return _stream(
         _frame_source(frames),
