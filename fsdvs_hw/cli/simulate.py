@@ -40,6 +40,7 @@ DESCRIPTION = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from ..scenes.video import INPUT_MAPPINGS
+    from ..sensor.cameras.presets import SENSOR_PRESETS
     from ..sensor.simulation.config import PRESETS
     from ..sensor.simulation.upsampling import UPSAMPLE_MODES
 
@@ -56,7 +57,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="kernel placement (default: the preset's, pre_log)",
     )
-    parser.add_argument("--preset", choices=PRESETS, default="default", help="sensor settings (default: default)")
+    parser.add_argument(
+        "--preset",
+        choices=list(dict.fromkeys([*PRESETS, *SENSOR_PRESETS])),
+        default="default",
+        help="sensor settings: the simulator's (default, ideal, v2e-*) or a camera's "
+        f"({', '.join(SENSOR_PRESETS)}; docs/sensors.md) (default: default)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of every random effect (default 0)")
     parser.add_argument("--start-frame", type=int, default=0, help="first frame (default 0)")
     parser.add_argument("--frames", type=int, default=None, help="number of frames (default: to the end)")
@@ -166,11 +173,10 @@ def run(args: argparse.Namespace) -> int:
     from ..allocator import retain_freed_memory
     from ..paths import output_file
     from ..scenes.video import example_clip_path, video_properties
-    from ..sensor.cameras.presets import preset_input_mapping
+    from ..sensor.cameras.presets import preset_input_mapping, sensor_config
     from ..sensor.eventfiles.eventfile import event_format
     from ..sensor.eventfiles.run_control import Stopped
     from ..sensor.eventfiles.video_to_file import VideoToFileOptions, simulate_video_to_file
-    from ..sensor.simulation.config import SensorConfig
 
     retain_freed_memory()  # the same frame-sized buffers, freed and allocated again at every step
     event_format(args.out)  # checked before decoding anything
@@ -181,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
     overrides = {"seed": args.seed}
     if args.placement is not None:
         overrides["placement"] = args.placement
-    config = SensorConfig.preset(args.preset, **overrides)
+    config = sensor_config(args.preset, **overrides)
     if not path.is_file():
         video_properties(path)  # its one-line error at once, before torch loads
     options = options_from_args(

@@ -229,7 +229,7 @@ class EventComparison:
                 "lag",
                 "",
                 "",
-                f"{self.lag_s:.6g} s (recording after simulation; start offset {self.start_offset_s:.6g} s)",
+                f"{self.lag_s:.6f} s (recording after simulation; start offset {self.start_offset_s:.6f} s)",
             ),
         ]
         head = f"event comparison ({w}x{h} sensor): simulation vs recording"
@@ -303,6 +303,32 @@ def _lag(sim: np.ndarray, real: np.ndarray, max_lag: int) -> tuple[float, float]
     return float(lg[i] + frac), float(min(cc[i], 1.0))
 
 
+def _two_streams(sim: Any, real: Any, shape: tuple[int, int] | None) -> tuple[Any, Any, tuple[int, int]]:
+    """The checked columns ``(t, x, y, p)`` of both streams and the common sensor (height, width)."""
+    columns = []
+    for name, ev in (("simulation", sim), ("recording", real)):
+        try:
+            columns.append(event_columns(ev, shape))
+        except InputError as exc:
+            raise InputError(f"compare_events: {name}: {exc}") from None
+    (ts, xs, ys, ps, hs, ws), (tr, xr, yr, pr, hr, wr) = columns
+    known = [
+        (h_, w_)
+        for ev, h_, w_ in ((sim, hs, ws), (real, hr, wr))
+        if shape is not None or hasattr(ev, "t_us") or isinstance(ev, (str, Path))
+    ]
+    if len(set(known)) > 1:
+        raise InputError(f"compare_events: sensor sizes differ: simulation {ws}x{hs}, recording {wr}x{hr}")
+    h, w = known[0] if known else (max(hs, hr), max(ws, wr))
+    for name, hh, ww in (("simulation", hs, ws), ("recording", hr, wr)):
+        if hh > h or ww > w:
+            raise InputError(
+                f"compare_events: sensor sizes differ: {name} has pixels up to {ww - 1}, {hh - 1}, "
+                f"outside the {w}x{h} sensor"
+            )
+    return (ts, xs, ys, ps), (tr, xr, yr, pr), (h, w)
+
+
 def compare_events(
     sim: Any,
     real: Any,
@@ -341,27 +367,7 @@ def compare_events(
     for name, v in (("bin_s", bin_s), ("support_s", support_s), ("max_lag_s", max_lag_s)):
         if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
             raise InputError(f"compare_events: {name} must be a positive number of seconds, got {v!r}")
-    columns = []
-    for name, ev in (("simulation", sim), ("recording", real)):
-        try:
-            columns.append(event_columns(ev, shape))
-        except InputError as exc:
-            raise InputError(f"compare_events: {name}: {exc}") from None
-    (ts, xs, ys, ps, hs, ws), (tr, xr, yr, pr, hr, wr) = columns
-    known = [
-        (h_, w_)
-        for ev, h_, w_ in ((sim, hs, ws), (real, hr, wr))
-        if shape is not None or hasattr(ev, "t_us") or isinstance(ev, (str, Path))
-    ]
-    if len(set(known)) > 1:
-        raise InputError(f"compare_events: sensor sizes differ: simulation {ws}x{hs}, recording {wr}x{hr}")
-    h, w = known[0] if known else (max(hs, hr), max(ws, wr))
-    for name, hh, ww in (("simulation", hs, ws), ("recording", hr, wr)):
-        if hh > h or ww > w:
-            raise InputError(
-                f"compare_events: sensor sizes differ: {name} has pixels up to {ww - 1}, {hh - 1}, "
-                f"outside the {w}x{h} sensor"
-            )
+    (ts, xs, ys, ps), (tr, xr, yr, pr), (h, w) = _two_streams(sim, real, shape)
     if not ts.size or not tr.size:
         raise InputError(f"compare_events: empty stream (simulation {ts.size} events, recording {tr.size})")
     offset = float(tr.min() - ts.min())
