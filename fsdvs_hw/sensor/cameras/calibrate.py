@@ -35,10 +35,32 @@ Method (the pixel model of :mod:`fsdvs_hw.sensor.simulation.events`)
     *Noise*: in static pixels (total variation of ``L`` below a quarter of the smaller threshold:
     every pixel for a static scene) OFF events come from shot noise only (rate ``shot / 2``) and
     ON events from shot noise and leak (``shot / 2 + leak``): ``shot = 2 r_off``,
-    ``leak = r_on - r_off``.
+    ``leak = r_on - r_off``. No steady state is assumed: the reference's start phase (at the
+    first frame, at random, after a noise reset) moves each pixel's leak count by up to one event,
+    so the leak interval is widened by ``1 / duration`` either side, and a recording that holds
+    fewer than two leak periods only *bounds* the leak (``Estimate.status == "bounded"``).
+    *Bandwidth*: when no scanned cut-off explains the data better than no filter at all (per-pixel
+    gain within two standard errors of 0) or the best is the scan's top, the cut-off is "not
+    identifiable" (above the scan; ``value`` inf, the fitted config has no filter).
 
     Intervals are percentile bootstraps over pixels (``n_boot`` resamples): the population of
-    pixels is what varies from one sensor (or one patch) to the next.
+    pixels is what varies from one sensor (or one patch) to the next. With ``error_recordings``
+    they also include the estimator's own bias and spread, measured on recordings simulated at
+    the fit (:mod:`fsdvs_hw.sensor.cameras.estimator_error`).
+
+What calibration assumes, and what it checks
+    The recording is of this video, registered pixel for pixel, on the video's clock; the
+    pixel follows the simulator's model under ``config.conventions`` (native: each event at its
+    crossing time, crossings inside the refractory period lost, noise that leaves the reference
+    alone); the signal is linear between the (sub-)frames. Checked on every input, in every form
+    (an object or a path): the geometry against the video's, finite event times, events within
+    the video's time span, at least 2 events and enough pairs in the moving pixels (told apart
+    from a video that moves too little). A frame rate too low for the thresholds (moving pixels
+    change by more than one threshold per frame, median) adds a warning with the upsampling
+    advice. After the fit, a posterior-predictive check
+    (:mod:`fsdvs_hw.sensor.cameras.calibration_check`) simulates the video with the fitted
+    parameters and compares the statistics the fit used: ``outcome`` is ``"fits"`` or ``"model
+    mismatch"`` (the failing statistic named) instead of a precise wrong answer.
 
 References
 ----------
@@ -64,264 +86,37 @@ Examples
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from ...errors import InputError
 from ..simulation.config import SensorConfig
-from .compare import event_columns
-
-__all__ = ["CALIBRATED_FIELDS", "Estimate", "SensorCalibration", "calibrate_sensor", "comparator_input"]
-
-#: Parameters :func:`calibrate_sensor` can estimate (SensorConfig field names).
-CALIBRATED_FIELDS = (
-    "threshold_on",
-    "threshold_off",
-    "threshold_sigma",
-    "refractory_s",
-    "leak_rate_hz",
-    "shot_noise_rate_hz",
-    "cutoff_hz",
+from .calibration_check import check_calibration
+from .calibration_fit import (
+    CALIBRATED_FIELDS,
+    ESTIMATE_STATUSES,
+    OUTCOMES,
+    Estimate,
+    RecordingColumns,
+    SensorCalibration,
+    comparator_input,
+    fit_sensor,
+    recording_columns,
 )
+from .estimator_error import with_estimator_error
+
+__all__ = [
+    "CALIBRATED_FIELDS",
+    "ESTIMATE_STATUSES",
+    "OUTCOMES",
+    "Estimate",
+    "RecordingColumns",
+    "SensorCalibration",
+    "calibrate_sensor",
+    "comparator_input",
+    "recording_columns",
+]
 
 
-@dataclass(frozen=True)
-class Estimate:
-    """One fitted parameter: value and confidence interval (SensorConfig units).
-
-    Attributes
-    ----------
-    value, low, high : float
-        Point estimate and interval bounds.
-    n : int
-        Data behind it (pixels for thresholds and noise, event pairs for the refractory period).
-    method : str
-        How it was estimated (one line).
-    """
-
-    value: float
-    low: float
-    high: float
-    n: int
-    method: str
-
-    def contains(self, x: float) -> bool:
-        """True if ``x`` lies in [low, high]."""
-        return bool(self.low <= x <= self.high)
-
-
-@dataclass(frozen=True)
-class SensorCalibration:
-    """The result of :func:`calibrate_sensor`.
-
-    Attributes
-    ----------
-    estimates : dict of str to Estimate
-        Per :data:`CALIBRATED_FIELDS` name that could be estimated from the data.
-    config : SensorConfig
-        The base configuration with every estimated field replaced by its point estimate.
-    level : float
-        Confidence level of the intervals.
-    notes : list of str
-        What could not be estimated and why.
-    """
-
-    estimates: dict[str, Estimate]
-    config: SensorConfig
-    level: float
-    notes: list[str] = field(default_factory=list)
-
-    def table(self, truth: SensorConfig | None = None) -> list[dict[str, Any]]:
-        """Rows ``parameter, true (if given), value, low, high, n, covered`` for reports."""
-        rows = []
-        for k, e in self.estimates.items():
-            row: dict[str, Any] = {"parameter": k, "value": e.value, "low": e.low, "high": e.high, "n": e.n}
-            if truth is not None:
-                tv = float(getattr(truth, k))
-                row["true"], row["covered"] = tv, e.contains(tv)
-            rows.append(row)
-        return rows
-
-
-# ---------------------------------------------------------------------------- comparator input
-@dataclass
-class _Photoreceptor:
-    """The log signal on the simulator's sub-step grid, ready for a low-pass at any cut-off.
-
-    ``times`` (G,) s; ``start`` (P,) the first frame's log signal; ``target``, ``bandwidth``
-    (G-1, P): the log signal at the end of each sub-step and its cut-off as a fraction of
-    ``cutoff_hz``; ``dt`` (G-1,) the sub-step lengths; ``filtered``: whether the base has a low-pass.
-    """
-
-    times: np.ndarray
-    start: np.ndarray
-    target: np.ndarray
-    bandwidth: np.ndarray
-    dt: np.ndarray
-    filtered: bool
-
-    def signal(self, cutoff_hz: float) -> np.ndarray:
-        """(G, P) comparator input after a first-order low-pass at ``cutoff_hz`` (none if 0)."""
-        if not self.filtered or not 0 < cutoff_hz < math.inf:
-            return np.concatenate([self.start[None], self.target])
-        alpha = -np.expm1(-2.0 * math.pi * cutoff_hz * self.bandwidth * self.dt[:, None])
-        out = np.empty((self.target.shape[0] + 1, self.start.size))
-        out[0] = lp = self.start
-        for k in range(self.target.shape[0]):
-            lp = lp + alpha[k] * (self.target[k] - lp)
-            out[k + 1] = lp
-        return out
-
-
-def _photoreceptor(video: Any, timestamps_s: Any, config: SensorConfig) -> _Photoreceptor:
-    import torch
-
-    from ..simulation.events import resolve_inputs, substeps_per_interval
-    from ..simulation.filtering import filtered_log_signal
-
-    vid = torch.as_tensor(video)
-    if vid.ndim == 3:
-        vid = vid[None]
-    if vid.ndim != 4 or vid.shape[0] != 1:
-        raise InputError(f"video: expected (T, H, W) or (1, T, H, W) intensities, got shape {tuple(vid.shape)}")
-    vid, w, ts, cfg = resolve_inputs(vid, None, timestamps_s, config, None)[:4]
-    with torch.no_grad():
-        sig = filtered_log_signal(vid, w, cfg)
-        L = sig.log_signal[0].to(torch.float64).reshape(vid.shape[1], -1).numpy()
-        T = L.shape[0]
-        tsd = ts.to(torch.float64).reshape(-1)[:T].numpy()
-        if not cfg.has_photoreceptor:
-            return _Photoreceptor(tsd, L[0], L[1:], np.ones_like(L[1:]), np.diff(tsd), False)
-        subs = substeps_per_interval(sig.log_signal, cfg, False)
-        frac = (
-            torch.clamp(
-                (sig.cutoff_intensity[0].to(torch.float64) + cfg.dark_intensity) / cfg.full_scale_intensity, 0.0, 1.0
-            )
-            .reshape(T, -1)
-            .numpy()
-        )
-    times, targets, bands, dts = [tsd[:1]], [], [], []
-    for k in range(T - 1):
-        S = subs[k]
-        a = (np.arange(1, S + 1) / S)[:, None]
-        targets.append(L[k] + a * (L[k + 1] - L[k]))
-        bands.append(frac[k] + a * (frac[k + 1] - frac[k]))
-        dts.append(np.full(S, (tsd[k + 1] - tsd[k]) / S))
-        times.append(tsd[k] + (tsd[k + 1] - tsd[k]) * a[:, 0])
-    return _Photoreceptor(
-        np.concatenate(times), L[0], np.concatenate(targets), np.concatenate(bands), np.concatenate(dts), True
-    )
-
-
-def comparator_input(video: Any, timestamps_s: Any, config: SensorConfig) -> tuple[np.ndarray, np.ndarray]:
-    """The comparator input the simulator steps through, on its time grid.
-
-    Returns ``(times (G,), L (G, H*W))``: frame and sub-step times (s) and the log signal after
-    the photoreceptor (the simulator's ``filtered_log_signal``, then its low-pass at
-    ``config.cutoff_hz`` with the sub-steps ``config`` implies: fixed ``substeps`` or, with
-    ``adaptive_fraction``, one global count per interval), linear between grid points.
-
-    Examples
-    --------
-    >>> import torch
-    >>> t, L = comparator_input(torch.full((1, 3, 2, 2), 1.0), torch.tensor([0.0, 0.1, 0.2], dtype=torch.float64),
-    ...                         SensorConfig(cutoff_hz=0.0))
-    >>> t.tolist(), L.shape, float(L.max())
-    ([0.0, 0.1, 0.2], (3, 4), 0.0)
-    """
-    pr = _photoreceptor(video, timestamps_s, config)
-    return pr.times, pr.signal(float(config.cutoff_hz))
-
-
-def _sample(grid_t: np.ndarray, grid_L: np.ndarray, t: np.ndarray, pix: np.ndarray) -> np.ndarray:
-    """``L`` of pixel ``pix`` at time ``t`` (linear between grid points, clamped at the ends)."""
-    j = np.clip(np.searchsorted(grid_t, t, side="left") - 1, 0, grid_t.size - 2)
-    t0, t1 = grid_t[j], grid_t[j + 1]
-    a = np.clip((t - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0.0, 1.0)
-    return grid_L[j, pix] * (1 - a) + grid_L[j + 1, pix] * a
-
-
-@dataclass
-class _Pairs:
-    """Consecutive events of one pixel: the later event's pixel, polarity, time, interval and ``d``."""
-
-    pix: np.ndarray
-    pol: np.ndarray
-    dt: np.ndarray
-    d: np.ndarray
-
-
-def _pairs(
-    t: np.ndarray, pix: np.ndarray, p: np.ndarray, grid_t: np.ndarray, grid_L: np.ndarray, leak_drift: float
-) -> _Pairs:
-    """The pairs of events sorted by pixel, then time (as :func:`calibrate_sensor` sorts them)."""
-    Lv = _sample(grid_t, grid_L, t, pix)
-    same = pix[1:] == pix[:-1]
-    dt = (t[1:] - t[:-1])[same]
-    d = (Lv[1:] - Lv[:-1])[same] + leak_drift * dt  # undo the reference's leak drift
-    return _Pairs(pix[1:][same], p[1:][same], dt, d)
-
-
-def _group_medians(pix: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Per pixel present: (ids, counts, median of v, median absolute deviation around it); vectorised."""
-
-    def medians(keys: np.ndarray, vals: np.ndarray) -> tuple[np.ndarray, ...]:
-        order = np.lexsort((vals, keys))
-        k, x = keys[order], vals[order]
-        ids, start, count = np.unique(k, return_index=True, return_counts=True)
-        lo, hi = start + (count - 1) // 2, start + count // 2
-        return ids, count, 0.5 * (x[lo] + x[hi])
-
-    ids, count, med = medians(pix, v)
-    dev = np.abs(v - med[np.searchsorted(ids, pix)])
-    _, _, mad = medians(pix, dev)
-    return ids, count, med, mad
-
-
-def _per_pixel_median(pix: np.ndarray, v: np.ndarray, n_pix: int, min_events: int) -> tuple[np.ndarray, ...]:
-    """Per pixel with >= min_events values: (pixel ids, median, sampling variance of the median)."""
-    ids, count, med, mad = _group_medians(pix, v)
-    keep = count >= min_events
-    var_med = (1.2533 * 1.4826 * mad[keep]) ** 2 / count[keep]  # asymptotic variance of a median
-    return ids[keep], med[keep], var_med
-
-
-def _dispersion(pairs: _Pairs, n_pix: int, min_dt: float) -> np.ndarray:
-    """Per pixel: the relative median absolute deviation of ``pol * d`` around its median, ON and OFF
-    added (pairs of the right sign at least ``min_dt`` apart; 0 for a pixel with under 3 pairs).
-
-    Zero when the rebuilt comparator input is the pixel's (every pair one threshold apart); scale-
-    free and over a pair set that does not depend on the candidate, so no candidate gains by
-    pushing pairs out of it (the bandwidth criterion)."""
-    out = np.zeros(n_pix)
-    for sign in (1, -1):
-        sel = (pairs.pol == sign) & (pairs.dt >= min_dt)
-        if not sel.any():
-            continue
-        ids, count, med, mad = _group_medians(pairs.pix[sel], sign * pairs.d[sel])
-        keep = count >= 3
-        out[ids[keep]] += mad[keep] / np.maximum(np.abs(med[keep]), 1e-6)
-    return out
-
-
-def _percentile_ci(boot: np.ndarray, level: float) -> tuple[float, float]:
-    a = (1 - level) / 2
-    return float(np.quantile(boot, a)), float(np.quantile(boot, 1 - a))
-
-
-def _check_level(level: float, n_boot: int, min_events: int) -> None:
-    if not (isinstance(level, float) and 0.5 <= level < 1):
-        raise InputError(f"calibrate_sensor: level must be a float in [0.5, 1), got {level!r}")
-    for name, v, lo in (("n_boot", n_boot, 20), ("min_events", min_events, 1)):
-        if not isinstance(v, int) or isinstance(v, bool) or v < lo:
-            raise InputError(f"calibrate_sensor: {name} must be an integer >= {lo}, got {v!r}")
-
-
-# ---------------------------------------------------------------------------- the fit
 def calibrate_sensor(
     recording: Any,
     video: Any = None,
@@ -334,6 +129,8 @@ def calibrate_sensor(
     level: float = 0.95,
     min_events: int = 5,
     seed: int = 0,
+    check: bool = True,
+    error_recordings: int = 0,
 ) -> SensorCalibration:
     """Fit thresholds, their spread, refractory period, noise rates (and bandwidth) to a recording.
 
@@ -361,7 +158,16 @@ def calibrate_sensor(
     min_events : int
         Pairs a pixel needs to enter the threshold estimate (default 5).
     seed : int
-        Seed of the bootstrap.
+        Seed of the bootstrap (and of the model check's and estimator-error simulations).
+    check : bool
+        Run the posterior-predictive model check (default True): simulate the video with the
+        fitted parameters and compare the statistics the fit used
+        (:func:`~fsdvs_hw.sensor.cameras.calibration_check.check_calibration`); sets ``outcome``
+        to ``"fits"`` or ``"model mismatch"``.
+    error_recordings : int
+        Recordings to simulate at the fitted parameters and calibrate again, to fold the
+        estimator's own bias and spread into the intervals (default 0: pixel bootstrap only;
+        :func:`~fsdvs_hw.sensor.cameras.calibration_coverage.with_estimator_error`).
 
     Returns
     -------
@@ -370,262 +176,26 @@ def calibrate_sensor(
     Raises
     ------
     InputError
-        Shapes that disagree, too few events to estimate anything, bad options.
+        A recording that does not fit the video (geometry, in the form given: object or path;
+        events outside the video's time span), non-finite event times, too few events (0, 1, or
+        too few pairs in moving pixels, told apart from a video that moves too little), bad options.
     """
-    _check_level(level, n_boot, min_events)
-    base = SensorConfig() if config is None else config
-    if not isinstance(base, SensorConfig):
-        raise InputError(f"calibrate_sensor: config must be a SensorConfig, got {type(base).__name__}")
-    rng = np.random.default_rng(seed)
-    notes: list[str] = []
-    est: dict[str, Estimate] = {}
+    for name, flag in (("check", check), ("fit_cutoff", fit_cutoff)):
+        if not isinstance(flag, bool):
+            raise InputError(f"calibrate_sensor: {name} must be True or False, got {flag!r}")
+    if not isinstance(error_recordings, int) or isinstance(error_recordings, bool) or not 0 <= error_recordings <= 1000:
+        raise InputError(
+            f"calibrate_sensor: error_recordings must be an integer in [0, 1000], got {error_recordings!r}"
+        )
+    options: dict[str, Any] = dict(fit_cutoff=fit_cutoff, n_boot=n_boot, min_events=min_events)
     if video is None:
-        return _static_scene_calibration(recording, duration_s, base, n_boot, level, rng)
-    t, p, pix, n_pix = _events_by_pixel(recording, video)
-    if base.has_photoreceptor is False and fit_cutoff:
-        raise InputError("calibrate_sensor: fit_cutoff needs config.cutoff_hz > 0 as the starting guess")
-    photo = _photoreceptor(video, timestamps_s, base)
-    if fit_cutoff:
-        base = _fit_cutoff(est, t, pix, p, photo, base, n_pix, n_boot, level, rng)
-    grid_t, grid_L = photo.times, photo.signal(float(base.cutoff_hz))
-    duration = float(grid_t[-1] - grid_t[0])
-    pairs = _pairs(t, pix, p, grid_t, grid_L, 0.0)
-    right_sign = pairs.pol * pairs.d > 0
-    # a pair that lost crossings to the refractory period R is closer than 2 R: fit the thresholds on
-    # pairs at least twice the 0.1 % quantile of the intervals apart (about 2 R), refined once R is known
-    min_dt = 2.0 * float(np.quantile(pairs.dt[right_sign], 0.001)) if right_sign.any() else 0.0
-    map_on, map_off = _thresholds(est, pairs, n_pix, min_events, n_boot, level, rng, min_dt, np.ones(n_pix, bool))
-    c_on, c_min = est["threshold_on"].value, min(est["threshold_on"].value, est["threshold_off"].value)
-    static = np.abs(np.diff(grid_L, axis=0)).sum(axis=0) < 0.25 * c_min
-    leak = 0.0
-    if static.sum() >= 10:
-        _noise(est, pix, p, static, duration, n_boot, level, rng)
-        leak = est["leak_rate_hz"].value
-    else:
-        notes.append(f"noise rates: only {int(static.sum())} static pixels (need 10)")
-    if leak > 0:  # remove the reference's leak drift
-        pairs = _pairs(t, pix, p, grid_t, grid_L, leak * c_on)
-    # time resolution of the recording: whole µs from a file (EventFile), else float rounding
-    resolution = 1e-6 if hasattr(recording, "t_us") or isinstance(recording, (str, Path)) else 1e-9
-    _refractory(
-        est,
-        pairs,
-        np.where(np.isnan(map_on), c_on, map_on),
-        np.where(np.isnan(map_off), est["threshold_off"].value, map_off),
-        level,
-        resolution,
-    )
-    if "refractory_s" in est and est["refractory_s"].value > 0:
-        min_dt = max(min_dt, 2.0 * est["refractory_s"].high)
-    if leak > 0 or "refractory_s" in est:
-        # static pixels only see leak and noise events: with the leak's drift undone their pairs
-        # would look like (noise-corrupted) thresholds, so the threshold fit leaves them out
-        _thresholds(est, pairs, n_pix, min_events, n_boot, level, rng, min_dt, ~static)
-    return SensorCalibration(est, base.replace(**{k: e.value for k, e in est.items()}), level, notes)
-
-
-def _static_scene_calibration(
-    recording: Any, duration_s: float | None, base: SensorConfig, n_boot: int, level: float, rng: Any
-) -> SensorCalibration:
-    """Noise rates alone, from a recording of a static scene (``duration_s``: its length, s;
-    default its first to last event)."""
-    notes: list[str] = []
-    est: dict[str, Estimate] = {}
-    t, x, y, p, h, w = event_columns(recording)
-    if duration_s is None:
-        duration_s = float(t.max() - t.min()) if t.size > 1 else 0.0
-    if not duration_s or duration_s <= 0:
-        raise InputError("calibrate_sensor: a static-scene recording needs duration_s > 0 (or two events)")
-    notes.append("static scene: thresholds, refractory period and bandwidth need a known video")
-    _noise(est, y * w + x, p, np.ones(h * w, bool), float(duration_s), n_boot, level, rng)
-    return SensorCalibration(est, base.replace(**{k: e.value for k, e in est.items()}), level, notes)
-
-
-def _events_by_pixel(recording: Any, video: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """``(t, p, pixel, n_pixels)`` of the recording's events, sorted by pixel (row-major index in
-    the video's frame) then time, so that consecutive events of a pixel are neighbours; the
-    recording checked to fit the video's H x W."""
-    import torch
-
-    vid = torch.as_tensor(np.asarray(video) if not isinstance(video, torch.Tensor) else video)
-    H, W = int(vid.shape[-2]), int(vid.shape[-1])
-    t, x, y, p, h, w = event_columns(recording)
-    if (hasattr(recording, "t_us") and (h, w) != (H, W)) or (x.size and (int(x.max()) >= W or int(y.max()) >= H)):
-        size = f"a {w}x{h} sensor" if hasattr(recording, "t_us") else f"pixels up to x={w - 1}, y={h - 1}"
-        raise InputError(f"calibrate_sensor: recording has {size}, the video is {W}x{H}; register them first")
-    order = np.lexsort((t, y * W + x))
-    return t[order], p[order], (y * W + x)[order], H * W
-
-
-def _thresholds(
-    est: dict[str, Estimate],
-    pairs: _Pairs,
-    n_pix: int,
-    min_events: int,
-    n_boot: int,
-    level: float,
-    rng: np.random.Generator,
-    min_dt: float,
-    active: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Fill the threshold estimates; return the per-pixel ON and OFF threshold maps (nan: too few pairs)."""
-    meds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    maps: dict[str, np.ndarray] = {}
-    for name, sign in (("threshold_on", 1), ("threshold_off", -1)):
-        sel = (pairs.pol == sign) & (sign * pairs.d > 0) & (pairs.dt >= min_dt) & active[pairs.pix]
-        ids, med, var_med = _per_pixel_median(pairs.pix[sel], sign * pairs.d[sel], n_pix, min_events)
-        if ids.size < 3:
-            raise InputError(
-                f"calibrate_sensor: only {ids.size} pixels with {min_events} or more "
-                f"{name[10:].upper()} event pairs: the video moves too little for a threshold fit"
-            )
-        meds[name] = (med, var_med)
-        maps[name] = np.full(n_pix, np.nan)
-        maps[name][ids] = med
-    boot_idx = {k: rng.integers(0, v[0].size, size=(n_boot, v[0].size)) for k, v in meds.items()}
-    for name, (med, _) in meds.items():
-        boot = med[boot_idx[name]].mean(axis=1)
-        lo, hi = _percentile_ci(boot, level)
-        est[name] = Estimate(
-            float(med.mean()),
-            lo,
-            hi,
-            int(med.size),
-            "mean over pixels of the median log change between consecutive events; pixel bootstrap",
+        return fit_sensor(recording, None, config=config, duration_s=duration_s, level=level, seed=seed, **options)
+    rec = recording_columns(recording, video)
+    cal = fit_sensor(rec, video, timestamps_s=timestamps_s, config=config, level=level, seed=seed, **options)
+    if error_recordings:
+        cal = with_estimator_error(
+            cal, video, timestamps_s=timestamps_s, n_recordings=error_recordings, seed=seed, **options
         )
-
-    def sigma(sel: dict[str, np.ndarray] | None) -> float:
-        var = []
-        for k, (med, vm) in meds.items():
-            m, v = (med, vm) if sel is None else (med[sel[k]], vm[sel[k]])
-            var.append(max(float(m.var(ddof=1)) - float(v.mean()), 0.0))
-        return math.sqrt(float(np.mean(var)))
-
-    boots = np.array([sigma({k: boot_idx[k][i] for k in meds}) for i in range(n_boot)])
-    lo, hi = _percentile_ci(boots, level)
-    est["threshold_sigma"] = Estimate(
-        sigma(None),
-        lo,
-        hi,
-        int(sum(m[0].size for m in meds.values())),
-        "between-pixel SD of the per-pixel thresholds (median's variance removed), ON and OFF pooled; pixel bootstrap",
-    )
-    return maps["threshold_on"], maps["threshold_off"]
-
-
-def _noise(
-    est: dict[str, Estimate],
-    pix: np.ndarray,
-    p: np.ndarray,
-    static: np.ndarray,
-    duration: float,
-    n_boot: int,
-    level: float,
-    rng: np.random.Generator,
-) -> None:
-    ids = np.flatnonzero(static)
-    n_on = np.bincount(pix[p > 0], minlength=static.size)[ids].astype(np.float64)
-    n_off = np.bincount(pix[p < 0], minlength=static.size)[ids].astype(np.float64)
-    b = rng.integers(0, ids.size, size=(n_boot, ids.size))
-
-    def rates(on: np.ndarray, off: np.ndarray) -> tuple[Any, Any]:
-        r_on, r_off = on / duration, off / duration
-        return 2 * r_off, r_on - r_off
-
-    shot, leak = (max(float(v), 0.0) for v in rates(n_on.mean(), n_off.mean()))  # rates are >= 0
-    shot_b, leak_b = (np.maximum(v, 0.0) for v in rates(n_on[b].mean(axis=1), n_off[b].mean(axis=1)))
-    # a pixel bootstrap of zero counts has no spread: fall back to the Poisson bound on the total (3/N rule)
-    pois = 3.0 / (ids.size * duration)
-    lo, hi = _percentile_ci(shot_b, level)
-    est["shot_noise_rate_hz"] = Estimate(
-        float(shot),
-        lo,
-        max(hi, 2 * pois if n_off.sum() == 0 else hi),
-        int(ids.size),
-        "2 x OFF events per static pixel per second; pixel bootstrap",
-    )
-    lo, hi = _percentile_ci(leak_b, level)
-    if n_on.sum() == 0:
-        hi = max(hi, pois)
-    est["leak_rate_hz"] = Estimate(
-        float(leak), lo, hi, int(ids.size), "(ON - OFF) events per static pixel per second; pixel bootstrap"
-    )
-
-
-def _refractory(
-    est: dict[str, Estimate], pairs: _Pairs, map_on: np.ndarray, map_off: np.ndarray, level: float, resolution: float
-) -> None:
-    c = np.where(pairs.pol > 0, map_on[pairs.pix], map_off[pairs.pix])  # each pixel's own thresholds
-    m = pairs.pol * pairs.d / c
-    consistent = (np.abs(m - np.round(m)) < 0.1) & (np.round(m) >= 1)
-    iei = np.sort(pairs.dt[consistent])
-    if iei.size < 10:
-        return
-    # swallowed crossings: pairs of 2 thresholds, against the background of pairs half-way between
-    # integers (a noise event between two others gives a pair of any size)
-    swallowed = int((np.abs(m - 2) < 0.1).sum())
-    background = int((np.abs(m - 2.5) < 0.1).sum())
-    a = 1 - level
-    if swallowed < max(20, 0.002 * iei.size) or swallowed < 3 * background + 5 * math.sqrt(background + 1):
-        est["refractory_s"] = Estimate(
-            0.0,
-            0.0,
-            float(iei[0]),
-            int(iei.size),
-            f"no swallowed crossings ({swallowed} pairs of 2 thresholds, "
-            f"{background} at 2.5): "
-            "bounded by the smallest interval",
-        )
-        return
-    spacing = float(iei[9] - iei[0]) / 9
-    est["refractory_s"] = Estimate(
-        max(float(iei[0]) - spacing * math.log(2), 0.0),
-        max(float(iei[0]) - spacing * math.log(2 / a) - resolution, 0.0),
-        float(iei[0]) - spacing * math.log(1 / (1 - a / 2)) + resolution,
-        int(iei.size),
-        f"smallest interval less the exponential gap ({swallowed} pairs with swallowed crossings)",
-    )
-
-
-def _fit_cutoff(
-    est: dict[str, Estimate],
-    t: np.ndarray,
-    pix: np.ndarray,
-    p: np.ndarray,
-    photo: _Photoreceptor,
-    base: SensorConfig,
-    n_pix: int,
-    n_boot: int,
-    level: float,
-    rng: np.random.Generator,
-) -> SensorConfig:
-    from scipy.optimize import minimize_scalar
-
-    f0 = float(base.cutoff_hz)
-    dt = np.diff(t)[np.diff(pix) == 0]  # events come sorted by pixel, then time
-    min_dt = 2.0 * float(np.quantile(dt, 0.001)) if dt.size else 0.0  # refractory-safe pairs (see the thresholds)
-
-    def per_pixel(log_f: float) -> np.ndarray:
-        return _dispersion(_pairs(t, pix, p, photo.times, photo.signal(float(np.exp(log_f))), 0.0), n_pix, min_dt)
-
-    scan = np.log(f0) + np.linspace(-np.log(8), np.log(8), 13)
-    scores = [per_pixel(v).sum() for v in scan]
-    i = int(np.argmin(scores))
-    lo_b, hi_b = scan[max(i - 1, 0)], scan[min(i + 1, scan.size - 1)]
-    res = minimize_scalar(lambda v: per_pixel(v).sum(), bounds=(lo_b, hi_b), method="bounded", options={"xatol": 1e-4})
-    best = float(res.x)
-    fine = best + np.linspace(-0.1, 0.1, 21) * (hi_b - lo_b)
-    table = np.stack([per_pixel(v) for v in fine])  # (grid, pixels)
-    b = rng.integers(0, n_pix, size=(n_boot, n_pix))
-    boot = fine[np.argmin(table[:, b].sum(axis=2), axis=0)]
-    step = float(fine[1] - fine[0])
-    lo, hi = _percentile_ci(boot, level)
-    est["cutoff_hz"] = Estimate(
-        float(np.exp(best)),
-        float(np.exp(min(lo, best) - step)),
-        float(np.exp(max(hi, best) + step)),
-        n_pix,
-        "cut-off minimising the per-pixel spread of the log change between events; "
-        "pixel bootstrap on a local grid (+- one grid step)",
-    )
-    return base.replace(cutoff_hz=float(np.exp(best)))
+    if check:
+        cal = check_calibration(cal, rec, video, timestamps_s=timestamps_s, seed=seed)
+    return cal
