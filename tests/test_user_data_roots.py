@@ -172,3 +172,55 @@ def test_confined_path_at_the_edges(tmp_path):
     assert confined_path(tmp_path / "a", "../ab/f", what="x", roots=[tmp_path / "ab"]) == (tmp_path / "ab/f").resolve()
     with pytest.raises(InputError, match="NUL"):
         confined_path(tmp_path, "a\x00b", what="x")
+
+
+# --------------------------------------------------------------------------- --set inside dataset tables
+def test_set_reaches_keys_inside_a_dataset_table(places):
+    from fsdvs_hw.cli.explore import parse_overrides
+    from fsdvs_hw.design import check_key
+
+    design, disk, _ = places
+    _coco(design / "coco", n=4)
+    _coco(disk / "coco", n=6)
+    d = load_design(_write_design(design, "coco", [str(disk)]))
+    assert check_key("tasks.datasets.detection.root") == "tasks.datasets.detection.dataset.root"
+    moved = d.with_overrides(
+        parse_overrides(
+            [
+                f"tasks.datasets.detection.root={json.dumps(str(disk / 'coco'))}",  # short for .dataset.root
+                "tasks.datasets.detection.dataset.n_frames=3",
+                "tasks.datasets.detection.train.epochs_joint=5",
+                "tasks.datasets.detection.n_clips=2",
+            ]
+        )
+    )
+    table = moved.spec.tasks.datasets["detection"]
+    assert table.dataset.root == str(disk / "coco") and table.dataset.n_frames == 3 and table.n_clips == 2
+    assert table.train is not None and table.train.epochs_joint == 5 and table.train.epochs_frozen == 2
+    assert d.spec.tasks.datasets["detection"].dataset.root == "coco"  # the design itself is unchanged
+    # a value out of range is refused by the schema, naming the full key
+    with pytest.raises(DesignError, match=r"tasks\.datasets\.detection\.dataset\.n_frames' = 1"):
+        d.with_overrides({"tasks.datasets.detection.n_frames": 1})
+
+
+@pytest.mark.parametrize(
+    ("key", "why"),
+    [
+        ("tasks.datasets.recognition.rooot", "did you mean root"),
+        ("tasks.datasets.recognition.train.epoch", "unknown key 'epoch' of train; allowed: batch_size, epochs_frozen"),
+        ("tasks.datasets.recognition.n_clips.x", "n_clips is a single value"),
+        ("tasks.datasets.recognition.dataset.root.x", "dataset.root is a single value"),
+    ],
+)
+def test_set_refuses_a_key_a_dataset_table_does_not_have(key, why):
+    from fsdvs_hw.design import check_key
+
+    with pytest.raises(DesignError, match=why):
+        check_key(key)
+
+
+def test_learn_set_needs_a_design(capsys):
+    from fsdvs_hw.cli import main
+
+    assert main(["learn", "recognition", "--set", "tasks.datasets.recognition.n_clips=2"]) == 2
+    assert "--set without --design" in capsys.readouterr().err

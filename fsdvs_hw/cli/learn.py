@@ -79,6 +79,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="train on the user data of this design's [tasks.datasets.TASK] (its train table sets "
         "the protocol; the kernel and network go to train.out); the options above are refused",
     )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="with --design: replace one design key for this run, keys inside a dataset table "
+        "included (--set tasks.datasets.recognition.dataset.root='/data/UCF-101' --set "
+        "tasks.datasets.recognition.train.epochs_joint=10); repeatable",
+    )
 
 
 def _run_on_design(args: argparse.Namespace) -> int:
@@ -97,6 +107,10 @@ def _run_on_design(args: argparse.Namespace) -> int:
             "sets the protocol and train.out the files; allowed: no other option with --design"
         )
     design = load_design(args.design)
+    if args.overrides:
+        from .explore import parse_overrides
+
+        design = design.with_overrides(parse_overrides(args.overrides))
     user = design.spec.tasks.datasets
     if args.task not in user:
         raise InputError(
@@ -145,6 +159,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.design is not None:
         return _run_on_design(args)
+    if args.overrides:
+        from ..errors import InputError
+
+        raise InputError("--set without --design: it replaces keys of a design; allowed: --set with --design FILE")
     defaults = {"size": 7, "seed": 0, "n_train": 2048, "n_test": 2048}
     for k, v in defaults.items():
         if getattr(args, k) is None:

@@ -292,7 +292,8 @@ def parse_design(
     for key in ("camera", "upsample"):  # likewise [emulation] without camera (the design's sensor) or upsample
         if key not in (raw.get("emulation") or {}):
             del data["emulation"][key]
-    if not (raw.get("design") or {}).get("data_roots"):  # a design without data_roots keeps its fingerprint
+    given = raw.get("design")
+    if not (isinstance(given, Mapping) and given.get("data_roots")):  # without data_roots: the same fingerprint
         del data["design"]["data_roots"]
     base = Path(base_dir)
     confine_paths = _data_roots(chk, data, base, confine_paths)

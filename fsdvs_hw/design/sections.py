@@ -64,7 +64,7 @@ _Clips = Annotated[int, Field(ge=0, le=100000)]
 
 # ------------------------------------------------------------------------- the sections' models
 class DesignSection(StrictModel):
-    """``[design]``: what the exploration is called."""
+    """``[design]``: what the exploration is called, and the folders besides its own that its data may live in."""
 
     name: str | None = field(None, "", "short name used in reports")
     description: str = field("", "", "free text")

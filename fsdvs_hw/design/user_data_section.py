@@ -50,6 +50,7 @@ __all__ = [
     "TrainSpec",
     "UserTask",
     "VideoFolderSource",
+    "source_models",
 ]
 
 #: ``[tasks.datasets.<task>] max_failed_clip_fraction`` when a table does not set it.
@@ -90,7 +91,11 @@ class ClipCacheSpec(StrictModel):
 class _Source(StrictModel):
     """Keys every dataset format shares."""
 
-    root: str = field(..., "", "the dataset's folder, relative to the design file (must stay inside its folder)")
+    root: str = field(
+        ...,
+        "",
+        "the dataset's folder, relative to the design file (inside its folder or a [design] data_roots folder)",
+    )
     n_frames: int = field(8, "frames", "frames per clip (T)", ge=2, le=10_000)
     size: list[_Side] | None = field(
         None,
@@ -165,6 +170,17 @@ class MaskFramesSource(_Source):
     mask_suffix: str = field(".png", "", "appended to the stem to name the mask ('_gtFine_labelTrainIds.png')")
     fps: float = field(30.0, "Hz", "frame rate of the image sequence", gt=0.0, le=1e6)
     clip_stride: _Count | None = field(None, "frames", "a clip starts every clip_stride frames; None = n_frames")
+
+
+def source_models() -> tuple[type[StrictModel], ...]:
+    """The models of a ``dataset`` table, one per ``format`` (for the keys ``--set`` may reach).
+
+    Examples
+    --------
+    >>> "root" in source_models()[0].model_fields
+    True
+    """
+    return (VideoFolderSource, CocoFramesSource, DsecDetectionSource, MaskFramesSource)
 
 
 class TrainSpec(StrictModel):
