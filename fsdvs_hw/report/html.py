@@ -34,6 +34,7 @@ from .artifact_links import artifacts_html
 from .codesign_section import codesign_section
 from .costs import cost_section, with_cost_columns
 from .failures import failures_section, task_failures
+from .metalens_layout_section import metalens_layout_section
 from .present import cost_label, number, plain, point_title, si, style, title
 from .report_input import ReportInput
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
@@ -526,14 +527,10 @@ def write_report(points: Sequence[ScoredPoint], report: ReportInput, out_dir: st
     for name in ("report.html", "scores.csv", "scores.json"):  # refused before any file is replaced
         if (out / name).is_symlink():
             raise InputError(f"--out: {out / name} is a symbolic link; refusing to write through it (remove the link)")
-    write_scores(
-        with_cost_columns(score_rows(points), points),
-        out,
-        full=[p.to_dict() for p in points],
-        design=report.stamp(),
-    )
+    rows = with_cost_columns(score_rows(points), points)
+    write_scores(rows, out, full=[p.to_dict() for p in points], design=report.stamp())
     path = out / "report.html"
-    sections = []
+    sections = [metalens_layout_section(rows, accuracy_axis(rows)[0])]  # ideal phase → library → layout
     if report.codesign is not None and report.codesign_enabled:
         sections.append(codesign_section(report.codesign))
     # atomically, never through a symbolic link planted in the folder

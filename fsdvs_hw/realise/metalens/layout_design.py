@@ -53,7 +53,7 @@ from .lens import design_phase
 from .meta_atoms import MetaAtomLibrary, load_library
 from .options import MetalensLayoutOptions, MetalensOptions
 
-__all__ = ["LensLayout", "MetalensLayoutDesign", "build_layout", "fit_metalens_layout"]
+__all__ = ["LensLayout", "MetalensLayoutDesign", "build_layout", "fit_metalens_layout", "step_psfs"]
 
 #: Options of the layout beyond the lens's own (MetalensOptions).
 LAYOUT_KEYS = tuple(k for k in MetalensLayoutOptions.model_fields if k not in MetalensOptions.model_fields)
@@ -234,7 +234,7 @@ def _step_design(
     )
 
 
-def _step_psfs(
+def step_psfs(
     ideal: MetalensDesign, lenses: list[LensLayout], library: MetaAtomLibrary, options: Mapping[str, Any]
 ) -> tuple[list[tuple[np.ndarray, float]], list[tuple[np.ndarray, float]], np.ndarray]:
     """Library-step and layout PSFs (taps, total) per lens, and t (L, radii) at the spectral samples."""
@@ -368,7 +368,7 @@ min_space_m, gds_layer, gds_datatype, drc, compute_library
     library = load_library(o.meta_atom_spec(), compute=o.compute_library, progress=o.progress)
     t1 = time.perf_counter()
     lenses = build_layout(ideal, options, library)
-    lib_psfs, lay_psfs, t_spec = _step_psfs(ideal, lenses, library, options)
+    lib_psfs, lay_psfs, t_spec = step_psfs(ideal, lenses, library, options)
     info = _layout_info(lenses, library, t_spec, ideal.spectral.weights, options, ideal.geometry.design_wavelength_m)
     info["layout_time_s"] = time.perf_counter() - t1
     info["wall_time_s"] = time.perf_counter() - t0
