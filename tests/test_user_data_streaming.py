@@ -196,7 +196,10 @@ def test_several_clips_per_video_scored_per_video(video_root):
     labels = np.asarray(per_clip.targets["motion"]).reshape(6, 3)[:, 0]
     np.testing.assert_array_equal(ev.per_clip, (p.argmax(dim=1).numpy() == labels).astype(float))
     assert ev.value == pytest.approx(ev.per_clip.mean())
-    np.testing.assert_allclose(ev.event_counts, per_clip.event_counts.reshape(6, 3).sum(axis=1))
+    np.testing.assert_allclose(ev.event_counts, per_clip.event_counts.reshape(6, 3).mean(axis=1))
+    subset = SampledVideoClips(videos, (32, 32), SamplingSpec(clips_per_video=3), video_indices=[4, 1])
+    assert subset.video_of.tolist() == [4, 4, 4, 1, 1, 1] and len(subset) == 6
+    np.testing.assert_array_equal(subset[3].frames, clips[3].frames)  # video 1's first clip either way
     with pytest.raises(InputError, match="recognition"):
         per_video_evaluation(per_clip, clips.video_of, "segmentation", 2)
 

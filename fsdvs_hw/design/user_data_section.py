@@ -35,7 +35,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from ..limits import MAX_CLIPS, MAX_EPOCHS, MAX_SEED
 from ..schema import StrictModel, field
@@ -47,6 +47,7 @@ __all__ = [
     "CocoFramesSource",
     "DsecDetectionSource",
     "MaskFramesSource",
+    "SamplingTable",
     "TrainSpec",
     "UserTask",
     "VideoFolderSource",
@@ -242,6 +243,48 @@ class TrainSpec(StrictModel):
     seed: int = field(
         0, "", "seed of the training draw, the kernel noise, the initialisation and the batch order", ge=0, le=MAX_SEED
     )
+    memory_mb: float | None = field(
+        None,
+        "MB",
+        "stream the training clips from disk, at most this many megabytes (10**6 bytes) of clips in "
+        "memory at once (fsdvs_hw.tasks.clip_stream); None = decoded once and held in memory, or 1024 "
+        "when sampling or val_fraction asks for streaming",
+        gt=0.0,
+        le=1e6,
+    )
+    workers: int = field(
+        0, "processes", "decoding processes of the streamed loader (0 = the training process)", ge=0, le=64
+    )
+    val_fraction: float = field(
+        0.0,
+        "",
+        "fraction of the training videos held out (seeded) and scored after every epoch; the best "
+        "epoch's network and kernel are kept; 0 = none",
+        ge=0.0,
+        le=0.9,
+    )
+
+
+class SamplingTable(StrictModel):
+    """``[tasks.datasets.<task>] sampling = {...}``: clips per video, crop and flip, as the field samples them.
+
+    For ``format = "video_folder"`` with a ``dataset.size``
+    (:class:`fsdvs_hw.tasks.clip_sampling.SamplingSpec`): scored on ``clips_per_video`` evenly
+    spaced clips per video (the video's score the mean of its clips' class probabilities),
+    trained on ``train_clips_per_video`` random clips per video per epoch; frames resized keeping
+    their aspect and centre-cropped (a seeded random crop and flip in training).
+    """
+
+    unknown_key = "unknown key of a user-data task's sampling table"
+
+    clips_per_video: int = field(1, "clips", "clips scored per video, evenly spaced", ge=1, le=100)
+    train_clips_per_video: int = field(1, "clips", "random clips per video per training epoch", ge=1, le=100)
+    resize: Literal["short_side", "stretch"] = field(
+        "short_side", "", "'short_side': keep the aspect and crop to dataset.size; 'stretch': resize each frame"
+    )
+    train_crop: Literal["random", "center"] = field("random", "", "where the training crop is taken")
+    train_flip: bool = field(True, "", "flip half the training clips left-right (seeded)")
+    seed: int = field(0, "", "seeds the training clips' start frames, crops and flips", ge=0, le=MAX_SEED)
 
 
 class UserTask(StrictModel):
@@ -289,9 +332,25 @@ class UserTask(StrictModel):
         "where the simulator and the network run ('cuda' needs a "
         "CUDA build of torch and a GPU; its noise streams differ from the CPU's)",
     )
+    sampling: SamplingTable | None = field(
+        None,
+        "",
+        "clips per video, crop and flip (video_folder with a size): {clips_per_video = 5, "
+        "train_clips_per_video = 1}; None = one clip per video, its first frames, resized to size",
+    )
     train: TrainSpec | None = field(
         None,
         "",
         "train the network on the clips not scored first (two-stage "
         "protocol; resumes); None = score the network as given",
     )
+
+    @model_validator(mode="after")
+    def _sampling_needs_videos_of_one_size(self) -> UserTask:
+        """``sampling`` crops video clips to ``dataset.size``: a ``video_folder`` dataset with a size."""
+        if self.sampling is not None and (self.dataset.format != "video_folder" or self.dataset.size is None):
+            raise ValueError(
+                "sampling (clips per video, crop, flip) needs dataset.format = 'video_folder' and a "
+                f"dataset.size = [H, W] to crop to; got format {self.dataset.format!r}, size {self.dataset.size!r}"
+            )
+        return self

@@ -117,11 +117,24 @@ def _point_key(realisation: str, design: Design) -> str:
         entry["dataset"].pop("cache", None)  # where decoded clips are kept changes no score
         if entry.get("max_failed_clip_fraction") == DEFAULT_MAX_FAILED_CLIP_FRACTION:
             entry.pop("max_failed_clip_fraction")  # the key of a store written before the key existed
+        _drop_unset_streaming_keys(entry)
     relevant["realisation"] = realisation
     relevant["options"] = design.realisation_options(realisation)
     relevant["target"] = design.target.to_dict()["taps"]
     relevant["pitch_m"] = design.target.pitch_m
     return fingerprint(relevant, length=20)
+
+
+def _drop_unset_streaming_keys(entry: dict[str, Any]) -> None:
+    """A table's sampling and val_fraction only when set (the key of a store written before they existed);
+    the loader's memory_mb and workers never (they change no score)."""
+    if entry.get("sampling") is None:
+        entry.pop("sampling", None)
+    train = entry.get("train") or {}
+    for k in ("memory_mb", "workers"):
+        train.pop(k, None)
+    if not train.get("val_fraction"):
+        train.pop("val_fraction", None)
 
 
 def _scored_axes(design: Design) -> dict[str, list[Any]]:

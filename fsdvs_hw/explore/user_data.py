@@ -219,6 +219,7 @@ def _train(
         # train.split only when set: checkpoints trained before the key existed keep their fingerprint
         "train": {k: v for k, v in spec.items() if k != "out" and not (k == "split" and v is None)},
     }
+    _add_streaming_keys(fingerprint, entry)
     return _train_on_clips(
         train_ds,
         train_idx,
@@ -237,7 +238,28 @@ def _train(
         lr_kernel=spec["lr_kernel"],
         lr_backbone=spec["lr_backbone"],
         lr_head=spec["lr_head"],
+        **_streaming_arguments(entry, spec),
     )
+
+
+def _streaming_arguments(entry: Mapping[str, Any], spec: Mapping[str, Any]) -> dict[str, Any]:
+    """The table's sampling and the train table's loader keys as train_on_dataset's arguments."""
+    from ..tasks.dataset_training import streaming_arguments
+
+    return streaming_arguments(entry.get("sampling"), spec)
+
+
+def _add_streaming_keys(fingerprint: dict[str, Any], entry: Mapping[str, Any]) -> None:
+    """The sampling table and val_fraction in a training fingerprint when set; the loader's keys never (they
+    change no weight), so checkpoints trained before these keys existed keep their fingerprint."""
+    from ..tasks.dataset_training import RESULT_NEUTRAL_TRAIN_KEYS
+
+    train = fingerprint["train"]
+    for k in (*RESULT_NEUTRAL_TRAIN_KEYS, "val_fraction"):
+        if k in RESULT_NEUTRAL_TRAIN_KEYS or not train.get(k):
+            train.pop(k, None)
+    if entry.get("sampling") is not None:
+        fingerprint["sampling"] = dict(entry["sampling"])
 
 
 def train_user_task(
@@ -656,7 +678,7 @@ def dataset_evidence(
     >>> ev.metric_name, ev.n_clips                                       # doctest: +SKIP
     ('top1', 4)
     """
-    from ..tasks.dataset_eval import evaluator_for_dataset, read_clip
+    from ..tasks.dataset_eval import evaluator_for_dataset, per_video_evaluation, read_clip
     from .paired import PER_CLIP_METRICS, ClipEvidence
 
     t0 = time.perf_counter()
@@ -666,11 +688,14 @@ def dataset_evidence(
     evaluator = evaluator_for_dataset(task, ds)
     fraction = float(entry.get("max_failed_clip_fraction", DEFAULT_MAX_FAILED_CLIP_FRACTION))
     drawn = ds.draw(entry["n_clips"], entry["seed"]) if entry["n_clips"] else np.arange(len(ds))
-    first = next((c for c in (read_clip(ds, int(i))[0] for i in drawn) if c is not None), None)
+    ds, entry, probe = _clips_per_video(ds, entry, drawn)
+    first = next((c for c in (read_clip(ds, int(i))[0] for i in probe) if c is not None), None)
     # the first readable clip's frame rate (none readable: evaluate_on_dataset names every failure)
     rate_hz = 1.0 if first is None else 1.0 / float(np.diff(first.timestamps_s)[0])
     sensor, sensor_rec = _design_sensor(rate_hz, design_sensor)
     ev = _evaluate_table(kernel, task, entry, ds, net, evaluator, sensor, events_fn, fraction)
+    if entry.get("sampling") is not None:
+        ev = per_video_evaluation(ev, ds.video_of, task, ds.num_classes)
     metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, ev.targets, evaluator)
     n = len(ev.clip_indices)
     t, h, w = (first if first is not None else ds[int(ev.clip_indices[0])]).frames.shape
@@ -688,8 +713,36 @@ def dataset_evidence(
         clip_event_rates=np.asarray(ev.event_counts, dtype=np.float64) / (h * w * ev.durations_s),
         failures=ev.failures,
         n_drawn=len(drawn),
+        details=_task_details(metric, ds, ev, entry, evaluator),
     )
     return evidence, sensor_rec
+
+
+def _clips_per_video(ds: Any, entry: Mapping[str, Any], drawn: np.ndarray) -> tuple[Any, Mapping[str, Any], Any]:
+    """With a ``sampling`` table: the drawn videos' clips (several per video, scored per video), the table
+    scoring all of them, and the clips to probe for the frame rate; without: as given."""
+    from ..tasks.clip_sampling import SampledVideoClips, SamplingSpec
+
+    if entry.get("sampling") is None:
+        return ds, entry, drawn
+    clips = SampledVideoClips(ds, ds.size, SamplingSpec(**entry["sampling"]), video_indices=drawn)
+    return clips, {**entry, "n_clips": 0}, range(len(clips))
+
+
+def _task_details(metric: Any, ds: Any, ev: Any, entry: Mapping[str, Any], evaluator: Any) -> dict[str, Any]:
+    """The track's per-class metrics with CIs (seeded with the clip draw's seed: every kernel gets the
+    same resamples) and the dataset's summary (:mod:`fsdvs_hw.tasks.per_class`)."""
+    from ..tasks.per_class import dataset_summary, per_class_metrics
+
+    logits = ev.predictions.get("logits") if evaluator.name == "recognition" else None
+    predicted = None if logits is None else np.asarray(logits).argmax(axis=1)
+    train = entry.get("train") or {}
+    return {
+        "per_class": per_class_metrics(metric, ds.class_names, predicted=predicted, seed=int(entry["seed"])),
+        "dataset_summary": dataset_summary(
+            ds, ev.clip_indices, train_size=(train.get("n_train") or None) if train else None
+        ),
+    }
 
 
 def user_task_record(entry: Mapping[str, Any]) -> dict[str, Any]:

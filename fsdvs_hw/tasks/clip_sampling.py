@@ -234,6 +234,9 @@ class SampledVideoClips(ClipDataset):
     spec : SamplingSpec
     train : bool
         Training sampling (random) or test sampling (even, centre).
+    video_indices : array of int, optional
+        Only these videos of ``videos`` (a scored draw), in this order; :attr:`video_of` names
+        them by their index in ``videos``.
 
     Example
     -------
@@ -243,7 +246,9 @@ class SampledVideoClips(ClipDataset):
     (True, (8, 64, 64))
     """
 
-    def __init__(self, videos: Any, size: Sequence[int], spec: SamplingSpec, *, train: bool = False) -> None:
+    def __init__(
+        self, videos: Any, size: Sequence[int], spec: SamplingSpec, *, train: bool = False, video_indices: Any = None
+    ) -> None:
         from ..scenes.datasets import VideoFolderDataset
 
         if not isinstance(videos, VideoFolderDataset):
@@ -266,18 +271,22 @@ class SampledVideoClips(ClipDataset):
         self.out_size = (int(size[0]), int(size[1]))
         self.size = self.out_size
         self._probes: dict[int, tuple[int, int, int]] = {}
+        chosen = np.arange(len(videos)) if video_indices is None else np.asarray(list(video_indices), dtype=np.int64)
+        if len(chosen) == 0 or chosen.min() < 0 or chosen.max() >= len(videos):
+            raise InputError(f"sampling: video_indices must be video indices in [0, {len(videos)}), got {len(chosen)}")
+        self.chosen = chosen
 
     def __len__(self) -> int:
-        return len(self.videos) * self.k
+        return len(self.chosen) * self.k
 
     @property
     def video_of(self) -> np.ndarray:
-        """The video index of every clip (int64, shape (len,))."""
-        return np.arange(len(self), dtype=np.int64) // self.k
+        """The video (its index in ``videos``) of every clip (int64, shape (len,))."""
+        return np.repeat(self.chosen, self.k)
 
     def clip_files(self, i: int) -> tuple[Any, ...]:
         """The video of clip ``i``."""
-        return tuple(self.videos.clip_files(i // self.k))
+        return tuple(self.videos.clip_files(int(self.chosen[i // self.k])))
 
     def probe(self, v: int) -> tuple[int, int, int]:
         """(frames, height, width) of video ``v`` (read once per process)."""
@@ -287,7 +296,8 @@ class SampledVideoClips(ClipDataset):
 
     def placement(self, j: int) -> dict[str, Any]:
         """Clip ``j``'s video, start frame, crop placement (fractions) and flip."""
-        v, slot = divmod(int(j), self.k)
+        n_th, slot = divmod(int(j), self.k)
+        v = int(self.chosen[n_th])
         n, _, _ = self.probe(v)
         base = self.videos.start_frame
         span = (self.n_frames - 1) * self.videos.stride + 1

@@ -584,7 +584,7 @@ def per_video_evaluation(
     -------
     DatasetEvaluation
         One entry per video: ``per_clip`` is each video's top-1, ``clip_indices`` the video indices,
-        ``event_counts`` and ``durations_s`` the sums over its clips, ``predictions["logits"]`` the
+        ``event_counts`` and ``durations_s`` the means over its clips, ``predictions["logits"]`` the
         log mean probabilities; ``metrics`` over the videos.
 
     Example
@@ -610,8 +610,8 @@ def per_video_evaluation(
     first = np.asarray([np.flatnonzero(vid == v)[0] for v in videos])
     labels = np.asarray(evaluation.targets["motion"])[first]
     per_video = (scores.argmax(dim=1).numpy() == labels).astype(np.float64)
-    sums = {
-        name: np.asarray([arr[vid == v].sum() for v in videos])
+    means = {
+        name: np.asarray([arr[vid == v].mean() for v in videos])
         for name, arr in (("events", evaluation.event_counts), ("durations", evaluation.durations_s))
     }
     return DatasetEvaluation(
@@ -620,10 +620,10 @@ def per_video_evaluation(
         primary_metric=ev.primary_metric,
         per_clip=per_video,
         clip_indices=videos,
-        event_counts=sums["events"],
+        event_counts=means["events"],
         predictions={"logits": scores.numpy()},
         targets={"motion": labels},
         seconds=evaluation.seconds,
-        durations_s=sums["durations"],
+        durations_s=means["durations"],
         failures=evaluation.failures,
     )

@@ -88,7 +88,18 @@ from .training import (
     train_epochs,
 )
 
-__all__ = ["DatasetTrainingResult", "disjoint_train_indices", "load_trained", "train_on_dataset"]
+__all__ = [
+    "RESULT_NEUTRAL_TRAIN_KEYS",
+    "DatasetTrainingResult",
+    "disjoint_train_indices",
+    "load_trained",
+    "streaming_arguments",
+    "train_on_dataset",
+    "validation_split",
+]
+
+#: ``train`` keys that change no trained weight (how the clips are loaded): left out of fingerprints.
+RESULT_NEUTRAL_TRAIN_KEYS = ("memory_mb", "workers")
 
 _STAGES = ("frozen_filter", "joint")
 
@@ -722,6 +733,37 @@ def _streaming_options(sampling: Any, stream: Any, val_fraction: Any) -> _Stream
     if stream is not None and not isinstance(stream, StreamSpec):
         raise InputError(f"train_on_dataset: stream is a {type(stream).__name__}; allowed: a StreamSpec")
     return _Streaming(sampling, StreamSpec() if stream is None else stream, val_fraction)
+
+
+def streaming_arguments(sampling: Any, train: Any) -> dict[str, Any]:
+    """:func:`train_on_dataset`'s ``sampling``, ``stream`` and ``val_fraction`` from a design's tables.
+
+    Parameters
+    ----------
+    sampling : mapping or None
+        ``[tasks.datasets.<task>] sampling`` dumped (:class:`~fsdvs_hw.design.user_data_section.SamplingTable`).
+    train : mapping
+        The ``train`` table dumped (``memory_mb``, ``workers``, ``val_fraction``; absent keys: their defaults).
+
+    Examples
+    --------
+    >>> streaming_arguments(None, {"memory_mb": None, "workers": 0, "val_fraction": 0.0})
+    {'sampling': None, 'stream': None, 'val_fraction': 0.0}
+    >>> streaming_arguments(None, {"memory_mb": 256.0, "workers": 2})["stream"].memory_mb
+    256.0
+    """
+    from .clip_sampling import SamplingSpec
+    from .clip_stream import StreamSpec
+
+    memory_mb, workers = train.get("memory_mb"), int(train.get("workers") or 0)
+    stream = None
+    if memory_mb is not None or workers:
+        stream = StreamSpec(memory_mb=1024.0 if memory_mb is None else float(memory_mb), workers=workers)
+    return {
+        "sampling": None if sampling is None else SamplingSpec(**dict(sampling)),
+        "stream": stream,
+        "val_fraction": float(train.get("val_fraction") or 0.0),
+    }
 
 
 def validation_split(indices: Any, val_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
