@@ -105,3 +105,18 @@ def test_project_files_read_identically_in_faery(tmp_path, encoding, suffix):
     np.testing.assert_array_equal(got["x"], ev.x)
     np.testing.assert_array_equal(got["y"], ev.y)
     np.testing.assert_array_equal(on, ev.p > 0)
+
+
+@pytest.mark.parametrize("version,suffix", [("evt2", ".raw"), ("evt3", ".raw"), ("dat2", ".dat"), ("dat1", ".dat")])
+@pytest.mark.parametrize("chunk", [3, 7, 64])
+def test_chunked_decoding_carries_the_stream_state(tmp_path, monkeypatch, version, suffix, chunk):
+    """Decoded a few words at a time (time, row, vector base and clock turns handed from chunk to
+    chunk, vectors cut in the middle), faery's files give the same events as in one piece."""
+    from fsdvs_hw.sensor.eventfiles import prophesee
+
+    width, height = (304, 240) if version == "dat1" else (640, 480)
+    ev = _faery_events(600, width, height, 60_000_000, seed=2)
+    path = tmp_path / f"faery{suffix}"
+    faery.events_stream_from_array(ev, dimensions=(width, height)).to_file(path, version=version)
+    monkeypatch.setattr(prophesee, "CHUNK_WORDS", chunk)
+    _same(ev, read_recording(path), width, height)

@@ -430,15 +430,100 @@ def _dat_body(p: Path, head: bytes, body: int, size: int, header: dict[str, str]
     return encoding, etype == _DAT_TRIGGER_TYPE, body + 2
 
 
-def _decode_body(p: Path, encoding: str, trigger_file: bool, body: int) -> _Decoded:
-    if encoding == "evt3":
-        return decode_evt3_all(np.fromfile(p, dtype="<u2", offset=body), path=p, offset=body)
-    if encoding == "evt2":
-        return decode_evt2(np.fromfile(p, dtype="<u4", offset=body), path=p, offset=body)
-    version = 1 if encoding == "dat1" else 2
-    return decode_dat(
-        np.fromfile(p, dtype="<u4", offset=body), version=version, triggers=trigger_file, path=p, offset=body
-    )
+#: Words decoded at a time: the decoders' temporaries (about 150 B per word, up to ~800 B for a
+#: chunk of EVT 3.0 vectors with every bit set) stay bounded whatever the file's size; the state
+#: a stream carries (time, row, vector base, clock turns) is handed from chunk to chunk.
+CHUNK_WORDS = 1 << 18
+
+
+def _wraps(raw: np.ndarray, bits: int) -> int:
+    """Clock turns in a sequence of raw ``bits``-bit counter values (falls of more than half the range)."""
+    return int((np.diff(raw.astype(np.int64)) < -(1 << (bits - 1))).sum()) if raw.size > 1 else 0
+
+
+def _last(w: np.ndarray, is_type: np.ndarray) -> np.ndarray:
+    """The last word of ``w`` where ``is_type`` (empty if none)."""
+    i = np.flatnonzero(is_type)
+    return w[i[-1:]]
+
+
+class _Stream:
+    """Decodes a Prophesee body chunk by chunk, carrying the stream's state across chunks."""
+
+    def __init__(self, p: Path, encoding: str, trigger_file: bool) -> None:
+        self.p, self.encoding, self.trigger_file = p, encoding, trigger_file
+        self.prefix = np.zeros(0, dtype={"evt2": "<u4", "evt3": "<u2"}.get(encoding, "<u4"))
+        self.t_base = 0  # µs added for the clock turns of earlier chunks
+        self.base_beyond = False  # EVT 3.0: the vector base has run past column 2047
+
+    def step(self, chunk: np.ndarray, offset: int) -> _Decoded:
+        w = np.concatenate([self.prefix, chunk])
+        start = offset - self.prefix.nbytes
+        if self.encoding == "evt2":
+            dec = decode_evt2(w, path=self.p, offset=start)
+            th = _last(w, (w >> 28) == 0x8)
+            turns = _wraps(w[(w >> 28) == 0x8] & 0x0FFFFFFF, 28) << 34
+            self.prefix = th
+        elif self.encoding == "evt3":
+            dec = self._evt3(w, start)
+            turns = _wraps(w[(w >> 12) == 0x8] & 0xFFF, 12) << 24
+        else:
+            r = w.reshape(-1, 2)
+            dec = decode_dat(
+                r, version=1 if self.encoding == "dat1" else 2, triggers=self.trigger_file, path=self.p, offset=start
+            )
+            if self.prefix.size:  # the carried record was decoded again: drop it
+                dec = _Decoded(dec.events[1:], dec.triggers[1:] if self.trigger_file else dec.triggers)
+            turns = _wraps(r[:, 0], 32) << 32
+            self.prefix = r[-1].copy()
+        dec.events["t"] += self.t_base
+        dec.triggers["t_us"] += self.t_base
+        self.t_base += turns
+        return dec
+
+    def _evt3(self, w: np.ndarray, start: int) -> _Decoded:
+        typ = w >> 12
+        is_base, is_vec = typ == 0x3, (typ == 0x4) | (typ == 0x5)
+        if self.base_beyond and is_vec.any() and (not is_base.any() or np.argmax(is_vec) < np.argmax(is_base)):
+            i = int(np.argmax(is_vec))
+            raise field_error(
+                self.p, "x", f"vector word at byte offset {start + 2 * i} runs beyond EVT 3.0's 2048 columns"
+            )
+        dec = decode_evt3_all(w, path=self.p, offset=start)
+        keep = [_last(w, typ == k) for k in (0x8, 0x6, 0x0)]
+        self.base_beyond = False
+        if is_base.any():
+            b = int(np.flatnonzero(is_base)[-1])
+            after = typ[b + 1 :]
+            x = int(w[b] & 0x7FF) + 12 * int((after == 0x4).sum()) + 8 * int((after == 0x5).sum())
+            if x <= 0x7FF:
+                keep.append(np.array([(int(w[b]) & 0xF800) | x], dtype="<u2"))
+            else:
+                self.base_beyond = True
+        self.prefix = np.concatenate(keep).astype("<u2")
+        return dec
+
+
+def _decode_body(p: Path, encoding: str, trigger_file: bool, body: int, size: int) -> _Decoded:
+    """The whole body decoded chunk by chunk (:data:`CHUNK_WORDS`), the events' memory checked as they grow."""
+    word = _WORD_BYTES[encoding]
+    n = (size - body) // word
+    dtype, per_word = {"evt2": ("<u4", 1), "evt3": ("<u2", 1)}.get(encoding, ("<u4", 2))
+    stream = _Stream(p, encoding, trigger_file)
+    events, triggers, total = [], [], 0
+    for i in range(0, n, CHUNK_WORDS):
+        k = min(CHUNK_WORDS, n - i)
+        chunk = np.fromfile(p, dtype=dtype, count=k * per_word, offset=body + i * word)
+        if chunk.size != k * per_word:
+            raise field_error(p, "(body)", f"file shrank while being read (at byte offset {body + i * word})")
+        dec = stream.step(chunk, body + i * word)
+        total += dec.events.size + dec.triggers.size
+        check_allocation(f"event file {str(p)!r}: {total} events decoded so far", total * (EVENT_BYTES + 13))
+        events.append(dec.events)
+        triggers.append(dec.triggers)
+    if not events:
+        return _Decoded(np.zeros(0, _EVT3_DTYPE), no_triggers())
+    return _Decoded(np.concatenate(events), np.concatenate(triggers))
 
 
 def read_prophesee(path: str | Path, *, width: int | None = None, height: int | None = None) -> EventFile:
@@ -501,9 +586,7 @@ def read_prophesee(path: str | Path, *, width: int | None = None, height: int | 
         if given is not None and found is not None and given != found:
             raise InputError(f"event file {str(p)!r}: {name}={given} given, the header says {found}")
     t0 = _t0(p, header)
-    n_max = (size - body) // word
-    check_allocation(f"event file {str(p)!r}: up to {n_max} events", n_max * (EVENT_BYTES + 16))
-    decoded = _decode_body(p, encoding, trigger_file, body)
+    decoded = _decode_body(p, encoding, trigger_file, body, size)
     arr = decoded.events
     t, x, y, pol = (np.ascontiguousarray(arr[k]) for k in ("t", "x", "y", "p"))
     t = t.astype(np.int64) + t0
