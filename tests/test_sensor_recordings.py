@@ -10,7 +10,6 @@ from fsdvs_hw.sensor.eventfiles.eventfile import EventFile, write_events
 from fsdvs_hw.sensor.eventfiles.prophesee import decode_evt3, read_prophesee, write_prophesee
 from fsdvs_hw.sensor.eventfiles.recordings import read_recording, read_recording_events
 
-expelliarmus = pytest.importorskip("expelliarmus")
 pytest.importorskip("hdf5plugin")
 
 _COLS = ("t_us", "x", "y", "p")
@@ -44,7 +43,8 @@ def test_prophesee_round_trip_identical(tmp_path, encoding, suffix):
 
 @pytest.mark.parametrize("encoding,suffix", [("evt2", ".raw"), ("dat", ".dat")])
 def test_reads_files_written_by_expelliarmus(tmp_path, encoding, suffix):
-    """The library's own writer (no geometry in its header) is read back identically."""
+    """expelliarmus's writer (no geometry in its header): its files read back identically."""
+    expelliarmus = pytest.importorskip("expelliarmus")
     ev = _events(width=640, height=480)
     arr = np.zeros(len(ev), dtype=[("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("p", "u1")])
     arr["t"], arr["x"], arr["y"], arr["p"] = ev.t_us, ev.x, ev.y, ev.p > 0
