@@ -128,6 +128,9 @@ class ClipEvidence:
         counts the others.
     n_drawn : int
         User data: the clips drawn (scored + failed); 0 where not recorded.
+    details : dict
+        User data: record keys of the track besides the metric (``per_class``: each class's metric
+        with its CI, :func:`fsdvs_hw.tasks.per_class.per_class_metrics`; ``dataset_summary``).
     """
 
     task: str
@@ -143,6 +146,7 @@ class ClipEvidence:
     clip_event_rates: np.ndarray | None = dataclasses.field(default=None, repr=False)
     failures: tuple[Any, ...] = ()
     n_drawn: int = 0
+    details: dict[str, Any] = dataclasses.field(default_factory=dict, repr=False)
 
 
 def clip_evidence(

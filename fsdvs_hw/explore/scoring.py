@@ -372,6 +372,7 @@ def _evidence_record(
         "wall_s": time.perf_counter() - t0,
     }
     if isinstance(networks, Mapping):
+        rec.update(evid[0].details)  # per_class, dataset_summary (explore.user_data.dataset_evidence)
         rec.update(_failed_clips_record(evid[0]))
         rec["max_failed_clip_fraction"] = float(
             networks.get("max_failed_clip_fraction", DEFAULT_MAX_FAILED_CLIP_FRACTION)

@@ -713,6 +713,7 @@ def dataset_evidence(
         clip_event_rates=np.asarray(ev.event_counts, dtype=np.float64) / (h * w * ev.durations_s),
         failures=ev.failures,
         n_drawn=len(drawn),
+        details=_task_details(metric, ds, ev, entry, evaluator, rate_hz if first is not None else None),
     )
     return evidence, sensor_rec
 
@@ -726,6 +727,24 @@ def _clips_per_video(ds: Any, entry: Mapping[str, Any], drawn: np.ndarray) -> tu
         return ds, entry, drawn
     clips = SampledVideoClips(ds, ds.size, SamplingSpec(**entry["sampling"]), video_indices=drawn)
     return clips, {**entry, "n_clips": 0}, range(len(clips))
+
+
+def _task_details(
+    metric: Any, ds: Any, ev: Any, entry: Mapping[str, Any], evaluator: Any, fps: float | None
+) -> dict[str, Any]:
+    """The track's per-class metrics with CIs (seeded with the clip draw's seed: every kernel gets the
+    same resamples) and the dataset's summary (:mod:`fsdvs_hw.tasks.per_class`)."""
+    from ..tasks.per_class import dataset_summary, per_class_metrics
+
+    logits = ev.predictions.get("logits") if evaluator.name == "recognition" else None
+    predicted = None if logits is None else np.asarray(logits).argmax(axis=1)
+    train = entry.get("train") or {}
+    return {
+        "per_class": per_class_metrics(metric, ds.class_names, predicted=predicted, seed=int(entry["seed"])),
+        "dataset_summary": dataset_summary(
+            ds, ev.clip_indices, train_size=(train.get("n_train") or None) if train else None, fps=fps
+        ),
+    }
 
 
 def user_task_record(entry: Mapping[str, Any]) -> dict[str, Any]:

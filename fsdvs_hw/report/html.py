@@ -35,6 +35,7 @@ from .codesign_section import codesign_section
 from .costs import cost_section, with_cost_columns
 from .failures import failures_section, task_failures
 from .metalens_layout_section import metalens_layout_section
+from .per_class_section import per_class_section
 from .present import cost_label, number, plain, point_title, si, style, title
 from .report_input import ReportInput
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
@@ -531,6 +532,7 @@ def write_report(points: Sequence[ScoredPoint], report: ReportInput, out_dir: st
     write_scores(rows, out, full=[p.to_dict() for p in points], design=report.stamp())
     path = out / "report.html"
     sections = [metalens_layout_section(rows, accuracy_axis(rows)[0])]  # ideal phase → library → layout
+    sections.append(per_class_section(points, _figure))  # user-data tasks: per-class metrics, confusion matrix
     if report.codesign is not None and report.codesign_enabled:
         sections.append(codesign_section(report.codesign))
     # atomically, never through a symbolic link planted in the folder
