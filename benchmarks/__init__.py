@@ -38,6 +38,7 @@ BENCHMARKS: dict[str, str] = {
     "stats": "benchmarks.stats:bench_stats",
     "sensors": "benchmarks.sensors:bench_sensors",
     "user_data": "benchmarks.user_data:bench_user_data",
+    "user_data_stages": "benchmarks.user_data_stages:bench_user_data_stages",
     "upsampling": "benchmarks.upsampling:bench_upsampling",
     "demo": "benchmarks.demo:bench_demo",
 }
