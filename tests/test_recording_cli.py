@@ -149,3 +149,20 @@ def test_simulate_offers_the_camera_presets(tmp_path, preset):
     assert len(got) == len(want)
     assert np.array_equal(got.t_us, np.rint(want.t.numpy() * 1e6).astype(np.int64))
     assert np.array_equal(got.x, want.x.numpy()) and np.array_equal(got.p, want.p.numpy())
+
+
+def test_calibrate_static_scene_noise_rates(tmp_path, capsys):
+    """A static scene with shot noise 2 Hz per pixel and no leak: --static fits the noise rates."""
+    import torch
+
+    from fsdvs_hw.sensor import SensorConfig, event_list
+
+    cfg = SensorConfig.ideal(0.2, shot_noise_rate_hz=2.0, seed=3)
+    ev = event_list(torch.full((1, 2, 16, 16), 0.5), config=cfg, timestamps_s=torch.tensor([0.0, 20.0]))
+    path = tmp_path / "static.npz"
+    write_events(path, ev, 16, 16)
+    argv = ["recording", "calibrate", str(path), "--static", "--duration-s", "20", "--n-boot", "50", "--json"]
+    assert main(argv) == 0
+    rows = {r["parameter"]: r for r in json.loads(capsys.readouterr().out)["estimates"]}
+    shot = rows["shot_noise_rate_hz"]
+    assert shot["low"] <= 2.0 <= shot["high"] and shot["value"] == pytest.approx(2.0, rel=0.15)
