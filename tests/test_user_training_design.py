@@ -9,6 +9,7 @@ keys are refused naming the key, the value and the range.
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -134,7 +135,11 @@ def test_ablation_on_user_data_gives_paired_gains_and_refuses_synthetic_options(
         str(tmp_path / "abl"),
         "--no-progress",
     ]
-    assert main(args) == 0
+    assert main([a for a in args if a != "--no-progress"]) == 0  # verbose: one line per epoch
+    err = capsys.readouterr().err  # each run's epoch lines say its kernel size and seed (runs may interleave)
+    epochs = [line for line in err.splitlines() if "epoch" in line]
+    assert epochs and all(re.match(r"\[segmentation k=[13] s=[01]\] ", line) for line in epochs)
+    assert "[segmentation k=3 s=1] " in err
     res = json.loads((tmp_path / "abl" / "ablation.json").read_text())
     wo, k3 = res["rows"]
     assert (wo["label"], k3["label"]) == ("w/o", "3x3") and res["n_clips"] == 3

@@ -22,8 +22,11 @@ Efron & Tibshirani, "An Introduction to the Bootstrap", Chapman & Hall (1993).
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
-from collections.abc import Sequence
+import sys
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +35,49 @@ import numpy as np
 from ..errors import InputError
 from ..paths import Confinement
 
-__all__ = ["run_user_ablation"]
+__all__ = ["labelled_stderr", "run_user_ablation"]
+
+
+class _LabelledLines(io.TextIOBase):
+    """A text stream that writes every line to ``stream`` with ``label`` in front (whole lines, flushed)."""
+
+    def __init__(self, stream: Any, label: str) -> None:
+        self.stream, self.label, self.pending = stream, label, ""
+
+    def write(self, text: str) -> int:
+        self.pending += text
+        *lines, self.pending = self.pending.split("\n")
+        for line in lines:
+            self.stream.write(f"{self.label}{line}\n")
+        if lines:
+            self.stream.flush()
+        return len(text)
+
+    def flush(self) -> None:
+        if self.pending:
+            self.stream.write(f"{self.label}{self.pending}")
+            self.pending = ""
+        self.stream.flush()
+
+
+@contextlib.contextmanager
+def labelled_stderr(label: str) -> Iterator[None]:
+    """Every line written to stderr inside the block starts with ``label`` (the run's kernel size and seed).
+
+    Parallel runs of an ablation interleave their epoch lines on one terminal; the label says
+    which run each line is from.
+
+    Examples
+    --------
+    >>> with labelled_stderr("[recognition k=5 s=1] "):
+    ...     print("epoch 1/4", file=sys.stderr)   # doctest: +SKIP
+    """
+    stream = _LabelledLines(sys.stderr, label)
+    try:
+        with contextlib.redirect_stderr(stream):
+            yield
+    finally:
+        stream.flush()
 
 
 def run_user_ablation(
@@ -316,9 +361,16 @@ def _train_and_score(
 
         torch.set_num_threads(int(threads))
     ds = open_dataset(entry["dataset"], base_dir, confine=confine, key=f"tasks.datasets.{task}.dataset")
-    res = train_user_task(
-        task, entry, base_dir, confine=confine, verbose=verbose, overrides={"kernel_size": size, "seed": seed}, out=stem
-    )
+    with labelled_stderr(f"[{task} k={size} s={seed}] "):  # parallel runs' lines say which run they are from
+        res = train_user_task(
+            task,
+            entry,
+            base_dir,
+            confine=confine,
+            verbose=verbose,
+            overrides={"kernel_size": size, "seed": seed},
+            out=stem,
+        )
     ev = evaluate_on_dataset(
         res.kernel, task, ds, res.network, n_clips=entry["n_clips"] or None, seed=entry["seed"], device=entry["device"]
     )
