@@ -107,13 +107,15 @@ def _train(ds, n_idx, **kw):
     return train_on_dataset(ds, "recognition", "toy_network:make", train_indices=np.arange(n_idx), **{**args, **kw})
 
 
-def test_worker_processes_give_the_same_training():
+def test_workers_and_memory_bound_give_the_same_training():
     ds = ProceduralClips(24, size=(32, 32), n_frames=4)
     a = _train(ds, 24, stream=StreamSpec(memory_mb=64.0, workers=0), epochs_joint=1)
     b = _train(ds, 24, stream=StreamSpec(memory_mb=64.0, workers=2), epochs_joint=1)
-    assert b.provenance["streaming"]["workers"] == 2
-    assert a.history[0]["loss"] == b.history[0]["loss"]
+    c = _train(ds, 24, stream=StreamSpec(memory_mb=0.3, workers=3), epochs_joint=1)  # no worker fits
+    assert b.provenance["streaming"]["workers"] == 2 and c.provenance["streaming"]["workers"] == 0
+    assert a.history[0]["loss"] == b.history[0]["loss"] == c.history[0]["loss"]
     np.testing.assert_array_equal(a.kernel.taps, b.kernel.taps)
+    np.testing.assert_array_equal(a.kernel.taps, c.kernel.taps)
 
 
 def test_validation_metric_every_epoch_and_the_best_epoch_kept(tmp_path):

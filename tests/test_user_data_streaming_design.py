@@ -65,7 +65,7 @@ def test_design_keys_train_streamed_with_validation_and_score_per_video(folder):
     assert all("val_metric" in h for h in res.history) and rec["best_epoch"] in (0, 1)
     fp = res.provenance["fingerprint"]
     assert fp["sampling"]["clips_per_video"] == 2 and fp["train"]["val_fraction"] == 0.34
-    assert "memory_mb" not in fp["train"] and "workers" not in fp["train"]
+    assert "memory_mb" not in fp["train"] and "workers" not in fp["train"] and fp["train"]["streamed"] is True
     # another memory bound changes no weight: the finished checkpoint is reused
     again = train_user_task("recognition", _entry(memory_mb=32.0, workers=1, val_fraction=0.34), folder)
     assert again.epochs_trained == 0

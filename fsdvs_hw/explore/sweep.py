@@ -127,10 +127,13 @@ def _point_key(realisation: str, design: Design) -> str:
 
 def _drop_unset_streaming_keys(entry: dict[str, Any]) -> None:
     """A table's sampling and val_fraction only when set (the key of a store written before they existed);
-    the loader's memory_mb and workers never (they change no score)."""
+    of the loader's memory_mb and workers only whether the clips stream (streamed runs train the same
+    network whatever they are; an in-memory run another)."""
     if entry.get("sampling") is None:
         entry.pop("sampling", None)
     train = entry.get("train") or {}
+    if train.get("memory_mb") is not None or train.get("workers"):
+        train["streamed"] = True
     for k in ("memory_mb", "workers"):
         train.pop(k, None)
     if not train.get("val_fraction"):

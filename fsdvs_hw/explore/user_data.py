@@ -250,14 +250,18 @@ def _streaming_arguments(entry: Mapping[str, Any], spec: Mapping[str, Any]) -> d
 
 
 def _add_streaming_keys(fingerprint: dict[str, Any], entry: Mapping[str, Any]) -> None:
-    """The sampling table and val_fraction in a training fingerprint when set; the loader's keys never (they
-    change no weight), so checkpoints trained before these keys existed keep their fingerprint."""
+    """The sampling table and val_fraction in a training fingerprint when set, and ``streamed`` when the
+    clips stream; the loader's memory_mb and workers never (streamed runs give the same weights whatever
+    they are), so checkpoints trained before these keys existed keep their fingerprint."""
     from ..tasks.dataset_training import RESULT_NEUTRAL_TRAIN_KEYS
 
     train = fingerprint["train"]
+    streamed = train.get("memory_mb") is not None or bool(train.get("workers"))
     for k in (*RESULT_NEUTRAL_TRAIN_KEYS, "val_fraction"):
         if k in RESULT_NEUTRAL_TRAIN_KEYS or not train.get(k):
             train.pop(k, None)
+    if streamed:  # the simulator's noise is drawn per batch, not per chunk of held clips: other weights
+        train["streamed"] = True
     if entry.get("sampling") is not None:
         fingerprint["sampling"] = dict(entry["sampling"])
 
