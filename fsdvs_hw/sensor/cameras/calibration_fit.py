@@ -502,7 +502,7 @@ def _fit(
     right_sign = pairs.pol * pairs.d > 0
     # a pair that lost crossings to the refractory period R is closer than 2 R: fit the thresholds on
     # pairs at least twice the 0.1 % quantile of the intervals apart (about 2 R), refined once R is known
-    min_dt = 2.0 * float(np.quantile(pairs.dt[right_sign], 0.001)) if right_sign.any() else 0.0
+    min_dt = 2.0 * float(np.quantile(pairs.dt[right_sign], 0.02)) if right_sign.any() else 0.0
     map_on, map_off = _thresholds(est, pairs, n_pix, min_events, n_boot, level, rng, min_dt, np.ones(n_pix, bool))
     c_on, c_min = est["threshold_on"].value, min(est["threshold_on"].value, est["threshold_off"].value)
     static = np.abs(np.diff(grid_L, axis=0)).sum(axis=0) < 0.25 * c_min
@@ -512,6 +512,14 @@ def _fit(
         leak = est["leak_rate_hz"].value
     else:
         notes.append(f"noise rates: only {int(static.sum())} static pixels (need 10)")
+    from_counts = est.get("leak_rate_hz")
+    if _leak_from_pairs(est, pairs, (map_on, map_off), ~static, min_dt, c_on, n_boot, level, rng):
+        leak = est["leak_rate_hz"].value
+        if from_counts is not None:
+            notes.append(
+                f"leak from the static pixels' counts: {from_counts.value:.4g} [{from_counts.low:.4g}, "
+                f"{from_counts.high:.4g}] Hz ({from_counts.status}); the moving pixels' pair slope is reported"
+            )
     if leak > 0:  # remove the reference's leak drift
         pairs = _pairs(t, pix, p, grid_t, grid_L, leak * c_on)
     _refractory(
@@ -708,6 +716,51 @@ def _noise(
     )
 
 
+def _leak_from_pairs(
+    est: dict[str, Estimate],
+    pairs: _Pairs,
+    maps: tuple[np.ndarray, np.ndarray],
+    active: np.ndarray,
+    min_dt: float,
+    c_on: float,
+    n_boot: int,
+    level: float,
+    rng: np.random.Generator,
+) -> bool:
+    """The leak from the moving pixels, without a steady state: the reference drifts down by
+    ``λ = leak · C_on`` per second, so a pair one threshold apart spans ``pol · d = C - pol · λ ·
+    dt`` in the comparator input. ``λ`` is the least-squares slope of ``pol · d`` on ``-pol · dt``
+    (both centred per pixel and polarity) over the pairs within 10 % of one threshold; pixel
+    bootstrap. False (nothing set) with under 50 such pairs."""
+    c = np.where(pairs.pol > 0, maps[0][pairs.pix], maps[1][pairs.pix])
+    y = pairs.pol * pairs.d
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ok = active[pairs.pix] & (pairs.dt >= min_dt) & np.isfinite(c) & (np.abs(y / c - 1) < 0.1)
+    if ok.sum() < 50:
+        return False
+    pix, pol, dt, y = pairs.pix[ok], pairs.pol[ok], pairs.dt[ok], y[ok]
+    _, inv, cnt = np.unique(pix * 2 + (pol > 0), return_inverse=True, return_counts=True)
+    x = -pol * (dt - (np.bincount(inv, dt) / cnt)[inv])
+    r = y - (np.bincount(inv, y) / cnt)[inv]
+    n_pix = active.size
+    sxy, sxx = np.bincount(pix, x * r, minlength=n_pix), np.bincount(pix, x * x, minlength=n_pix)
+    used = np.flatnonzero(sxx > 0)
+    if used.size < 3:
+        return False
+    b = rng.integers(0, used.size, size=(n_boot, used.size))
+    slope_b = sxy[used][b].sum(axis=1) / sxx[used][b].sum(axis=1)
+    lo, hi = _percentile_ci(slope_b / c_on, level)
+    est["leak_rate_hz"] = Estimate(
+        max(float(sxy[used].sum() / sxx[used].sum()) / c_on, 0.0),
+        max(lo, 0.0),
+        max(hi, 0.0),
+        int(used.size),
+        "drift of the reference (leak · C_on per second) from the slope of the log change between consecutive "
+        "events against their interval in the moving pixels (no steady state assumed); pixel bootstrap",
+    )
+    return True
+
+
 def _refractory(
     est: dict[str, Estimate], pairs: _Pairs, map_on: np.ndarray, map_off: np.ndarray, level: float, resolution: float
 ) -> None:
@@ -733,14 +786,25 @@ def _refractory(
             "bounded by the smallest interval",
         )
         return
-    spacing = float(iei[9] - iei[0]) / 9
+    j = _edge(iei)
+    spacing = float(iei[j + 9] - iei[j]) / 9
     est["refractory_s"] = Estimate(
-        max(float(iei[0]) - spacing * math.log(2), 0.0),
-        max(float(iei[0]) - spacing * math.log(2 / a) - resolution, 0.0),
-        float(iei[0]) - spacing * math.log(1 / (1 - a / 2)) + resolution,
+        max(float(iei[j]) - spacing * math.log(2), 0.0),
+        max(float(iei[j]) - spacing * math.log(2 / a) - resolution, 0.0),
+        float(iei[j]) - spacing * math.log(1 / (1 - a / 2)) + resolution,
         int(iei.size),
-        f"smallest interval less the exponential gap ({swallowed} pairs with swallowed crossings)",
+        f"lower edge of the intervals less the exponential gap ({swallowed} pairs with swallowed crossings; "
+        f"{j} sparser intervals below the edge, noise pairs, left out)",
     )
+
+
+def _edge(iei: np.ndarray) -> int:
+    """Index of the refractory edge in the sorted intervals ``iei``: the first interval from which
+    ten in a row span under 2 % of it. Noise events make a few consistent-looking pairs at any
+    interval below the period; the pairs that lost crossings pile up just above it."""
+    width = iei[9:] - iei[:-9]
+    dense = np.flatnonzero(width <= 0.02 * iei[:-9])
+    return int(dense[0]) if dense.size else 0
 
 
 def _fit_cutoff(
