@@ -190,3 +190,15 @@ def test_the_report_shows_per_class_tables_ap50_ap75_confusion_matrix_and_datase
     )
     assert m is not None and "6 clips" in m.group(1)
     assert base64.b64decode(m.group(2))[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_resampling_in_chunks_gives_the_same_intervals(rng, monkeypatch):
+    """The bootstrap draws are taken in chunks to bound memory; the chunks are the same draws."""
+    from fsdvs_hw.tasks import per_class
+
+    target = rng.integers(0, 3, (9, 6, 6))
+    pred = np.where(rng.random((9, 6, 6)) < 0.6, target, rng.integers(0, 3, (9, 6, 6)))
+    metric = ConfusionMIoU.from_masks(pred, target, 3)
+    whole = per_class_metrics(metric, n_resamples=200, seed=3)
+    monkeypatch.setattr(per_class, "_MAX_WEIGHTS", 9 * 7)  # chunks of 7 resamples
+    assert per_class_metrics(metric, n_resamples=200, seed=3) == whole

@@ -40,6 +40,22 @@ __all__ = ["PER_CLASS_RESAMPLES", "confusion_matrix", "dataset_summary", "per_cl
 #: Bootstrap resamples of a per-class CI (Monte-Carlo error of a 95 % bound ≈ 3 % of its half-width).
 PER_CLASS_RESAMPLES = 1000
 
+#: Clip multiplicities held at once (resamples × clips): bounds the memory of the resampling (8 bytes each).
+_MAX_WEIGHTS = 2_000_000
+
+
+def _resampled(n: int, n_resamples: int, rng: Any, statistic: Any) -> Any:
+    """``statistic(weights)`` over ``n_resamples`` bootstrap draws of ``n`` clips, in chunks of at most
+    :data:`_MAX_WEIGHTS` multiplicities; the chunks' results stacked along the first axis (arrays) or per key (dicts)."""
+    step = max(1, _MAX_WEIGHTS // max(1, n))
+    parts = [
+        statistic(multiplicities(rng.integers(0, n, size=(min(step, n_resamples - s), n)), n))
+        for s in range(0, n_resamples, step)
+    ]
+    if isinstance(parts[0], dict):
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    return np.concatenate(parts)
+
 
 def _interval(values: np.ndarray, confidence: float) -> list[float] | None:
     """Percentile interval of the finite resampled values; None when there are none."""
@@ -92,11 +108,12 @@ def _detection(
     metric: CocoDetections, names: Sequence[str], n_resamples: int, confidence: float, rng: Any
 ) -> dict[str, Any]:
     n = metric.n_clips
-    w = multiplicities(rng.integers(0, n, size=(n_resamples, n)), n)
     ones = np.ones((1, n))
+    state = rng.bit_generator.state  # every category and the overall metric see the same resamples
 
     def with_ci(m: CocoDetections) -> dict[str, Any]:
-        point, boot = m.weighted_all(ones), m.weighted_all(w)
+        rng.bit_generator.state = state
+        point, boot = m.weighted_all(ones), _resampled(n, n_resamples, rng, m.weighted_all)
         return {
             k: {
                 "value": None if not np.isfinite(point[k][0]) else float(point[k][0]),
@@ -126,7 +143,6 @@ def _segmentation(
     metric: ConfusionMIoU, names: Sequence[str], n_resamples: int, confidence: float, rng: Any
 ) -> dict[str, Any]:
     n, c = metric.n_clips, metric.num_classes
-    w = multiplicities(rng.integers(0, n, size=(n_resamples, n)), n)
     flat = metric.confusions.reshape(n, c * c)
 
     def iou(weights: np.ndarray) -> np.ndarray:
@@ -136,7 +152,7 @@ def _segmentation(
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(union > 0, tp / np.where(union > 0, union, 1.0), np.nan)
 
-    point, boot = iou(np.ones((1, n)))[0], iou(w)
+    point, boot = iou(np.ones((1, n)))[0], _resampled(n, n_resamples, rng, iou)
     truth = metric.confusions.sum(axis=(0, 2))  # pixels of each true class
     rows = []
     for k in range(c):
