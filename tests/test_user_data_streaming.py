@@ -21,7 +21,7 @@ import torch
 
 from fsdvs_hw.errors import InputError
 from fsdvs_hw.tasks.clip_stream import StreamSpec, loader_plan
-from fsdvs_hw.tasks.dataset_eval import mean_over_videos, per_video_evaluation
+from fsdvs_hw.tasks.dataset_eval import evaluate_sampled, mean_over_videos, per_video_evaluation
 from fsdvs_hw.tasks.dataset_training import train_on_dataset, validation_split
 
 PLUGINS = Path(__file__).parent / "plugins"
@@ -204,6 +204,12 @@ def test_several_clips_per_video_scored_per_video(video_root):
     np.testing.assert_array_equal(subset[3].frames, clips[3].frames)  # video 1's first clip either way
     with pytest.raises(InputError, match="recognition"):
         per_video_evaluation(per_clip, clips.video_of, "segmentation", 2)
+    drawn = videos.draw(2, seed=1)
+    sampled = evaluate_sampled(
+        None, "recognition", videos, "toy_network:make", sampling={"clips_per_video": 3}, n_clips=2, seed=1
+    )
+    assert sampled.clip_indices.tolist() == drawn.tolist()  # the drawn videos, each scored on its 3 clips
+    np.testing.assert_array_equal(sampled.predictions["logits"], ev.predictions["logits"][drawn])
 
 
 def test_sampled_training_validates_per_video(video_root):

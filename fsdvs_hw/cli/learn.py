@@ -98,7 +98,7 @@ def _run_on_design(args: argparse.Namespace) -> int:
     from ..errors import InputError
     from ..explore.trained_kernel import write_pending_kernel
     from ..explore.user_data import train_user_task
-    from ..tasks.dataset_eval import evaluate_on_dataset
+    from ..tasks.dataset_eval import evaluate_sampled
 
     given = [f"--{k.replace('_', '-')}" for k in _SYNTHETIC_ONLY if getattr(args, k) is not None]
     if given:
@@ -122,11 +122,12 @@ def _run_on_design(args: argparse.Namespace) -> int:
     ds = open_dataset(
         entry["dataset"], design.base_dir, confine=design.confine_paths, key=f"tasks.datasets.{args.task}.dataset"
     )
-    scored = evaluate_on_dataset(
+    scored = evaluate_sampled(  # several clips per video with a sampling table, scored per video
         res.kernel,
         args.task,
         ds,
         res.network,
+        sampling=entry.get("sampling"),
         n_clips=entry["n_clips"] or None,
         seed=entry["seed"],
         device=entry["device"],

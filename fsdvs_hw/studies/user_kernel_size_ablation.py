@@ -353,7 +353,7 @@ def _train_and_score(
     from ..environment import env
     from ..explore.paired import PER_CLIP_METRICS
     from ..explore.user_data import train_user_task
-    from ..tasks.dataset_eval import evaluate_on_dataset, evaluator_for_dataset
+    from ..tasks.dataset_eval import evaluate_sampled, evaluator_for_dataset
 
     threads = env("FSDVS_HW_WORKER_THREADS")
     if threads:
@@ -371,8 +371,15 @@ def _train_and_score(
             overrides={"kernel_size": size, "seed": seed},
             out=stem,
         )
-    ev = evaluate_on_dataset(
-        res.kernel, task, ds, res.network, n_clips=entry["n_clips"] or None, seed=entry["seed"], device=entry["device"]
+    ev = evaluate_sampled(  # several clips per video with a sampling table, scored per video
+        res.kernel,
+        task,
+        ds,
+        res.network,
+        sampling=entry.get("sampling"),
+        n_clips=entry["n_clips"] or None,
+        seed=entry["seed"],
+        device=entry["device"],
     )
     evaluator = evaluator_for_dataset(task, ds)
     metric = PER_CLIP_METRICS[evaluator.name](ev.predictions, ev.targets, evaluator)

@@ -38,6 +38,7 @@ __all__ = [
     "DatasetEvaluation",
     "NetworkOutputError",
     "evaluate_on_dataset",
+    "evaluate_sampled",
     "evaluator_for_dataset",
     "mean_over_videos",
     "per_video_evaluation",
@@ -627,3 +628,54 @@ def per_video_evaluation(
         durations_s=means["durations"],
         failures=evaluation.failures,
     )
+
+
+def evaluate_sampled(
+    kernel: Any,
+    task: Any,
+    dataset: Any,
+    network: Any = None,
+    *,
+    sampling: Any = None,
+    n_clips: int | None = None,
+    seed: int = 0,
+    **options: Any,
+) -> DatasetEvaluation:
+    """:func:`evaluate_on_dataset`, or with ``sampling`` several clips per video scored per video.
+
+    Parameters
+    ----------
+    kernel, task, dataset, network
+        As :func:`evaluate_on_dataset` (with ``sampling``: a ``VideoFolderDataset`` with a ``size``).
+    sampling : SamplingSpec or mapping, optional
+        ``[tasks.datasets.<task>] sampling`` (:class:`fsdvs_hw.tasks.clip_sampling.SamplingSpec`):
+        ``n_clips`` videos are drawn with ``seed`` (None: every video), each scored on its
+        ``clips_per_video`` evenly spaced, centre-cropped clips (:func:`per_video_evaluation`).
+        None: :func:`evaluate_on_dataset` as it is.
+    n_clips, seed
+        The draw (of videos with ``sampling``).
+    **options
+        :func:`evaluate_on_dataset`'s other keywords (``sensor``, ``device``, ``max_failed_fraction``, ...).
+
+    Returns
+    -------
+    DatasetEvaluation
+        Per clip, or per video with ``sampling``.
+
+    Example
+    -------
+    >>> evaluate_sampled(k, "recognition", videos, net, sampling={"clips_per_video": 5}, n_clips=100)  # doctest: +SKIP
+    """
+    if sampling is None:
+        return evaluate_on_dataset(kernel, task, dataset, network, n_clips=n_clips, seed=seed, **options)
+    from .clip_sampling import SampledVideoClips, SamplingSpec
+
+    spec = sampling if isinstance(sampling, SamplingSpec) else SamplingSpec(**dict(sampling))
+    if dataset.size is None:
+        raise InputError(
+            "evaluate_sampled: sampling crops to the dataset's size; field 'size': give dataset.size = [H, W]"
+        )
+    videos = dataset.draw(n_clips, seed) if n_clips else np.arange(len(dataset))
+    clips = SampledVideoClips(dataset, dataset.size, spec, video_indices=videos)
+    ev = evaluate_on_dataset(kernel, task, clips, network, **options)
+    return per_video_evaluation(ev, clips.video_of, task, dataset.num_classes)
