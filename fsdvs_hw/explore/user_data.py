@@ -354,9 +354,20 @@ def user_network_identity(
         "network": entry["network"] or "built-in",
         "options": dict(entry["network_options"]),
         "weights_sha256": _file_digest(weights) if weights else None,
-        "train": entry.get("train"),
         "device": entry["device"],
+        **_streaming_identity(entry),
     }
+
+
+def _streaming_identity(entry: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``train`` table as a training fingerprint holds it (:func:`_add_streaming_keys`), and ``sampling``
+    when set: what :func:`user_network_identity` keys on."""
+    ident: dict[str, Any] = {"train": None if entry.get("train") is None else dict(entry["train"])}
+    if ident["train"] is not None:
+        _add_streaming_keys(ident, entry)
+    elif entry.get("sampling") is not None:
+        ident["sampling"] = dict(entry["sampling"])
+    return ident
 
 
 def _finetune_stages(kernel: Any, realisation: Any, epochs: int, lr_network: float, lr_filter: float) -> dict[str, Any]:
@@ -474,6 +485,8 @@ def finetune_user_network(
     ds = open_dataset(entry["dataset"], base, confine=confine, key=f"{key}.dataset")
     net = open_network(entry, ds, base, confine=confine, key=key)
     stages = _finetune_stages(kernel, realisation, epochs, lr_network, lr_filter)
+    # the table's sampling and loader (no validation split: codesign trains a fixed number of epochs)
+    stages.update(_streaming_arguments(entry, {**spec, "val_fraction": 0.0}))
     return _train_on_clips(
         train_ds,
         train_idx,
