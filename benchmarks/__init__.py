@@ -31,6 +31,7 @@ BENCHMARKS: dict[str, str] = {
     "csf": "benchmarks.csf:bench_csf",
     "tasks": "benchmarks.tasks:bench_tasks",
     "asic": "benchmarks.asic:bench_asic",
+    "asic_sky130": "benchmarks.asic_sky130:bench_asic_sky130",
     "mesh": "benchmarks.mesh:bench_mesh",
     "metalens": "benchmarks.metalens:bench_metalens",
     "sim": "benchmarks.sim:bench_sim",

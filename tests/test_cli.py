@@ -200,6 +200,7 @@ _BAD_VALUES = {
     "simulate": ["simulate", "example:bikes", "--out", "events.txt"],
     "sizing": ["sizing", "designs/default.toml", "--target", "-1"],
     "rate": ["rate", "designs/default.toml", "--task", "no_such_task"],
+    "process-cells": ["process-cells", "--cells", "no_such_cell"],
     "recording": ["recording", "info", "no/such/recording.raw"],
     "information": ["information", "designs/default.toml", "--realisations", "no_such_realisation"],
 }

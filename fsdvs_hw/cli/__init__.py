@@ -38,6 +38,7 @@ COMMANDS: dict[str, str] = {
     "codesign-pilot": "fsdvs_hw.cli.codesign_pilot",
     "ablation": "fsdvs_hw.cli.ablation",
     "rate": "fsdvs_hw.cli.rate",
+    "process-cells": "fsdvs_hw.cli.process_cells",
     "recording": "fsdvs_hw.cli.recording",
     "information": "fsdvs_hw.cli.information",
     "explore": "fsdvs_hw.cli.explore",

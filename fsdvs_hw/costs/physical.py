@@ -52,7 +52,11 @@ def _mesh(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure], list
 
 def _asic(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure], list[str]]:
     return asic_cost(
-        _items(score), a, kernel_size=score.kernel.size, input_bits=int(score.realisation.get("input_bits", 8))
+        _items(score),
+        a,
+        kernel_size=score.kernel.size,
+        input_bits=int(score.realisation.get("input_bits", 8)),
+        sources={k: c.description for k, c in score.cost.items.items()},
     )
 
 

