@@ -52,6 +52,46 @@ print(json.dumps({{"growth": after - before, "loads": ds.loads, "clips": res.his
 """
 
 
+_LOADER_SCRIPT = """
+import json, resource, sys
+import numpy as np
+sys.path.insert(0, {plugins!r})
+from procedural_clips import ProceduralClips
+from fsdvs_hw.tasks.clip_stream import ClipStream, StreamSpec, clip_loader
+import torch
+
+def peak():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+def stream(n):
+    loader, plan = clip_loader(ClipStream(ProceduralClips(n), range(n)), 8, StreamSpec(memory_mb={key}),
+                               generator=torch.Generator().manual_seed(0))
+    return sum(int(v.shape[0]) for v, _ in loader), plan
+
+stream(32)  # warm-up
+before = peak()
+seen, plan = stream({n})
+streamed = peak() - before
+held = [ProceduralClips({n})[i].frames.astype(np.float32) for i in range({n})]  # what holding them costs
+print(json.dumps({{"seen": seen, "plan": plan, "streamed": streamed, "held": peak() - before - streamed}}))
+"""
+
+
+def test_the_loader_streams_a_dataset_five_times_its_key_under_the_key():
+    """The loader alone (no training step, whose allocator caches move the peak by a few MB): fast."""
+    key_mb = KEY_MB
+    n = int(np.ceil(5 * key_mb * 1e6 / (8 * 64 * 64 * 4)))
+    script = _LOADER_SCRIPT.format(plugins=str(PLUGINS), key=key_mb, n=n)
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    dataset_bytes = n * 8 * 64 * 64 * 4
+    assert got["seen"] == n and got["plan"]["held_bytes"] <= key_mb * 1e6 and dataset_bytes >= 5 * key_mb * 1e6
+    assert got["streamed"] < key_mb * 1e6, got
+    assert got["held"] > 3 * key_mb * 1e6, got  # the same measurement sees clips that are held
+
+
 def _peak_growth(n: int, key_mb: float, streamed: bool) -> dict:
     script = _RSS_SCRIPT.format(plugins=str(PLUGINS), key=key_mb, n=n, streamed=streamed)
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
