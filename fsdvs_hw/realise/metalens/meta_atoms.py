@@ -403,6 +403,7 @@ def save_library(library: MetaAtomLibrary, path: str | Path) -> Path:
     with os.fdopen(fd, "w") as fh:
         json.dump(library.to_dict(), fh, indent=1)
         fh.write("\n")
+    os.chmod(tmp, 0o644)  # mkstemp's 0600 would keep a shared cache from other users
     os.replace(tmp, path)
     return path
 
