@@ -139,3 +139,19 @@ def test_a_kernel_the_network_was_not_trained_with_is_refused_with_the_fix(folde
         assert why in msg and "is not the kernel tasks.datasets.recognition's network was trained with" in msg
         assert "Fix: set [kernel] source = 'file' and path = 'trained/recognition.json'" in msg
         assert not (tmp_path / name / "scores.json").exists()  # refused before any point was scored
+
+
+def test_sweep_refuses_the_mismatch_and_a_kernel_not_trained_yet(folder, learned, tmp_path, capsys):
+    from fsdvs_hw.cli import main
+
+    wrong = _design(
+        folder, "sweep_w", '[kernel]\nsource = "reference"\nsize = 3\n', 'weights = "trained/recognition.safetensors"\n'
+    )
+    assert main(["sweep", str(wrong), "--store", str(tmp_path / "s.sqlite"), "--no-progress"]) == 2
+    assert "Fix: set [kernel] source = 'file'" in capsys.readouterr().err
+    table = TRAIN.replace("kernel_size = 3", 'kernel_size = 3, out = "trained/other"')
+    pending = _design(folder, "sweep_p", _file_kernel("kernels/never.json"), table)
+    assert main(["sweep", str(pending), "--store", str(tmp_path / "p.sqlite"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "kernels/never.json" in err and "has not trained yet; run `fsdvs-hw learn recognition --design" in err
+    assert not (tmp_path / "s.sqlite").exists() and not (tmp_path / "p.sqlite").exists()

@@ -47,10 +47,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..design import load_design
     from ..explore.sweep import expand_points, run_design
+    from ..explore.trained_kernel import settle_design_kernel
     from ..paths import output_dir, output_file
     from ..resources import resolve_design
 
-    design = load_design(resolve_design(args.design))
+    # user networks trained with another kernel than the design's are refused (as explore does)
+    design = settle_design_kernel(load_design(resolve_design(args.design)))
     # the design's name is text, not a path: its safe form names the default store
     store_path = output_file(args.store or Path("out") / "sweeps" / f"{design.slug}.sqlite", flag="--store")
     if args.report is not None:
