@@ -14,7 +14,9 @@
 * :mod:`~fsdvs_hw.tasks.user_networks` — a user network by import path (``"pkg.mod:factory"``), its
   event representation, user weights; :mod:`~fsdvs_hw.tasks.dataset_eval` — :func:`evaluate_on_dataset`
   scores a kernel on a user dataset (:mod:`fsdvs_hw.scenes.datasets`);
-  :mod:`~fsdvs_hw.tasks.dataset_training` trains a network and a kernel on one.
+  :mod:`~fsdvs_hw.tasks.dataset_training` trains a network and a kernel on one, its clips streamed
+  with bounded memory by :mod:`~fsdvs_hw.tasks.clip_stream` and sampled (clips per video, crop,
+  flip) by :mod:`~fsdvs_hw.tasks.clip_sampling`.
 * :mod:`~fsdvs_hw.tasks.reconstruction` — events → intensity (a small E2VID-like network), task
   ``"reconstruction"``, registered when that module is imported (the information study,
   :mod:`fsdvs_hw.studies.information`).
