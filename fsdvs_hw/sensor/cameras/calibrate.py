@@ -37,8 +37,15 @@ Method (the pixel model of :mod:`fsdvs_hw.sensor.simulation.events`)
     ON events from shot noise and leak (``shot / 2 + leak``): ``shot = 2 r_off``,
     ``leak = r_on - r_off``. No steady state is assumed: the reference's start phase (at the
     first frame, at random, after a noise reset) moves each pixel's leak count by up to one event,
-    so the leak interval is widened by ``1 / duration`` either side, and a recording that holds
+    so that interval is widened by ``1 / duration`` either side, and a recording that holds
     fewer than two leak periods only *bounds* the leak (``Estimate.status == "bounded"``).
+    *Leak from the moving pixels* (reported whenever 50 pairs allow it; the static count is then
+    a note): the reference drifts down by ``λ = leak · C_on`` per second, so a pair one threshold
+    apart spans ``pol · d = C - pol · λ · dt``; ``λ`` is the least-squares slope of ``pol · d``
+    on ``-pol · dt``, centred per pixel and polarity, over pairs within 10 % of one threshold.
+    It needs no steady state and no leak event, and the thresholds are then fitted with the
+    drift undone (an unknown leak otherwise reads OFF high and ON low by ``λ`` times the pairs'
+    typical interval).
     *Bandwidth*: when no scanned cut-off explains the data better than no filter at all (per-pixel
     gain within two standard errors of 0) or the best is the scan's top, the cut-off is "not
     identifiable" (above the scan; ``value`` inf, the fitted config has no filter).
@@ -55,9 +62,9 @@ What calibration assumes, and what it checks
     alone); the signal is linear between the (sub-)frames. Checked on every input, in every form
     (an object or a path): the geometry against the video's, finite event times, events within
     the video's time span, at least 2 events and enough pairs in the moving pixels (told apart
-    from a video that moves too little). A frame rate too low for the thresholds (moving pixels
-    change by more than one threshold per frame, median) adds a warning with the upsampling
-    advice. After the fit, a posterior-predictive check
+    from a video that moves too little). A frame rate too low for the thresholds (more than half the
+    pairs of consecutive events of a pixel inside one frame interval) adds a warning with the
+    upsampling advice. After the fit, a posterior-predictive check
     (:mod:`fsdvs_hw.sensor.cameras.calibration_check`) simulates the video with the fitted
     parameters and compares the statistics the fit used: ``outcome`` is ``"fits"`` or ``"model
     mismatch"`` (the failing statistic named) instead of a precise wrong answer.

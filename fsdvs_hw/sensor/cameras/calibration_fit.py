@@ -537,7 +537,7 @@ def _fit(
         # would look like (noise-corrupted) thresholds, so the threshold fit leaves them out
         _thresholds(est, pairs, n_pix, min_events, n_boot, level, rng, min_dt, ~static)
     c_min = min(est["threshold_on"].value, est["threshold_off"].value)
-    warnings = _frame_rate_warning(photo, grid_L, c_min, static)
+    warnings = _frame_rate_warning(photo, t, pix, c_min)
     fitted = base.replace(**{k: (0.0 if k == "cutoff_hz" and not math.isfinite(e.value) else e.value)
                              for k, e in est.items()})  # fmt: skip
     return SensorCalibration(est, fitted, level, notes, warnings=warnings)
@@ -563,23 +563,25 @@ def _check_enough_pairs(
         )
 
 
-def _frame_rate_warning(photo: _Photoreceptor, grid_L: np.ndarray, c_min: float, static: np.ndarray) -> list[str]:
-    """The advice to upsample when most frame steps of the moving pixels exceed a threshold."""
-    frames = grid_L[photo.frame_index][:, ~static]
-    step = np.abs(np.diff(frames, axis=0))
-    moving = step > 0.05 * c_min
-    if not moving.any():
+def _frame_rate_warning(photo: _Photoreceptor, t: np.ndarray, pix: np.ndarray, c_min: float) -> list[str]:
+    """The advice to upsample when most pairs of consecutive events of a pixel (``t``, ``pix``:
+    sorted by pixel, then time) fall inside one frame interval: there the fit knows the signal
+    only by interpolating between two frames."""
+    frames = photo.times[photo.frame_index]
+    k = np.searchsorted(frames, t, side="left")
+    same_pixel = pix[1:] == pix[:-1]
+    if not same_pixel.any():
         return []
-    median = float(np.median(step[moving]))
-    if median <= c_min:
+    share = float((k[1:] == k[:-1])[same_pixel].mean())
+    if share <= 0.5:
         return []
-    rate = (photo.frame_index.size - 1) / float(photo.times[-1] - photo.times[0])
+    rate = (frames.size - 1) / float(frames[-1] - frames[0])
     return [
-        f"frame rate {rate:.3g} fps is too low for thresholds near {c_min:.3g}: the moving pixels' log signal "
-        f"changes by a median {median / c_min:.2g} thresholds per frame, so the fit relies on the signal being "
-        "linear between frames (a real scene is not: thresholds and mismatch then read low); upsample the "
+        f"frame rate {rate:.3g} fps is too low for thresholds near {c_min:.3g}: {share:.0%} of the pairs of "
+        "consecutive events of a pixel fall inside one frame interval, where the fit takes the signal as "
+        "linear between frames (a real scene is not: thresholds and mismatch then read wrong); upsample the "
         "video first (fsdvs_hw.sensor.simulation.upsampling.upsample_frames, or `fsdvs-hw simulate "
-        "--upsample`) until a frame step stays below one threshold"
+        "--upsample`) until most pairs span a frame"
     ]
 
 
