@@ -158,6 +158,28 @@ def test_workers_and_memory_bound_give_the_same_training():
     np.testing.assert_array_equal(a.kernel.taps, c.kernel.taps)
 
 
+class _EpochClips(ProceduralClips):
+    """Clips whose target is the epoch the dataset was told (as SampledVideoClips draws per epoch)."""
+
+    epoch = 0
+
+    def _load(self, i):
+        clip = super()._load(i)
+        return type(clip)(clip.frames, clip.timestamps_s, {"motion": np.int64(self.epoch)}, clip.source, i)
+
+
+def test_persistent_workers_learn_each_epoch_from_the_items():
+    from fsdvs_hw.tasks.clip_stream import ClipStream, clip_loader
+
+    stream = ClipStream(_EpochClips(6, size=(8, 8), n_frames=2), range(6))
+    loader, plan = clip_loader(stream, 2, StreamSpec(memory_mb=10.0, workers=2), generator=torch.Generator())
+    assert plan["workers"] == 2 and loader.persistent_workers
+    for epoch in (0, 3, 1):
+        loader.sampler.epoch = epoch
+        seen = np.concatenate([t["motion"] for _, t in loader])
+        assert seen.tolist() == [epoch] * 6
+
+
 def test_validation_metric_every_epoch_and_the_best_epoch_kept(tmp_path):
     ds = ProceduralClips(40, size=(32, 32), n_frames=4)
     opts = {"val_fraction": 0.25, "epochs_frozen": 2, "epochs_joint": 4, "lr_network": 0.3, "lr_kernel": 0.3}

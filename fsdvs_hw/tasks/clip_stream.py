@@ -41,7 +41,15 @@ import numpy as np
 from ..errors import InputError
 from ..validation import check_real
 
-__all__ = ["ClipStream", "StreamSpec", "clip_loader", "loader_plan", "predict_stream", "train_epoch_streamed"]
+__all__ = [
+    "ClipStream",
+    "EpochSampler",
+    "StreamSpec",
+    "clip_loader",
+    "loader_plan",
+    "predict_stream",
+    "train_epoch_streamed",
+]
 
 #: Most loader worker processes.
 MAX_STREAM_WORKERS = 64
@@ -151,9 +159,12 @@ class ClipStream:
         if hasattr(self.dataset, "epoch"):
             self.dataset.epoch = int(epoch)
 
-    def __getitem__(self, n: int) -> tuple[Any, dict[str, np.ndarray]]:
+    def __getitem__(self, item: int) -> tuple[Any, dict[str, np.ndarray]]:
+        """Clip ``item % len`` of epoch ``item // len`` (:class:`EpochSampler`'s items reach persistent workers)."""
         import torch
 
+        epoch, n = divmod(int(item), len(self))
+        self.set_epoch(epoch)
         clip = self.dataset[int(self.indices[n])]
         if self.shape is not None and tuple(clip.frames.shape) != self.shape:
             raise InputError(
@@ -162,6 +173,27 @@ class ClipStream:
             )
         frames = torch.from_numpy(np.ascontiguousarray(clip.frames, dtype=np.float32))
         return frames, {k: np.asarray(v) for k, v in clip.targets.items()}
+
+
+class EpochSampler:
+    """A seeded shuffle (one ``randperm`` of the clips per epoch from ``generator``, as
+    :class:`torch.utils.data.RandomSampler`) or the clips in order, each item offset by ``epoch × N``
+    so that persistent worker processes learn the epoch from the items they are given."""
+
+    def __init__(self, n: int, generator: Any = None) -> None:
+        self.n, self.generator, self.epoch = int(n), generator, 0
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __iter__(self) -> Any:
+        import torch
+
+        order = (
+            torch.randperm(self.n, generator=self.generator).tolist() if self.generator is not None else range(self.n)
+        )
+        offset = self.epoch * self.n
+        return iter([offset + i for i in order])
 
 
 def _collate(items: list[tuple[Any, dict[str, np.ndarray]]]) -> tuple[Any, dict[str, np.ndarray]]:
@@ -176,7 +208,8 @@ def clip_loader(
 ) -> tuple[Any, dict[str, int]]:
     """A DataLoader over ``stream`` sized by :func:`loader_plan`: (loader, plan).
 
-    ``generator`` given: shuffled with it (one ``randperm`` per epoch); None: in order.
+    ``generator`` given: shuffled with it (one ``randperm`` per epoch); None: in order
+    (:class:`EpochSampler`). With workers, they persist across epochs.
     """
     import torch
 
@@ -184,10 +217,15 @@ def clip_loader(
     stream.shape = tuple(first.frames.shape)
     t, h, w = first.frames.shape
     plan = loader_plan(4 * t * h * w, batch_size, spec.memory_mb, spec.workers)
-    sampler = torch.utils.data.RandomSampler(stream, generator=generator) if generator is not None else None
+    sampler = EpochSampler(len(stream), generator)
     extra: dict[str, Any] = {}
-    if plan["workers"]:
-        extra = {"num_workers": plan["workers"], "prefetch_factor": plan["prefetch"], "multiprocessing_context": "fork"}
+    if plan["workers"]:  # persistent: each worker keeps what it read once (a video's frame count) across epochs
+        extra = {
+            "num_workers": plan["workers"],
+            "prefetch_factor": plan["prefetch"],
+            "multiprocessing_context": "fork",
+            "persistent_workers": True,
+        }
     loader: Any = torch.utils.data.DataLoader(
         stream,  # type: ignore[arg-type]  # a map-style dataset (len + getitem) is what DataLoader reads
         batch_size=batch_size,
@@ -230,7 +268,8 @@ def train_epoch_streamed(
     from .training import kernel_taps
 
     t0 = time.perf_counter()
-    loader.dataset.set_epoch(epoch)
+    loader.dataset.set_epoch(epoch)  # in this process (no workers)
+    loader.sampler.epoch = epoch  # in the workers: the items carry it
     total, count = 0.0, 0
     for video, targets in loader:
         loss = evaluator.loss(network(batch_input(video, kernel_taps(kernel))), targets_fn(targets))
