@@ -40,6 +40,7 @@ def test_matching_conventions_fit_and_print(scene):
     text = str(cal)
     assert text.splitlines()[0].endswith(": fits") and "threshold_on" in text and "model check" in text
     assert cal.estimates["threshold_on"].contains(0.25) and cal.estimates["threshold_off"].contains(0.3)
+    assert {r["status"] for r in cal.table()} == {"estimated"}
 
 
 def test_v2e_conventions_recording_is_a_model_mismatch_naming_the_statistic(scene):
@@ -55,6 +56,22 @@ def test_v2e_conventions_recording_is_a_model_mismatch_naming_the_statistic(scen
     assert "model mismatch: " in str(cal) and "pair spread" in str(cal).split("model mismatch: ")[1]
     checks = which_conventions(cal, rec, video, timestamps_s=ts)
     assert not checks["native"].passed and set(checks) == {"native", "v2e"}
+
+
+def test_the_check_at_known_parameters_tells_the_conventions(scene):
+    """At the parameters a recording was made with, the check passes under its own conventions
+    and fails under the other: the statistic that tells them apart is the pair spread."""
+    from fsdvs_hw.sensor.cameras.calibration_check import model_check
+    from fsdvs_hw.sensor.cameras.calibrate import recording_columns
+
+    video, ts = scene
+    for made, other in (("v2e", "native"), ("native", "v2e")):
+        truth = _truth(made)
+        rec = recording_columns(_events(video, ts, truth), video)
+        assert model_check(rec, video, ts, truth).passed, made
+        assert "pair spread" in model_check(rec, video, ts, truth.replace(conventions=other)).failed, made
+    with pytest.raises(InputError, match="the fit assumes the native conventions"):
+        calibrate_sensor(rec, video, timestamps_s=ts, config=SensorConfig.ideal(0.2, conventions="v2e"))
 
 
 def test_tolerances_are_stated_for_every_statistic():

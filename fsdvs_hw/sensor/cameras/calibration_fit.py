@@ -152,10 +152,17 @@ class SensorCalibration:
         return self.summary()
 
     def table(self, truth: SensorConfig | None = None) -> list[dict[str, Any]]:
-        """Rows ``parameter, true (if given), value, low, high, n, covered`` for reports."""
+        """Rows ``parameter, value, low, high, n, status`` (and ``true``, ``covered`` given ``truth``) for reports."""
         rows = []
         for k, e in self.estimates.items():
-            row: dict[str, Any] = {"parameter": k, "value": e.value, "low": e.low, "high": e.high, "n": e.n}
+            row: dict[str, Any] = {
+                "parameter": k,
+                "value": e.value,
+                "low": e.low,
+                "high": e.high,
+                "n": e.n,
+                "status": e.status,
+            }
             if truth is not None:
                 tv = float(getattr(truth, k))
                 row["true"], row["covered"] = tv, e.contains(tv)
@@ -370,6 +377,13 @@ def fit_sensor(
     base = SensorConfig() if config is None else config
     if not isinstance(base, SensorConfig):
         raise InputError(f"calibrate_sensor: config must be a SensorConfig, got {type(base).__name__}")
+    if base.conventions != "native":
+        raise InputError(
+            f"calibrate_sensor: config.conventions={base.conventions!r}: the fit assumes the native conventions "
+            "(each event at its crossing time); fit with conventions='native' and read the model check, or "
+            "check a recording against known parameters under other conventions with "
+            "fsdvs_hw.sensor.cameras.calibration_check.model_check"
+        )
     rng = np.random.default_rng(seed)
     if video is None:
         return _static_scene_calibration(recording, duration_s, base, n_boot, level, rng)
