@@ -61,8 +61,8 @@ def test_v2e_conventions_recording_is_a_model_mismatch_naming_the_statistic(scen
 def test_the_check_at_known_parameters_tells_the_conventions(scene):
     """At the parameters a recording was made with, the check passes under its own conventions
     and fails under the other: the statistic that tells them apart is the pair spread."""
-    from fsdvs_hw.sensor.cameras.calibration_check import model_check
     from fsdvs_hw.sensor.cameras.calibrate import recording_columns
+    from fsdvs_hw.sensor.cameras.calibration_check import model_check
 
     video, ts = scene
     for made, other in (("v2e", "native"), ("native", "v2e")):
