@@ -53,6 +53,7 @@ CHEAP = {
     "asic": {"bits": 6},
     "metalens": {"n_wavelengths": 1, "n_starts": 1, "max_iter": 5, "n_terms": 1},
     "box": {"width": 3},
+    "mesh_process": {"corners": ["tt"], "temperatures_c": [27.0], "mismatch_samples": 0},  # two ngspice runs
 }
 
 #: Non-default values of options a generic rule cannot make up (structured tables; a range that
@@ -161,7 +162,7 @@ def test_spec_is_complete_and_the_fit_signature_matches_the_schema(name):
         assert opt.default == default, key
         assert opt.ok(default), f"{key}: the default itself is refused"
         assert opt.doc, f"{key}: no help text"
-        if set(opt.kinds) & {"int", "float"} and opt.unit not in ("", "m", "S", "F", "px", "bit", "s"):
+        if set(opt.kinds) & {"int", "float"} and opt.unit not in ("", "m", "S", "F", "px", "bit", "s", "V"):
             pytest.fail(f"{key}: unit {opt.unit!r} is not one the package uses")
     if spec.kind == "hardware":
         assert any(c.pareto for c in spec.costs), "a hardware realisation needs a Pareto cost axis"

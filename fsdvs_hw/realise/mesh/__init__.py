@@ -20,8 +20,10 @@ bench
     ``fsdvs-hw bench mesh``.
 options
     :class:`MeshOptions`: the fit options (type, unit, range, default, help) and their rules.
+process_mesh
+    ``mesh_process``: the mesh built as subthreshold transistors of a real process (:mod:`fsdvs_hw.process`).
 
-Importing this package registers ``"mesh"`` in :mod:`fsdvs_hw.realise.registry`.
+Importing this package registers ``"mesh"`` and ``"mesh_process"`` in :mod:`fsdvs_hw.realise.registry`.
 """
 
 from collections.abc import Mapping as _Mapping
@@ -40,8 +42,18 @@ from .fit import (
     mismatch_sensitivity,
 )
 from .options import MeshOptions
+from .process_mesh import ProcessMeshDesign, ProcessMeshOptions, fit_process_mesh
 
-__all__ = ["SPEC", "MeshBounds", "MeshOptions", "as_mesh_bounds"]
+__all__ = [
+    "PROCESS_SPEC",
+    "SPEC",
+    "MeshBounds",
+    "MeshOptions",
+    "ProcessMeshDesign",
+    "ProcessMeshOptions",
+    "as_mesh_bounds",
+    "fit_process_mesh",
+]
 __all__ += fit.__all__  # the fit module's public names, re-exported above
 
 
@@ -95,5 +107,31 @@ SPEC = register_realisation(
         marker="D",
         in_default_design=True,
         description="dual resistive mesh: K = w·δ + a·H_narrow − b·H_wide (casadi/IPOPT)",
+    )
+)
+
+
+#: The process-level mesh (transistors of a registered PDK, corners, temperatures, mismatch).
+PROCESS_SPEC = register_realisation(
+    RealisationSpec(
+        name="mesh_process",
+        fit=fit_process_mesh,
+        options=ProcessMeshOptions,
+        kind="hardware",
+        record_type=ProcessMeshDesign,
+        costs=(
+            CostSpec("mesh_area_m2", "m^2", "mesh area per pixel", "µm²", 1e12, pareto=True),
+            CostSpec("kernel_error_worst_corner", "1", "kernel error at the worst corner", headline=True),
+            CostSpec("power_w", "W", "mesh power per pixel", "nW", 1e9),
+        ),
+        artifacts={
+            "transistor_deck": "ngspice deck of both meshes as PDK transistors, with the .lib line (mesh_sky130.cir)",
+            "process_corners": "conductances and kernel errors per corner and temperature, mismatch mean and CI (CSV)",
+        },
+        write_artifacts="fsdvs_hw.realise.mesh.process_mesh:write_process_mesh_artifacts",
+        colour="#17becf",
+        title="mesh in sky130 transistors",
+        marker="v",
+        description="the dual mesh as subthreshold transistors of a real process, at corners and under mismatch",
     )
 )

