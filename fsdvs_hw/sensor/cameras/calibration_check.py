@@ -290,9 +290,14 @@ def check_calibration(
 def which_conventions(
     calibration: SensorCalibration, recording: Any, video: Any, *, timestamps_s: Any = None, seed: int = 0
 ) -> dict[str, ModelCheck]:
-    """The model check of ``calibration`` under each of the simulator's named conventions
-    (:data:`~fsdvs_hw.sensor.simulation.config.CONVENTIONS`): the conventions whose check passes
-    are those the recording is consistent with."""
+    """The model check of ``calibration``'s parameters under each of the simulator's named
+    conventions (:data:`~fsdvs_hw.sensor.simulation.config.CONVENTIONS`).
+
+    At the parameters a recording was made with, the check passes under its conventions and
+    fails under the others (a v2e recording, measured in ``docs/measured.md``). The fit itself
+    assumes the native conventions: on a recording that follows others its parameters are
+    biased, and then every convention may fail; the native one failing is the finding.
+    """
     rec = recording_columns(recording, video)
     return {
         c: model_check(rec, video, timestamps_s, calibration.config.replace(conventions=c), seed=seed)
