@@ -285,3 +285,21 @@ def test_sampled_training_validates_per_video(video_root):
     assert rec["train_clips_per_epoch"] == 8 and rec["val_clips"] == 4 and rec["sampling"]["seed"] == 1
     assert [h["clips"] for h in res.history] == [8, 8]
     assert all(h["val_metric"] in (0.0, 0.5, 1.0) for h in res.history)  # top-1 over the 2 held-out videos
+
+
+def test_scoring_keeps_no_frames_of_the_scored_clips():
+    """evaluate_on_dataset keeps each clip's targets, not its frames: memory does not grow with the clips."""
+    import tracemalloc
+
+    from fsdvs_hw.tasks.dataset_eval import evaluate_on_dataset
+
+    ds = ProceduralClips(24, size=(64, 64), n_frames=8)  # 24 x 262 kB of float64 frames = 6.3 MB
+    evaluate_on_dataset(None, "recognition", ds, "toy_network:make", n_clips=2)  # warm-up
+    tracemalloc.start()
+    try:
+        ev = evaluate_on_dataset(None, "recognition", ds, "toy_network:make")
+        _, peak = tracemalloc.get_traced_memory()  # during the call: its state is freed when it returns
+    finally:
+        tracemalloc.stop()
+    assert len(ev.clip_indices) == 24
+    assert peak < 2e6, peak  # numpy traces the frames: 24 held clips would be 6.3 MB

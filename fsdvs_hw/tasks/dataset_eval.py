@@ -18,6 +18,7 @@ kernel larger than the frames) fails the evaluation at once.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import re
 import time
 from collections.abc import Sequence
@@ -478,7 +479,8 @@ class _ClipScoring:
                     f"with {self.rep.channels(clip.frames.shape[0])} channels; a problem of the network, not of "
                     "the clip: the task fails"
                 ) from None
-        self.clips.append(clip)
+        # its targets and index, not its frames (a view would keep them): memory bounded whatever the clips
+        self.clips.append(dataclasses.replace(clip, frames=np.empty((0, *clip.frames.shape[1:]))))
 
 
 def _dataset_evaluation(run: _ClipScoring, t0: float) -> DatasetEvaluation:
