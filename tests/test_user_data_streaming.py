@@ -303,3 +303,22 @@ def test_scoring_keeps_no_frames_of_the_scored_clips():
         tracemalloc.stop()
     assert len(ev.clip_indices) == 24
     assert peak < 2e6, peak  # numpy traces the frames: 24 held clips would be 6.3 MB
+
+
+def test_clips_beyond_the_allocation_limit_name_the_streaming_key(monkeypatch):
+    monkeypatch.setenv("FSDVS_HW_MAX_ALLOC_BYTES", str(4 * 8 * 64 * 64 * 5))  # five float32 clips of the 8
+    ds = ProceduralClips(8)
+    with pytest.raises(InputError, match=r"train\.memory_mb"):
+        train_on_dataset(ds, "recognition", "toy_network:make", train_indices=np.arange(8), kernel_size=3)
+    res = train_on_dataset(  # streamed, the same clips train (the loader holds at most a batch of 2)
+        ds,
+        "recognition",
+        "toy_network:make",
+        train_indices=np.arange(8),
+        kernel_size=3,
+        epochs_frozen=1,
+        epochs_joint=0,
+        batch_size=2,
+        stream=StreamSpec(memory_mb=1.0),
+    )
+    assert res.history[0]["clips"] == 8

@@ -201,7 +201,12 @@ def _load_clips(dataset: Any, indices: np.ndarray, evaluator: Any) -> tuple[Any,
 
     first = dataset[int(indices[0])]
     t, h, w = first.frames.shape
-    check_allocation(f"training clips (N={len(indices)}, T={t}, H={h}, W={w}, float32)", 4 * len(indices) * t * h * w)
+    try:
+        check_allocation(
+            f"training clips (N={len(indices)}, T={t}, H={h}, W={w}, float32)", 4 * len(indices) * t * h * w
+        )
+    except InputError as exc:
+        raise InputError(f"{exc}; or stream them from disk with bounded memory: train.memory_mb = 1024") from None
     video = torch.empty((len(indices), t, h, w), dtype=torch.float32)
     clips = []
     for n, i in enumerate(indices):
