@@ -209,6 +209,22 @@ class Design:
         return copy.deepcopy(self.data)
 
 
+def _apply_process(data: dict[str, Any]) -> None:
+    """``[process]``: a design with ``mesh`` also scores ``mesh_process``, whose unset options take the section's keys."""
+    from ..realise.registry import realisation_names
+
+    if "mesh_process" not in realisation_names():
+        return
+    include = data["realisations"]["include"]
+    if "mesh" in include and "mesh_process" not in include:
+        include.insert(include.index("mesh") + 1, "mesh_process")
+    if "mesh_process" in include:
+        table = data["realisations"].setdefault("mesh_process", {})
+        for key, value in data["process"].items():
+            if value is not None:
+                table.setdefault(key, copy.deepcopy(value))
+
+
 def load_design(path: str | Path) -> Design:
     """Read and validate a TOML design file.
     Parameters
@@ -289,6 +305,13 @@ def parse_design(
         data["design"]["name"] = "design"
     if "costs" not in raw:  # a design without [costs] keeps its content and fingerprint (defaults apply)
         del data["costs"]
+    if "process" not in raw:  # without [process]: the idealised models, the same content and fingerprint
+        del data["process"]
+    else:
+        _apply_process(data)
+    tables = data["realisations"]
+    if "mesh_process" in tables and not tables["mesh_process"] and "mesh_process" not in tables["include"]:
+        del tables["mesh_process"]  # likewise: a design that does not build in a process keeps its fingerprint
     for key in ("camera", "upsample"):  # likewise [emulation] without camera (the design's sensor) or upsample
         if key not in (raw.get("emulation") or {}):
             del data["emulation"][key]

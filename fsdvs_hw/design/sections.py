@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal, get_args
 
-from pydantic import Field, create_model
+from pydantic import Field, create_model, field_validator
 
 from ..costs.assumptions import CostAssumptions
 from ..kernels import DEFAULT_PITCH_M, MAX_KERNEL_SIZE, REFERENCE_KERNELS
@@ -29,6 +29,7 @@ __all__ = [
     "EmulationSection",
     "KernelSection",
     "OpticsSection",
+    "ProcessSection",
     "RateSection",
     "RunSection",
     "ScoringSection",
@@ -254,6 +255,35 @@ class RunSection(StrictModel):
     )
 
 
+class ProcessSection(StrictModel):
+    """``[process]``: build in a real process (PDK); without it the idealised models stay.
+
+    With ``[process]`` a design that includes ``mesh`` also scores ``mesh_process`` (the mesh as the
+    PDK's subthreshold transistors, :mod:`fsdvs_hw.process`), whose options default to these keys.
+    """
+
+    pdk: str = field("sky130", "", "registered process (fsdvs_hw.process.process_names)")
+    corners: list[Literal["tt", "ff", "ss", "sf", "fs"]] = field(
+        ["tt", "ff", "ss"], "", "global corners of the device models, the first nominal"
+    )
+    temperatures_c: list[Annotated[float, Field(ge=-55, le=150)]] = field(
+        [27.0, 85.0], "", "temperatures in °C (-55 … 150), the first nominal"
+    )
+    supply_v: float | None = field(
+        None, "V", "core supply (default: the PDK's nominal, 1.8 V in sky130)", ge=0.5, le=5.0
+    )
+    mismatch_samples: int = field(30, "", "Monte Carlo mismatch samples at the nominal corner (0: none)", ge=0, le=1000)
+    reference_v: float = field(0.5, "V", "rest voltage of the mesh nodes", ge=0.1, le=1.2)
+
+    @field_validator("pdk")
+    @classmethod
+    def _registered(cls, value: str) -> str:
+        from ..process import get_process
+
+        get_process(value)  # an InputError (a ValueError) naming the registered processes
+        return value
+
+
 def _default(model: type[StrictModel]) -> Any:
     return Field(default_factory=model, description=(model.__doc__ or "").strip().split("\n")[0])
 
@@ -390,6 +420,7 @@ def design_model() -> type[StrictModel]:
         "run": RunSection,
         "codesign": codesign,
         "costs": CostAssumptions,
+        "process": ProcessSection,
     }
     fields: dict[str, Any] = {k: (m, _default(m)) for k, m in sections.items()}
     model = create_model(

@@ -53,6 +53,8 @@ class ProcessMeshOptions(StrictModel):
         Monte Carlo mismatch samples at the nominal corner (0: none).
     reference_v : float
         Rest voltage of the mesh nodes (V).
+    supply_v : float or None
+        Core supply (V) of the power figure; None: the PDK's nominal.
     device_w_m, device_l_m : float
         Size of every mesh transistor (m).
     pitch_m : float or None
@@ -71,6 +73,7 @@ class ProcessMeshOptions(StrictModel):
     scored: Literal["worst", "nominal"] = option("worst", "", "condition whose kernel is scored")
     mismatch_samples: int = option(30, "", "Monte Carlo mismatch samples (0: none)", ge=0, le=1000)
     reference_v: float = option(0.5, "V", "rest voltage of the mesh nodes", ge=0.1, le=1.2)
+    supply_v: float | None = option(None, "V", "core supply (default: the PDK's nominal)", ge=0.5, le=5.0)
     device_w_m: float = option(1e-6, "m", "mesh transistor width", ge=0.42e-6, le=100e-6)
     device_l_m: float = option(2e-6, "m", "mesh transistor length", ge=0.15e-6, le=100e-6)
     pitch_m: float | None = option(None, "m", "pixel pitch (default: the kernel's)")
@@ -250,6 +253,7 @@ def fit_process_mesh(
     scored: str = "worst",
     mismatch_samples: int = 30,
     reference_v: float = 0.5,
+    supply_v: float | None = None,
     device_w_m: float = 1e-6,
     device_l_m: float = 2e-6,
     pitch_m: float | None = None,
@@ -320,7 +324,7 @@ def fit_process_mesh(
         mismatch=mm,
         scored_label=f"{conditions[i]['corner']} {conditions[i]['temperature_c']:g} °C",
         area=_area(ideal, spec, size.w_um, size.l_um),
-        power_w=mesh_power_w(g0["vertical_narrow"], g0["vertical_wide"], spec.supply_v, temp0),
+        power_w=mesh_power_w(g0["vertical_narrow"], g0["vertical_wide"], opts.supply_v or spec.supply_v, temp0),
         pdk=opts.pdk,
         tool=ngspice_version(),
         wall_s=time.perf_counter() - t0,
