@@ -120,3 +120,49 @@ def test_chunked_decoding_carries_the_stream_state(tmp_path, monkeypatch, versio
     faery.events_stream_from_array(ev, dimensions=(width, height)).to_file(path, version=version)
     monkeypatch.setattr(prophesee, "CHUNK_WORDS", chunk)
     _same(ev, read_recording(path), width, height)
+
+
+def _random_stream(encoding: str, n: int, seed: int) -> np.ndarray:
+    """A random, well-formed EVT 2.0 / 3.0 word stream with CD and EXT_TRIGGER words interleaved."""
+    rng = np.random.default_rng(seed)
+    if encoding == "evt2":
+        words = [0x80000000]
+        for th in range(1, n):
+            words.append(0x80000000 | th)
+            for low in np.sort(rng.integers(0, 64, rng.integers(0, 4))).tolist():
+                if rng.random() < 0.3:
+                    words.append(0xA0000000 | (low << 22) | (int(rng.integers(0, 32)) << 8) | int(rng.integers(0, 2)))
+                else:
+                    cd = (int(rng.integers(0, 2)) << 28) | (low << 22) | (int(rng.integers(0, 64)) << 11)
+                    words.append(cd | int(rng.integers(0, 48)))
+        return np.array(words, dtype="<u4")
+    words = []
+    for th in range(n):
+        words.append(0x8000 | th)
+        for tl in np.sort(rng.integers(0, 4096, rng.integers(1, 4))):
+            words += [0x6000 | int(tl), 0x0000 | int(rng.integers(0, 48))]
+            if rng.random() < 0.3:
+                words.append(0xA000 | (int(rng.integers(0, 16)) << 8) | int(rng.integers(0, 2)))
+            else:
+                words.append(0x2000 | (int(rng.integers(0, 2)) << 11) | int(rng.integers(0, 64)))
+    return np.array(words, dtype="<u2")
+
+
+@pytest.mark.parametrize("encoding", ["evt2", "evt3"])
+def test_trigger_events_match_faerys_decoder(tmp_path, encoding):
+    """EXT_TRIGGER words between CD words: the same CD events and the same triggers (time,
+    channel, edge) as faery's decoder returns."""
+    words = _random_stream(encoding, 300, seed=7)
+    path = tmp_path / "trig.raw"
+    head = f"% evt {encoding[-1]}.0\n% format {encoding.upper()};width=64;height=48\n% end\n"
+    path.write_bytes(head.encode() + words.tobytes())
+    ours = read_recording(path)
+    with faery.evt.Decoder(path, None, None) as d:
+        packets = list(d)
+    ev = np.concatenate([p["events"] for p in packets if "events" in p])
+    tr = np.concatenate([p["triggers"] for p in packets if "triggers" in p])
+    _same(ev, ours, 64, 48)
+    assert tr.size > 20
+    np.testing.assert_array_equal(ours.triggers["t_us"], tr["t"].astype(np.int64))
+    np.testing.assert_array_equal(ours.triggers["id"], tr["source"])
+    np.testing.assert_array_equal(ours.triggers["value"], tr["rising"].astype(np.int8))
