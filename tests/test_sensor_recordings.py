@@ -174,13 +174,31 @@ def test_truncated_and_inconsistent_dsec_refused(tmp_path):
 
 
 # ---------------------------------------------------------------------------- fuzz
+def _safety_module():
+    """tests/test_eventfile_safety.py loaded from its path: ``import tests...`` finds grcwa's
+    top-level ``tests`` package in site-packages first (grcwa 0.1.2 installs one)."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    name = "_fsdvs_eventfile_safety"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name("test_eventfile_safety.py"))
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
 @pytest.mark.parametrize("kind, examples", [("evt2", 40), ("evt3", 40), ("dat", 40), ("dsec", 25)])
 def test_garbled_camera_files_read_valid_or_raise_input_error(tmp_path_factory, kind, examples):
     """Any Prophesee / DSEC file with up to 8 changed bytes and/or cut short reads to valid events
     (times in µs that never decrease, x < width, y < height, polarity ±1) or raises one InputError
     naming the file, never another exception or a crash (derandomized: the same examples every run)."""
     from fsdvs_hw.sensor.eventfiles.dsec import write_dsec
-    from tests.test_eventfile_safety import garbled_outcomes
+
+    garbled_outcomes = _safety_module().garbled_outcomes
 
     d = tmp_path_factory.mktemp(f"fuzz_{kind}")
     ev = _events(n=300, width=64, height=48, span_us=200_000, seed=5)
