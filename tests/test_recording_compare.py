@@ -111,3 +111,9 @@ def test_fft_lag_equals_the_direct_search():
     k = int(np.argmax(full[keep]))
     assert round(lag) == lags[keep][k] == 17
     assert corr == pytest.approx(full[keep][k], abs=1e-9)
+
+
+def test_count_maps_of_a_huge_sensor_refused_before_allocating():
+    """A stray pixel at x = 2e9 (an EventList carries no size): the maps would need 32 GB."""
+    with pytest.raises(InputError, match=r"count maps of a 2000000001x1 sensor.*"):
+        compare_events(_list([0.0, 0.1], [2_000_000_000, 1], [0, 0], [1, 1]), _list([0.0], [0], [0], [1]))

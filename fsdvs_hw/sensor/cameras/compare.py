@@ -385,6 +385,9 @@ def compare_events(
     rate_s = np.histogram(ts, edges)[0] / bin_s
     rate_r = np.histogram(tr, edges)[0] / bin_s
     lag_bins, corr = _lag(rate_s, rate_r, int(round(max_lag_s / bin_s)))
+    from ...limits import check_allocation
+
+    check_allocation(f"compare_events: two count maps of a {w}x{h} sensor (int64)", 2 * 8 * h * w)
     maps = [np.bincount(yy * w + xx, minlength=h * w).reshape(h, w) for xx, yy in ((xs, ys), (xr, yr))]
     iei_s, iei_r = inter_event_intervals(ts, xs, ys, w), inter_event_intervals(tr, xr, yr, w)
     if iei_s.size and iei_r.size:
