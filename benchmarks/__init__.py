@@ -33,6 +33,7 @@ BENCHMARKS: dict[str, str] = {
     "asic": "benchmarks.asic:bench_asic",
     "asic_sky130": "benchmarks.asic_sky130:bench_asic_sky130",
     "mesh": "benchmarks.mesh:bench_mesh",
+    "mesh_sky130": "benchmarks.mesh_sky130:bench_mesh_sky130",
     "metalens": "benchmarks.metalens:bench_metalens",
     "sim": "benchmarks.sim:bench_sim",
     "explore": "benchmarks.explore:bench_explore",

@@ -175,8 +175,12 @@ class ProcessMeshDesign:
         c["min_pitch_m"] = CostItem(a["min_pitch_m"], "m", f"smallest pixel pitch the mesh fits ({src})")
         c["sharing_k"] = CostItem(a["sharing_k"], "count", f"one mesh node per k×k pixels to fit the pitch ({src})")
         c["sharing_kernel_error"] = CostItem(
-            a["sharing_kernel_error"], "1", f"kernel error vs target with that sharing ({src})"
+            a["sharing_kernel_error"], "1", f"window kernel error vs target (gain fitted) with that sharing ({src})"
         )
+        if "unshared_kernel_error" in a:
+            c["unshared_kernel_error"] = CostItem(
+                a["unshared_kernel_error"], "1", f"the same error without sharing ({src})"
+            )
         c["power_w"] = CostItem(self.power_w, "W", f"mesh power per pixel at full signal ({self._source(nom_label)})")
         return c
 
@@ -197,7 +201,8 @@ class ProcessMeshDesign:
             f"  area {a['total_m2'] * 1e12:.3g} µm² per pixel ({'fits' if a['fits_pixel'] else 'does not fit'}"
             f" the {a['pitch_m'] * 1e6:.3g} µm pixel;"
             f" smallest pitch {a['min_pitch_m'] * 1e6:.3g} µm;"
-            f" sharing k = {a['sharing_k']} costs kernel error {a['sharing_kernel_error']:.3g})"
+            f" sharing k = {a['sharing_k']}: window kernel error {a['sharing_kernel_error']:.3g}"
+            f" against {a.get('unshared_kernel_error', float('nan')):.3g} unshared)"
         )
         return "\n".join(lines)
 
@@ -233,14 +238,18 @@ def _area(ideal: MeshDesign, spec: Any, w: float, l_um: float) -> dict[str, Any]
     a = mesh_area_per_pixel(w, l_um, ideal.node_capacitance_f, spec.capacitor_f_per_m2)
     k = sharing_factor(a["total_m2"], ideal.pitch_m)
     shared = shared_kernel(ideal, min(k, 16))
-    err = kernel_error(shared, ideal.target, fit_scale=True) if ideal.target is not None else float("nan")
+
+    def err(taps: np.ndarray) -> float:
+        return kernel_error(taps, ideal.target, fit_scale=True) if ideal.target is not None else float("nan")
+
     return {
         **a,
         "pitch_m": ideal.pitch_m,
         "fits_pixel": bool(a["total_m2"] <= ideal.pitch_m**2),
         "min_pitch_m": float(np.sqrt(a["total_m2"])),
         "sharing_k": k,
-        "sharing_kernel_error": float(err),
+        "sharing_kernel_error": err(shared),
+        "unshared_kernel_error": err(shared_kernel(ideal, 1)),
     }
 
 
