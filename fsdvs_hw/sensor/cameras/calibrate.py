@@ -39,13 +39,14 @@ Method (the pixel model of :mod:`fsdvs_hw.sensor.simulation.events`)
     first frame, at random, after a noise reset) moves each pixel's leak count by up to one event,
     so that interval is widened by ``1 / duration`` either side, and a recording that holds
     fewer than two leak periods only *bounds* the leak (``Estimate.status == "bounded"``).
-    *Leak from the moving pixels* (reported whenever 50 pairs allow it; the static count is then
-    a note): the reference drifts down by ``λ = leak · C_on`` per second, so a pair one threshold
-    apart spans ``pol · d = C - pol · λ · dt``; ``λ`` is the least-squares slope of ``pol · d``
-    on ``-pol · dt``, centred per pixel and polarity, over pairs within 10 % of one threshold.
-    It needs no steady state and no leak event, and the thresholds are then fitted with the
-    drift undone (an unknown leak otherwise reads OFF high and ON low by ``λ`` times the pairs'
-    typical interval).
+    *Leak drift in the moving pixels*: the reference drifts down by ``λ = leak · C_on`` per
+    second, so a pair one threshold apart spans ``pol · d = C - pol · λ · dt``; ``λ`` is the
+    least-squares slope of ``pol · d`` on ``-pol · dt``, centred per pixel and polarity, over
+    pairs within 10 % of one threshold. It needs no steady state and no leak event; the
+    thresholds are fitted with that drift undone (an unknown leak otherwise reads OFF high and ON
+    low by ``λ`` times the pairs' typical interval). It is a note, not the leak's estimate: ``λ
+    dt`` is about 1e-5 log units at 0.01 Hz, the size of a photoreceptor model's error (a 30 Hz
+    low-pass read a 0.1 Hz leak as 0.105 [0.102, 0.107]).
     *Bandwidth*: when no scanned cut-off explains the data better than no filter at all (per-pixel
     gain within two standard errors of 0) or the best is the scan's top, the cut-off is "not
     identifiable" (above the scan; ``value`` inf, the fitted config has no filter).
