@@ -161,3 +161,11 @@ def test_drc_without_klayout_says_so(monkeypatch, tmp_path):
     res = drc.run_drc(tmp_path / "none.gds", layer=1, datatype=0, min_width_m=1e-7, min_space_m=1e-7)
     assert not res.ran and "not installed" in res.message
     assert json.loads(json.dumps(res.to_dict()))["ran"] is False and sys.executable
+
+
+def test_a_design_file_names_the_key_of_an_unknown_material():
+    from fsdvs_hw.design import parse_design
+
+    table = {"realisations": {"include": ["metalens_layout"], "metalens_layout": {"substrate": "glass"}}}
+    with pytest.raises(InputError, match=r"realisations\.metalens_layout\.substrate.*'glass' unknown"):
+        parse_design(table, source="t")

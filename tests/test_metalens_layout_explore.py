@@ -123,3 +123,25 @@ def test_explore_on_the_default_design_writes_a_gds_that_reads_back_and_passes_d
     assert drc["min_width_m"] == rules.get("min_width_m", 70e-9)
     assert drc["min_space_m"] == rules.get("min_space_m", 40e-9)
     assert "Metalens layout: ideal phase" in (tmp_path / "report.html").read_text()
+
+
+def test_a_differential_pair_on_a_hexagonal_lattice_is_two_lenses_in_one_gds(tmp_path, small):
+    """(``small`` keeps its cache folder in ``FSDVS_HW_CACHE`` for this module.)"""
+    options = {
+        **SMALL,
+        "aperture_m": 30e-6,
+        "focal_length_m": 90e-6,
+        "n_terms": 2,
+        "max_iter": 10,
+        "n_starts": 2,
+        "strategy": "differential",
+        "lattice": "hexagonal",
+        "drc": False,
+    }
+    d = fit_realisation("metalens_layout", reference_kernel("dog", 5, pitch_m=2e-6), options)
+    per_lens = d.layout_info["sites_per_lens"]
+    assert len(per_lens) == 2 and per_lens[0] == per_lens[1] and d.layout_info["pillars"] == sum(per_lens)
+    assert len(d.layout.gains) == 2 and d.layout.strategy == "differential"
+    written = {a.name: a for a in get_realisation("metalens_layout").write_artifacts_of(d, tmp_path)}
+    assert read_gds_pillars(written["gds"].path).pillars == sum(per_lens)
+    assert json.loads(written["drc"].path.read_text())["drc"] == {"ran": False, "message": "DRC off (drc = false)"}

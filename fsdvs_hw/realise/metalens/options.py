@@ -265,11 +265,23 @@ class MetalensLayoutOptions(MetalensOptions):
                 OptionProblem("check_orders", self.check_orders, f"must be below fourier_orders={self.fourier_orders}")
             )
         if not found:
-            try:
-                self.meta_atom_spec()
-            except InputError as exc:
-                found.append(OptionProblem("period_m", self.period_m, str(exc)))
+            found += self._library_problems()
         return found
+
+    def _library_problems(self) -> list[OptionProblem]:
+        """Unknown materials (on their own keys), then the library's own rules (the period rule)."""
+        from .meta_atoms import refractive_index
+
+        for key in ("material", "substrate"):
+            try:
+                refractive_index(getattr(self, key), self.design_wavelength_m)
+            except InputError as exc:
+                return [OptionProblem(key, getattr(self, key), str(exc))]
+        try:
+            self.meta_atom_spec()
+        except InputError as exc:
+            return [OptionProblem("period_m", self.period_m, str(exc))]
+        return []
 
     def meta_atom_spec(self) -> Any:
         """The :class:`~fsdvs_hw.realise.metalens.meta_atoms.MetaAtomSpec` these options ask for."""
