@@ -184,6 +184,7 @@ def write_gds(
     os.close(fd)
     try:
         lib.write_gds(tmp)
+        os.chmod(tmp, 0o644)  # a file for the user (mkstemp makes it private)
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
