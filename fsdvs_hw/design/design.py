@@ -85,6 +85,7 @@ __all__ = [
     "axis_values",
     "load_design",
     "parse_design",
+    "process_fit_options",
 ]
 
 #: Largest design file read (bytes).
@@ -153,9 +154,11 @@ class Design:
 
     def realisation_options(self, name: str) -> dict[str, Any]:
         """Keyword options for one hardware realisation's fit function: the options the design sets
-        (the fit function's defaults apply to the others); ``{}`` for a reference realisation."""
+        (the fit function's defaults apply to the others), with ``[process]`` keys as defaults where the
+        realisation builds in a process (:func:`process_fit_options`); ``{}`` for a reference realisation."""
         options = getattr(self.spec.realisations, name, None)
-        return {} if options is None else options.model_dump(exclude_unset=True)
+        given = {} if options is None else options.model_dump(exclude_unset=True)
+        return process_fit_options(self.data, name, given) if options is not None else given
 
     def checkpoints(self) -> dict[str, list[Path]]:
         """Task name → absolute checkpoint paths (one per training seed, in the design's order)."""
@@ -210,19 +213,29 @@ class Design:
 
 
 def _apply_process(data: dict[str, Any]) -> None:
-    """``[process]``: a design with ``mesh`` also scores ``mesh_process``, whose unset options take the section's keys."""
+    """``[process]``: a design that includes ``mesh`` also scores ``mesh_process`` (the mesh in the PDK's transistors)."""
     from ..realise.registry import realisation_names
 
-    if "mesh_process" not in realisation_names():
-        return
     include = data["realisations"]["include"]
-    if "mesh" in include and "mesh_process" not in include:
+    if "mesh_process" in realisation_names() and "mesh" in include and "mesh_process" not in include:
         include.insert(include.index("mesh") + 1, "mesh_process")
-    if "mesh_process" in include:
-        table = data["realisations"].setdefault("mesh_process", {})
-        for key, value in data["process"].items():
-            if value is not None:
-                table.setdefault(key, copy.deepcopy(value))
+
+
+def process_fit_options(data: Mapping[str, Any], name: str, options: Mapping[str, Any]) -> dict[str, Any]:
+    """``options`` of realisation ``name`` with the design's ``[process]`` keys as defaults.
+
+    A realisation whose options include ``pdk`` (``mesh_process``) takes every ``[process]`` key it
+    declares that the design's ``[realisations.<name>]`` table leaves unset; others, and designs
+    without ``[process]``, get ``options`` unchanged.
+    """
+    from ..realise.registry import get_realisation
+
+    process = data.get("process")
+    fields = get_realisation(name).options.model_fields if name in option_tables() else {}
+    if not process or "pdk" not in fields:
+        return dict(options)
+    defaults = {k: copy.deepcopy(v) for k, v in process.items() if k in fields and v is not None}
+    return {**defaults, **options}
 
 
 def load_design(path: str | Path) -> Design:

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol, TypeVar, cast
 
-from ..design.design import Design, axis_values
+from ..design.design import Design, axis_values, process_fit_options
 from ..design.sections import design_model
 from ..design.user_data_section import DEFAULT_MAX_FAILED_CLIP_FRACTION
 from ..environment import env, set_env
@@ -269,7 +269,7 @@ def _fit_and_score(point: DesignPoint, data: dict[str, Any]) -> tuple[str, Score
 
     try:
         target = Kernel.from_dict(point.target, source="design point target")
-        options = data["realisations"].get(point.realisation, {})
+        options = process_fit_options(data, point.realisation, data["realisations"].get(point.realisation, {}))
         rec: Score | dict[str, Any]
         real, fit_s = fit_realisation(point.realisation, target, options, seed=data["run"]["seed"])
         tasks = data["tasks"]

@@ -1,0 +1,53 @@
+"""The ``[process]`` design section: absent, nothing changes; present, the mesh is also built in the process."""
+
+from __future__ import annotations
+
+import pytest
+
+from fsdvs_hw.design import DesignError, load_design, parse_design
+
+
+def test_without_process_a_design_keeps_its_content():
+    d = parse_design({"realisations": {"include": ["learned", "mesh"]}})
+    assert "process" not in d.data
+    assert "mesh_process" not in d.realisations and "mesh_process" not in d.data["realisations"]
+
+
+def test_process_adds_the_transistor_mesh_with_the_section_as_defaults():
+    d = parse_design(
+        {
+            "process": {"pdk": "sky130", "corners": ["ss", "tt"], "mismatch_samples": 5},
+            "realisations": {"include": ["learned", "mesh"], "mesh_process": {"mismatch_samples": 2}},
+        }
+    )
+    assert d.realisations == ["learned", "mesh", "mesh_process"]
+    opts = d.realisation_options("mesh_process")
+    assert opts["corners"] == ["ss", "tt"] and opts["pdk"] == "sky130"
+    assert opts["mismatch_samples"] == 2  # the realisation's own table wins over [process]
+    assert d.realisation_options("mesh") == {}  # the ideal mesh does not build in a process
+    # a sweep or --set over a [process] key reaches the fit
+    assert d.with_overrides({"process.temperatures_c": [0.0]}).realisation_options("mesh_process")[
+        "temperatures_c"
+    ] == [0.0]
+
+
+@pytest.mark.parametrize(
+    ("table", "words"),
+    [
+        ({"pdk": "gf180"}, "unknown process"),
+        ({"corners": ["xx"]}, "process.corners"),
+        ({"temperatures_c": [200.0]}, "process.temperatures_c"),
+        ({"mismatch_samples": -1}, "process.mismatch_samples"),
+    ],
+)
+def test_bad_process_keys_are_refused_by_name(table, words):
+    with pytest.raises(DesignError, match=words):
+        parse_design({"process": table})
+
+
+def test_the_shipped_sky130_design_builds_the_mesh_in_sky130():
+    d = load_design("designs/sky130.toml")
+    assert "mesh_process" in d.realisations
+    opts = d.realisation_options("mesh_process")
+    assert opts["pdk"] == "sky130" and opts["mismatch_samples"] >= 30
+    assert len(opts["corners"]) * len(opts["temperatures_c"]) == 6 and opts["scored"] == "worst"
