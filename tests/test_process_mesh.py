@@ -175,3 +175,30 @@ def test_area_and_sharing_answer():
     assert kernel_error(shared_kernel(d, 3), d.target, fit_scale=True) > kernel_error(
         d.kernel_taps(5), d.target, fit_scale=True
     )
+
+
+def test_process_costs_come_from_the_process_with_their_sources():
+    from fsdvs_hw.costs.assumptions import CostAssumptions
+    from fsdvs_hw.costs.mesh import mesh_cost, process_mesh_cost
+
+    items = {
+        "g_lateral_narrow": 1e-8,
+        "g_vertical_narrow": 4e-8,
+        "g_lateral_wide": 1e-8,
+        "g_vertical_wide": 2e-8,
+        "node_capacitance": 1e-13,
+        "tau_narrow": 2.5e-6,
+        "tau_wide": 5e-6,
+        "mesh_area_m2": 100e-12,
+        "power_w": 1e-9,
+        "mismatch_error_vs_nominal": 0.2,
+    }
+    src = {"mesh_area_m2": "area (sky130 tt 27 °C, ngspice 39)", "power_w": "power (sky130 tt 27 °C, ngspice 39)"}
+    a = CostAssumptions()
+    figs, flags = process_mesh_cost(items, a, pitch_m=4.86e-6, sources=src)
+    ideal, _ = mesh_cost(items, a, pitch_m=4.86e-6)
+    assert "sky130 tt 27 °C, ngspice 39" in figs["area_m2"].source and "sky130" in figs["power_per_pixel_w"].source
+    assert "sky130" not in ideal["area_m2"].source  # the idealised model says it is the literature's
+    assert figs["area_m2"].value > 100e-12 and figs["power_per_pixel_w"].value > 1e-9  # mesh + transconductors
+    assert figs["mismatch_error"].value == 0.2
+    assert any("does not fit" in f for f in flags)  # 100 µm² > 23.6 µm²

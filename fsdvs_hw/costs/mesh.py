@@ -45,7 +45,7 @@ from collections.abc import Mapping
 from .assumptions import CostAssumptions
 from .record import CostFigure
 
-__all__ = ["HRES_TRANSISTORS", "OTA_TRANSISTORS", "mesh_cost", "thermal_voltage_v"]
+__all__ = ["HRES_TRANSISTORS", "OTA_TRANSISTORS", "mesh_cost", "process_mesh_cost", "thermal_voltage_v"]
 
 #: Transistors of one Mead HRes conductance and of one simple OTA.
 HRES_TRANSISTORS = 4
@@ -130,4 +130,70 @@ def mesh_cost(
         flags.append(f"the mesh ({area * 1e12:.3g} µm²) does not fit in the {pixel_area * 1e12:.3g} µm² pixel")
     if not math.isfinite(p_pixel):
         flags.append("the mesh's conductances are not finite")
+    return figs, flags
+
+
+def process_mesh_cost(
+    items: Mapping[str, float],
+    a: CostAssumptions,
+    *,
+    pitch_m: float,
+    sources: Mapping[str, str],
+    transconductors: int = 5,
+) -> tuple[dict[str, CostFigure], list[str]]:
+    """Power, area and latency of a mesh built in a process (``mesh_process``), from its simulations.
+
+    The mesh's own figures come from the process (the realisation's cost items and their sources:
+    ``mesh_area_m2`` from the devices' W·L with stated layout rules and the PDK's MIM density,
+    ``power_w`` from the operating point's supply current, ``tau_*`` from the scored condition's
+    conductances, ``mismatch_error_vs_nominal`` from the Monte Carlo); the transconductors (injection
+    and readout, not built in the process) keep the literature model of :func:`mesh_cost`, and every
+    figure's source says which part came from where.
+
+    Parameters
+    ----------
+    items : mapping
+        The realisation's cost items by name (SI units).
+    a : CostAssumptions
+        The ``[costs]`` section (array size; the transconductors' literature model).
+    pitch_m : float
+        Pixel pitch (m).
+    sources : mapping
+        Cost item name → its description (which holds its source, e.g. "sky130 tt 27 °C, ngspice 39").
+    transconductors : int
+        Transconductors per pixel.
+    """
+    ut = thermal_voltage_v(a.temperature_k)
+    g_v_mean = (items["g_vertical_narrow"] + items["g_vertical_wide"]) / 2.0
+    p_ota = a.analog_supply_v * transconductors * 2.0 * ut * g_v_mean / a.subthreshold_slope
+    a_ota = transconductors * OTA_TRANSISTORS * a.transistor_area_f2 * a.process_node_m**2
+    p_pixel = items["power_w"] + p_ota
+    area = items["mesh_area_m2"] + a_ota
+    n_pixels = a.array_resolution[0] * a.array_resolution[1]
+    lit = f"{transconductors} transconductors: {_MEAD} at the [costs] assumptions"
+    src_p = f"mesh: {sources.get('power_w', 'process')}; {lit}"
+    src_a = (
+        f"mesh: {sources.get('mesh_area_m2', 'process')}; {lit}, costs.transistor_area_f2 = {a.transistor_area_f2:g} F²"
+    )
+    tau = max(items["tau_narrow"], items["tau_wide"])
+    figs = {
+        "power_w": CostFigure(p_pixel * n_pixels, "W", src_p + f"; x {n_pixels} pixels (costs.array_resolution)"),
+        "power_per_pixel_w": CostFigure(p_pixel, "W", src_p),
+        "area_m2": CostFigure(area, "m^2", src_a),
+        "fill_factor": CostFigure(
+            max(0.0, 1.0 - area / pitch_m**2), "1", f"1 - mesh area / pixel area ({pitch_m:g} m pitch)"
+        ),
+        "latency_s": CostFigure(
+            tau,
+            "s",
+            f"the slower mesh's C/g_v at the scored condition's conductances ({sources.get('kernel_error_worst_corner', 'process')})",
+        ),
+    }
+    if "mismatch_error_vs_nominal" in items:
+        figs["mismatch_error"] = CostFigure(
+            items["mismatch_error_vs_nominal"], "1", sources.get("mismatch_error_vs_nominal", "process Monte Carlo")
+        )
+    flags = []
+    if area > pitch_m**2:
+        flags.append(f"the mesh ({area * 1e12:.3g} µm², process) does not fit in the {pitch_m**2 * 1e12:.3g} µm² pixel")
     return figs, flags

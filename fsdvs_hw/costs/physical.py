@@ -29,7 +29,7 @@ from typing import Any
 from ..records import Score
 from .asic import asic_cost
 from .assumptions import CostAssumptions
-from .mesh import mesh_cost
+from .mesh import mesh_cost, process_mesh_cost
 from .metalens import metalens_cost
 from .readout import readout_figures
 from .record import CostFigure, PhysicalCost
@@ -60,6 +60,17 @@ def _asic(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure], list
     )
 
 
+def _mesh_process(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure], list[str]]:
+    items = _items(score)
+    return process_mesh_cost(
+        items,
+        a,
+        pitch_m=score.kernel.pitch_m,
+        sources={k: c.description for k, c in score.cost.items.items()},
+        transconductors=int(items.get("transconductors_per_pixel", 5)),
+    )
+
+
 def _metalens(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure], list[str]]:
     return metalens_cost(_items(score), a, pitch_m=score.kernel.pitch_m)
 
@@ -79,6 +90,7 @@ def _reference(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure],
 COST_MODELS: Mapping[str, CostModel] = MappingProxyType(
     {
         "mesh": _mesh,
+        "mesh_process": _mesh_process,  # the mesh's figures from the process simulations, with their sources
         "asic": _asic,
         "metalens": _metalens,
         "metalens_layout": _metalens,  # the same photon budget, plus the layout's figures (pillars, library)
