@@ -145,3 +145,24 @@ def test_a_differential_pair_on_a_hexagonal_lattice_is_two_lenses_in_one_gds(tmp
     written = {a.name: a for a in get_realisation("metalens_layout").write_artifacts_of(d, tmp_path)}
     assert read_gds_pillars(written["gds"].path).pillars == sum(per_lens)
     assert json.loads(written["drc"].path.read_text())["drc"] == {"ran": False, "message": "DRC off (drc = false)"}
+
+
+def test_the_report_section_shows_each_steps_loss_beside_the_ideal_lens():
+    from fsdvs_hw.report.metalens_layout_section import LAYOUT_STEP_HEADERS, metalens_layout_section
+
+    rows = [
+        {"realisation": "metalens", "status": "ok", "kernel_error": 0.23, "csf_agreement": 0.41,
+         "weighted_loss_text": "0.021 [0.012, 0.030]"},
+        {"realisation": "metalens_layout", "status": "ok", "kernel_error": 0.25, "csf_agreement": 0.40,
+         "weighted_loss_text": "0.034 [0.020, 0.047]", "cost_ideal_kernel_error": 0.23,
+         "cost_library_kernel_error": 0.24, "cost_optical_efficiency": 0.6, "cost_library_transmission": 0.92,
+         "cost_pillar_count": 87253, "cost_radius_levels": 39},
+    ]  # fmt: skip
+    html = str(metalens_layout_section(rows, "weighted_loss"))
+    cells = [c.split("</td>")[0] for c in html.split("<td>")[1:]]
+    width = len(LAYOUT_STEP_HEADERS)
+    ideal, library, layout = (cells[i * width : (i + 1) * width] for i in range(3))
+    assert ideal[1:5] == ["ideal phase", "0.230", "0.410", "0.021 [0.012, 0.030]"]
+    assert library[1:3] == ["library", "0.240"] and library[4] == "—"
+    assert layout[1:] == ["layout", "0.250", "0.400", "0.034 [0.020, 0.047]", "0.600", "0.920", "87253", "39"]
+    assert metalens_layout_section([r for r in rows if r["realisation"] == "metalens"]) == ""
