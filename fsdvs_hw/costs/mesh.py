@@ -140,6 +140,7 @@ def process_mesh_cost(
     pitch_m: float,
     sources: Mapping[str, str],
     transconductors: int = 5,
+    nominal_g_vertical_s: tuple[float, float] | None = None,
 ) -> tuple[dict[str, CostFigure], list[str]]:
     """Power, area and latency of a mesh built in a process (``mesh_process``), from its simulations.
 
@@ -162,9 +163,13 @@ def process_mesh_cost(
         Cost item name → its description (which holds its source, e.g. "sky130 tt 27 °C, ngspice 39").
     transconductors : int
         Transconductors per pixel.
+    nominal_g_vertical_s : (float, float), optional
+        The vertical conductances (narrow, wide) at the nominal condition (S), where the mesh's
+        own power is taken; the transconductors are biased to match them. Default: the items'.
     """
     ut = thermal_voltage_v(a.temperature_k)
-    g_v_mean = (items["g_vertical_narrow"] + items["g_vertical_wide"]) / 2.0
+    g_vn, g_vw = nominal_g_vertical_s or (items["g_vertical_narrow"], items["g_vertical_wide"])
+    g_v_mean = (g_vn + g_vw) / 2.0
     p_ota = a.analog_supply_v * transconductors * 2.0 * ut * g_v_mean / a.subthreshold_slope
     a_ota = transconductors * OTA_TRANSISTORS * a.transistor_area_f2 * a.process_node_m**2
     p_pixel = items["power_w"] + p_ota

@@ -62,12 +62,16 @@ def _asic(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure], list
 
 def _mesh_process(score: Score, a: CostAssumptions) -> tuple[dict[str, CostFigure], list[str]]:
     items = _items(score)
+    conditions = score.realisation.get("conditions") or [{}]
+    g = conditions[0].get("conductances_s") or {}
+    nominal = (g["vertical_narrow"], g["vertical_wide"]) if "vertical_narrow" in g and "vertical_wide" in g else None
     return process_mesh_cost(
         items,
         a,
         pitch_m=score.kernel.pitch_m,
         sources={k: c.description for k, c in score.cost.items.items()},
         transconductors=int(items.get("transconductors_per_pixel", 5)),
+        nominal_g_vertical_s=nominal,
     )
 
 

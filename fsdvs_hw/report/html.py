@@ -37,6 +37,7 @@ from .failures import failures_section, task_failures
 from .metalens_layout_section import metalens_layout_section
 from .per_class_section import per_class_section
 from .present import cost_label, number, plain, point_title, si, style, title
+from .process_section import process_section
 from .report_input import ReportInput
 from .tables import accuracy_axis, networks_note, score_rows, verdict_rows, write_scores
 from .templating import render
@@ -533,6 +534,7 @@ def write_report(points: Sequence[ScoredPoint], report: ReportInput, out_dir: st
     path = out / "report.html"
     sections = [metalens_layout_section(rows, accuracy_axis(rows)[0])]  # ideal phase → library → layout
     sections.append(per_class_section(points, _figure))  # user-data tasks: per-class metrics, confusion matrix
+    sections.append(process_section(points, rows))  # the mesh in a PDK's transistors: corners, mismatch, pitch
     if report.codesign is not None and report.codesign_enabled:
         sections.append(codesign_section(report.codesign))
     # atomically, never through a symbolic link planted in the folder
