@@ -82,7 +82,7 @@ def test_writer_reference_and_returned_names_are_checked(tmp_path):
     with pytest.raises(InputError, match="write_artifacts must be 'module:name'"):
         RealisationSpec(name="x", fit=spec.fit, write_artifacts="no_colon_here")
     rogue = RealisationSpec(
-        name="x", fit=spec.fit, artifacts={"a": "declared"}, write_artifacts="tests.test_artifacts:_undeclared_writer"
+        name="x", fit=spec.fit, artifacts={"a": "declared"}, write_artifacts=f"{__name__}:_undeclared_writer"
     )
     with pytest.raises(InputError, match="returned 'b'; declared artifacts: a"):
         rogue.write_artifacts_of(None, tmp_path)
@@ -310,7 +310,7 @@ def test_swept_points_get_their_own_folders_and_a_failing_writer_is_recorded(tmp
     monkeypatch.setitem(
         registry._REGISTRY,
         "mesh",
-        dataclasses.replace(registry.get_realisation("mesh"), write_artifacts="tests.test_artifacts:_failing_writer"),
+        dataclasses.replace(registry.get_realisation("mesh"), write_artifacts=f"{__name__}:_failing_writer"),
     )
     from fsdvs_hw.records import Score, ScoredPoint
 
@@ -332,9 +332,22 @@ def _failing_writer(record, out_dir, **_):
 
 _SMALL = """
 [realisations]
-include = ["learned", "delta", "mesh", "asic", "metalens"]
+include = ["learned", "delta", "mesh", "asic", "metalens", "metalens_layout"]
 [realisations.asic]
 bits = 6
+[realisations.metalens_layout]
+aperture_m = 20e-6
+focal_length_m = 60e-6
+illuminant = 555e-9
+n_wavelengths = 1
+n_terms = 1
+n_starts = 1
+max_iter = 8
+guard_px = 1
+library_wavelengths_m = [555e-9]
+n_radii = 12
+fourier_orders = 2
+check_orders = 1
 [realisations.metalens]
 illuminant = 555e-9
 n_wavelengths = 1
@@ -368,7 +381,7 @@ def test_explore_writes_every_hardware_realisations_artifacts_and_the_report_lin
         by_real.setdefault(e["realisation"], set()).add(e["name"])
         assert set(e) >= {"point", "realisation", "name", "file", "what", "checked_by"}
         assert (res.artifacts_index.parent / e["file"]).is_file() and e["what"]
-    hardware = set(realisation_names("hardware"))
+    hardware = set(realisation_names("hardware")) - {"mesh_process"}  # scored only with [process]: test_process_*
     from fsdvs_hw.realise.asic.sky130_artifacts import SKY130_ARTIFACTS  # written only when built in sky130
 
     optional = {"asic": set(SKY130_ARTIFACTS)}

@@ -31,7 +31,7 @@ def test_default_design_loads_with_its_documented_target():
     assert d.target.allclose(shipped)
     assert d.target.pitch_m == pytest.approx(4.86e-6)
     assert d.data["sensor"]["placement"] == "pre_log"
-    assert d.realisations == ["learned", "delta", "mesh", "asic", "metalens"]
+    assert d.realisations == ["learned", "delta", "mesh", "asic", "metalens", "metalens_layout"]
     assert set(d.checkpoints()) >= {"detection", "recognition"}
     assert all(p.is_file() for paths in d.checkpoints().values() for p in paths)
 

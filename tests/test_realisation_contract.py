@@ -52,6 +52,7 @@ CHEAP = {
     "mesh": {"n_init": 4, "n_starts": 1, "max_iter": 40},
     "asic": {"bits": 6},
     "metalens": {"n_wavelengths": 1, "n_starts": 1, "max_iter": 5, "n_terms": 1},
+    "metalens_layout": {"n_wavelengths": 1, "n_starts": 1, "max_iter": 5, "n_terms": 1, "drc": False},
     "box": {"width": 3},
     "mesh_process": {"corners": ["tt"], "temperatures_c": [27.0], "mismatch_samples": 0},  # two ngspice runs
 }
@@ -62,6 +63,12 @@ SAMPLES = {
     ("mesh", "bounds"): {"lambda_px": [0.2, 15.0]},
     ("mesh", "fit_size"): 9,
     ("metalens", "illuminant"): 600e-9,  # one visible wavelength: the default lens's NA stays below 1
+    ("metalens_layout", "illuminant"): 600e-9,
+    ("metalens_layout", "period_m"): 310e-9,  # below λ_min / n(substrate): no diffraction into the glass
+    ("metalens_layout", "max_radius_m"): 120e-9,
+    ("metalens_layout", "check_orders"): 4,
+    ("metalens_layout", "min_width_m"): 60e-9,
+    ("metalens_layout", "min_space_m"): 30e-9,
 }
 
 #: Options a design must set with a sample so that the fit's rules between options accept it.
