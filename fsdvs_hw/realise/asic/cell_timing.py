@@ -50,6 +50,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 
 from ...errors import InputError, ToolMissingError
@@ -60,6 +61,7 @@ from .standard_cells import DATA_DIR, GENERATED_LIBERTY_PATH, write_whole
 __all__ = [
     "DEFAULT_LOADS_PF",
     "DEFAULT_SLEWS_NS",
+    "RAMP_TO_SLEW",
     "TIMING_LIBERTY_PATH",
     "cache_dir",
     "characterise_cell",
@@ -67,6 +69,7 @@ __all__ = [
     "find_lctime",
     "lctime_version",
     "read_pin_capacitance_f",
+    "rescale_transition_indices",
     "split_cells",
     "timing_liberty",
 ]
@@ -85,8 +88,11 @@ def cache_dir() -> Path:
 
 #: Output loads of the timing tables, pF (about 0.2, 2 and 9 inverter inputs).
 DEFAULT_LOADS_PF: tuple[float, ...] = (0.0005, 0.005, 0.02)
-#: Input slews of the timing tables (20–80 %), ns.
+#: lctime's input ramps, whole duration, ns (their 20–80 % slews are :data:`RAMP_TO_SLEW` times these).
 DEFAULT_SLEWS_NS: tuple[float, ...] = (0.02, 0.1, 0.5)
+
+#: 20–80 % time of a linear ramp over its whole duration (:func:`rescale_transition_indices`).
+RAMP_TO_SLEW: float = 0.6
 
 _DEVICES = ("sky130_fd_pr__nfet_01v8", "sky130_fd_pr__pfet_01v8_hvt")
 _CORNERS = ("tt", "ff", "ss", "sf", "fs")
@@ -245,27 +251,62 @@ def split_cells(liberty_text: str) -> tuple[str, dict[str, str], str]:
     return liberty_text[:head_end], cells, liberty_text[last:]
 
 
+def rescale_transition_indices(text: str, factor: float = RAMP_TO_SLEW) -> str:
+    """A liberty text with every table index that is a transition (per its template's
+    ``variable_n``) multiplied by ``factor``.
+
+    lctime drives each input with a linear ramp whose *whole* duration is the table's input
+    transition (its ``StepWave``), while it measures output transitions between the 20 % and 80 %
+    trip points, as the liberty states and OpenSTA assumes for both. A linear ramp's 20–80 % time
+    is 0.6 of its duration, so the input indices are multiplied by :data:`RAMP_TO_SLEW` = 0.6.
+    """
+    templates: dict[str, dict[str, str]] = {}
+    for m in re.finditer(r"(?:lu_table_template|power_lut_template)\s*\(\s*(\w+)\s*\)\s*\{([^{}]*)\}", text):
+        templates[m.group(1)] = dict(re.findall(r"variable_(\d)\s*:\s*(\w+)", m.group(2)))
+
+    def scale_index(m: re.Match[str]) -> str:
+        nums = re.sub(r"-?[0-9.]+(?:[eE][+-]?[0-9]+)?", lambda v: f"{float(v.group(0)) * factor:.6f}", m.group(2))
+        return m.group(1) + nums + m.group(3)
+
+    def scale_group(m: re.Match[str]) -> str:
+        body = m.group(3)
+        for k, var in templates.get(m.group(2), {}).items():
+            if "transition" in var:
+                body = re.sub(rf"(index_{k}\s*\()([^)]*)(\))", scale_index, body)
+        return m.group(1) + body
+
+    return re.sub(r"(\b\w+\s*\(\s*(\w+)\s*\)\s*\{)([^{}]*)", scale_group, text)
+
+
 def timing_liberty(
     cells: list[str] | tuple[str, ...],
     path: str | Path = TIMING_LIBERTY_PATH,
     *,
     corner: str = "tt",
     header: str = "",
+    characterised: Mapping[str, str | Path] | None = None,
     **kwargs: object,
 ) -> Path:
     """Characterise ``cells`` (each cached) and merge them into one liberty at ``path`` (whole or not at all).
 
-    Extra keyword arguments go to :func:`characterise_cell`.
+    ``characterised`` gives a cell's lctime liberty directly (e.g. one characterised on other
+    tables); extra keyword arguments go to :func:`characterise_cell`. The table templates of every
+    part are kept; input transitions are rescaled (:func:`rescale_transition_indices`).
     """
     if not cells:
         raise InputError("cells: nothing to characterise")
-    parts = [characterise_cell(c, corner=corner, **kwargs) for c in sorted(set(cells))]  # type: ignore[arg-type]
-    head, _, tail = split_cells(parts[0].read_text())
-    groups = [split_cells(p.read_text())[1] for p in parts]
-    body = "\n".join(g[c] for g, c in zip(groups, sorted(set(cells)), strict=True))
+    given = dict(characterised or {})
+    names = sorted(set(cells))
+    parts = [Path(given[c]) if c in given else characterise_cell(c, corner=corner, **kwargs) for c in names]  # type: ignore[arg-type]
+    texts = [p.read_text() for p in parts]
+    head, _, tail = split_cells(texts[0])
+    pattern = r"\n[ \t]*(?:lu_table_template|power_lut_template)\s*\(\s*(\w+)\s*\)\s*\{[^{}]*\}"
+    templates = {m.group(1): m.group(0) for t in texts for m in re.finditer(pattern, split_cells(t)[0])}
+    head = re.sub(pattern, "", head).rstrip() + "".join(templates.values()) + "\n"
+    body = "\n".join(split_cells(t)[1][c] for t, c in zip(texts, names, strict=True))
     head = head.replace("library (sky130_fd_sc_hd__functional)", f"library ({CELL_LIBRARY}__{corner}_lctime)")
     note = f"/* {header} */\n" if header else ""
-    return write_whole(path, note + head + body + "\n" + tail.lstrip())
+    return write_whole(path, note + rescale_transition_indices(head + body + "\n" + tail.lstrip()))
 
 
 def read_pin_capacitance_f(path: str | Path) -> dict[str, dict[str, float]]:
