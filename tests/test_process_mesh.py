@@ -202,3 +202,21 @@ def test_process_costs_come_from_the_process_with_their_sources():
     assert figs["area_m2"].value > 100e-12 and figs["power_per_pixel_w"].value > 1e-9  # mesh + transconductors
     assert figs["mismatch_error"].value == 0.2
     assert any("does not fit" in f for f in flags)  # 100 µm² > 23.6 µm²
+
+
+@needs_tools
+@pytest.mark.slow
+def test_transient_settling_grows_linearly_with_the_node_capacitance(design_and_bias):
+    """An RC network's settling time is nearly linear in its node capacitance, t(C) ≈ a (C + C_p).
+
+    Not exactly: besides capacitance to ground (C_p), the devices couple neighbouring nodes (BSIM
+    transcapacitances), which does not scale with C; measured, the two increments differ by 5 %.
+    """
+    from fsdvs_hw.process.mesh_deck import settling_time_transient
+
+    _, bias = design_and_bias
+    t = [settling_time_transient(bias, node_capacitance_f=c, half_width=1)["wide"] for c in (1e-13, 2e-13, 3e-13)]
+    assert t[0] < t[1] < t[2]
+    assert (t[2] - t[1]) == pytest.approx(t[1] - t[0], rel=0.1)
+    parasitic = (t[1] - t[0]) and t[0] / (t[1] - t[0]) * 1e-13 - 1e-13
+    assert 0 < parasitic < 1e-13  # the devices add some capacitance, less than the MIM's

@@ -180,7 +180,11 @@ def process_mesh_cost(
     src_a = (
         f"mesh: {sources.get('mesh_area_m2', 'process')}; {lit}, costs.transistor_area_f2 = {a.transistor_area_f2:g} F²"
     )
-    tau = max(items["tau_narrow"], items["tau_wide"])
+    if "settling_s" in items:
+        tau, src_t = items["settling_s"], sources.get("settling_s", "process transient")
+    else:
+        tau = max(items["tau_narrow"], items["tau_wide"])
+        src_t = f"the slower mesh's C/g_v at the scored condition's conductances ({sources.get('kernel_error_worst_corner', 'process')})"
     figs = {
         "power_w": CostFigure(p_pixel * n_pixels, "W", src_p + f"; x {n_pixels} pixels (costs.array_resolution)"),
         "power_per_pixel_w": CostFigure(p_pixel, "W", src_p),
@@ -191,7 +195,7 @@ def process_mesh_cost(
         "latency_s": CostFigure(
             tau,
             "s",
-            f"the slower mesh's C/g_v at the scored condition's conductances ({sources.get('kernel_error_worst_corner', 'process')})",
+            src_t,
         ),
     }
     if "mismatch_error_vs_nominal" in items:

@@ -46,6 +46,7 @@ __all__ = [
     "MAX_TRANSISTOR_HALF_WIDTH",
     "TransistorMeshResult",
     "lattice_model_response",
+    "settling_time_transient",
     "simulate_transistor_mesh",
     "transistor_mesh_deck",
 ]
@@ -89,6 +90,7 @@ def transistor_mesh_deck(
     temperature_c: float = 27.0,
     mismatch_seed: int | None = None,
     node_capacitance_f: float = 0.0,
+    step_stop_s: float | None = None,
 ) -> str:
     """The ngspice deck of both meshes as sky130 transistors, AC impulse at the centre.
 
@@ -106,6 +108,9 @@ def transistor_mesh_deck(
         Load the corner's mismatch section (``tt_mm``) and draw the devices with ``.option seed=N``.
     node_capacitance_f : float
         Capacitor per node (F), the MIM capacitor (ideal here).
+    step_stop_s : float, optional
+        Instead of the AC analysis, a transient to this time (s) after a current step of 1 pA into
+        each centre node at t = 0 (500 output points).
 
     Returns
     -------
@@ -137,14 +142,14 @@ def transistor_mesh_deck(
     c_f = float(node_capacitance_f)
     lines += _mesh_lines("n", n, "gln", "gvn", sky130.NFET, size.w_um, size.l_um, c_f)
     lines += _mesh_lines("w", n, "glw", "gvw", sky130.NFET, size.w_um, size.l_um, c_f)
-    lines += [
-        f"IINN 0 n{h}_{h} DC 0 AC {_I_AC!r}",
-        f"IINW 0 w{h}_{h} DC 0 AC {_I_AC!r}",
-        ".ac lin 1 1e-3 1e-3",
-        ".options filetype=ascii",
-        ".end",
-        "",
-    ]
+    if step_stop_s is None:
+        src, analysis = f"DC 0 AC {_I_AC!r}", ".ac lin 1 1e-3 1e-3"
+    else:
+        if not (isinstance(step_stop_s, (int, float)) and 1e-12 < step_stop_s < 1.0):
+            raise InputError(f"step_stop_s: allowed (1e-12, 1) s, got {step_stop_s!r}")
+        t = float(step_stop_s)
+        src, analysis = f"PWL(0 0 {t * 1e-4!r} {_I_AC!r})", f".tran {t / 500!r} {t!r}"
+    lines += [f"IINN 0 n{h}_{h} {src}", f"IINW 0 w{h}_{h} {src}", analysis, ".options filetype=ascii", ".end", ""]
     return "\n".join(lines)
 
 
@@ -226,3 +231,40 @@ def lattice_model_response(g_lateral_s: float, g_vertical_s: float, *, half_widt
     rhs[idx[h, h]] = 1.0
     v = spla.spsolve(lap.tocsc(), rhs)
     return (g_vertical_s * v).reshape(n, n)
+
+
+def settling_time_transient(
+    bias: MeshBias,
+    *,
+    node_capacitance_f: float,
+    half_width: int = 2,
+    corner: str = "tt",
+    temperature_c: float = 27.0,
+) -> dict[str, float]:
+    """Time (s) for each mesh's centre output to reach 63 % of its final value after a current step (ngspice ``.tran``).
+
+    The transient runs to 10 C / g_v of the slower mesh (the biases' fitted conductances); returns
+    ``{"narrow": s, "wide": s}``. The centre node settles faster than a single node's C/g_v, since its
+    neighbours share the charge.
+    """
+    if not node_capacitance_f > 0:
+        raise InputError(f"node_capacitance_f: a transient needs a node capacitance > 0 F, got {node_capacitance_f!r}")
+    g_min = min(bias.fitted_s.get("vertical_narrow", 0.0) or 1.0, bias.fitted_s.get("vertical_wide", 0.0) or 1.0)
+    t_stop = 10.0 * node_capacitance_f / g_min
+    deck = transistor_mesh_deck(
+        bias,
+        half_width=half_width,
+        corner=corner,
+        temperature_c=temperature_c,
+        node_capacitance_f=node_capacitance_f,
+        step_stop_s=t_stop,
+    )
+    out = run_deck(deck)
+    t = out["time"].real
+    settled = {}
+    for name, p in (("narrow", "n"), ("wide", "w")):
+        i = out[f"i(vo{p}{half_width}_{half_width})"].real
+        final = i[-1]
+        k = int(np.argmax(i >= 0.632 * final)) if final > 0 else 0
+        settled[name] = float(np.interp(0.632 * final, i[k - 1 : k + 1], t[k - 1 : k + 1])) if k > 0 else float(t[k])
+    return settled

@@ -102,6 +102,9 @@ class ProcessMeshDesign:
         Area per pixel, pixel fit, smallest pitch, sharing factor and its kernel error.
     power_w : float
         Power per pixel (W).
+    settling_s : dict
+        ``{"narrow", "wide"}``: 63 % settling of each mesh's centre output after a current step
+        (ngspice transient at the nominal condition, 5×5 patch, device capacitances included).
     pdk, tool : str
         ``"sky130"``, ``"ngspice 39"``.
     wall_s : float
@@ -116,6 +119,7 @@ class ProcessMeshDesign:
     scored_label: str
     area: dict[str, Any]
     power_w: float
+    settling_s: dict[str, float] = field(default_factory=dict)
     pdk: str = "sky130"
     tool: str = "ngspice"
     wall_s: float = 0.0
@@ -182,6 +186,12 @@ class ProcessMeshDesign:
                 a["unshared_kernel_error"], "1", f"the same error without sharing ({src})"
             )
         c["power_w"] = CostItem(self.power_w, "W", f"mesh power per pixel at full signal ({self._source(nom_label)})")
+        if self.settling_s:
+            c["settling_s"] = CostItem(
+                max(self.settling_s.values()),
+                "s",
+                f"63 % settling of the slower mesh's centre output after a step ({self._source(nom_label)} transient)",
+            )
         return c
 
     def describe(self) -> str:
@@ -217,6 +227,7 @@ class ProcessMeshDesign:
             "scored_label": self.scored_label,
             "area": self.area,
             "power_w": self.power_w,
+            "settling_s": self.settling_s,
             "pdk": self.pdk,
             "tool": self.tool,
             "wall_s": self.wall_s,
@@ -284,6 +295,7 @@ def fit_process_mesh(
     from ...process import get_process
     from ...process.corners import ConditionResult, condition_conductances, condition_design, mismatch_kernels
     from ...process.mesh_area import mesh_power_w
+    from ...process.mesh_deck import settling_time_transient
     from ...process.mesh_devices import DeviceSize, fit_mesh_bias
     from ...process.ngspice import ngspice_version
 
@@ -325,6 +337,11 @@ def fit_process_mesh(
             ideal, bias, samples=opts.mismatch_samples, corner=corner0, temperature_c=temp0, seed=opts.seed + 1
         ).to_dict()
     g0 = conditions[0]["conductances_s"]
+    settling = (
+        settling_time_transient(bias, node_capacitance_f=ideal.node_capacitance_f, corner=corner0, temperature_c=temp0)
+        if ideal.node_capacitance_f > 0
+        else {}
+    )
     return ProcessMeshDesign(
         mesh=designs[i],
         ideal=ideal,
@@ -333,6 +350,7 @@ def fit_process_mesh(
         mismatch=mm,
         scored_label=f"{conditions[i]['corner']} {conditions[i]['temperature_c']:g} °C",
         area=_area(ideal, spec, size.w_um, size.l_um),
+        settling_s=settling,
         power_w=mesh_power_w(g0["vertical_narrow"], g0["vertical_wide"], opts.supply_v or spec.supply_v, temp0),
         pdk=opts.pdk,
         tool=ngspice_version(),
