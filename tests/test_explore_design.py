@@ -81,7 +81,7 @@ BAD = {
     ),
     "bad realisation": (
         '[realisations]\ninclude = ["learned", "fpga"]\n',
-        ["realisations.include[1]", "fpga", "'mesh', 'asic', 'metalens'"],
+        ["realisations.include[1]", "fpga", "'mesh', 'mesh_process', 'asic', 'metalens'"],
     ),
     "bad sweep value": ('[sweep]\naxes = { "asic.bits" = [4, 0] }\n', ["sweep.axes.asic.bits", "0", "out of range"]),
     "sweep axis on unknown key": (
