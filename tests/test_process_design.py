@@ -51,3 +51,9 @@ def test_the_shipped_sky130_design_builds_the_mesh_in_sky130():
     opts = d.realisation_options("mesh_process")
     assert opts["pdk"] == "sky130" and opts["mismatch_samples"] >= 30
     assert len(opts["corners"]) * len(opts["temperatures_c"]) == 6 and opts["scored"] == "worst"
+
+
+def test_process_pdk_reaches_every_realisation_with_a_pdk_option():
+    d = parse_design({"process": {"pdk": "sky130"}, "realisations": {"include": ["asic"], "asic": {"bits": 6}}})
+    assert d.realisation_options("asic") == {"pdk": "sky130", "bits": 6}
+    assert parse_design({"realisations": {"include": ["asic"]}}).realisation_options("asic") == {}

@@ -224,9 +224,10 @@ def _apply_process(data: dict[str, Any]) -> None:
 def process_fit_options(data: Mapping[str, Any], name: str, options: Mapping[str, Any]) -> dict[str, Any]:
     """``options`` of realisation ``name`` with the design's ``[process]`` keys as defaults.
 
-    A realisation whose options include ``pdk`` (``mesh_process``) takes every ``[process]`` key it
-    declares that the design's ``[realisations.<name>]`` table leaves unset; others, and designs
-    without ``[process]``, get ``options`` unchanged.
+    A realisation whose options include ``pdk`` (``mesh_process``; ``asic``, whose taps are then built
+    in the process's standard cells) takes every ``[process]`` key it declares that the design's
+    ``[realisations.<name>]`` table leaves unset; others, and designs without ``[process]``, get
+    ``options`` unchanged.
     """
     from ..realise.registry import get_realisation
 
