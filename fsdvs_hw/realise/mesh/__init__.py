@@ -131,7 +131,7 @@ PROCESS_SPEC = register_realisation(
         write_artifacts="fsdvs_hw.realise.mesh.process_mesh:write_process_mesh_artifacts",
         colour="#17becf",
         title="mesh in sky130 transistors",
-        marker="v",
+        marker="d",
         description="the dual mesh as subthreshold transistors of a real process, at corners and under mismatch",
     )
 )
