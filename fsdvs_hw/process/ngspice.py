@@ -11,8 +11,8 @@ Examples
 >>> from fsdvs_hw.process.ngspice import parse_raw
 >>> head = "No. Variables: 2\\nNo. Points: 1\\nVariables:\\n\\t0\\tfrequency\\tfrequency\\n"
 >>> raw = head + "\\t1\\tv(a)\\tvoltage\\nValues:\\n0\\t1e-3,0\\n\\t2.5,-1\\n"
->>> parse_raw(raw)["v(a)"]
-array([2.5-1.j])
+>>> complex(parse_raw(raw)["v(a)"][0])
+(2.5-1j)
 """
 
 from __future__ import annotations
