@@ -20,10 +20,21 @@ DESCRIPTION = (
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-timing", action="store_true", help="only the functional liberties (seconds)")
     parser.add_argument("--cells", nargs="+", default=None, help="cells to characterise (default: the synthesis set)")
+    parser.add_argument(
+        "--single-point",
+        nargs="+",
+        default=[],
+        metavar="CELL",
+        help="characterise these cells on one table point (5 fF, 0.1 ns ramp): the slow flip-flop and full adder",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     from ..realise.asic.sky130_data import regenerate_sky130_data
 
-    regenerate_sky130_data(characterise=not args.no_timing, cells=tuple(args.cells) if args.cells else None)
+    regenerate_sky130_data(
+        characterise=not args.no_timing,
+        cells=tuple(args.cells) if args.cells else None,
+        single_point=tuple(args.single_point),
+    )
     return 0

