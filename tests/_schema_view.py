@@ -57,7 +57,10 @@ def _view(model, name, node, default, unit, doc, odd) -> FieldView:
         elif t == "array":
             kinds.add("list")
             length = m.get("minItems") if m.get("minItems") == m.get("maxItems") else None
-            item = _view(model, name, m.get("items", {}), None, unit, doc, odd)
+            fixed = m.get("prefixItems")  # a tuple[...]: a list of fixed length (its first item's rules)
+            if fixed and "items" not in m:
+                length = len(fixed)
+            item = _view(model, name, m.get("items") or (fixed or [{}])[0], None, unit, doc, odd)
         else:
             kinds.add(_KIND[t])
             if "enum" in m:
