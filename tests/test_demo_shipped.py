@@ -45,7 +45,10 @@ def test_every_point_carries_its_matched_rate_columns(shipped):
             status = r[f"{col}_status"]  # where the point's rate lies outside the learned kernel's curve
             assert status == "ok" or status.startswith("refused: the reference rate"), (r["realisation"], status)
     refused = [r["realisation"] for r in rows if r["detection_loss_at_matched_rate_status"] != "ok"]
-    assert refused == ["metalens", "metalens_layout"]  # 5.6 and 5.3 events/pixel/s: below the learned kernel's rate at 0.45
+    assert refused == [
+        "metalens",
+        "metalens_layout",
+    ]  # 5.6 and 5.3 events/pixel/s: below the learned kernel's rate at 0.45
 
 
 def test_the_verdict_opens_with_the_kernel_against_a_plain_dvs_at_equal_rate(shipped):

@@ -92,7 +92,9 @@ def test_reference_scores_are_exact():
 
 
 def test_an_unregistered_realisation_is_an_input_error_naming_the_registered_ones():
-    with pytest.raises(InputError, match="realisation 'fpga' unknown; allowed: learned, delta, mesh, mesh_process, asic, metalens"):
+    with pytest.raises(
+        InputError, match="realisation 'fpga' unknown; allowed: learned, delta, mesh, mesh_process, asic, metalens"
+    ):
         fit_realisation("fpga", reference_kernel("dog", 7))
 
 
