@@ -67,6 +67,7 @@ SKIPPED: dict[str, str] = {
     "openssl req -x509 -nodes -newkey rsa:4096": "needs a Dask cluster; tests/test_inputs_safety.py runs TLS locally",
     "pip install -e '.[docs]'": "installs packages and serves the site; tests/test_docs.py builds it",
     "fsdvs-hw bench csf --json benchmarks/records/csf.json": "rewrites a committed benchmark record",
+    "python -m fsdvs_hw.realise.metalens.meta_atoms": "recomputes the committed RCWA library (~25 min)",
 }
 
 #: Blocks that take more than ~20 s (first code line(s), prefix). CPU seconds measured one by one on
