@@ -441,7 +441,7 @@ def realisation_names(kind: str | None = None) -> tuple[str, ...]:
     --------
     >>> from fsdvs_hw import realisation_names
     >>> realisation_names()
-    ('learned', 'delta', 'mesh', 'asic', 'metalens', 'metalens_layout')
+    ('learned', 'delta', 'mesh', 'mesh_process', 'asic', 'metalens', 'metalens_layout')
     """
     if kind is not None and kind not in KINDS:
         raise InputError(f"realisation kind {kind!r} unknown; allowed: {', '.join(KINDS)}")

@@ -274,7 +274,8 @@ def dataset_summary(
     videos = getattr(dataset, "video_of", None)
     if videos is None and hasattr(dataset, "clips") and hasattr(dataset, "images"):  # COCO: video_id of each clip
         first = [dataset.images[ids[0]] for ids in dataset.clips]
-        videos = [im.get("video_id", 0) for im in first]
+        # COCO images are dicts with a video_id; other readers with these attributes (DSEC) do not say
+        videos = [im.get("video_id", 0) for im in first] if all(isinstance(im, dict) for im in first) else None
     elif videos is None and hasattr(dataset, "items"):  # one clip per video
         videos = list(range(len(dataset.items)))
     n_scored = len(list(scored))
