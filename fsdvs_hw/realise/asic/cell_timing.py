@@ -68,6 +68,7 @@ __all__ = [
     "core_models_file",
     "find_lctime",
     "lctime_version",
+    "opensta_compatible",
     "read_pin_capacitance_f",
     "rescale_transition_indices",
     "split_cells",
@@ -278,6 +279,45 @@ def rescale_transition_indices(text: str, factor: float = RAMP_TO_SLEW) -> str:
     return re.sub(r"(\b\w+\s*\(\s*(\w+)\s*\)\s*\{)([^{}]*)", scale_group, text)
 
 
+_SINGLE_POINT = re.compile(
+    r"\b((?:cell|rise|fall)_(?:rise|fall|transition|constraint|power))\s*\(\s*\w+\s*\)(\s*\{\s*)index_1\s*\(\s*\\?\s*\"[^\",]*\"\s*\\?\s*\);\s*"
+    r"index_2\s*\(\s*\\?\s*\"[^\",]*\"\s*\\?\s*\);\s*values\s*\(\s*\\?\s*(\"[^\",]*\")\s*\\?\s*\);"
+)
+
+
+def opensta_compatible(text: str) -> str:
+    """A liberty text that OpenSTA 2.0.17 (Debian's) reads and times as intended.
+
+    Two rewrites, neither of which changes a value:
+
+    * a delay, transition, constraint or power table measured at one point only (one load, one
+      slew: a ``*_1x1`` template) becomes a ``scalar`` table — OpenSTA 2.0.17 crashes (segmentation
+      fault) in ``read_liberty`` on single-point templates;
+    * a timing arc of a flip-flop whose related pin is its clock and that states no
+      ``timing_type`` gets ``timing_type : rising_edge`` (lctime leaves it out; the cells' ``ff``
+      groups are clocked on the rising edge), so clock → Q is a launch arc, not combinational.
+
+    Examples
+    --------
+    >>> t = 'cell_rise (delay_template_1x1) { index_1 ("0.005"); index_2 ("0.1"); values ("0.22"); }'
+    >>> opensta_compatible(t)
+    'cell_rise (scalar) { values ("0.22"); }'
+    """
+    text = _SINGLE_POINT.sub(lambda m: f"{m.group(1)} (scalar){m.group(2)}values ({m.group(3)});", text)
+    if not re.search(r"\bcell\s*\(", text):
+        return text
+    head, cells, tail = split_cells(text)
+    fixed = []
+    for body in cells.values():
+        clocks = re.findall(r"pin\s*\(\s*(\w+)\s*\)\s*\{[^{}]*\bclock\s*:\s*true", body)
+        if re.search(r"\bff\s*\(", body) and clocks:
+            for clk in clocks:
+                arc = rf"(timing\s*\(\s*\)\s*\{{)(?![^{{}}]*timing_type)(\s*related_pin\s*:\s*\"{clk}\"\s*;)"
+                body = re.sub(arc, r"\1\n        timing_type : rising_edge;\2", body)
+        fixed.append(body)
+    return head + "\n".join(fixed) + "\n" + tail.lstrip()
+
+
 def timing_liberty(
     cells: list[str] | tuple[str, ...],
     path: str | Path = TIMING_LIBERTY_PATH,
@@ -291,7 +331,8 @@ def timing_liberty(
 
     ``characterised`` gives a cell's lctime liberty directly (e.g. one characterised on other
     tables); extra keyword arguments go to :func:`characterise_cell`. The table templates of every
-    part are kept; input transitions are rescaled (:func:`rescale_transition_indices`).
+    part are kept; input transitions are rescaled (:func:`rescale_transition_indices`) and the text
+    made readable by OpenSTA 2.0.17 (:func:`opensta_compatible`).
     """
     if not cells:
         raise InputError("cells: nothing to characterise")
@@ -306,7 +347,8 @@ def timing_liberty(
     body = "\n".join(split_cells(t)[1][c] for t, c in zip(texts, names, strict=True))
     head = head.replace("library (sky130_fd_sc_hd__functional)", f"library ({CELL_LIBRARY}__{corner}_lctime)")
     note = f"/* {header} */\n" if header else ""
-    return write_whole(path, note + rescale_transition_indices(head + body + "\n" + tail.lstrip()))
+    merged = rescale_transition_indices(head + body + "\n" + tail.lstrip())
+    return write_whole(path, note + opensta_compatible(merged))
 
 
 def read_pin_capacitance_f(path: str | Path) -> dict[str, dict[str, float]]:

@@ -158,6 +158,8 @@ def _table(text: str, name: str) -> list[tuple[np.ndarray, np.ndarray, np.ndarra
             raise InputError(f"liberty: {name} table without {key}")
         return np.array([float(v) for v in re.findall(r"-?[0-9.]+(?:[eE][+-]?[0-9]+)?", m.group(1))])
 
+    if "index_1" not in groups[0]:  # a scalar table: one value at any load and slew
+        return [(np.zeros(1), np.zeros(1), nums("values").reshape(1, 1))]
     i1, i2 = nums("index_1"), nums("index_2")
     return [(i1, i2, nums("values").reshape(len(i1), len(i2)))]
 
