@@ -161,7 +161,9 @@ def synthesis_script(top: str, liberty: str = "cells.lib", techmap: str = "fa_ma
             f"abc -liberty {liberty}",
             "opt_clean -purge",
             f"tee -q -o stat.txt stat -liberty {liberty}",
-            "write_verilog -noattr mapped.v",
+            "splitnets",  # no concatenations of internal buses: OpenSTA 2.0.17 reader refuses `{...}`
+            "opt_clean",
+            "write_verilog -noattr -noexpr -simple-lhs mapped.v",
         ]
     )
 
