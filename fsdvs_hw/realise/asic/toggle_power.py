@@ -68,6 +68,8 @@ class EnergyReport:
         Energy per driving cell type (``"port"`` for input ports and the clock), J.
     source : str
         How it was computed (module docstring, the liberty, the clip).
+    segment_energy_j : tuple of float
+        Energy in each of the run's equal time spans (empty without segment counts), J.
     """
 
     energy_j: float
@@ -76,16 +78,35 @@ class EnergyReport:
     transitions: int
     energy_by_cell_j: dict[str, float]
     source: str
+    segment_energy_j: tuple[float, ...] = ()
 
     @property
     def energy_per_pixel_j(self) -> float:
         """Energy per filtered pixel, J."""
         return self.energy_j / self.pixels
 
+    def energy_per_pixel_interval_j(self, confidence: float = 0.95) -> tuple[float, float] | None:
+        """Student-t interval of the energy per pixel over the run's time spans (None with fewer than 2).
+
+        Each span of the run streams ``pixels / n`` pixels, so span ``i`` estimates the energy per
+        pixel as ``n · E_i / pixels``; their mean is :attr:`energy_per_pixel_j`. The spans are
+        consecutive rows of the same frames, so the interval measures how the energy varies with
+        the image content along the frame, not a spread over independent scenes.
+        """
+        n = len(self.segment_energy_j)
+        if n < 2:
+            return None
+        from scipy import stats
+
+        per_pixel = np.asarray(self.segment_energy_j) * n / self.pixels
+        half = stats.t.ppf(0.5 + confidence / 2, n - 1) * per_pixel.std(ddof=1) / np.sqrt(n)
+        return float(per_pixel.mean() - half), float(per_pixel.mean() + half)
+
     def summary(self) -> dict[str, Any]:
         """The figures, as a dict."""
         d = asdict(self)
         d["energy_per_pixel_j"] = self.energy_per_pixel_j
+        d["energy_per_pixel_interval_j"] = self.energy_per_pixel_interval_j()
         return d
 
 
@@ -98,9 +119,12 @@ def video_frames(input_bits: int, resolution: tuple[int, int], *, n_frames: int 
     from ...scenes.video import load_example_clip
 
     h, w = (int(v) for v in resolution)
-    clip = load_example_clip("bikes", n_frames=int(n_frames), stride=int(stride), size=(h, w))
+    if int(n_frames) < 1:
+        raise InputError(f"n_frames: must be >= 1, got {n_frames!r}")
+    clip = load_example_clip("bikes", n_frames=max(2, int(n_frames)), stride=int(stride), size=(h, w))
     top = (1 << int(input_bits)) - 1
-    return np.clip(np.rint(np.asarray(clip.intensity) * top), 0, top).astype(np.int64)
+    frames = np.clip(np.rint(np.asarray(clip.intensity) * top), 0, top).astype(np.int64)
+    return frames[: int(n_frames)]
 
 
 def netlist_connections(verilog: str) -> list[tuple[str, str, dict[str, str]]]:
@@ -179,6 +203,7 @@ def toggle_energy(
     cycles: int,
     supply_v: float = 1.8,
     clip: str = "bikes",
+    segments: dict[str, np.ndarray] | None = None,
 ) -> EnergyReport:
     """Energy of a gate-level run from its toggle counts (module docstring).
 
@@ -196,6 +221,9 @@ def toggle_energy(
         Supply, V (the liberty's corner: 1.8 V).
     clip : str
         The clip the frames came from (for the source text).
+    segments : dict, optional
+        Net bit → transitions per time span of the run
+        (:attr:`~fsdvs_hw.realise.asic.gate_level.GateLevelRun.toggle_segments`): also the energy per span.
     """
     caps = read_pin_capacitance_f(liberty)
     energies = read_output_energies(liberty)
@@ -209,6 +237,8 @@ def toggle_energy(
                 driver[net] = (cell, pin)
     total, n_tr = 0.0, 0
     by_cell: dict[str, float] = {}
+    n_seg = len(next(iter(segments.values()))) if segments else 0
+    per_span = np.zeros(n_seg)
     for net, n in toggles.items():
         key = net.replace(" ", "")
         if n == 0 or (key not in load and key not in driver):
@@ -218,6 +248,8 @@ def toggle_energy(
         table = energies.get(cell, {}).get(pin)
         e = float(np.interp(c, table[0], table[1])) if table is not None else 0.5 * c * supply_v**2
         total += n * e
+        if segments:
+            per_span += np.asarray(segments[net], dtype=float) * e
         by_cell[cell] = by_cell.get(cell, 0.0) + n * e
         n_tr += n
     source = (
@@ -225,4 +257,4 @@ def toggle_energy(
         f"lctime internal_power of the driving cell at its load and a {_SLEW_NS:g} ns slew ({Path(liberty).name}), "
         "else 1/2 C V^2 of the pin load; no wires, leakage or clock tree"
     )
-    return EnergyReport(total, int(pixels), int(cycles), n_tr, by_cell, source)
+    return EnergyReport(total, int(pixels), int(cycles), n_tr, by_cell, source, tuple(float(v) for v in per_span))
