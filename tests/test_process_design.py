@@ -53,9 +53,10 @@ def test_the_shipped_sky130_design_builds_the_mesh_in_sky130():
     assert len(opts["corners"]) * len(opts["temperatures_c"]) == 6 and opts["scored"] == "worst"
 
 
-def test_process_pdk_leaves_the_opt_in_asic_idealised_unless_its_own_table_names_the_pdk():
+def test_process_pdk_builds_the_asic_taps_in_the_process_and_nothing_without_it():
     d = parse_design({"process": {"pdk": "sky130"}, "realisations": {"include": ["asic"], "asic": {"bits": 6}}})
-    assert d.realisation_options("asic") == {"bits": 6}  # STA of the sky130 taps does not run yet
+    # only the keys the taps declare: pdk (corners, temperatures and mismatch are the mesh's)
+    assert d.realisation_options("asic") == {"bits": 6, "pdk": "sky130"}
     d = parse_design({"process": {"pdk": "sky130"}, "realisations": {"include": ["asic"], "asic": {"pdk": "sky130"}}})
     assert d.realisation_options("asic") == {"pdk": "sky130"}
     assert parse_design({"realisations": {"include": ["asic"]}}).realisation_options("asic") == {}

@@ -81,7 +81,6 @@ from .sections import design_model, option_tables
 
 __all__ = [
     "MAX_DESIGN_FILE_BYTES",
-    "PROCESS_OPT_IN",
     "Design",
     "axis_values",
     "load_design",
@@ -222,26 +221,19 @@ def _apply_process(data: dict[str, Any]) -> None:
         include.insert(include.index("mesh") + 1, "mesh_process")
 
 
-#: Realisations built in the process only when their own table sets ``pdk``: ``[process]`` leaves them
-#: idealised. The ASIC taps' sky130 flow (synthesis, gate-level check, OpenSTA, toggle energy) runs,
-#: but its gate-level simulation at a sensor-sized frame takes about 15 minutes on 2 cores (against a
-#: 3-minute budget per point, issue 39) and fa_1/dfxtp_1 are characterised at one table point only, so
-#: a ``[process]`` section does not switch every design's taps onto it.
-PROCESS_OPT_IN: frozenset[str] = frozenset({"asic"})
-
-
 def process_fit_options(data: Mapping[str, Any], name: str, options: Mapping[str, Any]) -> dict[str, Any]:
     """``options`` of realisation ``name`` with the design's ``[process]`` keys as defaults.
 
-    A realisation whose options include ``pdk`` (``mesh_process``) takes every ``[process]`` key it
-    declares that the design's ``[realisations.<name>]`` table leaves unset; others, those in
-    :data:`PROCESS_OPT_IN`, and designs without ``[process]``, get ``options`` unchanged.
+    A realisation whose options include ``pdk`` (``mesh_process``; ``asic``, whose taps are then
+    synthesised, simulated at gate level and timed in the PDK's standard cells) takes every
+    ``[process]`` key it declares that the design's ``[realisations.<name>]`` table leaves unset;
+    others, and designs without ``[process]``, get ``options`` unchanged.
     """
     from ..realise.registry import get_realisation
 
     process = data.get("process")
     fields = get_realisation(name).options.model_fields if name in option_tables() else {}
-    if not process or "pdk" not in fields or name in PROCESS_OPT_IN:
+    if not process or "pdk" not in fields:
         return dict(options)
     defaults = {k: copy.deepcopy(v) for k, v in process.items() if k in fields and v is not None}
     return {**defaults, **options}
