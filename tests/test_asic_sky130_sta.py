@@ -60,6 +60,7 @@ def test_the_flow_builds_checks_and_writes_artifacts_the_tools_accept(tmp_path: 
     lo, hi = p["energy_per_pixel_interval_j"]
     assert lo < p["energy_per_pixel_j"] < hi and p["energy_spans"] == 12
     assert p["full_adders"] > 0
+    assert p["fanout_buffers"] > 0 and p["max_fanout"] == 8  # reset and valid nets fan out: buffered, still bit-exact
     assert 50e6 < p["max_clock_hz"] < 3e9  # a few ns of logic in 130 nm
     assert p["energy_per_pixel_j"] > 0
     cost = d.cost()

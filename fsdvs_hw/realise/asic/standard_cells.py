@@ -66,6 +66,7 @@ __all__ = [
     "is_synthesis_family",
     "lef_size_um",
     "liberty_text",
+    "read_input_pins",
     "read_liberty_areas",
     "simulate_cell_functions",
     "sop_function",
@@ -455,3 +456,12 @@ def read_liberty_areas(path: str | Path) -> dict[str, float]:
         m.group(1): float(m.group(2))
         for m in re.finditer(r"cell\s*\(\s*\"?([\w$]+)\"?\s*\)\s*\{\s*area\s*:\s*([0-9.eE+-]+)", text)
     }
+
+
+def read_input_pins(path: str | Path) -> dict[str, set[str]]:
+    """Cell name → names of its ``direction : input`` pins, from a liberty file."""
+    text = Path(path).read_text()
+    heads = list(re.finditer(r"\bcell\s*\(\s*\"?([\w$]+)\"?\s*\)\s*\{", text))
+    ends = [m.start() for m in heads[1:]] + [len(text)]
+    pin = r"pin\s*\(\s*\"?(\w+)\"?\s*\)\s*\{\s*direction\s*:\s*input\b"
+    return {m.group(1): set(re.findall(pin, text[m.end() : end])) for m, end in zip(heads, ends, strict=True)}
