@@ -21,8 +21,18 @@ INV = "sky130_fd_sc_hd__inv_1"
 DFF = "sky130_fd_sc_hd__dfxtp_1"
 
 
-def test_timing_liberty_covers_every_synthesis_cell() -> None:
+def test_timing_liberty_covers_every_synthesis_cell_on_full_tables() -> None:
+    import re
+
+    from fsdvs_hw.realise.asic.cell_timing import split_cells
+    from fsdvs_hw.realise.asic.sky130_data import read_provenance
+
     assert set(read_pin_capacitance_f(TIMING_LIBERTY_PATH)) == set(SYNTHESIS_CELLS)
+    _, cells, _ = split_cells(TIMING_LIBERTY_PATH.read_text())
+    for name, text in cells.items():  # delays and the flip-flop's constraints follow load and slew: 3 x 3
+        templates = set(re.findall(r"(?:cell_rise|cell_fall|rise_constraint|fall_constraint) \((\w+)\)", text))
+        assert templates and all(t.endswith("3x3") for t in templates), (name, templates)
+    assert read_provenance()["timing_liberty"]["single_point_cells"] == []
 
 
 def _chain(n: int) -> str:
@@ -81,9 +91,10 @@ def test_the_flow_builds_checks_and_writes_artifacts_the_tools_accept(tmp_path: 
 _SKY130_DESIGN = """
 [realisations]
 include = ["learned", "delta", "asic"]
+[process]
+pdk = "sky130"                # [process] alone builds the taps in sky130 cells
 [realisations.asic]
 bits = 6
-pdk = "sky130"
 pdk_frame = [16, 24]
 [analysis]
 csf_methods = ["mannos_sakrison_1974"]
@@ -117,3 +128,5 @@ def test_explore_with_sky130_taps_records_the_sta_clock_and_writes_the_netlist(t
     from fsdvs_hw.realise.asic.sky130_artifacts import check_sky130_artifacts
 
     assert check_sky130_artifacts(folder)["pass_line"].startswith("PASS")
+    html = "".join(f.read_text() for f in (tmp_path / "out").rglob("*.html"))
+    assert "taps in sky130 standard cells" in html and "MHz" in html and "bit-exact" in html

@@ -25,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="+",
         default=[],
         metavar="CELL",
-        help="characterise these cells on one table point (5 fF, 0.1 ns ramp): the slow flip-flop and full adder",
+        help="characterise these cells on one table point (5 fF, 0.1 ns ramp) on a slow machine (the committed data uses none)",
     )
 
 

@@ -80,8 +80,10 @@ def regenerate_sky130_data(
         Cells to characterise (default: :data:`~fsdvs_hw.realise.asic.standard_cells.SYNTHESIS_CELLS`).
     single_point : tuple of str
         Cells characterised on one table point only (5 fF, a 0.1 ns ramp) instead of the 3 × 3
-        tables: lctime's setup/hold searches (``dfxtp``) and conditional arcs (``fa``) take about
-        an hour per cell on the full tables on a loaded 2-core machine.
+        tables, for a slow machine: lctime's setup/hold searches (``dfxtp_1``, 1277 s) and
+        conditional arcs (``fa_1``, 455 s) are the slow cells (one run each on a 2-core machine
+        shared with other jobs; over an hour each under heavier load). Their delays then do not
+        follow load and slew, so timing is optimistic on heavily loaded nets.
     progress : callable
         Called with one line per step.
 
