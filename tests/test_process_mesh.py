@@ -220,3 +220,41 @@ def test_transient_settling_grows_linearly_with_the_node_capacitance(design_and_
     assert (t[2] - t[1]) == pytest.approx(t[1] - t[0], rel=0.1)
     parasitic = (t[1] - t[0]) and t[0] / (t[1] - t[0]) * 1e-13 - 1e-13
     assert 0 < parasitic < 1e-13  # the devices add some capacitance, less than the MIM's
+
+
+def test_a_deck_of_copies_holds_independent_patches_and_one_copy_is_the_plain_deck(design_and_bias):
+    from fsdvs_hw.process.mesh_deck import transistor_mesh_deck
+
+    _, bias = design_and_bias
+    one = transistor_mesh_deck(bias, half_width=1, mismatch_seed=5)
+    assert transistor_mesh_deck(bias, half_width=1, mismatch_seed=5, copies=1) == one
+    three = transistor_mesh_deck(bias, half_width=1, mismatch_seed=5, copies=3)
+    fets = lambda deck: sum(line.startswith("X") for line in deck.splitlines())  # noqa: E731
+    assert fets(three) == 3 * fets(one) == 3 * 2 * (9 + 12)  # per mesh: 9 vertical, 12 lateral devices
+    assert three.count(".option seed=5") == 1 and "IINC2N 0 c2n1_1" in three
+    with pytest.raises(InputError, match="copies"):
+        transistor_mesh_deck(bias, half_width=1, copies=0)
+
+
+@needs_tools
+@pytest.mark.slow
+def test_full_patch_monte_carlo_in_ngspice_agrees_with_the_pooled_lattice_estimate():
+    """The cross-check of mismatch_kernels: every transistor of 8 whole patches drawn by ngspice itself.
+
+    A 3×3 DoG on a 3×3 patch here (336 transistors, one ngspice run). On the 5×5 DoG at h = 2 with
+    2 × 16 copies (docs/process.md) the full patch gave 0.316 [0.263, 0.373] and 0.243 [0.213, 0.274]
+    (seeds 7 and 8) where the pooled lattice gave 0.254 [0.245, 0.263] and 0.263 [0.253, 0.273].
+    """
+    from fsdvs_hw import fit_resistive_mesh, reference_kernel
+    from fsdvs_hw.process.corners import full_patch_mismatch, mismatch_kernels
+    from fsdvs_hw.process.mesh_devices import fit_mesh_bias
+
+    design = fit_resistive_mesh(reference_kernel("dog", 3))
+    bias = fit_mesh_bias(design)
+    full = full_patch_mismatch(design, bias, copies=8, half_width=1, seed=11)
+    pooled = mismatch_kernels(design, bias, samples=200, half_width=1, seed=11)
+    errors = np.array(full["error_vs_nominal"])
+    assert full["transistors"] == 8 * 2 * (9 + 12) and len(set(errors.round(12))) == 8  # each copy its own draw
+    assert 0.5 < errors.mean() / np.mean(pooled.error_vs_nominal) < 2.0
+    with pytest.raises(InputError, match="smaller than the 5-tap target"):
+        mismatch_kernels(fit_resistive_mesh(reference_kernel("dog", 5)), bias, samples=2, half_width=1)

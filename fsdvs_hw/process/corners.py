@@ -47,6 +47,7 @@ __all__ = [
     "MismatchSummary",
     "condition_conductances",
     "condition_design",
+    "full_patch_mismatch",
     "lattice_response_per_device",
     "mean_ci",
     "mismatch_kernels",
@@ -146,6 +147,24 @@ def _sample_patch(rng: np.random.Generator, pool_l: np.ndarray, pool_v: np.ndarr
     )
 
 
+def _patch_kernel(design: Any, hn: np.ndarray, hw: np.ndarray) -> np.ndarray:
+    """:math:`w_p \\delta + a H_n - b H_w` on an odd patch (the pixel weight at its centre)."""
+    k = design.gain_narrow * hn - design.gain_wide * hw
+    k[hn.shape[0] // 2, hn.shape[1] // 2] += design.pixel_weight
+    return k
+
+
+def _nominal_kernel(design: Any, conductances: dict[str, float], h: int) -> np.ndarray:
+    """The no-mismatch kernel on a (2h+1)² patch: both meshes solved as lattices with the condition's conductances."""
+    from .mesh_deck import lattice_model_response
+
+    return _patch_kernel(
+        design,
+        lattice_model_response(conductances["lateral_narrow"], conductances["vertical_narrow"], half_width=h),
+        lattice_model_response(conductances["lateral_wide"], conductances["vertical_wide"], half_width=h),
+    )
+
+
 @dataclass(frozen=True)
 class MismatchSummary:
     """Monte Carlo mismatch of the transistor mesh at one corner.
@@ -210,19 +229,13 @@ def mismatch_kernels(
         else min(12, max(design.size // 2 + 2, int(math.ceil(4 * design.lambda_wide_px))))
     )
     n = 2 * h + 1
+    if design.target is not None and design.target.taps.shape[0] > n:
+        raise InputError(
+            f"half_width = {h}: the {n}x{n} patch is smaller than the {design.target.taps.shape[0]}-tap target; "
+            f"allowed {design.target.taps.shape[0] // 2} … 12"
+        )
     pool = mismatch_population(bias, corner=corner, temperature_c=temperature_c, per_role=devices_per_role, seed=seed)
-    nominal = condition_conductances(bias, corner, temperature_c)
-    from .mesh_deck import lattice_model_response
-
-    def kernel(hn: np.ndarray, hw: np.ndarray) -> np.ndarray:
-        k = design.gain_narrow * hn - design.gain_wide * hw
-        k[h, h] += design.pixel_weight
-        return k
-
-    k0 = kernel(
-        lattice_model_response(nominal["lateral_narrow"], nominal["vertical_narrow"], half_width=h),
-        lattice_model_response(nominal["lateral_wide"], nominal["vertical_wide"], half_width=h),
-    )
+    k0 = _nominal_kernel(design, condition_conductances(bias, corner, temperature_c), h)
     target = np.zeros((n, n))
     t = design.target.taps if design.target is not None else k0
     r = t.shape[0] // 2
@@ -232,7 +245,7 @@ def mismatch_kernels(
     for _ in range(samples):
         hn = _sample_patch(rng, pool["lateral_narrow"], pool["vertical_narrow"], n)
         hw = _sample_patch(rng, pool["lateral_wide"], pool["vertical_wide"], n)
-        k = kernel(hn, hw)
+        k = _patch_kernel(design, hn, hw)
         e_nom.append(float(np.linalg.norm(k - k0) / np.linalg.norm(k0)))
         e_tgt.append(float(np.linalg.norm(k - target) / np.linalg.norm(target)))
     ci = {name: list(mean_ci(np.array(v))) for name, v in (("error_vs_nominal", e_nom), ("error_vs_target", e_tgt))}
@@ -250,6 +263,58 @@ def mismatch_kernels(
         time.perf_counter() - t0,
         ci,
     )
+
+
+def full_patch_mismatch(
+    design: Any,
+    bias: MeshBias,
+    *,
+    copies: int = 16,
+    half_width: int = 2,
+    corner: str = "tt",
+    temperature_c: float = 27.0,
+    seed: int = 1,
+) -> dict[str, Any]:
+    """Monte Carlo of the *whole transistor patch* in ngspice: the cross-check of :func:`mismatch_kernels`.
+
+    One deck holds ``copies`` independent copies of both meshes (:func:`~fsdvs_hw.process.mesh_deck.transistor_mesh_deck`
+    with ``copies``), loaded with the corner's mismatch section and ``.option seed``: every
+    transistor draws its own threshold and mobility, and ngspice solves each copy's AC response
+    itself (no linearisation, no device pool). Each copy's kernel error against the no-mismatch
+    lattice kernel on the same patch is one sample of what :func:`mismatch_kernels` estimates by
+    resampling a device population.
+
+    Returns
+    -------
+    dict
+        ``error_vs_nominal`` (one per copy), ``ci`` (mean and 95 % bootstrap interval),
+        ``copies``, ``half_width``, ``transistors``, ``corner``, ``temperature_c``, ``seed``, ``wall_s``.
+    """
+    from .mesh_deck import deck_responses, transistor_mesh_deck
+
+    t0 = time.perf_counter()
+    h, n = int(half_width), 2 * int(half_width) + 1
+    deck = transistor_mesh_deck(
+        bias, half_width=h, corner=corner, temperature_c=temperature_c, mismatch_seed=int(seed), copies=copies
+    )
+    out = run_deck(deck, timeout_s=1800.0)
+    k0 = _nominal_kernel(design, condition_conductances(bias, corner, temperature_c), h)
+
+    errors = []
+    for hn, hw in deck_responses(out, half_width=h, copies=copies):
+        k = _patch_kernel(design, hn, hw)
+        errors.append(float(np.linalg.norm(k - k0) / np.linalg.norm(k0)))
+    return {
+        "error_vs_nominal": errors,
+        "ci": list(mean_ci(np.array(errors))),
+        "copies": int(copies),
+        "half_width": h,
+        "transistors": int(copies) * 2 * (n * n + 2 * n * (n - 1)),
+        "corner": corner,
+        "temperature_c": float(temperature_c),
+        "seed": int(seed),
+        "wall_s": time.perf_counter() - t0,
+    }
 
 
 @dataclass(frozen=True)

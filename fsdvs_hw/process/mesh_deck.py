@@ -45,6 +45,7 @@ from .ngspice import NGSPICE_OPTIONS, run_deck
 __all__ = [
     "MAX_TRANSISTOR_HALF_WIDTH",
     "TransistorMeshResult",
+    "deck_responses",
     "lattice_model_response",
     "settling_time_transient",
     "simulate_transistor_mesh",
@@ -91,6 +92,7 @@ def transistor_mesh_deck(
     mismatch_seed: int | None = None,
     node_capacitance_f: float = 0.0,
     step_stop_s: float | None = None,
+    copies: int = 1,
 ) -> str:
     """The ngspice deck of both meshes as sky130 transistors, AC impulse at the centre.
 
@@ -111,11 +113,16 @@ def transistor_mesh_deck(
     step_stop_s : float, optional
         Instead of the AC analysis, a transient to this time (s) after a current step of 1 pA into
         each centre node at t = 0 (500 output points).
+    copies : int
+        Independent copies of the pair of patches in the one deck (1 … 64), each with its own
+        injections: with ``mismatch_seed`` every device of every copy draws its own mismatch, so one
+        ngspice run (one model load) gives ``copies`` Monte Carlo samples of the whole patch.
 
     Returns
     -------
     str
-        The deck; output currents ``i(von{y}_{x})`` (narrow) and ``i(vow{y}_{x})`` (wide).
+        The deck; output currents ``i(von{y}_{x})`` (narrow) and ``i(vow{y}_{x})`` (wide), or with
+        several copies ``i(voc{c}n{y}_{x})`` and ``i(voc{c}w{y}_{x})`` for copy ``c``.
     """
     from . import sky130
 
@@ -139,9 +146,13 @@ def transistor_mesh_deck(
         f"VGLW glw 0 DC {g['lateral_wide']!r}",
         f"VGVW gvw 0 DC {g['vertical_wide']!r}",
     ]
+    if not (isinstance(copies, int) and 1 <= copies <= 64):
+        raise InputError(f"copies: allowed an integer in 1 … 64, got {copies!r}")
     c_f = float(node_capacitance_f)
-    lines += _mesh_lines("n", n, "gln", "gvn", sky130.NFET, size.w_um, size.l_um, c_f)
-    lines += _mesh_lines("w", n, "glw", "gvw", sky130.NFET, size.w_um, size.l_um, c_f)
+    prefixes = [("n", "w")] if copies == 1 else [(f"c{c}n", f"c{c}w") for c in range(copies)]
+    for pn, pw in prefixes:
+        lines += _mesh_lines(pn, n, "gln", "gvn", sky130.NFET, size.w_um, size.l_um, c_f)
+        lines += _mesh_lines(pw, n, "glw", "gvw", sky130.NFET, size.w_um, size.l_um, c_f)
     if step_stop_s is None:
         src, analysis = f"DC 0 AC {_I_AC!r}", ".ac lin 1 1e-3 1e-3"
     else:
@@ -149,7 +160,10 @@ def transistor_mesh_deck(
             raise InputError(f"step_stop_s: allowed (1e-12, 1) s, got {step_stop_s!r}")
         t = float(step_stop_s)
         src, analysis = f"PWL(0 0 {t * 1e-4!r} {_I_AC!r})", f".tran {t / 500!r} {t!r}"
-    lines += [f"IINN 0 n{h}_{h} {src}", f"IINW 0 w{h}_{h} {src}", analysis, ".options filetype=ascii", ".end", ""]
+    for pn, pw in prefixes:
+        tag = pn[:-1].upper()
+        lines += [f"IIN{tag}N 0 {pn}{h}_{h} {src}", f"IIN{tag}W 0 {pw}{h}_{h} {src}"]
+    lines += [analysis, ".options filetype=ascii", ".end", ""]
     return "\n".join(lines)
 
 
@@ -193,13 +207,23 @@ def simulate_transistor_mesh(
     deck = transistor_mesh_deck(
         bias, half_width=half_width, corner=corner, temperature_c=temperature_c, mismatch_seed=mismatch_seed
     )
-    out = run_deck(deck)
-    n = 2 * half_width + 1
-    grid = lambda p: np.array([[out[f"i(vo{p}{y}_{x})"][0].real for x in range(n)] for y in range(n)]) / _I_AC  # noqa: E731
-    hn, hw = grid("n"), grid("w")
+    ((hn, hw),) = deck_responses(run_deck(deck), half_width=half_width)
     k = design.gain_narrow * hn - design.gain_wide * hw
     k[half_width, half_width] += design.pixel_weight
     return TransistorMeshResult(hn, hw, k, corner, float(temperature_c), mismatch_seed, time.perf_counter() - t0)
+
+
+def deck_responses(
+    vectors: dict[str, np.ndarray], *, half_width: int, copies: int = 1
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each copy's normalised responses ``(H_narrow, H_wide)`` (shape (2h+1)²) from the AC vectors of :func:`transistor_mesh_deck`."""
+    n = 2 * int(half_width) + 1
+
+    def grid(p: str) -> np.ndarray:
+        return np.array([[vectors[f"i(vo{p}{y}_{x})"][0].real for x in range(n)] for y in range(n)]) / _I_AC
+
+    prefixes = [("n", "w")] if copies == 1 else [(f"c{c}n", f"c{c}w") for c in range(copies)]
+    return [(grid(pn), grid(pw)) for pn, pw in prefixes]
 
 
 def lattice_model_response(g_lateral_s: float, g_vertical_s: float, *, half_width: int) -> np.ndarray:
