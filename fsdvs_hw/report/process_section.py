@@ -6,8 +6,10 @@ from the ideal mesh's kernel, space constants, settling time), the Monte Carlo m
 error against the nominal kernel and against the target: mean and 95 % interval, n), the accuracy
 loss of the scored condition (the worst corner by default) beside the ideal ``mesh`` point's, and
 the designer's question: does it fit the pixel, and if not the smallest pitch and the sharing that
-fits, with the kernel error sharing costs. Every figure names its source (PDK, condition, ngspice
-version, samples).
+fits, with the kernel error sharing costs. For every ``asic`` point built in the process
+(:mod:`fsdvs_hw.realise.asic.sky130_flow`): the mapped cells, area, OpenSTA's critical path and
+highest clock, the toggle energy per pixel with its interval and the gate-level check. Every figure
+names its source (PDK, condition, tool version, samples).
 
 Examples
 --------
@@ -90,10 +92,49 @@ def _point_html(
     return "".join(parts)
 
 
+def _taps_html(p: ScoredPoint, proc: Mapping[str, Any]) -> str:
+    """The ASIC taps point built in the process: cells, area, clock, energy, each with its source."""
+    src = proc.get("sources", {})
+    lo, hi = proc.get("energy_per_pixel_interval_j") or (None, None)
+    rows = [
+        (
+            "cells (flip-flops, full adders, fanout buffers)",
+            f"{proc['cells']} ({proc['flip_flops']}, {proc['full_adders']}, {proc.get('fanout_buffers', 0)})",
+            src.get("area_m2", ""),
+        ),
+        ("cell area", f"{_f(proc['area_m2'] * 1e12, 4)} µm²", src.get("area_m2", "")),
+        (
+            "critical path / highest clock",
+            f"{_f(proc['critical_path_s'] * 1e9)} ns / {_f(proc['max_clock_hz'] / 1e6)} MHz",
+            src.get("max_clock_hz", ""),
+        ),
+        (
+            "energy per pixel",
+            f"{_f(proc['energy_per_pixel_j'] * 1e12)} pJ [95 % interval {_f(lo and lo * 1e12)}, {_f(hi and hi * 1e12)}]",
+            src.get("energy_per_pixel_j", ""),
+        ),
+        ("gate-level check", f"{proc['outputs_checked']} outputs bit-exact", src.get("gate_level_bit_exact", "")),
+    ]
+    body = "".join(
+        f"<tr><td>{escape(a)}</td><td>{escape(b)}</td><td class='note'>{escape(c)}</td></tr>" for a, b, c in rows
+    )
+    h, w = proc.get("frame", ["?", "?"])
+    return (
+        f"<h3>{escape(p.score.label if p.score is not None else p.realisation)}: taps in {escape(proc.get('pdk', ''))} standard cells ({h}×{w} frame, "
+        f"{escape(proc.get('corner', ''))} {_f(proc.get('temperature_c'))} °C)</h3>"
+        f"<table><tr><th>figure</th><th>value</th><th>source</th></tr>{body}</table>"
+    )
+
+
 def process_section(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, Any]]) -> Markup | str:
     """HTML of the section (module docstring); ``""`` when no point was built in a process."""
     procs = [p for p in points if p.ok and p.score is not None and p.realisation == "mesh_process"]
-    if not procs:
+    taps = [
+        (p, p.score.realisation["process"])
+        for p in points
+        if p.ok and p.score is not None and p.realisation == "asic" and (p.score.realisation or {}).get("process")
+    ]
+    if not procs and not taps:
         return ""
     by_key = {r.get("key"): r for r in rows}
     ideal = next((r for r in rows if r.get("realisation") == "mesh" and r.get("status") == "ok"), None)
@@ -101,9 +142,12 @@ def process_section(points: Sequence[ScoredPoint], rows: Sequence[Mapping[str, A
         "<h2 id='process'>Built in a real process</h2><p class='note'>The dual mesh as the PDK's subthreshold "
         "transistors (fsdvs_hw.process): gate biases fitted at the nominal condition and held, the kernel at every "
         "corner × temperature and under Monte Carlo mismatch; the scored condition's kernel went through the simulator "
-        "and the task networks like any realisation.</p>"
+        "and the task networks like any realisation. The ASIC taps as the PDK's standard cells: synthesised, "
+        "checked bit-exactly at gate level, timed and costed from their toggles (their kernel is the "
+        "idealised taps' own: only the costs change).</p>"
     ]
     for p in procs:
         rec = p.score.realisation if p.score is not None else {}
         html.append(_point_html(p, rec or {}, by_key.get(p.key), ideal))
+    html += [_taps_html(p, proc) for p, proc in taps]
     return Markup("".join(html))
