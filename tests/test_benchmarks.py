@@ -301,3 +301,10 @@ def test_every_bench_measures_into_records_first(name, tmp_path):
     assert run.name == name
     assert_records_are_what_is_printed(run)
     assert read_json(write_json(run.records, tmp_path / f"{name}.json")) == list(run.records)
+
+
+def test_the_bench_help_names_every_registered_bench() -> None:
+    import benchmarks
+    from fsdvs_hw.cli.bench import _NAMES
+
+    assert [n.strip() for n in _NAMES.split(",")] == list(benchmarks.BENCHMARKS)

@@ -19,7 +19,10 @@ from ..errors import InputError
 
 __all__ = ["DESCRIPTION", "HELP", "add_arguments", "load_benchmarks", "run"]
 
-_NAMES = "csf, tasks, asic, mesh, metalens, sim, explore, stats, sensors, user_data, upsampling, demo"
+_NAMES = (
+    "csf, tasks, asic, asic_sky130, mesh, mesh_sky130, metalens, sim, explore, stats, sensors, user_data, "
+    "user_data_stages, upsampling, demo"
+)
 
 HELP = "speed/accuracy benchmarks (error vs run time) for each component"
 DESCRIPTION = (
