@@ -119,8 +119,9 @@ def _taps_html(p: ScoredPoint, proc: Mapping[str, Any]) -> str:
         f"<tr><td>{escape(a)}</td><td>{escape(b)}</td><td class='note'>{escape(c)}</td></tr>" for a, b, c in rows
     )
     h, w = proc.get("frame", ["?", "?"])
+    label = p.score.label if p.score is not None else p.realisation
     return (
-        f"<h3>{escape(p.score.label if p.score is not None else p.realisation)}: taps in {escape(proc.get('pdk', ''))} standard cells ({h}×{w} frame, "
+        f"<h3>{escape(label)}: taps in {escape(proc.get('pdk', ''))} standard cells ({h}×{w} frame, "
         f"{escape(proc.get('corner', ''))} {_f(proc.get('temperature_c'))} °C)</h3>"
         f"<table><tr><th>figure</th><th>value</th><th>source</th></tr>{body}</table>"
     )
