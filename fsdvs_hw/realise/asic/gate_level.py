@@ -51,6 +51,7 @@ import shutil
 import subprocess
 import tempfile
 import time
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -424,13 +425,18 @@ def vcd_toggle_segments(path: str | Path, segments: int) -> dict[str, np.ndarray
     if int(segments) < 1:
         raise InputError(f"segments: must be >= 1, got {segments!r}")
     n_seg = int(segments)
-    head, _, body = Path(path).read_text().partition("$enddefinitions")
     codes: dict[str, tuple[str, int, int]] = {}  # id → (name, width, lsb index)
-    for m in re.finditer(r"\$var\s+\S+\s+(\d+)\s+(\S+)\s+(\S+)(?:\s+\[(\d+)(?::(\d+))?\])?\s+\$end", head):
-        lsb = int(m.group(5) if m.group(5) is not None else (m.group(4) or 0))
-        codes.setdefault(m.group(2), (m.group(3), int(m.group(1)), lsb))
-    counts = {c: np.zeros((n_seg, w), dtype=np.int64) for c, (_, w, _) in codes.items()}
-    _count_changes(body.split("\n"), codes, counts, _last_time(path))
+    with open(path) as f:  # streamed: a dump of a large frame runs to gigabytes
+        head = []
+        for line in f:
+            head.append(line)
+            if "$enddefinitions" in line:
+                break
+        for m in re.finditer(r"\$var\s+\S+\s+(\d+)\s+(\S+)\s+(\S+)(?:\s+\[(\d+)(?::(\d+))?\])?\s+\$end", "".join(head)):
+            lsb = int(m.group(5) if m.group(5) is not None else (m.group(4) or 0))
+            codes.setdefault(m.group(2), (m.group(3), int(m.group(1)), lsb))
+        counts = {c: np.zeros((n_seg, w), dtype=np.int64) for c, (_, w, _) in codes.items()}
+        _count_changes(f, codes, counts, _last_time(path))
     out: dict[str, np.ndarray] = {}
     for code, (name, width, lsb) in codes.items():
         for i in range(width):  # counts[code][:, i]: bit i from the right (LSB first)
@@ -438,7 +444,7 @@ def vcd_toggle_segments(path: str | Path, segments: int) -> dict[str, np.ndarray
     return out
 
 
-def _count_changes(lines: list[str], codes: dict, counts: dict[str, np.ndarray], t_end: int) -> None:
+def _count_changes(lines: Iterable[str], codes: dict, counts: dict[str, np.ndarray], t_end: int) -> None:
     n_seg = next(iter(counts.values())).shape[0] if counts else 1
     last: dict[str, str] = {}
     seg, t0, span = 0, -1, 1
