@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from fsdvs_hw.design import DesignError, load_design, parse_design
@@ -60,3 +61,20 @@ def test_process_pdk_builds_the_asic_taps_in_the_process_and_nothing_without_it(
     d = parse_design({"process": {"pdk": "sky130"}, "realisations": {"include": ["asic"], "asic": {"pdk": "sky130"}}})
     assert d.realisation_options("asic") == {"pdk": "sky130"}
     assert parse_design({"realisations": {"include": ["asic"]}}).realisation_options("asic") == {}
+
+
+def test_a_taps_frame_too_large_to_simulate_is_refused_when_the_design_is_read():
+    from fsdvs_hw import fit_asic_taps
+    from fsdvs_hw.errors import InputError
+    from fsdvs_hw.realise.asic.options import MAX_PDK_FRAME_WORK
+
+    raw = {"process": {"pdk": "sky130"}, "realisations": {"include": ["asic"], "asic": {"pdk_frame": [480, 640]}}}
+    with pytest.raises(DesignError, match=r"realisations\.asic\.pdk_frame.*H·W² = 196608000"):
+        parse_design(raw)  # [process] gives the taps their pdk: the bound applies at load, not after a 10-hour run
+    raw["realisations"]["asic"]["pdk_frame"] = [128, 128]  # 128 * 128**2 = 2,097,152: allowed
+    assert MAX_PDK_FRAME_WORK >= 128**3 and parse_design(raw).realisation_options("asic")["pdk_frame"] == [128, 128]
+    del raw["process"]  # without a process nothing is simulated: any frame in range
+    raw["realisations"]["asic"]["pdk_frame"] = [480, 640]
+    assert parse_design(raw).realisation_options("asic") == {"pdk_frame": [480, 640]}
+    with pytest.raises(InputError, match="pdk_frame"):
+        fit_asic_taps(np.eye(3), bits=4, pdk="sky130", pdk_frame=(1024, 1024))

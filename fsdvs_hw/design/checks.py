@@ -8,6 +8,7 @@ realisation's options on the target. :func:`check_design` runs them in that orde
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 from collections.abc import Mapping
@@ -30,7 +31,7 @@ from .problems import DesignError, DesignProblems
 from .sections import CODESIGN_MODES, design_model, option_tables
 from .user_data_inputs import check_user_task, pending_kernel
 
-__all__ = ["check_design"]
+__all__ = ["check_design", "process_fit_options"]
 
 
 def check_design(chk: DesignProblems, data: dict[str, Any], base: Path, confine: Confinement) -> Kernel | None:
@@ -82,9 +83,26 @@ def check_design(chk: DesignProblems, data: dict[str, Any], base: Path, confine:
     return target
 
 
+def process_fit_options(data: Mapping[str, Any], name: str, options: Mapping[str, Any]) -> dict[str, Any]:
+    """``options`` of realisation ``name`` with the design's ``[process]`` keys as defaults.
+
+    A realisation whose options include ``pdk`` (``mesh_process``; ``asic``, whose taps are then
+    synthesised, simulated at gate level and timed in the PDK's standard cells) takes every
+    ``[process]`` key it declares that the design's ``[realisations.<name>]`` table leaves unset;
+    others, and designs without ``[process]``, get ``options`` unchanged.
+    """
+    process = data.get("process")
+    fields = get_realisation(name).options.model_fields if name in option_tables() else {}
+    if not process or "pdk" not in fields:
+        return dict(options)
+    defaults = {k: copy.deepcopy(v) for k, v in process.items() if k in fields and v is not None}
+    return {**defaults, **options}
+
+
 def _check_options_on_target(chk: DesignProblems, data: dict[str, Any], target: Kernel | None) -> None:
     """Each included realisation's options against its fit's rules on the target kernel (its options
-    model validated with the target in the context, as the fit does: the same rules and words)."""
+    model validated with the target in the context, as the fit does: the same rules and words), with
+    the ``[process]`` keys it takes (:func:`process_fit_options`)."""
     if target is None:
         return
     try:
@@ -95,8 +113,9 @@ def _check_options_on_target(chk: DesignProblems, data: dict[str, Any], target: 
         if name not in option_tables():
             continue
         options = get_realisation(name).options
+        given = process_fit_options(data, name, data["realisations"][name])
         try:
-            options.model_validate(data["realisations"][name], context={**DESIGN_CONTEXT, "target": target})
+            options.model_validate(given, context={**DESIGN_CONTEXT, "target": target})
         except ValidationError as exc:
             chk.problems.extend(problems(exc, options, prefix=f"realisations.{name}."))
 

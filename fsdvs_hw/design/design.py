@@ -73,7 +73,7 @@ from ..kernels import Kernel
 from ..paths import Confinement, DataRoots, safe_name
 from ..schema import DESIGN_CONTEXT, StrictModel, problems
 from .checkpoints import checkpoint_entries
-from .checks import check_design
+from .checks import check_design, process_fit_options
 from .design_paths import resolve_design_path
 from .keys import canonical_key, check_key, set_dotted_key
 from .problems import DesignError, DesignProblems
@@ -219,24 +219,6 @@ def _apply_process(data: dict[str, Any]) -> None:
     include = data["realisations"]["include"]
     if "mesh_process" in realisation_names() and "mesh" in include and "mesh_process" not in include:
         include.insert(include.index("mesh") + 1, "mesh_process")
-
-
-def process_fit_options(data: Mapping[str, Any], name: str, options: Mapping[str, Any]) -> dict[str, Any]:
-    """``options`` of realisation ``name`` with the design's ``[process]`` keys as defaults.
-
-    A realisation whose options include ``pdk`` (``mesh_process``; ``asic``, whose taps are then
-    synthesised, simulated at gate level and timed in the PDK's standard cells) takes every
-    ``[process]`` key it declares that the design's ``[realisations.<name>]`` table leaves unset;
-    others, and designs without ``[process]``, get ``options`` unchanged.
-    """
-    from ..realise.registry import get_realisation
-
-    process = data.get("process")
-    fields = get_realisation(name).options.model_fields if name in option_tables() else {}
-    if not process or "pdk" not in fields:
-        return dict(options)
-    defaults = {k: copy.deepcopy(v) for k, v in process.items() if k in fields and v is not None}
-    return {**defaults, **options}
 
 
 def load_design(path: str | Path) -> Design:

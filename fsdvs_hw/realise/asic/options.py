@@ -20,7 +20,12 @@ from ...validation import PITCH_RANGE_M
 from ..fit_options import FitOptions, OptionProblem
 from .arith import MAX_INPUT_BITS, MAX_TAP_BITS, resolve_symmetry, symmetry_classes
 
-__all__ = ["AsicOptions"]
+__all__ = ["MAX_PDK_FRAME_WORK", "AsicOptions"]
+
+#: Largest ``H · W²`` of ``pdk_frame``: the gate-level simulation grows with the pixels streamed (H·W)
+#: times the cells (line buffers of W pixels); 48 × 64 took 60 s on 2 cores, so this bound is about
+#: 16 minutes (e.g. 128 × 128, or 48 × 256).
+MAX_PDK_FRAME_WORK: int = 16 * 48 * 64 * 64
 
 
 class AsicOptions(FitOptions):
@@ -63,11 +68,13 @@ class AsicOptions(FitOptions):
         timing and toggle energy; the cost record's area, clock and energy then come from them.
         None (default): the literature models.
     pdk_frame : (int, int)
-        Frame (H, W) in pixels the process build is made and simulated for (line buffers of W pixels).
+        Frame (H, W) in pixels the process build is made and simulated for (line buffers of W pixels);
+        with ``pdk`` set, ``H · W²`` at most :data:`MAX_PDK_FRAME_WORK` (gate-level time grows so).
 
     Notes
     -----
-    Rule between options: with ``objective="csf"`` a ``geometry`` is a :class:`fsdvs_hw.csf.Geometry`.
+    Rule between options: with ``objective="csf"`` a ``geometry`` is a :class:`fsdvs_hw.csf.Geometry`;
+    with ``pdk`` set, ``pdk_frame``'s ``H · W²`` is at most :data:`MAX_PDK_FRAME_WORK`.
     Rule on the target: its part with the chosen ``symmetry`` is not all zeros.
     """
 
@@ -98,13 +105,21 @@ class AsicOptions(FitOptions):
     ) = field((48, 64), "px", "frame (H, W) the process build is made and simulated for")
 
     def option_problems(self) -> list[OptionProblem]:
-        """With ``objective="csf"`` a ``geometry`` is a :class:`fsdvs_hw.csf.Geometry` (or None)."""
+        """The rules between options (class Notes)."""
         from ...csf import Geometry
 
+        out = []
         if self.objective == "csf" and self.geometry is not None and not isinstance(self.geometry, Geometry):
             why = f"expected a fsdvs_hw.csf.Geometry or None, got {type(self.geometry).__name__}"
-            return [OptionProblem("geometry", self.geometry, why)]
-        return []
+            out.append(OptionProblem("geometry", self.geometry, why))
+        h, w = (int(v) for v in self.pdk_frame)
+        if self.pdk is not None and h * w * w > MAX_PDK_FRAME_WORK:
+            why = (
+                f"H·W² = {h * w * w} exceeds {MAX_PDK_FRAME_WORK} (the gate-level simulation grows as H·W²: "
+                "48×64 takes about 60 s on 2 cores, this bound about 16 min); e.g. [128, 128] or [48, 256]"
+            )
+            out.append(OptionProblem("pdk_frame", list(self.pdk_frame), why))
+        return out
 
     def target_problems(self, target: Kernel) -> list[OptionProblem]:
         """The target's part with the chosen symmetry must not be all zeros (nothing to quantise)."""
