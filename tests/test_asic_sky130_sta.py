@@ -27,11 +27,16 @@ def test_timing_liberty_covers_every_synthesis_cell_on_full_tables() -> None:
     from fsdvs_hw.realise.asic.cell_timing import split_cells
     from fsdvs_hw.realise.asic.sky130_data import read_provenance
 
-    assert set(read_pin_capacitance_f(TIMING_LIBERTY_PATH)) == set(SYNTHESIS_CELLS)
-    _, cells, _ = split_cells(TIMING_LIBERTY_PATH.read_text())
-    for name, text in cells.items():  # delays and the flip-flop's constraints follow load and slew: 3 x 3
-        templates = set(re.findall(r"(?:cell_rise|cell_fall|rise_constraint|fall_constraint) \((\w+)\)", text))
-        assert templates and all(t.endswith("3x3") for t in templates), (name, templates)
+    from fsdvs_hw.realise.asic.cell_timing import characterised_corners, timing_liberty_path
+
+    assert characterised_corners() == ("tt", "ff", "ss")
+    for corner in characterised_corners():
+        lib = timing_liberty_path(corner)
+        assert set(read_pin_capacitance_f(lib)) == set(SYNTHESIS_CELLS)
+        _, cells, _ = split_cells(lib.read_text())
+        for name, text in cells.items():  # delays and the flip-flop's constraints follow load and slew: 3 x 3
+            templates = set(re.findall(r"(?:cell_rise|cell_fall|rise_constraint|fall_constraint) \((\w+)\)", text))
+            assert templates and all(t.endswith("3x3") for t in templates), (corner, name, templates)
     assert read_provenance()["timing_liberty"]["single_point_cells"] == []
 
 
@@ -59,13 +64,39 @@ def test_sta_critical_path_grows_by_one_inverter_delay_per_inverter() -> None:
 
 
 @needs_tools
+def test_an_inverter_is_slowest_at_ss_and_fastest_at_ff() -> None:
+    from fsdvs_hw.realise.asic.cell_timing import characterised_corners, timing_liberty_path
+    from fsdvs_hw.realise.asic.static_timing import run_sta
+
+    assert {"tt", "ss", "ff"} <= set(characterised_corners())
+    per = {}
+    for c in ("ff", "tt", "ss"):
+        t4, t12 = (run_sta(_chain(n), timing_liberty_path(c), top="chain") for n in (4, 12))
+        per[c] = (t12.critical_path_s - t4.critical_path_s) / 8
+    # same 1.8 V and 25 °C, slow or fast devices: the delay moves by tens of per cent, not by factors
+    assert per["ff"] < per["tt"] < per["ss"]
+    assert 1.05 < per["ss"] / per["tt"] < 2.0 and 0.5 < per["ff"] / per["tt"] < 0.95
+
+
+def test_a_corner_without_a_liberty_is_refused_with_the_command() -> None:
+    from fsdvs_hw import fit_asic_taps
+    from fsdvs_hw.errors import InputError
+
+    with pytest.raises(InputError, match="process-cells --corners sf"):
+        fit_asic_taps(TAPS / 5.0, bits=4, pdk="sky130", corners=["sf"])
+
+
+@needs_tools
 def test_the_flow_builds_checks_and_writes_artifacts_the_tools_accept(tmp_path: Path) -> None:
     from fsdvs_hw import fit_asic_taps
     from fsdvs_hw.realise.asic.artifacts import write_asic_artifacts
     from fsdvs_hw.realise.asic.sky130_artifacts import check_sky130_artifacts
 
-    d = fit_asic_taps(TAPS / 5.0, bits=4, input_bits=4, pdk="sky130", pdk_frame=(8, 10))
+    d = fit_asic_taps(TAPS / 5.0, bits=4, input_bits=4, pdk="sky130", pdk_frame=(8, 10), corners=("tt", "ss", "ff"))
     p = d.process
+    clocks = {c: t["max_clock_hz"] for c, t in p["corner_timing"].items()}
+    assert clocks["ss"] < clocks["tt"] < clocks["ff"] and p["clock_corner"] == "ss"  # the slowest corner sets the clock
+    assert p["max_clock_hz"] == clocks["ss"] and "slowest of tt, ss, ff" in p["sources"]["max_clock_hz"]
     assert p is not None and p["gate_level_bit_exact"] and p["outputs_checked"] == 6 * 8  # one frame
     lo, hi = p["energy_per_pixel_interval_j"]
     assert lo < p["energy_per_pixel_j"] < hi and p["energy_spans"] == 12

@@ -56,10 +56,12 @@ def test_the_shipped_sky130_design_builds_the_mesh_in_sky130():
 
 def test_process_pdk_builds_the_asic_taps_in_the_process_and_nothing_without_it():
     d = parse_design({"process": {"pdk": "sky130"}, "realisations": {"include": ["asic"], "asic": {"bits": 6}}})
-    # only the keys the taps declare: pdk (corners, temperatures and mismatch are the mesh's)
-    assert d.realisation_options("asic") == {"bits": 6, "pdk": "sky130"}
-    d = parse_design({"process": {"pdk": "sky130"}, "realisations": {"include": ["asic"], "asic": {"pdk": "sky130"}}})
-    assert d.realisation_options("asic") == {"pdk": "sky130"}
+    # only the keys the taps declare: pdk and the corners they are timed at (temperatures, mismatch: the mesh's)
+    assert d.realisation_options("asic") == {"bits": 6, "pdk": "sky130", "corners": ["tt", "ff", "ss"]}
+    d = parse_design({"process": {"pdk": "sky130"}, "realisations": {"include": ["asic"], "asic": {"corners": ["tt"]}}})
+    assert d.realisation_options("asic") == {"pdk": "sky130", "corners": ["tt"]}  # its own table wins
+    with pytest.raises(DesignError, match=r"realisations\.asic\.corners.*process-cells --corners sf"):
+        parse_design({"process": {"pdk": "sky130", "corners": ["tt", "sf"]}, "realisations": {"include": ["asic"]}})
     assert parse_design({"realisations": {"include": ["asic"]}}).realisation_options("asic") == {}
 
 

@@ -27,6 +27,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="CELL",
         help="characterise these cells on one table point (5 fF, 0.1 ns ramp) on a slow machine (the committed data uses none)",
     )
+    parser.add_argument(
+        "--corners",
+        nargs="+",
+        default=["tt"],
+        choices=["tt", "ff", "ss", "sf", "fs"],
+        help="device-model corners, each its own liberty (25 °C, 1.8 V); default: tt",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -36,5 +43,6 @@ def run(args: argparse.Namespace) -> int:
         characterise=not args.no_timing,
         cells=tuple(args.cells) if args.cells else None,
         single_point=tuple(args.single_point),
+        corners=tuple(args.corners),
     )
     return 0

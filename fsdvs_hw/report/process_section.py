@@ -109,6 +109,11 @@ def _taps_html(p: ScoredPoint, proc: Mapping[str, Any]) -> str:
             src.get("max_clock_hz", ""),
         ),
         (
+            "highest clock per corner",
+            ", ".join(f"{c} {_f(t['max_clock_hz'] / 1e6)} MHz" for c, t in (proc.get("corner_timing") or {}).items()),
+            "OpenSTA at each corner's lctime liberty (25 °C, 1.8 V)",
+        ),
+        (
             "energy per pixel",
             f"{_f(proc['energy_per_pixel_j'] * 1e12)} pJ [95 % interval {_f(lo and lo * 1e12)}, {_f(hi and hi * 1e12)}]",
             src.get("energy_per_pixel_j", ""),

