@@ -209,7 +209,7 @@ def characterise_cell(
     cache : path, optional
         Default :func:`cache_dir`.
     """
-    cache = Path(cache) if cache is not None else cache_dir()
+    cache = (Path(cache) if cache is not None else cache_dir()).resolve()  # absolute: lctime runs in a temp folder
     cache.mkdir(parents=True, exist_ok=True)
     spice = _cell_spice(cell)
     models = core_models_file(corner, cache)
@@ -221,7 +221,7 @@ def characterise_cell(
     out = cache / f"{cell}__{corner}__{key}.lib"
     if out.is_file():
         return out
-    cmd = [find_lctime(), "-l", str(template), "--cell", cell, "--spice", str(spice), "-I", str(models)]
+    cmd = [find_lctime(), "-l", str(Path(template).resolve()), "--cell", cell, "--spice", str(spice), "-I", str(models)]
     cmd += [
         "--output-loads",
         _fmt(loads_pf),
@@ -235,6 +235,7 @@ def characterise_cell(
         env = {**os.environ, "OMP_NUM_THREADS": "1"}
         res = subprocess.run(
             [*cmd, "-o", str(part), "--workingdir", tmp, "-j", "1"],
+            cwd=tmp,  # ngspice writes bsim4v5.out (model-parameter warnings) into its working folder
             capture_output=True,
             text=True,
             timeout=timeout_s,
