@@ -34,23 +34,25 @@ from collections.abc import Mapping
 from ...errors import InputError
 from ...process.sky130 import CELL_LIBRARY
 
-__all__ = ["BUFFER_CELL", "DEFAULT_MAX_FANOUT", "buffer_high_fanout", "fanouts"]
+__all__ = ["BUFFER_CELL", "DEFAULT_MAX_FANOUT", "INSTANCE_PATTERN", "PIN_PATTERN", "buffer_high_fanout", "fanouts"]
 
 #: The cell the trees are built from (the only buffer in the synthesis subset).
 BUFFER_CELL: str = f"{CELL_LIBRARY}__buf_1"
 #: Largest number of cell inputs a net drives after buffering (about 20 fF of ``_1`` inputs).
 DEFAULT_MAX_FANOUT: int = 8
 
-_INSTANCE = re.compile(r"^(\s*)(\w+)\s+(\\\S+|\w+)\s*\(((?:\s*\.\w+\([^()]*\),?)+)\s*\);", flags=re.M)
-_PIN = re.compile(r"\.(\w+)\(([^()]*)\)")
+#: One cell instance of yosys's ``write_verilog -noattr``: (indent, cell type, instance, pin list).
+INSTANCE_PATTERN = re.compile(r"^(\s*)(\w+)\s+(\\\S+|\w+)\s*\(((?:\s*\.\w+\([^()]*\),?)+)\s*\);", flags=re.M)
+#: One ``.PIN(net)`` connection of an instance's pin list: (pin, net as written).
+PIN_PATTERN = re.compile(r"\.(\w+)\(([^()]*)\)")
 
 
 def _sinks(verilog: str, inputs: Mapping[str, set[str]]) -> dict[str, list[tuple[str, str]]]:
     """Net (spaces removed) → ``[(instance, pin)]`` of the cell inputs it drives."""
     out: dict[str, list[tuple[str, str]]] = {}
-    for m in _INSTANCE.finditer(verilog):
+    for m in INSTANCE_PATTERN.finditer(verilog):
         pins_in = inputs.get(m.group(2), set())
-        for p in _PIN.finditer(m.group(4)):
+        for p in PIN_PATTERN.finditer(m.group(4)):
             if p.group(1) in pins_in:
                 out.setdefault(p.group(2).replace(" ", ""), []).append((m.group(3), p.group(1)))
     return out
@@ -133,11 +135,11 @@ def buffer_high_fanout(
 
     def rewire(m: re.Match[str]) -> str:
         inst = m.group(3)
-        pins = _PIN.sub(lambda p: f".{p.group(1)}({remap.get((inst, p.group(1)), p.group(2))})", m.group(4))
+        pins = PIN_PATTERN.sub(lambda p: f".{p.group(1)}({remap.get((inst, p.group(1)), p.group(2))})", m.group(4))
         return f"{m.group(1)}{m.group(2)} {inst} ({pins});"
 
-    body = _INSTANCE.sub(rewire, verilog)
-    first = _INSTANCE.search(body)
+    body = INSTANCE_PATTERN.sub(rewire, verilog)
+    first = INSTANCE_PATTERN.search(body)
     at = first.start() if first is not None else body.rindex("endmodule")
     wires = "".join(f"  wire {o};\n" for _, _, o in buffers)  # declared before the first instance uses them
     head, _, _ = (body[:at] + wires + body[at:]).rpartition("endmodule")

@@ -22,7 +22,7 @@ rate (:func:`fsdvs_hw.costs.asic.asic_cost`).
 Examples
 --------
 >>> from fsdvs_hw.realise.asic.toggle_power import netlist_connections
->>> v = "module m (a, y);\\n  input a;\\n  output y;\\n  sky130_fd_sc_hd__inv_1 u (\\n    .A(a),\\n    .Y(y)\\n  );\\nendmodule\\n"
+>>> v = "module m (a, y);\n  input a;\n  output y;\n  sky130_fd_sc_hd__inv_1 u (\n    .A(a),\n    .Y(y)\n  );\nendmodule\n"
 >>> netlist_connections(v)
 [('sky130_fd_sc_hd__inv_1', 'u', {'A': 'a', 'Y': 'y'})]
 """
@@ -38,6 +38,7 @@ import numpy as np
 
 from ...errors import InputError
 from .cell_timing import read_pin_capacitance_f, split_cells
+from .fanout import INSTANCE_PATTERN, PIN_PATTERN
 
 __all__ = [
     "EnergyReport",
@@ -133,9 +134,9 @@ def netlist_connections(verilog: str) -> list[tuple[str, str, dict[str, str]]]:
     Net names are as written, spaces removed (``\\lb0[0] [3]`` → ``\\lb0[0][3]``).
     """
     out: list[tuple[str, str, dict[str, str]]] = []
-    for m in re.finditer(r"^\s*(\w+)\s+(\\\S+|\w+)\s*\(((?:\s*\.\w+\([^()]*\),?)+)\s*\);", verilog, flags=re.M):
-        pins = {p.group(1): p.group(2).replace(" ", "") for p in re.finditer(r"\.(\w+)\(([^()]*)\)", m.group(3))}
-        out.append((m.group(1), m.group(2), pins))
+    for m in INSTANCE_PATTERN.finditer(verilog):
+        pins = {p.group(1): p.group(2).replace(" ", "") for p in PIN_PATTERN.finditer(m.group(4))}
+        out.append((m.group(2), m.group(3), pins))
     return out
 
 
